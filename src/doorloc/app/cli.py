@@ -1,0 +1,50 @@
+"""The `doorloc` console script: one Typer app, each area registering its own subcommands.
+
+Every command turns expected failures (bad files, bad arguments) into one sentence on stderr and a
+non-zero exit code; a stack trace reaches the user only with ``DOORLOC_DEBUG=1``.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+
+import typer
+
+from doorloc import __version__
+from doorloc.app import cli_calibrate, cli_locate, cli_recipes, cli_render, cli_serve
+
+app = typer.Typer(
+    name="doorloc",
+    help="Locate a wooden door in a milling cell and turn its recipe into robot targets.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+
+
+
+@app.callback()
+def _root() -> None:
+    """Locate a wooden door in a milling cell and turn its recipe into robot targets."""
+
+
+for _module in (cli_calibrate, cli_locate, cli_render, cli_recipes, cli_serve):
+    _module.register(app)
+
+
+@app.command("version")
+def version() -> None:
+    """Print the doorloc version."""
+    typer.echo(__version__)
+
+
+def main() -> None:
+    """Console-script entry point."""
+    try:
+        app()
+    except (ValueError, OSError) as e:  # a last line of defence; commands report their own errors first
+        if os.environ.get("DOORLOC_DEBUG"):
+            raise
+        typer.echo(f"doorloc: error: {e}", err=True)
+        sys.exit(2)

@@ -1,0 +1,218 @@
+"""Calibration files: OpenCV FileStorage YAML and ROS ``camera_info`` YAML (shared/SPEC.md section 5).
+
+Both are read wherever a calibration is accepted; the format is recognised from the content.
+OpenCV's ``%YAML:1.0`` header and ``!!opencv-matrix`` tags are not YAML that PyYAML accepts, so the
+reader drops the header and gives the tag a constructor. Writers go through a temporary file and an
+atomic rename: a failed write never leaves a half-written calibration behind.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from doorloc.calib.camera import CameraModel
+
+__all__ = [
+    "CalibrationFile",
+    "CalibrationFileError",
+    "load_calibration",
+    "parse_calibration",
+    "dump_opencv_yaml",
+    "dump_ros_yaml",
+    "save_calibration",
+    "atomic_write_text",
+]
+
+
+class CalibrationFileError(ValueError):
+    """A calibration file that cannot be read; the message says which file and what is wrong."""
+
+
+@dataclass(frozen=True)
+class CalibrationFile:
+    """A camera model with the quality figures stored beside it.
+
+    ``avg_reprojection_error`` in pixels (RMS over all corners), ``per_view_reprojection_errors`` in
+    pixels (RMS per view); ``extra`` keeps any other keys found in the file.
+    """
+
+    camera: CameraModel
+    avg_reprojection_error: float | None = None
+    per_view_reprojection_errors: list[float] = field(default_factory=list)
+    camera_name: str = "doorloc"
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+class _OpenCVLoader(yaml.SafeLoader):
+    pass
+
+
+def _opencv_matrix(loader: yaml.SafeLoader, node: yaml.Node) -> np.ndarray:
+    m = loader.construct_mapping(node, deep=True)
+    data = np.asarray(m["data"], dtype=float)
+    return data.reshape(int(m["rows"]), int(m["cols"]))
+
+
+_OpenCVLoader.add_constructor("tag:yaml.org,2002:opencv-matrix", _opencv_matrix)
+_OpenCVLoader.add_constructor("!opencv-matrix", _opencv_matrix)
+
+
+def _ros_matrix(v: Any, name: str, src: str) -> np.ndarray:
+    if isinstance(v, dict) and "data" in v:
+        data = np.asarray(v["data"], float)
+        rows, cols = v.get("rows"), v.get("cols")
+        return data.reshape(int(rows), int(cols)) if rows and cols else data
+    if isinstance(v, np.ndarray):
+        return v
+    if isinstance(v, list):
+        return np.asarray(v, float)
+    raise CalibrationFileError(f"{src}: '{name}' is not a matrix")
+
+
+def parse_calibration(text: str, source: str = "<calibration>") -> CalibrationFile:
+    """Parse OpenCV FileStorage YAML or ROS camera_info YAML text into a :class:`CalibrationFile`."""
+    lines = text.splitlines()
+    if lines and lines[0].startswith("%YAML:"):
+        lines = lines[1:]
+    # OpenCV writes "!!opencv-matrix"; PyYAML resolves "!!x" to "tag:yaml.org,2002:x".
+    try:
+        doc = yaml.load("\n".join(lines), Loader=_OpenCVLoader)
+    except yaml.YAMLError as e:
+        raise CalibrationFileError(f"{source}: not a YAML calibration file ({e.__class__.__name__}: {e})") from None
+    if not isinstance(doc, dict):
+        raise CalibrationFileError(f"{source}: expected a mapping of calibration keys")
+    try:
+        K = _ros_matrix(doc["camera_matrix"], "camera_matrix", source).reshape(3, 3)
+        d = doc.get("distortion_coefficients", doc.get("dist_coeffs", []))
+        d = _ros_matrix(d, "distortion_coefficients", source).ravel() if d is not None else np.zeros(0)
+        w, h = int(doc["image_width"]), int(doc["image_height"])
+    except KeyError as e:
+        raise CalibrationFileError(
+            f"{source}: missing key {e.args[0]!r}; a calibration needs camera_matrix, distortion_coefficients, "
+            "image_width and image_height"
+        ) from None
+    except (ValueError, TypeError) as e:
+        raise CalibrationFileError(f"{source}: malformed calibration values ({e})") from None
+    observed = doc.get("observed_radius_px")
+    try:
+        cam = CameraModel(K, d, (w, h), float(observed) if observed is not None else None)
+    except ValueError as e:
+        raise CalibrationFileError(f"{source}: {e}") from None
+    per_view = doc.get("per_view_reprojection_errors")
+    if per_view is not None:
+        per_view = np.asarray(per_view, float).ravel().tolist()
+    known = {
+        "camera_matrix", "distortion_coefficients", "dist_coeffs", "image_width", "image_height",
+        "avg_reprojection_error", "per_view_reprojection_errors", "camera_name", "observed_radius_px",
+    }
+    extra = {k: v for k, v in doc.items() if k not in known}
+    avg = doc.get("avg_reprojection_error")
+    return CalibrationFile(
+        cam,
+        float(avg) if avg is not None else None,
+        per_view or [],
+        str(doc.get("camera_name", "doorloc")),
+        extra,
+    )
+
+
+def load_calibration(path: str | os.PathLike) -> CalibrationFile:
+    """Read a calibration file of either format. Raises :class:`CalibrationFileError` with the path."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except OSError as e:
+        raise CalibrationFileError(f"cannot read calibration file {p}: {e.strerror or e}") from None
+    return parse_calibration(text, str(p))
+
+
+def _fmt(x: float) -> str:
+    return repr(float(x))
+
+
+def _cv_matrix(name: str, m: np.ndarray) -> str:
+    m = np.atleast_2d(np.asarray(m, float))
+    data = ", ".join(_fmt(v) for v in m.ravel())
+    return f"{name}: !!opencv-matrix\n   rows: {m.shape[0]}\n   cols: {m.shape[1]}\n   dt: d\n   data: [ {data} ]\n"
+
+
+def dump_opencv_yaml(cal: CalibrationFile) -> str:
+    """OpenCV FileStorage YAML text (readable by ``cv2.FileStorage`` and by :func:`parse_calibration`)."""
+    cam = cal.camera
+    out = ["%YAML:1.0", "---"]
+    out.append(f"image_width: {cam.image_size[0]}")
+    out.append(f"image_height: {cam.image_size[1]}")
+    out.append(f'camera_name: "{cal.camera_name}"')
+    out.append(_cv_matrix("camera_matrix", cam.camera_matrix).rstrip())
+    out.append(_cv_matrix("distortion_coefficients", cam.dist_coeffs.reshape(1, -1)).rstrip())
+    if cal.avg_reprojection_error is not None:
+        out.append(f"avg_reprojection_error: {_fmt(cal.avg_reprojection_error)}")
+    if cal.per_view_reprojection_errors:
+        out.append(
+            _cv_matrix("per_view_reprojection_errors", np.asarray(cal.per_view_reprojection_errors).reshape(-1, 1)).rstrip()
+        )
+    if cam.observed_radius_px is not None:
+        out.append(f"observed_radius_px: {_fmt(cam.observed_radius_px)}")
+    return "\n".join(out) + "\n"
+
+
+def dump_ros_yaml(cal: CalibrationFile) -> str:
+    """ROS ``camera_info`` YAML text (``rectification_matrix`` identity, ``projection_matrix`` = [K|0])."""
+    cam = cal.camera
+    P = np.hstack([cam.camera_matrix, np.zeros((3, 1))])
+
+    def mat(m: np.ndarray) -> dict:
+        m = np.atleast_2d(m)
+        return {"rows": int(m.shape[0]), "cols": int(m.shape[1]), "data": [float(v) for v in m.ravel()]}
+
+    doc = {
+        "image_width": cam.image_size[0],
+        "image_height": cam.image_size[1],
+        "camera_name": cal.camera_name,
+        "camera_matrix": mat(cam.camera_matrix),
+        "distortion_model": cam.distortion_model,
+        "distortion_coefficients": mat(cam.dist_coeffs.reshape(1, -1)),
+        "rectification_matrix": mat(np.eye(3)),
+        "projection_matrix": mat(P),
+    }
+    if cal.avg_reprojection_error is not None:
+        doc["avg_reprojection_error"] = float(cal.avg_reprojection_error)
+    if cal.per_view_reprojection_errors:
+        doc["per_view_reprojection_errors"] = [float(v) for v in cal.per_view_reprojection_errors]
+    if cam.observed_radius_px is not None:
+        doc["observed_radius_px"] = float(cam.observed_radius_px)
+    return yaml.safe_dump(doc, sort_keys=False, default_flow_style=None)
+
+
+def atomic_write_text(path: str | os.PathLike, text: str) -> None:
+    """Write ``text`` to ``path`` through a temporary file in the same folder and an atomic rename."""
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, p)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def save_calibration(cal: CalibrationFile, path: str | os.PathLike, fmt: str = "opencv") -> None:
+    """Write ``cal`` as ``fmt`` = ``"opencv"`` (FileStorage YAML) or ``"ros"`` (camera_info YAML), atomically."""
+    if fmt == "opencv":
+        text = dump_opencv_yaml(cal)
+    elif fmt == "ros":
+        text = dump_ros_yaml(cal)
+    else:
+        raise ValueError(f"unknown calibration format {fmt!r}; use 'opencv' or 'ros'")
+    atomic_write_text(path, text)

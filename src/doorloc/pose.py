@@ -1,0 +1,113 @@
+"""Door pose and the one rigid transform from the door frame to the cell frame.
+
+Frames (shared/SPEC.md section 1), all lengths in millimetres:
+
+- **cell frame**: origin at the nominal reference corner; +X across the door thickness (from the
+  reference face into the door), +Y normal to the hinge-edge face pointing into the door (away from
+  the camera), +Z up the door height.
+- **door frame**: the same axes for a door lying exactly at its nominal place with its hinge face at
+  ``Y = 0``; a door point has nominal coordinates ``(px, py, pz)`` with ``px in [0, T]``,
+  ``py in [0, W]``, ``pz in [0, H]``.
+
+The fixture leaves three degrees of freedom (thesis section 3.8): a shift ``x_mm`` along X, a shift
+``z_mm`` along Z and an in-plane rotation ``yaw_deg`` of the hinge face about +Y::
+
+    X = x + px*cos(yaw) - pz*sin(yaw)
+    Y = py + face_y
+    Z = z + px*sin(yaw) + pz*cos(yaw)
+
+which is the thesis's eq. 3.46-3.50 with beta = alpha + yaw, and in 3-D a rotation by -yaw about +Y.
+``face_y`` is the depth of the hinge face for this door's width (:meth:`doorloc.cell.Fixture.face_y`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["DoorPose", "door_to_cell", "cell_to_door", "yaw_rotation_matrix"]
+
+
+@dataclass(frozen=True)
+class DoorPose:
+    """The 3 DOF the fixture leaves free.
+
+    Attributes
+    ----------
+    x_mm : float
+        Shift of the reference corner along cell +X (across the thickness), mm.
+    z_mm : float
+        Shift of the reference corner along cell +Z (up the door), mm.
+    yaw_deg : float
+        Rotation of the door in the hinge-face plane, degrees; positive turns door +X towards +Z.
+    """
+
+    x_mm: float = 0.0
+    z_mm: float = 0.0
+    yaw_deg: float = 0.0
+
+    @property
+    def yaw_rad(self) -> float:
+        return math.radians(self.yaw_deg)
+
+
+def yaw_rotation_matrix(yaw_deg: float) -> np.ndarray:
+    """3x3 rotation taking door-frame directions to cell-frame directions.
+
+    Shape ``(3, 3)``. It is a rotation by ``-yaw`` about +Y: door +X goes to
+    ``(cos yaw, 0, sin yaw)`` and door +Z to ``(-sin yaw, 0, cos yaw)``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> R = yaw_rotation_matrix(90.0)
+    >>> np.round(R @ [1.0, 0.0, 0.0], 12).tolist()
+    [0.0, 0.0, 1.0]
+    """
+    c, s = math.cos(math.radians(yaw_deg)), math.sin(math.radians(yaw_deg))
+    return np.array([[c, 0.0, -s], [0.0, 1.0, 0.0], [s, 0.0, c]])
+
+
+def door_to_cell(points_door: np.ndarray, pose: DoorPose, face_y: float = 0.0) -> np.ndarray:
+    """Move door-frame points to the cell frame by the door pose.
+
+    Parameters
+    ----------
+    points_door : array_like, shape (..., 3)
+        Nominal door coordinates ``(px, py, pz)``, mm.
+    pose : DoorPose
+        Measured (or true) door pose.
+    face_y : float
+        Depth of the hinge face in the cell frame for this door, mm.
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        Cell-frame coordinates, mm.
+
+    Examples
+    --------
+    >>> door_to_cell([[0.0, 0.0, 100.0]], DoorPose(1.0, 2.0, 90.0), face_y=5.0).round(9).tolist()
+    [[-99.0, 5.0, 2.0]]
+    """
+    p = np.asarray(points_door, dtype=float)
+    c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
+    out = np.empty_like(p)
+    out[..., 0] = pose.x_mm + p[..., 0] * c - p[..., 2] * s
+    out[..., 1] = p[..., 1] + face_y
+    out[..., 2] = pose.z_mm + p[..., 0] * s + p[..., 2] * c
+    return out
+
+
+def cell_to_door(points_cell: np.ndarray, pose: DoorPose, face_y: float = 0.0) -> np.ndarray:
+    """Inverse of :func:`door_to_cell`. Shapes ``(..., 3) -> (..., 3)``, mm."""
+    p = np.asarray(points_cell, dtype=float)
+    c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
+    dx, dz = p[..., 0] - pose.x_mm, p[..., 2] - pose.z_mm
+    out = np.empty_like(p)
+    out[..., 0] = dx * c + dz * s
+    out[..., 1] = p[..., 1] - face_y
+    out[..., 2] = -dx * s + dz * c
+    return out

@@ -1,0 +1,1 @@
+"""Door recipes, their database, hinge pocket paths, targets moved by the pose, and RAPID exports."""

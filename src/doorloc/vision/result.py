@@ -1,0 +1,54 @@
+"""The locate result (shared/SPEC.md section 3): one JSON object per image.
+
+The required fields are fixed by the product contract and are never renamed; everything that helps
+a person judge the answer (per-line residuals, inlier counts, contrast, timings) goes beside them.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field
+
+__all__ = ["LineQuality", "LocateResult"]
+
+
+class LineQuality(BaseModel):
+    """Fit figures for one detected edge line."""
+
+    model_config = ConfigDict(extra="allow")
+
+    name: str = Field(description="which edge: 'bottom' (X-line), 'reference' (Z-line) or 'far' (thickness)")
+    n_points: int = Field(description="edge points sampled along the line")
+    n_inliers: int = Field(description="edge points kept by the robust fit")
+    rms_residual_px: float | None = Field(None, description="RMS distance of the inliers to the line, px")
+    rms_residual_mm: float | None = Field(None, description="the same on the hinge-face plane, mm")
+    contrast: float | None = Field(None, description="median grey-level step across the edge, 0-255 scale")
+
+
+class LocateResult(BaseModel):
+    """What `doorloc locate` prints and `POST /v1/locate` returns (before targets are added).
+
+    Pose fields are in the cell frame (mm, degrees); null when ``ok`` is false, and ``error`` then says why.
+    """
+
+    model_config = ConfigDict(extra="allow")
+
+    image: str = Field(description="image name or path as given")
+    ok: bool
+    x_mm: float | None = Field(None, description="shift of the reference corner along cell +X, mm")
+    z_mm: float | None = Field(None, description="shift of the reference corner along cell +Z, mm")
+    yaw_deg: float | None = Field(None, description="door rotation in the hinge-face plane, degrees")
+    thickness_mm: float | None = Field(None, description="measured door thickness, mm")
+    scale_mm_per_px: float | None = Field(None, description="dynamic scaling factor at the corner, mm per pixel")
+    corner_px: list[float] | None = Field(None, description="reference corner in the image, [u, v] px")
+    error: str | None = Field(None, description="null, or a sentence a person can act on")
+    error_code: str | None = Field(None, description="machine-readable refusal reason, e.g. 'no_door', 'outside_envelope'")
+    elapsed_ms: float = Field(0.0, description="time spent in locate, ms (decode excluded)")
+    lines: list[LineQuality] = Field(default_factory=list, description="per-line fit figures")
+    diagnostics: dict[str, Any] = Field(default_factory=dict, description="anything else worth knowing")
+
+    @classmethod
+    def refusal(cls, image: str, error_code: str, error: str, elapsed_ms: float = 0.0, **extra: Any) -> LocateResult:
+        """A refusal: ``ok=false``, pose fields null, a reason a person can act on."""
+        return cls(image=image, ok=False, error=error, error_code=error_code, elapsed_ms=elapsed_ms, **extra)
