@@ -54,7 +54,7 @@ class CameraModel:
     Attributes
     ----------
     camera_matrix : ndarray, shape (3, 3)
-        ``[[fx, s, cx], [0, fy, cy], [0, 0, 1]]`` in pixels.
+        ``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`` in pixels (no skew, as in OpenCV).
     dist_coeffs : ndarray, shape (N,)
         N in {0, 4, 5, 8, 12}; stored padded to 12 internally by :attr:`coeffs12`.
     image_size : tuple of int
@@ -88,6 +88,9 @@ class CameraModel:
             )
         if not (K[0, 0] > 0 and K[1, 1] > 0 and K[2, 2] == 1 and K[1, 0] == 0 and K[2, 0] == 0 and K[2, 1] == 0):
             raise ValueError(f"not a camera matrix (need fx, fy > 0 and last row 0 0 1): {K.tolist()}")
+        if K[0, 1] != 0:
+            # OpenCV's projection ignores K[0, 1]; accepting it would make us disagree with every OpenCV call.
+            raise ValueError(f"camera matrix has skew {K[0, 1]}: OpenCV's camera model has none; set K[0][1] = 0")
         w, h = (int(v) for v in self.image_size)
         if w <= 0 or h <= 0:
             raise ValueError(f"image size must be positive, got {self.image_size}")

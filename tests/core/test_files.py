@@ -1,0 +1,124 @@
+"""Calibration and cell files: both calibration formats, real files, errors with the file named."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from doorloc.calib.camera import CameraModel
+from doorloc.calib.io import (
+    CalibrationFile,
+    CalibrationFileError,
+    dump_opencv_yaml,
+    dump_ros_yaml,
+    load_calibration,
+    parse_calibration,
+    save_calibration,
+)
+from doorloc.cell import CellFileError, DoorSize, Fixture, load_cell, parse_cell, save_cell
+
+
+def test_reads_opencv_published_file(shared_data):
+    cal = load_calibration(shared_data / "opencv-left" / "published_left_intrinsics.yml")
+    assert cal.camera.fx == pytest.approx(535.916, abs=1e-3)
+    assert cal.camera.image_size == (640, 480)
+    assert cal.avg_reprojection_error == pytest.approx(0.393, abs=1e-3)
+    assert max(cal.per_view_reprojection_errors) == pytest.approx(1.18, abs=0.01)
+
+
+@pytest.mark.parametrize("fmt", ["opencv", "ros"])
+def test_round_trip(tmp_path, fmt):
+    cam = CameraModel.from_values([[700.5, 0, 320.25], [0, 701.0, 240.0], [0, 0, 1]],
+                                  [-0.2, 0.1, 1e-3, -2e-3, 0.01, 0.1, 0.02, 0.003], (640, 480), 350.0)
+    cal = CalibrationFile(cam, 0.25, [0.2, 0.3], "cam0")
+    path = tmp_path / f"c_{fmt}.yaml"
+    save_calibration(cal, path, fmt)
+    back = load_calibration(path)
+    assert back.camera == cam and back.camera.observed_radius_px == 350.0
+    assert back.avg_reprojection_error == 0.25 and back.per_view_reprojection_errors == [0.2, 0.3]
+    if fmt == "ros":
+        assert "distortion_model: rational_polynomial" in path.read_text()
+
+
+def test_opencv_can_read_what_we_write(tmp_path):
+    cam = CameraModel.from_values([[700.5, 0, 320.25], [0, 701.0, 240.0], [0, 0, 1]], [-0.2, 0.1, 0, 0, 0], (640, 480))
+    path = tmp_path / "c.yaml"
+    path.write_text(dump_opencv_yaml(CalibrationFile(cam)))
+    fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+    np.testing.assert_array_equal(fs.getNode("camera_matrix").mat(), cam.camera_matrix)
+    assert int(fs.getNode("image_width").real()) == 640
+
+
+def test_ros_output_has_spec_keys():
+    cam = CameraModel.from_values([[700.5, 0, 320.25], [0, 701.0, 240.0], [0, 0, 1]], [-0.2, 0.1, 0, 0, 0], (640, 480))
+    text = dump_ros_yaml(CalibrationFile(cam))
+    for key in ("image_width", "image_height", "camera_name", "camera_matrix", "distortion_model",
+                "distortion_coefficients", "rectification_matrix", "projection_matrix"):
+        assert f"{key}:" in text
+
+
+@pytest.mark.parametrize(
+    ("text", "match"),
+    [("camera_matrix: [1, 2", "not a YAML"), ("- 1\n- 2", "mapping"), ("image_width: 3", "missing key 'camera_matrix'"),
+     ("camera_matrix: [[1,0,0],[0,1,0],[0,0,1]]\ndistortion_coefficients: [0,0,0]\nimage_width: 3\nimage_height: 3",
+      "distortion coefficients")],
+)
+def test_bad_calibration_text_names_the_problem(text, match):
+    with pytest.raises(CalibrationFileError, match=match):
+        parse_calibration(text, "x.yaml")
+
+
+def test_missing_calibration_file_names_the_path(tmp_path):
+    with pytest.raises(CalibrationFileError, match="nope.yaml"):
+        load_calibration(tmp_path / "nope.yaml")
+
+
+def test_failed_save_leaves_no_file(tmp_path):
+    cam = CameraModel.from_values([[700.5, 0, 320.25], [0, 701.0, 240.0], [0, 0, 1]], [], (640, 480))
+    with pytest.raises(ValueError):
+        save_calibration(CalibrationFile(cam), tmp_path / "c.yaml", "xml")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_thesis_cell(thesis_cell_path):
+    cell = load_cell(thesis_cell_path)
+    assert cell.camera.image_size == (1920, 1080)
+    assert cell.camera.fx == 1678.35
+    assert cell.face_y(DoorSize(width_mm=900)) == 0.0
+    # The nominal reference corner is in view.
+    u, v = cell.posed_camera.project_cell(np.zeros((1, 3)))[0]
+    assert 0 < u < 1920 and 0 < v < 1080
+
+
+def test_face_y_follows_width():
+    assert Fixture(900, 0, -0.5).face_y(1100) == -100
+    assert Fixture(900, 5, 0).face_y(700) == 5
+    assert Fixture(900, 0, -1).face_y(800) == 100
+
+
+def test_cell_with_calibration_file_and_round_trip(tmp_path, thesis_cell_path):
+    cell = load_cell(thesis_cell_path)
+    save_calibration(CalibrationFile(cell.camera.with_observed_radius(900.0)), tmp_path / "camera.yaml")
+    (tmp_path / "cell.yaml").write_text(
+        "camera:\n  calibration: camera.yaml\n  extrinsics: {rvec: [1.5707963268, 0, 0], tvec_mm: [-30, 40, 350]}\n"
+    )
+    loaded = load_cell(tmp_path / "cell.yaml")
+    assert loaded.camera == cell.camera and loaded.camera.observed_radius_px == 900.0
+    save_cell(loaded, tmp_path / "cell2.yaml")
+    again = load_cell(tmp_path / "cell2.yaml")
+    assert again.camera == loaded.camera
+    np.testing.assert_array_equal(again.extrinsics.tvec_mm, [-30, 40, 350])
+
+
+@pytest.mark.parametrize(
+    ("doc", "match"),
+    [({}, "missing key 'camera'"), ({"camera": {"image_size": [10, 10]}}, "camera_matrix"),
+     ({"camera": {"calibration": "missing.yaml", "extrinsics": {}}}, "missing.yaml"),
+     ({"camera": {"image_size": [10, 10], "camera_matrix": [[1, 0, 5], [0, 1, 5], [0, 0, 1]]}}, "extrinsics"),
+     ({"camera": {"image_size": [10, 10], "camera_matrix": [[1, 0, 5], [0, 1, 5], [0, 0, 1]],
+                  "extrinsics": {"rvec": [0, 0, 0], "tvec_mm": [0, 0, 1]}}, "door": {"width_mm": -3}}, "width_mm")],
+)
+def test_bad_cell_names_the_problem(tmp_path, doc, match):
+    with pytest.raises(CellFileError, match=match):
+        parse_cell(doc, tmp_path, "cell.yaml")
