@@ -1,0 +1,166 @@
+"""One image in, one answer out: the flow the HTTP service and the batch runner share.
+
+``decode -> locate -> targets (when the door has a recipe) -> optional RAPID text / overlay``.
+
+The answer is the SPEC section 3 result (:class:`doorloc.vision.result.LocateResult`) as a JSON-ready
+dict, plus the door it was measured as (``door_id``, ``door``) and the robot targets of its recipe in the
+cell frame (``targets``; empty with a ``targets_note`` when there is no recipe or no pose).
+
+The locate function is a parameter so callers (and tests) can choose it; by default it is
+:func:`doorloc.vision.locate.locate`.
+"""
+
+from __future__ import annotations
+
+import base64
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from doorloc.cell import Cell, DoorSize
+
+__all__ = [
+    "Answer",
+    "DoorChoice",
+    "LocateFn",
+    "answer_image",
+    "default_locate_fn",
+    "door_from_fields",
+    "overlay_png",
+    "NO_RECIPE_NOTE",
+]
+
+#: ``locate(image, cell, door, *, image_name="", config=None) -> LocateResult``
+LocateFn = Callable[..., Any]
+
+NO_RECIPE_NOTE = (
+    "no targets: the door was given by its dimensions, not by a door_id with a recipe; "
+    "send door_id to get hinge targets"
+)
+NO_POSE_NOTE = "no targets: the door was not located (see error)"
+
+
+@dataclass(frozen=True)
+class Answer:
+    """The locate result itself, and the JSON-ready answer built from it."""
+
+    result: Any  # doorloc.vision.result.LocateResult
+    fields: dict[str, Any]
+
+
+@dataclass(frozen=True)
+class DoorChoice:
+    """The door an image shows: its nominal size, and its id and recipe when it came from the database."""
+
+    door: DoorSize
+    door_id: str | None = None
+    recipe: Any | None = None  # doorloc.recipes.models.DoorRecipe
+
+
+def default_locate_fn() -> LocateFn:
+    """The real pipeline, :func:`doorloc.vision.locate.locate` (imported on first use: it pulls in OpenCV)."""
+    from doorloc.vision.locate import locate
+
+    return locate
+
+
+def door_from_fields(
+    cell: Cell,
+    width_mm: float | None = None,
+    thickness_mm: float | None = None,
+    height_mm: float | None = None,
+) -> DoorSize:
+    """A door from whichever dimensions were given, the cell's default door filling the rest (mm).
+
+    Raises ValueError (from :class:`DoorSize`) for non-positive or non-finite sizes.
+    """
+    d = cell.default_door
+    return DoorSize(
+        float(width_mm) if width_mm is not None else d.width_mm,
+        float(thickness_mm) if thickness_mm is not None else d.thickness_mm,
+        float(height_mm) if height_mm is not None else d.height_mm,
+        d.arris_mm if thickness_mm is None else min(d.arris_mm, float(thickness_mm) / 2 * 0.99),
+    )
+
+
+def answer_image(
+    image: np.ndarray,
+    cell: Cell,
+    choice: DoorChoice,
+    *,
+    image_name: str,
+    locate_fn: LocateFn | None = None,
+    rapid: bool = False,
+) -> Answer:
+    """Locate the door in ``image`` and turn its recipe into cell-frame targets.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W) or (H, W, 3), uint8 or uint16
+        The camera image in the calibrated pixel frame.
+    cell : Cell
+        The robot cell (camera, fixture, envelope).
+    choice : DoorChoice
+        Door size, and the recipe when the door has one.
+    image_name : str
+        Name reported in the result's ``image`` field.
+    locate_fn : callable, optional
+        Replaces :func:`doorloc.vision.locate.locate`.
+    rapid : bool
+        Add ``rapid``: the targets as RAPID-readable text (None without targets).
+
+    Returns
+    -------
+    Answer
+        ``.result`` the LocateResult; ``.fields`` the JSON-ready answer: SPEC section 3 fields plus ``door_id``, ``door`` (mm), ``targets`` (list of dicts: name, x_mm,
+        y_mm, z_mm, quat, hinge), ``targets_note`` (why the list is empty, else None) and, on request, ``rapid``.
+    """
+    locate = locate_fn or default_locate_fn()
+    result = locate(image, cell, choice.door, image_name=image_name)
+    answer = result.model_dump(mode="json")
+    answer["door_id"] = choice.door_id
+    answer["door"] = {
+        "width_mm": choice.door.width_mm,
+        "thickness_mm": choice.door.thickness_mm,
+        "height_mm": choice.door.height_mm,
+    }
+    targets: list[Any] = []
+    if choice.recipe is None:
+        note: str | None = NO_RECIPE_NOTE
+    elif not result.ok:
+        note = NO_POSE_NOTE
+    else:
+        from doorloc.pose import DoorPose
+        from doorloc.recipes.targets import targets_for_pose
+
+        t0 = time.perf_counter()
+        pose = DoorPose(result.x_mm, result.z_mm, result.yaw_deg)
+        targets = targets_for_pose(choice.recipe, pose, cell.face_y(choice.door))
+        answer["diagnostics"] = {**answer.get("diagnostics", {}), "targets_ms": (time.perf_counter() - t0) * 1e3}
+        note = None
+    answer["targets"] = [t.model_dump(mode="json") for t in targets]
+    answer["targets_note"] = note
+    if rapid:
+        if targets:
+            from doorloc.recipes.rapid import rapid_text
+
+            answer["rapid"] = rapid_text(targets)
+        else:
+            answer["rapid"] = None
+    return Answer(result, answer)
+
+
+def overlay_png(image: np.ndarray, result: Any, cell: Cell, door: DoorSize) -> str:
+    """The overlay (edges, corner, pose drawn on the image) as a base64-encoded PNG string."""
+    import cv2
+
+    from doorloc.vision.overlay import draw_overlay
+
+    bgr = draw_overlay(image, result, cell, door)
+    ok, buf = cv2.imencode(".png", bgr, [cv2.IMWRITE_PNG_COMPRESSION, 1])
+    if not ok:  # pragma: no cover - OpenCV encodes any uint8 BGR array
+        raise RuntimeError("could not encode the overlay as PNG")
+    return base64.b64encode(buf.tobytes()).decode("ascii")

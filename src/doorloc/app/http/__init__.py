@@ -1,0 +1,91 @@
+"""The HTTP service: ``create_app(settings)`` builds one FastAPI app with its own state and metrics.
+
+Routes: ``POST /v1/locate``, ``GET /v1/doors``, ``GET|PUT /v1/doors/{door_id}``, ``GET /v1/cell``,
+``GET /healthz``, ``GET /readyz``, ``GET /metrics``, ``GET /`` (operator page); OpenAPI at ``/openapi.json``.
+Errors are ``application/problem+json`` (:mod:`doorloc.app.http.problems`).
+
+Examples
+--------
+>>> from fastapi.testclient import TestClient
+>>> from doorloc.app.settings import ServiceSettings
+>>> app = create_app(ServiceSettings(cell=None))
+>>> with TestClient(app) as client:
+...     client.get("/healthz").json(), client.get("/readyz").status_code
+({'status': 'ok'}, 503)
+"""
+
+from __future__ import annotations
+
+from contextlib import asynccontextmanager
+from pathlib import Path
+from typing import Any
+
+import anyio.to_thread
+from fastapi import FastAPI
+from fastapi.staticfiles import StaticFiles
+
+from doorloc import __version__
+from doorloc.app.answer import LocateFn
+from doorloc.app.http import routes_doors, routes_locate, routes_ops
+from doorloc.app.http.metrics import ServiceMetrics
+from doorloc.app.http.middleware import BodySizeLimit, RequestContext
+from doorloc.app.http.problems import install_problem_handlers
+from doorloc.app.http.state import ServiceState
+from doorloc.app.settings import ServiceSettings
+from doorloc.cell import Cell
+
+__all__ = ["create_app", "create_app_from_env"]
+
+STATIC_DIR = Path(__file__).resolve().parents[1] / "static"
+
+
+def create_app(
+    settings: ServiceSettings,
+    *,
+    cell: Cell | None = None,
+    store: Any | None = None,
+    locate_fn: LocateFn | None = None,
+) -> FastAPI:
+    """Build the service.
+
+    Parameters
+    ----------
+    settings : ServiceSettings
+        Limits, paths and keys (see :mod:`doorloc.app.settings`).
+    cell, store, locate_fn : optional
+        Given ones are used as they are; missing ones are loaded at start-up (cell from ``settings.cell``,
+        recipe store from ``settings.database_url``, locate = :func:`doorloc.vision.locate.locate`).
+    """
+    state = ServiceState(settings=settings, metrics=ServiceMetrics(), cell=cell, store=store, locate_fn=locate_fn)
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI):
+        import cv2
+
+        # Requests already run in parallel threads; OpenCV's own pool on top would oversubscribe the cores.
+        cv2.setNumThreads(settings.opencv_threads)
+        if not state.ready or state.locate_fn is None:
+            await anyio.to_thread.run_sync(state.load)
+        yield
+
+    app = FastAPI(
+        title="doorloc",
+        version=__version__,
+        summary="Locate a wooden door in a milling cell and turn its recipe into robot targets.",
+        lifespan=lifespan,
+    )
+    app.state.service = state
+    install_problem_handlers(app)
+    app.include_router(routes_ops.router)
+    app.include_router(routes_locate.router, tags=["locate"])
+    app.include_router(routes_doors.router)
+    app.mount("/static", StaticFiles(directory=STATIC_DIR), name="static")
+    # add_middleware wraps from the inside out: RequestContext sees every request, including 413s.
+    app.add_middleware(BodySizeLimit, max_body_bytes=settings.max_upload_bytes)
+    app.add_middleware(RequestContext, metrics=state.metrics)
+    return app
+
+
+def create_app_from_env() -> FastAPI:
+    """App factory for ``uvicorn --factory`` (used by ``doorloc serve --workers N``): settings from DOORLOC_*."""
+    return create_app(ServiceSettings())

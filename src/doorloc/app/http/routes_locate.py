@@ -1,0 +1,135 @@
+"""``POST /v1/locate``: an uploaded image in, the door's pose and robot targets out.
+
+Order of the checks, cheapest first, so a bad upload costs almost nothing: size (while streaming, in
+the middleware) -> kind by magic bytes (415) -> declared pixel count (422, before decoding) -> decode
+(422) -> locate. Decoding and locating run in worker threads under the app's CapacityLimiter, so the
+event loop keeps answering health checks while images are being measured.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+import anyio.to_thread
+from fastapi import APIRouter, Depends, File, Form, Query, UploadFile
+from pydantic import Field
+
+from doorloc.app.answer import DoorChoice, answer_image, door_from_fields, overlay_png
+from doorloc.app.http.dependencies import ready_state, require_api_key
+from doorloc.app.http.problems import ProblemError, problem_responses
+from doorloc.app.http.schemas import LocateResponse
+from doorloc.app.http.state import ServiceState
+from doorloc.app.imagesniff import sniff_image
+from doorloc.recipes.models import DOOR_ID_PATTERN
+
+__all__ = ["router"]
+
+router = APIRouter(dependencies=[Depends(require_api_key)])
+
+# Generous bounds: the physical range (SPEC section 7) is checked by locate, which refuses with a reason.
+DoorMm = Annotated[float | None, Field(gt=0, le=10_000, allow_inf_nan=False)]
+
+
+@router.post(
+    "/v1/locate",
+    response_model=LocateResponse,
+    response_model_exclude_none=False,
+    summary="Locate the door in an image and return its pose and hinge targets",
+    responses=problem_responses(401, 413, 415, 422, 503),
+)
+async def post_locate(
+    image: Annotated[UploadFile, File(description="the camera image: PNG, JPEG, TIFF or BMP, in the calibrated pixel frame")],
+    state: Annotated[ServiceState, Depends(ready_state)],
+    door_id: Annotated[str | None, Form(pattern=DOOR_ID_PATTERN, description="door recipe to use (gives targets)")] = None,
+    width_mm: Annotated[DoorMm, Form(description="door width, mm (without door_id)")] = None,
+    thickness_mm: Annotated[DoorMm, Form(description="door thickness, mm (without door_id)")] = None,
+    height_mm: Annotated[DoorMm, Form(description="door height, mm (without door_id)")] = None,
+    overlay: Annotated[bool, Query(description="add overlay_png: the image with what was found drawn on it")] = False,
+    rapid: Annotated[bool, Query(description="add rapid: the targets as RAPID-readable text")] = False,
+) -> dict:
+    """Measure where the door lies (SPEC section 3 result) and move its recipe's hinge targets by that pose.
+
+    A door that cannot be located is still a 200 answer, with ``ok: false`` and ``error`` saying why;
+    4xx answers are for requests that cannot be measured at all.
+    """
+    data = await image.read()
+    name = image.filename or "upload"
+    state.metrics.in_flight.inc()
+    try:
+        _check_upload(data, name, state)
+        choice = await _door_choice(state, door_id, width_mm, thickness_mm, height_mm)
+        fields = await anyio.to_thread.run_sync(
+            _measure, data, name, state, choice, overlay, rapid, limiter=state.limiter
+        )
+    except ProblemError as e:
+        state.metrics.rejected_uploads.labels(e.code).inc()
+        raise
+    finally:
+        state.metrics.in_flight.dec()
+    state.metrics.observe_locate(fields["ok"], fields.get("error_code"))
+    return fields
+
+
+def _check_upload(data: bytes, name: str, state: ServiceState) -> None:
+    if not data:
+        raise ProblemError(422, "empty_image", f"The uploaded file '{name}' is empty; send the camera image itself.")
+    header = sniff_image(data)
+    if header is None:
+        raise ProblemError(
+            415, "not_an_image",
+            f"The uploaded file '{name}' is not a PNG, JPEG, TIFF or BMP image (judged by its first bytes); "
+            "send the camera image in one of those formats.",
+        )
+    if header.pixels is None:
+        raise ProblemError(
+            422, "undecodable_image",
+            f"The {header.kind.upper()} header of '{name}' is cut short or malformed, so its size cannot be read; "
+            "the file is probably truncated: send it again.",
+        )
+    limit = state.settings.max_pixels
+    if header.pixels > limit:
+        cam_w, cam_h = state.cell.camera.image_size if state.cell else ("?", "?")
+        raise ProblemError(
+            422, "too_many_pixels",
+            f"'{name}' declares {header.width}x{header.height} pixels ({header.pixels / 1e6:.1f} MP), more than "
+            f"this service decodes ({limit / 1e6:.1f} MP); send the camera's own image ({cam_w}x{cam_h}).",
+        )
+
+
+async def _door_choice(
+    state: ServiceState, door_id: str | None, width_mm: float | None, thickness_mm: float | None, height_mm: float | None
+) -> DoorChoice:
+    assert state.cell is not None
+    sizes_given = any(v is not None for v in (width_mm, thickness_mm, height_mm))
+    if door_id is not None:
+        if sizes_given:
+            raise ProblemError(
+                422, "ambiguous_door",
+                "Give either door_id (the recipe has the door's size) or width_mm/thickness_mm/height_mm, not both.",
+            )
+        recipe = await anyio.to_thread.run_sync(state.store.get, door_id)
+        if recipe is None:
+            raise ProblemError(
+                422, "unknown_door",
+                f"There is no door recipe with id '{door_id}'; import it (doorloc recipes import) or PUT /v1/doors/{door_id}.",
+            )
+        return DoorChoice(recipe.door_size(), door_id, recipe)
+    try:
+        return DoorChoice(door_from_fields(state.cell, width_mm, thickness_mm, height_mm))
+    except ValueError as e:
+        raise ProblemError(422, "invalid_door", f"The door size is not usable: {e}.") from None
+
+
+def _measure(data: bytes, name: str, state: ServiceState, choice: DoorChoice, overlay: bool, rapid: bool) -> dict:
+    from doorloc.vision.imageio import ImageDecodeError, decode_image
+
+    try:
+        image = decode_image(data)
+    except ImageDecodeError as e:
+        raise ProblemError(
+            422, "undecodable_image", f"'{name}' cannot be decoded ({e}); the file is probably damaged or truncated."
+        ) from None
+    answer = answer_image(image, state.cell, choice, image_name=name, locate_fn=state.locate_fn, rapid=rapid)
+    if overlay:
+        answer.fields["overlay_png"] = overlay_png(image, answer.result, state.cell, choice.door)
+    return answer.fields

@@ -1,0 +1,59 @@
+"""Operations: liveness, readiness, metrics, the cell in use, and the operator page."""
+
+from __future__ import annotations
+
+from importlib import resources
+from typing import Annotated
+
+from fastapi import APIRouter, Depends
+from fastapi.responses import HTMLResponse, Response
+
+from doorloc.app.http.dependencies import get_state, ready_state, require_api_key
+from doorloc.app.http.metrics import CONTENT_TYPE_LATEST
+from doorloc.app.http.problems import problem_responses
+from doorloc.app.http.schemas import CellInfo, Health, Readiness
+from doorloc.app.http.state import ServiceState
+from doorloc.cell import cell_to_dict
+
+__all__ = ["router"]
+
+router = APIRouter()
+
+
+@router.get("/healthz", response_model=Health, tags=["ops"], summary="Liveness: the process answers")
+async def healthz() -> Health:
+    return Health(status="ok")
+
+
+@router.get(
+    "/readyz", response_model=Readiness, tags=["ops"], responses=problem_responses(503),
+    summary="Readiness: the cell and calibration are loaded",
+)
+async def readyz(state: Annotated[ServiceState, Depends(ready_state)]) -> Readiness:
+    return Readiness(status="ready", **state.cell_ids())
+
+
+@router.get(
+    "/metrics", tags=["ops"], response_class=Response, summary="Prometheus metrics of this worker process",
+    responses={200: {"content": {CONTENT_TYPE_LATEST.split(";")[0]: {"schema": {"type": "string"}}},
+                     "description": "Prometheus text exposition format"}},
+)
+async def metrics(state: Annotated[ServiceState, Depends(get_state)]) -> Response:
+    return Response(state.metrics.exposition(), media_type=CONTENT_TYPE_LATEST)
+
+
+@router.get(
+    "/v1/cell", response_model=CellInfo, tags=["cell"], responses=problem_responses(401, 503),
+    dependencies=[Depends(require_api_key)], summary="The cell and camera calibration in use",
+)
+async def get_cell(state: Annotated[ServiceState, Depends(ready_state)]) -> CellInfo:
+    assert state.cell is not None
+    return CellInfo(source=state.cell.source, cell=cell_to_dict(state.cell), **state.cell_ids())
+
+
+@router.get("/", response_class=HTMLResponse, include_in_schema=False)
+async def operator_page() -> HTMLResponse:
+    html = resources.files("doorloc.app").joinpath("static/index.html").read_text(encoding="utf-8")
+    return HTMLResponse(html)
+
+

@@ -1,0 +1,56 @@
+"""Response bodies of the HTTP API (request bodies are the library's own models, e.g. DoorRecipe)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pydantic import BaseModel, Field
+
+from doorloc.recipes.targets import Target
+from doorloc.vision.result import LocateResult
+
+__all__ = ["DoorOut", "LocateResponse", "CellInfo", "Health", "Readiness", "DoorList"]
+
+
+class DoorOut(BaseModel):
+    """The nominal door the image was measured as, mm."""
+
+    width_mm: float
+    thickness_mm: float
+    height_mm: float
+
+
+class LocateResponse(LocateResult):
+    """The SPEC section 3 result plus the door and its robot targets."""
+
+    door_id: str | None = Field(None, description="the recipe used, or null when the door was given by its size")
+    door: DoorOut
+    targets: list[Target] = Field(description="hinge targets in the cell frame; empty without a recipe or a pose")
+    targets_note: str | None = Field(None, description="why targets is empty, else null")
+    rapid: str | None = Field(None, description="with ?rapid=true: the targets as RAPID-readable text")
+    overlay_png: str | None = Field(None, description="with ?overlay=true: the overlay image, base64-encoded PNG")
+
+
+class CellInfo(BaseModel):
+    """The cell and camera calibration in use, with content ids for audit trails."""
+
+    cell_id: str = Field(description="content hash of the whole cell (camera, extrinsics, fixture, envelope, door)")
+    calibration_id: str = Field(description="content hash of the camera calibration (K, distortion, image size)")
+    source: str | None = Field(None, description="path of the cell file")
+    cell: dict[str, Any] = Field(description="the cell in SPEC section 2 layout, camera inline")
+
+
+class Health(BaseModel):
+    status: str = Field(description="'ok' while the process answers")
+
+
+class Readiness(BaseModel):
+    status: str = Field(description="'ready' when the cell and calibration are loaded")
+    cell_id: str | None = None
+    calibration_id: str | None = None
+
+
+class DoorList(BaseModel):
+    """Door ids in the recipe database."""
+
+    door_ids: list[str]

@@ -1,0 +1,86 @@
+"""What one running service holds: its settings, the cell in use, the recipe store, the CPU limiter.
+
+Loading the cell (and the calibration it names) happens once at start-up; until it has succeeded the
+service is alive (``/healthz``) but not ready (``/readyz`` 503), and locate requests are refused 503.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+from dataclasses import dataclass, field
+from typing import Any
+
+import anyio
+
+from doorloc.app.answer import LocateFn
+from doorloc.app.http.metrics import ServiceMetrics
+from doorloc.app.settings import ServiceSettings
+from doorloc.cell import Cell, cell_to_dict
+
+__all__ = ["ServiceState", "content_id"]
+
+_log = logging.getLogger("doorloc.http")
+
+
+def content_id(obj: Any) -> str:
+    """A short content hash of a JSON-able value: equal content, equal id (``sha256:`` + 16 hex digits)."""
+    text = json.dumps(obj, sort_keys=True, separators=(",", ":"), default=str)
+    return "sha256:" + hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+@dataclass
+class ServiceState:
+    """Mutable state of one app instance (never shared between apps)."""
+
+    settings: ServiceSettings
+    metrics: ServiceMetrics
+    locate_fn: LocateFn | None = None
+    cell: Cell | None = None
+    store: Any | None = None  # doorloc.recipes.store.RecipeStore
+    load_error: str | None = None
+    limiter: anyio.CapacityLimiter = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.limiter = anyio.CapacityLimiter(self.settings.locate_concurrency)
+
+    @property
+    def ready(self) -> bool:
+        return self.cell is not None and self.store is not None
+
+    def load(self) -> None:
+        """Load what is not given yet: the cell from ``settings.cell``, the recipe store from its URL.
+
+        Never raises: a failure is kept in ``load_error`` (shown by /readyz) and logged.
+        """
+        try:
+            if self.cell is None:
+                if not self.settings.cell:
+                    raise ValueError("no cell file configured: start with --cell cell.yaml or set DOORLOC_CELL")
+                from doorloc.cell import load_cell
+
+                self.cell = load_cell(self.settings.cell)
+            if self.store is None:
+                from doorloc.recipes.store import RecipeStore, database_url
+
+                url = self.settings.database_url or database_url(self.settings)
+                self.store = RecipeStore(url)
+            if self.locate_fn is None:
+                from doorloc.app.answer import default_locate_fn
+
+                self.locate_fn = default_locate_fn()
+            self.load_error = None
+            _log.info("ready", extra={"fields": {"event": "ready", "cell": self.settings.cell, **self.cell_ids()}})
+        except Exception as e:  # noqa: BLE001 - any start-up failure must leave a readable reason, not a dead process
+            self.load_error = str(e) or type(e).__name__
+            _log.error("not ready", extra={"fields": {"event": "not_ready", "reason": self.load_error}})
+
+    def cell_ids(self) -> dict[str, str]:
+        """Content ids of the cell in use and of its camera calibration (for audit trails)."""
+        if self.cell is None:
+            return {}
+        doc = cell_to_dict(self.cell)
+        return {"cell_id": content_id(doc), "calibration_id": content_id({
+            k: doc["camera"][k] for k in ("image_size", "camera_matrix", "dist_coeffs")
+        })}

@@ -1,0 +1,50 @@
+"""Service configuration, read once at the edge from ``DOORLOC_*`` environment variables.
+
+Everything the HTTP service needs is one :class:`ServiceSettings` value handed to
+:func:`doorloc.app.http.create_app`; nothing reads the environment after that.
+
+Examples
+--------
+>>> s = ServiceSettings(cell="fixtures/cell_thesis.yaml", max_upload_bytes=1_000_000)
+>>> s.max_upload_bytes
+1000000
+"""
+
+from __future__ import annotations
+
+import os
+
+from pydantic import Field, SecretStr
+from pydantic_settings import BaseSettings, SettingsConfigDict
+
+__all__ = ["ServiceSettings"]
+
+#: 20 MB: a lossless 1080p grey PNG is ~1-3 MB, a 4K colour PNG ~15 MB.
+DEFAULT_MAX_UPLOAD_BYTES = 20 * 1000 * 1000
+#: 50 megapixels: ample for any industrial camera, far below what would exhaust memory when decoded.
+DEFAULT_MAX_PIXELS = 50_000_000
+
+
+class ServiceSettings(BaseSettings):
+    """Configuration of ``doorloc serve`` (environment variables ``DOORLOC_<NAME>``)."""
+
+    model_config = SettingsConfigDict(env_prefix="DOORLOC_", extra="ignore", frozen=True)
+
+    cell: str | None = Field(None, description="path of the cell file (cell.yaml) the service locates doors in")
+    database_url: str | None = Field(
+        None, description="SQLAlchemy URL of the door-recipe database; unset: the recipe store's default"
+    )
+    api_key: SecretStr | None = Field(None, description="when set, every /v1 request must send it as X-API-Key")
+    max_upload_bytes: int = Field(DEFAULT_MAX_UPLOAD_BYTES, gt=0, description="largest request body, bytes")
+    max_pixels: int = Field(DEFAULT_MAX_PIXELS, gt=0, description="largest image (width*height) decoded")
+    locate_concurrency: int = Field(
+        default_factory=lambda: max(1, os.cpu_count() or 1),
+        gt=0,
+        description="images located at the same time in one worker process (the rest wait their turn)",
+    )
+    opencv_threads: int = Field(
+        1,
+        ge=0,
+        description="cv2.setNumThreads for the process: requests run in parallel already, so 1 avoids oversubscription",
+    )
+    log_level: str = Field("INFO", description="level of the structured request log")

@@ -1,0 +1,123 @@
+// doorloc operator page: post an image to /v1/locate?overlay=true and show what comes back.
+// Errors are shown as the API's own sentence (problem+json "detail", or the result's "error").
+"use strict";
+
+const $ = (id) => document.getElementById(id);
+const fmt = (v, digits) => (v === null || v === undefined ? "—" : Number(v).toFixed(digits));
+
+function apiHeaders() {
+  const key = $("api_key").value || localStorage.getItem("doorloc.api_key") || "";
+  if ($("api_key").value) localStorage.setItem("doorloc.api_key", $("api_key").value);
+  return key ? { "X-API-Key": key } : {};
+}
+
+function showError(sentence) {
+  const el = $("error");
+  el.textContent = sentence;
+  el.hidden = !sentence;
+}
+
+async function checkReady() {
+  const badge = $("ready");
+  try {
+    const r = await fetch("/readyz");
+    const body = await r.json();
+    badge.textContent = r.ok ? "ready" : "not ready";
+    badge.className = "badge " + (r.ok ? "ok" : "bad");
+    badge.title = r.ok ? body.cell_id : body.detail;
+  } catch (e) {
+    badge.textContent = "unreachable";
+    badge.className = "badge bad";
+  }
+}
+
+function fillRows(tbody, rows) {
+  tbody.replaceChildren(...rows.map((cells) => {
+    const tr = document.createElement("tr");
+    for (const c of cells) {
+      const td = document.createElement("td");
+      td.textContent = c;
+      tr.appendChild(td);
+    }
+    return tr;
+  }));
+}
+
+function showAnswer(a) {
+  $("answer").hidden = false;
+  $("image-name").textContent = a.image;
+  $("status").textContent = a.ok ? "located" : "refused";
+  $("status").className = "badge " + (a.ok ? "ok" : "bad");
+  $("pose-x").textContent = fmt(a.x_mm, 3);
+  $("pose-z").textContent = fmt(a.z_mm, 3);
+  $("pose-yaw").textContent = fmt(a.yaw_deg, 4);
+  $("pose-thickness").textContent = fmt(a.thickness_mm, 2);
+  $("pose-scale").textContent = fmt(a.scale_mm_per_px, 5);
+  $("pose-corner").textContent = a.corner_px ? a.corner_px.map((v) => fmt(v, 2)).join(", ") : "—";
+  $("pose-elapsed").textContent = fmt(a.elapsed_ms, 0);
+  if (a.overlay_png) {
+    $("overlay").src = "data:image/png;base64," + a.overlay_png;
+  } else {
+    $("overlay").removeAttribute("src");
+  }
+  fillRows($("quality").tBodies[0], (a.lines || []).map((l) => [
+    l.name, `${l.n_inliers}/${l.n_points}`, fmt(l.rms_residual_px, 3), fmt(l.rms_residual_mm, 4), fmt(l.contrast, 1),
+  ]));
+  $("targets-note").textContent = a.targets_note || "";
+  fillRows($("targets").tBodies[0], (a.targets || []).map((t) => [
+    t.name, t.hinge ?? "", fmt(t.x_mm, 3), fmt(t.y_mm, 3), fmt(t.z_mm, 3), (t.quat || []).map((q) => fmt(q, 5)).join(" "),
+  ]));
+  showError(a.ok ? "" : a.error);
+}
+
+async function locate(file) {
+  if (!file) {
+    showError("Choose an image first.");
+    return;
+  }
+  const form = new FormData();
+  form.append("image", file, file.name);
+  for (const name of ["door_id", "width_mm", "thickness_mm", "height_mm"]) {
+    const v = $(name).value.trim();
+    if (v) form.append(name, v);
+  }
+  $("busy").hidden = false;
+  $("submit").disabled = true;
+  showError("");
+  try {
+    const r = await fetch("/v1/locate?overlay=true", { method: "POST", body: form, headers: apiHeaders() });
+    const body = await r.json().catch(() => null);
+    if (!r.ok) {
+      $("answer").hidden = true;
+      showError((body && body.detail) || `The service answered ${r.status} ${r.statusText}.`);
+      return;
+    }
+    showAnswer(body);
+  } catch (e) {
+    showError("The service cannot be reached: " + e.message);
+  } finally {
+    $("busy").hidden = true;
+    $("submit").disabled = false;
+  }
+}
+
+$("locate-form").addEventListener("submit", (ev) => {
+  ev.preventDefault();
+  locate($("image").files[0]);
+});
+$("image").addEventListener("change", () => locate($("image").files[0]));
+
+const drop = $("drop");
+drop.addEventListener("dragover", (ev) => { ev.preventDefault(); drop.classList.add("over"); });
+drop.addEventListener("dragleave", () => drop.classList.remove("over"));
+drop.addEventListener("drop", (ev) => {
+  ev.preventDefault();
+  drop.classList.remove("over");
+  const file = ev.dataTransfer.files[0];
+  if (file) {
+    $("image").files = ev.dataTransfer.files;
+    locate(file);
+  }
+});
+
+checkReady();
