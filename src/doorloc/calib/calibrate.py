@@ -1,0 +1,491 @@
+"""Intrinsic calibration from board views: robust fitting, model selection, uncertainties.
+
+The flow (:func:`calibrate_views`):
+
+1. fit a reference model (plumb_bob, free aspect) to every view; reject corners whose residual
+   is far beyond the robust noise level and views that fit far worse than the others; refit until
+   nothing changes (every rejection is reported);
+2. fit each candidate distortion model and choose by **held-out** error: K-fold over views, the
+   held-out views' poses re-estimated with the trained intrinsics (``solvePnP``), so a model that
+   only fits the training views' noise does not win; among the models whose held-out error is within
+   one standard error (paired over views) of the best, the one with fewest parameters is chosen;
+3. refit the chosen model on all kept views and report per-view errors, 1-sigma parameter
+   uncertainties (from the full Jacobian, extrinsics included) and the projection uncertainty
+   across the image, and the radius the data reached (``observed_radius_px``).
+
+Pixels follow OpenCV's convention (origin at the centre of the top-left pixel).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from doorloc.calib.camera import CameraModel
+
+__all__ = [
+    "View",
+    "Candidate",
+    "CANDIDATES",
+    "ModelFit",
+    "Rejection",
+    "CandidateScore",
+    "CalibrationResult",
+    "CalibrationError",
+    "fit_model",
+    "held_out_rms",
+    "held_out_errors",
+    "calibrate_views",
+    "projection_uncertainty",
+    "MIN_VIEWS",
+]
+
+#: fewest views a calibration is attempted with (after rejection)
+MIN_VIEWS = 4
+#: a candidate whose held-out error exceeds the best one's by less than this many standard errors
+#: (paired over views) counts as equally good; the one with fewest parameters is chosen ("1-SE rule")
+SELECTION_STANDARD_ERRORS = 1.0
+#: corner rejection: residual above max(CORNER_SIGMAS * robust sigma, CORNER_FLOOR_PX)
+CORNER_SIGMAS = 4.0
+CORNER_FLOOR_PX = 0.25
+#: view rejection: RMS above max(VIEW_FACTOR * median view RMS, VIEW_FLOOR_PX), or too many bad corners
+VIEW_FACTOR = 3.0
+VIEW_FLOOR_PX = 0.5
+VIEW_MAX_BAD_FRACTION = 0.25
+
+_TERM = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 200, 1e-12)
+
+
+class CalibrationError(ValueError):
+    """The calibration could not be done (too few usable views, degenerate data); the message says why."""
+
+
+@dataclass(frozen=True)
+class View:
+    """One image's board corners: object points (board frame, mm) and their pixels.
+
+    ``object_points`` shape (N, 3), ``image_points`` shape (N, 2), ``ids`` shape (N,) (corner ids on
+    the board, for reporting rejected corners).
+    """
+
+    name: str
+    object_points: np.ndarray
+    image_points: np.ndarray
+    ids: np.ndarray
+
+    def subset(self, mask: np.ndarray) -> View:
+        return View(self.name, self.object_points[mask], self.image_points[mask], self.ids[mask])
+
+    @property
+    def n(self) -> int:
+        return int(len(self.image_points))
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """A distortion model and aspect-ratio choice to fit.
+
+    ``flags`` are OpenCV calibration flags; ``n_coeffs`` the coefficients stored (5 or 8);
+    ``free_dist`` the indices of the distortion coefficients that are estimated.
+    """
+
+    name: str
+    flags: int
+    n_coeffs: int
+    free_dist: tuple[int, ...]
+    fixed_aspect: bool = False
+
+    @property
+    def n_intrinsics(self) -> int:
+        return (1 if self.fixed_aspect else 2) + 2 + len(self.free_dist)
+
+    def with_fixed_aspect(self) -> Candidate:
+        return Candidate(self.name + "+fixed_aspect", self.flags | cv2.CALIB_FIX_ASPECT_RATIO, self.n_coeffs,
+                         self.free_dist, True)
+
+
+_BASE = (
+    Candidate("k1k2", cv2.CALIB_ZERO_TANGENT_DIST | cv2.CALIB_FIX_K3, 5, (0, 1)),
+    Candidate("k1k2p1p2", cv2.CALIB_FIX_K3, 5, (0, 1, 2, 3)),
+    Candidate("plumb_bob", 0, 5, (0, 1, 2, 3, 4)),
+    Candidate("rational", cv2.CALIB_RATIONAL_MODEL, 8, (0, 1, 2, 3, 4, 5, 6, 7)),
+)
+#: every candidate: the four distortion models, each with free and with fixed (unit) aspect ratio
+CANDIDATES: tuple[Candidate, ...] = _BASE + tuple(c.with_fixed_aspect() for c in _BASE)
+CANDIDATES_BY_NAME = {c.name: c for c in CANDIDATES}
+_REFERENCE = CANDIDATES_BY_NAME["plumb_bob"]
+
+
+@dataclass(frozen=True)
+class ModelFit:
+    """A fitted candidate on a set of views.
+
+    ``residuals_px[i]`` is (N_i, 2) observed minus projected pixels of view ``i``; ``rms_px`` over all
+    corners; ``per_view_rms_px`` per view; ``rvecs``/``tvecs_mm`` the board poses (board -> camera).
+    """
+
+    candidate: Candidate
+    camera: CameraModel
+    rvecs: list[np.ndarray]
+    tvecs_mm: list[np.ndarray]
+    residuals_px: list[np.ndarray]
+    rms_px: float
+    per_view_rms_px: list[float]
+
+
+@dataclass(frozen=True)
+class Rejection:
+    """A rejected view (``corner_id`` None) or corner, with its residual and the reason."""
+
+    view: str
+    corner_id: int | None
+    residual_px: float
+    reason: str
+
+
+@dataclass(frozen=True)
+class CandidateScore:
+    name: str
+    n_params: int
+    train_rms_px: float
+    held_out_rms_px: float
+    chosen: bool = False
+
+
+@dataclass(frozen=True)
+class CalibrationResult:
+    """Everything a calibration found; :mod:`doorloc.calib.report` turns it into JSON + PNG.
+
+    Attributes
+    ----------
+    camera : CameraModel
+        The chosen model, with ``observed_radius_px`` set.
+    fit : ModelFit
+        The final fit on the kept views/corners.
+    views : list of View
+        The kept views with their kept corners (same order as ``fit.residuals_px``).
+    rejections : list of Rejection
+    scores : list of CandidateScore
+        Training and held-out RMS of every candidate (px).
+    std_intrinsics : dict
+        1-sigma uncertainties: ``fx, fy, cx, cy`` (px) and the free distortion coefficients by name.
+    covariance : ndarray
+        Covariance of the free intrinsic parameters (order in ``covariance_names``).
+    covariance_names : list of str
+    projection_sigma_px : dict
+        ``max_observed`` (largest 1-sigma projection uncertainty inside the observed radius),
+        ``corners`` (at the four image corners), ``centre``.
+    n_folds : int
+    """
+
+    camera: CameraModel
+    fit: ModelFit
+    views: list[View]
+    rejections: list[Rejection]
+    scores: list[CandidateScore]
+    std_intrinsics: dict
+    covariance: np.ndarray
+    covariance_names: list[str]
+    projection_sigma_px: dict
+    n_folds: int
+    warnings: list[str] = field(default_factory=list)
+
+
+_DIST_NAMES = ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6")
+
+
+def _cv_inputs(views: list[View]) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    obj = [np.ascontiguousarray(v.object_points, np.float32).reshape(-1, 1, 3) for v in views]
+    img = [np.ascontiguousarray(v.image_points, np.float32).reshape(-1, 1, 2) for v in views]
+    return obj, img
+
+
+def _project(camera: CameraModel, rvec, tvec, object_points: np.ndarray) -> np.ndarray:
+    p, _ = cv2.projectPoints(np.asarray(object_points, float).reshape(-1, 1, 3), np.asarray(rvec, float),
+                             np.asarray(tvec, float), camera.camera_matrix, camera.dist_coeffs)
+    return p.reshape(-1, 2)
+
+
+def _residuals(camera: CameraModel, views: list[View], rvecs, tvecs) -> list[np.ndarray]:
+    return [v.image_points - _project(camera, r, t, v.object_points) for v, r, t in zip(views, rvecs, tvecs, strict=True)]
+
+
+def _rms(res: list[np.ndarray]) -> float:
+    allr = np.concatenate([r.reshape(-1, 2) for r in res]) if res else np.zeros((0, 2))
+    return float(np.sqrt(np.mean(np.sum(allr**2, axis=1)))) if len(allr) else float("nan")
+
+
+def fit_model(views: list[View], image_size: tuple[int, int], candidate: Candidate) -> ModelFit:
+    """Fit ``candidate`` to ``views`` with ``cv2.calibrateCamera`` (Levenberg-Marquardt).
+
+    Raises :class:`CalibrationError` if OpenCV cannot fit (e.g. degenerate views).
+    """
+    obj, img = _cv_inputs(views)
+    K0 = np.eye(3)
+    try:
+        _, K, d, rvecs, tvecs = cv2.calibrateCamera(
+            obj, img, tuple(int(s) for s in image_size), K0, None, flags=candidate.flags, criteria=_TERM
+        )
+    except cv2.error as e:
+        raise CalibrationError(f"OpenCV could not fit the {candidate.name} model: {e.err or e}") from None
+    d = np.asarray(d, float).ravel()[: candidate.n_coeffs]
+    d = np.pad(d, (0, candidate.n_coeffs - d.size))
+    if not np.all(np.isfinite(K)) or not np.all(np.isfinite(d)) or K[0, 0] <= 0 or K[1, 1] <= 0:
+        raise CalibrationError(f"the {candidate.name} fit diverged; the views are probably degenerate")
+    camera = CameraModel(K, d, image_size)
+    rv = [np.asarray(r, float).ravel() for r in rvecs]
+    tv = [np.asarray(t, float).ravel() for t in tvecs]
+    res = _residuals(camera, views, rv, tv)
+    per_view = [float(np.sqrt(np.mean(np.sum(r**2, axis=1)))) for r in res]
+    return ModelFit(candidate, camera, rv, tv, res, _rms(res), per_view)
+
+
+def _pose(camera: CameraModel, view: View) -> tuple[np.ndarray, np.ndarray]:
+    """Board pose in one view with known intrinsics (planar IPPE start, then Levenberg-Marquardt)."""
+    obj = np.asarray(view.object_points, float).reshape(-1, 1, 3)
+    img = np.asarray(view.image_points, float).reshape(-1, 1, 2)
+    planar = np.ptp(view.object_points[:, 2]) < 1e-9
+    method = cv2.SOLVEPNP_IPPE if planar else cv2.SOLVEPNP_ITERATIVE
+    ok, r, t = cv2.solvePnP(obj, img, camera.camera_matrix, camera.dist_coeffs, flags=method)
+    if not ok:
+        ok, r, t = cv2.solvePnP(obj, img, camera.camera_matrix, camera.dist_coeffs, flags=cv2.SOLVEPNP_ITERATIVE)
+    r, t = cv2.solvePnPRefineLM(obj, img, camera.camera_matrix, camera.dist_coeffs, r, t)
+    return r.ravel(), t.ravel()
+
+
+def held_out_errors(views: list[View], image_size: tuple[int, int], candidate: Candidate, n_folds: int) -> np.ndarray:
+    """K-fold held-out squared errors: per view, the mean squared residual (px^2) when it was held out.
+
+    View ``i`` is held out in fold ``i % n_folds``; its pose is re-estimated with the intrinsics
+    trained on the other folds. Shape (n_views,); NaN for a view that could not be evaluated.
+    """
+    mse = np.full(len(views), np.nan)
+    idx = np.arange(len(views))
+    for k in range(n_folds):
+        test = idx[idx % n_folds == k]
+        train = idx[idx % n_folds != k]
+        if len(test) == 0 or len(train) < 2:
+            continue
+        fit = fit_model([views[i] for i in train], image_size, candidate)
+        for i in test:
+            r, t = _pose(fit.camera, views[i])
+            res = views[i].image_points - _project(fit.camera, r, t, views[i].object_points)
+            mse[i] = float(np.mean(np.sum(res**2, axis=1)))
+    return mse
+
+
+def held_out_rms(views: list[View], image_size: tuple[int, int], candidate: Candidate, n_folds: int) -> float:
+    """K-fold held-out RMS (px) over all corners of all views (see :func:`held_out_errors`)."""
+    mse = held_out_errors(views, image_size, candidate, n_folds)
+    n = np.array([v.n for v in views], float)
+    ok = np.isfinite(mse)
+    return float(np.sqrt(np.sum(mse[ok] * n[ok]) / np.sum(n[ok]))) if np.any(ok) else float("nan")
+
+
+def _reject(views: list[View], image_size, candidate: Candidate, min_views: int) -> tuple[list[View], list[Rejection], ModelFit]:
+    """Iteratively drop outlier corners and views, refitting each time (at most five rounds)."""
+    rejections: list[Rejection] = []
+    current = list(views)
+    fit = fit_model(current, image_size, candidate)
+    for _ in range(5):
+        allr = np.concatenate(fit.residuals_px)
+        sigma = 1.4826 * float(np.median(np.abs(allr)))
+        corner_thr = max(CORNER_SIGMAS * sigma, CORNER_FLOOR_PX)
+        median_view = float(np.median(fit.per_view_rms_px))
+        view_thr = max(VIEW_FACTOR * median_view, VIEW_FLOOR_PX)
+        changed = False
+        new_views: list[View] = []
+        # Views first: a whole bad view (wrong detection, motion blur) is not a set of bad corners.
+        order = np.argsort(fit.per_view_rms_px)[::-1]
+        n_left = len(current)
+        drop_view = set()
+        for i in order:
+            norms = np.linalg.norm(fit.residuals_px[i], axis=1)
+            bad_frac = float(np.mean(norms > corner_thr))
+            if n_left <= min_views:
+                break
+            if fit.per_view_rms_px[i] > view_thr or bad_frac > VIEW_MAX_BAD_FRACTION:
+                why = (f"view RMS {fit.per_view_rms_px[i]:.2f} px > {view_thr:.2f} px"
+                       if fit.per_view_rms_px[i] > view_thr
+                       else f"{bad_frac:.0%} of its corners beyond {corner_thr:.2f} px")
+                rejections.append(Rejection(current[i].name, None, fit.per_view_rms_px[i], why))
+                drop_view.add(int(i))
+                n_left -= 1
+        for i, v in enumerate(current):
+            if i in drop_view:
+                changed = True
+                continue
+            norms = np.linalg.norm(fit.residuals_px[i], axis=1)
+            bad = norms > corner_thr
+            if np.any(bad) and v.n - int(bad.sum()) >= 6:
+                for j in np.flatnonzero(bad):
+                    rejections.append(Rejection(v.name, int(v.ids[j]), float(norms[j]),
+                                                f"corner residual {norms[j]:.2f} px > {corner_thr:.2f} px"))
+                v = v.subset(~bad)
+                changed = True
+            new_views.append(v)
+        if not changed:
+            break
+        current = new_views
+        fit = fit_model(current, image_size, candidate)
+    return current, rejections, fit
+
+
+def _free_param_names(c: Candidate) -> list[str]:
+    return (["f"] if c.fixed_aspect else ["fx", "fy"]) + ["cx", "cy"] + [_DIST_NAMES[i] for i in c.free_dist]
+
+
+def _intrinsic_jacobian(camera: CameraModel, c: Candidate, jac: np.ndarray) -> np.ndarray:
+    """Columns of ``cv2.projectPoints``' Jacobian for the free intrinsics of ``c``. (2N, n_free)."""
+    dfx, dfy = jac[:, 6], jac[:, 7]
+    cols = [camera.fx / camera.fy * dfx + dfy] if c.fixed_aspect else [dfx, dfy]
+    cols += [jac[:, 8], jac[:, 9]]
+    cols += [jac[:, 10 + i] for i in c.free_dist]
+    return np.stack(cols, axis=1)
+
+
+def _covariance(fit: ModelFit, views: list[View]) -> tuple[np.ndarray, list[str], float]:
+    """Covariance of the free intrinsics from the full Jacobian (intrinsics + all poses).
+
+    Gauss-Newton: ``Cov = s^2 (J^T J)^-1`` with ``s^2`` the residual variance per coordinate; the
+    intrinsic block of the inverse is the marginal covariance (pose uncertainty accounted for).
+    """
+    c, cam = fit.candidate, fit.camera
+    n_i = c.n_intrinsics
+    n_v = len(views)
+    rows = []
+    for k, v in enumerate(views):
+        _, jac = cv2.projectPoints(v.object_points.reshape(-1, 1, 3).astype(float), fit.rvecs[k], fit.tvecs_mm[k],
+                                   cam.camera_matrix, cam.dist_coeffs)
+        J = np.zeros((2 * v.n, n_i + 6 * n_v))
+        J[:, :n_i] = _intrinsic_jacobian(cam, c, jac)
+        J[:, n_i + 6 * k: n_i + 6 * k + 6] = jac[:, :6]
+        rows.append(J)
+    J = np.concatenate(rows)
+    n_obs = J.shape[0]
+    sse = float(sum(np.sum(r**2) for r in fit.residuals_px))
+    dof = max(n_obs - J.shape[1], 1)
+    s2 = sse / dof
+    JTJ = J.T @ J
+    cov = s2 * np.linalg.pinv(JTJ)
+    return cov[:n_i, :n_i], _free_param_names(c), math.sqrt(s2)
+
+
+def projection_uncertainty(camera: CameraModel, candidate: Candidate, cov: np.ndarray, pixels: np.ndarray) -> np.ndarray:
+    """1-sigma uncertainty (px, major axis) of where a fixed camera-frame ray lands, at each pixel.
+
+    The ray seen at each pixel by ``camera`` is projected again with the intrinsics' covariance
+    ``cov`` (free parameters of ``candidate``). Shape ``(N, 2) -> (N,)``; NaN where the model
+    cannot undistort the pixel.
+    """
+    px = np.asarray(pixels, float).reshape(-1, 2)
+    xy = camera.undistort(px)
+    out = np.full(len(px), np.nan)
+    ok = np.all(np.isfinite(xy), axis=1)
+    if not np.any(ok):
+        return out
+    pts = np.concatenate([xy[ok], np.ones((int(ok.sum()), 1))], axis=1).reshape(-1, 1, 3)
+    _, jac = cv2.projectPoints(pts, np.zeros(3), np.zeros(3), camera.camera_matrix, camera.dist_coeffs)
+    Ji = _intrinsic_jacobian(camera, candidate, jac)  # (2M, n)
+    Ji = Ji.reshape(-1, 2, Ji.shape[1])
+    S = Ji @ cov @ np.transpose(Ji, (0, 2, 1))  # (M, 2, 2)
+    ev = np.linalg.eigvalsh(S)
+    out[ok] = np.sqrt(np.maximum(ev[:, -1], 0.0))
+    return out
+
+
+def observed_radius(camera: CameraModel, views: list[View]) -> float:
+    """Largest distance (px) of any kept corner from the principal point."""
+    c = np.array([camera.cx, camera.cy])
+    return float(max(np.max(np.linalg.norm(v.image_points - c, axis=1)) for v in views))
+
+
+def calibrate_views(
+    views: list[View],
+    image_size: tuple[int, int],
+    *,
+    candidates: tuple[Candidate, ...] | list[Candidate] = CANDIDATES,
+    n_folds: int = 5,
+    min_views: int = MIN_VIEWS,
+    reject: bool = True,
+) -> CalibrationResult:
+    """Calibrate from board views: reject outliers, choose the model by held-out error, fit, report.
+
+    Parameters
+    ----------
+    views : list of View
+        One per image; at least ``min_views`` with six or more corners each.
+    image_size : (width, height)
+    candidates : the models to choose among (default :data:`CANDIDATES`)
+    n_folds : K of the K-fold held-out error (fewer views than K: leave-one-view-out)
+    min_views : the least number of views kept
+
+    Raises
+    ------
+    CalibrationError
+        Too few usable views, or no candidate could be fitted.
+    """
+    views = [v for v in views if v.n >= 6]
+    if len(views) < min_views:
+        raise CalibrationError(
+            f"only {len(views)} usable board view(s); calibration needs at least {min_views} "
+            "(more than 10, covering the whole image, gives a trustworthy model)"
+        )
+    rejections: list[Rejection] = []
+    if reject:
+        views, rejections, _ = _reject(views, image_size, _REFERENCE, min_views)
+    k = min(n_folds, len(views))
+    n_pts = np.array([v.n for v in views], float)
+    rows: list[tuple[Candidate, ModelFit, np.ndarray]] = []
+    for cand in candidates:
+        try:
+            fit = fit_model(views, image_size, cand)
+            mse = held_out_errors(views, image_size, cand, k)
+        except CalibrationError:
+            continue
+        if np.all(np.isfinite(mse)):
+            rows.append((cand, fit, mse))
+    if not rows:
+        raise CalibrationError("no distortion model could be fitted to these views; check the board size and images")
+
+    def pooled(mse: np.ndarray) -> float:
+        return float(np.sqrt(np.sum(mse * n_pts) / np.sum(n_pts)))
+
+    best_mse = min(rows, key=lambda r: pooled(r[2]))[2]
+    eligible = []
+    for cand, _, mse in rows:
+        d = mse - best_mse
+        se = float(np.std(d, ddof=1) / math.sqrt(len(d))) if len(d) > 1 else 0.0
+        if np.mean(d) <= SELECTION_STANDARD_ERRORS * se:
+            eligible.append(cand)
+    chosen = min(eligible, key=lambda c: (c.n_intrinsics, pooled(next(r[2] for r in rows if r[0] is c))))
+    scores = [CandidateScore(c.name, c.n_intrinsics, f.rms_px, pooled(m), c is chosen) for c, f, m in rows]
+    fits = {c.name: f for c, f, _ in rows}
+    fit = fits[chosen.name]
+    cov, names, _ = _covariance(fit, views)
+    std = dict(zip(names, np.sqrt(np.maximum(np.diag(cov), 0.0)).tolist(), strict=True))
+    if "f" in std:
+        a = fit.camera.fx / fit.camera.fy
+        std = {"fx": std["f"] * a, "fy": std["f"], **{k2: v for k2, v in std.items() if k2 != "f"}}
+    radius = observed_radius(fit.camera, views)
+    camera = fit.camera.with_observed_radius(radius)
+    fit = ModelFit(fit.candidate, camera, fit.rvecs, fit.tvecs_mm, fit.residuals_px, fit.rms_px, fit.per_view_rms_px)
+    w, h = image_size
+    corners = camera.image_corners_px() + np.array([[0.5, 0.5], [-0.5, 0.5], [-0.5, -0.5], [0.5, -0.5]])
+    gu, gv = np.meshgrid(np.linspace(0, w - 1, 33), np.linspace(0, h - 1, 25))
+    grid = np.stack([gu.ravel(), gv.ravel()], axis=1)
+    sig_grid = projection_uncertainty(camera, fit.candidate, cov, grid)
+    inside = np.linalg.norm(grid - [camera.cx, camera.cy], axis=1) <= radius
+    sig_corners = projection_uncertainty(camera, fit.candidate, cov, corners)
+    sig_centre = projection_uncertainty(camera, fit.candidate, cov, np.array([[camera.cx, camera.cy]]))
+    proj = {
+        "max_observed": float(np.nanmax(sig_grid[inside])) if np.any(inside) else None,
+        "corners": [None if not np.isfinite(s) else float(s) for s in sig_corners],
+        "centre": float(sig_centre[0]),
+        "grid_shape": [25, 33],
+        "grid": [None if not np.isfinite(s) else float(s) for s in sig_grid],
+    }
+    return CalibrationResult(camera, fit, views, rejections, scores, std, cov, names, proj, k)
