@@ -1,0 +1,248 @@
+"""Photometric, optical and sensor effects of the renderer, each with a default that switches it off.
+
+:class:`Effects` is one frozen value that says everything about how an image was made beyond its
+geometry, so a data set can be made with exactly one effect switched on and its ``truth.csv`` can
+record the effects used (:meth:`Effects.to_dict`, one column per field).
+
+The image formation order (:func:`form_image`):
+
+scene radiance (per-face albedo x (ambient + directional Lambert), wood grain, shadows; rendered by
+:mod:`doorloc.sim.raster`) -> illumination gradient and vignetting (smooth, per pixel) -> optical blur
+(Gaussian) -> exposure to electrons with shot noise (Poisson) and read noise (Gaussian) -> response curve
+(gamma) -> quantization to 8 or 16 bits -> optional JPEG round trip.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields
+
+import numpy as np
+
+__all__ = ["Effects", "form_image", "lambert_shade", "wood_grain"]
+
+
+@dataclass(frozen=True)
+class Effects:
+    """How an image is made beyond its geometry. The defaults give a plain, noise-free 8-bit image.
+
+    Albedos are reflectances in [0, 1]; with the default lighting (ambient 1, no directional light) a
+    face's radiance equals its albedo, and radiance 1 maps to the top of the output range.
+
+    Attributes
+    ----------
+    albedo_hinge, albedo_side, albedo_end, albedo_chamfer, albedo_back, albedo_background : float
+        Per-face reflectance: hinge-edge face, the big faces (X=0, X=T), the ends (Z=0, Z=H),
+        chamfer/arris facets, the far edge face (Y=W), the background plane.
+    light_ambient : float
+        Ambient term of the lighting.
+    light_directional : float
+        Strength of a directional light (0 = off), Lambert: ``albedo * (ambient + k * max(0, n.l))``.
+    light_azimuth_deg, light_elevation_deg : float
+        Direction *towards* the light in the cell frame: azimuth from -Y (towards the camera) about +Z,
+        positive towards +X; elevation towards +Z.
+    gradient_u, gradient_v : float
+        Illumination gradient: relative radiance change from the image centre to the right / bottom
+        image border (multiplier ``1 + gu*(u-cx)/(w/2) + gv*(v-cy)/(h/2)``).
+    vignetting : float
+        Relative fall-off at the image corner (``1 - k*(r/r_corner)^2``); 0 = off.
+    grain_contrast : float
+        Relative amplitude of the wood-grain pattern on the hinge face; 0 = off.
+    grain_period_mm : float
+        Typical spacing of grain lines across the thickness, mm.
+    shadow_strength : float
+        Darkening (0..1) of a band across the hinge face (a shadow near the corner); 0 = off.
+    shadow_z_mm, shadow_height_mm : float
+        Where the band starts above the bottom end, and its height, door frame, mm.
+    clamp_albedo : float
+        Reflectance of a dark clamp on the background beside the corner; < 0 = off.
+    second_edge_offset_mm : float
+        A second, parallel vertical edge on the background this far (mm at the hinge-face depth) to the
+        left of the reference face; 0 = off.
+    second_edge_albedo : float
+        Reflectance of the background left of the second edge.
+    arris_profile : str
+        ``"chamfer"`` (45 degrees) or ``"round"`` for the door's arris of size ``DoorSize.arris_mm``.
+    blur_sigma_px : float
+        Gaussian optical blur, px; 0 = off.
+    full_well_e : float
+        Electrons at full scale for Poisson shot noise; 0 = off.
+    read_noise_dn : float
+        Gaussian read noise, standard deviation in output DN of the 8-bit scale; 0 = off.
+    gamma : float
+        Response ``out = in ** (1/gamma)``; 1 = linear.
+    bit_depth : int
+        8 or 16 (uint8 or uint16 output).
+    jpeg_quality : int
+        JPEG round trip at this quality (1-100, 8-bit only); 0 = off.
+    color : bool
+        Return a 3-channel BGR image (wood tint) instead of grey.
+    """
+
+    albedo_hinge: float = 0.78
+    albedo_side: float = 0.55
+    albedo_end: float = 0.45
+    albedo_chamfer: float = 0.66
+    albedo_back: float = 0.5
+    albedo_background: float = 0.12
+    light_ambient: float = 1.0
+    light_directional: float = 0.0
+    light_azimuth_deg: float = 30.0
+    light_elevation_deg: float = 30.0
+    gradient_u: float = 0.0
+    gradient_v: float = 0.0
+    vignetting: float = 0.0
+    grain_contrast: float = 0.0
+    grain_period_mm: float = 2.5
+    shadow_strength: float = 0.0
+    shadow_z_mm: float = 30.0
+    shadow_height_mm: float = 40.0
+    clamp_albedo: float = -1.0
+    second_edge_offset_mm: float = 0.0
+    second_edge_albedo: float = 0.35
+    arris_profile: str = "chamfer"
+    blur_sigma_px: float = 0.0
+    full_well_e: float = 0.0
+    read_noise_dn: float = 0.0
+    gamma: float = 1.0
+    bit_depth: int = 8
+    jpeg_quality: int = 0
+    color: bool = False
+
+    def __post_init__(self) -> None:
+        if self.bit_depth not in (8, 16):
+            raise ValueError(f"bit_depth must be 8 or 16, got {self.bit_depth!r}")
+        if self.arris_profile not in ("chamfer", "round"):
+            raise ValueError(f"arris_profile must be 'chamfer' or 'round', got {self.arris_profile!r}")
+        if not 0 <= self.jpeg_quality <= 100:
+            raise ValueError(f"jpeg_quality must be 0 (off) or 1-100, got {self.jpeg_quality!r}")
+        if self.jpeg_quality and self.bit_depth != 8:
+            raise ValueError("JPEG output needs bit_depth 8")
+        for name in ("blur_sigma_px", "full_well_e", "read_noise_dn", "grain_contrast", "vignetting"):
+            if not getattr(self, name) >= 0:
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
+        if not self.gamma > 0:
+            raise ValueError(f"gamma must be > 0, got {self.gamma!r}")
+        if not 0 <= self.shadow_strength <= 1:
+            raise ValueError(f"shadow_strength must be in [0, 1], got {self.shadow_strength!r}")
+
+    def to_dict(self) -> dict:
+        """Plain mapping of every field (scalars only), e.g. for ``truth.csv`` columns."""
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> Effects:
+        """Inverse of :meth:`to_dict`; values may be strings (from CSV). Unknown keys are refused."""
+        known = {f.name: f for f in fields(cls)}
+        unknown = set(d) - set(known)
+        if unknown:
+            raise ValueError(f"unknown effect(s): {', '.join(sorted(unknown))}; known: {', '.join(known)}")
+        kw = {}
+        for k, v in d.items():
+            default = known[k].default
+            if isinstance(default, bool):
+                kw[k] = v if isinstance(v, bool) else str(v).strip().lower() in ("1", "true", "yes")
+            elif isinstance(default, int):
+                kw[k] = int(float(v))
+            elif isinstance(default, float):
+                kw[k] = float(v)
+            else:
+                kw[k] = str(v)
+        return cls(**kw)
+
+    def light_direction_cell(self) -> np.ndarray:
+        """Unit vector towards the light, cell frame, shape (3,)."""
+        az, el = math.radians(self.light_azimuth_deg), math.radians(self.light_elevation_deg)
+        return np.array([math.cos(el) * math.sin(az), -math.cos(el) * math.cos(az), math.sin(el)])
+
+
+def lambert_shade(effects: Effects, albedo: float, normal_cell: np.ndarray) -> float:
+    """Radiance factor of a face: ``albedo * (ambient + directional * max(0, n.l))``."""
+    n = np.asarray(normal_cell, float)
+    n = n / np.linalg.norm(n)
+    cos = max(0.0, float(n @ effects.light_direction_cell()))
+    return float(albedo * (effects.light_ambient + effects.light_directional * cos))
+
+
+def wood_grain(effects: Effects, seed: int):
+    """Smooth multiplicative wood-grain pattern on the hinge face, ``f(s, t) -> array``.
+
+    ``s`` runs across the thickness and ``t`` along the door height (mm); grain lines run along ``t``
+    and wander slowly. Returns None when the effect is off.
+    """
+    if effects.grain_contrast <= 0:
+        return None
+    rng = np.random.default_rng([seed, 7919])
+    k = 5
+    periods = effects.grain_period_mm * rng.uniform(0.6, 1.6, k)
+    phases = rng.uniform(0, 2 * np.pi, k)
+    amps = rng.uniform(0.5, 1.0, k)
+    amps = amps / amps.sum()
+    wander_len = rng.uniform(150.0, 400.0, k)
+    wander_amp = rng.uniform(0.5, 2.0, k)
+    c = effects.grain_contrast
+
+    def grain(s: np.ndarray, t: np.ndarray) -> np.ndarray:
+        g = np.zeros(np.broadcast(s, t).shape)
+        for p, ph, a, wl, wa in zip(periods, phases, amps, wander_len, wander_amp, strict=True):
+            g += a * np.sin(2 * np.pi * (s + wa * np.sin(2 * np.pi * t / wl)) / p + ph)
+        return 1.0 + c * g
+
+    return grain
+
+
+def form_image(radiance: np.ndarray, effects: Effects, seed: int = 0, principal_point=None) -> np.ndarray:
+    """Turn a rendered radiance image into the sensor's output image.
+
+    Parameters
+    ----------
+    radiance : ndarray, shape (H, W), float
+        Box-filtered scene radiance, 1 = full scale.
+    effects : Effects
+        Which effects to apply.
+    seed : int
+        Seeds the noise; the same seed gives the same bytes.
+    principal_point : (float, float) or None
+        Centre of vignetting (defaults to the image centre).
+
+    Returns
+    -------
+    ndarray
+        uint8 or uint16, shape (H, W) or (H, W, 3) (BGR) with ``effects.color``.
+    """
+    import cv2
+
+    img = np.asarray(radiance, float)
+    h, w = img.shape
+    if effects.gradient_u or effects.gradient_v or effects.vignetting:
+        cx, cy = principal_point if principal_point is not None else ((w - 1) / 2, (h - 1) / 2)
+        u = (np.arange(w) - (w - 1) / 2) / (w / 2)
+        v = (np.arange(h) - (h - 1) / 2) / (h / 2)
+        field = 1.0 + effects.gradient_u * u[None, :] + effects.gradient_v * v[:, None]
+        if effects.vignetting:
+            du = np.arange(w) - cx
+            dv = np.arange(h) - cy
+            r2_corner = max((cx + 0.5) ** 2, (w - 0.5 - cx) ** 2) + max((cy + 0.5) ** 2, (h - 0.5 - cy) ** 2)
+            field = field * (1.0 - effects.vignetting * (du[None, :] ** 2 + dv[:, None] ** 2) / r2_corner)
+        img = img * field
+    if effects.blur_sigma_px > 0:
+        img = cv2.GaussianBlur(img, (0, 0), effects.blur_sigma_px, borderType=cv2.BORDER_REFLECT)
+    rng = np.random.default_rng([seed, 104729])
+    if effects.full_well_e > 0:
+        img = rng.poisson(np.clip(img, 0, None) * effects.full_well_e) / effects.full_well_e
+    if effects.read_noise_dn > 0:
+        img = img + rng.normal(0.0, effects.read_noise_dn / 255.0, img.shape)
+    img = np.clip(img, 0.0, 1.0)
+    if effects.gamma != 1.0:
+        img = img ** (1.0 / effects.gamma)
+    if effects.color:
+        tint = np.array([0.80, 0.93, 1.0])  # BGR: a warm wood tone
+        img = img[..., None] * tint
+    top = 255 if effects.bit_depth == 8 else 65535
+    out = np.rint(img * top).astype(np.uint8 if effects.bit_depth == 8 else np.uint16)
+    if effects.jpeg_quality:
+        ok, buf = cv2.imencode(".jpg", out, [cv2.IMWRITE_JPEG_QUALITY, int(effects.jpeg_quality)])
+        if not ok:
+            raise RuntimeError("JPEG encoding failed")
+        out = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED)
+    return out
