@@ -1,0 +1,350 @@
+"""Image -> door pose: the public :func:`locate` and its :class:`LocateConfig`.
+
+The flow (thesis section 3.7, made metric and robust)::
+
+    luminance -> size/exposure checks -> coarse steps in the search region (RANSAC lines)
+      -> coarse pose on the hinge-face plane
+      -> sub-pixel edge points along every scan line of each edge (area estimator), pass 1
+      -> joint robust fit of bottom end + reference arris + far arris on the plane -> pose
+      -> pass 2 with windows centred on the fitted lines and sized to the measured blur -> pose
+      -> quality gate -> LocateResult
+
+:func:`locate` never raises for a bad image: every failure comes back as a refusal (``ok=false``,
+``error_code``, ``error``).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from doorloc.cell import Cell, DoorSize
+from doorloc.vision import quality as q
+from doorloc.vision.edges import EdgeSamples, coarse_edges, subpixel_edges, transition_width
+from doorloc.vision.lines import RectangleFit, fit_rectangle_edges, ransac_line
+from doorloc.vision.luminance import ImageFormatError, luminance_plane
+from doorloc.vision.metric import MetricPose, plane_points, pose_from_fit
+from doorloc.vision.region import EDGE_NAMES, Band, SearchRegion
+from doorloc.vision.result import LineQuality, LocateResult
+
+__all__ = ["LocateConfig", "locate", "LocateTrace"]
+
+HUMAN = {"bottom": "bottom end of the door (X-line)", "reference": "reference-face arris (Z-line)",
+         "far": "far arris (door thickness)"}
+
+
+@dataclass(frozen=True)
+class LocateConfig:
+    """Thresholds and sizes of the locate pipeline. Grey levels are on the 0-255 scale.
+
+    Attributes
+    ----------
+    search_margin_mm, search_margin_deg : float
+        How far beyond the placement envelope the search region reaches (so a badly placed door is
+        found and refused as such, not missed).
+    envelope_margin_mm, envelope_margin_deg : float
+        Tolerance beyond the envelope before a pose is refused.
+    door_brighter : bool
+        The hinge face is brighter than the background (the cell's lighting design).
+    min_contrast : float
+        Smallest grey-level step accepted for an edge.
+    half_window_max, half_window_min : int
+        Bounds of the sub-pixel window half-size, px (the second pass sizes it to the measured blur).
+    plateau : int
+        Samples on each side of the window used for the two grey levels.
+    min_thickness_mm, thickness_search_mm : float
+        The far arris is looked for between these distances beyond the reference arris
+        (``min_thickness_mm`` .. door thickness + ``thickness_search_mm``).
+    thickness_tolerance_mm : float
+        Refuse when the measured thickness differs from the door's by more.
+    min_inliers, min_inlier_fraction, max_rms_residual_px : int, float, float
+        Line-fit gate.
+    corner_zone_px, min_corner_support : float
+        Fraction of edge points within ``corner_zone_px`` of the corner that must fit their line.
+    max_sigma_mm : float
+        Refuse when the fit's standard error of x or z exceeds this.
+    max_saturated_fraction : float
+        Refuse when more of the search region is white-clipped.
+    """
+
+    search_margin_mm: float = 30.0
+    search_margin_deg: float = 6.0
+    envelope_margin_mm: float = 2.0
+    envelope_margin_deg: float = 0.5
+    door_brighter: bool = True
+    min_contrast: float = 6.0
+    half_window_max: int = 9
+    half_window_min: int = 3
+    plateau: int = 4
+    min_thickness_mm: float = 4.0
+    thickness_search_mm: float = 15.0
+    thickness_tolerance_mm: float = 1.0
+    min_inliers: int = 40
+    min_inlier_fraction: float = 0.6
+    max_rms_residual_px: float = 1.5
+    corner_zone_px: float = 60.0
+    min_corner_support: float = 0.6
+    max_sigma_mm: float = 0.05
+    max_saturated_fraction: float = 0.5
+
+
+@dataclass
+class LocateTrace:
+    """What the pipeline saw, for the overlay and for debugging (not part of the JSON result)."""
+
+    bands: dict[str, Band] = field(default_factory=dict)
+    samples: dict[str, EdgeSamples] = field(default_factory=dict)
+    inliers: dict[str, np.ndarray] = field(default_factory=dict)
+    pose: MetricPose | None = None
+    region: SearchRegion | None = None
+
+
+class _Refused(Exception):
+    def __init__(self, refusal: q.Refusal, **diag) -> None:
+        super().__init__(refusal.message)
+        self.refusal = refusal
+        self.diag = diag
+
+
+def locate(image: np.ndarray, cell: Cell, door: DoorSize | None = None, *, image_name: str = "",
+           config: LocateConfig | None = None, trace: LocateTrace | None = None) -> LocateResult:
+    """Find the door's reference corner, yaw and thickness in one image.
+
+    Parameters
+    ----------
+    image : ndarray
+        ``(H, W)`` grey or ``(H, W, 3|4)`` BGR(A), uint8 or uint16, as the camera delivered it.
+    cell : Cell
+        Camera model, extrinsics, fixture and envelope.
+    door : DoorSize, optional
+        The door's nominal size (the cell's default door when None).
+    image_name : str
+        Copied to ``LocateResult.image``.
+    config : LocateConfig, optional
+        Thresholds; defaults when None.
+    trace : LocateTrace, optional
+        Filled with intermediate results (for :func:`doorloc.vision.overlay.draw_overlay`).
+
+    Returns
+    -------
+    LocateResult
+        ``ok=true`` with ``x_mm``, ``z_mm``, ``yaw_deg``, ``thickness_mm`` (cell frame, mm/deg),
+        ``scale_mm_per_px`` and ``corner_px``; or ``ok=false`` with ``error_code`` and ``error``.
+    """
+    t0 = time.perf_counter()
+    cfg = config or LocateConfig()
+    door = door or cell.default_door
+    tr = trace if trace is not None else LocateTrace()
+    try:
+        res = _locate(image, cell, door, cfg, tr, image_name)
+    except _Refused as r:
+        res = LocateResult.refusal(image_name, r.refusal.code, r.refusal.message,
+                                   lines=r.diag.get("lines", []), diagnostics=r.diag.get("diagnostics", {}))
+    except Exception as e:  # noqa: BLE001 — a locate call must answer, never crash the caller
+        res = LocateResult.refusal(image_name, "internal_error",
+                                   f"locate failed on this image ({type(e).__name__}: {e}); keep the image and report it")
+    res.elapsed_ms = (time.perf_counter() - t0) * 1e3
+    return res
+
+
+def _coarse(plane, band: Band, axis, polarity, thr):
+    along, strength = coarse_edges(plane, axis, band.scan, band.lo, band.hi, polarity)
+    strong = np.isfinite(along) & (strength >= thr)
+    return along, strength, strong
+
+
+def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half: int, cfg: LocateConfig,
+            scale8: float) -> dict[str, EdgeSamples]:
+    keep = half + cfg.plateau + 4
+    tracks = region.tracks(pose.corner, yaw_rad, pose.thickness_mm, keep)
+    out = {}
+    for name in EDGE_NAMES:
+        lay = region.layouts[name]
+        t = tracks[name]
+        out[name] = subpixel_edges(plane, lay.axis, t.scan, t.centre, half, cfg.plateau, scale8)
+    return out
+
+
+def _fit(samples: dict[str, EdgeSamples], region: SearchRegion, cfg: LocateConfig) -> tuple[RectangleFit, dict]:
+    groups, init = {}, {}
+    for name in EDGE_NAMES:
+        s = samples[name]
+        pol = region.layouts[name].polarity
+        good = s.valid & (pol * s.step >= 0.5 * cfg.min_contrast)
+        xz = plane_points(region.posed, s.uv(), region.edge_depth_y)
+        good &= np.isfinite(xz).all(axis=1)
+        if good.sum() < 3:
+            raise _Refused(q.Refusal("edge_missing", f"the {HUMAN[name]} was not found (no clean step of the expected "
+                                     "polarity); check that the door lies in the fixture and nothing covers that edge"))
+        groups[name] = (np.where(np.isfinite(xz), xz, 0.0), region.layouts[name].along_x)
+        init[name] = good.astype(float)
+    fit = fit_rectangle_edges(groups, scale_floor=1e-4, init_weights=init)
+    return fit, init
+
+
+def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrace, name: str) -> LocateResult:
+    try:
+        lum = luminance_plane(image)
+    except ImageFormatError as e:
+        raise _Refused(q.Refusal("bad_image", f"{e}")) from None
+    r = q.check_image_size(lum.size, cell.camera.image_size)
+    if r:
+        raise _Refused(r)
+    plane, s8 = lum.plane, lum.scale_to_8bit
+    thr = cfg.min_contrast / s8
+    region = SearchRegion.build(cell, door, cfg.search_margin_mm, cfg.search_margin_deg, cfg.door_brighter)
+    tr.region = region
+
+    # -- search region: coarse steps ------------------------------------------------------------
+    ref_lay, far_lay, bot_lay = (region.layouts[k] for k in ("reference", "far", "bottom"))
+    band_ref = region.arris_band(step=2)
+    tr.bands["reference"] = band_ref
+    P = plane if ref_lay.axis == "col" else plane.T
+    sub = P[band_ref.lo.min():band_ref.hi.max() + 1:3, band_ref.scan[::4]]
+    r = q.check_exposure(sub.astype(np.float32) * s8, cfg.min_contrast, cfg.max_saturated_fraction)
+    if r:
+        raise _Refused(r)
+
+    along_r, _, strong_r = _coarse(plane, band_ref, ref_lay.axis, ref_lay.polarity, thr)
+    tol = 3.0
+    ref_line = ransac_line(band_ref.scan[strong_r], along_r[strong_r], tol) if strong_r.sum() >= 10 else None
+    if ref_line is None or ref_line.inliers.sum() < 0.4 * len(band_ref.scan):
+        raise _Refused(_no_door_reason(plane, band_ref, ref_lay.axis, cfg, s8))
+
+    sc = region.nominal_scale
+    xdir = ref_lay.polarity * (1 if cfg.door_brighter else -1)  # along-direction of door +X
+    ref_at = ref_line.at(band_ref.scan)
+    a1 = ref_at + xdir * cfg.min_thickness_mm / sc
+    a2 = ref_at + xdir * (door.thickness_mm + cfg.thickness_search_mm) / sc
+    n_along = plane.shape[0] if far_lay.axis == "col" else plane.shape[1]
+    band_far = Band(band_ref.scan, np.clip(np.floor(np.minimum(a1, a2)), 2, n_along - 3).astype(int),
+                    np.clip(np.ceil(np.maximum(a1, a2)), 2, n_along - 3).astype(int))
+    keep = band_far.hi - band_far.lo >= 4
+    band_far = Band(band_far.scan[keep], band_far.lo[keep], band_far.hi[keep])
+    tr.bands["far"] = band_far
+    along_f, _, strong_f = _coarse(plane, band_far, far_lay.axis, far_lay.polarity, thr)
+    far_line = ransac_line(band_far.scan[strong_f], along_f[strong_f], tol) if strong_f.sum() >= 10 else None
+    if far_line is None or far_line.inliers.sum() < 0.3 * len(band_far.scan):
+        raise _Refused(q.Refusal("edge_missing", f"the {HUMAN['far']} was not found within {door.thickness_mm + cfg.thickness_search_mm:.0f} mm of "
+                                 f"the reference arris; check that the door is {door.thickness_mm:g} mm thick and that "
+                                 "nothing covers its far edge"))
+
+    # bottom end: scan lines between the two arrises, at the nominal corner height
+    corner0 = region.posed.project_cell(np.array([[0.0, region.face_y, 0.0]]))[0]
+    s_corner = corner0[1] if ref_lay.axis == "row" else corner0[0]
+    u_ref, u_far = ref_line.at(s_corner), far_line.at(s_corner)
+    lo_s, hi_s = sorted((u_ref, u_far))
+    inset = 0.15 * (hi_s - lo_s) + 6.0
+    scans_b = np.arange(int(math.ceil(lo_s + inset)), int(math.floor(hi_s - inset)) + 1, 2)
+    band_bot = region.bottom_band(scans_b)
+    tr.bands["bottom"] = band_bot
+    along_b, _, strong_b = _coarse(plane, band_bot, bot_lay.axis, bot_lay.polarity, thr)
+    bot_line = ransac_line(band_bot.scan[strong_b], along_b[strong_b], tol) if strong_b.sum() >= 5 else None
+    if bot_line is None or bot_line.inliers.sum() < 0.3 * max(len(band_bot.scan), 1):
+        raise _Refused(q.Refusal("edge_missing", f"the {HUMAN['bottom']} was not found between the arrises; check that "
+                                 "the door's bottom end is in view and nothing covers it"))
+
+    # -- coarse pose on the plane ---------------------------------------------------------------
+    def pts(line, band, axis):
+        s = band.scan[:: max(len(band.scan) // 40, 1)].astype(float)
+        a = line.at(s)
+        uv = np.stack([s, a], 1) if axis == "col" else np.stack([a, s], 1)
+        return plane_points(region.posed, uv, region.edge_depth_y)
+
+    coarse_groups = {"bottom": (pts(bot_line, band_bot, bot_lay.axis), True),
+                     "reference": (pts(ref_line, band_ref, ref_lay.axis), False),
+                     "far": (pts(far_line, band_far, far_lay.axis), False)}
+    fit0 = fit_rectangle_edges(coarse_groups, scale_floor=0.05, n_iter=3)
+    pose = pose_from_fit(fit0, region.posed, region.face_y, region.edge_depth_y)
+    if not (abs(pose.yaw_deg) < 20 and 0 < pose.thickness_mm < 3 * door.thickness_mm + 50):
+        raise _Refused(q.Refusal("no_door", "the edges found do not form a door's corner; check that a door lies in "
+                                 "the fixture and that the camera has not moved"))
+
+    # -- sub-pixel passes ---------------------------------------------------------------------------
+    half = cfg.half_window_max
+    for _pass in range(2):
+        samples = _sample(plane, region, pose, math.radians(pose.yaw_deg), half, cfg, s8)
+        fit, init = _fit(samples, region, cfg)
+        pose = pose_from_fit(fit, region.posed, region.face_y, region.edge_depth_y)
+        widths = [transition_width(plane, samples[k], fit.weights[k] > 0, half) for k in EDGE_NAMES]
+        blur = float(np.nanmax(widths)) if np.any(np.isfinite(widths)) else float(cfg.half_window_max)
+        half = int(np.clip(math.ceil(3.0 * blur + 1.5), cfg.half_window_min, cfg.half_window_max))
+    tr.samples = samples
+    tr.inliers = {k: fit.weights[k] > 0 for k in EDGE_NAMES}
+    tr.pose = pose
+    return _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, half)
+
+
+def _no_door_reason(plane, band: Band, axis, cfg: LocateConfig, s8: float) -> q.Refusal:
+    P = plane if axis == "col" else plane.T
+    rows = P[band.lo.min():band.hi.max() + 1, band.scan[::8]].T.astype(np.float32) * s8
+    if q.looks_like_pattern(rows, 4 * cfg.min_contrast):
+        return q.Refusal("not_a_door", "a regular pattern (a calibration board?) is in view instead of a door; "
+                                       "remove it and place a door in the fixture")
+    return q.Refusal("no_door", "no door edge was found in the search region; check that a door lies in the fixture, "
+                                "that the lighting is on and that the camera has not moved")
+
+
+def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, half) -> LocateResult:
+    lines, refusals = [], []
+    corner_px = pose.corner_px
+    diagnostics: dict = {
+        "blur_px": round(blur, 3),
+        "window_half_px": half,
+        "face_y_mm": region.face_y,
+        "edge_depth_y_mm": region.edge_depth_y,
+        "fit_scale_mm": fit.scale,
+        "yaw_sigma_deg": math.degrees(fit.angle_sigma_rad),
+        "thickness_expected_mm": door.thickness_mm,
+    }
+    for k in EDGE_NAMES:
+        s = samples[k]
+        w = fit.weights[k]
+        inl = w > 0
+        n_s = int(s.scan.size)
+        n_i = int(inl.sum())
+        rms_mm = float(np.sqrt(np.mean(fit.residuals[k][inl] ** 2))) if n_i else float("nan")
+        rms_px = rms_mm / pose.scale_mm_per_px
+        contrast = float(np.median(np.abs(s.step[inl]))) if n_i else 0.0
+        lines.append(LineQuality(name=k, n_points=n_s, n_inliers=n_i, rms_residual_px=round(rms_px, 4),
+                                 rms_residual_mm=round(rms_mm, 5), contrast=round(contrast, 1),
+                                 noise=round(float(np.median(s.noise[inl])), 2) if n_i else None,
+                                 offset_sigma_mm=round(fit.offset_sigma[k], 5)))
+        refusals.append(q.check_line(k, HUMAN[k], n_s, n_i, rms_px, contrast, cfg.min_inliers,
+                                     cfg.min_inlier_fraction, cfg.max_rms_residual_px, cfg.min_contrast))
+    # corner support: the points next to the corner on the bottom end and the reference arris
+    for k in ("bottom", "reference"):
+        s = samples[k]
+        lay = region.layouts[k]
+        c_scan = corner_px[0] if lay.axis == "col" else corner_px[1]
+        near = np.abs(s.scan - c_scan) <= cfg.corner_zone_px
+        n = int(near.sum())
+        frac = float((fit.weights[k][near] > 0).mean()) if n else 0.0
+        diagnostics[f"corner_support_{k}"] = round(frac, 3)
+        refusals.append(q.check_corner_support(HUMAN[k], frac, n, cfg.min_corner_support))
+    bright = np.concatenate([samples[k].bright[fit.weights[k] > 0] for k in EDGE_NAMES])
+    refusals.append(q.check_overexposed(bright))
+    refusals.append(q.check_envelope(pose.x_mm, pose.z_mm, pose.yaw_deg, cell.envelope, cfg.envelope_margin_mm,
+                                     cfg.envelope_margin_deg))
+    refusals.append(q.check_thickness(pose.thickness_mm, door.thickness_mm, cfg.thickness_tolerance_mm))
+    # standard errors of the corner from the line offsets
+    sig = math.hypot(fit.offset_sigma["reference"], fit.offset_sigma["bottom"])
+    diagnostics["corner_sigma_mm"] = sig
+    if sig > cfg.max_sigma_mm:
+        refusals.append(q.Refusal("uncertain", f"the corner is uncertain to {sig:.3f} mm (limit {cfg.max_sigma_mm} mm): "
+                                                "the edges are too noisy; check focus, lighting and exposure"))
+    diagnostics["thickness_check"] = {"measured_mm": round(pose.thickness_mm, 4), "expected_mm": door.thickness_mm,
+                                      "difference_mm": round(pose.thickness_mm - door.thickness_mm, 4),
+                                      "tolerance_mm": cfg.thickness_tolerance_mm}
+    first = next((r for r in refusals if r is not None), None)
+    if first is not None:
+        diagnostics["measured"] = {"x_mm": pose.x_mm, "z_mm": pose.z_mm, "yaw_deg": pose.yaw_deg,
+                                   "thickness_mm": pose.thickness_mm}
+        diagnostics["all_refusals"] = [r.code for r in refusals if r is not None]
+        return LocateResult.refusal(name, first.code, first.message, lines=lines, diagnostics=diagnostics)
+    return LocateResult(image=name, ok=True, x_mm=pose.x_mm, z_mm=pose.z_mm, yaw_deg=pose.yaw_deg,
+                        thickness_mm=pose.thickness_mm, scale_mm_per_px=pose.scale_mm_per_px,
+                        corner_px=[float(corner_px[0]), float(corner_px[1])], lines=lines, diagnostics=diagnostics)

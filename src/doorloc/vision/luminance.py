@@ -1,0 +1,75 @@
+"""One luminance plane from whatever the camera delivered (thesis step 1, "extract luminance plane").
+
+Colour images are turned into luminance with the ITU-R BT.601 weights OpenCV uses
+(Y = 0.299 R + 0.587 G + 0.114 B). 16-bit images are kept at full depth; ``scale_to_8bit`` tells
+callers how to express grey levels on the familiar 0-255 scale, so thresholds mean the same for both.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["LuminancePlane", "ImageFormatError", "luminance_plane"]
+
+
+class ImageFormatError(ValueError):
+    """An array that cannot be an image from this camera; the message says what is wrong."""
+
+
+@dataclass(frozen=True, eq=False)
+class LuminancePlane:
+    """Grey image plus the factor that maps its values to the 0-255 scale.
+
+    Attributes
+    ----------
+    plane : ndarray, shape (H, W), uint8 or uint16
+        Luminance, not copied when the input was already grey.
+    scale_to_8bit : float
+        1.0 for 8-bit data, 255/65535 for 16-bit data.
+    """
+
+    plane: np.ndarray
+    scale_to_8bit: float
+
+    @property
+    def size(self) -> tuple[int, int]:
+        """``(width, height)`` in pixels."""
+        return int(self.plane.shape[1]), int(self.plane.shape[0])
+
+
+def luminance_plane(image: np.ndarray) -> LuminancePlane:
+    """Turn a grey, BGR or BGRA image (uint8 or uint16) into one luminance plane.
+
+    Raises
+    ------
+    ImageFormatError
+        Not a 2-D grey or 3-D 1/3/4-channel array of uint8/uint16 (floats in [0, 1] or [0, 255] are
+        not guessed at: convert them explicitly).
+
+    Examples
+    --------
+    >>> bgr = np.zeros((4, 5, 3), np.uint8); bgr[..., 2] = 200        # pure red
+    >>> lp = luminance_plane(bgr)
+    >>> int(lp.plane[0, 0]), lp.size
+    (60, (5, 4))
+    """
+    import cv2
+
+    img = np.asarray(image)
+    if img.dtype not in (np.uint8, np.uint16):
+        raise ImageFormatError(f"image pixels are {img.dtype}; expected 8- or 16-bit integers from the camera")
+    if img.ndim == 3 and img.shape[2] == 1:
+        img = img[..., 0]
+    if img.ndim == 2:
+        plane = img
+    elif img.ndim == 3 and img.shape[2] == 3:
+        plane = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+    elif img.ndim == 3 and img.shape[2] == 4:
+        plane = cv2.cvtColor(img, cv2.COLOR_BGRA2GRAY)
+    else:
+        raise ImageFormatError(f"image has shape {img.shape}; expected (H, W) grey or (H, W, 3|4) colour")
+    if plane.shape[0] < 8 or plane.shape[1] < 8:
+        raise ImageFormatError(f"image is only {plane.shape[1]}x{plane.shape[0]} pixels")
+    return LuminancePlane(plane, 1.0 if plane.dtype == np.uint8 else 255.0 / 65535.0)

@@ -1,0 +1,97 @@
+"""Image <-> hinge-face plane, and the metric door pose from the fitted edges (thesis section 3.7-3.8).
+
+The hinge face lies on the cell plane ``Y = face_y`` (from the door width, ``Fixture.face_y``): every
+edge point is back-projected through K, the distortion and the extrinsics onto that plane, so lines are
+fitted in millimetres where they are exactly straight, whatever the lens distortion. A chamfered or
+rounded arris of size ``a`` moves the visible outline (the silhouette) to the plane ``Y = face_y + a``,
+where the reference and far faces — perpendicular to the hinge face — meet it; back-projecting onto
+that plane puts the outline on the lines of the sharp solid's faces, so the pose refers to the sharp
+corner.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from doorloc.calib.camera import PosedCamera
+from doorloc.vision.lines import RectangleFit
+
+__all__ = ["plane_points", "image_points", "MetricPose", "pose_from_fit"]
+
+
+def plane_points(posed: PosedCamera, uv: np.ndarray, depth_y: float) -> np.ndarray:
+    """Pixels ``(N, 2)`` -> ``(X, Z)`` mm on the plane ``Y = depth_y``, shape ``(N, 2)`` (NaN where no ray)."""
+    p = posed.intersect_plane_y(np.asarray(uv, float).reshape(-1, 2), depth_y)
+    return p[:, [0, 2]]
+
+
+def image_points(posed: PosedCamera, xz: np.ndarray, depth_y: float) -> np.ndarray:
+    """``(X, Z)`` mm on the plane ``Y = depth_y`` -> pixels ``(N, 2)``."""
+    xz = np.asarray(xz, float).reshape(-1, 2)
+    p = np.stack([xz[:, 0], np.full(len(xz), depth_y), xz[:, 1]], 1)
+    return posed.project_cell(p)
+
+
+@dataclass(frozen=True)
+class MetricPose:
+    """The door pose measured on the hinge-face plane.
+
+    Attributes
+    ----------
+    x_mm, z_mm : float
+        Reference corner on the plane (cell X, Z), mm.
+    yaw_deg : float
+        Door yaw (SPEC section 1), degrees.
+    thickness_mm : float
+        Distance between the reference and far arris lines, mm.
+    corner_px : ndarray (2,)
+        The corner's pixel (u, v).
+    scale_mm_per_px : float
+        Dynamic scaling factor at the corner on the hinge-face plane, mm/px.
+    """
+
+    x_mm: float
+    z_mm: float
+    yaw_deg: float
+    thickness_mm: float
+    corner_px: np.ndarray
+    scale_mm_per_px: float
+
+    @property
+    def x_axis(self) -> np.ndarray:
+        """Door +X on the plane, (X, Z) unit vector."""
+        t = math.radians(self.yaw_deg)
+        return np.array([math.cos(t), math.sin(t)])
+
+    @property
+    def z_axis(self) -> np.ndarray:
+        """Door +Z on the plane, (X, Z) unit vector."""
+        t = math.radians(self.yaw_deg)
+        return np.array([-math.sin(t), math.cos(t)])
+
+    @property
+    def corner(self) -> np.ndarray:
+        return np.array([self.x_mm, self.z_mm])
+
+
+def pose_from_fit(fit: RectangleFit, posed: PosedCamera, face_y: float, edge_depth_y: float) -> MetricPose:
+    """Corner, yaw and thickness from a :class:`RectangleFit` of the bottom, reference and far lines.
+
+    Solves ``cos t X + sin t Z = c_ref`` and ``-sin t X + cos t Z = c_bottom`` for the corner; the
+    thickness is ``c_far - c_ref``. ``edge_depth_y`` is the plane the outline was back-projected to
+    (``face_y + arris``); the corner pixel and the scale are taken on the hinge face ``face_y``.
+    """
+    t = fit.angle_rad
+    c, s = math.cos(t), math.sin(t)
+    cr, cb = fit.offsets["reference"], fit.offsets["bottom"]
+    x = c * cr - s * cb
+    z = s * cr + c * cb
+    thickness = fit.offsets["far"] - cr if "far" in fit.offsets else float("nan")
+    corner_cell = np.array([x, face_y, z])
+    corner_px = posed.project_cell(corner_cell[None])[0]
+    scale = posed.scale_mm_per_px(corner_cell, face_y)
+    del edge_depth_y
+    return MetricPose(float(x), float(z), math.degrees(t), float(thickness), corner_px, scale)

@@ -1,0 +1,128 @@
+"""The quality gate: every reason to refuse an answer, each as a small check with a sentence a person can act on.
+
+A check returns None when it passes, or a :class:`Refusal` (machine code + sentence). The thresholds
+live in :class:`doorloc.vision.locate.LocateConfig`; nothing here holds state.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from doorloc.cell import Envelope
+
+__all__ = ["Refusal", "check_image_size", "check_exposure", "check_envelope", "check_thickness",
+           "check_corner_support", "check_line", "check_overexposed", "looks_like_pattern"]
+
+
+@dataclass(frozen=True)
+class Refusal:
+    """Why an answer is refused: ``code`` for programs, ``message`` for people."""
+
+    code: str
+    message: str
+
+
+def check_image_size(size: tuple[int, int], calibrated: tuple[int, int]) -> Refusal | None:
+    """The image must have the calibrated camera's size (a resized or cropped image breaks K)."""
+    if tuple(size) != tuple(calibrated):
+        return Refusal(
+            "wrong_image_size",
+            f"the image is {size[0]}x{size[1]} px but the camera is calibrated for {calibrated[0]}x{calibrated[1]} px; "
+            "send the camera's full-resolution image, uncropped and unscaled, or recalibrate for this size",
+        )
+    return None
+
+
+def check_exposure(sample: np.ndarray, min_contrast: float, max_saturated_fraction: float) -> Refusal | None:
+    """Black or saturated image, judged on grey levels (0-255 scale) sampled over the search region."""
+    p1, p99 = np.percentile(sample, [1, 99])
+    if p99 < 25 and p99 - p1 < min_contrast:
+        return Refusal("black_image", "the image is black (no light or the lens is covered); check the lighting, "
+                                      "the lens cap and the exposure time")
+    sat = float(np.mean(sample >= 250))
+    if sat > max_saturated_fraction:
+        return Refusal("saturated_image", f"{sat:.0%} of the search region is saturated white; reduce the exposure "
+                                          "time or the lighting")
+    if p99 - p1 < min_contrast:
+        return Refusal("low_contrast", f"the search region has almost no contrast ({p99 - p1:.0f} grey levels); "
+                                       "check that a door is in the fixture and that the lighting is on")
+    return None
+
+
+def check_overexposed(bright_levels: np.ndarray) -> Refusal | None:
+    """The hinge face itself clips at white: edge positions would be biased."""
+    if bright_levels.size and float(np.median(bright_levels)) >= 249.0:
+        return Refusal("overexposed", "the hinge face is overexposed (its grey level clips at white), which biases "
+                                      "the edges; reduce the exposure time or the lighting")
+    return None
+
+
+def check_line(name: str, human: str, n_samples: int, n_inliers: int, rms_px: float, contrast: float,
+               min_inliers: int, min_inlier_fraction: float, max_rms_px: float, min_contrast: float) -> Refusal | None:
+    """One fitted edge: enough support, straight enough, contrasted enough."""
+    if n_samples == 0 or n_inliers < min_inliers:
+        return Refusal("edge_missing", f"the {human} was not found ({n_inliers} usable edge points); check that the "
+                                       "door lies in the fixture and that nothing covers that edge")
+    if contrast < min_contrast:
+        return Refusal("low_contrast", f"the {human} has too little contrast ({contrast:.1f} grey levels, need "
+                                       f"{min_contrast:.0f}); improve the lighting or the background behind the door")
+    if n_inliers < min_inlier_fraction * n_samples:
+        return Refusal("edge_not_straight", f"only {n_inliers} of {n_samples} points on the {human} lie on a straight "
+                                            "line; something covers the edge, the edge is damaged, or this is not a door")
+    if rms_px > max_rms_px:
+        return Refusal("edge_not_straight", f"the {human} is not straight (RMS residual {rms_px:.2f} px, limit "
+                                            f"{max_rms_px:.2f} px); check the edge for damage or debris")
+    return None
+
+
+def check_corner_support(name: str, frac: float, n: int, min_fraction: float) -> Refusal | None:
+    """The edges must reach the corner: something over the corner (a clamp) makes the answer doubtful."""
+    if n == 0 or frac < min_fraction:
+        return Refusal("corner_hidden", f"the {name} does not reach the reference corner cleanly (only {frac:.0%} of "
+                                        "the edge points next to the corner fit); something (a clamp, debris) hides the "
+                                        "corner: clear it and take the image again")
+    return None
+
+
+def check_envelope(x_mm: float, z_mm: float, yaw_deg: float, env: Envelope, margin_mm: float, margin_deg: float) -> Refusal | None:
+    """The pose must lie inside the placement envelope plus a margin."""
+    bad = []
+    if abs(x_mm) > env.x_mm + margin_mm:
+        bad.append(f"x = {x_mm:+.2f} mm (limit +-{env.x_mm:g} mm)")
+    if abs(z_mm) > env.z_mm + margin_mm:
+        bad.append(f"z = {z_mm:+.2f} mm (limit +-{env.z_mm:g} mm)")
+    if abs(yaw_deg) > env.yaw_deg + margin_deg:
+        bad.append(f"yaw = {yaw_deg:+.3f} deg (limit +-{env.yaw_deg:g} deg)")
+    if bad:
+        return Refusal("outside_envelope", "the door lies outside the placement envelope: " + ", ".join(bad)
+                       + "; re-seat the door against the fixture stops")
+    return None
+
+
+def check_thickness(measured: float, expected: float, tolerance: float) -> Refusal | None:
+    """The measured thickness must match the door's (a wrong recipe or a wrong door is caught here)."""
+    if not np.isfinite(measured) or abs(measured - expected) > tolerance:
+        return Refusal("thickness_mismatch", f"the door measures {measured:.2f} mm thick but the recipe says "
+                                             f"{expected:.2f} mm (tolerance {tolerance:g} mm); check that the right "
+                                             "door is in the fixture and that the recipe is the right one")
+    return None
+
+
+def looks_like_pattern(plane_rows: np.ndarray, threshold: float) -> bool:
+    """True when many strong steps of alternating sign cross each row: a checkerboard, not a door.
+
+    ``plane_rows``: (N, L) grey profiles (0-255 scale). A door shows two steps per row (its two arrises).
+    """
+    if plane_rows.size == 0:
+        return False
+    d = plane_rows[:, 2:] - plane_rows[:, :-2]
+    strong = np.abs(d) >= threshold
+    sign = np.sign(d) * strong
+    # Count sign runs: a new run starts where a strong sample's sign differs from the previous strong one.
+    counts = []
+    for row in sign:
+        nz = row[row != 0]
+        counts.append(int(np.sum(nz[1:] != nz[:-1])) + (1 if nz.size else 0))
+    return float(np.median(counts)) >= 5

@@ -1,0 +1,221 @@
+"""Where to look: scan lines across each door edge, from the cell model, the envelope and the door size.
+
+Two kinds of region:
+
+- the **search region** (:meth:`SearchRegion.coarse_bands`): everything a door inside the placement
+  envelope plus a margin could cover, per edge; the coarse step finder looks only there;
+- **tracks** (:meth:`SearchRegion.tracks`): given a pose estimate, the scan lines that cross each
+  edge away from the corner and the image border, and where on each scan line the edge is predicted.
+
+All geometry is done on the hinge-face plane (mm) and projected through the full camera model, so
+the regions follow lens distortion.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from doorloc.calib.camera import PosedCamera
+from doorloc.cell import Cell, DoorSize
+from doorloc.vision.edges import Axis
+from doorloc.vision.metric import image_points
+
+__all__ = ["EdgeLayout", "Band", "Track", "SearchRegion", "EDGE_NAMES"]
+
+EDGE_NAMES = ("bottom", "reference", "far")
+
+
+@dataclass(frozen=True)
+class EdgeLayout:
+    """How one door edge appears in the image.
+
+    ``axis``: scan columns (``"col"``, edge near-horizontal) or rows (``"row"``).
+    ``polarity``: +1 when the grey level rises across the edge with increasing ``along``.
+    ``along_x``: True for the bottom end (runs along door +X), False for the arrises.
+    """
+
+    name: str
+    axis: Axis
+    polarity: int
+    along_x: bool
+
+
+@dataclass(frozen=True)
+class Band:
+    """Search interval ``[lo, hi]`` (px, along the scan) on each scan line ``scan``."""
+
+    scan: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+
+
+@dataclass(frozen=True)
+class Track:
+    """Scan lines crossing one edge and the predicted edge position on each (px)."""
+
+    scan: np.ndarray
+    centre: np.ndarray
+
+
+def _along_scan(uv: np.ndarray, axis: Axis) -> tuple[np.ndarray, np.ndarray]:
+    """Split image points into (scan, along) coordinates for ``axis``."""
+    return (uv[:, 0], uv[:, 1]) if axis == "col" else (uv[:, 1], uv[:, 0])
+
+
+def _interp_on_scans(uv: np.ndarray, axis: Axis, scans: np.ndarray) -> np.ndarray:
+    """Along-coordinate of the polyline ``uv`` on each scan line (NaN outside the polyline's span)."""
+    s, a = _along_scan(uv, axis)
+    ok = np.isfinite(s) & np.isfinite(a)
+    s, a = s[ok], a[ok]
+    if s.size < 2:
+        return np.full(len(scans), np.nan)
+    order = np.argsort(s)
+    s, a = s[order], a[order]
+    out = np.interp(scans, s, a)
+    return np.where((scans >= s[0]) & (scans <= s[-1]), out, np.nan)
+
+
+@dataclass(frozen=True)
+class SearchRegion:
+    """The search region of one cell and door size.
+
+    Build it with :meth:`build`; it holds the geometry, the edge layouts and the margins.
+    """
+
+    posed: PosedCamera
+    face_y: float
+    edge_depth_y: float
+    door: DoorSize
+    image_size: tuple[int, int]
+    x_range_mm: float
+    z_range_mm: float
+    yaw_range_rad: float
+    layouts: dict[str, EdgeLayout]
+    z_top_mm: float
+    nominal_scale: float
+    border_px: int = 2
+
+    @classmethod
+    def build(cls, cell: Cell, door: DoorSize, margin_mm: float, margin_deg: float, door_brighter: bool = True) -> SearchRegion:
+        """Search region for a door of size ``door`` in ``cell``, widened by the margins beyond the envelope."""
+        posed = cell.posed_camera
+        face_y = cell.face_y(door)
+        depth = face_y + door.arris_mm
+        o = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+        uv = image_points(posed, o, depth)
+        dx, dz = uv[1] - uv[0], uv[2] - uv[0]
+        ref_axis: Axis = "row" if abs(dz[1]) >= abs(dz[0]) else "col"
+        bot_axis: Axis = "col" if abs(dx[0]) >= abs(dx[1]) else "row"
+        sign = 1 if door_brighter else -1
+        # Direction of increasing `along` relative to the door interior on each edge.
+        x_on_ref = dx[0] if ref_axis == "row" else dx[1]
+        z_on_bot = dz[1] if bot_axis == "col" else dz[0]
+        layouts = {
+            "reference": EdgeLayout("reference", ref_axis, sign * int(np.sign(x_on_ref)), False),
+            "far": EdgeLayout("far", ref_axis, -sign * int(np.sign(x_on_ref)), False),
+            "bottom": EdgeLayout("bottom", bot_axis, sign * int(np.sign(z_on_bot)), True),
+        }
+        env = cell.envelope
+        w, h = cell.camera.image_size
+        # Highest Z of the reference line still inside the image (the door goes beyond it).
+        zs = np.arange(0.0, 3000.0, 2.0)
+        pts = image_points(posed, np.stack([np.zeros_like(zs), zs], 1), depth)
+        inside = (pts[:, 0] >= 0) & (pts[:, 0] <= w - 1) & (pts[:, 1] >= 0) & (pts[:, 1] <= h - 1)
+        z_top = float(zs[inside].max()) if inside.any() else 0.0
+        z_top = min(z_top, door.height_mm)
+        scale = posed.scale_mm_per_px(np.array([0.0, face_y, 0.0]), face_y)
+        return cls(posed, face_y, depth, door, (w, h), env.x_mm + margin_mm, env.z_mm + margin_mm,
+                   math.radians(env.yaw_deg + margin_deg), layouts, z_top, scale)
+
+    # -- search region for the coarse pass -------------------------------------------------------
+    def _scans_between(self, uv: np.ndarray, axis: Axis, step: int) -> np.ndarray:
+        s, _ = _along_scan(uv, axis)
+        n = self.image_size[0] if axis == "col" else self.image_size[1]
+        lo = max(int(math.ceil(np.nanmin(s))), self.border_px)
+        hi = min(int(math.floor(np.nanmax(s))), n - 1 - self.border_px)
+        return np.arange(lo, hi + 1, step)
+
+    def arris_band(self, step: int = 2) -> Band:
+        """Where the reference arris can be, on scan lines safely above any possible bottom end."""
+        lay = self.layouts["reference"]
+        t = math.tan(self.yaw_range_rad)
+        z_lo = self.z_range_mm + (self.door.thickness_mm + self.x_range_mm) * t + 3.0
+        zs = np.linspace(z_lo, max(self.z_top_mm + 20.0, z_lo + 1.0), 48)
+        half = self.x_range_mm + (np.abs(zs) + self.z_range_mm) * t
+        uv_lo = image_points(self.posed, np.stack([-half, zs], 1), self.edge_depth_y)
+        uv_hi = image_points(self.posed, np.stack([half, zs], 1), self.edge_depth_y)
+        scans = self._scans_between(np.vstack([uv_lo, uv_hi]), lay.axis, step)
+        a1 = _interp_on_scans(uv_lo, lay.axis, scans)
+        a2 = _interp_on_scans(uv_hi, lay.axis, scans)
+        return self._band(scans, a1, a2, lay.axis)
+
+    def bottom_band(self, scans: np.ndarray) -> Band:
+        """Where the bottom end can be on the given scan lines."""
+        lay = self.layouts["bottom"]
+        t = math.tan(self.yaw_range_rad)
+        xs = np.linspace(-self.x_range_mm - 30.0, self.x_range_mm + self.door.thickness_mm + 30.0, 48)
+        half = self.z_range_mm + (np.abs(xs) + self.x_range_mm) * t
+        uv_lo = image_points(self.posed, np.stack([xs, -half], 1), self.edge_depth_y)
+        uv_hi = image_points(self.posed, np.stack([xs, half], 1), self.edge_depth_y)
+        a1 = _interp_on_scans(uv_lo, lay.axis, scans)
+        a2 = _interp_on_scans(uv_hi, lay.axis, scans)
+        return self._band(np.asarray(scans), a1, a2, lay.axis)
+
+    def _band(self, scans: np.ndarray, a1: np.ndarray, a2: np.ndarray, axis: Axis) -> Band:
+        n_along = self.image_size[1] if axis == "col" else self.image_size[0]
+        ok = np.isfinite(a1) & np.isfinite(a2)
+        lo = np.clip(np.floor(np.minimum(a1, a2)), self.border_px, n_along - 1 - self.border_px)
+        hi = np.clip(np.ceil(np.maximum(a1, a2)), self.border_px, n_along - 1 - self.border_px)
+        ok &= hi - lo >= 4
+        return Band(scans[ok].astype(int), lo[ok].astype(int), hi[ok].astype(int))
+
+    # -- tracks for the sub-pixel passes ---------------------------------------------------------
+    def tracks(self, corner: np.ndarray, yaw_rad: float, thickness_mm: float, keep_px: float) -> dict[str, Track]:
+        """Scan lines across each edge of a door at this pose, and the predicted edge on each.
+
+        Scan lines closer than ``keep_px`` to the other edges (the corners) or to the image border
+        are left out: there the profile is not a clean straight step.
+        """
+        ex = np.array([math.cos(yaw_rad), math.sin(yaw_rad)])
+        ez = np.array([-math.sin(yaw_rad), math.cos(yaw_rad)])
+        corner = np.asarray(corner, float)
+        far_corner = corner + thickness_mm * ex
+        out: dict[str, Track] = {}
+        n_z = max(int((self.z_top_mm + 40.0) / 0.5), 8)
+        tz = np.linspace(0.0, self.z_top_mm + 40.0, n_z)
+        tx = np.linspace(-1.0, thickness_mm + 1.0, max(int(thickness_mm / 0.5), 8))
+        for name in EDGE_NAMES:
+            lay = self.layouts[name]
+            if name == "bottom":
+                pl = corner[None] + tx[:, None] * ex[None]
+                ends = (corner, far_corner)
+            else:
+                base = corner if name == "reference" else far_corner
+                pl = base[None] + tz[:, None] * ez[None]
+                ends = (base, base)
+            uv = image_points(self.posed, pl, self.edge_depth_y)
+            s, _ = _along_scan(uv, lay.axis)
+            n_scan = self.image_size[0] if lay.axis == "col" else self.image_size[1]
+            n_along = self.image_size[1] if lay.axis == "col" else self.image_size[0]
+            e_uv = image_points(self.posed, np.array(ends), self.edge_depth_y)
+            e_s, _ = _along_scan(e_uv, lay.axis)
+            if name == "bottom":
+                s_lo, s_hi = np.sort(e_s)
+                s_lo, s_hi = s_lo + keep_px, s_hi - keep_px
+            else:
+                # From the corner towards the door's far end (the direction of increasing tz).
+                d = np.sign(s[-1] - s[0]) or 1.0
+                if d > 0:
+                    s_lo, s_hi = e_s[0] + keep_px, np.nanmax(s)
+                else:
+                    s_lo, s_hi = np.nanmin(s), e_s[0] - keep_px
+            s_lo = max(s_lo, self.border_px)
+            s_hi = min(s_hi, n_scan - 1 - self.border_px)
+            scans = np.arange(int(math.ceil(s_lo)), int(math.floor(s_hi)) + 1)
+            centre = _interp_on_scans(uv, lay.axis, scans)
+            ok = np.isfinite(centre) & (centre >= 0) & (centre <= n_along - 1)
+            out[name] = Track(scans[ok], centre[ok])
+        return out
