@@ -13,7 +13,6 @@ The locate function is a parameter so callers (and tests) can choose it; by defa
 from __future__ import annotations
 
 import base64
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -136,10 +135,8 @@ def answer_image(
         from doorloc.pose import DoorPose
         from doorloc.recipes.targets import targets_for_pose
 
-        t0 = time.perf_counter()
         pose = DoorPose(result.x_mm, result.z_mm, result.yaw_deg)
         targets = targets_for_pose(choice.recipe, pose, cell.face_y(choice.door))
-        answer["diagnostics"] = {**answer.get("diagnostics", {}), "targets_ms": (time.perf_counter() - t0) * 1e3}
         note = None
     answer["targets"] = [t.model_dump(mode="json") for t in targets]
     answer["targets_note"] = note

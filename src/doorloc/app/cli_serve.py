@@ -1,9 +1,142 @@
-"""`doorloc` subcommands of this area (see doorloc.app.cli)."""
+"""`doorloc serve` (the HTTP service) and `doorloc batch` (a folder of images to a JSONL file)."""
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
+from typing import Annotated
+
 import typer
+
+from doorloc.app.errors import EXIT_FAILED, EXIT_OK, EXIT_REFUSED, fail
 
 
 def register(app: typer.Typer) -> None:
     """Add this area's subcommands to the root app."""
+
+    @app.command("serve")
+    def serve(
+        cell: Annotated[Path | None, typer.Option(help="cell file (cell.yaml); default: $DOORLOC_CELL")] = None,
+        host: Annotated[str, typer.Option(help="address to listen on (0.0.0.0 for every interface)")] = "127.0.0.1",
+        port: Annotated[int, typer.Option(help="TCP port")] = 8000,
+        workers: Annotated[int, typer.Option(min=1, help="worker processes (each answers requests in parallel)")] = 1,
+        database_url: Annotated[
+            str | None, typer.Option(help="recipe database URL; default: $DOORLOC_DATABASE_URL or the store's default")
+        ] = None,
+        log_level: Annotated[str, typer.Option(help="debug, info, warning or error")] = "info",
+    ) -> None:
+        """Run the HTTP service (POST /v1/locate, operator page at /, OpenAPI at /docs)."""
+        import uvicorn
+
+        from doorloc.cell import CellFileError, load_cell
+
+        cell_path = str(cell) if cell is not None else os.environ.get("DOORLOC_CELL")
+        if not cell_path:
+            raise fail("give the cell file: doorloc serve --cell cell.yaml (or set DOORLOC_CELL)")
+        try:
+            load_cell(cell_path)  # fail here, with a sentence, rather than in every worker
+        except CellFileError as e:
+            raise fail(str(e)) from None
+        # The workers are separate processes that build the app from the environment (create_app_from_env).
+        os.environ["DOORLOC_CELL"] = str(Path(cell_path).resolve())
+        if database_url:
+            os.environ["DOORLOC_DATABASE_URL"] = database_url
+        os.environ["DOORLOC_LOG_LEVEL"] = log_level.upper()
+        uvicorn.run(
+            "doorloc.app.http:create_app_from_env",
+            factory=True,
+            host=host,
+            port=port,
+            workers=workers,
+            log_level=log_level.lower(),
+            access_log=False,  # the service logs every request itself, as JSON with its request id
+        )
+
+    @app.command("batch")
+    def batch(
+        folder: Annotated[Path, typer.Argument(help="folder of images (searched recursively, images recognised by content)")],
+        cell: Annotated[Path, typer.Option(help="cell file (cell.yaml)")],
+        out: Annotated[Path, typer.Option(help="results file, one JSON line per image")],
+        manifest: Annotated[
+            Path | None,
+            typer.Option(help="CSV: image and door_id, or width_mm,thickness_mm[,height_mm]; default: every image, the cell's door"),
+        ] = None,
+        resume: Annotated[bool, typer.Option(help="continue an interrupted job: skip images already in --out")] = False,
+        workers: Annotated[int, typer.Option(min=1, help="parallel worker processes")] = max(1, (os.cpu_count() or 2) - 1),
+        backend: Annotated[str, typer.Option(help="local (worker processes) or ray (Ray Data; pip install 'doorloc[ray]')")] = "local",
+        ray_address: Annotated[str | None, typer.Option(help="Ray cluster address (ray backend); default: a local instance")] = None,
+        database_url: Annotated[str | None, typer.Option(help="recipe database URL (for door_id in the manifest)")] = None,
+    ) -> None:
+        """Locate the door in every image of a folder; append one result line per image to --out.
+
+        Exit code 0 when every image was answered, 1 when some were refused or failed, 2 for bad arguments.
+        """
+        from rich.console import Console
+        from rich.progress import (
+            BarColumn,
+            MofNCompleteColumn,
+            Progress,
+            TextColumn,
+            TimeElapsedColumn,
+            TimeRemainingColumn,
+        )
+
+        from doorloc.app import batch as batch_mod
+        from doorloc.cell import CellFileError, load_cell
+
+        if backend not in ("local", "ray"):
+            raise fail(f"--backend must be 'local' or 'ray', not '{backend}'")
+        try:
+            the_cell = load_cell(cell)
+        except CellFileError as e:
+            raise fail(str(e)) from None
+        try:
+            items = batch_mod.plan_batch(folder, the_cell, manifest, _recipe_lookup(database_url) if manifest else None)
+            log = batch_mod.ResultsLog(out, resume)
+        except (batch_mod.BatchSetupError, OSError) as e:
+            raise fail(str(e)) from None
+
+        def run_backend(todo):
+            if backend == "ray":
+                return batch_mod.run_ray(todo, the_cell, workers=workers, ray_address=ray_address)
+            return batch_mod.run_local(todo, the_cell, workers=workers)
+
+        console = Console(stderr=True)
+        with log:
+            todo = sum(1 for it in items if it.image not in log.done)
+            columns = (
+                TextColumn("[bold]locating"), BarColumn(), MofNCompleteColumn(),
+                TextColumn("{task.fields[rate]}"), TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
+            )
+            with Progress(*columns, console=console, transient=False) as progress:
+                task = progress.add_task("locate", total=todo, rate="")
+
+                def advance(_record):
+                    progress.advance(task)
+                    speed = progress.tasks[0].speed
+                    progress.update(task, rate=f"{speed:.2f} img/s" if speed else "")
+
+                try:
+                    summary = batch_mod.run_job(items, log, run_backend, advance)
+                except batch_mod.BatchSetupError as e:
+                    raise fail(str(e)) from None
+                except OSError as e:
+                    raise fail(f"cannot write {out}: {e.strerror or e}", EXIT_FAILED) from None
+        console.print(f"{out}: {summary.text()}")
+        raise typer.Exit(EXIT_OK if summary.answered == summary.total else EXIT_REFUSED)
+
+
+def _recipe_lookup(database_url: str | None):
+    """``door_id -> DoorRecipe | None`` from the recipe database (opened on first use)."""
+    store = None
+
+    def lookup(door_id: str):
+        nonlocal store
+        if store is None:
+            from doorloc.recipes.store import RecipeStore
+            from doorloc.recipes.store import database_url as default_url
+
+            store = RecipeStore(default_url(database_url))  # None: $DOORLOC_DATABASE_URL or the default
+        return store.get(door_id)
+
+    return lookup

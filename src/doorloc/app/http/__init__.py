@@ -87,5 +87,9 @@ def create_app(
 
 
 def create_app_from_env() -> FastAPI:
-    """App factory for ``uvicorn --factory`` (used by ``doorloc serve --workers N``): settings from DOORLOC_*."""
-    return create_app(ServiceSettings())
+    """App factory for ``uvicorn --factory`` (``doorloc serve``): JSON logs, settings from DOORLOC_*."""
+    from doorloc.app.logs import configure_json_logging
+
+    settings = ServiceSettings()
+    configure_json_logging(settings.log_level)
+    return create_app(settings)

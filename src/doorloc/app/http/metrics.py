@@ -6,7 +6,14 @@ share counters. With ``doorloc serve --workers N`` every worker process answers 
 
 from __future__ import annotations
 
-from prometheus_client import CONTENT_TYPE_LATEST, CollectorRegistry, Counter, Gauge, Histogram, generate_latest
+from prometheus_client import (
+    CONTENT_TYPE_LATEST,
+    CollectorRegistry,
+    Counter,
+    Gauge,
+    Histogram,
+    generate_latest,
+)
 
 __all__ = ["ServiceMetrics", "CONTENT_TYPE_LATEST"]
 

@@ -64,8 +64,7 @@ class ServiceState:
             if self.store is None:
                 from doorloc.recipes.store import RecipeStore, database_url
 
-                url = self.settings.database_url or database_url(self.settings)
-                self.store = RecipeStore(url)
+                self.store = RecipeStore(database_url(self.settings))
             if self.locate_fn is None:
                 from doorloc.app.answer import default_locate_fn
 

@@ -1,0 +1,420 @@
+"""Offline batch: every image under a folder located, one JSON line per image (SPEC section 3 + targets).
+
+Flow: plan (walk the folder or read the manifest; images recognised by content) -> skip what the
+results file already holds (``--resume``) -> locate in parallel worker processes (or on Ray Data) ->
+append each record to the results file as it arrives -> summary.
+
+The results file is the job's only state. Each record is appended with one ``os.write`` of the whole
+line on an ``O_APPEND`` descriptor and fsynced, so a run killed at any moment (``kill -9``) leaves
+complete lines plus at most one torn last line; ``--resume`` drops that torn tail and runs only the
+images without a record. A failure on one image (unreadable file, a bug) is a record with
+``status: "failed"``, never the end of the run.
+
+Records carry ``status``: ``answered`` (ok), ``refused`` (locate said ok=false, ``error_code`` says
+why) or ``failed``.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+from collections import Counter
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from dataclasses import dataclass, field
+from multiprocessing import get_context
+from pathlib import Path
+from typing import Any
+
+from doorloc.app.answer import DoorChoice, LocateFn, answer_image, door_from_fields
+from doorloc.app.imagesniff import MAGIC_BYTES_NEEDED, sniff_kind
+from doorloc.cell import Cell
+
+__all__ = [
+    "BatchItem",
+    "BatchSummary",
+    "BatchSetupError",
+    "ResultsLog",
+    "find_images",
+    "plan_batch",
+    "locate_item",
+    "run_local",
+    "run_ray",
+    "run_job",
+    "summarize",
+]
+
+#: statuses of a record
+ANSWERED, REFUSED, FAILED = "answered", "refused", "failed"
+
+
+class BatchSetupError(ValueError):
+    """The job cannot start (bad folder, manifest or results file); the message says what to fix."""
+
+
+@dataclass(frozen=True)
+class BatchItem:
+    """One image to locate: its name in the records (relative to the folder, '/'-separated), its path, its door."""
+
+    image: str
+    path: str
+    choice: DoorChoice
+    problem: str | None = None  # set when the item cannot be processed at all (e.g. unknown door_id)
+
+
+@dataclass
+class BatchSummary:
+    """Counts of one run's records (including those found when resuming)."""
+
+    answered: int = 0
+    refused: dict[str, int] = field(default_factory=dict)
+    failed: int = 0
+    skipped: int = 0  # already in the results file before this run
+
+    @property
+    def total(self) -> int:
+        return self.answered + sum(self.refused.values()) + self.failed
+
+    def text(self) -> str:
+        refused = sum(self.refused.values())
+        reasons = ", ".join(f"{k}: {v}" for k, v in sorted(self.refused.items())) or "none"
+        return (
+            f"{self.total} images: {self.answered} answered, {refused} refused ({reasons}), {self.failed} failed"
+            + (f"; {self.skipped} were already done" if self.skipped else "")
+        )
+
+
+# ---------------------------------------------------------------------------------------------- planning
+
+
+def find_images(root: str | os.PathLike) -> list[Path]:
+    """Image files under ``root`` (recursive, sorted), recognised by their first bytes, not their names."""
+    root = Path(root)
+    found = []
+    for dirpath, dirnames, filenames in os.walk(root):
+        dirnames.sort()
+        for name in sorted(filenames):
+            p = Path(dirpath) / name
+            try:
+                with open(p, "rb") as f:
+                    head = f.read(MAGIC_BYTES_NEEDED)
+            except OSError:
+                continue
+            if sniff_kind(head) is not None:
+                found.append(p)
+    return found
+
+
+def _float_or_none(row: dict[str, str], key: str, where: str) -> float | None:
+    v = (row.get(key) or "").strip()
+    if not v:
+        return None
+    try:
+        return float(v)
+    except ValueError:
+        raise BatchSetupError(f"{where}: {key} '{v}' is not a number of millimetres") from None
+
+
+def plan_batch(
+    root: str | os.PathLike,
+    cell: Cell,
+    manifest: str | os.PathLike | None = None,
+    recipe_lookup: Callable[[str], Any] | None = None,
+) -> list[BatchItem]:
+    """The job: each image with its door.
+
+    Without a manifest: every image under ``root``, as the cell's default door. With one (CSV with
+    ``image`` and ``door_id`` or ``width_mm,thickness_mm[,height_mm]``): exactly its rows, image paths
+    relative to ``root``. ``recipe_lookup(door_id)`` returns a recipe or None.
+    """
+    root = Path(root)
+    if not root.is_dir():
+        raise BatchSetupError(f"{root} is not a folder; give the folder that holds the images")
+    if manifest is None:
+        return [
+            BatchItem(p.relative_to(root).as_posix(), str(p), DoorChoice(cell.default_door)) for p in find_images(root)
+        ]
+    try:
+        text = Path(manifest).read_text(encoding="utf-8-sig")
+    except OSError as e:
+        raise BatchSetupError(f"cannot read manifest {manifest}: {e.strerror or e}") from None
+    reader = csv.DictReader(text.splitlines())
+    if not reader.fieldnames or "image" not in reader.fieldnames:
+        raise BatchSetupError(f"{manifest}: the first line must name the columns, with at least 'image'")
+    items: list[BatchItem] = []
+    seen: set[str] = set()
+    recipes: dict[str, Any] = {}
+    for line_no, row in enumerate(reader, start=2):
+        where = f"{manifest} line {line_no}"
+        image = (row.get("image") or "").strip()
+        if not image:
+            raise BatchSetupError(f"{where}: 'image' is empty")
+        if image in seen:
+            raise BatchSetupError(f"{where}: image '{image}' is listed twice")
+        seen.add(image)
+        path = str(root / image)
+        door_id = (row.get("door_id") or "").strip() or None
+        if door_id is not None:
+            if door_id not in recipes:
+                recipes[door_id] = recipe_lookup(door_id) if recipe_lookup is not None else None
+            recipe = recipes[door_id]
+            if recipe is None:
+                items.append(BatchItem(image, path, DoorChoice(cell.default_door, door_id),
+                                       f"no door recipe with id '{door_id}' in the recipe database"))
+            else:
+                items.append(BatchItem(image, path, DoorChoice(recipe.door_size(), door_id, recipe)))
+            continue
+        try:
+            door = door_from_fields(
+                cell,
+                _float_or_none(row, "width_mm", where),
+                _float_or_none(row, "thickness_mm", where),
+                _float_or_none(row, "height_mm", where),
+            )
+        except ValueError as e:
+            raise BatchSetupError(f"{where}: {e}") from None
+        items.append(BatchItem(image, path, DoorChoice(door)))
+    return items
+
+
+# ---------------------------------------------------------------------------------------------- one image
+
+
+def _failed(item: BatchItem, code: str, error: str) -> dict[str, Any]:
+    from doorloc.vision.result import LocateResult
+
+    record = LocateResult.refusal(item.image, code, error).model_dump(mode="json")
+    record.update(door_id=item.choice.door_id, door=_door_dict(item.choice), targets=[], targets_note=None,
+                  status=FAILED)
+    return record
+
+
+def _door_dict(choice: DoorChoice) -> dict[str, float]:
+    d = choice.door
+    return {"width_mm": d.width_mm, "thickness_mm": d.thickness_mm, "height_mm": d.height_mm}
+
+
+def locate_item(item: BatchItem, cell: Cell, locate_fn: LocateFn | None = None) -> dict[str, Any]:
+    """The record of one image; never raises (a failure is a record with ``status: "failed"``)."""
+    from doorloc.vision.imageio import ImageDecodeError, read_image
+
+    if item.problem is not None:
+        return _failed(item, "bad_job_row", item.problem)
+    try:
+        image = read_image(item.path)
+    except ImageDecodeError as e:
+        return _failed(item, "unreadable_image", str(e))
+    try:
+        fields = answer_image(image, cell, item.choice, image_name=item.image, locate_fn=locate_fn).fields
+    except Exception as e:  # noqa: BLE001 - one bad image must not end a run of thousands
+        return _failed(item, "internal_error", f"locate failed on this image ({type(e).__name__}: {e}); please report it")
+    fields["status"] = ANSWERED if fields["ok"] else REFUSED
+    return fields
+
+
+def _set_opencv_threads() -> None:
+    import cv2
+
+    # One image per worker process at a time; the processes already fill the cores.
+    cv2.setNumThreads(1)
+
+
+# ---------------------------------------------------------------------------------------------- results file
+
+
+class ResultsLog:
+    """The append-only JSONL results file of a batch job.
+
+    Parameters
+    ----------
+    path : path-like
+        ``results.jsonl``.
+    resume : bool
+        Keep what is there (dropping a torn last line) and report the images already done. Without it
+        an existing non-empty file is an error, so a finished job is never overwritten by accident.
+    """
+
+    def __init__(self, path: str | os.PathLike, resume: bool) -> None:
+        self.path = Path(path)
+        self.done: dict[str, dict[str, Any]] = {}
+        exists = self.path.exists() and self.path.stat().st_size > 0
+        if exists and not resume:
+            raise BatchSetupError(
+                f"{self.path} already holds results; pass --resume to continue that job, or choose another --out"
+            )
+        if exists:
+            self._recover()
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+
+    def _recover(self) -> None:
+        data = self.path.read_bytes()
+        complete_end = data.rfind(b"\n") + 1  # bytes up to and including the last newline
+        if complete_end < len(data):
+            # The run was killed in the middle of a write: drop the torn tail, its image runs again.
+            with open(self.path, "r+b") as f:
+                f.truncate(complete_end)
+                f.flush()
+                os.fsync(f.fileno())
+        for n, line in enumerate(data[:complete_end].splitlines(), start=1):
+            if not line.strip():
+                continue
+            try:
+                record = json.loads(line)
+                image = record["image"]
+            except (ValueError, KeyError, TypeError):
+                raise BatchSetupError(
+                    f"{self.path} line {n} is not a doorloc result record; it is not a results file this job wrote"
+                ) from None
+            self.done[image] = record
+
+    def append(self, record: dict[str, Any]) -> None:
+        """Append one record as one line: a single write of the whole line, then fsync."""
+        line = (json.dumps(record, separators=(",", ":"), allow_nan=False) + "\n").encode()
+        written = os.write(self._fd, line)
+        if written != len(line):  # pragma: no cover - regular files take whole writes; a full disk raises
+            raise OSError(f"short write to {self.path} ({written} of {len(line)} bytes)")
+        os.fsync(self._fd)
+        self.done[record["image"]] = record
+
+    def close(self) -> None:
+        if self._fd >= 0:
+            os.close(self._fd)
+            self._fd = -1
+
+    def __enter__(self) -> ResultsLog:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+# ---------------------------------------------------------------------------------------------- backends
+
+
+def run_local(
+    items: list[BatchItem],
+    cell: Cell,
+    *,
+    workers: int,
+    locate_fn: LocateFn | None = None,
+) -> Iterator[dict[str, Any]]:
+    """Locate ``items`` in ``workers`` processes; yield each record as soon as it is ready (any order).
+
+    ``workers <= 1`` runs in this process. ``locate_fn`` must be a module-level function (it is pickled).
+    At most ``2 * workers`` images are in flight, so memory stays bounded on archives of any size.
+    """
+    if workers <= 1:
+        _set_opencv_threads()
+        for it in items:
+            yield locate_item(it, cell, locate_fn)
+        return
+    # "spawn": the parent runs a progress thread, and fork with threads is unsafe.
+    with ProcessPoolExecutor(workers, mp_context=get_context("spawn"), initializer=_set_opencv_threads) as pool:
+        pending: set = set()
+        queue = iter(items)
+        exhausted = False
+        while True:
+            while not exhausted and len(pending) < 2 * workers:
+                it = next(queue, None)
+                if it is None:
+                    exhausted = True
+                    break
+                pending.add(pool.submit(locate_item, it, cell, locate_fn))
+            if not pending:
+                return
+            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for fut in finished:
+                yield fut.result()
+
+
+def run_ray(
+    items: list[BatchItem],
+    cell: Cell,
+    *,
+    workers: int,
+    locate_fn: LocateFn | None = None,
+    ray_address: str | None = None,
+) -> Iterator[dict[str, Any]]:
+    """The same job on Ray Data: items become a dataset, each mapped by :func:`locate_item` on a Ray worker.
+
+    Records stream back to this process as Ray finishes them, so the results file grows the same way as
+    with the local backend (and resumes the same way). Starts a local Ray instance with ``workers`` CPUs
+    unless ``ray_address`` names a cluster.
+    """
+    try:
+        import ray
+    except ImportError:
+        raise BatchSetupError("the ray backend needs Ray: pip install 'doorloc[ray]'") from None
+    if not items:
+        return
+    started_here = False
+    if not ray.is_initialized():
+        kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False, "configure_logging": False}
+        if ray_address:
+            ray.init(address=ray_address, **kwargs)
+        else:
+            ray.init(num_cpus=max(1, workers), **kwargs)
+        started_here = True
+    try:
+        import pickle
+
+        ctx = ray.data.DataContext.get_current()
+        ctx.enable_progress_bars = False
+        # Rows carry the pickled item: a DoorChoice holds a pydantic recipe, which Arrow cannot store as columns.
+        rows = [{"item": pickle.dumps(it)} for it in items]
+        ds = ray.data.from_items(rows, override_num_blocks=min(len(rows), max(1, workers) * 4))
+
+        def _locate_batch(batch: dict[str, Any]) -> dict[str, Any]:
+            _set_opencv_threads()
+            records = [locate_item(pickle.loads(b), cell, locate_fn) for b in batch["item"]]
+            return {"record": [json.dumps(r, allow_nan=False) for r in records]}
+
+        out = ds.map_batches(_locate_batch, batch_size=1, concurrency=max(1, workers))
+        for row in out.iter_rows():
+            yield json.loads(row["record"])
+    finally:
+        if started_here:
+            ray.shutdown()
+
+
+# ---------------------------------------------------------------------------------------------- the job
+
+
+def run_job(
+    items: list[BatchItem],
+    log: ResultsLog,
+    backend: Callable[[list[BatchItem]], Iterable[dict[str, Any]]],
+    on_record: Callable[[dict[str, Any]], None] | None = None,
+) -> BatchSummary:
+    """Run the items without a record in ``log`` through ``backend``, appending each record as it comes.
+
+    Returns the summary over all planned items (those done by an earlier, interrupted run included).
+    """
+    todo = [it for it in items if it.image not in log.done]
+    for record in backend(todo):
+        log.append(record)
+        if on_record is not None:
+            on_record(record)
+    planned = {it.image for it in items}
+    return summarize((r for name, r in log.done.items() if name in planned), skipped=len(items) - len(todo))
+
+
+# ---------------------------------------------------------------------------------------------- summary
+
+
+def summarize(records: Iterable[dict[str, Any]], skipped: int = 0) -> BatchSummary:
+    """Answered, refused by reason, failed."""
+    s = BatchSummary(skipped=skipped)
+    refused: Counter[str] = Counter()
+    for r in records:
+        status = r.get("status") or (ANSWERED if r.get("ok") else REFUSED)
+        if status == ANSWERED:
+            s.answered += 1
+        elif status == FAILED:
+            s.failed += 1
+        else:
+            refused[r.get("error_code") or "unknown"] += 1
+    s.refused = dict(refused)
+    return s

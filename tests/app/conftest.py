@@ -1,0 +1,93 @@
+"""Fixtures of the app tests: the thesis cell, a stand-in locate, a recipe, an app wired to them."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+
+from doorloc.app.http import create_app
+from doorloc.app.settings import ServiceSettings
+from doorloc.cell import load_cell
+from doorloc.recipes.models import DoorRecipe, Hinge
+from doorloc.recipes.store import RecipeStore
+from doorloc.vision.result import LocateResult
+
+REPO = Path(__file__).resolve().parents[2]
+CELL_PATH = REPO / "fixtures" / "cell_thesis.yaml"
+
+
+def stand_in_locate(image, cell, door, *, image_name="", config=None):
+    """A locate that answers at once: a fixed pose, or a refusal for an all-black image."""
+    if int(np.max(image)) == 0:
+        return LocateResult.refusal(image_name, "no_door", "No door edge found in the image; check the lighting.")
+    return LocateResult(
+        image=image_name, ok=True, x_mm=1.25, z_mm=-2.5, yaw_deg=0.3, thickness_mm=door.thickness_mm,
+        scale_mm_per_px=0.206, corner_px=[802.0, 708.0], elapsed_ms=1.0,
+    )
+
+
+def png_bytes(image: np.ndarray) -> bytes:
+    ok, buf = cv2.imencode(".png", image)
+    assert ok
+    return buf.tobytes()
+
+
+@pytest.fixture(scope="session")
+def cell():
+    return load_cell(CELL_PATH)
+
+
+@pytest.fixture
+def recipe() -> DoorRecipe:
+    return DoorRecipe(
+        door_id="D-100", width_mm=900, height_mm=2100, thickness_mm=50,
+        hinges=[Hinge(z_mm=250, length_mm=100, width_mm=30, x_mm=10, depth_mm=3, corner_radius_mm=8),
+                Hinge(z_mm=1700, length_mm=100, width_mm=30, x_mm=10, depth_mm=3, corner_radius_mm=8)],
+        tool_diameter_mm=16, spindle_rpm=18000, feed_mm_s=25,
+    )
+
+
+@pytest.fixture
+def store(recipe):
+    s = RecipeStore("sqlite://")
+    s.put(recipe)
+    yield s
+    s.close()
+
+
+@pytest.fixture
+def make_client(cell, store):
+    """``make_client(**settings)``: a TestClient on an app with the stand-in locate (lifespan run)."""
+    clients = []
+
+    def make(**settings) -> TestClient:
+        app = create_app(ServiceSettings(**settings), cell=cell, store=store, locate_fn=stand_in_locate)
+        c = TestClient(app, raise_server_exceptions=False)
+        c.__enter__()
+        clients.append(c)
+        return c
+
+    yield make
+    for c in clients:
+        c.__exit__(None, None, None)
+
+
+@pytest.fixture
+def client(make_client) -> TestClient:
+    return make_client()
+
+
+@pytest.fixture(scope="session")
+def small_png() -> bytes:
+    img = np.full((48, 64), 128, np.uint8)
+    img[20:, 30:] = 200
+    return png_bytes(img)
+
+
+@pytest.fixture(scope="session")
+def encode_png():
+    return png_bytes
