@@ -1,9 +1,234 @@
-"""`doorloc` subcommands of this area (see doorloc.app.cli)."""
+"""`doorloc recipes ...` (the recipe database) and `doorloc targets` (robot targets for a measured pose).
+
+The database is ``--db URL``, else ``$DOORLOC_DATABASE_URL``, else ``./doorloc.db`` (SQLite);
+see :func:`doorloc.recipes.store.database_url`. Opening it upgrades its schema to the newest
+migration. Heavy imports live inside the commands so ``doorloc --help`` stays fast.
+"""
 
 from __future__ import annotations
 
+import json
+import sys
+from enum import StrEnum
+from pathlib import Path
+
 import typer
+
+from doorloc.app.errors import EXIT_FAILED, EXIT_USAGE, fail
+
+DB_HELP = "recipe database URL (SQLAlchemy); default: $DOORLOC_DATABASE_URL, else ./doorloc.db (SQLite)"
+
+
+class ListFormat(StrEnum):
+    table = "table"
+    json = "json"
+
+
+class RecipeFormat(StrEnum):
+    json = "json"
+    csv = "csv"
+
+
+class TargetFormat(StrEnum):
+    json = "json"
+    rapid_text = "rapid-text"
+    rapid_module = "rapid-module"
+
+
+def _open_store(db: str | None):
+    from doorloc.recipes.store import RecipeStore, RecipeStoreError, database_url
+
+    try:
+        return RecipeStore(database_url(db) if db else database_url())
+    except RecipeStoreError as e:
+        raise fail(str(e), EXIT_FAILED) from None
+
+
+def _emit(text: str, out: Path | None) -> None:
+    if out is None:
+        sys.stdout.write(text)
+        return
+    from doorloc.calib.io import atomic_write_text
+
+    try:
+        atomic_write_text(out, text)
+    except OSError as e:
+        raise fail(f"cannot write {out}: {e.strerror or e}", EXIT_FAILED) from None
+    typer.echo(f"wrote {out}", err=True)
+
+
+def _recipe_json(recipe) -> dict:
+    return recipe.model_dump(mode="json")
+
+
+recipes_app = typer.Typer(
+    name="recipes", help="The door-recipe database: import, list, show, export.", no_args_is_help=True
+)
+
+
+@recipes_app.command("init-db")
+def init_db(db: str = typer.Option(None, "--db", help=DB_HELP)) -> None:
+    """Create or upgrade the recipe database schema (Alembic 'upgrade head') and print its revision."""
+    from doorloc.recipes.store import redacted_url, schema_revision
+
+    store = _open_store(db)
+    with store:
+        typer.echo(f"{redacted_url(store.url)}: schema at revision {schema_revision(store.engine)}")
+
+
+@recipes_app.command("import")
+def import_cmd(
+    file: Path = typer.Argument(..., help="recipe file: .csv or .xlsx, one row per hinge, door fields repeated"),
+    db: str = typer.Option(None, "--db", help=DB_HELP),
+    dry_run: bool = typer.Option(False, "--dry-run", help="check the file only; write nothing"),
+) -> None:
+    """Import a recipe file in one transaction: all its doors, or (with any bad row) none.
+
+    Recipes already in the database with the same door id are replaced.
+    """
+    from doorloc.recipes.importer import RecipeImportError, load_recipe_file
+
+    if not file.is_file():
+        raise fail(f"no such recipe file: {file}")
+    try:
+        recipes = load_recipe_file(file)
+    except RecipeImportError as e:
+        raise fail(str(e), EXIT_USAGE) from None
+    except OSError as e:
+        raise fail(f"cannot read {file}: {e.strerror or e}") from None
+    except Exception as e:  # e.g. a damaged .xlsx (zip/xml errors from openpyxl)
+        raise fail(f"cannot read {file} as a recipe file: {e.__class__.__name__}: {e}") from None
+    hinges = sum(len(r.hinges) for r in recipes)
+    if dry_run:
+        typer.echo(f"{file}: {len(recipes)} door(s), {hinges} hinge(s) OK (dry run, nothing written)")
+        return
+    store = _open_store(db)
+    from sqlalchemy.exc import SQLAlchemyError
+
+    with store:
+        try:
+            store.put_many(recipes)
+        except SQLAlchemyError as e:
+            raise fail(f"import failed, nothing written: {str(e).splitlines()[0]}", EXIT_FAILED) from None
+    typer.echo(f"imported {len(recipes)} door(s), {hinges} hinge(s) from {file}")
+
+
+@recipes_app.command("list")
+def list_cmd(
+    db: str = typer.Option(None, "--db", help=DB_HELP),
+    fmt: ListFormat = typer.Option(ListFormat.table, "--format", help="table or json"),
+) -> None:
+    """List the stored recipes (door id, size, number of hinges)."""
+    store = _open_store(db)
+    with store:
+        rows = store.list()
+    if fmt is ListFormat.json:
+        typer.echo(json.dumps([
+            {"door_id": r.door_id, "width_mm": r.width_mm, "height_mm": r.height_mm,
+             "thickness_mm": r.thickness_mm, "hinges": r.hinge_count} for r in rows
+        ], indent=2))
+        return
+    typer.echo(f"{'door_id':<24} {'width':>8} {'height':>8} {'thick':>7} {'hinges':>6}")
+    for r in rows:
+        typer.echo(f"{r.door_id:<24} {r.width_mm:>8g} {r.height_mm:>8g} {r.thickness_mm:>7g} {r.hinge_count:>6d}")
+    typer.echo(f"{len(rows)} recipe(s)", err=True)
+
+
+@recipes_app.command("show")
+def show_cmd(
+    door_id: str = typer.Argument(..., help="door id (barcode)"),
+    db: str = typer.Option(None, "--db", help=DB_HELP),
+    fmt: RecipeFormat = typer.Option(RecipeFormat.json, "--format", help="json or csv (the import layout)"),
+) -> None:
+    """Print one recipe."""
+    from doorloc.recipes.importer import recipes_to_csv
+
+    store = _open_store(db)
+    with store:
+        recipe = store.get(door_id)
+    if recipe is None:
+        raise fail(f"no recipe for door {door_id!r} in the database; import one with 'doorloc recipes import'")
+    if fmt is RecipeFormat.csv:
+        sys.stdout.write(recipes_to_csv([recipe]))
+    else:
+        typer.echo(json.dumps(_recipe_json(recipe), indent=2))
+
+
+@recipes_app.command("export")
+def export_cmd(
+    db: str = typer.Option(None, "--db", help=DB_HELP),
+    out: Path = typer.Option(None, "--out", "-o", help="output file (written atomically); default stdout"),
+    fmt: RecipeFormat = typer.Option(None, "--format", help="csv (the import layout) or json; default from --out"),
+) -> None:
+    """Export every recipe: CSV in the import layout (re-importable) or a JSON list."""
+    from doorloc.recipes.importer import recipes_to_csv
+
+    if fmt is None:
+        fmt = RecipeFormat.json if out is not None and out.suffix.lower() == ".json" else RecipeFormat.csv
+    store = _open_store(db)
+    with store:
+        recipes = list(store.iter_recipes())
+    text = (json.dumps([_recipe_json(r) for r in recipes], indent=2) + "\n" if fmt is RecipeFormat.json
+            else recipes_to_csv(recipes))
+    _emit(text, out)
+
+
+def targets_cmd(
+    door_id: str = typer.Option(..., "--door-id", help="door id (barcode) of a stored recipe"),
+    pose: tuple[float, float, float] = typer.Option(..., "--pose", help="measured pose: X_MM Z_MM YAW_DEG"),
+    fmt: TargetFormat = typer.Option(TargetFormat.json, "--format", help="json, rapid-text or rapid-module"),
+    cell: Path = typer.Option(
+        None, "--cell", help="cell.yaml: fixture (hinge-face depth) and optional robot: section (tool/wobj data)"
+    ),
+    db: str = typer.Option(None, "--db", help=DB_HELP),
+    out: Path = typer.Option(None, "--out", "-o", help="output file (written atomically); default stdout"),
+    clearance: float = typer.Option(10.0, "--clearance", min=0.0, help="approach/retract distance before the face, mm"),
+) -> None:
+    """Robot targets (cell frame) for a stored door recipe at a measured pose.
+
+    Without --cell the hinge-face depth comes from the default fixture (face_y_mm 0 at a 900 mm door,
+    -0.5 mm per mm of width) and the RAPID module uses the default tool/work-object data.
+    """
+    from pydantic import ValidationError
+
+    from doorloc.cell import CellFileError, Fixture, load_cell
+    from doorloc.pose import DoorPose
+    from doorloc.recipes.rapid import RobotSetup, rapid_module, rapid_text, robot_setup_from_cell_file
+    from doorloc.recipes.targets import targets_for_pose
+
+    fixture, robot = Fixture(), RobotSetup()
+    if cell is not None:
+        try:
+            fixture = load_cell(cell).fixture
+            robot = robot_setup_from_cell_file(cell)
+        except CellFileError as e:
+            raise fail(str(e)) from None
+        except ValidationError as e:
+            first = e.errors(include_url=False)[0]
+            raise fail(f"{cell}: robot.{'.'.join(map(str, first['loc']))}: {first['msg']}") from None
+    store = _open_store(db)
+    with store:
+        recipe = store.get(door_id)
+    if recipe is None:
+        raise fail(f"no recipe for door {door_id!r} in the database; import one with 'doorloc recipes import'")
+    door_pose = DoorPose(*pose)
+    face_y = fixture.face_y(recipe.width_mm)
+    targets = targets_for_pose(recipe, door_pose, face_y, clearance_mm=clearance)
+    if fmt is TargetFormat.rapid_text:
+        text = rapid_text(targets)
+    elif fmt is TargetFormat.rapid_module:
+        text = rapid_module(recipe, targets, robot, pose=door_pose, face_y_mm=face_y)
+    else:
+        text = json.dumps({
+            "door_id": recipe.door_id,
+            "pose": {"x_mm": door_pose.x_mm, "z_mm": door_pose.z_mm, "yaw_deg": door_pose.yaw_deg},
+            "face_y_mm": face_y,
+            "targets": [t.model_dump(mode="json") for t in targets],
+        }, indent=2) + "\n"
+    _emit(text, out)
 
 
 def register(app: typer.Typer) -> None:
     """Add this area's subcommands to the root app."""
+    app.add_typer(recipes_app, name="recipes")
+    app.command("targets")(targets_cmd)
