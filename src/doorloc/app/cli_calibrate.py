@@ -1,9 +1,277 @@
-"""`doorloc` subcommands of this area (see doorloc.app.cli)."""
+"""`doorloc calibrate`, `doorloc calibrate-cell` and `doorloc validity`.
+
+The commands read files and print; the work is in :mod:`doorloc.calib`. Nothing is written
+unless the work succeeded, and then atomically (temporary file + rename).
+"""
 
 from __future__ import annotations
 
+import json
+import re
+from pathlib import Path
+from typing import Annotated
+
 import typer
+
+from doorloc.app.errors import EXIT_FAILED, EXIT_REFUSED, EXIT_USAGE, fail
+
+IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".webp"}
+
+
+def parse_pattern(text: str) -> tuple[int, int]:
+    """``"9x6"`` -> ``(9, 6)``; raises ValueError with a sentence."""
+    m = re.fullmatch(r"\s*(\d+)\s*[xX*,]\s*(\d+)\s*", text or "")
+    if not m:
+        raise ValueError(f"--pattern must look like 9x6 (columns x rows), got {text!r}")
+    return int(m.group(1)), int(m.group(2))
+
+
+def read_image_file(path: Path):
+    """(image, None) or (None, reason) for one file; EXIF orientation is ignored (pixels as stored)."""
+    import cv2
+    import numpy as np
+
+    try:
+        data = np.fromfile(str(path), dtype=np.uint8)
+    except OSError as e:
+        return None, f"cannot be read: {e.strerror or e}"
+    if data.size == 0:
+        return None, "is empty"
+    im = cv2.imdecode(data, cv2.IMREAD_UNCHANGED | cv2.IMREAD_IGNORE_ORIENTATION)
+    if im is None:
+        return None, "is not an image OpenCV can decode (corrupt or unsupported format)"
+    return im, None
+
+
+def _board(pattern: str, square: float, charuco: bool, marker: float | None, dictionary: str, legacy: bool):
+    from doorloc.calib.detect import CharucoSpec, Chessboard
+
+    cols, rows = parse_pattern(pattern)
+    if charuco:
+        if marker is None:
+            raise ValueError("a ChArUco board needs --marker MM (the ArUco marker side)")
+        return CharucoSpec(cols, rows, square, marker, dictionary, legacy)
+    return Chessboard(cols, rows, square)
 
 
 def register(app: typer.Typer) -> None:
     """Add this area's subcommands to the root app."""
+
+    @app.command("calibrate")
+    def calibrate(
+        images_dir: Annotated[Path, typer.Argument(help="folder of board photographs (one camera, one image size)")],
+        pattern: Annotated[str, typer.Option(help="chessboard: inner corners COLSxROWS (e.g. 9x6); ChArUco: squares")],
+        square: Annotated[float, typer.Option(help="square side, mm")],
+        out: Annotated[Path, typer.Option(help="calibration file to write (camera.yaml)")],
+        charuco: Annotated[bool, typer.Option("--charuco", help="the board is a ChArUco board")] = False,
+        marker: Annotated[float | None, typer.Option(help="ChArUco marker side, mm")] = None,
+        dictionary: Annotated[str, typer.Option(help="ChArUco ArUco dictionary")] = "DICT_4X4_50",
+        legacy: Annotated[bool, typer.Option("--legacy", help="ChArUco board in OpenCV's pre-4.6 layout")] = False,
+        report: Annotated[Path | None, typer.Option(help="folder for calibration_report.json and .png")] = None,
+        fmt: Annotated[str, typer.Option("--format", help="opencv (FileStorage YAML) or ros (camera_info)")] = "opencv",
+        model: Annotated[str, typer.Option(help="'auto' (choose by held-out error) or a candidate, e.g. plumb_bob")] = "auto",
+        folds: Annotated[int, typer.Option(min=2, help="K of the K-fold held-out model selection")] = 5,
+        min_views: Annotated[int, typer.Option(min=3, help="fewest usable views to calibrate with")] = 4,
+        camera_name: Annotated[str, typer.Option(help="camera name stored in the file")] = "doorloc",
+    ) -> None:
+        """Calibrate a camera from photographs of a chessboard or ChArUco board.
+
+        Images without a board, unreadable files and images of another size are skipped with a
+        reason; the calibration goes ahead if enough views remain. Exit codes: 0 done, 2 bad
+        arguments or input, 3 too few usable views (nothing written).
+        """
+        from doorloc.calib.calibrate import CANDIDATES, CANDIDATES_BY_NAME, CalibrationError, View, calibrate_views
+        from doorloc.calib.detect import scan_images
+        from doorloc.calib.io import CalibrationFile, save_calibration
+        from doorloc.calib.report import calibration_warnings, write_report
+
+        if fmt not in ("opencv", "ros"):
+            raise fail(f"--format must be opencv or ros, got {fmt!r}")
+        try:
+            board = _board(pattern, square, charuco, marker, dictionary, legacy)
+        except ValueError as e:
+            raise fail(str(e)) from None
+        if model == "auto":
+            candidates = CANDIDATES
+        elif model in CANDIDATES_BY_NAME:
+            candidates = (CANDIDATES_BY_NAME[model],)
+        else:
+            raise fail(f"--model must be auto or one of {', '.join(CANDIDATES_BY_NAME)}; got {model!r}")
+        if not images_dir.is_dir():
+            raise fail(f"{images_dir} is not a folder of images")
+        files = sorted(p for p in images_dir.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
+        if not files:
+            raise fail(f"no image files ({', '.join(sorted(IMAGE_SUFFIXES))}) in {images_dir}")
+        images = []
+        for p in files:
+            im, err = read_image_file(p)
+            images.append((p.name, im, err))
+        scan = scan_images(images, board)
+        for s in scan.skipped:
+            typer.echo(f"skipped {s.name}: {s.reason}", err=True)
+        views = [View(name, d.object_points(board), d.corners_px, d.ids) for name, d in scan.detections.items()]
+        if scan.image_size is None or len(views) < min_views:
+            raise fail(
+                f"only {len(views)} of {len(files)} images show the board; calibration needs at least {min_views} "
+                "(nothing written)", EXIT_FAILED,
+            )
+        try:
+            result = calibrate_views(views, scan.image_size, candidates=candidates, n_folds=folds, min_views=min_views)
+        except CalibrationError as e:
+            raise fail(f"{e} (nothing written)", EXIT_FAILED) from None
+        cam = result.camera
+        cal = CalibrationFile(cam, result.fit.rms_px, result.fit.per_view_rms_px, camera_name,
+                              {"model": result.fit.candidate.name})
+        save_calibration(cal, out, fmt)
+        if report is not None:
+            first = next(iter(scan.detections))
+            bg = next(im for name, im, _ in images if name == first)
+            write_report(report, result, scan, board, bg if bg.ndim == 2 or bg.shape[2] == 3 else None)
+        s = result.std_intrinsics
+        typer.echo(f"wrote {out} ({fmt}): model {result.fit.candidate.name}, {len(result.views)} views, "
+                   f"RMS {result.fit.rms_px:.3f} px")
+        typer.echo(f"fx {cam.fx:.3f} +- {s['fx']:.3f}  fy {cam.fy:.3f} +- {s['fy']:.3f}  "
+                   f"cx {cam.cx:.3f} +- {s['cx']:.3f}  cy {cam.cy:.3f} +- {s['cy']:.3f}  (1 sigma, px)")
+        typer.echo("dist " + " ".join(f"{v:.6g}" for v in cam.dist_coeffs))
+        typer.echo(f"observed radius {cam.observed_radius_px:.0f} px; projection uncertainty inside it "
+                   f"<= {result.projection_sigma_px['max_observed']:.3f} px (1 sigma)")
+        for sc in result.scores:
+            typer.echo(f"  {'*' if sc.chosen else ' '} {sc.name:24s} params {sc.n_params:2d}  train {sc.train_rms_px:.4f}  "
+                       f"held-out {sc.held_out_rms_px:.4f} px")
+        for w in calibration_warnings(result, scan):
+            typer.echo(f"warning: {w}", err=True)
+
+    @app.command("calibrate-cell")
+    def calibrate_cell(
+        image: Annotated[Path, typer.Argument(help="one image of the board lying on the hinge-face plane")],
+        cell: Annotated[Path, typer.Option(help="cell file with the calibrated camera (cell.yaml)")],
+        pattern: Annotated[str, typer.Option(help="chessboard inner corners COLSxROWS; ChArUco: squares")],
+        square: Annotated[float, typer.Option(help="square side, mm")],
+        board_origin: Annotated[tuple[float, float, float], typer.Option(
+            help="cell position (mm) of the board origin: chessboard corner 0 = the inner corner seen top-left; "
+                 "ChArUco corner id 0")],
+        out: Annotated[Path, typer.Option(help="cell file to write (may be the same as --cell)")],
+        board_x_axis: Annotated[tuple[float, float, float], typer.Option(
+            help="cell direction of the board's rows (image-right in the reference mount: +X)")] = (1.0, 0.0, 0.0),
+        board_y_axis: Annotated[tuple[float, float, float], typer.Option(
+            help="cell direction of the board's columns (image-down in the reference mount: -Z)")] = (0.0, 0.0, -1.0),
+        charuco: Annotated[bool, typer.Option("--charuco", help="the board is a ChArUco board")] = False,
+        marker: Annotated[float | None, typer.Option(help="ChArUco marker side, mm")] = None,
+        dictionary: Annotated[str, typer.Option(help="ChArUco ArUco dictionary")] = "DICT_4X4_50",
+        legacy: Annotated[bool, typer.Option("--legacy", help="ChArUco board in OpenCV's pre-4.6 layout")] = False,
+        max_rms: Annotated[float, typer.Option(help="refuse (exit 1, nothing written) above this RMS, px")] = 1.0,
+    ) -> None:
+        """Camera extrinsics from one image of a board at a known place in the cell -> cell.yaml.
+
+        Prints the reprojection error and the mm per pixel at the reference corner. Exit codes:
+        0 written, 1 refused (no board, or a poor fit), 2 bad arguments or files.
+        """
+        import yaml
+
+        from doorloc.calib.cell import CellCalibrationError, board_points_in_cell, calibrate_cell_extrinsics
+        from doorloc.calib.detect import detect_board
+        from doorloc.calib.io import atomic_write_text
+        from doorloc.cell import CellFileError, cell_to_dict, load_cell
+
+        try:
+            board = _board(pattern, square, charuco, marker, dictionary, legacy)
+            the_cell = load_cell(cell)
+        except (ValueError, CellFileError) as e:
+            raise fail(str(e)) from None
+        im, err = read_image_file(image)
+        if im is None:
+            raise fail(f"{image} {err}")
+        w, h = im.shape[1], im.shape[0]
+        if (w, h) != the_cell.camera.image_size:
+            raise fail(f"{image} is {w}x{h} but the cell's camera was calibrated at "
+                       f"{the_cell.camera.image_size[0]}x{the_cell.camera.image_size[1]}")
+        det = detect_board(im, board)
+        if det is None:
+            raise fail(f"no board ({pattern}) found in {image}; nothing written", EXIT_REFUSED)
+        try:
+            pts = board_points_in_cell(det.object_points(board), board_origin, board_x_axis, board_y_axis)
+            face_y = the_cell.face_y(the_cell.default_door)
+            res = calibrate_cell_extrinsics(the_cell.camera, pts, det.corners_px, face_y)
+        except CellCalibrationError as e:
+            raise fail(f"{e}; nothing written", EXIT_REFUSED) from None
+        if res.rms_px > max_rms:
+            raise fail(f"board reprojection RMS {res.rms_px:.2f} px exceeds --max-rms {max_rms} px: check "
+                       "--board-origin, the axes and that the board lies flat; nothing written", EXIT_REFUSED)
+        doc = cell_to_dict(the_cell.with_extrinsics(res.extrinsics))
+        try:
+            raw = yaml.safe_load(cell.read_text(encoding="utf-8")) or {}
+            cal_ref = (raw.get("camera") or {}).get("calibration")
+        except (OSError, yaml.YAMLError):
+            cal_ref = None
+        if cal_ref:
+            # Keep the reference to the calibration file (it carries observed_radius_px), rebased on --out.
+            p = Path(cal_ref)
+            if not p.is_absolute():
+                p = (cell.parent / p).resolve()
+            doc["camera"] = {"calibration": str(p), **doc["camera"]}
+        doc["cell_calibration"] = {"image": str(image), "board": pattern, "square_mm": square,
+                                   "board_origin_mm": list(board_origin), **res.to_dict()}
+        atomic_write_text(out, yaml.safe_dump(doc, sort_keys=False, default_flow_style=None))
+        typer.echo(f"wrote {out}: rvec {[round(v, 6) for v in res.extrinsics.rvec]} "
+                   f"tvec_mm {[round(v, 3) for v in res.extrinsics.tvec_mm]}")
+        typer.echo(f"board RMS {res.rms_px:.3f} px (max {res.max_residual_px:.3f} px, {res.n_corners} corners); "
+                   f"reference corner at pixel ({res.reference_corner_px[0]:.1f}, {res.reference_corner_px[1]:.1f}), "
+                   f"{res.scale_mm_per_px:.4f} mm/px")
+
+    @app.command("validity")
+    def validity(
+        path: Annotated[Path, typer.Argument(help="a calibration file (OpenCV or ROS YAML) or a cell file")],
+        as_json: Annotated[bool, typer.Option("--json", help="print the validity report as JSON")] = False,
+    ) -> None:
+        """Where a camera model can be trusted: fold-over radius, observed radius, the image corners.
+
+        Exit code 0 when the distortion model is one-to-one over the whole image, 1 when it folds
+        over inside the image (unusable beyond the fold radius), 2 for an unreadable file.
+        """
+        from doorloc.calib.camera import distortion_validity
+        from doorloc.calib.io import CalibrationFileError, load_calibration
+        from doorloc.cell import CellFileError, load_cell
+
+        try:
+            text = path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as e:
+            raise fail(f"cannot read {path}: {getattr(e, 'strerror', None) or e}") from None
+        try:
+            # A cell file has a top-level 'camera:' mapping; a calibration file has 'camera_matrix'.
+            if re.search(r"^camera:", text, flags=re.MULTILINE):
+                camera = load_cell(path).camera
+            else:
+                camera = load_calibration(path).camera
+        except (CalibrationFileError, CellFileError) as e:
+            raise fail(str(e)) from None
+        v = distortion_validity(camera)
+        if as_json:
+            typer.echo(json.dumps({"file": str(path), **v.to_dict()}, indent=2))
+        else:
+            typer.echo(f"{path}: {camera.image_size[0]}x{camera.image_size[1]}, distortion "
+                       f"[{', '.join(f'{c:.6g}' for c in camera.dist_coeffs)}]")
+            if v.fold_radius_px is None:
+                typer.echo("fold-over radius: none (the distortion is one-to-one out to three image diagonals)")
+            else:
+                typer.echo(f"fold-over radius: {v.fold_radius_px:.1f} px from the principal point "
+                           f"(image corners at {v.corner_radius_px:.1f} px)")
+            obs = "unknown" if v.observed_radius_px is None else f"{v.observed_radius_px:.1f} px"
+            typer.echo(f"observed radius: {obs}; valid radius: "
+                       f"{'unknown' if v.valid_radius_px is None else f'{v.valid_radius_px:.1f} px'}")
+            for c in v.corner_report:
+                angle = "no ray (beyond the fold)" if c["field_angle_deg"] is None else f"field angle {c['field_angle_deg']:.1f} deg"
+                land = c["ideal_ray_lands_at_px"]
+                typer.echo(f"  {c['corner']:12s} pixel ({c['pixel'][0]:.1f}, {c['pixel'][1]:.1f}): "
+                           f"{'undistortable' if c['undistortable'] else 'NOT undistortable'}, {angle}; the ray a "
+                           f"pinhole sees there is sent to ({round(land[0])}, {round(land[1])}), "
+                           f"{c['distortion_shift_px']:.0f} px away")
+            if not v.corners_inside_fold:
+                typer.echo(f"UNUSABLE beyond {v.fold_radius_px:.0f} px from the principal point: the model folds "
+                           "over inside the image")
+            for w in v.warnings:
+                typer.echo(f"warning: {w}", err=True)
+        if not v.corners_inside_fold:
+            raise typer.Exit(EXIT_REFUSED)
+
+
+__all__ = ["register", "parse_pattern", "read_image_file", "EXIT_USAGE"]

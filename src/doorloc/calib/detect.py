@@ -33,6 +33,9 @@ __all__ = [
     "local_square_px",
     "canonical_grid_order",
     "to_gray",
+    "SkippedImage",
+    "BoardScan",
+    "scan_images",
 ]
 
 WINDOW_FRACTION = 0.35
@@ -291,3 +294,75 @@ def detect_board(image: np.ndarray, board: Chessboard | CharucoSpec, *, refine: 
     if isinstance(board, CharucoSpec):
         return detect_charuco(image, board, refine=refine)
     return detect_chessboard(image, board, refine=refine)
+
+
+@dataclass(frozen=True)
+class SkippedImage:
+    """An image that gave no view, and a sentence saying why."""
+
+    name: str
+    reason: str
+
+
+@dataclass(frozen=True)
+class BoardScan:
+    """Board detections over a set of images.
+
+    ``detections`` maps image name -> :class:`BoardDetection` for the images used; ``skipped``
+    says why every other image was left out; ``image_size`` is the size all used images share.
+    """
+
+    detections: dict[str, BoardDetection]
+    skipped: list[SkippedImage]
+    image_size: tuple[int, int] | None
+
+
+def scan_images(
+    images: list[tuple[str, np.ndarray | None, str | None]],
+    board: Chessboard | CharucoSpec,
+    *,
+    refine: bool = True,
+) -> BoardScan:
+    """Detect ``board`` in each image; keep those of the most common size.
+
+    Parameters
+    ----------
+    images : list of (name, image or None, read error or None)
+        Images as read at the edge; an image that could not be read carries its error message.
+    board : the board to look for
+
+    Returns
+    -------
+    BoardScan
+        Images of another size than the most common one are skipped with a reason (mixed
+        image sizes cannot share one set of intrinsics).
+    """
+    skipped: list[SkippedImage] = []
+    sizes: dict[tuple[int, int], int] = {}
+    readable: list[tuple[str, np.ndarray]] = []
+    for name, im, err in images:
+        if im is None:
+            skipped.append(SkippedImage(name, err or "could not be read as an image"))
+            continue
+        size = (int(im.shape[1]), int(im.shape[0]))
+        sizes[size] = sizes.get(size, 0) + 1
+        readable.append((name, im))
+    if not sizes:
+        return BoardScan({}, skipped, None)
+    size = max(sizes, key=lambda s: (sizes[s], s))
+    detections: dict[str, BoardDetection] = {}
+    for name, im in readable:
+        s = (int(im.shape[1]), int(im.shape[0]))
+        if s != size:
+            skipped.append(SkippedImage(name, f"image is {s[0]}x{s[1]}, the others are {size[0]}x{size[1]}; "
+                                              "one calibration needs one image size"))
+            continue
+        det = detect_board(im, board, refine=refine)
+        if det is None:
+            what = ("ChArUco board" if isinstance(board, CharucoSpec)
+                    else f"{board.cols}x{board.rows} chessboard (inner corners)")
+            skipped.append(SkippedImage(name, f"no {what} found: check --pattern, lighting and focus, "
+                                              "and that the whole board is in view"))
+            continue
+        detections[name] = det
+    return BoardScan(detections, skipped, size)
