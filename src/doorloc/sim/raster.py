@@ -381,13 +381,18 @@ def render_radiance(
     label = np.empty((h, w), np.int32)
     value = np.empty((h, w), float)
     # background first, over the whole image
-    s, t, _ = _plane_coords(bg.H, q_all)
-    i, j = bg.surface.texture.cells(s, t)
-    label[:] = -1 - bg.surface.texture.codes[i, j]
-    value[:] = bg.surface.shade * bg.surface.texture.values[i, j]
-    if bg.surface.modulation is not None:
-        value *= bg.surface.modulation(s, t)
-    del s, t, i, j
+    bg_tex = bg.surface.texture
+    if bg_tex.s_lines.size == 0 and bg_tex.t_lines.size == 0 and bg.surface.modulation is None:
+        label[:] = -1
+        value[:] = bg.surface.shade * bg_tex.values[0, 0]
+    else:
+        s, t, _ = _plane_coords(bg.H, q_all)
+        i, j = bg_tex.cells(s, t)
+        label[:] = -1 - bg_tex.codes[i, j]
+        value[:] = bg.surface.shade * bg_tex.values[i, j]
+        if bg.surface.modulation is not None:
+            value *= bg.surface.modulation(s, t)
+        del s, t, i, j
     for p in preps:
         v0, v1, u0, u1 = _pixel_bbox(camera, p)
         if v1 <= v0 or u1 <= u0:
