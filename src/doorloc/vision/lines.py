@@ -8,6 +8,7 @@ of only the short bottom line (the thesis took the angle from the X-line alone).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -124,7 +125,7 @@ def fit_rectangle_edges(
     groups: dict[str, tuple[np.ndarray, bool]],
     *,
     scale_floor: float = 1e-4,
-    n_iter: int = 12,
+    n_iter: int = 9,
     init_weights: dict[str, np.ndarray] | None = None,
 ) -> RectangleFit:
     """Fit lines sharing one direction to groups of plane points, robustly (Tukey IRLS, TLS).
@@ -156,50 +157,57 @@ def fit_rectangle_edges(
     1.0
     """
     names = list(groups)
-    pts = {k: _to_common(np.asarray(groups[k][0], float), groups[k][1]) for k in names}
-    w = {k: (np.ones(len(pts[k])) if init_weights is None else np.asarray(init_weights[k], float).copy()) for k in names}
-    n = np.array([1.0, 0.0])
+    P = np.concatenate([_to_common(np.asarray(groups[k][0], float), groups[k][1]) for k in names])
+    gid = np.concatenate([np.full(len(groups[k][0]), i) for i, k in enumerate(names)])
+    G = len(names)
+    mask0 = (np.concatenate([np.asarray(init_weights[k], float) for k in names]) > 0
+             if init_weights is not None else np.ones(len(P), bool))
+    w = mask0.astype(float)
     scale = scale_floor
-    res: dict[str, np.ndarray] = {}
-    off: dict[str, float] = {}
+    prev = None
+    starts = np.concatenate([[0], np.cumsum([len(groups[k][0]) for k in names])[:-1]])
+    if np.any(np.diff(np.concatenate([starts, [len(P)]])) == 0):
+        raise ValueError("a line group has no points")
     for it in range(n_iter):
-        S = np.zeros((2, 2))
-        means = {}
-        for k in names:
-            wk = w[k]
-            sw = wk.sum()
-            if sw <= 0:
-                raise ValueError(f"no usable points on the {k} line")
-            m = (wk[:, None] * pts[k]).sum(0) / sw
-            q = pts[k] - m
-            S += (wk[:, None] * q).T @ q
-            means[k] = m
-        evals, evecs = np.linalg.eigh(S)
-        n = evecs[:, 0]
+        sw = np.add.reduceat(w, starts)
+        if np.any(sw <= 0):
+            raise ValueError(f"no usable points on the {names[int(np.argmin(sw))]} line")
+        means = np.add.reduceat(w[:, None] * P, starts, axis=0) / sw[:, None]
+        Q = P - means[gid]
+        S = (w[:, None] * Q).T @ Q
+        # Smallest-eigenvalue eigenvector of the 2x2 scatter, in closed form.
+        a, b, d = S[0, 0], S[0, 1], S[1, 1]
+        lam = 0.5 * (a + d) - math.sqrt(0.25 * (a - d) ** 2 + b * b)
+        n = np.array([b, lam - a]) if abs(b) > 1e-300 or a > d else np.array([1.0, 0.0])
+        if abs(lam - a) < 1e-300 and abs(b) < 1e-300:
+            n = np.array([1.0, 0.0]) if a <= d else np.array([0.0, 1.0])
+        n = n / math.hypot(n[0], n[1])
         if n[0] < 0:
             n = -n
-        res = {}
-        for k in names:
-            off[k] = float(n @ means[k])
-            res[k] = pts[k] @ n - off[k]
-        allr = np.concatenate([res[k] for k in names])
-        allw = np.concatenate([w[k] for k in names])
-        scale = robust_scale(allr, allw, scale_floor)
-        for k in names:
-            if it < 3:
-                u = np.abs(res[k]) / (1.345 * scale)
-                wk = np.where(u <= 1.0, 1.0, 1.0 / np.maximum(u, 1e-12))
-            else:
-                wk = tukey_weights(res[k], scale)
-            if init_weights is not None:
-                wk = wk * (np.asarray(init_weights[k]) > 0)
-            w[k] = wk
+        off = means @ n
+        r = P @ n - off[gid]
+        state = np.concatenate([n, off])
+        if prev is not None and it > 3 and np.max(np.abs(state - prev)) < 1e-8:
+            break
+        prev = state
+        if it < 4 or it % 2 == 0:  # the scale settles quickly; re-estimating it every time costs medians
+            scale = robust_scale(r, w, scale_floor)
+        if it < 3:
+            u = np.abs(r) / (1.345 * scale)
+            w = np.where(u <= 1.0, 1.0, 1.0 / np.maximum(u, 1e-12))
+        else:
+            w = tukey_weights(r, scale)
+        w = w * mask0
     # Standard errors: residual variance over the weighted information of each parameter.
-    sw_all = sum(float(w[k].sum()) for k in names)
-    var = sum(float((w[k] * res[k] ** 2).sum()) for k in names) / max(sw_all - len(names) - 1, 1.0)
+    sw = np.bincount(gid, weights=w, minlength=G)
+    var = float((w * r * r).sum()) / max(float(sw.sum()) - G - 1, 1.0)
     tdir = np.array([-n[1], n[0]])
-    spread = sum(float((w[k] * ((pts[k] - (w[k][:, None] * pts[k]).sum(0) / max(w[k].sum(), 1e-12)) @ tdir) ** 2).sum()) for k in names)
+    spread = float((w * (Q @ tdir) ** 2).sum())
     ang_sigma = float(np.sqrt(var / max(spread, 1e-12)))
-    off_sigma = {k: float(np.sqrt(var / max(w[k].sum(), 1e-12))) for k in names}
+    off_sigma = {k: float(np.sqrt(var / max(sw[i], 1e-12))) for i, k in enumerate(names)}
+    res = {k: r[gid == i] for i, k in enumerate(names)}
+    wd = {k: w[gid == i] for i, k in enumerate(names)}
+    off = {k: float(off[i]) for i, k in enumerate(names)}
+    w = wd
     angle = float(np.arctan2(n[1], n[0]))
     return RectangleFit(angle, dict(off), res, w, float(np.sqrt(var)), ang_sigma, off_sigma)

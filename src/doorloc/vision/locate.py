@@ -26,7 +26,7 @@ from doorloc.vision import quality as q
 from doorloc.vision.edges import EdgeSamples, coarse_edges, subpixel_edges, transition_width
 from doorloc.vision.lines import RectangleFit, fit_rectangle_edges, ransac_line
 from doorloc.vision.luminance import ImageFormatError, luminance_plane
-from doorloc.vision.metric import MetricPose, plane_points, pose_from_fit
+from doorloc.vision.metric import MetricPose, pose_from_fit
 from doorloc.vision.region import EDGE_NAMES, Band, SearchRegion
 from doorloc.vision.result import LineQuality, LocateResult
 
@@ -157,31 +157,34 @@ def _coarse(plane, band: Band, axis, polarity, thr):
 
 
 def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half: int, cfg: LocateConfig,
-            scale8: float) -> dict[str, EdgeSamples]:
+            scale8: float, every: int = 1) -> dict[str, EdgeSamples]:
     keep = half + cfg.plateau + 4
     tracks = region.tracks(pose.corner, yaw_rad, pose.thickness_mm, keep)
     out = {}
     for name in EDGE_NAMES:
         lay = region.layouts[name]
         t = tracks[name]
-        out[name] = subpixel_edges(plane, lay.axis, t.scan, t.centre, half, cfg.plateau, scale8)
+        out[name] = subpixel_edges(plane, lay.axis, t.scan[::every], t.centre[::every], half, cfg.plateau, scale8)
     return out
 
 
-def _fit(samples: dict[str, EdgeSamples], region: SearchRegion, cfg: LocateConfig) -> tuple[RectangleFit, dict]:
+def _fit(samples: dict[str, EdgeSamples], region: SearchRegion, cfg: LocateConfig, every: int = 1,
+         n_iter: int = 9) -> tuple[RectangleFit, dict]:
     groups, init = {}, {}
     for name in EDGE_NAMES:
         s = samples[name]
+        if every > 1:
+            s = s.subset(np.arange(s.scan.size) % every == 0)
         pol = region.layouts[name].polarity
         good = s.valid & (pol * s.step >= 0.5 * cfg.min_contrast)
-        xz = plane_points(region.posed, s.uv(), region.edge_depth_y)
+        xz = region.plane_points(s.uv())
         good &= np.isfinite(xz).all(axis=1)
         if good.sum() < 3:
             raise _Refused(q.Refusal("edge_missing", f"the {HUMAN[name]} was not found (no clean step of the expected "
                                      "polarity); check that the door lies in the fixture and nothing covers that edge"))
         groups[name] = (np.where(np.isfinite(xz), xz, 0.0), region.layouts[name].along_x)
         init[name] = good.astype(float)
-    fit = fit_rectangle_edges(groups, scale_floor=1e-4, init_weights=init)
+    fit = fit_rectangle_edges(groups, scale_floor=1e-4, init_weights=init, n_iter=n_iter)
     return fit, init
 
 
@@ -194,10 +197,12 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
     if r:
         raise _Refused(r)
     plane, s8 = lum.plane, lum.scale_to_8bit
+    clock = _Clock()
     thr = cfg.min_contrast / s8
     region = SearchRegion.build(cell, door, cfg.search_margin_mm, cfg.search_margin_deg, cfg.door_brighter)
     tr.region = region
 
+    clock.lap("region")
     # -- search region: coarse steps ------------------------------------------------------------
     ref_lay, far_lay, bot_lay = (region.layouts[k] for k in ("reference", "far", "bottom"))
     band_ref = region.arris_band(step=2)
@@ -211,7 +216,7 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
     along_r, _, strong_r = _coarse(plane, band_ref, ref_lay.axis, ref_lay.polarity, thr)
     tol = 3.0
     ref_line = ransac_line(band_ref.scan[strong_r], along_r[strong_r], tol) if strong_r.sum() >= 10 else None
-    if ref_line is None or ref_line.inliers.sum() < 0.4 * len(band_ref.scan):
+    if ref_line is None or ref_line.inliers.sum() < 0.4 * len(band_ref.scan):  # noqa: SIM114
         raise _Refused(_no_door_reason(plane, band_ref, ref_lay.axis, cfg, s8))
 
     sc = region.nominal_scale
@@ -247,12 +252,13 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
         raise _Refused(q.Refusal("edge_missing", f"the {HUMAN['bottom']} was not found between the arrises; check that "
                                  "the door's bottom end is in view and nothing covers it"))
 
+    clock.lap("coarse")
     # -- coarse pose on the plane ---------------------------------------------------------------
     def pts(line, band, axis):
         s = band.scan[:: max(len(band.scan) // 40, 1)].astype(float)
         a = line.at(s)
         uv = np.stack([s, a], 1) if axis == "col" else np.stack([a, s], 1)
-        return plane_points(region.posed, uv, region.edge_depth_y)
+        return region.plane_points(uv)
 
     coarse_groups = {"bottom": (pts(bot_line, band_bot, bot_lay.axis), True),
                      "reference": (pts(ref_line, band_ref, ref_lay.axis), False),
@@ -263,19 +269,44 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
         raise _Refused(q.Refusal("no_door", "the edges found do not form a door's corner; check that a door lies in "
                                  "the fixture and that the camera has not moved"))
 
+    clock.lap("coarse_pose")
     # -- sub-pixel passes ---------------------------------------------------------------------------
     half = cfg.half_window_max
     for _pass in range(2):
-        samples = _sample(plane, region, pose, math.radians(pose.yaw_deg), half, cfg, s8)
-        fit, init = _fit(samples, region, cfg)
+        # The first pass, on every other scan line, only centres and sizes the final windows.
+        samples = _sample(plane, region, pose, math.radians(pose.yaw_deg), half, cfg, s8, every=2 - _pass)
+        clock.lap(f"edges{_pass + 1}")
+        if _pass == 0:
+            fit, init = _fit(samples, region, cfg, n_iter=6)
+        else:
+            fit, init = _fit(samples, region, cfg)
         pose = pose_from_fit(fit, region.posed, region.face_y, region.edge_depth_y)
-        widths = [transition_width(plane, samples[k], fit.weights[k] > 0, half) for k in EDGE_NAMES]
-        blur = float(np.nanmax(widths)) if np.any(np.isfinite(widths)) else float(cfg.half_window_max)
-        half = int(np.clip(math.ceil(3.0 * blur + 1.5), cfg.half_window_min, cfg.half_window_max))
+        clock.lap(f"fit{_pass + 1}")
+        if _pass == 0:
+            # Size the final window to the measured blur: wide enough for the transition, no wider (noise).
+            widths = [transition_width(plane, samples[k], fit.weights[k] > 0, half) for k in EDGE_NAMES]
+            blur = float(np.nanmax(widths)) if np.any(np.isfinite(widths)) else float(cfg.half_window_max)
+            half = int(np.clip(math.ceil(3.0 * blur + 1.5), cfg.half_window_min, cfg.half_window_max))
     tr.samples = samples
     tr.inliers = {k: fit.weights[k] > 0 for k in EDGE_NAMES}
     tr.pose = pose
-    return _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, half)
+    res = _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, half)
+    clock.lap("gate")
+    res.diagnostics["timing_ms"] = clock.laps
+    return res
+
+
+class _Clock:
+    """Stage timings (ms) for the diagnostics."""
+
+    def __init__(self) -> None:
+        self.t = time.perf_counter()
+        self.laps: dict[str, float] = {}
+
+    def lap(self, name: str) -> None:
+        t = time.perf_counter()
+        self.laps[name] = round((t - self.t) * 1e3, 3)
+        self.t = t
 
 
 def _no_door_reason(plane, band: Band, axis, cfg: LocateConfig, s8: float) -> q.Refusal:

@@ -21,7 +21,7 @@ import numpy as np
 from doorloc.calib.camera import PosedCamera
 from doorloc.cell import Cell, DoorSize
 from doorloc.vision.edges import Axis
-from doorloc.vision.metric import image_points
+from doorloc.vision.metric import PlaneMap
 
 __all__ = ["EdgeLayout", "Band", "Track", "SearchRegion", "EDGE_NAMES"]
 
@@ -96,7 +96,16 @@ class SearchRegion:
     layouts: dict[str, EdgeLayout]
     z_top_mm: float
     nominal_scale: float
+    plane_map: PlaneMap
     border_px: int = 2
+
+    def image_points(self, xz: np.ndarray) -> np.ndarray:
+        """``(X, Z)`` on the outline plane -> pixels."""
+        return self.plane_map.to_image(xz)
+
+    def plane_points(self, uv: np.ndarray) -> np.ndarray:
+        """Pixels -> ``(X, Z)`` on the outline plane."""
+        return self.plane_map.to_plane(uv)
 
     @classmethod
     def build(cls, cell: Cell, door: DoorSize, margin_mm: float, margin_deg: float, door_brighter: bool = True) -> SearchRegion:
@@ -104,8 +113,9 @@ class SearchRegion:
         posed = cell.posed_camera
         face_y = cell.face_y(door)
         depth = face_y + door.arris_mm
+        pm = PlaneMap(posed, depth)
         o = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
-        uv = image_points(posed, o, depth)
+        uv = pm.to_image(o)
         dx, dz = uv[1] - uv[0], uv[2] - uv[0]
         ref_axis: Axis = "row" if abs(dz[1]) >= abs(dz[0]) else "col"
         bot_axis: Axis = "col" if abs(dx[0]) >= abs(dx[1]) else "row"
@@ -121,14 +131,14 @@ class SearchRegion:
         env = cell.envelope
         w, h = cell.camera.image_size
         # Highest Z of the reference line still inside the image (the door goes beyond it).
-        zs = np.arange(0.0, 3000.0, 2.0)
-        pts = image_points(posed, np.stack([np.zeros_like(zs), zs], 1), depth)
+        zs = np.arange(0.0, 3000.0, 5.0)
+        pts = pm.to_image(np.stack([np.zeros_like(zs), zs], 1))
         inside = (pts[:, 0] >= 0) & (pts[:, 0] <= w - 1) & (pts[:, 1] >= 0) & (pts[:, 1] <= h - 1)
         z_top = float(zs[inside].max()) if inside.any() else 0.0
         z_top = min(z_top, door.height_mm)
         scale = posed.scale_mm_per_px(np.array([0.0, face_y, 0.0]), face_y)
         return cls(posed, face_y, depth, door, (w, h), env.x_mm + margin_mm, env.z_mm + margin_mm,
-                   math.radians(env.yaw_deg + margin_deg), layouts, z_top, scale)
+                   math.radians(env.yaw_deg + margin_deg), layouts, z_top, scale, pm)
 
     # -- search region for the coarse pass -------------------------------------------------------
     def _scans_between(self, uv: np.ndarray, axis: Axis, step: int) -> np.ndarray:
@@ -138,15 +148,20 @@ class SearchRegion:
         hi = min(int(math.floor(np.nanmax(s))), n - 1 - self.border_px)
         return np.arange(lo, hi + 1, step)
 
-    def arris_band(self, step: int = 2) -> Band:
-        """Where the reference arris can be, on scan lines safely above any possible bottom end."""
+    def arris_band(self, step: int = 2, height_mm: float = 60.0) -> Band:
+        """Where the reference arris can be, on scan lines safely above any possible bottom end.
+
+        Only ``height_mm`` of the arris above the highest possible bottom end is searched: enough
+        for a coarse line, and the band stays narrow (yaw widens it with height).
+        """
         lay = self.layouts["reference"]
         t = math.tan(self.yaw_range_rad)
         z_lo = self.z_range_mm + (self.door.thickness_mm + self.x_range_mm) * t + 3.0
-        zs = np.linspace(z_lo, max(self.z_top_mm + 20.0, z_lo + 1.0), 48)
+        z_hi = max(min(self.z_top_mm, z_lo + height_mm), z_lo + 1.0)
+        zs = np.linspace(z_lo, z_hi, 24)
         half = self.x_range_mm + (np.abs(zs) + self.z_range_mm) * t
-        uv_lo = image_points(self.posed, np.stack([-half, zs], 1), self.edge_depth_y)
-        uv_hi = image_points(self.posed, np.stack([half, zs], 1), self.edge_depth_y)
+        uv_lo = self.image_points(np.stack([-half, zs], 1))
+        uv_hi = self.image_points(np.stack([half, zs], 1))
         scans = self._scans_between(np.vstack([uv_lo, uv_hi]), lay.axis, step)
         a1 = _interp_on_scans(uv_lo, lay.axis, scans)
         a2 = _interp_on_scans(uv_hi, lay.axis, scans)
@@ -158,8 +173,8 @@ class SearchRegion:
         t = math.tan(self.yaw_range_rad)
         xs = np.linspace(-self.x_range_mm - 30.0, self.x_range_mm + self.door.thickness_mm + 30.0, 48)
         half = self.z_range_mm + (np.abs(xs) + self.x_range_mm) * t
-        uv_lo = image_points(self.posed, np.stack([xs, -half], 1), self.edge_depth_y)
-        uv_hi = image_points(self.posed, np.stack([xs, half], 1), self.edge_depth_y)
+        uv_lo = self.image_points(np.stack([xs, -half], 1))
+        uv_hi = self.image_points(np.stack([xs, half], 1))
         a1 = _interp_on_scans(uv_lo, lay.axis, scans)
         a2 = _interp_on_scans(uv_hi, lay.axis, scans)
         return self._band(np.asarray(scans), a1, a2, lay.axis)
@@ -196,11 +211,11 @@ class SearchRegion:
                 base = corner if name == "reference" else far_corner
                 pl = base[None] + tz[:, None] * ez[None]
                 ends = (base, base)
-            uv = image_points(self.posed, pl, self.edge_depth_y)
+            uv = self.image_points(pl)
             s, _ = _along_scan(uv, lay.axis)
             n_scan = self.image_size[0] if lay.axis == "col" else self.image_size[1]
             n_along = self.image_size[1] if lay.axis == "col" else self.image_size[0]
-            e_uv = image_points(self.posed, np.array(ends), self.edge_depth_y)
+            e_uv = self.image_points(np.array(ends))
             e_s, _ = _along_scan(e_uv, lay.axis)
             if name == "bottom":
                 s_lo, s_hi = np.sort(e_s)
