@@ -46,6 +46,7 @@ class ProblemError(Exception):
 
 
 _DESCRIPTIONS = {
+    400: "The request body cannot be parsed (a malformed multipart form, or JSON that is not UTF-8).",
     401: "Missing or wrong API key (X-API-Key header).",
     404: "No such resource.",
     413: "The request body is larger than the service accepts.",
@@ -92,7 +93,19 @@ def _validation_sentence(errors: list[dict[str, Any]]) -> str:
     return "Invalid request: " + "; ".join(sentences) + more + "."
 
 
-_HTTP_CODES = {401: "unauthorized", 404: "not_found", 405: "method_not_allowed", 413: "too_large", 503: "not_ready"}
+_HTTP_CODES = {400: "malformed_body", 401: "unauthorized", 404: "not_found", 405: "method_not_allowed", 413: "too_large", 503: "not_ready"}
+
+
+def _allowed_methods(request: Request) -> list[str]:
+    """Methods of every route on this path (a path can have one route per method, e.g. GET and PUT)."""
+    from starlette.routing import Match
+
+    methods: set[str] = set()
+    for route in request.app.router.routes:
+        match, _ = route.matches(request.scope)
+        if match != Match.NONE:
+            methods |= set(getattr(route, "methods", None) or ())
+    return sorted(methods)
 
 
 def install_problem_handlers(app: FastAPI) -> None:
@@ -117,7 +130,12 @@ def install_problem_handlers(app: FastAPI) -> None:
         if status == 404:
             detail = f"There is nothing at {request.url.path}; see /docs for the endpoints."
         elif status == 405:
-            detail = f"{request.method} is not allowed on {request.url.path}; see /docs for the methods."
+            allowed = _allowed_methods(request)
+            detail = f"{request.method} is not allowed on {request.url.path}; use {', '.join(allowed)}."
+            return problem_response(request, 405, "method_not_allowed", detail, {"Allow": ", ".join(allowed)})
+        elif status == 400:
+            detail = ("The request body cannot be parsed: send images as a multipart form with the field 'image' "
+                      "(curl -F image=@door.png) and recipes as UTF-8 JSON.")
         else:
             detail = str(exc.detail) if exc.detail else HTTPStatus(status).phrase
             if not detail.endswith("."):

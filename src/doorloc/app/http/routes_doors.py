@@ -39,7 +39,7 @@ async def get_door(door_id: DoorId, state: Annotated[ServiceState, Depends(ready
 
 
 @router.put(
-    "/{door_id:path}", response_model=DoorRecipe, responses=problem_responses(401, 413, 422, 503),
+    "/{door_id:path}", response_model=DoorRecipe, responses=problem_responses(400, 401, 413, 422, 503),
     summary="Create or replace a door recipe",
 )
 async def put_door(

@@ -35,7 +35,7 @@ DoorMm = Annotated[float | None, Field(gt=0, le=10_000, allow_inf_nan=False)]
     response_model=LocateResponse,
     response_model_exclude_none=False,
     summary="Locate the door in an image and return its pose and hinge targets",
-    responses=problem_responses(401, 413, 415, 422, 503),
+    responses=problem_responses(400, 401, 413, 415, 422, 503),
 )
 async def post_locate(
     image: Annotated[UploadFile, File(description="the camera image: PNG, JPEG, TIFF or BMP, in the calibrated pixel frame")],
@@ -91,7 +91,7 @@ def _check_upload(data: bytes, name: str, state: ServiceState) -> None:
         cam_w, cam_h = state.cell.camera.image_size if state.cell else ("?", "?")
         raise ProblemError(
             422, "too_many_pixels",
-            f"'{name}' declares {header.width}x{header.height} pixels ({header.pixels / 1e6:.1f} MP), more than "
+            f"The image '{name}' declares {header.width}x{header.height} pixels ({header.pixels / 1e6:.1f} MP), more than "
             f"this service decodes ({limit / 1e6:.1f} MP); send the camera's own image ({cam_w}x{cam_h}).",
         )
 
@@ -127,7 +127,8 @@ def _measure(data: bytes, name: str, state: ServiceState, choice: DoorChoice, ov
         image = decode_image(data)
     except ImageDecodeError as e:
         raise ProblemError(
-            422, "undecodable_image", f"'{name}' cannot be decoded ({e}); the file is probably damaged or truncated."
+            422, "undecodable_image",
+            f"The image '{name}' cannot be decoded ({e}); the file is probably damaged or truncated: send it again."
         ) from None
     answer = answer_image(image, state.cell, choice, image_name=name, locate_fn=state.locate_fn, rapid=rapid)
     if overlay:
