@@ -29,7 +29,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validat
 
 from doorloc.cell import DoorSize
 
-__all__ = ["PointCorrection", "Hinge", "DoorFields", "DoorRecipe", "SKIP_CROSS_CHECKS", "RecipeProblem", "recipe_problems", "DOOR_ID_PATTERN"]
+__all__ = ["PointCorrection", "Hinge", "DoorFields", "DoorRecipe", "SKIP_CROSS_CHECKS", "CORNER_OVERCUT_TOLERANCE_MM", "RecipeProblem", "recipe_problems", "DOOR_ID_PATTERN"]
 
 #: door ids are barcodes: letters, digits and ``-_./:`` (no separators the text exports use)
 DOOR_ID_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.:/-]{0,63}$"
@@ -37,6 +37,9 @@ DOOR_ID_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.:/-]{0,63}$"
 PositiveMm = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 NonNegativeMm = Annotated[float, Field(ge=0, allow_inf_nan=False)]
 CorrectionMm = Annotated[float, Field(ge=-5.0, le=5.0, allow_inf_nan=False)]
+
+#: milled-feature tolerance (thesis, SPEC section 7): the most a 6-point path may cut past a corner arc, mm
+CORNER_OVERCUT_TOLERANCE_MM = 0.5
 
 #: context flag for ``model_validate``: build the recipe without the cross-field checks
 #: (an importer then calls :func:`recipe_problems` itself to map each problem to a row and column)
@@ -157,8 +160,10 @@ def recipe_problems(r: DoorRecipe) -> list[RecipeProblem]:
 
     Rules: the arris is less than half the thickness; each pocket lies inside the door
     (``x + width <= thickness``, ``z + length <= height``, ``depth < width`` of the door); the corner
-    radius fits the pocket; the tool fits the corner radius (``tool_diameter <= 2 * corner_radius``)
-    and its contour path clears the whole pocket (``min(width, length) <= 2 * tool_diameter``);
+    radius fits the pocket; the tool fits the corner radius (``tool_diameter <= 2 * corner_radius``),
+    a 6-point path cuts no more than :data:`CORNER_OVERCUT_TOLERANCE_MM` past the corner arcs
+    (``(corner_radius - tool_radius) * (sqrt 2 - 1)``), and the contour clears the whole pocket
+    (``min(width, length) <= 2 * tool_diameter``);
     no two pockets overlap.
     """
     out: list[RecipeProblem] = []
@@ -187,6 +192,13 @@ def recipe_problems(r: DoorRecipe) -> list[RecipeProblem]:
             out.append(RecipeProblem("tool_diameter_mm", f"tool diameter {_g(d)} mm does not fit hinge {n}'s corner "
                                                          f"radius {_g(h.corner_radius_mm)} mm (needs diameter <= "
                                                          f"2 * radius = {_g(2 * h.corner_radius_mm)} mm)", i))
+        overcut = (h.corner_radius_mm - d / 2) * (2**0.5 - 1)
+        if h.path_points == 6 and d <= 2 * h.corner_radius_mm + 1e-9 and overcut > CORNER_OVERCUT_TOLERANCE_MM:
+            out.append(RecipeProblem(f"{name}.path_points", f"hinge {n}: the 6-point path cuts its corners with the "
+                                                            f"tool radius {_g(d / 2)} mm, {overcut:.2f} mm past the "
+                                                            f"{_g(h.corner_radius_mm)} mm corner radius (limit "
+                                                            f"{_g(CORNER_OVERCUT_TOLERANCE_MM)} mm): use the 9-point "
+                                                            f"path or a tool closer to 2 * corner radius", i))
         if min(h.width_mm, h.length_mm) > 2 * d + 1e-9:
             out.append(RecipeProblem(f"{name}.width_mm", f"hinge {n} pocket ({_g(h.width_mm)} x {_g(h.length_mm)} mm) "
                                                          f"is more than two tool diameters ({_g(2 * d)} mm) wide: "

@@ -45,8 +45,11 @@ Quat = tuple[float, float, float, float]
 Vec3 = tuple[float, float, float]
 
 
-def rapid_num(value: float, significant: int = 7) -> str:
-    """Format a number for RAPID's single-precision ``num``.
+def rapid_num(value: float, significant: int = 7, max_decimals: int = 9) -> str:
+    """Format a number for RAPID's single-precision ``num``: 7 significant digits, at most 9 decimals.
+
+    Values below ``0.5e-9`` in magnitude are written as ``0`` (far below what a single-precision
+    quaternion component or a position in mm can carry).
 
     Examples
     --------
@@ -56,6 +59,7 @@ def rapid_num(value: float, significant: int = 7) -> str:
     v = float(value)
     if not math.isfinite(v):
         raise ValueError(f"cannot write {v!r} as a RAPID num")
+    v = round(v, max_decimals)
     if v == 0.0:
         return "0"
     s = np.format_float_positional(v, precision=significant, unique=False, fractional=False, trim="-")
