@@ -30,6 +30,7 @@ __all__ = [
     "View",
     "Candidate",
     "CANDIDATES",
+    "CANDIDATES_BY_NAME",
     "ModelFit",
     "Rejection",
     "CandidateScore",
@@ -41,6 +42,9 @@ __all__ = [
     "calibrate_views",
     "projection_uncertainty",
     "MIN_VIEWS",
+    "ProjectionDifference",
+    "projection_difference",
+    "pixels_within",
 ]
 
 #: fewest views a calibration is attempted with (after rejection)
@@ -489,3 +493,54 @@ def calibrate_views(
         "grid": [None if not np.isfinite(s) else float(s) for s in sig_grid],
     }
     return CalibrationResult(camera, fit, views, rejections, scores, std, cov, names, proj, k)
+
+
+@dataclass(frozen=True)
+class ProjectionDifference:
+    """How far two camera models disagree on where rays land, over a set of pixels.
+
+    ``raw_max_px``/``raw_rms_px``: the ray model ``reference`` sees at each pixel, projected by
+    ``other``. ``aligned_*``: the same after the best rotation of ``other``'s camera frame
+    (``rotation_rad``, Rodrigues): a calibration fixes intrinsics only up to such a small rotation
+    traded against the board poses (it moves the principal point), and a cell calibration made
+    with the same intrinsics absorbs it.
+    """
+
+    raw_max_px: float
+    raw_rms_px: float
+    aligned_max_px: float
+    aligned_rms_px: float
+    rotation_rad: np.ndarray
+    n_pixels: int
+
+
+def projection_difference(other: CameraModel, reference: CameraModel, pixels: np.ndarray) -> ProjectionDifference:
+    """Compare ``other`` with ``reference`` at ``pixels`` (N, 2) of ``reference``'s image (px).
+
+    Pixels ``reference`` cannot undistort are left out.
+    """
+    from scipy.optimize import least_squares
+
+    px = np.asarray(pixels, float).reshape(-1, 2)
+    xy = reference.undistort(px)
+    ok = np.all(np.isfinite(xy), axis=1)
+    px, xy = px[ok], xy[ok]
+    rays = np.concatenate([xy, np.ones((len(xy), 1))], axis=1)
+
+    def diff(rv: np.ndarray) -> np.ndarray:
+        R = cv2.Rodrigues(np.asarray(rv, float))[0]
+        return other.project(rays @ R.T) - px
+
+    d0 = np.linalg.norm(diff(np.zeros(3)), axis=1)
+    sol = least_squares(lambda rv: diff(rv).ravel(), np.zeros(3))
+    d1 = np.linalg.norm(diff(sol.x), axis=1)
+    return ProjectionDifference(float(d0.max()), float(np.sqrt(np.mean(d0**2))), float(d1.max()),
+                                float(np.sqrt(np.mean(d1**2))), sol.x, int(len(px)))
+
+
+def pixels_within(camera: CameraModel, radius_px: float, step_px: float = 8.0) -> np.ndarray:
+    """Pixel grid (every ``step_px``) inside the image and within ``radius_px`` of the principal point, (N, 2)."""
+    w, h = camera.image_size
+    gu, gv = np.meshgrid(np.arange(0, w, step_px), np.arange(0, h, step_px))
+    g = np.stack([gu.ravel(), gv.ravel()], axis=1).astype(float)
+    return g[np.linalg.norm(g - [camera.cx, camera.cy], axis=1) <= radius_px]

@@ -280,7 +280,9 @@ def detect_charuco(image: np.ndarray, board: CharucoSpec, *, refine: bool = True
         # Isolated corners: use the typical spacing of the view.
         fin = sq[np.isfinite(sq)]
         sq[~np.isfinite(sq)] = np.median(fin) if fin.size else 2 * (MIN_HALF_WINDOW + 1)
-    hw = half_window_from_square(sq)
+    # The markers sit (square - marker)/2 from the corners: the window must not reach their edges.
+    gap = (board.square_mm - board.marker_mm) / (2 * board.square_mm)
+    hw = np.minimum(half_window_from_square(sq), np.maximum(np.floor(gap * sq - 1.0), MIN_HALF_WINDOW)).astype(int)
     if refine:
         c = refine_corners(gray, c, hw)
     else:
