@@ -81,6 +81,14 @@ class EdgeSamples:
                            self.width[mask], self.bright[mask], self.valid[mask])
 
 
+def _smooth_along(x: np.ndarray, n: int) -> np.ndarray:
+    """Moving average over ``2 n + 1`` neighbours (shorter at the ends), NaN-free input."""
+    k = np.ones(2 * n + 1)
+    num = np.convolve(np.nan_to_num(x), k, mode="same")
+    cnt = np.convolve(np.isfinite(x).astype(float), k, mode="same")
+    return num / np.maximum(cnt, 1.0)
+
+
 def _gather(P: np.ndarray, scan: np.ndarray, start: np.ndarray, length: int) -> tuple[np.ndarray, np.ndarray]:
     """Profiles ``P[start + k, scan]`` for k < length as float32 (N, length), and an in-image mask."""
     idx = start[:, None] + np.arange(length)[None, :]
@@ -154,6 +162,7 @@ def subpixel_edges(
     half: int,
     plateau: int = 4,
     scale_to_8bit: float = 1.0,
+    slope_smooth: int = 0,
 ) -> EdgeSamples:
     """Sub-pixel edge position on each scan line by the area estimator (module docstring).
 
@@ -173,6 +182,11 @@ def subpixel_edges(
         Samples on each side beyond the window used to measure the two grey levels.
     scale_to_8bit : float
         Factor to the 0-255 scale for ``step`` and ``noise``.
+    slope_smooth : int
+        When > 0, each plateau's grey-level slope is measured, averaged over this many scan lines on
+        each side (the samples must be ordered along the edge) and used to extrapolate the two levels
+        under the transition; 0 assumes flat plateaus (exact for a linear shading only when the
+        window is centred on the edge).
 
     Returns
     -------
@@ -192,11 +206,28 @@ def subpixel_edges(
     A = left.mean(axis=1)
     B = right.mean(axis=1)
     step = B - A
+    # Plateau slopes (shading, wood grain parallel to the edge), smoothed along the edge: the levels
+    # are extrapolated linearly under the transition instead of being assumed flat.
+    kp = np.arange(plateau) - (plateau - 1) / 2.0
+    den = float((kp * kp).sum())
+    if slope_smooth > 0 and den > 0 and scan.size:
+        a1 = _smooth_along(((left - A[:, None]) * kp).sum(axis=1) / den, slope_smooth)
+        b1 = _smooth_along(((right - B[:, None]) * kp).sum(axis=1) / den, slope_smooth)
+    else:
+        a1 = b1 = np.zeros(scan.size)
+    hp = half + 0.5
+    off = hp + (plateau + 1) / 2.0 - 0.5  # window centre to plateau centres, px
+    kc = np.arange(-half, half + 1, dtype=np.float32)
+    S = (core - (A[:, None] + a1[:, None] * (kc[None, :] + off))).sum(axis=1)
+    D0 = (B - b1 * off) - (A + a1 * off)
+    d1 = b1 - a1
     with np.errstate(divide="ignore", invalid="ignore"):
-        frac = (core - A[:, None]).sum(axis=1) / step
-        along = start + plateau + 2 * half + 0.5 - frac
-        g = np.diff(core, axis=1) / step[:, None]  # normalised gradient, sums to ~1
-        pos = np.arange(2 * half) + 0.5 + start[:, None] + plateau  # between samples
+        # S = (D0 + d1 (hp - L/2)) L  for L = far window end minus edge (see the module docstring).
+        b = D0 + d1 * hp
+        L = 2.0 * S / (b + np.sqrt(np.maximum(b * b - 2.0 * d1 * S, 0.0)) * np.sign(b))
+        along = start + plateau + 2 * half + 0.5 - L
+        g = np.diff(core, axis=1) / step[:, None]
+        pos = np.arange(2 * half) + 0.5 + start[:, None] + plateau
         m1 = (g * pos).sum(axis=1)
         width = np.sqrt(np.maximum((g * (pos - m1[:, None]) ** 2).sum(axis=1), 0.0))
     noise = np.sqrt(0.5 * (left.var(axis=1) + right.var(axis=1)))

@@ -55,6 +55,8 @@ class LocateConfig:
         Bounds of the sub-pixel window half-size, px (the second pass sizes it to the measured blur).
     plateau : int
         Samples on each side of the window used for the two grey levels.
+    slope_smooth : int
+        Scan lines on each side over which the plateau slopes are averaged (0: flat plateaus).
     min_thickness_mm, thickness_search_mm : float
         The far arris is looked for between these distances beyond the reference arris
         (``min_thickness_mm`` .. door thickness + ``thickness_search_mm``).
@@ -79,6 +81,7 @@ class LocateConfig:
     half_window_max: int = 9
     half_window_min: int = 3
     plateau: int = 4
+    slope_smooth: int = 10
     min_thickness_mm: float = 4.0
     thickness_search_mm: float = 15.0
     thickness_tolerance_mm: float = 1.0
@@ -164,7 +167,8 @@ def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half:
     for name in EDGE_NAMES:
         lay = region.layouts[name]
         t = tracks[name]
-        out[name] = subpixel_edges(plane, lay.axis, t.scan[::every], t.centre[::every], half, cfg.plateau, scale8)
+        out[name] = subpixel_edges(plane, lay.axis, t.scan[::every], t.centre[::every], half, cfg.plateau, scale8,
+                                   slope_smooth=max(cfg.slope_smooth // every, 1) if cfg.slope_smooth else 0)
     return out
 
 
