@@ -1,9 +1,106 @@
-"""`doorloc` subcommands of this area (see doorloc.app.cli)."""
+"""`doorloc locate`: one image in, the locate result (shared/SPEC.md section 3) out as JSON on stdout.
+
+Exit codes: 0 the door was located; 1 locate refused the image (the JSON says why, ``ok=false``);
+2 bad input (unreadable image, cell file, door size, unknown door id). The overlay, when asked for,
+is written atomically (temporary file + rename) for answers and refusals alike.
+"""
 
 from __future__ import annotations
 
+import os
+import tempfile
+from pathlib import Path
+from typing import Annotated
+
 import typer
+
+from doorloc.app.errors import EXIT_OK, EXIT_REFUSED, EXIT_USAGE, fail
+
+
+def _write_png_atomic(path: Path, image) -> None:
+    import cv2
+
+    ok, buf = cv2.imencode(path.suffix or ".png", image)
+    if not ok:
+        raise ValueError(f"cannot encode the overlay as {path.suffix or '.png'}; use a .png or .jpg file name")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=str(path.parent))
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(buf.tobytes())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def _door_from_options(cell, width, thickness, height, arris, door_id, db):
+    from doorloc.cell import DoorSize
+
+    if door_id is not None:
+        if any(v is not None for v in (width, thickness, height)):
+            raise ValueError("give either --door-id or --door-width/--door-thickness/--door-height, not both")
+        try:
+            from doorloc.recipes.store import RecipeStore, database_url
+        except ImportError:  # pragma: no cover - the recipes area is part of the product
+            raise ValueError("--door-id needs the recipe store (doorloc.recipes), which is not installed") from None
+        with RecipeStore(database_url(db) if db else database_url()) as store:
+            recipe = store.get(door_id)
+        if recipe is None:
+            raise ValueError(f"no door recipe with id {door_id!r} in the recipe database; import it first "
+                             "(doorloc recipes import) or give the door size with --door-width/--door-thickness")
+        size = recipe.door_size()
+        return size if arris is None else DoorSize(size.width_mm, size.thickness_mm, size.height_mm, arris)
+    d = cell.default_door
+    return DoorSize(
+        float(width) if width is not None else d.width_mm,
+        float(thickness) if thickness is not None else d.thickness_mm,
+        float(height) if height is not None else d.height_mm,
+        float(arris) if arris is not None else d.arris_mm,
+    )
 
 
 def register(app: typer.Typer) -> None:
     """Add this area's subcommands to the root app."""
+
+    @app.command("locate")
+    def locate_cmd(
+        image: Annotated[Path, typer.Argument(help="camera image (PNG, JPEG, TIFF, BMP; 8 or 16 bit)")],
+        cell_file: Annotated[Path, typer.Option("--cell", help="cell file (cell.yaml)")],
+        door_width: Annotated[float | None, typer.Option("--door-width", help="door width, mm (sets the hinge-face depth)")] = None,
+        door_thickness: Annotated[float | None, typer.Option("--door-thickness", help="door thickness, mm")] = None,
+        door_height: Annotated[float | None, typer.Option("--door-height", help="door height, mm")] = None,
+        arris: Annotated[float | None, typer.Option("--arris", help="arris chamfer/rounding size, mm")] = None,
+        door_id: Annotated[str | None, typer.Option("--door-id", help="take the door size from this recipe")] = None,
+        db: Annotated[str | None, typer.Option("--db", help="recipe database URL (default: DOORLOC_DATABASE_URL)")] = None,
+        overlay: Annotated[Path | None, typer.Option("--overlay", help="write an annotated image here (PNG/JPEG)")] = None,
+        indent: Annotated[int, typer.Option(help="JSON indentation (0 = one line)")] = 2,
+    ) -> None:
+        """Locate the door in one image and print the result JSON (exit 0 located, 1 refused, 2 bad input)."""
+        from doorloc.cell import CellFileError, load_cell
+        from doorloc.vision.imageio import ImageDecodeError, read_image
+        from doorloc.vision.locate import LocateTrace, locate
+
+        try:
+            cell = load_cell(cell_file)
+        except CellFileError as e:
+            raise fail(str(e), EXIT_USAGE) from None
+        try:
+            door = _door_from_options(cell, door_width, door_thickness, door_height, arris, door_id, db)
+        except (ValueError, RuntimeError) as e:
+            raise fail(str(e), EXIT_USAGE) from None
+        try:
+            img = read_image(image)
+        except ImageDecodeError as e:
+            raise fail(str(e), EXIT_USAGE) from None
+        trace = LocateTrace()
+        result = locate(img, cell, door, image_name=str(image), trace=trace)
+        if overlay is not None:
+            from doorloc.vision.overlay import draw_overlay
+
+            try:
+                _write_png_atomic(overlay, draw_overlay(img, result, cell, door, trace))
+            except (OSError, ValueError) as e:
+                raise fail(f"cannot write the overlay {overlay}: {getattr(e, 'strerror', None) or e}", EXIT_USAGE) from None
+        typer.echo(result.model_dump_json(indent=indent or None))
+        raise typer.Exit(EXIT_OK if result.ok else EXIT_REFUSED)
