@@ -100,6 +100,7 @@ class CharucoBoard:
     marker_mm: float
     dictionary: str = "DICT_4X4_50"
     margin_mm: float | None = None
+    legacy: bool = False  # OpenCV's pre-4.6 layout (setLegacyPattern), for boards printed by old versions
 
     def __post_init__(self) -> None:
         if self.squares_x < 2 or self.squares_y < 2 or not 0 < self.marker_mm < self.square_mm:
@@ -121,9 +122,11 @@ class CharucoBoard:
         """The matching ``cv2.aruco.CharucoBoard``."""
         import cv2
 
-        return cv2.aruco.CharucoBoard(
+        board = cv2.aruco.CharucoBoard(
             (self.squares_x, self.squares_y), float(self.square_mm), float(self.marker_mm), self.cv_dictionary()
         )
+        board.setLegacyPattern(bool(self.legacy))
+        return board
 
     def object_points(self) -> np.ndarray:
         """ChArUco corners in the board frame, shape (N, 3), mm; row k has id k."""

@@ -140,14 +140,17 @@ class Effects:
         kw = {}
         for k, v in d.items():
             default = known[k].default
-            if isinstance(default, bool):
-                kw[k] = v if isinstance(v, bool) else str(v).strip().lower() in ("1", "true", "yes")
-            elif isinstance(default, int):
-                kw[k] = int(float(v))
-            elif isinstance(default, float):
-                kw[k] = float(v)
-            else:
-                kw[k] = str(v)
+            try:
+                if isinstance(default, bool):
+                    kw[k] = v if isinstance(v, bool) else str(v).strip().lower() in ("1", "true", "yes")
+                elif isinstance(default, int):
+                    kw[k] = int(float(v))
+                elif isinstance(default, float):
+                    kw[k] = float(v)
+                else:
+                    kw[k] = str(v)
+            except ValueError:
+                raise ValueError(f"effect {k} needs a {type(default).__name__}, got {v!r}") from None
         return cls(**kw)
 
     def light_direction_cell(self) -> np.ndarray:

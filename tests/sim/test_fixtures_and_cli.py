@@ -1,0 +1,77 @@
+"""The committed rendered fixtures reproduce bit-for-bit; `doorloc render` writes a complete set."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from doorloc.app.cli import app
+from doorloc.cell import load_cell
+from doorloc.sim.dataset import grid_poses, read_truth_csv
+from doorloc.sim.door import render_door, true_corner_px
+
+ROOT = Path(__file__).parents[2]
+FIX = ROOT / "fixtures" / "rendered"
+
+
+@pytest.mark.parametrize("folder,index", [("grid", 0), ("grid", 80), ("effects", 13), ("distractors", 3)])
+def test_fixture_images_rerender_identically(folder, index):
+    cell = load_cell(FIX / folder / "cell.yaml")
+    rows = read_truth_csv(FIX / folder / "truth.csv")
+    r = rows[index]
+    rd = render_door(cell, r.door, r.pose, effects=r.effects, seed=r.seed)
+    stored = cv2.imread(str(FIX / folder / r.image), cv2.IMREAD_UNCHANGED)
+    assert stored.shape == rd.image.shape == (1080, 1920)
+    assert np.array_equal(stored, rd.image)
+    assert np.allclose(r.corner_px, true_corner_px(cell, r.door, r.pose), atol=1e-9)
+
+
+def test_grid_fixture_covers_the_envelope_corners_and_thicknesses():
+    rows = read_truth_csv(FIX / "grid" / "truth.csv")
+    poses = {(r.pose.x_mm, r.pose.z_mm, r.pose.yaw_deg) for r in rows}
+    assert poses == {(p.x_mm, p.z_mm, p.yaw_deg) for p in grid_poses(load_cell(FIX / "grid" / "cell.yaml").envelope)}
+    assert {r.door.thickness_mm for r in rows} == {30.0, 50.0, 100.0}
+    assert sum(f.stat().st_size for f in FIX.rglob("*")) < 4_000_000
+
+
+def test_cli_render_writes_images_truth_and_cell(tmp_path):
+    out = tmp_path / "set"
+    res = CliRunner().invoke(app, [
+        "render", str(out), "--cell", str(ROOT / "fixtures" / "cell_thesis.yaml"), "--poses", "random",
+        "--count", "2", "--seed", "5", "--thickness", "35,60", "--effect", "blur_sigma_px=0.5",
+    ])
+    assert res.exit_code == 0, res.output
+    rows = read_truth_csv(out / "truth.csv")
+    assert [r.image for r in rows] == [f"img_{k:04d}.png" for k in range(4)]
+    assert [r.door.thickness_mm for r in rows] == [35.0, 35.0, 60.0, 60.0]
+    assert rows[0].effects.blur_sigma_px == 0.5
+    assert all((out / r.image).is_file() for r in rows)
+    cell = load_cell(out / "cell.yaml")
+    assert np.allclose(rows[1].corner_px, true_corner_px(cell, rows[1].door, rows[1].pose))
+    # a second run into the same folder is refused without --force and leaves the set alone
+    before = (out / "truth.csv").read_bytes()
+    res = CliRunner().invoke(app, ["render", str(out), "--cell", str(ROOT / "fixtures" / "cell_thesis.yaml")])
+    assert res.exit_code == 2 and "already holds" in res.output
+    assert (out / "truth.csv").read_bytes() == before
+
+
+@pytest.mark.parametrize(
+    "args,message",
+    [
+        (["--effect", "gamma=abc"], "gamma"),
+        (["--effect", "nope=1"], "unknown effect"),
+        (["--thickness", "thick"], "--thickness"),
+        (["--poses", "spiral"], "--poses"),
+        (["--thickness", "0"], "thickness_mm"),
+    ],
+)
+def test_cli_render_bad_arguments_are_refused_with_a_sentence(tmp_path, args, message):
+    out = tmp_path / "set"
+    res = CliRunner().invoke(app, ["render", str(out), "--cell", str(ROOT / "fixtures" / "cell_thesis.yaml"), *args])
+    assert res.exit_code == 2
+    assert message in res.output
+    assert not (out / "truth.csv").exists()
