@@ -290,44 +290,43 @@ def held_out_rms(views: list[View], image_size: tuple[int, int], candidate: Cand
 
 
 def _reject(views: list[View], image_size, candidate: Candidate, min_views: int) -> tuple[list[View], list[Rejection], ModelFit]:
-    """Iteratively drop outlier corners and views, refitting each time (at most five rounds)."""
+    """Drop outlier views and corners, refitting after each decision.
+
+    A grossly wrong view (a mislabelled detection) bends the whole fit, so views go one at a time,
+    worst first, before any corner is judged. A view is bad when more than
+    ``VIEW_MAX_BAD_FRACTION`` of its corners are outliers or its remaining corners still fit far
+    worse than the other views; otherwise its few outlier corners are dropped instead.
+    """
     rejections: list[Rejection] = []
     current = list(views)
     fit = fit_model(current, image_size, candidate)
-    for _ in range(5):
+    for _ in range(len(views) + 5):
         allr = np.concatenate(fit.residuals_px)
         sigma = 1.4826 * float(np.median(np.abs(allr)))
         corner_thr = max(CORNER_SIGMAS * sigma, CORNER_FLOOR_PX)
-        median_view = float(np.median(fit.per_view_rms_px))
-        view_thr = max(VIEW_FACTOR * median_view, VIEW_FLOOR_PX)
+        norms = [np.linalg.norm(r, axis=1) for r in fit.residuals_px]
+        bad_frac = np.array([float(np.mean(n > corner_thr)) for n in norms])
+        inlier_rms = np.array([float(np.sqrt(np.mean(n[n <= corner_thr] ** 2))) if np.any(n <= corner_thr) else np.inf
+                               for n in norms])
+        view_thr = max(VIEW_FACTOR * float(np.median(inlier_rms)), VIEW_FLOOR_PX)
+        badness = np.where((bad_frac > VIEW_MAX_BAD_FRACTION) | (inlier_rms > view_thr), np.array(fit.per_view_rms_px), -1)
+        worst = int(np.argmax(badness))
+        if badness[worst] > 0 and len(current) > min_views:
+            why = (f"{bad_frac[worst]:.0%} of its corners beyond {corner_thr:.2f} px"
+                   if bad_frac[worst] > VIEW_MAX_BAD_FRACTION
+                   else f"view RMS {inlier_rms[worst]:.2f} px > {view_thr:.2f} px")
+            rejections.append(Rejection(current[worst].name, None, fit.per_view_rms_px[worst], why))
+            current = current[:worst] + current[worst + 1:]
+            fit = fit_model(current, image_size, candidate)
+            continue
         changed = False
         new_views: list[View] = []
-        # Views first: a whole bad view (wrong detection, motion blur) is not a set of bad corners.
-        order = np.argsort(fit.per_view_rms_px)[::-1]
-        n_left = len(current)
-        drop_view = set()
-        for i in order:
-            norms = np.linalg.norm(fit.residuals_px[i], axis=1)
-            bad_frac = float(np.mean(norms > corner_thr))
-            if n_left <= min_views:
-                break
-            if fit.per_view_rms_px[i] > view_thr or bad_frac > VIEW_MAX_BAD_FRACTION:
-                why = (f"view RMS {fit.per_view_rms_px[i]:.2f} px > {view_thr:.2f} px"
-                       if fit.per_view_rms_px[i] > view_thr
-                       else f"{bad_frac:.0%} of its corners beyond {corner_thr:.2f} px")
-                rejections.append(Rejection(current[i].name, None, fit.per_view_rms_px[i], why))
-                drop_view.add(int(i))
-                n_left -= 1
-        for i, v in enumerate(current):
-            if i in drop_view:
-                changed = True
-                continue
-            norms = np.linalg.norm(fit.residuals_px[i], axis=1)
-            bad = norms > corner_thr
+        for v, n in zip(current, norms, strict=True):
+            bad = n > corner_thr
             if np.any(bad) and v.n - int(bad.sum()) >= 6:
                 for j in np.flatnonzero(bad):
-                    rejections.append(Rejection(v.name, int(v.ids[j]), float(norms[j]),
-                                                f"corner residual {norms[j]:.2f} px > {corner_thr:.2f} px"))
+                    rejections.append(Rejection(v.name, int(v.ids[j]), float(n[j]),
+                                                f"corner residual {n[j]:.2f} px > {corner_thr:.2f} px"))
                 v = v.subset(~bad)
                 changed = True
             new_views.append(v)

@@ -1,0 +1,95 @@
+"""Calibration of rendered board views of a known camera (doorloc.sim.boards.render_board)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from rendered_views import render_views, true_camera
+
+from doorloc.calib.calibrate import (
+    CANDIDATES_BY_NAME,
+    CalibrationError,
+    View,
+    calibrate_views,
+    pixels_within,
+    projection_difference,
+)
+from doorloc.calib.detect import Chessboard, detect_chessboard
+
+
+@pytest.fixture(scope="module")
+def rendered():
+    from doorloc.sim.boards import Checkerboard
+    from doorloc.sim.effects import Effects
+
+    cam = true_camera()
+    board = Chessboard(9, 6, 25.0)
+    images = render_views(cam, Checkerboard(9, 6, 25.0), 20, seed=0,
+                          effects=Effects(blur_sigma_px=0.7, read_noise_dn=1.0))
+    views = []
+    for name, im, _ in images:
+        det = detect_chessboard(im, board)
+        assert det is not None, name
+        views.append(View(name, det.object_points(board), det.corners_px, det.ids))
+    return cam, views
+
+
+@pytest.fixture(scope="module")
+def result(rendered):
+    cam, views = rendered
+    return calibrate_views(views, cam.image_size)
+
+
+def test_intrinsics_of_the_known_camera_are_recovered(rendered, result):
+    true, _ = rendered
+    cam = result.camera
+    assert abs(cam.fx / true.fx - 1) < 0.001
+    assert abs(cam.fy / true.fy - 1) < 0.001
+    assert abs(cam.cx - true.cx) < 0.5
+    assert abs(cam.cy - true.cy) < 0.5
+    # the errors are within what the reported uncertainty allows
+    for name, t in (("fx", true.fx), ("fy", true.fy), ("cx", true.cx), ("cy", true.cy)):
+        assert abs(getattr(cam, name) - t) < 4 * result.std_intrinsics[name]
+
+
+def test_projection_matches_the_true_model_inside_the_observed_region(rendered, result):
+    true, _ = rendered
+    cam = result.camera
+    pts = pixels_within(cam, cam.observed_radius_px)
+    assert len(pts) > 1000
+    d = projection_difference(cam, true, pts)
+    # up to the small frame rotation a calibration cannot tell from the board poses (it moves cx, cy)
+    assert d.aligned_max_px < 0.1
+    assert d.raw_max_px < 0.5
+    assert np.linalg.norm(d.rotation_rad) < 1e-3
+
+
+def test_no_view_or_corner_of_clean_renders_is_rejected(result):
+    assert [r for r in result.rejections if r.corner_id is None] == []
+    assert len(result.rejections) <= 3
+    assert result.fit.rms_px < 0.06
+
+
+def test_bad_corners_and_a_bad_view_are_rejected_and_the_fit_recovers(rendered, result):
+    true, views = rendered
+    bad = list(views)
+    v = bad[3]
+    moved = v.image_points.copy()
+    moved[[5, 17, 30]] += [[2.5, 0.0], [0.0, -3.0], [2.0, 2.0]]
+    bad[3] = View(v.name, v.object_points, moved, v.ids)
+    w = bad[7]  # a wrongly labelled view: corners of one row shuffled
+    shuffled = w.image_points.copy()
+    shuffled[:9] = shuffled[:9][::-1]
+    bad[7] = View(w.name, w.object_points, shuffled, w.ids)
+    res = calibrate_views(bad, true.image_size, candidates=(CANDIDATES_BY_NAME["plumb_bob"],))
+    rejected_corners = {(r.view, r.corner_id) for r in res.rejections if r.corner_id is not None}
+    assert {(v.name, 5), (v.name, 17), (v.name, 30)} <= rejected_corners
+    assert w.name in {r.view for r in res.rejections if r.corner_id is None}
+    assert abs(res.camera.fx / true.fx - 1) < 0.001
+    assert abs(res.camera.cx - true.cx) < 0.5
+
+
+def test_too_few_views_is_a_clear_error(rendered):
+    true, views = rendered
+    with pytest.raises(CalibrationError, match="at least 4"):
+        calibrate_views(views[:3], true.image_size)
