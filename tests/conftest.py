@@ -25,3 +25,20 @@ def shared_data() -> Path:
 @pytest.fixture(scope="session")
 def thesis_cell_path() -> Path:
     return REPO / "fixtures" / "cell_thesis.yaml"
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config) -> None:  # noqa: ARG001 - pytest hook
+    """Say which recipe-database backends ran (ids ``[sqlite]``/``[postgresql]``), so CI logs show both."""
+    counts: dict[str, dict[str, int]] = {}
+    for outcome in ("passed", "failed", "error", "skipped"):
+        for rep in terminalreporter.stats.get(outcome, []):
+            nodeid = getattr(rep, "nodeid", "")
+            for backend in ("sqlite", "postgresql"):
+                if f"[{backend}" in nodeid and getattr(rep, "when", "call") in ("call", "setup"):
+                    if outcome == "passed" and rep.when != "call":
+                        continue
+                    counts.setdefault(backend, {}).setdefault(outcome, 0)
+                    counts[backend][outcome] += 1
+    if counts:
+        parts = [f"{b}: " + ", ".join(f"{n} {o}" for o, n in sorted(c.items())) for b, c in sorted(counts.items())]
+        terminalreporter.write_line("recipe database backends -- " + "; ".join(parts))
