@@ -213,11 +213,13 @@ def locate_item(item: BatchItem, cell: Cell, locate_fn: LocateFn | None = None) 
     return fields
 
 
-def _set_opencv_threads() -> None:
+def _configure_opencv() -> None:
     import cv2
 
     # One image per worker process at a time; the processes already fill the cores.
     cv2.setNumThreads(1)
+    # A damaged file becomes a record saying so; OpenCV's own warnings would only garble the progress bar.
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)
 
 
 # ---------------------------------------------------------------------------------------------- results file
@@ -306,12 +308,12 @@ def run_local(
     At most ``2 * workers`` images are in flight, so memory stays bounded on archives of any size.
     """
     if workers <= 1:
-        _set_opencv_threads()
+        _configure_opencv()
         for it in items:
             yield locate_item(it, cell, locate_fn)
         return
     # "spawn": the parent runs a progress thread, and fork with threads is unsafe.
-    with ProcessPoolExecutor(workers, mp_context=get_context("spawn"), initializer=_set_opencv_threads) as pool:
+    with ProcessPoolExecutor(workers, mp_context=get_context("spawn"), initializer=_configure_opencv) as pool:
         pending: set = set()
         queue = iter(items)
         exhausted = False
@@ -367,7 +369,7 @@ def run_ray(
         ds = ray.data.from_items(rows, override_num_blocks=min(len(rows), max(1, workers) * 4))
 
         def _locate_batch(batch: dict[str, Any]) -> dict[str, Any]:
-            _set_opencv_threads()
+            _configure_opencv()
             records = [locate_item(pickle.loads(b), cell, locate_fn) for b in batch["item"]]
             return {"record": [json.dumps(r, allow_nan=False) for r in records]}
 

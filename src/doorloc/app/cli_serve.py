@@ -122,7 +122,7 @@ def register(app: typer.Typer) -> None:
                     raise fail(str(e)) from None
                 except OSError as e:
                     raise fail(f"cannot write {out}: {e.strerror or e}", EXIT_FAILED) from None
-        console.print(f"{out}: {summary.text()}")
+        typer.echo(f"{out}: {summary.text()}", err=True)
         raise typer.Exit(EXIT_OK if summary.answered == summary.total else EXIT_REFUSED)
 
 
