@@ -1,0 +1,97 @@
+"""The operator page in headless Chromium (Debian's chromium, driven by Playwright): upload, see the pose.
+
+Runs against a real uvicorn server on 127.0.0.1 with the real pipeline. Skipped where Chromium is not
+installed, except in CI (DOORLOC_CI=1), where a missing browser is a failure.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import socket
+import threading
+import time
+from pathlib import Path
+
+import cv2
+import pytest
+
+pytestmark = pytest.mark.browser
+
+CHROMIUM = os.environ.get("DOORLOC_CHROMIUM", "/usr/bin/chromium")
+CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
+                 "--disable-sync", "--no-first-run"]
+
+
+def _require_chromium() -> None:
+    have = Path(CHROMIUM).exists() or shutil.which(CHROMIUM)
+    if have:
+        return
+    message = f"Chromium not found at {CHROMIUM} (apt-get install chromium, or set DOORLOC_CHROMIUM)"
+    if os.environ.get("DOORLOC_CI") == "1":
+        pytest.fail(message + "; CI must run the browser test")
+    pytest.skip(message)
+
+
+@pytest.fixture
+def live_server(cell, store):
+    """The app with the real pipeline, served by uvicorn on 127.0.0.1 in a thread; yields its base URL."""
+    import uvicorn
+
+    from doorloc.app.http import create_app
+    from doorloc.app.settings import ServiceSettings
+
+    app = create_app(ServiceSettings(), cell=cell, store=store)
+    sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    sock.bind(("127.0.0.1", 0))
+    port = sock.getsockname()[1]
+    server = uvicorn.Server(uvicorn.Config(app, log_level="warning", lifespan="on"))
+    thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
+    thread.start()
+    deadline = time.monotonic() + 30
+    while not server.started and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert server.started, "the test server did not start"
+    yield f"http://127.0.0.1:{port}"
+    server.should_exit = True
+    thread.join(timeout=10)
+    sock.close()
+
+
+def test_upload_shows_pose_overlay_and_targets_then_an_error_sentence(live_server, cell, tmp_path):
+    _require_chromium()
+    from playwright.sync_api import sync_playwright
+
+    from doorloc.pose import DoorPose
+    from doorloc.sim.door import render_door
+
+    truth = DoorPose(4.0, -3.0, 0.7)
+    door_png = tmp_path / "door.png"
+    door_png.write_bytes(cv2.imencode(".png", render_door(cell, cell.default_door, truth, seed=3).image)[1].tobytes())
+    notes = tmp_path / "notes.png"
+    notes.write_text("this is not an image\n")
+
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS, headless=True)
+        try:
+            page = browser.new_page()
+            page.goto(live_server + "/")
+            page.wait_for_function("document.getElementById('ready').textContent === 'ready'", timeout=20_000)
+
+            page.fill("#door_id", "D-100")
+            page.set_input_files("#image", str(door_png))
+            page.wait_for_function("document.getElementById('pose-x').textContent.trim() !== ''", timeout=60_000)
+            assert float(page.text_content("#pose-x")) == pytest.approx(truth.x_mm, abs=0.05)
+            assert float(page.text_content("#pose-z")) == pytest.approx(truth.z_mm, abs=0.05)
+            assert float(page.text_content("#pose-yaw")) == pytest.approx(truth.yaw_deg, abs=0.02)
+            assert page.text_content("#status") == "located"
+            assert page.get_attribute("#overlay", "src").startswith("data:image/png;base64,")
+            assert page.locator("#targets tbody tr").count() > 0
+            assert page.locator("#quality tbody tr").count() > 0
+            assert page.is_hidden("#error")
+
+            page.set_input_files("#image", str(notes))
+            page.wait_for_selector("#error:not([hidden])", timeout=20_000)
+            assert "is not a PNG, JPEG, TIFF or BMP image" in page.text_content("#error")
+        finally:
+            browser.close()
