@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from doorloc.calib.camera import CameraModel
-from doorloc.sim.boards import Checkerboard, CharucoBoard, render_board
+from doorloc.sim.boards import CharucoBoard, Checkerboard, render_board
 from doorloc.sim.effects import Effects
 
 CAM = CameraModel.from_values(

@@ -73,3 +73,78 @@ def test_same_seed_same_bytes():
     c = render_door(cam_cell, DoorSize(), DoorPose(1, 2, 0.5), effects=fx, seed=12)
     assert a.image.tobytes() == b.image.tobytes()
     assert a.image.tobytes() != c.image.tobytes()
+
+
+@pytest.mark.parametrize("dist", [[0.0] * 5, [-0.08, 0.05, 0.0005, -0.0003, 0.0]], ids=["ideal", "distorted"])
+@pytest.mark.parametrize("yaw", [0.0, 2.0])
+def test_door_edges_lie_on_the_projected_door_edges(dist, yaw):
+    """The hinge face's bottom edge and reference edge, measured by the area method, agree with the
+    projection of the door's 3-D edges to 0.01 px RMS."""
+    import dataclasses
+
+    from doorloc.calib.camera import CameraModel
+    from doorloc.pose import door_to_cell
+    from doorloc.sim.edgecheck import measure_edge
+
+    cam = CELL.camera
+    cell = dataclasses.replace(CELL, camera=CameraModel(cam.camera_matrix, dist, cam.image_size))
+    door, pose = DoorSize(900, 50, 2100), DoorPose(3.0, -2.0, yaw)
+    rd = render_door(cell, door, pose)
+    fx = Effects()
+    bright, dark = fx.albedo_hinge, fx.albedo_background
+    lam = np.linspace(0, 1, 100001)[:, None]
+    project = cell.posed_camera.project_cell
+    # bottom edge: door (0..T, 0, 0); hinge face above it (bright before, in v)
+    bottom = project(door_to_cell(lam * [door.thickness_mm, 0, 0], pose, cell.face_y(door)))
+    cols = np.arange(int(bottom[:, 0].min()) + 4, int(bottom[:, 0].max()) - 4)
+    r_bottom = measure_edge(rd.radiance, bottom, cols, dark=dark, bright=bright, along="columns", bright_after=False)
+    # reference edge: door (0, 0, 0..H); hinge face to its right (bright after, in u)
+    ref = project(door_to_cell(lam * [0, 0, 300.0], pose, cell.face_y(door)))
+    rows = np.arange(int(ref[:, 1].min()) + 4, int(ref[:, 1].max()) - 4)
+    rows = rows[(rows > 10) & (rows < 1070)]
+    r_ref = measure_edge(rd.radiance, ref, rows, dark=dark, bright=bright, along="rows", bright_after=True)
+    assert r_bottom.size > 200 and r_ref.size > 500
+    for r in (r_bottom, r_ref):
+        assert np.sqrt(np.mean(r**2)) <= 0.01
+
+
+def test_every_effect_defaults_to_off_and_changes_the_image_when_on():
+    plain = render_door(CELL, DoorSize(900, 40, 2100), DoorPose(2, 3, 1))
+    fx0 = Effects()
+    # plain: each face is its albedo exactly (away from edges)
+    u, v = plain.corner_px.astype(int)
+    assert plain.image[v - 50, u + 50] == round(255 * fx0.albedo_hinge)
+    assert plain.image[v + 50, u - 50] == round(255 * fx0.albedo_background)
+    switches = {
+        "light_directional": 0.5, "gradient_u": 0.2, "gradient_v": 0.2, "vignetting": 0.3, "grain_contrast": 0.1,
+        "shadow_strength": 0.4, "clamp_albedo": 0.02, "second_edge_offset_mm": 20.0, "blur_sigma_px": 1.0,
+        "full_well_e": 5000.0, "read_noise_dn": 2.0, "gamma": 2.2, "jpeg_quality": 50,
+    }
+    for name, value in switches.items():
+        img = render_door(CELL, DoorSize(900, 40, 2100), DoorPose(2, 3, 1),
+                          effects=Effects(**{name: value})).image
+        assert not np.array_equal(img, plain.image), name
+    assert render_door(CELL, DoorSize(), DoorPose(), effects=Effects(bit_depth=16)).image.dtype == np.uint16
+    assert render_door(CELL, DoorSize(), DoorPose(), effects=Effects(color=True)).image.shape == (1080, 1920, 3)
+
+
+def test_effects_round_trip_through_a_dict_of_strings():
+    fx = Effects(blur_sigma_px=0.7, gamma=2.2, bit_depth=16, arris_profile="round", color=True)
+    assert Effects.from_dict({k: str(v) for k, v in fx.to_dict().items()}) == fx
+    with pytest.raises(ValueError, match="unknown effect"):
+        Effects.from_dict({"sharpness": 1})
+    with pytest.raises(ValueError, match="bit_depth"):
+        Effects(bit_depth=12)
+
+
+def test_arris_is_rendered_between_hinge_face_and_background():
+    door = DoorSize(900, 50, 2100, arris_mm=3.0)
+    rd = render_door(CELL, door, DoorPose(), effects=Effects(albedo_chamfer=0.3))
+    assert any(n.startswith("arris:hinge_face/bottom_end") for n in rd.truth["visible_faces"])
+    # the 45-degree chamfer runs from door (x, 0, 3) on the hinge face to (x, 3, 0) on the bottom end;
+    # the latter lies 3 mm deeper, so the chamfer spans fewer than 3 / 0.2056 = 14.6 px
+    top, bottom = CELL.posed_camera.project_cell(np.array([[25.0, 0.0, 3.0], [25.0, 3.0, 0.0]]))
+    col = rd.image[:, round(top[0])].astype(int)
+    chamfer_rows = np.nonzero(col == round(255 * 0.3))[0]
+    assert abs(chamfer_rows.size - (bottom[1] - top[1])) <= 1.5
+    assert abs(chamfer_rows.max() + 0.5 - bottom[1]) <= 1.0

@@ -18,7 +18,7 @@ import numpy as np
 from doorloc.calib.camera import CameraModel
 from doorloc.sim.raster import GridTexture, Surface, render_radiance
 
-__all__ = ["EdgeCheck", "edge_agreement"]
+__all__ = ["EdgeCheck", "edge_agreement", "measure_edge"]
 
 BRIGHT, DARK = 0.8, 0.1
 
@@ -104,19 +104,53 @@ def edge_agreement(
     # analytic curve: dense points of the 3-D edge projected through the full camera model
     lam = np.linspace(0.0, 1.0, 200001)
     curve = camera.project(A[None] + lam[:, None] * (B - A)[None])
-    curve = curve[np.all(np.isfinite(curve), axis=1)]
-    order = np.argsort(curve[:, 0])
-    cu, cv = curve[order, 0], curve[order, 1]
     cols = np.arange(margin_cols, w - margin_cols)
+    res = measure_edge(img, curve, cols, dark=DARK, bright=BRIGHT, along="columns", bright_after=True)
+    return EdgeCheck(angle_deg, kind, res)
+
+
+def measure_edge(
+    image: np.ndarray, curve_px: np.ndarray, lines: np.ndarray, *, dark: float, bright: float,
+    along: str = "columns", bright_after: bool = True, half_window: int = 6,
+) -> np.ndarray:
+    """Residuals (area-method measured - analytic) of one edge, per image column or row, px.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W), float
+        Box-filtered radiance with exactly two levels near the edge.
+    curve_px : ndarray, shape (n, 2)
+        Dense samples (spacing << 1 px) of the analytic edge in pixel coordinates (u, v).
+    lines : ndarray of int
+        Columns (``along="columns"``: the edge is a graph v(u)) or rows (``"rows"``: u(v)) to measure.
+    dark, bright : float
+        Radiance on either side.
+    bright_after : bool
+        The bright side lies at larger v (columns) or larger u (rows).
+    half_window : int
+        Pixels of window beyond the edge on each side.
+
+    Returns
+    -------
+    ndarray
+        One residual per measured line (lines whose window leaves the image are skipped).
+    """
+    c = np.asarray(curve_px, float)
+    c = c[np.all(np.isfinite(c), axis=1)]
+    x, y = (c[:, 0], c[:, 1]) if along == "columns" else (c[:, 1], c[:, 0])
+    order = np.argsort(x)
+    x, y = x[order], y[order]
+    img = image if along == "columns" else image.T
+    n_across = img.shape[0]
     sub = (np.arange(64) + 0.5) / 64 - 0.5
-    analytic = np.interp(cols[:, None] + sub[None, :], cu, cv).mean(axis=1)
-    # measured: area method over a window of rows around the edge in each column
+    # the area method measures the mean edge position over the line's one-pixel width
+    analytic = np.interp(lines[:, None] + sub[None, :], x, y).mean(axis=1)
     res = []
-    for u, va in zip(cols, analytic, strict=True):
-        v0, v1 = int(math.floor(va)) - 6, int(math.ceil(va)) + 6
-        if v0 < 0 or v1 >= h:
+    for k, a in zip(lines, analytic, strict=True):
+        c0, c1 = int(math.floor(a)) - half_window, int(math.ceil(a)) + half_window
+        if c0 < 0 or c1 >= n_across:
             continue
-        frac = (img[v0 : v1 + 1, u] - DARK) / (BRIGHT - DARK)
-        measured = (v1 + 0.5) - frac.sum()
-        res.append(measured - va)
-    return EdgeCheck(angle_deg, kind, np.array(res))
+        frac = (img[c0 : c1 + 1, k] - dark) / (bright - dark)
+        measured = (c1 + 0.5) - frac.sum() if bright_after else (c0 - 0.5) + frac.sum()
+        res.append(measured - a)
+    return np.array(res)
