@@ -1,0 +1,67 @@
+"""`doorloc serve` as a real process on 127.0.0.1: starts, becomes ready, answers, stops on SIGTERM."""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+
+import cv2
+import httpx
+import pytest
+
+from doorloc.pose import DoorPose
+from doorloc.sim.door import render_door
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_serve_with_two_workers_answers_and_stops(cell, tmp_path):
+    port = _free_port()
+    env = {**os.environ, "DOORLOC_DATABASE_URL": f"sqlite:///{tmp_path / 'recipes.db'}"}
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "doorloc", "serve", "--cell", "fixtures/cell_thesis.yaml", "--host", "127.0.0.1",
+         "--port", str(port), "--workers", "2"],
+        env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True,
+    )
+    base = f"http://127.0.0.1:{port}"
+    try:
+        deadline = time.monotonic() + 90
+        ready = None
+        while time.monotonic() < deadline and proc.poll() is None:
+            try:
+                ready = httpx.get(base + "/readyz", timeout=2)
+                if ready.status_code == 200:
+                    break
+            except httpx.TransportError:
+                pass
+            time.sleep(0.2)
+        assert ready is not None and ready.status_code == 200, "the service did not become ready"
+        truth = DoorPose(-2.0, 6.0, -0.4)
+        png = cv2.imencode(".png", render_door(cell, cell.default_door, truth, seed=5).image)[1].tobytes()
+        r = httpx.post(base + "/v1/locate", files={"image": ("door.png", png, "image/png")}, timeout=60)
+        assert r.status_code == 200, r.text
+        assert r.json()["x_mm"] == pytest.approx(truth.x_mm, abs=0.05)
+        assert r.headers["x-request-id"]
+    finally:
+        os.killpg(proc.pid, signal.SIGTERM)
+        out, _ = proc.communicate(timeout=30)
+    assert proc.returncode == 0, out
+    # structured request log: one JSON line per request, with its id
+    assert '"event": "request"' in out and '"route": "/v1/locate"' in out
+
+
+def test_serve_refuses_a_broken_cell_file_with_a_sentence(tmp_path):
+    bad = tmp_path / "cell.yaml"
+    bad.write_text("camera: [1, 2\n")
+    p = subprocess.run([sys.executable, "-m", "doorloc", "serve", "--cell", str(bad)], capture_output=True, text=True,
+                       timeout=60)
+    assert p.returncode == 2
+    assert "not valid YAML" in p.stderr and "Traceback" not in p.stderr
