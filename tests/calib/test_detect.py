@@ -9,8 +9,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from doorloc.calib.detect import (
-    Chessboard,
     CharucoSpec,
+    Chessboard,
     canonical_grid_order,
     detect_charuco,
     detect_chessboard,

@@ -80,7 +80,13 @@ def register(app: typer.Typer) -> None:
         reason; the calibration goes ahead if enough views remain. Exit codes: 0 done, 2 bad
         arguments or input, 3 too few usable views (nothing written).
         """
-        from doorloc.calib.calibrate import CANDIDATES, CANDIDATES_BY_NAME, CalibrationError, View, calibrate_views
+        from doorloc.calib.calibrate import (
+            CANDIDATES,
+            CANDIDATES_BY_NAME,
+            CalibrationError,
+            View,
+            calibrate_views,
+        )
         from doorloc.calib.detect import scan_images
         from doorloc.calib.io import CalibrationFile, save_calibration
         from doorloc.calib.report import calibration_warnings, write_report
