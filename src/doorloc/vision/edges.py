@@ -105,6 +105,8 @@ def coarse_edges(
     hi: np.ndarray,
     polarity: int,
     half: int = 3,
+    prefer: np.ndarray | None = None,
+    prefer_fraction: float = 0.3,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Strongest step of the given polarity on each scan line between ``lo`` and ``hi``.
 
@@ -120,10 +122,14 @@ def coarse_edges(
         Scan-line coordinates (in the image).
     lo, hi : ndarray (N,) int
         Search interval on each scan line (inclusive), px.
-    polarity : +1 or -1
-        +1: the edge goes dark to bright with increasing ``along``.
+    polarity : +1, -1 or 0
+        +1: the edge goes dark to bright with increasing ``along``; 0: either way.
     half : int
         Half-width of the step detector, px.
+    prefer : ndarray (N,) float, optional
+        Expected edge position per scan line: instead of the strongest step, take the local maximum
+        nearest to it among those at least ``prefer_fraction`` of the strongest (e.g. the far arris,
+        next to which a visible far face makes a second, stronger step).
 
     Returns
     -------
@@ -144,10 +150,19 @@ def coarse_edges(
     c = np.concatenate([np.zeros((len(scan), 1), np.float32), np.cumsum(vals, axis=1, dtype=np.float32)], axis=1)
     k = np.arange(half, length - half + 1)
     resp = (c[:, k + half] - c[:, k]) - (c[:, k] - c[:, k - half])
-    resp = polarity * resp / half
+    resp = (polarity * resp if polarity else np.abs(resp)) / half
     ok = inside[:, k - half] & inside[:, np.minimum(k + half - 1, length - 1)]
     resp = np.where(ok, resp, -np.inf)
     best = np.argmax(resp, axis=1)
+    if prefer is not None:
+        top = resp[np.arange(len(scan)), best]
+        peak = np.zeros_like(ok)
+        peak[:, 1:-1] = (resp[:, 1:-1] >= resp[:, :-2]) & (resp[:, 1:-1] > resp[:, 2:])
+        cand = peak & (resp >= prefer_fraction * top[:, None]) & (resp > 0)
+        pos = lo[:, None] + k[None, :] - 0.5
+        dist = np.where(cand, np.abs(pos - np.asarray(prefer, float)[:, None]), np.inf)
+        near = np.argmin(dist, axis=1)
+        best = np.where(np.isfinite(dist[np.arange(len(scan)), near]), near, best)
     strength = resp[np.arange(len(scan)), best]
     along = lo + k[best] - 0.5
     along = np.where(np.isfinite(strength), along, np.nan)

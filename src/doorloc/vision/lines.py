@@ -127,6 +127,7 @@ def fit_rectangle_edges(
     scale_floor: float = 1e-4,
     n_iter: int = 9,
     init_weights: dict[str, np.ndarray] | None = None,
+    offset_only: tuple[str, ...] = (),
 ) -> RectangleFit:
     """Fit lines sharing one direction to groups of plane points, robustly (Tukey IRLS, TLS).
 
@@ -142,6 +143,9 @@ def fit_rectangle_edges(
         IRLS iterations (the first three use Huber weights, which cannot lose the solution).
     init_weights : dict, optional
         Starting weights per group (e.g. 0 for samples already known to be bad).
+    offset_only : tuple of str
+        Groups that get an offset but do not vote on the common direction (an edge whose shape
+        may be less trustworthy, e.g. the far arris beside a visible far face).
 
     Returns
     -------
@@ -163,6 +167,7 @@ def fit_rectangle_edges(
     mask0 = (np.concatenate([np.asarray(init_weights[k], float) for k in names]) > 0
              if init_weights is not None else np.ones(len(P), bool))
     w = mask0.astype(float)
+    votes = np.concatenate([np.full(len(groups[k][0]), k not in offset_only) for k in names]).astype(float)
     scale = scale_floor
     prev = None
     starts = np.concatenate([[0], np.cumsum([len(groups[k][0]) for k in names])[:-1]])
@@ -174,7 +179,7 @@ def fit_rectangle_edges(
             raise ValueError(f"no usable points on the {names[int(np.argmin(sw))]} line")
         means = np.add.reduceat(w[:, None] * P, starts, axis=0) / sw[:, None]
         Q = P - means[gid]
-        S = (w[:, None] * Q).T @ Q
+        S = ((w * votes)[:, None] * Q).T @ Q
         # Smallest-eigenvalue eigenvector of the 2x2 scatter, in closed form.
         a, b, d = S[0, 0], S[0, 1], S[1, 1]
         lam = 0.5 * (a + d) - math.sqrt(0.25 * (a - d) ** 2 + b * b)
@@ -202,7 +207,7 @@ def fit_rectangle_edges(
     sw = np.bincount(gid, weights=w, minlength=G)
     var = float((w * r * r).sum()) / max(float(sw.sum()) - G - 1, 1.0)
     tdir = np.array([-n[1], n[0]])
-    spread = float((w * (Q @ tdir) ** 2).sum())
+    spread = float((w * votes * (Q @ tdir) ** 2).sum())
     ang_sigma = float(np.sqrt(var / max(spread, 1e-12)))
     off_sigma = {k: float(np.sqrt(var / max(sw[i], 1e-12))) for i, k in enumerate(names)}
     res = {k: r[gid == i] for i, k in enumerate(names)}

@@ -153,33 +153,36 @@ def locate(image: np.ndarray, cell: Cell, door: DoorSize | None = None, *, image
     return res
 
 
-def _coarse(plane, band: Band, axis, polarity, thr):
-    along, strength = coarse_edges(plane, axis, band.scan, band.lo, band.hi, polarity)
+def _coarse(plane, band: Band, axis, polarity, thr, prefer=None):
+    along, strength = coarse_edges(plane, axis, band.scan, band.lo, band.hi, polarity, prefer=prefer, prefer_fraction=0.5)
     strong = np.isfinite(along) & (strength >= thr)
     return along, strength, strong
 
 
 def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half: int, cfg: LocateConfig,
-            scale8: float, every: int = 1) -> dict[str, EdgeSamples]:
+            scale8: float, every: int = 1) -> tuple[dict[str, EdgeSamples], bool]:
     keep = half + cfg.plateau + 4
-    tracks = region.tracks(pose.corner, yaw_rad, pose.thickness_mm, keep)
+    tracks = region.tracks(pose.corner, yaw_rad, pose.thickness_mm, keep, window_px=half + cfg.plateau + 2)
     out = {}
+    beside = tracks["far"].beside_far_face
     for name in EDGE_NAMES:
         lay = region.layouts[name]
         t = tracks[name]
         out[name] = subpixel_edges(plane, lay.axis, t.scan[::every], t.centre[::every], half, cfg.plateau, scale8,
                                    slope_smooth=max(cfg.slope_smooth // every, 1) if cfg.slope_smooth else 0)
-    return out
+    return out, beside
 
 
 def _fit(samples: dict[str, EdgeSamples], region: SearchRegion, cfg: LocateConfig, every: int = 1,
-         n_iter: int = 9) -> tuple[RectangleFit, dict]:
+         n_iter: int = 9, far_offset_only: bool = False) -> tuple[RectangleFit, dict]:
     groups, init = {}, {}
     for name in EDGE_NAMES:
         s = samples[name]
         if every > 1:
             s = s.subset(np.arange(s.scan.size) % every == 0)
         pol = region.layouts[name].polarity
+        if name == "far" and far_offset_only:  # beside the far face: either polarity
+            pol = int(np.sign(np.nanmedian(s.step))) or pol
         good = s.valid & (pol * s.step >= 0.5 * cfg.min_contrast)
         xz = region.plane_points(s.uv())
         good &= np.isfinite(xz).all(axis=1)
@@ -188,7 +191,8 @@ def _fit(samples: dict[str, EdgeSamples], region: SearchRegion, cfg: LocateConfi
                                      "polarity); check that the door lies in the fixture and nothing covers that edge"))
         groups[name] = (np.where(np.isfinite(xz), xz, 0.0), region.layouts[name].along_x)
         init[name] = good.astype(float)
-    fit = fit_rectangle_edges(groups, scale_floor=1e-4, init_weights=init, n_iter=n_iter)
+    fit = fit_rectangle_edges(groups, scale_floor=1e-4, init_weights=init, n_iter=n_iter,
+                              offset_only=("far",) if far_offset_only else ())
     return fit, init
 
 
@@ -217,14 +221,17 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
     if r:
         raise _Refused(r)
 
-    along_r, _, strong_r = _coarse(plane, band_ref, ref_lay.axis, ref_lay.polarity, thr)
+    # The reference arris is the first step into the door coming from -X (a visible far face can make
+    # a stronger step of the same polarity further on).
+    xdir = ref_lay.polarity * (1 if cfg.door_brighter else -1)  # along-direction of door +X
+    outer = (band_ref.lo if xdir > 0 else band_ref.hi).astype(float)
+    along_r, _, strong_r = _coarse(plane, band_ref, ref_lay.axis, ref_lay.polarity, thr, prefer=outer)
     tol = 3.0
     ref_line = ransac_line(band_ref.scan[strong_r], along_r[strong_r], tol) if strong_r.sum() >= 10 else None
     if ref_line is None or ref_line.inliers.sum() < 0.4 * len(band_ref.scan):  # noqa: SIM114
         raise _Refused(_no_door_reason(plane, band_ref, ref_lay.axis, cfg, s8))
 
     sc = region.nominal_scale
-    xdir = ref_lay.polarity * (1 if cfg.door_brighter else -1)  # along-direction of door +X
     ref_at = ref_line.at(band_ref.scan)
     a1 = ref_at + xdir * cfg.min_thickness_mm / sc
     a2 = ref_at + xdir * (door.thickness_mm + cfg.thickness_search_mm) / sc
@@ -234,7 +241,16 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
     keep = band_far.hi - band_far.lo >= 4
     band_far = Band(band_far.scan[keep], band_far.lo[keep], band_far.hi[keep])
     tr.bands["far"] = band_far
-    along_f, _, strong_f = _coarse(plane, band_far, far_lay.axis, far_lay.polarity, thr)
+    expected = ref_line.at(band_far.scan) + xdir * door.thickness_mm / sc
+    # With the far face in view (thin door shifted towards -X) the far arris separates the hinge face
+    # from the far face, whose brightness can be either side of the hinge face's: accept both polarities.
+    mid = len(band_ref.scan) // 2
+    uv_ref = (np.array([[band_ref.scan[mid], ref_at[mid]]]) if ref_lay.axis == "col"
+              else np.array([[ref_at[mid], band_ref.scan[mid]]]))
+    x_ref = float(region.plane_points(uv_ref)[0, 0])
+    far_may_show = region.plane_map.centre[0] > x_ref + door.thickness_mm - 3.0
+    far_pol = 0 if far_may_show else far_lay.polarity
+    along_f, _, strong_f = _coarse(plane, band_far, far_lay.axis, far_pol, thr, prefer=expected)
     far_line = ransac_line(band_far.scan[strong_f], along_f[strong_f], tol) if strong_f.sum() >= 10 else None
     if far_line is None or far_line.inliers.sum() < 0.3 * len(band_far.scan):
         raise _Refused(q.Refusal("edge_missing", f"the {HUMAN['far']} was not found within {door.thickness_mm + cfg.thickness_search_mm:.0f} mm of "
@@ -245,6 +261,9 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
     corner0 = region.posed.project_cell(np.array([[0.0, region.face_y, 0.0]]))[0]
     s_corner = corner0[1] if ref_lay.axis == "row" else corner0[0]
     u_ref, u_far = ref_line.at(s_corner), far_line.at(s_corner)
+    u_exp = u_ref + xdir * door.thickness_mm / sc
+    if abs(u_far - u_exp) * sc > 3.0:  # far arris doubtful here: span the bottom end by the door's thickness
+        u_far = u_exp if abs(u_exp - u_ref) < abs(u_far - u_ref) else u_far
     lo_s, hi_s = sorted((u_ref, u_far))
     inset = 0.15 * (hi_s - lo_s) + 6.0
     scans_b = np.arange(int(math.ceil(lo_s + inset)), int(math.floor(hi_s - inset)) + 1, 2)
@@ -278,12 +297,12 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
     half = cfg.half_window_max
     for _pass in range(2):
         # The first pass, on every other scan line, only centres and sizes the final windows.
-        samples = _sample(plane, region, pose, math.radians(pose.yaw_deg), half, cfg, s8, every=2 - _pass)
+        samples, far_beside = _sample(plane, region, pose, math.radians(pose.yaw_deg), half, cfg, s8, every=2 - _pass)
         clock.lap(f"edges{_pass + 1}")
         if _pass == 0:
-            fit, init = _fit(samples, region, cfg, n_iter=6)
+            fit, init = _fit(samples, region, cfg, n_iter=6, far_offset_only=far_beside)
         else:
-            fit, init = _fit(samples, region, cfg)
+            fit, init = _fit(samples, region, cfg, far_offset_only=far_beside)
         pose = pose_from_fit(fit, region.posed, region.face_y, region.edge_depth_y)
         clock.lap(f"fit{_pass + 1}")
         if _pass == 0:
@@ -295,6 +314,7 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
     tr.inliers = {k: fit.weights[k] > 0 for k in EDGE_NAMES}
     tr.pose = pose
     res = _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, half)
+    res.diagnostics["far_face_visible"] = far_beside
     clock.lap("gate")
     res.diagnostics["timing_ms"] = clock.laps
     return res

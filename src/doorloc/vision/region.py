@@ -54,10 +54,17 @@ class Band:
 
 @dataclass(frozen=True)
 class Track:
-    """Scan lines crossing one edge and the predicted edge position on each (px)."""
+    """Scan lines crossing one edge and the predicted edge position on each (px).
+
+    ``beside_far_face``: the door's far face is visible beside this edge (the camera is beyond the far
+    face's plane, as for a thin door shifted towards -X); its scan lines are then limited to where the
+    far face's band is wide enough for the window, and the edge is measured between the hinge face
+    and the far face.
+    """
 
     scan: np.ndarray
     centre: np.ndarray
+    beside_far_face: bool = False
 
 
 def _along_scan(uv: np.ndarray, axis: Axis) -> tuple[np.ndarray, np.ndarray]:
@@ -188,7 +195,14 @@ class SearchRegion:
         return Band(scans[ok].astype(int), lo[ok].astype(int), hi[ok].astype(int))
 
     # -- tracks for the sub-pixel passes ---------------------------------------------------------
-    def tracks(self, corner: np.ndarray, yaw_rad: float, thickness_mm: float, keep_px: float) -> dict[str, Track]:
+    def far_face_visible(self, corner: np.ndarray, yaw_rad: float, thickness_mm: float) -> bool:
+        """True when the camera centre lies beyond the far face's plane (that face is then in view)."""
+        n = np.array([math.cos(yaw_rad), math.sin(yaw_rad)])
+        c = self.plane_map.centre[[0, 2]]
+        return float(n @ c) > float(n @ np.asarray(corner, float)) + thickness_mm + 0.05
+
+    def tracks(self, corner: np.ndarray, yaw_rad: float, thickness_mm: float, keep_px: float,
+               window_px: float = 0.0) -> dict[str, Track]:
         """Scan lines across each edge of a door at this pose, and the predicted edge on each.
 
         Scan lines closer than ``keep_px`` to the other edges (the corners) or to the image border
@@ -232,5 +246,23 @@ class SearchRegion:
             scans = np.arange(int(math.ceil(s_lo)), int(math.floor(s_hi)) + 1)
             centre = _interp_on_scans(uv, lay.axis, scans)
             ok = np.isfinite(centre) & (centre >= 0) & (centre <= n_along - 1)
-            out[name] = Track(scans[ok], centre[ok])
+            beside = name == "far" and self.far_face_visible(corner, yaw_rad, thickness_mm)
+            if beside:
+                ok &= self._far_face_band_ok(pl, uv, scans, centre, window_px, lay.axis)
+            out[name] = Track(scans[ok], centre[ok], beside)
         return out
+
+    def _far_face_band_ok(self, pl, uv, scans, centre, window_px, axis) -> np.ndarray:
+        """Scan lines where the visible far face shows as a band at least ``window_px`` wide."""
+        back = PlaneMap(self.posed, self.face_y + self.door.width_mm)
+        uv_back = back.to_image(pl)  # the far face's back edge: same (X, Z) line, at the door's far side
+        band = np.abs(_interp_on_scans(uv_back, axis, scans) - centre)
+        # Below the far face's bottom edge (it rises towards the back) there is no band.
+        s_corner, _ = _along_scan(uv[:1], axis)
+        s_back, _ = _along_scan(uv_back[:1], axis)
+        d = np.sign(s_back[0] - s_corner[0])
+        above = (scans - s_back[0]) * d >= window_px if d != 0 else np.ones(scans.size, bool)
+        good = np.isfinite(band) & (band >= window_px) & above
+        if good.sum() < 20:  # a hair-thin band everywhere: measure what there is (the thickness check says more)
+            good = above
+        return good

@@ -1,0 +1,181 @@
+"""locate() on rendered doors: accuracy on clean and hard images, and a specific refusal for each bad input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from doorloc.cell import DoorSize, load_cell
+from doorloc.pose import DoorPose
+from doorloc.sim.door import render_door
+from doorloc.sim.effects import Effects
+from doorloc.vision.locate import LocateConfig, LocateTrace, locate
+from doorloc.vision.metric import PlaneMap
+
+HARD = Effects(albedo_hinge=0.34, albedo_background=0.2, gradient_u=0.15, gradient_v=-0.1, vignetting=0.3,
+               grain_contrast=0.03, blur_sigma_px=1.5, read_noise_dn=3.0, jpeg_quality=85)
+
+
+@pytest.fixture(scope="module")
+def cell(thesis_cell_path):
+    return load_cell(thesis_cell_path)
+
+
+def _err(r, pose: DoorPose, door: DoorSize):
+    assert r.ok, f"refused: {r.error_code}: {r.error}"
+    return (r.x_mm - pose.x_mm, r.z_mm - pose.z_mm, r.yaw_deg - pose.yaw_deg, r.thickness_mm - door.thickness_mm)
+
+
+@pytest.mark.parametrize(
+    "pose,door",
+    [
+        (DoorPose(0.0, 0.0, 0.0), DoorSize(900, 50, 2100)),
+        (DoorPose(10.0, -10.0, 2.0), DoorSize(900, 30, 2100)),
+        (DoorPose(-10.0, 10.0, -2.0), DoorSize(900, 100, 2100)),
+        (DoorPose(3.7, -6.2, 0.83), DoorSize(700, 64, 2100)),
+        (DoorPose(-7.1, 4.4, -1.37), DoorSize(1100, 41, 2400)),
+    ],
+)
+def test_default_photometry_is_accurate_to_micrometres(cell, pose, door):
+    rd = render_door(cell, door, pose)
+    r = locate(rd.image, cell, door, image_name="a.png")
+    dx, dz, dyaw, dt = _err(r, pose, door)
+    assert abs(dx) < 0.005 and abs(dz) < 0.005 and abs(dyaw) < 0.002 and abs(dt) < 0.01
+    assert np.allclose(r.corner_px, rd.corner_px, atol=0.03)
+    assert r.scale_mm_per_px == pytest.approx(rd.truth["scale_mm_per_px"], rel=1e-3)
+    assert r.image == "a.png" and r.error is None and r.elapsed_ms > 0
+    assert [lq.name for lq in r.lines] == ["bottom", "reference", "far"]
+    assert all(lq.n_inliers > 100 and lq.contrast > 100 for lq in r.lines)
+
+
+def test_hard_photometry_stays_within_two_hundredths(cell):
+    pose, door = DoorPose(4.2, -2.5, 1.1), DoorSize(900, 45, 2100)
+    rd = render_door(cell, door, pose, effects=HARD, seed=3)
+    dx, dz, dyaw, dt = _err(locate(rd.image, cell, door), pose, door)
+    assert abs(dx) < 0.05 and abs(dz) < 0.05 and abs(dyaw) < 0.02 and abs(dt) < 0.1
+
+
+def test_colour_and_16_bit_images_give_the_same_answer(cell):
+    pose, door = DoorPose(-2.0, 1.0, 0.4), DoorSize(900, 55, 2100)
+    grey = locate(render_door(cell, door, pose).image, cell, door)
+    colour = locate(render_door(cell, door, pose, effects=Effects(color=True)).image, cell, door)
+    deep = locate(render_door(cell, door, pose, effects=Effects(bit_depth=16)).image, cell, door)
+    for r in (colour, deep):
+        assert r.ok
+        assert abs(r.x_mm - grey.x_mm) < 0.003 and abs(r.z_mm - grey.z_mm) < 0.003
+
+
+def test_distorted_lens_is_handled_by_back_projection(cell):
+    from dataclasses import replace
+
+    from doorloc.calib.camera import CameraModel
+
+    cam = cell.camera
+    lens = replace(cell, camera=CameraModel(cam.camera_matrix, np.array([-0.12, 0.08, 0.0005, -0.0004, 0.0]),
+                                            cam.image_size))
+    pose, door = DoorPose(6.0, -4.0, -1.2), DoorSize(900, 70, 2100)
+    rd = render_door(lens, door, pose)
+    dx, dz, dyaw, dt = _err(locate(rd.image, lens, door), pose, door)
+    assert abs(dx) < 0.005 and abs(dz) < 0.005 and abs(dyaw) < 0.002 and abs(dt) < 0.01
+
+
+def test_chamfered_arris_is_compensated(cell):
+    pose, door = DoorPose(2.0, 3.0, 0.7), DoorSize(900, 50, 2100, arris_mm=2.0)
+    rd = render_door(cell, door, pose)
+    dx, dz, dyaw, dt = _err(locate(rd.image, cell, door), pose, door)
+    assert abs(dx) < 0.02 and abs(dz) < 0.02 and abs(dyaw) < 0.01 and abs(dt) < 0.04
+
+
+def _paint_clamp(img: np.ndarray, cell, door: DoorSize) -> np.ndarray:
+    """A grey clamp block over the reference corner (18 x 18 mm on the hinge-face plane)."""
+    pm = PlaneMap(cell.posed_camera, cell.face_y(door))
+    (u0, v0), (u1, v1) = pm.to_image(np.array([[-8.0, 10.0], [10.0, -8.0]]))
+    out = img.copy()
+    out[int(v0):int(v1), int(u0):int(u1)] = 90
+    return out
+
+
+@pytest.mark.parametrize(
+    "case,code",
+    [
+        ("black", "black_image"),
+        ("saturated", "saturated_image"),
+        ("noise", "no_door"),
+        ("no_door", "no_door"),
+        ("wrong_size", "wrong_image_size"),
+        ("yaw6", "outside_envelope"),
+        ("x35", "outside_envelope"),
+        ("clamp", "corner_hidden"),
+        ("panel12", "thickness_mismatch"),
+        ("board", "not_a_door"),
+        ("not_an_image", "bad_image"),
+    ],
+)
+def test_bad_inputs_are_refused_with_a_specific_reason(cell, case, code):
+    door = DoorSize(900, 50, 2100)
+    w, h = cell.camera.image_size
+    rng = np.random.default_rng(0)
+    if case == "black":
+        img = rng.integers(0, 3, (h, w), dtype=np.uint8)
+    elif case == "saturated":
+        img = np.full((h, w), 255, np.uint8)
+    elif case == "noise":
+        img = rng.integers(0, 256, (h, w), dtype=np.uint8)
+    elif case == "no_door":
+        img = np.clip(rng.normal(35, 2, (h, w)), 0, 255).astype(np.uint8)
+    elif case == "wrong_size":
+        img = render_door(cell, door, DoorPose()).image[::2, ::2]
+    elif case == "yaw6":
+        img = render_door(cell, door, DoorPose(0, 0, 6.0)).image
+    elif case == "x35":
+        img = render_door(cell, door, DoorPose(35.0, 0, 0)).image
+    elif case == "clamp":
+        img = _paint_clamp(render_door(cell, door, DoorPose(1.0, 1.0, 0.3)).image, cell, door)
+    elif case == "panel12":
+        img = render_door(cell, DoorSize(900, 12, 2100), DoorPose()).image
+    elif case == "board":
+        from doorloc.sim.boards import Checkerboard, render_board
+
+        img = render_board(cell.camera, Checkerboard(11, 7, 20.0), [0.05, -0.1, 0.02], [-120.0, -60.0, 420.0]).image
+    else:
+        img = np.zeros((h, w), np.float64)
+    r = locate(img, cell, door, image_name=case)
+    assert not r.ok
+    assert r.error_code == code, r.error
+    assert r.x_mm is None and r.z_mm is None and r.yaw_deg is None and r.thickness_mm is None
+    assert r.error and r.error.endswith(tuple("abcdefghijklmnopqrstuvwxyz)"))  # a sentence, not a traceback
+
+
+def test_overexposed_is_refused_or_accurate(cell):
+    pose, door = DoorPose(1.0, -2.0, 0.5), DoorSize(900, 50, 2100)
+    rd = render_door(cell, door, pose, effects=Effects(albedo_hinge=1.4, albedo_background=0.3))
+    r = locate(rd.image, cell, door)
+    if r.ok:
+        assert abs(r.x_mm - pose.x_mm) < 0.05 and abs(r.z_mm - pose.z_mm) < 0.05
+    else:
+        assert r.error_code in ("overexposed", "saturated_image")
+
+
+def test_config_thresholds_are_used(cell):
+    door = DoorSize(900, 50, 2100)
+    img = render_door(cell, DoorSize(900, 50.6, 2100), DoorPose()).image
+    assert locate(img, cell, door).ok
+    strict = locate(img, cell, door, config=LocateConfig(thickness_tolerance_mm=0.3))
+    assert strict.error_code == "thickness_mismatch"
+    assert strict.diagnostics["thickness_check"]["difference_mm"] == pytest.approx(0.6, abs=0.01)
+
+
+def test_trace_and_overlay(cell):
+    from doorloc.vision.overlay import draw_overlay
+
+    door = DoorSize(900, 50, 2100)
+    img = render_door(cell, door, DoorPose(2.0, 2.0, 0.5)).image
+    tr = LocateTrace()
+    r = locate(img, cell, door, trace=tr)
+    ov = draw_overlay(img, r, cell, door, tr)
+    assert ov.shape == img.shape + (3,) and ov.dtype == np.uint8
+    u, v = (int(round(c)) for c in r.corner_px)
+    patch = ov[v - 10:v + 10, u - 10:u + 10].astype(int)
+    assert (patch[..., 2] - patch[..., 0]).max() > 100 or (patch[..., 1] - patch[..., 0]).max() > 100  # coloured marks
+    refused = locate(img[::2, ::2], cell, door)
+    assert draw_overlay(img[::2, ::2], refused, cell, door).shape == (540, 960, 3)
