@@ -124,11 +124,11 @@ def _measure(data: bytes, name: str, state: ServiceState, choice: DoorChoice, ov
     from doorloc.vision.imageio import ImageDecodeError, decode_image
 
     try:
-        image = decode_image(data)
+        image = decode_image(data, name=name)
     except ImageDecodeError as e:
         raise ProblemError(
             422, "undecodable_image",
-            f"The image '{name}' cannot be decoded ({e}); the file is probably damaged or truncated: send it again."
+            f"The image could not be decoded ({e}); the file is probably damaged or truncated: send it again.",
         ) from None
     answer = answer_image(image, state.cell, choice, image_name=name, locate_fn=state.locate_fn, rapid=rapid)
     if overlay:

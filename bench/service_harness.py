@@ -1,0 +1,108 @@
+"""Shared by the service benchmarks: a real `doorloc serve` on 127.0.0.1, its memory, rendered 1080p PNGs."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import httpx
+
+REPO = Path(__file__).resolve().parents[1]
+CELL = REPO / "fixtures" / "cell_thesis.yaml"
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _children(pid: int) -> list[int]:
+    kids = []
+    for task in Path(f"/proc/{pid}/task").glob("*"):
+        try:
+            kids += [int(x) for x in (task / "children").read_text().split()]
+        except OSError:
+            pass
+    return kids
+
+
+def rss_mb(pid: int) -> float:
+    """Resident memory of a process and all its descendants, MB (from /proc)."""
+    total_kb, todo = 0, [pid]
+    while todo:
+        p = todo.pop()
+        try:
+            for line in Path(f"/proc/{p}/status").read_text().splitlines():
+                if line.startswith("VmRSS:"):
+                    total_kb += int(line.split()[1])
+        except OSError:
+            continue
+        todo += _children(p)
+    return total_kb / 1024
+
+
+@contextlib.contextmanager
+def doorloc_serve(workers: int = 1, extra_env: dict[str, str] | None = None) -> Iterator[tuple[str, int]]:
+    """Start `doorloc serve` on 127.0.0.1; yield (base URL, server pid) once /readyz answers 200."""
+    port = free_port()
+    with tempfile.TemporaryDirectory() as tmp:
+        env = {**os.environ, "DOORLOC_DATABASE_URL": f"sqlite:///{tmp}/recipes.db", **(extra_env or {})}
+        log = open(Path(tmp) / "serve.log", "w")  # noqa: SIM115 - closed below
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "doorloc", "serve", "--cell", str(CELL), "--host", "127.0.0.1", "--port", str(port),
+             "--workers", str(workers), "--log-level", "warning"],
+            env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True, cwd=REPO,
+        )
+        base = f"http://127.0.0.1:{port}"
+        try:
+            deadline = time.monotonic() + 120
+            while True:
+                if proc.poll() is not None:
+                    raise RuntimeError(f"doorloc serve exited: {(Path(tmp) / 'serve.log').read_text()}")
+                try:
+                    if httpx.get(base + "/readyz", timeout=2).status_code == 200:
+                        break
+                except httpx.TransportError:
+                    pass
+                if time.monotonic() > deadline:
+                    raise RuntimeError("doorloc serve did not become ready in 120 s")
+                time.sleep(0.2)
+            yield base, proc.pid
+        finally:
+            os.killpg(proc.pid, signal.SIGTERM)
+            try:
+                proc.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                os.killpg(proc.pid, signal.SIGKILL)
+            log.close()
+
+
+def rendered_pngs(n: int, seed0: int = 0) -> list[tuple[bytes, tuple[float, float, float]]]:
+    """``n`` 1920x1080 PNGs of the nominal door at poses spread over the envelope, with their true poses."""
+    import cv2
+    import numpy as np
+
+    from doorloc.cell import load_cell
+    from doorloc.pose import DoorPose
+    from doorloc.sim.door import render_door
+    from doorloc.sim.effects import Effects
+
+    # sensor noise, wood grain and a little blur: PNGs of the size a real camera's are (~1-2 MB), not ~10 kB
+    effects = Effects(grain_contrast=0.08, blur_sigma_px=0.6, full_well_e=20000.0, read_noise_dn=1.5, vignetting=0.1)
+    cell = load_cell(CELL)
+    rng = np.random.default_rng(seed0)
+    out = []
+    for i in range(n):
+        pose = DoorPose(float(rng.uniform(-9, 9)), float(rng.uniform(-9, 9)), float(rng.uniform(-1.8, 1.8)))
+        img = render_door(cell, cell.default_door, pose, effects=effects, seed=seed0 + i).image
+        out.append((cv2.imencode(".png", img)[1].tobytes(), (pose.x_mm, pose.z_mm, pose.yaw_deg)))
+    return out
