@@ -138,6 +138,10 @@ def register(app: typer.Typer) -> None:
                    f"RMS {result.fit.rms_px:.3f} px")
         typer.echo(f"fx {cam.fx:.3f} +- {s['fx']:.3f}  fy {cam.fy:.3f} +- {s['fy']:.3f}  "
                    f"cx {cam.cx:.3f} +- {s['cx']:.3f}  cy {cam.cy:.3f} +- {s['cy']:.3f}  (1 sigma, px)")
+        jk = result.std_jackknife
+        if jk:
+            typer.echo(f"view-to-view (jackknife over {result.n_folds} folds): fx +- {jk['fx']:.3f}  fy +- {jk['fy']:.3f}  "
+                       f"cx +- {jk['cx']:.3f}  cy +- {jk['cy']:.3f} px")
         typer.echo("dist " + " ".join(f"{v:.6g}" for v in cam.dist_coeffs))
         typer.echo(f"observed radius {cam.observed_radius_px:.0f} px; projection uncertainty inside it "
                    f"<= {result.projection_sigma_px['max_observed']:.3f} px (1 sigma)")

@@ -39,6 +39,7 @@ __all__ = [
     "fit_model",
     "held_out_rms",
     "held_out_errors",
+    "jackknife_std",
     "calibrate_views",
     "projection_uncertainty",
     "MIN_VIEWS",
@@ -183,6 +184,9 @@ class CalibrationResult:
         ``max_observed`` (largest 1-sigma projection uncertainty inside the observed radius),
         ``corners`` (at the four image corners), ``centre``.
     n_folds : int
+    std_jackknife : dict
+        Delete-a-fold jackknife standard errors (see :func:`jackknife_std`); larger than
+        ``std_intrinsics`` when the views disagree more than the corner noise explains.
     """
 
     camera: CameraModel
@@ -195,7 +199,7 @@ class CalibrationResult:
     covariance_names: list[str]
     projection_sigma_px: dict
     n_folds: int
-    warnings: list[str] = field(default_factory=list)
+    std_jackknife: dict = field(default_factory=dict)
 
 
 _DIST_NAMES = ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6")
@@ -260,11 +264,13 @@ def _pose(camera: CameraModel, view: View) -> tuple[np.ndarray, np.ndarray]:
     return r.ravel(), t.ravel()
 
 
-def held_out_errors(views: list[View], image_size: tuple[int, int], candidate: Candidate, n_folds: int) -> np.ndarray:
+def held_out_errors(views: list[View], image_size: tuple[int, int], candidate: Candidate, n_folds: int,
+                    fold_cameras: list[CameraModel] | None = None) -> np.ndarray:
     """K-fold held-out squared errors: per view, the mean squared residual (px^2) when it was held out.
 
     View ``i`` is held out in fold ``i % n_folds``; its pose is re-estimated with the intrinsics
     trained on the other folds. Shape (n_views,); NaN for a view that could not be evaluated.
+    If ``fold_cameras`` is a list, the camera trained in each fold is appended to it.
     """
     mse = np.full(len(views), np.nan)
     idx = np.arange(len(views))
@@ -274,11 +280,29 @@ def held_out_errors(views: list[View], image_size: tuple[int, int], candidate: C
         if len(test) == 0 or len(train) < 2:
             continue
         fit = fit_model([views[i] for i in train], image_size, candidate)
+        if fold_cameras is not None:
+            fold_cameras.append(fit.camera)
         for i in test:
             r, t = _pose(fit.camera, views[i])
             res = views[i].image_points - _project(fit.camera, r, t, views[i].object_points)
             mse[i] = float(np.mean(np.sum(res**2, axis=1)))
     return mse
+
+
+def jackknife_std(fold_cameras: list[CameraModel]) -> dict:
+    """Grouped (delete-a-fold) jackknife standard errors of fx, fy, cx, cy and the coefficients, px.
+
+    ``sqrt((K-1)/K * sum_k (theta_k - mean)^2)`` over the K fold fits. Unlike the Jacobian
+    sigma, which assumes independent corner noise, this shows how much the answer depends on
+    which views were taken (board flatness, detector bias, correlated errors).
+    """
+    K = len(fold_cameras)
+    if K < 2:
+        return {}
+    th = np.array([[c.fx, c.fy, c.cx, c.cy, *c.dist_coeffs] for c in fold_cameras])
+    sd = np.sqrt((K - 1) / K * np.sum((th - th.mean(axis=0)) ** 2, axis=0))
+    names = ["fx", "fy", "cx", "cy", *_DIST_NAMES[: th.shape[1] - 4]]
+    return dict(zip(names, sd.tolist(), strict=True))
 
 
 def held_out_rms(views: list[View], image_size: tuple[int, int], candidate: Candidate, n_folds: int) -> float:
@@ -443,14 +467,17 @@ def calibrate_views(
     k = min(n_folds, len(views))
     n_pts = np.array([v.n for v in views], float)
     rows: list[tuple[Candidate, ModelFit, np.ndarray]] = []
+    folds: dict[str, list[CameraModel]] = {}
     for cand in candidates:
+        cams: list[CameraModel] = []
         try:
             fit = fit_model(views, image_size, cand)
-            mse = held_out_errors(views, image_size, cand, k)
+            mse = held_out_errors(views, image_size, cand, k, cams)
         except CalibrationError:
             continue
         if np.all(np.isfinite(mse)):
             rows.append((cand, fit, mse))
+            folds[cand.name] = cams
     if not rows:
         raise CalibrationError("no distortion model could be fitted to these views; check the board size and images")
 
@@ -491,7 +518,8 @@ def calibrate_views(
         "grid_shape": [25, 33],
         "grid": [None if not np.isfinite(s) else float(s) for s in sig_grid],
     }
-    return CalibrationResult(camera, fit, views, rejections, scores, std, cov, names, proj, k)
+    return CalibrationResult(camera, fit, views, rejections, scores, std, cov, names, proj, k,
+                             std_jackknife=jackknife_std(folds[chosen.name]))
 
 
 @dataclass(frozen=True)

@@ -76,6 +76,12 @@ def calibration_warnings(result: CalibrationResult, scan: BoardScan | None = Non
     n_corners = sum(1 for r in result.rejections if r.corner_id is not None)
     if n_corners:
         warn.append(f"{n_corners} corner(s) were rejected as outliers (listed in the report)")
+    jk, formal = result.std_jackknife, result.std_intrinsics
+    spread = [k for k in ("fx", "fy", "cx", "cy") if k in jk and k in formal and jk[k] > 3 * formal[k]]
+    if spread:
+        warn.append("the views disagree more than the corner noise explains ("
+                    + ", ".join(f"{k}: jackknife {jk[k]:.2f} px vs formal {formal[k]:.2f} px" for k in spread)
+                    + "): trust the jackknife figures; check that the board is flat and add views")
     corners = [s for s in result.projection_sigma_px["corners"] if s is not None]
     if corners and max(corners) > 1.0:
         warn.append(f"the projection uncertainty reaches {max(corners):.1f} px (1 sigma) at the image corners: "
@@ -99,6 +105,7 @@ def report_dict(result: CalibrationResult, scan: BoardScan | None = None, board:
         "dist_coeffs": cam.dist_coeffs.tolist(),
         "rms_px": fit.rms_px,
         "std_1sigma": result.std_intrinsics,
+        "std_jackknife": result.std_jackknife,
         "model_selection": {
             "rule": "fewest parameters among the models within one standard error of the best held-out RMS",
             "folds": result.n_folds,
