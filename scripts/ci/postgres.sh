@@ -6,7 +6,8 @@
 echo "postgres.sh: installing PostgreSQL (apt)"
 export DEBIAN_FRONTEND=noninteractive
 apt-get update -qq >/dev/null
-apt-get install -y -qq --no-install-recommends postgresql >/dev/null
+# C.UTF-8 always exists on Debian: a LANG naming an ungenerated locale would make initdb fail
+LANG=C.UTF-8 LC_ALL=C.UTF-8 apt-get install -y -qq --no-install-recommends postgresql >/dev/null
 
 # newest installed server version (Debian 12: 15)
 _pg_ver=$(find /usr/lib/postgresql -mindepth 1 -maxdepth 1 -type d -printf '%f\n' | sort -V | tail -n 1)
@@ -16,7 +17,7 @@ if [ -z "$_pg_ver" ] || [ ! -x "/usr/lib/postgresql/$_pg_ver/bin/postgres" ]; th
 fi
 # the package creates cluster "main" unless the machine's policy stopped it; make sure it exists
 if ! pg_lsclusters --no-header | awk '{print $1 "/" $2}' | grep -qx "$_pg_ver/main"; then
-  pg_createcluster "$_pg_ver" main >/dev/null
+  LANG=C.UTF-8 LC_ALL=C.UTF-8 pg_createcluster --locale C.UTF-8 "$_pg_ver" main >/dev/null
 fi
 if ! pg_ctlcluster "$_pg_ver" main status >/dev/null 2>&1; then
   pg_ctlcluster "$_pg_ver" main start

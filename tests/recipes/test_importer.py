@@ -137,3 +137,14 @@ def test_export_reads_back_identically(store, tmp_path, recipe_factory):
     out = tmp_path / "export.csv"
     out.write_text(text)
     assert load_recipe_file(out) == recipes
+
+
+def test_damaged_xlsx_is_a_clear_cli_error(tmp_path):
+    from typer.testing import CliRunner
+
+    from doorloc.app.cli import app
+
+    bad = tmp_path / "broken.xlsx"
+    bad.write_bytes(b"PK\x03\x04 not really a workbook")
+    r = CliRunner().invoke(app, ["recipes", "import", str(bad), "--db", f"sqlite:///{tmp_path / 'x.db'}"])
+    assert r.exit_code == 2 and "cannot read" in r.stderr and "Traceback" not in r.output
