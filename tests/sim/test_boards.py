@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from doorloc.calib.camera import CameraModel
+from doorloc.calib.camera import CameraModel, Extrinsics
 from doorloc.sim.boards import CharucoBoard, Checkerboard, render_board
 from doorloc.sim.effects import Effects
 
@@ -34,7 +34,7 @@ def test_checkerboard_corners_found_by_opencv_match_truth(rvec, tvec):
     rb = render_board(CAM, board, rvec, tvec, effects=Effects(blur_sigma_px=0.8))
     assert rb.image.dtype == np.uint8 and rb.image.shape == (960, 1280)
     assert rb.in_image.all()
-    ok, sb = cv2.findChessboardCornersSB(rb.image, (9, 6))
+    ok, sb = cv2.findChessboardCornersSB(rb.image, (9, 6), flags=cv2.CALIB_CB_ACCURACY)
     assert ok
     sb = _match_order(sb.reshape(-1, 2), rb.corners_px)
     assert _rms(sb, rb.corners_px) <= 0.05
@@ -75,3 +75,27 @@ def test_same_seed_same_bytes_and_noise_changes_with_seed():
     c = render_board(CAM.scaled(0.5), board, [0.1, 0.1, 0], [-40.0, -30.0, 400.0], seed=4, effects=fx)
     assert a.image.tobytes() == b.image.tobytes()
     assert a.image.tobytes() != c.image.tobytes()
+
+
+@pytest.mark.parametrize("rvec,tvec", [([0.0, 0.0, 0.0], [-100.0, -60.0, 600.0]), ([0.3, -0.4, 0.6], [-60.0, -40.0, 500.0])])
+def test_board_pixels_near_corners_match_brute_force_ray_casting(rvec, tvec):
+    """Independent check of the whole pipeline: 64 x 64 rays per pixel through CameraModel.backproject."""
+    board = Checkerboard(5, 4, 20.0)
+    rb = render_board(CAM, board, rvec, tvec)
+    ext = Extrinsics(rvec, tvec)
+    R, tex, n = ext.rotation, board.texture(), 64
+    sub = (np.arange(n) + 0.5) / n - 0.5
+    for k in (0, 7, 19):
+        cu, cv = np.round(rb.corners_px[k]).astype(int)
+        us, vs = np.meshgrid(np.arange(cu - 3, cu + 4), np.arange(cv - 3, cv + 4))
+        pu = us[..., None, None] + sub[None, None, None, :]
+        pv = vs[..., None, None] + sub[None, None, :, None]
+        uv = np.stack(np.broadcast_arrays(pu, pv), axis=-1).reshape(-1, 2)
+        rays = CAM.backproject(uv)
+        lam = (R[:, 2] @ ext.tvec_mm) / (rays @ R[:, 2])
+        p = rays * lam[:, None] - ext.tvec_mm
+        brute = tex.lookup(p @ R[:, 0], p @ R[:, 1]).reshape(7, 7, n * n).mean(axis=-1)
+        err = rb.radiance[cv - 3 : cv + 4, cu - 3 : cu + 4] - brute
+        contrast = 0.84
+        assert np.abs(err).max() <= 1.5 * contrast / n  # the brute force's own sampling error
+        assert np.sqrt(np.mean(err**2)) <= 0.25 * contrast / n

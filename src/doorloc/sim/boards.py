@@ -220,7 +220,6 @@ def render_board(
     seed: int = 0,
     effects: Effects | None = None,
     background: float = 0.3,
-    supersample: int = 16,
 ) -> RenderedBoard:
     """Render ``board`` seen by ``camera`` at pose ``(rvec, tvec_mm)`` (board frame -> camera frame).
 
@@ -241,8 +240,6 @@ def render_board(
         Sensor/optics effects (blur, noise, gamma, ...); None = plain 8-bit.
     background : float
         Radiance around the board.
-    supersample : int
-        Samples per side in pixels that hold a square corner.
 
     Returns
     -------
@@ -260,7 +257,7 @@ def render_board(
         shade=1.0,
         name="board",
     )
-    radiance = render_radiance(camera, [surface], float(background), supersample=supersample)
+    radiance = render_radiance(camera, [surface], float(background))
     image = form_image(radiance, effects, seed, principal_point=(camera.cx, camera.cy))
     obj = board.object_points()
     corners = camera.project(ext.cell_to_camera(obj))

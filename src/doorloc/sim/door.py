@@ -272,7 +272,6 @@ def render_door(
     *,
     effects: Effects | None = None,
     seed: int = 0,
-    supersample: int = 16,
 ) -> RenderedDoor:
     """Render the door seen by the cell's camera.
 
@@ -288,8 +287,6 @@ def render_door(
         Photometry, optics and sensor effects; None = plain (uniform faces, noise-free 8-bit).
     seed : int
         Seeds the wood grain and the noise: the same inputs and seed give the same bytes.
-    supersample : int
-        Samples per side for pixels where two edges meet.
 
     Returns
     -------
@@ -297,7 +294,7 @@ def render_door(
     """
     effects = effects or Effects()
     fg, bg, names = scene_surfaces(cell, door, pose, effects, seed)
-    radiance = render_radiance(cell.camera, fg, bg, supersample=supersample)
+    radiance = render_radiance(cell.camera, fg, bg)
     image = form_image(radiance, effects, seed, principal_point=(cell.camera.cx, cell.camera.cy))
     corner = true_corner_px(cell, door, pose)
     face_y = cell.face_y(door)

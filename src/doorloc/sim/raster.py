@@ -15,8 +15,9 @@ its box footprint, mapped to the ideal plane through the undistortion:
    ``delta in [-1/2, 1/2]^2`` (its curvature over one pixel is ~1e-5 px);
 3. a boundary pixel crossed by one straight boundary gets the analytic box coverage of a half-plane
    (:func:`box_coverage`), which is exact for a box filter; a pixel where two or more boundaries meet
-   (polygon vertices, checker corners) is supersampled on a ``K x K`` grid through the same affine
-   footprint map (no per-sample undistortion).
+   (polygon vertices, checker corners) is split into 4 x 4 sub-boxes through the same affine footprint
+   map and each is treated the same way, twice over; the few 1/16-px boxes that still hold a vertex are
+   point-sampled (no per-sample undistortion anywhere).
 
 Scene model: a list of *foreground* surfaces whose visible regions are disjoint convex polygons (the
 front faces of a convex solid, or one board) in front of an unbounded *background* surface. Each surface
@@ -338,7 +339,8 @@ def render_radiance(
     foreground: list[Surface],
     background: Surface | float,
     *,
-    supersample: int = 16,
+    supersample: int = 4,
+    subdivisions: int = 2,
     return_labels: bool = False,
 ):
     """Render the box-filtered radiance of a scene, float64 image of shape (H, W).
@@ -353,7 +355,9 @@ def render_radiance(
     background : Surface or float
         Unbounded surface behind everything (or a constant radiance).
     supersample : int
-        Samples per side for pixels where two or more boundaries meet.
+        Point samples per side in the smallest sub-boxes where two or more boundaries meet.
+    subdivisions : int
+        Levels of 4 x 4 splitting of such pixels before point sampling (see :func:`_subdivide`).
     return_labels : bool
         Also return the int32 region label of each pixel centre (-1 background, else foreground
         index * 1_000_000 + colour code) and the boolean boundary-pixel mask.
@@ -428,7 +432,7 @@ def render_radiance(
         q0, J = exact_ideal_and_jacobian(camera, uv)
         ok = np.all(np.isfinite(q0), axis=1) & np.all(np.isfinite(J), axis=(1, 2))
         vals = np.zeros(vv.size)
-        vals[ok] = _boundary_values(q0[ok], J[ok], preps, bg, supersample)
+        vals[ok] = _boundary_values(q0[ok], J[ok], preps, bg, supersample, subdivisions)
         value[vv, uu] = vals
     if return_labels:
         return value, label, boundary
@@ -480,7 +484,7 @@ def _texture_state(p: _Prepared, q0: np.ndarray, J: np.ndarray):
     return shade * single, ns + nt, shade
 
 
-def _boundary_values(q0, J, preps, bg, K):
+def _boundary_values(q0, J, preps, bg, K, depth):
     """Exact box-filtered radiance of boundary pixels (see module docstring)."""
     n = q0.shape[0]
     fg_cov = np.zeros(n)
@@ -513,8 +517,27 @@ def _boundary_values(q0, J, preps, bg, K):
     need_ss |= (bg_cross >= 2) | ((bg_cross >= 1) & (bg_frac > 0) & (bg_frac < 1))
     result = fg_val + bg_frac * bg_val
     if np.any(need_ss):
-        result[need_ss] = _supersample(q0[need_ss], J[need_ss], preps, bg, K)
+        result[need_ss] = _subdivide(q0[need_ss], J[need_ss], preps, bg, K, depth)
     return result
+
+
+def _subdivide(q0, J, preps, bg, K, depth):
+    """Split footprints where boundaries meet into 4 x 4 sub-boxes and treat each like a pixel.
+
+    Sub-boxes crossed by at most one boundary get the exact analytic coverage; only the few that still
+    hold a vertex are split again, down to ``depth`` levels, where ``K x K`` point samples finish the job
+    (their error is bounded by the area of a box ``4**-depth`` px on a side).
+    """
+    if depth <= 0:
+        return _supersample(q0, J, preps, bg, K)
+    S = 4
+    d = (np.arange(S) + 0.5) / S - 0.5
+    du, dv = np.meshgrid(d, d, indexing="xy")
+    centres = np.stack([du.ravel(), dv.ravel()], axis=1)  # (S*S, 2)
+    q = q0[:, None, :] + np.einsum("nkl,sl->nsk", J, centres)
+    Js = np.repeat(J / S, S * S, axis=0)
+    vals = _boundary_values(q.reshape(-1, 2), Js, preps, bg, K, depth - 1)
+    return vals.reshape(-1, S * S).mean(axis=1)
 
 
 def _supersample(q0, J, preps, bg, K):
