@@ -23,6 +23,7 @@ when the window is centred on the edge.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Literal
 
@@ -178,6 +179,7 @@ def subpixel_edges(
     plateau: int = 4,
     scale_to_8bit: float = 1.0,
     slope_smooth: int = 0,
+    level_smooth: int = 0,
 ) -> EdgeSamples:
     """Sub-pixel edge position on each scan line by the area estimator (module docstring).
 
@@ -197,6 +199,10 @@ def subpixel_edges(
         Samples on each side beyond the window used to measure the two grey levels.
     scale_to_8bit : float
         Factor to the 0-255 scale for ``step`` and ``noise``.
+    level_smooth : int
+        When > 0, the two plateau levels are averaged over this many scan lines on each side (the
+        samples must be ordered along the edge): the levels change slowly along an edge, so this
+        takes most of the noise out of them.
     slope_smooth : int
         When > 0, each plateau's grey-level slope is measured, averaged over this many scan lines on
         each side (the samples must be ordered along the edge) and used to extrapolate the two levels
@@ -220,14 +226,23 @@ def subpixel_edges(
     core = vals[:, plateau:plateau + 2 * half + 1]
     A = left.mean(axis=1)
     B = right.mean(axis=1)
+    if level_smooth > 0 and scan.size:
+        inside_ok = inside.all(axis=1)
+        A = _smooth_along(np.where(inside_ok, A, np.nan), level_smooth)
+        B = _smooth_along(np.where(inside_ok, B, np.nan), level_smooth)
     step = B - A
     # Plateau slopes (shading, wood grain parallel to the edge), smoothed along the edge: the levels
     # are extrapolated linearly under the transition instead of being assumed flat.
     kp = np.arange(plateau) - (plateau - 1) / 2.0
     den = float((kp * kp).sum())
     if slope_smooth > 0 and den > 0 and scan.size:
-        a1 = _smooth_along(((left - A[:, None]) * kp).sum(axis=1) / den, slope_smooth)
-        b1 = _smooth_along(((right - B[:, None]) * kp).sum(axis=1) / den, slope_smooth)
+        a1 = ((left - A[:, None]) * kp).sum(axis=1) / den
+        b1 = ((right - B[:, None]) * kp).sum(axis=1) / den
+        if slope_smooth >= scan.size:  # one slope per side for the whole edge (smooth shading)
+            a1 = np.full(scan.size, np.nanmedian(a1))
+            b1 = np.full(scan.size, np.nanmedian(b1))
+        else:
+            a1, b1 = _smooth_along(a1, slope_smooth), _smooth_along(b1, slope_smooth)
     else:
         a1 = b1 = np.zeros(scan.size)
     hp = half + 0.5
@@ -279,9 +294,10 @@ def transition_width(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, 
     acc = np.bincount((bins - lo).ravel(), weights=g.ravel())
     cnt = np.bincount((bins - lo).ravel())
     gm = np.where(cnt > 0, acc / np.maximum(cnt, 1), 0.0)
-    x = (np.arange(gm.size) + lo) / 4.0
-    s = gm.sum()
-    if s <= 0:
+    # The peak of the mean (unit-area) gradient gives the width of a Gaussian transition without
+    # the noise that the tails add to a second moment.
+    gs = np.convolve(gm, np.ones(3) / 3.0, mode="same")
+    peak = float(gs.max())
+    if peak <= 0:
         return float("nan")
-    mu = (gm * x).sum() / s
-    return float(np.sqrt(max((gm * (x - mu) ** 2).sum() / s, 0.0)))
+    return float(1.0 / (peak * math.sqrt(2.0 * math.pi)))

@@ -53,10 +53,16 @@ class LocateConfig:
         Smallest grey-level step accepted for an edge.
     half_window_max, half_window_min : int
         Bounds of the sub-pixel window half-size, px (the second pass sizes it to the measured blur).
+    window_blur_factor : float
+        Final window half-size = ceil(factor * blur sigma + 1) px: wide enough for the transition's
+        tails (a centred window makes what it misses cancel), no wider (each extra pixel adds noise).
     plateau : int
         Samples on each side of the window used for the two grey levels.
     slope_smooth : int
-        Scan lines on each side over which the plateau slopes are averaged (0: flat plateaus).
+        Scan lines on each side over which the plateau slopes are averaged (0: flat plateaus, the
+        default: a centred window cancels linear shading, and noisy slopes cost more than they give).
+    level_smooth : int
+        Scan lines on each side over which the plateau levels are averaged (0: per scan line).
     min_thickness_mm, thickness_search_mm : float
         The far arris is looked for between these distances beyond the reference arris
         (``min_thickness_mm`` .. door thickness + ``thickness_search_mm``).
@@ -80,8 +86,10 @@ class LocateConfig:
     min_contrast: float = 6.0
     half_window_max: int = 9
     half_window_min: int = 3
+    window_blur_factor: float = 2.5
     plateau: int = 4
-    slope_smooth: int = 10
+    slope_smooth: int = 0
+    level_smooth: int = 10
     min_thickness_mm: float = 4.0
     thickness_search_mm: float = 15.0
     thickness_tolerance_mm: float = 1.0
@@ -169,7 +177,8 @@ def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half:
         lay = region.layouts[name]
         t = tracks[name]
         out[name] = subpixel_edges(plane, lay.axis, t.scan[::every], t.centre[::every], half, cfg.plateau, scale8,
-                                   slope_smooth=max(cfg.slope_smooth // every, 1) if cfg.slope_smooth else 0)
+                                   slope_smooth=max(cfg.slope_smooth // every, 1) if cfg.slope_smooth else 0,
+                                   level_smooth=max(cfg.level_smooth // every, 1) if cfg.level_smooth else 0)
     return out, beside
 
 
@@ -191,8 +200,12 @@ def _fit(samples: dict[str, EdgeSamples], region: SearchRegion, cfg: LocateConfi
                                      "polarity); check that the door lies in the fixture and nothing covers that edge"))
         groups[name] = (np.where(np.isfinite(xz), xz, 0.0), region.layouts[name].along_x)
         init[name] = good.astype(float)
-    fit = fit_rectangle_edges(groups, scale_floor=1e-4, init_weights=init, n_iter=n_iter,
-                              offset_only=("far",) if far_offset_only else ())
+    try:
+        fit = fit_rectangle_edges(groups, scale_floor=1e-4, init_weights=init, n_iter=n_iter,
+                                  offset_only=("far",) if far_offset_only else ())
+    except ValueError as e:  # a line lost all its points to the robust weights
+        raise _Refused(q.Refusal("edge_missing", f"the door's edges do not fit a rectangle ({e}); check that the "
+                                 "door lies in the fixture and nothing covers its edges")) from None
     return fit, init
 
 
@@ -241,16 +254,14 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
     keep = band_far.hi - band_far.lo >= 4
     band_far = Band(band_far.scan[keep], band_far.lo[keep], band_far.hi[keep])
     tr.bands["far"] = band_far
-    expected = ref_line.at(band_far.scan) + xdir * door.thickness_mm / sc
-    # With the far face in view (thin door shifted towards -X) the far arris separates the hinge face
-    # from the far face, whose brightness can be either side of the hinge face's: accept both polarities.
-    mid = len(band_ref.scan) // 2
-    uv_ref = (np.array([[band_ref.scan[mid], ref_at[mid]]]) if ref_lay.axis == "col"
-              else np.array([[ref_at[mid], band_ref.scan[mid]]]))
-    x_ref = float(region.plane_points(uv_ref)[0, 0])
-    far_may_show = region.plane_map.centre[0] > x_ref + door.thickness_mm - 3.0
-    far_pol = 0 if far_may_show else far_lay.polarity
-    along_f, _, strong_f = _coarse(plane, band_far, far_lay.axis, far_pol, thr, prefer=expected)
+    # The far arris is the first clear step beyond the reference arris: the hinge face ends there, and
+    # what follows (background, or the far face of a thin door shifted towards -X, brighter or darker
+    # than the hinge face) does not matter. Taking the first step, not the one nearest the expected
+    # thickness, measures the door that is there (a 12 mm panel where a 50 mm door was expected).
+    near = (band_far.lo if xdir > 0 else band_far.hi).astype(float)
+    along_f, strength_f = coarse_edges(plane, far_lay.axis, band_far.scan, band_far.lo, band_far.hi, 0,
+                                       prefer=near, prefer_fraction=0.3)
+    strong_f = np.isfinite(along_f) & (strength_f >= thr)
     far_line = ransac_line(band_far.scan[strong_f], along_f[strong_f], tol) if strong_f.sum() >= 10 else None
     if far_line is None or far_line.inliers.sum() < 0.3 * len(band_far.scan):
         raise _Refused(q.Refusal("edge_missing", f"the {HUMAN['far']} was not found within {door.thickness_mm + cfg.thickness_search_mm:.0f} mm of "
@@ -291,6 +302,18 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
     if not (abs(pose.yaw_deg) < 20 and 0 < pose.thickness_mm < 3 * door.thickness_mm + 50):
         raise _Refused(q.Refusal("no_door", "the edges found do not form a door's corner; check that a door lies in "
                                  "the fixture and that the camera has not moved"))
+    # A door far outside the envelope, or of quite another thickness (a panel where the recipe says a
+    # door), is clear already here.
+    r = q.check_envelope(pose.x_mm, pose.z_mm, pose.yaw_deg, cell.envelope, cfg.envelope_margin_mm + 3.0,
+                         cfg.envelope_margin_deg + 0.5)
+    if r:
+        if _looks_like_pattern_here(plane, s8, band_ref, ref_lay.axis, cfg):
+            r = _PATTERN
+        raise _Refused(r, diagnostics={"measured": {"x_mm": pose.x_mm, "z_mm": pose.z_mm, "yaw_deg": pose.yaw_deg,
+                                                    "coarse": True}})
+    r = q.check_thickness(pose.thickness_mm, door.thickness_mm, cfg.thickness_tolerance_mm + 2.0)
+    if r:
+        raise _Refused(r, diagnostics={"measured": {"thickness_mm": pose.thickness_mm, "coarse": True}})
 
     clock.lap("coarse_pose")
     # -- sub-pixel passes ---------------------------------------------------------------------------
@@ -309,11 +332,11 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
             # Size the final window to the measured blur: wide enough for the transition, no wider (noise).
             widths = [transition_width(plane, samples[k], fit.weights[k] > 0, half) for k in EDGE_NAMES]
             blur = float(np.nanmax(widths)) if np.any(np.isfinite(widths)) else float(cfg.half_window_max)
-            half = int(np.clip(math.ceil(3.0 * blur + 1.5), cfg.half_window_min, cfg.half_window_max))
+            half = int(np.clip(math.ceil(cfg.window_blur_factor * blur + 1.0), cfg.half_window_min, cfg.half_window_max))
     tr.samples = samples
     tr.inliers = {k: fit.weights[k] > 0 for k in EDGE_NAMES}
     tr.pose = pose
-    res = _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, half)
+    res = _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, half, plane, s8)
     res.diagnostics["far_face_visible"] = far_beside
     clock.lap("gate")
     res.diagnostics["timing_ms"] = clock.laps
@@ -333,17 +356,36 @@ class _Clock:
         self.t = t
 
 
-def _no_door_reason(plane, band: Band, axis, cfg: LocateConfig, s8: float) -> q.Refusal:
+_PATTERN = q.Refusal("not_a_door", "a regular pattern (a calibration board?) is in view instead of a door; "
+                                   "remove it and place a door in the fixture")
+
+
+def _looks_like_pattern_here(plane, s8: float, band: Band, axis, cfg: LocateConfig) -> bool:
     P = plane if axis == "col" else plane.T
     rows = P[band.lo.min():band.hi.max() + 1, band.scan[::8]].T.astype(np.float32) * s8
-    if q.looks_like_pattern(rows, 4 * cfg.min_contrast):
-        return q.Refusal("not_a_door", "a regular pattern (a calibration board?) is in view instead of a door; "
-                                       "remove it and place a door in the fixture")
+    return q.looks_like_pattern(rows, 4 * cfg.min_contrast)
+
+
+def _no_door_reason(plane, band: Band, axis, cfg: LocateConfig, s8: float) -> q.Refusal:
+    if _looks_like_pattern_here(plane, s8, band, axis, cfg):
+        return _PATTERN
     return q.Refusal("no_door", "no door edge was found in the search region; check that a door lies in the fixture, "
                                 "that the lighting is on and that the camera has not moved")
 
 
-def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, half) -> LocateResult:
+def _rows_across(plane, s8: float, ref: EdgeSamples, far: EdgeSamples) -> np.ndarray | None:
+    """Grey profiles (0-255) across the door between and beyond its two arrises, for the pattern check."""
+    if ref.scan.size == 0:
+        return None
+    P = plane if ref.axis == "col" else plane.T
+    a = np.concatenate([ref.along[np.isfinite(ref.along)], far.along[np.isfinite(far.along)]])
+    if a.size == 0:
+        return None
+    lo, hi = int(max(a.min() - 150, 0)), int(min(a.max() + 150, P.shape[0] - 1))
+    return P[lo:hi + 1, ref.scan[::8]].T.astype(np.float32) * s8
+
+
+def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, half, plane, s8) -> LocateResult:
     lines, refusals = [], []
     corner_px = pose.corner_px
     diagnostics: dict = {
@@ -395,6 +437,14 @@ def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, ha
                                       "difference_mm": round(pose.thickness_mm - door.thickness_mm, 4),
                                       "tolerance_mm": cfg.thickness_tolerance_mm}
     first = next((r for r in refusals if r is not None), None)
+    if first is not None and first.code in ("edge_not_straight", "edge_missing", "corner_hidden"):
+        # A pose outside the envelope explains broken edges best (the door lies beyond the region).
+        env = next((r for r in refusals if r is not None and r.code == "outside_envelope"), None)
+        first = env or first
+    if first is not None and first.code in ("edge_not_straight", "edge_missing"):
+        band = _rows_across(plane, s8, samples["reference"], samples["far"])
+        if band is not None and q.looks_like_pattern(band, 4 * cfg.min_contrast):
+            first = _PATTERN
     if first is not None:
         diagnostics["measured"] = {"x_mm": pose.x_mm, "z_mm": pose.z_mm, "yaw_deg": pose.yaw_deg,
                                    "thickness_mm": pose.thickness_mm}

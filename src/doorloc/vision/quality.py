@@ -118,6 +118,9 @@ def looks_like_pattern(plane_rows: np.ndarray, threshold: float) -> bool:
     if plane_rows.size == 0:
         return False
     d = plane_rows[:, 2:] - plane_rows[:, :-2]
+    # A printed pattern is flat between its edges; noise is not.
+    if float(np.mean(np.abs(d) < threshold / 4)) < 0.6:
+        return False
     strong = np.abs(d) >= threshold
     sign = np.sign(d) * strong
     # Count sign runs: a new run starts where a strong sample's sign differs from the previous strong one.
