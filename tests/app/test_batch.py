@@ -15,7 +15,6 @@ import numpy as np
 import pytest
 
 from doorloc.app.batch import BatchSetupError, ResultsLog, find_images, plan_batch, summarize
-from doorloc.cell import DoorSize
 from doorloc.pose import DoorPose
 from doorloc.sim.door import render_door
 

@@ -193,3 +193,27 @@ def test_every_status_code_is_documented(client):
     locate = spec["paths"]["/v1/locate"]["post"]["responses"]
     assert {"200", "401", "413", "415", "422", "503"} <= set(locate)
     assert "application/problem+json" in locate["415"]["content"]
+
+
+def test_real_pipeline_on_a_rendered_door(cell, store, recipe, encode_png):
+    """No stand-in: render a door, post it with its door_id, get the true pose back, targets and an overlay."""
+    import base64
+
+    import cv2
+
+    from doorloc.pose import DoorPose
+    from doorloc.sim.door import render_door
+
+    truth = DoorPose(-5.0, 7.5, 1.1)
+    png = encode_png(render_door(cell, recipe.door_size(), truth, seed=7).image)
+    with TestClient(create_app(ServiceSettings(), cell=cell, store=store)) as c:
+        r = c.post("/v1/locate?overlay=true&rapid=true", files={"image": ("d.png", png, "image/png")},
+                   data={"door_id": "D-100"})
+        assert r.status_code == 200, r.text
+        a = r.json()
+        assert a["ok"] is True
+        assert (a["x_mm"], a["z_mm"], a["yaw_deg"]) == pytest.approx((truth.x_mm, truth.z_mm, truth.yaw_deg), abs=0.05)
+        assert len(a["targets"]) > 0 and a["rapid"]
+        overlay = cv2.imdecode(np.frombuffer(base64.b64decode(a["overlay_png"]), np.uint8), cv2.IMREAD_UNCHANGED)
+        assert overlay.shape == (1080, 1920, 3)
+        assert 'doorloc_locate_results_total{outcome="answered"} 1.0' in c.get("/metrics").text
