@@ -15,7 +15,7 @@ from doorloc.cell import Fixture
 from doorloc.pose import DoorPose, door_to_cell, yaw_rotation_matrix
 from doorloc.recipes.models import DoorRecipe
 from doorloc.recipes.paths import pocket_points_xz, recipe_path
-from doorloc.recipes.targets import targets_for_pose, tool_quaternion
+from doorloc.recipes.targets import TOOL_Z_ALONG_CELL_Y, targets_for_pose, tool_quaternion
 
 _spec = importlib.util.spec_from_file_location("hinge_strategies", Path(__file__).with_name("hinge_strategies.py"))
 strategies = importlib.util.module_from_spec(_spec)
@@ -117,3 +117,13 @@ def test_face_depth_comes_from_the_fixture(recipe_factory):
     ts = targets_for_pose(r, DoorPose(), face_y)
     assert ts[1].y_mm == pytest.approx(r.hinges[0].depth_mm + face_y)  # the tool centre at the pocket bottom
     assert ts[0].y_mm == pytest.approx(-10.0 + face_y)  # approach 10 mm in front of the face
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.floats(-2.0, 2.0))
+def test_alternative_base_puts_the_spindle_on_tool_z(yaw):
+    q = tool_quaternion(yaw, TOOL_Z_ALONG_CELL_Y)
+    assert abs(math.fsum(v * v for v in q) - 1.0) < 1e-12 and q[0] >= 0
+    r = quat_to_matrix(q)
+    np.testing.assert_allclose(r @ [0, 0, 1], [0, 1, 0], atol=1e-12)  # spindle (tool +Z) into the face
+    np.testing.assert_allclose(r, yaw_rotation_matrix(yaw) @ quat_to_matrix(TOOL_Z_ALONG_CELL_Y), atol=1e-12)

@@ -14,7 +14,9 @@ into the hinge face); the door's yaw turns the tool with the door, a rotation by
 so only q1 and q3 change, as the thesis says (section 3.8, figure 3.27). This needs the tool frame's
 +Y along the spindle; the RAPID module's default tooldata (:class:`doorloc.recipes.rapid.RobotSetup`)
 defines it so (``tframe.rot`` turns flange +Z into tool +Y). A tool frame with the spindle along its
-+Z (ABB's habit) would make all four components change with the yaw, which the thesis rules out.
++Z (ABB's habit) would make all four components change with the yaw, which the thesis rules out; a
+cell that wants it passes ``base_orientation=TOOL_Z_ALONG_CELL_Y`` (the quaternion becomes
+``q_yaw * base``).
 """
 
 from __future__ import annotations
@@ -28,7 +30,14 @@ from doorloc.pose import DoorPose, door_to_cell
 from doorloc.recipes.models import DoorRecipe
 from doorloc.recipes.paths import DEFAULT_CLEARANCE_MM, PathPoint, PointKind, recipe_path
 
-__all__ = ["Target", "tool_quaternion", "targets_for_pose", "targets_from_path"]
+__all__ = ["Target", "tool_quaternion", "targets_for_pose", "targets_from_path", "TOOL_Y_ALONG_CELL_Y",
+           "TOOL_Z_ALONG_CELL_Y"]
+
+Quat = tuple[float, float, float, float]
+#: default tool orientation at yaw 0: tool frame = cell axes, spindle along tool +Y = cell +Y
+TOOL_Y_ALONG_CELL_Y: Quat = (1.0, 0.0, 0.0, 0.0)
+#: alternative: spindle along tool +Z = cell +Y, tool +X = cell +X (a rotation by -90 deg about X)
+TOOL_Z_ALONG_CELL_Y: Quat = (math.sqrt(0.5), -math.sqrt(0.5), 0.0, 0.0)
 
 
 class Target(BaseModel):
@@ -59,10 +68,17 @@ class Target(BaseModel):
     kind: PointKind = "corner"
 
 
-def tool_quaternion(yaw_deg: float) -> tuple[float, float, float, float]:
-    """Tool orientation for a door at ``yaw_deg``: ``[cos(yaw/2), 0, -sin(yaw/2), 0]``.
+def _qmul(a: Quat, b: Quat) -> Quat:
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return (aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw)
 
-    Unit, scalar first, ``q1 >= 0`` for ``|yaw| <= 180``.
+
+def tool_quaternion(yaw_deg: float, base_orientation: Quat = TOOL_Y_ALONG_CELL_Y) -> Quat:
+    """Tool orientation for a door at ``yaw_deg``: ``[cos(yaw/2), 0, -sin(yaw/2), 0] * base_orientation``.
+
+    Unit, scalar first, ``q1 >= 0``. With the default base only q1 and q3 are non-constant.
 
     Examples
     --------
@@ -71,15 +87,21 @@ def tool_quaternion(yaw_deg: float) -> tuple[float, float, float, float]:
     """
     half = math.radians(yaw_deg) / 2.0
     q = (math.cos(half), 0.0, -math.sin(half), 0.0)
+    if base_orientation != TOOL_Y_ALONG_CELL_Y:
+        q = _qmul(q, base_orientation)
+        n = math.sqrt(math.fsum(v * v for v in q))
+        q = (q[0] / n, q[1] / n, q[2] / n, q[3] / n)
     return q if q[0] >= 0 else (-q[0], -q[1], -q[2], -q[3])
 
 
-def targets_from_path(path: list[PathPoint], pose: DoorPose, face_y_mm: float) -> list[Target]:
+def targets_from_path(
+    path: list[PathPoint], pose: DoorPose, face_y_mm: float, *, base_orientation: Quat = TOOL_Y_ALONG_CELL_Y
+) -> list[Target]:
     """Move door-frame path points into the cell frame (``door_to_cell``) and attach the tool orientation."""
     if not path:
         return []
     cell = door_to_cell(np.array([p.point_door for p in path], dtype=float), pose, face_y_mm)
-    q = tool_quaternion(pose.yaw_deg)
+    q = tool_quaternion(pose.yaw_deg, base_orientation)
     return [
         Target(name=p.name, x_mm=float(c[0]), y_mm=float(c[1]), z_mm=float(c[2]), quat=q, hinge=p.hinge, kind=p.kind)
         for p, c in zip(path, cell, strict=True)
@@ -87,7 +109,12 @@ def targets_from_path(path: list[PathPoint], pose: DoorPose, face_y_mm: float) -
 
 
 def targets_for_pose(
-    recipe: DoorRecipe, pose: DoorPose, face_y_mm: float, *, clearance_mm: float = DEFAULT_CLEARANCE_MM
+    recipe: DoorRecipe,
+    pose: DoorPose,
+    face_y_mm: float,
+    *,
+    clearance_mm: float = DEFAULT_CLEARANCE_MM,
+    base_orientation: Quat = TOOL_Y_ALONG_CELL_Y,
 ) -> list[Target]:
     """All hinge targets of a recipe for a door measured at ``pose``.
 
@@ -100,10 +127,13 @@ def targets_for_pose(
         Hinge-face depth for this door, cell Y, mm: ``cell.face_y(recipe.door_size())``.
     clearance_mm : float
         Distance of approach/retract points in front of the face, mm.
+    base_orientation : 4 floats
+        Tool orientation at yaw 0 (scalar first); default: tool axes = cell axes, spindle = tool +Y.
 
     Returns
     -------
     list of Target
         Per hinge: ``APP``, ``P1..Pn``, ``RET``; cell frame, mm.
     """
-    return targets_from_path(recipe_path(recipe, clearance_mm=clearance_mm), pose, face_y_mm)
+    return targets_from_path(recipe_path(recipe, clearance_mm=clearance_mm), pose, face_y_mm,
+                             base_orientation=base_orientation)
