@@ -8,7 +8,7 @@ The image formation order (:func:`form_image`):
 
 scene radiance (per-face albedo x (ambient + directional Lambert), wood grain, shadows; rendered by
 :mod:`doorloc.sim.raster`) -> illumination gradient and vignetting (smooth, per pixel) -> optical blur
-(Gaussian) -> exposure to electrons with shot noise (Poisson) and read noise (Gaussian) -> response curve
+(Gaussian) -> exposure to electrons with shot noise (Poisson, drawn in its Gaussian limit) and read noise -> response curve
 (gamma) -> quantization to 8 or 16 bits -> optional JPEG round trip.
 """
 
@@ -66,7 +66,7 @@ class Effects:
     blur_sigma_px : float
         Gaussian optical blur, px; 0 = off.
     full_well_e : float
-        Electrons at full scale for Poisson shot noise; 0 = off.
+        Electrons at full scale for shot noise (variance = signal / full well); 0 = off.
     read_noise_dn : float
         Gaussian read noise, standard deviation in output DN of the 8-bit scale; 0 = off.
     gamma : float
@@ -215,31 +215,35 @@ def form_image(radiance: np.ndarray, effects: Effects, seed: int = 0, principal_
     """
     import cv2
 
-    img = np.asarray(radiance, float)
+    img = np.asarray(radiance, dtype=np.float32)
     h, w = img.shape
     if effects.gradient_u or effects.gradient_v or effects.vignetting:
         cx, cy = principal_point if principal_point is not None else ((w - 1) / 2, (h - 1) / 2)
-        u = (np.arange(w) - (w - 1) / 2) / (w / 2)
-        v = (np.arange(h) - (h - 1) / 2) / (h / 2)
-        field = 1.0 + effects.gradient_u * u[None, :] + effects.gradient_v * v[:, None]
+        u = ((np.arange(w) - (w - 1) / 2) / (w / 2)).astype(np.float32)
+        v = ((np.arange(h) - (h - 1) / 2) / (h / 2)).astype(np.float32)
+        field = (np.float32(effects.gradient_u) * u)[None, :] + (1.0 + np.float32(effects.gradient_v) * v)[:, None]
         if effects.vignetting:
-            du = np.arange(w) - cx
-            dv = np.arange(h) - cy
+            du = (np.arange(w) - cx).astype(np.float32)
+            dv = (np.arange(h) - cy).astype(np.float32)
             r2_corner = max((cx + 0.5) ** 2, (w - 0.5 - cx) ** 2) + max((cy + 0.5) ** 2, (h - 0.5 - cy) ** 2)
-            field = field * (1.0 - effects.vignetting * (du[None, :] ** 2 + dv[:, None] ** 2) / r2_corner)
+            k = np.float32(effects.vignetting / r2_corner)
+            field *= 1.0 - k * ((du * du)[None, :] + (dv * dv)[:, None])
         img = img * field
     if effects.blur_sigma_px > 0:
         img = cv2.GaussianBlur(img, (0, 0), effects.blur_sigma_px, borderType=cv2.BORDER_REFLECT)
-    rng = np.random.default_rng([seed, 104729])
-    if effects.full_well_e > 0:
-        img = rng.poisson(np.clip(img, 0, None) * effects.full_well_e) / effects.full_well_e
-    if effects.read_noise_dn > 0:
-        img = img + rng.normal(0.0, effects.read_noise_dn / 255.0, img.shape)
-    img = np.clip(img, 0.0, 1.0)
+    if effects.full_well_e > 0 or effects.read_noise_dn > 0:
+        # Poisson-Gaussian sensor noise: shot noise of variance mean/full_well (the Gaussian limit of
+        # Poisson, within 1 % above ~100 electrons) plus read noise, drawn as one normal variate.
+        rng = np.random.default_rng([seed, 104729])
+        var = np.float32((effects.read_noise_dn / 255.0) ** 2)
+        if effects.full_well_e > 0:
+            var = np.maximum(img, 0) * np.float32(1.0 / effects.full_well_e) + var
+        img = img + np.sqrt(var) * rng.standard_normal(img.shape, dtype=np.float32)
+    img = np.clip(img, 0.0, 1.0, out=img if img is not radiance else None)
     if effects.gamma != 1.0:
-        img = img ** (1.0 / effects.gamma)
+        img = cv2.pow(img, 1.0 / effects.gamma)
     if effects.color:
-        tint = np.array([0.80, 0.93, 1.0])  # BGR: a warm wood tone
+        tint = np.array([0.80, 0.93, 1.0], np.float32)  # BGR: a warm wood tone
         img = img[..., None] * tint
     top = 255 if effects.bit_depth == 8 else 65535
     out = np.rint(img * top).astype(np.uint8 if effects.bit_depth == 8 else np.uint16)

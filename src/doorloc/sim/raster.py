@@ -248,34 +248,45 @@ def _kinv2(camera: CameraModel) -> np.ndarray:
     return np.array([[1.0 / fx, -s / (fx * fy)], [0.0, 1.0 / fy]])
 
 
-def approximate_ideal_grid(camera: CameraModel) -> np.ndarray:
-    """Ideal normalized coordinates of every pixel centre, shape (H, W, 2).
+def approximate_ideal_grid(camera: CameraModel) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """Ideal normalized coordinates of every pixel centre: ``(x, y, finite)``, float32 arrays (H, W).
 
-    Exact without distortion. With distortion, exact Newton undistortion on a grid every
-    ``_COARSE_STEP`` px and bilinear interpolation in between (~1e-3 px for ordinary lenses); NaN where
-    the model cannot be inverted.
+    Exact (to float32) without distortion, where ``finite`` is None (every pixel has a ray). With
+    distortion: exact Newton undistortion on a grid every ``_COARSE_STEP`` px, bilinear interpolation in
+    between (~1e-3 px for ordinary lenses); ``finite`` marks pixels the model can invert.
+    Used only to tell which region a pixel centre lies in and for smooth shading.
     """
+    import cv2
+
     w, h = camera.image_size
     if not np.any(camera.coeffs12):
-        u = np.arange(w, dtype=float)
-        v = np.arange(h, dtype=float)
-        xy_v = (v - camera.cy) / camera.fy
-        xy_u = (u - camera.cx) / camera.fx
-        out = np.empty((h, w, 2))
-        out[..., 0] = xy_u[None, :] - (camera.skew / camera.fx) * xy_v[:, None]
-        out[..., 1] = xy_v[:, None]
-        return out
+        xv = ((np.arange(h) - camera.cy) / camera.fy).astype(np.float32)
+        xu = ((np.arange(w) - camera.cx) / camera.fx).astype(np.float32)
+        x = np.broadcast_to(xu[None, :], (h, w))
+        if camera.skew:
+            x = x - np.float32(camera.skew / camera.fx) * xv[:, None]
+        return x, np.broadcast_to(xv[:, None], (h, w)), None
     st = _COARSE_STEP
-    gu = np.arange(0, w + st, st, dtype=float)
-    gv = np.arange(0, h + st, st, dtype=float)
-    G = np.stack(np.meshgrid(gu, gv, indexing="xy"), axis=-1)  # (nv, nu, 2)
+    # cv2.resize by an integer factor st samples source cell i at destination st*i + (st-1)/2; put the
+    # coarse samples there, with one extra row/column before the image so the border is interpolated
+    # rather than clamped, and crop.
+    nu = -(-(w + 2 * st) // st)
+    nv = -(-(h + 2 * st) // st)
+    gu = st * np.arange(nu) + (st - 1) / 2 - st
+    gv = st * np.arange(nv) + (st - 1) / 2 - st
+    G = np.stack(np.meshgrid(gu, gv, indexing="xy"), axis=-1)
     Q = camera.undistort(G)
-    u = np.arange(w)
-    v = np.arange(h)
-    iu, wu = u // st, (u % st) / st
-    iv, wv = v // st, (v % st) / st
-    A = Q[:, iu] * (1 - wu)[None, :, None] + Q[:, iu + 1] * wu[None, :, None]  # (nv, w, 2)
-    return A[iv] * (1 - wv)[:, None, None] + A[iv + 1] * wv[:, None, None]
+    finite_c = np.all(np.isfinite(Q), axis=-1)
+    Q = np.where(finite_c[..., None], Q, 0.0).astype(np.float32)
+    full = cv2.resize(Q, (nu * st, nv * st), interpolation=cv2.INTER_LINEAR)[st : st + h, st : st + w]
+    if finite_c.all():
+        finite = None
+    else:
+        # a pixel is usable only if every coarse sample it interpolates from is
+        bad = cv2.dilate(cv2.resize((~finite_c).astype(np.uint8), (nu * st, nv * st),
+                                    interpolation=cv2.INTER_NEAREST), np.ones((2 * st + 1, 2 * st + 1), np.uint8))
+        finite = bad[st : st + h, st : st + w] == 0
+    return np.ascontiguousarray(full[..., 0]), np.ascontiguousarray(full[..., 1]), finite
 
 
 def exact_ideal_and_jacobian(camera: CameraModel, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -311,6 +322,12 @@ def _plane_coords(H: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray,
     s = (H[0, 0] * x + H[0, 1] * y + H[0, 2]) / w
     t = (H[1, 0] * x + H[1, 1] * y + H[1, 2]) / w
     return s, t, w
+
+
+def _plane_coords_xy(H: np.ndarray, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(s, t) of ideal points given as separate coordinate arrays."""
+    w = H[2, 0] * x + H[2, 1] * y + H[2, 2]
+    return (H[0, 0] * x + H[0, 1] * y + H[0, 2]) / w, (H[1, 0] * x + H[1, 1] * y + H[1, 2]) / w
 
 
 def _pixel_bbox(camera: CameraModel, prep: _Prepared, margin: int = 3) -> tuple[int, int, int, int]:
@@ -378,19 +395,17 @@ def render_radiance(
                               None, GridTexture.uniform(1.0), float(background), None, "background"), -1)
     preps = [_prepare(s, i) for i, s in enumerate(foreground)]
 
-    q_all = approximate_ideal_grid(camera)
-    finite = np.all(np.isfinite(q_all), axis=-1)
-    q_all = np.where(finite[..., None], q_all, 0.0)
+    qx, qy, finite = approximate_ideal_grid(camera)
 
     label = np.empty((h, w), np.int32)
-    value = np.empty((h, w), float)
+    value = np.empty((h, w), np.float64)
     # background first, over the whole image
     bg_tex = bg.surface.texture
     if bg_tex.s_lines.size == 0 and bg_tex.t_lines.size == 0 and bg.surface.modulation is None:
         label[:] = -1
         value[:] = bg.surface.shade * bg_tex.values[0, 0]
     else:
-        s, t, _ = _plane_coords(bg.H, q_all)
+        s, t = _plane_coords_xy(bg.H, qx, qy)
         i, j = bg_tex.cells(s, t)
         label[:] = -1 - bg_tex.codes[i, j]
         value[:] = bg.surface.shade * bg_tex.values[i, j]
@@ -401,21 +416,26 @@ def render_radiance(
         v0, v1, u0, u1 = _pixel_bbox(camera, p)
         if v1 <= v0 or u1 <= u0:
             continue
-        q = q_all[v0:v1, u0:u1]
-        inside = np.ones(q.shape[:2], bool)
+        x, y = qx[v0:v1, u0:u1], qy[v0:v1, u0:u1]
+        inside = np.ones(x.shape, bool)
         for n, c in zip(p.normals, p.offsets, strict=True):
-            inside &= q[..., 0] * n[0] + q[..., 1] * n[1] >= c
+            inside &= x * np.float32(n[0]) + y * np.float32(n[1]) >= np.float32(c)
+        if finite is not None:
+            inside &= finite[v0:v1, u0:u1]
         if not inside.any():
             continue
-        qi = q[inside]
-        s, t, _ = _plane_coords(p.H, qi)
+        s, t = _plane_coords_xy(p.H, x[inside].astype(np.float64), y[inside].astype(np.float64))
         i, j = p.surface.texture.cells(s, t)
         val = p.surface.shade * p.surface.texture.values[i, j]
         if p.surface.modulation is not None:
             val = val * p.surface.modulation(s, t)
         label[v0:v1, u0:u1][inside] = p.label_base * 1_000_000 + p.surface.texture.codes[i, j]
         value[v0:v1, u0:u1][inside] = val
-    value[~finite] = 0.0
+    if finite is not None:
+        value[~finite] = 0.0
+        label[~finite] = np.iinfo(np.int32).min
+    else:
+        finite = np.ones((h, w), bool)
 
     # boundary pixels: any 8-neighbour in another region, then one more pixel for safety
     diff = np.zeros((h, w), np.uint8)
@@ -448,8 +468,8 @@ def _texture_state(p: _Prepared, q0: np.ndarray, J: np.ndarray):
     # d(s, t)/dq of the homography, then through the footprint Jacobian
     ds_dq = (H[0, :2][None, :] - s0[:, None] * H[2, :2][None, :]) / wden[:, None]
     dt_dq = (H[1, :2][None, :] - t0[:, None] * H[2, :2][None, :]) / wden[:, None]
-    gs = np.einsum("nk,nkl->nl", ds_dq, J)  # ds/d(u, v)
-    gt = np.einsum("nk,nkl->nl", dt_dq, J)
+    gs = ds_dq[:, :1] * J[:, 0, :] + ds_dq[:, 1:] * J[:, 1, :]  # ds/d(u, v)
+    gt = dt_dq[:, :1] * J[:, 0, :] + dt_dq[:, 1:] * J[:, 1, :]
     hs = 0.5 * (np.abs(gs[:, 0]) + np.abs(gs[:, 1]))
     ht = 0.5 * (np.abs(gt[:, 0]) + np.abs(gt[:, 1]))
     ilo = np.searchsorted(tex.s_lines, s0 - hs, side="right")
@@ -492,7 +512,8 @@ def _boundary_values(q0, J, preps, bg, K, depth):
     need_ss = np.zeros(n, bool)
     for p in preps:
         # signed distance of the pixel centre inside each outline edge, in pixel units
-        mvec = np.einsum("ek,nkl->nel", p.normals, J)  # (n, e, 2): J^T n
+        nr = p.normals
+        mvec = nr[None, :, 0, None] * J[:, None, 0, :] + nr[None, :, 1, None] * J[:, None, 1, :]  # (n, e, 2): J^T n
         mlen = np.linalg.norm(mvec, axis=-1)
         dist = (q0 @ p.normals.T - p.offsets[None, :]) / mlen
         mhat = mvec / mlen[..., None]
@@ -521,6 +542,14 @@ def _boundary_values(q0, J, preps, bg, K, depth):
     return result
 
 
+def _apply(J: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    """``J[n] @ offsets[s]`` for every pixel n and offset s: shapes (n, 2, 2), (S, 2) -> (n, S, 2)."""
+    out = np.empty((J.shape[0], offsets.shape[0], 2))
+    out[..., 0] = J[:, None, 0, 0] * offsets[None, :, 0] + J[:, None, 0, 1] * offsets[None, :, 1]
+    out[..., 1] = J[:, None, 1, 0] * offsets[None, :, 0] + J[:, None, 1, 1] * offsets[None, :, 1]
+    return out
+
+
 def _subdivide(q0, J, preps, bg, K, depth):
     """Split footprints where boundaries meet into 4 x 4 sub-boxes and treat each like a pixel.
 
@@ -534,7 +563,7 @@ def _subdivide(q0, J, preps, bg, K, depth):
     d = (np.arange(S) + 0.5) / S - 0.5
     du, dv = np.meshgrid(d, d, indexing="xy")
     centres = np.stack([du.ravel(), dv.ravel()], axis=1)  # (S*S, 2)
-    q = q0[:, None, :] + np.einsum("nkl,sl->nsk", J, centres)
+    q = q0[:, None, :] + _apply(J, centres)
     Js = np.repeat(J / S, S * S, axis=0)
     vals = _boundary_values(q.reshape(-1, 2), Js, preps, bg, K, depth - 1)
     return vals.reshape(-1, S * S).mean(axis=1)
@@ -545,7 +574,7 @@ def _supersample(q0, J, preps, bg, K):
     d = (np.arange(K) + 0.5) / K - 0.5
     du, dv = np.meshgrid(d, d, indexing="xy")
     delta = np.stack([du.ravel(), dv.ravel()], axis=1)  # (K*K, 2)
-    q = q0[:, None, :] + np.einsum("nkl,sl->nsk", J, delta)  # (n, S, 2)
+    q = q0[:, None, :] + _apply(J, delta)  # (n, S, 2)
     n, S = q.shape[:2]
     out = np.empty((n, S))
     s, t, _ = _plane_coords(bg.H, q)
