@@ -301,3 +301,87 @@ def transition_width(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, 
     if peak <= 0:
         return float("nan")
     return float(1.0 / (peak * math.sqrt(2.0 * math.pi)))
+
+
+def subpixel_edges_banded(
+    plane: np.ndarray,
+    axis: Axis,
+    scan: np.ndarray,
+    centre: np.ndarray,
+    half: int,
+    band_px: np.ndarray,
+    door_side: int,
+    plateau: int = 4,
+    scale_to_8bit: float = 1.0,
+    level_smooth: int = 0,
+) -> tuple[EdgeSamples, float]:
+    """Outer edge of a step with a band of unknown, uniform grey level on its door side (a chamfered or
+    rounded arris seen as a strip between the background and the hinge face).
+
+    The profile is ``background A | band L, width w | face B``. With the band width ``w`` known from
+    the geometry (arris size projected), the area over the window is ``(L - A) w + (B - A)(K - e - w)``,
+    ``K`` the window's door-side end; ``L`` is measured as the median grey level at the band's centre
+    over the whole edge. Then ``e = K - w - (S - (L - A) w) / (B - A)``.
+
+    Parameters
+    ----------
+    band_px : ndarray (N,)
+        Band width on each scan line, px (>= 0).
+    door_side : +1 or -1
+        +1 when the door (band, then face) lies at increasing ``along``.
+
+    Returns
+    -------
+    samples : EdgeSamples
+        As :func:`subpixel_edges`; ``step`` is ``B - A`` signed along ``along``.
+    band_level : float
+        The band's grey level ``L`` (0-255 scale), NaN if it could not be measured.
+    """
+    P = oriented(plane, axis)
+    scan = np.asarray(scan, int)
+    centre = np.asarray(centre, float)
+    w = np.maximum(np.asarray(band_px, float), 0.0)
+    finite = np.isfinite(centre) & np.isfinite(w)
+    n_extra = int(math.ceil(np.nanmax(w))) if np.any(finite) else 0
+    c0 = np.round(np.where(finite, centre, 0.0)).astype(int)
+    length = 2 * (half + plateau) + 1 + n_extra
+    if door_side > 0:
+        start = c0 - half - plateau
+        vals, inside = _gather(P, scan, start, length)
+    else:  # mirror so that the door side is at increasing index
+        start = c0 + half + plateau
+        vals, inside = _gather(P, scan, start - length + 1, length)
+        vals, inside = vals[:, ::-1], inside[:, ::-1]
+    left = vals[:, :plateau]
+    right = vals[:, -plateau:]
+    core = vals[:, plateau:length - plateau]
+    A = left.mean(axis=1)
+    B = right.mean(axis=1)
+    if level_smooth > 0 and scan.size:
+        ok_in = inside.all(axis=1)
+        A = _smooth_along(np.where(ok_in, A, np.nan), level_smooth)
+        B = _smooth_along(np.where(ok_in, B, np.nan), level_smooth)
+    # Band level: the grey value at the band's centre (linear interpolation), median over the edge,
+    # from the scan lines where the band is at least 2 px wide (a pixel wholly inside it).
+    rel_e = (centre - c0) * door_side  # predicted edge relative to c0, in mirrored coordinates
+    pos = plateau + half + rel_e + w / 2.0  # index into vals
+    i0 = np.clip(np.floor(pos).astype(int), 0, length - 2)
+    fr = pos - i0
+    mid = vals[np.arange(len(scan)), i0] * (1 - fr) + vals[np.arange(len(scan)), i0 + 1] * fr
+    wide = finite & (w >= 2.0) & inside.all(axis=1)
+    L = float(np.median(mid[wide])) if np.any(wide) else float("nan")
+    S = (core - A[:, None]).sum(axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        # distance from the door-side end of the window back to the outer edge
+        Lw = (L - A) * w if np.isfinite(L) else np.zeros_like(A)
+        d_end = w + (S - Lw) / (B - A)
+        e_mirror = (core.shape[1] - 0.5) - d_end  # in core index units, core starts at mirrored c0 - half
+        along = np.where(door_side > 0, c0 - half + e_mirror, c0 + half - e_mirror)
+    step = (B - A) * door_side
+    noise = np.sqrt(0.5 * (left.var(axis=1) + right.var(axis=1)))
+    valid = finite & inside.all(axis=1) & np.isfinite(along) & (np.abs(B - A) > 0)
+    valid &= np.abs(along - centre) <= half
+    nan = np.full(len(scan), np.nan)
+    return (EdgeSamples(axis, scan, np.where(valid, along, np.nan), step * scale_to_8bit, noise * scale_to_8bit,
+                        nan, np.maximum(np.maximum(A, B), L if np.isfinite(L) else 0) * scale_to_8bit, valid),
+            L * scale_to_8bit)

@@ -23,7 +23,7 @@ import numpy as np
 
 from doorloc.cell import Cell, DoorSize
 from doorloc.vision import quality as q
-from doorloc.vision.edges import EdgeSamples, coarse_edges, subpixel_edges, transition_width
+from doorloc.vision.edges import EdgeSamples, coarse_edges, subpixel_edges, subpixel_edges_banded, transition_width
 from doorloc.vision.lines import RectangleFit, fit_rectangle_edges, ransac_line
 from doorloc.vision.luminance import ImageFormatError, luminance_plane
 from doorloc.vision.metric import MetricPose, pose_from_fit
@@ -176,6 +176,12 @@ def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half:
     for name in EDGE_NAMES:
         lay = region.layouts[name]
         t = tracks[name]
+        if t.band_px is not None:
+            interior = lay.polarity * (1 if cfg.door_brighter else -1)
+            out[name], _ = subpixel_edges_banded(plane, lay.axis, t.scan[::every], t.centre[::every], half,
+                                                 t.band_px[::every], interior, cfg.plateau, scale8,
+                                                 level_smooth=max(cfg.level_smooth // every, 1) if cfg.level_smooth else 0)
+            continue
         out[name] = subpixel_edges(plane, lay.axis, t.scan[::every], t.centre[::every], half, cfg.plateau, scale8,
                                    slope_smooth=max(cfg.slope_smooth // every, 1) if cfg.slope_smooth else 0,
                                    level_smooth=max(cfg.level_smooth // every, 1) if cfg.level_smooth else 0)

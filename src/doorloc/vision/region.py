@@ -65,6 +65,7 @@ class Track:
     scan: np.ndarray
     centre: np.ndarray
     beside_far_face: bool = False
+    band_px: np.ndarray | None = None  # width of the arris strip beside the edge, px (None: no arris)
 
 
 def _along_scan(uv: np.ndarray, axis: Axis) -> tuple[np.ndarray, np.ndarray]:
@@ -249,7 +250,15 @@ class SearchRegion:
             beside = name == "far" and self.far_face_visible(corner, yaw_rad, thickness_mm)
             if beside:
                 ok &= self._far_face_band_ok(pl, uv, scans, centre, window_px, lay.axis)
-            out[name] = Track(scans[ok], centre[ok], beside)
+            band = None
+            a = self.door.arris_mm
+            if a > 0:
+                # The arris strip runs from the outline (depth face_y + a) to the hinge face's own edge,
+                # a mm inwards at depth face_y.
+                inward = ez if name == "bottom" else (ex if name == "reference" else -ex)
+                inner = PlaneMap(self.posed, self.face_y).to_image(pl + a * inward[None])
+                band = np.abs(_interp_on_scans(inner, lay.axis, scans[ok]) - centre[ok])
+            out[name] = Track(scans[ok], centre[ok], beside, band)
         return out
 
     def _far_face_band_ok(self, pl, uv, scans, centre, window_px, axis) -> np.ndarray:
