@@ -100,3 +100,16 @@ def test_dry_run_and_init_db(db):
     r = run("recipes", "init-db", "--db", db)
     assert r.exit_code == 0 and "revision 0001" in r.stdout
     assert "0 recipe(s)" in run("recipes", "list", "--db", db).stderr
+
+
+def test_spindle_on_tool_z(db, tmp_path):
+    run("recipes", "import", GOLDEN / "golden_recipe.csv", "--db", db)
+    cell = tmp_path / "cell.yaml"
+    cell.write_text((Path(__file__).parents[2] / "fixtures" / "cell_thesis.yaml").read_text()
+                    + "\nrobot:\n  spindle_axis: z\n")
+    r = run("targets", "--door-id", "GOLDEN-1", "--pose", "0", "0", "0", "--db", db, "--cell", cell)
+    assert r.exit_code == 0, r.output
+    assert json.loads(r.stdout)["targets"][0]["quat"] == pytest.approx([0.5**0.5, -(0.5**0.5), 0, 0])
+    r = run("targets", "--door-id", "GOLDEN-1", "--pose", "0", "0", "0", "--db", db, "--cell", cell,
+            "--format", "rapid-module")
+    assert "PERS tooldata tSpindle:=[TRUE,[[0,0,250],[1,0,0,0]]" in r.stdout

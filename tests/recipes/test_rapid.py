@@ -112,6 +112,10 @@ def test_robot_setup_from_cell_file(tmp_path):
     robot = robot_setup_from_cell_file(cell)
     assert robot.tool_name == "tRouter" and robot.tool_tcp_mm == (0.0, 10.0, 300.0)
     assert robot.wobj_name == RobotSetup().wobj_name
+    assert robot.tool_rot == pytest.approx((0.7071068, 0.7071068, 0, 0)) and robot.spindle_axis == "y"
+    cell.write_text("robot:\n  spindle_axis: z\n")
+    robot = robot_setup_from_cell_file(cell)
+    assert robot.tool_rot == (1.0, 0.0, 0.0, 0.0) and robot.base_orientation() == pytest.approx((0.7071068, -0.7071068, 0, 0))
     cell.write_text("robot:\n  tool_name: 'bad name'\n")
     with pytest.raises(ValueError):
         robot_setup_from_cell_file(cell)

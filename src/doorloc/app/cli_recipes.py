@@ -213,7 +213,8 @@ def targets_cmd(
         raise fail(f"no recipe for door {door_id!r} in the database; import one with 'doorloc recipes import'")
     door_pose = DoorPose(*pose)
     face_y = fixture.face_y(recipe.width_mm)
-    targets = targets_for_pose(recipe, door_pose, face_y, clearance_mm=clearance)
+    targets = targets_for_pose(recipe, door_pose, face_y, clearance_mm=clearance,
+                               base_orientation=robot.base_orientation())
     if fmt is TargetFormat.rapid_text:
         text = rapid_text(targets)
     elif fmt is TargetFormat.rapid_module:
