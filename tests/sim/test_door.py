@@ -6,6 +6,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from doorloc.cell import DoorSize, load_cell
 from doorloc.pose import DoorPose
@@ -148,3 +150,35 @@ def test_arris_is_rendered_between_hinge_face_and_background():
     chamfer_rows = np.nonzero(col == round(255 * 0.3))[0]
     assert abs(chamfer_rows.size - (bottom[1] - top[1])) <= 1.5
     assert abs(chamfer_rows.max() + 0.5 - bottom[1]) <= 1.0
+
+
+def test_bottom_end_is_seen_only_from_below():
+    import dataclasses
+
+    from doorloc.calib.camera import Extrinsics
+
+    below = dataclasses.replace(CELL, extrinsics=Extrinsics([np.pi / 2, 0, 0], [-30.0, -40.0, 350.0]))  # camera Z = -40
+    assert below.extrinsics.camera_centre_cell[2] == pytest.approx(-40.0)
+    rd = render_door(below, DoorSize(900, 50, 2100), DoorPose())
+    assert "bottom_end" in rd.truth["visible_faces"]
+    assert "bottom_end" not in render_door(CELL, DoorSize(900, 50, 2100), DoorPose()).truth["visible_faces"]
+    # the bottom end lies below the corner in the image, shaded as an end face
+    u, v = rd.corner_px
+    assert rd.image[int(v) + 4, int(u) + 100] == round(255 * Effects().albedo_end)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    t=st.floats(10, 120), w=st.floats(150, 1500), h=st.floats(500, 3000), arris_frac=st.floats(0, 0.45),
+    profile=st.sampled_from(["chamfer", "round"]),
+)
+def test_door_solid_is_closed_and_convex_for_any_size(t, w, h, arris_frac, profile):
+    door = DoorSize(w, t, h, arris_mm=arris_frac * t)
+    faces = door_faces(door, profile)
+    pts = np.concatenate([f.polygon for f in faces])
+    scale = max(t, w, h)
+    for f in faces:
+        assert ((pts - f.polygon[0]) @ f.normal).max() < 1e-9 * scale
+    total = sum(0.5 * np.sum(np.cross(f.polygon, np.roll(f.polygon, -1, axis=0)), axis=0) for f in faces)
+    assert np.allclose(total, 0, atol=1e-9 * scale**2)
+    assert pts.max(axis=0) == pytest.approx([t, w, h], rel=1e-12)
