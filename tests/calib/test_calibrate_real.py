@@ -42,9 +42,11 @@ def test_bouguet_focal_lengths_match_the_published_fc(bouguet_result):
     cam = bouguet_result.camera
     assert abs(cam.fx / 657.4629 - 1) < 0.003 * 0.9
     assert abs(cam.fy / 657.9467 - 1) < 0.003 * 0.9
-    # the principal point lands within a few pixels of the published one (MATLAB 1-based: minus 1)
-    assert abs(cam.cx - (303.1366 - 1)) < 3
-    assert abs(cam.cy - (242.5693 - 1)) < 4
+    # The toolbox's documentation puts [0;0] at the centre of the upper-left pixel (OpenCV's convention),
+    # so cc is compared as printed. cy is only determined to ~1.2 px here (leave-one-view-out jackknife,
+    # bench/bench_calib_real.py), far more than the formal 0.2 px.
+    assert abs(cam.cx - 303.1366) < 1.0
+    assert abs(cam.cy - 242.5693) < 1.5
 
 
 def test_model_selection_reports_train_and_held_out_errors(bouguet_result):

@@ -1,0 +1,125 @@
+"""Calibrate rendered board views of a known camera and compare with the truth.
+
+Run from the repository root:  /work/venv/bin/python bench/bench_calib_rendered.py [--seeds 4] [--views 20]
+
+Views come from doorloc.sim.boards.render_board (exact area-coverage rendering through the
+camera's distortion) with 0.7 px optical blur and 1 DN read noise; poses are planned to cover the
+image (tests/calib/rendered_views.py). Per seed it prints the intrinsic errors, the projection
+difference to the true model inside the observed region (raw, and after the best small rotation
+of the camera frame, which a cell calibration absorbs), and a ChArUco run; then the one-shot cell
+calibration on the thesis cell.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "calib"))
+
+from rendered_views import render_views, true_camera  # noqa: E402
+
+from doorloc.calib.calibrate import View, calibrate_views, pixels_within, projection_difference  # noqa: E402
+from doorloc.calib.detect import CharucoSpec, Chessboard, scan_images  # noqa: E402
+from doorloc.sim.boards import CharucoBoard, Checkerboard  # noqa: E402
+from doorloc.sim.effects import Effects  # noqa: E402
+
+EFFECTS = Effects(blur_sigma_px=0.7, read_noise_dn=1.0)
+
+
+def run(board_spec, sim_board, seed: int, n_views: int, true):
+    t0 = time.perf_counter()
+    imgs = render_views(true, sim_board, n_views, seed=seed, effects=EFFECTS)
+    t1 = time.perf_counter()
+    scan = scan_images([(n, im, None) for n, im, _ in imgs], board_spec)
+    truth = {n: c for n, _, c in imgs}
+    errs = []
+    for n, d in scan.detections.items():
+        tc = truth[n]
+        if isinstance(board_spec, CharucoSpec):
+            errs.append(d.corners_px - tc[d.ids])  # ids name the corners
+        else:  # the detector may number the grid from either end
+            dd = np.linalg.norm(d.corners_px[:, None] - tc[None], axis=2)
+            errs.append(d.corners_px - tc[dd.argmin(axis=1)])
+    e = np.concatenate(errs)
+    views = [View(n, d.object_points(board_spec), d.corners_px, d.ids) for n, d in scan.detections.items()]
+    t2 = time.perf_counter()
+    res = calibrate_views(views, true.image_size)
+    t3 = time.perf_counter()
+    c = res.camera
+    pd = projection_difference(c, true, pixels_within(c, c.observed_radius_px))
+    # The region the corners actually covered (their convex hull) is smaller than the disc.
+    hull = cv2.convexHull(np.concatenate([v.image_points for v in res.views]).astype(np.float32))
+    grid = pixels_within(c, 1e9)
+    in_hull = np.array([cv2.pointPolygonTest(hull, (float(x), float(y)), False) >= 0 for x, y in grid])
+    ph = projection_difference(c, true, grid[in_hull])
+    ok = (abs(c.fx / true.fx - 1) < 1e-3 and abs(c.fy / true.fy - 1) < 1e-3 and abs(c.cx - true.cx) < 0.5
+          and abs(c.cy - true.cy) < 0.5 and pd.aligned_max_px < 0.1)
+    print(f"  seed {seed}: {len(views)}/{n_views} views, corner error RMS {np.sqrt(np.mean(np.sum(e**2, axis=1))):.3f} px, "
+          f"model {res.fit.candidate.name}, RMS {res.fit.rms_px:.3f} px")
+    print(f"    fx {100 * (c.fx / true.fx - 1):+.4f} %  fy {100 * (c.fy / true.fy - 1):+.4f} %  "
+          f"cx {c.cx - true.cx:+.3f} px (1s {res.std_intrinsics['cx']:.3f})  cy {c.cy - true.cy:+.3f} px "
+          f"(1s {res.std_intrinsics['cy']:.3f})")
+    print(f"    projection difference inside the observed radius {c.observed_radius_px:.0f} px: raw max {pd.raw_max_px:.3f}"
+          f" / rms {pd.raw_rms_px:.3f} px; after rotation {np.degrees(np.linalg.norm(pd.rotation_rad)):.4f} deg: "
+          f"max {pd.aligned_max_px:.3f} / rms {pd.aligned_rms_px:.3f} px  -> acceptance {'MET' if ok else 'NOT MET'}")
+    print(f"    inside the convex hull of the observed corners: raw max {ph.raw_max_px:.3f} px, after rotation max "
+          f"{ph.aligned_max_px:.3f} px; reported projection sigma (1s) inside the radius <= "
+          f"{res.projection_sigma_px['max_observed']:.3f} px")
+    print(f"    times: render {t1 - t0:.1f} s, detect {t2 - t1:.1f} s, calibrate (8 models x 5 folds) {t3 - t2:.1f} s")
+    return ok
+
+
+def cell_calibration() -> None:
+    from doorloc.calib.camera import Extrinsics
+    from doorloc.calib.cell import board_points_in_cell, calibrate_cell_extrinsics
+    from doorloc.calib.detect import detect_chessboard
+    from doorloc.cell import load_cell
+    from doorloc.sim.boards import render_board
+
+    cell = load_cell(Path(__file__).resolve().parents[1] / "fixtures" / "cell_thesis.yaml")
+    ext = cell.extrinsics
+    print("\n== one-shot cell calibration, thesis cell (1920x1080), 9x6 board, 20 mm squares on the hinge face")
+    for seed, origin in enumerate([(-50.0, 0.0, 90.0), (-20.0, 0.0, 70.0), (-80.0, 0.0, 110.0)]):
+        bx, by = np.array([1.0, 0, 0]), np.array([0, 0, -1.0])
+        pose = Extrinsics.from_rotation(ext.rotation @ np.stack([bx, by, np.cross(bx, by)], axis=1),
+                                        ext.cell_to_camera(np.array(origin)[None])[0])
+        rb = render_board(cell.camera, Checkerboard(9, 6, 20.0), pose.rvec, pose.tvec_mm, seed=seed,
+                          effects=Effects(blur_sigma_px=0.8, read_noise_dn=1.0))
+        board = Chessboard(9, 6, 20.0)
+        det = detect_chessboard(rb.image, board)
+        res = calibrate_cell_extrinsics(cell.camera, board_points_in_cell(det.object_points(board), origin),
+                                        det.corners_px, 0.0)
+        dR = res.extrinsics.rotation @ ext.rotation.T
+        ang = np.degrees(np.arccos(np.clip((np.trace(dR) - 1) / 2, -1, 1)))
+        true_corner = cell.posed_camera.project_cell(np.zeros((1, 3)))[0]
+        true_scale = cell.posed_camera.scale_mm_per_px(np.zeros(3))
+        print(f"  board origin {origin}: RMS {res.rms_px:.3f} px; tvec error {np.linalg.norm(res.extrinsics.tvec_mm - ext.tvec_mm):.3f} mm; "
+              f"rotation error {ang:.4f} deg; reference corner pixel error "
+              f"{np.linalg.norm(res.reference_corner_px - true_corner):.3f} px; scale {res.scale_mm_per_px:.5f} mm/px "
+              f"(true {true_scale:.5f})")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--seeds", type=int, default=4)
+    ap.add_argument("--views", type=int, default=20)
+    a = ap.parse_args()
+    true = true_camera()
+    print(f"== true camera {true.image_size[0]}x{true.image_size[1]}: fx {true.fx} fy {true.fy} cx {true.cx} cy {true.cy} "
+          f"dist {true.dist_coeffs.tolist()}")
+    print(f"== chessboard 9x6, 25 mm, {a.views} views per seed")
+    met = [run(Chessboard(9, 6, 25.0), Checkerboard(9, 6, 25.0), s, a.views, true) for s in range(a.seeds)]
+    print(f"  acceptance met in {sum(met)}/{len(met)} seeds")
+    print(f"== ChArUco 9x7 squares, 25 mm, 18 mm markers (DICT_4X4_50), {a.views} views")
+    run(CharucoSpec(9, 7, 25.0, 18.0), CharucoBoard(9, 7, 25.0, 18.0), 0, a.views, true)
+    cell_calibration()
+
+
+if __name__ == "__main__":
+    main()
