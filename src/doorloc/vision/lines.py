@@ -48,7 +48,16 @@ class ImageLine:
         return self.a + self.b * np.asarray(scan, float)
 
 
-def ransac_line(scan: np.ndarray, along: np.ndarray, tol_px: float, n_trials: int = 96, seed: int = 0) -> ImageLine | None:
+def _lsq_line(s: np.ndarray, a: np.ndarray) -> tuple[float, float]:
+    """Least-squares ``a = a0 + b s``; returns (b, a0)."""
+    sm, am = s.mean(), a.mean()
+    ds = s - sm
+    den = float(ds @ ds)
+    b = float(ds @ (a - am)) / den if den > 0 else 0.0
+    return b, float(am - b * sm)
+
+
+def ransac_line(scan: np.ndarray, along: np.ndarray, tol_px: float, n_trials: int = 48, seed: int = 0) -> ImageLine | None:
     """Coarse line through (scan, along) samples that tolerates many outliers.
 
     Vectorised RANSAC over ``n_trials`` random sample pairs, then least squares on the inliers of
@@ -76,11 +85,11 @@ def ransac_line(scan: np.ndarray, along: np.ndarray, tol_px: float, n_trials: in
     for _ in range(2):  # least-squares polish on the consensus set
         if inl.sum() < 3:
             break
-        bb, aa = np.polyfit(s[inl], a[inl], 1)
+        bb, aa = _lsq_line(s[inl], a[inl])
         inl = np.abs(a - (aa + bb * s)) <= tol_px
     if inl.sum() < 3:
         return None
-    bb, aa = np.polyfit(s[inl], a[inl], 1)
+    bb, aa = _lsq_line(s[inl], a[inl])
     return ImageLine(float(aa), float(bb), inl)
 
 

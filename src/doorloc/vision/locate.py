@@ -162,7 +162,8 @@ def locate(image: np.ndarray, cell: Cell, door: DoorSize | None = None, *, image
 
 
 def _coarse(plane, band: Band, axis, polarity, thr, prefer=None):
-    along, strength = coarse_edges(plane, axis, band.scan, band.lo, band.hi, polarity, prefer=prefer, prefer_fraction=0.5)
+    along, strength = coarse_edges(plane, axis, band.scan, band.lo, band.hi, polarity, half=2, prefer=prefer,
+                                   prefer_fraction=0.5, stride=2)
     strong = np.isfinite(along) & (strength >= thr)
     return along, strength, strong
 
@@ -232,7 +233,7 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
     clock.lap("region")
     # -- search region: coarse steps ------------------------------------------------------------
     ref_lay, far_lay, bot_lay = (region.layouts[k] for k in ("reference", "far", "bottom"))
-    band_ref = region.arris_band(step=2)
+    band_ref = region.arris_band(step=4, height_mm=45.0)
     tr.bands["reference"] = band_ref
     P = plane if ref_lay.axis == "col" else plane.T
     sub = P[band_ref.lo.min():band_ref.hi.max() + 1:3, band_ref.scan[::4]]
@@ -265,8 +266,8 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
     # than the hinge face) does not matter. Taking the first step, not the one nearest the expected
     # thickness, measures the door that is there (a 12 mm panel where a 50 mm door was expected).
     near = (band_far.lo if xdir > 0 else band_far.hi).astype(float)
-    along_f, strength_f = coarse_edges(plane, far_lay.axis, band_far.scan, band_far.lo, band_far.hi, 0,
-                                       prefer=near, prefer_fraction=0.3)
+    along_f, strength_f = coarse_edges(plane, far_lay.axis, band_far.scan, band_far.lo, band_far.hi, 0, half=2,
+                                       prefer=near, prefer_fraction=0.3, stride=2)
     strong_f = np.isfinite(along_f) & (strength_f >= thr)
     far_line = ransac_line(band_far.scan[strong_f], along_f[strong_f], tol) if strong_f.sum() >= 10 else None
     if far_line is None or far_line.inliers.sum() < 0.3 * len(band_far.scan):
@@ -275,7 +276,7 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
                                  "nothing covers its far edge"))
 
     # bottom end: scan lines between the two arrises, at the nominal corner height
-    corner0 = region.posed.project_cell(np.array([[0.0, region.face_y, 0.0]]))[0]
+    corner0 = region.face_map.to_image(np.zeros((1, 2)))[0]
     s_corner = corner0[1] if ref_lay.axis == "row" else corner0[0]
     u_ref, u_far = ref_line.at(s_corner), far_line.at(s_corner)
     u_exp = u_ref + xdir * door.thickness_mm / sc
@@ -283,7 +284,7 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
         u_far = u_exp if abs(u_exp - u_ref) < abs(u_far - u_ref) else u_far
     lo_s, hi_s = sorted((u_ref, u_far))
     inset = 0.15 * (hi_s - lo_s) + 6.0
-    scans_b = np.arange(int(math.ceil(lo_s + inset)), int(math.floor(hi_s - inset)) + 1, 2)
+    scans_b = np.arange(int(math.ceil(lo_s + inset)), int(math.floor(hi_s - inset)) + 1, 3)
     band_bot = region.bottom_band(scans_b)
     tr.bands["bottom"] = band_bot
     along_b, _, strong_b = _coarse(plane, band_bot, bot_lay.axis, bot_lay.polarity, thr)
@@ -304,7 +305,7 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
                      "reference": (pts(ref_line, band_ref, ref_lay.axis), False),
                      "far": (pts(far_line, band_far, far_lay.axis), False)}
     fit0 = fit_rectangle_edges(coarse_groups, scale_floor=0.05, n_iter=3)
-    pose = pose_from_fit(fit0, region.posed, region.face_y, region.edge_depth_y)
+    pose = pose_from_fit(fit0, region.face_map)
     if not (abs(pose.yaw_deg) < 20 and 0 < pose.thickness_mm < 3 * door.thickness_mm + 50):
         raise _Refused(q.Refusal("no_door", "the edges found do not form a door's corner; check that a door lies in "
                                  "the fixture and that the camera has not moved"))
@@ -326,13 +327,13 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
     half = cfg.half_window_max
     for _pass in range(2):
         # The first pass, on every other scan line, only centres and sizes the final windows.
-        samples, far_beside = _sample(plane, region, pose, math.radians(pose.yaw_deg), half, cfg, s8, every=2 - _pass)
+        samples, far_beside = _sample(plane, region, pose, math.radians(pose.yaw_deg), half, cfg, s8, every=3 - 2 * _pass)
         clock.lap(f"edges{_pass + 1}")
         if _pass == 0:
             fit, init = _fit(samples, region, cfg, n_iter=6, far_offset_only=far_beside)
         else:
             fit, init = _fit(samples, region, cfg, far_offset_only=far_beside)
-        pose = pose_from_fit(fit, region.posed, region.face_y, region.edge_depth_y)
+        pose = pose_from_fit(fit, region.face_map)
         clock.lap(f"fit{_pass + 1}")
         if _pass == 0:
             # Size the final window to the measured blur: wide enough for the transition, no wider (noise).

@@ -38,26 +38,66 @@ class PlaneMap:
     """
 
     def __init__(self, posed: PosedCamera, depth_y: float) -> None:
+        self.posed = posed
         self.camera = posed.camera
         self.depth_y = float(depth_y)
         self.R = posed.extrinsics.rotation
         self.t = posed.extrinsics.tvec_mm
         self.centre = -self.R.T @ self.t
+        self._distorted = bool(np.any(self.camera.coeffs12))
+        K = self.camera.camera_matrix
+        self._k = (K[0, 0], K[0, 1], K[0, 2], K[1, 1], K[1, 2])
+
+    def at_depth(self, depth_y: float) -> PlaneMap:
+        """The same camera onto another plane ``Y = depth_y``."""
+        return PlaneMap(self.posed, depth_y)
 
     def to_plane(self, uv: np.ndarray) -> np.ndarray:
         """Pixels ``(N, 2)`` -> ``(X, Z)`` mm on the plane, shape ``(N, 2)`` (NaN where no ray)."""
-        xy = self.camera.undistort(np.asarray(uv, float).reshape(-1, 2))
-        d = np.concatenate([xy, np.ones((len(xy), 1))], 1) @ self.R  # camera ray -> cell direction
+        uv = np.asarray(uv, float).reshape(-1, 2)
+        if self._distorted:
+            xy = self.camera.undistort(uv)
+            x, y = xy[:, 0], xy[:, 1]
+        else:
+            fx, sk, cx, fy, cy = self._k
+            y = (uv[:, 1] - cy) / fy
+            x = (uv[:, 0] - cx - sk * y) / fx
+        R = self.R  # cell direction = R^T (x, y, 1)
+        dx = R[0, 0] * x + R[1, 0] * y + R[2, 0]
+        dy = R[0, 1] * x + R[1, 1] * y + R[2, 1]
+        dz = R[0, 2] * x + R[1, 2] * y + R[2, 2]
         with np.errstate(divide="ignore", invalid="ignore"):
-            s = (self.depth_y - self.centre[1]) / d[:, 1]
+            s = (self.depth_y - self.centre[1]) / dy
         s = np.where(s > 0, s, np.nan)
-        return np.stack([self.centre[0] + s * d[:, 0], self.centre[2] + s * d[:, 2]], 1)
+        out = np.empty((len(uv), 2))
+        out[:, 0] = self.centre[0] + s * dx
+        out[:, 1] = self.centre[2] + s * dz
+        return out
 
     def to_image(self, xz: np.ndarray) -> np.ndarray:
         """``(X, Z)`` mm on the plane -> pixels ``(N, 2)``."""
         xz = np.asarray(xz, float).reshape(-1, 2)
-        p = np.stack([xz[:, 0], np.full(len(xz), self.depth_y), xz[:, 1]], 1)
-        return self.camera.project(p @ self.R.T + self.t)
+        R, t, Y = self.R, self.t, self.depth_y
+        X, Z = xz[:, 0], xz[:, 1]
+        pc = [R[i, 0] * X + R[i, 1] * Y + R[i, 2] * Z + t[i] for i in range(3)]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            zc = np.where(pc[2] > 0, pc[2], np.nan)
+            x, y = pc[0] / zc, pc[1] / zc
+        if self._distorted:
+            return self.camera.normalized_to_pixel(self.camera.distort(np.stack([x, y], 1)))
+        fx, sk, cx, fy, cy = self._k
+        out = np.empty((len(xz), 2))
+        out[:, 0] = fx * x + sk * y + cx
+        out[:, 1] = fy * y + cy
+        return out
+
+    def scale_mm_per_px(self, xz: np.ndarray) -> float:
+        """Mean size of one pixel on this plane at the point ``(X, Z)`` (mm per pixel): the square root of
+        the area a pixel there covers (as :meth:`PosedCamera.scale_mm_per_px`)."""
+        uv = self.to_image(np.asarray(xz, float).reshape(1, 2))[0]
+        q = self.to_plane(np.array([uv, uv + [1.0, 0.0], uv + [0.0, 1.0]]))
+        a, b = q[1] - q[0], q[2] - q[0]
+        return float(math.sqrt(abs(a[0] * b[1] - a[1] * b[0])))
 
 
 def plane_points(posed: PosedCamera, uv: np.ndarray, depth_y: float) -> np.ndarray:
@@ -112,12 +152,12 @@ class MetricPose:
         return np.array([self.x_mm, self.z_mm])
 
 
-def pose_from_fit(fit: RectangleFit, posed: PosedCamera, face_y: float, edge_depth_y: float) -> MetricPose:
+def pose_from_fit(fit: RectangleFit, face_map: PlaneMap) -> MetricPose:
     """Corner, yaw and thickness from a :class:`RectangleFit` of the bottom, reference and far lines.
 
     Solves ``cos t X + sin t Z = c_ref`` and ``-sin t X + cos t Z = c_bottom`` for the corner; the
-    thickness is ``c_far - c_ref``. ``edge_depth_y`` is the plane the outline was back-projected to
-    (``face_y + arris``); the corner pixel and the scale are taken on the hinge face ``face_y``.
+    thickness is ``c_far - c_ref``. The outline was back-projected to ``face_y + arris``
+    (the lines are the same at any depth); the corner pixel and the scale are taken on the hinge face, ``face_map``'s plane.
     """
     t = fit.angle_rad
     c, s = math.cos(t), math.sin(t)
@@ -125,8 +165,6 @@ def pose_from_fit(fit: RectangleFit, posed: PosedCamera, face_y: float, edge_dep
     x = c * cr - s * cb
     z = s * cr + c * cb
     thickness = fit.offsets["far"] - cr if "far" in fit.offsets else float("nan")
-    corner_cell = np.array([x, face_y, z])
-    corner_px = posed.project_cell(corner_cell[None])[0]
-    scale = posed.scale_mm_per_px(corner_cell, face_y)
-    del edge_depth_y
+    corner_px = face_map.to_image(np.array([[x, z]]))[0]
+    scale = face_map.scale_mm_per_px(np.array([x, z]))
     return MetricPose(float(x), float(z), math.degrees(t), float(thickness), corner_px, scale)

@@ -105,6 +105,7 @@ class SearchRegion:
     z_top_mm: float
     nominal_scale: float
     plane_map: PlaneMap
+    face_map: PlaneMap
     border_px: int = 2
 
     def image_points(self, xz: np.ndarray) -> np.ndarray:
@@ -139,14 +140,14 @@ class SearchRegion:
         env = cell.envelope
         w, h = cell.camera.image_size
         # Highest Z of the reference line still inside the image (the door goes beyond it).
-        zs = np.arange(0.0, 3000.0, 5.0)
+        zs = np.arange(0.0, 3000.0, 10.0)
         pts = pm.to_image(np.stack([np.zeros_like(zs), zs], 1))
         inside = (pts[:, 0] >= 0) & (pts[:, 0] <= w - 1) & (pts[:, 1] >= 0) & (pts[:, 1] <= h - 1)
         z_top = float(zs[inside].max()) if inside.any() else 0.0
         z_top = min(z_top, door.height_mm)
-        scale = posed.scale_mm_per_px(np.array([0.0, face_y, 0.0]), face_y)
+        scale = pm.at_depth(face_y).scale_mm_per_px(np.zeros(2))
         return cls(posed, face_y, depth, door, (w, h), env.x_mm + margin_mm, env.z_mm + margin_mm,
-                   math.radians(env.yaw_deg + margin_deg), layouts, z_top, scale, pm)
+                   math.radians(env.yaw_deg + margin_deg), layouts, z_top, scale, pm, pm.at_depth(face_y))
 
     # -- search region for the coarse pass -------------------------------------------------------
     def _scans_between(self, uv: np.ndarray, axis: Axis, step: int) -> np.ndarray:
@@ -214,9 +215,9 @@ class SearchRegion:
         corner = np.asarray(corner, float)
         far_corner = corner + thickness_mm * ex
         out: dict[str, Track] = {}
-        n_z = max(int((self.z_top_mm + 40.0) / 0.5), 8)
+        n_z = max(int((self.z_top_mm + 40.0) / 2.0), 8)
         tz = np.linspace(0.0, self.z_top_mm + 40.0, n_z)
-        tx = np.linspace(-1.0, thickness_mm + 1.0, max(int(thickness_mm / 0.5), 8))
+        tx = np.linspace(-1.0, thickness_mm + 1.0, max(int(thickness_mm / 2.0), 8))
         for name in EDGE_NAMES:
             lay = self.layouts[name]
             if name == "bottom":
@@ -256,14 +257,14 @@ class SearchRegion:
                 # The arris strip runs from the outline (depth face_y + a) to the hinge face's own edge,
                 # a mm inwards at depth face_y.
                 inward = ez if name == "bottom" else (ex if name == "reference" else -ex)
-                inner = PlaneMap(self.posed, self.face_y).to_image(pl + a * inward[None])
+                inner = self.face_map.to_image(pl + a * inward[None])
                 band = np.abs(_interp_on_scans(inner, lay.axis, scans[ok]) - centre[ok])
             out[name] = Track(scans[ok], centre[ok], beside, band)
         return out
 
     def _far_face_band_ok(self, pl, uv, scans, centre, window_px, axis) -> np.ndarray:
         """Scan lines where the visible far face shows as a band at least ``window_px`` wide."""
-        back = PlaneMap(self.posed, self.face_y + self.door.width_mm)
+        back = self.plane_map.at_depth(self.face_y + self.door.width_mm)
         uv_back = back.to_image(pl)  # the far face's back edge: same (X, Z) line, at the door's far side
         band = np.abs(_interp_on_scans(uv_back, axis, scans) - centre)
         # Below the far face's bottom edge (it rises towards the back) there is no band.
