@@ -182,3 +182,23 @@ def test_door_solid_is_closed_and_convex_for_any_size(t, w, h, arris_frac, profi
     total = sum(0.5 * np.sum(np.cross(f.polygon, np.roll(f.polygon, -1, axis=0)), axis=0) for f in faces)
     assert np.allclose(total, 0, atol=1e-9 * scale**2)
     assert pts.max(axis=0) == pytest.approx([t, w, h], rel=1e-12)
+
+
+def test_door_reaching_behind_a_steeply_tilted_camera_is_clipped_not_refused():
+    import dataclasses
+
+    from doorloc.calib.camera import Extrinsics
+
+    # camera at the thesis position, pitched 10 degrees: the top of a 3 m door is behind it
+    tilt = np.radians(10.0)
+    down = np.array([[1, 0, 0], [0, np.cos(tilt), -np.sin(tilt)], [0, np.sin(tilt), np.cos(tilt)]])
+    R = down @ CELL.extrinsics.rotation
+    centre = CELL.extrinsics.camera_centre_cell
+    cell = dataclasses.replace(CELL, extrinsics=Extrinsics.from_rotation(R, -R @ centre))
+    door = DoorSize(900, 50, 3000)
+    assert cell.extrinsics.cell_to_camera(np.array([0.0, 0.0, 3000.0]))[2] < 0
+    rd = render_door(cell, door, DoorPose())
+    u, v = rd.corner_px
+    assert 0 < u < 1920 and 0 < v < 1080
+    assert rd.image[int(v) - 8, int(u) + 8] == round(255 * Effects().albedo_hinge)
+    assert rd.image[int(v) + 8, int(u) + 8] != round(255 * Effects().albedo_hinge)

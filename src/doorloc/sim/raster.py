@@ -46,6 +46,7 @@ __all__ = [
 ]
 
 _COARSE_STEP = 8  # px between exact undistortion samples for the approximate per-pixel ideal map
+NEAR_MM = 1.0  # surfaces are clipped to Z >= NEAR_MM in the camera frame
 
 
 # ----------------------------------------------------------------------------------------------
@@ -168,6 +169,26 @@ class Surface:
         p = np.asarray(self.polygon_st, float)
         return self.origin + p[:, :1] * self.s_axis + p[:, 1:] * self.t_axis
 
+    def visible_polygon_cam(self, z_near: float = NEAR_MM) -> np.ndarray:
+        """The outline clipped to the half-space in front of the camera (``Z >= z_near``), shape (k, 3).
+
+        A long face (the door's 2 m hinge face seen by a tilted camera) may reach behind the camera;
+        only its part in front can be imaged, and that part projects to a proper convex polygon.
+        """
+        v = self.polygon_cam()
+        if np.all(v[:, 2] >= z_near):
+            return v
+        out = []
+        for k in range(len(v)):
+            p, q = v[k], v[(k + 1) % len(v)]
+            dp, dq = p[2] - z_near, q[2] - z_near
+            if dp >= 0:
+                out.append(p)
+            if (dp < 0 <= dq) or (dq < 0 <= dp):
+                if dp != dq:
+                    out.append(p + (q - p) * (dp / (dp - dq)))
+        return np.array(out).reshape(-1, 3)
+
 
 @dataclass(frozen=True)
 class _Prepared:
@@ -184,9 +205,9 @@ def _prepare(surface: Surface, label_base: int) -> _Prepared:
     H = surface.ideal_to_plane
     if surface.polygon_st is None:
         return _Prepared(surface, H, np.zeros((0, 2)), np.zeros(0), label_base)
-    v = surface.polygon_cam()
-    if np.any(v[:, 2] <= 1e-6):
-        raise ValueError(f"surface {surface.name!r} reaches behind the camera; it cannot be rendered")
+    v = surface.visible_polygon_cam()
+    if len(v) < 3:  # wholly behind the camera: nothing can be inside
+        return _Prepared(surface, H, np.array([[1.0, 0.0], [-1.0, 0.0]]), np.array([1.0, 1.0]), label_base)
     q = v[:, :2] / v[:, 2:]
     area2 = np.sum(q[:, 0] * np.roll(q[:, 1], -1) - np.roll(q[:, 0], -1) * q[:, 1])
     e = np.roll(q, -1, axis=0) - q
@@ -335,7 +356,9 @@ def _pixel_bbox(camera: CameraModel, prep: _Prepared, margin: int = 3) -> tuple[
     w, h = camera.image_size
     if prep.surface.polygon_st is None:
         return 0, h, 0, w
-    v = prep.surface.polygon_cam()
+    v = prep.surface.visible_polygon_cam()
+    if len(v) < 3:
+        return 0, 0, 0, 0
     q = v[:, :2] / v[:, 2:]
     # The distorted outline is curved: sample each edge densely before distorting it.
     f = np.linspace(0.0, 1.0, 257)[:, None, None]
@@ -368,7 +391,7 @@ def render_radiance(
         Intrinsics and distortion; the image is ``camera.image_size``.
     foreground : list of Surface
         Bounded surfaces in the camera frame whose projections are disjoint (front faces of one convex
-        solid, or a board). All outline vertices must lie in front of the camera.
+        solid, or a board); parts behind the camera are clipped away.
     background : Surface or float
         Unbounded surface behind everything (or a constant radiance).
     supersample : int
