@@ -18,7 +18,7 @@ ROOT = Path(__file__).parents[2]
 FIX = ROOT / "fixtures" / "rendered"
 
 
-@pytest.mark.parametrize("folder,index", [("grid", 0), ("grid", 80), ("effects", 13), ("distractors", 3)])
+@pytest.mark.parametrize("folder,index", [("grid", 0), ("grid", 80), ("effects", 13), ("distractors", 3), ("widths", 2)])
 def test_fixture_images_rerender_identically(folder, index):
     cell = load_cell(FIX / folder / "cell.yaml")
     rows = read_truth_csv(FIX / folder / "truth.csv")
