@@ -460,7 +460,8 @@ def render_radiance(
     else:
         finite = np.ones((h, w), bool)
 
-    # boundary pixels: any 8-neighbour in another region, then one more pixel for safety
+    # boundary pixels: a 4-neighbour lies in another region; dilated by two pixels, which covers diagonal
+    # neighbours and the approximate ray map's error with a wide margin
     diff = np.zeros((h, w), np.uint8)
     dh = label[:, 1:] != label[:, :-1]
     dv = label[1:, :] != label[:-1, :]
@@ -483,8 +484,8 @@ def render_radiance(
 
 
 def _texture_state(p: _Prepared, q0: np.ndarray, J: np.ndarray):
-    """Per pixel: centre value, number of texture lines crossing the footprint, and the analytic
-    single-line value (valid where exactly one line crosses)."""
+    """Per pixel: the texture's box-filtered value where at most one texture line crosses the footprint
+    (exact), and the number of lines crossing it (pixels with more are subdivided)."""
     tex = p.surface.texture
     H = p.H
     s0, t0, wden = _plane_coords(H, q0)
@@ -524,7 +525,7 @@ def _texture_state(p: _Prepared, q0: np.ndarray, J: np.ndarray):
         ii = ic[one_t]
         single[one_t] = cov_lo * tex.values[ii, k] + (1 - cov_lo) * tex.values[ii, k + 1]
     shade = p.surface.shade * mod
-    return shade * single, ns + nt, shade
+    return shade * single, ns + nt
 
 
 def _boundary_values(q0, J, preps, bg, K, depth):
@@ -552,11 +553,11 @@ def _boundary_values(q0, J, preps, bg, K, depth):
             cov[one] = box_coverage(mhat[r, e], dist[r, e])
         cov[out] = 0.0
         active = ~out
-        tex_val, tex_cross, _ = _texture_state(p, q0, J)
+        tex_val, tex_cross = _texture_state(p, q0, J)
         need_ss |= active & ((ncross >= 2) | (tex_cross >= 2) | ((tex_cross >= 1) & (ncross >= 1)))
         fg_cov += np.where(active, cov, 0.0)
         fg_val += np.where(active, cov * tex_val, 0.0)
-    bg_val, bg_cross, _ = _texture_state(bg, q0, J)
+    bg_val, bg_cross = _texture_state(bg, q0, J)
     bg_frac = np.clip(1.0 - fg_cov, 0.0, 1.0)
     need_ss |= (bg_cross >= 2) | ((bg_cross >= 1) & (bg_frac > 0) & (bg_frac < 1))
     result = fg_val + bg_frac * bg_val
