@@ -117,12 +117,6 @@ def test_missing_or_empty_folder_exits_2(tmp_path):
 
 
 def test_thesis_coefficients_are_flagged_unusable_beyond_the_fold(tmp_path):
-    from doorloc.calib.camera import CameraModel, distortion_validity
-
-    v = distortion_validity(CameraModel.from_values(THESIS_K, THESIS_DIST, (1920, 1080)))
-    assert not v.corners_inside_fold and 540 < v.fold_radius_px < 580
-    assert not any(c["undistortable"] for c in v.corner_report)
-
     cal = tmp_path / "thesis_camera.yaml"
     cal.write_text(f"image_width: 1920\nimage_height: 1080\ncamera_matrix: {THESIS_K}\n"
                    f"distortion_coefficients: {THESIS_DIST}\n")
@@ -133,7 +127,9 @@ def test_thesis_coefficients_are_flagged_unusable_beyond_the_fold(tmp_path):
     assert "NOT undistortable" in r.output
     r = runner.invoke(app, ["validity", str(cal), "--json"])
     doc = json.loads(r.output[: r.output.rindex("}") + 1])
+    assert r.exit_code == EXIT_REFUSED
     assert doc["corners_inside_fold"] is False and round(doc["fold_radius_px"]) == 560
+    assert not any(c["undistortable"] for c in doc["corner_report"])  # no image corner has a ray
 
 
 def test_validity_reads_cell_files(tmp_path):

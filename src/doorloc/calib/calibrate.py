@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from doorloc.calib.camera import CameraModel
+from doorloc.calib.camera import CameraModel, distortion_validity
 
 __all__ = [
     "View",
@@ -187,6 +187,9 @@ class CalibrationResult:
     std_jackknife : dict
         Delete-a-fold jackknife standard errors (see :func:`jackknife_std`); larger than
         ``std_intrinsics`` when the views disagree more than the corner noise explains.
+    excluded_models : dict
+        Candidates left out of the selection, with the reason (e.g. the fitted distortion folds
+        over inside the region the data cover, or the fit failed).
     """
 
     camera: CameraModel
@@ -200,6 +203,7 @@ class CalibrationResult:
     projection_sigma_px: dict
     n_folds: int
     std_jackknife: dict = field(default_factory=dict)
+    excluded_models: dict = field(default_factory=dict)
 
 
 _DIST_NAMES = ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6")
@@ -468,18 +472,28 @@ def calibrate_views(
     n_pts = np.array([v.n for v in views], float)
     rows: list[tuple[Candidate, ModelFit, np.ndarray]] = []
     folds: dict[str, list[CameraModel]] = {}
+    excluded: dict[str, str] = {}
     for cand in candidates:
         cams: list[CameraModel] = []
         try:
             fit = fit_model(views, image_size, cand)
+            fold = distortion_validity(fit.camera, n_angles=72, n_radii=600).fold_radius_px
+            reach = observed_radius(fit.camera, views)
+            if fold is not None and fold < reach:
+                # A model that is not one-to-one where the data are cannot be right, however well it fits.
+                excluded[cand.name] = f"folds over at {fold:.0f} px, inside the observed radius {reach:.0f} px"
+                continue
             mse = held_out_errors(views, image_size, cand, k, cams)
-        except CalibrationError:
+        except CalibrationError as e:
+            excluded[cand.name] = str(e)
             continue
         if np.all(np.isfinite(mse)):
             rows.append((cand, fit, mse))
             folds[cand.name] = cams
     if not rows:
-        raise CalibrationError("no distortion model could be fitted to these views; check the board size and images")
+        raise CalibrationError("no distortion model could be fitted to these views ("
+                               + "; ".join(f"{k2}: {v}" for k2, v in excluded.items())
+                               + "); check the board size and the images")
 
     def pooled(mse: np.ndarray) -> float:
         return float(np.sqrt(np.sum(mse * n_pts) / np.sum(n_pts)))
@@ -519,7 +533,7 @@ def calibrate_views(
         "grid": [None if not np.isfinite(s) else float(s) for s in sig_grid],
     }
     return CalibrationResult(camera, fit, views, rejections, scores, std, cov, names, proj, k,
-                             std_jackknife=jackknife_std(folds[chosen.name]))
+                             std_jackknife=jackknife_std(folds[chosen.name]), excluded_models=excluded)
 
 
 @dataclass(frozen=True)

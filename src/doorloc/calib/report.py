@@ -109,6 +109,7 @@ def report_dict(result: CalibrationResult, scan: BoardScan | None = None, board:
         "model_selection": {
             "rule": "fewest parameters among the models within one standard error of the best held-out RMS",
             "folds": result.n_folds,
+            "excluded": result.excluded_models,
             "candidates": [
                 {"name": s.name, "n_params": s.n_params, "train_rms_px": s.train_rms_px,
                  "held_out_rms_px": s.held_out_rms_px, "chosen": s.chosen}

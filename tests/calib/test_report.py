@@ -1,0 +1,52 @@
+"""The calibration report: coverage, warnings a person can act on, JSON + PNG written atomically."""
+
+from __future__ import annotations
+
+import json
+
+import cv2
+import pytest
+
+from conftest import OPENCV_LEFT
+from doorloc.calib.calibrate import CANDIDATES_BY_NAME, calibrate_views
+from doorloc.calib.report import calibration_warnings, coverage_grid, report_dict, write_report
+
+
+@pytest.fixture(scope="module")
+def left(opencv_left):
+    board, scan, views = opencv_left
+    return board, scan, calibrate_views(views, scan.image_size, candidates=(CANDIDATES_BY_NAME["plumb_bob"],))
+
+
+def test_coverage_counts_every_kept_corner(left):
+    _, _, res = left
+    grid = coverage_grid(res)
+    assert grid.shape == (6, 8)
+    assert grid.sum() == sum(v.n for v in res.views)
+    assert grid[:, 0].sum() < grid[:, 3].sum()  # the left edge of these photographs is barely covered
+
+
+def test_warnings_name_what_to_do(left):
+    _, scan, res = left
+    warnings = calibration_warnings(res, scan)
+    text = "\n".join(warnings)
+    assert "reached only" in text and "add views with the board near the image corners" in text
+    assert "top-left" in text  # the uncovered part of the image is named
+
+
+def test_report_json_and_png(left, tmp_path):
+    board, scan, res = left
+    doc = report_dict(res, scan, board)
+    for key in ("camera_matrix", "dist_coeffs", "rms_px", "std_1sigma", "std_jackknife", "model_selection", "views",
+                "rejected", "coverage", "observed_radius_px", "projection_uncertainty_px", "validity", "warnings"):
+        assert key in doc
+    assert doc["board"] == {"type": "Chessboard", "cols": 9, "rows": 6, "square_mm": 25.0}
+    assert doc["validity"]["observed_radius_px"] == pytest.approx(res.camera.observed_radius_px)
+    bg = cv2.imread(str(OPENCV_LEFT / "left01.jpg"))
+    jpath, ppath = write_report(tmp_path / "rep", res, scan, board, bg)
+    assert json.loads(jpath.read_text())["model_selection"]["candidates"][0]["name"] == "plumb_bob"
+    png = cv2.imread(str(ppath))
+    assert png.shape[0] == 480 and png.shape[1] > 640
+    assert sorted(p.name for p in (tmp_path / "rep").iterdir()) == ["calibration_report.json", "calibration_report.png"]
+    green = (png[:, :640, 1] > 200) & (png[:, :640, 0] < 60) & (png[:, :640, 2] < 60)
+    assert green.sum() > 200  # the observed-radius circle is drawn
