@@ -217,3 +217,11 @@ def test_real_pipeline_on_a_rendered_door(cell, store, recipe, encode_png):
         overlay = cv2.imdecode(np.frombuffer(base64.b64decode(a["overlay_png"]), np.uint8), cv2.IMREAD_UNCHANGED)
         assert overlay.shape == (1080, 1920, 3)
         assert 'doorloc_locate_results_total{outcome="answered"} 1.0' in c.get("/metrics").text
+
+
+def test_settings_come_from_the_environment(monkeypatch):
+    monkeypatch.setenv("DOORLOC_API_KEY", "")
+    monkeypatch.setenv("DOORLOC_MAX_UPLOAD_BYTES", "1234")
+    s = ServiceSettings()
+    assert s.api_key is None  # set but empty is no key, not the empty key
+    assert s.max_upload_bytes == 1234

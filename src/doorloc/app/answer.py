@@ -77,11 +77,14 @@ def door_from_fields(
     Raises ValueError (from :class:`DoorSize`) for non-positive or non-finite sizes.
     """
     d = cell.default_door
+    thickness = float(thickness_mm) if thickness_mm is not None else d.thickness_mm
+    # The request cannot name an arris; the cell's typical one applies where it fits this door.
+    arris = d.arris_mm if d.arris_mm < thickness / 2 else 0.0
     return DoorSize(
         float(width_mm) if width_mm is not None else d.width_mm,
-        float(thickness_mm) if thickness_mm is not None else d.thickness_mm,
+        thickness,
         float(height_mm) if height_mm is not None else d.height_mm,
-        d.arris_mm if thickness_mm is None else min(d.arris_mm, float(thickness_mm) / 2 * 0.99),
+        arris,
     )
 
 

@@ -19,6 +19,7 @@ from __future__ import annotations
 import csv
 import json
 import os
+import pickle
 from collections import Counter
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
@@ -360,8 +361,6 @@ def run_ray(
             ray.init(num_cpus=max(1, workers), **kwargs)
         started_here = True
     try:
-        import pickle
-
         ctx = ray.data.DataContext.get_current()
         ctx.enable_progress_bars = False
         # Rows carry the pickled item: a DoorChoice holds a pydantic recipe, which Arrow cannot store as columns.

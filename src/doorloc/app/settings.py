@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import os
 
-from pydantic import Field, SecretStr
+from pydantic import Field, SecretStr, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 __all__ = ["ServiceSettings"]
@@ -48,3 +48,9 @@ class ServiceSettings(BaseSettings):
         description="cv2.setNumThreads for the process: requests run in parallel already, so 1 avoids oversubscription",
     )
     log_level: str = Field("INFO", description="level of the structured request log")
+
+    @field_validator("api_key", "cell", "database_url", mode="before")
+    @classmethod
+    def _empty_is_unset(cls, v: object) -> object:
+        # DOORLOC_API_KEY= (set but empty) must not mean "the key is the empty string"
+        return None if v == "" else v
