@@ -19,6 +19,7 @@ from doorloc.pose import DoorPose
 from doorloc.sim.door import render_door
 
 DOORLOC = [sys.executable, "-m", "doorloc"]
+CELL_FILE = str(Path(__file__).resolve().parents[2] / "fixtures" / "cell_thesis.yaml")
 POSES = [DoorPose(0.0, 0.0, 0.0), DoorPose(3.0, -4.0, 0.8), DoorPose(-6.0, 5.0, -1.5), DoorPose(8.0, 2.0, 1.2)]
 
 
@@ -73,7 +74,7 @@ def test_find_images_goes_by_content_not_by_name(door_folder):
 def test_batch_end_to_end(door_folder, tmp_path, cell):
     root, truth = door_folder
     out = tmp_path / "results.jsonl"
-    p = _batch(str(root), "--cell", "fixtures/cell_thesis.yaml", "--out", str(out), "--workers", "2")
+    p = _batch(str(root), "--cell", CELL_FILE, "--out", str(out), "--workers", "2")
     assert p.returncode == 1, p.stderr  # some images refused/failed
     recs = _records(out)
     assert set(recs) == {"a.png", "black.png", "broken.png", "c.tif", "d_image.dat", "line2/b.png"}
@@ -92,7 +93,7 @@ def test_existing_results_are_never_overwritten(door_folder, tmp_path):
     root, _ = door_folder
     out = tmp_path / "results.jsonl"
     out.write_text('{"image": "x"}\n')
-    p = _batch(str(root), "--cell", "fixtures/cell_thesis.yaml", "--out", str(out))
+    p = _batch(str(root), "--cell", CELL_FILE, "--out", str(out))
     assert p.returncode == 2
     assert "--resume" in p.stderr and "Traceback" not in p.stderr
     assert out.read_text() == '{"image": "x"}\n'
@@ -101,13 +102,13 @@ def test_existing_results_are_never_overwritten(door_folder, tmp_path):
 def test_resume_drops_a_torn_line_and_runs_only_what_is_missing(door_folder, tmp_path):
     root, _ = door_folder
     full = tmp_path / "full.jsonl"
-    assert _batch(str(root), "--cell", "fixtures/cell_thesis.yaml", "--out", str(full), "--workers", "1").returncode == 1
+    assert _batch(str(root), "--cell", CELL_FILE, "--out", str(full), "--workers", "1").returncode == 1
     reference = _records(full)
     lines = full.read_bytes().split(b"\n")[:-1]
     cut = tmp_path / "cut.jsonl"
     # as if killed while writing the 4th record: 3 complete lines and half of the 4th
     cut.write_bytes(b"\n".join(lines[:3]) + b"\n" + lines[3][: len(lines[3]) // 2])
-    p = _batch(str(root), "--cell", "fixtures/cell_thesis.yaml", "--out", str(cut), "--resume", "--workers", "1")
+    p = _batch(str(root), "--cell", CELL_FILE, "--out", str(cut), "--resume", "--workers", "1")
     assert p.returncode == 1, p.stderr
     assert "3 were already done" in p.stderr
     resumed = _records(cut)
@@ -117,11 +118,11 @@ def test_resume_drops_a_torn_line_and_runs_only_what_is_missing(door_folder, tmp
 def test_kill_9_then_resume_gives_the_same_records(door_folder, tmp_path):
     root, _ = door_folder
     reference_out = tmp_path / "reference.jsonl"
-    assert _batch(str(root), "--cell", "fixtures/cell_thesis.yaml", "--out", str(reference_out),
+    assert _batch(str(root), "--cell", CELL_FILE, "--out", str(reference_out),
                   "--workers", "2").returncode == 1
     out = tmp_path / "killed.jsonl"
     proc = subprocess.Popen(
-        [*DOORLOC, "batch", str(root), "--cell", "fixtures/cell_thesis.yaml", "--out", str(out), "--workers", "1"],
+        [*DOORLOC, "batch", str(root), "--cell", CELL_FILE, "--out", str(out), "--workers", "1"],
         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
     )
     deadline = time.monotonic() + 120
@@ -133,7 +134,7 @@ def test_kill_9_then_resume_gives_the_same_records(door_folder, tmp_path):
     proc.wait(timeout=30)
     n_before = out.read_bytes().count(b"\n")
     assert 2 <= n_before < 6, "the kill should land mid-run"
-    p = _batch(str(root), "--cell", "fixtures/cell_thesis.yaml", "--out", str(out), "--resume", "--workers", "2")
+    p = _batch(str(root), "--cell", CELL_FILE, "--out", str(out), "--resume", "--workers", "2")
     assert p.returncode == 1, p.stderr
     got, ref = _records(out), _records(reference_out)
     assert {k: _comparable(v) for k, v in got.items()} == {k: _comparable(v) for k, v in ref.items()}
@@ -149,7 +150,7 @@ def test_manifest_with_door_ids_and_sizes(door_folder, tmp_path, cell, recipe):
     manifest = tmp_path / "manifest.csv"
     manifest.write_text("image,door_id,width_mm,thickness_mm\na.png,D-100,,\nline2/b.png,,900,50\nc.tif,NOPE,,\n")
     out = tmp_path / "m.jsonl"
-    p = _batch(str(root), "--cell", "fixtures/cell_thesis.yaml", "--out", str(out), "--manifest", str(manifest),
+    p = _batch(str(root), "--cell", CELL_FILE, "--out", str(out), "--manifest", str(manifest),
                "--database-url", db, "--workers", "1")
     assert p.returncode == 1, p.stderr
     recs = _records(out)

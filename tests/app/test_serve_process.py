@@ -8,6 +8,7 @@ import socket
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import cv2
 import httpx
@@ -15,6 +16,8 @@ import pytest
 
 from doorloc.pose import DoorPose
 from doorloc.sim.door import render_door
+
+CELL_FILE = str(Path(__file__).resolve().parents[2] / "fixtures" / "cell_thesis.yaml")
 
 
 def _free_port() -> int:
@@ -27,7 +30,7 @@ def test_serve_with_two_workers_answers_and_stops(cell, tmp_path):
     port = _free_port()
     env = {**os.environ, "DOORLOC_DATABASE_URL": f"sqlite:///{tmp_path / 'recipes.db'}"}
     proc = subprocess.Popen(
-        [sys.executable, "-m", "doorloc", "serve", "--cell", "fixtures/cell_thesis.yaml", "--host", "127.0.0.1",
+        [sys.executable, "-m", "doorloc", "serve", "--cell", CELL_FILE, "--host", "127.0.0.1",
          "--port", str(port), "--workers", "2"],
         env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True,
     )
