@@ -101,7 +101,8 @@ def cell_calibration() -> None:
         true_scale = cell.posed_camera.scale_mm_per_px(np.zeros(3))
         print(f"  board origin {origin}: RMS {res.rms_px:.3f} px; tvec error {np.linalg.norm(res.extrinsics.tvec_mm - ext.tvec_mm):.3f} mm; "
               f"rotation error {ang:.4f} deg; reference corner pixel error "
-              f"{np.linalg.norm(res.reference_corner_px - true_corner):.3f} px; scale {res.scale_mm_per_px:.5f} mm/px "
+              f"{np.linalg.norm(res.reference_corner_px - true_corner):.3f} px (reported 1s "
+              f"{res.reference_corner_sigma_px:.3f} px); scale {res.scale_mm_per_px:.5f} mm/px "
               f"(true {true_scale:.5f})")
 
 

@@ -176,6 +176,7 @@ def register(app: typer.Typer) -> None:
         Prints the reprojection error and the mm per pixel at the reference corner. Exit codes:
         0 written, 1 refused (no board, or a poor fit), 2 bad arguments or files.
         """
+        import numpy as np
         import yaml
 
         from doorloc.calib.cell import CellCalibrationError, board_points_in_cell, calibrate_cell_extrinsics
@@ -226,7 +227,19 @@ def register(app: typer.Typer) -> None:
                    f"tvec_mm {[round(v, 3) for v in res.extrinsics.tvec_mm]}")
         typer.echo(f"board RMS {res.rms_px:.3f} px (max {res.max_residual_px:.3f} px, {res.n_corners} corners); "
                    f"reference corner at pixel ({res.reference_corner_px[0]:.1f}, {res.reference_corner_px[1]:.1f}), "
-                   f"{res.scale_mm_per_px:.4f} mm/px")
+                   f"{res.scale_mm_per_px:.4f} mm/px; reference corner uncertainty "
+                   f"{res.reference_corner_sigma_px * res.scale_mm_per_px:.4f} mm (1 sigma, intrinsics exact)")
+        from doorloc.calib.camera import distortion_validity
+
+        valid = distortion_validity(the_cell.camera).valid_radius_px
+        if valid is not None:
+            c = np.array([the_cell.camera.cx, the_cell.camera.cy])
+            reach = float(max(np.linalg.norm(det.corners_px - c, axis=1).max(),
+                              np.linalg.norm(res.reference_corner_px - c)))
+            if reach > valid:
+                typer.echo(f"warning: the board or the reference corner lies {reach:.0f} px from the principal point, "
+                           f"beyond the camera model's valid radius {valid:.0f} px (doorloc validity "
+                           f"{cell}); recalibrate the camera with views reaching there", err=True)
 
     @app.command("validity")
     def validity(

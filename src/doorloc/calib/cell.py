@@ -46,6 +46,10 @@ class CellCalibration:
         Size of one pixel on the hinge-face plane at the reference corner (the thesis's dynamic
         scaling factor), mm.
     camera_centre_cell_mm : ndarray, shape (3,)
+    reference_corner_sigma_px : float
+        1-sigma uncertainty (major axis) of where the reference corner projects, from the pose's
+        covariance (Gauss-Newton, intrinsics taken as exact); times ``scale_mm_per_px`` it is how
+        far this calibration may misplace the reference corner on the hinge face.
     """
 
     extrinsics: Extrinsics
@@ -55,6 +59,7 @@ class CellCalibration:
     reference_corner_px: np.ndarray
     scale_mm_per_px: float
     camera_centre_cell_mm: np.ndarray
+    reference_corner_sigma_px: float = float("nan")
 
     def to_dict(self) -> dict:
         return {
@@ -64,6 +69,8 @@ class CellCalibration:
             "reference_corner_px": [float(v) for v in self.reference_corner_px],
             "scale_mm_per_px": self.scale_mm_per_px,
             "camera_centre_cell_mm": [float(v) for v in self.camera_centre_cell_mm],
+            "reference_corner_sigma_px": self.reference_corner_sigma_px,
+            "reference_corner_sigma_mm": self.reference_corner_sigma_px * self.scale_mm_per_px,
         }
 
 
@@ -133,6 +140,14 @@ def calibrate_cell_extrinsics(camera: CameraModel, points_cell_mm: np.ndarray, c
     res = img - pc.project_cell(obj)
     norms = np.linalg.norm(res, axis=1)
     ref = np.array([0.0, float(reference_face_y_mm), 0.0])
+    # Pose covariance s^2 (J^T J)^-1 from the board corners, propagated to the reference corner pixel.
+    _, jac = cv2.projectPoints(o3, r, t, K, d)
+    J = jac[:, :6]
+    s2 = float(np.sum(res**2)) / max(2 * len(obj) - 6, 1)
+    cov = s2 * np.linalg.pinv(J.T @ J)
+    _, jref = cv2.projectPoints(ref.reshape(1, 1, 3), r, t, K, d)
+    S = jref[:, :6] @ cov @ jref[:, :6].T
+    ref_sigma = float(np.sqrt(max(np.linalg.eigvalsh(S)[-1], 0.0)))
     return CellCalibration(
         extrinsics=ext,
         rms_px=float(np.sqrt(np.mean(norms**2))),
@@ -141,4 +156,5 @@ def calibrate_cell_extrinsics(camera: CameraModel, points_cell_mm: np.ndarray, c
         reference_corner_px=pc.project_cell(ref[None])[0],
         scale_mm_per_px=pc.scale_mm_per_px(ref),
         camera_centre_cell_mm=ext.camera_centre_cell,
+        reference_corner_sigma_px=ref_sigma,
     )
