@@ -165,7 +165,10 @@ def coarse_edges(
         top = resp[np.arange(len(scan)), best]
         peak = np.zeros_like(ok)
         peak[:, 1:-1] = (resp[:, 1:-1] >= resp[:, :-2]) & (resp[:, 1:-1] > resp[:, 2:])
-        cand = peak & (resp >= prefer_fraction * top[:, None]) & (resp > 0)
+        # Noise floor of the detector on each scan line (most of a band is flat): a candidate must
+        # stand clear of it, not only reach a fraction of the strongest step.
+        floor = 1.4826 * np.median(np.abs(np.where(ok, resp, 0.0)), axis=1)
+        cand = peak & (resp >= np.maximum(prefer_fraction * top, 5.0 * floor)[:, None]) & (resp > 0)
         pos = lo[:, None] + stride * k[None, :] - 0.5 * stride
         dist = np.where(cand, np.abs(pos - np.asarray(prefer, float)[:, None]), np.inf)
         near = np.argmin(dist, axis=1)
@@ -375,8 +378,9 @@ def subpixel_edges_banded(
     L = float(np.median(mid[wide])) if np.any(wide) else float("nan")
     S = (core - A[:, None]).sum(axis=1)
     with np.errstate(divide="ignore", invalid="ignore"):
-        # distance from the door-side end of the window back to the outer edge
-        Lw = (L - A) * w if np.isfinite(L) else np.zeros_like(A)
+        # distance from the door-side end of the window back to the outer edge; a band too narrow to
+        # measure anywhere is taken at mid-grey between the two sides (error at most half its width)
+        Lw = (L - A) * w if np.isfinite(L) else 0.5 * (B - A) * w
         d_end = w + (S - Lw) / (B - A)
         e_mirror = (core.shape[1] - 0.5) - d_end  # in core index units, core starts at mirrored c0 - half
         along = np.where(door_side > 0, c0 - half + e_mirror, c0 + half - e_mirror)

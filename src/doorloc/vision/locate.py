@@ -179,8 +179,11 @@ def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half:
         t = tracks[name]
         if t.band_px is not None:
             interior = lay.polarity * (1 if cfg.door_brighter else -1)
+            # An arris strip lies on the door side of the outline; the far face's band lies outside the far
+            # arris (the hinge face ends at the band's inner edge).
+            side = -interior if t.beside_far_face else interior
             out[name], _ = subpixel_edges_banded(plane, lay.axis, t.scan[::every], t.centre[::every], half,
-                                                 t.band_px[::every], interior, cfg.plateau, scale8,
+                                                 t.band_px[::every], side, cfg.plateau, scale8,
                                                  level_smooth=max(cfg.level_smooth // every, 1) if cfg.level_smooth else 0)
             continue
         out[name] = subpixel_edges(plane, lay.axis, t.scan[::every], t.centre[::every], half, cfg.plateau, scale8,
@@ -267,7 +270,7 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
     # thickness, measures the door that is there (a 12 mm panel where a 50 mm door was expected).
     near = (band_far.lo if xdir > 0 else band_far.hi).astype(float)
     along_f, strength_f = coarse_edges(plane, far_lay.axis, band_far.scan, band_far.lo, band_far.hi, 0, half=2,
-                                       prefer=near, prefer_fraction=0.3, stride=2)
+                                       prefer=near, prefer_fraction=0.1, stride=2)
     strong_f = np.isfinite(along_f) & (strength_f >= thr)
     far_line = ransac_line(band_far.scan[strong_f], along_f[strong_f], tol) if strong_f.sum() >= 10 else None
     if far_line is None or far_line.inliers.sum() < 0.3 * len(band_far.scan):
@@ -325,21 +328,29 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
     clock.lap("coarse_pose")
     # -- sub-pixel passes ---------------------------------------------------------------------------
     half = cfg.half_window_max
-    for _pass in range(2):
-        # The first pass, on every other scan line, only centres and sizes the final windows.
-        samples, far_beside = _sample(plane, region, pose, math.radians(pose.yaw_deg), half, cfg, s8, every=3 - 2 * _pass)
-        clock.lap(f"edges{_pass + 1}")
+    n_pass = 2
+    _pass = 0
+    while _pass < n_pass:
+        # The first pass, on every third scan line, only centres and sizes the final windows.
+        samples, far_beside = _sample(plane, region, pose, math.radians(pose.yaw_deg), half, cfg, s8,
+                                      every=3 if _pass == 0 else 1)
+        if far_beside and _pass == 1:
+            # The far face's band width follows from the thickness being measured: iterate (each round
+            # shrinks the error about four-fold).
+            n_pass = 4
+        clock.lap(f"edges{min(_pass + 1, 2)}")
         if _pass == 0:
             fit, init = _fit(samples, region, cfg, n_iter=6, far_offset_only=far_beside)
         else:
             fit, init = _fit(samples, region, cfg, far_offset_only=far_beside)
         pose = pose_from_fit(fit, region.face_map)
-        clock.lap(f"fit{_pass + 1}")
+        clock.lap(f"fit{min(_pass + 1, 2)}")
         if _pass == 0:
             # Size the final window to the measured blur: wide enough for the transition, no wider (noise).
             widths = [transition_width(plane, samples[k], fit.weights[k] > 0, half) for k in EDGE_NAMES]
             blur = float(np.nanmax(widths)) if np.any(np.isfinite(widths)) else float(cfg.half_window_max)
             half = int(np.clip(math.ceil(cfg.window_blur_factor * blur + 1.0), cfg.half_window_min, cfg.half_window_max))
+        _pass += 1
     tr.samples = samples
     tr.inliers = {k: fit.weights[k] > 0 for k in EDGE_NAMES}
     tr.pose = pose

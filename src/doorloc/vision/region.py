@@ -249,11 +249,13 @@ class SearchRegion:
             centre = _interp_on_scans(uv, lay.axis, scans)
             ok = np.isfinite(centre) & (centre >= 0) & (centre <= n_along - 1)
             beside = name == "far" and self.far_face_visible(corner, yaw_rad, thickness_mm)
-            if beside:
-                ok &= self._far_face_band_ok(pl, uv, scans, centre, window_px, lay.axis)
             band = None
+            if beside:
+                ok_band, width = self._far_face_band(pl, uv, scans, centre, window_px, lay.axis)
+                ok &= ok_band
+                band = width[ok]
             a = self.door.arris_mm
-            if a > 0:
+            if a > 0 and not beside:
                 # The arris strip runs from the outline (depth face_y + a) to the hinge face's own edge,
                 # a mm inwards at depth face_y.
                 inward = ez if name == "bottom" else (ex if name == "reference" else -ex)
@@ -262,17 +264,18 @@ class SearchRegion:
             out[name] = Track(scans[ok], centre[ok], beside, band)
         return out
 
-    def _far_face_band_ok(self, pl, uv, scans, centre, window_px, axis) -> np.ndarray:
-        """Scan lines where the visible far face shows as a band at least ``window_px`` wide."""
+    def _far_face_band(self, pl, uv, scans, centre, window_px, axis) -> tuple[np.ndarray, np.ndarray]:
+        """Scan lines beside the visible far face (above its bottom edge) and the face's band width there, px."""
         back = self.plane_map.at_depth(self.face_y + self.door.width_mm)
-        uv_back = back.to_image(pl)  # the far face's back edge: same (X, Z) line, at the door's far side
+        # The far face's back edge: the same (X, Z) line at the door's far side, seen smaller (farther):
+        # extend it up the door so that it spans the image.
+        d = pl[-1] - pl[0]
+        t = np.linspace(0.0, max(self.door.height_mm / max(float(np.hypot(*d)), 1e-9), 1.0), 200)
+        uv_back = back.to_image(pl[0][None] + t[:, None] * d[None])
         band = np.abs(_interp_on_scans(uv_back, axis, scans) - centre)
         # Below the far face's bottom edge (it rises towards the back) there is no band.
         s_corner, _ = _along_scan(uv[:1], axis)
         s_back, _ = _along_scan(uv_back[:1], axis)
         d = np.sign(s_back[0] - s_corner[0])
         above = (scans - s_back[0]) * d >= window_px if d != 0 else np.ones(scans.size, bool)
-        good = np.isfinite(band) & (band >= window_px) & above
-        if good.sum() < 20:  # a hair-thin band everywhere: measure what there is (the thickness check says more)
-            good = above
-        return good
+        return above & np.isfinite(band), np.where(np.isfinite(band), band, 0.0)

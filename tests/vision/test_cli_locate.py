@@ -1,0 +1,78 @@
+"""`doorloc locate`: JSON on stdout, exit 0 located / 1 refused / 2 bad input, overlay written atomically."""
+
+from __future__ import annotations
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from doorloc.app.cli import app
+from doorloc.cell import DoorSize, load_cell
+from doorloc.pose import DoorPose
+from doorloc.sim.door import render_door
+from doorloc.vision.imageio import ImageDecodeError, decode_image, read_image
+
+
+@pytest.fixture(scope="module")
+def door_png(tmp_path_factory, thesis_cell_path):
+    cell = load_cell(thesis_cell_path)
+    img = render_door(cell, DoorSize(900, 50, 2100), DoorPose(2.0, -1.0, 0.4)).image
+    p = tmp_path_factory.mktemp("img") / "door.png"
+    cv2.imwrite(str(p), img)
+    return p
+
+
+def test_locate_prints_result_and_writes_overlay(door_png, thesis_cell_path, tmp_path):
+    out = tmp_path / "sub" / "overlay.png"
+    r = CliRunner().invoke(app, ["locate", str(door_png), "--cell", str(thesis_cell_path), "--door-thickness", "50",
+                                 "--overlay", str(out)])
+    assert r.exit_code == 0, r.output
+    res = json.loads(r.stdout)
+    assert res["ok"] is True and res["image"] == str(door_png)
+    assert abs(res["x_mm"] - 2.0) < 0.005 and abs(res["z_mm"] + 1.0) < 0.005 and abs(res["yaw_deg"] - 0.4) < 0.002
+    for key in ("thickness_mm", "scale_mm_per_px", "corner_px", "error", "elapsed_ms", "lines"):
+        assert key in res
+    ov = cv2.imread(str(out))
+    assert ov is not None and ov.shape == (1080, 1920, 3)
+    assert not list(out.parent.glob(".overlay.png.*"))  # no temporary file left behind
+
+
+def test_refusal_exits_1_with_reason(door_png, thesis_cell_path):
+    r = CliRunner().invoke(app, ["locate", str(door_png), "--cell", str(thesis_cell_path), "--door-thickness", "70"])
+    assert r.exit_code == 1
+    res = json.loads(r.stdout)
+    assert res["ok"] is False and res["error_code"] == "thickness_mismatch" and res["x_mm"] is None
+
+
+@pytest.mark.parametrize("case", ["missing", "garbage", "bad_cell", "bad_door"])
+def test_bad_input_exits_2_with_one_sentence(case, door_png, thesis_cell_path, tmp_path):
+    img, cell = str(door_png), str(thesis_cell_path)
+    extra = []
+    if case == "missing":
+        img = str(tmp_path / "nope.png")
+    elif case == "garbage":
+        p = tmp_path / "x.png"
+        p.write_bytes(b"not an image at all")
+        img = str(p)
+    elif case == "bad_cell":
+        p = tmp_path / "cell.yaml"
+        p.write_text("camera: {}\n")
+        cell = str(p)
+    else:
+        extra = ["--door-thickness", "-5"]
+    r = CliRunner().invoke(app, ["locate", img, "--cell", cell, *extra])
+    assert r.exit_code == 2
+    assert "doorloc: error:" in r.stderr and "Traceback" not in r.output
+
+
+def test_imageio_decodes_and_refuses(door_png):
+    img = read_image(door_png)
+    assert img.shape == (1080, 1920) and img.dtype == np.uint8
+    assert np.array_equal(decode_image(door_png.read_bytes()), img)
+    with pytest.raises(ImageDecodeError, match="no image data"):
+        decode_image(b"")
+    with pytest.raises(ImageDecodeError, match="not a readable image"):
+        decode_image(b"\x89PNG garbage")
