@@ -152,6 +152,13 @@ class CameraModel:
         xd, _ = self._distort_and_jacobian(_as_points2(xy), jacobian=False)
         return xd
 
+    def distort_with_jacobian(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Distortion and its Jacobian at ideal normalized points.
+
+        Shapes ``(..., 2) -> ((..., 2), (..., 2, 2))``; ``J[..., i, j] = d x_d[i] / d x[j]``.
+        """
+        return self._distort_and_jacobian(_as_points2(xy))
+
     def _distort_and_jacobian(self, xy: np.ndarray, jacobian: bool = True):
         k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4 = self.coeffs12
         x, y = xy[..., 0], xy[..., 1]

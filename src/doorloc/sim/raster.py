@@ -321,7 +321,7 @@ def exact_ideal_and_jacobian(camera: CameraModel, uv: np.ndarray) -> tuple[np.nd
         return xd, np.broadcast_to(kinv, (uv.shape[0], 2, 2)).copy()
     q = camera.undistort_normalized(xd)
     # d(distort)/dq at the solution; the inverse maps sensor steps to ideal steps.
-    _, jd = camera._distort_and_jacobian(np.nan_to_num(q))
+    _, jd = camera.distort_with_jacobian(np.nan_to_num(q))
     det = jd[:, 0, 0] * jd[:, 1, 1] - jd[:, 0, 1] * jd[:, 1, 0]
     inv = np.empty_like(jd)
     inv[:, 0, 0] = jd[:, 1, 1] / det
