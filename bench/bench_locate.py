@@ -169,7 +169,8 @@ def stats(errs):
         return {}
     names = ("x_mm", "z_mm", "yaw_deg", "thickness_mm")
     return {f"rms_{k}": float(np.sqrt(np.mean(e[:, i] ** 2))) for i, k in enumerate(names)} | {
-        f"max_{k}": float(np.max(np.abs(e[:, i]))) for i, k in enumerate(names)}
+        f"max_{k}": float(np.max(np.abs(e[:, i]))) for i, k in enumerate(names)} | {
+        f"median_abs_{k}": float(np.median(np.abs(e[:, i]))) for i, k in enumerate(names)}
 
 
 def main() -> None:
@@ -248,7 +249,9 @@ def main() -> None:
     print(f"speed: locate median {sp['locate_median_ms']:.2f} ms, Canny+fitLine median {sp['baseline_canny_fitline_median_ms']:.2f} ms, "
           f"ratio {sp['ratio_locate_over_baseline']:.2f} (one thread, decode excluded, {sp['n_timed']} images)")
     print(f"baseline accuracy (default photometry, n={b['n']}): RMS x {b.get('rms_x_mm', float('nan')):.4f} z {b.get('rms_z_mm', float('nan')):.4f} mm, "
-          f"yaw {b.get('rms_yaw_deg', float('nan')):.4f} deg, T {b.get('rms_thickness_mm', float('nan')):.4f} mm")
+          f"yaw {b.get('rms_yaw_deg', float('nan')):.4f} deg, T {b.get('rms_thickness_mm', float('nan')):.4f} mm; median |error| "
+          f"x {b.get('median_abs_x_mm', float('nan')):.4f} z {b.get('median_abs_z_mm', float('nan')):.4f} mm, "
+          f"yaw {b.get('median_abs_yaw_deg', float('nan')):.4f} deg")
     print(f"worst ok=true error over all sets: {worst['pos_mm']:.4f} mm, {worst['yaw_deg']:.5f} deg")
     if args.json:
         args.json.write_text(json.dumps(report, indent=2))

@@ -76,3 +76,22 @@ def test_imageio_decodes_and_refuses(door_png):
         decode_image(b"")
     with pytest.raises(ImageDecodeError, match="not a readable image"):
         decode_image(b"\x89PNG garbage")
+
+
+def test_door_id_takes_the_size_from_the_recipe_store(door_png, thesis_cell_path, tmp_path):
+    from doorloc.recipes.models import DoorRecipe, Hinge
+    from doorloc.recipes.store import RecipeStore
+
+    url = f"sqlite:///{tmp_path / 'recipes.db'}"
+    hinge = Hinge(z_mm=250, length_mm=100, width_mm=30, x_mm=10, depth_mm=3.5, corner_radius_mm=8)
+    with RecipeStore(url) as store:
+        for door_id, thickness in (("D-50", 50.0), ("D-70", 70.0)):
+            store.put(DoorRecipe(door_id=door_id, width_mm=900, height_mm=2100, thickness_mm=thickness, arris_mm=0.0,
+                                 hinges=[hinge], tool_diameter_mm=16, spindle_rpm=18000, feed_mm_s=25))
+    base = ["locate", str(door_png), "--cell", str(thesis_cell_path), "--db", url]
+    ok = CliRunner().invoke(app, [*base, "--door-id", "D-50"])
+    assert ok.exit_code == 0, ok.output
+    wrong = CliRunner().invoke(app, [*base, "--door-id", "D-70"])
+    assert wrong.exit_code == 1 and json.loads(wrong.stdout)["error_code"] == "thickness_mismatch"
+    unknown = CliRunner().invoke(app, [*base, "--door-id", "NOPE"])
+    assert unknown.exit_code == 2 and "no door recipe" in unknown.stderr
