@@ -224,7 +224,8 @@ def main() -> None:
             worst["pos_mm"] = max(worst["pos_mm"], entry["error_mm"])
             worst["yaw_deg"] = max(worst["yaw_deg"], abs(r.yaw_deg - pose.yaw_deg))
         report["bad"][name] = entry
-        print(f"  {name:26s} {'OK (err %.4f mm)' % entry['error_mm'] if r.ok else 'refused ' + str(r.error_code)}: {r.error or ''}")
+        verdict = f"OK (err {entry['error_mm']:.4f} mm)" if r.ok else f"refused {r.error_code}"
+        print(f"  {name:26s} {verdict}: {r.error or ''}")
     # a second, warm timing pass over a few images for a stable median
     rng_imgs = [render_door(cell, d, p).image for _, p, d, _, _ in sets["random"][:8]]
     doors = [d for _, _, d, _, _ in sets["random"][:8]]

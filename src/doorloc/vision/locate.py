@@ -23,7 +23,13 @@ import numpy as np
 
 from doorloc.cell import Cell, DoorSize
 from doorloc.vision import quality as q
-from doorloc.vision.edges import EdgeSamples, coarse_edges, subpixel_edges, subpixel_edges_banded, transition_width
+from doorloc.vision.edges import (
+    EdgeSamples,
+    coarse_edges,
+    subpixel_edges,
+    subpixel_edges_banded,
+    transition_width,
+)
 from doorloc.vision.lines import RectangleFit, fit_rectangle_edges, ransac_line
 from doorloc.vision.luminance import ImageFormatError, luminance_plane
 from doorloc.vision.metric import MetricPose, pose_from_fit
