@@ -320,6 +320,8 @@ def subpixel_edges_banded(
     plateau: int = 4,
     scale_to_8bit: float = 1.0,
     level_smooth: int = 0,
+    sharp: bool = False,
+    band_slope: float = 0.0,
 ) -> tuple[EdgeSamples, float]:
     """Outer edge of a step with a band of unknown, uniform grey level on its door side (a chamfered or
     rounded arris seen as a strip between the background and the hinge face).
@@ -335,6 +337,14 @@ def subpixel_edges_banded(
         Band width on each scan line, px (>= 0).
     door_side : +1 or -1
         +1 when the door (band, then face) lies at increasing ``along``.
+    sharp : bool
+        The image has no optical blur (pixels are pure area samples). A band narrower than 3 px may have no
+        pixel wholly inside it; its level is then found as the one whose pixel-area model of the mixed
+        pixels fits best (instead of being assumed mid-grey).
+    band_slope : float
+        How the band width changes when the edge moves by 1 px towards the door side (0 for an arris
+        strip; ``-(1 - k)`` for the far face's band, whose outer edge moves only ``k`` times as far).
+        The area equation is solved with ``w = band_px + band_slope (e - centre)``.
 
     Returns
     -------
@@ -374,15 +384,23 @@ def subpixel_edges_banded(
     i0 = np.clip(np.floor(pos).astype(int), 0, length - 2)
     fr = pos - i0
     mid = vals[np.arange(len(scan)), i0] * (1 - fr) + vals[np.arange(len(scan)), i0 + 1] * fr
-    wide = finite & (w >= 2.0) & inside.all(axis=1)
+    wide = finite & (w >= 3.0) & inside.all(axis=1)  # a whole pixel inside, even if the prediction is 0.5 px off
     L = float(np.median(mid[wide])) if np.any(wide) else float("nan")
     S = (core - A[:, None]).sum(axis=1)
+    good = finite & inside.all(axis=1)
+    if not np.isfinite(L) and sharp and np.any(good & (w > 0.2)):  # too narrow to hold a whole pixel
+        L = _band_level_from_pixels(vals[good], A[good], B[good], S[good], w[good], plateau, half)
     with np.errstate(divide="ignore", invalid="ignore"):
         # distance from the door-side end of the window back to the outer edge; a band too narrow to
         # measure anywhere is taken at mid-grey between the two sides (error at most half its width)
-        Lw = (L - A) * w if np.isfinite(L) else 0.5 * (B - A) * w
-        d_end = w + (S - Lw) / (B - A)
-        e_mirror = (core.shape[1] - 0.5) - d_end  # in core index units, core starts at mirrored c0 - half
+        rho = 1.0 - ((L - A) / (B - A) if np.isfinite(L) else 0.5)  # 1 - band level, relative
+        K = core.shape[1] - 0.5  # door-side end of the window, core index units (core starts at mirrored c0 - half)
+        e_pred = half + rel_e
+        # K - e = w rho + S / D with w = w_pred + slope (e - e_pred), solved for e. A band much brighter
+        # than the face makes this ill-conditioned (the area hardly changes as the edge moves): then
+        # keep the predicted width and let the caller iterate.
+        g = band_slope if 1.0 + band_slope * np.nanmedian(rho) >= 0.5 else 0.0
+        e_mirror = (K - (w - g * e_pred) * rho - S / (B - A)) / (1.0 + g * rho)
         along = np.where(door_side > 0, c0 - half + e_mirror, c0 + half - e_mirror)
     step = (B - A) * door_side
     noise = np.sqrt(0.5 * (left.var(axis=1) + right.var(axis=1)))
@@ -392,3 +410,37 @@ def subpixel_edges_banded(
     return (EdgeSamples(axis, scan, np.where(valid, along, np.nan), step * scale_to_8bit, noise * scale_to_8bit,
                         nan, np.maximum(np.maximum(A, B), L if np.isfinite(L) else 0) * scale_to_8bit, valid),
             L * scale_to_8bit)
+
+
+def _band_level_from_pixels(vals, A, B, S, w, plateau: int, half: int, n_levels: int = 61) -> float:
+    """Band level that makes the pixel-area model of a sharp ``A | L (w) | B`` profile fit best.
+
+    For each trial level the area equation gives the edge of every profile; the trial whose modelled
+    pixels (exact area coverage of the three zones) match the measured ones best wins. Mirrored
+    coordinates as in :func:`subpixel_edges_banded`. Returns the level in the plane's units.
+    """
+    D = B - A
+    lo = np.minimum(A, B).min() - 0.5 * np.abs(D).max()
+    hi = np.maximum(A, B).max() + 0.5 * np.abs(D).max()
+    levels = np.linspace(lo, hi, n_levels)
+    n_core = vals.shape[1] - 2 * plateau
+    j = np.arange(vals.shape[1], dtype=float)[None, :]
+    cost = np.empty(n_levels)
+    for t, lev in enumerate(levels):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            d_end = w + (S - (lev - A) * w) / D
+        e = (n_core - 0.5) - d_end + plateau  # edge in vals-index coordinates (band width as predicted)
+        e = e[:, None]
+        e2 = e + w[:, None]
+        cov_b = np.clip(j + 0.5 - e2, 0.0, 1.0)
+        cov_l = np.clip(np.minimum(j + 0.5, e2) - np.maximum(j - 0.5, e), 0.0, 1.0)
+        model = A[:, None] + (lev - A)[:, None] * cov_l + D[:, None] * cov_b
+        r = (vals - model)[:, plateau:plateau + n_core]
+        cost[t] = np.nansum(r * r)
+    k = int(np.nanargmin(cost))
+    if 0 < k < n_levels - 1:  # parabolic refinement of the minimum
+        c0, c1, c2 = cost[k - 1], cost[k], cost[k + 1]
+        den = c0 - 2 * c1 + c2
+        if den > 0:
+            return float(levels[k] + 0.5 * (c0 - c2) / den * (levels[1] - levels[0]))
+    return float(levels[k])

@@ -175,7 +175,7 @@ def _coarse(plane, band: Band, axis, polarity, thr, prefer=None):
 
 
 def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half: int, cfg: LocateConfig,
-            scale8: float, every: int = 1) -> tuple[dict[str, EdgeSamples], bool]:
+            scale8: float, every: int = 1, sharp: bool = False) -> tuple[dict[str, EdgeSamples], bool]:
     keep = half + cfg.plateau + 4
     tracks = region.tracks(pose.corner, yaw_rad, pose.thickness_mm, keep, window_px=half + cfg.plateau + 2)
     out = {}
@@ -190,7 +190,8 @@ def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half:
             side = -interior if t.beside_far_face else interior
             out[name], _ = subpixel_edges_banded(plane, lay.axis, t.scan[::every], t.centre[::every], half,
                                                  t.band_px[::every], side, cfg.plateau, scale8,
-                                                 level_smooth=max(cfg.level_smooth // every, 1) if cfg.level_smooth else 0)
+                                                 level_smooth=max(cfg.level_smooth // every, 1) if cfg.level_smooth else 0,
+                                                 sharp=sharp, band_slope=t.band_slope)
             continue
         out[name] = subpixel_edges(plane, lay.axis, t.scan[::every], t.centre[::every], half, cfg.plateau, scale8,
                                    slope_smooth=max(cfg.slope_smooth // every, 1) if cfg.slope_smooth else 0,
@@ -334,16 +335,17 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
     clock.lap("coarse_pose")
     # -- sub-pixel passes ---------------------------------------------------------------------------
     half = cfg.half_window_max
+    blur = float("nan")
     n_pass = 2
     _pass = 0
     while _pass < n_pass:
         # The first pass, on every third scan line, only centres and sizes the final windows.
         samples, far_beside = _sample(plane, region, pose, math.radians(pose.yaw_deg), half, cfg, s8,
-                                      every=3 if _pass == 0 else 1)
+                                      every=3 if _pass == 0 else 1, sharp=_pass > 0 and blur < 0.6)
         if far_beside and _pass == 1:
             # The far face's band width follows from the thickness being measured: iterate (each round
             # shrinks the error about four-fold).
-            n_pass = 4
+            n_pass = 5
         clock.lap(f"edges{min(_pass + 1, 2)}")
         if _pass == 0:
             fit, init = _fit(samples, region, cfg, n_iter=6, far_offset_only=far_beside)
@@ -353,7 +355,9 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
         clock.lap(f"fit{min(_pass + 1, 2)}")
         if _pass == 0:
             # Size the final window to the measured blur: wide enough for the transition, no wider (noise).
-            widths = [transition_width(plane, samples[k], fit.weights[k] > 0, half) for k in EDGE_NAMES]
+            # (not across the far arris when the far face's band lies beside it: two steps look like blur)
+            widths = [transition_width(plane, samples[k], fit.weights[k] > 0, half) for k in EDGE_NAMES
+                      if not (k == "far" and far_beside)]
             blur = float(np.nanmax(widths)) if np.any(np.isfinite(widths)) else float(cfg.half_window_max)
             half = int(np.clip(math.ceil(cfg.window_blur_factor * blur + 1.0), cfg.half_window_min, cfg.half_window_max))
         _pass += 1

@@ -65,7 +65,8 @@ class Track:
     scan: np.ndarray
     centre: np.ndarray
     beside_far_face: bool = False
-    band_px: np.ndarray | None = None  # width of the arris strip beside the edge, px (None: no arris)
+    band_px: np.ndarray | None = None  # width of the arris strip / far-face band beside the edge, px
+    band_slope: float = 0.0  # change of band_px per px the edge moves outwards (far face: -(1 - k))
 
 
 def _along_scan(uv: np.ndarray, axis: Axis) -> tuple[np.ndarray, np.ndarray]:
@@ -250,10 +251,16 @@ class SearchRegion:
             ok = np.isfinite(centre) & (centre >= 0) & (centre <= n_along - 1)
             beside = name == "far" and self.far_face_visible(corner, yaw_rad, thickness_mm)
             band = None
+            slope = 0.0
             if beside:
                 ok_band, width = self._far_face_band(pl, uv, scans, centre, window_px, lay.axis)
                 ok &= ok_band
                 band = width[ok]
+                # The band's outer edge (the far face's back edge) is W farther away: it moves k times
+                # as far as the arris when the thickness changes.
+                c_y = self.plane_map.centre[1]
+                k = (self.face_y - c_y) / (self.face_y + self.door.width_mm - c_y)
+                slope = -(1.0 - k)
             a = self.door.arris_mm
             if a > 0 and not beside:
                 # The arris strip runs from the outline (depth face_y + a) to the hinge face's own edge,
@@ -261,7 +268,7 @@ class SearchRegion:
                 inward = ez if name == "bottom" else (ex if name == "reference" else -ex)
                 inner = self.face_map.to_image(pl + a * inward[None])
                 band = np.abs(_interp_on_scans(inner, lay.axis, scans[ok]) - centre[ok])
-            out[name] = Track(scans[ok], centre[ok], beside, band)
+            out[name] = Track(scans[ok], centre[ok], beside, band, slope)
         return out
 
     def _far_face_band(self, pl, uv, scans, centre, window_px, axis) -> tuple[np.ndarray, np.ndarray]:
