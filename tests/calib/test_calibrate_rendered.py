@@ -93,3 +93,21 @@ def test_too_few_views_is_a_clear_error(rendered):
     true, views = rendered
     with pytest.raises(CalibrationError, match="at least 4"):
         calibrate_views(views[:3], true.image_size)
+
+
+def test_a_model_folding_inside_the_data_is_excluded_and_reported(rendered, monkeypatch):
+    import doorloc.calib.calibrate as cal
+    from doorloc.calib.camera import distortion_validity
+
+    def folding_rational(camera, **kw):
+        v = distortion_validity(camera, **kw)
+        if camera.dist_coeffs.size == 8:  # pretend every rational fit folds 100 px from the centre
+            return type(v)(100.0, v.corner_radius_px, v.observed_radius_px, 100.0, False, v.corner_report, v.warnings)
+        return v
+
+    monkeypatch.setattr(cal, "distortion_validity", folding_rational)
+    true, views = rendered
+    res = calibrate_views(views[:8], true.image_size,
+                          candidates=(CANDIDATES_BY_NAME["rational"], CANDIDATES_BY_NAME["k1k2p1p2"]))
+    assert "folds over at 100 px" in res.excluded_models["rational"]
+    assert [s.name for s in res.scores] == ["k1k2p1p2"] and res.fit.candidate.name == "k1k2p1p2"
