@@ -223,8 +223,8 @@ def register(app: typer.Typer) -> None:
         doc["cell_calibration"] = {"image": str(image), "board": pattern, "square_mm": square,
                                    "board_origin_mm": list(board_origin), **res.to_dict()}
         atomic_write_text(out, yaml.safe_dump(doc, sort_keys=False, default_flow_style=None))
-        typer.echo(f"wrote {out}: rvec {[round(v, 6) for v in res.extrinsics.rvec]} "
-                   f"tvec_mm {[round(v, 3) for v in res.extrinsics.tvec_mm]}")
+        typer.echo(f"wrote {out}: rvec {[round(float(v), 6) for v in res.extrinsics.rvec]} "
+                   f"tvec_mm {[round(float(v), 3) for v in res.extrinsics.tvec_mm]}")
         typer.echo(f"board RMS {res.rms_px:.3f} px (max {res.max_residual_px:.3f} px, {res.n_corners} corners); "
                    f"reference corner at pixel ({res.reference_corner_px[0]:.1f}, {res.reference_corner_px[1]:.1f}), "
                    f"{res.scale_mm_per_px:.4f} mm/px; reference corner uncertainty "
