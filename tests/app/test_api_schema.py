@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
@@ -38,6 +39,8 @@ CONFIG = SchemathesisConfig.from_dict({
     ],
 })
 schema = schemathesis.openapi.from_asgi("/openapi.json", APP, config=CONFIG)
+#: examples per operation and mode; bench/bench_service_schema.py raises it
+EXAMPLES = int(os.environ.get("DOORLOC_SCHEMATHESIS_EXAMPLES", "40"))
 OPERATIONS = {result.ok().label: result.ok() for result in schema.get_all_operations()}
 
 
@@ -60,7 +63,7 @@ def test_api_conforms_to_its_schema(label, mode):
     operation = OPERATIONS[label]
 
     @given(case=operation.as_strategy(generation_mode=mode))
-    @settings(max_examples=40, deadline=None, suppress_health_check=list(HealthCheck), derandomize=True, database=None)
+    @settings(max_examples=EXAMPLES, deadline=None, suppress_health_check=list(HealthCheck), derandomize=True, database=None)
     def check(case):
         case.call_and_validate()
 

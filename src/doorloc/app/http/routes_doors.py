@@ -38,8 +38,9 @@ async def get_door(door_id: DoorId, state: Annotated[ServiceState, Depends(ready
     return recipe
 
 
+# 404 too: a path holding characters no door id has (e.g. a newline) matches no route at all.
 @router.put(
-    "/{door_id:path}", response_model=DoorRecipe, responses=problem_responses(400, 401, 413, 422, 503),
+    "/{door_id:path}", response_model=DoorRecipe, responses=problem_responses(400, 401, 404, 413, 422, 503),
     summary="Create or replace a door recipe",
 )
 async def put_door(
