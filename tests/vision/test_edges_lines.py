@@ -91,7 +91,7 @@ def test_rectangle_fit_recovers_angle_offsets_despite_outliers(yaw_deg, x0, z0, 
     bot = c + xs[:, None] * ex + rng.normal(0, 0.01, (120, 1)) * ez
     ref[:30] += 2.0 * ex  # a clump of outliers (debris on the edge)
     fit = fit_rectangle_edges({"bottom": (bot, True), "reference": (ref, False), "far": (far, False)})
-    assert abs(math.degrees(fit.angle_rad) - yaw_deg) < 2e-3
+    assert abs(math.degrees(fit.angle_rad) - yaw_deg) < 4e-3  # ~6 sigma for 0.01 mm point noise
     assert abs(fit.offsets["reference"] - c @ ex) < 3e-3
     assert abs(fit.offsets["far"] - fit.offsets["reference"] - thickness) < 3e-3
     assert abs(fit.offsets["bottom"] - c @ ez) < 5e-3

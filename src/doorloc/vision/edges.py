@@ -384,7 +384,9 @@ def subpixel_edges_banded(
     i0 = np.clip(np.floor(pos).astype(int), 0, length - 2)
     fr = pos - i0
     mid = vals[np.arange(len(scan)), i0] * (1 - fr) + vals[np.arange(len(scan)), i0 + 1] * fr
-    wide = finite & (w >= 3.0) & inside.all(axis=1)  # a whole pixel inside, even if the prediction is 0.5 px off
+    # A whole pixel inside the band; a band whose width follows the edge (far face) needs more room,
+    # as its predicted position may still be off.
+    wide = finite & (w >= (3.0 if band_slope else 2.0)) & inside.all(axis=1)
     L = float(np.median(mid[wide])) if np.any(wide) else float("nan")
     S = (core - A[:, None]).sum(axis=1)
     good = finite & inside.all(axis=1)

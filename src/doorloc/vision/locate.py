@@ -277,7 +277,9 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
     # thickness, measures the door that is there (a 12 mm panel where a 50 mm door was expected).
     near = (band_far.lo if xdir > 0 else band_far.hi).astype(float)
     along_f, strength_f = coarse_edges(plane, far_lay.axis, band_far.scan, band_far.lo, band_far.hi, 0, half=2,
-                                       prefer=near, prefer_fraction=0.1, stride=2)
+                                       prefer=near, stride=2,
+                                       # an arris strip makes a weak first step (face -> strip): skip it
+                                       prefer_fraction=0.3 if door.arris_mm > 0 else 0.1)
     strong_f = np.isfinite(along_f) & (strength_f >= thr)
     far_line = ransac_line(band_far.scan[strong_f], along_f[strong_f], tol) if strong_f.sum() >= 10 else None
     if far_line is None or far_line.inliers.sum() < 0.3 * len(band_far.scan):
