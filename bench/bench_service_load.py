@@ -38,13 +38,23 @@ async def _client(base: str, pngs: list, stop_at: float, k: int, latencies: list
                 errors.append(f"{type(e).__name__}: {e}")
 
 
-async def _run(base: str, pngs: list, clients: int, seconds: float) -> tuple[list, list, float]:
+async def _sample_rss(pid: int, stop_at: float, samples: list) -> None:
+    while time.monotonic() < stop_at:
+        samples.append(round(rss_mb(pid), 1))
+        await asyncio.sleep(min(10.0, max(0.0, stop_at - time.monotonic())))
+
+
+async def _run(base: str, pid: int, pngs: list, clients: int, seconds: float) -> tuple[list, list, float, list]:
     latencies: list[float] = []
     errors: list[str] = []
+    rss_samples: list[float] = []
     t0 = time.monotonic()
     stop_at = t0 + seconds
-    await asyncio.gather(*(_client(base, pngs, stop_at, k, latencies, errors) for k in range(clients)))
-    return latencies, errors, time.monotonic() - t0
+    await asyncio.gather(
+        _sample_rss(pid, stop_at, rss_samples),
+        *(_client(base, pngs, stop_at, k, latencies, errors) for k in range(clients)),
+    )
+    return latencies, errors, time.monotonic() - t0, rss_samples
 
 
 def main() -> None:
@@ -62,7 +72,7 @@ def main() -> None:
             for k in range(args.workers):
                 c.post("/v1/locate", files={"image": ("warm.png", pngs[k % len(pngs)][0], "image/png")})
         rss_start = rss_mb(pid)
-        latencies, errors, wall = asyncio.run(_run(base, pngs, args.clients, args.seconds))
+        latencies, errors, wall, rss_samples = asyncio.run(_run(base, pid, pngs, args.clients, args.seconds))
         rss_end = rss_mb(pid)
     lat_ms = sorted(x * 1e3 for x in latencies)
     p = (lambda q: lat_ms[min(len(lat_ms) - 1, int(q * len(lat_ms)))]) if lat_ms else (lambda q: float("nan"))
@@ -72,7 +82,7 @@ def main() -> None:
         "requests_ok": len(latencies), "errors": len(errors),
         "throughput_rps": round(len(latencies) / wall, 2),
         "latency_p50_ms": round(p(0.50), 1), "latency_p99_ms": round(p(0.99), 1), "latency_max_ms": round(lat_ms[-1], 1) if lat_ms else None,
-        "rss_start_mb": round(rss_start, 1), "rss_end_mb": round(rss_end, 1),
+        "rss_start_mb": round(rss_start, 1), "rss_end_mb": round(rss_end, 1), "rss_every_10s_mb": rss_samples,
     }
     print(json.dumps(figures))
     for e in errors[:10]:

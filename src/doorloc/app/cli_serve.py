@@ -37,10 +37,18 @@ def register(app: typer.Typer) -> None:
             load_cell(cell_path)  # fail here, with a sentence, rather than in every worker
         except CellFileError as e:
             raise fail(str(e)) from None
-        # The workers are separate processes that build the app from the environment (create_app_from_env).
-        os.environ["DOORLOC_CELL"] = str(Path(cell_path).resolve())
         if database_url:
             os.environ["DOORLOC_DATABASE_URL"] = database_url
+        try:
+            # Bring the recipe database's schema up to date once, here, so N workers do not race to migrate it.
+            from doorloc.recipes.store import RecipeStore
+            from doorloc.recipes.store import database_url as resolve_url
+
+            RecipeStore(resolve_url(None)).close()
+        except Exception as e:  # noqa: BLE001 - any database failure is reported as one sentence
+            raise fail(f"cannot open the recipe database: {e}") from None
+        # The workers are separate processes that build the app from the environment (create_app_from_env).
+        os.environ["DOORLOC_CELL"] = str(Path(cell_path).resolve())
         os.environ["DOORLOC_LOG_LEVEL"] = log_level.upper()
         uvicorn.run(
             "doorloc.app.http:create_app_from_env",

@@ -40,6 +40,10 @@ class ServiceMetrics:
         self.refusals = Counter(
             "doorloc_locate_refusals", "Locate refusals (ok=false) by reason", ["reason"], registry=self.registry
         )
+        self.locate_seconds = Histogram(
+            "doorloc_locate_duration_seconds", "Time spent in locate itself (decode excluded), seconds",
+            buckets=_LATENCY_BUCKETS, registry=self.registry,
+        )
         self.rejected_uploads = Counter(
             "doorloc_rejected_uploads", "Uploads refused before locate, by reason", ["reason"], registry=self.registry
         )
@@ -51,8 +55,9 @@ class ServiceMetrics:
         self.requests.labels(method, route, str(status)).inc()
         self.latency.labels(method, route).observe(seconds)
 
-    def observe_locate(self, ok: bool, reason: str | None) -> None:
+    def observe_locate(self, ok: bool, reason: str | None, elapsed_ms: float) -> None:
         self.locates.labels("answered" if ok else "refused").inc()
+        self.locate_seconds.observe(elapsed_ms / 1e3)
         if not ok:
             self.refusals.labels(reason or "unknown").inc()
 

@@ -8,10 +8,11 @@ event loop keeps answering health checks while images are being measured.
 
 from __future__ import annotations
 
+import logging
 from typing import Annotated
 
 import anyio.to_thread
-from fastapi import APIRouter, Depends, File, Form, Query, UploadFile
+from fastapi import APIRouter, Depends, File, Form, Query, Request, UploadFile
 from pydantic import Field
 
 from doorloc.app.answer import DoorChoice, answer_image, door_from_fields, overlay_png
@@ -23,6 +24,8 @@ from doorloc.app.imagesniff import sniff_image
 from doorloc.recipes.models import DOOR_ID_PATTERN
 
 __all__ = ["router"]
+
+_log = logging.getLogger("doorloc.http")
 
 router = APIRouter(dependencies=[Depends(require_api_key)])
 
@@ -38,6 +41,7 @@ DoorMm = Annotated[float | None, Field(gt=0, le=10_000, allow_inf_nan=False)]
     responses=problem_responses(400, 401, 413, 415, 422, 503),
 )
 async def post_locate(
+    request: Request,
     image: Annotated[UploadFile, File(description="the camera image: PNG, JPEG, TIFF or BMP, in the calibrated pixel frame")],
     state: Annotated[ServiceState, Depends(ready_state)],
     door_id: Annotated[str | None, Form(pattern=DOOR_ID_PATTERN, description="door recipe to use (gives targets)")] = None,
@@ -66,7 +70,13 @@ async def post_locate(
         raise
     finally:
         state.metrics.in_flight.dec()
-    state.metrics.observe_locate(fields["ok"], fields.get("error_code"))
+    state.metrics.observe_locate(fields["ok"], fields.get("error_code"), fields.get("elapsed_ms") or 0.0)
+    _log.info("located", extra={"fields": {
+        "event": "located", "request_id": request.scope.get("state", {}).get("request_id"), "image": name,
+        "ok": fields["ok"], "error_code": fields.get("error_code"), "x_mm": fields.get("x_mm"),
+        "z_mm": fields.get("z_mm"), "yaw_deg": fields.get("yaw_deg"), "door_id": door_id,
+        "elapsed_ms": fields.get("elapsed_ms"),
+    }})
     return fields
 
 
