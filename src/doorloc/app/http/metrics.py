@@ -48,7 +48,7 @@ class ServiceMetrics:
             "doorloc_rejected_uploads", "Uploads refused before locate, by reason", ["reason"], registry=self.registry
         )
         self.in_flight = Gauge(
-            "doorloc_locate_in_flight", "Images being decoded or located right now", registry=self.registry
+            "doorloc_locate_in_flight", "Locate requests in progress (waiting for a CPU slot or running)", registry=self.registry
         )
 
     def observe_request(self, method: str, route: str, status: int, seconds: float) -> None:
