@@ -306,7 +306,17 @@ def transition_width(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, 
     peak = float(gs.max())
     if peak <= 0:
         return float("nan")
-    return float(1.0 / (peak * math.sqrt(2.0 * math.pi)))
+    sigma = 1.0 / (peak * math.sqrt(2.0 * math.pi))
+    if sigma < 1.5:
+        # A sharp edge sampled at few sub-pixel phases makes a spiky mean gradient whose peak says
+        # little: take the second moment within +-3 px instead (the tails, where noise lives, excluded).
+        x = (np.arange(gm.size) + lo) / 4.0
+        near = np.abs(x) <= 3.0
+        wsum = float(gm[near].sum())
+        if wsum > 0:
+            mu = float((gm[near] * x[near]).sum()) / wsum
+            sigma = math.sqrt(max(float((gm[near] * (x[near] - mu) ** 2).sum()) / wsum, 0.0))
+    return float(sigma)
 
 
 def subpixel_edges_banded(
@@ -400,13 +410,13 @@ def subpixel_edges_banded(
         e_pred = half + rel_e
         # K - e = w rho + S / D with w = w_pred + slope (e - e_pred), solved for e. A band much brighter
         # than the face makes this ill-conditioned (the area hardly changes as the edge moves): then
-        # keep the predicted width and let the caller iterate.
-        g = band_slope if 1.0 + band_slope * np.nanmedian(rho) >= 0.5 else 0.0
-        e_mirror = (K - (w - g * e_pred) * rho - S / (B - A)) / (1.0 + g * rho)
+        # nothing is returned (all samples invalid) and the caller measures the plain step instead.
+        conditioned = 1.0 + band_slope * np.nanmedian(rho) >= 0.5
+        e_mirror = (K - (w - band_slope * e_pred) * rho - S / (B - A)) / (1.0 + band_slope * rho)
         along = np.where(door_side > 0, c0 - half + e_mirror, c0 + half - e_mirror)
     step = (B - A) * door_side
     noise = np.sqrt(0.5 * (left.var(axis=1) + right.var(axis=1)))
-    valid = finite & inside.all(axis=1) & np.isfinite(along) & (np.abs(B - A) > 0)
+    valid = finite & inside.all(axis=1) & np.isfinite(along) & (np.abs(B - A) > 0) & conditioned
     valid &= np.abs(along - centre) <= half
     nan = np.full(len(scan), np.nan)
     return (EdgeSamples(axis, scan, np.where(valid, along, np.nan), step * scale_to_8bit, noise * scale_to_8bit,

@@ -192,7 +192,10 @@ def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half:
                                                  t.band_px[::every], side, cfg.plateau, scale8,
                                                  level_smooth=max(cfg.level_smooth // every, 1) if cfg.level_smooth else 0,
                                                  sharp=sharp, band_slope=t.band_slope)
-            continue
+            if not (t.beside_far_face and out[name].valid.mean() < 0.5):
+                continue
+            # A hair-thin band much brighter than the face defeats the band model: measure the plain
+            # step (thickness off by at most the band's width, which the thickness check tolerates).
         out[name] = subpixel_edges(plane, lay.axis, t.scan[::every], t.centre[::every], half, cfg.plateau, scale8,
                                    slope_smooth=max(cfg.slope_smooth // every, 1) if cfg.slope_smooth else 0,
                                    level_smooth=max(cfg.level_smooth // every, 1) if cfg.level_smooth else 0)
@@ -357,9 +360,9 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
         clock.lap(f"fit{min(_pass + 1, 2)}")
         if _pass == 0:
             # Size the final window to the measured blur: wide enough for the transition, no wider (noise).
-            # (not across the far arris when the far face's band lies beside it: two steps look like blur)
-            widths = [transition_width(plane, samples[k], fit.weights[k] > 0, half) for k in EDGE_NAMES
-                      if not (k == "far" and far_beside)]
+            # (on the bottom end and the reference arris: beside the far arris a far face or an arris
+            # strip can make two steps that look like blur)
+            widths = [transition_width(plane, samples[k], fit.weights[k] > 0, half) for k in ("bottom", "reference")]
             blur = float(np.nanmax(widths)) if np.any(np.isfinite(widths)) else float(cfg.half_window_max)
             half = int(np.clip(math.ceil(cfg.window_blur_factor * blur + 1.0), cfg.half_window_min, cfg.half_window_max))
         _pass += 1
