@@ -71,7 +71,7 @@ def register(app: typer.Typer) -> None:
         ] = None,
         resume: Annotated[bool, typer.Option(help="continue an interrupted job: skip images already in --out")] = False,
         workers: Annotated[int, typer.Option(min=1, help="parallel worker processes")] = max(1, (os.cpu_count() or 2) - 1),
-        backend: Annotated[str, typer.Option(help="local (worker processes) or ray (Ray Data; pip install 'doorloc[ray]')")] = "local",
+        backend: Annotated[str, typer.Option(help="local (worker processes) or ray (Ray Data: the doorloc ray extra)")] = "local",
         ray_address: Annotated[str | None, typer.Option(help="Ray cluster address (ray backend); default: a local instance")] = None,
         database_url: Annotated[str | None, typer.Option(help="recipe database URL (for door_id in the manifest)")] = None,
     ) -> None:
