@@ -226,29 +226,42 @@ def main() -> None:
         report["bad"][name] = entry
         verdict = f"OK (err {entry['error_mm']:.4f} mm)" if r.ok else f"refused {r.error_code}"
         print(f"  {name:26s} {verdict}: {r.error or ''}")
-    # a second, warm timing pass over a few images for a stable median
-    rng_imgs = [render_door(cell, d, p).image for _, p, d, _, _ in sets["random"][:8]]
-    doors = [d for _, _, d, _, _ in sets["random"][:8]]
-    warm_ours, warm_base = [], []
-    for _ in range(3):
-        for img, d in zip(rng_imgs, doors, strict=True):
-            warm_ours.append(locate(img, cell, d).elapsed_ms)
+    # Timing on a shared machine: interleave both pipelines on the same images, repeat each image,
+    # and keep per image the best of the repeats (what the code costs, not what other processes cost),
+    # next to the plain median over all calls.
+    timing_items = sets["random"][:12]
+    imgs = [render_door(cell, d, p).image for _, p, d, _, _ in timing_items]
+    doors = [d for _, _, d, _, _ in timing_items]
+    best_ours, best_base, all_ours, all_base = [], [], [], []
+    for img, d in zip(imgs, doors, strict=True):
+        o, b_ = [], []
+        for _ in range(5):
+            o.append(locate(img, cell, d).elapsed_ms)
             t0 = time.perf_counter()
             baseline(img, cell, d)
-            warm_base.append((time.perf_counter() - t0) * 1e3)
+            b_.append((time.perf_counter() - t0) * 1e3)
+        best_ours.append(min(o))
+        best_base.append(min(b_))
+        all_ours += o
+        all_base += b_
     sp = {
-        "locate_median_ms": float(np.median(ours_ms + warm_ours)),
-        "baseline_canny_fitline_median_ms": float(np.median(base_ms + warm_base)),
+        "locate_median_ms": float(np.median(ours_ms + all_ours)),
+        "baseline_canny_fitline_median_ms": float(np.median(base_ms + all_base)),
+        "locate_median_of_best_of_5_ms": float(np.median(best_ours)),
+        "baseline_median_of_best_of_5_ms": float(np.median(best_base)),
         "threads": 1,
-        "n_timed": len(ours_ms) + len(warm_ours),
+        "n_timed": len(ours_ms) + len(all_ours),
     }
+    sp["ratio_best_of_5"] = sp["locate_median_of_best_of_5_ms"] / sp["baseline_median_of_best_of_5_ms"]
     sp["ratio_locate_over_baseline"] = sp["locate_median_ms"] / sp["baseline_canny_fitline_median_ms"]
     report["speed"] = sp
     report["baseline_accuracy"] = {"n": len(base_err)} | stats(base_err)
     report["worst_ok_error"] = worst
     b = report["baseline_accuracy"]
-    print(f"speed: locate median {sp['locate_median_ms']:.2f} ms, Canny+fitLine median {sp['baseline_canny_fitline_median_ms']:.2f} ms, "
-          f"ratio {sp['ratio_locate_over_baseline']:.2f} (one thread, decode excluded, {sp['n_timed']} images)")
+    print(f"speed (one thread, decode excluded, {sp['n_timed']} locate calls): locate median {sp['locate_median_ms']:.2f} ms, "
+          f"Canny+fitLine median {sp['baseline_canny_fitline_median_ms']:.2f} ms, ratio {sp['ratio_locate_over_baseline']:.2f}; "
+          f"median of per-image best of 5: locate {sp['locate_median_of_best_of_5_ms']:.2f} ms, "
+          f"Canny+fitLine {sp['baseline_median_of_best_of_5_ms']:.2f} ms, ratio {sp['ratio_best_of_5']:.2f}")
     print(f"baseline accuracy (default photometry, n={b['n']}): RMS x {b.get('rms_x_mm', float('nan')):.4f} z {b.get('rms_z_mm', float('nan')):.4f} mm, "
           f"yaw {b.get('rms_yaw_deg', float('nan')):.4f} deg, T {b.get('rms_thickness_mm', float('nan')):.4f} mm; median |error| "
           f"x {b.get('median_abs_x_mm', float('nan')):.4f} z {b.get('median_abs_z_mm', float('nan')):.4f} mm, "
