@@ -138,3 +138,32 @@ def _recipe():
     return DoorRecipe(door_id="R-1", width_mm=900, height_mm=2100, thickness_mm=50, tool_diameter_mm=16,
                       spindle_rpm=18000, feed_mm_s=25,
                       hinges=[Hinge(z_mm=250, length_mm=100, width_mm=30, x_mm=10, depth_mm=3, corner_radius_mm=8)])
+
+
+def test_concurrent_first_opens_migrate_once(db_url):
+    """Several workers opening a fresh database at once (e.g. service workers) must all succeed."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    def open_and_count(_):
+        with RecipeStore(db_url) as s:
+            return s.count()
+
+    with ThreadPoolExecutor(6) as ex:
+        assert list(ex.map(open_and_count, range(6))) == [0] * 6
+    with RecipeStore(db_url) as s:
+        assert schema_revision(s.engine) == "0001"
+
+
+def test_migrations_downgrade_and_upgrade_again(store, recipe_factory):
+    from alembic import command
+
+    from doorloc.recipes.store import _alembic_config, upgrade_schema
+
+    store.put(recipe_factory())
+    cfg = _alembic_config()
+    with store.engine.begin() as conn:
+        cfg.attributes["connection"] = conn
+        command.downgrade(cfg, "base")
+    assert schema_revision(store.engine) is None
+    upgrade_schema(store.engine)
+    assert schema_revision(store.engine) == "0001" and store.count() == 0

@@ -21,6 +21,7 @@ True
 from __future__ import annotations
 
 import os
+import threading
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from datetime import datetime
@@ -44,6 +45,8 @@ __all__ = [
 ENV_DATABASE_URL = "DOORLOC_DATABASE_URL"
 DEFAULT_DB_FILENAME = "doorloc.db"
 MIGRATIONS_DIR = Path(__file__).with_name("migrations")
+#: Alembic keeps its migration context in module globals: one migration at a time per process
+_MIGRATION_LOCK = threading.Lock()
 #: rows per statement when deleting by door id (keeps below every backend's bound-parameter limit)
 _CHUNK = 500
 
@@ -97,12 +100,19 @@ def make_engine(url: str) -> Engine:
         kwargs["connect_args"] = {"check_same_thread": False}
     engine = create_engine(url, **kwargs)
     if u.get_backend_name() == "sqlite":
-
+        # SQLAlchemy's recipe for real SQLite transactions: the driver's own implicit BEGIN (before
+        # DML only) is switched off and every transaction starts with our BEGIN, so DDL (migrations)
+        # is transactional too, and a migration can take the write lock up front (BEGIN IMMEDIATE)
         @event.listens_for(engine, "connect")
-        def _sqlite_pragmas(dbapi_conn, _record) -> None:  # noqa: ANN001 - DB-API objects
+        def _sqlite_connect(dbapi_conn, _record) -> None:  # noqa: ANN001 - DB-API objects
+            dbapi_conn.isolation_level = None
             cur = dbapi_conn.cursor()
             cur.execute("PRAGMA foreign_keys=ON")
             cur.close()
+
+        @event.listens_for(engine, "begin")
+        def _sqlite_begin(conn) -> None:  # noqa: ANN001 - a Connection
+            conn.exec_driver_sql("BEGIN " + conn.get_execution_options().get("sqlite_begin", "DEFERRED"))
 
     return engine
 
@@ -116,11 +126,16 @@ def _alembic_config():
 
 
 def upgrade_schema(engine: Engine, revision: str = "head") -> None:
-    """Upgrade the database schema to ``revision`` (Alembic ``upgrade``), in one transaction."""
+    """Upgrade the database schema to ``revision`` (Alembic ``upgrade``), in one transaction.
+
+    Processes opening a fresh database at the same time migrate one after the other: SQLite's
+    ``BEGIN IMMEDIATE`` takes the write lock before the current revision is read, PostgreSQL uses an
+    advisory lock (migrations/env.py); threads of one process take turns (Alembic is not thread-safe).
+    """
     from alembic import command
 
     cfg = _alembic_config()
-    with engine.begin() as conn:
+    with _MIGRATION_LOCK, engine.connect().execution_options(sqlite_begin="IMMEDIATE") as conn, conn.begin():
         cfg.attributes["connection"] = conn
         command.upgrade(cfg, revision)
 
