@@ -458,7 +458,6 @@ def distortion_validity(camera: CameraModel, n_angles: int = 360, n_radii: int =
     >>> v.corners_inside_fold, round(v.fold_radius_px)
     (False, 560)
     """
-    K = camera.camera_matrix
     corners = camera.image_corners_px()
     c = np.array([camera.cx, camera.cy])
     corner_radius = float(np.max(np.linalg.norm(corners - c, axis=1)))
@@ -473,22 +472,20 @@ def distortion_validity(camera: CameraModel, n_angles: int = 360, n_radii: int =
     det = j[..., 0, 0] * j[..., 1, 1] - j[..., 0, 1] * j[..., 1, 0]
     folded = ~(det > 0)
     fold_px: float | None = None
-    if np.any(folded):
-        first = np.where(folded.any(axis=1), folded.argmax(axis=1), -1)
-        radii_px = []
-        for a, i in enumerate(first):
-            if i < 0:
-                continue
-            # Refine the fold on this ray by bisection on det(J) between r[i-1] and r[i].
-            lo, hi = (r[i - 1] if i > 0 else 0.0), r[i]
-            for _ in range(60):
-                mid = 0.5 * (lo + hi)
-                _, jm = camera._distort_and_jacobian(mid * dirs[a][None])
-                dm = jm[0, 0, 0] * jm[0, 1, 1] - jm[0, 0, 1] * jm[0, 1, 0]
-                lo, hi = (mid, hi) if dm > 0 else (lo, mid)
-            pd = camera.normalized_to_pixel(camera.distort(lo * dirs[a][None]))[0]
-            radii_px.append(float(np.linalg.norm(pd - c)))
-        fold_px = float(min(radii_px))
+    rays = np.flatnonzero(folded.any(axis=1))
+    if rays.size:
+        # Bisect on det(J) between the last good and the first folded sample, all rays at once.
+        i = folded[rays].argmax(axis=1)
+        lo = np.where(i > 0, r[np.maximum(i - 1, 0)], 0.0)
+        hi = r[i]
+        d = dirs[rays]
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            _, jm = camera._distort_and_jacobian(mid[:, None] * d)
+            good = jm[:, 0, 0] * jm[:, 1, 1] - jm[:, 0, 1] * jm[:, 1, 0] > 0
+            lo, hi = np.where(good, mid, lo), np.where(good, hi, mid)
+        pd = camera.normalized_to_pixel(camera.distort(lo[:, None] * d))
+        fold_px = float(np.min(np.linalg.norm(pd - c, axis=1)))
 
     report = []
     for name, uv in zip(("top-left", "top-right", "bottom-right", "bottom-left"), corners, strict=True):
@@ -525,5 +522,4 @@ def distortion_validity(camera: CameraModel, n_angles: int = 360, n_radii: int =
             f"{corner_radius:.0f} px): the model is extrapolated beyond that; add views with the board "
             "near the image corners."
         )
-    del K
     return DistortionValidity(fold_px, corner_radius, observed, valid, inside, report, warnings)
