@@ -344,9 +344,9 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
     n_pass = 2
     _pass = 0
     while _pass < n_pass:
-        # The first pass, on every third scan line, only centres and sizes the final windows.
+        # The first pass, on every fifth scan line, only centres and sizes the final windows.
         samples, far_beside = _sample(plane, region, pose, math.radians(pose.yaw_deg), half, cfg, s8,
-                                      every=3 if _pass == 0 else 1, sharp=_pass > 0 and blur < 0.6)
+                                      every=5 if _pass == 0 else 1, sharp=_pass > 0 and blur < 0.6)
         if far_beside and _pass == 1:
             # The far face's band width follows from the thickness being measured: iterate (each round
             # shrinks the error about four-fold).
