@@ -92,12 +92,28 @@ def _smooth_along(x: np.ndarray, n: int) -> np.ndarray:
 
 
 def _gather(P: np.ndarray, scan: np.ndarray, start: np.ndarray, length: int,
-            stride: int = 1) -> tuple[np.ndarray, np.ndarray]:
-    """Profiles ``P[start + stride k, scan]`` for k < length as float32 (N, length), and an in-image mask."""
+            stride: int = 1, lut: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Profiles ``P[start + stride k, scan]`` for k < length as float32 (N, length), and an in-image mask.
+
+    ``lut`` (float32, one entry per grey level) maps the stored values first, e.g. to linear light.
+    """
     idx = start[:, None] + stride * np.arange(length)[None, :]
     inside = (idx >= 0) & (idx < P.shape[0])
-    vals = P[np.clip(idx, 0, P.shape[0] - 1), scan[:, None]].astype(np.float32)
+    raw = P[np.clip(idx, 0, P.shape[0] - 1), scan[:, None]]
+    vals = lut[raw] if lut is not None else raw.astype(np.float32)
     return vals, inside
+
+
+def linearizing_lut(dtype: np.dtype, gamma: float) -> np.ndarray | None:
+    """Look-up table undoing a camera response ``out = in ** (1 / gamma)``, in grey levels of ``dtype``.
+
+    The area estimator needs grey levels proportional to light; None when ``gamma`` is 1.
+    """
+    if gamma == 1.0:
+        return None
+    top = 255.0 if np.dtype(dtype) == np.uint8 else 65535.0
+    x = np.arange(int(top) + 1, dtype=np.float64) / top
+    return (x ** gamma * top).astype(np.float32)
 
 
 def coarse_edges(
@@ -189,6 +205,7 @@ def subpixel_edges(
     scale_to_8bit: float = 1.0,
     slope_smooth: int = 0,
     level_smooth: int = 0,
+    lut: np.ndarray | None = None,
 ) -> EdgeSamples:
     """Sub-pixel edge position on each scan line by the area estimator (module docstring).
 
@@ -229,7 +246,7 @@ def subpixel_edges(
     c0 = np.round(np.where(finite, centre, 0.0)).astype(int)
     start = c0 - half - plateau
     length = 2 * (half + plateau) + 1
-    vals, inside = _gather(P, scan, start, length)
+    vals, inside = _gather(P, scan, start, length, lut=lut)
     left = vals[:, :plateau]
     right = vals[:, -plateau:]
     core = vals[:, plateau:plateau + 2 * half + 1]
@@ -274,7 +291,8 @@ def subpixel_edges(
                        width, np.maximum(A, B) * scale_to_8bit, valid)
 
 
-def transition_width(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half: int) -> float:
+def transition_width(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half: int,
+                     lut: np.ndarray | None = None) -> float:
     """RMS width (px) of the mean edge transition of the masked samples: the optical blur plus the pixel.
 
     The profiles are aligned on their sub-pixel edge, normalised by their step and averaged before
@@ -287,7 +305,7 @@ def transition_width(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, 
     P = oriented(plane, samples.axis)
     e = samples.along[m]
     c0 = np.round(e).astype(int)
-    vals, inside = _gather(P, samples.scan[m], c0 - half, 2 * half + 1)
+    vals, inside = _gather(P, samples.scan[m], c0 - half, 2 * half + 1, lut=lut)
     ok = inside.all(axis=1)
     if not np.any(ok):
         return float("nan")
@@ -332,6 +350,7 @@ def subpixel_edges_banded(
     level_smooth: int = 0,
     sharp: bool = False,
     band_slope: float = 0.0,
+    lut: np.ndarray | None = None,
 ) -> tuple[EdgeSamples, float]:
     """Outer edge of a step with a band of unknown, uniform grey level on its door side (a chamfered or
     rounded arris seen as a strip between the background and the hinge face).
@@ -373,10 +392,10 @@ def subpixel_edges_banded(
     length = 2 * (half + plateau) + 1 + n_extra
     if door_side > 0:
         start = c0 - half - plateau
-        vals, inside = _gather(P, scan, start, length)
+        vals, inside = _gather(P, scan, start, length, lut=lut)
     else:  # mirror so that the door side is at increasing index
         start = c0 + half + plateau
-        vals, inside = _gather(P, scan, start - length + 1, length)
+        vals, inside = _gather(P, scan, start - length + 1, length, lut=lut)
         vals, inside = vals[:, ::-1], inside[:, ::-1]
     left = vals[:, :plateau]
     right = vals[:, -plateau:]

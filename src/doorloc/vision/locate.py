@@ -26,6 +26,7 @@ from doorloc.vision import quality as q
 from doorloc.vision.edges import (
     EdgeSamples,
     coarse_edges,
+    linearizing_lut,
     subpixel_edges,
     subpixel_edges_banded,
     transition_width,
@@ -82,6 +83,10 @@ class LocateConfig:
         Refuse when the fit's standard error of x or z exceeds this.
     max_saturated_fraction : float
         Refuse when more of the search region is white-clipped.
+    response_gamma : float
+        The camera's response ``out = light ** (1 / gamma)`` (1 for a linear camera, as machine-vision
+        cameras usually are; 2.2 for an sRGB-like one): grey levels are turned back into light before
+        the sub-pixel estimate, which needs them proportional.
     """
 
     search_margin_mm: float = 30.0
@@ -106,6 +111,7 @@ class LocateConfig:
     min_corner_support: float = 0.6
     max_sigma_mm: float = 0.05
     max_saturated_fraction: float = 0.5
+    response_gamma: float = 1.0
 
 
 @dataclass
@@ -177,6 +183,7 @@ def _coarse(plane, band: Band, axis, polarity, thr, prefer=None):
 def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half: int, cfg: LocateConfig,
             scale8: float, every: int = 1, sharp: bool = False) -> tuple[dict[str, EdgeSamples], bool]:
     keep = half + cfg.plateau + 4
+    lut = linearizing_lut(plane.dtype, cfg.response_gamma)
     tracks = region.tracks(pose.corner, yaw_rad, pose.thickness_mm, keep, window_px=half + cfg.plateau + 2)
     out = {}
     beside = tracks["far"].beside_far_face
@@ -191,14 +198,15 @@ def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half:
             out[name], _ = subpixel_edges_banded(plane, lay.axis, t.scan[::every], t.centre[::every], half,
                                                  t.band_px[::every], side, cfg.plateau, scale8,
                                                  level_smooth=max(cfg.level_smooth // every, 1) if cfg.level_smooth else 0,
-                                                 sharp=sharp, band_slope=t.band_slope)
+                                                 sharp=sharp, band_slope=t.band_slope, lut=lut)
             if not (t.beside_far_face and out[name].valid.mean() < 0.5):
                 continue
             # A hair-thin band much brighter than the face defeats the band model: measure the plain
             # step (thickness off by at most the band's width, which the thickness check tolerates).
         out[name] = subpixel_edges(plane, lay.axis, t.scan[::every], t.centre[::every], half, cfg.plateau, scale8,
                                    slope_smooth=max(cfg.slope_smooth // every, 1) if cfg.slope_smooth else 0,
-                                   level_smooth=max(cfg.level_smooth // every, 1) if cfg.level_smooth else 0)
+                                   level_smooth=max(cfg.level_smooth // every, 1) if cfg.level_smooth else 0,
+                                   lut=lut)
     return out, beside
 
 
@@ -362,7 +370,8 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
             # Size the final window to the measured blur: wide enough for the transition, no wider (noise).
             # (on the bottom end and the reference arris: beside the far arris a far face or an arris
             # strip can make two steps that look like blur)
-            widths = [transition_width(plane, samples[k], fit.weights[k] > 0, half) for k in ("bottom", "reference")]
+            lut = linearizing_lut(plane.dtype, cfg.response_gamma)
+            widths = [transition_width(plane, samples[k], fit.weights[k] > 0, half, lut) for k in ("bottom", "reference")]
             blur = float(np.nanmax(widths)) if np.any(np.isfinite(widths)) else float(cfg.half_window_max)
             half = int(np.clip(math.ceil(cfg.window_blur_factor * blur + 1.0), cfg.half_window_min, cfg.half_window_max))
         _pass += 1
