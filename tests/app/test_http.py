@@ -225,3 +225,18 @@ def test_settings_come_from_the_environment(monkeypatch):
     s = ServiceSettings()
     assert s.api_key is None  # set but empty is no key, not the empty key
     assert s.max_upload_bytes == 1234
+
+
+def test_an_unreachable_recipe_database_is_503_not_500(cell, small_png, tmp_path):
+    from doorloc.recipes.store import RecipeStore
+
+    db = tmp_path / "r.db"
+    store = RecipeStore(f"sqlite:///{db}")
+    with TestClient(create_app(ServiceSettings(), cell=cell, store=store, locate_fn=None)) as c:
+        store.engine.dispose()
+        db.unlink()
+        db.mkdir()  # a folder where the database file was: every query fails
+        for r in (c.get("/v1/doors"), c.get("/v1/doors/D-1"),
+                  c.post("/v1/locate", files={"image": ("a.png", small_png, "image/png")}, data={"door_id": "D-1"})):
+            assert r.status_code == 503, r.text
+            assert r.json()["code"] == "database_unavailable"

@@ -2,15 +2,19 @@
 
 from __future__ import annotations
 
+import logging
 import secrets
+from collections.abc import Callable
+from typing import Any
 
+import anyio.to_thread
 from fastapi import Depends, Request, Security
 from fastapi.security import APIKeyHeader
 
 from doorloc.app.http.problems import ProblemError
 from doorloc.app.http.state import ServiceState
 
-__all__ = ["get_state", "ready_state", "require_api_key"]
+__all__ = ["get_state", "ready_state", "require_api_key", "call_store"]
 
 _api_key_header = APIKeyHeader(
     name="X-API-Key", auto_error=False, description="required when the service runs with DOORLOC_API_KEY set"
@@ -46,3 +50,25 @@ def ready_state(state: ServiceState = Depends(get_state)) -> ServiceState:
             headers={"Retry-After": "5"},
         )
     return state
+
+
+async def call_store(fn: Callable[..., Any], *args: Any) -> Any:
+    """Run a recipe-store call in a worker thread; a database that fails answers 503, not 500.
+
+    ValueError (a recipe the store refuses) passes through for the caller to answer 422.
+    """
+    from sqlalchemy.exc import SQLAlchemyError
+
+    from doorloc.recipes.store import RecipeStoreError
+
+    try:
+        return await anyio.to_thread.run_sync(fn, *args)
+    except (SQLAlchemyError, RecipeStoreError) as e:
+        logging.getLogger("doorloc.http").error(
+            "recipe database error", extra={"fields": {"event": "database_error", "error": str(e).splitlines()[0]}}
+        )
+        raise ProblemError(
+            503, "database_unavailable",
+            "The recipe database cannot be reached right now; retry shortly, and tell the administrator if it persists.",
+            headers={"Retry-After": "5"},
+        ) from None

@@ -52,7 +52,7 @@ _DESCRIPTIONS = {
     413: "The request body is larger than the service accepts.",
     415: "The upload is not a PNG, JPEG, TIFF or BMP image (judged by its bytes).",
     422: "A field is missing or invalid, or the image cannot be decoded or declares too many pixels.",
-    503: "The service is not ready: the cell or its calibration is not loaded.",
+    503: "The service is not ready (the cell or its calibration is not loaded), or the recipe database is unreachable.",
 }
 
 

@@ -4,10 +4,9 @@ from __future__ import annotations
 
 from typing import Annotated
 
-import anyio.to_thread
 from fastapi import APIRouter, Depends, Path
 
-from doorloc.app.http.dependencies import ready_state, require_api_key
+from doorloc.app.http.dependencies import call_store, ready_state, require_api_key
 from doorloc.app.http.problems import ProblemError, problem_responses
 from doorloc.app.http.schemas import DoorList
 from doorloc.app.http.state import ServiceState
@@ -23,7 +22,7 @@ DoorId = Annotated[str, Path(pattern=DOOR_ID_PATTERN, description="the door's ba
 
 @router.get("", response_model=DoorList, responses=problem_responses(401, 503), summary="List door ids")
 async def list_doors(state: Annotated[ServiceState, Depends(ready_state)]) -> DoorList:
-    ids = await anyio.to_thread.run_sync(state.store.list)
+    ids = await call_store(state.store.list)
     return DoorList(door_ids=[i if isinstance(i, str) else i.door_id for i in ids])
 
 
@@ -32,7 +31,7 @@ async def list_doors(state: Annotated[ServiceState, Depends(ready_state)]) -> Do
     summary="Get a door recipe",
 )
 async def get_door(door_id: DoorId, state: Annotated[ServiceState, Depends(ready_state)]) -> DoorRecipe:
-    recipe = await anyio.to_thread.run_sync(state.store.get, door_id)
+    recipe = await call_store(state.store.get, door_id)
     if recipe is None:
         raise ProblemError(404, "unknown_door", f"There is no door recipe with id '{door_id}'; PUT it first.")
     return recipe
@@ -52,7 +51,7 @@ async def put_door(
             f"The recipe's door_id '{recipe.door_id}' differs from the one in the URL '{door_id}'; make them equal.",
         )
     try:
-        await anyio.to_thread.run_sync(state.store.put, recipe)
+        await call_store(state.store.put, recipe)
     except ValueError as e:
         raise ProblemError(422, "invalid_recipe", f"The recipe cannot be stored: {e}.") from None
     return recipe

@@ -16,7 +16,7 @@ from fastapi import APIRouter, Depends, File, Form, Query, Request, UploadFile
 from pydantic import Field
 
 from doorloc.app.answer import DoorChoice, answer_image, door_from_fields, overlay_png
-from doorloc.app.http.dependencies import ready_state, require_api_key
+from doorloc.app.http.dependencies import call_store, ready_state, require_api_key
 from doorloc.app.http.problems import ProblemError, problem_responses
 from doorloc.app.http.schemas import LocateResponse
 from doorloc.app.http.state import ServiceState
@@ -117,7 +117,7 @@ async def _door_choice(
                 422, "ambiguous_door",
                 "Give either door_id (the recipe has the door's size) or width_mm/thickness_mm/height_mm, not both.",
             )
-        recipe = await anyio.to_thread.run_sync(state.store.get, door_id)
+        recipe = await call_store(state.store.get, door_id)
         if recipe is None:
             raise ProblemError(
                 422, "unknown_door",
