@@ -177,6 +177,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="fewer images per set")
     ap.add_argument("--json", type=Path, help="also write the figures here")
+    ap.add_argument("--speed-only", action="store_true", help="only the timing comparison (skip the accuracy sets)")
     args = ap.parse_args()
     cv2.setNumThreads(1)
     cell = load_cell(REPO / "fixtures" / "cell_thesis.yaml")
@@ -190,6 +191,8 @@ def main() -> None:
     report: dict = {"sets": {}, "bad": {}, "speed": {}}
     ours_ms, base_ms, base_err, worst = [], [], [], {"pos_mm": 0.0, "yaw_deg": 0.0}
     for set_name, items in sets.items():
+        if args.speed_only:
+            break
         errs, refusals = [], Counter()
         for name, pose, door, eff, seed in items:
             img = render_door(cell, door, pose, effects=eff, seed=seed).image
@@ -216,7 +219,7 @@ def main() -> None:
               f"T {s.get('rms_thickness_mm', float('nan')):.4f} mm | max x {s.get('max_x_mm', float('nan')):.4f} "
               f"z {s.get('max_z_mm', float('nan')):.4f} yaw {s.get('max_yaw_deg', float('nan')):.5f} T {s.get('max_thickness_mm', float('nan')):.4f}")
     print("bad inputs:")
-    for name, img, door, pose in bad_set(cell):
+    for name, img, door, pose in ([] if args.speed_only else bad_set(cell)):
         r = locate(img, cell, door, image_name=name)
         entry = {"ok": r.ok, "error_code": r.error_code, "error": r.error}
         if r.ok:

@@ -84,11 +84,13 @@ class EdgeSamples:
 
 
 def _smooth_along(x: np.ndarray, n: int) -> np.ndarray:
-    """Moving average over ``2 n + 1`` neighbours (shorter at the ends), NaN-free input."""
-    k = np.ones(2 * n + 1)
-    num = np.convolve(np.nan_to_num(x), k, mode="same")
-    cnt = np.convolve(np.isfinite(x).astype(float), k, mode="same")
-    return num / np.maximum(cnt, 1.0)
+    """Moving average over ``2 n + 1`` neighbours (fewer at the ends and where ``x`` is NaN)."""
+    ok = np.isfinite(x)
+    c = np.concatenate([[0.0], np.cumsum(np.where(ok, x, 0.0))])
+    m = np.concatenate([[0], np.cumsum(ok)])
+    i = np.arange(x.size)
+    lo, hi = np.maximum(i - n, 0), np.minimum(i + n + 1, x.size)
+    return (c[hi] - c[lo]) / np.maximum(m[hi] - m[lo], 1)
 
 
 def _gather(P: np.ndarray, scan: np.ndarray, start: np.ndarray, length: int,

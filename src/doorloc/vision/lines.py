@@ -24,11 +24,17 @@ def tukey_weights(residuals: np.ndarray, scale: float) -> np.ndarray:
     return np.where(np.abs(u) < 1.0, (1.0 - u * u) ** 2, 0.0)
 
 
-def robust_scale(residuals: np.ndarray, weights: np.ndarray | None = None, floor: float = 0.0) -> float:
-    """MAD-based standard deviation of residuals (those with positive weight), at least ``floor``."""
+def robust_scale(residuals: np.ndarray, weights: np.ndarray | None = None, floor: float = 0.0,
+                 max_samples: int = 512) -> float:
+    """MAD-based standard deviation of residuals (those with positive weight), at least ``floor``.
+
+    At most ``max_samples`` evenly spread residuals are used: a scale needs no more, and medians cost.
+    """
     r = residuals if weights is None else residuals[weights > 0]
     if r.size == 0:
         return floor
+    if r.size > max_samples:
+        r = r[:: r.size // max_samples + 1]
     return max(1.4826 * float(np.median(np.abs(r - np.median(r)))), floor)
 
 
