@@ -92,9 +92,9 @@ def test_rectangle_fit_recovers_angle_offsets_despite_outliers(yaw_deg, x0, z0, 
     ref[:30] += 2.0 * ex  # a clump of outliers (debris on the edge)
     fit = fit_rectangle_edges({"bottom": (bot, True), "reference": (ref, False), "far": (far, False)})
     assert abs(math.degrees(fit.angle_rad) - yaw_deg) < 4e-3  # ~6 sigma for 0.01 mm point noise
-    assert abs(fit.offsets["reference"] - c @ ex) < 3e-3
-    assert abs(fit.offsets["far"] - fit.offsets["reference"] - thickness) < 3e-3
-    assert abs(fit.offsets["bottom"] - c @ ez) < 5e-3
+    assert abs(fit.offsets["reference"] - c @ ex) < 6e-3  # ~6 sigma
+    assert abs(fit.offsets["far"] - fit.offsets["reference"] - thickness) < 6e-3
+    assert abs(fit.offsets["bottom"] - c @ ez) < 8e-3
     assert (fit.weights["reference"][:30] == 0).all()
 
 
