@@ -341,7 +341,8 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
             r = _PATTERN
         raise _Refused(r, diagnostics={"measured": {"x_mm": pose.x_mm, "z_mm": pose.z_mm, "yaw_deg": pose.yaw_deg,
                                                     "coarse": True}})
-    r = q.check_thickness(pose.thickness_mm, door.thickness_mm, cfg.thickness_tolerance_mm + 2.0)
+    r = q.check_thickness(pose.thickness_mm, door.thickness_mm, cfg.thickness_tolerance_mm + 2.0,
+                          cfg.thickness_tolerance_mm)
     if r:
         raise _Refused(r, diagnostics={"measured": {"thickness_mm": pose.thickness_mm, "coarse": True}})
 

@@ -101,11 +101,16 @@ def check_envelope(x_mm: float, z_mm: float, yaw_deg: float, env: Envelope, marg
     return None
 
 
-def check_thickness(measured: float, expected: float, tolerance: float) -> Refusal | None:
-    """The measured thickness must match the door's (a wrong recipe or a wrong door is caught here)."""
+def check_thickness(measured: float, expected: float, tolerance: float, stated_tolerance: float | None = None) -> Refusal | None:
+    """The measured thickness must match the door's (a wrong recipe or a wrong door is caught here).
+
+    ``stated_tolerance`` is the tolerance named in the message (the configured one, when a coarse
+    measurement is checked against a wider limit).
+    """
     if not np.isfinite(measured) or abs(measured - expected) > tolerance:
+        shown = tolerance if stated_tolerance is None else stated_tolerance
         return Refusal("thickness_mismatch", f"the door measures {measured:.2f} mm thick but the recipe says "
-                                             f"{expected:.2f} mm (tolerance {tolerance:g} mm); check that the right "
+                                             f"{expected:.2f} mm (tolerance {shown:g} mm); check that the right "
                                              "door is in the fixture and that the recipe is the right one")
     return None
 
