@@ -31,7 +31,7 @@ from doorloc.vision.edges import (
     subpixel_edges_banded,
     transition_width,
 )
-from doorloc.vision.lines import RectangleFit, fit_rectangle_edges, ransac_line
+from doorloc.vision.lines import ImageLine, RectangleFit, fit_rectangle_edges, ransac_line
 from doorloc.vision.luminance import ImageFormatError, luminance_plane
 from doorloc.vision.metric import MetricPose, pose_from_fit
 from doorloc.vision.region import EDGE_NAMES, Band, SearchRegion
@@ -237,21 +237,22 @@ def _fit(samples: dict[str, EdgeSamples], region: SearchRegion, cfg: LocateConfi
     return fit, init
 
 
-def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrace, name: str) -> LocateResult:
-    try:
-        lum = luminance_plane(image)
-    except ImageFormatError as e:
-        raise _Refused(q.Refusal("bad_image", f"{e}")) from None
-    r = q.check_image_size(lum.size, cell.camera.image_size)
-    if r:
-        raise _Refused(r)
-    plane, s8 = lum.plane, lum.scale_to_8bit
-    clock = _Clock()
-    thr = cfg.min_contrast / s8
-    region = SearchRegion.build(cell, door, cfg.search_margin_mm, cfg.search_margin_deg, cfg.door_brighter)
-    tr.region = region
+@dataclass(frozen=True)
+class _CoarseEdges:
+    """Pixel-accurate lines of the three edges and the bands they were found in."""
 
-    clock.lap("region")
+    ref: ImageLine
+    far: ImageLine
+    bottom: ImageLine
+    ref_band: Band
+    far_band: Band
+    bottom_band: Band
+
+
+def _coarse_edges(plane, s8: float, region: SearchRegion, door: DoorSize, cfg: LocateConfig,
+                  tr: LocateTrace) -> _CoarseEdges:
+    """Find the three edges to a pixel or two in the search region (strided step finder + RANSAC)."""
+    thr = cfg.min_contrast / s8
     # -- search region: coarse steps ------------------------------------------------------------
     ref_lay, far_lay, bot_lay = (region.layouts[k] for k in ("reference", "far", "bottom"))
     band_ref = region.arris_band(step=4, height_mm=45.0)
@@ -269,7 +270,7 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
     along_r, _, strong_r = _coarse(plane, band_ref, ref_lay.axis, ref_lay.polarity, thr, prefer=outer)
     tol = 3.0
     ref_line = ransac_line(band_ref.scan[strong_r], along_r[strong_r], tol) if strong_r.sum() >= 10 else None
-    if ref_line is None or ref_line.inliers.sum() < 0.4 * len(band_ref.scan):  # noqa: SIM114
+    if ref_line is None or ref_line.inliers.sum() < 0.4 * len(band_ref.scan):
         raise _Refused(_no_door_reason(plane, band_ref, ref_lay.axis, cfg, s8))
 
     sc = region.nominal_scale
@@ -316,17 +317,23 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
         raise _Refused(q.Refusal("edge_missing", f"the {HUMAN['bottom']} was not found between the arrises; check that "
                                  "the door's bottom end is in view and nothing covers it"))
 
-    clock.lap("coarse")
-    # -- coarse pose on the plane ---------------------------------------------------------------
+    return _CoarseEdges(ref_line, far_line, bot_line, band_ref, band_far, band_bot)
+
+
+def _coarse_pose(c: _CoarseEdges, plane, s8: float, region: SearchRegion, cell: Cell, door: DoorSize,
+                 cfg: LocateConfig) -> MetricPose:
+    """Pose from the coarse lines; refuses at once what is plainly not a door in place."""
+    ref_lay, far_lay, bot_lay = (region.layouts[k] for k in ("reference", "far", "bottom"))
+
     def pts(line, band, axis):
         s = band.scan[:: max(len(band.scan) // 40, 1)].astype(float)
         a = line.at(s)
         uv = np.stack([s, a], 1) if axis == "col" else np.stack([a, s], 1)
         return region.plane_points(uv)
 
-    coarse_groups = {"bottom": (pts(bot_line, band_bot, bot_lay.axis), True),
-                     "reference": (pts(ref_line, band_ref, ref_lay.axis), False),
-                     "far": (pts(far_line, band_far, far_lay.axis), False)}
+    coarse_groups = {"bottom": (pts(c.bottom, c.bottom_band, bot_lay.axis), True),
+                     "reference": (pts(c.ref, c.ref_band, ref_lay.axis), False),
+                     "far": (pts(c.far, c.far_band, far_lay.axis), False)}
     fit0 = fit_rectangle_edges(coarse_groups, scale_floor=0.05, n_iter=3)
     pose = pose_from_fit(fit0, region.face_map)
     if not (abs(pose.yaw_deg) < 20 and 0 < pose.thickness_mm < 3 * door.thickness_mm + 50):
@@ -337,7 +344,7 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
     r = q.check_envelope(pose.x_mm, pose.z_mm, pose.yaw_deg, cell.envelope, cfg.envelope_margin_mm + 3.0,
                          cfg.envelope_margin_deg + 0.5)
     if r:
-        if _looks_like_pattern_here(plane, s8, band_ref, ref_lay.axis, cfg):
+        if _looks_like_pattern_here(plane, s8, c.ref_band, ref_lay.axis, cfg):
             r = _PATTERN
         raise _Refused(r, diagnostics={"measured": {"x_mm": pose.x_mm, "z_mm": pose.z_mm, "yaw_deg": pose.yaw_deg,
                                                     "coarse": True}})
@@ -345,9 +352,14 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
                           cfg.thickness_tolerance_mm)
     if r:
         raise _Refused(r, diagnostics={"measured": {"thickness_mm": pose.thickness_mm, "coarse": True}})
+    return pose
 
-    clock.lap("coarse_pose")
-    # -- sub-pixel passes ---------------------------------------------------------------------------
+
+def _refine(plane, s8: float, region: SearchRegion, pose: MetricPose, cfg: LocateConfig, clock: _Clock):
+    """Sub-pixel edge points and the joint line fit, in passes (module docstring).
+
+    Returns ``(samples, fit, pose, blur_px, window_half_px, far_face_beside)``.
+    """
     half = cfg.half_window_max
     blur = float("nan")
     n_pass = 2
@@ -361,10 +373,7 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
             # shrinks the error about four-fold).
             n_pass = 5
         clock.lap(f"edges{min(_pass + 1, 2)}")
-        if _pass == 0:
-            fit, init = _fit(samples, region, cfg, n_iter=6, far_offset_only=far_beside)
-        else:
-            fit, init = _fit(samples, region, cfg, far_offset_only=far_beside)
+        fit, _ = _fit(samples, region, cfg, n_iter=6 if _pass == 0 else 9, far_offset_only=far_beside)
         pose = pose_from_fit(fit, region.face_map)
         clock.lap(f"fit{min(_pass + 1, 2)}")
         if _pass == 0:
@@ -376,6 +385,27 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
             blur = float(np.nanmax(widths)) if np.any(np.isfinite(widths)) else float(cfg.half_window_max)
             half = int(np.clip(math.ceil(cfg.window_blur_factor * blur + 1.0), cfg.half_window_min, cfg.half_window_max))
         _pass += 1
+    return samples, fit, pose, blur, half, far_beside
+
+
+def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrace, name: str) -> LocateResult:
+    try:
+        lum = luminance_plane(image)
+    except ImageFormatError as e:
+        raise _Refused(q.Refusal("bad_image", f"{e}")) from None
+    r = q.check_image_size(lum.size, cell.camera.image_size)
+    if r:
+        raise _Refused(r)
+    plane, s8 = lum.plane, lum.scale_to_8bit
+    clock = _Clock()
+    region = SearchRegion.build(cell, door, cfg.search_margin_mm, cfg.search_margin_deg, cfg.door_brighter)
+    tr.region = region
+    clock.lap("region")
+    coarse = _coarse_edges(plane, s8, region, door, cfg, tr)
+    clock.lap("coarse")
+    pose = _coarse_pose(coarse, plane, s8, region, cell, door, cfg)
+    clock.lap("coarse_pose")
+    samples, fit, pose, blur, half, far_beside = _refine(plane, s8, region, pose, cfg, clock)
     tr.samples = samples
     tr.inliers = {k: fit.weights[k] > 0 for k in EDGE_NAMES}
     tr.pose = pose
