@@ -194,3 +194,11 @@ def test_camera_gamma_is_undone_when_configured(cell):
     assert abs(naive.x_mm - pose.x_mm) > 0.005  # grey levels not proportional to light bias the area estimate
     dx, dz, dyaw, dt = _err(linear, pose, door)
     assert abs(dx) < 0.002 and abs(dz) < 0.002 and abs(dt) < 0.004
+
+
+def test_dark_door_on_bright_background_with_config(cell):
+    pose, door = DoorPose(3.0, -2.0, 0.8), DoorSize(900, 55, 2100)
+    img = render_door(cell, door, pose, effects=Effects(albedo_hinge=0.25, albedo_background=0.85, albedo_side=0.4)).image
+    assert not locate(img, cell, door).ok  # the default polarity expects a bright hinge face
+    dx, dz, dyaw, dt = _err(locate(img, cell, door, config=LocateConfig(door_brighter=False)), pose, door)
+    assert abs(dx) < 0.002 and abs(dz) < 0.002 and abs(dyaw) < 0.001 and abs(dt) < 0.004
