@@ -97,7 +97,7 @@ class LocateConfig:
     min_contrast: float = 6.0
     half_window_max: int = 9
     half_window_min: int = 3
-    window_blur_factor: float = 2.5
+    window_blur_factor: float = 2.0
     plateau: int = 4
     slope_smooth: int = 0
     level_smooth: int = 10
