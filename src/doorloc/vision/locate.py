@@ -190,23 +190,31 @@ def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half:
     for name in EDGE_NAMES:
         lay = region.layouts[name]
         t = tracks[name]
-        if t.band_px is not None:
+        step_kw = dict(level_smooth=max(cfg.level_smooth // every, 1) if cfg.level_smooth else 0, lut=lut)
+        scan, centre = t.scan[::every], t.centre[::every]
+        if t.band_px is not None and t.band_px.size:
+            band = t.band_px[::every]
             interior = lay.polarity * (1 if cfg.door_brighter else -1)
-            # An arris strip lies on the door side of the outline; the far face's band lies outside the far
-            # arris (the hinge face ends at the band's inner edge).
+            if t.beside_far_face and np.median(band) >= half + cfg.plateau + 1:
+                # The far face's band holds the whole outer side of the window: a plain step between
+                # the hinge face and the far face, whatever their brightness.
+                out[name] = subpixel_edges(plane, lay.axis, scan, centre, half, cfg.plateau, scale8, **step_kw)
+                continue
+            # An arris strip lies on the door side of the outline; the far face's band lies outside the
+            # far arris (the hinge face ends at the band's inner edge).
             side = -interior if t.beside_far_face else interior
-            out[name], _ = subpixel_edges_banded(plane, lay.axis, t.scan[::every], t.centre[::every], half,
-                                                 t.band_px[::every], side, cfg.plateau, scale8,
-                                                 level_smooth=max(cfg.level_smooth // every, 1) if cfg.level_smooth else 0,
-                                                 sharp=sharp, band_slope=t.band_slope, lut=lut)
+            out[name], _ = subpixel_edges_banded(plane, lay.axis, scan, centre, half, band, side, cfg.plateau,
+                                                 scale8, sharp=sharp, band_slope=t.band_slope, **step_kw)
             if not (t.beside_far_face and out[name].valid.mean() < 0.5):
                 continue
-            # A hair-thin band much brighter than the face defeats the band model: measure the plain
-            # step (thickness off by at most the band's width, which the thickness check tolerates).
-        out[name] = subpixel_edges(plane, lay.axis, t.scan[::every], t.centre[::every], half, cfg.plateau, scale8,
+            # A thin band much brighter than the face defeats the band model: measure the plain step over
+            # both (thickness off by at most the band's width, which the thickness check tolerates).
+            h = half + int(math.ceil(np.max(band)))
+            out[name] = subpixel_edges(plane, lay.axis, scan, centre, h, cfg.plateau, scale8, **step_kw)
+            continue
+        out[name] = subpixel_edges(plane, lay.axis, scan, centre, half, cfg.plateau, scale8,
                                    slope_smooth=max(cfg.slope_smooth // every, 1) if cfg.slope_smooth else 0,
-                                   level_smooth=max(cfg.level_smooth // every, 1) if cfg.level_smooth else 0,
-                                   lut=lut)
+                                   **step_kw)
     return out, beside
 
 
@@ -409,7 +417,7 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
     tr.samples = samples
     tr.inliers = {k: fit.weights[k] > 0 for k in EDGE_NAMES}
     tr.pose = pose
-    res = _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, half, plane, s8)
+    res = _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, half, plane, s8, far_beside)
     res.diagnostics["far_face_visible"] = far_beside
     clock.lap("gate")
     res.diagnostics["timing_ms"] = clock.laps
@@ -458,7 +466,8 @@ def _rows_across(plane, s8: float, ref: EdgeSamples, far: EdgeSamples) -> np.nda
     return P[lo:hi + 1, ref.scan[::8]].T.astype(np.float32) * s8
 
 
-def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, half, plane, s8) -> LocateResult:
+def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, half, plane, s8,
+                     far_beside: bool = False) -> LocateResult:
     lines, refusals = [], []
     corner_px = pose.corner_px
     diagnostics: dict = {
@@ -483,8 +492,12 @@ def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, ha
                                  rms_residual_mm=round(rms_mm, 5), contrast=round(contrast, 1),
                                  noise=round(float(np.median(s.noise[inl])), 2) if n_i else None,
                                  offset_sigma_mm=round(fit.offset_sigma[k], 5)))
+        # Beside a far face seen nearly edge-on the far arris only measures the thickness (it takes no
+        # part in the pose): a looser straightness check, and a thickness check widened below.
+        loose = k == "far" and far_beside
         refusals.append(q.check_line(k, HUMAN[k], n_s, n_i, rms_px, contrast, cfg.min_inliers,
-                                     cfg.min_inlier_fraction, cfg.max_rms_residual_px, cfg.min_contrast))
+                                     cfg.min_inlier_fraction * (0.5 if loose else 1.0),
+                                     cfg.max_rms_residual_px * (2.0 if loose else 1.0), cfg.min_contrast))
     # corner support: the points next to the corner on the bottom end and the reference arris
     for k in ("bottom", "reference"):
         s = samples[k]
@@ -499,7 +512,8 @@ def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, ha
     refusals.append(q.check_overexposed(bright))
     refusals.append(q.check_envelope(pose.x_mm, pose.z_mm, pose.yaw_deg, cell.envelope, cfg.envelope_margin_mm,
                                      cfg.envelope_margin_deg))
-    refusals.append(q.check_thickness(pose.thickness_mm, door.thickness_mm, cfg.thickness_tolerance_mm))
+    t_tol = cfg.thickness_tolerance_mm + (0.5 if far_beside else 0.0)
+    refusals.append(q.check_thickness(pose.thickness_mm, door.thickness_mm, t_tol))
     # standard errors of the corner from the line offsets
     sig = math.hypot(fit.offset_sigma["reference"], fit.offset_sigma["bottom"])
     diagnostics["corner_sigma_mm"] = sig
@@ -508,7 +522,7 @@ def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, ha
                                                 "the edges are too noisy; check focus, lighting and exposure"))
     diagnostics["thickness_check"] = {"measured_mm": round(pose.thickness_mm, 4), "expected_mm": door.thickness_mm,
                                       "difference_mm": round(pose.thickness_mm - door.thickness_mm, 4),
-                                      "tolerance_mm": cfg.thickness_tolerance_mm}
+                                      "tolerance_mm": t_tol, "far_face_in_view": far_beside}
     first = next((r for r in refusals if r is not None), None)
     if first is not None and first.code in ("edge_not_straight", "edge_missing", "corner_hidden"):
         # A pose outside the envelope explains broken edges best (the door lies beyond the region).

@@ -198,11 +198,13 @@ class SearchRegion:
         return Band(scans[ok].astype(int), lo[ok].astype(int), hi[ok].astype(int))
 
     # -- tracks for the sub-pixel passes ---------------------------------------------------------
-    def far_face_visible(self, corner: np.ndarray, yaw_rad: float, thickness_mm: float) -> bool:
-        """True when the camera centre lies beyond the far face's plane (that face is then in view)."""
+    def far_face_visible(self, corner: np.ndarray, yaw_rad: float, thickness_mm: float, margin_mm: float = 1.0) -> bool:
+        """True when the camera centre lies beyond the far face's plane (that face is then in view), or
+        within ``margin_mm`` of it: the thickness being measured decides, so the answer must not flip
+        between passes for a face seen nearly edge-on."""
         n = np.array([math.cos(yaw_rad), math.sin(yaw_rad)])
         c = self.plane_map.centre[[0, 2]]
-        return float(n @ c) > float(n @ np.asarray(corner, float)) + thickness_mm + 0.05
+        return float(n @ c) > float(n @ np.asarray(corner, float)) + thickness_mm - margin_mm
 
     def tracks(self, corner: np.ndarray, yaw_rad: float, thickness_mm: float, keep_px: float,
                window_px: float = 0.0) -> dict[str, Track]:
