@@ -10,7 +10,14 @@ The flow (thesis section 3.7, made metric and robust)::
       -> quality gate -> LocateResult
 
 :func:`locate` never raises for a bad image: every failure comes back as a refusal (``ok=false``,
-``error_code``, ``error``).
+``error_code``, ``error``). The codes: ``bad_image`` (not an 8/16-bit grey or colour array),
+``wrong_image_size``, ``black_image``, ``saturated_image``, ``low_contrast``, ``no_door``, ``not_a_door``
+(a regular pattern such as a calibration board), ``edge_missing``, ``edge_not_straight``, ``corner_hidden``,
+``overexposed`` (the hinge face clips), ``outside_envelope``, ``thickness_mismatch``, ``uncertain`` (the
+fit's standard error is too large) and ``internal_error`` (a bug: the message asks to keep the image).
+
+Pass a :class:`LocateTrace` to keep what the pipeline saw, and give it to
+:func:`doorloc.vision.overlay.draw_overlay` (which otherwise runs locate again).
 """
 
 from __future__ import annotations
