@@ -20,7 +20,7 @@ REPO = Path(__file__).resolve().parents[2]
 CELL_PATH = REPO / "fixtures" / "cell_thesis.yaml"
 
 
-def stand_in_locate(image, cell, door, *, image_name="", config=None):
+def stand_in_locate(image, cell, door, *, image_name="", config=None, trace=None):
     """A locate that answers at once: a fixed pose, or a refusal for an all-black image."""
     if int(np.max(image)) == 0:
         return LocateResult.refusal(image_name, "no_door", "No door edge found in the image; check the lighting.")

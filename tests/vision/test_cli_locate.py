@@ -91,7 +91,13 @@ def test_door_id_takes_the_size_from_the_recipe_store(door_png, thesis_cell_path
     base = ["locate", str(door_png), "--cell", str(thesis_cell_path), "--db", url]
     ok = CliRunner().invoke(app, [*base, "--door-id", "D-50"])
     assert ok.exit_code == 0, ok.output
+    answer = json.loads(ok.stdout)
+    # A named door gets its hinge targets, in the cell frame near the hinge's z, as the HTTP answer does.
+    assert answer["door_id"] == "D-50" and answer["targets_note"] is None
+    assert len(answer["targets"]) >= 6 and {t["hinge"] for t in answer["targets"]} == {1}
+    assert all(240 < t["z_mm"] < 360 for t in answer["targets"])
     wrong = CliRunner().invoke(app, [*base, "--door-id", "D-70"])
     assert wrong.exit_code == 1 and json.loads(wrong.stdout)["error_code"] == "thickness_mismatch"
+    assert json.loads(wrong.stdout)["targets"] == []
     unknown = CliRunner().invoke(app, [*base, "--door-id", "NOPE"])
     assert unknown.exit_code == 2 and "no door recipe" in unknown.stderr

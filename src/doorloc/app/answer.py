@@ -32,7 +32,7 @@ __all__ = [
     "NO_RECIPE_NOTE",
 ]
 
-#: ``locate(image, cell, door, *, image_name="", config=None) -> LocateResult``
+#: ``locate(image, cell, door, *, image_name="", config=None, trace=None) -> LocateResult``
 LocateFn = Callable[..., Any]
 
 NO_RECIPE_NOTE = (
@@ -71,6 +71,7 @@ def door_from_fields(
     width_mm: float | None = None,
     thickness_mm: float | None = None,
     height_mm: float | None = None,
+    arris_mm: float | None = None,
 ) -> DoorSize:
     """A door from whichever dimensions were given, the cell's default door filling the rest (mm).
 
@@ -78,8 +79,11 @@ def door_from_fields(
     """
     d = cell.default_door
     thickness = float(thickness_mm) if thickness_mm is not None else d.thickness_mm
-    # The request cannot name an arris; the cell's typical one applies where it fits this door.
-    arris = d.arris_mm if d.arris_mm < thickness / 2 else 0.0
+    if arris_mm is not None:
+        arris = float(arris_mm)
+    else:
+        # No arris given: the cell's typical one applies where it fits this door.
+        arris = d.arris_mm if d.arris_mm < thickness / 2 else 0.0
     return DoorSize(
         float(width_mm) if width_mm is not None else d.width_mm,
         thickness,
@@ -96,6 +100,7 @@ def answer_image(
     image_name: str,
     locate_fn: LocateFn | None = None,
     rapid: bool = False,
+    trace: Any | None = None,
 ) -> Answer:
     """Locate the door in ``image`` and turn its recipe into cell-frame targets.
 
@@ -113,6 +118,9 @@ def answer_image(
         Replaces :func:`doorloc.vision.locate.locate`.
     rapid : bool
         Add ``rapid``: the targets as RAPID-readable text (None without targets).
+    trace : doorloc.vision.locate.LocateTrace, optional
+        Filled by locate with what it saw; pass the same trace to :func:`overlay_png` so the overlay
+        does not run locate a second time.
 
     Returns
     -------
@@ -121,7 +129,8 @@ def answer_image(
         y_mm, z_mm, quat, hinge), ``targets_note`` (why the list is empty, else None) and, on request, ``rapid``.
     """
     locate = locate_fn or default_locate_fn()
-    result = locate(image, cell, choice.door, image_name=image_name)
+    extra = {} if trace is None else {"trace": trace}
+    result = locate(image, cell, choice.door, image_name=image_name, **extra)
     answer = result.model_dump(mode="json")
     answer["door_id"] = choice.door_id
     answer["door"] = {
@@ -153,13 +162,16 @@ def answer_image(
     return Answer(result, answer)
 
 
-def overlay_png(image: np.ndarray, result: Any, cell: Cell, door: DoorSize) -> str:
-    """The overlay (edges, corner, pose drawn on the image) as a base64-encoded PNG string."""
+def overlay_png(image: np.ndarray, result: Any, cell: Cell, door: DoorSize, trace: Any | None = None) -> str:
+    """The overlay (edges, corner, pose drawn on the image) as a base64-encoded PNG string.
+
+    ``trace`` is the LocateTrace of the call that produced ``result``; without it locate runs again.
+    """
     import cv2
 
     from doorloc.vision.overlay import draw_overlay
 
-    bgr = draw_overlay(image, result, cell, door)
+    bgr = draw_overlay(image, result, cell, door, trace)
     ok, buf = cv2.imencode(".png", bgr, [cv2.IMWRITE_PNG_COMPRESSION, 1])
     if not ok:  # pragma: no cover - OpenCV encodes any uint8 BGR array
         raise RuntimeError("could not encode the overlay as PNG")

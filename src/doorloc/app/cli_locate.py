@@ -1,5 +1,9 @@
 """`doorloc locate`: one image in, the locate result (shared/SPEC.md section 3) out as JSON on stdout.
 
+The JSON is the same answer `POST /v1/locate` gives (:func:`doorloc.app.answer.answer_image`): the
+result fields plus ``door_id``, ``door`` and, when the door was named by ``--door-id``, its hinge
+``targets`` moved by the measured pose.
+
 Exit codes: 0 the door was located; 1 locate refused the image (the JSON says why, ``ok=false``);
 2 bad input (unreadable image, cell file, door size, unknown door id). The overlay, when asked for,
 is written atomically (temporary file + rename) for answers and refusals alike.
@@ -7,6 +11,7 @@ is written atomically (temporary file + rename) for answers and refusals alike.
 
 from __future__ import annotations
 
+import json
 import os
 import tempfile
 from pathlib import Path
@@ -34,30 +39,27 @@ def _write_png_atomic(path: Path, image) -> None:
         raise
 
 
-def _door_from_options(cell, width, thickness, height, arris, door_id, db):
-    from doorloc.cell import DoorSize
+def _door_choice(cell, width, thickness, height, arris, door_id, db):
+    """The door to look for: a recipe from the database (``--door-id``) or the given sizes."""
+    from doorloc.app.answer import DoorChoice, door_from_fields
 
-    if door_id is not None:
-        if any(v is not None for v in (width, thickness, height)):
-            raise ValueError("give either --door-id or --door-width/--door-thickness/--door-height, not both")
-        try:
-            from doorloc.recipes.store import RecipeStore, database_url
-        except ImportError:  # pragma: no cover - the recipes area is part of the product
-            raise ValueError("--door-id needs the recipe store (doorloc.recipes), which is not installed") from None
-        with RecipeStore(database_url(db) if db else database_url()) as store:
-            recipe = store.get(door_id)
-        if recipe is None:
-            raise ValueError(f"no door recipe with id {door_id!r} in the recipe database; import it first "
-                             "(doorloc recipes import) or give the door size with --door-width/--door-thickness")
-        size = recipe.door_size()
-        return size if arris is None else DoorSize(size.width_mm, size.thickness_mm, size.height_mm, arris)
-    d = cell.default_door
-    return DoorSize(
-        float(width) if width is not None else d.width_mm,
-        float(thickness) if thickness is not None else d.thickness_mm,
-        float(height) if height is not None else d.height_mm,
-        float(arris) if arris is not None else d.arris_mm,
-    )
+    if door_id is None:
+        return DoorChoice(door_from_fields(cell, width, thickness, height, arris))
+    if any(v is not None for v in (width, thickness, height)):
+        raise ValueError("give either --door-id or --door-width/--door-thickness/--door-height, not both")
+    from doorloc.recipes.store import RecipeStore, database_url
+
+    with RecipeStore(database_url(db) if db else database_url()) as store:
+        recipe = store.get(door_id)
+    if recipe is None:
+        raise ValueError(f"no door recipe with id {door_id!r} in the recipe database; import it first "
+                         "(doorloc recipes import) or give the door size with --door-width/--door-thickness")
+    size = recipe.door_size()
+    if arris is not None:
+        from doorloc.cell import DoorSize
+
+        size = DoorSize(size.width_mm, size.thickness_mm, size.height_mm, arris)
+    return DoorChoice(size, door_id, recipe)
 
 
 def register(app: typer.Typer) -> None:
@@ -77,16 +79,17 @@ def register(app: typer.Typer) -> None:
         indent: Annotated[int, typer.Option(help="JSON indentation (0 = one line)")] = 2,
     ) -> None:
         """Locate the door in one image and print the result JSON (exit 0 located, 1 refused, 2 bad input)."""
+        from doorloc.app.answer import answer_image
         from doorloc.cell import CellFileError, load_cell
         from doorloc.vision.imageio import ImageDecodeError, read_image
-        from doorloc.vision.locate import LocateTrace, locate
+        from doorloc.vision.locate import LocateTrace
 
         try:
             cell = load_cell(cell_file)
         except CellFileError as e:
             raise fail(str(e), EXIT_USAGE) from None
         try:
-            door = _door_from_options(cell, door_width, door_thickness, door_height, arris, door_id, db)
+            choice = _door_choice(cell, door_width, door_thickness, door_height, arris, door_id, db)
         except (ValueError, RuntimeError) as e:
             raise fail(str(e), EXIT_USAGE) from None
         try:
@@ -94,13 +97,13 @@ def register(app: typer.Typer) -> None:
         except ImageDecodeError as e:
             raise fail(str(e), EXIT_USAGE) from None
         trace = LocateTrace()
-        result = locate(img, cell, door, image_name=str(image), trace=trace)
+        answer = answer_image(img, cell, choice, image_name=str(image), trace=trace)
         if overlay is not None:
             from doorloc.vision.overlay import draw_overlay
 
             try:
-                _write_png_atomic(overlay, draw_overlay(img, result, cell, door, trace))
+                _write_png_atomic(overlay, draw_overlay(img, answer.result, cell, choice.door, trace))
             except (OSError, ValueError) as e:
                 raise fail(f"cannot write the overlay {overlay}: {getattr(e, 'strerror', None) or e}", EXIT_USAGE) from None
-        typer.echo(result.model_dump_json(indent=indent or None))
-        raise typer.Exit(EXIT_OK if result.ok else EXIT_REFUSED)
+        typer.echo(json.dumps(answer.fields, indent=indent or None))
+        raise typer.Exit(EXIT_OK if answer.result.ok else EXIT_REFUSED)

@@ -140,7 +140,14 @@ def _measure(data: bytes, name: str, state: ServiceState, choice: DoorChoice, ov
             422, "undecodable_image",
             f"The image could not be decoded ({e}); the file is probably damaged or truncated: send it again.",
         ) from None
-    answer = answer_image(image, state.cell, choice, image_name=name, locate_fn=state.locate_fn, rapid=rapid)
+    trace = None
     if overlay:
-        answer.fields["overlay_png"] = overlay_png(image, answer.result, state.cell, choice.door)
+        from doorloc.vision.locate import LocateTrace
+
+        trace = LocateTrace()
+    answer = answer_image(
+        image, state.cell, choice, image_name=name, locate_fn=state.locate_fn, rapid=rapid, trace=trace
+    )
+    if overlay:
+        answer.fields["overlay_png"] = overlay_png(image, answer.result, state.cell, choice.door, trace)
     return answer.fields
