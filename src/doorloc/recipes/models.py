@@ -54,7 +54,8 @@ class PointCorrection(_Frozen):
     """Force-displacement correction of one pocket path point, door frame, mm (thesis's PC term, eq. 3.46).
 
     The milling force bends the robot by a predictable amount (thesis section 3.8, eq. 3.44-3.45);
-    the planner adds the opposite offset to the point before the pose moves it into the cell.
+    these values are the compensation, added as given to the point before the pose moves it into
+    the cell.
     """
 
     dx_mm: CorrectionMm = 0.0

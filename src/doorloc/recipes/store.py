@@ -305,11 +305,12 @@ class RecipeStore:
             return 0
         with self.engine.begin() as conn:
             for k in range(0, len(ids), _CHUNK):
-                chunk = ids[k:k + _CHUNK]
-                # hinges first, in one statement: SQLite's per-row ON DELETE CASCADE is far slower
-                door_pks = select(DoorRow.id).where(DoorRow.door_id.in_(chunk)).scalar_subquery()
-                conn.execute(delete(HingeRow).where(HingeRow.door_pk.in_(door_pks)))
-                conn.execute(delete(DoorRow).where(DoorRow.door_id.in_(chunk)))
+                # the replaced doors' keys, then their hinges in one statement (SQLite's per-row
+                # ON DELETE CASCADE is slow) and the doors; plain key lists keep every plan on the indexes
+                pks = list(conn.scalars(select(DoorRow.id).where(DoorRow.door_id.in_(ids[k:k + _CHUNK]))))
+                if pks:
+                    conn.execute(delete(HingeRow).where(HingeRow.door_pk.in_(pks)))
+                    conn.execute(delete(DoorRow).where(DoorRow.id.in_(pks)))
             result = conn.execute(
                 insert(DoorRow).returning(DoorRow.id, DoorRow.door_id), [_door_values(r) for r in recipes]
             )
