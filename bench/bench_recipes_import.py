@@ -8,7 +8,7 @@ that a file with 3 bad rows imports nothing and names the 3 rows.
     python bench/bench_recipes_import.py --db postgresql+psycopg://doorloc:doorloc@127.0.0.1/doorloc_test
     python bench/bench_recipes_import.py --doors 10000 --hinges 3
 
-With --db the benchmark writes into that database (replacing doors BENCH-00000...).
+With --db the benchmark writes into that database (doors BENCH-00000...; removed again at the end).
 """
 
 from __future__ import annotations
@@ -86,6 +86,15 @@ def main() -> None:
                                env={**os.environ, "DOORLOC_DATABASE_URL": ""})
             dt = time.perf_counter() - t0
             print(f"doorloc recipes import (CLI, process start included): {dt:6.2f} s  -> {r.stdout.strip() or r.stderr.strip()}")
+
+        if args.db:
+            with RecipeStore(url) as store:
+                from sqlalchemy import delete
+
+                from doorloc.recipes.tables import DoorRow
+
+                with store.engine.begin() as conn:
+                    conn.execute(delete(DoorRow).where(DoorRow.door_id.like("BENCH-%")))
 
         # a file with 3 bad rows imports nothing and names them
         lines = src.read_text(encoding="utf-8").splitlines()
