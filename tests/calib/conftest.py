@@ -28,7 +28,7 @@ def _views(folder: Path, pattern: str, board):
 @pytest.fixture(scope="session")
 def opencv_left():
     if not OPENCV_LEFT.is_dir():
-        pytest.skip(f"real data not found at {OPENCV_LEFT}")
+        pytest.fail(f"real data not found at {OPENCV_LEFT}: clone the repository with shared/ beside it")
     from doorloc.calib.detect import Chessboard
 
     board = Chessboard(9, 6, 25.0)
@@ -39,7 +39,7 @@ def opencv_left():
 @pytest.fixture(scope="session")
 def bouguet():
     if not BOUGUET.is_dir():
-        pytest.skip(f"real data not found at {BOUGUET}")
+        pytest.fail(f"real data not found at {BOUGUET}: clone the repository with shared/ beside it")
     from doorloc.calib.detect import Chessboard
 
     board = Chessboard(13, 12, 30.0)

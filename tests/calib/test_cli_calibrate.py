@@ -25,7 +25,7 @@ THESIS_DIST = [0.0206, 10.4073, 0.0, 0.0, -115.4536]
 def messy_dir(tmp_path_factory):
     """The 13 real photographs plus an unreadable file, a blank image and one of another size."""
     if not OPENCV_LEFT.is_dir():
-        pytest.skip("real data missing")
+        pytest.fail("real data missing: clone the repository with shared/ beside it")
     d = tmp_path_factory.mktemp("messy")
     for p in OPENCV_LEFT.glob("left*.jpg"):
         shutil.copy(p, d / p.name)
