@@ -16,7 +16,8 @@ import numpy as np
 import yaml
 
 from doorloc.calib.camera import CameraModel, Extrinsics, PosedCamera
-from doorloc.calib.io import CalibrationFileError, atomic_write_text, load_calibration
+from doorloc.calib.io import CalibrationFileError, load_calibration
+from doorloc.fileio import atomic_write_text
 
 __all__ = ["Fixture", "Envelope", "DoorSize", "Cell", "CellFileError", "load_cell", "parse_cell", "cell_to_dict", "save_cell"]
 

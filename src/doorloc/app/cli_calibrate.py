@@ -181,8 +181,8 @@ def register(app: typer.Typer) -> None:
 
         from doorloc.calib.cell import CellCalibrationError, board_points_in_cell, calibrate_cell_extrinsics
         from doorloc.calib.detect import detect_board
-        from doorloc.calib.io import atomic_write_text
         from doorloc.cell import CellFileError, cell_to_dict, load_cell
+        from doorloc.fileio import atomic_write_text
 
         try:
             board = _board(pattern, square, charuco, marker, dictionary, legacy)

@@ -12,31 +12,12 @@ is written atomically (temporary file + rename) for answers and refusals alike.
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
 from doorloc.app.errors import EXIT_OK, EXIT_REFUSED, EXIT_USAGE, fail
-
-
-def _write_png_atomic(path: Path, image) -> None:
-    import cv2
-
-    ok, buf = cv2.imencode(path.suffix or ".png", image)
-    if not ok:
-        raise ValueError(f"cannot encode the overlay as {path.suffix or '.png'}; use a .png or .jpg file name")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=str(path.parent))
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(buf.tobytes())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def _door_choice(cell, width, thickness, height, arris, door_id, db):
@@ -99,10 +80,11 @@ def register(app: typer.Typer) -> None:
         trace = LocateTrace()
         answer = answer_image(img, cell, choice, image_name=str(image), trace=trace)
         if overlay is not None:
+            from doorloc.fileio import atomic_write_image
             from doorloc.vision.overlay import draw_overlay
 
             try:
-                _write_png_atomic(overlay, draw_overlay(img, answer.result, cell, choice.door, trace))
+                atomic_write_image(overlay, draw_overlay(img, answer.result, cell, choice.door, trace))
             except (OSError, ValueError) as e:
                 raise fail(f"cannot write the overlay {overlay}: {getattr(e, 'strerror', None) or e}", EXIT_USAGE) from None
         typer.echo(json.dumps(answer.fields, indent=indent or None))

@@ -48,7 +48,7 @@ def _emit(text: str, out: Path | None) -> None:
     if out is None:
         sys.stdout.write(text)
         return
-    from doorloc.calib.io import atomic_write_text
+    from doorloc.fileio import atomic_write_text
 
     try:
         atomic_write_text(out, text)

@@ -2,14 +2,13 @@
 
 Both are read wherever a calibration is accepted; the format is recognised from the content.
 OpenCV's ``%YAML:1.0`` header and ``!!opencv-matrix`` tags are not YAML that PyYAML accepts, so the
-reader drops the header and gives the tag a constructor. Writers go through a temporary file and an
-atomic rename: a failed write never leaves a half-written calibration behind.
+reader drops the header and gives the tag a constructor. Writers go through :mod:`doorloc.fileio`: a failed write never leaves a
+half-written calibration behind.
 """
 
 from __future__ import annotations
 
 import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -18,6 +17,7 @@ import numpy as np
 import yaml
 
 from doorloc.calib.camera import CameraModel
+from doorloc.fileio import atomic_write_text
 
 __all__ = [
     "CalibrationFile",
@@ -189,22 +189,6 @@ def dump_ros_yaml(cal: CalibrationFile) -> str:
     if cam.observed_radius_px is not None:
         doc["observed_radius_px"] = float(cam.observed_radius_px)
     return yaml.safe_dump(doc, sort_keys=False, default_flow_style=None)
-
-
-def atomic_write_text(path: str | os.PathLike, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file in the same folder and an atomic rename."""
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, p)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def save_calibration(cal: CalibrationFile, path: str | os.PathLike, fmt: str = "opencv") -> None:

@@ -19,7 +19,7 @@ import numpy as np
 from doorloc.calib.calibrate import CalibrationResult
 from doorloc.calib.camera import distortion_validity
 from doorloc.calib.detect import BoardScan
-from doorloc.calib.io import atomic_write_text
+from doorloc.fileio import atomic_write_image, atomic_write_text
 
 __all__ = ["coverage_grid", "calibration_warnings", "report_dict", "render_report_png", "write_report"]
 
@@ -203,12 +203,7 @@ def write_report(directory: str | os.PathLike, result: CalibrationResult, scan: 
     doc = report_dict(result, scan, board)
     jpath, ppath = d / "calibration_report.json", d / "calibration_report.png"
     atomic_write_text(jpath, json.dumps(doc, indent=2, allow_nan=False, default=_json_default) + "\n")
-    ok, buf = cv2.imencode(".png", render_report_png(result, background))
-    if not ok:
-        raise OSError("could not encode the report picture")
-    tmp = ppath.with_name(f".{ppath.name}.tmp")
-    tmp.write_bytes(buf.tobytes())
-    os.replace(tmp, ppath)
+    atomic_write_image(ppath, render_report_png(result, background))
     return jpath, ppath
 
 

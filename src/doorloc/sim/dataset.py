@@ -12,7 +12,6 @@ from __future__ import annotations
 import csv
 import io
 import os
-import tempfile
 from collections.abc import Iterable
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
@@ -109,18 +108,6 @@ def truth_csv_text(rows: list[dict]) -> str:
     return buf.getvalue()
 
 
-def _atomic_write_bytes(path: Path, data: bytes) -> None:
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        os.chmod(tmp, 0o644)  # mkstemp creates 0600; data sets are meant to be shared
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 def write_dataset(out_dir: str | os.PathLike, cell: Cell, items: list[DatasetItem], effects: Effects,
                   progress=None) -> Path:
     """Render ``items`` into ``out_dir``: PNG images, ``truth.csv`` and ``cell.yaml``.
@@ -131,7 +118,7 @@ def write_dataset(out_dir: str | os.PathLike, cell: Cell, items: list[DatasetIte
     """
     import cv2
 
-    from doorloc.calib.io import atomic_write_text
+    from doorloc.fileio import atomic_write_bytes, atomic_write_text
     from doorloc.sim.door import render_door
 
     out = Path(out_dir)
@@ -142,7 +129,7 @@ def write_dataset(out_dir: str | os.PathLike, cell: Cell, items: list[DatasetIte
         ok, buf = cv2.imencode(".png", rd.image, [cv2.IMWRITE_PNG_COMPRESSION, 9])
         if not ok:
             raise RuntimeError(f"PNG encoding failed for {it.image}")
-        _atomic_write_bytes(out / it.image, buf.tobytes())
+        atomic_write_bytes(out / it.image, buf.tobytes())
         rows.append({"image": it.image, **rd.truth})
         if progress is not None:
             progress(n + 1, len(items))
