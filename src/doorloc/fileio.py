@@ -56,7 +56,10 @@ def atomic_write_image(path: str | os.PathLike, image: np.ndarray) -> None:
     import cv2
 
     p = Path(path)
-    ok, buf = cv2.imencode(p.suffix or ".png", image)
+    try:
+        ok, buf = cv2.imencode(p.suffix or ".png", image)
+    except cv2.error:  # no encoder for this suffix
+        ok = False
     if not ok:
         raise ValueError(f"cannot encode an image as {p.suffix or '.png'}; use a .png or .jpg file name")
     atomic_write_bytes(p, buf.tobytes())
