@@ -8,6 +8,8 @@ Sets (all rendered with `doorloc.sim.door.render_door` through the thesis cell, 
 - widths   default photometry, widths U(700, 1100) mm on the centred fixture (hinge-face depth changes)
 - hard     hinge face only slightly brighter than the background, illumination gradient, vignetting, wood
            grain, blur up to 2 px, read noise up to 4 grey levels, JPEG 85 on half of them
+- thin     hard photometry on thin doors (28-40 mm) at x in +-10 mm: the far face often in view beside the
+           far arris (brighter or darker than the hinge face)
 - bad      inputs that must be refused (and an overexposed image: refused or within 0.05 mm)
 
 Speed: median locate time (decode excluded, one thread) over the default-photometry images, and in the
@@ -29,6 +31,7 @@ import json  # noqa: E402
 import math  # noqa: E402
 import time  # noqa: E402
 from collections import Counter  # noqa: E402
+from dataclasses import replace  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import cv2  # noqa: E402
@@ -75,6 +78,18 @@ def hard_set(n, seed):
             read_noise_dn=rng.uniform(1.0, 4.0), jpeg_quality=85 if i % 2 else 0,
         )
         yield f"hard_{i:03d}", pose, DoorSize(900, rng.uniform(30, 100), 2100), eff, i
+
+
+def thin_set(n, seed):
+    """Hard photometry on thin doors shifted towards -X: the camera (cell X = 30 mm) sees the far face as a
+    band beside the far arris, often brighter than the hinge face (side albedo above the hinge's)."""
+    rng = np.random.default_rng(seed)
+    for i, (name, _, _, eff, s) in enumerate(hard_set(n, seed + 1000)):
+        t = rng.uniform(28.0, 40.0)
+        pose = DoorPose(rng.uniform(-10.0, 10.0), rng.uniform(-10, 10), rng.uniform(-2, 2))
+        if i % 3 == 0:  # the far face darker than the hinge face
+            eff = replace(eff, albedo_side=eff.albedo_background + 0.06)
+        yield f"thin_{i:03d}", pose, DoorSize(900, t, 2100), eff, s
 
 
 def bad_set(cell):
@@ -187,6 +202,7 @@ def main() -> None:
         "random": list(random_set(n_rand, 11)),
         "widths": list(random_set(n_w, 12, widths=True)),
         "hard": list(hard_set(n_hard, 13)),
+        "thin": list(thin_set(n_hard, 14)),
     }
     report: dict = {"sets": {}, "bad": {}, "speed": {}}
     ours_ms, base_ms, base_err, worst = [], [], [], {"pos_mm": 0.0, "yaw_deg": 0.0}

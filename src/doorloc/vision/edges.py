@@ -28,8 +28,10 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
+from scipy.special import ndtr
 
-__all__ = ["Axis", "EdgeSamples", "oriented", "coarse_edges", "subpixel_edges"]
+__all__ = ["Axis", "EdgeSamples", "FarFaceFit", "oriented", "coarse_edges", "subpixel_edges",
+           "subpixel_edges_banded", "subpixel_edges_far_face", "transition_width"]
 
 Axis = Literal["col", "row"]
 
@@ -477,3 +479,224 @@ def _band_level_from_pixels(vals, A, B, S, w, plateau: int, half: int, n_levels:
         if den > 0:
             return float(levels[k] + 0.5 * (c0 - c2) / den * (levels[1] - levels[0]))
     return float(levels[k])
+
+
+@dataclass(frozen=True)
+class FarFaceFit:
+    """What :func:`subpixel_edges_far_face` found besides the edge points.
+
+    Attributes
+    ----------
+    band_level : float
+        The far face's grey level relative to the two sides, ``(L - A) / (B - A)`` (``A`` the hinge
+        face, ``B`` the background): 0 when the band looks like the hinge face, 1 like the background,
+        > 1 brighter than the hinge face on a dark background... (any real value).
+    blur_px : float
+        Optical blur (Gaussian sigma, px) that fits the profiles best.
+    band_px : float
+        Median band width over the valid scan lines, px.
+    arris_sigma_px : float
+        Median standard error of one arris point from the profile noise, px.
+    model_sigma_px : float
+        How far the arris moves if the band level were off by ``LEVEL_DOUBT`` or the blur by
+        ``BLUR_DOUBT`` px (the two combined as independent errors): the doubt the model leaves, which
+        noise averaging does not reduce. Large where a narrow band cannot be told from the arris.
+    """
+
+    band_level: float
+    blur_px: float
+    band_px: float
+    arris_sigma_px: float
+    model_sigma_px: float
+
+
+#: plausible model errors of the far-face fit: band level (relative) and optical blur (px)
+LEVEL_DOUBT = 0.1
+BLUR_DOUBT = 0.15
+
+
+def _pixel_step(bounds: np.ndarray, e: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Unit steps at ``e`` (N,), blurred by a Gaussian ``sigma`` and integrated over pixels.
+
+    ``bounds`` (M + 1,) are the pixel boundaries (pixel ``i`` spans ``bounds[i]..bounds[i + 1]``). Returns,
+    each (N, M), the pixel values ``C``, ``-dC/de`` (``g``) and ``dC/dsigma`` (``h``).
+    """
+    y = bounds[None, :] - e[:, None]
+    u = y * (1.0 / sigma)
+    Phi = ndtr(u)
+    phi = np.exp(-0.5 * u * u) * (1.0 / math.sqrt(2.0 * math.pi))
+    G = y * Phi + sigma * phi  # integral of Phi(y / sigma) dy
+    return np.diff(G, axis=1), np.diff(Phi, axis=1), np.diff(phi, axis=1)
+
+
+def subpixel_edges_far_face(
+    plane: np.ndarray,
+    axis: Axis,
+    scan: np.ndarray,
+    centre: np.ndarray,
+    half: int,
+    band_px: np.ndarray,
+    band_slope: float,
+    outward: int,
+    plateau: int = 4,
+    scale_to_8bit: float = 1.0,
+    blur_px: float = 1.0,
+    level_smooth: int = 0,
+    lut: np.ndarray | None = None,
+    n_iter: int = 10,
+    fit_blur: bool = False,
+) -> tuple[EdgeSamples, FarFaceFit]:
+    """The far arris beside a visible far face, by fitting the whole profile across it.
+
+    Seen from a camera beyond the far face's plane, the profile across the far arris is
+    ``hinge face A | far face L, width w | background B``: two steps, the arris at ``e`` and the far
+    face's back edge at ``e + w``. The band width follows from the geometry,
+    ``w = band_px + band_slope (e - centre)`` (the back edge lies the door's width farther away and moves
+    less), so each scan line has one unknown, ``e``; the band's relative level
+    ``(L - A) / (B - A)`` (the same all along the edge under any smooth shading) and the optical blur
+    are shared by all scan lines. They are fitted by Gauss-Newton on the pixel values, with each pixel
+    modelled as a Gaussian-blurred step integrated over the pixel.
+
+    Unlike the area estimator this uses the shape of the profile, so a narrow band brighter than the
+    hinge face (which moves the profile's centroid the wrong way as the arris moves) does not make the
+    estimate ill-conditioned.
+
+    Parameters
+    ----------
+    plane, axis, scan, centre, half, plateau, scale_to_8bit, level_smooth, lut
+        As :func:`subpixel_edges`.
+    band_px : ndarray (N,)
+        Predicted band width on each scan line at the predicted edge ``centre``, px, signed: <= 0
+        where no band is in view (the far face seen edge-on or from behind).
+    band_slope : float
+        ``dw / de`` as the arris moves outwards (``-(1 - k)``, ``k`` the back edge's relative scale).
+    outward : +1 or -1
+        Direction of increasing ``along`` that leads from the hinge face across the arris.
+    blur_px : float
+        The optical blur (Gaussian sigma), px, e.g. from :func:`step_blur` on another edge; with a band
+        narrower than the blur, the band's level, its width and the blur trade off against each other,
+        so the blur is best measured where the step is plain.
+    fit_blur : bool
+        Fit the blur too (starting at ``blur_px``); only sound where the band is much wider than the blur.
+
+    Returns
+    -------
+    samples : EdgeSamples
+        ``along`` = the arris; ``step`` = ``B - A`` signed along ``along``.
+    fit : FarFaceFit
+    """
+    P = oriented(plane, axis)
+    scan = np.asarray(scan, int)
+    centre = np.asarray(centre, float)
+    w0 = np.asarray(band_px, float)
+    finite = np.isfinite(centre) & np.isfinite(w0)
+    w0 = np.where(finite, w0, 0.0)
+    c0 = np.round(np.where(finite, centre, 0.0)).astype(int)
+    n_extra = int(math.ceil(max(float(np.max(w0, initial=0.0)), 0.0))) + 1
+    length = 2 * (half + plateau) + 1 + n_extra
+    if outward > 0:
+        start = c0 - half - plateau
+        vals, inside = _gather(P, scan, start, length, lut=lut)
+    else:  # mirror so that the hinge face is at the low indices
+        start = c0 + half + plateau
+        vals, inside = _gather(P, scan, start - length + 1, length, lut=lut)
+        vals, inside = vals[:, ::-1], inside[:, ::-1]
+    vals = vals.astype(np.float64)
+    A = vals[:, :plateau].mean(axis=1)
+    B = vals[:, -plateau:].mean(axis=1)
+    ok = finite & inside.all(axis=1)
+    if level_smooth > 0 and scan.size:
+        A = _smooth_along(np.where(ok, A, np.nan), level_smooth)
+        B = _smooth_along(np.where(ok, B, np.nan), level_smooth)
+    D = B - A
+    ok &= np.isfinite(D) & (np.abs(D) > 0)
+    e0 = plateau + half + (centre - c0) * outward  # predicted arris, index units
+    # Only the core (between the plateaus) carries the edges; the plateaus fix A and B.
+    core = vals[ok, plateau:length - plateau]
+    bounds = np.arange(plateau, length - plateau + 1, dtype=np.float64) - 0.5
+    Ao, Do, e0o, w0o = A[ok], D[ok], e0[ok], w0[ok]
+    e = e0o.copy()
+    sigma = float(np.clip(blur_px, 0.05, 5.0))
+
+    def model(e, lam, sigma):
+        w_raw = w0o + band_slope * (e - e0o)
+        has_band = w_raw > 0
+        C, g, h = _pixel_step(bounds, np.concatenate([e, e + np.where(has_band, w_raw, 0.0)]), sigma)
+        n = e.size
+        C1, C2, g1, g2, h1, h2 = C[:n], C[n:], g[:n], g[n:], h[:n], h[n:]
+        a1 = (lam * Do)[:, None]  # L - A
+        a2 = ((1.0 - lam) * Do)[:, None]  # B - L
+        m = Ao[:, None] + a1 * C1 + a2 * C2
+        J_e = -a1 * g1 - a2 * g2 * (1.0 + band_slope * has_band)[:, None]
+        return m, J_e, Do[:, None] * (C1 - C2), a1 * h1 + a2 * h2
+
+    lam = 0.5
+    n_ok = int(ok.sum())
+    if n_ok:
+        # Starting band level: linear least squares at the predicted arris (the model is linear in it).
+        m, _, J_lam, _ = model(e, 0.0, sigma)
+        den = float((J_lam ** 2).sum())
+        if den > 1e-6 * float((Do ** 2).sum()):
+            lam = float((J_lam * (core - m)).sum() / den)
+    for _ in range(n_iter if n_ok else 0):
+        # One Gauss-Newton step for every arris and for the shared level and blur (from the same
+        # Jacobian; the arrises and the shared values hardly interact).
+        m, J_e, J_lam, J_sig = model(e, lam, sigma)
+        r = core - m
+        de = (J_e * r).sum(axis=1) / np.maximum((J_e * J_e).sum(axis=1), 1e-12)
+        Jg = np.stack([J_lam.ravel(), J_sig.ravel() if fit_blur else np.zeros(J_sig.size)], 1)
+        H = Jg.T @ Jg
+        H += np.diag(np.maximum(np.diag(H), 1e-12) * 1e-6)  # a band nowhere in view leaves its level free
+        d_lam, d_sig = np.linalg.solve(H, Jg.T @ r.ravel())
+        e = e + np.clip(de, -1.0, 1.0)
+        lam = float(lam + np.clip(d_lam, -1.0, 1.0))
+        sigma = float(np.clip(sigma + np.clip(d_sig, -0.5, 0.5), 0.05, 5.0))
+        if np.max(np.abs(de)) < 1e-4 and abs(d_lam) < 1e-4 and abs(d_sig) < 1e-4:
+            break
+    e_all = np.full(len(scan), np.nan)
+    e_sigma = np.full(len(scan), np.nan)
+    de_dlam = de_dsig = np.zeros(0)
+    if n_ok:
+        m, J_e, J_lam, J_sig = model(e, lam, sigma)
+        r = core - m
+        res_var = (r * r).sum(axis=1) / max(core.shape[1] - 1, 1)
+        info = np.maximum((J_e * J_e).sum(axis=1), 1e-12)
+        e_sigma[ok] = np.sqrt(res_var / info)
+        e_all[ok] = e
+        # How each arris would move to keep fitting its profile if the level or the blur were off.
+        de_dlam = -(J_e * J_lam).sum(axis=1) / info
+        de_dsig = -(J_e * J_sig).sum(axis=1) / info
+    e = e_all
+    along = np.where(outward > 0, start + e, start - e)
+    valid = ok & np.isfinite(along) & (np.abs(e - e0) <= half) & np.isfinite(e_sigma)
+    w_fit = np.maximum(w0 + band_slope * (e - e0), 0.0)
+    band_med = float(np.median(w_fit[valid])) if np.any(valid) else float("nan")
+    model_sigma = (math.hypot(float(np.median(de_dlam)) * LEVEL_DOUBT, float(np.median(de_dsig)) * BLUR_DOUBT)
+                   if de_dlam.size else float("nan"))
+    noise = np.sqrt(0.5 * (vals[:, :plateau].var(axis=1) + vals[:, -plateau:].var(axis=1)))
+    step = D * outward
+    nan = np.full(len(scan), np.nan)
+    samples = EdgeSamples(axis, scan, np.where(valid, along, np.nan), step * scale_to_8bit, noise * scale_to_8bit,
+                          nan, np.maximum(np.maximum(A, B), A + lam * D) * scale_to_8bit, valid)
+    fit = FarFaceFit(lam, sigma, band_med, float(np.median(e_sigma[valid])) if np.any(valid) else float("nan"),
+                     model_sigma)
+    return samples, fit
+
+
+def step_blur(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half: int, plateau: int = 4,
+              lut: np.ndarray | None = None, blur_px: float = 1.0, max_lines: int = 160) -> float:
+    """Optical blur (Gaussian sigma, px, the pixel's own width not included) of a plain step edge.
+
+    Each profile across the edge is modelled as a Gaussian-blurred step integrated over the pixels
+    (the model of :func:`subpixel_edges_far_face` without a band) and the blur shared by all profiles
+    is fitted with every edge position. Unlike :func:`transition_width` this is not inflated by noise
+    or texture. Returns NaN when no sample is usable.
+    """
+    idx = np.flatnonzero(mask & samples.valid)
+    if idx.size == 0:
+        return float("nan")
+    idx = idx[:: max(idx.size // max_lines, 1)]
+    sub = samples.subset(np.isin(np.arange(samples.scan.size), idx))
+    _, fit = subpixel_edges_far_face(plane, sub.axis, sub.scan, sub.along, half, np.full(sub.scan.size, -1.0), 0.0,
+                                     1, plateau, 1.0, blur_px=blur_px, lut=lut, fit_blur=True, n_iter=15)
+    return fit.blur_px

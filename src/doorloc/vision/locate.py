@@ -32,10 +32,13 @@ from doorloc.cell import Cell, DoorSize
 from doorloc.vision import quality as q
 from doorloc.vision.edges import (
     EdgeSamples,
+    FarFaceFit,
     coarse_edges,
     linearizing_lut,
     subpixel_edges,
     subpixel_edges_banded,
+    subpixel_edges_far_face,
+    step_blur,
     transition_width,
 )
 from doorloc.vision.lines import ImageLine, RectangleFit, fit_rectangle_edges, ransac_line
@@ -188,11 +191,13 @@ def _coarse(plane, band: Band, axis, polarity, thr, prefer=None):
 
 
 def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half: int, cfg: LocateConfig,
-            scale8: float, every: int = 1, sharp: bool = False) -> tuple[dict[str, EdgeSamples], bool]:
+            scale8: float, every: int = 1, sharp: bool = False, optical_blur_px: float = float("nan"),
+            ) -> tuple[dict[str, EdgeSamples], bool, FarFaceFit | None]:
     keep = half + cfg.plateau + 4
     lut = linearizing_lut(plane.dtype, cfg.response_gamma)
     tracks = region.tracks(pose.corner, yaw_rad, pose.thickness_mm, keep, window_px=half + cfg.plateau + 2)
     out = {}
+    far_fit = None
     beside = tracks["far"].beside_far_face
     for name in EDGE_NAMES:
         lay = region.layouts[name]
@@ -202,27 +207,23 @@ def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half:
         if t.band_px is not None and t.band_px.size:
             band = t.band_px[::every]
             interior = lay.polarity * (1 if cfg.door_brighter else -1)
-            if t.beside_far_face and np.median(band) >= half + cfg.plateau + 1:
-                # The far face's band holds the whole outer side of the window: a plain step between
-                # the hinge face and the far face, whatever their brightness.
-                out[name] = subpixel_edges(plane, lay.axis, scan, centre, half, cfg.plateau, scale8, **step_kw)
+            if t.beside_far_face:
+                # Hinge face | far face (a band of any width and brightness) | background: fit the
+                # profile's shape, two blurred steps with the band's width from the geometry. The
+                # blur comes from the plain reference arris (beside a narrow band, blur, band level
+                # and width trade off); only the first pass, which just centres the windows, guesses it.
+                out[name], far_fit = subpixel_edges_far_face(
+                    plane, lay.axis, scan, centre, half, band, t.band_slope, -interior, cfg.plateau, scale8,
+                    blur_px=optical_blur_px if np.isfinite(optical_blur_px) else 1.0, **step_kw)
                 continue
-            # An arris strip lies on the door side of the outline; the far face's band lies outside the
-            # far arris (the hinge face ends at the band's inner edge).
-            side = -interior if t.beside_far_face else interior
-            out[name], _ = subpixel_edges_banded(plane, lay.axis, scan, centre, half, band, side, cfg.plateau,
+            # An arris strip lies on the door side of the outline.
+            out[name], _ = subpixel_edges_banded(plane, lay.axis, scan, centre, half, band, interior, cfg.plateau,
                                                  scale8, sharp=sharp, band_slope=t.band_slope, **step_kw)
-            if not (t.beside_far_face and out[name].valid.mean() < 0.5):
-                continue
-            # A thin band much brighter than the face defeats the band model: measure the plain step over
-            # both (thickness off by at most the band's width, which the thickness check tolerates).
-            h = half + int(math.ceil(np.max(band)))
-            out[name] = subpixel_edges(plane, lay.axis, scan, centre, h, cfg.plateau, scale8, **step_kw)
             continue
         out[name] = subpixel_edges(plane, lay.axis, scan, centre, half, cfg.plateau, scale8,
                                    slope_smooth=max(cfg.slope_smooth // every, 1) if cfg.slope_smooth else 0,
                                    **step_kw)
-    return out, beside
+    return out, beside, far_fit
 
 
 def _fit(samples: dict[str, EdgeSamples], region: SearchRegion, cfg: LocateConfig, every: int = 1,
@@ -370,23 +371,36 @@ def _coarse_pose(c: _CoarseEdges, plane, s8: float, region: SearchRegion, cell: 
     return pose
 
 
+@dataclass(frozen=True)
+class _Profiles:
+    samples: EdgeSamples
+    mask: np.ndarray
+    lut: np.ndarray | None
+
+
 def _refine(plane, s8: float, region: SearchRegion, pose: MetricPose, cfg: LocateConfig, clock: _Clock):
     """Sub-pixel edge points and the joint line fit, in passes (module docstring).
 
-    Returns ``(samples, fit, pose, blur_px, window_half_px, far_face_beside)``.
+    Returns ``(samples, fit, pose, blur_px, window_half_px, far_face_beside, far_face_fit)``.
     """
     half = cfg.half_window_max
     blur = float("nan")
+    optical_blur = float("nan")
     n_pass = 2
     _pass = 0
     while _pass < n_pass:
         # The first pass, on every fifth scan line, only centres and sizes the final windows.
-        samples, far_beside = _sample(plane, region, pose, math.radians(pose.yaw_deg), half, cfg, s8,
-                                      every=5 if _pass == 0 else 1, sharp=_pass > 0 and blur < 0.6)
-        if far_beside and _pass == 1:
-            # The far face's band width follows from the thickness being measured: iterate (each round
-            # shrinks the error about four-fold).
-            n_pass = 5
+        samples, far_beside, far_fit = _sample(plane, region, pose, math.radians(pose.yaw_deg), half, cfg, s8,
+                                               every=5 if _pass == 0 else 1, sharp=_pass > 0 and blur < 0.6,
+                                               optical_blur_px=optical_blur)
+        if far_beside and _pass >= 1 and not np.isfinite(optical_blur):
+            # The far face came into view after the first pass: measure the blur and look again.
+            optical_blur = step_blur(plane, ref0.samples, ref0.mask, cfg.half_window_max, cfg.plateau, ref0.lut,
+                                     blur_px=math.sqrt(max(blur * blur - 1.0 / 12.0, 0.04)))
+            n_pass = max(n_pass, _pass + 2)
+        elif far_beside and _pass == 1:
+            # The far face's band width follows from the thickness being measured: one more round.
+            n_pass = 3
         clock.lap(f"edges{min(_pass + 1, 2)}")
         fit, _ = _fit(samples, region, cfg, n_iter=6 if _pass == 0 else 9, far_offset_only=far_beside)
         pose = pose_from_fit(fit, region.face_map)
@@ -399,8 +413,13 @@ def _refine(plane, s8: float, region: SearchRegion, pose: MetricPose, cfg: Locat
             widths = [transition_width(plane, samples[k], fit.weights[k] > 0, half, lut) for k in ("bottom", "reference")]
             blur = float(np.nanmax(widths)) if np.any(np.isfinite(widths)) else float(cfg.half_window_max)
             half = int(np.clip(math.ceil(cfg.window_blur_factor * blur + 1.0), cfg.half_window_min, cfg.half_window_max))
+            ref0 = _Profiles(samples["reference"], fit.weights["reference"] > 0, lut)
+            if far_beside:
+                # The far arris model needs the optical blur alone: measured on the plain reference arris.
+                optical_blur = step_blur(plane, ref0.samples, ref0.mask, cfg.half_window_max, cfg.plateau, lut,
+                                         blur_px=math.sqrt(max(blur * blur - 1.0 / 12.0, 0.04)))
         _pass += 1
-    return samples, fit, pose, blur, half, far_beside
+    return samples, fit, pose, blur, half, far_beside, far_fit
 
 
 def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrace, name: str) -> LocateResult:
@@ -420,12 +439,18 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
     clock.lap("coarse")
     pose = _coarse_pose(coarse, plane, s8, region, cell, door, cfg)
     clock.lap("coarse_pose")
-    samples, fit, pose, blur, half, far_beside = _refine(plane, s8, region, pose, cfg, clock)
+    samples, fit, pose, blur, half, far_beside, far_fit = _refine(plane, s8, region, pose, cfg, clock)
     tr.samples = samples
     tr.inliers = {k: fit.weights[k] > 0 for k in EDGE_NAMES}
     tr.pose = pose
-    res = _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, half, plane, s8, far_beside)
+    res = _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, half, plane, s8, far_beside,
+                           far_fit)
     res.diagnostics["far_face_visible"] = far_beside
+    if far_fit is not None:
+        res.diagnostics["far_face_fit"] = {"band_level": round(far_fit.band_level, 4), "blur_px": round(far_fit.blur_px, 3),
+                                           "band_px": round(far_fit.band_px, 3),
+                                           "arris_sigma_px": round(far_fit.arris_sigma_px, 4),
+                                           "model_sigma_px": round(far_fit.model_sigma_px, 4)}
     clock.lap("gate")
     res.diagnostics["timing_ms"] = clock.laps
     return res
@@ -474,7 +499,7 @@ def _rows_across(plane, s8: float, ref: EdgeSamples, far: EdgeSamples) -> np.nda
 
 
 def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, half, plane, s8,
-                     far_beside: bool = False) -> LocateResult:
+                     far_beside: bool = False, far_fit: FarFaceFit | None = None) -> LocateResult:
     lines, refusals = [], []
     corner_px = pose.corner_px
     diagnostics: dict = {
@@ -495,12 +520,16 @@ def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, ha
         rms_mm = float(np.sqrt(np.mean(fit.residuals[k][inl] ** 2))) if n_i else float("nan")
         rms_px = rms_mm / pose.scale_mm_per_px
         contrast = float(np.median(np.abs(s.step[inl]))) if n_i else 0.0
+        extra = {}
+        if k == "far" and far_fit is not None:
+            # what the far-face model leaves in doubt (band level, blur), on top of the noise
+            extra["model_sigma_mm"] = round(far_fit.model_sigma_px * pose.scale_mm_per_px, 5)
         lines.append(LineQuality(name=k, n_points=n_s, n_inliers=n_i, rms_residual_px=round(rms_px, 4),
                                  rms_residual_mm=round(rms_mm, 5), contrast=round(contrast, 1),
                                  noise=round(float(np.median(s.noise[inl])), 2) if n_i else None,
-                                 offset_sigma_mm=round(fit.offset_sigma[k], 5)))
-        # Beside a far face seen nearly edge-on the far arris only measures the thickness (it takes no
-        # part in the pose): a looser straightness check, and a thickness check widened below.
+                                 offset_sigma_mm=round(fit.offset_sigma[k], 5), **extra))
+        # Beside a visible far face the far arris only measures the thickness (it takes no part in the
+        # pose): a looser straightness check.
         loose = k == "far" and far_beside
         refusals.append(q.check_line(k, HUMAN[k], n_s, n_i, rms_px, contrast, cfg.min_inliers,
                                      cfg.min_inlier_fraction * (0.5 if loose else 1.0),
@@ -519,8 +548,19 @@ def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, ha
     refusals.append(q.check_overexposed(bright))
     refusals.append(q.check_envelope(pose.x_mm, pose.z_mm, pose.yaw_deg, cell.envelope, cfg.envelope_margin_mm,
                                      cfg.envelope_margin_deg))
-    t_tol = cfg.thickness_tolerance_mm + (0.5 if far_beside else 0.0)
+    t_tol = cfg.thickness_tolerance_mm
+    # Standard uncertainty of the thickness: the two arris offsets' noise, and beside a visible far face
+    # what its model leaves in doubt (a band narrower than the blur is hard to tell from the arris).
+    t_sigma = math.hypot(fit.offset_sigma["reference"], fit.offset_sigma["far"],
+                         far_fit.model_sigma_px * pose.scale_mm_per_px if far_fit is not None else 0.0)
     refusals.append(q.check_thickness(pose.thickness_mm, door.thickness_mm, t_tol))
+    t_uncertain = abs(pose.thickness_mm - door.thickness_mm) + 3.0 * t_sigma > t_tol
+    if t_uncertain and refusals[-1] is None:
+        refusals.append(q.Refusal("uncertain", f"the door's thickness cannot be checked: it measures "
+                                  f"{pose.thickness_mm:.2f} +- {3 * t_sigma:.2f} mm against {door.thickness_mm:.2f} mm "
+                                  f"(tolerance {t_tol:g} mm){' with its far face seen nearly edge-on' if far_beside else ''}; "
+                                  "check the door and the recipe, or move the door a little along X and take the "
+                                  "image again"))
     # standard errors of the corner from the line offsets
     sig = math.hypot(fit.offset_sigma["reference"], fit.offset_sigma["bottom"])
     diagnostics["corner_sigma_mm"] = sig
@@ -529,7 +569,8 @@ def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, ha
                                                 "the edges are too noisy; check focus, lighting and exposure"))
     diagnostics["thickness_check"] = {"measured_mm": round(pose.thickness_mm, 4), "expected_mm": door.thickness_mm,
                                       "difference_mm": round(pose.thickness_mm - door.thickness_mm, 4),
-                                      "tolerance_mm": t_tol, "far_face_in_view": far_beside}
+                                      "tolerance_mm": t_tol, "sigma_mm": round(t_sigma, 5),
+                                      "uncertain": t_uncertain, "far_face_in_view": far_beside}
     first = next((r for r in refusals if r is not None), None)
     if first is not None and first.code in ("edge_not_straight", "edge_missing", "corner_hidden"):
         # A pose outside the envelope explains broken edges best (the door lies beyond the region).

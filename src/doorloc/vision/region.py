@@ -255,7 +255,9 @@ class SearchRegion:
             band = None
             slope = 0.0
             if beside:
-                ok_band, width = self._far_face_band(pl, uv, scans, centre, window_px, lay.axis)
+                _, a_ends = _along_scan(self.image_points(np.array([corner, far_corner])), lay.axis)
+                outward = 1.0 if a_ends[1] >= a_ends[0] else -1.0  # door +X, along the scan line
+                ok_band, width = self._far_face_band(pl, uv, scans, centre, window_px, lay.axis, outward)
                 ok &= ok_band
                 band = width[ok]
                 # The band's outer edge (the far face's back edge) is W farther away: it moves k times
@@ -273,15 +275,19 @@ class SearchRegion:
             out[name] = Track(scans[ok], centre[ok], beside, band, slope)
         return out
 
-    def _far_face_band(self, pl, uv, scans, centre, window_px, axis) -> tuple[np.ndarray, np.ndarray]:
-        """Scan lines beside the visible far face (above its bottom edge) and the face's band width there, px."""
+    def _far_face_band(self, pl, uv, scans, centre, window_px, axis, outward: float) -> tuple[np.ndarray, np.ndarray]:
+        """Scan lines beside the visible far face (above its bottom edge) and the face's band width there, px.
+
+        The width is signed: positive where the band lies beyond the arris (``outward``, door +X along the
+        scan line); <= 0 where the far face is seen edge-on or from behind (no band in view).
+        """
         back = self.plane_map.at_depth(self.face_y + self.door.width_mm)
         # The far face's back edge: the same (X, Z) line at the door's far side, seen smaller (farther):
         # extend it up the door so that it spans the image.
         d = pl[-1] - pl[0]
         t = np.linspace(0.0, max(self.door.height_mm / max(float(np.hypot(*d)), 1e-9), 1.0), 200)
         uv_back = back.to_image(pl[0][None] + t[:, None] * d[None])
-        band = np.abs(_interp_on_scans(uv_back, axis, scans) - centre)
+        band = (_interp_on_scans(uv_back, axis, scans) - centre) * outward
         # Below the far face's bottom edge (it rises towards the back) there is no band.
         s_corner, _ = _along_scan(uv[:1], axis)
         s_back, _ = _along_scan(uv_back[:1], axis)
