@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from rendered_views import render_views, true_camera
+from rendered_views import N_VIEWS, render_views, true_camera
 
 from doorloc.calib.calibrate import (
     CANDIDATES_BY_NAME,
@@ -24,7 +24,9 @@ def rendered():
 
     cam = true_camera()
     board = Chessboard(9, 6, 25.0)
-    images = render_views(cam, Checkerboard(9, 6, 25.0), 20, seed=0,
+    # Seed 3 of bench/bench_calib_rendered.py (aligned projection difference 0.016 px, 1-sigma 0.031 px);
+    # over seeds 0-7 the bench measures 0.014-0.085 px, so the 0.1 px target holds there with margin.
+    images = render_views(cam, Checkerboard(9, 6, 25.0), N_VIEWS, seed=3,
                           effects=Effects(blur_sigma_px=0.7, read_noise_dn=1.0))
     views = []
     for name, im, _ in images:
@@ -62,6 +64,23 @@ def test_projection_matches_the_true_model_inside_the_observed_region(rendered, 
     assert d.aligned_max_px < 0.1
     assert d.raw_max_px < 0.5
     assert np.linalg.norm(d.rotation_rad) < 1e-3
+    # the product's own uncertainty for this figure predicts it (bench: observed/reported 0.4-2.4)
+    sigma = result.projection_sigma_px["max_observed_aligned"]
+    assert 0.01 < sigma < 0.05
+    assert d.aligned_max_px < 3 * sigma
+    # taking out the rotation leaves far less uncertainty than the raw figure
+    assert sigma < 0.5 * result.projection_sigma_px["max_observed"]
+
+
+def test_planned_views_cover_the_image_and_are_tilted_both_ways(result):
+    from doorloc.calib.coverage import board_tilts_deg, corner_coverage
+
+    cam = result.camera
+    cov = corner_coverage(np.concatenate([v.image_points for v in result.views]), cam.image_size)
+    assert cov.min() > 0  # every cell of the 8x6 grid, the image corners included
+    assert cam.observed_radius_px > 0.9 * np.hypot(cam.cx, cam.cy)
+    tilt = board_tilts_deg(result.fit.rvecs)
+    assert np.all(tilt.min(axis=0) < -30) and np.all(tilt.max(axis=0) > 30)
 
 
 def test_no_view_or_corner_of_clean_renders_is_rejected(result):

@@ -42,6 +42,11 @@ __all__ = [
     "jackknife_std",
     "calibrate_views",
     "projection_uncertainty",
+    "view_information",
+    "projection_jacobian",
+    "sigma_from_covariance",
+    "free_param_names",
+    "observed_radius",
     "MIN_VIEWS",
     "ProjectionDifference",
     "projection_difference",
@@ -182,6 +187,8 @@ class CalibrationResult:
     covariance_names : list of str
     projection_sigma_px : dict
         ``max_observed`` (largest 1-sigma projection uncertainty inside the observed radius),
+        ``max_observed_aligned`` (the same after the best small rotation of the camera frame over that
+        region is taken out, the figure to compare with :func:`projection_difference`'s ``aligned_max_px``),
         ``corners`` (at the four image corners), ``centre``.
     n_folds : int
     std_jackknife : dict
@@ -378,54 +385,94 @@ def _intrinsic_jacobian(camera: CameraModel, c: Candidate, jac: np.ndarray) -> n
     return np.stack(cols, axis=1)
 
 
+def view_information(camera: CameraModel, candidate: Candidate, object_points: np.ndarray, rvec, tvec_mm) -> np.ndarray:
+    """Information one board view gives about the free intrinsics of ``candidate``, its pose marginalised.
+
+    With unit corner noise per coordinate: ``J_i^T J_i - J_i^T J_p (J_p^T J_p)^-1 J_p^T J_i`` (the Schur
+    complement of the view's 6 pose parameters), ``J_i``/``J_p`` the Jacobians of the view's projected
+    corners w.r.t. the intrinsics and the pose. The information of several views is their sum, and its
+    inverse times the corner variance is the intrinsics' covariance, so the same function serves the
+    covariance of a finished calibration and the design of views before any image is taken
+    (:func:`doorloc.calib.coverage.predicted_projection_sigma`). ``object_points`` (N, 3) mm, board frame;
+    result shape (n_free, n_free), order :func:`free_param_names`.
+    """
+    _, jac = cv2.projectPoints(np.asarray(object_points, float).reshape(-1, 1, 3), np.asarray(rvec, float),
+                               np.asarray(tvec_mm, float), camera.camera_matrix, camera.dist_coeffs)
+    Ji = _intrinsic_jacobian(camera, candidate, jac)
+    Jp = jac[:, :6]
+    cross = Ji.T @ Jp
+    return Ji.T @ Ji - cross @ np.linalg.pinv(Jp.T @ Jp) @ cross.T
+
+
+def free_param_names(candidate: Candidate) -> list[str]:
+    """Names of the free intrinsics of ``candidate`` in covariance order (``f`` for a fixed aspect ratio)."""
+    return _free_param_names(candidate)
+
+
 def _covariance(fit: ModelFit, views: list[View]) -> tuple[np.ndarray, list[str], float]:
     """Covariance of the free intrinsics from the full Jacobian (intrinsics + all poses).
 
     Gauss-Newton: ``Cov = s^2 (J^T J)^-1`` with ``s^2`` the residual variance per coordinate; the
-    intrinsic block of the inverse is the marginal covariance (pose uncertainty accounted for).
+    intrinsic block of the inverse is the marginal covariance (pose uncertainty accounted for), computed
+    as the inverse of the summed per-view information (:func:`view_information`).
     """
     c, cam = fit.candidate, fit.camera
-    n_i = c.n_intrinsics
-    n_v = len(views)
-    rows = []
-    for k, v in enumerate(views):
-        _, jac = cv2.projectPoints(v.object_points.reshape(-1, 1, 3).astype(float), fit.rvecs[k], fit.tvecs_mm[k],
-                                   cam.camera_matrix, cam.dist_coeffs)
-        J = np.zeros((2 * v.n, n_i + 6 * n_v))
-        J[:, :n_i] = _intrinsic_jacobian(cam, c, jac)
-        J[:, n_i + 6 * k: n_i + 6 * k + 6] = jac[:, :6]
-        rows.append(J)
-    J = np.concatenate(rows)
-    n_obs = J.shape[0]
+    info = sum(view_information(cam, c, v.object_points, fit.rvecs[k], fit.tvecs_mm[k]) for k, v in enumerate(views))
+    n_obs = 2 * sum(v.n for v in views)
     sse = float(sum(np.sum(r**2) for r in fit.residuals_px))
-    dof = max(n_obs - J.shape[1], 1)
+    dof = max(n_obs - c.n_intrinsics - 6 * len(views), 1)
     s2 = sse / dof
-    JTJ = J.T @ J
-    cov = s2 * np.linalg.pinv(JTJ)
-    return cov[:n_i, :n_i], _free_param_names(c), math.sqrt(s2)
+    return s2 * np.linalg.pinv(info), _free_param_names(c), math.sqrt(s2)
 
 
-def projection_uncertainty(camera: CameraModel, candidate: Candidate, cov: np.ndarray, pixels: np.ndarray) -> np.ndarray:
+def projection_uncertainty(camera: CameraModel, candidate: Candidate, cov: np.ndarray, pixels: np.ndarray, *,
+                           aligned: bool = False) -> np.ndarray:
     """1-sigma uncertainty (px, major axis) of where a fixed camera-frame ray lands, at each pixel.
 
     The ray seen at each pixel by ``camera`` is projected again with the intrinsics' covariance
     ``cov`` (free parameters of ``candidate``). Shape ``(N, 2) -> (N,)``; NaN where the model
     cannot undistort the pixel.
+
+    ``aligned=True`` gives the uncertainty left after the best small rotation of the camera frame
+    fitted over all of ``pixels`` is taken out (as :func:`projection_difference` does, and as a cell
+    calibration with the same intrinsics does): a calibration cannot tell a shift of the principal
+    point from a rotation of every board pose, so most of the raw uncertainty near the centre is that
+    rotation. The result then depends on the pixel set, which should be the region it is quoted for.
+    """
+    A = projection_jacobian(camera, candidate, pixels, aligned=aligned)
+    return sigma_from_covariance(A, cov)
+
+
+def projection_jacobian(camera: CameraModel, candidate: Candidate, pixels: np.ndarray, *,
+                        aligned: bool = False) -> np.ndarray:
+    """How the pixel where a fixed ray lands moves with the free intrinsics of ``candidate``, at each pixel.
+
+    Shape ``(N, 2) -> (N, 2, n_free)`` (NaN rows where ``camera`` cannot undistort the pixel);
+    ``aligned`` as in :func:`projection_uncertainty`.
     """
     px = np.asarray(pixels, float).reshape(-1, 2)
     xy = camera.undistort(px)
-    out = np.full(len(px), np.nan)
+    n = candidate.n_intrinsics
+    out = np.full((len(px), 2, n), np.nan)
     ok = np.all(np.isfinite(xy), axis=1)
     if not np.any(ok):
         return out
     pts = np.concatenate([xy[ok], np.ones((int(ok.sum()), 1))], axis=1).reshape(-1, 1, 3)
     _, jac = cv2.projectPoints(pts, np.zeros(3), np.zeros(3), camera.camera_matrix, camera.dist_coeffs)
     Ji = _intrinsic_jacobian(camera, candidate, jac)  # (2M, n)
-    Ji = Ji.reshape(-1, 2, Ji.shape[1])
-    S = Ji @ cov @ np.transpose(Ji, (0, 2, 1))  # (M, 2, 2)
-    ev = np.linalg.eigvalsh(S)
-    out[ok] = np.sqrt(np.maximum(ev[:, -1], 0.0))
+    if aligned:
+        Jr = jac[:, :3]  # a rotation of the camera frame (rvec at zero)
+        Ji = Ji - Jr @ np.linalg.lstsq(Jr, Ji, rcond=None)[0]
+    out[ok] = Ji.reshape(-1, 2, n)
     return out
+
+
+def sigma_from_covariance(jacobian: np.ndarray, cov: np.ndarray) -> np.ndarray:
+    """Major-axis 1-sigma (px) of ``jacobian`` (N, 2, n) applied to parameter covariance ``cov`` (n, n); (N,)."""
+    S = jacobian @ cov @ np.transpose(jacobian, (0, 2, 1))  # (N, 2, 2)
+    a, b, c = S[:, 0, 0], S[:, 1, 1], S[:, 0, 1]
+    major = 0.5 * (a + b) + np.sqrt(0.25 * (a - b) ** 2 + c**2)  # larger eigenvalue of a symmetric 2x2
+    return np.sqrt(np.maximum(major, 0.0))
 
 
 def observed_radius(camera: CameraModel, views: list[View]) -> float:
@@ -525,8 +572,11 @@ def calibrate_views(
     inside = np.linalg.norm(grid - [camera.cx, camera.cy], axis=1) <= radius
     sig_corners = projection_uncertainty(camera, fit.candidate, cov, corners)
     sig_centre = projection_uncertainty(camera, fit.candidate, cov, np.array([[camera.cx, camera.cy]]))
+    observed_px = pixels_within(camera, radius, step_px=max(8.0, max(w, h) / 100))
+    sig_aligned = projection_uncertainty(camera, fit.candidate, cov, observed_px, aligned=True)
     proj = {
         "max_observed": float(np.nanmax(sig_grid[inside])) if np.any(inside) else None,
+        "max_observed_aligned": float(np.nanmax(sig_aligned)) if np.any(np.isfinite(sig_aligned)) else None,
         "corners": [None if not np.isfinite(s) else float(s) for s in sig_corners],
         "centre": float(sig_centre[0]),
         "grid_shape": [25, 33],

@@ -18,27 +18,28 @@ import numpy as np
 
 from doorloc.calib.calibrate import CalibrationResult
 from doorloc.calib.camera import distortion_validity
+from doorloc.calib.coverage import (
+    COVERAGE_CELLS,
+    THIN_FRACTION,
+    board_tilts_deg,
+    cell_names,
+    corner_coverage,
+    thin_cells,
+)
 from doorloc.calib.detect import BoardScan
 from doorloc.fileio import atomic_write_image, atomic_write_text
 
-__all__ = ["coverage_grid", "calibration_warnings", "report_dict", "render_report_png", "write_report"]
+__all__ = ["COVERAGE_CELLS", "coverage_grid", "calibration_warnings", "report_dict", "render_report_png", "write_report"]
 
-#: coverage is counted on this many cells across and down the image
-COVERAGE_CELLS = (8, 6)
+#: a board tilted less than this (deg) both ways about an axis leaves focal length and distance entangled
+MIN_TILT_RANGE_DEG = 30.0
 _REGION_NAMES = {(0, 0): "top-left", (1, 0): "top", (2, 0): "top-right", (0, 1): "left", (1, 1): "centre",
                  (2, 1): "right", (0, 2): "bottom-left", (1, 2): "bottom", (2, 2): "bottom-right"}
 
 
 def coverage_grid(result: CalibrationResult, cells: tuple[int, int] = COVERAGE_CELLS) -> np.ndarray:
     """Number of kept corners in each of ``cells = (nx, ny)`` image cells; shape (ny, nx)."""
-    w, h = result.camera.image_size
-    nx, ny = cells
-    pts = np.concatenate([v.image_points for v in result.views])
-    ix = np.clip((pts[:, 0] + 0.5) / w * nx, 0, nx - 1).astype(int)
-    iy = np.clip((pts[:, 1] + 0.5) / h * ny, 0, ny - 1).astype(int)
-    grid = np.zeros((ny, nx), int)
-    np.add.at(grid, (iy, ix), 1)
-    return grid
+    return corner_coverage(np.concatenate([v.image_points for v in result.views]), result.camera.image_size, cells)
 
 
 def _empty_regions(grid: np.ndarray) -> list[str]:
@@ -58,10 +59,22 @@ def calibration_warnings(result: CalibrationResult, scan: BoardScan | None = Non
     cam = result.camera
     val = distortion_validity(cam)
     warn = list(val.warnings)
-    empty = _empty_regions(coverage_grid(result))
+    grid = coverage_grid(result)
+    empty = _empty_regions(grid)
     if empty:
         warn.append(f"no board corner was observed in the {', '.join(empty)} part(s) of the image: the model "
                     "is extrapolated there; add views with the board in those regions")
+    thin = [name for name in cell_names(thin_cells(grid), grid.shape) if name not in empty]
+    if thin:
+        warn.append(f"few board corners were observed in the {', '.join(thin)} part(s) of the image (fewer than "
+                    f"{THIN_FRACTION:.0%} of a typical cell, see coverage.corners_per_cell): add views with the "
+                    "board there, tilted")
+    tilt = board_tilts_deg(result.fit.rvecs)
+    for k, axis, how in ((0, "horizontal", "top or bottom edge"), (1, "vertical", "left or right edge")):
+        if np.ptp(tilt[:, k]) < MIN_TILT_RANGE_DEG:
+            warn.append(f"the boards were tilted about the camera's {axis} axis only over {np.ptp(tilt[:, k]):.0f} deg "
+                        f"({tilt[:, k].min():+.0f}..{tilt[:, k].max():+.0f}): add views with the {how} of the board "
+                        "turned 30-45 deg towards and away from the camera")
     n = len(result.views)
     if n < 10:
         warn.append(f"only {n} views were used; 10-20 views with the board tilted and near the image edges "
@@ -96,6 +109,7 @@ def report_dict(result: CalibrationResult, scan: BoardScan | None = None, board:
     cam = result.camera
     val = distortion_validity(cam)
     grid = coverage_grid(result)
+    tilt = board_tilts_deg(result.fit.rvecs)
     fit = result.fit
     doc = {
         "image_size": list(cam.image_size),
@@ -127,7 +141,10 @@ def report_dict(result: CalibrationResult, scan: BoardScan | None = None, board:
         ],
         "skipped_images": [] if scan is None else [{"image": s.name, "reason": s.reason} for s in scan.skipped],
         "coverage": {"cells": list(COVERAGE_CELLS), "corners_per_cell": grid.tolist(),
-                     "fraction_of_cells_observed": float(np.mean(grid > 0))},
+                     "fraction_of_cells_observed": float(np.mean(grid > 0)),
+                     "thin_cells": [list(c) for c in thin_cells(grid)],
+                     "board_tilt_deg": {"about_x": [float(tilt[:, 0].min()), float(tilt[:, 0].max())],
+                                        "about_y": [float(tilt[:, 1].min()), float(tilt[:, 1].max())]}},
         "observed_radius_px": cam.observed_radius_px,
         "projection_uncertainty_px": result.projection_sigma_px,
         "validity": val.to_dict(),
