@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -202,3 +204,61 @@ def test_dark_door_on_bright_background_with_config(cell):
     assert not locate(img, cell, door).ok  # the default polarity expects a bright hinge face
     dx, dz, dyaw, dt = _err(locate(img, cell, door, config=LocateConfig(door_brighter=False)), pose, door)
     assert abs(dx) < 0.002 and abs(dz) < 0.002 and abs(dyaw) < 0.001 and abs(dt) < 0.004
+
+
+# A thin door shifted towards -X: the camera (cell X = 30 mm) looks past the far arris onto the far face,
+# which shows as a band between the hinge face and the background.
+THIN_HARD = Effects(albedo_hinge=0.277, albedo_background=0.154, albedo_side=0.404, gradient_u=-0.12,
+                    gradient_v=0.1, vignetting=0.25, grain_contrast=0.02, blur_sigma_px=0.78, read_noise_dn=2.5)
+
+
+@pytest.mark.parametrize(
+    "pose,thickness,effects",
+    [
+        # far face 1.3-3 px wide and brighter than the hinge face (was off by 1.26 mm)
+        (DoorPose(-2.65, 3.0, 0.69), 32.25, THIN_HARD),
+        # ... the same, JPEG 85 and more blur
+        (DoorPose(-2.0, -4.0, 0.3), 31.0, replace(THIN_HARD, blur_sigma_px=1.4, jpeg_quality=85)),
+        # far face seen edge-on (the camera within a millimetre of its plane)
+        (DoorPose(1.0, 2.0, 1.78), 30.12, THIN_HARD),
+        # a wide band (30 px), little contrast against the hinge face
+        (DoorPose(-8.9, 0.0, -0.12), 30.07, replace(THIN_HARD, albedo_hinge=0.358, albedo_background=0.161,
+                                                    albedo_side=0.411, blur_sigma_px=1.7, jpeg_quality=85)),
+        # a narrow band darker than the hinge face, default photometry
+        (DoorPose(-1.2, 5.0, -0.4), 30.5, None),
+    ],
+)
+def test_thin_door_beside_its_far_face_measures_the_thickness(cell, pose, thickness, effects):
+    door = DoorSize(900, thickness, 2100)
+    rd = render_door(cell, door, pose, effects=effects, seed=5)
+    r = locate(rd.image, cell, door)
+    dx, dz, dyaw, dt = _err(r, pose, door)
+    assert r.diagnostics["far_face_visible"] and "far_face_fit" in r.diagnostics
+    assert abs(dx) < 0.05 and abs(dz) < 0.05 and abs(dyaw) < 0.02
+    assert abs(dt) < 0.05
+    check = r.diagnostics["thickness_check"]
+    assert check["tolerance_mm"] == 1.0 and 0 < check["sigma_mm"] < 0.1 and not check["uncertain"]
+    assert r.lines[2].model_sigma_mm >= 0
+
+
+def test_thickness_is_never_accepted_beyond_the_tolerance_it_claims(cell):
+    """With a tolerance near the measurement's doubt, an answer is either within it or refused as such."""
+    cfg = LocateConfig(thickness_tolerance_mm=0.04)
+    seen = set()
+    for i, (x, t) in enumerate([(-2.65, 32.25), (-1.5, 31.4), (-5.0, 30.3), (0.5, 29.6)]):
+        pose, door = DoorPose(x, 1.0, 0.5), DoorSize(900, t, 2100)
+        rd = render_door(cell, door, pose, effects=replace(THIN_HARD, jpeg_quality=85 if i % 2 else 0), seed=i)
+        r = locate(rd.image, cell, door, config=cfg)
+        check = r.diagnostics["thickness_check"]
+        assert check["tolerance_mm"] == 0.04
+        if r.ok:
+            assert abs(r.thickness_mm - t) <= 0.04 and not check["uncertain"]
+        else:
+            assert r.error_code in ("uncertain", "thickness_mismatch"), r.error
+            assert check["uncertain"] or abs(check["difference_mm"]) > 0.04
+        seen.add(r.ok)
+    # a door 0.6 mm thicker than the recipe, beside its far face: refused, whatever the doubt
+    pose, door = DoorPose(-2.65, 1.0, 0.5), DoorSize(900, 32.25, 2100)
+    img = render_door(cell, DoorSize(900, 32.85, 2100), pose, effects=THIN_HARD).image
+    r = locate(img, cell, door, config=LocateConfig(thickness_tolerance_mm=0.3))
+    assert not r.ok and r.error_code == "thickness_mismatch"

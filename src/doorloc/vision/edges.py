@@ -513,6 +513,8 @@ class FarFaceFit:
 #: plausible model errors of the far-face fit: band level (relative) and optical blur (px)
 LEVEL_DOUBT = 0.1
 BLUR_DOUBT = 0.15
+#: weight of the pull of the far face's relative level towards 0.5, as a fraction of its raw information
+LEVEL_PRIOR_WEIGHT = 0.02
 
 
 def _pixel_step(bounds: np.ndarray, e: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -630,27 +632,55 @@ def subpixel_edges_far_face(
         J_e = -a1 * g1 - a2 * g2 * (1.0 + band_slope * has_band)[:, None]
         return m, J_e, Do[:, None] * (C1 - C2), a1 * h1 + a2 * h2
 
+    def level_and_cost(e):
+        # The model is linear in the band level: its least-squares value (pulled towards 0.5 as in the
+        # iterations below) and the fit's cost for these arrises.
+        m, _, J_lam, _ = model(e, 0.0, sigma)
+        raw = float((J_lam ** 2).sum())
+        lam = float(((J_lam * (core - m)).sum() + LEVEL_PRIOR_WEIGHT * raw * 0.5) / max(raw * (1 + LEVEL_PRIOR_WEIGHT), 1e-12))
+        r = core - (m + J_lam * lam)
+        # with the pull's own cost: where the band could be read as hinge face or background (level 0
+        # or 1, any width), the arris is where the band is a band
+        return lam, float((r * r).sum()) + LEVEL_PRIOR_WEIGHT * raw * (lam - 0.5) ** 2
+
     lam = 0.5
     n_ok = int(ok.sum())
     if n_ok:
-        # Starting band level: linear least squares at the predicted arris (the model is linear in it).
-        m, _, J_lam, _ = model(e, 0.0, sigma)
-        den = float((J_lam ** 2).sum())
-        if den > 1e-6 * float((Do ** 2).sum()):
-            lam = float((J_lam * (core - m)).sum() / den)
+        # Start from the best common shift of all arrises (half-pixel steps across the window): a
+        # prediction that took the band's outer edge for the arris sits in a false minimum where the
+        # band has shrunk to nothing, which Gauss-Newton would not leave.
+        best = (math.inf, 0.0, 0.5)
+        for shift in np.arange(-half, half + 0.25, 0.5):
+            lam_s, cost = level_and_cost(e0o + shift)
+            if cost < best[0]:
+                best = (cost, shift, lam_s)
+        e = e0o + best[1]
+        lam = best[2]
     for _ in range(n_iter if n_ok else 0):
-        # One Gauss-Newton step for every arris and for the shared level and blur (from the same
-        # Jacobian; the arrises and the shared values hardly interact).
+        # One Gauss-Newton step for every arris and the shared level (and blur) together: the normal
+        # equations have one unknown per scan line plus the shared ones, solved through the Schur
+        # complement (the arrises and the level are strongly coupled where the band is narrow).
         m, J_e, J_lam, J_sig = model(e, lam, sigma)
         r = core - m
-        de = (J_e * r).sum(axis=1) / np.maximum((J_e * J_e).sum(axis=1), 1e-12)
-        Jg = np.stack([J_lam.ravel(), J_sig.ravel() if fit_blur else np.zeros(J_sig.size)], 1)
-        H = Jg.T @ Jg
-        H += np.diag(np.maximum(np.diag(H), 1e-12) * 1e-6)  # a band nowhere in view leaves its level free
-        d_lam, d_sig = np.linalg.solve(H, Jg.T @ r.ravel())
+        Jg = np.stack([J_lam, J_sig if fit_blur else np.zeros_like(J_sig)], -1)  # (N, M, 2)
+        h_ee = np.maximum((J_e * J_e).sum(axis=1), 1e-12)
+        h_eg = np.einsum("nm,nmk->nk", J_e, Jg)
+        b_e = (J_e * r).sum(axis=1)
+        H = np.einsum("nmk,nml->kl", Jg, Jg) - (h_eg / h_ee[:, None]).T @ h_eg
+        b_g = np.einsum("nmk,nm->k", Jg, r) - (h_eg * (b_e / h_ee)[:, None]).sum(axis=0)
+        H += np.diag(np.maximum(np.diag(H), 1e-12) * 1e-6 + 1e-9)  # a band nowhere in view leaves its level free
+        # Where the band is much narrower than the blur, its level and the arrises trade off (the
+        # Schur complement keeps little of the level's information): a weak pull towards mid-grey
+        # between the two sides then settles the level, as little as the data allow.
+        prior = LEVEL_PRIOR_WEIGHT * float((J_lam * J_lam).sum())
+        H[0, 0] += prior
+        b_g[0] += prior * (0.5 - lam)
+        d_lam, d_sig = np.linalg.solve(H, b_g)
+        d_lam, d_sig = float(np.clip(d_lam, -1.0, 1.0)), float(np.clip(d_sig, -0.5, 0.5))
+        de = (b_e - h_eg @ np.array([d_lam, d_sig])) / h_ee
         e = e + np.clip(de, -1.0, 1.0)
-        lam = float(lam + np.clip(d_lam, -1.0, 1.0))
-        sigma = float(np.clip(sigma + np.clip(d_sig, -0.5, 0.5), 0.05, 5.0))
+        lam = lam + d_lam
+        sigma = float(np.clip(sigma + d_sig, 0.05, 5.0))
         if np.max(np.abs(de)) < 1e-4 and abs(d_lam) < 1e-4 and abs(d_sig) < 1e-4:
             break
     e_all = np.full(len(scan), np.nan)

@@ -310,6 +310,16 @@ def _coarse_edges(plane, s8: float, region: SearchRegion, door: DoorSize, cfg: L
                                        prefer_fraction=0.3 if door.arris_mm > 0 else 0.1)
     strong_f = np.isfinite(along_f) & (strength_f >= thr)
     far_line = ransac_line(band_far.scan[strong_f], along_f[strong_f], tol) if strong_f.sum() >= 10 else None
+    if far_line is not None:
+        # Beside a wide far face a faint arris step (hinge face -> far face) may win on only part of the
+        # scan lines, and the far face's stronger back edge on the rest: a line of steps nearer to the
+        # reference arris with enough support is the arris (unless it is only an arris strip's inner edge).
+        nearer = strong_f & ((far_line.at(band_far.scan) - along_f) * xdir > tol)
+        near_line = ransac_line(band_far.scan[nearer], along_f[nearer], tol) if nearer.sum() >= 10 else None
+        strip_px = door.arris_mm / sc + 3.0
+        if (near_line is not None and near_line.inliers.sum() >= 0.3 * len(band_far.scan)
+                and np.median((far_line.at(band_far.scan) - near_line.at(band_far.scan)) * xdir) > strip_px):
+            far_line = near_line
     if far_line is None or far_line.inliers.sum() < 0.3 * len(band_far.scan):
         raise _Refused(q.Refusal("edge_missing", f"the {HUMAN['far']} was not found within {door.thickness_mm + cfg.thickness_search_mm:.0f} mm of "
                                  f"the reference arris; check that the door is {door.thickness_mm:g} mm thick and that "
