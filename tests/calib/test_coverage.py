@@ -10,6 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from rendered_views import CORNER_SIGMA_PX, candidate_poses, true_camera
+from scipy.spatial.transform import Rotation
 
 from doorloc.calib.calibrate import CANDIDATES_BY_NAME, View, calibrate_views, pixels_within
 from doorloc.calib.camera import Extrinsics
@@ -57,7 +58,8 @@ def test_board_tilts_are_recovered_from_the_pose(a, b, roll):
     # rolling the board about its own normal changes no tilt
     rx_first = _r(0, a) @ _r(1, b) @ _r(2, roll)
     ry_first = _r(1, b) @ _r(0, a) @ _r(2, roll)
-    got = board_tilts_deg([cv2.Rodrigues(rx_first)[0].ravel(), cv2.Rodrigues(ry_first)[0].ravel()])
+    # scipy's matrix -> rotation vector keeps tiny angles (OpenCV's rounds them to zero)
+    got = board_tilts_deg(Rotation.from_matrix(np.stack([rx_first, ry_first])).as_rotvec())
     assert got[0, 0] == pytest.approx(a, abs=1e-6)
     assert got[1, 1] == pytest.approx(b, abs=1e-6)
     assert board_tilts_deg([np.zeros(3)])[0] == pytest.approx([0.0, 0.0], abs=1e-12)
@@ -97,3 +99,19 @@ def test_predicted_sigma_is_what_the_calibration_reports(pool):
     predicted = predicted_projection_sigma(cam, PLUMB_BOB, poses[:15], BOARD, pixels, CORNER_SIGMA_PX)
     reported = res.projection_sigma_px["max_observed_aligned"]
     assert predicted.max() == pytest.approx(reported, rel=0.15)  # the noise estimate itself varies by ~5 %
+
+
+def test_max_error_quantile_of_one_pixel_is_the_rayleigh_quantile():
+    from doorloc.calib.calibrate import max_error_quantile
+
+    J = np.eye(2)[None]  # one pixel moving with two parameters of 0.05 px sigma each
+    cov = 0.05**2 * np.eye(2)
+    for q in (0.5, 0.95):
+        assert max_error_quantile(J, cov, q, n_samples=20000) == pytest.approx(0.05 * math.sqrt(-2 * math.log(1 - q)),
+                                                                               rel=0.03)
+    # over many pixels moving independently, the largest error is larger than any one pixel's
+    many = np.zeros((10, 2, 20))
+    for m in range(10):
+        many[m, 0, 2 * m] = many[m, 1, 2 * m + 1] = 1.0
+    assert max_error_quantile(many, 0.05**2 * np.eye(20), 0.5) > 0.05 * math.sqrt(2 * math.log(2)) * 1.3
+    assert max_error_quantile(np.full((3, 2, 2), np.nan), cov) is None

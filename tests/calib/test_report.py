@@ -24,6 +24,11 @@ def test_coverage_counts_every_kept_corner(left):
     assert grid.shape == (6, 8)
     assert grid.sum() == sum(v.n for v in res.views)
     assert grid[:, 0].sum() < grid[:, 3].sum()  # the left edge of these photographs is barely covered
+    doc = report_dict(res)
+    assert [0, 0] in doc["coverage"]["thin_cells"] and [3, 2] not in doc["coverage"]["thin_cells"]
+    assert doc["coverage"]["board_tilt_deg"]["about_x"][0] < -20 < 20 < doc["coverage"]["board_tilt_deg"]["about_x"][1]
+    sig = doc["projection_uncertainty_px"]
+    assert sig["max_observed_aligned"] < sig["max_observed_aligned_95"]
 
 
 def test_warnings_name_what_to_do(left):
@@ -32,6 +37,22 @@ def test_warnings_name_what_to_do(left):
     text = "\n".join(warnings)
     assert "reached only" in text and "add views with the board near the image corners" in text
     assert "top-left" in text  # the uncovered part of the image is named
+    # thinly covered parts are named too (not the empty ones again)
+    thin = next(w for w in warnings if w.startswith("few board corners"))
+    assert "bottom-right" in thin and "top-left" not in thin
+    assert not any("tilted about" in w for w in warnings)  # these boards were tilted +-25-40 deg both ways
+
+
+def test_boards_never_tilted_are_warned_about(left):
+    import dataclasses
+
+    import numpy as np
+
+    _, scan, res = left
+    flat = dataclasses.replace(res, fit=dataclasses.replace(res.fit, rvecs=[np.zeros(3) for _ in res.fit.rvecs]))
+    text = "\n".join(calibration_warnings(flat, scan))
+    assert "tilted about the camera's horizontal axis only over 0 deg" in text
+    assert "tilted about the camera's vertical axis only over 0 deg" in text
 
 
 def test_report_json_and_png(left, tmp_path):
