@@ -84,7 +84,7 @@ def thin_set(n, seed):
     """Hard photometry on thin doors shifted towards -X: the camera (cell X = 30 mm) sees the far face as a
     band beside the far arris, often brighter than the hinge face (side albedo above the hinge's)."""
     rng = np.random.default_rng(seed)
-    for i, (name, _, _, eff, s) in enumerate(hard_set(n, seed + 1000)):
+    for i, (_, _, _, eff, s) in enumerate(hard_set(n, seed + 1000)):
         t = rng.uniform(28.0, 40.0)
         pose = DoorPose(rng.uniform(-10.0, 10.0), rng.uniform(-10, 10), rng.uniform(-2, 2))
         if i % 3 == 0:  # the far face darker than the hinge face

@@ -633,15 +633,14 @@ def subpixel_edges_far_face(
         return m, J_e, Do[:, None] * (C1 - C2), a1 * h1 + a2 * h2
 
     def level_and_cost(e):
-        # The model is linear in the band level: its least-squares value (pulled towards 0.5 as in the
-        # iterations below) and the fit's cost for these arrises.
+        # The model is linear in the band level: its least-squares value (with the pull towards 0.5 of
+        # the iterations below) and the fit's cost, pull included, for these arrises.
         m, _, J_lam, _ = model(e, 0.0, sigma)
-        raw = float((J_lam ** 2).sum())
-        lam = float(((J_lam * (core - m)).sum() + LEVEL_PRIOR_WEIGHT * raw * 0.5) / max(raw * (1 + LEVEL_PRIOR_WEIGHT), 1e-12))
+        info = float((J_lam ** 2).sum())
+        pull = LEVEL_PRIOR_WEIGHT * info
+        lam = float(((J_lam * (core - m)).sum() + pull * 0.5) / max(info + pull, 1e-12))
         r = core - (m + J_lam * lam)
-        # with the pull's own cost: where the band could be read as hinge face or background (level 0
-        # or 1, any width), the arris is where the band is a band
-        return lam, float((r * r).sum()) + LEVEL_PRIOR_WEIGHT * raw * (lam - 0.5) ** 2
+        return lam, float((r * r).sum()) + pull * (lam - 0.5) ** 2
 
     lam = 0.5
     n_ok = int(ok.sum())
@@ -656,6 +655,12 @@ def subpixel_edges_far_face(
                 best = (cost, shift, lam_s)
         e = e0o + best[1]
         lam = best[2]
+    def total_cost(e, lam, sigma):
+        m, _, J_lam, _ = model(e, lam, sigma)
+        pull = LEVEL_PRIOR_WEIGHT * float((J_lam * J_lam).sum())
+        return float(((core - m) ** 2).sum()) + pull * (lam - 0.5) ** 2
+
+    cost = total_cost(e, lam, sigma) if n_ok else 0.0
     for _ in range(n_iter if n_ok else 0):
         # One Gauss-Newton step for every arris and the shared level (and blur) together: the normal
         # equations have one unknown per scan line plus the shared ones, solved through the Schur
@@ -677,11 +682,20 @@ def subpixel_edges_far_face(
         b_g[0] += prior * (0.5 - lam)
         d_lam, d_sig = np.linalg.solve(H, b_g)
         d_lam, d_sig = float(np.clip(d_lam, -1.0, 1.0)), float(np.clip(d_sig, -0.5, 0.5))
-        de = (b_e - h_eg @ np.array([d_lam, d_sig])) / h_ee
-        e = e + np.clip(de, -1.0, 1.0)
-        lam = lam + d_lam
-        sigma = float(np.clip(sigma + d_sig, 0.05, 5.0))
-        if np.max(np.abs(de)) < 1e-4 and abs(d_lam) < 1e-4 and abs(d_sig) < 1e-4:
+        de = np.clip((b_e - h_eg @ np.array([d_lam, d_sig])) / h_ee, -1.0, 1.0)
+        # Only steps that lower the cost: the band's width is clipped at zero, a kink Gauss-Newton
+        # can jump across into the false minimum where the band has vanished.
+        for step in (1.0, 0.5, 0.25, 0.125):
+            trial = (e + step * de, lam + step * d_lam, float(np.clip(sigma + step * d_sig, 0.05, 5.0)))
+            c = total_cost(*trial)
+            if c <= cost:
+                break
+        else:
+            break
+        e, lam, sigma = trial
+        done = cost - c <= 1e-9 * max(cost, 1e-12) or (np.max(np.abs(step * de)) < 1e-4 and abs(step * d_lam) < 1e-4)
+        cost = c
+        if done:
             break
     e_all = np.full(len(scan), np.nan)
     e_sigma = np.full(len(scan), np.nan)

@@ -35,10 +35,10 @@ from doorloc.vision.edges import (
     FarFaceFit,
     coarse_edges,
     linearizing_lut,
+    step_blur,
     subpixel_edges,
     subpixel_edges_banded,
     subpixel_edges_far_face,
-    step_blur,
     transition_width,
 )
 from doorloc.vision.lines import ImageLine, RectangleFit, fit_rectangle_edges, ransac_line
@@ -396,6 +396,7 @@ def _refine(plane, s8: float, region: SearchRegion, pose: MetricPose, cfg: Locat
     half = cfg.half_window_max
     blur = float("nan")
     optical_blur = float("nan")
+    ref0: _Profiles | None = None  # the reference arris's first-pass profiles (for the blur)
     n_pass = 2
     _pass = 0
     while _pass < n_pass:
@@ -403,7 +404,7 @@ def _refine(plane, s8: float, region: SearchRegion, pose: MetricPose, cfg: Locat
         samples, far_beside, far_fit = _sample(plane, region, pose, math.radians(pose.yaw_deg), half, cfg, s8,
                                                every=5 if _pass == 0 else 1, sharp=_pass > 0 and blur < 0.6,
                                                optical_blur_px=optical_blur)
-        if far_beside and _pass >= 1 and not np.isfinite(optical_blur):
+        if far_beside and _pass >= 1 and not np.isfinite(optical_blur) and ref0 is not None:
             # The far face came into view after the first pass: measure the blur and look again.
             optical_blur = step_blur(plane, ref0.samples, ref0.mask, cfg.half_window_max, cfg.plateau, ref0.lut,
                                      blur_px=math.sqrt(max(blur * blur - 1.0 / 12.0, 0.04)))
