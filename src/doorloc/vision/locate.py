@@ -5,6 +5,9 @@ The flow (thesis section 3.7, made metric and robust)::
     luminance -> size/exposure checks -> coarse steps in the search region (RANSAC lines)
       -> coarse pose on the hinge-face plane
       -> sub-pixel edge points along every scan line of each edge (area estimator), pass 1
+         (beside a visible far face — a thin door shifted towards -X — the far arris instead by a
+         fit of the profile's shape: hinge face | far-face band | background, two blurred steps,
+         the band's width from the geometry, the blur measured on the reference arris)
       -> joint robust fit of bottom end + reference arris + far arris on the plane -> pose
       -> pass 2 with windows centred on the fitted lines and sized to the measured blur -> pose
       -> quality gate -> LocateResult
@@ -14,7 +17,7 @@ The flow (thesis section 3.7, made metric and robust)::
 ``wrong_image_size``, ``black_image``, ``saturated_image``, ``low_contrast``, ``no_door``, ``not_a_door``
 (a regular pattern such as a calibration board), ``edge_missing``, ``edge_not_straight``, ``corner_hidden``,
 ``overexposed`` (the hinge face clips), ``outside_envelope``, ``thickness_mismatch``, ``uncertain`` (the
-fit's standard error is too large) and ``internal_error`` (a bug: the message asks to keep the image).
+fit's standard error is too large, or the thickness's uncertainty reaches past the tolerance) and ``internal_error`` (a bug: the message asks to keep the image).
 
 Pass a :class:`LocateTrace` to keep what the pipeline saw, and give it to
 :func:`doorloc.vision.overlay.draw_overlay` (which otherwise runs locate again).
