@@ -2,6 +2,7 @@
 
 Run from the repository root:
   /work/venv/bin/python bench/bench_calib_rendered.py [--seeds 8] [--views 30] [--charuco-seeds 4] [--charuco-views 30]
+      [--white-noise-draws 2]
 
 Views come from doorloc.sim.boards.render_board (exact area-coverage rendering through the
 camera's distortion) with 0.7 px optical blur and 1 DN read noise; poses are planned to cover the
@@ -10,8 +11,10 @@ uncertainty (tests/calib/rendered_views.py). Per seed it prints the coverage and
 intrinsic errors, the projection difference to the true model inside the observed region (raw, and
 after the best small rotation of the camera frame, which a cell calibration absorbs) next to the
 product's reported 1-sigma for the same figure (and their ratio), the same difference for the other
-distortion models fitted to the same views (does the model choice matter near the edge?); then
-ChArUco seeds and the one-shot cell calibration on the thesis cell.
+distortion models fitted to the same views (does the model choice matter near the edge?), and the
+same for noise-free corners (model bias alone); then a white-noise check (the same poses, exact
+corners plus Gaussian noise: does the reported uncertainty hold when its noise model does?), ChArUco
+seeds and the one-shot cell calibration on the thesis cell.
 """
 
 from __future__ import annotations
@@ -114,6 +117,34 @@ def run(board_spec, sim_board, seed: int, n_views: int, true):
     return ok, pd.aligned_max_px / sig
 
 
+def white_noise_check(seeds: int, draws: int, n_views: int, true) -> None:
+    """Same planned poses, exact corners plus white noise of the rendered corners' size: is the reported
+    uncertainty right when its noise model holds? (plumb_bob only, no rejection)."""
+    from rendered_views import CORNER_SIGMA_PX, plan_views
+
+    from doorloc.calib.camera import Extrinsics
+
+    board = Chessboard(9, 6, 25.0)
+    obj = board.object_points()
+    ratios, beyond = [], 0
+    for seed in range(seeds):
+        poses = plan_views(true, obj, n_views, seed)
+        for k in range(draws):
+            rng = np.random.default_rng(100 * seed + k)
+            views = []
+            for i, (r, t) in enumerate(poses):
+                px = true.project(Extrinsics(r, t).cell_to_camera(obj))
+                views.append(View(f"v{i}", obj, px + rng.normal(0, CORNER_SIGMA_PX, px.shape), np.arange(len(obj))))
+            res = calibrate_views(views, true.image_size, candidates=(CANDIDATES_BY_NAME["plumb_bob"],), reject=False)
+            c = res.camera
+            d = projection_difference(c, true, pixels_within(c, c.observed_radius_px)).aligned_max_px
+            ratios.append(d / res.projection_sigma_px["max_observed_aligned"])
+            beyond += d > res.projection_sigma_px["max_observed_aligned_95"]
+    print(f"== white-noise check ({seeds} seeds x {draws} draws, exact corners + N(0, {CORNER_SIGMA_PX:.4f} px) per "
+          f"coordinate): observed/reported ratio {min(ratios):.2f}..{max(ratios):.2f} (median {np.median(ratios):.2f}); "
+          f"{beyond}/{len(ratios)} beyond the reported 95 % bound")
+
+
 def _true_corners(true, view: View, rvec, tvec) -> np.ndarray:
     """Where ``true`` puts the view's corners at its fitted pose (noise-free corners of the same geometry)."""
     from doorloc.calib.camera import Extrinsics
@@ -158,6 +189,7 @@ def main() -> None:
     ap.add_argument("--views", type=int, default=N_VIEWS)
     ap.add_argument("--charuco-seeds", type=int, default=4)
     ap.add_argument("--charuco-views", type=int, default=N_VIEWS)
+    ap.add_argument("--white-noise-draws", type=int, default=2)
     a = ap.parse_args()
     true = true_camera()
     print(f"== true camera {true.image_size[0]}x{true.image_size[1]}: fx {true.fx} fy {true.fy} cx {true.cx} cy {true.cy} "
@@ -167,6 +199,8 @@ def main() -> None:
     ratios = [r for _, r in out]
     print(f"  acceptance met in {sum(ok for ok, _ in out)}/{len(out)} seeds; observed/reported-sigma ratio "
           f"{min(ratios):.2f}..{max(ratios):.2f} (median {np.median(ratios):.2f})")
+    if a.white_noise_draws:
+        white_noise_check(a.seeds, a.white_noise_draws, a.views, true)
     print(f"== ChArUco 9x7 squares, 25 mm, 18 mm markers (DICT_4X4_50), {a.charuco_views} views per seed")
     out = [run(CharucoSpec(9, 7, 25.0, 18.0), CharucoBoard(9, 7, 25.0, 18.0), s, a.charuco_views, true)
            for s in range(a.charuco_seeds)]
