@@ -197,9 +197,10 @@ def main() -> None:
     print(f"== chessboard 9x6, 25 mm, {a.views} views per seed")
     out = [run(Chessboard(9, 6, 25.0), Checkerboard(9, 6, 25.0), s, a.views, true) for s in range(a.seeds)]
     ratios = [r for _, r in out]
-    print(f"  acceptance met in {sum(ok for ok, _ in out)}/{len(out)} seeds; observed/reported-sigma ratio "
-          f"{min(ratios):.2f}..{max(ratios):.2f} (median {np.median(ratios):.2f})")
-    if a.white_noise_draws:
+    if ratios:
+        print(f"  acceptance met in {sum(ok for ok, _ in out)}/{len(out)} seeds; observed/reported-sigma ratio "
+              f"{min(ratios):.2f}..{max(ratios):.2f} (median {np.median(ratios):.2f})")
+    if a.white_noise_draws and a.seeds:
         white_noise_check(a.seeds, a.white_noise_draws, a.views, true)
     print(f"== ChArUco 9x7 squares, 25 mm, 18 mm markers (DICT_4X4_50), {a.charuco_views} views per seed")
     out = [run(CharucoSpec(9, 7, 25.0, 18.0), CharucoBoard(9, 7, 25.0, 18.0), s, a.charuco_views, true)
