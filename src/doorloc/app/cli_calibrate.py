@@ -145,6 +145,11 @@ def register(app: typer.Typer) -> None:
         typer.echo("dist " + " ".join(f"{v:.6g}" for v in cam.dist_coeffs))
         typer.echo(f"observed radius {cam.observed_radius_px:.0f} px; projection uncertainty inside it "
                    f"<= {result.projection_sigma_px['max_observed']:.3f} px (1 sigma)")
+        aligned, aligned95 = (result.projection_sigma_px.get(k) for k in ("max_observed_aligned", "max_observed_aligned_95"))
+        if aligned is not None and aligned95 is not None:
+            # What matters once a cell calibration has absorbed a small camera rotation.
+            typer.echo(f"  after the camera's small rotation is absorbed: <= {aligned:.3f} px (1 sigma); "
+                       f"largest error below {aligned95:.3f} px in 95 % of calibrations")
         for sc in result.scores:
             typer.echo(f"  {'*' if sc.chosen else ' '} {sc.name:24s} params {sc.n_params:2d}  train {sc.train_rms_px:.4f}  "
                        f"held-out {sc.held_out_rms_px:.4f} px")
