@@ -70,15 +70,19 @@ def summary(result) -> str:
             f"{c.observed_radius_px:.0f} px\n    dist {np.array2string(c.dist_coeffs, precision=5)}")
 
 
+def detect_and_calibrate(images, board):
+    """Scan ``images`` for ``board`` and calibrate the product's way; returns (scan, views, result, seconds)."""
+    t = time.perf_counter()
+    scan = scan_images(images, board)
+    views = [View(n, d.object_points(board), d.corners_px, d.ids) for n, d in scan.detections.items()]
+    return scan, views, calibrate_views(views, scan.image_size), time.perf_counter() - t
+
+
 def opencv_left() -> None:
     print("== opencv-left (published: RMS 0.393 px, fx = fy = 535.916, cx 342.283, cy 235.571, fixed aspect)")
     board = Chessboard(9, 6, 25.0)
     images = load(DATA / "opencv-left", "left*.jpg")
-    t = time.perf_counter()
-    scan = scan_images(images, board)
-    views = [View(n, d.object_points(board), d.corners_px, d.ids) for n, d in scan.detections.items()]
-    result = calibrate_views(views, scan.image_size)
-    dt = time.perf_counter() - t
+    scan, views, result, dt = detect_and_calibrate(images, board)
     c = result.camera
     print(f"  detected {len(scan.detections)}/{len(images)} boards ({', '.join(sorted({d.method for d in scan.detections.values()}))});"
           f" detection + calibration {dt:.1f} s")
@@ -106,11 +110,7 @@ def bouguet() -> None:
           " +- are ~3 sigma)")
     board = Chessboard(13, 12, 30.0)
     images = load(DATA / "bouguet-calib-example", "Image*.png")
-    t = time.perf_counter()
-    scan = scan_images(images, board)
-    views = [View(n, d.object_points(board), d.corners_px, d.ids) for n, d in scan.detections.items()]
-    result = calibrate_views(views, scan.image_size)
-    dt = time.perf_counter() - t
+    scan, views, result, dt = detect_and_calibrate(images, board)
     c = result.camera
     print(f"  detected {len(scan.detections)}/{len(images)} boards; detection + calibration {dt:.1f} s; "
           f"{len(result.rejections)} corners rejected")

@@ -58,6 +58,11 @@ class DoorChoice:
     door_id: str | None = None
     recipe: Any | None = None  # doorloc.recipes.models.DoorRecipe
 
+    @classmethod
+    def from_recipe(cls, recipe: Any) -> DoorChoice:
+        """The door a stored recipe describes (its size, id and the recipe for the targets)."""
+        return cls(recipe.door_size(), recipe.door_id, recipe)
+
 
 def default_locate_fn() -> LocateFn:
     """The real pipeline, :func:`doorloc.vision.locate.locate` (imported on first use: it pulls in OpenCV)."""

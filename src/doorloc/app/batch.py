@@ -164,7 +164,7 @@ def plan_batch(
                 items.append(BatchItem(image, path, DoorChoice(cell.default_door, door_id),
                                        f"no door recipe with id '{door_id}' in the recipe database"))
             else:
-                items.append(BatchItem(image, path, DoorChoice(recipe.door_size(), door_id, recipe)))
+                items.append(BatchItem(image, path, DoorChoice.from_recipe(recipe)))
             continue
         try:
             door = door_from_fields(

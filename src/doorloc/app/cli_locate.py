@@ -12,6 +12,7 @@ is written atomically (temporary file + rename) for answers and refusals alike.
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 from typing import Annotated
 
@@ -35,12 +36,10 @@ def _door_choice(cell, width, thickness, height, arris, door_id, db):
     if recipe is None:
         raise ValueError(f"no door recipe with id {door_id!r} in the recipe database; import it first "
                          "(doorloc recipes import) or give the door size with --door-width/--door-thickness")
-    size = recipe.door_size()
-    if arris is not None:
-        from doorloc.cell import DoorSize
-
-        size = DoorSize(size.width_mm, size.thickness_mm, size.height_mm, arris)
-    return DoorChoice(size, door_id, recipe)
+    choice = DoorChoice.from_recipe(recipe)
+    if arris is None:
+        return choice
+    return replace(choice, door=replace(choice.door, arris_mm=float(arris)))
 
 
 def register(app: typer.Typer) -> None:

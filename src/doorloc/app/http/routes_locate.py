@@ -123,7 +123,7 @@ async def _door_choice(
                 422, "unknown_door",
                 f"There is no door recipe with id '{door_id}'; import it (doorloc recipes import) or PUT /v1/doors/{door_id}.",
             )
-        return DoorChoice(recipe.door_size(), door_id, recipe)
+        return DoorChoice.from_recipe(recipe)
     try:
         return DoorChoice(door_from_fields(state.cell, width_mm, thickness_mm, height_mm))
     except ValueError as e:
