@@ -84,14 +84,18 @@ def run(cmd: list[str] | str, cwd: Path, env: dict[str, str], what: str) -> str:
     print(f"container check: {what}", flush=True)
     proc = subprocess.run(cmd, cwd=cwd, env=env, shell=isinstance(cmd, str), text=True, capture_output=True)
     if proc.returncode != 0:
-        raise SystemExit(f"container check FAILED: {what} (exit {proc.returncode})\n{proc.stdout}\n{proc.stderr}")
+        raise SystemExit(
+            f"container check FAILED: {what} (exit {proc.returncode})\n{proc.stdout}\n{proc.stderr}"
+        )
     return proc.stdout
 
 
 def check_static(stages: list[Stage]) -> None:
     """What the host cannot replay: two stages, non-root runtime, the lock for the image's Python."""
     if len(stages) != 2 or not stages[0].name:
-        raise SystemExit("container check FAILED: the Dockerfile must have a named build stage and a runtime stage")
+        raise SystemExit(
+            "container check FAILED: the Dockerfile must have a named build stage and a runtime stage"
+        )
     build, runtime = stages
     user = runtime.all("USER")
     if not user or user[-1] in ("root", "0"):
@@ -100,14 +104,20 @@ def check_static(stages: list[Stage]) -> None:
         raise SystemExit("container check FAILED: the runtime stage has no HEALTHCHECK")
     for arg in runtime.all("COPY"):
         if f"--from={build.name}" not in arg:
-            raise SystemExit(f"container check FAILED: the runtime stage copies {arg!r}, not only the build stage's venv")
+            raise SystemExit(
+                f"container check FAILED: the runtime stage copies {arg!r}, not only the build stage's venv"
+            )
     m = re.match(r"python:(\d+)\.(\d+)", build.base)
     locks = re.findall(r"requirements/lock-\S+-py(\d)(\d+)\.txt", " ".join(build.all("RUN")))
     if not m or not locks or any(lk != m.groups() for lk in locks):
-        raise SystemExit(f"container check FAILED: base {build.base} and the lock(s) {locks} it installs disagree")
+        raise SystemExit(
+            f"container check FAILED: base {build.base} and the lock(s) {locks} it installs disagree"
+        )
     if sys.version_info[:2] != (int(m.group(1)), int(m.group(2))):
-        raise SystemExit(f"container check FAILED: this host runs Python {sys.version_info[0]}.{sys.version_info[1]}, "
-                         f"the image {m.group(1)}.{m.group(2)}: run the check with that Python")
+        raise SystemExit(
+            f"container check FAILED: this host runs Python {sys.version_info[0]}.{sys.version_info[1]}, "
+            f"the image {m.group(1)}.{m.group(2)}: run the check with that Python"
+        )
 
 
 def replay_build(build: Stage, scratch: Path) -> tuple[Path, dict[str, str]]:
@@ -118,7 +128,9 @@ def replay_build(build: Stage, scratch: Path) -> tuple[Path, dict[str, str]]:
     env = env_of(build, {k: v for k, v in os.environ.items() if not k.startswith(("PYTHON", "VIRTUAL_ENV"))})
     image_venv = env.get("VIRTUAL_ENV")
     if not image_venv:
-        raise SystemExit("container check FAILED: the build stage must set ENV VIRTUAL_ENV (where the venv goes)")
+        raise SystemExit(
+            "container check FAILED: the build stage must set ENV VIRTUAL_ENV (where the venv goes)"
+        )
     env["VIRTUAL_ENV"] = str(venv)
     for kw, arg in build.instructions:
         if kw == "COPY":
@@ -129,7 +141,9 @@ def replay_build(build: Stage, scratch: Path) -> tuple[Path, dict[str, str]]:
                 if not path.exists():
                     raise SystemExit(f"container check FAILED: COPY {src}: no such file in the repository")
                 if path.is_dir():  # Docker copies a directory's contents, not the directory
-                    shutil.copytree(path, target, dirs_exist_ok=True, ignore=shutil.ignore_patterns("__pycache__"))
+                    shutil.copytree(
+                        path, target, dirs_exist_ok=True, ignore=shutil.ignore_patterns("__pycache__")
+                    )
                     continue
                 to = target / path.name if dest.endswith("/") or len(sources) > 1 else target
                 to.parent.mkdir(parents=True, exist_ok=True)
@@ -139,7 +153,9 @@ def replay_build(build: Stage, scratch: Path) -> tuple[Path, dict[str, str]]:
             run(arg, workdir, env, f"RUN {arg}  (VIRTUAL_ENV={venv})")
             print(f"container check:   took {time.monotonic() - t0:.0f} s", flush=True)
         elif kw not in ("ENV", "WORKDIR", "ARG", "LABEL"):
-            raise SystemExit(f"container check FAILED: the build stage uses {kw}, which this check cannot replay")
+            raise SystemExit(
+                f"container check FAILED: the build stage uses {kw}, which this check cannot replay"
+            )
     if not (venv / "bin" / "doorloc").exists():
         raise SystemExit(f"container check FAILED: the build stage made no doorloc in {image_venv}")
     return venv, env
@@ -158,29 +174,58 @@ def replay_runtime(runtime: Stage, venv: Path, scratch: Path) -> None:
     if shutil.which("doorloc", path=env["PATH"]) != str(venv / "bin" / "doorloc"):
         raise SystemExit("container check FAILED: the runtime PATH does not find doorloc in the copied venv")
     print(run(["doorloc", "--version"], home, env, "doorloc --version").strip())
-    out = run(["doorloc", "locate", str(ROOT / BUNDLED_IMAGE), "--cell", str(ROOT / BUNDLED_CELL), "--door-width",
-               "900", "--door-thickness", "50", "--indent", "0"], home, env, f"doorloc locate {BUNDLED_IMAGE}")
+    out = run(
+        [
+            "doorloc",
+            "locate",
+            str(ROOT / BUNDLED_IMAGE),
+            "--cell",
+            str(ROOT / BUNDLED_CELL),
+            "--door-width",
+            "900",
+            "--door-thickness",
+            "50",
+            "--indent",
+            "0",
+        ],
+        home,
+        env,
+        f"doorloc locate {BUNDLED_IMAGE}",
+    )
     result = json.loads(out)
     if not result.get("ok"):
         raise SystemExit(f"container check FAILED: locate refused the bundled image: {result.get('error')}")
-    print(f"container check:   x {result['x_mm']:.3f} mm, z {result['z_mm']:.3f} mm, yaw {result['yaw_deg']:.4f} deg")
+    print(
+        f"container check:   x {result['x_mm']:.3f} mm, z {result['z_mm']:.3f} mm, yaw {result['yaw_deg']:.4f} deg"
+    )
 
     port = free_port()
-    cmd = json.loads(runtime.all("CMD")[-1]) + ["--host", "127.0.0.1", "--port", str(port)]  # the last option wins
+    cmd = json.loads(runtime.all("CMD")[-1]) + [
+        "--host",
+        "127.0.0.1",
+        "--port",
+        str(port),
+    ]  # the last option wins
     health = runtime.all("HEALTHCHECK")[-1].split(" CMD ", 1)[1].replace(":8000/", f":{port}/")
     print(f"container check: CMD {' '.join(cmd)}; HEALTHCHECK on port {port}", flush=True)
-    server = subprocess.Popen(cmd, cwd=home, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    server = subprocess.Popen(
+        cmd, cwd=home, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+    )
     try:
         deadline = time.monotonic() + 120
         while True:
             if server.poll() is not None:
-                raise SystemExit(f"container check FAILED: CMD exited {server.returncode}\n{server.stdout.read()}")
+                raise SystemExit(
+                    f"container check FAILED: CMD exited {server.returncode}\n{server.communicate()[0]}"
+                )
             probe = subprocess.run(health, shell=True, cwd=home, env=env, capture_output=True, text=True)
             if probe.returncode == 0:
                 print("container check:   HEALTHCHECK passed")
                 break
             if time.monotonic() > deadline:
-                raise SystemExit(f"container check FAILED: HEALTHCHECK still failing after 120 s\n{probe.stderr}")
+                raise SystemExit(
+                    f"container check FAILED: HEALTHCHECK still failing after 120 s\n{probe.stderr}"
+                )
             time.sleep(1)
     finally:
         server.terminate()

@@ -36,8 +36,22 @@ def test_first_hour_from_a_calibration_to_a_located_door(tmp_path):
     r = _run("cell", "init", "--calibration", CAMERA, "--out", cell_file)
     assert r.exit_code == 0, r.output
     assert "calibrate-cell" in r.output
-    r = _run("calibrate-cell", BOARDS / "cell_board.png", "--cell", cell_file, "--pattern", "9x6", "--square", "20",
-             "--board-origin", "-50", "0", "90", "--out", cell_file)
+    r = _run(
+        "calibrate-cell",
+        BOARDS / "cell_board.png",
+        "--cell",
+        cell_file,
+        "--pattern",
+        "9x6",
+        "--square",
+        "20",
+        "--board-origin",
+        "-50",
+        "0",
+        "90",
+        "--out",
+        cell_file,
+    )
     assert r.exit_code == 0, r.output
     cell = load_cell(cell_file)
     thesis = load_cell(ROOT / "fixtures" / "cell_thesis.yaml")
@@ -92,7 +106,9 @@ def test_cell_init_refuses_what_is_not_a_calibration_and_writes_nothing(tmp_path
 
 
 def test_cell_init_refuses_an_impossible_door(tmp_path):
-    r = _run("cell", "init", "--calibration", CAMERA, "--out", tmp_path / "cell.yaml", "--door-thickness", "-5")
+    r = _run(
+        "cell", "init", "--calibration", CAMERA, "--out", tmp_path / "cell.yaml", "--door-thickness", "-5"
+    )
     assert r.exit_code == EXIT_USAGE
     assert "thickness" in r.output and not (tmp_path / "cell.yaml").exists()
 

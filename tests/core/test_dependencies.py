@@ -77,15 +77,19 @@ def _module_distributions() -> dict[str, list[str]]:
 def _distributions(module: str, where: str) -> set[str]:
     dists = _module_distributions().get(module)
     if not dists:
-        pytest.fail(f"{where} imports {module!r}, which no installed distribution provides: declare it in "
-                    "pyproject.toml, run scripts/lock and scripts/setup")
+        pytest.fail(
+            f"{where} imports {module!r}, which no installed distribution provides: declare it in "
+            "pyproject.toml, run scripts/lock and scripts/setup"
+        )
     return {canonicalize_name(d) for d in dists}
 
 
 def _pins(lock: Path) -> dict[str, str]:
     text = lock.read_text(encoding="utf-8")
-    return {canonicalize_name(m.group(1)): m.group(2)
-            for m in re.finditer(r"^([A-Za-z0-9][A-Za-z0-9._-]*)==(\S+)", text, re.M)}
+    return {
+        canonicalize_name(m.group(1)): m.group(2)
+        for m in re.finditer(r"^([A-Za-z0-9][A-Za-z0-9._-]*)==(\S+)", text, re.M)
+    }
 
 
 def test_every_import_in_src_is_a_declared_dependency():
@@ -93,10 +97,14 @@ def test_every_import_in_src_is_a_declared_dependency():
     extras = _requirements(PYPROJECT["project"]["optional-dependencies"])
     for module, where in _third_party_imports(ROOT / "src").items():
         dists = _distributions(module, where)
-        assert dists & extras.keys(), f"{where} imports {module!r} ({sorted(dists)}) but pyproject declares none of them"
+        assert dists & extras.keys(), (
+            f"{where} imports {module!r} ({sorted(dists)}) but pyproject declares none of them"
+        )
         # an import that only an extra provides must be one the code imports lazily, where the feature is used
         if not dists & runtime.keys():
-            assert module in {"ray"}, f"{where} imports {module!r}, declared only as an extra: make it a dependency"
+            assert module in {"ray"}, (
+                f"{where} imports {module!r}, declared only as an extra: make it a dependency"
+            )
 
 
 def test_every_import_in_tests_and_bench_is_declared_for_development():
@@ -104,7 +112,9 @@ def test_every_import_in_tests_and_bench_is_declared_for_development():
     for folder in ("tests", "bench"):
         for module, where in _third_party_imports(ROOT / folder).items():
             dists = _distributions(module, where)
-            assert dists & dev.keys(), f"{where} imports {module!r} ({sorted(dists)}): add it to the dev extra"
+            assert dists & dev.keys(), (
+                f"{where} imports {module!r} ({sorted(dists)}): add it to the dev extra"
+            )
 
 
 def test_every_declared_dependency_is_imported_or_has_a_stated_reason():
@@ -113,7 +123,9 @@ def test_every_declared_dependency_is_imported_or_has_a_stated_reason():
         for module, where in _third_party_imports(ROOT / folder).items():
             imported |= _distributions(module, where)
     declared = _requirements(PYPROJECT["project"]["optional-dependencies"])
-    unused = sorted(n for n in declared if n not in imported and n not in NOT_IMPORTED and not _is_stub_package(n))
+    unused = sorted(
+        n for n in declared if n not in imported and n not in NOT_IMPORTED and not _is_stub_package(n)
+    )
     assert not unused, f"declared in pyproject.toml but imported nowhere: {unused}; use them or drop them"
 
 
@@ -124,9 +136,12 @@ def test_the_dev_lock_pins_every_declared_requirement_within_its_range(lock):
     for name, req in _requirements(extras).items():
         assert name in pins, f"{lock.name} does not pin {req}: run scripts/lock"
         assert req.specifier.contains(pins[name], prereleases=True), (
-            f"{lock.name} pins {name}=={pins[name]} outside pyproject's {req}: run scripts/lock")
+            f"{lock.name} pins {name}=={pins[name]} outside pyproject's {req}: run scripts/lock"
+        )
     for build_req in PYPROJECT["build-system"]["requires"]:
-        assert canonicalize_name(Requirement(build_req).name) in pins, f"{lock.name} lacks the build backend {build_req}"
+        assert canonicalize_name(Requirement(build_req).name) in pins, (
+            f"{lock.name} lacks the build backend {build_req}"
+        )
 
 
 @pytest.mark.parametrize("lock", [p for p in LOCKS if "-service-" in p.name], ids=lambda p: p.name)

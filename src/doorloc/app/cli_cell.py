@@ -15,10 +15,16 @@ cell_app = typer.Typer(help="Cell files (cell.yaml): start one for a new cell.",
 
 @cell_app.command("init")
 def init(
-    calibration: Annotated[Path, typer.Option(help="camera calibration (OpenCV FileStorage or ROS camera_info YAML)")],
+    calibration: Annotated[
+        Path, typer.Option(help="camera calibration (OpenCV FileStorage or ROS camera_info YAML)")
+    ],
     out: Annotated[Path, typer.Option(help="cell file to write")],
-    camera_at: Annotated[tuple[float, float, float], typer.Option(
-        help="nominal camera centre in the cell frame, mm (X across the door, Y towards it, Z up)")] = (30.0, -350.0, 40.0),
+    camera_at: Annotated[
+        tuple[float, float, float],
+        typer.Option(
+            help="nominal camera centre in the cell frame, mm (X across the door, Y towards it, Z up)"
+        ),
+    ] = (30.0, -350.0, 40.0),
     door_width: Annotated[float, typer.Option(help="default door width, mm")] = 900.0,
     door_thickness: Annotated[float, typer.Option(help="default door thickness, mm")] = 50.0,
     door_height: Annotated[float, typer.Option(help="default door height, mm")] = 2100.0,
@@ -31,13 +37,16 @@ def init(
     from doorloc.cell import CellFileError, DoorSize
 
     try:
-        start = StartingCell(camera_centre_mm=camera_at,
-                             default_door=DoorSize(door_width, door_thickness, door_height))
+        start = StartingCell(
+            camera_centre_mm=camera_at, default_door=DoorSize(door_width, door_thickness, door_height)
+        )
         write_starting_cell(calibration, out, start, overwrite=force)
     except (CellFileError, ValueError) as e:
         raise fail(f"{e}; nothing written") from None
-    typer.echo(f"wrote {out}; next: doorloc calibrate-cell BOARD.png --cell {out} --pattern COLSxROWS "
-               f"--square MM --board-origin X Y Z --out {out}")
+    typer.echo(
+        f"wrote {out}; next: doorloc calibrate-cell BOARD.png --cell {out} --pattern COLSxROWS "
+        f"--square MM --board-origin X Y Z --out {out}"
+    )
 
 
 def register(app: typer.Typer) -> None:

@@ -54,8 +54,9 @@ def _reference_mount_tvec(camera_centre_mm: tuple[float, float, float]) -> list[
     return [round(float(v), 9) + 0.0 for v in tvec]  # + 0.0: no "-0.0" in the file
 
 
-def starting_cell_document(calibration: str | os.PathLike, cell_path: str | os.PathLike,
-                           start: StartingCell | None = None) -> dict[str, Any]:
+def starting_cell_document(
+    calibration: str | os.PathLike, cell_path: str | os.PathLike, start: StartingCell | None = None
+) -> dict[str, Any]:
     """The YAML mapping of a starting cell file (SPEC section 2), checked by the cell parser.
 
     Parameters
@@ -80,7 +81,10 @@ def starting_cell_document(calibration: str | os.PathLike, cell_path: str | os.P
     doc: dict[str, Any] = {
         "camera": {
             "calibration": cal_ref,
-            "extrinsics": {"rvec": list(REFERENCE_MOUNT_RVEC), "tvec_mm": _reference_mount_tvec(start.camera_centre_mm)},
+            "extrinsics": {
+                "rvec": list(REFERENCE_MOUNT_RVEC),
+                "tvec_mm": _reference_mount_tvec(start.camera_centre_mm),
+            },
         },
         "fixture": asdict(start.fixture),
         "envelope": asdict(start.envelope),
@@ -90,8 +94,12 @@ def starting_cell_document(calibration: str | os.PathLike, cell_path: str | os.P
     return doc
 
 
-def write_starting_cell(calibration: str | os.PathLike, cell_path: str | os.PathLike,
-                        start: StartingCell | None = None, overwrite: bool = False) -> dict[str, Any]:
+def write_starting_cell(
+    calibration: str | os.PathLike,
+    cell_path: str | os.PathLike,
+    start: StartingCell | None = None,
+    overwrite: bool = False,
+) -> dict[str, Any]:
     """Write a starting ``cell.yaml`` atomically and return its mapping.
 
     Raises
