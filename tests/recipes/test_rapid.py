@@ -28,6 +28,9 @@ from doorloc.recipes.targets import Target, targets_for_pose
 _spec = importlib.util.spec_from_file_location("hinge_strategies", Path(__file__).with_name("hinge_strategies.py"))
 strategies = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(strategies)
+_spec = importlib.util.spec_from_file_location("golden_compare", Path(__file__).with_name("golden_compare.py"))
+golden_compare = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(golden_compare)
 
 GOLDEN = Path(__file__).with_name("golden")
 GOLDEN_POSE = DoorPose(1.25, -3.5, 0.8)
@@ -121,24 +124,6 @@ def test_robot_setup_from_cell_file(tmp_path):
         robot_setup_from_cell_file(cell)
 
 
-#: a number in a RAPID file: the golden files are compared by value, not text, so that a last-digit
-#: change of a single-precision number (a different numpy/libm rounding) is not a failure
-_RAPID_NUMBER = re.compile(r"[-+]?\d+(?:\.\d*)?(?:[Ee][-+]?\d+)?")
-#: far below anything a robot or a milled pocket can show (mm, and unit quaternion components)
-GOLDEN_REL, GOLDEN_ABS = 2e-6, 1e-5
-
-
-def assert_same_rapid_values(expected: str, produced: str, name: str) -> None:
-    """Same text around the numbers, and every number within GOLDEN_REL / GOLDEN_ABS of the golden one."""
-    exp_lines, got_lines = expected.splitlines(), produced.splitlines()
-    assert len(got_lines) == len(exp_lines), f"{name}: {len(got_lines)} lines, golden has {len(exp_lines)}"
-    for k, (e, g) in enumerate(zip(exp_lines, got_lines, strict=True), start=1):
-        assert _RAPID_NUMBER.sub("#", e) == _RAPID_NUMBER.sub("#", g), f"{name} line {k}: {g!r} != {e!r}"
-        ev = [float(v) for v in _RAPID_NUMBER.findall(e)]
-        gv = [float(v) for v in _RAPID_NUMBER.findall(g)]
-        assert gv == pytest.approx(ev, rel=GOLDEN_REL, abs=GOLDEN_ABS), f"{name} line {k}: {g!r} != {e!r}"
-
-
 def test_golden_rapid_files():
     (recipe,) = load_recipe_file(GOLDEN / "golden_recipe.csv")
     targets = targets_for_pose(recipe, GOLDEN_POSE, 0.0)
@@ -150,13 +135,13 @@ def test_golden_rapid_files():
         for name, text in produced.items():
             (GOLDEN / name).write_text(text, encoding="utf-8")
     for name, text in produced.items():
-        assert_same_rapid_values((GOLDEN / name).read_text(encoding="utf-8"), text, name)
+        golden_compare.assert_same_values((GOLDEN / name).read_text(encoding="utf-8"), text, name)
 
 
 def test_golden_comparison_catches_a_moved_target_and_a_changed_word():
     golden = (GOLDEN / "GOLDEN-1.txt").read_text(encoding="utf-8")
-    assert_same_rapid_values(golden, golden.replace("22.64532", "22.64533"), "last digit")  # 4e-7 relative
+    golden_compare.assert_same_values(golden, golden.replace("22.64532", "22.64533"), "last digit")  # 4e-7 relative
     with pytest.raises(AssertionError):
-        assert_same_rapid_values(golden, golden.replace("22.64532", "22.64632"), "moved 1 um")
+        golden_compare.assert_same_values(golden, golden.replace("22.64532", "22.64632"), "moved 1 um")
     with pytest.raises(AssertionError):
-        assert_same_rapid_values(golden, golden.replace("H1_APP", "H1_APX"), "renamed")
+        golden_compare.assert_same_values(golden, golden.replace("H1_APP", "H1_APX"), "renamed")
