@@ -130,3 +130,12 @@ def test_starting_cell_document_raises_a_cell_file_error_for_a_bad_calibration(t
     bad.write_text("%YAML:1.0\n---\nimage_width: 10\n")
     with pytest.raises(CellFileError, match="calibration"):
         starting_cell_document(bad, tmp_path / "cell.yaml")
+
+
+def test_the_starting_cell_shows_every_section_a_person_may_edit(tmp_path):
+    doc = starting_cell_document(CAMERA, tmp_path / "cell.yaml", StartingCell(response_gamma=2.2))
+    assert set(doc) == {"camera", "fixture", "envelope", "door"}
+    assert doc["camera"]["response_gamma"] == 2.2
+    assert doc["door"]["arris_profile"] == "chamfer"
+    with pytest.raises(CellFileError, match="response_gamma"):
+        starting_cell_document(CAMERA, tmp_path / "cell.yaml", StartingCell(response_gamma=50.0))

@@ -37,11 +37,14 @@ class StartingCell:
     camera_centre_mm : tuple of 3 floats
         Nominal camera centre in the cell frame, mm. The thesis cell: 30 mm beside the reference
         corner in X, 350 mm in front of the hinge face (Y = -350), 40 mm up.
+    response_gamma : float
+        The camera's response ``grey = light ** (1 / gamma)``: 1 for a linear machine-vision camera.
     fixture, envelope, default_door
         The cell's fixture, placement tolerance and the door assumed when a request names none.
     """
 
     camera_centre_mm: tuple[float, float, float] = (30.0, -350.0, 40.0)
+    response_gamma: float = 1.0
     fixture: Fixture = field(default_factory=Fixture)
     envelope: Envelope = field(default_factory=Envelope)
     default_door: DoorSize = field(default_factory=DoorSize)
@@ -85,6 +88,7 @@ def starting_cell_document(
                 "rvec": list(REFERENCE_MOUNT_RVEC),
                 "tvec_mm": _reference_mount_tvec(start.camera_centre_mm),
             },
+            "response_gamma": start.response_gamma,
         },
         "fixture": asdict(start.fixture),
         "envelope": asdict(start.envelope),
