@@ -14,6 +14,7 @@ Standard library only: it runs before any virtual environment exists.
 
 from __future__ import annotations
 
+import fnmatch
 import json
 import os
 import re
@@ -90,6 +91,17 @@ def run(cmd: list[str] | str, cwd: Path, env: dict[str, str], what: str) -> str:
     return proc.stdout
 
 
+def check_host_python(stages: list[Stage]) -> None:
+    """The replay must run on the Python the image runs (its lock is per Python version)."""
+    m = re.match(r"python:(\d+)\.(\d+)", stages[0].base)
+    assert m is not None  # check_static made sure
+    if sys.version_info[:2] != (int(m.group(1)), int(m.group(2))):
+        raise SystemExit(
+            f"container check FAILED: this host runs Python {sys.version_info[0]}.{sys.version_info[1]}, "
+            f"the image {m.group(1)}.{m.group(2)}: run the check with that Python"
+        )
+
+
 def check_static(stages: list[Stage]) -> None:
     """What the host cannot replay: two stages, non-root runtime, the lock for the image's Python."""
     if len(stages) != 2 or not stages[0].name:
@@ -113,11 +125,29 @@ def check_static(stages: list[Stage]) -> None:
         raise SystemExit(
             f"container check FAILED: base {build.base} and the lock(s) {locks} it installs disagree"
         )
-    if sys.version_info[:2] != (int(m.group(1)), int(m.group(2))):
-        raise SystemExit(
-            f"container check FAILED: this host runs Python {sys.version_info[0]}.{sys.version_info[1]}, "
-            f"the image {m.group(1)}.{m.group(2)}: run the check with that Python"
-        )
+    check_context(build)
+
+
+def check_context(build: Stage) -> None:
+    """Every file the build stage copies exists and is not left out of the build context by .dockerignore."""
+    ignore_file = ROOT / ".dockerignore"
+    ignored = (
+        [ln.strip().rstrip("/") for ln in ignore_file.read_text(encoding="utf-8").splitlines()]
+        if ignore_file.exists()
+        else []
+    )
+    ignored = [p for p in ignored if p and not p.startswith(("#", "!"))]
+    for arg in build.all("COPY"):
+        for src in shlex.split(arg)[:-1]:
+            if src.startswith("--"):
+                continue
+            if not (ROOT / src).exists():
+                raise SystemExit(f"container check FAILED: COPY {src}: no such file in the repository")
+            for pattern in ignored:
+                if fnmatch.fnmatch(src, pattern) or src.startswith(pattern + "/"):
+                    raise SystemExit(
+                        f"container check FAILED: COPY {src}, but .dockerignore leaves out {pattern!r}"
+                    )
 
 
 def replay_build(build: Stage, scratch: Path) -> tuple[Path, dict[str, str]]:
@@ -238,6 +268,7 @@ def replay_runtime(runtime: Stage, venv: Path, scratch: Path) -> None:
 def main() -> None:
     stages = parse_dockerfile((ROOT / "Dockerfile").read_text(encoding="utf-8"))
     check_static(stages)
+    check_host_python(stages)
     with tempfile.TemporaryDirectory(prefix="doorloc-container-check-") as tmp:
         scratch = Path(tmp)
         venv, _ = replay_build(stages[0], scratch)
