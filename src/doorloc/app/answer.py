@@ -94,6 +94,7 @@ def door_from_fields(
         thickness,
         float(height_mm) if height_mm is not None else d.height_mm,
         arris,
+        d.arris_profile,
     )
 
 
