@@ -43,7 +43,6 @@ def _dh_transforms(theta: np.ndarray, d: np.ndarray, a: np.ndarray, alpha: np.nd
     """``Rz(theta) Tz(d) Tx(a) Rx(alpha)`` for arrays broadcasting to ``(..., k)``; shape ``(..., k, 4, 4)``."""
     ct, st = np.cos(theta), np.sin(theta)
     ca, sa = np.cos(alpha), np.sin(alpha)
-    ca, sa, d, a = (np.broadcast_to(v, ct.shape) for v in (ca, sa, d, a))
     out = np.zeros((*ct.shape, 4, 4))
     out[..., 0, 0], out[..., 0, 1], out[..., 0, 2], out[..., 0, 3] = ct, -st * ca, st * sa, a * ct
     out[..., 1, 0], out[..., 1, 1], out[..., 1, 2], out[..., 1, 3] = st, ct * ca, -ct * sa, a * st
@@ -169,14 +168,20 @@ class Kinematics:
         Rows 0-2: linear velocity of the TCP in mm/rad; rows 3-5: angular velocity (rad/rad).
         ``tcp_flange_mm`` (3,) is the TCP in the flange frame (default: the flange origin).
         """
-        F = self.frames(q)
+        return self.jacobian_of_frames(self.frames(q), tcp_flange_mm)
+
+    @staticmethod
+    def jacobian_of_frames(F: np.ndarray, tcp_flange_mm: np.ndarray | None = None) -> np.ndarray:
+        """:meth:`jacobian` from frames already computed by :meth:`frames` (``(..., 7, 4, 4)``)."""
         p = F[..., 6, :3, 3]
         if tcp_flange_mm is not None:
             p = p + F[..., 6, :3, :3] @ np.asarray(tcp_flange_mm, dtype=float)
         z = F[..., :6, :3, 2]
-        o = F[..., :6, :3, 3]
-        jv = np.cross(z, p[..., None, :] - o)
-        return np.concatenate([np.swapaxes(jv, -1, -2), np.swapaxes(z, -1, -2)], axis=-2)
+        r = p[..., None, :] - F[..., :6, :3, 3]
+        jv = np.stack([z[..., 1] * r[..., 2] - z[..., 2] * r[..., 1],
+                       z[..., 2] * r[..., 0] - z[..., 0] * r[..., 2],
+                       z[..., 0] * r[..., 1] - z[..., 1] * r[..., 0]], axis=-2)
+        return np.concatenate([jv, np.swapaxes(z, -1, -2)], axis=-2)
 
     # ----------------------------------------------------------------------------- confdata
     def confdata(self, q: np.ndarray) -> np.ndarray:
@@ -187,12 +192,18 @@ class Kinematics:
         (ABB's table for serial 6-axis robots: 0 = in front, in front, q5 >= 0 ... 7 = behind, behind, q5 < 0).
         """
         q = np.asarray(q, dtype=float)
-        F = self.frames(q)
+        return self.confdata_of_frames(self.frames(q), q)
+
+    def confdata_of_frames(self, F: np.ndarray, q: np.ndarray) -> np.ndarray:
+        """:meth:`confdata` from frames already computed by :meth:`frames`."""
         wc = F[..., 4, :3, 3]
         o1, o2, z1 = F[..., 1, :3, 3], F[..., 2, :3, 3], F[..., 1, :3, 2]
         theta1 = q[..., 0] + self.theta_offset[0]
         behind_axis1 = (np.cos(theta1) * wc[..., 0] + np.sin(theta1) * wc[..., 1]) < 0
-        behind_arm = np.einsum("...i,...i->...", np.cross(o2 - o1, wc - o1), z1) < 0
+        u, v = o2 - o1, wc - o1
+        behind_arm = ((u[..., 1] * v[..., 2] - u[..., 2] * v[..., 1]) * z1[..., 0]
+                      + (u[..., 2] * v[..., 0] - u[..., 0] * v[..., 2]) * z1[..., 1]
+                      + (u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]) * z1[..., 2]) < 0
         cfx = 4 * behind_axis1.astype(int) + 2 * behind_arm.astype(int) + (q[..., 4] < 0).astype(int)
         quarters = np.floor(np.degrees(q[..., [0, 3, 5]]) / 90.0 + 1e-9).astype(int)
         return np.concatenate([quarters, cfx[..., None]], axis=-1)
