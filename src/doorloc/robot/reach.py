@@ -27,13 +27,18 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
 from typing import Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict
 from scipy.spatial.transform import Rotation
 
-from doorloc.recipes.targets import Target
+from doorloc.cell import Cell
+from doorloc.pose import DoorPose
+from doorloc.recipes.models import DoorRecipe
+from doorloc.recipes.targets import Target, targets_for_pose
 from doorloc.robot.deflection import (
     TABLE_4_8_WRENCH,
     deflection_of_jacobian,
@@ -41,10 +46,13 @@ from doorloc.robot.deflection import (
     wrench_tool_to_base,
 )
 from doorloc.robot.kinematics import N_BRANCHES, Kinematics
-from doorloc.robot.model import RobotModel
-from doorloc.robot.section import RobotSection
+from doorloc.robot.model import DEFAULT_ROBOT, RobotModel, load_robot
+from doorloc.robot.section import RobotSection, robot_section_from_doc
 
-__all__ = ["Reason", "TargetReach", "ReachReport", "ReachSetup", "check_reach", "inverse_condition"]
+__all__ = [
+    "Reason", "TargetReach", "ReachReport", "ReachSetup", "check_reach", "inverse_condition", "thesis_cell_path",
+    "setup_for_cell", "reach_for_door", "report_table",
+]
 
 Reason = Literal["unreachable", "joint_limit", "near_singularity", "configuration_flip"]
 
@@ -286,3 +294,48 @@ def _why(
                 f"no single configuration serves the path from {prev} to {targets[j].name}: the robot would "
                 f"change configuration between them (IK branches {before.tolist()} vs {after.tolist()})")
     raise AssertionError("unreachable: a path without a common branch has a first such pair")  # pragma: no cover
+
+
+def thesis_cell_path() -> Path:
+    """The bundled thesis cell file (camera, fixture and the IRB6600 with its base and tool)."""
+    return Path(str(resources.files("doorloc.robot") / "cells" / "thesis.yaml"))
+
+
+def setup_for_cell(cell: Cell) -> ReachSetup | None:
+    """The reach setup of a cell whose ``robot:`` section names a model; None when it names none.
+
+    Raises
+    ------
+    doorloc.robot.section.RobotSectionError, doorloc.robot.model.RobotFileError
+        A bad ``robot:`` section or robot file (messages name the key).
+    """
+    if not cell.robot_section:
+        return None
+    section = robot_section_from_doc(cell.robot_section, cell.source or "cell.yaml")
+    if section.model is None:
+        return None
+    cell_dir = Path(cell.source).parent if cell.source else None
+    return ReachSetup.of(load_robot(section.robot_path(cell_dir) or DEFAULT_ROBOT), section)
+
+
+def reach_for_door(setup: ReachSetup, recipe: DoorRecipe, pose: DoorPose, face_y_mm: float) -> ReachReport:
+    """Reach check of all hinge targets of ``recipe`` for a door measured at ``pose`` (cell frame, mm, deg).
+
+    The targets are :func:`doorloc.recipes.targets.targets_for_pose` with the cell's tool orientation.
+    """
+    targets = targets_for_pose(recipe, pose, face_y_mm, base_orientation=setup.section.base_orientation())
+    return check_reach(setup, targets)
+
+
+def report_table(report: ReachReport) -> str:
+    """A fixed-width table of the report for people (one line per target, then the verdict)."""
+    lines = [f"robot {report.robot}  tool pos_mm {report.tool['pos_mm']} quat {report.tool['quat']}",
+             f"{'target':<10} {'ok':<3} {'joints_deg (1..6)':<52} {'confdata':<16} {'1/cond':>6} {'|dd| mm':>8}"]
+    for t in report.targets:
+        joints = " ".join(f"{v:7.2f}" for v in t.joints_deg) if t.joints_deg else "-"
+        conf = str(list(t.confdata)) if t.confdata else "-"
+        cond = f"{t.inv_condition:6.3f}" if t.inv_condition is not None else "     -"
+        dd = f"{math.hypot(*t.deflection_mm):8.3f}" if t.deflection_mm else "       -"
+        lines.append(f"{t.name:<10} {'yes' if t.feasible else 'NO':<3} {joints:<52} {conf:<16} {cond} {dd}")
+    lines.append("feasible" if report.feasible else f"NOT feasible: {report.reason}")
+    return "\n".join(lines) + "\n"
