@@ -137,20 +137,18 @@ class Kinematics:
         # wrist: R36 = R03^T R = Rz(t4) Ry(-t5) Rz(t6) for alpha4 = +90, alpha5 = -90
         R03 = self._r03(q123)
         M = np.swapaxes(R03, -1, -2) @ R[..., None, None, :, :]
-        c5 = np.clip(M[..., 2, 2], -1.0, 1.0)
-        t5_abs = np.arccos(c5)
+        # t5 from atan2 (acos loses half the digits near t5 = 0); t6 from what Rz(t4) Ry(-t5) leaves of R36,
+        # so FK(IK) stays exact even where t4 and t6 are ill-defined (near the wrist singularity)
+        s5_abs = np.hypot(M[..., 0, 2], M[..., 1, 2])
+        t5_abs = np.arctan2(s5_abs, M[..., 2, 2])
         t5 = np.stack([t5_abs, -t5_abs], axis=-1)  # (..., 2, 2, 2 wrist)
-        s5 = np.sin(t5)
+        t4_pos = np.where(s5_abs > 1e-12, np.arctan2(-M[..., 1, 2], -M[..., 0, 2]), 0.0)
+        t4 = np.stack([t4_pos, np.where(s5_abs > 1e-12, t4_pos + np.pi, 0.0)], axis=-1)
+        c4, s4, c5, s5 = np.cos(t4), np.sin(t4), np.cos(t5), np.sin(t5)
         Mx = M[..., None, :, :]
-        regular = np.abs(s5) > 1e-9
-        s5_safe = np.where(regular, s5, 1.0)
-        t4 = np.arctan2(-Mx[..., 1, 2] / s5_safe, -Mx[..., 0, 2] / s5_safe)
-        t6 = np.arctan2(-Mx[..., 2, 1] / s5_safe, Mx[..., 2, 0] / s5_safe)
-        # at sin(t5) = 0 only t4 + t6 (or t4 - t6) is defined: put it all on joint 6
-        t4 = np.where(regular, t4, 0.0)
-        t6_sing = np.where(c5[..., None] > 0, np.arctan2(Mx[..., 1, 0], Mx[..., 0, 0]),
-                           -np.arctan2(-Mx[..., 1, 0], -Mx[..., 0, 0]))
-        t6 = np.where(regular, t6, t6_sing)
+        n00 = c5 * (c4 * Mx[..., 0, 0] + s4 * Mx[..., 1, 0]) + s5 * Mx[..., 2, 0]
+        n10 = -s4 * Mx[..., 0, 0] + c4 * Mx[..., 1, 0]
+        t6 = np.arctan2(n10, n00)
         q456 = np.stack([t4 - self.theta_offset[3], t5 - self.theta_offset[4], t6 - self.theta_offset[5]], axis=-1)
         q = np.concatenate([np.broadcast_to(q123[..., None, :], (*q456.shape[:-1], 3)), q456], axis=-1)
         q = wrap_angle(q).reshape(*batch, N_BRANCHES, 6)
