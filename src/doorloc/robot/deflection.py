@@ -13,8 +13,8 @@ it (``Jacobian' * F``). Moments are about the TCP.
 
 **Segments.** A pocket point takes the wrench of the segment that ends at it (the first pocket point:
 the segment that starts at it): along Z on the low-X side the *left line*, on the high-X side the
-*right line*; along X above the pocket centre the *top turn*, below it the *bottom turn* (the thesis's
-P1/P2/P7, P3, P4/P5, P6 assignment). Approach and retract points carry no wrench.
+*right line*; along X or round a corner (a 45-degree chord) above the pocket centre the *top turn*,
+below it the *bottom turn* (the thesis's P1/P2/P7, P3, P4/P5, P6 assignment). Approach and retract points carry no wrench.
 
 **Combination with the recipe's corrections.** ``dd`` is where the TCP goes under load; the
 compensating correction is ``-dd`` (base frame). A recipe's per-point force-displacement corrections
@@ -63,7 +63,7 @@ def segment_of_points(points_xz: np.ndarray) -> list[str]:
     arriving = np.vstack([steps[:1], steps])  # P1 takes the segment leaving it
     out = []
     for pt, d in zip(p, arriving, strict=True):
-        if abs(d[1]) >= abs(d[0]):
+        if abs(d[1]) > abs(d[0]):  # a 45-degree chord of a corner arc belongs to the turn
             out.append("left_line" if pt[0] < centre[0] else "right_line")
         else:
             out.append("top_turn" if pt[1] > centre[1] else "bottom_turn")

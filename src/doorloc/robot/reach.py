@@ -218,8 +218,10 @@ def check_reach(setup: ReachSetup, targets: Sequence[Target], *, corrected_hinge
         code, sentence = _why(idx, ok, exists, in_limits, beyond, cond, q_all, robot, targets)
         for j in idx:
             # a path no configuration serves: each point shows the best branch it has alone
-            good = np.flatnonzero(ok[j])
-            chosen[j] = good[0] if good.size else int(np.argmax(np.where(exists[j], cond[j], -1.0)))
+            if ok[j].any() or in_limits[j].any():
+                chosen[j] = int(np.argmax(np.where(ok[j], 2.0, 0.0) + np.where(in_limits[j], cond[j], -1.0)))
+            else:  # the configuration that misses its limits least
+                chosen[j] = int(np.argmin(np.where(exists[j], np.clip(beyond[j], 0, None).max(axis=1), np.inf)))
             target_reason[j] = f"{code}: {sentence}"
         if first_problem is None:
             first_problem = (code, sentence)
