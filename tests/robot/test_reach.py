@@ -21,7 +21,14 @@ from doorloc.robot.deflection import (
 )
 from doorloc.robot.kinematics import Kinematics
 from doorloc.robot.model import RobotModel, load_robot
-from doorloc.robot.reach import ReachSetup, check_reach, inverse_condition, reach_for_door, setup_for_cell, thesis_cell_path
+from doorloc.robot.reach import (
+    ReachSetup,
+    check_reach,
+    inverse_condition,
+    reach_for_door,
+    setup_for_cell,
+    thesis_cell_path,
+)
 from doorloc.robot.section import robot_section_from_doc
 
 REPO = Path(__file__).resolve().parents[2]
