@@ -124,6 +124,15 @@ def test_forward_of_inverse_is_the_pose_in_every_configuration(q):
     assert d.min() < 1e-6 or abs(math.sin(q[4])) < 1e-6
 
 
+def test_branch_index_is_abb_cfx():
+    rng = np.random.default_rng(11)
+    q = rng.uniform(-math.pi, math.pi, (500, 6))
+    q[:, 1], q[:, 2] = rng.uniform(-1.1, 1.45, 500), rng.uniform(-3.1, 1.2, 500)
+    sols, exists = KIN.inverse(KIN.forward(q))
+    cfx = KIN.confdata(sols)[..., 3]
+    assert (cfx[exists] == np.broadcast_to(np.arange(N_BRANCHES), cfx.shape)[exists]).all()
+
+
 def test_jacobian_matches_finite_differences():
     rng = np.random.default_rng(7)
     tcp = np.array([-100.0, 0.0, 250.0])

@@ -15,8 +15,8 @@ from its azimuth, joints 2-3 from the planar two-link triangle, joints 4-6 from 
 
 Branches: :func:`inverse` returns 8 solutions per pose, index ``4*shoulder + 2*elbow + wrist``
 (shoulder 0: joint 1 towards the wrist centre, 1: turned half a turn; elbow 0/1: the two triangle
-solutions; wrist 0: ``q5 >= 0``, 1: ``q5 < 0``); ABB's ``confdata`` of any joint vector comes from
-:func:`confdata`.
+solutions; wrist 0: ``q5 >= 0``, 1: ``q5 < 0``), which is ABB's ``cfx`` of the solution (tested);
+the full ``confdata`` of any joint vector comes from :meth:`Kinematics.confdata`.
 """
 
 from __future__ import annotations

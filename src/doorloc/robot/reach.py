@@ -57,7 +57,8 @@ __all__ = [
 Reason = Literal["unreachable", "joint_limit", "near_singularity", "configuration_flip"]
 
 
-class TargetReach(BaseModel):
+@dataclass(frozen=True, slots=True)
+class TargetReach:
     """One target as the robot would take it (SPEC section 9 fields).
 
     Attributes
@@ -79,8 +80,6 @@ class TargetReach(BaseModel):
     deflection_mm : 3 floats or None
         TCP displacement under the segment's Table 4.8 wrench, base frame, mm (zero off the cut).
     """
-
-    model_config = ConfigDict(frozen=True)
 
     name: str
     hinge: int
@@ -136,11 +135,16 @@ def inverse_condition(J: np.ndarray, characteristic_length_mm: float) -> np.ndar
     Jn = J.copy()
     Jn[..., :3, :] /= characteristic_length_mm
     norm_sq = (Jn**2).sum(axis=(-1, -2))
-    # a batched LU inverse is several times faster than a batched SVD here; singular matrices get 0
-    singular = np.abs(np.linalg.det(Jn)) < 1e-12
-    Jn[singular] = np.eye(6)
-    inv_sq = (np.linalg.inv(Jn) ** 2).sum(axis=(-1, -2))
-    return np.where(singular, 0.0, 6.0 / np.sqrt(norm_sq * inv_sq))
+    # a batched LU inverse is several times faster than a batched SVD here; exactly singular ones get 0
+    try:
+        inv_sq = (np.linalg.inv(Jn) ** 2).sum(axis=(-1, -2))
+        singular = ~np.isfinite(inv_sq)
+    except np.linalg.LinAlgError:
+        singular = np.abs(np.linalg.det(Jn)) < 1e-12
+        Jn[singular] = np.eye(6)
+        inv_sq = (np.linalg.inv(Jn) ** 2).sum(axis=(-1, -2))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(singular, 0.0, 6.0 / np.sqrt(norm_sq * inv_sq))
 
 
 def _hinge_groups(hinges: np.ndarray) -> list[np.ndarray]:
@@ -188,9 +192,13 @@ def check_reach(setup: ReachSetup, targets: Sequence[Target], *, corrected_hinge
 
     # joints 1, 4, 6 unwrapped along each hinge path so one branch's values run continuously
     for idx in groups:
-        block = q_all[idx]
-        block[:, :, [0, 3, 5]] = np.unwrap(block[:, :, [0, 3, 5]], axis=0)
-        q_all[idx] = block
+        # (np.unwrap does the same, several times slower on these small arrays)
+        block = q_all[idx][:, :, [0, 3, 5]]
+        turns = np.round(np.diff(block, axis=0) / (2 * np.pi))
+        block[1:] -= 2 * np.pi * np.cumsum(turns, axis=0)
+        sub = q_all[idx]
+        sub[:, :, [0, 3, 5]] = block
+        q_all[idx] = sub
 
     lim = robot.limits_rad()
     margin = math.radians(robot.joint_margin_deg)
@@ -198,10 +206,11 @@ def check_reach(setup: ReachSetup, targets: Sequence[Target], *, corrected_hinge
     in_limits = (beyond <= 0).all(axis=-1) & exists
     frames = kin.frames(q_all)
     J = kin.jacobian_of_frames(frames, setup.tcp_flange_mm)
-    cond = inverse_condition(J, robot.characteristic_length_mm)  # (n, 8)
+    cond = np.zeros(in_limits.shape)  # only configurations within the limits need it
+    cond[in_limits] = inverse_condition(J[in_limits], robot.characteristic_length_mm)
     ok = in_limits & (cond >= robot.min_inv_condition)
-    confdata = kin.confdata_of_frames(frames, q_all)  # (n, 8, 4)
-    behind = confdata[..., 3] >= 2  # wrist centre behind axis 1 or behind the lower arm
+    # a branch's index is its cfx (tested), so cfx >= 2 is "wrist centre behind axis 1 or the lower arm"
+    behind = np.broadcast_to(np.arange(N_BRANCHES) >= 2, ok.shape)
 
     chosen = np.zeros(n, dtype=int)
     target_reason: list[str | None] = [None] * n
@@ -228,6 +237,8 @@ def check_reach(setup: ReachSetup, targets: Sequence[Target], *, corrected_hinge
 
     sel = np.arange(n)
     q = q_all[sel, chosen]
+    confdata = kin.confdata_of_frames(frames[sel, chosen], q)
+    cond_chosen = inverse_condition(J[sel, chosen], robot.characteristic_length_mm)
     # deflection under the segment's Table 4.8 wrench (pocket points only)
     wrench_tool = np.zeros((n, 6))
     for idx in groups:
@@ -240,22 +251,23 @@ def check_reach(setup: ReachSetup, targets: Sequence[Target], *, corrected_hinge
     quat_base = tool_rot_base.as_quat(scalar_first=True)
     quat_base[quat_base[:, 0] < 0] *= -1
     has_q = exists[sel, chosen].tolist()
-    joints, conf = np.degrees(q).tolist(), confdata[sel, chosen].tolist()
-    tcp, qb, cond_l, dd_l = base_tcp[:, :3, 3].tolist(), quat_base.tolist(), cond[sel, chosen].tolist(), dd.tolist()
+    joints, conf = np.degrees(q).tolist(), confdata.tolist()
+    tcp, qb, cond_l, dd_l = base_tcp[:, :3, 3].tolist(), quat_base.tolist(), cond_chosen.tolist(), dd.tolist()
     out = [
-        # built from arrays this function made and checked: no need to validate them again
-        TargetReach.model_construct(
+        TargetReach(
             name=t.name, hinge=t.hinge, joints_deg=tuple(joints[j]) if has_q[j] else None,
             confdata=tuple(conf[j]) if has_q[j] else None, tcp_base_mm=tuple(tcp[j]), quat_base=tuple(qb[j]),
             feasible=target_reason[j] is None, reason=target_reason[j],
             inv_condition=cond_l[j] if has_q[j] else None, deflection_mm=tuple(dd_l[j]) if has_q[j] else None)
         for j, t in enumerate(targets)
     ]
+    # built from arrays this function made and checked: model_construct skips validating them again
     if first_problem is None:
-        return ReachReport(robot=robot.name, tool=tool, feasible=True, reason=None, error_code=None, targets=out)
+        return ReachReport.model_construct(robot=robot.name, tool=tool, feasible=True, reason=None, error_code=None,
+                                           targets=out)
     code, sentence = first_problem
-    return ReachReport(robot=robot.name, tool=tool, feasible=False, reason=f"{code}: {sentence}", error_code=code,
-                       targets=out)
+    return ReachReport.model_construct(robot=robot.name, tool=tool, feasible=False, reason=f"{code}: {sentence}",
+                                       error_code=code, targets=out)
 
 
 def _why(

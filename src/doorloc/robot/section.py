@@ -71,8 +71,9 @@ class Placement(BaseModel):
     def inverse(self) -> Placement:
         """The inverse transform."""
         r = Rotation.from_quat(self.quat, scalar_first=True).inv()
-        pos = -r.apply(np.asarray(self.pos_mm, dtype=float))
-        return Placement(pos_mm=tuple(float(v) for v in pos), quat=tuple(float(v) for v in r.as_quat(scalar_first=True)))
+        x, y, z = (float(v) for v in -r.apply(np.asarray(self.pos_mm, dtype=float)))
+        qw, qx, qy, qz = (float(v) for v in r.as_quat(scalar_first=True))
+        return Placement(pos_mm=(x, y, z), quat=(qw, qx, qy, qz))
 
     def close_to(self, other: Placement, tol_mm: float = 1e-3, tol_deg: float = 1e-4) -> bool:
         """Same transform within ``tol_mm`` and ``tol_deg``."""
@@ -106,18 +107,18 @@ class RobotSection(BaseModel):
     model: str | None = None
     base: Placement | None = None
     tool: Placement | None = None
-    tool_name: str = Field("tSpindle", pattern=_IDENT)
+    tool_name: str = Field(default="tSpindle", pattern=_IDENT)
     spindle_axis: Literal["y", "z"] = "y"
     tool_tcp_mm: tuple[Num, Num, Num] = (0.0, 0.0, 250.0)
     tool_rot: tuple[Num, Num, Num, Num] | None = None
-    tool_mass_kg: float = Field(12.0, gt=0)
+    tool_mass_kg: float = Field(default=12.0, gt=0)
     tool_cog_mm: tuple[Num, Num, Num] = (0.0, 0.0, 120.0)
-    wobj_name: str = Field("wobjDoorCell", pattern=_IDENT)
+    wobj_name: str = Field(default="wobjDoorCell", pattern=_IDENT)
     wobj_uframe_mm: tuple[Num, Num, Num] = (0.0, 0.0, 0.0)
     wobj_uframe_rot: tuple[Num, Num, Num, Num] = (1.0, 0.0, 0.0, 0.0)
     robconf: tuple[int, int, int, int] = (0, 0, 0, 0)
-    travel_speed: str = Field("v200", pattern=_IDENT)
-    travel_zone: str = Field("z5", pattern=_IDENT)
+    travel_speed: str = Field(default="v200", pattern=_IDENT)
+    travel_zone: str = Field(default="z5", pattern=_IDENT)
 
     @field_validator("tool_rot", "wobj_uframe_rot")
     @classmethod

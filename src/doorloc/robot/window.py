@@ -93,7 +93,8 @@ def draw_window(setup: ReachSetup, report: ReachReport, size_px: int = 900) -> n
         inside = (pts[:, 0] >= 0) & (pts[:, 0] < w) & (pts[:, 1] >= 0) & (pts[:, 1] < h)
         mask[pts[inside, 1], pts[inside, 0]] = 255
         # the swept samples are a dense cloud; closing fills the gaps between neighbouring samples
-        mask = cv2.morphologyEx(cv2.dilate(mask, np.ones((3, 3), np.uint8)), cv2.MORPH_CLOSE, np.ones((9, 9), np.uint8))
+        mask = np.asarray(cv2.morphologyEx(cv2.dilate(mask, np.ones((3, 3), np.uint8)), cv2.MORPH_CLOSE,
+                                           np.ones((9, 9), np.uint8)), dtype=np.uint8)
         img[mask > 0] = (220, 245, 220)
         contours, _ = cv2.findContours(mask, cv2.RETR_LIST, cv2.CHAIN_APPROX_SIMPLE)
         cv2.drawContours(img, contours, -1, (60, 140, 60), 2, cv2.LINE_AA)
