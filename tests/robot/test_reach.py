@@ -191,3 +191,15 @@ def test_compensation_is_minus_the_deflection_unless_the_recipe_has_corrections(
     dd = np.array([[0.1, -0.2, 0.3], [0.4, 0.0, 0.0]])
     comp = compensation_cell(dd, Rotation.identity(), np.array([False, True]))
     np.testing.assert_allclose(comp, [[-0.1, 0.2, -0.3], [0, 0, 0]])
+
+
+def test_work_window_holds_the_table_4_6_flange_positions():
+    from doorloc.robot.window import draw_window, window_points
+
+    setup = setup_for_cell(CELL)
+    win = window_points(setup, 0.0)
+    for r, z in ((math.hypot(1400, 290), 0.0), (math.hypot(1400, 290), 2700.0)):
+        assert np.hypot(win[:, 0] - r, win[:, 1] - z).min() < 30.0
+    assert np.hypot(win[:, 0] - 4000, win[:, 1] - 0).min() > 1000  # far out of reach
+    img = draw_window(setup, _reports(setup)["THESIS-190"])
+    assert img.ndim == 3 and (img == (220, 245, 220)).all(axis=2).sum() > 10_000  # the filled window
