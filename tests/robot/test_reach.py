@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 from scipy.spatial.transform import Rotation
 
 from doorloc.cell import load_cell
@@ -203,3 +204,29 @@ def test_work_window_holds_the_table_4_6_flange_positions():
     assert np.hypot(win[:, 0] - 4000, win[:, 1] - 0).min() > 1000  # far out of reach
     img = draw_window(setup, _reports(setup)["THESIS-190"])
     assert img.ndim == 3 and (img == (220, 245, 220)).all(axis=2).sum() > 10_000  # the filled window
+
+
+def test_a_tool_frame_with_the_spindle_on_z_gives_the_same_answer():
+    from doorloc.app.answer import DoorChoice, answer_image
+    from doorloc.cell import parse_cell
+    from doorloc.vision.result import LocateResult
+
+    to_z = Rotation.from_quat([math.sqrt(0.5), -math.sqrt(0.5), 0, 0], scalar_first=True)  # TOOL_Z_ALONG_CELL_Y
+    quat_z = (Rotation.from_quat(ANGLE_HEAD, scalar_first=True) * to_z).as_quat(scalar_first=True).tolist()
+    doc = yaml.safe_load((REPO / "fixtures" / "cell_thesis.yaml").read_text())
+    doc["robot"] = {**doc["robot"], "spindle_axis": "z", "tool": {"pos_mm": [-100.0, 0.0, 250.0], "quat": quat_z}}
+    cell_z = parse_cell(doc, REPO / "fixtures", "cell_z.yaml")
+
+    def locate(image, cell, door, *, image_name="", config=None, trace=None):
+        return LocateResult(image=image_name, ok=True, x_mm=2.0, z_mm=-3.0, yaw_deg=1.0, thickness_mm=100.0,
+                            scale_mm_per_px=0.2, corner_px=[1.0, 2.0], elapsed_ms=1.0)
+
+    door = DOORS[1]
+    answers = [answer_image(np.zeros((4, 4), np.uint8), c, DoorChoice.from_recipe(door), image_name="x",
+                            locate_fn=locate).fields for c in (CELL, cell_z)]
+    assert all(a["ok"] and a["reach"]["feasible"] for a in answers)
+    for ty, tz in zip(answers[0]["reach"]["targets"], answers[1]["reach"]["targets"], strict=True):
+        np.testing.assert_allclose(ty["joints_deg"], tz["joints_deg"], atol=1e-9)
+    direct = reach_for_door(setup_for_cell(cell_z), door, DoorPose(2.0, -3.0, 1.0), cell_z.face_y(door.door_size()))
+    np.testing.assert_allclose([t.joints_deg for t in direct.targets],
+                               [t["joints_deg"] for t in answers[0]["reach"]["targets"]], atol=1e-9)

@@ -191,9 +191,14 @@ def _reach_block(cell: Cell, targets: list[Any]) -> Any | None:
         return None
     if setup.section.spindle_axis != "y":
         # the targets carry the spindle on tool +Y; re-express them for a tool frame with the spindle on +Z
-        from doorloc.recipes.targets import TOOL_Z_ALONG_CELL_Y, _qmul
+        from scipy.spatial.transform import Rotation
 
-        targets = [t.model_copy(update={"quat": _qmul(t.quat, TOOL_Z_ALONG_CELL_Y)}) for t in targets]
+        from doorloc.recipes.targets import TOOL_Z_ALONG_CELL_Y
+
+        to_z = Rotation.from_quat(TOOL_Z_ALONG_CELL_Y, scalar_first=True)
+        quats = (Rotation.from_quat([t.quat for t in targets], scalar_first=True) * to_z).as_quat(scalar_first=True)
+        quats[quats[:, 0] < 0] *= -1
+        targets = [t.model_copy(update={"quat": tuple(q)}) for t, q in zip(targets, quats.tolist(), strict=True)]
     return check_reach(setup, targets)
 
 
