@@ -311,7 +311,7 @@ def parse_cell(
         camera = CameraModel(K, dist, size, observed)
         if calibration_sha is None or cam_doc.camera_matrix is not None or cam_doc.dist_coeffs is not None:
             calibration_sha = _sha256_camera(camera)
-        extrinsics = Extrinsics(cam_doc.extrinsics.rvec, cam_doc.extrinsics.tvec_mm)
+        extrinsics = Extrinsics(np.asarray(cam_doc.extrinsics.rvec), np.asarray(cam_doc.extrinsics.tvec_mm))
         fixture = Fixture(**cd.fixture.model_dump())
         envelope = Envelope(**cd.envelope.model_dump())
         door = DoorSize(**cd.door.model_dump())

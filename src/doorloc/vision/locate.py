@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -137,7 +138,7 @@ def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half:
     for name in EDGE_NAMES:
         lay = region.layouts[name]
         t = tracks[name]
-        step_kw = dict(level_smooth=max(cfg.level_smooth // every, 1) if cfg.level_smooth else 0, lut=lut)
+        step_kw: dict[str, Any] = dict(level_smooth=max(cfg.level_smooth // every, 1) if cfg.level_smooth else 0, lut=lut)
         scan, centre = t.scan[::every], t.centre[::every]
         if t.band_px is not None and t.band_px.size:
             band = t.band_px[::every]
