@@ -13,7 +13,8 @@ from scipy.spatial.transform import Rotation
 from doorloc.cell import load_cell
 from doorloc.pose import DoorPose
 from doorloc.recipes.importer import load_recipe_file
-from doorloc.recipes.targets import Target
+from doorloc.recipes.models import PointCorrection
+from doorloc.recipes.targets import Target, targets_for_pose
 from doorloc.robot.deflection import (
     TABLE_4_8_WRENCH,
     compensation_cell,
@@ -25,6 +26,7 @@ from doorloc.robot.model import RobotModel, load_robot
 from doorloc.robot.reach import (
     ReachSetup,
     check_reach,
+    compensated_targets,
     inverse_condition,
     reach_for_door,
     setup_for_cell,
@@ -230,3 +232,23 @@ def test_a_tool_frame_with_the_spindle_on_z_gives_the_same_answer():
     direct = reach_for_door(setup_for_cell(cell_z), door, DoorPose(2.0, -3.0, 1.0), cell_z.face_y(door.door_size()))
     np.testing.assert_allclose([t.joints_deg for t in direct.targets],
                                [t["joints_deg"] for t in answers[0]["reach"]["targets"]], atol=1e-9)
+
+
+def test_compensated_targets_move_pocket_points_by_minus_the_deflection():
+    setup = setup_for_cell(CELL)
+    door = DOORS[0]
+    face_y = CELL.face_y(door.door_size())
+    plain, rep = compensated_targets(setup, door, DoorPose(), face_y)
+    nominal = reach_for_door(setup, door, DoorPose(), face_y)
+    raw = targets_for_pose(door, DoorPose(), face_y, base_orientation=setup.section.base_orientation())
+    for t, r, tr in zip(plain, raw, nominal.targets, strict=True):
+        moved = np.subtract((t.x_mm, t.y_mm, t.z_mm), (r.x_mm, r.y_mm, r.z_mm))
+        np.testing.assert_allclose(moved, -np.array(tr.deflection_mm), atol=1e-12)  # base axes = cell axes here
+        assert (np.abs(moved).max() == 0.0) == t.name.endswith(("APP", "RET"))
+    # a hinge with its own force-displacement corrections is not compensated twice
+    h1 = door.hinges[0].model_copy(update={"corrections": tuple(PointCorrection(dx_mm=0.1) for _ in range(6))})
+    own = door.model_copy(update={"hinges": (h1, door.hinges[1])})
+    with_own, _ = compensated_targets(setup, own, DoorPose(), face_y)
+    raw_own = targets_for_pose(own, DoorPose(), face_y, base_orientation=setup.section.base_orientation())
+    assert all(t == r for t, r in zip(with_own, raw_own, strict=True) if t.hinge == 1)
+    assert any(t != r for t, r in zip(with_own, raw_own, strict=True) if t.hinge == 2)

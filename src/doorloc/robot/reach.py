@@ -38,9 +38,11 @@ from scipy.spatial.transform import Rotation
 from doorloc.cell import Cell
 from doorloc.pose import DoorPose
 from doorloc.recipes.models import DoorRecipe
+from doorloc.recipes.paths import DEFAULT_CLEARANCE_MM
 from doorloc.recipes.targets import Target, targets_for_pose
 from doorloc.robot.deflection import (
     TABLE_4_8_WRENCH,
+    compensation_cell,
     deflection_of_jacobian,
     segment_of_points,
     wrench_tool_to_base,
@@ -51,7 +53,7 @@ from doorloc.robot.section import RobotSection, robot_section_from_doc
 
 __all__ = [
     "Reason", "TargetReach", "ReachReport", "ReachSetup", "check_reach", "inverse_condition", "thesis_cell_path",
-    "setup_for_cell", "reach_for_door", "report_table",
+    "setup_for_cell", "reach_for_door", "compensated_targets", "report_table",
 ]
 
 Reason = Literal["unreachable", "joint_limit", "near_singularity", "configuration_flip"]
@@ -157,7 +159,7 @@ def _fmt(v: float) -> str:
     return f"{v:.1f}"
 
 
-def check_reach(setup: ReachSetup, targets: Sequence[Target], *, corrected_hinges: frozenset[int] = frozenset()) -> ReachReport:
+def check_reach(setup: ReachSetup, targets: Sequence[Target]) -> ReachReport:
     """Feasibility, joints, confdata, inverse condition and deflection of every target.
 
     Parameters
@@ -165,10 +167,6 @@ def check_reach(setup: ReachSetup, targets: Sequence[Target], *, corrected_hinge
     setup : ReachSetup
     targets : sequence of Target
         Cell frame, mm, scalar-first quaternions (path order, grouped by hinge).
-    corrected_hinges : frozenset of int
-        Hinges whose recipe carries its own force-displacement corrections (only reported; the
-        deflection is the model's prediction either way, see :mod:`doorloc.robot.deflection`).
-
     Returns
     -------
     ReachReport
@@ -339,6 +337,31 @@ def reach_for_door(setup: ReachSetup, recipe: DoorRecipe, pose: DoorPose, face_y
     """
     targets = targets_for_pose(recipe, pose, face_y_mm, base_orientation=setup.section.base_orientation())
     return check_reach(setup, targets)
+
+
+def compensated_targets(
+    setup: ReachSetup, recipe: DoorRecipe, pose: DoorPose, face_y_mm: float, *,
+    clearance_mm: float = DEFAULT_CLEARANCE_MM,
+) -> tuple[list[Target], ReachReport]:
+    """The door's targets with the model's deflection compensation added, and the reach report they came from.
+
+    Each pocket point moves by ``-dd`` (the predicted TCP deflection under its segment's Table 4.8 wrench,
+    turned into the cell frame), except the points of hinges whose recipe carries its own
+    force-displacement corrections: those are already in the targets and are not added twice
+    (:func:`doorloc.robot.deflection.compensation_cell`). Approach and retract points do not move.
+    An infeasible door gets its targets back unmoved (the report says why).
+    """
+    targets = targets_for_pose(recipe, pose, face_y_mm, clearance_mm=clearance_mm,
+                               base_orientation=setup.section.base_orientation())
+    report = check_reach(setup, targets)
+    if not report.feasible:
+        return targets, report
+    own = {i + 1 for i, h in enumerate(recipe.hinges) if h.corrections}
+    dd = np.array([t.deflection_mm for t in report.targets], dtype=float)
+    comp = compensation_cell(dd, setup.base_rot_cell, np.array([t.hinge in own for t in targets]))
+    moved = [t.model_copy(update={"x_mm": t.x_mm + c[0], "y_mm": t.y_mm + c[1], "z_mm": t.z_mm + c[2]})
+             for t, c in zip(targets, comp.tolist(), strict=True)]
+    return moved, report
 
 
 def report_table(report: ReachReport) -> str:
