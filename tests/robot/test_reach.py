@@ -252,3 +252,11 @@ def test_compensated_targets_move_pocket_points_by_minus_the_deflection():
     raw_own = targets_for_pose(own, DoorPose(), face_y, base_orientation=setup.section.base_orientation())
     assert all(t == r for t, r in zip(with_own, raw_own, strict=True) if t.hinge == 1)
     assert any(t != r for t, r in zip(with_own, raw_own, strict=True) if t.hinge == 2)
+
+
+def test_a_wrist_swing_between_neighbours_is_a_flip():
+    setup = ReachSetup.of(ROBOT, robot_section_from_doc({"model": "x", **BARE}))
+    a, b = _target_at("A", [0, 20, -10, 0, 20, 0]), _target_at("B", [0, 20, -10, 90, 20, -90])
+    assert check_reach(setup, [a]).feasible and check_reach(setup, [b]).feasible
+    rep = check_reach(setup, [a, b])
+    assert rep.error_code == "configuration_flip" and "between A and B" in rep.reason and "joint" in rep.reason

@@ -82,6 +82,8 @@ class RobotModel(_Strict):
         A target whose inverse condition number is below this is ``near_singularity``.
     joint_margin_deg : float
         A target closer than this to a joint limit is ``joint_limit``.
+    max_joint_step_deg : float
+        A joint moving more than this between two neighbouring points of a path is a ``configuration_flip``.
     """
 
     name: str
@@ -94,6 +96,7 @@ class RobotModel(_Strict):
     characteristic_length_mm: Annotated[float, Field(gt=0, allow_inf_nan=False)]
     min_inv_condition: Annotated[float, Field(ge=0, lt=1)] = 0.05
     joint_margin_deg: Annotated[float, Field(ge=0, le=30)] = 2.0
+    max_joint_step_deg: Annotated[float, Field(gt=0, le=180)] = 45.0
 
     @model_validator(mode="after")
     def _layout(self) -> RobotModel:

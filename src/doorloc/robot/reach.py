@@ -8,7 +8,8 @@ not jump a turn) serves every point of it with
 
 - joints inside their limits less the robot file's ``joint_margin_deg``,
 - the inverse condition number (Frobenius norm, position rows divided by the characteristic length,
-  Jacobian at the TCP) at or above the robot file's ``min_inv_condition``.
+  Jacobian at the TCP) at or above the robot file's ``min_inv_condition``,
+- no joint moving more than ``max_joint_step_deg`` between neighbouring points.
 
 Among the configurations that serve a path the most dexterous one is taken (largest smallest inverse
 condition number; ties, e.g. the two wrist flips, go to the smaller wrist winding ``|q4| + |q6|``).
@@ -19,7 +20,8 @@ for a refusal names the target and, where it is one, the joint:
 - ``joint_limit``: configurations exist, but each puts some joint beyond its limit (less the margin);
 - ``near_singularity``: a configuration within the limits exists, but it is too close to a singularity;
 - ``configuration_flip``: every point is reachable, but no single configuration serves two neighbouring
-  points of the path (the robot would flip its arm or wrist mid-cut).
+  points of the path, or in the one that does a joint swings more than the robot file's
+  ``max_joint_step_deg`` between neighbours (the robot would flip its arm or wrist mid-cut).
 """
 
 from __future__ import annotations
@@ -214,7 +216,7 @@ def check_reach(setup: ReachSetup, targets: Sequence[Target]) -> ReachReport:
     target_reason: list[str | None] = [None] * n
     first_problem: tuple[Reason, str] | None = None
     for idx in groups:
-        ok_path = ok[idx].all(axis=0)  # (8,)
+        ok_path = ok[idx].all(axis=0) & _smooth(q_all[idx], robot)  # (8,)
         if ok_path.any():
             worst = np.round(cond[idx].min(axis=0), 9)
             winding = np.abs(q_all[idx][:, :, [3, 5]]).sum(axis=(0, 2))
@@ -304,8 +306,23 @@ def _why(
             after = np.flatnonzero(ok[j])
             return "configuration_flip", (
                 f"no single configuration serves the path from {prev} to {targets[j].name}: the robot would "
-                f"change configuration between them (IK branches {before.tolist()} vs {after.tolist()})")
-    raise AssertionError("unreachable: a path without a common branch has a first such pair")  # pragma: no cover
+                f"change configuration between them (cfx {before.tolist()} vs {after.tolist()})")
+    # a configuration serves every point, but a joint of it swings too far between two neighbours
+    steps = np.abs(np.diff(q_all[idx], axis=0))  # (m-1, 8, 6)
+    worst = np.where(common[None, :, None], steps, np.inf).max(axis=(0, 2))
+    b = int(np.argmin(worst))
+    k, joint = np.unravel_index(int(np.argmax(steps[:, b, :])), steps[:, b, :].shape)
+    return "configuration_flip", (
+        f"joint {joint + 1} would swing {_fmt(math.degrees(steps[k, b, joint]))} deg between {targets[idx[k]].name} and "
+        f"{targets[idx[k + 1]].name} (more than {_fmt(robot.max_joint_step_deg)} deg between neighbours): "
+        f"a wrist flip in mid-path")
+
+
+def _smooth(q_path: np.ndarray, robot: RobotModel) -> np.ndarray:
+    """Per configuration (``q_path`` ``(m, 8, 6)``): no joint moves more than the robot's step between neighbours."""
+    if len(q_path) < 2:
+        return np.ones(q_path.shape[1], dtype=bool)
+    return (np.abs(np.diff(q_path, axis=0)) <= math.radians(robot.max_joint_step_deg)).all(axis=(0, 2))
 
 
 def thesis_cell_path() -> Path:
