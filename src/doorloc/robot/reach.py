@@ -169,6 +169,7 @@ def check_reach(setup: ReachSetup, targets: Sequence[Target]) -> ReachReport:
     setup : ReachSetup
     targets : sequence of Target
         Cell frame, mm, scalar-first quaternions (path order, grouped by hinge).
+
     Returns
     -------
     ReachReport
@@ -209,8 +210,8 @@ def check_reach(setup: ReachSetup, targets: Sequence[Target]) -> ReachReport:
     cond = np.zeros(in_limits.shape)  # only configurations within the limits need it
     cond[in_limits] = inverse_condition(J[in_limits], robot.characteristic_length_mm)
     ok = in_limits & (cond >= robot.min_inv_condition)
-    # a branch's index is its cfx (tested), so cfx >= 2 is "wrist centre behind axis 1 or the lower arm"
-    behind = np.broadcast_to(np.arange(N_BRANCHES) >= 2, ok.shape)
+    # a branch's index is its cfx (tested): cfx >= 2 puts the wrist centre behind axis 1 or the lower arm
+    behind = np.arange(N_BRANCHES) >= 2
 
     chosen = np.zeros(n, dtype=int)
     target_reason: list[str | None] = [None] * n
@@ -220,8 +221,7 @@ def check_reach(setup: ReachSetup, targets: Sequence[Target]) -> ReachReport:
         if ok_path.any():
             worst = np.round(cond[idx].min(axis=0), 9)
             winding = np.abs(q_all[idx][:, :, [3, 5]]).sum(axis=(0, 2))
-            front = behind[idx].any(axis=0)
-            order = np.lexsort((winding, -worst, front))
+            order = np.lexsort((winding, -worst, behind))
             chosen[idx] = next(b for b in order if ok_path[b])
             continue
         code, sentence = _why(idx, ok, exists, in_limits, beyond, cond, q_all, robot, targets)
