@@ -127,7 +127,7 @@ def register(app: typer.Typer) -> None:
             raise fail(f"{e} (nothing written)", EXIT_FAILED) from None
         cam = result.camera
         cal = CalibrationFile(cam, result.fit.rms_px, result.fit.per_view_rms_px, camera_name,
-                              {"model": result.fit.candidate.name})
+                              {"model": result.fit.candidate.name}, result.covariance, tuple(result.covariance_names))
         save_calibration(cal, out, fmt)
         if report is not None:
             first = next(iter(scan.detections))

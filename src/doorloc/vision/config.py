@@ -52,6 +52,15 @@ class LocateConfig:
         Refuse when the fit's standard error of x or z exceeds this.
     max_saturated_fraction : float
         Refuse when more of the search region is white-clipped.
+    max_uncertainty_mm, max_uncertainty_deg : float
+        The cell's tolerance on the answer's 1-sigma uncertainty (:mod:`doorloc.vision.uncertainty`):
+        refuse ``uncertain`` when that of x or z exceeds ``max_uncertainty_mm`` or that of the yaw
+        ``max_uncertainty_deg``.
+    calibration_sigma_px : float
+        Default 1-sigma projection error of a camera calibration that carries no covariance, px (the
+        floor of the ``calibration`` term); 0 only for a camera known exactly (rendered images).
+    cell_sigma_mm, cell_sigma_deg : float
+        1-sigma of the camera's placement in the cell (the cell check), carried into x, z and yaw.
     """
 
     search_margin_mm: float = 30.0
@@ -62,8 +71,8 @@ class LocateConfig:
     min_contrast: float = 6.0
     half_window_max: int = 9
     half_window_min: int = 3
-    window_blur_factor: float = 2.0
-    plateau: int = 4
+    window_blur_factor: float = 1.5
+    plateau: int = 2
     slope_smooth: int = 0
     level_smooth: int = 10
     min_thickness_mm: float = 4.0
@@ -76,3 +85,8 @@ class LocateConfig:
     min_corner_support: float = 0.6
     max_sigma_mm: float = 0.05
     max_saturated_fraction: float = 0.5
+    max_uncertainty_mm: float = 0.1
+    max_uncertainty_deg: float = 0.05
+    calibration_sigma_px: float = 0.05
+    cell_sigma_mm: float = 0.0
+    cell_sigma_deg: float = 0.0

@@ -31,7 +31,8 @@ import numpy as np
 from scipy.special import ndtr
 
 __all__ = ["Axis", "EdgeSamples", "FarFaceFit", "oriented", "coarse_edges", "subpixel_edges",
-           "subpixel_edges_banded", "subpixel_edges_far_face", "transition_width"]
+           "subpixel_edges_banded", "subpixel_edges_far_face", "transition_width",
+           "TextureBias", "texture_bias"]
 
 Axis = Literal["col", "row"]
 
@@ -744,3 +745,94 @@ def step_blur(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half: i
     _, fit = subpixel_edges_far_face(plane, sub.axis, sub.scan, sub.along, half, np.full(sub.scan.size, -1.0), 0.0,
                                      1, plateau, 1.0, blur_px=blur_px, lut=lut, fit_blur=True, n_iter=15)
     return fit.blur_px
+
+
+@dataclass(frozen=True)
+class TextureBias:
+    """How much the texture beside an edge can move the area estimator, measured beside the window.
+
+    Attributes
+    ----------
+    offset_sigma_px : float
+        1-sigma of the bias the surface texture next to the edge gives the line's offset, px (across
+        the edge): the RMS of the area estimator's error on the texture just beyond its window.
+    tilt_sigma : float
+        1-sigma of the bias in the line's direction (px of offset per px along the edge), from how that
+        error differs between the two halves of the edge (grain that wanders along the edge).
+    """
+
+    offset_sigma_px: float
+    tilt_sigma: float
+
+
+def texture_bias(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half: int, plateau: int,
+                 lut: np.ndarray | None = None, n_shifts: int = 12, max_lines: int = 160) -> TextureBias:
+    """Estimate the texture bias of :func:`subpixel_edges` on one edge from the texture beside its window.
+
+    The area estimator takes each plateau's level a few pixels beyond the transition and assumes it
+    holds under the transition; surface texture (wood grain along the edge) breaks that, by
+    ``sum over the window's half of (T(k) - T_plateau) / (B - A)`` px. The texture under the transition
+    cannot be told from the step, but texture that runs along the edge is the same on every scan line at
+    the same distance from it, so its mean profile beside the window is measured with little noise (the
+    median over the scan lines, aligned on their edge points). Taking the texture as stationary across
+    the edge, the same sum evaluated on that profile at ``n_shifts`` positions beyond the plateau (on
+    both sides) samples the distribution of the bias; its RMS is the 1-sigma. A plain or smoothly shaded
+    surface gives ~0 (noise only).
+
+    Parameters
+    ----------
+    plane, samples, half, plateau, lut
+        As given to :func:`subpixel_edges` (``half`` the final window half-size).
+    mask : ndarray (N,) bool
+        The samples the line fit kept.
+
+    Returns
+    -------
+    TextureBias
+        NaN fields when fewer than 8 samples are usable.
+    """
+    m = mask & samples.valid & np.isfinite(samples.along)
+    if int(m.sum()) < 8:
+        return TextureBias(float("nan"), float("nan"))
+    idx = np.flatnonzero(m)
+    if idx.size > max_lines:  # a profile's median needs no more
+        idx = idx[np.linspace(0, idx.size - 1, max_lines).astype(int)]
+    P = oriented(plane, samples.axis)
+    reach = 2 * (half + plateau) + n_shifts + 1
+    c0 = np.round(samples.along[idx]).astype(int)
+    vals, inside = _gather(P, samples.scan[idx], c0 - reach, 2 * reach + 1, lut=lut)
+    ok = inside.all(axis=1)
+    if int(ok.sum()) < 8:
+        return TextureBias(float("nan"), float("nan"))
+    vals = vals[ok]
+    scan = samples.scan[idx][ok]
+    D = float(np.median(np.abs(vals[:, -plateau:].mean(axis=1) - vals[:, :plateau].mean(axis=1))))
+    if not D > 0:
+        return TextureBias(float("nan"), float("nan"))
+    o = np.arange(half + plateau, half + plateau + n_shifts)
+
+    def pseudo_bias(rows: np.ndarray) -> np.ndarray:
+        # median profile over the scan lines (robust to a mark on a few of them), then for each shift o the
+        # window sum of pixels o+1..o+half minus half times the mean of the plateau o+half+1..o+half+plateau
+        T = np.median(rows, axis=0)
+        out = []
+        for prof in (T[reach + 1:], T[:reach][::-1]):  # prof[j - 1] = pixel j beyond c0, each side
+            c = np.concatenate([[0.0], np.cumsum(prof)])
+            win = c[o + half] - c[o]
+            lev = (c[o + half + plateau] - c[o + half]) / plateau
+            out.append((win - half * lev) / D)
+        return np.concatenate(out)
+
+    pb = pseudo_bias(vals)
+    # Both sides add (independent textures); the RMS over the shifts of each side, summed in quadrature.
+    n = pb.size // 2
+    off = math.sqrt(float(np.mean(pb[:n] ** 2)) + float(np.mean(pb[n:] ** 2)))
+    order = np.argsort(scan)
+    lo, hi = order[: order.size // 2], order[order.size // 2:]
+    tilt = float("nan")
+    if lo.size >= 4 and hi.size >= 4:
+        d = pseudo_bias(vals[hi]) - pseudo_bias(vals[lo])
+        lever = float(np.mean(scan[hi]) - np.mean(scan[lo]))
+        if lever > 0:
+            tilt = math.sqrt(float(np.mean(d[:n] ** 2)) + float(np.mean(d[n:] ** 2))) / lever
+    return TextureBias(off, tilt)

@@ -45,6 +45,7 @@ from doorloc.vision.edges import (
     subpixel_edges,
     subpixel_edges_banded,
     subpixel_edges_far_face,
+    texture_bias,
     transition_width,
 )
 from doorloc.vision.lines import ImageLine, RectangleFit, fit_rectangle_edges, ransac_line
@@ -52,6 +53,13 @@ from doorloc.vision.luminance import ImageFormatError, luminance_plane
 from doorloc.vision.metric import MetricPose, pose_from_fit
 from doorloc.vision.region import EDGE_NAMES, Band, SearchRegion
 from doorloc.vision.result import LineQuality, LocateResult, PoseUncertainty, Provenance
+from doorloc.vision.uncertainty import (
+    EDGE_MODEL_FLOOR_PX,
+    EdgeModelTerms,
+    calibration_pose_sigma,
+    combine,
+    corner_fit_sigma,
+)
 
 __all__ = ["LocateConfig", "locate", "LocateTrace"]
 
@@ -463,6 +471,7 @@ def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, ha
         "yaw_sigma_deg": math.degrees(fit.angle_sigma_rad),
         "thickness_expected_mm": door.thickness_mm,
     }
+    model = _edge_model_terms(plane, samples, fit, half, cfg, cell, far_fit)
     for k in EDGE_NAMES:
         s = samples[k]
         w = fit.weights[k]
@@ -472,10 +481,8 @@ def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, ha
         rms_mm = float(np.sqrt(np.mean(fit.residuals[k][inl] ** 2))) if n_i else float("nan")
         rms_px = rms_mm / pose.scale_mm_per_px
         contrast = float(np.median(np.abs(s.step[inl]))) if n_i else 0.0
-        extra = {}
-        if k == "far" and far_fit is not None:
-            # what the far-face model leaves in doubt (band level, blur), on top of the noise
-            extra["model_sigma_mm"] = round(far_fit.model_sigma_px * pose.scale_mm_per_px, 5)
+        # what the edge model leaves in doubt (floor, texture, far-face model...), on top of the noise
+        extra = {"model_sigma_mm": round(model.line_sigma_px(k) * pose.scale_mm_per_px, 6)}
         lines.append(LineQuality(name=k, n_points=n_s, n_inliers=n_i, rms_residual_px=round(rms_px, 4),
                                  rms_residual_mm=round(rms_mm, 5), contrast=round(contrast, 1),
                                  noise=round(float(np.median(s.noise[inl])), 2) if n_i else None,
@@ -504,7 +511,8 @@ def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, ha
     # Standard uncertainty of the thickness: the two arris offsets' noise, and beside a visible far face
     # what its model leaves in doubt (a band narrower than the blur is hard to tell from the arris).
     t_sigma = math.hypot(fit.offset_sigma["reference"], fit.offset_sigma["far"],
-                         far_fit.model_sigma_px * pose.scale_mm_per_px if far_fit is not None else 0.0)
+                         model.line_sigma_px("reference") * pose.scale_mm_per_px,
+                         model.line_sigma_px("far") * pose.scale_mm_per_px)
     refusals.append(q.check_thickness(pose.thickness_mm, door.thickness_mm, t_tol))
     t_uncertain = abs(pose.thickness_mm - door.thickness_mm) + 3.0 * t_sigma > t_tol
     if t_uncertain and refusals[-1] is None:
@@ -523,6 +531,15 @@ def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, ha
                                       "difference_mm": round(pose.thickness_mm - door.thickness_mm, 4),
                                       "tolerance_mm": t_tol, "sigma_mm": round(t_sigma, 5),
                                       "uncertain": t_uncertain, "far_face_in_view": far_beside}
+    unc, terms = _pose_uncertainty(cell, cfg, region, samples, fit, pose, model)
+    diagnostics["uncertainty_terms"] = {k: [round(v, 6) for v in t] for k, t in terms.items()}
+    if unc.x_mm > cfg.max_uncertainty_mm or unc.z_mm > cfg.max_uncertainty_mm or unc.yaw_deg > cfg.max_uncertainty_deg:
+        worst = max(terms, key=lambda k: max(terms[k][0] / cfg.max_uncertainty_mm, terms[k][1] / cfg.max_uncertainty_mm,
+                                             terms[k][2] / cfg.max_uncertainty_deg))
+        refusals.append(q.Refusal("uncertain", f"the pose is uncertain to x {unc.x_mm:.3f} mm, z {unc.z_mm:.3f} mm, "
+                                  f"yaw {unc.yaw_deg:.3f} deg (1 sigma; the cell allows {cfg.max_uncertainty_mm:g} mm, "
+                                  f"{cfg.max_uncertainty_deg:g} deg), mostly from the {worst.replace('_', ' ')}; "
+                                  + _UNCERTAIN_HINT[worst]))
     first = next((r for r in refusals if r is not None), None)
     if first is not None and first.code in ("edge_not_straight", "edge_missing", "corner_hidden"):
         # A pose outside the envelope explains broken edges best (the door lies beyond the region).
@@ -537,10 +554,69 @@ def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, ha
                                    "thickness_mm": pose.thickness_mm}
         diagnostics["all_refusals"] = [r.code for r in refusals if r is not None]
         return LocateResult.refusal(name, first.code, first.message, lines=lines, diagnostics=diagnostics)
-    # Standard errors of the fit alone (image noise); the edge-model terms are not in it yet.
-    uncertainty = PoseUncertainty(x_mm=fit.offset_sigma["reference"], z_mm=fit.offset_sigma["bottom"],
-                                  yaw_deg=math.degrees(fit.angle_sigma_rad))
     return LocateResult(image=name, ok=True, x_mm=pose.x_mm, z_mm=pose.z_mm, yaw_deg=pose.yaw_deg,
                         thickness_mm=pose.thickness_mm, scale_mm_per_px=pose.scale_mm_per_px,
-                        corner_px=[float(corner_px[0]), float(corner_px[1])], uncertainty=uncertainty,
+                        corner_px=[float(corner_px[0]), float(corner_px[1])], uncertainty=unc,
                         lines=lines, diagnostics=diagnostics)
+
+
+_UNCERTAIN_HINT = {
+    "fit": "the edges are too noisy; check focus, lighting and exposure",
+    "edge_model": "the door's edges do not look like clean steps (strong grain or marks along an edge, an arris or "
+                  "a camera response the cell does not describe); check the cell's door and camera settings",
+    "calibration": "the camera calibration is too uncertain here; calibrate again with views covering the door's corner",
+    "cell": "the cell's camera placement is too uncertain; run the cell check again",
+}
+
+
+def _edge_model_terms(plane, samples: dict[str, EdgeSamples], fit: RectangleFit, half: int, cfg: LocateConfig,
+                      cell: Cell, far_fit: FarFaceFit | None) -> EdgeModelTerms:
+    """Edge-model doubts per line (:class:`doorloc.vision.uncertainty.EdgeModelTerms`), px across the edge."""
+    terms = EdgeModelTerms()
+    lut = linearizing_lut(plane.dtype, cell.response_gamma)
+    for k in EDGE_NAMES:
+        if k == "far" and far_fit is not None:
+            # what the far-face model leaves in doubt (band level, blur), on top of the noise
+            terms.extra_px.setdefault(k, {})["far_face"] = far_fit.model_sigma_px
+            continue
+        tb = texture_bias(plane, samples[k], fit.weights[k] > 0, half, cfg.plateau, lut)
+        terms.texture_px[k] = tb.offset_sigma_px
+        terms.tilt[k] = tb.tilt_sigma
+    return terms
+
+
+def _pose_uncertainty(cell: Cell, cfg: LocateConfig, region: SearchRegion, samples: dict[str, EdgeSamples],
+                      fit: RectangleFit, pose: MetricPose,
+                      model: EdgeModelTerms) -> tuple[PoseUncertainty, dict[str, tuple[float, float, float]]]:
+    """The answer's 1-sigma uncertainty and its terms (x_mm, z_mm, yaw_deg each), :mod:`doorloc.vision.uncertainty`."""
+    sc = pose.scale_mm_per_px
+    lever, spread, extent = {}, {}, {}
+    for k in ("reference", "bottom"):
+        s = samples[k]
+        inl = (fit.weights[k] > 0) & np.isfinite(s.along)
+        c_scan = pose.corner_px[0] if s.axis == "col" else pose.corner_px[1]
+        sc_in = s.scan[inl].astype(float)
+        lever[k] = abs(float(np.mean(sc_in)) - c_scan) * sc if sc_in.size else 0.0
+        spread[k] = float(((sc_in - sc_in.mean()) ** 2).sum()) if sc_in.size else 0.0
+        extent[k] = float(np.ptp(sc_in)) if sc_in.size else 0.0
+    fit_t = (corner_fit_sigma(fit.offset_sigma["reference"], fit.angle_sigma_rad, lever["reference"]),
+             corner_fit_sigma(fit.offset_sigma["bottom"], fit.angle_sigma_rad, lever["bottom"]),
+             math.degrees(fit.angle_sigma_rad))
+    # The yaw's edge-model doubt: each line's texture tilt, weighted as the joint fit weighs the lines
+    # (by the spread of their points along them); a tilt moves the corner by tilt x lever.
+    # (the floor: a bias that changes by twice the floor from one end of a line to the other)
+    tilts = {k: math.hypot(model.tilt.get(k, 0.0) if math.isfinite(model.tilt.get(k, 0.0)) else 0.0,
+                           2.0 * EDGE_MODEL_FLOOR_PX / max(extent[k], 1.0)) for k in ("reference", "bottom")}
+    wsum = sum(spread.values())
+    yaw_m = (math.sqrt(sum((spread[k] * (tilts[k] if math.isfinite(tilts[k]) else 0.0)) ** 2 for k in tilts)) / wsum
+             if wsum > 0 else 0.0)
+    model_t = (math.hypot(model.line_sigma_px("reference") * sc, yaw_m * lever["reference"]),
+               math.hypot(model.line_sigma_px("bottom") * sc, yaw_m * lever["bottom"]),
+               math.degrees(yaw_m))
+    cal_t = calibration_pose_sigma(cell.posed_camera, region.face_map.depth_y, pose.corner_px, pose.yaw_deg,
+                                   cell.calibration_covariance, cell.calibration_covariance_names,
+                                   cfg.calibration_sigma_px, sc)
+    terms = {"fit": fit_t, "edge_model": model_t, "calibration": cal_t,
+             "cell": (cfg.cell_sigma_mm, cfg.cell_sigma_mm, cfg.cell_sigma_deg)}
+    x, z, yaw = combine(terms)
+    return PoseUncertainty(x_mm=x, z_mm=z, yaw_deg=yaw), terms
