@@ -472,6 +472,7 @@ def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, ha
         "thickness_expected_mm": door.thickness_mm,
     }
     model = _edge_model_terms(plane, samples, fit, half, cfg, cell, far_fit)
+    model.blur_px = math.sqrt(max(blur * blur - 1.0 / 12.0, 0.0)) if math.isfinite(blur) else 0.0
     for k in EDGE_NAMES:
         s = samples[k]
         w = fit.weights[k]

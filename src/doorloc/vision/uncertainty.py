@@ -11,9 +11,12 @@ terms (each also reported in ``diagnostics["uncertainty_terms"]``):
     What averaging over many scan lines does not remove, because it is the same on every scan line: the
     difference between the edge model and the real edge. Per line, the quadrature sum of
 
-    - ``EDGE_MODEL_FLOOR_PX``: the area estimator's own residual bias on a clean, sharp or blurred step
-      (sampled blur tails, quantisation; the committed noise-free grid fixtures show 0.0004 mm RMS =
-      0.002 px);
+    - ``EDGE_MODEL_FLOOR_PX``: the area estimator's own residual bias on a clean, sharp step (sampled
+      pixel phases, quantisation; the committed noise-free grid fixtures show 0.0004 mm RMS = 0.002 px);
+    - ``BLUR_MODEL_FRACTION`` of the measured optical blur (Gaussian sigma, px): on blurred, noise-free
+      rendered steps the edge sits 0.005-0.01 px outwards per px of blur (0.001-0.0035 mm at blur
+      0.5-1.8 px), the same before and after the plateaus moved next to the window; a real lens's
+      blur is not Gaussian nor the same across the edge, so this is kept as a doubt, not corrected;
     - the texture term, :func:`doorloc.vision.edges.texture_bias` (wood grain along the edge, measured
       on the texture beside the window);
     - any term that an edge model reports for itself in :attr:`EdgeModelTerms.extra_px` (the far-face
@@ -44,10 +47,13 @@ import numpy as np
 from doorloc.calib.camera import CameraModel, PosedCamera
 from doorloc.vision.metric import PlaneMap
 
-__all__ = ["EDGE_MODEL_FLOOR_PX", "EdgeModelTerms", "calibration_pose_sigma", "combine", "corner_fit_sigma"]
+__all__ = ["BLUR_MODEL_FRACTION", "EDGE_MODEL_FLOOR_PX", "EdgeModelTerms", "calibration_pose_sigma", "combine", "corner_fit_sigma"]
 
 #: the area estimator's residual bias on a clean step, px across the edge (module docstring)
 EDGE_MODEL_FLOOR_PX = 0.002
+
+#: edge-model doubt per px of optical blur (module docstring)
+BLUR_MODEL_FRACTION = 0.01
 
 #: OpenCV's order of the distortion coefficients (calibration covariance names)
 _DIST_INDEX = {"k1": 0, "k2": 1, "p1": 2, "p2": 3, "k3": 4, "k4": 5, "k5": 6, "k6": 7,
@@ -64,6 +70,8 @@ class EdgeModelTerms:
         Texture bias 1-sigma per line (:func:`doorloc.vision.edges.texture_bias`).
     tilt : dict[str, float]
         Texture bias 1-sigma of each line's direction, px per px along the line.
+    blur_px : float
+        Optical blur (Gaussian sigma, px) measured on the image, for the blur term.
     extra_px : dict[str, dict[str, float]]
         Further named terms per line, px, filled by whatever edge model or correction knows its own
         doubt (e.g. ``extra_px["far"]["far_face"]``, ``extra_px["reference"]["arris"]``).
@@ -71,12 +79,14 @@ class EdgeModelTerms:
 
     texture_px: dict[str, float] = field(default_factory=dict)
     tilt: dict[str, float] = field(default_factory=dict)
+    blur_px: float = 0.0
     extra_px: dict[str, dict[str, float]] = field(default_factory=dict)
 
     def line_sigma_px(self, name: str) -> float:
         """Total edge-model 1-sigma of one line's offset, px (floor, texture and extra terms in quadrature)."""
         t = self.texture_px.get(name, 0.0)
-        terms = [EDGE_MODEL_FLOOR_PX, t if math.isfinite(t) else 0.0, *self.extra_px.get(name, {}).values()]
+        blur = BLUR_MODEL_FRACTION * self.blur_px if math.isfinite(self.blur_px) else 0.0
+        terms = [EDGE_MODEL_FLOOR_PX, blur, t if math.isfinite(t) else 0.0, *self.extra_px.get(name, {}).values()]
         return math.sqrt(sum(v * v for v in terms if math.isfinite(v)))
 
 
