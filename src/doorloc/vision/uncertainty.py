@@ -25,9 +25,11 @@ terms (each also reported in ``diagnostics["uncertainty_terms"]``):
 
     The line's total is reported as ``lines[i].model_sigma_mm``.
 ``calibration``
-    The camera calibration's own uncertainty, propagated to x, z, yaw at the located corner by central
-    differences through the back-projection (:class:`doorloc.vision.metric.PlaneMap`) with the
-    intrinsics' covariance saved in the calibration file (``intrinsics_covariance``). A cell whose
+    The camera calibration's own uncertainty, propagated to x, z, yaw at the located corner through the
+    projection's Jacobian (rotation-aligned, as ``doorloc calibrate`` reports it: the cell check's camera
+    placement takes up what a rotation explains) and the back-projection's
+    (:class:`doorloc.vision.metric.PlaneMap`), with the intrinsics' covariance saved in the calibration
+    file (``intrinsics_covariance``). A cell whose
     camera carries no covariance (an inline camera matrix, an older calibration file) gets the default
     floor ``LocateConfig.calibration_sigma_px``: an isotropic projection error of that 1-sigma at the
     corner, and for the yaw a smooth error field that changes by ``sqrt(2)`` times it over half the
@@ -44,6 +46,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from doorloc.calib.calibrate import Candidate, free_param_names, projection_jacobian
 from doorloc.calib.camera import CameraModel, PosedCamera
 from doorloc.vision.metric import PlaneMap
 
@@ -96,21 +99,17 @@ def corner_fit_sigma(offset_sigma_mm: float, angle_sigma_rad: float, lever_mm: f
     return math.hypot(offset_sigma_mm, angle_sigma_rad * lever_mm)
 
 
-def _perturbed(camera: CameraModel, name: str, delta: float) -> CameraModel:
-    K = camera.camera_matrix.copy()
-    d = np.zeros(12)
-    d[: camera.dist_coeffs.size] = camera.dist_coeffs
-    if name == "f":  # fixed aspect ratio: fx and fy change together (delta on fy, as calibrate names it)
-        K[0, 0] *= 1.0 + delta / K[1, 1]
-        K[1, 1] += delta
-    elif name in ("fx", "fy", "cx", "cy"):
-        i, j = {"fx": (0, 0), "fy": (1, 1), "cx": (0, 2), "cy": (1, 2)}[name]
-        K[i, j] += delta
-    else:
-        d[_DIST_INDEX[name]] += delta
-    n = max(camera.dist_coeffs.size, _DIST_INDEX.get(name, -1) + 1)
-    n = next(k for k in (0, 4, 5, 8, 12) if k >= n)
-    return CameraModel.from_values(K, d[:n], camera.image_size, camera.observed_radius_px)
+def _candidate(names: tuple[str, ...], camera: CameraModel) -> tuple[Candidate, list[int]] | None:
+    """The calibration model whose free intrinsics are ``names``, and the permutation into its order."""
+    fixed = "f" in names
+    dist = sorted(_DIST_INDEX[n] for n in names if n in _DIST_INDEX)
+    if any(i >= camera.dist_coeffs.size for i in dist):
+        return None
+    c = Candidate("from_file", 0, max(camera.dist_coeffs.size, 5), tuple(dist), fixed)
+    order = free_param_names(c)
+    if sorted(order) != sorted(names):
+        return None
+    return c, [list(names).index(n) for n in order]
 
 
 def calibration_pose_sigma(posed: PosedCamera, depth_y: float, corner_px: np.ndarray, yaw_deg: float,
@@ -119,33 +118,44 @@ def calibration_pose_sigma(posed: PosedCamera, depth_y: float, corner_px: np.nda
     """1-sigma of (x_mm, z_mm, yaw_deg) that the camera calibration's uncertainty gives the located pose.
 
     With a covariance of the intrinsics (``names`` in its order, as :mod:`doorloc.calib.calibrate` saves
-    it), the corner pixel and a second pixel 40 mm along door +X are back-projected onto the plane
-    ``Y = depth_y`` through cameras moved by +-1 sigma along each parameter (central differences), and
-    ``J C J^T`` gives the pose covariance; the image measurement is held fixed. Without one, the
+    it): how the pixel of a fixed ray moves with each intrinsic, less what a small rotation of the camera
+    takes up over the whole image (the cell check fits the camera's placement with the same intrinsics,
+    which absorbs that part: :func:`doorloc.calib.calibrate.projection_jacobian` ``aligned=True``), is
+    taken at the corner pixel and at a pixel 40 mm along door +X; the plane's local Jacobian (central
+    differences through :class:`doorloc.vision.metric.PlaneMap`) turns it into x, z and yaw, and
+    ``J C J^T`` gives their covariance. Without one (or with names that no calibration model has), the
     default floor of the module docstring.
     """
-    if covariance is None or len(names) == 0:
+    names = tuple(names)
+    cand = _candidate(names, posed.camera) if covariance is not None and names else None
+    if cand is None or covariance is None:
         s = fallback_sigma_px
         w, h = posed.camera.image_size
         yaw = math.degrees(s * math.sqrt(2.0) / (0.5 * math.hypot(w, h)))
         return s * scale_mm_per_px, s * scale_mm_per_px, yaw
-    base = PlaneMap(posed, depth_y)
-    corner = base.to_plane(np.asarray(corner_px, float).reshape(1, 2))[0]
+    c, perm = cand
+    C = np.asarray(covariance, float)[np.ix_(perm, perm)]
+    pm = PlaneMap(posed, depth_y)
+    corner = pm.to_plane(np.asarray(corner_px, float).reshape(1, 2))[0]
     t = math.radians(yaw_deg)
     second = corner + 40.0 * np.array([math.cos(t), math.sin(t)])
-    pix = base.to_image(np.stack([corner, second]))
-
-    def pose_with(camera: CameraModel) -> np.ndarray:
-        pm = PlaneMap(PosedCamera(camera, posed.extrinsics), depth_y)
-        a, b = pm.to_plane(pix)
-        return np.array([a[0], a[1], math.degrees(math.atan2(b[1] - a[1], b[0] - a[0]))])
-
-    C = np.asarray(covariance, float)
-    J = np.zeros((3, len(names)))
-    for k, name in enumerate(names):
-        step = math.sqrt(max(float(C[k, k]), 0.0)) or 1e-6
-        J[:, k] = (pose_with(_perturbed(posed.camera, name, step))
-                   - pose_with(_perturbed(posed.camera, name, -step))) / (2.0 * step)
+    pix = pm.to_image(np.stack([corner, second]))
+    w, h = posed.camera.image_size
+    gu, gv = np.meshgrid(np.linspace(0, w - 1, 9), np.linspace(0, h - 1, 7))
+    grid = np.stack([gu.ravel(), gv.ravel()], axis=1)
+    Jp = projection_jacobian(posed.camera, c, np.concatenate([pix, grid]), aligned=True)[:2]  # (2, 2, n)
+    if not np.all(np.isfinite(Jp)):
+        return calibration_pose_sigma(posed, depth_y, corner_px, yaw_deg, None, (), fallback_sigma_px, scale_mm_per_px)
+    # The ray seen at a fixed pixel moves by -J dp: the located plane point moves by -(dXZ/duv) J dp.
+    G = []
+    for p in pix:
+        d = pm.to_plane(np.array([p + [0.5, 0], p - [0.5, 0], p + [0, 0.5], p - [0, 0.5]]))
+        G.append(np.stack([d[0] - d[1], d[2] - d[3]], axis=1))  # (2 plane, 2 pixel)
+    dA = -G[0] @ Jp[0]  # (2, n): corner X, Z per parameter
+    dB = -G[1] @ Jp[1]
+    # yaw = atan2(dZ, dX) of B - A, linearised about the nominal direction
+    u = np.array([-math.sin(t), math.cos(t)]) / 40.0
+    J = np.vstack([dA, np.degrees(u @ (dB - dA))[None, :]])
     cov = J @ C @ J.T
     sx, sz, sy = np.sqrt(np.maximum(np.diag(cov), 0.0))
     return float(sx), float(sz), float(sy)
