@@ -15,7 +15,7 @@ from doorloc.cell import DoorSize, load_cell
 from doorloc.pose import DoorPose
 from doorloc.sim.door import render_door
 from doorloc.sim.effects import Effects
-from doorloc.vision.edges import subpixel_edges, texture_bias
+from doorloc.vision.edges import refine_step_fit, subpixel_edges, texture_bias
 from doorloc.vision.locate import locate
 from doorloc.vision.metric import PlaneMap
 from doorloc.vision.uncertainty import EDGE_MODEL_FLOOR_PX, EdgeModelTerms, calibration_pose_sigma
@@ -60,6 +60,34 @@ def test_texture_bias_is_small_on_a_plain_step_and_covers_grain():
     z = np.array(z)
     assert max(abs(_bias(_edge_image(0.1, 12.0, p))[0]) for p in (0.0, 1.5, 3.0)) > 0.03  # grain does bias the edge
     assert np.mean(z <= 2.0) >= 0.75 and np.max(z) <= 5.0, z
+
+
+def _blurred_edge(grain: float, period_px: float, phase: float, blur: float, seed: int) -> np.ndarray:
+    import cv2
+
+    fine = np.linspace(0, 200, 200 * 16, endpoint=False) + 1 / 32
+    level = np.where(fine >= 100.3, 150.0 * (1 + grain * np.sin(2 * np.pi * (fine - 100.3) / period_px + phase)), 50.0)
+    row = cv2.GaussianBlur(level[None, :].astype(np.float32), (0, 0), blur * 16)[0].reshape(200, 16).mean(axis=1)
+    img = np.tile(row, (300, 1)) + np.random.default_rng(seed).normal(0, 1.0, (300, 200))
+    return np.clip(np.rint(img), 0, 255).astype(np.uint8)
+
+
+def test_step_fit_is_exact_on_a_plain_step_and_beats_the_area_estimate_on_grain():
+    scan = np.arange(20, 280)
+    errs_area, errs_fit = [], []
+    for k, phase in enumerate(np.linspace(0, 2 * np.pi, 8, endpoint=False)):
+        for grain in (0.0, 0.1):
+            img = _blurred_edge(grain, 12.0 + k, phase, 1.2, k)
+            s = subpixel_edges(img, "row", scan, np.full(scan.size, 100.0), 4, 1, level_smooth=10)
+            f = refine_step_fit(img, s, 4, 1.2)
+            ea, ef = float(np.nanmean(s.along)) - 99.8, float(np.nanmean(f.along)) - 99.8
+            if grain == 0.0:
+                assert abs(ea) < 0.02 and abs(ef) < 0.02  # within the blur term of the edge-model doubt
+            else:
+                errs_area.append(ea)
+                errs_fit.append(ef)
+    rms_a, rms_f = np.sqrt(np.mean(np.square(errs_area))), np.sqrt(np.mean(np.square(errs_fit)))
+    assert rms_f < 0.6 * rms_a, (rms_a, rms_f)
 
 
 def test_edge_model_terms_add_in_quadrature():

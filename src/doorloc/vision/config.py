@@ -38,6 +38,10 @@ class LocateConfig:
     plateau : int
         Samples on each side of the window used for the two grey levels, right next to it (see
         ``window_blur_factor``; ``level_smooth`` averages them along the edge against noise).
+    step_fit : bool
+        In the final pass, refine each plain edge point by fitting a blurred step with free levels to its
+        window (:func:`doorloc.vision.edges.refine_step_fit`): robust to texture along the edge (wood
+        grain); False keeps the area estimator alone.
     slope_smooth : int
         Scan lines on each side over which the plateau slopes are averaged (0: flat plateaus, the
         default: a centred window cancels linear shading, and noisy slopes cost more than they give).
@@ -77,6 +81,7 @@ class LocateConfig:
     half_window_min: int = 3
     window_blur_factor: float = 1.5
     plateau: int = 1
+    step_fit: bool = True
     slope_smooth: int = 0
     level_smooth: int = 10
     min_thickness_mm: float = 4.0

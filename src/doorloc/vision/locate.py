@@ -41,6 +41,7 @@ from doorloc.vision.edges import (
     FarFaceFit,
     coarse_edges,
     linearizing_lut,
+    refine_step_fit,
     step_blur,
     subpixel_edges,
     subpixel_edges_banded,
@@ -62,6 +63,9 @@ from doorloc.vision.uncertainty import (
 )
 
 __all__ = ["LocateConfig", "locate", "LocateTrace"]
+
+#: the final pass fits a blurred step (LocateConfig.step_fit) only above this optical blur, px
+STEP_FIT_MIN_BLUR_PX = 0.5
 
 HUMAN = {"bottom": "bottom end of the door (X-line)", "reference": "reference-face arris (Z-line)",
          "far": "far arris (door thickness)"}
@@ -136,13 +140,14 @@ def _coarse(plane, band: Band, axis, polarity, thr, prefer=None):
 
 def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half: int, cfg: LocateConfig,
             scale8: float, every: int = 1, sharp: bool = False, optical_blur_px: float = float("nan"),
-            response_gamma: float = 1.0) -> tuple[dict[str, EdgeSamples], bool, FarFaceFit | None]:
+            response_gamma: float = 1.0, step_fit: dict[str, float] | None = None) -> _Sampled:
     keep = half + cfg.plateau + 4
     lut = linearizing_lut(plane.dtype, response_gamma)
     tracks = region.tracks(pose.corner, yaw_rad, pose.thickness_mm, keep, window_px=half + cfg.plateau + 2)
     out = {}
     far_fit = None
     beside = tracks["far"].beside_far_face
+    step_fitted: set[str] = set()  # lines refined by the blurred-step fit
     for name in EDGE_NAMES:
         lay = region.layouts[name]
         t = tracks[name]
@@ -167,7 +172,23 @@ def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half:
         out[name] = subpixel_edges(plane, lay.axis, scan, centre, half, cfg.plateau, scale8,
                                    slope_smooth=max(cfg.slope_smooth // every, 1) if cfg.slope_smooth else 0,
                                    **step_kw)
-    return out, beside, far_fit
+        if step_fit and name in step_fit:
+            fitted = refine_step_fit(plane, out[name], half, step_fit[name], lut)
+            if _step_fit_agrees(plane, out[name], fitted, half, cfg.plateau, lut):
+                out[name] = fitted
+                step_fitted.add(name)
+    return _Sampled(out, beside, far_fit, {k: (step_fit or {})[k] for k in step_fitted})
+
+
+@dataclass(frozen=True)
+class _Sampled:
+    """Edge points of one pass: per line, whether a far face was beside the far arris, its fit, and the
+    lines whose points the blurred-step fit refined (name -> the blur it used, px)."""
+
+    samples: dict[str, EdgeSamples]
+    far_beside: bool
+    far_fit: FarFaceFit | None
+    step_fitted: dict[str, float]
 
 
 def _fit(samples: dict[str, EdgeSamples], region: SearchRegion, cfg: LocateConfig, every: int = 1,
@@ -344,14 +365,17 @@ def _refine(plane, s8: float, region: SearchRegion, pose: MetricPose, cfg: Locat
     half = cfg.half_window_max
     blur = float("nan")
     optical_blur = float("nan")
+    step_fit: dict[str, float] = {}
     ref0: _Profiles | None = None  # the reference arris's first-pass profiles (for the blur)
     n_pass = 2
     _pass = 0
     while _pass < n_pass:
         # The first pass, on every fifth scan line, only centres and sizes the final windows.
-        samples, far_beside, far_fit = _sample(plane, region, pose, math.radians(pose.yaw_deg), half, cfg, s8,
-                                               every=5 if _pass == 0 else 1, sharp=_pass > 0 and blur < 0.6,
-                                               optical_blur_px=optical_blur, response_gamma=response_gamma)
+        sampled = _sample(plane, region, pose, math.radians(pose.yaw_deg), half, cfg, s8,
+                          every=5 if _pass == 0 else 1, sharp=_pass > 0 and blur < 0.6,
+                          optical_blur_px=optical_blur, response_gamma=response_gamma,
+                          step_fit=step_fit if _pass > 0 else {})
+        samples, far_beside, far_fit = sampled.samples, sampled.far_beside, sampled.far_fit
         if far_beside and _pass >= 1 and not np.isfinite(optical_blur) and ref0 is not None:
             # The far face came into view after the first pass: measure the blur and look again.
             optical_blur = step_blur(plane, ref0.samples, ref0.mask, cfg.half_window_max, cfg.plateau, ref0.lut,
@@ -371,6 +395,7 @@ def _refine(plane, s8: float, region: SearchRegion, pose: MetricPose, cfg: Locat
             lut = linearizing_lut(plane.dtype, response_gamma)
             widths = [transition_width(plane, samples[k], fit.weights[k] > 0, half, lut) for k in ("bottom", "reference")]
             blur = float(np.nanmax(widths)) if np.any(np.isfinite(widths)) else float(cfg.half_window_max)
+            step_fit = _step_fit_lines(cfg, dict(zip(("bottom", "reference"), widths, strict=True)))
             half = int(np.clip(math.ceil(cfg.window_blur_factor * blur + 1.0), cfg.half_window_min, cfg.half_window_max))
             ref0 = _Profiles(samples["reference"], fit.weights["reference"] > 0, lut)
             if far_beside:
@@ -378,7 +403,7 @@ def _refine(plane, s8: float, region: SearchRegion, pose: MetricPose, cfg: Locat
                 optical_blur = step_blur(plane, ref0.samples, ref0.mask, cfg.half_window_max, cfg.plateau, lut,
                                          blur_px=math.sqrt(max(blur * blur - 1.0 / 12.0, 0.04)))
         _pass += 1
-    return samples, fit, pose, blur, half, far_beside, far_fit
+    return samples, fit, pose, blur, half, far_beside, far_fit, sampled.step_fitted
 
 
 def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrace, name: str) -> LocateResult:
@@ -398,12 +423,12 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
     clock.lap("coarse")
     pose = _coarse_pose(coarse, plane, s8, region, cell, door, cfg)
     clock.lap("coarse_pose")
-    samples, fit, pose, blur, half, far_beside, far_fit = _refine(plane, s8, region, pose, cfg, clock,
+    samples, fit, pose, blur, half, far_beside, far_fit, step_fitted = _refine(plane, s8, region, pose, cfg, clock,
                                                                      cell.response_gamma)
     tr.samples = samples
     tr.inliers = {k: fit.weights[k] > 0 for k in EDGE_NAMES}
     tr.pose = pose
-    res = _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, half, plane, s8, far_beside,
+    res = _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, half, plane, s8, far_beside, step_fitted,
                            far_fit)
     res.diagnostics["far_face_visible"] = far_beside
     if far_fit is not None:
@@ -459,7 +484,8 @@ def _rows_across(plane, s8: float, ref: EdgeSamples, far: EdgeSamples) -> np.nda
 
 
 def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, half, plane, s8,
-                     far_beside: bool = False, far_fit: FarFaceFit | None = None) -> LocateResult:
+                     far_beside: bool = False, step_fitted: dict[str, float] | None = None,
+                     far_fit: FarFaceFit | None = None) -> LocateResult:
     lines, refusals = [], []
     corner_px = pose.corner_px
     diagnostics: dict = {
@@ -471,7 +497,7 @@ def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, ha
         "yaw_sigma_deg": math.degrees(fit.angle_sigma_rad),
         "thickness_expected_mm": door.thickness_mm,
     }
-    model = _edge_model_terms(plane, samples, fit, half, cfg, cell, far_fit)
+    model = _edge_model_terms(plane, samples, fit, half, cfg, cell, far_fit, step_fitted or {})
     model.blur_px = math.sqrt(max(blur * blur - 1.0 / 12.0, 0.0)) if math.isfinite(blur) else 0.0
     for k in EDGE_NAMES:
         s = samples[k]
@@ -570,8 +596,45 @@ _UNCERTAIN_HINT = {
 }
 
 
+#: the step fit replaces the area estimate only where they differ by less than this many of the area
+#: estimator's texture sigma (plus STEP_FIT_AGREE_FLOOR_PX): a larger shift is a profile shape that the
+#: step model lacks, not texture
+STEP_FIT_AGREE_SIGMAS = 3.0
+STEP_FIT_AGREE_FLOOR_PX = 0.003
+
+
+def _step_fit_agrees(plane, area: EdgeSamples, fitted: EdgeSamples, half: int, plateau: int, lut) -> bool:
+    """Whether the step fit's shift of an edge is what texture beside it explains (see the constants)."""
+    d = fitted.along - area.along
+    d = d[np.isfinite(d)]
+    if d.size < 8:
+        return False
+    tex = texture_bias(plane, area, area.valid, half, plateau, lut).offset_sigma_px
+    tex = tex if math.isfinite(tex) else 0.0
+    return abs(float(np.median(d))) <= STEP_FIT_AGREE_SIGMAS * math.hypot(tex, STEP_FIT_AGREE_FLOOR_PX)
+
+
+def _step_fit_lines(cfg: LocateConfig, widths: dict[str, float]) -> dict[str, float]:
+    """The lines the final pass refines by the blurred-step fit, with the optical blur (px) it uses.
+
+    The blur is the same on every edge; an edge whose transition looks wider than the narrowest carries a
+    second structure (an end face seen nearly edge-on, a strip) that the step model lacks, while the area
+    estimator is exact whatever the shape: only edges within 25 % of the narrowest width are fitted, with
+    that width's blur. Below ``STEP_FIT_MIN_BLUR_PX`` none is: the area estimator is exact there and its
+    window small (little texture in it), while the step model's shape depends on the pixel phase.
+    """
+    ok = {k: w for k, w in widths.items() if math.isfinite(w)}
+    if not cfg.step_fit or not ok:
+        return {}
+    narrow = min(ok.values())
+    optical = math.sqrt(max(narrow * narrow - 1.0 / 12.0, 0.0))
+    if optical < STEP_FIT_MIN_BLUR_PX:
+        return {}
+    return {k: optical for k, w in ok.items() if w <= 1.25 * narrow}
+
+
 def _edge_model_terms(plane, samples: dict[str, EdgeSamples], fit: RectangleFit, half: int, cfg: LocateConfig,
-                      cell: Cell, far_fit: FarFaceFit | None) -> EdgeModelTerms:
+                      cell: Cell, far_fit: FarFaceFit | None, step_fitted: dict[str, float]) -> EdgeModelTerms:
     """Edge-model doubts per line (:class:`doorloc.vision.uncertainty.EdgeModelTerms`), px across the edge."""
     terms = EdgeModelTerms()
     lut = linearizing_lut(plane.dtype, cell.response_gamma)
@@ -580,7 +643,8 @@ def _edge_model_terms(plane, samples: dict[str, EdgeSamples], fit: RectangleFit,
             # what the far-face model leaves in doubt (band level, blur), on top of the noise
             terms.extra_px.setdefault(k, {})["far_face"] = far_fit.model_sigma_px
             continue
-        tb = texture_bias(plane, samples[k], fit.weights[k] > 0, half, cfg.plateau, lut)
+        tb = texture_bias(plane, samples[k], fit.weights[k] > 0, half, cfg.plateau, lut,
+                          blur_px=step_fitted.get(k))
         terms.texture_px[k] = tb.offset_sigma_px
         terms.tilt[k] = tb.tilt_sigma
     return terms
