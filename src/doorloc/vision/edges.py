@@ -824,15 +824,15 @@ class TextureBias:
 
 
 def texture_bias(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half: int, plateau: int,
-                 lut: np.ndarray | None = None, n_shifts: int = 12, max_lines: int = 160,
+                 lut: np.ndarray | None = None, n_shifts: int = 12, max_lines: int = 128,
                  blur_px: float | None = None) -> TextureBias:
     """Estimate the texture bias of the sub-pixel edge estimate on one edge from the texture beside its window.
 
     The estimators take the edge's two grey levels from near the transition and assume they hold under it;
     surface texture (wood grain along the edge) breaks that. The texture under the transition cannot be
     told from the step, but texture that runs along the edge is the same on every scan line at the same
-    distance from it, so its mean profile beside the window is measured with little noise (the median over
-    the scan lines, aligned on their edge points). Taking the texture as stationary across the edge, the
+    distance from it, so its mean profile beside the window is measured with little noise (the mean over
+    the scan lines that the line fit kept, aligned on their edge points). Taking the texture as stationary across the edge, the
     estimator is run on that texture as if it lay under the window, at ``n_shifts`` positions beyond it on
     each side; the RMS of the edge shifts it makes is the 1-sigma. A plain or smoothly shaded surface
     gives ~0 (noise only).
@@ -856,7 +856,7 @@ def texture_bias(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half
     if int(m.sum()) < 8:
         return TextureBias(float("nan"), float("nan"))
     idx = np.flatnonzero(m)
-    if idx.size > max_lines:  # a profile's median needs no more
+    if idx.size > max_lines:  # a mean profile needs no more
         idx = idx[np.linspace(0, idx.size - 1, max_lines).astype(int)]
     P = oriented(plane, samples.axis)
     h = half + 1
@@ -878,8 +878,7 @@ def texture_bias(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half
         k = np.arange(-h, h + 1)
         o = np.arange(h + 1, h + 1 + n_shifts)
 
-    def pseudo_bias(rows: np.ndarray) -> np.ndarray:
-        T = np.median(rows, axis=0)
+    def pseudo_bias(T: np.ndarray) -> np.ndarray:
         out = []
         for prof in (T[reach + 1:], T[:reach][::-1]):  # prof[j - 1] = pixel j beyond c0, each side
             if blur_px is None:
@@ -896,15 +895,18 @@ def texture_bias(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half
                 out.append(_step_fit(C0 * (D + tex), np.zeros(o.size), bounds, max(float(blur_px), 0.05)))
         return np.concatenate(out)
 
-    pb = pseudo_bias(vals)
+    # Mean profiles over the scan lines (the line fit's outliers are already out) of the two halves of
+    # the edge; their mean is the whole edge's.
+    order = np.argsort(scan)
+    lo, hi = order[: order.size // 2], order[order.size // 2:]
+    T_lo, T_hi = vals[lo].mean(axis=0, dtype=np.float64), vals[hi].mean(axis=0, dtype=np.float64)
+    pb = pseudo_bias(0.5 * (T_lo + T_hi))
     # Both sides add (independent textures); the RMS over the shifts of each side, summed in quadrature.
     n = pb.size // 2
     off = math.sqrt(float(np.mean(pb[:n] ** 2)) + float(np.mean(pb[n:] ** 2)))
-    order = np.argsort(scan)
-    lo, hi = order[: order.size // 2], order[order.size // 2:]
     tilt = float("nan")
     if lo.size >= 4 and hi.size >= 4:
-        d = pseudo_bias(vals[hi]) - pseudo_bias(vals[lo])
+        d = pseudo_bias(T_hi) - pseudo_bias(T_lo)
         lever = float(np.mean(scan[hi]) - np.mean(scan[lo]))
         if lever > 0:
             tilt = math.sqrt(float(np.mean(d[:n] ** 2)) + float(np.mean(d[n:] ** 2))) / lever

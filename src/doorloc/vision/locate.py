@@ -639,9 +639,10 @@ def _edge_model_terms(plane, samples: dict[str, EdgeSamples], fit: RectangleFit,
     terms = EdgeModelTerms()
     lut = linearizing_lut(plane.dtype, cell.response_gamma)
     for k in EDGE_NAMES:
-        if k == "far" and far_fit is not None:
-            # what the far-face model leaves in doubt (band level, blur), on top of the noise
-            terms.extra_px.setdefault(k, {})["far_face"] = far_fit.model_sigma_px
+        if k == "far":
+            # The far arris only gives the thickness, checked to a tolerance far above any texture bias.
+            if far_fit is not None:  # what the far-face model leaves in doubt (band level, blur)
+                terms.extra_px.setdefault(k, {})["far_face"] = far_fit.model_sigma_px
             continue
         tb = texture_bias(plane, samples[k], fit.weights[k] > 0, half, cfg.plateau, lut,
                           blur_px=step_fitted.get(k))
