@@ -18,7 +18,12 @@ from doorloc.sim.effects import Effects
 from doorloc.vision.edges import refine_step_fit, subpixel_edges, texture_bias
 from doorloc.vision.locate import locate
 from doorloc.vision.metric import PlaneMap
-from doorloc.vision.uncertainty import EDGE_MODEL_FLOOR_PX, EdgeModelTerms, calibration_pose_sigma
+from doorloc.vision.uncertainty import (
+    EDGE_MODEL_FLOOR_PX,
+    JPEG_BLOCK_RATIO,
+    EdgeModelTerms,
+    calibration_pose_sigma,
+)
 
 NAMES = ("fx", "fy", "cx", "cy", "k1")
 
@@ -186,3 +191,17 @@ def test_uncertain_when_the_uncertainty_exceeds_the_cells_tolerance(cell):
     r = locate(img, cell, door, config=tight)
     assert not r.ok and r.error_code == "uncertain"
     assert "1 sigma" in (r.error or "") and "mm" in (r.error or "")
+
+
+@pytest.mark.parametrize("noise", [0.0, 3.0])
+def test_jpeg_block_artifacts_are_told_from_noise(cell, noise):
+    door = DoorSize(900, 50, 2100)
+    pose = DoorPose(1.0, -2.0, 0.3)
+    plain = render_door(cell, door, pose, effects=Effects(read_noise_dn=noise, blur_sigma_px=1.0), seed=5).image
+    jpeg = render_door(cell, door, pose, effects=Effects(read_noise_dn=noise, blur_sigma_px=1.0, jpeg_quality=88),
+                       seed=5).image
+    r_plain = locate(plain, cell, door)
+    r_jpeg = locate(jpeg, cell, door)
+    assert r_plain.diagnostics["jpeg_block_ratio"] < JPEG_BLOCK_RATIO < r_jpeg.diagnostics["jpeg_block_ratio"]
+    assert r_jpeg.uncertainty is not None and r_plain.uncertainty is not None
+    assert r_jpeg.uncertainty.z_mm > r_plain.uncertainty.z_mm

@@ -39,6 +39,7 @@ from doorloc.vision.config import LocateConfig
 from doorloc.vision.edges import (
     EdgeSamples,
     FarFaceFit,
+    block_artifact_ratio,
     coarse_edges,
     linearizing_lut,
     refine_step_fit,
@@ -56,6 +57,8 @@ from doorloc.vision.region import EDGE_NAMES, Band, SearchRegion
 from doorloc.vision.result import LineQuality, LocateResult, PoseUncertainty, Provenance
 from doorloc.vision.uncertainty import (
     EDGE_MODEL_FLOOR_PX,
+    JPEG_BLOCK_RATIO,
+    JPEG_EDGE_DOUBT_PX,
     EdgeModelTerms,
     calibration_pose_sigma,
     combine,
@@ -499,6 +502,11 @@ def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, ha
     }
     model = _edge_model_terms(plane, samples, fit, half, cfg, cell, far_fit, step_fitted or {})
     model.blur_px = math.sqrt(max(blur * blur - 1.0 / 12.0, 0.0)) if math.isfinite(blur) else 0.0
+    blocks = block_artifact_ratio(plane, pose.corner_px)
+    diagnostics["jpeg_block_ratio"] = round(blocks, 3) if math.isfinite(blocks) else None
+    if blocks > JPEG_BLOCK_RATIO:
+        for k in EDGE_NAMES:
+            model.extra_px.setdefault(k, {})["jpeg"] = JPEG_EDGE_DOUBT_PX
     for k in EDGE_NAMES:
         s = samples[k]
         w = fit.weights[k]

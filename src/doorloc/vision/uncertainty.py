@@ -19,6 +19,10 @@ terms (each also reported in ``diagnostics["uncertainty_terms"]``):
       blur is not Gaussian nor the same across the edge, so this is kept as a doubt, not corrected;
     - the texture term, :func:`doorloc.vision.edges.texture_bias` (wood grain along the edge, measured
       on the texture beside the window);
+    - ``JPEG_EDGE_DOUBT_PX`` where the image shows JPEG block artifacts
+      (:func:`doorloc.vision.edges.block_artifact_ratio` above ``JPEG_BLOCK_RATIO``): the block
+      quantization moves an edge that runs along a block row or column the same way on every scan line
+      (0.01-0.07 px measured on nearly noise-free quality-88 renders, where no other term sees it);
     - any term that an edge model reports for itself in :attr:`EdgeModelTerms.extra_px` (the far-face
       fit today; an arris-offset or camera-response correction adds its doubt there, px across the
       edge, keyed by line name: ``"bottom"``, ``"reference"`` or ``"far"``).
@@ -50,10 +54,14 @@ from doorloc.calib.calibrate import Candidate, free_param_names, projection_jaco
 from doorloc.calib.camera import CameraModel, PosedCamera
 from doorloc.vision.metric import PlaneMap
 
-__all__ = ["BLUR_MODEL_FRACTION", "EDGE_MODEL_FLOOR_PX", "EdgeModelTerms", "calibration_pose_sigma", "combine", "corner_fit_sigma"]
+__all__ = ["BLUR_MODEL_FRACTION", "EDGE_MODEL_FLOOR_PX", "JPEG_BLOCK_RATIO", "JPEG_EDGE_DOUBT_PX", "EdgeModelTerms", "calibration_pose_sigma", "combine", "corner_fit_sigma"]
 
 #: the area estimator's residual bias on a clean step, px across the edge (module docstring)
 EDGE_MODEL_FLOOR_PX = 0.002
+
+#: JPEG block artifacts: the ratio above which an image counts as JPEG-compressed, and the doubt then (px)
+JPEG_BLOCK_RATIO = 1.3
+JPEG_EDGE_DOUBT_PX = 0.03
 
 #: edge-model doubt per px of optical blur (module docstring)
 BLUR_MODEL_FRACTION = 0.01
