@@ -913,14 +913,17 @@ def texture_bias(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half
     return TextureBias(off, tilt)
 
 
-def block_artifact_ratio(plane: np.ndarray, centre_px: np.ndarray, half: int = 96) -> float:
+def block_artifact_ratio(plane: np.ndarray, centre_px: np.ndarray, half: int = 96, scale_to_8bit: float = 1.0,
+                         min_excess: float = 0.05) -> float:
     """How much stronger the grey-level steps between 8x8 pixel blocks are than those inside them, near a point.
 
     A JPEG round trip quantizes each 8x8 block on its own, which leaves steps at the block boundaries:
     the median over the boundary columns (rows) of the mean absolute difference to the next column (row),
     over the median of the same elsewhere, is about 1 for an image that never was a JPEG (1.0-1.2 on
     rendered ones at any noise) and 1.5 or (nearly noise-free) far more for JPEG quality 88. The larger
-    of the two directions is returned; NaN when the window holds too few pixels.
+    of the two directions is returned; NaN when the window holds too few pixels. Where the boundary
+    steps exceed the others by less than ``min_excess`` grey levels (0-255 scale; a noise-free image that
+    never was a JPEG has all its medians near 0), the ratio is taken as 1.
     """
     c = np.asarray(centre_px, float)
     if not np.all(np.isfinite(c)):
@@ -931,7 +934,8 @@ def block_artifact_ratio(plane: np.ndarray, centre_px: np.ndarray, half: int = 9
         return float("nan")
     out = []
     for arr, o in ((crop, u0), (crop.T, v0)):
-        d = np.abs(np.diff(arr, axis=1)).mean(axis=0)
+        d = np.abs(np.diff(arr, axis=1)).mean(axis=0) * scale_to_8bit
         boundary = (o + np.arange(d.size)) % 8 == 7
-        out.append(float(np.median(d[boundary])) / max(float(np.median(d[~boundary])), 1e-3))
+        on, off = float(np.median(d[boundary])), float(np.median(d[~boundary]))
+        out.append(on / max(off, 1e-3) if on - off >= min_excess else 1.0)
     return max(out)

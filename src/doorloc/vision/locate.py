@@ -502,7 +502,7 @@ def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, ha
     }
     model = _edge_model_terms(plane, samples, fit, half, cfg, cell, far_fit, step_fitted or {})
     model.blur_px = math.sqrt(max(blur * blur - 1.0 / 12.0, 0.0)) if math.isfinite(blur) else 0.0
-    blocks = block_artifact_ratio(plane, pose.corner_px)
+    blocks = block_artifact_ratio(plane, pose.corner_px, scale_to_8bit=s8)
     diagnostics["jpeg_block_ratio"] = round(blocks, 3) if math.isfinite(blocks) else None
     if blocks > JPEG_BLOCK_RATIO:
         for k in EDGE_NAMES:
