@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -35,6 +35,7 @@ import numpy as np
 from doorloc import __version__
 from doorloc.cell import Cell, DoorSize
 from doorloc.vision import quality as q
+from doorloc.vision.arris_model import StripFit, arris_edges, arris_geometry
 from doorloc.vision.config import LocateConfig
 from doorloc.vision.edges import (
     EdgeSamples,
@@ -128,10 +129,15 @@ def _coarse(plane, band: Band, axis, polarity, thr, prefer=None):
 
 def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half: int, cfg: LocateConfig,
             scale8: float, every: int = 1, sharp: bool = False, optical_blur_px: float = float("nan"),
-            response_gamma: float = 1.0) -> tuple[dict[str, EdgeSamples], bool, FarFaceFit | None]:
+            response_gamma: float = 1.0, arris_fits: dict[str, tuple[StripFit, float]] | None = None,
+            ) -> tuple[dict[str, EdgeSamples], bool, FarFaceFit | None]:
     keep = half + cfg.plateau + 4
     lut = linearizing_lut(plane.dtype, response_gamma)
-    tracks = region.tracks(pose.corner, yaw_rad, pose.thickness_mm, keep, window_px=half + cfg.plateau + 2)
+    door = region.door
+    geoms = (arris_geometry(door.arris_mm, door.arris_profile, region.plane_map.centre, pose.corner, pose.yaw_deg,
+                            region.face_y, pose.thickness_mm) if door.arris_mm > 0 else None)
+    tracks = region.tracks(pose.corner, yaw_rad, pose.thickness_mm, keep, window_px=half + cfg.plateau + 2,
+                           arris=geoms)
     out = {}
     far_fit = None
     beside = tracks["far"].beside_far_face
@@ -151,6 +157,16 @@ def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half:
                 out[name], far_fit = subpixel_edges_far_face(
                     plane, lay.axis, scan, centre, half, band, t.band_slope, -interior, cfg.plateau, scale8,
                     blur_px=optical_blur_px if np.isfinite(optical_blur_px) else 1.0, **step_kw)
+                continue
+            if geoms is not None and name in geoms and t.outline_shift_px is not None:
+                # An arris strip lies on the door side of the outline: its outer border from the strip's
+                # fitted shading, then moved to the sharp corner's line by the geometry.
+                blur0 = optical_blur_px if np.isfinite(optical_blur_px) else 1.0
+                smp, strip = arris_edges(plane, lay.axis, scan, centre, half, band, interior, geoms[name],
+                                         cfg.plateau, scale8, lut=lut, blur0=blur0, search=every > 1)
+                out[name] = replace(smp, along=smp.along + t.outline_shift_px[::every])
+                if arris_fits is not None and strip is not None:
+                    arris_fits[name] = (strip, float(np.median(band)))
                 continue
             # An arris strip lies on the door side of the outline.
             out[name], _ = subpixel_edges_banded(plane, lay.axis, scan, centre, half, band, interior, cfg.plateau,
@@ -325,7 +341,7 @@ class _Profiles:
 
 
 def _refine(plane, s8: float, region: SearchRegion, pose: MetricPose, cfg: LocateConfig, clock: _Clock,
-            response_gamma: float = 1.0):
+            response_gamma: float = 1.0, arris_fits: dict[str, tuple[StripFit, float]] | None = None):
     """Sub-pixel edge points and the joint line fit, in passes (module docstring).
 
     ``response_gamma`` is the camera's (``camera.response_gamma`` in the cell file): grey levels are turned
@@ -343,7 +359,8 @@ def _refine(plane, s8: float, region: SearchRegion, pose: MetricPose, cfg: Locat
         # The first pass, on every fifth scan line, only centres and sizes the final windows.
         samples, far_beside, far_fit = _sample(plane, region, pose, math.radians(pose.yaw_deg), half, cfg, s8,
                                                every=5 if _pass == 0 else 1, sharp=_pass > 0 and blur < 0.6,
-                                               optical_blur_px=optical_blur, response_gamma=response_gamma)
+                                               optical_blur_px=optical_blur, response_gamma=response_gamma,
+                                               arris_fits=arris_fits)
         if far_beside and _pass >= 1 and not np.isfinite(optical_blur) and ref0 is not None:
             # The far face came into view after the first pass: measure the blur and look again.
             optical_blur = step_blur(plane, ref0.samples, ref0.mask, cfg.half_window_max, cfg.plateau, ref0.lut,
@@ -390,13 +407,14 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
     clock.lap("coarse")
     pose = _coarse_pose(coarse, plane, s8, region, cell, door, cfg)
     clock.lap("coarse_pose")
+    arris_fits: dict[str, tuple[StripFit, float]] = {}
     samples, fit, pose, blur, half, far_beside, far_fit = _refine(plane, s8, region, pose, cfg, clock,
-                                                                     cell.response_gamma)
+                                                                     cell.response_gamma, arris_fits)
     tr.samples = samples
     tr.inliers = {k: fit.weights[k] > 0 for k in EDGE_NAMES}
     tr.pose = pose
     res = _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, half, plane, s8, far_beside,
-                           far_fit)
+                           far_fit, arris_fits)
     res.diagnostics["far_face_visible"] = far_beside
     if far_fit is not None:
         res.diagnostics["far_face_fit"] = {"band_level": round(far_fit.band_level, 4), "blur_px": round(far_fit.blur_px, 3),
@@ -451,7 +469,8 @@ def _rows_across(plane, s8: float, ref: EdgeSamples, far: EdgeSamples) -> np.nda
 
 
 def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, half, plane, s8,
-                     far_beside: bool = False, far_fit: FarFaceFit | None = None) -> LocateResult:
+                     far_beside: bool = False, far_fit: FarFaceFit | None = None,
+                     arris_fits: dict[str, tuple[StripFit, float]] | None = None) -> LocateResult:
     lines, refusals = [], []
     corner_px = pose.corner_px
     diagnostics: dict = {
@@ -476,6 +495,14 @@ def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, ha
         if k == "far" and far_fit is not None:
             # what the far-face model leaves in doubt (band level, blur), on top of the noise
             extra["model_sigma_mm"] = round(far_fit.model_sigma_px * pose.scale_mm_per_px, 5)
+        if arris_fits and k in arris_fits:
+            # what the arris correction leaves in doubt: the strip's fitted deficit times its width
+            strip, band_px = arris_fits[k]
+            extra["arris_correction_sigma_mm"] = round(strip.deficit_sigma * band_px * pose.scale_mm_per_px, 5)
+            diagnostics.setdefault("arris_fit", {})[k] = {
+                "deficit": round(strip.deficit, 4), "deficit_sigma": round(strip.deficit_sigma, 5),
+                "strip_px": round(band_px, 3), "blur_px": round(strip.blur_px, 3), "misfit": round(strip.misfit, 3),
+                "offset_px": round(strip.offset_px, 4)}
         lines.append(LineQuality(name=k, n_points=n_s, n_inliers=n_i, rms_residual_px=round(rms_px, 4),
                                  rms_residual_mm=round(rms_mm, 5), contrast=round(contrast, 1),
                                  noise=round(float(np.median(s.noise[inl])), 2) if n_i else None,
