@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -256,7 +257,7 @@ def fit_strip_profile(r: np.ndarray, x: np.ndarray, outer: np.ndarray, width: np
         return float(np.sum(solve(np.array(p), b0)[0] ** 2))
 
     reach = search_px + 2.0
-    grid = sorted(((cost0((d, sg)), d, sg) for d in np.arange(-reach, reach + 0.01, 0.5) for sg in (0.3, 0.7, 1.2, 1.8)))
+    grid = sorted((cost0((d, sg)), d, sg) for d in np.arange(-reach, reach + 0.01, 0.5) for sg in (0.3, 0.7, 1.2, 1.8))
     starts: list[tuple[float, float]] = []
     for _, d, sg in grid:  # the three best starts at distinct offsets
         if all(abs(d - d1) > 0.75 for d1, _ in starts):
@@ -264,7 +265,7 @@ def fit_strip_profile(r: np.ndarray, x: np.ndarray, outer: np.ndarray, width: np
         if len(starts) == 3:
             break
     res, basis = min((fit(None, False, np.array(st), 40) for st in starts), key=lambda rb: float(np.sum(rb[0].fun ** 2)))
-    best = (float(np.sum(res.fun ** 2)), None, False, res, basis)
+    best: tuple[float, float | None, bool, Any, np.ndarray] = (float(np.sum(res.fun ** 2)), None, False, res, basis)
     for term, lb in candidates[1:]:
         b = _strip_basis(geom, term, lb)
         cost = float(np.sum(solve(res.x, b)[0] ** 2))

@@ -52,7 +52,7 @@ from doorloc.vision.lines import ImageLine, RectangleFit, fit_rectangle_edges, r
 from doorloc.vision.luminance import ImageFormatError, luminance_plane
 from doorloc.vision.metric import MetricPose, pose_from_fit
 from doorloc.vision.region import EDGE_NAMES, Band, SearchRegion
-from doorloc.vision.result import LineQuality, LocateResult, PoseUncertainty, Provenance
+from doorloc.vision.result import LineQuality, LocateResult, PhysicalModel, PoseUncertainty, Provenance
 
 __all__ = ["LocateConfig", "locate", "LocateTrace"]
 
@@ -116,6 +116,8 @@ def locate(image: np.ndarray, cell: Cell, door: DoorSize | None = None, *, image
         res = LocateResult.refusal(image_name, "internal_error",
                                    f"locate failed on this image ({type(e).__name__}: {e}); keep the image and report it")
     res.provenance = Provenance(version=__version__, cell_sha256=cell.sha256, calibration_sha256=cell.calibration_sha256)
+    res.model = PhysicalModel(response_gamma=cell.response_gamma, arris_mm=door.arris_mm, arris_profile=door.arris_profile,
+                              door_brighter=cfg.door_brighter, face_y_mm=cell.face_y(door))
     res.elapsed_ms = (time.perf_counter() - t0) * 1e3
     return res
 
