@@ -56,9 +56,11 @@ def _row(label, seed, res, pose, door, extra=""):
         return None
     ex, ez = res.x_mm - pose.x_mm, res.z_mm - pose.z_mm
     ux, uz = res.uncertainty.x_mm, res.uncertainty.z_mm
+    # the reported uncertainty plus the per-line edge-model doubts (arris correction, response check)
     arr = {ln.name: getattr(ln, "arris_correction_sigma_mm", None) for ln in res.lines}
-    sx = math.hypot(ux, arr.get("reference") or 0.0)
-    sz = math.hypot(uz, arr.get("bottom") or 0.0)
+    rsp = {ln.name: getattr(ln, "response_sigma_mm", None) for ln in res.lines}
+    sx = math.hypot(ux, arr.get("reference") or 0.0, rsp.get("reference") or 0.0)
+    sz = math.hypot(uz, arr.get("bottom") or 0.0, rsp.get("bottom") or 0.0)
     print(f"  seed {seed:5d} {label:34s} ex {ex:+.4f} ez {ez:+.4f} dT {res.thickness_mm - door.thickness_mm:+.4f} "
           f"sigma x {sx:.4f} z {sz:.4f} {extra}")
     return ex, ez, sx, sz

@@ -43,7 +43,7 @@ __all__ = ["ArrisGeometry", "StripFit", "arris_geometry", "fit_strip_profile", "
 #: sub-intervals of the strip (uniform in image width) over which its shading is taken constant in the fit
 _STRIP_CELLS = 16
 #: scan lines the shading fit uses at most (spread evenly over the edge)
-_FIT_LINES = 120
+_FIT_LINES = 40
 #: plausible error of the Gaussian blur model, px (sets the model's doubt in the strip's deficit)
 BLUR_DOUBT = 0.1
 #: prior of the deficit: a strip somewhere between the background and the hinge face
@@ -167,9 +167,10 @@ def _design(x: np.ndarray, outer: np.ndarray, width: np.ndarray, sigma: float) -
     one cell of the strip.
     """
     bounds = outer[:, None] + width[:, None] * (np.arange(_STRIP_CELLS + 1) / _STRIP_CELLS)[None, :]  # (N, C+1)
-    hi = _G((x + 0.5)[:, :, None] - bounds[:, None, :], sigma)
-    lo = _G((x - 0.5)[:, :, None] - bounds[:, None, :], sigma)
-    prim = hi - lo  # (N, P, C+1): pixel integral of the unit level beyond each boundary
+    # consecutive pixels share their borders: G once per pixel border, then differences
+    edges = np.concatenate([x[:, :1] - 0.5, x + 0.5], axis=1)  # (N, P+1)
+    g = _G(edges[:, :, None] - bounds[:, None, :], sigma)
+    prim = g[:, 1:] - g[:, :-1]  # (N, P, C+1): pixel integral of the unit level beyond each boundary
     cells = prim[:, :, :-1] - prim[:, :, 1:]
     return prim[:, :, -1], cells
 
@@ -257,14 +258,22 @@ def fit_strip_profile(r: np.ndarray, x: np.ndarray, outer: np.ndarray, width: np
         return float(np.sum(solve(np.array(p), b0)[0] ** 2))
 
     reach = search_px + 2.0
-    grid = sorted((cost0((d, sg)), d, sg) for d in np.arange(-reach, reach + 0.01, 0.5) for sg in (0.3, 0.7, 1.2, 1.8))
+    coarse = sorted(np.arange(-reach, reach + 0.01, 1.0), key=lambda d: cost0((d, max(blur0, 0.7))))
+    centres: list[float] = []
+    for d in coarse:  # the two best coarse offsets at distinct places
+        if all(abs(d - d1) > 1.5 for d1 in centres):
+            centres.append(float(d))
+        if len(centres) == 2:
+            break
+    grid = sorted((cost0((c + d, sg)), c + d, sg) for c in centres for d in np.arange(-1.0, 1.01, 0.5)
+                  for sg in (0.3, 0.8, 1.6))
     starts: list[tuple[float, float]] = []
-    for _, d, sg in grid:  # the three best starts at distinct offsets
+    for _, d, sg in grid:  # the best starts at distinct offsets
         if all(abs(d - d1) > 0.75 for d1, _ in starts):
             starts.append((d, sg))
-        if len(starts) == 3:
+        if len(starts) == 2:
             break
-    res, basis = min((fit(None, False, np.array(st), 40) for st in starts), key=lambda rb: float(np.sum(rb[0].fun ** 2)))
+    res, basis = min((fit(None, False, np.array(st), 20) for st in starts), key=lambda rb: float(np.sum(rb[0].fun ** 2)))
     best: tuple[float, float | None, bool, Any, np.ndarray] = (float(np.sum(res.fun ** 2)), None, False, res, basis)
     for term, lb in candidates[1:]:
         b = _strip_basis(geom, term, lb)
@@ -278,7 +287,7 @@ def fit_strip_profile(r: np.ndarray, x: np.ndarray, outer: np.ndarray, width: np
         def fun3(p: np.ndarray) -> np.ndarray:
             return solve(p[:2], _strip_basis(geom, float(p[2]), lit_below))[0]
 
-        r3 = least_squares(fun3, np.r_[res.x, best[1]], diff_step=1e-3, max_nfev=40, x_scale=[0.1, 0.1, 0.05])
+        r3 = least_squares(fun3, np.r_[res.x, best[1]], diff_step=1e-3, max_nfev=20, x_scale=[0.1, 0.1, 0.05])
         if np.sum(r3.fun ** 2) < np.sum(res.fun ** 2):
             basis = _strip_basis(geom, float(r3.x[2]), lit_below)
             res = least_squares(lambda p: solve(p, basis)[0], r3.x[:2], diff_step=1e-3, max_nfev=5,
@@ -324,7 +333,7 @@ def fit_strip_profile(r: np.ndarray, x: np.ndarray, outer: np.ndarray, width: np
     for d_sigma in (-BLUR_DOUBT, BLUR_DOUBT):
         sg = max(abs(res.x[1]) + d_sigma, 0.05)
         r1 = least_squares(lambda p, sg=sg: solve(np.array([p[0], sg]), basis)[0], res.x[:1], diff_step=1e-3,
-                           max_nfev=20, x_scale=[0.1])
+                           max_nfev=8, x_scale=[0.1])
         _, c1, _ = solve(np.array([r1.x[0], sg]), basis)
         lv = (basis @ c1[2:] - c1[0]) / (c1[1] - c1[0])
         moved.append(abs(float(np.mean(1.0 - lv)) - deficit))

@@ -52,6 +52,7 @@ from doorloc.vision.lines import ImageLine, RectangleFit, fit_rectangle_edges, r
 from doorloc.vision.luminance import ImageFormatError, luminance_plane
 from doorloc.vision.metric import MetricPose, pose_from_fit
 from doorloc.vision.region import EDGE_NAMES, Band, SearchRegion
+from doorloc.vision.response import RESPONSE_DOUBT_FACTOR, response_skew_px
 from doorloc.vision.result import LineQuality, LocateResult, PhysicalModel, PoseUncertainty, Provenance
 
 __all__ = ["LocateConfig", "locate", "LocateTrace"]
@@ -497,6 +498,11 @@ def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, ha
         if k == "far" and far_fit is not None:
             # what the far-face model leaves in doubt (band level, blur), on top of the noise
             extra["model_sigma_mm"] = round(far_fit.model_sigma_px * pose.scale_mm_per_px, 5)
+        if not (arris_fits and k in arris_fits) and not (k == "far" and far_beside):
+            # a plain step: is its transition symmetric in linear light (is the response right)?
+            skew = response_skew_px(plane, s, inl, half, linearizing_lut(plane.dtype, cell.response_gamma))
+            if np.isfinite(skew):
+                extra["response_sigma_mm"] = round(RESPONSE_DOUBT_FACTOR * abs(skew) * pose.scale_mm_per_px, 5)
         if arris_fits and k in arris_fits:
             # what the arris correction leaves in doubt: the strip's fitted deficit times its width
             strip, band_px = arris_fits[k]
