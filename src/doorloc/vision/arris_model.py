@@ -252,7 +252,12 @@ def fit_strip_profile(r: np.ndarray, x: np.ndarray, outer: np.ndarray, width: np
 
     # The offset has local minima on narrow strips (strip and border trade places): start from the best
     # of a grid over offset and blur.
-    b0 = _strip_basis(geom, None, False)
+    if geom.section.profile == "round":
+        # a generic strip shape (four free levels across it) for the search, so that a light whose
+        # terminator crosses the arc does not lead it astray before the physical shading is fitted
+        b0 = np.kron(np.eye(4), np.ones((_STRIP_CELLS // 4, 1)))
+    else:
+        b0 = _strip_basis(geom, None, False)
 
     def cost0(p: tuple[float, float]) -> float:
         return float(np.sum(solve(np.array(p), b0)[0] ** 2))
