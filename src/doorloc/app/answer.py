@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import base64
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -60,9 +60,18 @@ class DoorChoice:
     recipe: Any | None = None  # doorloc.recipes.models.DoorRecipe
 
     @classmethod
-    def from_recipe(cls, recipe: Any) -> DoorChoice:
-        """The door a stored recipe describes (its size, id and the recipe for the targets)."""
-        return cls(recipe.door_size(), recipe.door_id, recipe)
+    def from_recipe(cls, recipe: Any, cell: Cell | None = None, arris_mm: float | None = None) -> DoorChoice:
+        """The door a stored recipe describes (its size, id and the recipe for the targets).
+
+        A recipe gives the arris size (``arris_mm``); its profile (chamfer or round) is the cell's
+        (``door.arris_profile``). ``arris_mm``, when given, overrides the recipe's (a manifest column).
+        """
+        door = recipe.door_size()
+        if cell is not None:
+            door = replace(door, arris_profile=cell.default_door.arris_profile)
+        if arris_mm is not None:
+            door = replace(door, arris_mm=float(arris_mm))
+        return cls(door, recipe.door_id, recipe)
 
 
 def default_locate_fn() -> LocateFn:
@@ -78,6 +87,7 @@ def door_from_fields(
     thickness_mm: float | None = None,
     height_mm: float | None = None,
     arris_mm: float | None = None,
+    arris_profile: str | None = None,
 ) -> DoorSize:
     """A door from whichever dimensions were given, the cell's default door filling the rest (mm).
 
@@ -95,7 +105,7 @@ def door_from_fields(
         thickness,
         float(height_mm) if height_mm is not None else d.height_mm,
         arris,
-        d.arris_profile,
+        arris_profile or d.arris_profile,  # type: ignore[arg-type]  # DoorSize validates it
     )
 
 

@@ -126,7 +126,7 @@ def plan_batch(
     """The job: each image with its door.
 
     Without a manifest: every image under ``root``, as the cell's default door. With one (CSV with
-    ``image`` and ``door_id`` or ``width_mm,thickness_mm[,height_mm]``): exactly its rows, image paths
+    ``image`` and ``door_id`` or ``width_mm,thickness_mm[,height_mm]``, optional ``arris_mm``): exactly its rows, image paths
     relative to ``root``. ``recipe_lookup(door_id)`` returns a recipe or None.
     """
     root = Path(root)
@@ -164,7 +164,11 @@ def plan_batch(
                 items.append(BatchItem(image, path, DoorChoice(cell.default_door, door_id),
                                        f"no door recipe with id '{door_id}' in the recipe database"))
             else:
-                items.append(BatchItem(image, path, DoorChoice.from_recipe(recipe)))
+                try:
+                    items.append(BatchItem(image, path, DoorChoice.from_recipe(
+                        recipe, cell, _float_or_none(row, "arris_mm", where))))
+                except ValueError as e:
+                    raise BatchSetupError(f"{where}: {e}") from None
             continue
         try:
             door = door_from_fields(
@@ -172,6 +176,7 @@ def plan_batch(
                 _float_or_none(row, "width_mm", where),
                 _float_or_none(row, "thickness_mm", where),
                 _float_or_none(row, "height_mm", where),
+                _float_or_none(row, "arris_mm", where),
             )
         except ValueError as e:
             raise BatchSetupError(f"{where}: {e}") from None

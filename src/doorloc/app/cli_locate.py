@@ -21,12 +21,12 @@ import typer
 from doorloc.app.errors import EXIT_OK, EXIT_REFUSED, EXIT_USAGE, fail
 
 
-def _door_choice(cell, width, thickness, height, arris, door_id, db):
+def _door_choice(cell, width, thickness, height, arris, door_id, db, profile=None):
     """The door to look for: a recipe from the database (``--door-id``) or the given sizes."""
     from doorloc.app.answer import DoorChoice, door_from_fields
 
     if door_id is None:
-        return DoorChoice(door_from_fields(cell, width, thickness, height, arris))
+        return DoorChoice(door_from_fields(cell, width, thickness, height, arris, profile))
     if any(v is not None for v in (width, thickness, height)):
         raise ValueError("give either --door-id or --door-width/--door-thickness/--door-height, not both")
     from doorloc.recipes.store import RecipeStore, database_url
@@ -36,10 +36,10 @@ def _door_choice(cell, width, thickness, height, arris, door_id, db):
     if recipe is None:
         raise ValueError(f"no door recipe with id {door_id!r} in the recipe database; import it first "
                          "(doorloc recipes import) or give the door size with --door-width/--door-thickness")
-    choice = DoorChoice.from_recipe(recipe)
-    if arris is None:
+    choice = DoorChoice.from_recipe(recipe, cell, arris)
+    if profile is None:
         return choice
-    return replace(choice, door=replace(choice.door, arris_mm=float(arris)))
+    return replace(choice, door=replace(choice.door, arris_profile=profile))
 
 
 def register(app: typer.Typer) -> None:
@@ -52,7 +52,8 @@ def register(app: typer.Typer) -> None:
         door_width: Annotated[float | None, typer.Option("--door-width", help="door width, mm (sets the hinge-face depth)")] = None,
         door_thickness: Annotated[float | None, typer.Option("--door-thickness", help="door thickness, mm")] = None,
         door_height: Annotated[float | None, typer.Option("--door-height", help="door height, mm")] = None,
-        arris: Annotated[float | None, typer.Option("--arris", help="arris chamfer/rounding size, mm")] = None,
+        arris: Annotated[float | None, typer.Option("--door-arris", "--arris", help="arris chamfer/rounding size, mm (default: the recipe's, else the cell's door.arris_mm)")] = None,
+        arris_profile: Annotated[str | None, typer.Option("--arris-profile", help="arris profile: chamfer or round (default: the cell's door.arris_profile)")] = None,
         door_id: Annotated[str | None, typer.Option("--door-id", help="take the door size from this recipe")] = None,
         db: Annotated[str | None, typer.Option("--db", help="recipe database URL (default: DOORLOC_DATABASE_URL)")] = None,
         overlay: Annotated[Path | None, typer.Option("--overlay", help="write an annotated image here (PNG/JPEG)")] = None,
@@ -69,7 +70,7 @@ def register(app: typer.Typer) -> None:
         except CellFileError as e:
             raise fail(str(e), EXIT_USAGE) from None
         try:
-            choice = _door_choice(cell, door_width, door_thickness, door_height, arris, door_id, db)
+            choice = _door_choice(cell, door_width, door_thickness, door_height, arris, door_id, db, arris_profile)
         except (ValueError, RuntimeError) as e:
             raise fail(str(e), EXIT_USAGE) from None
         try:

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from doorloc.arris import ArrisSection
 from doorloc.cell import Cell, DoorSize
 from doorloc.pose import DoorPose, door_to_cell, yaw_rotation_matrix
 from doorloc.sim.effects import Effects, form_image, lambert_shade, wood_grain
@@ -37,7 +38,9 @@ __all__ = ["DoorFace", "door_faces", "RenderedDoor", "render_door", "true_corner
 
 #: distance of the background plane behind the door's far edge face, mm
 BACKGROUND_GAP_MM = 300.0
-_ROUND_FACETS = 8  # planar facets approximating a rounded arris
+#: sub-strips (uniform in the surface-normal angle) of the shading across a rounded arris; each is box-filtered
+#: exactly; each holds its mean radiance (the only approximation: shading constant over 1/128 of the arc)
+ROUND_SUBSTRIPS = 128
 
 
 @dataclass(frozen=True, eq=False)
@@ -83,15 +86,11 @@ def _halfspaces(door: DoorSize, profile: str) -> list[tuple[np.ndarray, float, s
     ]
     for f1, f2 in arris_edges:
         (n1, h1, _), (n2, h2, _) = base[f1], base[f2]
-        if profile == "chamfer":
-            out.append(((n1 + n2) / math.sqrt(2), (h1 + h2 - a) / math.sqrt(2), f"arris:{f1}/{f2}", "arris"))
-        else:
-            # tangent planes of the quarter circle of radius a whose centre lies a inside both faces
-            for k in range(1, _ROUND_FACETS):
-                th = 0.5 * math.pi * k / _ROUND_FACETS
-                n = math.cos(th) * n1 + math.sin(th) * n2
-                h = math.cos(th) * (h1 - a) + math.sin(th) * (h2 - a) + a
-                out.append((n, h, f"arris:{f1}/{f2}:{k}", "arris"))
+        # A chamfer is this plane; a rounding is the quarter cylinder of radius a whose centre line lies a
+        # inside both faces: its tangent lines on the two faces are this plane's edges (the chord), so the
+        # solid's other faces are the same, and the renderer shades the chord face as the cylinder
+        # (:func:`round_arris_surface`).
+        out.append(((n1 + n2) / math.sqrt(2), (h1 + h2 - a) / math.sqrt(2), f"arris:{f1}/{f2}", "arris"))
     return out
 
 
@@ -110,8 +109,26 @@ def _clip(poly: np.ndarray, n: np.ndarray, h: float) -> np.ndarray:
     return np.array(out).reshape(-1, 3)
 
 
+def _face_polygon(hs: list[tuple[np.ndarray, float, str, str]], i: int, big: float,
+                  skip: tuple[str, ...] = ()) -> np.ndarray:
+    """Plane ``i`` of ``hs`` clipped by every other half-space (but those named in ``skip``), shape (m, 3)."""
+    n, h = hs[i][0], hs[i][1]
+    a = np.cross(n, [1.0, 0, 0] if abs(n[0]) < 0.9 else [0, 1.0, 0])
+    a /= np.linalg.norm(a)
+    b = np.cross(n, a)
+    c = n * h
+    poly = np.array([c + big * (sa * a + sb * b) for sa, sb in ((-1, -1), (1, -1), (1, 1), (-1, 1))])
+    for j, (n2, h2, name2, _) in enumerate(hs):
+        if j != i and name2 not in skip:
+            poly = _clip(poly, n2, h2)
+    return poly
+
+
 def door_faces(door: DoorSize, profile: str = "chamfer") -> list[DoorFace]:
     """The faces of the door solid (door frame), built by clipping each bounding plane by the others.
+
+    With a rounded arris the arris faces are the chords of the quarter cylinders (the renderer shades
+    them as the cylinder; the solid's other faces end at the cylinder's tangent lines either way).
 
     Examples
     --------
@@ -123,15 +140,8 @@ def door_faces(door: DoorSize, profile: str = "chamfer") -> list[DoorFace]:
     hs = _halfspaces(door, profile)
     big = 4.0 * max(door.thickness_mm, door.width_mm, door.height_mm)
     faces = []
-    for i, (n, h, name, kind) in enumerate(hs):
-        a = np.cross(n, [1.0, 0, 0] if abs(n[0]) < 0.9 else [0, 1.0, 0])
-        a /= np.linalg.norm(a)
-        b = np.cross(n, a)
-        c = n * h
-        poly = np.array([c + big * (sa * a + sb * b) for sa, sb in ((-1, -1), (1, -1), (1, 1), (-1, 1))])
-        for j, (n2, h2, _, _) in enumerate(hs):
-            if j != i:
-                poly = _clip(poly, n2, h2)
+    for i, (n, _h, name, kind) in enumerate(hs):
+        poly = _face_polygon(hs, i, big)
         if len(poly) >= 3:
             area = 0.5 * np.linalg.norm(np.sum(np.cross(poly, np.roll(poly, -1, axis=0)), axis=0))
             if area > 1e-9:
@@ -200,7 +210,15 @@ def scene_surfaces(cell: Cell, door: DoorSize, pose: DoorPose, effects: Effects,
     centre = ext.camera_centre_cell
     origin_door = np.zeros(3)
     foreground, names = [], []
+    eye_door = Ryaw.T @ (centre - np.array([pose.x_mm, face_y, pose.z_mm]))
+    hs = _halfspaces(door, effects.arris_profile)
     for f in door_faces(door, effects.arris_profile):
+        if f.kind == "arris" and effects.arris_profile == "round":
+            surf = _round_arris_surface(cell, door, pose, effects, hs, f, eye_door)
+            if surf is not None:
+                foreground.append(surf)
+                names.append(f.name)
+            continue
         poly_cell = door_to_cell(f.polygon, pose, face_y)
         n_cell = Ryaw @ f.normal
         if float(n_cell @ (poly_cell[0] - centre)) >= 0:  # back-facing (or edge-on)
@@ -235,6 +253,75 @@ def scene_surfaces(cell: Cell, door: DoorSize, pose: DoorPose, effects: Effects,
         names.append(f.name)
     background = _background(cell, door, face_y, effects)
     return foreground, background, names
+
+
+def _round_arris_surface(cell: Cell, door: DoorSize, pose: DoorPose, effects: Effects,
+                         hs: list[tuple[np.ndarray, float, str, str]], face: DoorFace,
+                         eye_door: np.ndarray) -> Surface | None:
+    """A rounded arris as one surface: its chord plane, shaded across as the cylinder the camera sees.
+
+    Every camera ray through a ruling of the cylinder (a line along the edge) meets the chord plane on a
+    line along the edge too, so the cylinder's image is the chord plane's image with a shading that
+    varies across the chord only: the view ray through chord coordinate ``s`` hits the cylinder where its
+    normal makes the angle ``theta(s)`` (:class:`doorloc.arris.ArrisSection`). The strip reaches from
+    the tangent line on the hinge face to the other tangent line, or to the silhouette where the
+    neighbouring face is turned away (then beyond the chord's end). The shading is Lambert under the
+    cell's light, piecewise constant over ``ROUND_SUBSTRIPS`` sub-strips that the rasteriser box-filters
+    exactly (:attr:`doorloc.sim.raster.GridTexture.exact_s`). Returns None when no part faces the camera.
+    """
+    i = next(k for k, h in enumerate(hs) if h[2] == face.name)
+    f1, f2 = face.name.split(":", 1)[1].split("/")
+    (n1, h1, _, _), (n2, h2, _, _) = (next(h for h in hs if h[2] == nm) for nm in (f1, f2))
+    a = door.arris_mm
+    sec = ArrisSection(a, "round", eye_w=float(h2 - n2 @ eye_door), eye_y=float(h1 - n1 @ eye_door))
+    th_a, th_b = sec.visible_arc()
+    if not np.isfinite(th_a):
+        return None
+    eye = np.array([sec.eye_w, sec.eye_y])
+    t0, e = np.array([a, 0.0]), np.array([-1.0, 1.0]) / math.sqrt(2.0)
+
+    def chord(theta: np.ndarray) -> np.ndarray:
+        # chord coordinate of the view ray through the ruling at theta: eye + lam * d = t0 + sig * e
+        d = sec.point(theta) - eye
+        rel = eye - t0
+        return (rel[0] * d[..., 1] - rel[1] * d[..., 0]) / (e[0] * d[..., 1] - e[1] * d[..., 0])
+
+    th = np.linspace(th_a, th_b, ROUND_SUBSTRIPS + 1)
+    sig = chord(th)
+    s_axis = (n2 - n1) / math.sqrt(2.0)
+    normal = (n1 + n2) / math.sqrt(2.0)
+    t_axis = np.cross(normal, s_axis)
+    origin = h1 * n1 + (h2 - a) * n2  # (w, y) = (a, 0), the tangent line on face 1
+    big = 4.0 * max(door.thickness_mm, door.width_mm, door.height_mm)
+    poly = _face_polygon(hs, i, big, skip=(f1, f2))
+    lo, hi = float(min(sig[0], sig[-1])), float(max(sig[0], sig[-1]))
+    so = float(s_axis @ origin)
+    poly = _clip(_clip(poly, -s_axis, -(lo + so)), s_axis, hi + so)
+    if len(poly) < 3:
+        return None
+    Ryaw = yaw_rotation_matrix(pose.yaw_deg)
+    # each sub-strip's mean radiance over its image width (Gauss-Legendre in theta, weighted by d sig/d theta)
+    xg, wg = np.polynomial.legendre.leggauss(4)
+    th_q = 0.5 * (th[1:] + th[:-1])[:, None] + 0.5 * np.diff(th)[:, None] * xg[None, :]
+    dth = 1e-6
+    jac = np.abs(chord(th_q + dth) - chord(th_q - dth)) / (2 * dth)
+    n_q = np.cos(th_q)[..., None] * n1 + np.sin(th_q)[..., None] * n2
+    light = effects.light_direction_cell()
+    cos_l = np.maximum(0.0, (n_q @ Ryaw.T) @ light)
+    radiance = _albedo(effects, "arris") * (effects.light_ambient + effects.light_directional * cos_l)
+    shade = np.sum(radiance * jac * wg, axis=1) / np.sum(jac * wg, axis=1)
+    if sig[-1] < sig[0]:
+        sig, shade = sig[::-1], shade[::-1]
+    # the strip's texture: 0 outside its two bounding lines (its outline's edges along the arris)
+    texture = GridTexture(sig, np.empty(0), np.concatenate([[0.0], shade, [0.0]])[:, None], exact_s=True)
+    ext = cell.extrinsics
+    R = ext.rotation
+    face_y = cell.face_y(door)
+    rel_poly = poly - origin
+    poly_st = np.stack([rel_poly @ s_axis, rel_poly @ t_axis], axis=1)
+    o_cell = door_to_cell(origin[None], pose, face_y)[0]
+    return Surface(origin=ext.cell_to_camera(o_cell), s_axis=R @ (Ryaw @ s_axis), t_axis=R @ (Ryaw @ t_axis),
+                   polygon_st=poly_st, texture=texture, shade=1.0, modulation=None, name=face.name)
 
 
 def _background(cell: Cell, door: DoorSize, face_y: float, effects: Effects) -> Surface:

@@ -65,11 +65,18 @@ class GridTexture:
         Sorted grid-line positions along s and t, mm.
     values : ndarray, shape (ns + 1, nt + 1)
         Reflectance of each cell (relative; multiplied by the surface shade).
+    exact_s : bool
+        A *strip*: a texture of many close s-lines and no t-lines whose first and last cells are 0 and
+        lie outside the surface (its outline's edges along t are the first and last lines). Its pixels
+        are box-filtered exactly whatever number of lines crosses them (a sum of half-plane coverages,
+        :func:`_strip_state`), the outline's edges along t included; only where another outline edge
+        crosses a pixel is it subdivided. Used for the shading across a rounded arris.
     """
 
     s_lines: np.ndarray
     t_lines: np.ndarray
     values: np.ndarray
+    exact_s: bool = False
     codes: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -199,6 +206,7 @@ class _Prepared:
     normals: np.ndarray  # (m, 2) unit inward normals of outline edges in the ideal plane
     offsets: np.ndarray  # (m,)   inside: normals @ q >= offsets
     label_base: int
+    s_const: np.ndarray | None = None  # (m,) edges along which s is constant (strips only)
 
 
 def _prepare(surface: Surface, label_base: int) -> _Prepared:
@@ -216,7 +224,12 @@ def _prepare(surface: Surface, label_base: int) -> _Prepared:
     keep = norm > 1e-15
     n = n[keep] / norm[keep, None]
     c = np.sum(n * q[keep], axis=1)
-    return _Prepared(surface, H, n, c, label_base)
+    s_const = None
+    if surface.texture.exact_s:
+        s_v, _, _ = _plane_coords(H, q)
+        span = float(np.ptp(s_v)) or 1.0
+        s_const = (np.abs(np.roll(s_v, -1) - s_v) < 1e-9 * span + 1e-12)[keep]
+    return _Prepared(surface, H, n, c, label_base, s_const)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -528,6 +541,39 @@ def _texture_state(p: _Prepared, q0: np.ndarray, J: np.ndarray):
     return shade * single, ns + nt
 
 
+def _strip_state(p: _Prepared, q0: np.ndarray, J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Box filter of a strip's piecewise-constant shading over each pixel's affine footprint (exact).
+
+    Returns ``(value, coverage)``: the integral of the shading (0 outside the strip) over the footprint,
+    and the footprint's fraction between the strip's first and last lines. The footprint maps to s
+    linearly, ``s = s0 + g . delta``; the integral is the first cell's value plus, for each line crossed,
+    the step times the fraction of the footprint beyond the line (:func:`box_coverage`).
+    """
+    tex = p.surface.texture
+    H = p.H
+    s0, _, wden = _plane_coords(H, q0)
+    ds_dq = (H[0, :2][None, :] - s0[:, None] * H[2, :2][None, :]) / wden[:, None]
+    g = ds_dq[:, :1] * J[:, 0, :] + ds_dq[:, 1:] * J[:, 1, :]
+    half = 0.5 * (np.abs(g[:, 0]) + np.abs(g[:, 1]))
+    lines = tex.s_lines
+    vals = tex.values[:, 0]
+    ilo = np.searchsorted(lines, s0 - half, side="right")
+    ihi = np.searchsorted(lines, s0 + half, side="left")
+    n_cross = np.maximum(ihi - ilo, 0)
+    gn = np.maximum(np.linalg.norm(g, axis=1), 1e-300)
+    ghat = g / gn[:, None]
+    value = vals[ilo].astype(float)
+    cover = ((ilo > 0) & (ilo < lines.size)).astype(float)
+    for m in range(int(n_cross.max()) if n_cross.size else 0):
+        k = np.minimum(ilo + m, lines.size - 1)
+        beyond = 1.0 - box_coverage(ghat, (lines[k] - s0) / gn)
+        live = m < n_cross
+        value += np.where(live, (vals[k + 1] - vals[k]) * beyond, 0.0)
+        step_in = np.where(k == 0, 1.0, np.where(k == lines.size - 1, -1.0, 0.0))
+        cover += np.where(live, step_in * beyond, 0.0)
+    return value, np.clip(cover, 0.0, 1.0)
+
+
 def _boundary_values(q0, J, preps, bg, K, depth):
     """Exact box-filtered radiance of boundary pixels (see module docstring)."""
     n = q0.shape[0]
@@ -545,6 +591,16 @@ def _boundary_values(q0, J, preps, bg, K, depth):
         out = np.any(dist <= -half, axis=1)
         crossing = np.abs(dist) < half
         ncross = crossing.sum(axis=1)
+        if p.s_const is not None:
+            # a strip: its edges along t are part of the exact box filter; any other edge crossing the
+            # pixel (the strip's ends, near the door's corners) sends it to subdivision
+            other = (crossing & ~p.s_const[None, :]).sum(axis=1)
+            value_s, cover_s = _strip_state(p, q0, J)
+            plain = ~out & (other == 0)
+            fg_cov += np.where(plain, cover_s, 0.0)
+            fg_val += np.where(plain, value_s, 0.0)
+            need_ss |= ~out & (other >= 1)
+            continue
         cov = np.ones(n)
         one = (ncross == 1) & ~out
         if np.any(one):

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -35,6 +35,7 @@ import numpy as np
 from doorloc import __version__
 from doorloc.cell import Cell, DoorSize
 from doorloc.vision import quality as q
+from doorloc.vision.arris_model import StripFit, arris_edges, arris_geometry
 from doorloc.vision.config import LocateConfig
 from doorloc.vision.edges import (
     EdgeSamples,
@@ -54,7 +55,8 @@ from doorloc.vision.lines import ImageLine, RectangleFit, fit_rectangle_edges, r
 from doorloc.vision.luminance import ImageFormatError, luminance_plane
 from doorloc.vision.metric import MetricPose, pose_from_fit
 from doorloc.vision.region import EDGE_NAMES, Band, SearchRegion
-from doorloc.vision.result import LineQuality, LocateResult, PoseUncertainty, Provenance
+from doorloc.vision.response import RESPONSE_DOUBT_FACTOR, response_skew_px
+from doorloc.vision.result import LineQuality, LocateResult, PhysicalModel, PoseUncertainty, Provenance
 from doorloc.vision.uncertainty import (
     EDGE_MODEL_FLOOR_PX,
     JPEG_BLOCK_RATIO,
@@ -130,6 +132,8 @@ def locate(image: np.ndarray, cell: Cell, door: DoorSize | None = None, *, image
         res = LocateResult.refusal(image_name, "internal_error",
                                    f"locate failed on this image ({type(e).__name__}: {e}); keep the image and report it")
     res.provenance = Provenance(version=__version__, cell_sha256=cell.sha256, calibration_sha256=cell.calibration_sha256)
+    res.model = PhysicalModel(response_gamma=cell.response_gamma, arris_mm=door.arris_mm, arris_profile=door.arris_profile,
+                              door_brighter=cfg.door_brighter, face_y_mm=cell.face_y(door))
     res.elapsed_ms = (time.perf_counter() - t0) * 1e3
     return res
 
@@ -143,10 +147,15 @@ def _coarse(plane, band: Band, axis, polarity, thr, prefer=None):
 
 def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half: int, cfg: LocateConfig,
             scale8: float, every: int = 1, sharp: bool = False, optical_blur_px: float = float("nan"),
-            response_gamma: float = 1.0, step_fit: dict[str, float] | None = None) -> _Sampled:
+            response_gamma: float = 1.0, step_fit: dict[str, float] | None = None,
+            arris_fits: dict[str, tuple[StripFit, float]] | None = None) -> _Sampled:
     keep = half + cfg.plateau + 4
     lut = linearizing_lut(plane.dtype, response_gamma)
-    tracks = region.tracks(pose.corner, yaw_rad, pose.thickness_mm, keep, window_px=half + cfg.plateau + 2)
+    door = region.door
+    geoms = (arris_geometry(door.arris_mm, door.arris_profile, region.plane_map.centre, pose.corner, pose.yaw_deg,
+                            region.face_y, pose.thickness_mm) if door.arris_mm > 0 else None)
+    tracks = region.tracks(pose.corner, yaw_rad, pose.thickness_mm, keep, window_px=half + cfg.plateau + 2,
+                           arris=geoms)
     out = {}
     far_fit = None
     beside = tracks["far"].beside_far_face
@@ -167,6 +176,16 @@ def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half:
                 out[name], far_fit = subpixel_edges_far_face(
                     plane, lay.axis, scan, centre, half, band, t.band_slope, -interior, cfg.plateau, scale8,
                     blur_px=optical_blur_px if np.isfinite(optical_blur_px) else 1.0, **step_kw)
+                continue
+            if geoms is not None and name in geoms and t.outline_shift_px is not None:
+                # An arris strip lies on the door side of the outline: its outer border from the strip's
+                # fitted shading, then moved to the sharp corner's line by the geometry.
+                blur0 = optical_blur_px if np.isfinite(optical_blur_px) else 1.0
+                smp, strip = arris_edges(plane, lay.axis, scan, centre, half, band, interior, geoms[name],
+                                         cfg.plateau, scale8, lut=lut, blur0=blur0, search=every > 1)
+                out[name] = replace(smp, along=smp.along + t.outline_shift_px[::every])
+                if arris_fits is not None and strip is not None:
+                    arris_fits[name] = (strip, float(np.median(band)))
                 continue
             # An arris strip lies on the door side of the outline.
             out[name], _ = subpixel_edges_banded(plane, lay.axis, scan, centre, half, band, interior, cfg.plateau,
@@ -357,7 +376,7 @@ class _Profiles:
 
 
 def _refine(plane, s8: float, region: SearchRegion, pose: MetricPose, cfg: LocateConfig, clock: _Clock,
-            response_gamma: float = 1.0):
+            response_gamma: float = 1.0, arris_fits: dict[str, tuple[StripFit, float]] | None = None):
     """Sub-pixel edge points and the joint line fit, in passes (module docstring).
 
     ``response_gamma`` is the camera's (``camera.response_gamma`` in the cell file): grey levels are turned
@@ -377,7 +396,7 @@ def _refine(plane, s8: float, region: SearchRegion, pose: MetricPose, cfg: Locat
         sampled = _sample(plane, region, pose, math.radians(pose.yaw_deg), half, cfg, s8,
                           every=5 if _pass == 0 else 1, sharp=_pass > 0 and blur < 0.6,
                           optical_blur_px=optical_blur, response_gamma=response_gamma,
-                          step_fit=step_fit if _pass > 0 else {})
+                          step_fit=step_fit if _pass > 0 else {}, arris_fits=arris_fits)
         samples, far_beside, far_fit = sampled.samples, sampled.far_beside, sampled.far_fit
         if far_beside and _pass >= 1 and not np.isfinite(optical_blur) and ref0 is not None:
             # The far face came into view after the first pass: measure the blur and look again.
@@ -426,13 +445,14 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
     clock.lap("coarse")
     pose = _coarse_pose(coarse, plane, s8, region, cell, door, cfg)
     clock.lap("coarse_pose")
+    arris_fits: dict[str, tuple[StripFit, float]] = {}
     samples, fit, pose, blur, half, far_beside, far_fit, step_fitted = _refine(plane, s8, region, pose, cfg, clock,
-                                                                     cell.response_gamma)
+                                                                               cell.response_gamma, arris_fits)
     tr.samples = samples
     tr.inliers = {k: fit.weights[k] > 0 for k in EDGE_NAMES}
     tr.pose = pose
     res = _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, half, plane, s8, far_beside, step_fitted,
-                           far_fit)
+                           far_fit, arris_fits)
     res.diagnostics["far_face_visible"] = far_beside
     if far_fit is not None:
         res.diagnostics["far_face_fit"] = {"band_level": round(far_fit.band_level, 4), "blur_px": round(far_fit.blur_px, 3),
@@ -488,7 +508,8 @@ def _rows_across(plane, s8: float, ref: EdgeSamples, far: EdgeSamples) -> np.nda
 
 def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, half, plane, s8,
                      far_beside: bool = False, step_fitted: dict[str, float] | None = None,
-                     far_fit: FarFaceFit | None = None) -> LocateResult:
+                     far_fit: FarFaceFit | None = None,
+                     arris_fits: dict[str, tuple[StripFit, float]] | None = None) -> LocateResult:
     lines, refusals = [], []
     corner_px = pose.corner_px
     diagnostics: dict = {
@@ -508,6 +529,21 @@ def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, ha
         for k in EDGE_NAMES:
             model.extra_px.setdefault(k, {})["jpeg"] = JPEG_EDGE_DOUBT_PX
     for k in EDGE_NAMES:
+        inl = fit.weights[k] > 0
+        if arris_fits and k in arris_fits:
+            # What the arris correction leaves in doubt: the strip's fitted deficit times its width.
+            strip, band_px = arris_fits[k]
+            model.extra_px.setdefault(k, {})["arris"] = strip.deficit_sigma * band_px
+            diagnostics.setdefault("arris_fit", {})[k] = {
+                "deficit": round(strip.deficit, 4), "deficit_sigma": round(strip.deficit_sigma, 5),
+                "strip_px": round(band_px, 3), "blur_px": round(strip.blur_px, 3), "misfit": round(strip.misfit, 3),
+                "offset_px": round(strip.offset_px, 4)}
+        elif not (k == "far" and far_beside):
+            # A plain step: is its transition symmetric in linear light (is the camera response right)?
+            skew = response_skew_px(plane, samples[k], inl, half, linearizing_lut(plane.dtype, cell.response_gamma))
+            if np.isfinite(skew):
+                model.extra_px.setdefault(k, {})["response"] = RESPONSE_DOUBT_FACTOR * abs(skew)
+    for k in EDGE_NAMES:
         s = samples[k]
         w = fit.weights[k]
         inl = w > 0
@@ -518,6 +554,9 @@ def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, ha
         contrast = float(np.median(np.abs(s.step[inl]))) if n_i else 0.0
         # what the edge model leaves in doubt (floor, texture, far-face model...), on top of the noise
         extra = {"model_sigma_mm": round(model.line_sigma_px(k) * pose.scale_mm_per_px, 6)}
+        for term, key in (("arris", "arris_correction_sigma_mm"), ("response", "response_sigma_mm")):
+            if term in model.extra_px.get(k, {}):
+                extra[key] = round(model.extra_px[k][term] * pose.scale_mm_per_px, 5)
         lines.append(LineQuality(name=k, n_points=n_s, n_inliers=n_i, rms_residual_px=round(rms_px, 4),
                                  rms_residual_mm=round(rms_mm, 5), contrast=round(contrast, 1),
                                  noise=round(float(np.median(s.noise[inl])), 2) if n_i else None,

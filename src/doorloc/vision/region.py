@@ -67,6 +67,7 @@ class Track:
     beside_far_face: bool = False
     band_px: np.ndarray | None = None  # width of the arris strip / far-face band beside the edge, px
     band_slope: float = 0.0  # change of band_px per px the edge moves outwards (far face: -(1 - k))
+    outline_shift_px: np.ndarray | None = None  # arris: sharp corner's line minus the strip's outer border, px
 
 
 def _along_scan(uv: np.ndarray, axis: Axis) -> tuple[np.ndarray, np.ndarray]:
@@ -207,11 +208,13 @@ class SearchRegion:
         return float(n @ c) > float(n @ np.asarray(corner, float)) + thickness_mm - margin_mm
 
     def tracks(self, corner: np.ndarray, yaw_rad: float, thickness_mm: float, keep_px: float,
-               window_px: float = 0.0) -> dict[str, Track]:
+               window_px: float = 0.0, arris: dict | None = None) -> dict[str, Track]:
         """Scan lines across each edge of a door at this pose, and the predicted edge on each.
 
         Scan lines closer than ``keep_px`` to the other edges (the corners) or to the image border
-        are left out: there the profile is not a clean straight step.
+        are left out: there the profile is not a clean straight step. ``arris`` (edge name ->
+        :class:`doorloc.vision.arris_model.ArrisGeometry`) places an arris strip exactly: the predicted
+        edge is then the strip's outer border, and ``outline_shift_px`` moves it to the sharp corner's line.
         """
         ex = np.array([math.cos(yaw_rad), math.sin(yaw_rad)])
         ez = np.array([-math.sin(yaw_rad), math.cos(yaw_rad)])
@@ -266,13 +269,28 @@ class SearchRegion:
                 k = (self.face_y - c_y) / (self.face_y + self.door.width_mm - c_y)
                 slope = -(1.0 - k)
             a = self.door.arris_mm
-            if a > 0 and not beside:
+            shift = None
+            if a > 0 and not beside and arris is not None and name in arris:
+                g = arris[name]
+                inward = ez if name == "bottom" else (ex if name == "reference" else -ex)
+                nominal = centre[ok]
+                outer = _interp_on_scans(self.image_points(pl + g.w_outer_mm * inward[None]), lay.axis, scans[ok])
+                inner = _interp_on_scans(self.image_points(pl + g.w_inner_mm * inward[None]), lay.axis, scans[ok])
+                good = np.isfinite(outer) & np.isfinite(inner)
+                sel = np.nonzero(ok)[0][good]
+                ok = np.zeros_like(ok)
+                ok[sel] = True
+                centre = centre.copy()
+                centre[sel] = outer[good]
+                band = np.abs(inner[good] - outer[good])
+                shift = nominal[good] - outer[good]
+            elif a > 0 and not beside:
                 # The arris strip runs from the outline (depth face_y + a) to the hinge face's own edge,
                 # a mm inwards at depth face_y.
                 inward = ez if name == "bottom" else (ex if name == "reference" else -ex)
                 inner = self.face_map.to_image(pl + a * inward[None])
                 band = np.abs(_interp_on_scans(inner, lay.axis, scans[ok]) - centre[ok])
-            out[name] = Track(scans[ok], centre[ok], beside, band, slope)
+            out[name] = Track(scans[ok], centre[ok], beside, band, slope, shift)
         return out
 
     def _far_face_band(self, pl, uv, scans, centre, window_px, axis, outward: float) -> tuple[np.ndarray, np.ndarray]:

@@ -32,6 +32,18 @@ class Provenance(BaseModel):
     recipe_version: int | None = Field(None, description="version of the door recipe used, when a recipe was used")
 
 
+class PhysicalModel(BaseModel):
+    """The cell's physical settings that shaped an answer (echoed so an answer says which model produced it)."""
+
+    model_config = ConfigDict(extra="allow")
+
+    response_gamma: float = Field(description="camera response the grey levels were linearised with (camera.response_gamma)")
+    arris_mm: float = Field(description="arris size the edges were corrected for, mm (0: sharp edges)")
+    arris_profile: str = Field(description="'chamfer' or 'round'")
+    door_brighter: bool = Field(description="lighting side: the hinge face is brighter than the background (locate.door_brighter)")
+    face_y_mm: float | None = Field(None, description="hinge-face depth used for this door, mm (cell frame Y)")
+
+
 class LineQuality(BaseModel):
     """Fit figures for one detected edge line."""
 
@@ -67,6 +79,7 @@ class LocateResult(BaseModel):
         None, description="1-sigma standard uncertainty of the pose (null when ok is false)"
     )
     provenance: Provenance | None = Field(None, description="software version and the hashes of the model used")
+    model: PhysicalModel | None = Field(None, description="the physical settings locate assumed (response, arris, lighting side)")
     elapsed_ms: float = Field(0.0, description="time spent in locate, ms (decode excluded)")
     lines: list[LineQuality] = Field(default_factory=list, description="per-line fit figures")
     diagnostics: dict[str, Any] = Field(default_factory=dict, description="anything else worth knowing")

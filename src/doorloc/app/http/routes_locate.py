@@ -31,6 +31,7 @@ router = APIRouter(dependencies=[Depends(require_api_key)])
 
 # Generous bounds: the physical range (SPEC section 7) is checked by locate, which refuses with a reason.
 DoorMm = Annotated[float | None, Field(gt=0, le=10_000, allow_inf_nan=False)]
+ArrisMm = Annotated[float | None, Field(ge=0, le=100, allow_inf_nan=False)]
 
 
 @router.post(
@@ -48,6 +49,7 @@ async def post_locate(
     width_mm: Annotated[DoorMm, Form(description="door width, mm (without door_id)")] = None,
     thickness_mm: Annotated[DoorMm, Form(description="door thickness, mm (without door_id)")] = None,
     height_mm: Annotated[DoorMm, Form(description="door height, mm (without door_id)")] = None,
+    arris_mm: Annotated[ArrisMm, Form(description="arris chamfer/rounding size, mm (default: the recipe's, else the cell's)")] = None,
     overlay: Annotated[bool, Query(description="add overlay_png: the image with what was found drawn on it")] = False,
     rapid: Annotated[bool, Query(description="add rapid: the targets as RAPID-readable text")] = False,
 ) -> dict:
@@ -61,7 +63,7 @@ async def post_locate(
     state.metrics.in_flight.inc()
     try:
         _check_upload(data, name, state)
-        choice = await _door_choice(state, door_id, width_mm, thickness_mm, height_mm)
+        choice = await _door_choice(state, door_id, width_mm, thickness_mm, height_mm, arris_mm)
         fields = await anyio.to_thread.run_sync(
             _measure, data, name, state, choice, overlay, rapid, limiter=state.limiter
         )
@@ -107,7 +109,8 @@ def _check_upload(data: bytes, name: str, state: ServiceState) -> None:
 
 
 async def _door_choice(
-    state: ServiceState, door_id: str | None, width_mm: float | None, thickness_mm: float | None, height_mm: float | None
+    state: ServiceState, door_id: str | None, width_mm: float | None, thickness_mm: float | None, height_mm: float | None,
+    arris_mm: float | None = None,
 ) -> DoorChoice:
     assert state.cell is not None
     sizes_given = any(v is not None for v in (width_mm, thickness_mm, height_mm))
@@ -123,9 +126,12 @@ async def _door_choice(
                 422, "unknown_door",
                 f"There is no door recipe with id '{door_id}'; import it (doorloc recipes import) or PUT /v1/doors/{door_id}.",
             )
-        return DoorChoice.from_recipe(recipe)
+        try:
+            return DoorChoice.from_recipe(recipe, state.cell, arris_mm)
+        except ValueError as e:
+            raise ProblemError(422, "invalid_door", f"The door size is not usable: {e}.") from None
     try:
-        return DoorChoice(door_from_fields(state.cell, width_mm, thickness_mm, height_mm))
+        return DoorChoice(door_from_fields(state.cell, width_mm, thickness_mm, height_mm, arris_mm))
     except ValueError as e:
         raise ProblemError(422, "invalid_door", f"The door size is not usable: {e}.") from None
 
