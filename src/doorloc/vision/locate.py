@@ -181,8 +181,10 @@ def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half:
                 # An arris strip lies on the door side of the outline: its outer border from the strip's
                 # fitted shading, then moved to the sharp corner's line by the geometry.
                 blur0 = optical_blur_px if np.isfinite(optical_blur_px) else 1.0
+                # The strip's profile fit needs plateaus wider than the plain step's (the face's level
+                # beside the strip pins the strip's brightness).
                 smp, strip = arris_edges(plane, lay.axis, scan, centre, half, band, interior, geoms[name],
-                                         cfg.plateau, scale8, lut=lut, blur0=blur0, search=every > 1)
+                                         max(cfg.plateau, 4), scale8, lut=lut, blur0=blur0, search=every > 1)
                 out[name] = replace(smp, along=smp.along + t.outline_shift_px[::every])
                 if arris_fits is not None and strip is not None:
                     arris_fits[name] = (strip, float(np.median(band)))
@@ -506,6 +508,19 @@ def _rows_across(plane, s8: float, ref: EdgeSamples, far: EdgeSamples) -> np.nda
     return P[lo:hi + 1, ref.scan[::8]].T.astype(np.float32) * s8
 
 
+def _response_check_applies(samples: EdgeSamples, inliers: np.ndarray, blur_px: float) -> bool:
+    """Whether the mean transition's asymmetry can be read on this line.
+
+    The check averages the profiles on a 0.25 px grid aligned on the sub-pixel edge: that mean shows the
+    response's asymmetry only when the line's edge points fall at many pixel phases (an edge along a pixel
+    row or column puts all of them at one phase, and the pixel grid's own asymmetry reads as a skew) and
+    the edge is blurred over more than a pixel's width (a sharp step has no transition shape to read).
+    """
+    along = samples.along[inliers & samples.valid]
+    phases = np.unique(np.floor((along % 1.0) * 4.0)).size if along.size else 0
+    return blur_px >= 0.5 and phases >= 4
+
+
 def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, half, plane, s8,
                      far_beside: bool = False, step_fitted: dict[str, float] | None = None,
                      far_fit: FarFaceFit | None = None,
@@ -538,7 +553,7 @@ def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, ha
                 "deficit": round(strip.deficit, 4), "deficit_sigma": round(strip.deficit_sigma, 5),
                 "strip_px": round(band_px, 3), "blur_px": round(strip.blur_px, 3), "misfit": round(strip.misfit, 3),
                 "offset_px": round(strip.offset_px, 4)}
-        elif not (k == "far" and far_beside):
+        elif not (k == "far" and far_beside) and _response_check_applies(samples[k], inl, model.blur_px):
             # A plain step: is its transition symmetric in linear light (is the camera response right)?
             skew = response_skew_px(plane, samples[k], inl, half, linearizing_lut(plane.dtype, cell.response_gamma))
             if np.isfinite(skew):
