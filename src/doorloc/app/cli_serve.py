@@ -24,8 +24,17 @@ def register(app: typer.Typer) -> None:
             str | None, typer.Option(help="recipe database URL; default: $DOORLOC_DATABASE_URL or the store's default")
         ] = None,
         log_level: Annotated[str, typer.Option(help="debug, info, warning or error")] = "info",
+        insecure: Annotated[
+            bool, typer.Option(help="listen on a non-loopback address although no API key exists (anyone may then "
+                                    "change recipes)")
+        ] = False,
+        ssl_certfile: Annotated[Path | None, typer.Option(help="serve HTTPS with this PEM certificate (chain)")] = None,
+        ssl_keyfile: Annotated[Path | None, typer.Option(help="private key of --ssl-certfile (PEM)")] = None,
     ) -> None:
-        """Run the HTTP service (POST /v1/locate, operator page at /, OpenAPI at /docs)."""
+        """Run the HTTP service (POST /v1/locate, operator page at /, OpenAPI at /docs).
+
+        On an address other than loopback it needs API keys (doorloc keys create) unless --insecure is given.
+        """
         import uvicorn
 
         from doorloc.cell import CellFileError, load_cell
@@ -44,9 +53,26 @@ def register(app: typer.Typer) -> None:
             from doorloc.recipes.store import RecipeStore
             from doorloc.recipes.store import database_url as resolve_url
 
-            RecipeStore(resolve_url(None)).close()
+            from doorloc.app.access import KeyStore
+
+            with RecipeStore(resolve_url(None)) as store:
+                has_keys = KeyStore(store.engine).any_active() or bool(os.environ.get("DOORLOC_API_KEY"))
         except Exception as e:  # noqa: BLE001 - any database failure is reported as one sentence
             raise fail(f"cannot open the recipe database: {e}") from None
+        if not has_keys and not is_loopback(host):
+            if not insecure:
+                raise fail(
+                    f"refusing to listen on {host} without API keys: anyone who reaches it could change the door "
+                    "recipes that drive the robot. Create keys first (doorloc keys create --role engineer NAME), "
+                    "listen on 127.0.0.1 behind a reverse proxy, or pass --insecure to accept the risk"
+                )
+            typer.echo(f"doorloc: warning: listening on {host} with no API keys (--insecure): anyone who reaches "
+                       "this port can change door recipes", err=True)
+        if (ssl_certfile is None) != (ssl_keyfile is None):
+            raise fail("give both --ssl-certfile and --ssl-keyfile for HTTPS, or neither")
+        for f in (ssl_certfile, ssl_keyfile):
+            if f is not None and not f.is_file():
+                raise fail(f"no such file: {f}")
         # The workers are separate processes that build the app from the environment (create_app_from_env).
         os.environ["DOORLOC_CELL"] = str(Path(cell_path).resolve())
         os.environ["DOORLOC_LOG_LEVEL"] = log_level.upper()
@@ -58,6 +84,8 @@ def register(app: typer.Typer) -> None:
             workers=workers,
             log_level=log_level.lower(),
             access_log=False,  # the service logs every request itself, as JSON with its request id
+            ssl_certfile=str(ssl_certfile) if ssl_certfile else None,
+            ssl_keyfile=str(ssl_keyfile) if ssl_keyfile else None,
         )
 
     @app.command("batch")
@@ -132,6 +160,18 @@ def register(app: typer.Typer) -> None:
                     raise fail(f"cannot write {out}: {e.strerror or e}", EXIT_FAILED) from None
         typer.echo(f"{out}: {summary.text()}", err=True)
         raise typer.Exit(EXIT_OK if summary.answered == summary.total else EXIT_REFUSED)
+
+
+def is_loopback(host: str) -> bool:
+    """True for addresses only this machine can reach (127.0.0.0/8, ::1, 'localhost')."""
+    import ipaddress
+
+    if host.lower() == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:  # a host name other than localhost may resolve to anything
+        return False
 
 
 def _recipe_lookup(database_url: str | None):

@@ -39,7 +39,7 @@ from doorloc.recipes.tables import DoorRow, HingeRow
 
 __all__ = [
     "ENV_DATABASE_URL", "DEFAULT_DB_FILENAME", "database_url", "redacted_url", "make_engine", "upgrade_schema",
-    "schema_revision", "RecipeStore", "RecipeSummary", "RecipeStoreError",
+    "schema_revision", "head_revision", "RecipeStore", "RecipeSummary", "RecipeStoreError",
 ]
 
 ENV_DATABASE_URL = "DOORLOC_DATABASE_URL"
@@ -138,6 +138,15 @@ def upgrade_schema(engine: Engine, revision: str = "head") -> None:
     with _MIGRATION_LOCK, engine.connect().execution_options(sqlite_begin="IMMEDIATE") as conn, conn.begin():
         cfg.attributes["connection"] = conn
         command.upgrade(cfg, revision)
+
+
+def head_revision() -> str:
+    """The newest migration's revision (what :func:`upgrade_schema` brings a database to)."""
+    from alembic.script import ScriptDirectory
+
+    head = ScriptDirectory.from_config(_alembic_config()).get_current_head()
+    assert head is not None  # the package ships its migrations
+    return head
 
 
 def schema_revision(engine: Engine) -> str | None:

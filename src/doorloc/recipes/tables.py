@@ -23,7 +23,7 @@ from sqlalchemy import (
 )
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
-__all__ = ["Base", "DoorRow", "HingeRow"]
+__all__ = ["Base", "DoorRow", "HingeRow", "ApiKeyRow"]
 
 
 class Base(DeclarativeBase):
@@ -93,3 +93,26 @@ class HingeRow(Base):
     corrections: Mapped[list | None] = mapped_column(JSON, nullable=True)
 
     door: Mapped[DoorRow] = relationship(back_populates="hinges")
+
+
+class ApiKeyRow(Base):
+    """One API key of the HTTP service (revision 0002): only a salted scrypt hash of its secret is kept.
+
+    ``key_id`` is the public part of the key (``dlk_<key_id>_<secret>``) and finds the row; ``role`` is
+    ``operator``, ``engineer`` or ``metrics``; a revoked key keeps its row (``revoked_at`` set) for the audit trail.
+    """
+
+    __tablename__ = "api_keys"
+    __table_args__ = (
+        UniqueConstraint("key_id", name="uq_api_keys_key_id"),
+        CheckConstraint("role IN ('operator', 'engineer', 'metrics')", name="ck_api_keys_role"),
+    )
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
+    key_id: Mapped[str] = mapped_column(String(32), nullable=False)
+    name: Mapped[str] = mapped_column(String(64), nullable=False, index=True)
+    role: Mapped[str] = mapped_column(String(16), nullable=False)
+    salt: Mapped[str] = mapped_column(String(64), nullable=False)
+    key_hash: Mapped[str] = mapped_column(String(128), nullable=False)
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), nullable=False, server_default=func.now())
+    revoked_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)

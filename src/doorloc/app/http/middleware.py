@@ -128,6 +128,7 @@ class RequestContext:
                         "status": status,
                         "duration_ms": round(elapsed * 1e3, 2),
                         "client": (scope.get("client") or ("", 0))[0],
+                        "principal": scope.get("state", {}).get("principal"),
                     }
                 },
             )

@@ -48,6 +48,7 @@ class ProblemError(Exception):
 _DESCRIPTIONS = {
     400: "The request body cannot be parsed (a malformed multipart form, or JSON that is not UTF-8).",
     401: "Missing or wrong API key (X-API-Key header).",
+    403: "The API key's role may not do this (operator: locate and read; engineer: also change recipes; metrics).",
     404: "No such resource.",
     413: "The request body is larger than the service accepts.",
     415: "The upload is not a PNG, JPEG, TIFF or BMP image (judged by its bytes).",

@@ -16,7 +16,8 @@ from fastapi import APIRouter, Depends, File, Form, Query, Request, UploadFile
 from pydantic import Field
 
 from doorloc.app.answer import DoorChoice, answer_image, door_from_fields, overlay_png
-from doorloc.app.http.dependencies import call_store, ready_state, require_api_key
+from doorloc.app.access import Role
+from doorloc.app.http.dependencies import call_store, ready_state, require_role
 from doorloc.app.http.problems import ProblemError, problem_responses
 from doorloc.app.http.schemas import LocateResponse
 from doorloc.app.http.state import ServiceState
@@ -27,7 +28,7 @@ __all__ = ["router"]
 
 _log = logging.getLogger("doorloc.http")
 
-router = APIRouter(dependencies=[Depends(require_api_key)])
+router = APIRouter(dependencies=[Depends(require_role(Role.operator))])
 
 # Generous bounds: the physical range (SPEC section 7) is checked by locate, which refuses with a reason.
 DoorMm = Annotated[float | None, Field(gt=0, le=10_000, allow_inf_nan=False)]
@@ -38,7 +39,7 @@ DoorMm = Annotated[float | None, Field(gt=0, le=10_000, allow_inf_nan=False)]
     response_model=LocateResponse,
     response_model_exclude_none=False,
     summary="Locate the door in an image and return its pose and hinge targets",
-    responses=problem_responses(400, 401, 413, 415, 422, 503),
+    responses=problem_responses(400, 401, 403, 413, 415, 422, 503),
 )
 async def post_locate(
     request: Request,

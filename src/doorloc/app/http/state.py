@@ -39,6 +39,7 @@ class ServiceState:
     locate_fn: LocateFn | None = None
     cell: Cell | None = None
     store: Any | None = None  # doorloc.recipes.store.RecipeStore
+    keys: Any | None = None  # doorloc.app.access.KeyStore, on the store's database
     load_error: str | None = None
     limiter: anyio.CapacityLimiter = field(init=False)
 
@@ -65,6 +66,10 @@ class ServiceState:
                 from doorloc.recipes.store import RecipeStore, database_url
 
                 self.store = RecipeStore(database_url(self.settings))
+            if self.keys is None and getattr(self.store, "engine", None) is not None:
+                from doorloc.app.access import KeyStore
+
+                self.keys = KeyStore(self.store.engine)
             if self.locate_fn is None:
                 from doorloc.app.answer import default_locate_fn
 
