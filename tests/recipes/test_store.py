@@ -13,8 +13,8 @@ from doorloc.recipes.store import (
     RecipeStore,
     RecipeStoreError,
     database_url,
-    redacted_url,
     head_revision,
+    redacted_url,
     schema_revision,
 )
 from doorloc.recipes.tables import Base, DoorRow, HingeRow

@@ -80,8 +80,11 @@ def door_from_fields(
 ) -> DoorSize:
     """A door from whichever dimensions were given, the cell's default door filling the rest (mm).
 
-    Raises ValueError (from :class:`DoorSize`) for non-positive or non-finite sizes.
+    Raises ValueError naming the field for a size outside :data:`doorloc.limits.DOOR_RANGES_MM` or an arris
+    not below half the thickness.
     """
+    from doorloc.limits import DoorRangeError, door_size_problems
+
     d = cell.default_door
     thickness = float(thickness_mm) if thickness_mm is not None else d.thickness_mm
     if arris_mm is not None:
@@ -89,12 +92,12 @@ def door_from_fields(
     else:
         # No arris given: the cell's typical one applies where it fits this door.
         arris = d.arris_mm if d.arris_mm < thickness / 2 else 0.0
-    return DoorSize(
-        float(width_mm) if width_mm is not None else d.width_mm,
-        thickness,
-        float(height_mm) if height_mm is not None else d.height_mm,
-        arris,
-    )
+    width = float(width_mm) if width_mm is not None else d.width_mm
+    height = float(height_mm) if height_mm is not None else d.height_mm
+    problems = door_size_problems(width, thickness, height, arris)
+    if problems:
+        raise DoorRangeError(problems[0][0], "; ".join(p[1] for p in problems))
+    return DoorSize(width, thickness, height, arris)
 
 
 def answer_image(

@@ -39,7 +39,8 @@ def _door_choice(cell, width, thickness, height, arris, door_id, db):
     choice = DoorChoice.from_recipe(recipe)
     if arris is None:
         return choice
-    return replace(choice, door=replace(choice.door, arris_mm=float(arris)))
+    door = choice.door
+    return replace(choice, door=door_from_fields(cell, door.width_mm, door.thickness_mm, door.height_mm, arris))
 
 
 def register(app: typer.Typer) -> None:

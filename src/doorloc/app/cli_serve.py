@@ -50,10 +50,9 @@ def register(app: typer.Typer) -> None:
             os.environ["DOORLOC_DATABASE_URL"] = database_url
         try:
             # Bring the recipe database's schema up to date once, here, so N workers do not race to migrate it.
+            from doorloc.app.access import KeyStore
             from doorloc.recipes.store import RecipeStore
             from doorloc.recipes.store import database_url as resolve_url
-
-            from doorloc.app.access import KeyStore
 
             with RecipeStore(resolve_url(None)) as store:
                 has_keys = KeyStore(store.engine).any_active() or bool(os.environ.get("DOORLOC_API_KEY"))

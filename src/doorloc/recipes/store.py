@@ -39,7 +39,7 @@ from doorloc.recipes.tables import DoorRow, HingeRow
 
 __all__ = [
     "ENV_DATABASE_URL", "DEFAULT_DB_FILENAME", "database_url", "redacted_url", "make_engine", "upgrade_schema",
-    "schema_revision", "head_revision", "RecipeStore", "RecipeSummary", "RecipeStoreError",
+    "schema_revision", "head_revision", "RecipeStore", "RecipeSummary", "RecipeStoreError", "StoredRecipeInvalid",
 ]
 
 ENV_DATABASE_URL = "DOORLOC_DATABASE_URL"
@@ -49,6 +49,10 @@ MIGRATIONS_DIR = Path(__file__).with_name("migrations")
 _MIGRATION_LOCK = threading.Lock()
 #: rows per statement when deleting by door id (keeps below every backend's bound-parameter limit)
 _CHUNK = 500
+
+
+class StoredRecipeInvalid(ValueError):
+    """A stored recipe that today's rules refuse (written before a rule existed, or by another program)."""
 
 
 class RecipeStoreError(RuntimeError):
@@ -187,6 +191,19 @@ def _hinge_values(h: Hinge, door_pk: int, position: int) -> dict[str, Any]:
 
 
 def _recipe_from_row(row: DoorRow) -> DoorRecipe:
+    from pydantic import ValidationError
+
+    try:
+        return _build_recipe(row)
+    except ValidationError as e:
+        reasons = "; ".join(str(x["msg"]).removeprefix("Value error, ") for x in e.errors(include_url=False)[:3])
+        raise StoredRecipeInvalid(
+            f"the stored recipe of door '{row.door_id}' breaks today's rules ({reasons}); correct it "
+            "(PUT /v1/doors/ID or doorloc recipes import --replace) before using it"
+        ) from None
+
+
+def _build_recipe(row: DoorRow) -> DoorRecipe:
     hinges = [
         Hinge(
             z_mm=h.z_mm, length_mm=h.length_mm, width_mm=h.width_mm, x_mm=h.x_mm, depth_mm=h.depth_mm,

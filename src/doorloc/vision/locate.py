@@ -180,8 +180,17 @@ def locate(image: np.ndarray, cell: Cell, door: DoorSize | None = None, *, image
         res = LocateResult.refusal(image_name, r.refusal.code, r.refusal.message,
                                    lines=r.diag.get("lines", []), diagnostics=r.diag.get("diagnostics", {}))
     except Exception as e:  # noqa: BLE001 — a locate call must answer, never crash the caller
+        # a bug: logged at error level with its traceback under an incident id that the answer quotes
+        import logging
+        import uuid
+
+        incident = uuid.uuid4().hex[:12]
+        logging.getLogger("doorloc.vision").error(
+            "locate failed", exc_info=True,
+            extra={"fields": {"event": "internal_error", "incident_id": incident, "image": image_name}})
         res = LocateResult.refusal(image_name, "internal_error",
-                                   f"locate failed on this image ({type(e).__name__}: {e}); keep the image and report it")
+                                   f"locate failed on this image ({type(e).__name__}: {e}); keep the image and "
+                                   f"report it with incident id {incident}", incident_id=incident)
     res.elapsed_ms = (time.perf_counter() - t0) * 1e3
     return res
 

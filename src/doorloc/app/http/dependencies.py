@@ -12,10 +12,9 @@ import anyio.to_thread
 from fastapi import Depends, Request, Security
 from fastapi.security import APIKeyHeader
 
+from doorloc.app.access import LEGACY_KEY_NAME, Principal, Role, role_allows
 from doorloc.app.http.problems import ProblemError
 from doorloc.app.http.state import ServiceState
-
-from doorloc.app.access import LEGACY_KEY_NAME, Principal, Role, role_allows
 
 __all__ = ["get_state", "ready_state", "require_role", "require_api_key", "call_store"]
 

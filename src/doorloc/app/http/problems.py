@@ -89,7 +89,7 @@ def _validation_sentence(errors: list[dict[str, Any]]) -> str:
         if e.get("type") == "missing":
             sentences.append(f"'{name}' is required")
         else:
-            sentences.append(f"'{name}': {e.get('msg', 'invalid value')}")
+            sentences.append(f"'{name}': {str(e.get('msg', 'invalid value')).removeprefix('Value error, ')}")
     more = f" (and {len(errors) - 5} more)" if len(errors) > 5 else ""
     return "Invalid request: " + "; ".join(sentences) + more + "."
 
@@ -116,10 +116,17 @@ def install_problem_handlers(app: FastAPI) -> None:
     async def _problem(request: Request, exc: ProblemError) -> JSONResponse:
         return problem_response(request, exc.status, exc.code, exc.detail, exc.headers)
 
+    from doorloc.recipes.store import StoredRecipeInvalid
+
+    @app.exception_handler(StoredRecipeInvalid)
+    async def _stored_invalid(request: Request, exc: StoredRecipeInvalid) -> JSONResponse:
+        return problem_response(request, 422, "invalid_stored_recipe", str(exc)[0].upper() + str(exc)[1:] + ".")
+
     @app.exception_handler(RequestValidationError)
     async def _invalid(request: Request, exc: RequestValidationError) -> JSONResponse:
         errors = [
-            {"field": _field_name(e.get("loc", ())), "message": str(e.get("msg", "")), "type": str(e.get("type", ""))}
+            {"field": _field_name(e.get("loc", ())), "message": str(e.get("msg", "")).removeprefix("Value error, "),
+             "type": str(e.get("type", ""))}
             for e in exc.errors()
         ]
         return problem_response(request, 422, "invalid_request", _validation_sentence(list(exc.errors())), errors=errors)
@@ -145,8 +152,11 @@ def install_problem_handlers(app: FastAPI) -> None:
 
     @app.exception_handler(Exception)
     async def _unexpected(request: Request, exc: Exception) -> JSONResponse:
-        _log.exception("unexpected error", extra={"fields": {"event": "error", "path": request.url.path}})
+        request_id = request.scope.get("state", {}).get("request_id")
+        _log.error("unexpected error", exc_info=exc, extra={"fields": {
+            "event": "internal_error", "incident_id": request_id, "path": request.url.path}})
         return problem_response(
             request, 500, "internal_error",
-            "The service failed on this request; it has been logged. Try again, and report the request id if it persists.",
+            f"The service failed on this request; it has been logged with incident id {request_id}. Try again, and "
+            "report that id if it persists.",
         )

@@ -15,8 +15,8 @@ import anyio.to_thread
 from fastapi import APIRouter, Depends, File, Form, Query, Request, UploadFile
 from pydantic import Field
 
-from doorloc.app.answer import DoorChoice, answer_image, door_from_fields, overlay_png
 from doorloc.app.access import Role
+from doorloc.app.answer import DoorChoice, answer_image, door_from_fields, overlay_png
 from doorloc.app.http.dependencies import call_store, ready_state, require_role
 from doorloc.app.http.problems import ProblemError, problem_responses
 from doorloc.app.http.schemas import LocateResponse
@@ -30,8 +30,8 @@ _log = logging.getLogger("doorloc.http")
 
 router = APIRouter(dependencies=[Depends(require_role(Role.operator))])
 
-# Generous bounds: the physical range (SPEC section 7) is checked by locate, which refuses with a reason.
-DoorMm = Annotated[float | None, Field(gt=0, le=10_000, allow_inf_nan=False)]
+# Coarse bounds here; the accepted door ranges (doorloc.limits) are checked by door_from_fields, naming the field.
+DoorMm = Annotated[float | None, Field(gt=0, allow_inf_nan=False)]
 
 
 @router.post(
