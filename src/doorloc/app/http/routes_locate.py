@@ -21,7 +21,7 @@ from doorloc.app.http.dependencies import call_store, ready_state, require_role
 from doorloc.app.http.problems import ProblemError, problem_responses
 from doorloc.app.http.schemas import LocateResponse
 from doorloc.app.http.state import ServiceState
-from doorloc.app.imagesniff import sniff_image
+from doorloc.app.imagesniff import decode_limit_problem, sniff_image
 from doorloc.recipes.models import DOOR_ID_PATTERN
 
 __all__ = ["router"]
@@ -97,13 +97,11 @@ def _check_upload(data: bytes, name: str, state: ServiceState) -> None:
             f"The {header.kind.upper()} header of '{name}' is cut short or malformed, so its size cannot be read; "
             "the file is probably truncated: send it again.",
         )
-    limit = state.settings.max_pixels
-    if header.pixels > limit:
+    problem = decode_limit_problem(header, name, state.settings.max_pixels, state.settings.max_decoded_bytes)
+    if problem is not None:
         cam_w, cam_h = state.cell.camera.image_size if state.cell else ("?", "?")
         raise ProblemError(
-            422, "too_many_pixels",
-            f"The image '{name}' declares {header.width}x{header.height} pixels ({header.pixels / 1e6:.1f} MP), more than "
-            f"this service decodes ({limit / 1e6:.1f} MP); send the camera's own image ({cam_w}x{cam_h}).",
+            422, "too_many_pixels", f"{problem[0].upper()}{problem[1:]}; send the camera's own image ({cam_w}x{cam_h}).",
         )
 
 
