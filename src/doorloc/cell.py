@@ -7,19 +7,24 @@ Everything a locate call needs to know about the robot cell, as small frozen val
 
 from __future__ import annotations
 
+import dataclasses
+import hashlib
+import json
 import os
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal, get_args
 
 import numpy as np
 import yaml
+from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError, model_validator
 
 from doorloc.calib.camera import CameraModel, Extrinsics, PosedCamera
 from doorloc.calib.io import CalibrationFileError, load_calibration
 from doorloc.fileio import atomic_write_text
+from doorloc.vision.config import LocateConfig
 
-__all__ = ["Fixture", "Envelope", "DoorSize", "Cell", "CellFileError", "load_cell", "parse_cell", "cell_to_dict", "save_cell"]
+__all__ = ["ArrisProfile", "Fixture", "Envelope", "DoorSize", "Cell", "CellFileError", "load_cell", "parse_cell", "cell_to_dict", "save_cell"]
 
 
 class CellFileError(ValueError):
@@ -53,14 +58,21 @@ class Envelope:
     yaw_deg: float = 2.0
 
 
+ArrisProfile = Literal["chamfer", "round"]
+
+
 @dataclass(frozen=True)
 class DoorSize:
-    """Nominal door dimensions, mm. Optional arris (chamfer/rounding) size on the hinge-face edges."""
+    """Nominal door dimensions, mm, and the arris on the edges around the hinge face.
+
+    ``arris_mm`` is the chamfer's leg or the rounding's radius (0: sharp edges); ``arris_profile`` says which.
+    """
 
     width_mm: float = 900.0
     thickness_mm: float = 50.0
     height_mm: float = 2100.0
     arris_mm: float = 0.0
+    arris_profile: ArrisProfile = "chamfer"
 
     def __post_init__(self) -> None:
         for name in ("width_mm", "thickness_mm", "height_mm"):
@@ -69,11 +81,29 @@ class DoorSize:
                 raise ValueError(f"door {name} must be a positive number of millimetres, got {v!r}")
         if not (0 <= self.arris_mm < self.thickness_mm / 2):
             raise ValueError(f"door arris_mm must be in [0, thickness/2), got {self.arris_mm!r}")
+        if self.arris_profile not in get_args(ArrisProfile):
+            raise ValueError(f"door arris_profile must be 'chamfer' or 'round', got {self.arris_profile!r}")
 
 
 @dataclass(frozen=True)
 class Cell:
-    """One robot cell: calibrated camera placed in the cell frame, fixture, envelope and default door."""
+    """One robot cell: calibrated camera placed in the cell frame, fixture, envelope and default door.
+
+    Attributes
+    ----------
+    response_gamma : float
+        The camera's response ``grey = light ** (1 / gamma)`` (``camera.response_gamma``): 1 for a linear
+        machine-vision camera, about 2.2 for an sRGB-like one.
+    locate : LocateConfig
+        The ``locate:`` section: thresholds and settings of the pipeline that a cell sets once.
+    robot_section : dict or None
+        The ``robot:`` section as written (robot model, base, tool; shared/SPEC.md section 9).
+    provenance : dict
+        What made this file (e.g. the model check that extended it: dataset, date, software version).
+    sha256, calibration_sha256 : str or None
+        Hashes of the cell file's bytes and of the calibration it uses (of the calibration file, or of the
+        inline camera model), echoed in every result so an answer says which model produced it.
+    """
 
     camera: CameraModel
     extrinsics: Extrinsics
@@ -81,6 +111,12 @@ class Cell:
     envelope: Envelope = field(default_factory=Envelope)
     default_door: DoorSize = field(default_factory=DoorSize)
     source: str | None = None
+    response_gamma: float = 1.0
+    locate: LocateConfig = field(default_factory=LocateConfig)
+    robot_section: dict[str, Any] | None = None
+    provenance: dict[str, Any] = field(default_factory=dict)
+    sha256: str | None = None
+    calibration_sha256: str | None = None
 
     @property
     def posed_camera(self) -> PosedCamera:
@@ -93,34 +129,170 @@ class Cell:
         return replace(self, extrinsics=extrinsics)
 
 
-def _req(d: dict, key: str, where: str) -> Any:
-    if not isinstance(d, dict) or key not in d:
-        raise CellFileError(f"{where}: missing key '{key}'")
-    return d[key]
+class _Section(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
 
 
-def parse_cell(doc: dict, base_dir: str | os.PathLike | None = None, source: str = "cell.yaml") -> Cell:
-    """Build a :class:`Cell` from the parsed YAML mapping of a cell file."""
+class _ExtrinsicsDoc(_Section):
+    rvec: tuple[float, float, float]
+    tvec_mm: tuple[float, float, float]
+
+
+class _CameraDoc(_Section):
+    calibration: str | None = None
+    image_size: tuple[int, int] | None = None
+    camera_matrix: list[list[float]] | None = None
+    dist_coeffs: list[float] | None = None
+    extrinsics: _ExtrinsicsDoc
+    response_gamma: float = Field(1.0, gt=0.25, lt=5.0)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _needs_a_camera_model(cls, data: Any) -> Any:
+        if isinstance(data, dict) and "calibration" not in data and not {"camera_matrix", "image_size"} <= set(data):
+            raise ValueError("camera needs 'calibration: FILE' or both 'camera_matrix' and 'image_size'")
+        return data
+
+
+class _FixtureDoc(_Section):
+    reference_width_mm: float = 900.0
+    face_y_mm: float = 0.0
+    face_shift_per_width: float = -0.5
+
+
+class _EnvelopeDoc(_Section):
+    x_mm: float = Field(10.0, gt=0)
+    z_mm: float = Field(10.0, gt=0)
+    yaw_deg: float = Field(2.0, gt=0)
+
+
+class _DoorDoc(_Section):
+    width_mm: float = 900.0
+    thickness_mm: float = 50.0
+    height_mm: float = 2100.0
+    arris_mm: float = 0.0
+    arris_profile: Literal["chamfer", "round"] = "chamfer"
+
+
+class _CellDoc(_Section):
+    camera: _CameraDoc
+    fixture: _FixtureDoc = Field(default_factory=_FixtureDoc)
+    envelope: _EnvelopeDoc = Field(default_factory=_EnvelopeDoc)
+    door: _DoorDoc = Field(default_factory=_DoorDoc)
+    locate: dict[str, Any] = Field(default_factory=dict)
+    robot: dict[str, Any] | None = None
+    provenance: dict[str, Any] = Field(default_factory=dict)
+
+
+def _allowed_keys(model: type[BaseModel], loc: tuple) -> list[str]:
+    """Field names of the section that ``loc`` (a pydantic error location, ending in the bad key) lies in."""
+    m: Any = model
+    for part in loc[:-1]:
+        field_info = getattr(m, "model_fields", {}).get(part)
+        if field_info is None:
+            break
+        ann = field_info.annotation
+        m = next((a for a in (ann, *get_args(ann)) if isinstance(a, type) and issubclass(a, BaseModel)), None)
+        if m is None:
+            return []
+    return list(getattr(m, "model_fields", {}))
+
+
+def _explain(err: ValidationError, source: str) -> str:
+    """One sentence per problem, each naming the key's full path (and the allowed keys for an unknown one)."""
+    msgs = []
+    for e in err.errors():
+        loc = tuple(e["loc"])
+        where = ".".join(str(p) for p in loc)
+        if e["type"] == "extra_forbidden":
+            allowed = _allowed_keys(_CellDoc, loc)
+            section = ".".join(str(p) for p in loc[:-1]) or "top level"
+            msgs.append(f"unknown key '{where}' ({section} allows: {', '.join(allowed)})")
+        elif e["type"] == "missing":
+            msgs.append(f"missing key '{where}'")
+        elif e["type"] == "value_error":
+            msgs.append(f"{where}: {e['msg'].removeprefix('Value error, ')}")
+        else:
+            msgs.append(f"'{where}': {e['msg']} (got {e.get('input')!r})")
+    return f"{source}: " + "; ".join(msgs)
+
+
+def _locate_config(section: dict[str, Any], source: str) -> LocateConfig:
+    """The ``locate:`` section as a :class:`LocateConfig`: its keys are the config's fields, typed."""
+    allowed = [f.name for f in dataclasses.fields(LocateConfig)]
+    unknown = [k for k in section if k not in allowed]
+    if unknown:
+        raise CellFileError(f"{source}: unknown key 'locate.{unknown[0]}' (locate allows: {', '.join(allowed)})")
+    try:
+        # A stdlib dataclass validated by pydantic: types are checked and coerced ("6" -> 6.0 is refused
+        # in strict mode, but YAML already gives numbers as numbers).
+        return TypeAdapter(LocateConfig).validate_python(section)
+    except ValidationError as e:
+        raise CellFileError(_explain_plain(e, source, "locate")) from None
+
+
+def _explain_plain(err: ValidationError, source: str, prefix: str) -> str:
+    return f"{source}: " + "; ".join(
+        f"'{prefix}.{'.'.join(str(p) for p in e['loc'])}': {e['msg']} (got {e.get('input')!r})" for e in err.errors()
+    )
+
+
+def _sha256_file(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _sha256_camera(camera: CameraModel) -> str:
+    """A stable hash of an inline camera model (what the camera part of a calibration file would hash)."""
+    doc = {
+        "image_size": list(camera.image_size),
+        "camera_matrix": [[float(v) for v in row] for row in camera.camera_matrix],
+        "dist_coeffs": [float(v) for v in camera.dist_coeffs],
+    }
+    return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
+
+
+def parse_cell(
+    doc: Any, base_dir: str | os.PathLike | None = None, source: str = "cell.yaml", sha256: str | None = None
+) -> Cell:
+    """Build a :class:`Cell` from the parsed YAML mapping of a cell file.
+
+    Validation is strict: an unknown or misspelt key anywhere is a :class:`CellFileError` that names the key
+    and the keys allowed where it stands (a silently ignored ``envelope: {x: 2}`` would leave a default
+    tolerance in force that nobody chose). ``sha256`` is the file's hash (for the results' provenance).
+    """
     if not isinstance(doc, dict):
         raise CellFileError(f"{source}: expected a mapping with keys camera, fixture, envelope, door")
-    cam_doc = _req(doc, "camera", source)
+    cal_ref = doc.get("camera", {}).get("calibration") if isinstance(doc.get("camera"), dict) else None
+    if isinstance(cal_ref, str | os.PathLike):
+        cal_path = Path(cal_ref)
+        if not cal_path.is_absolute() and base_dir is not None:
+            cal_path = Path(base_dir) / cal_path
+        if not cal_path.is_file():
+            raise CellFileError(f"{source}: camera.calibration: no calibration file at {cal_path}")
+    try:
+        cd = _CellDoc.model_validate(doc)
+    except ValidationError as e:
+        raise CellFileError(_explain(e, source)) from None
+    cam_doc = cd.camera
     try:
         K = dist = size = None
         observed = None
-        if "calibration" in cam_doc:
-            cal_path = Path(cam_doc["calibration"])
+        calibration_sha = None
+        if cam_doc.calibration is not None:
+            cal_path = Path(cam_doc.calibration)
             if not cal_path.is_absolute() and base_dir is not None:
                 cal_path = Path(base_dir) / cal_path
             cal = load_calibration(cal_path)
+            calibration_sha = _sha256_file(cal_path)
             K, dist, size, observed = (
                 cal.camera.camera_matrix, cal.camera.dist_coeffs, cal.camera.image_size, cal.camera.observed_radius_px,
             )
-        if "camera_matrix" in cam_doc:
-            K = np.asarray(cam_doc["camera_matrix"], float)
-        if "dist_coeffs" in cam_doc:
-            dist = np.asarray(cam_doc["dist_coeffs"], float)
-        if "image_size" in cam_doc:
-            size = tuple(int(v) for v in cam_doc["image_size"])
+        if cam_doc.camera_matrix is not None:
+            K = np.asarray(cam_doc.camera_matrix, float)
+        if cam_doc.dist_coeffs is not None:
+            dist = np.asarray(cam_doc.dist_coeffs, float)
+        if cam_doc.image_size is not None:
+            size = cam_doc.image_size
         if K is None or size is None:
             raise CellFileError(
                 f"{source}: camera needs 'calibration: FILE' or both 'camera_matrix' and 'image_size'"
@@ -128,54 +300,55 @@ def parse_cell(doc: dict, base_dir: str | os.PathLike | None = None, source: str
         if dist is None:
             dist = np.zeros(5)
         camera = CameraModel(K, dist, size, observed)
-        ext_doc = _req(cam_doc, "extrinsics", f"{source}: camera")
-        extrinsics = Extrinsics(_req(ext_doc, "rvec", f"{source}: camera.extrinsics"),
-                                _req(ext_doc, "tvec_mm", f"{source}: camera.extrinsics"))
-        fx = doc.get("fixture", {}) or {}
-        fixture = Fixture(
-            float(fx.get("reference_width_mm", 900.0)),
-            float(fx.get("face_y_mm", 0.0)),
-            float(fx.get("face_shift_per_width", -0.5)),
-        )
-        ev = doc.get("envelope", {}) or {}
-        envelope = Envelope(float(ev.get("x_mm", 10.0)), float(ev.get("z_mm", 10.0)), float(ev.get("yaw_deg", 2.0)))
-        dd = doc.get("door", {}) or {}
-        door = DoorSize(
-            float(dd.get("width_mm", 900.0)),
-            float(dd.get("thickness_mm", 50.0)),
-            float(dd.get("height_mm", 2100.0)),
-            float(dd.get("arris_mm", 0.0)),
-        )
+        if calibration_sha is None or cam_doc.camera_matrix is not None or cam_doc.dist_coeffs is not None:
+            calibration_sha = _sha256_camera(camera)
+        extrinsics = Extrinsics(np.asarray(cam_doc.extrinsics.rvec), np.asarray(cam_doc.extrinsics.tvec_mm))
+        fixture = Fixture(**cd.fixture.model_dump())
+        envelope = Envelope(**cd.envelope.model_dump())
+        door = DoorSize(**cd.door.model_dump())
     except CalibrationFileError as e:
         raise CellFileError(f"{source}: camera.calibration: {e}") from None
     except CellFileError:
         raise
     except (ValueError, TypeError) as e:
         raise CellFileError(f"{source}: {e}") from None
-    return Cell(camera, extrinsics, fixture, envelope, door, str(source))
+    locate = _locate_config(cd.locate, source)
+    return Cell(
+        camera, extrinsics, fixture, envelope, door, str(source),
+        response_gamma=cam_doc.response_gamma,
+        locate=locate,
+        robot_section=cd.robot,
+        provenance=dict(cd.provenance),
+        sha256=sha256 or hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest(),
+        calibration_sha256=calibration_sha,
+    )
 
 
 def load_cell(path: str | os.PathLike) -> Cell:
     """Read ``cell.yaml``. Raises :class:`CellFileError` with a message a person can act on."""
     p = Path(path)
     try:
-        doc = yaml.safe_load(p.read_text(encoding="utf-8"))
+        raw = p.read_bytes()
+        doc = yaml.safe_load(raw.decode("utf-8"))
     except OSError as e:
         raise CellFileError(f"cannot read cell file {p}: {e.strerror or e}") from None
+    except UnicodeDecodeError:
+        raise CellFileError(f"{p}: not a text file (a cell file is YAML, see shared/SPEC.md section 2)") from None
     except yaml.YAMLError as e:
         raise CellFileError(f"{p}: not valid YAML ({e})") from None
-    return parse_cell(doc, p.parent, str(p))
+    return parse_cell(doc, p.parent, str(p), sha256=hashlib.sha256(raw).hexdigest())
 
 
 def cell_to_dict(cell: Cell) -> dict:
     """The cell as a YAML-ready mapping with the camera inline (SPEC section 2 keys)."""
     cam = cell.camera
-    return {
+    doc: dict[str, Any] = {
         "camera": {
             "image_size": list(cam.image_size),
             "camera_matrix": cam.camera_matrix.tolist(),
             "dist_coeffs": cam.dist_coeffs.tolist(),
             "extrinsics": {"rvec": cell.extrinsics.rvec.tolist(), "tvec_mm": cell.extrinsics.tvec_mm.tolist()},
+            "response_gamma": cell.response_gamma,
         },
         "fixture": {
             "reference_width_mm": cell.fixture.reference_width_mm,
@@ -188,8 +361,17 @@ def cell_to_dict(cell: Cell) -> dict:
             "thickness_mm": cell.default_door.thickness_mm,
             "height_mm": cell.default_door.height_mm,
             "arris_mm": cell.default_door.arris_mm,
+            "arris_profile": cell.default_door.arris_profile,
         },
     }
+    changed = {k: v for k, v in dataclasses.asdict(cell.locate).items() if v != getattr(LocateConfig(), k)}
+    if changed:
+        doc["locate"] = changed
+    if cell.robot_section is not None:
+        doc["robot"] = cell.robot_section
+    if cell.provenance:
+        doc["provenance"] = cell.provenance
+    return doc
 
 
 def save_cell(cell: Cell, path: str | os.PathLike) -> None:

@@ -85,8 +85,8 @@ def test_calibrate_cell_cli_writes_the_extrinsics(scene, tmp_path):
     import yaml
 
     doc = yaml.safe_load(out.read_text())
-    assert doc["cell_calibration"]["rms_px"] < 0.1
-    assert doc["cell_calibration"]["scale_mm_per_px"] == pytest.approx(0.206, abs=0.003)
+    assert doc["provenance"]["cell_calibration"]["rms_px"] < 0.1
+    assert doc["provenance"]["cell_calibration"]["scale_mm_per_px"] == pytest.approx(0.206, abs=0.003)
 
 
 def test_calibrate_cell_refuses_without_a_board_and_writes_nothing(tmp_path):

@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import hashlib
+from pathlib import Path
+
 import cv2
 import numpy as np
 import pytest
+import yaml
 
 from doorloc.calib.camera import CameraModel
 from doorloc.calib.io import (
@@ -122,3 +126,37 @@ def test_cell_with_calibration_file_and_round_trip(tmp_path, thesis_cell_path):
 def test_bad_cell_names_the_problem(tmp_path, doc, match):
     with pytest.raises(CellFileError, match=match):
         parse_cell(doc, tmp_path, "cell.yaml")
+
+
+@pytest.mark.parametrize(
+    ("section", "key", "allowed"),
+    [("envelope", "x", "x_mm, z_mm, yaw_deg"), ("camera", "response_gama", "response_gamma"),
+     ("door", "arris", "arris_profile"), ("locate", "min_contrst", "min_contrast"), (None, "bogus", "locate")],
+)
+def test_unknown_cell_key_is_named_with_the_allowed_ones(thesis_cell_path, section, key, allowed):
+    doc = yaml.safe_load(Path(thesis_cell_path).read_text())
+    (doc.setdefault(section, {}) if section else doc)[key] = 2
+    with pytest.raises(CellFileError, match=f"unknown key '{(section + '.') if section else ''}{key}'") as e:
+        parse_cell(doc, Path(thesis_cell_path).parent, "cell.yaml")
+    assert allowed in str(e.value)
+
+
+def test_cell_physical_settings_round_trip_and_hashes(tmp_path, thesis_cell_path):
+    doc = yaml.safe_load(Path(thesis_cell_path).read_text())
+    doc["camera"]["response_gamma"] = 2.2
+    doc["door"]["arris_mm"], doc["door"]["arris_profile"] = 1.5, "round"
+    doc["locate"] = {"door_brighter": False, "thickness_tolerance_mm": 0.5}
+    doc["provenance"] = {"made_by": "test"}
+    (tmp_path / "cell.yaml").write_text(yaml.safe_dump(doc))
+    cell = load_cell(tmp_path / "cell.yaml")
+    assert cell.response_gamma == 2.2 and cell.default_door.arris_profile == "round"
+    assert cell.locate.door_brighter is False and cell.locate.thickness_tolerance_mm == 0.5
+    assert cell.sha256 == hashlib.sha256((tmp_path / "cell.yaml").read_bytes()).hexdigest()
+    save_cell(cell, tmp_path / "again.yaml")
+    again = load_cell(tmp_path / "again.yaml")
+    assert (again.response_gamma, again.default_door, again.locate, again.provenance) == (
+        cell.response_gamma, cell.default_door, cell.locate, cell.provenance)
+    assert again.calibration_sha256 == cell.calibration_sha256  # the same camera model hashes the same
+    bad = dict(doc, camera=dict(doc["camera"], response_gamma=0))
+    with pytest.raises(CellFileError, match="camera.response_gamma"):
+        parse_cell(bad, tmp_path, "cell.yaml")

@@ -97,7 +97,7 @@ def door_from_fields(
     problems = door_size_problems(width, thickness, height, arris)
     if problems:
         raise DoorRangeError(problems[0][0], "; ".join(p[1] for p in problems))
-    return DoorSize(width, thickness, height, arris)
+    return DoorSize(width, thickness, height, arris, d.arris_profile)
 
 
 def answer_image(

@@ -225,7 +225,8 @@ def register(app: typer.Typer) -> None:
             if not p.is_absolute():
                 p = (cell.parent / p).resolve()
             doc["camera"] = {"calibration": str(p), **doc["camera"]}
-        doc["cell_calibration"] = {"image": str(image), "board": pattern, "square_mm": square,
+        # What placed the camera: kept with the file (the cell file's provenance section).
+        doc.setdefault("provenance", {})["cell_calibration"] = {"image": str(image), "board": pattern, "square_mm": square,
                                    "board_origin_mm": list(board_origin), **res.to_dict()}
         atomic_write_text(out, yaml.safe_dump(doc, sort_keys=False, default_flow_style=None))
         typer.echo(f"wrote {out}: rvec {[round(float(v), 6) for v in res.extrinsics.rvec]} "

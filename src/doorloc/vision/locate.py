@@ -28,11 +28,14 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
+from doorloc import __version__
 from doorloc.cell import Cell, DoorSize
 from doorloc.vision import quality as q
+from doorloc.vision.config import LocateConfig
 from doorloc.vision.edges import (
     EdgeSamples,
     FarFaceFit,
@@ -48,83 +51,12 @@ from doorloc.vision.lines import ImageLine, RectangleFit, fit_rectangle_edges, r
 from doorloc.vision.luminance import ImageFormatError, luminance_plane
 from doorloc.vision.metric import MetricPose, pose_from_fit
 from doorloc.vision.region import EDGE_NAMES, Band, SearchRegion
-from doorloc.vision.result import LineQuality, LocateResult
+from doorloc.vision.result import LineQuality, LocateResult, PoseUncertainty, Provenance
 
 __all__ = ["LocateConfig", "locate", "LocateTrace"]
 
 HUMAN = {"bottom": "bottom end of the door (X-line)", "reference": "reference-face arris (Z-line)",
          "far": "far arris (door thickness)"}
-
-
-@dataclass(frozen=True)
-class LocateConfig:
-    """Thresholds and sizes of the locate pipeline. Grey levels are on the 0-255 scale.
-
-    Attributes
-    ----------
-    search_margin_mm, search_margin_deg : float
-        How far beyond the placement envelope the search region reaches (so a badly placed door is
-        found and refused as such, not missed).
-    envelope_margin_mm, envelope_margin_deg : float
-        Tolerance beyond the envelope before a pose is refused.
-    door_brighter : bool
-        The hinge face is brighter than the background (the cell's lighting design).
-    min_contrast : float
-        Smallest grey-level step accepted for an edge.
-    half_window_max, half_window_min : int
-        Bounds of the sub-pixel window half-size, px (the second pass sizes it to the measured blur).
-    window_blur_factor : float
-        Final window half-size = ceil(factor * blur sigma + 1) px: wide enough for the transition's
-        tails (a centred window makes what it misses cancel), no wider (each extra pixel adds noise).
-    plateau : int
-        Samples on each side of the window used for the two grey levels.
-    slope_smooth : int
-        Scan lines on each side over which the plateau slopes are averaged (0: flat plateaus, the
-        default: a centred window cancels linear shading, and noisy slopes cost more than they give).
-    level_smooth : int
-        Scan lines on each side over which the plateau levels are averaged (0: per scan line).
-    min_thickness_mm, thickness_search_mm : float
-        The far arris is looked for between these distances beyond the reference arris
-        (``min_thickness_mm`` .. door thickness + ``thickness_search_mm``).
-    thickness_tolerance_mm : float
-        Refuse when the measured thickness differs from the door's by more.
-    min_inliers, min_inlier_fraction, max_rms_residual_px : int, float, float
-        Line-fit gate.
-    corner_zone_px, min_corner_support : float
-        Fraction of edge points within ``corner_zone_px`` of the corner that must fit their line.
-    max_sigma_mm : float
-        Refuse when the fit's standard error of x or z exceeds this.
-    max_saturated_fraction : float
-        Refuse when more of the search region is white-clipped.
-    response_gamma : float
-        The camera's response ``out = light ** (1 / gamma)`` (1 for a linear camera, as machine-vision
-        cameras usually are; 2.2 for an sRGB-like one): grey levels are turned back into light before
-        the sub-pixel estimate, which needs them proportional.
-    """
-
-    search_margin_mm: float = 30.0
-    search_margin_deg: float = 6.0
-    envelope_margin_mm: float = 2.0
-    envelope_margin_deg: float = 0.5
-    door_brighter: bool = True
-    min_contrast: float = 6.0
-    half_window_max: int = 9
-    half_window_min: int = 3
-    window_blur_factor: float = 2.0
-    plateau: int = 4
-    slope_smooth: int = 0
-    level_smooth: int = 10
-    min_thickness_mm: float = 4.0
-    thickness_search_mm: float = 15.0
-    thickness_tolerance_mm: float = 1.0
-    min_inliers: int = 40
-    min_inlier_fraction: float = 0.6
-    max_rms_residual_px: float = 1.5
-    corner_zone_px: float = 60.0
-    min_corner_support: float = 0.6
-    max_sigma_mm: float = 0.05
-    max_saturated_fraction: float = 0.5
-    response_gamma: float = 1.0
 
 
 @dataclass
@@ -171,7 +103,7 @@ def locate(image: np.ndarray, cell: Cell, door: DoorSize | None = None, *, image
         ``scale_mm_per_px`` and ``corner_px``; or ``ok=false`` with ``error_code`` and ``error``.
     """
     t0 = time.perf_counter()
-    cfg = config or LocateConfig()
+    cfg = config or cell.locate
     door = door or cell.default_door
     tr = trace if trace is not None else LocateTrace()
     try:
@@ -191,6 +123,7 @@ def locate(image: np.ndarray, cell: Cell, door: DoorSize | None = None, *, image
         res = LocateResult.refusal(image_name, "internal_error",
                                    f"locate failed on this image ({type(e).__name__}: {e}); keep the image and "
                                    f"report it with incident id {incident}", incident_id=incident)
+    res.provenance = Provenance(version=__version__, cell_sha256=cell.sha256, calibration_sha256=cell.calibration_sha256)
     res.elapsed_ms = (time.perf_counter() - t0) * 1e3
     return res
 
@@ -204,9 +137,9 @@ def _coarse(plane, band: Band, axis, polarity, thr, prefer=None):
 
 def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half: int, cfg: LocateConfig,
             scale8: float, every: int = 1, sharp: bool = False, optical_blur_px: float = float("nan"),
-            ) -> tuple[dict[str, EdgeSamples], bool, FarFaceFit | None]:
+            response_gamma: float = 1.0) -> tuple[dict[str, EdgeSamples], bool, FarFaceFit | None]:
     keep = half + cfg.plateau + 4
-    lut = linearizing_lut(plane.dtype, cfg.response_gamma)
+    lut = linearizing_lut(plane.dtype, response_gamma)
     tracks = region.tracks(pose.corner, yaw_rad, pose.thickness_mm, keep, window_px=half + cfg.plateau + 2)
     out = {}
     far_fit = None
@@ -214,7 +147,7 @@ def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half:
     for name in EDGE_NAMES:
         lay = region.layouts[name]
         t = tracks[name]
-        step_kw = dict(level_smooth=max(cfg.level_smooth // every, 1) if cfg.level_smooth else 0, lut=lut)
+        step_kw: dict[str, Any] = dict(level_smooth=max(cfg.level_smooth // every, 1) if cfg.level_smooth else 0, lut=lut)
         scan, centre = t.scan[::every], t.centre[::every]
         if t.band_px is not None and t.band_px.size:
             band = t.band_px[::every]
@@ -400,8 +333,12 @@ class _Profiles:
     lut: np.ndarray | None
 
 
-def _refine(plane, s8: float, region: SearchRegion, pose: MetricPose, cfg: LocateConfig, clock: _Clock):
+def _refine(plane, s8: float, region: SearchRegion, pose: MetricPose, cfg: LocateConfig, clock: _Clock,
+            response_gamma: float = 1.0):
     """Sub-pixel edge points and the joint line fit, in passes (module docstring).
+
+    ``response_gamma`` is the camera's (``camera.response_gamma`` in the cell file): grey levels are turned
+    back into light before the sub-pixel estimate, which needs them proportional.
 
     Returns ``(samples, fit, pose, blur_px, window_half_px, far_face_beside, far_face_fit)``.
     """
@@ -415,7 +352,7 @@ def _refine(plane, s8: float, region: SearchRegion, pose: MetricPose, cfg: Locat
         # The first pass, on every fifth scan line, only centres and sizes the final windows.
         samples, far_beside, far_fit = _sample(plane, region, pose, math.radians(pose.yaw_deg), half, cfg, s8,
                                                every=5 if _pass == 0 else 1, sharp=_pass > 0 and blur < 0.6,
-                                               optical_blur_px=optical_blur)
+                                               optical_blur_px=optical_blur, response_gamma=response_gamma)
         if far_beside and _pass >= 1 and not np.isfinite(optical_blur) and ref0 is not None:
             # The far face came into view after the first pass: measure the blur and look again.
             optical_blur = step_blur(plane, ref0.samples, ref0.mask, cfg.half_window_max, cfg.plateau, ref0.lut,
@@ -432,7 +369,7 @@ def _refine(plane, s8: float, region: SearchRegion, pose: MetricPose, cfg: Locat
             # Size the final window to the measured blur: wide enough for the transition, no wider (noise).
             # (on the bottom end and the reference arris: beside the far arris a far face or an arris
             # strip can make two steps that look like blur)
-            lut = linearizing_lut(plane.dtype, cfg.response_gamma)
+            lut = linearizing_lut(plane.dtype, response_gamma)
             widths = [transition_width(plane, samples[k], fit.weights[k] > 0, half, lut) for k in ("bottom", "reference")]
             blur = float(np.nanmax(widths)) if np.any(np.isfinite(widths)) else float(cfg.half_window_max)
             half = int(np.clip(math.ceil(cfg.window_blur_factor * blur + 1.0), cfg.half_window_min, cfg.half_window_max))
@@ -462,7 +399,8 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
     clock.lap("coarse")
     pose = _coarse_pose(coarse, plane, s8, region, cell, door, cfg)
     clock.lap("coarse_pose")
-    samples, fit, pose, blur, half, far_beside, far_fit = _refine(plane, s8, region, pose, cfg, clock)
+    samples, fit, pose, blur, half, far_beside, far_fit = _refine(plane, s8, region, pose, cfg, clock,
+                                                                     cell.response_gamma)
     tr.samples = samples
     tr.inliers = {k: fit.weights[k] > 0 for k in EDGE_NAMES}
     tr.pose = pose
@@ -608,6 +546,10 @@ def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, ha
                                    "thickness_mm": pose.thickness_mm}
         diagnostics["all_refusals"] = [r.code for r in refusals if r is not None]
         return LocateResult.refusal(name, first.code, first.message, lines=lines, diagnostics=diagnostics)
+    # Standard errors of the fit alone (image noise); the edge-model terms are not in it yet.
+    uncertainty = PoseUncertainty(x_mm=fit.offset_sigma["reference"], z_mm=fit.offset_sigma["bottom"],
+                                  yaw_deg=math.degrees(fit.angle_sigma_rad))
     return LocateResult(image=name, ok=True, x_mm=pose.x_mm, z_mm=pose.z_mm, yaw_deg=pose.yaw_deg,
                         thickness_mm=pose.thickness_mm, scale_mm_per_px=pose.scale_mm_per_px,
-                        corner_px=[float(corner_px[0]), float(corner_px[1])], lines=lines, diagnostics=diagnostics)
+                        corner_px=[float(corner_px[0]), float(corner_px[1])], uncertainty=uncertainty,
+                        lines=lines, diagnostics=diagnostics)

@@ -10,7 +10,26 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
-__all__ = ["LineQuality", "LocateResult"]
+__all__ = ["LineQuality", "LocateResult", "PoseUncertainty", "Provenance"]
+
+
+class PoseUncertainty(BaseModel):
+    """1-sigma standard uncertainty of a reported pose (cell frame)."""
+
+    x_mm: float = Field(description="standard uncertainty of x_mm, mm")
+    z_mm: float = Field(description="standard uncertainty of z_mm, mm")
+    yaw_deg: float = Field(description="standard uncertainty of yaw_deg, degrees")
+
+
+class Provenance(BaseModel):
+    """Which software and which model produced an answer."""
+
+    model_config = ConfigDict(extra="allow")
+
+    version: str = Field(description="doorloc version")
+    cell_sha256: str | None = Field(None, description="SHA-256 of the cell file's bytes")
+    calibration_sha256: str | None = Field(None, description="SHA-256 of the camera calibration (file, or inline model)")
+    recipe_version: int | None = Field(None, description="version of the door recipe used, when a recipe was used")
 
 
 class LineQuality(BaseModel):
@@ -44,6 +63,10 @@ class LocateResult(BaseModel):
     corner_px: list[float] | None = Field(None, description="reference corner in the image, [u, v] px")
     error: str | None = Field(None, description="null, or a sentence a person can act on")
     error_code: str | None = Field(None, description="machine-readable refusal reason, e.g. 'no_door', 'outside_envelope'")
+    uncertainty: PoseUncertainty | None = Field(
+        None, description="1-sigma standard uncertainty of the pose (null when ok is false)"
+    )
+    provenance: Provenance | None = Field(None, description="software version and the hashes of the model used")
     elapsed_ms: float = Field(0.0, description="time spent in locate, ms (decode excluded)")
     lines: list[LineQuality] = Field(default_factory=list, description="per-line fit figures")
     diagnostics: dict[str, Any] = Field(default_factory=dict, description="anything else worth knowing")

@@ -1,0 +1,78 @@
+"""Settings of the locate pipeline: the cell file's ``locate:`` section (shared/SPEC.md section 2).
+
+Kept apart from :mod:`doorloc.vision.locate` so that the cell file can validate its ``locate:`` section
+against these fields without importing the pipeline (and OpenCV). The camera's response curve is not
+here: it is a property of the camera, ``camera.response_gamma`` in the cell file (:attr:`doorloc.cell.Cell.response_gamma`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+__all__ = ["LocateConfig"]
+
+
+@dataclass(frozen=True)
+class LocateConfig:
+    """Thresholds and sizes of the locate pipeline. Grey levels are on the 0-255 scale.
+
+    Attributes
+    ----------
+    search_margin_mm, search_margin_deg : float
+        How far beyond the placement envelope the search region reaches (so a badly placed door is
+        found and refused as such, not missed).
+    envelope_margin_mm, envelope_margin_deg : float
+        Tolerance beyond the envelope before a pose is refused.
+    door_brighter : bool
+        The hinge face is brighter than the background (the cell's lighting design).
+    min_contrast : float
+        Smallest grey-level step accepted for an edge.
+    half_window_max, half_window_min : int
+        Bounds of the sub-pixel window half-size, px (the second pass sizes it to the measured blur).
+    window_blur_factor : float
+        Final window half-size = ceil(factor * blur sigma + 1) px: wide enough for the transition's
+        tails (a centred window makes what it misses cancel), no wider (each extra pixel adds noise).
+    plateau : int
+        Samples on each side of the window used for the two grey levels.
+    slope_smooth : int
+        Scan lines on each side over which the plateau slopes are averaged (0: flat plateaus, the
+        default: a centred window cancels linear shading, and noisy slopes cost more than they give).
+    level_smooth : int
+        Scan lines on each side over which the plateau levels are averaged (0: per scan line).
+    min_thickness_mm, thickness_search_mm : float
+        The far arris is looked for between these distances beyond the reference arris
+        (``min_thickness_mm`` .. door thickness + ``thickness_search_mm``).
+    thickness_tolerance_mm : float
+        Refuse when the measured thickness differs from the door's by more.
+    min_inliers, min_inlier_fraction, max_rms_residual_px : int, float, float
+        Line-fit gate.
+    corner_zone_px, min_corner_support : float
+        Fraction of edge points within ``corner_zone_px`` of the corner that must fit their line.
+    max_sigma_mm : float
+        Refuse when the fit's standard error of x or z exceeds this.
+    max_saturated_fraction : float
+        Refuse when more of the search region is white-clipped.
+    """
+
+    search_margin_mm: float = 30.0
+    search_margin_deg: float = 6.0
+    envelope_margin_mm: float = 2.0
+    envelope_margin_deg: float = 0.5
+    door_brighter: bool = True
+    min_contrast: float = 6.0
+    half_window_max: int = 9
+    half_window_min: int = 3
+    window_blur_factor: float = 2.0
+    plateau: int = 4
+    slope_smooth: int = 0
+    level_smooth: int = 10
+    min_thickness_mm: float = 4.0
+    thickness_search_mm: float = 15.0
+    thickness_tolerance_mm: float = 1.0
+    min_inliers: int = 40
+    min_inlier_fraction: float = 0.6
+    max_rms_residual_px: float = 1.5
+    corner_zone_px: float = 60.0
+    min_corner_support: float = 0.6
+    max_sigma_mm: float = 0.05
+    max_saturated_fraction: float = 0.5
