@@ -29,6 +29,7 @@ __all__ = [
     "default_locate_fn",
     "door_from_fields",
     "overlay_png",
+    "provenance_of",
     "NO_RECIPE_NOTE",
 ]
 
@@ -57,11 +58,12 @@ class DoorChoice:
     door: DoorSize
     door_id: str | None = None
     recipe: Any | None = None  # doorloc.recipes.models.DoorRecipe
+    recipe_version: int | None = None  # the stored recipe's version (results name it in their provenance)
 
     @classmethod
-    def from_recipe(cls, recipe: Any) -> DoorChoice:
-        """The door a stored recipe describes (its size, id and the recipe for the targets)."""
-        return cls(recipe.door_size(), recipe.door_id, recipe)
+    def from_recipe(cls, recipe: Any, version: int | None = None) -> DoorChoice:
+        """The door a stored recipe describes (its size, id, the recipe for the targets and its version)."""
+        return cls(recipe.door_size(), recipe.door_id, recipe, version)
 
 
 def default_locate_fn() -> LocateFn:
@@ -98,6 +100,14 @@ def door_from_fields(
     if problems:
         raise DoorRangeError(problems[0][0], "; ".join(p[1] for p in problems))
     return DoorSize(width, thickness, height, arris, d.arris_profile)
+
+
+def provenance_of(cell: Cell, choice: DoorChoice) -> dict[str, Any]:
+    """SPEC section 3 ``provenance`` of an answer about ``choice`` in ``cell`` (also for records no locate made)."""
+    from doorloc import __version__
+
+    return {"version": __version__, "cell_sha256": cell.sha256, "calibration_sha256": cell.calibration_sha256,
+            "recipe_version": choice.recipe_version}
 
 
 def answer_image(
@@ -140,6 +150,9 @@ def answer_image(
     extra = {} if trace is None else {"trace": trace}
     result = locate(image, cell, choice.door, image_name=image_name, **extra)
     answer = result.model_dump(mode="json")
+    answer["provenance"] = provenance_of(cell, choice) | {
+        k: v for k, v in (answer.get("provenance") or {}).items() if k != "recipe_version"
+    }
     answer["door_id"] = choice.door_id
     answer["door"] = {
         "width_mm": choice.door.width_mm,

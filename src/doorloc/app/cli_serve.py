@@ -126,9 +126,15 @@ def register(app: typer.Typer) -> None:
         except CellFileError as e:
             raise fail(str(e)) from None
         try:
-            items = batch_mod.plan_batch(folder, the_cell, manifest, _recipe_lookup(database_url) if manifest else None)
+            items = batch_mod.plan_batch(folder, the_cell, manifest, _recipe_lookup(database_url) if manifest else None,
+                                         exclude=[out, *([manifest] if manifest else [])])
             log = batch_mod.ResultsLog(out, resume)
         except (batch_mod.BatchSetupError, OSError) as e:
+            raise fail(str(e)) from None
+        try:
+            batch_mod.check_resume(log.done, items, the_cell)
+        except batch_mod.BatchSetupError as e:
+            log.close()
             raise fail(str(e)) from None
 
         def run_backend(todo):
