@@ -28,7 +28,7 @@ from doorloc import __version__
 from doorloc.app.answer import LocateFn
 from doorloc.app.http import routes_doors, routes_locate, routes_ops
 from doorloc.app.http.metrics import ServiceMetrics
-from doorloc.app.http.middleware import BodySizeLimit, RequestContext
+from doorloc.app.http.middleware import BodySizeLimit, LocateAdmission, RequestContext
 from doorloc.app.http.problems import install_problem_handlers
 from doorloc.app.http.state import ServiceState
 from doorloc.app.settings import ServiceSettings
@@ -81,6 +81,8 @@ def create_app(
     app.include_router(routes_doors.router)
     app.mount("/static", StaticFiles(directory=STATIC_DIR), name="static")
     # add_middleware wraps from the inside out: RequestContext sees every request, including 413s.
+    app.add_middleware(LocateAdmission, admission=state, capacity=state.capacity,
+                       deadline_s=settings.request_deadline_s)
     app.add_middleware(BodySizeLimit, max_body_bytes=settings.max_upload_bytes)
     app.add_middleware(RequestContext, metrics=state.metrics)
     return app

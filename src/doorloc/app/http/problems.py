@@ -53,7 +53,9 @@ _DESCRIPTIONS = {
     413: "The request body is larger than the service accepts.",
     415: "The upload is not a PNG, JPEG, TIFF or BMP image (judged by its bytes).",
     422: "A field is missing or invalid, or the image cannot be decoded or declares too many pixels.",
-    503: "The service is not ready (the cell or its calibration is not loaded), or the recipe database is unreachable.",
+    408: "The request body did not arrive within the request deadline.",
+    503: "The service is not ready (the cell or its calibration is not loaded), the recipe database is unreachable, "
+         "or this worker is overloaded (see Retry-After).",
 }
 
 

@@ -9,8 +9,10 @@ event loop keeps answering health checks while images are being measured.
 from __future__ import annotations
 
 import logging
+import time
 from typing import Annotated
 
+import anyio
 import anyio.to_thread
 from fastapi import APIRouter, Depends, File, Form, Query, Request, UploadFile
 from pydantic import Field
@@ -39,7 +41,7 @@ DoorMm = Annotated[float | None, Field(gt=0, allow_inf_nan=False)]
     response_model=LocateResponse,
     response_model_exclude_none=False,
     summary="Locate the door in an image and return its pose and hinge targets",
-    responses=problem_responses(400, 401, 403, 413, 415, 422, 503),
+    responses=problem_responses(400, 401, 403, 408, 413, 415, 422, 503),
 )
 async def post_locate(
     request: Request,
@@ -63,9 +65,11 @@ async def post_locate(
     try:
         _check_upload(data, name, state)
         choice = await _door_choice(state, door_id, width_mm, thickness_mm, height_mm)
-        fields = await anyio.to_thread.run_sync(
-            _measure, data, name, state, choice, overlay, rapid, limiter=state.limiter
-        )
+        await _cpu_slot(state, request.scope.get("state", {}).get("deadline"))
+        try:
+            fields = await anyio.to_thread.run_sync(_measure, data, name, state, choice, overlay, rapid)
+        finally:
+            state.limiter.release()
     except ProblemError as e:
         state.metrics.rejected_uploads.labels(e.code).inc()
         raise
@@ -79,6 +83,21 @@ async def post_locate(
         "elapsed_ms": fields.get("elapsed_ms"),
     }})
     return fields
+
+
+async def _cpu_slot(state: ServiceState, deadline: float | None) -> None:
+    """Wait for one of the worker's CPU slots until the request's deadline; 503 Retry-After when none came free."""
+    left = (deadline - time.monotonic()) if deadline is not None else state.settings.request_deadline_s
+    try:
+        with anyio.fail_after(max(left, 0.001)):
+            await state.limiter.acquire()
+    except TimeoutError:
+        raise ProblemError(
+            503, "overloaded",
+            f"No CPU slot came free within the request deadline ({state.settings.request_deadline_s:g} s): this "
+            "worker is overloaded; retry after the number of seconds in Retry-After.",
+            headers={"Retry-After": "5"},
+        ) from None
 
 
 def _check_upload(data: bytes, name: str, state: ServiceState) -> None:

@@ -11,7 +11,7 @@ from fastapi.responses import HTMLResponse, Response
 from doorloc.app.access import Role
 from doorloc.app.http.dependencies import get_state, ready_state, require_role
 from doorloc.app.http.metrics import CONTENT_TYPE_LATEST
-from doorloc.app.http.problems import problem_responses
+from doorloc.app.http.problems import ProblemError, problem_responses
 from doorloc.app.http.schemas import CellInfo, Health, Readiness
 from doorloc.app.http.state import ServiceState
 from doorloc.cell import cell_to_dict
@@ -31,6 +31,12 @@ async def healthz() -> Health:
     summary="Readiness: the cell and calibration are loaded",
 )
 async def readyz(state: Annotated[ServiceState, Depends(ready_state)]) -> Readiness:
+    if state.overloaded:
+        raise ProblemError(
+            503, "overloaded",
+            f"This worker is at its limit ({state.admitted} locate requests running or queued); retry shortly.",
+            headers={"Retry-After": "2"},
+        )
     return Readiness(status="ready", **state.cell_ids())
 
 

@@ -42,9 +42,20 @@ class ServiceState:
     keys: Any | None = None  # doorloc.app.access.KeyStore, on the store's database
     load_error: str | None = None
     limiter: anyio.CapacityLimiter = field(init=False)
+    #: locate requests admitted in this worker right now (running or queued; see LocateAdmission)
+    admitted: int = 0
 
     def __post_init__(self) -> None:
         self.limiter = anyio.CapacityLimiter(self.settings.locate_concurrency)
+
+    @property
+    def capacity(self) -> int:
+        """Locate requests one worker admits at once: its CPU slots plus its queue."""
+        return self.settings.locate_concurrency + self.settings.max_queue
+
+    @property
+    def overloaded(self) -> bool:
+        return self.admitted >= self.capacity
 
     @property
     def ready(self) -> bool:

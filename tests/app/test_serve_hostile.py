@@ -1,0 +1,182 @@
+"""Hostile requests against a real `doorloc serve` process on 127.0.0.1 (issue 15).
+
+Two services per module: ``svc`` (2 workers, API keys of each role) and ``tight`` (1 worker, 1 CPU slot,
+a queue of 2 and a 3 s deadline) for overload and slow clients. Every loop is bounded; only loopback.
+"""
+
+from __future__ import annotations
+
+import socket
+import struct
+import time
+import zlib
+
+import httpx
+import pytest
+
+from doorloc.app.access import KeyStore, Role
+from doorloc.recipes.store import RecipeStore
+
+from .conftest import launch_serve, png_bytes, stop_serve
+
+pytestmark = [pytest.mark.slow, pytest.mark.xdist_group("serve_hostile")]
+
+
+def _png_header_only(w: int, h: int, depth: int = 8, colour: int = 0) -> bytes:
+    ihdr = struct.pack(">IIBBBBB", w, h, depth, colour, 0, 0, 0)
+    chunk = struct.pack(">I", 13) + b"IHDR" + ihdr + struct.pack(">I", zlib.crc32(b"IHDR" + ihdr))
+    raw = zlib.compress(b"\x00" * (1 + w * 8) * 8)  # 8 real rows, the rest missing
+    return (b"\x89PNG\r\n\x1a\n" + chunk + struct.pack(">I", len(raw)) + b"IDAT" + raw
+            + struct.pack(">I", zlib.crc32(b"IDAT" + raw)) + struct.pack(">I", 0) + b"IEND"
+            + struct.pack(">I", zlib.crc32(b"IEND")))
+
+
+@pytest.fixture(scope="module")
+def svc(tmp_path_factory, recipe_module):
+    tmp = tmp_path_factory.mktemp("svc")
+    with RecipeStore(f"sqlite:///{tmp / 'recipes.db'}") as store:
+        keys = KeyStore(store.engine)
+        secrets = {r: keys.create(f"{r.value} key", r).secret for r in Role}
+        store.put(recipe_module)
+    base, proc, log = launch_serve(tmp, "--workers", "2")
+    yield base, {r: {"X-API-Key": s} for r, s in secrets.items()}, tmp
+    stop_serve(proc, log)
+
+
+@pytest.fixture(scope="module")
+def tight(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("tight")
+    env = {"DOORLOC_LOCATE_CONCURRENCY": "1", "DOORLOC_MAX_QUEUE": "2", "DOORLOC_REQUEST_DEADLINE_S": "3"}
+    base, proc, log = launch_serve(tmp, "--workers", "1", env=env)
+    yield base
+    stop_serve(proc, log)
+
+
+@pytest.fixture(scope="module")
+def recipe_module():
+    from doorloc.recipes.models import DoorRecipe, Hinge
+
+    return DoorRecipe(
+        door_id="D-100", width_mm=900, height_mm=2100, thickness_mm=50,
+        hinges=[Hinge(z_mm=250, length_mm=100, width_mm=30, x_mm=10, depth_mm=3, corner_radius_mm=8)],
+        tool_diameter_mm=16, spindle_rpm=18000, feed_mm_s=25,
+    )
+
+
+def _problem(r: httpx.Response, status: int, code: str | None = None) -> dict:
+    assert r.status_code == status, r.text
+    assert r.headers["content-type"].startswith("application/problem+json"), r.headers
+    body = r.json()
+    assert body["status"] == status and body["detail"]
+    if code is not None:
+        assert body["code"] == code, body
+    return body
+
+
+def _img(png: bytes, name: str = "door.png") -> dict:
+    return {"image": (name, png, "image/png")}
+
+
+SMALL = png_bytes(__import__("numpy").full((48, 64), 130, __import__("numpy").uint8))
+
+
+# ---------------------------------------------------------------------------------------------- access
+
+
+def test_recipe_change_needs_an_engineer_key(svc, recipe_module):
+    base, h, _ = svc
+    wider = recipe_module.model_dump(mode="json") | {"width_mm": 1350}
+    _problem(httpx.put(f"{base}/v1/doors/D-100", json=wider, timeout=30), 401, "unauthorized")
+    _problem(httpx.put(f"{base}/v1/doors/D-100", json=wider, headers=h[Role.operator], timeout=30), 403, "forbidden")
+    assert httpx.get(f"{base}/v1/doors/D-100", headers=h[Role.operator], timeout=30).json()["width_mm"] == 900
+    r = httpx.put(f"{base}/v1/doors/D-100", json=wider, headers=h[Role.engineer], timeout=30)
+    assert r.status_code == 200, r.text
+
+
+def test_metrics_need_their_role(svc):
+    base, h, _ = svc
+    _problem(httpx.get(f"{base}/metrics", timeout=30), 401)
+    _problem(httpx.get(f"{base}/metrics", headers=h[Role.operator], timeout=30), 403)
+    assert httpx.get(f"{base}/metrics", headers=h[Role.metrics], timeout=30).status_code == 200
+    _problem(httpx.post(f"{base}/v1/locate", files=_img(SMALL), headers=h[Role.metrics], timeout=30), 403)
+
+
+def test_wrong_and_malformed_keys(svc):
+    base, _, _ = svc
+    for key in (b"x", b"dlk_000000000000_" + b"A" * 43, b"dlk_" + b"z" * 200, "\u00e9\u00e9".encode()):
+        r = httpx.get(f"{base}/v1/doors", headers=[(b"X-API-Key", key)], timeout=30)
+        _problem(r, 401, "unauthorized")
+
+
+# ---------------------------------------------------------------------------------------------- uploads
+
+
+def test_a_small_png_declaring_a_huge_16_bit_rgba_image_is_refused_before_decoding(svc):
+    """Issue defect: a 381 kB 7000x7000 16-bit RGBA PNG (under the pixel limit) was decoded in full."""
+    base, h, _ = svc
+    bomb = _png_header_only(7000, 7000, 16, 6)
+    t0 = time.monotonic()
+    body = _problem(httpx.post(f"{base}/v1/locate", files=_img(bomb), headers=h[Role.operator], timeout=60), 422,
+                    "too_many_pixels")
+    assert "392 MB" in body["detail"]
+    assert time.monotonic() - t0 < 30  # generous: only shows the answer came back at all
+
+
+def test_nan_and_absurd_sizes(svc):
+    base, h, _ = svc
+    for form in ({"width_mm": "nan"}, {"width_mm": "1e308"}, {"thickness_mm": "10000"}, {"height_mm": "-1"}):
+        r = httpx.post(f"{base}/v1/locate", files=_img(SMALL), data=form, headers=h[Role.operator], timeout=30)
+        body = _problem(r, 422)
+        assert next(iter(form)) in body["detail"]
+
+
+def test_raw_image_body_is_415(svc):
+    """Issue defect: a raw image/png body got 422 instead of 415."""
+    base, h, _ = svc
+    r = httpx.post(f"{base}/v1/locate", content=SMALL, headers={**h[Role.operator], "Content-Type": "image/png"},
+                   timeout=30)
+    _problem(r, 415, "not_multipart")
+
+
+# ---------------------------------------------------------------------------------------------- bounded work
+
+
+def _slow_upload(base: str) -> socket.socket:
+    """Start a multipart upload that declares 100 kB and sends 10 bytes (a slow or stalled client)."""
+    host, port = base.removeprefix("http://").split(":")
+    s = socket.create_connection((host, int(port)), timeout=15)
+    s.sendall(b"POST /v1/locate HTTP/1.1\r\nHost: x\r\nContent-Type: multipart/form-data; boundary=zz\r\n"
+              b"Content-Length: 100000\r\n\r\n--zz\r\nCont")
+    return s
+
+
+def _read_status(s: socket.socket) -> int:
+    data = b""
+    deadline = time.monotonic() + 15
+    while b"\r\n" not in data and time.monotonic() < deadline:
+        chunk = s.recv(4096)
+        if not chunk:
+            break
+        data += chunk
+    return int(data.split(b" ", 2)[1]) if data.startswith(b"HTTP/1.1 ") else -1
+
+
+def test_overload_answers_503_retry_after_and_slow_clients_are_cut_at_the_deadline(tight):
+    """Issue defect: no queue limit and no timeout; a normal request waited 51 s behind hostile uploads."""
+    slow = [_slow_upload(tight) for _ in range(3)]  # capacity: 1 CPU slot + a queue of 2
+    try:
+        time.sleep(0.5)
+        r = httpx.post(f"{tight}/v1/locate", files=_img(SMALL), timeout=30)
+        _problem(r, 503, "overloaded")
+        assert int(r.headers["retry-after"]) > 0
+        _problem(httpx.get(f"{tight}/readyz", timeout=30), 503, "overloaded")
+        assert httpx.get(f"{tight}/healthz", timeout=30).status_code == 200  # alive all the same
+        assert [_read_status(s) for s in slow] == [408, 408, 408]  # cut at the 3 s deadline
+    finally:
+        for s in slow:
+            s.close()
+    deadline = time.monotonic() + 20
+    while time.monotonic() < deadline and httpx.get(f"{tight}/readyz", timeout=30).status_code != 200:
+        time.sleep(0.1)
+    r = httpx.post(f"{tight}/v1/locate", files=_img(SMALL), timeout=60)
+    assert r.status_code == 200, r.text
