@@ -16,7 +16,6 @@ import uuid
 from typing import Any
 
 import anyio
-
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
