@@ -32,11 +32,11 @@ def _door_choice(cell, width, thickness, height, arris, door_id, db):
     from doorloc.recipes.store import RecipeStore, database_url
 
     with RecipeStore(database_url(db) if db else database_url()) as store:
-        recipe = store.get(door_id)
-    if recipe is None:
+        found = store.get_versioned(door_id)
+    if found is None:
         raise ValueError(f"no door recipe with id {door_id!r} in the recipe database; import it first "
                          "(doorloc recipes import) or give the door size with --door-width/--door-thickness")
-    choice = DoorChoice.from_recipe(recipe)
+    choice = DoorChoice.from_recipe(*found)
     if arris is None:
         return choice
     door = choice.door

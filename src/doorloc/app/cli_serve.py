@@ -180,7 +180,7 @@ def is_loopback(host: str) -> bool:
 
 
 def _recipe_lookup(database_url: str | None):
-    """``door_id -> DoorRecipe | None`` from the recipe database (opened on first use)."""
+    """``door_id -> (DoorRecipe, version) | None`` from the recipe database (opened on first use)."""
     store = None
 
     def lookup(door_id: str):
@@ -190,6 +190,6 @@ def _recipe_lookup(database_url: str | None):
             from doorloc.recipes.store import database_url as default_url
 
             store = RecipeStore(default_url(database_url))  # None: $DOORLOC_DATABASE_URL or the default
-        return store.get(door_id)
+        return store.get_versioned(door_id)
 
     return lookup

@@ -135,13 +135,13 @@ async def _door_choice(
                 422, "ambiguous_door",
                 "Give either door_id (the recipe has the door's size) or width_mm/thickness_mm/height_mm, not both.",
             )
-        recipe = await call_store(state.store.get, door_id)
-        if recipe is None:
+        found = await call_store(state.store.get_versioned, door_id)
+        if found is None:
             raise ProblemError(
                 422, "unknown_door",
                 f"There is no door recipe with id '{door_id}'; import it (doorloc recipes import) or PUT /v1/doors/{door_id}.",
             )
-        return DoorChoice.from_recipe(recipe)
+        return DoorChoice.from_recipe(*found)
     try:
         return DoorChoice(door_from_fields(state.cell, width_mm, thickness_mm, height_mm))
     except ValueError as e:

@@ -9,7 +9,8 @@ from pydantic import BaseModel, Field
 from doorloc.recipes.targets import Target
 from doorloc.vision.result import LocateResult
 
-__all__ = ["DoorOut", "LocateResponse", "CellInfo", "Health", "Readiness", "DoorList"]
+__all__ = ["DoorOut", "LocateResponse", "CellInfo", "Health", "Readiness", "DoorList", "RecipeHistory",
+           "RecipeVersionOut"]
 
 
 class DoorOut(BaseModel):
@@ -51,6 +52,33 @@ class Readiness(BaseModel):
 
 
 class DoorList(BaseModel):
-    """Door ids in the recipe database."""
+    """One page of the door ids in the recipe database (ordered by id)."""
 
     door_ids: list[str]
+    total: int = Field(description="how many recipes are stored")
+    limit: int = Field(description="page size used")
+    offset: int = Field(description="index of the first id on this page")
+    next_offset: int | None = Field(None, description="offset of the next page, null on the last page")
+
+
+class RecipeChangeOut(BaseModel):
+    field: str = Field(description="changed field, e.g. 'width_mm' or 'hinges[1].z_mm' ('hinges': their number)")
+    old: Any = None
+    new: Any = None
+
+
+class RecipeVersionOut(BaseModel):
+    """One change of a door recipe: who, when, what."""
+
+    door_id: str
+    version: int
+    action: str = Field(description="created, updated, deleted (retired) or migrated (stored before history existed)")
+    changed_by: str = Field(description="name of the API key (or 'cli:<user>') that made the change")
+    changed_at: str | None = Field(None, description="when, ISO 8601")
+    changes: list[RecipeChangeOut] = Field(default_factory=list, description="fields that differ from the version before")
+    recipe: dict[str, Any] | None = Field(None, description="the whole recipe as stored in this version")
+
+
+class RecipeHistory(BaseModel):
+    door_id: str
+    versions: list[RecipeVersionOut]
