@@ -202,3 +202,117 @@ def test_50_parallel_recipe_writers_all_succeed_and_each_is_a_version(svc, recip
     versions = httpx.get(f"{base}/v1/doors/D-100/history", headers=h[Role.operator], timeout=30).json()["versions"]
     assert len(versions) == before + 50
     assert {v["changed_by"] for v in versions[-50:]} == {"engineer key"}
+
+
+# ---------------------------------------------------------------------------------------------- metrics
+
+
+def _sample(text: str, name: str, **labels: str) -> float | None:
+    want = ",".join(f'{k}="{v}"' for k, v in sorted(labels.items()))
+    for line in text.splitlines():
+        if line.startswith(name + "{"):
+            got = ",".join(sorted(line[len(name) + 1:line.index("}")].split(",")))
+            if got == want:
+                return float(line.rsplit(" ", 1)[1])
+    return None
+
+
+def test_metrics_add_up_every_worker(svc):
+    """Issue defect: with --workers 2 a counter read 67 and 95 on alternate scrapes."""
+    base, h, _ = svc
+    for _ in range(30):
+        assert httpx.get(f"{base}/healthz", timeout=30).status_code == 200
+    reads = []
+    for _ in range(6):  # new connections: the kernel spreads them over both workers
+        text = httpx.get(f"{base}/metrics", headers=h[Role.metrics], timeout=30).text
+        reads.append(_sample(text, "doorloc_http_requests_total", method="GET", route="/healthz", status="200"))
+        pids = {line.split('pid="')[1].split('"')[0] for line in text.splitlines()
+                if line.startswith("doorloc_worker_resident_memory_bytes{")}
+    assert reads[0] is not None and reads[0] >= 30
+    assert len(set(reads)) == 1, reads
+    assert len(pids) == 2  # process figures of both workers
+
+
+# ---------------------------------------------------------------------------------------------- protocol-level
+
+
+def _raw(base: str, payload: bytes) -> tuple[int, dict[str, str], bytes]:
+    host, port = base.removeprefix("http://").split(":")
+    with socket.create_connection((host, int(port)), timeout=15) as s:
+        s.sendall(payload)
+        data = b""
+        deadline = time.monotonic() + 15
+        while time.monotonic() < deadline:
+            chunk = s.recv(65536)
+            if not chunk:
+                break
+            data += chunk
+    head, _, body = data.partition(b"\r\n\r\n")
+    lines = head.decode("latin-1").split("\r\n")
+    headers = {k.strip().lower(): v.strip() for k, _, v in (x.partition(":") for x in lines[1:])}
+    return int(lines[0].split()[1]), headers, body
+
+
+@pytest.mark.parametrize("payload", [
+    b"GARBAGE\r\n\r\n",
+    b"GET /healthz HTTP/1.1\r\nHost: x\r\nBad Header\r\n\r\n",
+    b"POST /v1/locate HTTP/1.1\r\nHost: x\r\nTransfer-Encoding: chunked\r\n\r\nzz\r\n",
+])
+def test_the_servers_own_400s_are_problem_json(svc, payload):
+    """Issue defect: uvicorn's own 400 answers were plain text."""
+    import json
+
+    base, _, _ = svc
+    status, headers, body = _raw(base, payload)
+    assert status == 400
+    assert headers["content-type"] == "application/problem+json"
+    assert json.loads(body)["code"] == "malformed_http"
+
+
+def test_405_names_the_allowed_methods(svc):
+    """Issue defect: a 405 said 'use .' with an empty Allow header."""
+    base, h, _ = svc
+    r = httpx.patch(f"{base}/v1/doors/D-100", headers=h[Role.engineer], timeout=30)
+    body = _problem(r, 405, "method_not_allowed")
+    assert r.headers["allow"] == "GET, PUT, DELETE" and "use GET or PUT or DELETE" in body["detail"]
+    r = httpx.get(f"{base}/v1/locate", timeout=30)
+    assert _problem(r, 405)["detail"].endswith("use POST.") and r.headers["allow"] == "POST"
+
+
+def test_two_image_parts_are_refused(svc):
+    """Issue defect: two 'image' parts silently took the last."""
+    base, h, _ = svc
+    files = [("image", ("a.png", SMALL, "image/png")), ("image", ("b.png", SMALL, "image/png"))]
+    _problem(httpx.post(f"{base}/v1/locate", files=files, headers=h[Role.operator], timeout=30), 422, "several_images")
+
+
+def test_broken_multipart_is_a_problem(svc):
+    base, h, _ = svc
+    r = httpx.post(f"{base}/v1/locate", content=b"--x\r\nnot a part",
+                   headers={**h[Role.operator], "Content-Type": "multipart/form-data; boundary=x"}, timeout=30)
+    assert r.status_code in (400, 422) and r.headers["content-type"] == "application/problem+json"
+
+
+def test_cell_info_does_not_show_the_servers_paths(svc):
+    """Issue defect: /v1/cell showed the cell file's absolute path."""
+    base, h, _ = svc
+    r = httpx.get(f"{base}/v1/cell", headers=h[Role.operator], timeout=30)
+    assert r.status_code == 200
+    assert r.json()["source"] == "cell_thesis.yaml" and "/" not in r.text.split('"source"')[1].split(",")[0]
+
+
+def test_locate_answers_name_their_provenance(svc):
+    base, h, _ = svc
+    r = httpx.post(f"{base}/v1/locate", files=_img(SMALL), data={"door_id": "D-100"}, headers=h[Role.operator],
+                   timeout=60)
+    assert r.status_code == 200, r.text
+    prov = r.json()["provenance"]
+    assert prov["version"] and len(prov["cell_sha256"]) == 64 and len(prov["calibration_sha256"]) == 64
+    assert isinstance(prov["recipe_version"], int) and prov["recipe_version"] >= 1
+
+
+def test_paging_is_bounded(svc):
+    base, h, _ = svc
+    _problem(httpx.get(f"{base}/v1/doors", params={"limit": 10**6}, headers=h[Role.operator], timeout=30), 422)
+    page = httpx.get(f"{base}/v1/doors", params={"limit": 1}, headers=h[Role.operator], timeout=30).json()
+    assert page["limit"] == 1 and page["total"] >= 1

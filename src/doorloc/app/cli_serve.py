@@ -35,38 +35,8 @@ def register(app: typer.Typer) -> None:
 
         On an address other than loopback it needs API keys (doorloc keys create) unless --insecure is given.
         """
-        import uvicorn
-
-        from doorloc.cell import CellFileError, load_cell
-
-        cell_path = str(cell) if cell is not None else os.environ.get("DOORLOC_CELL")
-        if not cell_path:
-            raise fail("give the cell file: doorloc serve --cell cell.yaml (or set DOORLOC_CELL)")
-        try:
-            load_cell(cell_path)  # fail here, with a sentence, rather than in every worker
-        except CellFileError as e:
-            raise fail(str(e)) from None
-        if database_url:
-            os.environ["DOORLOC_DATABASE_URL"] = database_url
-        try:
-            # Bring the recipe database's schema up to date once, here, so N workers do not race to migrate it.
-            from doorloc.app.access import KeyStore
-            from doorloc.recipes.store import RecipeStore
-            from doorloc.recipes.store import database_url as resolve_url
-
-            with RecipeStore(resolve_url(None)) as store:
-                has_keys = KeyStore(store.engine).any_active() or bool(os.environ.get("DOORLOC_API_KEY"))
-        except Exception as e:  # noqa: BLE001 - any database failure is reported as one sentence
-            raise fail(f"cannot open the recipe database: {e}") from None
-        if not has_keys and not is_loopback(host):
-            if not insecure:
-                raise fail(
-                    f"refusing to listen on {host} without API keys: anyone who reaches it could change the door "
-                    "recipes that drive the robot. Create keys first (doorloc keys create --role engineer NAME), "
-                    "listen on 127.0.0.1 behind a reverse proxy, or pass --insecure to accept the risk"
-                )
-            typer.echo(f"doorloc: warning: listening on {host} with no API keys (--insecure): anyone who reaches "
-                       "this port can change door recipes", err=True)
+        cell_path = _checked_cell(cell)
+        _check_bind(host, insecure, _has_keys(database_url))
         if (ssl_certfile is None) != (ssl_keyfile is None):
             raise fail("give both --ssl-certfile and --ssl-keyfile for HTTPS, or neither")
         for f in (ssl_certfile, ssl_keyfile):
@@ -75,17 +45,7 @@ def register(app: typer.Typer) -> None:
         # The workers are separate processes that build the app from the environment (create_app_from_env).
         os.environ["DOORLOC_CELL"] = str(Path(cell_path).resolve())
         os.environ["DOORLOC_LOG_LEVEL"] = log_level.upper()
-        uvicorn.run(
-            "doorloc.app.http:create_app_from_env",
-            factory=True,
-            host=host,
-            port=port,
-            workers=workers,
-            log_level=log_level.lower(),
-            access_log=False,  # the service logs every request itself, as JSON with its request id
-            ssl_certfile=str(ssl_certfile) if ssl_certfile else None,
-            ssl_keyfile=str(ssl_keyfile) if ssl_keyfile else None,
-        )
+        _run_uvicorn(host, port, workers, log_level, ssl_certfile, ssl_keyfile)
 
     @app.command("batch")
     def batch(
@@ -165,6 +125,78 @@ def register(app: typer.Typer) -> None:
                     raise fail(f"cannot write {out}: {e.strerror or e}", EXIT_FAILED) from None
         typer.echo(f"{out}: {summary.text()}", err=True)
         raise typer.Exit(EXIT_OK if summary.answered == summary.total else EXIT_REFUSED)
+
+
+def _checked_cell(cell: Path | None) -> str:
+    """The cell file's path, loaded once here so a bad one fails with a sentence rather than in every worker."""
+    from doorloc.cell import CellFileError, load_cell
+
+    cell_path = str(cell) if cell is not None else os.environ.get("DOORLOC_CELL")
+    if not cell_path:
+        raise fail("give the cell file: doorloc serve --cell cell.yaml (or set DOORLOC_CELL)")
+    try:
+        load_cell(cell_path)
+    except CellFileError as e:
+        raise fail(str(e)) from None
+    return cell_path
+
+
+def _has_keys(database_url: str | None) -> bool:
+    """Migrate the recipe database once (so N workers do not race to) and say whether any API key exists."""
+    if database_url:
+        os.environ["DOORLOC_DATABASE_URL"] = database_url
+    try:
+        from doorloc.app.access import KeyStore
+        from doorloc.recipes.store import RecipeStore
+        from doorloc.recipes.store import database_url as resolve_url
+
+        with RecipeStore(resolve_url(None)) as store:
+            return KeyStore(store.engine).any_active() or bool(os.environ.get("DOORLOC_API_KEY"))
+    except Exception as e:  # noqa: BLE001 - any database failure is reported as one sentence
+        raise fail(f"cannot open the recipe database: {e}") from None
+
+
+def _check_bind(host: str, insecure: bool, has_keys: bool) -> None:
+    """Refuse a non-loopback address without API keys unless --insecure (then warn)."""
+    if has_keys or is_loopback(host):
+        return
+    if not insecure:
+        raise fail(
+            f"refusing to listen on {host} without API keys: anyone who reaches it could change the door "
+            "recipes that drive the robot. Create keys first (doorloc keys create --role engineer NAME), "
+            "listen on 127.0.0.1 behind a reverse proxy, or pass --insecure to accept the risk"
+        )
+    typer.echo(f"doorloc: warning: listening on {host} with no API keys (--insecure): anyone who reaches "
+               "this port can change door recipes", err=True)
+
+
+def _run_uvicorn(host: str, port: int, workers: int, log_level: str, ssl_certfile: Path | None,
+                 ssl_keyfile: Path | None) -> None:
+    """Run uvicorn; /metrics adds up every worker through a prometheus multiprocess folder made here."""
+    import shutil
+    import tempfile
+
+    import uvicorn
+
+    own_metrics_dir = "PROMETHEUS_MULTIPROC_DIR" not in os.environ
+    if own_metrics_dir:
+        os.environ["PROMETHEUS_MULTIPROC_DIR"] = tempfile.mkdtemp(prefix="doorloc-metrics-")
+    try:
+        uvicorn.run(
+            "doorloc.app.http:create_app_from_env",
+            factory=True,
+            host=host,
+            port=port,
+            workers=workers,
+            log_level=log_level.lower(),
+            access_log=False,  # the service logs every request itself, as JSON with its request id
+            ssl_certfile=str(ssl_certfile) if ssl_certfile else None,
+            ssl_keyfile=str(ssl_keyfile) if ssl_keyfile else None,
+            http="doorloc.app.http.protocol:ProblemJsonHTTP",  # its own 400s as problem+json
+        )
+    finally:
+        if own_metrics_dir:
+            shutil.rmtree(os.environ.pop("PROMETHEUS_MULTIPROC_DIR"), ignore_errors=True)
 
 
 def is_loopback(host: str) -> bool:

@@ -20,6 +20,7 @@ from contextlib import asynccontextmanager
 from pathlib import Path
 from typing import Any
 
+import anyio
 import anyio.to_thread
 from fastapi import FastAPI
 from fastapi.staticfiles import StaticFiles
@@ -66,7 +67,10 @@ def create_app(
         cv2.setNumThreads(settings.opencv_threads)
         if not state.ready or state.locate_fn is None or state.keys is None:
             await anyio.to_thread.run_sync(state.load)
-        yield
+        async with anyio.create_task_group() as tg:
+            tg.start_soon(_sample_process_forever, state.metrics)
+            yield
+            tg.cancel_scope.cancel()
 
     app = FastAPI(
         title="doorloc",
@@ -86,6 +90,13 @@ def create_app(
     app.add_middleware(BodySizeLimit, max_body_bytes=settings.max_upload_bytes)
     app.add_middleware(RequestContext, metrics=state.metrics)
     return app
+
+
+async def _sample_process_forever(metrics: ServiceMetrics, every_s: float = 5.0) -> None:
+    """Keep this worker's process figures fresh, so a scrape answered by another worker sees them too."""
+    while True:  # cancelled at shutdown
+        metrics.sample_process()
+        await anyio.sleep(every_s)
 
 
 def create_app_from_env() -> FastAPI:

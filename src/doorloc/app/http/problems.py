@@ -100,15 +100,19 @@ _HTTP_CODES = {400: "malformed_body", 401: "unauthorized", 404: "not_found", 405
 
 
 def _allowed_methods(request: Request) -> list[str]:
-    """Methods of every route on this path (a path can have one route per method, e.g. GET and PUT)."""
+    """Methods some route answers on this path (a path can have one route per method, e.g. GET and PUT).
+
+    Asks every route whether it fully matches the path with each method in turn: routers nest (FastAPI's
+    included routers do not expose their routes' methods), but every route can say whether it matches.
+    """
     from starlette.routing import Match
 
-    methods: set[str] = set()
-    for route in request.app.router.routes:
-        match, _ = route.matches(request.scope)
-        if match != Match.NONE:
-            methods |= set(getattr(route, "methods", None) or ())
-    return sorted(methods)
+    allowed = []
+    for method in ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS"):
+        scope = {**request.scope, "method": method}
+        if any(route.matches(scope)[0] == Match.FULL for route in request.app.router.routes):
+            allowed.append(method)
+    return allowed
 
 
 def install_problem_handlers(app: FastAPI) -> None:
@@ -140,8 +144,8 @@ def install_problem_handlers(app: FastAPI) -> None:
         if status == 404:
             detail = f"There is nothing at {request.url.path}; see /docs for the endpoints."
         elif status == 405:
-            allowed = _allowed_methods(request)
-            detail = f"{request.method} is not allowed on {request.url.path}; use {', '.join(allowed)}."
+            allowed = _allowed_methods(request) or ["GET"]
+            detail = f"{request.method} is not allowed on {request.url.path}; use {' or '.join(allowed)}."
             return problem_response(request, 405, "method_not_allowed", detail, {"Allow": ", ".join(allowed)})
         elif status == 400:
             detail = ("The request body cannot be parsed: send images as a multipart form with the field 'image' "
@@ -155,6 +159,9 @@ def install_problem_handlers(app: FastAPI) -> None:
     @app.exception_handler(Exception)
     async def _unexpected(request: Request, exc: Exception) -> JSONResponse:
         request_id = request.scope.get("state", {}).get("request_id")
+        service = getattr(request.app.state, "service", None)
+        if service is not None:
+            service.metrics.internal_errors.labels("request").inc()
         _log.error("unexpected error", exc_info=exc, extra={"fields": {
             "event": "internal_error", "incident_id": request_id, "path": request.url.path}})
         return problem_response(

@@ -59,6 +59,10 @@ async def post_locate(
     A door that cannot be located is still a 200 answer, with ``ok: false`` and ``error`` saying why;
     4xx answers are for requests that cannot be measured at all.
     """
+    form = await request.form()  # already parsed for the parameters above: no second read
+    if len(form.getlist("image")) > 1:
+        raise ProblemError(422, "several_images", "The form holds more than one 'image' part; send exactly one image "
+                                                  "per request.")
     data = await image.read()
     name = image.filename or "upload"
     state.metrics.in_flight.inc()

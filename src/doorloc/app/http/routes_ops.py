@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from importlib import resources
+from pathlib import PurePath
 from typing import Annotated
 
 from fastapi import APIRouter, Depends
@@ -56,7 +57,9 @@ async def metrics(state: Annotated[ServiceState, Depends(get_state)]) -> Respons
 )
 async def get_cell(state: Annotated[ServiceState, Depends(ready_state)]) -> CellInfo:
     assert state.cell is not None
-    return CellInfo(source=state.cell.source, cell=cell_to_dict(state.cell), **state.cell_ids())
+    # the file's name only: its absolute path tells a caller about the server's file system, not the cell
+    source = PurePath(state.cell.source).name if state.cell.source else None
+    return CellInfo(source=source, cell=cell_to_dict(state.cell), **state.cell_ids())
 
 
 @router.get("/", response_class=HTMLResponse, include_in_schema=False)

@@ -37,7 +37,7 @@ class CellInfo(BaseModel):
 
     cell_id: str = Field(description="content hash of the whole cell (camera, extrinsics, fixture, envelope, door)")
     calibration_id: str = Field(description="content hash of the camera calibration (K, distortion, image size)")
-    source: str | None = Field(None, description="path of the cell file")
+    source: str | None = Field(None, description="name of the cell file (without its folder)")
     cell: dict[str, Any] = Field(description="the cell in SPEC section 2 layout, camera inline")
 
 
