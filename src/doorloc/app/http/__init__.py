@@ -85,8 +85,7 @@ def create_app(
     app.include_router(routes_doors.router)
     app.mount("/static", StaticFiles(directory=STATIC_DIR), name="static")
     # add_middleware wraps from the inside out: RequestContext sees every request, including 413s.
-    app.add_middleware(LocateAdmission, admission=state, capacity=state.capacity,
-                       deadline_s=settings.request_deadline_s)
+    app.add_middleware(LocateAdmission, deadline_s=settings.request_deadline_s)
     app.add_middleware(BodySizeLimit, max_body_bytes=settings.max_upload_bytes)
     app.add_middleware(RequestContext, metrics=state.metrics)
     return app

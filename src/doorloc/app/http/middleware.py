@@ -86,21 +86,17 @@ class BodySizeLimit:
 
 
 class LocateAdmission:
-    """Bounded work for ``POST /v1/locate``, decided before a byte of the body is read.
+    """Deadline and media type for ``POST /v1/locate``, decided before a byte of the body is read.
 
     - a body that is not ``multipart/form-data`` is refused 415 (a raw ``image/png`` body included);
-    - at most ``capacity`` locate requests are admitted at once in this worker (the CPU slots plus a
-      bounded queue); one more answers 503 with ``Retry-After`` at once, and ``/readyz`` says
-      ``overloaded`` meanwhile;
-    - each admitted request gets a deadline (``scope["state"]["deadline"]``, monotonic seconds): a body
-      that has not arrived by then is cut off with 408 (slow clients), and the route answers 503 when no
-      CPU slot came free by then.
+    - each request gets a deadline (``scope["state"]["deadline"]``, monotonic seconds): a body that has not
+      arrived by then is cut off with 408 (slow or stalled clients hold no CPU slot and no queue place
+      meanwhile), and the route answers 503 Retry-After when its image could not get a CPU slot by then or
+      the worker's queue is full (:func:`doorloc.app.http.routes_locate`).
     """
 
-    def __init__(self, app: ASGIApp, admission: Any, capacity: int, deadline_s: float, path: str = "/v1/locate") -> None:
+    def __init__(self, app: ASGIApp, deadline_s: float, path: str = "/v1/locate") -> None:
         self.app = app
-        self.admission = admission  # has an int attribute 'admitted' (the ServiceState)
-        self.capacity = capacity
         self.deadline_s = deadline_s
         self.path = path
 
@@ -116,17 +112,8 @@ class LocateAdmission:
                 f"(curl -F image=@door.png), not a body of type '{ctype}'.",
             )
             return
-        if self.admission.admitted >= self.capacity:
-            await _send_problem(
-                scope, send, 503, "overloaded",
-                f"This worker is already measuring or queueing {self.admission.admitted} images (its limit); "
-                "retry after the number of seconds in Retry-After.",
-                headers=[(b"retry-after", b"2")],
-            )
-            return
         deadline = time.monotonic() + self.deadline_s
         scope.setdefault("state", {})["deadline"] = deadline
-        self.admission.admitted += 1
 
         async def receive_by_deadline() -> Message:
             left = deadline - time.monotonic()
@@ -140,8 +127,6 @@ class LocateAdmission:
             await self.app(scope, receive_by_deadline, send)
         except BodyTimeout as e:
             await _send_problem(scope, send, 408, "request_timeout", str(e.detail))
-        finally:
-            self.admission.admitted -= 1
 
 
 class BodyTimeout(StarletteHTTPException):

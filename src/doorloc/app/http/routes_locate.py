@@ -74,6 +74,7 @@ async def post_locate(
             fields = await anyio.to_thread.run_sync(_measure, data, name, state, choice, overlay, rapid)
         finally:
             state.limiter.release()
+            state.admitted -= 1
     except ProblemError as e:
         state.metrics.rejected_uploads.labels(e.code).inc()
         raise
@@ -90,12 +91,27 @@ async def post_locate(
 
 
 async def _cpu_slot(state: ServiceState, deadline: float | None) -> None:
-    """Wait for one of the worker's CPU slots until the request's deadline; 503 Retry-After when none came free."""
+    """Take a place in the worker's bounded queue and wait for a CPU slot until the request's deadline.
+
+    503 Retry-After at once when the queue is full, or when no slot came free by the deadline. On return
+    the caller holds a limiter token and a queue place (``state.admitted``) and must release both.
+    """
+    if state.overloaded:
+        raise ProblemError(
+            503, "overloaded",
+            f"This worker is already measuring or queueing {state.admitted} images (its limit); retry after the "
+            "number of seconds in Retry-After.",
+            headers={"Retry-After": "2"},
+        )
     left = (deadline - time.monotonic()) if deadline is not None else state.settings.request_deadline_s
+    state.admitted += 1
     try:
         with anyio.fail_after(max(left, 0.001)):
             await state.limiter.acquire()
-    except TimeoutError:
+    except BaseException as e:  # timed out, or the client went away: give the queue place back
+        state.admitted -= 1
+        if not isinstance(e, TimeoutError):
+            raise
         raise ProblemError(
             503, "overloaded",
             f"No CPU slot came free within the request deadline ({state.settings.request_deadline_s:g} s): this "

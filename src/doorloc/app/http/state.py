@@ -42,7 +42,7 @@ class ServiceState:
     keys: Any | None = None  # doorloc.app.access.KeyStore, on the store's database
     load_error: str | None = None
     limiter: anyio.CapacityLimiter = field(init=False)
-    #: locate requests admitted in this worker right now (running or queued; see LocateAdmission)
+    #: locate requests in this worker right now, running or waiting for a CPU slot (routes_locate._cpu_slot)
     admitted: int = 0
 
     def __post_init__(self) -> None:
