@@ -36,6 +36,7 @@ import hmac
 import re
 import secrets
 import threading
+import time
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from enum import StrEnum
@@ -44,7 +45,8 @@ from sqlalchemy import Engine, insert, select, update
 
 from doorloc.recipes.tables import ApiKeyRow
 
-__all__ = ["Role", "Principal", "CreatedKey", "KeyInfo", "KeyStore", "AccessKeyError", "role_allows", "LEGACY_KEY_NAME"]
+__all__ = ["Role", "Principal", "CreatedKey", "KeyInfo", "KeyStore", "AccessKeyError", "role_allows", "LEGACY_KEY_NAME",
+           "ANY_ACTIVE_TTL_S"]
 
 #: scrypt cost: 2**14 x 8 x 128 B = 16 MiB and ~10-50 ms per derivation (the interactive-login setting of RFC 7914)
 _SCRYPT = {"n": 2**14, "r": 8, "p": 1, "dklen": 32, "maxmem": 64 * 1024 * 1024}
@@ -52,6 +54,9 @@ _KEY_FORMAT = re.compile(r"^dlk_([0-9a-f]{12})_([A-Za-z0-9_-]{20,100})$")
 _NAME_FORMAT = re.compile(r"^[A-Za-z0-9][A-Za-z0-9 ._:@/-]{0,63}$")
 #: verified secrets remembered per KeyStore (bounded: a flood of distinct keys cannot grow memory)
 _CACHE_SIZE = 1024
+#: how long "are there any keys at all?" is remembered: an open (keyless) service starts demanding keys at most
+#: this long after the first one is created; revocation is not delayed (every presented key's row is read)
+ANY_ACTIVE_TTL_S = 2.0
 #: the name requests carry when they used the legacy single key (DOORLOC_API_KEY)
 LEGACY_KEY_NAME = "DOORLOC_API_KEY"
 
@@ -126,6 +131,7 @@ class KeyStore:
         self.engine = engine
         self._verified: dict[str, bytes] = {}
         self._lock = threading.Lock()
+        self._any_active: tuple[float, bool] | None = None  # (monotonic time, answer)
 
     def create(self, name: str, role: Role | str) -> CreatedKey:
         """Make a key for ``name`` with ``role``; its secret is in the answer and nowhere else."""
@@ -137,6 +143,7 @@ class KeyStore:
         secret = f"dlk_{key_id}_{secrets.token_urlsafe(32)}"
         salt = secrets.token_bytes(16)
         with self.engine.begin() as conn:
+            self._any_active = None
             conn.execute(insert(ApiKeyRow).values(
                 key_id=key_id, name=name, role=role.value, salt=salt.hex(), key_hash=_derive(secret, salt).hex(),
             ))
@@ -161,15 +168,32 @@ class KeyStore:
             if not ids:
                 raise AccessKeyError(f"no active key named {name_or_id!r}; see doorloc keys list")
             conn.execute(update(ApiKeyRow).where(ApiKeyRow.key_id.in_(ids)).values(revoked_at=datetime.now(UTC)))
+            self._any_active = None
         with self._lock:
             for i in ids:
                 self._verified.pop(i, None)
         return ids
 
-    def any_active(self) -> bool:
-        """True when at least one key is not revoked (the service then demands a key)."""
+    def any_active(self, max_age_s: float = 0.0) -> bool:
+        """True when at least one key is not revoked (the service then demands a key).
+
+        ``max_age_s`` > 0 accepts an answer read that recently (the service asks on every keyless request).
+        """
+        now = time.monotonic()
+        known = self.cached_any_active(max_age_s)
+        if known is not None:
+            return known
         with self.engine.connect() as conn:
-            return conn.scalar(select(ApiKeyRow.id).where(ApiKeyRow.revoked_at.is_(None)).limit(1)) is not None
+            answer = conn.scalar(select(ApiKeyRow.id).where(ApiKeyRow.revoked_at.is_(None)).limit(1)) is not None
+        self._any_active = (now, answer)
+        return answer
+
+    def cached_any_active(self, max_age_s: float) -> bool | None:
+        """The remembered :meth:`any_active` answer when at most ``max_age_s`` old, else None (no I/O)."""
+        cached = self._any_active
+        if cached is not None and time.monotonic() - cached[0] <= max_age_s:
+            return cached[1]
+        return None
 
     def authenticate(self, presented: str) -> Principal | None:
         """The key's holder, or None when ``presented`` is not an active key."""

@@ -12,7 +12,7 @@ import anyio.to_thread
 from fastapi import Depends, Request, Security
 from fastapi.security import APIKeyHeader
 
-from doorloc.app.access import LEGACY_KEY_NAME, Principal, Role, role_allows
+from doorloc.app.access import ANY_ACTIVE_TTL_S, LEGACY_KEY_NAME, Principal, Role, role_allows
 from doorloc.app.http.problems import ProblemError
 from doorloc.app.http.state import ServiceState
 
@@ -55,7 +55,11 @@ async def _principal(state: ServiceState, given: str | None) -> Principal:
                             "(ask the cell's administrator for it).")
     if state.keys is None:
         raise _service_not_ready(state)
-    if await call_store(state.keys.any_active):
+    # the answer is remembered ANY_ACTIVE_TTL_S: no database round trip (nor thread hop) on every request
+    keys_exist = state.keys.cached_any_active(ANY_ACTIVE_TTL_S)
+    if keys_exist is None:
+        keys_exist = await call_store(state.keys.any_active)
+    if keys_exist:
         raise _unauthorized("This service needs an API key: send it in the X-API-Key header "
                             "(ask the cell's administrator for it).")
     return ANONYMOUS
