@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import multiprocessing
+import os
 import socket
 import statistics
 import struct
@@ -58,8 +59,8 @@ def slow_upload(base: str) -> int:
     return int(data.split(b" ", 2)[1]) if data.startswith(b"HTTP/1.1 ") else -1
 
 
-def hostile_client(kind: str, base: str, stop: threading.Event, statuses: Counter, lock: threading.Lock) -> None:
-    bombs = {"bomb16": png_bomb(7000, 7000, 16, 6), "bomb900mp": png_bomb(30000, 30000, 8, 0)}
+def hostile_client(kind: str, base: str, stop: threading.Event, statuses: Counter, lock: threading.Lock,
+                   bombs: dict[str, bytes]) -> None:
     with httpx.Client(base_url=base, timeout=120) as client:
         for _ in range(100_000):  # bounded; the phase ends it through `stop`
             if stop.is_set():
@@ -80,15 +81,26 @@ def hostile_client(kind: str, base: str, stop: threading.Event, statuses: Counte
                 statuses[f"{kind}:{status}"] += 1
 
 
-def hostile_process(base: str, n: int, stop, out) -> None:  # noqa: ANN001 - multiprocessing Event / Queue
+def hostile_process(base: str, n: int, stop, out, running, nice: int = 0) -> None:  # noqa: ANN001 - multiprocessing
     """The hostile clients, in their own process: in the measuring process their threads would hold the GIL
-    and slow the measuring client itself (on a plant network they are other machines)."""
+    and slow the measuring client itself (on a plant network they are other machines). ``nice`` > 0 lowers
+    their CPU priority, so on a one-machine benchmark their own CPU use steals less from the server."""
+    if nice:
+        os.nice(nice)
     kinds = ["bomb16", "bomb900mp", "slow", "garbage", "raw"]
+    bombs = {"bomb16": png_bomb(7000, 7000, 16, 6), "bomb900mp": png_bomb(30000, 30000, 8, 0)}  # built once
     lock, statuses, stop_t = threading.Lock(), Counter(), threading.Event()
-    threads = [threading.Thread(target=hostile_client, args=(kinds[k % len(kinds)], base, stop_t, statuses, lock))
+    threads = [threading.Thread(target=hostile_client, args=(kinds[k % len(kinds)], base, stop_t, statuses, lock,
+                                                              bombs))
                for k in range(n)]
     for t in threads:
         t.start()
+    for _ in range(600):  # the measurement starts once hostile answers come back (bounded wait)
+        with lock:
+            if sum(statuses.values()) >= n:
+                break
+        time.sleep(0.05)
+    running.set()
     stop.wait(600)
     stop_t.set()
     for t in threads:
@@ -126,6 +138,7 @@ def main() -> None:
     ap.add_argument("--rounds", type=int, default=3, help="alternating unloaded/loaded blocks")
     ap.add_argument("--hostile", type=int, default=20)
     ap.add_argument("--writers", type=int, default=50)
+    ap.add_argument("--hostile-nice", type=int, default=0, help="nice value of the hostile clients' process")
     args = ap.parse_args()
 
     pngs = rendered_pngs(4)
@@ -135,19 +148,26 @@ def main() -> None:
         # unloaded and loaded blocks alternate, so drifting load from other programs on the machine falls on both
         ctx = multiprocessing.get_context("spawn")
         lat0, lat1, err0, err1, statuses, peak, ratios = [], [], [], [], Counter(), 0.0, []
+        window, sent_in_window = 0.0, 0
         for _ in range(args.rounds):
             u, e = normal_latencies(base, pngs, args.normal)
             lat0 += u
             err0 += e
-            stop, out = ctx.Event(), ctx.Queue()
-            hostile = ctx.Process(target=hostile_process, args=(base, args.hostile, stop, out))
+            stop, out, running = ctx.Event(), ctx.Queue(), ctx.Event()
+            hostile = ctx.Process(target=hostile_process,
+                                  args=(base, args.hostile, stop, out, running, args.hostile_nice))
             hostile.start()
-            time.sleep(2.0)  # let every hostile client get an upload in flight
+            running.wait(120)  # every hostile client is sending
+            time.sleep(0.5)
+            window0 = time.monotonic()
             peak = max(peak, rss_mb(pid))
             h, e = normal_latencies(base, pngs, args.normal)
             peak = max(peak, rss_mb(pid))
             stop.set()
-            statuses += Counter(out.get(timeout=120))
+            window += time.monotonic() - window0
+            got = Counter(out.get(timeout=120))
+            sent_in_window += sum(got.values())
+            statuses += got
             hostile.join(timeout=60)
             lat1 += h
             err1 += e
@@ -159,9 +179,12 @@ def main() -> None:
             ratio = statistics.median(lat1) / statistics.median(lat0)
             print(f"median ratio loaded/unloaded: {ratio:.2f} (goal <= 2); per round: "
                   + ", ".join(f"{r:.2f}" for r in ratios))
-        print("hostile answers:", ", ".join(f"{k} x{v}" for k, v in sorted(statuses.items())))
+        print(f"hostile clients: {args.hostile} in flight, nice {args.hostile_nice}, about "
+              f"{sent_in_window / max(window, 1e-9):.0f} hostile requests/s (upper bound); answers:", ", ".join(f"{k} x{v}" for k, v in sorted(statuses.items())))
         print(f"server RSS (all processes) during the hostile phase: peak {peak:.0f} MB")
 
+        if args.writers < 1:
+            return
         assert httpx.put(f"{base}/v1/doors/BENCH-1", json=RECIPE, timeout=60).status_code == 200
         before = len(httpx.get(f"{base}/v1/doors/BENCH-1/history", timeout=60).json()["versions"])
 

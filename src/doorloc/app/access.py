@@ -31,6 +31,7 @@ True
 
 from __future__ import annotations
 
+import builtins
 import hashlib
 import hmac
 import re
@@ -149,14 +150,14 @@ class KeyStore:
             ))
         return CreatedKey(key_id, name, role, secret)
 
-    def list(self) -> list[KeyInfo]:
+    def list(self) -> builtins.list[KeyInfo]:
         """Every key, revoked ones included, oldest first."""
         with self.engine.connect() as conn:
             rows = conn.execute(select(ApiKeyRow.key_id, ApiKeyRow.name, ApiKeyRow.role, ApiKeyRow.created_at,
                                        ApiKeyRow.revoked_at).order_by(ApiKeyRow.id))
             return [KeyInfo(r.key_id, r.name, Role(r.role), r.created_at, r.revoked_at) for r in rows]
 
-    def revoke(self, name_or_id: str) -> list[str]:
+    def revoke(self, name_or_id: str) -> builtins.list[str]:
         """Revoke the active keys named ``name_or_id`` (or the one with that key id); their key ids.
 
         Raises AccessKeyError when no active key matches.

@@ -461,11 +461,11 @@ def run_local(
         exhausted = False
         while True:
             while not exhausted and len(pending) < 2 * workers:
-                it = next(queue, None)
-                if it is None:
+                nxt = next(queue, None)
+                if nxt is None:
                     exhausted = True
                     break
-                pending.add(pool.submit(locate_item, it, cell, locate_fn, limits))
+                pending.add(pool.submit(locate_item, nxt, cell, locate_fn, limits))
             if not pending:
                 return
             finished, pending = wait(pending, return_when=FIRST_COMPLETED)

@@ -20,6 +20,7 @@ True
 
 from __future__ import annotations
 
+import builtins
 import hashlib
 import json
 import os
@@ -354,7 +355,7 @@ class RecipeStore:
             ).one_or_none()
             return None if row is None else (_recipe_from_row(row), row.version)
 
-    def history(self, door_id: str) -> list[RecipeVersion]:
+    def history(self, door_id: str) -> builtins.list[RecipeVersion]:
         """Every recorded change of ``door_id``, oldest first (empty when the door never existed)."""
         with self.engine.connect() as conn:
             rows = conn.execute(select(RecipeVersionRow).where(RecipeVersionRow.door_id == door_id)
@@ -371,7 +372,7 @@ class RecipeStore:
                                      [RecipeChange(**c) for c in (r.changes or [])], recipe))
         return out
 
-    def preview(self, recipes: Iterable[DoorRecipe]) -> dict[str, list[RecipeChange] | None]:
+    def preview(self, recipes: Iterable[DoorRecipe]) -> dict[str, builtins.list[RecipeChange] | None]:
         """What writing ``recipes`` would change: per door id, None (new door), [] (unchanged) or the changes."""
         recipes = list(recipes)
         ids = [r.door_id for r in recipes]
@@ -380,7 +381,7 @@ class RecipeStore:
             for k in range(0, len(ids), _CHUNK):
                 stored.update(conn.execute(select(DoorRow.door_id, DoorRow.content_sha256)
                                            .where(DoorRow.door_id.in_(ids[k:k + _CHUNK]))).all())
-        out: dict[str, list[RecipeChange] | None] = {}
+        out: dict[str, builtins.list[RecipeChange] | None] = {}
         for r in recipes:
             if r.door_id not in stored:
                 out[r.door_id] = None
@@ -390,7 +391,7 @@ class RecipeStore:
                 out[r.door_id] = recipe_changes(self.get(r.door_id), r)
         return out
 
-    def list(self, *, limit: int | None = None, offset: int = 0) -> list[RecipeSummary]:
+    def list(self, *, limit: int | None = None, offset: int = 0) -> builtins.list[RecipeSummary]:
         """Summaries of the stored recipes, ordered by door id."""
         counts = select(HingeRow.door_pk, func.count().label("n")).group_by(HingeRow.door_pk).subquery()
         q = (
@@ -405,7 +406,7 @@ class RecipeStore:
         with self.engine.connect() as conn:
             return [RecipeSummary(*row) for row in conn.execute(q)]
 
-    def door_ids(self) -> list[str]:
+    def door_ids(self) -> builtins.list[str]:
         """Every stored door id, sorted."""
         with self.engine.connect() as conn:
             return list(conn.scalars(select(DoorRow.door_id).order_by(DoorRow.door_id)))
@@ -475,14 +476,15 @@ class RecipeStore:
         recipes = list(recipes)
         ids = [r.door_id for r in recipes]
         if len(set(ids)) != len(ids):
-            seen: set[str] = set()
-            dup = sorted({i for i in ids if i in seen or seen.add(i)})
+            from collections import Counter
+
+            dup = sorted(i for i, n in Counter(ids).items() if n > 1)
             raise ValueError(f"door ids given more than once: {', '.join(dup[:10])}")
         if not recipes:
             return {}
         return self._write(lambda conn: self._put_rows(conn, recipes, by[:64]))
 
-    def _put_rows(self, conn: Connection, recipes: list[DoorRecipe], by: str) -> dict[str, int]:
+    def _put_rows(self, conn: Connection, recipes: builtins.list[DoorRecipe], by: str) -> dict[str, int]:
         ids = sorted(r.door_id for r in recipes)
         if conn.dialect.name == "postgresql":  # one writer per door at a time, in a fixed order (no deadlock)
             for door_id in ids:
@@ -491,14 +493,14 @@ class RecipeStore:
         last: dict[str, int] = {}
         for k in range(0, len(ids), _CHUNK):
             chunk = ids[k:k + _CHUNK]
-            for pk, door_id, version, sha in conn.execute(select(
+            for row_pk, door_id, version, sha in conn.execute(select(
                     DoorRow.id, DoorRow.door_id, DoorRow.version, DoorRow.content_sha256).where(DoorRow.door_id.in_(chunk))):
-                current[door_id] = (pk, version, sha)
+                current[door_id] = (row_pk, version, sha)
             for door_id, v in conn.execute(select(RecipeVersionRow.door_id, func.max(RecipeVersionRow.version))
                                            .where(RecipeVersionRow.door_id.in_(chunk)).group_by(RecipeVersionRow.door_id)):
                 last[door_id] = int(v)
         versions: dict[str, int] = {}
-        changed: list[tuple[DoorRecipe, str]] = []
+        changed: builtins.list[tuple[DoorRecipe, str]] = []
         for r in recipes:
             sha = recipe_sha256(r)
             cur = current.get(r.door_id)
@@ -535,7 +537,7 @@ class RecipeStore:
         return versions
 
     @staticmethod
-    def _stored_documents(conn: Connection, door_ids: list[str]) -> dict[str, dict]:
+    def _stored_documents(conn: Connection, door_ids: builtins.list[str]) -> dict[str, dict]:
         """The recipe JSON of each door's newest history entry (for the change list of the next version)."""
         out: dict[str, dict] = {}
         for k in range(0, len(door_ids), _CHUNK):

@@ -26,7 +26,7 @@ def problem_400_body(msg: str) -> bytes:
 try:
     from uvicorn.protocols.http.httptools_impl import HttpToolsProtocol as _Base
 
-    class ProblemJsonHTTP(_Base):  # type: ignore[misc]
+    class ProblemJsonHTTP(_Base):
         """HttpToolsProtocol whose own 400 answers are problem+json."""
 
         def send_400_response(self, msg: str) -> None:
@@ -43,7 +43,7 @@ except ImportError:  # pragma: no cover - uvicorn[standard] brings httptools; pl
     import h11
     from uvicorn.protocols.http.h11_impl import H11Protocol as _H11Base
 
-    class ProblemJsonHTTP(_H11Base):  # type: ignore[misc,no-redef]
+    class ProblemJsonHTTP(_H11Base):  # type: ignore[no-redef]
         """H11Protocol whose own 400 answers are problem+json."""
 
         def send_400_response(self, msg: str) -> None:

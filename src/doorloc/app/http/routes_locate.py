@@ -171,6 +171,7 @@ async def _door_choice(
 def _measure(data: bytes, name: str, state: ServiceState, choice: DoorChoice, overlay: bool, rapid: bool) -> dict:
     from doorloc.vision.imageio import ImageDecodeError, decode_image
 
+    assert state.cell is not None  # the route depends on ready_state
     try:
         image = decode_image(data, name=name)
     except ImageDecodeError as e:

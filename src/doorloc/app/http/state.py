@@ -38,7 +38,7 @@ class ServiceState:
     metrics: ServiceMetrics
     locate_fn: LocateFn | None = None
     cell: Cell | None = None
-    store: Any | None = None  # doorloc.recipes.store.RecipeStore
+    store: Any = None  # doorloc.recipes.store.RecipeStore (None until loaded; routes take it after ready_state)
     keys: Any | None = None  # doorloc.app.access.KeyStore, on the store's database
     load_error: str | None = None
     limiter: anyio.CapacityLimiter = field(init=False)
