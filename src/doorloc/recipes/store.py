@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import builtins
 import hashlib
-import json
 import os
 import random
 import threading
@@ -221,8 +220,8 @@ class RecipeVersion:
 
 
 def recipe_sha256(r: DoorRecipe) -> str:
-    """Hash of a recipe's content (canonical JSON): equal recipes, equal hash."""
-    return hashlib.sha256(json.dumps(r.model_dump(mode="json"), sort_keys=True, separators=(",", ":")).encode()).hexdigest()
+    """Hash of a recipe's content: equal recipes, equal hash (pydantic's JSON: fields in the model's order)."""
+    return hashlib.sha256(r.model_dump_json().encode()).hexdigest()
 
 
 def _flatten(doc: Any, prefix: str = "") -> dict[str, Any]:
@@ -500,28 +499,27 @@ class RecipeStore:
                                            .where(RecipeVersionRow.door_id.in_(chunk)).group_by(RecipeVersionRow.door_id)):
                 last[door_id] = int(v)
         versions: dict[str, int] = {}
-        changed: builtins.list[tuple[DoorRecipe, str]] = []
+        changed: builtins.list[tuple[DoorRecipe, str, dict]] = []
         for r in recipes:
             sha = recipe_sha256(r)
             cur = current.get(r.door_id)
             if cur is not None and cur[2] == sha:
                 versions[r.door_id] = cur[1]  # identical: no new version
             else:
-                changed.append((r, sha))
+                changed.append((r, sha, r.model_dump(mode="json")))
         if not changed:
             return versions
-        previous = self._stored_documents(conn, [r.door_id for r, _ in changed if r.door_id in current])
-        replaced = [current[r.door_id][0] for r, _ in changed if r.door_id in current]
+        previous = self._stored_documents(conn, [r.door_id for r, _, _ in changed if r.door_id in current])
+        replaced = [current[r.door_id][0] for r, _, _ in changed if r.door_id in current]
         for k in range(0, len(replaced), _CHUNK):
             # the replaced doors' hinges in one statement (SQLite's per-row ON DELETE CASCADE is slow), then the doors
             conn.execute(delete(HingeRow).where(HingeRow.door_pk.in_(replaced[k:k + _CHUNK])))
             conn.execute(delete(DoorRow).where(DoorRow.id.in_(replaced[k:k + _CHUNK])))
         history = []
         door_rows = []
-        for r, sha in changed:
+        for r, sha, doc in changed:
             v = max(last.get(r.door_id, 0), current.get(r.door_id, (0, 0, None))[1]) + 1
             versions[r.door_id] = v
-            doc = r.model_dump(mode="json")
             door_rows.append({**_door_values(r), "version": v, "content_sha256": sha, "updated_by": by})
             old = previous.get(r.door_id)
             history.append({
@@ -531,7 +529,7 @@ class RecipeStore:
             })
         result = conn.execute(insert(DoorRow).returning(DoorRow.id, DoorRow.door_id), door_rows)
         pk = {door_id: door_pk for door_pk, door_id in result}
-        hinge_rows = [_hinge_values(h, pk[r.door_id], i + 1) for r, _ in changed for i, h in enumerate(r.hinges)]
+        hinge_rows = [_hinge_values(h, pk[r.door_id], i + 1) for r, _, _ in changed for i, h in enumerate(r.hinges)]
         conn.execute(insert(HingeRow), hinge_rows)
         conn.execute(insert(RecipeVersionRow), history)
         return versions
