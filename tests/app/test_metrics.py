@@ -27,3 +27,17 @@ def test_internal_errors_are_not_refusals(cell, store):
     assert 'doorloc_locate_results_total{outcome="internal_error"} 1.0' in text
     assert 'doorloc_locate_refusals_total{reason="internal_error"}' not in text
     assert "doorloc_worker_resident_memory_bytes" in text and "doorloc_worker_cpu_seconds" in text
+
+
+def test_readyz_says_overloaded_while_the_queue_is_full(client):
+    state = client.app.state.service
+    assert client.get("/readyz").status_code == 200
+    state.admitted = state.capacity
+    try:
+        r = client.get("/readyz")
+        assert r.status_code == 503 and r.json()["code"] == "overloaded" and r.headers["retry-after"]
+        r = client.post("/v1/locate", files={"image": ("a.png", png_bytes(np.full((8, 8), 9, np.uint8)), "image/png")})
+        assert r.status_code == 503 and r.json()["code"] == "overloaded" and int(r.headers["retry-after"]) > 0
+    finally:
+        state.admitted = 0
+    assert client.get("/readyz").status_code == 200
