@@ -211,7 +211,7 @@ def test_overload_answers_503_retry_after(tight, cell):
     # 1 CPU slot + a queue of 2: 9 refusals when all 12 arrive before one is measured (fewer on a busy machine)
     assert len(overloaded) >= 1, statuses
     for d in overloaded:
-        assert b"retry-after: 2" in d.lower() and b'"code":"overloaded"' in d.replace(b" ", b"")
+        assert b"retry-after: " in d.lower() and b'"code":"overloaded"' in d.replace(b" ", b"")
     deadline = time.monotonic() + 30
     while time.monotonic() < deadline and httpx.get(f"{tight}/readyz", timeout=30).status_code != 200:
         time.sleep(0.1)
