@@ -87,6 +87,7 @@ def database_url(source: Any = None) -> str:
     """
     if source is None:
         source = os.environ
+    url: Any
     if isinstance(source, str):
         url = source
     elif isinstance(source, Mapping):
