@@ -117,3 +117,20 @@ def test_a_bug_inside_locate_is_logged_at_error_level_with_an_incident_id(cell, 
     assert incident in res.error
     rec = [r for r in caplog.records if r.levelno == logging.ERROR]
     assert rec and rec[0].exc_info is not None and rec[0].fields["incident_id"] == incident
+
+
+def test_cli_locate_refuses_a_fifo_and_a_bomb_without_reading_or_decoding(tmp_path):
+    import os
+    import struct
+    import zlib
+
+    fifo = tmp_path / "pipe.png"
+    os.mkfifo(fifo)
+    r = CliRunner().invoke(cli_app, ["locate", str(fifo), "--cell", str(CELL_PATH)])
+    assert r.exit_code == 2 and "not a regular file" in r.output
+    ihdr = struct.pack(">IIBBBBB", 7000, 7000, 16, 6, 0, 0, 0)
+    bomb = tmp_path / "bomb.png"
+    bomb.write_bytes(b"\x89PNG\r\n\x1a\n" + struct.pack(">I", 13) + b"IHDR" + ihdr
+                     + struct.pack(">I", zlib.crc32(b"IHDR" + ihdr)))
+    r = CliRunner().invoke(cli_app, ["locate", str(bomb), "--cell", str(CELL_PATH)])
+    assert r.exit_code == 2 and "392 MB decoded" in r.output

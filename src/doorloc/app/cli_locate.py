@@ -62,7 +62,7 @@ def register(app: typer.Typer) -> None:
         """Locate the door in one image and print the result JSON (exit 0 located, 1 refused, 2 bad input)."""
         from doorloc.app.answer import answer_image
         from doorloc.cell import CellFileError, load_cell
-        from doorloc.vision.imageio import ImageDecodeError, read_image
+        from doorloc.vision.imageio import ImageDecodeError, decode_image
         from doorloc.vision.locate import LocateTrace
 
         try:
@@ -73,8 +73,14 @@ def register(app: typer.Typer) -> None:
             choice = _door_choice(cell, door_width, door_thickness, door_height, arris, door_id, db)
         except (ValueError, RuntimeError) as e:
             raise fail(str(e), EXIT_USAGE) from None
+        from doorloc.app.batch import FileLimits, read_file_checked
+
+        # the batch's checks: no waiting on a FIFO, no decoding of an image that declares too many pixels
+        data, _code, why = read_file_checked(str(image), FileLimits())
+        if data is None:
+            raise fail(why, EXIT_USAGE)
         try:
-            img = read_image(image)
+            img = decode_image(data, name=str(image))
         except ImageDecodeError as e:
             raise fail(str(e), EXIT_USAGE) from None
         trace = LocateTrace()
