@@ -2,24 +2,31 @@
 # Run:   docker run -p 8000:8000 -v /path/to/cell:/etc/doorloc:ro -v doorloc-data:/var/lib/doorloc doorloc
 # The cell file (and the calibration it names) is mounted read-only; the recipe database (SQLite by
 # default) lives on a volume. Set DOORLOC_DATABASE_URL for PostgreSQL and DOORLOC_API_KEY to require a key.
-# torch/kornia are an optional extra ("doorloc[torch]") and are not needed by the service.
+# Versions come from the lock (requirements/lock-service-py311.txt, the same versions as CI's lock);
+# torch/kornia are not in it: the service does not need them.
+# No container engine runs on the development machines: scripts/ci/container_check.py (run by .ci/run)
+# performs this file's install, CMD and HEALTHCHECK outside a container, so the file cannot silently rot.
 
+# --- build: a virtual environment made from the lock ---
 FROM python:3.11-slim-bookworm AS build
-ENV PIP_NO_CACHE_DIR=1 PIP_DISABLE_PIP_VERSION_CHECK=1
+ENV VIRTUAL_ENV=/opt/doorloc
 WORKDIR /src
+COPY requirements/lock-service-py311.txt requirements/
+COPY scripts/install-venv scripts/
 COPY pyproject.toml README.md ./
-COPY src ./src
-RUN python -m pip wheel --wheel-dir /wheels ".[postgres]"
+COPY src src/
+RUN scripts/install-venv "$VIRTUAL_ENV" requirements/lock-service-py311.txt
 
+# --- runtime: the virtual environment only, a non-root user, a health check ---
 FROM python:3.11-slim-bookworm
-ENV PIP_NO_CACHE_DIR=1 PIP_DISABLE_PIP_VERSION_CHECK=1 \
+ENV VIRTUAL_ENV=/opt/doorloc
+ENV PATH=/opt/doorloc/bin:$PATH \
     PYTHONDONTWRITEBYTECODE=1 PYTHONUNBUFFERED=1 \
     DOORLOC_CELL=/etc/doorloc/cell.yaml \
     DOORLOC_DATABASE_URL=sqlite:////var/lib/doorloc/recipes.db \
     OMP_NUM_THREADS=1
 RUN useradd --system --uid 10001 --home-dir /var/lib/doorloc --create-home doorloc
-COPY --from=build /wheels /wheels
-RUN python -m pip install --no-index --find-links /wheels "doorloc[postgres]" && rm -rf /wheels
+COPY --from=build /opt/doorloc /opt/doorloc
 USER doorloc
 WORKDIR /var/lib/doorloc
 EXPOSE 8000

@@ -29,9 +29,10 @@ import cv2
 import numpy as np
 
 import doorloc.calib.detect as detect_mod
-from doorloc.calib.calibrate import CANDIDATES_BY_NAME, View, _pose, _project, calibrate_views, fit_model
+from doorloc.calib.calibrate import CANDIDATES_BY_NAME, View, _pose, _project, fit_model
 from doorloc.calib.camera import CameraModel
-from doorloc.calib.detect import Chessboard, detect_chessboard, scan_images
+from doorloc.calib.detect import Chessboard
+from doorloc.calib.folder import calibrate_folder, detect_views
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 
@@ -41,13 +42,8 @@ def load(folder: Path, pattern: str):
     return [(p.name, cv2.imread(str(p), cv2.IMREAD_GRAYSCALE), None) for p in files]
 
 
-def views_of(images, board, **kw):
-    out = []
-    for name, im, _ in images:
-        d = detect_chessboard(im, board, **kw)
-        if d is not None:
-            out.append(View(name, d.object_points(board), d.corners_px, d.ids))
-    return out
+def views_of(images, board, refine: bool = True):
+    return detect_views(images, board, refine=refine).views
 
 
 def rms_with_model(camera: CameraModel, views) -> float:
@@ -70,19 +66,19 @@ def summary(result) -> str:
             f"{c.observed_radius_px:.0f} px\n    dist {np.array2string(c.dist_coeffs, precision=5)}")
 
 
-def detect_and_calibrate(images, board):
-    """Scan ``images`` for ``board`` and calibrate the product's way; returns (scan, views, result, seconds)."""
+def detect_and_calibrate(folder: Path, glob: str, board):
+    """Detect and calibrate as ``doorloc calibrate`` does (:func:`calibrate_folder`); returns (scan, views, result, s)."""
     t = time.perf_counter()
-    scan = scan_images(images, board)
-    views = [View(n, d.object_points(board), d.corners_px, d.ids) for n, d in scan.detections.items()]
-    return scan, views, calibrate_views(views, scan.image_size), time.perf_counter() - t
+    outcome = calibrate_folder(folder, board, glob=glob)
+    d = outcome.detected
+    return d.scan, d.views, outcome.result, time.perf_counter() - t
 
 
 def opencv_left() -> None:
     print("== opencv-left (published: RMS 0.393 px, fx = fy = 535.916, cx 342.283, cy 235.571, fixed aspect)")
     board = Chessboard(9, 6, 25.0)
     images = load(DATA / "opencv-left", "left*.jpg")
-    scan, views, result, dt = detect_and_calibrate(images, board)
+    scan, views, result, dt = detect_and_calibrate(DATA / "opencv-left", "left*.jpg", board)
     c = result.camera
     print(f"  detected {len(scan.detections)}/{len(images)} boards ({', '.join(sorted({d.method for d in scan.detections.values()}))});"
           f" detection + calibration {dt:.1f} s")
@@ -110,7 +106,7 @@ def bouguet() -> None:
           " +- are ~3 sigma)")
     board = Chessboard(13, 12, 30.0)
     images = load(DATA / "bouguet-calib-example", "Image*.png")
-    scan, views, result, dt = detect_and_calibrate(images, board)
+    scan, views, result, dt = detect_and_calibrate(DATA / "bouguet-calib-example", "Image*.png", board)
     c = result.camera
     print(f"  detected {len(scan.detections)}/{len(images)} boards; detection + calibration {dt:.1f} s; "
           f"{len(result.rejections)} corners rejected")

@@ -40,7 +40,8 @@ from doorloc.calib.calibrate import (  # noqa: E402
     projection_difference,
 )
 from doorloc.calib.coverage import board_tilts_deg, corner_coverage, thin_cells  # noqa: E402
-from doorloc.calib.detect import CharucoSpec, Chessboard, scan_images  # noqa: E402
+from doorloc.calib.detect import CharucoSpec, Chessboard  # noqa: E402
+from doorloc.calib.folder import calibrate_detected, detect_views  # noqa: E402
 from doorloc.sim.boards import CharucoBoard, Checkerboard  # noqa: E402
 from doorloc.sim.effects import Effects  # noqa: E402
 
@@ -51,7 +52,8 @@ def run(board_spec, sim_board, seed: int, n_views: int, true):
     t0 = time.perf_counter()
     imgs = render_views(true, sim_board, n_views, seed=seed, effects=EFFECTS)
     t1 = time.perf_counter()
-    scan = scan_images([(n, im, None) for n, im, _ in imgs], board_spec)
+    detected = detect_views([(n, im, None) for n, im, _ in imgs], board_spec)
+    scan, views = detected.scan, detected.views
     truth = {n: c for n, _, c in imgs}
     errs = []
     for n, d in scan.detections.items():
@@ -62,9 +64,8 @@ def run(board_spec, sim_board, seed: int, n_views: int, true):
             dd = np.linalg.norm(d.corners_px[:, None] - tc[None], axis=2)
             errs.append(d.corners_px - tc[dd.argmin(axis=1)])
     e = np.concatenate(errs)
-    views = [View(n, d.object_points(board_spec), d.corners_px, d.ids) for n, d in scan.detections.items()]
     t2 = time.perf_counter()
-    res = calibrate_views(views, true.image_size)
+    res = calibrate_detected(detected).result
     t3 = time.perf_counter()
     c = res.camera
     pd = projection_difference(c, true, pixels_within(c, c.observed_radius_px))

@@ -273,6 +273,15 @@ def parse_cell(
         cd = _CellDoc.model_validate(doc)
     except ValidationError as e:
         raise CellFileError(_explain(e, source)) from None
+    if cd.robot is not None:
+        # the robot: section has its own strict model (doorloc.robot.section); check it here so a typo
+        # in it is an error of the cell file like any other
+        from doorloc.robot.section import RobotSectionError, robot_section_from_doc
+
+        try:
+            robot_section_from_doc(cd.robot, source)
+        except RobotSectionError as e:
+            raise CellFileError(str(e)) from None
     cam_doc = cd.camera
     try:
         K = dist = size = None

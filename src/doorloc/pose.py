@@ -26,6 +26,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 __all__ = ["DoorPose", "door_to_cell", "cell_to_door", "yaw_rotation_matrix"]
 
@@ -66,8 +67,7 @@ def yaw_rotation_matrix(yaw_deg: float) -> np.ndarray:
     >>> np.round(R @ [1.0, 0.0, 0.0], 12).tolist()
     [0.0, 0.0, 1.0]
     """
-    c, s = math.cos(math.radians(yaw_deg)), math.sin(math.radians(yaw_deg))
-    return np.array([[c, 0.0, -s], [0.0, 1.0, 0.0], [s, 0.0, c]])
+    return Rotation.from_euler("y", -yaw_deg, degrees=True).as_matrix()
 
 
 def door_to_cell(points_door: np.ndarray, pose: DoorPose, face_y: float = 0.0) -> np.ndarray:
@@ -93,21 +93,15 @@ def door_to_cell(points_door: np.ndarray, pose: DoorPose, face_y: float = 0.0) -
     [[-99.0, 5.0, 2.0]]
     """
     p = np.asarray(points_door, dtype=float)
-    c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
-    out = np.empty_like(p)
-    out[..., 0] = pose.x_mm + p[..., 0] * c - p[..., 2] * s
-    out[..., 1] = p[..., 1] + face_y
-    out[..., 2] = pose.z_mm + p[..., 0] * s + p[..., 2] * c
-    return out
+    return p @ yaw_rotation_matrix(pose.yaw_deg).T + _shift(pose, face_y)
 
 
 def cell_to_door(points_cell: np.ndarray, pose: DoorPose, face_y: float = 0.0) -> np.ndarray:
     """Inverse of :func:`door_to_cell`. Shapes ``(..., 3) -> (..., 3)``, mm."""
     p = np.asarray(points_cell, dtype=float)
-    c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
-    dx, dz = p[..., 0] - pose.x_mm, p[..., 2] - pose.z_mm
-    out = np.empty_like(p)
-    out[..., 0] = dx * c + dz * s
-    out[..., 1] = p[..., 1] - face_y
-    out[..., 2] = -dx * s + dz * c
-    return out
+    return (p - _shift(pose, face_y)) @ yaw_rotation_matrix(pose.yaw_deg)
+
+
+def _shift(pose: DoorPose, face_y: float) -> np.ndarray:
+    """Where the door frame's origin lands in the cell frame, mm, shape (3,)."""
+    return np.array([pose.x_mm, face_y, pose.z_mm])

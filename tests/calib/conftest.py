@@ -5,7 +5,6 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-import cv2
 import pytest
 
 DATA = Path(__file__).parents[2].parent / "shared" / "data"
@@ -15,33 +14,36 @@ BOUGUET = DATA / "bouguet-calib-example"
 sys.path.insert(0, str(Path(__file__).parent))  # rendered_views helper
 
 
-def _views(folder: Path, pattern: str, board):
-    from doorloc.calib.calibrate import View
-    from doorloc.calib.detect import scan_images
+def _detected(folder: Path, glob: str, board):
+    """The board views of a real data set, found as ``doorloc calibrate`` finds them."""
+    from doorloc.calib.folder import detect_views, read_folder
 
-    files = sorted(folder.glob(pattern))
-    images = [(p.name, cv2.imread(str(p), cv2.IMREAD_GRAYSCALE), None) for p in files]
-    scan = scan_images(images, board)
-    return scan, [View(n, d.object_points(board), d.corners_px, d.ids) for n, d in scan.detections.items()]
-
-
-@pytest.fixture(scope="session")
-def opencv_left():
-    if not OPENCV_LEFT.is_dir():
-        pytest.fail(f"real data not found at {OPENCV_LEFT}: clone the repository with shared/ beside it")
-    from doorloc.calib.detect import Chessboard
-
-    board = Chessboard(9, 6, 25.0)
-    scan, views = _views(OPENCV_LEFT, "left*.jpg", board)
-    return board, scan, views
+    if not folder.is_dir():
+        pytest.fail(f"real data not found at {folder}: clone the repository with shared/ beside it")
+    return detect_views(read_folder(folder, glob), board)
 
 
 @pytest.fixture(scope="session")
-def bouguet():
-    if not BOUGUET.is_dir():
-        pytest.fail(f"real data not found at {BOUGUET}: clone the repository with shared/ beside it")
+def opencv_left_detected():
     from doorloc.calib.detect import Chessboard
 
-    board = Chessboard(13, 12, 30.0)
-    scan, views = _views(BOUGUET, "Image*.png", board)
-    return board, scan, views
+    return _detected(OPENCV_LEFT, "left*.jpg", Chessboard(9, 6, 25.0))
+
+
+@pytest.fixture(scope="session")
+def bouguet_detected():
+    from doorloc.calib.detect import Chessboard
+
+    return _detected(BOUGUET, "Image*.png", Chessboard(13, 12, 30.0))
+
+
+@pytest.fixture(scope="session")
+def opencv_left(opencv_left_detected):
+    d = opencv_left_detected
+    return d.board, d.scan, d.views
+
+
+@pytest.fixture(scope="session")
+def bouguet(bouguet_detected):
+    d = bouguet_detected
+    return d.board, d.scan, d.views

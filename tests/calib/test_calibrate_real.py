@@ -5,19 +5,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from doorloc.calib.calibrate import calibrate_views
+from doorloc.calib.folder import calibrate_detected
 
 
 @pytest.fixture(scope="module")
-def left_result(opencv_left):
-    board, scan, views = opencv_left
-    return calibrate_views(views, scan.image_size)
+def left_result(opencv_left_detected):
+    return calibrate_detected(opencv_left_detected).result
 
 
 @pytest.fixture(scope="module")
-def bouguet_result(bouguet):
-    board, scan, views = bouguet
-    return calibrate_views(views, scan.image_size)
+def bouguet_result(bouguet_detected):
+    return calibrate_detected(bouguet_detected).result
 
 
 def test_opencv_left_beats_the_published_rms_and_agrees_on_fx(left_result):

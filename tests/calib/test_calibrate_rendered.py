@@ -14,7 +14,8 @@ from doorloc.calib.calibrate import (
     pixels_within,
     projection_difference,
 )
-from doorloc.calib.detect import Chessboard, detect_chessboard
+from doorloc.calib.detect import Chessboard
+from doorloc.calib.folder import calibrate_detected, detect_views
 
 
 @pytest.fixture(scope="module")
@@ -28,18 +29,14 @@ def rendered():
     # over seeds 0-7 the bench measures 0.014-0.085 px, so the 0.1 px target holds there with margin.
     images = render_views(cam, Checkerboard(9, 6, 25.0), N_VIEWS, seed=3,
                           effects=Effects(blur_sigma_px=0.7, read_noise_dn=1.0))
-    views = []
-    for name, im, _ in images:
-        det = detect_chessboard(im, board)
-        assert det is not None, name
-        views.append(View(name, det.object_points(board), det.corners_px, det.ids))
-    return cam, views
+    detected = detect_views([(name, im, None) for name, im, _ in images], board)
+    assert detected.skipped == []
+    return cam, detected
 
 
 @pytest.fixture(scope="module")
 def result(rendered):
-    cam, views = rendered
-    return calibrate_views(views, cam.image_size)
+    return calibrate_detected(rendered[1]).result
 
 
 def test_intrinsics_of_the_known_camera_are_recovered(rendered, result):
@@ -90,7 +87,7 @@ def test_no_view_or_corner_of_clean_renders_is_rejected(result):
 
 
 def test_bad_corners_and_a_bad_view_are_rejected_and_the_fit_recovers(rendered, result):
-    true, views = rendered
+    true, views = rendered[0], rendered[1].views
     bad = list(views)
     v = bad[3]
     moved = v.image_points.copy()
@@ -109,7 +106,7 @@ def test_bad_corners_and_a_bad_view_are_rejected_and_the_fit_recovers(rendered, 
 
 
 def test_too_few_views_is_a_clear_error(rendered):
-    true, views = rendered
+    true, views = rendered[0], rendered[1].views
     with pytest.raises(CalibrationError, match="at least 4"):
         calibrate_views(views[:3], true.image_size)
 
@@ -125,7 +122,7 @@ def test_a_model_folding_inside_the_data_is_excluded_and_reported(rendered, monk
         return v
 
     monkeypatch.setattr(cal, "distortion_validity", folding_rational)
-    true, views = rendered
+    true, views = rendered[0], rendered[1].views
     res = calibrate_views(views[:8], true.image_size,
                           candidates=(CANDIDATES_BY_NAME["rational"], CANDIDATES_BY_NAME["k1k2p1p2"]))
     assert "folds over at 100 px" in res.excluded_models["rational"]

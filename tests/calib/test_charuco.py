@@ -9,8 +9,9 @@ from rendered_views import render_views, true_camera
 from typer.testing import CliRunner
 
 from doorloc.app.cli import app
-from doorloc.calib.calibrate import CANDIDATES_BY_NAME, View, calibrate_views
-from doorloc.calib.detect import CharucoSpec, scan_images
+from doorloc.calib.calibrate import CANDIDATES_BY_NAME
+from doorloc.calib.detect import CharucoSpec
+from doorloc.calib.folder import calibrate_detected, detect_views
 from doorloc.calib.io import load_calibration
 
 
@@ -32,13 +33,13 @@ def test_charuco_views_calibrate_the_known_camera(charuco_images):
     x0, x1 = truth[:, 0].min(), truth[:, 0].max()
     part[:, : int(x0 + 0.4 * (x1 - x0))] = 77  # the left 40 % of the board covered
     images = [(n, i, None) for n, i, _ in charuco_images[1:]] + [(name, part, None)]
-    scan = scan_images(images, spec)
+    detected = detect_views(images, spec)
+    scan = detected.scan
     assert len(scan.detections) == 8
     det = scan.detections[name]
     assert 10 <= len(det.ids) < spec.n_corners
     assert np.max(np.linalg.norm(det.corners_px - truth[det.ids], axis=1)) < 0.3
-    views = [View(n, d.object_points(spec), d.corners_px, d.ids) for n, d in scan.detections.items()]
-    res = calibrate_views(views, scan.image_size, candidates=(CANDIDATES_BY_NAME["plumb_bob"],))
+    res = calibrate_detected(detected, candidates=(CANDIDATES_BY_NAME["plumb_bob"],)).result
     assert abs(res.camera.fx / true.fx - 1) < 0.002
     assert abs(res.camera.cx - true.cx) < 1.0 and abs(res.camera.cy - true.cy) < 1.0
 

@@ -8,14 +8,15 @@ import cv2
 import pytest
 
 from conftest import OPENCV_LEFT
-from doorloc.calib.calibrate import CANDIDATES_BY_NAME, calibrate_views
+from doorloc.calib.calibrate import CANDIDATES_BY_NAME
+from doorloc.calib.folder import calibrate_detected
 from doorloc.calib.report import calibration_warnings, coverage_grid, report_dict, write_report
 
 
 @pytest.fixture(scope="module")
-def left(opencv_left):
-    board, scan, views = opencv_left
-    return board, scan, calibrate_views(views, scan.image_size, candidates=(CANDIDATES_BY_NAME["plumb_bob"],))
+def left(opencv_left_detected):
+    d = opencv_left_detected
+    return d.board, d.scan, calibrate_detected(d, candidates=(CANDIDATES_BY_NAME["plumb_bob"],)).result
 
 
 def test_coverage_counts_every_kept_corner(left):

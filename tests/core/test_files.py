@@ -9,6 +9,8 @@ import cv2
 import numpy as np
 import pytest
 import yaml
+from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import strategies as st
 
 from doorloc.calib.camera import CameraModel
 from doorloc.calib.io import (
@@ -160,3 +162,140 @@ def test_cell_physical_settings_round_trip_and_hashes(tmp_path, thesis_cell_path
     bad = dict(doc, camera=dict(doc["camera"], response_gamma=0))
     with pytest.raises(CellFileError, match="camera.response_gamma"):
         parse_cell(bad, tmp_path, "cell.yaml")
+
+
+# --- the OpenCV-format writer and reader checked against cv2.FileStorage itself --------------------------
+
+# what YAML quoting gets wrong: quotes, backslashes, comment and mapping marks, line breaks, tabs, non-ASCII
+_names = st.text(st.characters(codec="utf-8", exclude_categories=("Cs", "Cc", "Cn"))
+                 | st.sampled_from('"\\#:\n\t\r\'[]{}&*!|>%@`'), max_size=20)
+_ncoeffs = st.sampled_from([0, 4, 5, 8, 12])
+
+
+@st.composite
+def calibration_files(draw) -> CalibrationFile:
+    """Any calibration ``save_calibration`` accepts: every distortion length, optional quality figures."""
+    fx, fy = draw(st.floats(50.0, 5000.0)), draw(st.floats(50.0, 5000.0))
+    w, h = draw(st.integers(16, 8192)), draw(st.integers(16, 8192))
+    cx, cy = draw(st.floats(0.0, float(w))), draw(st.floats(0.0, float(h)))
+    n = draw(_ncoeffs)
+    d = draw(st.lists(st.floats(-1.0, 1.0), min_size=n, max_size=n))
+    radius = draw(st.none() | st.floats(1.0, 1e4))
+    cam = CameraModel.from_values([[fx, 0, cx], [0, fy, cy], [0, 0, 1]], d, (w, h), radius)
+    avg = draw(st.none() | st.floats(0.0, 100.0))
+    per_view = draw(st.lists(st.floats(0.0, 100.0), max_size=30))
+    return CalibrationFile(cam, avg, per_view, draw(_names))
+
+
+def _cv_read(path: Path) -> dict:
+    fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+    try:
+        assert fs.isOpened(), f"cv2.FileStorage could not open {path}"
+        keys = fs.root().keys()
+        out = {k: fs.getNode(k) for k in keys}
+        return {
+            "keys": set(keys),
+            "camera_matrix": out["camera_matrix"].mat(),
+            "distortion_coefficients": out["distortion_coefficients"].mat() if "distortion_coefficients" in out else None,
+            "image_width": int(out["image_width"].real()),
+            "image_height": int(out["image_height"].real()),
+            "camera_name": out["camera_name"].string() if "camera_name" in out else None,
+            "avg_reprojection_error": out["avg_reprojection_error"].real() if "avg_reprojection_error" in out else None,
+            "per_view_reprojection_errors":
+                out["per_view_reprojection_errors"].mat() if "per_view_reprojection_errors" in out else None,
+            "observed_radius_px": out["observed_radius_px"].real() if "observed_radius_px" in out else None,
+        }
+    finally:
+        fs.release()
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(cal=calibration_files())
+def test_everything_we_write_opencv_reads_with_the_same_numbers(tmp_path, cal):
+    path = tmp_path / "camera.yaml"
+    save_calibration(cal, path, "opencv")
+    cv = _cv_read(path)
+    cam = cal.camera
+    np.testing.assert_array_equal(cv["camera_matrix"], cam.camera_matrix)
+    if len(cam.dist_coeffs):
+        np.testing.assert_array_equal(cv["distortion_coefficients"].ravel(), cam.dist_coeffs)
+    else:
+        assert cv["distortion_coefficients"] is None or cv["distortion_coefficients"].size == 0
+    assert (cv["image_width"], cv["image_height"]) == cam.image_size
+    assert cv["camera_name"] == cal.camera_name
+    assert cv["avg_reprojection_error"] == cal.avg_reprojection_error
+    if cal.per_view_reprojection_errors:
+        assert cv["per_view_reprojection_errors"].ravel().tolist() == cal.per_view_reprojection_errors
+    else:
+        assert cv["per_view_reprojection_errors"] is None
+    assert cv["observed_radius_px"] == cam.observed_radius_px
+    # and our own reader agrees with both
+    back = load_calibration(path)
+    assert back.camera == cam and back.camera.observed_radius_px == cam.observed_radius_px
+    assert (back.avg_reprojection_error, back.per_view_reprojection_errors, back.camera_name) == (
+        cal.avg_reprojection_error, cal.per_view_reprojection_errors, cal.camera_name)
+
+
+def _opencv_round_trips_name(path: Path, name: str) -> bool:
+    fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE | cv2.FILE_STORAGE_FORMAT_YAML)
+    fs.write("camera_name", name)
+    fs.release()
+    try:
+        fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+    except cv2.error:
+        return False
+    back = fs.getNode("camera_name").string()
+    fs.release()
+    return back == name
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(cal=calibration_files(), dist_shape=st.sampled_from(["row", "column"]))
+def test_we_read_what_opencv_writes(tmp_path, cal, dist_shape):
+    path = tmp_path / "camera.yml"
+    # OpenCV itself cannot read back some names it writes (a lone quote, ``true``, a trailing space):
+    # the contract is that whatever OpenCV reads back, we read back the same.
+    assume(_opencv_round_trips_name(tmp_path / "name.yml", cal.camera_name))
+    cam = cal.camera
+    fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE | cv2.FILE_STORAGE_FORMAT_YAML)
+    fs.write("image_width", cam.image_size[0])
+    fs.write("image_height", cam.image_size[1])
+    fs.write("camera_name", cal.camera_name)
+    fs.write("camera_matrix", cam.camera_matrix)
+    if len(cam.dist_coeffs):
+        d = cam.dist_coeffs.reshape(1, -1) if dist_shape == "row" else cam.dist_coeffs.reshape(-1, 1)
+        fs.write("distortion_coefficients", d)
+    if cal.avg_reprojection_error is not None:
+        fs.write("avg_reprojection_error", cal.avg_reprojection_error)
+    if cal.per_view_reprojection_errors:
+        fs.write("per_view_reprojection_errors", np.asarray(cal.per_view_reprojection_errors).reshape(-1, 1))
+    if cam.observed_radius_px is not None:
+        fs.write("observed_radius_px", cam.observed_radius_px)
+    fs.release()
+    back = load_calibration(path)
+    assert back.camera == cam and back.camera.observed_radius_px == cam.observed_radius_px
+    assert back.avg_reprojection_error == cal.avg_reprojection_error
+    assert back.per_view_reprojection_errors == cal.per_view_reprojection_errors
+    assert back.camera_name == cal.camera_name
+
+
+@pytest.mark.parametrize("name", ["bell\x07", "nul\x00", "del\x7f", "\ufffe", "line\u2028separator"])
+def test_camera_name_a_file_cannot_carry_is_refused_before_writing(tmp_path, name):
+    cam = CameraModel.from_values([[700.5, 0, 320.25], [0, 701.0, 240.0], [0, 0, 1]], [], (640, 480))
+    with pytest.raises(ValueError, match="camera_name"):
+        save_calibration(CalibrationFile(cam, camera_name=name), tmp_path / "c.yaml")
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("name", ["yes", "No", "Null", "~", "2001-12-14", "1.5", "12", "a: b", "#x", "[x]", "tab\there"])
+def test_opencv_written_names_read_back_as_opencv_reads_them(tmp_path, name):
+    """OpenCV's YAML has no booleans, nulls or dates: ``yes`` is the string ``yes`` to it, and to us."""
+    path = tmp_path / "camera.yml"
+    fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE | cv2.FILE_STORAGE_FORMAT_YAML)
+    fs.write("image_width", 640)
+    fs.write("image_height", 480)
+    fs.write("camera_name", name)
+    fs.write("camera_matrix", np.array([[700.5, 0, 320.25], [0, 701.0, 240.0], [0, 0, 1]]))
+    fs.release()
+    assert _cv_read(path)["camera_name"] == name
+    assert load_calibration(path).camera_name == name

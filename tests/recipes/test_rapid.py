@@ -28,6 +28,9 @@ from doorloc.recipes.targets import Target, targets_for_pose
 _spec = importlib.util.spec_from_file_location("hinge_strategies", Path(__file__).with_name("hinge_strategies.py"))
 strategies = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(strategies)
+_spec = importlib.util.spec_from_file_location("golden_compare", Path(__file__).with_name("golden_compare.py"))
+golden_compare = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(golden_compare)
 
 GOLDEN = Path(__file__).with_name("golden")
 GOLDEN_POSE = DoorPose(1.25, -3.5, 0.8)
@@ -132,4 +135,13 @@ def test_golden_rapid_files():
         for name, text in produced.items():
             (GOLDEN / name).write_text(text, encoding="utf-8")
     for name, text in produced.items():
-        assert (GOLDEN / name).read_text(encoding="utf-8") == text, f"{name} differs from the golden file"
+        golden_compare.assert_same_values((GOLDEN / name).read_text(encoding="utf-8"), text, name)
+
+
+def test_golden_comparison_catches_a_moved_target_and_a_changed_word():
+    golden = (GOLDEN / "GOLDEN-1.txt").read_text(encoding="utf-8")
+    golden_compare.assert_same_values(golden, golden.replace("22.64532", "22.64533"), "last digit")  # 4e-7 relative
+    with pytest.raises(AssertionError):
+        golden_compare.assert_same_values(golden, golden.replace("22.64532", "22.64632"), "moved 1 um")
+    with pytest.raises(AssertionError):
+        golden_compare.assert_same_values(golden, golden.replace("H1_APP", "H1_APX"), "renamed")

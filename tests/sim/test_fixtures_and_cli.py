@@ -1,4 +1,9 @@
-"""The committed rendered fixtures reproduce bit-for-bit; `doorloc render` writes a complete set."""
+"""The committed rendered fixtures still mean what they say; `doorloc render` writes a complete set.
+
+The fixtures were rendered with OpenCV 4.x (fixtures/rendered/REGENERATE.md); the lock installs 5.x,
+whose resampling rounds a few pixels differently. So a re-render is compared by what matters: every
+pixel within a small grey-level difference, and the same pose when the pipeline locates both images.
+"""
 
 from __future__ import annotations
 
@@ -13,21 +18,43 @@ from doorloc.app.cli import app
 from doorloc.cell import load_cell
 from doorloc.sim.dataset import grid_poses, read_truth_csv
 from doorloc.sim.door import render_door, true_corner_px
+from doorloc.vision.locate import locate
 
 ROOT = Path(__file__).parents[2]
 FIX = ROOT / "fixtures" / "rendered"
 
 
+#: a re-render may differ from the stored image by this many grey levels (8-bit) at any pixel
+MAX_GREY_LEVEL_DIFF = 2
+#: the poses located in the stored and the re-rendered image agree this closely (mm, deg)
+SAME_POSE_MM, SAME_POSE_DEG = 0.002, 0.0005
+#: and the re-rendered image still shows the door where its truth row says (mm, deg): the images exist
+#: to test locate to hundredths of a millimetre, far inside the 0.5 mm milling tolerance
+TRUTH_POSE_MM, TRUTH_POSE_DEG = 0.1, 0.01
+
+
 @pytest.mark.parametrize("folder,index", [("grid", 0), ("grid", 80), ("effects", 13), ("distractors", 3), ("widths", 2)])
-def test_fixture_images_rerender_identically(folder, index):
+def test_fixture_images_rerender_within_two_grey_levels_and_locate_the_same(folder, index):
     cell = load_cell(FIX / folder / "cell.yaml")
     rows = read_truth_csv(FIX / folder / "truth.csv")
     r = rows[index]
     rd = render_door(cell, r.door, r.pose, effects=r.effects, seed=r.seed)
     stored = cv2.imread(str(FIX / folder / r.image), cv2.IMREAD_UNCHANGED)
     assert stored.shape == rd.image.shape == (1080, 1920)
-    assert np.array_equal(stored, rd.image)
+    assert stored.dtype == rd.image.dtype == np.uint8
+    diff = np.abs(stored.astype(np.int16) - rd.image.astype(np.int16))
+    assert diff.max() <= MAX_GREY_LEVEL_DIFF, f"{int((diff > MAX_GREY_LEVEL_DIFF).sum())} pixels differ by more"
     assert np.allclose(r.corner_px, true_corner_px(cell, r.door, r.pose), atol=1e-9)
+
+    from_stored = locate(stored, cell, r.door)
+    from_rerender = locate(rd.image, cell, r.door)
+    assert from_stored.ok and from_rerender.ok, (from_stored.error, from_rerender.error)
+    assert from_rerender.x_mm == pytest.approx(from_stored.x_mm, abs=SAME_POSE_MM)
+    assert from_rerender.z_mm == pytest.approx(from_stored.z_mm, abs=SAME_POSE_MM)
+    assert from_rerender.yaw_deg == pytest.approx(from_stored.yaw_deg, abs=SAME_POSE_DEG)
+    assert from_rerender.x_mm == pytest.approx(r.pose.x_mm, abs=TRUTH_POSE_MM)
+    assert from_rerender.z_mm == pytest.approx(r.pose.z_mm, abs=TRUTH_POSE_MM)
+    assert from_rerender.yaw_deg == pytest.approx(r.pose.yaw_deg, abs=TRUTH_POSE_DEG)
 
 
 def test_grid_fixture_covers_the_envelope_corners_and_thicknesses():

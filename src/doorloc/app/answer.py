@@ -41,6 +41,7 @@ NO_RECIPE_NOTE = (
     "send door_id to get hinge targets"
 )
 NO_POSE_NOTE = "no targets: the door was not located (see error)"
+NO_REACH_NOTE = "no targets: the robot cannot follow them (see error and reach)"
 
 
 @dataclass(frozen=True)
@@ -145,6 +146,9 @@ def answer_image(
     Answer
         ``.result`` the LocateResult; ``.fields`` the JSON-ready answer: SPEC section 3 fields plus ``door_id``, ``door`` (mm), ``targets`` (list of dicts: name, x_mm,
         y_mm, z_mm, quat, hinge), ``targets_note`` (why the list is empty, else None) and, on request, ``rapid``.
+        When the cell names a robot, ``reach`` (:class:`doorloc.robot.reach.ReachReport`, else None); a target
+        the robot cannot follow turns the answer into a refusal (``ok`` false, ``error_code`` the reach
+        reason, pose fields null, the measured pose under ``measured_pose``, no targets).
     """
     locate = locate_fn or default_locate_fn()
     extra = {} if trace is None else {"trace": trace}
@@ -171,6 +175,14 @@ def answer_image(
         pose = DoorPose(result.x_mm, result.z_mm, result.yaw_deg)
         targets = targets_for_pose(choice.recipe, pose, cell.face_y(choice.door))
         note = None
+    reach = _reach_block(cell, targets)
+    answer["reach"] = None if reach is None else reach.model_dump(mode="json")
+    if reach is not None and not reach.feasible:
+        # targets the robot cannot follow are wrong targets: the answer becomes a refusal (SPEC section 9)
+        answer["measured_pose"] = {k: answer[k] for k in ("x_mm", "z_mm", "yaw_deg")}
+        answer.update(ok=False, error_code=reach.error_code, error=f"the robot cannot mill this door here: {reach.reason}",
+                      x_mm=None, z_mm=None, yaw_deg=None, uncertainty=None)
+        targets, note = [], NO_REACH_NOTE
     answer["targets"] = [t.model_dump(mode="json") for t in targets]
     answer["targets_note"] = note
     if rapid:
@@ -181,6 +193,28 @@ def answer_image(
         else:
             answer["rapid"] = None
     return Answer(result, answer)
+
+
+def _reach_block(cell: Cell, targets: list[Any]) -> Any | None:
+    """The reach report of the targets when the cell names a robot (None without a robot or targets)."""
+    if not targets or not cell.robot_section:
+        return None
+    from doorloc.robot.reach import check_reach, setup_for_cell
+
+    setup = setup_for_cell(cell)
+    if setup is None:
+        return None
+    if setup.section.spindle_axis != "y":
+        # the targets carry the spindle on tool +Y; re-express them for a tool frame with the spindle on +Z
+        from scipy.spatial.transform import Rotation
+
+        from doorloc.recipes.targets import TOOL_Z_ALONG_CELL_Y
+
+        to_z = Rotation.from_quat(TOOL_Z_ALONG_CELL_Y, scalar_first=True)
+        quats = (Rotation.from_quat([t.quat for t in targets], scalar_first=True) * to_z).as_quat(scalar_first=True)
+        quats[quats[:, 0] < 0] *= -1
+        targets = [t.model_copy(update={"quat": tuple(q)}) for t, q in zip(targets, quats.tolist(), strict=True)]
+    return check_reach(setup, targets)
 
 
 def overlay_png(image: np.ndarray, result: Any, cell: Cell, door: DoorSize, trace: Any | None = None) -> str:

@@ -8,11 +8,21 @@ from __future__ import annotations
 
 import os
 import sys
+from typing import Annotated
 
 import typer
 
 from doorloc import __version__
-from doorloc.app import cli_calibrate, cli_keys, cli_locate, cli_recipes, cli_render, cli_serve
+from doorloc.app import (
+    cli_calibrate,
+    cli_cell,
+    cli_keys,
+    cli_locate,
+    cli_reach,
+    cli_recipes,
+    cli_render,
+    cli_serve,
+)
 
 app = typer.Typer(
     name="doorloc",
@@ -24,12 +34,21 @@ app = typer.Typer(
 
 
 
+def _print_version(value: bool) -> None:
+    if value:
+        typer.echo(f"doorloc {__version__}")
+        raise typer.Exit()
+
+
 @app.callback()
-def _root() -> None:
+def _root(
+    show_version: Annotated[bool, typer.Option(
+        "--version", is_eager=True, callback=_print_version, help="Print the doorloc version and exit.")] = False,
+) -> None:
     """Locate a wooden door in a milling cell and turn its recipe into robot targets."""
 
 
-for _module in (cli_calibrate, cli_locate, cli_render, cli_recipes, cli_serve, cli_keys):
+for _module in (cli_calibrate, cli_cell, cli_locate, cli_render, cli_recipes, cli_reach, cli_serve, cli_keys):
     _module.register(app)
 
 

@@ -9,14 +9,20 @@ from __future__ import annotations
 import json
 import re
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
 from doorloc.app.errors import EXIT_FAILED, EXIT_REFUSED, EXIT_USAGE, fail
 
-IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".webp"}
+if TYPE_CHECKING:  # the calibration modules load only when a command runs (fast `doorloc --help`)
+    import numpy as np
 
+    from doorloc.calib.calibrate import Candidate
+    from doorloc.calib.camera import CameraModel
+    from doorloc.calib.detect import SkippedImage
+    from doorloc.calib.folder import CalibrationOutcome
+    from doorloc.cell import Cell
 
 def parse_pattern(text: str) -> tuple[int, int]:
     """``"9x6"`` -> ``(9, 6)``; raises ValueError with a sentence."""
@@ -24,23 +30,6 @@ def parse_pattern(text: str) -> tuple[int, int]:
     if not m:
         raise ValueError(f"--pattern must look like 9x6 (columns x rows), got {text!r}")
     return int(m.group(1)), int(m.group(2))
-
-
-def read_image_file(path: Path):
-    """(image, None) or (None, reason) for one file; EXIF orientation is ignored (pixels as stored)."""
-    import cv2
-    import numpy as np
-
-    try:
-        data = np.fromfile(str(path), dtype=np.uint8)
-    except OSError as e:
-        return None, f"cannot be read: {e.strerror or e}"
-    if data.size == 0:
-        return None, "is empty"
-    im = cv2.imdecode(data, cv2.IMREAD_UNCHANGED | cv2.IMREAD_IGNORE_ORIENTATION)
-    if im is None:
-        return None, "is not an image OpenCV can decode (corrupt or unsupported format)"
-    return im, None
 
 
 def _board(pattern: str, square: float, charuco: bool, marker: float | None, dictionary: str, legacy: bool):
@@ -52,6 +41,103 @@ def _board(pattern: str, square: float, charuco: bool, marker: float | None, dic
             raise ValueError("a ChArUco board needs --marker MM (the ArUco marker side)")
         return CharucoSpec(cols, rows, square, marker, dictionary, legacy)
     return Chessboard(cols, rows, square)
+
+
+def _candidates(model: str) -> tuple[Candidate, ...]:
+    """``--model``: ``auto`` (every candidate) or one candidate by name; ValueError names the choices."""
+    from doorloc.calib.calibrate import CANDIDATES, CANDIDATES_BY_NAME
+
+    if model == "auto":
+        return tuple(CANDIDATES)
+    if model in CANDIDATES_BY_NAME:
+        return (CANDIDATES_BY_NAME[model],)
+    raise ValueError(f"--model must be auto or one of {', '.join(CANDIDATES_BY_NAME)}; got {model!r}")
+
+
+def _echo_skipped(skipped: list[SkippedImage]) -> None:
+    for s in skipped:
+        typer.echo(f"skipped {s.name}: {s.reason}", err=True)
+
+
+def _echo_calibration(outcome: CalibrationOutcome, out: Path, fmt: str) -> None:
+    """What ``doorloc calibrate`` prints after writing: model, intrinsics with their 1-sigma, the candidates."""
+    from doorloc.calib.report import calibration_warnings
+
+    result = outcome.result
+    cam, s = result.camera, result.std_intrinsics
+    typer.echo(f"wrote {out} ({fmt}): model {result.fit.candidate.name}, {len(result.views)} views, "
+               f"RMS {result.fit.rms_px:.3f} px")
+    typer.echo(f"fx {cam.fx:.3f} +- {s['fx']:.3f}  fy {cam.fy:.3f} +- {s['fy']:.3f}  "
+               f"cx {cam.cx:.3f} +- {s['cx']:.3f}  cy {cam.cy:.3f} +- {s['cy']:.3f}  (1 sigma, px)")
+    jk = result.std_jackknife
+    if jk:
+        typer.echo(f"view-to-view (jackknife over {result.n_folds} folds): fx +- {jk['fx']:.3f}  fy +- {jk['fy']:.3f}  "
+                   f"cx +- {jk['cx']:.3f}  cy +- {jk['cy']:.3f} px")
+    typer.echo("dist " + " ".join(f"{v:.6g}" for v in cam.dist_coeffs))
+    typer.echo(f"observed radius {cam.observed_radius_px:.0f} px; projection uncertainty inside it "
+               f"<= {result.projection_sigma_px['max_observed']:.3f} px (1 sigma)")
+    aligned, aligned95 = (result.projection_sigma_px.get(k) for k in ("max_observed_aligned", "max_observed_aligned_95"))
+    if aligned is not None and aligned95 is not None:
+        # What matters once a cell calibration has absorbed a small camera rotation.
+        typer.echo(f"  after the camera's small rotation is absorbed: <= {aligned:.3f} px (1 sigma); "
+                   f"largest error below {aligned95:.3f} px in 95 % of calibrations")
+    for sc in result.scores:
+        typer.echo(f"  {'*' if sc.chosen else ' '} {sc.name:24s} params {sc.n_params:2d}  train {sc.train_rms_px:.4f}  "
+                   f"held-out {sc.held_out_rms_px:.4f} px")
+    for w in calibration_warnings(result, outcome.detected.scan):
+        typer.echo(f"warning: {w}", err=True)
+
+
+def _read_cell_image(image: Path, size: tuple[int, int]) -> np.ndarray:
+    """The board image for ``calibrate-cell``; exit 2 if unreadable or not the camera's image size."""
+    from doorloc.calib.folder import read_image_file
+
+    im, err = read_image_file(image)
+    if im is None:
+        raise fail(f"{image} {err}")
+    if (im.shape[1], im.shape[0]) != size:
+        raise fail(f"{image} is {im.shape[1]}x{im.shape[0]} but the cell's camera was calibrated at "
+                   f"{size[0]}x{size[1]}")
+    return im
+
+
+def _placed_cell_yaml(cell_path: Path, placed: Cell, placed_by: dict) -> str:
+    """The cell file text with the new extrinsics; a reference to a calibration file is kept (rebased)."""
+    import yaml
+
+    from doorloc.cell import cell_to_dict
+
+    doc = cell_to_dict(placed)
+    try:
+        raw = yaml.safe_load(cell_path.read_text(encoding="utf-8")) or {}
+        cal_ref = (raw.get("camera") or {}).get("calibration")
+    except (OSError, yaml.YAMLError):
+        cal_ref = None
+    if cal_ref:
+        # Keep the reference to the calibration file (it carries observed_radius_px), made absolute.
+        p = Path(cal_ref)
+        if not p.is_absolute():
+            p = (cell_path.parent / p).resolve()
+        doc["camera"] = {"calibration": str(p), **doc["camera"]}
+    doc.setdefault("provenance", {})["cell_calibration"] = placed_by
+    return yaml.safe_dump(doc, sort_keys=False, default_flow_style=None)
+
+
+def _warn_beyond_valid_radius(camera: CameraModel, pixels: list[np.ndarray], cell_path: Path) -> None:
+    """Warn when the board or the reference corner lies where the camera model is not to be trusted."""
+    import numpy as np
+
+    from doorloc.calib.camera import distortion_validity
+
+    valid = distortion_validity(camera).valid_radius_px
+    if valid is None:
+        return
+    c = np.array([camera.cx, camera.cy])
+    reach = max(float(np.linalg.norm(np.reshape(px, (-1, 2)) - c, axis=1).max()) for px in pixels)
+    if reach > valid:
+        typer.echo(f"warning: the board or the reference corner lies {reach:.0f} px from the principal point, "
+                   f"beyond the camera model's valid radius {valid:.0f} px (doorloc validity "
+                   f"{cell_path}); recalibrate the camera with views reaching there", err=True)
 
 
 def register(app: typer.Typer) -> None:
@@ -80,81 +166,30 @@ def register(app: typer.Typer) -> None:
         reason; the calibration goes ahead if enough views remain. Exit codes: 0 done, 2 bad
         arguments or input, 3 too few usable views (nothing written).
         """
-        from doorloc.calib.calibrate import (
-            CANDIDATES,
-            CANDIDATES_BY_NAME,
-            CalibrationError,
-            View,
-            calibrate_views,
-        )
-        from doorloc.calib.detect import scan_images
-        from doorloc.calib.io import CalibrationFile, save_calibration
-        from doorloc.calib.report import calibration_warnings, write_report
+        from doorloc.calib.calibrate import CalibrationError
+        from doorloc.calib.folder import CalibrationInputError, TooFewViewsError, calibrate_folder
+        from doorloc.calib.io import save_calibration
+        from doorloc.calib.report import write_report
 
         if fmt not in ("opencv", "ros"):
             raise fail(f"--format must be opencv or ros, got {fmt!r}")
         try:
             board = _board(pattern, square, charuco, marker, dictionary, legacy)
-        except ValueError as e:
-            raise fail(str(e)) from None
-        if model == "auto":
-            candidates = CANDIDATES
-        elif model in CANDIDATES_BY_NAME:
-            candidates = (CANDIDATES_BY_NAME[model],)
-        else:
-            raise fail(f"--model must be auto or one of {', '.join(CANDIDATES_BY_NAME)}; got {model!r}")
-        if not images_dir.is_dir():
-            raise fail(f"{images_dir} is not a folder of images")
-        files = sorted(p for p in images_dir.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
-        if not files:
-            raise fail(f"no image files ({', '.join(sorted(IMAGE_SUFFIXES))}) in {images_dir}")
-        images = []
-        for p in files:
-            im, err = read_image_file(p)
-            images.append((p.name, im, err))
-        scan = scan_images(images, board)
-        for s in scan.skipped:
-            typer.echo(f"skipped {s.name}: {s.reason}", err=True)
-        views = [View(name, d.object_points(board), d.corners_px, d.ids) for name, d in scan.detections.items()]
-        if scan.image_size is None or len(views) < min_views:
-            raise fail(
-                f"only {len(views)} of {len(files)} images show the board; calibration needs at least {min_views} "
-                "(nothing written)", EXIT_FAILED,
-            )
-        try:
-            result = calibrate_views(views, scan.image_size, candidates=candidates, n_folds=folds, min_views=min_views)
+            outcome = calibrate_folder(images_dir, board, candidates=_candidates(model), n_folds=folds,
+                                       min_views=min_views)
+        except TooFewViewsError as e:
+            _echo_skipped(e.detected.skipped)
+            raise fail(f"{e} (nothing written)", EXIT_FAILED) from None
         except CalibrationError as e:
             raise fail(f"{e} (nothing written)", EXIT_FAILED) from None
-        cam = result.camera
-        cal = CalibrationFile(cam, result.fit.rms_px, result.fit.per_view_rms_px, camera_name,
-                              {"model": result.fit.candidate.name})
-        save_calibration(cal, out, fmt)
+        except (CalibrationInputError, ValueError) as e:  # no images, or a bad --pattern, --marker or --model
+            raise fail(str(e)) from None
+        _echo_skipped(outcome.detected.skipped)
+        save_calibration(outcome.calibration_file(camera_name), out, fmt)
         if report is not None:
-            first = next(iter(scan.detections))
-            bg = next(im for name, im, _ in images if name == first)
-            write_report(report, result, scan, board, bg if bg.ndim == 2 or bg.shape[2] == 3 else None)
-        s = result.std_intrinsics
-        typer.echo(f"wrote {out} ({fmt}): model {result.fit.candidate.name}, {len(result.views)} views, "
-                   f"RMS {result.fit.rms_px:.3f} px")
-        typer.echo(f"fx {cam.fx:.3f} +- {s['fx']:.3f}  fy {cam.fy:.3f} +- {s['fy']:.3f}  "
-                   f"cx {cam.cx:.3f} +- {s['cx']:.3f}  cy {cam.cy:.3f} +- {s['cy']:.3f}  (1 sigma, px)")
-        jk = result.std_jackknife
-        if jk:
-            typer.echo(f"view-to-view (jackknife over {result.n_folds} folds): fx +- {jk['fx']:.3f}  fy +- {jk['fy']:.3f}  "
-                       f"cx +- {jk['cx']:.3f}  cy +- {jk['cy']:.3f} px")
-        typer.echo("dist " + " ".join(f"{v:.6g}" for v in cam.dist_coeffs))
-        typer.echo(f"observed radius {cam.observed_radius_px:.0f} px; projection uncertainty inside it "
-                   f"<= {result.projection_sigma_px['max_observed']:.3f} px (1 sigma)")
-        aligned, aligned95 = (result.projection_sigma_px.get(k) for k in ("max_observed_aligned", "max_observed_aligned_95"))
-        if aligned is not None and aligned95 is not None:
-            # What matters once a cell calibration has absorbed a small camera rotation.
-            typer.echo(f"  after the camera's small rotation is absorbed: <= {aligned:.3f} px (1 sigma); "
-                       f"largest error below {aligned95:.3f} px in 95 % of calibrations")
-        for sc in result.scores:
-            typer.echo(f"  {'*' if sc.chosen else ' '} {sc.name:24s} params {sc.n_params:2d}  train {sc.train_rms_px:.4f}  "
-                       f"held-out {sc.held_out_rms_px:.4f} px")
-        for w in calibration_warnings(result, scan):
-            typer.echo(f"warning: {w}", err=True)
+            d = outcome.detected
+            write_report(report, outcome.result, d.scan, board, d.background)
+        _echo_calibration(outcome, out, fmt)
 
     @app.command("calibrate-cell")
     def calibrate_cell(
@@ -181,12 +216,9 @@ def register(app: typer.Typer) -> None:
         Prints the reprojection error and the mm per pixel at the reference corner. Exit codes:
         0 written, 1 refused (no board, or a poor fit), 2 bad arguments or files.
         """
-        import numpy as np
-        import yaml
-
         from doorloc.calib.cell import CellCalibrationError, board_points_in_cell, calibrate_cell_extrinsics
         from doorloc.calib.detect import detect_board
-        from doorloc.cell import CellFileError, cell_to_dict, load_cell
+        from doorloc.cell import CellFileError, load_cell
         from doorloc.fileio import atomic_write_text
 
         try:
@@ -194,14 +226,7 @@ def register(app: typer.Typer) -> None:
             the_cell = load_cell(cell)
         except (ValueError, CellFileError) as e:
             raise fail(str(e)) from None
-        im, err = read_image_file(image)
-        if im is None:
-            raise fail(f"{image} {err}")
-        w, h = im.shape[1], im.shape[0]
-        if (w, h) != the_cell.camera.image_size:
-            raise fail(f"{image} is {w}x{h} but the cell's camera was calibrated at "
-                       f"{the_cell.camera.image_size[0]}x{the_cell.camera.image_size[1]}")
-        det = detect_board(im, board)
+        det = detect_board(_read_cell_image(image, the_cell.camera.image_size), board)
         if det is None:
             raise fail(f"no board ({pattern}) found in {image}; nothing written", EXIT_REFUSED)
         try:
@@ -213,39 +238,17 @@ def register(app: typer.Typer) -> None:
         if res.rms_px > max_rms:
             raise fail(f"board reprojection RMS {res.rms_px:.2f} px exceeds --max-rms {max_rms} px: check "
                        "--board-origin, the axes and that the board lies flat; nothing written", EXIT_REFUSED)
-        doc = cell_to_dict(the_cell.with_extrinsics(res.extrinsics))
-        try:
-            raw = yaml.safe_load(cell.read_text(encoding="utf-8")) or {}
-            cal_ref = (raw.get("camera") or {}).get("calibration")
-        except (OSError, yaml.YAMLError):
-            cal_ref = None
-        if cal_ref:
-            # Keep the reference to the calibration file (it carries observed_radius_px), rebased on --out.
-            p = Path(cal_ref)
-            if not p.is_absolute():
-                p = (cell.parent / p).resolve()
-            doc["camera"] = {"calibration": str(p), **doc["camera"]}
         # What placed the camera: kept with the file (the cell file's provenance section).
-        doc.setdefault("provenance", {})["cell_calibration"] = {"image": str(image), "board": pattern, "square_mm": square,
-                                   "board_origin_mm": list(board_origin), **res.to_dict()}
-        atomic_write_text(out, yaml.safe_dump(doc, sort_keys=False, default_flow_style=None))
+        placed_by = {"image": str(image), "board": pattern, "square_mm": square, "board_origin_mm": list(board_origin),
+                     **res.to_dict()}
+        atomic_write_text(out, _placed_cell_yaml(cell, the_cell.with_extrinsics(res.extrinsics), placed_by))
         typer.echo(f"wrote {out}: rvec {[round(float(v), 6) for v in res.extrinsics.rvec]} "
                    f"tvec_mm {[round(float(v), 3) for v in res.extrinsics.tvec_mm]}")
         typer.echo(f"board RMS {res.rms_px:.3f} px (max {res.max_residual_px:.3f} px, {res.n_corners} corners); "
                    f"reference corner at pixel ({res.reference_corner_px[0]:.1f}, {res.reference_corner_px[1]:.1f}), "
                    f"{res.scale_mm_per_px:.4f} mm/px; reference corner uncertainty "
                    f"{res.reference_corner_sigma_px * res.scale_mm_per_px:.4f} mm (1 sigma, intrinsics exact)")
-        from doorloc.calib.camera import distortion_validity
-
-        valid = distortion_validity(the_cell.camera).valid_radius_px
-        if valid is not None:
-            c = np.array([the_cell.camera.cx, the_cell.camera.cy])
-            reach = float(max(np.linalg.norm(det.corners_px - c, axis=1).max(),
-                              np.linalg.norm(res.reference_corner_px - c)))
-            if reach > valid:
-                typer.echo(f"warning: the board or the reference corner lies {reach:.0f} px from the principal point, "
-                           f"beyond the camera model's valid radius {valid:.0f} px (doorloc validity "
-                           f"{cell}); recalibrate the camera with views reaching there", err=True)
+        _warn_beyond_valid_radius(the_cell.camera, [det.corners_px, res.reference_corner_px], cell)
 
     @app.command("validity")
     def validity(
@@ -303,4 +306,4 @@ def register(app: typer.Typer) -> None:
             raise typer.Exit(EXIT_REFUSED)
 
 
-__all__ = ["register", "parse_pattern", "read_image_file", "EXIT_USAGE"]
+__all__ = ["register", "parse_pattern", "EXIT_USAGE"]

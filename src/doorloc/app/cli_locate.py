@@ -94,4 +94,4 @@ def register(app: typer.Typer) -> None:
             except (OSError, ValueError) as e:
                 raise fail(f"cannot write the overlay {overlay}: {getattr(e, 'strerror', None) or e}", EXIT_USAGE) from None
         typer.echo(json.dumps(answer.fields, indent=indent or None))
-        raise typer.Exit(EXIT_OK if answer.result.ok else EXIT_REFUSED)
+        raise typer.Exit(EXIT_OK if answer.fields["ok"] else EXIT_REFUSED)  # a reach refusal too

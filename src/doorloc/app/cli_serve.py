@@ -66,16 +66,6 @@ def register(app: typer.Typer) -> None:
 
         Exit code 0 when every image was answered, 1 when some were refused or failed, 2 for bad arguments.
         """
-        from rich.console import Console
-        from rich.progress import (
-            BarColumn,
-            MofNCompleteColumn,
-            Progress,
-            TextColumn,
-            TimeElapsedColumn,
-            TimeRemainingColumn,
-        )
-
         from doorloc.app import batch as batch_mod
         from doorloc.cell import CellFileError, load_cell
 
@@ -102,27 +92,13 @@ def register(app: typer.Typer) -> None:
                 return batch_mod.run_ray(todo, the_cell, workers=workers, ray_address=ray_address)
             return batch_mod.run_local(todo, the_cell, workers=workers)
 
-        console = Console(stderr=True)
         with log:
-            todo = sum(1 for it in items if it.image not in log.done)
-            columns = (
-                TextColumn("[bold]locating"), BarColumn(), MofNCompleteColumn(),
-                TextColumn("{task.fields[rate]}"), TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
-            )
-            with Progress(*columns, console=console, transient=False) as progress:
-                task = progress.add_task("locate", total=todo, rate="")
-
-                def advance(_record):
-                    progress.advance(task)
-                    speed = progress.tasks[0].speed
-                    progress.update(task, rate=f"{speed:.2f} img/s" if speed else "")
-
-                try:
-                    summary = batch_mod.run_job(items, log, run_backend, advance)
-                except batch_mod.BatchSetupError as e:
-                    raise fail(str(e)) from None
-                except OSError as e:
-                    raise fail(f"cannot write {out}: {e.strerror or e}", EXIT_FAILED) from None
+            try:
+                summary = _run_with_progress(items, log, run_backend)
+            except batch_mod.BatchSetupError as e:
+                raise fail(str(e)) from None
+            except OSError as e:
+                raise fail(f"cannot write {out}: {e.strerror or e}", EXIT_FAILED) from None
         typer.echo(f"{out}: {summary.text()}", err=True)
         raise typer.Exit(EXIT_OK if summary.answered == summary.total else EXIT_REFUSED)
 
@@ -209,6 +185,36 @@ def is_loopback(host: str) -> bool:
         return ipaddress.ip_address(host.strip("[]")).is_loopback
     except ValueError:  # a host name other than localhost may resolve to anything
         return False
+
+
+def _run_with_progress(items, log, run_backend):
+    """Run the batch job with a progress bar on stderr (images done, rate, ETA); returns its summary."""
+    from rich.console import Console
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    from doorloc.app import batch as batch_mod
+
+    todo = sum(1 for it in items if it.image not in log.done)
+    columns = (
+        TextColumn("[bold]locating"), BarColumn(), MofNCompleteColumn(),
+        TextColumn("{task.fields[rate]}"), TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
+    )
+    with Progress(*columns, console=Console(stderr=True), transient=False) as progress:
+        task = progress.add_task("locate", total=todo, rate="")
+
+        def advance(_record) -> None:
+            progress.advance(task)
+            speed = progress.tasks[0].speed
+            progress.update(task, rate=f"{speed:.2f} img/s" if speed else "")
+
+        return batch_mod.run_job(items, log, run_backend, advance)
 
 
 def _recipe_lookup(database_url: str | None):

@@ -22,9 +22,11 @@ reach the image corners can turn back on itself (its radial map stops being mono
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 __all__ = [
     "CameraModel",
@@ -294,24 +296,22 @@ class Extrinsics:
 
     rvec: np.ndarray
     tvec_mm: np.ndarray
+    _rotation: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        r = np.asarray(self.rvec, float).reshape(3)
-        t = np.asarray(self.tvec_mm, float).reshape(3)
-        r.setflags(write=False)
-        t.setflags(write=False)
+        r = np.array(self.rvec, float).reshape(3)
+        t = np.array(self.tvec_mm, float).reshape(3)
+        R = Rotation.from_rotvec(r).as_matrix()
+        for a in (r, t, R):
+            a.setflags(write=False)
         object.__setattr__(self, "rvec", r)
         object.__setattr__(self, "tvec_mm", t)
+        object.__setattr__(self, "_rotation", R)
 
     @property
     def rotation(self) -> np.ndarray:
-        """``R``, shape (3, 3): cell directions -> camera directions."""
-        theta = float(np.linalg.norm(self.rvec))
-        if theta < 1e-15:
-            return np.eye(3)
-        k = self.rvec / theta
-        kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-        return np.eye(3) + math.sin(theta) * kx + (1 - math.cos(theta)) * (kx @ kx)
+        """``R``, shape (3, 3): cell directions -> camera directions (read-only)."""
+        return self._rotation
 
     @property
     def camera_centre_cell(self) -> np.ndarray:
@@ -319,20 +319,13 @@ class Extrinsics:
         return -self.rotation.T @ self.tvec_mm
 
     @classmethod
-    def from_rotation(cls, rotation: np.ndarray, tvec_mm) -> Extrinsics:
-        R = np.asarray(rotation, float)
-        # Rodrigues from a rotation matrix (robust near pi via the eigenvector route).
-        cos_t = np.clip((np.trace(R) - 1) / 2, -1.0, 1.0)
-        theta = math.acos(cos_t)
-        if theta < 1e-12:
-            rvec = np.zeros(3)
-        elif math.pi - theta < 1e-6:
-            w, v = np.linalg.eigh((R + R.T) / 2)
-            axis = v[:, np.argmax(w)]
-            rvec = axis * theta
-        else:
-            axis = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]]) / (2 * math.sin(theta))
-            rvec = axis * theta
+    def from_rotation(cls, rotation: np.ndarray, tvec_mm: np.ndarray | Sequence[float]) -> Extrinsics:
+        """Extrinsics from a rotation matrix ``R`` (cell -> camera) and a translation, mm.
+
+        scipy's quaternion route keeps full precision near 180 deg, where the textbook
+        ``(R - R.T) / (2 sin theta)`` formula (and ``cv2.Rodrigues``, ~1e-5 there) loses digits.
+        """
+        rvec = Rotation.from_matrix(np.asarray(rotation, float)).as_rotvec()
         return cls(rvec, np.asarray(tvec_mm, float))
 
     def cell_to_camera(self, points_cell: np.ndarray) -> np.ndarray:

@@ -8,7 +8,9 @@ half-written calibration behind.
 
 from __future__ import annotations
 
+import json
 import os
+import unicodedata
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -50,18 +52,29 @@ class CalibrationFile:
     extra: dict[str, Any] = field(default_factory=dict)
 
 
-class _OpenCVLoader(yaml.SafeLoader):
-    pass
+class _CalibrationLoader(yaml.SafeLoader):
+    """PyYAML's safe loader plus OpenCV's ``!!opencv-matrix`` tag (ROS files use it too, rarely)."""
 
 
-def _opencv_matrix(loader: yaml.SafeLoader, node: yaml.Node) -> np.ndarray:
+class _OpenCVLoader(_CalibrationLoader):
+    """Reads an OpenCV FileStorage file as OpenCV does: its YAML has ints, reals and strings only, so
+    ``yes``, ``Null``, ``~`` or a date are strings here too, not YAML 1.1 booleans, nulls or dates."""
+
+    yaml_implicit_resolvers = {
+        first: [(tag, rx) for tag, rx in resolvers
+                if tag not in ("tag:yaml.org,2002:bool", "tag:yaml.org,2002:null", "tag:yaml.org,2002:timestamp")]
+        for first, resolvers in yaml.SafeLoader.yaml_implicit_resolvers.items()
+    }
+
+
+def _opencv_matrix(loader: yaml.SafeLoader, node: yaml.MappingNode) -> np.ndarray:
     m = loader.construct_mapping(node, deep=True)
     data = np.asarray(m["data"], dtype=float)
     return data.reshape(int(m["rows"]), int(m["cols"]))
 
 
-_OpenCVLoader.add_constructor("tag:yaml.org,2002:opencv-matrix", _opencv_matrix)
-_OpenCVLoader.add_constructor("!opencv-matrix", _opencv_matrix)
+_CalibrationLoader.add_constructor("tag:yaml.org,2002:opencv-matrix", _opencv_matrix)
+_CalibrationLoader.add_constructor("!opencv-matrix", _opencv_matrix)
 
 
 def _ros_matrix(v: Any, name: str, src: str) -> np.ndarray:
@@ -79,11 +92,15 @@ def _ros_matrix(v: Any, name: str, src: str) -> np.ndarray:
 def parse_calibration(text: str, source: str = "<calibration>") -> CalibrationFile:
     """Parse OpenCV FileStorage YAML or ROS camera_info YAML text into a :class:`CalibrationFile`."""
     lines = text.splitlines()
-    if lines and lines[0].startswith("%YAML:"):
-        lines = lines[1:]
+    loader: type[yaml.SafeLoader] = _CalibrationLoader
+    # OpenCV 4 heads its files "%YAML:1.0" (not YAML: dropped), OpenCV 5 "%YAML 1.2"; ROS files have none.
+    if lines and lines[0].startswith("%YAML"):
+        loader = _OpenCVLoader
+        if lines[0].startswith("%YAML:"):
+            lines = lines[1:]
     # OpenCV writes "!!opencv-matrix"; PyYAML resolves "!!x" to "tag:yaml.org,2002:x".
     try:
-        doc = yaml.load("\n".join(lines), Loader=_OpenCVLoader)
+        doc = yaml.load("\n".join(lines), Loader=loader)  # both loaders are SafeLoaders
     except yaml.YAMLError as e:
         raise CalibrationFileError(f"{source}: not a YAML calibration file ({e.__class__.__name__}: {e})") from None
     if not isinstance(doc, dict):
@@ -143,15 +160,36 @@ def _cv_matrix(name: str, m: np.ndarray) -> str:
     return f"{name}: !!opencv-matrix\n   rows: {m.shape[0]}\n   cols: {m.shape[1]}\n   dt: d\n   data: [ {data} ]\n"
 
 
+def _cv_string(name: str, value: str) -> str:
+    """A double-quoted scalar that ``cv2.FileStorage`` and PyYAML both read back as ``value``.
+
+    JSON's escapes (``\\"``, ``\\\\``, ``\\n``, ``\\t``, ``\\r``) are the subset both parsers share;
+    OpenCV does not understand ``\\uXXXX``, so other control characters cannot be written at all.
+    """
+    # Zl/Zp: PyYAML folds a raw U+2028/U+2029 inside quotes into a space, and OpenCV cannot escape it
+    bad = [c for c in value if (unicodedata.category(c) in ("Cc", "Cs", "Zl", "Zp") and c not in "\t\n\r")
+           or c in "\ufffe\uffff"]
+    if bad:
+        raise ValueError(f"{name} {value!r} holds characters ({', '.join(map(repr, bad))}) "
+                         "that a calibration file cannot carry")
+    return f"{name}: {json.dumps(value, ensure_ascii=False)}"
+
+
 def dump_opencv_yaml(cal: CalibrationFile) -> str:
-    """OpenCV FileStorage YAML text (readable by ``cv2.FileStorage`` and by :func:`parse_calibration`)."""
+    """OpenCV FileStorage YAML text (readable by ``cv2.FileStorage`` and by :func:`parse_calibration`).
+
+    Checked against ``cv2.FileStorage`` both ways by ``tests/core/test_files.py`` (property tests).
+    A camera without distortion terms gets no ``distortion_coefficients`` key: OpenCV cannot parse an
+    empty ``!!opencv-matrix``, and both readers take a missing key as "no distortion".
+    """
     cam = cal.camera
     out = ["%YAML:1.0", "---"]
     out.append(f"image_width: {cam.image_size[0]}")
     out.append(f"image_height: {cam.image_size[1]}")
-    out.append(f'camera_name: "{cal.camera_name}"')
+    out.append(_cv_string("camera_name", cal.camera_name))
     out.append(_cv_matrix("camera_matrix", cam.camera_matrix).rstrip())
-    out.append(_cv_matrix("distortion_coefficients", cam.dist_coeffs.reshape(1, -1)).rstrip())
+    if cam.dist_coeffs.size:
+        out.append(_cv_matrix("distortion_coefficients", cam.dist_coeffs.reshape(1, -1)).rstrip())
     if cal.avg_reprojection_error is not None:
         out.append(f"avg_reprojection_error: {_fmt(cal.avg_reprojection_error)}")
     if cal.per_view_reprojection_errors:

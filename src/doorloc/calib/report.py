@@ -227,7 +227,7 @@ def write_report(directory: str | os.PathLike, result: CalibrationResult, scan: 
 def _board_dict(board: object | None) -> dict | None:
     if board is None:
         return None
-    if dataclasses.is_dataclass(board):
+    if dataclasses.is_dataclass(board) and not isinstance(board, type):
         return {"type": type(board).__name__, **dataclasses.asdict(board)}
     return {"type": type(board).__name__, "description": str(board)}
 

@@ -22,14 +22,13 @@ from __future__ import annotations
 import math
 import re
 from pathlib import Path
-from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from doorloc.pose import DoorPose
 from doorloc.recipes.models import DoorRecipe
-from doorloc.recipes.targets import TOOL_Y_ALONG_CELL_Y, TOOL_Z_ALONG_CELL_Y, Target
+from doorloc.recipes.targets import Target
+from doorloc.robot.section import RobotSection, robot_section_from_doc
 
 __all__ = [
     "RAPID_LINE_MAX", "rapid_num", "rapid_text", "parse_rapid_text", "RobotSetup", "robot_setup_from_cell_file",
@@ -111,52 +110,24 @@ def parse_rapid_text(text: str) -> list[Target]:
     return out
 
 
-class RobotSetup(BaseModel):
-    """The robot-side data a RAPID module needs; the cell file's optional ``robot:`` section.
-
-    Defaults describe a spindle mounted along the flange's +Z with its tip 250 mm out, and a tool
-    frame whose **+Y** is the spindle axis (``spindle_axis: y``; ``tool_rot`` then defaults to the
-    rotation turning flange +Z into tool +Y), so that the targets' quaternions are those of
-    :func:`doorloc.recipes.targets.tool_quaternion`. ``spindle_axis: z`` keeps ABB's habit (tool +Z
-    along the spindle, ``tool_rot`` identity) and the targets get ``base_orientation``
-    :data:`~doorloc.recipes.targets.TOOL_Z_ALONG_CELL_Y` (then all four quaternion components move with
-    the yaw). The work object is the cell frame (``wobj_uframe_*``: where it lies in the robot's world frame).
-    """
-
-    model_config = ConfigDict(frozen=True, extra="forbid")
-
-    tool_name: str = Field("tSpindle", pattern=_IDENT.pattern)
-    spindle_axis: Literal["y", "z"] = "y"
-    tool_tcp_mm: Vec3 = (0.0, 0.0, 250.0)
-    tool_rot: Quat | None = None
-    tool_mass_kg: float = Field(12.0, gt=0)
-    tool_cog_mm: Vec3 = (0.0, 0.0, 120.0)
-    wobj_name: str = Field("wobjDoorCell", pattern=_IDENT.pattern)
-    wobj_uframe_mm: Vec3 = (0.0, 0.0, 0.0)
-    wobj_uframe_rot: Quat = (1.0, 0.0, 0.0, 0.0)
-    robconf: tuple[int, int, int, int] = (0, 0, 0, 0)
-    travel_speed: str = Field("v200", pattern=_IDENT.pattern)
-    travel_zone: str = Field("z5", pattern=_IDENT.pattern)
-
-    @model_validator(mode="after")
-    def _default_tool_rot(self) -> RobotSetup:
-        if self.tool_rot is None:
-            rot = (math.sqrt(0.5), math.sqrt(0.5), 0.0, 0.0) if self.spindle_axis == "y" else (1.0, 0.0, 0.0, 0.0)
-            object.__setattr__(self, "tool_rot", rot)
-        return self
-
-    def base_orientation(self) -> Quat:
-        """Tool orientation at yaw 0 for :func:`doorloc.recipes.targets.targets_for_pose`."""
-        return TOOL_Y_ALONG_CELL_Y if self.spindle_axis == "y" else TOOL_Z_ALONG_CELL_Y
+#: the cell file's ``robot:`` section (doorloc.robot.section): RAPID tool/work-object data plus the robot
+#: model, base placement and tool that the reach check uses; one model, so the two never disagree
+RobotSetup = RobotSection
 
 
 def robot_setup_from_cell_file(path: str | Path) -> RobotSetup:
-    """The ``robot:`` section of a cell file (defaults where it or a key is absent)."""
+    """The ``robot:`` section of a cell file (defaults where it or a key is absent).
+
+    Raises
+    ------
+    doorloc.robot.section.RobotSectionError
+        A misspelt or bad key (the message names ``robot.<key>``).
+    """
     import yaml
 
     doc = yaml.safe_load(Path(path).read_text(encoding="utf-8")) or {}
     section = doc.get("robot") if isinstance(doc, dict) else None
-    return RobotSetup.model_validate(section or {})
+    return robot_section_from_doc(section or {}, str(path))
 
 
 def _vec(v) -> str:

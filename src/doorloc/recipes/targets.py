@@ -25,6 +25,7 @@ import math
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict
+from scipy.spatial.transform import Rotation
 
 from doorloc.pose import DoorPose, door_to_cell
 from doorloc.recipes.models import DoorRecipe
@@ -68,13 +69,6 @@ class Target(BaseModel):
     kind: PointKind = "corner"
 
 
-def _qmul(a: Quat, b: Quat) -> Quat:
-    aw, ax, ay, az = a
-    bw, bx, by, bz = b
-    return (aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw)
-
-
 def tool_quaternion(yaw_deg: float, base_orientation: Quat = TOOL_Y_ALONG_CELL_Y) -> Quat:
     """Tool orientation for a door at ``yaw_deg``: ``[cos(yaw/2), 0, -sin(yaw/2), 0] * base_orientation``.
 
@@ -85,13 +79,11 @@ def tool_quaternion(yaw_deg: float, base_orientation: Quat = TOOL_Y_ALONG_CELL_Y
     >>> [round(q, 7) for q in tool_quaternion(2.0)]
     [0.9998477, 0.0, -0.0174524, 0.0]
     """
-    half = math.radians(yaw_deg) / 2.0
-    q = (math.cos(half), 0.0, -math.sin(half), 0.0)
+    turn = Rotation.from_euler("y", -yaw_deg, degrees=True)
     if base_orientation != TOOL_Y_ALONG_CELL_Y:
-        q = _qmul(q, base_orientation)
-        n = math.sqrt(math.fsum(v * v for v in q))
-        q = (q[0] / n, q[1] / n, q[2] / n, q[3] / n)
-    return q if q[0] >= 0 else (-q[0], -q[1], -q[2], -q[3])
+        turn = turn * Rotation.from_quat(base_orientation, scalar_first=True)
+    w, x, y, z = turn.as_quat(canonical=True, scalar_first=True).tolist()
+    return (w, x, y, z)
 
 
 def targets_from_path(

@@ -81,7 +81,7 @@ class DatasetItem:
 
 def dataset_items(doors: Iterable[DoorSize], poses: list[DoorPose], seed: int = 0) -> list[DatasetItem]:
     """Every door at every pose, named ``img_0000.png``...; per-image seeds derived from ``seed``."""
-    items = []
+    items: list[DatasetItem] = []
     for door in doors:
         for pose in poses:
             k = len(items)

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, fields
+from typing import Any
 
 import numpy as np
 
@@ -137,7 +138,7 @@ class Effects:
         unknown = set(d) - set(known)
         if unknown:
             raise ValueError(f"unknown effect(s): {', '.join(sorted(unknown))}; known: {', '.join(known)}")
-        kw = {}
+        kw: dict[str, Any] = {}
         for k, v in d.items():
             default = known[k].default
             try:
@@ -215,7 +216,7 @@ def form_image(radiance: np.ndarray, effects: Effects, seed: int = 0, principal_
     """
     import cv2
 
-    img = np.asarray(radiance, dtype=np.float32)
+    img: np.ndarray = np.asarray(radiance, dtype=np.float32)
     h, w = img.shape
     if effects.gradient_u or effects.gradient_v or effects.vignetting:
         cx, cy = principal_point if principal_point is not None else ((w - 1) / 2, (h - 1) / 2)
@@ -235,7 +236,7 @@ def form_image(radiance: np.ndarray, effects: Effects, seed: int = 0, principal_
         # Poisson-Gaussian sensor noise: shot noise of variance mean/full_well (the Gaussian limit of
         # Poisson, within 1 % above ~100 electrons) plus read noise, drawn as one normal variate.
         rng = np.random.default_rng([seed, 104729])
-        var = np.float32((effects.read_noise_dn / 255.0) ** 2)
+        var: np.ndarray | np.floating = np.float32((effects.read_noise_dn / 255.0) ** 2)
         if effects.full_well_e > 0:
             var = np.maximum(img, 0) * np.float32(1.0 / effects.full_well_e) + var
         img = img + np.sqrt(var) * rng.standard_normal(img.shape, dtype=np.float32)
@@ -246,10 +247,13 @@ def form_image(radiance: np.ndarray, effects: Effects, seed: int = 0, principal_
         tint = np.array([0.80, 0.93, 1.0], np.float32)  # BGR: a warm wood tone
         img = img[..., None] * tint
     top = 255 if effects.bit_depth == 8 else 65535
-    out = np.rint(img * top).astype(np.uint8 if effects.bit_depth == 8 else np.uint16)
+    out: np.ndarray = np.rint(img * top).astype(np.uint8 if effects.bit_depth == 8 else np.uint16)
     if effects.jpeg_quality:
         ok, buf = cv2.imencode(".jpg", out, [cv2.IMWRITE_JPEG_QUALITY, int(effects.jpeg_quality)])
         if not ok:
             raise RuntimeError("JPEG encoding failed")
-        out = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED)
+        decoded = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED)
+        if decoded is None:
+            raise RuntimeError("JPEG decoding failed")
+        out = decoded
     return out

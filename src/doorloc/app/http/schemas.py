@@ -7,6 +7,7 @@ from typing import Any
 from pydantic import BaseModel, Field
 
 from doorloc.recipes.targets import Target
+from doorloc.robot.reach import ReachReport
 from doorloc.vision.result import LocateResult
 
 __all__ = ["DoorOut", "LocateResponse", "CellInfo", "Health", "Readiness", "DoorList", "RecipeHistory",
@@ -30,6 +31,11 @@ class LocateResponse(LocateResult):
     targets_note: str | None = Field(None, description="why targets is empty, else null")
     rapid: str | None = Field(None, description="with ?rapid=true: the targets as RAPID-readable text")
     overlay_png: str | None = Field(None, description="with ?overlay=true: the overlay image, base64-encoded PNG")
+    reach: ReachReport | None = Field(
+        None, description="when the cell names a robot: reach, joints, confdata, inverse condition and deflection per "
+                          "target (SPEC section 9); an infeasible target turns the answer into a refusal")
+    measured_pose: dict[str, float] | None = Field(
+        None, description="on a reach refusal: the pose that was measured (x_mm, z_mm, yaw_deg)")
 
 
 class CellInfo(BaseModel):

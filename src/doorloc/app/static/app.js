@@ -67,7 +67,23 @@ function showAnswer(a) {
   fillRows($("targets").tBodies[0], (a.targets || []).map((t) => [
     t.name, t.hinge ?? "", fmt(t.x_mm, 3), fmt(t.y_mm, 3), fmt(t.z_mm, 3), (t.quat || []).map((q) => fmt(q, 5)).join(" "),
   ]));
+  showReach(a.reach);
   showError(a.ok ? "" : a.error);
+}
+
+// The reach block (SPEC section 9): present when the cell names a robot and there were targets.
+function showReach(r) {
+  $("reach").hidden = !r;
+  if (!r) return;
+  $("reach-status").textContent = r.feasible ? "feasible" : "not feasible";
+  $("reach-status").className = "badge " + (r.feasible ? "ok" : "bad");
+  $("reach-note").textContent = `${r.robot}, tool ${r.tool.pos_mm.map((v) => fmt(v, 1)).join(", ")} mm` +
+    (r.feasible ? "" : ` — ${r.reason}`);
+  fillRows($("reach-targets").tBodies[0], (r.targets || []).map((t) => [
+    t.name, t.feasible ? "yes" : "no", (t.joints_deg || []).map((v) => fmt(v, 2)).join(" "),
+    (t.confdata || []).join(","), fmt(t.inv_condition, 3), (t.deflection_mm || []).map((v) => fmt(v, 3)).join(" "),
+    t.reason || "",
+  ]));
 }
 
 async function locate(file) {
