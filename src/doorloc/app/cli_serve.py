@@ -168,11 +168,18 @@ def _run_uvicorn(host: str, port: int, workers: int, log_level: str, ssl_certfil
             access_log=False,  # the service logs every request itself, as JSON with its request id
             ssl_certfile=str(ssl_certfile) if ssl_certfile else None,
             ssl_keyfile=str(ssl_keyfile) if ssl_keyfile else None,
-            http="doorloc.app.http.protocol:ProblemJsonHTTP",  # its own 400s as problem+json
+            http=_http_protocol(),
         )
     finally:
         if own_metrics_dir:
             shutil.rmtree(os.environ.pop("PROMETHEUS_MULTIPROC_DIR"), ignore_errors=True)
+
+
+def _http_protocol() -> str:
+    """uvicorn's HTTP protocol: the httptools one with problem+json 400s when httptools is installed."""
+    import importlib.util
+
+    return "doorloc.app.http.protocol:ProblemJsonHTTP" if importlib.util.find_spec("httptools") else "auto"
 
 
 def is_loopback(host: str) -> bool:
