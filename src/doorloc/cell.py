@@ -103,6 +103,9 @@ class Cell:
     sha256, calibration_sha256 : str or None
         Hashes of the cell file's bytes and of the calibration it uses (of the calibration file, or of the
         inline camera model), echoed in every result so an answer says which model produced it.
+    calibration_covariance, calibration_covariance_names : ndarray or None, tuple of str
+        Covariance of the camera's free intrinsics from its calibration file (None when the file has
+        none, or the cell overrides the camera inline); locate carries it into every answer's uncertainty.
     """
 
     camera: CameraModel
@@ -117,6 +120,8 @@ class Cell:
     provenance: dict[str, Any] = field(default_factory=dict)
     sha256: str | None = None
     calibration_sha256: str | None = None
+    calibration_covariance: np.ndarray | None = field(default=None, compare=False)
+    calibration_covariance_names: tuple[str, ...] = ()
 
     @property
     def posed_camera(self) -> PosedCamera:
@@ -287,6 +292,8 @@ def parse_cell(
         K = dist = size = None
         observed = None
         calibration_sha = None
+        cov: np.ndarray | None = None
+        cov_names: tuple[str, ...] = ()
         if cam_doc.calibration is not None:
             cal_path = Path(cam_doc.calibration)
             if not cal_path.is_absolute() and base_dir is not None:
@@ -296,6 +303,7 @@ def parse_cell(
             K, dist, size, observed = (
                 cal.camera.camera_matrix, cal.camera.dist_coeffs, cal.camera.image_size, cal.camera.observed_radius_px,
             )
+            cov, cov_names = cal.covariance, cal.covariance_names
         if cam_doc.camera_matrix is not None:
             K = np.asarray(cam_doc.camera_matrix, float)
         if cam_doc.dist_coeffs is not None:
@@ -311,6 +319,7 @@ def parse_cell(
         camera = CameraModel(K, dist, size, observed)
         if calibration_sha is None or cam_doc.camera_matrix is not None or cam_doc.dist_coeffs is not None:
             calibration_sha = _sha256_camera(camera)
+            cov, cov_names = None, ()  # an inline camera is not the one the covariance describes
         extrinsics = Extrinsics(np.asarray(cam_doc.extrinsics.rvec), np.asarray(cam_doc.extrinsics.tvec_mm))
         fixture = Fixture(**cd.fixture.model_dump())
         envelope = Envelope(**cd.envelope.model_dump())
@@ -330,6 +339,8 @@ def parse_cell(
         provenance=dict(cd.provenance),
         sha256=sha256 or hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest(),
         calibration_sha256=calibration_sha,
+        calibration_covariance=cov,
+        calibration_covariance_names=cov_names,
     )
 
 

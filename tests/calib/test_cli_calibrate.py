@@ -52,6 +52,10 @@ def test_calibrate_uses_the_good_views_and_says_why_others_were_skipped(messy_di
     assert cal.avg_reprojection_error <= 0.393
     assert len(cal.per_view_reprojection_errors) == 13
     assert 250 < cal.camera.observed_radius_px < 330
+    # the intrinsics' covariance travels with the file, for locate's uncertainty
+    assert cal.covariance is not None and cal.covariance.shape == (len(cal.covariance_names),) * 2
+    names = set(cal.covariance_names)  # "f" alone when the chosen model fixes the aspect ratio
+    assert {"cx", "cy"} <= names and ({"fx", "fy"} <= names or "f" in names) and (cal.covariance.diagonal() > 0).all()
     doc = json.loads((rep / "calibration_report.json").read_text())
     assert {s["image"] for s in doc["skipped_images"]} == {"broken.jpg", "blank.png", "small.png"}
     assert len(doc["views"]) == 13 and sum(c["chosen"] for c in doc["model_selection"]["candidates"]) == 1

@@ -107,7 +107,8 @@ class CalibrationOutcome:
         """The calibration as written to ``camera.yaml`` (RMS and per-view RMS in px, the chosen model)."""
         fit = self.result.fit
         return CalibrationFile(self.result.camera, fit.rms_px, fit.per_view_rms_px, camera_name,
-                               {"model": fit.candidate.name})
+                               {"model": fit.candidate.name}, self.result.covariance,
+                               tuple(self.result.covariance_names))
 
 
 def read_image_file(path: str | os.PathLike) -> tuple[np.ndarray | None, str | None]:

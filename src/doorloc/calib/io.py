@@ -43,6 +43,12 @@ class CalibrationFile:
 
     ``avg_reprojection_error`` in pixels (RMS over all corners), ``per_view_reprojection_errors`` in
     pixels (RMS per view); ``extra`` keeps any other keys found in the file.
+
+    ``covariance`` is the covariance of the calibration's free intrinsics (``covariance_names`` in its
+    order: ``fx``/``fy`` or ``f``, ``cx``, ``cy``, then distortion names ``k1``, ``k2``, ``p1``...; px and
+    unitless), saved as ``intrinsics_covariance`` and ``intrinsics_covariance_names`` so that locate can
+    carry the calibration's own uncertainty into every answer (as mrcal keeps its optimisation inputs
+    with the model). None for a file without it.
     """
 
     camera: CameraModel
@@ -50,6 +56,23 @@ class CalibrationFile:
     per_view_reprojection_errors: list[float] = field(default_factory=list)
     camera_name: str = "doorloc"
     extra: dict[str, Any] = field(default_factory=dict)
+    covariance: np.ndarray | None = None
+    covariance_names: tuple[str, ...] = ()
+
+
+def _covariance_from(doc: dict, source: str) -> tuple[np.ndarray | None, tuple[str, ...]]:
+    if "intrinsics_covariance" not in doc:
+        return None, ()
+    try:
+        names = tuple(str(n) for n in doc.get("intrinsics_covariance_names") or [])
+        cov = np.asarray(_ros_matrix(doc["intrinsics_covariance"], "intrinsics_covariance", source), float)
+        cov = cov.reshape(len(names), len(names))
+    except (ValueError, TypeError):
+        raise CalibrationFileError(f"{source}: 'intrinsics_covariance' must be a square matrix with one row per name "
+                                   "in 'intrinsics_covariance_names'") from None
+    if not np.all(np.isfinite(cov)) or np.any(np.diag(cov) < 0):
+        raise CalibrationFileError(f"{source}: 'intrinsics_covariance' has a negative or non-finite variance")
+    return cov, names
 
 
 class _CalibrationLoader(yaml.SafeLoader):
@@ -67,7 +90,9 @@ class _OpenCVLoader(_CalibrationLoader):
     }
 
 
-def _opencv_matrix(loader: yaml.SafeLoader, node: yaml.MappingNode) -> np.ndarray:
+def _opencv_matrix(loader: yaml.SafeLoader, node: yaml.Node) -> np.ndarray:
+    if not isinstance(node, yaml.MappingNode):
+        raise yaml.constructor.ConstructorError(None, None, "an opencv-matrix must be a mapping", node.start_mark)
     m = loader.construct_mapping(node, deep=True)
     data = np.asarray(m["data"], dtype=float)
     return data.reshape(int(m["rows"]), int(m["cols"]))
@@ -128,7 +153,9 @@ def parse_calibration(text: str, source: str = "<calibration>") -> CalibrationFi
     known = {
         "camera_matrix", "distortion_coefficients", "dist_coeffs", "image_width", "image_height",
         "avg_reprojection_error", "per_view_reprojection_errors", "camera_name", "observed_radius_px",
+        "intrinsics_covariance", "intrinsics_covariance_names",
     }
+    cov, cov_names = _covariance_from(doc, source)
     extra = {k: v for k, v in doc.items() if k not in known}
     avg = doc.get("avg_reprojection_error")
     return CalibrationFile(
@@ -137,6 +164,8 @@ def parse_calibration(text: str, source: str = "<calibration>") -> CalibrationFi
         per_view or [],
         str(doc.get("camera_name", "doorloc")),
         extra,
+        cov,
+        cov_names,
     )
 
 
@@ -198,6 +227,9 @@ def dump_opencv_yaml(cal: CalibrationFile) -> str:
         )
     if cam.observed_radius_px is not None:
         out.append(f"observed_radius_px: {_fmt(cam.observed_radius_px)}")
+    if cal.covariance is not None:
+        out.append(_cv_matrix("intrinsics_covariance", cal.covariance).rstrip())
+        out.append("intrinsics_covariance_names: [ " + ", ".join(f'"{n}"' for n in cal.covariance_names) + " ]")
     return "\n".join(out) + "\n"
 
 
@@ -226,6 +258,9 @@ def dump_ros_yaml(cal: CalibrationFile) -> str:
         doc["per_view_reprojection_errors"] = [float(v) for v in cal.per_view_reprojection_errors]
     if cam.observed_radius_px is not None:
         doc["observed_radius_px"] = float(cam.observed_radius_px)
+    if cal.covariance is not None:
+        doc["intrinsics_covariance"] = mat(cal.covariance)
+        doc["intrinsics_covariance_names"] = list(cal.covariance_names)
     return yaml.safe_dump(doc, sort_keys=False, default_flow_style=None)
 
 

@@ -31,9 +31,17 @@ class LocateConfig:
         Bounds of the sub-pixel window half-size, px (the second pass sizes it to the measured blur).
     window_blur_factor : float
         Final window half-size = ceil(factor * blur sigma + 1) px: wide enough for the transition's
-        tails (a centred window makes what it misses cancel), no wider (each extra pixel adds noise).
+        tails (a centred window makes what it misses cancel), no wider: each extra pixel adds noise, and
+        surface texture beside the edge (wood grain along it) biases the area estimate by the difference
+        between the texture under the window and at the plateaus, which grows with their distance (issue
+        11: 1.5 with 2-px plateaus takes the wood-grain RMS from 0.033 to 0.019 mm; clean images unchanged).
     plateau : int
-        Samples on each side of the window used for the two grey levels.
+        Samples on each side of the window used for the two grey levels, right next to it (see
+        ``window_blur_factor``; ``level_smooth`` averages them along the edge against noise).
+    step_fit : bool
+        In the final pass, refine each plain edge point by fitting a blurred step with free levels to its
+        window (:func:`doorloc.vision.edges.refine_step_fit`): robust to texture along the edge (wood
+        grain); False keeps the area estimator alone.
     slope_smooth : int
         Scan lines on each side over which the plateau slopes are averaged (0: flat plateaus, the
         default: a centred window cancels linear shading, and noisy slopes cost more than they give).
@@ -52,6 +60,15 @@ class LocateConfig:
         Refuse when the fit's standard error of x or z exceeds this.
     max_saturated_fraction : float
         Refuse when more of the search region is white-clipped.
+    max_uncertainty_mm, max_uncertainty_deg : float
+        The cell's tolerance on the answer's 1-sigma uncertainty (:mod:`doorloc.vision.uncertainty`):
+        refuse ``uncertain`` when that of x or z exceeds ``max_uncertainty_mm`` or that of the yaw
+        ``max_uncertainty_deg``.
+    calibration_sigma_px : float
+        Default 1-sigma projection error of a camera calibration that carries no covariance, px (the
+        floor of the ``calibration`` term); 0 only for a camera known exactly (rendered images).
+    cell_sigma_mm, cell_sigma_deg : float
+        1-sigma of the camera's placement in the cell (the cell check), carried into x, z and yaw.
     """
 
     search_margin_mm: float = 30.0
@@ -62,8 +79,9 @@ class LocateConfig:
     min_contrast: float = 6.0
     half_window_max: int = 9
     half_window_min: int = 3
-    window_blur_factor: float = 2.0
-    plateau: int = 4
+    window_blur_factor: float = 1.5
+    plateau: int = 1
+    step_fit: bool = True
     slope_smooth: int = 0
     level_smooth: int = 10
     min_thickness_mm: float = 4.0
@@ -76,3 +94,8 @@ class LocateConfig:
     min_corner_support: float = 0.6
     max_sigma_mm: float = 0.05
     max_saturated_fraction: float = 0.5
+    max_uncertainty_mm: float = 0.1
+    max_uncertainty_deg: float = 0.05
+    calibration_sigma_px: float = 0.05
+    cell_sigma_mm: float = 0.0
+    cell_sigma_deg: float = 0.0

@@ -39,12 +39,15 @@ from doorloc.vision.config import LocateConfig
 from doorloc.vision.edges import (
     EdgeSamples,
     FarFaceFit,
+    block_artifact_ratio,
     coarse_edges,
     linearizing_lut,
+    refine_step_fit,
     step_blur,
     subpixel_edges,
     subpixel_edges_banded,
     subpixel_edges_far_face,
+    texture_bias,
     transition_width,
 )
 from doorloc.vision.lines import ImageLine, RectangleFit, fit_rectangle_edges, ransac_line
@@ -52,8 +55,20 @@ from doorloc.vision.luminance import ImageFormatError, luminance_plane
 from doorloc.vision.metric import MetricPose, pose_from_fit
 from doorloc.vision.region import EDGE_NAMES, Band, SearchRegion
 from doorloc.vision.result import LineQuality, LocateResult, PoseUncertainty, Provenance
+from doorloc.vision.uncertainty import (
+    EDGE_MODEL_FLOOR_PX,
+    JPEG_BLOCK_RATIO,
+    JPEG_EDGE_DOUBT_PX,
+    EdgeModelTerms,
+    calibration_pose_sigma,
+    combine,
+    corner_fit_sigma,
+)
 
 __all__ = ["LocateConfig", "locate", "LocateTrace"]
+
+#: the final pass fits a blurred step (LocateConfig.step_fit) only above this optical blur, px
+STEP_FIT_MIN_BLUR_PX = 0.5
 
 HUMAN = {"bottom": "bottom end of the door (X-line)", "reference": "reference-face arris (Z-line)",
          "far": "far arris (door thickness)"}
@@ -137,13 +152,14 @@ def _coarse(plane, band: Band, axis, polarity, thr, prefer=None):
 
 def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half: int, cfg: LocateConfig,
             scale8: float, every: int = 1, sharp: bool = False, optical_blur_px: float = float("nan"),
-            response_gamma: float = 1.0) -> tuple[dict[str, EdgeSamples], bool, FarFaceFit | None]:
+            response_gamma: float = 1.0, step_fit: dict[str, float] | None = None) -> _Sampled:
     keep = half + cfg.plateau + 4
     lut = linearizing_lut(plane.dtype, response_gamma)
     tracks = region.tracks(pose.corner, yaw_rad, pose.thickness_mm, keep, window_px=half + cfg.plateau + 2)
     out = {}
     far_fit = None
     beside = tracks["far"].beside_far_face
+    step_fitted: set[str] = set()  # lines refined by the blurred-step fit
     for name in EDGE_NAMES:
         lay = region.layouts[name]
         t = tracks[name]
@@ -168,7 +184,23 @@ def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half:
         out[name] = subpixel_edges(plane, lay.axis, scan, centre, half, cfg.plateau, scale8,
                                    slope_smooth=max(cfg.slope_smooth // every, 1) if cfg.slope_smooth else 0,
                                    **step_kw)
-    return out, beside, far_fit
+        if step_fit and name in step_fit:
+            fitted = refine_step_fit(plane, out[name], half, step_fit[name], lut)
+            if _step_fit_agrees(plane, out[name], fitted, half, cfg.plateau, lut):
+                out[name] = fitted
+                step_fitted.add(name)
+    return _Sampled(out, beside, far_fit, {k: (step_fit or {})[k] for k in step_fitted})
+
+
+@dataclass(frozen=True)
+class _Sampled:
+    """Edge points of one pass: per line, whether a far face was beside the far arris, its fit, and the
+    lines whose points the blurred-step fit refined (name -> the blur it used, px)."""
+
+    samples: dict[str, EdgeSamples]
+    far_beside: bool
+    far_fit: FarFaceFit | None
+    step_fitted: dict[str, float]
 
 
 def _fit(samples: dict[str, EdgeSamples], region: SearchRegion, cfg: LocateConfig, every: int = 1,
@@ -345,14 +377,17 @@ def _refine(plane, s8: float, region: SearchRegion, pose: MetricPose, cfg: Locat
     half = cfg.half_window_max
     blur = float("nan")
     optical_blur = float("nan")
+    step_fit: dict[str, float] = {}
     ref0: _Profiles | None = None  # the reference arris's first-pass profiles (for the blur)
     n_pass = 2
     _pass = 0
     while _pass < n_pass:
         # The first pass, on every fifth scan line, only centres and sizes the final windows.
-        samples, far_beside, far_fit = _sample(plane, region, pose, math.radians(pose.yaw_deg), half, cfg, s8,
-                                               every=5 if _pass == 0 else 1, sharp=_pass > 0 and blur < 0.6,
-                                               optical_blur_px=optical_blur, response_gamma=response_gamma)
+        sampled = _sample(plane, region, pose, math.radians(pose.yaw_deg), half, cfg, s8,
+                          every=5 if _pass == 0 else 1, sharp=_pass > 0 and blur < 0.6,
+                          optical_blur_px=optical_blur, response_gamma=response_gamma,
+                          step_fit=step_fit if _pass > 0 else {})
+        samples, far_beside, far_fit = sampled.samples, sampled.far_beside, sampled.far_fit
         if far_beside and _pass >= 1 and not np.isfinite(optical_blur) and ref0 is not None:
             # The far face came into view after the first pass: measure the blur and look again.
             optical_blur = step_blur(plane, ref0.samples, ref0.mask, cfg.half_window_max, cfg.plateau, ref0.lut,
@@ -372,6 +407,7 @@ def _refine(plane, s8: float, region: SearchRegion, pose: MetricPose, cfg: Locat
             lut = linearizing_lut(plane.dtype, response_gamma)
             widths = [transition_width(plane, samples[k], fit.weights[k] > 0, half, lut) for k in ("bottom", "reference")]
             blur = float(np.nanmax(widths)) if np.any(np.isfinite(widths)) else float(cfg.half_window_max)
+            step_fit = _step_fit_lines(cfg, dict(zip(("bottom", "reference"), widths, strict=True)))
             half = int(np.clip(math.ceil(cfg.window_blur_factor * blur + 1.0), cfg.half_window_min, cfg.half_window_max))
             ref0 = _Profiles(samples["reference"], fit.weights["reference"] > 0, lut)
             if far_beside:
@@ -379,7 +415,7 @@ def _refine(plane, s8: float, region: SearchRegion, pose: MetricPose, cfg: Locat
                 optical_blur = step_blur(plane, ref0.samples, ref0.mask, cfg.half_window_max, cfg.plateau, lut,
                                          blur_px=math.sqrt(max(blur * blur - 1.0 / 12.0, 0.04)))
         _pass += 1
-    return samples, fit, pose, blur, half, far_beside, far_fit
+    return samples, fit, pose, blur, half, far_beside, far_fit, sampled.step_fitted
 
 
 def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrace, name: str) -> LocateResult:
@@ -399,12 +435,12 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
     clock.lap("coarse")
     pose = _coarse_pose(coarse, plane, s8, region, cell, door, cfg)
     clock.lap("coarse_pose")
-    samples, fit, pose, blur, half, far_beside, far_fit = _refine(plane, s8, region, pose, cfg, clock,
+    samples, fit, pose, blur, half, far_beside, far_fit, step_fitted = _refine(plane, s8, region, pose, cfg, clock,
                                                                      cell.response_gamma)
     tr.samples = samples
     tr.inliers = {k: fit.weights[k] > 0 for k in EDGE_NAMES}
     tr.pose = pose
-    res = _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, half, plane, s8, far_beside,
+    res = _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, half, plane, s8, far_beside, step_fitted,
                            far_fit)
     res.diagnostics["far_face_visible"] = far_beside
     if far_fit is not None:
@@ -460,7 +496,8 @@ def _rows_across(plane, s8: float, ref: EdgeSamples, far: EdgeSamples) -> np.nda
 
 
 def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, half, plane, s8,
-                     far_beside: bool = False, far_fit: FarFaceFit | None = None) -> LocateResult:
+                     far_beside: bool = False, step_fitted: dict[str, float] | None = None,
+                     far_fit: FarFaceFit | None = None) -> LocateResult:
     lines, refusals = [], []
     corner_px = pose.corner_px
     diagnostics: dict = {
@@ -472,6 +509,13 @@ def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, ha
         "yaw_sigma_deg": math.degrees(fit.angle_sigma_rad),
         "thickness_expected_mm": door.thickness_mm,
     }
+    model = _edge_model_terms(plane, samples, fit, half, cfg, cell, far_fit, step_fitted or {})
+    model.blur_px = math.sqrt(max(blur * blur - 1.0 / 12.0, 0.0)) if math.isfinite(blur) else 0.0
+    blocks = block_artifact_ratio(plane, pose.corner_px, scale_to_8bit=s8)
+    diagnostics["jpeg_block_ratio"] = round(blocks, 3) if math.isfinite(blocks) else None
+    if blocks > JPEG_BLOCK_RATIO:
+        for k in EDGE_NAMES:
+            model.extra_px.setdefault(k, {})["jpeg"] = JPEG_EDGE_DOUBT_PX
     for k in EDGE_NAMES:
         s = samples[k]
         w = fit.weights[k]
@@ -481,10 +525,8 @@ def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, ha
         rms_mm = float(np.sqrt(np.mean(fit.residuals[k][inl] ** 2))) if n_i else float("nan")
         rms_px = rms_mm / pose.scale_mm_per_px
         contrast = float(np.median(np.abs(s.step[inl]))) if n_i else 0.0
-        extra = {}
-        if k == "far" and far_fit is not None:
-            # what the far-face model leaves in doubt (band level, blur), on top of the noise
-            extra["model_sigma_mm"] = round(far_fit.model_sigma_px * pose.scale_mm_per_px, 5)
+        # what the edge model leaves in doubt (floor, texture, far-face model...), on top of the noise
+        extra = {"model_sigma_mm": round(model.line_sigma_px(k) * pose.scale_mm_per_px, 6)}
         lines.append(LineQuality(name=k, n_points=n_s, n_inliers=n_i, rms_residual_px=round(rms_px, 4),
                                  rms_residual_mm=round(rms_mm, 5), contrast=round(contrast, 1),
                                  noise=round(float(np.median(s.noise[inl])), 2) if n_i else None,
@@ -513,7 +555,8 @@ def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, ha
     # Standard uncertainty of the thickness: the two arris offsets' noise, and beside a visible far face
     # what its model leaves in doubt (a band narrower than the blur is hard to tell from the arris).
     t_sigma = math.hypot(fit.offset_sigma["reference"], fit.offset_sigma["far"],
-                         far_fit.model_sigma_px * pose.scale_mm_per_px if far_fit is not None else 0.0)
+                         model.line_sigma_px("reference") * pose.scale_mm_per_px,
+                         model.line_sigma_px("far") * pose.scale_mm_per_px)
     refusals.append(q.check_thickness(pose.thickness_mm, door.thickness_mm, t_tol))
     t_uncertain = abs(pose.thickness_mm - door.thickness_mm) + 3.0 * t_sigma > t_tol
     if t_uncertain and refusals[-1] is None:
@@ -532,6 +575,15 @@ def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, ha
                                       "difference_mm": round(pose.thickness_mm - door.thickness_mm, 4),
                                       "tolerance_mm": t_tol, "sigma_mm": round(t_sigma, 5),
                                       "uncertain": t_uncertain, "far_face_in_view": far_beside}
+    unc, terms = _pose_uncertainty(cell, cfg, region, samples, fit, pose, model)
+    diagnostics["uncertainty_terms"] = {k: [round(v, 6) for v in t] for k, t in terms.items()}
+    if unc.x_mm > cfg.max_uncertainty_mm or unc.z_mm > cfg.max_uncertainty_mm or unc.yaw_deg > cfg.max_uncertainty_deg:
+        worst = max(terms, key=lambda k: max(terms[k][0] / cfg.max_uncertainty_mm, terms[k][1] / cfg.max_uncertainty_mm,
+                                             terms[k][2] / cfg.max_uncertainty_deg))
+        refusals.append(q.Refusal("uncertain", f"the pose is uncertain to x {unc.x_mm:.3f} mm, z {unc.z_mm:.3f} mm, "
+                                  f"yaw {unc.yaw_deg:.3f} deg (1 sigma; the cell allows {cfg.max_uncertainty_mm:g} mm, "
+                                  f"{cfg.max_uncertainty_deg:g} deg), mostly from the {worst.replace('_', ' ')}; "
+                                  + _UNCERTAIN_HINT[worst]))
     first = next((r for r in refusals if r is not None), None)
     if first is not None and first.code in ("edge_not_straight", "edge_missing", "corner_hidden"):
         # A pose outside the envelope explains broken edges best (the door lies beyond the region).
@@ -546,10 +598,108 @@ def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, ha
                                    "thickness_mm": pose.thickness_mm}
         diagnostics["all_refusals"] = [r.code for r in refusals if r is not None]
         return LocateResult.refusal(name, first.code, first.message, lines=lines, diagnostics=diagnostics)
-    # Standard errors of the fit alone (image noise); the edge-model terms are not in it yet.
-    uncertainty = PoseUncertainty(x_mm=fit.offset_sigma["reference"], z_mm=fit.offset_sigma["bottom"],
-                                  yaw_deg=math.degrees(fit.angle_sigma_rad))
     return LocateResult(image=name, ok=True, x_mm=pose.x_mm, z_mm=pose.z_mm, yaw_deg=pose.yaw_deg,
                         thickness_mm=pose.thickness_mm, scale_mm_per_px=pose.scale_mm_per_px,
-                        corner_px=[float(corner_px[0]), float(corner_px[1])], uncertainty=uncertainty,
+                        corner_px=[float(corner_px[0]), float(corner_px[1])], uncertainty=unc,
                         lines=lines, diagnostics=diagnostics)
+
+
+_UNCERTAIN_HINT = {
+    "fit": "the edges are too noisy; check focus, lighting and exposure",
+    "edge_model": "the door's edges do not look like clean steps (strong grain or marks along an edge, an arris or "
+                  "a camera response the cell does not describe); check the cell's door and camera settings",
+    "calibration": "the camera calibration is too uncertain here; calibrate again with views covering the door's corner",
+    "cell": "the cell's camera placement is too uncertain; run the cell check again",
+}
+
+
+#: the step fit replaces the area estimate only where they differ by less than this many of the area
+#: estimator's texture sigma (plus STEP_FIT_AGREE_FLOOR_PX): a larger shift is a profile shape that the
+#: step model lacks, not texture
+STEP_FIT_AGREE_SIGMAS = 3.0
+STEP_FIT_AGREE_FLOOR_PX = 0.003
+
+
+def _step_fit_agrees(plane, area: EdgeSamples, fitted: EdgeSamples, half: int, plateau: int, lut) -> bool:
+    """Whether the step fit's shift of an edge is what texture beside it explains (see the constants)."""
+    d = fitted.along - area.along
+    d = d[np.isfinite(d)]
+    if d.size < 8:
+        return False
+    tex = texture_bias(plane, area, area.valid, half, plateau, lut).offset_sigma_px
+    tex = tex if math.isfinite(tex) else 0.0
+    return abs(float(np.median(d))) <= STEP_FIT_AGREE_SIGMAS * math.hypot(tex, STEP_FIT_AGREE_FLOOR_PX)
+
+
+def _step_fit_lines(cfg: LocateConfig, widths: dict[str, float]) -> dict[str, float]:
+    """The lines the final pass refines by the blurred-step fit, with the optical blur (px) it uses.
+
+    The blur is the same on every edge; an edge whose transition looks wider than the narrowest carries a
+    second structure (an end face seen nearly edge-on, a strip) that the step model lacks, while the area
+    estimator is exact whatever the shape: only edges within 25 % of the narrowest width are fitted, with
+    that width's blur. Below ``STEP_FIT_MIN_BLUR_PX`` none is: the area estimator is exact there and its
+    window small (little texture in it), while the step model's shape depends on the pixel phase.
+    """
+    ok = {k: w for k, w in widths.items() if math.isfinite(w)}
+    if not cfg.step_fit or not ok:
+        return {}
+    narrow = min(ok.values())
+    optical = math.sqrt(max(narrow * narrow - 1.0 / 12.0, 0.0))
+    if optical < STEP_FIT_MIN_BLUR_PX:
+        return {}
+    return {k: optical for k, w in ok.items() if w <= 1.25 * narrow}
+
+
+def _edge_model_terms(plane, samples: dict[str, EdgeSamples], fit: RectangleFit, half: int, cfg: LocateConfig,
+                      cell: Cell, far_fit: FarFaceFit | None, step_fitted: dict[str, float]) -> EdgeModelTerms:
+    """Edge-model doubts per line (:class:`doorloc.vision.uncertainty.EdgeModelTerms`), px across the edge."""
+    terms = EdgeModelTerms()
+    lut = linearizing_lut(plane.dtype, cell.response_gamma)
+    for k in EDGE_NAMES:
+        if k == "far":
+            # The far arris only gives the thickness, checked to a tolerance far above any texture bias.
+            if far_fit is not None:  # what the far-face model leaves in doubt (band level, blur)
+                terms.extra_px.setdefault(k, {})["far_face"] = far_fit.model_sigma_px
+            continue
+        tb = texture_bias(plane, samples[k], fit.weights[k] > 0, half, cfg.plateau, lut,
+                          blur_px=step_fitted.get(k))
+        terms.texture_px[k] = tb.offset_sigma_px
+        terms.tilt[k] = tb.tilt_sigma
+    return terms
+
+
+def _pose_uncertainty(cell: Cell, cfg: LocateConfig, region: SearchRegion, samples: dict[str, EdgeSamples],
+                      fit: RectangleFit, pose: MetricPose,
+                      model: EdgeModelTerms) -> tuple[PoseUncertainty, dict[str, tuple[float, float, float]]]:
+    """The answer's 1-sigma uncertainty and its terms (x_mm, z_mm, yaw_deg each), :mod:`doorloc.vision.uncertainty`."""
+    sc = pose.scale_mm_per_px
+    lever, spread, extent = {}, {}, {}
+    for k in ("reference", "bottom"):
+        s = samples[k]
+        inl = (fit.weights[k] > 0) & np.isfinite(s.along)
+        c_scan = pose.corner_px[0] if s.axis == "col" else pose.corner_px[1]
+        sc_in = s.scan[inl].astype(float)
+        lever[k] = abs(float(np.mean(sc_in)) - c_scan) * sc if sc_in.size else 0.0
+        spread[k] = float(((sc_in - sc_in.mean()) ** 2).sum()) if sc_in.size else 0.0
+        extent[k] = float(np.ptp(sc_in)) if sc_in.size else 0.0
+    fit_t = (corner_fit_sigma(fit.offset_sigma["reference"], fit.angle_sigma_rad, lever["reference"]),
+             corner_fit_sigma(fit.offset_sigma["bottom"], fit.angle_sigma_rad, lever["bottom"]),
+             math.degrees(fit.angle_sigma_rad))
+    # The yaw's edge-model doubt: each line's texture tilt, weighted as the joint fit weighs the lines
+    # (by the spread of their points along them); a tilt moves the corner by tilt x lever.
+    # (the floor: a bias that changes by twice the floor from one end of a line to the other)
+    tilts = {k: math.hypot(model.tilt.get(k, 0.0) if math.isfinite(model.tilt.get(k, 0.0)) else 0.0,
+                           2.0 * EDGE_MODEL_FLOOR_PX / max(extent[k], 1.0)) for k in ("reference", "bottom")}
+    wsum = sum(spread.values())
+    yaw_m = (math.sqrt(sum((spread[k] * (tilts[k] if math.isfinite(tilts[k]) else 0.0)) ** 2 for k in tilts)) / wsum
+             if wsum > 0 else 0.0)
+    model_t = (math.hypot(model.line_sigma_px("reference") * sc, yaw_m * lever["reference"]),
+               math.hypot(model.line_sigma_px("bottom") * sc, yaw_m * lever["bottom"]),
+               math.degrees(yaw_m))
+    cal_t = calibration_pose_sigma(cell.posed_camera, region.face_map.depth_y, pose.corner_px, pose.yaw_deg,
+                                   cell.calibration_covariance, cell.calibration_covariance_names,
+                                   cfg.calibration_sigma_px, sc)
+    terms = {"fit": fit_t, "edge_model": model_t, "calibration": cal_t,
+             "cell": (cfg.cell_sigma_mm, cfg.cell_sigma_mm, cfg.cell_sigma_deg)}
+    x, z, yaw = combine(terms)
+    return PoseUncertainty(x_mm=x, z_mm=z, yaw_deg=yaw), terms

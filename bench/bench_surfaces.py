@@ -1,0 +1,301 @@
+#!/usr/bin/env python
+"""Real door surfaces (issue 11): accuracy on wood grain, and whether the claimed uncertainty covers the error.
+
+Sets (rendered through the thesis cell, fixtures/cell_thesis.yaml, each with its seed printed; every
+effect drawn over a wide random range per image, so nothing is tuned to one look):
+
+- grain        the acceptance set: wood grain on the hinge face (lines along the height, period 2-8 mm,
+               contrast 0-10 %, random phase), low contrast, illumination gradients, vignetting, blur
+               0.6-1.8 px, read noise 0-4 grey levels, JPEG quality 88. Wanted: RMS x, z <= 0.02 mm,
+               yaw <= 0.01 deg, no image refused.
+- plain        default photometry, random poses and thicknesses.
+- hard         everything the renderer has except an arris: directional light from either side, shadow
+               band, grain, gradients, vignetting, blur 0-2 px, shot and read noise, JPEG 80-95 or none,
+               16-bit on some.
+- thin         hard photometry on thin doors (28-40 mm) shifted so the far face is in view.
+- fixtures/*   the committed rendered fixtures (grid, widths, distractors, effects).
+
+For every set: n, answered, RMS and max error, and the uncertainty's coverage: the fraction of
+|error| <= 2 sigma per coordinate (ideal 95 %), the count beyond 5 sigma, the median sigma, and every
+refusal with its reason. The rendered camera is exact, so the calibration term is off
+(``calibration_sigma_px=0``): the coverage is that of the image-measurement part (fit + edge model).
+
+More sets: add a generator to ``SETS`` (name -> function(n, seed) yielding (name, pose, door, effects,
+seed)), e.g. arris profiles or camera responses; ``--sets`` picks which run.
+
+Speed (``--speed``): the grid set of bench/bench_locate.py (27 default-photometry images), timed in
+subprocess workers that import either this checkout's ``src`` or ``--baseline-src`` (default
+/work/main/src, the code before this change), alternating A/B for ``--rounds`` rounds on the same
+machine in the same run; per image the best of all its calls, then the median over images (what the code
+costs, not what other processes cost). One thread.
+
+Run:  OMP_NUM_THREADS=1 python bench/bench_surfaces.py [--n 60] [--seed 11] [--sets grain,plain,...]
+      [--speed] [--json out.json]
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
+import csv  # noqa: E402
+import json  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from collections.abc import Callable, Iterator  # noqa: E402
+from dataclasses import replace  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import cv2  # noqa: E402
+import numpy as np  # noqa: E402
+
+from doorloc.cell import Cell, DoorSize, load_cell  # noqa: E402
+from doorloc.pose import DoorPose  # noqa: E402
+from doorloc.sim.door import render_door  # noqa: E402
+from doorloc.sim.effects import Effects  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[1]
+Item = tuple[str, DoorPose, DoorSize, Effects | None, int]
+
+
+# -- rendered sets -------------------------------------------------------------------------------------
+def _pose(rng: np.random.Generator) -> DoorPose:
+    return DoorPose(*rng.uniform([-10, -10, -2], [10, 10, 2]))
+
+
+def grain_set(n: int, seed: int) -> Iterator[Item]:
+    rng = np.random.default_rng(seed)
+    for i in range(n):
+        bg = rng.uniform(0.1, 0.3)
+        eff = Effects(
+            albedo_hinge=bg + rng.uniform(0.1, 0.3), albedo_background=bg, albedo_side=bg + rng.uniform(-0.05, 0.3),
+            gradient_u=rng.uniform(-0.2, 0.2), gradient_v=rng.uniform(-0.2, 0.2), vignetting=rng.uniform(0.0, 0.4),
+            grain_contrast=rng.uniform(0.0, 0.10), grain_period_mm=rng.uniform(2.0, 8.0),
+            blur_sigma_px=rng.uniform(0.6, 1.8), read_noise_dn=rng.uniform(0.0, 4.0), jpeg_quality=88,
+        )
+        # the grain's phases and wander come from the image seed (sim.effects.wood_grain)
+        yield f"grain_{i:03d}", _pose(rng), DoorSize(900, rng.uniform(30, 100), 2100), eff, seed * 1000 + i
+
+
+def plain_set(n: int, seed: int) -> Iterator[Item]:
+    rng = np.random.default_rng(seed)
+    for i in range(n):
+        yield f"plain_{i:03d}", _pose(rng), DoorSize(rng.uniform(700, 1100), rng.uniform(30, 100), 2100), None, seed * 1000 + i
+
+
+def _hard_effects(rng: np.random.Generator) -> Effects:
+    bg = rng.uniform(0.08, 0.3)
+    jpeg = int(rng.choice([0, 80, 88, 95]))
+    return Effects(
+        albedo_hinge=bg + rng.uniform(0.1, 0.45), albedo_background=bg, albedo_side=bg + rng.uniform(-0.05, 0.35),
+        light_ambient=rng.uniform(0.6, 1.0), light_directional=rng.uniform(0.0, 0.4),
+        light_azimuth_deg=rng.uniform(-60, 60), light_elevation_deg=rng.uniform(-30, 45),
+        gradient_u=rng.uniform(-0.25, 0.25), gradient_v=rng.uniform(-0.25, 0.25), vignetting=rng.uniform(0.0, 0.4),
+        grain_contrast=rng.uniform(0.0, 0.10), grain_period_mm=rng.uniform(2.0, 8.0),
+        shadow_strength=rng.uniform(0.0, 0.3) if rng.random() < 0.3 else 0.0, shadow_z_mm=rng.uniform(20, 80),
+        blur_sigma_px=rng.uniform(0.0, 2.0), full_well_e=rng.choice([0.0, 20000.0]), read_noise_dn=rng.uniform(0.0, 4.0),
+        jpeg_quality=jpeg, bit_depth=16 if (jpeg == 0 and rng.random() < 0.3) else 8,
+    )
+
+
+def hard_set(n: int, seed: int) -> Iterator[Item]:
+    rng = np.random.default_rng(seed)
+    for i in range(n):
+        yield f"hard_{i:03d}", _pose(rng), DoorSize(900, rng.uniform(30, 100), 2100), _hard_effects(rng), seed * 1000 + i
+
+
+def thin_set(n: int, seed: int) -> Iterator[Item]:
+    rng = np.random.default_rng(seed)
+    for i in range(n):
+        pose = DoorPose(rng.uniform(-10.0, 10.0), rng.uniform(-10, 10), rng.uniform(-2, 2))
+        yield f"thin_{i:03d}", pose, DoorSize(900, rng.uniform(28.0, 40.0), 2100), _hard_effects(rng), seed * 1000 + i
+
+
+#: name -> generator(n, seed); add arris / response sets here
+SETS: dict[str, Callable[[int, int], Iterator[Item]]] = {
+    "grain": grain_set, "plain": plain_set, "hard": hard_set, "thin": thin_set,
+}
+FIXTURES = ("grid", "widths", "distractors", "effects")
+
+
+# -- evaluation ------------------------------------------------------------------------------------------
+def _evaluate(results: list[tuple[str, object, tuple[float, float, float]]]) -> dict:
+    """results: (image name, LocateResult, truth (x, z, yaw)) -> the set's figures."""
+    errs, sigs, refusals = [], [], []
+    for name, r, truth in results:
+        if not r.ok:  # type: ignore[attr-defined]
+            refusals.append({"image": name, "code": r.error_code, "reason": r.error})  # type: ignore[attr-defined]
+            continue
+        errs.append((r.x_mm - truth[0], r.z_mm - truth[1], r.yaw_deg - truth[2]))  # type: ignore[attr-defined]
+        u = r.uncertainty  # type: ignore[attr-defined]
+        sigs.append((u.x_mm, u.z_mm, u.yaw_deg))
+    out: dict = {"n": len(results), "ok": len(errs), "refusals": refusals}
+    if not errs:
+        return out
+    e, s = np.array(errs), np.array(sigs)
+    z = np.abs(e) / s
+    keys = ("x_mm", "z_mm", "yaw_deg")
+    out |= {f"rms_{k}": float(np.sqrt(np.mean(e[:, i] ** 2))) for i, k in enumerate(keys)}
+    out |= {f"max_{k}": float(np.max(np.abs(e[:, i]))) for i, k in enumerate(keys)}
+    out |= {f"within_2sigma_{k}": float(np.mean(z[:, i] <= 2.0)) for i, k in enumerate(keys)}
+    out |= {f"beyond_5sigma_{k}": int(np.sum(z[:, i] > 5.0)) for i, k in enumerate(keys)}
+    out |= {f"median_sigma_{k}": float(np.median(s[:, i])) for i, k in enumerate(keys)}
+    out |= {f"max_z_{k}": float(np.max(z[:, i])) for i, k in enumerate(keys)}
+    out["_z"] = z.tolist()
+    return out
+
+
+def _print_set(name: str, s: dict, seed: int | None) -> None:
+    head = f"{name:20s} seed={seed if seed is not None else '-':>5} n={s['n']:3d} ok={s['ok']:3d}"
+    if not s["ok"]:
+        print(head)
+    else:
+        print(f"{head}  RMS x {s['rms_x_mm']:.4f} z {s['rms_z_mm']:.4f} mm yaw {s['rms_yaw_deg']:.4f} deg | max x "
+              f"{s['max_x_mm']:.4f} z {s['max_z_mm']:.4f} yaw {s['max_yaw_deg']:.4f}\n"
+              f"{'':20s} within 2 sigma (ideal 95 %): x {100 * s['within_2sigma_x_mm']:.0f} % z "
+              f"{100 * s['within_2sigma_z_mm']:.0f} % yaw {100 * s['within_2sigma_yaw_deg']:.0f} %; beyond 5 sigma: "
+              f"{s['beyond_5sigma_x_mm']}/{s['beyond_5sigma_z_mm']}/{s['beyond_5sigma_yaw_deg']}; worst "
+              f"{s['max_z_x_mm']:.1f}/{s['max_z_z_mm']:.1f}/{s['max_z_yaw_deg']:.1f} sigma; median sigma x "
+              f"{s['median_sigma_x_mm']:.4f} z {s['median_sigma_z_mm']:.4f} mm yaw {s['median_sigma_yaw_deg']:.4f} deg")
+    for r in s["refusals"]:
+        print(f"{'':20s} refused {r['image']}: {r['code']}: {r['reason']}")
+
+
+def run_rendered(cell: Cell, name: str, n: int, seed: int) -> dict:
+    from doorloc.vision.locate import locate
+
+    cfg = replace(cell.locate, calibration_sigma_px=0.0)  # the rendered camera is exact
+    results = []
+    for img_name, pose, door, eff, s in SETS[name](n, seed):
+        img = render_door(cell, door, pose, effects=eff, seed=s).image
+        results.append((img_name, locate(img, cell, door, image_name=img_name, config=cfg),
+                        (pose.x_mm, pose.z_mm, pose.yaw_deg)))
+    return _evaluate(results)
+
+
+def run_fixture(folder: str) -> dict:
+    from doorloc.vision.locate import locate
+
+    d = REPO / "fixtures" / "rendered" / folder
+    cell = load_cell(d / "cell.yaml")
+    cfg = replace(cell.locate, calibration_sigma_px=0.0)
+    results = []
+    with open(d / "truth.csv", newline="") as f:
+        for row in csv.DictReader(f):
+            door = DoorSize(float(row["width_mm"]), float(row["thickness_mm"]), float(row["height_mm"]),
+                            arris_mm=float(row["arris_mm"]), arris_profile=row["arris_profile"])  # type: ignore[arg-type]
+            img = cv2.imread(str(d / row["image"]), cv2.IMREAD_UNCHANGED)
+            results.append((row["image"], locate(img, cell, door, image_name=row["image"], config=cfg),
+                            (float(row["x_mm"]), float(row["z_mm"]), float(row["yaw_deg"]))))
+    return _evaluate(results)
+
+
+# -- speed -------------------------------------------------------------------------------------------------
+def _grid_items() -> list[tuple[DoorPose, DoorSize]]:
+    ts = [30.0, 47.5, 65.0, 82.5, 100.0]
+    out = []
+    for x in (-10.0, 0.0, 10.0):
+        for z in (-10.0, 0.0, 10.0):
+            for yaw in (-2.0, 0.0, 2.0):
+                out.append((DoorPose(x, z, yaw), DoorSize(900, ts[len(out) % 5], 2100)))
+    return out
+
+
+def time_worker(repeats: int) -> None:
+    """Run in a subprocess: time locate (whichever doorloc is on the path) over the grid set, print JSON."""
+    from doorloc.vision.locate import locate
+
+    cv2.setNumThreads(1)
+    cell = load_cell(REPO / "fixtures" / "cell_thesis.yaml")
+    imgs = [(render_door(cell, d, p).image, d) for p, d in _grid_items()]
+    locate(imgs[0][0], cell, imgs[0][1])  # warm-up (imports, caches)
+    best = []
+    for img, d in imgs:
+        ts = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            locate(img, cell, d)
+            ts.append((time.perf_counter() - t0) * 1e3)
+        best.append(min(ts))
+    print(json.dumps(best))
+
+
+def run_speed(baseline_src: Path, rounds: int, repeats: int) -> dict:
+    srcs = {"this": REPO / "src", "baseline": baseline_src}
+    per: dict[str, list[list[float]]] = {k: [] for k in srcs}
+    for _ in range(rounds):
+        for k, src in srcs.items():  # alternate A/B so both see the same machine load
+            env = dict(os.environ, PYTHONPATH=str(src), OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+            out = subprocess.run([sys.executable, __file__, "--time-worker", "--repeats", str(repeats)], env=env,
+                                 check=True, capture_output=True, text=True).stdout
+            per[k].append(json.loads(out.strip().splitlines()[-1]))
+    med = {k: float(np.median(np.min(np.array(v), axis=0))) for k, v in per.items()}
+    return {"median_of_best_ms_this": med["this"], "median_of_best_ms_baseline": med["baseline"],
+            "ratio": med["this"] / med["baseline"], "baseline_src": str(baseline_src), "rounds": rounds,
+            "repeats": repeats, "images": len(per["this"][0])}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[1])
+    ap.add_argument("--n", type=int, default=60, help="images per rendered set")
+    ap.add_argument("--seed", type=int, default=11, help="base seed; set k uses seed + k")
+    ap.add_argument("--sets", default="grain,plain,hard,thin,fixtures", help="comma list of sets (fixtures = all folders)")
+    ap.add_argument("--speed", action="store_true", help="also time the grid set against --baseline-src")
+    ap.add_argument("--baseline-src", type=Path, default=Path("/work/main/src"))
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--json", type=Path)
+    ap.add_argument("--time-worker", action="store_true", help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.time_worker:
+        time_worker(args.repeats)
+        return
+    cv2.setNumThreads(1)
+    cell = load_cell(REPO / "fixtures" / "cell_thesis.yaml")
+    report: dict = {"sets": {}}
+    pooled_z = []
+    names = [s for s in args.sets.split(",") if s]
+    for name in names:
+        if name == "fixtures":
+            for folder in FIXTURES:
+                s = run_fixture(folder)
+                _print_set(f"fixtures/{folder}", s, None)
+                pooled_z += s.pop("_z", [])
+                report["sets"][f"fixtures/{folder}"] = s
+            continue
+        if name not in SETS:
+            raise SystemExit(f"unknown set {name!r}; known: {', '.join(SETS)}, fixtures")
+        seed = args.seed + list(SETS).index(name)  # a set keeps its seed whichever sets run
+        s = run_rendered(cell, name, args.n, seed)
+        s["seed"] = seed
+        _print_set(name, s, seed)
+        pooled_z += s.pop("_z", [])
+        report["sets"][name] = s
+    if pooled_z:
+        z = np.array(pooled_z)
+        pooled = {"answers": len(z), "within_2sigma": [float(v) for v in (z <= 2).mean(axis=0)],
+                  "beyond_5sigma": [int(v) for v in (z > 5).sum(axis=0)],
+                  "refusals": sum(len(s["refusals"]) for s in report["sets"].values()),
+                  "refusals_without_reason": sum(1 for s in report["sets"].values() for r in s["refusals"]
+                                                 if not r["reason"])}
+        report["all_sets"] = pooled
+        print(f"all sets: {pooled['answers']} answers; within 2 sigma x {100 * pooled['within_2sigma'][0]:.1f} % "
+              f"z {100 * pooled['within_2sigma'][1]:.1f} % yaw {100 * pooled['within_2sigma'][2]:.1f} % (ideal 95 %); "
+              f"beyond 5 sigma {pooled['beyond_5sigma']}; {pooled['refusals']} refusals, "
+              f"{pooled['refusals_without_reason']} without a reason")
+    if args.speed:
+        sp = run_speed(args.baseline_src, args.rounds, args.repeats)
+        report["speed"] = sp
+        print(f"speed, grid set ({sp['images']} images, one thread, per image best of {sp['rounds']}x{sp['repeats']} "
+              f"calls, median over images): this {sp['median_of_best_ms_this']:.2f} ms, baseline "
+              f"({sp['baseline_src']}) {sp['median_of_best_ms_baseline']:.2f} ms, ratio {sp['ratio']:.3f}")
+    if args.json:
+        args.json.write_text(json.dumps(report, indent=2))
+
+
+if __name__ == "__main__":
+    main()

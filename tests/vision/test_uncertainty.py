@@ -1,0 +1,208 @@
+"""The answer's uncertainty: texture bias, calibration covariance (saved, read back, propagated), refusal."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import yaml
+
+from doorloc.calib.calibrate import Candidate, projection_uncertainty
+from doorloc.calib.io import CalibrationFile, CalibrationFileError, load_calibration, save_calibration
+from doorloc.cell import DoorSize, load_cell
+from doorloc.pose import DoorPose
+from doorloc.sim.door import render_door
+from doorloc.sim.effects import Effects
+from doorloc.vision.edges import refine_step_fit, subpixel_edges, texture_bias
+from doorloc.vision.locate import locate
+from doorloc.vision.metric import PlaneMap
+from doorloc.vision.uncertainty import (
+    EDGE_MODEL_FLOOR_PX,
+    JPEG_BLOCK_RATIO,
+    EdgeModelTerms,
+    calibration_pose_sigma,
+)
+
+NAMES = ("fx", "fy", "cx", "cy", "k1")
+
+
+@pytest.fixture(scope="module")
+def cell(thesis_cell_path):
+    return load_cell(thesis_cell_path)
+
+
+def _edge_image(grain: float, period_px: float = 14.0, phase: float = 0.3, seed: int = 0) -> np.ndarray:
+    """A vertical step at u = 100.3 (dark background left), grain stripes along the edge on the door side."""
+    rng = np.random.default_rng(seed)
+    u = np.arange(200) + 0.5
+    fine = np.linspace(0, 200, 200 * 16, endpoint=False) + 1 / 32
+    door = fine >= 100.3
+    level = np.where(door, 150.0 * (1 + grain * np.sin(2 * np.pi * (fine - 100.3) / period_px + phase)), 50.0)
+    row = level.reshape(200, 16).mean(axis=1)
+    img = np.tile(row, (300, 1)) + rng.normal(0, 1.0, (300, 200))
+    assert u.size == img.shape[1]
+    return np.clip(np.rint(img), 0, 255).astype(np.uint8)
+
+
+def _bias(img: np.ndarray) -> tuple[float, float]:
+    scan = np.arange(20, 280)
+    s = subpixel_edges(img, "row", scan, np.full(scan.size, 100.0), 3, 2, level_smooth=10)
+    est = float(np.nanmean(s.along)) - 99.8  # pixel k spans k - 0.5 .. k + 0.5: the step at 100.3 - 0.5
+    return est, texture_bias(img, s, s.valid, 3, 2).offset_sigma_px
+
+
+def test_texture_bias_is_small_on_a_plain_step_and_covers_grain():
+    err0, sig0 = _bias(_edge_image(0.0))
+    assert abs(err0) < 0.02 and sig0 < 0.02
+    # grain along the edge at random phases: the estimate moves, and the measured texture bias covers it
+    z = []
+    for k, phase in enumerate(np.linspace(0, 2 * np.pi, 12, endpoint=False)):
+        err, sig = _bias(_edge_image(0.1, period_px=10 + k, phase=phase, seed=k))
+        assert sig > 3 * sig0
+        z.append(abs(err) / math.hypot(sig, EDGE_MODEL_FLOOR_PX))
+    z = np.array(z)
+    assert max(abs(_bias(_edge_image(0.1, 12.0, p))[0]) for p in (0.0, 1.5, 3.0)) > 0.03  # grain does bias the edge
+    assert np.mean(z <= 2.0) >= 0.75 and np.max(z) <= 5.0, z
+
+
+def _blurred_edge(grain: float, period_px: float, phase: float, blur: float, seed: int) -> np.ndarray:
+    import cv2
+
+    fine = np.linspace(0, 200, 200 * 16, endpoint=False) + 1 / 32
+    level = np.where(fine >= 100.3, 150.0 * (1 + grain * np.sin(2 * np.pi * (fine - 100.3) / period_px + phase)), 50.0)
+    row = cv2.GaussianBlur(level[None, :].astype(np.float32), (0, 0), blur * 16)[0].reshape(200, 16).mean(axis=1)
+    img = np.tile(row, (300, 1)) + np.random.default_rng(seed).normal(0, 1.0, (300, 200))
+    return np.clip(np.rint(img), 0, 255).astype(np.uint8)
+
+
+def test_step_fit_is_exact_on_a_plain_step_and_beats_the_area_estimate_on_grain():
+    scan = np.arange(20, 280)
+    errs_area, errs_fit = [], []
+    for k, phase in enumerate(np.linspace(0, 2 * np.pi, 8, endpoint=False)):
+        for grain in (0.0, 0.1):
+            img = _blurred_edge(grain, 12.0 + k, phase, 1.2, k)
+            s = subpixel_edges(img, "row", scan, np.full(scan.size, 100.0), 4, 1, level_smooth=10)
+            f = refine_step_fit(img, s, 4, 1.2)
+            ea, ef = float(np.nanmean(s.along)) - 99.8, float(np.nanmean(f.along)) - 99.8
+            if grain == 0.0:
+                assert abs(ea) < 0.02 and abs(ef) < 0.02  # within the blur term of the edge-model doubt
+            else:
+                errs_area.append(ea)
+                errs_fit.append(ef)
+    rms_a, rms_f = np.sqrt(np.mean(np.square(errs_area))), np.sqrt(np.mean(np.square(errs_fit)))
+    assert rms_f < 0.6 * rms_a, (rms_a, rms_f)
+
+
+def test_edge_model_terms_add_in_quadrature():
+    t = EdgeModelTerms(texture_px={"reference": 0.03}, extra_px={"reference": {"arris": 0.04}})
+    assert t.line_sigma_px("reference") == pytest.approx(math.sqrt(0.03**2 + 0.04**2 + EDGE_MODEL_FLOOR_PX**2))
+    assert t.line_sigma_px("bottom") == pytest.approx(EDGE_MODEL_FLOOR_PX)
+
+
+def _covariance(sig=(0.8, 0.8, 0.5, 0.5, 1e-3)) -> np.ndarray:
+    return np.diag(np.square(sig))
+
+
+@pytest.mark.parametrize("fmt", ["opencv", "ros"])
+def test_calibration_covariance_round_trips(cell, tmp_path, fmt):
+    cov = _covariance() + 0.1 * np.outer([1, 1, 0, 0, 0], [1, 1, 0, 0, 0])
+    path = tmp_path / "cam.yaml"
+    save_calibration(CalibrationFile(cell.camera, 0.2, [], "cam", {}, cov, NAMES), path, fmt)
+    back = load_calibration(path)
+    assert back.covariance_names == NAMES
+    np.testing.assert_allclose(back.covariance, cov)
+
+
+def test_a_malformed_covariance_is_refused_with_its_key(cell, tmp_path):
+    path = tmp_path / "cam.yaml"
+    save_calibration(CalibrationFile(cell.camera, 0.2, [], "cam", {}, _covariance(), NAMES), path, "ros")
+    doc = yaml.safe_load(path.read_text())
+    doc["intrinsics_covariance_names"] = ["fx", "fy"]
+    path.write_text(yaml.safe_dump(doc))
+    with pytest.raises(CalibrationFileError, match="intrinsics_covariance"):
+        load_calibration(path)
+
+
+def test_calibration_sigma_is_the_aligned_projection_sigma_on_the_plane(cell):
+    """The corner's calibration sigma is what ``doorloc calibrate`` reports as the rotation-aligned projection
+    sigma at that pixel, times the scale; the raw (unaligned) principal-point sigma is mostly a rotation
+    that the cell check takes up."""
+    pm = PlaneMap(cell.posed_camera, 0.0)
+    corner_px = pm.to_image(np.array([[0.0, 0.0]]))[0]
+    scale = pm.scale_mm_per_px(np.zeros(2))
+    cand = Candidate("t", 0, 5, (0,), False)
+    w, h = cell.camera.image_size
+    gu, gv = np.meshgrid(np.linspace(0, w - 1, 9), np.linspace(0, h - 1, 7))
+    pixels = np.concatenate([corner_px[None], corner_px[None] + 1.0, np.stack([gu.ravel(), gv.ravel()], 1)])
+    for cov in (np.diag([0.0, 0.0, 0.5**2, 0.0, 0.0]), np.diag([2.0**2, 2.0**2, 0.0, 0.0, 0.0]),
+                np.diag([0.0, 0.0, 0.0, 0.0, 1e-3**2]), _covariance()):
+        sx, sz, syaw = calibration_pose_sigma(cell.posed_camera, 0.0, corner_px, 0.0, cov, NAMES, 0.05, scale)
+        major = projection_uncertainty(cell.camera, cand, cov, pixels, aligned=True)[0]
+        # x and z are the plane's axes, the major axis may lie between them (and fx != fy)
+        assert 0.7 * major * scale <= max(sx, sz) <= 1.05 * major * scale
+        assert syaw >= 0.0
+    # the principal point alone: far less than its raw 0.5 px once the rotation is taken out
+    sx, sz, _ = calibration_pose_sigma(cell.posed_camera, 0.0, corner_px, 0.0, np.diag([0, 0, 0.25, 0, 0]), NAMES,
+                                       0.05, scale)
+    assert 0 < max(sx, sz) < 0.5 * 0.5 * scale
+    # names in another order describe the same covariance
+    perm = [2, 0, 4, 1, 3]
+    cov = _covariance() + 0.05 * np.ones((5, 5))
+    a = calibration_pose_sigma(cell.posed_camera, 0.0, corner_px, 0.5, cov, NAMES, 0.05, scale)
+    b = calibration_pose_sigma(cell.posed_camera, 0.0, corner_px, 0.5, cov[np.ix_(perm, perm)],
+                               tuple(NAMES[i] for i in perm), 0.05, scale)
+    np.testing.assert_allclose(a, b, rtol=1e-9)
+    # no covariance: the documented floor
+    sx0, sz0, _ = calibration_pose_sigma(cell.posed_camera, 0.0, corner_px, 0.0, None, (), 0.05, scale)
+    assert sx0 == sz0 == pytest.approx(0.05 * scale)
+
+
+def test_locate_carries_the_calibration_covariance_into_the_answer(cell, tmp_path):
+    door = DoorSize(900, 50, 2100)
+    img = render_door(cell, door, DoorPose(2.0, -3.0, 0.4)).image
+    save_calibration(CalibrationFile(cell.camera, 0.2, [], "cam", {}, _covariance(), NAMES), tmp_path / "cam.yaml")
+    cell_path = tmp_path / "cell.yaml"
+    doc = {"camera": {"calibration": "cam.yaml", "extrinsics": {"rvec": cell.extrinsics.rvec.tolist(),
+                                                                "tvec_mm": cell.extrinsics.tvec_mm.tolist()}},
+           "envelope": {"x_mm": 10, "z_mm": 10, "yaw_deg": 2}}
+    cell_path.write_text(yaml.safe_dump(doc))
+    with_cov = load_cell(cell_path)
+    assert with_cov.calibration_covariance is not None and with_cov.calibration_covariance_names == NAMES
+    r = locate(img, with_cov, door)
+    r0 = locate(img, cell, door, config=replace(cell.locate, calibration_sigma_px=0.0))
+    assert r.ok and r0.ok and r.uncertainty is not None and r0.uncertainty is not None
+    cal = r.diagnostics["uncertainty_terms"]["calibration"]
+    assert max(cal[:2]) > 0.005 and r.uncertainty.x_mm >= cal[0] and r.uncertainty.z_mm >= cal[1]
+    assert r0.diagnostics["uncertainty_terms"]["calibration"] == [0.0, 0.0, 0.0]
+    assert r0.uncertainty.x_mm < 0.01
+    # the same answer, only the claim differs
+    assert r.x_mm == pytest.approx(r0.x_mm, abs=1e-9)
+
+
+def test_uncertain_when_the_uncertainty_exceeds_the_cells_tolerance(cell):
+    door = DoorSize(900, 50, 2100)
+    eff = Effects(grain_contrast=0.08, grain_period_mm=3.0, blur_sigma_px=1.2, read_noise_dn=2.0)
+    img = render_door(cell, door, DoorPose(1.0, 1.0, 0.2), effects=eff, seed=3).image
+    ok = locate(img, cell, door)
+    assert ok.ok and ok.uncertainty is not None
+    tight = replace(cell.locate, max_uncertainty_mm=0.5 * min(ok.uncertainty.x_mm, ok.uncertainty.z_mm))
+    r = locate(img, cell, door, config=tight)
+    assert not r.ok and r.error_code == "uncertain"
+    assert "1 sigma" in (r.error or "") and "mm" in (r.error or "")
+
+
+@pytest.mark.parametrize("noise", [0.3, 3.0])
+def test_jpeg_block_artifacts_are_told_from_noise(cell, noise):
+    """(A flat, noise-free face comes through JPEG nearly unchanged: no artifacts to see, nor a bias.)"""
+    door = DoorSize(900, 50, 2100)
+    pose = DoorPose(1.0, -2.0, 0.3)
+    eff = Effects(read_noise_dn=noise, blur_sigma_px=1.0, vignetting=0.2, gradient_u=0.1)
+    plain = render_door(cell, door, pose, effects=eff, seed=5).image
+    jpeg = render_door(cell, door, pose, effects=replace(eff, jpeg_quality=88), seed=5).image
+    r_plain = locate(plain, cell, door)
+    r_jpeg = locate(jpeg, cell, door)
+    assert r_plain.diagnostics["jpeg_block_ratio"] < JPEG_BLOCK_RATIO < r_jpeg.diagnostics["jpeg_block_ratio"]
+    assert r_jpeg.uncertainty is not None and r_plain.uncertainty is not None
+    assert r_jpeg.uncertainty.z_mm > r_plain.uncertainty.z_mm
