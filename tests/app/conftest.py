@@ -91,3 +91,75 @@ def small_png() -> bytes:
 @pytest.fixture(scope="session")
 def encode_png():
     return png_bytes
+
+
+# ---------------------------------------------------------------------------------------------- real processes
+
+def free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def launch_serve(tmp, *args: str, env: dict[str, str] | None = None, scheme: str = "http", verify=None):
+    """A real ``doorloc serve`` on 127.0.0.1 (database in ``tmp``), ready; ``(base_url, process, log file)``."""
+    import os
+    import subprocess
+    import sys
+    import time
+
+    import httpx
+
+    port = free_port()
+    full_env = {**os.environ, "DOORLOC_DATABASE_URL": f"sqlite:///{tmp / 'recipes.db'}", **(env or {})}
+    full_env["PYTHONPATH"] = str(REPO / "src") + os.pathsep + full_env.get("PYTHONPATH", "")
+    log = open(tmp / f"serve-{port}.log", "w")  # noqa: SIM115 - closed by stop_serve
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "doorloc", "serve", "--cell", str(CELL_PATH), "--host", "127.0.0.1",
+         "--port", str(port), *args],
+        env=full_env, stdout=log, stderr=subprocess.STDOUT, text=True, start_new_session=True,
+    )
+    base = f"{scheme}://127.0.0.1:{port}"
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and proc.poll() is None:
+        try:
+            if httpx.get(base + "/readyz", timeout=2, verify=verify if verify is not None else True).status_code == 200:
+                return base, proc, log
+        except httpx.TransportError:
+            pass
+        time.sleep(0.2)
+    stop_serve(proc, log)
+    raise AssertionError(f"doorloc serve did not become ready: {(tmp / f'serve-{port}.log').read_text()[-3000:]}")
+
+
+def stop_serve(proc, log) -> None:
+    import os
+    import signal
+    import subprocess
+
+    if proc.poll() is None:
+        os.killpg(proc.pid, signal.SIGTERM)
+        try:
+            proc.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait(timeout=30)
+    log.close()
+
+
+@pytest.fixture
+def start_serve():
+    """``start_serve(tmp_path, *args, env=..., scheme="http", verify=None)``: a real ``doorloc serve`` on
+    127.0.0.1, ready; returns ``(base_url, process)``; stopped afterwards."""
+    started = []
+
+    def start(tmp, *args: str, env: dict[str, str] | None = None, scheme: str = "http", verify=None):
+        base, proc, log = launch_serve(tmp, *args, env=env, scheme=scheme, verify=verify)
+        started.append((proc, log))
+        return base, proc
+
+    yield start
+    for proc, log in started:
+        stop_serve(proc, log)

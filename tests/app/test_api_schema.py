@@ -34,7 +34,9 @@ CONFIG = SchemathesisConfig.from_dict({
     "operations": [
         {"include-path": "/v1/locate",
          "checks": {"positive_data_acceptance": {"expected-statuses": ["2xx", "401", "415", "422"]}}},
-        {"include-path": "/v1/doors/{door_id}",  # GET and PUT: 404 is the default's unknown door
+        {"include-path": "/v1/doors/{door_id}",  # GET, PUT, DELETE: 404 is the default's unknown door
+         "checks": {"positive_data_acceptance": {"expected-statuses": ["2xx", "401", "404", "422"]}}},
+        {"include-path": "/v1/doors/{door_id}/history",
          "checks": {"positive_data_acceptance": {"expected-statuses": ["2xx", "401", "404", "422"]}}},
     ],
 })
@@ -73,5 +75,6 @@ def test_api_conforms_to_its_schema(label, mode):
 def test_every_operation_is_tested():
     assert set(OPERATIONS) == {
         "GET /healthz", "GET /readyz", "GET /metrics", "GET /v1/cell", "POST /v1/locate",
-        "GET /v1/doors", "GET /v1/doors/{door_id}", "PUT /v1/doors/{door_id}",
+        "GET /v1/doors", "GET /v1/doors/{door_id}", "PUT /v1/doors/{door_id}", "DELETE /v1/doors/{door_id}",
+        "GET /v1/doors/{door_id}/history",
     }

@@ -77,7 +77,9 @@ def test_batch_end_to_end(door_folder, tmp_path, cell):
     p = _batch(str(root), "--cell", CELL_FILE, "--out", str(out), "--workers", "2")
     assert p.returncode == 1, p.stderr  # some images refused/failed
     recs = _records(out)
-    assert set(recs) == {"a.png", "black.png", "broken.png", "c.tif", "d_image.dat", "line2/b.png"}
+    # every file gets a record, those that are no image too (issue 15: they were skipped without a word)
+    assert set(recs) == {"a.png", "black.png", "broken.png", "c.tif", "d_image.dat", "line2/b.png", "notes.png",
+                         "README.txt"}
     for name, pose in truth.items():
         r = recs[name]
         assert r["ok"] is True and r["status"] == "answered", r
@@ -86,7 +88,9 @@ def test_batch_end_to_end(door_folder, tmp_path, cell):
         assert r["yaw_deg"] == pytest.approx(pose.yaw_deg, abs=0.02)
     assert recs["black.png"]["status"] == "refused" and recs["black.png"]["error"]
     assert recs["broken.png"]["status"] == "failed" and recs["broken.png"]["error_code"] == "unreadable_image"
-    assert "6 images: 4 answered, 1 refused" in p.stderr and "1 failed" in p.stderr
+    assert recs["notes.png"]["status"] == "failed" and recs["notes.png"]["error_code"] == "not_an_image"
+    assert recs["README.txt"]["error_code"] == "not_an_image"
+    assert "8 images: 4 answered, 1 refused" in p.stderr and "3 failed" in p.stderr
 
 
 def test_existing_results_are_never_overwritten(door_folder, tmp_path):
@@ -133,7 +137,7 @@ def test_kill_9_then_resume_gives_the_same_records(door_folder, tmp_path):
     os.killpg(proc.pid, signal.SIGKILL)
     proc.wait(timeout=30)
     n_before = out.read_bytes().count(b"\n")
-    assert 2 <= n_before < 6, "the kill should land mid-run"
+    assert 2 <= n_before < 8, "the kill should land mid-run"
     p = _batch(str(root), "--cell", CELL_FILE, "--out", str(out), "--resume", "--workers", "2")
     assert p.returncode == 1, p.stderr
     got, ref = _records(out), _records(reference_out)

@@ -11,6 +11,7 @@ from typer.testing import CliRunner
 
 from doorloc.app.cli import app
 from doorloc.recipes.rapid import parse_rapid_text
+from doorloc.recipes.store import head_revision
 
 GOLDEN = Path(__file__).with_name("golden")
 _spec = importlib.util.spec_from_file_location("golden_compare", Path(__file__).with_name("golden_compare.py"))
@@ -102,7 +103,7 @@ def test_dry_run_and_init_db(db):
     r = run("recipes", "import", GOLDEN / "golden_recipe.csv", "--db", db, "--dry-run")
     assert r.exit_code == 0 and "dry run" in r.stdout
     r = run("recipes", "init-db", "--db", db)
-    assert r.exit_code == 0 and "revision 0001" in r.stdout
+    assert r.exit_code == 0 and f"revision {head_revision()}" in r.stdout
     assert "0 recipe(s)" in run("recipes", "list", "--db", db).stderr
 
 

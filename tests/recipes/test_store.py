@@ -13,6 +13,7 @@ from doorloc.recipes.store import (
     RecipeStore,
     RecipeStoreError,
     database_url,
+    head_revision,
     redacted_url,
     schema_revision,
 )
@@ -20,7 +21,7 @@ from doorloc.recipes.tables import Base, DoorRow, HingeRow
 
 
 def test_open_migrates_to_head_and_matches_the_orm(store):
-    assert schema_revision(store.engine) == "0001"
+    assert schema_revision(store.engine) == head_revision()
     with store.engine.connect() as conn:
         diffs = compare_metadata(MigrationContext.configure(conn), Base.metadata)
     assert diffs == []
@@ -151,7 +152,7 @@ def test_concurrent_first_opens_migrate_once(db_url):
     with ThreadPoolExecutor(6) as ex:
         assert list(ex.map(open_and_count, range(6))) == [0] * 6
     with RecipeStore(db_url) as s:
-        assert schema_revision(s.engine) == "0001"
+        assert schema_revision(s.engine) == head_revision()
 
 
 def test_migrations_downgrade_and_upgrade_again(store, recipe_factory):
@@ -166,4 +167,4 @@ def test_migrations_downgrade_and_upgrade_again(store, recipe_factory):
         command.downgrade(cfg, "base")
     assert schema_revision(store.engine) is None
     upgrade_schema(store.engine)
-    assert schema_revision(store.engine) == "0001" and store.count() == 0
+    assert schema_revision(store.engine) == head_revision() and store.count() == 0

@@ -29,6 +29,7 @@ __all__ = [
     "default_locate_fn",
     "door_from_fields",
     "overlay_png",
+    "provenance_of",
     "NO_RECIPE_NOTE",
 ]
 
@@ -58,10 +59,12 @@ class DoorChoice:
     door: DoorSize
     door_id: str | None = None
     recipe: Any | None = None  # doorloc.recipes.models.DoorRecipe
+    recipe_version: int | None = None  # the stored recipe's version (results name it in their provenance)
 
     @classmethod
-    def from_recipe(cls, recipe: Any, cell: Cell | None = None, arris_mm: float | None = None) -> DoorChoice:
-        """The door a stored recipe describes (its size, id and the recipe for the targets).
+    def from_recipe(cls, recipe: Any, cell: Cell | None = None, arris_mm: float | None = None,
+                    version: int | None = None) -> DoorChoice:
+        """The door a stored recipe describes (its size, id, the recipe for the targets and its version).
 
         A recipe gives the arris size (``arris_mm``); its profile (chamfer or round) is the cell's
         (``door.arris_profile``). ``arris_mm``, when given, overrides the recipe's (a manifest column).
@@ -71,7 +74,7 @@ class DoorChoice:
             door = replace(door, arris_profile=cell.default_door.arris_profile)
         if arris_mm is not None:
             door = replace(door, arris_mm=float(arris_mm))
-        return cls(door, recipe.door_id, recipe)
+        return cls(door, recipe.door_id, recipe, version)
 
 
 def default_locate_fn() -> LocateFn:
@@ -91,8 +94,11 @@ def door_from_fields(
 ) -> DoorSize:
     """A door from whichever dimensions were given, the cell's default door filling the rest (mm).
 
-    Raises ValueError (from :class:`DoorSize`) for non-positive or non-finite sizes.
+    Raises ValueError naming the field for a size outside :data:`doorloc.limits.DOOR_RANGES_MM` or an arris
+    not below half the thickness.
     """
+    from doorloc.limits import DoorRangeError, door_size_problems
+
     d = cell.default_door
     thickness = float(thickness_mm) if thickness_mm is not None else d.thickness_mm
     if arris_mm is not None:
@@ -100,13 +106,20 @@ def door_from_fields(
     else:
         # No arris given: the cell's typical one applies where it fits this door.
         arris = d.arris_mm if d.arris_mm < thickness / 2 else 0.0
-    return DoorSize(
-        float(width_mm) if width_mm is not None else d.width_mm,
-        thickness,
-        float(height_mm) if height_mm is not None else d.height_mm,
-        arris,
-        arris_profile or d.arris_profile,  # type: ignore[arg-type]  # DoorSize validates it
-    )
+    width = float(width_mm) if width_mm is not None else d.width_mm
+    height = float(height_mm) if height_mm is not None else d.height_mm
+    problems = door_size_problems(width, thickness, height, arris)
+    if problems:
+        raise DoorRangeError(problems[0][0], "; ".join(p[1] for p in problems))
+    return DoorSize(width, thickness, height, arris, arris_profile or d.arris_profile)  # type: ignore[arg-type]
+
+
+def provenance_of(cell: Cell, choice: DoorChoice) -> dict[str, Any]:
+    """SPEC section 3 ``provenance`` of an answer about ``choice`` in ``cell`` (also for records no locate made)."""
+    from doorloc import __version__
+
+    return {"version": __version__, "cell_sha256": cell.sha256, "calibration_sha256": cell.calibration_sha256,
+            "recipe_version": choice.recipe_version}
 
 
 def answer_image(
@@ -152,6 +165,9 @@ def answer_image(
     extra = {} if trace is None else {"trace": trace}
     result = locate(image, cell, choice.door, image_name=image_name, **extra)
     answer = result.model_dump(mode="json")
+    answer["provenance"] = provenance_of(cell, choice) | {
+        k: v for k, v in (answer.get("provenance") or {}).items() if k != "recipe_version"
+    }
     answer["door_id"] = choice.door_id
     answer["door"] = {
         "width_mm": choice.door.width_mm,

@@ -4,6 +4,16 @@ Flow: plan (walk the folder or read the manifest; images recognised by content) 
 results file already holds (``--resume``) -> locate in parallel worker processes (or on Ray Data) ->
 append each record to the results file as it arrives -> summary.
 
+Every file under the folder gets a record: an image is ``answered`` or ``refused``; anything else is
+``failed`` with the reason (``unreadable``, ``empty_file``, ``not_an_image``, ``too_large``,
+``not_a_regular_file``, ``undecodable_image``). Special files (FIFOs, sockets, devices) are recognised
+without being read, so nothing blocks on them; an image's declared size is checked against the pixel
+and decoded-byte limits before it is decoded. Worker processes die with the batch process (Linux
+parent-death signal plus a watchdog thread), so a ``kill -9`` of the job leaves no workers behind.
+
+Every record carries ``provenance`` (software version, cell and calibration hashes, recipe version);
+``--resume`` refuses to continue a results file whose records were made with a different one.
+
 The results file is the job's only state. Each record is appended with one ``os.write`` of the whole
 line on an ``O_APPEND`` descriptor and fsynced, so a run killed at any moment (``kill -9``) leaves
 complete lines plus at most one torn last line; ``--resume`` drops that torn tail and runs only the
@@ -20,6 +30,8 @@ import csv
 import json
 import os
 import pickle
+import stat
+import threading
 from collections import Counter
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
@@ -28,15 +40,25 @@ from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
 
-from doorloc.app.answer import DoorChoice, LocateFn, answer_image, door_from_fields
-from doorloc.app.imagesniff import MAGIC_BYTES_NEEDED, sniff_kind
+from doorloc.app.answer import DoorChoice, LocateFn, answer_image, door_from_fields, provenance_of
+from doorloc.app.imagesniff import (
+    HEADER_BYTES_NEEDED,
+    MAGIC_BYTES_NEEDED,
+    decode_limit_problem,
+    sniff_image,
+    sniff_kind,
+)
+from doorloc.app.settings import DEFAULT_MAX_DECODED_BYTES, DEFAULT_MAX_PIXELS
 from doorloc.cell import Cell
 
 __all__ = [
     "BatchItem",
     "BatchSummary",
     "BatchSetupError",
+    "FileLimits",
     "ResultsLog",
+    "check_resume",
+    "list_files",
     "find_images",
     "plan_batch",
     "locate_item",
@@ -52,6 +74,16 @@ ANSWERED, REFUSED, FAILED = "answered", "refused", "failed"
 
 class BatchSetupError(ValueError):
     """The job cannot start (bad folder, manifest or results file); the message says what to fix."""
+
+
+@dataclass(frozen=True)
+class FileLimits:
+    """What a batch worker agrees to read and decode (the service's defaults)."""
+
+    max_pixels: int = DEFAULT_MAX_PIXELS
+    max_decoded_bytes: int = DEFAULT_MAX_DECODED_BYTES
+    #: encoded file size; a camera frame is a few MB, and a larger file is read into memory whole
+    max_file_bytes: int = 200_000_000
 
 
 @dataclass(frozen=True)
@@ -72,6 +104,7 @@ class BatchSummary:
     refused: dict[str, int] = field(default_factory=dict)
     failed: int = 0
     skipped: int = 0  # already in the results file before this run
+    failed_reasons: dict[str, int] = field(default_factory=dict)
 
     @property
     def total(self) -> int:
@@ -80,8 +113,10 @@ class BatchSummary:
     def text(self) -> str:
         refused = sum(self.refused.values())
         reasons = ", ".join(f"{k}: {v}" for k, v in sorted(self.refused.items())) or "none"
+        failures = ", ".join(f"{k}: {v}" for k, v in sorted(self.failed_reasons.items()))
         return (
             f"{self.total} images: {self.answered} answered, {refused} refused ({reasons}), {self.failed} failed"
+            + (f" ({failures})" if failures else "")
             + (f"; {self.skipped} were already done" if self.skipped else "")
         )
 
@@ -107,6 +142,21 @@ def find_images(root: str | os.PathLike) -> list[Path]:
     return found
 
 
+def list_files(root: str | os.PathLike, exclude: Iterable[str | os.PathLike] = ()) -> list[Path]:
+    """Every file under ``root`` that is not a folder (recursive, sorted), special files included.
+
+    Nothing is opened: a FIFO or socket is listed like any file and gets a ``not_a_regular_file`` record
+    later. ``exclude`` names files to leave out (the job's own results file and manifest).
+    """
+    root = Path(root)
+    skip = {os.path.realpath(p) for p in exclude}
+    found = []
+    for dirpath, dirnames, filenames in os.walk(root):
+        dirnames.sort()
+        found += [p for name in sorted(filenames) if os.path.realpath(p := Path(dirpath) / name) not in skip]
+    return found
+
+
 def _float_or_none(row: dict[str, str], key: str, where: str) -> float | None:
     v = (row.get(key) or "").strip()
     if not v:
@@ -122,19 +172,23 @@ def plan_batch(
     cell: Cell,
     manifest: str | os.PathLike | None = None,
     recipe_lookup: Callable[[str], Any] | None = None,
+    exclude: Iterable[str | os.PathLike] = (),
 ) -> list[BatchItem]:
-    """The job: each image with its door.
+    """The job: each file with its door.
 
-    Without a manifest: every image under ``root``, as the cell's default door. With one (CSV with
-    ``image`` and ``door_id`` or ``width_mm,thickness_mm[,height_mm]``, optional ``arris_mm``): exactly its rows, image paths
-    relative to ``root``. ``recipe_lookup(door_id)`` returns a recipe or None.
+    Without a manifest: every file under ``root`` (images and anything else, which will get a
+    ``failed`` record saying what it is), as the cell's default door; ``exclude`` leaves out the job's
+    own files. With one (CSV with ``image`` and ``door_id`` or ``width_mm,thickness_mm[,height_mm]``,
+    optional ``arris_mm``): exactly its rows, image paths relative to ``root``. ``recipe_lookup(door_id)``
+    returns a recipe, a ``(recipe, version)`` pair, or None.
     """
     root = Path(root)
     if not root.is_dir():
         raise BatchSetupError(f"{root} is not a folder; give the folder that holds the images")
     if manifest is None:
         return [
-            BatchItem(p.relative_to(root).as_posix(), str(p), DoorChoice(cell.default_door)) for p in find_images(root)
+            BatchItem(p.relative_to(root).as_posix(), str(p), DoorChoice(cell.default_door))
+            for p in list_files(root, [*exclude])
         ]
     try:
         text = Path(manifest).read_text(encoding="utf-8-sig")
@@ -158,15 +212,19 @@ def plan_batch(
         door_id = (row.get("door_id") or "").strip() or None
         if door_id is not None:
             if door_id not in recipes:
-                recipes[door_id] = recipe_lookup(door_id) if recipe_lookup is not None else None
-            recipe = recipes[door_id]
-            if recipe is None:
-                items.append(BatchItem(image, path, DoorChoice(cell.default_door, door_id),
-                                       f"no door recipe with id '{door_id}' in the recipe database"))
+                try:
+                    recipes[door_id] = recipe_lookup(door_id) if recipe_lookup is not None else None
+                except ValueError as e:  # a stored recipe that today's rules refuse
+                    recipes[door_id] = e
+            found = recipes[door_id]
+            if found is None or isinstance(found, ValueError):
+                why = str(found) if found is not None else f"no door recipe with id '{door_id}' in the recipe database"
+                items.append(BatchItem(image, path, DoorChoice(cell.default_door, door_id), why))
             else:
+                recipe, version = found if isinstance(found, tuple) else (found, None)
                 try:
                     items.append(BatchItem(image, path, DoorChoice.from_recipe(
-                        recipe, cell, _float_or_none(row, "arris_mm", where))))
+                        recipe, cell, _float_or_none(row, "arris_mm", where), version)))
                 except ValueError as e:
                     raise BatchSetupError(f"{where}: {e}") from None
             continue
@@ -187,12 +245,14 @@ def plan_batch(
 # ---------------------------------------------------------------------------------------------- one image
 
 
-def _failed(item: BatchItem, code: str, error: str) -> dict[str, Any]:
+def _failed(item: BatchItem, code: str, error: str, cell: Cell | None = None) -> dict[str, Any]:
     from doorloc.vision.result import LocateResult
 
     record = LocateResult.refusal(item.image, code, error).model_dump(mode="json")
     record.update(door_id=item.choice.door_id, door=_door_dict(item.choice), targets=[], targets_note=None,
                   status=FAILED)
+    if cell is not None:
+        record["provenance"] = provenance_of(cell, item.choice)
     return record
 
 
@@ -201,22 +261,101 @@ def _door_dict(choice: DoorChoice) -> dict[str, float]:
     return {"width_mm": d.width_mm, "thickness_mm": d.thickness_mm, "height_mm": d.height_mm}
 
 
-def locate_item(item: BatchItem, cell: Cell, locate_fn: LocateFn | None = None) -> dict[str, Any]:
-    """The record of one image; never raises (a failure is a record with ``status: "failed"``)."""
-    from doorloc.vision.imageio import ImageDecodeError, read_image
+def read_file_checked(path: str, limits: FileLimits) -> tuple[bytes | None, str, str]:
+    """The file's bytes, or None with ``(code, sentence)`` saying why it is not an image this job decodes.
+
+    Opened with O_NONBLOCK and checked with fstat on the open descriptor, so a FIFO, socket or device
+    (or a file swapped for one after listing) is named, never waited on.
+    """
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_NOCTTY", 0))
+    except OSError as e:
+        return None, "unreadable", f"cannot open {path}: {e.strerror or e}"
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):
+            kind = ("a FIFO" if stat.S_ISFIFO(st.st_mode) else "a socket" if stat.S_ISSOCK(st.st_mode)
+                    else "a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode) else "not a file")
+            return None, "not_a_regular_file", f"{path} is {kind}, not a regular file; it was not read"
+        if st.st_size == 0:
+            return None, "empty_file", f"{path} is empty (0 bytes); copy the camera image again"
+        if st.st_size > limits.max_file_bytes:
+            return None, "too_large", (f"{path} is {st.st_size / 1e6:.0f} MB, more than the "
+                                       f"{limits.max_file_bytes / 1e6:.0f} MB a camera image may take")
+        with os.fdopen(os.dup(fd), "rb") as f:
+            data = f.read(limits.max_file_bytes + 1)
+    except OSError as e:
+        return None, "unreadable", f"cannot read {path}: {e.strerror or e}"
+    finally:
+        os.close(fd)
+    header = sniff_image(data[:HEADER_BYTES_NEEDED])
+    if header is None:
+        return None, "not_an_image", f"{path} is not a PNG, JPEG, TIFF or BMP image (judged by its first bytes)"
+    problem = decode_limit_problem(header, path, limits.max_pixels, limits.max_decoded_bytes)
+    if problem is not None:
+        return None, "too_large", problem
+    return data, "", ""
+
+
+def locate_item(
+    item: BatchItem, cell: Cell, locate_fn: LocateFn | None = None, limits: FileLimits | None = None
+) -> dict[str, Any]:
+    """The record of one file; never raises (a failure is a record with ``status: "failed"`` and a reason)."""
+    from doorloc.vision.imageio import ImageDecodeError, decode_image
 
     if item.problem is not None:
-        return _failed(item, "bad_job_row", item.problem)
+        return _failed(item, "bad_job_row", item.problem, cell)
+    data, code, why = read_file_checked(item.path, limits or FileLimits())
+    if data is None:
+        return _failed(item, code, why, cell)
     try:
-        image = read_image(item.path)
+        image = decode_image(data, name=item.path)
     except ImageDecodeError as e:
-        return _failed(item, "unreadable_image", str(e))
+        return _failed(item, "unreadable_image", str(e), cell)
+    del data
     try:
         fields = answer_image(image, cell, item.choice, image_name=item.image, locate_fn=locate_fn).fields
     except Exception as e:  # noqa: BLE001 - one bad image must not end a run of thousands
-        return _failed(item, "internal_error", f"locate failed on this image ({type(e).__name__}: {e}); please report it")
+        return _failed(item, "internal_error", f"locate failed on this image ({type(e).__name__}: {e}); please report it",
+                       cell)
     fields["status"] = ANSWERED if fields["ok"] else REFUSED
     return fields
+
+
+def _die_with_parent(parent_pid: int) -> None:
+    """Make this worker process end when the batch process does, however it ends (``kill -9`` included).
+
+    Linux's parent-death signal acts at once; the watchdog thread covers other systems and the moment
+    between the fork and the prctl call.
+    """
+    import signal
+    import sys
+    import time
+
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            libc = ctypes.CDLL(None, use_errno=True)
+            pr_set_pdeathsig = 1
+            libc.prctl(pr_set_pdeathsig, signal.SIGKILL, 0, 0, 0)
+        except (OSError, AttributeError):  # no libc prctl: the watchdog alone
+            pass
+    if os.getppid() != parent_pid:
+        os._exit(1)
+
+    def watchdog() -> None:
+        while True:  # ends with the process (daemon thread)
+            if os.getppid() != parent_pid:
+                os._exit(1)
+            time.sleep(0.5)
+
+    threading.Thread(target=watchdog, name="doorloc-parent-watchdog", daemon=True).start()
+
+
+def _worker_init(parent_pid: int) -> None:
+    _die_with_parent(parent_pid)
+    _configure_opencv()
 
 
 def _configure_opencv() -> None:
@@ -307,6 +446,7 @@ def run_local(
     *,
     workers: int,
     locate_fn: LocateFn | None = None,
+    limits: FileLimits | None = None,
 ) -> Iterator[dict[str, Any]]:
     """Locate ``items`` in ``workers`` processes; yield each record as soon as it is ready (any order).
 
@@ -316,20 +456,21 @@ def run_local(
     if workers <= 1:
         _configure_opencv()
         for it in items:
-            yield locate_item(it, cell, locate_fn)
+            yield locate_item(it, cell, locate_fn, limits)
         return
     # "spawn": the parent runs a progress thread, and fork with threads is unsafe.
-    with ProcessPoolExecutor(workers, mp_context=get_context("spawn"), initializer=_configure_opencv) as pool:
+    with ProcessPoolExecutor(workers, mp_context=get_context("spawn"), initializer=_worker_init,
+                             initargs=(os.getpid(),)) as pool:
         pending: set = set()
         queue = iter(items)
         exhausted = False
         while True:
             while not exhausted and len(pending) < 2 * workers:
-                it = next(queue, None)
-                if it is None:
+                nxt = next(queue, None)
+                if nxt is None:
                     exhausted = True
                     break
-                pending.add(pool.submit(locate_item, it, cell, locate_fn))
+                pending.add(pool.submit(locate_item, nxt, cell, locate_fn, limits))
             if not pending:
                 return
             finished, pending = wait(pending, return_when=FIRST_COMPLETED)
@@ -344,6 +485,7 @@ def run_ray(
     workers: int,
     locate_fn: LocateFn | None = None,
     ray_address: str | None = None,
+    limits: FileLimits | None = None,
 ) -> Iterator[dict[str, Any]]:
     """The same job on Ray Data: items become a dataset, each mapped by :func:`locate_item` on a Ray worker.
 
@@ -374,7 +516,7 @@ def run_ray(
 
         def _locate_batch(batch: dict[str, Any]) -> dict[str, Any]:
             _configure_opencv()
-            records = [locate_item(pickle.loads(b), cell, locate_fn) for b in batch["item"]]
+            records = [locate_item(pickle.loads(b), cell, locate_fn, limits) for b in batch["item"]]
             return {"record": [json.dumps(r, allow_nan=False) for r in records]}
 
         out = ds.map_batches(_locate_batch, batch_size=1, concurrency=max(1, workers))
@@ -414,13 +556,49 @@ def summarize(records: Iterable[dict[str, Any]], skipped: int = 0) -> BatchSumma
     """Answered, refused by reason, failed."""
     s = BatchSummary(skipped=skipped)
     refused: Counter[str] = Counter()
+    failed: Counter[str] = Counter()
     for r in records:
         status = r.get("status") or (ANSWERED if r.get("ok") else REFUSED)
         if status == ANSWERED:
             s.answered += 1
         elif status == FAILED:
             s.failed += 1
+            if r.get("error_code"):
+                failed[r["error_code"]] += 1
         else:
             refused[r.get("error_code") or "unknown"] += 1
     s.refused = dict(refused)
+    s.failed_reasons = dict(failed)
     return s
+
+
+#: provenance items a resumed job must share with the records already written
+_PROVENANCE_KEYS = ("version", "cell_sha256", "calibration_sha256")
+_PROVENANCE_WORDS = {"version": "the doorloc version", "cell_sha256": "the cell file",
+                     "calibration_sha256": "the camera calibration", "recipe_version": "the recipe"}
+
+
+def check_resume(done: dict[str, dict[str, Any]], items: list[BatchItem], cell: Cell) -> None:
+    """Refuse (BatchSetupError naming what changed) to add records made with another model to a results file.
+
+    Every record already written must carry the provenance this run would write: the same doorloc version,
+    cell file and calibration, and, for each door from a recipe, the same recipe version.
+    """
+    by_image = {it.image: it for it in items}
+    for image, record in done.items():
+        it = by_image.get(image)
+        want = provenance_of(cell, it.choice if it is not None else DoorChoice(cell.default_door))
+        have = record.get("provenance")
+        if not isinstance(have, dict):
+            raise BatchSetupError(
+                f"cannot resume: the record of '{image}' has no provenance (written by an older doorloc), so it "
+                "cannot be shown to come from the same cell, calibration and recipes; start a new --out"
+            )
+        keys = [*_PROVENANCE_KEYS, *(["recipe_version"] if it is not None and it.choice.door_id else [])]
+        for k in keys:
+            if have.get(k) != want.get(k):
+                raise BatchSetupError(
+                    f"cannot resume: {_PROVENANCE_WORDS[k]} changed since the results were written ({k} "
+                    f"{have.get(k)!r} in the record of '{image}', {want.get(k)!r} now); one results file must "
+                    "not mix two models: start a new --out, or restore what changed"
+                )

@@ -13,7 +13,16 @@ from typing import Annotated
 import typer
 
 from doorloc import __version__
-from doorloc.app import cli_calibrate, cli_cell, cli_locate, cli_reach, cli_recipes, cli_render, cli_serve
+from doorloc.app import (
+    cli_calibrate,
+    cli_cell,
+    cli_keys,
+    cli_locate,
+    cli_reach,
+    cli_recipes,
+    cli_render,
+    cli_serve,
+)
 
 app = typer.Typer(
     name="doorloc",
@@ -39,7 +48,7 @@ def _root(
     """Locate a wooden door in a milling cell and turn its recipe into robot targets."""
 
 
-for _module in (cli_calibrate, cli_cell, cli_locate, cli_render, cli_recipes, cli_reach, cli_serve):
+for _module in (cli_calibrate, cli_cell, cli_locate, cli_render, cli_recipes, cli_reach, cli_serve, cli_keys):
     _module.register(app)
 
 

@@ -32,11 +32,12 @@ def _door_choice(cell, width, thickness, height, arris, door_id, db, profile=Non
     from doorloc.recipes.store import RecipeStore, database_url
 
     with RecipeStore(database_url(db) if db else database_url()) as store:
-        recipe = store.get(door_id)
-    if recipe is None:
+        found = store.get_versioned(door_id)
+    if found is None:
         raise ValueError(f"no door recipe with id {door_id!r} in the recipe database; import it first "
                          "(doorloc recipes import) or give the door size with --door-width/--door-thickness")
-    choice = DoorChoice.from_recipe(recipe, cell, arris)
+    recipe, version = found
+    choice = DoorChoice.from_recipe(recipe, cell, arris, version)
     if profile is None:
         return choice
     return replace(choice, door=replace(choice.door, arris_profile=profile))
@@ -62,7 +63,7 @@ def register(app: typer.Typer) -> None:
         """Locate the door in one image and print the result JSON (exit 0 located, 1 refused, 2 bad input)."""
         from doorloc.app.answer import answer_image
         from doorloc.cell import CellFileError, load_cell
-        from doorloc.vision.imageio import ImageDecodeError, read_image
+        from doorloc.vision.imageio import ImageDecodeError, decode_image
         from doorloc.vision.locate import LocateTrace
 
         try:
@@ -73,8 +74,14 @@ def register(app: typer.Typer) -> None:
             choice = _door_choice(cell, door_width, door_thickness, door_height, arris, door_id, db, arris_profile)
         except (ValueError, RuntimeError) as e:
             raise fail(str(e), EXIT_USAGE) from None
+        from doorloc.app.batch import FileLimits, read_file_checked
+
+        # the batch's checks: no waiting on a FIFO, no decoding of an image that declares too many pixels
+        data, _code, why = read_file_checked(str(image), FileLimits())
+        if data is None:
+            raise fail(why, EXIT_USAGE)
         try:
-            img = read_image(image)
+            img = decode_image(data, name=str(image))
         except ImageDecodeError as e:
             raise fail(str(e), EXIT_USAGE) from None
         trace = LocateTrace()

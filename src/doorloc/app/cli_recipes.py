@@ -14,7 +14,7 @@ from pathlib import Path
 
 import typer
 
-from doorloc.app.errors import EXIT_FAILED, EXIT_USAGE, fail
+from doorloc.app.errors import EXIT_FAILED, EXIT_REFUSED, EXIT_USAGE, fail
 
 DB_HELP = "recipe database URL (SQLAlchemy); default: $DOORLOC_DATABASE_URL, else ./doorloc.db (SQLite)"
 
@@ -76,15 +76,27 @@ def init_db(db: str = typer.Option(None, "--db", help=DB_HELP)) -> None:
         typer.echo(f"{redacted_url(store.url)}: schema at revision {schema_revision(store.engine)}")
 
 
+def _cli_user() -> str:
+    """Who runs the command, for the recipe history (``cli:<login>``)."""
+    import getpass
+
+    try:
+        return f"cli:{getpass.getuser()}"
+    except (KeyError, OSError):  # no login name (e.g. a container's numeric user)
+        return "cli:unknown"
+
+
 @recipes_app.command("import")
 def import_cmd(
     file: Path = typer.Argument(..., help="recipe file: .csv or .xlsx, one row per hinge, door fields repeated"),
     db: str = typer.Option(None, "--db", help=DB_HELP),
-    dry_run: bool = typer.Option(False, "--dry-run", help="check the file only; write nothing"),
+    dry_run: bool = typer.Option(False, "--dry-run", help="check the file and show what would change; write nothing"),
+    replace: bool = typer.Option(False, "--replace", help="overwrite stored recipes that differ (each a new version)"),
 ) -> None:
     """Import a recipe file in one transaction: all its doors, or (with any bad row) none.
 
-    Recipes already in the database with the same door id are replaced.
+    Doors already stored with a different recipe are listed with what would change; they are only
+    overwritten with --replace (each change becomes a new version in the recipe's history).
     """
     from doorloc.recipes.importer import RecipeImportError, load_recipe_file
 
@@ -99,18 +111,68 @@ def import_cmd(
     except Exception as e:  # e.g. a damaged .xlsx (zip/xml errors from openpyxl)
         raise fail(f"cannot read {file} as a recipe file: {e.__class__.__name__}: {e}") from None
     hinges = sum(len(r.hinges) for r in recipes)
-    if dry_run:
+    if dry_run and db is None:
         typer.echo(f"{file}: {len(recipes)} door(s), {hinges} hinge(s) OK (dry run, nothing written)")
         return
-    store = _open_store(db)
     from sqlalchemy.exc import SQLAlchemyError
 
-    with store:
+    with _open_store(db) as store:
+        preview = store.preview(recipes)
+        changed = {k: v for k, v in preview.items() if v}
+        new = sum(v is None for v in preview.values())
+        for door_id, changes in list(changed.items())[:20]:
+            shown = "; ".join(str(c) for c in changes[:6]) + (f"; ... {len(changes) - 6} more" if len(changes) > 6 else "")
+            typer.echo(f"  {door_id} would change: {shown}", err=True)
+        if len(changed) > 20:
+            typer.echo(f"  ... and {len(changed) - 20} more door(s)", err=True)
+        summary = (f"{file}: {len(recipes)} door(s), {hinges} hinge(s): {new} new, {len(changed)} changed, "
+                   f"{len(recipes) - new - len(changed)} unchanged")
+        if dry_run:
+            typer.echo(summary + " (dry run, nothing written)")
+            return
+        if changed and not replace:
+            raise fail(f"{summary}; {len(changed)} stored recipe(s) would be overwritten (listed above): pass "
+                       "--replace to do so, nothing was written", EXIT_REFUSED)
         try:
-            store.put_many(recipes)
+            store.put_many(recipes, by=_cli_user())
         except SQLAlchemyError as e:
             raise fail(f"import failed, nothing written: {str(e).splitlines()[0]}", EXIT_FAILED) from None
-    typer.echo(f"imported {len(recipes)} door(s), {hinges} hinge(s) from {file}")
+    typer.echo(f"imported {len(recipes)} door(s), {hinges} hinge(s) from {file} ({new} new, {len(changed)} changed)")
+
+
+@recipes_app.command("history")
+def history_cmd(
+    door_id: str = typer.Argument(..., help="door id (barcode)"),
+    db: str = typer.Option(None, "--db", help=DB_HELP),
+    as_json: bool = typer.Option(False, "--json", help="print JSON (with each version's whole recipe)"),
+) -> None:
+    """Every version of a door recipe: who changed what, when."""
+    with _open_store(db) as store:
+        versions = store.history(door_id)
+    if not versions:
+        raise fail(f"no recipe for door {door_id!r} was ever stored")
+    if as_json:
+        typer.echo(json.dumps([{
+            "version": v.version, "action": v.action, "changed_by": v.changed_by,
+            "changed_at": v.changed_at.isoformat() if v.changed_at else None, "changes": [c.__dict__ for c in v.changes],
+            "recipe": v.recipe.model_dump(mode="json") if v.recipe else None} for v in versions], indent=2))
+        return
+    for v in versions:
+        when = v.changed_at.isoformat(timespec="seconds") if v.changed_at else "?"
+        what = "; ".join(str(c) for c in v.changes) if v.changes else ""
+        typer.echo(f"v{v.version:<4} {v.action:<8} {when:<25} {v.changed_by:<20} {what}")
+
+
+@recipes_app.command("delete")
+def delete_cmd(
+    door_id: str = typer.Argument(..., help="door id (barcode)"),
+    db: str = typer.Option(None, "--db", help=DB_HELP),
+) -> None:
+    """Retire a door recipe: locate and targets no longer use it; its history stays."""
+    with _open_store(db) as store:
+        if not store.delete(door_id, by=_cli_user()):
+            raise fail(f"no recipe for door {door_id!r} in the database")
+    typer.echo(f"retired the recipe of door {door_id} (its history is kept: doorloc recipes history {door_id})")
 
 
 @recipes_app.command("list")

@@ -24,41 +24,28 @@ def register(app: typer.Typer) -> None:
             str | None, typer.Option(help="recipe database URL; default: $DOORLOC_DATABASE_URL or the store's default")
         ] = None,
         log_level: Annotated[str, typer.Option(help="debug, info, warning or error")] = "info",
+        insecure: Annotated[
+            bool, typer.Option(help="listen on a non-loopback address although no API key exists (anyone may then "
+                                    "change recipes)")
+        ] = False,
+        ssl_certfile: Annotated[Path | None, typer.Option(help="serve HTTPS with this PEM certificate (chain)")] = None,
+        ssl_keyfile: Annotated[Path | None, typer.Option(help="private key of --ssl-certfile (PEM)")] = None,
     ) -> None:
-        """Run the HTTP service (POST /v1/locate, operator page at /, OpenAPI at /docs)."""
-        import uvicorn
+        """Run the HTTP service (POST /v1/locate, operator page at /, OpenAPI at /docs).
 
-        from doorloc.cell import CellFileError, load_cell
-
-        cell_path = str(cell) if cell is not None else os.environ.get("DOORLOC_CELL")
-        if not cell_path:
-            raise fail("give the cell file: doorloc serve --cell cell.yaml (or set DOORLOC_CELL)")
-        try:
-            load_cell(cell_path)  # fail here, with a sentence, rather than in every worker
-        except CellFileError as e:
-            raise fail(str(e)) from None
-        if database_url:
-            os.environ["DOORLOC_DATABASE_URL"] = database_url
-        try:
-            # Bring the recipe database's schema up to date once, here, so N workers do not race to migrate it.
-            from doorloc.recipes.store import RecipeStore
-            from doorloc.recipes.store import database_url as resolve_url
-
-            RecipeStore(resolve_url(None)).close()
-        except Exception as e:  # noqa: BLE001 - any database failure is reported as one sentence
-            raise fail(f"cannot open the recipe database: {e}") from None
+        On an address other than loopback it needs API keys (doorloc keys create) unless --insecure is given.
+        """
+        cell_path = _checked_cell(cell)
+        _check_bind(host, insecure, _has_keys(database_url))
+        if (ssl_certfile is None) != (ssl_keyfile is None):
+            raise fail("give both --ssl-certfile and --ssl-keyfile for HTTPS, or neither")
+        for f in (ssl_certfile, ssl_keyfile):
+            if f is not None and not f.is_file():
+                raise fail(f"no such file: {f}")
         # The workers are separate processes that build the app from the environment (create_app_from_env).
         os.environ["DOORLOC_CELL"] = str(Path(cell_path).resolve())
         os.environ["DOORLOC_LOG_LEVEL"] = log_level.upper()
-        uvicorn.run(
-            "doorloc.app.http:create_app_from_env",
-            factory=True,
-            host=host,
-            port=port,
-            workers=workers,
-            log_level=log_level.lower(),
-            access_log=False,  # the service logs every request itself, as JSON with its request id
-        )
+        _run_uvicorn(host, port, workers, log_level, ssl_certfile, ssl_keyfile)
 
     @app.command("batch")
     def batch(
@@ -89,9 +76,15 @@ def register(app: typer.Typer) -> None:
         except CellFileError as e:
             raise fail(str(e)) from None
         try:
-            items = batch_mod.plan_batch(folder, the_cell, manifest, _recipe_lookup(database_url) if manifest else None)
+            items = batch_mod.plan_batch(folder, the_cell, manifest, _recipe_lookup(database_url) if manifest else None,
+                                         exclude=[out, *([manifest] if manifest else [])])
             log = batch_mod.ResultsLog(out, resume)
         except (batch_mod.BatchSetupError, OSError) as e:
+            raise fail(str(e)) from None
+        try:
+            batch_mod.check_resume(log.done, items, the_cell)
+        except batch_mod.BatchSetupError as e:
+            log.close()
             raise fail(str(e)) from None
 
         def run_backend(todo):
@@ -108,6 +101,97 @@ def register(app: typer.Typer) -> None:
                 raise fail(f"cannot write {out}: {e.strerror or e}", EXIT_FAILED) from None
         typer.echo(f"{out}: {summary.text()}", err=True)
         raise typer.Exit(EXIT_OK if summary.answered == summary.total else EXIT_REFUSED)
+
+
+def _checked_cell(cell: Path | None) -> str:
+    """The cell file's path, loaded once here so a bad one fails with a sentence rather than in every worker."""
+    from doorloc.cell import CellFileError, load_cell
+
+    cell_path = str(cell) if cell is not None else os.environ.get("DOORLOC_CELL")
+    if not cell_path:
+        raise fail("give the cell file: doorloc serve --cell cell.yaml (or set DOORLOC_CELL)")
+    try:
+        load_cell(cell_path)
+    except CellFileError as e:
+        raise fail(str(e)) from None
+    return cell_path
+
+
+def _has_keys(database_url: str | None) -> bool:
+    """Migrate the recipe database once (so N workers do not race to) and say whether any API key exists."""
+    if database_url:
+        os.environ["DOORLOC_DATABASE_URL"] = database_url
+    try:
+        from doorloc.app.access import KeyStore
+        from doorloc.recipes.store import RecipeStore
+        from doorloc.recipes.store import database_url as resolve_url
+
+        with RecipeStore(resolve_url(None)) as store:
+            return KeyStore(store.engine).any_active() or bool(os.environ.get("DOORLOC_API_KEY"))
+    except Exception as e:  # noqa: BLE001 - any database failure is reported as one sentence
+        raise fail(f"cannot open the recipe database: {e}") from None
+
+
+def _check_bind(host: str, insecure: bool, has_keys: bool) -> None:
+    """Refuse a non-loopback address without API keys unless --insecure (then warn)."""
+    if has_keys or is_loopback(host):
+        return
+    if not insecure:
+        raise fail(
+            f"refusing to listen on {host} without API keys: anyone who reaches it could change the door "
+            "recipes that drive the robot. Create keys first (doorloc keys create --role engineer NAME), "
+            "listen on 127.0.0.1 behind a reverse proxy, or pass --insecure to accept the risk"
+        )
+    typer.echo(f"doorloc: warning: listening on {host} with no API keys (--insecure): anyone who reaches "
+               "this port can change door recipes", err=True)
+
+
+def _run_uvicorn(host: str, port: int, workers: int, log_level: str, ssl_certfile: Path | None,
+                 ssl_keyfile: Path | None) -> None:
+    """Run uvicorn; /metrics adds up every worker through a prometheus multiprocess folder made here."""
+    import shutil
+    import tempfile
+
+    import uvicorn
+
+    own_metrics_dir = "PROMETHEUS_MULTIPROC_DIR" not in os.environ
+    if own_metrics_dir:
+        os.environ["PROMETHEUS_MULTIPROC_DIR"] = tempfile.mkdtemp(prefix="doorloc-metrics-")
+    try:
+        uvicorn.run(
+            "doorloc.app.http:create_app_from_env",
+            factory=True,
+            host=host,
+            port=port,
+            workers=workers,
+            log_level=log_level.lower(),
+            access_log=False,  # the service logs every request itself, as JSON with its request id
+            ssl_certfile=str(ssl_certfile) if ssl_certfile else None,
+            ssl_keyfile=str(ssl_keyfile) if ssl_keyfile else None,
+            http=_http_protocol(),
+        )
+    finally:
+        if own_metrics_dir:
+            shutil.rmtree(os.environ.pop("PROMETHEUS_MULTIPROC_DIR"), ignore_errors=True)
+
+
+def _http_protocol() -> str:
+    """uvicorn's HTTP protocol: the httptools one with problem+json 400s when httptools is installed."""
+    import importlib.util
+
+    return "doorloc.app.http.protocol:ProblemJsonHTTP" if importlib.util.find_spec("httptools") else "auto"
+
+
+def is_loopback(host: str) -> bool:
+    """True for addresses only this machine can reach (127.0.0.0/8, ::1, 'localhost')."""
+    import ipaddress
+
+    if host.lower() == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:  # a host name other than localhost may resolve to anything
+        return False
 
 
 def _run_with_progress(items, log, run_backend):
@@ -141,7 +225,7 @@ def _run_with_progress(items, log, run_backend):
 
 
 def _recipe_lookup(database_url: str | None):
-    """``door_id -> DoorRecipe | None`` from the recipe database (opened on first use)."""
+    """``door_id -> (DoorRecipe, version) | None`` from the recipe database (opened on first use)."""
     store = None
 
     def lookup(door_id: str):
@@ -151,6 +235,6 @@ def _recipe_lookup(database_url: str | None):
             from doorloc.recipes.store import database_url as default_url
 
             store = RecipeStore(default_url(database_url))  # None: $DOORLOC_DATABASE_URL or the default
-        return store.get(door_id)
+        return store.get_versioned(door_id)
 
     return lookup

@@ -23,6 +23,9 @@ __all__ = ["ServiceSettings"]
 DEFAULT_MAX_UPLOAD_BYTES = 20 * 1000 * 1000
 #: 50 megapixels: ample for any industrial camera, far below what would exhaust memory when decoded.
 DEFAULT_MAX_PIXELS = 50_000_000
+#: 100 MB decoded (width x height x channels x bytes per sample): a 4K 16-bit colour frame is 50 MB;
+#: a 7000x7000 16-bit RGBA PNG (381 kB on the wire) would be 392 MB
+DEFAULT_MAX_DECODED_BYTES = 100_000_000
 
 
 class ServiceSettings(BaseSettings):
@@ -37,6 +40,15 @@ class ServiceSettings(BaseSettings):
     api_key: SecretStr | None = Field(None, description="when set, every /v1 request must send it as X-API-Key")
     max_upload_bytes: int = Field(DEFAULT_MAX_UPLOAD_BYTES, gt=0, description="largest request body, bytes")
     max_pixels: int = Field(DEFAULT_MAX_PIXELS, gt=0, description="largest image (width*height) decoded")
+    max_decoded_bytes: int = Field(
+        DEFAULT_MAX_DECODED_BYTES, gt=0, description="largest decoded image, width*height*channels*bytes per sample"
+    )
+    max_queue: int = Field(
+        8, ge=0, description="locate requests that may wait for a CPU slot in one worker; more answer 503 Retry-After"
+    )
+    request_deadline_s: float = Field(
+        30.0, gt=0, description="a locate request that has not got a CPU slot (or its whole body) by then answers 503"
+    )
     locate_concurrency: int = Field(
         default_factory=lambda: max(1, os.cpu_count() or 1),
         gt=0,

@@ -28,6 +28,7 @@ from typing import Annotated, Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
 
 from doorloc.cell import DoorSize
+from doorloc.limits import DOOR_RANGES_MM, TOOL_DIAMETER_RANGE_MM, check_range
 
 __all__ = ["PointCorrection", "Hinge", "DoorFields", "DoorRecipe", "SKIP_CROSS_CHECKS", "CORNER_OVERCUT_TOLERANCE_MM", "RecipeProblem", "recipe_problems", "DOOR_ID_PATTERN"]
 
@@ -104,6 +105,14 @@ class DoorFields(_Frozen):
     tool_diameter_mm: PositiveMm
     spindle_rpm: Annotated[float, Field(gt=0, le=100_000, allow_inf_nan=False)]
     feed_mm_s: Annotated[float, Field(gt=0, le=5_000, allow_inf_nan=False)]
+
+    @field_validator("width_mm", "height_mm", "thickness_mm", "tool_diameter_mm")
+    @classmethod
+    def _in_range(cls, v: float, info: ValidationInfo) -> float:
+        # the accepted ranges live in doorloc.limits (shared with the HTTP API and the CLI)
+        name = info.field_name or ""
+        bounds = TOOL_DIAMETER_RANGE_MM if name == "tool_diameter_mm" else DOOR_RANGES_MM[name]
+        return check_range(name, v, bounds)
 
 
 class DoorRecipe(DoorFields):

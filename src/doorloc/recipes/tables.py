@@ -23,7 +23,7 @@ from sqlalchemy import (
 )
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, relationship
 
-__all__ = ["Base", "DoorRow", "HingeRow"]
+__all__ = ["Base", "DoorRow", "HingeRow", "ApiKeyRow", "RecipeVersionRow"]
 
 
 class Base(DeclarativeBase):
@@ -55,6 +55,10 @@ class DoorRow(Base):
     spindle_rpm: Mapped[float] = mapped_column(Float, nullable=False)
     feed_mm_s: Mapped[float] = mapped_column(Float, nullable=False)
     updated_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), nullable=False, server_default=func.now())
+    #: revision 0003: the recipe's current version, a hash of its content (to skip unchanged re-imports), who wrote it
+    version: Mapped[int] = mapped_column(Integer, nullable=False, server_default="1")
+    content_sha256: Mapped[str | None] = mapped_column(String(64), nullable=True)
+    updated_by: Mapped[str | None] = mapped_column(String(64), nullable=True)
 
     hinges: Mapped[list[HingeRow]] = relationship(
         back_populates="door", order_by="HingeRow.position", cascade="all, delete-orphan", passive_deletes=True
@@ -93,3 +97,47 @@ class HingeRow(Base):
     corrections: Mapped[list | None] = mapped_column(JSON, nullable=True)
 
     door: Mapped[DoorRow] = relationship(back_populates="hinges")
+
+
+class ApiKeyRow(Base):
+    """One API key of the HTTP service (revision 0002): only a salted scrypt hash of its secret is kept.
+
+    ``key_id`` is the public part of the key (``dlk_<key_id>_<secret>``) and finds the row; ``role`` is
+    ``operator``, ``engineer`` or ``metrics``; a revoked key keeps its row (``revoked_at`` set) for the audit trail.
+    """
+
+    __tablename__ = "api_keys"
+    __table_args__ = (
+        UniqueConstraint("key_id", name="uq_api_keys_key_id"),
+        CheckConstraint("role IN ('operator', 'engineer', 'metrics')", name="ck_api_keys_role"),
+    )
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
+    key_id: Mapped[str] = mapped_column(String(32), nullable=False)
+    name: Mapped[str] = mapped_column(String(64), nullable=False, index=True)
+    role: Mapped[str] = mapped_column(String(16), nullable=False)
+    salt: Mapped[str] = mapped_column(String(64), nullable=False)
+    key_hash: Mapped[str] = mapped_column(String(128), nullable=False)
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), nullable=False, server_default=func.now())
+    revoked_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+
+
+class RecipeVersionRow(Base):
+    """One change of a door recipe (revision 0003): who, when, what; ``recipe`` is the whole recipe as stored then
+    (null for ``deleted`` and for ``migrated``, the rows of doors stored before history existed)."""
+
+    __tablename__ = "recipe_versions"
+    __table_args__ = (
+        UniqueConstraint("door_id", "version", name="uq_recipe_versions_door_version"),
+        CheckConstraint("version >= 1", name="ck_recipe_versions_version_positive"),
+        CheckConstraint("action IN ('created', 'updated', 'deleted', 'migrated')", name="ck_recipe_versions_action"),
+    )
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
+    door_id: Mapped[str] = mapped_column(String(64), nullable=False, index=True)
+    version: Mapped[int] = mapped_column(Integer, nullable=False)
+    action: Mapped[str] = mapped_column(String(16), nullable=False)
+    changed_by: Mapped[str] = mapped_column(String(64), nullable=False)
+    changed_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), nullable=False, server_default=func.now())
+    recipe: Mapped[dict | None] = mapped_column(JSON, nullable=True)
+    changes: Mapped[list | None] = mapped_column(JSON, nullable=True)

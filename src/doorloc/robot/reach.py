@@ -311,7 +311,7 @@ def _why(
     steps = np.abs(np.diff(q_all[idx], axis=0))  # (m-1, 8, 6)
     worst = np.where(common[None, :, None], steps, np.inf).max(axis=(0, 2))
     b = int(np.argmin(worst))
-    k, joint = np.unravel_index(int(np.argmax(steps[:, b, :])), steps[:, b, :].shape)
+    k, joint = (int(v) for v in np.unravel_index(int(np.argmax(steps[:, b, :])), steps[:, b, :].shape))
     return "configuration_flip", (
         f"joint {joint + 1} would swing {_fmt(math.degrees(steps[k, b, joint]))} deg between {targets[idx[k]].name} and "
         f"{targets[idx[k + 1]].name} (more than {_fmt(robot.max_joint_step_deg)} deg between neighbours): "
@@ -322,7 +322,7 @@ def _smooth(q_path: np.ndarray, robot: RobotModel) -> np.ndarray:
     """Per configuration (``q_path`` ``(m, 8, 6)``): no joint moves more than the robot's step between neighbours."""
     if len(q_path) < 2:
         return np.ones(q_path.shape[1], dtype=bool)
-    return (np.abs(np.diff(q_path, axis=0)) <= math.radians(robot.max_joint_step_deg)).all(axis=(0, 2))
+    return np.asarray((np.abs(np.diff(q_path, axis=0)) <= math.radians(robot.max_joint_step_deg)).all(axis=(0, 2)))
 
 
 def thesis_cell_path() -> Path:

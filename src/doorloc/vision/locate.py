@@ -129,8 +129,17 @@ def locate(image: np.ndarray, cell: Cell, door: DoorSize | None = None, *, image
         res = LocateResult.refusal(image_name, r.refusal.code, r.refusal.message,
                                    lines=r.diag.get("lines", []), diagnostics=r.diag.get("diagnostics", {}))
     except Exception as e:  # noqa: BLE001 — a locate call must answer, never crash the caller
+        # a bug: logged at error level with its traceback under an incident id that the answer quotes
+        import logging
+        import uuid
+
+        incident = uuid.uuid4().hex[:12]
+        logging.getLogger("doorloc.vision").error(
+            "locate failed", exc_info=True,
+            extra={"fields": {"event": "internal_error", "incident_id": incident, "image": image_name}})
         res = LocateResult.refusal(image_name, "internal_error",
-                                   f"locate failed on this image ({type(e).__name__}: {e}); keep the image and report it")
+                                   f"locate failed on this image ({type(e).__name__}: {e}); keep the image and "
+                                   f"report it with incident id {incident}", incident_id=incident)
     res.provenance = Provenance(version=__version__, cell_sha256=cell.sha256, calibration_sha256=cell.calibration_sha256)
     res.model = PhysicalModel(response_gamma=cell.response_gamma, arris_mm=door.arris_mm, arris_profile=door.arris_profile,
                               door_brighter=cfg.door_brighter, face_y_mm=cell.face_y(door))

@@ -20,6 +20,7 @@ from contextlib import asynccontextmanager
 from pathlib import Path
 from typing import Any
 
+import anyio
 import anyio.to_thread
 from fastapi import FastAPI
 from fastapi.staticfiles import StaticFiles
@@ -28,7 +29,7 @@ from doorloc import __version__
 from doorloc.app.answer import LocateFn
 from doorloc.app.http import routes_doors, routes_locate, routes_ops
 from doorloc.app.http.metrics import ServiceMetrics
-from doorloc.app.http.middleware import BodySizeLimit, RequestContext
+from doorloc.app.http.middleware import BodySizeLimit, LocateAdmission, RequestContext
 from doorloc.app.http.problems import install_problem_handlers
 from doorloc.app.http.state import ServiceState
 from doorloc.app.settings import ServiceSettings
@@ -64,9 +65,12 @@ def create_app(
 
         # Requests already run in parallel threads; OpenCV's own pool on top would oversubscribe the cores.
         cv2.setNumThreads(settings.opencv_threads)
-        if not state.ready or state.locate_fn is None:
+        if not state.ready or state.locate_fn is None or state.keys is None:
             await anyio.to_thread.run_sync(state.load)
-        yield
+        async with anyio.create_task_group() as tg:
+            tg.start_soon(_sample_process_forever, state.metrics)
+            yield
+            tg.cancel_scope.cancel()
 
     app = FastAPI(
         title="doorloc",
@@ -81,9 +85,17 @@ def create_app(
     app.include_router(routes_doors.router)
     app.mount("/static", StaticFiles(directory=STATIC_DIR), name="static")
     # add_middleware wraps from the inside out: RequestContext sees every request, including 413s.
+    app.add_middleware(LocateAdmission, deadline_s=settings.request_deadline_s)
     app.add_middleware(BodySizeLimit, max_body_bytes=settings.max_upload_bytes)
     app.add_middleware(RequestContext, metrics=state.metrics)
     return app
+
+
+async def _sample_process_forever(metrics: ServiceMetrics, every_s: float = 5.0) -> None:
+    """Keep this worker's process figures fresh, so a scrape answered by another worker sees them too."""
+    while True:  # cancelled at shutdown
+        metrics.sample_process()
+        await anyio.sleep(every_s)
 
 
 def create_app_from_env() -> FastAPI:

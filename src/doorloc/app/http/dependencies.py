@@ -1,9 +1,10 @@
-"""FastAPI dependencies: the app's state, readiness, and the optional API key."""
+"""FastAPI dependencies: the app's state, readiness, and who the caller is (API key and role)."""
 
 from __future__ import annotations
 
+import hashlib
+import hmac
 import logging
-import secrets
 from collections.abc import Callable
 from typing import Any
 
@@ -11,33 +12,89 @@ import anyio.to_thread
 from fastapi import Depends, Request, Security
 from fastapi.security import APIKeyHeader
 
+from doorloc.app.access import ANY_ACTIVE_TTL_S, LEGACY_KEY_NAME, Principal, Role, role_allows
 from doorloc.app.http.problems import ProblemError
 from doorloc.app.http.state import ServiceState
 
-__all__ = ["get_state", "ready_state", "require_api_key", "call_store"]
+__all__ = ["get_state", "ready_state", "require_role", "require_api_key", "call_store"]
 
 _api_key_header = APIKeyHeader(
-    name="X-API-Key", auto_error=False, description="required when the service runs with DOORLOC_API_KEY set"
+    name="X-API-Key", auto_error=False,
+    description="an API key (doorloc keys create); required once any key exists or DOORLOC_API_KEY is set",
 )
+#: the caller when the service has no keys at all (only allowed on loopback, see doorloc serve)
+ANONYMOUS = Principal("anonymous", Role.engineer)
 
 
 def get_state(request: Request) -> ServiceState:
     return request.app.state.service
 
 
-def require_api_key(
-    state: ServiceState = Depends(get_state), given: str | None = Security(_api_key_header)
-) -> None:
-    """401 unless the request carries the configured key (no key configured: open)."""
-    expected = state.settings.api_key
-    if expected is None:
-        return
-    if given is None or not secrets.compare_digest(given.encode(), expected.get_secret_value().encode()):
-        raise ProblemError(
-            401, "unauthorized",
-            "This service needs an API key: send it in the X-API-Key header (ask the cell's administrator for it).",
-            headers={"WWW-Authenticate": "APIKey"},
-        )
+def _unauthorized(detail: str) -> ProblemError:
+    return ProblemError(401, "unauthorized", detail, headers={"WWW-Authenticate": "APIKey"})
+
+
+async def _principal(state: ServiceState, given: str | None) -> Principal:
+    """Who sent the request: 401 for a missing or unknown key, the anonymous engineer on an open service."""
+    legacy = state.settings.api_key
+    if given:
+        # the legacy single key: compare fixed-length digests so the comparison time says nothing about the key
+        if legacy is not None and hmac.compare_digest(
+            hashlib.sha256(given.encode()).digest(), hashlib.sha256(legacy.get_secret_value().encode()).digest()
+        ):
+            return Principal(LEGACY_KEY_NAME, Role.engineer)
+        if state.keys is None:
+            raise _service_not_ready(state)
+        who = await call_store(state.keys.authenticate, given)
+        if who is None:
+            raise _unauthorized("The API key in X-API-Key is not valid (unknown, mistyped or revoked); "
+                                "ask the cell's administrator for a key (doorloc keys create).")
+        return who
+    if legacy is not None:
+        raise _unauthorized("This service needs an API key: send it in the X-API-Key header "
+                            "(ask the cell's administrator for it).")
+    if state.keys is None:
+        raise _service_not_ready(state)
+    # the answer is remembered ANY_ACTIVE_TTL_S: no database round trip (nor thread hop) on every request
+    keys_exist = state.keys.cached_any_active(ANY_ACTIVE_TTL_S)
+    if keys_exist is None:
+        keys_exist = await call_store(state.keys.any_active)
+    if keys_exist:
+        raise _unauthorized("This service needs an API key: send it in the X-API-Key header "
+                            "(ask the cell's administrator for it).")
+    return ANONYMOUS
+
+
+def require_role(role: Role) -> Callable[..., Any]:
+    """A dependency: the caller (a :class:`Principal`), or 401 without a valid key, 403 when its role may not."""
+
+    async def dependency(
+        request: Request, state: ServiceState = Depends(get_state), given: str | None = Security(_api_key_header)
+    ) -> Principal:
+        who = await _principal(state, given)
+        request.scope.setdefault("state", {})["principal"] = who.name
+        if not role_allows(who.role, role):
+            raise ProblemError(
+                403, "forbidden",
+                f"The key '{who.name}' has the role '{who.role}', which may not do this; it needs '{role}' "
+                "(ask the cell's administrator for such a key).",
+            )
+        return who
+
+    return dependency
+
+
+#: kept for callers of the first API: the operator role
+require_api_key = require_role(Role.operator)
+
+
+def _service_not_ready(state: ServiceState) -> ProblemError:
+    reason = state.load_error or "still starting"
+    return ProblemError(
+        503, "not_ready",
+        f"The service is not ready ({reason}); fix the cell file or database and restart, or retry shortly.",
+        headers={"Retry-After": "5"},
+    )
 
 
 def ready_state(state: ServiceState = Depends(get_state)) -> ServiceState:

@@ -9,18 +9,20 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 import re
 import time
 import uuid
 from typing import Any
 
+import anyio
 from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from doorloc.app.http.metrics import ServiceMetrics
 from doorloc.app.http.problems import PROBLEM_MEDIA_TYPE
 
-__all__ = ["BodySizeLimit", "BodyTooLarge", "RequestContext"]
+__all__ = ["BodySizeLimit", "BodyTooLarge", "LocateAdmission", "RequestContext"]
 
 _log = logging.getLogger("doorloc.http")
 _REQUEST_ID = re.compile(r"^[A-Za-z0-9._-]{1,64}$")
@@ -83,6 +85,58 @@ class BodySizeLimit:
             await _send_problem(scope, send, 413, "too_large", _too_large_sentence(limit))
 
 
+class LocateAdmission:
+    """Deadline and media type for ``POST /v1/locate``, decided before a byte of the body is read.
+
+    - a body that is not ``multipart/form-data`` is refused 415 (a raw ``image/png`` body included);
+    - each request gets a deadline (``scope["state"]["deadline"]``, monotonic seconds): a body that has not
+      arrived by then is cut off with 408 (slow or stalled clients hold no CPU slot and no queue place
+      meanwhile), and the route answers 503 Retry-After when its image could not get a CPU slot by then or
+      the worker's queue is full (:func:`doorloc.app.http.routes_locate`).
+    """
+
+    def __init__(self, app: ASGIApp, deadline_s: float, path: str = "/v1/locate") -> None:
+        self.app = app
+        self.deadline_s = deadline_s
+        self.path = path
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http" or scope["method"] != "POST" or scope["path"] != self.path:
+            await self.app(scope, receive, send)
+            return
+        ctype = (_header(scope, b"content-type") or "").split(";")[0].strip().lower()
+        if ctype and ctype != "multipart/form-data":  # no type at all: the form's own 422 names the missing image
+            await _send_problem(
+                scope, send, 415, "not_multipart",
+                f"POST {self.path} takes a multipart form with the image in the field 'image' "
+                f"(curl -F image=@door.png), not a body of type '{ctype}'.",
+            )
+            return
+        deadline = time.monotonic() + self.deadline_s
+        scope.setdefault("state", {})["deadline"] = deadline
+
+        async def receive_by_deadline() -> Message:
+            left = deadline - time.monotonic()
+            try:
+                with anyio.fail_after(max(left, 0.001)):
+                    return await receive()
+            except TimeoutError:
+                raise BodyTimeout(self.deadline_s) from None
+
+        try:
+            await self.app(scope, receive_by_deadline, send)
+        except BodyTimeout as e:
+            await _send_problem(scope, send, 408, "request_timeout", str(e.detail))
+
+
+class BodyTimeout(StarletteHTTPException):
+    """The request body did not arrive within the request deadline (a slow or stalled client)."""
+
+    def __init__(self, deadline_s: float) -> None:
+        super().__init__(status_code=408, detail=(
+            f"The upload did not arrive within {math.ceil(deadline_s)} s; send the image again over a faster link."))
+
+
 class RequestContext:
     """Give each request an id (``X-Request-ID``, kept from the client when sane), log it as one JSON line,
     and count it in the app's metrics."""
@@ -128,6 +182,7 @@ class RequestContext:
                         "status": status,
                         "duration_ms": round(elapsed * 1e3, 2),
                         "client": (scope.get("client") or ("", 0))[0],
+                        "principal": scope.get("state", {}).get("principal"),
                     }
                 },
             )
@@ -140,7 +195,9 @@ def _header(scope: Scope, name: bytes) -> str | None:
     return None
 
 
-async def _send_problem(scope: Scope, send: Send, status: int, code: str, detail: str) -> None:
+async def _send_problem(
+    scope: Scope, send: Send, status: int, code: str, detail: str, headers: list[tuple[bytes, bytes]] | None = None
+) -> None:
     from http import HTTPStatus
 
     body: dict[str, Any] = {"type": "about:blank", "title": HTTPStatus(status).phrase, "status": status,
@@ -153,6 +210,6 @@ async def _send_problem(scope: Scope, send: Send, status: int, code: str, detail
         "type": "http.response.start",
         "status": status,
         "headers": [(b"content-type", PROBLEM_MEDIA_TYPE.encode()), (b"content-length", str(len(payload)).encode()),
-                    (b"connection", b"close")],
+                    (b"connection", b"close"), *(headers or [])],
     })
     await send({"type": "http.response.body", "body": payload})

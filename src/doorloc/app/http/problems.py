@@ -48,11 +48,14 @@ class ProblemError(Exception):
 _DESCRIPTIONS = {
     400: "The request body cannot be parsed (a malformed multipart form, or JSON that is not UTF-8).",
     401: "Missing or wrong API key (X-API-Key header).",
+    403: "The API key's role may not do this (operator: locate and read; engineer: also change recipes; metrics).",
     404: "No such resource.",
     413: "The request body is larger than the service accepts.",
     415: "The upload is not a PNG, JPEG, TIFF or BMP image (judged by its bytes).",
     422: "A field is missing or invalid, or the image cannot be decoded or declares too many pixels.",
-    503: "The service is not ready (the cell or its calibration is not loaded), or the recipe database is unreachable.",
+    408: "The request body did not arrive within the request deadline.",
+    503: "The service is not ready (the cell or its calibration is not loaded), the recipe database is unreachable, "
+         "or this worker is overloaded (see Retry-After).",
 }
 
 
@@ -88,7 +91,7 @@ def _validation_sentence(errors: list[dict[str, Any]]) -> str:
         if e.get("type") == "missing":
             sentences.append(f"'{name}' is required")
         else:
-            sentences.append(f"'{name}': {e.get('msg', 'invalid value')}")
+            sentences.append(f"'{name}': {str(e.get('msg', 'invalid value')).removeprefix('Value error, ')}")
     more = f" (and {len(errors) - 5} more)" if len(errors) > 5 else ""
     return "Invalid request: " + "; ".join(sentences) + more + "."
 
@@ -97,15 +100,19 @@ _HTTP_CODES = {400: "malformed_body", 401: "unauthorized", 404: "not_found", 405
 
 
 def _allowed_methods(request: Request) -> list[str]:
-    """Methods of every route on this path (a path can have one route per method, e.g. GET and PUT)."""
+    """Methods some route answers on this path (a path can have one route per method, e.g. GET and PUT).
+
+    Asks every route whether it fully matches the path with each method in turn: routers nest (FastAPI's
+    included routers do not expose their routes' methods), but every route can say whether it matches.
+    """
     from starlette.routing import Match
 
-    methods: set[str] = set()
-    for route in request.app.router.routes:
-        match, _ = route.matches(request.scope)
-        if match != Match.NONE:
-            methods |= set(getattr(route, "methods", None) or ())
-    return sorted(methods)
+    allowed = []
+    for method in ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS"):
+        scope = {**request.scope, "method": method}
+        if any(route.matches(scope)[0] == Match.FULL for route in request.app.router.routes):
+            allowed.append(method)
+    return allowed
 
 
 def install_problem_handlers(app: FastAPI) -> None:
@@ -115,10 +122,17 @@ def install_problem_handlers(app: FastAPI) -> None:
     async def _problem(request: Request, exc: ProblemError) -> JSONResponse:
         return problem_response(request, exc.status, exc.code, exc.detail, exc.headers)
 
+    from doorloc.recipes.store import StoredRecipeInvalid
+
+    @app.exception_handler(StoredRecipeInvalid)
+    async def _stored_invalid(request: Request, exc: StoredRecipeInvalid) -> JSONResponse:
+        return problem_response(request, 422, "invalid_stored_recipe", str(exc)[0].upper() + str(exc)[1:] + ".")
+
     @app.exception_handler(RequestValidationError)
     async def _invalid(request: Request, exc: RequestValidationError) -> JSONResponse:
         errors = [
-            {"field": _field_name(e.get("loc", ())), "message": str(e.get("msg", "")), "type": str(e.get("type", ""))}
+            {"field": _field_name(e.get("loc", ())), "message": str(e.get("msg", "")).removeprefix("Value error, "),
+             "type": str(e.get("type", ""))}
             for e in exc.errors()
         ]
         return problem_response(request, 422, "invalid_request", _validation_sentence(list(exc.errors())), errors=errors)
@@ -130,8 +144,8 @@ def install_problem_handlers(app: FastAPI) -> None:
         if status == 404:
             detail = f"There is nothing at {request.url.path}; see /docs for the endpoints."
         elif status == 405:
-            allowed = _allowed_methods(request)
-            detail = f"{request.method} is not allowed on {request.url.path}; use {', '.join(allowed)}."
+            allowed = _allowed_methods(request) or ["GET"]
+            detail = f"{request.method} is not allowed on {request.url.path}; use {' or '.join(allowed)}."
             return problem_response(request, 405, "method_not_allowed", detail, {"Allow": ", ".join(allowed)})
         elif status == 400:
             detail = ("The request body cannot be parsed: send images as a multipart form with the field 'image' "
@@ -144,8 +158,14 @@ def install_problem_handlers(app: FastAPI) -> None:
 
     @app.exception_handler(Exception)
     async def _unexpected(request: Request, exc: Exception) -> JSONResponse:
-        _log.exception("unexpected error", extra={"fields": {"event": "error", "path": request.url.path}})
+        request_id = request.scope.get("state", {}).get("request_id")
+        service = getattr(request.app.state, "service", None)
+        if service is not None:
+            service.metrics.internal_errors.labels("request").inc()
+        _log.error("unexpected error", exc_info=exc, extra={"fields": {
+            "event": "internal_error", "incident_id": request_id, "path": request.url.path}})
         return problem_response(
             request, 500, "internal_error",
-            "The service failed on this request; it has been logged. Try again, and report the request id if it persists.",
+            f"The service failed on this request; it has been logged with incident id {request_id}. Try again, and "
+            "report that id if it persists.",
         )

@@ -9,28 +9,31 @@ event loop keeps answering health checks while images are being measured.
 from __future__ import annotations
 
 import logging
+import time
 from typing import Annotated
 
+import anyio
 import anyio.to_thread
 from fastapi import APIRouter, Depends, File, Form, Query, Request, UploadFile
 from pydantic import Field
 
+from doorloc.app.access import Role
 from doorloc.app.answer import DoorChoice, answer_image, door_from_fields, overlay_png
-from doorloc.app.http.dependencies import call_store, ready_state, require_api_key
+from doorloc.app.http.dependencies import call_store, ready_state, require_role
 from doorloc.app.http.problems import ProblemError, problem_responses
 from doorloc.app.http.schemas import LocateResponse
 from doorloc.app.http.state import ServiceState
-from doorloc.app.imagesniff import sniff_image
+from doorloc.app.imagesniff import decode_limit_problem, sniff_image
 from doorloc.recipes.models import DOOR_ID_PATTERN
 
 __all__ = ["router"]
 
 _log = logging.getLogger("doorloc.http")
 
-router = APIRouter(dependencies=[Depends(require_api_key)])
+router = APIRouter(dependencies=[Depends(require_role(Role.operator))])
 
-# Generous bounds: the physical range (SPEC section 7) is checked by locate, which refuses with a reason.
-DoorMm = Annotated[float | None, Field(gt=0, le=10_000, allow_inf_nan=False)]
+# Coarse bounds here; the accepted door ranges (doorloc.limits) are checked by door_from_fields, naming the field.
+DoorMm = Annotated[float | None, Field(gt=0, allow_inf_nan=False)]
 ArrisMm = Annotated[float | None, Field(ge=0, le=100, allow_inf_nan=False)]
 
 
@@ -39,7 +42,7 @@ ArrisMm = Annotated[float | None, Field(ge=0, le=100, allow_inf_nan=False)]
     response_model=LocateResponse,
     response_model_exclude_none=False,
     summary="Locate the door in an image and return its pose and hinge targets",
-    responses=problem_responses(400, 401, 413, 415, 422, 503),
+    responses=problem_responses(400, 401, 403, 408, 413, 415, 422, 503),
 )
 async def post_locate(
     request: Request,
@@ -58,15 +61,22 @@ async def post_locate(
     A door that cannot be located is still a 200 answer, with ``ok: false`` and ``error`` saying why;
     4xx answers are for requests that cannot be measured at all.
     """
+    form = await request.form()  # already parsed for the parameters above: no second read
+    if len(form.getlist("image")) > 1:
+        raise ProblemError(422, "several_images", "The form holds more than one 'image' part; send exactly one image "
+                                                  "per request.")
     data = await image.read()
     name = image.filename or "upload"
     state.metrics.in_flight.inc()
     try:
         _check_upload(data, name, state)
         choice = await _door_choice(state, door_id, width_mm, thickness_mm, height_mm, arris_mm)
-        fields = await anyio.to_thread.run_sync(
-            _measure, data, name, state, choice, overlay, rapid, limiter=state.limiter
-        )
+        await _cpu_slot(state, request.scope.get("state", {}).get("deadline"))
+        try:
+            fields = await anyio.to_thread.run_sync(_measure, data, name, state, choice, overlay, rapid)
+        finally:
+            state.limiter.release()
+            state.admitted -= 1
     except ProblemError as e:
         state.metrics.rejected_uploads.labels(e.code).inc()
         raise
@@ -80,6 +90,36 @@ async def post_locate(
         "elapsed_ms": fields.get("elapsed_ms"),
     }})
     return fields
+
+
+async def _cpu_slot(state: ServiceState, deadline: float | None) -> None:
+    """Take a place in the worker's bounded queue and wait for a CPU slot until the request's deadline.
+
+    503 Retry-After at once when the queue is full, or when no slot came free by the deadline. On return
+    the caller holds a limiter token and a queue place (``state.admitted``) and must release both.
+    """
+    if state.overloaded:
+        raise ProblemError(
+            503, "overloaded",
+            f"This worker is already measuring or queueing {state.admitted} images (its limit); retry after the "
+            "number of seconds in Retry-After.",
+            headers={"Retry-After": "2"},
+        )
+    left = (deadline - time.monotonic()) if deadline is not None else state.settings.request_deadline_s
+    state.admitted += 1
+    try:
+        with anyio.fail_after(max(left, 0.001)):
+            await state.limiter.acquire()
+    except BaseException as e:  # timed out, or the client went away: give the queue place back
+        state.admitted -= 1
+        if not isinstance(e, TimeoutError):
+            raise
+        raise ProblemError(
+            503, "overloaded",
+            f"No CPU slot came free within the request deadline ({state.settings.request_deadline_s:g} s): this "
+            "worker is overloaded; retry after the number of seconds in Retry-After.",
+            headers={"Retry-After": "5"},
+        ) from None
 
 
 def _check_upload(data: bytes, name: str, state: ServiceState) -> None:
@@ -98,13 +138,11 @@ def _check_upload(data: bytes, name: str, state: ServiceState) -> None:
             f"The {header.kind.upper()} header of '{name}' is cut short or malformed, so its size cannot be read; "
             "the file is probably truncated: send it again.",
         )
-    limit = state.settings.max_pixels
-    if header.pixels > limit:
+    problem = decode_limit_problem(header, name, state.settings.max_pixels, state.settings.max_decoded_bytes)
+    if problem is not None:
         cam_w, cam_h = state.cell.camera.image_size if state.cell else ("?", "?")
         raise ProblemError(
-            422, "too_many_pixels",
-            f"The image '{name}' declares {header.width}x{header.height} pixels ({header.pixels / 1e6:.1f} MP), more than "
-            f"this service decodes ({limit / 1e6:.1f} MP); send the camera's own image ({cam_w}x{cam_h}).",
+            422, "too_many_pixels", f"{problem[0].upper()}{problem[1:]}; send the camera's own image ({cam_w}x{cam_h}).",
         )
 
 
@@ -120,14 +158,15 @@ async def _door_choice(
                 422, "ambiguous_door",
                 "Give either door_id (the recipe has the door's size) or width_mm/thickness_mm/height_mm, not both.",
             )
-        recipe = await call_store(state.store.get, door_id)
-        if recipe is None:
+        found = await call_store(state.store.get_versioned, door_id)
+        if found is None:
             raise ProblemError(
                 422, "unknown_door",
                 f"There is no door recipe with id '{door_id}'; import it (doorloc recipes import) or PUT /v1/doors/{door_id}.",
             )
+        recipe, version = found
         try:
-            return DoorChoice.from_recipe(recipe, state.cell, arris_mm)
+            return DoorChoice.from_recipe(recipe, state.cell, arris_mm, version)
         except ValueError as e:
             raise ProblemError(422, "invalid_door", f"The door size is not usable: {e}.") from None
     try:
@@ -139,6 +178,7 @@ async def _door_choice(
 def _measure(data: bytes, name: str, state: ServiceState, choice: DoorChoice, overlay: bool, rapid: bool) -> dict:
     from doorloc.vision.imageio import ImageDecodeError, decode_image
 
+    assert state.cell is not None  # the route depends on ready_state
     try:
         image = decode_image(data, name=name)
     except ImageDecodeError as e:

@@ -10,7 +10,8 @@ from doorloc.recipes.targets import Target
 from doorloc.robot.reach import ReachReport
 from doorloc.vision.result import LocateResult
 
-__all__ = ["DoorOut", "LocateResponse", "CellInfo", "Health", "Readiness", "DoorList"]
+__all__ = ["DoorOut", "LocateResponse", "CellInfo", "Health", "Readiness", "DoorList", "RecipeHistory",
+           "RecipeVersionOut"]
 
 
 class DoorOut(BaseModel):
@@ -42,7 +43,7 @@ class CellInfo(BaseModel):
 
     cell_id: str = Field(description="content hash of the whole cell (camera, extrinsics, fixture, envelope, door)")
     calibration_id: str = Field(description="content hash of the camera calibration (K, distortion, image size)")
-    source: str | None = Field(None, description="path of the cell file")
+    source: str | None = Field(None, description="name of the cell file (without its folder)")
     cell: dict[str, Any] = Field(description="the cell in SPEC section 2 layout, camera inline")
 
 
@@ -57,6 +58,33 @@ class Readiness(BaseModel):
 
 
 class DoorList(BaseModel):
-    """Door ids in the recipe database."""
+    """One page of the door ids in the recipe database (ordered by id)."""
 
     door_ids: list[str]
+    total: int = Field(description="how many recipes are stored")
+    limit: int = Field(description="page size used")
+    offset: int = Field(description="index of the first id on this page")
+    next_offset: int | None = Field(None, description="offset of the next page, null on the last page")
+
+
+class RecipeChangeOut(BaseModel):
+    field: str = Field(description="changed field, e.g. 'width_mm' or 'hinges[1].z_mm' ('hinges': their number)")
+    old: Any = None
+    new: Any = None
+
+
+class RecipeVersionOut(BaseModel):
+    """One change of a door recipe: who, when, what."""
+
+    door_id: str
+    version: int
+    action: str = Field(description="created, updated, deleted (retired) or migrated (stored before history existed)")
+    changed_by: str = Field(description="name of the API key (or 'cli:<user>') that made the change")
+    changed_at: str | None = Field(None, description="when, ISO 8601")
+    changes: list[RecipeChangeOut] = Field(default_factory=list, description="fields that differ from the version before")
+    recipe: dict[str, Any] | None = Field(None, description="the whole recipe as stored in this version")
+
+
+class RecipeHistory(BaseModel):
+    door_id: str
+    versions: list[RecipeVersionOut]

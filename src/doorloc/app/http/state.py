@@ -38,12 +38,24 @@ class ServiceState:
     metrics: ServiceMetrics
     locate_fn: LocateFn | None = None
     cell: Cell | None = None
-    store: Any | None = None  # doorloc.recipes.store.RecipeStore
+    store: Any = None  # doorloc.recipes.store.RecipeStore (None until loaded; routes take it after ready_state)
+    keys: Any | None = None  # doorloc.app.access.KeyStore, on the store's database
     load_error: str | None = None
     limiter: anyio.CapacityLimiter = field(init=False)
+    #: locate requests in this worker right now, running or waiting for a CPU slot (routes_locate._cpu_slot)
+    admitted: int = 0
 
     def __post_init__(self) -> None:
         self.limiter = anyio.CapacityLimiter(self.settings.locate_concurrency)
+
+    @property
+    def capacity(self) -> int:
+        """Locate requests one worker admits at once: its CPU slots plus its queue."""
+        return self.settings.locate_concurrency + self.settings.max_queue
+
+    @property
+    def overloaded(self) -> bool:
+        return self.admitted >= self.capacity
 
     @property
     def ready(self) -> bool:
@@ -65,6 +77,10 @@ class ServiceState:
                 from doorloc.recipes.store import RecipeStore, database_url
 
                 self.store = RecipeStore(database_url(self.settings))
+            if self.keys is None and getattr(self.store, "engine", None) is not None:
+                from doorloc.app.access import KeyStore
+
+                self.keys = KeyStore(self.store.engine)
             if self.locate_fn is None:
                 from doorloc.app.answer import default_locate_fn
 

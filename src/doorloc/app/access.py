@@ -1,0 +1,221 @@
+"""Who may call the HTTP service: API keys with roles, stored hashed in the recipe database.
+
+Roles (each key has one):
+
+- ``operator``: locate doors, read recipes, their history and the cell in use;
+- ``engineer``: everything an operator may, plus change, retire or delete recipes, and read ``/metrics``;
+- ``metrics``: ``/metrics`` only (for the monitoring scraper).
+
+A key reads ``dlk_<key_id>_<secret>``. ``key_id`` is public and finds the key's row; of the secret only
+a salted scrypt hash is kept (:func:`hashlib.scrypt`, the standard library's memory-hard KDF), so the
+database leaking does not leak usable keys. A presented key is checked by deriving its hash again and
+comparing the two hashes with :func:`hmac.compare_digest`. Deriving costs ~10-50 ms, so each
+:class:`KeyStore` remembers which presented secrets it has already verified (a SHA-256 of them, compared
+in constant time too); revocation is still seen at once because the row is read on every request.
+
+With no key in the database the service is open (loopback development use); ``doorloc serve`` refuses
+to listen on a non-loopback address in that state unless it is given ``--insecure``.
+
+Examples
+--------
+>>> from doorloc.recipes.store import RecipeStore
+>>> keys = KeyStore(RecipeStore("sqlite://").engine)
+>>> keys.any_active()
+False
+>>> created = keys.create("line-1 panel", Role.operator)
+>>> keys.authenticate(created.secret).role
+<Role.operator: 'operator'>
+>>> keys.authenticate("dlk_nope_nope") is None
+True
+"""
+
+from __future__ import annotations
+
+import builtins
+import hashlib
+import hmac
+import re
+import secrets
+import threading
+import time
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from enum import StrEnum
+
+from sqlalchemy import Engine, insert, select, update
+
+from doorloc.recipes.tables import ApiKeyRow
+
+__all__ = ["Role", "Principal", "CreatedKey", "KeyInfo", "KeyStore", "AccessKeyError", "role_allows", "LEGACY_KEY_NAME",
+           "ANY_ACTIVE_TTL_S"]
+
+#: scrypt cost: 2**14 x 8 x 128 B = 16 MiB and ~10-50 ms per derivation (the interactive-login setting of RFC 7914)
+_SCRYPT = {"n": 2**14, "r": 8, "p": 1, "dklen": 32, "maxmem": 64 * 1024 * 1024}
+_KEY_FORMAT = re.compile(r"^dlk_([0-9a-f]{12})_([A-Za-z0-9_-]{20,100})$")
+_NAME_FORMAT = re.compile(r"^[A-Za-z0-9][A-Za-z0-9 ._:@/-]{0,63}$")
+#: verified secrets remembered per KeyStore (bounded: a flood of distinct keys cannot grow memory)
+_CACHE_SIZE = 1024
+#: how long "are there any keys at all?" is remembered: an open (keyless) service starts demanding keys at most
+#: this long after the first one is created; revocation is not delayed (every presented key's row is read)
+ANY_ACTIVE_TTL_S = 2.0
+#: the name requests carry when they used the legacy single key (DOORLOC_API_KEY)
+LEGACY_KEY_NAME = "DOORLOC_API_KEY"
+
+
+class Role(StrEnum):
+    operator = "operator"
+    engineer = "engineer"
+    metrics = "metrics"
+
+
+#: what each role may do beyond itself: an engineer may do everything an operator or a scraper may
+_IMPLIES: dict[Role, frozenset[Role]] = {
+    Role.operator: frozenset({Role.operator}),
+    Role.engineer: frozenset({Role.engineer, Role.operator, Role.metrics}),
+    Role.metrics: frozenset({Role.metrics}),
+}
+
+
+def role_allows(held: Role, needed: Role) -> bool:
+    """True when a key with role ``held`` may call an endpoint that needs ``needed``."""
+    return needed in _IMPLIES[held]
+
+
+class AccessKeyError(ValueError):
+    """A key cannot be created or revoked (bad name, unknown key); the message says what to do."""
+
+
+@dataclass(frozen=True)
+class Principal:
+    """Who made a request: the key's name and role (``anonymous`` when the service is open)."""
+
+    name: str
+    role: Role
+    key_id: str | None = None
+
+
+@dataclass(frozen=True)
+class CreatedKey:
+    """A new key: ``secret`` is shown once and never stored."""
+
+    key_id: str
+    name: str
+    role: Role
+    secret: str
+
+
+@dataclass(frozen=True)
+class KeyInfo:
+    """One line of ``doorloc keys list`` (never the secret)."""
+
+    key_id: str
+    name: str
+    role: Role
+    created_at: datetime | None
+    revoked_at: datetime | None
+
+
+def _derive(secret: str, salt: bytes) -> bytes:
+    return hashlib.scrypt(secret.encode(), salt=salt, **_SCRYPT)
+
+
+class KeyStore:
+    """API keys in the recipe database (table ``api_keys``, Alembic revision 0002).
+
+    Parameters
+    ----------
+    engine : sqlalchemy.Engine
+        The recipe database's engine (``RecipeStore.engine``), already migrated.
+    """
+
+    def __init__(self, engine: Engine) -> None:
+        self.engine = engine
+        self._verified: dict[str, bytes] = {}
+        self._lock = threading.Lock()
+        self._any_active: tuple[float, bool] | None = None  # (monotonic time, answer)
+
+    def create(self, name: str, role: Role | str) -> CreatedKey:
+        """Make a key for ``name`` with ``role``; its secret is in the answer and nowhere else."""
+        role = Role(role)
+        if not _NAME_FORMAT.match(name):
+            raise AccessKeyError(f"key name {name!r} must be 1-64 letters, digits, spaces or ._:@/- and start with a "
+                            "letter or digit (name the person or machine that holds it)")
+        key_id = secrets.token_hex(6)
+        secret = f"dlk_{key_id}_{secrets.token_urlsafe(32)}"
+        salt = secrets.token_bytes(16)
+        with self.engine.begin() as conn:
+            self._any_active = None
+            conn.execute(insert(ApiKeyRow).values(
+                key_id=key_id, name=name, role=role.value, salt=salt.hex(), key_hash=_derive(secret, salt).hex(),
+            ))
+        return CreatedKey(key_id, name, role, secret)
+
+    def list(self) -> builtins.list[KeyInfo]:
+        """Every key, revoked ones included, oldest first."""
+        with self.engine.connect() as conn:
+            rows = conn.execute(select(ApiKeyRow.key_id, ApiKeyRow.name, ApiKeyRow.role, ApiKeyRow.created_at,
+                                       ApiKeyRow.revoked_at).order_by(ApiKeyRow.id))
+            return [KeyInfo(r.key_id, r.name, Role(r.role), r.created_at, r.revoked_at) for r in rows]
+
+    def revoke(self, name_or_id: str) -> builtins.list[str]:
+        """Revoke the active keys named ``name_or_id`` (or the one with that key id); their key ids.
+
+        Raises AccessKeyError when no active key matches.
+        """
+        with self.engine.begin() as conn:
+            ids = list(conn.scalars(select(ApiKeyRow.key_id).where(
+                ((ApiKeyRow.name == name_or_id) | (ApiKeyRow.key_id == name_or_id)) & ApiKeyRow.revoked_at.is_(None)
+            )))
+            if not ids:
+                raise AccessKeyError(f"no active key named {name_or_id!r}; see doorloc keys list")
+            conn.execute(update(ApiKeyRow).where(ApiKeyRow.key_id.in_(ids)).values(revoked_at=datetime.now(UTC)))
+            self._any_active = None
+        with self._lock:
+            for i in ids:
+                self._verified.pop(i, None)
+        return ids
+
+    def any_active(self, max_age_s: float = 0.0) -> bool:
+        """True when at least one key is not revoked (the service then demands a key).
+
+        ``max_age_s`` > 0 accepts an answer read that recently (the service asks on every keyless request).
+        """
+        now = time.monotonic()
+        known = self.cached_any_active(max_age_s)
+        if known is not None:
+            return known
+        with self.engine.connect() as conn:
+            answer = conn.scalar(select(ApiKeyRow.id).where(ApiKeyRow.revoked_at.is_(None)).limit(1)) is not None
+        self._any_active = (now, answer)
+        return answer
+
+    def cached_any_active(self, max_age_s: float) -> bool | None:
+        """The remembered :meth:`any_active` answer when at most ``max_age_s`` old, else None (no I/O)."""
+        cached = self._any_active
+        if cached is not None and time.monotonic() - cached[0] <= max_age_s:
+            return cached[1]
+        return None
+
+    def authenticate(self, presented: str) -> Principal | None:
+        """The key's holder, or None when ``presented`` is not an active key."""
+        m = _KEY_FORMAT.match(presented)
+        if m is None:
+            return None
+        key_id = m.group(1)
+        with self.engine.connect() as conn:
+            row = conn.execute(select(ApiKeyRow.name, ApiKeyRow.role, ApiKeyRow.salt, ApiKeyRow.key_hash).where(
+                (ApiKeyRow.key_id == key_id) & ApiKeyRow.revoked_at.is_(None))).one_or_none()
+        if row is None:
+            return None
+        fingerprint = hashlib.sha256(presented.encode()).digest()
+        with self._lock:
+            known = self._verified.get(key_id)
+        if known is not None and hmac.compare_digest(known, fingerprint):
+            return Principal(row.name, Role(row.role), key_id)
+        if not hmac.compare_digest(_derive(presented, bytes.fromhex(row.salt)), bytes.fromhex(row.key_hash)):
+            return None
+        with self._lock:
+            if len(self._verified) >= _CACHE_SIZE:
+                self._verified.pop(next(iter(self._verified)))
+            self._verified[key_id] = fingerprint
+        return Principal(row.name, Role(row.role), key_id)

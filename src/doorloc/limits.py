@@ -1,0 +1,82 @@
+"""The door sizes doorloc accepts, in one place: the HTTP API, recipe import (CSV/XLSX) and the CLI use these.
+
+SPEC section 7 (the thesis's cell) handles doors 30-100 mm thick, 190-1350 mm wide and 1000-3000 mm high.
+Accepted ranges add a margin on both sides, so a door slightly outside the thesis's catalogue is still
+measured, while a typo (``width_mm=1e308``, ``thickness_mm=10000``) is refused with a sentence naming the
+field instead of reaching the vision code, where it would end as ``internal_error``.
+
+Examples
+--------
+>>> door_size_problems(900, 50, 2100, 0)
+[]
+>>> door_size_problems(1e308, 50, 2100, 0)[0][0]
+'width_mm'
+"""
+
+from __future__ import annotations
+
+import math
+
+__all__ = ["DOOR_RANGES_MM", "SPEC_RANGES_MM", "TOOL_DIAMETER_RANGE_MM", "check_range", "door_size_problems",
+           "range_sentence", "DoorRangeError"]
+
+#: SPEC section 7 (thesis): the doors the cell was built for, mm
+SPEC_RANGES_MM: dict[str, tuple[float, float]] = {
+    "thickness_mm": (30.0, 100.0),
+    "width_mm": (190.0, 1350.0),
+    "height_mm": (1000.0, 3000.0),
+}
+#: accepted: SPEC's ranges with margins (about a third of the lower bound below, ~10-20 % above), mm
+DOOR_RANGES_MM: dict[str, tuple[float, float]] = {
+    "thickness_mm": (20.0, 120.0),
+    "width_mm": (150.0, 1500.0),
+    "height_mm": (800.0, 3300.0),
+}
+#: end mills for hinge pockets: 3-50 mm
+TOOL_DIAMETER_RANGE_MM = (3.0, 50.0)
+
+_WORDS = {"thickness_mm": "door thickness", "width_mm": "door width", "height_mm": "door height",
+          "tool_diameter_mm": "tool diameter"}
+
+
+class DoorRangeError(ValueError):
+    """A door size outside the accepted range; ``field`` names it (e.g. ``width_mm``)."""
+
+    def __init__(self, field: str, message: str) -> None:
+        super().__init__(message)
+        self.field = field
+
+
+def range_sentence(field: str, value: float, lo: float, hi: float) -> str:
+    """``"door width (width_mm) 1e+308 mm is outside the accepted 150-1500 mm ..."``: what is wrong and what is accepted."""
+    what = _WORDS.get(field, field)
+    spec = SPEC_RANGES_MM.get(field)
+    note = f" (the cell is built for {spec[0]:g}-{spec[1]:g} mm)" if spec else ""
+    return f"{what} ({field}) {value:g} mm is outside the accepted {lo:g}-{hi:g} mm{note}"
+
+
+def check_range(field: str, value: float, bounds: tuple[float, float] | None = None) -> float:
+    """``value`` when it is a finite number inside the field's range, else DoorRangeError naming the field."""
+    lo, hi = bounds or DOOR_RANGES_MM[field]
+    v = float(value)
+    if not math.isfinite(v):
+        raise DoorRangeError(field, f"{_WORDS.get(field, field)} ({field}) must be a finite number of "
+                                    f"millimetres, got {value!r}")
+    if not lo <= v <= hi:
+        raise DoorRangeError(field, range_sentence(field, v, lo, hi))
+    return v
+
+
+def door_size_problems(width_mm: float, thickness_mm: float, height_mm: float,
+                       arris_mm: float = 0.0) -> list[tuple[str, str]]:
+    """Every ``(field, sentence)`` the door size breaks: ranges, and the arris below half the thickness."""
+    out = []
+    for name, v in (("width_mm", width_mm), ("thickness_mm", thickness_mm), ("height_mm", height_mm)):
+        try:
+            check_range(name, v)
+        except DoorRangeError as e:
+            out.append((name, str(e)))
+    if not (math.isfinite(arris_mm) and 0 <= arris_mm < thickness_mm / 2):
+        out.append(("arris_mm", f"arris (arris_mm) {arris_mm:g} mm must be at least 0 and less than half the "
+                                f"door thickness ({thickness_mm / 2:g} mm)"))
+    return out

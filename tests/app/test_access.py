@@ -1,0 +1,139 @@
+"""API keys and roles: hashed storage, the role matrix on every endpoint, revocation, the keys CLI, serve's refusal."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from sqlalchemy import select
+from typer.testing import CliRunner
+
+from doorloc.app.access import AccessKeyError, KeyStore, Role, role_allows
+from doorloc.app.cli import app as cli_app
+from doorloc.app.cli_serve import is_loopback
+from doorloc.recipes.tables import ApiKeyRow
+
+CELL_FILE = str(Path(__file__).resolve().parents[2] / "fixtures" / "cell_thesis.yaml")
+
+
+@pytest.fixture
+def keys(store) -> KeyStore:
+    return KeyStore(store.engine)
+
+
+def test_a_key_is_stored_only_as_a_salted_hash(keys, store):
+    k = keys.create("panel 1", Role.operator)
+    assert k.secret.startswith(f"dlk_{k.key_id}_")
+    with store.engine.connect() as conn:
+        row = conn.execute(select(ApiKeyRow)).one()
+    secret_part = k.secret.rsplit("_", 1)[1]
+    assert secret_part not in repr(tuple(row)) and len(row.key_hash) == 64
+    assert keys.authenticate(k.secret).name == "panel 1"
+    # same name twice: two different keys with different salts
+    k2 = keys.create("panel 1", Role.operator)
+    assert k2.secret != k.secret
+    assert keys.authenticate(k.secret[:-1] + ("A" if k.secret[-1] != "A" else "B")) is None
+
+
+def test_revoked_keys_are_refused_at_once_even_when_cached(keys):
+    k = keys.create("scraper", Role.metrics)
+    assert keys.authenticate(k.secret) is not None  # now cached
+    assert keys.revoke("scraper") == [k.key_id]
+    assert keys.authenticate(k.secret) is None
+    assert not keys.any_active()
+    with pytest.raises(AccessKeyError, match="no active key"):
+        keys.revoke("scraper")
+    with pytest.raises(AccessKeyError, match="key name"):
+        keys.create("", Role.operator)
+
+
+def test_role_matrix():
+    assert role_allows(Role.engineer, Role.operator) and role_allows(Role.engineer, Role.metrics)
+    assert not role_allows(Role.operator, Role.engineer) and not role_allows(Role.operator, Role.metrics)
+    assert not role_allows(Role.metrics, Role.operator)
+
+
+def _h(key):
+    return {"X-API-Key": key.secret}
+
+
+def test_endpoints_by_role(client, keys, recipe, small_png):
+    op, eng, met = (keys.create(n, r) for n, r in (("op", Role.operator), ("eng", Role.engineer),
+                                                     ("prom", Role.metrics)))
+    body = recipe.model_dump(mode="json")
+    img = {"image": ("door.png", small_png, "image/png")}
+    # no key, once keys exist: 401 everywhere but the probes and the operator page
+    assert client.get("/v1/doors").status_code == 401
+    assert client.get("/metrics").status_code == 401
+    assert client.post("/v1/locate", files=img).status_code == 401
+    assert client.get("/healthz").status_code == 200 and client.get("/readyz").status_code == 200
+    # operator: locate and read, not write, not metrics
+    assert client.post("/v1/locate", files=img, headers=_h(op)).status_code == 200
+    assert client.get("/v1/doors/D-100", headers=_h(op)).status_code == 200
+    assert client.get("/v1/cell", headers=_h(op)).status_code == 200
+    r = client.put("/v1/doors/D-100", json=body, headers=_h(op))
+    assert r.status_code == 403 and "engineer" in r.json()["detail"] and r.json()["code"] == "forbidden"
+    assert client.get("/metrics", headers=_h(op)).status_code == 403
+    # metrics: only /metrics
+    assert client.get("/metrics", headers=_h(met)).status_code == 200
+    assert client.post("/v1/locate", files=img, headers=_h(met)).status_code == 403
+    # engineer: everything
+    assert client.put("/v1/doors/D-100", json=body, headers=_h(eng)).status_code == 200
+    assert client.get("/metrics", headers=_h(eng)).status_code == 200
+    # a revoked key stops working on the next request
+    keys.revoke("eng")
+    assert client.put("/v1/doors/D-100", json=body, headers=_h(eng)).status_code == 401
+
+
+def test_recipe_change_without_a_key_is_refused_once_keys_exist(client, keys, recipe):
+    """The issue's first defect: PUT /v1/doors/ID changed a door's width with no key and got 200."""
+    keys.create("eng", Role.engineer)
+    wider = recipe.model_dump(mode="json") | {"width_mm": 1350}
+    r = client.put("/v1/doors/D-100", json=wider)
+    assert r.status_code == 401
+    assert r.headers["content-type"] == "application/problem+json"
+
+
+def test_legacy_single_key_is_an_engineer(make_client, recipe):
+    c = make_client(api_key="s3cret-legacy")
+    body = recipe.model_dump(mode="json")
+    assert c.put("/v1/doors/D-100", json=body).status_code == 401
+    assert c.put("/v1/doors/D-100", json=body, headers={"X-API-Key": "s3cret-legacy"}).status_code == 200
+    assert c.get("/metrics", headers={"X-API-Key": "s3cret-legacy"}).status_code == 200
+
+
+def test_keys_cli_creates_lists_and_revokes(tmp_path):
+    db = f"sqlite:///{tmp_path / 'k.db'}"
+    run = CliRunner().invoke
+    r = run(cli_app, ["keys", "create", "line 2 panel", "--role", "operator", "--db", db])
+    assert r.exit_code == 0, r.output
+    secret = r.stdout.strip().splitlines()[0]
+    assert secret.startswith("dlk_")
+    r = run(cli_app, ["keys", "list", "--db", db])
+    assert "line 2 panel" in r.stdout and "operator" in r.stdout and secret not in r.stdout
+    r = run(cli_app, ["keys", "create", "x", "--role", "admin", "--db", db])
+    assert r.exit_code == 2
+    r = run(cli_app, ["keys", "revoke", "line 2 panel", "--db", db])
+    assert r.exit_code == 0 and "revoked 1" in r.stdout
+    assert "revoked" in run(cli_app, ["keys", "list", "--db", db]).stdout
+    assert run(cli_app, ["keys", "revoke", "nobody", "--db", db]).exit_code == 2
+
+
+@pytest.mark.parametrize(("host", "loop"), [("127.0.0.1", True), ("127.1.2.3", True), ("::1", True),
+                                            ("localhost", True), ("0.0.0.0", False), ("::", False),
+                                            ("192.168.1.5", False), ("doorloc.plant.example", False)])
+def test_loopback_addresses(host, loop):
+    assert is_loopback(host) is loop
+
+
+def test_serve_refuses_a_non_loopback_bind_without_keys(tmp_path):
+    """The issue's first defect: the default (no key) service bound 0.0.0.0. It now refuses before binding."""
+    env = {"DOORLOC_DATABASE_URL": f"sqlite:///{tmp_path / 'r.db'}", "PATH": "/usr/bin:/bin",
+           "PYTHONPATH": str(Path(__file__).resolve().parents[2] / "src")}
+    p = subprocess.run([sys.executable, "-m", "doorloc", "serve", "--cell", CELL_FILE, "--host", "0.0.0.0",
+                        "--port", "1"], capture_output=True, text=True, timeout=120, env=env)
+    assert p.returncode == 2, p.stderr
+    assert "refusing to listen on 0.0.0.0 without API keys" in p.stderr and "--insecure" in p.stderr
+    assert "Traceback" not in p.stderr
