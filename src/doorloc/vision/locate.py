@@ -35,11 +35,11 @@ import numpy as np
 from doorloc import __version__
 from doorloc.cell import Cell, DoorSize
 from doorloc.vision import quality as q
+from doorloc.vision.coarse import coarse_edges
 from doorloc.vision.config import LocateConfig
 from doorloc.vision.edges import (
     EdgeSamples,
     FarFaceFit,
-    coarse_edges,
     linearizing_lut,
     step_blur,
     subpixel_edges,
@@ -262,7 +262,7 @@ def _coarse_edges(plane, s8: float, region: SearchRegion, door: DoorSize, cfg: L
                                  "nothing covers its far edge"))
 
     # bottom end: scan lines between the two arrises, at the nominal corner height
-    corner0 = region.face_map.to_image(np.zeros((1, 2)))[0]
+    corner0 = region.nominal_corner_px
     s_corner = corner0[1] if ref_lay.axis == "row" else corner0[0]
     u_ref, u_far = ref_line.at(s_corner), far_line.at(s_corner)
     u_exp = u_ref + xdir * door.thickness_mm / sc
@@ -383,7 +383,7 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
         raise _Refused(r)
     plane, s8 = lum.plane, lum.scale_to_8bit
     clock = _Clock()
-    region = SearchRegion.build(cell, door, cfg.search_margin_mm, cfg.search_margin_deg, cfg.door_brighter)
+    region = SearchRegion.cached(cell, door, cfg.search_margin_mm, cfg.search_margin_deg, cfg.door_brighter)
     tr.region = region
     clock.lap("region")
     coarse = _coarse_edges(plane, s8, region, door, cfg, tr)
