@@ -242,7 +242,6 @@ def fit_rectangle_edges(
     off_sigma = {k: float(np.sqrt(var / max(sw[i], 1e-12))) for i, k in enumerate(names)}
     res = {k: r[gid == i] for i, k in enumerate(names)}
     wd = {k: w[gid == i] for i, k in enumerate(names)}
-    off = {k: float(off[i]) for i, k in enumerate(names)}
-    w = wd
+    offsets = {k: float(off[i]) for i, k in enumerate(names)}
     angle = float(np.arctan2(n[1], n[0]))
-    return RectangleFit(angle, dict(off), res, w, float(np.sqrt(var)), ang_sigma, off_sigma)
+    return RectangleFit(angle, offsets, res, wd, float(np.sqrt(var)), ang_sigma, off_sigma)

@@ -95,7 +95,8 @@ def _interp_sorted(s: np.ndarray, a: np.ndarray, scans: np.ndarray) -> np.ndarra
 
 def _interp_on_scans(uv: np.ndarray, axis: Axis, scans: np.ndarray) -> np.ndarray:
     """Along-coordinate of the polyline ``uv`` on each scan line (NaN outside the polyline's span)."""
-    return _interp_sorted(*_sorted_polyline(uv, axis), scans)
+    s, a = _sorted_polyline(uv, axis)
+    return _interp_sorted(s, a, scans)
 
 
 @dataclass(frozen=True)
@@ -227,8 +228,9 @@ class SearchRegion:
         """Where the bottom end can be on the given scan lines."""
         lay = self.layouts["bottom"]
         lines = self._memoised("bottom_lines", self._bottom_lines)
-        a1 = _interp_sorted(*lines[0], scans)
-        a2 = _interp_sorted(*lines[1], scans)
+        (s_lo, a_lo), (s_hi, a_hi) = lines
+        a1 = _interp_sorted(s_lo, a_lo, scans)
+        a2 = _interp_sorted(s_hi, a_hi, scans)
         return self._band(np.asarray(scans), a1, a2, lay.axis)
 
     def _bottom_lines(self) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
