@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable, Generator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -48,12 +49,12 @@ from doorloc.vision.edges import (
     transition_width,
 )
 from doorloc.vision.lines import ImageLine, RectangleFit, fit_rectangle_edges, ransac_line
-from doorloc.vision.luminance import ImageFormatError, luminance_plane
+from doorloc.vision.luminance import ImageFormatError, LuminancePlane, luminance_plane
 from doorloc.vision.metric import MetricPose, pose_from_fit
 from doorloc.vision.region import EDGE_NAMES, Band, SearchRegion
 from doorloc.vision.result import LineQuality, LocateResult, PoseUncertainty, Provenance
 
-__all__ = ["LocateConfig", "locate", "LocateTrace"]
+__all__ = ["LocateConfig", "locate", "locate_steps", "run_steps", "StepQuery", "LocateTrace"]
 
 HUMAN = {"bottom": "bottom end of the door (X-line)", "reference": "reference-face arris (Z-line)",
          "far": "far arris (door thickness)"}
@@ -102,12 +103,49 @@ def locate(image: np.ndarray, cell: Cell, door: DoorSize | None = None, *, image
         ``ok=true`` with ``x_mm``, ``z_mm``, ``yaw_deg``, ``thickness_mm`` (cell frame, mm/deg),
         ``scale_mm_per_px`` and ``corner_px``; or ``ok=false`` with ``error_code`` and ``error``.
     """
+    return run_steps(locate_steps(image, cell, door, image_name=image_name, config=config, trace=trace), coarse_edges)
+
+
+@dataclass(frozen=True)
+class StepQuery:
+    """One coarse step search that :func:`locate_steps` needs: the arguments of
+    :func:`doorloc.vision.coarse.coarse_edges` (``plane`` the luminance, the rest keyword arguments)."""
+
+    plane: np.ndarray
+    kwargs: dict[str, Any]
+
+
+StepFinder = Callable[..., tuple[np.ndarray, np.ndarray]]
+
+
+def run_steps(steps: Generator[StepQuery, tuple[np.ndarray, np.ndarray], LocateResult],
+              finder: StepFinder) -> LocateResult:
+    """Run a :func:`locate_steps` coroutine to its answer, each step search by ``finder(plane, **kwargs)``."""
+    try:
+        query = next(steps)
+        while True:
+            query = steps.send(finder(query.plane, **query.kwargs))
+    except StopIteration as done:
+        return done.value
+
+
+def locate_steps(image: np.ndarray, cell: Cell, door: DoorSize | None = None, *, image_name: str = "",
+                 config: LocateConfig | None = None, trace: LocateTrace | None = None,
+                 luminance: LuminancePlane | None = None) -> Generator[StepQuery, tuple[np.ndarray, np.ndarray], LocateResult]:
+    """:func:`locate` as a coroutine that hands out its coarse step searches.
+
+    It yields a :class:`StepQuery` for each step search and expects ``(along, strength)`` as
+    :func:`doorloc.vision.coarse.coarse_edges` would return them; it returns the :class:`LocateResult`.
+    :func:`locate` answers the queries one by one; :mod:`doorloc.vision.batched` collects the queries of
+    many images and answers them together. ``luminance``: the image's luminance when the caller has
+    already made it (``image`` is then not read).
+    """
     t0 = time.perf_counter()
     cfg = config or cell.locate
     door = door or cell.default_door
     tr = trace if trace is not None else LocateTrace()
     try:
-        res = _locate(image, cell, door, cfg, tr, image_name)
+        res = yield from _locate(image, cell, door, cfg, tr, image_name, luminance)
     except _Refused as r:
         res = LocateResult.refusal(image_name, r.refusal.code, r.refusal.message,
                                    lines=r.diag.get("lines", []), diagnostics=r.diag.get("diagnostics", {}))
@@ -120,8 +158,8 @@ def locate(image: np.ndarray, cell: Cell, door: DoorSize | None = None, *, image
 
 
 def _coarse(plane, band: Band, axis, polarity, thr, prefer=None):
-    along, strength = coarse_edges(plane, axis, band.scan, band.lo, band.hi, polarity, half=2, prefer=prefer,
-                                   prefer_fraction=0.5, stride=2)
+    along, strength = yield StepQuery(plane, dict(axis=axis, scan=band.scan, lo=band.lo, hi=band.hi, polarity=polarity,
+                                                  half=2, prefer=prefer, prefer_fraction=0.5, stride=2))
     strong = np.isfinite(along) & (strength >= thr)
     return along, strength, strong
 
@@ -202,8 +240,10 @@ class _CoarseEdges:
 
 
 def _coarse_edges(plane, s8: float, region: SearchRegion, door: DoorSize, cfg: LocateConfig,
-                  tr: LocateTrace) -> _CoarseEdges:
-    """Find the three edges to a pixel or two in the search region (strided step finder + RANSAC)."""
+                  tr: LocateTrace) -> Generator[StepQuery, tuple[np.ndarray, np.ndarray], _CoarseEdges]:
+    """Find the three edges to a pixel or two in the search region (strided step finder + RANSAC).
+
+    A coroutine: each step search is yielded as a :class:`StepQuery` (see :func:`locate_steps`)."""
     thr = cfg.min_contrast / s8
     # -- search region: coarse steps ------------------------------------------------------------
     ref_lay, far_lay, bot_lay = (region.layouts[k] for k in ("reference", "far", "bottom"))
@@ -219,7 +259,7 @@ def _coarse_edges(plane, s8: float, region: SearchRegion, door: DoorSize, cfg: L
     # a stronger step of the same polarity further on).
     xdir = ref_lay.polarity * (1 if cfg.door_brighter else -1)  # along-direction of door +X
     outer = (band_ref.lo if xdir > 0 else band_ref.hi).astype(float)
-    along_r, _, strong_r = _coarse(plane, band_ref, ref_lay.axis, ref_lay.polarity, thr, prefer=outer)
+    along_r, _, strong_r = yield from _coarse(plane, band_ref, ref_lay.axis, ref_lay.polarity, thr, prefer=outer)
     tol = 3.0
     ref_line = ransac_line(band_ref.scan[strong_r], along_r[strong_r], tol) if strong_r.sum() >= 10 else None
     if ref_line is None or ref_line.inliers.sum() < 0.4 * len(band_ref.scan):
@@ -240,10 +280,10 @@ def _coarse_edges(plane, s8: float, region: SearchRegion, door: DoorSize, cfg: L
     # than the hinge face) does not matter. Taking the first step, not the one nearest the expected
     # thickness, measures the door that is there (a 12 mm panel where a 50 mm door was expected).
     near = (band_far.lo if xdir > 0 else band_far.hi).astype(float)
-    along_f, strength_f = coarse_edges(plane, far_lay.axis, band_far.scan, band_far.lo, band_far.hi, 0, half=2,
-                                       prefer=near, stride=2,
-                                       # an arris strip makes a weak first step (face -> strip): skip it
-                                       prefer_fraction=0.3 if door.arris_mm > 0 else 0.1)
+    along_f, strength_f = yield StepQuery(plane, dict(axis=far_lay.axis, scan=band_far.scan, lo=band_far.lo,
+                                                      hi=band_far.hi, polarity=0, half=2, prefer=near, stride=2,
+                                                      # an arris strip makes a weak first step (face -> strip): skip it
+                                                      prefer_fraction=0.3 if door.arris_mm > 0 else 0.1))
     strong_f = np.isfinite(along_f) & (strength_f >= thr)
     far_line = ransac_line(band_far.scan[strong_f], along_f[strong_f], tol) if strong_f.sum() >= 10 else None
     if far_line is not None:
@@ -273,7 +313,7 @@ def _coarse_edges(plane, s8: float, region: SearchRegion, door: DoorSize, cfg: L
     scans_b = np.arange(int(math.ceil(lo_s + inset)), int(math.floor(hi_s - inset)) + 1, 3)
     band_bot = region.bottom_band(scans_b)
     tr.bands["bottom"] = band_bot
-    along_b, _, strong_b = _coarse(plane, band_bot, bot_lay.axis, bot_lay.polarity, thr)
+    along_b, _, strong_b = yield from _coarse(plane, band_bot, bot_lay.axis, bot_lay.polarity, thr)
     bot_line = ransac_line(band_bot.scan[strong_b], along_b[strong_b], tol) if strong_b.sum() >= 5 else None
     if bot_line is None or bot_line.inliers.sum() < 0.3 * max(len(band_bot.scan), 1):
         raise _Refused(q.Refusal("edge_missing", f"the {HUMAN['bottom']} was not found between the arrises; check that "
@@ -373,9 +413,10 @@ def _refine(plane, s8: float, region: SearchRegion, pose: MetricPose, cfg: Locat
     return samples, fit, pose, blur, half, far_beside, far_fit
 
 
-def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrace, name: str) -> LocateResult:
+def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrace, name: str,
+            lum: LuminancePlane | None = None) -> Generator[StepQuery, tuple[np.ndarray, np.ndarray], LocateResult]:
     try:
-        lum = luminance_plane(image)
+        lum = lum if lum is not None else luminance_plane(image)
     except ImageFormatError as e:
         raise _Refused(q.Refusal("bad_image", f"{e}")) from None
     r = q.check_image_size(lum.size, cell.camera.image_size)
@@ -386,7 +427,7 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
     region = SearchRegion.cached(cell, door, cfg.search_margin_mm, cfg.search_margin_deg, cfg.door_brighter)
     tr.region = region
     clock.lap("region")
-    coarse = _coarse_edges(plane, s8, region, door, cfg, tr)
+    coarse = yield from _coarse_edges(plane, s8, region, door, cfg, tr)
     clock.lap("coarse")
     pose = _coarse_pose(coarse, plane, s8, region, cell, door, cfg)
     clock.lap("coarse_pose")
