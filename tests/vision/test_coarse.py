@@ -57,6 +57,8 @@ def test_random_bands_near_and_beyond_the_border_are_answered_identically(seed, 
     lo = rng.integers(-5, n_along, k)
     hi = lo + rng.integers(0, 40, k)
     prefer = rng.uniform(0, n_along, k) if with_prefer else None
+    if prefer is not None and k > 2:  # a NaN or infinite preference on one scan line
+        prefer[int(rng.integers(0, k))] = np.nan if rng.random() < 0.5 else np.inf
     kw = dict(axis=axis, scan=scan, lo=lo, hi=hi, polarity=polarity, half=half, prefer=prefer,
               prefer_fraction=frac, stride=stride)
     assert _same(coarse.coarse_edges(img, **kw), edges.coarse_edges(img, **kw))

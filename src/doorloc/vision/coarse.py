@@ -26,10 +26,34 @@ def profiles(plane: np.ndarray, axis: Axis, scan: np.ndarray, start: np.ndarray,
     """
     h, w = plane.shape
     n_along, pitch_along, pitch_scan = (h, w, 1) if axis == "col" else (w, 1, w)
+    flat = np.ascontiguousarray(plane).reshape(-1)
+    j = (stride * pitch_along) * np.arange(length)
+    if start.size and start.min() >= 0 and start.max() + stride * (length - 1) < n_along:
+        # all inside (the usual case): one index per sample, no clamping
+        return flat.take((start * pitch_along + scan * pitch_scan)[:, None] + j[None, :])
     idx = start[:, None] + stride * np.arange(length)[None, :]
     np.clip(idx, 0, n_along - 1, out=idx)
-    flat = np.ascontiguousarray(plane).reshape(-1)
     return flat.take(idx * pitch_along + (scan * pitch_scan)[:, None])
+
+
+def _responses(vals: np.ndarray, half: int, exact_int: bool) -> np.ndarray:
+    """Step responses ``sum(next half) - sum(previous half)`` at every k in [half, length - half], float32.
+
+    As edges.coarse_edges: differences of a float32 running sum. For 8-bit grey levels every such sum is an
+    integer below 2**24, so float32 holds it exactly and integer window sums give the same numbers faster.
+    """
+    n, length = vals.shape
+    m = length - 2 * half + 1
+    if exact_int:
+        v = vals.astype(np.int32)
+        win = v[:, : length - half + 1].copy()  # win[:, i] = sum of v[:, i:i + half]
+        for t in range(1, half):
+            win += v[:, t: length - half + 1 + t]
+        return (win[:, half: half + m] - win[:, :m]).astype(np.float32)
+    c = np.zeros((n, length + 1), np.float32)
+    np.cumsum(vals.astype(np.float32), axis=1, dtype=np.float32, out=c[:, 1:])
+    mid = c[:, half:length - half + 1]
+    return (c[:, 2 * half:] - mid) - (mid - c[:, :m])
 
 
 def coarse_edges(
@@ -57,34 +81,40 @@ def coarse_edges(
     if n == 0 or length <= 2 * half + 1:
         return np.full(n, np.nan), np.zeros(n)
     n_along = plane.shape[0] if axis == "col" else plane.shape[1]
-    vals = profiles(plane, axis, scan, lo, length, stride).astype(np.float32)
-    c = np.zeros((n, length + 1), np.float32)
-    np.cumsum(vals, axis=1, dtype=np.float32, out=c[:, 1:])
-    # resp[k - half] for k = half .. length - half, as in edges.coarse_edges
-    mid = c[:, half:length - half + 1]
-    resp = (c[:, 2 * half:] - mid) - (mid - c[:, :length - 2 * half + 1])
+    vals = profiles(plane, axis, scan, lo, length, stride)
+    m = length - 2 * half + 1  # responses per scan line, at k = half + i
+    resp = _responses(vals, half, plane.dtype == np.uint8 and half <= 4096)
     resp = (polarity * resp if polarity else np.abs(resp)) / half
-    # Sample j is usable when its index lies in the image and in [lo, hi]; the detector at k needs
-    # samples k - half and min(k + half - 1, length - 1): both inside a run of usable samples.
-    j = np.arange(length)
-    usable = ((lo[:, None] + stride * j[None, :] >= 0) & (lo[:, None] + stride * j[None, :] < n_along)
-              & (j[None, :] * stride <= (hi - lo)[:, None]))
-    k = np.arange(half, length - half + 1)
-    ok = usable[:, :length - 2 * half + 1] & usable[:, np.minimum(k + half - 1, length - 1)]
-    resp = np.where(ok, resp, -np.inf)
+    # Sample j is usable when it lies in the image and in [lo, hi]: an interval [ja, jb] of each scan line.
+    # The detector at k needs samples k - half and min(k + half - 1, length - 1) usable.
+    ja = np.maximum(-(lo // stride), 0)
+    jb = np.minimum(np.minimum((n_along - 1 - lo) // stride, (hi - lo) // stride), length - 1)
+    ub = np.where(jb >= length - 1, jb, jb - 2 * half + 1)
+    i = np.arange(m)
+    ok = (i[None, :] >= ja[:, None]) & (i[None, :] <= ub[:, None])
+    resp = np.where(ok, resp, np.float32(-np.inf))
     rows = np.arange(n)
     best = np.argmax(resp, axis=1)
     if prefer is not None:
         top = resp[rows, best]
         peak = np.zeros_like(ok)
         peak[:, 1:-1] = (resp[:, 1:-1] >= resp[:, :-2]) & (resp[:, 1:-1] > resp[:, 2:])
-        floor = 1.4826 * np.median(np.abs(np.where(ok, resp, 0.0)), axis=1)
+        floor = 1.4826 * np.median(np.abs(np.where(ok, resp, np.float32(0.0))), axis=1)
         cand = peak & (resp >= np.maximum(prefer_fraction * top, 5.0 * floor)[:, None]) & (resp > 0)
-        pos = lo[:, None] + stride * k[None, :] - 0.5 * stride
-        dist = np.where(cand, np.abs(pos - np.asarray(prefer, float)[:, None]), np.inf)
-        near = np.argmin(dist, axis=1)
-        best = np.where(np.isfinite(dist[rows, near]), near, best)
+        # the candidate nearest to the preferred position (the first of equally near ones), on the
+        # candidates only: they are few
+        r_c, i_c = np.nonzero(cand)
+        if r_c.size:
+            dist = np.abs((lo[r_c] + stride * (i_c + half) - 0.5 * stride) - np.asarray(prefer, float)[r_c])
+            # as numpy's argmin over a row: a NaN distance wins (and then nothing is preferred), inf never does
+            use = np.isfinite(dist) & ~np.isin(r_c, r_c[np.isnan(dist)])
+            r_c, i_c, dist = r_c[use], i_c[use], dist[use]
+            order = np.lexsort((i_c, dist, r_c))  # by row, then distance, then position
+            first = np.ones(order.size, bool)
+            first[1:] = r_c[order][1:] != r_c[order][:-1]
+            win = order[first]
+            best[r_c[win]] = i_c[win]
     strength = resp[rows, best]
-    along = lo + stride * k[best] - 0.5 * stride
+    along = lo + stride * (best + half) - 0.5 * stride
     along = np.where(np.isfinite(strength), along, np.nan)
     return along.astype(float), np.where(np.isfinite(strength), strength, 0.0)

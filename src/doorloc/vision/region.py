@@ -272,23 +272,24 @@ class SearchRegion:
         corner = np.asarray(corner, float)
         far_corner = corner + thickness_mm * ex
         out: dict[str, Track] = {}
-        n_z = max(int((self.z_top_mm + 40.0) / 2.0), 8)
-        tz = np.linspace(0.0, self.z_top_mm + 40.0, n_z)
+        tz = self._memoised("track_tz", lambda: np.linspace(0.0, self.z_top_mm + 40.0,
+                                                             max(int((self.z_top_mm + 40.0) / 2.0), 8)))
         tx = np.linspace(-1.0, thickness_mm + 1.0, max(int(thickness_mm / 2.0), 8))
+        polylines = {"bottom": corner[None] + tx[:, None] * ex[None], "reference": corner[None] + tz[:, None] * ez[None],
+                     "far": far_corner[None] + tz[:, None] * ez[None]}
+        # every point projected in one call (the projection is point by point: the same numbers)
+        uv_all = self.image_points(np.vstack([*polylines.values(), corner[None], far_corner[None]]))
+        uv_ends = uv_all[-2:]  # corner, far corner
+        first = 0
         for name in EDGE_NAMES:
             lay = self.layouts[name]
-            if name == "bottom":
-                pl = corner[None] + tx[:, None] * ex[None]
-                ends = (corner, far_corner)
-            else:
-                base = corner if name == "reference" else far_corner
-                pl = base[None] + tz[:, None] * ez[None]
-                ends = (base, base)
-            uv = self.image_points(pl)
+            pl = polylines[name]
+            uv = uv_all[first:first + len(pl)]
+            first += len(pl)
             s, _ = _along_scan(uv, lay.axis)
             n_scan = self.image_size[0] if lay.axis == "col" else self.image_size[1]
             n_along = self.image_size[1] if lay.axis == "col" else self.image_size[0]
-            e_uv = self.image_points(np.array(ends))
+            e_uv = uv_ends if name == "bottom" else uv_ends[[0, 0]] if name == "reference" else uv_ends[[1, 1]]
             e_s, _ = _along_scan(e_uv, lay.axis)
             if name == "bottom":
                 s_lo, s_hi = np.sort(e_s)
@@ -309,7 +310,7 @@ class SearchRegion:
             band = None
             slope = 0.0
             if beside:
-                _, a_ends = _along_scan(self.image_points(np.array([corner, far_corner])), lay.axis)
+                _, a_ends = _along_scan(uv_ends, lay.axis)
                 outward = 1.0 if a_ends[1] >= a_ends[0] else -1.0  # door +X, along the scan line
                 ok_band, width = self._far_face_band(pl, uv, scans, centre, window_px, lay.axis, outward)
                 ok &= ok_band
