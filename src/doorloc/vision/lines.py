@@ -8,6 +8,7 @@ of only the short bottom line (the thesis took the angle from the X-line alone).
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -89,9 +90,7 @@ def ransac_line(scan: np.ndarray, along: np.ndarray, tol_px: float, n_trials: in
     n = s.size
     if n < 5:
         return None
-    rng = np.random.default_rng(seed)
-    i = rng.integers(0, n, n_trials)
-    j = rng.integers(0, n, n_trials)
+    i, j = _sample_pairs(n, n_trials, seed)
     ds = s[j] - s[i]
     ok = np.abs(ds) >= max(1.0, 0.1 * (s.max() - s.min()))
     if not np.any(ok):
@@ -112,6 +111,18 @@ def ransac_line(scan: np.ndarray, along: np.ndarray, tol_px: float, n_trials: in
         return None
     bb, aa = _lsq_line(s[inl], a[inl])
     return ImageLine(float(aa), float(bb), inl)
+
+
+@functools.lru_cache(maxsize=256)
+def _sample_pairs(n: int, n_trials: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """The RANSAC sample pairs for ``n`` samples: fixed by the seed, so drawn once per sample count
+    (making a generator costs more than the rest of a coarse line fit)."""
+    rng = np.random.default_rng(seed)
+    i = rng.integers(0, n, n_trials)
+    j = rng.integers(0, n, n_trials)
+    i.setflags(write=False)
+    j.setflags(write=False)
+    return i, j
 
 
 @dataclass(frozen=True)
@@ -201,6 +212,8 @@ def fit_rectangle_edges(
     scale = scale_floor
     prev = None
     starts = np.concatenate([[0], np.cumsum([len(groups[k][0]) for k in names])[:-1]])
+    sizes = np.array([len(groups[k][0]) for k in names])
+    voting_subset = any(k in offset_only for k in names)  # else votes are all 1 (w * 1.0 == w)
     if np.any(np.diff(np.concatenate([starts, [len(P)]])) == 0):
         raise ValueError("a line group has no points")
     for it in range(n_iter):
@@ -208,8 +221,8 @@ def fit_rectangle_edges(
         if np.any(sw <= 0):
             raise ValueError(f"no usable points on the {names[int(np.argmin(sw))]} line")
         means = np.add.reduceat(w[:, None] * P, starts, axis=0) / sw[:, None]
-        Q = P - means[gid]
-        S = ((w * votes)[:, None] * Q).T @ Q
+        Q = P - np.repeat(means, sizes, axis=0)  # = means[gid], without the gather
+        S = ((w * votes if voting_subset else w)[:, None] * Q).T @ Q
         # Smallest-eigenvalue eigenvector of the 2x2 scatter, in closed form.
         a, b, d = S[0, 0], S[0, 1], S[1, 1]
         lam = 0.5 * (a + d) - math.sqrt(0.25 * (a - d) ** 2 + b * b)
@@ -220,7 +233,7 @@ def fit_rectangle_edges(
         if n[0] < 0:
             n = -n
         off = means @ n
-        r = P @ n - off[gid]
+        r = P @ n - np.repeat(off, sizes)
         state = np.concatenate([n, off])
         if prev is not None and it > 3 and np.max(np.abs(state - prev)) < 1e-8:
             break
