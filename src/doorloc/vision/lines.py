@@ -22,7 +22,9 @@ TUKEY_C = 4.685  # 95 % efficiency at the normal distribution
 def tukey_weights(residuals: np.ndarray, scale: float) -> np.ndarray:
     """Tukey biweight ``(1 - (r / (c s))^2)^2`` inside ``c s``, 0 outside."""
     u = residuals / (TUKEY_C * scale)
-    return np.where(np.abs(u) < 1.0, (1.0 - u * u) ** 2, 0.0)
+    # (1 - min(u^2, 1))^2: the same numbers as where(|u| < 1, (1 - u^2)^2, 0) (NaN too: fmin drops it), fewer passes
+    t = 1.0 - np.fmin(u * u, 1.0)
+    return t * t
 
 
 def robust_scale(residuals: np.ndarray, weights: np.ndarray | None = None, floor: float = 0.0,
@@ -241,8 +243,8 @@ def fit_rectangle_edges(
         if it < 4 or it % 2 == 0:  # the scale settles quickly; re-estimating it every time costs medians
             scale = robust_scale(r, w, scale_floor)
         if it < 3:
-            u = np.abs(r) / (1.345 * scale)
-            w = np.where(u <= 1.0, 1.0, 1.0 / np.maximum(u, 1e-12))
+            # Huber: 1 inside, 1/u beyond (= where(u <= 1, 1, 1 / max(u, 1e-12)), in fewer passes)
+            w = 1.0 / np.maximum(np.abs(r) / (1.345 * scale), 1.0)
         else:
             w = tukey_weights(r, scale)
         w = w * mask0
