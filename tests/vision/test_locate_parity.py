@@ -58,3 +58,16 @@ def test_each_compared_field_is_checked(key):
     v = want[key]
     moved = dict(want, **{key: [c + 1e-3 for c in v] if isinstance(v, list) else v + 1e-3})
     assert golden.differences(moved, want)
+
+
+def test_a_failing_step_search_is_an_internal_error_refusal_not_a_crash(monkeypatch):
+    import doorloc.vision.locate as L
+
+    name, cell, door, img = next(c for c in golden.all_cases() if c[0] == "grid/img_0040.png")
+
+    def broken(*a, **k):
+        raise RuntimeError("step finder bug")
+
+    monkeypatch.setattr(L, "coarse_edges", broken)
+    r = L.locate(img, cell, door, image_name=name)
+    assert not r.ok and r.error_code == "internal_error" and "step finder bug" in r.error

@@ -120,11 +120,20 @@ StepFinder = Callable[..., tuple[np.ndarray, np.ndarray]]
 
 def run_steps(steps: Generator[StepQuery, tuple[np.ndarray, np.ndarray], LocateResult],
               finder: StepFinder) -> LocateResult:
-    """Run a :func:`locate_steps` coroutine to its answer, each step search by ``finder(plane, **kwargs)``."""
+    """Run a :func:`locate_steps` coroutine to its answer, each step search by ``finder(plane, **kwargs)``.
+
+    A finder that raises has its exception thrown into the coroutine, which answers with a refusal
+    (``internal_error``) as for any other failure inside locate.
+    """
     try:
         query = next(steps)
         while True:
-            query = steps.send(finder(query.plane, **query.kwargs))
+            try:
+                found = finder(query.plane, **query.kwargs)
+            except Exception as e:  # noqa: BLE001 - handed to locate's own handling
+                query = steps.throw(e)
+                continue
+            query = steps.send(found)
     except StopIteration as done:
         return done.value
 
