@@ -12,7 +12,7 @@ Frames: every committed fixture (fixtures/rendered/*, 117 1080p grey PNGs, each 
   (decode + locate), and the batched torch path on CPU (decode + locate_batch, one process), when torch is
   installed. CUDA is measured only where torch sees a GPU (``--cuda``).
 
-Run:  OMP_NUM_THREADS=1 python bench/bench_speed.py [--before /work/main/src] [--repeats 3] [--json out.json]
+Run:  OMP_NUM_THREADS=1 python bench/bench_speed.py [--before /work/main/src] [--rounds 3] [--json out.json]
 """
 
 from __future__ import annotations
@@ -67,6 +67,29 @@ def _time(fn, frames, repeats):
     return {"wall_ms": statistics.median(wall), "cpu_ms": statistics.median(cpu), "n": len(wall)}
 
 
+def _stages(frames, repeats) -> dict:
+    """Median thread-CPU ms of each stage of locate (its own stage clock, ``diagnostics.timing_ms``, read
+    with the thread's CPU clock instead of the wall clock) over the frames without a visible far face (the
+    median frame's path; the far-face fit of the others is in edges.py, which this work leaves alone)."""
+    import types
+
+    import doorloc.vision.locate as L
+
+    wall = L.time
+    L.time = types.SimpleNamespace(perf_counter=time.thread_time)
+    laps: dict[str, list[float]] = {}
+    try:
+        for _ in range(repeats):
+            for _, cell, door, img, _ in frames:
+                r = L.locate(img, cell, door)
+                if r.diagnostics.get("far_face_visible") is False:
+                    for k, v in r.diagnostics.get("timing_ms", {}).items():
+                        laps.setdefault(k, []).append(v)
+    finally:
+        L.time = wall
+    return {k: round(statistics.median(v), 3) for k, v in laps.items()}
+
+
 def measure_one_frame(repeats: int) -> dict:
     """Per-frame figures of the doorloc found on sys.path (run once per source tree)."""
     import cv2
@@ -83,6 +106,7 @@ def measure_one_frame(repeats: int) -> dict:
         locate(img, cell, door)
     out = {"doorloc": str(Path(sys.modules["doorloc"].__file__).parent)}
     out["locate"] = _time(lambda f: locate(f[3], f[1], f[2]), frames, repeats)
+    out["stages_cpu_ms"] = _stages(frames, repeats)
     out["baseline"] = _time(lambda f: baseline(f[3], f[1], f[2]), frames, repeats)
     for ext, params in ((".png", []), (".jpg", [cv2.IMWRITE_JPEG_QUALITY, 95])):
         enc = [(n, c, d, cv2.imencode(ext, img, params)[1].tobytes(), p) for n, c, d, img, p in frames]
@@ -145,7 +169,8 @@ def measure_throughput(repeats: int, cuda: bool) -> dict:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--before", help="another doorloc source tree (its src/) to measure in the same run")
-    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--repeats", type=int, default=1, help="passes over the frames per round")
+    ap.add_argument("--rounds", type=int, default=3, help="rounds, alternating this tree and --before")
     ap.add_argument("--no-throughput", action="store_true")
     ap.add_argument("--cuda", action="store_true")
     ap.add_argument("--json")
@@ -154,13 +179,24 @@ def main() -> None:
     if a.worker:
         print(json.dumps(measure_one_frame(a.repeats)))
         return
-    res = {"cpus": os.cpu_count(), "load_avg_at_start": os.getloadavg()}
+    res: dict = {"cpus": os.cpu_count(), "load_avg_at_start": os.getloadavg()}
     runs = [("after", str(REPO / "src"))] + ([("before", a.before)] if a.before else [])
-    for label, src in runs:
-        env = dict(os.environ, PYTHONPATH=src)
-        p = subprocess.run([sys.executable, __file__, "--worker", "--repeats", str(a.repeats)], env=env,
-                           capture_output=True, text=True, check=True)
-        res[label] = json.loads(p.stdout.strip().splitlines()[-1])
+    # Rounds alternate the two source trees, so that both see the same machine load; figures are medians
+    # over the rounds and speed-ups medians of the per-round ratios.
+    rounds: dict[str, list[dict]] = {label: [] for label, _ in runs}
+    for _ in range(a.rounds):
+        for label, src in runs:
+            env = dict(os.environ, PYTHONPATH=src)
+            p = subprocess.run([sys.executable, __file__, "--worker", "--repeats", str(a.repeats)], env=env,
+                               capture_output=True, text=True, check=True)
+            rounds[label].append(json.loads(p.stdout.strip().splitlines()[-1]))
+    for label, _ in runs:
+        rs = rounds[label]
+        res[label] = {"doorloc": rs[0]["doorloc"], "rounds": rs,
+                      "stages_cpu_ms": {k: statistics.median(r["stages_cpu_ms"][k] for r in rs) for k in rs[0]["stages_cpu_ms"]}}
+        for k, v in rs[0].items():
+            if isinstance(v, dict) and "wall_ms" in v:
+                res[label][k] = {m: statistics.median(r[k][m] for r in rs) for m in ("wall_ms", "cpu_ms")} | {"n": sum(r[k]["n"] for r in rs)}
     if not a.no_throughput:
         sys.path.insert(0, str(REPO / "src"))
         res["throughput"] = measure_throughput(a.repeats, a.cuda)
@@ -174,12 +210,20 @@ def main() -> None:
                   "decode+locate.jpg", "decode+baseline.jpg"):
             v = r[k]
             print(f"  {k:22s} median wall {v['wall_ms']:7.3f} ms   thread CPU {v['cpu_ms']:7.3f} ms   (n={v['n']})")
+        print("  stages (thread CPU ms, median, frames without a visible far face): "
+              + ", ".join(f"{k} {v:.3f}" for k, v in r["stages_cpu_ms"].items()))
         print(f"  locate / baseline (same run): wall {r['locate']['wall_ms'] / r['baseline']['wall_ms']:.2f}, "
               f"CPU {r['locate']['cpu_ms'] / r['baseline']['cpu_ms']:.2f}")
     if a.before:
-        b, f = res["before"], res["after"]
+        print(f"\nspeed-up, median of {a.rounds} per-round ratios (before / after):")
         for k in ("locate", "decode+locate.png", "decode+locate.jpg"):
-            print(f"speed-up {k}: wall {b[k]['wall_ms'] / f[k]['wall_ms']:.2f}x, CPU {b[k]['cpu_ms'] / f[k]['cpu_ms']:.2f}x")
+            ratio = {m: statistics.median(b[k][m] / f[k][m] for b, f in zip(rounds["before"], rounds["after"], strict=True))
+                     for m in ("wall_ms", "cpu_ms")}
+            res.setdefault("speedup", {})[k] = ratio
+            print(f"  {k:22s} wall {ratio['wall_ms']:.2f}x, thread CPU {ratio['cpu_ms']:.2f}x")
+        sb, sa = res["before"]["stages_cpu_ms"], res["after"]["stages_cpu_ms"]
+        print("  stages (thread CPU ms, before -> after): "
+              + ", ".join(f"{k} {sb[k]:.3f} -> {sa.get(k, float('nan')):.3f}" for k in sb))
     if "throughput" in res:
         print("\nframes/s over the 81 grid PNGs (decode + locate):")
         for k, v in res["throughput"].items():
