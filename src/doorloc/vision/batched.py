@@ -130,21 +130,35 @@ class TorchStepFinder:
         L = max(q_len)
         M = L - 2 * half + 1
         j = torch.arange(L, device=dev)
-        pos_along = lo[:, None] + stride * j[None, :]
-        idx = pos_along.clamp(0, n_along - 1)
-        vals = self.flat[frame[:, None] * (H * W) + idx * pitch_along + (scan * pitch_scan)[:, None]].to(torch.float32)
-        c = torch.zeros((vals.shape[0], L + 1), dtype=torch.float32, device=dev)
-        c[:, 1:] = torch.cumsum(vals, dim=1)  # exact: integer sums far below 2**24
-        mid = c[:, half:L - half + 1]
-        resp = (c[:, 2 * half:] - mid) - (mid - c[:, :M])
-        resp = torch.where(pol[:, None] != 0, pol[:, None].to(torch.float32) * resp, resp.abs()) / half
-        usable = ((pos_along >= 0) & (pos_along < n_along) & (j[None, :] * stride <= (hi - lo)[:, None])
-                  & (j[None, :] < length[:, None]))
-        k = torch.arange(half, L - half + 1, device=dev)
-        far_end = torch.minimum(k[None, :] + half - 1, length[:, None] - 1)
-        n_resp = length - 2 * half + 1  # responses of each row in its own query
-        exists = torch.arange(M, device=dev)[None, :] < n_resp[:, None]
-        ok = usable[:, :M] & torch.gather(usable, 1, far_end) & exists
+        base = frame * (H * W) + scan * pitch_scan
+        if bool((lo >= 0).all()) and bool((lo + stride * (L - 1) < n_along).all()):
+            # every sample of every row inside the image (the usual case): one index per sample
+            flat_idx = (base + lo * pitch_along)[:, None] + (stride * pitch_along) * j[None, :]
+        else:
+            flat_idx = base[:, None] + (lo[:, None] + stride * j[None, :]).clamp(0, n_along - 1) * pitch_along
+        # The one-frame finder takes differences of a float32 running sum of 8-bit levels: integers below
+        # 2**24, held exactly. Integer window sums give the same numbers with fewer passes.
+        v = self.flat[flat_idx].to(torch.int32)
+        win = v[:, :L - half + 1].clone()  # win[:, t] = sum of v[:, t:t + half]
+        for t in range(1, half):
+            win += v[:, t:L - half + 1 + t]
+        resp = (win[:, half:half + M] - win[:, :M]).to(torch.float32)
+        pols = torch.unique(pol).tolist()
+        if len(pols) == 1:  # the usual case: one polarity for the whole group
+            resp = (pols[0] * resp if pols[0] else resp.abs()) / half
+        else:
+            resp = torch.where(pol[:, None] != 0, pol[:, None].to(torch.float32) * resp, resp.abs()) / half
+        # Sample j is usable when it lies in the image and in [lo, hi]: an interval [ja, jb] of each row; the
+        # detector at k = i + half needs samples i and min(i + 2 half - 1, length - 1), and only the row's
+        # own n_resp responses exist.
+        n_resp = length - 2 * half + 1
+        ja = torch.clamp(-torch.div(lo, stride, rounding_mode="floor"), min=0)
+        jb = torch.minimum(torch.minimum(torch.div(n_along - 1 - lo, stride, rounding_mode="floor"),
+                                         torch.div(hi - lo, stride, rounding_mode="floor")), length - 1)
+        ub = torch.minimum(torch.where(jb >= length - 1, jb, jb - 2 * half + 1), n_resp - 1)
+        i = torch.arange(M, device=dev)
+        ok = (i[None, :] >= ja[:, None]) & (i[None, :] <= ub[:, None])
+        k = i + half
         neg_inf = torch.tensor(-np.inf, dtype=torch.float32, device=dev)
         resp = torch.where(ok, resp, neg_inf)
         r = torch.arange(resp.shape[0], device=dev)
@@ -157,19 +171,34 @@ class TorchStepFinder:
             peak = torch.zeros_like(ok)
             peak[:, 1:-1] = (resp[:, 1:-1] >= resp[:, :-2]) & (resp[:, 1:-1] > resp[:, 2:])
             peak &= torch.arange(M, device=dev)[None, :] < (n_resp - 1)[:, None]  # not a row's last response
-            # numpy's median over each row's own responses (masked ones count as 0): mean of the two middle
-            a = torch.where(exists, torch.where(ok, resp, torch.zeros_like(resp)).abs(),
-                            torch.tensor(np.inf, dtype=torch.float32, device=dev))
-            srt = torch.sort(a, dim=1).values
-            m_lo = torch.gather(srt, 1, ((n_resp - 1) // 2)[:, None])[:, 0]
-            m_hi = torch.gather(srt, 1, (n_resp // 2)[:, None])[:, 0]
-            floor = 1.4826 * ((m_lo + m_hi) / 2.0)
+            # numpy's median over each row's own responses (masked ones count as 0): the mean of the two
+            # middle values, taken per response count (rows of one query share it; a batch has few counts)
+            a = torch.where(ok, resp, torch.zeros_like(resp)).abs()
+            floor = torch.empty(resp.shape[0], dtype=torch.float32, device=dev)
+            for m in torch.unique(n_resp).tolist():
+                sel = n_resp == m
+                rows_m = a[sel, :m]
+                m_lo = torch.kthvalue(rows_m, (m - 1) // 2 + 1, dim=1).values
+                m_hi = torch.kthvalue(rows_m, m // 2 + 1, dim=1).values if m % 2 == 0 else m_lo
+                floor[sel] = (m_lo + m_hi) / 2.0
+            floor = 1.4826 * floor
             thr = torch.maximum((frac.to(torch.float32) * top), 5.0 * floor)
             cand = peak & (resp >= thr[:, None]) & (resp > 0)
-            pos = (lo[:, None] + stride * k[None, :]).to(torch.float64) - 0.5 * stride
-            dist = torch.where(cand, (pos - prefer[:, None]).abs(), torch.tensor(np.inf, dtype=torch.float64, device=dev))
-            near = torch.argmin(dist, dim=1)
-            best = torch.where(torch.isfinite(dist[r, near]), near, best)
+            # the candidate nearest to the preferred position, the first of equally near ones, on the
+            # candidates only (as numpy's argmin over the row; NaN wins there, so such a row prefers nothing)
+            r_c, i_c = torch.nonzero(cand, as_tuple=True)
+            if r_c.numel():
+                dist = ((lo[r_c] + stride * (i_c + half)).to(torch.float64) - 0.5 * stride - prefer[r_c]).abs()
+                nan_rows = torch.zeros(resp.shape[0], dtype=torch.bool, device=dev)
+                nan_rows[r_c[torch.isnan(dist)]] = True
+                use = torch.isfinite(dist) & ~nan_rows[r_c]
+                r_c, i_c, dist = r_c[use], i_c[use], dist[use]
+                inf64 = torch.full((resp.shape[0],), np.inf, dtype=torch.float64, device=dev)
+                row_min = inf64.scatter_reduce(0, r_c, dist, reduce="amin")
+                big = torch.full((resp.shape[0],), M, dtype=torch.int64, device=dev)
+                near = big.scatter_reduce(0, r_c, torch.where(dist == row_min[r_c], i_c, torch.full_like(i_c, M)),
+                                          reduce="amin")
+                best = torch.where(near < M, near, best)
         strength = resp[r, best]
         along = (lo + stride * k[best]).to(torch.float64) - 0.5 * stride
         finite = torch.isfinite(strength)
