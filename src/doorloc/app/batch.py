@@ -64,6 +64,7 @@ __all__ = [
     "locate_item",
     "run_local",
     "run_ray",
+    "run_batched",
     "run_job",
     "summarize",
 ]
@@ -525,6 +526,57 @@ def run_ray(
     finally:
         if started_here:
             ray.shutdown()
+
+
+def _decode(item: BatchItem) -> Any:
+    """The item's image, or the record saying why there is none (runs in a decoding worker)."""
+    from doorloc.vision.imageio import ImageDecodeError, read_image
+
+    if item.problem is not None:
+        return _failed(item, "bad_job_row", item.problem)
+    try:
+        return read_image(item.path)
+    except ImageDecodeError as e:
+        return _failed(item, "unreadable_image", str(e))
+
+
+def run_batched(items: list[BatchItem], cell: Cell, *, device: str, batch_size: int, workers: int) -> Iterator[dict[str, Any]]:
+    """The local job with locate batched on torch (:mod:`doorloc.vision.batched`, the doorloc torch extra).
+
+    ``workers`` processes decode the images (the next batch while this one is located); each batch of
+    ``batch_size`` frames is located together on ``device`` (cpu, cuda or auto). The records are those of
+    :func:`run_local`; a frame the batched path could not take carries ``diagnostics.batched_fallback``.
+    """
+    from doorloc.vision.batched import locate_batch, resolve_device
+
+    dev = resolve_device(device)
+    _configure_opencv()
+    chunks = [items[i:i + batch_size] for i in range(0, len(items), max(1, batch_size))]
+    pool = ProcessPoolExecutor(workers, mp_context=get_context("spawn"), initializer=_configure_opencv) if workers > 1 else None
+    try:
+        ahead = [pool.submit(_decode, it) for it in chunks[0]] if pool and chunks else []
+        for n, chunk in enumerate(chunks):
+            decoded = [f.result() for f in ahead] if pool else [_decode(it) for it in chunk]
+            if pool and n + 1 < len(chunks):
+                ahead = [pool.submit(_decode, it) for it in chunks[n + 1]]
+            ok = [(it, img) for it, img in zip(chunk, decoded, strict=True) if not isinstance(img, dict)]
+            yield from (rec for rec in decoded if isinstance(rec, dict))
+            answers = locate_batch([img for _, img in ok], cell, [it.choice.door for it, _ in ok],
+                                   names=[it.image for it, _ in ok], device=dev)
+            for (it, img), a in zip(ok, answers, strict=True):
+                if a.fallback:
+                    a.result.diagnostics["batched_fallback"] = a.fallback
+                try:
+                    fields = answer_image(img, cell, it.choice, image_name=it.image,
+                                          locate_fn=lambda *_, _r=a.result, **__: _r).fields
+                except Exception as e:  # noqa: BLE001 - as locate_item: one bad image must not end the run
+                    yield _failed(it, "internal_error", f"locate failed on this image ({type(e).__name__}: {e}); please report it")
+                    continue
+                fields["status"] = ANSWERED if fields["ok"] else REFUSED
+                yield fields
+    finally:
+        if pool is not None:
+            pool.shutdown(cancel_futures=True)
 
 
 # ---------------------------------------------------------------------------------------------- the job

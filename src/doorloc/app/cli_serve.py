@@ -61,6 +61,11 @@ def register(app: typer.Typer) -> None:
         backend: Annotated[str, typer.Option(help="local (worker processes) or ray (Ray Data: the doorloc ray extra)")] = "local",
         ray_address: Annotated[str | None, typer.Option(help="Ray cluster address (ray backend); default: a local instance")] = None,
         database_url: Annotated[str | None, typer.Option(help="recipe database URL (for door_id in the manifest)")] = None,
+        device: Annotated[
+            str | None,
+            typer.Option(help="cpu, cuda or auto: locate batches of frames on torch (the doorloc torch extra); default: one frame at a time"),
+        ] = None,
+        batch_size: Annotated[int, typer.Option(min=1, help="frames per batch with --device")] = 32,
     ) -> None:
         """Locate the door in every image of a folder; append one result line per image to --out.
 
@@ -71,6 +76,15 @@ def register(app: typer.Typer) -> None:
 
         if backend not in ("local", "ray"):
             raise fail(f"--backend must be 'local' or 'ray', not '{backend}'")
+        if device is not None:
+            try:
+                from doorloc.vision.batched import resolve_device
+
+                resolve_device(device)
+            except ImportError:
+                raise fail("--device needs torch: pip install 'doorloc[torch]'") from None
+            except ValueError as e:
+                raise fail(str(e)) from None
         try:
             the_cell = load_cell(cell)
         except CellFileError as e:
@@ -88,6 +102,8 @@ def register(app: typer.Typer) -> None:
             raise fail(str(e)) from None
 
         def run_backend(todo):
+            if device is not None:
+                return batch_mod.run_batched(todo, the_cell, device=device, batch_size=batch_size, workers=workers)
             if backend == "ray":
                 return batch_mod.run_ray(todo, the_cell, workers=workers, ray_address=ray_address)
             return batch_mod.run_local(todo, the_cell, workers=workers)

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable, Generator
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -36,12 +37,12 @@ from doorloc import __version__
 from doorloc.cell import Cell, DoorSize
 from doorloc.vision import quality as q
 from doorloc.vision.arris_model import StripFit, arris_edges, arris_geometry
+from doorloc.vision.coarse import coarse_edges
 from doorloc.vision.config import LocateConfig
 from doorloc.vision.edges import (
     EdgeSamples,
     FarFaceFit,
     block_artifact_ratio,
-    coarse_edges,
     linearizing_lut,
     refine_step_fit,
     step_blur,
@@ -52,7 +53,7 @@ from doorloc.vision.edges import (
     transition_width,
 )
 from doorloc.vision.lines import ImageLine, RectangleFit, fit_rectangle_edges, ransac_line
-from doorloc.vision.luminance import ImageFormatError, luminance_plane
+from doorloc.vision.luminance import ImageFormatError, LuminancePlane, luminance_plane
 from doorloc.vision.metric import MetricPose, pose_from_fit
 from doorloc.vision.region import EDGE_NAMES, Band, SearchRegion
 from doorloc.vision.response import RESPONSE_DOUBT_FACTOR, response_skew_px
@@ -67,7 +68,7 @@ from doorloc.vision.uncertainty import (
     corner_fit_sigma,
 )
 
-__all__ = ["LocateConfig", "locate", "LocateTrace"]
+__all__ = ["LocateConfig", "locate", "locate_steps", "run_steps", "StepQuery", "LocateTrace"]
 
 #: the final pass fits a blurred step (LocateConfig.step_fit) only above this optical blur, px
 STEP_FIT_MIN_BLUR_PX = 0.5
@@ -119,12 +120,58 @@ def locate(image: np.ndarray, cell: Cell, door: DoorSize | None = None, *, image
         ``ok=true`` with ``x_mm``, ``z_mm``, ``yaw_deg``, ``thickness_mm`` (cell frame, mm/deg),
         ``scale_mm_per_px`` and ``corner_px``; or ``ok=false`` with ``error_code`` and ``error``.
     """
+    return run_steps(locate_steps(image, cell, door, image_name=image_name, config=config, trace=trace), coarse_edges)
+
+
+@dataclass(frozen=True)
+class StepQuery:
+    """One coarse step search that :func:`locate_steps` needs: the arguments of
+    :func:`doorloc.vision.coarse.coarse_edges` (``plane`` the luminance, the rest keyword arguments)."""
+
+    plane: np.ndarray
+    kwargs: dict[str, Any]
+
+
+StepFinder = Callable[..., tuple[np.ndarray, np.ndarray]]
+
+
+def run_steps(steps: Generator[StepQuery, tuple[np.ndarray, np.ndarray], LocateResult],
+              finder: StepFinder) -> LocateResult:
+    """Run a :func:`locate_steps` coroutine to its answer, each step search by ``finder(plane, **kwargs)``.
+
+    A finder that raises has its exception thrown into the coroutine, which answers with a refusal
+    (``internal_error``) as for any other failure inside locate.
+    """
+    try:
+        query = next(steps)
+        while True:
+            try:
+                found = finder(query.plane, **query.kwargs)
+            except Exception as e:  # noqa: BLE001 - handed to locate's own handling
+                query = steps.throw(e)
+                continue
+            query = steps.send(found)
+    except StopIteration as done:
+        return done.value
+
+
+def locate_steps(image: np.ndarray, cell: Cell, door: DoorSize | None = None, *, image_name: str = "",
+                 config: LocateConfig | None = None, trace: LocateTrace | None = None,
+                 luminance: LuminancePlane | None = None) -> Generator[StepQuery, tuple[np.ndarray, np.ndarray], LocateResult]:
+    """:func:`locate` as a coroutine that hands out its coarse step searches.
+
+    It yields a :class:`StepQuery` for each step search and expects ``(along, strength)`` as
+    :func:`doorloc.vision.coarse.coarse_edges` would return them; it returns the :class:`LocateResult`.
+    :func:`locate` answers the queries one by one; :mod:`doorloc.vision.batched` collects the queries of
+    many images and answers them together. ``luminance``: the image's luminance when the caller has
+    already made it (``image`` is then not read).
+    """
     t0 = time.perf_counter()
     cfg = config or cell.locate
     door = door or cell.default_door
     tr = trace if trace is not None else LocateTrace()
     try:
-        res = _locate(image, cell, door, cfg, tr, image_name)
+        res = yield from _locate(image, cell, door, cfg, tr, image_name, luminance)
     except _Refused as r:
         res = LocateResult.refusal(image_name, r.refusal.code, r.refusal.message,
                                    lines=r.diag.get("lines", []), diagnostics=r.diag.get("diagnostics", {}))
@@ -148,8 +195,8 @@ def locate(image: np.ndarray, cell: Cell, door: DoorSize | None = None, *, image
 
 
 def _coarse(plane, band: Band, axis, polarity, thr, prefer=None):
-    along, strength = coarse_edges(plane, axis, band.scan, band.lo, band.hi, polarity, half=2, prefer=prefer,
-                                   prefer_fraction=0.5, stride=2)
+    along, strength = yield StepQuery(plane, dict(axis=axis, scan=band.scan, lo=band.lo, hi=band.hi, polarity=polarity,
+                                                  half=2, prefer=prefer, prefer_fraction=0.5, stride=2))
     strong = np.isfinite(along) & (strength >= thr)
     return along, strength, strong
 
@@ -227,15 +274,19 @@ class _Sampled:
 def _fit(samples: dict[str, EdgeSamples], region: SearchRegion, cfg: LocateConfig, every: int = 1,
          n_iter: int = 9, far_offset_only: bool = False) -> tuple[RectangleFit, dict]:
     groups, init = {}, {}
+    subsets = {name: samples[name].subset(np.arange(samples[name].scan.size) % every == 0) if every > 1 else samples[name]
+               for name in EDGE_NAMES}
+    # all edge points back-projected in one call (point by point: the same numbers, less overhead)
+    xz_all = region.plane_points(np.concatenate([subsets[name].uv() for name in EDGE_NAMES]))
+    first = 0
     for name in EDGE_NAMES:
-        s = samples[name]
-        if every > 1:
-            s = s.subset(np.arange(s.scan.size) % every == 0)
+        s = subsets[name]
+        xz = xz_all[first:first + s.scan.size]
+        first += s.scan.size
         pol = region.layouts[name].polarity
         if name == "far" and far_offset_only:  # beside the far face: either polarity
             pol = int(np.sign(np.nanmedian(s.step))) or pol
         good = s.valid & (pol * s.step >= 0.5 * cfg.min_contrast)
-        xz = region.plane_points(s.uv())
         good &= np.isfinite(xz).all(axis=1)
         if good.sum() < 3:
             raise _Refused(q.Refusal("edge_missing", f"the {HUMAN[name]} was not found (no clean step of the expected "
@@ -264,8 +315,10 @@ class _CoarseEdges:
 
 
 def _coarse_edges(plane, s8: float, region: SearchRegion, door: DoorSize, cfg: LocateConfig,
-                  tr: LocateTrace) -> _CoarseEdges:
-    """Find the three edges to a pixel or two in the search region (strided step finder + RANSAC)."""
+                  tr: LocateTrace) -> Generator[StepQuery, tuple[np.ndarray, np.ndarray], _CoarseEdges]:
+    """Find the three edges to a pixel or two in the search region (strided step finder + RANSAC).
+
+    A coroutine: each step search is yielded as a :class:`StepQuery` (see :func:`locate_steps`)."""
     thr = cfg.min_contrast / s8
     # -- search region: coarse steps ------------------------------------------------------------
     ref_lay, far_lay, bot_lay = (region.layouts[k] for k in ("reference", "far", "bottom"))
@@ -281,7 +334,7 @@ def _coarse_edges(plane, s8: float, region: SearchRegion, door: DoorSize, cfg: L
     # a stronger step of the same polarity further on).
     xdir = ref_lay.polarity * (1 if cfg.door_brighter else -1)  # along-direction of door +X
     outer = (band_ref.lo if xdir > 0 else band_ref.hi).astype(float)
-    along_r, _, strong_r = _coarse(plane, band_ref, ref_lay.axis, ref_lay.polarity, thr, prefer=outer)
+    along_r, _, strong_r = yield from _coarse(plane, band_ref, ref_lay.axis, ref_lay.polarity, thr, prefer=outer)
     tol = 3.0
     ref_line = ransac_line(band_ref.scan[strong_r], along_r[strong_r], tol) if strong_r.sum() >= 10 else None
     if ref_line is None or ref_line.inliers.sum() < 0.4 * len(band_ref.scan):
@@ -302,10 +355,10 @@ def _coarse_edges(plane, s8: float, region: SearchRegion, door: DoorSize, cfg: L
     # than the hinge face) does not matter. Taking the first step, not the one nearest the expected
     # thickness, measures the door that is there (a 12 mm panel where a 50 mm door was expected).
     near = (band_far.lo if xdir > 0 else band_far.hi).astype(float)
-    along_f, strength_f = coarse_edges(plane, far_lay.axis, band_far.scan, band_far.lo, band_far.hi, 0, half=2,
-                                       prefer=near, stride=2,
-                                       # an arris strip makes a weak first step (face -> strip): skip it
-                                       prefer_fraction=0.3 if door.arris_mm > 0 else 0.1)
+    along_f, strength_f = yield StepQuery(plane, dict(axis=far_lay.axis, scan=band_far.scan, lo=band_far.lo,
+                                                      hi=band_far.hi, polarity=0, half=2, prefer=near, stride=2,
+                                                      # an arris strip makes a weak first step (face -> strip): skip it
+                                                      prefer_fraction=0.3 if door.arris_mm > 0 else 0.1))
     strong_f = np.isfinite(along_f) & (strength_f >= thr)
     far_line = ransac_line(band_far.scan[strong_f], along_f[strong_f], tol) if strong_f.sum() >= 10 else None
     if far_line is not None:
@@ -324,7 +377,7 @@ def _coarse_edges(plane, s8: float, region: SearchRegion, door: DoorSize, cfg: L
                                  "nothing covers its far edge"))
 
     # bottom end: scan lines between the two arrises, at the nominal corner height
-    corner0 = region.face_map.to_image(np.zeros((1, 2)))[0]
+    corner0 = region.nominal_corner_px
     s_corner = corner0[1] if ref_lay.axis == "row" else corner0[0]
     u_ref, u_far = ref_line.at(s_corner), far_line.at(s_corner)
     u_exp = u_ref + xdir * door.thickness_mm / sc
@@ -335,7 +388,7 @@ def _coarse_edges(plane, s8: float, region: SearchRegion, door: DoorSize, cfg: L
     scans_b = np.arange(int(math.ceil(lo_s + inset)), int(math.floor(hi_s - inset)) + 1, 3)
     band_bot = region.bottom_band(scans_b)
     tr.bands["bottom"] = band_bot
-    along_b, _, strong_b = _coarse(plane, band_bot, bot_lay.axis, bot_lay.polarity, thr)
+    along_b, _, strong_b = yield from _coarse(plane, band_bot, bot_lay.axis, bot_lay.polarity, thr)
     bot_line = ransac_line(band_bot.scan[strong_b], along_b[strong_b], tol) if strong_b.sum() >= 5 else None
     if bot_line is None or bot_line.inliers.sum() < 0.3 * max(len(band_bot.scan), 1):
         raise _Refused(q.Refusal("edge_missing", f"the {HUMAN['bottom']} was not found between the arrises; check that "
@@ -349,15 +402,15 @@ def _coarse_pose(c: _CoarseEdges, plane, s8: float, region: SearchRegion, cell: 
     """Pose from the coarse lines; refuses at once what is plainly not a door in place."""
     ref_lay, far_lay, bot_lay = (region.layouts[k] for k in ("reference", "far", "bottom"))
 
-    def pts(line, band, axis):
+    def uvs(line, band, axis):
         s = band.scan[:: max(len(band.scan) // 40, 1)].astype(float)
         a = line.at(s)
-        uv = np.stack([s, a], 1) if axis == "col" else np.stack([a, s], 1)
-        return region.plane_points(uv)
+        return np.stack([s, a], 1) if axis == "col" else np.stack([a, s], 1)
 
-    coarse_groups = {"bottom": (pts(c.bottom, c.bottom_band, bot_lay.axis), True),
-                     "reference": (pts(c.ref, c.ref_band, ref_lay.axis), False),
-                     "far": (pts(c.far, c.far_band, far_lay.axis), False)}
+    uv = [uvs(c.bottom, c.bottom_band, bot_lay.axis), uvs(c.ref, c.ref_band, ref_lay.axis),
+          uvs(c.far, c.far_band, far_lay.axis)]
+    xz = np.split(region.plane_points(np.concatenate(uv)), np.cumsum([len(u) for u in uv])[:2])
+    coarse_groups = {"bottom": (xz[0], True), "reference": (xz[1], False), "far": (xz[2], False)}
     fit0 = fit_rectangle_edges(coarse_groups, scale_floor=0.05, n_iter=3)
     pose = pose_from_fit(fit0, region.face_map)
     if not (abs(pose.yaw_deg) < 20 and 0 < pose.thickness_mm < 3 * door.thickness_mm + 50):
@@ -439,9 +492,10 @@ def _refine(plane, s8: float, region: SearchRegion, pose: MetricPose, cfg: Locat
     return samples, fit, pose, blur, half, far_beside, far_fit, sampled.step_fitted
 
 
-def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrace, name: str) -> LocateResult:
+def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrace, name: str,
+            lum: LuminancePlane | None = None) -> Generator[StepQuery, tuple[np.ndarray, np.ndarray], LocateResult]:
     try:
-        lum = luminance_plane(image)
+        lum = lum if lum is not None else luminance_plane(image)
     except ImageFormatError as e:
         raise _Refused(q.Refusal("bad_image", f"{e}")) from None
     r = q.check_image_size(lum.size, cell.camera.image_size)
@@ -449,10 +503,10 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
         raise _Refused(r)
     plane, s8 = lum.plane, lum.scale_to_8bit
     clock = _Clock()
-    region = SearchRegion.build(cell, door, cfg.search_margin_mm, cfg.search_margin_deg, cfg.door_brighter)
+    region = SearchRegion.cached(cell, door, cfg.search_margin_mm, cfg.search_margin_deg, cfg.door_brighter)
     tr.region = region
     clock.lap("region")
-    coarse = _coarse_edges(plane, s8, region, door, cfg, tr)
+    coarse = yield from _coarse_edges(plane, s8, region, door, cfg, tr)
     clock.lap("coarse")
     pose = _coarse_pose(coarse, plane, s8, region, cell, door, cfg)
     clock.lap("coarse_pose")

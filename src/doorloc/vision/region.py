@@ -13,13 +13,15 @@ the regions follow lens distortion.
 
 from __future__ import annotations
 
+import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
 from doorloc.calib.camera import PosedCamera
-from doorloc.cell import Cell, DoorSize
+from doorloc.cell import Cell, DoorSize, Envelope, Fixture
 from doorloc.vision.edges import Axis
 from doorloc.vision.metric import PlaneMap
 
@@ -75,17 +77,27 @@ def _along_scan(uv: np.ndarray, axis: Axis) -> tuple[np.ndarray, np.ndarray]:
     return (uv[:, 0], uv[:, 1]) if axis == "col" else (uv[:, 1], uv[:, 0])
 
 
-def _interp_on_scans(uv: np.ndarray, axis: Axis, scans: np.ndarray) -> np.ndarray:
-    """Along-coordinate of the polyline ``uv`` on each scan line (NaN outside the polyline's span)."""
+def _sorted_polyline(uv: np.ndarray, axis: Axis) -> tuple[np.ndarray, np.ndarray]:
+    """The finite points of the polyline ``uv`` as (scan, along), ordered by scan."""
     s, a = _along_scan(uv, axis)
     ok = np.isfinite(s) & np.isfinite(a)
     s, a = s[ok], a[ok]
+    order = np.argsort(s)
+    return s[order], a[order]
+
+
+def _interp_sorted(s: np.ndarray, a: np.ndarray, scans: np.ndarray) -> np.ndarray:
+    """Along-coordinate on each scan line of a polyline from :func:`_sorted_polyline` (NaN outside its span)."""
     if s.size < 2:
         return np.full(len(scans), np.nan)
-    order = np.argsort(s)
-    s, a = s[order], a[order]
     out = np.interp(scans, s, a)
     return np.where((scans >= s[0]) & (scans <= s[-1]), out, np.nan)
+
+
+def _interp_on_scans(uv: np.ndarray, axis: Axis, scans: np.ndarray) -> np.ndarray:
+    """Along-coordinate of the polyline ``uv`` on each scan line (NaN outside the polyline's span)."""
+    s, a = _sorted_polyline(uv, axis)
+    return _interp_sorted(s, a, scans)
 
 
 @dataclass(frozen=True)
@@ -109,6 +121,9 @@ class SearchRegion:
     plane_map: PlaneMap
     face_map: PlaneMap
     border_px: int = 2
+    # Results that depend only on the fields above (bands, maps at other depths), kept for the next
+    # image of the same cell and door: see :meth:`cached`.
+    _memo: dict[Any, Any] = field(default_factory=dict, compare=False, repr=False)
 
     def image_points(self, xz: np.ndarray) -> np.ndarray:
         """``(X, Z)`` on the outline plane -> pixels."""
@@ -151,6 +166,35 @@ class SearchRegion:
         return cls(posed, face_y, depth, door, (w, h), env.x_mm + margin_mm, env.z_mm + margin_mm,
                    math.radians(env.yaw_deg + margin_deg), layouts, z_top, scale, pm, pm.at_depth(face_y))
 
+    @classmethod
+    def cached(cls, cell: Cell, door: DoorSize, margin_mm: float, margin_deg: float,
+               door_brighter: bool = True) -> SearchRegion:
+        """:meth:`build`, kept for the next call with the same camera, fixture, envelope, door and margins.
+
+        The key is what :meth:`build` reads (camera matrix, distortion, image size, extrinsics, fixture,
+        envelope, door, margins), by value: a cell changed in any of these (a new calibration, a
+        ``dataclasses.replace``) gets its own region; the cell file's hash is not enough (a replaced
+        camera keeps it). At most 32 regions are kept (least recently used first out).
+        """
+        key = _RegionKey(cell.camera.camera_matrix.tobytes(), cell.camera.coeffs12.tobytes(), cell.camera.image_size,
+                         cell.extrinsics.rvec.tobytes(), cell.extrinsics.tvec_mm.tobytes(), cell.fixture,
+                         cell.envelope, door, float(margin_mm), float(margin_deg), bool(door_brighter), cell)
+        return _cached_region(key)
+
+    def _memoised(self, key: Any, make: Any) -> Any:
+        if key not in self._memo:
+            value = make()
+            for a in value.__dict__.values() if isinstance(value, Band) else (value,):
+                if isinstance(a, np.ndarray):
+                    a.setflags(write=False)  # shared by every later call: nobody may change it
+            self._memo[key] = value
+        return self._memo[key]
+
+    @property
+    def nominal_corner_px(self) -> np.ndarray:
+        """Pixel of the reference corner of a door at the nominal pose (x = z = 0), on the hinge face."""
+        return self._memoised("corner0", lambda: self.face_map.to_image(np.zeros((1, 2)))[0])
+
     # -- search region for the coarse pass -------------------------------------------------------
     def _scans_between(self, uv: np.ndarray, axis: Axis, step: int) -> np.ndarray:
         s, _ = _along_scan(uv, axis)
@@ -165,6 +209,9 @@ class SearchRegion:
         Only ``height_mm`` of the arris above the highest possible bottom end is searched: enough
         for a coarse line, and the band stays narrow (yaw widens it with height).
         """
+        return self._memoised(("arris_band", step, height_mm), lambda: self._arris_band(step, height_mm))
+
+    def _arris_band(self, step: int, height_mm: float) -> Band:
         lay = self.layouts["reference"]
         t = math.tan(self.yaw_range_rad)
         z_lo = self.z_range_mm + (self.door.thickness_mm + self.x_range_mm) * t + 3.0
@@ -181,14 +228,21 @@ class SearchRegion:
     def bottom_band(self, scans: np.ndarray) -> Band:
         """Where the bottom end can be on the given scan lines."""
         lay = self.layouts["bottom"]
+        lines = self._memoised("bottom_lines", self._bottom_lines)
+        (s_lo, a_lo), (s_hi, a_hi) = lines
+        a1 = _interp_sorted(s_lo, a_lo, scans)
+        a2 = _interp_sorted(s_hi, a_hi, scans)
+        return self._band(np.asarray(scans), a1, a2, lay.axis)
+
+    def _bottom_lines(self) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
+        # The two lines that bound the bottom end (the same for every image), ready for _interp_sorted.
+        lay = self.layouts["bottom"]
         t = math.tan(self.yaw_range_rad)
         xs = np.linspace(-self.x_range_mm - 30.0, self.x_range_mm + self.door.thickness_mm + 30.0, 48)
         half = self.z_range_mm + (np.abs(xs) + self.x_range_mm) * t
         uv_lo = self.image_points(np.stack([xs, -half], 1))
         uv_hi = self.image_points(np.stack([xs, half], 1))
-        a1 = _interp_on_scans(uv_lo, lay.axis, scans)
-        a2 = _interp_on_scans(uv_hi, lay.axis, scans)
-        return self._band(np.asarray(scans), a1, a2, lay.axis)
+        return _sorted_polyline(uv_lo, lay.axis), _sorted_polyline(uv_hi, lay.axis)
 
     def _band(self, scans: np.ndarray, a1: np.ndarray, a2: np.ndarray, axis: Axis) -> Band:
         n_along = self.image_size[1] if axis == "col" else self.image_size[0]
@@ -221,23 +275,24 @@ class SearchRegion:
         corner = np.asarray(corner, float)
         far_corner = corner + thickness_mm * ex
         out: dict[str, Track] = {}
-        n_z = max(int((self.z_top_mm + 40.0) / 2.0), 8)
-        tz = np.linspace(0.0, self.z_top_mm + 40.0, n_z)
+        tz = self._memoised("track_tz", lambda: np.linspace(0.0, self.z_top_mm + 40.0,
+                                                             max(int((self.z_top_mm + 40.0) / 2.0), 8)))
         tx = np.linspace(-1.0, thickness_mm + 1.0, max(int(thickness_mm / 2.0), 8))
+        polylines = {"bottom": corner[None] + tx[:, None] * ex[None], "reference": corner[None] + tz[:, None] * ez[None],
+                     "far": far_corner[None] + tz[:, None] * ez[None]}
+        # every point projected in one call (the projection is point by point: the same numbers)
+        uv_all = self.image_points(np.vstack([*polylines.values(), corner[None], far_corner[None]]))
+        uv_ends = uv_all[-2:]  # corner, far corner
+        first = 0
         for name in EDGE_NAMES:
             lay = self.layouts[name]
-            if name == "bottom":
-                pl = corner[None] + tx[:, None] * ex[None]
-                ends = (corner, far_corner)
-            else:
-                base = corner if name == "reference" else far_corner
-                pl = base[None] + tz[:, None] * ez[None]
-                ends = (base, base)
-            uv = self.image_points(pl)
+            pl = polylines[name]
+            uv = uv_all[first:first + len(pl)]
+            first += len(pl)
             s, _ = _along_scan(uv, lay.axis)
             n_scan = self.image_size[0] if lay.axis == "col" else self.image_size[1]
             n_along = self.image_size[1] if lay.axis == "col" else self.image_size[0]
-            e_uv = self.image_points(np.array(ends))
+            e_uv = uv_ends if name == "bottom" else uv_ends[[0, 0]] if name == "reference" else uv_ends[[1, 1]]
             e_s, _ = _along_scan(e_uv, lay.axis)
             if name == "bottom":
                 s_lo, s_hi = np.sort(e_s)
@@ -258,7 +313,7 @@ class SearchRegion:
             band = None
             slope = 0.0
             if beside:
-                _, a_ends = _along_scan(self.image_points(np.array([corner, far_corner])), lay.axis)
+                _, a_ends = _along_scan(uv_ends, lay.axis)
                 outward = 1.0 if a_ends[1] >= a_ends[0] else -1.0  # door +X, along the scan line
                 ok_band, width = self._far_face_band(pl, uv, scans, centre, window_px, lay.axis, outward)
                 ok &= ok_band
@@ -299,7 +354,7 @@ class SearchRegion:
         The width is signed: positive where the band lies beyond the arris (``outward``, door +X along the
         scan line); <= 0 where the far face is seen edge-on or from behind (no band in view).
         """
-        back = self.plane_map.at_depth(self.face_y + self.door.width_mm)
+        back = self._memoised("back_map", lambda: self.plane_map.at_depth(self.face_y + self.door.width_mm))
         # The far face's back edge: the same (X, Z) line at the door's far side, seen smaller (farther):
         # extend it up the door so that it spans the image.
         d = pl[-1] - pl[0]
@@ -312,3 +367,26 @@ class SearchRegion:
         d = np.sign(s_back[0] - s_corner[0])
         above = (scans - s_back[0]) * d >= window_px if d != 0 else np.ones(scans.size, bool)
         return above & np.isfinite(band), np.where(np.isfinite(band), band, 0.0)
+
+
+@dataclass(frozen=True)
+class _RegionKey:
+    """What :meth:`SearchRegion.build` depends on, by value; ``cell`` (not compared) builds the first one."""
+
+    camera_matrix: bytes
+    dist_coeffs: bytes
+    image_size: tuple[int, int]
+    rvec: bytes
+    tvec: bytes
+    fixture: Fixture
+    envelope: Envelope
+    door: DoorSize
+    margin_mm: float
+    margin_deg: float
+    door_brighter: bool
+    cell: Cell = field(compare=False, hash=False)
+
+
+@functools.lru_cache(maxsize=32)
+def _cached_region(key: _RegionKey) -> SearchRegion:
+    return SearchRegion.build(key.cell, key.door, key.margin_mm, key.margin_deg, key.door_brighter)
