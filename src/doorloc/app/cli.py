@@ -12,7 +12,7 @@ import sys
 import typer
 
 from doorloc import __version__
-from doorloc.app import cli_calibrate, cli_locate, cli_recipes, cli_render, cli_serve
+from doorloc.app import cli_calibrate, cli_locate, cli_modelcheck, cli_recipes, cli_render, cli_serve
 
 app = typer.Typer(
     name="doorloc",
@@ -29,7 +29,7 @@ def _root() -> None:
     """Locate a wooden door in a milling cell and turn its recipe into robot targets."""
 
 
-for _module in (cli_calibrate, cli_locate, cli_render, cli_recipes, cli_serve):
+for _module in (cli_calibrate, cli_locate, cli_render, cli_recipes, cli_serve, cli_modelcheck):
     _module.register(app)
 
 

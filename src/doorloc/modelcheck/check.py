@@ -136,12 +136,12 @@ def _jsonable(v: Any) -> Any:
 
 
 def _read_image(item: MeasuredImage) -> np.ndarray:
-    import cv2
+    from doorloc.vision.imageio import ImageDecodeError, read_image
 
-    img = cv2.imread(str(item.path), cv2.IMREAD_UNCHANGED)
-    if img is None:
-        raise DatasetError(f"{item.path} is not an image OpenCV can read")
-    return img
+    try:
+        return read_image(item.path)
+    except ImageDecodeError as e:
+        raise DatasetError(f"{item.image}: {e}") from None
 
 
 def _rms(errors: np.ndarray) -> dict[str, float]:
