@@ -245,7 +245,8 @@ def check_model(dataset_dir: str | os.PathLike, cell: Cell, out_dir: str | os.Pa
     causes = list(model.names)
     ptrain = pred.predict(list(model.effects), list(model.values), rows) if model.effects else np.zeros_like(etr)
     resid = etr - ptrain
-    un = structured_residual(resid, _features(train_obs, cell), noise, folds=options.folds)
+    null_sse = float(np.nansum((etr / noise) ** 2))
+    un = structured_residual(resid, _features(train_obs, cell), noise, null_sse, folds=options.folds)
     if un["structured"]:
         causes.append("unexplained")
     ext = _extended_cell(cell, model, ds, causes)

@@ -151,6 +151,10 @@ class SelectionRules:
         Largest held-out (cross-validated) squared error of the larger model relative to the smaller:
         an effect must take away at least ``1 - max_cv_ratio`` of what remains (a mild lighting gradient's
         micrometre bias, significant or not, is not an effect worth a model).
+    max_cv_ratio_next : float
+        The same for a second (or later) effect: stricter, because what the first effect's forward model
+        leaves (its own small model error, e.g. locate's residual bias with a fitted arris) must not be
+        taken for a second cause.
     max_effects : int
         Forward selection stops after this many effects.
     tie_ratio : float
@@ -160,6 +164,7 @@ class SelectionRules:
 
     alpha: float = 1e-4
     max_cv_ratio: float = 0.5
+    max_cv_ratio_next: float = 0.25
     max_effects: int = 2
     tie_ratio: float = 1.15
 
@@ -207,7 +212,7 @@ def select_effects(pred: Predictor, catalogue: Sequence[Effect], errors: np.ndar
         big = fit_model(pred, [*chosen, e_best], errors, noise, rows)
         p = _f_test(current, big)
         ratio = cv_best / cv_cur if cv_cur > 0 else 1.0
-        accepted = p < rules.alpha and ratio < rules.max_cv_ratio
+        accepted = p < rules.alpha and ratio < (rules.max_cv_ratio if step == 0 else rules.max_cv_ratio_next)
         sel.steps.append({"step": step + 1, "candidate": e_best.name, "cv_sse": cv_best, "cv_sse_before": cv_cur,
                           "cv_ratio": ratio, "f_test_p": p, "accepted": accepted,
                           "trials": {e.name: cv for cv, e in trials}})
@@ -226,12 +231,15 @@ def select_effects(pred: Predictor, catalogue: Sequence[Effect], errors: np.ndar
     return sel
 
 
-def structured_residual(residual: np.ndarray, features: np.ndarray, noise: np.ndarray, alpha: float = 1e-6,
-                        max_cv_ratio: float = 0.5, folds: int = 5) -> dict:
+def structured_residual(residual: np.ndarray, features: np.ndarray, noise: np.ndarray, null_sse: float,
+                        alpha: float = 1e-6, max_cv_ratio: float = 0.5, min_share: float = 0.02,
+                        folds: int = 5) -> dict:
     """Is there structure left? A linear model of each residual component in the image's features
-    (pose, door size, corner pixel), judged like an effect: F-test and cross-validated gain.
+    (pose, door size, corner pixel), judged like an effect: F-test and cross-validated gain; and it must
+    matter: explain at least ``min_share`` of the given model's original error ``null_sse`` (what a
+    named cause's forward model leaves, a small share, is reported but not called unexplained).
 
-    Returns ``{"structured": bool, "f_test_p": ..., "cv_ratio": ..., "explained": per-component coefficients}``.
+    Returns ``{"structured": bool, "f_test_p": ..., "cv_ratio": ..., "share_of_original": ...}``.
     """
     ok = np.isfinite(residual).all(axis=1)
     R = residual[ok] / noise
@@ -253,4 +261,6 @@ def structured_residual(residual: np.ndarray, features: np.ndarray, noise: np.nd
         b, *_ = np.linalg.lstsq(X[tr], R[tr], rcond=None)
         cv += float(np.sum((R[te] - X[te] @ b) ** 2))
     ratio = cv / sse0 if sse0 > 0 else 1.0
-    return {"structured": bool(p < alpha and ratio < max_cv_ratio), "f_test_p": p, "cv_ratio": ratio}
+    share = (sse0 - sse1) / null_sse if null_sse > 0 else 0.0
+    return {"structured": bool(p < alpha and ratio < max_cv_ratio and share >= min_share), "f_test_p": p,
+            "cv_ratio": ratio, "share_of_original": share}
