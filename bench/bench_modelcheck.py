@@ -49,7 +49,7 @@ def main() -> int:
     rng = np.random.default_rng(args.seed)
     names = [n for n in args.effects.split(",") if n]
     cases: list[dict] = []
-    for r in range(args.repeats):
+    for _ in range(args.repeats):
         for n in names:
             cases.append({"hidden": {n: _draw(n, rng)}})
     for _ in range(args.controls):

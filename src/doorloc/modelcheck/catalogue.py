@@ -21,9 +21,11 @@ from scipy.spatial.transform import Rotation
 from doorloc.calib.camera import CameraModel, Extrinsics
 from doorloc.cell import Cell, DoorSize
 
-__all__ = ["Effect", "CATALOGUE", "EFFECT_NAMES", "effect", "apply_effects"]
+__all__ = ["Values", "Effect", "CATALOGUE", "EFFECT_NAMES", "effect", "apply_effects"]
 
 ForwardKind = Literal["analytic", "relocate"]
+#: Parameter values of one effect, in the order of its ``params``.
+Values = Sequence[float] | np.ndarray
 
 
 @dataclass(frozen=True)
@@ -59,7 +61,7 @@ class Effect:
     apply_fn: Callable[[Cell, Sequence[float]], Cell]
     looks_like: str = ""
 
-    def apply(self, cell: Cell, values: Sequence[float]) -> Cell:
+    def apply(self, cell: Cell, values: Values) -> Cell:
         """The cell with this effect's parameter ``values`` (offsets from the cell's own) put in."""
         return self.apply_fn(cell, [float(v) for v in values])
 
@@ -175,7 +177,7 @@ def effect(name: str) -> Effect:
     raise ValueError(f"no effect {name!r} in the catalogue ({', '.join(EFFECT_NAMES)})")
 
 
-def apply_effects(cell: Cell, values: dict[str, Sequence[float]]) -> Cell:
+def apply_effects(cell: Cell, values: dict[str, Values]) -> Cell:
     """``cell`` with every named effect's values put in (in catalogue order)."""
     for e in CATALOGUE:
         if e.name in values:

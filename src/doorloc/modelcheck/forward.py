@@ -26,7 +26,7 @@ import numpy as np
 from scipy.interpolate import PchipInterpolator
 
 from doorloc.cell import Cell, DoorSize
-from doorloc.modelcheck.catalogue import Effect
+from doorloc.modelcheck.catalogue import Effect, Values
 from doorloc.modelcheck.dataset import MeasuredImage
 from doorloc.pose import DoorPose
 from doorloc.vision.lines import fit_rectangle_edges
@@ -198,7 +198,7 @@ class AnalyticModel:
                      for g in self.geom]
         self.base = np.array([_seen_pose(nominal, nominal, g, m) for g, m in zip(self.geom, self.maps, strict=True)])
 
-    def predict(self, effects: Sequence[Effect], values: Sequence[Sequence[float]],
+    def predict(self, effects: Sequence[Effect], values: Sequence[Values],
                 rows: np.ndarray | None = None) -> np.ndarray:
         cell = self.nominal
         for e, v in zip(effects, values, strict=True):

@@ -139,7 +139,7 @@ def report_markdown(rep: ModelCheckReport) -> str:
     lines += ["", f"Structure left after the model (linear in pose, door size, corner pixel): p = "
               f"{u.get('f_test_p', 1.0):.2g}, held-out ratio {u.get('cv_ratio', 1.0):.3g} -> "
               f"{'structured (unexplained)' if u.get('structured') else 'noise'}", "",
-              f"Noise per component (1 sigma, weights): " + ", ".join(f"{k} {v:.2g}" for k, v in rep.noise.items()),
+              "Noise per component (1 sigma, weights): " + ", ".join(f"{k} {v:.2g}" for k, v in rep.noise.items()),
               "", f"Extended cell: `{rep.extended_cell}` (locate, batch and serve read it like any cell file).", ""]
     for p in rep.plots:
         lines.append(f"![{p}]({p})")
