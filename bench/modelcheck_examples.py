@@ -86,7 +86,6 @@ def shop_floor(out: Path, thesis: Cell) -> None:
     cases = {
         "wood grain (contrast 0.06)": ({}, replace(MEASURED_PHOTOMETRY, grain_contrast=0.06)),
         "arris (1.0 mm chamfer)": ({"arris": [1.0]}, MEASURED_PHOTOMETRY),
-        "arris (1.0 mm round)": ({"arris": [1.0]}, MEASURED_PHOTOMETRY),
         "camera response gamma 2.2": ({"response_gamma": [2.2]}, MEASURED_PHOTOMETRY),
     }
     for k, (label, (hidden, photometry)) in enumerate(cases.items()):

@@ -80,6 +80,13 @@ def test_hidden_effect_is_named_and_the_extended_cell_fixes_it(tmp_path_factory,
     assert lever(after) * 5 <= lever(before), (before, after)
     for p in ("residuals.png", "edge_residuals.png", "heldout.png", "report.md"):
         assert (out / p).is_file()
+    # and the command line reads it like any cell file
+    item = next(it for it in read_dataset(data, nominal).images if it.image == rep["heldout_images"][0])
+    res = CliRunner().invoke(app, ["locate", str(item.path), "--cell", str(out / rep["extended_cell"]), "--door-width",
+                                   str(item.door.width_mm), "--door-thickness", str(item.door.thickness_mm)])
+    assert res.exit_code == 0, res.output
+    got = json.loads(res.output)
+    assert got["provenance"]["cell_sha256"] == ext.sha256
 
 
 def test_control_without_effect_answers_no_cause(tmp_path_factory, nominal):
