@@ -67,3 +67,16 @@ def test_apply_effects_puts_values_where_the_catalogue_says():
     assert c.camera.fx == pytest.approx(CELL.camera.fx * 1.01) and c.camera.fy == pytest.approx(CELL.camera.fy * 1.01)
     assert c.fixture.face_shift_per_width == pytest.approx(CELL.fixture.face_shift_per_width + 0.02)
     assert c.response_gamma == 2.2 and c.default_door.arris_mm == 1.5 and c.camera.dist_coeffs[0] == 0.05
+
+
+def test_locate_works_in_a_cell_with_barrel_distortion():
+    # A barrel k1 folds far points back into the image: the search region once took them for the top
+    # of the reference arris and locate found no edge (the extended cell of a radial_distortion check).
+    from doorloc.sim.door import render_door
+    from doorloc.vision.locate import locate
+
+    barrel = effect("radial_distortion").apply(CELL, [-0.15])
+    door, pose = DoorSize(900, 50, 2100), DoorPose(3.0, -4.0, 0.7)
+    r = locate(render_door(barrel, door, pose).image, barrel, door)
+    assert r.ok, r.error
+    assert abs(r.x_mm - 3.0) < 0.01 and abs(r.z_mm + 4.0) < 0.01 and abs(r.yaw_deg - 0.7) < 0.005

@@ -99,6 +99,7 @@ class ModelCheckReport:
     unexplained_test: dict
     refused: list[dict]
     elapsed_s: float
+    heldout_refused_after: list[str] = field(default_factory=list)
     plots: list[str] = field(default_factory=list)
     # arrays for the plots (not in report.json)
     observations: list[Observation] = field(default_factory=list, repr=False)
@@ -110,7 +111,7 @@ class ModelCheckReport:
     def to_dict(self) -> dict[str, Any]:
         keys = ["dataset", "cell", "causes", "parameters", "heldout_rms_before", "heldout_rms_after", "heldout_gain",
                 "heldout_images", "train_images", "extended_cell", "alternatives", "indistinguishable", "noise",
-                "selection_steps", "unexplained_test", "refused", "elapsed_s", "plots"]
+                "selection_steps", "unexplained_test", "refused", "heldout_refused_after", "elapsed_s", "plots"]
         doc = {k: getattr(self, k) for k in keys}
         doc["version"] = __version__
         doc["gain_definition"] = (f"RMS over held-out images of the error of a point {LEVER_MM:g} mm up the door "
@@ -254,15 +255,18 @@ def check_model(dataset_dir: str | os.PathLike, cell: Cell, out_dir: str | os.Pa
     before = errors[held]
     say(f"locating the {len(held)} held-out images with the extended cell")
     after = locate_errors(held_obs, ext, measured_arris) if model.effects else before.copy()
+    # an image the extended cell cannot locate counts against it, not as a free pass
+    refused_after = [o.item.image for o, row in zip(held_obs, after, strict=True) if not np.isfinite(row).all()]
     g_before, g_after = _lever_rms(before), _lever_rms(after)
     rep = ModelCheckReport(
         dataset=str(ds.folder), cell=str(cell.source), causes=causes, parameters=_parameters(model),
         heldout_rms_before=_rms(before), heldout_rms_after=_rms(after),
-        heldout_gain=g_before / g_after if g_after > 0 else float("inf"),
+        heldout_gain=g_before / g_after if g_after > 0 and not refused_after else float("nan"),
         heldout_images=[o.item.image for o in held_obs], train_images=[o.item.image for o in train_obs],
         extended_cell=EXTENDED_CELL_NAME, alternatives=sel.alternatives,
         indistinguishable=_indistinguishable(sel, model), noise=dict(zip(COMPONENTS, noise.tolist(), strict=True)),
         selection_steps=sel.steps, unexplained_test=un, refused=refused, elapsed_s=0.0,
+        heldout_refused_after=refused_after,
         observations=obs, train_prediction=ptrain, train_rows=train, heldout_rows=held, heldout_after=after,
     )
     rep.heldout_rms_before["lever_mm"] = g_before

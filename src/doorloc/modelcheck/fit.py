@@ -203,6 +203,10 @@ def select_effects(pred: Predictor, catalogue: Sequence[Effect], errors: np.ndar
         for e in catalogue:
             if e in chosen:
                 continue
+            if e.forward == "relocate" and any(c.forward == "relocate" for c in chosen):
+                # two grey-level tables were each made with the other effect at its nominal value: their sum
+                # is no forward model of both at once
+                continue
             cv = cross_validated_sse(pred, [*chosen, e], errors, noise, rows, folds)
             trials.append((cv, e))
         if not trials:

@@ -127,6 +127,9 @@ def report_markdown(rep: ModelCheckReport) -> str:
         b, a = rep.heldout_rms_before.get(c), rep.heldout_rms_after.get(c)
         if b is not None and a is not None:
             lines.append(f"| {c} ({_UNIT[c]}) | {b:.5f} | {a:.5f} |")
+    if rep.heldout_refused_after:
+        lines += ["", f"**The extended cell's locate refused {len(rep.heldout_refused_after)} held-out image(s)** "
+                  f"({', '.join(rep.heldout_refused_after[:5])}): no gain is claimed."]
     lines += ["", f"Gain: **{rep.heldout_gain:.1f}x** (RMS error of a point 1 m up the door, before / after).", "",
               "## Alternatives (cross-validated weighted RMS, first selection step)", ""]
     for alt in rep.alternatives:
