@@ -121,3 +121,18 @@ def test_bad_data_sets_exit_2_with_a_sentence(tmp_path, thesis_cell_path, nomina
     r = runner.invoke(app, ["check-model", str(few), *args])
     assert r.exit_code == 2 and "lacks column" in r.output
     assert not (tmp_path / "rep" / "report.json").exists()
+
+
+def test_an_effect_outside_the_catalogue_is_unexplained(tmp_path_factory, nominal):
+    # a decentred lens (tangential distortion p1, p2): no catalogue entry makes its signature
+    from dataclasses import replace
+
+    from doorloc.calib.camera import CameraModel
+
+    cam = nominal.camera
+    true = replace(nominal, camera=CameraModel(cam.camera_matrix, np.array([0, 0, 0.004, -0.003, 0.0]), cam.image_size))
+    data = tmp_path_factory.mktemp("tangential")
+    render_measured_set(data, true, {}, SetSpec(n_images=30, seed=5))
+    rep = check_model(data, nominal, tmp_path_factory.mktemp("tangential_report"))
+    assert rep.causes == ["unexplained"], rep.selection_steps
+    assert rep.unexplained_test["structured"]
