@@ -18,6 +18,7 @@ from doorloc.app import (
     cli_cell,
     cli_keys,
     cli_locate,
+    cli_modelcheck,
     cli_reach,
     cli_recipes,
     cli_render,
@@ -48,7 +49,7 @@ def _root(
     """Locate a wooden door in a milling cell and turn its recipe into robot targets."""
 
 
-for _module in (cli_calibrate, cli_cell, cli_locate, cli_render, cli_recipes, cli_reach, cli_serve, cli_keys):
+for _module in (cli_calibrate, cli_cell, cli_locate, cli_render, cli_recipes, cli_reach, cli_serve, cli_keys, cli_modelcheck):
     _module.register(app)
 
 

@@ -160,7 +160,11 @@ class SearchRegion:
         zs = np.arange(0.0, 3000.0, 10.0)
         pts = pm.to_image(np.stack([np.zeros_like(zs), zs], 1))
         inside = (pts[:, 0] >= 0) & (pts[:, 0] <= w - 1) & (pts[:, 1] >= 0) & (pts[:, 1] <= h - 1)
-        z_top = float(zs[inside].max()) if inside.any() else 0.0
+        # The first run from the corner up only: beyond the image a distortion polynomial can fold far
+        # points back into it (a barrel k1 < 0 does at large radii).
+        leaves = np.flatnonzero(~inside)
+        run = inside[: leaves[0]] if leaves.size else inside
+        z_top = float(zs[: run.size][run].max()) if run.any() else (float(zs[inside].max()) if inside.any() else 0.0)
         z_top = min(z_top, door.height_mm)
         scale = pm.at_depth(face_y).scale_mm_per_px(np.zeros(2))
         return cls(posed, face_y, depth, door, (w, h), env.x_mm + margin_mm, env.z_mm + margin_mm,

@@ -1,0 +1,303 @@
+"""``check_model``: what the cell model gets wrong on a measured data set, its cause, the extended model, the gain.
+
+1. Locate every image with the given cell; pose errors = measured minus reference.
+2. Split off a held-out third (never used to fit or choose).
+3. On the training images: forward models of every catalogue effect (analytic through the camera model,
+   or by locating again for grey-level effects), forward selection by cross-validated error with an
+   F-test against the noise measured from the data; then a test for structure no catalogue entry explains.
+4. Extended cell = the given cell with the fitted values put in (with a ``provenance:`` section).
+5. Locate the held-out images with the extended cell: the held-out RMS before and after is the gain.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import math
+import os
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from doorloc import __version__
+from doorloc.cell import Cell, save_cell
+from doorloc.modelcheck.catalogue import CATALOGUE, Effect
+from doorloc.modelcheck.dataset import Dataset, DatasetError, MeasuredImage, read_dataset
+from doorloc.modelcheck.fit import (
+    FittedModel,
+    Predictor,
+    Selection,
+    SelectionRules,
+    fit_model,
+    select_effects,
+    structured_residual,
+)
+from doorloc.modelcheck.forward import (
+    COMPONENTS,
+    AnalyticModel,
+    Observation,
+    RelocateTable,
+    locate_errors,
+    observe,
+    relocate_grid,
+)
+
+__all__ = ["ModelCheckReport", "CheckOptions", "check_model", "EXTENDED_CELL_NAME", "LEVER_MM"]
+
+EXTENDED_CELL_NAME = "cell_extended.yaml"
+#: The combined pose error is that of a point this far up the door (mm): a hinge's lever on the yaw.
+LEVER_MM = 1000.0
+
+
+@dataclass(frozen=True)
+class CheckOptions:
+    """Settings of a model check.
+
+    Attributes
+    ----------
+    heldout_fraction : float
+        Share of the images kept out of every fit (at least 5 images).
+    seed : int
+        Seeds the held-out draw.
+    reference_noise : tuple of float
+        Noise floor of the reference measurement (x mm, z mm, yaw deg, thickness mm), 1 sigma, added in
+        quadrature to locate's own uncertainty to weight the pose components against each other.
+    rules : SelectionRules
+        Significance and held-out gain an effect needs, and how many effects at most.
+    folds : int
+        Cross-validation folds on the training images.
+    """
+
+    heldout_fraction: float = 0.3
+    seed: int = 0
+    reference_noise: tuple[float, float, float, float] = (0.002, 0.002, 0.0002, 0.002)
+    rules: SelectionRules = SelectionRules()
+    folds: int = 5
+
+
+@dataclass
+class ModelCheckReport:
+    """The outcome of :func:`check_model`; :meth:`to_dict` is ``report.json`` (SPEC section 8 fields and more)."""
+
+    dataset: str
+    cell: str
+    causes: list[str]
+    parameters: dict[str, dict[str, dict[str, float]]]
+    heldout_rms_before: dict[str, float]
+    heldout_rms_after: dict[str, float]
+    heldout_gain: float
+    heldout_images: list[str]
+    train_images: list[str]
+    extended_cell: str
+    alternatives: list[dict]
+    indistinguishable: dict[str, list[str]]
+    noise: dict[str, float]
+    selection_steps: list[dict]
+    unexplained_test: dict
+    refused: list[dict]
+    elapsed_s: float
+    heldout_refused_after: list[str] = field(default_factory=list)
+    plots: list[str] = field(default_factory=list)
+    # arrays for the plots (not in report.json)
+    observations: list[Observation] = field(default_factory=list, repr=False)
+    train_prediction: np.ndarray | None = field(default=None, repr=False)
+    train_rows: np.ndarray | None = field(default=None, repr=False)
+    heldout_rows: np.ndarray | None = field(default=None, repr=False)
+    heldout_after: np.ndarray | None = field(default=None, repr=False)
+
+    def to_dict(self) -> dict[str, Any]:
+        keys = ["dataset", "cell", "causes", "parameters", "heldout_rms_before", "heldout_rms_after", "heldout_gain",
+                "heldout_images", "train_images", "extended_cell", "alternatives", "indistinguishable", "noise",
+                "selection_steps", "unexplained_test", "refused", "heldout_refused_after", "elapsed_s", "plots"]
+        doc = {k: getattr(self, k) for k in keys}
+        doc["version"] = __version__
+        doc["gain_definition"] = (f"RMS over held-out images of the error of a point {LEVER_MM:g} mm up the door "
+                                  "(corner x, z and yaw), before / after")
+        return _jsonable(doc)
+
+
+def _jsonable(v: Any) -> Any:
+    if isinstance(v, dict):
+        return {str(k): _jsonable(x) for k, x in v.items()}
+    if isinstance(v, list | tuple):
+        return [_jsonable(x) for x in v]
+    if isinstance(v, np.ndarray):
+        return _jsonable(v.tolist())
+    if isinstance(v, np.floating | float):
+        f = float(v)
+        return f if math.isfinite(f) else None
+    if isinstance(v, np.integer):
+        return int(v)
+    if isinstance(v, np.bool_):
+        return bool(v)
+    return v
+
+
+def _read_image(item: MeasuredImage) -> np.ndarray:
+    from doorloc.vision.imageio import ImageDecodeError, read_image
+
+    try:
+        return read_image(item.path)
+    except ImageDecodeError as e:
+        raise DatasetError(f"{item.image}: {e}") from None
+
+
+def _rms(errors: np.ndarray) -> dict[str, float]:
+    out = {}
+    for k, c in enumerate(COMPONENTS):
+        col = errors[:, k]
+        col = col[np.isfinite(col)]
+        out[c] = float(np.sqrt(np.mean(col ** 2))) if col.size else float("nan")
+    return out
+
+
+def _lever_rms(errors: np.ndarray) -> float:
+    e = np.sqrt(errors[:, 0] ** 2 + errors[:, 1] ** 2 + (LEVER_MM * np.radians(errors[:, 2])) ** 2)
+    e = e[np.isfinite(e)]
+    return float(np.sqrt(np.mean(e ** 2))) if e.size else float("nan")
+
+
+def _features(obs: Sequence[Observation], cell: Cell) -> np.ndarray:
+    """Per image: reference pose, door size and corner pixel, scaled to about unit range."""
+    env = cell.envelope
+    cx, cy = cell.camera.cx, cell.camera.cy
+    return np.array([[o.item.reference.x_mm / env.x_mm, o.item.reference.z_mm / env.z_mm,
+                      o.item.reference.yaw_deg / env.yaw_deg, (o.item.door.width_mm - 900.0) / 200.0,
+                      (o.item.door.thickness_mm - 50.0) / 20.0, (o.corner_px[0] - cx) / 500.0,
+                      (o.corner_px[1] - cy) / 500.0] for o in obs])
+
+
+def _split(n: int, fraction: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng([seed, 777])
+    perm = rng.permutation(n)
+    n_held = max(5, int(round(fraction * n)))
+    return np.sort(perm[n_held:]), np.sort(perm[:n_held])
+
+
+def _parameters(model: FittedModel) -> dict[str, dict[str, dict[str, float]]]:
+    out = {}
+    for e, v, s in zip(model.effects, model.values, model.sigmas, strict=True):
+        out[e.name] = {p: {"value": float(v[i]), "sigma": float(s[i])} for i, p in enumerate(e.params)}
+    return out
+
+
+def _extended_cell(cell: Cell, model: FittedModel, dataset: Dataset, causes: list[str]) -> Cell:
+    ext = cell
+    for e, v in zip(model.effects, model.values, strict=True):
+        ext = e.apply(ext, v)
+    prov = dict(cell.provenance)
+    prov["model_check"] = {
+        "dataset": str(dataset.folder),
+        "date": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+        "doorloc_version": __version__,
+        "base_cell": cell.source,
+        "base_cell_sha256": cell.sha256,
+        "causes": list(causes),
+        "parameters": _jsonable(_parameters(model)),
+        "lives_in": {e.name: e.lives_in for e in model.effects},
+    }
+    return replace(ext, provenance=prov)
+
+
+def check_model(dataset_dir: str | os.PathLike, cell: Cell, out_dir: str | os.PathLike, *,
+                options: CheckOptions = CheckOptions(), catalogue: Sequence[Effect] = CATALOGUE,
+                progress: Callable[[str], None] | None = None, write: bool = True) -> ModelCheckReport:
+    """Check ``cell`` against the data set in ``dataset_dir``; write the report and extended cell to ``out_dir``.
+
+    Raises
+    ------
+    DatasetError
+        The data set cannot be used (no truth.csv, missing images, too few images or too few located).
+    """
+    t0 = time.perf_counter()
+    say = progress or (lambda _m: None)
+    ds = read_dataset(dataset_dir, cell)
+    measured_arris = _has_arris_column(ds)
+    say(f"locating {len(ds)} images with the given cell")
+    obs_all = observe(ds.images, cell, measured_arris, _read_image)
+    refused = [{"image": o.item.image, "error": o.refusal} for o in obs_all if not o.ok]
+    obs = [o for o in obs_all if o.ok]
+    if len(obs) < 12:
+        raise DatasetError(f"locate answered on only {len(obs)} of {len(ds)} images with this cell "
+                           f"(first refusal: {refused[0]['error'] if refused else '-'}); the cell is too far from "
+                           "the images for a model check: check the camera and extrinsics first")
+    errors = np.array([o.error for o in obs])
+    sig_locate = np.nanmedian(np.array([o.sigma for o in obs]), axis=0)
+    noise = np.sqrt(np.nan_to_num(sig_locate) ** 2 + np.asarray(options.reference_noise) ** 2)
+    train, held = _split(len(obs), options.heldout_fraction, options.seed)
+    train_obs = [obs[k] for k in train]
+    # the training images get their own index space 0..len(train)-1 in the forward models
+    say(f"forward models on {len(train)} training images ({len(held)} held out)")
+    analytic = AnalyticModel(train_obs, cell, measured_arris)
+    tables = {}
+    for e in catalogue:
+        if e.forward == "relocate":
+            say(f"locating the training images again for {e.name}")
+            tables[e.name] = RelocateTable(e, train_obs, cell, measured_arris, relocate_grid(e, cell))
+    pred = Predictor(analytic, tables)
+    etr = errors[train]
+    rows = np.arange(len(train))
+    say("fitting and selecting effects")
+    sel: Selection = select_effects(pred, catalogue, etr, noise, rows, options.rules, options.folds)
+    model = fit_model(pred, list(sel.chosen.effects), etr, noise, rows)
+    causes = list(model.names)
+    ptrain = pred.predict(list(model.effects), list(model.values), rows) if model.effects else np.zeros_like(etr)
+    resid = etr - ptrain
+    null_sse = float(np.nansum((etr / noise) ** 2))
+    un = structured_residual(resid, _features(train_obs, cell), noise, null_sse, folds=options.folds)
+    if un["structured"]:
+        causes.append("unexplained")
+    ext = _extended_cell(cell, model, ds, causes)
+    held_obs = [obs[k] for k in held]
+    before = errors[held]
+    say(f"locating the {len(held)} held-out images with the extended cell")
+    after = locate_errors(held_obs, ext, measured_arris) if model.effects else before.copy()
+    # an image the extended cell cannot locate counts against it, not as a free pass
+    refused_after = [o.item.image for o, row in zip(held_obs, after, strict=True) if not np.isfinite(row).all()]
+    g_before, g_after = _lever_rms(before), _lever_rms(after)
+    rep = ModelCheckReport(
+        dataset=str(ds.folder), cell=str(cell.source), causes=causes, parameters=_parameters(model),
+        heldout_rms_before=_rms(before), heldout_rms_after=_rms(after),
+        heldout_gain=g_before / g_after if g_after > 0 and not refused_after else float("nan"),
+        heldout_images=[o.item.image for o in held_obs], train_images=[o.item.image for o in train_obs],
+        extended_cell=EXTENDED_CELL_NAME, alternatives=sel.alternatives,
+        indistinguishable=_indistinguishable(sel, model), noise=dict(zip(COMPONENTS, noise.tolist(), strict=True)),
+        selection_steps=sel.steps, unexplained_test=un, refused=refused, elapsed_s=0.0,
+        heldout_refused_after=refused_after,
+        observations=obs, train_prediction=ptrain, train_rows=train, heldout_rows=held, heldout_after=after,
+    )
+    rep.heldout_rms_before["lever_mm"] = g_before
+    rep.heldout_rms_after["lever_mm"] = g_after
+    if write:
+        from doorloc.modelcheck.report import write_report
+
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        save_cell(ext, out / EXTENDED_CELL_NAME)
+        rep.elapsed_s = time.perf_counter() - t0
+        write_report(rep, out)
+    rep.elapsed_s = time.perf_counter() - t0
+    return rep
+
+
+def _has_arris_column(ds: Dataset) -> bool:
+    import csv
+
+    with (ds.folder / "truth.csv").open(newline="", encoding="utf-8") as f:
+        header = next(csv.reader(f), [])
+    return "arris_mm" in header
+
+
+def _indistinguishable(sel: Selection, model: FittedModel) -> dict[str, list[str]]:
+    """Per cause: what these data cannot tell it from (measured near-ties, and known look-alikes)."""
+    out: dict[str, list[str]] = {}
+    for e in model.effects:
+        names = list(sel.indistinguishable.get(e.name, []))
+        if e.looks_like:
+            names.append(e.looks_like)
+        if names:
+            out[e.name] = names
+    return out

@@ -1,0 +1,257 @@
+"""Forward models: the pose error each image would show if the world had an effect the cell lacks.
+
+Every image is located once with the nominal cell (:func:`observe`): its measured pose, the stretch of
+each edge it saw and the edge points' residuals. Then, for candidate effect values:
+
+- **analytic** (:class:`AnalyticModel`): the true door (reference pose, width, thickness) is projected
+  through the *perturbed* cell to pixels and back-projected through the *nominal* cell onto the
+  hinge-face plane, where the same joint line fit as locate's gives the pose the nominal model would
+  report; minus the reference pose, that is the predicted error. No rendering, a fraction of a
+  millisecond per image.
+- **relocate** (:class:`RelocateTable`): effects on the grey levels (arris, camera response) have no
+  clean geometric signature (the edge shift depends on lighting, blur and view), so the images are located
+  again with the cell holding candidate values on a grid; the predicted error at any value is
+  interpolated between grid points.
+
+Pose errors are rows ``(x_mm, z_mm, yaw_deg, thickness_mm)``: measured minus reference.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.interpolate import PchipInterpolator
+
+from doorloc.cell import Cell, DoorSize
+from doorloc.modelcheck.catalogue import Effect, Values
+from doorloc.modelcheck.dataset import MeasuredImage
+from doorloc.pose import DoorPose
+from doorloc.vision.lines import fit_rectangle_edges
+from doorloc.vision.locate import LocateTrace, locate
+from doorloc.vision.metric import PlaneMap
+from doorloc.vision.region import EDGE_NAMES
+
+__all__ = ["COMPONENTS", "Observation", "observe", "locate_errors", "AnalyticModel", "RelocateTable", "door_for"]
+
+#: The pose-error components, in the order of every error row.
+COMPONENTS = ("x_mm", "z_mm", "yaw_deg", "thickness_mm")
+_N_EDGE = 24  # model points per edge: the line fit of straight, smooth edges needs few
+
+
+def door_for(item: MeasuredImage, cell: Cell, measured_arris: bool) -> DoorSize:
+    """The door to locate ``item`` with under ``cell``: its measured size, and its arris unless the data
+    set measured none (then the cell's default door's arris, where it fits)."""
+    d = item.door
+    if measured_arris:
+        return d
+    a = cell.default_door.arris_mm
+    return DoorSize(d.width_mm, d.thickness_mm, d.height_mm, a if a < d.thickness_mm / 2 else 0.0,
+                    cell.default_door.arris_profile)
+
+
+@dataclass
+class Observation:
+    """One image located with the nominal cell.
+
+    Attributes
+    ----------
+    item : MeasuredImage
+    image : ndarray or None
+        The grey levels (kept for relocation).
+    ok : bool
+        Whether locate answered; ``refusal`` says why not.
+    error : ndarray (4,)
+        Measured minus reference pose (:data:`COMPONENTS`).
+    sigma : ndarray (4,)
+        Locate's own 1-sigma uncertainty of the measured values.
+    ranges : dict
+        Per edge, the stretch seen along it (door-frame mm: px for the bottom end, pz for the arrises).
+    edge_uv, edge_residual_mm : ndarray
+        Inlier edge points (pixels) and their distance from the fitted lines (mm), for the plots.
+    """
+
+    item: MeasuredImage
+    image: np.ndarray | None
+    ok: bool
+    refusal: str
+    error: np.ndarray
+    sigma: np.ndarray
+    corner_px: np.ndarray
+    ranges: dict[str, tuple[float, float]]
+    edge_uv: np.ndarray
+    edge_residual_mm: np.ndarray
+
+
+def _pose_row(r, ref: DoorPose, door: DoorSize) -> np.ndarray:
+    return np.array([r.x_mm - ref.x_mm, r.z_mm - ref.z_mm, r.yaw_deg - ref.yaw_deg, r.thickness_mm - door.thickness_mm])
+
+
+def observe(items: Sequence[MeasuredImage], cell: Cell, measured_arris: bool,
+            read: Callable[[MeasuredImage], np.ndarray], keep_images: bool = True) -> list[Observation]:
+    """Locate every image with ``cell`` and keep what the forward models need (see :class:`Observation`)."""
+    out = []
+    for it in items:
+        img = read(it)
+        door = door_for(it, cell, measured_arris)
+        tr = LocateTrace()
+        r = locate(img, cell, door, image_name=it.image, trace=tr)
+        nan4 = np.full(4, np.nan)
+        if not r.ok or tr.region is None or tr.pose is None:
+            out.append(Observation(it, img if keep_images else None, False, r.error or "", nan4, nan4,
+                                   np.full(2, np.nan), {}, np.zeros((0, 2)), np.zeros(0)))
+            continue
+        err = _pose_row(r, it.reference, door)
+        unc = r.uncertainty
+        t_sig = float(r.diagnostics.get("thickness_check", {}).get("sigma_mm", np.nan))
+        sig = np.array([unc.x_mm, unc.z_mm, unc.yaw_deg, t_sig]) if unc is not None else nan4
+        p = tr.pose
+        c, s = math.cos(math.radians(p.yaw_deg)), math.sin(math.radians(p.yaw_deg))
+        ranges, uvs, res = {}, [], []
+        for name in EDGE_NAMES:
+            smp = tr.samples[name]
+            keep = tr.inliers[name] & smp.valid
+            uv = smp.uv()[keep]
+            xz = tr.region.plane_points(uv)
+            dX, dZ = xz[:, 0] - p.x_mm, xz[:, 1] - p.z_mm
+            px, pz = c * dX + s * dZ, -s * dX + c * dZ
+            along, across = (px, pz) if name == "bottom" else (pz, px - (p.thickness_mm if name == "far" else 0.0))
+            fin = np.isfinite(along)
+            if fin.sum() >= 2:
+                ranges[name] = (float(np.percentile(along[fin], 2)), float(np.percentile(along[fin], 98)))
+            uvs.append(uv[fin][::4])
+            res.append(across[fin][::4])
+        out.append(Observation(it, img if keep_images else None, True, "", err, sig, np.asarray(r.corner_px, float),
+                               ranges, np.concatenate(uvs), np.concatenate(res)))
+    return out
+
+
+def locate_errors(obs: Sequence[Observation], cell: Cell, measured_arris: bool) -> np.ndarray:
+    """Locate the kept images again with ``cell``: error rows ``(n, 4)`` (NaN where refused)."""
+    rows = np.full((len(obs), 4), np.nan)
+    for k, o in enumerate(obs):
+        if o.image is None:
+            continue
+        door = door_for(o.item, cell, measured_arris)
+        r = locate(o.image, cell, door, image_name=o.item.image)
+        if r.ok:
+            rows[k] = _pose_row(r, o.item.reference, door)
+    return rows
+
+
+@dataclass(frozen=True)
+class _Geometry:
+    """One image's door points (door frame, on the hinge face) for the analytic model."""
+
+    door: DoorSize
+    pose: DoorPose
+    pts: dict[str, np.ndarray]  # name -> (N, 2) door-frame (px, pz)
+
+
+def _geometry(o: Observation, door: DoorSize) -> _Geometry:
+    T = door.thickness_mm
+    default = {"bottom": (0.05 * T, 0.95 * T), "reference": (1.0, 60.0), "far": (1.0, 60.0)}
+    pts = {}
+    for name in EDGE_NAMES:
+        lo, hi = o.ranges.get(name, default[name])
+        a = np.linspace(lo, hi, _N_EDGE)
+        if name == "bottom":
+            pts[name] = np.stack([a, np.zeros_like(a)], 1)
+        else:
+            pts[name] = np.stack([np.full_like(a, 0.0 if name == "reference" else T), a], 1)
+    return _Geometry(door, o.item.reference, pts)
+
+
+def _seen_pose(true_cell: Cell, nominal_cell: Cell, g: _Geometry, nominal_map: PlaneMap) -> np.ndarray:
+    """The pose (x, z, yaw, thickness) the nominal cell reports for the door at ``g.pose`` in ``true_cell``'s world."""
+    depth = true_cell.fixture.face_y(g.door.width_mm) + g.door.arris_mm
+    true_map = PlaneMap(true_cell.posed_camera, depth)
+    c, s = math.cos(g.pose.yaw_rad), math.sin(g.pose.yaw_rad)
+    groups = {}
+    for name in EDGE_NAMES:
+        px, pz = g.pts[name][:, 0], g.pts[name][:, 1]
+        xz = np.stack([g.pose.x_mm + px * c - pz * s, g.pose.z_mm + px * s + pz * c], 1)
+        seen = nominal_map.to_plane(true_map.to_image(xz))
+        if not np.isfinite(seen).all():
+            return np.full(4, np.nan)
+        groups[name] = (seen, name == "bottom")
+    fit = fit_rectangle_edges(groups, n_iter=1)
+    t = fit.angle_rad
+    ct, st = math.cos(t), math.sin(t)
+    cr, cb = fit.offsets["reference"], fit.offsets["bottom"]
+    return np.array([ct * cr - st * cb, st * cr + ct * cb, math.degrees(t), fit.offsets["far"] - cr])
+
+
+class AnalyticModel:
+    """Predicted pose errors of a set of observations for analytic effects, through the camera model.
+
+    ``predict(effects, values)`` applies every effect's values to the nominal cell at once (they compose
+    physically) and returns error rows ``(n, 4)`` for the observations given at construction.
+    """
+
+    def __init__(self, obs: Sequence[Observation], nominal: Cell, measured_arris: bool) -> None:
+        self.nominal = nominal
+        self.geom = [_geometry(o, door_for(o.item, nominal, measured_arris)) for o in obs]
+        self.maps = [PlaneMap(nominal.posed_camera, nominal.fixture.face_y(g.door.width_mm) + g.door.arris_mm)
+                     for g in self.geom]
+        self.base = np.array([_seen_pose(nominal, nominal, g, m) for g, m in zip(self.geom, self.maps, strict=True)])
+
+    def predict(self, effects: Sequence[Effect], values: Sequence[Values],
+                rows: np.ndarray | None = None) -> np.ndarray:
+        cell = self.nominal
+        for e, v in zip(effects, values, strict=True):
+            cell = e.apply(cell, v)
+        idx = np.arange(len(self.geom)) if rows is None else rows
+        out = np.array([_seen_pose(cell, self.nominal, self.geom[k], self.maps[k]) for k in idx]).reshape(-1, 4)
+        return out - self.base[idx]
+
+
+class RelocateTable:
+    """Predicted pose errors for one grey-level effect, from locating the images again on a grid of values.
+
+    The prediction at value ``v`` is ``error(nominal) - error(v)`` (what the candidate model would take
+    away), interpolated monotonically (PCHIP) between grid values; a refusal at a grid value is bridged
+    from its neighbours.
+    """
+
+    def __init__(self, effect: Effect, obs: Sequence[Observation], nominal: Cell, measured_arris: bool,
+                 grid: Sequence[float]) -> None:
+        self.effect = effect
+        self.grid = np.asarray(sorted(grid), float)
+        base = np.array([o.error for o in obs])
+        tab = []
+        for v in self.grid:
+            cell = effect.apply(nominal, [v])
+            tab.append(base - locate_errors(obs, cell, measured_arris))
+        T = np.array(tab)  # (grid, n, 4)
+        for k in range(T.shape[1]):
+            for c in range(4):
+                col = T[:, k, c]
+                bad = ~np.isfinite(col)
+                if bad.all():
+                    col[:] = 0.0
+                elif bad.any():
+                    col[bad] = np.interp(self.grid[bad], self.grid[~bad], col[~bad])
+        self.table = T
+        self._interp = PchipInterpolator(self.grid, T, axis=0, extrapolate=False)
+
+    def predict(self, value: float, rows: np.ndarray | None = None) -> np.ndarray:
+        v = float(np.clip(value, self.grid[0], self.grid[-1]))
+        out = np.asarray(self._interp(v))
+        return out if rows is None else out[rows]
+
+
+def relocate_grid(effect: Effect, nominal: Cell) -> list[float]:
+    """The values to relocate at for a grey-level effect: arris offsets (mm, added to the nominal door's)
+    or response gammas around the nominal cell's own."""
+    if effect.name == "arris":
+        return [0.0, 0.3, 0.6, 1.0, 1.5, 2.0, 3.0]
+    g0 = nominal.response_gamma
+    return sorted({round(g0 * f, 4) for f in (0.7, 0.85, 1.0, 1.25, 1.5, 1.8, 2.2, 2.6)})
+
+
+def with_default_arris(cell: Cell, arris_mm: float) -> Cell:
+    d = cell.default_door
+    return replace(cell, default_door=DoorSize(d.width_mm, d.thickness_mm, d.height_mm, arris_mm, d.arris_profile))

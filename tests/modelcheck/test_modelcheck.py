@@ -1,0 +1,138 @@
+"""check-model on rendered measured sets: a hidden effect is named and fixed, a control answers [].
+
+The hidden effect is drawn at random from the catalogue on every run; the seed is printed. Replay a run
+with ``DOORLOC_MODELCHECK_SEED=<seed>``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import secrets
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from doorloc.app.cli import app
+from doorloc.cell import load_cell
+from doorloc.modelcheck import check_model
+from doorloc.modelcheck.dataset import read_dataset
+from doorloc.modelcheck.forward import door_for
+from doorloc.modelcheck.synth import SetSpec, draw_hidden_effect, render_measured_set
+from doorloc.vision.imageio import read_image
+from doorloc.vision.locate import locate
+
+SPEC_FIELDS = {"causes", "parameters", "heldout_rms_before", "heldout_rms_after", "heldout_images", "extended_cell",
+               "alternatives"}
+
+
+@pytest.fixture(scope="module")
+def nominal(thesis_cell_path):
+    return load_cell(thesis_cell_path)
+
+
+@pytest.fixture(scope="module")
+def hidden_seed() -> int:
+    env = os.environ.get("DOORLOC_MODELCHECK_SEED")
+    seed = int(env) if env else secrets.randbelow(1_000_000)
+    print(f"\nhidden-effect seed: {seed} (replay with DOORLOC_MODELCHECK_SEED={seed})")
+    return seed
+
+
+def _heldout_rms(report_dir, dataset_dir, cell, images) -> np.ndarray:
+    """RMS (x, z, yaw) of the held-out images located with ``cell``, the way production would."""
+    ds = read_dataset(dataset_dir, cell)
+    errs = []
+    for it in ds.images:
+        if it.image not in images:
+            continue
+        door = door_for(it, cell, measured_arris=False)
+        r = locate(read_image(it.path), cell, door)
+        assert r.ok, r.error
+        errs.append([r.x_mm - it.reference.x_mm, r.z_mm - it.reference.z_mm, r.yaw_deg - it.reference.yaw_deg])
+    return np.sqrt(np.mean(np.square(errs), axis=0))
+
+
+def test_hidden_effect_is_named_and_the_extended_cell_fixes_it(tmp_path_factory, nominal, thesis_cell_path,
+                                                               hidden_seed):
+    rng = np.random.default_rng(hidden_seed)
+    name, values = draw_hidden_effect(rng)
+    print(f"hidden effect: {name} = {values}")
+    data = tmp_path_factory.mktemp("hidden")
+    render_measured_set(data, nominal, {name: values}, SetSpec(n_images=40, seed=hidden_seed))
+    out = tmp_path_factory.mktemp("report")
+    res = CliRunner().invoke(app, ["check-model", str(data), "--cell", str(thesis_cell_path), "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    rep = json.loads((out / "report.json").read_text())
+    assert SPEC_FIELDS <= set(rep)
+    print(f"named: {rep['causes']}, gain {rep['heldout_gain']:.1f}x")
+    # The right name first (the cause that explains most); with today's locate an arris's fit can leave
+    # enough behind for a second, smaller cause (the benchmark counts that as a miss).
+    assert rep["causes"] and rep["causes"][0] == name, \
+        f"hidden {name} = {values}, named {rep['causes']} (seed {hidden_seed})"
+    assert len(rep["causes"]) == 1 or name == "arris", rep["causes"]
+    assert rep["heldout_gain"] >= 5.0
+    assert name in rep["parameters"]
+    assert not set(rep["heldout_images"]) & set(rep["train_images"])
+    # The gain is real only if production uses it: the extended cell file, loaded like any cell file.
+    ext = load_cell(out / rep["extended_cell"])
+    assert ext.provenance["model_check"]["causes"] == rep["causes"]
+    before = _heldout_rms(out, data, nominal, rep["heldout_images"])
+    after = _heldout_rms(out, data, ext, rep["heldout_images"])
+    lever = lambda e: float(np.hypot(np.hypot(e[0], e[1]), 1000 * np.radians(e[2])))  # noqa: E731
+    assert lever(after) * 5 <= lever(before), (before, after)
+    for p in ("residuals.png", "edge_residuals.png", "heldout.png", "report.md"):
+        assert (out / p).is_file()
+    # and the command line reads it like any cell file
+    item = next(it for it in read_dataset(data, nominal).images if it.image == rep["heldout_images"][0])
+    res = CliRunner().invoke(app, ["locate", str(item.path), "--cell", str(out / rep["extended_cell"]), "--door-width",
+                                   str(item.door.width_mm), "--door-thickness", str(item.door.thickness_mm)])
+    assert res.exit_code == 0, res.output
+    got = json.loads(res.output)
+    assert got["provenance"]["cell_sha256"] == ext.sha256
+
+
+def test_control_without_effect_answers_no_cause(tmp_path_factory, nominal):
+    data = tmp_path_factory.mktemp("control")
+    render_measured_set(data, nominal, {}, SetSpec(n_images=40, seed=11))
+    out = tmp_path_factory.mktemp("control_report")
+    rep = check_model(data, nominal, out)
+    assert rep.causes == [], rep.selection_steps
+    assert rep.heldout_rms_after == rep.heldout_rms_before
+    assert load_cell(out / "cell_extended.yaml").provenance["model_check"]["causes"] == []
+
+
+def test_bad_data_sets_exit_2_with_a_sentence(tmp_path, thesis_cell_path, nominal):
+    runner = CliRunner()
+    args = ["--cell", str(thesis_cell_path), "--out", str(tmp_path / "rep")]
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    r = runner.invoke(app, ["check-model", str(empty), *args])
+    assert r.exit_code == 2 and "truth.csv" in r.output
+    few = tmp_path / "few"
+    render_measured_set(few, nominal, {}, SetSpec(n_images=3, seed=1))
+    r = runner.invoke(app, ["check-model", str(few), *args])
+    assert r.exit_code == 2 and "at least" in r.output
+    (few / "img_001.png").unlink()
+    r = runner.invoke(app, ["check-model", str(few), *args])
+    assert r.exit_code == 2 and "img_001.png" in r.output
+    (few / "truth.csv").write_text("image,x_mm\nimg_000.png,1\n")
+    r = runner.invoke(app, ["check-model", str(few), *args])
+    assert r.exit_code == 2 and "lacks column" in r.output
+    assert not (tmp_path / "rep" / "report.json").exists()
+
+
+def test_an_effect_outside_the_catalogue_is_unexplained(tmp_path_factory, nominal):
+    # a decentred lens (tangential distortion p1, p2): no catalogue entry makes its signature
+    from dataclasses import replace
+
+    from doorloc.calib.camera import CameraModel
+
+    cam = nominal.camera
+    true = replace(nominal, camera=CameraModel(cam.camera_matrix, np.array([0, 0, 0.004, -0.003, 0.0]), cam.image_size))
+    data = tmp_path_factory.mktemp("tangential")
+    render_measured_set(data, true, {}, SetSpec(n_images=30, seed=5))
+    rep = check_model(data, nominal, tmp_path_factory.mktemp("tangential_report"))
+    assert rep.causes == ["unexplained"], rep.selection_steps
+    assert rep.unexplained_test["structured"]
