@@ -528,19 +528,26 @@ def run_ray(
             ray.shutdown()
 
 
-def _decode(item: BatchItem) -> Any:
-    """The item's image, or the record saying why there is none (runs in a decoding worker)."""
-    from doorloc.vision.imageio import ImageDecodeError, read_image
+def _decode(item: BatchItem, cell: Cell, limits: FileLimits) -> Any:
+    """The item's image, or the record saying why there is none (runs in a decoding worker).
+
+    The same file checks as :func:`locate_item` (no waiting on special files, no decoding past the limits).
+    """
+    from doorloc.vision.imageio import ImageDecodeError, decode_image
 
     if item.problem is not None:
-        return _failed(item, "bad_job_row", item.problem)
+        return _failed(item, "bad_job_row", item.problem, cell)
+    data, code, why = read_file_checked(item.path, limits)
+    if data is None:
+        return _failed(item, code, why, cell)
     try:
-        return read_image(item.path)
+        return decode_image(data, name=item.path)
     except ImageDecodeError as e:
-        return _failed(item, "unreadable_image", str(e))
+        return _failed(item, "unreadable_image", str(e), cell)
 
 
-def run_batched(items: list[BatchItem], cell: Cell, *, device: str, batch_size: int, workers: int) -> Iterator[dict[str, Any]]:
+def run_batched(items: list[BatchItem], cell: Cell, *, device: str, batch_size: int, workers: int,
+                limits: FileLimits | None = None) -> Iterator[dict[str, Any]]:
     """The local job with locate batched on torch (:mod:`doorloc.vision.batched`, the doorloc torch extra).
 
     ``workers`` processes decode the images (the next batch while this one is located); each batch of
@@ -550,15 +557,18 @@ def run_batched(items: list[BatchItem], cell: Cell, *, device: str, batch_size: 
     from doorloc.vision.batched import locate_batch, resolve_device
 
     dev = resolve_device(device)
+    limits = limits or FileLimits()
     _configure_opencv()
     chunks = [items[i:i + batch_size] for i in range(0, len(items), max(1, batch_size))]
-    pool = ProcessPoolExecutor(workers, mp_context=get_context("spawn"), initializer=_configure_opencv) if workers > 1 else None
+    # decoding workers die with the batch process, as run_local's do (_worker_init)
+    pool = (ProcessPoolExecutor(workers, mp_context=get_context("spawn"), initializer=_worker_init,
+                                initargs=(os.getpid(),)) if workers > 1 else None)
     try:
-        ahead = [pool.submit(_decode, it) for it in chunks[0]] if pool and chunks else []
+        ahead = [pool.submit(_decode, it, cell, limits) for it in chunks[0]] if pool and chunks else []
         for n, chunk in enumerate(chunks):
-            decoded = [f.result() for f in ahead] if pool else [_decode(it) for it in chunk]
+            decoded = [f.result() for f in ahead] if pool else [_decode(it, cell, limits) for it in chunk]
             if pool and n + 1 < len(chunks):
-                ahead = [pool.submit(_decode, it) for it in chunks[n + 1]]
+                ahead = [pool.submit(_decode, it, cell, limits) for it in chunks[n + 1]]
             ok = [(it, img) for it, img in zip(chunk, decoded, strict=True) if not isinstance(img, dict)]
             yield from (rec for rec in decoded if isinstance(rec, dict))
             answers = locate_batch([img for _, img in ok], cell, [it.choice.door for it, _ in ok],
@@ -570,7 +580,8 @@ def run_batched(items: list[BatchItem], cell: Cell, *, device: str, batch_size: 
                     fields = answer_image(img, cell, it.choice, image_name=it.image,
                                           locate_fn=lambda *_, _r=a.result, **__: _r).fields
                 except Exception as e:  # noqa: BLE001 - as locate_item: one bad image must not end the run
-                    yield _failed(it, "internal_error", f"locate failed on this image ({type(e).__name__}: {e}); please report it")
+                    yield _failed(it, "internal_error", f"locate failed on this image ({type(e).__name__}: {e}); please report it",
+                                  cell)
                     continue
                 fields["status"] = ANSWERED if fields["ok"] else REFUSED
                 yield fields
