@@ -1,9 +1,12 @@
 # doorloc HTTP service. Build: docker build -t doorloc .
 # Run:   docker run -p 8000:8000 -v /path/to/cell:/etc/doorloc:ro -v doorloc-data:/var/lib/doorloc doorloc
 # The cell file (and the calibration it names) is mounted read-only; the recipe database (SQLite by
-# default) lives on a volume. Set DOORLOC_DATABASE_URL for PostgreSQL and DOORLOC_API_KEY to require a key.
+# default) lives on a volume. Set DOORLOC_DATABASE_URL for PostgreSQL. The service listens on 0.0.0.0, which
+# `doorloc serve` allows only with API keys: create them in the database volume (`doorloc keys create --role
+# operator|engineer|metrics NAME`) or pass one engineer key as a secret in DOORLOC_API_KEY; without keys
+# the container exits with that sentence. TLS: a reverse proxy in front (docs/deploy.md).
 # Versions come from the lock (requirements/lock-service-py311.txt, the same versions as CI's lock);
-# torch/kornia are not in it: the service does not need them.
+# torch is not in it: the service does not need it.
 # No container engine runs on the development machines: scripts/ci/container_check.py (run by .ci/run)
 # performs this file's install, CMD and HEALTHCHECK outside a container, so the file cannot silently rot.
 

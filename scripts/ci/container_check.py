@@ -230,6 +230,9 @@ def replay_runtime(runtime: Stage, venv: Path, scratch: Path) -> None:
     )
 
     port = free_port()
+    # The image's CMD listens on 0.0.0.0, which `serve` allows only with API keys: run it as the Dockerfile
+    # says a container is run (with DOORLOC_API_KEY set), on loopback here.
+    env["DOORLOC_API_KEY"] = "container-check-key"
     cmd = json.loads(runtime.all("CMD")[-1]) + [
         "--host",
         "127.0.0.1",

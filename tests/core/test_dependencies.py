@@ -32,8 +32,6 @@ NOT_IMPORTED = {
     "ruff": "a command-line tool (lint and format check in CI)",
     "mypy": "a command-line tool (type check in CI)",
     "pyright": "a command-line tool (type check in CI)",
-    "torch": "the `torch` extra is reserved for features to come; locked apart, installed by scripts/setup --torch",
-    "kornia": "the `torch` extra is reserved for features to come; locked apart, installed by scripts/setup --torch",
 }
 
 

@@ -242,7 +242,7 @@ def _opencv_round_trips_name(path: Path, name: str) -> bool:
     fs.release()
     try:
         fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
-    except cv2.error:
+    except (cv2.error, SystemError):  # OpenCV 5's binding sometimes reports its parse error as SystemError
         return False
     back = fs.getNode("camera_name").string()
     fs.release()

@@ -123,6 +123,9 @@ def parse_calibration(text: str, source: str = "<calibration>") -> CalibrationFi
         loader = _OpenCVLoader
         if lines[0].startswith("%YAML:"):
             lines = lines[1:]
+        # OpenCV escapes a single quote inside its double-quoted strings as \' , an escape YAML does not
+        # have (PyYAML refuses it); OpenCV writes no other backslash-quote pair.
+        lines = [ln.replace("\\'", "'") for ln in lines]
     # OpenCV writes "!!opencv-matrix"; PyYAML resolves "!!x" to "tag:yaml.org,2002:x".
     try:
         doc = yaml.load("\n".join(lines), Loader=loader)  # both loaders are SafeLoaders
