@@ -55,7 +55,7 @@ from doorloc.vision.lines import ImageLine, RectangleFit, fit_rectangle_edges, r
 from doorloc.vision.luminance import ImageFormatError, luminance_plane
 from doorloc.vision.metric import MetricPose, pose_from_fit
 from doorloc.vision.region import EDGE_NAMES, Band, SearchRegion
-from doorloc.vision.response import RESPONSE_DOUBT_FACTOR, response_skew_px
+from doorloc.vision.response import response_doubt_px
 from doorloc.vision.result import LineQuality, LocateResult, PhysicalModel, PoseUncertainty, Provenance
 from doorloc.vision.uncertainty import (
     EDGE_MODEL_FLOOR_PX,
@@ -68,6 +68,10 @@ from doorloc.vision.uncertainty import (
 )
 
 __all__ = ["LocateConfig", "locate", "LocateTrace"]
+
+#: plateau samples of the arris strip's profile fit, px (the face's level beside the strip pins the strip's
+#: brightness: it needs wider plateaus than the plain step's)
+ARRIS_PLATEAU_PX = 4
 
 #: the final pass fits a blurred step (LocateConfig.step_fit) only above this optical blur, px
 STEP_FIT_MIN_BLUR_PX = 0.5
@@ -154,6 +158,11 @@ def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half:
     door = region.door
     geoms = (arris_geometry(door.arris_mm, door.arris_profile, region.plane_map.centre, pose.corner, pose.yaw_deg,
                             region.face_y, pose.thickness_mm) if door.arris_mm > 0 else None)
+    if geoms:
+        # Near a corner the other edge's arris strip (about the arris wide from the sharp corner) crosses
+        # the scan lines: the strip's profile fit would see two strips there and misfit. Keep its width
+        # (and the strip fit's wider plateaus) clear of the corners.
+        keep = half + max(cfg.plateau, ARRIS_PLATEAU_PX) + 4 + int(math.ceil(door.arris_mm / region.nominal_scale))
     tracks = region.tracks(pose.corner, yaw_rad, pose.thickness_mm, keep, window_px=half + cfg.plateau + 2,
                            arris=geoms)
     out = {}
@@ -184,7 +193,7 @@ def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half:
                 # The strip's profile fit needs plateaus wider than the plain step's (the face's level
                 # beside the strip pins the strip's brightness).
                 smp, strip = arris_edges(plane, lay.axis, scan, centre, half, band, interior, geoms[name],
-                                         max(cfg.plateau, 4), scale8, lut=lut, blur0=blur0, search=every > 1)
+                                         max(cfg.plateau, ARRIS_PLATEAU_PX), scale8, lut=lut, blur0=blur0, search=every > 1)
                 out[name] = replace(smp, along=smp.along + t.outline_shift_px[::every])
                 if arris_fits is not None and strip is not None:
                     arris_fits[name] = (strip, float(np.median(band)))
@@ -555,9 +564,11 @@ def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, ha
                 "offset_px": round(strip.offset_px, 4)}
         elif not (k == "far" and far_beside) and _response_check_applies(samples[k], inl, model.blur_px):
             # A plain step: is its transition symmetric in linear light (is the camera response right)?
-            skew = response_skew_px(plane, samples[k], inl, half, linearizing_lut(plane.dtype, cell.response_gamma))
-            if np.isfinite(skew):
-                model.extra_px.setdefault(k, {})["response"] = RESPONSE_DOUBT_FACTOR * abs(skew)
+            doubt, skew, se = response_doubt_px(plane, samples[k], inl, half,
+                                                linearizing_lut(plane.dtype, cell.response_gamma))
+            if np.isfinite(doubt):
+                model.extra_px.setdefault(k, {})["response"] = doubt
+                diagnostics.setdefault("response_skew_px", {})[k] = {"skew": round(skew, 4), "se": round(se, 4)}
     for k in EDGE_NAMES:
         s = samples[k]
         w = fit.weights[k]
