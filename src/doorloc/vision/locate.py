@@ -565,7 +565,7 @@ def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, ha
         elif not (k == "far" and far_beside) and _response_check_applies(samples[k], inl, model.blur_px):
             # A plain step: is its transition symmetric in linear light (is the camera response right)?
             doubt, skew, se = response_doubt_px(plane, samples[k], inl, half,
-                                                linearizing_lut(plane.dtype, cell.response_gamma))
+                                                linearizing_lut(plane.dtype, cell.response_gamma), model.blur_px)
             if np.isfinite(doubt):
                 model.extra_px.setdefault(k, {})["response"] = doubt
                 diagnostics.setdefault("response_skew_px", {})[k] = {"skew": round(skew, 4), "se": round(se, 4)}

@@ -15,7 +15,7 @@ import numpy as np
 
 from doorloc.vision.edges import EdgeSamples, _gather, oriented
 
-__all__ = ["RESPONSE_DOUBT_FACTOR", "RESPONSE_SKEW_BLOCKS", "response_doubt_px", "response_skew_px"]
+__all__ = ["RESPONSE_DOUBT_FACTOR", "RESPONSE_SKEW_BLOCKS", "quantization_skew_px", "response_doubt_px", "response_skew_px"]
 
 #: edge bias per px of skew: on rendered sets with a gamma 1.8-2.2 camera read as linear the area estimate was
 #: off by 10-21 times the skew (blur 0.6-1.5 px); the doubt reported is this multiple (it also inflates the
@@ -25,8 +25,24 @@ RESPONSE_DOUBT_FACTOR = 12.0
 RESPONSE_SKEW_BLOCKS = 8
 
 
+def quantization_skew_px(step_dn: float, noise_dn: float, blur_px: float) -> float:
+    """The skew (px) that rounding the grey levels can make on its own, 1 sigma.
+
+    Each plateau's level is rounded the same way on every scan line of an edge unless noise dithers it:
+    the residual rounding error of a level under Gaussian noise ``noise_dn`` is at most
+    ``exp(-2 pi^2 noise^2) / pi`` grey levels (the sawtooth's first Fourier term; 0.32 without noise,
+    negligible above half a grey level). The two plateaus' errors (``sqrt 2`` of one) move the normalised
+    transition's two tails by that much over the step, which moves its centre of mass against its 50 %
+    crossing by about the transition's width (``2 blur + 1`` px) times that fraction.
+    """
+    if not (np.isfinite(step_dn) and step_dn > 0):
+        return float("nan")
+    level_err = min(0.5, float(np.exp(-2.0 * np.pi**2 * max(noise_dn, 0.0) ** 2)) / np.pi)
+    return float(np.sqrt(2.0) * level_err / step_dn * (2.0 * max(blur_px, 0.0) + 1.0))
+
+
 def response_doubt_px(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half: int,
-                      lut: np.ndarray | None = None) -> tuple[float, float, float]:
+                      lut: np.ndarray | None = None, blur_px: float = 0.0) -> tuple[float, float, float]:
     """The edge doubt (px) that the response check adds to one line, with the skew and its standard error.
 
     Texture and shading beside the edge (wood grain, a gradient, vignetting, JPEG blocks) skew the mean
@@ -34,8 +50,10 @@ def response_doubt_px(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray,
     (and the texture's own bias is in the texture term). Its size is read from the skew's scatter over
     ``RESPONSE_SKEW_BLOCKS`` contiguous blocks of scan lines (contiguous: grain and shading vary slowly
     along the line), and only the skew beyond twice its standard error counts as the response's:
-    ``RESPONSE_DOUBT_FACTOR * max(|skew| - 2 se, 0)``. A wrong response on a clean edge (small scatter)
-    keeps nearly its full doubt.
+    ``RESPONSE_DOUBT_FACTOR * max(|skew| - 2 se, 0)``. The standard error also holds what rounding the
+    grey levels can skew (:func:`quantization_skew_px`: a noise-free 8-bit image shows a skew of ~0.004 px
+    on a linear camera, which no wrong response made). A wrong response on a clean edge (small scatter)
+    keeps nearly its full doubt. ``blur_px`` is the optical blur sigma (px).
 
     Returns
     -------
@@ -57,7 +75,8 @@ def response_doubt_px(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray,
     b = b[np.isfinite(b)]
     if b.size < 3:
         return nan, skew, nan
-    se = float(np.std(b, ddof=1) / np.sqrt(b.size))
+    quant = quantization_skew_px(*_plateau_step_and_noise(plane, samples, mask & samples.valid, half), blur_px)
+    se = float(np.hypot(np.std(b, ddof=1) / np.sqrt(b.size), quant if np.isfinite(quant) else 0.0))
     return RESPONSE_DOUBT_FACTOR * max(abs(skew) - 2.0 * se, 0.0), skew, se
 
 
@@ -106,3 +125,24 @@ def response_skew_px(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, 
     f = (0.5 - cum[k - 1]) / max(cum[k] - cum[k - 1], 1e-12)
     crossing = x[k - 1] + f * (x[k] - x[k - 1])
     return float(crossing - centre)
+
+
+def _plateau_step_and_noise(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray,
+                            half: int) -> tuple[float, float]:
+    """The step and the grey-level noise (raw grey levels) from the pixels just beyond the window.
+
+    The noise from the same pixel on neighbouring scan lines (the samples' own noise comes from plateaus
+    that may be one pixel wide; texture along the edge cancels in the difference, and texture across it
+    dithers the rounding as noise does).
+    """
+    if int(mask.sum()) < 3:
+        return float("nan"), 0.0
+    P = oriented(plane, samples.axis)
+    c0 = np.round(samples.along[mask]).astype(int)
+    vals, inside = _gather(P, samples.scan[mask], c0 - half - 1, 2 * half + 3)
+    ends = vals[inside.all(axis=1)][:, [0, -1]].astype(np.float64)
+    if ends.shape[0] < 3:
+        return float("nan"), 0.0
+    step = float(np.median(np.abs(ends[:, 1] - ends[:, 0])))
+    noise = float(1.4826 * np.median(np.abs(np.diff(ends, axis=0))) / np.sqrt(2.0))
+    return step, noise
