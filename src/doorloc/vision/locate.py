@@ -517,6 +517,30 @@ def _rows_across(plane, s8: float, ref: EdgeSamples, far: EdgeSamples) -> np.nda
     return P[lo:hi + 1, ref.scan[::8]].T.astype(np.float32) * s8
 
 
+#: contiguous blocks along a line over which its residuals' structure is read (:func:`_residual_structure_tilt`)
+RESIDUAL_BLOCKS = 4
+
+
+def _residual_structure_tilt(samples: EdgeSamples, residual_px: np.ndarray, inliers: np.ndarray) -> float:
+    """Standard error of a line's tilt (px per px) from the structure of its residuals along it.
+
+    The line fit's own standard error takes the residuals as independent; a bias that changes slowly along
+    the edge shows instead as residuals whose means over ``RESIDUAL_BLOCKS`` contiguous blocks differ.
+    Taken as independent block errors of that scatter, the slope they allow is ``sd(block means) /
+    sqrt(sum (s_i - mean s)^2)`` over the blocks' centres ``s_i`` (px). NaN with too few points.
+    """
+    m = inliers & np.isfinite(residual_px)
+    if int(m.sum()) < 8 * RESIDUAL_BLOCKS:
+        return float("nan")
+    order = np.argsort(samples.scan[m])
+    scan, res = samples.scan[m][order].astype(float), residual_px[m][order]
+    blocks = np.array_split(np.arange(scan.size), RESIDUAL_BLOCKS)
+    means = np.array([res[b].mean() for b in blocks])
+    centres = np.array([scan[b].mean() for b in blocks])
+    spread = float(np.sum((centres - centres.mean()) ** 2))
+    return float(np.std(means, ddof=1) / math.sqrt(spread)) if spread > 0 else float("nan")
+
+
 def _response_check_applies(samples: EdgeSamples, inliers: np.ndarray, blur_px: float) -> bool:
     """Whether the mean transition's asymmetry can be read on this line.
 
@@ -558,6 +582,13 @@ def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, ha
             # What the arris correction leaves in doubt: the strip's fitted deficit times its width.
             strip, band_px = arris_fits[k]
             model.extra_px.setdefault(k, {})["arris"] = strip.deficit_sigma * band_px
+            # What it leaves in doubt along the line (the strip's shading and the texture beside it change
+            # along the edge; the texture term's tilt reads the strip itself as texture here): the tilt
+            # that the residuals' structure over quarters of the line could hide.
+            tilt = _residual_structure_tilt(samples[k], fit.residuals[k] / pose.scale_mm_per_px, inl)
+            if math.isfinite(tilt):
+                t0 = model.tilt.get(k, 0.0)
+                model.tilt[k] = math.hypot(t0 if math.isfinite(t0) else 0.0, tilt)
             diagnostics.setdefault("arris_fit", {})[k] = {
                 "deficit": round(strip.deficit, 4), "deficit_sigma": round(strip.deficit_sigma, 5),
                 "strip_px": round(band_px, 3), "blur_px": round(strip.blur_px, 3), "misfit": round(strip.misfit, 3),
