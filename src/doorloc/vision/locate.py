@@ -69,6 +69,9 @@ from doorloc.vision.uncertainty import (
 
 __all__ = ["LocateConfig", "locate", "LocateTrace"]
 
+#: plateau samples of the arris strip's profile fit, px
+ARRIS_PLATEAU_PX = 4
+
 #: the final pass fits a blurred step (LocateConfig.step_fit) only above this optical blur, px
 STEP_FIT_MIN_BLUR_PX = 0.5
 
@@ -157,8 +160,8 @@ def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half:
     if geoms:
         # Near a corner the other edge's arris strip (about the arris wide from the sharp corner) crosses
         # the scan lines: the strip's profile fit would see two strips there and misfit. Keep its width
-        # clear of the corners.
-        keep = half + cfg.plateau + 4 + int(math.ceil(door.arris_mm / region.nominal_scale))
+        # (and the strip fit's wider plateaus) clear of the corners.
+        keep = half + max(cfg.plateau, ARRIS_PLATEAU_PX) + 4 + int(math.ceil(door.arris_mm / region.nominal_scale))
     tracks = region.tracks(pose.corner, yaw_rad, pose.thickness_mm, keep, window_px=half + cfg.plateau + 2,
                            arris=geoms)
     out = {}
@@ -186,12 +189,13 @@ def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half:
                 # An arris strip lies on the door side of the outline: its outer border from the strip's
                 # fitted shading, then moved to the sharp corner's line by the geometry.
                 blur0 = optical_blur_px if np.isfinite(optical_blur_px) else 1.0
-                # The plain step's plateaus, right beside the window: the face beyond the strip's inner
-                # border already pins the strip's brightness in the profile fit, and each line's levels
-                # taken farther out pick up texture along the edge (the effects fixtures' grain: 4-px
-                # plateaus left their yaw up to 0.022 deg off and one 0.0101 deg past the fixture test's 0.01).
+                # The strip's profile fit takes 4-px plateaus (the face beside the strip pins its
+                # brightness, most of all on narrow strips); each line's levels for its area estimate the
+                # plain step's, right beside the window: taken farther out they pick up texture along the
+                # edge (the effects fixtures' grain: their yaw was up to 0.022 deg off).
                 smp, strip = arris_edges(plane, lay.axis, scan, centre, half, band, interior, geoms[name],
-                                         cfg.plateau, scale8, lut=lut, blur0=blur0, search=every > 1)
+                                         max(cfg.plateau, ARRIS_PLATEAU_PX), scale8, lut=lut, blur0=blur0,
+                                         search=every > 1, level_px=cfg.plateau)
                 out[name] = replace(smp, along=smp.along + t.outline_shift_px[::every])
                 if arris_fits is not None and strip is not None:
                     arris_fits[name] = (strip, float(np.median(band)))
