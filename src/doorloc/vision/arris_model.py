@@ -367,6 +367,7 @@ def arris_edges(
     lut: np.ndarray | None = None,
     blur0: float = 1.0,
     search: bool = False,
+    level_px: int | None = None,
 ) -> tuple[EdgeSamples, StripFit | None]:
     """Outer border of an arris strip on each scan line (module docstring, step 3).
 
@@ -396,6 +397,11 @@ def arris_edges(
     search : bool
         The prediction may be off by up to the strip's width (a first pass on a coarse pose, whose edge
         may be the strip's inner border): widen the window by that much on both sides.
+    level_px : int or None
+        Samples of each plateau, nearest the window, whose mean is each scan line's two levels in its
+        area estimate (None: all ``plateau``). The profile fit uses all ``plateau`` samples (the face
+        beside the strip pins its brightness); each line's levels taken farther from the window pick up
+        the texture along the edge (wood grain).
 
     Returns
     -------
@@ -422,8 +428,12 @@ def arris_edges(
     left, right = vals[:, :plateau], vals[:, -plateau:]
     A, B = left.mean(axis=1), right.mean(axis=1)
     D = B - A
+    nl = plateau if level_px is None else int(np.clip(level_px, 1, plateau))
+    # the area estimate's levels: the nl samples of each plateau next to the window
+    A_e, B_e = vals[:, plateau - nl:plateau].mean(axis=1), vals[:, length - plateau:length - plateau + nl].mean(axis=1)
+    D_e = B_e - A_e
     core = vals[:, plateau:length - plateau]
-    S = (core - A[:, None]).sum(axis=1)
+    S = (core - A_e[:, None]).sum(axis=1)
     rel_e = (centre - c0) * door_side  # predicted border relative to c0, mirrored coordinates
     good = finite & inside.all(axis=1) & (np.abs(D) > 0)
     noise = np.sqrt(0.5 * (left.var(axis=1) + right.var(axis=1)))
@@ -442,7 +452,8 @@ def arris_edges(
         # The area estimator on the fitted, noise-free profiles: what the window's ends and the plateaus'
         # blur tails cost it (the strip's two steps differ, so they do not cancel as on a plain step).
         mod = fit.model
-        a_m, b_m = mod[:, :plateau].mean(axis=1), mod[:, -plateau:].mean(axis=1)
+        a_m = mod[:, plateau - nl:plateau].mean(axis=1)
+        b_m = mod[:, length - plateau:length - plateau + nl].mean(axis=1)
         s_m = (mod[:, plateau:length - plateau] - a_m[:, None]).sum(axis=1)
         e_m = (length - 2 * plateau - 0.5) - s_m / (b_m - a_m) - w[pick] * fit.deficit
         bias = float(np.median(e_m - (fit.border - plateau)))
@@ -451,7 +462,7 @@ def arris_edges(
         return EdgeSamples(axis, scan, nan, nan, nan, nan, nan, np.zeros(len(scan), bool)), None
     with np.errstate(divide="ignore", invalid="ignore"):
         K = core.shape[1] - 0.5  # door-side end of the window (core index units; core starts at c0 - half - pad)
-        e_mirror = K - S / D - w * fit.deficit - bias - (half + pad)  # relative to c0
+        e_mirror = K - S / D_e - w * fit.deficit - bias - (half + pad)  # relative to c0
         along = c0 + door_side * e_mirror
     valid = good & np.isfinite(along) & (np.abs(along - centre) <= half + pad)
     nan = np.full(len(scan), np.nan)

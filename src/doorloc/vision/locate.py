@@ -56,7 +56,7 @@ from doorloc.vision.lines import ImageLine, RectangleFit, fit_rectangle_edges, r
 from doorloc.vision.luminance import ImageFormatError, LuminancePlane, luminance_plane
 from doorloc.vision.metric import MetricPose, pose_from_fit
 from doorloc.vision.region import EDGE_NAMES, Band, SearchRegion
-from doorloc.vision.response import RESPONSE_DOUBT_FACTOR, response_skew_px
+from doorloc.vision.response import response_doubt_px
 from doorloc.vision.result import LineQuality, LocateResult, PhysicalModel, PoseUncertainty, Provenance
 from doorloc.vision.uncertainty import (
     EDGE_MODEL_FLOOR_PX,
@@ -69,6 +69,9 @@ from doorloc.vision.uncertainty import (
 )
 
 __all__ = ["LocateConfig", "locate", "locate_steps", "run_steps", "StepQuery", "LocateTrace"]
+
+#: plateau samples of the arris strip's profile fit, px
+ARRIS_PLATEAU_PX = 4
 
 #: the final pass fits a blurred step (LocateConfig.step_fit) only above this optical blur, px
 STEP_FIT_MIN_BLUR_PX = 0.5
@@ -210,6 +213,11 @@ def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half:
     door = region.door
     geoms = (arris_geometry(door.arris_mm, door.arris_profile, region.plane_map.centre, pose.corner, pose.yaw_deg,
                             region.face_y, pose.thickness_mm) if door.arris_mm > 0 else None)
+    if geoms:
+        # Near a corner the other edge's arris strip (about the arris wide from the sharp corner) crosses
+        # the scan lines: the strip's profile fit would see two strips there and misfit. Keep its width
+        # (and the strip fit's wider plateaus) clear of the corners.
+        keep = half + max(cfg.plateau, ARRIS_PLATEAU_PX) + 4 + int(math.ceil(door.arris_mm / region.nominal_scale))
     tracks = region.tracks(pose.corner, yaw_rad, pose.thickness_mm, keep, window_px=half + cfg.plateau + 2,
                            arris=geoms)
     out = {}
@@ -237,10 +245,13 @@ def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half:
                 # An arris strip lies on the door side of the outline: its outer border from the strip's
                 # fitted shading, then moved to the sharp corner's line by the geometry.
                 blur0 = optical_blur_px if np.isfinite(optical_blur_px) else 1.0
-                # The strip's profile fit needs plateaus wider than the plain step's (the face's level
-                # beside the strip pins the strip's brightness).
+                # The strip's profile fit takes 4-px plateaus (the face beside the strip pins its
+                # brightness, most of all on narrow strips); each line's levels for its area estimate the
+                # plain step's, right beside the window: taken farther out they pick up texture along the
+                # edge (the effects fixtures' grain: their yaw was up to 0.022 deg off).
                 smp, strip = arris_edges(plane, lay.axis, scan, centre, half, band, interior, geoms[name],
-                                         max(cfg.plateau, 4), scale8, lut=lut, blur0=blur0, search=every > 1)
+                                         max(cfg.plateau, ARRIS_PLATEAU_PX), scale8, lut=lut, blur0=blur0,
+                                         search=every > 1, level_px=cfg.plateau)
                 out[name] = replace(smp, along=smp.along + t.outline_shift_px[::every])
                 if arris_fits is not None and strip is not None:
                     arris_fits[name] = (strip, float(np.median(band)))
@@ -571,6 +582,30 @@ def _rows_across(plane, s8: float, ref: EdgeSamples, far: EdgeSamples) -> np.nda
     return P[lo:hi + 1, ref.scan[::8]].T.astype(np.float32) * s8
 
 
+#: contiguous blocks along a line over which its residuals' structure is read (:func:`_residual_structure_tilt`)
+RESIDUAL_BLOCKS = 4
+
+
+def _residual_structure_tilt(samples: EdgeSamples, residual_px: np.ndarray, inliers: np.ndarray) -> float:
+    """Standard error of a line's tilt (px per px) from the structure of its residuals along it.
+
+    The line fit's own standard error takes the residuals as independent; a bias that changes slowly along
+    the edge shows instead as residuals whose means over ``RESIDUAL_BLOCKS`` contiguous blocks differ.
+    Taken as independent block errors of that scatter, the slope they allow is ``sd(block means) /
+    sqrt(sum (s_i - mean s)^2)`` over the blocks' centres ``s_i`` (px). NaN with too few points.
+    """
+    m = inliers & np.isfinite(residual_px)
+    if int(m.sum()) < 8 * RESIDUAL_BLOCKS:
+        return float("nan")
+    order = np.argsort(samples.scan[m])
+    scan, res = samples.scan[m][order].astype(float), residual_px[m][order]
+    blocks = np.array_split(np.arange(scan.size), RESIDUAL_BLOCKS)
+    means = np.array([res[b].mean() for b in blocks])
+    centres = np.array([scan[b].mean() for b in blocks])
+    spread = float(np.sum((centres - centres.mean()) ** 2))
+    return float(np.std(means, ddof=1) / math.sqrt(spread)) if spread > 0 else float("nan")
+
+
 def _response_check_applies(samples: EdgeSamples, inliers: np.ndarray, blur_px: float) -> bool:
     """Whether the mean transition's asymmetry can be read on this line.
 
@@ -612,15 +647,24 @@ def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, ha
             # What the arris correction leaves in doubt: the strip's fitted deficit times its width.
             strip, band_px = arris_fits[k]
             model.extra_px.setdefault(k, {})["arris"] = strip.deficit_sigma * band_px
+            # What it leaves in doubt along the line (the strip's shading and the texture beside it change
+            # along the edge; the texture term's tilt reads the strip itself as texture here): the tilt
+            # that the residuals' structure over quarters of the line could hide.
+            tilt = _residual_structure_tilt(samples[k], fit.residuals[k] / pose.scale_mm_per_px, inl)
+            if math.isfinite(tilt):
+                t0 = model.tilt.get(k, 0.0)
+                model.tilt[k] = math.hypot(t0 if math.isfinite(t0) else 0.0, tilt)
             diagnostics.setdefault("arris_fit", {})[k] = {
                 "deficit": round(strip.deficit, 4), "deficit_sigma": round(strip.deficit_sigma, 5),
                 "strip_px": round(band_px, 3), "blur_px": round(strip.blur_px, 3), "misfit": round(strip.misfit, 3),
                 "offset_px": round(strip.offset_px, 4)}
         elif not (k == "far" and far_beside) and _response_check_applies(samples[k], inl, model.blur_px):
             # A plain step: is its transition symmetric in linear light (is the camera response right)?
-            skew = response_skew_px(plane, samples[k], inl, half, linearizing_lut(plane.dtype, cell.response_gamma))
-            if np.isfinite(skew):
-                model.extra_px.setdefault(k, {})["response"] = RESPONSE_DOUBT_FACTOR * abs(skew)
+            doubt, skew, se = response_doubt_px(plane, samples[k], inl, half,
+                                                linearizing_lut(plane.dtype, cell.response_gamma), model.blur_px)
+            if np.isfinite(doubt):
+                model.extra_px.setdefault(k, {})["response"] = doubt
+                diagnostics.setdefault("response_skew_px", {})[k] = {"skew": round(skew, 4), "se": round(se, 4)}
     for k in EDGE_NAMES:
         s = samples[k]
         w = fit.weights[k]
