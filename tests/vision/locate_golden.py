@@ -2,7 +2,7 @@
 
 The speed work (issue 14) must not change a single answer: ``test_locate_parity.py`` runs :func:`cases`
 through today's :func:`doorloc.vision.locate.locate` and compares with ``data/locate_golden.json``, which
-was written by the code before the speed-up (main at 8733117) with::
+was last written after the issue-11 estimator changes (texture step fit, arris strip, response check) with::
 
     PYTHONPATH=src python tests/vision/locate_golden.py --write
 
