@@ -42,11 +42,16 @@ def random_effects(rng: np.random.Generator, profile: str, gamma: float) -> Effe
     k = min(1.0, 0.95 / (max(hinge, chamfer) * (amb + direct)))  # no face clips at white
     return Effects(
         arris_profile=profile,
-        albedo_hinge=hinge, albedo_chamfer=chamfer,
+        albedo_hinge=hinge,
+        albedo_chamfer=chamfer,
         albedo_background=rng.uniform(0.05, 0.2),
-        light_ambient=amb * k, light_directional=direct * k,
-        light_azimuth_deg=side * rng.uniform(10.0, 80.0), light_elevation_deg=rng.uniform(-30.0, 60.0),
-        blur_sigma_px=rng.uniform(0.6, 1.8), read_noise_dn=rng.uniform(0.0, 1.0), gamma=gamma,
+        light_ambient=amb * k,
+        light_directional=direct * k,
+        light_azimuth_deg=side * rng.uniform(10.0, 80.0),
+        light_elevation_deg=rng.uniform(-30.0, 60.0),
+        blur_sigma_px=rng.uniform(0.6, 1.8),
+        read_noise_dn=rng.uniform(0.0, 1.0),
+        gamma=gamma,
     )
 
 
@@ -61,8 +66,10 @@ def _row(label, seed, res, pose, door, extra=""):
     rsp = {ln.name: getattr(ln, "response_sigma_mm", None) for ln in res.lines}
     sx = math.hypot(ux, arr.get("reference") or 0.0, rsp.get("reference") or 0.0)
     sz = math.hypot(uz, arr.get("bottom") or 0.0, rsp.get("bottom") or 0.0)
-    print(f"  seed {seed:5d} {label:34s} ex {ex:+.4f} ez {ez:+.4f} dT {res.thickness_mm - door.thickness_mm:+.4f} "
-          f"sigma x {sx:.4f} z {sz:.4f} {extra}")
+    print(
+        f"  seed {seed:5d} {label:34s} ex {ex:+.4f} ez {ez:+.4f} dT {res.thickness_mm - door.thickness_mm:+.4f} "
+        f"sigma x {sx:.4f} z {sz:.4f} {extra}"
+    )
     return ex, ez, sx, sz
 
 
@@ -76,8 +83,10 @@ def _summary(name, rows, n_total):
         e = a[:, k]
         se = e.std(ddof=1) / math.sqrt(len(e)) if len(e) > 1 else float("nan")
         within = float(np.mean(np.abs(e) <= 2 * a[:, k + 2]))
-        print(f"  {lab}: bias {e.mean():+.4f} mm (+- {se:.4f} s.e.), RMS {np.sqrt(np.mean(e**2)):.4f}, "
-              f"max |{np.abs(e).max():.4f}|, within 2 sigma {within:.0%}")
+        print(
+            f"  {lab}: bias {e.mean():+.4f} mm (+- {se:.4f} s.e.), RMS {np.sqrt(np.mean(e**2)):.4f}, "
+            f"max |{np.abs(e).max():.4f}|, within 2 sigma {within:.0%}"
+        )
 
 
 def run_arris(n: int, seed0: int = 1000) -> None:
@@ -88,7 +97,9 @@ def run_arris(n: int, seed0: int = 1000) -> None:
             seed = seed0 + i + (0 if profile == "chamfer" else 500)
             rng = np.random.default_rng(seed)
             a = float(rng.uniform(0.0, 3.0)) if i else 0.0
-            door = DoorSize(900, float(rng.choice([40.0, 50.0, 70.0])), 2100, arris_mm=a, arris_profile=profile)
+            door = DoorSize(
+                900, float(rng.choice([40.0, 50.0, 70.0])), 2100, arris_mm=a, arris_profile=profile
+            )
             pose = DoorPose(rng.uniform(-8, 8), rng.uniform(-8, 8), rng.uniform(-1.5, 1.5))
             fx = random_effects(rng, profile, 1.0)
             img = render_door(cell, door, pose, effects=fx, seed=seed).image
@@ -112,9 +123,16 @@ def run_gamma(n: int, wrong: bool = False, seed0: int = 3000) -> None:
         img = render_door(base, door, pose, effects=fx, seed=seed).image
         cell = dataclasses.replace(base, response_gamma=1.0 if wrong else g)
         res = locate(img, cell, door)
-        rows.append(_row(f"gamma {g:.2f} cell {cell.response_gamma:.1f} {profile} a={a:.2f}", seed, res, pose, door))
-    _summary("wrong response_gamma (camera 2.2, cell 1.0)" if wrong else "gamma 1.0-2.4 with the cell's response_gamma",
-             rows, n)
+        rows.append(
+            _row(f"gamma {g:.2f} cell {cell.response_gamma:.1f} {profile} a={a:.2f}", seed, res, pose, door)
+        )
+    _summary(
+        "wrong response_gamma (camera 2.2, cell 1.0)"
+        if wrong
+        else "gamma 1.0-2.4 with the cell's response_gamma",
+        rows,
+        n,
+    )
 
 
 def run_fixtures() -> None:
@@ -126,8 +144,13 @@ def run_fixtures() -> None:
         rows = []
         for r in truth:
             img = cv2.imread(str(d / r["image"]), cv2.IMREAD_UNCHANGED)
-            door = DoorSize(float(r["width_mm"]), float(r["thickness_mm"]), float(r["height_mm"]),
-                            float(r["arris_mm"]), r["arris_profile"])
+            door = DoorSize(
+                float(r["width_mm"]),
+                float(r["thickness_mm"]),
+                float(r["height_mm"]),
+                float(r["arris_mm"]),
+                r["arris_profile"],
+            )
             pose = DoorPose(float(r["x_mm"]), float(r["z_mm"]), float(r["yaw_deg"]))
             res = locate(img, cell, door)
             rows.append(_row(f"{r['image']} cell gamma {g}", int(r["seed"]), res, pose, door))

@@ -44,8 +44,20 @@ def _render(args: tuple[int, str]) -> None:
 
 
 def _batch(folder: Path, out: Path, workers: int, *extra: str) -> list[str]:
-    return [sys.executable, "-m", "doorloc", "batch", str(folder), "--cell", str(CELL), "--out", str(out),
-            "--workers", str(workers), *extra]
+    return [
+        sys.executable,
+        "-m",
+        "doorloc",
+        "batch",
+        str(folder),
+        "--cell",
+        str(CELL),
+        "--out",
+        str(out),
+        "--workers",
+        str(workers),
+        *extra,
+    ]
 
 
 def _records(path: Path) -> dict[str, dict]:
@@ -74,8 +86,13 @@ def main() -> None:
         tmp = Path(tmp)
         root = tmp / "doors"
         # first M images in one sub-folder (the Ray comparison runs on it), the rest in others
-        paths = [str(root / (f"part1/door{i:04d}.png" if i < args.ray_images else f"part{2 + i % 3}/door{i:04d}.png"))
-                 for i in range(args.images)]
+        paths = [
+            str(
+                root
+                / (f"part1/door{i:04d}.png" if i < args.ray_images else f"part{2 + i % 3}/door{i:04d}.png")
+            )
+            for i in range(args.images)
+        ]
         t0 = time.perf_counter()
         with ProcessPoolExecutor(args.workers) as pool:
             list(pool.map(_render, list(enumerate(paths)), chunksize=4))
@@ -90,34 +107,58 @@ def main() -> None:
 
         out = tmp / "killed.jsonl"
         kill_after = rng.uniform(0.1, 0.9) * full_s
-        proc = subprocess.Popen(_batch(root, out, args.workers), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                                start_new_session=True)
+        proc = subprocess.Popen(
+            _batch(root, out, args.workers),
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            start_new_session=True,
+        )
         time.sleep(kill_after)
         os.killpg(proc.pid, signal.SIGKILL)
         proc.wait()
         raw = out.read_bytes() if out.exists() else b""
         complete, torn = raw.count(b"\n"), len(raw) - (raw.rfind(b"\n") + 1)
-        print(f"killed with SIGKILL after {kill_after:.1f} s (seed {seed}): {complete} complete lines, "
-              f"torn tail: {torn} bytes")
+        print(
+            f"killed with SIGKILL after {kill_after:.1f} s (seed {seed}): {complete} complete lines, "
+            f"torn tail: {torn} bytes"
+        )
         p = subprocess.run(_batch(root, out, args.workers, "--resume"), capture_output=True, text=True)
         print("resume:", p.stderr.strip().splitlines()[-1])
         resumed, n_res = _records(out)
         same = resumed == reference
-        print(json.dumps({"images": args.images, "records_after_resume": n_res, "distinct_images": len(resumed),
-                          "identical_to_uninterrupted": same}))
+        print(
+            json.dumps(
+                {
+                    "images": args.images,
+                    "records_after_resume": n_res,
+                    "distinct_images": len(resumed),
+                    "identical_to_uninterrupted": same,
+                }
+            )
+        )
 
         ray_out, local_out = tmp / "ray.jsonl", tmp / "local50.jsonl"
         part1 = root / "part1"
         subprocess.run(_batch(part1, local_out, args.workers), capture_output=True)
         t0 = time.perf_counter()
-        p = subprocess.run(_batch(part1, ray_out, args.workers, "--backend", "ray"), capture_output=True, text=True)
+        p = subprocess.run(
+            _batch(part1, ray_out, args.workers, "--backend", "ray"), capture_output=True, text=True
+        )
         if p.returncode not in (0, 1):
             print("ray backend failed:", p.stderr[-2000:])
             return
         ray_recs, n_ray = _records(ray_out)
         local_recs, _ = _records(local_out)
-        print(json.dumps({"ray_images": args.ray_images, "ray_records": n_ray, "ray_seconds": round(time.perf_counter() - t0, 1),
-                          "ray_identical_to_local": ray_recs == local_recs}))
+        print(
+            json.dumps(
+                {
+                    "ray_images": args.ray_images,
+                    "ray_records": n_ray,
+                    "ray_seconds": round(time.perf_counter() - t0, 1),
+                    "ray_identical_to_local": ray_recs == local_recs,
+                }
+            )
+        )
 
 
 if __name__ == "__main__":

@@ -63,7 +63,13 @@ def random_set(n, seed, widths=False):
     for i in range(n):
         pose = DoorPose(*rng.uniform([-10, -10, -2], [10, 10, 2]))
         w = rng.uniform(700, 1100) if widths else 900.0
-        yield f"{'widths' if widths else 'random'}_{i:03d}", pose, DoorSize(w, rng.uniform(30, 100), 2100), None, i
+        yield (
+            f"{'widths' if widths else 'random'}_{i:03d}",
+            pose,
+            DoorSize(w, rng.uniform(30, 100), 2100),
+            None,
+            i,
+        )
 
 
 def hard_set(n, seed):
@@ -72,10 +78,16 @@ def hard_set(n, seed):
         pose = DoorPose(*rng.uniform([-10, -10, -2], [10, 10, 2]))
         bg = rng.uniform(0.15, 0.25)
         eff = Effects(
-            albedo_hinge=bg + rng.uniform(0.12, 0.2), albedo_background=bg, albedo_side=bg + 0.25,
-            gradient_u=rng.uniform(-0.2, 0.2), gradient_v=rng.uniform(-0.2, 0.2), vignetting=rng.uniform(0, 0.4),
-            grain_contrast=rng.uniform(0.0, 0.03), blur_sigma_px=rng.uniform(0.0, 2.0),
-            read_noise_dn=rng.uniform(1.0, 4.0), jpeg_quality=85 if i % 2 else 0,
+            albedo_hinge=bg + rng.uniform(0.12, 0.2),
+            albedo_background=bg,
+            albedo_side=bg + 0.25,
+            gradient_u=rng.uniform(-0.2, 0.2),
+            gradient_v=rng.uniform(-0.2, 0.2),
+            vignetting=rng.uniform(0, 0.4),
+            grain_contrast=rng.uniform(0.0, 0.03),
+            blur_sigma_px=rng.uniform(0.0, 2.0),
+            read_noise_dn=rng.uniform(1.0, 4.0),
+            jpeg_quality=85 if i % 2 else 0,
         )
         yield f"hard_{i:03d}", pose, DoorSize(900, rng.uniform(30, 100), 2100), eff, i
 
@@ -101,16 +113,47 @@ def bad_set(cell):
         ("no_door", np.clip(rng.normal(32, 2, (h, w)), 0, 255).astype(np.uint8), d50, DoorPose()),
         ("black", rng.integers(0, 3, (h, w), dtype=np.uint8), d50, DoorPose()),
         ("noise", rng.integers(0, 256, (h, w), dtype=np.uint8), d50, DoorPose()),
-        ("wrong_size", cv2.resize(render_door(cell, d50, DoorPose()).image, (1280, 720), interpolation=cv2.INTER_AREA), d50, DoorPose()),
-        ("outside_envelope_x+25mm", render_door(cell, d50, DoorPose(35.0, 0.0, 0.0)).image, d50, DoorPose(35, 0, 0)),
-        ("outside_envelope_z-25mm", render_door(cell, d50, DoorPose(0.0, -35.0, 0.0)).image, d50, DoorPose(0, -35, 0)),
+        (
+            "wrong_size",
+            cv2.resize(render_door(cell, d50, DoorPose()).image, (1280, 720), interpolation=cv2.INTER_AREA),
+            d50,
+            DoorPose(),
+        ),
+        (
+            "outside_envelope_x+25mm",
+            render_door(cell, d50, DoorPose(35.0, 0.0, 0.0)).image,
+            d50,
+            DoorPose(35, 0, 0),
+        ),
+        (
+            "outside_envelope_z-25mm",
+            render_door(cell, d50, DoorPose(0.0, -35.0, 0.0)).image,
+            d50,
+            DoorPose(0, -35, 0),
+        ),
         ("yaw_6deg", render_door(cell, d50, DoorPose(0.0, 0.0, 6.0)).image, d50, DoorPose(0, 0, 6)),
-        ("clamp_over_corner", _clamp(cell, d50, render_door(cell, d50, DoorPose(1.0, 1.0, 0.3)).image), d50, DoorPose(1, 1, .3)),
-        ("panel_12mm_recipe_50mm", render_door(cell, DoorSize(900, 12, 2100), DoorPose()).image, d50, DoorPose()),
+        (
+            "clamp_over_corner",
+            _clamp(cell, d50, render_door(cell, d50, DoorPose(1.0, 1.0, 0.3)).image),
+            d50,
+            DoorPose(1, 1, 0.3),
+        ),
+        (
+            "panel_12mm_recipe_50mm",
+            render_door(cell, DoorSize(900, 12, 2100), DoorPose()).image,
+            d50,
+            DoorPose(),
+        ),
         ("calibration_board", _board(cell), d50, DoorPose()),
         ("saturated", np.full((h, w), 255, np.uint8), d50, DoorPose()),
-        ("overexposed", render_door(cell, d50, DoorPose(1.0, -2.0, 0.5),
-                                    effects=Effects(albedo_hinge=1.4, albedo_background=0.3)).image, d50, DoorPose(1, -2, .5)),
+        (
+            "overexposed",
+            render_door(
+                cell, d50, DoorPose(1.0, -2.0, 0.5), effects=Effects(albedo_hinge=1.4, albedo_background=0.3)
+            ).image,
+            d50,
+            DoorPose(1, -2, 0.5),
+        ),
     ]
     return out
 
@@ -120,14 +163,16 @@ def _clamp(cell, door, img):
     pm = PlaneMap(cell.posed_camera, cell.face_y(door))
     (u0, v0), (u1, v1) = pm.to_image(np.array([[-8.0, 10.0], [10.0, -8.0]]))
     img = img.copy()
-    img[int(v0):int(v1), int(u0):int(u1)] = 90
+    img[int(v0) : int(v1), int(u0) : int(u1)] = 90
     return img
 
 
 def _board(cell):
     from doorloc.sim.boards import Checkerboard, render_board
 
-    return render_board(cell.camera, Checkerboard(11, 7, 20.0), [0.05, -0.1, 0.02], [-120.0, -60.0, 420.0]).image
+    return render_board(
+        cell.camera, Checkerboard(11, 7, 20.0), [0.05, -0.1, 0.02], [-120.0, -60.0, 420.0]
+    ).image
 
 
 # -- baseline: Canny + cv2.fitLine -----------------------------------------------------------------
@@ -183,16 +228,20 @@ def stats(errs):
     if e.size == 0:
         return {}
     names = ("x_mm", "z_mm", "yaw_deg", "thickness_mm")
-    return {f"rms_{k}": float(np.sqrt(np.mean(e[:, i] ** 2))) for i, k in enumerate(names)} | {
-        f"max_{k}": float(np.max(np.abs(e[:, i]))) for i, k in enumerate(names)} | {
-        f"median_abs_{k}": float(np.median(np.abs(e[:, i]))) for i, k in enumerate(names)}
+    return (
+        {f"rms_{k}": float(np.sqrt(np.mean(e[:, i] ** 2))) for i, k in enumerate(names)}
+        | {f"max_{k}": float(np.max(np.abs(e[:, i]))) for i, k in enumerate(names)}
+        | {f"median_abs_{k}": float(np.median(np.abs(e[:, i]))) for i, k in enumerate(names)}
+    )
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="fewer images per set")
     ap.add_argument("--json", type=Path, help="also write the figures here")
-    ap.add_argument("--speed-only", action="store_true", help="only the timing comparison (skip the accuracy sets)")
+    ap.add_argument(
+        "--speed-only", action="store_true", help="only the timing comparison (skip the accuracy sets)"
+    )
     args = ap.parse_args()
     cv2.setNumThreads(1)
     cell = load_cell(REPO / "fixtures" / "cell_thesis.yaml")
@@ -217,7 +266,12 @@ def main() -> None:
                 refusals[r.error_code] += 1
                 print(f"  {name}: refused {r.error_code}: {r.error}")
                 continue
-            e = (r.x_mm - pose.x_mm, r.z_mm - pose.z_mm, r.yaw_deg - pose.yaw_deg, r.thickness_mm - door.thickness_mm)
+            e = (
+                r.x_mm - pose.x_mm,
+                r.z_mm - pose.z_mm,
+                r.yaw_deg - pose.yaw_deg,
+                r.thickness_mm - door.thickness_mm,
+            )
             errs.append(e)
             worst["pos_mm"] = max(worst["pos_mm"], abs(e[0]), abs(e[1]))
             worst["yaw_deg"] = max(worst["yaw_deg"], abs(e[2]))
@@ -227,15 +281,19 @@ def main() -> None:
                 b = baseline(img, cell, door)
                 base_ms.append((time.perf_counter() - t0) * 1e3)
                 if b is not None:
-                    base_err.append((b[0] - pose.x_mm, b[1] - pose.z_mm, b[2] - pose.yaw_deg, b[3] - door.thickness_mm))
+                    base_err.append(
+                        (b[0] - pose.x_mm, b[1] - pose.z_mm, b[2] - pose.yaw_deg, b[3] - door.thickness_mm)
+                    )
         s = {"n": len(items), "ok": len(errs), "refused": dict(refusals)} | stats(errs)
         report["sets"][set_name] = s
-        print(f"{set_name:7s} n={s['n']:3d} ok={s['ok']:3d} refused={dict(refusals)}  RMS x {s.get('rms_x_mm', float('nan')):.4f} "
-              f"z {s.get('rms_z_mm', float('nan')):.4f} mm, yaw {s.get('rms_yaw_deg', float('nan')):.5f} deg, "
-              f"T {s.get('rms_thickness_mm', float('nan')):.4f} mm | max x {s.get('max_x_mm', float('nan')):.4f} "
-              f"z {s.get('max_z_mm', float('nan')):.4f} yaw {s.get('max_yaw_deg', float('nan')):.5f} T {s.get('max_thickness_mm', float('nan')):.4f}")
+        print(
+            f"{set_name:7s} n={s['n']:3d} ok={s['ok']:3d} refused={dict(refusals)}  RMS x {s.get('rms_x_mm', float('nan')):.4f} "
+            f"z {s.get('rms_z_mm', float('nan')):.4f} mm, yaw {s.get('rms_yaw_deg', float('nan')):.5f} deg, "
+            f"T {s.get('rms_thickness_mm', float('nan')):.4f} mm | max x {s.get('max_x_mm', float('nan')):.4f} "
+            f"z {s.get('max_z_mm', float('nan')):.4f} yaw {s.get('max_yaw_deg', float('nan')):.5f} T {s.get('max_thickness_mm', float('nan')):.4f}"
+        )
     print("bad inputs:")
-    for name, img, door, pose in ([] if args.speed_only else bad_set(cell)):
+    for name, img, door, pose in [] if args.speed_only else bad_set(cell):
         r = locate(img, cell, door, image_name=name)
         entry = {"ok": r.ok, "error_code": r.error_code, "error": r.error}
         if r.ok:
@@ -277,14 +335,18 @@ def main() -> None:
     report["baseline_accuracy"] = {"n": len(base_err)} | stats(base_err)
     report["worst_ok_error"] = worst
     b = report["baseline_accuracy"]
-    print(f"speed (one thread, decode excluded, {sp['n_timed']} locate calls): locate median {sp['locate_median_ms']:.2f} ms, "
-          f"Canny+fitLine median {sp['baseline_canny_fitline_median_ms']:.2f} ms, ratio {sp['ratio_locate_over_baseline']:.2f}; "
-          f"median of per-image best of 5: locate {sp['locate_median_of_best_of_5_ms']:.2f} ms, "
-          f"Canny+fitLine {sp['baseline_median_of_best_of_5_ms']:.2f} ms, ratio {sp['ratio_best_of_5']:.2f}")
-    print(f"baseline accuracy (default photometry, n={b['n']}): RMS x {b.get('rms_x_mm', float('nan')):.4f} z {b.get('rms_z_mm', float('nan')):.4f} mm, "
-          f"yaw {b.get('rms_yaw_deg', float('nan')):.4f} deg, T {b.get('rms_thickness_mm', float('nan')):.4f} mm; median |error| "
-          f"x {b.get('median_abs_x_mm', float('nan')):.4f} z {b.get('median_abs_z_mm', float('nan')):.4f} mm, "
-          f"yaw {b.get('median_abs_yaw_deg', float('nan')):.4f} deg")
+    print(
+        f"speed (one thread, decode excluded, {sp['n_timed']} locate calls): locate median {sp['locate_median_ms']:.2f} ms, "
+        f"Canny+fitLine median {sp['baseline_canny_fitline_median_ms']:.2f} ms, ratio {sp['ratio_locate_over_baseline']:.2f}; "
+        f"median of per-image best of 5: locate {sp['locate_median_of_best_of_5_ms']:.2f} ms, "
+        f"Canny+fitLine {sp['baseline_median_of_best_of_5_ms']:.2f} ms, ratio {sp['ratio_best_of_5']:.2f}"
+    )
+    print(
+        f"baseline accuracy (default photometry, n={b['n']}): RMS x {b.get('rms_x_mm', float('nan')):.4f} z {b.get('rms_z_mm', float('nan')):.4f} mm, "
+        f"yaw {b.get('rms_yaw_deg', float('nan')):.4f} deg, T {b.get('rms_thickness_mm', float('nan')):.4f} mm; median |error| "
+        f"x {b.get('median_abs_x_mm', float('nan')):.4f} z {b.get('median_abs_z_mm', float('nan')):.4f} mm, "
+        f"yaw {b.get('median_abs_yaw_deg', float('nan')):.4f} deg"
+    )
     print(f"worst ok=true error over all sets: {worst['pos_mm']:.4f} mm, {worst['yaw_deg']:.5f} deg")
     if args.json:
         args.json.write_text(json.dumps(report, indent=2))

@@ -41,7 +41,9 @@ def main() -> int:
     ap.add_argument("--controls", type=int, default=10)
     ap.add_argument("--pairs", type=int, default=5, help="two-effect data sets")
     ap.add_argument("--images", type=int, default=40)
-    ap.add_argument("--effects", default=",".join(EFFECT_NAMES), help="comma-separated subset of the catalogue")
+    ap.add_argument(
+        "--effects", default=",".join(EFFECT_NAMES), help="comma-separated subset of the catalogue"
+    )
     ap.add_argument("--seed", type=int, default=2026)
     ap.add_argument("--json", help="write every case's outcome here")
     args = ap.parse_args()
@@ -58,24 +60,38 @@ def main() -> int:
     for _ in range(args.pairs):
         a, b = rng.choice(geometric, 2, replace=False)
         cases.append({"hidden": {str(a): _draw(str(a), rng), str(b): _draw(str(b), rng)}})
-    print(f"{len(cases)} data sets of {args.images} images; magnitudes from {json.dumps(REALISTIC_RANGE)}",
-          flush=True)
+    print(
+        f"{len(cases)} data sets of {args.images} images; magnitudes from {json.dumps(REALISTIC_RANGE)}",
+        flush=True,
+    )
     with tempfile.TemporaryDirectory(prefix="bench_modelcheck_") as tmp:
         for k, case in enumerate(cases):
             data = Path(tmp) / f"set_{k:02d}"
             t0 = time.perf_counter()
-            render_measured_set(data, nominal, case["hidden"], SetSpec(n_images=args.images, seed=args.seed + k))
+            render_measured_set(
+                data, nominal, case["hidden"], SetSpec(n_images=args.images, seed=args.seed + k)
+            )
             t1 = time.perf_counter()
             rep = check_model(data, nominal, Path(tmp) / f"report_{k:02d}")
             t2 = time.perf_counter()
             hidden = sorted(case["hidden"])
             named = sorted(c for c in rep.causes)
-            case.update(named=rep.causes, right=named == hidden, gain=rep.heldout_gain, render_s=t1 - t0,
-                        check_s=t2 - t1, before=rep.heldout_rms_before, after=rep.heldout_rms_after,
-                        indistinguishable=rep.indistinguishable)
-            print(f"[{k + 1}/{len(cases)}] hidden {case['hidden'] or '-'} -> named {rep.causes} "
-                  f"{'OK' if case['right'] else 'WRONG'}; gain {rep.heldout_gain:.1f}x; check {t2 - t1:.0f} s "
-                  f"(render {t1 - t0:.0f} s)", flush=True)
+            case.update(
+                named=rep.causes,
+                right=named == hidden,
+                gain=rep.heldout_gain,
+                render_s=t1 - t0,
+                check_s=t2 - t1,
+                before=rep.heldout_rms_before,
+                after=rep.heldout_rms_after,
+                indistinguishable=rep.indistinguishable,
+            )
+            print(
+                f"[{k + 1}/{len(cases)}] hidden {case['hidden'] or '-'} -> named {rep.causes} "
+                f"{'OK' if case['right'] else 'WRONG'}; gain {rep.heldout_gain:.1f}x; check {t2 - t1:.0f} s "
+                f"(render {t1 - t0:.0f} s)",
+                flush=True,
+            )
     effect_cases = [c for c in cases if c["hidden"]]
     controls = [c for c in cases if not c["hidden"]]
     singles = [c for c in effect_cases if len(c["hidden"]) == 1]
@@ -93,14 +109,18 @@ def main() -> int:
     alarms = sum(bool(c["named"]) for c in controls)
     gains = [c["gain"] for c in effect_cases]
     times = [c["check_s"] for c in cases]
-    print(f"\nnamed right: {right}/{len(effect_cases)} = {100 * right / max(len(effect_cases), 1):.0f} % "
-          f"(singles {sum(c['right'] for c in singles)}/{len(singles)}, "
-          f"pairs {sum(c['right'] for c in effect_cases if len(c['hidden']) == 2)}/{len(effect_cases) - len(singles)})")
+    print(
+        f"\nnamed right: {right}/{len(effect_cases)} = {100 * right / max(len(effect_cases), 1):.0f} % "
+        f"(singles {sum(c['right'] for c in singles)}/{len(singles)}, "
+        f"pairs {sum(c['right'] for c in effect_cases if len(c['hidden']) == 2)}/{len(effect_cases) - len(singles)})"
+    )
     print(f"false alarms: {alarms}/{len(controls)} controls")
     if gains:
         print(f"median held-out gain: {statistics.median(gains):.1f}x (min {min(gains):.1f}x)")
-    print(f"time per data set (check only, {args.images} images, shared 2-core machine): median "
-          f"{statistics.median(times):.0f} s, max {max(times):.0f} s")
+    print(
+        f"time per data set (check only, {args.images} images, shared 2-core machine): median "
+        f"{statistics.median(times):.0f} s, max {max(times):.0f} s"
+    )
     if args.json:
         Path(args.json).write_text(json.dumps(cases, indent=1, default=float))
     return 0

@@ -52,7 +52,9 @@ def main() -> None:
     doors += load_recipe_file(REPO / "fixtures" / "recipes" / "demo_doors.csv")
 
     print("1. reach check of one door (targets_for_pose + check_reach), bundled thesis cell, one thread")
-    print(f"   (load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores: on a shared machine the minimum is the cost)")
+    print(
+        f"   (load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores: on a shared machine the minimum is the cost)"
+    )
     for recipe in doors:
         face_y = cell.face_y(recipe.door_size())
         pose = DoorPose(3.0, -4.0, 1.5)
@@ -63,12 +65,16 @@ def main() -> None:
             reach_for_door(setup, recipe, pose, face_y)
             times.append(time.perf_counter() - t0)
         ms = np.array(times) * 1e3
-        print(f"   {recipe.door_id:<12} {len(recipe.hinges)} hinges {len(rep.targets):3d} targets: median {statistics.median(ms):.3f} ms"
-              f"  (min {ms.min():.3f}, p10 {np.percentile(ms, 10):.3f}, p90 {np.percentile(ms, 90):.3f}), feasible={rep.feasible}")
+        print(
+            f"   {recipe.door_id:<12} {len(recipe.hinges)} hinges {len(rep.targets):3d} targets: median {statistics.median(ms):.3f} ms"
+            f"  (min {ms.min():.3f}, p10 {np.percentile(ms, 10):.3f}, p90 {np.percentile(ms, 90):.3f}), feasible={rep.feasible}"
+        )
 
     print("\n2. TCP deflection under Table 4.8's wrench, |dd| mm (thesis: largest compensation about 0.3 mm)")
     robot, kin = setup.robot, Kinematics.of(setup.robot)
-    print("   a) as the thesis's appendix: flange = TCP, wrench in the robot base frame, Table 4.6 configurations")
+    print(
+        "   a) as the thesis's appendix: flange = TCP, wrench in the robot base frame, Table 4.6 configurations"
+    )
     print(f"   {'configuration':<22}" + "".join(f"{s:>13}" for s in TABLE_4_8_WRENCH))
     largest = 0.0
     for name, q in TABLE_4_6.items():
@@ -79,7 +85,9 @@ def main() -> None:
         largest = max(largest, *row)
         print(f"   {name:<22}" + "".join(f"{v:13.3f}" for v in row))
     print(f"   largest: {largest:.3f} mm")
-    print("   b) bundled cell (angle head, TCP 250 mm out), wrench in the tool frame, extreme doors at pose (0, 0, 0)")
+    print(
+        "   b) bundled cell (angle head, TCP 250 mm out), wrench in the tool frame, extreme doors at pose (0, 0, 0)"
+    )
     for recipe in doors[:2]:
         rep = reach_for_door(setup, recipe, DoorPose(), cell.face_y(recipe.door_size()))
         mags = [(float(np.linalg.norm(t.deflection_mm)), t.name) for t in rep.targets if t.deflection_mm]

@@ -38,14 +38,29 @@ def write_csv(path: Path, doors: int, hinges: int, seed: int = 0) -> int:
             width = rng.choice([626, 726, 826, 926, 1026])
             height = rng.choice([2040, 2100, 2340])
             thick = rng.choice([40, 44, 50, 60])
-            door = {"door_id": f"BENCH-{d:05d}", "width_mm": width, "height_mm": height, "thickness_mm": thick,
-                    "tool_diameter_mm": 16, "spindle_rpm": 18000, "feed_mm_s": 25, "arris_mm": 1}
+            door = {
+                "door_id": f"BENCH-{d:05d}",
+                "width_mm": width,
+                "height_mm": height,
+                "thickness_mm": thick,
+                "tool_diameter_mm": 16,
+                "spindle_rpm": 18000,
+                "feed_mm_s": 25,
+                "arris_mm": 1,
+            }
             for k in range(hinges):
                 path9 = k == hinges - 1
-                row = dict(door, hinge_z_mm=200 + k * (height - 500) / max(hinges - 1, 1), hinge_length_mm=100,
-                           hinge_width_mm=30, hinge_x_mm=round(rng.uniform(5, thick - 31), 1), hinge_depth_mm=3,
-                           hinge_corner_radius_mm=8, hinge_path_points=9 if path9 else 6,
-                           hinge_fd_dz_mm=";".join(f"{0.1 + 0.01 * p:.2f}" for p in range(9)) if path9 else "")
+                row = dict(
+                    door,
+                    hinge_z_mm=200 + k * (height - 500) / max(hinges - 1, 1),
+                    hinge_length_mm=100,
+                    hinge_width_mm=30,
+                    hinge_x_mm=round(rng.uniform(5, thick - 31), 1),
+                    hinge_depth_mm=3,
+                    hinge_corner_radius_mm=8,
+                    hinge_path_points=9 if path9 else 6,
+                    hinge_fd_dz_mm=";".join(f"{0.1 + 0.01 * p:.2f}" for p in range(9)) if path9 else "",
+                )
                 w.writerow([row[c] for c in columns])
                 rows += 1
     return rows
@@ -63,7 +78,9 @@ def main() -> None:
         src = tmp / "recipes.csv"
         rows = write_csv(src, args.doors, args.hinges)
         url = args.db or f"sqlite:///{tmp / 'bench.db'}"
-        print(f"file: {args.doors} doors, {rows} hinge rows, {src.stat().st_size / 1e6:.1f} MB; db: {redacted_url(url)}")
+        print(
+            f"file: {args.doors} doors, {rows} hinge rows, {src.stat().st_size / 1e6:.1f} MB; db: {redacted_url(url)}"
+        )
 
         with RecipeStore(url) as store:
             t0 = time.perf_counter()
@@ -76,16 +93,24 @@ def main() -> None:
             print(f"import total (library): {t2 - t0:6.2f} s   [{args.doors / (t2 - t0):,.0f} doors/s]")
             t0 = time.perf_counter()
             report = import_recipe_file(src, store)  # again: identical recipes, so nothing is rewritten
-            print(f"re-import of the same {report.doors} doors (unchanged: no new versions): {time.perf_counter() - t0:6.2f} s")
+            print(
+                f"re-import of the same {report.doors} doors (unchanged: no new versions): {time.perf_counter() - t0:6.2f} s"
+            )
             assert store.count() >= args.doors
 
         exe = Path(sys.executable).with_name("doorloc")
         if exe.exists():
             t0 = time.perf_counter()
-            r = subprocess.run([str(exe), "recipes", "import", str(src), "--db", url], capture_output=True, text=True,
-                               env={**os.environ, "DOORLOC_DATABASE_URL": ""})
+            r = subprocess.run(
+                [str(exe), "recipes", "import", str(src), "--db", url],
+                capture_output=True,
+                text=True,
+                env={**os.environ, "DOORLOC_DATABASE_URL": ""},
+            )
             dt = time.perf_counter() - t0
-            print(f"doorloc recipes import (CLI, process start included): {dt:6.2f} s  -> {r.stdout.strip() or r.stderr.strip()}")
+            print(
+                f"doorloc recipes import (CLI, process start included): {dt:6.2f} s  -> {r.stdout.strip() or r.stderr.strip()}"
+            )
 
         if args.db:
             with RecipeStore(url) as store:
@@ -98,7 +123,11 @@ def main() -> None:
 
         # a file with 3 bad rows imports nothing and names them
         lines = src.read_text(encoding="utf-8").splitlines()
-        bad_lines = {101: ("hinge_depth_mm", "-3"), 5002: ("thickness_mm", "0"), 29000: ("hinge_width_mm", "300")}
+        bad_lines = {
+            101: ("hinge_depth_mm", "-3"),
+            5002: ("thickness_mm", "0"),
+            29000: ("hinge_width_mm", "300"),
+        }
         header = lines[0].split(",")
         for ln, (col, val) in bad_lines.items():
             cells = next(csv.reader([lines[ln - 1]]))
@@ -113,7 +142,9 @@ def main() -> None:
                 print("3-bad-rows file: IMPORTED (wrong)")
             except RecipeImportError as e:
                 named = sorted({i.line for i in e.issues})
-                print(f"3-bad-rows file: {store.count()} doors written; rows named: {named} (planted {sorted(bad_lines)})")
+                print(
+                    f"3-bad-rows file: {store.count()} doors written; rows named: {named} (planted {sorted(bad_lines)})"
+                )
                 for issue in e.issues:
                     print(f"    {issue}")
 

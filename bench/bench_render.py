@@ -41,8 +41,16 @@ def main() -> None:
     distorted = dataclasses.replace(
         cell, camera=CameraModel(cam.camera_matrix, [-0.08, 0.05, 0.0, 0.0, 0.0], cam.image_size)
     )
-    effects_on = Effects(grain_contrast=0.08, light_directional=0.5, vignetting=0.2, gradient_u=0.1,
-                         blur_sigma_px=0.8, full_well_e=20000, read_noise_dn=1.0, gamma=2.2)
+    effects_on = Effects(
+        grain_contrast=0.08,
+        light_directional=0.5,
+        vignetting=0.2,
+        gradient_u=0.1,
+        blur_sigma_px=0.8,
+        full_well_e=20000,
+        read_noise_dn=1.0,
+        gamma=2.2,
+    )
     poses = [DoorPose(x, z, y) for x in (-10, 0, 10) for z in (-10, 0, 10) for y in (-2, 0, 2)]
     cases = {
         "plain": (cell, DoorSize(900, 50, 2100), Effects()),
@@ -62,7 +70,9 @@ def main() -> None:
                 times.append(time.perf_counter() - t0)
         q1, med, q3 = np.percentile(times, [25, 50, 75])
         all_times += times
-        print(f"  {name:24s} median {med * 1000:7.1f} ms  (q1 {q1 * 1000:6.1f}, q3 {q3 * 1000:6.1f}, max {max(times) * 1000:6.1f})")
+        print(
+            f"  {name:24s} median {med * 1000:7.1f} ms  (q1 {q1 * 1000:6.1f}, q3 {q3 * 1000:6.1f}, max {max(times) * 1000:6.1f})"
+        )
     print(f"overall median {np.median(all_times) * 1000:.1f} ms (acceptance: <= 1000 ms)")
 
 

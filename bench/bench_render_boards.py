@@ -31,7 +31,9 @@ CRIT = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 200, 1e-5)
 
 
 def _order(found, truth):
-    return found[::-1] if np.linalg.norm(found[0] - truth[-1]) < np.linalg.norm(found[0] - truth[0]) else found
+    return (
+        found[::-1] if np.linalg.norm(found[0] - truth[-1]) < np.linalg.norm(found[0] - truth[0]) else found
+    )
 
 
 def main() -> None:
@@ -50,12 +52,17 @@ def main() -> None:
             if ok:
                 c = cv2.cornerSubPix(rb.image, c.astype(np.float32), (11, 11), (-1, -1), CRIT).reshape(-1, 2)
                 sp_err.append(_order(c, rb.corners_px) - rb.corners_px)
-        for name, errs in (("findChessboardCornersSB", sb_err), ("SB + CALIB_CB_ACCURACY", sba_err),
-                           ("cornerSubPix 11x11", sp_err)):
+        for name, errs in (
+            ("findChessboardCornersSB", sb_err),
+            ("SB + CALIB_CB_ACCURACY", sba_err),
+            ("cornerSubPix 11x11", sp_err),
+        ):
             e = np.concatenate(errs)
             rms = np.sqrt(np.mean(np.sum(e**2, axis=1)))
-            print(f"checkerboard {label:12s} {name:24s} views {len(errs)}/{len(POSES)}  corners {len(e):4d}  "
-                  f"RMS {rms:.4f} px  mean ({e[:, 0].mean():+.4f}, {e[:, 1].mean():+.4f})")
+            print(
+                f"checkerboard {label:12s} {name:24s} views {len(errs)}/{len(POSES)}  corners {len(e):4d}  "
+                f"RMS {rms:.4f} px  mean ({e[:, 0].mean():+.4f}, {e[:, 1].mean():+.4f})"
+            )
     ch = CharucoBoard(7, 5, 30.0, 22.0)
     det = cv2.aruco.CharucoDetector(ch.cv_board())
     errs, n_ids = [], 0
@@ -67,8 +74,10 @@ def main() -> None:
             n_ids += len(ids)
             errs.append(corners.reshape(-1, 2) - rb.corners_px[ids])
     e = np.concatenate(errs)
-    print(f"charuco      blur 0.8 px  CharucoDetector          corners {n_ids}/{len(POSES) * 24}  "
-          f"RMS {np.sqrt(np.mean(np.sum(e**2, axis=1))):.4f} px")
+    print(
+        f"charuco      blur 0.8 px  CharucoDetector          corners {n_ids}/{len(POSES) * 24}  "
+        f"RMS {np.sqrt(np.mean(np.sum(e**2, axis=1))):.4f} px"
+    )
 
 
 if __name__ == "__main__":

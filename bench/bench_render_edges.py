@@ -31,8 +31,10 @@ def main() -> None:
             for angle in (0.0, 2.0, 30.0):
                 c = edge_agreement(cam, angle, kind=kind)
                 worst = max(worst, c.rms_px)
-                print(f"{name:46s} {kind:8s} {angle:6.1f} {c.residuals_px.size:5d} {c.rms_px:10.2e} "
-                      f"{np.max(np.abs(c.residuals_px)):10.2e}")
+                print(
+                    f"{name:46s} {kind:8s} {angle:6.1f} {c.residuals_px.size:5d} {c.rms_px:10.2e} "
+                    f"{np.max(np.abs(c.residuals_px)):10.2e}"
+                )
     print(f"worst RMS: {worst:.2e} px (acceptance: <= 0.01 px)")
 
 

@@ -33,9 +33,17 @@ import httpx
 from service_harness import doorloc_serve, rendered_pngs, rss_mb
 
 RECIPE = {
-    "door_id": "BENCH-1", "width_mm": 900, "height_mm": 2100, "thickness_mm": 50, "arris_mm": 0,
-    "hinges": [{"z_mm": 250, "length_mm": 100, "width_mm": 30, "x_mm": 10, "depth_mm": 3, "corner_radius_mm": 8}],
-    "tool_diameter_mm": 16, "spindle_rpm": 18000, "feed_mm_s": 25,
+    "door_id": "BENCH-1",
+    "width_mm": 900,
+    "height_mm": 2100,
+    "thickness_mm": 50,
+    "arris_mm": 0,
+    "hinges": [
+        {"z_mm": 250, "length_mm": 100, "width_mm": 30, "x_mm": 10, "depth_mm": 3, "corner_radius_mm": 8}
+    ],
+    "tool_diameter_mm": 16,
+    "spindle_rpm": 18000,
+    "feed_mm_s": 25,
 }
 
 
@@ -44,23 +52,42 @@ def png_bomb(w: int, h: int, depth: int, colour: int) -> bytes:
     ihdr = struct.pack(">IIBBBBB", w, h, depth, colour, 0, 0, 0)
     row = 1 + w * {0: 1, 2: 3, 4: 2, 6: 4}[colour] * depth // 8
     idat = zlib.compress(b"\x00" * row * 64, 9)  # 64 rows of zeros: the rest of the image is missing
-    return (b"\x89PNG\r\n\x1a\n" + struct.pack(">I", 13) + b"IHDR" + ihdr + struct.pack(">I", zlib.crc32(b"IHDR" + ihdr))
-            + struct.pack(">I", len(idat)) + b"IDAT" + idat + struct.pack(">I", zlib.crc32(b"IDAT" + idat))
-            + struct.pack(">I", 0) + b"IEND" + struct.pack(">I", zlib.crc32(b"IEND")))
+    return (
+        b"\x89PNG\r\n\x1a\n"
+        + struct.pack(">I", 13)
+        + b"IHDR"
+        + ihdr
+        + struct.pack(">I", zlib.crc32(b"IHDR" + ihdr))
+        + struct.pack(">I", len(idat))
+        + b"IDAT"
+        + idat
+        + struct.pack(">I", zlib.crc32(b"IDAT" + idat))
+        + struct.pack(">I", 0)
+        + b"IEND"
+        + struct.pack(">I", zlib.crc32(b"IEND"))
+    )
 
 
 def slow_upload(base: str) -> int:
     """Declare 100 kB, send 10 bytes, wait for the server's answer (its deadline); the status, or -1."""
     host, port = base.removeprefix("http://").split(":")
     with socket.create_connection((host, int(port)), timeout=120) as s:
-        s.sendall(b"POST /v1/locate HTTP/1.1\r\nHost: x\r\nContent-Type: multipart/form-data; boundary=zz\r\n"
-                  b"Content-Length: 100000\r\n\r\n--zz\r\nCont")
+        s.sendall(
+            b"POST /v1/locate HTTP/1.1\r\nHost: x\r\nContent-Type: multipart/form-data; boundary=zz\r\n"
+            b"Content-Length: 100000\r\n\r\n--zz\r\nCont"
+        )
         data = s.recv(4096)
     return int(data.split(b" ", 2)[1]) if data.startswith(b"HTTP/1.1 ") else -1
 
 
-def hostile_client(kind: str, base: str, stop: threading.Event, statuses: Counter, lock: threading.Lock,
-                   bombs: dict[str, bytes]) -> None:
+def hostile_client(
+    kind: str,
+    base: str,
+    stop: threading.Event,
+    statuses: Counter,
+    lock: threading.Lock,
+    bombs: dict[str, bytes],
+) -> None:
     with httpx.Client(base_url=base, timeout=120) as client:
         for _ in range(100_000):  # bounded; the phase ends it through `stop`
             if stop.is_set():
@@ -69,12 +96,17 @@ def hostile_client(kind: str, base: str, stop: threading.Event, statuses: Counte
                 if kind == "slow":
                     status = slow_upload(base)
                 elif kind == "garbage":
-                    status = client.post("/v1/locate", files={"image": ("x.png", b"\x00garbage" * 5000, "image/png")}).status_code
+                    status = client.post(
+                        "/v1/locate", files={"image": ("x.png", b"\x00garbage" * 5000, "image/png")}
+                    ).status_code
                 elif kind == "raw":
-                    status = client.post("/v1/locate", content=bombs["bomb16"],
-                                         headers={"Content-Type": "image/png"}).status_code
+                    status = client.post(
+                        "/v1/locate", content=bombs["bomb16"], headers={"Content-Type": "image/png"}
+                    ).status_code
                 else:
-                    status = client.post("/v1/locate", files={"image": ("b.png", bombs[kind], "image/png")}).status_code
+                    status = client.post(
+                        "/v1/locate", files={"image": ("b.png", bombs[kind], "image/png")}
+                    ).status_code
             except (httpx.HTTPError, OSError) as e:
                 status = type(e).__name__
             with lock:
@@ -90,9 +122,12 @@ def hostile_process(base: str, n: int, stop, out, running, nice: int = 0) -> Non
     kinds = ["bomb16", "bomb900mp", "slow", "garbage", "raw"]
     bombs = {"bomb16": png_bomb(7000, 7000, 16, 6), "bomb900mp": png_bomb(30000, 30000, 8, 0)}  # built once
     lock, statuses, stop_t = threading.Lock(), Counter(), threading.Event()
-    threads = [threading.Thread(target=hostile_client, args=(kinds[k % len(kinds)], base, stop_t, statuses, lock,
-                                                              bombs))
-               for k in range(n)]
+    threads = [
+        threading.Thread(
+            target=hostile_client, args=(kinds[k % len(kinds)], base, stop_t, statuses, lock, bombs)
+        )
+        for k in range(n)
+    ]
     for t in threads:
         t.start()
     for _ in range(600):  # the measurement starts once hostile answers come back (bounded wait)
@@ -127,8 +162,10 @@ def summary(lat: list[float]) -> str:
     if not lat:
         return "no answers"
     q = sorted(lat)
-    return (f"median {statistics.median(q) * 1e3:.0f} ms, p90 {q[int(0.9 * (len(q) - 1))] * 1e3:.0f} ms, "
-            f"max {q[-1] * 1e3:.0f} ms ({len(q)} requests)")
+    return (
+        f"median {statistics.median(q) * 1e3:.0f} ms, p90 {q[int(0.9 * (len(q) - 1))] * 1e3:.0f} ms, "
+        f"max {q[-1] * 1e3:.0f} ms ({len(q)} requests)"
+    )
 
 
 def main() -> None:
@@ -154,8 +191,9 @@ def main() -> None:
             lat0 += u
             err0 += e
             stop, out, running = ctx.Event(), ctx.Queue(), ctx.Event()
-            hostile = ctx.Process(target=hostile_process,
-                                  args=(base, args.hostile, stop, out, running, args.hostile_nice))
+            hostile = ctx.Process(
+                target=hostile_process, args=(base, args.hostile, stop, out, running, args.hostile_nice)
+            )
             hostile.start()
             running.wait(120)  # every hostile client is sending
             time.sleep(0.5)
@@ -177,10 +215,15 @@ def main() -> None:
         print(f"{args.hostile} hostile in flight:   {summary(lat1)}; errors {len(err1)} {err1[:2]}")
         if lat0 and lat1:
             ratio = statistics.median(lat1) / statistics.median(lat0)
-            print(f"median ratio loaded/unloaded: {ratio:.2f} (goal <= 2); per round: "
-                  + ", ".join(f"{r:.2f}" for r in ratios))
-        print(f"hostile clients: {args.hostile} in flight, nice {args.hostile_nice}, about "
-              f"{sent_in_window / max(window, 1e-9):.0f} hostile requests/s (upper bound); answers:", ", ".join(f"{k} x{v}" for k, v in sorted(statuses.items())))
+            print(
+                f"median ratio loaded/unloaded: {ratio:.2f} (goal <= 2); per round: "
+                + ", ".join(f"{r:.2f}" for r in ratios)
+            )
+        print(
+            f"hostile clients: {args.hostile} in flight, nice {args.hostile_nice}, about "
+            f"{sent_in_window / max(window, 1e-9):.0f} hostile requests/s (upper bound); answers:",
+            ", ".join(f"{k} x{v}" for k, v in sorted(statuses.items())),
+        )
         print(f"server RSS (all processes) during the hostile phase: peak {peak:.0f} MB")
 
         if args.writers < 1:
@@ -201,8 +244,10 @@ def main() -> None:
         wall = time.perf_counter() - t0
         after = len(httpx.get(f"{base}/v1/doors/BENCH-1/history", timeout=60).json()["versions"])
         failures = [r for r in results if r != 200]
-        print(f"{args.writers} parallel recipe writers: {len(failures)} failures {Counter(failures) or ''}, "
-              f"{wall:.2f} s wall, history +{after - before} versions")
+        print(
+            f"{args.writers} parallel recipe writers: {len(failures)} failures {Counter(failures) or ''}, "
+            f"{wall:.2f} s wall, history +{after - before} versions"
+        )
 
 
 if __name__ == "__main__":

@@ -44,7 +44,9 @@ async def _sample_rss(pid: int, stop_at: float, samples: list) -> None:
         await asyncio.sleep(min(10.0, max(0.0, stop_at - time.monotonic())))
 
 
-async def _run(base: str, pid: int, pngs: list, clients: int, seconds: float) -> tuple[list, list, float, list]:
+async def _run(
+    base: str, pid: int, pngs: list, clients: int, seconds: float
+) -> tuple[list, list, float, list]:
     latencies: list[float] = []
     errors: list[str] = []
     rss_samples: list[float] = []
@@ -77,12 +79,19 @@ def main() -> None:
     lat_ms = sorted(x * 1e3 for x in latencies)
     p = (lambda q: lat_ms[min(len(lat_ms) - 1, int(q * len(lat_ms)))]) if lat_ms else (lambda q: float("nan"))
     figures = {
-        "clients": args.clients, "seconds": round(wall, 1), "workers": args.workers,
+        "clients": args.clients,
+        "seconds": round(wall, 1),
+        "workers": args.workers,
         "png_bytes_mean": int(statistics.mean(len(d) for d, _ in pngs)),
-        "requests_ok": len(latencies), "errors": len(errors),
+        "requests_ok": len(latencies),
+        "errors": len(errors),
         "throughput_rps": round(len(latencies) / wall, 2),
-        "latency_p50_ms": round(p(0.50), 1), "latency_p99_ms": round(p(0.99), 1), "latency_max_ms": round(lat_ms[-1], 1) if lat_ms else None,
-        "rss_start_mb": round(rss_start, 1), "rss_end_mb": round(rss_end, 1), "rss_every_10s_mb": rss_samples,
+        "latency_p50_ms": round(p(0.50), 1),
+        "latency_p99_ms": round(p(0.99), 1),
+        "latency_max_ms": round(lat_ms[-1], 1) if lat_ms else None,
+        "rss_start_mb": round(rss_start, 1),
+        "rss_end_mb": round(rss_end, 1),
+        "rss_every_10s_mb": rss_samples,
     }
     print(json.dumps(figures))
     for e in errors[:10]:

@@ -23,10 +23,24 @@ def main() -> None:
     args = ap.parse_args()
     env = {**os.environ, "DOORLOC_SCHEMATHESIS_EXAMPLES": str(args.examples)}
     p = subprocess.run(
-        [sys.executable, "-m", "pytest", "tests/app/test_api_schema.py", "-q", "-rA", "-p", "no:cacheprovider"],
-        cwd=REPO, env=env, capture_output=True, text=True,
+        [
+            sys.executable,
+            "-m",
+            "pytest",
+            "tests/app/test_api_schema.py",
+            "-q",
+            "-rA",
+            "-p",
+            "no:cacheprovider",
+        ],
+        cwd=REPO,
+        env=env,
+        capture_output=True,
+        text=True,
     )
-    lines = [ln for ln in p.stdout.splitlines() if ln.startswith(("PASSED", "FAILED", "ERROR")) or " passed" in ln]
+    lines = [
+        ln for ln in p.stdout.splitlines() if ln.startswith(("PASSED", "FAILED", "ERROR")) or " passed" in ln
+    ]
     print(f"schemathesis, all checks, {args.examples} examples per operation and mode:")
     print("\n".join(lines))
     if p.returncode != 0:

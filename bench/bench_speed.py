@@ -49,10 +49,17 @@ def _frames(sets=SETS):
         cell = load_cell(FIX / s / "cell.yaml")
         with open(FIX / s / "truth.csv", newline="") as f:
             for r in csv.DictReader(f):
-                door = DoorSize(float(r["width_mm"]), float(r["thickness_mm"]), float(r["height_mm"]),
-                                float(r["arris_mm"]), r["arris_profile"])
+                door = DoorSize(
+                    float(r["width_mm"]),
+                    float(r["thickness_mm"]),
+                    float(r["height_mm"]),
+                    float(r["arris_mm"]),
+                    r["arris_profile"],
+                )
                 path = FIX / s / r["image"]
-                out.append((f"{s}/{r['image']}", cell, door, cv2.imread(str(path), cv2.IMREAD_UNCHANGED), path))
+                out.append(
+                    (f"{s}/{r['image']}", cell, door, cv2.imread(str(path), cv2.IMREAD_UNCHANGED), path)
+                )
     return out
 
 
@@ -153,12 +160,16 @@ def measure_throughput(repeats: int, cuda: bool) -> dict:
     cell = frames[0][1]
     for device in ["cpu"] + (["cuda"] if cuda and torch.cuda.is_available() else []):
         best = 0.0
-        locate_batch([read_image(p) for p, _, _ in jobs[:4]], cell, [d for _, _, d in jobs[:4]], device=device)
+        locate_batch(
+            [read_image(p) for p, _, _ in jobs[:4]], cell, [d for _, _, d in jobs[:4]], device=device
+        )
         for _ in range(repeats):
             t = time.perf_counter()
             for s in range(0, len(jobs), 32):
-                part = jobs[s:s + 32]
-                locate_batch([read_image(p) for p, _, _ in part], cell, [d for _, _, d in part], device=device)
+                part = jobs[s : s + 32]
+                locate_batch(
+                    [read_image(p) for p, _, _ in part], cell, [d for _, _, d in part], device=device
+                )
             best = max(best, len(jobs) / (time.perf_counter() - t))
         out[f"batched_{device}_1proc_fps"] = best
     if not (cuda and torch.cuda.is_available()):
@@ -187,43 +198,77 @@ def main() -> None:
     for _ in range(a.rounds):
         for label, src in runs:
             env = dict(os.environ, PYTHONPATH=src)
-            p = subprocess.run([sys.executable, __file__, "--worker", "--repeats", str(a.repeats)], env=env,
-                               capture_output=True, text=True, check=True)
+            p = subprocess.run(
+                [sys.executable, __file__, "--worker", "--repeats", str(a.repeats)],
+                env=env,
+                capture_output=True,
+                text=True,
+                check=True,
+            )
             rounds[label].append(json.loads(p.stdout.strip().splitlines()[-1]))
     for label, _ in runs:
         rs = rounds[label]
-        res[label] = {"doorloc": rs[0]["doorloc"], "rounds": rs,
-                      "stages_cpu_ms": {k: statistics.median(r["stages_cpu_ms"][k] for r in rs) for k in rs[0]["stages_cpu_ms"]}}
+        res[label] = {
+            "doorloc": rs[0]["doorloc"],
+            "rounds": rs,
+            "stages_cpu_ms": {
+                k: statistics.median(r["stages_cpu_ms"][k] for r in rs) for k in rs[0]["stages_cpu_ms"]
+            },
+        }
         for k, v in rs[0].items():
             if isinstance(v, dict) and "wall_ms" in v:
-                res[label][k] = {m: statistics.median(r[k][m] for r in rs) for m in ("wall_ms", "cpu_ms")} | {"n": sum(r[k]["n"] for r in rs)}
+                res[label][k] = {m: statistics.median(r[k][m] for r in rs) for m in ("wall_ms", "cpu_ms")} | {
+                    "n": sum(r[k]["n"] for r in rs)
+                }
     if not a.no_throughput:
         sys.path.insert(0, str(REPO / "src"))
         res["throughput"] = measure_throughput(a.repeats, a.cuda)
     res["load_avg_at_end"] = os.getloadavg()
-    print(f"{os.cpu_count()} CPUs, load average {res['load_avg_at_start'][0]:.1f} at start, "
-          f"{res['load_avg_at_end'][0]:.1f} at end (shared machine: wall times are noisy, CPU times less so)")
+    print(
+        f"{os.cpu_count()} CPUs, load average {res['load_avg_at_start'][0]:.1f} at start, "
+        f"{res['load_avg_at_end'][0]:.1f} at end (shared machine: wall times are noisy, CPU times less so)"
+    )
     for label, _ in runs:
         r = res[label]
         print(f"\n{label}: {r['doorloc']}")
-        for k in ("locate", "baseline", "decode.png", "decode+locate.png", "decode+baseline.png", "decode.jpg",
-                  "decode+locate.jpg", "decode+baseline.jpg"):
+        for k in (
+            "locate",
+            "baseline",
+            "decode.png",
+            "decode+locate.png",
+            "decode+baseline.png",
+            "decode.jpg",
+            "decode+locate.jpg",
+            "decode+baseline.jpg",
+        ):
             v = r[k]
-            print(f"  {k:22s} median wall {v['wall_ms']:7.3f} ms   thread CPU {v['cpu_ms']:7.3f} ms   (n={v['n']})")
-        print("  stages (thread CPU ms, median, frames without a visible far face): "
-              + ", ".join(f"{k} {v:.3f}" for k, v in r["stages_cpu_ms"].items()))
-        print(f"  locate / baseline (same run): wall {r['locate']['wall_ms'] / r['baseline']['wall_ms']:.2f}, "
-              f"CPU {r['locate']['cpu_ms'] / r['baseline']['cpu_ms']:.2f}")
+            print(
+                f"  {k:22s} median wall {v['wall_ms']:7.3f} ms   thread CPU {v['cpu_ms']:7.3f} ms   (n={v['n']})"
+            )
+        print(
+            "  stages (thread CPU ms, median, frames without a visible far face): "
+            + ", ".join(f"{k} {v:.3f}" for k, v in r["stages_cpu_ms"].items())
+        )
+        print(
+            f"  locate / baseline (same run): wall {r['locate']['wall_ms'] / r['baseline']['wall_ms']:.2f}, "
+            f"CPU {r['locate']['cpu_ms'] / r['baseline']['cpu_ms']:.2f}"
+        )
     if a.before:
         print(f"\nspeed-up, median of {a.rounds} per-round ratios (before / after):")
         for k in ("locate", "decode+locate.png", "decode+locate.jpg"):
-            ratio = {m: statistics.median(b[k][m] / f[k][m] for b, f in zip(rounds["before"], rounds["after"], strict=True))
-                     for m in ("wall_ms", "cpu_ms")}
+            ratio = {
+                m: statistics.median(
+                    b[k][m] / f[k][m] for b, f in zip(rounds["before"], rounds["after"], strict=True)
+                )
+                for m in ("wall_ms", "cpu_ms")
+            }
             res.setdefault("speedup", {})[k] = ratio
             print(f"  {k:22s} wall {ratio['wall_ms']:.2f}x, thread CPU {ratio['cpu_ms']:.2f}x")
         sb, sa = res["before"]["stages_cpu_ms"], res["after"]["stages_cpu_ms"]
-        print("  stages (thread CPU ms, before -> after): "
-              + ", ".join(f"{k} {sb[k]:.3f} -> {sa.get(k, float('nan')):.3f}" for k in sb))
+        print(
+            "  stages (thread CPU ms, before -> after): "
+            + ", ".join(f"{k} {sb[k]:.3f} -> {sa.get(k, float('nan')):.3f}" for k in sb)
+        )
     if "throughput" in res:
         print("\nframes/s over the 81 grid PNGs (decode + locate):")
         for k, v in res["throughput"].items():

@@ -72,10 +72,17 @@ def grain_set(n: int, seed: int) -> Iterator[Item]:
     for i in range(n):
         bg = rng.uniform(0.1, 0.3)
         eff = Effects(
-            albedo_hinge=bg + rng.uniform(0.1, 0.3), albedo_background=bg, albedo_side=bg + rng.uniform(-0.05, 0.3),
-            gradient_u=rng.uniform(-0.2, 0.2), gradient_v=rng.uniform(-0.2, 0.2), vignetting=rng.uniform(0.0, 0.4),
-            grain_contrast=rng.uniform(0.0, 0.10), grain_period_mm=rng.uniform(2.0, 8.0),
-            blur_sigma_px=rng.uniform(0.6, 1.8), read_noise_dn=rng.uniform(0.0, 4.0), jpeg_quality=88,
+            albedo_hinge=bg + rng.uniform(0.1, 0.3),
+            albedo_background=bg,
+            albedo_side=bg + rng.uniform(-0.05, 0.3),
+            gradient_u=rng.uniform(-0.2, 0.2),
+            gradient_v=rng.uniform(-0.2, 0.2),
+            vignetting=rng.uniform(0.0, 0.4),
+            grain_contrast=rng.uniform(0.0, 0.10),
+            grain_period_mm=rng.uniform(2.0, 8.0),
+            blur_sigma_px=rng.uniform(0.6, 1.8),
+            read_noise_dn=rng.uniform(0.0, 4.0),
+            jpeg_quality=88,
         )
         # the grain's phases and wander come from the image seed (sim.effects.wood_grain)
         yield f"grain_{i:03d}", _pose(rng), DoorSize(900, rng.uniform(30, 100), 2100), eff, seed * 1000 + i
@@ -84,40 +91,72 @@ def grain_set(n: int, seed: int) -> Iterator[Item]:
 def plain_set(n: int, seed: int) -> Iterator[Item]:
     rng = np.random.default_rng(seed)
     for i in range(n):
-        yield f"plain_{i:03d}", _pose(rng), DoorSize(rng.uniform(700, 1100), rng.uniform(30, 100), 2100), None, seed * 1000 + i
+        yield (
+            f"plain_{i:03d}",
+            _pose(rng),
+            DoorSize(rng.uniform(700, 1100), rng.uniform(30, 100), 2100),
+            None,
+            seed * 1000 + i,
+        )
 
 
 def _hard_effects(rng: np.random.Generator) -> Effects:
     bg = rng.uniform(0.08, 0.3)
     jpeg = int(rng.choice([0, 80, 88, 95]))
     return Effects(
-        albedo_hinge=bg + rng.uniform(0.1, 0.45), albedo_background=bg, albedo_side=bg + rng.uniform(-0.05, 0.35),
-        light_ambient=rng.uniform(0.6, 1.0), light_directional=rng.uniform(0.0, 0.4),
-        light_azimuth_deg=rng.uniform(-60, 60), light_elevation_deg=rng.uniform(-30, 45),
-        gradient_u=rng.uniform(-0.25, 0.25), gradient_v=rng.uniform(-0.25, 0.25), vignetting=rng.uniform(0.0, 0.4),
-        grain_contrast=rng.uniform(0.0, 0.10), grain_period_mm=rng.uniform(2.0, 8.0),
-        shadow_strength=rng.uniform(0.0, 0.3) if rng.random() < 0.3 else 0.0, shadow_z_mm=rng.uniform(20, 80),
-        blur_sigma_px=rng.uniform(0.0, 2.0), full_well_e=rng.choice([0.0, 20000.0]), read_noise_dn=rng.uniform(0.0, 4.0),
-        jpeg_quality=jpeg, bit_depth=16 if (jpeg == 0 and rng.random() < 0.3) else 8,
+        albedo_hinge=bg + rng.uniform(0.1, 0.45),
+        albedo_background=bg,
+        albedo_side=bg + rng.uniform(-0.05, 0.35),
+        light_ambient=rng.uniform(0.6, 1.0),
+        light_directional=rng.uniform(0.0, 0.4),
+        light_azimuth_deg=rng.uniform(-60, 60),
+        light_elevation_deg=rng.uniform(-30, 45),
+        gradient_u=rng.uniform(-0.25, 0.25),
+        gradient_v=rng.uniform(-0.25, 0.25),
+        vignetting=rng.uniform(0.0, 0.4),
+        grain_contrast=rng.uniform(0.0, 0.10),
+        grain_period_mm=rng.uniform(2.0, 8.0),
+        shadow_strength=rng.uniform(0.0, 0.3) if rng.random() < 0.3 else 0.0,
+        shadow_z_mm=rng.uniform(20, 80),
+        blur_sigma_px=rng.uniform(0.0, 2.0),
+        full_well_e=rng.choice([0.0, 20000.0]),
+        read_noise_dn=rng.uniform(0.0, 4.0),
+        jpeg_quality=jpeg,
+        bit_depth=16 if (jpeg == 0 and rng.random() < 0.3) else 8,
     )
 
 
 def hard_set(n: int, seed: int) -> Iterator[Item]:
     rng = np.random.default_rng(seed)
     for i in range(n):
-        yield f"hard_{i:03d}", _pose(rng), DoorSize(900, rng.uniform(30, 100), 2100), _hard_effects(rng), seed * 1000 + i
+        yield (
+            f"hard_{i:03d}",
+            _pose(rng),
+            DoorSize(900, rng.uniform(30, 100), 2100),
+            _hard_effects(rng),
+            seed * 1000 + i,
+        )
 
 
 def thin_set(n: int, seed: int) -> Iterator[Item]:
     rng = np.random.default_rng(seed)
     for i in range(n):
         pose = DoorPose(rng.uniform(-10.0, 10.0), rng.uniform(-10, 10), rng.uniform(-2, 2))
-        yield f"thin_{i:03d}", pose, DoorSize(900, rng.uniform(28.0, 40.0), 2100), _hard_effects(rng), seed * 1000 + i
+        yield (
+            f"thin_{i:03d}",
+            pose,
+            DoorSize(900, rng.uniform(28.0, 40.0), 2100),
+            _hard_effects(rng),
+            seed * 1000 + i,
+        )
 
 
 #: name -> generator(n, seed); add arris / response sets here
 SETS: dict[str, Callable[[int, int], Iterator[Item]]] = {
-    "grain": grain_set, "plain": plain_set, "hard": hard_set, "thin": thin_set,
+    "grain": grain_set,
+    "plain": plain_set,
+    "hard": hard_set,
+    "thin": thin_set,
 }
 FIXTURES = ("grid", "widths", "distractors", "effects")
 
@@ -154,13 +193,15 @@ def _print_set(name: str, s: dict, seed: int | None) -> None:
     if not s["ok"]:
         print(head)
     else:
-        print(f"{head}  RMS x {s['rms_x_mm']:.4f} z {s['rms_z_mm']:.4f} mm yaw {s['rms_yaw_deg']:.4f} deg | max x "
-              f"{s['max_x_mm']:.4f} z {s['max_z_mm']:.4f} yaw {s['max_yaw_deg']:.4f}\n"
-              f"{'':20s} within 2 sigma (ideal 95 %): x {100 * s['within_2sigma_x_mm']:.0f} % z "
-              f"{100 * s['within_2sigma_z_mm']:.0f} % yaw {100 * s['within_2sigma_yaw_deg']:.0f} %; beyond 5 sigma: "
-              f"{s['beyond_5sigma_x_mm']}/{s['beyond_5sigma_z_mm']}/{s['beyond_5sigma_yaw_deg']}; worst "
-              f"{s['max_z_x_mm']:.1f}/{s['max_z_z_mm']:.1f}/{s['max_z_yaw_deg']:.1f} sigma; median sigma x "
-              f"{s['median_sigma_x_mm']:.4f} z {s['median_sigma_z_mm']:.4f} mm yaw {s['median_sigma_yaw_deg']:.4f} deg")
+        print(
+            f"{head}  RMS x {s['rms_x_mm']:.4f} z {s['rms_z_mm']:.4f} mm yaw {s['rms_yaw_deg']:.4f} deg | max x "
+            f"{s['max_x_mm']:.4f} z {s['max_z_mm']:.4f} yaw {s['max_yaw_deg']:.4f}\n"
+            f"{'':20s} within 2 sigma (ideal 95 %): x {100 * s['within_2sigma_x_mm']:.0f} % z "
+            f"{100 * s['within_2sigma_z_mm']:.0f} % yaw {100 * s['within_2sigma_yaw_deg']:.0f} %; beyond 5 sigma: "
+            f"{s['beyond_5sigma_x_mm']}/{s['beyond_5sigma_z_mm']}/{s['beyond_5sigma_yaw_deg']}; worst "
+            f"{s['max_z_x_mm']:.1f}/{s['max_z_z_mm']:.1f}/{s['max_z_yaw_deg']:.1f} sigma; median sigma x "
+            f"{s['median_sigma_x_mm']:.4f} z {s['median_sigma_z_mm']:.4f} mm yaw {s['median_sigma_yaw_deg']:.4f} deg"
+        )
     for r in s["refusals"]:
         print(f"{'':20s} refused {r['image']}: {r['code']}: {r['reason']}")
 
@@ -172,8 +213,13 @@ def run_rendered(cell: Cell, name: str, n: int, seed: int) -> dict:
     results = []
     for img_name, pose, door, eff, s in SETS[name](n, seed):
         img = render_door(cell, door, pose, effects=eff, seed=s).image
-        results.append((img_name, locate(img, cell, door, image_name=img_name, config=cfg),
-                        (pose.x_mm, pose.z_mm, pose.yaw_deg)))
+        results.append(
+            (
+                img_name,
+                locate(img, cell, door, image_name=img_name, config=cfg),
+                (pose.x_mm, pose.z_mm, pose.yaw_deg),
+            )
+        )
     return _evaluate(results)
 
 
@@ -186,11 +232,21 @@ def run_fixture(folder: str) -> dict:
     results = []
     with open(d / "truth.csv", newline="") as f:
         for row in csv.DictReader(f):
-            door = DoorSize(float(row["width_mm"]), float(row["thickness_mm"]), float(row["height_mm"]),
-                            arris_mm=float(row["arris_mm"]), arris_profile=row["arris_profile"])  # type: ignore[arg-type]
+            door = DoorSize(
+                float(row["width_mm"]),
+                float(row["thickness_mm"]),
+                float(row["height_mm"]),
+                arris_mm=float(row["arris_mm"]),
+                arris_profile=row["arris_profile"],
+            )  # type: ignore[arg-type]
             img = cv2.imread(str(d / row["image"]), cv2.IMREAD_UNCHANGED)
-            results.append((row["image"], locate(img, cell, door, image_name=row["image"], config=cfg),
-                            (float(row["x_mm"]), float(row["z_mm"]), float(row["yaw_deg"]))))
+            results.append(
+                (
+                    row["image"],
+                    locate(img, cell, door, image_name=row["image"], config=cfg),
+                    (float(row["x_mm"]), float(row["z_mm"]), float(row["yaw_deg"])),
+                )
+            )
     return _evaluate(results)
 
 
@@ -230,20 +286,33 @@ def run_speed(baseline_src: Path, rounds: int, repeats: int) -> dict:
     for _ in range(rounds):
         for k, src in srcs.items():  # alternate A/B so both see the same machine load
             env = dict(os.environ, PYTHONPATH=str(src), OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
-            out = subprocess.run([sys.executable, __file__, "--time-worker", "--repeats", str(repeats)], env=env,
-                                 check=True, capture_output=True, text=True).stdout
+            out = subprocess.run(
+                [sys.executable, __file__, "--time-worker", "--repeats", str(repeats)],
+                env=env,
+                check=True,
+                capture_output=True,
+                text=True,
+            ).stdout
             per[k].append(json.loads(out.strip().splitlines()[-1]))
     med = {k: float(np.median(np.min(np.array(v), axis=0))) for k, v in per.items()}
-    return {"median_of_best_ms_this": med["this"], "median_of_best_ms_baseline": med["baseline"],
-            "ratio": med["this"] / med["baseline"], "baseline_src": str(baseline_src), "rounds": rounds,
-            "repeats": repeats, "images": len(per["this"][0])}
+    return {
+        "median_of_best_ms_this": med["this"],
+        "median_of_best_ms_baseline": med["baseline"],
+        "ratio": med["this"] / med["baseline"],
+        "baseline_src": str(baseline_src),
+        "rounds": rounds,
+        "repeats": repeats,
+        "images": len(per["this"][0]),
+    }
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[1])
     ap.add_argument("--n", type=int, default=60, help="images per rendered set")
     ap.add_argument("--seed", type=int, default=11, help="base seed; set k uses seed + k")
-    ap.add_argument("--sets", default="grain,plain,hard,thin,fixtures", help="comma list of sets (fixtures = all folders)")
+    ap.add_argument(
+        "--sets", default="grain,plain,hard,thin,fixtures", help="comma list of sets (fixtures = all folders)"
+    )
     ap.add_argument("--speed", action="store_true", help="also time the grid set against --baseline-src")
     ap.add_argument("--baseline-src", type=Path, default=Path("/work/main/src"))
     ap.add_argument("--rounds", type=int, default=3)
@@ -277,22 +346,30 @@ def main() -> None:
         report["sets"][name] = s
     if pooled_z:
         z = np.array(pooled_z)
-        pooled = {"answers": len(z), "within_2sigma": [float(v) for v in (z <= 2).mean(axis=0)],
-                  "beyond_5sigma": [int(v) for v in (z > 5).sum(axis=0)],
-                  "refusals": sum(len(s["refusals"]) for s in report["sets"].values()),
-                  "refusals_without_reason": sum(1 for s in report["sets"].values() for r in s["refusals"]
-                                                 if not r["reason"])}
+        pooled = {
+            "answers": len(z),
+            "within_2sigma": [float(v) for v in (z <= 2).mean(axis=0)],
+            "beyond_5sigma": [int(v) for v in (z > 5).sum(axis=0)],
+            "refusals": sum(len(s["refusals"]) for s in report["sets"].values()),
+            "refusals_without_reason": sum(
+                1 for s in report["sets"].values() for r in s["refusals"] if not r["reason"]
+            ),
+        }
         report["all_sets"] = pooled
-        print(f"all sets: {pooled['answers']} answers; within 2 sigma x {100 * pooled['within_2sigma'][0]:.1f} % "
-              f"z {100 * pooled['within_2sigma'][1]:.1f} % yaw {100 * pooled['within_2sigma'][2]:.1f} % (ideal 95 %); "
-              f"beyond 5 sigma {pooled['beyond_5sigma']}; {pooled['refusals']} refusals, "
-              f"{pooled['refusals_without_reason']} without a reason")
+        print(
+            f"all sets: {pooled['answers']} answers; within 2 sigma x {100 * pooled['within_2sigma'][0]:.1f} % "
+            f"z {100 * pooled['within_2sigma'][1]:.1f} % yaw {100 * pooled['within_2sigma'][2]:.1f} % (ideal 95 %); "
+            f"beyond 5 sigma {pooled['beyond_5sigma']}; {pooled['refusals']} refusals, "
+            f"{pooled['refusals_without_reason']} without a reason"
+        )
     if args.speed:
         sp = run_speed(args.baseline_src, args.rounds, args.repeats)
         report["speed"] = sp
-        print(f"speed, grid set ({sp['images']} images, one thread, per image best of {sp['rounds']}x{sp['repeats']} "
-              f"calls, median over images): this {sp['median_of_best_ms_this']:.2f} ms, baseline "
-              f"({sp['baseline_src']}) {sp['median_of_best_ms_baseline']:.2f} ms, ratio {sp['ratio']:.3f}")
+        print(
+            f"speed, grid set ({sp['images']} images, one thread, per image best of {sp['rounds']}x{sp['repeats']} "
+            f"calls, median over images): this {sp['median_of_best_ms_this']:.2f} ms, baseline "
+            f"({sp['baseline_src']}) {sp['median_of_best_ms_baseline']:.2f} ms, ratio {sp['ratio']:.3f}"
+        )
     if args.json:
         args.json.write_text(json.dumps(report, indent=2))
 

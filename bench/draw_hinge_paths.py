@@ -28,7 +28,12 @@ INK, POCKET, PATH, TOOL, NOTE = (30, 30, 30), (120, 120, 120), (200, 90, 20), (4
 def _rounded_rect(h: Hinge, n: int = 24) -> np.ndarray:
     x0, x1, z0, z1, r = h.x_mm, h.x_mm + h.width_mm, h.z_mm, h.z_mm + h.length_mm, h.corner_radius_mm
     pts = []
-    for cx, cz, a0 in ((x1 - r, z0 + r, -90), (x1 - r, z1 - r, 0), (x0 + r, z1 - r, 90), (x0 + r, z0 + r, 180)):
+    for cx, cz, a0 in (
+        (x1 - r, z0 + r, -90),
+        (x1 - r, z1 - r, 0),
+        (x0 + r, z1 - r, 90),
+        (x0 + r, z0 + r, 180),
+    ):
         for k in range(n + 1):
             a = math.radians(a0 + 90 * k / n)
             pts.append((cx + r * math.cos(a), cz + r * math.sin(a)))
@@ -50,7 +55,15 @@ def panel(title: str, subtitle: str, h: Hinge, tool_d: float) -> np.ndarray:
     for a, b in zip(xz[:-1], xz[1:], strict=True):
         if np.allclose(a, b):
             continue
-        cv2.arrowedLine(img, px(*a), px(*b), PATH, 2, cv2.LINE_AA, tipLength=min(0.5, 12 / max(1, np.hypot(*(b - a)) * SCALE)))
+        cv2.arrowedLine(
+            img,
+            px(*a),
+            px(*b),
+            PATH,
+            2,
+            cv2.LINE_AA,
+            tipLength=min(0.5, 12 / max(1, np.hypot(*(b - a)) * SCALE)),
+        )
     centre = xz[:-1].mean(axis=0)
     placed: list[tuple[int, int]] = []
     for k, ((x, z), kind) in enumerate(zip(xz, kinds, strict=True), start=1):
@@ -88,11 +101,22 @@ def main() -> None:
     a = panel("6-point path (fig. 3.24b)", "pocket 28x80 r7, tool 14: P1=P6", six, 14.0)
     b = panel("9-point path (fig. 3.24a)", "pocket 28x80 r12, tool 14: P1=P9", nine, 14.0)
     h = max(a.shape[0], b.shape[0])
-    pad = lambda im: cv2.copyMakeBorder(im, 0, h - im.shape[0], 0, 0, cv2.BORDER_CONSTANT, value=(255, 255, 255))  # noqa: E731
+
+    def pad(im):
+        return cv2.copyMakeBorder(im, 0, h - im.shape[0], 0, 0, cv2.BORDER_CONSTANT, value=(255, 255, 255))
+
     img = np.hstack([pad(a), np.full((h, 6, 3), 220, np.uint8), pad(b)])
     foot = np.full((40, img.shape[1], 3), 255, np.uint8)
-    cv2.putText(foot, "seen from the camera; counter-clockwise; filled: corners (fine); open: z0 (P1 ends the plunge: fine); green: tool",
-                (10, 24), FONT, 0.42, NOTE, 1, cv2.LINE_AA)
+    cv2.putText(
+        foot,
+        "seen from the camera; counter-clockwise; filled: corners (fine); open: z0 (P1 ends the plunge: fine); green: tool",
+        (10, 24),
+        FONT,
+        0.42,
+        NOTE,
+        1,
+        cv2.LINE_AA,
+    )
     img = np.vstack([img, foot])
     args.out.parent.mkdir(parents=True, exist_ok=True)
     if not cv2.imwrite(str(args.out), img):

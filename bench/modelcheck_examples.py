@@ -39,17 +39,25 @@ THESIS_DIST = [0.0206, 10.4073, 0.0, 0.0, -115.4536]
 
 def _summary(rep) -> str:
     b, a = rep.heldout_rms_before, rep.heldout_rms_after
-    return (f"causes {rep.causes}; parameters {json.dumps(rep.parameters)}\n"
-            f"  held-out RMS x {b['x_mm']:.4f} -> {a['x_mm']:.4f} mm, z {b['z_mm']:.4f} -> {a['z_mm']:.4f} mm, "
-            f"yaw {b['yaw_deg']:.5f} -> {a['yaw_deg']:.5f} deg, thickness {b['thickness_mm']:.4f} -> "
-            f"{a['thickness_mm']:.4f} mm; gain {rep.heldout_gain:.1f}x; alternatives "
-            f"{[(x['cause'], round(x['cv_rms_weighted'], 2)) for x in rep.alternatives]}")
+    return (
+        f"causes {rep.causes}; parameters {json.dumps(rep.parameters)}\n"
+        f"  held-out RMS x {b['x_mm']:.4f} -> {a['x_mm']:.4f} mm, z {b['z_mm']:.4f} -> {a['z_mm']:.4f} mm, "
+        f"yaw {b['yaw_deg']:.5f} -> {a['yaw_deg']:.5f} deg, thickness {b['thickness_mm']:.4f} -> "
+        f"{a['thickness_mm']:.4f} mm; gain {rep.heldout_gain:.1f}x; alternatives "
+        f"{[(x['cause'], round(x['cv_rms_weighted'], 2)) for x in rep.alternatives]}"
+    )
 
 
 def _with_camera(cell: Cell, K=None, dist=None) -> Cell:
     c = cell.camera
-    return replace(cell, camera=CameraModel(c.camera_matrix if K is None else np.asarray(K, float),
-                                            c.dist_coeffs if dist is None else np.asarray(dist, float), c.image_size))
+    return replace(
+        cell,
+        camera=CameraModel(
+            c.camera_matrix if K is None else np.asarray(K, float),
+            c.dist_coeffs if dist is None else np.asarray(dist, float),
+            c.image_size,
+        ),
+    )
 
 
 def pixel_aspect(out: Path, thesis: Cell) -> None:
@@ -62,7 +70,9 @@ def pixel_aspect(out: Path, thesis: Cell) -> None:
     aspect_pct = 200 * (fy - fx) / (fx + fy)
     render_measured_set(out / "data", one_scale, {"pixel_aspect": [aspect_pct]}, SetSpec(seed=7))
     rep = check_model(out / "data", one_scale, out / "report")
-    fitted = rep.parameters.get("pixel_aspect", {}).get("aspect_pct", {"value": float("nan"), "sigma": float("nan")})
+    fitted = rep.parameters.get("pixel_aspect", {}).get(
+        "aspect_pct", {"value": float("nan"), "sigma": float("nan")}
+    )
     a = fitted["value"]
     print(f"true fx {fx}, fy {fy} (fy/fx {fy / fx:.5f}); cell given: fx = fy = {f:.2f}")
     print(f"fitted aspect {a:.4f} +- {fitted['sigma']:.4f} % -> fy/fx {(1 + a / 200) / (1 - a / 200):.5f}")
@@ -90,8 +100,13 @@ def shop_floor(out: Path, thesis: Cell) -> None:
     }
     for k, (label, (hidden, photometry)) in enumerate(cases.items()):
         d = out / f"case{k}"
-        render_measured_set(d / "data", thesis, hidden, SetSpec(seed=20 + k, photometry=photometry),
-                            arris_profile="round" if "round" in label else "chamfer")
+        render_measured_set(
+            d / "data",
+            thesis,
+            hidden,
+            SetSpec(seed=20 + k, photometry=photometry),
+            arris_profile="round" if "round" in label else "chamfer",
+        )
         rep = check_model(d / "data", thesis, d / "report")
         print(f"{label}: {_summary(rep)}")
 

@@ -58,9 +58,27 @@ def doorloc_serve(workers: int = 1, extra_env: dict[str, str] | None = None) -> 
         env = {**os.environ, "DOORLOC_DATABASE_URL": f"sqlite:///{tmp}/recipes.db", **(extra_env or {})}
         log = open(Path(tmp) / "serve.log", "w")  # noqa: SIM115 - closed below
         proc = subprocess.Popen(
-            [sys.executable, "-m", "doorloc", "serve", "--cell", str(CELL), "--host", "127.0.0.1", "--port", str(port),
-             "--workers", str(workers), "--log-level", "warning"],
-            env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True, cwd=REPO,
+            [
+                sys.executable,
+                "-m",
+                "doorloc",
+                "serve",
+                "--cell",
+                str(CELL),
+                "--host",
+                "127.0.0.1",
+                "--port",
+                str(port),
+                "--workers",
+                str(workers),
+                "--log-level",
+                "warning",
+            ],
+            env=env,
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            start_new_session=True,
+            cwd=REPO,
         )
         base = f"http://127.0.0.1:{port}"
         try:
@@ -97,7 +115,9 @@ def rendered_pngs(n: int, seed0: int = 0) -> list[tuple[bytes, tuple[float, floa
     from doorloc.sim.effects import Effects
 
     # sensor noise, wood grain and a little blur: PNGs of the size a real camera's are (~1-2 MB), not ~10 kB
-    effects = Effects(grain_contrast=0.08, blur_sigma_px=0.6, full_well_e=20000.0, read_noise_dn=1.5, vignetting=0.1)
+    effects = Effects(
+        grain_contrast=0.08, blur_sigma_px=0.6, full_well_e=20000.0, read_noise_dn=1.5, vignetting=0.1
+    )
     cell = load_cell(CELL)
     rng = np.random.default_rng(seed0)
     out = []

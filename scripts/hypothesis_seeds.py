@@ -24,8 +24,11 @@ def main(argv: list[str]) -> int:
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
-    tests = {name: fn for name, fn in vars(module).items()
-             if name.startswith("test_") and name_part in name and getattr(fn, "is_hypothesis_test", False)}
+    tests = {
+        name: fn
+        for name, fn in vars(module).items()
+        if name.startswith("test_") and name_part in name and getattr(fn, "is_hypothesis_test", False)
+    }
     failed = 0
     for name, fn in tests.items():
         bad = []
@@ -37,7 +40,10 @@ def main(argv: list[str]) -> int:
                 if len(bad) == 1:
                     traceback.print_exc(limit=3)
         failed += bool(bad)
-        print(f"{name}: {n_seeds - len(bad)}/{n_seeds} seeds passed" + (f"; failing seeds {bad[:10]}" if bad else ""))
+        print(
+            f"{name}: {n_seeds - len(bad)}/{n_seeds} seeds passed"
+            + (f"; failing seeds {bad[:10]}" if bad else "")
+        )
     print(f"{len(tests) - failed}/{len(tests)} property tests passed for all {n_seeds} seeds")
     return 1 if failed else 0
 

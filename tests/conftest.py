@@ -38,7 +38,9 @@ def repo_root() -> Path:
 @pytest.fixture(scope="session")
 def shared_data() -> Path:
     if not SHARED_DATA.is_dir():
-        pytest.fail(f"real data not found at {SHARED_DATA}: the repository must be cloned with shared/ beside it")
+        pytest.fail(
+            f"real data not found at {SHARED_DATA}: the repository must be cloned with shared/ beside it"
+        )
     return SHARED_DATA
 
 
@@ -60,5 +62,7 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config) -> None:  # no
                     counts.setdefault(backend, {}).setdefault(outcome, 0)
                     counts[backend][outcome] += 1
     if counts:
-        parts = [f"{b}: " + ", ".join(f"{n} {o}" for o, n in sorted(c.items())) for b, c in sorted(counts.items())]
+        parts = [
+            f"{b}: " + ", ".join(f"{n} {o}" for o, n in sorted(c.items())) for b, c in sorted(counts.items())
+        ]
         terminalreporter.write_line("recipe database backends -- " + "; ".join(parts))

@@ -24,7 +24,18 @@ from doorloc.calib.io import CalibrationFileError, load_calibration
 from doorloc.fileio import atomic_write_text
 from doorloc.vision.config import LocateConfig
 
-__all__ = ["ArrisProfile", "Fixture", "Envelope", "DoorSize", "Cell", "CellFileError", "load_cell", "parse_cell", "cell_to_dict", "save_cell"]
+__all__ = [
+    "ArrisProfile",
+    "Fixture",
+    "Envelope",
+    "DoorSize",
+    "Cell",
+    "CellFileError",
+    "load_cell",
+    "parse_cell",
+    "cell_to_dict",
+    "save_cell",
+]
 
 
 class CellFileError(ValueError):
@@ -154,7 +165,11 @@ class _CameraDoc(_Section):
     @model_validator(mode="before")
     @classmethod
     def _needs_a_camera_model(cls, data: Any) -> Any:
-        if isinstance(data, dict) and "calibration" not in data and not {"camera_matrix", "image_size"} <= set(data):
+        if (
+            isinstance(data, dict)
+            and "calibration" not in data
+            and not {"camera_matrix", "image_size"} <= set(data)
+        ):
             raise ValueError("camera needs 'calibration: FILE' or both 'camera_matrix' and 'image_size'")
         return data
 
@@ -227,7 +242,9 @@ def _locate_config(section: dict[str, Any], source: str) -> LocateConfig:
     allowed = [f.name for f in dataclasses.fields(LocateConfig)]
     unknown = [k for k in section if k not in allowed]
     if unknown:
-        raise CellFileError(f"{source}: unknown key 'locate.{unknown[0]}' (locate allows: {', '.join(allowed)})")
+        raise CellFileError(
+            f"{source}: unknown key 'locate.{unknown[0]}' (locate allows: {', '.join(allowed)})"
+        )
     try:
         # A stdlib dataclass validated by pydantic: types are checked and coerced ("6" -> 6.0 is refused
         # in strict mode, but YAML already gives numbers as numbers).
@@ -238,7 +255,8 @@ def _locate_config(section: dict[str, Any], source: str) -> LocateConfig:
 
 def _explain_plain(err: ValidationError, source: str, prefix: str) -> str:
     return f"{source}: " + "; ".join(
-        f"'{prefix}.{'.'.join(str(p) for p in e['loc'])}': {e['msg']} (got {e.get('input')!r})" for e in err.errors()
+        f"'{prefix}.{'.'.join(str(p) for p in e['loc'])}': {e['msg']} (got {e.get('input')!r})"
+        for e in err.errors()
     )
 
 
@@ -301,7 +319,10 @@ def parse_cell(
             cal = load_calibration(cal_path)
             calibration_sha = _sha256_file(cal_path)
             K, dist, size, observed = (
-                cal.camera.camera_matrix, cal.camera.dist_coeffs, cal.camera.image_size, cal.camera.observed_radius_px,
+                cal.camera.camera_matrix,
+                cal.camera.dist_coeffs,
+                cal.camera.image_size,
+                cal.camera.observed_radius_px,
             )
             cov, cov_names = cal.covariance, cal.covariance_names
         if cam_doc.camera_matrix is not None:
@@ -332,7 +353,12 @@ def parse_cell(
         raise CellFileError(f"{source}: {e}") from None
     locate = _locate_config(cd.locate, source)
     return Cell(
-        camera, extrinsics, fixture, envelope, door, str(source),
+        camera,
+        extrinsics,
+        fixture,
+        envelope,
+        door,
+        str(source),
         response_gamma=cam_doc.response_gamma,
         locate=locate,
         robot_section=cd.robot,
@@ -353,7 +379,9 @@ def load_cell(path: str | os.PathLike) -> Cell:
     except OSError as e:
         raise CellFileError(f"cannot read cell file {p}: {e.strerror or e}") from None
     except UnicodeDecodeError:
-        raise CellFileError(f"{p}: not a text file (a cell file is YAML, see shared/SPEC.md section 2)") from None
+        raise CellFileError(
+            f"{p}: not a text file (a cell file is YAML, see shared/SPEC.md section 2)"
+        ) from None
     except yaml.YAMLError as e:
         raise CellFileError(f"{p}: not valid YAML ({e})") from None
     return parse_cell(doc, p.parent, str(p), sha256=hashlib.sha256(raw).hexdigest())
@@ -367,7 +395,10 @@ def cell_to_dict(cell: Cell) -> dict:
             "image_size": list(cam.image_size),
             "camera_matrix": cam.camera_matrix.tolist(),
             "dist_coeffs": cam.dist_coeffs.tolist(),
-            "extrinsics": {"rvec": cell.extrinsics.rvec.tolist(), "tvec_mm": cell.extrinsics.tvec_mm.tolist()},
+            "extrinsics": {
+                "rvec": cell.extrinsics.rvec.tolist(),
+                "tvec_mm": cell.extrinsics.tvec_mm.tolist(),
+            },
             "response_gamma": cell.response_gamma,
         },
         "fixture": {
@@ -375,7 +406,11 @@ def cell_to_dict(cell: Cell) -> dict:
             "face_y_mm": cell.fixture.face_y_mm,
             "face_shift_per_width": cell.fixture.face_shift_per_width,
         },
-        "envelope": {"x_mm": cell.envelope.x_mm, "z_mm": cell.envelope.z_mm, "yaw_deg": cell.envelope.yaw_deg},
+        "envelope": {
+            "x_mm": cell.envelope.x_mm,
+            "z_mm": cell.envelope.z_mm,
+            "yaw_deg": cell.envelope.yaw_deg,
+        },
         "door": {
             "width_mm": cell.default_door.width_mm,
             "thickness_mm": cell.default_door.thickness_mm,

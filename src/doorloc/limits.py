@@ -17,8 +17,15 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["DOOR_RANGES_MM", "SPEC_RANGES_MM", "TOOL_DIAMETER_RANGE_MM", "check_range", "door_size_problems",
-           "range_sentence", "DoorRangeError"]
+__all__ = [
+    "DOOR_RANGES_MM",
+    "SPEC_RANGES_MM",
+    "TOOL_DIAMETER_RANGE_MM",
+    "check_range",
+    "door_size_problems",
+    "range_sentence",
+    "DoorRangeError",
+]
 
 #: SPEC section 7 (thesis): the doors the cell was built for, mm
 SPEC_RANGES_MM: dict[str, tuple[float, float]] = {
@@ -35,8 +42,12 @@ DOOR_RANGES_MM: dict[str, tuple[float, float]] = {
 #: end mills for hinge pockets: 3-50 mm
 TOOL_DIAMETER_RANGE_MM = (3.0, 50.0)
 
-_WORDS = {"thickness_mm": "door thickness", "width_mm": "door width", "height_mm": "door height",
-          "tool_diameter_mm": "tool diameter"}
+_WORDS = {
+    "thickness_mm": "door thickness",
+    "width_mm": "door width",
+    "height_mm": "door height",
+    "tool_diameter_mm": "tool diameter",
+}
 
 
 class DoorRangeError(ValueError):
@@ -60,15 +71,18 @@ def check_range(field: str, value: float, bounds: tuple[float, float] | None = N
     lo, hi = bounds or DOOR_RANGES_MM[field]
     v = float(value)
     if not math.isfinite(v):
-        raise DoorRangeError(field, f"{_WORDS.get(field, field)} ({field}) must be a finite number of "
-                                    f"millimetres, got {value!r}")
+        raise DoorRangeError(
+            field,
+            f"{_WORDS.get(field, field)} ({field}) must be a finite number of millimetres, got {value!r}",
+        )
     if not lo <= v <= hi:
         raise DoorRangeError(field, range_sentence(field, v, lo, hi))
     return v
 
 
-def door_size_problems(width_mm: float, thickness_mm: float, height_mm: float,
-                       arris_mm: float = 0.0) -> list[tuple[str, str]]:
+def door_size_problems(
+    width_mm: float, thickness_mm: float, height_mm: float, arris_mm: float = 0.0
+) -> list[tuple[str, str]]:
     """Every ``(field, sentence)`` the door size breaks: ranges, and the arris below half the thickness."""
     out = []
     for name, v in (("width_mm", width_mm), ("thickness_mm", thickness_mm), ("height_mm", height_mm)):
@@ -77,6 +91,11 @@ def door_size_problems(width_mm: float, thickness_mm: float, height_mm: float,
         except DoorRangeError as e:
             out.append((name, str(e)))
     if not (math.isfinite(arris_mm) and 0 <= arris_mm < thickness_mm / 2):
-        out.append(("arris_mm", f"arris (arris_mm) {arris_mm:g} mm must be at least 0 and less than half the "
-                                f"door thickness ({thickness_mm / 2:g} mm)"))
+        out.append(
+            (
+                "arris_mm",
+                f"arris (arris_mm) {arris_mm:g} mm must be at least 0 and less than half the "
+                f"door thickness ({thickness_mm / 2:g} mm)",
+            )
+        )
     return out

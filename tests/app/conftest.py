@@ -23,10 +23,19 @@ CELL_PATH = REPO / "fixtures" / "cell_thesis.yaml"
 def stand_in_locate(image, cell, door, *, image_name="", config=None, trace=None):
     """A locate that answers at once: a fixed pose, or a refusal for an all-black image."""
     if int(np.max(image)) == 0:
-        return LocateResult.refusal(image_name, "no_door", "No door edge found in the image; check the lighting.")
+        return LocateResult.refusal(
+            image_name, "no_door", "No door edge found in the image; check the lighting."
+        )
     return LocateResult(
-        image=image_name, ok=True, x_mm=1.25, z_mm=-2.5, yaw_deg=0.3, thickness_mm=door.thickness_mm,
-        scale_mm_per_px=0.206, corner_px=[802.0, 708.0], elapsed_ms=1.0,
+        image=image_name,
+        ok=True,
+        x_mm=1.25,
+        z_mm=-2.5,
+        yaw_deg=0.3,
+        thickness_mm=door.thickness_mm,
+        scale_mm_per_px=0.206,
+        corner_px=[802.0, 708.0],
+        elapsed_ms=1.0,
     )
 
 
@@ -44,10 +53,17 @@ def cell():
 @pytest.fixture
 def recipe() -> DoorRecipe:
     return DoorRecipe(
-        door_id="D-100", width_mm=900, height_mm=2100, thickness_mm=50,
-        hinges=[Hinge(z_mm=250, length_mm=100, width_mm=30, x_mm=10, depth_mm=3, corner_radius_mm=8),
-                Hinge(z_mm=1700, length_mm=100, width_mm=30, x_mm=10, depth_mm=3, corner_radius_mm=8)],
-        tool_diameter_mm=16, spindle_rpm=18000, feed_mm_s=25,
+        door_id="D-100",
+        width_mm=900,
+        height_mm=2100,
+        thickness_mm=50,
+        hinges=[
+            Hinge(z_mm=250, length_mm=100, width_mm=30, x_mm=10, depth_mm=3, corner_radius_mm=8),
+            Hinge(z_mm=1700, length_mm=100, width_mm=30, x_mm=10, depth_mm=3, corner_radius_mm=8),
+        ],
+        tool_diameter_mm=16,
+        spindle_rpm=18000,
+        feed_mm_s=25,
     )
 
 
@@ -95,6 +111,7 @@ def encode_png():
 
 # ---------------------------------------------------------------------------------------------- real processes
 
+
 def free_port() -> int:
     import socket
 
@@ -117,21 +134,43 @@ def launch_serve(tmp, *args: str, env: dict[str, str] | None = None, scheme: str
     full_env["PYTHONPATH"] = str(REPO / "src") + os.pathsep + full_env.get("PYTHONPATH", "")
     log = open(tmp / f"serve-{port}.log", "w")  # noqa: SIM115 - closed by stop_serve
     proc = subprocess.Popen(
-        [sys.executable, "-m", "doorloc", "serve", "--cell", str(CELL_PATH), "--host", "127.0.0.1",
-         "--port", str(port), *args],
-        env=full_env, stdout=log, stderr=subprocess.STDOUT, text=True, start_new_session=True,
+        [
+            sys.executable,
+            "-m",
+            "doorloc",
+            "serve",
+            "--cell",
+            str(CELL_PATH),
+            "--host",
+            "127.0.0.1",
+            "--port",
+            str(port),
+            *args,
+        ],
+        env=full_env,
+        stdout=log,
+        stderr=subprocess.STDOUT,
+        text=True,
+        start_new_session=True,
     )
     base = f"{scheme}://127.0.0.1:{port}"
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and proc.poll() is None:
         try:
-            if httpx.get(base + "/readyz", timeout=2, verify=verify if verify is not None else True).status_code == 200:
+            if (
+                httpx.get(
+                    base + "/readyz", timeout=2, verify=verify if verify is not None else True
+                ).status_code
+                == 200
+            ):
                 return base, proc, log
         except httpx.TransportError:
             pass
         time.sleep(0.2)
     stop_serve(proc, log)
-    raise AssertionError(f"doorloc serve did not become ready: {(tmp / f'serve-{port}.log').read_text()[-3000:]}")
+    raise AssertionError(
+        f"doorloc serve did not become ready: {(tmp / f'serve-{port}.log').read_text()[-3000:]}"
+    )
 
 
 def stop_serve(proc, log) -> None:

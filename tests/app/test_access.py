@@ -60,8 +60,9 @@ def _h(key):
 
 
 def test_endpoints_by_role(client, keys, recipe, small_png):
-    op, eng, met = (keys.create(n, r) for n, r in (("op", Role.operator), ("eng", Role.engineer),
-                                                     ("prom", Role.metrics)))
+    op, eng, met = (
+        keys.create(n, r) for n, r in (("op", Role.operator), ("eng", Role.engineer), ("prom", Role.metrics))
+    )
     body = recipe.model_dump(mode="json")
     img = {"image": ("door.png", small_png, "image/png")}
     # no key, once keys exist: 401 everywhere but the probes and the operator page
@@ -121,19 +122,37 @@ def test_keys_cli_creates_lists_and_revokes(tmp_path):
     assert run(cli_app, ["keys", "revoke", "nobody", "--db", db]).exit_code == 2
 
 
-@pytest.mark.parametrize(("host", "loop"), [("127.0.0.1", True), ("127.1.2.3", True), ("::1", True),
-                                            ("localhost", True), ("0.0.0.0", False), ("::", False),
-                                            ("192.168.1.5", False), ("doorloc.plant.example", False)])
+@pytest.mark.parametrize(
+    ("host", "loop"),
+    [
+        ("127.0.0.1", True),
+        ("127.1.2.3", True),
+        ("::1", True),
+        ("localhost", True),
+        ("0.0.0.0", False),
+        ("::", False),
+        ("192.168.1.5", False),
+        ("doorloc.plant.example", False),
+    ],
+)
 def test_loopback_addresses(host, loop):
     assert is_loopback(host) is loop
 
 
 def test_serve_refuses_a_non_loopback_bind_without_keys(tmp_path):
     """The issue's first defect: the default (no key) service bound 0.0.0.0. It now refuses before binding."""
-    env = {"DOORLOC_DATABASE_URL": f"sqlite:///{tmp_path / 'r.db'}", "PATH": "/usr/bin:/bin",
-           "PYTHONPATH": str(Path(__file__).resolve().parents[2] / "src")}
-    p = subprocess.run([sys.executable, "-m", "doorloc", "serve", "--cell", CELL_FILE, "--host", "0.0.0.0",
-                        "--port", "1"], capture_output=True, text=True, timeout=120, env=env)
+    env = {
+        "DOORLOC_DATABASE_URL": f"sqlite:///{tmp_path / 'r.db'}",
+        "PATH": "/usr/bin:/bin",
+        "PYTHONPATH": str(Path(__file__).resolve().parents[2] / "src"),
+    }
+    p = subprocess.run(
+        [sys.executable, "-m", "doorloc", "serve", "--cell", CELL_FILE, "--host", "0.0.0.0", "--port", "1"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env=env,
+    )
     assert p.returncode == 2, p.stderr
     assert "refusing to listen on 0.0.0.0 without API keys" in p.stderr and "--insecure" in p.stderr
     assert "Traceback" not in p.stderr

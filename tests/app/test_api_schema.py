@@ -29,22 +29,29 @@ APP.state.service.load()  # resolves the default locate; lifespan does this in a
 # positive_data_acceptance sees an upload the schema calls valid (any bytes) answered 415/422 when the bytes
 # are not a decodable image, and a recipe answered 422 when it breaks a cross-field rule (hinge outside the
 # door, tool larger than the corner...). Those answers are the contract, so they are expected there.
-CONFIG = SchemathesisConfig.from_dict({
-    "headers": {"X-API-Key": API_KEY},
-    "operations": [
-        {"include-path": "/v1/locate",
-         "checks": {"positive_data_acceptance": {"expected-statuses": ["2xx", "401", "415", "422"]}}},
-        {"include-path": "/v1/doors/{door_id}",  # GET, PUT, DELETE: 404 is the default's unknown door
-         "checks": {"positive_data_acceptance": {"expected-statuses": ["2xx", "401", "404", "422"]}}},
-        {"include-path": "/v1/doors/{door_id}/history",
-         "checks": {"positive_data_acceptance": {"expected-statuses": ["2xx", "401", "404", "422"]}}},
-    ],
-})
+CONFIG = SchemathesisConfig.from_dict(
+    {
+        "headers": {"X-API-Key": API_KEY},
+        "operations": [
+            {
+                "include-path": "/v1/locate",
+                "checks": {"positive_data_acceptance": {"expected-statuses": ["2xx", "401", "415", "422"]}},
+            },
+            {
+                "include-path": "/v1/doors/{door_id}",  # GET, PUT, DELETE: 404 is the default's unknown door
+                "checks": {"positive_data_acceptance": {"expected-statuses": ["2xx", "401", "404", "422"]}},
+            },
+            {
+                "include-path": "/v1/doors/{door_id}/history",
+                "checks": {"positive_data_acceptance": {"expected-statuses": ["2xx", "401", "404", "422"]}},
+            },
+        ],
+    }
+)
 schema = schemathesis.openapi.from_asgi("/openapi.json", APP, config=CONFIG)
 #: examples per operation and mode; bench/bench_service_schema.py raises it
 EXAMPLES = int(os.environ.get("DOORLOC_SCHEMATHESIS_EXAMPLES", "40"))
 OPERATIONS = {result.ok().label: result.ok() for result in schema.get_all_operations()}
-
 
 
 def _has_inputs(label: str) -> bool:
@@ -65,7 +72,13 @@ def test_api_conforms_to_its_schema(label, mode):
     operation = OPERATIONS[label]
 
     @given(case=operation.as_strategy(generation_mode=mode))
-    @settings(max_examples=EXAMPLES, deadline=None, suppress_health_check=list(HealthCheck), derandomize=True, database=None)
+    @settings(
+        max_examples=EXAMPLES,
+        deadline=None,
+        suppress_health_check=list(HealthCheck),
+        derandomize=True,
+        database=None,
+    )
     def check(case):
         case.call_and_validate()
 
@@ -74,7 +87,14 @@ def test_api_conforms_to_its_schema(label, mode):
 
 def test_every_operation_is_tested():
     assert set(OPERATIONS) == {
-        "GET /healthz", "GET /readyz", "GET /metrics", "GET /v1/cell", "POST /v1/locate",
-        "GET /v1/doors", "GET /v1/doors/{door_id}", "PUT /v1/doors/{door_id}", "DELETE /v1/doors/{door_id}",
+        "GET /healthz",
+        "GET /readyz",
+        "GET /metrics",
+        "GET /v1/cell",
+        "POST /v1/locate",
+        "GET /v1/doors",
+        "GET /v1/doors/{door_id}",
+        "PUT /v1/doors/{door_id}",
+        "DELETE /v1/doors/{door_id}",
         "GET /v1/doors/{door_id}/history",
     }

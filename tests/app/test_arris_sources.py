@@ -51,8 +51,10 @@ def test_manifest_column_arris_mm(tmp_path, round_cell):
     m = tmp_path / "m.csv"
     m.write_text("image,width_mm,thickness_mm,arris_mm\na.png,900,50,2.25\nb.png,900,50,\n")
     items = plan_batch(root, round_cell, m)
-    assert [(it.choice.door.arris_mm, it.choice.door.arris_profile) for it in items] == [(2.25, "round"),
-                                                                                         (1.5, "round")]
+    assert [(it.choice.door.arris_mm, it.choice.door.arris_profile) for it in items] == [
+        (2.25, "round"),
+        (1.5, "round"),
+    ]
     m.write_text("image,width_mm,thickness_mm,arris_mm\na.png,900,50,-1\n")
     with pytest.raises(BatchSetupError, match="line 2"):
         plan_batch(root, round_cell, m)
@@ -67,11 +69,17 @@ def test_http_form_field_arris_mm(round_cell, store, small_png):
 
     app = create_app(ServiceSettings(), cell=round_cell, store=store, locate_fn=capture)
     with TestClient(app) as c:
-        r = c.post("/v1/locate", files={"image": ("d.png", small_png, "image/png")},
-                   data={"width_mm": "800", "thickness_mm": "45", "arris_mm": "2.5"})
+        r = c.post(
+            "/v1/locate",
+            files={"image": ("d.png", small_png, "image/png")},
+            data={"width_mm": "800", "thickness_mm": "45", "arris_mm": "2.5"},
+        )
         assert r.status_code == 200, r.text
-        r = c.post("/v1/locate", files={"image": ("d.png", small_png, "image/png")},
-                   data={"door_id": "D-100", "arris_mm": "0.75"})
+        r = c.post(
+            "/v1/locate",
+            files={"image": ("d.png", small_png, "image/png")},
+            data={"door_id": "D-100", "arris_mm": "0.75"},
+        )
         assert r.status_code == 200, r.text
         r = c.post("/v1/locate", files={"image": ("d.png", small_png, "image/png")}, data={"arris_mm": "-1"})
         assert r.status_code == 422

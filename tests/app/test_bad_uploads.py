@@ -13,8 +13,15 @@ def _png_header_only(width: int, height: int) -> bytes:
     chunk = struct.pack(">I", 13) + b"IHDR" + ihdr + struct.pack(">I", zlib.crc32(b"IHDR" + ihdr))
     # a tiny valid-looking IDAT so only the declared size is wrong
     idat = zlib.compress(b"\x00" * 16)
-    return (b"\x89PNG\r\n\x1a\n" + chunk + struct.pack(">I", len(idat)) + b"IDAT" + idat
-            + struct.pack(">I", zlib.crc32(b"IDAT" + idat)) + b"\x00\x00\x00\x00IEND\xaeB`\x82")
+    return (
+        b"\x89PNG\r\n\x1a\n"
+        + chunk
+        + struct.pack(">I", len(idat))
+        + b"IDAT"
+        + idat
+        + struct.pack(">I", zlib.crc32(b"IDAT" + idat))
+        + b"\x00\x00\x00\x00IEND\xaeB`\x82"
+    )
 
 
 def _assert_problem(r, status: int, code: str) -> None:
@@ -39,7 +46,9 @@ def test_no_body_at_all(client, small_png):
 
 
 def test_empty_file(client, small_png):
-    _assert_problem(client.post("/v1/locate", files={"image": ("e.png", b"", "image/png")}), 422, "empty_image")
+    _assert_problem(
+        client.post("/v1/locate", files={"image": ("e.png", b"", "image/png")}), 422, "empty_image"
+    )
     _still_serving(client, small_png)
 
 
@@ -62,8 +71,10 @@ def test_limit_is_enforced_while_streaming_not_after(make_client, small_png):
     chunks_read = 0
     sent = []
 
-    part_head = (b'--xyz\r\nContent-Disposition: form-data; name="image"; filename="a.png"\r\n'
-                 b"Content-Type: image/png\r\n\r\n\x89PNG\r\n\x1a\n")
+    part_head = (
+        b'--xyz\r\nContent-Disposition: form-data; name="image"; filename="a.png"\r\n'
+        b"Content-Type: image/png\r\n\r\n\x89PNG\r\n\x1a\n"
+    )
 
     async def receive():
         nonlocal chunks_read
@@ -75,11 +86,22 @@ def test_limit_is_enforced_while_streaming_not_after(make_client, small_png):
         sent.append(message)
 
     scope = {
-        "type": "http", "asgi": {"version": "3.0"}, "http_version": "1.1", "method": "POST", "scheme": "http",
-        "path": "/v1/locate", "raw_path": b"/v1/locate", "root_path": "", "query_string": b"",
-        "headers": [(b"host", b"test"), (b"content-type", b"multipart/form-data; boundary=xyz"),
-                    (b"transfer-encoding", b"chunked")],
-        "client": ("127.0.0.1", 1), "server": ("127.0.0.1", 80),
+        "type": "http",
+        "asgi": {"version": "3.0"},
+        "http_version": "1.1",
+        "method": "POST",
+        "scheme": "http",
+        "path": "/v1/locate",
+        "raw_path": b"/v1/locate",
+        "root_path": "",
+        "query_string": b"",
+        "headers": [
+            (b"host", b"test"),
+            (b"content-type", b"multipart/form-data; boundary=xyz"),
+            (b"transfer-encoding", b"chunked"),
+        ],
+        "client": ("127.0.0.1", 1),
+        "server": ("127.0.0.1", 80),
     }
     anyio.run(client.app, scope, receive, send)
     assert sent[0]["type"] == "http.response.start" and sent[0]["status"] == 413
@@ -89,7 +111,9 @@ def test_limit_is_enforced_while_streaming_not_after(make_client, small_png):
 
 def test_declared_content_length_over_the_limit_is_refused_unread(make_client):
     client = make_client(max_upload_bytes=1000)
-    r = client.post("/v1/locate", content=b"x" * 5000, headers={"content-type": "multipart/form-data; boundary=xyz"})
+    r = client.post(
+        "/v1/locate", content=b"x" * 5000, headers={"content-type": "multipart/form-data; boundary=xyz"}
+    )
     _assert_problem(r, 413, "too_large")
 
 

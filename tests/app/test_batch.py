@@ -20,7 +20,12 @@ from doorloc.sim.door import render_door
 
 DOORLOC = [sys.executable, "-m", "doorloc"]
 CELL_FILE = str(Path(__file__).resolve().parents[2] / "fixtures" / "cell_thesis.yaml")
-POSES = [DoorPose(0.0, 0.0, 0.0), DoorPose(3.0, -4.0, 0.8), DoorPose(-6.0, 5.0, -1.5), DoorPose(8.0, 2.0, 1.2)]
+POSES = [
+    DoorPose(0.0, 0.0, 0.0),
+    DoorPose(3.0, -4.0, 0.8),
+    DoorPose(-6.0, 5.0, -1.5),
+    DoorPose(8.0, 2.0, 1.2),
+]
 
 
 @pytest.fixture(scope="module")
@@ -78,8 +83,16 @@ def test_batch_end_to_end(door_folder, tmp_path, cell):
     assert p.returncode == 1, p.stderr  # some images refused/failed
     recs = _records(out)
     # every file gets a record, those that are no image too (issue 15: they were skipped without a word)
-    assert set(recs) == {"a.png", "black.png", "broken.png", "c.tif", "d_image.dat", "line2/b.png", "notes.png",
-                         "README.txt"}
+    assert set(recs) == {
+        "a.png",
+        "black.png",
+        "broken.png",
+        "c.tif",
+        "d_image.dat",
+        "line2/b.png",
+        "notes.png",
+        "README.txt",
+    }
     for name, pose in truth.items():
         r = recs[name]
         assert r["ok"] is True and r["status"] == "answered", r
@@ -116,18 +129,23 @@ def test_resume_drops_a_torn_line_and_runs_only_what_is_missing(door_folder, tmp
     assert p.returncode == 1, p.stderr
     assert "3 were already done" in p.stderr
     resumed = _records(cut)
-    assert {k: _comparable(v) for k, v in resumed.items()} == {k: _comparable(v) for k, v in reference.items()}
+    assert {k: _comparable(v) for k, v in resumed.items()} == {
+        k: _comparable(v) for k, v in reference.items()
+    }
 
 
 def test_kill_9_then_resume_gives_the_same_records(door_folder, tmp_path):
     root, _ = door_folder
     reference_out = tmp_path / "reference.jsonl"
-    assert _batch(str(root), "--cell", CELL_FILE, "--out", str(reference_out),
-                  "--workers", "2").returncode == 1
+    assert (
+        _batch(str(root), "--cell", CELL_FILE, "--out", str(reference_out), "--workers", "2").returncode == 1
+    )
     out = tmp_path / "killed.jsonl"
     proc = subprocess.Popen(
         [*DOORLOC, "batch", str(root), "--cell", CELL_FILE, "--out", str(out), "--workers", "1"],
-        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
     )
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and proc.poll() is None:
@@ -152,10 +170,23 @@ def test_manifest_with_door_ids_and_sizes(door_folder, tmp_path, cell, recipe):
     with RecipeStore(db) as store:
         store.put(recipe)
     manifest = tmp_path / "manifest.csv"
-    manifest.write_text("image,door_id,width_mm,thickness_mm\na.png,D-100,,\nline2/b.png,,900,50\nc.tif,NOPE,,\n")
+    manifest.write_text(
+        "image,door_id,width_mm,thickness_mm\na.png,D-100,,\nline2/b.png,,900,50\nc.tif,NOPE,,\n"
+    )
     out = tmp_path / "m.jsonl"
-    p = _batch(str(root), "--cell", CELL_FILE, "--out", str(out), "--manifest", str(manifest),
-               "--database-url", db, "--workers", "1")
+    p = _batch(
+        str(root),
+        "--cell",
+        CELL_FILE,
+        "--out",
+        str(out),
+        "--manifest",
+        str(manifest),
+        "--database-url",
+        db,
+        "--workers",
+        "1",
+    )
     assert p.returncode == 1, p.stderr
     recs = _records(out)
     assert set(recs) == {"a.png", "line2/b.png", "c.tif"}
@@ -183,8 +214,12 @@ def test_results_log_refuses_a_foreign_file(tmp_path):
 
 
 def test_summary_counts_refusals_by_reason():
-    recs = [{"ok": True, "status": "answered"}, {"ok": False, "status": "refused", "error_code": "no_door"},
-            {"ok": False, "status": "refused", "error_code": "no_door"}, {"ok": False, "status": "failed"}]
+    recs = [
+        {"ok": True, "status": "answered"},
+        {"ok": False, "status": "refused", "error_code": "no_door"},
+        {"ok": False, "status": "refused", "error_code": "no_door"},
+        {"ok": False, "status": "failed"},
+    ]
     s = summarize(recs)
     assert (s.answered, s.refused, s.failed) == (1, {"no_door": 2}, 1)
     assert s.text() == "4 images: 1 answered, 2 refused (no_door: 2), 1 failed"

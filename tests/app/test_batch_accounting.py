@@ -30,9 +30,17 @@ def _png_header_only(w: int, h: int, depth: int = 8, colour: int = 0) -> bytes:
     ihdr = struct.pack(">IIBBBBB", w, h, depth, colour, 0, 0, 0)
     chunk = struct.pack(">I", 13) + b"IHDR" + ihdr + struct.pack(">I", zlib.crc32(b"IHDR" + ihdr))
     idat = zlib.compress(b"\x00" * 1000)
-    return (b"\x89PNG\r\n\x1a\n" + chunk + struct.pack(">I", len(idat)) + b"IDAT" + idat
-            + struct.pack(">I", zlib.crc32(b"IDAT" + idat)) + struct.pack(">I", 0) + b"IEND"
-            + struct.pack(">I", zlib.crc32(b"IEND")))
+    return (
+        b"\x89PNG\r\n\x1a\n"
+        + chunk
+        + struct.pack(">I", len(idat))
+        + b"IDAT"
+        + idat
+        + struct.pack(">I", zlib.crc32(b"IDAT" + idat))
+        + struct.pack(">I", 0)
+        + b"IEND"
+        + struct.pack(">I", zlib.crc32(b"IEND"))
+    )
 
 
 @pytest.fixture
@@ -51,8 +59,15 @@ def odd_folder(tmp_path):
 
 def test_every_file_gets_a_record_with_its_reason(odd_folder, cell):
     items = plan_batch(odd_folder, cell)
-    assert {it.image for it in items} == {"good.png", "empty.png", "notes.txt", "huge.png", "bomb16.png", "pipe.png",
-                                          "dangling.png"}
+    assert {it.image for it in items} == {
+        "good.png",
+        "empty.png",
+        "notes.txt",
+        "huge.png",
+        "bomb16.png",
+        "pipe.png",
+        "dangling.png",
+    }
     recs = {it.image: locate_item(it, cell, stand_in_locate) for it in items}
     codes = {k: (r["status"], r["error_code"]) for k, r in recs.items()}
     assert codes == {
@@ -79,8 +94,12 @@ def test_an_unreadable_file_is_a_failed_record(tmp_path):
 
 def test_batch_cli_does_not_hang_on_a_fifo_and_counts_every_file(odd_folder, tmp_path):
     out = tmp_path / "r.jsonl"
-    p = subprocess.run([*DOORLOC, "batch", str(odd_folder), "--cell", str(CELL_PATH), "--out", str(out),
-                        "--workers", "1"], capture_output=True, text=True, timeout=180)
+    p = subprocess.run(
+        [*DOORLOC, "batch", str(odd_folder), "--cell", str(CELL_PATH), "--out", str(out), "--workers", "1"],
+        capture_output=True,
+        text=True,
+        timeout=180,
+    )
     assert p.returncode == 1, p.stderr
     recs = [json.loads(x) for x in out.read_text().splitlines()]
     assert len(recs) == 7
@@ -99,8 +118,12 @@ def test_resume_refuses_another_cell_file_naming_it(tmp_path):
     for k in range(2):
         (root / f"black{k}.png").write_bytes(cv2.imencode(".png", np.zeros((60, 80), np.uint8))[1].tobytes())
     out = tmp_path / "r.jsonl"
-    p = subprocess.run([*DOORLOC, "batch", str(root), "--cell", str(CELL_PATH), "--out", str(out), "--workers", "1"],
-                       capture_output=True, text=True, timeout=180)
+    p = subprocess.run(
+        [*DOORLOC, "batch", str(root), "--cell", str(CELL_PATH), "--out", str(out), "--workers", "1"],
+        capture_output=True,
+        text=True,
+        timeout=180,
+    )
     assert p.returncode == 1, p.stderr
     first = json.loads(out.read_text().splitlines()[0])
     assert set(first["provenance"]) >= {"version", "cell_sha256", "calibration_sha256", "recipe_version"}
@@ -109,14 +132,33 @@ def test_resume_refuses_another_cell_file_naming_it(tmp_path):
     other = tmp_path / "cell.yaml"
     other.write_text(Path(CELL_PATH).read_text().replace("face_y_mm: 0.0", "face_y_mm: 0.5"))
     assert other.read_text() != Path(CELL_PATH).read_text()
-    p = subprocess.run([*DOORLOC, "batch", str(root), "--cell", str(other), "--out", str(out), "--resume",
-                        "--workers", "1"], capture_output=True, text=True, timeout=180)
+    p = subprocess.run(
+        [*DOORLOC, "batch", str(root), "--cell", str(other), "--out", str(out), "--resume", "--workers", "1"],
+        capture_output=True,
+        text=True,
+        timeout=180,
+    )
     assert p.returncode == 2
     assert "cannot resume: the cell file changed" in p.stderr and "cell_sha256" in p.stderr
     assert out.read_text() == lines[0] + "\n"  # nothing added
     # the same cell resumes
-    p = subprocess.run([*DOORLOC, "batch", str(root), "--cell", str(CELL_PATH), "--out", str(out), "--resume",
-                        "--workers", "1"], capture_output=True, text=True, timeout=180)
+    p = subprocess.run(
+        [
+            *DOORLOC,
+            "batch",
+            str(root),
+            "--cell",
+            str(CELL_PATH),
+            "--out",
+            str(out),
+            "--resume",
+            "--workers",
+            "1",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=180,
+    )
     assert p.returncode == 1 and len(out.read_text().splitlines()) == 2
 
 
@@ -155,8 +197,11 @@ def test_workers_die_with_the_batch_process(tmp_path, cell):
     for k in range(12):
         (root / f"d{k:02d}.png").write_bytes(png)
     out = tmp_path / "r.jsonl"
-    proc = subprocess.Popen([*DOORLOC, "batch", str(root), "--cell", str(CELL_PATH), "--out", str(out),
-                             "--workers", "2"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    proc = subprocess.Popen(
+        [*DOORLOC, "batch", str(root), "--cell", str(CELL_PATH), "--out", str(out), "--workers", "2"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     workers: set[int] = set()
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and proc.poll() is None and len(workers) < 2:
@@ -175,6 +220,8 @@ def test_workers_die_with_the_batch_process(tmp_path, cell):
 
 
 def test_a_bad_manifest_door_is_a_record_not_a_crash(tmp_path, cell):
-    item = BatchItem("x.png", str(tmp_path / "x.png"), DoorChoice(cell.default_door, "NOPE"), "no door recipe")
+    item = BatchItem(
+        "x.png", str(tmp_path / "x.png"), DoorChoice(cell.default_door, "NOPE"), "no door recipe"
+    )
     r = locate_item(item, cell, stand_in_locate)
     assert r["status"] == "failed" and r["error_code"] == "bad_job_row" and r["provenance"]["version"]

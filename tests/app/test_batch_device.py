@@ -26,7 +26,9 @@ def _records(path: Path) -> dict[str, dict]:
 def _comparable(r: dict) -> dict:
     r = dict(r)
     r.pop("elapsed_ms", None)
-    r["diagnostics"] = {k: v for k, v in (r.get("diagnostics") or {}).items() if k not in ("timing_ms", "batched_fallback")}
+    r["diagnostics"] = {
+        k: v for k, v in (r.get("diagnostics") or {}).items() if k not in ("timing_ms", "batched_fallback")
+    }
     return r
 
 
@@ -49,8 +51,19 @@ def test_batched_device_cpu_writes_the_one_frame_records(folder, tmp_path):
     cell = str(FIX / "cell.yaml")
     one, many = tmp_path / "one.jsonl", tmp_path / "many.jsonl"
     p1 = _batch(str(folder), "--cell", cell, "--out", str(one), "--workers", "1")
-    p2 = _batch(str(folder), "--cell", cell, "--out", str(many), "--workers", "2", "--device", "cpu",
-                "--batch-size", "3")
+    p2 = _batch(
+        str(folder),
+        "--cell",
+        cell,
+        "--out",
+        str(many),
+        "--workers",
+        "2",
+        "--device",
+        "cpu",
+        "--batch-size",
+        "3",
+    )
     assert p1.returncode == p2.returncode, (p1.stderr, p2.stderr)
     a, b = _records(one), _records(many)
     assert set(a) == set(b) and len(a) == 7
@@ -62,6 +75,8 @@ def test_batched_device_cpu_writes_the_one_frame_records(folder, tmp_path):
 
 
 def test_unknown_device_is_refused_clearly(folder, tmp_path):
-    p = _batch(str(folder), "--cell", str(FIX / "cell.yaml"), "--out", str(tmp_path / "x.jsonl"), "--device", "tpu")
+    p = _batch(
+        str(folder), "--cell", str(FIX / "cell.yaml"), "--out", str(tmp_path / "x.jsonl"), "--device", "tpu"
+    )
     assert p.returncode == 2 and "unknown device" in p.stderr and "Traceback" not in p.stderr
     assert not (tmp_path / "x.jsonl").exists() or (tmp_path / "x.jsonl").read_text() == ""

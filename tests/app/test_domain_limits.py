@@ -21,8 +21,10 @@ def _post(client, png, **form):
     return client.post("/v1/locate", files={"image": ("door.png", png, "image/png")}, data=form)
 
 
-@pytest.mark.parametrize(("field", "value"), [("width_mm", "1e308"), ("thickness_mm", "10000"),
-                                              ("height_mm", "50"), ("width_mm", "100")])
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [("width_mm", "1e308"), ("thickness_mm", "10000"), ("height_mm", "50"), ("width_mm", "100")],
+)
 def test_locate_refuses_door_sizes_outside_the_range_naming_the_field(client, small_png, field, value):
     """Issue defect: width_mm=1e308 or thickness 10000 reached locate and ended as internal_error."""
     r = _post(client, small_png, **{field: value})
@@ -48,8 +50,10 @@ def test_recipe_put_refuses_an_absurd_width_and_keeps_the_old_one(client, recipe
 
 
 def test_recipe_import_names_the_column(tmp_path):
-    header = ("door_id,width_mm,height_mm,thickness_mm,hinge_z_mm,hinge_length_mm,hinge_width_mm,hinge_x_mm,"
-              "hinge_depth_mm,hinge_corner_radius_mm,tool_diameter_mm,spindle_rpm,feed_mm_s")
+    header = (
+        "door_id,width_mm,height_mm,thickness_mm,hinge_z_mm,hinge_length_mm,hinge_width_mm,hinge_x_mm,"
+        "hinge_depth_mm,hinge_corner_radius_mm,tool_diameter_mm,spindle_rpm,feed_mm_s"
+    )
     p = tmp_path / "r.csv"
     p.write_text(header + "\nA-1,900,2100,10000,250,100,30,10,3,8,16,18000,25\n")
     with pytest.raises(RecipeImportError) as e:
@@ -73,7 +77,11 @@ def test_a_stored_recipe_that_breaks_todays_rules_is_a_422_not_a_500(client, sto
     with store.engine.begin() as conn:  # as an older version (or another program) could have written it
         conn.execute(update(DoorRow).where(DoorRow.door_id == "D-100").values(width_mm=1e308))
     r = client.get("/v1/doors/D-100")
-    assert r.status_code == 422 and r.json()["code"] == "invalid_stored_recipe" and "width_mm" in r.json()["detail"]
+    assert (
+        r.status_code == 422
+        and r.json()["code"] == "invalid_stored_recipe"
+        and "width_mm" in r.json()["detail"]
+    )
     assert _post(client, small_png, door_id="D-100").status_code == 422
 
 
@@ -92,7 +100,9 @@ def test_an_exception_in_a_route_is_500_with_an_incident_id_logged_with_its_trac
 
     app = create_app(ServiceSettings(), cell=cell, store=store, locate_fn=broken_locate)
     with TestClient(app, raise_server_exceptions=False) as c, caplog.at_level(logging.INFO, logger="doorloc"):
-        r = c.post("/v1/locate", files={"image": ("a.png", png_bytes(np.full((8, 8), 9, np.uint8)), "image/png")})
+        r = c.post(
+            "/v1/locate", files={"image": ("a.png", png_bytes(np.full((8, 8), 9, np.uint8)), "image/png")}
+        )
     assert r.status_code == 500
     incident = r.json()["request_id"]
     assert incident in r.json()["detail"]
@@ -130,7 +140,12 @@ def test_cli_locate_refuses_a_fifo_and_a_bomb_without_reading_or_decoding(tmp_pa
     assert r.exit_code == 2 and "not a regular file" in r.output
     ihdr = struct.pack(">IIBBBBB", 7000, 7000, 16, 6, 0, 0, 0)
     bomb = tmp_path / "bomb.png"
-    bomb.write_bytes(b"\x89PNG\r\n\x1a\n" + struct.pack(">I", 13) + b"IHDR" + ihdr
-                     + struct.pack(">I", zlib.crc32(b"IHDR" + ihdr)))
+    bomb.write_bytes(
+        b"\x89PNG\r\n\x1a\n"
+        + struct.pack(">I", 13)
+        + b"IHDR"
+        + ihdr
+        + struct.pack(">I", zlib.crc32(b"IHDR" + ihdr))
+    )
     r = CliRunner().invoke(cli_app, ["locate", str(bomb), "--cell", str(CELL_PATH)])
     assert r.exit_code == 2 and "392 MB decoded" in r.output

@@ -47,8 +47,18 @@ def test_locate_by_size_gives_the_pose_and_no_targets(client, small_png):
     r = _post(client, small_png, width_mm="800", thickness_mm="45")
     assert r.status_code == 200, r.text
     a = r.json()
-    for key in ("image", "ok", "x_mm", "z_mm", "yaw_deg", "thickness_mm", "scale_mm_per_px", "corner_px", "error",
-                "elapsed_ms"):
+    for key in (
+        "image",
+        "ok",
+        "x_mm",
+        "z_mm",
+        "yaw_deg",
+        "thickness_mm",
+        "scale_mm_per_px",
+        "corner_px",
+        "error",
+        "elapsed_ms",
+    ):
         assert key in a
     assert a["ok"] is True and a["image"] == "door.png"
     assert a["door"] == {"width_mm": 800.0, "thickness_mm": 45.0, "height_mm": 2100.0}
@@ -119,7 +129,9 @@ def test_api_key_is_required_when_configured(make_client, small_png):
     r = _post(c, small_png)
     assert r.status_code == 401 and "X-API-Key" in r.json()["detail"]
     assert c.get("/v1/doors", headers={"X-API-Key": "wrong"}).status_code == 401
-    r = c.post("/v1/locate", files={"image": ("a.png", small_png, "image/png")}, headers={"X-API-Key": "s3cret"})
+    r = c.post(
+        "/v1/locate", files={"image": ("a.png", small_png, "image/png")}, headers={"X-API-Key": "s3cret"}
+    )
     assert r.status_code == 200
 
 
@@ -207,14 +219,21 @@ def test_real_pipeline_on_a_rendered_door(cell, store, recipe, encode_png):
     truth = DoorPose(-5.0, 7.5, 1.1)
     png = encode_png(render_door(cell, recipe.door_size(), truth, seed=7).image)
     with TestClient(create_app(ServiceSettings(), cell=cell, store=store)) as c:
-        r = c.post("/v1/locate?overlay=true&rapid=true", files={"image": ("d.png", png, "image/png")},
-                   data={"door_id": "D-100"})
+        r = c.post(
+            "/v1/locate?overlay=true&rapid=true",
+            files={"image": ("d.png", png, "image/png")},
+            data={"door_id": "D-100"},
+        )
         assert r.status_code == 200, r.text
         a = r.json()
         assert a["ok"] is True
-        assert (a["x_mm"], a["z_mm"], a["yaw_deg"]) == pytest.approx((truth.x_mm, truth.z_mm, truth.yaw_deg), abs=0.05)
+        assert (a["x_mm"], a["z_mm"], a["yaw_deg"]) == pytest.approx(
+            (truth.x_mm, truth.z_mm, truth.yaw_deg), abs=0.05
+        )
         assert len(a["targets"]) > 0 and a["rapid"]
-        overlay = cv2.imdecode(np.frombuffer(base64.b64decode(a["overlay_png"]), np.uint8), cv2.IMREAD_UNCHANGED)
+        overlay = cv2.imdecode(
+            np.frombuffer(base64.b64decode(a["overlay_png"]), np.uint8), cv2.IMREAD_UNCHANGED
+        )
         assert overlay.shape == (1080, 1920, 3)
         assert 'doorloc_locate_results_total{outcome="answered"} 1.0' in c.get("/metrics").text
 
@@ -236,7 +255,10 @@ def test_an_unreachable_recipe_database_is_503_not_500(cell, small_png, tmp_path
         store.engine.dispose()
         db.unlink()
         db.mkdir()  # a folder where the database file was: every query fails
-        for r in (c.get("/v1/doors"), c.get("/v1/doors/D-1"),
-                  c.post("/v1/locate", files={"image": ("a.png", small_png, "image/png")}, data={"door_id": "D-1"})):
+        for r in (
+            c.get("/v1/doors"),
+            c.get("/v1/doors/D-1"),
+            c.post("/v1/locate", files={"image": ("a.png", small_png, "image/png")}, data={"door_id": "D-1"}),
+        ):
             assert r.status_code == 503, r.text
             assert r.json()["code"] == "database_unavailable"

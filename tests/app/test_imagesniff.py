@@ -14,14 +14,21 @@ EXT = {"png": ".png", "jpeg": ".jpg", "tiff": ".tif", "bmp": ".bmp"}
 
 
 def _encode(kind: str, w: int, h: int, channels: int = 1) -> bytes:
-    img = np.random.default_rng(w * 1000 + h).integers(0, 255, (h, w, channels) if channels > 1 else (h, w), np.uint8)
+    img = np.random.default_rng(w * 1000 + h).integers(
+        0, 255, (h, w, channels) if channels > 1 else (h, w), np.uint8
+    )
     ok, buf = cv2.imencode(EXT[kind], img)
     assert ok
     return buf.tobytes()
 
 
 @settings(max_examples=40, deadline=None)
-@given(kind=st.sampled_from(sorted(EXT)), w=st.integers(1, 300), h=st.integers(1, 300), channels=st.sampled_from([1, 3]))
+@given(
+    kind=st.sampled_from(sorted(EXT)),
+    w=st.integers(1, 300),
+    h=st.integers(1, 300),
+    channels=st.sampled_from([1, 3]),
+)
 def test_declared_size_matches_the_encoded_image(kind, w, h, channels):
     assert sniff_image(_encode(kind, w, h, channels)) == ImageHeader(kind, w, h)
 
@@ -51,7 +58,9 @@ def test_truncated_header_gives_the_kind_without_a_size(kind):
     assert sniff_image(data[:9]).pixels is None
 
 
-@pytest.mark.parametrize("data", [b"", b"hello world", b"GIF89a......", b"%PDF-1.7\n", b"\x00" * 100, b"RIFF....WEBPVP8 "])
+@pytest.mark.parametrize(
+    "data", [b"", b"hello world", b"GIF89a......", b"%PDF-1.7\n", b"\x00" * 100, b"RIFF....WEBPVP8 "]
+)
 def test_other_bytes_are_not_images(data):
     assert sniff_image(data) is None
     assert sniff_kind(data[:8]) is None

@@ -20,7 +20,9 @@ def test_internal_errors_are_not_refusals(cell, store):
     """Issue defect: internal errors were counted as refusals."""
     app = create_app(ServiceSettings(), cell=cell, store=store, locate_fn=_buggy_locate)
     with TestClient(app) as c:
-        r = c.post("/v1/locate", files={"image": ("a.png", png_bytes(np.full((8, 8), 9, np.uint8)), "image/png")})
+        r = c.post(
+            "/v1/locate", files={"image": ("a.png", png_bytes(np.full((8, 8), 9, np.uint8)), "image/png")}
+        )
         assert r.status_code == 200 and r.json()["error_code"] == "internal_error"
         text = c.get("/metrics").text
     assert 'doorloc_internal_errors_total{where="locate"} 1.0' in text
@@ -36,7 +38,9 @@ def test_readyz_says_overloaded_while_the_queue_is_full(client):
     try:
         r = client.get("/readyz")
         assert r.status_code == 503 and r.json()["code"] == "overloaded" and r.headers["retry-after"]
-        r = client.post("/v1/locate", files={"image": ("a.png", png_bytes(np.full((8, 8), 9, np.uint8)), "image/png")})
+        r = client.post(
+            "/v1/locate", files={"image": ("a.png", png_bytes(np.full((8, 8), 9, np.uint8)), "image/png")}
+        )
         assert r.status_code == 503 and r.json()["code"] == "overloaded" and int(r.headers["retry-after"]) > 0
     finally:
         state.admitted = 0

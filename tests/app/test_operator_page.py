@@ -19,8 +19,14 @@ import pytest
 pytestmark = pytest.mark.browser
 
 CHROMIUM = os.environ.get("DOORLOC_CHROMIUM", "/usr/bin/chromium")
-CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
-                 "--disable-sync", "--no-first-run"]
+CHROMIUM_ARGS = [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+]
 
 
 def _require_chromium() -> None:
@@ -67,7 +73,9 @@ def test_upload_shows_pose_overlay_and_targets_then_an_error_sentence(live_serve
 
     truth = DoorPose(4.0, -3.0, 0.7)
     door_png = tmp_path / "door.png"
-    door_png.write_bytes(cv2.imencode(".png", render_door(cell, cell.default_door, truth, seed=3).image)[1].tobytes())
+    door_png.write_bytes(
+        cv2.imencode(".png", render_door(cell, cell.default_door, truth, seed=3).image)[1].tobytes()
+    )
     notes = tmp_path / "notes.png"
     notes.write_text("this is not an image\n")
 
@@ -80,7 +88,9 @@ def test_upload_shows_pose_overlay_and_targets_then_an_error_sentence(live_serve
 
             page.fill("#door_id", "D-100")
             page.set_input_files("#image", str(door_png))
-            page.wait_for_function("document.getElementById('pose-x').textContent.trim() !== ''", timeout=60_000)
+            page.wait_for_function(
+                "document.getElementById('pose-x').textContent.trim() !== ''", timeout=60_000
+            )
             assert float(page.text_content("#pose-x")) == pytest.approx(truth.x_mm, abs=0.05)
             assert float(page.text_content("#pose-z")) == pytest.approx(truth.z_mm, abs=0.05)
             assert float(page.text_content("#pose-yaw")) == pytest.approx(truth.yaw_deg, abs=0.02)

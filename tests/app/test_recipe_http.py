@@ -18,8 +18,9 @@ def test_changes_are_versions_recorded_with_the_keys_name(client, store, recipe,
     assert last["changed_by"] == "j.smith" and last["action"] == "updated"
     assert last["changes"] == [{"field": "width_mm", "old": 900.0, "new": 1000.0}]
     # the result names the recipe version it used, beside the software and model hashes
-    r = client.post("/v1/locate", files={"image": ("d.png", small_png, "image/png")}, data={"door_id": "D-100"},
-                    headers=h)
+    r = client.post(
+        "/v1/locate", files={"image": ("d.png", small_png, "image/png")}, data={"door_id": "D-100"}, headers=h
+    )
     prov = r.json()["provenance"]
     assert prov["recipe_version"] == conftest_version + 1
     assert prov["version"] and prov["cell_sha256"] and prov["calibration_sha256"]
@@ -31,7 +32,9 @@ def test_changes_are_versions_recorded_with_the_keys_name(client, store, recipe,
 def test_retire_then_locate_by_that_door_is_refused(client, small_png):
     assert client.delete("/v1/doors/D-100").status_code == 204
     assert client.delete("/v1/doors/D-100").status_code == 404
-    r = client.post("/v1/locate", files={"image": ("d.png", small_png, "image/png")}, data={"door_id": "D-100"})
+    r = client.post(
+        "/v1/locate", files={"image": ("d.png", small_png, "image/png")}, data={"door_id": "D-100"}
+    )
     assert r.status_code == 422 and r.json()["code"] == "unknown_door"
     assert [v["action"] for v in client.get("/v1/doors/D-100/history").json()["versions"]][-1] == "deleted"
     assert client.get("/v1/doors/NEVER/history").status_code == 404

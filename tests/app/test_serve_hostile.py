@@ -26,9 +26,17 @@ def _png_header_only(w: int, h: int, depth: int = 8, colour: int = 0) -> bytes:
     ihdr = struct.pack(">IIBBBBB", w, h, depth, colour, 0, 0, 0)
     chunk = struct.pack(">I", 13) + b"IHDR" + ihdr + struct.pack(">I", zlib.crc32(b"IHDR" + ihdr))
     raw = zlib.compress(b"\x00" * (1 + w * 8) * 8)  # 8 real rows, the rest missing
-    return (b"\x89PNG\r\n\x1a\n" + chunk + struct.pack(">I", len(raw)) + b"IDAT" + raw
-            + struct.pack(">I", zlib.crc32(b"IDAT" + raw)) + struct.pack(">I", 0) + b"IEND"
-            + struct.pack(">I", zlib.crc32(b"IEND")))
+    return (
+        b"\x89PNG\r\n\x1a\n"
+        + chunk
+        + struct.pack(">I", len(raw))
+        + b"IDAT"
+        + raw
+        + struct.pack(">I", zlib.crc32(b"IDAT" + raw))
+        + struct.pack(">I", 0)
+        + b"IEND"
+        + struct.pack(">I", zlib.crc32(b"IEND"))
+    )
 
 
 @pytest.fixture(scope="module")
@@ -57,9 +65,14 @@ def recipe_module():
     from doorloc.recipes.models import DoorRecipe, Hinge
 
     return DoorRecipe(
-        door_id="D-100", width_mm=900, height_mm=2100, thickness_mm=50,
+        door_id="D-100",
+        width_mm=900,
+        height_mm=2100,
+        thickness_mm=50,
         hinges=[Hinge(z_mm=250, length_mm=100, width_mm=30, x_mm=10, depth_mm=3, corner_radius_mm=8)],
-        tool_diameter_mm=16, spindle_rpm=18000, feed_mm_s=25,
+        tool_diameter_mm=16,
+        spindle_rpm=18000,
+        feed_mm_s=25,
     )
 
 
@@ -87,7 +100,11 @@ def test_recipe_change_needs_an_engineer_key(svc, recipe_module):
     base, h, _ = svc
     wider = recipe_module.model_dump(mode="json") | {"width_mm": 1350}
     _problem(httpx.put(f"{base}/v1/doors/D-100", json=wider, timeout=30), 401, "unauthorized")
-    _problem(httpx.put(f"{base}/v1/doors/D-100", json=wider, headers=h[Role.operator], timeout=30), 403, "forbidden")
+    _problem(
+        httpx.put(f"{base}/v1/doors/D-100", json=wider, headers=h[Role.operator], timeout=30),
+        403,
+        "forbidden",
+    )
     assert httpx.get(f"{base}/v1/doors/D-100", headers=h[Role.operator], timeout=30).json()["width_mm"] == 900
     r = httpx.put(f"{base}/v1/doors/D-100", json=wider, headers=h[Role.engineer], timeout=30)
     assert r.status_code == 200, r.text
@@ -116,8 +133,11 @@ def test_a_small_png_declaring_a_huge_16_bit_rgba_image_is_refused_before_decodi
     base, h, _ = svc
     bomb = _png_header_only(7000, 7000, 16, 6)
     t0 = time.monotonic()
-    body = _problem(httpx.post(f"{base}/v1/locate", files=_img(bomb), headers=h[Role.operator], timeout=60), 422,
-                    "too_many_pixels")
+    body = _problem(
+        httpx.post(f"{base}/v1/locate", files=_img(bomb), headers=h[Role.operator], timeout=60),
+        422,
+        "too_many_pixels",
+    )
     assert "392 MB" in body["detail"]
     assert time.monotonic() - t0 < 30  # generous: only shows the answer came back at all
 
@@ -125,7 +145,9 @@ def test_a_small_png_declaring_a_huge_16_bit_rgba_image_is_refused_before_decodi
 def test_nan_and_absurd_sizes(svc):
     base, h, _ = svc
     for form in ({"width_mm": "nan"}, {"width_mm": "1e308"}, {"thickness_mm": "10000"}, {"height_mm": "-1"}):
-        r = httpx.post(f"{base}/v1/locate", files=_img(SMALL), data=form, headers=h[Role.operator], timeout=30)
+        r = httpx.post(
+            f"{base}/v1/locate", files=_img(SMALL), data=form, headers=h[Role.operator], timeout=30
+        )
         body = _problem(r, 422)
         assert next(iter(form)) in body["detail"]
 
@@ -133,8 +155,12 @@ def test_nan_and_absurd_sizes(svc):
 def test_raw_image_body_is_415(svc):
     """Issue defect: a raw image/png body got 422 instead of 415."""
     base, h, _ = svc
-    r = httpx.post(f"{base}/v1/locate", content=SMALL, headers={**h[Role.operator], "Content-Type": "image/png"},
-                   timeout=30)
+    r = httpx.post(
+        f"{base}/v1/locate",
+        content=SMALL,
+        headers={**h[Role.operator], "Content-Type": "image/png"},
+        timeout=30,
+    )
     _problem(r, 415, "not_multipart")
 
 
@@ -145,8 +171,10 @@ def _slow_upload(base: str) -> socket.socket:
     """Start a multipart upload that declares 100 kB and sends 10 bytes (a slow or stalled client)."""
     host, port = base.removeprefix("http://").split(":")
     s = socket.create_connection((host, int(port)), timeout=15)
-    s.sendall(b"POST /v1/locate HTTP/1.1\r\nHost: x\r\nContent-Type: multipart/form-data; boundary=zz\r\n"
-              b"Content-Length: 100000\r\n\r\n--zz\r\nCont")
+    s.sendall(
+        b"POST /v1/locate HTTP/1.1\r\nHost: x\r\nContent-Type: multipart/form-data; boundary=zz\r\n"
+        b"Content-Length: 100000\r\n\r\n--zz\r\nCont"
+    )
     return s
 
 
@@ -182,10 +210,14 @@ def test_overload_answers_503_retry_after(tight, cell):
     png = png_bytes(render_door(cell, cell.default_door, DoorPose(1, 2, 0.3), seed=3).image)
     # 12 uploads sent whole but for their last byte, then all last bytes at once: the 12 images reach the
     # worker within milliseconds of each other, while one locate takes far longer
-    body = (b"--zz\r\nContent-Disposition: form-data; name=\"image\"; filename=\"d.png\"\r\n"
-            b"Content-Type: image/png\r\n\r\n" + png + b"\r\n--zz--\r\n")
-    head = (b"POST /v1/locate HTTP/1.1\r\nHost: x\r\nContent-Type: multipart/form-data; boundary=zz\r\n"
-            b"Content-Length: " + str(len(body)).encode() + b"\r\nConnection: close\r\n\r\n")
+    body = (
+        b'--zz\r\nContent-Disposition: form-data; name="image"; filename="d.png"\r\n'
+        b"Content-Type: image/png\r\n\r\n" + png + b"\r\n--zz--\r\n"
+    )
+    head = (
+        b"POST /v1/locate HTTP/1.1\r\nHost: x\r\nContent-Type: multipart/form-data; boundary=zz\r\n"
+        b"Content-Length: " + str(len(body)).encode() + b"\r\nConnection: close\r\n\r\n"
+    )
     host, port = tight.removeprefix("http://").split(":")
     socks = [socket.create_connection((host, int(port)), timeout=60) for _ in range(12)]
     try:
@@ -226,16 +258,22 @@ def test_50_parallel_recipe_writers_all_succeed_and_each_is_a_version(svc, recip
     from concurrent.futures import ThreadPoolExecutor
 
     base, h, _ = svc
-    before = len(httpx.get(f"{base}/v1/doors/D-100/history", headers=h[Role.operator], timeout=30).json()["versions"])
+    before = len(
+        httpx.get(f"{base}/v1/doors/D-100/history", headers=h[Role.operator], timeout=30).json()["versions"]
+    )
 
     def put(k: int) -> int:
         body = recipe_module.model_dump(mode="json") | {"feed_mm_s": 100 + k}
-        return httpx.put(f"{base}/v1/doors/D-100", json=body, headers=h[Role.engineer], timeout=120).status_code
+        return httpx.put(
+            f"{base}/v1/doors/D-100", json=body, headers=h[Role.engineer], timeout=120
+        ).status_code
 
     with ThreadPoolExecutor(50) as ex:
         statuses = list(ex.map(put, range(50)))
     assert statuses == [200] * 50
-    versions = httpx.get(f"{base}/v1/doors/D-100/history", headers=h[Role.operator], timeout=30).json()["versions"]
+    versions = httpx.get(f"{base}/v1/doors/D-100/history", headers=h[Role.operator], timeout=30).json()[
+        "versions"
+    ]
     assert len(versions) == before + 50
     assert {v["changed_by"] for v in versions[-50:]} == {"engineer key"}
 
@@ -247,7 +285,7 @@ def _sample(text: str, name: str, **labels: str) -> float | None:
     want = ",".join(f'{k}="{v}"' for k, v in sorted(labels.items()))
     for line in text.splitlines():
         if line.startswith(name + "{"):
-            got = ",".join(sorted(line[len(name) + 1:line.index("}")].split(",")))
+            got = ",".join(sorted(line[len(name) + 1 : line.index("}")].split(",")))
             if got == want:
                 return float(line.rsplit(" ", 1)[1])
     return None
@@ -261,9 +299,14 @@ def test_metrics_add_up_every_worker(svc):
     reads = []
     for _ in range(6):  # new connections: the kernel spreads them over both workers
         text = httpx.get(f"{base}/metrics", headers=h[Role.metrics], timeout=30).text
-        reads.append(_sample(text, "doorloc_http_requests_total", method="GET", route="/healthz", status="200"))
-        pids = {line.split('pid="')[1].split('"')[0] for line in text.splitlines()
-                if line.startswith("doorloc_worker_resident_memory_bytes{")}
+        reads.append(
+            _sample(text, "doorloc_http_requests_total", method="GET", route="/healthz", status="200")
+        )
+        pids = {
+            line.split('pid="')[1].split('"')[0]
+            for line in text.splitlines()
+            if line.startswith("doorloc_worker_resident_memory_bytes{")
+        }
     assert reads[0] is not None and reads[0] >= 30
     assert len(set(reads)) == 1, reads
     assert len(pids) == 2  # process figures of both workers
@@ -289,11 +332,14 @@ def _raw(base: str, payload: bytes) -> tuple[int, dict[str, str], bytes]:
     return int(lines[0].split()[1]), headers, body
 
 
-@pytest.mark.parametrize("payload", [
-    b"GARBAGE\r\n\r\n",
-    b"GET /healthz HTTP/1.1\r\nHost: x\r\nBad Header\r\n\r\n",
-    b"POST /v1/locate HTTP/1.1\r\nHost: x\r\nTransfer-Encoding: chunked\r\n\r\nzz\r\n",
-])
+@pytest.mark.parametrize(
+    "payload",
+    [
+        b"GARBAGE\r\n\r\n",
+        b"GET /healthz HTTP/1.1\r\nHost: x\r\nBad Header\r\n\r\n",
+        b"POST /v1/locate HTTP/1.1\r\nHost: x\r\nTransfer-Encoding: chunked\r\n\r\nzz\r\n",
+    ],
+)
 def test_the_servers_own_400s_are_problem_json(svc, payload):
     """Issue defect: uvicorn's own 400 answers were plain text."""
     import json
@@ -319,13 +365,21 @@ def test_two_image_parts_are_refused(svc):
     """Issue defect: two 'image' parts silently took the last."""
     base, h, _ = svc
     files = [("image", ("a.png", SMALL, "image/png")), ("image", ("b.png", SMALL, "image/png"))]
-    _problem(httpx.post(f"{base}/v1/locate", files=files, headers=h[Role.operator], timeout=30), 422, "several_images")
+    _problem(
+        httpx.post(f"{base}/v1/locate", files=files, headers=h[Role.operator], timeout=30),
+        422,
+        "several_images",
+    )
 
 
 def test_broken_multipart_is_a_problem(svc):
     base, h, _ = svc
-    r = httpx.post(f"{base}/v1/locate", content=b"--x\r\nnot a part",
-                   headers={**h[Role.operator], "Content-Type": "multipart/form-data; boundary=x"}, timeout=30)
+    r = httpx.post(
+        f"{base}/v1/locate",
+        content=b"--x\r\nnot a part",
+        headers={**h[Role.operator], "Content-Type": "multipart/form-data; boundary=x"},
+        timeout=30,
+    )
     assert r.status_code in (400, 422) and r.headers["content-type"] == "application/problem+json"
 
 
@@ -339,8 +393,13 @@ def test_cell_info_does_not_show_the_servers_paths(svc):
 
 def test_locate_answers_name_their_provenance(svc):
     base, h, _ = svc
-    r = httpx.post(f"{base}/v1/locate", files=_img(SMALL), data={"door_id": "D-100"}, headers=h[Role.operator],
-                   timeout=60)
+    r = httpx.post(
+        f"{base}/v1/locate",
+        files=_img(SMALL),
+        data={"door_id": "D-100"},
+        headers=h[Role.operator],
+        timeout=60,
+    )
     assert r.status_code == 200, r.text
     prov = r.json()["provenance"]
     assert prov["version"] and len(prov["cell_sha256"]) == 64 and len(prov["calibration_sha256"]) == 64
@@ -349,6 +408,8 @@ def test_locate_answers_name_their_provenance(svc):
 
 def test_paging_is_bounded(svc):
     base, h, _ = svc
-    _problem(httpx.get(f"{base}/v1/doors", params={"limit": 10**6}, headers=h[Role.operator], timeout=30), 422)
+    _problem(
+        httpx.get(f"{base}/v1/doors", params={"limit": 10**6}, headers=h[Role.operator], timeout=30), 422
+    )
     page = httpx.get(f"{base}/v1/doors", params={"limit": 1}, headers=h[Role.operator], timeout=30).json()
     assert page["limit"] == 1 and page["total"] >= 1

@@ -30,9 +30,25 @@ def test_serve_with_two_workers_answers_and_stops(cell, tmp_path):
     port = _free_port()
     env = {**os.environ, "DOORLOC_DATABASE_URL": f"sqlite:///{tmp_path / 'recipes.db'}"}
     proc = subprocess.Popen(
-        [sys.executable, "-m", "doorloc", "serve", "--cell", CELL_FILE, "--host", "127.0.0.1",
-         "--port", str(port), "--workers", "2"],
-        env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True,
+        [
+            sys.executable,
+            "-m",
+            "doorloc",
+            "serve",
+            "--cell",
+            CELL_FILE,
+            "--host",
+            "127.0.0.1",
+            "--port",
+            str(port),
+            "--workers",
+            "2",
+        ],
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        start_new_session=True,
     )
     base = f"http://127.0.0.1:{port}"
     try:
@@ -64,7 +80,11 @@ def test_serve_with_two_workers_answers_and_stops(cell, tmp_path):
 def test_serve_refuses_a_broken_cell_file_with_a_sentence(tmp_path):
     bad = tmp_path / "cell.yaml"
     bad.write_text("camera: [1, 2\n")
-    p = subprocess.run([sys.executable, "-m", "doorloc", "serve", "--cell", str(bad)], capture_output=True, text=True,
-                       timeout=60)
+    p = subprocess.run(
+        [sys.executable, "-m", "doorloc", "serve", "--cell", str(bad)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert p.returncode == 2
     assert "not valid YAML" in p.stderr and "Traceback" not in p.stderr

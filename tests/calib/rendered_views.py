@@ -27,12 +27,20 @@ CORNER_SIGMA_PX = 0.032 / math.sqrt(2)
 
 def true_camera() -> CameraModel:
     """A VGA camera with clear barrel distortion and a slightly off-centre principal point."""
-    return CameraModel.from_values([[610.0, 0, 326.3], [0, 612.5, 236.8], [0, 0, 1]],
-                                   [-0.22, 0.09, 0.0007, -0.0004, -0.015], (640, 480))
+    return CameraModel.from_values(
+        [[610.0, 0, 326.3], [0, 612.5, 236.8], [0, 0, 1]], [-0.22, 0.09, 0.0007, -0.0004, -0.015], (640, 480)
+    )
 
 
 def _rot(ax: float, ay: float, az: float) -> np.ndarray:
-    cx, sx, cy, sy, cz, sz = math.cos(ax), math.sin(ax), math.cos(ay), math.sin(ay), math.cos(az), math.sin(az)
+    cx, sx, cy, sy, cz, sz = (
+        math.cos(ax),
+        math.sin(ax),
+        math.cos(ay),
+        math.sin(ay),
+        math.cos(az),
+        math.sin(az),
+    )
     rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
     ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
     rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
@@ -45,12 +53,22 @@ def _corners_px(camera: CameraModel, object_points: np.ndarray, pose: Extrinsics
 
 def _inside(camera: CameraModel, px: np.ndarray, margin_px: float) -> bool:
     w, h = camera.image_size
-    return bool(np.all(np.isfinite(px)) and px.min(axis=0).min() > margin_px
-                and px[:, 0].max() < w - 1 - margin_px and px[:, 1].max() < h - 1 - margin_px)
+    return bool(
+        np.all(np.isfinite(px))
+        and px.min(axis=0).min() > margin_px
+        and px[:, 0].max() < w - 1 - margin_px
+        and px[:, 1].max() < h - 1 - margin_px
+    )
 
 
-def candidate_poses(camera: CameraModel, object_points: np.ndarray, n: int, rng: np.random.Generator,
-                    margin_px: float = 12.0, max_tilt_deg: float = 45.0) -> list[tuple[np.ndarray, np.ndarray]]:
+def candidate_poses(
+    camera: CameraModel,
+    object_points: np.ndarray,
+    n: int,
+    rng: np.random.Generator,
+    margin_px: float = 12.0,
+    max_tilt_deg: float = 45.0,
+) -> list[tuple[np.ndarray, np.ndarray]]:
     """``n`` random board poses (rvec, tvec_mm) with the whole board inside the image.
 
     Tilt about x and y uniform in +-``max_tilt_deg`` (at most 50 deg combined, so the detector still
@@ -80,7 +98,11 @@ def candidate_poses(camera: CameraModel, object_points: np.ndarray, n: int, rng:
             return ray * dist - R @ centre_obj
 
         def fits(s: float, R=R) -> bool:
-            return _inside(camera, _corners_px(camera, object_points, Extrinsics.from_rotation(R, translation(s))), margin_px)
+            return _inside(
+                camera,
+                _corners_px(camera, object_points, Extrinsics.from_rotation(R, translation(s))),
+                margin_px,
+            )
 
         if not fits(0.0):
             continue
@@ -96,8 +118,14 @@ def candidate_poses(camera: CameraModel, object_points: np.ndarray, n: int, rng:
     return out
 
 
-def plan_views(camera: CameraModel, object_points: np.ndarray, n_views: int = N_VIEWS, seed: int = 0,
-               margin_px: float = 12.0, pool_size: int = 200) -> list[tuple[np.ndarray, np.ndarray]]:
+def plan_views(
+    camera: CameraModel,
+    object_points: np.ndarray,
+    n_views: int = N_VIEWS,
+    seed: int = 0,
+    margin_px: float = 12.0,
+    pool_size: int = 200,
+) -> list[tuple[np.ndarray, np.ndarray]]:
     """(rvec, tvec_mm) poses of a planar board (``object_points`` (N, 3) mm) that calibrate ``camera`` well.
 
     A third of the views go where the corner coverage (:func:`doorloc.calib.coverage.corner_coverage`)
@@ -110,12 +138,17 @@ def plan_views(camera: CameraModel, object_points: np.ndarray, n_views: int = N_
     coverage = np.zeros(COVERAGE_CELLS[::-1], int)
     chosen: list[int] = []
     for _ in range(min(n_views // 3, len(pool))):
-        gains = [-1.0 if i in chosen else coverage_gain(coverage, p, camera.image_size) for i, p in enumerate(pixels)]
+        gains = [
+            -1.0 if i in chosen else coverage_gain(coverage, p, camera.image_size)
+            for i, p in enumerate(pixels)
+        ]
         best = int(np.argmax(gains))
         chosen.append(best)
         coverage += corner_coverage(pixels[best], camera.image_size)
     grid = pixels_within(camera, 1e9, step_px=24.0)
-    chosen = select_views(camera, CANDIDATES_BY_NAME["plumb_bob"], pool, object_points, n_views, grid, chosen=chosen)
+    chosen = select_views(
+        camera, CANDIDATES_BY_NAME["plumb_bob"], pool, object_points, n_views, grid, chosen=chosen
+    )
     return [pool[i] for i in chosen]
 
 

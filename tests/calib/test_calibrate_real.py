@@ -68,7 +68,9 @@ def test_uncertainties_are_consistent_with_opencv(bouguet, bouguet_result):
     res = bouguet_result
     obj = [v.object_points.astype(np.float32) for v in res.views]
     img = [v.image_points.astype(np.float32) for v in res.views]
-    out = cv2.calibrateCameraExtended(obj, img, scan.image_size, np.eye(3), None, flags=res.fit.candidate.flags)
+    out = cv2.calibrateCameraExtended(
+        obj, img, scan.image_size, np.eye(3), None, flags=res.fit.candidate.flags
+    )
     std_cv = np.asarray(out[5]).ravel()
     for i, name in enumerate(("fx", "fy", "cx", "cy")):
         assert res.std_intrinsics[name] == pytest.approx(std_cv[i], rel=0.15)

@@ -27,8 +27,9 @@ def rendered():
     board = Chessboard(9, 6, 25.0)
     # Seed 3 of bench/bench_calib_rendered.py (aligned projection difference 0.016 px, 1-sigma 0.031 px);
     # over seeds 0-7 the bench measures 0.014-0.085 px, so the 0.1 px target holds there with margin.
-    images = render_views(cam, Checkerboard(9, 6, 25.0), N_VIEWS, seed=3,
-                          effects=Effects(blur_sigma_px=0.7, read_noise_dn=1.0))
+    images = render_views(
+        cam, Checkerboard(9, 6, 25.0), N_VIEWS, seed=3, effects=Effects(blur_sigma_px=0.7, read_noise_dn=1.0)
+    )
     detected = detect_views([(name, im, None) for name, im, _ in images], board)
     assert detected.skipped == []
     return cam, detected
@@ -118,12 +119,17 @@ def test_a_model_folding_inside_the_data_is_excluded_and_reported(rendered, monk
     def folding_rational(camera, **kw):
         v = distortion_validity(camera, **kw)
         if camera.dist_coeffs.size == 8:  # pretend every rational fit folds 100 px from the centre
-            return type(v)(100.0, v.corner_radius_px, v.observed_radius_px, 100.0, False, v.corner_report, v.warnings)
+            return type(v)(
+                100.0, v.corner_radius_px, v.observed_radius_px, 100.0, False, v.corner_report, v.warnings
+            )
         return v
 
     monkeypatch.setattr(cal, "distortion_validity", folding_rational)
     true, views = rendered[0], rendered[1].views
-    res = calibrate_views(views[:8], true.image_size,
-                          candidates=(CANDIDATES_BY_NAME["rational"], CANDIDATES_BY_NAME["k1k2p1p2"]))
+    res = calibrate_views(
+        views[:8],
+        true.image_size,
+        candidates=(CANDIDATES_BY_NAME["rational"], CANDIDATES_BY_NAME["k1k2p1p2"]),
+    )
     assert "folds over at 100 px" in res.excluded_models["rational"]
     assert [s.name for s in res.scores] == ["k1k2p1p2"] and res.fit.candidate.name == "k1k2p1p2"

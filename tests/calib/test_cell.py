@@ -34,8 +34,14 @@ def scene():
     R_board = ext.rotation @ np.stack([bx, by, np.cross(bx, by)], axis=1)
     t_board = ext.cell_to_camera(np.array(ORIGIN)[None])[0]
     board_pose = Extrinsics.from_rotation(R_board, t_board)
-    rb = render_board(cell.camera, Checkerboard(9, 6, 20.0), board_pose.rvec, board_pose.tvec_mm, seed=3,
-                      effects=Effects(blur_sigma_px=0.8, read_noise_dn=1.0))
+    rb = render_board(
+        cell.camera,
+        Checkerboard(9, 6, 20.0),
+        board_pose.rvec,
+        board_pose.tvec_mm,
+        seed=3,
+        effects=Effects(blur_sigma_px=0.8, read_noise_dn=1.0),
+    )
     return cell, rb
 
 
@@ -75,8 +81,23 @@ def test_calibrate_cell_cli_writes_the_extrinsics(scene, tmp_path):
     text = FIXTURE.read_text().replace("tvec_mm: [-30.0, 40.0, 350.0]", "tvec_mm: [0.0, 0.0, 300.0]")
     start.write_text(text)
     out = tmp_path / "cell_calibrated.yaml"
-    r = runner.invoke(app, ["calibrate-cell", str(image), "--cell", str(start), "--pattern", "9x6", "--square", "20",
-                            "--board-origin", *map(str, ORIGIN), "--out", str(out)])
+    r = runner.invoke(
+        app,
+        [
+            "calibrate-cell",
+            str(image),
+            "--cell",
+            str(start),
+            "--pattern",
+            "9x6",
+            "--square",
+            "20",
+            "--board-origin",
+            *map(str, ORIGIN),
+            "--out",
+            str(out),
+        ],
+    )
     assert r.exit_code == 0, r.output
     assert "mm/px" in r.output
     new = load_cell(out)
@@ -94,8 +115,22 @@ def test_calibrate_cell_refuses_without_a_board_and_writes_nothing(tmp_path):
     cv2.imwrite(str(image), np.full((1080, 1920), 100, np.uint8))
     out = tmp_path / "out.yaml"
     shutil.copy(FIXTURE, tmp_path / "cell.yaml")
-    args = ["calibrate-cell", str(image), "--cell", str(tmp_path / "cell.yaml"), "--pattern", "9x6", "--square", "20",
-            "--board-origin", "0", "0", "0", "--out", str(out)]
+    args = [
+        "calibrate-cell",
+        str(image),
+        "--cell",
+        str(tmp_path / "cell.yaml"),
+        "--pattern",
+        "9x6",
+        "--square",
+        "20",
+        "--board-origin",
+        "0",
+        "0",
+        "0",
+        "--out",
+        str(out),
+    ]
     r = runner.invoke(app, args)
     assert r.exit_code == EXIT_REFUSED and "no board" in r.output
     assert not out.exists()

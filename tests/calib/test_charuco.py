@@ -20,8 +20,13 @@ def charuco_images():
     from doorloc.sim.boards import CharucoBoard
     from doorloc.sim.effects import Effects
 
-    return render_views(true_camera(), CharucoBoard(9, 7, 25.0, 18.0), 8, seed=4,
-                        effects=Effects(blur_sigma_px=0.7, read_noise_dn=1.0))
+    return render_views(
+        true_camera(),
+        CharucoBoard(9, 7, 25.0, 18.0),
+        8,
+        seed=4,
+        effects=Effects(blur_sigma_px=0.7, read_noise_dn=1.0),
+    )
 
 
 def test_charuco_views_calibrate_the_known_camera(charuco_images):
@@ -48,8 +53,24 @@ def test_calibrate_cli_with_a_charuco_board(charuco_images, tmp_path):
     for n, im, _ in charuco_images:
         cv2.imwrite(str(tmp_path / n), im)
     out = tmp_path / "out" / "camera.yaml"
-    r = CliRunner().invoke(app, ["calibrate", str(tmp_path), "--pattern", "9x7", "--square", "25", "--charuco",
-                                 "--marker", "18", "--model", "k1k2", "--out", str(out)])
+    r = CliRunner().invoke(
+        app,
+        [
+            "calibrate",
+            str(tmp_path),
+            "--pattern",
+            "9x7",
+            "--square",
+            "25",
+            "--charuco",
+            "--marker",
+            "18",
+            "--model",
+            "k1k2",
+            "--out",
+            str(out),
+        ],
+    )
     assert r.exit_code == 0, r.output
     cam = load_calibration(out).camera
     assert abs(cam.fx / true_camera().fx - 1) < 0.003

@@ -40,8 +40,21 @@ def messy_dir(tmp_path_factory):
 def test_calibrate_uses_the_good_views_and_says_why_others_were_skipped(messy_dir, tmp_path):
     out = tmp_path / "camera.yaml"
     rep = tmp_path / "report"
-    r = runner.invoke(app, ["calibrate", str(messy_dir), "--pattern", "9x6", "--square", "25", "--out", str(out),
-                            "--report", str(rep)])
+    r = runner.invoke(
+        app,
+        [
+            "calibrate",
+            str(messy_dir),
+            "--pattern",
+            "9x6",
+            "--square",
+            "25",
+            "--out",
+            str(out),
+            "--report",
+            str(rep),
+        ],
+    )
     assert r.exit_code == 0, r.output
     assert "skipped broken.jpg" in r.output and "decode" in r.output
     assert "skipped blank.png: no 9x6 chessboard" in r.output
@@ -55,7 +68,11 @@ def test_calibrate_uses_the_good_views_and_says_why_others_were_skipped(messy_di
     # the intrinsics' covariance travels with the file, for locate's uncertainty
     assert cal.covariance is not None and cal.covariance.shape == (len(cal.covariance_names),) * 2
     names = set(cal.covariance_names)  # "f" alone when the chosen model fixes the aspect ratio
-    assert {"cx", "cy"} <= names and ({"fx", "fy"} <= names or "f" in names) and (cal.covariance.diagonal() > 0).all()
+    assert (
+        {"cx", "cy"} <= names
+        and ({"fx", "fy"} <= names or "f" in names)
+        and (cal.covariance.diagonal() > 0).all()
+    )
     doc = json.loads((rep / "calibration_report.json").read_text())
     assert {s["image"] for s in doc["skipped_images"]} == {"broken.jpg", "blank.png", "small.png"}
     assert len(doc["views"]) == 13 and sum(c["chosen"] for c in doc["model_selection"]["candidates"]) == 1
@@ -70,8 +87,23 @@ def test_ros_format_round_trips(messy_dir, tmp_path):
     for name in ("left01.jpg", "left02.jpg", "left03.jpg", "left04.jpg", "left06.jpg", "left07.jpg"):
         shutil.copy(messy_dir / name, few / name)
     out = tmp_path / "camera_ros.yaml"
-    r = runner.invoke(app, ["calibrate", str(few), "--pattern", "9x6", "--square", "25", "--out", str(out),
-                            "--format", "ros", "--model", "plumb_bob"])
+    r = runner.invoke(
+        app,
+        [
+            "calibrate",
+            str(few),
+            "--pattern",
+            "9x6",
+            "--square",
+            "25",
+            "--out",
+            str(out),
+            "--format",
+            "ros",
+            "--model",
+            "plumb_bob",
+        ],
+    )
     assert r.exit_code == 0, r.output
     text = out.read_text()
     assert "distortion_model: plumb_bob" in text and "projection_matrix" in text
@@ -112,18 +144,24 @@ def test_bad_arguments_exit_2_with_a_sentence(messy_dir, tmp_path, args, message
 
 def test_missing_or_empty_folder_exits_2(tmp_path):
     out = tmp_path / "camera.yaml"
-    r = runner.invoke(app, ["calibrate", str(tmp_path / "nope"), "--pattern", "9x6", "--square", "25", "--out", str(out)])
+    r = runner.invoke(
+        app, ["calibrate", str(tmp_path / "nope"), "--pattern", "9x6", "--square", "25", "--out", str(out)]
+    )
     assert r.exit_code == EXIT_USAGE and "is not a folder" in r.output
     (tmp_path / "empty").mkdir()
-    r = runner.invoke(app, ["calibrate", str(tmp_path / "empty"), "--pattern", "9x6", "--square", "25", "--out", str(out)])
+    r = runner.invoke(
+        app, ["calibrate", str(tmp_path / "empty"), "--pattern", "9x6", "--square", "25", "--out", str(out)]
+    )
     assert r.exit_code == EXIT_USAGE and "no image files" in r.output
     assert not out.exists()
 
 
 def test_thesis_coefficients_are_flagged_unusable_beyond_the_fold(tmp_path):
     cal = tmp_path / "thesis_camera.yaml"
-    cal.write_text(f"image_width: 1920\nimage_height: 1080\ncamera_matrix: {THESIS_K}\n"
-                   f"distortion_coefficients: {THESIS_DIST}\n")
+    cal.write_text(
+        f"image_width: 1920\nimage_height: 1080\ncamera_matrix: {THESIS_K}\n"
+        f"distortion_coefficients: {THESIS_DIST}\n"
+    )
     r = runner.invoke(app, ["validity", str(cal)])
     assert r.exit_code == EXIT_REFUSED
     assert "fold-over radius: 560" in r.output
@@ -142,7 +180,9 @@ def test_validity_reads_cell_files(tmp_path):
     fixture = Path(__file__).parents[2] / "fixtures" / "cell_thesis.yaml"
     r = runner.invoke(app, ["validity", str(fixture)])
     assert r.exit_code == 0 and "fold-over radius: none" in r.output
-    text = fixture.read_text().replace("dist_coeffs: [0.0, 0.0, 0.0, 0.0, 0.0]", f"dist_coeffs: {THESIS_DIST}")
+    text = fixture.read_text().replace(
+        "dist_coeffs: [0.0, 0.0, 0.0, 0.0, 0.0]", f"dist_coeffs: {THESIS_DIST}"
+    )
     cell = tmp_path / "cell.yaml"
     cell.write_text(text)
     r = runner.invoke(app, ["validity", str(cell)])

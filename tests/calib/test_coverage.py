@@ -76,14 +76,20 @@ def test_chosen_views_predict_less_uncertainty_than_the_first_ones(pool):
     grid = pixels_within(cam, 1e9, step_px=32.0)
     chosen = select_views(cam, PLUMB_BOB, poses, BOARD, 12, grid)
     assert len(set(chosen)) == 12
-    s_chosen = predicted_projection_sigma(cam, PLUMB_BOB, [poses[i] for i in chosen], BOARD, grid, CORNER_SIGMA_PX)
+    s_chosen = predicted_projection_sigma(
+        cam, PLUMB_BOB, [poses[i] for i in chosen], BOARD, grid, CORNER_SIGMA_PX
+    )
     s_first = predicted_projection_sigma(cam, PLUMB_BOB, poses[:12], BOARD, grid, CORNER_SIGMA_PX)
     assert s_chosen.max() < 0.9 * s_first.max()
     # more views, less uncertainty
     more = select_views(cam, PLUMB_BOB, poses, BOARD, 24, grid, chosen=chosen)
     assert more[:12] == chosen
-    assert predicted_projection_sigma(cam, PLUMB_BOB, [poses[i] for i in more], BOARD, grid,
-                                      CORNER_SIGMA_PX).max() < s_chosen.max()
+    assert (
+        predicted_projection_sigma(
+            cam, PLUMB_BOB, [poses[i] for i in more], BOARD, grid, CORNER_SIGMA_PX
+        ).max()
+        < s_chosen.max()
+    )
 
 
 def test_predicted_sigma_is_what_the_calibration_reports(pool):
@@ -93,7 +99,9 @@ def test_predicted_sigma_is_what_the_calibration_reports(pool):
     views = []
     for k, (r, t) in enumerate(poses[:15]):
         px = cam.project(Extrinsics(r, t).cell_to_camera(BOARD))
-        views.append(View(f"v{k}", BOARD, px + rng.normal(0, CORNER_SIGMA_PX, px.shape), np.arange(len(BOARD))))
+        views.append(
+            View(f"v{k}", BOARD, px + rng.normal(0, CORNER_SIGMA_PX, px.shape), np.arange(len(BOARD)))
+        )
     res = calibrate_views(views, cam.image_size, candidates=(PLUMB_BOB,), reject=False)
     pixels = pixels_within(cam, res.camera.observed_radius_px, step_px=16.0)
     predicted = predicted_projection_sigma(cam, PLUMB_BOB, poses[:15], BOARD, pixels, CORNER_SIGMA_PX)
@@ -107,8 +115,9 @@ def test_max_error_quantile_of_one_pixel_is_the_rayleigh_quantile():
     J = np.eye(2)[None]  # one pixel moving with two parameters of 0.05 px sigma each
     cov = 0.05**2 * np.eye(2)
     for q in (0.5, 0.95):
-        assert max_error_quantile(J, cov, q, n_samples=20000) == pytest.approx(0.05 * math.sqrt(-2 * math.log(1 - q)),
-                                                                               rel=0.03)
+        assert max_error_quantile(J, cov, q, n_samples=20000) == pytest.approx(
+            0.05 * math.sqrt(-2 * math.log(1 - q)), rel=0.03
+        )
     # over many pixels moving independently, the largest error is larger than any one pixel's
     many = np.zeros((10, 2, 20))
     for m in range(10):

@@ -27,7 +27,12 @@ def test_coverage_counts_every_kept_corner(left):
     assert grid[:, 0].sum() < grid[:, 3].sum()  # the left edge of these photographs is barely covered
     doc = report_dict(res)
     assert [0, 0] in doc["coverage"]["thin_cells"] and [3, 2] not in doc["coverage"]["thin_cells"]
-    assert doc["coverage"]["board_tilt_deg"]["about_x"][0] < -20 < 20 < doc["coverage"]["board_tilt_deg"]["about_x"][1]
+    assert (
+        doc["coverage"]["board_tilt_deg"]["about_x"][0]
+        < -20
+        < 20
+        < doc["coverage"]["board_tilt_deg"]["about_x"][1]
+    )
     sig = doc["projection_uncertainty_px"]
     assert sig["max_observed_aligned"] < sig["max_observed_aligned_95"]
 
@@ -50,7 +55,9 @@ def test_boards_never_tilted_are_warned_about(left):
     import numpy as np
 
     _, scan, res = left
-    flat = dataclasses.replace(res, fit=dataclasses.replace(res.fit, rvecs=[np.zeros(3) for _ in res.fit.rvecs]))
+    flat = dataclasses.replace(
+        res, fit=dataclasses.replace(res.fit, rvecs=[np.zeros(3) for _ in res.fit.rvecs])
+    )
     text = "\n".join(calibration_warnings(flat, scan))
     assert "tilted about the camera's horizontal axis only over 0 deg" in text
     assert "tilted about the camera's vertical axis only over 0 deg" in text
@@ -59,8 +66,21 @@ def test_boards_never_tilted_are_warned_about(left):
 def test_report_json_and_png(left, tmp_path):
     board, scan, res = left
     doc = report_dict(res, scan, board)
-    for key in ("camera_matrix", "dist_coeffs", "rms_px", "std_1sigma", "std_jackknife", "model_selection", "views",
-                "rejected", "coverage", "observed_radius_px", "projection_uncertainty_px", "validity", "warnings"):
+    for key in (
+        "camera_matrix",
+        "dist_coeffs",
+        "rms_px",
+        "std_1sigma",
+        "std_jackknife",
+        "model_selection",
+        "views",
+        "rejected",
+        "coverage",
+        "observed_radius_px",
+        "projection_uncertainty_px",
+        "validity",
+        "warnings",
+    ):
         assert key in doc
     assert doc["board"] == {"type": "Chessboard", "cols": 9, "rows": 6, "square_mm": 25.0}
     assert doc["validity"]["observed_radius_px"] == pytest.approx(res.camera.observed_radius_px)
@@ -69,6 +89,9 @@ def test_report_json_and_png(left, tmp_path):
     assert json.loads(jpath.read_text())["model_selection"]["candidates"][0]["name"] == "plumb_bob"
     png = cv2.imread(str(ppath))
     assert png.shape[0] == 480 and png.shape[1] > 640
-    assert sorted(p.name for p in (tmp_path / "rep").iterdir()) == ["calibration_report.json", "calibration_report.png"]
+    assert sorted(p.name for p in (tmp_path / "rep").iterdir()) == [
+        "calibration_report.json",
+        "calibration_report.png",
+    ]
     green = (png[:, :640, 1] > 200) & (png[:, :640, 0] < 60) & (png[:, :640, 2] < 60)
     assert green.sum() > 200  # the observed-radius circle is drawn

@@ -16,14 +16,25 @@ THESIS_K = [[1678.35, 0, 946.41], [0, 1727.22, 510.71], [0, 0, 1]]
 
 # Realistic lenses: barrel or pincushion, mild tangential, optional rational terms.
 dist5 = st.tuples(
-    st.floats(-0.4, 0.2), st.floats(-0.2, 0.2), st.floats(-2e-3, 2e-3), st.floats(-2e-3, 2e-3), st.floats(-0.1, 0.1)
+    st.floats(-0.4, 0.2),
+    st.floats(-0.2, 0.2),
+    st.floats(-2e-3, 2e-3),
+    st.floats(-2e-3, 2e-3),
+    st.floats(-0.1, 0.1),
 )
-dist8 = st.tuples(*(st.floats(-0.3, 0.3) for _ in range(2)), st.floats(-2e-3, 2e-3), st.floats(-2e-3, 2e-3),
-                  st.floats(-0.05, 0.05), *(st.floats(0.0, 0.3) for _ in range(3)))
+dist8 = st.tuples(
+    *(st.floats(-0.3, 0.3) for _ in range(2)),
+    st.floats(-2e-3, 2e-3),
+    st.floats(-2e-3, 2e-3),
+    st.floats(-0.05, 0.05),
+    *(st.floats(0.0, 0.3) for _ in range(3)),
+)
 
 
 def make_camera(d) -> CameraModel:
-    return CameraModel.from_values([[1000.0, 0.0, 640.2], [0, 1012.0, 359.7], [0, 0, 1]], list(d), (1280, 720))
+    return CameraModel.from_values(
+        [[1000.0, 0.0, 640.2], [0, 1012.0, 359.7], [0, 0, 1]], list(d), (1280, 720)
+    )
 
 
 @settings(max_examples=60, deadline=None)
@@ -54,7 +65,9 @@ def test_undistort_inverts_distort_to_tolerance(d, seed):
 
 def test_undistort_is_tighter_than_opencv_default():
     """OpenCV's default 5 fixed-point iterations leave errors that our Newton solver does not."""
-    cam = CameraModel.from_values([[600, 0, 320], [0, 600, 240], [0, 0, 1]], [-0.45, 0.25, 0, 0, -0.08], (640, 480))
+    cam = CameraModel.from_values(
+        [[600, 0, 320], [0, 600, 240], [0, 0, 1]], [-0.45, 0.25, 0, 0, -0.08], (640, 480)
+    )
     xy = np.array([[0.5, 0.38], [-0.52, 0.36]])
     uv = cam.project(np.column_stack([xy, np.ones(2)]))
     cv_default = cv2.undistortPoints(uv.reshape(-1, 1, 2), cam.camera_matrix, cam.dist_coeffs).reshape(-1, 2)
@@ -123,8 +136,10 @@ def test_scaled_camera_projects_consistently():
 
 
 @settings(max_examples=50, deadline=None)
-@given(rvec=st.tuples(*(st.floats(-3.0, 3.0) for _ in range(3))),
-       tvec=st.tuples(*(st.floats(-500, 500) for _ in range(3))))
+@given(
+    rvec=st.tuples(*(st.floats(-3.0, 3.0) for _ in range(3))),
+    tvec=st.tuples(*(st.floats(-500, 500) for _ in range(3))),
+)
 def test_extrinsics_match_opencv_rodrigues(rvec, tvec):
     ext = Extrinsics(rvec, tvec)
     R_cv, _ = cv2.Rodrigues(np.asarray(rvec, float))
@@ -138,7 +153,9 @@ unit_axes = st.tuples(*(st.floats(-1.0, 1.0) for _ in range(3))).filter(lambda v
 
 
 @settings(max_examples=200, deadline=None)
-@given(axis=unit_axes, log_gap=st.floats(-12.0, -1.0), tvec=st.tuples(*(st.floats(-500, 500) for _ in range(3))))
+@given(
+    axis=unit_axes, log_gap=st.floats(-12.0, -1.0), tvec=st.tuples(*(st.floats(-500, 500) for _ in range(3)))
+)
 def test_extrinsics_round_trip_keeps_full_precision_near_half_turn(axis, log_gap, tvec):
     """Near 180 deg the textbook ``(R - R.T) / (2 sin theta)`` loses ~7 digits; the library route must not."""
     k = np.asarray(axis) / np.linalg.norm(axis)

@@ -60,7 +60,9 @@ APP_FILES = sorted(APP.rglob("*.py"))
 
 @pytest.mark.parametrize("path", APP_FILES, ids=lambda p: str(p.relative_to(APP)))
 def test_commands_and_routes_are_thin(path):
-    too_long = [f"{name} ({n} lines)" for name, n, entry in function_lengths(path) if entry and n > MAX_COMMAND_LINES]
+    too_long = [
+        f"{name} ({n} lines)" for name, n, entry in function_lengths(path) if entry and n > MAX_COMMAND_LINES
+    ]
     assert not too_long, f"{path.name}: move the work into the library: {', '.join(too_long)}"
 
 
@@ -74,7 +76,9 @@ def test_cli_helpers_are_short_too(path):
 def test_the_measure_sees_a_long_command(tmp_path):
     body = "".join(f"        x{i} = {i}\n" for i in range(70))
     src = tmp_path / "cli_x.py"
-    src.write_text(f"def register(app):\n    @app.command('x')\n    def x() -> None:\n{body}    return None\n")
+    src.write_text(
+        f"def register(app):\n    @app.command('x')\n    def x() -> None:\n{body}    return None\n"
+    )
     lengths = {name: (n, entry) for name, n, entry in function_lengths(src)}
     assert lengths["x"] == (71, True)
     assert lengths["register"] == (2, False)  # the def line and the return; the command is counted on its own

@@ -35,8 +35,12 @@ def test_reads_opencv_published_file(shared_data):
 
 @pytest.mark.parametrize("fmt", ["opencv", "ros"])
 def test_round_trip(tmp_path, fmt):
-    cam = CameraModel.from_values([[700.5, 0, 320.25], [0, 701.0, 240.0], [0, 0, 1]],
-                                  [-0.2, 0.1, 1e-3, -2e-3, 0.01, 0.1, 0.02, 0.003], (640, 480), 350.0)
+    cam = CameraModel.from_values(
+        [[700.5, 0, 320.25], [0, 701.0, 240.0], [0, 0, 1]],
+        [-0.2, 0.1, 1e-3, -2e-3, 0.01, 0.1, 0.02, 0.003],
+        (640, 480),
+        350.0,
+    )
     cal = CalibrationFile(cam, 0.25, [0.2, 0.3], "cam0")
     path = tmp_path / f"c_{fmt}.yaml"
     save_calibration(cal, path, fmt)
@@ -48,7 +52,9 @@ def test_round_trip(tmp_path, fmt):
 
 
 def test_opencv_can_read_what_we_write(tmp_path):
-    cam = CameraModel.from_values([[700.5, 0, 320.25], [0, 701.0, 240.0], [0, 0, 1]], [-0.2, 0.1, 0, 0, 0], (640, 480))
+    cam = CameraModel.from_values(
+        [[700.5, 0, 320.25], [0, 701.0, 240.0], [0, 0, 1]], [-0.2, 0.1, 0, 0, 0], (640, 480)
+    )
     path = tmp_path / "c.yaml"
     path.write_text(dump_opencv_yaml(CalibrationFile(cam)))
     fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
@@ -57,18 +63,34 @@ def test_opencv_can_read_what_we_write(tmp_path):
 
 
 def test_ros_output_has_spec_keys():
-    cam = CameraModel.from_values([[700.5, 0, 320.25], [0, 701.0, 240.0], [0, 0, 1]], [-0.2, 0.1, 0, 0, 0], (640, 480))
+    cam = CameraModel.from_values(
+        [[700.5, 0, 320.25], [0, 701.0, 240.0], [0, 0, 1]], [-0.2, 0.1, 0, 0, 0], (640, 480)
+    )
     text = dump_ros_yaml(CalibrationFile(cam))
-    for key in ("image_width", "image_height", "camera_name", "camera_matrix", "distortion_model",
-                "distortion_coefficients", "rectification_matrix", "projection_matrix"):
+    for key in (
+        "image_width",
+        "image_height",
+        "camera_name",
+        "camera_matrix",
+        "distortion_model",
+        "distortion_coefficients",
+        "rectification_matrix",
+        "projection_matrix",
+    ):
         assert f"{key}:" in text
 
 
 @pytest.mark.parametrize(
     ("text", "match"),
-    [("camera_matrix: [1, 2", "not a YAML"), ("- 1\n- 2", "mapping"), ("image_width: 3", "missing key 'camera_matrix'"),
-     ("camera_matrix: [[1,0,0],[0,1,0],[0,0,1]]\ndistortion_coefficients: [0,0,0]\nimage_width: 3\nimage_height: 3",
-      "distortion coefficients")],
+    [
+        ("camera_matrix: [1, 2", "not a YAML"),
+        ("- 1\n- 2", "mapping"),
+        ("image_width: 3", "missing key 'camera_matrix'"),
+        (
+            "camera_matrix: [[1,0,0],[0,1,0],[0,0,1]]\ndistortion_coefficients: [0,0,0]\nimage_width: 3\nimage_height: 3",
+            "distortion coefficients",
+        ),
+    ],
 )
 def test_bad_calibration_text_names_the_problem(text, match):
     with pytest.raises(CalibrationFileError, match=match):
@@ -119,11 +141,26 @@ def test_cell_with_calibration_file_and_round_trip(tmp_path, thesis_cell_path):
 
 @pytest.mark.parametrize(
     ("doc", "match"),
-    [({}, "missing key 'camera'"), ({"camera": {"image_size": [10, 10]}}, "camera_matrix"),
-     ({"camera": {"calibration": "missing.yaml", "extrinsics": {}}}, "missing.yaml"),
-     ({"camera": {"image_size": [10, 10], "camera_matrix": [[1, 0, 5], [0, 1, 5], [0, 0, 1]]}}, "extrinsics"),
-     ({"camera": {"image_size": [10, 10], "camera_matrix": [[1, 0, 5], [0, 1, 5], [0, 0, 1]],
-                  "extrinsics": {"rvec": [0, 0, 0], "tvec_mm": [0, 0, 1]}}, "door": {"width_mm": -3}}, "width_mm")],
+    [
+        ({}, "missing key 'camera'"),
+        ({"camera": {"image_size": [10, 10]}}, "camera_matrix"),
+        ({"camera": {"calibration": "missing.yaml", "extrinsics": {}}}, "missing.yaml"),
+        (
+            {"camera": {"image_size": [10, 10], "camera_matrix": [[1, 0, 5], [0, 1, 5], [0, 0, 1]]}},
+            "extrinsics",
+        ),
+        (
+            {
+                "camera": {
+                    "image_size": [10, 10],
+                    "camera_matrix": [[1, 0, 5], [0, 1, 5], [0, 0, 1]],
+                    "extrinsics": {"rvec": [0, 0, 0], "tvec_mm": [0, 0, 1]},
+                },
+                "door": {"width_mm": -3},
+            },
+            "width_mm",
+        ),
+    ],
 )
 def test_bad_cell_names_the_problem(tmp_path, doc, match):
     with pytest.raises(CellFileError, match=match):
@@ -132,8 +169,13 @@ def test_bad_cell_names_the_problem(tmp_path, doc, match):
 
 @pytest.mark.parametrize(
     ("section", "key", "allowed"),
-    [("envelope", "x", "x_mm, z_mm, yaw_deg"), ("camera", "response_gama", "response_gamma"),
-     ("door", "arris", "arris_profile"), ("locate", "min_contrst", "min_contrast"), (None, "bogus", "locate")],
+    [
+        ("envelope", "x", "x_mm, z_mm, yaw_deg"),
+        ("camera", "response_gama", "response_gamma"),
+        ("door", "arris", "arris_profile"),
+        ("locate", "min_contrst", "min_contrast"),
+        (None, "bogus", "locate"),
+    ],
 )
 def test_unknown_cell_key_is_named_with_the_allowed_ones(thesis_cell_path, section, key, allowed):
     doc = yaml.safe_load(Path(thesis_cell_path).read_text())
@@ -157,7 +199,11 @@ def test_cell_physical_settings_round_trip_and_hashes(tmp_path, thesis_cell_path
     save_cell(cell, tmp_path / "again.yaml")
     again = load_cell(tmp_path / "again.yaml")
     assert (again.response_gamma, again.default_door, again.locate, again.provenance) == (
-        cell.response_gamma, cell.default_door, cell.locate, cell.provenance)
+        cell.response_gamma,
+        cell.default_door,
+        cell.locate,
+        cell.provenance,
+    )
     assert again.calibration_sha256 == cell.calibration_sha256  # the same camera model hashes the same
     bad = dict(doc, camera=dict(doc["camera"], response_gamma=0))
     with pytest.raises(CellFileError, match="camera.response_gamma"):
@@ -167,8 +213,11 @@ def test_cell_physical_settings_round_trip_and_hashes(tmp_path, thesis_cell_path
 # --- the OpenCV-format writer and reader checked against cv2.FileStorage itself --------------------------
 
 # what YAML quoting gets wrong: quotes, backslashes, comment and mapping marks, line breaks, tabs, non-ASCII
-_names = st.text(st.characters(codec="utf-8", exclude_categories=("Cs", "Cc", "Cn"))
-                 | st.sampled_from('"\\#:\n\t\r\'[]{}&*!|>%@`'), max_size=20)
+_names = st.text(
+    st.characters(codec="utf-8", exclude_categories=("Cs", "Cc", "Cn"))
+    | st.sampled_from("\"\\#:\n\t\r'[]{}&*!|>%@`"),
+    max_size=20,
+)
 _ncoeffs = st.sampled_from([0, 4, 5, 8, 12])
 
 
@@ -196,13 +245,18 @@ def _cv_read(path: Path) -> dict:
         return {
             "keys": set(keys),
             "camera_matrix": out["camera_matrix"].mat(),
-            "distortion_coefficients": out["distortion_coefficients"].mat() if "distortion_coefficients" in out else None,
+            "distortion_coefficients": out["distortion_coefficients"].mat()
+            if "distortion_coefficients" in out
+            else None,
             "image_width": int(out["image_width"].real()),
             "image_height": int(out["image_height"].real()),
             "camera_name": out["camera_name"].string() if "camera_name" in out else None,
-            "avg_reprojection_error": out["avg_reprojection_error"].real() if "avg_reprojection_error" in out else None,
-            "per_view_reprojection_errors":
-                out["per_view_reprojection_errors"].mat() if "per_view_reprojection_errors" in out else None,
+            "avg_reprojection_error": out["avg_reprojection_error"].real()
+            if "avg_reprojection_error" in out
+            else None,
+            "per_view_reprojection_errors": out["per_view_reprojection_errors"].mat()
+            if "per_view_reprojection_errors" in out
+            else None,
             "observed_radius_px": out["observed_radius_px"].real() if "observed_radius_px" in out else None,
         }
     finally:
@@ -233,7 +287,10 @@ def test_everything_we_write_opencv_reads_with_the_same_numbers(tmp_path, cal):
     back = load_calibration(path)
     assert back.camera == cam and back.camera.observed_radius_px == cam.observed_radius_px
     assert (back.avg_reprojection_error, back.per_view_reprojection_errors, back.camera_name) == (
-        cal.avg_reprojection_error, cal.per_view_reprojection_errors, cal.camera_name)
+        cal.avg_reprojection_error,
+        cal.per_view_reprojection_errors,
+        cal.camera_name,
+    )
 
 
 def _opencv_round_trips_name(path: Path, name: str) -> bool:
@@ -287,7 +344,9 @@ def test_camera_name_a_file_cannot_carry_is_refused_before_writing(tmp_path, nam
     assert list(tmp_path.iterdir()) == []
 
 
-@pytest.mark.parametrize("name", ["yes", "No", "Null", "~", "2001-12-14", "1.5", "12", "a: b", "#x", "[x]", "tab\there"])
+@pytest.mark.parametrize(
+    "name", ["yes", "No", "Null", "~", "2001-12-14", "1.5", "12", "a: b", "#x", "[x]", "tab\there"]
+)
 def test_opencv_written_names_read_back_as_opencv_reads_them(tmp_path, name):
     """OpenCV's YAML has no booleans, nulls or dates: ``yes`` is the string ``yes`` to it, and to us."""
     path = tmp_path / "camera.yml"

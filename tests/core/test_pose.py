@@ -11,7 +11,9 @@ from hypothesis import strategies as st
 from doorloc.pose import DoorPose, cell_to_door, door_to_cell, yaw_rotation_matrix
 
 poses = st.builds(DoorPose, st.floats(-10, 10), st.floats(-10, 10), st.floats(-2, 2))
-points = st.lists(st.tuples(st.floats(0, 100), st.floats(0, 1350), st.floats(0, 3000)), min_size=1, max_size=20)
+points = st.lists(
+    st.tuples(st.floats(0, 100), st.floats(0, 1350), st.floats(0, 3000)), min_size=1, max_size=20
+)
 
 
 @settings(max_examples=100, deadline=None)

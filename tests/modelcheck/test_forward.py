@@ -30,8 +30,18 @@ doors = st.builds(lambda w, t: DoorSize(w, t, 2100.0), st.floats(600, 1200), st.
 
 
 def test_catalogue_has_the_spec_names():
-    assert EFFECT_NAMES == ("camera_roll", "camera_tilt", "camera_distance", "lateral_offset", "focal_length",
-                            "pixel_aspect", "radial_distortion", "arris", "fixture_depth", "response_gamma")
+    assert EFFECT_NAMES == (
+        "camera_roll",
+        "camera_tilt",
+        "camera_distance",
+        "lateral_offset",
+        "focal_length",
+        "pixel_aspect",
+        "radial_distortion",
+        "arris",
+        "fixture_depth",
+        "response_gamma",
+    )
     with pytest.raises(ValueError, match="catalogue"):
         effect("lens_flare")
 
@@ -49,7 +59,9 @@ def test_nominal_values_predict_no_error(pose, door):
 @given(poses, doors, st.floats(-0.5, 0.5))
 def test_roll_about_an_axis_normal_to_the_face_turns_the_yaw_by_the_roll(pose, door, roll):
     # the reference mount looks along +Y, normal to the hinge face: a roll turns the image of that plane
-    err = AnalyticModel([_obs(pose, door)], CELL, measured_arris=True).predict([effect("camera_roll")], [[roll]])[0]
+    err = AnalyticModel([_obs(pose, door)], CELL, measured_arris=True).predict(
+        [effect("camera_roll")], [[roll]]
+    )[0]
     assert abs(abs(err[2]) - abs(roll)) < 1e-6 + 1e-4 * abs(roll)
     assert abs(err[3]) < 1e-6  # a rotation in the plane keeps the thickness
 
@@ -57,14 +69,26 @@ def test_roll_about_an_axis_normal_to_the_face_turns_the_yaw_by_the_roll(pose, d
 @settings(max_examples=25, deadline=None)
 @given(poses, doors, st.floats(-5, 5), st.floats(-5, 5))
 def test_a_lateral_camera_shift_shifts_the_measured_corner_the_other_way(pose, door, dx, dz):
-    err = AnalyticModel([_obs(pose, door)], CELL, measured_arris=True).predict([effect("lateral_offset")], [[dx, dz]])[0]
+    err = AnalyticModel([_obs(pose, door)], CELL, measured_arris=True).predict(
+        [effect("lateral_offset")], [[dx, dz]]
+    )[0]
     assert np.allclose(err, [-dx, -dz, 0.0, 0.0], atol=1e-6)
 
 
 def test_apply_effects_puts_values_where_the_catalogue_says():
-    c = apply_effects(CELL, {"focal_length": [1.0], "fixture_depth": [0.02], "response_gamma": [2.2],
-                             "arris": [1.5], "radial_distortion": [0.05]})
-    assert c.camera.fx == pytest.approx(CELL.camera.fx * 1.01) and c.camera.fy == pytest.approx(CELL.camera.fy * 1.01)
+    c = apply_effects(
+        CELL,
+        {
+            "focal_length": [1.0],
+            "fixture_depth": [0.02],
+            "response_gamma": [2.2],
+            "arris": [1.5],
+            "radial_distortion": [0.05],
+        },
+    )
+    assert c.camera.fx == pytest.approx(CELL.camera.fx * 1.01) and c.camera.fy == pytest.approx(
+        CELL.camera.fy * 1.01
+    )
     assert c.fixture.face_shift_per_width == pytest.approx(CELL.fixture.face_shift_per_width + 0.02)
     assert c.response_gamma == 2.2 and c.default_door.arris_mm == 1.5 and c.camera.dist_coeffs[0] == 0.05
 

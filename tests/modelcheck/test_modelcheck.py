@@ -23,8 +23,15 @@ from doorloc.modelcheck.synth import SetSpec, draw_hidden_effect, render_measure
 from doorloc.vision.imageio import read_image
 from doorloc.vision.locate import locate
 
-SPEC_FIELDS = {"causes", "parameters", "heldout_rms_before", "heldout_rms_after", "heldout_images", "extended_cell",
-               "alternatives"}
+SPEC_FIELDS = {
+    "causes",
+    "parameters",
+    "heldout_rms_before",
+    "heldout_rms_after",
+    "heldout_images",
+    "extended_cell",
+    "alternatives",
+}
 
 
 @pytest.fixture(scope="module")
@@ -50,27 +57,33 @@ def _heldout_rms(report_dir, dataset_dir, cell, images) -> np.ndarray:
         door = door_for(it, cell, measured_arris=False)
         r = locate(read_image(it.path), cell, door)
         assert r.ok, r.error
-        errs.append([r.x_mm - it.reference.x_mm, r.z_mm - it.reference.z_mm, r.yaw_deg - it.reference.yaw_deg])
+        errs.append(
+            [r.x_mm - it.reference.x_mm, r.z_mm - it.reference.z_mm, r.yaw_deg - it.reference.yaw_deg]
+        )
     return np.sqrt(np.mean(np.square(errs), axis=0))
 
 
-def test_hidden_effect_is_named_and_the_extended_cell_fixes_it(tmp_path_factory, nominal, thesis_cell_path,
-                                                               hidden_seed):
+def test_hidden_effect_is_named_and_the_extended_cell_fixes_it(
+    tmp_path_factory, nominal, thesis_cell_path, hidden_seed
+):
     rng = np.random.default_rng(hidden_seed)
     name, values = draw_hidden_effect(rng)
     print(f"hidden effect: {name} = {values}")
     data = tmp_path_factory.mktemp("hidden")
     render_measured_set(data, nominal, {name: values}, SetSpec(n_images=40, seed=hidden_seed))
     out = tmp_path_factory.mktemp("report")
-    res = CliRunner().invoke(app, ["check-model", str(data), "--cell", str(thesis_cell_path), "--out", str(out)])
+    res = CliRunner().invoke(
+        app, ["check-model", str(data), "--cell", str(thesis_cell_path), "--out", str(out)]
+    )
     assert res.exit_code == 0, res.output
     rep = json.loads((out / "report.json").read_text())
     assert SPEC_FIELDS <= set(rep)
     print(f"named: {rep['causes']}, gain {rep['heldout_gain']:.1f}x")
     # The right name first (the cause that explains most); with today's locate an arris's fit can leave
     # enough behind for a second, smaller cause (the benchmark counts that as a miss).
-    assert rep["causes"] and rep["causes"][0] == name, \
+    assert rep["causes"] and rep["causes"][0] == name, (
         f"hidden {name} = {values}, named {rep['causes']} (seed {hidden_seed})"
+    )
     assert len(rep["causes"]) == 1 or name == "arris", rep["causes"]
     assert rep["heldout_gain"] >= 5.0
     assert name in rep["parameters"]
@@ -86,8 +99,19 @@ def test_hidden_effect_is_named_and_the_extended_cell_fixes_it(tmp_path_factory,
         assert (out / p).is_file()
     # and the command line reads it like any cell file
     item = next(it for it in read_dataset(data, nominal).images if it.image == rep["heldout_images"][0])
-    res = CliRunner().invoke(app, ["locate", str(item.path), "--cell", str(out / rep["extended_cell"]), "--door-width",
-                                   str(item.door.width_mm), "--door-thickness", str(item.door.thickness_mm)])
+    res = CliRunner().invoke(
+        app,
+        [
+            "locate",
+            str(item.path),
+            "--cell",
+            str(out / rep["extended_cell"]),
+            "--door-width",
+            str(item.door.width_mm),
+            "--door-thickness",
+            str(item.door.thickness_mm),
+        ],
+    )
     assert res.exit_code == 0, res.output
     got = json.loads(res.output)
     assert got["provenance"]["cell_sha256"] == ext.sha256
@@ -130,7 +154,9 @@ def test_an_effect_outside_the_catalogue_is_unexplained(tmp_path_factory, nomina
     from doorloc.calib.camera import CameraModel
 
     cam = nominal.camera
-    true = replace(nominal, camera=CameraModel(cam.camera_matrix, np.array([0, 0, 0.004, -0.003, 0.0]), cam.image_size))
+    true = replace(
+        nominal, camera=CameraModel(cam.camera_matrix, np.array([0, 0, 0.004, -0.003, 0.0]), cam.image_size)
+    )
     data = tmp_path_factory.mktemp("tangential")
     render_measured_set(data, true, {}, SetSpec(n_images=30, seed=5))
     rep = check_model(data, nominal, tmp_path_factory.mktemp("tangential_report"))

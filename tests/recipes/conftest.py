@@ -32,8 +32,10 @@ def db_url(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[str]:
     base = os.environ.get(PG_ENV)
     if not base:
         if os.environ.get("DOORLOC_CI") == "1":
-            pytest.fail(f"DOORLOC_CI=1 but {PG_ENV} is not set: scripts/ci/postgres.sh must start PostgreSQL "
-                        "so the recipe tests run on it")
+            pytest.fail(
+                f"DOORLOC_CI=1 but {PG_ENV} is not set: scripts/ci/postgres.sh must start PostgreSQL "
+                "so the recipe tests run on it"
+            )
         pytest.skip(f"no PostgreSQL server: set {PG_ENV}=postgresql+psycopg://user:pw@host/db to run these")
     schema = f"t_{uuid.uuid4().hex[:16]}"
     admin = create_engine(base)
@@ -60,11 +62,28 @@ def make_recipe(door_id: str = "D-100", **over) -> DoorRecipe:
     """A valid two-hinge recipe (6-point and 9-point with corrections); keyword overrides."""
     hinges = over.pop("hinges", None) or [
         Hinge(z_mm=250, length_mm=100, width_mm=30, x_mm=10, depth_mm=3.5, corner_radius_mm=8),
-        Hinge(z_mm=1750, length_mm=110, width_mm=28, x_mm=12, depth_mm=3.2, corner_radius_mm=10, path_points=9,
-              corrections=[PointCorrection(dx_mm=0.01 * k, dy_mm=0.02, dz_mm=0.1 + 0.01 * k) for k in range(9)]),
+        Hinge(
+            z_mm=1750,
+            length_mm=110,
+            width_mm=28,
+            x_mm=12,
+            depth_mm=3.2,
+            corner_radius_mm=10,
+            path_points=9,
+            corrections=[PointCorrection(dx_mm=0.01 * k, dy_mm=0.02, dz_mm=0.1 + 0.01 * k) for k in range(9)],
+        ),
     ]
-    data = dict(door_id=door_id, width_mm=900, height_mm=2100, thickness_mm=50, arris_mm=1.0, hinges=hinges,
-                tool_diameter_mm=16, spindle_rpm=18000, feed_mm_s=25)
+    data = dict(
+        door_id=door_id,
+        width_mm=900,
+        height_mm=2100,
+        thickness_mm=50,
+        arris_mm=1.0,
+        hinges=hinges,
+        tool_diameter_mm=16,
+        spindle_rpm=18000,
+        feed_mm_s=25,
+    )
     data.update(over)
     return DoorRecipe(**data)
 

@@ -18,19 +18,45 @@ def tool_and_hinge(draw, path_points=None):
     length = draw(st.floats(max(2 * r, w), 300.0))
     x = draw(st.floats(0.0, 60.0 - w))
     z = draw(st.floats(0.0, 1500.0))
-    corr = draw(st.one_of(
-        st.just(()),
-        st.lists(st.builds(PointCorrection, dx_mm=st.floats(-0.5, 0.5), dy_mm=st.floats(-0.5, 0.5),
-                           dz_mm=st.floats(-0.5, 0.5)), min_size=n, max_size=n),
-    ))
+    corr = draw(
+        st.one_of(
+            st.just(()),
+            st.lists(
+                st.builds(
+                    PointCorrection,
+                    dx_mm=st.floats(-0.5, 0.5),
+                    dy_mm=st.floats(-0.5, 0.5),
+                    dz_mm=st.floats(-0.5, 0.5),
+                ),
+                min_size=n,
+                max_size=n,
+            ),
+        )
+    )
     depth = draw(st.floats(0.5, 20.0))
-    return d, Hinge(z_mm=z, length_mm=length, width_mm=w, x_mm=x, depth_mm=depth, corner_radius_mm=r,
-                    path_points=n, corrections=tuple(corr))
+    return d, Hinge(
+        z_mm=z,
+        length_mm=length,
+        width_mm=w,
+        x_mm=x,
+        depth_mm=depth,
+        corner_radius_mm=r,
+        path_points=n,
+        corrections=tuple(corr),
+    )
 
 
 @st.composite
 def recipes(draw):
     d, h = draw(tool_and_hinge())
     width = draw(st.floats(190.0, 1350.0))
-    return DoorRecipe(door_id="P-1", width_mm=width, height_mm=2100, thickness_mm=60, hinges=[h],
-                      tool_diameter_mm=d, spindle_rpm=18000, feed_mm_s=25)
+    return DoorRecipe(
+        door_id="P-1",
+        width_mm=width,
+        height_mm=2100,
+        thickness_mm=60,
+        hinges=[h],
+        tool_diameter_mm=d,
+        spindle_rpm=18000,
+        feed_mm_s=25,
+    )

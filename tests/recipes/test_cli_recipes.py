@@ -14,7 +14,9 @@ from doorloc.recipes.rapid import parse_rapid_text
 from doorloc.recipes.store import head_revision
 
 GOLDEN = Path(__file__).with_name("golden")
-_spec = importlib.util.spec_from_file_location("golden_compare", Path(__file__).with_name("golden_compare.py"))
+_spec = importlib.util.spec_from_file_location(
+    "golden_compare", Path(__file__).with_name("golden_compare.py")
+)
 golden_compare = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(golden_compare)
 
@@ -34,8 +36,9 @@ def test_import_list_show_export_targets(db, tmp_path):
     assert "imported 1 door(s), 2 hinge(s)" in r.output
 
     r = run("recipes", "list", "--db", db, "--format", "json")
-    assert json.loads(r.stdout) == [{"door_id": "GOLDEN-1", "width_mm": 900.0, "height_mm": 2100.0,
-                                     "thickness_mm": 50.0, "hinges": 2}]
+    assert json.loads(r.stdout) == [
+        {"door_id": "GOLDEN-1", "width_mm": 900.0, "height_mm": 2100.0, "thickness_mm": 50.0, "hinges": 2}
+    ]
     r = run("recipes", "show", "GOLDEN-1", "--db", db)
     assert json.loads(r.stdout)["hinges"][1]["path_points"] == 9
 
@@ -43,11 +46,25 @@ def test_import_list_show_export_targets(db, tmp_path):
     r = run("recipes", "export", "--db", db, "--out", out)
     assert r.exit_code == 0 and out.read_text().startswith("door_id,")
 
-    r = run("targets", "--door-id", "GOLDEN-1", "--pose", "1.25", "-3.5", "0.8", "--db", db, "--format", "rapid-module")
+    r = run(
+        "targets",
+        "--door-id",
+        "GOLDEN-1",
+        "--pose",
+        "1.25",
+        "-3.5",
+        "0.8",
+        "--db",
+        db,
+        "--format",
+        "rapid-module",
+    )
     assert r.exit_code == 0, r.output
     golden_compare.assert_same_values((GOLDEN / "GOLDEN-1.mod").read_text(), r.stdout, "GOLDEN-1.mod")
 
-    r = run("targets", "--door-id", "GOLDEN-1", "--pose", "-1", "2", "-0.5", "--db", db, "--format", "rapid-text")
+    r = run(
+        "targets", "--door-id", "GOLDEN-1", "--pose", "-1", "2", "-0.5", "--db", db, "--format", "rapid-text"
+    )
     assert len(parse_rapid_text(r.stdout)) == 19
 
     r = run("targets", "--door-id", "GOLDEN-1", "--pose", "0", "0", "0", "--db", db)
@@ -75,8 +92,21 @@ def test_targets_use_the_cell_fixture_and_robot_section(db, tmp_path):
     assert r.exit_code == 0, r.output
     doc = json.loads(r.stdout)
     assert doc["face_y_mm"] == 7.0 and doc["targets"][1]["y_mm"] == pytest.approx(3.5 + 7.0)
-    r = run("targets", "--door-id", "GOLDEN-1", "--pose", "0", "0", "0", "--db", db, "--cell", cell,
-            "--format", "rapid-module")
+    r = run(
+        "targets",
+        "--door-id",
+        "GOLDEN-1",
+        "--pose",
+        "0",
+        "0",
+        "0",
+        "--db",
+        db,
+        "--cell",
+        cell,
+        "--format",
+        "rapid-module",
+    )
     assert "PERS tooldata tRouter:=" in r.stdout
 
 
@@ -110,11 +140,26 @@ def test_dry_run_and_init_db(db):
 def test_spindle_on_tool_z(db, tmp_path):
     run("recipes", "import", GOLDEN / "golden_recipe.csv", "--db", db)
     cell = tmp_path / "cell.yaml"
-    cell.write_text((Path(__file__).parents[2] / "fixtures" / "cell_thesis.yaml").read_text()
-                    + "\nrobot:\n  spindle_axis: z\n")
+    cell.write_text(
+        (Path(__file__).parents[2] / "fixtures" / "cell_thesis.yaml").read_text()
+        + "\nrobot:\n  spindle_axis: z\n"
+    )
     r = run("targets", "--door-id", "GOLDEN-1", "--pose", "0", "0", "0", "--db", db, "--cell", cell)
     assert r.exit_code == 0, r.output
     assert json.loads(r.stdout)["targets"][0]["quat"] == pytest.approx([0.5**0.5, -(0.5**0.5), 0, 0])
-    r = run("targets", "--door-id", "GOLDEN-1", "--pose", "0", "0", "0", "--db", db, "--cell", cell,
-            "--format", "rapid-module")
+    r = run(
+        "targets",
+        "--door-id",
+        "GOLDEN-1",
+        "--pose",
+        "0",
+        "0",
+        "0",
+        "--db",
+        db,
+        "--cell",
+        cell,
+        "--format",
+        "rapid-module",
+    )
     assert "PERS tooldata tSpindle:=[TRUE,[[0,0,250],[1,0,0,0]]" in r.stdout

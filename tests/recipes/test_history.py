@@ -21,7 +21,10 @@ def test_every_change_is_a_version_with_who_and_what(store, recipe_factory):
     assert store.put(wider, by="carol") == 2  # identical: no new version
     assert store.get_versioned("D-100") == (wider, 2)
     h = store.history("D-100")
-    assert [(v.version, v.action, v.changed_by) for v in h] == [(1, "created", "alice"), (2, "updated", "bob")]
+    assert [(v.version, v.action, v.changed_by) for v in h] == [
+        (1, "created", "alice"),
+        (2, "updated", "bob"),
+    ]
     assert [str(c) for c in h[1].changes] == ["width_mm: 900.0 -> 1350.0"]
     assert h[0].recipe == r and h[1].recipe == wider and h[1].changed_at is not None
 
@@ -31,7 +34,11 @@ def test_retire_keeps_the_history_and_versions_go_on(store, recipe_factory):
     assert store.delete("D-100", by="bob") is True
     assert store.get("D-100") is None and store.delete("D-100") is False
     assert store.put(recipe_factory(feed_mm_s=30), by="carol") == 3
-    assert [(v.version, v.action) for v in store.history("D-100")] == [(1, "created"), (2, "deleted"), (3, "created")]
+    assert [(v.version, v.action) for v in store.history("D-100")] == [
+        (1, "created"),
+        (2, "deleted"),
+        (3, "created"),
+    ]
 
 
 def test_recipe_changes_name_hinge_fields(recipe_factory):
@@ -78,6 +85,8 @@ def test_reimport_shows_changes_and_needs_replace(tmp_path, recipe_factory):
     assert r.exit_code == 0 and "1 changed" in r.output
     r = run(cli_app, ["recipes", "history", "D-100", "--db", db])
     assert "v2" in r.output and "width_mm: 900.0 -> 1000.0" in r.output and "cli:" in r.output
-    assert run(cli_app, ["recipes", "import", str(f), "--db", db]).exit_code == 0  # unchanged: no --replace needed
+    assert (
+        run(cli_app, ["recipes", "import", str(f), "--db", db]).exit_code == 0
+    )  # unchanged: no --replace needed
     assert run(cli_app, ["recipes", "delete", "D-100", "--db", db]).exit_code == 0
     assert "deleted" in run(cli_app, ["recipes", "history", "D-100", "--db", db]).output

@@ -15,8 +15,10 @@ from doorloc.recipes.importer import (
     recipes_to_csv,
 )
 
-HEADER = ("door_id,width_mm,height_mm,thickness_mm,hinge_z_mm,hinge_length_mm,hinge_width_mm,hinge_x_mm,"
-          "hinge_depth_mm,hinge_corner_radius_mm,tool_diameter_mm,spindle_rpm,feed_mm_s")
+HEADER = (
+    "door_id,width_mm,height_mm,thickness_mm,hinge_z_mm,hinge_length_mm,hinge_width_mm,hinge_x_mm,"
+    "hinge_depth_mm,hinge_corner_radius_mm,tool_diameter_mm,spindle_rpm,feed_mm_s"
+)
 GOOD = [
     "A-1,900,2100,50,250,100,30,10,3,8,16,18000,25",
     "A-1,900,2100,50,1000,100,30,10,3,8,16,18000,25",
@@ -43,9 +45,9 @@ def test_import_good_file(store, tmp_path):
 def test_three_bad_rows_import_nothing_and_are_named(store, tmp_path):
     store.put_many(load_recipe_file(_csv(tmp_path, GOOD[3:])))  # B-2 is already there
     rows = list(GOOD)
-    rows[1] = "A-1,900,2100,50,1000,100,30,10,-3,8,16,18000,25"      # line 3: negative depth
-    rows[3] = "B-2,820,2040,40,240,90,35,8,2.5,8,16,18000,20"        # line 5: pocket wider than thickness
-    rows.append("C-3,900,2100,50,250,100,30,10,3,8,20,18000,25")     # line 7: tool too big for the corner
+    rows[1] = "A-1,900,2100,50,1000,100,30,10,-3,8,16,18000,25"  # line 3: negative depth
+    rows[3] = "B-2,820,2040,40,240,90,35,8,2.5,8,16,18000,20"  # line 5: pocket wider than thickness
+    rows.append("C-3,900,2100,50,250,100,30,10,3,8,20,18000,25")  # line 7: tool too big for the corner
     path = _csv(tmp_path, rows)
     with pytest.raises(RecipeImportError) as ei:
         import_recipe_file(path, store)
@@ -130,7 +132,10 @@ def test_xlsx_import_with_numeric_door_ids(store, tmp_path):
 
 
 def test_export_reads_back_identically(store, tmp_path, recipe_factory):
-    recipes = [recipe_factory("E-1"), recipe_factory("E-2", arris_mm=0.0, tool_diameter_mm=15.7, feed_mm_s=0.1 + 0.2)]
+    recipes = [
+        recipe_factory("E-1"),
+        recipe_factory("E-2", arris_mm=0.0, tool_diameter_mm=15.7, feed_mm_s=0.1 + 0.2),
+    ]
     store.put_many(recipes)
     text = recipes_to_csv(store.iter_recipes())
     assert text.splitlines()[0] == ",".join(CSV_COLUMNS)

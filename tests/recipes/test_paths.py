@@ -12,7 +12,9 @@ from hypothesis import given, settings
 from doorloc.recipes.models import Hinge, PointCorrection
 from doorloc.recipes.paths import hinge_path, pocket_points_xz
 
-_spec = importlib.util.spec_from_file_location("hinge_strategies", Path(__file__).with_name("hinge_strategies.py"))
+_spec = importlib.util.spec_from_file_location(
+    "hinge_strategies", Path(__file__).with_name("hinge_strategies.py")
+)
 strategies = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(strategies)
 
@@ -58,7 +60,11 @@ def test_path_depth_approach_retract_and_corrections(case):
     assert [p.name for p in path] == ["H3_APP", *(f"H3_P{k}" for k in range(1, h.path_points + 1)), "H3_RET"]
     assert {p.hinge for p in path} == {3}
     xz, _ = pocket_points_xz(h, d)
-    corr = np.array([[c.dx_mm, c.dy_mm, c.dz_mm] for c in h.corrections]) if h.corrections else np.zeros((len(xz), 3))
+    corr = (
+        np.array([[c.dx_mm, c.dy_mm, c.dz_mm] for c in h.corrections])
+        if h.corrections
+        else np.zeros((len(xz), 3))
+    )
     pocket = np.array([p.point_door for p in path[1:-1]])
     expected = np.column_stack([xz[:, 0], np.full(len(xz), h.depth_mm), xz[:, 1]]) + corr
     np.testing.assert_allclose(pocket, expected, atol=1e-12)
@@ -69,16 +75,41 @@ def test_path_depth_approach_retract_and_corrections(case):
 def test_six_point_path_worked_example():
     h = Hinge(z_mm=200, length_mm=100, width_mm=30, x_mm=10, depth_mm=3, corner_radius_mm=8)
     pts = [p.point_door for p in hinge_path(h, 16.0)]
-    assert pts == [(25.0, -10.0, 208.0), (25.0, 3.0, 208.0), (32.0, 3.0, 208.0), (32.0, 3.0, 292.0),
-                   (18.0, 3.0, 292.0), (18.0, 3.0, 208.0), (25.0, 3.0, 208.0), (25.0, -10.0, 208.0)]
+    assert pts == [
+        (25.0, -10.0, 208.0),
+        (25.0, 3.0, 208.0),
+        (32.0, 3.0, 208.0),
+        (32.0, 3.0, 292.0),
+        (18.0, 3.0, 292.0),
+        (18.0, 3.0, 208.0),
+        (25.0, 3.0, 208.0),
+        (25.0, -10.0, 208.0),
+    ]
 
 
 def test_nine_point_path_worked_example_with_corner_arcs():
     # corner radius 10, tool radius 6: tool-centre arcs of radius 4 around centres at x 20/30, z 210/290
-    h = Hinge(z_mm=200, length_mm=100, width_mm=30, x_mm=10, depth_mm=3, corner_radius_mm=10, path_points=9,
-              corrections=[PointCorrection(dz_mm=0.5)] + [PointCorrection()] * 8)
+    h = Hinge(
+        z_mm=200,
+        length_mm=100,
+        width_mm=30,
+        x_mm=10,
+        depth_mm=3,
+        corner_radius_mm=10,
+        path_points=9,
+        corrections=[PointCorrection(dz_mm=0.5)] + [PointCorrection()] * 8,
+    )
     xz, kinds = pocket_points_xz(h, 12.0)
-    assert xz.tolist() == [[20, 206], [30, 206], [34, 210], [34, 290], [30, 294], [20, 294], [16, 290],
-                           [16, 210], [20, 206]]
+    assert xz.tolist() == [
+        [20, 206],
+        [30, 206],
+        [34, 210],
+        [34, 290],
+        [30, 294],
+        [20, 294],
+        [16, 290],
+        [16, 210],
+        [20, 206],
+    ]
     assert kinds == ["corner"] * 9
     assert hinge_path(h, 12.0)[1].point_door == (20.0, 3.0, 206.5)  # P1 carries its correction

@@ -25,10 +25,14 @@ from doorloc.recipes.rapid import (
 )
 from doorloc.recipes.targets import Target, targets_for_pose
 
-_spec = importlib.util.spec_from_file_location("hinge_strategies", Path(__file__).with_name("hinge_strategies.py"))
+_spec = importlib.util.spec_from_file_location(
+    "hinge_strategies", Path(__file__).with_name("hinge_strategies.py")
+)
 strategies = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(strategies)
-_spec = importlib.util.spec_from_file_location("golden_compare", Path(__file__).with_name("golden_compare.py"))
+_spec = importlib.util.spec_from_file_location(
+    "golden_compare", Path(__file__).with_name("golden_compare.py")
+)
 golden_compare = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(golden_compare)
 
@@ -39,8 +43,17 @@ NUM = re.compile(r"^-?\d+(\.\d+)?$")
 
 @pytest.mark.parametrize(
     ("value", "text"),
-    [(0.0, "0"), (-0.0, "0"), (25.0, "25"), (1234.56789, "1234.568"), (-0.0174524064, "-0.01745241"),
-     (3010.1234, "3010.123"), (1e-9, "0.000000001"), (-1.5, "-1.5"), (9999999.4, "9999999")],
+    [
+        (0.0, "0"),
+        (-0.0, "0"),
+        (25.0, "25"),
+        (1234.56789, "1234.568"),
+        (-0.0174524064, "-0.01745241"),
+        (3010.1234, "3010.123"),
+        (1e-9, "0.000000001"),
+        (-1.5, "-1.5"),
+        (9999999.4, "9999999"),
+    ],
 )
 def test_rapid_num(value, text):
     assert rapid_num(value) == text
@@ -60,8 +73,11 @@ def test_rapid_num_refuses_nan():
 
 
 @settings(max_examples=200, deadline=None)
-@given(strategies.recipes(), st.builds(DoorPose, x_mm=st.floats(-10, 10), z_mm=st.floats(-10, 10),
-                                       yaw_deg=st.floats(-2, 2)), st.floats(-400.0, 400.0))
+@given(
+    strategies.recipes(),
+    st.builds(DoorPose, x_mm=st.floats(-10, 10), z_mm=st.floats(-10, 10), yaw_deg=st.floats(-2, 2)),
+    st.floats(-400.0, 400.0),
+)
 def test_text_lines_fit_80_chars_and_parse_back(recipe, pose, face_y):
     targets = targets_for_pose(recipe, pose, face_y)
     text = rapid_text(targets)
@@ -78,8 +94,14 @@ def test_text_lines_fit_80_chars_and_parse_back(recipe, pose, face_y):
 
 
 def test_text_refuses_a_line_over_80_characters():
-    t = Target(name="H1_" + "X" * 29, x_mm=-1234.5678, y_mm=-1234.5678, z_mm=-1234.5678,
-               quat=(0.1234567, -0.01234567, -0.01234567, -0.01234567), hinge=1)
+    t = Target(
+        name="H1_" + "X" * 29,
+        x_mm=-1234.5678,
+        y_mm=-1234.5678,
+        z_mm=-1234.5678,
+        quat=(0.1234567, -0.01234567, -0.01234567, -0.01234567),
+        hinge=1,
+    )
     with pytest.raises(ValueError, match="longer than 80"):
         rapid_text([t])
 
@@ -118,7 +140,9 @@ def test_robot_setup_from_cell_file(tmp_path):
     assert robot.tool_rot == pytest.approx((0.7071068, 0.7071068, 0, 0)) and robot.spindle_axis == "y"
     cell.write_text("robot:\n  spindle_axis: z\n")
     robot = robot_setup_from_cell_file(cell)
-    assert robot.tool_rot == (1.0, 0.0, 0.0, 0.0) and robot.base_orientation() == pytest.approx((0.7071068, -0.7071068, 0, 0))
+    assert robot.tool_rot == (1.0, 0.0, 0.0, 0.0) and robot.base_orientation() == pytest.approx(
+        (0.7071068, -0.7071068, 0, 0)
+    )
     cell.write_text("robot:\n  tool_name: 'bad name'\n")
     with pytest.raises(ValueError):
         robot_setup_from_cell_file(cell)
@@ -140,7 +164,9 @@ def test_golden_rapid_files():
 
 def test_golden_comparison_catches_a_moved_target_and_a_changed_word():
     golden = (GOLDEN / "GOLDEN-1.txt").read_text(encoding="utf-8")
-    golden_compare.assert_same_values(golden, golden.replace("22.64532", "22.64533"), "last digit")  # 4e-7 relative
+    golden_compare.assert_same_values(
+        golden, golden.replace("22.64532", "22.64533"), "last digit"
+    )  # 4e-7 relative
     with pytest.raises(AssertionError):
         golden_compare.assert_same_values(golden, golden.replace("22.64532", "22.64632"), "moved 1 um")
     with pytest.raises(AssertionError):

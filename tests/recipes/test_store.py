@@ -78,8 +78,16 @@ def test_put_many_refuses_duplicate_ids_and_writes_nothing(store, recipe_factory
 
 
 def _door(**over):
-    row = dict(door_id="RAW-1", width_mm=900, height_mm=2100, thickness_mm=50, arris_mm=0, tool_diameter_mm=16,
-               spindle_rpm=18000, feed_mm_s=25)
+    row = dict(
+        door_id="RAW-1",
+        width_mm=900,
+        height_mm=2100,
+        thickness_mm=50,
+        arris_mm=0,
+        tool_diameter_mm=16,
+        spindle_rpm=18000,
+        feed_mm_s=25,
+    )
     row.update(over)
     return row
 
@@ -95,8 +103,17 @@ def test_database_refuses_duplicate_door_ids_and_orphan_hinges(store):
         conn.execute(insert(DoorRow), [_door()])
     with pytest.raises(IntegrityError), store.engine.begin() as conn:
         conn.execute(insert(DoorRow), [_door()])
-    hinge = dict(door_pk=999_999, position=1, z_mm=1, length_mm=1, width_mm=1, x_mm=0, depth_mm=1,
-                 corner_radius_mm=0.5, path_points=6)
+    hinge = dict(
+        door_pk=999_999,
+        position=1,
+        z_mm=1,
+        length_mm=1,
+        width_mm=1,
+        x_mm=0,
+        depth_mm=1,
+        corner_radius_mm=0.5,
+        path_points=6,
+    )
     with pytest.raises(IntegrityError), store.engine.begin() as conn:
         conn.execute(insert(HingeRow), [hinge])
     with store.engine.begin() as conn:
@@ -112,7 +129,9 @@ def test_migrate_false_needs_an_existing_schema(tmp_path):
 
 
 def test_unreachable_database_is_a_clear_error():
-    with pytest.raises(RecipeStoreError, match=r"cannot open the recipe database postgresql\+psycopg://u:\*\*\*@"):
+    with pytest.raises(
+        RecipeStoreError, match=r"cannot open the recipe database postgresql\+psycopg://u:\*\*\*@"
+    ):
         RecipeStore("postgresql+psycopg://u:secret@127.0.0.1:1/x?connect_timeout=2")
 
 
@@ -136,9 +155,16 @@ def test_database_url_precedence(tmp_path, monkeypatch):
 def _recipe():
     from doorloc.recipes.models import DoorRecipe, Hinge
 
-    return DoorRecipe(door_id="R-1", width_mm=900, height_mm=2100, thickness_mm=50, tool_diameter_mm=16,
-                      spindle_rpm=18000, feed_mm_s=25,
-                      hinges=[Hinge(z_mm=250, length_mm=100, width_mm=30, x_mm=10, depth_mm=3, corner_radius_mm=8)])
+    return DoorRecipe(
+        door_id="R-1",
+        width_mm=900,
+        height_mm=2100,
+        thickness_mm=50,
+        tool_diameter_mm=16,
+        spindle_rpm=18000,
+        feed_mm_s=25,
+        hinges=[Hinge(z_mm=250, length_mm=100, width_mm=30, x_mm=10, depth_mm=3, corner_radius_mm=8)],
+    )
 
 
 def test_concurrent_first_opens_migrate_once(db_url):

@@ -17,7 +17,9 @@ from doorloc.recipes.models import DoorRecipe
 from doorloc.recipes.paths import pocket_points_xz, recipe_path
 from doorloc.recipes.targets import TOOL_Z_ALONG_CELL_Y, targets_for_pose, tool_quaternion
 
-_spec = importlib.util.spec_from_file_location("hinge_strategies", Path(__file__).with_name("hinge_strategies.py"))
+_spec = importlib.util.spec_from_file_location(
+    "hinge_strategies", Path(__file__).with_name("hinge_strategies.py")
+)
 strategies = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(strategies)
 
@@ -40,11 +42,13 @@ def thesis_eq_3_46_to_3_50(lx_l: float, lz_l: float, pc: float, yaw_deg: float) 
 
 def quat_to_matrix(q) -> np.ndarray:
     w, x, y, z = q
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-    ])
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
 
 
 @settings(max_examples=300, deadline=None)
@@ -78,8 +82,11 @@ def test_targets_are_the_rigid_transform_of_the_door_frame_points(recipe, pose, 
     np.testing.assert_allclose(cell, expected, rtol=0, atol=1e-9)
     np.testing.assert_allclose(cell, door_to_cell(door_pts, pose, face_y), rtol=0, atol=0)
     # distances between points are kept
-    np.testing.assert_allclose(np.linalg.norm(np.diff(cell, axis=0), axis=1),
-                               np.linalg.norm(np.diff(door_pts, axis=0), axis=1), atol=1e-9)
+    np.testing.assert_allclose(
+        np.linalg.norm(np.diff(cell, axis=0), axis=1),
+        np.linalg.norm(np.diff(door_pts, axis=0), axis=1),
+        atol=1e-9,
+    )
 
 
 @settings(max_examples=300, deadline=None)

@@ -18,7 +18,9 @@ RUNNER = CliRunner()
 @pytest.fixture(scope="module")
 def db(tmp_path_factory) -> str:
     url = f"sqlite:///{tmp_path_factory.mktemp('db') / 'r.db'}"
-    r = RUNNER.invoke(app, ["recipes", "import", str(REPO / "fixtures" / "recipes" / "thesis_extremes.csv"), "--db", url])
+    r = RUNNER.invoke(
+        app, ["recipes", "import", str(REPO / "fixtures" / "recipes" / "thesis_extremes.csv"), "--db", url]
+    )
     assert r.exit_code == 0, r.output
     return url
 
@@ -36,8 +38,17 @@ def test_feasible_door_exits_0_with_the_spec_fields(db, tmp_path):
     assert out["robot"] == "IRB6600-175/2.55" and out["feasible"] is True and out["reason"] is None
     assert set(out["tool"]) == {"pos_mm", "quat"} and len(out["tool"]["quat"]) == 4
     t = out["targets"][0]
-    assert {"name", "joints_deg", "confdata", "tcp_base_mm", "quat_base", "feasible", "reason", "inv_condition",
-            "deflection_mm"} <= set(t)
+    assert {
+        "name",
+        "joints_deg",
+        "confdata",
+        "tcp_base_mm",
+        "quat_base",
+        "feasible",
+        "reason",
+        "inv_condition",
+        "deflection_mm",
+    } <= set(t)
     assert len(t["joints_deg"]) == 6 and len(t["confdata"]) == 4 and len(t["tcp_base_mm"]) == 3
     assert len(t["quat_base"]) == 4 and len(t["deflection_mm"]) == 3
     img = cv2.imread(str(png))
@@ -56,7 +67,9 @@ def test_bad_input_exits_2(db, tmp_path):
     r = _reach(db, "--door-id", "NOPE", "--pose", "0", "0", "0")
     assert r.exit_code == 2 and "no recipe for door 'NOPE'" in r.output
     cell = tmp_path / "cell.yaml"
-    text = (REPO / "fixtures" / "cell_thesis.yaml").read_text().replace("  model: irb6600", "  modle: irb6600")
+    text = (
+        (REPO / "fixtures" / "cell_thesis.yaml").read_text().replace("  model: irb6600", "  modle: irb6600")
+    )
     cell.write_text(text)
     r = _reach(db, "--door-id", "THESIS-190", "--pose", "0", "0", "0", "--cell", str(cell))
     assert r.exit_code == 2 and "unknown key 'robot.modle'" in r.output

@@ -23,8 +23,18 @@ DOC = yaml.safe_load((REPO / "fixtures" / "cell_thesis.yaml").read_text())
 
 def _locate_at(x_mm: float):
     def locate(image, cell, door, *, image_name="", config=None, trace=None):
-        return LocateResult(image=image_name, ok=True, x_mm=x_mm, z_mm=-2.5, yaw_deg=0.3, thickness_mm=door.thickness_mm,
-                            scale_mm_per_px=0.206, corner_px=[802.0, 708.0], elapsed_ms=1.0)
+        return LocateResult(
+            image=image_name,
+            ok=True,
+            x_mm=x_mm,
+            z_mm=-2.5,
+            yaw_deg=0.3,
+            thickness_mm=door.thickness_mm,
+            scale_mm_per_px=0.206,
+            corner_px=[802.0, 708.0],
+            elapsed_ms=1.0,
+        )
+
     return locate
 
 
@@ -39,13 +49,18 @@ def post(tmp_path):
         if not robot:
             doc.pop("robot")
         cell = parse_cell(doc, REPO / "fixtures", "cell.yaml")
-        c = TestClient(create_app(ServiceSettings(), cell=cell, store=store, locate_fn=_locate_at(x_mm)),
-                       raise_server_exceptions=False)
+        c = TestClient(
+            create_app(ServiceSettings(), cell=cell, store=store, locate_fn=_locate_at(x_mm)),
+            raise_server_exceptions=False,
+        )
         c.__enter__()
         clients.append(c)
         ok, png = cv2.imencode(".png", np.full((48, 64), 128, np.uint8))
-        r = c.post("/v1/locate", files={"image": ("door.png", png.tobytes(), "image/png")},
-                   data={"door_id": "THESIS-1350"})
+        r = c.post(
+            "/v1/locate",
+            files={"image": ("door.png", png.tobytes(), "image/png")},
+            data={"door_id": "THESIS-1350"},
+        )
         assert r.status_code == 200, r.text
         return r.json()
 
@@ -60,8 +75,17 @@ def test_reach_block_with_the_spec_fields(post):
     assert a["ok"] is True and a["reach"]["feasible"] is True and a["reach"]["robot"] == "IRB6600-175/2.55"
     assert len(a["reach"]["targets"]) == len(a["targets"]) == 19
     t = a["reach"]["targets"][0]
-    assert {"name", "joints_deg", "confdata", "tcp_base_mm", "quat_base", "feasible", "reason", "inv_condition",
-            "deflection_mm"} <= set(t)
+    assert {
+        "name",
+        "joints_deg",
+        "confdata",
+        "tcp_base_mm",
+        "quat_base",
+        "feasible",
+        "reason",
+        "inv_condition",
+        "deflection_mm",
+    } <= set(t)
 
 
 def test_infeasible_target_turns_the_answer_into_a_refusal(post):

@@ -17,12 +17,14 @@ ROBOT = load_robot()
 KIN = Kinematics.of(ROBOT)
 
 #: thesis Table 4.6 (deg), rows: bottom hinge W max, bottom W min, top W max, top W min
-TABLE_4_6 = np.array([
-    [-13.58, 69.54, 34.97, -14.01, -104.10, -93.48],
-    [13.58, 69.54, 34.97, 14.01, -104.10, -86.52],
-    [-13.58, 6.89, -44.31, 21.68, 39.46, -107.06],
-    [13.58, 6.89, -44.31, -21.68, 39.46, -72.94],
-])
+TABLE_4_6 = np.array(
+    [
+        [-13.58, 69.54, 34.97, -14.01, -104.10, -93.48],
+        [13.58, 69.54, 34.97, 14.01, -104.10, -86.52],
+        [-13.58, 6.89, -44.31, 21.68, 39.46, -107.06],
+        [13.58, 6.89, -44.31, -21.68, 39.46, -72.94],
+    ]
+)
 #: the matching corners of Table 4.5's region (base frame, mm), flange +Z along base +X
 TABLE_4_5_CORNERS = np.array([[1400, -290, 0], [1400, 290, 0], [1400, -290, 2700], [1400, 290, 2700]], float)
 #: the flange orientation Table 4.6's angles give (flange +Z along base +X, +X along base -Y)
@@ -38,8 +40,14 @@ def _corner_poses() -> np.ndarray:
 
 def _dh_written_out(q_deg: np.ndarray) -> np.ndarray:
     """Table 2.1 written out link by link with scipy rotations: an implementation independent of kinematics.py."""
-    rows = [(q_deg[0], 780, 320, -90), (q_deg[1] - 90, 0, 1075, 0), (q_deg[2], 0, 200, -90),
-            (q_deg[3], 1142, 0, 90), (q_deg[4], 0, 0, -90), (q_deg[5] + 180, 200, 0, 0)]
+    rows = [
+        (q_deg[0], 780, 320, -90),
+        (q_deg[1] - 90, 0, 1075, 0),
+        (q_deg[2], 0, 200, -90),
+        (q_deg[3], 1142, 0, 90),
+        (q_deg[4], 0, 0, -90),
+        (q_deg[5] + 180, 200, 0, 0),
+    ]
     T = np.eye(4)
     for theta, d, a, alpha in rows:
         rz, tz, tx, rx = np.eye(4), np.eye(4), np.eye(4), np.eye(4)
@@ -101,7 +109,12 @@ def test_inverse_of_the_exact_corners_gives_table_4_6_in_its_configuration():
 def test_confdata_at_home_and_for_table_4_6():
     assert KIN.confdata(np.zeros(6)).tolist() == [0, 0, 0, 0]
     # bottom hinges need joint 5 negative (cfx 1), top hinges positive (cfx 0); cf1 -1 for the negative joint 1
-    assert KIN.confdata(np.radians(TABLE_4_6)).tolist() == [[-1, -1, -2, 1], [0, 0, -1, 1], [-1, 0, -2, 0], [0, -1, -1, 0]]
+    assert KIN.confdata(np.radians(TABLE_4_6)).tolist() == [
+        [-1, -1, -2, 1],
+        [0, 0, -1, 1],
+        [-1, 0, -2, 0],
+        [0, -1, -1, 0],
+    ]
 
 
 joint = st.floats(-math.pi, math.pi, allow_nan=False)

@@ -107,11 +107,15 @@ def test_doors_500_mm_further_from_the_robot_are_refused_with_the_reason():
 def test_a_04_m_tool_on_a_cell_placed_for_the_bare_flange_fails_on_joint_5():
     # the thesis placed its region for the flange (no tool); put the base so, then mount a 0.4 m angle head
     bare = {"base": {"pos_mm": [-1300, 65, 150]}}
-    assert all(r.feasible for r in _reports(_setup(**bare, tool={"pos_mm": [0, 0, 0], "quat": ANGLE_HEAD})).values())
+    assert all(
+        r.feasible for r in _reports(_setup(**bare, tool={"pos_mm": [0, 0, 0], "quat": ANGLE_HEAD})).values()
+    )
     for door_id, rep in _reports(_setup(**bare, tool={"pos_mm": [0, 0, 400], "quat": ANGLE_HEAD})).items():
         assert not rep.feasible and rep.error_code == "joint_limit", door_id
         assert "target H1_APP needs joint 5 at" in rep.reason
-        assert [t.name for t in rep.targets if not t.feasible] == [t.name for t in rep.targets if t.hinge == 1]
+        assert [t.name for t in rep.targets if not t.feasible] == [
+            t.name for t in rep.targets if t.hinge == 1
+        ]
     # the bundled cell stands 250 mm further back for its own tool, so a 0.4 m head still fits there
     bundled = CELL.robot_section
     longer = {"base": bundled["base"], "tool": {"pos_mm": [-100, 0, 400], "quat": ANGLE_HEAD}}
@@ -134,7 +138,9 @@ def test_configuration_flip_between_neighbours_is_refused():
     doc["joint_limits_deg"][3] = [-90, 90]  # joint 4 cannot follow q4 80 -> 100 deg: the wrist must flip
     robot = RobotModel.model_validate(doc)
     setup = ReachSetup.of(robot, robot_section_from_doc({"model": "x", **BARE}))
-    rep = check_reach(setup, [_target_at("A", [0, 20, -10, 80, 40, 0]), _target_at("B", [0, 20, -10, 100, 40, 0])])
+    rep = check_reach(
+        setup, [_target_at("A", [0, 20, -10, 80, 40, 0]), _target_at("B", [0, 20, -10, 100, 40, 0])]
+    )
     assert rep.error_code == "configuration_flip" and "from A to B" in rep.reason
     # each alone is fine
     assert check_reach(setup, [_target_at("A", [0, 20, -10, 80, 40, 0])]).feasible
@@ -160,13 +166,30 @@ def test_inverse_condition_is_one_over_frobenius_condition_and_zero_at_a_singula
 
 def test_segments_follow_the_thesis_assignment():
     # 9-point path: bottom edge, right side up, top edge, left side down (counter-clockwise as the camera sees)
-    xz = np.array([(10, 0), (20, 0), (30, 10), (30, 40), (20, 50), (10, 50), (0, 40), (0, 10), (10, 0)], float)
-    assert segment_of_points(xz) == ["bottom_turn", "bottom_turn", "bottom_turn", "right_line", "top_turn",
-                                     "top_turn", "top_turn", "left_line", "bottom_turn"]
+    xz = np.array(
+        [(10, 0), (20, 0), (30, 10), (30, 40), (20, 50), (10, 50), (0, 40), (0, 10), (10, 0)], float
+    )
+    assert segment_of_points(xz) == [
+        "bottom_turn",
+        "bottom_turn",
+        "bottom_turn",
+        "right_line",
+        "top_turn",
+        "top_turn",
+        "top_turn",
+        "left_line",
+        "bottom_turn",
+    ]
     # the 6-point path: P1 mid bottom, corners, back to P1
     xz6 = np.array([(15, 0), (30, 0), (30, 50), (0, 50), (0, 0), (15, 0)], float)
-    assert segment_of_points(xz6) == ["bottom_turn", "bottom_turn", "right_line", "top_turn", "left_line",
-                                      "bottom_turn"]
+    assert segment_of_points(xz6) == [
+        "bottom_turn",
+        "bottom_turn",
+        "right_line",
+        "top_turn",
+        "left_line",
+        "bottom_turn",
+    ]
 
 
 def test_deflection_of_table_4_8_wrench_is_a_fraction_of_a_millimetre_and_linear():
@@ -213,25 +236,49 @@ def test_a_tool_frame_with_the_spindle_on_z_gives_the_same_answer():
     from doorloc.cell import parse_cell
     from doorloc.vision.result import LocateResult
 
-    to_z = Rotation.from_quat([math.sqrt(0.5), -math.sqrt(0.5), 0, 0], scalar_first=True)  # TOOL_Z_ALONG_CELL_Y
+    to_z = Rotation.from_quat(
+        [math.sqrt(0.5), -math.sqrt(0.5), 0, 0], scalar_first=True
+    )  # TOOL_Z_ALONG_CELL_Y
     quat_z = (Rotation.from_quat(ANGLE_HEAD, scalar_first=True) * to_z).as_quat(scalar_first=True).tolist()
     doc = yaml.safe_load((REPO / "fixtures" / "cell_thesis.yaml").read_text())
-    doc["robot"] = {**doc["robot"], "spindle_axis": "z", "tool": {"pos_mm": [-100.0, 0.0, 250.0], "quat": quat_z}}
+    doc["robot"] = {
+        **doc["robot"],
+        "spindle_axis": "z",
+        "tool": {"pos_mm": [-100.0, 0.0, 250.0], "quat": quat_z},
+    }
     cell_z = parse_cell(doc, REPO / "fixtures", "cell_z.yaml")
 
     def locate(image, cell, door, *, image_name="", config=None, trace=None):
-        return LocateResult(image=image_name, ok=True, x_mm=2.0, z_mm=-3.0, yaw_deg=1.0, thickness_mm=100.0,
-                            scale_mm_per_px=0.2, corner_px=[1.0, 2.0], elapsed_ms=1.0)
+        return LocateResult(
+            image=image_name,
+            ok=True,
+            x_mm=2.0,
+            z_mm=-3.0,
+            yaw_deg=1.0,
+            thickness_mm=100.0,
+            scale_mm_per_px=0.2,
+            corner_px=[1.0, 2.0],
+            elapsed_ms=1.0,
+        )
 
     door = DOORS[1]
-    answers = [answer_image(np.zeros((4, 4), np.uint8), c, DoorChoice.from_recipe(door), image_name="x",
-                            locate_fn=locate).fields for c in (CELL, cell_z)]
+    answers = [
+        answer_image(
+            np.zeros((4, 4), np.uint8), c, DoorChoice.from_recipe(door), image_name="x", locate_fn=locate
+        ).fields
+        for c in (CELL, cell_z)
+    ]
     assert all(a["ok"] and a["reach"]["feasible"] for a in answers)
     for ty, tz in zip(answers[0]["reach"]["targets"], answers[1]["reach"]["targets"], strict=True):
         np.testing.assert_allclose(ty["joints_deg"], tz["joints_deg"], atol=1e-9)
-    direct = reach_for_door(setup_for_cell(cell_z), door, DoorPose(2.0, -3.0, 1.0), cell_z.face_y(door.door_size()))
-    np.testing.assert_allclose([t.joints_deg for t in direct.targets],
-                               [t["joints_deg"] for t in answers[0]["reach"]["targets"]], atol=1e-9)
+    direct = reach_for_door(
+        setup_for_cell(cell_z), door, DoorPose(2.0, -3.0, 1.0), cell_z.face_y(door.door_size())
+    )
+    np.testing.assert_allclose(
+        [t.joints_deg for t in direct.targets],
+        [t["joints_deg"] for t in answers[0]["reach"]["targets"]],
+        atol=1e-9,
+    )
 
 
 def test_compensated_targets_move_pocket_points_by_minus_the_deflection():
@@ -243,10 +290,14 @@ def test_compensated_targets_move_pocket_points_by_minus_the_deflection():
     raw = targets_for_pose(door, DoorPose(), face_y, base_orientation=setup.section.base_orientation())
     for t, r, tr in zip(plain, raw, nominal.targets, strict=True):
         moved = np.subtract((t.x_mm, t.y_mm, t.z_mm), (r.x_mm, r.y_mm, r.z_mm))
-        np.testing.assert_allclose(moved, -np.array(tr.deflection_mm), atol=1e-12)  # base axes = cell axes here
+        np.testing.assert_allclose(
+            moved, -np.array(tr.deflection_mm), atol=1e-12
+        )  # base axes = cell axes here
         assert (np.abs(moved).max() == 0.0) == t.name.endswith(("APP", "RET"))
     # a hinge with its own force-displacement corrections is not compensated twice
-    h1 = door.hinges[0].model_copy(update={"corrections": tuple(PointCorrection(dx_mm=0.1) for _ in range(6))})
+    h1 = door.hinges[0].model_copy(
+        update={"corrections": tuple(PointCorrection(dx_mm=0.1) for _ in range(6))}
+    )
     own = door.model_copy(update={"hinges": (h1, door.hinges[1])})
     with_own, _ = compensated_targets(setup, own, DoorPose(), face_y)
     raw_own = targets_for_pose(own, DoorPose(), face_y, base_orientation=setup.section.base_orientation())
@@ -259,4 +310,6 @@ def test_a_wrist_swing_between_neighbours_is_a_flip():
     a, b = _target_at("A", [0, 20, -10, 0, 20, 0]), _target_at("B", [0, 20, -10, 90, 20, -90])
     assert check_reach(setup, [a]).feasible and check_reach(setup, [b]).feasible
     rep = check_reach(setup, [a, b])
-    assert rep.error_code == "configuration_flip" and "between A and B" in rep.reason and "joint" in rep.reason
+    assert (
+        rep.error_code == "configuration_flip" and "between A and B" in rep.reason and "joint" in rep.reason
+    )

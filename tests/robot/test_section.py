@@ -25,11 +25,14 @@ def test_rapid_setup_is_the_robot_section():
     assert RobotSetup is RobotSection
 
 
-@pytest.mark.parametrize("robot, key", [
-    ({"modle": "irb6600-175-2.55"}, "robot.modle"),
-    ({"base": {"pos": [0, 0, 0]}}, "robot.base.pos"),
-    ({"tool": {"pos_mm": [0, 0, 250], "rot": [1, 0, 0, 0]}}, "robot.tool.rot"),
-])
+@pytest.mark.parametrize(
+    "robot, key",
+    [
+        ({"modle": "irb6600-175-2.55"}, "robot.modle"),
+        ({"base": {"pos": [0, 0, 0]}}, "robot.base.pos"),
+        ({"tool": {"pos_mm": [0, 0, 250], "rot": [1, 0, 0, 0]}}, "robot.tool.rot"),
+    ],
+)
 def test_a_typo_in_robot_is_a_cell_file_error_naming_the_key(robot, key):
     with pytest.raises(CellFileError, match=f"unknown key '{key}'"):
         parse_cell(_cell_with(robot), REPO / "fixtures")
@@ -48,7 +51,9 @@ def test_tool_is_rapid_tframe_and_base_fixes_the_work_object():
     s = robot_section_from_doc(THESIS["robot"])
     assert s.tool_tcp_mm == (-100.0, 0.0, 250.0) and s.tool_rot == (0.5, 0.5, -0.5, 0.5)
     # cell origin seen from the base: the inverse of the base placement
-    assert s.wobj_uframe_mm == pytest.approx((1550.0, 35.0, -150.0)) and s.wobj_uframe_rot == pytest.approx((1, 0, 0, 0))
+    assert s.wobj_uframe_mm == pytest.approx((1550.0, 35.0, -150.0)) and s.wobj_uframe_rot == pytest.approx(
+        (1, 0, 0, 0)
+    )
     mod = rapid_module(_recipe(), [], s)
     assert "PERS tooldata tSpindle:=[TRUE,[[-100,0,250],[0.5,0.5,-0.5,0.5]]" in mod
     assert "[[1550,35,-150],[1,0,0,0]]" in mod
@@ -73,6 +78,13 @@ def test_thesis_cell_names_the_irb6600():
 def _recipe():
     from doorloc.recipes.models import DoorRecipe, Hinge
 
-    return DoorRecipe(door_id="D-1", width_mm=900, height_mm=2100, thickness_mm=50,
-                      hinges=[Hinge(z_mm=250, length_mm=100, width_mm=30, x_mm=10, depth_mm=3, corner_radius_mm=8)],
-                      tool_diameter_mm=16, spindle_rpm=18000, feed_mm_s=25)
+    return DoorRecipe(
+        door_id="D-1",
+        width_mm=900,
+        height_mm=2100,
+        thickness_mm=50,
+        hinges=[Hinge(z_mm=250, length_mm=100, width_mm=30, x_mm=10, depth_mm=3, corner_radius_mm=8)],
+        tool_diameter_mm=16,
+        spindle_rpm=18000,
+        feed_mm_s=25,
+    )

@@ -22,7 +22,9 @@ def _rms(a, b):
 
 def _match_order(found, truth):
     """OpenCV may report a checkerboard's corners in reverse order; put them in the board's order."""
-    return found[::-1] if np.linalg.norm(found[0] - truth[-1]) < np.linalg.norm(found[0] - truth[0]) else found
+    return (
+        found[::-1] if np.linalg.norm(found[0] - truth[-1]) < np.linalg.norm(found[0] - truth[0]) else found
+    )
 
 
 @pytest.mark.parametrize(
@@ -40,7 +42,9 @@ def test_checkerboard_corners_found_by_opencv_match_truth(rvec, tvec):
     assert _rms(sb, rb.corners_px) <= 0.05
     ok, c = cv2.findChessboardCorners(rb.image, (9, 6))
     assert ok
-    c = cv2.cornerSubPix(rb.image, c.reshape(-1, 1, 2).astype(np.float32), (11, 11), (-1, -1), CRIT).reshape(-1, 2)
+    c = cv2.cornerSubPix(rb.image, c.reshape(-1, 1, 2).astype(np.float32), (11, 11), (-1, -1), CRIT).reshape(
+        -1, 2
+    )
     c = _match_order(c, rb.corners_px)
     assert _rms(c, rb.corners_px) <= 0.05
 
@@ -58,7 +62,9 @@ def test_checkerboard_corner_order_is_row_major_from_first_inner_corner():
 
 def test_charuco_detector_finds_every_corner_with_the_right_ids():
     board = CharucoBoard(7, 5, 30.0, 22.0)
-    rb = render_board(CAM, board, [0.3, -0.3, 0.05], [-100.0, -60.0, 500.0], effects=Effects(blur_sigma_px=0.8))
+    rb = render_board(
+        CAM, board, [0.3, -0.3, 0.05], [-100.0, -60.0, 500.0], effects=Effects(blur_sigma_px=0.8)
+    )
     det = cv2.aruco.CharucoDetector(board.cv_board())
     corners, ids, _, marker_ids = det.detectBoard(rb.image)
     assert ids is not None and len(ids) == len(rb.ids) == 24
@@ -77,7 +83,9 @@ def test_same_seed_same_bytes_and_noise_changes_with_seed():
     assert a.image.tobytes() != c.image.tobytes()
 
 
-@pytest.mark.parametrize("rvec,tvec", [([0.0, 0.0, 0.0], [-100.0, -60.0, 600.0]), ([0.3, -0.4, 0.6], [-60.0, -40.0, 500.0])])
+@pytest.mark.parametrize(
+    "rvec,tvec", [([0.0, 0.0, 0.0], [-100.0, -60.0, 600.0]), ([0.3, -0.4, 0.6], [-60.0, -40.0, 500.0])]
+)
 def test_board_pixels_near_corners_match_brute_force_ray_casting(rvec, tvec):
     """Independent check of the whole pipeline: 64 x 64 rays per pixel through CameraModel.backproject."""
     board = Checkerboard(5, 4, 20.0)

@@ -30,7 +30,9 @@ def test_nominal_corner_is_where_the_cell_file_says():
     assert img[int(v) + 5, int(u) + 5] == bg
 
 
-@pytest.mark.parametrize("arris,profile,n_faces", [(0.0, "chamfer", 6), (2.0, "chamfer", 13), (2.0, "round", 13)])
+@pytest.mark.parametrize(
+    "arris,profile,n_faces", [(0.0, "chamfer", 6), (2.0, "chamfer", 13), (2.0, "round", 13)]
+)
 def test_door_solid_is_closed_and_convex(arris, profile, n_faces):
     door = DoorSize(800, 40, 2000, arris_mm=arris)
     faces = door_faces(door, profile)
@@ -99,7 +101,9 @@ def test_door_edges_lie_on_the_projected_door_edges(dist, yaw):
     # bottom edge: door (0..T, 0, 0); hinge face above it (bright before, in v)
     bottom = project(door_to_cell(lam * [door.thickness_mm, 0, 0], pose, cell.face_y(door)))
     cols = np.arange(int(bottom[:, 0].min()) + 4, int(bottom[:, 0].max()) - 4)
-    r_bottom = measure_edge(rd.radiance, bottom, cols, dark=dark, bright=bright, along="columns", bright_after=False)
+    r_bottom = measure_edge(
+        rd.radiance, bottom, cols, dark=dark, bright=bright, along="columns", bright_after=False
+    )
     # reference edge: door (0, 0, 0..H); hinge face to its right (bright after, in u)
     ref = project(door_to_cell(lam * [0, 0, 300.0], pose, cell.face_y(door)))
     rows = np.arange(int(ref[:, 1].min()) + 4, int(ref[:, 1].max()) - 4)
@@ -118,16 +122,31 @@ def test_every_effect_defaults_to_off_and_changes_the_image_when_on():
     assert plain.image[v - 50, u + 50] == round(255 * fx0.albedo_hinge)
     assert plain.image[v + 50, u - 50] == round(255 * fx0.albedo_background)
     switches = {
-        "light_directional": 0.5, "gradient_u": 0.2, "gradient_v": 0.2, "vignetting": 0.3, "grain_contrast": 0.1,
-        "shadow_strength": 0.4, "clamp_albedo": 0.02, "second_edge_offset_mm": 20.0, "blur_sigma_px": 1.0,
-        "full_well_e": 5000.0, "read_noise_dn": 2.0, "gamma": 2.2, "jpeg_quality": 50,
+        "light_directional": 0.5,
+        "gradient_u": 0.2,
+        "gradient_v": 0.2,
+        "vignetting": 0.3,
+        "grain_contrast": 0.1,
+        "shadow_strength": 0.4,
+        "clamp_albedo": 0.02,
+        "second_edge_offset_mm": 20.0,
+        "blur_sigma_px": 1.0,
+        "full_well_e": 5000.0,
+        "read_noise_dn": 2.0,
+        "gamma": 2.2,
+        "jpeg_quality": 50,
     }
     for name, value in switches.items():
-        img = render_door(CELL, DoorSize(900, 40, 2100), DoorPose(2, 3, 1),
-                          effects=Effects(**{name: value})).image
+        img = render_door(
+            CELL, DoorSize(900, 40, 2100), DoorPose(2, 3, 1), effects=Effects(**{name: value})
+        ).image
         assert not np.array_equal(img, plain.image), name
     assert render_door(CELL, DoorSize(), DoorPose(), effects=Effects(bit_depth=16)).image.dtype == np.uint16
-    assert render_door(CELL, DoorSize(), DoorPose(), effects=Effects(color=True)).image.shape == (1080, 1920, 3)
+    assert render_door(CELL, DoorSize(), DoorPose(), effects=Effects(color=True)).image.shape == (
+        1080,
+        1920,
+        3,
+    )
 
 
 def test_effects_round_trip_through_a_dict_of_strings():
@@ -157,7 +176,9 @@ def test_bottom_end_is_seen_only_from_below():
 
     from doorloc.calib.camera import Extrinsics
 
-    below = dataclasses.replace(CELL, extrinsics=Extrinsics([np.pi / 2, 0, 0], [-30.0, -40.0, 350.0]))  # camera Z = -40
+    below = dataclasses.replace(
+        CELL, extrinsics=Extrinsics([np.pi / 2, 0, 0], [-30.0, -40.0, 350.0])
+    )  # camera Z = -40
     assert below.extrinsics.camera_centre_cell[2] == pytest.approx(-40.0)
     rd = render_door(below, DoorSize(900, 50, 2100), DoorPose())
     assert "bottom_end" in rd.truth["visible_faces"]
@@ -169,7 +190,10 @@ def test_bottom_end_is_seen_only_from_below():
 
 @settings(max_examples=40, deadline=None)
 @given(
-    t=st.floats(10, 120), w=st.floats(150, 1500), h=st.floats(500, 3000), arris_frac=st.floats(0, 0.45),
+    t=st.floats(10, 120),
+    w=st.floats(150, 1500),
+    h=st.floats(500, 3000),
+    arris_frac=st.floats(0, 0.45),
     profile=st.sampled_from(["chamfer", "round"]),
 )
 def test_door_solid_is_closed_and_convex_for_any_size(t, w, h, arris_frac, profile):

@@ -33,7 +33,9 @@ SAME_POSE_MM, SAME_POSE_DEG = 0.002, 0.0005
 TRUTH_POSE_MM, TRUTH_POSE_DEG = 0.1, 0.01
 
 
-@pytest.mark.parametrize("folder,index", [("grid", 0), ("grid", 80), ("effects", 13), ("distractors", 3), ("widths", 2)])
+@pytest.mark.parametrize(
+    "folder,index", [("grid", 0), ("grid", 80), ("effects", 13), ("distractors", 3), ("widths", 2)]
+)
 def test_fixture_images_rerender_within_two_grey_levels_and_locate_the_same(folder, index):
     cell = load_cell(FIX / folder / "cell.yaml")
     rows = read_truth_csv(FIX / folder / "truth.csv")
@@ -43,7 +45,9 @@ def test_fixture_images_rerender_within_two_grey_levels_and_locate_the_same(fold
     assert stored.shape == rd.image.shape == (1080, 1920)
     assert stored.dtype == rd.image.dtype == np.uint8
     diff = np.abs(stored.astype(np.int16) - rd.image.astype(np.int16))
-    assert diff.max() <= MAX_GREY_LEVEL_DIFF, f"{int((diff > MAX_GREY_LEVEL_DIFF).sum())} pixels differ by more"
+    assert diff.max() <= MAX_GREY_LEVEL_DIFF, (
+        f"{int((diff > MAX_GREY_LEVEL_DIFF).sum())} pixels differ by more"
+    )
     assert np.allclose(r.corner_px, true_corner_px(cell, r.door, r.pose), atol=1e-9)
 
     from_stored = locate(stored, cell, r.door)
@@ -60,17 +64,34 @@ def test_fixture_images_rerender_within_two_grey_levels_and_locate_the_same(fold
 def test_grid_fixture_covers_the_envelope_corners_and_thicknesses():
     rows = read_truth_csv(FIX / "grid" / "truth.csv")
     poses = {(r.pose.x_mm, r.pose.z_mm, r.pose.yaw_deg) for r in rows}
-    assert poses == {(p.x_mm, p.z_mm, p.yaw_deg) for p in grid_poses(load_cell(FIX / "grid" / "cell.yaml").envelope)}
+    assert poses == {
+        (p.x_mm, p.z_mm, p.yaw_deg) for p in grid_poses(load_cell(FIX / "grid" / "cell.yaml").envelope)
+    }
     assert {r.door.thickness_mm for r in rows} == {30.0, 50.0, 100.0}
     assert sum(f.stat().st_size for f in FIX.rglob("*")) < 4_000_000
 
 
 def test_cli_render_writes_images_truth_and_cell(tmp_path):
     out = tmp_path / "set"
-    res = CliRunner().invoke(app, [
-        "render", str(out), "--cell", str(ROOT / "fixtures" / "cell_thesis.yaml"), "--poses", "random",
-        "--count", "2", "--seed", "5", "--thickness", "35,60", "--effect", "blur_sigma_px=0.5",
-    ])
+    res = CliRunner().invoke(
+        app,
+        [
+            "render",
+            str(out),
+            "--cell",
+            str(ROOT / "fixtures" / "cell_thesis.yaml"),
+            "--poses",
+            "random",
+            "--count",
+            "2",
+            "--seed",
+            "5",
+            "--thickness",
+            "35,60",
+            "--effect",
+            "blur_sigma_px=0.5",
+        ],
+    )
     assert res.exit_code == 0, res.output
     rows = read_truth_csv(out / "truth.csv")
     assert [r.image for r in rows] == [f"img_{k:04d}.png" for k in range(4)]
@@ -98,7 +119,9 @@ def test_cli_render_writes_images_truth_and_cell(tmp_path):
 )
 def test_cli_render_bad_arguments_are_refused_with_a_sentence(tmp_path, args, message):
     out = tmp_path / "set"
-    res = CliRunner().invoke(app, ["render", str(out), "--cell", str(ROOT / "fixtures" / "cell_thesis.yaml"), *args])
+    res = CliRunner().invoke(
+        app, ["render", str(out), "--cell", str(ROOT / "fixtures" / "cell_thesis.yaml"), *args]
+    )
     assert res.exit_code == 2
     assert message in res.output
     assert not (out / "truth.csv").exists()

@@ -17,7 +17,9 @@ from doorloc.sim.effects import Effects
 CELL = load_cell(Path(__file__).parents[2] / "fixtures" / "rendered" / "effects" / "cell.yaml")
 
 
-def _ray_cast_row(cell, door: DoorSize, pose: DoorPose, fx: Effects, row: int, cols: np.ndarray, k: int = 128):
+def _ray_cast_row(
+    cell, door: DoorSize, pose: DoorPose, fx: Effects, row: int, cols: np.ndarray, k: int = 128
+):
     """Box-filtered radiance of pixels on one image row near the reference arris, by ray casting k x k
     sub-samples per pixel against the hinge face, the quarter cylinder and the background (no texture)."""
     K = np.asarray(cell.camera.camera_matrix, float)
@@ -50,10 +52,16 @@ def _ray_cast_row(cell, door: DoorSize, pose: DoorPose, fx: Effects, row: int, c
         px, py = np.where(on_arris, px, a), np.where(on_arris, py, 0.0)
         n_door = np.stack([(px - a) / a, (py - a) / a, np.zeros_like(px)], axis=1)
         cos = np.maximum(0.0, (n_door @ Ryaw.T) @ light)
-        val = np.where(on_arris, fx.albedo_chamfer * (fx.light_ambient + fx.light_directional * cos),
-                       np.where(on_face, fx.albedo_hinge * (fx.light_ambient + fx.light_directional
-                                                            * max(0.0, float((Ryaw @ [0, -1.0, 0]) @ light))),
-                                fx.albedo_background))
+        val = np.where(
+            on_arris,
+            fx.albedo_chamfer * (fx.light_ambient + fx.light_directional * cos),
+            np.where(
+                on_face,
+                fx.albedo_hinge
+                * (fx.light_ambient + fx.light_directional * max(0.0, float((Ryaw @ [0, -1.0, 0]) @ light))),
+                fx.albedo_background,
+            ),
+        )
         out.append(val.mean())
     return np.array(out)
 
@@ -62,13 +70,18 @@ def _ray_cast_row(cell, door: DoorSize, pose: DoorPose, fx: Effects, row: int, c
 def test_rounded_arris_matches_a_ray_cast_of_the_cylinder(azimuth, yaw):
     door = DoorSize(900, 50, 2100, arris_mm=2.5, arris_profile="round")
     pose = DoorPose(1.5, -2.0, yaw)
-    fx = Effects(arris_profile="round", light_ambient=0.45, light_directional=0.5, light_azimuth_deg=azimuth,
-                 light_elevation_deg=20.0)
+    fx = Effects(
+        arris_profile="round",
+        light_ambient=0.45,
+        light_directional=0.5,
+        light_azimuth_deg=azimuth,
+        light_elevation_deg=20.0,
+    )
     rd = render_door(CELL, door, pose, effects=fx)
     u0, v0 = rd.corner_px
     row = int(v0) - 250  # well above the bottom end
     # where the reference arris crosses this row: the columns around the strip
-    start = int(np.argmax(rd.radiance[row, int(u0) - 40:] > fx.albedo_background + 1e-6)) + int(u0) - 40
+    start = int(np.argmax(rd.radiance[row, int(u0) - 40 :] > fx.albedo_background + 1e-6)) + int(u0) - 40
     cols = np.arange(start - 2, start + 16)
     ref = _ray_cast_row(CELL, door, pose, fx, row, cols)
     got = rd.radiance[row, cols]

@@ -45,8 +45,13 @@ def fixture_frames(sets: tuple[str, ...] = SETS) -> Iterator[tuple[str, Cell, Do
         with open(FIX / s / "truth.csv", newline="") as f:
             rows = list(csv.DictReader(f))
         for r in rows:
-            door = DoorSize(float(r["width_mm"]), float(r["thickness_mm"]), float(r["height_mm"]),
-                            float(r["arris_mm"]), r["arris_profile"])  # type: ignore[arg-type]
+            door = DoorSize(
+                float(r["width_mm"]),
+                float(r["thickness_mm"]),
+                float(r["height_mm"]),
+                float(r["arris_mm"]),
+                r["arris_profile"],
+            )  # type: ignore[arg-type]
             yield f"{s}/{r['image']}", cell, door, read_image(FIX / s / r["image"])
 
 
@@ -91,9 +96,16 @@ def derived_frames() -> Iterator[tuple[str, Cell, DoorSize, np.ndarray]]:
     # a lens with distortion (the cell object differs from the file it came from only in the camera:
     # anything cached per cell must notice)
     K = cell.camera.camera_matrix
-    lens = replace(cell, camera=CameraModel(K, np.array([-0.02, 0.01, 0.0002, -0.0001, 0.0]), cell.camera.image_size))
+    lens = replace(
+        cell, camera=CameraModel(K, np.array([-0.02, 0.01, 0.0002, -0.0001, 0.0]), cell.camera.image_size)
+    )
     yield "derived/distorted_lens_img_0013", lens, d13, centre
-    yield "derived/distorted_lens_img_0040", lens, frames["grid/img_0040.png"][0], frames["grid/img_0040.png"][1]
+    yield (
+        "derived/distorted_lens_img_0040",
+        lens,
+        frames["grid/img_0040.png"][0],
+        frames["grid/img_0040.png"][1],
+    )
     noisy = np.clip(centre.astype(np.float32) + rng.normal(0, 3.0, centre.shape), 0, 255).astype(np.uint8)
     yield "derived/noise3_img_0013", cell, d13, noisy
 
@@ -107,13 +119,26 @@ def summary(r: LocateResult) -> dict:
     """What the parity test compares: the answer or the refusal."""
     out: dict = {"ok": r.ok, "error_code": r.error_code}
     if r.ok:
-        out.update(x_mm=r.x_mm, z_mm=r.z_mm, yaw_deg=r.yaw_deg, thickness_mm=r.thickness_mm,
-                   scale_mm_per_px=r.scale_mm_per_px, corner_px=list(r.corner_px or []))
+        out.update(
+            x_mm=r.x_mm,
+            z_mm=r.z_mm,
+            yaw_deg=r.yaw_deg,
+            thickness_mm=r.thickness_mm,
+            scale_mm_per_px=r.scale_mm_per_px,
+            corner_px=list(r.corner_px or []),
+        )
     return out
 
 
 #: tolerances of the parity test (issue 14: poses within 1e-4 mm of the recorded ones)
-TOL = {"x_mm": 1e-4, "z_mm": 1e-4, "thickness_mm": 1e-4, "yaw_deg": 1e-5, "scale_mm_per_px": 1e-7, "corner_px": 1e-4}
+TOL = {
+    "x_mm": 1e-4,
+    "z_mm": 1e-4,
+    "thickness_mm": 1e-4,
+    "yaw_deg": 1e-5,
+    "scale_mm_per_px": 1e-7,
+    "corner_px": 1e-4,
+}
 
 
 def differences(got: dict, want: dict, tol: dict[str, float] = TOL) -> list[str]:

@@ -21,7 +21,9 @@ from doorloc.vision.locate import locate
 CELL = load_cell(Path(__file__).parents[2] / "fixtures" / "cell_thesis.yaml")
 
 
-def _profiles(n: int, width: float, level: float, blur: float, rng) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _profiles(
+    n: int, width: float, level: float, blur: float, rng
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Normalised profiles background 0 | strip ``level`` (``width`` px) | face 1, blurred and pixel-integrated
     on a 64x finer grid (independent of the fit's analytic model)."""
     f = 64
@@ -39,23 +41,36 @@ def _profiles(n: int, width: float, level: float, blur: float, rng) -> tuple[np.
 def test_strip_fit_recovers_the_deficit(width, level, blur):
     rng = np.random.default_rng(7)
     r, x, outer = _profiles(120, width, level, blur, rng)
-    geom = ArrisGeometry(ArrisSection(1.5, "chamfer", 30.0, -350.0), 0.0, 1.4, np.array([0.0, 1.0]),
-                         np.array([np.pi / 2, 0.0]))
-    fit = fit_strip_profile(r, x, outer + rng.normal(0, 0.3), np.full(120, width), geom, 0.002, 1.0, search_px=0.0)
+    geom = ArrisGeometry(
+        ArrisSection(1.5, "chamfer", 30.0, -350.0), 0.0, 1.4, np.array([0.0, 1.0]), np.array([np.pi / 2, 0.0])
+    )
+    fit = fit_strip_profile(
+        r, x, outer + rng.normal(0, 0.3), np.full(120, width), geom, 0.002, 1.0, search_px=0.0
+    )
     assert fit is not None
     assert fit.deficit == pytest.approx(1.0 - level, abs=max(3 * fit.deficit_sigma, 0.01))
     assert fit.deficit_sigma < 0.05
     assert fit.blur_px == pytest.approx(blur, abs=0.15)
 
 
-@pytest.mark.parametrize("profile,arris,azimuth", [("chamfer", 1.5, 50.0), ("chamfer", 1.5, -50.0),
-                                                   ("round", 2.0, 40.0), ("round", 2.0, -40.0)])
+@pytest.mark.parametrize(
+    "profile,arris,azimuth",
+    [("chamfer", 1.5, 50.0), ("chamfer", 1.5, -50.0), ("round", 2.0, 40.0), ("round", 2.0, -40.0)],
+)
 def test_locate_finds_the_sharp_corner_behind_the_arris(profile, arris, azimuth):
     door = DoorSize(900, 50, 2100, arris_mm=arris, arris_profile=profile)
     pose = DoorPose(2.5, -3.0, 0.6)
-    fx = Effects(arris_profile=profile, albedo_chamfer=0.6, light_ambient=0.5, light_directional=0.45,
-                 light_azimuth_deg=azimuth, light_elevation_deg=25.0, blur_sigma_px=1.0, gamma=2.2,
-                 read_noise_dn=1.0)
+    fx = Effects(
+        arris_profile=profile,
+        albedo_chamfer=0.6,
+        light_ambient=0.5,
+        light_directional=0.45,
+        light_azimuth_deg=azimuth,
+        light_elevation_deg=25.0,
+        blur_sigma_px=1.0,
+        gamma=2.2,
+        read_noise_dn=1.0,
+    )
     img = render_door(CELL, door, pose, effects=fx, seed=3).image
     cell = dataclasses.replace(CELL, response_gamma=2.2)
     res = locate(img, cell, door)
@@ -67,7 +82,9 @@ def test_locate_finds_the_sharp_corner_behind_the_arris(profile, arris, azimuth)
     sig_z = np.hypot(res.uncertainty.z_mm, lines["bottom"].arris_correction_sigma_mm)
     assert abs(ex) <= 3 * sig_x and abs(ez) <= 3 * sig_z
     # the answer says which model produced it
-    assert res.model.response_gamma == 2.2 and res.model.arris_mm == arris and res.model.arris_profile == profile
+    assert (
+        res.model.response_gamma == 2.2 and res.model.arris_mm == arris and res.model.arris_profile == profile
+    )
     assert res.model.door_brighter is True
 
 
@@ -80,7 +97,9 @@ def test_sharp_door_has_no_arris_correction():
 def test_a_wrong_response_gamma_is_flagged_on_plain_edges():
     door = DoorSize(900, 50, 2100)
     pose = DoorPose(-2.0, 1.5, -0.4)
-    img = render_door(CELL, door, pose, effects=Effects(blur_sigma_px=1.5, gamma=2.2, read_noise_dn=1.0), seed=5).image
+    img = render_door(
+        CELL, door, pose, effects=Effects(blur_sigma_px=1.5, gamma=2.2, read_noise_dn=1.0), seed=5
+    ).image
     right = locate(img, dataclasses.replace(CELL, response_gamma=2.2), door)
     wrong = locate(img, CELL, door)  # the cell says linear
     assert right.ok and wrong.ok

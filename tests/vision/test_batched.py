@@ -75,9 +75,10 @@ def test_batched_answers_equal_the_one_frame_answers(cases):
     for group in by_cell.values():
         cell = group[0][1]
         for start in range(0, len(group), 16):
-            part = group[start:start + 16]
-            answers = batched.locate_batch([c[3] for c in part], cell, [c[2] for c in part],
-                                           names=[c[0] for c in part], device="cpu")
+            part = group[start : start + 16]
+            answers = batched.locate_batch(
+                [c[3] for c in part], cell, [c[2] for c in part], names=[c[0] for c in part], device="cpu"
+            )
             for (name, _, door, img), a in zip(part, answers, strict=True):
                 assert a.result.image == name
                 one = locate(img, cell, door, image_name=name)
@@ -88,7 +89,12 @@ def test_batched_answers_equal_the_one_frame_answers(cases):
                     fallbacks[name] = a.fallback
     assert not bad, bad
     # 8-bit frames of the camera's size are batched (colour ones too); the others fall back and say why
-    assert set(fallbacks) == {"derived/float_pixels", "derived/wrong_size", "derived/two_channels", "derived/uint16"}
+    assert set(fallbacks) == {
+        "derived/float_pixels",
+        "derived/wrong_size",
+        "derived/two_channels",
+        "derived/uint16",
+    }
     assert "16" in fallbacks["derived/uint16"] and "1280x720" in fallbacks["derived/wrong_size"]
 
 

@@ -27,12 +27,27 @@ def door_png(tmp_path_factory, thesis_cell_path):
 
 def test_locate_prints_result_and_writes_overlay(door_png, thesis_cell_path, tmp_path):
     out = tmp_path / "sub" / "overlay.png"
-    r = CliRunner().invoke(app, ["locate", str(door_png), "--cell", str(thesis_cell_path), "--door-thickness", "50",
-                                 "--overlay", str(out)])
+    r = CliRunner().invoke(
+        app,
+        [
+            "locate",
+            str(door_png),
+            "--cell",
+            str(thesis_cell_path),
+            "--door-thickness",
+            "50",
+            "--overlay",
+            str(out),
+        ],
+    )
     assert r.exit_code == 0, r.output
     res = json.loads(r.stdout)
     assert res["ok"] is True and res["image"] == str(door_png)
-    assert abs(res["x_mm"] - 2.0) < 0.005 and abs(res["z_mm"] + 1.0) < 0.005 and abs(res["yaw_deg"] - 0.4) < 0.002
+    assert (
+        abs(res["x_mm"] - 2.0) < 0.005
+        and abs(res["z_mm"] + 1.0) < 0.005
+        and abs(res["yaw_deg"] - 0.4) < 0.002
+    )
     for key in ("thickness_mm", "scale_mm_per_px", "corner_px", "error", "elapsed_ms", "lines"):
         assert key in res
     ov = cv2.imread(str(out))
@@ -41,7 +56,9 @@ def test_locate_prints_result_and_writes_overlay(door_png, thesis_cell_path, tmp
 
 
 def test_refusal_exits_1_with_reason(door_png, thesis_cell_path):
-    r = CliRunner().invoke(app, ["locate", str(door_png), "--cell", str(thesis_cell_path), "--door-thickness", "70"])
+    r = CliRunner().invoke(
+        app, ["locate", str(door_png), "--cell", str(thesis_cell_path), "--door-thickness", "70"]
+    )
     assert r.exit_code == 1
     res = json.loads(r.stdout)
     assert res["ok"] is False and res["error_code"] == "thickness_mismatch" and res["x_mm"] is None
@@ -86,8 +103,19 @@ def test_door_id_takes_the_size_from_the_recipe_store(door_png, thesis_cell_path
     hinge = Hinge(z_mm=250, length_mm=100, width_mm=30, x_mm=10, depth_mm=3.5, corner_radius_mm=8)
     with RecipeStore(url) as store:
         for door_id, thickness in (("D-50", 50.0), ("D-70", 70.0)):
-            store.put(DoorRecipe(door_id=door_id, width_mm=900, height_mm=2100, thickness_mm=thickness, arris_mm=0.0,
-                                 hinges=[hinge], tool_diameter_mm=16, spindle_rpm=18000, feed_mm_s=25))
+            store.put(
+                DoorRecipe(
+                    door_id=door_id,
+                    width_mm=900,
+                    height_mm=2100,
+                    thickness_mm=thickness,
+                    arris_mm=0.0,
+                    hinges=[hinge],
+                    tool_diameter_mm=16,
+                    spindle_rpm=18000,
+                    feed_mm_s=25,
+                )
+            )
     base = ["locate", str(door_png), "--cell", str(thesis_cell_path), "--db", url]
     ok = CliRunner().invoke(app, [*base, "--door-id", "D-50"])
     assert ok.exit_code == 0, ok.output

@@ -42,15 +42,23 @@ def test_every_search_of_the_fixtures_is_answered_identically():
 
 
 @settings(max_examples=150, deadline=None)
-@given(seed=st.integers(0, 2**31 - 1), axis=st.sampled_from(["col", "row"]), polarity=st.sampled_from([-1, 0, 1]),
-       half=st.integers(1, 4), stride=st.integers(1, 3), with_prefer=st.booleans(), deep=st.booleans(),
-       frac=st.floats(0.05, 0.9))
-def test_random_bands_near_and_beyond_the_border_are_answered_identically(seed, axis, polarity, half, stride,
-                                                                         with_prefer, deep, frac):
+@given(
+    seed=st.integers(0, 2**31 - 1),
+    axis=st.sampled_from(["col", "row"]),
+    polarity=st.sampled_from([-1, 0, 1]),
+    half=st.integers(1, 4),
+    stride=st.integers(1, 3),
+    with_prefer=st.booleans(),
+    deep=st.booleans(),
+    frac=st.floats(0.05, 0.9),
+)
+def test_random_bands_near_and_beyond_the_border_are_answered_identically(
+    seed, axis, polarity, half, stride, with_prefer, deep, frac
+):
     rng = np.random.default_rng(seed)
     h, w = 60, 90
     img = (rng.integers(0, 65536 if deep else 256, (h, w))).astype(np.uint16 if deep else np.uint8)
-    img[:, w // 2:] //= 3  # a step, so that some rows have a clear edge
+    img[:, w // 2 :] //= 3  # a step, so that some rows have a clear edge
     n_scan, n_along = (w, h) if axis == "col" else (h, w)
     k = int(rng.integers(0, 12))
     scan = rng.integers(0, n_scan, k)
@@ -59,8 +67,17 @@ def test_random_bands_near_and_beyond_the_border_are_answered_identically(seed, 
     prefer = rng.uniform(0, n_along, k) if with_prefer else None
     if prefer is not None and k > 2:  # a NaN or infinite preference on one scan line
         prefer[int(rng.integers(0, k))] = np.nan if rng.random() < 0.5 else np.inf
-    kw = dict(axis=axis, scan=scan, lo=lo, hi=hi, polarity=polarity, half=half, prefer=prefer,
-              prefer_fraction=frac, stride=stride)
+    kw = dict(
+        axis=axis,
+        scan=scan,
+        lo=lo,
+        hi=hi,
+        polarity=polarity,
+        half=half,
+        prefer=prefer,
+        prefer_fraction=frac,
+        stride=stride,
+    )
     assert _same(coarse.coarse_edges(img, **kw), edges.coarse_edges(img, **kw))
 
 
@@ -69,6 +86,10 @@ def test_profiles_read_the_right_pixels(axis):
     img = np.arange(12 * 20, dtype=np.uint16).reshape(12, 20)
     P = img if axis == "col" else img.T
     got = coarse.profiles(img, axis, np.array([3, 5]), np.array([-2, 4]), 6, stride=2)
-    want = np.stack([P[np.clip(-2 + 2 * np.arange(6), 0, P.shape[0] - 1), 3],
-                     P[np.clip(4 + 2 * np.arange(6), 0, P.shape[0] - 1), 5]])
+    want = np.stack(
+        [
+            P[np.clip(-2 + 2 * np.arange(6), 0, P.shape[0] - 1), 3],
+            P[np.clip(4 + 2 * np.arange(6), 0, P.shape[0] - 1), 5],
+        ]
+    )
     assert np.array_equal(got, want)

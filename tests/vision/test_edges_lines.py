@@ -19,7 +19,9 @@ from doorloc.vision.edges import (
 from doorloc.vision.lines import fit_rectangle_edges, ransac_line
 
 
-def _box_step_image(edges_v: np.ndarray, low: float, high: float, blur: float = 0.0, n_rows: int = 60) -> np.ndarray:
+def _box_step_image(
+    edges_v: np.ndarray, low: float, high: float, blur: float = 0.0, n_rows: int = 60
+) -> np.ndarray:
     """Columns with a horizontal step at sub-pixel row ``edges_v[u]`` (dark above, bright below), box-filtered."""
     import cv2
 
@@ -86,7 +88,13 @@ def test_coarse_edges_respects_polarity_and_band():
 
 
 @settings(max_examples=25, deadline=None)
-@given(st.floats(-3.0, 3.0), st.floats(-20, 20), st.floats(-20, 20), st.floats(20, 110), st.integers(0, 2**31 - 1))
+@given(
+    st.floats(-3.0, 3.0),
+    st.floats(-20, 20),
+    st.floats(-20, 20),
+    st.floats(20, 110),
+    st.integers(0, 2**31 - 1),
+)
 def test_rectangle_fit_recovers_angle_offsets_despite_outliers(yaw_deg, x0, z0, thickness, seed):
     rng = np.random.default_rng(seed)
     t = math.radians(yaw_deg)
@@ -115,8 +123,9 @@ def test_ransac_line_ignores_outliers():
     assert line.inliers.sum() == 80
 
 
-def _far_face_image(e1: np.ndarray, width: float, hinge: float, band: float, background: float, blur: float,
-                    n_rows: int = 80) -> np.ndarray:
+def _far_face_image(
+    e1: np.ndarray, width: float, hinge: float, band: float, background: float, blur: float, n_rows: int = 80
+) -> np.ndarray:
     """Columns across a far arris at row ``e1[u]``: hinge face above, a band ``width`` px wide, background below."""
     import cv2
 
@@ -127,7 +136,9 @@ def _far_face_image(e1: np.ndarray, width: float, hinge: float, band: float, bac
     return cv2.GaussianBlur(img, (0, 0), blur, borderType=cv2.BORDER_REFLECT) if blur > 0 else img
 
 
-@pytest.mark.parametrize("width,blur", [(1.5, 0.8), (2.5, 0.8), (2.5, 1.6), (4.0, 1.6), (12.0, 0.8), (12.0, 1.6)])
+@pytest.mark.parametrize(
+    "width,blur", [(1.5, 0.8), (2.5, 0.8), (2.5, 1.6), (4.0, 1.6), (12.0, 0.8), (12.0, 1.6)]
+)
 @pytest.mark.parametrize("band", [190.0, 150.0, 80.0])
 @pytest.mark.parametrize("miss", [-2.0, 1.0])
 def test_far_face_fit_finds_the_arris_beside_a_band_of_any_brightness(width, blur, band, miss):
@@ -138,8 +149,9 @@ def test_far_face_fit_finds_the_arris_beside_a_band_of_any_brightness(width, blu
     slope = -0.72  # the back edge moves 0.28 px per px of the arris
     img = _far_face_image(e1, width, 120.0, band, 50.0, blur)
     centre = e1 + miss  # a prediction off by up to 2 px; the band width predicted there follows the geometry
-    s, fit = subpixel_edges_far_face(img, "col", u, centre, 6, width + slope * (centre - e1), slope, +1,
-                                     blur_px=blur)
+    s, fit = subpixel_edges_far_face(
+        img, "col", u, centre, 6, width + slope * (centre - e1), slope, +1, blur_px=blur
+    )
     inner = slice(12, -12)
     assert s.valid[inner].all()
     assert np.max(np.abs(s.along - e1)[inner]) < 0.2
@@ -147,8 +159,10 @@ def test_far_face_fit_finds_the_arris_beside_a_band_of_any_brightness(width, blu
     assert fit.band_level == pytest.approx((band - 120.0) / (50.0 - 120.0), abs=0.1)
 
 
-@pytest.mark.parametrize("width,blur,band", [(0.5, 0.8, 190.0), (0.5, 1.6, 150.0), (1.0, 1.6, 190.0), (1.0, 0.8, 80.0),
-                                             (1.5, 1.6, 150.0)])
+@pytest.mark.parametrize(
+    "width,blur,band",
+    [(0.5, 0.8, 190.0), (0.5, 1.6, 150.0), (1.0, 1.6, 190.0), (1.0, 0.8, 80.0), (1.5, 1.6, 150.0)],
+)
 def test_far_face_fit_beside_a_band_narrower_than_the_blur_stays_within_a_pixel_and_a_half(width, blur, band):
     """Band level, width and blur trade off here: the arris is not exact, but far within the 1 mm
     (about 5 px) thickness tolerance."""
@@ -163,11 +177,14 @@ def test_far_face_fit_without_a_band_is_a_plain_step_and_step_blur_measures_the_
     u = np.arange(160)
     e1 = 30.0 + 0.013 * u
     img = _far_face_image(e1, 0.0, 120.0, 120.0, 50.0, 1.2)
-    s, fit = subpixel_edges_far_face(img, "col", u, e1 + 0.7, 6, np.full(u.size, -1.5), -0.72, +1, blur_px=1.2)
+    s, fit = subpixel_edges_far_face(
+        img, "col", u, e1 + 0.7, 6, np.full(u.size, -1.5), -0.72, +1, blur_px=1.2
+    )
     assert np.max(np.abs(s.along - e1)[12:-12]) < 0.01 and fit.band_px == 0.0
     plain = subpixel_edges(img, "col", u, e1, 6, plateau=4)
     assert step_blur(img, plain, np.arange(u.size) % 10 > 0, 6) == pytest.approx(1.2, abs=0.03)
     # mirrored: the hinge face below, the background above
-    s2, _ = subpixel_edges_far_face(img[::-1], "col", u, 79 - e1 + 0.5, 6, np.full(u.size, -0.5), -0.72, -1,
-                                    blur_px=1.2)
+    s2, _ = subpixel_edges_far_face(
+        img[::-1], "col", u, 79 - e1 + 0.5, 6, np.full(u.size, -0.5), -0.72, -1, blur_px=1.2
+    )
     assert np.max(np.abs(s2.along - (79 - e1))[12:-12]) < 0.01

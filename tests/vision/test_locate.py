@@ -14,8 +14,17 @@ from doorloc.sim.effects import Effects
 from doorloc.vision.locate import LocateConfig, LocateTrace, locate
 from doorloc.vision.metric import PlaneMap
 
-HARD = Effects(albedo_hinge=0.34, albedo_background=0.2, gradient_u=0.15, gradient_v=-0.1, vignetting=0.3,
-               grain_contrast=0.03, blur_sigma_px=1.5, read_noise_dn=3.0, jpeg_quality=85)
+HARD = Effects(
+    albedo_hinge=0.34,
+    albedo_background=0.2,
+    gradient_u=0.15,
+    gradient_v=-0.1,
+    vignetting=0.3,
+    grain_contrast=0.03,
+    blur_sigma_px=1.5,
+    read_noise_dn=3.0,
+    jpeg_quality=85,
+)
 
 
 @pytest.fixture(scope="module")
@@ -25,7 +34,12 @@ def cell(thesis_cell_path):
 
 def _err(r, pose: DoorPose, door: DoorSize):
     assert r.ok, f"refused: {r.error_code}: {r.error}"
-    return (r.x_mm - pose.x_mm, r.z_mm - pose.z_mm, r.yaw_deg - pose.yaw_deg, r.thickness_mm - door.thickness_mm)
+    return (
+        r.x_mm - pose.x_mm,
+        r.z_mm - pose.z_mm,
+        r.yaw_deg - pose.yaw_deg,
+        r.thickness_mm - door.thickness_mm,
+    )
 
 
 @pytest.mark.parametrize(
@@ -73,15 +87,19 @@ def test_distorted_lens_is_handled_by_back_projection(cell):
     from doorloc.calib.camera import CameraModel
 
     cam = cell.camera
-    lens = replace(cell, camera=CameraModel(cam.camera_matrix, np.array([-0.12, 0.08, 0.0005, -0.0004, 0.0]),
-                                            cam.image_size))
+    lens = replace(
+        cell,
+        camera=CameraModel(cam.camera_matrix, np.array([-0.12, 0.08, 0.0005, -0.0004, 0.0]), cam.image_size),
+    )
     pose, door = DoorPose(6.0, -4.0, -1.2), DoorSize(900, 70, 2100)
     rd = render_door(lens, door, pose)
     dx, dz, dyaw, dt = _err(locate(rd.image, lens, door), pose, door)
     assert abs(dx) < 0.005 and abs(dz) < 0.005 and abs(dyaw) < 0.002 and abs(dt) < 0.01
 
 
-@pytest.mark.parametrize("arris,profile,tol", [(0.5, "chamfer", 0.002), (2.0, "chamfer", 0.002), (1.0, "round", 0.03)])
+@pytest.mark.parametrize(
+    "arris,profile,tol", [(0.5, "chamfer", 0.002), (2.0, "chamfer", 0.002), (1.0, "round", 0.03)]
+)
 def test_arris_is_compensated(cell, arris, profile, tol):
     pose, door = DoorPose(2.0, 3.0, 0.7), DoorSize(900, 50, 2100, arris_mm=arris)
     rd = render_door(cell, door, pose, effects=Effects(arris_profile=profile))
@@ -103,7 +121,7 @@ def _paint_clamp(img: np.ndarray, cell, door: DoorSize) -> np.ndarray:
     pm = PlaneMap(cell.posed_camera, cell.face_y(door))
     (u0, v0), (u1, v1) = pm.to_image(np.array([[-8.0, 10.0], [10.0, -8.0]]))
     out = img.copy()
-    out[int(v0):int(v1), int(u0):int(u1)] = 90
+    out[int(v0) : int(v1), int(u0) : int(u1)] = 90
     return out
 
 
@@ -148,7 +166,9 @@ def test_bad_inputs_are_refused_with_a_specific_reason(cell, case, code):
     elif case == "board":
         from doorloc.sim.boards import Checkerboard, render_board
 
-        img = render_board(cell.camera, Checkerboard(11, 7, 20.0), [0.05, -0.1, 0.02], [-120.0, -60.0, 420.0]).image
+        img = render_board(
+            cell.camera, Checkerboard(11, 7, 20.0), [0.05, -0.1, 0.02], [-120.0, -60.0, 420.0]
+        ).image
     else:
         img = np.zeros((h, w), np.float64)
     r = locate(img, cell, door, image_name=case)
@@ -186,8 +206,10 @@ def test_trace_and_overlay(cell):
     ov = draw_overlay(img, r, cell, door, tr)
     assert ov.shape == img.shape + (3,) and ov.dtype == np.uint8
     u, v = (int(round(c)) for c in r.corner_px)
-    patch = ov[v - 10:v + 10, u - 10:u + 10].astype(int)
-    assert (patch[..., 2] - patch[..., 0]).max() > 100 or (patch[..., 1] - patch[..., 0]).max() > 100  # coloured marks
+    patch = ov[v - 10 : v + 10, u - 10 : u + 10].astype(int)
+    assert (patch[..., 2] - patch[..., 0]).max() > 100 or (
+        patch[..., 1] - patch[..., 0]
+    ).max() > 100  # coloured marks
     refused = locate(img[::2, ::2], cell, door)
     assert draw_overlay(img[::2, ::2], refused, cell, door).shape == (540, 960, 3)
 
@@ -204,7 +226,9 @@ def test_camera_gamma_is_undone_when_configured(cell):
 
 def test_dark_door_on_bright_background_with_config(cell):
     pose, door = DoorPose(3.0, -2.0, 0.8), DoorSize(900, 55, 2100)
-    img = render_door(cell, door, pose, effects=Effects(albedo_hinge=0.25, albedo_background=0.85, albedo_side=0.4)).image
+    img = render_door(
+        cell, door, pose, effects=Effects(albedo_hinge=0.25, albedo_background=0.85, albedo_side=0.4)
+    ).image
     assert not locate(img, cell, door).ok  # the default polarity expects a bright hinge face
     dx, dz, dyaw, dt = _err(locate(img, cell, door, config=LocateConfig(door_brighter=False)), pose, door)
     assert abs(dx) < 0.002 and abs(dz) < 0.002 and abs(dyaw) < 0.001 and abs(dt) < 0.004
@@ -212,8 +236,17 @@ def test_dark_door_on_bright_background_with_config(cell):
 
 # A thin door shifted towards -X: the camera (cell X = 30 mm) looks past the far arris onto the far face,
 # which shows as a band between the hinge face and the background.
-THIN_HARD = Effects(albedo_hinge=0.277, albedo_background=0.154, albedo_side=0.404, gradient_u=-0.12,
-                    gradient_v=0.1, vignetting=0.25, grain_contrast=0.02, blur_sigma_px=0.78, read_noise_dn=2.5)
+THIN_HARD = Effects(
+    albedo_hinge=0.277,
+    albedo_background=0.154,
+    albedo_side=0.404,
+    gradient_u=-0.12,
+    gradient_v=0.1,
+    vignetting=0.25,
+    grain_contrast=0.02,
+    blur_sigma_px=0.78,
+    read_noise_dn=2.5,
+)
 
 
 @pytest.mark.parametrize(
@@ -226,8 +259,18 @@ THIN_HARD = Effects(albedo_hinge=0.277, albedo_background=0.154, albedo_side=0.4
         # far face seen edge-on (the camera within a millimetre of its plane)
         (DoorPose(1.0, 2.0, 1.78), 30.12, THIN_HARD),
         # a wide band (30 px), little contrast against the hinge face
-        (DoorPose(-8.9, 0.0, -0.12), 30.07, replace(THIN_HARD, albedo_hinge=0.358, albedo_background=0.161,
-                                                    albedo_side=0.411, blur_sigma_px=1.7, jpeg_quality=85)),
+        (
+            DoorPose(-8.9, 0.0, -0.12),
+            30.07,
+            replace(
+                THIN_HARD,
+                albedo_hinge=0.358,
+                albedo_background=0.161,
+                albedo_side=0.411,
+                blur_sigma_px=1.7,
+                jpeg_quality=85,
+            ),
+        ),
         # a narrow band darker than the hinge face, default photometry
         (DoorPose(-1.2, 5.0, -0.4), 30.5, None),
     ],
@@ -252,7 +295,9 @@ def test_thickness_is_never_accepted_beyond_the_tolerance_it_claims(cell):
     # thin doors beside the far face (their thickness in doubt) and one 50 mm door (measured to ~3 um)
     for i, (x, t) in enumerate([(-2.65, 32.25), (-1.5, 31.4), (-5.0, 30.3), (0.5, 29.6), (0.5, 50.0)]):
         pose, door = DoorPose(x, 1.0, 0.5), DoorSize(900, t, 2100)
-        rd = render_door(cell, door, pose, effects=replace(THIN_HARD, jpeg_quality=85 if i % 2 else 0), seed=i)
+        rd = render_door(
+            cell, door, pose, effects=replace(THIN_HARD, jpeg_quality=85 if i % 2 else 0), seed=i
+        )
         r = locate(rd.image, cell, door, config=cfg)
         check = r.diagnostics["thickness_check"]
         assert check["tolerance_mm"] == 0.04
@@ -262,7 +307,9 @@ def test_thickness_is_never_accepted_beyond_the_tolerance_it_claims(cell):
             assert r.error_code in ("uncertain", "thickness_mismatch"), r.error
             assert check["uncertain"] or abs(check["difference_mm"]) > 0.04
         seen.add(r.ok)
-    assert seen == {True, False}, "both outcomes, accepted within the tolerance and refused, must be exercised"
+    assert seen == {True, False}, (
+        "both outcomes, accepted within the tolerance and refused, must be exercised"
+    )
     # a door 0.6 mm thicker than the recipe, beside its far face: refused, whatever the doubt
     pose, door = DoorPose(-2.65, 1.0, 0.5), DoorSize(900, 32.25, 2100)
     img = render_door(cell, DoorSize(900, 32.85, 2100), pose, effects=THIN_HARD).image

@@ -19,8 +19,13 @@ def cell(thesis_cell_path):
 
 def _same_geometry(a: SearchRegion, b: SearchRegion) -> bool:
     ba, bb = a.arris_band(4, 45.0), b.arris_band(4, 45.0)
-    return (a.face_y == b.face_y and a.layouts == b.layouts and np.array_equal(ba.scan, bb.scan)
-            and np.array_equal(ba.lo, bb.lo) and np.array_equal(ba.hi, bb.hi))
+    return (
+        a.face_y == b.face_y
+        and a.layouts == b.layouts
+        and np.array_equal(ba.scan, bb.scan)
+        and np.array_equal(ba.lo, bb.lo)
+        and np.array_equal(ba.hi, bb.hi)
+    )
 
 
 def test_the_same_cell_and_door_share_one_region_equal_to_a_fresh_build(cell):
@@ -38,8 +43,12 @@ def test_any_change_that_moves_the_region_gives_a_new_one(cell, change):
     if change == "extrinsics":
         c2 = cell.with_extrinsics(Extrinsics(cell.extrinsics.rvec, cell.extrinsics.tvec_mm + [5.0, 0.0, 0.0]))
     elif change == "camera":  # a new calibration in a cell object that keeps the file's hash
-        c2 = replace(cell, camera=CameraModel(cell.camera.camera_matrix, np.array([-0.05, 0, 0, 0, 0.0]),
-                                              cell.camera.image_size))
+        c2 = replace(
+            cell,
+            camera=CameraModel(
+                cell.camera.camera_matrix, np.array([-0.05, 0, 0, 0, 0.0]), cell.camera.image_size
+            ),
+        )
         assert c2.sha256 == cell.sha256
     elif change == "envelope":
         c2 = replace(cell, envelope=Envelope(12.0, 10.0, 2.0))

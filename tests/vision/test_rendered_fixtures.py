@@ -32,14 +32,21 @@ def _run(folder: str) -> tuple[np.ndarray, np.ndarray, list[tuple[str, str | Non
         rows = list(csv.DictReader(f))
     for row in rows:
         img = cv2.imread(str(FIX / folder / row["image"]), cv2.IMREAD_UNCHANGED)
-        door = DoorSize(float(row["width_mm"]), float(row["thickness_mm"]), float(row["height_mm"]),
-                        arris_mm=float(row["arris_mm"]), arris_profile=row["arris_profile"])
+        door = DoorSize(
+            float(row["width_mm"]),
+            float(row["thickness_mm"]),
+            float(row["height_mm"]),
+            arris_mm=float(row["arris_mm"]),
+            arris_profile=row["arris_profile"],
+        )
         r = locate(img, cell, door, image_name=row["image"], config=cfg)
         if not r.ok:
             refused.append((row["image"], r.error_code, r.error))
             continue
         assert r.uncertainty is not None
-        errs.append((r.x_mm - float(row["x_mm"]), r.z_mm - float(row["z_mm"]), r.yaw_deg - float(row["yaw_deg"])))
+        errs.append(
+            (r.x_mm - float(row["x_mm"]), r.z_mm - float(row["z_mm"]), r.yaw_deg - float(row["yaw_deg"]))
+        )
         sigs.append((r.uncertainty.x_mm, r.uncertainty.z_mm, r.uncertainty.yaw_deg))
     return np.array(errs).reshape(-1, 3), np.array(sigs).reshape(-1, 3), refused
 
@@ -48,7 +55,9 @@ def _check_coverage(err: np.ndarray, sig: np.ndarray, min_within_2: float = 0.9)
     assert np.all(sig > 0), "every uncertainty is positive"
     z = np.abs(err) / sig
     within = (z <= 2.0).mean(axis=0)
-    assert np.all(within >= min_within_2), f"fraction of |error| <= 2 sigma (x, z, yaw) {within} below {min_within_2}"
+    assert np.all(within >= min_within_2), (
+        f"fraction of |error| <= 2 sigma (x, z, yaw) {within} below {min_within_2}"
+    )
     assert np.all(z <= 5.0), f"an error beyond 5 sigma: worst (x, z, yaw) {z.max(axis=0)}"
 
 

@@ -63,7 +63,9 @@ def test_texture_bias_is_small_on_a_plain_step_and_covers_grain():
         assert sig > 3 * sig0
         z.append(abs(err) / math.hypot(sig, EDGE_MODEL_FLOOR_PX))
     z = np.array(z)
-    assert max(abs(_bias(_edge_image(0.1, 12.0, p))[0]) for p in (0.0, 1.5, 3.0)) > 0.03  # grain does bias the edge
+    assert (
+        max(abs(_bias(_edge_image(0.1, 12.0, p))[0]) for p in (0.0, 1.5, 3.0)) > 0.03
+    )  # grain does bias the edge
     assert np.mean(z <= 2.0) >= 0.75 and np.max(z) <= 5.0, z
 
 
@@ -71,8 +73,14 @@ def _blurred_edge(grain: float, period_px: float, phase: float, blur: float, see
     import cv2
 
     fine = np.linspace(0, 200, 200 * 16, endpoint=False) + 1 / 32
-    level = np.where(fine >= 100.3, 150.0 * (1 + grain * np.sin(2 * np.pi * (fine - 100.3) / period_px + phase)), 50.0)
-    row = cv2.GaussianBlur(level[None, :].astype(np.float32), (0, 0), blur * 16)[0].reshape(200, 16).mean(axis=1)
+    level = np.where(
+        fine >= 100.3, 150.0 * (1 + grain * np.sin(2 * np.pi * (fine - 100.3) / period_px + phase)), 50.0
+    )
+    row = (
+        cv2.GaussianBlur(level[None, :].astype(np.float32), (0, 0), blur * 16)[0]
+        .reshape(200, 16)
+        .mean(axis=1)
+    )
     img = np.tile(row, (300, 1)) + np.random.default_rng(seed).normal(0, 1.0, (300, 200))
     return np.clip(np.rint(img), 0, 255).astype(np.uint8)
 
@@ -97,7 +105,9 @@ def test_step_fit_is_exact_on_a_plain_step_and_beats_the_area_estimate_on_grain(
 
 def test_edge_model_terms_add_in_quadrature():
     t = EdgeModelTerms(texture_px={"reference": 0.03}, extra_px={"reference": {"arris": 0.04}})
-    assert t.line_sigma_px("reference") == pytest.approx(math.sqrt(0.03**2 + 0.04**2 + EDGE_MODEL_FLOOR_PX**2))
+    assert t.line_sigma_px("reference") == pytest.approx(
+        math.sqrt(0.03**2 + 0.04**2 + EDGE_MODEL_FLOOR_PX**2)
+    )
     assert t.line_sigma_px("bottom") == pytest.approx(EDGE_MODEL_FLOOR_PX)
 
 
@@ -136,23 +146,36 @@ def test_calibration_sigma_is_the_aligned_projection_sigma_on_the_plane(cell):
     w, h = cell.camera.image_size
     gu, gv = np.meshgrid(np.linspace(0, w - 1, 9), np.linspace(0, h - 1, 7))
     pixels = np.concatenate([corner_px[None], corner_px[None] + 1.0, np.stack([gu.ravel(), gv.ravel()], 1)])
-    for cov in (np.diag([0.0, 0.0, 0.5**2, 0.0, 0.0]), np.diag([2.0**2, 2.0**2, 0.0, 0.0, 0.0]),
-                np.diag([0.0, 0.0, 0.0, 0.0, 1e-3**2]), _covariance()):
+    for cov in (
+        np.diag([0.0, 0.0, 0.5**2, 0.0, 0.0]),
+        np.diag([2.0**2, 2.0**2, 0.0, 0.0, 0.0]),
+        np.diag([0.0, 0.0, 0.0, 0.0, 1e-3**2]),
+        _covariance(),
+    ):
         sx, sz, syaw = calibration_pose_sigma(cell.posed_camera, 0.0, corner_px, 0.0, cov, NAMES, 0.05, scale)
         major = projection_uncertainty(cell.camera, cand, cov, pixels, aligned=True)[0]
         # x and z are the plane's axes, the major axis may lie between them (and fx != fy)
         assert 0.7 * major * scale <= max(sx, sz) <= 1.05 * major * scale
         assert syaw >= 0.0
     # the principal point alone: far less than its raw 0.5 px once the rotation is taken out
-    sx, sz, _ = calibration_pose_sigma(cell.posed_camera, 0.0, corner_px, 0.0, np.diag([0, 0, 0.25, 0, 0]), NAMES,
-                                       0.05, scale)
+    sx, sz, _ = calibration_pose_sigma(
+        cell.posed_camera, 0.0, corner_px, 0.0, np.diag([0, 0, 0.25, 0, 0]), NAMES, 0.05, scale
+    )
     assert 0 < max(sx, sz) < 0.5 * 0.5 * scale
     # names in another order describe the same covariance
     perm = [2, 0, 4, 1, 3]
     cov = _covariance() + 0.05 * np.ones((5, 5))
     a = calibration_pose_sigma(cell.posed_camera, 0.0, corner_px, 0.5, cov, NAMES, 0.05, scale)
-    b = calibration_pose_sigma(cell.posed_camera, 0.0, corner_px, 0.5, cov[np.ix_(perm, perm)],
-                               tuple(NAMES[i] for i in perm), 0.05, scale)
+    b = calibration_pose_sigma(
+        cell.posed_camera,
+        0.0,
+        corner_px,
+        0.5,
+        cov[np.ix_(perm, perm)],
+        tuple(NAMES[i] for i in perm),
+        0.05,
+        scale,
+    )
     np.testing.assert_allclose(a, b, rtol=1e-9)
     # no covariance: the documented floor
     sx0, sz0, _ = calibration_pose_sigma(cell.posed_camera, 0.0, corner_px, 0.0, None, (), 0.05, scale)
@@ -162,11 +185,20 @@ def test_calibration_sigma_is_the_aligned_projection_sigma_on_the_plane(cell):
 def test_locate_carries_the_calibration_covariance_into_the_answer(cell, tmp_path):
     door = DoorSize(900, 50, 2100)
     img = render_door(cell, door, DoorPose(2.0, -3.0, 0.4)).image
-    save_calibration(CalibrationFile(cell.camera, 0.2, [], "cam", {}, _covariance(), NAMES), tmp_path / "cam.yaml")
+    save_calibration(
+        CalibrationFile(cell.camera, 0.2, [], "cam", {}, _covariance(), NAMES), tmp_path / "cam.yaml"
+    )
     cell_path = tmp_path / "cell.yaml"
-    doc = {"camera": {"calibration": "cam.yaml", "extrinsics": {"rvec": cell.extrinsics.rvec.tolist(),
-                                                                "tvec_mm": cell.extrinsics.tvec_mm.tolist()}},
-           "envelope": {"x_mm": 10, "z_mm": 10, "yaw_deg": 2}}
+    doc = {
+        "camera": {
+            "calibration": "cam.yaml",
+            "extrinsics": {
+                "rvec": cell.extrinsics.rvec.tolist(),
+                "tvec_mm": cell.extrinsics.tvec_mm.tolist(),
+            },
+        },
+        "envelope": {"x_mm": 10, "z_mm": 10, "yaw_deg": 2},
+    }
     cell_path.write_text(yaml.safe_dump(doc))
     with_cov = load_cell(cell_path)
     assert with_cov.calibration_covariance is not None and with_cov.calibration_covariance_names == NAMES

@@ -46,8 +46,17 @@ from sqlalchemy import Engine, insert, select, update
 
 from doorloc.recipes.tables import ApiKeyRow
 
-__all__ = ["Role", "Principal", "CreatedKey", "KeyInfo", "KeyStore", "AccessKeyError", "role_allows", "LEGACY_KEY_NAME",
-           "ANY_ACTIVE_TTL_S"]
+__all__ = [
+    "Role",
+    "Principal",
+    "CreatedKey",
+    "KeyInfo",
+    "KeyStore",
+    "AccessKeyError",
+    "role_allows",
+    "LEGACY_KEY_NAME",
+    "ANY_ACTIVE_TTL_S",
+]
 
 #: scrypt cost: 2**14 x 8 x 128 B = 16 MiB and ~10-50 ms per derivation (the interactive-login setting of RFC 7914)
 _SCRYPT = {"n": 2**14, "r": 8, "p": 1, "dklen": 32, "maxmem": 64 * 1024 * 1024}
@@ -138,23 +147,38 @@ class KeyStore:
         """Make a key for ``name`` with ``role``; its secret is in the answer and nowhere else."""
         role = Role(role)
         if not _NAME_FORMAT.match(name):
-            raise AccessKeyError(f"key name {name!r} must be 1-64 letters, digits, spaces or ._:@/- and start with a "
-                            "letter or digit (name the person or machine that holds it)")
+            raise AccessKeyError(
+                f"key name {name!r} must be 1-64 letters, digits, spaces or ._:@/- and start with a "
+                "letter or digit (name the person or machine that holds it)"
+            )
         key_id = secrets.token_hex(6)
         secret = f"dlk_{key_id}_{secrets.token_urlsafe(32)}"
         salt = secrets.token_bytes(16)
         with self.engine.begin() as conn:
             self._any_active = None
-            conn.execute(insert(ApiKeyRow).values(
-                key_id=key_id, name=name, role=role.value, salt=salt.hex(), key_hash=_derive(secret, salt).hex(),
-            ))
+            conn.execute(
+                insert(ApiKeyRow).values(
+                    key_id=key_id,
+                    name=name,
+                    role=role.value,
+                    salt=salt.hex(),
+                    key_hash=_derive(secret, salt).hex(),
+                )
+            )
         return CreatedKey(key_id, name, role, secret)
 
     def list(self) -> builtins.list[KeyInfo]:
         """Every key, revoked ones included, oldest first."""
         with self.engine.connect() as conn:
-            rows = conn.execute(select(ApiKeyRow.key_id, ApiKeyRow.name, ApiKeyRow.role, ApiKeyRow.created_at,
-                                       ApiKeyRow.revoked_at).order_by(ApiKeyRow.id))
+            rows = conn.execute(
+                select(
+                    ApiKeyRow.key_id,
+                    ApiKeyRow.name,
+                    ApiKeyRow.role,
+                    ApiKeyRow.created_at,
+                    ApiKeyRow.revoked_at,
+                ).order_by(ApiKeyRow.id)
+            )
             return [KeyInfo(r.key_id, r.name, Role(r.role), r.created_at, r.revoked_at) for r in rows]
 
     def revoke(self, name_or_id: str) -> builtins.list[str]:
@@ -163,12 +187,19 @@ class KeyStore:
         Raises AccessKeyError when no active key matches.
         """
         with self.engine.begin() as conn:
-            ids = list(conn.scalars(select(ApiKeyRow.key_id).where(
-                ((ApiKeyRow.name == name_or_id) | (ApiKeyRow.key_id == name_or_id)) & ApiKeyRow.revoked_at.is_(None)
-            )))
+            ids = list(
+                conn.scalars(
+                    select(ApiKeyRow.key_id).where(
+                        ((ApiKeyRow.name == name_or_id) | (ApiKeyRow.key_id == name_or_id))
+                        & ApiKeyRow.revoked_at.is_(None)
+                    )
+                )
+            )
             if not ids:
                 raise AccessKeyError(f"no active key named {name_or_id!r}; see doorloc keys list")
-            conn.execute(update(ApiKeyRow).where(ApiKeyRow.key_id.in_(ids)).values(revoked_at=datetime.now(UTC)))
+            conn.execute(
+                update(ApiKeyRow).where(ApiKeyRow.key_id.in_(ids)).values(revoked_at=datetime.now(UTC))
+            )
             self._any_active = None
         with self._lock:
             for i in ids:
@@ -185,7 +216,9 @@ class KeyStore:
         if known is not None:
             return known
         with self.engine.connect() as conn:
-            answer = conn.scalar(select(ApiKeyRow.id).where(ApiKeyRow.revoked_at.is_(None)).limit(1)) is not None
+            answer = (
+                conn.scalar(select(ApiKeyRow.id).where(ApiKeyRow.revoked_at.is_(None)).limit(1)) is not None
+            )
         self._any_active = (now, answer)
         return answer
 
@@ -203,8 +236,11 @@ class KeyStore:
             return None
         key_id = m.group(1)
         with self.engine.connect() as conn:
-            row = conn.execute(select(ApiKeyRow.name, ApiKeyRow.role, ApiKeyRow.salt, ApiKeyRow.key_hash).where(
-                (ApiKeyRow.key_id == key_id) & ApiKeyRow.revoked_at.is_(None))).one_or_none()
+            row = conn.execute(
+                select(ApiKeyRow.name, ApiKeyRow.role, ApiKeyRow.salt, ApiKeyRow.key_hash).where(
+                    (ApiKeyRow.key_id == key_id) & ApiKeyRow.revoked_at.is_(None)
+                )
+            ).one_or_none()
         if row is None:
             return None
         fingerprint = hashlib.sha256(presented.encode()).digest()

@@ -62,8 +62,9 @@ class DoorChoice:
     recipe_version: int | None = None  # the stored recipe's version (results name it in their provenance)
 
     @classmethod
-    def from_recipe(cls, recipe: Any, cell: Cell | None = None, arris_mm: float | None = None,
-                    version: int | None = None) -> DoorChoice:
+    def from_recipe(
+        cls, recipe: Any, cell: Cell | None = None, arris_mm: float | None = None, version: int | None = None
+    ) -> DoorChoice:
         """The door a stored recipe describes (its size, id, the recipe for the targets and its version).
 
         A recipe gives the arris size (``arris_mm``); its profile (chamfer or round) is the cell's
@@ -118,8 +119,12 @@ def provenance_of(cell: Cell, choice: DoorChoice) -> dict[str, Any]:
     """SPEC section 3 ``provenance`` of an answer about ``choice`` in ``cell`` (also for records no locate made)."""
     from doorloc import __version__
 
-    return {"version": __version__, "cell_sha256": cell.sha256, "calibration_sha256": cell.calibration_sha256,
-            "recipe_version": choice.recipe_version}
+    return {
+        "version": __version__,
+        "cell_sha256": cell.sha256,
+        "calibration_sha256": cell.calibration_sha256,
+        "recipe_version": choice.recipe_version,
+    }
 
 
 def answer_image(
@@ -191,8 +196,15 @@ def answer_image(
     if reach is not None and not reach.feasible:
         # targets the robot cannot follow are wrong targets: the answer becomes a refusal (SPEC section 9)
         answer["measured_pose"] = {k: answer[k] for k in ("x_mm", "z_mm", "yaw_deg")}
-        answer.update(ok=False, error_code=reach.error_code, error=f"the robot cannot mill this door here: {reach.reason}",
-                      x_mm=None, z_mm=None, yaw_deg=None, uncertainty=None)
+        answer.update(
+            ok=False,
+            error_code=reach.error_code,
+            error=f"the robot cannot mill this door here: {reach.reason}",
+            x_mm=None,
+            z_mm=None,
+            yaw_deg=None,
+            uncertainty=None,
+        )
         targets, note = [], NO_REACH_NOTE
     answer["targets"] = [t.model_dump(mode="json") for t in targets]
     answer["targets_note"] = note
@@ -222,9 +234,13 @@ def _reach_block(cell: Cell, targets: list[Any]) -> Any | None:
         from doorloc.recipes.targets import TOOL_Z_ALONG_CELL_Y
 
         to_z = Rotation.from_quat(TOOL_Z_ALONG_CELL_Y, scalar_first=True)
-        quats = (Rotation.from_quat([t.quat for t in targets], scalar_first=True) * to_z).as_quat(scalar_first=True)
+        quats = (Rotation.from_quat([t.quat for t in targets], scalar_first=True) * to_z).as_quat(
+            scalar_first=True
+        )
         quats[quats[:, 0] < 0] *= -1
-        targets = [t.model_copy(update={"quat": tuple(q)}) for t, q in zip(targets, quats.tolist(), strict=True)]
+        targets = [
+            t.model_copy(update={"quat": tuple(q)}) for t, q in zip(targets, quats.tolist(), strict=True)
+        ]
     return check_reach(setup, targets)
 
 

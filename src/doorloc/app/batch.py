@@ -219,13 +219,24 @@ def plan_batch(
                     recipes[door_id] = e
             found = recipes[door_id]
             if found is None or isinstance(found, ValueError):
-                why = str(found) if found is not None else f"no door recipe with id '{door_id}' in the recipe database"
+                why = (
+                    str(found)
+                    if found is not None
+                    else f"no door recipe with id '{door_id}' in the recipe database"
+                )
                 items.append(BatchItem(image, path, DoorChoice(cell.default_door, door_id), why))
             else:
                 recipe, version = found if isinstance(found, tuple) else (found, None)
                 try:
-                    items.append(BatchItem(image, path, DoorChoice.from_recipe(
-                        recipe, cell, _float_or_none(row, "arris_mm", where), version)))
+                    items.append(
+                        BatchItem(
+                            image,
+                            path,
+                            DoorChoice.from_recipe(
+                                recipe, cell, _float_or_none(row, "arris_mm", where), version
+                            ),
+                        )
+                    )
                 except ValueError as e:
                     raise BatchSetupError(f"{where}: {e}") from None
             continue
@@ -250,8 +261,13 @@ def _failed(item: BatchItem, code: str, error: str, cell: Cell | None = None) ->
     from doorloc.vision.result import LocateResult
 
     record = LocateResult.refusal(item.image, code, error).model_dump(mode="json")
-    record.update(door_id=item.choice.door_id, door=_door_dict(item.choice), targets=[], targets_note=None,
-                  status=FAILED)
+    record.update(
+        door_id=item.choice.door_id,
+        door=_door_dict(item.choice),
+        targets=[],
+        targets_note=None,
+        status=FAILED,
+    )
     if cell is not None:
         record["provenance"] = provenance_of(cell, item.choice)
     return record
@@ -275,14 +291,27 @@ def read_file_checked(path: str, limits: FileLimits) -> tuple[bytes | None, str,
     try:
         st = os.fstat(fd)
         if not stat.S_ISREG(st.st_mode):
-            kind = ("a FIFO" if stat.S_ISFIFO(st.st_mode) else "a socket" if stat.S_ISSOCK(st.st_mode)
-                    else "a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode) else "not a file")
+            kind = (
+                "a FIFO"
+                if stat.S_ISFIFO(st.st_mode)
+                else "a socket"
+                if stat.S_ISSOCK(st.st_mode)
+                else "a device"
+                if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode)
+                else "not a file"
+            )
             return None, "not_a_regular_file", f"{path} is {kind}, not a regular file; it was not read"
         if st.st_size == 0:
             return None, "empty_file", f"{path} is empty (0 bytes); copy the camera image again"
         if st.st_size > limits.max_file_bytes:
-            return None, "too_large", (f"{path} is {st.st_size / 1e6:.0f} MB, more than the "
-                                       f"{limits.max_file_bytes / 1e6:.0f} MB a camera image may take")
+            return (
+                None,
+                "too_large",
+                (
+                    f"{path} is {st.st_size / 1e6:.0f} MB, more than the "
+                    f"{limits.max_file_bytes / 1e6:.0f} MB a camera image may take"
+                ),
+            )
         with os.fdopen(os.dup(fd), "rb") as f:
             data = f.read(limits.max_file_bytes + 1)
     except OSError as e:
@@ -291,7 +320,11 @@ def read_file_checked(path: str, limits: FileLimits) -> tuple[bytes | None, str,
         os.close(fd)
     header = sniff_image(data[:HEADER_BYTES_NEEDED])
     if header is None:
-        return None, "not_an_image", f"{path} is not a PNG, JPEG, TIFF or BMP image (judged by its first bytes)"
+        return (
+            None,
+            "not_an_image",
+            f"{path} is not a PNG, JPEG, TIFF or BMP image (judged by its first bytes)",
+        )
     problem = decode_limit_problem(header, path, limits.max_pixels, limits.max_decoded_bytes)
     if problem is not None:
         return None, "too_large", problem
@@ -317,8 +350,12 @@ def locate_item(
     try:
         fields = answer_image(image, cell, item.choice, image_name=item.image, locate_fn=locate_fn).fields
     except Exception as e:  # noqa: BLE001 - one bad image must not end a run of thousands
-        return _failed(item, "internal_error", f"locate failed on this image ({type(e).__name__}: {e}); please report it",
-                       cell)
+        return _failed(
+            item,
+            "internal_error",
+            f"locate failed on this image ({type(e).__name__}: {e}); please report it",
+            cell,
+        )
     fields["status"] = ANSWERED if fields["ok"] else REFUSED
     return fields
 
@@ -460,8 +497,9 @@ def run_local(
             yield locate_item(it, cell, locate_fn, limits)
         return
     # "spawn": the parent runs a progress thread, and fork with threads is unsafe.
-    with ProcessPoolExecutor(workers, mp_context=get_context("spawn"), initializer=_worker_init,
-                             initargs=(os.getpid(),)) as pool:
+    with ProcessPoolExecutor(
+        workers, mp_context=get_context("spawn"), initializer=_worker_init, initargs=(os.getpid(),)
+    ) as pool:
         pending: set = set()
         queue = iter(items)
         exhausted = False
@@ -502,7 +540,11 @@ def run_ray(
         return
     started_here = False
     if not ray.is_initialized():
-        kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False, "configure_logging": False}
+        kwargs: dict[str, Any] = {
+            "include_dashboard": False,
+            "log_to_driver": False,
+            "configure_logging": False,
+        }
         if ray_address:
             ray.init(address=ray_address, **kwargs)
         else:
@@ -546,8 +588,15 @@ def _decode(item: BatchItem, cell: Cell, limits: FileLimits) -> Any:
         return _failed(item, "unreadable_image", str(e), cell)
 
 
-def run_batched(items: list[BatchItem], cell: Cell, *, device: str, batch_size: int, workers: int,
-                limits: FileLimits | None = None) -> Iterator[dict[str, Any]]:
+def run_batched(
+    items: list[BatchItem],
+    cell: Cell,
+    *,
+    device: str,
+    batch_size: int,
+    workers: int,
+    limits: FileLimits | None = None,
+) -> Iterator[dict[str, Any]]:
     """The local job with locate batched on torch (:mod:`doorloc.vision.batched`, the doorloc torch extra).
 
     ``workers`` processes decode the images (the next batch while this one is located); each batch of
@@ -559,10 +608,15 @@ def run_batched(items: list[BatchItem], cell: Cell, *, device: str, batch_size: 
     dev = resolve_device(device)
     limits = limits or FileLimits()
     _configure_opencv()
-    chunks = [items[i:i + batch_size] for i in range(0, len(items), max(1, batch_size))]
+    chunks = [items[i : i + batch_size] for i in range(0, len(items), max(1, batch_size))]
     # decoding workers die with the batch process, as run_local's do (_worker_init)
-    pool = (ProcessPoolExecutor(workers, mp_context=get_context("spawn"), initializer=_worker_init,
-                                initargs=(os.getpid(),)) if workers > 1 else None)
+    pool = (
+        ProcessPoolExecutor(
+            workers, mp_context=get_context("spawn"), initializer=_worker_init, initargs=(os.getpid(),)
+        )
+        if workers > 1
+        else None
+    )
     try:
         ahead = [pool.submit(_decode, it, cell, limits) for it in chunks[0]] if pool and chunks else []
         for n, chunk in enumerate(chunks):
@@ -571,17 +625,27 @@ def run_batched(items: list[BatchItem], cell: Cell, *, device: str, batch_size: 
                 ahead = [pool.submit(_decode, it, cell, limits) for it in chunks[n + 1]]
             ok = [(it, img) for it, img in zip(chunk, decoded, strict=True) if not isinstance(img, dict)]
             yield from (rec for rec in decoded if isinstance(rec, dict))
-            answers = locate_batch([img for _, img in ok], cell, [it.choice.door for it, _ in ok],
-                                   names=[it.image for it, _ in ok], device=dev)
+            answers = locate_batch(
+                [img for _, img in ok],
+                cell,
+                [it.choice.door for it, _ in ok],
+                names=[it.image for it, _ in ok],
+                device=dev,
+            )
             for (it, img), a in zip(ok, answers, strict=True):
                 if a.fallback:
                     a.result.diagnostics["batched_fallback"] = a.fallback
                 try:
-                    fields = answer_image(img, cell, it.choice, image_name=it.image,
-                                          locate_fn=lambda *_, _r=a.result, **__: _r).fields
+                    fields = answer_image(
+                        img, cell, it.choice, image_name=it.image, locate_fn=lambda *_, _r=a.result, **__: _r
+                    ).fields
                 except Exception as e:  # noqa: BLE001 - as locate_item: one bad image must not end the run
-                    yield _failed(it, "internal_error", f"locate failed on this image ({type(e).__name__}: {e}); please report it",
-                                  cell)
+                    yield _failed(
+                        it,
+                        "internal_error",
+                        f"locate failed on this image ({type(e).__name__}: {e}); please report it",
+                        cell,
+                    )
                     continue
                 fields["status"] = ANSWERED if fields["ok"] else REFUSED
                 yield fields
@@ -637,8 +701,12 @@ def summarize(records: Iterable[dict[str, Any]], skipped: int = 0) -> BatchSumma
 
 #: provenance items a resumed job must share with the records already written
 _PROVENANCE_KEYS = ("version", "cell_sha256", "calibration_sha256")
-_PROVENANCE_WORDS = {"version": "the doorloc version", "cell_sha256": "the cell file",
-                     "calibration_sha256": "the camera calibration", "recipe_version": "the recipe"}
+_PROVENANCE_WORDS = {
+    "version": "the doorloc version",
+    "cell_sha256": "the cell file",
+    "calibration_sha256": "the camera calibration",
+    "recipe_version": "the recipe",
+}
 
 
 def check_resume(done: dict[str, dict[str, Any]], items: list[BatchItem], cell: Cell) -> None:

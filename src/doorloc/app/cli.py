@@ -34,7 +34,6 @@ app = typer.Typer(
 )
 
 
-
 def _print_version(value: bool) -> None:
     if value:
         typer.echo(f"doorloc {__version__}")
@@ -43,13 +42,27 @@ def _print_version(value: bool) -> None:
 
 @app.callback()
 def _root(
-    show_version: Annotated[bool, typer.Option(
-        "--version", is_eager=True, callback=_print_version, help="Print the doorloc version and exit.")] = False,
+    show_version: Annotated[
+        bool,
+        typer.Option(
+            "--version", is_eager=True, callback=_print_version, help="Print the doorloc version and exit."
+        ),
+    ] = False,
 ) -> None:
     """Locate a wooden door in a milling cell and turn its recipe into robot targets."""
 
 
-for _module in (cli_calibrate, cli_cell, cli_locate, cli_render, cli_recipes, cli_reach, cli_serve, cli_keys, cli_modelcheck):
+for _module in (
+    cli_calibrate,
+    cli_cell,
+    cli_locate,
+    cli_render,
+    cli_recipes,
+    cli_reach,
+    cli_serve,
+    cli_keys,
+    cli_modelcheck,
+):
     _module.register(app)
 
 

@@ -24,6 +24,7 @@ if TYPE_CHECKING:  # the calibration modules load only when a command runs (fast
     from doorloc.calib.folder import CalibrationOutcome
     from doorloc.cell import Cell
 
+
 def parse_pattern(text: str) -> tuple[int, int]:
     """``"9x6"`` -> ``(9, 6)``; raises ValueError with a sentence."""
     m = re.fullmatch(r"\s*(\d+)\s*[xX*,]\s*(\d+)\s*", text or "")
@@ -65,25 +66,39 @@ def _echo_calibration(outcome: CalibrationOutcome, out: Path, fmt: str) -> None:
 
     result = outcome.result
     cam, s = result.camera, result.std_intrinsics
-    typer.echo(f"wrote {out} ({fmt}): model {result.fit.candidate.name}, {len(result.views)} views, "
-               f"RMS {result.fit.rms_px:.3f} px")
-    typer.echo(f"fx {cam.fx:.3f} +- {s['fx']:.3f}  fy {cam.fy:.3f} +- {s['fy']:.3f}  "
-               f"cx {cam.cx:.3f} +- {s['cx']:.3f}  cy {cam.cy:.3f} +- {s['cy']:.3f}  (1 sigma, px)")
+    typer.echo(
+        f"wrote {out} ({fmt}): model {result.fit.candidate.name}, {len(result.views)} views, "
+        f"RMS {result.fit.rms_px:.3f} px"
+    )
+    typer.echo(
+        f"fx {cam.fx:.3f} +- {s['fx']:.3f}  fy {cam.fy:.3f} +- {s['fy']:.3f}  "
+        f"cx {cam.cx:.3f} +- {s['cx']:.3f}  cy {cam.cy:.3f} +- {s['cy']:.3f}  (1 sigma, px)"
+    )
     jk = result.std_jackknife
     if jk:
-        typer.echo(f"view-to-view (jackknife over {result.n_folds} folds): fx +- {jk['fx']:.3f}  fy +- {jk['fy']:.3f}  "
-                   f"cx +- {jk['cx']:.3f}  cy +- {jk['cy']:.3f} px")
+        typer.echo(
+            f"view-to-view (jackknife over {result.n_folds} folds): fx +- {jk['fx']:.3f}  fy +- {jk['fy']:.3f}  "
+            f"cx +- {jk['cx']:.3f}  cy +- {jk['cy']:.3f} px"
+        )
     typer.echo("dist " + " ".join(f"{v:.6g}" for v in cam.dist_coeffs))
-    typer.echo(f"observed radius {cam.observed_radius_px:.0f} px; projection uncertainty inside it "
-               f"<= {result.projection_sigma_px['max_observed']:.3f} px (1 sigma)")
-    aligned, aligned95 = (result.projection_sigma_px.get(k) for k in ("max_observed_aligned", "max_observed_aligned_95"))
+    typer.echo(
+        f"observed radius {cam.observed_radius_px:.0f} px; projection uncertainty inside it "
+        f"<= {result.projection_sigma_px['max_observed']:.3f} px (1 sigma)"
+    )
+    aligned, aligned95 = (
+        result.projection_sigma_px.get(k) for k in ("max_observed_aligned", "max_observed_aligned_95")
+    )
     if aligned is not None and aligned95 is not None:
         # What matters once a cell calibration has absorbed a small camera rotation.
-        typer.echo(f"  after the camera's small rotation is absorbed: <= {aligned:.3f} px (1 sigma); "
-                   f"largest error below {aligned95:.3f} px in 95 % of calibrations")
+        typer.echo(
+            f"  after the camera's small rotation is absorbed: <= {aligned:.3f} px (1 sigma); "
+            f"largest error below {aligned95:.3f} px in 95 % of calibrations"
+        )
     for sc in result.scores:
-        typer.echo(f"  {'*' if sc.chosen else ' '} {sc.name:24s} params {sc.n_params:2d}  train {sc.train_rms_px:.4f}  "
-                   f"held-out {sc.held_out_rms_px:.4f} px")
+        typer.echo(
+            f"  {'*' if sc.chosen else ' '} {sc.name:24s} params {sc.n_params:2d}  train {sc.train_rms_px:.4f}  "
+            f"held-out {sc.held_out_rms_px:.4f} px"
+        )
     for w in calibration_warnings(result, outcome.detected.scan):
         typer.echo(f"warning: {w}", err=True)
 
@@ -96,8 +111,10 @@ def _read_cell_image(image: Path, size: tuple[int, int]) -> np.ndarray:
     if im is None:
         raise fail(f"{image} {err}")
     if (im.shape[1], im.shape[0]) != size:
-        raise fail(f"{image} is {im.shape[1]}x{im.shape[0]} but the cell's camera was calibrated at "
-                   f"{size[0]}x{size[1]}")
+        raise fail(
+            f"{image} is {im.shape[1]}x{im.shape[0]} but the cell's camera was calibrated at "
+            f"{size[0]}x{size[1]}"
+        )
     return im
 
 
@@ -135,9 +152,12 @@ def _warn_beyond_valid_radius(camera: CameraModel, pixels: list[np.ndarray], cel
     c = np.array([camera.cx, camera.cy])
     reach = max(float(np.linalg.norm(np.reshape(px, (-1, 2)) - c, axis=1).max()) for px in pixels)
     if reach > valid:
-        typer.echo(f"warning: the board or the reference corner lies {reach:.0f} px from the principal point, "
-                   f"beyond the camera model's valid radius {valid:.0f} px (doorloc validity "
-                   f"{cell_path}); recalibrate the camera with views reaching there", err=True)
+        typer.echo(
+            f"warning: the board or the reference corner lies {reach:.0f} px from the principal point, "
+            f"beyond the camera model's valid radius {valid:.0f} px (doorloc validity "
+            f"{cell_path}); recalibrate the camera with views reaching there",
+            err=True,
+        )
 
 
 def register(app: typer.Typer) -> None:
@@ -145,17 +165,29 @@ def register(app: typer.Typer) -> None:
 
     @app.command("calibrate")
     def calibrate(
-        images_dir: Annotated[Path, typer.Argument(help="folder of board photographs (one camera, one image size)")],
-        pattern: Annotated[str, typer.Option(help="chessboard: inner corners COLSxROWS (e.g. 9x6); ChArUco: squares")],
+        images_dir: Annotated[
+            Path, typer.Argument(help="folder of board photographs (one camera, one image size)")
+        ],
+        pattern: Annotated[
+            str, typer.Option(help="chessboard: inner corners COLSxROWS (e.g. 9x6); ChArUco: squares")
+        ],
         square: Annotated[float, typer.Option(help="square side, mm")],
         out: Annotated[Path, typer.Option(help="calibration file to write (camera.yaml)")],
         charuco: Annotated[bool, typer.Option("--charuco", help="the board is a ChArUco board")] = False,
         marker: Annotated[float | None, typer.Option(help="ChArUco marker side, mm")] = None,
         dictionary: Annotated[str, typer.Option(help="ChArUco ArUco dictionary")] = "DICT_4X4_50",
-        legacy: Annotated[bool, typer.Option("--legacy", help="ChArUco board in OpenCV's pre-4.6 layout")] = False,
-        report: Annotated[Path | None, typer.Option(help="folder for calibration_report.json and .png")] = None,
-        fmt: Annotated[str, typer.Option("--format", help="opencv (FileStorage YAML) or ros (camera_info)")] = "opencv",
-        model: Annotated[str, typer.Option(help="'auto' (choose by held-out error) or a candidate, e.g. plumb_bob")] = "auto",
+        legacy: Annotated[
+            bool, typer.Option("--legacy", help="ChArUco board in OpenCV's pre-4.6 layout")
+        ] = False,
+        report: Annotated[
+            Path | None, typer.Option(help="folder for calibration_report.json and .png")
+        ] = None,
+        fmt: Annotated[
+            str, typer.Option("--format", help="opencv (FileStorage YAML) or ros (camera_info)")
+        ] = "opencv",
+        model: Annotated[
+            str, typer.Option(help="'auto' (choose by held-out error) or a candidate, e.g. plumb_bob")
+        ] = "auto",
         folds: Annotated[int, typer.Option(min=2, help="K of the K-fold held-out model selection")] = 5,
         min_views: Annotated[int, typer.Option(min=3, help="fewest usable views to calibrate with")] = 4,
         camera_name: Annotated[str, typer.Option(help="camera name stored in the file")] = "doorloc",
@@ -175,8 +207,9 @@ def register(app: typer.Typer) -> None:
             raise fail(f"--format must be opencv or ros, got {fmt!r}")
         try:
             board = _board(pattern, square, charuco, marker, dictionary, legacy)
-            outcome = calibrate_folder(images_dir, board, candidates=_candidates(model), n_folds=folds,
-                                       min_views=min_views)
+            outcome = calibrate_folder(
+                images_dir, board, candidates=_candidates(model), n_folds=folds, min_views=min_views
+            )
         except TooFewViewsError as e:
             _echo_skipped(e.detected.skipped)
             raise fail(f"{e} (nothing written)", EXIT_FAILED) from None
@@ -197,19 +230,33 @@ def register(app: typer.Typer) -> None:
         cell: Annotated[Path, typer.Option(help="cell file with the calibrated camera (cell.yaml)")],
         pattern: Annotated[str, typer.Option(help="chessboard inner corners COLSxROWS; ChArUco: squares")],
         square: Annotated[float, typer.Option(help="square side, mm")],
-        board_origin: Annotated[tuple[float, float, float], typer.Option(
-            help="cell position (mm) of the board origin: chessboard corner 0 = the inner corner seen top-left; "
-                 "ChArUco corner id 0")],
+        board_origin: Annotated[
+            tuple[float, float, float],
+            typer.Option(
+                help="cell position (mm) of the board origin: chessboard corner 0 = the inner corner seen top-left; "
+                "ChArUco corner id 0"
+            ),
+        ],
         out: Annotated[Path, typer.Option(help="cell file to write (may be the same as --cell)")],
-        board_x_axis: Annotated[tuple[float, float, float], typer.Option(
-            help="cell direction of the board's rows (image-right in the reference mount: +X)")] = (1.0, 0.0, 0.0),
-        board_y_axis: Annotated[tuple[float, float, float], typer.Option(
-            help="cell direction of the board's columns (image-down in the reference mount: -Z)")] = (0.0, 0.0, -1.0),
+        board_x_axis: Annotated[
+            tuple[float, float, float],
+            typer.Option(help="cell direction of the board's rows (image-right in the reference mount: +X)"),
+        ] = (1.0, 0.0, 0.0),
+        board_y_axis: Annotated[
+            tuple[float, float, float],
+            typer.Option(
+                help="cell direction of the board's columns (image-down in the reference mount: -Z)"
+            ),
+        ] = (0.0, 0.0, -1.0),
         charuco: Annotated[bool, typer.Option("--charuco", help="the board is a ChArUco board")] = False,
         marker: Annotated[float | None, typer.Option(help="ChArUco marker side, mm")] = None,
         dictionary: Annotated[str, typer.Option(help="ChArUco ArUco dictionary")] = "DICT_4X4_50",
-        legacy: Annotated[bool, typer.Option("--legacy", help="ChArUco board in OpenCV's pre-4.6 layout")] = False,
-        max_rms: Annotated[float, typer.Option(help="refuse (exit 1, nothing written) above this RMS, px")] = 1.0,
+        legacy: Annotated[
+            bool, typer.Option("--legacy", help="ChArUco board in OpenCV's pre-4.6 layout")
+        ] = False,
+        max_rms: Annotated[
+            float, typer.Option(help="refuse (exit 1, nothing written) above this RMS, px")
+        ] = 1.0,
     ) -> None:
         """Camera extrinsics from one image of a board at a known place in the cell -> cell.yaml.
 
@@ -236,18 +283,30 @@ def register(app: typer.Typer) -> None:
         except CellCalibrationError as e:
             raise fail(f"{e}; nothing written", EXIT_REFUSED) from None
         if res.rms_px > max_rms:
-            raise fail(f"board reprojection RMS {res.rms_px:.2f} px exceeds --max-rms {max_rms} px: check "
-                       "--board-origin, the axes and that the board lies flat; nothing written", EXIT_REFUSED)
+            raise fail(
+                f"board reprojection RMS {res.rms_px:.2f} px exceeds --max-rms {max_rms} px: check "
+                "--board-origin, the axes and that the board lies flat; nothing written",
+                EXIT_REFUSED,
+            )
         # What placed the camera: kept with the file (the cell file's provenance section).
-        placed_by = {"image": str(image), "board": pattern, "square_mm": square, "board_origin_mm": list(board_origin),
-                     **res.to_dict()}
+        placed_by = {
+            "image": str(image),
+            "board": pattern,
+            "square_mm": square,
+            "board_origin_mm": list(board_origin),
+            **res.to_dict(),
+        }
         atomic_write_text(out, _placed_cell_yaml(cell, the_cell.with_extrinsics(res.extrinsics), placed_by))
-        typer.echo(f"wrote {out}: rvec {[round(float(v), 6) for v in res.extrinsics.rvec]} "
-                   f"tvec_mm {[round(float(v), 3) for v in res.extrinsics.tvec_mm]}")
-        typer.echo(f"board RMS {res.rms_px:.3f} px (max {res.max_residual_px:.3f} px, {res.n_corners} corners); "
-                   f"reference corner at pixel ({res.reference_corner_px[0]:.1f}, {res.reference_corner_px[1]:.1f}), "
-                   f"{res.scale_mm_per_px:.4f} mm/px; reference corner uncertainty "
-                   f"{res.reference_corner_sigma_px * res.scale_mm_per_px:.4f} mm (1 sigma, intrinsics exact)")
+        typer.echo(
+            f"wrote {out}: rvec {[round(float(v), 6) for v in res.extrinsics.rvec]} "
+            f"tvec_mm {[round(float(v), 3) for v in res.extrinsics.tvec_mm]}"
+        )
+        typer.echo(
+            f"board RMS {res.rms_px:.3f} px (max {res.max_residual_px:.3f} px, {res.n_corners} corners); "
+            f"reference corner at pixel ({res.reference_corner_px[0]:.1f}, {res.reference_corner_px[1]:.1f}), "
+            f"{res.scale_mm_per_px:.4f} mm/px; reference corner uncertainty "
+            f"{res.reference_corner_sigma_px * res.scale_mm_per_px:.4f} mm (1 sigma, intrinsics exact)"
+        )
         _warn_beyond_valid_radius(the_cell.camera, [det.corners_px, res.reference_corner_px], cell)
 
     @app.command("validity")
@@ -280,26 +339,42 @@ def register(app: typer.Typer) -> None:
         if as_json:
             typer.echo(json.dumps({"file": str(path), **v.to_dict()}, indent=2))
         else:
-            typer.echo(f"{path}: {camera.image_size[0]}x{camera.image_size[1]}, distortion "
-                       f"[{', '.join(f'{c:.6g}' for c in camera.dist_coeffs)}]")
+            typer.echo(
+                f"{path}: {camera.image_size[0]}x{camera.image_size[1]}, distortion "
+                f"[{', '.join(f'{c:.6g}' for c in camera.dist_coeffs)}]"
+            )
             if v.fold_radius_px is None:
-                typer.echo("fold-over radius: none (the distortion is one-to-one out to three image diagonals)")
+                typer.echo(
+                    "fold-over radius: none (the distortion is one-to-one out to three image diagonals)"
+                )
             else:
-                typer.echo(f"fold-over radius: {v.fold_radius_px:.1f} px from the principal point "
-                           f"(image corners at {v.corner_radius_px:.1f} px)")
+                typer.echo(
+                    f"fold-over radius: {v.fold_radius_px:.1f} px from the principal point "
+                    f"(image corners at {v.corner_radius_px:.1f} px)"
+                )
             obs = "unknown" if v.observed_radius_px is None else f"{v.observed_radius_px:.1f} px"
-            typer.echo(f"observed radius: {obs}; valid radius: "
-                       f"{'unknown' if v.valid_radius_px is None else f'{v.valid_radius_px:.1f} px'}")
+            typer.echo(
+                f"observed radius: {obs}; valid radius: "
+                f"{'unknown' if v.valid_radius_px is None else f'{v.valid_radius_px:.1f} px'}"
+            )
             for c in v.corner_report:
-                angle = "no ray (beyond the fold)" if c["field_angle_deg"] is None else f"field angle {c['field_angle_deg']:.1f} deg"
+                angle = (
+                    "no ray (beyond the fold)"
+                    if c["field_angle_deg"] is None
+                    else f"field angle {c['field_angle_deg']:.1f} deg"
+                )
                 land = c["ideal_ray_lands_at_px"]
-                typer.echo(f"  {c['corner']:12s} pixel ({c['pixel'][0]:.1f}, {c['pixel'][1]:.1f}): "
-                           f"{'undistortable' if c['undistortable'] else 'NOT undistortable'}, {angle}; the ray a "
-                           f"pinhole sees there is sent to ({round(land[0])}, {round(land[1])}), "
-                           f"{c['distortion_shift_px']:.0f} px away")
+                typer.echo(
+                    f"  {c['corner']:12s} pixel ({c['pixel'][0]:.1f}, {c['pixel'][1]:.1f}): "
+                    f"{'undistortable' if c['undistortable'] else 'NOT undistortable'}, {angle}; the ray a "
+                    f"pinhole sees there is sent to ({round(land[0])}, {round(land[1])}), "
+                    f"{c['distortion_shift_px']:.0f} px away"
+                )
             if not v.corners_inside_fold:
-                typer.echo(f"UNUSABLE beyond {v.fold_radius_px:.0f} px from the principal point: the model folds "
-                           "over inside the image")
+                typer.echo(
+                    f"UNUSABLE beyond {v.fold_radius_px:.0f} px from the principal point: the model folds "
+                    "over inside the image"
+                )
             for w in v.warnings:
                 typer.echo(f"warning: {w}", err=True)
         if not v.corners_inside_fold:

@@ -10,14 +10,19 @@ from doorloc.app.access import Role
 from doorloc.app.cli_recipes import DB_HELP, _open_store
 from doorloc.app.errors import EXIT_USAGE, fail
 
-keys_app = typer.Typer(name="keys", help="API keys of the HTTP service (roles operator, engineer, metrics).",
-                       no_args_is_help=True)
+keys_app = typer.Typer(
+    name="keys",
+    help="API keys of the HTTP service (roles operator, engineer, metrics).",
+    no_args_is_help=True,
+)
 
 
 @keys_app.command("create")
 def create_cmd(
     name: str = typer.Argument(..., help="who or what holds the key (a person, a panel PC, the scraper)"),
-    role: Role = typer.Option(..., "--role", help="operator (locate, read), engineer (also change recipes), metrics"),
+    role: Role = typer.Option(
+        ..., "--role", help="operator (locate, read), engineer (also change recipes), metrics"
+    ),
     db: str = typer.Option(None, "--db", help=DB_HELP),
 ) -> None:
     """Create a key and print it once (only its hash is stored: keep the printed key safe)."""
@@ -29,8 +34,10 @@ def create_cmd(
         except AccessKeyError as e:
             raise fail(str(e), EXIT_USAGE) from None
     typer.echo(created.secret)
-    typer.echo(f"created {created.role} key '{created.name}' (id {created.key_id}); it is shown only this once",
-               err=True)
+    typer.echo(
+        f"created {created.role} key '{created.name}' (id {created.key_id}); it is shown only this once",
+        err=True,
+    )
 
 
 @keys_app.command("list")
@@ -44,10 +51,21 @@ def list_cmd(
     with _open_store(db) as store:
         keys = KeyStore(store.engine).list()
     if as_json:
-        typer.echo(json.dumps([{"key_id": k.key_id, "name": k.name, "role": k.role.value,
-                                "created_at": k.created_at.isoformat() if k.created_at else None,
-                                "revoked_at": k.revoked_at.isoformat() if k.revoked_at else None} for k in keys],
-                              indent=2))
+        typer.echo(
+            json.dumps(
+                [
+                    {
+                        "key_id": k.key_id,
+                        "name": k.name,
+                        "role": k.role.value,
+                        "created_at": k.created_at.isoformat() if k.created_at else None,
+                        "revoked_at": k.revoked_at.isoformat() if k.revoked_at else None,
+                    }
+                    for k in keys
+                ],
+                indent=2,
+            )
+        )
         return
     typer.echo(f"{'key_id':<14} {'role':<9} {'state':<8} name")
     for k in keys:

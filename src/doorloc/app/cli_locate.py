@@ -34,8 +34,10 @@ def _door_choice(cell, width, thickness, height, arris, door_id, db, profile=Non
     with RecipeStore(database_url(db) if db else database_url()) as store:
         found = store.get_versioned(door_id)
     if found is None:
-        raise ValueError(f"no door recipe with id {door_id!r} in the recipe database; import it first "
-                         "(doorloc recipes import) or give the door size with --door-width/--door-thickness")
+        raise ValueError(
+            f"no door recipe with id {door_id!r} in the recipe database; import it first "
+            "(doorloc recipes import) or give the door size with --door-width/--door-thickness"
+        )
     recipe, version = found
     choice = DoorChoice.from_recipe(recipe, cell, arris, version)
     if profile is None:
@@ -50,14 +52,37 @@ def register(app: typer.Typer) -> None:
     def locate_cmd(
         image: Annotated[Path, typer.Argument(help="camera image (PNG, JPEG, TIFF, BMP; 8 or 16 bit)")],
         cell_file: Annotated[Path, typer.Option("--cell", help="cell file (cell.yaml)")],
-        door_width: Annotated[float | None, typer.Option("--door-width", help="door width, mm (sets the hinge-face depth)")] = None,
-        door_thickness: Annotated[float | None, typer.Option("--door-thickness", help="door thickness, mm")] = None,
+        door_width: Annotated[
+            float | None, typer.Option("--door-width", help="door width, mm (sets the hinge-face depth)")
+        ] = None,
+        door_thickness: Annotated[
+            float | None, typer.Option("--door-thickness", help="door thickness, mm")
+        ] = None,
         door_height: Annotated[float | None, typer.Option("--door-height", help="door height, mm")] = None,
-        arris: Annotated[float | None, typer.Option("--door-arris", "--arris", help="arris chamfer/rounding size, mm (default: the recipe's, else the cell's door.arris_mm)")] = None,
-        arris_profile: Annotated[str | None, typer.Option("--arris-profile", help="arris profile: chamfer or round (default: the cell's door.arris_profile)")] = None,
-        door_id: Annotated[str | None, typer.Option("--door-id", help="take the door size from this recipe")] = None,
-        db: Annotated[str | None, typer.Option("--db", help="recipe database URL (default: DOORLOC_DATABASE_URL)")] = None,
-        overlay: Annotated[Path | None, typer.Option("--overlay", help="write an annotated image here (PNG/JPEG)")] = None,
+        arris: Annotated[
+            float | None,
+            typer.Option(
+                "--door-arris",
+                "--arris",
+                help="arris chamfer/rounding size, mm (default: the recipe's, else the cell's door.arris_mm)",
+            ),
+        ] = None,
+        arris_profile: Annotated[
+            str | None,
+            typer.Option(
+                "--arris-profile",
+                help="arris profile: chamfer or round (default: the cell's door.arris_profile)",
+            ),
+        ] = None,
+        door_id: Annotated[
+            str | None, typer.Option("--door-id", help="take the door size from this recipe")
+        ] = None,
+        db: Annotated[
+            str | None, typer.Option("--db", help="recipe database URL (default: DOORLOC_DATABASE_URL)")
+        ] = None,
+        overlay: Annotated[
+            Path | None, typer.Option("--overlay", help="write an annotated image here (PNG/JPEG)")
+        ] = None,
         indent: Annotated[int, typer.Option(help="JSON indentation (0 = one line)")] = 2,
     ) -> None:
         """Locate the door in one image and print the result JSON (exit 0 located, 1 refused, 2 bad input)."""
@@ -71,7 +96,9 @@ def register(app: typer.Typer) -> None:
         except CellFileError as e:
             raise fail(str(e), EXIT_USAGE) from None
         try:
-            choice = _door_choice(cell, door_width, door_thickness, door_height, arris, door_id, db, arris_profile)
+            choice = _door_choice(
+                cell, door_width, door_thickness, door_height, arris, door_id, db, arris_profile
+            )
         except (ValueError, RuntimeError) as e:
             raise fail(str(e), EXIT_USAGE) from None
         from doorloc.app.batch import FileLimits, read_file_checked
@@ -93,6 +120,8 @@ def register(app: typer.Typer) -> None:
             try:
                 atomic_write_image(overlay, draw_overlay(img, answer.result, cell, choice.door, trace))
             except (OSError, ValueError) as e:
-                raise fail(f"cannot write the overlay {overlay}: {getattr(e, 'strerror', None) or e}", EXIT_USAGE) from None
+                raise fail(
+                    f"cannot write the overlay {overlay}: {getattr(e, 'strerror', None) or e}", EXIT_USAGE
+                ) from None
         typer.echo(json.dumps(answer.fields, indent=indent or None))
         raise typer.Exit(EXIT_OK if answer.fields["ok"] else EXIT_REFUSED)  # a reach refusal too

@@ -19,9 +19,13 @@ def register(app: typer.Typer) -> None:
 
     @app.command("check-model")
     def check_model_cmd(
-        dataset: Annotated[Path, typer.Argument(help="folder with the images and truth.csv (reference poses)")],
+        dataset: Annotated[
+            Path, typer.Argument(help="folder with the images and truth.csv (reference poses)")
+        ],
         cell_file: Annotated[Path, typer.Option("--cell", help="the cell file to check (cell.yaml)")],
-        out: Annotated[Path, typer.Option("--out", help="REPORT_DIR: report.json, report.md, plots, extended cell")],
+        out: Annotated[
+            Path, typer.Option("--out", help="REPORT_DIR: report.json, report.md, plots, extended cell")
+        ],
         seed: Annotated[int, typer.Option(help="seed of the held-out draw")] = 0,
     ) -> None:
         """Locate every image, name the cause of the errors from the catalogue, fit it, write the extended
@@ -36,8 +40,13 @@ def register(app: typer.Typer) -> None:
         if out.exists() and not out.is_dir():
             raise fail(f"{out} exists and is not a folder; give a folder for the report")
         try:
-            rep = check_model(dataset, cell, out, options=CheckOptions(seed=seed),
-                              progress=lambda m: typer.echo(m, err=True))
+            rep = check_model(
+                dataset,
+                cell,
+                out,
+                options=CheckOptions(seed=seed),
+                progress=lambda m: typer.echo(m, err=True),
+            )
         except DatasetError as e:
             raise fail(str(e), EXIT_USAGE) from None
         except OSError as e:
@@ -45,7 +54,9 @@ def register(app: typer.Typer) -> None:
         causes = ", ".join(rep.causes) if rep.causes else "none (no significant effect)"
         typer.echo(f"causes: {causes}")
         b, a = rep.heldout_rms_before, rep.heldout_rms_after
-        typer.echo(f"held-out RMS ({len(rep.heldout_images)} images) x {b['x_mm']:.4f} -> {a['x_mm']:.4f} mm, "
-                   f"z {b['z_mm']:.4f} -> {a['z_mm']:.4f} mm, yaw {b['yaw_deg']:.5f} -> {a['yaw_deg']:.5f} deg; "
-                   f"gain {rep.heldout_gain:.1f}x")
+        typer.echo(
+            f"held-out RMS ({len(rep.heldout_images)} images) x {b['x_mm']:.4f} -> {a['x_mm']:.4f} mm, "
+            f"z {b['z_mm']:.4f} -> {a['z_mm']:.4f} mm, yaw {b['yaw_deg']:.5f} -> {a['yaw_deg']:.5f} deg; "
+            f"gain {rep.heldout_gain:.1f}x"
+        )
         typer.echo(f"wrote {out / 'report.json'}, {out / 'report.md'} and {out / rep.extended_cell}")

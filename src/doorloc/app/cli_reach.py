@@ -24,7 +24,9 @@ class ReachFormat(StrEnum):
 def reach_cmd(
     door_id: str = typer.Option(..., "--door-id", help="door id (barcode) of a stored recipe"),
     pose: tuple[float, float, float] = typer.Option(..., "--pose", help="measured pose: X_MM Z_MM YAW_DEG"),
-    cell: Path = typer.Option(None, "--cell", help="cell.yaml with a robot: section; default: the bundled thesis cell"),
+    cell: Path = typer.Option(
+        None, "--cell", help="cell.yaml with a robot: section; default: the bundled thesis cell"
+    ),
     db: str = typer.Option(None, "--db", help=DB_HELP),
     fmt: ReachFormat = typer.Option(ReachFormat.json, "--format", help="json or table"),
     plot: Path = typer.Option(None, "--plot", help="write the (r, z) work window with the targets as a PNG"),
@@ -43,11 +45,15 @@ def reach_cmd(
     except (CellFileError, ValueError) as e:  # RobotSectionError / RobotFileError are ValueErrors
         raise fail(str(e)) from None
     if setup is None:
-        raise fail(f"{cell}: the robot: section names no robot model (robot: {{model: irb6600-175-2.55, ...}})")
+        raise fail(
+            f"{cell}: the robot: section names no robot model (robot: {{model: irb6600-175-2.55, ...}})"
+        )
     with _open_store(db) as store:
         recipe = store.get(door_id)
     if recipe is None:
-        raise fail(f"no recipe for door {door_id!r} in the database; import one with 'doorloc recipes import'")
+        raise fail(
+            f"no recipe for door {door_id!r} in the database; import one with 'doorloc recipes import'"
+        )
     report = reach_for_door(setup, recipe, DoorPose(*pose), the_cell.face_y(recipe.door_size()))
     if plot is not None:
         from doorloc.fileio import atomic_write_bytes
@@ -57,7 +63,9 @@ def reach_cmd(
             atomic_write_bytes(plot, window_png(setup, report))
         except OSError as e:
             raise fail(f"cannot write {plot}: {e.strerror or e}") from None
-    sys.stdout.write(report.model_dump_json(indent=2) + "\n" if fmt is ReachFormat.json else report_table(report))
+    sys.stdout.write(
+        report.model_dump_json(indent=2) + "\n" if fmt is ReachFormat.json else report_table(report)
+    )
     if not report.feasible:
         raise typer.Exit(EXIT_REFUSED)
 

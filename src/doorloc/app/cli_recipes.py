@@ -88,10 +88,16 @@ def _cli_user() -> str:
 
 @recipes_app.command("import")
 def import_cmd(
-    file: Path = typer.Argument(..., help="recipe file: .csv or .xlsx, one row per hinge, door fields repeated"),
+    file: Path = typer.Argument(
+        ..., help="recipe file: .csv or .xlsx, one row per hinge, door fields repeated"
+    ),
     db: str = typer.Option(None, "--db", help=DB_HELP),
-    dry_run: bool = typer.Option(False, "--dry-run", help="check the file and show what would change; write nothing"),
-    replace: bool = typer.Option(False, "--replace", help="overwrite stored recipes that differ (each a new version)"),
+    dry_run: bool = typer.Option(
+        False, "--dry-run", help="check the file and show what would change; write nothing"
+    ),
+    replace: bool = typer.Option(
+        False, "--replace", help="overwrite stored recipes that differ (each a new version)"
+    ),
 ) -> None:
     """Import a recipe file in one transaction: all its doors, or (with any bad row) none.
 
@@ -121,23 +127,32 @@ def import_cmd(
         changed = {k: v for k, v in preview.items() if v}
         new = sum(v is None for v in preview.values())
         for door_id, changes in list(changed.items())[:20]:
-            shown = "; ".join(str(c) for c in changes[:6]) + (f"; ... {len(changes) - 6} more" if len(changes) > 6 else "")
+            shown = "; ".join(str(c) for c in changes[:6]) + (
+                f"; ... {len(changes) - 6} more" if len(changes) > 6 else ""
+            )
             typer.echo(f"  {door_id} would change: {shown}", err=True)
         if len(changed) > 20:
             typer.echo(f"  ... and {len(changed) - 20} more door(s)", err=True)
-        summary = (f"{file}: {len(recipes)} door(s), {hinges} hinge(s): {new} new, {len(changed)} changed, "
-                   f"{len(recipes) - new - len(changed)} unchanged")
+        summary = (
+            f"{file}: {len(recipes)} door(s), {hinges} hinge(s): {new} new, {len(changed)} changed, "
+            f"{len(recipes) - new - len(changed)} unchanged"
+        )
         if dry_run:
             typer.echo(summary + " (dry run, nothing written)")
             return
         if changed and not replace:
-            raise fail(f"{summary}; {len(changed)} stored recipe(s) would be overwritten (listed above): pass "
-                       "--replace to do so, nothing was written", EXIT_REFUSED)
+            raise fail(
+                f"{summary}; {len(changed)} stored recipe(s) would be overwritten (listed above): pass "
+                "--replace to do so, nothing was written",
+                EXIT_REFUSED,
+            )
         try:
             store.put_many(recipes, by=_cli_user())
         except SQLAlchemyError as e:
             raise fail(f"import failed, nothing written: {str(e).splitlines()[0]}", EXIT_FAILED) from None
-    typer.echo(f"imported {len(recipes)} door(s), {hinges} hinge(s) from {file} ({new} new, {len(changed)} changed)")
+    typer.echo(
+        f"imported {len(recipes)} door(s), {hinges} hinge(s) from {file} ({new} new, {len(changed)} changed)"
+    )
 
 
 @recipes_app.command("history")
@@ -152,10 +167,22 @@ def history_cmd(
     if not versions:
         raise fail(f"no recipe for door {door_id!r} was ever stored")
     if as_json:
-        typer.echo(json.dumps([{
-            "version": v.version, "action": v.action, "changed_by": v.changed_by,
-            "changed_at": v.changed_at.isoformat() if v.changed_at else None, "changes": [c.__dict__ for c in v.changes],
-            "recipe": v.recipe.model_dump(mode="json") if v.recipe else None} for v in versions], indent=2))
+        typer.echo(
+            json.dumps(
+                [
+                    {
+                        "version": v.version,
+                        "action": v.action,
+                        "changed_by": v.changed_by,
+                        "changed_at": v.changed_at.isoformat() if v.changed_at else None,
+                        "changes": [c.__dict__ for c in v.changes],
+                        "recipe": v.recipe.model_dump(mode="json") if v.recipe else None,
+                    }
+                    for v in versions
+                ],
+                indent=2,
+            )
+        )
         return
     for v in versions:
         when = v.changed_at.isoformat(timespec="seconds") if v.changed_at else "?"
@@ -172,7 +199,9 @@ def delete_cmd(
     with _open_store(db) as store:
         if not store.delete(door_id, by=_cli_user()):
             raise fail(f"no recipe for door {door_id!r} in the database")
-    typer.echo(f"retired the recipe of door {door_id} (its history is kept: doorloc recipes history {door_id})")
+    typer.echo(
+        f"retired the recipe of door {door_id} (its history is kept: doorloc recipes history {door_id})"
+    )
 
 
 @recipes_app.command("list")
@@ -185,14 +214,27 @@ def list_cmd(
     with store:
         rows = store.list()
     if fmt is ListFormat.json:
-        typer.echo(json.dumps([
-            {"door_id": r.door_id, "width_mm": r.width_mm, "height_mm": r.height_mm,
-             "thickness_mm": r.thickness_mm, "hinges": r.hinge_count} for r in rows
-        ], indent=2))
+        typer.echo(
+            json.dumps(
+                [
+                    {
+                        "door_id": r.door_id,
+                        "width_mm": r.width_mm,
+                        "height_mm": r.height_mm,
+                        "thickness_mm": r.thickness_mm,
+                        "hinges": r.hinge_count,
+                    }
+                    for r in rows
+                ],
+                indent=2,
+            )
+        )
         return
     typer.echo(f"{'door_id':<24} {'width':>8} {'height':>8} {'thick':>7} {'hinges':>6}")
     for r in rows:
-        typer.echo(f"{r.door_id:<24} {r.width_mm:>8g} {r.height_mm:>8g} {r.thickness_mm:>7g} {r.hinge_count:>6d}")
+        typer.echo(
+            f"{r.door_id:<24} {r.width_mm:>8g} {r.height_mm:>8g} {r.thickness_mm:>7g} {r.hinge_count:>6d}"
+        )
     typer.echo(f"{len(rows)} recipe(s)", err=True)
 
 
@@ -209,7 +251,9 @@ def show_cmd(
     with store:
         recipe = store.get(door_id)
     if recipe is None:
-        raise fail(f"no recipe for door {door_id!r} in the database; import one with 'doorloc recipes import'")
+        raise fail(
+            f"no recipe for door {door_id!r} in the database; import one with 'doorloc recipes import'"
+        )
     if fmt is RecipeFormat.csv:
         sys.stdout.write(recipes_to_csv([recipe]))
     else:
@@ -220,7 +264,9 @@ def show_cmd(
 def export_cmd(
     db: str = typer.Option(None, "--db", help=DB_HELP),
     out: Path = typer.Option(None, "--out", "-o", help="output file (written atomically); default stdout"),
-    fmt: RecipeFormat = typer.Option(None, "--format", help="csv (the import layout) or json; default from --out"),
+    fmt: RecipeFormat = typer.Option(
+        None, "--format", help="csv (the import layout) or json; default from --out"
+    ),
 ) -> None:
     """Export every recipe: CSV in the import layout (re-importable) or a JSON list."""
     from doorloc.recipes.importer import recipes_to_csv
@@ -230,8 +276,11 @@ def export_cmd(
     store = _open_store(db)
     with store:
         recipes = list(store.iter_recipes())
-    text = (json.dumps([_recipe_json(r) for r in recipes], indent=2) + "\n" if fmt is RecipeFormat.json
-            else recipes_to_csv(recipes))
+    text = (
+        json.dumps([_recipe_json(r) for r in recipes], indent=2) + "\n"
+        if fmt is RecipeFormat.json
+        else recipes_to_csv(recipes)
+    )
     _emit(text, out)
 
 
@@ -240,11 +289,15 @@ def targets_cmd(
     pose: tuple[float, float, float] = typer.Option(..., "--pose", help="measured pose: X_MM Z_MM YAW_DEG"),
     fmt: TargetFormat = typer.Option(TargetFormat.json, "--format", help="json, rapid-text or rapid-module"),
     cell: Path = typer.Option(
-        None, "--cell", help="cell.yaml: fixture (hinge-face depth) and optional robot: section (tool/wobj data)"
+        None,
+        "--cell",
+        help="cell.yaml: fixture (hinge-face depth) and optional robot: section (tool/wobj data)",
     ),
     db: str = typer.Option(None, "--db", help=DB_HELP),
     out: Path = typer.Option(None, "--out", "-o", help="output file (written atomically); default stdout"),
-    clearance: float = typer.Option(10.0, "--clearance", min=0.0, help="approach/retract distance before the face, mm"),
+    clearance: float = typer.Option(
+        10.0, "--clearance", min=0.0, help="approach/retract distance before the face, mm"
+    ),
 ) -> None:
     """Robot targets (cell frame) for a stored door recipe at a measured pose.
 
@@ -272,22 +325,31 @@ def targets_cmd(
     with store:
         recipe = store.get(door_id)
     if recipe is None:
-        raise fail(f"no recipe for door {door_id!r} in the database; import one with 'doorloc recipes import'")
+        raise fail(
+            f"no recipe for door {door_id!r} in the database; import one with 'doorloc recipes import'"
+        )
     door_pose = DoorPose(*pose)
     face_y = fixture.face_y(recipe.width_mm)
-    targets = targets_for_pose(recipe, door_pose, face_y, clearance_mm=clearance,
-                               base_orientation=robot.base_orientation())
+    targets = targets_for_pose(
+        recipe, door_pose, face_y, clearance_mm=clearance, base_orientation=robot.base_orientation()
+    )
     if fmt is TargetFormat.rapid_text:
         text = rapid_text(targets)
     elif fmt is TargetFormat.rapid_module:
         text = rapid_module(recipe, targets, robot, pose=door_pose, face_y_mm=face_y)
     else:
-        text = json.dumps({
-            "door_id": recipe.door_id,
-            "pose": {"x_mm": door_pose.x_mm, "z_mm": door_pose.z_mm, "yaw_deg": door_pose.yaw_deg},
-            "face_y_mm": face_y,
-            "targets": [t.model_dump(mode="json") for t in targets],
-        }, indent=2) + "\n"
+        text = (
+            json.dumps(
+                {
+                    "door_id": recipe.door_id,
+                    "pose": {"x_mm": door_pose.x_mm, "z_mm": door_pose.z_mm, "yaw_deg": door_pose.yaw_deg},
+                    "face_y_mm": face_y,
+                    "targets": [t.model_dump(mode="json") for t in targets],
+                },
+                indent=2,
+            )
+            + "\n"
+        )
     _emit(text, out)
 
 

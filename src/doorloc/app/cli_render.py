@@ -18,7 +18,9 @@ def parse_mm_list(text: str, what: str) -> list[float]:
     try:
         vals = [float(v) for v in text.replace(";", ",").split(",") if v.strip()]
     except ValueError:
-        raise ValueError(f"{what} must be a comma-separated list of millimetres (e.g. 30,50,100), got {text!r}") from None
+        raise ValueError(
+            f"{what} must be a comma-separated list of millimetres (e.g. 30,50,100), got {text!r}"
+        ) from None
     if not vals:
         raise ValueError(f"{what} is empty")
     return vals
@@ -42,18 +44,32 @@ def register(app: typer.Typer) -> None:
 
     @app.command("render")
     def render(
-        out_dir: Annotated[Path, typer.Argument(help="folder to write the images, truth.csv and cell.yaml into")],
-        cell: Annotated[Path, typer.Option(help="cell file (camera, extrinsics, fixture, envelope, default door)")],
+        out_dir: Annotated[
+            Path, typer.Argument(help="folder to write the images, truth.csv and cell.yaml into")
+        ],
+        cell: Annotated[
+            Path, typer.Option(help="cell file (camera, extrinsics, fixture, envelope, default door)")
+        ],
         poses: Annotated[str, typer.Option(help="'grid' (full grid over the envelope) or 'random'")] = "grid",
         grid_steps: Annotated[int, typer.Option(min=1, help="grid values per axis (3: -e, 0, +e)")] = 3,
         count: Annotated[int, typer.Option(min=1, help="number of random poses")] = 20,
         seed: Annotated[int, typer.Option(help="seed of random poses, wood grain and noise")] = 0,
-        thickness: Annotated[str | None, typer.Option(help="door thicknesses, mm, e.g. 30,50,100 (default: cell's door)")] = None,
-        width: Annotated[str | None, typer.Option(help="door widths, mm, e.g. 600,900 (default: cell's door)")] = None,
+        thickness: Annotated[
+            str | None, typer.Option(help="door thicknesses, mm, e.g. 30,50,100 (default: cell's door)")
+        ] = None,
+        width: Annotated[
+            str | None, typer.Option(help="door widths, mm, e.g. 600,900 (default: cell's door)")
+        ] = None,
         height: Annotated[float | None, typer.Option(help="door height, mm (default: cell's door)")] = None,
-        arris: Annotated[float, typer.Option(help="arris (chamfer/rounding) size on the hinge-face and bottom edges, mm")] = 0.0,
-        effect: Annotated[list[str] | None, typer.Option(help="NAME=VALUE of doorloc.sim.effects.Effects, repeatable")] = None,
-        force: Annotated[bool, typer.Option("--force", help="write into a folder that already holds a truth.csv")] = False,
+        arris: Annotated[
+            float, typer.Option(help="arris (chamfer/rounding) size on the hinge-face and bottom edges, mm")
+        ] = 0.0,
+        effect: Annotated[
+            list[str] | None, typer.Option(help="NAME=VALUE of doorloc.sim.effects.Effects, repeatable")
+        ] = None,
+        force: Annotated[
+            bool, typer.Option("--force", help="write into a folder that already holds a truth.csv")
+        ] = False,
     ) -> None:
         """Render door images with exactly known pose and corner pixel.
 
@@ -69,7 +85,9 @@ def register(app: typer.Typer) -> None:
         except CellFileError as e:
             raise fail(str(e), EXIT_USAGE) from None
         if (out_dir / "truth.csv").exists() and not force:
-            raise fail(f"{out_dir} already holds a data set (truth.csv); choose another folder or pass --force")
+            raise fail(
+                f"{out_dir} already holds a data set (truth.csv); choose another folder or pass --force"
+            )
         if out_dir.exists() and not out_dir.is_dir():
             raise fail(f"{out_dir} exists and is not a folder")
         try:
@@ -78,7 +96,9 @@ def register(app: typer.Typer) -> None:
             thicknesses = parse_mm_list(thickness, "--thickness") if thickness else [d.thickness_mm]
             widths = parse_mm_list(width, "--width") if width else [d.width_mm]
             doors = [
-                DoorSize(w, t, height if height is not None else d.height_mm, arris) for w in widths for t in thicknesses
+                DoorSize(w, t, height if height is not None else d.height_mm, arris)
+                for w in widths
+                for t in thicknesses
             ]
             if poses == "grid":
                 pose_list = grid_poses(c.envelope, grid_steps)

@@ -16,19 +16,31 @@ def register(app: typer.Typer) -> None:
 
     @app.command("serve")
     def serve(
-        cell: Annotated[Path | None, typer.Option(help="cell file (cell.yaml); default: $DOORLOC_CELL")] = None,
-        host: Annotated[str, typer.Option(help="address to listen on (0.0.0.0 for every interface)")] = "127.0.0.1",
+        cell: Annotated[
+            Path | None, typer.Option(help="cell file (cell.yaml); default: $DOORLOC_CELL")
+        ] = None,
+        host: Annotated[
+            str, typer.Option(help="address to listen on (0.0.0.0 for every interface)")
+        ] = "127.0.0.1",
         port: Annotated[int, typer.Option(help="TCP port")] = 8000,
-        workers: Annotated[int, typer.Option(min=1, help="worker processes (each answers requests in parallel)")] = 1,
+        workers: Annotated[
+            int, typer.Option(min=1, help="worker processes (each answers requests in parallel)")
+        ] = 1,
         database_url: Annotated[
-            str | None, typer.Option(help="recipe database URL; default: $DOORLOC_DATABASE_URL or the store's default")
+            str | None,
+            typer.Option(help="recipe database URL; default: $DOORLOC_DATABASE_URL or the store's default"),
         ] = None,
         log_level: Annotated[str, typer.Option(help="debug, info, warning or error")] = "info",
         insecure: Annotated[
-            bool, typer.Option(help="listen on a non-loopback address although no API key exists (anyone may then "
-                                    "change recipes)")
+            bool,
+            typer.Option(
+                help="listen on a non-loopback address although no API key exists (anyone may then "
+                "change recipes)"
+            ),
         ] = False,
-        ssl_certfile: Annotated[Path | None, typer.Option(help="serve HTTPS with this PEM certificate (chain)")] = None,
+        ssl_certfile: Annotated[
+            Path | None, typer.Option(help="serve HTTPS with this PEM certificate (chain)")
+        ] = None,
         ssl_keyfile: Annotated[Path | None, typer.Option(help="private key of --ssl-certfile (PEM)")] = None,
     ) -> None:
         """Run the HTTP service (POST /v1/locate, operator page at /, OpenAPI at /docs).
@@ -49,21 +61,37 @@ def register(app: typer.Typer) -> None:
 
     @app.command("batch")
     def batch(
-        folder: Annotated[Path, typer.Argument(help="folder of images (searched recursively, images recognised by content)")],
+        folder: Annotated[
+            Path, typer.Argument(help="folder of images (searched recursively, images recognised by content)")
+        ],
         cell: Annotated[Path, typer.Option(help="cell file (cell.yaml)")],
         out: Annotated[Path, typer.Option(help="results file, one JSON line per image")],
         manifest: Annotated[
             Path | None,
-            typer.Option(help="CSV: image and door_id, or width_mm,thickness_mm[,height_mm]; default: every image, the cell's door"),
+            typer.Option(
+                help="CSV: image and door_id, or width_mm,thickness_mm[,height_mm]; default: every image, the cell's door"
+            ),
         ] = None,
-        resume: Annotated[bool, typer.Option(help="continue an interrupted job: skip images already in --out")] = False,
-        workers: Annotated[int, typer.Option(min=1, help="parallel worker processes")] = max(1, (os.cpu_count() or 2) - 1),
-        backend: Annotated[str, typer.Option(help="local (worker processes) or ray (Ray Data: the doorloc ray extra)")] = "local",
-        ray_address: Annotated[str | None, typer.Option(help="Ray cluster address (ray backend); default: a local instance")] = None,
-        database_url: Annotated[str | None, typer.Option(help="recipe database URL (for door_id in the manifest)")] = None,
+        resume: Annotated[
+            bool, typer.Option(help="continue an interrupted job: skip images already in --out")
+        ] = False,
+        workers: Annotated[int, typer.Option(min=1, help="parallel worker processes")] = max(
+            1, (os.cpu_count() or 2) - 1
+        ),
+        backend: Annotated[
+            str, typer.Option(help="local (worker processes) or ray (Ray Data: the doorloc ray extra)")
+        ] = "local",
+        ray_address: Annotated[
+            str | None, typer.Option(help="Ray cluster address (ray backend); default: a local instance")
+        ] = None,
+        database_url: Annotated[
+            str | None, typer.Option(help="recipe database URL (for door_id in the manifest)")
+        ] = None,
         device: Annotated[
             str | None,
-            typer.Option(help="cpu, cuda or auto: locate batches of frames on torch (the doorloc torch extra); default: one frame at a time"),
+            typer.Option(
+                help="cpu, cuda or auto: locate batches of frames on torch (the doorloc torch extra); default: one frame at a time"
+            ),
         ] = None,
         batch_size: Annotated[int, typer.Option(min=1, help="frames per batch with --device")] = 32,
     ) -> None:
@@ -90,8 +118,13 @@ def register(app: typer.Typer) -> None:
         except CellFileError as e:
             raise fail(str(e)) from None
         try:
-            items = batch_mod.plan_batch(folder, the_cell, manifest, _recipe_lookup(database_url) if manifest else None,
-                                         exclude=[out, *([manifest] if manifest else [])])
+            items = batch_mod.plan_batch(
+                folder,
+                the_cell,
+                manifest,
+                _recipe_lookup(database_url) if manifest else None,
+                exclude=[out, *([manifest] if manifest else [])],
+            )
             log = batch_mod.ResultsLog(out, resume)
         except (batch_mod.BatchSetupError, OSError) as e:
             raise fail(str(e)) from None
@@ -103,7 +136,9 @@ def register(app: typer.Typer) -> None:
 
         def run_backend(todo):
             if device is not None:
-                return batch_mod.run_batched(todo, the_cell, device=device, batch_size=batch_size, workers=workers)
+                return batch_mod.run_batched(
+                    todo, the_cell, device=device, batch_size=batch_size, workers=workers
+                )
             if backend == "ray":
                 return batch_mod.run_ray(todo, the_cell, workers=workers, ray_address=ray_address)
             return batch_mod.run_local(todo, the_cell, workers=workers)
@@ -158,12 +193,16 @@ def _check_bind(host: str, insecure: bool, has_keys: bool) -> None:
             "recipes that drive the robot. Create keys first (doorloc keys create --role engineer NAME), "
             "listen on 127.0.0.1 behind a reverse proxy, or pass --insecure to accept the risk"
         )
-    typer.echo(f"doorloc: warning: listening on {host} with no API keys (--insecure): anyone who reaches "
-               "this port can change door recipes", err=True)
+    typer.echo(
+        f"doorloc: warning: listening on {host} with no API keys (--insecure): anyone who reaches "
+        "this port can change door recipes",
+        err=True,
+    )
 
 
-def _run_uvicorn(host: str, port: int, workers: int, log_level: str, ssl_certfile: Path | None,
-                 ssl_keyfile: Path | None) -> None:
+def _run_uvicorn(
+    host: str, port: int, workers: int, log_level: str, ssl_certfile: Path | None, ssl_keyfile: Path | None
+) -> None:
     """Run uvicorn; /metrics adds up every worker through a prometheus multiprocess folder made here."""
     import shutil
     import tempfile
@@ -226,8 +265,13 @@ def _run_with_progress(items, log, run_backend):
 
     todo = sum(1 for it in items if it.image not in log.done)
     columns = (
-        TextColumn("[bold]locating"), BarColumn(), MofNCompleteColumn(),
-        TextColumn("{task.fields[rate]}"), TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
+        TextColumn("[bold]locating"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("{task.fields[rate]}"),
+        TimeElapsedColumn(),
+        TextColumn("ETA"),
+        TimeRemainingColumn(),
     )
     with Progress(*columns, console=Console(stderr=True), transient=False) as progress:
         task = progress.add_task("locate", total=todo, rate="")

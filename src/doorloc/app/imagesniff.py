@@ -21,8 +21,15 @@ from __future__ import annotations
 import struct
 from dataclasses import dataclass, field
 
-__all__ = ["ImageHeader", "sniff_image", "sniff_kind", "decode_limit_problem", "IMAGE_KINDS", "MAGIC_BYTES_NEEDED",
-           "HEADER_BYTES_NEEDED"]
+__all__ = [
+    "ImageHeader",
+    "sniff_image",
+    "sniff_kind",
+    "decode_limit_problem",
+    "IMAGE_KINDS",
+    "MAGIC_BYTES_NEEDED",
+    "HEADER_BYTES_NEEDED",
+]
 
 IMAGE_KINDS = ("png", "jpeg", "tiff", "bmp")
 #: bytes that :func:`sniff_kind` needs to tell the kind
@@ -62,7 +69,9 @@ class ImageHeader:
         return self.pixels * (self.channels or 4) * (self.sample_bytes or 2)
 
 
-def decode_limit_problem(header: ImageHeader, name: str, max_pixels: int, max_decoded_bytes: int) -> str | None:
+def decode_limit_problem(
+    header: ImageHeader, name: str, max_pixels: int, max_decoded_bytes: int
+) -> str | None:
     """Why an image must not be decoded (a sentence), or None when its declared size is within both limits.
 
     Checked before decoding: a 381 kB PNG can declare 7000 x 7000 16-bit RGBA pixels (392 MB once decoded).
@@ -70,13 +79,17 @@ def decode_limit_problem(header: ImageHeader, name: str, max_pixels: int, max_de
     if header.pixels is None:
         return None
     if header.pixels > max_pixels:
-        return (f"the image '{name}' declares {header.width}x{header.height} pixels ({header.pixels / 1e6:.1f} MP), "
-                f"more than is decoded here ({max_pixels / 1e6:.1f} MP)")
+        return (
+            f"the image '{name}' declares {header.width}x{header.height} pixels ({header.pixels / 1e6:.1f} MP), "
+            f"more than is decoded here ({max_pixels / 1e6:.1f} MP)"
+        )
     decoded = header.decoded_bytes or 0
     if decoded > max_decoded_bytes:
-        return (f"the image '{name}' ({header.width}x{header.height}, {header.channels or '?'} channel(s) of "
-                f"{8 * (header.sample_bytes or 2)} bits) would take {decoded / 1e6:.0f} MB decoded, more than is "
-                f"decoded here ({max_decoded_bytes / 1e6:.0f} MB)")
+        return (
+            f"the image '{name}' ({header.width}x{header.height}, {header.channels or '?'} channel(s) of "
+            f"{8 * (header.sample_bytes or 2)} bits) would take {decoded / 1e6:.0f} MB decoded, more than is "
+            f"decoded here ({max_decoded_bytes / 1e6:.0f} MB)"
+        )
     return None
 
 

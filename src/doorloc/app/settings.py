@@ -33,21 +33,31 @@ class ServiceSettings(BaseSettings):
 
     model_config = SettingsConfigDict(env_prefix="DOORLOC_", extra="ignore", frozen=True)
 
-    cell: str | None = Field(None, description="path of the cell file (cell.yaml) the service locates doors in")
+    cell: str | None = Field(
+        None, description="path of the cell file (cell.yaml) the service locates doors in"
+    )
     database_url: str | None = Field(
         None, description="SQLAlchemy URL of the door-recipe database; unset: the recipe store's default"
     )
-    api_key: SecretStr | None = Field(None, description="when set, every /v1 request must send it as X-API-Key")
+    api_key: SecretStr | None = Field(
+        None, description="when set, every /v1 request must send it as X-API-Key"
+    )
     max_upload_bytes: int = Field(DEFAULT_MAX_UPLOAD_BYTES, gt=0, description="largest request body, bytes")
     max_pixels: int = Field(DEFAULT_MAX_PIXELS, gt=0, description="largest image (width*height) decoded")
     max_decoded_bytes: int = Field(
-        DEFAULT_MAX_DECODED_BYTES, gt=0, description="largest decoded image, width*height*channels*bytes per sample"
+        DEFAULT_MAX_DECODED_BYTES,
+        gt=0,
+        description="largest decoded image, width*height*channels*bytes per sample",
     )
     max_queue: int = Field(
-        8, ge=0, description="locate requests that may wait for a CPU slot in one worker; more answer 503 Retry-After"
+        8,
+        ge=0,
+        description="locate requests that may wait for a CPU slot in one worker; more answer 503 Retry-After",
     )
     request_deadline_s: float = Field(
-        30.0, gt=0, description="a locate request that has not got a CPU slot (or its whole body) by then answers 503"
+        30.0,
+        gt=0,
+        description="a locate request that has not got a CPU slot (or its whole body) by then answers 503",
     )
     locate_concurrency: int = Field(
         default_factory=lambda: max(1, os.cpu_count() or 1),

@@ -114,8 +114,13 @@ class Candidate:
         return (1 if self.fixed_aspect else 2) + 2 + len(self.free_dist)
 
     def with_fixed_aspect(self) -> Candidate:
-        return Candidate(self.name + "+fixed_aspect", self.flags | cv2.CALIB_FIX_ASPECT_RATIO, self.n_coeffs,
-                         self.free_dist, True)
+        return Candidate(
+            self.name + "+fixed_aspect",
+            self.flags | cv2.CALIB_FIX_ASPECT_RATIO,
+            self.n_coeffs,
+            self.free_dist,
+            True,
+        )
 
 
 _BASE = (
@@ -227,13 +232,21 @@ def _cv_inputs(views: list[View]) -> tuple[list[np.ndarray], list[np.ndarray]]:
 
 
 def _project(camera: CameraModel, rvec, tvec, object_points: np.ndarray) -> np.ndarray:
-    p, _ = cv2.projectPoints(np.asarray(object_points, float).reshape(-1, 1, 3), np.asarray(rvec, float),
-                             np.asarray(tvec, float), camera.camera_matrix, camera.dist_coeffs)
+    p, _ = cv2.projectPoints(
+        np.asarray(object_points, float).reshape(-1, 1, 3),
+        np.asarray(rvec, float),
+        np.asarray(tvec, float),
+        camera.camera_matrix,
+        camera.dist_coeffs,
+    )
     return p.reshape(-1, 2)
 
 
 def _residuals(camera: CameraModel, views: list[View], rvecs, tvecs) -> list[np.ndarray]:
-    return [v.image_points - _project(camera, r, t, v.object_points) for v, r, t in zip(views, rvecs, tvecs, strict=True)]
+    return [
+        v.image_points - _project(camera, r, t, v.object_points)
+        for v, r, t in zip(views, rvecs, tvecs, strict=True)
+    ]
 
 
 def _rms(res: list[np.ndarray]) -> float:
@@ -274,13 +287,20 @@ def _pose(camera: CameraModel, view: View) -> tuple[np.ndarray, np.ndarray]:
     method = cv2.SOLVEPNP_IPPE if planar else cv2.SOLVEPNP_ITERATIVE
     ok, r, t = cv2.solvePnP(obj, img, camera.camera_matrix, camera.dist_coeffs, flags=method)
     if not ok:
-        ok, r, t = cv2.solvePnP(obj, img, camera.camera_matrix, camera.dist_coeffs, flags=cv2.SOLVEPNP_ITERATIVE)
+        ok, r, t = cv2.solvePnP(
+            obj, img, camera.camera_matrix, camera.dist_coeffs, flags=cv2.SOLVEPNP_ITERATIVE
+        )
     r, t = cv2.solvePnPRefineLM(obj, img, camera.camera_matrix, camera.dist_coeffs, r, t)
     return r.ravel(), t.ravel()
 
 
-def held_out_errors(views: list[View], image_size: tuple[int, int], candidate: Candidate, n_folds: int,
-                    fold_cameras: list[CameraModel] | None = None) -> np.ndarray:
+def held_out_errors(
+    views: list[View],
+    image_size: tuple[int, int],
+    candidate: Candidate,
+    n_folds: int,
+    fold_cameras: list[CameraModel] | None = None,
+) -> np.ndarray:
     """K-fold held-out squared errors: per view, the mean squared residual (px^2) when it was held out.
 
     View ``i`` is held out in fold ``i % n_folds``; its pose is re-estimated with the intrinsics
@@ -328,7 +348,9 @@ def held_out_rms(views: list[View], image_size: tuple[int, int], candidate: Cand
     return float(np.sqrt(np.sum(mse[ok] * n[ok]) / np.sum(n[ok]))) if np.any(ok) else float("nan")
 
 
-def _reject(views: list[View], image_size, candidate: Candidate, min_views: int) -> tuple[list[View], list[Rejection], ModelFit]:
+def _reject(
+    views: list[View], image_size, candidate: Candidate, min_views: int
+) -> tuple[list[View], list[Rejection], ModelFit]:
     """Drop outlier views and corners, refitting after each decision.
 
     A grossly wrong view (a mislabelled detection) bends the whole fit, so views go one at a time,
@@ -345,17 +367,25 @@ def _reject(views: list[View], image_size, candidate: Candidate, min_views: int)
         corner_thr = max(CORNER_SIGMAS * sigma, CORNER_FLOOR_PX)
         norms = [np.linalg.norm(r, axis=1) for r in fit.residuals_px]
         bad_frac = np.array([float(np.mean(n > corner_thr)) for n in norms])
-        inlier_rms = np.array([float(np.sqrt(np.mean(n[n <= corner_thr] ** 2))) if np.any(n <= corner_thr) else np.inf
-                               for n in norms])
+        inlier_rms = np.array(
+            [
+                float(np.sqrt(np.mean(n[n <= corner_thr] ** 2))) if np.any(n <= corner_thr) else np.inf
+                for n in norms
+            ]
+        )
         view_thr = max(VIEW_FACTOR * float(np.median(inlier_rms)), VIEW_FLOOR_PX)
-        badness = np.where((bad_frac > VIEW_MAX_BAD_FRACTION) | (inlier_rms > view_thr), np.array(fit.per_view_rms_px), -1)
+        badness = np.where(
+            (bad_frac > VIEW_MAX_BAD_FRACTION) | (inlier_rms > view_thr), np.array(fit.per_view_rms_px), -1
+        )
         worst = int(np.argmax(badness))
         if badness[worst] > 0 and len(current) > min_views:
-            why = (f"{bad_frac[worst]:.0%} of its corners beyond {corner_thr:.2f} px"
-                   if bad_frac[worst] > VIEW_MAX_BAD_FRACTION
-                   else f"view RMS {inlier_rms[worst]:.2f} px > {view_thr:.2f} px")
+            why = (
+                f"{bad_frac[worst]:.0%} of its corners beyond {corner_thr:.2f} px"
+                if bad_frac[worst] > VIEW_MAX_BAD_FRACTION
+                else f"view RMS {inlier_rms[worst]:.2f} px > {view_thr:.2f} px"
+            )
             rejections.append(Rejection(current[worst].name, None, fit.per_view_rms_px[worst], why))
-            current = current[:worst] + current[worst + 1:]
+            current = current[:worst] + current[worst + 1 :]
             fit = fit_model(current, image_size, candidate)
             continue
         changed = False
@@ -364,8 +394,14 @@ def _reject(views: list[View], image_size, candidate: Candidate, min_views: int)
             bad = n > corner_thr
             if np.any(bad) and v.n - int(bad.sum()) >= 6:
                 for j in np.flatnonzero(bad):
-                    rejections.append(Rejection(v.name, int(v.ids[j]), float(n[j]),
-                                                f"corner residual {n[j]:.2f} px > {corner_thr:.2f} px"))
+                    rejections.append(
+                        Rejection(
+                            v.name,
+                            int(v.ids[j]),
+                            float(n[j]),
+                            f"corner residual {n[j]:.2f} px > {corner_thr:.2f} px",
+                        )
+                    )
                 v = v.subset(~bad)
                 changed = True
             new_views.append(v)
@@ -389,7 +425,9 @@ def _intrinsic_jacobian(camera: CameraModel, c: Candidate, jac: np.ndarray) -> n
     return np.stack(cols, axis=1)
 
 
-def view_information(camera: CameraModel, candidate: Candidate, object_points: np.ndarray, rvec, tvec_mm) -> np.ndarray:
+def view_information(
+    camera: CameraModel, candidate: Candidate, object_points: np.ndarray, rvec, tvec_mm
+) -> np.ndarray:
     """Information one board view gives about the free intrinsics of ``candidate``, its pose marginalised.
 
     With unit corner noise per coordinate: ``J_i^T J_i - J_i^T J_p (J_p^T J_p)^-1 J_p^T J_i`` (the Schur
@@ -400,8 +438,13 @@ def view_information(camera: CameraModel, candidate: Candidate, object_points: n
     (:func:`doorloc.calib.coverage.predicted_projection_sigma`). ``object_points`` (N, 3) mm, board frame;
     result shape (n_free, n_free), order :func:`free_param_names`.
     """
-    _, jac = cv2.projectPoints(np.asarray(object_points, float).reshape(-1, 1, 3), np.asarray(rvec, float),
-                               np.asarray(tvec_mm, float), camera.camera_matrix, camera.dist_coeffs)
+    _, jac = cv2.projectPoints(
+        np.asarray(object_points, float).reshape(-1, 1, 3),
+        np.asarray(rvec, float),
+        np.asarray(tvec_mm, float),
+        camera.camera_matrix,
+        camera.dist_coeffs,
+    )
     Ji = _intrinsic_jacobian(camera, candidate, jac)
     Jp = jac[:, :6]
     cross = Ji.T @ Jp
@@ -421,7 +464,9 @@ def _covariance(fit: ModelFit, views: list[View]) -> tuple[np.ndarray, list[str]
     as the inverse of the summed per-view information (:func:`view_information`).
     """
     c, cam = fit.candidate, fit.camera
-    info = sum(view_information(cam, c, v.object_points, fit.rvecs[k], fit.tvecs_mm[k]) for k, v in enumerate(views))
+    info = sum(
+        view_information(cam, c, v.object_points, fit.rvecs[k], fit.tvecs_mm[k]) for k, v in enumerate(views)
+    )
     n_obs = 2 * sum(v.n for v in views)
     sse = float(sum(np.sum(r**2) for r in fit.residuals_px))
     dof = max(n_obs - c.n_intrinsics - 6 * len(views), 1)
@@ -429,8 +474,9 @@ def _covariance(fit: ModelFit, views: list[View]) -> tuple[np.ndarray, list[str]
     return s2 * np.linalg.pinv(info), _free_param_names(c), math.sqrt(s2)
 
 
-def projection_uncertainty(camera: CameraModel, candidate: Candidate, cov: np.ndarray, pixels: np.ndarray, *,
-                           aligned: bool = False) -> np.ndarray:
+def projection_uncertainty(
+    camera: CameraModel, candidate: Candidate, cov: np.ndarray, pixels: np.ndarray, *, aligned: bool = False
+) -> np.ndarray:
     """1-sigma uncertainty (px, major axis) of where a fixed camera-frame ray lands, at each pixel.
 
     The ray seen at each pixel by ``camera`` is projected again with the intrinsics' covariance
@@ -447,8 +493,9 @@ def projection_uncertainty(camera: CameraModel, candidate: Candidate, cov: np.nd
     return sigma_from_covariance(A, cov)
 
 
-def projection_jacobian(camera: CameraModel, candidate: Candidate, pixels: np.ndarray, *,
-                        aligned: bool = False) -> np.ndarray:
+def projection_jacobian(
+    camera: CameraModel, candidate: Candidate, pixels: np.ndarray, *, aligned: bool = False
+) -> np.ndarray:
     """How the pixel where a fixed ray lands moves with the free intrinsics of ``candidate``, at each pixel.
 
     Shape ``(N, 2) -> (N, 2, n_free)`` (NaN rows where ``camera`` cannot undistort the pixel);
@@ -479,8 +526,9 @@ def sigma_from_covariance(jacobian: np.ndarray, cov: np.ndarray) -> np.ndarray:
     return np.sqrt(np.maximum(major, 0.0))
 
 
-def max_error_quantile(jacobian: np.ndarray, cov: np.ndarray, q: float = 0.95, n_samples: int = 2000,
-                       seed: int = 0) -> float | None:
+def max_error_quantile(
+    jacobian: np.ndarray, cov: np.ndarray, q: float = 0.95, n_samples: int = 2000, seed: int = 0
+) -> float | None:
     """The ``q`` quantile of the largest projection error over a region, px.
 
     Parameter errors are drawn from N(0, ``cov``) (fixed ``seed``: the figure is reproducible) and
@@ -495,8 +543,12 @@ def max_error_quantile(jacobian: np.ndarray, cov: np.ndarray, q: float = 0.95, n
         return None
     L = np.linalg.cholesky(cov + 1e-18 * np.eye(len(cov)) * max(float(np.trace(cov)), 1e-30))
     draws = np.random.default_rng(seed).standard_normal((n_samples, len(cov))) @ L.T  # (S, n)
-    worst = np.concatenate([np.sqrt(np.max(np.sum(np.einsum("mkn,sn->smk", J, d) ** 2, axis=2), axis=1))
-                            for d in np.array_split(draws, max(1, n_samples // 250))])  # chunks bound the memory
+    worst = np.concatenate(
+        [
+            np.sqrt(np.max(np.sum(np.einsum("mkn,sn->smk", J, d) ** 2, axis=2), axis=1))
+            for d in np.array_split(draws, max(1, n_samples // 250))
+        ]
+    )  # chunks bound the memory
     return float(np.quantile(worst, q))
 
 
@@ -553,7 +605,9 @@ def calibrate_views(
             reach = observed_radius(fit.camera, views)
             if fold is not None and fold < reach:
                 # A model that is not one-to-one where the data are cannot be right, however well it fits.
-                excluded[cand.name] = f"folds over at {fold:.0f} px, inside the observed radius {reach:.0f} px"
+                excluded[cand.name] = (
+                    f"folds over at {fold:.0f} px, inside the observed radius {reach:.0f} px"
+                )
                 continue
             mse = held_out_errors(views, image_size, cand, k, cams)
         except CalibrationError as e:
@@ -563,9 +617,11 @@ def calibrate_views(
             rows.append((cand, fit, mse))
             folds[cand.name] = cams
     if not rows:
-        raise CalibrationError("no distortion model could be fitted to these views ("
-                               + "; ".join(f"{k2}: {v}" for k2, v in excluded.items())
-                               + "); check the board size and the images")
+        raise CalibrationError(
+            "no distortion model could be fitted to these views ("
+            + "; ".join(f"{k2}: {v}" for k2, v in excluded.items())
+            + "); check the board size and the images"
+        )
 
     def pooled(mse: np.ndarray) -> float:
         return float(np.sqrt(np.sum(mse * n_pts) / np.sum(n_pts)))
@@ -588,7 +644,9 @@ def calibrate_views(
         std = {"fx": std["f"] * a, "fy": std["f"], **{k2: v for k2, v in std.items() if k2 != "f"}}
     radius = observed_radius(fit.camera, views)
     camera = fit.camera.with_observed_radius(radius)
-    fit = ModelFit(fit.candidate, camera, fit.rvecs, fit.tvecs_mm, fit.residuals_px, fit.rms_px, fit.per_view_rms_px)
+    fit = ModelFit(
+        fit.candidate, camera, fit.rvecs, fit.tvecs_mm, fit.residuals_px, fit.rms_px, fit.per_view_rms_px
+    )
     w, h = image_size
     corners = camera.image_corners_px() + np.array([[0.5, 0.5], [-0.5, 0.5], [-0.5, -0.5], [0.5, -0.5]])
     gu, gv = np.meshgrid(np.linspace(0, w - 1, 33), np.linspace(0, h - 1, 25))
@@ -609,8 +667,20 @@ def calibrate_views(
         "grid_shape": [25, 33],
         "grid": [None if not np.isfinite(s) else float(s) for s in sig_grid],
     }
-    return CalibrationResult(camera, fit, views, rejections, scores, std, cov, names, proj, k,
-                             std_jackknife=jackknife_std(folds[chosen.name]), excluded_models=excluded)
+    return CalibrationResult(
+        camera,
+        fit,
+        views,
+        rejections,
+        scores,
+        std,
+        cov,
+        names,
+        proj,
+        k,
+        std_jackknife=jackknife_std(folds[chosen.name]),
+        excluded_models=excluded,
+    )
 
 
 @dataclass(frozen=True)
@@ -632,7 +702,9 @@ class ProjectionDifference:
     n_pixels: int
 
 
-def projection_difference(other: CameraModel, reference: CameraModel, pixels: np.ndarray) -> ProjectionDifference:
+def projection_difference(
+    other: CameraModel, reference: CameraModel, pixels: np.ndarray
+) -> ProjectionDifference:
     """Compare ``other`` with ``reference`` at ``pixels`` (N, 2) of ``reference``'s image (px).
 
     Pixels ``reference`` cannot undistort are left out.
@@ -652,8 +724,14 @@ def projection_difference(other: CameraModel, reference: CameraModel, pixels: np
     d0 = np.linalg.norm(diff(np.zeros(3)), axis=1)
     sol = least_squares(lambda rv: diff(rv).ravel(), np.zeros(3))
     d1 = np.linalg.norm(diff(sol.x), axis=1)
-    return ProjectionDifference(float(d0.max()), float(np.sqrt(np.mean(d0**2))), float(d1.max()),
-                                float(np.sqrt(np.mean(d1**2))), sol.x, int(len(px)))
+    return ProjectionDifference(
+        float(d0.max()),
+        float(np.sqrt(np.mean(d0**2))),
+        float(d1.max()),
+        float(np.sqrt(np.mean(d1**2))),
+        sol.x,
+        int(len(px)),
+    )
 
 
 def pixels_within(camera: CameraModel, radius_px: float, step_px: float = 8.0) -> np.ndarray:

@@ -88,11 +88,15 @@ class CameraModel:
                 f"{d.size} distortion coefficients: doorloc supports 4, 5 (plumb_bob), 8 (rational) or 12 "
                 "(thin prism) in OpenCV order k1 k2 p1 p2 k3 k4 k5 k6 s1 s2 s3 s4"
             )
-        if not (K[0, 0] > 0 and K[1, 1] > 0 and K[2, 2] == 1 and K[1, 0] == 0 and K[2, 0] == 0 and K[2, 1] == 0):
+        if not (
+            K[0, 0] > 0 and K[1, 1] > 0 and K[2, 2] == 1 and K[1, 0] == 0 and K[2, 0] == 0 and K[2, 1] == 0
+        ):
             raise ValueError(f"not a camera matrix (need fx, fy > 0 and last row 0 0 1): {K.tolist()}")
         if K[0, 1] != 0:
             # OpenCV's projection ignores K[0, 1]; accepting it would make us disagree with every OpenCV call.
-            raise ValueError(f"camera matrix has skew {K[0, 1]}: OpenCV's camera model has none; set K[0][1] = 0")
+            raise ValueError(
+                f"camera matrix has skew {K[0, 1]}: OpenCV's camera model has none; set K[0][1] = 0"
+            )
         w, h = (int(v) for v in self.image_size)
         if w <= 0 or h <= 0:
             raise ValueError(f"image size must be positive, got {self.image_size}")
@@ -108,7 +112,12 @@ class CameraModel:
 
     @classmethod
     def from_values(cls, camera_matrix, dist_coeffs, image_size, observed_radius_px=None) -> CameraModel:
-        return cls(np.asarray(camera_matrix, float), np.asarray(dist_coeffs, float), tuple(image_size), observed_radius_px)
+        return cls(
+            np.asarray(camera_matrix, float),
+            np.asarray(dist_coeffs, float),
+            tuple(image_size),
+            observed_radius_px,
+        )
 
     # -- properties ---------------------------------------------------------------------------
     @property
@@ -484,7 +493,9 @@ def distortion_validity(camera: CameraModel, n_angles: int = 360, n_radii: int =
     for name, uv in zip(("top-left", "top-right", "bottom-right", "bottom-left"), corners, strict=True):
         xy_ideal = camera.undistort(uv[None])[0]
         ideal_px = camera.normalized_to_pixel(camera.pixel_to_normalized_distorted(uv[None]))[0]
-        forward = camera.normalized_to_pixel(camera.distort(camera.pixel_to_normalized_distorted(uv[None])))[0]
+        forward = camera.normalized_to_pixel(camera.distort(camera.pixel_to_normalized_distorted(uv[None])))[
+            0
+        ]
         entry = {
             "corner": name,
             "pixel": [float(uv[0]), float(uv[1])],
@@ -493,7 +504,9 @@ def distortion_validity(camera: CameraModel, n_angles: int = 360, n_radii: int =
             "ideal_ray_lands_at_px": [float(forward[0]), float(forward[1])],
             "distortion_shift_px": float(np.linalg.norm(forward - ideal_px)),
             "field_angle_deg": (
-                float(np.degrees(np.arctan(np.linalg.norm(xy_ideal)))) if np.all(np.isfinite(xy_ideal)) else None
+                float(np.degrees(np.arctan(np.linalg.norm(xy_ideal))))
+                if np.all(np.isfinite(xy_ideal))
+                else None
             ),
         }
         report.append(entry)

@@ -74,8 +74,9 @@ class CellCalibration:
         }
 
 
-def board_points_in_cell(board_points_mm: np.ndarray, origin_mm, x_axis=(1.0, 0.0, 0.0),
-                         y_axis=(0.0, 0.0, -1.0)) -> np.ndarray:
+def board_points_in_cell(
+    board_points_mm: np.ndarray, origin_mm, x_axis=(1.0, 0.0, 0.0), y_axis=(0.0, 0.0, -1.0)
+) -> np.ndarray:
     """Board-frame points ``(N, 3)`` (z = 0 on the board) -> cell-frame points ``(N, 3)``, mm.
 
     ``x_axis`` and ``y_axis`` are the cell directions of the board's x and y axes; they must be
@@ -90,15 +91,18 @@ def board_points_in_cell(board_points_mm: np.ndarray, origin_mm, x_axis=(1.0, 0.
     by = np.asarray(y_axis, float).reshape(3)
     nx, ny = np.linalg.norm(bx), np.linalg.norm(by)
     if nx == 0 or ny == 0 or abs(bx @ by) > 1e-6 * nx * ny:
-        raise CellCalibrationError(f"board axes must be non-zero and perpendicular, got x {bx.tolist()} y {by.tolist()}")
+        raise CellCalibrationError(
+            f"board axes must be non-zero and perpendicular, got x {bx.tolist()} y {by.tolist()}"
+        )
     bx, by = bx / nx, by / ny
     bz = np.cross(bx, by)
     p = np.asarray(board_points_mm, float).reshape(-1, 3)
     return np.asarray(origin_mm, float).reshape(3) + p[:, :1] * bx + p[:, 1:2] * by + p[:, 2:3] * bz
 
 
-def calibrate_cell_extrinsics(camera: CameraModel, points_cell_mm: np.ndarray, corners_px: np.ndarray,
-                              reference_face_y_mm: float = 0.0) -> CellCalibration:
+def calibrate_cell_extrinsics(
+    camera: CameraModel, points_cell_mm: np.ndarray, corners_px: np.ndarray, reference_face_y_mm: float = 0.0
+) -> CellCalibration:
     """Camera pose in the cell from board corners with known cell positions.
 
     Parameters
@@ -136,7 +140,9 @@ def calibrate_cell_extrinsics(camera: CameraModel, points_cell_mm: np.ndarray, c
     ext = Extrinsics(r.ravel(), t.ravel())
     pc = PosedCamera(camera, ext)
     if np.any(ext.cell_to_camera(obj)[:, 2] <= 0):
-        raise CellCalibrationError("the solved pose puts the board behind the camera; check --board-origin and axes")
+        raise CellCalibrationError(
+            "the solved pose puts the board behind the camera; check --board-origin and axes"
+        )
     res = img - pc.project_cell(obj)
     norms = np.linalg.norm(res, axis=1)
     ref = np.array([0.0, float(reference_face_y_mm), 0.0])

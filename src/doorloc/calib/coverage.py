@@ -46,8 +46,9 @@ COVERAGE_CELLS = (8, 6)
 THIN_FRACTION = 0.25
 
 
-def corner_coverage(points_px: np.ndarray, image_size: tuple[int, int],
-                    cells: tuple[int, int] = COVERAGE_CELLS) -> np.ndarray:
+def corner_coverage(
+    points_px: np.ndarray, image_size: tuple[int, int], cells: tuple[int, int] = COVERAGE_CELLS
+) -> np.ndarray:
     """Number of corners in each of ``cells = (nx, ny)`` image cells.
 
     ``points_px`` (N, 2) pixels of all views together; returns int array of shape (ny, nx).
@@ -115,8 +116,16 @@ def board_tilts_deg(rvecs: list[np.ndarray]) -> np.ndarray:
     return np.array(out, float).reshape(-1, 2)
 
 
-def predicted_projection_sigma(camera, candidate: Candidate, poses, object_points: np.ndarray, pixels: np.ndarray,
-                               corner_sigma_px: float, *, aligned: bool = True) -> np.ndarray:
+def predicted_projection_sigma(
+    camera,
+    candidate: Candidate,
+    poses,
+    object_points: np.ndarray,
+    pixels: np.ndarray,
+    corner_sigma_px: float,
+    *,
+    aligned: bool = True,
+) -> np.ndarray:
     """1-sigma projection uncertainty (px) at ``pixels`` that calibrating from these views would give.
 
     Parameters
@@ -145,8 +154,16 @@ def predicted_projection_sigma(camera, candidate: Candidate, poses, object_point
     return projection_uncertainty(camera, candidate, cov, pixels, aligned=aligned)
 
 
-def select_views(camera, candidate: Candidate, poses, object_points: np.ndarray, n_views: int, pixels: np.ndarray,
-                 *, chosen: list[int] | None = None) -> list[int]:
+def select_views(
+    camera,
+    candidate: Candidate,
+    poses,
+    object_points: np.ndarray,
+    n_views: int,
+    pixels: np.ndarray,
+    *,
+    chosen: list[int] | None = None,
+) -> list[int]:
     """Greedily choose ``n_views`` of the candidate board ``poses`` that minimise the predicted projection sigma.
 
     Each step adds the pose whose view lowers the largest predicted rotation-aligned projection

@@ -90,9 +90,13 @@ class CharucoSpec:
 
     def __post_init__(self) -> None:
         if self.squares_x < 3 or self.squares_y < 3:
-            raise ValueError(f"a ChArUco board needs at least 3x3 squares, got {self.squares_x}x{self.squares_y}")
+            raise ValueError(
+                f"a ChArUco board needs at least 3x3 squares, got {self.squares_x}x{self.squares_y}"
+            )
         if not 0 < self.marker_mm < self.square_mm:
-            raise ValueError(f"marker size must be positive and smaller than the square ({self.marker_mm} mm)")
+            raise ValueError(
+                f"marker size must be positive and smaller than the square ({self.marker_mm} mm)"
+            )
         if not hasattr(cv2.aruco, self.dictionary):
             raise ValueError(f"unknown ArUco dictionary {self.dictionary!r} (e.g. DICT_4X4_50, DICT_5X5_100)")
 
@@ -102,7 +106,9 @@ class CharucoSpec:
 
     def cv_board(self) -> cv2.aruco.CharucoBoard:
         d = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, self.dictionary))
-        b = cv2.aruco.CharucoBoard((self.squares_x, self.squares_y), float(self.square_mm), float(self.marker_mm), d)
+        b = cv2.aruco.CharucoBoard(
+            (self.squares_x, self.squares_y), float(self.square_mm), float(self.marker_mm), d
+        )
         b.setLegacyPattern(bool(self.legacy))
         return b
 
@@ -235,7 +241,9 @@ def detect_chessboard(image: np.ndarray, board: Chessboard, *, refine: bool = Tr
     gray = to_gray(image)
     pattern = (int(board.cols), int(board.rows))
     method = "sb"
-    ok, corners = cv2.findChessboardCornersSB(gray, pattern, flags=cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY)
+    ok, corners = cv2.findChessboardCornersSB(
+        gray, pattern, flags=cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY
+    )
     if not ok or corners is None:
         method = "classic"
         ok, corners = cv2.findChessboardCorners(
@@ -254,7 +262,9 @@ def detect_chessboard(image: np.ndarray, board: Chessboard, *, refine: bool = Tr
     return BoardDetection(c, np.arange(int(board.cols) * int(board.rows)), (w, h), method, hw, sq)
 
 
-def detect_charuco(image: np.ndarray, board: CharucoSpec, *, refine: bool = True, min_corners: int = 6) -> BoardDetection | None:
+def detect_charuco(
+    image: np.ndarray, board: CharucoSpec, *, refine: bool = True, min_corners: int = 6
+) -> BoardDetection | None:
     """Find the visible ChArUco corners of ``board`` in ``image`` (partial views allowed).
 
     None when fewer than ``min_corners`` corners are found. The local square size of each
@@ -282,7 +292,9 @@ def detect_charuco(image: np.ndarray, board: CharucoSpec, *, refine: bool = True
         sq[~np.isfinite(sq)] = np.median(fin) if fin.size else 2 * (MIN_HALF_WINDOW + 1)
     # The markers sit (square - marker)/2 from the corners: the window must not reach their edges.
     gap = (board.square_mm - board.marker_mm) / (2 * board.square_mm)
-    hw = np.minimum(half_window_from_square(sq), np.maximum(np.floor(gap * sq - 1.0), MIN_HALF_WINDOW)).astype(int)
+    hw = np.minimum(
+        half_window_from_square(sq), np.maximum(np.floor(gap * sq - 1.0), MIN_HALF_WINDOW)
+    ).astype(int)
     if refine:
         c = refine_corners(gray, c, hw)
     else:
@@ -291,7 +303,9 @@ def detect_charuco(image: np.ndarray, board: CharucoSpec, *, refine: bool = True
     return BoardDetection(c, ids, (w, h), "charuco", hw, sq)
 
 
-def detect_board(image: np.ndarray, board: Chessboard | CharucoSpec, *, refine: bool = True) -> BoardDetection | None:
+def detect_board(
+    image: np.ndarray, board: Chessboard | CharucoSpec, *, refine: bool = True
+) -> BoardDetection | None:
     """Dispatch to :func:`detect_chessboard` or :func:`detect_charuco` by the board's type."""
     if isinstance(board, CharucoSpec):
         return detect_charuco(image, board, refine=refine)
@@ -356,15 +370,28 @@ def scan_images(
     for name, im in readable:
         s = (int(im.shape[1]), int(im.shape[0]))
         if s != size:
-            skipped.append(SkippedImage(name, f"image is {s[0]}x{s[1]}, the others are {size[0]}x{size[1]}; "
-                                              "one calibration needs one image size"))
+            skipped.append(
+                SkippedImage(
+                    name,
+                    f"image is {s[0]}x{s[1]}, the others are {size[0]}x{size[1]}; "
+                    "one calibration needs one image size",
+                )
+            )
             continue
         det = detect_board(im, board, refine=refine)
         if det is None:
-            what = ("ChArUco board" if isinstance(board, CharucoSpec)
-                    else f"{board.cols}x{board.rows} chessboard (inner corners)")
-            skipped.append(SkippedImage(name, f"no {what} found: check --pattern, lighting and focus, "
-                                              "and that the whole board is in view"))
+            what = (
+                "ChArUco board"
+                if isinstance(board, CharucoSpec)
+                else f"{board.cols}x{board.rows} chessboard (inner corners)"
+            )
+            skipped.append(
+                SkippedImage(
+                    name,
+                    f"no {what} found: check --pattern, lighting and focus, "
+                    "and that the whole board is in view",
+                )
+            )
             continue
         detections[name] = det
     return BoardScan(detections, skipped, size)

@@ -106,9 +106,15 @@ class CalibrationOutcome:
     def calibration_file(self, camera_name: str = "doorloc") -> CalibrationFile:
         """The calibration as written to ``camera.yaml`` (RMS and per-view RMS in px, the chosen model)."""
         fit = self.result.fit
-        return CalibrationFile(self.result.camera, fit.rms_px, fit.per_view_rms_px, camera_name,
-                               {"model": fit.candidate.name}, self.result.covariance,
-                               tuple(self.result.covariance_names))
+        return CalibrationFile(
+            self.result.camera,
+            fit.rms_px,
+            fit.per_view_rms_px,
+            camera_name,
+            {"model": fit.candidate.name},
+            self.result.covariance,
+            tuple(self.result.covariance_names),
+        )
 
 
 def read_image_file(path: str | os.PathLike) -> tuple[np.ndarray | None, str | None]:
@@ -173,10 +179,19 @@ def calibrate_detected(
     """
     n_views, size = len(detected.views), detected.scan.image_size
     if size is None or n_views < min_views:
-        raise TooFewViewsError(f"only {n_views} of {detected.n_images} images show the board; calibration needs "
-                               f"at least {min_views}", detected)
-    result = calibrate_views(detected.views, size, candidates=tuple(candidates), n_folds=n_folds,
-                             min_views=min_views, reject=reject)
+        raise TooFewViewsError(
+            f"only {n_views} of {detected.n_images} images show the board; calibration needs "
+            f"at least {min_views}",
+            detected,
+        )
+    result = calibrate_views(
+        detected.views,
+        size,
+        candidates=tuple(candidates),
+        n_folds=n_folds,
+        min_views=min_views,
+        reject=reject,
+    )
     return CalibrationOutcome(detected, result)
 
 

@@ -68,8 +68,10 @@ def _covariance_from(doc: dict, source: str) -> tuple[np.ndarray | None, tuple[s
         cov = np.asarray(_ros_matrix(doc["intrinsics_covariance"], "intrinsics_covariance", source), float)
         cov = cov.reshape(len(names), len(names))
     except (ValueError, TypeError):
-        raise CalibrationFileError(f"{source}: 'intrinsics_covariance' must be a square matrix with one row per name "
-                                   "in 'intrinsics_covariance_names'") from None
+        raise CalibrationFileError(
+            f"{source}: 'intrinsics_covariance' must be a square matrix with one row per name "
+            "in 'intrinsics_covariance_names'"
+        ) from None
     if not np.all(np.isfinite(cov)) or np.any(np.diag(cov) < 0):
         raise CalibrationFileError(f"{source}: 'intrinsics_covariance' has a negative or non-finite variance")
     return cov, names
@@ -84,15 +86,20 @@ class _OpenCVLoader(_CalibrationLoader):
     ``yes``, ``Null``, ``~`` or a date are strings here too, not YAML 1.1 booleans, nulls or dates."""
 
     yaml_implicit_resolvers = {
-        first: [(tag, rx) for tag, rx in resolvers
-                if tag not in ("tag:yaml.org,2002:bool", "tag:yaml.org,2002:null", "tag:yaml.org,2002:timestamp")]
+        first: [
+            (tag, rx)
+            for tag, rx in resolvers
+            if tag not in ("tag:yaml.org,2002:bool", "tag:yaml.org,2002:null", "tag:yaml.org,2002:timestamp")
+        ]
         for first, resolvers in yaml.SafeLoader.yaml_implicit_resolvers.items()
     }
 
 
 def _opencv_matrix(loader: yaml.SafeLoader, node: yaml.Node) -> np.ndarray:
     if not isinstance(node, yaml.MappingNode):
-        raise yaml.constructor.ConstructorError(None, None, "an opencv-matrix must be a mapping", node.start_mark)
+        raise yaml.constructor.ConstructorError(
+            None, None, "an opencv-matrix must be a mapping", node.start_mark
+        )
     m = loader.construct_mapping(node, deep=True)
     data = np.asarray(m["data"], dtype=float)
     return data.reshape(int(m["rows"]), int(m["cols"]))
@@ -130,7 +137,9 @@ def parse_calibration(text: str, source: str = "<calibration>") -> CalibrationFi
     try:
         doc = yaml.load("\n".join(lines), Loader=loader)  # both loaders are SafeLoaders
     except yaml.YAMLError as e:
-        raise CalibrationFileError(f"{source}: not a YAML calibration file ({e.__class__.__name__}: {e})") from None
+        raise CalibrationFileError(
+            f"{source}: not a YAML calibration file ({e.__class__.__name__}: {e})"
+        ) from None
     if not isinstance(doc, dict):
         raise CalibrationFileError(f"{source}: expected a mapping of calibration keys")
     try:
@@ -154,9 +163,17 @@ def parse_calibration(text: str, source: str = "<calibration>") -> CalibrationFi
     if per_view is not None:
         per_view = np.asarray(per_view, float).ravel().tolist()
     known = {
-        "camera_matrix", "distortion_coefficients", "dist_coeffs", "image_width", "image_height",
-        "avg_reprojection_error", "per_view_reprojection_errors", "camera_name", "observed_radius_px",
-        "intrinsics_covariance", "intrinsics_covariance_names",
+        "camera_matrix",
+        "distortion_coefficients",
+        "dist_coeffs",
+        "image_width",
+        "image_height",
+        "avg_reprojection_error",
+        "per_view_reprojection_errors",
+        "camera_name",
+        "observed_radius_px",
+        "intrinsics_covariance",
+        "intrinsics_covariance_names",
     }
     cov, cov_names = _covariance_from(doc, source)
     extra = {k: v for k, v in doc.items() if k not in known}
@@ -199,11 +216,16 @@ def _cv_string(name: str, value: str) -> str:
     OpenCV does not understand ``\\uXXXX``, so other control characters cannot be written at all.
     """
     # Zl/Zp: PyYAML folds a raw U+2028/U+2029 inside quotes into a space, and OpenCV cannot escape it
-    bad = [c for c in value if (unicodedata.category(c) in ("Cc", "Cs", "Zl", "Zp") and c not in "\t\n\r")
-           or c in "\ufffe\uffff"]
+    bad = [
+        c
+        for c in value
+        if (unicodedata.category(c) in ("Cc", "Cs", "Zl", "Zp") and c not in "\t\n\r") or c in "\ufffe\uffff"
+    ]
     if bad:
-        raise ValueError(f"{name} {value!r} holds characters ({', '.join(map(repr, bad))}) "
-                         "that a calibration file cannot carry")
+        raise ValueError(
+            f"{name} {value!r} holds characters ({', '.join(map(repr, bad))}) "
+            "that a calibration file cannot carry"
+        )
     return f"{name}: {json.dumps(value, ensure_ascii=False)}"
 
 
@@ -226,13 +248,17 @@ def dump_opencv_yaml(cal: CalibrationFile) -> str:
         out.append(f"avg_reprojection_error: {_fmt(cal.avg_reprojection_error)}")
     if cal.per_view_reprojection_errors:
         out.append(
-            _cv_matrix("per_view_reprojection_errors", np.asarray(cal.per_view_reprojection_errors).reshape(-1, 1)).rstrip()
+            _cv_matrix(
+                "per_view_reprojection_errors", np.asarray(cal.per_view_reprojection_errors).reshape(-1, 1)
+            ).rstrip()
         )
     if cam.observed_radius_px is not None:
         out.append(f"observed_radius_px: {_fmt(cam.observed_radius_px)}")
     if cal.covariance is not None:
         out.append(_cv_matrix("intrinsics_covariance", cal.covariance).rstrip())
-        out.append("intrinsics_covariance_names: [ " + ", ".join(f'"{n}"' for n in cal.covariance_names) + " ]")
+        out.append(
+            "intrinsics_covariance_names: [ " + ", ".join(f'"{n}"' for n in cal.covariance_names) + " ]"
+        )
     return "\n".join(out) + "\n"
 
 

@@ -29,17 +29,35 @@ from doorloc.calib.coverage import (
 from doorloc.calib.detect import BoardScan
 from doorloc.fileio import atomic_write_image, atomic_write_text
 
-__all__ = ["COVERAGE_CELLS", "coverage_grid", "calibration_warnings", "report_dict", "render_report_png", "write_report"]
+__all__ = [
+    "COVERAGE_CELLS",
+    "coverage_grid",
+    "calibration_warnings",
+    "report_dict",
+    "render_report_png",
+    "write_report",
+]
 
 #: a board tilted less than this (deg) both ways about an axis leaves focal length and distance entangled
 MIN_TILT_RANGE_DEG = 30.0
-_REGION_NAMES = {(0, 0): "top-left", (1, 0): "top", (2, 0): "top-right", (0, 1): "left", (1, 1): "centre",
-                 (2, 1): "right", (0, 2): "bottom-left", (1, 2): "bottom", (2, 2): "bottom-right"}
+_REGION_NAMES = {
+    (0, 0): "top-left",
+    (1, 0): "top",
+    (2, 0): "top-right",
+    (0, 1): "left",
+    (1, 1): "centre",
+    (2, 1): "right",
+    (0, 2): "bottom-left",
+    (1, 2): "bottom",
+    (2, 2): "bottom-right",
+}
 
 
 def coverage_grid(result: CalibrationResult, cells: tuple[int, int] = COVERAGE_CELLS) -> np.ndarray:
     """Number of kept corners in each of ``cells = (nx, ny)`` image cells; shape (ny, nx)."""
-    return corner_coverage(np.concatenate([v.image_points for v in result.views]), result.camera.image_size, cells)
+    return corner_coverage(
+        np.concatenate([v.image_points for v in result.views]), result.camera.image_size, cells
+    )
 
 
 def _empty_regions(grid: np.ndarray) -> list[str]:
@@ -62,49 +80,67 @@ def calibration_warnings(result: CalibrationResult, scan: BoardScan | None = Non
     grid = coverage_grid(result)
     empty = _empty_regions(grid)
     if empty:
-        warn.append(f"no board corner was observed in the {', '.join(empty)} part(s) of the image: the model "
-                    "is extrapolated there; add views with the board in those regions")
+        warn.append(
+            f"no board corner was observed in the {', '.join(empty)} part(s) of the image: the model "
+            "is extrapolated there; add views with the board in those regions"
+        )
     thin = [name for name in cell_names(thin_cells(grid), grid.shape) if name not in empty]
     if thin:
-        warn.append(f"few board corners were observed in the {', '.join(thin)} part(s) of the image (fewer than "
-                    f"{THIN_FRACTION:.0%} of a typical cell, see coverage.corners_per_cell): add views with the "
-                    "board there, tilted")
+        warn.append(
+            f"few board corners were observed in the {', '.join(thin)} part(s) of the image (fewer than "
+            f"{THIN_FRACTION:.0%} of a typical cell, see coverage.corners_per_cell): add views with the "
+            "board there, tilted"
+        )
     tilt = board_tilts_deg(result.fit.rvecs)
     for k, axis, how in ((0, "horizontal", "top or bottom edge"), (1, "vertical", "left or right edge")):
         if np.ptp(tilt[:, k]) < MIN_TILT_RANGE_DEG:
-            warn.append(f"the boards were tilted about the camera's {axis} axis only over {np.ptp(tilt[:, k]):.0f} deg "
-                        f"({tilt[:, k].min():+.0f}..{tilt[:, k].max():+.0f}): add views with the {how} of the board "
-                        "turned 30-45 deg towards and away from the camera")
+            warn.append(
+                f"the boards were tilted about the camera's {axis} axis only over {np.ptp(tilt[:, k]):.0f} deg "
+                f"({tilt[:, k].min():+.0f}..{tilt[:, k].max():+.0f}): add views with the {how} of the board "
+                "turned 30-45 deg towards and away from the camera"
+            )
     n = len(result.views)
     if n < 10:
-        warn.append(f"only {n} views were used; 10-20 views with the board tilted and near the image edges "
-                    "give a better-conditioned calibration")
+        warn.append(
+            f"only {n} views were used; 10-20 views with the board tilted and near the image edges "
+            "give a better-conditioned calibration"
+        )
     if result.fit.rms_px > 1.0:
-        warn.append(f"the RMS reprojection error is {result.fit.rms_px:.2f} px (expect < 0.5 px): check focus, "
-                    "motion blur, board flatness and the --square size")
+        warn.append(
+            f"the RMS reprojection error is {result.fit.rms_px:.2f} px (expect < 0.5 px): check focus, "
+            "motion blur, board flatness and the --square size"
+        )
     bad_views = [r for r in result.rejections if r.corner_id is None]
     if bad_views:
-        warn.append(f"{len(bad_views)} view(s) were rejected as outliers ({', '.join(r.view for r in bad_views)}): "
-                    "look at them for blur, a wrong detection or a bent board")
+        warn.append(
+            f"{len(bad_views)} view(s) were rejected as outliers ({', '.join(r.view for r in bad_views)}): "
+            "look at them for blur, a wrong detection or a bent board"
+        )
     n_corners = sum(1 for r in result.rejections if r.corner_id is not None)
     if n_corners:
         warn.append(f"{n_corners} corner(s) were rejected as outliers (listed in the report)")
     jk, formal = result.std_jackknife, result.std_intrinsics
     spread = [k for k in ("fx", "fy", "cx", "cy") if k in jk and k in formal and jk[k] > 3 * formal[k]]
     if spread:
-        warn.append("the views disagree more than the corner noise explains ("
-                    + ", ".join(f"{k}: jackknife {jk[k]:.2f} px vs formal {formal[k]:.2f} px" for k in spread)
-                    + "): trust the jackknife figures; check that the board is flat and add views")
+        warn.append(
+            "the views disagree more than the corner noise explains ("
+            + ", ".join(f"{k}: jackknife {jk[k]:.2f} px vs formal {formal[k]:.2f} px" for k in spread)
+            + "): trust the jackknife figures; check that the board is flat and add views"
+        )
     corners = [s for s in result.projection_sigma_px["corners"] if s is not None]
     if corners and max(corners) > 1.0:
-        warn.append(f"the projection uncertainty reaches {max(corners):.1f} px (1 sigma) at the image corners: "
-                    "do not trust the model there, or add views covering them")
+        warn.append(
+            f"the projection uncertainty reaches {max(corners):.1f} px (1 sigma) at the image corners: "
+            "do not trust the model there, or add views covering them"
+        )
     if scan is not None and scan.skipped:
         warn.append(f"{len(scan.skipped)} image(s) were not used (reasons in the report)")
     return warn
 
 
-def report_dict(result: CalibrationResult, scan: BoardScan | None = None, board: object | None = None) -> dict:
+def report_dict(
+    result: CalibrationResult, scan: BoardScan | None = None, board: object | None = None
+) -> dict:
     """The calibration report as a JSON-ready mapping (pixels, mm; 1-sigma uncertainties)."""
     cam = result.camera
     val = distortion_validity(cam)
@@ -125,26 +161,42 @@ def report_dict(result: CalibrationResult, scan: BoardScan | None = None, board:
             "folds": result.n_folds,
             "excluded": result.excluded_models,
             "candidates": [
-                {"name": s.name, "n_params": s.n_params, "train_rms_px": s.train_rms_px,
-                 "held_out_rms_px": s.held_out_rms_px, "chosen": s.chosen}
+                {
+                    "name": s.name,
+                    "n_params": s.n_params,
+                    "train_rms_px": s.train_rms_px,
+                    "held_out_rms_px": s.held_out_rms_px,
+                    "chosen": s.chosen,
+                }
                 for s in result.scores
             ],
         },
         "views": [
-            {"name": v.name, "n_corners": v.n, "rms_px": e,
-             "max_residual_px": float(np.max(np.linalg.norm(r, axis=1)))}
+            {
+                "name": v.name,
+                "n_corners": v.n,
+                "rms_px": e,
+                "max_residual_px": float(np.max(np.linalg.norm(r, axis=1))),
+            }
             for v, e, r in zip(result.views, fit.per_view_rms_px, fit.residuals_px, strict=True)
         ],
         "rejected": [
             {"view": r.view, "corner_id": r.corner_id, "residual_px": r.residual_px, "reason": r.reason}
             for r in result.rejections
         ],
-        "skipped_images": [] if scan is None else [{"image": s.name, "reason": s.reason} for s in scan.skipped],
-        "coverage": {"cells": list(COVERAGE_CELLS), "corners_per_cell": grid.tolist(),
-                     "fraction_of_cells_observed": float(np.mean(grid > 0)),
-                     "thin_cells": [list(c) for c in thin_cells(grid)],
-                     "board_tilt_deg": {"about_x": [float(tilt[:, 0].min()), float(tilt[:, 0].max())],
-                                        "about_y": [float(tilt[:, 1].min()), float(tilt[:, 1].max())]}},
+        "skipped_images": []
+        if scan is None
+        else [{"image": s.name, "reason": s.reason} for s in scan.skipped],
+        "coverage": {
+            "cells": list(COVERAGE_CELLS),
+            "corners_per_cell": grid.tolist(),
+            "fraction_of_cells_observed": float(np.mean(grid > 0)),
+            "thin_cells": [list(c) for c in thin_cells(grid)],
+            "board_tilt_deg": {
+                "about_x": [float(tilt[:, 0].min()), float(tilt[:, 0].max())],
+                "about_y": [float(tilt[:, 1].min()), float(tilt[:, 1].max())],
+            },
+        },
         "observed_radius_px": cam.observed_radius_px,
         "projection_uncertainty_px": result.projection_sigma_px,
         "validity": val.to_dict(),
@@ -170,7 +222,9 @@ def render_report_png(result: CalibrationResult, background: np.ndarray | None =
     sig = np.array([np.nan if s is None else s for s in result.projection_sigma_px["grid"]], float)
     gy, gx = result.projection_sigma_px["grid_shape"]
     vmax = float(np.nanmax(sig)) if np.any(np.isfinite(sig)) else 1.0
-    heat = cv2.resize(_colour_map(sig.reshape(gy, gx).astype(np.float32), vmax), (w, h), interpolation=cv2.INTER_LINEAR)
+    heat = cv2.resize(
+        _colour_map(sig.reshape(gy, gx).astype(np.float32), vmax), (w, h), interpolation=cv2.INTER_LINEAR
+    )
     if background is not None:
         bg = background if background.ndim == 3 else cv2.cvtColor(background, cv2.COLOR_GRAY2BGR)
         canvas = cv2.addWeighted(bg.astype(np.uint8), 0.5, heat, 0.5, 0)
@@ -207,13 +261,20 @@ def render_report_png(result: CalibrationResult, background: np.ndarray | None =
     for i, (v, e) in enumerate(zip(result.views, errs, strict=True)):
         y = 20 + i * bh
         cv2.rectangle(panel, (4, y), (4 + int((pw - 110) * e / emax), y + bh - 2), (0, 200, 255), -1)
-        cv2.putText(panel, f"{e:.2f} {v.name[:12]}", (pw - 104, y + bh - 3), font, min(fs, 0.35), (255, 255, 255), 1)
+        cv2.putText(
+            panel, f"{e:.2f} {v.name[:12]}", (pw - 104, y + bh - 3), font, min(fs, 0.35), (255, 255, 255), 1
+        )
     cv2.putText(panel, "per-view RMS (px)", (4, 14), font, min(fs, 0.4), (255, 255, 255), 1)
     return np.hstack([canvas, panel])
 
 
-def write_report(directory: str | os.PathLike, result: CalibrationResult, scan: BoardScan | None = None,
-                 board: object | None = None, background: np.ndarray | None = None) -> tuple[Path, Path]:
+def write_report(
+    directory: str | os.PathLike,
+    result: CalibrationResult,
+    scan: BoardScan | None = None,
+    board: object | None = None,
+    background: np.ndarray | None = None,
+) -> tuple[Path, Path]:
     """Write ``calibration_report.json`` and ``calibration_report.png`` into ``directory`` (atomically)."""
     d = Path(directory)
     d.mkdir(parents=True, exist_ok=True)

@@ -101,8 +101,12 @@ def _lateral(cell: Cell, v: Sequence[float]) -> Cell:
 
 def _camera(cell: Cell, K: np.ndarray | None = None, dist: np.ndarray | None = None) -> Cell:
     c = cell.camera
-    cam = CameraModel(c.camera_matrix.copy() if K is None else K, c.dist_coeffs.copy() if dist is None else dist,
-                      c.image_size, c.observed_radius_px)
+    cam = CameraModel(
+        c.camera_matrix.copy() if K is None else K,
+        c.dist_coeffs.copy() if dist is None else dist,
+        c.image_size,
+        c.observed_radius_px,
+    )
     return replace(cell, camera=cam)
 
 
@@ -145,25 +149,98 @@ def _gamma(cell: Cell, v: Sequence[float]) -> Cell:
 
 
 CATALOGUE: tuple[Effect, ...] = (
-    Effect("camera_roll", ("roll_deg",), "camera.extrinsics (rotation about the optical axis)", (-3.0,), (3.0,),
-           (0.05,), "analytic", _roll),
-    Effect("camera_tilt", ("tilt_deg", "pan_deg"), "camera.extrinsics (rotation about the camera's x and y axes)",
-           (-3.0, -3.0), (3.0, 3.0), (0.05, 0.05), "analytic", _tilt,
-           looks_like="a principal-point error (cx, cy) moves the image the same way"),
-    Effect("camera_distance", ("distance_mm",), "camera.extrinsics (tvec along the optical axis)", (-50.0,), (50.0,),
-           (0.5,), "analytic", _distance),
-    Effect("lateral_offset", ("dx_mm", "dz_mm"), "camera.extrinsics (camera centre moved along cell X and Z)",
-           (-20.0, -20.0), (20.0, 20.0), (0.1, 0.1), "analytic", _lateral),
-    Effect("focal_length", ("focal_pct",), "camera.camera_matrix (fx and fy scaled together)", (-10.0,), (10.0,),
-           (0.1,), "analytic", _focal),
-    Effect("pixel_aspect", ("aspect_pct",), "camera.camera_matrix (fy/fx, mean focal length kept)", (-10.0,), (10.0,),
-           (0.1,), "analytic", _aspect),
+    Effect(
+        "camera_roll",
+        ("roll_deg",),
+        "camera.extrinsics (rotation about the optical axis)",
+        (-3.0,),
+        (3.0,),
+        (0.05,),
+        "analytic",
+        _roll,
+    ),
+    Effect(
+        "camera_tilt",
+        ("tilt_deg", "pan_deg"),
+        "camera.extrinsics (rotation about the camera's x and y axes)",
+        (-3.0, -3.0),
+        (3.0, 3.0),
+        (0.05, 0.05),
+        "analytic",
+        _tilt,
+        looks_like="a principal-point error (cx, cy) moves the image the same way",
+    ),
+    Effect(
+        "camera_distance",
+        ("distance_mm",),
+        "camera.extrinsics (tvec along the optical axis)",
+        (-50.0,),
+        (50.0,),
+        (0.5,),
+        "analytic",
+        _distance,
+    ),
+    Effect(
+        "lateral_offset",
+        ("dx_mm", "dz_mm"),
+        "camera.extrinsics (camera centre moved along cell X and Z)",
+        (-20.0, -20.0),
+        (20.0, 20.0),
+        (0.1, 0.1),
+        "analytic",
+        _lateral,
+    ),
+    Effect(
+        "focal_length",
+        ("focal_pct",),
+        "camera.camera_matrix (fx and fy scaled together)",
+        (-10.0,),
+        (10.0,),
+        (0.1,),
+        "analytic",
+        _focal,
+    ),
+    Effect(
+        "pixel_aspect",
+        ("aspect_pct",),
+        "camera.camera_matrix (fy/fx, mean focal length kept)",
+        (-10.0,),
+        (10.0,),
+        (0.1,),
+        "analytic",
+        _aspect,
+    ),
     Effect("radial_distortion", ("k1",), "camera.dist_coeffs[0]", (-0.5,), (0.5,), (0.01,), "analytic", _k1),
-    Effect("arris", ("arris_mm",), "door.arris_mm (the default door's arris; a request naming its own arris overrides)",
-           (0.0,), (4.0,), (0.2,), "relocate", _arris),
-    Effect("fixture_depth", ("face_shift_per_width",), "fixture.face_shift_per_width (dY/dW)", (-0.5,), (0.5,),
-           (0.005,), "analytic", _fixture_depth),
-    Effect("response_gamma", ("response_gamma",), "camera.response_gamma", (0.5,), (3.2,), (0.1,), "relocate", _gamma),
+    Effect(
+        "arris",
+        ("arris_mm",),
+        "door.arris_mm (the default door's arris; a request naming its own arris overrides)",
+        (0.0,),
+        (4.0,),
+        (0.2,),
+        "relocate",
+        _arris,
+    ),
+    Effect(
+        "fixture_depth",
+        ("face_shift_per_width",),
+        "fixture.face_shift_per_width (dY/dW)",
+        (-0.5,),
+        (0.5,),
+        (0.005,),
+        "analytic",
+        _fixture_depth,
+    ),
+    Effect(
+        "response_gamma",
+        ("response_gamma",),
+        "camera.response_gamma",
+        (0.5,),
+        (3.2,),
+        (0.1,),
+        "relocate",
+        _gamma,
+    ),
 )
 
 EFFECT_NAMES: tuple[str, ...] = tuple(e.name for e in CATALOGUE)

@@ -109,13 +109,33 @@ class ModelCheckReport:
     heldout_after: np.ndarray | None = field(default=None, repr=False)
 
     def to_dict(self) -> dict[str, Any]:
-        keys = ["dataset", "cell", "causes", "parameters", "heldout_rms_before", "heldout_rms_after", "heldout_gain",
-                "heldout_images", "train_images", "extended_cell", "alternatives", "indistinguishable", "noise",
-                "selection_steps", "unexplained_test", "refused", "heldout_refused_after", "elapsed_s", "plots"]
+        keys = [
+            "dataset",
+            "cell",
+            "causes",
+            "parameters",
+            "heldout_rms_before",
+            "heldout_rms_after",
+            "heldout_gain",
+            "heldout_images",
+            "train_images",
+            "extended_cell",
+            "alternatives",
+            "indistinguishable",
+            "noise",
+            "selection_steps",
+            "unexplained_test",
+            "refused",
+            "heldout_refused_after",
+            "elapsed_s",
+            "plots",
+        ]
         doc = {k: getattr(self, k) for k in keys}
         doc["version"] = __version__
-        doc["gain_definition"] = (f"RMS over held-out images of the error of a point {LEVER_MM:g} mm up the door "
-                                  "(corner x, z and yaw), before / after")
+        doc["gain_definition"] = (
+            f"RMS over held-out images of the error of a point {LEVER_MM:g} mm up the door "
+            "(corner x, z and yaw), before / after"
+        )
         return _jsonable(doc)
 
 
@@ -150,24 +170,34 @@ def _rms(errors: np.ndarray) -> dict[str, float]:
     for k, c in enumerate(COMPONENTS):
         col = errors[:, k]
         col = col[np.isfinite(col)]
-        out[c] = float(np.sqrt(np.mean(col ** 2))) if col.size else float("nan")
+        out[c] = float(np.sqrt(np.mean(col**2))) if col.size else float("nan")
     return out
 
 
 def _lever_rms(errors: np.ndarray) -> float:
     e = np.sqrt(errors[:, 0] ** 2 + errors[:, 1] ** 2 + (LEVER_MM * np.radians(errors[:, 2])) ** 2)
     e = e[np.isfinite(e)]
-    return float(np.sqrt(np.mean(e ** 2))) if e.size else float("nan")
+    return float(np.sqrt(np.mean(e**2))) if e.size else float("nan")
 
 
 def _features(obs: Sequence[Observation], cell: Cell) -> np.ndarray:
     """Per image: reference pose, door size and corner pixel, scaled to about unit range."""
     env = cell.envelope
     cx, cy = cell.camera.cx, cell.camera.cy
-    return np.array([[o.item.reference.x_mm / env.x_mm, o.item.reference.z_mm / env.z_mm,
-                      o.item.reference.yaw_deg / env.yaw_deg, (o.item.door.width_mm - 900.0) / 200.0,
-                      (o.item.door.thickness_mm - 50.0) / 20.0, (o.corner_px[0] - cx) / 500.0,
-                      (o.corner_px[1] - cy) / 500.0] for o in obs])
+    return np.array(
+        [
+            [
+                o.item.reference.x_mm / env.x_mm,
+                o.item.reference.z_mm / env.z_mm,
+                o.item.reference.yaw_deg / env.yaw_deg,
+                (o.item.door.width_mm - 900.0) / 200.0,
+                (o.item.door.thickness_mm - 50.0) / 20.0,
+                (o.corner_px[0] - cx) / 500.0,
+                (o.corner_px[1] - cy) / 500.0,
+            ]
+            for o in obs
+        ]
+    )
 
 
 def _split(n: int, fraction: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -202,9 +232,16 @@ def _extended_cell(cell: Cell, model: FittedModel, dataset: Dataset, causes: lis
     return replace(ext, provenance=prov)
 
 
-def check_model(dataset_dir: str | os.PathLike, cell: Cell, out_dir: str | os.PathLike, *,
-                options: CheckOptions = CheckOptions(), catalogue: Sequence[Effect] = CATALOGUE,
-                progress: Callable[[str], None] | None = None, write: bool = True) -> ModelCheckReport:
+def check_model(
+    dataset_dir: str | os.PathLike,
+    cell: Cell,
+    out_dir: str | os.PathLike,
+    *,
+    options: CheckOptions = CheckOptions(),
+    catalogue: Sequence[Effect] = CATALOGUE,
+    progress: Callable[[str], None] | None = None,
+    write: bool = True,
+) -> ModelCheckReport:
     """Check ``cell`` against the data set in ``dataset_dir``; write the report and extended cell to ``out_dir``.
 
     Raises
@@ -221,9 +258,11 @@ def check_model(dataset_dir: str | os.PathLike, cell: Cell, out_dir: str | os.Pa
     refused = [{"image": o.item.image, "error": o.refusal} for o in obs_all if not o.ok]
     obs = [o for o in obs_all if o.ok]
     if len(obs) < 12:
-        raise DatasetError(f"locate answered on only {len(obs)} of {len(ds)} images with this cell "
-                           f"(first refusal: {refused[0]['error'] if refused else '-'}); the cell is too far from "
-                           "the images for a model check: check the camera and extrinsics first")
+        raise DatasetError(
+            f"locate answered on only {len(obs)} of {len(ds)} images with this cell "
+            f"(first refusal: {refused[0]['error'] if refused else '-'}); the cell is too far from "
+            "the images for a model check: check the camera and extrinsics first"
+        )
     errors = np.array([o.error for o in obs])
     sig_locate = np.nanmedian(np.array([o.sigma for o in obs]), axis=0)
     noise = np.sqrt(np.nan_to_num(sig_locate) ** 2 + np.asarray(options.reference_noise) ** 2)
@@ -244,7 +283,9 @@ def check_model(dataset_dir: str | os.PathLike, cell: Cell, out_dir: str | os.Pa
     sel: Selection = select_effects(pred, catalogue, etr, noise, rows, options.rules, options.folds)
     model = fit_model(pred, list(sel.chosen.effects), etr, noise, rows)
     causes = list(model.names)
-    ptrain = pred.predict(list(model.effects), list(model.values), rows) if model.effects else np.zeros_like(etr)
+    ptrain = (
+        pred.predict(list(model.effects), list(model.values), rows) if model.effects else np.zeros_like(etr)
+    )
     resid = etr - ptrain
     null_sse = float(np.nansum((etr / noise) ** 2))
     un = structured_residual(resid, _features(train_obs, cell), noise, null_sse, folds=options.folds)
@@ -256,18 +297,34 @@ def check_model(dataset_dir: str | os.PathLike, cell: Cell, out_dir: str | os.Pa
     say(f"locating the {len(held)} held-out images with the extended cell")
     after = locate_errors(held_obs, ext, measured_arris) if model.effects else before.copy()
     # an image the extended cell cannot locate counts against it, not as a free pass
-    refused_after = [o.item.image for o, row in zip(held_obs, after, strict=True) if not np.isfinite(row).all()]
+    refused_after = [
+        o.item.image for o, row in zip(held_obs, after, strict=True) if not np.isfinite(row).all()
+    ]
     g_before, g_after = _lever_rms(before), _lever_rms(after)
     rep = ModelCheckReport(
-        dataset=str(ds.folder), cell=str(cell.source), causes=causes, parameters=_parameters(model),
-        heldout_rms_before=_rms(before), heldout_rms_after=_rms(after),
+        dataset=str(ds.folder),
+        cell=str(cell.source),
+        causes=causes,
+        parameters=_parameters(model),
+        heldout_rms_before=_rms(before),
+        heldout_rms_after=_rms(after),
         heldout_gain=g_before / g_after if g_after > 0 and not refused_after else float("nan"),
-        heldout_images=[o.item.image for o in held_obs], train_images=[o.item.image for o in train_obs],
-        extended_cell=EXTENDED_CELL_NAME, alternatives=sel.alternatives,
-        indistinguishable=_indistinguishable(sel, model), noise=dict(zip(COMPONENTS, noise.tolist(), strict=True)),
-        selection_steps=sel.steps, unexplained_test=un, refused=refused, elapsed_s=0.0,
+        heldout_images=[o.item.image for o in held_obs],
+        train_images=[o.item.image for o in train_obs],
+        extended_cell=EXTENDED_CELL_NAME,
+        alternatives=sel.alternatives,
+        indistinguishable=_indistinguishable(sel, model),
+        noise=dict(zip(COMPONENTS, noise.tolist(), strict=True)),
+        selection_steps=sel.steps,
+        unexplained_test=un,
+        refused=refused,
+        elapsed_s=0.0,
         heldout_refused_after=refused_after,
-        observations=obs, train_prediction=ptrain, train_rows=train, heldout_rows=held, heldout_after=after,
+        observations=obs,
+        train_prediction=ptrain,
+        train_rows=train,
+        heldout_rows=held,
+        heldout_after=after,
     )
     rep.heldout_rms_before["lever_mm"] = g_before
     rep.heldout_rms_after["lever_mm"] = g_after

@@ -56,8 +56,13 @@ def _door(row: dict[str, str], cell: Cell) -> DoorSize:
     # No measured arris: the cell's typical one applies where it fits this door (as in locate's requests).
     arris = float(arris_txt) if arris_txt else (d.arris_mm if d.arris_mm < thickness / 2 else 0.0)
     height_txt = (row.get("height_mm") or "").strip()
-    return DoorSize(float(row["width_mm"]), thickness, float(height_txt) if height_txt else d.height_mm, arris,
-                    d.arris_profile)
+    return DoorSize(
+        float(row["width_mm"]),
+        thickness,
+        float(height_txt) if height_txt else d.height_mm,
+        arris,
+        d.arris_profile,
+    )
 
 
 def read_dataset(folder: str | os.PathLike, cell: Cell, min_images: int = MIN_IMAGES) -> Dataset:
@@ -74,15 +79,19 @@ def read_dataset(folder: str | os.PathLike, cell: Cell, min_images: int = MIN_IM
         raise DatasetError(f"{root} is not a folder; give the folder that holds the images and truth.csv")
     truth = root / "truth.csv"
     if not truth.is_file():
-        raise DatasetError(f"{root} has no truth.csv; a model check needs the reference pose of every image "
-                           f"(columns {','.join(REQUIRED_COLUMNS)}, shared/SPEC.md section 3)")
+        raise DatasetError(
+            f"{root} has no truth.csv; a model check needs the reference pose of every image "
+            f"(columns {','.join(REQUIRED_COLUMNS)}, shared/SPEC.md section 3)"
+        )
     items = []
     try:
         with truth.open(newline="", encoding="utf-8") as f:
             rd = csv.DictReader(f)
             missing = [c for c in REQUIRED_COLUMNS if c not in (rd.fieldnames or [])]
             if missing:
-                raise DatasetError(f"{truth}: lacks column(s) {', '.join(missing)} (needs {','.join(REQUIRED_COLUMNS)})")
+                raise DatasetError(
+                    f"{truth}: lacks column(s) {', '.join(missing)} (needs {','.join(REQUIRED_COLUMNS)})"
+                )
             for line, row in enumerate(rd, start=2):
                 try:
                     door = _door(row, cell)
@@ -97,6 +106,8 @@ def read_dataset(folder: str | os.PathLike, cell: Cell, min_images: int = MIN_IM
         more = f" and {len(absent) - 3} more" if len(absent) > 3 else ""
         raise DatasetError(f"{truth} names images that are not in {root}: {', '.join(absent[:3])}{more}")
     if len(items) < min_images:
-        raise DatasetError(f"{truth} lists {len(items)} images; a model check needs at least {min_images} "
-                           "(30-60 recommended, several door widths and thicknesses, poses over the envelope)")
+        raise DatasetError(
+            f"{truth} lists {len(items)} images; a model check needs at least {min_images} "
+            "(30-60 recommended, several door widths and thicknesses, poses over the envelope)"
+        )
     return Dataset(root, tuple(items))

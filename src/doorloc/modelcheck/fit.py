@@ -20,8 +20,16 @@ from scipy.optimize import least_squares
 from doorloc.modelcheck.catalogue import Effect
 from doorloc.modelcheck.forward import AnalyticModel, RelocateTable
 
-__all__ = ["Predictor", "FittedModel", "fit_model", "cross_validated_sse", "select_effects", "Selection",
-           "structured_residual", "SelectionRules"]
+__all__ = [
+    "Predictor",
+    "FittedModel",
+    "fit_model",
+    "cross_validated_sse",
+    "select_effects",
+    "Selection",
+    "structured_residual",
+    "SelectionRules",
+]
 
 
 class Predictor:
@@ -34,7 +42,9 @@ class Predictor:
         self.analytic = analytic
         self.tables = dict(tables)
 
-    def predict(self, effects: Sequence[Effect], values: Sequence[np.ndarray], rows: np.ndarray) -> np.ndarray:
+    def predict(
+        self, effects: Sequence[Effect], values: Sequence[np.ndarray], rows: np.ndarray
+    ) -> np.ndarray:
         ana = [(e, v) for e, v in zip(effects, values, strict=True) if e.forward == "analytic"]
         out = np.zeros((len(rows), 4))
         if ana:
@@ -71,8 +81,9 @@ def _bounds(e: Effect, pred: Predictor) -> tuple[np.ndarray, np.ndarray]:
     return np.array(e.lower, float), np.array(e.upper, float)
 
 
-def fit_model(pred: Predictor, effects: Sequence[Effect], errors: np.ndarray, noise: np.ndarray,
-              rows: np.ndarray) -> FittedModel:
+def fit_model(
+    pred: Predictor, effects: Sequence[Effect], errors: np.ndarray, noise: np.ndarray, rows: np.ndarray
+) -> FittedModel:
     """Least-squares values of ``effects`` on the error rows ``rows`` (noise-weighted), with uncertainties."""
     r = errors[rows]
     ok = np.isfinite(r)
@@ -81,9 +92,20 @@ def fit_model(pred: Predictor, effects: Sequence[Effect], errors: np.ndarray, no
         return FittedModel((), (), (), float(np.sum((np.where(ok, r, 0.0) / noise) ** 2)), n_obs)
     sizes = [len(e.params) for e in effects]
     split = np.cumsum(sizes)[:-1]
-    x0 = np.concatenate([e.nominal(pred.analytic.nominal) if e.forward == "analytic" else
-                         np.array([pred.tables[e.name].grid[np.argmin(np.abs(pred.tables[e.name].grid - e.nominal(
-                             pred.analytic.nominal)[0]))]]) for e in effects])
+    x0 = np.concatenate(
+        [
+            e.nominal(pred.analytic.nominal)
+            if e.forward == "analytic"
+            else np.array(
+                [
+                    pred.tables[e.name].grid[
+                        np.argmin(np.abs(pred.tables[e.name].grid - e.nominal(pred.analytic.nominal)[0]))
+                    ]
+                ]
+            )
+            for e in effects
+        ]
+    )
     lo = np.concatenate([_bounds(e, pred)[0] for e in effects])
     hi = np.concatenate([_bounds(e, pred)[1] for e in effects])
     x0 = np.clip(x0, lo, hi)
@@ -122,11 +144,19 @@ def fit_model(pred: Predictor, effects: Sequence[Effect], errors: np.ndarray, no
         sig = np.sqrt(np.clip(np.diag(cov), 0, None))
     except np.linalg.LinAlgError:
         sig = np.full(len(x0), np.nan)
-    return FittedModel(tuple(effects), tuple(np.split(best.x, split)), tuple(np.split(sig, split)), sse, n_obs)
+    return FittedModel(
+        tuple(effects), tuple(np.split(best.x, split)), tuple(np.split(sig, split)), sse, n_obs
+    )
 
 
-def cross_validated_sse(pred: Predictor, effects: Sequence[Effect], errors: np.ndarray, noise: np.ndarray,
-                        rows: np.ndarray, folds: int = 5) -> float:
+def cross_validated_sse(
+    pred: Predictor,
+    effects: Sequence[Effect],
+    errors: np.ndarray,
+    noise: np.ndarray,
+    rows: np.ndarray,
+    folds: int = 5,
+) -> float:
     """Noise-weighted squared error on each fold's rows, with the model fitted on the other folds, summed."""
     total = 0.0
     for k in range(folds):
@@ -192,8 +222,15 @@ def _f_test(small: FittedModel, big: FittedModel) -> float:
     return float(stats.f.sf(max(F, 0.0), dp, dof))
 
 
-def select_effects(pred: Predictor, catalogue: Sequence[Effect], errors: np.ndarray, noise: np.ndarray,
-                   rows: np.ndarray, rules: SelectionRules = SelectionRules(), folds: int = 5) -> Selection:
+def select_effects(
+    pred: Predictor,
+    catalogue: Sequence[Effect],
+    errors: np.ndarray,
+    noise: np.ndarray,
+    rows: np.ndarray,
+    rules: SelectionRules = SelectionRules(),
+    folds: int = 5,
+) -> Selection:
     """Forward selection by cross-validated error with an F-test at every step (module docstring)."""
     chosen: list[Effect] = []
     current = fit_model(pred, [], errors, noise, rows)
@@ -219,13 +256,23 @@ def select_effects(pred: Predictor, catalogue: Sequence[Effect], errors: np.ndar
         p = _f_test(current, big)
         ratio = cv_best / cv_cur if cv_cur > 0 else 1.0
         accepted = p < rules.alpha and ratio < (rules.max_cv_ratio if step == 0 else rules.max_cv_ratio_next)
-        sel.steps.append({"step": step + 1, "candidate": e_best.name, "cv_sse": cv_best, "cv_sse_before": cv_cur,
-                          "cv_ratio": ratio, "f_test_p": p, "accepted": accepted,
-                          "trials": {e.name: cv for cv, e in trials}})
+        sel.steps.append(
+            {
+                "step": step + 1,
+                "candidate": e_best.name,
+                "cv_sse": cv_best,
+                "cv_sse_before": cv_cur,
+                "cv_ratio": ratio,
+                "f_test_p": p,
+                "accepted": accepted,
+                "trials": {e.name: cv for cv, e in trials},
+            }
+        )
         if step == 0:
             n = max(len(rows), 1)
-            sel.alternatives = [{"cause": e.name, "cv_rms_weighted": float(np.sqrt(cv / (4 * n)))}
-                                for cv, e in trials[1:4]]
+            sel.alternatives = [
+                {"cause": e.name, "cv_rms_weighted": float(np.sqrt(cv / (4 * n)))} for cv, e in trials[1:4]
+            ]
         if not accepted:
             break
         ties = [e.name for cv, e in trials[1:] if cv <= rules.tie_ratio * cv_best]
@@ -237,9 +284,16 @@ def select_effects(pred: Predictor, catalogue: Sequence[Effect], errors: np.ndar
     return sel
 
 
-def structured_residual(residual: np.ndarray, features: np.ndarray, noise: np.ndarray, null_sse: float,
-                        alpha: float = 1e-6, max_cv_ratio: float = 0.5, min_share: float = 0.02,
-                        folds: int = 5) -> dict:
+def structured_residual(
+    residual: np.ndarray,
+    features: np.ndarray,
+    noise: np.ndarray,
+    null_sse: float,
+    alpha: float = 1e-6,
+    max_cv_ratio: float = 0.5,
+    min_share: float = 0.02,
+    folds: int = 5,
+) -> dict:
     """Is there structure left? A linear model of each residual component in the image's features
     (pose, door size, corner pixel), judged like an effect: F-test and cross-validated gain; and it must
     matter: explain at least ``min_share`` of the given model's original error ``null_sse`` (what a
@@ -255,7 +309,7 @@ def structured_residual(residual: np.ndarray, features: np.ndarray, noise: np.nd
         return {"structured": False, "f_test_p": 1.0, "cv_ratio": 1.0}
     beta, *_ = np.linalg.lstsq(X, R, rcond=None)
     sse1 = float(np.sum((R - X @ beta) ** 2))
-    sse0 = float(np.sum(R ** 2))
+    sse0 = float(np.sum(R**2))
     dp, dof = 4 * k, R.size - 4 * k
     F = ((sse0 - sse1) / dp) / (sse1 / dof) if sse1 > 0 and dof > 0 else 0.0
     p = float(stats.f.sf(max(F, 0.0), dp, max(dof, 1)))
@@ -268,5 +322,9 @@ def structured_residual(residual: np.ndarray, features: np.ndarray, noise: np.nd
         cv += float(np.sum((R[te] - X[te] @ b) ** 2))
     ratio = cv / sse0 if sse0 > 0 else 1.0
     share = (sse0 - sse1) / null_sse if null_sse > 0 else 0.0
-    return {"structured": bool(p < alpha and ratio < max_cv_ratio and share >= min_share), "f_test_p": p,
-            "cv_ratio": ratio, "share_of_original": share}
+    return {
+        "structured": bool(p < alpha and ratio < max_cv_ratio and share >= min_share),
+        "f_test_p": p,
+        "cv_ratio": ratio,
+        "share_of_original": share,
+    }

@@ -34,7 +34,15 @@ from doorloc.vision.locate import LocateTrace, locate
 from doorloc.vision.metric import PlaneMap
 from doorloc.vision.region import EDGE_NAMES
 
-__all__ = ["COMPONENTS", "Observation", "observe", "locate_errors", "AnalyticModel", "RelocateTable", "door_for"]
+__all__ = [
+    "COMPONENTS",
+    "Observation",
+    "observe",
+    "locate_errors",
+    "AnalyticModel",
+    "RelocateTable",
+    "door_for",
+]
 
 #: The pose-error components, in the order of every error row.
 COMPONENTS = ("x_mm", "z_mm", "yaw_deg", "thickness_mm")
@@ -48,8 +56,13 @@ def door_for(item: MeasuredImage, cell: Cell, measured_arris: bool) -> DoorSize:
     if measured_arris:
         return d
     a = cell.default_door.arris_mm
-    return DoorSize(d.width_mm, d.thickness_mm, d.height_mm, a if a < d.thickness_mm / 2 else 0.0,
-                    cell.default_door.arris_profile)
+    return DoorSize(
+        d.width_mm,
+        d.thickness_mm,
+        d.height_mm,
+        a if a < d.thickness_mm / 2 else 0.0,
+        cell.default_door.arris_profile,
+    )
 
 
 @dataclass
@@ -86,11 +99,18 @@ class Observation:
 
 
 def _pose_row(r, ref: DoorPose, door: DoorSize) -> np.ndarray:
-    return np.array([r.x_mm - ref.x_mm, r.z_mm - ref.z_mm, r.yaw_deg - ref.yaw_deg, r.thickness_mm - door.thickness_mm])
+    return np.array(
+        [r.x_mm - ref.x_mm, r.z_mm - ref.z_mm, r.yaw_deg - ref.yaw_deg, r.thickness_mm - door.thickness_mm]
+    )
 
 
-def observe(items: Sequence[MeasuredImage], cell: Cell, measured_arris: bool,
-            read: Callable[[MeasuredImage], np.ndarray], keep_images: bool = True) -> list[Observation]:
+def observe(
+    items: Sequence[MeasuredImage],
+    cell: Cell,
+    measured_arris: bool,
+    read: Callable[[MeasuredImage], np.ndarray],
+    keep_images: bool = True,
+) -> list[Observation]:
     """Locate every image with ``cell`` and keep what the forward models need (see :class:`Observation`)."""
     out = []
     for it in items:
@@ -100,8 +120,20 @@ def observe(items: Sequence[MeasuredImage], cell: Cell, measured_arris: bool,
         r = locate(img, cell, door, image_name=it.image, trace=tr)
         nan4 = np.full(4, np.nan)
         if not r.ok or tr.region is None or tr.pose is None:
-            out.append(Observation(it, img if keep_images else None, False, r.error or "", nan4, nan4,
-                                   np.full(2, np.nan), {}, np.zeros((0, 2)), np.zeros(0)))
+            out.append(
+                Observation(
+                    it,
+                    img if keep_images else None,
+                    False,
+                    r.error or "",
+                    nan4,
+                    nan4,
+                    np.full(2, np.nan),
+                    {},
+                    np.zeros((0, 2)),
+                    np.zeros(0),
+                )
+            )
             continue
         err = _pose_row(r, it.reference, door)
         unc = r.uncertainty
@@ -117,14 +149,28 @@ def observe(items: Sequence[MeasuredImage], cell: Cell, measured_arris: bool,
             xz = tr.region.plane_points(uv)
             dX, dZ = xz[:, 0] - p.x_mm, xz[:, 1] - p.z_mm
             px, pz = c * dX + s * dZ, -s * dX + c * dZ
-            along, across = (px, pz) if name == "bottom" else (pz, px - (p.thickness_mm if name == "far" else 0.0))
+            along, across = (
+                (px, pz) if name == "bottom" else (pz, px - (p.thickness_mm if name == "far" else 0.0))
+            )
             fin = np.isfinite(along)
             if fin.sum() >= 2:
                 ranges[name] = (float(np.percentile(along[fin], 2)), float(np.percentile(along[fin], 98)))
             uvs.append(uv[fin][::4])
             res.append(across[fin][::4])
-        out.append(Observation(it, img if keep_images else None, True, "", err, sig, np.asarray(r.corner_px, float),
-                               ranges, np.concatenate(uvs), np.concatenate(res)))
+        out.append(
+            Observation(
+                it,
+                img if keep_images else None,
+                True,
+                "",
+                err,
+                sig,
+                np.asarray(r.corner_px, float),
+                ranges,
+                np.concatenate(uvs),
+                np.concatenate(res),
+            )
+        )
     return out
 
 
@@ -194,17 +240,24 @@ class AnalyticModel:
     def __init__(self, obs: Sequence[Observation], nominal: Cell, measured_arris: bool) -> None:
         self.nominal = nominal
         self.geom = [_geometry(o, door_for(o.item, nominal, measured_arris)) for o in obs]
-        self.maps = [PlaneMap(nominal.posed_camera, nominal.fixture.face_y(g.door.width_mm) + g.door.arris_mm)
-                     for g in self.geom]
-        self.base = np.array([_seen_pose(nominal, nominal, g, m) for g, m in zip(self.geom, self.maps, strict=True)])
+        self.maps = [
+            PlaneMap(nominal.posed_camera, nominal.fixture.face_y(g.door.width_mm) + g.door.arris_mm)
+            for g in self.geom
+        ]
+        self.base = np.array(
+            [_seen_pose(nominal, nominal, g, m) for g, m in zip(self.geom, self.maps, strict=True)]
+        )
 
-    def predict(self, effects: Sequence[Effect], values: Sequence[Values],
-                rows: np.ndarray | None = None) -> np.ndarray:
+    def predict(
+        self, effects: Sequence[Effect], values: Sequence[Values], rows: np.ndarray | None = None
+    ) -> np.ndarray:
         cell = self.nominal
         for e, v in zip(effects, values, strict=True):
             cell = e.apply(cell, v)
         idx = np.arange(len(self.geom)) if rows is None else rows
-        out = np.array([_seen_pose(cell, self.nominal, self.geom[k], self.maps[k]) for k in idx]).reshape(-1, 4)
+        out = np.array([_seen_pose(cell, self.nominal, self.geom[k], self.maps[k]) for k in idx]).reshape(
+            -1, 4
+        )
         return out - self.base[idx]
 
 
@@ -216,8 +269,14 @@ class RelocateTable:
     from its neighbours.
     """
 
-    def __init__(self, effect: Effect, obs: Sequence[Observation], nominal: Cell, measured_arris: bool,
-                 grid: Sequence[float]) -> None:
+    def __init__(
+        self,
+        effect: Effect,
+        obs: Sequence[Observation],
+        nominal: Cell,
+        measured_arris: bool,
+        grid: Sequence[float],
+    ) -> None:
         self.effect = effect
         self.grid = np.asarray(sorted(grid), float)
         base = np.array([o.error for o in obs])
@@ -254,4 +313,6 @@ def relocate_grid(effect: Effect, nominal: Cell) -> list[float]:
 
 def with_default_arris(cell: Cell, arris_mm: float) -> Cell:
     d = cell.default_door
-    return replace(cell, default_door=DoorSize(d.width_mm, d.thickness_mm, d.height_mm, arris_mm, d.arris_profile))
+    return replace(
+        cell, default_door=DoorSize(d.width_mm, d.thickness_mm, d.height_mm, arris_mm, d.arris_profile)
+    )

@@ -56,14 +56,18 @@ def _plots(rep: ModelCheckReport, out: Path) -> list[str]:
             ax.scatter(f[~held], err[~held, i], s=10, c="tab:blue", label="training")
             ax.scatter(f[held], err[held, i], s=14, c="tab:orange", marker="s", label="held out")
             if rep.train_prediction is not None and rep.train_rows is not None and rep.causes:
-                ax.scatter(f[rep.train_rows], rep.train_prediction[:, i], s=8, c="k", marker="x", label="model")
+                ax.scatter(
+                    f[rep.train_rows], rep.train_prediction[:, i], s=8, c="k", marker="x", label="model"
+                )
             if i == 3:
                 ax.set_xlabel(fname)
             if j == 0:
                 ax.set_ylabel(f"error {comp}")
             ax.axhline(0, color="0.6", lw=0.5)
     axes[0, 0].legend(fontsize=7)
-    fig.suptitle("Pose error (measured - reference) with the given cell; x: the fitted model on training images")
+    fig.suptitle(
+        "Pose error (measured - reference) with the given cell; x: the fitted model on training images"
+    )
     fig.tight_layout()
     atomic_write_bytes(out / "residuals.png", _png(fig))
     plt.close(fig)
@@ -105,11 +109,19 @@ def _plots(rep: ModelCheckReport, out: Path) -> list[str]:
 
 def report_markdown(rep: ModelCheckReport) -> str:
     """A person's summary of the check."""
-    lines = ["# Model check", "", f"- data set: `{rep.dataset}`", f"- cell: `{rep.cell}`",
-             f"- images: {len(rep.train_images)} training, {len(rep.heldout_images)} held out, "
-             f"{len(rep.refused)} refused by locate", ""]
+    lines = [
+        "# Model check",
+        "",
+        f"- data set: `{rep.dataset}`",
+        f"- cell: `{rep.cell}`",
+        f"- images: {len(rep.train_images)} training, {len(rep.heldout_images)} held out, "
+        f"{len(rep.refused)} refused by locate",
+        "",
+    ]
     if rep.causes == []:
-        lines.append("**Causes: none** - no significant effect; the cell model explains these data to their noise.")
+        lines.append(
+            "**Causes: none** - no significant effect; the cell model explains these data to their noise."
+        )
     else:
         lines.append("**Causes: " + ", ".join(f"`{c}`" for c in rep.causes) + "**")
     lines += ["", "## Fitted parameters (1 sigma)", ""]
@@ -122,28 +134,50 @@ def report_markdown(rep: ModelCheckReport) -> str:
         lines += ["", "## Not distinguishable on these data", ""]
         for cause, alts in rep.indistinguishable.items():
             lines.append(f"- `{cause}`: " + "; ".join(alts))
-    lines += ["", "## Held-out error (images not used to fit)", "", "| | given cell | extended cell |", "|---|---|---|"]
+    lines += [
+        "",
+        "## Held-out error (images not used to fit)",
+        "",
+        "| | given cell | extended cell |",
+        "|---|---|---|",
+    ]
     for c in [*COMPONENTS, "lever_mm"]:
         b, a = rep.heldout_rms_before.get(c), rep.heldout_rms_after.get(c)
         if b is not None and a is not None:
             lines.append(f"| {c} ({_UNIT[c]}) | {b:.5f} | {a:.5f} |")
     if rep.heldout_refused_after:
-        lines += ["", f"**The extended cell's locate refused {len(rep.heldout_refused_after)} held-out image(s)** "
-                  f"({', '.join(rep.heldout_refused_after[:5])}): no gain is claimed."]
-    lines += ["", f"Gain: **{rep.heldout_gain:.1f}x** (RMS error of a point 1 m up the door, before / after).", "",
-              "## Alternatives (cross-validated weighted RMS, first selection step)", ""]
+        lines += [
+            "",
+            f"**The extended cell's locate refused {len(rep.heldout_refused_after)} held-out image(s)** "
+            f"({', '.join(rep.heldout_refused_after[:5])}): no gain is claimed.",
+        ]
+    lines += [
+        "",
+        f"Gain: **{rep.heldout_gain:.1f}x** (RMS error of a point 1 m up the door, before / after).",
+        "",
+        "## Alternatives (cross-validated weighted RMS, first selection step)",
+        "",
+    ]
     for alt in rep.alternatives:
         lines.append(f"- `{alt['cause']}`: {alt['cv_rms_weighted']:.3g}")
     lines += ["", "## Selection steps", ""]
     for s in rep.selection_steps:
-        lines.append(f"- step {s['step']}: `{s['candidate']}` held-out SSE ratio {s['cv_ratio']:.3g}, "
-                     f"F-test p = {s['f_test_p']:.2g} -> {'accepted' if s['accepted'] else 'rejected'}")
+        lines.append(
+            f"- step {s['step']}: `{s['candidate']}` held-out SSE ratio {s['cv_ratio']:.3g}, "
+            f"F-test p = {s['f_test_p']:.2g} -> {'accepted' if s['accepted'] else 'rejected'}"
+        )
     u = rep.unexplained_test
-    lines += ["", f"Structure left after the model (linear in pose, door size, corner pixel): p = "
-              f"{u.get('f_test_p', 1.0):.2g}, held-out ratio {u.get('cv_ratio', 1.0):.3g} -> "
-              f"{'structured (unexplained)' if u.get('structured') else 'noise'}", "",
-              "Noise per component (1 sigma, weights): " + ", ".join(f"{k} {v:.2g}" for k, v in rep.noise.items()),
-              "", f"Extended cell: `{rep.extended_cell}` (locate, batch and serve read it like any cell file).", ""]
+    lines += [
+        "",
+        f"Structure left after the model (linear in pose, door size, corner pixel): p = "
+        f"{u.get('f_test_p', 1.0):.2g}, held-out ratio {u.get('cv_ratio', 1.0):.3g} -> "
+        f"{'structured (unexplained)' if u.get('structured') else 'noise'}",
+        "",
+        "Noise per component (1 sigma, weights): " + ", ".join(f"{k} {v:.2g}" for k, v in rep.noise.items()),
+        "",
+        f"Extended cell: `{rep.extended_cell}` (locate, batch and serve read it like any cell file).",
+        "",
+    ]
     for p in rep.plots:
         lines.append(f"![{p}]({p})")
     return "\n".join(lines) + "\n"

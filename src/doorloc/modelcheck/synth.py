@@ -26,8 +26,14 @@ from doorloc.sim.effects import Effects
 __all__ = ["MEASURED_PHOTOMETRY", "REALISTIC_RANGE", "SetSpec", "render_measured_set", "draw_hidden_effect"]
 
 #: Photometry of a plain shop-floor image: some blur, sensor noise and a mild lighting gradient.
-MEASURED_PHOTOMETRY = Effects(blur_sigma_px=1.0, read_noise_dn=1.5, gradient_u=0.04, gradient_v=-0.03,
-                              albedo_hinge=0.75, albedo_background=0.15)
+MEASURED_PHOTOMETRY = Effects(
+    blur_sigma_px=1.0,
+    read_noise_dn=1.5,
+    gradient_u=0.04,
+    gradient_v=-0.03,
+    albedo_hinge=0.75,
+    albedo_background=0.15,
+)
 
 #: Realistic magnitudes of each effect (low, high) for the hidden-effect test and the benchmark: small,
 #: but well above the reference's noise of a few micrometres. A sign is drawn separately.
@@ -59,7 +65,9 @@ class SetSpec:
     seed: int = 0
 
 
-def draw_hidden_effect(rng: np.random.Generator, names: Sequence[str] = EFFECT_NAMES) -> tuple[str, list[float]]:
+def draw_hidden_effect(
+    rng: np.random.Generator, names: Sequence[str] = EFFECT_NAMES
+) -> tuple[str, list[float]]:
     """One effect drawn from ``names`` with a value drawn from :data:`REALISTIC_RANGE` (random sign)."""
     name = str(rng.choice(list(names)))
     vals = []
@@ -71,8 +79,13 @@ def draw_hidden_effect(rng: np.random.Generator, names: Sequence[str] = EFFECT_N
     return name, vals
 
 
-def render_measured_set(out_dir: str | os.PathLike, nominal: Cell, hidden: Mapping[str, Sequence[float]],
-                        spec: SetSpec = SetSpec(), arris_profile: str = "chamfer") -> Path:
+def render_measured_set(
+    out_dir: str | os.PathLike,
+    nominal: Cell,
+    hidden: Mapping[str, Sequence[float]],
+    spec: SetSpec = SetSpec(),
+    arris_profile: str = "chamfer",
+) -> Path:
     """Render a measured set with the ``hidden`` effects; returns the path of its ``truth.csv``.
 
     ``hidden`` maps catalogue names to values as :meth:`Effect.apply` takes them; ``arris`` gives the
@@ -120,11 +133,17 @@ def render_measured_set(out_dir: str | os.PathLike, nominal: Cell, hidden: Mappi
         name = f"img_{k:03d}.png"
         atomic_write_bytes(out / name, png.tobytes())
         noise = rng.normal(0, 1, 4)
-        vals = [pose.x_mm + spec.ref_noise_mm * noise[0], pose.z_mm + spec.ref_noise_mm * noise[1],
-                pose.yaw_deg + spec.ref_noise_deg * noise[2], door.width_mm,
-                door.thickness_mm + spec.ref_noise_mm * noise[3]]
+        vals = [
+            pose.x_mm + spec.ref_noise_mm * noise[0],
+            pose.z_mm + spec.ref_noise_mm * noise[1],
+            pose.yaw_deg + spec.ref_noise_deg * noise[2],
+            door.width_mm,
+            door.thickness_mm + spec.ref_noise_mm * noise[3],
+        ]
         wr.writerow([name, *(repr(float(v)) for v in vals)])
     save_cell(nominal, out / "cell_nominal.yaml")
-    atomic_write_text(out / "hidden.json", json.dumps({k: [float(v) for v in vs] for k, vs in hidden.items()}))
+    atomic_write_text(
+        out / "hidden.json", json.dumps({k: [float(v) for v in vs] for k, vs in hidden.items()})
+    )
     atomic_write_text(out / "truth.csv", buf.getvalue())
     return out / "truth.csv"

@@ -30,15 +30,40 @@ from pydantic import ValidationError
 from doorloc.recipes.models import SKIP_CROSS_CHECKS, DoorFields, DoorRecipe, Hinge, recipe_problems
 
 __all__ = [
-    "DOOR_COLUMNS", "HINGE_COLUMNS", "REQUIRED_COLUMNS", "CSV_COLUMNS", "ImportIssue", "RecipeImportError",
-    "read_rows", "parse_recipe_rows", "load_recipe_file", "import_recipe_file", "ImportReport",
-    "recipes_to_csv", "recipe_rows",
+    "DOOR_COLUMNS",
+    "HINGE_COLUMNS",
+    "REQUIRED_COLUMNS",
+    "CSV_COLUMNS",
+    "ImportIssue",
+    "RecipeImportError",
+    "read_rows",
+    "parse_recipe_rows",
+    "load_recipe_file",
+    "import_recipe_file",
+    "ImportReport",
+    "recipes_to_csv",
+    "recipe_rows",
 ]
 
-DOOR_COLUMNS = ("door_id", "width_mm", "height_mm", "thickness_mm", "arris_mm", "tool_diameter_mm",
-                "spindle_rpm", "feed_mm_s")
-HINGE_COLUMNS = ("hinge_z_mm", "hinge_length_mm", "hinge_width_mm", "hinge_x_mm", "hinge_depth_mm",
-                 "hinge_corner_radius_mm", "hinge_path_points")
+DOOR_COLUMNS = (
+    "door_id",
+    "width_mm",
+    "height_mm",
+    "thickness_mm",
+    "arris_mm",
+    "tool_diameter_mm",
+    "spindle_rpm",
+    "feed_mm_s",
+)
+HINGE_COLUMNS = (
+    "hinge_z_mm",
+    "hinge_length_mm",
+    "hinge_width_mm",
+    "hinge_x_mm",
+    "hinge_depth_mm",
+    "hinge_corner_radius_mm",
+    "hinge_path_points",
+)
 CORRECTION_COLUMNS = ("hinge_fd_dx_mm", "hinge_fd_dy_mm", "hinge_fd_dz_mm")
 OPTIONAL_COLUMNS = ("arris_mm", "hinge_path_points", *CORRECTION_COLUMNS)
 CSV_COLUMNS = (*DOOR_COLUMNS, *HINGE_COLUMNS, *CORRECTION_COLUMNS)
@@ -192,9 +217,16 @@ def _corrections(row: dict[str, Any], line: int) -> tuple[list[dict[str, float]]
         return None, issues
     lengths = {len(v) for v in axes.values()}
     if len(lengths) > 1:
-        cols = ", ".join(f"{CORRECTION_COLUMNS[('dx_mm', 'dy_mm', 'dz_mm').index(a)]}={len(v)}" for a, v in axes.items())
-        return None, [ImportIssue(line, "hinge_fd_dx_mm/hinge_fd_dy_mm/hinge_fd_dz_mm",
-                                  f"give the same number of values in each correction column ({cols})")]
+        cols = ", ".join(
+            f"{CORRECTION_COLUMNS[('dx_mm', 'dy_mm', 'dz_mm').index(a)]}={len(v)}" for a, v in axes.items()
+        )
+        return None, [
+            ImportIssue(
+                line,
+                "hinge_fd_dx_mm/hinge_fd_dy_mm/hinge_fd_dz_mm",
+                f"give the same number of values in each correction column ({cols})",
+            )
+        ]
     n = lengths.pop()
     return [{a: axes[a][k] for a in axes} for k in range(n)], []
 
@@ -217,7 +249,9 @@ class _DoorGroup:
     lines: list[int] = field(default_factory=list)
 
 
-def parse_recipe_rows(rows: Iterable[tuple[int, dict[str, Any]]], source: str = "recipe file") -> list[DoorRecipe]:
+def parse_recipe_rows(
+    rows: Iterable[tuple[int, dict[str, Any]]], source: str = "recipe file"
+) -> list[DoorRecipe]:
     """Validate table rows into recipes, or raise :class:`RecipeImportError` listing every problem.
 
     Parameters
@@ -237,7 +271,9 @@ def parse_recipe_rows(rows: Iterable[tuple[int, dict[str, Any]]], source: str = 
         raise RecipeImportError(source, [ImportIssue(1, None, f"missing column(s): {', '.join(missing)}")])
     dup_cols = sorted({h for h in header if h and header.count(h) > 1})
     if dup_cols:
-        raise RecipeImportError(source, [ImportIssue(1, None, f"column(s) given twice: {', '.join(dup_cols)}")])
+        raise RecipeImportError(
+            source, [ImportIssue(1, None, f"column(s) given twice: {', '.join(dup_cols)}")]
+        )
 
     issues: list[ImportIssue] = []
     doors: dict[str, _DoorGroup] = {}
@@ -260,7 +296,9 @@ def parse_recipe_rows(rows: Iterable[tuple[int, dict[str, Any]]], source: str = 
             row_issues += _pydantic_issues(e, line, lambda f: f)
         corrections, corr_issues = _corrections(row, line)
         row_issues += corr_issues
-        hinge_part: dict[str, Any] = {c.removeprefix("hinge_"): row.get(c) for c in HINGE_COLUMNS if row.get(c) is not None}
+        hinge_part: dict[str, Any] = {
+            c.removeprefix("hinge_"): row.get(c) for c in HINGE_COLUMNS if row.get(c) is not None
+        }
         hinge_part["path_points"] = _path_points(row.get("hinge_path_points"))
         if corrections is not None:
             hinge_part["corrections"] = corrections
@@ -280,8 +318,14 @@ def parse_recipe_rows(rows: Iterable[tuple[int, dict[str, Any]]], source: str = 
             a, b = group.fields.model_dump(), fields.model_dump()
             for k in DOOR_COLUMNS:
                 if a[k] != b[k]:
-                    issues.append(ImportIssue(line, k, f"door {fields.door_id}: {b[k]!r} differs from "
-                                                       f"{a[k]!r} on line {group.first_line}"))
+                    issues.append(
+                        ImportIssue(
+                            line,
+                            k,
+                            f"door {fields.door_id}: {b[k]!r} differs from "
+                            f"{a[k]!r} on line {group.first_line}",
+                        )
+                    )
             continue
         group.hinges.append(hinge)
         group.lines.append(line)
@@ -314,7 +358,9 @@ def load_recipe_file(path: str | os.PathLike) -> list[DoorRecipe]:
     try:
         return parse_recipe_rows(read_rows(p), str(p))
     except UnicodeDecodeError as e:
-        raise RecipeImportError(str(p), [ImportIssue(1, None, f"not UTF-8 text ({e.reason}); save the CSV as UTF-8")]) from None
+        raise RecipeImportError(
+            str(p), [ImportIssue(1, None, f"not UTF-8 text ({e.reason}); save the CSV as UTF-8")]
+        ) from None
     except csv.Error as e:
         raise RecipeImportError(str(p), [ImportIssue(1, None, f"not a readable CSV file ({e})")]) from None
 
@@ -323,7 +369,9 @@ def import_recipe_file(path: str | os.PathLike, store) -> ImportReport:  # noqa:
     """Validate ``path`` completely, then write all its recipes in one transaction (or none)."""
     recipes = load_recipe_file(path)
     store.put_many(recipes)
-    return ImportReport(str(path), len(recipes), sum(len(r.hinges) for r in recipes), [r.door_id for r in recipes])
+    return ImportReport(
+        str(path), len(recipes), sum(len(r.hinges) for r in recipes), [r.door_id for r in recipes]
+    )
 
 
 # -- writing -----------------------------------------------------------------------------------

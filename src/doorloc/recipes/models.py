@@ -30,7 +30,17 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validat
 from doorloc.cell import DoorSize
 from doorloc.limits import DOOR_RANGES_MM, TOOL_DIAMETER_RANGE_MM, check_range
 
-__all__ = ["PointCorrection", "Hinge", "DoorFields", "DoorRecipe", "SKIP_CROSS_CHECKS", "CORNER_OVERCUT_TOLERANCE_MM", "RecipeProblem", "recipe_problems", "DOOR_ID_PATTERN"]
+__all__ = [
+    "PointCorrection",
+    "Hinge",
+    "DoorFields",
+    "DoorRecipe",
+    "SKIP_CROSS_CHECKS",
+    "CORNER_OVERCUT_TOLERANCE_MM",
+    "RecipeProblem",
+    "recipe_problems",
+    "DOOR_ID_PATTERN",
+]
 
 #: door ids are barcodes: letters, digits and ``-_./:`` (no separators the text exports use)
 DOOR_ID_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.:/-]{0,63}$"
@@ -85,12 +95,16 @@ class Hinge(_Frozen):
 
     @field_validator("corrections")
     @classmethod
-    def _one_per_point(cls, v: tuple[PointCorrection, ...], info: ValidationInfo) -> tuple[PointCorrection, ...]:
+    def _one_per_point(
+        cls, v: tuple[PointCorrection, ...], info: ValidationInfo
+    ) -> tuple[PointCorrection, ...]:
         if "path_points" not in info.data:  # the path kind itself was bad: that error is reported already
             return v
         n = info.data["path_points"]
         if v and len(v) != n:
-            raise ValueError(f"give one correction per pocket point (P1..P{n}: {n} values) or none, got {len(v)}")
+            raise ValueError(
+                f"give one correction per pocket point (P1..P{n}: {n} values) or none, got {len(v)}"
+            )
         return v
 
 
@@ -178,50 +192,107 @@ def recipe_problems(r: DoorRecipe) -> list[RecipeProblem]:
     """
     out: list[RecipeProblem] = []
     if r.arris_mm >= r.thickness_mm / 2:
-        out.append(RecipeProblem("arris_mm", f"arris {_g(r.arris_mm)} mm must be less than half the "
-                                             f"thickness ({_g(r.thickness_mm / 2)} mm)"))
+        out.append(
+            RecipeProblem(
+                "arris_mm",
+                f"arris {_g(r.arris_mm)} mm must be less than half the "
+                f"thickness ({_g(r.thickness_mm / 2)} mm)",
+            )
+        )
     d = r.tool_diameter_mm
     for i, h in enumerate(r.hinges):
         name = f"hinges[{i}]"
         n = i + 1
         if h.x_mm + h.width_mm > r.thickness_mm + 1e-9:
-            out.append(RecipeProblem(f"{name}.width_mm", f"hinge {n} pocket spans X {_g(h.x_mm)}..{_g(h.x_mm + h.width_mm)} mm, "
-                                                         f"wider than the door thickness {_g(r.thickness_mm)} mm "
-                                                         f"(x_mm + width_mm must be <= thickness)", i))
+            out.append(
+                RecipeProblem(
+                    f"{name}.width_mm",
+                    f"hinge {n} pocket spans X {_g(h.x_mm)}..{_g(h.x_mm + h.width_mm)} mm, "
+                    f"wider than the door thickness {_g(r.thickness_mm)} mm "
+                    f"(x_mm + width_mm must be <= thickness)",
+                    i,
+                )
+            )
         if h.z_mm + h.length_mm > r.height_mm + 1e-9:
-            out.append(RecipeProblem(f"{name}.length_mm", f"hinge {n} pocket ends at Z {_g(h.z_mm + h.length_mm)} mm, "
-                                                          f"above the door top {_g(r.height_mm)} mm", i))
+            out.append(
+                RecipeProblem(
+                    f"{name}.length_mm",
+                    f"hinge {n} pocket ends at Z {_g(h.z_mm + h.length_mm)} mm, "
+                    f"above the door top {_g(r.height_mm)} mm",
+                    i,
+                )
+            )
         if h.depth_mm >= r.width_mm:
-            out.append(RecipeProblem(f"{name}.depth_mm", f"hinge {n} pocket depth {_g(h.depth_mm)} mm must be less "
-                                                         f"than the door width {_g(r.width_mm)} mm", i))
+            out.append(
+                RecipeProblem(
+                    f"{name}.depth_mm",
+                    f"hinge {n} pocket depth {_g(h.depth_mm)} mm must be less "
+                    f"than the door width {_g(r.width_mm)} mm",
+                    i,
+                )
+            )
         if h.corner_radius_mm > min(h.width_mm, h.length_mm) / 2 + 1e-9:
-            out.append(RecipeProblem(f"{name}.corner_radius_mm", f"hinge {n} corner radius {_g(h.corner_radius_mm)} mm "
-                                                                 f"exceeds half the pocket's width/length "
-                                                                 f"({_g(min(h.width_mm, h.length_mm) / 2)} mm)", i))
+            out.append(
+                RecipeProblem(
+                    f"{name}.corner_radius_mm",
+                    f"hinge {n} corner radius {_g(h.corner_radius_mm)} mm "
+                    f"exceeds half the pocket's width/length "
+                    f"({_g(min(h.width_mm, h.length_mm) / 2)} mm)",
+                    i,
+                )
+            )
         if d > 2 * h.corner_radius_mm + 1e-9:
-            out.append(RecipeProblem("tool_diameter_mm", f"tool diameter {_g(d)} mm does not fit hinge {n}'s corner "
-                                                         f"radius {_g(h.corner_radius_mm)} mm (needs diameter <= "
-                                                         f"2 * radius = {_g(2 * h.corner_radius_mm)} mm)", i))
+            out.append(
+                RecipeProblem(
+                    "tool_diameter_mm",
+                    f"tool diameter {_g(d)} mm does not fit hinge {n}'s corner "
+                    f"radius {_g(h.corner_radius_mm)} mm (needs diameter <= "
+                    f"2 * radius = {_g(2 * h.corner_radius_mm)} mm)",
+                    i,
+                )
+            )
         overcut = (h.corner_radius_mm - d / 2) * (2**0.5 - 1)
-        if h.path_points == 6 and d <= 2 * h.corner_radius_mm + 1e-9 and overcut > CORNER_OVERCUT_TOLERANCE_MM:
-            out.append(RecipeProblem(f"{name}.path_points", f"hinge {n}: the 6-point path cuts its corners with the "
-                                                            f"tool radius {_g(d / 2)} mm, {overcut:.2f} mm past the "
-                                                            f"{_g(h.corner_radius_mm)} mm corner radius (limit "
-                                                            f"{_g(CORNER_OVERCUT_TOLERANCE_MM)} mm): use the 9-point "
-                                                            f"path or a tool closer to 2 * corner radius", i))
+        if (
+            h.path_points == 6
+            and d <= 2 * h.corner_radius_mm + 1e-9
+            and overcut > CORNER_OVERCUT_TOLERANCE_MM
+        ):
+            out.append(
+                RecipeProblem(
+                    f"{name}.path_points",
+                    f"hinge {n}: the 6-point path cuts its corners with the "
+                    f"tool radius {_g(d / 2)} mm, {overcut:.2f} mm past the "
+                    f"{_g(h.corner_radius_mm)} mm corner radius (limit "
+                    f"{_g(CORNER_OVERCUT_TOLERANCE_MM)} mm): use the 9-point "
+                    f"path or a tool closer to 2 * corner radius",
+                    i,
+                )
+            )
         if min(h.width_mm, h.length_mm) > 2 * d + 1e-9:
-            out.append(RecipeProblem(f"{name}.width_mm", f"hinge {n} pocket ({_g(h.width_mm)} x {_g(h.length_mm)} mm) "
-                                                         f"is more than two tool diameters ({_g(2 * d)} mm) wide: "
-                                                         f"the contour path would leave an uncut island", i))
+            out.append(
+                RecipeProblem(
+                    f"{name}.width_mm",
+                    f"hinge {n} pocket ({_g(h.width_mm)} x {_g(h.length_mm)} mm) "
+                    f"is more than two tool diameters ({_g(2 * d)} mm) wide: "
+                    f"the contour path would leave an uncut island",
+                    i,
+                )
+            )
     order = sorted(range(len(r.hinges)), key=lambda k: r.hinges[k].z_mm)
     for a_pos, a in enumerate(order):
         ha = r.hinges[a]
-        for b in order[a_pos + 1:]:
+        for b in order[a_pos + 1 :]:
             hb = r.hinges[b]
             if hb.z_mm >= ha.z_mm + ha.length_mm:
                 break
             if hb.x_mm < ha.x_mm + ha.width_mm and ha.x_mm < hb.x_mm + hb.width_mm:
-                out.append(RecipeProblem(f"hinges[{b}].z_mm", f"hinge {b + 1} (Z {_g(hb.z_mm)}..{_g(hb.z_mm + hb.length_mm)} mm) "
-                                                              f"overlaps hinge {a + 1} (Z {_g(ha.z_mm)}.."
-                                                              f"{_g(ha.z_mm + ha.length_mm)} mm)", b))
+                out.append(
+                    RecipeProblem(
+                        f"hinges[{b}].z_mm",
+                        f"hinge {b + 1} (Z {_g(hb.z_mm)}..{_g(hb.z_mm + hb.length_mm)} mm) "
+                        f"overlaps hinge {a + 1} (Z {_g(ha.z_mm)}.."
+                        f"{_g(ha.z_mm + ha.length_mm)} mm)",
+                        b,
+                    )
+                )
     return out

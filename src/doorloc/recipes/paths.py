@@ -86,7 +86,11 @@ def pocket_points_xz(hinge: Hinge, tool_diameter_mm: float) -> tuple[np.ndarray,
 
 
 def hinge_path(
-    hinge: Hinge, tool_diameter_mm: float, hinge_number: int = 1, *, clearance_mm: float = DEFAULT_CLEARANCE_MM
+    hinge: Hinge,
+    tool_diameter_mm: float,
+    hinge_number: int = 1,
+    *,
+    clearance_mm: float = DEFAULT_CLEARANCE_MM,
 ) -> list[PathPoint]:
     """Approach, pocket points (with their force-displacement corrections) and retract of one hinge.
 
@@ -108,7 +112,9 @@ def hinge_path(
         PathPoint(f"{h}_P{k + 1}", (float(p[0]), float(p[1]), float(p[2])), kinds[k], hinge_number)
         for k, p in enumerate(pts)
     ]
-    out.append(PathPoint(f"{h}_RET", (float(pts[-1, 0]), -clearance_mm, float(pts[-1, 2])), "retract", hinge_number))
+    out.append(
+        PathPoint(f"{h}_RET", (float(pts[-1, 0]), -clearance_mm, float(pts[-1, 2])), "retract", hinge_number)
+    )
     return out
 
 

@@ -31,8 +31,14 @@ from doorloc.recipes.targets import Target
 from doorloc.robot.section import RobotSection, robot_section_from_doc
 
 __all__ = [
-    "RAPID_LINE_MAX", "rapid_num", "rapid_text", "parse_rapid_text", "RobotSetup", "robot_setup_from_cell_file",
-    "rapid_module", "module_name_for",
+    "RAPID_LINE_MAX",
+    "rapid_num",
+    "rapid_text",
+    "parse_rapid_text",
+    "RobotSetup",
+    "robot_setup_from_cell_file",
+    "rapid_module",
+    "module_name_for",
 ]
 
 #: longest line ``ReadStr`` returns
@@ -68,7 +74,9 @@ def rapid_num(value: float, significant: int = 7, max_decimals: int = 9) -> str:
 
 def _check_name(name: str) -> str:
     if not _IDENT.match(name):
-        raise ValueError(f"{name!r} is not a RAPID identifier (a letter, then letters, digits or _; at most 32)")
+        raise ValueError(
+            f"{name!r} is not a RAPID identifier (a letter, then letters, digits or _; at most 32)"
+        )
     return name
 
 
@@ -105,8 +113,16 @@ def parse_rapid_text(text: str) -> list[Target]:
         if len(f) != 8:
             raise ValueError(f"RAPID target line needs 8 ';'-separated fields: {ln!r}")
         m = re.match(r"^H(\d+)_", f[0])
-        out.append(Target(name=f[0], x_mm=float(f[1]), y_mm=float(f[2]), z_mm=float(f[3]),
-                          quat=tuple(float(v) for v in f[4:8]), hinge=int(m.group(1)) if m else 0))
+        out.append(
+            Target(
+                name=f[0],
+                x_mm=float(f[1]),
+                y_mm=float(f[2]),
+                z_mm=float(f[3]),
+                quat=tuple(float(v) for v in f[4:8]),
+                hinge=int(m.group(1)) if m else 0,
+            )
+        )
     return out
 
 
@@ -167,25 +183,39 @@ def rapid_module(
     name = _check_name(module_name or module_name_for(recipe.door_id))
     tool, wobj = robot.tool_name, robot.wobj_name
     lines = [f"MODULE {name}"]
-    lines.append(f"  ! doorloc hinge targets for door {recipe.door_id}: {len(recipe.hinges)} hinge(s), "
-                 f"{len(targets)} targets, cell frame, mm")
+    lines.append(
+        f"  ! doorloc hinge targets for door {recipe.door_id}: {len(recipe.hinges)} hinge(s), "
+        f"{len(targets)} targets, cell frame, mm"
+    )
     if pose is not None:
         fy = "" if face_y_mm is None else f" face_y={rapid_num(face_y_mm)}"
-        lines.append(f"  ! pose x={rapid_num(pose.x_mm)} z={rapid_num(pose.z_mm)} yaw={rapid_num(pose.yaw_deg)} deg{fy}")
-    lines.append(f"  ! tool diameter {rapid_num(recipe.tool_diameter_mm)} mm, spindle {rapid_num(recipe.spindle_rpm)} rpm, "
-                 f"feed {rapid_num(recipe.feed_mm_s)} mm/s")
-    lines.append(f"  PERS tooldata {tool}:=[TRUE,[{_vec(robot.tool_tcp_mm)},{_vec(robot.tool_rot)}],"
-                 f"[{rapid_num(robot.tool_mass_kg)},{_vec(robot.tool_cog_mm)},[1,0,0,0],0,0,0]];")
-    lines.append(f"  PERS wobjdata {wobj}:=[FALSE,TRUE,\"\",[{_vec(robot.wobj_uframe_mm)},{_vec(robot.wobj_uframe_rot)}],"
-                 f"[[0,0,0],[1,0,0,0]]];")
+        lines.append(
+            f"  ! pose x={rapid_num(pose.x_mm)} z={rapid_num(pose.z_mm)} yaw={rapid_num(pose.yaw_deg)} deg{fy}"
+        )
+    lines.append(
+        f"  ! tool diameter {rapid_num(recipe.tool_diameter_mm)} mm, spindle {rapid_num(recipe.spindle_rpm)} rpm, "
+        f"feed {rapid_num(recipe.feed_mm_s)} mm/s"
+    )
+    lines.append(
+        f"  PERS tooldata {tool}:=[TRUE,[{_vec(robot.tool_tcp_mm)},{_vec(robot.tool_rot)}],"
+        f"[{rapid_num(robot.tool_mass_kg)},{_vec(robot.tool_cog_mm)},[1,0,0,0],0,0,0]];"
+    )
+    lines.append(
+        f'  PERS wobjdata {wobj}:=[FALSE,TRUE,"",[{_vec(robot.wobj_uframe_mm)},{_vec(robot.wobj_uframe_rot)}],'
+        f"[[0,0,0],[1,0,0,0]]];"
+    )
     lines.append(f"  CONST speeddata vMill:=[{rapid_num(recipe.feed_mm_s)},500,5000,1000];")
     conf = "[" + ",".join(str(c) for c in robot.robconf) + "]"
     ext = "[" + ",".join([UNUSED_AXIS] * 6) + "]"
     for t in targets:
-        lines.append(f"  CONST robtarget {_check_name(t.name)}:=[{_vec((t.x_mm, t.y_mm, t.z_mm))},{_vec(t.quat)},{conf},{ext}];")
+        lines.append(
+            f"  CONST robtarget {_check_name(t.name)}:=[{_vec((t.x_mm, t.y_mm, t.z_mm))},{_vec(t.quat)},{conf},{ext}];"
+        )
     lines.append("")
     lines.append("  PROC MillHinges()")
-    lines.append(f"    ! start the spindle ({rapid_num(recipe.spindle_rpm)} rpm) before calling; cell-specific I/O")
+    lines.append(
+        f"    ! start the spindle ({rapid_num(recipe.spindle_rpm)} rpm) before calling; cell-specific I/O"
+    )
     lines.append("    ConfL\\Off;")
     previous = None
     for t in targets:

@@ -44,9 +44,24 @@ from doorloc.recipes.tables import DoorRow, HingeRow, RecipeVersionRow
 _T = TypeVar("_T")
 
 __all__ = [
-    "ENV_DATABASE_URL", "DEFAULT_DB_FILENAME", "database_url", "redacted_url", "make_engine", "upgrade_schema",
-    "schema_revision", "head_revision", "RecipeStore", "RecipeSummary", "RecipeStoreError", "StoredRecipeInvalid",
-    "RecipeVersion", "RecipeChange", "recipe_changes", "recipe_sha256", "WRITE_ATTEMPTS", "SQLITE_BUSY_TIMEOUT_MS",
+    "ENV_DATABASE_URL",
+    "DEFAULT_DB_FILENAME",
+    "database_url",
+    "redacted_url",
+    "make_engine",
+    "upgrade_schema",
+    "schema_revision",
+    "head_revision",
+    "RecipeStore",
+    "RecipeSummary",
+    "RecipeStoreError",
+    "StoredRecipeInvalid",
+    "RecipeVersion",
+    "RecipeChange",
+    "recipe_changes",
+    "recipe_sha256",
+    "WRITE_ATTEMPTS",
+    "SQLITE_BUSY_TIMEOUT_MS",
 ]
 
 ENV_DATABASE_URL = "DOORLOC_DATABASE_URL"
@@ -133,7 +148,9 @@ def make_engine(url: str) -> Engine:
             cur.execute(f"PRAGMA busy_timeout={SQLITE_BUSY_TIMEOUT_MS}")
             if file_db:
                 cur.execute("PRAGMA journal_mode=WAL")
-                cur.execute("PRAGMA synchronous=NORMAL")  # WAL + NORMAL: durable at checkpoints, never corrupt
+                cur.execute(
+                    "PRAGMA synchronous=NORMAL"
+                )  # WAL + NORMAL: durable at checkpoints, never corrupt
             cur.close()
 
         @event.listens_for(engine, "begin")
@@ -243,8 +260,11 @@ def recipe_changes(old: DoorRecipe | dict | None, new: DoorRecipe | dict | None)
     """Field-by-field differences (hinges by position; ``hinges`` itself is their number)."""
     a = _flatten(old.model_dump(mode="json") if isinstance(old, DoorRecipe) else (old or {}))
     b = _flatten(new.model_dump(mode="json") if isinstance(new, DoorRecipe) else (new or {}))
-    return [RecipeChange(k, a.get(k), b.get(k)) for k in sorted(set(a) | set(b), key=_field_order)
-            if a.get(k) != b.get(k)]
+    return [
+        RecipeChange(k, a.get(k), b.get(k))
+        for k in sorted(set(a) | set(b), key=_field_order)
+        if a.get(k) != b.get(k)
+    ]
 
 
 def _field_order(name: str) -> tuple[int, str]:
@@ -253,16 +273,27 @@ def _field_order(name: str) -> tuple[int, str]:
 
 def _door_values(r: DoorRecipe) -> dict[str, Any]:
     return {
-        "door_id": r.door_id, "width_mm": r.width_mm, "height_mm": r.height_mm, "thickness_mm": r.thickness_mm,
-        "arris_mm": r.arris_mm, "tool_diameter_mm": r.tool_diameter_mm, "spindle_rpm": r.spindle_rpm,
+        "door_id": r.door_id,
+        "width_mm": r.width_mm,
+        "height_mm": r.height_mm,
+        "thickness_mm": r.thickness_mm,
+        "arris_mm": r.arris_mm,
+        "tool_diameter_mm": r.tool_diameter_mm,
+        "spindle_rpm": r.spindle_rpm,
         "feed_mm_s": r.feed_mm_s,
     }
 
 
 def _hinge_values(h: Hinge, door_pk: int, position: int) -> dict[str, Any]:
     return {
-        "door_pk": door_pk, "position": position, "z_mm": h.z_mm, "length_mm": h.length_mm, "width_mm": h.width_mm,
-        "x_mm": h.x_mm, "depth_mm": h.depth_mm, "corner_radius_mm": h.corner_radius_mm,
+        "door_pk": door_pk,
+        "position": position,
+        "z_mm": h.z_mm,
+        "length_mm": h.length_mm,
+        "width_mm": h.width_mm,
+        "x_mm": h.x_mm,
+        "depth_mm": h.depth_mm,
+        "corner_radius_mm": h.corner_radius_mm,
         "path_points": h.path_points,
         "corrections": [[c.dx_mm, c.dy_mm, c.dz_mm] for c in h.corrections] or None,
     }
@@ -274,7 +305,9 @@ def _recipe_from_row(row: DoorRow) -> DoorRecipe:
     try:
         return _build_recipe(row)
     except ValidationError as e:
-        reasons = "; ".join(str(x["msg"]).removeprefix("Value error, ") for x in e.errors(include_url=False)[:3])
+        reasons = "; ".join(
+            str(x["msg"]).removeprefix("Value error, ") for x in e.errors(include_url=False)[:3]
+        )
         raise StoredRecipeInvalid(
             f"the stored recipe of door '{row.door_id}' breaks today's rules ({reasons}); correct it "
             "(PUT /v1/doors/ID or doorloc recipes import --replace) before using it"
@@ -284,15 +317,28 @@ def _recipe_from_row(row: DoorRow) -> DoorRecipe:
 def _build_recipe(row: DoorRow) -> DoorRecipe:
     hinges = [
         Hinge(
-            z_mm=h.z_mm, length_mm=h.length_mm, width_mm=h.width_mm, x_mm=h.x_mm, depth_mm=h.depth_mm,
-            corner_radius_mm=h.corner_radius_mm, path_points=h.path_points,
-            corrections=tuple(PointCorrection(dx_mm=c[0], dy_mm=c[1], dz_mm=c[2]) for c in (h.corrections or [])),
+            z_mm=h.z_mm,
+            length_mm=h.length_mm,
+            width_mm=h.width_mm,
+            x_mm=h.x_mm,
+            depth_mm=h.depth_mm,
+            corner_radius_mm=h.corner_radius_mm,
+            path_points=h.path_points,
+            corrections=tuple(
+                PointCorrection(dx_mm=c[0], dy_mm=c[1], dz_mm=c[2]) for c in (h.corrections or [])
+            ),
         )
         for h in row.hinges
     ]
     return DoorRecipe(
-        door_id=row.door_id, width_mm=row.width_mm, height_mm=row.height_mm, thickness_mm=row.thickness_mm,
-        arris_mm=row.arris_mm, hinges=hinges, tool_diameter_mm=row.tool_diameter_mm, spindle_rpm=row.spindle_rpm,
+        door_id=row.door_id,
+        width_mm=row.width_mm,
+        height_mm=row.height_mm,
+        thickness_mm=row.thickness_mm,
+        arris_mm=row.arris_mm,
+        hinges=hinges,
+        tool_diameter_mm=row.tool_diameter_mm,
+        spindle_rpm=row.spindle_rpm,
         feed_mm_s=row.feed_mm_s,
     )
 
@@ -321,8 +367,10 @@ class RecipeStore:
             if migrate:
                 upgrade_schema(self.engine)
         except SQLAlchemyError as e:
-            raise RecipeStoreError(f"cannot open the recipe database {redacted_url(self.url)}: {e.__class__.__name__}: "
-                                   f"{str(e).splitlines()[0]}") from e
+            raise RecipeStoreError(
+                f"cannot open the recipe database {redacted_url(self.url)}: {e.__class__.__name__}: "
+                f"{str(e).splitlines()[0]}"
+            ) from e
 
     # -- context manager -------------------------------------------------------------------------
     def close(self) -> None:
@@ -358,8 +406,11 @@ class RecipeStore:
     def history(self, door_id: str) -> builtins.list[RecipeVersion]:
         """Every recorded change of ``door_id``, oldest first (empty when the door never existed)."""
         with self.engine.connect() as conn:
-            rows = conn.execute(select(RecipeVersionRow).where(RecipeVersionRow.door_id == door_id)
-                                .order_by(RecipeVersionRow.version)).all()
+            rows = conn.execute(
+                select(RecipeVersionRow)
+                .where(RecipeVersionRow.door_id == door_id)
+                .order_by(RecipeVersionRow.version)
+            ).all()
         out = []
         for r in rows:
             recipe = None
@@ -368,8 +419,17 @@ class RecipeStore:
                     recipe = DoorRecipe.model_validate(r.recipe)
                 except ValueError:  # a version that today's rules refuse is still part of the history
                     recipe = None
-            out.append(RecipeVersion(r.door_id, r.version, r.action, r.changed_by, r.changed_at,
-                                     [RecipeChange(**c) for c in (r.changes or [])], recipe))
+            out.append(
+                RecipeVersion(
+                    r.door_id,
+                    r.version,
+                    r.action,
+                    r.changed_by,
+                    r.changed_at,
+                    [RecipeChange(**c) for c in (r.changes or [])],
+                    recipe,
+                )
+            )
         return out
 
     def preview(self, recipes: Iterable[DoorRecipe]) -> dict[str, builtins.list[RecipeChange] | None]:
@@ -379,8 +439,13 @@ class RecipeStore:
         stored: dict[str, str | None] = {}
         with self.engine.connect() as conn:
             for k in range(0, len(ids), _CHUNK):
-                stored.update(conn.execute(select(DoorRow.door_id, DoorRow.content_sha256)
-                                           .where(DoorRow.door_id.in_(ids[k:k + _CHUNK]))).all())
+                stored.update(
+                    conn.execute(
+                        select(DoorRow.door_id, DoorRow.content_sha256).where(
+                            DoorRow.door_id.in_(ids[k : k + _CHUNK])
+                        )
+                    ).all()
+                )
         out: dict[str, builtins.list[RecipeChange] | None] = {}
         for r in recipes:
             if r.door_id not in stored:
@@ -395,8 +460,14 @@ class RecipeStore:
         """Summaries of the stored recipes, ordered by door id."""
         counts = select(HingeRow.door_pk, func.count().label("n")).group_by(HingeRow.door_pk).subquery()
         q = (
-            select(DoorRow.door_id, DoorRow.width_mm, DoorRow.height_mm, DoorRow.thickness_mm,
-                   func.coalesce(counts.c.n, 0), DoorRow.updated_at)
+            select(
+                DoorRow.door_id,
+                DoorRow.width_mm,
+                DoorRow.height_mm,
+                DoorRow.thickness_mm,
+                func.coalesce(counts.c.n, 0),
+                DoorRow.updated_at,
+            )
             .outerjoin(counts, counts.c.door_pk == DoorRow.id)
             .order_by(DoorRow.door_id)
             .offset(offset)
@@ -422,7 +493,10 @@ class RecipeStore:
         while True:
             with Session(self.engine) as s:
                 rows = s.scalars(
-                    select(DoorRow).where(DoorRow.door_id > last).order_by(DoorRow.door_id).limit(batch)
+                    select(DoorRow)
+                    .where(DoorRow.door_id > last)
+                    .order_by(DoorRow.door_id)
+                    .limit(batch)
                     .options(selectinload(DoorRow.hinges))
                 ).all()
                 recipes = [_recipe_from_row(r) for r in rows]
@@ -442,11 +516,16 @@ class RecipeStore:
         """
         for attempt in range(1, WRITE_ATTEMPTS + 1):
             try:
-                with self._write_lock, self.engine.connect().execution_options(sqlite_begin="IMMEDIATE") as conn:
+                with (
+                    self._write_lock,
+                    self.engine.connect().execution_options(sqlite_begin="IMMEDIATE") as conn,
+                ):
                     with conn.begin():
                         return work(conn)
             except (OperationalError, IntegrityError) as e:
-                retryable = (isinstance(e, IntegrityError) and "recipe_versions" in str(e)) or _is_lock_error(e)
+                retryable = (isinstance(e, IntegrityError) and "recipe_versions" in str(e)) or _is_lock_error(
+                    e
+                )
                 if not retryable or attempt == WRITE_ATTEMPTS:
                     raise
                 time.sleep(random.uniform(0.01, 0.05) * 2**attempt)
@@ -488,16 +567,24 @@ class RecipeStore:
         ids = sorted(r.door_id for r in recipes)
         if conn.dialect.name == "postgresql":  # one writer per door at a time, in a fixed order (no deadlock)
             for door_id in ids:
-                conn.execute(text("SELECT pg_advisory_xact_lock(hashtext(:k))"), {"k": "doorloc-door:" + door_id})
+                conn.execute(
+                    text("SELECT pg_advisory_xact_lock(hashtext(:k))"), {"k": "doorloc-door:" + door_id}
+                )
         current: dict[str, tuple[int, int, str | None]] = {}
         last: dict[str, int] = {}
         for k in range(0, len(ids), _CHUNK):
-            chunk = ids[k:k + _CHUNK]
-            for row_pk, door_id, version, sha in conn.execute(select(
-                    DoorRow.id, DoorRow.door_id, DoorRow.version, DoorRow.content_sha256).where(DoorRow.door_id.in_(chunk))):
+            chunk = ids[k : k + _CHUNK]
+            for row_pk, door_id, version, sha in conn.execute(
+                select(DoorRow.id, DoorRow.door_id, DoorRow.version, DoorRow.content_sha256).where(
+                    DoorRow.door_id.in_(chunk)
+                )
+            ):
                 current[door_id] = (row_pk, version, sha)
-            for door_id, v in conn.execute(select(RecipeVersionRow.door_id, func.max(RecipeVersionRow.version))
-                                           .where(RecipeVersionRow.door_id.in_(chunk)).group_by(RecipeVersionRow.door_id)):
+            for door_id, v in conn.execute(
+                select(RecipeVersionRow.door_id, func.max(RecipeVersionRow.version))
+                .where(RecipeVersionRow.door_id.in_(chunk))
+                .group_by(RecipeVersionRow.door_id)
+            ):
                 last[door_id] = int(v)
         versions: dict[str, int] = {}
         changed: builtins.list[tuple[DoorRecipe, str, dict]] = []
@@ -514,8 +601,8 @@ class RecipeStore:
         replaced = [current[r.door_id][0] for r, _, _ in changed if r.door_id in current]
         for k in range(0, len(replaced), _CHUNK):
             # the replaced doors' hinges in one statement (SQLite's per-row ON DELETE CASCADE is slow), then the doors
-            conn.execute(delete(HingeRow).where(HingeRow.door_pk.in_(replaced[k:k + _CHUNK])))
-            conn.execute(delete(DoorRow).where(DoorRow.id.in_(replaced[k:k + _CHUNK])))
+            conn.execute(delete(HingeRow).where(HingeRow.door_pk.in_(replaced[k : k + _CHUNK])))
+            conn.execute(delete(DoorRow).where(DoorRow.id.in_(replaced[k : k + _CHUNK])))
         history = []
         door_rows = []
         for r, sha, doc in changed:
@@ -523,14 +610,21 @@ class RecipeStore:
             versions[r.door_id] = v
             door_rows.append({**_door_values(r), "version": v, "content_sha256": sha, "updated_by": by})
             old = previous.get(r.door_id)
-            history.append({
-                "door_id": r.door_id, "version": v, "action": "updated" if r.door_id in current else "created",
-                "changed_by": by, "recipe": doc,
-                "changes": [c.__dict__ for c in recipe_changes(old, doc)] if old is not None else None,
-            })
+            history.append(
+                {
+                    "door_id": r.door_id,
+                    "version": v,
+                    "action": "updated" if r.door_id in current else "created",
+                    "changed_by": by,
+                    "recipe": doc,
+                    "changes": [c.__dict__ for c in recipe_changes(old, doc)] if old is not None else None,
+                }
+            )
         result = conn.execute(insert(DoorRow).returning(DoorRow.id, DoorRow.door_id), door_rows)
         pk = {door_id: door_pk for door_pk, door_id in result}
-        hinge_rows = [_hinge_values(h, pk[r.door_id], i + 1) for r, _, _ in changed for i, h in enumerate(r.hinges)]
+        hinge_rows = [
+            _hinge_values(h, pk[r.door_id], i + 1) for r, _, _ in changed for i, h in enumerate(r.hinges)
+        ]
         conn.execute(insert(HingeRow), hinge_rows)
         conn.execute(insert(RecipeVersionRow), history)
         return versions
@@ -540,11 +634,17 @@ class RecipeStore:
         """The recipe JSON of each door's newest history entry (for the change list of the next version)."""
         out: dict[str, dict] = {}
         for k in range(0, len(door_ids), _CHUNK):
-            chunk = door_ids[k:k + _CHUNK]
-            newest = (select(RecipeVersionRow.door_id, func.max(RecipeVersionRow.version).label("v"))
-                      .where(RecipeVersionRow.door_id.in_(chunk)).group_by(RecipeVersionRow.door_id).subquery())
+            chunk = door_ids[k : k + _CHUNK]
+            newest = (
+                select(RecipeVersionRow.door_id, func.max(RecipeVersionRow.version).label("v"))
+                .where(RecipeVersionRow.door_id.in_(chunk))
+                .group_by(RecipeVersionRow.door_id)
+                .subquery()
+            )
             q = select(RecipeVersionRow.door_id, RecipeVersionRow.recipe).join(
-                newest, (newest.c.door_id == RecipeVersionRow.door_id) & (newest.c.v == RecipeVersionRow.version))
+                newest,
+                (newest.c.door_id == RecipeVersionRow.door_id) & (newest.c.v == RecipeVersionRow.version),
+            )
             out.update({d: doc for d, doc in conn.execute(q) if doc is not None})
         return out
 
@@ -553,14 +653,24 @@ class RecipeStore:
         version. True when there was one."""
 
         def work(conn: Connection) -> bool:
-            row = conn.execute(select(DoorRow.id, DoorRow.version).where(DoorRow.door_id == door_id)).one_or_none()
+            row = conn.execute(
+                select(DoorRow.id, DoorRow.version).where(DoorRow.door_id == door_id)
+            ).one_or_none()
             if row is None:
                 return False
-            last = conn.scalar(select(func.max(RecipeVersionRow.version)).where(RecipeVersionRow.door_id == door_id))
+            last = conn.scalar(
+                select(func.max(RecipeVersionRow.version)).where(RecipeVersionRow.door_id == door_id)
+            )
             conn.execute(delete(HingeRow).where(HingeRow.door_pk == row.id))
             conn.execute(delete(DoorRow).where(DoorRow.id == row.id))
-            conn.execute(insert(RecipeVersionRow).values(
-                door_id=door_id, version=max(int(last or 0), row.version) + 1, action="deleted", changed_by=by[:64]))
+            conn.execute(
+                insert(RecipeVersionRow).values(
+                    door_id=door_id,
+                    version=max(int(last or 0), row.version) + 1,
+                    action="deleted",
+                    changed_by=by[:64],
+                )
+            )
             return True
 
         return self._write(work)
@@ -568,5 +678,13 @@ class RecipeStore:
 
 def _is_lock_error(e: Exception) -> bool:
     msg = str(e).lower()
-    return any(s in msg for s in ("database is locked", "database table is locked", "busy", "deadlock detected",
-                                  "could not serialize"))
+    return any(
+        s in msg
+        for s in (
+            "database is locked",
+            "database table is locked",
+            "busy",
+            "deadlock detected",
+            "could not serialize",
+        )
+    )

@@ -54,14 +54,19 @@ class DoorRow(Base):
     tool_diameter_mm: Mapped[float] = mapped_column(Float, nullable=False)
     spindle_rpm: Mapped[float] = mapped_column(Float, nullable=False)
     feed_mm_s: Mapped[float] = mapped_column(Float, nullable=False)
-    updated_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), nullable=False, server_default=func.now())
+    updated_at: Mapped[datetime] = mapped_column(
+        DateTime(timezone=True), nullable=False, server_default=func.now()
+    )
     #: revision 0003: the recipe's current version, a hash of its content (to skip unchanged re-imports), who wrote it
     version: Mapped[int] = mapped_column(Integer, nullable=False, server_default="1")
     content_sha256: Mapped[str | None] = mapped_column(String(64), nullable=True)
     updated_by: Mapped[str | None] = mapped_column(String(64), nullable=True)
 
     hinges: Mapped[list[HingeRow]] = relationship(
-        back_populates="door", order_by="HingeRow.position", cascade="all, delete-orphan", passive_deletes=True
+        back_populates="door",
+        order_by="HingeRow.position",
+        cascade="all, delete-orphan",
+        passive_deletes=True,
     )
 
 
@@ -118,7 +123,9 @@ class ApiKeyRow(Base):
     role: Mapped[str] = mapped_column(String(16), nullable=False)
     salt: Mapped[str] = mapped_column(String(64), nullable=False)
     key_hash: Mapped[str] = mapped_column(String(128), nullable=False)
-    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), nullable=False, server_default=func.now())
+    created_at: Mapped[datetime] = mapped_column(
+        DateTime(timezone=True), nullable=False, server_default=func.now()
+    )
     revoked_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
 
 
@@ -130,7 +137,9 @@ class RecipeVersionRow(Base):
     __table_args__ = (
         UniqueConstraint("door_id", "version", name="uq_recipe_versions_door_version"),
         CheckConstraint("version >= 1", name="ck_recipe_versions_version_positive"),
-        CheckConstraint("action IN ('created', 'updated', 'deleted', 'migrated')", name="ck_recipe_versions_action"),
+        CheckConstraint(
+            "action IN ('created', 'updated', 'deleted', 'migrated')", name="ck_recipe_versions_action"
+        ),
     )
 
     id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
@@ -138,6 +147,8 @@ class RecipeVersionRow(Base):
     version: Mapped[int] = mapped_column(Integer, nullable=False)
     action: Mapped[str] = mapped_column(String(16), nullable=False)
     changed_by: Mapped[str] = mapped_column(String(64), nullable=False)
-    changed_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), nullable=False, server_default=func.now())
+    changed_at: Mapped[datetime] = mapped_column(
+        DateTime(timezone=True), nullable=False, server_default=func.now()
+    )
     recipe: Mapped[dict | None] = mapped_column(JSON, nullable=True)
     changes: Mapped[list | None] = mapped_column(JSON, nullable=True)

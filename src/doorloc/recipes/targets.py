@@ -31,8 +31,14 @@ from doorloc.pose import DoorPose, door_to_cell
 from doorloc.recipes.models import DoorRecipe
 from doorloc.recipes.paths import DEFAULT_CLEARANCE_MM, PathPoint, PointKind, recipe_path
 
-__all__ = ["Target", "tool_quaternion", "targets_for_pose", "targets_from_path", "TOOL_Y_ALONG_CELL_Y",
-           "TOOL_Z_ALONG_CELL_Y"]
+__all__ = [
+    "Target",
+    "tool_quaternion",
+    "targets_for_pose",
+    "targets_from_path",
+    "TOOL_Y_ALONG_CELL_Y",
+    "TOOL_Z_ALONG_CELL_Y",
+]
 
 Quat = tuple[float, float, float, float]
 #: default tool orientation at yaw 0: tool frame = cell axes, spindle along tool +Y = cell +Y
@@ -95,7 +101,15 @@ def targets_from_path(
     cell = door_to_cell(np.array([p.point_door for p in path], dtype=float), pose, face_y_mm)
     q = tool_quaternion(pose.yaw_deg, base_orientation)
     return [
-        Target(name=p.name, x_mm=float(c[0]), y_mm=float(c[1]), z_mm=float(c[2]), quat=q, hinge=p.hinge, kind=p.kind)
+        Target(
+            name=p.name,
+            x_mm=float(c[0]),
+            y_mm=float(c[1]),
+            z_mm=float(c[2]),
+            quat=q,
+            hinge=p.hinge,
+            kind=p.kind,
+        )
         for p, c in zip(path, cell, strict=True)
     ]
 
@@ -127,5 +141,6 @@ def targets_for_pose(
     list of Target
         Per hinge: ``APP``, ``P1..Pn``, ``RET``; cell frame, mm.
     """
-    return targets_from_path(recipe_path(recipe, clearance_mm=clearance_mm), pose, face_y_mm,
-                             base_orientation=base_orientation)
+    return targets_from_path(
+        recipe_path(recipe, clearance_mm=clearance_mm), pose, face_y_mm, base_orientation=base_orientation
+    )

@@ -33,8 +33,13 @@ from doorloc.robot.kinematics import Kinematics
 from doorloc.robot.model import RobotModel
 
 __all__ = [
-    "TABLE_4_8_WRENCH", "SEGMENTS", "segment_of_points", "tcp_deflection_mm", "deflection_of_jacobian",
-    "wrench_tool_to_base", "compensation_cell",
+    "TABLE_4_8_WRENCH",
+    "SEGMENTS",
+    "segment_of_points",
+    "tcp_deflection_mm",
+    "deflection_of_jacobian",
+    "wrench_tool_to_base",
+    "compensation_cell",
 ]
 
 #: thesis Table 4.8, mean milling wrench per segment: [FX, FY, FZ] N, [MX, MY, MZ] Nm (tool frame, see above)
@@ -107,7 +112,9 @@ def wrench_tool_to_base(wrench_tool: np.ndarray, tool_rot_base: Rotation) -> np.
     return np.concatenate([tool_rot_base.apply(w[..., :3]), tool_rot_base.apply(w[..., 3:])], axis=-1)
 
 
-def compensation_cell(deflection_base_mm: np.ndarray, base_rot_cell: Rotation, hinge_has_corrections: np.ndarray) -> np.ndarray:
+def compensation_cell(
+    deflection_base_mm: np.ndarray, base_rot_cell: Rotation, hinge_has_corrections: np.ndarray
+) -> np.ndarray:
     """Correction to add to each target (cell frame, mm): ``-dd``, zero where the recipe has its own.
 
     Parameters

@@ -149,14 +149,18 @@ class Kinematics:
         n00 = c5 * (c4 * Mx[..., 0, 0] + s4 * Mx[..., 1, 0]) + s5 * Mx[..., 2, 0]
         n10 = -s4 * Mx[..., 0, 0] + c4 * Mx[..., 1, 0]
         t6 = np.arctan2(n10, n00)
-        q456 = np.stack([t4 - self.theta_offset[3], t5 - self.theta_offset[4], t6 - self.theta_offset[5]], axis=-1)
+        q456 = np.stack(
+            [t4 - self.theta_offset[3], t5 - self.theta_offset[4], t6 - self.theta_offset[5]], axis=-1
+        )
         q = np.concatenate([np.broadcast_to(q123[..., None, :], (*q456.shape[:-1], 3)), q456], axis=-1)
         q = wrap_angle(q).reshape(*batch, N_BRANCHES, 6)
         exists = np.broadcast_to(exists2[..., None, None], (*exists2.shape, 2, 2)).reshape(*batch, N_BRANCHES)
         return q, exists
 
     def _r03(self, q123: np.ndarray) -> np.ndarray:
-        links = _dh_transforms(q123 + self.theta_offset[:3], self.d[:3], self.a[:3], self.alpha[:3])[..., :3, :3]
+        links = _dh_transforms(q123 + self.theta_offset[:3], self.d[:3], self.a[:3], self.alpha[:3])[
+            ..., :3, :3
+        ]
         return links[..., 0, :, :] @ links[..., 1, :, :] @ links[..., 2, :, :]
 
     # ----------------------------------------------------------------------------- Jacobian
@@ -176,9 +180,14 @@ class Kinematics:
             p = p + F[..., 6, :3, :3] @ np.asarray(tcp_flange_mm, dtype=float)
         z = F[..., :6, :3, 2]
         r = p[..., None, :] - F[..., :6, :3, 3]
-        jv = np.stack([z[..., 1] * r[..., 2] - z[..., 2] * r[..., 1],
-                       z[..., 2] * r[..., 0] - z[..., 0] * r[..., 2],
-                       z[..., 0] * r[..., 1] - z[..., 1] * r[..., 0]], axis=-2)
+        jv = np.stack(
+            [
+                z[..., 1] * r[..., 2] - z[..., 2] * r[..., 1],
+                z[..., 2] * r[..., 0] - z[..., 0] * r[..., 2],
+                z[..., 0] * r[..., 1] - z[..., 1] * r[..., 0],
+            ],
+            axis=-2,
+        )
         return np.concatenate([jv, np.swapaxes(z, -1, -2)], axis=-2)
 
     # ----------------------------------------------------------------------------- confdata
@@ -199,9 +208,11 @@ class Kinematics:
         theta1 = q[..., 0] + self.theta_offset[0]
         behind_axis1 = (np.cos(theta1) * wc[..., 0] + np.sin(theta1) * wc[..., 1]) < 0
         u, v = o2 - o1, wc - o1
-        behind_arm = ((u[..., 1] * v[..., 2] - u[..., 2] * v[..., 1]) * z1[..., 0]
-                      + (u[..., 2] * v[..., 0] - u[..., 0] * v[..., 2]) * z1[..., 1]
-                      + (u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]) * z1[..., 2]) < 0
+        behind_arm = (
+            (u[..., 1] * v[..., 2] - u[..., 2] * v[..., 1]) * z1[..., 0]
+            + (u[..., 2] * v[..., 0] - u[..., 0] * v[..., 2]) * z1[..., 1]
+            + (u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]) * z1[..., 2]
+        ) < 0
         cfx = 4 * behind_axis1.astype(int) + 2 * behind_arm.astype(int) + (q[..., 4] < 0).astype(int)
         quarters = np.floor(np.degrees(q[..., [0, 3, 5]]) / 90.0 + 1e-9).astype(int)
         return np.concatenate([quarters, cfx[..., None]], axis=-1)

@@ -17,7 +17,15 @@ import numpy as np
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-__all__ = ["DHLink", "Stiffness", "RobotModel", "RobotFileError", "load_robot", "bundled_robots", "DEFAULT_ROBOT"]
+__all__ = [
+    "DHLink",
+    "Stiffness",
+    "RobotModel",
+    "RobotFileError",
+    "load_robot",
+    "bundled_robots",
+    "DEFAULT_ROBOT",
+]
 
 #: the robot a cell gets when its ``robot:`` section names none, and ``doorloc reach`` without --cell
 DEFAULT_ROBOT = "irb6600-175-2.55"
@@ -105,9 +113,17 @@ class RobotModel(_Strict):
                 raise ValueError(f"joint_limits_deg[{i}] must be [min, max] with min < max, got [{lo}, {hi}]")
         alphas = [link.alpha_deg for link in self.dh]
         if alphas != [-90.0, 0.0, -90.0, 90.0, -90.0, 0.0]:
-            raise ValueError(f"dh: the closed-form inverse kinematics needs alpha = -90, 0, -90, 90, -90, 0 deg, got {alphas}")
-        zero = {"dh[1].d_mm": self.dh[1].d_mm, "dh[2].d_mm": self.dh[2].d_mm, "dh[4].d_mm": self.dh[4].d_mm,
-                "dh[3].a_mm": self.dh[3].a_mm, "dh[4].a_mm": self.dh[4].a_mm, "dh[5].a_mm": self.dh[5].a_mm}
+            raise ValueError(
+                f"dh: the closed-form inverse kinematics needs alpha = -90, 0, -90, 90, -90, 0 deg, got {alphas}"
+            )
+        zero = {
+            "dh[1].d_mm": self.dh[1].d_mm,
+            "dh[2].d_mm": self.dh[2].d_mm,
+            "dh[4].d_mm": self.dh[4].d_mm,
+            "dh[3].a_mm": self.dh[3].a_mm,
+            "dh[4].a_mm": self.dh[4].a_mm,
+            "dh[5].a_mm": self.dh[5].a_mm,
+        }
         bad = [k for k, v in zero.items() if v != 0.0]
         if bad:
             raise ValueError(f"{', '.join(bad)} must be 0 for a spherical wrist without shoulder offsets")
@@ -164,4 +180,6 @@ def load_robot(name_or_path: str | Path = DEFAULT_ROBOT) -> RobotModel:
             return _parse(p.read_text(encoding="utf-8"), str(p))
         except OSError as e:
             raise RobotFileError(f"{p}: cannot read robot file: {e}") from None
-    raise RobotFileError(f"unknown robot {s!r}: give a robot file (.yaml) or one of {', '.join(bundled_robots())}")
+    raise RobotFileError(
+        f"unknown robot {s!r}: give a robot file (.yaml) or one of {', '.join(bundled_robots())}"
+    )

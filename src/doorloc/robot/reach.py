@@ -54,8 +54,17 @@ from doorloc.robot.model import DEFAULT_ROBOT, RobotModel, load_robot
 from doorloc.robot.section import RobotSection, robot_section_from_doc
 
 __all__ = [
-    "Reason", "TargetReach", "ReachReport", "ReachSetup", "check_reach", "inverse_condition", "thesis_cell_path",
-    "setup_for_cell", "reach_for_door", "compensated_targets", "report_table",
+    "Reason",
+    "TargetReach",
+    "ReachReport",
+    "ReachSetup",
+    "check_reach",
+    "inverse_condition",
+    "thesis_cell_path",
+    "setup_for_cell",
+    "reach_for_door",
+    "compensated_targets",
+    "report_table",
 ]
 
 Reason = Literal["unreachable", "joint_limit", "near_singularity", "configuration_flip"]
@@ -126,9 +135,15 @@ class ReachSetup:
     def of(cls, robot: RobotModel, section: RobotSection) -> ReachSetup:
         assert section.base is not None and section.tool is not None  # filled by RobotSection's validator
         base, tool = section.base.matrix(), section.tool.matrix()
-        return cls(robot, Kinematics.of(robot), section, np.linalg.inv(base), np.linalg.inv(tool),
-                   np.asarray(section.tool.pos_mm, dtype=float),
-                   Rotation.from_quat(section.base.quat, scalar_first=True))
+        return cls(
+            robot,
+            Kinematics.of(robot),
+            section,
+            np.linalg.inv(base),
+            np.linalg.inv(tool),
+            np.asarray(section.tool.pos_mm, dtype=float),
+            Rotation.from_quat(section.base.quat, scalar_first=True),
+        )
 
 
 def inverse_condition(J: np.ndarray, characteristic_length_mm: float) -> np.ndarray:
@@ -179,7 +194,9 @@ def check_reach(setup: ReachSetup, targets: Sequence[Target]) -> ReachReport:
     robot, kin = setup.robot, setup.kin
     tool = {"pos_mm": list(setup.section.tool.pos_mm), "quat": list(setup.section.tool.quat)}  # type: ignore[union-attr]
     if not targets:
-        return ReachReport(robot=robot.name, tool=tool, feasible=True, reason=None, error_code=None, targets=[])
+        return ReachReport(
+            robot=robot.name, tool=tool, feasible=True, reason=None, error_code=None, targets=[]
+        )
     n = len(targets)
     pos = np.array([(t.x_mm, t.y_mm, t.z_mm) for t in targets], dtype=float)
     quat = np.array([t.quat for t in targets], dtype=float)
@@ -230,7 +247,9 @@ def check_reach(setup: ReachSetup, targets: Sequence[Target]) -> ReachReport:
             if ok[j].any() or in_limits[j].any():
                 chosen[j] = int(np.argmax(np.where(ok[j], 2.0, 0.0) + np.where(in_limits[j], cond[j], -1.0)))
             else:  # the configuration that misses its limits least
-                chosen[j] = int(np.argmin(np.where(exists[j], np.clip(beyond[j], 0, None).max(axis=1), np.inf)))
+                chosen[j] = int(
+                    np.argmin(np.where(exists[j], np.clip(beyond[j], 0, None).max(axis=1), np.inf))
+                )
             target_reason[j] = f"{code}: {sentence}"
         if first_problem is None:
             first_problem = (code, sentence)
@@ -255,24 +274,45 @@ def check_reach(setup: ReachSetup, targets: Sequence[Target]) -> ReachReport:
     tcp, qb, cond_l, dd_l = base_tcp[:, :3, 3].tolist(), quat_base.tolist(), cond_chosen.tolist(), dd.tolist()
     out = [
         TargetReach(
-            name=t.name, hinge=t.hinge, joints_deg=tuple(joints[j]) if has_q[j] else None,
-            confdata=tuple(conf[j]) if has_q[j] else None, tcp_base_mm=tuple(tcp[j]), quat_base=tuple(qb[j]),
-            feasible=target_reason[j] is None, reason=target_reason[j],
-            inv_condition=cond_l[j] if has_q[j] else None, deflection_mm=tuple(dd_l[j]) if has_q[j] else None)
+            name=t.name,
+            hinge=t.hinge,
+            joints_deg=tuple(joints[j]) if has_q[j] else None,
+            confdata=tuple(conf[j]) if has_q[j] else None,
+            tcp_base_mm=tuple(tcp[j]),
+            quat_base=tuple(qb[j]),
+            feasible=target_reason[j] is None,
+            reason=target_reason[j],
+            inv_condition=cond_l[j] if has_q[j] else None,
+            deflection_mm=tuple(dd_l[j]) if has_q[j] else None,
+        )
         for j, t in enumerate(targets)
     ]
     # built from arrays this function made and checked: model_construct skips validating them again
     if first_problem is None:
-        return ReachReport.model_construct(robot=robot.name, tool=tool, feasible=True, reason=None, error_code=None,
-                                           targets=out)
+        return ReachReport.model_construct(
+            robot=robot.name, tool=tool, feasible=True, reason=None, error_code=None, targets=out
+        )
     code, sentence = first_problem
-    return ReachReport.model_construct(robot=robot.name, tool=tool, feasible=False, reason=f"{code}: {sentence}",
-                                       error_code=code, targets=out)
+    return ReachReport.model_construct(
+        robot=robot.name,
+        tool=tool,
+        feasible=False,
+        reason=f"{code}: {sentence}",
+        error_code=code,
+        targets=out,
+    )
 
 
 def _why(
-    idx: np.ndarray, ok: np.ndarray, exists: np.ndarray, in_limits: np.ndarray, beyond: np.ndarray,
-    cond: np.ndarray, q_all: np.ndarray, robot: RobotModel, targets: Sequence[Target],
+    idx: np.ndarray,
+    ok: np.ndarray,
+    exists: np.ndarray,
+    in_limits: np.ndarray,
+    beyond: np.ndarray,
+    cond: np.ndarray,
+    q_all: np.ndarray,
+    robot: RobotModel,
+    targets: Sequence[Target],
 ) -> tuple[Reason, str]:
     """The reason a hinge path has no single configuration: the first target, the code, a sentence."""
     for j in idx:
@@ -289,13 +329,15 @@ def _why(
             val = math.degrees(q_all[j, b, joint])
             return "joint_limit", (
                 f"target {name} needs joint {joint + 1} at {_fmt(val)} deg, beyond its limits [{_fmt(lo)}, {_fmt(hi)}] "
-                f"less the {_fmt(robot.joint_margin_deg)} deg margin (in the configuration that comes closest)")
+                f"less the {_fmt(robot.joint_margin_deg)} deg margin (in the configuration that comes closest)"
+            )
         best = float(np.where(in_limits[j], cond[j], 0.0).max())
         b = int(np.argmax(np.where(in_limits[j], cond[j], -1.0)))
         q5 = math.degrees(q_all[j, b, 4])
         return "near_singularity", (
             f"target {name} is near a singularity: inverse condition number {best:.3f} < {robot.min_inv_condition:g} "
-            f"(joint 5 at {_fmt(q5)} deg)")
+            f"(joint 5 at {_fmt(q5)} deg)"
+        )
     # every point alone is fine: find the first pair of neighbours no common configuration serves
     common = np.ones(N_BRANCHES, dtype=bool)
     for a, j in enumerate(idx):
@@ -306,7 +348,8 @@ def _why(
             after = np.flatnonzero(ok[j])
             return "configuration_flip", (
                 f"no single configuration serves the path from {prev} to {targets[j].name}: the robot would "
-                f"change configuration between them (cfx {before.tolist()} vs {after.tolist()})")
+                f"change configuration between them (cfx {before.tolist()} vs {after.tolist()})"
+            )
     # a configuration serves every point, but a joint of it swings too far between two neighbours
     steps = np.abs(np.diff(q_all[idx], axis=0))  # (m-1, 8, 6)
     worst = np.where(common[None, :, None], steps, np.inf).max(axis=(0, 2))
@@ -315,14 +358,17 @@ def _why(
     return "configuration_flip", (
         f"joint {joint + 1} would swing {_fmt(math.degrees(steps[k, b, joint]))} deg between {targets[idx[k]].name} and "
         f"{targets[idx[k + 1]].name} (more than {_fmt(robot.max_joint_step_deg)} deg between neighbours): "
-        f"a wrist flip in mid-path")
+        f"a wrist flip in mid-path"
+    )
 
 
 def _smooth(q_path: np.ndarray, robot: RobotModel) -> np.ndarray:
     """Per configuration (``q_path`` ``(m, 8, 6)``): no joint moves more than the robot's step between neighbours."""
     if len(q_path) < 2:
         return np.ones(q_path.shape[1], dtype=bool)
-    return np.asarray((np.abs(np.diff(q_path, axis=0)) <= math.radians(robot.max_joint_step_deg)).all(axis=(0, 2)))
+    return np.asarray(
+        (np.abs(np.diff(q_path, axis=0)) <= math.radians(robot.max_joint_step_deg)).all(axis=(0, 2))
+    )
 
 
 def thesis_cell_path() -> Path:
@@ -357,7 +403,11 @@ def reach_for_door(setup: ReachSetup, recipe: DoorRecipe, pose: DoorPose, face_y
 
 
 def compensated_targets(
-    setup: ReachSetup, recipe: DoorRecipe, pose: DoorPose, face_y_mm: float, *,
+    setup: ReachSetup,
+    recipe: DoorRecipe,
+    pose: DoorPose,
+    face_y_mm: float,
+    *,
     clearance_mm: float = DEFAULT_CLEARANCE_MM,
 ) -> tuple[list[Target], ReachReport]:
     """The door's targets with the model's deflection compensation added, and the reach report they came from.
@@ -368,23 +418,28 @@ def compensated_targets(
     (:func:`doorloc.robot.deflection.compensation_cell`). Approach and retract points do not move.
     An infeasible door gets its targets back unmoved (the report says why).
     """
-    targets = targets_for_pose(recipe, pose, face_y_mm, clearance_mm=clearance_mm,
-                               base_orientation=setup.section.base_orientation())
+    targets = targets_for_pose(
+        recipe, pose, face_y_mm, clearance_mm=clearance_mm, base_orientation=setup.section.base_orientation()
+    )
     report = check_reach(setup, targets)
     if not report.feasible:
         return targets, report
     own = {i + 1 for i, h in enumerate(recipe.hinges) if h.corrections}
     dd = np.array([t.deflection_mm for t in report.targets], dtype=float)
     comp = compensation_cell(dd, setup.base_rot_cell, np.array([t.hinge in own for t in targets]))
-    moved = [t.model_copy(update={"x_mm": t.x_mm + c[0], "y_mm": t.y_mm + c[1], "z_mm": t.z_mm + c[2]})
-             for t, c in zip(targets, comp.tolist(), strict=True)]
+    moved = [
+        t.model_copy(update={"x_mm": t.x_mm + c[0], "y_mm": t.y_mm + c[1], "z_mm": t.z_mm + c[2]})
+        for t, c in zip(targets, comp.tolist(), strict=True)
+    ]
     return moved, report
 
 
 def report_table(report: ReachReport) -> str:
     """A fixed-width table of the report for people (one line per target, then the verdict)."""
-    lines = [f"robot {report.robot}  tool pos_mm {report.tool['pos_mm']} quat {report.tool['quat']}",
-             f"{'target':<10} {'ok':<3} {'joints_deg (1..6)':<52} {'confdata':<16} {'1/cond':>6} {'|dd| mm':>8}"]
+    lines = [
+        f"robot {report.robot}  tool pos_mm {report.tool['pos_mm']} quat {report.tool['quat']}",
+        f"{'target':<10} {'ok':<3} {'joints_deg (1..6)':<52} {'confdata':<16} {'1/cond':>6} {'|dd| mm':>8}",
+    ]
     for t in report.targets:
         joints = " ".join(f"{v:7.2f}" for v in t.joints_deg) if t.joints_deg else "-"
         conf = str(list(t.confdata)) if t.confdata else "-"

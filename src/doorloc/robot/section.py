@@ -43,7 +43,9 @@ class RobotSectionError(ValueError):
 def _unit_quat(q: tuple[float, ...]) -> Quat:
     n = math.sqrt(math.fsum(v * v for v in q))
     if not math.isfinite(n) or abs(n - 1.0) > 1e-3:
-        raise ValueError(f"quat must be a unit quaternion [w, x, y, z] (norm 1 within 1e-3), got norm {n:.6g}")
+        raise ValueError(
+            f"quat must be a unit quaternion [w, x, y, z] (norm 1 within 1e-3), got norm {n:.6g}"
+        )
     w, x, y, z = (v / n for v in q)
     return (w, x, y, z) if w >= 0 else (-w, -x, -y, -z)
 
@@ -78,7 +80,9 @@ class Placement(BaseModel):
     def close_to(self, other: Placement, tol_mm: float = 1e-3, tol_deg: float = 1e-4) -> bool:
         """Same transform within ``tol_mm`` and ``tol_deg``."""
         dp = float(np.linalg.norm(np.subtract(self.pos_mm, other.pos_mm)))
-        r = Rotation.from_quat(self.quat, scalar_first=True).inv() * Rotation.from_quat(other.quat, scalar_first=True)
+        r = Rotation.from_quat(self.quat, scalar_first=True).inv() * Rotation.from_quat(
+            other.quat, scalar_first=True
+        )
         return dp <= tol_mm and math.degrees(r.magnitude()) <= tol_deg
 
 
@@ -130,11 +134,17 @@ class RobotSection(BaseModel):
         given = self.model_fields_set
         # the tool: `tool` (SPEC) is RAPID's tframe; the older tool_tcp_mm/tool_rot spell the same thing
         if self.tool is not None and given & {"tool_tcp_mm", "tool_rot"}:
-            raise ValueError("give the tool once: 'tool' (pos_mm, quat) or the older 'tool_tcp_mm'/'tool_rot', not both")
+            raise ValueError(
+                "give the tool once: 'tool' (pos_mm, quat) or the older 'tool_tcp_mm'/'tool_rot', not both"
+            )
         if self.tool is None:
             rot = self.tool_rot
             if rot is None:
-                rot = (math.sqrt(0.5), math.sqrt(0.5), 0.0, 0.0) if self.spindle_axis == "y" else (1.0, 0.0, 0.0, 0.0)
+                rot = (
+                    (math.sqrt(0.5), math.sqrt(0.5), 0.0, 0.0)
+                    if self.spindle_axis == "y"
+                    else (1.0, 0.0, 0.0, 0.0)
+                )
             object.__setattr__(self, "tool_rot", rot)
             object.__setattr__(self, "tool", Placement(pos_mm=self.tool_tcp_mm, quat=rot))
         else:
@@ -147,8 +157,10 @@ class RobotSection(BaseModel):
         else:
             inv = self.base.inverse()
             if given & {"wobj_uframe_mm", "wobj_uframe_rot"} and not inv.close_to(wobj):
-                raise ValueError("'base' and 'wobj_uframe_mm'/'wobj_uframe_rot' disagree: the work object must be "
-                                 "the inverse of the base placement (give only 'base')")
+                raise ValueError(
+                    "'base' and 'wobj_uframe_mm'/'wobj_uframe_rot' disagree: the work object must be "
+                    "the inverse of the base placement (give only 'base')"
+                )
             object.__setattr__(self, "wobj_uframe_mm", inv.pos_mm)
             object.__setattr__(self, "wobj_uframe_rot", inv.quat)
         return self
@@ -183,7 +195,9 @@ def robot_section_from_doc(section: Any, source: str = "cell.yaml") -> RobotSect
     if section is None:
         section = {}
     if not isinstance(section, dict):
-        raise RobotSectionError(f"{source}: 'robot' must be a mapping (model, base, tool, ...), got {section!r}")
+        raise RobotSectionError(
+            f"{source}: 'robot' must be a mapping (model, base, tool, ...), got {section!r}"
+        )
     try:
         return RobotSection.model_validate(section)
     except ValidationError as e:

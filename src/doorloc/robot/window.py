@@ -42,7 +42,9 @@ def window_points(setup: ReachSetup, pitch_rad: float, steps: int = 361) -> np.n
     robot, kin = setup.robot, setup.kin
     lim = robot.limits_rad()
     m = math.radians(robot.joint_margin_deg)
-    q2, q3 = np.meshgrid(np.linspace(lim[1, 0] + m, lim[1, 1] - m, steps), np.linspace(lim[2, 0] + m, lim[2, 1] - m, steps))
+    q2, q3 = np.meshgrid(
+        np.linspace(lim[1, 0] + m, lim[1, 1] - m, steps), np.linspace(lim[2, 0] + m, lim[2, 1] - m, steps)
+    )
     q = np.zeros((q2.size, 6))
     q[:, 1], q[:, 2] = q2.ravel(), q3.ravel()
 
@@ -65,7 +67,9 @@ def draw_window(setup: ReachSetup, report: ReachReport, size_px: int = 900) -> n
     tool_inv = np.linalg.inv(setup.section.tool.matrix())  # type: ignore[union-attr]
     T = np.tile(np.eye(4), (len(report.targets), 1, 1))
     if report.targets:
-        T[:, :3, :3] = Rotation.from_quat([t.quat_base for t in report.targets], scalar_first=True).as_matrix()
+        T[:, :3, :3] = Rotation.from_quat(
+            [t.quat_base for t in report.targets], scalar_first=True
+        ).as_matrix()
         T[:, :3, 3] = [t.tcp_base_mm for t in report.targets]
     flange = T @ tool_inv
     fz = flange[:, :3, 2]
@@ -84,7 +88,9 @@ def draw_window(setup: ReachSetup, report: ReachReport, size_px: int = 900) -> n
     h = int(2 * pad + (z_hi - z_lo) * scale)
 
     def px(r: np.ndarray, z: np.ndarray) -> np.ndarray:
-        return np.column_stack([pad + (r - r_lo) * scale, h - pad - (z - z_lo) * scale]).round().astype(np.int32)
+        return (
+            np.column_stack([pad + (r - r_lo) * scale, h - pad - (z - z_lo) * scale]).round().astype(np.int32)
+        )
 
     img = np.full((h, w, 3), 255, np.uint8)
     mask = np.zeros((h, w), np.uint8)
@@ -93,8 +99,12 @@ def draw_window(setup: ReachSetup, report: ReachReport, size_px: int = 900) -> n
         inside = (pts[:, 0] >= 0) & (pts[:, 0] < w) & (pts[:, 1] >= 0) & (pts[:, 1] < h)
         mask[pts[inside, 1], pts[inside, 0]] = 255
         # the swept samples are a dense cloud; closing fills the gaps between neighbouring samples
-        mask = np.asarray(cv2.morphologyEx(cv2.dilate(mask, np.ones((3, 3), np.uint8)), cv2.MORPH_CLOSE,
-                                           np.ones((9, 9), np.uint8)), dtype=np.uint8)
+        mask = np.asarray(
+            cv2.morphologyEx(
+                cv2.dilate(mask, np.ones((3, 3), np.uint8)), cv2.MORPH_CLOSE, np.ones((9, 9), np.uint8)
+            ),
+            dtype=np.uint8,
+        )
         img[mask > 0] = (220, 245, 220)
         contours, _ = cv2.findContours(mask, cv2.RETR_LIST, cv2.CHAIN_APPROX_SIMPLE)
         cv2.drawContours(img, contours, -1, (60, 140, 60), 2, cv2.LINE_AA)
@@ -102,7 +112,16 @@ def draw_window(setup: ReachSetup, report: ReachReport, size_px: int = 900) -> n
     for v in np.arange(0.0, r_max + 1, 500.0):
         x = int(px(np.array([v]), np.array([z_lo]))[0, 0])
         cv2.line(img, (x, pad), (x, h - pad), (225, 225, 225), 1)
-        cv2.putText(img, f"{v:.0f}", (x - 18, h - pad + 20), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (80, 80, 80), 1, cv2.LINE_AA)
+        cv2.putText(
+            img,
+            f"{v:.0f}",
+            (x - 18, h - pad + 20),
+            cv2.FONT_HERSHEY_SIMPLEX,
+            0.45,
+            (80, 80, 80),
+            1,
+            cv2.LINE_AA,
+        )
     for v in np.arange(math.ceil(z_lo / 500) * 500.0, z_hi + 1, 500.0):
         y = int(px(np.array([0.0]), np.array([v]))[0, 1])
         cv2.line(img, (pad, y), (w - pad, y), (225, 225, 225), 1)
@@ -110,15 +129,39 @@ def draw_window(setup: ReachSetup, report: ReachReport, size_px: int = 900) -> n
     (x0, x1), (y0, y1), (zr0, zr1) = THESIS_REGION_MM
     region = px(np.array([x0, math.hypot(x1, max(abs(y0), abs(y1)))]), np.array([zr0, zr1]))
     cv2.rectangle(img, tuple(region[0]), tuple(region[1]), (200, 120, 0), 1, cv2.LINE_AA)
-    cv2.putText(img, "thesis Table 4.5", (int(region[0, 0]) + 4, int(region[1, 1]) - 6), cv2.FONT_HERSHEY_SIMPLEX,
-                0.45, (200, 120, 0), 1, cv2.LINE_AA)
+    cv2.putText(
+        img,
+        "thesis Table 4.5",
+        (int(region[0, 0]) + 4, int(region[1, 1]) - 6),
+        cv2.FONT_HERSHEY_SIMPLEX,
+        0.45,
+        (200, 120, 0),
+        1,
+        cv2.LINE_AA,
+    )
     for (x, y), t in zip(px(r_t, z_t), report.targets, strict=True):
         cv2.circle(img, (int(x), int(y)), 4, (40, 170, 40) if t.feasible else (30, 30, 220), -1, cv2.LINE_AA)
     verdict = "feasible" if report.feasible else f"NOT feasible: {report.error_code}"
-    cv2.putText(img, f"{report.robot}: flange work window, approach pitch {math.degrees(pitch):.1f} deg, j1=j4=j6=0",
-                (pad, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 1, cv2.LINE_AA)
-    cv2.putText(img, f"r = hypot(x, y) [mm] right, z [mm] up, base frame; {len(report.targets)} targets: {verdict}",
-                (pad, 42), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
+    cv2.putText(
+        img,
+        f"{report.robot}: flange work window, approach pitch {math.degrees(pitch):.1f} deg, j1=j4=j6=0",
+        (pad, 22),
+        cv2.FONT_HERSHEY_SIMPLEX,
+        0.5,
+        (0, 0, 0),
+        1,
+        cv2.LINE_AA,
+    )
+    cv2.putText(
+        img,
+        f"r = hypot(x, y) [mm] right, z [mm] up, base frame; {len(report.targets)} targets: {verdict}",
+        (pad, 42),
+        cv2.FONT_HERSHEY_SIMPLEX,
+        0.45,
+        (0, 0, 0),
+        1,
+        cv2.LINE_AA,
+    )
     return img
 
 

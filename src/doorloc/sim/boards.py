@@ -123,7 +123,10 @@ class CharucoBoard:
         import cv2
 
         board = cv2.aruco.CharucoBoard(
-            (self.squares_x, self.squares_y), float(self.square_mm), float(self.marker_mm), self.cv_dictionary()
+            (self.squares_x, self.squares_y),
+            float(self.square_mm),
+            float(self.marker_mm),
+            self.cv_dictionary(),
         )
         board.setLegacyPattern(bool(self.legacy))
         return board
@@ -165,7 +168,9 @@ class CharucoBoard:
         centres = tl + mk / 2
         white_sq[np.floor(centres[:, 0] / sq).astype(int), np.floor(centres[:, 1] / sq).astype(int)] = True
         vals = np.full(S.shape, BOARD_WHITE)
-        vals[on_board & ~white_sq[np.clip(a, 0, self.squares_x - 1), np.clip(b, 0, self.squares_y - 1)]] = BOARD_BLACK
+        vals[on_board & ~white_sq[np.clip(a, 0, self.squares_x - 1), np.clip(b, 0, self.squares_y - 1)]] = (
+            BOARD_BLACK
+        )
         for (x0, y0), mid in zip(tl, marker_ids, strict=True):
             img = dic.generateImageMarker(int(mid), nbits + 2, borderBits=1)  # one pixel per bit cell
             inm = (S > x0) & (S < x0 + mk) & (T > y0) & (T < y0 + mk)
@@ -262,7 +267,11 @@ def render_board(
     obj = board.object_points()
     corners = camera.project(ext.cell_to_camera(obj))
     w, h = camera.image_size
-    in_image = np.all(np.isfinite(corners), axis=1) & (corners[:, 0] >= -0.5) & (corners[:, 0] <= w - 0.5) & (
-        corners[:, 1] >= -0.5
-    ) & (corners[:, 1] <= h - 0.5)
+    in_image = (
+        np.all(np.isfinite(corners), axis=1)
+        & (corners[:, 0] >= -0.5)
+        & (corners[:, 0] <= w - 0.5)
+        & (corners[:, 1] >= -0.5)
+        & (corners[:, 1] <= h - 0.5)
+    )
     return RenderedBoard(image, corners, board.ids(), obj, in_image, radiance)

@@ -35,8 +35,19 @@ __all__ = [
 ]
 
 TRUTH_COLUMNS = [
-    "image", "x_mm", "z_mm", "yaw_deg", "width_mm", "thickness_mm", "height_mm", "arris_mm", "face_y_mm",
-    "corner_u", "corner_v", "scale_mm_per_px", "seed",
+    "image",
+    "x_mm",
+    "z_mm",
+    "yaw_deg",
+    "width_mm",
+    "thickness_mm",
+    "height_mm",
+    "arris_mm",
+    "face_y_mm",
+    "corner_u",
+    "corner_v",
+    "scale_mm_per_px",
+    "seed",
 ] + [f.name for f in fields(Effects)]
 
 
@@ -55,7 +66,12 @@ def grid_poses(envelope: Envelope, steps: int = 3) -> list[DoorPose]:
     def axis(e):
         return [0.0] if steps == 1 else [float(v) for v in np.linspace(-e, e, steps)]
 
-    return [DoorPose(x, z, y) for x in axis(envelope.x_mm) for z in axis(envelope.z_mm) for y in axis(envelope.yaw_deg)]
+    return [
+        DoorPose(x, z, y)
+        for x in axis(envelope.x_mm)
+        for z in axis(envelope.z_mm)
+        for y in axis(envelope.yaw_deg)
+    ]
 
 
 def random_poses(envelope: Envelope, count: int, seed: int = 0) -> list[DoorPose]:
@@ -65,7 +81,8 @@ def random_poses(envelope: Envelope, count: int, seed: int = 0) -> list[DoorPose
     rng = np.random.default_rng([seed, 31337])
     u = rng.uniform(-1.0, 1.0, (count, 3))
     return [
-        DoorPose(float(a * envelope.x_mm), float(b * envelope.z_mm), float(c * envelope.yaw_deg)) for a, b, c in u
+        DoorPose(float(a * envelope.x_mm), float(b * envelope.z_mm), float(c * envelope.yaw_deg))
+        for a, b, c in u
     ]
 
 
@@ -108,8 +125,9 @@ def truth_csv_text(rows: list[dict]) -> str:
     return buf.getvalue()
 
 
-def write_dataset(out_dir: str | os.PathLike, cell: Cell, items: list[DatasetItem], effects: Effects,
-                  progress=None) -> Path:
+def write_dataset(
+    out_dir: str | os.PathLike, cell: Cell, items: list[DatasetItem], effects: Effects, progress=None
+) -> Path:
     """Render ``items`` into ``out_dir``: PNG images, ``truth.csv`` and ``cell.yaml``.
 
     Every file is written through a temporary file and a rename; ``truth.csv`` comes last, so a set with
@@ -164,16 +182,26 @@ def read_truth_csv(path: str | os.PathLike) -> list[TruthRow]:
     rows = []
     with p.open(newline="", encoding="utf-8") as f:
         rd = csv.DictReader(f)
-        missing = [c for c in ("image", "x_mm", "z_mm", "yaw_deg", "width_mm", "thickness_mm") if c not in (rd.fieldnames or [])]
+        missing = [
+            c
+            for c in ("image", "x_mm", "z_mm", "yaw_deg", "width_mm", "thickness_mm")
+            if c not in (rd.fieldnames or [])
+        ]
         if missing:
             raise ValueError(f"{p}: truth.csv lacks column(s) {', '.join(missing)}")
         for line, r in enumerate(rd, start=2):
             try:
-                door = DoorSize(float(r["width_mm"]), float(r["thickness_mm"]), float(r.get("height_mm") or 2100.0),
-                                float(r.get("arris_mm") or 0.0))
+                door = DoorSize(
+                    float(r["width_mm"]),
+                    float(r["thickness_mm"]),
+                    float(r.get("height_mm") or 2100.0),
+                    float(r.get("arris_mm") or 0.0),
+                )
                 pose = DoorPose(float(r["x_mm"]), float(r["z_mm"]), float(r["yaw_deg"]))
                 corner = (float(r.get("corner_u") or "nan"), float(r.get("corner_v") or "nan"))
-                fx = Effects.from_dict({k: v for k, v in r.items() if k in effect_names and v not in (None, "")})
+                fx = Effects.from_dict(
+                    {k: v for k, v in r.items() if k in effect_names and v not in (None, "")}
+                )
                 rows.append(TruthRow(r["image"], door, pose, corner, int(float(r.get("seed") or 0)), fx))
             except (ValueError, TypeError) as e:
                 raise ValueError(f"{p}, line {line}: {e}") from None

@@ -80,8 +80,12 @@ def _halfspaces(door: DoorSize, profile: str) -> list[tuple[np.ndarray, float, s
     if a <= 0:
         return out
     arris_edges = [
-        ("hinge_face", "reference_face"), ("hinge_face", "far_face"), ("hinge_face", "bottom_end"),
-        ("hinge_face", "top_end"), ("bottom_end", "reference_face"), ("bottom_end", "far_face"),
+        ("hinge_face", "reference_face"),
+        ("hinge_face", "far_face"),
+        ("hinge_face", "bottom_end"),
+        ("hinge_face", "top_end"),
+        ("bottom_end", "reference_face"),
+        ("bottom_end", "far_face"),
         ("bottom_end", "back_edge"),
     ]
     for f1, f2 in arris_edges:
@@ -109,8 +113,9 @@ def _clip(poly: np.ndarray, n: np.ndarray, h: float) -> np.ndarray:
     return np.array(out).reshape(-1, 3)
 
 
-def _face_polygon(hs: list[tuple[np.ndarray, float, str, str]], i: int, big: float,
-                  skip: tuple[str, ...] = ()) -> np.ndarray:
+def _face_polygon(
+    hs: list[tuple[np.ndarray, float, str, str]], i: int, big: float, skip: tuple[str, ...] = ()
+) -> np.ndarray:
     """Plane ``i`` of ``hs`` clipped by every other half-space (but those named in ``skip``), shape (m, 3)."""
     n, h = hs[i][0], hs[i][1]
     a = np.cross(n, [1.0, 0, 0] if abs(n[0]) < 0.9 else [0, 1.0, 0])
@@ -255,9 +260,15 @@ def scene_surfaces(cell: Cell, door: DoorSize, pose: DoorPose, effects: Effects,
     return foreground, background, names
 
 
-def _round_arris_surface(cell: Cell, door: DoorSize, pose: DoorPose, effects: Effects,
-                         hs: list[tuple[np.ndarray, float, str, str]], face: DoorFace,
-                         eye_door: np.ndarray) -> Surface | None:
+def _round_arris_surface(
+    cell: Cell,
+    door: DoorSize,
+    pose: DoorPose,
+    effects: Effects,
+    hs: list[tuple[np.ndarray, float, str, str]],
+    face: DoorFace,
+    eye_door: np.ndarray,
+) -> Surface | None:
     """A rounded arris as one surface: its chord plane, shaded across as the cylinder the camera sees.
 
     Every camera ray through a ruling of the cylinder (a line along the edge) meets the chord plane on a
@@ -320,8 +331,16 @@ def _round_arris_surface(cell: Cell, door: DoorSize, pose: DoorPose, effects: Ef
     rel_poly = poly - origin
     poly_st = np.stack([rel_poly @ s_axis, rel_poly @ t_axis], axis=1)
     o_cell = door_to_cell(origin[None], pose, face_y)[0]
-    return Surface(origin=ext.cell_to_camera(o_cell), s_axis=R @ (Ryaw @ s_axis), t_axis=R @ (Ryaw @ t_axis),
-                   polygon_st=poly_st, texture=texture, shade=1.0, modulation=None, name=face.name)
+    return Surface(
+        origin=ext.cell_to_camera(o_cell),
+        s_axis=R @ (Ryaw @ s_axis),
+        t_axis=R @ (Ryaw @ t_axis),
+        polygon_st=poly_st,
+        texture=texture,
+        shade=1.0,
+        modulation=None,
+        name=face.name,
+    )
 
 
 def _background(cell: Cell, door: DoorSize, face_y: float, effects: Effects) -> Surface:
@@ -343,10 +362,19 @@ def _background(cell: Cell, door: DoorSize, face_y: float, effects: Effects) -> 
     base = effects.albedo_background
     rects = []
     if effects.second_edge_offset_mm:
-        rects.append((-np.inf, to_bg_x(-abs(effects.second_edge_offset_mm)), -np.inf, np.inf,
-                      effects.second_edge_albedo / base))
+        rects.append(
+            (
+                -np.inf,
+                to_bg_x(-abs(effects.second_edge_offset_mm)),
+                -np.inf,
+                np.inf,
+                effects.second_edge_albedo / base,
+            )
+        )
     if effects.clamp_albedo >= 0:
-        rects.append((to_bg_x(-45.0), to_bg_x(-2.0), to_bg_z(-30.0), to_bg_z(40.0), effects.clamp_albedo / base))
+        rects.append(
+            (to_bg_x(-45.0), to_bg_x(-2.0), to_bg_z(-30.0), to_bg_z(40.0), effects.clamp_albedo / base)
+        )
     texture = paint_rectangles(1.0, rects) if rects else GridTexture.uniform(1.0)
     origin = ext.cell_to_camera(np.array([0.0, y_bg, 0.0]))
     return Surface(origin, R[:, 0].copy(), R[:, 2].copy(), None, texture, base, None, "background")

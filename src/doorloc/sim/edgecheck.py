@@ -44,8 +44,13 @@ def _plane_point(origin, normal, q):
 
 
 def edge_agreement(
-    camera: CameraModel, angle_deg: float, *, kind: str = "outline", v_at_centre: float | None = None,
-    tilt_deg: float = 20.0, margin_cols: int = 20,
+    camera: CameraModel,
+    angle_deg: float,
+    *,
+    kind: str = "outline",
+    v_at_centre: float | None = None,
+    tilt_deg: float = 20.0,
+    margin_cols: int = 20,
 ) -> EdgeCheck:
     """Render one straight edge at ``angle_deg`` to the image rows and measure it column by column.
 
@@ -84,7 +89,9 @@ def edge_agreement(
     if (C - A) @ t_axis < 0:
         t_axis = -t_axis  # +t towards the bright side
     # the same far-away quad for both kinds, in (s, t) about A
-    corners_q = np.array([q_a - span * d, q_a + span * d, q_a + span * d + span * nrm, q_a - span * d + span * nrm])
+    corners_q = np.array(
+        [q_a - span * d, q_a + span * d, q_a + span * d + span * nrm, q_a - span * d + span * nrm]
+    )
     P = _plane_point(p_origin, p_normal, corners_q)
     st = np.stack([(P - A) @ s_axis, (P - A) @ t_axis], axis=1)
     if kind == "outline":
@@ -110,8 +117,15 @@ def edge_agreement(
 
 
 def measure_edge(
-    image: np.ndarray, curve_px: np.ndarray, lines: np.ndarray, *, dark: float, bright: float,
-    along: str = "columns", bright_after: bool = True, half_window: int = 6,
+    image: np.ndarray,
+    curve_px: np.ndarray,
+    lines: np.ndarray,
+    *,
+    dark: float,
+    bright: float,
+    along: str = "columns",
+    bright_after: bool = True,
+    half_window: int = 6,
 ) -> np.ndarray:
     """Residuals (area-method measured - analytic) of one edge, per image column or row, px.
 

@@ -222,7 +222,9 @@ def form_image(radiance: np.ndarray, effects: Effects, seed: int = 0, principal_
         cx, cy = principal_point if principal_point is not None else ((w - 1) / 2, (h - 1) / 2)
         u = ((np.arange(w) - (w - 1) / 2) / (w / 2)).astype(np.float32)
         v = ((np.arange(h) - (h - 1) / 2) / (h / 2)).astype(np.float32)
-        field = (np.float32(effects.gradient_u) * u)[None, :] + (1.0 + np.float32(effects.gradient_v) * v)[:, None]
+        field = (np.float32(effects.gradient_u) * u)[None, :] + (1.0 + np.float32(effects.gradient_v) * v)[
+            :, None
+        ]
         if effects.vignetting:
             du = (np.arange(w) - cx).astype(np.float32)
             dv = (np.arange(h) - cy).astype(np.float32)

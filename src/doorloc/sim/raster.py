@@ -317,8 +317,10 @@ def approximate_ideal_grid(camera: CameraModel) -> tuple[np.ndarray, np.ndarray,
         finite = None
     else:
         # a pixel is usable only if every coarse sample it interpolates from is
-        bad = cv2.dilate(cv2.resize((~finite_c).astype(np.uint8), (nu * st, nv * st),
-                                    interpolation=cv2.INTER_NEAREST), np.ones((2 * st + 1, 2 * st + 1), np.uint8))
+        bad = cv2.dilate(
+            cv2.resize((~finite_c).astype(np.uint8), (nu * st, nv * st), interpolation=cv2.INTER_NEAREST),
+            np.ones((2 * st + 1, 2 * st + 1), np.uint8),
+        )
         finite = bad[st : st + h, st : st + w] == 0
     return np.ascontiguousarray(full[..., 0]), np.ascontiguousarray(full[..., 1]), finite
 
@@ -427,8 +429,19 @@ def render_radiance(
     if isinstance(background, Surface):
         bg = _prepare(background, -1)
     else:
-        bg = _prepare(Surface(np.array([0.0, 0.0, 1e9]), np.array([1.0, 0, 0]), np.array([0, 1.0, 0]),
-                              None, GridTexture.uniform(1.0), float(background), None, "background"), -1)
+        bg = _prepare(
+            Surface(
+                np.array([0.0, 0.0, 1e9]),
+                np.array([1.0, 0, 0]),
+                np.array([0, 1.0, 0]),
+                None,
+                GridTexture.uniform(1.0),
+                float(background),
+                None,
+                "background",
+            ),
+            -1,
+        )
     preps = [_prepare(s, i) for i, s in enumerate(foreground)]
 
     qx, qy, finite = approximate_ideal_grid(camera)
@@ -583,7 +596,9 @@ def _boundary_values(q0, J, preps, bg, K, depth):
     for p in preps:
         # signed distance of the pixel centre inside each outline edge, in pixel units
         nr = p.normals
-        mvec = nr[None, :, 0, None] * J[:, None, 0, :] + nr[None, :, 1, None] * J[:, None, 1, :]  # (n, e, 2): J^T n
+        mvec = (
+            nr[None, :, 0, None] * J[:, None, 0, :] + nr[None, :, 1, None] * J[:, None, 1, :]
+        )  # (n, e, 2): J^T n
         mlen = np.linalg.norm(mvec, axis=-1)
         dist = (q0 @ p.normals.T - p.offsets[None, :]) / mlen
         mhat = mvec / mlen[..., None]

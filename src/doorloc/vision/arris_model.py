@@ -76,8 +76,15 @@ class ArrisGeometry:
         return np.interp(tau, self.tau, self.theta)
 
 
-def arris_geometry(size_mm: float, profile: str, eye_cell: np.ndarray, corner_xz: np.ndarray, yaw_deg: float,
-                   face_y: float, thickness_mm: float) -> dict[str, ArrisGeometry]:
+def arris_geometry(
+    size_mm: float,
+    profile: str,
+    eye_cell: np.ndarray,
+    corner_xz: np.ndarray,
+    yaw_deg: float,
+    face_y: float,
+    thickness_mm: float,
+) -> dict[str, ArrisGeometry]:
     """Cross-sections of the bottom, reference and far arrises for a door at this pose.
 
     Parameters
@@ -100,7 +107,11 @@ def arris_geometry(size_mm: float, profile: str, eye_cell: np.ndarray, corner_xz
     """
     R = yaw_rotation_matrix(yaw_deg)
     eye = R.T @ (np.asarray(eye_cell, float) - np.array([corner_xz[0], face_y, corner_xz[1]]))
-    coords = {"reference": (eye[0], eye[1]), "bottom": (eye[2], eye[1]), "far": (thickness_mm - eye[0], eye[1])}
+    coords = {
+        "reference": (eye[0], eye[1]),
+        "bottom": (eye[2], eye[1]),
+        "far": (thickness_mm - eye[0], eye[1]),
+    }
     out = {}
     for name, (ew, ey) in coords.items():
         sec = ArrisSection(size_mm, profile, float(ew), float(ey))
@@ -159,14 +170,18 @@ def _G(y: np.ndarray, sigma: float) -> np.ndarray:
     return y * ndtr(u) + sigma * np.exp(-0.5 * u * u) * (1.0 / math.sqrt(2.0 * math.pi))
 
 
-def _design(x: np.ndarray, outer: np.ndarray, width: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray]:
+def _design(
+    x: np.ndarray, outer: np.ndarray, width: np.ndarray, sigma: float
+) -> tuple[np.ndarray, np.ndarray]:
     """Pixel responses to the hinge face (unit step at the inner border) and to each strip cell.
 
     ``x`` (N, P) pixel centres; ``outer``, ``width`` (N,) the strip's outer border and width, px. Returns
     ``step`` (N, P) and ``cells`` (N, P, C): each pixel's integral of the blurred unit level over the face /
     one cell of the strip.
     """
-    bounds = outer[:, None] + width[:, None] * (np.arange(_STRIP_CELLS + 1) / _STRIP_CELLS)[None, :]  # (N, C+1)
+    bounds = (
+        outer[:, None] + width[:, None] * (np.arange(_STRIP_CELLS + 1) / _STRIP_CELLS)[None, :]
+    )  # (N, C+1)
     # consecutive pixels share their borders: G once per pixel border, then differences
     edges = np.concatenate([x[:, :1] - 0.5, x + 0.5], axis=1)  # (N, P+1)
     g = _G(edges[:, :, None] - bounds[:, None, :], sigma)
@@ -189,8 +204,16 @@ def _strip_basis(geom: ArrisGeometry, terminator: float | None, lit_below: bool)
     return np.stack([np.ones(_STRIP_CELLS), np.maximum(s, 0.0).mean(axis=1)], axis=1)
 
 
-def fit_strip_profile(r: np.ndarray, x: np.ndarray, outer: np.ndarray, width: np.ndarray, geom: ArrisGeometry,
-                      noise: float, blur0: float = 1.0, search_px: float = 0.0) -> StripFit | None:
+def fit_strip_profile(
+    r: np.ndarray,
+    x: np.ndarray,
+    outer: np.ndarray,
+    width: np.ndarray,
+    geom: ArrisGeometry,
+    noise: float,
+    blur0: float = 1.0,
+    search_px: float = 0.0,
+) -> StripFit | None:
     """Fit the strip's shading to normalised profiles (module docstring, step 2).
 
     Parameters
@@ -247,7 +270,9 @@ def fit_strip_profile(r: np.ndarray, x: np.ndarray, outer: np.ndarray, width: np
 
     def fit(term: float | None, lit_below: bool, x0: np.ndarray, nfev: int):
         basis = _strip_basis(geom, term, lit_below)
-        res = least_squares(lambda p: solve(p, basis)[0], x0, diff_step=1e-3, max_nfev=nfev, x_scale=[0.1, 0.1])
+        res = least_squares(
+            lambda p: solve(p, basis)[0], x0, diff_step=1e-3, max_nfev=nfev, x_scale=[0.1, 0.1]
+        )
         return res, basis
 
     # The offset has local minima on narrow strips (strip and border trade places): start from the best
@@ -270,16 +295,28 @@ def fit_strip_profile(r: np.ndarray, x: np.ndarray, outer: np.ndarray, width: np
             centres.append(float(d))
         if len(centres) == 2:
             break
-    grid = sorted((cost0((c + d, sg)), c + d, sg) for c in centres for d in np.arange(-1.0, 1.01, 0.5)
-                  for sg in (0.3, 0.8, 1.6))
+    grid = sorted(
+        (cost0((c + d, sg)), c + d, sg)
+        for c in centres
+        for d in np.arange(-1.0, 1.01, 0.5)
+        for sg in (0.3, 0.8, 1.6)
+    )
     starts: list[tuple[float, float]] = []
     for _, d, sg in grid:  # the best starts at distinct offsets
         if all(abs(d - d1) > 0.75 for d1, _ in starts):
             starts.append((d, sg))
         if len(starts) == 2:
             break
-    res, basis = min((fit(None, False, np.array(st), 20) for st in starts), key=lambda rb: float(np.sum(rb[0].fun ** 2)))
-    best: tuple[float, float | None, bool, Any, np.ndarray] = (float(np.sum(res.fun ** 2)), None, False, res, basis)
+    res, basis = min(
+        (fit(None, False, np.array(st), 20) for st in starts), key=lambda rb: float(np.sum(rb[0].fun ** 2))
+    )
+    best: tuple[float, float | None, bool, Any, np.ndarray] = (
+        float(np.sum(res.fun**2)),
+        None,
+        False,
+        res,
+        basis,
+    )
     for term, lb in candidates[1:]:
         b = _strip_basis(geom, term, lb)
         cost = float(np.sum(solve(res.x, b)[0] ** 2))
@@ -293,10 +330,11 @@ def fit_strip_profile(r: np.ndarray, x: np.ndarray, outer: np.ndarray, width: np
             return solve(p[:2], _strip_basis(geom, float(p[2]), lit_below))[0]
 
         r3 = least_squares(fun3, np.r_[res.x, best[1]], diff_step=1e-3, max_nfev=20, x_scale=[0.1, 0.1, 0.05])
-        if np.sum(r3.fun ** 2) < np.sum(res.fun ** 2):
+        if np.sum(r3.fun**2) < np.sum(res.fun**2):
             basis = _strip_basis(geom, float(r3.x[2]), lit_below)
-            res = least_squares(lambda p: solve(p, basis)[0], r3.x[:2], diff_step=1e-3, max_nfev=5,
-                                x_scale=[0.1, 0.1])
+            res = least_squares(
+                lambda p: solve(p, basis)[0], r3.x[:2], diff_step=1e-3, max_nfev=5, x_scale=[0.1, 0.1]
+            )
     resid, coef, A = solve(res.x, basis)
     c0, cb, band = coef[0], coef[1], coef[2:]
     levels = (basis @ band - c0) / (cb - c0)
@@ -323,9 +361,9 @@ def fit_strip_profile(r: np.ndarray, x: np.ndarray, outer: np.ndarray, width: np
     mean_basis = basis.mean(axis=0)
     f_mean = float(mean_basis @ band)
     D = cb - c0
-    g[0] = (1.0 / D) - (f_mean - c0) / D ** 2
-    g[1] = (f_mean - c0) / D ** 2
-    g[2:2 + k] = -mean_basis / D
+    g[0] = (1.0 / D) - (f_mean - c0) / D**2
+    g[1] = (f_mean - c0) / D**2
+    g[2 : 2 + k] = -mean_basis / D
     var = float(g @ cov @ g)
     misfit = math.sqrt(s2) / max(noise, 1e-6)
     # Profiles along one edge share their texture and their plateau errors: the residuals are not
@@ -337,20 +375,33 @@ def fit_strip_profile(r: np.ndarray, x: np.ndarray, outer: np.ndarray, width: np
     moved = []
     for d_sigma in (-BLUR_DOUBT, BLUR_DOUBT):
         sg = max(abs(res.x[1]) + d_sigma, 0.05)
-        r1 = least_squares(lambda p, sg=sg: solve(np.array([p[0], sg]), basis)[0], res.x[:1], diff_step=1e-3,
-                           max_nfev=8, x_scale=[0.1])
+        r1 = least_squares(
+            lambda p, sg=sg: solve(np.array([p[0], sg]), basis)[0],
+            res.x[:1],
+            diff_step=1e-3,
+            max_nfev=8,
+            x_scale=[0.1],
+        )
         _, c1, _ = solve(np.array([r1.x[0], sg]), basis)
         lv = (basis @ c1[2:] - c1[0]) / (c1[1] - c1[0])
         moved.append(abs(float(np.mean(1.0 - lv)) - deficit))
     sigma = math.hypot(stat, max(moved))
     # Combined with the prior (0.5 +- 0.5): where the profiles leave the deficit in doubt, the answer
     # leans towards a mid-grey strip, whose worst case is half the strip's width.
-    w_data, w_pri = 1.0 / max(sigma, 1e-9) ** 2, 1.0 / PRIOR_SIGMA ** 2
+    w_data, w_pri = 1.0 / max(sigma, 1e-9) ** 2, 1.0 / PRIOR_SIGMA**2
     deficit = (w_data * deficit + w_pri * PRIOR_DEFICIT) / (w_data + w_pri)
     sigma = 1.0 / math.sqrt(w_data + w_pri)
     model_profiles = model[:-1].reshape(r.shape)
-    return StripFit(deficit, sigma, float(res.x[0]), float(abs(res.x[1])), misfit, levels, model_profiles,
-                    outer + res.x[0])
+    return StripFit(
+        deficit,
+        sigma,
+        float(res.x[0]),
+        float(abs(res.x[1])),
+        misfit,
+        levels,
+        model_profiles,
+        outer + res.x[0],
+    )
 
 
 def arris_edges(
@@ -430,9 +481,12 @@ def arris_edges(
     D = B - A
     nl = plateau if level_px is None else int(np.clip(level_px, 1, plateau))
     # the area estimate's levels: the nl samples of each plateau next to the window
-    A_e, B_e = vals[:, plateau - nl:plateau].mean(axis=1), vals[:, length - plateau:length - plateau + nl].mean(axis=1)
+    A_e, B_e = (
+        vals[:, plateau - nl : plateau].mean(axis=1),
+        vals[:, length - plateau : length - plateau + nl].mean(axis=1),
+    )
     D_e = B_e - A_e
-    core = vals[:, plateau:length - plateau]
+    core = vals[:, plateau : length - plateau]
     S = (core - A_e[:, None]).sum(axis=1)
     rel_e = (centre - c0) * door_side  # predicted border relative to c0, mirrored coordinates
     good = finite & inside.all(axis=1) & (np.abs(D) > 0)
@@ -452,19 +506,32 @@ def arris_edges(
         # The area estimator on the fitted, noise-free profiles: what the window's ends and the plateaus'
         # blur tails cost it (the strip's two steps differ, so they do not cancel as on a plain step).
         mod = fit.model
-        a_m = mod[:, plateau - nl:plateau].mean(axis=1)
-        b_m = mod[:, length - plateau:length - plateau + nl].mean(axis=1)
-        s_m = (mod[:, plateau:length - plateau] - a_m[:, None]).sum(axis=1)
+        a_m = mod[:, plateau - nl : plateau].mean(axis=1)
+        b_m = mod[:, length - plateau : length - plateau + nl].mean(axis=1)
+        s_m = (mod[:, plateau : length - plateau] - a_m[:, None]).sum(axis=1)
         e_m = (length - 2 * plateau - 0.5) - s_m / (b_m - a_m) - w[pick] * fit.deficit
         bias = float(np.median(e_m - (fit.border - plateau)))
     if fit is None:
         nan = np.full(len(scan), np.nan)
         return EdgeSamples(axis, scan, nan, nan, nan, nan, nan, np.zeros(len(scan), bool)), None
     with np.errstate(divide="ignore", invalid="ignore"):
-        K = core.shape[1] - 0.5  # door-side end of the window (core index units; core starts at c0 - half - pad)
+        K = (
+            core.shape[1] - 0.5
+        )  # door-side end of the window (core index units; core starts at c0 - half - pad)
         e_mirror = K - S / D_e - w * fit.deficit - bias - (half + pad)  # relative to c0
         along = c0 + door_side * e_mirror
     valid = good & np.isfinite(along) & (np.abs(along - centre) <= half + pad)
     nan = np.full(len(scan), np.nan)
-    return (EdgeSamples(axis, scan, np.where(valid, along, np.nan), D * door_side * scale_to_8bit,
-                        noise * scale_to_8bit, nan, np.maximum(A, B) * scale_to_8bit, valid), fit)
+    return (
+        EdgeSamples(
+            axis,
+            scan,
+            np.where(valid, along, np.nan),
+            D * door_side * scale_to_8bit,
+            noise * scale_to_8bit,
+            nan,
+            np.maximum(A, B) * scale_to_8bit,
+            valid,
+        ),
+        fit,
+    )

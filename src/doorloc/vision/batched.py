@@ -100,14 +100,21 @@ class TorchStepFinder:
         for i, (_, kw) in enumerate(queries):
             scan = np.asarray(kw["scan"], int)
             half, stride = int(kw.get("half", 3)), int(kw.get("stride", 1))
-            length = int(np.max(np.asarray(kw["hi"], int) - np.asarray(kw["lo"], int))) // stride + 2 * half + 1 if scan.size else 0
+            length = (
+                int(np.max(np.asarray(kw["hi"], int) - np.asarray(kw["lo"], int))) // stride + 2 * half + 1
+                if scan.size
+                else 0
+            )
             if scan.size == 0 or length <= 2 * half + 1:  # nothing to search: as the one-frame finder says
                 out[i] = (np.full(scan.size, np.nan), np.zeros(scan.size))
                 continue
             groups.setdefault((kw["axis"], half, stride, kw.get("prefer") is not None), []).append(i)
         for (axis, half, stride, with_prefer), idx in groups.items():
-            for i, res in zip(idx, self._answer_group([queries[i] for i in idx], axis, half, stride, with_prefer),
-                              strict=True):
+            for i, res in zip(
+                idx,
+                self._answer_group([queries[i] for i in idx], axis, half, stride, with_prefer),
+                strict=True,
+            ):
                 out[i] = res
         return out
 
@@ -117,16 +124,29 @@ class TorchStepFinder:
         dev = self.device
         rows = [np.asarray(kw["scan"], int).size for _, kw in queries]
         cat = np.concatenate
-        frame = torch.as_tensor(cat([np.full(n, b) for n, (b, _) in zip(rows, queries, strict=True)]), device=dev)
+        frame = torch.as_tensor(
+            cat([np.full(n, b) for n, (b, _) in zip(rows, queries, strict=True)]), device=dev
+        )
         scan = torch.as_tensor(cat([np.asarray(kw["scan"], np.int64) for _, kw in queries]), device=dev)
-        lo = torch.as_tensor(cat([np.asarray(kw["lo"], np.int64) for _, kw in queries]), device=dev) - half * stride
-        hi = torch.as_tensor(cat([np.asarray(kw["hi"], np.int64) for _, kw in queries]), device=dev) + half * stride
+        lo = (
+            torch.as_tensor(cat([np.asarray(kw["lo"], np.int64) for _, kw in queries]), device=dev)
+            - half * stride
+        )
+        hi = (
+            torch.as_tensor(cat([np.asarray(kw["hi"], np.int64) for _, kw in queries]), device=dev)
+            + half * stride
+        )
         # each query's own profile length (the one-frame finder's, which its medians depend on)
-        q_len = [int(np.max(np.asarray(kw["hi"], int) - np.asarray(kw["lo"], int) + 2 * half * stride)) // stride + 1
-                 for _, kw in queries]
+        q_len = [
+            int(np.max(np.asarray(kw["hi"], int) - np.asarray(kw["lo"], int) + 2 * half * stride)) // stride
+            + 1
+            for _, kw in queries
+        ]
         length = torch.as_tensor(cat([np.full(n, L) for n, L in zip(rows, q_len, strict=True)]), device=dev)
-        pol = torch.as_tensor(cat([np.full(n, int(kw["polarity"])) for n, (_, kw) in zip(rows, queries, strict=True)]),
-                              device=dev)
+        pol = torch.as_tensor(
+            cat([np.full(n, int(kw["polarity"])) for n, (_, kw) in zip(rows, queries, strict=True)]),
+            device=dev,
+        )
         L = max(q_len)
         M = L - 2 * half + 1
         j = torch.arange(L, device=dev)
@@ -139,10 +159,10 @@ class TorchStepFinder:
         # The one-frame finder takes differences of a float32 running sum of 8-bit levels: integers below
         # 2**24, held exactly. Integer window sums give the same numbers with fewer passes.
         v = self.flat[flat_idx].to(torch.int32)
-        win = v[:, :L - half + 1].clone()  # win[:, t] = sum of v[:, t:t + half]
+        win = v[:, : L - half + 1].clone()  # win[:, t] = sum of v[:, t:t + half]
         for t in range(1, half):
-            win += v[:, t:L - half + 1 + t]
-        resp = (win[:, half:half + M] - win[:, :M]).to(torch.float32)
+            win += v[:, t : L - half + 1 + t]
+        resp = (win[:, half : half + M] - win[:, :M]).to(torch.float32)
         pols = torch.unique(pol).tolist()
         if len(pols) == 1:  # the usual case: one polarity for the whole group
             resp = (pols[0] * resp if pols[0] else resp.abs()) / half
@@ -153,8 +173,13 @@ class TorchStepFinder:
         # own n_resp responses exist.
         n_resp = length - 2 * half + 1
         ja = torch.clamp(-torch.div(lo, stride, rounding_mode="floor"), min=0)
-        jb = torch.minimum(torch.minimum(torch.div(n_along - 1 - lo, stride, rounding_mode="floor"),
-                                         torch.div(hi - lo, stride, rounding_mode="floor")), length - 1)
+        jb = torch.minimum(
+            torch.minimum(
+                torch.div(n_along - 1 - lo, stride, rounding_mode="floor"),
+                torch.div(hi - lo, stride, rounding_mode="floor"),
+            ),
+            length - 1,
+        )
         ub = torch.minimum(torch.where(jb >= length - 1, jb, jb - 2 * half + 1), n_resp - 1)
         i = torch.arange(M, device=dev)
         ok = (i[None, :] >= ja[:, None]) & (i[None, :] <= ub[:, None])
@@ -165,8 +190,15 @@ class TorchStepFinder:
         best = torch.argmax(resp, dim=1)  # the first of equal maxima, as numpy
         if with_prefer:
             prefer = torch.as_tensor(cat([np.asarray(kw["prefer"], float) for _, kw in queries]), device=dev)
-            frac = torch.as_tensor(cat([np.full(n, float(kw.get("prefer_fraction", 0.3)))
-                                        for n, (_, kw) in zip(rows, queries, strict=True)]), device=dev)
+            frac = torch.as_tensor(
+                cat(
+                    [
+                        np.full(n, float(kw.get("prefer_fraction", 0.3)))
+                        for n, (_, kw) in zip(rows, queries, strict=True)
+                    ]
+                ),
+                device=dev,
+            )
             top = resp[r, best]
             peak = torch.zeros_like(ok)
             peak[:, 1:-1] = (resp[:, 1:-1] >= resp[:, :-2]) & (resp[:, 1:-1] > resp[:, 2:])
@@ -188,7 +220,9 @@ class TorchStepFinder:
             # candidates only (as numpy's argmin over the row; NaN wins there, so such a row prefers nothing)
             r_c, i_c = torch.nonzero(cand, as_tuple=True)
             if r_c.numel():
-                dist = ((lo[r_c] + stride * (i_c + half)).to(torch.float64) - 0.5 * stride - prefer[r_c]).abs()
+                dist = (
+                    (lo[r_c] + stride * (i_c + half)).to(torch.float64) - 0.5 * stride - prefer[r_c]
+                ).abs()
                 nan_rows = torch.zeros(resp.shape[0], dtype=torch.bool, device=dev)
                 nan_rows[r_c[torch.isnan(dist)]] = True
                 use = torch.isfinite(dist) & ~nan_rows[r_c]
@@ -196,8 +230,9 @@ class TorchStepFinder:
                 inf64 = torch.full((resp.shape[0],), np.inf, dtype=torch.float64, device=dev)
                 row_min = inf64.scatter_reduce(0, r_c, dist, reduce="amin")
                 big = torch.full((resp.shape[0],), M, dtype=torch.int64, device=dev)
-                near = big.scatter_reduce(0, r_c, torch.where(dist == row_min[r_c], i_c, torch.full_like(i_c, M)),
-                                          reduce="amin")
+                near = big.scatter_reduce(
+                    0, r_c, torch.where(dist == row_min[r_c], i_c, torch.full_like(i_c, M)), reduce="amin"
+                )
                 best = torch.where(near < M, near, best)
         strength = resp[r, best]
         along = (lo + stride * k[best]).to(torch.float64) - 0.5 * stride
@@ -207,7 +242,7 @@ class TorchStepFinder:
         along_np, strength_np = along.cpu().numpy(), strength.cpu().numpy()
         out, start = [], 0
         for n in rows:
-            out.append((along_np[start:start + n].copy(), strength_np[start:start + n].copy()))
+            out.append((along_np[start : start + n].copy(), strength_np[start : start + n].copy()))
             start += n
         return out
 
@@ -229,9 +264,15 @@ def _stackable(image: np.ndarray, shape: tuple[int, int]) -> str | None:
     return None
 
 
-def locate_batch(images: Sequence[np.ndarray], cell: Cell, doors: DoorSize | Sequence[DoorSize | None] | None = None,
-                 *, names: Sequence[str] | None = None, config: LocateConfig | None = None,
-                 device: str | torch.device = "cpu") -> list[BatchAnswer]:
+def locate_batch(
+    images: Sequence[np.ndarray],
+    cell: Cell,
+    doors: DoorSize | Sequence[DoorSize | None] | None = None,
+    *,
+    names: Sequence[str] | None = None,
+    config: LocateConfig | None = None,
+    device: str | torch.device = "cpu",
+) -> list[BatchAnswer]:
     """:func:`doorloc.vision.locate.locate` over a batch of frames of one cell, the coarse search batched.
 
     Parameters
@@ -278,9 +319,16 @@ def locate_batch(images: Sequence[np.ndarray], cell: Cell, doors: DoorSize | Seq
         stack = np.ascontiguousarray(np.stack(planes))
         finder = TorchStepFinder(torch.from_numpy(stack).to(dev))
         steps: dict[int, Steps] = {
-            b: locate_steps(images[i], cell, per_door[i], image_name=names[i], config=config,
-                            luminance=LuminancePlane(stack[b], 1.0))
-            for b, i in enumerate(members)}
+            b: locate_steps(
+                images[i],
+                cell,
+                per_door[i],
+                image_name=names[i],
+                config=config,
+                luminance=LuminancePlane(stack[b], 1.0),
+            )
+            for b, i in enumerate(members)
+        }
         pending: dict[int, StepQuery] = {}
         for b, g in steps.items():
             _advance(g, None, b, pending, answers, members)
@@ -291,8 +339,10 @@ def locate_batch(images: Sequence[np.ndarray], cell: Cell, doors: DoorSize | Seq
             except Exception as e:  # noqa: BLE001 - the one-frame path still answers these frames
                 for b, _ in batch:
                     i = members[b]
-                    answers[i] = BatchAnswer(locate(images[i], cell, per_door[i], image_name=names[i], config=config),
-                                             f"batched step search failed ({type(e).__name__}: {e})")
+                    answers[i] = BatchAnswer(
+                        locate(images[i], cell, per_door[i], image_name=names[i], config=config),
+                        f"batched step search failed ({type(e).__name__}: {e})",
+                    )
                 break
             pending = {}
             for (b, _), res in zip(batch, found, strict=True):
@@ -300,8 +350,14 @@ def locate_batch(images: Sequence[np.ndarray], cell: Cell, doors: DoorSize | Seq
     return [a for a in answers if a is not None]
 
 
-def _advance(g: Steps, sent: tuple[np.ndarray, np.ndarray] | None, b: int, pending: dict[int, StepQuery],
-             answers: list[BatchAnswer | None], members: list[int]) -> None:
+def _advance(
+    g: Steps,
+    sent: tuple[np.ndarray, np.ndarray] | None,
+    b: int,
+    pending: dict[int, StepQuery],
+    answers: list[BatchAnswer | None],
+    members: list[int],
+) -> None:
     """Run frame ``b``'s coroutine to its next step search (kept in ``pending``) or to its answer."""
     try:
         pending[b] = next(g) if sent is None else g.send(sent)

@@ -17,8 +17,9 @@ from doorloc.vision.edges import Axis
 __all__ = ["coarse_edges", "profiles"]
 
 
-def profiles(plane: np.ndarray, axis: Axis, scan: np.ndarray, start: np.ndarray, length: int,
-             stride: int = 1) -> np.ndarray:
+def profiles(
+    plane: np.ndarray, axis: Axis, scan: np.ndarray, start: np.ndarray, length: int, stride: int = 1
+) -> np.ndarray:
     """Grey profiles ``P[start + stride k, scan]`` for ``k < length``, ``(N, length)`` in the plane's dtype.
 
     ``P`` is the plane for ``axis="col"`` (profiles down columns) and its transpose for ``"row"``;
@@ -48,12 +49,12 @@ def _responses(vals: np.ndarray, half: int, exact_int: bool) -> np.ndarray:
         v = vals.astype(np.int32)
         win = v[:, : length - half + 1].copy()  # win[:, i] = sum of v[:, i:i + half]
         for t in range(1, half):
-            win += v[:, t: length - half + 1 + t]
-        return (win[:, half: half + m] - win[:, :m]).astype(np.float32)
+            win += v[:, t : length - half + 1 + t]
+        return (win[:, half : half + m] - win[:, :m]).astype(np.float32)
     c = np.zeros((n, length + 1), np.float32)
     np.cumsum(vals.astype(np.float32), axis=1, dtype=np.float32, out=c[:, 1:])
-    mid = c[:, half:length - half + 1]
-    return (c[:, 2 * half:] - mid) - (mid - c[:, :m])
+    mid = c[:, half : length - half + 1]
+    return (c[:, 2 * half :] - mid) - (mid - c[:, :m])
 
 
 def coarse_edges(

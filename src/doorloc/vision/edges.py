@@ -30,9 +30,21 @@ from typing import Literal
 import numpy as np
 from scipy.special import ndtr
 
-__all__ = ["Axis", "EdgeSamples", "FarFaceFit", "oriented", "coarse_edges", "subpixel_edges",
-           "subpixel_edges_banded", "subpixel_edges_far_face", "transition_width",
-           "TextureBias", "texture_bias", "refine_step_fit", "block_artifact_ratio"]
+__all__ = [
+    "Axis",
+    "EdgeSamples",
+    "FarFaceFit",
+    "oriented",
+    "coarse_edges",
+    "subpixel_edges",
+    "subpixel_edges_banded",
+    "subpixel_edges_far_face",
+    "transition_width",
+    "TextureBias",
+    "texture_bias",
+    "refine_step_fit",
+    "block_artifact_ratio",
+]
 
 Axis = Literal["col", "row"]
 
@@ -82,8 +94,16 @@ class EdgeSamples:
         return np.stack([s, self.along], 1) if self.axis == "col" else np.stack([self.along, s], 1)
 
     def subset(self, mask: np.ndarray) -> EdgeSamples:
-        return EdgeSamples(self.axis, self.scan[mask], self.along[mask], self.step[mask], self.noise[mask],
-                           self.width[mask], self.bright[mask], self.valid[mask])
+        return EdgeSamples(
+            self.axis,
+            self.scan[mask],
+            self.along[mask],
+            self.step[mask],
+            self.noise[mask],
+            self.width[mask],
+            self.bright[mask],
+            self.valid[mask],
+        )
 
 
 def _smooth_along(x: np.ndarray, n: int) -> np.ndarray:
@@ -96,8 +116,14 @@ def _smooth_along(x: np.ndarray, n: int) -> np.ndarray:
     return (c[hi] - c[lo]) / np.maximum(m[hi] - m[lo], 1)
 
 
-def _gather(P: np.ndarray, scan: np.ndarray, start: np.ndarray, length: int,
-            stride: int = 1, lut: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def _gather(
+    P: np.ndarray,
+    scan: np.ndarray,
+    start: np.ndarray,
+    length: int,
+    stride: int = 1,
+    lut: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
     """Profiles ``P[start + stride k, scan]`` for k < length as float32 (N, length), and an in-image mask.
 
     ``lut`` (float32, one entry per grey level) maps the stored values first, e.g. to linear light.
@@ -118,7 +144,7 @@ def linearizing_lut(dtype: np.dtype, gamma: float) -> np.ndarray | None:
         return None
     top = 255.0 if np.dtype(dtype) == np.uint8 else 65535.0
     x = np.arange(int(top) + 1, dtype=np.float64) / top
-    return (x ** gamma * top).astype(np.float32)
+    return (x**gamma * top).astype(np.float32)
 
 
 def coarse_edges(
@@ -175,7 +201,9 @@ def coarse_edges(
         return np.full(scan.size, np.nan), np.zeros(scan.size)
     vals, inside = _gather(P, scan, lo, length, stride)
     inside &= np.arange(length)[None, :] * stride <= (hi - lo)[:, None]
-    c = np.concatenate([np.zeros((len(scan), 1), np.float32), np.cumsum(vals, axis=1, dtype=np.float32)], axis=1)
+    c = np.concatenate(
+        [np.zeros((len(scan), 1), np.float32), np.cumsum(vals, axis=1, dtype=np.float32)], axis=1
+    )
     k = np.arange(half, length - half + 1)
     resp = (c[:, k + half] - c[:, k]) - (c[:, k] - c[:, k - half])
     resp = (polarity * resp if polarity else np.abs(resp)) / half
@@ -254,7 +282,7 @@ def subpixel_edges(
     vals, inside = _gather(P, scan, start, length, lut=lut)
     left = vals[:, :plateau]
     right = vals[:, -plateau:]
-    core = vals[:, plateau:plateau + 2 * half + 1]
+    core = vals[:, plateau : plateau + 2 * half + 1]
     A = left.mean(axis=1)
     B = right.mean(axis=1)
     if level_smooth > 0 and scan.size:
@@ -292,12 +320,21 @@ def subpixel_edges(
     valid = finite & inside.all(axis=1) & np.isfinite(along) & (np.abs(step) > 0)
     # The estimate must lie inside its window; otherwise the transition was not captured.
     valid &= np.abs(along - c0) <= half
-    return EdgeSamples(axis, scan, np.where(valid, along, np.nan), step * scale_to_8bit, noise * scale_to_8bit,
-                       width, np.maximum(A, B) * scale_to_8bit, valid)
+    return EdgeSamples(
+        axis,
+        scan,
+        np.where(valid, along, np.nan),
+        step * scale_to_8bit,
+        noise * scale_to_8bit,
+        width,
+        np.maximum(A, B) * scale_to_8bit,
+        valid,
+    )
 
 
-def transition_width(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half: int,
-                     lut: np.ndarray | None = None) -> float:
+def transition_width(
+    plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half: int, lut: np.ndarray | None = None
+) -> float:
     """RMS width (px) of the mean edge transition of the masked samples: the optical blur plus the pixel.
 
     The profiles are aligned on their sub-pixel edge, normalised by their step and averaged before
@@ -314,7 +351,9 @@ def transition_width(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, 
     ok = inside.all(axis=1)
     if not np.any(ok):
         return float("nan")
-    g = np.diff(vals[ok], axis=1) / samples.step[m][ok, None] * 1.0  # step is 0-255 scaled; ratios only matter
+    g = (
+        np.diff(vals[ok], axis=1) / samples.step[m][ok, None] * 1.0
+    )  # step is 0-255 scaled; ratios only matter
     g = g / np.maximum(np.abs(g.sum(axis=1, keepdims=True)), 1e-6) * np.sign(g.sum(axis=1, keepdims=True))
     pos = np.arange(2 * half) + 0.5 - half + (c0[ok] - e[ok])[:, None]  # relative to each sub-pixel edge
     # Re-bin on a 0.25 px grid relative to the edge to average the aligned gradient.
@@ -404,7 +443,7 @@ def subpixel_edges_banded(
         vals, inside = vals[:, ::-1], inside[:, ::-1]
     left = vals[:, :plateau]
     right = vals[:, -plateau:]
-    core = vals[:, plateau:length - plateau]
+    core = vals[:, plateau : length - plateau]
     A = left.mean(axis=1)
     B = right.mean(axis=1)
     if level_smooth > 0 and scan.size:
@@ -430,7 +469,9 @@ def subpixel_edges_banded(
         # distance from the door-side end of the window back to the outer edge; a band too narrow to
         # measure anywhere is taken at mid-grey between the two sides (error at most half its width)
         rho = 1.0 - ((L - A) / (B - A) if np.isfinite(L) else 0.5)  # 1 - band level, relative
-        K = core.shape[1] - 0.5  # door-side end of the window, core index units (core starts at mirrored c0 - half)
+        K = (
+            core.shape[1] - 0.5
+        )  # door-side end of the window, core index units (core starts at mirrored c0 - half)
         e_pred = half + rel_e
         # K - e = w rho + S / D with w = w_pred + slope (e - e_pred), solved for e. A band much brighter
         # than the face makes this ill-conditioned (the area hardly changes as the edge moves): then
@@ -443,9 +484,19 @@ def subpixel_edges_banded(
     valid = finite & inside.all(axis=1) & np.isfinite(along) & (np.abs(B - A) > 0) & conditioned
     valid &= np.abs(along - centre) <= half
     nan = np.full(len(scan), np.nan)
-    return (EdgeSamples(axis, scan, np.where(valid, along, np.nan), step * scale_to_8bit, noise * scale_to_8bit,
-                        nan, np.maximum(np.maximum(A, B), L if np.isfinite(L) else 0) * scale_to_8bit, valid),
-            L * scale_to_8bit)
+    return (
+        EdgeSamples(
+            axis,
+            scan,
+            np.where(valid, along, np.nan),
+            step * scale_to_8bit,
+            noise * scale_to_8bit,
+            nan,
+            np.maximum(np.maximum(A, B), L if np.isfinite(L) else 0) * scale_to_8bit,
+            valid,
+        ),
+        L * scale_to_8bit,
+    )
 
 
 def _band_level_from_pixels(vals, A, B, S, w, plateau: int, half: int, n_levels: int = 61) -> float:
@@ -471,7 +522,7 @@ def _band_level_from_pixels(vals, A, B, S, w, plateau: int, half: int, n_levels:
         cov_b = np.clip(j + 0.5 - e2, 0.0, 1.0)
         cov_l = np.clip(np.minimum(j + 0.5, e2) - np.maximum(j - 0.5, e), 0.0, 1.0)
         model = A[:, None] + (lev - A)[:, None] * cov_l + D[:, None] * cov_b
-        r = (vals - model)[:, plateau:plateau + n_core]
+        r = (vals - model)[:, plateau : plateau + n_core]
         cost[t] = np.nansum(r * r)
     k = int(np.nanargmin(cost))
     if 0 < k < n_levels - 1:  # parabolic refinement of the minimum
@@ -615,7 +666,7 @@ def subpixel_edges_far_face(
     ok &= np.isfinite(D) & (np.abs(D) > 0)
     e0 = plateau + half + (centre - c0) * outward  # predicted arris, index units
     # Only the core (between the plateaus) carries the edges; the plateaus fix A and B.
-    core = vals[ok, plateau:length - plateau]
+    core = vals[ok, plateau : length - plateau]
     bounds = np.arange(plateau, length - plateau + 1, dtype=np.float64) - 0.5
     Ao, Do, e0o, w0o = A[ok], D[ok], e0[ok], w0[ok]
     e = e0o.copy()
@@ -637,7 +688,7 @@ def subpixel_edges_far_face(
         # The model is linear in the band level: its least-squares value (with the pull towards 0.5 of
         # the iterations below) and the fit's cost, pull included, for these arrises.
         m, _, J_lam, _ = model(e, 0.0, sigma)
-        info = float((J_lam ** 2).sum())
+        info = float((J_lam**2).sum())
         pull = LEVEL_PRIOR_WEIGHT * info
         lam = float(((J_lam * (core - m)).sum() + pull * 0.5) / max(info + pull, 1e-12))
         r = core - (m + J_lam * lam)
@@ -656,6 +707,7 @@ def subpixel_edges_far_face(
                 best = (cost, shift, lam_s)
         e = e0o + best[1]
         lam = best[2]
+
     def total_cost(e, lam, sigma):
         m, _, J_lam, _ = model(e, lam, sigma)
         pull = LEVEL_PRIOR_WEIGHT * float((J_lam * J_lam).sum())
@@ -674,7 +726,9 @@ def subpixel_edges_far_face(
         b_e = (J_e * r).sum(axis=1)
         H = np.einsum("nmk,nml->kl", Jg, Jg) - (h_eg / h_ee[:, None]).T @ h_eg
         b_g = np.einsum("nmk,nm->k", Jg, r) - (h_eg * (b_e / h_ee)[:, None]).sum(axis=0)
-        H += np.diag(np.maximum(np.diag(H), 1e-12) * 1e-6 + 1e-9)  # a band nowhere in view leaves its level free
+        H += np.diag(
+            np.maximum(np.diag(H), 1e-12) * 1e-6 + 1e-9
+        )  # a band nowhere in view leaves its level free
         # Where the band is much narrower than the blur, its level and the arrises trade off (the
         # Schur complement keeps little of the level's information): a weak pull towards mid-grey
         # between the two sides then settles the level, as little as the data allow.
@@ -694,7 +748,9 @@ def subpixel_edges_far_face(
         else:
             break
         e, lam, sigma = trial
-        done = cost - c <= 1e-9 * max(cost, 1e-12) or (np.max(np.abs(step * de)) < 1e-4 and abs(step * d_lam) < 1e-4)
+        done = cost - c <= 1e-9 * max(cost, 1e-12) or (
+            np.max(np.abs(step * de)) < 1e-4 and abs(step * d_lam) < 1e-4
+        )
         cost = c
         if done:
             break
@@ -716,20 +772,40 @@ def subpixel_edges_far_face(
     valid = ok & np.isfinite(along) & (np.abs(e - e0) <= half) & np.isfinite(e_sigma)
     w_fit = np.maximum(w0 + band_slope * (e - e0), 0.0)
     band_med = float(np.median(w_fit[valid])) if np.any(valid) else float("nan")
-    model_sigma = (math.hypot(float(np.median(de_dlam)) * LEVEL_DOUBT, float(np.median(de_dsig)) * BLUR_DOUBT)
-                   if de_dlam.size else float("nan"))
+    model_sigma = (
+        math.hypot(float(np.median(de_dlam)) * LEVEL_DOUBT, float(np.median(de_dsig)) * BLUR_DOUBT)
+        if de_dlam.size
+        else float("nan")
+    )
     noise = np.sqrt(0.5 * (vals[:, :plateau].var(axis=1) + vals[:, -plateau:].var(axis=1)))
     step = D * outward
     nan = np.full(len(scan), np.nan)
-    samples = EdgeSamples(axis, scan, np.where(valid, along, np.nan), step * scale_to_8bit, noise * scale_to_8bit,
-                          nan, np.maximum(np.maximum(A, B), A + lam * D) * scale_to_8bit, valid)
-    fit = FarFaceFit(lam, sigma, band_med, float(np.median(e_sigma[valid])) if np.any(valid) else float("nan"),
-                     model_sigma)
+    samples = EdgeSamples(
+        axis,
+        scan,
+        np.where(valid, along, np.nan),
+        step * scale_to_8bit,
+        noise * scale_to_8bit,
+        nan,
+        np.maximum(np.maximum(A, B), A + lam * D) * scale_to_8bit,
+        valid,
+    )
+    fit = FarFaceFit(
+        lam, sigma, band_med, float(np.median(e_sigma[valid])) if np.any(valid) else float("nan"), model_sigma
+    )
     return samples, fit
 
 
-def step_blur(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half: int, plateau: int = 4,
-              lut: np.ndarray | None = None, blur_px: float = 1.0, max_lines: int = 160) -> float:
+def step_blur(
+    plane: np.ndarray,
+    samples: EdgeSamples,
+    mask: np.ndarray,
+    half: int,
+    plateau: int = 4,
+    lut: np.ndarray | None = None,
+    blur_px: float = 1.0,
+    max_lines: int = 160,
+) -> float:
     """Optical blur (Gaussian sigma, px, the pixel's own width not included) of a plain step edge.
 
     Each profile across the edge is modelled as a Gaussian-blurred step integrated over the pixels
@@ -742,12 +818,28 @@ def step_blur(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half: i
         return float("nan")
     idx = idx[:: max(idx.size // max_lines, 1)]
     sub = samples.subset(np.isin(np.arange(samples.scan.size), idx))
-    _, fit = subpixel_edges_far_face(plane, sub.axis, sub.scan, sub.along, half, np.full(sub.scan.size, -1.0), 0.0,
-                                     1, plateau, 1.0, blur_px=blur_px, lut=lut, fit_blur=True, n_iter=15)
+    _, fit = subpixel_edges_far_face(
+        plane,
+        sub.axis,
+        sub.scan,
+        sub.along,
+        half,
+        np.full(sub.scan.size, -1.0),
+        0.0,
+        1,
+        plateau,
+        1.0,
+        blur_px=blur_px,
+        lut=lut,
+        fit_blur=True,
+        n_iter=15,
+    )
     return fit.blur_px
 
 
-def _step_fit(vals: np.ndarray, e: np.ndarray, bounds: np.ndarray, sigma: float, n_iter: int = 6) -> np.ndarray:
+def _step_fit(
+    vals: np.ndarray, e: np.ndarray, bounds: np.ndarray, sigma: float, n_iter: int = 6
+) -> np.ndarray:
     """Edge positions (N,) that make ``A + (B - A) C(k; e, sigma)`` fit each profile row of ``vals`` best.
 
     ``C`` is a Gaussian-blurred unit step integrated over each pixel (:func:`_pixel_step`), ``bounds`` the
@@ -773,8 +865,9 @@ def _step_fit(vals: np.ndarray, e: np.ndarray, bounds: np.ndarray, sigma: float,
     return e
 
 
-def refine_step_fit(plane: np.ndarray, samples: EdgeSamples, half: int, blur_px: float,
-                    lut: np.ndarray | None = None) -> EdgeSamples:
+def refine_step_fit(
+    plane: np.ndarray, samples: EdgeSamples, half: int, blur_px: float, lut: np.ndarray | None = None
+) -> EdgeSamples:
     """Refine area-estimator edge points by fitting a blurred step with free levels on each scan line.
 
     The area estimator takes the two grey levels from plateaus beyond its window and assumes they hold
@@ -801,8 +894,16 @@ def refine_step_fit(plane: np.ndarray, samples: EdgeSamples, half: int, blur_px:
     keep = inside.all(axis=1) & np.isfinite(fitted) & (np.abs(fitted - a0) <= 1.0)
     along = samples.along.copy()
     along[np.flatnonzero(ok)[keep]] = fitted[keep]
-    return EdgeSamples(samples.axis, samples.scan, along, samples.step, samples.noise, samples.width, samples.bright,
-                       samples.valid)
+    return EdgeSamples(
+        samples.axis,
+        samples.scan,
+        along,
+        samples.step,
+        samples.noise,
+        samples.width,
+        samples.bright,
+        samples.valid,
+    )
 
 
 @dataclass(frozen=True)
@@ -823,9 +924,17 @@ class TextureBias:
     tilt_sigma: float
 
 
-def texture_bias(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half: int, plateau: int,
-                 lut: np.ndarray | None = None, n_shifts: int = 12, max_lines: int = 128,
-                 blur_px: float | None = None) -> TextureBias:
+def texture_bias(
+    plane: np.ndarray,
+    samples: EdgeSamples,
+    mask: np.ndarray,
+    half: int,
+    plateau: int,
+    lut: np.ndarray | None = None,
+    n_shifts: int = 12,
+    max_lines: int = 128,
+    blur_px: float | None = None,
+) -> TextureBias:
     """Estimate the texture bias of the sub-pixel edge estimate on one edge from the texture beside its window.
 
     The estimators take the edge's two grey levels from near the transition and assume they hold under it;
@@ -880,7 +989,7 @@ def texture_bias(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half
 
     def pseudo_bias(T: np.ndarray) -> np.ndarray:
         out = []
-        for prof in (T[reach + 1:], T[:reach][::-1]):  # prof[j - 1] = pixel j beyond c0, each side
+        for prof in (T[reach + 1 :], T[:reach][::-1]):  # prof[j - 1] = pixel j beyond c0, each side
             if blur_px is None:
                 # the area estimator's error, closed form: for each shift o the window sum of pixels
                 # o+1..o+half minus half times the mean of the plateau o+half+1..o+half+plateau
@@ -898,7 +1007,7 @@ def texture_bias(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half
     # Mean profiles over the scan lines (the line fit's outliers are already out) of the two halves of
     # the edge; their mean is the whole edge's.
     order = np.argsort(scan)
-    lo, hi = order[: order.size // 2], order[order.size // 2:]
+    lo, hi = order[: order.size // 2], order[order.size // 2 :]
     T_lo, T_hi = vals[lo].mean(axis=0, dtype=np.float64), vals[hi].mean(axis=0, dtype=np.float64)
     pb = pseudo_bias(0.5 * (T_lo + T_hi))
     # Both sides add (independent textures); the RMS over the shifts of each side, summed in quadrature.
@@ -913,8 +1022,13 @@ def texture_bias(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half
     return TextureBias(off, tilt)
 
 
-def block_artifact_ratio(plane: np.ndarray, centre_px: np.ndarray, half: int = 96, scale_to_8bit: float = 1.0,
-                         min_excess: float = 0.05) -> float:
+def block_artifact_ratio(
+    plane: np.ndarray,
+    centre_px: np.ndarray,
+    half: int = 96,
+    scale_to_8bit: float = 1.0,
+    min_excess: float = 0.05,
+) -> float:
     """How much stronger the grey-level steps between 8x8 pixel blocks are than those inside them, near a point.
 
     A JPEG round trip quantizes each 8x8 block on its own, which leaves steps at the block boundaries:
@@ -929,7 +1043,7 @@ def block_artifact_ratio(plane: np.ndarray, centre_px: np.ndarray, half: int = 9
     if not np.all(np.isfinite(c)):
         return float("nan")
     u0, v0 = max(int(c[0]) - half, 0), max(int(c[1]) - half, 0)
-    crop = plane[v0:v0 + 2 * half, u0:u0 + 2 * half].astype(np.float32)
+    crop = plane[v0 : v0 + 2 * half, u0 : u0 + 2 * half].astype(np.float32)
     if min(crop.shape) < 32:
         return float("nan")
     out = []

@@ -54,7 +54,9 @@ def decode_image(data: bytes, name: str = "image") -> np.ndarray:
     try:
         img = cv2.imdecode(buf, _flags())
     except cv2.error as e:  # a corrupt header can make a decoder throw instead of returning None
-        raise ImageDecodeError(f"{name}: cannot decode the image ({e.msg if hasattr(e, 'msg') else e})") from None
+        raise ImageDecodeError(
+            f"{name}: cannot decode the image ({e.msg if hasattr(e, 'msg') else e})"
+        ) from None
     if img is None or img.size == 0:
         raise ImageDecodeError(
             f"{name}: not a readable image ({len(data)} bytes); expected PNG, JPEG, TIFF or BMP from the camera"

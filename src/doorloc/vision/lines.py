@@ -27,8 +27,9 @@ def tukey_weights(residuals: np.ndarray, scale: float) -> np.ndarray:
     return t * t
 
 
-def robust_scale(residuals: np.ndarray, weights: np.ndarray | None = None, floor: float = 0.0,
-                 max_samples: int = 512) -> float:
+def robust_scale(
+    residuals: np.ndarray, weights: np.ndarray | None = None, floor: float = 0.0, max_samples: int = 512
+) -> float:
     """MAD-based standard deviation of residuals (those with positive weight), at least ``floor``.
 
     At most ``max_samples`` evenly spread residuals are used: a scale needs no more, and medians cost.
@@ -81,7 +82,9 @@ def _lsq_line(s: np.ndarray, a: np.ndarray) -> tuple[float, float]:
     return b, float(am - b * sm)
 
 
-def ransac_line(scan: np.ndarray, along: np.ndarray, tol_px: float, n_trials: int = 48, seed: int = 0) -> ImageLine | None:
+def ransac_line(
+    scan: np.ndarray, along: np.ndarray, tol_px: float, n_trials: int = 48, seed: int = 0
+) -> ImageLine | None:
     """Coarse line through (scan, along) samples that tolerates many outliers.
 
     Vectorised RANSAC over ``n_trials`` random sample pairs, then least squares on the inliers of
@@ -207,8 +210,11 @@ def fit_rectangle_edges(
     P = np.concatenate([_to_common(np.asarray(groups[k][0], float), groups[k][1]) for k in names])
     gid = np.concatenate([np.full(len(groups[k][0]), i) for i, k in enumerate(names)])
     G = len(names)
-    mask0 = (np.concatenate([np.asarray(init_weights[k], float) for k in names]) > 0
-             if init_weights is not None else np.ones(len(P), bool))
+    mask0 = (
+        np.concatenate([np.asarray(init_weights[k], float) for k in names]) > 0
+        if init_weights is not None
+        else np.ones(len(P), bool)
+    )
     w = mask0.astype(float)
     votes = np.concatenate([np.full(len(groups[k][0]), k not in offset_only) for k in names]).astype(float)
     scale = scale_floor

@@ -76,8 +76,11 @@ ARRIS_PLATEAU_PX = 4
 #: the final pass fits a blurred step (LocateConfig.step_fit) only above this optical blur, px
 STEP_FIT_MIN_BLUR_PX = 0.5
 
-HUMAN = {"bottom": "bottom end of the door (X-line)", "reference": "reference-face arris (Z-line)",
-         "far": "far arris (door thickness)"}
+HUMAN = {
+    "bottom": "bottom end of the door (X-line)",
+    "reference": "reference-face arris (Z-line)",
+    "far": "far arris (door thickness)",
+}
 
 
 @dataclass
@@ -98,8 +101,15 @@ class _Refused(Exception):
         self.diag = diag
 
 
-def locate(image: np.ndarray, cell: Cell, door: DoorSize | None = None, *, image_name: str = "",
-           config: LocateConfig | None = None, trace: LocateTrace | None = None) -> LocateResult:
+def locate(
+    image: np.ndarray,
+    cell: Cell,
+    door: DoorSize | None = None,
+    *,
+    image_name: str = "",
+    config: LocateConfig | None = None,
+    trace: LocateTrace | None = None,
+) -> LocateResult:
     """Find the door's reference corner, yaw and thickness in one image.
 
     Parameters
@@ -123,7 +133,9 @@ def locate(image: np.ndarray, cell: Cell, door: DoorSize | None = None, *, image
         ``ok=true`` with ``x_mm``, ``z_mm``, ``yaw_deg``, ``thickness_mm`` (cell frame, mm/deg),
         ``scale_mm_per_px`` and ``corner_px``; or ``ok=false`` with ``error_code`` and ``error``.
     """
-    return run_steps(locate_steps(image, cell, door, image_name=image_name, config=config, trace=trace), coarse_edges)
+    return run_steps(
+        locate_steps(image, cell, door, image_name=image_name, config=config, trace=trace), coarse_edges
+    )
 
 
 @dataclass(frozen=True)
@@ -138,8 +150,9 @@ class StepQuery:
 StepFinder = Callable[..., tuple[np.ndarray, np.ndarray]]
 
 
-def run_steps(steps: Generator[StepQuery, tuple[np.ndarray, np.ndarray], LocateResult],
-              finder: StepFinder) -> LocateResult:
+def run_steps(
+    steps: Generator[StepQuery, tuple[np.ndarray, np.ndarray], LocateResult], finder: StepFinder
+) -> LocateResult:
     """Run a :func:`locate_steps` coroutine to its answer, each step search by ``finder(plane, **kwargs)``.
 
     A finder that raises has its exception thrown into the coroutine, which answers with a refusal
@@ -158,9 +171,16 @@ def run_steps(steps: Generator[StepQuery, tuple[np.ndarray, np.ndarray], LocateR
         return done.value
 
 
-def locate_steps(image: np.ndarray, cell: Cell, door: DoorSize | None = None, *, image_name: str = "",
-                 config: LocateConfig | None = None, trace: LocateTrace | None = None,
-                 luminance: LuminancePlane | None = None) -> Generator[StepQuery, tuple[np.ndarray, np.ndarray], LocateResult]:
+def locate_steps(
+    image: np.ndarray,
+    cell: Cell,
+    door: DoorSize | None = None,
+    *,
+    image_name: str = "",
+    config: LocateConfig | None = None,
+    trace: LocateTrace | None = None,
+    luminance: LuminancePlane | None = None,
+) -> Generator[StepQuery, tuple[np.ndarray, np.ndarray], LocateResult]:
     """:func:`locate` as a coroutine that hands out its coarse step searches.
 
     It yields a :class:`StepQuery` for each step search and expects ``(along, strength)`` as
@@ -176,8 +196,13 @@ def locate_steps(image: np.ndarray, cell: Cell, door: DoorSize | None = None, *,
     try:
         res = yield from _locate(image, cell, door, cfg, tr, image_name, luminance)
     except _Refused as r:
-        res = LocateResult.refusal(image_name, r.refusal.code, r.refusal.message,
-                                   lines=r.diag.get("lines", []), diagnostics=r.diag.get("diagnostics", {}))
+        res = LocateResult.refusal(
+            image_name,
+            r.refusal.code,
+            r.refusal.message,
+            lines=r.diag.get("lines", []),
+            diagnostics=r.diag.get("diagnostics", {}),
+        )
     except Exception as e:  # noqa: BLE001 — a locate call must answer, never crash the caller
         # a bug: logged at error level with its traceback under an incident id that the answer quotes
         import logging
@@ -185,41 +210,94 @@ def locate_steps(image: np.ndarray, cell: Cell, door: DoorSize | None = None, *,
 
         incident = uuid.uuid4().hex[:12]
         logging.getLogger("doorloc.vision").error(
-            "locate failed", exc_info=True,
-            extra={"fields": {"event": "internal_error", "incident_id": incident, "image": image_name}})
-        res = LocateResult.refusal(image_name, "internal_error",
-                                   f"locate failed on this image ({type(e).__name__}: {e}); keep the image and "
-                                   f"report it with incident id {incident}", incident_id=incident)
-    res.provenance = Provenance(version=__version__, cell_sha256=cell.sha256, calibration_sha256=cell.calibration_sha256)
-    res.model = PhysicalModel(response_gamma=cell.response_gamma, arris_mm=door.arris_mm, arris_profile=door.arris_profile,
-                              door_brighter=cfg.door_brighter, face_y_mm=cell.face_y(door))
+            "locate failed",
+            exc_info=True,
+            extra={"fields": {"event": "internal_error", "incident_id": incident, "image": image_name}},
+        )
+        res = LocateResult.refusal(
+            image_name,
+            "internal_error",
+            f"locate failed on this image ({type(e).__name__}: {e}); keep the image and "
+            f"report it with incident id {incident}",
+            incident_id=incident,
+        )
+    res.provenance = Provenance(
+        version=__version__, cell_sha256=cell.sha256, calibration_sha256=cell.calibration_sha256
+    )
+    res.model = PhysicalModel(
+        response_gamma=cell.response_gamma,
+        arris_mm=door.arris_mm,
+        arris_profile=door.arris_profile,
+        door_brighter=cfg.door_brighter,
+        face_y_mm=cell.face_y(door),
+    )
     res.elapsed_ms = (time.perf_counter() - t0) * 1e3
     return res
 
 
 def _coarse(plane, band: Band, axis, polarity, thr, prefer=None):
-    along, strength = yield StepQuery(plane, dict(axis=axis, scan=band.scan, lo=band.lo, hi=band.hi, polarity=polarity,
-                                                  half=2, prefer=prefer, prefer_fraction=0.5, stride=2))
+    along, strength = yield StepQuery(
+        plane,
+        dict(
+            axis=axis,
+            scan=band.scan,
+            lo=band.lo,
+            hi=band.hi,
+            polarity=polarity,
+            half=2,
+            prefer=prefer,
+            prefer_fraction=0.5,
+            stride=2,
+        ),
+    )
     strong = np.isfinite(along) & (strength >= thr)
     return along, strength, strong
 
 
-def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half: int, cfg: LocateConfig,
-            scale8: float, every: int = 1, sharp: bool = False, optical_blur_px: float = float("nan"),
-            response_gamma: float = 1.0, step_fit: dict[str, float] | None = None,
-            arris_fits: dict[str, tuple[StripFit, float]] | None = None) -> _Sampled:
+def _sample(
+    plane,
+    region: SearchRegion,
+    pose: MetricPose,
+    yaw_rad: float,
+    half: int,
+    cfg: LocateConfig,
+    scale8: float,
+    every: int = 1,
+    sharp: bool = False,
+    optical_blur_px: float = float("nan"),
+    response_gamma: float = 1.0,
+    step_fit: dict[str, float] | None = None,
+    arris_fits: dict[str, tuple[StripFit, float]] | None = None,
+) -> _Sampled:
     keep = half + cfg.plateau + 4
     lut = linearizing_lut(plane.dtype, response_gamma)
     door = region.door
-    geoms = (arris_geometry(door.arris_mm, door.arris_profile, region.plane_map.centre, pose.corner, pose.yaw_deg,
-                            region.face_y, pose.thickness_mm) if door.arris_mm > 0 else None)
+    geoms = (
+        arris_geometry(
+            door.arris_mm,
+            door.arris_profile,
+            region.plane_map.centre,
+            pose.corner,
+            pose.yaw_deg,
+            region.face_y,
+            pose.thickness_mm,
+        )
+        if door.arris_mm > 0
+        else None
+    )
     if geoms:
         # Near a corner the other edge's arris strip (about the arris wide from the sharp corner) crosses
         # the scan lines: the strip's profile fit would see two strips there and misfit. Keep its width
         # (and the strip fit's wider plateaus) clear of the corners.
-        keep = half + max(cfg.plateau, ARRIS_PLATEAU_PX) + 4 + int(math.ceil(door.arris_mm / region.nominal_scale))
-    tracks = region.tracks(pose.corner, yaw_rad, pose.thickness_mm, keep, window_px=half + cfg.plateau + 2,
-                           arris=geoms)
+        keep = (
+            half
+            + max(cfg.plateau, ARRIS_PLATEAU_PX)
+            + 4
+            + int(math.ceil(door.arris_mm / region.nominal_scale))
+        )
+    tracks = region.tracks(
+        pose.corner, yaw_rad, pose.thickness_mm, keep, window_px=half + cfg.plateau + 2, arris=geoms
+    )
     out = {}
     far_fit = None
     beside = tracks["far"].beside_far_face
@@ -227,7 +305,9 @@ def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half:
     for name in EDGE_NAMES:
         lay = region.layouts[name]
         t = tracks[name]
-        step_kw: dict[str, Any] = dict(level_smooth=max(cfg.level_smooth // every, 1) if cfg.level_smooth else 0, lut=lut)
+        step_kw: dict[str, Any] = dict(
+            level_smooth=max(cfg.level_smooth // every, 1) if cfg.level_smooth else 0, lut=lut
+        )
         scan, centre = t.scan[::every], t.centre[::every]
         if t.band_px is not None and t.band_px.size:
             band = t.band_px[::every]
@@ -238,8 +318,19 @@ def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half:
                 # blur comes from the plain reference arris (beside a narrow band, blur, band level
                 # and width trade off); only the first pass, which just centres the windows, guesses it.
                 out[name], far_fit = subpixel_edges_far_face(
-                    plane, lay.axis, scan, centre, half, band, t.band_slope, -interior, cfg.plateau, scale8,
-                    blur_px=optical_blur_px if np.isfinite(optical_blur_px) else 1.0, **step_kw)
+                    plane,
+                    lay.axis,
+                    scan,
+                    centre,
+                    half,
+                    band,
+                    t.band_slope,
+                    -interior,
+                    cfg.plateau,
+                    scale8,
+                    blur_px=optical_blur_px if np.isfinite(optical_blur_px) else 1.0,
+                    **step_kw,
+                )
                 continue
             if geoms is not None and name in geoms and t.outline_shift_px is not None:
                 # An arris strip lies on the door side of the outline: its outer border from the strip's
@@ -249,20 +340,53 @@ def _sample(plane, region: SearchRegion, pose: MetricPose, yaw_rad: float, half:
                 # brightness, most of all on narrow strips); each line's levels for its area estimate the
                 # plain step's, right beside the window: taken farther out they pick up texture along the
                 # edge (the effects fixtures' grain: their yaw was up to 0.022 deg off).
-                smp, strip = arris_edges(plane, lay.axis, scan, centre, half, band, interior, geoms[name],
-                                         max(cfg.plateau, ARRIS_PLATEAU_PX), scale8, lut=lut, blur0=blur0,
-                                         search=every > 1, level_px=cfg.plateau)
+                smp, strip = arris_edges(
+                    plane,
+                    lay.axis,
+                    scan,
+                    centre,
+                    half,
+                    band,
+                    interior,
+                    geoms[name],
+                    max(cfg.plateau, ARRIS_PLATEAU_PX),
+                    scale8,
+                    lut=lut,
+                    blur0=blur0,
+                    search=every > 1,
+                    level_px=cfg.plateau,
+                )
                 out[name] = replace(smp, along=smp.along + t.outline_shift_px[::every])
                 if arris_fits is not None and strip is not None:
                     arris_fits[name] = (strip, float(np.median(band)))
                 continue
             # An arris strip lies on the door side of the outline.
-            out[name], _ = subpixel_edges_banded(plane, lay.axis, scan, centre, half, band, interior, cfg.plateau,
-                                                 scale8, sharp=sharp, band_slope=t.band_slope, **step_kw)
+            out[name], _ = subpixel_edges_banded(
+                plane,
+                lay.axis,
+                scan,
+                centre,
+                half,
+                band,
+                interior,
+                cfg.plateau,
+                scale8,
+                sharp=sharp,
+                band_slope=t.band_slope,
+                **step_kw,
+            )
             continue
-        out[name] = subpixel_edges(plane, lay.axis, scan, centre, half, cfg.plateau, scale8,
-                                   slope_smooth=max(cfg.slope_smooth // every, 1) if cfg.slope_smooth else 0,
-                                   **step_kw)
+        out[name] = subpixel_edges(
+            plane,
+            lay.axis,
+            scan,
+            centre,
+            half,
+            cfg.plateau,
+            scale8,
+            slope_smooth=max(cfg.slope_smooth // every, 1) if cfg.slope_smooth else 0,
+            **step_kw,
+        )
         if step_fit and name in step_fit:
             fitted = refine_step_fit(plane, out[name], half, step_fit[name], lut)
             if _step_fit_agrees(plane, out[name], fitted, half, cfg.plateau, lut):
@@ -282,17 +406,27 @@ class _Sampled:
     step_fitted: dict[str, float]
 
 
-def _fit(samples: dict[str, EdgeSamples], region: SearchRegion, cfg: LocateConfig, every: int = 1,
-         n_iter: int = 9, far_offset_only: bool = False) -> tuple[RectangleFit, dict]:
+def _fit(
+    samples: dict[str, EdgeSamples],
+    region: SearchRegion,
+    cfg: LocateConfig,
+    every: int = 1,
+    n_iter: int = 9,
+    far_offset_only: bool = False,
+) -> tuple[RectangleFit, dict]:
     groups, init = {}, {}
-    subsets = {name: samples[name].subset(np.arange(samples[name].scan.size) % every == 0) if every > 1 else samples[name]
-               for name in EDGE_NAMES}
+    subsets = {
+        name: samples[name].subset(np.arange(samples[name].scan.size) % every == 0)
+        if every > 1
+        else samples[name]
+        for name in EDGE_NAMES
+    }
     # all edge points back-projected in one call (point by point: the same numbers, less overhead)
     xz_all = region.plane_points(np.concatenate([subsets[name].uv() for name in EDGE_NAMES]))
     first = 0
     for name in EDGE_NAMES:
         s = subsets[name]
-        xz = xz_all[first:first + s.scan.size]
+        xz = xz_all[first : first + s.scan.size]
         first += s.scan.size
         pol = region.layouts[name].polarity
         if name == "far" and far_offset_only:  # beside the far face: either polarity
@@ -300,16 +434,31 @@ def _fit(samples: dict[str, EdgeSamples], region: SearchRegion, cfg: LocateConfi
         good = s.valid & (pol * s.step >= 0.5 * cfg.min_contrast)
         good &= np.isfinite(xz).all(axis=1)
         if good.sum() < 3:
-            raise _Refused(q.Refusal("edge_missing", f"the {HUMAN[name]} was not found (no clean step of the expected "
-                                     "polarity); check that the door lies in the fixture and nothing covers that edge"))
+            raise _Refused(
+                q.Refusal(
+                    "edge_missing",
+                    f"the {HUMAN[name]} was not found (no clean step of the expected "
+                    "polarity); check that the door lies in the fixture and nothing covers that edge",
+                )
+            )
         groups[name] = (np.where(np.isfinite(xz), xz, 0.0), region.layouts[name].along_x)
         init[name] = good.astype(float)
     try:
-        fit = fit_rectangle_edges(groups, scale_floor=1e-4, init_weights=init, n_iter=n_iter,
-                                  offset_only=("far",) if far_offset_only else ())
+        fit = fit_rectangle_edges(
+            groups,
+            scale_floor=1e-4,
+            init_weights=init,
+            n_iter=n_iter,
+            offset_only=("far",) if far_offset_only else (),
+        )
     except ValueError as e:  # a line lost all its points to the robust weights
-        raise _Refused(q.Refusal("edge_missing", f"the door's edges do not fit a rectangle ({e}); check that the "
-                                 "door lies in the fixture and nothing covers its edges")) from None
+        raise _Refused(
+            q.Refusal(
+                "edge_missing",
+                f"the door's edges do not fit a rectangle ({e}); check that the "
+                "door lies in the fixture and nothing covers its edges",
+            )
+        ) from None
     return fit, init
 
 
@@ -325,8 +474,9 @@ class _CoarseEdges:
     bottom_band: Band
 
 
-def _coarse_edges(plane, s8: float, region: SearchRegion, door: DoorSize, cfg: LocateConfig,
-                  tr: LocateTrace) -> Generator[StepQuery, tuple[np.ndarray, np.ndarray], _CoarseEdges]:
+def _coarse_edges(
+    plane, s8: float, region: SearchRegion, door: DoorSize, cfg: LocateConfig, tr: LocateTrace
+) -> Generator[StepQuery, tuple[np.ndarray, np.ndarray], _CoarseEdges]:
     """Find the three edges to a pixel or two in the search region (strided step finder + RANSAC).
 
     A coroutine: each step search is yielded as a :class:`StepQuery` (see :func:`locate_steps`)."""
@@ -336,7 +486,7 @@ def _coarse_edges(plane, s8: float, region: SearchRegion, door: DoorSize, cfg: L
     band_ref = region.arris_band(step=4, height_mm=45.0)
     tr.bands["reference"] = band_ref
     P = plane if ref_lay.axis == "col" else plane.T
-    sub = P[band_ref.lo.min():band_ref.hi.max() + 1:3, band_ref.scan[::4]]
+    sub = P[band_ref.lo.min() : band_ref.hi.max() + 1 : 3, band_ref.scan[::4]]
     r = q.check_exposure(sub.astype(np.float32) * s8, cfg.min_contrast, cfg.max_saturated_fraction)
     if r:
         raise _Refused(r)
@@ -345,7 +495,9 @@ def _coarse_edges(plane, s8: float, region: SearchRegion, door: DoorSize, cfg: L
     # a stronger step of the same polarity further on).
     xdir = ref_lay.polarity * (1 if cfg.door_brighter else -1)  # along-direction of door +X
     outer = (band_ref.lo if xdir > 0 else band_ref.hi).astype(float)
-    along_r, _, strong_r = yield from _coarse(plane, band_ref, ref_lay.axis, ref_lay.polarity, thr, prefer=outer)
+    along_r, _, strong_r = yield from _coarse(
+        plane, band_ref, ref_lay.axis, ref_lay.polarity, thr, prefer=outer
+    )
     tol = 3.0
     ref_line = ransac_line(band_ref.scan[strong_r], along_r[strong_r], tol) if strong_r.sum() >= 10 else None
     if ref_line is None or ref_line.inliers.sum() < 0.4 * len(band_ref.scan):
@@ -356,8 +508,11 @@ def _coarse_edges(plane, s8: float, region: SearchRegion, door: DoorSize, cfg: L
     a1 = ref_at + xdir * cfg.min_thickness_mm / sc
     a2 = ref_at + xdir * (door.thickness_mm + cfg.thickness_search_mm) / sc
     n_along = plane.shape[0] if far_lay.axis == "col" else plane.shape[1]
-    band_far = Band(band_ref.scan, np.clip(np.floor(np.minimum(a1, a2)), 2, n_along - 3).astype(int),
-                    np.clip(np.ceil(np.maximum(a1, a2)), 2, n_along - 3).astype(int))
+    band_far = Band(
+        band_ref.scan,
+        np.clip(np.floor(np.minimum(a1, a2)), 2, n_along - 3).astype(int),
+        np.clip(np.ceil(np.maximum(a1, a2)), 2, n_along - 3).astype(int),
+    )
     keep = band_far.hi - band_far.lo >= 4
     band_far = Band(band_far.scan[keep], band_far.lo[keep], band_far.hi[keep])
     tr.bands["far"] = band_far
@@ -366,10 +521,21 @@ def _coarse_edges(plane, s8: float, region: SearchRegion, door: DoorSize, cfg: L
     # than the hinge face) does not matter. Taking the first step, not the one nearest the expected
     # thickness, measures the door that is there (a 12 mm panel where a 50 mm door was expected).
     near = (band_far.lo if xdir > 0 else band_far.hi).astype(float)
-    along_f, strength_f = yield StepQuery(plane, dict(axis=far_lay.axis, scan=band_far.scan, lo=band_far.lo,
-                                                      hi=band_far.hi, polarity=0, half=2, prefer=near, stride=2,
-                                                      # an arris strip makes a weak first step (face -> strip): skip it
-                                                      prefer_fraction=0.3 if door.arris_mm > 0 else 0.1))
+    along_f, strength_f = yield StepQuery(
+        plane,
+        dict(
+            axis=far_lay.axis,
+            scan=band_far.scan,
+            lo=band_far.lo,
+            hi=band_far.hi,
+            polarity=0,
+            half=2,
+            prefer=near,
+            stride=2,
+            # an arris strip makes a weak first step (face -> strip): skip it
+            prefer_fraction=0.3 if door.arris_mm > 0 else 0.1,
+        ),
+    )
     strong_f = np.isfinite(along_f) & (strength_f >= thr)
     far_line = ransac_line(band_far.scan[strong_f], along_f[strong_f], tol) if strong_f.sum() >= 10 else None
     if far_line is not None:
@@ -379,13 +545,21 @@ def _coarse_edges(plane, s8: float, region: SearchRegion, door: DoorSize, cfg: L
         nearer = strong_f & ((far_line.at(band_far.scan) - along_f) * xdir > tol)
         near_line = ransac_line(band_far.scan[nearer], along_f[nearer], tol) if nearer.sum() >= 10 else None
         strip_px = door.arris_mm / sc + 3.0
-        if (near_line is not None and near_line.inliers.sum() >= 0.3 * len(band_far.scan)
-                and np.median((far_line.at(band_far.scan) - near_line.at(band_far.scan)) * xdir) > strip_px):
+        if (
+            near_line is not None
+            and near_line.inliers.sum() >= 0.3 * len(band_far.scan)
+            and np.median((far_line.at(band_far.scan) - near_line.at(band_far.scan)) * xdir) > strip_px
+        ):
             far_line = near_line
     if far_line is None or far_line.inliers.sum() < 0.3 * len(band_far.scan):
-        raise _Refused(q.Refusal("edge_missing", f"the {HUMAN['far']} was not found within {door.thickness_mm + cfg.thickness_search_mm:.0f} mm of "
-                                 f"the reference arris; check that the door is {door.thickness_mm:g} mm thick and that "
-                                 "nothing covers its far edge"))
+        raise _Refused(
+            q.Refusal(
+                "edge_missing",
+                f"the {HUMAN['far']} was not found within {door.thickness_mm + cfg.thickness_search_mm:.0f} mm of "
+                f"the reference arris; check that the door is {door.thickness_mm:g} mm thick and that "
+                "nothing covers its far edge",
+            )
+        )
 
     # bottom end: scan lines between the two arrises, at the nominal corner height
     corner0 = region.nominal_corner_px
@@ -402,14 +576,20 @@ def _coarse_edges(plane, s8: float, region: SearchRegion, door: DoorSize, cfg: L
     along_b, _, strong_b = yield from _coarse(plane, band_bot, bot_lay.axis, bot_lay.polarity, thr)
     bot_line = ransac_line(band_bot.scan[strong_b], along_b[strong_b], tol) if strong_b.sum() >= 5 else None
     if bot_line is None or bot_line.inliers.sum() < 0.3 * max(len(band_bot.scan), 1):
-        raise _Refused(q.Refusal("edge_missing", f"the {HUMAN['bottom']} was not found between the arrises; check that "
-                                 "the door's bottom end is in view and nothing covers it"))
+        raise _Refused(
+            q.Refusal(
+                "edge_missing",
+                f"the {HUMAN['bottom']} was not found between the arrises; check that "
+                "the door's bottom end is in view and nothing covers it",
+            )
+        )
 
     return _CoarseEdges(ref_line, far_line, bot_line, band_ref, band_far, band_bot)
 
 
-def _coarse_pose(c: _CoarseEdges, plane, s8: float, region: SearchRegion, cell: Cell, door: DoorSize,
-                 cfg: LocateConfig) -> MetricPose:
+def _coarse_pose(
+    c: _CoarseEdges, plane, s8: float, region: SearchRegion, cell: Cell, door: DoorSize, cfg: LocateConfig
+) -> MetricPose:
     """Pose from the coarse lines; refuses at once what is plainly not a door in place."""
     ref_lay, far_lay, bot_lay = (region.layouts[k] for k in ("reference", "far", "bottom"))
 
@@ -418,26 +598,45 @@ def _coarse_pose(c: _CoarseEdges, plane, s8: float, region: SearchRegion, cell: 
         a = line.at(s)
         return np.stack([s, a], 1) if axis == "col" else np.stack([a, s], 1)
 
-    uv = [uvs(c.bottom, c.bottom_band, bot_lay.axis), uvs(c.ref, c.ref_band, ref_lay.axis),
-          uvs(c.far, c.far_band, far_lay.axis)]
+    uv = [
+        uvs(c.bottom, c.bottom_band, bot_lay.axis),
+        uvs(c.ref, c.ref_band, ref_lay.axis),
+        uvs(c.far, c.far_band, far_lay.axis),
+    ]
     xz = np.split(region.plane_points(np.concatenate(uv)), np.cumsum([len(u) for u in uv])[:2])
     coarse_groups = {"bottom": (xz[0], True), "reference": (xz[1], False), "far": (xz[2], False)}
     fit0 = fit_rectangle_edges(coarse_groups, scale_floor=0.05, n_iter=3)
     pose = pose_from_fit(fit0, region.face_map)
     if not (abs(pose.yaw_deg) < 20 and 0 < pose.thickness_mm < 3 * door.thickness_mm + 50):
-        raise _Refused(q.Refusal("no_door", "the edges found do not form a door's corner; check that a door lies in "
-                                 "the fixture and that the camera has not moved"))
+        raise _Refused(
+            q.Refusal(
+                "no_door",
+                "the edges found do not form a door's corner; check that a door lies in "
+                "the fixture and that the camera has not moved",
+            )
+        )
     # A door far outside the envelope, or of quite another thickness (a panel where the recipe says a
     # door), is clear already here.
-    r = q.check_envelope(pose.x_mm, pose.z_mm, pose.yaw_deg, cell.envelope, cfg.envelope_margin_mm + 3.0,
-                         cfg.envelope_margin_deg + 0.5)
+    r = q.check_envelope(
+        pose.x_mm,
+        pose.z_mm,
+        pose.yaw_deg,
+        cell.envelope,
+        cfg.envelope_margin_mm + 3.0,
+        cfg.envelope_margin_deg + 0.5,
+    )
     if r:
         if _looks_like_pattern_here(plane, s8, c.ref_band, ref_lay.axis, cfg):
             r = _PATTERN
-        raise _Refused(r, diagnostics={"measured": {"x_mm": pose.x_mm, "z_mm": pose.z_mm, "yaw_deg": pose.yaw_deg,
-                                                    "coarse": True}})
-    r = q.check_thickness(pose.thickness_mm, door.thickness_mm, cfg.thickness_tolerance_mm + 2.0,
-                          cfg.thickness_tolerance_mm)
+        raise _Refused(
+            r,
+            diagnostics={
+                "measured": {"x_mm": pose.x_mm, "z_mm": pose.z_mm, "yaw_deg": pose.yaw_deg, "coarse": True}
+            },
+        )
+    r = q.check_thickness(
+        pose.thickness_mm, door.thickness_mm, cfg.thickness_tolerance_mm + 2.0, cfg.thickness_tolerance_mm
+    )
     if r:
         raise _Refused(r, diagnostics={"measured": {"thickness_mm": pose.thickness_mm, "coarse": True}})
     return pose
@@ -450,8 +649,16 @@ class _Profiles:
     lut: np.ndarray | None
 
 
-def _refine(plane, s8: float, region: SearchRegion, pose: MetricPose, cfg: LocateConfig, clock: _Clock,
-            response_gamma: float = 1.0, arris_fits: dict[str, tuple[StripFit, float]] | None = None):
+def _refine(
+    plane,
+    s8: float,
+    region: SearchRegion,
+    pose: MetricPose,
+    cfg: LocateConfig,
+    clock: _Clock,
+    response_gamma: float = 1.0,
+    arris_fits: dict[str, tuple[StripFit, float]] | None = None,
+):
     """Sub-pixel edge points and the joint line fit, in passes (module docstring).
 
     ``response_gamma`` is the camera's (``camera.response_gamma`` in the cell file): grey levels are turned
@@ -468,15 +675,33 @@ def _refine(plane, s8: float, region: SearchRegion, pose: MetricPose, cfg: Locat
     _pass = 0
     while _pass < n_pass:
         # The first pass, on every fifth scan line, only centres and sizes the final windows.
-        sampled = _sample(plane, region, pose, math.radians(pose.yaw_deg), half, cfg, s8,
-                          every=5 if _pass == 0 else 1, sharp=_pass > 0 and blur < 0.6,
-                          optical_blur_px=optical_blur, response_gamma=response_gamma,
-                          step_fit=step_fit if _pass > 0 else {}, arris_fits=arris_fits)
+        sampled = _sample(
+            plane,
+            region,
+            pose,
+            math.radians(pose.yaw_deg),
+            half,
+            cfg,
+            s8,
+            every=5 if _pass == 0 else 1,
+            sharp=_pass > 0 and blur < 0.6,
+            optical_blur_px=optical_blur,
+            response_gamma=response_gamma,
+            step_fit=step_fit if _pass > 0 else {},
+            arris_fits=arris_fits,
+        )
         samples, far_beside, far_fit = sampled.samples, sampled.far_beside, sampled.far_fit
         if far_beside and _pass >= 1 and not np.isfinite(optical_blur) and ref0 is not None:
             # The far face came into view after the first pass: measure the blur and look again.
-            optical_blur = step_blur(plane, ref0.samples, ref0.mask, cfg.half_window_max, cfg.plateau, ref0.lut,
-                                     blur_px=math.sqrt(max(blur * blur - 1.0 / 12.0, 0.04)))
+            optical_blur = step_blur(
+                plane,
+                ref0.samples,
+                ref0.mask,
+                cfg.half_window_max,
+                cfg.plateau,
+                ref0.lut,
+                blur_px=math.sqrt(max(blur * blur - 1.0 / 12.0, 0.04)),
+            )
             n_pass = max(n_pass, _pass + 2)
         elif far_beside and _pass == 1:
             # The far face's band width follows from the thickness being measured: one more round.
@@ -490,21 +715,42 @@ def _refine(plane, s8: float, region: SearchRegion, pose: MetricPose, cfg: Locat
             # (on the bottom end and the reference arris: beside the far arris a far face or an arris
             # strip can make two steps that look like blur)
             lut = linearizing_lut(plane.dtype, response_gamma)
-            widths = [transition_width(plane, samples[k], fit.weights[k] > 0, half, lut) for k in ("bottom", "reference")]
+            widths = [
+                transition_width(plane, samples[k], fit.weights[k] > 0, half, lut)
+                for k in ("bottom", "reference")
+            ]
             blur = float(np.nanmax(widths)) if np.any(np.isfinite(widths)) else float(cfg.half_window_max)
             step_fit = _step_fit_lines(cfg, dict(zip(("bottom", "reference"), widths, strict=True)))
-            half = int(np.clip(math.ceil(cfg.window_blur_factor * blur + 1.0), cfg.half_window_min, cfg.half_window_max))
+            half = int(
+                np.clip(
+                    math.ceil(cfg.window_blur_factor * blur + 1.0), cfg.half_window_min, cfg.half_window_max
+                )
+            )
             ref0 = _Profiles(samples["reference"], fit.weights["reference"] > 0, lut)
             if far_beside:
                 # The far arris model needs the optical blur alone: measured on the plain reference arris.
-                optical_blur = step_blur(plane, ref0.samples, ref0.mask, cfg.half_window_max, cfg.plateau, lut,
-                                         blur_px=math.sqrt(max(blur * blur - 1.0 / 12.0, 0.04)))
+                optical_blur = step_blur(
+                    plane,
+                    ref0.samples,
+                    ref0.mask,
+                    cfg.half_window_max,
+                    cfg.plateau,
+                    lut,
+                    blur_px=math.sqrt(max(blur * blur - 1.0 / 12.0, 0.04)),
+                )
         _pass += 1
     return samples, fit, pose, blur, half, far_beside, far_fit, sampled.step_fitted
 
 
-def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrace, name: str,
-            lum: LuminancePlane | None = None) -> Generator[StepQuery, tuple[np.ndarray, np.ndarray], LocateResult]:
+def _locate(
+    image,
+    cell: Cell,
+    door: DoorSize,
+    cfg: LocateConfig,
+    tr: LocateTrace,
+    name: str,
+    lum: LuminancePlane | None = None,
+) -> Generator[StepQuery, tuple[np.ndarray, np.ndarray], LocateResult]:
     try:
         lum = lum if lum is not None else luminance_plane(image)
     except ImageFormatError as e:
@@ -522,19 +768,39 @@ def _locate(image, cell: Cell, door: DoorSize, cfg: LocateConfig, tr: LocateTrac
     pose = _coarse_pose(coarse, plane, s8, region, cell, door, cfg)
     clock.lap("coarse_pose")
     arris_fits: dict[str, tuple[StripFit, float]] = {}
-    samples, fit, pose, blur, half, far_beside, far_fit, step_fitted = _refine(plane, s8, region, pose, cfg, clock,
-                                                                               cell.response_gamma, arris_fits)
+    samples, fit, pose, blur, half, far_beside, far_fit, step_fitted = _refine(
+        plane, s8, region, pose, cfg, clock, cell.response_gamma, arris_fits
+    )
     tr.samples = samples
     tr.inliers = {k: fit.weights[k] > 0 for k in EDGE_NAMES}
     tr.pose = pose
-    res = _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, half, plane, s8, far_beside, step_fitted,
-                           far_fit, arris_fits)
+    res = _gate_and_answer(
+        name,
+        cell,
+        door,
+        cfg,
+        region,
+        samples,
+        fit,
+        pose,
+        blur,
+        half,
+        plane,
+        s8,
+        far_beside,
+        step_fitted,
+        far_fit,
+        arris_fits,
+    )
     res.diagnostics["far_face_visible"] = far_beside
     if far_fit is not None:
-        res.diagnostics["far_face_fit"] = {"band_level": round(far_fit.band_level, 4), "blur_px": round(far_fit.blur_px, 3),
-                                           "band_px": round(far_fit.band_px, 3),
-                                           "arris_sigma_px": round(far_fit.arris_sigma_px, 4),
-                                           "model_sigma_px": round(far_fit.model_sigma_px, 4)}
+        res.diagnostics["far_face_fit"] = {
+            "band_level": round(far_fit.band_level, 4),
+            "blur_px": round(far_fit.blur_px, 3),
+            "band_px": round(far_fit.band_px, 3),
+            "arris_sigma_px": round(far_fit.arris_sigma_px, 4),
+            "model_sigma_px": round(far_fit.model_sigma_px, 4),
+        }
     clock.lap("gate")
     res.diagnostics["timing_ms"] = clock.laps
     return res
@@ -553,21 +819,27 @@ class _Clock:
         self.t = t
 
 
-_PATTERN = q.Refusal("not_a_door", "a regular pattern (a calibration board?) is in view instead of a door; "
-                                   "remove it and place a door in the fixture")
+_PATTERN = q.Refusal(
+    "not_a_door",
+    "a regular pattern (a calibration board?) is in view instead of a door; "
+    "remove it and place a door in the fixture",
+)
 
 
 def _looks_like_pattern_here(plane, s8: float, band: Band, axis, cfg: LocateConfig) -> bool:
     P = plane if axis == "col" else plane.T
-    rows = P[band.lo.min():band.hi.max() + 1, band.scan[::8]].T.astype(np.float32) * s8
+    rows = P[band.lo.min() : band.hi.max() + 1, band.scan[::8]].T.astype(np.float32) * s8
     return q.looks_like_pattern(rows, 4 * cfg.min_contrast)
 
 
 def _no_door_reason(plane, band: Band, axis, cfg: LocateConfig, s8: float) -> q.Refusal:
     if _looks_like_pattern_here(plane, s8, band, axis, cfg):
         return _PATTERN
-    return q.Refusal("no_door", "no door edge was found in the search region; check that a door lies in the fixture, "
-                                "that the lighting is on and that the camera has not moved")
+    return q.Refusal(
+        "no_door",
+        "no door edge was found in the search region; check that a door lies in the fixture, "
+        "that the lighting is on and that the camera has not moved",
+    )
 
 
 def _rows_across(plane, s8: float, ref: EdgeSamples, far: EdgeSamples) -> np.ndarray | None:
@@ -579,7 +851,7 @@ def _rows_across(plane, s8: float, ref: EdgeSamples, far: EdgeSamples) -> np.nda
     if a.size == 0:
         return None
     lo, hi = int(max(a.min() - 150, 0)), int(min(a.max() + 150, P.shape[0] - 1))
-    return P[lo:hi + 1, ref.scan[::8]].T.astype(np.float32) * s8
+    return P[lo : hi + 1, ref.scan[::8]].T.astype(np.float32) * s8
 
 
 #: contiguous blocks along a line over which its residuals' structure is read (:func:`_residual_structure_tilt`)
@@ -619,10 +891,24 @@ def _response_check_applies(samples: EdgeSamples, inliers: np.ndarray, blur_px: 
     return blur_px >= 0.5 and phases >= 4
 
 
-def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, half, plane, s8,
-                     far_beside: bool = False, step_fitted: dict[str, float] | None = None,
-                     far_fit: FarFaceFit | None = None,
-                     arris_fits: dict[str, tuple[StripFit, float]] | None = None) -> LocateResult:
+def _gate_and_answer(
+    name,
+    cell,
+    door,
+    cfg,
+    region,
+    samples,
+    fit,
+    pose,
+    blur,
+    half,
+    plane,
+    s8,
+    far_beside: bool = False,
+    step_fitted: dict[str, float] | None = None,
+    far_fit: FarFaceFit | None = None,
+    arris_fits: dict[str, tuple[StripFit, float]] | None = None,
+) -> LocateResult:
     lines, refusals = [], []
     corner_px = pose.corner_px
     diagnostics: dict = {
@@ -655,16 +941,24 @@ def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, ha
                 t0 = model.tilt.get(k, 0.0)
                 model.tilt[k] = math.hypot(t0 if math.isfinite(t0) else 0.0, tilt)
             diagnostics.setdefault("arris_fit", {})[k] = {
-                "deficit": round(strip.deficit, 4), "deficit_sigma": round(strip.deficit_sigma, 5),
-                "strip_px": round(band_px, 3), "blur_px": round(strip.blur_px, 3), "misfit": round(strip.misfit, 3),
-                "offset_px": round(strip.offset_px, 4)}
+                "deficit": round(strip.deficit, 4),
+                "deficit_sigma": round(strip.deficit_sigma, 5),
+                "strip_px": round(band_px, 3),
+                "blur_px": round(strip.blur_px, 3),
+                "misfit": round(strip.misfit, 3),
+                "offset_px": round(strip.offset_px, 4),
+            }
         elif not (k == "far" and far_beside) and _response_check_applies(samples[k], inl, model.blur_px):
             # A plain step: is its transition symmetric in linear light (is the camera response right)?
-            doubt, skew, se = response_doubt_px(plane, samples[k], inl, half,
-                                                linearizing_lut(plane.dtype, cell.response_gamma), model.blur_px)
+            doubt, skew, se = response_doubt_px(
+                plane, samples[k], inl, half, linearizing_lut(plane.dtype, cell.response_gamma), model.blur_px
+            )
             if np.isfinite(doubt):
                 model.extra_px.setdefault(k, {})["response"] = doubt
-                diagnostics.setdefault("response_skew_px", {})[k] = {"skew": round(skew, 4), "se": round(se, 4)}
+                diagnostics.setdefault("response_skew_px", {})[k] = {
+                    "skew": round(skew, 4),
+                    "se": round(se, 4),
+                }
     for k in EDGE_NAMES:
         s = samples[k]
         w = fit.weights[k]
@@ -679,16 +973,36 @@ def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, ha
         for term, key in (("arris", "arris_correction_sigma_mm"), ("response", "response_sigma_mm")):
             if term in model.extra_px.get(k, {}):
                 extra[key] = round(model.extra_px[k][term] * pose.scale_mm_per_px, 5)
-        lines.append(LineQuality(name=k, n_points=n_s, n_inliers=n_i, rms_residual_px=round(rms_px, 4),
-                                 rms_residual_mm=round(rms_mm, 5), contrast=round(contrast, 1),
-                                 noise=round(float(np.median(s.noise[inl])), 2) if n_i else None,
-                                 offset_sigma_mm=round(fit.offset_sigma[k], 5), **extra))
+        lines.append(
+            LineQuality(
+                name=k,
+                n_points=n_s,
+                n_inliers=n_i,
+                rms_residual_px=round(rms_px, 4),
+                rms_residual_mm=round(rms_mm, 5),
+                contrast=round(contrast, 1),
+                noise=round(float(np.median(s.noise[inl])), 2) if n_i else None,
+                offset_sigma_mm=round(fit.offset_sigma[k], 5),
+                **extra,
+            )
+        )
         # Beside a visible far face the far arris only measures the thickness (it takes no part in the
         # pose): a looser straightness check.
         loose = k == "far" and far_beside
-        refusals.append(q.check_line(k, HUMAN[k], n_s, n_i, rms_px, contrast, cfg.min_inliers,
-                                     cfg.min_inlier_fraction * (0.5 if loose else 1.0),
-                                     cfg.max_rms_residual_px * (2.0 if loose else 1.0), cfg.min_contrast))
+        refusals.append(
+            q.check_line(
+                k,
+                HUMAN[k],
+                n_s,
+                n_i,
+                rms_px,
+                contrast,
+                cfg.min_inliers,
+                cfg.min_inlier_fraction * (0.5 if loose else 1.0),
+                cfg.max_rms_residual_px * (2.0 if loose else 1.0),
+                cfg.min_contrast,
+            )
+        )
     # corner support: the points next to the corner on the bottom end and the reference arris
     for k in ("bottom", "reference"):
         s = samples[k]
@@ -701,41 +1015,77 @@ def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, ha
         refusals.append(q.check_corner_support(HUMAN[k], frac, n, cfg.min_corner_support))
     bright = np.concatenate([samples[k].bright[fit.weights[k] > 0] for k in EDGE_NAMES])
     refusals.append(q.check_overexposed(bright))
-    refusals.append(q.check_envelope(pose.x_mm, pose.z_mm, pose.yaw_deg, cell.envelope, cfg.envelope_margin_mm,
-                                     cfg.envelope_margin_deg))
+    refusals.append(
+        q.check_envelope(
+            pose.x_mm, pose.z_mm, pose.yaw_deg, cell.envelope, cfg.envelope_margin_mm, cfg.envelope_margin_deg
+        )
+    )
     t_tol = cfg.thickness_tolerance_mm
     # Standard uncertainty of the thickness: the two arris offsets' noise, and beside a visible far face
     # what its model leaves in doubt (a band narrower than the blur is hard to tell from the arris).
-    t_sigma = math.hypot(fit.offset_sigma["reference"], fit.offset_sigma["far"],
-                         model.line_sigma_px("reference") * pose.scale_mm_per_px,
-                         model.line_sigma_px("far") * pose.scale_mm_per_px)
+    t_sigma = math.hypot(
+        fit.offset_sigma["reference"],
+        fit.offset_sigma["far"],
+        model.line_sigma_px("reference") * pose.scale_mm_per_px,
+        model.line_sigma_px("far") * pose.scale_mm_per_px,
+    )
     refusals.append(q.check_thickness(pose.thickness_mm, door.thickness_mm, t_tol))
     t_uncertain = abs(pose.thickness_mm - door.thickness_mm) + 3.0 * t_sigma > t_tol
     if t_uncertain and refusals[-1] is None:
-        refusals.append(q.Refusal("uncertain", f"the door's thickness cannot be checked: it measures "
-                                  f"{pose.thickness_mm:.2f} +- {3 * t_sigma:.2f} mm against {door.thickness_mm:.2f} mm "
-                                  f"(tolerance {t_tol:g} mm){' with its far face seen nearly edge-on' if far_beside else ''}; "
-                                  "check the door and the recipe, or move the door a little along X and take the "
-                                  "image again"))
+        refusals.append(
+            q.Refusal(
+                "uncertain",
+                f"the door's thickness cannot be checked: it measures "
+                f"{pose.thickness_mm:.2f} +- {3 * t_sigma:.2f} mm against {door.thickness_mm:.2f} mm "
+                f"(tolerance {t_tol:g} mm){' with its far face seen nearly edge-on' if far_beside else ''}; "
+                "check the door and the recipe, or move the door a little along X and take the "
+                "image again",
+            )
+        )
     # standard errors of the corner from the line offsets
     sig = math.hypot(fit.offset_sigma["reference"], fit.offset_sigma["bottom"])
     diagnostics["corner_sigma_mm"] = sig
     if sig > cfg.max_sigma_mm:
-        refusals.append(q.Refusal("uncertain", f"the corner is uncertain to {sig:.3f} mm (limit {cfg.max_sigma_mm} mm): "
-                                                "the edges are too noisy; check focus, lighting and exposure"))
-    diagnostics["thickness_check"] = {"measured_mm": round(pose.thickness_mm, 4), "expected_mm": door.thickness_mm,
-                                      "difference_mm": round(pose.thickness_mm - door.thickness_mm, 4),
-                                      "tolerance_mm": t_tol, "sigma_mm": round(t_sigma, 5),
-                                      "uncertain": t_uncertain, "far_face_in_view": far_beside}
+        refusals.append(
+            q.Refusal(
+                "uncertain",
+                f"the corner is uncertain to {sig:.3f} mm (limit {cfg.max_sigma_mm} mm): "
+                "the edges are too noisy; check focus, lighting and exposure",
+            )
+        )
+    diagnostics["thickness_check"] = {
+        "measured_mm": round(pose.thickness_mm, 4),
+        "expected_mm": door.thickness_mm,
+        "difference_mm": round(pose.thickness_mm - door.thickness_mm, 4),
+        "tolerance_mm": t_tol,
+        "sigma_mm": round(t_sigma, 5),
+        "uncertain": t_uncertain,
+        "far_face_in_view": far_beside,
+    }
     unc, terms = _pose_uncertainty(cell, cfg, region, samples, fit, pose, model)
     diagnostics["uncertainty_terms"] = {k: [round(v, 6) for v in t] for k, t in terms.items()}
-    if unc.x_mm > cfg.max_uncertainty_mm or unc.z_mm > cfg.max_uncertainty_mm or unc.yaw_deg > cfg.max_uncertainty_deg:
-        worst = max(terms, key=lambda k: max(terms[k][0] / cfg.max_uncertainty_mm, terms[k][1] / cfg.max_uncertainty_mm,
-                                             terms[k][2] / cfg.max_uncertainty_deg))
-        refusals.append(q.Refusal("uncertain", f"the pose is uncertain to x {unc.x_mm:.3f} mm, z {unc.z_mm:.3f} mm, "
-                                  f"yaw {unc.yaw_deg:.3f} deg (1 sigma; the cell allows {cfg.max_uncertainty_mm:g} mm, "
-                                  f"{cfg.max_uncertainty_deg:g} deg), mostly from the {worst.replace('_', ' ')}; "
-                                  + _UNCERTAIN_HINT[worst]))
+    if (
+        unc.x_mm > cfg.max_uncertainty_mm
+        or unc.z_mm > cfg.max_uncertainty_mm
+        or unc.yaw_deg > cfg.max_uncertainty_deg
+    ):
+        worst = max(
+            terms,
+            key=lambda k: max(
+                terms[k][0] / cfg.max_uncertainty_mm,
+                terms[k][1] / cfg.max_uncertainty_mm,
+                terms[k][2] / cfg.max_uncertainty_deg,
+            ),
+        )
+        refusals.append(
+            q.Refusal(
+                "uncertain",
+                f"the pose is uncertain to x {unc.x_mm:.3f} mm, z {unc.z_mm:.3f} mm, "
+                f"yaw {unc.yaw_deg:.3f} deg (1 sigma; the cell allows {cfg.max_uncertainty_mm:g} mm, "
+                f"{cfg.max_uncertainty_deg:g} deg), mostly from the {worst.replace('_', ' ')}; "
+                + _UNCERTAIN_HINT[worst],
+            )
+        )
     first = next((r for r in refusals if r is not None), None)
     if first is not None and first.code in ("edge_not_straight", "edge_missing", "corner_hidden"):
         # A pose outside the envelope explains broken edges best (the door lies beyond the region).
@@ -746,20 +1096,33 @@ def _gate_and_answer(name, cell, door, cfg, region, samples, fit, pose, blur, ha
         if band is not None and q.looks_like_pattern(band, 4 * cfg.min_contrast):
             first = _PATTERN
     if first is not None:
-        diagnostics["measured"] = {"x_mm": pose.x_mm, "z_mm": pose.z_mm, "yaw_deg": pose.yaw_deg,
-                                   "thickness_mm": pose.thickness_mm}
+        diagnostics["measured"] = {
+            "x_mm": pose.x_mm,
+            "z_mm": pose.z_mm,
+            "yaw_deg": pose.yaw_deg,
+            "thickness_mm": pose.thickness_mm,
+        }
         diagnostics["all_refusals"] = [r.code for r in refusals if r is not None]
         return LocateResult.refusal(name, first.code, first.message, lines=lines, diagnostics=diagnostics)
-    return LocateResult(image=name, ok=True, x_mm=pose.x_mm, z_mm=pose.z_mm, yaw_deg=pose.yaw_deg,
-                        thickness_mm=pose.thickness_mm, scale_mm_per_px=pose.scale_mm_per_px,
-                        corner_px=[float(corner_px[0]), float(corner_px[1])], uncertainty=unc,
-                        lines=lines, diagnostics=diagnostics)
+    return LocateResult(
+        image=name,
+        ok=True,
+        x_mm=pose.x_mm,
+        z_mm=pose.z_mm,
+        yaw_deg=pose.yaw_deg,
+        thickness_mm=pose.thickness_mm,
+        scale_mm_per_px=pose.scale_mm_per_px,
+        corner_px=[float(corner_px[0]), float(corner_px[1])],
+        uncertainty=unc,
+        lines=lines,
+        diagnostics=diagnostics,
+    )
 
 
 _UNCERTAIN_HINT = {
     "fit": "the edges are too noisy; check focus, lighting and exposure",
     "edge_model": "the door's edges do not look like clean steps (strong grain or marks along an edge, an arris or "
-                  "a camera response the cell does not describe); check the cell's door and camera settings",
+    "a camera response the cell does not describe); check the cell's door and camera settings",
     "calibration": "the camera calibration is too uncertain here; calibrate again with views covering the door's corner",
     "cell": "the cell's camera placement is too uncertain; run the cell check again",
 }
@@ -802,8 +1165,16 @@ def _step_fit_lines(cfg: LocateConfig, widths: dict[str, float]) -> dict[str, fl
     return {k: optical for k, w in ok.items() if w <= 1.25 * narrow}
 
 
-def _edge_model_terms(plane, samples: dict[str, EdgeSamples], fit: RectangleFit, half: int, cfg: LocateConfig,
-                      cell: Cell, far_fit: FarFaceFit | None, step_fitted: dict[str, float]) -> EdgeModelTerms:
+def _edge_model_terms(
+    plane,
+    samples: dict[str, EdgeSamples],
+    fit: RectangleFit,
+    half: int,
+    cfg: LocateConfig,
+    cell: Cell,
+    far_fit: FarFaceFit | None,
+    step_fitted: dict[str, float],
+) -> EdgeModelTerms:
     """Edge-model doubts per line (:class:`doorloc.vision.uncertainty.EdgeModelTerms`), px across the edge."""
     terms = EdgeModelTerms()
     lut = linearizing_lut(plane.dtype, cell.response_gamma)
@@ -813,16 +1184,23 @@ def _edge_model_terms(plane, samples: dict[str, EdgeSamples], fit: RectangleFit,
             if far_fit is not None:  # what the far-face model leaves in doubt (band level, blur)
                 terms.extra_px.setdefault(k, {})["far_face"] = far_fit.model_sigma_px
             continue
-        tb = texture_bias(plane, samples[k], fit.weights[k] > 0, half, cfg.plateau, lut,
-                          blur_px=step_fitted.get(k))
+        tb = texture_bias(
+            plane, samples[k], fit.weights[k] > 0, half, cfg.plateau, lut, blur_px=step_fitted.get(k)
+        )
         terms.texture_px[k] = tb.offset_sigma_px
         terms.tilt[k] = tb.tilt_sigma
     return terms
 
 
-def _pose_uncertainty(cell: Cell, cfg: LocateConfig, region: SearchRegion, samples: dict[str, EdgeSamples],
-                      fit: RectangleFit, pose: MetricPose,
-                      model: EdgeModelTerms) -> tuple[PoseUncertainty, dict[str, tuple[float, float, float]]]:
+def _pose_uncertainty(
+    cell: Cell,
+    cfg: LocateConfig,
+    region: SearchRegion,
+    samples: dict[str, EdgeSamples],
+    fit: RectangleFit,
+    pose: MetricPose,
+    model: EdgeModelTerms,
+) -> tuple[PoseUncertainty, dict[str, tuple[float, float, float]]]:
     """The answer's 1-sigma uncertainty and its terms (x_mm, z_mm, yaw_deg each), :mod:`doorloc.vision.uncertainty`."""
     sc = pose.scale_mm_per_px
     lever, spread, extent = {}, {}, {}
@@ -834,24 +1212,48 @@ def _pose_uncertainty(cell: Cell, cfg: LocateConfig, region: SearchRegion, sampl
         lever[k] = abs(float(np.mean(sc_in)) - c_scan) * sc if sc_in.size else 0.0
         spread[k] = float(((sc_in - sc_in.mean()) ** 2).sum()) if sc_in.size else 0.0
         extent[k] = float(np.ptp(sc_in)) if sc_in.size else 0.0
-    fit_t = (corner_fit_sigma(fit.offset_sigma["reference"], fit.angle_sigma_rad, lever["reference"]),
-             corner_fit_sigma(fit.offset_sigma["bottom"], fit.angle_sigma_rad, lever["bottom"]),
-             math.degrees(fit.angle_sigma_rad))
+    fit_t = (
+        corner_fit_sigma(fit.offset_sigma["reference"], fit.angle_sigma_rad, lever["reference"]),
+        corner_fit_sigma(fit.offset_sigma["bottom"], fit.angle_sigma_rad, lever["bottom"]),
+        math.degrees(fit.angle_sigma_rad),
+    )
     # The yaw's edge-model doubt: each line's texture tilt, weighted as the joint fit weighs the lines
     # (by the spread of their points along them); a tilt moves the corner by tilt x lever.
     # (the floor: a bias that changes by twice the floor from one end of a line to the other)
-    tilts = {k: math.hypot(model.tilt.get(k, 0.0) if math.isfinite(model.tilt.get(k, 0.0)) else 0.0,
-                           2.0 * EDGE_MODEL_FLOOR_PX / max(extent[k], 1.0)) for k in ("reference", "bottom")}
+    tilts = {
+        k: math.hypot(
+            model.tilt.get(k, 0.0) if math.isfinite(model.tilt.get(k, 0.0)) else 0.0,
+            2.0 * EDGE_MODEL_FLOOR_PX / max(extent[k], 1.0),
+        )
+        for k in ("reference", "bottom")
+    }
     wsum = sum(spread.values())
-    yaw_m = (math.sqrt(sum((spread[k] * (tilts[k] if math.isfinite(tilts[k]) else 0.0)) ** 2 for k in tilts)) / wsum
-             if wsum > 0 else 0.0)
-    model_t = (math.hypot(model.line_sigma_px("reference") * sc, yaw_m * lever["reference"]),
-               math.hypot(model.line_sigma_px("bottom") * sc, yaw_m * lever["bottom"]),
-               math.degrees(yaw_m))
-    cal_t = calibration_pose_sigma(cell.posed_camera, region.face_map.depth_y, pose.corner_px, pose.yaw_deg,
-                                   cell.calibration_covariance, cell.calibration_covariance_names,
-                                   cfg.calibration_sigma_px, sc)
-    terms = {"fit": fit_t, "edge_model": model_t, "calibration": cal_t,
-             "cell": (cfg.cell_sigma_mm, cfg.cell_sigma_mm, cfg.cell_sigma_deg)}
+    yaw_m = (
+        math.sqrt(sum((spread[k] * (tilts[k] if math.isfinite(tilts[k]) else 0.0)) ** 2 for k in tilts))
+        / wsum
+        if wsum > 0
+        else 0.0
+    )
+    model_t = (
+        math.hypot(model.line_sigma_px("reference") * sc, yaw_m * lever["reference"]),
+        math.hypot(model.line_sigma_px("bottom") * sc, yaw_m * lever["bottom"]),
+        math.degrees(yaw_m),
+    )
+    cal_t = calibration_pose_sigma(
+        cell.posed_camera,
+        region.face_map.depth_y,
+        pose.corner_px,
+        pose.yaw_deg,
+        cell.calibration_covariance,
+        cell.calibration_covariance_names,
+        cfg.calibration_sigma_px,
+        sc,
+    )
+    terms = {
+        "fit": fit_t,
+        "edge_model": model_t,
+        "calibration": cal_t,
+        "cell": (cfg.cell_sigma_mm, cfg.cell_sigma_mm, cfg.cell_sigma_deg),
+    }
     x, z, yaw = combine(terms)
     return PoseUncertainty(x_mm=x, z_mm=z, yaw_deg=yaw), terms

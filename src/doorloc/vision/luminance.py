@@ -59,7 +59,9 @@ def luminance_plane(image: np.ndarray) -> LuminancePlane:
 
     img = np.asarray(image)
     if img.dtype not in (np.uint8, np.uint16):
-        raise ImageFormatError(f"image pixels are {img.dtype}; expected 8- or 16-bit integers from the camera")
+        raise ImageFormatError(
+            f"image pixels are {img.dtype}; expected 8- or 16-bit integers from the camera"
+        )
     if img.ndim == 3 and img.shape[2] == 1:
         img = img[..., 0]
     if img.ndim == 2:

@@ -18,7 +18,14 @@ from doorloc.vision.result import LocateResult
 
 __all__ = ["draw_overlay"]
 
-_GREEN, _RED, _CYAN, _YELLOW, _GREY, _WHITE = (60, 220, 60), (40, 40, 230), (230, 220, 0), (0, 230, 255), (150, 150, 150), (255, 255, 255)
+_GREEN, _RED, _CYAN, _YELLOW, _GREY, _WHITE = (
+    (60, 220, 60),
+    (40, 40, 230),
+    (230, 220, 0),
+    (0, 230, 255),
+    (150, 150, 150),
+    (255, 255, 255),
+)
 _AX_X, _AX_Z = (60, 60, 255), (255, 120, 40)
 
 
@@ -40,8 +47,13 @@ def _pt(p) -> tuple[int, int]:
     return int(round(float(p[0]) * 16)), int(round(float(p[1]) * 16))  # 4 fractional bits
 
 
-def draw_overlay(image: np.ndarray, result: LocateResult, cell: Cell, door: DoorSize | None = None,
-                 trace: LocateTrace | None = None) -> np.ndarray:
+def draw_overlay(
+    image: np.ndarray,
+    result: LocateResult,
+    cell: Cell,
+    door: DoorSize | None = None,
+    trace: LocateTrace | None = None,
+) -> np.ndarray:
     """Draw the locate answer on the image.
 
     Parameters
@@ -116,30 +128,46 @@ def draw_overlay(image: np.ndarray, result: LocateResult, cell: Cell, door: Door
     if np.isfinite([o, xa, za]).all():
         cv2.arrowedLine(out, _pt(o), _pt(xa), _AX_X, 2, cv2.LINE_AA, shift, 0.2)
         cv2.arrowedLine(out, _pt(o), _pt(za), _AX_Z, 2, cv2.LINE_AA, shift, 0.2)
-        cv2.putText(out, "X", (int(xa[0]) + 4, int(xa[1]) + 5), cv2.FONT_HERSHEY_SIMPLEX, 0.5, _AX_X, 1, cv2.LINE_AA)
-        cv2.putText(out, "Z", (int(za[0]) - 5, int(za[1]) - 6), cv2.FONT_HERSHEY_SIMPLEX, 0.5, _AX_Z, 1, cv2.LINE_AA)
+        cv2.putText(
+            out, "X", (int(xa[0]) + 4, int(xa[1]) + 5), cv2.FONT_HERSHEY_SIMPLEX, 0.5, _AX_X, 1, cv2.LINE_AA
+        )
+        cv2.putText(
+            out, "Z", (int(za[0]) - 5, int(za[1]) - 6), cv2.FONT_HERSHEY_SIMPLEX, 0.5, _AX_Z, 1, cv2.LINE_AA
+        )
     # text box
     if result.ok:
-        lines = [f"OK  x {result.x_mm:+.3f} mm   z {result.z_mm:+.3f} mm   yaw {result.yaw_deg:+.4f} deg",
-                 f"thickness {result.thickness_mm:.3f} mm (door {door.thickness_mm:g})   "
-                 f"scale {result.scale_mm_per_px:.4f} mm/px   {result.elapsed_ms:.1f} ms"]
+        lines = [
+            f"OK  x {result.x_mm:+.3f} mm   z {result.z_mm:+.3f} mm   yaw {result.yaw_deg:+.4f} deg",
+            f"thickness {result.thickness_mm:.3f} mm (door {door.thickness_mm:g})   "
+            f"scale {result.scale_mm_per_px:.4f} mm/px   {result.elapsed_ms:.1f} ms",
+        ]
         colour = _GREEN
     else:
         lines = [f"REFUSED ({result.error_code})"] + _wrap(result.error or "", 90)
         colour = _RED
     for lq in result.lines:
-        lines.append(f"{lq.name:9s} {lq.n_inliers:4d}/{lq.n_points:<4d} pts  rms {lq.rms_residual_px or 0:.3f} px  "
-                     f"contrast {lq.contrast or 0:.0f}")
+        lines.append(
+            f"{lq.name:9s} {lq.n_inliers:4d}/{lq.n_points:<4d} pts  rms {lq.rms_residual_px or 0:.3f} px  "
+            f"contrast {lq.contrast or 0:.0f}"
+        )
     scale = max(w / 1920.0, 0.5)
     lh = int(26 * scale)
     box_h = lh * len(lines) + 12
     box_w = int(min(w - 20, 900 * scale))
     y0 = max(h - box_h - 10, 0)  # bottom-left: the door fills the top of the image
-    sub = out[y0:y0 + box_h, 10:10 + box_w]
+    sub = out[y0 : y0 + box_h, 10 : 10 + box_w]
     sub[:] = (sub * 0.35).astype(np.uint8)
     for i, text in enumerate(lines):
-        cv2.putText(out, text, (18, y0 + lh * (i + 1)), cv2.FONT_HERSHEY_SIMPLEX, 0.6 * scale,
-                    colour if i == 0 else _WHITE, max(int(math.ceil(scale)), 1), cv2.LINE_AA)
+        cv2.putText(
+            out,
+            text,
+            (18, y0 + lh * (i + 1)),
+            cv2.FONT_HERSHEY_SIMPLEX,
+            0.6 * scale,
+            colour if i == 0 else _WHITE,
+            max(int(math.ceil(scale)), 1),
+            cv2.LINE_AA,
+        )
     return out
 
 

@@ -12,8 +12,17 @@ import numpy as np
 
 from doorloc.cell import Envelope
 
-__all__ = ["Refusal", "check_image_size", "check_exposure", "check_envelope", "check_thickness",
-           "check_corner_support", "check_line", "check_overexposed", "looks_like_pattern"]
+__all__ = [
+    "Refusal",
+    "check_image_size",
+    "check_exposure",
+    "check_envelope",
+    "check_thickness",
+    "check_corner_support",
+    "check_line",
+    "check_overexposed",
+    "looks_like_pattern",
+]
 
 
 @dataclass(frozen=True)
@@ -39,54 +48,92 @@ def check_exposure(sample: np.ndarray, min_contrast: float, max_saturated_fracti
     """Black or saturated image, judged on grey levels (0-255 scale) sampled over the search region."""
     p1, p99 = np.percentile(sample, [1, 99])
     if p99 < 25 and p99 - p1 < min_contrast:
-        return Refusal("black_image", "the image is black (no light or the lens is covered); check the lighting, "
-                                      "the lens cap and the exposure time")
+        return Refusal(
+            "black_image",
+            "the image is black (no light or the lens is covered); check the lighting, "
+            "the lens cap and the exposure time",
+        )
     sat = float(np.mean(sample >= 250))
     if sat > max_saturated_fraction:
-        return Refusal("saturated_image", f"{sat:.0%} of the search region is saturated white; reduce the exposure "
-                                          "time or the lighting")
+        return Refusal(
+            "saturated_image",
+            f"{sat:.0%} of the search region is saturated white; reduce the exposure time or the lighting",
+        )
     if p99 - p1 < min_contrast:
-        return Refusal("low_contrast", f"the search region has almost no contrast ({p99 - p1:.0f} grey levels); "
-                                       "check that a door is in the fixture and that the lighting is on")
+        return Refusal(
+            "low_contrast",
+            f"the search region has almost no contrast ({p99 - p1:.0f} grey levels); "
+            "check that a door is in the fixture and that the lighting is on",
+        )
     return None
 
 
 def check_overexposed(bright_levels: np.ndarray) -> Refusal | None:
     """The hinge face itself clips at white: edge positions would be biased."""
     if bright_levels.size and float(np.median(bright_levels)) >= 249.0:
-        return Refusal("overexposed", "the hinge face is overexposed (its grey level clips at white), which biases "
-                                      "the edges; reduce the exposure time or the lighting")
+        return Refusal(
+            "overexposed",
+            "the hinge face is overexposed (its grey level clips at white), which biases "
+            "the edges; reduce the exposure time or the lighting",
+        )
     return None
 
 
-def check_line(name: str, human: str, n_samples: int, n_inliers: int, rms_px: float, contrast: float,
-               min_inliers: int, min_inlier_fraction: float, max_rms_px: float, min_contrast: float) -> Refusal | None:
+def check_line(
+    name: str,
+    human: str,
+    n_samples: int,
+    n_inliers: int,
+    rms_px: float,
+    contrast: float,
+    min_inliers: int,
+    min_inlier_fraction: float,
+    max_rms_px: float,
+    min_contrast: float,
+) -> Refusal | None:
     """One fitted edge: enough support, straight enough, contrasted enough."""
     if n_samples == 0 or n_inliers < min_inliers:
-        return Refusal("edge_missing", f"the {human} was not found ({n_inliers} usable edge points); check that the "
-                                       "door lies in the fixture and that nothing covers that edge")
+        return Refusal(
+            "edge_missing",
+            f"the {human} was not found ({n_inliers} usable edge points); check that the "
+            "door lies in the fixture and that nothing covers that edge",
+        )
     if contrast < min_contrast:
-        return Refusal("low_contrast", f"the {human} has too little contrast ({contrast:.1f} grey levels, need "
-                                       f"{min_contrast:.0f}); improve the lighting or the background behind the door")
+        return Refusal(
+            "low_contrast",
+            f"the {human} has too little contrast ({contrast:.1f} grey levels, need "
+            f"{min_contrast:.0f}); improve the lighting or the background behind the door",
+        )
     if n_inliers < min_inlier_fraction * n_samples:
-        return Refusal("edge_not_straight", f"only {n_inliers} of {n_samples} points on the {human} lie on a straight "
-                                            "line; something covers the edge, the edge is damaged, or this is not a door")
+        return Refusal(
+            "edge_not_straight",
+            f"only {n_inliers} of {n_samples} points on the {human} lie on a straight "
+            "line; something covers the edge, the edge is damaged, or this is not a door",
+        )
     if rms_px > max_rms_px:
-        return Refusal("edge_not_straight", f"the {human} is not straight (RMS residual {rms_px:.2f} px, limit "
-                                            f"{max_rms_px:.2f} px); check the edge for damage or debris")
+        return Refusal(
+            "edge_not_straight",
+            f"the {human} is not straight (RMS residual {rms_px:.2f} px, limit "
+            f"{max_rms_px:.2f} px); check the edge for damage or debris",
+        )
     return None
 
 
 def check_corner_support(name: str, frac: float, n: int, min_fraction: float) -> Refusal | None:
     """The edges must reach the corner: something over the corner (a clamp) makes the answer doubtful."""
     if n == 0 or frac < min_fraction:
-        return Refusal("corner_hidden", f"the {name} does not reach the reference corner cleanly (only {frac:.0%} of "
-                                        "the edge points next to the corner fit); something (a clamp, debris) hides the "
-                                        "corner: clear it and take the image again")
+        return Refusal(
+            "corner_hidden",
+            f"the {name} does not reach the reference corner cleanly (only {frac:.0%} of "
+            "the edge points next to the corner fit); something (a clamp, debris) hides the "
+            "corner: clear it and take the image again",
+        )
     return None
 
 
-def check_envelope(x_mm: float, z_mm: float, yaw_deg: float, env: Envelope, margin_mm: float, margin_deg: float) -> Refusal | None:
+def check_envelope(
+    x_mm: float, z_mm: float, yaw_deg: float, env: Envelope, margin_mm: float, margin_deg: float
+) -> Refusal | None:
     """The pose must lie inside the placement envelope plus a margin."""
     bad = []
     if abs(x_mm) > env.x_mm + margin_mm:
@@ -96,12 +143,18 @@ def check_envelope(x_mm: float, z_mm: float, yaw_deg: float, env: Envelope, marg
     if abs(yaw_deg) > env.yaw_deg + margin_deg:
         bad.append(f"yaw = {yaw_deg:+.3f} deg (limit +-{env.yaw_deg:g} deg)")
     if bad:
-        return Refusal("outside_envelope", "the door lies outside the placement envelope: " + ", ".join(bad)
-                       + "; re-seat the door against the fixture stops")
+        return Refusal(
+            "outside_envelope",
+            "the door lies outside the placement envelope: "
+            + ", ".join(bad)
+            + "; re-seat the door against the fixture stops",
+        )
     return None
 
 
-def check_thickness(measured: float, expected: float, tolerance: float, stated_tolerance: float | None = None) -> Refusal | None:
+def check_thickness(
+    measured: float, expected: float, tolerance: float, stated_tolerance: float | None = None
+) -> Refusal | None:
     """The measured thickness must match the door's (a wrong recipe or a wrong door is caught here).
 
     ``stated_tolerance`` is the tolerance named in the message (the configured one, when a coarse
@@ -109,9 +162,12 @@ def check_thickness(measured: float, expected: float, tolerance: float, stated_t
     """
     if not np.isfinite(measured) or abs(measured - expected) > tolerance:
         shown = tolerance if stated_tolerance is None else stated_tolerance
-        return Refusal("thickness_mismatch", f"the door measures {measured:.2f} mm thick but the recipe says "
-                                             f"{expected:.2f} mm (tolerance {shown:g} mm); check that the right "
-                                             "door is in the fixture and that the recipe is the right one")
+        return Refusal(
+            "thickness_mismatch",
+            f"the door measures {measured:.2f} mm thick but the recipe says "
+            f"{expected:.2f} mm (tolerance {shown:g} mm); check that the right "
+            "door is in the fixture and that the recipe is the right one",
+        )
     return None
 
 

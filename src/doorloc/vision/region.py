@@ -69,7 +69,9 @@ class Track:
     beside_far_face: bool = False
     band_px: np.ndarray | None = None  # width of the arris strip / far-face band beside the edge, px
     band_slope: float = 0.0  # change of band_px per px the edge moves outwards (far face: -(1 - k))
-    outline_shift_px: np.ndarray | None = None  # arris: sharp corner's line minus the strip's outer border, px
+    outline_shift_px: np.ndarray | None = (
+        None  # arris: sharp corner's line minus the strip's outer border, px
+    )
 
 
 def _along_scan(uv: np.ndarray, axis: Axis) -> tuple[np.ndarray, np.ndarray]:
@@ -134,7 +136,9 @@ class SearchRegion:
         return self.plane_map.to_plane(uv)
 
     @classmethod
-    def build(cls, cell: Cell, door: DoorSize, margin_mm: float, margin_deg: float, door_brighter: bool = True) -> SearchRegion:
+    def build(
+        cls, cell: Cell, door: DoorSize, margin_mm: float, margin_deg: float, door_brighter: bool = True
+    ) -> SearchRegion:
         """Search region for a door of size ``door`` in ``cell``, widened by the margins beyond the envelope."""
         posed = cell.posed_camera
         face_y = cell.face_y(door)
@@ -164,15 +168,33 @@ class SearchRegion:
         # points back into it (a barrel k1 < 0 does at large radii).
         leaves = np.flatnonzero(~inside)
         run = inside[: leaves[0]] if leaves.size else inside
-        z_top = float(zs[: run.size][run].max()) if run.any() else (float(zs[inside].max()) if inside.any() else 0.0)
+        z_top = (
+            float(zs[: run.size][run].max())
+            if run.any()
+            else (float(zs[inside].max()) if inside.any() else 0.0)
+        )
         z_top = min(z_top, door.height_mm)
         scale = pm.at_depth(face_y).scale_mm_per_px(np.zeros(2))
-        return cls(posed, face_y, depth, door, (w, h), env.x_mm + margin_mm, env.z_mm + margin_mm,
-                   math.radians(env.yaw_deg + margin_deg), layouts, z_top, scale, pm, pm.at_depth(face_y))
+        return cls(
+            posed,
+            face_y,
+            depth,
+            door,
+            (w, h),
+            env.x_mm + margin_mm,
+            env.z_mm + margin_mm,
+            math.radians(env.yaw_deg + margin_deg),
+            layouts,
+            z_top,
+            scale,
+            pm,
+            pm.at_depth(face_y),
+        )
 
     @classmethod
-    def cached(cls, cell: Cell, door: DoorSize, margin_mm: float, margin_deg: float,
-               door_brighter: bool = True) -> SearchRegion:
+    def cached(
+        cls, cell: Cell, door: DoorSize, margin_mm: float, margin_deg: float, door_brighter: bool = True
+    ) -> SearchRegion:
         """:meth:`build`, kept for the next call with the same camera, fixture, envelope, door and margins.
 
         The key is what :meth:`build` reads (camera matrix, distortion, image size, extrinsics, fixture,
@@ -180,9 +202,20 @@ class SearchRegion:
         ``dataclasses.replace``) gets its own region; the cell file's hash is not enough (a replaced
         camera keeps it). At most 32 regions are kept (least recently used first out).
         """
-        key = _RegionKey(cell.camera.camera_matrix.tobytes(), cell.camera.coeffs12.tobytes(), cell.camera.image_size,
-                         cell.extrinsics.rvec.tobytes(), cell.extrinsics.tvec_mm.tobytes(), cell.fixture,
-                         cell.envelope, door, float(margin_mm), float(margin_deg), bool(door_brighter), cell)
+        key = _RegionKey(
+            cell.camera.camera_matrix.tobytes(),
+            cell.camera.coeffs12.tobytes(),
+            cell.camera.image_size,
+            cell.extrinsics.rvec.tobytes(),
+            cell.extrinsics.tvec_mm.tobytes(),
+            cell.fixture,
+            cell.envelope,
+            door,
+            float(margin_mm),
+            float(margin_deg),
+            bool(door_brighter),
+            cell,
+        )
         return _cached_region(key)
 
     def _memoised(self, key: Any, make: Any) -> Any:
@@ -257,7 +290,9 @@ class SearchRegion:
         return Band(scans[ok].astype(int), lo[ok].astype(int), hi[ok].astype(int))
 
     # -- tracks for the sub-pixel passes ---------------------------------------------------------
-    def far_face_visible(self, corner: np.ndarray, yaw_rad: float, thickness_mm: float, margin_mm: float = 1.0) -> bool:
+    def far_face_visible(
+        self, corner: np.ndarray, yaw_rad: float, thickness_mm: float, margin_mm: float = 1.0
+    ) -> bool:
         """True when the camera centre lies beyond the far face's plane (that face is then in view), or
         within ``margin_mm`` of it: the thickness being measured decides, so the answer must not flip
         between passes for a face seen nearly edge-on."""
@@ -265,8 +300,15 @@ class SearchRegion:
         c = self.plane_map.centre[[0, 2]]
         return float(n @ c) > float(n @ np.asarray(corner, float)) + thickness_mm - margin_mm
 
-    def tracks(self, corner: np.ndarray, yaw_rad: float, thickness_mm: float, keep_px: float,
-               window_px: float = 0.0, arris: dict | None = None) -> dict[str, Track]:
+    def tracks(
+        self,
+        corner: np.ndarray,
+        yaw_rad: float,
+        thickness_mm: float,
+        keep_px: float,
+        window_px: float = 0.0,
+        arris: dict | None = None,
+    ) -> dict[str, Track]:
         """Scan lines across each edge of a door at this pose, and the predicted edge on each.
 
         Scan lines closer than ``keep_px`` to the other edges (the corners) or to the image border
@@ -279,11 +321,16 @@ class SearchRegion:
         corner = np.asarray(corner, float)
         far_corner = corner + thickness_mm * ex
         out: dict[str, Track] = {}
-        tz = self._memoised("track_tz", lambda: np.linspace(0.0, self.z_top_mm + 40.0,
-                                                             max(int((self.z_top_mm + 40.0) / 2.0), 8)))
+        tz = self._memoised(
+            "track_tz",
+            lambda: np.linspace(0.0, self.z_top_mm + 40.0, max(int((self.z_top_mm + 40.0) / 2.0), 8)),
+        )
         tx = np.linspace(-1.0, thickness_mm + 1.0, max(int(thickness_mm / 2.0), 8))
-        polylines = {"bottom": corner[None] + tx[:, None] * ex[None], "reference": corner[None] + tz[:, None] * ez[None],
-                     "far": far_corner[None] + tz[:, None] * ez[None]}
+        polylines = {
+            "bottom": corner[None] + tx[:, None] * ex[None],
+            "reference": corner[None] + tz[:, None] * ez[None],
+            "far": far_corner[None] + tz[:, None] * ez[None],
+        }
         # every point projected in one call (the projection is point by point: the same numbers)
         uv_all = self.image_points(np.vstack([*polylines.values(), corner[None], far_corner[None]]))
         uv_ends = uv_all[-2:]  # corner, far corner
@@ -291,12 +338,14 @@ class SearchRegion:
         for name in EDGE_NAMES:
             lay = self.layouts[name]
             pl = polylines[name]
-            uv = uv_all[first:first + len(pl)]
+            uv = uv_all[first : first + len(pl)]
             first += len(pl)
             s, _ = _along_scan(uv, lay.axis)
             n_scan = self.image_size[0] if lay.axis == "col" else self.image_size[1]
             n_along = self.image_size[1] if lay.axis == "col" else self.image_size[0]
-            e_uv = uv_ends if name == "bottom" else uv_ends[[0, 0]] if name == "reference" else uv_ends[[1, 1]]
+            e_uv = (
+                uv_ends if name == "bottom" else uv_ends[[0, 0]] if name == "reference" else uv_ends[[1, 1]]
+            )
             e_s, _ = _along_scan(e_uv, lay.axis)
             if name == "bottom":
                 s_lo, s_hi = np.sort(e_s)
@@ -333,8 +382,12 @@ class SearchRegion:
                 g = arris[name]
                 inward = ez if name == "bottom" else (ex if name == "reference" else -ex)
                 nominal = centre[ok]
-                outer = _interp_on_scans(self.image_points(pl + g.w_outer_mm * inward[None]), lay.axis, scans[ok])
-                inner = _interp_on_scans(self.image_points(pl + g.w_inner_mm * inward[None]), lay.axis, scans[ok])
+                outer = _interp_on_scans(
+                    self.image_points(pl + g.w_outer_mm * inward[None]), lay.axis, scans[ok]
+                )
+                inner = _interp_on_scans(
+                    self.image_points(pl + g.w_inner_mm * inward[None]), lay.axis, scans[ok]
+                )
                 good = np.isfinite(outer) & np.isfinite(inner)
                 sel = np.nonzero(ok)[0][good]
                 ok = np.zeros_like(ok)
@@ -352,7 +405,9 @@ class SearchRegion:
             out[name] = Track(scans[ok], centre[ok], beside, band, slope, shift)
         return out
 
-    def _far_face_band(self, pl, uv, scans, centre, window_px, axis, outward: float) -> tuple[np.ndarray, np.ndarray]:
+    def _far_face_band(
+        self, pl, uv, scans, centre, window_px, axis, outward: float
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Scan lines beside the visible far face (above its bottom edge) and the face's band width there, px.
 
         The width is signed: positive where the band lies beyond the arris (``outward``, door +X along the

@@ -15,7 +15,13 @@ import numpy as np
 
 from doorloc.vision.edges import EdgeSamples, _gather, oriented
 
-__all__ = ["RESPONSE_DOUBT_FACTOR", "RESPONSE_SKEW_BLOCKS", "quantization_skew_px", "response_doubt_px", "response_skew_px"]
+__all__ = [
+    "RESPONSE_DOUBT_FACTOR",
+    "RESPONSE_SKEW_BLOCKS",
+    "quantization_skew_px",
+    "response_doubt_px",
+    "response_skew_px",
+]
 
 #: edge bias per px of skew: on rendered sets with a gamma 1.8-2.2 camera read as linear the area estimate was
 #: off by 10-21 times the skew (blur 0.6-1.5 px); the doubt reported is this multiple (it also inflates the
@@ -41,8 +47,14 @@ def quantization_skew_px(step_dn: float, noise_dn: float, blur_px: float) -> flo
     return float(np.sqrt(2.0) * level_err / step_dn * (2.0 * max(blur_px, 0.0) + 1.0))
 
 
-def response_doubt_px(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half: int,
-                      lut: np.ndarray | None = None, blur_px: float = 0.0) -> tuple[float, float, float]:
+def response_doubt_px(
+    plane: np.ndarray,
+    samples: EdgeSamples,
+    mask: np.ndarray,
+    half: int,
+    lut: np.ndarray | None = None,
+    blur_px: float = 0.0,
+) -> tuple[float, float, float]:
     """The edge doubt (px) that the response check adds to one line, with the skew and its standard error.
 
     Texture and shading beside the edge (wood grain, a gradient, vignetting, JPEG blocks) skew the mean
@@ -75,13 +87,16 @@ def response_doubt_px(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray,
     b = b[np.isfinite(b)]
     if b.size < 3:
         return nan, skew, nan
-    quant = quantization_skew_px(*_plateau_step_and_noise(plane, samples, mask & samples.valid, half), blur_px)
+    quant = quantization_skew_px(
+        *_plateau_step_and_noise(plane, samples, mask & samples.valid, half), blur_px
+    )
     se = float(np.hypot(np.std(b, ddof=1) / np.sqrt(b.size), quant if np.isfinite(quant) else 0.0))
     return RESPONSE_DOUBT_FACTOR * max(abs(skew) - 2.0 * se, 0.0), skew, se
 
 
-def response_skew_px(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half: int,
-                     lut: np.ndarray | None = None) -> float:
+def response_skew_px(
+    plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half: int, lut: np.ndarray | None = None
+) -> float:
     """Distance (px) between the 50 % crossing and the centre of mass of the mean edge transition.
 
     The profiles (linearised by ``lut``) are aligned on their sub-pixel edge, normalised by their step and
@@ -127,8 +142,9 @@ def response_skew_px(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, 
     return float(crossing - centre)
 
 
-def _plateau_step_and_noise(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray,
-                            half: int) -> tuple[float, float]:
+def _plateau_step_and_noise(
+    plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half: int
+) -> tuple[float, float]:
     """The step and the grey-level noise (raw grey levels) from the pixels just beyond the window.
 
     The noise from the same pixel on neighbouring scan lines (the samples' own noise comes from plateaus

@@ -28,8 +28,12 @@ class Provenance(BaseModel):
 
     version: str = Field(description="doorloc version")
     cell_sha256: str | None = Field(None, description="SHA-256 of the cell file's bytes")
-    calibration_sha256: str | None = Field(None, description="SHA-256 of the camera calibration (file, or inline model)")
-    recipe_version: int | None = Field(None, description="version of the door recipe used, when a recipe was used")
+    calibration_sha256: str | None = Field(
+        None, description="SHA-256 of the camera calibration (file, or inline model)"
+    )
+    recipe_version: int | None = Field(
+        None, description="version of the door recipe used, when a recipe was used"
+    )
 
 
 class PhysicalModel(BaseModel):
@@ -37,11 +41,17 @@ class PhysicalModel(BaseModel):
 
     model_config = ConfigDict(extra="allow")
 
-    response_gamma: float = Field(description="camera response the grey levels were linearised with (camera.response_gamma)")
+    response_gamma: float = Field(
+        description="camera response the grey levels were linearised with (camera.response_gamma)"
+    )
     arris_mm: float = Field(description="arris size the edges were corrected for, mm (0: sharp edges)")
     arris_profile: str = Field(description="'chamfer' or 'round'")
-    door_brighter: bool = Field(description="lighting side: the hinge face is brighter than the background (locate.door_brighter)")
-    face_y_mm: float | None = Field(None, description="hinge-face depth used for this door, mm (cell frame Y)")
+    door_brighter: bool = Field(
+        description="lighting side: the hinge face is brighter than the background (locate.door_brighter)"
+    )
+    face_y_mm: float | None = Field(
+        None, description="hinge-face depth used for this door, mm (cell frame Y)"
+    )
 
 
 class LineQuality(BaseModel):
@@ -71,20 +81,30 @@ class LocateResult(BaseModel):
     z_mm: float | None = Field(None, description="shift of the reference corner along cell +Z, mm")
     yaw_deg: float | None = Field(None, description="door rotation in the hinge-face plane, degrees")
     thickness_mm: float | None = Field(None, description="measured door thickness, mm")
-    scale_mm_per_px: float | None = Field(None, description="dynamic scaling factor at the corner, mm per pixel")
+    scale_mm_per_px: float | None = Field(
+        None, description="dynamic scaling factor at the corner, mm per pixel"
+    )
     corner_px: list[float] | None = Field(None, description="reference corner in the image, [u, v] px")
     error: str | None = Field(None, description="null, or a sentence a person can act on")
-    error_code: str | None = Field(None, description="machine-readable refusal reason, e.g. 'no_door', 'outside_envelope'")
+    error_code: str | None = Field(
+        None, description="machine-readable refusal reason, e.g. 'no_door', 'outside_envelope'"
+    )
     uncertainty: PoseUncertainty | None = Field(
         None, description="1-sigma standard uncertainty of the pose (null when ok is false)"
     )
-    provenance: Provenance | None = Field(None, description="software version and the hashes of the model used")
-    model: PhysicalModel | None = Field(None, description="the physical settings locate assumed (response, arris, lighting side)")
+    provenance: Provenance | None = Field(
+        None, description="software version and the hashes of the model used"
+    )
+    model: PhysicalModel | None = Field(
+        None, description="the physical settings locate assumed (response, arris, lighting side)"
+    )
     elapsed_ms: float = Field(0.0, description="time spent in locate, ms (decode excluded)")
     lines: list[LineQuality] = Field(default_factory=list, description="per-line fit figures")
     diagnostics: dict[str, Any] = Field(default_factory=dict, description="anything else worth knowing")
 
     @classmethod
-    def refusal(cls, image: str, error_code: str, error: str, elapsed_ms: float = 0.0, **extra: Any) -> LocateResult:
+    def refusal(
+        cls, image: str, error_code: str, error: str, elapsed_ms: float = 0.0, **extra: Any
+    ) -> LocateResult:
         """A refusal: ``ok=false``, pose fields null, a reason a person can act on."""
         return cls(image=image, ok=False, error=error, error_code=error_code, elapsed_ms=elapsed_ms, **extra)

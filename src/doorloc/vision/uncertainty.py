@@ -54,7 +54,16 @@ from doorloc.calib.calibrate import Candidate, free_param_names, projection_jaco
 from doorloc.calib.camera import CameraModel, PosedCamera
 from doorloc.vision.metric import PlaneMap
 
-__all__ = ["BLUR_MODEL_FRACTION", "EDGE_MODEL_FLOOR_PX", "JPEG_BLOCK_RATIO", "JPEG_EDGE_DOUBT_PX", "EdgeModelTerms", "calibration_pose_sigma", "combine", "corner_fit_sigma"]
+__all__ = [
+    "BLUR_MODEL_FRACTION",
+    "EDGE_MODEL_FLOOR_PX",
+    "JPEG_BLOCK_RATIO",
+    "JPEG_EDGE_DOUBT_PX",
+    "EdgeModelTerms",
+    "calibration_pose_sigma",
+    "combine",
+    "corner_fit_sigma",
+]
 
 #: the area estimator's residual bias on a clean step, px across the edge (module docstring)
 EDGE_MODEL_FLOOR_PX = 0.002
@@ -67,8 +76,20 @@ JPEG_EDGE_DOUBT_PX = 0.03
 BLUR_MODEL_FRACTION = 0.01
 
 #: OpenCV's order of the distortion coefficients (calibration covariance names)
-_DIST_INDEX = {"k1": 0, "k2": 1, "p1": 2, "p2": 3, "k3": 4, "k4": 5, "k5": 6, "k6": 7,
-               "s1": 8, "s2": 9, "s3": 10, "s4": 11}
+_DIST_INDEX = {
+    "k1": 0,
+    "k2": 1,
+    "p1": 2,
+    "p2": 3,
+    "k3": 4,
+    "k4": 5,
+    "k5": 6,
+    "k6": 7,
+    "s1": 8,
+    "s2": 9,
+    "s3": 10,
+    "s4": 11,
+}
 
 
 @dataclass
@@ -97,7 +118,12 @@ class EdgeModelTerms:
         """Total edge-model 1-sigma of one line's offset, px (floor, texture and extra terms in quadrature)."""
         t = self.texture_px.get(name, 0.0)
         blur = BLUR_MODEL_FRACTION * self.blur_px if math.isfinite(self.blur_px) else 0.0
-        terms = [EDGE_MODEL_FLOOR_PX, blur, t if math.isfinite(t) else 0.0, *self.extra_px.get(name, {}).values()]
+        terms = [
+            EDGE_MODEL_FLOOR_PX,
+            blur,
+            t if math.isfinite(t) else 0.0,
+            *self.extra_px.get(name, {}).values(),
+        ]
         return math.sqrt(sum(v * v for v in terms if math.isfinite(v)))
 
 
@@ -120,9 +146,16 @@ def _candidate(names: tuple[str, ...], camera: CameraModel) -> tuple[Candidate, 
     return c, [list(names).index(n) for n in order]
 
 
-def calibration_pose_sigma(posed: PosedCamera, depth_y: float, corner_px: np.ndarray, yaw_deg: float,
-                           covariance: np.ndarray | None, names: list[str] | tuple[str, ...],
-                           fallback_sigma_px: float, scale_mm_per_px: float) -> tuple[float, float, float]:
+def calibration_pose_sigma(
+    posed: PosedCamera,
+    depth_y: float,
+    corner_px: np.ndarray,
+    yaw_deg: float,
+    covariance: np.ndarray | None,
+    names: list[str] | tuple[str, ...],
+    fallback_sigma_px: float,
+    scale_mm_per_px: float,
+) -> tuple[float, float, float]:
     """1-sigma of (x_mm, z_mm, yaw_deg) that the camera calibration's uncertainty gives the located pose.
 
     With a covariance of the intrinsics (``names`` in its order, as :mod:`doorloc.calib.calibrate` saves
@@ -153,7 +186,9 @@ def calibration_pose_sigma(posed: PosedCamera, depth_y: float, corner_px: np.nda
     grid = np.stack([gu.ravel(), gv.ravel()], axis=1)
     Jp = projection_jacobian(posed.camera, c, np.concatenate([pix, grid]), aligned=True)[:2]  # (2, 2, n)
     if not np.all(np.isfinite(Jp)):
-        return calibration_pose_sigma(posed, depth_y, corner_px, yaw_deg, None, (), fallback_sigma_px, scale_mm_per_px)
+        return calibration_pose_sigma(
+            posed, depth_y, corner_px, yaw_deg, None, (), fallback_sigma_px, scale_mm_per_px
+        )
     # The ray seen at a fixed pixel moves by -J dp: the located plane point moves by -(dXZ/duv) J dp.
     G = []
     for p in pix:

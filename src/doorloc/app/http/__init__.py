@@ -57,7 +57,9 @@ def create_app(
         Given ones are used as they are; missing ones are loaded at start-up (cell from ``settings.cell``,
         recipe store from ``settings.database_url``, locate = :func:`doorloc.vision.locate.locate`).
     """
-    state = ServiceState(settings=settings, metrics=ServiceMetrics(), cell=cell, store=store, locate_fn=locate_fn)
+    state = ServiceState(
+        settings=settings, metrics=ServiceMetrics(), cell=cell, store=store, locate_fn=locate_fn
+    )
 
     @asynccontextmanager
     async def lifespan(app: FastAPI):

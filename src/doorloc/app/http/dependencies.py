@@ -19,7 +19,8 @@ from doorloc.app.http.state import ServiceState
 __all__ = ["get_state", "ready_state", "require_role", "require_api_key", "call_store"]
 
 _api_key_header = APIKeyHeader(
-    name="X-API-Key", auto_error=False,
+    name="X-API-Key",
+    auto_error=False,
     description="an API key (doorloc keys create); required once any key exists or DOORLOC_API_KEY is set",
 )
 #: the caller when the service has no keys at all (only allowed on loopback, see doorloc serve)
@@ -40,19 +41,24 @@ async def _principal(state: ServiceState, given: str | None) -> Principal:
     if given:
         # the legacy single key: compare fixed-length digests so the comparison time says nothing about the key
         if legacy is not None and hmac.compare_digest(
-            hashlib.sha256(given.encode()).digest(), hashlib.sha256(legacy.get_secret_value().encode()).digest()
+            hashlib.sha256(given.encode()).digest(),
+            hashlib.sha256(legacy.get_secret_value().encode()).digest(),
         ):
             return Principal(LEGACY_KEY_NAME, Role.engineer)
         if state.keys is None:
             raise _service_not_ready(state)
         who = await call_store(state.keys.authenticate, given)
         if who is None:
-            raise _unauthorized("The API key in X-API-Key is not valid (unknown, mistyped or revoked); "
-                                "ask the cell's administrator for a key (doorloc keys create).")
+            raise _unauthorized(
+                "The API key in X-API-Key is not valid (unknown, mistyped or revoked); "
+                "ask the cell's administrator for a key (doorloc keys create)."
+            )
         return who
     if legacy is not None:
-        raise _unauthorized("This service needs an API key: send it in the X-API-Key header "
-                            "(ask the cell's administrator for it).")
+        raise _unauthorized(
+            "This service needs an API key: send it in the X-API-Key header "
+            "(ask the cell's administrator for it)."
+        )
     if state.keys is None:
         raise _service_not_ready(state)
     # the answer is remembered ANY_ACTIVE_TTL_S: no database round trip (nor thread hop) on every request
@@ -60,8 +66,10 @@ async def _principal(state: ServiceState, given: str | None) -> Principal:
     if keys_exist is None:
         keys_exist = await call_store(state.keys.any_active)
     if keys_exist:
-        raise _unauthorized("This service needs an API key: send it in the X-API-Key header "
-                            "(ask the cell's administrator for it).")
+        raise _unauthorized(
+            "This service needs an API key: send it in the X-API-Key header "
+            "(ask the cell's administrator for it)."
+        )
     return ANONYMOUS
 
 
@@ -69,13 +77,16 @@ def require_role(role: Role) -> Callable[..., Any]:
     """A dependency: the caller (a :class:`Principal`), or 401 without a valid key, 403 when its role may not."""
 
     async def dependency(
-        request: Request, state: ServiceState = Depends(get_state), given: str | None = Security(_api_key_header)
+        request: Request,
+        state: ServiceState = Depends(get_state),
+        given: str | None = Security(_api_key_header),
     ) -> Principal:
         who = await _principal(state, given)
         request.scope.setdefault("state", {})["principal"] = who.name
         if not role_allows(who.role, role):
             raise ProblemError(
-                403, "forbidden",
+                403,
+                "forbidden",
                 f"The key '{who.name}' has the role '{who.role}', which may not do this; it needs '{role}' "
                 "(ask the cell's administrator for such a key).",
             )
@@ -91,7 +102,8 @@ require_api_key = require_role(Role.operator)
 def _service_not_ready(state: ServiceState) -> ProblemError:
     reason = state.load_error or "still starting"
     return ProblemError(
-        503, "not_ready",
+        503,
+        "not_ready",
         f"The service is not ready ({reason}); fix the cell file or database and restart, or retry shortly.",
         headers={"Retry-After": "5"},
     )
@@ -102,7 +114,8 @@ def ready_state(state: ServiceState = Depends(get_state)) -> ServiceState:
     if not state.ready:
         reason = state.load_error or "still starting"
         raise ProblemError(
-            503, "not_ready",
+            503,
+            "not_ready",
             f"The service is not ready to locate doors ({reason}); fix the cell file and restart, or retry shortly.",
             headers={"Retry-After": "5"},
         )
@@ -122,10 +135,12 @@ async def call_store(fn: Callable[..., Any], *args: Any) -> Any:
         return await anyio.to_thread.run_sync(fn, *args)
     except (SQLAlchemyError, RecipeStoreError) as e:
         logging.getLogger("doorloc.http").error(
-            "recipe database error", extra={"fields": {"event": "database_error", "error": str(e).splitlines()[0]}}
+            "recipe database error",
+            extra={"fields": {"event": "database_error", "error": str(e).splitlines()[0]}},
         )
         raise ProblemError(
-            503, "database_unavailable",
+            503,
+            "database_unavailable",
             "The recipe database cannot be reached right now; retry shortly, and tell the administrator if it persists.",
             headers={"Retry-After": "5"},
         ) from None

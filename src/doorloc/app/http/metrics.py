@@ -41,45 +41,71 @@ class ServiceMetrics:
         self.multiprocess_dir = os.environ.get(MULTIPROCESS_ENV) if multi else None
         self.registry = CollectorRegistry(auto_describe=True)
         self.requests = Counter(
-            "doorloc_http_requests", "HTTP requests answered", ["method", "route", "status"], registry=self.registry
+            "doorloc_http_requests",
+            "HTTP requests answered",
+            ["method", "route", "status"],
+            registry=self.registry,
         )
         self.latency = Histogram(
-            "doorloc_http_request_duration_seconds", "Time to answer an HTTP request, seconds",
-            ["method", "route"], buckets=_LATENCY_BUCKETS, registry=self.registry,
+            "doorloc_http_request_duration_seconds",
+            "Time to answer an HTTP request, seconds",
+            ["method", "route"],
+            buckets=_LATENCY_BUCKETS,
+            registry=self.registry,
         )
         self.locates = Counter(
-            "doorloc_locate_results", "Images located, by outcome (answered, refused or internal_error)", ["outcome"],
+            "doorloc_locate_results",
+            "Images located, by outcome (answered, refused or internal_error)",
+            ["outcome"],
             registry=self.registry,
         )
         self.internal_errors = Counter(
-            "doorloc_internal_errors", "Internal errors (bugs), by where they happened (locate, request)", ["where"],
+            "doorloc_internal_errors",
+            "Internal errors (bugs), by where they happened (locate, request)",
+            ["where"],
             registry=self.registry,
         )
         self.refusals = Counter(
-            "doorloc_locate_refusals", "Locate refusals (ok=false) by reason", ["reason"], registry=self.registry
+            "doorloc_locate_refusals",
+            "Locate refusals (ok=false) by reason",
+            ["reason"],
+            registry=self.registry,
         )
         self.locate_seconds = Histogram(
-            "doorloc_locate_duration_seconds", "Time spent in locate itself (decode excluded), seconds",
-            buckets=_LATENCY_BUCKETS, registry=self.registry,
+            "doorloc_locate_duration_seconds",
+            "Time spent in locate itself (decode excluded), seconds",
+            buckets=_LATENCY_BUCKETS,
+            registry=self.registry,
         )
         self.rejected_uploads = Counter(
-            "doorloc_rejected_uploads", "Uploads refused before locate, by reason", ["reason"], registry=self.registry
+            "doorloc_rejected_uploads",
+            "Uploads refused before locate, by reason",
+            ["reason"],
+            registry=self.registry,
         )
         self.in_flight = Gauge(
-            "doorloc_locate_in_flight", "Locate requests in progress (waiting for a CPU slot or running)",
-            registry=self.registry, multiprocess_mode="livesum",
+            "doorloc_locate_in_flight",
+            "Locate requests in progress (waiting for a CPU slot or running)",
+            registry=self.registry,
+            multiprocess_mode="livesum",
         )
         self.worker_rss = Gauge(
-            "doorloc_worker_resident_memory_bytes", "Resident memory of each worker process, bytes",
-            registry=self.registry, multiprocess_mode="liveall",
+            "doorloc_worker_resident_memory_bytes",
+            "Resident memory of each worker process, bytes",
+            registry=self.registry,
+            multiprocess_mode="liveall",
         )
         self.worker_cpu = Gauge(
-            "doorloc_worker_cpu_seconds", "CPU time used by each worker process (user + system), seconds",
-            registry=self.registry, multiprocess_mode="liveall",
+            "doorloc_worker_cpu_seconds",
+            "CPU time used by each worker process (user + system), seconds",
+            registry=self.registry,
+            multiprocess_mode="liveall",
         )
         self.worker_fds = Gauge(
-            "doorloc_worker_open_fds", "Open file descriptors of each worker process",
-            registry=self.registry, multiprocess_mode="liveall",
+            "doorloc_worker_open_fds",
+            "Open file descriptors of each worker process",
+            registry=self.registry,
+            multiprocess_mode="liveall",
         )
 
     def observe_request(self, method: str, route: str, status: int, seconds: float) -> None:

@@ -105,9 +105,14 @@ class LocateAdmission:
             await self.app(scope, receive, send)
             return
         ctype = (_header(scope, b"content-type") or "").split(";")[0].strip().lower()
-        if ctype and ctype != "multipart/form-data":  # no type at all: the form's own 422 names the missing image
+        if (
+            ctype and ctype != "multipart/form-data"
+        ):  # no type at all: the form's own 422 names the missing image
             await _send_problem(
-                scope, send, 415, "not_multipart",
+                scope,
+                send,
+                415,
+                "not_multipart",
                 f"POST {self.path} takes a multipart form with the image in the field 'image' "
                 f"(curl -F image=@door.png), not a body of type '{ctype}'.",
             )
@@ -133,8 +138,12 @@ class BodyTimeout(StarletteHTTPException):
     """The request body did not arrive within the request deadline (a slow or stalled client)."""
 
     def __init__(self, deadline_s: float) -> None:
-        super().__init__(status_code=408, detail=(
-            f"The upload did not arrive within {math.ceil(deadline_s)} s; send the image again over a faster link."))
+        super().__init__(
+            status_code=408,
+            detail=(
+                f"The upload did not arrive within {math.ceil(deadline_s)} s; send the image again over a faster link."
+            ),
+        )
 
 
 class RequestContext:
@@ -196,20 +205,36 @@ def _header(scope: Scope, name: bytes) -> str | None:
 
 
 async def _send_problem(
-    scope: Scope, send: Send, status: int, code: str, detail: str, headers: list[tuple[bytes, bytes]] | None = None
+    scope: Scope,
+    send: Send,
+    status: int,
+    code: str,
+    detail: str,
+    headers: list[tuple[bytes, bytes]] | None = None,
 ) -> None:
     from http import HTTPStatus
 
-    body: dict[str, Any] = {"type": "about:blank", "title": HTTPStatus(status).phrase, "status": status,
-                            "detail": detail, "code": code}
+    body: dict[str, Any] = {
+        "type": "about:blank",
+        "title": HTTPStatus(status).phrase,
+        "status": status,
+        "detail": detail,
+        "code": code,
+    }
     request_id = scope.get("state", {}).get("request_id")
     if request_id:
         body["request_id"] = request_id
     payload = json.dumps(body).encode()
-    await send({
-        "type": "http.response.start",
-        "status": status,
-        "headers": [(b"content-type", PROBLEM_MEDIA_TYPE.encode()), (b"content-length", str(len(payload)).encode()),
-                    (b"connection", b"close"), *(headers or [])],
-    })
+    await send(
+        {
+            "type": "http.response.start",
+            "status": status,
+            "headers": [
+                (b"content-type", PROBLEM_MEDIA_TYPE.encode()),
+                (b"content-length", str(len(payload)).encode()),
+                (b"connection", b"close"),
+                *(headers or []),
+            ],
+        }
+    )
     await send({"type": "http.response.body", "body": payload})

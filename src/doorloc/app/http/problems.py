@@ -30,8 +30,12 @@ class Problem(BaseModel):
     status: int = Field(description="HTTP status code")
     detail: str = Field(description="what went wrong and what to do about it, as a sentence")
     code: str = Field(description="machine-readable reason, e.g. 'not_an_image', 'too_large'")
-    request_id: str | None = Field(None, description="id of the request, as in the logs and the X-Request-ID header")
-    errors: list[dict[str, Any]] | None = Field(None, description="per-field validation errors, when there are several")
+    request_id: str | None = Field(
+        None, description="id of the request, as in the logs and the X-Request-ID header"
+    )
+    errors: list[dict[str, Any]] | None = Field(
+        None, description="per-field validation errors, when there are several"
+    )
 
 
 class ProblemError(Exception):
@@ -55,7 +59,7 @@ _DESCRIPTIONS = {
     422: "A field is missing or invalid, or the image cannot be decoded or declares too many pixels.",
     408: "The request body did not arrive within the request deadline.",
     503: "The service is not ready (the cell or its calibration is not loaded), the recipe database is unreachable, "
-         "or this worker is overloaded (see Retry-After).",
+    "or this worker is overloaded (see Retry-After).",
 }
 
 
@@ -63,19 +67,37 @@ def problem_responses(*statuses: int) -> dict[int | str, dict[str, Any]]:
     """``responses=`` for a route: each status answered as application/problem+json with the Problem schema."""
     schema = Problem.model_json_schema()
     return {
-        s: {"description": _DESCRIPTIONS.get(s, HTTPStatus(s).phrase), "content": {PROBLEM_MEDIA_TYPE: {"schema": schema}}}
+        s: {
+            "description": _DESCRIPTIONS.get(s, HTTPStatus(s).phrase),
+            "content": {PROBLEM_MEDIA_TYPE: {"schema": schema}},
+        }
         for s in statuses
     }
 
 
 def problem_response(
-    request: Request | None, status: int, code: str, detail: str, headers: dict[str, str] | None = None, **extra: Any
+    request: Request | None,
+    status: int,
+    code: str,
+    detail: str,
+    headers: dict[str, str] | None = None,
+    **extra: Any,
 ) -> JSONResponse:
     """The JSONResponse for one problem."""
     request_id = request.scope.get("state", {}).get("request_id") if request is not None else None
-    body = Problem(title=HTTPStatus(status).phrase, status=status, detail=detail, code=code, request_id=request_id, **extra)
+    body = Problem(
+        title=HTTPStatus(status).phrase,
+        status=status,
+        detail=detail,
+        code=code,
+        request_id=request_id,
+        **extra,
+    )
     return JSONResponse(
-        body.model_dump(mode="json", exclude_none=True), status_code=status, headers=headers, media_type=PROBLEM_MEDIA_TYPE
+        body.model_dump(mode="json", exclude_none=True),
+        status_code=status,
+        headers=headers,
+        media_type=PROBLEM_MEDIA_TYPE,
     )
 
 
@@ -96,7 +118,14 @@ def _validation_sentence(errors: list[dict[str, Any]]) -> str:
     return "Invalid request: " + "; ".join(sentences) + more + "."
 
 
-_HTTP_CODES = {400: "malformed_body", 401: "unauthorized", 404: "not_found", 405: "method_not_allowed", 413: "too_large", 503: "not_ready"}
+_HTTP_CODES = {
+    400: "malformed_body",
+    401: "unauthorized",
+    404: "not_found",
+    405: "method_not_allowed",
+    413: "too_large",
+    503: "not_ready",
+}
 
 
 def _allowed_methods(request: Request) -> list[str]:
@@ -126,16 +155,23 @@ def install_problem_handlers(app: FastAPI) -> None:
 
     @app.exception_handler(StoredRecipeInvalid)
     async def _stored_invalid(request: Request, exc: StoredRecipeInvalid) -> JSONResponse:
-        return problem_response(request, 422, "invalid_stored_recipe", str(exc)[0].upper() + str(exc)[1:] + ".")
+        return problem_response(
+            request, 422, "invalid_stored_recipe", str(exc)[0].upper() + str(exc)[1:] + "."
+        )
 
     @app.exception_handler(RequestValidationError)
     async def _invalid(request: Request, exc: RequestValidationError) -> JSONResponse:
         errors = [
-            {"field": _field_name(e.get("loc", ())), "message": str(e.get("msg", "")).removeprefix("Value error, "),
-             "type": str(e.get("type", ""))}
+            {
+                "field": _field_name(e.get("loc", ())),
+                "message": str(e.get("msg", "")).removeprefix("Value error, "),
+                "type": str(e.get("type", "")),
+            }
             for e in exc.errors()
         ]
-        return problem_response(request, 422, "invalid_request", _validation_sentence(list(exc.errors())), errors=errors)
+        return problem_response(
+            request, 422, "invalid_request", _validation_sentence(list(exc.errors())), errors=errors
+        )
 
     @app.exception_handler(StarletteHTTPException)
     async def _http(request: Request, exc: StarletteHTTPException) -> JSONResponse:
@@ -148,8 +184,10 @@ def install_problem_handlers(app: FastAPI) -> None:
             detail = f"{request.method} is not allowed on {request.url.path}; use {' or '.join(allowed)}."
             return problem_response(request, 405, "method_not_allowed", detail, {"Allow": ", ".join(allowed)})
         elif status == 400:
-            detail = ("The request body cannot be parsed: send images as a multipart form with the field 'image' "
-                      "(curl -F image=@door.png) and recipes as UTF-8 JSON.")
+            detail = (
+                "The request body cannot be parsed: send images as a multipart form with the field 'image' "
+                "(curl -F image=@door.png) and recipes as UTF-8 JSON."
+            )
         else:
             detail = str(exc.detail) if exc.detail else HTTPStatus(status).phrase
             if not detail.endswith("."):
@@ -162,10 +200,17 @@ def install_problem_handlers(app: FastAPI) -> None:
         service = getattr(request.app.state, "service", None)
         if service is not None:
             service.metrics.internal_errors.labels("request").inc()
-        _log.error("unexpected error", exc_info=exc, extra={"fields": {
-            "event": "internal_error", "incident_id": request_id, "path": request.url.path}})
+        _log.error(
+            "unexpected error",
+            exc_info=exc,
+            extra={
+                "fields": {"event": "internal_error", "incident_id": request_id, "path": request.url.path}
+            },
+        )
         return problem_response(
-            request, 500, "internal_error",
+            request,
+            500,
+            "internal_error",
             f"The service failed on this request; it has been logged with incident id {request_id}. Try again, and "
             "report that id if it persists.",
         )

@@ -20,10 +20,15 @@ __all__ = ["ProblemJsonHTTP", "problem_400_body"]
 
 def problem_400_body(msg: str) -> bytes:
     """The problem+json body of a request uvicorn could not parse (``msg`` is its reason)."""
-    return json.dumps({
-        "type": "about:blank", "title": "Bad Request", "status": 400, "code": "malformed_http",
-        "detail": f"The request is not valid HTTP/1.1 ({msg.rstrip('.')}); check the client or proxy that sent it.",
-    }).encode()
+    return json.dumps(
+        {
+            "type": "about:blank",
+            "title": "Bad Request",
+            "status": 400,
+            "code": "malformed_http",
+            "detail": f"The request is not valid HTTP/1.1 ({msg.rstrip('.')}); check the client or proxy that sent it.",
+        }
+    ).encode()
 
 
 class ProblemJsonHTTP(HttpToolsProtocol):
@@ -34,7 +39,14 @@ class ProblemJsonHTTP(HttpToolsProtocol):
         head = [b"HTTP/1.1 400 Bad Request\r\n"]
         for name, value in self.server_state.default_headers:
             head += [name, b": ", value, b"\r\n"]
-        head += [b"content-type: ", PROBLEM_MEDIA_TYPE.encode(), b"\r\n",
-                 b"content-length: ", str(len(body)).encode(), b"\r\n", b"connection: close\r\n\r\n"]
+        head += [
+            b"content-type: ",
+            PROBLEM_MEDIA_TYPE.encode(),
+            b"\r\n",
+            b"content-length: ",
+            str(len(body)).encode(),
+            b"\r\n",
+            b"connection: close\r\n\r\n",
+        ]
         self.transport.write(b"".join(head) + body)
         self.transport.close()

@@ -31,7 +31,9 @@ Engineer = Annotated[Principal, Depends(require_role(Role.engineer))]
 DoorId = Annotated[str, Path(pattern=DOOR_ID_PATTERN, description="the door's barcode")]
 
 
-@router.get("", response_model=DoorList, responses=problem_responses(401, 403, 422, 503), summary="List door ids")
+@router.get(
+    "", response_model=DoorList, responses=problem_responses(401, 403, 422, 503), summary="List door ids"
+)
 async def list_doors(
     _who: Operator,
     state: Annotated[ServiceState, Depends(ready_state)],
@@ -42,29 +44,46 @@ async def list_doors(
     total = await call_store(state.store.count)
     ids = [i if isinstance(i, str) else i.door_id for i in rows]
     more = offset + len(ids) < total
-    return DoorList(door_ids=ids, total=total, limit=limit, offset=offset, next_offset=offset + len(ids) if more else None)
+    return DoorList(
+        door_ids=ids, total=total, limit=limit, offset=offset, next_offset=offset + len(ids) if more else None
+    )
 
 
 @router.get(
-    "/{door_id:path}/history", response_model=RecipeHistory, responses=problem_responses(401, 403, 404, 422, 503),
+    "/{door_id:path}/history",
+    response_model=RecipeHistory,
+    responses=problem_responses(401, 403, 404, 422, 503),
     summary="Every version of a door recipe: who changed what, when",
 )
-async def door_history(door_id: DoorId, _who: Operator, state: Annotated[ServiceState, Depends(ready_state)]) -> RecipeHistory:
+async def door_history(
+    door_id: DoorId, _who: Operator, state: Annotated[ServiceState, Depends(ready_state)]
+) -> RecipeHistory:
     versions = await call_store(state.store.history, door_id)
     if not versions:
-        raise ProblemError(404, "unknown_door", f"There is no door recipe with id '{door_id}', and there never was.")
-    return RecipeHistory(door_id=door_id, versions=[
-        RecipeVersionOut(
-            door_id=v.door_id, version=v.version, action=v.action, changed_by=v.changed_by,
-            changed_at=v.changed_at.isoformat() if v.changed_at else None,
-            changes=[c.__dict__ for c in v.changes],
-            recipe=v.recipe.model_dump(mode="json") if v.recipe is not None else None,
-        ) for v in versions
-    ])
+        raise ProblemError(
+            404, "unknown_door", f"There is no door recipe with id '{door_id}', and there never was."
+        )
+    return RecipeHistory(
+        door_id=door_id,
+        versions=[
+            RecipeVersionOut(
+                door_id=v.door_id,
+                version=v.version,
+                action=v.action,
+                changed_by=v.changed_by,
+                changed_at=v.changed_at.isoformat() if v.changed_at else None,
+                changes=[c.__dict__ for c in v.changes],
+                recipe=v.recipe.model_dump(mode="json") if v.recipe is not None else None,
+            )
+            for v in versions
+        ],
+    )
 
 
 @router.get(
-    "/{door_id:path}", response_model=DoorRecipe, responses=problem_responses(401, 403, 404, 422, 503),
+    "/{door_id:path}",
+    response_model=DoorRecipe,
+    responses=problem_responses(401, 403, 404, 422, 503),
     summary="Get a door recipe",
 )
 async def get_door(
@@ -79,16 +98,22 @@ async def get_door(
 
 # 404 too: a path holding characters no door id has (e.g. a newline) matches no route at all.
 @router.put(
-    "/{door_id:path}", response_model=DoorRecipe, responses=problem_responses(400, 401, 403, 404, 413, 422, 503),
+    "/{door_id:path}",
+    response_model=DoorRecipe,
+    responses=problem_responses(400, 401, 403, 404, 413, 422, 503),
     summary="Create or replace a door recipe (a new version in its history)",
 )
 async def put_door(
-    door_id: DoorId, recipe: DoorRecipe, who: Engineer, response: Response,
+    door_id: DoorId,
+    recipe: DoorRecipe,
+    who: Engineer,
+    response: Response,
     state: Annotated[ServiceState, Depends(ready_state)],
 ) -> DoorRecipe:
     if recipe.door_id != door_id:
         raise ProblemError(
-            422, "door_id_mismatch",
+            422,
+            "door_id_mismatch",
             f"The recipe's door_id '{recipe.door_id}' differs from the one in the URL '{door_id}'; make them equal.",
         )
     try:
@@ -100,10 +125,14 @@ async def put_door(
 
 
 @router.delete(
-    "/{door_id:path}", status_code=204, responses=problem_responses(401, 403, 404, 422, 503),
+    "/{door_id:path}",
+    status_code=204,
+    responses=problem_responses(401, 403, 404, 422, 503),
     summary="Retire a door recipe (its history stays)",
 )
-async def delete_door(door_id: DoorId, who: Engineer, state: Annotated[ServiceState, Depends(ready_state)]) -> Response:
+async def delete_door(
+    door_id: DoorId, who: Engineer, state: Annotated[ServiceState, Depends(ready_state)]
+) -> Response:
     if not await call_store(lambda: state.store.delete(door_id, by=who.name)):
         raise ProblemError(404, "unknown_door", f"There is no door recipe with id '{door_id}' to retire.")
     return Response(status_code=204)

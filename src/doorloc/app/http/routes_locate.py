@@ -46,14 +46,23 @@ ArrisMm = Annotated[float | None, Field(ge=0, le=100, allow_inf_nan=False)]
 )
 async def post_locate(
     request: Request,
-    image: Annotated[UploadFile, File(description="the camera image: PNG, JPEG, TIFF or BMP, in the calibrated pixel frame")],
+    image: Annotated[
+        UploadFile,
+        File(description="the camera image: PNG, JPEG, TIFF or BMP, in the calibrated pixel frame"),
+    ],
     state: Annotated[ServiceState, Depends(ready_state)],
-    door_id: Annotated[str | None, Form(pattern=DOOR_ID_PATTERN, description="door recipe to use (gives targets)")] = None,
+    door_id: Annotated[
+        str | None, Form(pattern=DOOR_ID_PATTERN, description="door recipe to use (gives targets)")
+    ] = None,
     width_mm: Annotated[DoorMm, Form(description="door width, mm (without door_id)")] = None,
     thickness_mm: Annotated[DoorMm, Form(description="door thickness, mm (without door_id)")] = None,
     height_mm: Annotated[DoorMm, Form(description="door height, mm (without door_id)")] = None,
-    arris_mm: Annotated[ArrisMm, Form(description="arris chamfer/rounding size, mm (default: the recipe's, else the cell's)")] = None,
-    overlay: Annotated[bool, Query(description="add overlay_png: the image with what was found drawn on it")] = False,
+    arris_mm: Annotated[
+        ArrisMm, Form(description="arris chamfer/rounding size, mm (default: the recipe's, else the cell's)")
+    ] = None,
+    overlay: Annotated[
+        bool, Query(description="add overlay_png: the image with what was found drawn on it")
+    ] = False,
     rapid: Annotated[bool, Query(description="add rapid: the targets as RAPID-readable text")] = False,
 ) -> dict:
     """Measure where the door lies (SPEC section 3 result) and move its recipe's hinge targets by that pose.
@@ -63,8 +72,11 @@ async def post_locate(
     """
     form = await request.form()  # already parsed for the parameters above: no second read
     if len(form.getlist("image")) > 1:
-        raise ProblemError(422, "several_images", "The form holds more than one 'image' part; send exactly one image "
-                                                  "per request.")
+        raise ProblemError(
+            422,
+            "several_images",
+            "The form holds more than one 'image' part; send exactly one image per request.",
+        )
     data = await image.read()
     name = image.filename or "upload"
     state.metrics.in_flight.inc()
@@ -83,12 +95,23 @@ async def post_locate(
     finally:
         state.metrics.in_flight.dec()
     state.metrics.observe_locate(fields["ok"], fields.get("error_code"), fields.get("elapsed_ms") or 0.0)
-    _log.info("located", extra={"fields": {
-        "event": "located", "request_id": request.scope.get("state", {}).get("request_id"), "image": name,
-        "ok": fields["ok"], "error_code": fields.get("error_code"), "x_mm": fields.get("x_mm"),
-        "z_mm": fields.get("z_mm"), "yaw_deg": fields.get("yaw_deg"), "door_id": door_id,
-        "elapsed_ms": fields.get("elapsed_ms"),
-    }})
+    _log.info(
+        "located",
+        extra={
+            "fields": {
+                "event": "located",
+                "request_id": request.scope.get("state", {}).get("request_id"),
+                "image": name,
+                "ok": fields["ok"],
+                "error_code": fields.get("error_code"),
+                "x_mm": fields.get("x_mm"),
+                "z_mm": fields.get("z_mm"),
+                "yaw_deg": fields.get("yaw_deg"),
+                "door_id": door_id,
+                "elapsed_ms": fields.get("elapsed_ms"),
+            }
+        },
+    )
     return fields
 
 
@@ -100,7 +123,8 @@ async def _cpu_slot(state: ServiceState, deadline: float | None) -> None:
     """
     if state.overloaded:
         raise ProblemError(
-            503, "overloaded",
+            503,
+            "overloaded",
             f"This worker is already measuring or queueing {state.admitted} images (its limit); retry after the "
             "number of seconds in Retry-After.",
             headers={"Retry-After": "2"},
@@ -115,7 +139,8 @@ async def _cpu_slot(state: ServiceState, deadline: float | None) -> None:
         if not isinstance(e, TimeoutError):
             raise
         raise ProblemError(
-            503, "overloaded",
+            503,
+            "overloaded",
             f"No CPU slot came free within the request deadline ({state.settings.request_deadline_s:g} s): this "
             "worker is overloaded; retry after the number of seconds in Retry-After.",
             headers={"Retry-After": "5"},
@@ -124,17 +149,21 @@ async def _cpu_slot(state: ServiceState, deadline: float | None) -> None:
 
 def _check_upload(data: bytes, name: str, state: ServiceState) -> None:
     if not data:
-        raise ProblemError(422, "empty_image", f"The uploaded file '{name}' is empty; send the camera image itself.")
+        raise ProblemError(
+            422, "empty_image", f"The uploaded file '{name}' is empty; send the camera image itself."
+        )
     header = sniff_image(data)
     if header is None:
         raise ProblemError(
-            415, "not_an_image",
+            415,
+            "not_an_image",
             f"The uploaded file '{name}' is not a PNG, JPEG, TIFF or BMP image (judged by its first bytes); "
             "send the camera image in one of those formats.",
         )
     if header.pixels is None:
         raise ProblemError(
-            422, "undecodable_image",
+            422,
+            "undecodable_image",
             f"The {header.kind.upper()} header of '{name}' is cut short or malformed, so its size cannot be read; "
             "the file is probably truncated: send it again.",
         )
@@ -142,12 +171,18 @@ def _check_upload(data: bytes, name: str, state: ServiceState) -> None:
     if problem is not None:
         cam_w, cam_h = state.cell.camera.image_size if state.cell else ("?", "?")
         raise ProblemError(
-            422, "too_many_pixels", f"{problem[0].upper()}{problem[1:]}; send the camera's own image ({cam_w}x{cam_h}).",
+            422,
+            "too_many_pixels",
+            f"{problem[0].upper()}{problem[1:]}; send the camera's own image ({cam_w}x{cam_h}).",
         )
 
 
 async def _door_choice(
-    state: ServiceState, door_id: str | None, width_mm: float | None, thickness_mm: float | None, height_mm: float | None,
+    state: ServiceState,
+    door_id: str | None,
+    width_mm: float | None,
+    thickness_mm: float | None,
+    height_mm: float | None,
     arris_mm: float | None = None,
 ) -> DoorChoice:
     assert state.cell is not None
@@ -155,13 +190,15 @@ async def _door_choice(
     if door_id is not None:
         if sizes_given:
             raise ProblemError(
-                422, "ambiguous_door",
+                422,
+                "ambiguous_door",
                 "Give either door_id (the recipe has the door's size) or width_mm/thickness_mm/height_mm, not both.",
             )
         found = await call_store(state.store.get_versioned, door_id)
         if found is None:
             raise ProblemError(
-                422, "unknown_door",
+                422,
+                "unknown_door",
                 f"There is no door recipe with id '{door_id}'; import it (doorloc recipes import) or PUT /v1/doors/{door_id}.",
             )
         recipe, version = found
@@ -175,7 +212,9 @@ async def _door_choice(
         raise ProblemError(422, "invalid_door", f"The door size is not usable: {e}.") from None
 
 
-def _measure(data: bytes, name: str, state: ServiceState, choice: DoorChoice, overlay: bool, rapid: bool) -> dict:
+def _measure(
+    data: bytes, name: str, state: ServiceState, choice: DoorChoice, overlay: bool, rapid: bool
+) -> dict:
     from doorloc.vision.imageio import ImageDecodeError, decode_image
 
     assert state.cell is not None  # the route depends on ready_state
@@ -183,7 +222,8 @@ def _measure(data: bytes, name: str, state: ServiceState, choice: DoorChoice, ov
         image = decode_image(data, name=name)
     except ImageDecodeError as e:
         raise ProblemError(
-            422, "undecodable_image",
+            422,
+            "undecodable_image",
             f"The image could not be decoded ({e}); the file is probably damaged or truncated: send it again.",
         ) from None
     trace = None

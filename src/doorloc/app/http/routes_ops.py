@@ -28,13 +28,17 @@ async def healthz() -> Health:
 
 
 @router.get(
-    "/readyz", response_model=Readiness, tags=["ops"], responses=problem_responses(503),
+    "/readyz",
+    response_model=Readiness,
+    tags=["ops"],
+    responses=problem_responses(503),
     summary="Readiness: the cell and calibration are loaded",
 )
 async def readyz(state: Annotated[ServiceState, Depends(ready_state)]) -> Readiness:
     if state.overloaded:
         raise ProblemError(
-            503, "overloaded",
+            503,
+            "overloaded",
             f"This worker is at its limit ({state.admitted} locate requests running or queued); retry shortly.",
             headers={"Retry-After": "2"},
         )
@@ -42,9 +46,17 @@ async def readyz(state: Annotated[ServiceState, Depends(ready_state)]) -> Readin
 
 
 @router.get(
-    "/metrics", tags=["ops"], response_class=Response, summary="Prometheus metrics of this worker process",
-    responses={200: {"content": {CONTENT_TYPE_LATEST.split(";")[0]: {"schema": {"type": "string"}}},
-                     "description": "Prometheus text exposition format"}, **problem_responses(401, 403, 503)},
+    "/metrics",
+    tags=["ops"],
+    response_class=Response,
+    summary="Prometheus metrics of this worker process",
+    responses={
+        200: {
+            "content": {CONTENT_TYPE_LATEST.split(";")[0]: {"schema": {"type": "string"}}},
+            "description": "Prometheus text exposition format",
+        },
+        **problem_responses(401, 403, 503),
+    },
     dependencies=[Depends(require_role(Role.metrics))],
 )
 async def metrics(state: Annotated[ServiceState, Depends(get_state)]) -> Response:
@@ -52,8 +64,12 @@ async def metrics(state: Annotated[ServiceState, Depends(get_state)]) -> Respons
 
 
 @router.get(
-    "/v1/cell", response_model=CellInfo, tags=["cell"], responses=problem_responses(401, 403, 503),
-    dependencies=[Depends(require_role(Role.operator))], summary="The cell and camera calibration in use",
+    "/v1/cell",
+    response_model=CellInfo,
+    tags=["cell"],
+    responses=problem_responses(401, 403, 503),
+    dependencies=[Depends(require_role(Role.operator))],
+    summary="The cell and camera calibration in use",
 )
 async def get_cell(state: Annotated[ServiceState, Depends(ready_state)]) -> CellInfo:
     assert state.cell is not None
@@ -66,5 +82,3 @@ async def get_cell(state: Annotated[ServiceState, Depends(ready_state)]) -> Cell
 async def operator_page() -> HTMLResponse:
     html = resources.files("doorloc.app").joinpath("static/index.html").read_text(encoding="utf-8")
     return HTMLResponse(html)
-
-

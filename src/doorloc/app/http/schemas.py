@@ -10,8 +10,16 @@ from doorloc.recipes.targets import Target
 from doorloc.robot.reach import ReachReport
 from doorloc.vision.result import LocateResult
 
-__all__ = ["DoorOut", "LocateResponse", "CellInfo", "Health", "Readiness", "DoorList", "RecipeHistory",
-           "RecipeVersionOut"]
+__all__ = [
+    "DoorOut",
+    "LocateResponse",
+    "CellInfo",
+    "Health",
+    "Readiness",
+    "DoorList",
+    "RecipeHistory",
+    "RecipeVersionOut",
+]
 
 
 class DoorOut(BaseModel):
@@ -25,24 +33,37 @@ class DoorOut(BaseModel):
 class LocateResponse(LocateResult):
     """The SPEC section 3 result plus the door and its robot targets."""
 
-    door_id: str | None = Field(None, description="the recipe used, or null when the door was given by its size")
+    door_id: str | None = Field(
+        None, description="the recipe used, or null when the door was given by its size"
+    )
     door: DoorOut
-    targets: list[Target] = Field(description="hinge targets in the cell frame; empty without a recipe or a pose")
+    targets: list[Target] = Field(
+        description="hinge targets in the cell frame; empty without a recipe or a pose"
+    )
     targets_note: str | None = Field(None, description="why targets is empty, else null")
     rapid: str | None = Field(None, description="with ?rapid=true: the targets as RAPID-readable text")
-    overlay_png: str | None = Field(None, description="with ?overlay=true: the overlay image, base64-encoded PNG")
+    overlay_png: str | None = Field(
+        None, description="with ?overlay=true: the overlay image, base64-encoded PNG"
+    )
     reach: ReachReport | None = Field(
-        None, description="when the cell names a robot: reach, joints, confdata, inverse condition and deflection per "
-                          "target (SPEC section 9); an infeasible target turns the answer into a refusal")
+        None,
+        description="when the cell names a robot: reach, joints, confdata, inverse condition and deflection per "
+        "target (SPEC section 9); an infeasible target turns the answer into a refusal",
+    )
     measured_pose: dict[str, float] | None = Field(
-        None, description="on a reach refusal: the pose that was measured (x_mm, z_mm, yaw_deg)")
+        None, description="on a reach refusal: the pose that was measured (x_mm, z_mm, yaw_deg)"
+    )
 
 
 class CellInfo(BaseModel):
     """The cell and camera calibration in use, with content ids for audit trails."""
 
-    cell_id: str = Field(description="content hash of the whole cell (camera, extrinsics, fixture, envelope, door)")
-    calibration_id: str = Field(description="content hash of the camera calibration (K, distortion, image size)")
+    cell_id: str = Field(
+        description="content hash of the whole cell (camera, extrinsics, fixture, envelope, door)"
+    )
+    calibration_id: str = Field(
+        description="content hash of the camera calibration (K, distortion, image size)"
+    )
     source: str | None = Field(None, description="name of the cell file (without its folder)")
     cell: dict[str, Any] = Field(description="the cell in SPEC section 2 layout, camera inline")
 
@@ -68,7 +89,9 @@ class DoorList(BaseModel):
 
 
 class RecipeChangeOut(BaseModel):
-    field: str = Field(description="changed field, e.g. 'width_mm' or 'hinges[1].z_mm' ('hinges': their number)")
+    field: str = Field(
+        description="changed field, e.g. 'width_mm' or 'hinges[1].z_mm' ('hinges': their number)"
+    )
     old: Any = None
     new: Any = None
 
@@ -78,10 +101,14 @@ class RecipeVersionOut(BaseModel):
 
     door_id: str
     version: int
-    action: str = Field(description="created, updated, deleted (retired) or migrated (stored before history existed)")
+    action: str = Field(
+        description="created, updated, deleted (retired) or migrated (stored before history existed)"
+    )
     changed_by: str = Field(description="name of the API key (or 'cli:<user>') that made the change")
     changed_at: str | None = Field(None, description="when, ISO 8601")
-    changes: list[RecipeChangeOut] = Field(default_factory=list, description="fields that differ from the version before")
+    changes: list[RecipeChangeOut] = Field(
+        default_factory=list, description="fields that differ from the version before"
+    )
     recipe: dict[str, Any] | None = Field(None, description="the whole recipe as stored in this version")
 
 

@@ -38,7 +38,9 @@ class ServiceState:
     metrics: ServiceMetrics
     locate_fn: LocateFn | None = None
     cell: Cell | None = None
-    store: Any = None  # doorloc.recipes.store.RecipeStore (None until loaded; routes take it after ready_state)
+    store: Any = (
+        None  # doorloc.recipes.store.RecipeStore (None until loaded; routes take it after ready_state)
+    )
     keys: Any | None = None  # doorloc.app.access.KeyStore, on the store's database
     load_error: str | None = None
     limiter: anyio.CapacityLimiter = field(init=False)
@@ -69,7 +71,9 @@ class ServiceState:
         try:
             if self.cell is None:
                 if not self.settings.cell:
-                    raise ValueError("no cell file configured: start with --cell cell.yaml or set DOORLOC_CELL")
+                    raise ValueError(
+                        "no cell file configured: start with --cell cell.yaml or set DOORLOC_CELL"
+                    )
                 from doorloc.cell import load_cell
 
                 self.cell = load_cell(self.settings.cell)
@@ -86,7 +90,9 @@ class ServiceState:
 
                 self.locate_fn = default_locate_fn()
             self.load_error = None
-            _log.info("ready", extra={"fields": {"event": "ready", "cell": self.settings.cell, **self.cell_ids()}})
+            _log.info(
+                "ready", extra={"fields": {"event": "ready", "cell": self.settings.cell, **self.cell_ids()}}
+            )
         except Exception as e:  # noqa: BLE001 - any start-up failure must leave a readable reason, not a dead process
             self.load_error = str(e) or type(e).__name__
             _log.error("not ready", extra={"fields": {"event": "not_ready", "reason": self.load_error}})
@@ -96,6 +102,9 @@ class ServiceState:
         if self.cell is None:
             return {}
         doc = cell_to_dict(self.cell)
-        return {"cell_id": content_id(doc), "calibration_id": content_id({
-            k: doc["camera"][k] for k in ("image_size", "camera_matrix", "dist_coeffs")
-        })}
+        return {
+            "cell_id": content_id(doc),
+            "calibration_id": content_id(
+                {k: doc["camera"][k] for k in ("image_size", "camera_matrix", "dist_coeffs")}
+            ),
+        }

@@ -36,7 +36,9 @@ def upgrade() -> None:
         sa.Column("changes", sa.JSON(), nullable=True),
         sa.UniqueConstraint("door_id", "version", name="uq_recipe_versions_door_version"),
         sa.CheckConstraint("version >= 1", name="ck_recipe_versions_version_positive"),
-        sa.CheckConstraint("action IN ('created', 'updated', 'deleted', 'migrated')", name="ck_recipe_versions_action"),
+        sa.CheckConstraint(
+            "action IN ('created', 'updated', 'deleted', 'migrated')", name="ck_recipe_versions_action"
+        ),
     )
     op.create_index("ix_recipe_versions_door_id", "recipe_versions", ["door_id"])
     op.execute(
