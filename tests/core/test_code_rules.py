@@ -8,7 +8,9 @@ from pathlib import Path
 import pytest
 
 APP = Path(__file__).resolve().parents[2] / "src" / "doorloc" / "app"
-#: a command or route is a few lines over one library call; signature and docstring included
+#: a command or route is a few lines over one library call. Counted: the body's statements, not the
+#: signature and docstring (ruff format writes one typer option per line, and a command's options are
+#: declarations, not work).
 MAX_COMMAND_LINES = 60
 _ENTRY_DECORATORS = {"command", "callback", "get", "post", "put", "patch", "delete", "route", "websocket"}
 
@@ -32,6 +34,18 @@ def _lines(node: ast.AST) -> int:
     return node.end_lineno - node.lineno + 1  # type: ignore[attr-defined]
 
 
+def _body_lines(fn: ast.FunctionDef | ast.AsyncFunctionDef) -> int:
+    """Lines from the first statement after the docstring to the end of ``fn``."""
+    body = fn.body
+    if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant):
+        if isinstance(body[0].value.value, str):
+            body = body[1:]
+    if not body:
+        return 0
+    first = min([body[0].lineno] + [d.lineno for d in getattr(body[0], "decorator_list", [])])
+    return body[-1].end_lineno - first + 1  # type: ignore[operator]
+
+
 def _own_lines(fn: ast.FunctionDef | ast.AsyncFunctionDef) -> int:
     """Lines of ``fn`` less those of the functions and classes defined inside it (a ``register`` holding commands)."""
     nested = 0
@@ -42,16 +56,16 @@ def _own_lines(fn: ast.FunctionDef | ast.AsyncFunctionDef) -> int:
             nested += _lines(node) + len(getattr(node, "decorator_list", []))
         else:
             stack.extend(ast.iter_child_nodes(node))
-    return _lines(fn) - nested
+    return _body_lines(fn) - nested
 
 
 def function_lengths(path: Path) -> list[tuple[str, int, bool]]:
-    """``(name, lines, is_entry_point)`` for every function in ``path``; entry points counted whole."""
+    """``(name, body lines, is_entry_point)`` for every function in ``path``; entry points counted whole."""
     tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
     out = []
     for fn in _functions(tree):
         entry = _is_entry_point(fn)
-        out.append((fn.name, _lines(fn) if entry else _own_lines(fn), entry))
+        out.append((fn.name, _body_lines(fn) if entry else _own_lines(fn), entry))
     return out
 
 
@@ -80,5 +94,5 @@ def test_the_measure_sees_a_long_command(tmp_path):
         f"def register(app):\n    @app.command('x')\n    def x() -> None:\n{body}    return None\n"
     )
     lengths = {name: (n, entry) for name, n, entry in function_lengths(src)}
-    assert lengths["x"] == (71, True)
-    assert lengths["register"] == (2, False)  # the def line and the return; the command is counted on its own
+    assert lengths["x"] == (70, True)  # its body; over the limit
+    assert lengths["register"] == (1, False)  # the return; the command is counted on its own
