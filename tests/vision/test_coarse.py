@@ -1,4 +1,4 @@
-"""vision.coarse.coarse_edges (the fast step finder) answers exactly as edges.coarse_edges, bit for bit."""
+"""vision.coarse.coarse_edges (the fast step finder) answers exactly as the first finder (coarse_reference.py), bit for bit."""
 
 from __future__ import annotations
 
@@ -11,12 +11,18 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from doorloc.vision import coarse, edges
+from doorloc.vision import coarse
 from doorloc.vision.locate import locate_steps
 
 _spec = importlib.util.spec_from_file_location("locate_golden", Path(__file__).with_name("locate_golden.py"))
 assert _spec is not None and _spec.loader is not None
 golden = importlib.util.module_from_spec(_spec)
+_ref_spec = importlib.util.spec_from_file_location(
+    "coarse_reference", Path(__file__).with_name("coarse_reference.py")
+)
+assert _ref_spec is not None and _ref_spec.loader is not None
+reference = importlib.util.module_from_spec(_ref_spec)
+_ref_spec.loader.exec_module(reference)
 sys.modules.setdefault("locate_golden", golden)
 _spec.loader.exec_module(golden)
 
@@ -32,7 +38,7 @@ def test_every_search_of_the_fixtures_is_answered_identically():
         try:
             q = next(g)
             while True:
-                want = edges.coarse_edges(q.plane, **q.kwargs)
+                want = reference.coarse_edges(q.plane, **q.kwargs)
                 assert _same(coarse.coarse_edges(q.plane, **q.kwargs), want)
                 n += 1
                 q = g.send(want)
@@ -78,7 +84,7 @@ def test_random_bands_near_and_beyond_the_border_are_answered_identically(
         prefer_fraction=frac,
         stride=stride,
     )
-    assert _same(coarse.coarse_edges(img, **kw), edges.coarse_edges(img, **kw))
+    assert _same(coarse.coarse_edges(img, **kw), reference.coarse_edges(img, **kw))
 
 
 @pytest.mark.parametrize("axis", ["col", "row"])

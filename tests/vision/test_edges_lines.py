@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from doorloc.vision.coarse import coarse_edges
 from doorloc.vision.edges import (
-    coarse_edges,
     step_blur,
     subpixel_edges,
     subpixel_edges_far_face,
