@@ -1,7 +1,7 @@
 """The coarse step finder of the locate pipeline, written for speed.
 
-:func:`coarse_edges` gives exactly what :func:`doorloc.vision.edges.coarse_edges` gives (the same
-arrays, bit for bit: the same float32 sums in the same order), with fewer and cheaper array operations:
+:func:`coarse_edges` gives exactly what the first, plainer finder gave (kept as the reference in
+tests/vision/coarse_reference.py; the same arrays, bit for bit: the same float32 sums in the same order), with fewer and cheaper array operations:
 profiles are read with one flat ``take`` from the image instead of 2-D fancy indexing (which walks the
 transposed view for row profiles), the step response is taken on slices of the running sum instead of
 gathered indices, and the in-image test is done on the interval bounds instead of on every index.
@@ -40,7 +40,7 @@ def profiles(
 def _responses(vals: np.ndarray, half: int, exact_int: bool) -> np.ndarray:
     """Step responses ``sum(next half) - sum(previous half)`` at every k in [half, length - half], float32.
 
-    As edges.coarse_edges: differences of a float32 running sum. For 8-bit grey levels every such sum is an
+    As the reference finder: differences of a float32 running sum. For 8-bit grey levels every such sum is an
     integer below 2**24, so float32 holds it exactly and integer window sums give the same numbers faster.
     """
     n, length = vals.shape
@@ -71,8 +71,36 @@ def coarse_edges(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Strongest step of the given polarity on each scan line between ``lo`` and ``hi``.
 
-    Same parameters and results as :func:`doorloc.vision.edges.coarse_edges` (see there): ``along``
-    (px, the pixel boundary of the step, NaN if none) and ``strength`` (grey levels, > 0 the right way).
+    The step response at ``k`` is the mean of ``half`` pixels after ``k`` minus the mean of ``half``
+    pixels before it, which finds blurred edges and ignores single noisy pixels.
+
+    Parameters
+    ----------
+    plane : ndarray (H, W)
+        Luminance.
+    axis : "col" or "row"
+    scan : ndarray (N,) int
+        Scan-line coordinates (in the image).
+    lo, hi : ndarray (N,) int
+        Search interval on each scan line (inclusive), px.
+    polarity : +1, -1 or 0
+        +1: the edge goes dark to bright with increasing ``along``; 0: either way.
+    half : int
+        Half-width of the step detector, px.
+    prefer : ndarray (N,) float, optional
+        Expected edge position per scan line: instead of the strongest step, take the local maximum
+        nearest to it among those at least ``prefer_fraction`` of the strongest (e.g. the far arris,
+        next to which a visible far face makes a second, stronger step).
+    stride : int
+        Look at every ``stride``-th pixel along the scan line only (a coarse answer, ``stride`` px
+        resolution, for a fraction of the work); ``half`` counts strided samples.
+
+    Returns
+    -------
+    along : ndarray (N,) float
+        Edge position (pixel boundary between the two halves, i.e. ``k - 0.5``), NaN if none.
+    strength : ndarray (N,) float
+        Step response there, grey levels of the plane (signed by polarity, so >0 is the right way).
     """
     scan = np.asarray(scan, int)
     lo = np.asarray(lo, int) - half * stride
