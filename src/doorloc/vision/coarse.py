@@ -3,8 +3,9 @@
 :func:`coarse_edges` gives exactly what the first, plainer finder gave (kept as the reference in
 tests/vision/coarse_reference.py): the same arrays, bit for bit (the same float32 sums in the same
 order), with fewer and cheaper array operations: profiles are read with one flat ``take`` from the
-image instead of 2-D fancy indexing (which walks the transposed view for row profiles), the step response is taken on slices of the running sum instead of
-gathered indices, and the in-image test is done on the interval bounds instead of on every index.
+image instead of 2-D fancy indexing (which walks the transposed view for row profiles), the step
+response is taken on slices of the running sum instead of gathered indices, and the in-image test is
+done on the interval bounds instead of on every index.
 The speed matters because this runs three times on every image before anything is known about it.
 """
 
