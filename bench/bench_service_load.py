@@ -3,6 +3,13 @@
 Prints errors (transport errors, non-200 answers, ok=false), throughput, p50/p99 latency and the
 server's RSS (all its processes) at start and end.
 
+Issue 14's figure, requests per second per core next to ``1000 / (decode + locate ms)``: the load
+clients run on the same machine as the server, so the wall-clock rate per core would charge the server
+for the clients' CPU. Instead the server's own CPU seconds over the run (all its processes, from /proc)
+give ``requests per server CPU-second``, which is the rate per core of a server that has its cores to
+itself. The ideal next to it is measured in this process on the same PNGs: the median thread-CPU
+time of ``decode_image`` + ``locate`` (one thread).
+
     python bench/bench_service_load.py --clients 16 --seconds 60 --workers 2
 """
 
@@ -11,11 +18,12 @@ from __future__ import annotations
 import argparse
 import asyncio
 import json
+import os
 import statistics
 import time
 
 import httpx
-from service_harness import doorloc_serve, rendered_pngs, rss_mb
+from service_harness import CELL, cpu_seconds, doorloc_serve, rendered_pngs, rss_mb
 
 
 async def _client(base: str, pngs: list, stop_at: float, k: int, latencies: list, errors: list) -> None:
@@ -59,29 +67,60 @@ async def _run(
     return latencies, errors, time.monotonic() - t0, rss_samples
 
 
+def decode_and_locate_ms(pngs: list, repeats: int = 5) -> float:
+    """Median thread-CPU ms of decode + locate of each PNG in this process (the best of ``repeats``)."""
+    import cv2
+
+    from doorloc.cell import load_cell
+    from doorloc.vision.imageio import decode_image
+    from doorloc.vision.locate import locate
+
+    cv2.setNumThreads(1)  # the per-core figure: one thread, as each server worker thread runs
+    cell = load_cell(CELL)
+    times = []
+    for data, _ in pngs:
+        best = float("inf")
+        for _ in range(repeats):
+            t0 = time.thread_time()
+            locate(decode_image(data), cell, cell.default_door)
+            best = min(best, time.thread_time() - t0)
+        times.append(best * 1e3)
+    return statistics.median(times)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--clients", type=int, default=16)
     ap.add_argument("--seconds", type=float, default=60.0)
     ap.add_argument("--workers", type=int, default=2, help="doorloc serve --workers")
     ap.add_argument("--images", type=int, default=8, help="distinct rendered PNGs cycled through")
+    ap.add_argument(
+        "--max-queue",
+        type=int,
+        help="DOORLOC_MAX_QUEUE of the server (default: --clients, so that every client's request may wait "
+        "for a CPU slot in any one worker instead of being turned away with 503 and sent again at once)",
+    )
     args = ap.parse_args()
 
     pngs = rendered_pngs(args.images)
-    with doorloc_serve(args.workers) as (base, pid):
+    ideal_ms = decode_and_locate_ms(pngs)
+    max_queue = args.clients if args.max_queue is None else args.max_queue
+    with doorloc_serve(args.workers, {"DOORLOC_MAX_QUEUE": str(max_queue)}) as (base, pid):
         # one warm-up request per worker, so the first timed requests do not pay for imports
         with httpx.Client(base_url=base, timeout=120) as c:
             for k in range(args.workers):
                 c.post("/v1/locate", files={"image": ("warm.png", pngs[k % len(pngs)][0], "image/png")})
-        rss_start = rss_mb(pid)
+        rss_start, cpu_start = rss_mb(pid), cpu_seconds(pid)
         latencies, errors, wall, rss_samples = asyncio.run(_run(base, pid, pngs, args.clients, args.seconds))
-        rss_end = rss_mb(pid)
+        rss_end, cpu_end = rss_mb(pid), cpu_seconds(pid)
+    server_cpu_s = cpu_end - cpu_start
     lat_ms = sorted(x * 1e3 for x in latencies)
     p = (lambda q: lat_ms[min(len(lat_ms) - 1, int(q * len(lat_ms)))]) if lat_ms else (lambda q: float("nan"))
     figures = {
         "clients": args.clients,
         "seconds": round(wall, 1),
         "workers": args.workers,
+        "max_queue": max_queue,
         "png_bytes_mean": int(statistics.mean(len(d) for d, _ in pngs)),
         "requests_ok": len(latencies),
         "errors": len(errors),
@@ -89,6 +128,12 @@ def main() -> None:
         "latency_p50_ms": round(p(0.50), 1),
         "latency_p99_ms": round(p(0.99), 1),
         "latency_max_ms": round(lat_ms[-1], 1) if lat_ms else None,
+        "p99_over_p50": round(p(0.99) / p(0.50), 2) if lat_ms else None,
+        "cpu_count": os.cpu_count(),
+        "server_cpu_s": round(server_cpu_s, 1),
+        "rps_per_server_cpu_s": round(len(latencies) / server_cpu_s, 2) if server_cpu_s > 0 else None,
+        "decode_locate_ms": round(ideal_ms, 2),
+        "ideal_rps_per_core": round(1000.0 / ideal_ms, 2),
         "rss_start_mb": round(rss_start, 1),
         "rss_end_mb": round(rss_end, 1),
         "rss_every_10s_mb": rss_samples,
@@ -101,6 +146,14 @@ def main() -> None:
         f"{figures['throughput_rps']} req/s, p50 {figures['latency_p50_ms']} ms, p99 {figures['latency_p99_ms']} ms; "
         f"server RSS {figures['rss_start_mb']} MB -> {figures['rss_end_mb']} MB"
     )
+    if figures["rps_per_server_cpu_s"]:
+        print(
+            f"per core: {figures['rps_per_server_cpu_s']} req per server CPU-second "
+            f"({figures['server_cpu_s']} CPU-s, {os.cpu_count()} CPUs), "
+            f"ideal 1000 / {figures['decode_locate_ms']} ms = {figures['ideal_rps_per_core']}: "
+            f"{100 * figures['rps_per_server_cpu_s'] / figures['ideal_rps_per_core']:.0f} % of it; "
+            f"p99 / p50 = {figures['p99_over_p50']}"
+        )
 
 
 if __name__ == "__main__":

@@ -50,6 +50,26 @@ def rss_mb(pid: int) -> float:
     return total_kb / 1024
 
 
+def cpu_seconds(pid: int) -> float:
+    """User + system CPU time of a process and all its live descendants, s (from /proc/PID/stat).
+
+    Read before and after a load run, its difference is the CPU the server spent on the run, whatever
+    else the machine did meanwhile (the load clients run on the same machine).
+    """
+    tick = os.sysconf("SC_CLK_TCK")
+    total, todo = 0, [pid]
+    while todo:
+        p = todo.pop()
+        try:
+            # the fields after the command name, which is in parentheses and may itself hold spaces
+            fields = Path(f"/proc/{p}/stat").read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        total += int(fields[11]) + int(fields[12])  # utime, stime (fields 14 and 15 of stat)
+        todo += _children(p)
+    return total / tick
+
+
 @contextlib.contextmanager
 def doorloc_serve(workers: int = 1, extra_env: dict[str, str] | None = None) -> Iterator[tuple[str, int]]:
     """Start `doorloc serve` on 127.0.0.1; yield (base URL, server pid) once /readyz answers 200."""
