@@ -485,8 +485,6 @@ LEVEL_DOUBT = 0.1
 BLUR_DOUBT = 0.15
 #: weight of the pull of the far face's relative level towards 0.5, as a fraction of its raw information
 LEVEL_PRIOR_WEIGHT = 0.02
-#: pixel values per chunk of the far-face fit's start search (all shifts of a chunk evaluated at once)
-START_SEARCH_ELEMENTS = 400_000
 
 
 #: beyond this many blur sigmas from an edge a blurred step is 0 or 1 to within 1e-23 (Phi(-10) = 7.6e-24),
@@ -689,42 +687,29 @@ def subpixel_edges_far_face(
             J_sig = a1 * p["h"][:n_ok] + a2 * p["h"][n_ok:]
         return m, J_e, p["J_lam"], J_sig
 
-    def level_and_cost(shifts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        # For all arrises shifted by each of ``shifts`` (S,) at once: the model is linear in the band
-        # level, so its least-squares value (with the pull towards 0.5 of the iterations below) and the
-        # fit's cost, pull included, come in closed form. Returns both, (S,) each.
-        e = e0o[None, :] + shifts[:, None]  # (S, N)
-        w_raw = w0o + band_slope * (e - e0o)
-        at = np.concatenate([e.ravel(), (e + np.where(w_raw > 0, w_raw, 0.0)).ravel()])
-        C = _StepPixels(bounds, at, sigma).C.reshape(2, shifts.size, *core.shape)
-        J_lam = Do[:, None] * (C[0] - C[1])  # (S, N, M)
-        m = Ao[:, None] + Do[:, None] * C[1]  # the model at band level 0
-        info = (J_lam**2).reshape(shifts.size, -1).sum(axis=1)
+    def level_and_cost(e: np.ndarray) -> tuple[float, float]:
+        # The model is linear in the band level: its least-squares value (with the pull towards 0.5 of
+        # the iterations below) and the fit's cost, pull included, for these arrises.
+        p = pieces(e, sigma)
+        m = Ao[:, None] + Do[:, None] * p["C2"]  # the model at band level 0
+        J_lam, info = p["J_lam"], p["info"]
         pull = LEVEL_PRIOR_WEIGHT * info
-        lam = ((J_lam * (core - m)).reshape(shifts.size, -1).sum(axis=1) + pull * 0.5) / np.maximum(
-            info + pull, 1e-12
-        )
-        r = core - (m + J_lam * lam[:, None, None])
-        return lam, (r * r).reshape(shifts.size, -1).sum(axis=1) + pull * (lam - 0.5) ** 2
+        lam = float(((J_lam * (core - m)).sum() + pull * 0.5) / max(info + pull, 1e-12))
+        r = core - (m + J_lam * lam)
+        return lam, float((r * r).sum()) + pull * (lam - 0.5) ** 2
 
     lam = 0.5
     if n_ok:
         # Start from the best common shift of all arrises (half-pixel steps across the window): a
         # prediction that took the band's outer edge for the arris sits in a false minimum where the
         # band has shrunk to nothing, which Gauss-Newton would not leave.
-        shifts = np.arange(-half, half + 0.25, 0.5)
-        per_chunk = max(1, START_SEARCH_ELEMENTS // max(core.size, 1))
-        lam_all, cost_all = zip(
-            *(level_and_cost(shifts[i : i + per_chunk]) for i in range(0, shifts.size, per_chunk)), strict=True
-        )
-        costs, lams = np.concatenate(cost_all), np.concatenate(lam_all)
-        # the first of the lowest finite costs (none: no shift, mid-grey)
-        i_best = int(np.argmin(np.where(np.isfinite(costs), costs, np.inf)))
-        if np.isfinite(costs[i_best]):
-            e = e0o + shifts[i_best]
-            lam = float(lams[i_best])
-        else:
-            e = e0o + 0.0
+        best = (math.inf, 0.0, 0.5)
+        for shift in np.arange(-half, half + 0.25, 0.5):
+            lam_s, cost = level_and_cost(e0o + shift)
+            if cost < best[0]:
+                best = (cost, shift, lam_s)
+        e = e0o + best[1]
+        lam = best[2]
 
     def total_cost(e: np.ndarray, lam: float, sigma: float) -> float:
         m, p = model_values(e, lam, sigma)
