@@ -546,6 +546,11 @@ class _StepPixels:
         return np.diff(self._full(self.phi, np.zeros_like(self.y)), axis=1)
 
 
+def _dot(a: np.ndarray, b: np.ndarray) -> float:
+    """Sum of the elementwise product of two arrays of one shape, without the product array."""
+    return float(np.dot(a.ravel(), b.ravel()))
+
+
 def _pixel_step(bounds: np.ndarray, e: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Unit steps at ``e`` (N,), blurred by a Gaussian ``sigma`` and integrated over pixels.
 
@@ -660,7 +665,7 @@ def subpixel_edges_far_face(
             sp = _StepPixels(bounds, np.concatenate([e, e + np.where(has_band, w_raw, 0.0)]), sigma)
             C1, C2 = sp.C[:n_ok], sp.C[n_ok:]
             J_lam = Do[:, None] * (C1 - C2)  # d model / d band level
-            p = cache[key] = dict(sp=sp, has_band=has_band, C1=C1, C2=C2, J_lam=J_lam, info=float((J_lam**2).sum()))
+            p = cache[key] = dict(sp=sp, has_band=has_band, C1=C1, C2=C2, J_lam=J_lam, info=_dot(J_lam, J_lam))
         return p
 
     def model_values(e: np.ndarray, lam: float, sigma: float) -> tuple[np.ndarray, dict[str, Any]]:
@@ -694,9 +699,10 @@ def subpixel_edges_far_face(
         m = Ao[:, None] + Do[:, None] * p["C2"]  # the model at band level 0
         J_lam, info = p["J_lam"], p["info"]
         pull = LEVEL_PRIOR_WEIGHT * info
-        lam = float(((J_lam * (core - m)).sum() + pull * 0.5) / max(info + pull, 1e-12))
-        r = core - (m + J_lam * lam)
-        return lam, float((r * r).sum()) + pull * (lam - 0.5) ** 2
+        r0 = core - m
+        lam = (_dot(J_lam, r0) + pull * 0.5) / max(info + pull, 1e-12)
+        r = r0 - J_lam * lam
+        return lam, _dot(r, r) + pull * (lam - 0.5) ** 2
 
     lam = 0.5
     if n_ok:
@@ -714,7 +720,8 @@ def subpixel_edges_far_face(
     def total_cost(e: np.ndarray, lam: float, sigma: float) -> float:
         m, p = model_values(e, lam, sigma)
         pull = LEVEL_PRIOR_WEIGHT * p["info"]
-        return float(((core - m) ** 2).sum()) + pull * (lam - 0.5) ** 2
+        r = core - m
+        return _dot(r, r) + pull * (lam - 0.5) ** 2
 
     cost = total_cost(e, lam, sigma) if n_ok else 0.0
     for _ in range(n_iter if n_ok else 0):
@@ -724,16 +731,16 @@ def subpixel_edges_far_face(
         m, J_e, J_lam, J_sig = jacobians(e, lam, sigma, fit_blur)
         r = core - m
         Jg = [J_lam] if J_sig is None else [J_lam, J_sig]  # the blur's column is 0 when it is not fitted
-        h_ee = np.maximum((J_e * J_e).sum(axis=1), 1e-12)
+        h_ee = np.maximum(np.einsum("nm,nm->n", J_e, J_e), 1e-12)
         h_eg = np.zeros((n_ok, 2))
         H = np.zeros((2, 2))
         b_g = np.zeros(2)
         for k, Jk in enumerate(Jg):
-            h_eg[:, k] = (J_e * Jk).sum(axis=1)
-            b_g[k] = (Jk * r).sum()
+            h_eg[:, k] = np.einsum("nm,nm->n", J_e, Jk)
+            b_g[k] = _dot(Jk, r)
             for j in range(k + 1):
-                H[k, j] = H[j, k] = (Jk * Jg[j]).sum()
-        b_e = (J_e * r).sum(axis=1)
+                H[k, j] = H[j, k] = _dot(Jk, Jg[j])
+        b_e = np.einsum("nm,nm->n", J_e, r)
         level_info = float(H[0, 0])  # sum of J_lam ** 2
         H -= (h_eg / h_ee[:, None]).T @ h_eg
         b_g -= (h_eg * (b_e / h_ee)[:, None]).sum(axis=0)
