@@ -1,9 +1,9 @@
 """Locate over a batch of frames with torch: the coarse search of every frame in one set of tensor operations.
 
-What is vectorised over the batch, on CPU or CUDA with the same code:
+What is vectorised over the batch by the torch finder, on CPU or CUDA with the same code:
 
-- the luminance planes, stacked into one ``(B, H, W)`` uint8 tensor (grey frames as they are; colour
-  frames converted by OpenCV first, see below);
+- the luminance planes, copied into one ``(B, H, W)`` uint8 tensor on the device (grey frames as they are;
+  colour frames converted by OpenCV first, see below);
 - the coarse step searches (:func:`doorloc.vision.coarse.coarse_edges`): :func:`doorloc.vision.locate.locate_steps`
   is run as a coroutine for every frame, and each round of step searches the frames ask for (reference
   arris, far arris, bottom end) is answered for the whole batch at once by :class:`TorchStepFinder`, whose
