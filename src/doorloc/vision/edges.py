@@ -665,7 +665,9 @@ def subpixel_edges_far_face(
             sp = _StepPixels(bounds, np.concatenate([e, e + np.where(has_band, w_raw, 0.0)]), sigma)
             C1, C2 = sp.C[:n_ok], sp.C[n_ok:]
             J_lam = Do[:, None] * (C1 - C2)  # d model / d band level
-            p = cache[key] = dict(sp=sp, has_band=has_band, C1=C1, C2=C2, J_lam=J_lam, info=_dot(J_lam, J_lam))
+            p = cache[key] = dict(
+                sp=sp, has_band=has_band, C1=C1, C2=C2, J_lam=J_lam, info=_dot(J_lam, J_lam)
+            )
         return p
 
     def model_values(e: np.ndarray, lam: float, sigma: float) -> tuple[np.ndarray, dict[str, Any]]:
