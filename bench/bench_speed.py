@@ -9,8 +9,9 @@ Frames: every committed fixture (fixtures/rendered/*, 117 1080p grey PNGs, each 
   source tree (e.g. main's, /work/main/src) run in a subprocess with the same frames;
 - decode + locate, PNG and JPEG (quality 95) of the same frames;
 - frames/s over a folder of the grid fixtures (PNG): the one-frame path in 1 and 2 worker processes
-  (decode + locate), and the batched torch path on CPU (decode + locate_batch, one process), when torch is
-  installed. CUDA is measured only where torch sees a GPU (``--cuda``).
+  (decode + locate), and the batched torch path on CPU (decode + locate_batch, one process; with its default
+  step finder, the one-frame one on CPU, and with the torch finder), when torch is installed. CUDA is
+  measured only where torch sees a GPU (``--cuda``).
 
 Run:  OMP_NUM_THREADS=1 python bench/bench_speed.py [--before /work/main/src] [--rounds 3] [--json out.json]
 """
@@ -158,20 +159,32 @@ def measure_throughput(repeats: int, cuda: bool) -> dict:
     from doorloc.vision.imageio import read_image
 
     cell = frames[0][1]
-    for device in ["cpu"] + (["cuda"] if cuda and torch.cuda.is_available() else []):
+    # finder "auto": the one-frame step finder on CPU, torch on CUDA; "torch": the torch finder on CPU too
+    runs = [("cpu", "auto", "batched_cpu_1proc_fps"), ("cpu", "torch", "batched_cpu_torch_finder_1proc_fps")]
+    if cuda and torch.cuda.is_available():
+        runs.append(("cuda", "auto", "batched_cuda_1proc_fps"))
+    for device, finder, key in runs:
         best = 0.0
         locate_batch(
-            [read_image(p) for p, _, _ in jobs[:4]], cell, [d for _, _, d in jobs[:4]], device=device
+            [read_image(p) for p, _, _ in jobs[:4]],
+            cell,
+            [d for _, _, d in jobs[:4]],
+            device=device,
+            finder=finder,
         )
         for _ in range(repeats):
             t = time.perf_counter()
             for s in range(0, len(jobs), 32):
                 part = jobs[s : s + 32]
                 locate_batch(
-                    [read_image(p) for p, _, _ in part], cell, [d for _, _, d in part], device=device
+                    [read_image(p) for p, _, _ in part],
+                    cell,
+                    [d for _, _, d in part],
+                    device=device,
+                    finder=finder,
                 )
             best = max(best, len(jobs) / (time.perf_counter() - t))
-        out[f"batched_{device}_1proc_fps"] = best
+        out[key] = best
     if not (cuda and torch.cuda.is_available()):
         out["batched_cuda"] = "not measured (no GPU here)"
     return out

@@ -67,7 +67,13 @@ def test_every_step_search_equals_the_one_frame_finder(cases):
         assert np.array_equal(gs, ws), (b, kw["axis"])
 
 
-def test_batched_answers_equal_the_one_frame_answers(cases):
+@pytest.fixture(scope="module")
+def one_frame(cases):
+    return {name: locate(img, cell, door, image_name=name) for name, cell, door, img in cases}
+
+
+@pytest.mark.parametrize("finder", ["auto", "torch"])
+def test_batched_answers_equal_the_one_frame_answers(cases, one_frame, finder):
     by_cell: dict[int, list] = {}
     for name, cell, door, img in cases:
         by_cell.setdefault(id(cell), []).append((name, cell, door, img))
@@ -77,12 +83,16 @@ def test_batched_answers_equal_the_one_frame_answers(cases):
         for start in range(0, len(group), 16):
             part = group[start : start + 16]
             answers = batched.locate_batch(
-                [c[3] for c in part], cell, [c[2] for c in part], names=[c[0] for c in part], device="cpu"
+                [c[3] for c in part],
+                cell,
+                [c[2] for c in part],
+                names=[c[0] for c in part],
+                device="cpu",
+                finder=finder,
             )
-            for (name, _, door, img), a in zip(part, answers, strict=True):
+            for (name, *_), a in zip(part, answers, strict=True):
                 assert a.result.image == name
-                one = locate(img, cell, door, image_name=name)
-                diff = _close(a.result, one)
+                diff = _close(a.result, one_frame[name])
                 if diff:
                     bad[name] = diff
                 if a.fallback:
@@ -98,14 +108,16 @@ def test_batched_answers_equal_the_one_frame_answers(cases):
     assert "16" in fallbacks["derived/uint16"] and "1280x720" in fallbacks["derived/wrong_size"]
 
 
-def test_a_failing_batched_search_falls_back_to_the_one_frame_path(cases, monkeypatch):
+@pytest.mark.parametrize("finder", ["torch", "plane"])
+def test_a_failing_batched_search_falls_back_to_the_one_frame_path(cases, monkeypatch, finder):
     name, cell, door, img = next(c for c in cases if c[0] == "grid/img_0040.png")
 
     def broken(self, queries):
         raise RuntimeError("device lost")
 
-    monkeypatch.setattr(batched.TorchStepFinder, "answer", broken)
-    (a,) = batched.locate_batch([img], cell, door, names=[name])
+    cls = batched.TorchStepFinder if finder == "torch" else batched.PlaneStepFinder
+    monkeypatch.setattr(cls, "answer", broken)
+    (a,) = batched.locate_batch([img], cell, door, names=[name], finder=finder)
     assert a.fallback and "device lost" in a.fallback
     assert not _close(a.result, locate(img, cell, door, image_name=name))
 
@@ -117,3 +129,5 @@ def test_unknown_or_missing_device_is_a_clear_error():
         with pytest.raises(ValueError, match="no CUDA"):
             batched.resolve_device("cuda")
     assert batched.resolve_device("auto").type in ("cpu", "cuda")
+    with pytest.raises(ValueError, match="unknown step finder"):
+        batched.locate_batch([], None, finder="gpu")  # type: ignore[arg-type]

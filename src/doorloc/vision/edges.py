@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from scipy.special import ndtr
@@ -487,18 +487,78 @@ BLUR_DOUBT = 0.15
 LEVEL_PRIOR_WEIGHT = 0.02
 
 
+#: beyond this many blur sigmas from an edge a blurred step is 0 or 1 to within 1e-23 (Phi(-10) = 7.6e-24),
+#: far below the rounding of the grey levels it is added to: :func:`_pixel_step` takes the exact limits there
+STEP_TAIL_SIGMAS = 10.0
+
+
+def _gaussian_step_terms(y: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``Phi(y / sigma)``, ``phi(y / sigma)`` and the integral of ``Phi`` over ``y`` (``G``), elementwise."""
+    u = y * (1.0 / sigma)
+    Phi = ndtr(u)
+    phi = np.exp(-0.5 * u * u) * (1.0 / math.sqrt(2.0 * math.pi))
+    return Phi, phi, y * Phi + sigma * phi  # G: integral of Phi(y / sigma) dy
+
+
+class _StepPixels:
+    """Unit steps at ``e`` (N,), blurred by a Gaussian ``sigma`` and integrated over pixels, with their
+    derivatives evaluated only when asked for (:func:`_pixel_step` gives all three).
+
+    ``bounds`` (M + 1,) are the pixel boundaries, ascending (pixel ``i`` spans ``bounds[i]..bounds[i + 1]``).
+    The Gaussian terms (``ndtr``, ``exp``: most of the cost) are evaluated only on the boundaries within
+    :data:`STEP_TAIL_SIGMAS` blur sigmas of each edge; beyond them the step's exact limits (``Phi`` 0 or 1,
+    ``phi`` 0, its integral 0 or ``y``) stand in, which differ from the full evaluation by less than 1e-22.
+    A narrow blur (rendered and most real frames: sigma < 0.2 px) thus costs a few boundaries per scan
+    line instead of the whole window.
+    """
+
+    def __init__(self, bounds: np.ndarray, e: np.ndarray, sigma: float) -> None:
+        self.y = y = bounds[None, :] - e[:, None]
+        n_b = bounds.size
+        cut = STEP_TAIL_SIGMAS * sigma
+        lo = np.searchsorted(bounds, e - cut, side="left")
+        hi = np.searchsorted(bounds, e + cut, side="right")
+        K = int(np.max(hi - lo, initial=0)) + 1
+        self.cols: np.ndarray | None = None
+        if 2 * K >= n_b or not np.all(np.isfinite(e)):
+            self.Phi, self.phi, G = _gaussian_step_terms(y, sigma)
+        else:
+            # Each row's window: K boundaries from its first one within the cut (moved left at the far end).
+            self.cols = np.minimum(lo, n_b - K)[:, None] + np.arange(K)[None, :]
+            self.Phi, self.phi, G_w = _gaussian_step_terms(np.take_along_axis(y, self.cols, axis=1), sigma)
+            G = np.maximum(y, 0.0)
+            np.put_along_axis(G, self.cols, G_w, axis=1)
+        #: pixel values ``C`` (N, M)
+        self.C = np.diff(G, axis=1)
+
+    def _full(self, win: np.ndarray, outside: np.ndarray) -> np.ndarray:
+        if self.cols is None:
+            return win
+        np.put_along_axis(outside, self.cols, win, axis=1)
+        return outside
+
+    def slope(self) -> np.ndarray:
+        """``-dC/de`` (N, M)."""
+        return np.diff(self._full(self.Phi, (self.y > 0.0).astype(np.float64)), axis=1)
+
+    def blur_slope(self) -> np.ndarray:
+        """``dC/dsigma`` (N, M)."""
+        return np.diff(self._full(self.phi, np.zeros_like(self.y)), axis=1)
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> float:
+    """Sum of the elementwise product of two arrays of one shape, without the product array."""
+    return float(np.dot(a.ravel(), b.ravel()))
+
+
 def _pixel_step(bounds: np.ndarray, e: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Unit steps at ``e`` (N,), blurred by a Gaussian ``sigma`` and integrated over pixels.
 
     ``bounds`` (M + 1,) are the pixel boundaries (pixel ``i`` spans ``bounds[i]..bounds[i + 1]``). Returns,
     each (N, M), the pixel values ``C``, ``-dC/de`` (``g``) and ``dC/dsigma`` (``h``).
     """
-    y = bounds[None, :] - e[:, None]
-    u = y * (1.0 / sigma)
-    Phi = ndtr(u)
-    phi = np.exp(-0.5 * u * u) * (1.0 / math.sqrt(2.0 * math.pi))
-    G = y * Phi + sigma * phi  # integral of Phi(y / sigma) dy
-    return np.diff(G, axis=1), np.diff(Phi, axis=1), np.diff(phi, axis=1)
+    sp = _StepPixels(bounds, e, sigma)
+    return sp.C, sp.slope(), sp.blur_slope()
 
 
 def subpixel_edges_far_face(
@@ -589,31 +649,64 @@ def subpixel_edges_far_face(
     Ao, Do, e0o, w0o = A[ok], D[ok], e0[ok], w0[ok]
     e = e0o.copy()
     sigma = float(np.clip(blur_px, 0.05, 5.0))
+    n_ok = int(ok.sum())
+    # The model's pieces at each set of arrises, kept for the few latest: the line search's accepted trial
+    # is the next iteration's point, and the start search's winner the first one.
+    cache: dict[tuple[bytes, float], dict[str, Any]] = {}
 
-    def model(e, lam, sigma):
-        w_raw = w0o + band_slope * (e - e0o)
-        has_band = w_raw > 0
-        C, g, h = _pixel_step(bounds, np.concatenate([e, e + np.where(has_band, w_raw, 0.0)]), sigma)
-        n = e.size
-        C1, C2, g1, g2, h1, h2 = C[:n], C[n:], g[:n], g[n:], h[:n], h[n:]
+    def pieces(e: np.ndarray, sigma: float) -> dict[str, Any]:
+        key = (e.tobytes(), sigma)
+        p = cache.get(key)
+        if p is None:
+            if len(cache) >= 4:
+                cache.pop(next(iter(cache)))
+            w_raw = w0o + band_slope * (e - e0o)
+            has_band = w_raw > 0
+            sp = _StepPixels(bounds, np.concatenate([e, e + np.where(has_band, w_raw, 0.0)]), sigma)
+            C1, C2 = sp.C[:n_ok], sp.C[n_ok:]
+            J_lam = Do[:, None] * (C1 - C2)  # d model / d band level
+            p = cache[key] = dict(
+                sp=sp, has_band=has_band, C1=C1, C2=C2, J_lam=J_lam, info=_dot(J_lam, J_lam)
+            )
+        return p
+
+    def model_values(e: np.ndarray, lam: float, sigma: float) -> tuple[np.ndarray, dict[str, Any]]:
+        p = pieces(e, sigma)
         a1 = (lam * Do)[:, None]  # L - A
         a2 = ((1.0 - lam) * Do)[:, None]  # B - L
-        m = Ao[:, None] + a1 * C1 + a2 * C2
-        J_e = -a1 * g1 - a2 * g2 * (1.0 + band_slope * has_band)[:, None]
-        return m, J_e, Do[:, None] * (C1 - C2), a1 * h1 + a2 * h2
+        return Ao[:, None] + a1 * p["C1"] + a2 * p["C2"], p
 
-    def level_and_cost(e):
+    def jacobians(
+        e: np.ndarray, lam: float, sigma: float, with_blur: bool
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+        """Model, its derivatives by the arrises (N, M), the band level and (``with_blur``) the blur."""
+        m, p = model_values(e, lam, sigma)
+        if "g" not in p:
+            p["g"] = p["sp"].slope()
+        g = p["g"]
+        a1 = (lam * Do)[:, None]
+        a2 = ((1.0 - lam) * Do)[:, None]
+        J_e = -a1 * g[:n_ok] - a2 * g[n_ok:] * (1.0 + band_slope * p["has_band"])[:, None]
+        J_sig = None
+        if with_blur:
+            if "h" not in p:
+                p["h"] = p["sp"].blur_slope()
+            J_sig = a1 * p["h"][:n_ok] + a2 * p["h"][n_ok:]
+        return m, J_e, p["J_lam"], J_sig
+
+    def level_and_cost(e: np.ndarray) -> tuple[float, float]:
         # The model is linear in the band level: its least-squares value (with the pull towards 0.5 of
         # the iterations below) and the fit's cost, pull included, for these arrises.
-        m, _, J_lam, _ = model(e, 0.0, sigma)
-        info = float((J_lam**2).sum())
+        p = pieces(e, sigma)
+        m = Ao[:, None] + Do[:, None] * p["C2"]  # the model at band level 0
+        J_lam, info = p["J_lam"], p["info"]
         pull = LEVEL_PRIOR_WEIGHT * info
-        lam = float(((J_lam * (core - m)).sum() + pull * 0.5) / max(info + pull, 1e-12))
-        r = core - (m + J_lam * lam)
-        return lam, float((r * r).sum()) + pull * (lam - 0.5) ** 2
+        r0 = core - m
+        lam = (_dot(J_lam, r0) + pull * 0.5) / max(info + pull, 1e-12)
+        r = r0 - J_lam * lam
+        return lam, _dot(r, r) + pull * (lam - 0.5) ** 2
 
     lam = 0.5
-    n_ok = int(ok.sum())
     if n_ok:
         # Start from the best common shift of all arrises (half-pixel steps across the window): a
         # prediction that took the band's outer edge for the arris sits in a false minimum where the
@@ -626,31 +719,40 @@ def subpixel_edges_far_face(
         e = e0o + best[1]
         lam = best[2]
 
-    def total_cost(e, lam, sigma):
-        m, _, J_lam, _ = model(e, lam, sigma)
-        pull = LEVEL_PRIOR_WEIGHT * float((J_lam * J_lam).sum())
-        return float(((core - m) ** 2).sum()) + pull * (lam - 0.5) ** 2
+    def total_cost(e: np.ndarray, lam: float, sigma: float) -> float:
+        m, p = model_values(e, lam, sigma)
+        pull = LEVEL_PRIOR_WEIGHT * p["info"]
+        r = core - m
+        return _dot(r, r) + pull * (lam - 0.5) ** 2
 
     cost = total_cost(e, lam, sigma) if n_ok else 0.0
     for _ in range(n_iter if n_ok else 0):
         # One Gauss-Newton step for every arris and the shared level (and blur) together: the normal
         # equations have one unknown per scan line plus the shared ones, solved through the Schur
         # complement (the arrises and the level are strongly coupled where the band is narrow).
-        m, J_e, J_lam, J_sig = model(e, lam, sigma)
+        m, J_e, J_lam, J_sig = jacobians(e, lam, sigma, fit_blur)
         r = core - m
-        Jg = np.stack([J_lam, J_sig if fit_blur else np.zeros_like(J_sig)], -1)  # (N, M, 2)
-        h_ee = np.maximum((J_e * J_e).sum(axis=1), 1e-12)
-        h_eg = np.einsum("nm,nmk->nk", J_e, Jg)
-        b_e = (J_e * r).sum(axis=1)
-        H = np.einsum("nmk,nml->kl", Jg, Jg) - (h_eg / h_ee[:, None]).T @ h_eg
-        b_g = np.einsum("nmk,nm->k", Jg, r) - (h_eg * (b_e / h_ee)[:, None]).sum(axis=0)
+        Jg = [J_lam] if J_sig is None else [J_lam, J_sig]  # the blur's column is 0 when it is not fitted
+        h_ee = np.maximum(np.einsum("nm,nm->n", J_e, J_e), 1e-12)
+        h_eg = np.zeros((n_ok, 2))
+        H = np.zeros((2, 2))
+        b_g = np.zeros(2)
+        for k, Jk in enumerate(Jg):
+            h_eg[:, k] = np.einsum("nm,nm->n", J_e, Jk)
+            b_g[k] = _dot(Jk, r)
+            for j in range(k + 1):
+                H[k, j] = H[j, k] = _dot(Jk, Jg[j])
+        b_e = np.einsum("nm,nm->n", J_e, r)
+        level_info = float(H[0, 0])  # sum of J_lam ** 2
+        H -= (h_eg / h_ee[:, None]).T @ h_eg
+        b_g -= (h_eg * (b_e / h_ee)[:, None]).sum(axis=0)
         H += np.diag(
             np.maximum(np.diag(H), 1e-12) * 1e-6 + 1e-9
         )  # a band nowhere in view leaves its level free
         # Where the band is much narrower than the blur, its level and the arrises trade off (the
         # Schur complement keeps little of the level's information): a weak pull towards mid-grey
         # between the two sides then settles the level, as little as the data allow.
-        prior = LEVEL_PRIOR_WEIGHT * float((J_lam * J_lam).sum())
+        prior = LEVEL_PRIOR_WEIGHT * level_info
         H[0, 0] += prior
         b_g[0] += prior * (0.5 - lam)
         d_lam, d_sig = np.linalg.solve(H, b_g)
@@ -676,7 +778,8 @@ def subpixel_edges_far_face(
     e_sigma = np.full(len(scan), np.nan)
     de_dlam = de_dsig = np.zeros(0)
     if n_ok:
-        m, J_e, J_lam, J_sig = model(e, lam, sigma)
+        m, J_e, J_lam, J_sig = jacobians(e, lam, sigma, True)
+        assert J_sig is not None
         r = core - m
         res_var = (r * r).sum(axis=1) / max(core.shape[1] - 1, 1)
         info = np.maximum((J_e * J_e).sum(axis=1), 1e-12)
