@@ -42,6 +42,8 @@ __all__ = ["ArrisGeometry", "StripFit", "arris_geometry", "fit_strip_profile", "
 #: sub-intervals of a rounding's strip (uniform in image width) over which its shading is taken constant in
 #: the fit, at most
 _STRIP_CELLS = 16
+#: narrowest part of a rounding's strip whose shading level the fit leaves free, px
+_PART_PX = 1.5
 #: sub-pixel phases of the outer border over which the fit bins its profiles
 _PHASE_BINS = 8
 #: scan lines the shading fit uses at most (spread evenly over the edge)
@@ -403,9 +405,14 @@ def fit_strip_profile(
     n_cells = int(np.clip(math.ceil(2.0 * w_med), 4, _STRIP_CELLS)) if round_ else 1
     prob = _StripProblem(r, x, outer, width, n_cells, _PHASE_BINS)
     if round_:
-        # a generic strip shape (four free levels across it) for the search, so that a light whose
-        # terminator crosses the arc does not lead it astray before the physical shading is fitted
-        basis0 = (np.floor(np.arange(n_cells) * 4 / n_cells)[:, None] == np.arange(4)[None, :]).astype(float)
+        # A rounding's shading as free levels on parts of its strip, each at least _PART_PX wide (what the
+        # blur leaves of the shading's detail): a Lambert model of the arc would need the light, and a
+        # light whose terminator crosses the arc, a glossy finish or another reflectance would lead it
+        # astray, where free levels follow any shading. A narrow strip is one level, as a chamfer's.
+        n_parts = int(np.clip(math.floor(w_med / _PART_PX), 1, 8))
+        basis0 = (np.floor(np.arange(n_cells) * n_parts / n_cells)[:, None] == np.arange(n_parts)[None, :]).astype(
+            float
+        )
     else:
         basis0 = _strip_basis(geom, n_cells, None, False)
 
@@ -419,18 +426,6 @@ def fit_strip_profile(
     d0, s0, ev0 = prob.refine(float(grid[i0]), float(sg[i0]), basis0)
 
     basis = basis0
-    if round_:
-        th_max = float(geom.theta.max())
-        cands = [_strip_basis(geom, n_cells, None, False)] + [
-            _strip_basis(geom, n_cells, t, lb)
-            for t in np.linspace(0.025, 0.975, 20) * th_max
-            for lb in (False, True)
-        ]
-        costs = [float(prob.evaluate(np.array([d0]), np.array([s0]), b).chi2[0]) for b in cands]
-        # the smooth light (no terminator on the arc) unless a terminator explains clearly more
-        j = int(np.argmin(costs))
-        basis = cands[j] if costs[j] < costs[0] * 0.98 else cands[0]
-        d0, s0, ev0 = prob.refine(d0, s0, basis)
 
     # The posterior of the deficit along the valley: the coarse grid over the whole search range, and a
     # fine one around the optimum (its width from the curvature) that resolves a sharp optimum.
