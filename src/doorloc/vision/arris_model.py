@@ -13,9 +13,10 @@ the strip depends on that brightness, so locate measures it:
 2. :func:`fit_strip_profile`: the strip's shading, fitted to the profiles of many scan lines at once
    (linear light, each normalised by its own two plateaus): background | strip | hinge face, blurred by a
    Gaussian and integrated over the pixels, with the outer border's offset and the blur free, and the strip
-   a chamfer's constant level or a rounding's Lambert shading ``alpha + kappa max(0, cos(theta - psi))``
-   (light direction, ambient and albedo unknown). What it returns is the strip's *deficit*: the fraction
-   of its width by which the area of the strip falls short of the hinge face;
+   a chamfer's constant level or a rounding's free levels on parts of the strip (any shading). What it
+   returns is the strip's *deficit*: the fraction of its width by which the area of the strip falls short
+   of the hinge face, the mean of its posterior along the valley where the border's offset and the
+   strip's level trade off;
 3. :func:`arris_edges`: per scan line the area estimator (blur-free: it only uses areas) with that deficit,
    ``e = K - S / D - w * deficit``, which puts every edge point on the outer border; the caller moves it
    to the sharp corner's line by the geometry.
@@ -28,7 +29,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 from scipy.special import ndtr
@@ -194,22 +194,6 @@ def _pixel_terms(
     return g[:, :, 1:] - g[:, :, :-1], cdf[:, :, :-1] - cdf[:, :, 1:], pdf[:, :, 1:] - pdf[:, :, :-1]
 
 
-def _strip_basis(
-    geom: ArrisGeometry, n_cells: int, terminator: float | None, lit_below: bool
-) -> np.ndarray:
-    """Shading basis on the strip cells, shape (C, k): a chamfer's constant; a rounding's ``1, cos, sin`` of
-    ``theta`` (a light whose terminator lies off the arc), or ``1, max(0, +-sin(theta - terminator))``."""
-    if geom.section.profile == "chamfer":
-        return np.ones((n_cells, 1))
-    # cell means over 8 sub-samples: near the silhouette theta changes fast across one cell
-    tau = (np.arange(n_cells)[:, None] + (np.arange(8)[None, :] + 0.5) / 8) / n_cells
-    th = geom.theta_at(tau)
-    if terminator is None:
-        return np.stack([np.ones(n_cells), np.cos(th).mean(axis=1), np.sin(th).mean(axis=1)], axis=1)
-    s = np.sin(th - terminator) * (-1.0 if lit_below else 1.0)
-    return np.stack([np.ones(n_cells), np.maximum(s, 0.0).mean(axis=1)], axis=1)
-
-
 def _mix(basis: np.ndarray, n_cells: int) -> tuple[np.ndarray, np.ndarray]:
     """The map from the boundary terms ``prim`` (J = C + 1) to the design's columns, and its constant.
 
@@ -260,9 +244,7 @@ class _StripProblem:
         self.frac = np.arange(n_cells + 1) / n_cells
         self.w = np.repeat(self.count, r.shape[1])  # row weights of the flattened (R * P) system
 
-    def evaluate(
-        self, delta: np.ndarray, sigma: np.ndarray, basis: np.ndarray, jac: bool = False
-    ) -> _Eval:
+    def evaluate(self, delta: np.ndarray, sigma: np.ndarray, basis: np.ndarray, jac: bool = False) -> _Eval:
         delta = np.atleast_1d(np.asarray(delta, float))
         sigma = np.maximum(np.atleast_1d(np.asarray(sigma, float)), 0.05)
         bounds = (self.outer[None, :, None] + delta[:, None, None]) + self.width[None, :, None] * self.frac
@@ -410,11 +392,11 @@ def fit_strip_profile(
         # light whose terminator crosses the arc, a glossy finish or another reflectance would lead it
         # astray, where free levels follow any shading. A narrow strip is one level, as a chamfer's.
         n_parts = int(np.clip(math.floor(w_med / _PART_PX), 1, 8))
-        basis0 = (np.floor(np.arange(n_cells) * n_parts / n_cells)[:, None] == np.arange(n_parts)[None, :]).astype(
-            float
-        )
+        basis0 = (
+            np.floor(np.arange(n_cells) * n_parts / n_cells)[:, None] == np.arange(n_parts)[None, :]
+        ).astype(float)
     else:
-        basis0 = _strip_basis(geom, n_cells, None, False)
+        basis0 = np.ones((n_cells, 1))  # a chamfer's strip: one level
 
     # The offset has local minima on narrow strips (strip and border trade places): profile the misfit over
     # a grid of offsets across the search range (the blur refitted at each), and refine from the best.
