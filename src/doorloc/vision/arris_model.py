@@ -400,7 +400,9 @@ def fit_strip_profile(
 
     # The offset has local minima on narrow strips (strip and border trade places): profile the misfit over
     # a grid of offsets across the search range (the blur refitted at each), and refine from the best.
-    reach = search_px + 2.0
+    # A strip at the face's level and one at the background's are both a plain step, at the outer or at
+    # the inner border: the search (and the posterior) spans both, a strip's width and more either way.
+    reach = search_px + max(2.0, w_med + 1.0)
     step = max(0.2, reach / 10.0)
     grid = np.arange(-reach, reach + 1e-9, step)
     sg, ev = prob.profile_blur(grid, np.full(grid.size, max(blur0, 0.7)), basis0, n_iter=2)
