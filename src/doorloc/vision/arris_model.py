@@ -411,30 +411,49 @@ def fit_strip_profile(
 
     basis = basis0
 
-    # The posterior of the deficit along the valley: the coarse grid over the whole search range, and a
-    # fine one around the optimum (its width from the curvature) that resolves a sharp optimum.
-    assert ev0.hess is not None
+    # The posterior of the deficit along the valley: the coarse profile over the whole search range, and
+    # around each of its valleys a fine one (its width from that valley's curvature) that resolves it.
+    # Another valley (a strip at the face's level, seen as one at the background's a strip's width away)
+    # may be as deep as the optimum's but narrower than the coarse step: its best point is refined too.
     dof_b = max(prob.y.size - basis.shape[1] - 4, 1)
-    T = max(float(ev0.chi2[0]) / dof_b, noise**2)  # the residual variance per binned row (noise, misfit)
-    try:
-        cov = np.linalg.inv(ev0.hess[0] / 2.0) * T
-        s_delta = math.sqrt(max(cov[0, 0], 0.0))
-    except np.linalg.LinAlgError:
-        s_delta = step
-    s_delta = float(np.clip(s_delta, 1e-3, step))
-    fine = d0 + s_delta * np.linspace(-6.0, 6.0, 25)
-    _, evf = prob.profile_blur(fine, np.full(fine.size, s0), basis, n_iter=2)
-    far = np.abs(grid - d0) > 6.0 * s_delta
+    # The residual variance per binned row: the noise, and what the model misses. That excess is the
+    # model's error, the same on every bin (the same shape at about the same phase): it does not average
+    # down over the bins as the noise does, so the bins weigh as one where it dominates.
+    T = noise**2 + prob.count.size * max(float(ev0.chi2[0]) / dof_b - noise**2, 0.0)
+    c = ev.chi2
+    local = [
+        i
+        for i in range(c.size)
+        if abs(grid[i] - d0) > 1.0 and (i == 0 or c[i] <= c[i - 1]) and (i == c.size - 1 or c[i] <= c[i + 1])
+    ]
+    modes = [(d0, s0, ev0)] + [
+        prob.refine(float(grid[i]), float(sg[i]), basis, n_iter=8)
+        for i in sorted(local, key=lambda i: c[i])[:2]
+    ]
+    keep = np.ones(grid.size, bool)
+    fines: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+    for k, (dm, sm, em) in enumerate(modes):
+        if k and min(abs(dm - d1) for d1, _, _ in modes[:k]) < 0.2:
+            continue  # refined into a valley already resolved
+        assert em.hess is not None
+        try:
+            s_m = math.sqrt(max(float(np.linalg.inv(em.hess[0] / 2.0)[0, 0]) * T, 0.0))
+        except np.linalg.LinAlgError:
+            s_m = step
+        s_m = float(np.clip(s_m, 1e-3, step))
+        fine = dm + s_m * np.linspace(-6.0, 6.0, 25)
+        _, evf = prob.profile_blur(fine, np.full(fine.size, sm), basis, n_iter=2)
+        keep &= np.abs(grid - dm) > 6.0 * s_m
+        fines.append((fine, evf.chi2, evf.deficit))
     if basis is basis0:  # the coarse profile is this model's already
         evc = ev
     else:
-        _, evc = prob.profile_blur(grid[far], sg[far], basis, n_iter=2)
-        far = np.ones(int(far.sum()), bool)
-    deltas = np.concatenate([grid[np.abs(grid - d0) > 6.0 * s_delta], fine])
-    chi2 = np.concatenate([evc.chi2[far], evf.chi2])
-    dfc = np.concatenate([evc.deficit[far], evf.deficit])
+        _, evc = prob.profile_blur(grid, sg, basis, n_iter=2)
+    deltas = np.concatenate([grid[keep], *(f[0] for f in fines)])
     order = np.argsort(deltas)
-    deltas, chi2, dfc = deltas[order], chi2[order], dfc[order]
+    deltas = deltas[order]
+    chi2 = np.concatenate([evc.chi2[keep], *(f[1] for f in fines)])[order]
+    dfc = np.concatenate([evc.deficit[keep], *(f[2] for f in fines)])[order]
     chi_min = min(float(chi2.min()), float(ev0.chi2[0]))
     logp = -(chi2 - chi_min) / (2.0 * T) - 0.5 * ((dfc - PRIOR_DEFICIT) / PRIOR_SIGMA) ** 2
     dens = np.exp(logp - logp.max())
