@@ -194,6 +194,18 @@ def _pixel_terms(
     return g[:, :, 1:] - g[:, :, :-1], cdf[:, :, :-1] - cdf[:, :, 1:], pdf[:, :, 1:] - pdf[:, :, :-1]
 
 
+def _strip_basis(geom: ArrisGeometry, n_cells: int, terminator: float | None, lit_below: bool) -> np.ndarray:
+    """A rounding's Lambert shading basis on the strip cells, shape (C, k): ``1, cos, sin`` of ``theta`` (a
+    light whose terminator lies off the arc), or ``1, max(0, +-sin(theta - terminator))``."""
+    # cell means over 8 sub-samples: near the silhouette theta changes fast across one cell
+    tau = (np.arange(n_cells)[:, None] + (np.arange(8)[None, :] + 0.5) / 8) / n_cells
+    th = geom.theta_at(tau)
+    if terminator is None:
+        return np.stack([np.ones(n_cells), np.cos(th).mean(axis=1), np.sin(th).mean(axis=1)], axis=1)
+    s = np.sin(th - terminator) * (-1.0 if lit_below else 1.0)
+    return np.stack([np.ones(n_cells), np.maximum(s, 0.0).mean(axis=1)], axis=1)
+
+
 def _mix(basis: np.ndarray, n_cells: int) -> tuple[np.ndarray, np.ndarray]:
     """The map from the boundary terms ``prim`` (J = C + 1) to the design's columns, and its constant.
 
@@ -410,16 +422,39 @@ def fit_strip_profile(
     d0, s0, ev0 = prob.refine(float(grid[i0]), float(sg[i0]), basis0)
 
     basis = basis0
+    if round_:
+        # The free shading lets the level next to the silhouette trade off with the border's place; a
+        # Lambert arc (the light's direction unknown, its terminator anywhere) does not. It is taken where
+        # it explains the profiles about as well as the free shading (the extra parameters' worth of misfit
+        # and three standard deviations of it more, at the misfit's scale).
+        t_free = max(float(ev0.chi2[0]) / max(prob.y.size - basis0.shape[1] - 4, 1), noise**2)
+        cands = [_strip_basis(geom, n_cells, None, False)] + [
+            _strip_basis(geom, n_cells, t, lb)
+            for t in np.linspace(0.025, 0.975, 20) * float(geom.theta.max())
+            for lb in (False, True)
+        ]
+        costs = [float(prob.evaluate(np.array([d0]), np.array([s0]), b).chi2[0]) for b in cands]
+        j = int(np.argmin(costs))
+        b1 = cands[j] if costs[j] < costs[0] * 0.98 else cands[0]
+        d1, s1, ev1 = prob.refine(d0, s0, b1)
+        extra = max(basis0.shape[1] - b1.shape[1], 1)
+        if (float(ev1.chi2[0]) - float(ev0.chi2[0])) / t_free <= extra + 3.0 * math.sqrt(2.0 * extra):
+            basis, d0, s0, ev0 = b1, d1, s1, ev1
 
     # The posterior of the deficit along the valley: the coarse profile over the whole search range, and
     # around each of its valleys a fine one (its width from that valley's curvature) that resolves it.
     # Another valley (a strip at the face's level, seen as one at the background's a strip's width away)
     # may be as deep as the optimum's but narrower than the coarse step: its best point is refined too.
     dof_b = max(prob.y.size - basis.shape[1] - 4, 1)
-    # The residual variance per binned row: the noise, and what the model misses. That excess is the
+    # The residual variance per binned row: the noise, and what the model misses. Within one valley that
+    # is the scale of the misfit (T_loc). Between valleys, and along a flat one, the misfit's excess is the
     # model's error, the same on every bin (the same shape at about the same phase): it does not average
-    # down over the bins as the noise does, so the bins weigh as one where it dominates.
-    T = noise**2 + prob.count.size * max(float(ev0.chi2[0]) / dof_b - noise**2, 0.0)
+    # down over the bins as the noise does, so there the bins weigh as one (T_glob). A model that misses
+    # its profiles by more than their noise then cannot choose between two places for the border by
+    # less than its own error.
+    t_b = float(ev0.chi2[0]) / dof_b
+    T_loc = max(t_b, noise**2)
+    T_glob = noise**2 + prob.count.size * max(t_b - noise**2, 0.0)
     c = ev.chi2
     local = [
         i
@@ -437,7 +472,7 @@ def fit_strip_profile(
             continue  # refined into a valley already resolved
         assert em.hess is not None
         try:
-            s_m = math.sqrt(max(float(np.linalg.inv(em.hess[0] / 2.0)[0, 0]) * T, 0.0))
+            s_m = math.sqrt(max(float(np.linalg.inv(em.hess[0] / 2.0)[0, 0]) * T_loc, 0.0))
         except np.linalg.LinAlgError:
             s_m = step
         s_m = float(np.clip(s_m, 1e-3, step))
@@ -449,13 +484,17 @@ def fit_strip_profile(
         evc = ev
     else:
         _, evc = prob.profile_blur(grid, sg, basis, n_iter=2)
+    chi_min = min(float(evc.chi2[keep].min()) if keep.any() else np.inf, *(float(f[1].min()) for f in fines))
+    # log-likelihood: the coarse points against the best at T_glob; each valley's fine points against
+    # the valley's own best at T_loc, and that best against the overall best at T_glob
+    ll = [-(evc.chi2[keep] - chi_min) / (2.0 * T_glob)] + [
+        -(f[1] - f[1].min()) / (2.0 * T_loc) - (float(f[1].min()) - chi_min) / (2.0 * T_glob) for f in fines
+    ]
     deltas = np.concatenate([grid[keep], *(f[0] for f in fines)])
     order = np.argsort(deltas)
     deltas = deltas[order]
-    chi2 = np.concatenate([evc.chi2[keep], *(f[1] for f in fines)])[order]
     dfc = np.concatenate([evc.deficit[keep], *(f[2] for f in fines)])[order]
-    chi_min = min(float(chi2.min()), float(ev0.chi2[0]))
-    logp = -(chi2 - chi_min) / (2.0 * T) - 0.5 * ((dfc - PRIOR_DEFICIT) / PRIOR_SIGMA) ** 2
+    logp = np.concatenate(ll)[order] - 0.5 * ((dfc - PRIOR_DEFICIT) / PRIOR_SIGMA) ** 2
     dens = np.exp(logp - logp.max())
     # trapezoid weights over the (unevenly spaced) offsets
     gaps = np.diff(deltas)
