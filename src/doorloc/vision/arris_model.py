@@ -422,6 +422,7 @@ def fit_strip_profile(
     d0, s0, ev0 = prob.refine(float(grid[i0]), float(sg[i0]), basis0)
 
     basis = basis0
+    alt: tuple[float, float] | None = None  # the other shading model's misfit and deficit
     if round_:
         # The free shading lets the level next to the silhouette trade off with the border's place; a
         # Lambert arc (the light's direction unknown, its terminator anywhere) does not. It is taken where
@@ -439,7 +440,10 @@ def fit_strip_profile(
         d1, s1, ev1 = prob.refine(d0, s0, b1)
         extra = max(basis0.shape[1] - b1.shape[1], 1)
         if (float(ev1.chi2[0]) - float(ev0.chi2[0])) / t_free <= extra + 3.0 * math.sqrt(2.0 * extra):
+            alt = (float(ev0.chi2[0]), float(ev0.deficit[0]))
             basis, d0, s0, ev0 = b1, d1, s1, ev1
+        else:
+            alt = (float(ev1.chi2[0]), float(ev1.deficit[0]))
 
     # The posterior of the deficit along the valley: the coarse profile over the whole search range, and
     # around each of its valleys a fine one (its width from that valley's curvature) that resolves it.
@@ -505,6 +509,13 @@ def fit_strip_profile(
     pw /= pw.sum()
     deficit = float(pw @ dfc)
     post_sd = math.sqrt(max(float(pw @ (dfc - deficit) ** 2), 0.0))
+    if alt is not None:
+        # The other shading model (Lambert arc or free shading) is one more place for the answer, weighed
+        # as another valley is: a rounding whose two models disagree is in doubt by their difference.
+        w_alt = math.exp(-min(max((alt[0] - float(ev0.chi2[0])) / (2.0 * T_glob), -30.0), 30.0))
+        mean = (deficit + w_alt * alt[1]) / (1.0 + w_alt)
+        post_sd = math.sqrt(post_sd**2 + w_alt / (1.0 + w_alt) ** 2 * (alt[1] - deficit) ** 2)
+        deficit = mean
 
     # The model's own doubt: a strip narrower than the blur looks like a wider blur with another strip
     # level, and the real optics are no exact Gaussian. How far the deficit moves when the blur is off by
