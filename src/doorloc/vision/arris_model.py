@@ -13,16 +13,21 @@ the strip depends on that brightness, so locate measures it:
 2. :func:`fit_strip_profile`: the strip's shading, fitted to the profiles of many scan lines at once
    (linear light, each normalised by its own two plateaus): background | strip | hinge face, blurred by a
    Gaussian and integrated over the pixels, with the outer border's offset and the blur free, and the strip
-   a chamfer's constant level or a rounding's free, piecewise linear shading (any light). What it
-   returns is the strip's *deficit*: the fraction of its width by which the area of the strip falls short
+   a chamfer's constant level or a rounding's shading (free and piecewise linear, or a Lambert arc where
+   that fits about as well; the two weighed where they disagree). What it returns is the strip's *deficit*: the fraction of its width by which the area of the strip falls short
    of the hinge face, the mean of its posterior along the valley where the border's offset and the
    strip's level trade off;
 3. :func:`arris_edges`: per scan line the area estimator (blur-free: it only uses areas) with that deficit,
    ``e = K - S / D - w * deficit``, which puts every edge point on the outer border; the caller moves it
    to the sharp corner's line by the geometry.
 
-What the deficit leaves in doubt (its standard error from the fit, widened by how far the fit's residual
-exceeds the noise) is reported per line as ``arris_correction_sigma_mm`` for the uncertainty budget.
+What the deficit leaves in doubt (the posterior's standard deviation, widened by the blur model's doubt)
+is reported per line as ``arris_correction_sigma_mm`` for the uncertainty budget.
+
+Cost: the profiles are binned by the outer border's sub-pixel phase (``_PHASE_BINS`` rows instead of one
+per scan line), the levels are solved linearly inside every evaluation (variable projection) with closed
+form derivatives of the pixel integrals in the offset and the blur, and grids of offsets are evaluated as
+one batch: a few ms per edge (it was ~60-90 ms with numerical Jacobians and one design per evaluation).
 """
 
 from __future__ import annotations
@@ -384,9 +389,14 @@ def fit_strip_profile(
     like a bright one whose border lies inwards; a strip at the background's or the face's level is a
     plain step at either border). A local optimum and its curvature would then report one end of the
     valley with a confidence the data do not give. So the deficit is the mean of its posterior along the
-    valley: the misfit profiled over the border's offset (the blur refitted at each), times the prior
-    0.5 +- 0.5 (a strip somewhere between the background and the face), and its standard deviation the
-    posterior's, widened by how far the deficit moves when the blur model is off by ``BLUR_DOUBT``.
+    valley: the misfit profiled over the border's offset (the blur refitted at each; every valley of a
+    coarse profile over the search range refined and resolved finely), times the prior 0.5 +- 0.5 (a
+    strip somewhere between the background and the face), and its standard deviation the posterior's,
+    widened by how far the deficit moves when the blur model is off by ``BLUR_DOUBT``. Within a valley
+    the misfit weighs at the scale of the residuals; between valleys (and along a flat one) the
+    residuals' excess over the noise counts as model error common to all the profiles, so that a model
+    that misses its profiles by more than their noise does not choose between two places for the border
+    by less than that.
     """
     ok = np.all(np.isfinite(r), axis=1) & np.isfinite(outer) & np.isfinite(width) & (width > 0)
     r, outer, width = r[ok], outer[ok], width[ok]
