@@ -110,3 +110,31 @@ def test_a_wrong_response_gamma_is_flagged_on_plain_edges():
     assert abs(wrong.x_mm - pose.x_mm) < 3 * doubt["reference"]  # ...and the check says by about how much
     assert abs(wrong.z_mm - pose.z_mm) < 3 * doubt["bottom"]
     assert max(fine.values()) < 0.5 * min(doubt.values())
+
+
+@pytest.mark.parametrize("level", [0.15, 0.5, 0.85])
+def test_a_strip_narrower_than_the_blur_reports_that_its_level_is_unknown(level):
+    """A 0.7 px strip under 1.5 px of blur: its level and its border trade off; the deficit's sigma says so
+    and covers the truth (it is not one end of the valley reported with confidence)."""
+    rng = np.random.default_rng(11)
+    r, x, outer = _profiles(40, 0.7, level, 1.5, rng)
+    geom = ArrisGeometry(
+        ArrisSection(0.2, "chamfer", 30.0, -350.0), 0.0, 0.2, np.array([0.0, 1.0]), np.array([np.pi / 2, 0.0])
+    )
+    fit = fit_strip_profile(r, x, outer + 0.3, np.full(40, 0.7), geom, 0.002, 1.0)
+    assert fit is not None
+    assert fit.deficit_sigma > 0.2
+    assert abs(fit.deficit - (1.0 - level)) <= 2 * fit.deficit_sigma
+
+
+def test_a_strip_at_the_face_level_keeps_both_borders_in_doubt():
+    """A strip as bright as the face is a plain step at its outer border, one as dark as the background
+    a plain step at its inner border: predicted a strip's width off, the fit still finds the level."""
+    rng = np.random.default_rng(5)
+    r, x, outer = _profiles(40, 2.5, 1.0, 0.8, rng)
+    geom = ArrisGeometry(
+        ArrisSection(0.5, "chamfer", 30.0, -350.0), 0.0, 0.5, np.array([0.0, 1.0]), np.array([np.pi / 2, 0.0])
+    )
+    fit = fit_strip_profile(r, x, outer - 2.5, np.full(40, 2.5), geom, 0.002, 1.0)
+    assert fit is not None
+    assert abs(fit.deficit) <= max(2 * fit.deficit_sigma, 0.05)

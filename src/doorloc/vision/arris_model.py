@@ -13,25 +13,29 @@ the strip depends on that brightness, so locate measures it:
 2. :func:`fit_strip_profile`: the strip's shading, fitted to the profiles of many scan lines at once
    (linear light, each normalised by its own two plateaus): background | strip | hinge face, blurred by a
    Gaussian and integrated over the pixels, with the outer border's offset and the blur free, and the strip
-   a chamfer's constant level or a rounding's Lambert shading ``alpha + kappa max(0, cos(theta - psi))``
-   (light direction, ambient and albedo unknown). What it returns is the strip's *deficit*: the fraction
-   of its width by which the area of the strip falls short of the hinge face;
+   a chamfer's constant level or a rounding's shading (free and piecewise linear, or a Lambert arc where
+   that fits about as well; the two weighed where they disagree). What it returns is the strip's *deficit*: the fraction of its width by which the area of the strip falls short
+   of the hinge face, the mean of its posterior along the valley where the border's offset and the
+   strip's level trade off;
 3. :func:`arris_edges`: per scan line the area estimator (blur-free: it only uses areas) with that deficit,
    ``e = K - S / D - w * deficit``, which puts every edge point on the outer border; the caller moves it
    to the sharp corner's line by the geometry.
 
-What the deficit leaves in doubt (its standard error from the fit, widened by how far the fit's residual
-exceeds the noise) is reported per line as ``arris_correction_sigma_mm`` for the uncertainty budget.
+What the deficit leaves in doubt (the posterior's standard deviation, widened by the blur model's doubt)
+is reported per line as ``arris_correction_sigma_mm`` for the uncertainty budget.
+
+Cost: the profiles are binned by the outer border's sub-pixel phase (``_PHASE_BINS`` rows instead of one
+per scan line), the levels are solved linearly inside every evaluation (variable projection) with closed
+form derivatives of the pixel integrals in the offset and the blur, and grids of offsets are evaluated as
+one batch: a few ms per edge (it was ~60-90 ms with numerical Jacobians and one design per evaluation).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
-from scipy.optimize import least_squares
 from scipy.special import ndtr
 
 from doorloc.arris import ArrisSection
@@ -40,8 +44,13 @@ from doorloc.vision.edges import Axis, EdgeSamples, _gather, oriented
 
 __all__ = ["ArrisGeometry", "StripFit", "arris_geometry", "fit_strip_profile", "arris_edges"]
 
-#: sub-intervals of the strip (uniform in image width) over which its shading is taken constant in the fit
+#: sub-intervals of a rounding's strip (uniform in image width) over which its shading is taken constant in
+#: the fit, at most
 _STRIP_CELLS = 16
+#: narrowest part of a rounding's strip whose shading level the fit leaves free, px
+_PART_PX = 1.5
+#: sub-pixel phases of the outer border over which the fit bins its profiles
+_PHASE_BINS = 8
 #: scan lines the shading fit uses at most (spread evenly over the edge)
 _FIT_LINES = 40
 #: plausible error of the Gaussian blur model, px (sets the model's doubt in the strip's deficit)
@@ -139,7 +148,8 @@ class StripFit:
         ``1/w`` times the integral over the strip of ``(face - strip) / (face - background)``: 0 for a strip as
         bright as the hinge face (the edge is the outer border), 1 for one as dark as the background.
     deficit_sigma : float
-        Its standard error, widened by the fit's misfit (residual RMS over the profiles' noise).
+        Its standard deviation: the posterior's along the valley where the border's offset and the strip's
+        level trade off (:func:`fit_strip_profile`), widened by the blur model's doubt.
     offset_px : float
         Outer border's offset from where the pose put it, px (along the mirrored scan, towards the door).
     blur_px : float
@@ -152,6 +162,9 @@ class StripFit:
         The fitted profiles (noise-free), for the profiles that went into the fit.
     border : ndarray (N,)
         Their fitted outer border (coordinates of ``x``), px.
+    model_deficit : float
+        The deficit of the fitted profiles ``model`` (the best fit's, where ``deficit`` is the posterior
+        mean along the valley).
     """
 
     deficit: float
@@ -162,46 +175,174 @@ class StripFit:
     levels: np.ndarray
     model: np.ndarray
     border: np.ndarray
+    model_deficit: float
 
 
-def _G(y: np.ndarray, sigma: float) -> np.ndarray:
-    """Integral of the Gaussian CDF, ``G(y) = y Phi(y / s) + s phi(y / s)``."""
-    u = y / sigma
-    return y * ndtr(u) + sigma * np.exp(-0.5 * u * u) * (1.0 / math.sqrt(2.0 * math.pi))
+def _pixel_terms(
+    edges: np.ndarray, bounds: np.ndarray, sigma: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each pixel's integral of a blurred unit level beyond each boundary, and its derivatives.
 
-
-def _design(
-    x: np.ndarray, outer: np.ndarray, width: np.ndarray, sigma: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """Pixel responses to the hinge face (unit step at the inner border) and to each strip cell.
-
-    ``x`` (N, P) pixel centres; ``outer``, ``width`` (N,) the strip's outer border and width, px. Returns
-    ``step`` (N, P) and ``cells`` (N, P, C): each pixel's integral of the blurred unit level over the face /
-    one cell of the strip.
+    ``edges`` (P+1,) the pixel borders; ``bounds`` (B, R, J) the boundaries of each candidate ``B`` and row
+    ``R``; ``sigma`` (B,) the Gaussian blur. With ``G(y) = y Phi(y / s) + s phi(y / s)`` (the integral of
+    the Gaussian CDF) the pixel between borders ``e0, e1`` sees ``G(e1 - b) - G(e0 - b)`` of the level
+    beyond ``b``; ``dG/db = -Phi`` and ``dG/ds = phi`` are closed form. Returns ``prim``, ``d prim / d b``
+    and ``d prim / d s``, each (B, R, P, J).
     """
-    bounds = (
-        outer[:, None] + width[:, None] * (np.arange(_STRIP_CELLS + 1) / _STRIP_CELLS)[None, :]
-    )  # (N, C+1)
+    s = sigma[:, None, None, None]
+    y = edges[None, None, :, None] - bounds[:, :, None, :]  # (B, R, P+1, J)
+    u = y / s
+    cdf = ndtr(u)
+    pdf = np.exp(-0.5 * u * u) * (1.0 / math.sqrt(2.0 * math.pi))
+    g = y * cdf + s * pdf
     # consecutive pixels share their borders: G once per pixel border, then differences
-    edges = np.concatenate([x[:, :1] - 0.5, x + 0.5], axis=1)  # (N, P+1)
-    g = _G(edges[:, :, None] - bounds[:, None, :], sigma)
-    prim = g[:, 1:] - g[:, :-1]  # (N, P, C+1): pixel integral of the unit level beyond each boundary
-    cells = prim[:, :, :-1] - prim[:, :, 1:]
-    return prim[:, :, -1], cells
+    return g[:, :, 1:] - g[:, :, :-1], cdf[:, :, :-1] - cdf[:, :, 1:], pdf[:, :, 1:] - pdf[:, :, :-1]
 
 
-def _strip_basis(geom: ArrisGeometry, terminator: float | None, lit_below: bool) -> np.ndarray:
-    """Shading basis on the strip cells, shape (C, k): a chamfer's constant; a rounding's ``1, cos, sin`` of
-    ``theta`` (a light whose terminator lies off the arc), or ``1, max(0, +-sin(theta - terminator))``."""
-    if geom.section.profile == "chamfer":
-        return np.ones((_STRIP_CELLS, 1))
+def _strip_basis(geom: ArrisGeometry, n_cells: int, terminator: float | None, lit_below: bool) -> np.ndarray:
+    """A rounding's Lambert shading basis on the strip cells, shape (C, k): ``1, cos, sin`` of ``theta`` (a
+    light whose terminator lies off the arc), or ``1, max(0, +-sin(theta - terminator))``."""
     # cell means over 8 sub-samples: near the silhouette theta changes fast across one cell
-    tau = (np.arange(_STRIP_CELLS)[:, None] + (np.arange(8)[None, :] + 0.5) / 8) / _STRIP_CELLS
+    tau = (np.arange(n_cells)[:, None] + (np.arange(8)[None, :] + 0.5) / 8) / n_cells
     th = geom.theta_at(tau)
     if terminator is None:
-        return np.stack([np.ones(_STRIP_CELLS), np.cos(th).mean(axis=1), np.sin(th).mean(axis=1)], axis=1)
+        return np.stack([np.ones(n_cells), np.cos(th).mean(axis=1), np.sin(th).mean(axis=1)], axis=1)
     s = np.sin(th - terminator) * (-1.0 if lit_below else 1.0)
-    return np.stack([np.ones(_STRIP_CELLS), np.maximum(s, 0.0).mean(axis=1)], axis=1)
+    return np.stack([np.ones(n_cells), np.maximum(s, 0.0).mean(axis=1)], axis=1)
+
+
+def _mix(basis: np.ndarray, n_cells: int) -> tuple[np.ndarray, np.ndarray]:
+    """The map from the boundary terms ``prim`` (J = C + 1) to the design's columns, and its constant.
+
+    Background ``1 - prim_0``, face ``prim_C``, shading basis (C, k) over the cells ``prim_j - prim_j+1``.
+    """
+    k = basis.shape[1]
+    M = np.zeros((n_cells + 1, 2 + k))
+    M[0, 0] = -1.0
+    M[n_cells, 1] = 1.0
+    M[:n_cells, 2:] += basis
+    M[1:, 2:] -= basis
+    const = np.zeros(2 + k)
+    const[0] = 1.0
+    return M, const
+
+
+@dataclass(frozen=True)
+class _Eval:
+    """The strip model at a batch of (offset, blur) candidates, its levels solved linearly."""
+
+    chi2: np.ndarray  # (B,) weighted residual sum of squares
+    coef: np.ndarray  # (B, m) background, face, shading coefficients
+    deficit: np.ndarray  # (B,)
+    grad: np.ndarray | None  # (B, 2) d chi2 / d (offset, blur), variable projection
+    hess: np.ndarray | None  # (B, 2, 2) its Gauss-Newton Hessian
+
+
+class _StripProblem:
+    """The strip model on profiles binned by the outer border's sub-pixel phase (:func:`fit_strip_profile`).
+
+    Profiles whose outer border lies at about the same phase look alike; their mean, weighted by their
+    number, carries the same information for the model as the profiles themselves (up to the phase's
+    spread in a bin) at a fraction of the cost.
+    """
+
+    def __init__(
+        self, r: np.ndarray, x: np.ndarray, outer: np.ndarray, width: np.ndarray, n_cells: int, bins: int
+    ) -> None:
+        lo, hi = float(outer.min()), float(outer.max())
+        k = np.minimum(((outer - lo) / max(hi - lo, 1e-9) * bins).astype(int), bins - 1)
+        used = np.unique(k)
+        self.count = np.array([np.sum(k == b) for b in used], float)  # (R,)
+        self.y = np.stack([r[k == b].mean(axis=0) for b in used])  # (R, P)
+        self.outer = np.array([outer[k == b].mean() for b in used])
+        self.width = np.array([width[k == b].mean() for b in used])
+        self.edges = np.concatenate([x[:1] - 0.5, x + 0.5])
+        self.n_cells = n_cells
+        self.frac = np.arange(n_cells + 1) / n_cells
+        self.w = np.repeat(self.count, r.shape[1])  # row weights of the flattened (R * P) system
+
+    def evaluate(self, delta: np.ndarray, sigma: np.ndarray, basis: np.ndarray, jac: bool = False) -> _Eval:
+        delta = np.atleast_1d(np.asarray(delta, float))
+        sigma = np.maximum(np.atleast_1d(np.asarray(sigma, float)), 0.05)
+        bounds = (self.outer[None, :, None] + delta[:, None, None]) + self.width[None, :, None] * self.frac
+        prim, d_b, d_s = _pixel_terms(self.edges, bounds, sigma)
+        M, const = _mix(basis, self.n_cells)
+        B = delta.size
+        A = (prim @ M + const).reshape(B, -1, M.shape[1])  # (B, n, m)
+        y = self.y.ravel()
+        w = self.w
+        AwT = A.transpose(0, 2, 1) * w  # (B, m, n)
+        N = AwT @ A + 1e-12 * np.eye(M.shape[1])
+        coef = np.linalg.solve(N, (AwT @ y)[..., None])[..., 0]
+        f = (A @ coef[..., None])[..., 0] - y  # (B, n)
+        chi2 = (f * f) @ w
+        c0, cb, band = coef[:, 0], coef[:, 1], coef[:, 2:]
+        levels = (band @ basis.T - c0[:, None]) / (cb - c0)[:, None]
+        deficit = np.mean(1.0 - levels, axis=1)
+        grad = hess = None
+        if jac:
+            # variable projection (Kaufman): d f / d theta = (I - A A+) (dA / d theta) coef, where
+            # (dA / d theta) coef = (d prim / d theta) (M coef)
+            v = (coef @ M.T)[:, :, None]  # (B, J, 1)
+            n_j = prim.shape[-1]
+            J = np.concatenate(
+                [(d_b.reshape(B, -1, n_j) @ v), (d_s.reshape(B, -1, n_j) @ v)], axis=2
+            )  # (B, n, 2)
+            J = J - A @ np.linalg.solve(N, AwT @ J)
+            JwT = J.transpose(0, 2, 1) * w
+            grad = 2.0 * (JwT @ f[..., None])[..., 0]
+            hess = 2.0 * (JwT @ J)
+        return _Eval(chi2, coef, deficit, grad, hess)
+
+    def refine(
+        self, delta: float, sigma: float, basis: np.ndarray, n_iter: int = 12
+    ) -> tuple[float, float, _Eval]:
+        """Gauss-Newton (variable projection, analytic Jacobian) on the offset and the blur."""
+        p = np.array([delta, sigma])
+        ev = self.evaluate(p[:1], p[1:], basis, jac=True)
+        lam = 1e-3
+        for _ in range(n_iter):
+            assert ev.grad is not None and ev.hess is not None
+            H = ev.hess[0] + lam * np.diag(np.diag(ev.hess[0]) + 1e-12)
+            step = -np.linalg.solve(H, ev.grad[0])
+            step = np.clip(step, [-0.5, -0.3], [0.5, 0.3])
+            q = p + step
+            q[1] = max(q[1], 0.1)
+            ev1 = self.evaluate(q[:1], q[1:], basis, jac=True)
+            if ev1.chi2[0] <= ev.chi2[0]:
+                done = ev.chi2[0] - ev1.chi2[0] < 1e-9 * max(ev.chi2[0], 1e-300) or np.all(
+                    np.abs(step) < 1e-5
+                )
+                p, ev, lam = q, ev1, lam * 0.3
+                if done:
+                    break
+            else:
+                lam *= 10.0
+                if lam > 1e6:
+                    break
+        return float(p[0]), float(p[1]), ev
+
+    def profile_blur(
+        self, delta: np.ndarray, sigma: np.ndarray, basis: np.ndarray, n_iter: int = 3
+    ) -> tuple[np.ndarray, _Eval]:
+        """For each offset, the blur that fits best (a few Newton steps on the blur alone, all at once)."""
+        s = np.asarray(sigma, float).copy()
+        ev = self.evaluate(delta, s, basis, jac=True)
+        for _ in range(n_iter):
+            assert ev.grad is not None and ev.hess is not None
+            step = np.clip(-ev.grad[:, 1] / np.maximum(ev.hess[:, 1, 1], 1e-300), -0.3, 0.3)
+            s1 = np.maximum(s + step, 0.1)
+            ev1 = self.evaluate(delta, s1, basis, jac=True)
+            better = ev1.chi2 <= ev.chi2
+            s = np.where(better, s1, s)
+            ev = _Eval(
+                np.where(better, ev1.chi2, ev.chi2),
+                np.where(better[:, None], ev1.coef, ev.coef),
+                np.where(better, ev1.deficit, ev.deficit),
+                np.where(better[:, None], ev1.grad, ev.grad),  # type: ignore[arg-type]
+                np.where(better[:, None, None], ev1.hess, ev.hess),  # type: ignore[arg-type]
+            )
+        return s, ev
 
 
 def fit_strip_profile(
@@ -239,168 +380,186 @@ def fit_strip_profile(
     -------
     StripFit or None
         None when there are too few profiles.
+
+    Notes
+    -----
+    The profiles pin the strip's *area* (where an equivalent plain step would lie) to a small fraction of
+    a pixel, but not how that area splits between the border's place and the strip's level: on a strip
+    narrower than the blur the two trade off along a valley (a dark strip whose border lies outwards looks
+    like a bright one whose border lies inwards; a strip at the background's or the face's level is a
+    plain step at either border). A local optimum and its curvature would then report one end of the
+    valley with a confidence the data do not give. So the deficit is the mean of its posterior along the
+    valley: the misfit profiled over the border's offset (the blur refitted at each; every valley of a
+    coarse profile over the search range refined and resolved finely), times the prior 0.5 +- 0.5 (a
+    strip somewhere between the background and the face), and its standard deviation the posterior's,
+    widened by how far the deficit moves when the blur model is off by ``BLUR_DOUBT``. Within a valley
+    the misfit weighs at the scale of the residuals; between valleys (and along a flat one) the
+    residuals' excess over the noise counts as model error common to all the profiles, so that a model
+    that misses its profiles by more than their noise does not choose between two places for the border
+    by less than that.
     """
     ok = np.all(np.isfinite(r), axis=1) & np.isfinite(outer) & np.isfinite(width) & (width > 0)
     r, outer, width = r[ok], outer[ok], width[ok]
     if r.shape[0] < 5:
         return None
-    xx = np.broadcast_to(x[None, :], r.shape)
-    y = np.concatenate([r.ravel(), [0.0]])
-    # A weak prior on the deficit, 0.5 +- 0.5 (a strip between background and face), as one more residual
-    # row (linear in the levels: mean strip level - (background + face) / 2). It decides only where the
-    # profiles cannot: a strip narrower than the blur, whose level and border trade off; the fit's
-    # standard error then shows that doubt instead of hiding it.
-    w_prior = noise / PRIOR_SIGMA
-
-    def solve(params: np.ndarray, basis: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        delta, sigma = params[0], max(abs(params[1]), 0.05)
-        step, cells = _design(xx, outer + delta, width, sigma)
-        band = cells @ basis  # (N, P, k)
-        bg = 1.0 - step - cells.sum(axis=2)
-        A = np.concatenate([bg[..., None], step[..., None], band], axis=2).reshape(y.size - 1, -1)
-        prior = w_prior * np.concatenate([[-0.5, -0.5], basis.mean(axis=0)])
-        A = np.vstack([A, prior[None, :]])
-        coef, *_ = np.linalg.lstsq(A, y, rcond=None)
-        return A @ coef - y, coef, A
-
-    candidates: list[tuple[float | None, bool]] = [(None, False)]
-    if geom.section.profile == "round":
-        th_max = float(geom.theta.max())
-        candidates += [(t, lb) for t in np.linspace(0.05, 0.95, 10) * th_max for lb in (False, True)]
-
-    def fit(term: float | None, lit_below: bool, x0: np.ndarray, nfev: int):
-        basis = _strip_basis(geom, term, lit_below)
-        res = least_squares(
-            lambda p: solve(p, basis)[0], x0, diff_step=1e-3, max_nfev=nfev, x_scale=[0.1, 0.1]
-        )
-        return res, basis
-
-    # The offset has local minima on narrow strips (strip and border trade places): start from the best
-    # of a grid over offset and blur.
-    if geom.section.profile == "round":
-        # a generic strip shape (four free levels across it) for the search, so that a light whose
-        # terminator crosses the arc does not lead it astray before the physical shading is fitted
-        b0 = np.kron(np.eye(4), np.ones((_STRIP_CELLS // 4, 1)))
+    round_ = geom.section.profile == "round"
+    w_med = float(np.median(width))
+    # cells of at most half a pixel across a rounding's strip (its shading changes across it); a chamfer's
+    # is one level
+    n_cells = int(np.clip(math.ceil(2.0 * w_med), 4, _STRIP_CELLS)) if round_ else 1
+    prob = _StripProblem(r, x, outer, width, n_cells, _PHASE_BINS)
+    if round_:
+        # A rounding's shading free, piecewise linear across its strip on parts at least _PART_PX wide
+        # (what the blur leaves of the shading's detail): a Lambert model of the arc would need the light,
+        # and a light whose terminator crosses the arc, a glossy finish or another reflectance would lead
+        # it astray (0.36-0.58 mm on the arris bench), where free levels follow any shading.
+        n_parts = int(np.clip(math.floor(w_med / _PART_PX), 1, 8))
+        # piecewise linear in the strip's width (hat functions on n_parts + 1 knots, at the cells' centres)
+        tau = (np.arange(n_cells) + 0.5) / n_cells
+        basis0 = np.maximum(0.0, 1.0 - np.abs(tau[:, None] * n_parts - np.arange(n_parts + 1)[None, :]))
     else:
-        b0 = _strip_basis(geom, None, False)
+        basis0 = np.ones((n_cells, 1))  # a chamfer's strip: one level
 
-    def cost0(p: tuple[float, float]) -> float:
-        return float(np.sum(solve(np.array(p), b0)[0] ** 2))
+    # The offset has local minima on narrow strips (strip and border trade places): profile the misfit over
+    # a grid of offsets across the search range (the blur refitted at each), and refine from the best.
+    # A strip at the face's level and one at the background's are both a plain step, at the outer or at
+    # the inner border: the search (and the posterior) spans both, a strip's width and more either way.
+    reach = search_px + max(2.0, w_med + 1.0)
+    step = max(0.2, reach / 10.0)
+    grid = np.arange(-reach, reach + 1e-9, step)
+    sg, ev = prob.profile_blur(grid, np.full(grid.size, max(blur0, 0.7)), basis0, n_iter=2)
+    i0 = int(np.argmin(ev.chi2))
+    d0, s0, ev0 = prob.refine(float(grid[i0]), float(sg[i0]), basis0)
 
-    reach = search_px + 2.0
-    coarse = sorted(np.arange(-reach, reach + 0.01, 1.0), key=lambda d: cost0((d, max(blur0, 0.7))))
-    centres: list[float] = []
-    for d in coarse:  # the two best coarse offsets at distinct places
-        if all(abs(d - d1) > 1.5 for d1 in centres):
-            centres.append(float(d))
-        if len(centres) == 2:
-            break
-    grid = sorted(
-        (cost0((c + d, sg)), c + d, sg)
-        for c in centres
-        for d in np.arange(-1.0, 1.01, 0.5)
-        for sg in (0.3, 0.8, 1.6)
-    )
-    starts: list[tuple[float, float]] = []
-    for _, d, sg in grid:  # the best starts at distinct offsets
-        if all(abs(d - d1) > 0.75 for d1, _ in starts):
-            starts.append((d, sg))
-        if len(starts) == 2:
-            break
-    res, basis = min(
-        (fit(None, False, np.array(st), 20) for st in starts), key=lambda rb: float(np.sum(rb[0].fun ** 2))
-    )
-    best: tuple[float, float | None, bool, Any, np.ndarray] = (
-        float(np.sum(res.fun**2)),
-        None,
-        False,
-        res,
-        basis,
-    )
-    for term, lb in candidates[1:]:
-        b = _strip_basis(geom, term, lb)
-        cost = float(np.sum(solve(res.x, b)[0] ** 2))
-        if cost < best[0] * 0.98:
-            best = (cost, term, lb, None, b)
-    if best[3] is None:
-        # a light whose terminator crosses the arc: refine where, with the offset and the blur
-        lit_below = best[2]
+    basis = basis0
+    alt: tuple[float, float] | None = None  # the other shading model's misfit and deficit
+    if round_:
+        # The free shading lets the level next to the silhouette trade off with the border's place; a
+        # Lambert arc (the light's direction unknown, its terminator anywhere) does not. It is taken where
+        # it explains the profiles about as well as the free shading (the extra parameters' worth of misfit
+        # and three standard deviations of it more, at the misfit's scale).
+        t_free = max(float(ev0.chi2[0]) / max(prob.y.size - basis0.shape[1] - 4, 1), noise**2)
+        cands = [_strip_basis(geom, n_cells, None, False)] + [
+            _strip_basis(geom, n_cells, t, lb)
+            for t in np.linspace(0.025, 0.975, 20) * float(geom.theta.max())
+            for lb in (False, True)
+        ]
+        costs = [float(prob.evaluate(np.array([d0]), np.array([s0]), b).chi2[0]) for b in cands]
+        j = int(np.argmin(costs))
+        b1 = cands[j] if costs[j] < costs[0] * 0.98 else cands[0]
+        d1, s1, ev1 = prob.refine(d0, s0, b1)
+        extra = max(basis0.shape[1] - b1.shape[1], 1)
+        if (float(ev1.chi2[0]) - float(ev0.chi2[0])) / t_free <= extra + 3.0 * math.sqrt(2.0 * extra):
+            alt = (float(ev0.chi2[0]), float(ev0.deficit[0]))
+            basis, d0, s0, ev0 = b1, d1, s1, ev1
+        else:
+            alt = (float(ev1.chi2[0]), float(ev1.deficit[0]))
 
-        def fun3(p: np.ndarray) -> np.ndarray:
-            return solve(p[:2], _strip_basis(geom, float(p[2]), lit_below))[0]
+    # The posterior of the deficit along the valley: the coarse profile over the whole search range, and
+    # around each of its valleys a fine one (its width from that valley's curvature) that resolves it.
+    # Another valley (a strip at the face's level, seen as one at the background's a strip's width away)
+    # may be as deep as the optimum's but narrower than the coarse step: its best point is refined too.
+    dof_b = max(prob.y.size - basis.shape[1] - 4, 1)
+    # The residual variance per binned row: the noise, and what the model misses. Within one valley that
+    # is the scale of the misfit (T_loc). Between valleys, and along a flat one, the misfit's excess is the
+    # model's error, the same on every bin (the same shape at about the same phase): it does not average
+    # down over the bins as the noise does, so there the bins weigh as one (T_glob). A model that misses
+    # its profiles by more than their noise then cannot choose between two places for the border by
+    # less than its own error.
+    t_b = float(ev0.chi2[0]) / dof_b
+    T_loc = max(t_b, noise**2)
+    T_glob = noise**2 + prob.count.size * max(t_b - noise**2, 0.0)
+    c = ev.chi2
+    local = [
+        i
+        for i in range(c.size)
+        if abs(grid[i] - d0) > 1.0 and (i == 0 or c[i] <= c[i - 1]) and (i == c.size - 1 or c[i] <= c[i + 1])
+    ]
+    modes = [(d0, s0, ev0)] + [
+        prob.refine(float(grid[i]), float(sg[i]), basis, n_iter=8)
+        for i in sorted(local, key=lambda i: c[i])[:2]
+    ]
+    keep = np.ones(grid.size, bool)
+    fines: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+    for k, (dm, sm, em) in enumerate(modes):
+        if k and min(abs(dm - d1) for d1, _, _ in modes[:k]) < 0.2:
+            continue  # refined into a valley already resolved
+        assert em.hess is not None
+        try:
+            s_m = math.sqrt(max(float(np.linalg.inv(em.hess[0] / 2.0)[0, 0]) * T_loc, 0.0))
+        except np.linalg.LinAlgError:
+            s_m = step
+        s_m = float(np.clip(s_m, 1e-3, step))
+        fine = dm + s_m * np.linspace(-6.0, 6.0, 25)
+        _, evf = prob.profile_blur(fine, np.full(fine.size, sm), basis, n_iter=2)
+        keep &= np.abs(grid - dm) > 6.0 * s_m
+        fines.append((fine, evf.chi2, evf.deficit))
+    if basis is basis0:  # the coarse profile is this model's already
+        evc = ev
+    else:
+        _, evc = prob.profile_blur(grid, sg, basis, n_iter=2)
+    chi_min = min(float(evc.chi2[keep].min()) if keep.any() else np.inf, *(float(f[1].min()) for f in fines))
+    # log-likelihood: the coarse points against the best at T_glob; each valley's fine points against
+    # the valley's own best at T_loc, and that best against the overall best at T_glob
+    ll = [-(evc.chi2[keep] - chi_min) / (2.0 * T_glob)] + [
+        -(f[1] - f[1].min()) / (2.0 * T_loc) - (float(f[1].min()) - chi_min) / (2.0 * T_glob) for f in fines
+    ]
+    deltas = np.concatenate([grid[keep], *(f[0] for f in fines)])
+    order = np.argsort(deltas)
+    deltas = deltas[order]
+    dfc = np.concatenate([evc.deficit[keep], *(f[2] for f in fines)])[order]
+    logp = np.concatenate(ll)[order] - 0.5 * ((dfc - PRIOR_DEFICIT) / PRIOR_SIGMA) ** 2
+    dens = np.exp(logp - logp.max())
+    # trapezoid weights over the (unevenly spaced) offsets
+    gaps = np.diff(deltas)
+    tw = np.zeros(deltas.size)
+    tw[:-1] += 0.5 * gaps
+    tw[1:] += 0.5 * gaps
+    pw = dens * tw
+    pw /= pw.sum()
+    deficit = float(pw @ dfc)
+    post_sd = math.sqrt(max(float(pw @ (dfc - deficit) ** 2), 0.0))
+    if alt is not None:
+        # The other shading model (Lambert arc or free shading) is one more place for the answer, weighed
+        # as another valley is: a rounding whose two models disagree is in doubt by their difference.
+        w_alt = math.exp(-min(max((alt[0] - float(ev0.chi2[0])) / (2.0 * T_glob), -30.0), 30.0))
+        mean = (deficit + w_alt * alt[1]) / (1.0 + w_alt)
+        post_sd = math.sqrt(post_sd**2 + w_alt / (1.0 + w_alt) ** 2 * (alt[1] - deficit) ** 2)
+        deficit = mean
 
-        r3 = least_squares(fun3, np.r_[res.x, best[1]], diff_step=1e-3, max_nfev=20, x_scale=[0.1, 0.1, 0.05])
-        if np.sum(r3.fun**2) < np.sum(res.fun**2):
-            basis = _strip_basis(geom, float(r3.x[2]), lit_below)
-            res = least_squares(
-                lambda p: solve(p, basis)[0], r3.x[:2], diff_step=1e-3, max_nfev=5, x_scale=[0.1, 0.1]
-            )
-    resid, coef, A = solve(res.x, basis)
-    c0, cb, band = coef[0], coef[1], coef[2:]
-    levels = (basis @ band - c0) / (cb - c0)
-    deficit = float(np.mean(1.0 - levels))
-    # standard error of the deficit: linear-parameter covariance at the optimum, plus the offset and the
-    # blur through a numerical derivative (they trade off with the strip's level on narrow strips)
-    dof = max(y.size - A.shape[1] - 2, 1)
-    s2 = float(resid @ resid) / dof
-    eps = np.array([1e-3, 1e-3])
-    J = np.empty((y.size, 2))
-    model = A @ coef
-    for i in range(2):
-        p = res.x.copy()
-        p[i] += eps[i]
-        J[:, i] = (solve(p, basis)[2] @ coef - model) / eps[i]  # at fixed levels: the joint Jacobian
-    full = np.concatenate([A, J], axis=1)
-    try:
-        cov = s2 * np.linalg.pinv(full.T @ full)
-    except np.linalg.LinAlgError:
-        return None
-    # d deficit / d (c0, cb, band coefficients); the nonlinear ones act through the linear refit (ignored here)
-    k = basis.shape[1]
-    g = np.zeros(full.shape[1])
-    mean_basis = basis.mean(axis=0)
-    f_mean = float(mean_basis @ band)
-    D = cb - c0
-    g[0] = (1.0 / D) - (f_mean - c0) / D**2
-    g[1] = (f_mean - c0) / D**2
-    g[2 : 2 + k] = -mean_basis / D
-    var = float(g @ cov @ g)
-    misfit = math.sqrt(s2) / max(noise, 1e-6)
-    # Profiles along one edge share their texture and their plateau errors: the residuals are not
-    # independent from line to line, which the plain standard error ignores. Widen it by the misfit.
-    stat = math.sqrt(max(var, 0.0)) * max(misfit, 1.0)
     # The model's own doubt: a strip narrower than the blur looks like a wider blur with another strip
-    # level (the two trade off along a valley that noise-free data hardly tells apart, and the real
-    # optics are no exact Gaussian). How far the deficit moves when the blur is off by BLUR_DOUBT:
-    moved = []
-    for d_sigma in (-BLUR_DOUBT, BLUR_DOUBT):
-        sg = max(abs(res.x[1]) + d_sigma, 0.05)
-        r1 = least_squares(
-            lambda p, sg=sg: solve(np.array([p[0], sg]), basis)[0],
-            res.x[:1],
-            diff_step=1e-3,
-            max_nfev=8,
-            x_scale=[0.1],
-        )
-        _, c1, _ = solve(np.array([r1.x[0], sg]), basis)
-        lv = (basis @ c1[2:] - c1[0]) / (c1[1] - c1[0])
-        moved.append(abs(float(np.mean(1.0 - lv)) - deficit))
-    sigma = math.hypot(stat, max(moved))
-    # Combined with the prior (0.5 +- 0.5): where the profiles leave the deficit in doubt, the answer
-    # leans towards a mid-grey strip, whose worst case is half the strip's width.
-    w_data, w_pri = 1.0 / max(sigma, 1e-9) ** 2, 1.0 / PRIOR_SIGMA**2
-    deficit = (w_data * deficit + w_pri * PRIOR_DEFICIT) / (w_data + w_pri)
-    sigma = 1.0 / math.sqrt(w_data + w_pri)
-    model_profiles = model[:-1].reshape(r.shape)
+    # level, and the real optics are no exact Gaussian. How far the deficit moves when the blur is off by
+    # BLUR_DOUBT (the offset refitted):
+    sgm = np.maximum(s0 + np.array([-BLUR_DOUBT, BLUR_DOUBT]), 0.05)
+    dd = np.full(2, d0)
+    for _ in range(3):
+        e1 = prob.evaluate(dd, sgm, basis, jac=True)
+        assert e1.grad is not None and e1.hess is not None
+        dd = dd - np.clip(e1.grad[:, 0] / np.maximum(e1.hess[:, 0, 0], 1e-300), -0.5, 0.5)
+    e1 = prob.evaluate(dd, sgm, basis)
+    moved = float(np.max(np.abs(e1.deficit - ev0.deficit[0])))
+    sigma = min(math.hypot(post_sd, moved), PRIOR_SIGMA)
+
+    # the fitted profiles themselves (every line, not binned), for the caller's window correction
+    bounds = (outer[None, :, None] + d0) + width[None, :, None] * prob.frac
+    prim, _, _ = _pixel_terms(prob.edges, bounds, np.array([s0]))
+    M, const = _mix(basis, n_cells)
+    model = (prim @ M + const)[0] @ ev0.coef[0]  # (N, P)
+    resid = model - r
+    dof = max(r.size - basis.shape[1] - 4, 1)
+    misfit = math.sqrt(float(np.sum(resid**2)) / dof) / max(noise, 1e-6)
+    c0, cb, band = ev0.coef[0, 0], ev0.coef[0, 1], ev0.coef[0, 2:]
+    levels = (basis @ band - c0) / (cb - c0)
     return StripFit(
         deficit,
         sigma,
-        float(res.x[0]),
-        float(abs(res.x[1])),
+        d0,
+        s0,
         misfit,
         levels,
-        model_profiles,
-        outer + res.x[0],
+        model,
+        outer + d0,
+        float(np.mean(1.0 - levels)),
     )
 
 
@@ -509,7 +668,7 @@ def arris_edges(
         a_m = mod[:, plateau - nl : plateau].mean(axis=1)
         b_m = mod[:, length - plateau : length - plateau + nl].mean(axis=1)
         s_m = (mod[:, plateau : length - plateau] - a_m[:, None]).sum(axis=1)
-        e_m = (length - 2 * plateau - 0.5) - s_m / (b_m - a_m) - w[pick] * fit.deficit
+        e_m = (length - 2 * plateau - 0.5) - s_m / (b_m - a_m) - w[pick] * fit.model_deficit
         bias = float(np.median(e_m - (fit.border - plateau)))
     if fit is None:
         nan = np.full(len(scan), np.nan)
