@@ -693,15 +693,7 @@ def _refine(
         samples, far_beside, far_fit = sampled.samples, sampled.far_beside, sampled.far_fit
         if far_beside and _pass >= 1 and not np.isfinite(optical_blur) and ref0 is not None:
             # The far face came into view after the first pass: measure the blur and look again.
-            optical_blur = step_blur(
-                plane,
-                ref0.samples,
-                ref0.mask,
-                cfg.half_window_max,
-                cfg.plateau,
-                ref0.lut,
-                blur_px=math.sqrt(max(blur * blur - 1.0 / 12.0, 0.04)),
-            )
+            optical_blur = _optical_blur(plane, ref0, cfg, blur, arris_fits)
             n_pass = max(n_pass, _pass + 2)
         elif far_beside and _pass == 1:
             # The far face's band width follows from the thickness being measured: one more round.
@@ -728,18 +720,40 @@ def _refine(
             )
             ref0 = _Profiles(samples["reference"], fit.weights["reference"] > 0, lut)
             if far_beside:
-                # The far arris model needs the optical blur alone: measured on the plain reference arris.
-                optical_blur = step_blur(
-                    plane,
-                    ref0.samples,
-                    ref0.mask,
-                    cfg.half_window_max,
-                    cfg.plateau,
-                    lut,
-                    blur_px=math.sqrt(max(blur * blur - 1.0 / 12.0, 0.04)),
-                )
+                # The far arris model needs the optical blur alone: measured on the reference arris.
+                optical_blur = _optical_blur(plane, ref0, cfg, blur, arris_fits)
         _pass += 1
     return samples, fit, pose, blur, half, far_beside, far_fit, sampled.step_fitted
+
+
+def _optical_blur(
+    plane,
+    ref: _Profiles,
+    cfg: LocateConfig,
+    transition_px: float,
+    arris_fits: dict[str, tuple[StripFit, float]] | None,
+) -> float:
+    """The optical blur (Gaussian sigma, px) that the far-face model needs, from the reference arris.
+
+    On a plain reference arris the step's own blur (:func:`doorloc.vision.edges.step_blur`). Where the
+    reference arris has a chamfered or rounded strip, its profile is background | strip | face: a step
+    blur fit would take the strip's width for blur (3.5 px on the effects fixtures' 1.5 mm chamfer for an
+    optical blur of 0.8 px; the far-face fit then lost every scan line and the frame was refused), so
+    the blur that the strip's shading fit found with the strip modelled is used instead.
+    """
+    if arris_fits and "reference" in arris_fits:
+        b = float(arris_fits["reference"][0].blur_px)
+        if math.isfinite(b) and b > 0:
+            return b
+    return step_blur(
+        plane,
+        ref.samples,
+        ref.mask,
+        cfg.half_window_max,
+        cfg.plateau,
+        ref.lut,
+        blur_px=math.sqrt(max(transition_px * transition_px - 1.0 / 12.0, 0.04)),
+    )
 
 
 def _locate(
