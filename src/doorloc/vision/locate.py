@@ -56,7 +56,14 @@ from doorloc.vision.lines import ImageLine, RectangleFit, fit_rectangle_edges, r
 from doorloc.vision.luminance import ImageFormatError, LuminancePlane, luminance_plane
 from doorloc.vision.metric import MetricPose, pose_from_fit
 from doorloc.vision.region import EDGE_NAMES, Band, SearchRegion
-from doorloc.vision.response import response_doubt_px
+from doorloc.vision.response import (
+    LineResponse,
+    ResponseFit,
+    combine_responses,
+    edge_shift_px,
+    fit_line_response,
+    plateau_levels,
+)
 from doorloc.vision.result import LineQuality, LocateResult, PhysicalModel, PoseUncertainty, Provenance
 from doorloc.vision.uncertainty import (
     EDGE_MODEL_FLOOR_PX,
@@ -785,12 +792,36 @@ def _locate(
     samples, fit, pose, blur, half, far_beside, far_fit, step_fitted = _refine(
         plane, s8, region, pose, cfg, clock, cell.response_gamma, arris_fits
     )
+    used_cell = cell
+    response, per_line = _measure_response(plane, samples, fit, half, blur, cell, far_beside, arris_fits)
+    response_diag: dict[str, Any] = {"cell_gamma": cell.response_gamma, "absorbed": False}
+    if response is not None and response.absorb:
+        # The plain edges show another camera response than the cell's: measure again with theirs (the
+        # bias a wrong response gives every edge, arris strips included, is then gone), and check again.
+        response_diag.update(absorbed=True, first_fit=round(response.gamma, 4))
+        used_cell = replace(cell, response_gamma=response.gamma)
+        arris_fits = {}
+        samples, fit, pose, blur, half, far_beside, far_fit, step_fitted = _refine(
+            plane, s8, region, pose, cfg, clock, response.gamma, arris_fits
+        )
+        again = _measure_response(plane, samples, fit, half, blur, used_cell, far_beside, arris_fits)
+        if again[0] is not None:
+            response, per_line = again
+    if response is not None:
+        response_diag.update(
+            fitted=round(response.gamma, 4),
+            sigma=round(response.sigma, 4),
+            lines={
+                k: {"gamma": round(v.gamma, 4), "sigma": round(v.sigma, 4), "skew_px": round(v.skew_px, 4)}
+                for k, v in per_line.items()
+            },
+        )
     tr.samples = samples
     tr.inliers = {k: fit.weights[k] > 0 for k in EDGE_NAMES}
     tr.pose = pose
     res = _gate_and_answer(
         name,
-        cell,
+        used_cell,
         door,
         cfg,
         region,
@@ -805,7 +836,9 @@ def _locate(
         step_fitted,
         far_fit,
         arris_fits,
+        response,
     )
+    res.diagnostics["camera_response"] = response_diag
     res.diagnostics["far_face_visible"] = far_beside
     if far_fit is not None:
         res.diagnostics["far_face_fit"] = {
@@ -905,6 +938,74 @@ def _response_check_applies(samples: EdgeSamples, inliers: np.ndarray, blur_px: 
     return blur_px >= 0.5 and phases >= 4
 
 
+def _measure_response(
+    plane,
+    samples: dict[str, EdgeSamples],
+    fit: RectangleFit,
+    half: int,
+    transition_px: float,
+    cell: Cell,
+    far_beside: bool,
+    arris_fits: dict[str, tuple[StripFit, float]] | None,
+) -> tuple[ResponseFit | None, dict[str, LineResponse]]:
+    """The camera response measured on the plain edges (:func:`doorloc.vision.response.fit_line_response`).
+
+    Plain: the bottom end and the reference arris without an arris strip, at many pixel phases and blurred
+    (:func:`_response_check_applies`). None where no edge qualifies.
+    """
+    blur_px = (
+        math.sqrt(max(transition_px * transition_px - 1.0 / 12.0, 0.0))
+        if math.isfinite(transition_px)
+        else 0.0
+    )
+    per_line: dict[str, LineResponse] = {}
+    for k in EDGE_NAMES:
+        if k == "far" or (arris_fits and k in arris_fits):
+            continue  # the far arris: a far face seen edge-on can make a narrow band beside it
+        inl = fit.weights[k] > 0
+        if not _response_check_applies(samples[k], inl, blur_px):
+            continue
+        lr = fit_line_response(plane, samples[k], inl, half, cell.response_gamma, blur_px)
+        if lr is not None:
+            per_line[k] = lr
+    return combine_responses(per_line, cell.response_gamma), per_line
+
+
+def _response_terms(
+    plane,
+    samples: dict[str, EdgeSamples],
+    fit: RectangleFit,
+    half: int,
+    used_gamma: float,
+    response: ResponseFit,
+    far_beside: bool,
+    model: EdgeModelTerms,
+) -> None:
+    """Each line's response doubt (px) into ``model.extra_px[line]["response"]``, from the step model.
+
+    The edge was measured with ``used_gamma``; the camera's exponent is ``response.gamma`` +-
+    ``response.sigma``. The doubt is the shift that the difference makes
+    (:func:`doorloc.vision.response.edge_shift_px` between the line's own plateaus, at the measured
+    blur) in quadrature with half the shift between the exponent's -1 and +1 sigma values. An arris
+    line takes the same step model between its background and its face (its strip is lit, not
+    skewed by the response alone: a first-order figure).
+    """
+    for k in EDGE_NAMES:
+        if k == "far" and far_beside:
+            continue  # the far-face model reports its own doubt
+        inl = fit.weights[k] > 0
+        lo, hi = plateau_levels(plane, samples[k], inl & samples[k].valid, half)
+        g, sg = response.gamma, response.sigma
+        b = model.blur_px
+        bias = edge_shift_px(lo, hi, g, used_gamma, b, half)
+        spread = 0.5 * (
+            edge_shift_px(lo, hi, g + sg, used_gamma, b, half)
+            - edge_shift_px(lo, hi, max(g - sg, 0.05), used_gamma, b, half)
+        )
+        if math.isfinite(bias) and math.isfinite(spread):
+            model.extra_px.setdefault(k, {})["response"] = math.hypot(bias, spread)
+
+
 def _gate_and_answer(
     name,
     cell,
@@ -922,6 +1023,7 @@ def _gate_and_answer(
     step_fitted: dict[str, float] | None = None,
     far_fit: FarFaceFit | None = None,
     arris_fits: dict[str, tuple[StripFit, float]] | None = None,
+    response: ResponseFit | None = None,
 ) -> LocateResult:
     lines, refusals = [], []
     corner_px = pose.corner_px
@@ -962,17 +1064,8 @@ def _gate_and_answer(
                 "misfit": round(strip.misfit, 3),
                 "offset_px": round(strip.offset_px, 4),
             }
-        elif not (k == "far" and far_beside) and _response_check_applies(samples[k], inl, model.blur_px):
-            # A plain step: is its transition symmetric in linear light (is the camera response right)?
-            doubt, skew, se = response_doubt_px(
-                plane, samples[k], inl, half, linearizing_lut(plane.dtype, cell.response_gamma), model.blur_px
-            )
-            if np.isfinite(doubt):
-                model.extra_px.setdefault(k, {})["response"] = doubt
-                diagnostics.setdefault("response_skew_px", {})[k] = {
-                    "skew": round(skew, 4),
-                    "se": round(se, 4),
-                }
+    if response is not None:
+        _response_terms(plane, samples, fit, half, cell.response_gamma, response, far_beside, model)
     for k in EDGE_NAMES:
         s = samples[k]
         w = fit.weights[k]
