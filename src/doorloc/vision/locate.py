@@ -793,7 +793,7 @@ def _locate(
         plane, s8, region, pose, cfg, clock, cell.response_gamma, arris_fits
     )
     used_cell = cell
-    response, per_line = _measure_response(plane, samples, fit, half, blur, cell, far_beside, arris_fits)
+    response, per_line = _measure_response(plane, samples, fit, half, blur, cell, cfg, arris_fits)
     response_diag: dict[str, Any] = {"cell_gamma": cell.response_gamma, "absorbed": False}
     if response is not None and response.absorb:
         # The plain edges show another camera response than the cell's: measure again with theirs (the
@@ -804,7 +804,7 @@ def _locate(
         samples, fit, pose, blur, half, far_beside, far_fit, step_fitted = _refine(
             plane, s8, region, pose, cfg, clock, response.gamma, arris_fits
         )
-        again = _measure_response(plane, samples, fit, half, blur, used_cell, far_beside, arris_fits)
+        again = _measure_response(plane, samples, fit, half, blur, used_cell, cfg, arris_fits)
         if again[0] is not None:
             response, per_line = again
     if response is not None:
@@ -837,6 +837,7 @@ def _locate(
         far_fit,
         arris_fits,
         response,
+        bool(response_diag["absorbed"]),
     )
     res.diagnostics["camera_response"] = response_diag
     res.diagnostics["far_face_visible"] = far_beside
@@ -945,7 +946,7 @@ def _measure_response(
     half: int,
     transition_px: float,
     cell: Cell,
-    far_beside: bool,
+    cfg: LocateConfig,
     arris_fits: dict[str, tuple[StripFit, float]] | None,
 ) -> tuple[ResponseFit | None, dict[str, LineResponse]]:
     """The camera response measured on the plain edges (:func:`doorloc.vision.response.fit_line_response`).
@@ -966,8 +967,22 @@ def _measure_response(
         if not _response_check_applies(samples[k], inl, blur_px):
             continue
         lr = fit_line_response(plane, samples[k], inl, half, cell.response_gamma, blur_px)
-        if lr is not None:
-            per_line[k] = lr
+        if lr is None:
+            continue
+        # Texture beside the edge (grain along it) skews the transition the same way on every scan line,
+        # which the block scatter does not see: the edge bias it can make (the texture term) read as an
+        # exponent error through the step model's sensitivity, in quadrature.
+        tex = texture_bias(
+            plane, samples[k], inl, half, cfg.plateau, linearizing_lut(plane.dtype, cell.response_gamma)
+        ).offset_sigma_px
+        dg = 0.05 * lr.gamma
+        slope = abs(
+            edge_shift_px(lr.lo, lr.hi, lr.gamma + dg, lr.gamma, blur_px, half)
+            - edge_shift_px(lr.lo, lr.hi, lr.gamma - dg, lr.gamma, blur_px, half)
+        ) / (2 * dg)
+        if math.isfinite(tex) and tex > 0 and slope > 0:
+            lr = replace(lr, sigma=math.hypot(lr.sigma, tex / slope))
+        per_line[k] = lr
     return combine_responses(per_line, cell.response_gamma), per_line
 
 
@@ -980,15 +995,16 @@ def _response_terms(
     response: ResponseFit,
     far_beside: bool,
     model: EdgeModelTerms,
+    absorbed: bool = False,
 ) -> None:
     """Each line's response doubt (px) into ``model.extra_px[line]["response"]``, from the step model.
 
     The edge was measured with ``used_gamma``; the camera's exponent is ``response.gamma`` +-
-    ``response.sigma``. The doubt is the shift that the difference makes
-    (:func:`doorloc.vision.response.edge_shift_px` between the line's own plateaus, at the measured
-    blur) in quadrature with half the shift between the exponent's -1 and +1 sigma values. An arris
-    line takes the same step model between its background and its face (its strip is lit, not
-    skewed by the response alone: a first-order figure).
+    ``response.sigma``. The shift that the difference makes (:func:`doorloc.vision.response.edge_shift_px`
+    between the line's own plateaus, at the measured blur) counts beyond twice the shift of the exponent's
+    1-sigma (within that the edges agree with the exponent in use, and a right cell keeps its small
+    sigma); after ``absorbed`` (the exponent in use was fitted) that 1-sigma shift counts too. An arris
+    line takes the same step model between its background and its face (a first-order figure).
     """
     for k in EDGE_NAMES:
         if k == "far" and far_beside:
@@ -998,12 +1014,17 @@ def _response_terms(
         g, sg = response.gamma, response.sigma
         b = model.blur_px
         bias = edge_shift_px(lo, hi, g, used_gamma, b, half)
-        spread = 0.5 * (
+        spread = 0.5 * abs(
             edge_shift_px(lo, hi, g + sg, used_gamma, b, half)
             - edge_shift_px(lo, hi, max(g - sg, 0.05), used_gamma, b, half)
         )
-        if math.isfinite(bias) and math.isfinite(spread):
-            model.extra_px.setdefault(k, {})["response"] = math.hypot(bias, spread)
+        if not (math.isfinite(bias) and math.isfinite(spread)):
+            continue
+        # the shift the measured mismatch makes beyond twice its own doubt (within that, the edges agree
+        # with the exponent in use)
+        excess = max(abs(bias) - 2.0 * spread, 0.0)
+        # once absorbed, the exponent in use is itself a measurement: its doubt counts in full
+        model.extra_px.setdefault(k, {})["response"] = math.hypot(excess, spread) if absorbed else excess
 
 
 def _gate_and_answer(
@@ -1024,6 +1045,7 @@ def _gate_and_answer(
     far_fit: FarFaceFit | None = None,
     arris_fits: dict[str, tuple[StripFit, float]] | None = None,
     response: ResponseFit | None = None,
+    response_absorbed: bool = False,
 ) -> LocateResult:
     lines, refusals = [], []
     corner_px = pose.corner_px
@@ -1065,7 +1087,9 @@ def _gate_and_answer(
                 "offset_px": round(strip.offset_px, 4),
             }
     if response is not None:
-        _response_terms(plane, samples, fit, half, cell.response_gamma, response, far_beside, model)
+        _response_terms(
+            plane, samples, fit, half, cell.response_gamma, response, far_beside, model, response_absorbed
+        )
     for k in EDGE_NAMES:
         s = samples[k]
         w = fit.weights[k]

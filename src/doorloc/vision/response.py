@@ -18,9 +18,10 @@ What a response error does to the edge follows from the step model, not from a t
 :func:`edge_shift_px` is where the area estimator puts a Gaussian-blurred step between the line's two
 measured plateaus, linearised with one exponent when the camera's is another. Locate uses it for the
 response term of the uncertainty budget (``response_sigma_mm`` per line): where the fitted response
-differs from the cell's beyond ``RESPONSE_ABSORB_SIGMAS`` standard errors, locate measures again with the
-fitted one (the error is absorbed) and the doubt left is the shift that the exponent's standard error
-makes; otherwise the doubt also holds the shift between the cell's exponent and the fitted one.
+differs from the cell's beyond ``RESPONSE_ABSORB_SIGMAS`` standard errors on two edges or more, locate
+measures again with the fitted one (the error is absorbed) and the doubt left is the shift that the
+exponent's standard error makes; otherwise the doubt is the shift between the cell's exponent and the
+fitted one beyond twice that (a right cell keeps its small sigma).
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.ndimage import uniform_filter1d
 from scipy.optimize import minimize_scalar
 from scipy.special import ndtr
 
@@ -54,12 +56,16 @@ RESPONSE_SKEW_BLOCKS = 8
 RESPONSE_GAMMA_RANGE = (0.4, 5.0)
 #: half width of the window the transition is read over, in blur sigmas (plus 1.5 px)
 RESPONSE_WINDOW_BLURS = 3.0
+#: plateau pixels at each end of a profile that set its levels, and the scan lines (each side) they are
+#: averaged over
+RESPONSE_PLATEAU_PX = 3
+RESPONSE_LEVEL_ROWS = 8
 #: profiles the fit uses at most (every k-th along the line)
 RESPONSE_MAX_PROFILES = 320
 #: the smallest standard error of a line's exponent (8 blocks estimate a scatter to about +-25 %)
 RESPONSE_SIGMA_FLOOR = 0.02
 #: the fitted response replaces the cell's when it differs by more than this many standard errors
-RESPONSE_ABSORB_SIGMAS = 3.0
+RESPONSE_ABSORB_SIGMAS = 4.0
 
 
 @dataclass(frozen=True)
@@ -89,7 +95,8 @@ class ResponseFit:
     """The camera response of one image, pooled over its plain edges (:func:`combine_responses`).
 
     ``absorb`` says whether it differs from the cell's ``claimed`` exponent by more than
-    ``RESPONSE_ABSORB_SIGMAS`` standard errors (locate then measures again with ``gamma``).
+    ``RESPONSE_ABSORB_SIGMAS`` standard errors, measured on two edges at least (locate then measures
+    again with ``gamma``).
     """
 
     gamma: float
@@ -99,7 +106,8 @@ class ResponseFit:
 
     @property
     def absorb(self) -> bool:
-        return abs(self.gamma - self.claimed) > RESPONSE_ABSORB_SIGMAS * self.sigma
+        # two edges at least: one edge's texture can mimic a response, two rarely agree by chance
+        return len(self.lines) >= 2 and abs(self.gamma - self.claimed) > RESPONSE_ABSORB_SIGMAS * self.sigma
 
 
 def quantization_skew_px(step_dn: float, noise_dn: float, blur_px: float) -> float:
@@ -279,7 +287,7 @@ def fit_line_response(
     """
     # The window holds the whole transition (3 blur sigmas each side) and plateaus at both ends.
     half = max(half, int(math.ceil(RESPONSE_WINDOW_BLURS * max(blur_px, 0.0) + 1.5)))
-    t = _transitions(plane, samples, mask, half)
+    t = _transitions(plane, samples, mask, half + RESPONSE_PLATEAU_PX)
     if t is None:
         return None
     if t.raw.shape[0] > RESPONSE_MAX_PROFILES:  # evenly along the line: enough for the shape
@@ -309,14 +317,34 @@ def fit_line_response(
 def _asymmetry(t: _Transitions, rows: np.ndarray | slice, g: float) -> float:
     """How far the profiles, with raw levels raised to ``g``, are from a step blurred by an even spread.
 
-    Each profile is normalised by its two end pixels (its plateaus) and centred on its own area estimate
-    (exact for a pixel-integrated step under any even point-spread function); in linear light the pixel
-    values at distances ``+d`` and ``-d`` from that centre then add up to 1. Returns the mean square of
-    that sum's departure from 1 over 1/8-px bins of ``d`` filled on both sides (NaN if none are).
+    Each profile is normalised by its plateaus (the mean of ``RESPONSE_PLATEAU_PX`` pixels at each end,
+    averaged over ``2 RESPONSE_LEVEL_ROWS + 1`` neighbouring scan lines: single noisy end pixels raised to
+    the trial exponent would make the normalised noise, and so this measure's floor, depend on the
+    exponent and pull its minimum) and centred on its own area estimate (exact for a pixel-integrated
+    step under any even point-spread function); in linear light the pixel values at distances ``+d`` and
+    ``-d`` from that centre then add up to 1. Returns the mean square of that sum's departure from 1
+    over 1/8-px bins of ``d`` filled on both sides (NaN if none are).
     """
     raw = t.raw[rows]
     v = raw**g
-    lo, hi = v[:, :1], v[:, -1:]
+    pk = RESPONSE_PLATEAU_PX
+    # Shading across the edge (an illumination gradient, vignetting) multiplies the light by a slope
+    # that tilts both plateaus alike and would read as asymmetry: take it out, as the median relative
+    # slope of the plateau pixels over the line.
+    xs = np.arange(pk) - (pk - 1) / 2.0
+    rel = np.concatenate(
+        [
+            (v[:, :pk] @ xs) / (xs @ xs) / np.maximum(v[:, :pk].mean(axis=1), 1e-9),
+            (v[:, -pk:] @ xs) / (xs @ xs) / np.maximum(v[:, -pk:].mean(axis=1), 1e-9),
+        ]
+    )
+    tilt = float(np.median(rel))
+    if math.isfinite(tilt):
+        v = v / (1.0 + tilt * (np.arange(v.shape[1]) - (v.shape[1] - 1) / 2.0))[None, :]
+    size = min(2 * RESPONSE_LEVEL_ROWS + 1, v.shape[0])
+    lo = uniform_filter1d(v[:, :pk].mean(axis=1), size, mode="nearest")[:, None]
+    hi = uniform_filter1d(v[:, -pk:].mean(axis=1), size, mode="nearest")[:, None]
+    v = v[:, pk:-pk]
     span = hi - lo
     good = np.abs(span[:, 0]) > 1e-9
     if int(good.sum()) < 3:
@@ -329,14 +357,20 @@ def _asymmetry(t: _Transitions, rows: np.ndarray | slice, g: float) -> float:
     bins = np.round(d[inner] * 8).astype(int)
     off = -bins.min()
     acc = np.bincount(bins + off, weights=n[inner])
+    acc2 = np.bincount(bins + off, weights=n[inner] ** 2)
     cnt = np.bincount(bins + off)
     k = np.arange(1, min(off, acc.size - 1 - off) + 1)  # bins at +-d
-    both = (cnt[off + k] > 0) & (cnt[off - k] > 0)
+    both = (cnt[off + k] > 1) & (cnt[off - k] > 1)
     if int(both.sum()) < 4:
         return float("nan")
     kk = k[both]
-    r = acc[off + kk] / cnt[off + kk] + acc[off - kk] / cnt[off - kk] - 1.0
-    return float(np.mean(r * r))
+    mean = np.where(cnt > 0, acc / np.maximum(cnt, 1), 0.0)
+    # the noise in each bin's mean, taken out of the square: it changes with the exponent (the trial
+    # exponent stretches the grey levels' noise unevenly) and would pull the minimum towards the exponent
+    # of least normalised noise (a low one on low-contrast, noisy edges)
+    var_mean = np.where(cnt > 1, (acc2 / np.maximum(cnt, 1) - mean**2) / np.maximum(cnt - 1, 1), 0.0)
+    r = mean[off + kk] + mean[off - kk] - 1.0
+    return float(np.mean(r * r - var_mean[off + kk] - var_mean[off - kk]))
 
 
 def _least_asymmetric(t: _Transitions, rows: np.ndarray | slice, grid: np.ndarray) -> float:
