@@ -57,6 +57,7 @@ from doorloc.vision.luminance import ImageFormatError, LuminancePlane, luminance
 from doorloc.vision.metric import MetricPose, pose_from_fit
 from doorloc.vision.region import EDGE_NAMES, Band, SearchRegion
 from doorloc.vision.response import (
+    RESPONSE_PLAUSIBLE,
     LineResponse,
     ResponseFit,
     combine_responses,
@@ -1011,7 +1012,8 @@ def _response_terms(
             continue  # the far-face model reports its own doubt
         inl = fit.weights[k] > 0
         lo, hi = plateau_levels(plane, samples[k], inl & samples[k].valid, half)
-        g, sg = response.gamma, response.sigma
+        # a fit outside a camera's exponents is asymmetry the response cannot make: the nearest one counts
+        g, sg = float(np.clip(response.gamma, *RESPONSE_PLAUSIBLE)), response.sigma
         b = model.blur_px
         bias = edge_shift_px(lo, hi, g, used_gamma, b, half)
         spread = 0.5 * abs(

@@ -39,6 +39,7 @@ from doorloc.vision.edges import EdgeSamples, _gather, oriented
 __all__ = [
     "RESPONSE_ABSORB_SIGMAS",
     "RESPONSE_GAMMA_RANGE",
+    "RESPONSE_PLAUSIBLE",
     "RESPONSE_SKEW_BLOCKS",
     "LineResponse",
     "ResponseFit",
@@ -66,6 +67,9 @@ RESPONSE_MAX_PROFILES = 320
 RESPONSE_SIGMA_FLOOR = 0.02
 #: the fitted response replaces the cell's when it differs by more than this many standard errors
 RESPONSE_ABSORB_SIGMAS = 4.0
+#: the exponents a camera's response has (a linear sensor 1.0, video and sRGB about 2.2-2.4): only a fit
+#: inside is absorbed
+RESPONSE_PLAUSIBLE = (0.8, 3.0)
 
 
 @dataclass(frozen=True)
@@ -107,7 +111,13 @@ class ResponseFit:
     @property
     def absorb(self) -> bool:
         # two edges at least: one edge's texture can mimic a response, two rarely agree by chance
-        return len(self.lines) >= 2 and abs(self.gamma - self.claimed) > RESPONSE_ABSORB_SIGMAS * self.sigma
+        # and a camera's response: below ~0.8 (darks lifted) no camera is made; such a fit is texture or
+        # shading that the response cannot explain
+        return (
+            len(self.lines) >= 2
+            and RESPONSE_PLAUSIBLE[0] <= self.gamma <= RESPONSE_PLAUSIBLE[1]
+            and abs(self.gamma - self.claimed) > RESPONSE_ABSORB_SIGMAS * self.sigma
+        )
 
 
 def quantization_skew_px(step_dn: float, noise_dn: float, blur_px: float) -> float:
@@ -357,20 +367,14 @@ def _asymmetry(t: _Transitions, rows: np.ndarray | slice, g: float) -> float:
     bins = np.round(d[inner] * 8).astype(int)
     off = -bins.min()
     acc = np.bincount(bins + off, weights=n[inner])
-    acc2 = np.bincount(bins + off, weights=n[inner] ** 2)
     cnt = np.bincount(bins + off)
     k = np.arange(1, min(off, acc.size - 1 - off) + 1)  # bins at +-d
-    both = (cnt[off + k] > 1) & (cnt[off - k] > 1)
+    both = (cnt[off + k] > 0) & (cnt[off - k] > 0)
     if int(both.sum()) < 4:
         return float("nan")
     kk = k[both]
-    mean = np.where(cnt > 0, acc / np.maximum(cnt, 1), 0.0)
-    # the noise in each bin's mean, taken out of the square: it changes with the exponent (the trial
-    # exponent stretches the grey levels' noise unevenly) and would pull the minimum towards the exponent
-    # of least normalised noise (a low one on low-contrast, noisy edges)
-    var_mean = np.where(cnt > 1, (acc2 / np.maximum(cnt, 1) - mean**2) / np.maximum(cnt - 1, 1), 0.0)
-    r = mean[off + kk] + mean[off - kk] - 1.0
-    return float(np.mean(r * r - var_mean[off + kk] - var_mean[off - kk]))
+    r = acc[off + kk] / cnt[off + kk] + acc[off - kk] / cnt[off - kk] - 1.0
+    return float(np.mean(r * r))
 
 
 def _least_asymmetric(t: _Transitions, rows: np.ndarray | slice, grid: np.ndarray) -> float:
