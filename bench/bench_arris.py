@@ -4,14 +4,16 @@ Sets (each image: random pose inside the envelope, lighting, albedos, blur; see 
 
 - ``arris``: chamfer and round arrises of 0-3 mm, lit from either side (light azimuth +-10..80 deg);
 - ``gamma``: a camera of response gamma 1.0-2.4 and a cell file that says so;
-- ``wrong-gamma``: gamma 2.2 cameras and a cell file that says 1.0 (the error and the claimed uncertainty);
+- ``wrong-gamma``: cameras of gamma 1.0-2.4 and a cell file that says another value drawn from 1.0-2.4
+  (at least 0.3 away): the error and the claimed uncertainty (the camera response is absorbed or flagged);
+- ``wrong-gamma-2.2``: gamma 2.2 cameras and a cell file that says 1.0;
 - ``fixtures``: the committed rendered fixtures with a 1.5 mm chamfer and a gamma-2.2 camera
   (fixtures/rendered/effects), with the cell's ``response_gamma`` set to 2.2 and left at 1.0;
 - ``timing`` (not in the default sets): thread-CPU time per frame of locate on those fixtures, and the part
   spent in the arris strip fit (the median of a second pass over the 27 frames).
 
 Prints per image the seed, the conditions and the errors; per set the mean error (the bias), its
-standard error, RMS, and the fraction within 2 claimed sigma.
+standard error, RMS, the fraction within 2 claimed sigma and beyond 5, and the refusals with their codes.
 
     OMP_NUM_THREADS=1 PYTHONPATH=src python bench/bench_arris.py [--n 24] [--sets arris,gamma,wrong-gamma,fixtures]
 """
@@ -60,7 +62,7 @@ def random_effects(rng: np.random.Generator, profile: str, gamma: float) -> Effe
 def _row(label, seed, res, pose, door, extra=""):
     if not res.ok:
         print(f"  seed {seed:5d} {label:34s} REFUSED {res.error_code}: {res.error[:80]}")
-        return None
+        return ("refused", res.error_code)
     ex, ez = res.x_mm - pose.x_mm, res.z_mm - pose.z_mm
     ux, uz = res.uncertainty.x_mm, res.uncertainty.z_mm
     # the reported uncertainty plus the per-line edge-model doubts (arris correction, response check)
@@ -76,8 +78,10 @@ def _row(label, seed, res, pose, door, extra=""):
 
 
 def _summary(name, rows, n_total):
-    ok = [r for r in rows if r is not None]
-    print(f"{name}: {len(ok)}/{n_total} answered")
+    ok = [r for r in rows if r is not None and r[0] != "refused"]
+    codes = sorted({r[1] for r in rows if r is not None and r[0] == "refused"})
+    refused = {c: sum(1 for r in rows if r is not None and r[1] == c) for c in codes}
+    print(f"{name}: {len(ok)}/{n_total} answered; refused: {refused or 'none'}")
     if not ok:
         return
     a = np.array(ok)
@@ -85,9 +89,11 @@ def _summary(name, rows, n_total):
         e = a[:, k]
         se = e.std(ddof=1) / math.sqrt(len(e)) if len(e) > 1 else float("nan")
         within = float(np.mean(np.abs(e) <= 2 * a[:, k + 2]))
+        beyond = float(np.mean(np.abs(e) > 5 * a[:, k + 2]))
         print(
             f"  {lab}: bias {e.mean():+.4f} mm (+- {se:.4f} s.e.), RMS {np.sqrt(np.mean(e**2)):.4f}, "
-            f"max |{np.abs(e).max():.4f}|, within 2 sigma {within:.0%}"
+            f"max |{np.abs(e).max():.4f}|, within 2 sigma {within:.0%}, beyond 5 sigma {beyond:.0%}, "
+            f"median sigma {np.median(a[:, k + 2]):.4f}"
         )
 
 
@@ -110,26 +116,44 @@ def run_arris(n: int, seed0: int = 1000) -> None:
         _summary(f"arris {profile} 0-3 mm", rows, n)
 
 
-def run_gamma(n: int, wrong: bool = False, seed0: int = 3000) -> None:
+def run_gamma(n: int, wrong: bool = False, seed0: int = 3000, fixed: bool = True) -> None:
     base = load_cell(ROOT / "fixtures" / "cell_thesis.yaml")
     rows = []
     for i in range(n):
-        seed = seed0 + i + (500 if wrong else 0)
+        seed = seed0 + i + (500 if wrong else 0) + (0 if fixed else 1000)
         rng = np.random.default_rng(seed)
-        g = 2.2 if wrong else float(rng.uniform(1.0, 2.4))
+        g = 2.2 if wrong and fixed else float(rng.uniform(1.0, 2.4))
+        claimed = g
+        if wrong:
+            claimed = 1.0
+            while not fixed and abs(claimed - g) < 0.3:
+                claimed = round(float(rng.uniform(1.0, 2.4)), 2)
         profile = str(rng.choice(["chamfer", "round"]))
         a = float(rng.choice([0.0, rng.uniform(0.5, 3.0)]))
         door = DoorSize(900, 50, 2100, arris_mm=a, arris_profile=profile)
         pose = DoorPose(rng.uniform(-8, 8), rng.uniform(-8, 8), rng.uniform(-1.5, 1.5))
         fx = random_effects(rng, profile, g)
         img = render_door(base, door, pose, effects=fx, seed=seed).image
-        cell = dataclasses.replace(base, response_gamma=1.0 if wrong else g)
+        cell = dataclasses.replace(base, response_gamma=claimed)
         res = locate(img, cell, door)
+        resp = res.diagnostics.get("camera_response", {}) if res.ok else {}
+        fitted = f"fit {resp['fitted']:.2f}{'*' if resp.get('absorbed') else ''}" if "fitted" in resp else ""
         rows.append(
-            _row(f"gamma {g:.2f} cell {cell.response_gamma:.1f} {profile} a={a:.2f}", seed, res, pose, door)
+            _row(
+                f"gamma {g:.2f} cell {cell.response_gamma:.2f} {profile} a={a:.2f}",
+                seed,
+                res,
+                pose,
+                door,
+                fitted,
+            )
         )
     _summary(
-        "wrong response_gamma (camera 2.2, cell 1.0)"
+        (
+            "wrong response_gamma (camera 2.2, cell 1.0)"
+            if fixed
+            else "wrong response_gamma (camera and cell 1.0-2.4)"
+        )
         if wrong
         else "gamma 1.0-2.4 with the cell's response_gamma",
         rows,
@@ -208,7 +232,7 @@ def run_timing() -> None:
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--n", type=int, default=24)
-    ap.add_argument("--sets", default="arris,gamma,wrong-gamma,fixtures")
+    ap.add_argument("--sets", default="arris,gamma,wrong-gamma,wrong-gamma-2.2,fixtures")
     args = ap.parse_args()
     sets = args.sets.split(",")
     if "arris" in sets:
@@ -216,6 +240,8 @@ def main() -> None:
     if "gamma" in sets:
         run_gamma(args.n)
     if "wrong-gamma" in sets:
+        run_gamma(args.n, wrong=True, fixed=False)
+    if "wrong-gamma-2.2" in sets:
         run_gamma(args.n, wrong=True)
     if "fixtures" in sets:
         run_fixtures()

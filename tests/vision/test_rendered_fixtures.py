@@ -88,9 +88,10 @@ def test_plain_fixtures_are_accurate_and_covered(folder, n_ok, rms_mm, rms_deg, 
 def test_effects_fixtures_answers_never_overconfident():
     """1.5 mm chamfer, gamma-2.2 response, grain, vignetting, blur: what is answered is covered by its sigma.
 
-    Measured: 21 of 27 answered (refusals: edge_missing, uncertain, each with a message), RMS x 0.032
-    z 0.029 mm, yaw 0.005 deg; 95 % / 90 % / 90 % within 2 sigma, worst 3.6 sigma. (The arris
-    and response corrections of issue 11's other half should shrink both the errors and the refusals.)
+    Measured (cell as committed: response_gamma 1.0 for a gamma-2.2 camera): 26 of 27 answered (the
+    refusal: corner_hidden, with a message), RMS x 0.039 z 0.031 mm, yaw 0.011 deg; 100 % / 92 % / 88 %
+    within 2 sigma, worst 4.3 sigma (bench/bench_surfaces.py). Was 21 of 27: the far-face model took
+    its blur from a step fit across the chamfered reference arris.
     """
     err, sig, refused = _run("effects")
     assert len(err) >= 15, f"refused: {refused}"

@@ -56,7 +56,15 @@ from doorloc.vision.lines import ImageLine, RectangleFit, fit_rectangle_edges, r
 from doorloc.vision.luminance import ImageFormatError, LuminancePlane, luminance_plane
 from doorloc.vision.metric import MetricPose, pose_from_fit
 from doorloc.vision.region import EDGE_NAMES, Band, SearchRegion
-from doorloc.vision.response import response_doubt_px
+from doorloc.vision.response import (
+    RESPONSE_PLAUSIBLE,
+    LineResponse,
+    ResponseFit,
+    combine_responses,
+    edge_shift_px,
+    fit_line_response,
+    plateau_levels,
+)
 from doorloc.vision.result import LineQuality, LocateResult, PhysicalModel, PoseUncertainty, Provenance
 from doorloc.vision.uncertainty import (
     EDGE_MODEL_FLOOR_PX,
@@ -693,15 +701,7 @@ def _refine(
         samples, far_beside, far_fit = sampled.samples, sampled.far_beside, sampled.far_fit
         if far_beside and _pass >= 1 and not np.isfinite(optical_blur) and ref0 is not None:
             # The far face came into view after the first pass: measure the blur and look again.
-            optical_blur = step_blur(
-                plane,
-                ref0.samples,
-                ref0.mask,
-                cfg.half_window_max,
-                cfg.plateau,
-                ref0.lut,
-                blur_px=math.sqrt(max(blur * blur - 1.0 / 12.0, 0.04)),
-            )
+            optical_blur = _optical_blur(plane, ref0, cfg, blur, arris_fits)
             n_pass = max(n_pass, _pass + 2)
         elif far_beside and _pass == 1:
             # The far face's band width follows from the thickness being measured: one more round.
@@ -728,18 +728,40 @@ def _refine(
             )
             ref0 = _Profiles(samples["reference"], fit.weights["reference"] > 0, lut)
             if far_beside:
-                # The far arris model needs the optical blur alone: measured on the plain reference arris.
-                optical_blur = step_blur(
-                    plane,
-                    ref0.samples,
-                    ref0.mask,
-                    cfg.half_window_max,
-                    cfg.plateau,
-                    lut,
-                    blur_px=math.sqrt(max(blur * blur - 1.0 / 12.0, 0.04)),
-                )
+                # The far arris model needs the optical blur alone: measured on the reference arris.
+                optical_blur = _optical_blur(plane, ref0, cfg, blur, arris_fits)
         _pass += 1
     return samples, fit, pose, blur, half, far_beside, far_fit, sampled.step_fitted
+
+
+def _optical_blur(
+    plane,
+    ref: _Profiles,
+    cfg: LocateConfig,
+    transition_px: float,
+    arris_fits: dict[str, tuple[StripFit, float]] | None,
+) -> float:
+    """The optical blur (Gaussian sigma, px) that the far-face model needs, from the reference arris.
+
+    On a plain reference arris the step's own blur (:func:`doorloc.vision.edges.step_blur`). Where the
+    reference arris has a chamfered or rounded strip, its profile is background | strip | face: a step
+    blur fit would take the strip's width for blur (3.5 px on the effects fixtures' 1.5 mm chamfer for an
+    optical blur of 0.8 px; the far-face fit then lost every scan line and the frame was refused), so
+    the blur that the strip's shading fit found with the strip modelled is used instead.
+    """
+    if arris_fits and "reference" in arris_fits:
+        b = float(arris_fits["reference"][0].blur_px)
+        if math.isfinite(b) and b > 0:
+            return b
+    return step_blur(
+        plane,
+        ref.samples,
+        ref.mask,
+        cfg.half_window_max,
+        cfg.plateau,
+        ref.lut,
+        blur_px=math.sqrt(max(transition_px * transition_px - 1.0 / 12.0, 0.04)),
+    )
 
 
 def _locate(
@@ -771,12 +793,36 @@ def _locate(
     samples, fit, pose, blur, half, far_beside, far_fit, step_fitted = _refine(
         plane, s8, region, pose, cfg, clock, cell.response_gamma, arris_fits
     )
+    used_cell = cell
+    response, per_line = _measure_response(plane, samples, fit, half, blur, cell, cfg, arris_fits)
+    response_diag: dict[str, Any] = {"cell_gamma": cell.response_gamma, "absorbed": False}
+    if response is not None and response.absorb:
+        # The plain edges show another camera response than the cell's: measure again with theirs (the
+        # bias a wrong response gives every edge, arris strips included, is then gone), and check again.
+        response_diag.update(absorbed=True, first_fit=round(response.gamma, 4))
+        used_cell = replace(cell, response_gamma=response.gamma)
+        arris_fits = {}
+        samples, fit, pose, blur, half, far_beside, far_fit, step_fitted = _refine(
+            plane, s8, region, pose, cfg, clock, response.gamma, arris_fits
+        )
+        again = _measure_response(plane, samples, fit, half, blur, used_cell, cfg, arris_fits)
+        if again[0] is not None:
+            response, per_line = again
+    if response is not None:
+        response_diag.update(
+            fitted=round(response.gamma, 4),
+            sigma=round(response.sigma, 4),
+            lines={
+                k: {"gamma": round(v.gamma, 4), "sigma": round(v.sigma, 4), "skew_px": round(v.skew_px, 4)}
+                for k, v in per_line.items()
+            },
+        )
     tr.samples = samples
     tr.inliers = {k: fit.weights[k] > 0 for k in EDGE_NAMES}
     tr.pose = pose
     res = _gate_and_answer(
         name,
-        cell,
+        used_cell,
         door,
         cfg,
         region,
@@ -791,7 +837,10 @@ def _locate(
         step_fitted,
         far_fit,
         arris_fits,
+        response,
+        bool(response_diag["absorbed"]),
     )
+    res.diagnostics["camera_response"] = response_diag
     res.diagnostics["far_face_visible"] = far_beside
     if far_fit is not None:
         res.diagnostics["far_face_fit"] = {
@@ -891,6 +940,95 @@ def _response_check_applies(samples: EdgeSamples, inliers: np.ndarray, blur_px: 
     return blur_px >= 0.5 and phases >= 4
 
 
+def _measure_response(
+    plane,
+    samples: dict[str, EdgeSamples],
+    fit: RectangleFit,
+    half: int,
+    transition_px: float,
+    cell: Cell,
+    cfg: LocateConfig,
+    arris_fits: dict[str, tuple[StripFit, float]] | None,
+) -> tuple[ResponseFit | None, dict[str, LineResponse]]:
+    """The camera response measured on the plain edges (:func:`doorloc.vision.response.fit_line_response`).
+
+    Plain: the bottom end and the reference arris without an arris strip, at many pixel phases and blurred
+    (:func:`_response_check_applies`). None where no edge qualifies.
+    """
+    blur_px = (
+        math.sqrt(max(transition_px * transition_px - 1.0 / 12.0, 0.0))
+        if math.isfinite(transition_px)
+        else 0.0
+    )
+    per_line: dict[str, LineResponse] = {}
+    for k in EDGE_NAMES:
+        if k == "far" or (arris_fits and k in arris_fits):
+            continue  # the far arris: a far face seen edge-on can make a narrow band beside it
+        inl = fit.weights[k] > 0
+        if not _response_check_applies(samples[k], inl, blur_px):
+            continue
+        lr = fit_line_response(plane, samples[k], inl, half, cell.response_gamma, blur_px)
+        if lr is None:
+            continue
+        # Texture beside the edge (grain along it) skews the transition the same way on every scan line,
+        # which the block scatter does not see: the edge bias it can make (the texture term) read as an
+        # exponent error through the step model's sensitivity, in quadrature.
+        tex = texture_bias(
+            plane, samples[k], inl, half, cfg.plateau, linearizing_lut(plane.dtype, cell.response_gamma)
+        ).offset_sigma_px
+        dg = 0.05 * lr.gamma
+        slope = abs(
+            edge_shift_px(lr.lo, lr.hi, lr.gamma + dg, lr.gamma, blur_px, half)
+            - edge_shift_px(lr.lo, lr.hi, lr.gamma - dg, lr.gamma, blur_px, half)
+        ) / (2 * dg)
+        if math.isfinite(tex) and tex > 0 and slope > 0:
+            lr = replace(lr, sigma=math.hypot(lr.sigma, tex / slope))
+        per_line[k] = lr
+    return combine_responses(per_line, cell.response_gamma), per_line
+
+
+def _response_terms(
+    plane,
+    samples: dict[str, EdgeSamples],
+    fit: RectangleFit,
+    half: int,
+    used_gamma: float,
+    response: ResponseFit,
+    far_beside: bool,
+    model: EdgeModelTerms,
+    absorbed: bool = False,
+) -> None:
+    """Each line's response doubt (px) into ``model.extra_px[line]["response"]``, from the step model.
+
+    The edge was measured with ``used_gamma``; the camera's exponent is ``response.gamma`` +-
+    ``response.sigma``. The shift that the difference makes (:func:`doorloc.vision.response.edge_shift_px`
+    between the line's own plateaus, at the measured blur) counts beyond twice the shift of the exponent's
+    1-sigma (within that the edges agree with the exponent in use, and a right cell keeps its small
+    sigma); after ``absorbed`` (the exponent in use was fitted) that 1-sigma shift counts too. An arris
+    line takes the same step model between its background and its face (a first-order figure).
+    """
+    for k in EDGE_NAMES:
+        if k == "far" and far_beside:
+            continue  # the far-face model reports its own doubt
+        inl = fit.weights[k] > 0
+        lo, hi = plateau_levels(plane, samples[k], inl & samples[k].valid, half)
+        # a fit outside a camera's exponents is asymmetry the response cannot make: the nearest one counts
+        g, sg = float(np.clip(response.gamma, *RESPONSE_PLAUSIBLE)), response.sigma
+        b = model.blur_px
+        bias = edge_shift_px(lo, hi, g, used_gamma, b, half)
+        spread = 0.5 * abs(
+            edge_shift_px(lo, hi, g + sg, used_gamma, b, half)
+            - edge_shift_px(lo, hi, max(g - sg, 0.05), used_gamma, b, half)
+        )
+        if not (math.isfinite(bias) and math.isfinite(spread)):
+            continue
+        # the shift the measured mismatch makes beyond twice its own doubt (within that, the edges agree
+        # with the exponent in use)
+        excess = max(abs(bias) - 2.0 * spread, 0.0)
+        # once absorbed, the exponent in use is itself a measurement: its doubt counts in full
+        model.extra_px.setdefault(k, {})["response"] = math.hypot(excess, spread) if absorbed else excess
+
+
 def _gate_and_answer(
     name,
     cell,
@@ -908,6 +1046,8 @@ def _gate_and_answer(
     step_fitted: dict[str, float] | None = None,
     far_fit: FarFaceFit | None = None,
     arris_fits: dict[str, tuple[StripFit, float]] | None = None,
+    response: ResponseFit | None = None,
+    response_absorbed: bool = False,
 ) -> LocateResult:
     lines, refusals = [], []
     corner_px = pose.corner_px
@@ -948,17 +1088,10 @@ def _gate_and_answer(
                 "misfit": round(strip.misfit, 3),
                 "offset_px": round(strip.offset_px, 4),
             }
-        elif not (k == "far" and far_beside) and _response_check_applies(samples[k], inl, model.blur_px):
-            # A plain step: is its transition symmetric in linear light (is the camera response right)?
-            doubt, skew, se = response_doubt_px(
-                plane, samples[k], inl, half, linearizing_lut(plane.dtype, cell.response_gamma), model.blur_px
-            )
-            if np.isfinite(doubt):
-                model.extra_px.setdefault(k, {})["response"] = doubt
-                diagnostics.setdefault("response_skew_px", {})[k] = {
-                    "skew": round(skew, 4),
-                    "se": round(se, 4),
-                }
+    if response is not None:
+        _response_terms(
+            plane, samples, fit, half, cell.response_gamma, response, far_beside, model, response_absorbed
+        )
     for k in EDGE_NAMES:
         s = samples[k]
         w = fit.weights[k]

@@ -1,34 +1,123 @@
-"""Is the camera response what the cell file says? A check on the shape of plain edges.
+"""Is the camera response what the cell file says? Measured on the shape of plain edges.
 
 In linear light the transition of a plain step is the optical blur's edge response: symmetric about the
-edge (a Gaussian or any even point-spread function). The area estimator puts the edge at the transition's
-centre of mass; the 50 % crossing of the same transition lies there too. Grey levels that were linearised
-with the wrong ``camera.response_gamma`` skew the transition: the crossing moves away from the centre of
-mass, by about as much as the area estimate itself is biased. :func:`response_skew_px` measures that
-distance on the aligned mean transition of many scan lines; locate reports it per line as
-``response_sigma_mm`` (an edge-model doubt for the uncertainty budget).
+edge (a Gaussian or any even point-spread function, integrated over square pixels). The area estimator
+puts the edge at the transition's centre of mass; the 50 % crossing of the same transition lies there
+too. Grey levels linearised with the wrong exponent skew the transition: the crossing moves away from
+the centre of mass (:func:`response_skew_px`, on the mean transition of many scan lines aligned on their
+sub-pixel edge, at many pixel phases).
+
+:func:`fit_line_response` turns that into a measurement of the camera's response: the exponent ``g``
+for which the raw grey levels raised to ``g`` give a symmetric transition (the root of the skew in
+``g``; nothing of the renderer is assumed, only an even point-spread function), with its standard error
+from the skew's scatter over blocks of scan lines (texture and shading beside the edge vary along it)
+and from the grey levels' rounding (:func:`quantization_skew_px`). :func:`combine_responses` pools the
+plain lines of one image (one camera, one response).
+
+What a response error does to the edge follows from the step model, not from a tuned factor:
+:func:`edge_shift_px` is where the area estimator puts a Gaussian-blurred step between the line's two
+measured plateaus, linearised with one exponent when the camera's is another. Locate uses it for the
+response term of the uncertainty budget (``response_sigma_mm`` per line): where the fitted response
+differs from the cell's beyond ``RESPONSE_ABSORB_SIGMAS`` standard errors on two edges or more, locate
+measures again with the fitted one (the error is absorbed) and the doubt left is the shift that the
+exponent's standard error makes; otherwise the doubt is the shift between the cell's exponent and the
+fitted one beyond twice that (a right cell keeps its small sigma).
 """
 
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass
+
 import numpy as np
+from scipy.ndimage import uniform_filter1d
+from scipy.optimize import minimize_scalar
+from scipy.special import ndtr
 
 from doorloc.vision.edges import EdgeSamples, _gather, oriented
 
 __all__ = [
-    "RESPONSE_DOUBT_FACTOR",
+    "RESPONSE_ABSORB_SIGMAS",
+    "RESPONSE_GAMMA_RANGE",
+    "RESPONSE_PLAUSIBLE",
     "RESPONSE_SKEW_BLOCKS",
+    "LineResponse",
+    "ResponseFit",
+    "combine_responses",
+    "edge_shift_px",
+    "fit_line_response",
+    "plateau_levels",
     "quantization_skew_px",
-    "response_doubt_px",
     "response_skew_px",
 ]
 
-#: edge bias per px of skew: on rendered sets with a gamma 1.8-2.2 camera read as linear the area estimate was
-#: off by 10-21 times the skew (blur 0.6-1.5 px); the doubt reported is this multiple (it also inflates the
-#: doubt of right answers by up to ~0.02 mm where the skew is noisy: a first, coarse check)
-RESPONSE_DOUBT_FACTOR = 12.0
 #: contiguous blocks along the line over which the skew is measured again, for its standard error
 RESPONSE_SKEW_BLOCKS = 8
+#: exponents searched for the camera's response (a camera's gamma lies well inside)
+RESPONSE_GAMMA_RANGE = (0.4, 5.0)
+#: half width of the window the transition is read over, in blur sigmas (plus 1.5 px)
+RESPONSE_WINDOW_BLURS = 3.0
+#: plateau pixels at each end of a profile that set its levels, and the scan lines (each side) they are
+#: averaged over
+RESPONSE_PLATEAU_PX = 3
+RESPONSE_LEVEL_ROWS = 8
+#: profiles the fit uses at most (every k-th along the line)
+RESPONSE_MAX_PROFILES = 320
+#: the smallest standard error of a line's exponent (8 blocks estimate a scatter to about +-25 %)
+RESPONSE_SIGMA_FLOOR = 0.02
+#: the fitted response replaces the cell's when it differs by more than this many standard errors
+RESPONSE_ABSORB_SIGMAS = 4.0
+#: the exponents a camera's response has (a linear sensor 1.0, video and sRGB about 2.2-2.4): only a fit
+#: inside is absorbed
+RESPONSE_PLAUSIBLE = (0.8, 3.0)
+
+
+@dataclass(frozen=True)
+class LineResponse:
+    """The response exponent measured on one plain edge.
+
+    Attributes
+    ----------
+    gamma, sigma : float
+        The exponent that makes the edge's mean transition symmetric (raw grey levels, full scale 1,
+        raised to it are proportional to light), and its 1-sigma.
+    lo, hi : float
+        The two plateaus' raw grey levels beside the window, full scale 1 (for :func:`edge_shift_px`).
+    skew_px : float
+        The skew with the exponent the estimate used (diagnostics).
+    """
+
+    gamma: float
+    sigma: float
+    lo: float
+    hi: float
+    skew_px: float
+
+
+@dataclass(frozen=True)
+class ResponseFit:
+    """The camera response of one image, pooled over its plain edges (:func:`combine_responses`).
+
+    ``absorb`` says whether it differs from the cell's ``claimed`` exponent by more than
+    ``RESPONSE_ABSORB_SIGMAS`` standard errors, measured on two edges at least (locate then measures
+    again with ``gamma``).
+    """
+
+    gamma: float
+    sigma: float
+    claimed: float
+    lines: tuple[str, ...]
+
+    @property
+    def absorb(self) -> bool:
+        # two edges at least: one edge's texture can mimic a response, two rarely agree by chance
+        # and a camera's response: below ~0.8 (darks lifted) no camera is made; such a fit is texture or
+        # shading that the response cannot explain
+        return (
+            len(self.lines) >= 2
+            and RESPONSE_PLAUSIBLE[0] <= self.gamma <= RESPONSE_PLAUSIBLE[1]
+            and abs(self.gamma - self.claimed) > RESPONSE_ABSORB_SIGMAS * self.sigma
+        )
 
 
 def quantization_skew_px(step_dn: float, noise_dn: float, blur_px: float) -> float:
@@ -45,53 +134,6 @@ def quantization_skew_px(step_dn: float, noise_dn: float, blur_px: float) -> flo
         return float("nan")
     level_err = min(0.5, float(np.exp(-2.0 * np.pi**2 * max(noise_dn, 0.0) ** 2)) / np.pi)
     return float(np.sqrt(2.0) * level_err / step_dn * (2.0 * max(blur_px, 0.0) + 1.0))
-
-
-def response_doubt_px(
-    plane: np.ndarray,
-    samples: EdgeSamples,
-    mask: np.ndarray,
-    half: int,
-    lut: np.ndarray | None = None,
-    blur_px: float = 0.0,
-) -> tuple[float, float, float]:
-    """The edge doubt (px) that the response check adds to one line, with the skew and its standard error.
-
-    Texture and shading beside the edge (wood grain, a gradient, vignetting, JPEG blocks) skew the mean
-    transition too, and differently along the line; that part of the skew says nothing about the response
-    (and the texture's own bias is in the texture term). Its size is read from the skew's scatter over
-    ``RESPONSE_SKEW_BLOCKS`` contiguous blocks of scan lines (contiguous: grain and shading vary slowly
-    along the line), and only the skew beyond twice its standard error counts as the response's:
-    ``RESPONSE_DOUBT_FACTOR * max(|skew| - 2 se, 0)``. The standard error also holds what rounding the
-    grey levels can skew (:func:`quantization_skew_px`: a noise-free 8-bit image shows a skew of ~0.004 px
-    on a linear camera, which no wrong response made). A wrong response on a clean edge (small scatter)
-    keeps nearly its full doubt. ``blur_px`` is the optical blur sigma (px).
-
-    Returns
-    -------
-    (doubt_px, skew_px, se_px) : tuple of float
-        NaN when the skew or its scatter cannot be measured (fewer than three usable blocks).
-    """
-    skew = response_skew_px(plane, samples, mask, half, lut)
-    idx = np.flatnonzero(mask & samples.valid)
-    n_blocks = min(RESPONSE_SKEW_BLOCKS, idx.size // 12)
-    nan = float("nan")
-    if not np.isfinite(skew) or n_blocks < 3:
-        return nan, skew, nan
-    per_block = []
-    for block in np.array_split(idx, n_blocks):
-        m = np.zeros(mask.shape, bool)
-        m[block] = True
-        per_block.append(response_skew_px(plane, samples, m, half, lut))
-    b = np.asarray(per_block)
-    b = b[np.isfinite(b)]
-    if b.size < 3:
-        return nan, skew, nan
-    quant = quantization_skew_px(
-        *_plateau_step_and_noise(plane, samples, mask & samples.valid, half), blur_px
-    )
-    se = float(np.hypot(np.std(b, ddof=1) / np.sqrt(b.size), quant if np.isfinite(quant) else 0.0))
-    return RESPONSE_DOUBT_FACTOR * max(abs(skew) - 2.0 * se, 0.0), skew, se
 
 
 def response_skew_px(
@@ -166,3 +208,246 @@ def _plateau_step_and_noise(
     d = d[: max(int(0.9 * d.size), 1)]
     noise = float(np.sqrt(np.mean(d**2) / 2.0))
     return step, noise
+
+
+@dataclass(frozen=True)
+class _Transitions:
+    """Raw profiles across one edge (full scale 1) and the edge's place in them, for the skew in ``g``."""
+
+    raw: np.ndarray  # (N, 2 half + 1)
+    offset: np.ndarray  # (N,) the window's first pixel centre minus the sub-pixel edge, px
+
+
+def _transitions(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half: int) -> _Transitions | None:
+    m = mask & samples.valid
+    if int(m.sum()) < 10:
+        return None
+    P = oriented(plane, samples.axis)
+    e = samples.along[m]
+    c0 = np.round(e).astype(int)
+    vals, inside = _gather(P, samples.scan[m], c0 - half, 2 * half + 1)
+    ok = inside.all(axis=1)
+    if int(ok.sum()) < 10:
+        return None
+    top = 255.0 if plane.dtype == np.uint8 else 65535.0
+    order = np.argsort(samples.scan[m][ok])  # contiguous blocks along the line
+    return _Transitions(
+        vals[ok][order].astype(np.float64) / top, (c0[ok] - half - e[ok])[order].astype(np.float64)
+    )
+
+
+def _skew(t: _Transitions, rows: np.ndarray | slice, g: float) -> float:
+    """:func:`response_skew_px` of the profiles ``rows`` with raw levels raised to ``g``."""
+    vals = t.raw[rows] ** g
+    off = t.offset[rows]
+    d = np.diff(vals, axis=1)
+    tot = d.sum(axis=1, keepdims=True)
+    good = np.abs(tot[:, 0]) > 1e-9
+    if int(good.sum()) < 3:
+        return float("nan")
+    # positions from the dark side to the bright one: the skew's sign then says which way the exponent
+    # is off, whichever the edge's polarity
+    pos = (np.arange(d.shape[1]) + 0.5 + off[good][:, None]) * np.sign(tot[good])
+    d = d[good] / tot[good]
+    bins = np.round(pos * 4).astype(int)
+    lo = bins.min()
+    acc = np.bincount((bins - lo).ravel(), weights=d.ravel())
+    cnt = np.bincount((bins - lo).ravel())
+    x = (np.arange(cnt.size) + lo) / 4.0
+    filled = cnt > 0
+    gm = np.interp(x, x[filled], acc[filled] / cnt[filled])
+    if gm.sum() <= 0:
+        return float("nan")
+    w = gm / gm.sum()
+    centre = float(np.sum(w * x))
+    cum = np.cumsum(w) - 0.5 * w
+    k = int(np.searchsorted(cum, 0.5))
+    if k <= 0 or k >= x.size:
+        return float("nan")
+    f = (0.5 - cum[k - 1]) / max(cum[k] - cum[k - 1], 1e-12)
+    return float(x[k - 1] + f * (x[k] - x[k - 1]) - centre)
+
+
+def fit_line_response(
+    plane: np.ndarray,
+    samples: EdgeSamples,
+    mask: np.ndarray,
+    half: int,
+    used_gamma: float,
+    blur_px: float = 0.0,
+) -> LineResponse | None:
+    """The camera's response exponent measured on one plain edge (module docstring).
+
+    Parameters
+    ----------
+    plane : ndarray
+        The luminance plane (raw grey levels, uint8 or uint16).
+    samples, mask, half
+        The line's edge points (``along`` is the sub-pixel edge), the points to use, the window's half
+        width (px).
+    used_gamma : float
+        The exponent the edge points were measured with (the skew reported is at it).
+    blur_px : float
+        Optical blur (Gaussian sigma, px), for the rounding term of the standard error.
+
+    Returns
+    -------
+    LineResponse or None
+        None where the skew has no root in ``RESPONSE_GAMMA_RANGE`` or too few profiles are usable.
+    """
+    # The window holds the whole transition (3 blur sigmas each side) and plateaus at both ends.
+    half = max(half, int(math.ceil(RESPONSE_WINDOW_BLURS * max(blur_px, 0.0) + 1.5)))
+    t = _transitions(plane, samples, mask, half + RESPONSE_PLATEAU_PX)
+    if t is None:
+        return None
+    if t.raw.shape[0] > RESPONSE_MAX_PROFILES:  # evenly along the line: enough for the shape
+        t = _Transitions(
+            *(a[:: int(math.ceil(t.raw.shape[0] / RESPONSE_MAX_PROFILES))] for a in (t.raw, t.offset))
+        )
+    n_blocks = min(RESPONSE_SKEW_BLOCKS, t.raw.shape[0] // 12)
+    if n_blocks < 3:
+        return None
+    g_hat = _least_asymmetric(t, slice(None), np.geomspace(*RESPONSE_GAMMA_RANGE, 25))
+    if not math.isfinite(g_hat):
+        return None
+    # the standard error from the exponent's scatter over contiguous blocks of scan lines (texture and
+    # shading beside the edge change slowly along it)
+    local = g_hat * np.geomspace(1 / 1.6, 1.6, 11)
+    per_block = np.array(
+        [_least_asymmetric(t, b, local) for b in np.array_split(np.arange(t.raw.shape[0]), n_blocks)]
+    )
+    per_block = per_block[np.isfinite(per_block)]
+    if per_block.size < 3:
+        return None
+    se = float(np.std(per_block, ddof=1)) / math.sqrt(per_block.size)
+    lo, hi = plateau_levels(plane, samples, mask & samples.valid, half)
+    return LineResponse(g_hat, max(se, RESPONSE_SIGMA_FLOOR), lo, hi, _skew(t, slice(None), used_gamma))
+
+
+def _asymmetry(t: _Transitions, rows: np.ndarray | slice, g: float) -> float:
+    """How far the profiles, with raw levels raised to ``g``, are from a step blurred by an even spread.
+
+    Each profile is normalised by its plateaus (the mean of ``RESPONSE_PLATEAU_PX`` pixels at each end,
+    averaged over ``2 RESPONSE_LEVEL_ROWS + 1`` neighbouring scan lines: single noisy end pixels raised to
+    the trial exponent would make the normalised noise, and so this measure's floor, depend on the
+    exponent and pull its minimum) and centred on its own area estimate (exact for a pixel-integrated
+    step under any even point-spread function); in linear light the pixel values at distances ``+d`` and
+    ``-d`` from that centre then add up to 1. Returns the mean square of that sum's departure from 1
+    over 1/8-px bins of ``d`` filled on both sides (NaN if none are).
+    """
+    raw = t.raw[rows]
+    v = raw**g
+    pk = RESPONSE_PLATEAU_PX
+    # Shading across the edge (an illumination gradient, vignetting) multiplies the light by a slope
+    # that tilts both plateaus alike and would read as asymmetry: take it out, as the median relative
+    # slope of the plateau pixels over the line.
+    xs = np.arange(pk) - (pk - 1) / 2.0
+    rel = np.concatenate(
+        [
+            (v[:, :pk] @ xs) / (xs @ xs) / np.maximum(v[:, :pk].mean(axis=1), 1e-9),
+            (v[:, -pk:] @ xs) / (xs @ xs) / np.maximum(v[:, -pk:].mean(axis=1), 1e-9),
+        ]
+    )
+    tilt = float(np.median(rel))
+    if math.isfinite(tilt):
+        v = v / (1.0 + tilt * (np.arange(v.shape[1]) - (v.shape[1] - 1) / 2.0))[None, :]
+    size = min(2 * RESPONSE_LEVEL_ROWS + 1, v.shape[0])
+    lo = uniform_filter1d(v[:, :pk].mean(axis=1), size, mode="nearest")[:, None]
+    hi = uniform_filter1d(v[:, -pk:].mean(axis=1), size, mode="nearest")[:, None]
+    v = v[:, pk:-pk]
+    span = hi - lo
+    good = np.abs(span[:, 0]) > 1e-9
+    if int(good.sum()) < 3:
+        return float("nan")
+    n = (v[good] - lo[good]) / span[good]  # 0 on the first end, 1 on the last: any polarity
+    L = n.shape[1]
+    centre = (L - 1) - (n[:, :-1] + n[:, 1:]).sum(axis=1) / 2.0  # area estimate, index units
+    d = np.arange(L)[None, :] - centre[:, None]
+    inner = np.abs(d) <= (L - 1) / 2.0 - 1.0
+    bins = np.round(d[inner] * 8).astype(int)
+    off = -bins.min()
+    acc = np.bincount(bins + off, weights=n[inner])
+    cnt = np.bincount(bins + off)
+    k = np.arange(1, min(off, acc.size - 1 - off) + 1)  # bins at +-d
+    both = (cnt[off + k] > 0) & (cnt[off - k] > 0)
+    if int(both.sum()) < 4:
+        return float("nan")
+    kk = k[both]
+    r = acc[off + kk] / cnt[off + kk] + acc[off - kk] / cnt[off - kk] - 1.0
+    return float(np.mean(r * r))
+
+
+def _least_asymmetric(t: _Transitions, rows: np.ndarray | slice, grid: np.ndarray) -> float:
+    """The exponent of least :func:`_asymmetry`: the best of ``grid``, refined between its neighbours."""
+    a = np.array([_asymmetry(t, rows, float(g)) for g in grid])
+    if not np.any(np.isfinite(a)):
+        return float("nan")
+    i = int(np.nanargmin(a))
+    lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
+    res = minimize_scalar(
+        lambda g: _asymmetry(t, rows, g),
+        bounds=(float(lo), float(hi)),
+        method="bounded",
+        options={"xatol": 1e-3},
+    )
+    return float(res.x) if np.isfinite(res.fun) else float(grid[i])
+
+
+def combine_responses(lines: dict[str, LineResponse], claimed: float) -> ResponseFit | None:
+    """One response for the image: the lines' exponents weighted by their inverse variances.
+
+    Its standard error is widened by the lines' disagreement beyond their own errors (Birge ratio), so
+    two edges that disagree (texture, shading) do not make a confident camera response.
+    """
+    ok = {k: v for k, v in lines.items() if math.isfinite(v.gamma) and math.isfinite(v.sigma) and v.sigma > 0}
+    if not ok:
+        return None
+    g = np.array([v.gamma for v in ok.values()])
+    s = np.array([v.sigma for v in ok.values()])
+    w = 1.0 / s**2
+    mean = float(np.sum(w * g) / np.sum(w))
+    se = float(1.0 / math.sqrt(np.sum(w)))
+    if g.size > 1:
+        chi2 = float(np.sum(w * (g - mean) ** 2)) / (g.size - 1)
+        se *= math.sqrt(max(chi2, 1.0))
+    return ResponseFit(mean, se, claimed, tuple(ok))
+
+
+def edge_shift_px(
+    lo: float, hi: float, camera_gamma: float, used_gamma: float, blur_px: float, half: int
+) -> float:
+    """Where the area estimator puts a plain step read with ``used_gamma`` when the camera's is another, px.
+
+    The step model: light ``a + (b - a) Phi(x / s)`` between the plateaus' light ``a = lo^camera_gamma``
+    and ``b = hi^camera_gamma`` (``lo``, ``hi``: their raw grey levels, full scale 1), ``s`` the optical
+    blur with the pixel's width in quadrature, recorded as ``light^(1 / camera_gamma)``, linearised with
+    ``used_gamma`` and located by its area over the window ``[-half - 1/2, half + 1/2]``. Returns the
+    estimate minus the true edge, along the dark-to-bright direction (0 when the two exponents agree).
+    """
+    if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo >= 0.0):
+        return float("nan")
+    s = math.sqrt(max(blur_px, 0.0) ** 2 + 1.0 / 12.0)
+    w = half + 0.5
+    x = np.linspace(-w, w, 2001)
+    a, b = lo**camera_gamma, hi**camera_gamma
+    raw = (a + (b - a) * ndtr(x / s)) ** (1.0 / camera_gamma)
+    n = (raw**used_gamma - lo**used_gamma) / (hi**used_gamma - lo**used_gamma)
+    # area estimator: the edge where a sharp step would hold the same area
+    return float(w - np.trapezoid(n, x))
+
+
+def plateau_levels(
+    plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half: int
+) -> tuple[float, float]:
+    """The dark and bright plateau's raw grey level just beyond the window (medians, full scale 1)."""
+    if int(mask.sum()) < 3:
+        return float("nan"), float("nan")
+    P = oriented(plane, samples.axis)
+    c0 = np.round(samples.along[mask]).astype(int)
+    vals, inside = _gather(P, samples.scan[mask], c0 - half - 1, 2 * half + 3)
+    ends = vals[inside.all(axis=1)][:, [0, -1]].astype(np.float64)
+    if ends.shape[0] < 3:
+        return float("nan"), float("nan")
+    top = 255.0 if plane.dtype == np.uint8 else 65535.0
+    m = np.median(ends, axis=0) / top
+    return float(min(m)), float(max(m))

@@ -1,0 +1,86 @@
+"""The camera-response measurement on plain edges (vision/response.py), on synthetic steps made here without
+the renderer: a Gaussian-blurred, pixel-integrated step recorded through a power-law response."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.special import ndtr
+
+from doorloc.vision.edges import linearizing_lut, subpixel_edges
+from doorloc.vision.response import combine_responses, edge_shift_px, fit_line_response
+
+N_COLS, N_ROWS, TILT = 400, 100, 0.031  # a near-horizontal edge: profiles run along the columns
+
+
+def _step_image(
+    camera_gamma: float, blur: float, lo: float, hi: float, noise: float, seed: int
+) -> np.ndarray:
+    """8-bit image of a blurred step (light ``lo`` above the edge, ``hi`` below), integrated over each pixel
+    on an 8x finer grid, recorded as ``light ** (1 / camera_gamma)``."""
+    f = 8
+    sub = (np.arange(N_ROWS * f) + 0.5) / f - 0.5  # sub-pixel row centres
+    u = np.arange(N_COLS)
+    edge = 50.3 + TILT * u  # row of the edge in each column
+    light = lo + (hi - lo) * ndtr((sub[:, None] - edge[None, :]) / blur)
+    light = light.reshape(N_ROWS, f, N_COLS).mean(axis=1)
+    raw = 255.0 * light ** (1.0 / camera_gamma)
+    raw += np.random.default_rng(seed).normal(0.0, noise, raw.shape)
+    return np.clip(np.round(raw), 0, 255).astype(np.uint8)
+
+
+def _samples(img: np.ndarray, used_gamma: float, half: int):
+    u = np.arange(20, N_COLS - 20)
+    return subpixel_edges(img, "col", u, 50.3 + TILT * u, half, lut=linearizing_lut(img.dtype, used_gamma))
+
+
+@pytest.mark.parametrize(
+    ("camera_gamma", "used_gamma", "blur"),
+    [(1.0, 1.0, 1.0), (2.2, 1.0, 1.5), (1.0, 2.2, 0.8), (1.6, 2.4, 1.2), (2.4, 1.3, 1.8)],
+)
+def test_the_response_is_measured_from_the_step_shape(camera_gamma, used_gamma, blur):
+    img = _step_image(camera_gamma, blur, 0.12, 0.8, 0.7, seed=3)
+    s = _samples(img, used_gamma, half=int(math.ceil(2 * blur + 1)))
+    lr = fit_line_response(img, s, s.valid, int(math.ceil(2 * blur + 1)), used_gamma, blur)
+    assert lr is not None
+    # within 3 standard errors, and the standard error small enough to tell gamma 1.0 from 2.2
+    assert abs(lr.gamma - camera_gamma) <= 3 * lr.sigma + 0.02, lr
+    assert lr.sigma < 0.25
+    assert lr.lo == pytest.approx(round(255 * 0.12 ** (1 / camera_gamma)) / 255, abs=0.02)
+
+
+def test_edge_shift_follows_the_step_model():
+    # the exponents agree: no shift
+    assert abs(edge_shift_px(0.2, 0.9, 2.2, 2.2, 1.2, 5)) < 1e-3
+    # a gamma-2.2 camera read as linear lifts the dark side's tail: the area estimate moves towards the dark side
+    s = edge_shift_px(0.2, 0.9, 2.2, 1.0, 1.2, 5)
+    assert s < -0.1
+    # ... by more for more blur, and by nothing for a step without blur wider than the pixel
+    assert edge_shift_px(0.2, 0.9, 2.2, 1.0, 1.8, 6) < s < edge_shift_px(0.2, 0.9, 2.2, 1.0, 0.3, 5) < 0
+
+
+@pytest.mark.parametrize(("camera_gamma", "used_gamma"), [(2.2, 1.0), (1.0, 2.2)])
+def test_the_shift_predicts_the_area_estimators_error(camera_gamma, used_gamma):
+    """On the synthetic step the area estimator's mean error is what the step model says (20 %)."""
+    blur, half = 1.4, 5
+    img = _step_image(camera_gamma, blur, 0.15, 0.85, 0.0, seed=1)
+    s = _samples(img, used_gamma, half)
+    err = float(np.mean(s.along[s.valid] - (50.3 + TILT * s.scan[s.valid])))
+    lo, hi = 255 * 0.15 ** (1 / camera_gamma), 255 * 0.85 ** (1 / camera_gamma)
+    pred = edge_shift_px(round(lo) / 255, round(hi) / 255, camera_gamma, used_gamma, blur, half)
+    assert abs(err) > 0.05
+    assert err == pytest.approx(pred, rel=0.2)
+
+
+def test_lines_that_disagree_do_not_make_a_confident_response():
+    from doorloc.vision.response import LineResponse
+
+    a = LineResponse(2.0, 0.05, 0.1, 0.8, 0.0)
+    b = LineResponse(1.4, 0.05, 0.1, 0.8, 0.0)
+    fit = combine_responses({"bottom": a, "reference": b}, 1.0)
+    assert fit is not None and fit.gamma == pytest.approx(1.7)
+    assert fit.sigma > 0.2  # the Birge ratio widens it to the lines' scatter
+    agree = combine_responses({"bottom": a, "reference": LineResponse(2.0, 0.05, 0.1, 0.8, 0.0)}, 1.0)
+    assert agree is not None and agree.sigma == pytest.approx(0.05 / math.sqrt(2)) and agree.absorb
