@@ -23,6 +23,7 @@ when the window is centred on the edge.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import Literal
@@ -115,6 +116,56 @@ def _smooth_along(x: np.ndarray, n: int) -> np.ndarray:
     return (c[hi] - c[lo]) / np.maximum(m[hi] - m[lo], 1)
 
 
+def _smooth_along_rows(x: np.ndarray, n: int) -> np.ndarray:
+    """:func:`_smooth_along` of each row of ``x`` (K, N), in one pass (the same numbers: running sums are
+    sequential either way)."""
+    ok = np.isfinite(x)
+    k, size = x.shape
+    c = np.zeros((k, size + 1))
+    c[:, 1:] = np.cumsum(np.where(ok, x, 0.0), axis=1)  # in x's precision, as _smooth_along
+    m = np.zeros((k, size + 1), np.int64)
+    np.cumsum(ok, axis=1, out=m[:, 1:])
+    i = np.arange(size)
+    lo, hi = np.maximum(i - n, 0), np.minimum(i + n + 1, size)
+    return (c[:, hi] - c[:, lo]) / np.maximum(m[:, hi] - m[:, lo], 1)
+
+
+def _flat_view(P: np.ndarray) -> tuple[np.ndarray, int, int] | None:
+    """``(flat, pitch0, pitch1)`` with ``P[i, j] == flat[i * pitch0 + j * pitch1]`` for a plane or its
+    transpose stored contiguously (a view, no copy); None for other layouts."""
+    if P.flags.c_contiguous:
+        return P.reshape(-1), P.shape[1], 1
+    if P.flags.f_contiguous:
+        return P.T.reshape(-1), 1, P.shape[0]
+    return None
+
+
+def _take_profiles(
+    P: np.ndarray, scan: np.ndarray, start: np.ndarray, length: int, stride: int = 1
+) -> tuple[np.ndarray, np.ndarray]:
+    """Raw profiles ``P[start + stride k, scan]`` (N, length), clamped to the image, and the per-row flag
+    "every sample lies in the image".
+
+    One flat ``take`` from the plane's buffer instead of 2-D fancy indexing (which walks the transposed
+    view for row profiles and costs several times more); other layouts fall back to fancy indexing.
+    """
+    n_along, n_scan = P.shape
+    k = stride * np.arange(length)
+    last = start + k[-1] if length else start
+    lo_end, hi_end = np.minimum(start, last), np.maximum(start, last)
+    rows_in = (lo_end >= 0) & (hi_end < n_along)
+    flat = _flat_view(P)
+    if flat is not None and scan.size and int(scan.min()) >= 0 and int(scan.max()) < n_scan:
+        f, p0, p1 = flat
+        if int(lo_end.min()) >= 0 and int(hi_end.max()) < n_along:  # all inside (the usual case)
+            return f.take((start * p0 + scan * p1)[:, None] + (k * p0)[None, :]), rows_in
+        idx = start[:, None] + k[None, :]
+        np.clip(idx, 0, n_along - 1, out=idx)
+        return f.take(idx * p0 + (scan * p1)[:, None]), rows_in
+    idx = start[:, None] + k[None, :]
+    return P[np.clip(idx, 0, n_along - 1), scan[:, None]], rows_in
+
+
 def _gather(
     P: np.ndarray,
     scan: np.ndarray,
@@ -127,23 +178,45 @@ def _gather(
 
     ``lut`` (float32, one entry per grey level) maps the stored values first, e.g. to linear light.
     """
+    vals, _ = _gather_rows(P, scan, start, length, stride, lut)
     idx = start[:, None] + stride * np.arange(length)[None, :]
     inside = (idx >= 0) & (idx < P.shape[0])
-    raw = P[np.clip(idx, 0, P.shape[0] - 1), scan[:, None]]
-    vals = lut[raw] if lut is not None else raw.astype(np.float32)
     return vals, inside
+
+
+def _gather_rows(
+    P: np.ndarray,
+    scan: np.ndarray,
+    start: np.ndarray,
+    length: int,
+    stride: int = 1,
+    lut: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """As :func:`_gather`, with the in-image flag per profile (N,) (``inside.all(axis=1)``) instead of
+    per sample: what most callers need, for less work."""
+    raw, rows_in = _take_profiles(P, np.asarray(scan), np.asarray(start), length, stride)
+    vals = lut[raw] if lut is not None else raw.astype(np.float32)
+    return vals, rows_in
 
 
 def linearizing_lut(dtype: np.dtype, gamma: float) -> np.ndarray | None:
     """Look-up table undoing a camera response ``out = in ** (1 / gamma)``, in grey levels of ``dtype``.
 
-    The area estimator needs grey levels proportional to light; None when ``gamma`` is 1.
+    The area estimator needs grey levels proportional to light; None when ``gamma`` is 1. The table is
+    made once per (dtype, gamma) and shared (read-only): a 16-bit one takes longer than a locate.
     """
     if gamma == 1.0:
         return None
-    top = 255.0 if np.dtype(dtype) == np.uint8 else 65535.0
+    return _linearizing_lut(np.dtype(dtype) == np.uint8, float(gamma))
+
+
+@functools.lru_cache(maxsize=16)
+def _linearizing_lut(eight_bit: bool, gamma: float) -> np.ndarray:
+    top = 255.0 if eight_bit else 65535.0
     x = np.arange(int(top) + 1, dtype=np.float64) / top
-    return (x**gamma * top).astype(np.float32)
+    lut = (x**gamma * top).astype(np.float32)
+    lut.setflags(write=False)
+    return lut
 
 
 def subpixel_edges(
@@ -197,45 +270,51 @@ def subpixel_edges(
     c0 = np.round(np.where(finite, centre, 0.0)).astype(int)
     start = c0 - half - plateau
     length = 2 * (half + plateau) + 1
-    vals, inside = _gather(P, scan, start, length, lut=lut)
+    vals, inside_ok = _gather_rows(P, scan, start, length, lut=lut)
     left = vals[:, :plateau]
     right = vals[:, -plateau:]
     core = vals[:, plateau : plateau + 2 * half + 1]
-    A = left.mean(axis=1)
-    B = right.mean(axis=1)
+    if plateau == 1:  # the mean of one sample is the sample, its variance 0 (the same numbers, less work)
+        A, B = left[:, 0], right[:, 0]
+        noise = np.zeros(scan.size, vals.dtype)
+    else:
+        A, B = left.mean(axis=1), right.mean(axis=1)
+        noise = np.sqrt(0.5 * (left.var(axis=1) + right.var(axis=1)))
     if level_smooth > 0 and scan.size:
-        inside_ok = inside.all(axis=1)
-        A = _smooth_along(np.where(inside_ok, A, np.nan), level_smooth)
-        B = _smooth_along(np.where(inside_ok, B, np.nan), level_smooth)
+        A, B = _smooth_along_rows(np.where(inside_ok, np.stack([A, B]), np.nan), level_smooth)
     step = B - A
-    # Plateau slopes (shading, wood grain parallel to the edge), smoothed along the edge: the levels
-    # are extrapolated linearly under the transition instead of being assumed flat.
-    kp = np.arange(plateau) - (plateau - 1) / 2.0
-    den = float((kp * kp).sum())
-    if slope_smooth > 0 and den > 0 and scan.size:
+    hp = half + 0.5
+    if slope_smooth > 0 and plateau > 1 and scan.size:
+        # Plateau slopes (shading, wood grain parallel to the edge), smoothed along the edge: the levels
+        # are extrapolated linearly under the transition instead of being assumed flat.
+        kp = np.arange(plateau) - (plateau - 1) / 2.0
+        den = float((kp * kp).sum())
         a1 = ((left - A[:, None]) * kp).sum(axis=1) / den
         b1 = ((right - B[:, None]) * kp).sum(axis=1) / den
         if slope_smooth >= scan.size:  # one slope per side for the whole edge (smooth shading)
             a1 = np.full(scan.size, np.nanmedian(a1))
             b1 = np.full(scan.size, np.nanmedian(b1))
         else:
-            a1, b1 = _smooth_along(a1, slope_smooth), _smooth_along(b1, slope_smooth)
+            a1, b1 = _smooth_along_rows(np.stack([a1, b1]), slope_smooth)
+        off = hp + (plateau + 1) / 2.0 - 0.5  # window centre to plateau centres, px
+        kc = np.arange(-half, half + 1, dtype=np.float32)
+        S = (core - (A[:, None] + a1[:, None] * (kc[None, :] + off))).sum(axis=1)
+        D0 = (B - b1 * off) - (A + a1 * off)
+        d1 = b1 - a1
+        with np.errstate(divide="ignore", invalid="ignore"):
+            # S = (D0 + d1 (hp - L/2)) L  for L = far window end minus edge (see the module docstring).
+            b = D0 + d1 * hp
+            L = 2.0 * S / (b + np.sqrt(np.maximum(b * b - 2.0 * d1 * S, 0.0)) * np.sign(b))
     else:
-        a1 = b1 = np.zeros(scan.size)
-    hp = half + 0.5
-    off = hp + (plateau + 1) / 2.0 - 0.5  # window centre to plateau centres, px
-    kc = np.arange(-half, half + 1, dtype=np.float32)
-    S = (core - (A[:, None] + a1[:, None] * (kc[None, :] + off))).sum(axis=1)
-    D0 = (B - b1 * off) - (A + a1 * off)
-    d1 = b1 - a1
-    with np.errstate(divide="ignore", invalid="ignore"):
-        # S = (D0 + d1 (hp - L/2)) L  for L = far window end minus edge (see the module docstring).
-        b = D0 + d1 * hp
-        L = 2.0 * S / (b + np.sqrt(np.maximum(b * b - 2.0 * d1 * S, 0.0)) * np.sign(b))
-        along = start + plateau + 2 * half + 0.5 - L
+        # Flat plateaus (no slope): the same sums with the slope terms (zeros) left out, in float64.
+        A64, B64 = A.astype(np.float64, copy=False), B.astype(np.float64, copy=False)
+        S = (core - A64[:, None]).sum(axis=1)
+        b = B64 - A64
+        with np.errstate(divide="ignore", invalid="ignore"):
+            L = 2.0 * S / (b + np.sqrt(b * b) * np.sign(b))
+    along = start + plateau + 2 * half + 0.5 - L
     width = np.full(scan.size, np.nan)  # per-sample widths are too noisy to use; see transition_width
-    noise = np.sqrt(0.5 * (left.var(axis=1) + right.var(axis=1)))
-    valid = finite & inside.all(axis=1) & np.isfinite(along) & (np.abs(step) > 0)
+    valid = finite & inside_ok & np.isfinite(along) & (np.abs(step) > 0)
     # The estimate must lie inside its window; otherwise the transition was not captured.
     valid &= np.abs(along - c0) <= half
     return EdgeSamples(
