@@ -94,8 +94,12 @@ class PlaneMap:
     def scale_mm_per_px(self, xz: np.ndarray) -> float:
         """Mean size of one pixel on this plane at the point ``(X, Z)`` (mm per pixel): the square root of
         the area a pixel there covers (as :meth:`PosedCamera.scale_mm_per_px`)."""
-        uv = self.to_image(np.asarray(xz, float).reshape(1, 2))[0]
-        q = self.to_plane(np.array([uv, uv + [1.0, 0.0], uv + [0.0, 1.0]]))
+        return self.scale_at_pixel(self.to_image(np.asarray(xz, float).reshape(1, 2))[0])
+
+    def scale_at_pixel(self, uv: np.ndarray) -> float:
+        """:meth:`scale_mm_per_px` at the plane point seen at pixel ``uv`` (u, v), mm per pixel."""
+        u, v = float(uv[0]), float(uv[1])
+        q = self.to_plane(np.array([[u, v], [u + 1.0, v], [u, v + 1.0]]))
         a, b = q[1] - q[0], q[2] - q[0]
         return float(math.sqrt(abs(a[0] * b[1] - a[1] * b[0])))
 
@@ -166,5 +170,5 @@ def pose_from_fit(fit: RectangleFit, face_map: PlaneMap) -> MetricPose:
     z = s * cr + c * cb
     thickness = fit.offsets["far"] - cr if "far" in fit.offsets else float("nan")
     corner_px = face_map.to_image(np.array([[x, z]]))[0]
-    scale = face_map.scale_mm_per_px(np.array([x, z]))
+    scale = face_map.scale_at_pixel(corner_px)  # = scale_mm_per_px((x, z)), without projecting it again
     return MetricPose(float(x), float(z), math.degrees(t), float(thickness), corner_px, scale)
