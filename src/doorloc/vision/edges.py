@@ -31,6 +31,8 @@ from typing import Literal
 import numpy as np
 from scipy.special import ndtr
 
+from doorloc.vision.lines import _median  # np.median's value for less
+
 __all__ = [
     "Axis",
     "EdgeSamples",
@@ -344,15 +346,16 @@ def transition_width(
     P = oriented(plane, samples.axis)
     e = samples.along[m]
     c0 = np.round(e).astype(int)
-    vals, inside = _gather(P, samples.scan[m], c0 - half, 2 * half + 1, lut=lut)
-    ok = inside.all(axis=1)
+    vals, ok = _gather_rows(P, samples.scan[m], c0 - half, 2 * half + 1, lut=lut)
     if not np.any(ok):
         return float("nan")
-    g = (
-        np.diff(vals[ok], axis=1) / samples.step[m][ok, None] * 1.0
-    )  # step is 0-255 scaled; ratios only matter
-    g = g / np.maximum(np.abs(g.sum(axis=1, keepdims=True)), 1e-6) * np.sign(g.sum(axis=1, keepdims=True))
-    pos = np.arange(2 * half) + 0.5 - half + (c0[ok] - e[ok])[:, None]  # relative to each sub-pixel edge
+    step = samples.step[m]
+    if not ok.all():
+        vals, step, c0, e = vals[ok], step[ok], c0[ok], e[ok]
+    g = np.diff(vals, axis=1) / step[:, None]  # step is 0-255 scaled; ratios only matter
+    gsum = g.sum(axis=1, keepdims=True)
+    g = g / np.maximum(np.abs(gsum), 1e-6) * np.sign(gsum)
+    pos = np.arange(2 * half) + 0.5 - half + (c0 - e)[:, None]  # relative to each sub-pixel edge
     # Re-bin on a 0.25 px grid relative to the edge to average the aligned gradient.
     bins = np.round(pos * 4).astype(int)
     lo = bins.min()
@@ -959,22 +962,28 @@ def texture_bias(
         NaN fields when fewer than 8 samples are usable.
     """
     m = mask & samples.valid & np.isfinite(samples.along)
-    if int(m.sum()) < 8:
-        return TextureBias(float("nan"), float("nan"))
     idx = np.flatnonzero(m)
+    if idx.size < 8:
+        return TextureBias(float("nan"), float("nan"))
     if idx.size > max_lines:  # a mean profile needs no more
-        idx = idx[np.linspace(0, idx.size - 1, max_lines).astype(int)]
+        idx = idx[_spread_indices(idx.size, max_lines)]
     P = oriented(plane, samples.axis)
     h = half + 1
     reach = max(2 * (half + plateau), 2 * h) + n_shifts + 2
     c0 = np.round(samples.along[idx]).astype(int)
-    vals, inside = _gather(P, samples.scan[idx], c0 - reach, 2 * reach + 1, lut=lut)
-    ok = inside.all(axis=1)
-    if int(ok.sum()) < 8:
+    vals, ok = _gather_rows(P, samples.scan[idx], c0 - reach, 2 * reach + 1, lut=lut)
+    n_ok = int(np.count_nonzero(ok))
+    if n_ok < 8:
         return TextureBias(float("nan"), float("nan"))
-    vals = vals[ok]
-    scan = samples.scan[idx][ok]
-    D = float(np.median(np.abs(vals[:, -plateau:].mean(axis=1) - vals[:, :plateau].mean(axis=1))))
+    if n_ok < ok.size:
+        vals = vals[ok]
+        scan = samples.scan[idx][ok]
+    else:
+        scan = samples.scan[idx]
+    if plateau == 1:
+        D = _median(np.abs(vals[:, -1] - vals[:, 0]))
+    else:
+        D = _median(np.abs(vals[:, -plateau:].mean(axis=1) - vals[:, :plateau].mean(axis=1)))
     if not D > 0:
         return TextureBias(float("nan"), float("nan"))
     o = np.arange(half + plateau, half + plateau + n_shifts)
@@ -984,39 +993,60 @@ def texture_bias(
         k = np.arange(-h, h + 1)
         o = np.arange(h + 1, h + 1 + n_shifts)
 
-    def pseudo_bias(T: np.ndarray) -> np.ndarray:
-        out = []
-        for prof in (T[reach + 1 :], T[:reach][::-1]):  # prof[j - 1] = pixel j beyond c0, each side
-            if blur_px is None:
-                # the area estimator's error, closed form: for each shift o the window sum of pixels
-                # o+1..o+half minus half times the mean of the plateau o+half+1..o+half+plateau
-                c = np.concatenate([[0.0], np.cumsum(prof)])
-                win = c[o + half] - c[o]
-                lev = (c[o + half + plateau] - c[o + half]) / plateau
-                out.append((win - half * lev) / D)
-            else:
-                # the step fit's error on a clean step of this contrast with this texture on one side
-                tex = prof[o[:, None] + k[None, :] - 1]
-                tex = tex - tex.mean(axis=1, keepdims=True)
-                out.append(_step_fit(C0 * (D + tex), np.zeros(o.size), bounds, max(float(blur_px), 0.05)))
-        return np.concatenate(out)
+    def pseudo_bias(Ts: list[np.ndarray]) -> list[np.ndarray]:
+        """The estimator's error on each mean profile in ``Ts``: both sides' shifts, concatenated."""
+        # prof[j - 1] = pixel j beyond c0, each side: the two sides of every profile as the rows of one array
+        profs = np.stack([p for T in Ts for p in (T[reach + 1 :], T[:reach][::-1])])
+        if blur_px is None:
+            # the area estimator's error, closed form: for each shift o the window sum of pixels
+            # o+1..o+half minus half times the mean of the plateau o+half+1..o+half+plateau
+            c = np.zeros((profs.shape[0], profs.shape[1] + 1))
+            c[:, 1:] = np.cumsum(profs, axis=1)  # row by row, as on each profile alone
+            win = c[:, o + half] - c[:, o]
+            lev = (c[:, o + half + plateau] - c[:, o + half]) / plateau
+            err = (win - half * lev) / D
+        else:
+            # the step fit's error on a clean step of this contrast with this texture on one side
+            # (every profile's every shift in one fit: the rows are fitted independently)
+            tex = profs[:, o[:, None] + k[None, :] - 1]
+            tex = tex - tex.mean(axis=2, keepdims=True)
+            rows = (C0[None] * (D + tex)).reshape(-1, k.size)
+            err = _step_fit(rows, np.zeros(rows.shape[0]), bounds, max(float(blur_px), 0.05))
+            err = err.reshape(profs.shape[0], o.size)
+        return [np.concatenate([err[2 * i], err[2 * i + 1]]) for i in range(len(Ts))]
 
     # Mean profiles over the scan lines (the line fit's outliers are already out) of the two halves of
     # the edge; their mean is the whole edge's.
     order = np.argsort(scan)
     lo, hi = order[: order.size // 2], order[order.size // 2 :]
     T_lo, T_hi = vals[lo].mean(axis=0, dtype=np.float64), vals[hi].mean(axis=0, dtype=np.float64)
-    pb = pseudo_bias(0.5 * (T_lo + T_hi))
+    with_tilt = lo.size >= 4 and hi.size >= 4
+    pbs = pseudo_bias([0.5 * (T_lo + T_hi), T_hi, T_lo] if with_tilt else [0.5 * (T_lo + T_hi)])
+    pb = pbs[0]
     # Both sides add (independent textures); the RMS over the shifts of each side, summed in quadrature.
     n = pb.size // 2
-    off = math.sqrt(float(np.mean(pb[:n] ** 2)) + float(np.mean(pb[n:] ** 2)))
+    off = math.sqrt(_mean_square(pb[:n]) + _mean_square(pb[n:]))
     tilt = float("nan")
-    if lo.size >= 4 and hi.size >= 4:
-        d = pseudo_bias(T_hi) - pseudo_bias(T_lo)
-        lever = float(np.mean(scan[hi]) - np.mean(scan[lo]))
+    if with_tilt:
+        d = pbs[1] - pbs[2]
+        # mean scan line of each half (integer sums: exact, as np.mean's)
+        lever = int(scan[hi].sum()) / hi.size - int(scan[lo].sum()) / lo.size
         if lever > 0:
-            tilt = math.sqrt(float(np.mean(d[:n] ** 2)) + float(np.mean(d[n:] ** 2))) / lever
+            tilt = math.sqrt(_mean_square(d[:n]) + _mean_square(d[n:])) / lever
     return TextureBias(off, tilt)
+
+
+def _mean_square(x: np.ndarray) -> float:
+    """``float(np.mean(x ** 2))`` of a 1-D float64 array (the same sum, without np.mean's dispatch)."""
+    return float((x * x).sum()) / x.size
+
+
+@functools.lru_cache(maxsize=64)
+def _spread_indices(n: int, k: int) -> np.ndarray:
+    """``np.linspace(0, n - 1, k).astype(int)``, made once per (n, k) (read-only)."""
+    out = np.linspace(0, n - 1, k).astype(int)
+    out.setflags(write=False)
+    return out
 
 
 def block_artifact_ratio(
@@ -1040,13 +1070,20 @@ def block_artifact_ratio(
     if not np.all(np.isfinite(c)):
         return float("nan")
     u0, v0 = max(int(c[0]) - half, 0), max(int(c[1]) - half, 0)
-    crop = plane[v0 : v0 + 2 * half, u0 : u0 + 2 * half].astype(np.float32)
+    crop = plane[v0 : v0 + 2 * half, u0 : u0 + 2 * half]
     if min(crop.shape) < 32:
         return float("nan")
+    exact_int = crop.dtype.kind in "ui" and crop.dtype.itemsize <= 2 and max(crop.shape) <= 256
     out = []
     for arr, o in ((crop, u0), (crop.T, v0)):
-        d = np.abs(np.diff(arr, axis=1)).mean(axis=0) * scale_to_8bit
+        if exact_int:
+            # Integer differences summed exactly: the float32 mean's sums are integers below 2**24 (exact),
+            # so this is the same mean for a fraction of the work.
+            s = np.abs(np.diff(arr.astype(np.int32), axis=1)).sum(axis=0)
+            d = (s.astype(np.float32) / np.float32(arr.shape[0])) * scale_to_8bit
+        else:
+            d = np.abs(np.diff(arr.astype(np.float32), axis=1)).mean(axis=0) * scale_to_8bit
         boundary = (o + np.arange(d.size)) % 8 == 7
-        on, off = float(np.median(d[boundary])), float(np.median(d[~boundary]))
+        on, off = _median(d[boundary]), _median(d[~boundary])
         out.append(on / max(off, 1e-3) if on - off >= min_excess else 1.0)
     return max(out)
