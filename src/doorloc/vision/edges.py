@@ -159,8 +159,16 @@ def _take_profiles(
     flat = _flat_view(P)
     if flat is not None and scan.size and int(scan.min()) >= 0 and int(scan.max()) < n_scan:
         f, p0, p1 = flat
-        if int(lo_end.min()) >= 0 and int(hi_end.max()) < n_along:  # all inside (the usual case)
-            return f.take((start * p0 + scan * p1)[:, None] + (k * p0)[None, :]), rows_in
+        if stride > 0 and int(lo_end.min()) >= 0 and int(hi_end.max()) < n_along:
+            # all inside (the usual case): rows of a strided view of the buffer (row b holds the profile
+            # that starts at flat index b), picked by their first index - no index array per sample
+            view = np.lib.stride_tricks.as_strided(
+                f,
+                shape=(f.size - stride * p0 * (length - 1), length),
+                strides=(f.itemsize, stride * p0 * f.itemsize),
+                writeable=False,
+            )
+            return view[start * p0 + scan * p1], rows_in
         idx = start[:, None] + k[None, :]
         np.clip(idx, 0, n_along - 1, out=idx)
         return f.take(idx * p0 + (scan * p1)[:, None]), rows_in
