@@ -120,16 +120,30 @@ def _smooth_along(x: np.ndarray, n: int) -> np.ndarray:
 
 def _smooth_along_rows(x: np.ndarray, n: int) -> np.ndarray:
     """:func:`_smooth_along` of each row of ``x`` (K, N), in one pass (the same numbers: running sums are
-    sequential either way)."""
-    ok = np.isfinite(x)
+    sequential either way; with no NaN the counts are the window lengths)."""
     k, size = x.shape
+    lo, hi, length = _smoothing_windows(size, n)
+    ok = np.isfinite(x)
+    all_ok = bool(ok.all())
     c = np.zeros((k, size + 1))
-    c[:, 1:] = np.cumsum(np.where(ok, x, 0.0), axis=1)  # in x's precision, as _smooth_along
+    c[:, 1:] = np.cumsum(x if all_ok else np.where(ok, x, 0.0), axis=1)  # in x's precision, as _smooth_along
+    if all_ok:
+        return (c[:, hi] - c[:, lo]) / length
     m = np.zeros((k, size + 1), np.int64)
     np.cumsum(ok, axis=1, out=m[:, 1:])
+    return (c[:, hi] - c[:, lo]) / np.maximum(m[:, hi] - m[:, lo], 1)
+
+
+@functools.lru_cache(maxsize=64)
+def _smoothing_windows(size: int, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Window bounds ``lo``, ``hi`` of :func:`_smooth_along` over ``size`` samples and ``max(hi - lo, 1)``
+    (read-only, made once per size)."""
     i = np.arange(size)
     lo, hi = np.maximum(i - n, 0), np.minimum(i + n + 1, size)
-    return (c[:, hi] - c[:, lo]) / np.maximum(m[:, hi] - m[:, lo], 1)
+    length = np.maximum(hi - lo, 1)
+    for a in (lo, hi, length):
+        a.setflags(write=False)
+    return lo, hi, length
 
 
 def _flat_view(P: np.ndarray) -> tuple[np.ndarray, int, int] | None:
@@ -291,7 +305,8 @@ def subpixel_edges(
         A, B = left.mean(axis=1), right.mean(axis=1)
         noise = np.sqrt(0.5 * (left.var(axis=1) + right.var(axis=1)))
     if level_smooth > 0 and scan.size:
-        A, B = _smooth_along_rows(np.where(inside_ok, np.stack([A, B]), np.nan), level_smooth)
+        AB = np.stack([A, B])
+        A, B = _smooth_along_rows(AB if inside_ok.all() else np.where(inside_ok, AB, np.nan), level_smooth)
     step = B - A
     hp = half + 0.5
     if slope_smooth > 0 and plateau > 1 and scan.size:
