@@ -143,7 +143,11 @@ def coarse_edges(
     ub = np.where(jb >= length - 1, jb, jb - 2 * half + 1)
     i = np.arange(m)
     # (ja is 0 on every scan line whose interval starts inside the image: then one comparison does)
-    ok = i[None, :] <= ub[:, None] if ja.max() <= 0 else (i[None, :] >= ja[:, None]) & (i[None, :] <= ub[:, None])
+    ok = (
+        i[None, :] <= ub[:, None]
+        if ja.max() <= 0
+        else (i[None, :] >= ja[:, None]) & (i[None, :] <= ub[:, None])
+    )
     resp = np.where(ok, resp, np.float32(-np.inf))
     rows = np.arange(n)
     best = np.argmax(resp, axis=1)

@@ -75,7 +75,7 @@ class ImageLine:
 
 def _lsq_line(s: np.ndarray, a: np.ndarray) -> tuple[float, float]:
     """Least-squares ``a = a0 + b s``; returns (b, a0)."""
-    sm, am = s.mean(), a.mean()
+    sm, am = s.sum() / s.size, a.sum() / a.size  # = s.mean(), a.mean(): the same sum and division
     ds = s - sm
     den = float(ds @ ds)
     b = float(ds @ (a - am)) / den if den > 0 else 0.0

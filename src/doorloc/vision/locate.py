@@ -431,9 +431,10 @@ def _fit(
         pol = region.layouts[name].polarity
         if name == "far" and far_offset_only:  # beside the far face: either polarity
             pol = int(np.sign(np.nanmedian(s.step))) or pol
+        finite = np.isfinite(xz)
         good = s.valid & (pol * s.step >= 0.5 * cfg.min_contrast)
-        good &= np.isfinite(xz).all(axis=1)
-        if good.sum() < 3:
+        good &= finite.all(axis=1)
+        if np.count_nonzero(good) < 3:
             raise _Refused(
                 q.Refusal(
                     "edge_missing",
@@ -441,7 +442,7 @@ def _fit(
                     "polarity); check that the door lies in the fixture and nothing covers that edge",
                 )
             )
-        groups[name] = (np.where(np.isfinite(xz), xz, 0.0), region.layouts[name].along_x)
+        groups[name] = (np.where(finite, xz, 0.0), region.layouts[name].along_x)
         init[name] = good.astype(float)
     try:
         fit = fit_rectangle_edges(
@@ -719,12 +720,15 @@ def _refine(
                 transition_width(plane, samples[k], fit.weights[k] > 0, half, lut)
                 for k in ("bottom", "reference")
             ]
-            blur = float(np.nanmax(widths)) if np.any(np.isfinite(widths)) else float(cfg.half_window_max)
+            # np.nanmax of the pair when one is finite, without numpy
+            blur = (
+                float(max(w for w in widths if not math.isnan(w)))
+                if any(math.isfinite(w) for w in widths)
+                else float(cfg.half_window_max)
+            )
             step_fit = _step_fit_lines(cfg, dict(zip(("bottom", "reference"), widths, strict=True)))
-            half = int(
-                np.clip(
-                    math.ceil(cfg.window_blur_factor * blur + 1.0), cfg.half_window_min, cfg.half_window_max
-                )
+            half = min(
+                max(math.ceil(cfg.window_blur_factor * blur + 1.0), cfg.half_window_min), cfg.half_window_max
             )
             ref0 = _Profiles(samples["reference"], fit.weights["reference"] > 0, lut)
             if far_beside:
