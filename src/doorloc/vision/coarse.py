@@ -29,10 +29,15 @@ def profiles(
     h, w = plane.shape
     n_along, pitch_along, pitch_scan = (h, w, 1) if axis == "col" else (w, 1, w)
     flat = np.ascontiguousarray(plane).reshape(-1)
-    j = (stride * pitch_along) * np.arange(length)
+    step = stride * pitch_along
     if start.size and start.min() >= 0 and start.max() + stride * (length - 1) < n_along:
-        # all inside (the usual case): one index per sample, no clamping
-        return flat.take((start * pitch_along + scan * pitch_scan)[:, None] + j[None, :])
+        # all inside (the usual case): the rows of a strided view of the image (row b holds the profile
+        # that starts at flat index b), picked by their first index: no index array per sample
+        n_first = flat.size - step * (length - 1)
+        view = np.lib.stride_tricks.as_strided(
+            flat, shape=(n_first, length), strides=(flat.itemsize, step * flat.itemsize), writeable=False
+        )
+        return view[start * pitch_along + scan * pitch_scan]
     idx = start[:, None] + stride * np.arange(length)[None, :]
     np.clip(idx, 0, n_along - 1, out=idx)
     return flat.take(idx * pitch_along + (scan * pitch_scan)[:, None])
@@ -51,11 +56,22 @@ def _responses(vals: np.ndarray, half: int, exact_int: bool) -> np.ndarray:
         win = v[:, : length - half + 1].copy()  # win[:, i] = sum of v[:, i:i + half]
         for t in range(1, half):
             win += v[:, t : length - half + 1 + t]
-        return (win[:, half : half + m] - win[:, :m]).astype(np.float32)
+        # the difference of two integers below 2**24 is exact in float32 too: subtract into float32 at once
+        return np.subtract(win[:, half : half + m], win[:, :m], dtype=np.float32)
     c = np.zeros((n, length + 1), np.float32)
     np.cumsum(vals.astype(np.float32), axis=1, dtype=np.float32, out=c[:, 1:])
     mid = c[:, half : length - half + 1]
     return (c[:, 2 * half :] - mid) - (mid - c[:, :m])
+
+
+def _row_medians(x: np.ndarray) -> np.ndarray:
+    """``np.median(x, axis=1)`` of a finite float array (N, M): the same partition and mean of the middle
+    element(s), without np.median's generic machinery (and its NaN check: the values are finite)."""
+    k = x.shape[1] // 2
+    if x.shape[1] % 2:
+        return np.partition(x, k, axis=1)[:, k]
+    p = np.partition(x, [k - 1, k], axis=1)
+    return (p[:, k - 1] + p[:, k]) / x.dtype.type(2)
 
 
 def coarse_edges(
@@ -114,14 +130,24 @@ def coarse_edges(
     vals = profiles(plane, axis, scan, lo, length, stride)
     m = length - 2 * half + 1  # responses per scan line, at k = half + i
     resp = _responses(vals, half, plane.dtype == np.uint8 and half <= 4096)
-    resp = (polarity * resp if polarity else np.abs(resp)) / half
+    # (polarity * resp or |resp|) / half, in place where it can be: the same float32 operations
+    if not polarity:
+        resp = np.abs(resp)
+    elif polarity != 1:
+        resp *= polarity
+    resp /= half
     # Sample j is usable when it lies in the image and in [lo, hi]: an interval [ja, jb] of each scan line.
     # The detector at k needs samples k - half and min(k + half - 1, length - 1) usable.
     ja = np.maximum(-(lo // stride), 0)
     jb = np.minimum(np.minimum((n_along - 1 - lo) // stride, (hi - lo) // stride), length - 1)
     ub = np.where(jb >= length - 1, jb, jb - 2 * half + 1)
     i = np.arange(m)
-    ok = (i[None, :] >= ja[:, None]) & (i[None, :] <= ub[:, None])
+    # (ja is 0 on every scan line whose interval starts inside the image: then one comparison does)
+    ok = (
+        i[None, :] <= ub[:, None]
+        if ja.max() <= 0
+        else (i[None, :] >= ja[:, None]) & (i[None, :] <= ub[:, None])
+    )
     resp = np.where(ok, resp, np.float32(-np.inf))
     rows = np.arange(n)
     best = np.argmax(resp, axis=1)
@@ -129,15 +155,16 @@ def coarse_edges(
         top = resp[rows, best]
         peak = np.zeros_like(ok)
         peak[:, 1:-1] = (resp[:, 1:-1] >= resp[:, :-2]) & (resp[:, 1:-1] > resp[:, 2:])
-        floor = 1.4826 * np.median(np.abs(np.where(ok, resp, np.float32(0.0))), axis=1)
+        floor = 1.4826 * _row_medians(np.abs(np.where(ok, resp, np.float32(0.0))))
         cand = peak & (resp >= np.maximum(prefer_fraction * top, 5.0 * floor)[:, None]) & (resp > 0)
         # the candidate nearest to the preferred position (the first of equally near ones), on the
         # candidates only: they are few
-        r_c, i_c = np.nonzero(cand)
+        r_c, i_c = np.divmod(np.flatnonzero(cand), m)  # = np.nonzero(cand), for less
         if r_c.size:
             dist = np.abs((lo[r_c] + stride * (i_c + half) - 0.5 * stride) - np.asarray(prefer, float)[r_c])
             # as numpy's argmin over a row: a NaN distance wins (and then nothing is preferred), inf never does
-            use = np.isfinite(dist) & ~np.isin(r_c, r_c[np.isnan(dist)])
+            nan_rows = r_c[np.isnan(dist)]
+            use = np.isfinite(dist) & ~np.isin(r_c, nan_rows) if nan_rows.size else np.isfinite(dist)
             r_c, i_c, dist = r_c[use], i_c[use], dist[use]
             order = np.lexsort((i_c, dist, r_c))  # by row, then distance, then position
             first = np.ones(order.size, bool)

@@ -75,7 +75,7 @@ class ImageLine:
 
 def _lsq_line(s: np.ndarray, a: np.ndarray) -> tuple[float, float]:
     """Least-squares ``a = a0 + b s``; returns (b, a0)."""
-    sm, am = s.mean(), a.mean()
+    sm, am = s.sum() / s.size, a.sum() / a.size  # = s.mean(), a.mean(): the same sum and division
     ds = s - sm
     den = float(ds @ ds)
     b = float(ds @ (a - am)) / den if den > 0 else 0.0
@@ -207,8 +207,10 @@ def fit_rectangle_edges(
     1.0
     """
     names = list(groups)
+    sizes_l = [len(groups[k][0]) for k in names]
+    if 0 in sizes_l:
+        raise ValueError("a line group has no points")
     P = np.concatenate([_to_common(np.asarray(groups[k][0], float), groups[k][1]) for k in names])
-    gid = np.concatenate([np.full(len(groups[k][0]), i) for i, k in enumerate(names)])
     G = len(names)
     mask0 = (
         np.concatenate([np.asarray(init_weights[k], float) for k in names]) > 0
@@ -216,34 +218,39 @@ def fit_rectangle_edges(
         else np.ones(len(P), bool)
     )
     w = mask0.astype(float)
-    votes = np.concatenate([np.full(len(groups[k][0]), k not in offset_only) for k in names]).astype(float)
-    scale = scale_floor
-    prev = None
-    starts = np.concatenate([[0], np.cumsum([len(groups[k][0]) for k in names])[:-1]])
-    sizes = np.array([len(groups[k][0]) for k in names])
     voting_subset = any(k in offset_only for k in names)  # else votes are all 1 (w * 1.0 == w)
-    if np.any(np.diff(np.concatenate([starts, [len(P)]])) == 0):
-        raise ValueError("a line group has no points")
+    votes = (
+        np.concatenate([np.full(n, k not in offset_only, float) for k, n in zip(names, sizes_l, strict=True)])
+        if voting_subset
+        else None
+    )
+    scale = scale_floor
+    prev: tuple[float, ...] | None = None
+    sizes = np.array(sizes_l)
+    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
     for it in range(n_iter):
         sw = np.add.reduceat(w, starts)
-        if np.any(sw <= 0):
+        if sw.min() <= 0:
             raise ValueError(f"no usable points on the {names[int(np.argmin(sw))]} line")
         means = np.add.reduceat(w[:, None] * P, starts, axis=0) / sw[:, None]
         Q = P - np.repeat(means, sizes, axis=0)  # = means[gid], without the gather
-        S = ((w * votes if voting_subset else w)[:, None] * Q).T @ Q
-        # Smallest-eigenvalue eigenvector of the 2x2 scatter, in closed form.
-        a, b, d = S[0, 0], S[0, 1], S[1, 1]
+        S = ((w * votes if votes is not None else w)[:, None] * Q).T @ Q
+        # Smallest-eigenvalue eigenvector of the 2x2 scatter, in closed form (Python floats: the same
+        # IEEE operations as on numpy scalars, without their overhead).
+        (a, b), (_, d) = S.tolist()
         lam = 0.5 * (a + d) - math.sqrt(0.25 * (a - d) ** 2 + b * b)
-        n = np.array([b, lam - a]) if abs(b) > 1e-300 or a > d else np.array([1.0, 0.0])
+        n0, n1 = (b, lam - a) if abs(b) > 1e-300 or a > d else (1.0, 0.0)
         if abs(lam - a) < 1e-300 and abs(b) < 1e-300:
-            n = np.array([1.0, 0.0]) if a <= d else np.array([0.0, 1.0])
-        n = n / math.hypot(n[0], n[1])
-        if n[0] < 0:
-            n = -n
+            n0, n1 = (1.0, 0.0) if a <= d else (0.0, 1.0)
+        h = math.hypot(n0, n1)
+        n0, n1 = n0 / h, n1 / h
+        if n0 < 0:
+            n0, n1 = -n0, -n1
+        n = np.array([n0, n1])
         off = means @ n
         r = P @ n - np.repeat(off, sizes)
-        state = np.concatenate([n, off])
-        if prev is not None and it > 3 and np.max(np.abs(state - prev)) < 1e-8:
+        state = (n0, n1, *off.tolist())
+        if prev is not None and it > 3 and all(abs(x - y) < 1e-8 for x, y in zip(state, prev, strict=True)):
             break
         prev = state
         if it < 4 or it % 2 == 0:  # the scale settles quickly; re-estimating it every time costs medians
@@ -255,14 +262,16 @@ def fit_rectangle_edges(
             w = tukey_weights(r, scale)
         w = w * mask0
     # Standard errors: residual variance over the weighted information of each parameter.
-    sw = np.bincount(gid, weights=w, minlength=G)
+    sw = np.bincount(np.repeat(np.arange(G), sizes), weights=w, minlength=G)
     var = float((w * r * r).sum()) / max(float(sw.sum()) - G - 1, 1.0)
     tdir = np.array([-n[1], n[0]])
-    spread = float((w * votes * (Q @ tdir) ** 2).sum())
-    ang_sigma = float(np.sqrt(var / max(spread, 1e-12)))
-    off_sigma = {k: float(np.sqrt(var / max(sw[i], 1e-12))) for i, k in enumerate(names)}
-    res = {k: r[gid == i] for i, k in enumerate(names)}
-    wd = {k: w[gid == i] for i, k in enumerate(names)}
-    offsets = {k: float(off[i]) for i, k in enumerate(names)}
+    spread = float(((w * votes if votes is not None else w) * (Q @ tdir) ** 2).sum())
+    ang_sigma = math.sqrt(var / max(spread, 1e-12))
+    bounds = np.concatenate([starts, [len(P)]]).tolist()
+    sw_l = sw.tolist()
+    off_sigma = {k: math.sqrt(var / max(sw_l[i], 1e-12)) for i, k in enumerate(names)}
+    res = {k: r[bounds[i] : bounds[i + 1]] for i, k in enumerate(names)}
+    wd = {k: w[bounds[i] : bounds[i + 1]] for i, k in enumerate(names)}
+    offsets = dict(zip(names, off.tolist(), strict=True))
     angle = float(np.arctan2(n[1], n[0]))
-    return RectangleFit(angle, offsets, res, wd, float(np.sqrt(var)), ang_sigma, off_sigma)
+    return RectangleFit(angle, offsets, res, wd, math.sqrt(var), ang_sigma, off_sigma)

@@ -52,7 +52,7 @@ from doorloc.vision.edges import (
     texture_bias,
     transition_width,
 )
-from doorloc.vision.lines import ImageLine, RectangleFit, fit_rectangle_edges, ransac_line
+from doorloc.vision.lines import ImageLine, RectangleFit, _median, fit_rectangle_edges, ransac_line
 from doorloc.vision.luminance import ImageFormatError, LuminancePlane, luminance_plane
 from doorloc.vision.metric import MetricPose, pose_from_fit
 from doorloc.vision.region import EDGE_NAMES, Band, SearchRegion
@@ -439,9 +439,10 @@ def _fit(
         pol = region.layouts[name].polarity
         if name == "far" and far_offset_only:  # beside the far face: either polarity
             pol = int(np.sign(np.nanmedian(s.step))) or pol
+        finite = np.isfinite(xz)
         good = s.valid & (pol * s.step >= 0.5 * cfg.min_contrast)
-        good &= np.isfinite(xz).all(axis=1)
-        if good.sum() < 3:
+        good &= finite.all(axis=1)
+        if np.count_nonzero(good) < 3:
             raise _Refused(
                 q.Refusal(
                     "edge_missing",
@@ -449,7 +450,7 @@ def _fit(
                     "polarity); check that the door lies in the fixture and nothing covers that edge",
                 )
             )
-        groups[name] = (np.where(np.isfinite(xz), xz, 0.0), region.layouts[name].along_x)
+        groups[name] = (np.where(finite, xz, 0.0), region.layouts[name].along_x)
         init[name] = good.astype(float)
     try:
         fit = fit_rectangle_edges(
@@ -719,12 +720,15 @@ def _refine(
                 transition_width(plane, samples[k], fit.weights[k] > 0, half, lut)
                 for k in ("bottom", "reference")
             ]
-            blur = float(np.nanmax(widths)) if np.any(np.isfinite(widths)) else float(cfg.half_window_max)
+            # np.nanmax of the pair when one is finite, without numpy
+            blur = (
+                float(max(w for w in widths if not math.isnan(w)))
+                if any(math.isfinite(w) for w in widths)
+                else float(cfg.half_window_max)
+            )
             step_fit = _step_fit_lines(cfg, dict(zip(("bottom", "reference"), widths, strict=True)))
-            half = int(
-                np.clip(
-                    math.ceil(cfg.window_blur_factor * blur + 1.0), cfg.half_window_min, cfg.half_window_max
-                )
+            half = min(
+                max(math.ceil(cfg.window_blur_factor * blur + 1.0), cfg.half_window_min), cfg.half_window_max
             )
             ref0 = _Profiles(samples["reference"], fit.weights["reference"] > 0, lut)
             if far_beside:
@@ -927,6 +931,11 @@ def _residual_structure_tilt(samples: EdgeSamples, residual_px: np.ndarray, inli
     return float(np.std(means, ddof=1) / math.sqrt(spread)) if spread > 0 else float("nan")
 
 
+def _mean_square(x: np.ndarray) -> float:
+    """``float(np.mean(x ** 2))`` of a 1-D float64 array (the same sum, without np.mean's dispatch)."""
+    return float((x * x).sum()) / x.size
+
+
 def _response_check_applies(samples: EdgeSamples, inliers: np.ndarray, blur_px: float) -> bool:
     """Whether the mean transition's asymmetry can be read on this line.
 
@@ -935,9 +944,11 @@ def _response_check_applies(samples: EdgeSamples, inliers: np.ndarray, blur_px: 
     row or column puts all of them at one phase, and the pixel grid's own asymmetry reads as a skew) and
     the edge is blurred over more than a pixel's width (a sharp step has no transition shape to read).
     """
+    if not blur_px >= 0.5:  # (the phases need not be counted then)
+        return False
     along = samples.along[inliers & samples.valid]
     phases = np.unique(np.floor((along % 1.0) * 4.0)).size if along.size else 0
-    return blur_px >= 0.5 and phases >= 4
+    return phases >= 4
 
 
 def _measure_response(
@@ -1098,9 +1109,9 @@ def _gate_and_answer(
         inl = w > 0
         n_s = int(s.scan.size)
         n_i = int(inl.sum())
-        rms_mm = float(np.sqrt(np.mean(fit.residuals[k][inl] ** 2))) if n_i else float("nan")
+        rms_mm = math.sqrt(_mean_square(fit.residuals[k][inl])) if n_i else float("nan")
         rms_px = rms_mm / pose.scale_mm_per_px
-        contrast = float(np.median(np.abs(s.step[inl]))) if n_i else 0.0
+        contrast = _median(np.abs(s.step[inl])) if n_i else 0.0
         # what the edge model leaves in doubt (floor, texture, far-face model...), on top of the noise
         extra = {"model_sigma_mm": round(model.line_sigma_px(k) * pose.scale_mm_per_px, 6)}
         for term, key in (("arris", "arris_correction_sigma_mm"), ("response", "response_sigma_mm")):
@@ -1114,7 +1125,7 @@ def _gate_and_answer(
                 rms_residual_px=round(rms_px, 4),
                 rms_residual_mm=round(rms_mm, 5),
                 contrast=round(contrast, 1),
-                noise=round(float(np.median(s.noise[inl])), 2) if n_i else None,
+                noise=round(_median(s.noise[inl]), 2) if n_i else None,
                 offset_sigma_mm=round(fit.offset_sigma[k], 5),
                 **extra,
             )
@@ -1142,8 +1153,8 @@ def _gate_and_answer(
         lay = region.layouts[k]
         c_scan = corner_px[0] if lay.axis == "col" else corner_px[1]
         near = np.abs(s.scan - c_scan) <= cfg.corner_zone_px
-        n = int(near.sum())
-        frac = float((fit.weights[k][near] > 0).mean()) if n else 0.0
+        n = int(np.count_nonzero(near))
+        frac = int(np.count_nonzero(fit.weights[k][near] > 0)) / n if n else 0.0
         diagnostics[f"corner_support_{k}"] = round(frac, 3)
         refusals.append(q.check_corner_support(HUMAN[k], frac, n, cfg.min_corner_support))
     bright = np.concatenate([samples[k].bright[fit.weights[k] > 0] for k in EDGE_NAMES])
@@ -1342,9 +1353,14 @@ def _pose_uncertainty(
         inl = (fit.weights[k] > 0) & np.isfinite(s.along)
         c_scan = pose.corner_px[0] if s.axis == "col" else pose.corner_px[1]
         sc_in = s.scan[inl].astype(float)
-        lever[k] = abs(float(np.mean(sc_in)) - c_scan) * sc if sc_in.size else 0.0
-        spread[k] = float(((sc_in - sc_in.mean()) ** 2).sum()) if sc_in.size else 0.0
-        extent[k] = float(np.ptp(sc_in)) if sc_in.size else 0.0
+        if sc_in.size:
+            # integer scan lines: their sum is exact, so this is np.mean's value
+            mean = float(sc_in.sum()) / sc_in.size
+            lever[k] = abs(mean - c_scan) * sc
+            spread[k] = float(((sc_in - mean) ** 2).sum())
+            extent[k] = float(sc_in.max() - sc_in.min())
+        else:
+            lever[k] = spread[k] = extent[k] = 0.0
     fit_t = (
         corner_fit_sigma(fit.offset_sigma["reference"], fit.angle_sigma_rad, lever["reference"]),
         corner_fit_sigma(fit.offset_sigma["bottom"], fit.angle_sigma_rad, lever["bottom"]),

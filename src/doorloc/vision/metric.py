@@ -47,6 +47,11 @@ class PlaneMap:
         self._distorted = bool(np.any(self.camera.coeffs12))
         K = self.camera.camera_matrix
         self._k = (K[0, 0], K[0, 1], K[0, 2], K[1, 1], K[1, 2])
+        # the rotation, translation and centre as Python floats: the same products as with numpy
+        # scalars, without indexing an array for each (locate maps a few points at a time, often)
+        self._R = self.R.tolist()
+        self._t = self.t.tolist()
+        self._c = self.centre.tolist()
 
     def at_depth(self, depth_y: float) -> PlaneMap:
         """The same camera onto another plane ``Y = depth_y``."""
@@ -62,24 +67,25 @@ class PlaneMap:
             fx, sk, cx, fy, cy = self._k
             y = (uv[:, 1] - cy) / fy
             x = (uv[:, 0] - cx - sk * y) / fx
-        R = self.R  # cell direction = R^T (x, y, 1)
-        dx = R[0, 0] * x + R[1, 0] * y + R[2, 0]
-        dy = R[0, 1] * x + R[1, 1] * y + R[2, 1]
-        dz = R[0, 2] * x + R[1, 2] * y + R[2, 2]
+        R = self._R  # cell direction = R^T (x, y, 1)
+        dx = R[0][0] * x + R[1][0] * y + R[2][0]
+        dy = R[0][1] * x + R[1][1] * y + R[2][1]
+        dz = R[0][2] * x + R[1][2] * y + R[2][2]
+        c = self._c
         with np.errstate(divide="ignore", invalid="ignore"):
-            s = (self.depth_y - self.centre[1]) / dy
+            s = (self.depth_y - c[1]) / dy
         s = np.where(s > 0, s, np.nan)
         out = np.empty((len(uv), 2))
-        out[:, 0] = self.centre[0] + s * dx
-        out[:, 1] = self.centre[2] + s * dz
+        out[:, 0] = c[0] + s * dx
+        out[:, 1] = c[2] + s * dz
         return out
 
     def to_image(self, xz: np.ndarray) -> np.ndarray:
         """``(X, Z)`` mm on the plane -> pixels ``(N, 2)``."""
         xz = np.asarray(xz, float).reshape(-1, 2)
-        R, t, Y = self.R, self.t, self.depth_y
+        R, t, Y = self._R, self._t, self.depth_y
         X, Z = xz[:, 0], xz[:, 1]
-        pc = [R[i, 0] * X + R[i, 1] * Y + R[i, 2] * Z + t[i] for i in range(3)]
+        pc = [R[i][0] * X + R[i][1] * Y + R[i][2] * Z + t[i] for i in range(3)]
         with np.errstate(divide="ignore", invalid="ignore"):
             zc = np.where(pc[2] > 0, pc[2], np.nan)
             x, y = pc[0] / zc, pc[1] / zc
@@ -94,8 +100,12 @@ class PlaneMap:
     def scale_mm_per_px(self, xz: np.ndarray) -> float:
         """Mean size of one pixel on this plane at the point ``(X, Z)`` (mm per pixel): the square root of
         the area a pixel there covers (as :meth:`PosedCamera.scale_mm_per_px`)."""
-        uv = self.to_image(np.asarray(xz, float).reshape(1, 2))[0]
-        q = self.to_plane(np.array([uv, uv + [1.0, 0.0], uv + [0.0, 1.0]]))
+        return self.scale_at_pixel(self.to_image(np.asarray(xz, float).reshape(1, 2))[0])
+
+    def scale_at_pixel(self, uv: np.ndarray) -> float:
+        """:meth:`scale_mm_per_px` at the plane point seen at pixel ``uv`` (u, v), mm per pixel."""
+        u, v = float(uv[0]), float(uv[1])
+        q = self.to_plane(np.array([[u, v], [u + 1.0, v], [u, v + 1.0]]))
         a, b = q[1] - q[0], q[2] - q[0]
         return float(math.sqrt(abs(a[0] * b[1] - a[1] * b[0])))
 
@@ -166,5 +176,5 @@ def pose_from_fit(fit: RectangleFit, face_map: PlaneMap) -> MetricPose:
     z = s * cr + c * cb
     thickness = fit.offsets["far"] - cr if "far" in fit.offsets else float("nan")
     corner_px = face_map.to_image(np.array([[x, z]]))[0]
-    scale = face_map.scale_mm_per_px(np.array([x, z]))
+    scale = face_map.scale_at_pixel(corner_px)  # = scale_mm_per_px((x, z)), without projecting it again
     return MetricPose(float(x), float(z), math.degrees(t), float(thickness), corner_px, scale)

@@ -83,9 +83,28 @@ def _sorted_polyline(uv: np.ndarray, axis: Axis) -> tuple[np.ndarray, np.ndarray
     """The finite points of the polyline ``uv`` as (scan, along), ordered by scan."""
     s, a = _along_scan(uv, axis)
     ok = np.isfinite(s) & np.isfinite(a)
-    s, a = s[ok], a[ok]
+    if not ok.all():
+        s, a = s[ok], a[ok]
+    # A polyline along an edge is usually monotonic in scan: strictly increasing (or decreasing) keys
+    # have one sorted order, the one argsort would give.
+    d = np.diff(s)
+    if (d > 0).all():
+        return s, a
+    if (d < 0).all():
+        return s[::-1], a[::-1]
     order = np.argsort(s)
     return s[order], a[order]
+
+
+def _linspace(start: float, stop: float, num: int) -> np.ndarray:
+    """``np.linspace(start, stop, num)`` (num >= 2), the same numbers without its generic machinery."""
+    step = (stop - start) / (num - 1)
+    if step == 0 or not math.isfinite(step):
+        return np.linspace(start, stop, num)
+    y = np.arange(num, dtype=np.float64) * step
+    y += start
+    y[-1] = stop
+    return y
 
 
 def _interp_sorted(s: np.ndarray, a: np.ndarray, scans: np.ndarray) -> np.ndarray:
@@ -325,7 +344,7 @@ class SearchRegion:
             "track_tz",
             lambda: np.linspace(0.0, self.z_top_mm + 40.0, max(int((self.z_top_mm + 40.0) / 2.0), 8)),
         )
-        tx = np.linspace(-1.0, thickness_mm + 1.0, max(int(thickness_mm / 2.0), 8))
+        tx = _linspace(-1.0, thickness_mm + 1.0, max(int(thickness_mm / 2.0), 8))
         polylines = {
             "bottom": corner[None] + tx[:, None] * ex[None],
             "reference": corner[None] + tz[:, None] * ez[None],
@@ -354,9 +373,9 @@ class SearchRegion:
                 # From the corner towards the door's far end (the direction of increasing tz).
                 d = np.sign(s[-1] - s[0]) or 1.0
                 if d > 0:
-                    s_lo, s_hi = e_s[0] + keep_px, np.nanmax(s)
+                    s_lo, s_hi = e_s[0] + keep_px, np.fmax.reduce(s)  # = np.nanmax, less dispatch
                 else:
-                    s_lo, s_hi = np.nanmin(s), e_s[0] - keep_px
+                    s_lo, s_hi = np.fmin.reduce(s), e_s[0] - keep_px
             s_lo = max(s_lo, self.border_px)
             s_hi = min(s_hi, n_scan - 1 - self.border_px)
             scans = np.arange(int(math.ceil(s_lo)), int(math.floor(s_hi)) + 1)
