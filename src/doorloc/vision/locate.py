@@ -860,7 +860,8 @@ def _locate(
 
 
 class _Clock:
-    """Stage timings (ms) for the diagnostics."""
+    """Stage timings (ms) for the diagnostics; a stage run twice (the third pass of the fine stage, when a
+    far face is in view, runs as ``edges2`` / ``fit2`` again) counts both runs."""
 
     def __init__(self) -> None:
         self.t = time.perf_counter()
@@ -868,7 +869,7 @@ class _Clock:
 
     def lap(self, name: str) -> None:
         t = time.perf_counter()
-        self.laps[name] = round((t - self.t) * 1e3, 3)
+        self.laps[name] = round(self.laps.get(name, 0.0) + (t - self.t) * 1e3, 3)
         self.t = t
 
 
