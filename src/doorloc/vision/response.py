@@ -306,7 +306,7 @@ def fit_line_response(
     n_blocks = min(RESPONSE_SKEW_BLOCKS, t.raw.shape[0] // 12)
     if n_blocks < 3:
         return None
-    g_hat = _least_asymmetric(t, np.geomspace(*RESPONSE_GAMMA_RANGE, 13))
+    g_hat = _least_asymmetric(t, np.geomspace(*RESPONSE_GAMMA_RANGE, 25))
     if not math.isfinite(g_hat):
         return None
     # the standard error from the exponent's scatter over contiguous blocks of scan lines (texture and
@@ -407,13 +407,13 @@ def _vertex(grid: np.ndarray, a: np.ndarray) -> float:
 
 def _least_asymmetric(t: _Transitions, grid: np.ndarray) -> float:
     """The exponent of least :func:`_asymmetry`: the best of ``grid``, then of a grid 16 times finer
-    between its neighbours, refined by a parabola (from the 13-point range grid, a step of 4 %: the
-    parabola's vertex is then good to far below the exponent's standard error)."""
+    between its neighbours, refined by a parabola (a grid step of 1.3 %: the parabola's vertex is then
+    good to far below the exponent's standard error)."""
     a = _asymmetry(t, grid)
     if not np.any(np.isfinite(a)):
         return float("nan")
     i = int(np.nanargmin(a))
-    fine = np.geomspace(grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)], 11)
+    fine = np.geomspace(grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)], 9)
     return _vertex(fine, _asymmetry(t, fine))
 
 
@@ -427,7 +427,7 @@ def _least_asymmetric_blocks(
     if not found:
         return np.full(n_blocks, np.nan)
     step = grid[1] / grid[0]
-    fine = np.geomspace(min(found) / step, max(found) * step, 13)
+    fine = np.geomspace(min(found) / step, max(found) * step, 21)
     af = _asymmetry(t, fine, blocks, n_blocks)
     return np.array(
         [_vertex(fine, af[:, k]) if math.isfinite(coarse[k]) else math.nan for k in range(n_blocks)]
