@@ -235,6 +235,9 @@ def main() -> None:
     ap.add_argument("--sets", default="arris,gamma,wrong-gamma,wrong-gamma-2.2,fixtures")
     args = ap.parse_args()
     sets = args.sets.split(",")
+    known = ("arris", "gamma", "wrong-gamma", "wrong-gamma-2.2", "fixtures", "timing")
+    if unknown := [s for s in sets if s not in known]:
+        ap.error(f"unknown set(s) {', '.join(unknown)}; the sets are {', '.join(known)}")
     if "arris" in sets:
         run_arris(args.n)
     if "gamma" in sets:
