@@ -146,3 +146,50 @@ def test_a_strip_at_the_face_level_keeps_both_borders_in_doubt():
     fit = fit_strip_profile(r, x, outer - 2.5, np.full(40, 2.5), geom, 0.002, 1.0)
     assert fit is not None
     assert abs(fit.deficit) <= max(2 * fit.deficit_sigma, 0.05)
+
+
+@pytest.mark.parametrize("profile", ["round", "chamfer"])
+def test_a_strip_much_narrower_than_a_pixel_is_a_plain_step(profile):
+    """A strip a thirtieth of a pixel wide (an arris of hundredths of a millimetre): its levels are held by
+    their prior, so it cannot act as the step's derivative and move the border (it did by a pixel, with
+    deficits of -10 to +40)."""
+    rng = np.random.default_rng(19)
+    width = 0.03
+    r, x, outer = _profiles(40, width, 0.5, 1.3, rng)
+    n_tau = 33
+    geom = ArrisGeometry(
+        ArrisSection(0.007, profile, 30.0, -350.0),
+        0.0,
+        0.007,
+        np.linspace(0.0, 1.0, n_tau),
+        np.linspace(np.pi / 2, 0.0, n_tau),
+    )
+    fit = fit_strip_profile(r, x, outer, np.full(40, width), geom, 0.002, 1.0)
+    assert fit is not None
+    assert -0.5 <= fit.deficit <= 1.5
+    assert abs(fit.offset_px) < 0.1
+    assert np.all(np.abs(fit.levels) < 5.0)
+
+
+def test_locate_on_a_door_with_a_hundredth_of_a_millimetre_rounding():
+    """A rounding of 0.01 mm lit from the side (arris bench seed 1519 put it 0.09 mm off at 8 sigma)."""
+    door = DoorSize(900, 50, 2100, arris_mm=0.01, arris_profile="round")
+    pose = DoorPose(-6.3, -2.0, -1.4)
+    fx = Effects(
+        arris_profile="round",
+        albedo_hinge=0.51,
+        albedo_chamfer=0.47,
+        albedo_background=0.19,
+        light_ambient=0.44,
+        light_directional=0.62,
+        light_azimuth_deg=-72.0,
+        light_elevation_deg=15.0,
+        blur_sigma_px=1.3,
+        read_noise_dn=0.1,
+    )
+    img = render_door(CELL, door, pose, effects=fx, seed=1519).image
+    res = locate(img, CELL, door)
+    assert res.ok, res.error
+    ex, ez = res.x_mm - pose.x_mm, res.z_mm - pose.z_mm
+    assert abs(ex) < 0.03 and abs(ez) < 0.03
+    assert abs(ex) <= 3 * res.uncertainty.x_mm and abs(ez) <= 3 * res.uncertainty.z_mm
