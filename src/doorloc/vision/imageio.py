@@ -13,8 +13,6 @@ import numpy as np
 
 __all__ = ["ImageDecodeError", "decode_image", "read_image"]
 
-_FLAGS = None
-
 
 class ImageDecodeError(ValueError):
     """The bytes or the file are not an image OpenCV can decode; the message says which and why."""
