@@ -90,6 +90,8 @@ def test_cli_render_writes_images_truth_and_cell(tmp_path):
             "35,60",
             "--effect",
             "blur_sigma_px=0.5",
+            "--effect",
+            "gamma=2.2",
         ],
     )
     assert res.exit_code == 0, res.output
@@ -100,6 +102,8 @@ def test_cli_render_writes_images_truth_and_cell(tmp_path):
     assert all((out / r.image).is_file() for r in rows)
     cell = load_cell(out / "cell.yaml")
     assert np.allclose(rows[1].corner_px, true_corner_px(cell, rows[1].door, rows[1].pose))
+    # the cell it writes describes the rendered camera (it used to say 1.0 whatever the response)
+    assert rows[0].effects.gamma == 2.2 and cell.response_gamma == 2.2
     # a second run into the same folder is refused without --force and leaves the set alone
     before = (out / "truth.csv").read_bytes()
     res = CliRunner().invoke(app, ["render", str(out), "--cell", str(ROOT / "fixtures" / "cell_thesis.yaml")])

@@ -131,8 +131,9 @@ def write_dataset(
     """Render ``items`` into ``out_dir``: PNG images, ``truth.csv`` and ``cell.yaml``.
 
     Every file is written through a temporary file and a rename; ``truth.csv`` comes last, so a set with
-    a ``truth.csv`` is complete. ``cell.yaml`` is the cell the pipeline should be told (camera inline;
-    its default door is the rendered door when there is only one). Returns the path of ``truth.csv``.
+    a ``truth.csv`` is complete. ``cell.yaml`` is the cell the pipeline should be told (camera inline,
+    its ``response_gamma`` the rendered camera's; its default door is the rendered door when there is
+    only one). Returns the path of ``truth.csv``.
     """
     import cv2
 
@@ -153,6 +154,8 @@ def write_dataset(
             progress(n + 1, len(items))
     doors = {it.door for it in items}
     told = replace(cell, default_door=next(iter(doors))) if len(doors) == 1 else cell
+    # the camera's response is the rendered one (a cell that says otherwise describes another camera)
+    told = replace(told, response_gamma=effects.gamma)
     save_cell(told, out / "cell.yaml")
     atomic_write_text(out / "truth.csv", truth_csv_text(rows))
     for name in ("cell.yaml", "truth.csv"):
