@@ -193,3 +193,29 @@ def test_locate_on_a_door_with_a_hundredth_of_a_millimetre_rounding():
     ex, ez = res.x_mm - pose.x_mm, res.z_mm - pose.z_mm
     assert abs(ex) < 0.03 and abs(ez) < 0.03
     assert abs(ex) <= 3 * res.uncertainty.x_mm and abs(ez) <= 3 * res.uncertainty.z_mm
+
+
+def test_each_lines_border_from_the_strip_shape_is_not_moved_by_grain_beside_the_strip():
+    """Wood grain on the face beside a chamfer strip, wandering across the edge from line to line: the
+    area estimate takes in its integral over the window (the effects fixtures' 0.2-0.7 px); the border
+    fitted with the strip's shape takes it in only through the face's level."""
+    from doorloc.vision.arris_model import _line_borders
+
+    rng = np.random.default_rng(23)
+    n, width, level, blur = 200, 6.5, 0.6, 0.8
+    r, x, outer = _profiles(n, width, level, blur, rng)
+    # grain: 12 px period on the face (beyond the strip), its phase wandering along the edge
+    phase = 2 * np.pi * np.sin(np.arange(n) / 30.0)
+    face = x[None, :] > (outer + width + 0.5)[:, None]
+    grain = 0.06 * np.sin(2 * np.pi * (x[None, :] - outer[:, None]) / 12.0 + phase[:, None])
+    r = r * (1.0 + np.where(face, grain, 0.0))
+    # the area estimate of the outer border over a window of 3 px beyond the strip, as arris_edges takes it
+    lo, hi = int(outer.min()) - 4, int(outer.max() + width) + 4
+    area = hi - 0.5 - (r[:, lo : hi + 1] - 0.0).sum(axis=1) / 1.0 - width * (1.0 - level)
+    fitted = _line_borders(r, x, outer + rng.normal(0, 0.3, n), np.full(n, width), np.array([level]), blur)
+    err_area = area - outer
+    err_fit = fitted - outer
+    assert np.all(np.isfinite(err_fit))
+    assert np.std(err_area) > 0.1  # the grain moves the area estimate from line to line
+    assert np.std(err_fit) < 0.3 * np.std(err_area)
+    assert abs(np.mean(err_fit)) < 0.05

@@ -592,6 +592,69 @@ def fit_strip_profile(
     )
 
 
+def _line_borders(
+    vals: np.ndarray,
+    x: np.ndarray,
+    border0: np.ndarray,
+    width: np.ndarray,
+    levels: np.ndarray,
+    blur_px: float,
+    n_iter: int = 6,
+) -> np.ndarray:
+    """Each scan line's outer border from the fitted strip shape: its place, its two levels free.
+
+    ``vals`` (N, P) are the lines' profiles in linear light (background first), ``x`` (P,) their pixel
+    centres, ``border0`` (N,) a start, ``width`` (N,) the strip's width, px; ``levels`` (C,) the strip
+    cells' relative levels and ``blur_px`` the blur of :func:`fit_strip_profile`. Per line: the profile
+    ``A + D s(x - b)``, with ``s`` the fitted shape (background 0 | strip cells | face 1, blurred and
+    pixel-integrated), fitted in ``b`` (Gauss-Newton) with ``A`` and ``D`` solved linearly at each step.
+
+    Why not the area estimate: it weighs every pixel of the window alike, so the texture of the hinge
+    face inside the window (wood grain running along the edge and wandering across it) moves each line's
+    edge by its integral: on the effects fixtures 0.2-0.7 px along the reference arris, which tilted the
+    line (yaw up to 0.05 deg off) and bent it near the corner (refused ``corner_hidden``). The model
+    weighs pixels by how much the border's place changes them: the strip's outer border (background to
+    strip, where no face texture lies) pins it; the face's texture only enters through ``D``.
+    Returns NaN for a line whose fit fails (no contrast, or a step beyond half a pixel on its last
+    iteration).
+    """
+    n_cells = levels.size
+    frac = np.arange(n_cells + 1) / n_cells
+    jumps = np.diff(np.concatenate([[0.0], levels, [1.0]]))  # (C + 1,) each boundary's step
+    edges = np.concatenate([x[:1] - 0.5, x + 0.5])
+    b = np.asarray(border0, float).copy()
+    ok = np.isfinite(b) & np.isfinite(width)
+    b[~ok] = 0.0
+    w = np.where(ok, width, 0.0)
+    sigma = np.array([max(float(blur_px), 0.05)])
+    step = np.zeros_like(b)
+    for _ in range(n_iter):
+        bounds = (b[:, None] + w[:, None] * frac[None, :])[None]  # (1, N, J)
+        prim, d_b, _ = _pixel_terms(edges, bounds, sigma)
+        shape = prim[0] @ jumps  # (N, P)
+        dshape = d_b[0] @ jumps  # d shape / d b
+        # A and D by least squares on each line: [1, shape] (N, P, 2)
+        s_mean = shape.mean(axis=1, keepdims=True)
+        v_mean = vals.mean(axis=1, keepdims=True)
+        sc, vc = shape - s_mean, vals - v_mean
+        ss = (sc * sc).sum(axis=1)
+        D = np.where(ss > 1e-12, (sc * vc).sum(axis=1) / np.maximum(ss, 1e-12), np.nan)
+        A = v_mean[:, 0] - D * s_mean[:, 0]
+        res = A[:, None] + D[:, None] * shape - vals
+        # the border's Gauss-Newton step, the levels projected out (variable projection)
+        J = D[:, None] * dshape
+        Jc = J - J.mean(axis=1, keepdims=True)
+        Jp = Jc - ((Jc * sc).sum(axis=1) / np.maximum(ss, 1e-12))[:, None] * sc
+        jj = (Jp * Jp).sum(axis=1)
+        step = np.where(jj > 1e-18, -(Jp * res).sum(axis=1) / np.maximum(jj, 1e-18), np.nan)
+        step = np.clip(step, -0.5, 0.5)
+        b = b + np.where(np.isfinite(step), step, 0.0)
+        if np.nanmax(np.abs(step), initial=0.0) < 1e-4:
+            break
+    good = ok & np.isfinite(step) & (np.abs(step) < 0.5) & np.isfinite(D) & (np.abs(D) > 0)
+    return np.where(good, b, np.nan)
+
+
 def arris_edges(
     plane: np.ndarray,
     axis: Axis,
@@ -607,6 +670,7 @@ def arris_edges(
     blur0: float = 1.0,
     search: bool = False,
     level_px: int | None = None,
+    line_fit: bool = True,
 ) -> tuple[EdgeSamples, StripFit | None]:
     """Outer border of an arris strip on each scan line (module docstring, step 3).
 
@@ -641,6 +705,9 @@ def arris_edges(
         area estimate (None: all ``plateau``). The profile fit uses all ``plateau`` samples (the face
         beside the strip pins its brightness); each line's levels taken farther from the window pick up
         the texture along the edge (wood grain).
+    line_fit : bool
+        Each line's border from the fitted strip shape (:func:`_line_borders`) where that fit holds, the
+        area estimate elsewhere; False: the area estimate on every line.
 
     Returns
     -------
@@ -706,9 +773,36 @@ def arris_edges(
         K = (
             core.shape[1] - 0.5
         )  # door-side end of the window (core index units; core starts at c0 - half - pad)
-        e_mirror = K - S / D_e - w * fit.deficit - bias - (half + pad)  # relative to c0
+        e_area = K - S / D_e - w * fit.deficit - bias - (half + pad)  # relative to c0
+    # Each line's border from the fitted strip shape (:func:`_line_borders`), started at the area estimate
+    # (vals index units: the window's first pixel is index 0, c0 at plateau + pad + half). The shape is
+    # the best fit's, whose deficit may differ from the posterior's in use (a flat valley): the fit
+    # starts from the area estimate with the best fit's deficit, and its border moves back by the
+    # difference.
+    x0 = plateau + pad + half
+    if not line_fit:
+        e_model = e_area
+    else:
+        e_model = (
+            _line_borders(
+                np.where(good[:, None], vals, 0.0),
+                np.arange(length, dtype=float),
+                e_area + x0 + w * (fit.deficit - fit.model_deficit),
+                w,
+                fit.levels,
+                fit.blur_px,
+            )
+            + w * (fit.model_deficit - fit.deficit)
+            - x0
+        )
+    with np.errstate(invalid="ignore"):
+        # the model's border where its fit held and stayed near the area estimate's; that elsewhere (a
+        # line whose profile the strip's mean shape does not describe)
+        e_mirror = np.where(np.abs(e_model - e_area) <= 1.0 + 0.25 * w, e_model, e_area)
         along = c0 + door_side * e_mirror
-    valid = good & np.isfinite(along) & (np.abs(along - centre) <= half + pad)
+        # a line whose area estimate lies in its window has an edge point (the window was placed for it)
+        in_window = np.abs(door_side * e_area + c0 - centre) <= half + pad
+    valid = good & np.isfinite(along) & in_window
     nan = np.full(len(scan), np.nan)
     return (
         EdgeSamples(

@@ -56,6 +56,17 @@ class LocateConfig:
         Line-fit gate.
     corner_zone_px, min_corner_support : float
         Fraction of edge points within ``corner_zone_px`` of the corner that must fit their line.
+    corner_tolerance_px : float
+        An edge point next to the corner fits its line when the robust line fit kept it or it lies within
+        this distance of the line, px. Something over the corner moves edges by pixels; a line fitted
+        to a few hundredths of a pixel (a clean render) rejects points a twentieth of a pixel off, which
+        hide nothing.
+    response_unmeasured_factor : float
+        Where no plain edge of the image could measure the camera's response (every edge an arris), the
+        cell's ``response_gamma`` is taken as known within this factor, and the edge shift that spread
+        makes goes into the arris lines' uncertainty. 1.5: cameras' exponents lie between a linear
+        sensor's 1.0 and video's 2.2-2.4, within a factor 1.5 of their middle. 1 or less (no doubt) once the
+        response has been measured for this camera (a plain-edged door or target in the same cell).
     max_sigma_mm : float
         Refuse when the fit's standard error of x or z exceeds this.
     max_saturated_fraction : float
@@ -92,6 +103,8 @@ class LocateConfig:
     max_rms_residual_px: float = 1.5
     corner_zone_px: float = 60.0
     min_corner_support: float = 0.6
+    corner_tolerance_px: float = 0.25
+    response_unmeasured_factor: float = 1.5
     max_sigma_mm: float = 0.05
     max_saturated_fraction: float = 0.5
     max_uncertainty_mm: float = 0.1

@@ -363,6 +363,10 @@ def _sample(
                     blur0=blur0,
                     search=every > 1,
                     level_px=cfg.plateau,
+                    # (the far arris's strip can take another level in the first pass than in the
+                    # final one, which its window was placed for: there the area estimate; the line fit
+                    # in both passes lost every far point on 2 of 48 arris bench frames)
+                    line_fit=name != "far" or every == 1,
                 )
                 out[name] = replace(smp, along=smp.along + t.outline_shift_px[::every])
                 if arris_fits is not None and strip is not None:
@@ -1041,6 +1045,43 @@ def _response_terms(
         model.extra_px.setdefault(k, {})["response"] = math.hypot(excess, spread) if absorbed else excess
 
 
+def _unmeasured_response_terms(
+    plane,
+    samples: dict[str, EdgeSamples],
+    fit: RectangleFit,
+    half: int,
+    used_gamma: float,
+    factor: float,
+    arris_fits: dict[str, tuple[StripFit, float]],
+    model: EdgeModelTerms,
+) -> None:
+    """The response doubt (px) of each arris line when no plain edge measured the camera's response.
+
+    The response is measured on plain edges only (:func:`_measure_response`): the shading of an arris
+    strip is free in its fit and takes up what a wrong exponent does to the profile (a fit of the exponent
+    to the strip's misfit was tried: on the arris bench it found the camera's exponent on some chamfers
+    and 0.8 or 3.0 on others, right cell or not). So on a door whose edges are all arrises the cell's
+    ``response_gamma`` cannot be checked, and it is taken as known within a factor ``factor``
+    (``LocateConfig.response_unmeasured_factor``): the doubt is half the spread of the edge shift
+    (:func:`doorloc.vision.response.edge_shift_px`, the line's plateaus, the measured blur) between
+    ``used_gamma * factor`` and ``used_gamma / factor``. Without it the arris lines' answers under a
+    wrong cell exponent were biased by several of their sigmas (fixtures/rendered/effects: 1.0 for a
+    2.2 camera, z 0.035 mm at 2-3 sigma).
+    """
+    if not factor > 1.0:
+        return
+    for k in arris_fits:
+        inl = fit.weights[k] > 0
+        lo, hi = plateau_levels(plane, samples[k], inl & samples[k].valid, half)
+        b = model.blur_px
+        # (within the exponents a camera has: a factor beyond them is no camera)
+        up = edge_shift_px(lo, hi, min(used_gamma * factor, RESPONSE_PLAUSIBLE[1]), used_gamma, b, half)
+        down = edge_shift_px(lo, hi, max(used_gamma / factor, RESPONSE_PLAUSIBLE[0]), used_gamma, b, half)
+        spread = 0.5 * abs(up - down)
+        if math.isfinite(spread):
+            model.extra_px.setdefault(k, {})["response"] = spread
+
+
 def _gate_and_answer(
     name,
     cell,
@@ -1104,6 +1145,10 @@ def _gate_and_answer(
         _response_terms(
             plane, samples, fit, half, cell.response_gamma, response, far_beside, model, response_absorbed
         )
+    elif arris_fits:
+        _unmeasured_response_terms(
+            plane, samples, fit, half, cell.response_gamma, cfg.response_unmeasured_factor, arris_fits, model
+        )
     for k in EDGE_NAMES:
         s = samples[k]
         w = fit.weights[k]
@@ -1155,7 +1200,10 @@ def _gate_and_answer(
         c_scan = corner_px[0] if lay.axis == "col" else corner_px[1]
         near = np.abs(s.scan - c_scan) <= cfg.corner_zone_px
         n = int(np.count_nonzero(near))
-        frac = int(np.count_nonzero(fit.weights[k][near] > 0)) / n if n else 0.0
+        fits = (fit.weights[k] > 0) | (
+            np.abs(fit.residuals[k]) <= cfg.corner_tolerance_px * pose.scale_mm_per_px
+        )
+        frac = int(np.count_nonzero(fits[near])) / n if n else 0.0
         diagnostics[f"corner_support_{k}"] = round(frac, 3)
         refusals.append(q.check_corner_support(HUMAN[k], frac, n, cfg.min_corner_support))
     bright = np.concatenate([samples[k].bright[fit.weights[k] > 0] for k in EDGE_NAMES])
@@ -1222,13 +1270,21 @@ def _gate_and_answer(
                 terms[k][2] / cfg.max_uncertainty_deg,
             ),
         )
+        hint = _UNCERTAIN_HINT[worst]
+        if worst == "edge_model" and response is None and arris_fits:
+            # the unchecked response is the largest doubt of a pose line: say so, and what lifts it
+            big = [
+                max(model.extra_px.get(k, {}).items(), key=lambda kv: kv[1], default=("", 0.0))[0]
+                for k in ("bottom", "reference")
+            ]
+            if "response" in big:
+                hint = _UNCERTAIN_HINT["response_unmeasured"]
         refusals.append(
             q.Refusal(
                 "uncertain",
                 f"the pose is uncertain to x {unc.x_mm:.3f} mm, z {unc.z_mm:.3f} mm, "
                 f"yaw {unc.yaw_deg:.3f} deg (1 sigma; the cell allows {cfg.max_uncertainty_mm:g} mm, "
-                f"{cfg.max_uncertainty_deg:g} deg), mostly from the {worst.replace('_', ' ')}; "
-                + _UNCERTAIN_HINT[worst],
+                f"{cfg.max_uncertainty_deg:g} deg), mostly from the {worst.replace('_', ' ')}; " + hint,
             )
         )
     first = next((r for r in refusals if r is not None), None)
@@ -1265,6 +1321,11 @@ def _gate_and_answer(
 
 
 _UNCERTAIN_HINT = {
+    "response_unmeasured": "every edge of this door is an arris, on which the camera response cannot be "
+    "checked, and the cell's camera.response_gamma is taken as known only within the factor "
+    "locate.response_unmeasured_factor; measure the response once (an image of a plain-edged door or "
+    "target in this cell: its answer's diagnostics camera_response.fitted), put it in the cell file and "
+    "set locate.response_unmeasured_factor to 1",
     "fit": "the edges are too noisy; check focus, lighting and exposure",
     "edge_model": "the door's edges do not look like clean steps (strong grain or marks along an edge, an arris or "
     "a camera response the cell does not describe); check the cell's door and camera settings",
