@@ -72,9 +72,9 @@ def _row(label, seed, res, pose, door, extra=""):
     sz = math.hypot(uz, arr.get("bottom") or 0.0, rsp.get("bottom") or 0.0)
     print(
         f"  seed {seed:5d} {label:34s} ex {ex:+.4f} ez {ez:+.4f} dT {res.thickness_mm - door.thickness_mm:+.4f} "
-        f"sigma x {sx:.4f} z {sz:.4f} {extra}"
+        f"sigma x {sx:.4f} z {sz:.4f} (reported {ux:.4f} {uz:.4f}) {extra}"
     )
-    return ex, ez, sx, sz
+    return ex, ez, sx, sz, ux, uz
 
 
 def _summary(name, rows, n_total):
@@ -94,6 +94,13 @@ def _summary(name, rows, n_total):
             f"  {lab}: bias {e.mean():+.4f} mm (+- {se:.4f} s.e.), RMS {np.sqrt(np.mean(e**2)):.4f}, "
             f"max |{np.abs(e).max():.4f}|, within 2 sigma {within:.0%}, beyond 5 sigma {beyond:.0%}, "
             f"median sigma {np.median(a[:, k + 2]):.4f}"
+        )
+        # the answer's own uncertainty (it holds the per-line doubts already: the figure above counts
+        # them twice)
+        u = a[:, k + 4]
+        print(
+            f"     reported uncertainty alone: within 2 sigma {float(np.mean(np.abs(e) <= 2 * u)):.0%}, "
+            f"beyond 5 sigma {float(np.mean(np.abs(e) > 5 * u)):.0%}, median {np.median(u):.4f}"
         )
 
 
