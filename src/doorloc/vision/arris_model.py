@@ -18,8 +18,10 @@ the strip depends on that brightness, so locate measures it:
    of the hinge face, the mean of its posterior along the valley where the border's offset and the
    strip's level trade off;
 3. :func:`arris_edges`: per scan line the area estimator (blur-free: it only uses areas) with that deficit,
-   ``e = K - S / D - w * deficit``, which puts every edge point on the outer border; the caller moves it
-   to the sharp corner's line by the geometry.
+   ``e = K - S / D - w * deficit``, which puts every edge point on the outer border, then refined by
+   fitting the strip's fitted shape to the line with its two levels free (:func:`_line_borders`: the
+   area estimate takes in the face's texture beside the strip, the shape fit hardly); the caller moves
+   it to the sharp corner's line by the geometry.
 
 What the deficit leaves in doubt (the posterior's standard deviation, widened by the blur model's doubt)
 is reported per line as ``arris_correction_sigma_mm`` for the uncertainty budget.
