@@ -33,8 +33,11 @@ SAME_POSE_MM, SAME_POSE_DEG = 0.002, 0.0005
 TRUTH_POSE_MM, TRUTH_POSE_DEG = 0.1, 0.01
 
 
+# (effects 12, not 13: under the committed cell, whose response_gamma is not the camera's, every third
+# effects frame is refused as uncertain by the unmeasured response's doubt, 13 among them; this test needs
+# an answer to compare)
 @pytest.mark.parametrize(
-    "folder,index", [("grid", 0), ("grid", 80), ("effects", 13), ("distractors", 3), ("widths", 2)]
+    "folder,index", [("grid", 0), ("grid", 80), ("effects", 12), ("distractors", 3), ("widths", 2)]
 )
 def test_fixture_images_rerender_within_two_grey_levels_and_locate_the_same(folder, index):
     cell = load_cell(FIX / folder / "cell.yaml")

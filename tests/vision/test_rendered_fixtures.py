@@ -91,19 +91,23 @@ def test_plain_fixtures_are_accurate_and_covered(folder, n_ok, rms_mm, rms_deg, 
 def test_effects_fixtures_answers_never_overconfident():
     """1.5 mm chamfer, gamma-2.2 response, grain, vignetting, blur: what is answered is covered by its sigma.
 
-    The committed cell says ``response_gamma`` 1.0 for this gamma-2.2 camera (it was written before the
-    renderer's cell carried the response): a wrong cell exponent on a door whose edges are all arrises,
-    where the image cannot measure the response (``LocateConfig.response_unmeasured_factor``).
-    Measured: 27 of 27 answered, RMS x 0.039 z 0.037 mm (the wrong exponent's bias), yaw 0.0015 deg;
-    100 % within 2 sigma on every axis, worst 1.1 sigma. Before each arris line's border came from the
-    strip's fitted shape (the area estimate took in the grain beside the strip): 26 of 27 (one
-    corner_hidden), yaw RMS 0.011 deg, worst 4.3 sigma; before that 21 of 27.
+    The committed cell says nothing of the response (1.0, linear) for this gamma-2.2 camera (it was
+    written before the renderer's cell carried the response): a wrong cell exponent on a door whose edges
+    are all arrises, where the image cannot measure the response (``LocateConfig.response_unmeasured_factor``).
+    Measured: 18 of 27 answered, RMS x 0.039 z 0.037 mm (the wrong exponent's bias), yaw 0.0014 deg;
+    100 % within 2 sigma on every axis, worst 1.7 sigma; the 9 refusals are ``uncertain`` (x, z 0.12-0.14
+    mm) and name the response. Until the arris lines' texture term read the strip's own shading as
+    texture (their door side is the strip), that term covered this case by accident: 27 of 27, worst
+    1.1 sigma; read beyond the strip with the factor at 1.5 the answers were at up to 3.1 sigma (33 %
+    within 2): the factor's default went to 2.2, the full range of cameras' exponents.
     """
     cell = load_cell(FIX / "effects" / "cell.yaml")
     assert cell.response_gamma == 1.0, "the case this test is about: a cell exponent that is not the camera's"
     err, sig, refused = _run("effects", cell)
-    assert len(err) >= 24, f"refused: {refused}"
-    assert all(code and msg for _, code, msg in refused), "every refusal says why"
+    assert len(err) >= 15, f"refused: {refused}"
+    assert all(code == "uncertain" and "response_unmeasured_factor" in msg for _, code, msg in refused), (
+        "every refusal is the response's doubt, and says so"
+    )
     assert np.max(np.abs(err[:, :2])) <= 0.1
     assert np.sqrt(np.mean(err[:, 2] ** 2)) <= 0.005  # the yaw: no grain along the arrises in it
     _check_coverage(err, sig)
@@ -112,25 +116,26 @@ def test_effects_fixtures_answers_never_overconfident():
 def test_effects_fixtures_told_the_true_camera_response_are_covered():
     """The same set with the cell told the camera's true response (gamma 2.2, the truth.csv column).
 
-    Measured: 20 of 27 answered, RMS x 0.0057 z 0.0014 mm, yaw 0.0021 deg, worst 0.8 sigma. The 7
+    Measured: 18 of 27 answered, RMS x 0.0056 z 0.0008 mm, yaw 0.0021 deg, worst 0.95 sigma. The 9
     refusals are ``uncertain`` with a reason: every edge is an arris, on which the response cannot be
-    checked, and the default ``response_unmeasured_factor`` (1.5) keeps the answer honest for a cell whose
-    exponent is wrong (the test above) at the price of a sigma of ~0.06 mm here.
+    checked, and the default ``response_unmeasured_factor`` (2.2) keeps the answer honest for a cell whose
+    exponent is wrong (the test above) at the price of a sigma of ~0.035 mm here (with 1.5: 20 of 27).
+    Told that the response was measured (factor 1): 27 of 27, RMS x 0.0060 z 0.0019 mm, worst 0.95 sigma.
     """
     cell = load_cell(FIX / "effects" / "cell.yaml")
     with open(FIX / "effects" / "truth.csv", newline="") as f:
         gammas = {float(r["gamma"]) for r in csv.DictReader(f)}
     assert gammas == {2.2}
     err, sig, refused = _run("effects", replace(cell, response_gamma=2.2))
-    assert len(err) >= 20, f"refused: {refused}"
-    assert all(code and msg for _, code, msg in refused), "every refusal says why"
+    assert len(err) >= 15, f"refused: {refused}"
     assert all(code == "uncertain" and "response_unmeasured_factor" in msg for _, code, msg in refused)
     rms = np.sqrt(np.mean(err**2, axis=0))
     assert rms[0] <= 0.015 and rms[1] <= 0.01 and rms[2] <= 0.005, f"RMS x, z, yaw {rms}"
     _check_coverage(err, sig)
-    # once the response is known (the cell says it was measured): 26 of 27 answered, RMS x 0.0058 mm
+    # once the response is known (the cell says it was measured): every image answered, RMS x 0.0060 mm
     known = replace(cell, response_gamma=2.2, locate=replace(cell.locate, response_unmeasured_factor=1.0))
     err_k, sig_k, refused_k = _run("effects", known)
-    assert len(err_k) >= 25, f"refused: {refused_k}"
-    assert np.sqrt(np.mean(err_k[:, 0] ** 2)) <= 0.015
+    assert len(err_k) == 27, f"refused: {refused_k}"
+    rms_k = np.sqrt(np.mean(err_k**2, axis=0))
+    assert rms_k[0] <= 0.015 and rms_k[1] <= 0.01 and rms_k[2] <= 0.005, f"RMS x, z, yaw {rms_k}"
     _check_coverage(err_k, sig_k)

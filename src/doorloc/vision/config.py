@@ -64,9 +64,11 @@ class LocateConfig:
     response_unmeasured_factor : float
         Where no plain edge of the image could measure the camera's response (every edge an arris), the
         cell's ``response_gamma`` is taken as known within this factor, and the edge shift that spread
-        makes goes into the arris lines' uncertainty. 1.5: cameras' exponents lie between a linear
-        sensor's 1.0 and video's 2.2-2.4, within a factor 1.5 of their middle. 1 or less (no doubt) once the
-        response has been measured for this camera (a plain-edged door or target in the same cell).
+        makes goes into the arris lines' uncertainty. 2.2: cameras' exponents lie between a linear
+        sensor's 1.0 and video's 2.2-2.4, so an exponent that was not measured (a linear camera assumed,
+        or sRGB) may be off by that factor (with 1.5 a gamma-2.2 camera in a cell that says 1.0 had its
+        arris answers at up to 3 sigma). 1 or less (no doubt) once the response has been measured for
+        this camera (a plain-edged door or target in the same cell).
     max_sigma_mm : float
         Refuse when the fit's standard error of x or z exceeds this.
     max_saturated_fraction : float
@@ -104,7 +106,7 @@ class LocateConfig:
     corner_zone_px: float = 60.0
     min_corner_support: float = 0.6
     corner_tolerance_px: float = 0.25
-    response_unmeasured_factor: float = 1.5
+    response_unmeasured_factor: float = 2.2
     max_sigma_mm: float = 0.05
     max_saturated_fraction: float = 0.5
     max_uncertainty_mm: float = 0.1

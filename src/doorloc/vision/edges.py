@@ -1060,6 +1060,8 @@ def texture_bias(
     n_shifts: int = 12,
     max_lines: int = 128,
     blur_px: float | None = None,
+    door_skip_px: int = 0,
+    door_side: int = 1,
 ) -> TextureBias:
     """Estimate the texture bias of the sub-pixel edge estimate on one edge from the texture beside its window.
 
@@ -1081,6 +1083,10 @@ def texture_bias(
         As given to :func:`subpixel_edges` (``half`` the final window half-size).
     mask : ndarray (N,) bool
         The samples the line fit kept.
+    door_skip_px, door_side : int
+        On an arris line the door side beside the edge is the arris strip, whose shading is no texture
+        (a rounding's runs from dark to bright across it): its texture is read ``door_skip_px`` farther
+        out, beyond the strip, on the side ``door_side`` (+1: increasing ``along``).
 
     Returns
     -------
@@ -1096,8 +1102,11 @@ def texture_bias(
     P = oriented(plane, samples.axis)
     h = half + 1
     reach = max(2 * (half + plateau), 2 * h) + n_shifts + 2
+    skip = max(int(door_skip_px), 0)
+    R = reach + skip  # the gathered half-window: the door side's profile starts skip px farther out
+    skip_plus, skip_minus = (skip, 0) if door_side > 0 else (0, skip)
     c0 = np.round(samples.along[idx]).astype(int)
-    vals, ok = _gather_rows(P, samples.scan[idx], c0 - reach, 2 * reach + 1, lut=lut)
+    vals, ok = _gather_rows(P, samples.scan[idx], c0 - R, 2 * R + 1, lut=lut)
     n_ok = int(np.count_nonzero(ok))
     if n_ok < 8:
         return TextureBias(float("nan"), float("nan"))
@@ -1122,7 +1131,16 @@ def texture_bias(
     def pseudo_bias(Ts: list[np.ndarray]) -> list[np.ndarray]:
         """The estimator's error on each mean profile in ``Ts``: both sides' shifts, concatenated."""
         # prof[j - 1] = pixel j beyond c0, each side: the two sides of every profile as the rows of one array
-        profs = np.stack([p for T in Ts for p in (T[reach + 1 :], T[:reach][::-1])])
+        profs = np.stack(
+            [
+                p
+                for T in Ts
+                for p in (
+                    T[R + 1 + skip_plus : R + 1 + skip_plus + reach],
+                    T[: R - skip_minus][::-1][:reach],
+                )
+            ]
+        )
         if blur_px is None:
             # the area estimator's error, closed form: for each shift o the window sum of pixels
             # o+1..o+half minus half times the mean of the plateau o+half+1..o+half+plateau
