@@ -285,12 +285,23 @@ class _StripProblem:
         self.prior_weight = (max(noise, 1e-6) / PRIOR_LEVEL_SIGMA) ** 2
 
     def evaluate(self, delta: np.ndarray, sigma: np.ndarray, basis: np.ndarray, jac: bool = False) -> _Eval:
+        return self.solve(self.pixel_terms(delta, sigma), basis, jac)
+
+    def pixel_terms(self, delta: np.ndarray, sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:func:`_pixel_terms` of the strip's boundaries at a batch of (offset, blur) candidates: what
+        :meth:`solve` needs for any shading basis."""
         delta = np.atleast_1d(np.asarray(delta, float))
         sigma = np.maximum(np.atleast_1d(np.asarray(sigma, float)), 0.05)
         bounds = (self.outer[None, :, None] + delta[:, None, None]) + self.width[None, :, None] * self.frac
-        prim, d_b, d_s = _pixel_terms(self.edges, bounds, sigma)
+        return _pixel_terms(self.edges, bounds, sigma)
+
+    def solve(
+        self, terms: tuple[np.ndarray, np.ndarray, np.ndarray], basis: np.ndarray, jac: bool = False
+    ) -> _Eval:
+        """The levels solved linearly for one shading basis, given :meth:`pixel_terms`."""
+        prim, d_b, d_s = terms
         M, const = _mix(basis, self.n_cells)
-        B = delta.size
+        B = prim.shape[0]
         A = (prim @ M + const).reshape(B, -1, M.shape[1])  # (B, n, m)
         y = self.y.ravel()
         w = self.w
@@ -475,7 +486,8 @@ def fit_strip_profile(
             for t in np.linspace(0.025, 0.975, 20) * float(geom.theta.max())
             for lb in (False, True)
         ]
-        costs = [float(prob.evaluate(np.array([d0]), np.array([s0]), b).chi2[0]) for b in cands]
+        at_best = prob.pixel_terms(np.array([d0]), np.array([s0]))  # one place, many shadings
+        costs = [float(prob.solve(at_best, b).chi2[0]) for b in cands]
         j = int(np.argmin(costs))
         b1 = cands[j] if costs[j] < costs[0] * 0.98 else cands[0]
         d1, s1, ev1 = prob.refine(d0, s0, b1)
