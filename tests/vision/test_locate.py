@@ -315,3 +315,19 @@ def test_thickness_is_never_accepted_beyond_the_tolerance_it_claims(cell):
     img = render_door(cell, DoorSize(900, 32.85, 2100), pose, effects=THIN_HARD).image
     r = locate(img, cell, door, config=LocateConfig(thickness_tolerance_mm=0.3))
     assert not r.ok and r.error_code == "thickness_mismatch"
+
+
+def test_the_answer_says_whether_the_camera_response_was_checked_and_why_not(cell):
+    """A door square to the camera puts each edge at one pixel phase, where the response check cannot read
+    the transition (a wrong cell exponent there moves x by 0.05 mm unseen: arris bench seed 4504); the
+    answer says so instead of looking checked. Turned by 1 deg, the same door is checked."""
+    door = DoorSize(900, 50, 2100)
+    fx = Effects(albedo_hinge=0.8, albedo_background=0.065, blur_sigma_px=0.67, read_noise_dn=0.1)
+    for yaw, checked, why in ((0.0, False, "pixel rows or columns"), (1.0, True, None)):
+        img = render_door(cell, door, DoorPose(-2.86, -0.36, yaw), effects=fx, seed=4504).image
+        resp = locate(img, cell, door).diagnostics["camera_response"]
+        assert resp["checked"] is checked and ("fitted" in resp) is checked
+        assert (why is None and "unchecked_because" not in resp) or why in resp["unchecked_because"]
+    arrised = DoorSize(900, 50, 2100, arris_mm=1.5, arris_profile="chamfer")
+    img = render_door(cell, arrised, DoorPose(1.0, 2.0, 0.7), effects=fx, seed=1).image
+    assert "arris" in locate(img, cell, arrised).diagnostics["camera_response"]["unchecked_because"]

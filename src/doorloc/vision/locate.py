@@ -827,6 +827,9 @@ def _locate(
         again = _measure_response(plane, samples, fit, half, blur, used_cell, cfg, arris_fits)
         if again[0] is not None:
             response, per_line = again
+    response_diag["checked"] = response is not None
+    if response is None:
+        response_diag["unchecked_because"] = _response_unchecked_because(samples, fit, blur, arris_fits)
     if response is not None:
         response_diag.update(
             fitted=round(response.gamma, 4),
@@ -960,11 +963,45 @@ def _response_check_applies(samples: EdgeSamples, inliers: np.ndarray, blur_px: 
     row or column puts all of them at one phase, and the pixel grid's own asymmetry reads as a skew) and
     the edge is blurred over more than a pixel's width (a sharp step has no transition shape to read).
     """
-    if not blur_px >= 0.5:  # (the phases need not be counted then)
+    if not blur_px >= STEP_FIT_MIN_BLUR_PX:  # (the phases need not be counted then)
         return False
+    return _at_many_phases(samples, inliers)
+
+
+def _at_many_phases(samples: EdgeSamples, inliers: np.ndarray) -> bool:
+    """Whether the line's edge points fall in every quarter of a pixel (not along a pixel row or column)."""
     along = samples.along[inliers & samples.valid]
-    phases = np.unique(np.floor((along % 1.0) * 4.0)).size if along.size else 0
-    return phases >= 4
+    return (np.unique(np.floor((along % 1.0) * 4.0)).size if along.size else 0) >= 4
+
+
+def _response_unchecked_because(
+    samples: dict[str, EdgeSamples],
+    fit: RectangleFit,
+    transition_px: float,
+    arris_fits: dict[str, tuple[StripFit, float]] | None,
+) -> str:
+    """Why no edge of this image could show the camera response (``diagnostics.camera_response``): the
+    pose then rests on the cell's ``response_gamma`` as it stands, which a user should know."""
+    plain = [
+        k
+        for k in EDGE_NAMES
+        if k != "far" and not (arris_fits and k in arris_fits and arris_fits[k][1] > PLAIN_STRIP_PX)
+    ]
+    if not plain:
+        return "every edge is an arris strip, whose shading takes up the response"
+    blur_px = (
+        math.sqrt(max(transition_px * transition_px - 1.0 / 12.0, 0.0))
+        if math.isfinite(transition_px)
+        else 0.0
+    )
+    if not blur_px >= STEP_FIT_MIN_BLUR_PX:
+        return "the edges are sharper than the pixel: no transition shape to read"
+    if not any(_at_many_phases(samples[k], fit.weights[k] > 0) for k in plain):
+        return (
+            "the plain edges lie along pixel rows or columns (a door square to the camera): one pixel phase, "
+            "where the transition's asymmetry cannot be read"
+        )
+    return "the plain edges' transitions were too noisy or too few to read"
 
 
 def _measure_response(
