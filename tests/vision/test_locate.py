@@ -229,7 +229,9 @@ def test_dark_door_on_bright_background_with_config(cell):
     img = render_door(
         cell, door, pose, effects=Effects(albedo_hinge=0.25, albedo_background=0.85, albedo_side=0.4)
     ).image
-    assert not locate(img, cell, door).ok  # the default polarity expects a bright hinge face
+    # the default polarity expects a bright hinge face; the refusal names the setting
+    refused = locate(img, cell, door)
+    assert not refused.ok and "locate.door_brighter: false" in refused.error
     dx, dz, dyaw, dt = _err(locate(img, cell, door, config=LocateConfig(door_brighter=False)), pose, door)
     assert abs(dx) < 0.002 and abs(dz) < 0.002 and abs(dyaw) < 0.001 and abs(dt) < 0.004
 
@@ -331,3 +333,22 @@ def test_the_answer_says_whether_the_camera_response_was_checked_and_why_not(cel
     arrised = DoorSize(900, 50, 2100, arris_mm=1.5, arris_profile="chamfer")
     img = render_door(cell, arrised, DoorPose(1.0, 2.0, 0.7), effects=fx, seed=1).image
     assert "arris" in locate(img, cell, arrised).diagnostics["camera_response"]["unchecked_because"]
+
+
+def test_a_refusal_names_door_brighter_only_when_the_brightness_is_reversed(cell):
+    """The hint is read where the door must lie whatever its placement: a missing bright door (a black
+    image, an empty fixture) or a door too thin to have a point surely on its face gets none."""
+    door = DoorSize(900, 50, 2100)
+    black = np.zeros((1080, 1920), np.uint8)
+    r = locate(black, cell, door)
+    assert not r.ok and "door_brighter" not in r.error
+    empty = render_door(cell, door, DoorPose(0.0, 0.0, 0.0)).image
+    empty[:] = np.median(empty)  # nothing but background
+    r = locate(empty, cell, door)
+    assert not r.ok and "door_brighter" not in r.error
+    thin = DoorSize(900, 24, 2100)
+    img = render_door(
+        cell, thin, DoorPose(0.0, 0.0, 0.0), effects=Effects(albedo_hinge=0.25, albedo_background=0.85)
+    ).image
+    r = locate(img, cell, thin)
+    assert not r.ok and "door_brighter" not in r.error

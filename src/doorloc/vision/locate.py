@@ -804,7 +804,14 @@ def _locate(
     region = SearchRegion.cached(cell, door, cfg.search_margin_mm, cfg.search_margin_deg, cfg.door_brighter)
     tr.region = region
     clock.lap("region")
-    coarse = yield from _coarse_edges(plane, s8, region, door, cfg, tr)
+    try:
+        coarse = yield from _coarse_edges(plane, s8, region, door, cfg, tr)
+    except _Refused as e:
+        if e.refusal.code in ("no_door", "edge_missing") and _brightness_reversed(
+            plane, s8, region, cell, cfg
+        ):
+            raise _Refused(q.Refusal(e.refusal.code, _REVERSED[cfg.door_brighter])) from None
+        raise
     clock.lap("coarse")
     pose = _coarse_pose(coarse, plane, s8, region, cell, door, cfg)
     clock.lap("coarse_pose")
@@ -902,6 +909,42 @@ def _looks_like_pattern_here(plane, s8: float, band: Band, axis, cfg: LocateConf
     P = plane if axis == "col" else plane.T
     rows = P[band.lo.min() : band.hi.max() + 1, band.scan[::8]].T.astype(np.float32) * s8
     return q.looks_like_pattern(rows, 4 * cfg.min_contrast)
+
+
+_REVERSED = {
+    True: "the hinge face looks darker than the background here, and the cell says the door is the brighter "
+    "(locate.door_brighter: true); if this cell's doors are darker, set locate.door_brighter: false in the "
+    "cell file, else check the lighting",
+    False: "the hinge face looks brighter than the background here, and the cell says the door is the darker "
+    "(locate.door_brighter: false); if this cell's doors are brighter, set locate.door_brighter: true in the "
+    "cell file, else check the lighting",
+}
+
+
+def _brightness_reversed(plane, s8: float, region: SearchRegion, cell: Cell, cfg: LocateConfig) -> bool:
+    """Whether the hinge face is clearly on the other side of the background's brightness than the cell's
+    ``locate.door_brighter`` says, where it must lie whatever the door's placement in the envelope: used to
+    name the cause when no edge of the expected polarity was found.
+
+    Read on the hinge face's centre line (half the thickness in from the reference arris) and beyond the
+    reference arris by the search region's reach, 20-80 mm up from the bottom end: medians of 13 pixels each
+    (the door lies in the cell's envelope: on a door thinner than twice its x range no point is surely on
+    the face, and nothing is said).
+    """
+    zs = np.linspace(20.0, 80.0, 13)
+    x_face, x_back = 0.5 * region.door.thickness_mm, -(region.x_range_mm + 8.0)
+    if x_face <= cell.envelope.x_mm + 3.0:  # (+3 mm: the envelope's yaw over 80 mm)
+        return False
+    h, w = plane.shape
+    levels = []
+    for x in (x_face, x_back):
+        uv = np.round(region.image_points(np.stack([np.full_like(zs, x), zs], axis=1))).astype(int)
+        inside = (uv[:, 0] >= 0) & (uv[:, 0] < w) & (uv[:, 1] >= 0) & (uv[:, 1] < h)
+        if inside.sum() < 7:
+            return False
+        levels.append(float(np.median(plane[uv[inside, 1], uv[inside, 0]])) * s8)
+    d = levels[0] - levels[1]
+    return abs(d) >= cfg.min_contrast and (d < 0) == cfg.door_brighter
 
 
 def _no_door_reason(plane, band: Band, axis, cfg: LocateConfig, s8: float) -> q.Refusal:
