@@ -352,3 +352,30 @@ def test_a_refusal_names_door_brighter_only_when_the_brightness_is_reversed(cell
     ).image
     r = locate(img, cell, thin)
     assert not r.ok and "door_brighter" not in r.error
+
+
+def test_a_low_contrast_rounding_that_splits_the_step_is_still_found(cell):
+    """A 1.2 mm rounding in shadow between a face and a background 12 grey levels apart, blurred 1.6 px: the
+    strip splits the step into two, each below the coarse detector's threshold on 4-px halves (arris bench
+    seed 1539 was refused no_door). The detector looks again with halves that span the strip; an empty
+    fixture is still no door."""
+    door = DoorSize(900, 70, 2100, arris_mm=1.2087589668932641, arris_profile="round")
+    fx = Effects(
+        arris_profile="round",
+        albedo_hinge=0.6448804076688742,
+        albedo_chamfer=0.4065030017682064,
+        albedo_background=0.16262336184912746,
+        light_ambient=0.26197466233397865,
+        light_directional=0.33032191858971366,
+        light_azimuth_deg=-77.87598650119027,
+        light_elevation_deg=-28.787953261702363,
+        blur_sigma_px=1.6210459235991252,
+        read_noise_dn=0.6897244885328405,
+    )
+    pose = DoorPose(-2.0779914316200667, 5.711018351938037, -0.7617684989267338)
+    img = render_door(cell, door, pose, effects=fx, seed=1539).image
+    r = locate(img, cell, door)
+    assert r.ok or r.error_code == "uncertain", r.error
+    empty = np.full_like(img, int(np.median(img[:100])))
+    empty = np.clip(empty + np.random.default_rng(0).normal(0.0, 6.0, img.shape), 0, 255).astype(np.uint8)
+    assert locate(empty, cell, door).error_code == "no_door"
