@@ -946,8 +946,8 @@ def _brightness_reversed(plane, s8: float, region: SearchRegion, cell: Cell, cfg
 
     Read on the hinge face's centre line (half the thickness in from the reference arris) and beyond the
     reference arris by the search region's reach, 20-80 mm up from the bottom end: medians of 13 pixels each
-    (the door lies in the cell's envelope: on a door thinner than twice its x range no point is surely on
-    the face, and nothing is said).
+    (the door lies in the cell's envelope: on a door no thicker than twice the envelope's x, plus its yaw's
+    reach, no point is surely on the face, and nothing is said).
     """
     zs = np.linspace(20.0, 80.0, 13)
     x_face, x_back = 0.5 * region.door.thickness_mm, -(region.x_range_mm + 8.0)
