@@ -73,6 +73,11 @@ def test_calibrate_uses_the_good_views_and_says_why_others_were_skipped(messy_di
         and ({"fx", "fy"} <= names or "f" in names)
         and (cal.covariance.diagonal() > 0).all()
     )
+    # the camera response from the same photographs: these JPEGs scatter (0.7-3.9 one by one), and the
+    # sigma says so (each image's own standard error, about 0.1 over sqrt(13), would claim 0.03)
+    assert cal.response_gamma is not None and cal.response_gamma_sigma is not None
+    assert 1.0 < cal.response_gamma < 3.0 and cal.response_gamma_sigma > 0.2
+    assert f"camera.response_gamma: {cal.response_gamma:.2f}" in r.output
     doc = json.loads((rep / "calibration_report.json").read_text())
     assert {s["image"] for s in doc["skipped_images"]} == {"broken.jpg", "blank.png", "small.png"}
     assert len(doc["views"]) == 13 and sum(c["chosen"] for c in doc["model_selection"]["candidates"]) == 1

@@ -41,12 +41,17 @@ def test_round_trip(tmp_path, fmt):
         (640, 480),
         350.0,
     )
-    cal = CalibrationFile(cam, 0.25, [0.2, 0.3], "cam0")
+    cal = CalibrationFile(cam, 0.25, [0.2, 0.3], "cam0", response_gamma=2.15, response_gamma_sigma=0.12)
     path = tmp_path / f"c_{fmt}.yaml"
     save_calibration(cal, path, fmt)
     back = load_calibration(path)
     assert back.camera == cam and back.camera.observed_radius_px == 350.0
     assert back.avg_reprojection_error == 0.25 and back.per_view_reprojection_errors == [0.2, 0.3]
+    # the response measured on the photographs travels with the file, as a value, not an unknown key
+    assert (back.response_gamma, back.response_gamma_sigma) == (2.15, 0.12)
+    assert not {"response_gamma", "response_gamma_sigma"} & set(back.extra)
+    save_calibration(CalibrationFile(cam), path, fmt)
+    assert load_calibration(path).response_gamma is None and "response_gamma" not in path.read_text()
     if fmt == "ros":
         assert "distortion_model: rational_polynomial" in path.read_text()
 
@@ -60,6 +65,9 @@ def test_opencv_can_read_what_we_write(tmp_path):
     fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
     np.testing.assert_array_equal(fs.getNode("camera_matrix").mat(), cam.camera_matrix)
     assert int(fs.getNode("image_width").real()) == 640
+    path.write_text(dump_opencv_yaml(CalibrationFile(cam, response_gamma=2.2, response_gamma_sigma=0.05)))
+    fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+    assert fs.getNode("response_gamma").real() == 2.2 and fs.getNode("response_gamma_sigma").real() == 0.05
 
 
 def test_ros_output_has_spec_keys():

@@ -4,6 +4,7 @@ the renderer: a Gaussian-blurred, pixel-integrated step recorded through a power
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -84,3 +85,30 @@ def test_lines_that_disagree_do_not_make_a_confident_response():
     assert fit.sigma > 0.2  # the Birge ratio widens it to the lines' scatter
     agree = combine_responses({"bottom": a, "reference": LineResponse(2.0, 0.05, 0.1, 0.8, 0.0)}, 1.0)
     assert agree is not None and agree.sigma == pytest.approx(0.05 / math.sqrt(2)) and agree.absorb
+
+
+@pytest.mark.parametrize("camera_gamma", [1.0, 2.2])
+def test_the_response_is_measured_on_calibration_boards(camera_gamma):
+    """Rendered chessboard photographs (blur 0.8-1.5 px, read noise 1-2 grey levels, random poses): the
+    median of the images' exponents is the camera's, within 3 of its sigma and 0.15."""
+    from doorloc.cell import load_cell
+    from doorloc.sim.boards import Checkerboard, render_board
+    from doorloc.sim.effects import Effects
+    from doorloc.vision.response import board_response
+
+    cam = load_cell(Path(__file__).parents[2] / "fixtures" / "cell_thesis.yaml").camera
+    board = Checkerboard(9, 6, 25.0)
+    rng = np.random.default_rng(int(camera_gamma * 10))
+    views = []
+    while len(views) < 6:
+        rvec = rng.uniform(-0.4, 0.4, 3)
+        tvec = [rng.uniform(-150, 30), rng.uniform(-120, 20), rng.uniform(450, 700)]
+        fx = Effects(gamma=camera_gamma, blur_sigma_px=rng.uniform(0.8, 1.5), read_noise_dn=rng.uniform(1, 2))
+        rb = render_board(cam, board, rvec, tvec, effects=fx, seed=len(views))
+        if rb.in_image.all():
+            views.append((rb.image, rb.corners_px))
+    r = board_response(views, 9, 6)
+    assert r is not None and len(r.per_image) == 6
+    assert abs(r.gamma - camera_gamma) <= min(3.0 * r.sigma, 0.15), (r.gamma, r.sigma, r.per_image)
+    assert r.unmeasured_factor == pytest.approx(1.0 + 2.0 * r.sigma / r.gamma)
+    assert board_response(views[:4], 9, 6) is None  # too few photographs to see their scatter

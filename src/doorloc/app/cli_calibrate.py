@@ -23,6 +23,7 @@ if TYPE_CHECKING:  # the calibration modules load only when a command runs (fast
     from doorloc.calib.detect import SkippedImage
     from doorloc.calib.folder import CalibrationOutcome
     from doorloc.cell import Cell
+    from doorloc.vision.response import BoardResponse
 
 
 def parse_pattern(text: str) -> tuple[int, int]:
@@ -101,6 +102,47 @@ def _echo_calibration(outcome: CalibrationOutcome, out: Path, fmt: str) -> None:
         )
     for w in calibration_warnings(result, outcome.detected.scan):
         typer.echo(f"warning: {w}", err=True)
+
+
+def _board_response(images_dir: Path, outcome: CalibrationOutcome, board) -> BoardResponse | None:
+    """The camera response measured on the chessboard photographs that gave views (read again here: the
+    calibration keeps corners, not images). None for a ChArUco board (its corners need not all be seen)."""
+    import numpy as np
+
+    from doorloc.calib.detect import Chessboard, to_gray
+    from doorloc.calib.folder import read_folder
+    from doorloc.vision.response import board_response
+
+    if not isinstance(board, Chessboard):
+        return None
+    n = board.cols * board.rows
+    dets = outcome.detected.scan.detections
+    views = [
+        (to_gray(img), dets[name].corners_px[np.argsort(dets[name].ids)])
+        for name, img, _ in read_folder(images_dir)
+        if img is not None and name in dets and dets[name].ids.size == n
+    ]
+    return board_response(views, board.cols, board.rows)
+
+
+def _echo_response(response: BoardResponse | None, board) -> None:
+    """The measured camera response and the cell-file lines it allows (SPEC section 2)."""
+    if response is None:
+        typer.echo(
+            "camera response: not measured (a chessboard in 5 photographs or more, squares over about 40 px)"
+        )
+        return
+    f = response.unmeasured_factor
+    typer.echo(
+        f"camera response: gamma {response.gamma:.2f} +- {response.sigma:.2f} (1 sigma, median of "
+        f"{len(response.per_image)} photographs); for the cell file: camera.response_gamma: "
+        f"{response.gamma:.2f}, locate.response_unmeasured_factor: {f:.2f}"
+        + (
+            ""
+            if f < 1.5
+            else " (too uncertain to narrow the default 2.2 much: JPEG or in-camera sharpening?)"
+        )
+    )
 
 
 def _read_cell_image(image: Path, size: tuple[int, int]) -> np.ndarray:
@@ -218,11 +260,18 @@ def register(app: typer.Typer) -> None:
         except (CalibrationInputError, ValueError) as e:  # no images, or a bad --pattern, --marker or --model
             raise fail(str(e)) from None
         _echo_skipped(outcome.detected.skipped)
-        save_calibration(outcome.calibration_file(camera_name), out, fmt)
+        from dataclasses import replace
+
+        response = _board_response(images_dir, outcome, board)
+        cal = outcome.calibration_file(camera_name)
+        if response is not None:
+            cal = replace(cal, response_gamma=response.gamma, response_gamma_sigma=response.sigma)
+        save_calibration(cal, out, fmt)
         if report is not None:
             d = outcome.detected
             write_report(report, outcome.result, d.scan, board, d.background)
         _echo_calibration(outcome, out, fmt)
+        _echo_response(response, board)
 
     @app.command("calibrate-cell")
     def calibrate_cell(

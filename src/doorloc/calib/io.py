@@ -58,6 +58,11 @@ class CalibrationFile:
     extra: dict[str, Any] = field(default_factory=dict)
     covariance: np.ndarray | None = None
     covariance_names: tuple[str, ...] = ()
+    #: the camera response measured on the calibration photographs (``grey = light ** (1 / gamma)``) and
+    #: its 1-sigma (``response_gamma``, ``response_gamma_sigma``; None where not measured): what a cell file's
+    #: ``camera.response_gamma`` and ``locate.response_unmeasured_factor`` can be set from
+    response_gamma: float | None = None
+    response_gamma_sigma: float | None = None
 
 
 def _covariance_from(doc: dict, source: str) -> tuple[np.ndarray | None, tuple[str, ...]]:
@@ -174,8 +179,19 @@ def parse_calibration(text: str, source: str = "<calibration>") -> CalibrationFi
         "observed_radius_px",
         "intrinsics_covariance",
         "intrinsics_covariance_names",
+        "response_gamma",
+        "response_gamma_sigma",
     }
     cov, cov_names = _covariance_from(doc, source)
+    try:
+        response = [
+            float(doc[k]) if doc.get(k) is not None else None
+            for k in ("response_gamma", "response_gamma_sigma")
+        ]
+    except (ValueError, TypeError):
+        raise CalibrationFileError(
+            f"{source}: response_gamma and response_gamma_sigma must be numbers"
+        ) from None
     extra = {k: v for k, v in doc.items() if k not in known}
     avg = doc.get("avg_reprojection_error")
     return CalibrationFile(
@@ -186,6 +202,7 @@ def parse_calibration(text: str, source: str = "<calibration>") -> CalibrationFi
         extra,
         cov,
         cov_names,
+        *response,
     )
 
 
@@ -259,6 +276,9 @@ def dump_opencv_yaml(cal: CalibrationFile) -> str:
         out.append(
             "intrinsics_covariance_names: [ " + ", ".join(f'"{n}"' for n in cal.covariance_names) + " ]"
         )
+    for k in ("response_gamma", "response_gamma_sigma"):
+        if getattr(cal, k) is not None:
+            out.append(f"{k}: {_fmt(getattr(cal, k))}")
     return "\n".join(out) + "\n"
 
 
@@ -290,6 +310,9 @@ def dump_ros_yaml(cal: CalibrationFile) -> str:
     if cal.covariance is not None:
         doc["intrinsics_covariance"] = mat(cal.covariance)
         doc["intrinsics_covariance_names"] = list(cal.covariance_names)
+    for k in ("response_gamma", "response_gamma_sigma"):
+        if getattr(cal, k) is not None:
+            doc[k] = float(getattr(cal, k))
     return yaml.safe_dump(doc, sort_keys=False, default_flow_style=None)
 
 

@@ -67,8 +67,10 @@ class LocateConfig:
         makes goes into the arris lines' uncertainty. 2.2: cameras' exponents lie between a linear
         sensor's 1.0 and video's 2.2-2.4, so an exponent that was not measured (a linear camera assumed,
         or sRGB) may be off by that factor (with 1.5 a gamma-2.2 camera in a cell that says 1.0 had its
-        arris answers at up to 3 sigma). 1 or less (no doubt) once the response has been measured for
-        this camera (a plain-edged door or target in the same cell).
+        arris answers at up to 3 sigma). Smaller once the response has been measured for this camera:
+        ``doorloc calibrate`` measures it on the chessboard photographs and prints the factor they allow
+        (``1 + 2 sigma / gamma``; stored as ``response_gamma`` and ``response_gamma_sigma`` in the calibration
+        file), or a plain-edged door in the same cell (``diagnostics.camera_response.fitted``).
     max_sigma_mm : float
         Refuse when the fit's standard error of x or z exceeds this.
     max_saturated_fraction : float

@@ -1449,9 +1449,10 @@ def _gate_and_answer(
 _UNCERTAIN_HINT = {
     "response_unmeasured": "every edge of this door is an arris, on which the camera response cannot be "
     "checked, and the cell's camera.response_gamma is taken as known only within the factor "
-    "locate.response_unmeasured_factor; measure the response once (an image of a plain-edged door or "
-    "target in this cell: its answer's diagnostics camera_response.fitted), put it in the cell file and "
-    "set locate.response_unmeasured_factor to 1",
+    "locate.response_unmeasured_factor; measure the response once (doorloc calibrate prints it from the "
+    "chessboard photographs, with the factor they allow; or an image of a plain-edged door in this cell: its "
+    "answer's diagnostics camera_response.fitted), put it in the cell file and set "
+    "locate.response_unmeasured_factor to what the measurement allows",
     "fit": "the edges are too noisy; check focus, lighting and exposure",
     "edge_model": "the door's edges do not look like clean steps (strong grain or marks along an edge, an arris or "
     "a camera response the cell does not describe); check the cell's door and camera settings",

@@ -31,17 +31,20 @@ import numpy as np
 from scipy.ndimage import uniform_filter1d
 from scipy.special import ndtr
 
-from doorloc.vision.edges import EdgeSamples, _gather, oriented
+from doorloc.vision.edges import Axis, EdgeSamples, _gather, linearizing_lut, oriented, subpixel_edges
 
 __all__ = [
     "RESPONSE_ABSORB_SIGMAS",
     "RESPONSE_GAMMA_RANGE",
     "RESPONSE_PLAUSIBLE",
     "RESPONSE_SKEW_BLOCKS",
+    "BoardResponse",
     "LineResponse",
     "ResponseFit",
+    "board_response",
     "combine_responses",
     "edge_shift_px",
+    "fit_board_response",
     "fit_line_response",
     "plateau_levels",
 ]
@@ -413,3 +416,154 @@ def plateau_levels(
     top = 255.0 if plane.dtype == np.uint8 else 65535.0
     m = np.median(ends, axis=0) / top
     return float(min(m)), float(max(m))
+
+
+def fit_board_response(
+    plane: np.ndarray,
+    corners_px: np.ndarray,
+    cols: int,
+    rows: int,
+    used_gamma: float = 1.0,
+    blur_px: float = 1.5,
+) -> LineResponse | None:
+    """The camera response measured on a checkerboard's square edges (the calibration images).
+
+    A printed board has hundreds of plain black-white edges at every pixel phase and angle: the same
+    measurement as :func:`fit_line_response` on a door's plain edge (the transition of a step blurred by an
+    even spread is symmetric in linear light), pooled over the board. Each edge between two neighbouring
+    inner corners is read on the scan lines across its middle 40 % (the corners' X-junctions and the
+    square's other edges stay out of the window), its sub-pixel place by the area estimator, and its raw profile turned to
+    run dark to bright; the exponent's standard error is the scatter over blocks of whole edges.
+
+    Parameters
+    ----------
+    plane : ndarray (H, W)
+        The raw grey image (uint8 or uint16), as the camera wrote it.
+    corners_px : ndarray (cols * rows, 2)
+        Inner corners in grid order (row by row, ``cols`` per row), px.
+    cols, rows : int
+        Inner corners per row and per column.
+    used_gamma : float
+        The exponent the edges are placed with (its skew is reported).
+    blur_px : float
+        The largest optical blur expected (Gaussian sigma, px): sizes the window (3 sigmas and the plateaus
+        each side); edges of squares too small for it are left out.
+
+    Returns
+    -------
+    LineResponse or None
+        None with too few usable edges (squares under about 40 px at 1.5 px of blur, or too few in view).
+    """
+    corners = np.asarray(corners_px, float).reshape(rows, cols, 2)
+    top = 255.0 if plane.dtype == np.uint8 else 65535.0
+    lut = linearizing_lut(plane.dtype, used_gamma)
+    want = int(math.ceil(RESPONSE_WINDOW_BLURS * max(blur_px, 0.0) + 1.5))
+    raws, offsets = [], []
+    pairs = [(corners[r, c], corners[r, c + 1]) for r in range(rows) for c in range(cols - 1)] + [
+        (corners[r, c], corners[r + 1, c]) for r in range(rows - 1) for c in range(cols)
+    ]
+    for p0, p1 in pairs:
+        d = p1 - p0
+        length = float(np.hypot(*d))
+        # Scan lines across the edge's middle 40 %: a profile there meets the square's other edges no nearer
+        # than 0.42 of a square (at 45 deg; farther at other angles), so a window (plateaus included) of
+        # 0.3 of a square each side stays clear of them and of their blur.
+        half = want
+        if not (np.all(np.isfinite(d)) and half + RESPONSE_PLATEAU_PX <= 0.3 * length):
+            continue  # squares too small for the transition and its plateaus
+        axis: Axis = "col" if abs(d[0]) >= abs(d[1]) else "row"  # profiles across the edge
+        i_s, i_a = (0, 1) if axis == "col" else (1, 0)
+        s0, s1 = sorted((p0[i_s] + 0.3 * d[i_s], p0[i_s] + 0.7 * d[i_s]))
+        scan = np.arange(int(math.ceil(s0)), int(math.floor(s1)) + 1)
+        if scan.size < 4:
+            continue
+        centre = p0[i_a] + (scan - p0[i_s]) * (d[i_a] / d[i_s])
+        smp = subpixel_edges(plane, axis, scan, centre, half, RESPONSE_PLATEAU_PX, lut=lut)
+        ok = smp.valid & np.isfinite(smp.along) & (np.abs(smp.along - centre) < 2.0)
+        if int(ok.sum()) < 4:
+            continue
+        H = half + RESPONSE_PLATEAU_PX
+        e = smp.along[ok]
+        c0 = np.round(e).astype(int)
+        vals, inside = _gather(oriented(plane, axis), scan[ok], c0 - H, 2 * H + 1)
+        keep = inside.all(axis=1)
+        raw = vals[keep].astype(np.float64) / top
+        off = (c0 - H - e)[keep].astype(np.float64)
+        if raw.shape[0] < 4:
+            continue
+        if raw[:, -RESPONSE_PLATEAU_PX:].mean() < raw[:, :RESPONSE_PLATEAU_PX].mean():
+            raw, off = raw[:, ::-1], -off - 2 * H  # dark to bright, as every other edge
+        raws.append(raw)
+        offsets.append(off)
+    if len(raws) < 3 * RESPONSE_SKEW_BLOCKS:
+        return None
+    t = _Transitions(np.concatenate(raws), np.concatenate(offsets))
+    g_hat = _least_asymmetric(t, np.geomspace(*RESPONSE_GAMMA_RANGE, 25))
+    if not math.isfinite(g_hat):
+        return None
+    # blocks of whole edges (neighbouring edges share the board's print and light, far ones need not)
+    n_blocks = 2 * RESPONSE_SKEW_BLOCKS
+    edge_block = np.array_split(np.arange(len(raws)), n_blocks)
+    blocks = np.concatenate(
+        [np.full(raws[i].shape[0], k) for k, idx in enumerate(edge_block) for i in idx]
+    ).astype(np.int64)
+    per_block = _least_asymmetric_blocks(t, g_hat * np.geomspace(1 / 1.6, 1.6, 11), blocks, n_blocks)
+    per_block = per_block[np.isfinite(per_block)]
+    if per_block.size < 3:
+        return None
+    se = float(np.std(per_block, ddof=1)) / math.sqrt(per_block.size)
+    ends = t.raw[:, [0, -1]]
+    lo, hi = (float(v) for v in np.median(ends, axis=0))
+    return LineResponse(g_hat, max(se, RESPONSE_SIGMA_FLOOR), lo, hi, _skew(t, slice(None), used_gamma))
+
+
+#: fewest board images whose responses :func:`board_response` pools (their scatter is the doubt)
+BOARD_RESPONSE_MIN_IMAGES = 5
+
+
+@dataclass(frozen=True)
+class BoardResponse:
+    """The camera response measured on the calibration photographs (:func:`board_response`).
+
+    Attributes
+    ----------
+    gamma, sigma : float
+        The exponent (``grey = light ** (1 / gamma)``), the median of the images' own, and its 1-sigma from
+        their scatter: on real photographs one image's own standard error understates it several times
+        (JPEG, in-camera sharpening and print texture skew single edges: the OpenCV sample images scatter
+        from 0.7 to 3.9), so the images are taken as independent measurements and nothing else.
+    per_image : tuple of float
+        Each usable image's exponent.
+    """
+
+    gamma: float
+    sigma: float
+    per_image: tuple[float, ...]
+
+    @property
+    def unmeasured_factor(self) -> float:
+        """``locate.response_unmeasured_factor`` that this measurement allows: its 2-sigma range as a factor."""
+        return 1.0 + 2.0 * self.sigma / self.gamma
+
+
+def board_response(
+    views: list[tuple[np.ndarray, np.ndarray]], cols: int, rows: int, blur_px: float = 1.5
+) -> BoardResponse | None:
+    """The camera response from photographs of a checkerboard, pooled robustly over the images.
+
+    ``views``: (raw grey image, all ``cols * rows`` inner corners in the board's row-major order) per
+    photograph. Each image gives its exponent (:func:`fit_board_response`); the answer is their median and
+    its standard error from their median absolute deviation (``1.2533 * 1.4826 * MAD / sqrt(n)``, the
+    median's efficiency), at least the images' own standard error over ``sqrt(n)``. None with fewer than
+    ``BOARD_RESPONSE_MIN_IMAGES`` usable images.
+    """
+    fits = [fit_board_response(img, c, cols, rows, blur_px=blur_px) for img, c in views]
+    ok = [f for f in fits if f is not None and RESPONSE_GAMMA_RANGE[0] < f.gamma < RESPONSE_GAMMA_RANGE[1]]
+    if len(ok) < BOARD_RESPONSE_MIN_IMAGES:
+        return None
+    g = np.array([f.gamma for f in ok])
+    med = float(np.median(g))
+    n = g.size
+    spread = 1.2533 * 1.4826 * float(np.median(np.abs(g - med))) / math.sqrt(n)
+    own = float(np.median([f.sigma for f in ok])) / math.sqrt(n)
+    return BoardResponse(med, max(spread, own, RESPONSE_SIGMA_FLOOR), tuple(float(x) for x in g))
