@@ -104,7 +104,9 @@ class Cell:
     ----------
     response_gamma : float
         The camera's response ``grey = light ** (1 / gamma)`` (``camera.response_gamma``): 1 for a linear
-        machine-vision camera, about 2.2 for an sRGB-like one.
+        machine-vision camera, about 2.2 for an sRGB-like one. A cell that does not state it takes the one
+        its calibration file measured (``response_gamma``, ``doorloc calibrate``), with
+        ``locate.response_unmeasured_factor`` from that measurement's sigma unless the cell sets it.
     locate : LocateConfig
         The ``locate:`` section: thresholds and settings of the pipeline that a cell sets once.
     robot_section : dict or None
@@ -312,6 +314,7 @@ def parse_cell(
         calibration_sha = None
         cov: np.ndarray | None = None
         cov_names: tuple[str, ...] = ()
+        measured_response: tuple[float, float] | None = None
         if cam_doc.calibration is not None:
             cal_path = Path(cam_doc.calibration)
             if not cal_path.is_absolute() and base_dir is not None:
@@ -325,6 +328,8 @@ def parse_cell(
                 cal.camera.observed_radius_px,
             )
             cov, cov_names = cal.covariance, cal.covariance_names
+            if cal.response_gamma is not None and cal.response_gamma_sigma is not None:
+                measured_response = (cal.response_gamma, cal.response_gamma_sigma)
         if cam_doc.camera_matrix is not None:
             K = np.asarray(cam_doc.camera_matrix, float)
         if cam_doc.dist_coeffs is not None:
@@ -352,6 +357,14 @@ def parse_cell(
     except (ValueError, TypeError) as e:
         raise CellFileError(f"{source}: {e}") from None
     locate = _locate_config(cd.locate, source)
+    response_gamma = cam_doc.response_gamma
+    if measured_response is not None and "response_gamma" not in cam_doc.model_fields_set:
+        # The calibration file carries the response measured on its photographs (doorloc calibrate): a
+        # cell that does not state its own takes it, known within its 2-sigma range (unless the cell's
+        # locate section sets that doubt itself); both are echoed in every result like any cell setting.
+        response_gamma, sigma = measured_response
+        if "response_unmeasured_factor" not in (cd.locate or {}):
+            locate = replace(locate, response_unmeasured_factor=1.0 + 2.0 * sigma / response_gamma)
     return Cell(
         camera,
         extrinsics,
@@ -359,7 +372,7 @@ def parse_cell(
         envelope,
         door,
         str(source),
-        response_gamma=cam_doc.response_gamma,
+        response_gamma=response_gamma,
         locate=locate,
         robot_section=cd.robot,
         provenance=dict(cd.provenance),

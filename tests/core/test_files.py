@@ -23,6 +23,7 @@ from doorloc.calib.io import (
     save_calibration,
 )
 from doorloc.cell import CellFileError, DoorSize, Fixture, load_cell, parse_cell, save_cell
+from doorloc.vision.config import LocateConfig
 
 
 def test_reads_opencv_published_file(shared_data):
@@ -145,6 +146,33 @@ def test_cell_with_calibration_file_and_round_trip(tmp_path, thesis_cell_path):
     again = load_cell(tmp_path / "cell2.yaml")
     assert again.camera == loaded.camera
     np.testing.assert_array_equal(again.extrinsics.tvec_mm, [-30, 40, 350])
+
+
+def test_a_cell_takes_the_response_its_calibration_measured_unless_it_states_its_own(
+    tmp_path, thesis_cell_path
+):
+    """doorloc calibrate writes the camera response it measured on the photographs into the calibration file:
+    a cell that says nothing of the response takes it, known within its 2-sigma range; a cell that states
+    an exponent, or the doubt, keeps its own."""
+    cam = load_cell(thesis_cell_path).camera
+    save_calibration(
+        CalibrationFile(cam, response_gamma=2.2, response_gamma_sigma=0.11), tmp_path / "camera.yaml"
+    )
+    ext = "  extrinsics: {rvec: [1.5707963268, 0, 0], tvec_mm: [-30, 40, 350]}\n"
+    (tmp_path / "cell.yaml").write_text("camera:\n  calibration: camera.yaml\n" + ext)
+    cell = load_cell(tmp_path / "cell.yaml")
+    assert cell.response_gamma == 2.2 and cell.locate.response_unmeasured_factor == pytest.approx(1.1)
+    (tmp_path / "own.yaml").write_text("camera:\n  calibration: camera.yaml\n  response_gamma: 1.0\n" + ext)
+    own = load_cell(tmp_path / "own.yaml")
+    assert (
+        own.response_gamma == 1.0
+        and own.locate.response_unmeasured_factor == LocateConfig().response_unmeasured_factor
+    )
+    (tmp_path / "doubt.yaml").write_text(
+        "camera:\n  calibration: camera.yaml\n" + ext + "locate: {response_unmeasured_factor: 1.5}\n"
+    )
+    doubt = load_cell(tmp_path / "doubt.yaml")
+    assert doubt.response_gamma == 2.2 and doubt.locate.response_unmeasured_factor == 1.5
 
 
 @pytest.mark.parametrize(
