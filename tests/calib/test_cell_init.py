@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+from dataclasses import replace
 from pathlib import Path
 
 import cv2
@@ -139,3 +140,17 @@ def test_the_starting_cell_shows_every_section_a_person_may_edit(tmp_path):
     assert doc["door"]["arris_profile"] == "chamfer"
     with pytest.raises(CellFileError, match="response_gamma"):
         starting_cell_document(CAMERA, tmp_path / "cell.yaml", StartingCell(response_gamma=50.0))
+
+
+def test_the_starting_cell_takes_the_response_the_calibration_measured(tmp_path):
+    """doorloc calibrate measured the response on the photographs: cell init writes it, with the doubt its
+    sigma allows, where a person sees and can edit both; without a measurement the linear default."""
+    from doorloc.calib.io import load_calibration, save_calibration
+
+    cal = load_calibration(CAMERA)
+    save_calibration(replace(cal, response_gamma=2.15, response_gamma_sigma=0.12), tmp_path / "camera.yaml")
+    doc = starting_cell_document(tmp_path / "camera.yaml", tmp_path / "cell.yaml")
+    assert doc["camera"]["response_gamma"] == 2.15
+    assert doc["locate"] == {"response_unmeasured_factor": pytest.approx(1.0 + 0.24 / 2.15, abs=1e-4)}
+    plain = starting_cell_document(CAMERA, tmp_path / "cell.yaml")
+    assert plain["camera"]["response_gamma"] == 1.0 and "locate" not in plain

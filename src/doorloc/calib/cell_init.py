@@ -18,6 +18,7 @@ import numpy as np
 import yaml
 from scipy.spatial.transform import Rotation
 
+from doorloc.calib.io import CalibrationFileError, load_calibration
 from doorloc.cell import CellFileError, DoorSize, Envelope, Fixture, parse_cell
 from doorloc.fileio import atomic_write_text
 
@@ -37,14 +38,16 @@ class StartingCell:
     camera_centre_mm : tuple of 3 floats
         Nominal camera centre in the cell frame, mm. The thesis cell: 30 mm beside the reference
         corner in X, 350 mm in front of the hinge face (Y = -350), 40 mm up.
-    response_gamma : float
-        The camera's response ``grey = light ** (1 / gamma)``: 1 for a linear machine-vision camera.
+    response_gamma : float or None
+        The camera's response ``grey = light ** (1 / gamma)``: 1 for a linear machine-vision camera. None:
+        the one the calibration file measured on its photographs (``doorloc calibrate``), written with the
+        ``locate.response_unmeasured_factor`` its sigma allows; 1.0 when it has none.
     fixture, envelope, default_door
         The cell's fixture, placement tolerance and the door assumed when a request names none.
     """
 
     camera_centre_mm: tuple[float, float, float] = (30.0, -350.0, 40.0)
-    response_gamma: float = 1.0
+    response_gamma: float | None = None
     fixture: Fixture = field(default_factory=Fixture)
     envelope: Envelope = field(default_factory=Envelope)
     default_door: DoorSize = field(default_factory=DoorSize)
@@ -94,6 +97,17 @@ def starting_cell_document(
         "envelope": asdict(start.envelope),
         "door": asdict(start.default_door),
     }
+    if start.response_gamma is None:
+        try:
+            measured = load_calibration(cal)
+        except CalibrationFileError as e:
+            raise CellFileError(f"{cell_path}: camera.calibration: {e}") from None
+        g, sigma = measured.response_gamma, measured.response_gamma_sigma
+        if g is not None and sigma is not None:
+            doc["camera"]["response_gamma"] = round(g, 4)
+            doc["locate"] = {"response_unmeasured_factor": round(1.0 + 2.0 * sigma / g, 4)}
+        else:
+            doc["camera"]["response_gamma"] = 1.0
     parse_cell(doc, base, str(cell_path))  # the same checks locate will make, before anything is written
     return doc
 
