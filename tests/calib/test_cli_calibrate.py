@@ -194,3 +194,21 @@ def test_validity_reads_cell_files(tmp_path):
     assert r.exit_code == EXIT_REFUSED and "UNUSABLE beyond 560 px" in r.output
     r = runner.invoke(app, ["validity", str(tmp_path / "missing.yaml")])
     assert r.exit_code == EXIT_USAGE and "cannot read" in r.output
+
+
+def test_a_failing_response_measurement_does_not_cost_the_calibration(messy_dir, tmp_path, monkeypatch):
+    import doorloc.vision.response as response
+
+    def broken(*a, **k):
+        raise ValueError("synthetic failure")
+
+    monkeypatch.setattr(response, "board_response", broken)
+    out = tmp_path / "camera.yaml"
+    r = runner.invoke(
+        app, ["calibrate", str(messy_dir), "--pattern", "9x6", "--square", "25", "--out", str(out)]
+    )
+    assert r.exit_code == 0, r.output
+    assert "camera response was not measured (ValueError: synthetic failure)" in r.output
+    assert "Traceback" not in r.output
+    cal = load_calibration(out)
+    assert cal.response_gamma is None and abs(cal.camera.fx / 535.916 - 1) < 0.01

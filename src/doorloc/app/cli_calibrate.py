@@ -262,7 +262,11 @@ def register(app: typer.Typer) -> None:
         _echo_skipped(outcome.detected.skipped)
         from dataclasses import replace
 
-        response = _board_response(images_dir, outcome, board)
+        try:
+            response = _board_response(images_dir, outcome, board)
+        except Exception as e:  # noqa: BLE001 - an extra measurement must not cost the calibration itself
+            typer.echo(f"warning: the camera response was not measured ({type(e).__name__}: {e})", err=True)
+            response = None
         cal = outcome.calibration_file(camera_name)
         if response is not None:
             cal = replace(cal, response_gamma=response.gamma, response_gamma_sigma=response.sigma)
