@@ -239,6 +239,12 @@ def _explain(err: ValidationError, source: str) -> str:
     return f"{source}: " + "; ".join(msgs)
 
 
+def measured_response_factor(gamma: float, sigma: float) -> float:
+    """``locate.response_unmeasured_factor`` for a camera response measured as ``gamma +- sigma`` (1 sigma):
+    its 2-sigma range as a factor, ``1 + 2 sigma / gamma``."""
+    return 1.0 + 2.0 * sigma / gamma
+
+
 def _locate_config(section: dict[str, Any], source: str) -> LocateConfig:
     """The ``locate:`` section as a :class:`LocateConfig`: its keys are the config's fields, typed."""
     allowed = [f.name for f in dataclasses.fields(LocateConfig)]
@@ -364,7 +370,9 @@ def parse_cell(
         # locate section sets that doubt itself); both are echoed in every result like any cell setting.
         response_gamma, sigma = measured_response
         if "response_unmeasured_factor" not in (cd.locate or {}):
-            locate = replace(locate, response_unmeasured_factor=1.0 + 2.0 * sigma / response_gamma)
+            locate = replace(
+                locate, response_unmeasured_factor=measured_response_factor(response_gamma, sigma)
+            )
     return Cell(
         camera,
         extrinsics,

@@ -125,11 +125,11 @@ def _board_response(images_dir: Path, outcome: CalibrationOutcome, board) -> Boa
     return board_response(views, board.cols, board.rows)
 
 
-def _echo_response(response: BoardResponse | None, board) -> None:
+def _echo_response(response: BoardResponse | None) -> None:
     """The measured camera response and the cell-file lines it allows (SPEC section 2)."""
     if response is None:
         typer.echo(
-            "camera response: not measured (a chessboard in 5 photographs or more, squares over about 40 px)"
+            "camera response: not measured (a chessboard in 5 photographs or more, squares over about 30 px)"
         )
         return
     f = response.unmeasured_factor
@@ -236,10 +236,14 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Calibrate a camera from photographs of a chessboard or ChArUco board.
 
+        With a chessboard it also measures the camera's response on the squares' edges (written to the
+        file as response_gamma +- response_gamma_sigma, and printed as the cell-file lines it allows).
         Images without a board, unreadable files and images of another size are skipped with a
         reason; the calibration goes ahead if enough views remain. Exit codes: 0 done, 2 bad
         arguments or input, 3 too few usable views (nothing written).
         """
+        from dataclasses import replace
+
         from doorloc.calib.calibrate import CalibrationError
         from doorloc.calib.folder import CalibrationInputError, TooFewViewsError, calibrate_folder
         from doorloc.calib.io import save_calibration
@@ -260,8 +264,6 @@ def register(app: typer.Typer) -> None:
         except (CalibrationInputError, ValueError) as e:  # no images, or a bad --pattern, --marker or --model
             raise fail(str(e)) from None
         _echo_skipped(outcome.detected.skipped)
-        from dataclasses import replace
-
         try:
             response = _board_response(images_dir, outcome, board)
         except Exception as e:  # noqa: BLE001 - an extra measurement must not cost the calibration itself
@@ -275,7 +277,7 @@ def register(app: typer.Typer) -> None:
             d = outcome.detected
             write_report(report, outcome.result, d.scan, board, d.background)
         _echo_calibration(outcome, out, fmt)
-        _echo_response(response, board)
+        _echo_response(response)
 
     @app.command("calibrate-cell")
     def calibrate_cell(

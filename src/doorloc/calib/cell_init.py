@@ -19,7 +19,7 @@ import yaml
 from scipy.spatial.transform import Rotation
 
 from doorloc.calib.io import CalibrationFileError, load_calibration
-from doorloc.cell import CellFileError, DoorSize, Envelope, Fixture, parse_cell
+from doorloc.cell import CellFileError, DoorSize, Envelope, Fixture, measured_response_factor, parse_cell
 from doorloc.fileio import atomic_write_text
 
 __all__ = ["REFERENCE_MOUNT_RVEC", "StartingCell", "starting_cell_document", "write_starting_cell"]
@@ -105,7 +105,7 @@ def starting_cell_document(
         g, sigma = measured.response_gamma, measured.response_gamma_sigma
         if g is not None and sigma is not None:
             doc["camera"]["response_gamma"] = round(g, 4)
-            doc["locate"] = {"response_unmeasured_factor": round(1.0 + 2.0 * sigma / g, 4)}
+            doc["locate"] = {"response_unmeasured_factor": round(measured_response_factor(g, sigma), 4)}
         else:
             doc["camera"]["response_gamma"] = 1.0
     parse_cell(doc, base, str(cell_path))  # the same checks locate will make, before anything is written

@@ -12,6 +12,11 @@ assumed, only an even point-spread function), with its standard error from the e
 blocks of scan lines (texture and shading beside the edge vary along it). :func:`combine_responses` pools the
 plain lines of one image (one camera, one response).
 
+:func:`board_response` measures the same on the calibration photographs' chessboard edges (``doorloc
+calibrate`` stores it with the camera model): a camera's response once, where hundreds of plain edges at
+every phase are in view, so that doors whose edges cannot show it (arrises, a door square to the camera)
+need not doubt it by the full range of cameras' exponents.
+
 What a response error does to the edge follows from the step model, not from a tuned factor:
 :func:`edge_shift_px` is where the area estimator puts a Gaussian-blurred step between the line's two
 measured plateaus, linearised with one exponent when the camera's is another. Locate uses it for the
@@ -432,8 +437,8 @@ def fit_board_response(
     measurement as :func:`fit_line_response` on a door's plain edge (the transition of a step blurred by an
     even spread is symmetric in linear light), pooled over the board. Each edge between two neighbouring
     inner corners is read on the scan lines across its middle 40 % (the corners' X-junctions and the
-    square's other edges stay out of the window), its sub-pixel place by the area estimator, and its raw profile turned to
-    run dark to bright; the exponent's standard error is the scatter over blocks of whole edges.
+    square's other edges stay out of the window), placed by the area estimator, and its raw profile turned
+    to run dark to bright; the exponent's standard error is the scatter over blocks of whole edges.
 
     Parameters
     ----------
@@ -452,7 +457,7 @@ def fit_board_response(
     Returns
     -------
     LineResponse or None
-        None with too few usable edges (squares under about 40 px at 1.5 px of blur, or too few in view).
+        None with too few usable edges (squares under about 30 px at 1.5 px of blur, or too few in view).
     """
     corners = np.asarray(corners_px, float).reshape(rows, cols, 2)
     top = 255.0 if plane.dtype == np.uint8 else 65535.0
@@ -531,7 +536,7 @@ class BoardResponse:
         The exponent (``grey = light ** (1 / gamma)``), the median of the images' own, and its 1-sigma from
         their scatter: on real photographs one image's own standard error understates it several times
         (JPEG, in-camera sharpening and print texture skew single edges: the OpenCV sample images scatter
-        from 0.7 to 3.9), so the images are taken as independent measurements and nothing else.
+        from 0.85 to 3.36), so the images are taken as independent measurements and nothing else.
     per_image : tuple of float
         Each usable image's exponent.
     """
@@ -542,8 +547,10 @@ class BoardResponse:
 
     @property
     def unmeasured_factor(self) -> float:
-        """``locate.response_unmeasured_factor`` that this measurement allows: its 2-sigma range as a factor."""
-        return 1.0 + 2.0 * self.sigma / self.gamma
+        """``locate.response_unmeasured_factor`` that this measurement allows (its 2-sigma range as a factor)."""
+        from doorloc.cell import measured_response_factor  # (the cell file's rule, kept in one place)
+
+        return measured_response_factor(self.gamma, self.sigma)
 
 
 def board_response(
