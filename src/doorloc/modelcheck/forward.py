@@ -29,6 +29,7 @@ from doorloc.cell import Cell, DoorSize
 from doorloc.modelcheck.catalogue import Effect, Values
 from doorloc.modelcheck.dataset import MeasuredImage
 from doorloc.pose import DoorPose
+from doorloc.vision.config import LocateConfig
 from doorloc.vision.lines import fit_rectangle_edges
 from doorloc.vision.locate import LocateTrace, locate
 from doorloc.vision.metric import PlaneMap
@@ -84,6 +85,9 @@ class Observation:
         Per edge, the stretch seen along it (door-frame mm: px for the bottom end, pz for the arrises).
     edge_uv, edge_residual_mm : ndarray
         Inlier edge points (pixels) and their distance from the fitted lines (mm), for the plots.
+    response_absorbed : float
+        The camera response exponent locate measured on this image's plain edges and used instead of the
+        cell's (``diagnostics.camera_response``), NaN where it kept the cell's.
     """
 
     item: MeasuredImage
@@ -96,6 +100,7 @@ class Observation:
     ranges: dict[str, tuple[float, float]]
     edge_uv: np.ndarray
     edge_residual_mm: np.ndarray
+    response_absorbed: float = math.nan
 
 
 def _pose_row(r, ref: DoorPose, door: DoorSize) -> np.ndarray:
@@ -169,19 +174,33 @@ def observe(
                 ranges,
                 np.concatenate(uvs),
                 np.concatenate(res),
+                _absorbed(r.diagnostics.get("camera_response", {})),
             )
         )
     return out
 
 
-def locate_errors(obs: Sequence[Observation], cell: Cell, measured_arris: bool) -> np.ndarray:
-    """Locate the kept images again with ``cell``: error rows ``(n, 4)`` (NaN where refused)."""
+def _absorbed(resp: dict) -> float:
+    return float(resp["fitted"]) if resp.get("absorbed") and "fitted" in resp else math.nan
+
+
+def locate_errors(
+    obs: Sequence[Observation], cell: Cell, measured_arris: bool, gated: bool = True
+) -> np.ndarray:
+    """Locate the kept images again with ``cell``: error rows ``(n, 4)`` (NaN where refused).
+
+    ``gated=False`` lifts the refusals that only judge an answer's uncertainty (thickness that cannot be
+    checked, the pose's 1-sigma beyond the cell's tolerance): a forward model needs the pose a cell gives,
+    not production's verdict on it (hidden arris 1.35 mm, seed 481507: one training image's thickness could
+    not be checked at any arris, its row of the arris table stayed 0, and focal length was named instead).
+    """
+    cfg = None if gated else _ungated(cell.locate)
     rows = np.full((len(obs), 4), np.nan)
     for k, o in enumerate(obs):
         if o.image is None:
             continue
         door = door_for(o.item, cell, measured_arris)
-        r = locate(o.image, cell, door, image_name=o.item.image)
+        r = locate(o.image, cell, door, image_name=o.item.image, config=cfg)
         if r.ok:
             rows[k] = _pose_row(r, o.item.reference, door)
     return rows
@@ -283,7 +302,7 @@ class RelocateTable:
         tab = []
         for v in self.grid:
             cell = effect.apply(nominal, [v])
-            tab.append(base - locate_errors(obs, cell, measured_arris))
+            tab.append(base - locate_errors(obs, cell, measured_arris, gated=False))
         T = np.array(tab)  # (grid, n, 4)
         for k in range(T.shape[1]):
             for c in range(4):
@@ -300,6 +319,14 @@ class RelocateTable:
         v = float(np.clip(value, self.grid[0], self.grid[-1]))
         out = np.asarray(self._interp(v))
         return out if rows is None else out[rows]
+
+
+def _ungated(cfg: LocateConfig) -> LocateConfig:
+    """``cfg`` without the refusals that judge only the answer's uncertainty (:func:`locate_errors`)."""
+    big = 1e6
+    return replace(
+        cfg, thickness_tolerance_mm=big, max_uncertainty_mm=big, max_uncertainty_deg=big, max_sigma_mm=big
+    )
 
 
 def relocate_grid(effect: Effect, nominal: Cell) -> list[float]:

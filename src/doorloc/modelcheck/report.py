@@ -166,6 +166,13 @@ def report_markdown(rep: ModelCheckReport) -> str:
             f"- step {s['step']}: `{s['candidate']}` held-out SSE ratio {s['cv_ratio']:.3g}, "
             f"F-test p = {s['f_test_p']:.2g} -> {'accepted' if s['accepted'] else 'rejected'}"
         )
+    ev = rep.response_measured_by_locate
+    if ev.get("added"):
+        lines.append(
+            f"- `response_gamma` from locate's own measurement: on {ev['images']} of {ev['of']} training images "
+            f"it found the camera's response on plain edges and used it instead of the cell's (their poses show "
+            f"nothing of it): median {ev['median']:.3f} +- {ev['sigma']:.3f}"
+        )
     u = rep.unexplained_test
     lines += [
         "",
