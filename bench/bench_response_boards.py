@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from doorloc.calib.detect import Chessboard, to_gray
-from doorloc.calib.folder import detect_views, read_folder
+from doorloc.calib.detect import Chessboard
+from doorloc.calib.folder import detect_views, full_board_views, read_folder
 from doorloc.cell import load_cell
 from doorloc.sim.boards import Checkerboard, render_board
 from doorloc.sim.effects import Effects
@@ -52,13 +52,8 @@ def rendered(gamma: float, n_views: int, seed: int) -> None:
 
 
 def real(folder: str, glob: str, board: Chessboard) -> None:
-    d = detect_views(read_folder(DATA / folder, glob), board)
-    dets = d.scan.detections
-    views = [
-        (to_gray(img), dets[n].corners_px[np.argsort(dets[n].ids)])
-        for n, img, _ in read_folder(DATA / folder, glob)
-        if img is not None and n in dets and dets[n].ids.size == board.cols * board.rows
-    ]
+    images = read_folder(DATA / folder, glob)
+    views = full_board_views(images, detect_views(images, board).scan, board)
     r = board_response(views, board.cols, board.rows)
     if r is None:
         print(f"  {folder}: not measured")

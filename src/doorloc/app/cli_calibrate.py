@@ -107,21 +107,13 @@ def _echo_calibration(outcome: CalibrationOutcome, out: Path, fmt: str) -> None:
 def _board_response(images_dir: Path, outcome: CalibrationOutcome, board) -> BoardResponse | None:
     """The camera response measured on the chessboard photographs that gave views (read again here: the
     calibration keeps corners, not images). None for a ChArUco board (its corners need not all be seen)."""
-    import numpy as np
-
-    from doorloc.calib.detect import Chessboard, to_gray
-    from doorloc.calib.folder import read_folder
+    from doorloc.calib.detect import Chessboard
+    from doorloc.calib.folder import full_board_views, read_folder
     from doorloc.vision.response import board_response
 
     if not isinstance(board, Chessboard):
         return None
-    n = board.cols * board.rows
-    dets = outcome.detected.scan.detections
-    views = [
-        (to_gray(img), dets[name].corners_px[np.argsort(dets[name].ids)])
-        for name, img, _ in read_folder(images_dir)
-        if img is not None and name in dets and dets[name].ids.size == n
-    ]
+    views = full_board_views(read_folder(images_dir), outcome.detected.scan, board)
     return board_response(views, board.cols, board.rows)
 
 

@@ -18,8 +18,7 @@ import numpy as np
 import yaml
 from scipy.spatial.transform import Rotation
 
-from doorloc.calib.io import CalibrationFileError, load_calibration
-from doorloc.cell import CellFileError, DoorSize, Envelope, Fixture, measured_response_factor, parse_cell
+from doorloc.cell import CellFileError, DoorSize, Envelope, Fixture, cell_to_dict, parse_cell
 from doorloc.fileio import atomic_write_text
 
 __all__ = ["REFERENCE_MOUNT_RVEC", "StartingCell", "starting_cell_document", "write_starting_cell"]
@@ -98,16 +97,13 @@ def starting_cell_document(
         "door": asdict(start.default_door),
     }
     if start.response_gamma is None:
-        try:
-            measured = load_calibration(cal)
-        except CalibrationFileError as e:
-            raise CellFileError(f"{cell_path}: camera.calibration: {e}") from None
-        g, sigma = measured.response_gamma, measured.response_gamma_sigma
-        if g is not None and sigma is not None:
-            doc["camera"]["response_gamma"] = round(g, 4)
-            doc["locate"] = {"response_unmeasured_factor": round(measured_response_factor(g, sigma), 4)}
-        else:
-            doc["camera"]["response_gamma"] = 1.0
+        # the cell file's own rule (doorloc.cell.parse_cell): a cell that states no response takes the one its
+        # calibration measured, with the doubt it allows; written out here where a person sees both
+        del doc["camera"]["response_gamma"]
+        cell = parse_cell(doc, base, str(cell_path))
+        doc["camera"]["response_gamma"] = cell.response_gamma
+        if "locate" in (changed := cell_to_dict(cell)):  # (the only locate setting the calibration can set)
+            doc["locate"] = changed["locate"]
     parse_cell(doc, base, str(cell_path))  # the same checks locate will make, before anything is written
     return doc
 

@@ -31,7 +31,7 @@ from doorloc.calib.calibrate import (
     View,
     calibrate_views,
 )
-from doorloc.calib.detect import BoardScan, CharucoSpec, Chessboard, SkippedImage, scan_images
+from doorloc.calib.detect import BoardScan, CharucoSpec, Chessboard, SkippedImage, scan_images, to_gray
 from doorloc.calib.io import CalibrationFile
 
 __all__ = [
@@ -115,6 +115,20 @@ class CalibrationOutcome:
             self.result.covariance,
             tuple(self.result.covariance_names),
         )
+
+
+def full_board_views(
+    images: Sequence[LoadedImage], scan: BoardScan, board: Chessboard
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(grey image, every inner corner in the board's row-major order) for each image in which ``scan``
+    found the whole chessboard: the input of :func:`doorloc.vision.response.board_response`."""
+    n = board.cols * board.rows
+    dets = scan.detections
+    return [
+        (to_gray(img), dets[name].corners_px[np.argsort(dets[name].ids)])
+        for name, img, _ in images
+        if img is not None and name in dets and dets[name].ids.size == n
+    ]
 
 
 def read_image_file(path: str | os.PathLike) -> tuple[np.ndarray | None, str | None]:

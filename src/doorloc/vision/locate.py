@@ -55,7 +55,7 @@ from doorloc.vision.edges import (
 from doorloc.vision.lines import ImageLine, RectangleFit, _median, fit_rectangle_edges, ransac_line
 from doorloc.vision.luminance import ImageFormatError, LuminancePlane, luminance_plane
 from doorloc.vision.metric import MetricPose, pose_from_fit
-from doorloc.vision.region import EDGE_NAMES, Band, SearchRegion
+from doorloc.vision.region import EDGE_NAMES, Band, EdgeLayout, SearchRegion
 from doorloc.vision.response import (
     RESPONSE_PLAUSIBLE,
     LineResponse,
@@ -247,23 +247,46 @@ def locate_steps(
     return res
 
 
-def _coarse(plane, band: Band, axis, polarity, thr, prefer=None, half: int = 2):
-    along, strength = yield StepQuery(
-        plane,
-        dict(
-            axis=axis,
-            scan=band.scan,
-            lo=band.lo,
-            hi=band.hi,
-            polarity=polarity,
-            half=half,
-            prefer=prefer,
-            prefer_fraction=0.5,
-            stride=2,
-        ),
-    )
-    strong = np.isfinite(along) & (strength >= thr)
-    return along, strength, strong
+def _coarse_line(
+    plane,
+    band: Band,
+    layout: EdgeLayout,
+    thr: float,
+    min_points: int,
+    min_fraction: float,
+    strip_half: int | None = None,
+    prefer=None,
+):
+    """A coarse line through the strongest steps of the layout's polarity in ``band`` (strided step finder and
+    RANSAC, 3 px tolerance), or None without ``min_points`` steps or ``min_fraction`` of the scan lines on it.
+
+    With ``strip_half`` (an arris door: :func:`_strip_half`) a missed line is looked for again with halves that
+    span the strip: a strip between the face's and the background's levels splits a low-contrast step in two,
+    each below the threshold in the detector's 4-px halves (arris bench seed 1539: a 1.2 mm rounding, 12 grey
+    levels, refused no_door).
+    """
+    for half in (2, strip_half):
+        if half is None:
+            break
+        along, strength = yield StepQuery(
+            plane,
+            dict(
+                axis=layout.axis,
+                scan=band.scan,
+                lo=band.lo,
+                hi=band.hi,
+                polarity=layout.polarity,
+                half=half,
+                prefer=prefer,
+                prefer_fraction=0.5,
+                stride=2,
+            ),
+        )
+        strong = np.isfinite(along) & (strength >= thr)
+        line = ransac_line(band.scan[strong], along[strong], 3.0) if strong.sum() >= min_points else None
+        if line is not None and line.inliers.sum() >= min_fraction * max(len(band.scan), 1):
+            return line
+    return None
 
 
 def _sample(
@@ -512,24 +535,12 @@ def _coarse_edges(
     # a stronger step of the same polarity further on).
     xdir = ref_lay.polarity * (1 if cfg.door_brighter else -1)  # along-direction of door +X
     outer = (band_ref.lo if xdir > 0 else band_ref.hi).astype(float)
-    along_r, _, strong_r = yield from _coarse(
-        plane, band_ref, ref_lay.axis, ref_lay.polarity, thr, prefer=outer
-    )
-    tol = 3.0
-    ref_line = ransac_line(band_ref.scan[strong_r], along_r[strong_r], tol) if strong_r.sum() >= 10 else None
     sc = region.nominal_scale
-    if (ref_line is None or ref_line.inliers.sum() < 0.4 * len(band_ref.scan)) and door.arris_mm > 0:
-        # An arris strip between the face's and the background's levels splits a low-contrast step in two,
-        # each below the threshold in the 4-px halves of the strided detector (arris bench seed 1539: a 1.2 mm
-        # rounding, 12 grey levels, refused no_door): look again with halves that span the strip.
-        along_r, _, strong_r = yield from _coarse(
-            plane, band_ref, ref_lay.axis, ref_lay.polarity, thr, prefer=outer, half=_strip_half(door, sc)
-        )
-        ref_line = (
-            ransac_line(band_ref.scan[strong_r], along_r[strong_r], tol) if strong_r.sum() >= 10 else None
-        )
-    if ref_line is None or ref_line.inliers.sum() < 0.4 * len(band_ref.scan):
+    strip_half = _strip_half(door, sc) if door.arris_mm > 0 else None
+    ref_line = yield from _coarse_line(plane, band_ref, ref_lay, thr, 10, 0.4, strip_half, prefer=outer)
+    if ref_line is None:
         raise _Refused(_no_door_reason(plane, band_ref, ref_lay.axis, cfg, s8))
+    tol = 3.0
 
     ref_at = ref_line.at(band_ref.scan)
     a1 = ref_at + xdir * cfg.min_thickness_mm / sc
@@ -600,17 +611,8 @@ def _coarse_edges(
     scans_b = np.arange(int(math.ceil(lo_s + inset)), int(math.floor(hi_s - inset)) + 1, 3)
     band_bot = region.bottom_band(scans_b)
     tr.bands["bottom"] = band_bot
-    along_b, _, strong_b = yield from _coarse(plane, band_bot, bot_lay.axis, bot_lay.polarity, thr)
-    bot_line = ransac_line(band_bot.scan[strong_b], along_b[strong_b], tol) if strong_b.sum() >= 5 else None
-    if (bot_line is None or bot_line.inliers.sum() < 0.3 * max(len(band_bot.scan), 1)) and door.arris_mm > 0:
-        # (as on the reference arris: halves that span the strip)
-        along_b, _, strong_b = yield from _coarse(
-            plane, band_bot, bot_lay.axis, bot_lay.polarity, thr, half=_strip_half(door, sc)
-        )
-        bot_line = (
-            ransac_line(band_bot.scan[strong_b], along_b[strong_b], tol) if strong_b.sum() >= 5 else None
-        )
-    if bot_line is None or bot_line.inliers.sum() < 0.3 * max(len(band_bot.scan), 1):
+    bot_line = yield from _coarse_line(plane, band_bot, bot_lay, thr, 5, 0.3, strip_half)
+    if bot_line is None:
         raise _Refused(
             q.Refusal(
                 "edge_missing",
@@ -1040,6 +1042,26 @@ def _at_many_phases(samples: EdgeSamples, inliers: np.ndarray) -> bool:
     return (np.unique(np.floor((along % 1.0) * 4.0)).size if along.size else 0) >= 4
 
 
+def _blur_without_pixel(transition_px: float) -> float:
+    """The optical blur (Gaussian sigma, px) in a transition's RMS width: the pixel's own 1/12 px^2 taken out
+    (0 where the width is unknown)."""
+    return (
+        math.sqrt(max(transition_px * transition_px - 1.0 / 12.0, 0.0))
+        if math.isfinite(transition_px)
+        else 0.0
+    )
+
+
+def _plain_response_lines(arris_fits: dict[str, tuple[StripFit, float]] | None) -> list[str]:
+    """The lines the camera response is read on: the bottom end and the reference arris unless an arris strip
+    lies along them (not the far arris: a far face seen edge-on can make a narrow band beside it)."""
+    return [
+        k
+        for k in EDGE_NAMES
+        if k != "far" and not (arris_fits and k in arris_fits and arris_fits[k][1] > PLAIN_STRIP_PX)
+    ]
+
+
 def _response_unchecked_because(
     samples: dict[str, EdgeSamples],
     fit: RectangleFit,
@@ -1048,18 +1070,10 @@ def _response_unchecked_because(
 ) -> str:
     """Why no edge of this image could show the camera response (``diagnostics.camera_response``): the
     pose then rests on the cell's ``response_gamma`` as it stands, which a user should know."""
-    plain = [
-        k
-        for k in EDGE_NAMES
-        if k != "far" and not (arris_fits and k in arris_fits and arris_fits[k][1] > PLAIN_STRIP_PX)
-    ]
+    plain = _plain_response_lines(arris_fits)
     if not plain:
         return "every edge is an arris strip, whose shading takes up the response"
-    blur_px = (
-        math.sqrt(max(transition_px * transition_px - 1.0 / 12.0, 0.0))
-        if math.isfinite(transition_px)
-        else 0.0
-    )
+    blur_px = _blur_without_pixel(transition_px)
     if not blur_px >= STEP_FIT_MIN_BLUR_PX:
         return "the edges are sharper than the pixel: no transition shape to read"
     if not any(_at_many_phases(samples[k], fit.weights[k] > 0) for k in plain):
@@ -1085,15 +1099,9 @@ def _measure_response(
     Plain: the bottom end and the reference arris without an arris strip, at many pixel phases and blurred
     (:func:`_response_check_applies`). None where no edge qualifies.
     """
-    blur_px = (
-        math.sqrt(max(transition_px * transition_px - 1.0 / 12.0, 0.0))
-        if math.isfinite(transition_px)
-        else 0.0
-    )
+    blur_px = _blur_without_pixel(transition_px)
     per_line: dict[str, LineResponse] = {}
-    for k in EDGE_NAMES:
-        if k == "far" or (arris_fits and k in arris_fits and arris_fits[k][1] > PLAIN_STRIP_PX):
-            continue  # the far arris: a far face seen edge-on can make a narrow band beside it
+    for k in _plain_response_lines(arris_fits):
         inl = fit.weights[k] > 0
         if not _response_check_applies(samples[k], inl, blur_px):
             continue
@@ -1240,7 +1248,7 @@ def _gate_and_answer(
         for k, (strip, band_px) in (arris_fits or {}).items()
     }
     model = _edge_model_terms(plane, samples, fit, half, cfg, cell, far_fit, step_fitted or {}, strips)
-    model.blur_px = math.sqrt(max(blur * blur - 1.0 / 12.0, 0.0)) if math.isfinite(blur) else 0.0
+    model.blur_px = _blur_without_pixel(blur)
     blocks = block_artifact_ratio(plane, pose.corner_px, scale_to_8bit=s8)
     diagnostics["jpeg_block_ratio"] = round(blocks, 3) if math.isfinite(blocks) else None
     if blocks > JPEG_BLOCK_RATIO:

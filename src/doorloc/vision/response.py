@@ -220,21 +220,31 @@ def fit_line_response(
     n_blocks = min(RESPONSE_SKEW_BLOCKS, t.raw.shape[0] // 12)
     if n_blocks < 3:
         return None
-    g_hat = _least_asymmetric(t, np.geomspace(*RESPONSE_GAMMA_RANGE, 25))
-    if not math.isfinite(g_hat):
-        return None
     # the standard error from the exponent's scatter over contiguous blocks of scan lines (texture and
     # shading beside the edge change slowly along it)
     blocks = np.repeat(
         np.arange(n_blocks), [len(b) for b in np.array_split(np.arange(t.raw.shape[0]), n_blocks)]
     )
+    found = _exponent_with_scatter(t, blocks, n_blocks)
+    if found is None:
+        return None
+    lo, hi = plateau_levels(plane, samples, mask & samples.valid, half)
+    return LineResponse(*found, lo, hi, _skew(t, slice(None), used_gamma))
+
+
+def _exponent_with_scatter(t: _Transitions, blocks: np.ndarray, n_blocks: int) -> tuple[float, float] | None:
+    """The exponent of least asymmetry of all the profiles ``t`` and its standard error from the scatter of
+    the exponents of the blocks (``blocks`` (N,): each profile's block), at least ``RESPONSE_SIGMA_FLOOR``;
+    None where either is not found."""
+    g_hat = _least_asymmetric(t, np.geomspace(*RESPONSE_GAMMA_RANGE, 25))
+    if not math.isfinite(g_hat):
+        return None
     per_block = _least_asymmetric_blocks(t, g_hat * np.geomspace(1 / 1.6, 1.6, 11), blocks, n_blocks)
     per_block = per_block[np.isfinite(per_block)]
     if per_block.size < 3:
         return None
     se = float(np.std(per_block, ddof=1)) / math.sqrt(per_block.size)
-    lo, hi = plateau_levels(plane, samples, mask & samples.valid, half)
-    return LineResponse(g_hat, max(se, RESPONSE_SIGMA_FLOOR), lo, hi, _skew(t, slice(None), used_gamma))
+    return g_hat, max(se, RESPONSE_SIGMA_FLOOR)
 
 
 def _asymmetry(
@@ -503,23 +513,17 @@ def fit_board_response(
     if len(raws) < 3 * RESPONSE_SKEW_BLOCKS:
         return None
     t = _Transitions(np.concatenate(raws), np.concatenate(offsets))
-    g_hat = _least_asymmetric(t, np.geomspace(*RESPONSE_GAMMA_RANGE, 25))
-    if not math.isfinite(g_hat):
-        return None
     # blocks of whole edges (neighbouring edges share the board's print and light, far ones need not)
     n_blocks = 2 * RESPONSE_SKEW_BLOCKS
     edge_block = np.array_split(np.arange(len(raws)), n_blocks)
     blocks = np.concatenate(
         [np.full(raws[i].shape[0], k) for k, idx in enumerate(edge_block) for i in idx]
     ).astype(np.int64)
-    per_block = _least_asymmetric_blocks(t, g_hat * np.geomspace(1 / 1.6, 1.6, 11), blocks, n_blocks)
-    per_block = per_block[np.isfinite(per_block)]
-    if per_block.size < 3:
+    found = _exponent_with_scatter(t, blocks, n_blocks)
+    if found is None:
         return None
-    se = float(np.std(per_block, ddof=1)) / math.sqrt(per_block.size)
-    ends = t.raw[:, [0, -1]]
-    lo, hi = (float(v) for v in np.median(ends, axis=0))
-    return LineResponse(g_hat, max(se, RESPONSE_SIGMA_FLOOR), lo, hi, _skew(t, slice(None), used_gamma))
+    lo, hi = (float(v) for v in np.median(t.raw[:, [0, -1]], axis=0))
+    return LineResponse(*found, lo, hi, _skew(t, slice(None), used_gamma))
 
 
 #: fewest board images whose responses :func:`board_response` pools (their scatter is the doubt)
