@@ -23,6 +23,9 @@ sys.modules.setdefault("locate_golden", golden)
 _spec.loader.exec_module(golden)
 
 
+_CUDA = pytest.mark.skipif(not torch.cuda.is_available(), reason="torch sees no CUDA device here")
+
+
 def _close(a, b) -> list[str]:
     """Batched vs one-frame: the same refusal, corner within 0.01 px, pose within 0.001 mm."""
     if (a.ok, a.error_code) != (b.ok, b.error_code):
@@ -40,7 +43,8 @@ def cases():
     return list(golden.all_cases())
 
 
-def test_every_step_search_equals_the_one_frame_finder(cases):
+@pytest.mark.parametrize("device", ["cpu", pytest.param("cuda", marks=_CUDA)])
+def test_every_step_search_equals_the_one_frame_finder(cases, device):
     # Collect the step searches the one-frame path makes on the fixtures, then answer them all at once.
     frames, queries, want = [], [], []
     for _, cell, door, img in cases:
@@ -59,7 +63,7 @@ def test_every_step_search_equals_the_one_frame_finder(cases):
         except StopIteration:
             pass
     assert len(queries) > 300
-    finder = batched.TorchStepFinder(torch.from_numpy(np.stack(frames)))
+    finder = batched.TorchStepFinder(torch.from_numpy(np.stack(frames)).to(device))
     got = finder.answer(queries)
     for (b, kw), (ga, gs), (wa, ws) in zip(queries, got, want, strict=True):
         assert ga.dtype == wa.dtype and gs.dtype == ws.dtype
@@ -72,8 +76,11 @@ def one_frame(cases):
     return {name: locate(img, cell, door, image_name=name) for name, cell, door, img in cases}
 
 
-@pytest.mark.parametrize("finder", ["auto", "torch"])
-def test_batched_answers_equal_the_one_frame_answers(cases, one_frame, finder):
+DEVICE_FINDERS = [("cpu", "auto"), ("cpu", "torch"), pytest.param("cuda", "auto", marks=_CUDA)]
+
+
+@pytest.mark.parametrize(("device", "finder"), DEVICE_FINDERS)
+def test_batched_answers_equal_the_one_frame_answers(cases, one_frame, device, finder):
     by_cell: dict[int, list] = {}
     for name, cell, door, img in cases:
         by_cell.setdefault(id(cell), []).append((name, cell, door, img))
@@ -87,7 +94,7 @@ def test_batched_answers_equal_the_one_frame_answers(cases, one_frame, finder):
                 cell,
                 [c[2] for c in part],
                 names=[c[0] for c in part],
-                device="cpu",
+                device=device,
                 finder=finder,
             )
             for (name, *_), a in zip(part, answers, strict=True):

@@ -500,21 +500,30 @@ def run_local(
     with ProcessPoolExecutor(
         workers, mp_context=get_context("spawn"), initializer=_worker_init, initargs=(os.getpid(),)
     ) as pool:
-        pending: set = set()
-        queue = iter(items)
-        exhausted = False
-        while True:
-            while not exhausted and len(pending) < 2 * workers:
-                nxt = next(queue, None)
-                if nxt is None:
-                    exhausted = True
-                    break
-                pending.add(pool.submit(locate_item, nxt, cell, locate_fn, limits))
-            if not pending:
-                return
-            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
-            for fut in finished:
-                yield fut.result()
+        yield from _in_flight(pool, items, 2 * workers, lambda it: (locate_item, it, cell, locate_fn, limits))
+
+
+def _in_flight(pool: ProcessPoolExecutor, jobs: Iterable[Any], limit: int, call: Callable) -> Iterator[Any]:
+    """Each job's result from ``pool`` as soon as it is ready, at most ``limit`` jobs submitted at a time.
+
+    ``call(job)`` gives ``(function, *args)``; bounding what is in flight keeps memory flat on archives of
+    any size (``pool.map`` would submit them all).
+    """
+    pending: set = set()
+    queue = iter(jobs)
+    exhausted = False
+    while True:
+        while not exhausted and len(pending) < limit:
+            nxt = next(queue, None)
+            if nxt is None:
+                exhausted = True
+                break
+            pending.add(pool.submit(*call(nxt)))
+        if not pending:
+            return
+        finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+        for fut in finished:
+            yield fut.result()
 
 
 def run_ray(
@@ -571,7 +580,7 @@ def run_ray(
 
 
 def _decode(item: BatchItem, cell: Cell, limits: FileLimits) -> Any:
-    """The item's image, or the record saying why there is none (runs in a decoding worker).
+    """The item's image, or the record saying why there is none (runs in a worker process).
 
     The same file checks as :func:`locate_item` (no waiting on special files, no decoding past the limits).
     """
@@ -599,59 +608,81 @@ def run_batched(
 ) -> Iterator[dict[str, Any]]:
     """The local job with locate batched on torch (:mod:`doorloc.vision.batched`, the doorloc torch extra).
 
-    ``workers`` processes decode the images (the next batch while this one is located); each batch of
-    ``batch_size`` frames is located together on ``device`` (cpu, cuda or auto). The records are those of
-    :func:`run_local`; a frame the batched path could not take carries ``diagnostics.batched_fallback``.
+    The items are cut into batches of ``batch_size`` frames. Each of ``workers`` processes takes a whole
+    batch: it decodes the frames and locates them together on ``device`` (cpu, cuda or auto; on CUDA every
+    worker holds its own context on the one GPU). The workers, not this process, do the sub-pixel stage:
+    that stage runs frame by frame on the CPU (see :mod:`doorloc.vision.batched`), so one locating process
+    would cap the job at one core's rate however fast the device is. At most ``2 * workers`` batches are in
+    flight. The records are those of :func:`run_local` (any order); a frame the batched path could not take
+    carries ``diagnostics.batched_fallback``.
     """
+    from doorloc.vision.batched import resolve_device
+
+    resolve_device(device)  # a clear error here, not in every worker
+    limits = limits or FileLimits()
+    chunks = [items[i : i + batch_size] for i in range(0, len(items), max(1, batch_size))]
+    if workers <= 1:
+        _configure_worker_torch()
+        for chunk in chunks:
+            yield from locate_chunk(chunk, cell, device, limits)
+        return
+    # workers die with the batch process, as run_local's do (_worker_init)
+    with ProcessPoolExecutor(
+        workers, mp_context=get_context("spawn"), initializer=_batched_worker_init, initargs=(os.getpid(),)
+    ) as pool:
+        for records in _in_flight(
+            pool, chunks, 2 * workers, lambda c: (locate_chunk, c, cell, device, limits)
+        ):
+            yield from records
+
+
+def _batched_worker_init(parent_pid: int) -> None:
+    _worker_init(parent_pid)
+    _configure_worker_torch()
+
+
+def _configure_worker_torch() -> None:
+    _configure_opencv()
+    import torch
+
+    # as OpenCV's: the processes fill the cores, and torch's own threads would only contend with them
+    torch.set_num_threads(1)
+
+
+def locate_chunk(chunk: list[BatchItem], cell: Cell, device: str, limits: FileLimits) -> list[dict[str, Any]]:
+    """Decode one batch of items and locate its frames together on ``device``; one record per item."""
     from doorloc.vision.batched import locate_batch, resolve_device
 
-    dev = resolve_device(device)
-    limits = limits or FileLimits()
-    _configure_opencv()
-    chunks = [items[i : i + batch_size] for i in range(0, len(items), max(1, batch_size))]
-    # decoding workers die with the batch process, as run_local's do (_worker_init)
-    pool = (
-        ProcessPoolExecutor(
-            workers, mp_context=get_context("spawn"), initializer=_worker_init, initargs=(os.getpid(),)
-        )
-        if workers > 1
-        else None
+    decoded = [_decode(it, cell, limits) for it in chunk]
+    records = [rec for rec in decoded if isinstance(rec, dict)]
+    ok = [(it, img) for it, img in zip(chunk, decoded, strict=True) if not isinstance(img, dict)]
+    answers = locate_batch(
+        [img for _, img in ok],
+        cell,
+        [it.choice.door for it, _ in ok],
+        names=[it.image for it, _ in ok],
+        device=resolve_device(device),
     )
-    try:
-        ahead = [pool.submit(_decode, it, cell, limits) for it in chunks[0]] if pool and chunks else []
-        for n, chunk in enumerate(chunks):
-            decoded = [f.result() for f in ahead] if pool else [_decode(it, cell, limits) for it in chunk]
-            if pool and n + 1 < len(chunks):
-                ahead = [pool.submit(_decode, it, cell, limits) for it in chunks[n + 1]]
-            ok = [(it, img) for it, img in zip(chunk, decoded, strict=True) if not isinstance(img, dict)]
-            yield from (rec for rec in decoded if isinstance(rec, dict))
-            answers = locate_batch(
-                [img for _, img in ok],
-                cell,
-                [it.choice.door for it, _ in ok],
-                names=[it.image for it, _ in ok],
-                device=dev,
+    for (it, img), a in zip(ok, answers, strict=True):
+        if a.fallback:
+            a.result.diagnostics["batched_fallback"] = a.fallback
+        try:
+            fields = answer_image(
+                img, cell, it.choice, image_name=it.image, locate_fn=lambda *_, _r=a.result, **__: _r
+            ).fields
+        except Exception as e:  # noqa: BLE001 - as locate_item: one bad image must not end the run
+            records.append(
+                _failed(
+                    it,
+                    "internal_error",
+                    f"locate failed on this image ({type(e).__name__}: {e}); please report it",
+                    cell,
+                )
             )
-            for (it, img), a in zip(ok, answers, strict=True):
-                if a.fallback:
-                    a.result.diagnostics["batched_fallback"] = a.fallback
-                try:
-                    fields = answer_image(
-                        img, cell, it.choice, image_name=it.image, locate_fn=lambda *_, _r=a.result, **__: _r
-                    ).fields
-                except Exception as e:  # noqa: BLE001 - as locate_item: one bad image must not end the run
-                    yield _failed(
-                        it,
-                        "internal_error",
-                        f"locate failed on this image ({type(e).__name__}: {e}); please report it",
-                        cell,
-                    )
-                    continue
-                fields["status"] = ANSWERED if fields["ok"] else REFUSED
-                yield fields
-    finally:
-        if pool is not None:
-            pool.shutdown(cancel_futures=True)
+            continue
+        fields["status"] = ANSWERED if fields["ok"] else REFUSED
+        records.append(fields)
+    return records
 
 
 # ---------------------------------------------------------------------------------------------- the job
