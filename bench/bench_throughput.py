@@ -79,7 +79,9 @@ def run(folder: Path, manifest: Path, workers: int, device: str | None, batch_si
     # records of one batch arrive together: count from the end of a whole batch
     per = batch_size if device else 1
     skip = min(len(stamps) // 2, 2 * max(1, workers) * per) // per * per
-    steady = (len(stamps) - skip) / (stamps[-1] - stamps[skip - 1]) if 0 < skip < len(stamps) else float("nan")
+    steady = (
+        (len(stamps) - skip) / (stamps[-1] - stamps[skip - 1]) if 0 < skip < len(stamps) else float("nan")
+    )
     return {"fps": steady, "fps_job": len(stamps) / (stamps[-1] - t0), "n": len(stamps), "records": out}
 
 
@@ -119,7 +121,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--frames", type=int, default=648)
     ap.add_argument("--workers", default="1,2", help="comma-separated worker counts ('all' = os.cpu_count())")
-    ap.add_argument("--devices", default="none,cpu,cuda", help="none = the one-frame path; cpu, cuda: batched")
+    ap.add_argument(
+        "--devices", default="none,cpu,cuda", help="none = the one-frame path; cpu, cuda: batched"
+    )
     ap.add_argument("--formats", default=".png,.jpg")
     ap.add_argument("--batch-size", type=int, default=32)
     ap.add_argument("--json")
@@ -155,7 +159,8 @@ def main() -> None:
                     res["runs"].append(row)
                     print(
                         f"{ext:5s} workers {w:3d} {row['path']:10s} {row['fps']:8.1f} frames/s "
-                        f"(job {row['fps_job']:.1f})" + (f"  parity {row['parity']}" if "parity" in row else ""),
+                        f"(job {row['fps_job']:.1f})"
+                        + (f"  parity {row['parity']}" if "parity" in row else ""),
                         flush=True,
                     )
     finally:

@@ -180,3 +180,25 @@ def test_an_effect_outside_the_catalogue_is_unexplained(tmp_path_factory, nomina
     rep = check_model(data, nominal, tmp_path_factory.mktemp("tangential_report"))
     assert rep.causes == ["unexplained"], rep.selection_steps
     assert rep.unexplained_test["structured"]
+
+
+def test_an_arris_cell_carries_the_response_the_training_poses_allow(tmp_path_factory, nominal):
+    # With the arris in the cell no edge can show the camera response, and the nominal cell never measured
+    # it: without a bound from the data the extended cell doubted it over the default factor 2.2 and refused
+    # its own held-out images `uncertain` (seed 1004: hidden 0.96 mm arris, 0.14-0.15 mm doubt).
+    rng = np.random.default_rng(1004)
+    name, values = draw_hidden_effect(rng)
+    assert name == "arris"
+    data = tmp_path_factory.mktemp("arris_response")
+    render_measured_set(data, nominal, {name: values}, SetSpec(n_images=40, seed=1004))
+    out = tmp_path_factory.mktemp("arris_response_report")
+    rep = check_model(data, nominal, out)
+    assert rep.causes[0] == "arris"
+    bound = rep.response_bound
+    assert bound["written"] and bound["source"] == "relocation"
+    assert abs(bound["gamma"] - nominal.response_gamma) <= 2 * bound["sigma"]  # the renders' true response
+    ext = load_cell(out / "cell_extended.yaml")
+    assert ext.locate.response_unmeasured_factor == pytest.approx(bound["factor"], abs=1e-4)
+    assert ext.locate.response_unmeasured_factor < nominal.locate.response_unmeasured_factor
+    assert ext.provenance["model_check"]["response_bound"]["factor"] == bound["factor"]
+    assert rep.heldout_refused_after == [] and rep.heldout_gain >= 5, (rep.heldout_gain, bound)

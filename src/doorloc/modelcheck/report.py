@@ -185,6 +185,14 @@ def report_markdown(rep: ModelCheckReport) -> str:
         f"Extended cell: `{rep.extended_cell}` (locate, batch and serve read it like any cell file).",
         "",
     ]
+    rb = rep.response_bound
+    if rb.get("written"):
+        lines[-1:-1] = [
+            f"Camera response: the training poses put it at {rb['gamma']:.3f} +- {rb['sigma']:.3f} "
+            f"({rb['source']}); the extended cell doubts it by a factor {rb['factor']:.3f} where an image "
+            f"cannot check it itself (`locate.response_unmeasured_factor`, was {rb['cell_factor']:g}).",
+            "",
+        ]
     for p in rep.plots:
         lines.append(f"![{p}]({p})")
     return "\n".join(lines) + "\n"
