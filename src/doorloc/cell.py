@@ -107,6 +107,14 @@ class Cell:
         machine-vision camera, about 2.2 for an sRGB-like one. A cell that does not state it takes the one
         its calibration file measured (``response_gamma``, ``doorloc calibrate``), with
         ``locate.response_unmeasured_factor`` from that measurement's sigma unless the cell sets it.
+    response_gamma_sigma : float or None
+        1-sigma of ``response_gamma`` where it was measured (``camera.response_gamma_sigma``; taken from the
+        calibration file with its exponent, written by ``doorloc cell init`` and by the model check); None
+        where it was not. A measured exponent is weighed against the one an image's plain edges show:
+        locate replaces it by the image's only where the two differ beyond their joint uncertainty (a
+        single real photograph's own sigma understates its scatter several times, see
+        :func:`doorloc.vision.response.board_response`), and otherwise counts the measurement's own
+        doubt in the answer's uncertainty.
     locate : LocateConfig
         The ``locate:`` section: thresholds and settings of the pipeline that a cell sets once.
     robot_section : dict or None
@@ -129,6 +137,7 @@ class Cell:
     source: str | None = None
     response_gamma: float = 1.0
     locate: LocateConfig = field(default_factory=LocateConfig)
+    response_gamma_sigma: float | None = None
     robot_section: dict[str, Any] | None = None
     provenance: dict[str, Any] = field(default_factory=dict)
     sha256: str | None = None
@@ -163,6 +172,7 @@ class _CameraDoc(_Section):
     dist_coeffs: list[float] | None = None
     extrinsics: _ExtrinsicsDoc
     response_gamma: float = Field(1.0, gt=0.25, lt=5.0)
+    response_gamma_sigma: float | None = Field(None, gt=0.0, lt=5.0)
 
     @model_validator(mode="before")
     @classmethod
@@ -363,16 +373,19 @@ def parse_cell(
     except (ValueError, TypeError) as e:
         raise CellFileError(f"{source}: {e}") from None
     locate = _locate_config(cd.locate, source)
-    response_gamma = cam_doc.response_gamma
+    response_gamma, response_sigma = cam_doc.response_gamma, cam_doc.response_gamma_sigma
     if measured_response is not None and "response_gamma" not in cam_doc.model_fields_set:
         # The calibration file carries the response measured on its photographs (doorloc calibrate): a
-        # cell that does not state its own takes it, known within its 2-sigma range (unless the cell's
-        # locate section sets that doubt itself); both are echoed in every result like any cell setting.
-        response_gamma, sigma = measured_response
-        if "response_unmeasured_factor" not in (cd.locate or {}):
-            locate = replace(
-                locate, response_unmeasured_factor=measured_response_factor(response_gamma, sigma)
-            )
+        # cell that does not state its own takes it with its sigma (unless the cell states that), known
+        # within its 2-sigma range (unless the cell's locate section sets that doubt itself); all are
+        # echoed in every result like any cell setting.
+        response_gamma = measured_response[0]
+        if response_sigma is None:
+            response_sigma = measured_response[1]
+    if response_sigma is not None and "response_unmeasured_factor" not in (cd.locate or {}):
+        locate = replace(
+            locate, response_unmeasured_factor=measured_response_factor(response_gamma, response_sigma)
+        )
     return Cell(
         camera,
         extrinsics,
@@ -382,6 +395,7 @@ def parse_cell(
         str(source),
         response_gamma=response_gamma,
         locate=locate,
+        response_gamma_sigma=response_sigma,
         robot_section=cd.robot,
         provenance=dict(cd.provenance),
         sha256=sha256 or hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest(),
@@ -421,6 +435,11 @@ def cell_to_dict(cell: Cell) -> dict:
                 "tvec_mm": cell.extrinsics.tvec_mm.tolist(),
             },
             "response_gamma": cell.response_gamma,
+            **(
+                {"response_gamma_sigma": cell.response_gamma_sigma}
+                if cell.response_gamma_sigma is not None
+                else {}
+            ),
         },
         "fixture": {
             "reference_width_mm": cell.fixture.reference_width_mm,

@@ -17,7 +17,7 @@ from doorloc.app.cli import app
 from doorloc.app.errors import EXIT_USAGE
 from doorloc.calib.camera import Extrinsics
 from doorloc.calib.cell_init import REFERENCE_MOUNT_RVEC, StartingCell, starting_cell_document
-from doorloc.cell import CellFileError, load_cell
+from doorloc.cell import CellFileError, load_cell, parse_cell
 from doorloc.vision.locate import locate
 
 ROOT = Path(__file__).parents[2]
@@ -150,7 +150,9 @@ def test_the_starting_cell_takes_the_response_the_calibration_measured(tmp_path)
     cal = load_calibration(CAMERA)
     save_calibration(replace(cal, response_gamma=2.15, response_gamma_sigma=0.12), tmp_path / "camera.yaml")
     doc = starting_cell_document(tmp_path / "camera.yaml", tmp_path / "cell.yaml")
-    assert doc["camera"]["response_gamma"] == 2.15
-    assert doc["locate"] == {"response_unmeasured_factor": pytest.approx(1.0 + 0.24 / 2.15, abs=1e-4)}
+    assert doc["camera"]["response_gamma"] == 2.15 and doc["camera"]["response_gamma_sigma"] == 0.12
+    assert "locate" not in doc  # the doubt follows from the sigma, so editing the sigma moves it
+    cell = parse_cell(doc, tmp_path, "cell.yaml")
+    assert cell.locate.response_unmeasured_factor == pytest.approx(1.0 + 0.24 / 2.15, abs=1e-4)
     plain = starting_cell_document(CAMERA, tmp_path / "cell.yaml")
     assert plain["camera"]["response_gamma"] == 1.0 and "locate" not in plain

@@ -162,12 +162,25 @@ def test_a_cell_takes_the_response_its_calibration_measured_unless_it_states_its
     (tmp_path / "cell.yaml").write_text("camera:\n  calibration: camera.yaml\n" + ext)
     cell = load_cell(tmp_path / "cell.yaml")
     assert cell.response_gamma == 2.2 and cell.locate.response_unmeasured_factor == pytest.approx(1.1)
+    assert cell.response_gamma_sigma == 0.11
+    # saved and read again (the model check's extended cell, camera inline): the same response and doubt
+    save_cell(cell, tmp_path / "inline.yaml")
+    back = load_cell(tmp_path / "inline.yaml")
+    assert (back.response_gamma, back.response_gamma_sigma) == (2.2, 0.11)
+    assert back.locate.response_unmeasured_factor == pytest.approx(1.1)
     (tmp_path / "own.yaml").write_text("camera:\n  calibration: camera.yaml\n  response_gamma: 1.0\n" + ext)
     own = load_cell(tmp_path / "own.yaml")
     assert (
         own.response_gamma == 1.0
+        and own.response_gamma_sigma is None
         and own.locate.response_unmeasured_factor == LocateConfig().response_unmeasured_factor
     )
+    (tmp_path / "own_sigma.yaml").write_text(
+        "camera:\n  calibration: camera.yaml\n  response_gamma: 1.6\n  response_gamma_sigma: 0.08\n" + ext
+    )
+    own_sigma = load_cell(tmp_path / "own_sigma.yaml")
+    assert own_sigma.response_gamma_sigma == 0.08
+    assert own_sigma.locate.response_unmeasured_factor == pytest.approx(1.1)
     (tmp_path / "doubt.yaml").write_text(
         "camera:\n  calibration: camera.yaml\n" + ext + "locate: {response_unmeasured_factor: 1.5}\n"
     )

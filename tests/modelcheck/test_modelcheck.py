@@ -200,5 +200,6 @@ def test_an_arris_cell_carries_the_response_the_training_poses_allow(tmp_path_fa
     ext = load_cell(out / "cell_extended.yaml")
     assert ext.locate.response_unmeasured_factor == pytest.approx(bound["factor"], abs=1e-4)
     assert ext.locate.response_unmeasured_factor < nominal.locate.response_unmeasured_factor
+    assert ext.response_gamma_sigma is not None and ext.response_gamma_sigma >= bound["sigma"]
     assert ext.provenance["model_check"]["response_bound"]["factor"] == bound["factor"]
     assert rep.heldout_refused_after == [] and rep.heldout_gain >= 5, (rep.heldout_gain, bound)

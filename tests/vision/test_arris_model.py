@@ -120,6 +120,40 @@ def test_a_wrong_response_gamma_is_measured_and_absorbed_on_plain_edges():
         assert max(doubt.values()) < 0.02
 
 
+def test_a_measured_cell_response_is_weighed_against_the_images():
+    """A cell whose exponent was measured (camera.response_gamma_sigma) is a second measurement: the image's
+    plain edges replace it where the two disagree (or the image measured it much better), and where it
+    is kept its own doubt, widened by the disagreement, is in the answer's uncertainty."""
+    door = DoorSize(900, 50, 2100)
+    pose = DoorPose(-2.0, 1.5, -0.4)
+    img = render_door(
+        CELL, door, pose, effects=Effects(blur_sigma_px=1.5, gamma=2.2, read_noise_dn=1.0), seed=5
+    ).image
+
+    def at(gamma, sigma):
+        res = locate(img, dataclasses.replace(CELL, response_gamma=gamma, response_gamma_sigma=sigma), door)
+        assert res.ok, res.error
+        return res, res.diagnostics["camera_response"]
+
+    for sigma in (0.02, 0.5):  # a tight claim 11 joint sigmas off; a loose one the image betters
+        res, cr = at(1.0, sigma)
+        assert cr["absorbed"] and cr["used"] == "image" and cr["cell_sigma"] == sigma
+        assert abs(res.x_mm - pose.x_mm) < 0.01 and abs(res.z_mm - pose.z_mm) < 0.01
+    right, cr = at(2.2, 0.1)
+    assert not cr["absorbed"] and cr["used"] == "cell" and right.model.response_gamma_sigma == 0.1
+    doubt = [ln.response_sigma_mm for ln in right.lines if ln.name != "far"]
+    assert 0 < min(doubt) and max(doubt) < 0.02  # the measurement's own doubt counts, and is small
+    # 1.8 +- 0.05 for a 2.2 camera: 2.6 joint sigmas from the image's 2.13 +- 0.11, kept; the linear
+    # misreading (0.03 mm) must stay inside the answer's uncertainty, as it does for an unmeasured 1.8
+    off, cr = at(1.8, 0.05)
+    plain, _ = at(1.8, None)
+    assert cr["used"] == "cell"
+    for res in (off, right):
+        ex, ez = res.x_mm - pose.x_mm, res.z_mm - pose.z_mm
+        assert abs(ex) <= 2.5 * res.uncertainty.x_mm and abs(ez) <= 2.5 * res.uncertainty.z_mm, (ex, ez)
+    assert off.uncertainty.x_mm > plain.uncertainty.x_mm
+
+
 @pytest.mark.parametrize("level", [0.15, 0.5, 0.85])
 def test_a_strip_narrower_than_the_blur_reports_that_its_level_is_unknown(level):
     """A 0.7 px strip under 1.5 px of blur: its level and its border trade off; the deficit's sigma says so

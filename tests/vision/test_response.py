@@ -87,6 +87,25 @@ def test_lines_that_disagree_do_not_make_a_confident_response():
     assert agree is not None and agree.sigma == pytest.approx(0.05 / math.sqrt(2)) and agree.absorb
 
 
+def test_a_measured_claim_holds_back_a_marginal_image_but_not_a_better_or_disagreeing_one():
+    from doorloc.vision.response import ResponseFit
+
+    two = ("bottom", "reference")
+    # Bouguet-like calibration 2.15 +- 0.12 against an image's 2.6 +- 0.1: 4.5 of the image's sigmas off
+    # (absorbed when the cell's exponent is only stated), 2.9 joint sigmas (kept when it was measured)
+    assert ResponseFit(2.6, 0.1, 2.15, two).absorb
+    held = ResponseFit(2.6, 0.1, 2.15, two, claimed_sigma=0.12)
+    assert not held.absorb and held.disagreement == pytest.approx(0.45 / math.hypot(0.1, 0.12))
+    g, se, widened = held.combined
+    assert g == pytest.approx((2.6 / 0.01 + 2.15 / 0.0144) / (1 / 0.01 + 1 / 0.0144))
+    assert widened == pytest.approx(se * held.disagreement)
+    # a claim 10 joint sigmas off, however tight, gives way; so does a loose one the image betters
+    assert ResponseFit(2.2, 0.1, 1.0, two, claimed_sigma=0.02).absorb
+    assert ResponseFit(2.2, 0.1, 1.0, two, claimed_sigma=0.5).absorb
+    # and one edge is never enough
+    assert not ResponseFit(2.2, 0.1, 1.0, ("bottom",), claimed_sigma=0.5).absorb
+
+
 @pytest.mark.parametrize("camera_gamma", [1.0, 2.2])
 def test_the_response_is_measured_on_calibration_boards(camera_gamma):
     """Rendered chessboard photographs (blur 0.8-1.5 px, read noise 1-2 grey levels, random poses): the

@@ -128,7 +128,9 @@ def _echo_response(response: BoardResponse | None) -> None:
     typer.echo(
         f"camera response: gamma {response.gamma:.2f} +- {response.sigma:.2f} (1 sigma, median of "
         f"{len(response.per_image)} photographs); for the cell file: camera.response_gamma: "
-        f"{response.gamma:.2f}, locate.response_unmeasured_factor: {f:.2f}"
+        f"{response.gamma:.2f}, camera.response_gamma_sigma: {response.sigma:.2f} (a cell that names "
+        f"this calibration file and no response takes both; the doubt they allow where an image cannot "
+        f"check the response, locate.response_unmeasured_factor: {f:.2f})"
         + (
             ""
             if f < 1.5

@@ -18,7 +18,7 @@ import numpy as np
 import yaml
 from scipy.spatial.transform import Rotation
 
-from doorloc.cell import CellFileError, DoorSize, Envelope, Fixture, cell_to_dict, parse_cell
+from doorloc.cell import CellFileError, DoorSize, Envelope, Fixture, parse_cell
 from doorloc.fileio import atomic_write_text
 
 __all__ = ["REFERENCE_MOUNT_RVEC", "StartingCell", "starting_cell_document", "write_starting_cell"]
@@ -39,8 +39,9 @@ class StartingCell:
         corner in X, 350 mm in front of the hinge face (Y = -350), 40 mm up.
     response_gamma : float or None
         The camera's response ``grey = light ** (1 / gamma)``: 1 for a linear machine-vision camera. None:
-        the one the calibration file measured on its photographs (``doorloc calibrate``), written with the
-        ``locate.response_unmeasured_factor`` its sigma allows; 1.0 when it has none.
+        the one the calibration file measured on its photographs (``doorloc calibrate``), written with its
+        sigma (``camera.response_gamma_sigma``, from which the cell takes the doubt it allows); 1.0 when it
+        has none.
     fixture, envelope, default_door
         The cell's fixture, placement tolerance and the door assumed when a request names none.
     """
@@ -102,8 +103,8 @@ def starting_cell_document(
         del doc["camera"]["response_gamma"]
         cell = parse_cell(doc, base, str(cell_path))
         doc["camera"]["response_gamma"] = cell.response_gamma
-        if "locate" in (changed := cell_to_dict(cell)):  # (the only locate setting the calibration can set)
-            doc["locate"] = changed["locate"]
+        if cell.response_gamma_sigma is not None:  # (the doubt it allows follows from it, parse_cell)
+            doc["camera"]["response_gamma_sigma"] = cell.response_gamma_sigma
     parse_cell(doc, base, str(cell_path))  # the same checks locate will make, before anything is written
     return doc
 

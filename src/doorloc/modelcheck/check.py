@@ -415,7 +415,8 @@ def _with_response_bound(
     :data:`RESPONSE_PROBE_FACTOR`, each pose's slope in the exponent is known; the exponent is then fitted
     to the training errors together with the model's own effects (their slopes from the forward models,
     so an arris and a response that both move the edges share the evidence), and its 1-sigma from that
-    joint fit (scaled up by the residual's chi-square where it exceeds the noise) becomes the factor
+    joint fit (scaled up by the residual's chi-square where it exceeds the noise, and by the fitted
+    exponent's distance from the cell's) becomes ``camera.response_gamma_sigma`` and the factor
     (:func:`doorloc.cell.measured_response_factor`), where it is tighter than the cell's and the fitted
     exponent agrees with the cell's (within 3 sigma; otherwise the evidence says so and the cell keeps
     its doubt). A fitted ``response_gamma`` cause gives its factor from its own sigma.
@@ -458,7 +459,8 @@ def _with_response_bound(
         cov = np.linalg.pinv(A.T @ A) * max(chi2, 1.0)
         gamma, sigma, offset = g0 + float(sol[0]), float(np.sqrt(max(cov[0, 0], 0.0))), float(sol[0])
         evidence.update(source="relocation", images=int(ok.any(axis=1).sum()), chi2_per_dof=round(chi2, 3))
-    factor = measured_response_factor(g0, float(np.hypot(sigma, offset)))
+    bound = float(np.hypot(sigma, offset))
+    factor = measured_response_factor(g0, bound)
     evidence.update(gamma=round(gamma, 4), sigma=round(sigma, 4), factor=round(factor, 4))
     if abs(offset) > 3 * sigma:
         evidence["kept_cell_factor"] = "the training poses put the response away from the cell's"
@@ -468,7 +470,12 @@ def _with_response_bound(
     evidence["written"] = True
     prov = dict(ext.provenance)
     prov["model_check"] = {**prov["model_check"], "response_bound": _jsonable(evidence)}
-    ext = replace(ext, locate=replace(cfg, response_unmeasured_factor=round(factor, 4)), provenance=prov)
+    ext = replace(
+        ext,
+        response_gamma_sigma=round(bound, 4),
+        locate=replace(cfg, response_unmeasured_factor=round(factor, 4)),
+        provenance=prov,
+    )
     return ext, evidence
 
 

@@ -238,6 +238,7 @@ def locate_steps(
     )
     res.model = PhysicalModel(
         response_gamma=cell.response_gamma,
+        response_gamma_sigma=cell.response_gamma_sigma,
         arris_mm=door.arris_mm,
         arris_profile=door.arris_profile,
         door_brighter=cfg.door_brighter,
@@ -842,11 +843,13 @@ def _locate(
     used_cell = cell
     response, per_line = _measure_response(plane, samples, fit, half, blur, cell, cfg, arris_fits)
     response_diag: dict[str, Any] = {"cell_gamma": cell.response_gamma, "absorbed": False}
+    if cell.response_gamma_sigma is not None:
+        response_diag["cell_sigma"] = cell.response_gamma_sigma
     if response is not None and response.absorb:
         # The plain edges show another camera response than the cell's: measure again with theirs (the
         # bias a wrong response gives every edge, arris strips included, is then gone), and check again.
         response_diag.update(absorbed=True, first_fit=round(response.gamma, 4))
-        used_cell = replace(cell, response_gamma=response.gamma)
+        used_cell = replace(cell, response_gamma=response.gamma, response_gamma_sigma=None)
         arris_fits = {}
         samples, fit, pose, blur, half, far_beside, far_fit, step_fitted = _refine(
             plane, s8, region, pose, cfg, clock, response.gamma, arris_fits
@@ -855,6 +858,8 @@ def _locate(
         if again[0] is not None:
             response, per_line = again
     response_diag["checked"] = response is not None
+    # whose exponent the answer rests on: the cell's (measured or stated) or this image's own
+    response_diag["used"] = "image" if response_diag["absorbed"] else "cell"
     if response is None:
         response_diag["unchecked_because"] = _response_unchecked_because(samples, fit, blur, arris_fits)
     if response is not None:
@@ -1122,7 +1127,7 @@ def _measure_response(
         if math.isfinite(tex) and tex > 0 and slope > 0:
             lr = replace(lr, sigma=math.hypot(lr.sigma, tex / slope))
         per_line[k] = lr
-    return combine_responses(per_line, cell.response_gamma), per_line
+    return combine_responses(per_line, cell.response_gamma, cell.response_gamma_sigma or 0.0), per_line
 
 
 def _response_terms(
@@ -1142,8 +1147,11 @@ def _response_terms(
     ``response.sigma``. The shift that the difference makes (:func:`doorloc.vision.response.edge_shift_px`
     between the line's own plateaus, at the measured blur) counts beyond twice the shift of the exponent's
     1-sigma (within that the edges agree with the exponent in use, and a right cell keeps its small
-    sigma); after ``absorbed`` (the exponent in use was fitted) that 1-sigma shift counts too. An arris
-    line takes the same step model between its background and its face (a first-order figure).
+    sigma); after ``absorbed`` (the exponent in use was fitted) that 1-sigma shift counts too. Where the
+    cell's exponent was itself measured (``response.claimed_sigma``) and is kept, the doubt is the shift
+    to the exponent both measurements give together (:attr:`ResponseFit.combined`) with that one's
+    1-sigma shift (widened by their disagreement) in quadrature. An arris line takes the same step model between its background and its
+    face (a first-order figure).
     """
     for k in EDGE_NAMES:
         if k == "far" and far_beside:
@@ -1162,9 +1170,27 @@ def _response_terms(
             continue
         # the shift the measured mismatch makes beyond twice its own doubt (within that, the edges agree
         # with the exponent in use)
-        excess = max(abs(bias) - 2.0 * spread, 0.0)
-        # once absorbed, the exponent in use is itself a measurement: its doubt counts in full
-        model.extra_px.setdefault(k, {})["response"] = math.hypot(excess, spread) if absorbed else excess
+        if absorbed:
+            # the exponent in use is this image's measurement: its doubt counts in full
+            doubt = math.hypot(max(abs(bias) - 2.0 * spread, 0.0), spread)
+        elif response.claimed_sigma > 0:
+            # the cell's measured exponent kept: the shift to the exponent that both measurements give
+            # together, and that one's 1-sigma (widened by their disagreement)
+            gc, _, sc = response.combined
+            gc = float(np.clip(gc, *RESPONSE_PLAUSIBLE))
+            doubt = math.hypot(
+                edge_shift_px(lo, hi, gc, used_gamma, b, half),
+                0.5
+                * abs(
+                    edge_shift_px(lo, hi, gc + sc, used_gamma, b, half)
+                    - edge_shift_px(lo, hi, max(gc - sc, 0.05), used_gamma, b, half)
+                ),
+            )
+            if not math.isfinite(doubt):
+                continue
+        else:
+            doubt = max(abs(bias) - 2.0 * spread, 0.0)
+        model.extra_px.setdefault(k, {})["response"] = doubt
 
 
 def _unmeasured_response_terms(

@@ -21,7 +21,8 @@ What a response error does to the edge follows from the step model, not from a t
 :func:`edge_shift_px` is where the area estimator puts a Gaussian-blurred step between the line's two
 measured plateaus, linearised with one exponent when the camera's is another. Locate uses it for the
 response term of the uncertainty budget (``response_sigma_mm`` per line): where the fitted response
-differs from the cell's beyond ``RESPONSE_ABSORB_SIGMAS`` standard errors on two edges or more, locate
+differs from the cell's beyond ``RESPONSE_ABSORB_SIGMAS`` standard errors on two edges or more (the
+combination of the image's and, where the cell's exponent was measured, its ``camera.response_gamma_sigma``), locate
 measures again with the fitted one (the error is absorbed) and the doubt left is the shift that the
 exponent's standard error makes; otherwise the doubt is the shift between the cell's exponent and the
 fitted one beyond twice that (a right cell keeps its small sigma).
@@ -103,13 +104,40 @@ class ResponseFit:
 
     ``absorb`` says whether it differs from the cell's ``claimed`` exponent by more than
     ``RESPONSE_ABSORB_SIGMAS`` standard errors, measured on two edges at least (locate then measures
-    again with ``gamma``).
+    again with ``gamma``). ``claimed_sigma`` is the claimed exponent's own 1-sigma where it was measured
+    (``camera.response_gamma_sigma``), 0 where it was not. A measured claim is a second measurement of
+    the same exponent, and the image's own replaces it where the two disagree beyond
+    ``RESPONSE_ABSORB_SIGMAS`` joint sigmas (one of them is wrong, and the cell's is the older), or where
+    their inverse-variance combination (:attr:`combined`) moves from the cell's by more than that many of
+    its own sigmas (the image measured the exponent better than the calibration did). So a calibration
+    as good as the image holds back an image whose edges differ by a few of their own sigmas (a real
+    photograph's own sigma understates its scatter several times, :func:`board_response`), up to
+    sqrt(2) times the unmeasured threshold, and a loose one does not hold back a better image.
     """
 
     gamma: float
     sigma: float
     claimed: float
     lines: tuple[str, ...]
+    claimed_sigma: float = 0.0
+
+    @property
+    def disagreement(self) -> float:
+        """``|gamma - claimed|`` in joint sigmas of the two measurements (inf where the claim was not one)."""
+        if not self.claimed_sigma > 0:
+            return math.inf
+        return abs(self.gamma - self.claimed) / math.hypot(self.sigma, self.claimed_sigma)
+
+    @property
+    def combined(self) -> tuple[float, float, float]:
+        """The exponent from this image's and, where measured, the cell's measurement (inverse variances),
+        its 1-sigma, and that 1-sigma widened by their disagreement where it exceeds one joint sigma
+        (Birge ratio, as :func:`combine_responses` does for the lines)."""
+        if not self.claimed_sigma > 0:
+            return self.gamma, self.sigma, self.sigma
+        w_i, w_c = 1.0 / self.sigma**2, 1.0 / self.claimed_sigma**2
+        se = 1.0 / math.sqrt(w_i + w_c)
+        return (w_i * self.gamma + w_c * self.claimed) / (w_i + w_c), se, se * max(self.disagreement, 1.0)
 
     @property
     def absorb(self) -> bool:
@@ -119,7 +147,12 @@ class ResponseFit:
         return (
             len(self.lines) >= 2
             and RESPONSE_PLAUSIBLE[0] <= self.gamma <= RESPONSE_PLAUSIBLE[1]
-            and abs(self.gamma - self.claimed) > RESPONSE_ABSORB_SIGMAS * self.sigma
+            and (
+                abs(self.gamma - self.claimed) > RESPONSE_ABSORB_SIGMAS * self.sigma
+                if not self.claimed_sigma > 0
+                else self.disagreement > RESPONSE_ABSORB_SIGMAS
+                or abs(self.combined[0] - self.claimed) > RESPONSE_ABSORB_SIGMAS * self.combined[1]
+            )
         )
 
 
@@ -373,8 +406,12 @@ def _least_asymmetric_blocks(
     )
 
 
-def combine_responses(lines: dict[str, LineResponse], claimed: float) -> ResponseFit | None:
+def combine_responses(
+    lines: dict[str, LineResponse], claimed: float, claimed_sigma: float = 0.0
+) -> ResponseFit | None:
     """One response for the image: the lines' exponents weighted by their inverse variances.
+
+    ``claimed`` (``claimed_sigma``: its 1-sigma where it was measured, else 0) is the cell's exponent.
 
     Its standard error is widened by the lines' disagreement beyond their own errors (Birge ratio), so
     two edges that disagree (texture, shading) do not make a confident camera response.
@@ -390,7 +427,7 @@ def combine_responses(lines: dict[str, LineResponse], claimed: float) -> Respons
     if g.size > 1:
         chi2 = float(np.sum(w * (g - mean) ** 2)) / (g.size - 1)
         se *= math.sqrt(max(chi2, 1.0))
-    return ResponseFit(mean, se, claimed, tuple(ok))
+    return ResponseFit(mean, se, claimed, tuple(ok), claimed_sigma)
 
 
 def edge_shift_px(

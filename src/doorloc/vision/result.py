@@ -44,6 +44,11 @@ class PhysicalModel(BaseModel):
     response_gamma: float = Field(
         description="camera response the grey levels were linearised with (camera.response_gamma)"
     )
+    response_gamma_sigma: float | None = Field(
+        None,
+        description="1-sigma of response_gamma where it was measured (camera.response_gamma_sigma); "
+        "null: stated, not measured",
+    )
     arris_mm: float = Field(description="arris size the edges were corrected for, mm (0: sharp edges)")
     arris_profile: str = Field(description="'chamfer' or 'round'")
     door_brighter: bool = Field(
