@@ -154,6 +154,36 @@ def test_a_measured_cell_response_is_weighed_against_the_images():
     assert off.uncertainty.x_mm > plain.uncertainty.x_mm
 
 
+def test_an_absorbed_response_that_the_edges_contradict_is_dropped(monkeypatch):
+    """Absorbing is only sound when the edges, read again with the absorbed exponent, agree with it. Where
+    they show yet another (a reading that follows the edges' placement: seen under a lens distortion the
+    cell models in part), the cell's exponent stands, unchecked, and the answer is the first one."""
+    import doorloc.vision.locate as L
+    from doorloc.vision.response import ResponseFit
+
+    door = DoorSize(900, 50, 2100)
+    pose = DoorPose(-2.0, 1.5, -0.4)
+    img = render_door(CELL, door, pose, effects=Effects(blur_sigma_px=1.5, read_noise_dn=1.0), seed=5).image
+    two = ("bottom", "reference")
+    readings = []
+
+    def flip_flop(plane, samples, fit, half, blur, cell, cfg, arris_fits):
+        readings.append(cell.response_gamma)
+        g = 2.68 if len(readings) == 1 else 1.02  # 2.68 with the cell's 1.0, then 1.02 with 2.68
+        return ResponseFit(g, 0.05, cell.response_gamma, two), {}
+
+    monkeypatch.setattr(L, "_measure_response", flip_flop)
+    res = L.locate(img, CELL, door)
+    assert readings == [1.0, 2.68]
+    cr = res.diagnostics["camera_response"]
+    assert res.ok and not cr["absorbed"] and not cr["checked"] and cr["used"] == "cell"
+    assert cr["first_fit"] == 2.68 and cr["second_fit"] == 1.02 and "placement" in cr["unchecked_because"]
+    monkeypatch.setattr(L, "_measure_response", lambda *a: (None, {}))
+    plain = L.locate(img, CELL, door)
+    assert (res.x_mm, res.z_mm, res.yaw_deg) == (plain.x_mm, plain.z_mm, plain.yaw_deg)
+    assert res.uncertainty == plain.uncertainty
+
+
 @pytest.mark.parametrize("level", [0.15, 0.5, 0.85])
 def test_a_strip_narrower_than_the_blur_reports_that_its_level_is_unknown(level):
     """A 0.7 px strip under 1.5 px of blur: its level and its border trade off; the deficit's sigma says so
