@@ -203,3 +203,21 @@ def test_an_arris_cell_carries_the_response_the_training_poses_allow(tmp_path_fa
     assert ext.response_gamma_sigma is not None and ext.response_gamma_sigma >= bound["sigma"]
     assert ext.provenance["model_check"]["response_bound"]["factor"] == bound["factor"]
     assert rep.heldout_refused_after == [] and rep.heldout_gain >= 5, (rep.heldout_gain, bound)
+
+
+def test_a_bending_effect_is_refined_on_the_relocated_images(tmp_path_factory, nominal):
+    # Radial distortion bends the edges; the analytic forward model's straight-line fit weighs the bend
+    # otherwise than locate's robust fit, and fitted k1 0.171 +- 0.002 for a hidden 0.199 (benchmark seed
+    # 13: held-out gain 6.6x). Refined on the training images located again, the value is the hidden one.
+    k1 = 0.18
+    data = tmp_path_factory.mktemp("radial")
+    render_measured_set(data, nominal, {"radial_distortion": [k1]}, SetSpec(n_images=30, seed=13))
+    rep = check_model(data, nominal, tmp_path_factory.mktemp("radial_report"))
+    assert rep.causes == ["radial_distortion"], rep.selection_steps
+    fit = rep.parameters["radial_distortion"]["k1"]
+    refined = rep.refined_by_relocation
+    assert refined["steps"] >= 1 and refined["cost_after"] < refined["cost_before"]
+    analytic = refined["values"]["radial_distortion"]["analytic"][0]
+    assert abs(fit["value"] - k1) < abs(analytic - k1) / 3, (fit, analytic)
+    assert abs(fit["value"] - k1) <= max(3 * fit["sigma"], 0.002), fit
+    assert rep.heldout_refused_after == [] and rep.heldout_gain >= 20, rep.heldout_gain

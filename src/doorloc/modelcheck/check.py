@@ -101,6 +101,7 @@ class ModelCheckReport:
     elapsed_s: float
     response_measured_by_locate: dict = field(default_factory=dict)
     response_bound: dict = field(default_factory=dict)
+    refined_by_relocation: dict = field(default_factory=dict)
     heldout_refused_after: list[str] = field(default_factory=list)
     plots: list[str] = field(default_factory=list)
     # arrays for the plots (not in report.json)
@@ -128,6 +129,7 @@ class ModelCheckReport:
             "selection_steps",
             "response_measured_by_locate",
             "response_bound",
+            "refined_by_relocation",
             "unexplained_test",
             "refused",
             "heldout_refused_after",
@@ -296,6 +298,8 @@ def check_model(
     un = structured_residual(resid, _features(train_obs, cell), noise, null_sse, folds=options.folds)
     if un["structured"]:
         causes.append("unexplained")
+    say("refining the geometric effects on the training images located again")
+    model, refined = _refined_by_relocation(model, cell, train_obs, noise, measured_arris)
     ext = _extended_cell(cell, model, ds, causes)
     ext, response_bound = _with_response_bound(ext, model, pred, train_obs, noise, rows, measured_arris)
     say(f"response bound from the training poses: {response_bound}")
@@ -325,6 +329,7 @@ def check_model(
         selection_steps=sel.steps,
         response_measured_by_locate=response_evidence,
         response_bound=response_bound,
+        refined_by_relocation=refined,
         unexplained_test=un,
         refused=refused,
         elapsed_s=0.0,
@@ -388,6 +393,89 @@ def _with_absorbed_response(
         ),
         evidence,
     )
+
+
+#: Gauss-Newton steps of :func:`_refined_by_relocation`
+REFINE_STEPS = 2
+
+
+def _refined_by_relocation(
+    model: FittedModel,
+    cell: Cell,
+    train_obs: Sequence[Observation],
+    noise: np.ndarray,
+    measured_arris: bool,
+) -> tuple[FittedModel, dict]:
+    """The geometric (analytic) effects' values refined on the training images located again with the
+    cell they make, and the evidence (``report.json``'s ``refined_by_relocation``).
+
+    The analytic forward model predicts locate's pose from a least-squares line through each edge's
+    seen range; locate's own robust fit weighs the points of a bent edge otherwise, so an effect that
+    bends the edges is fitted biased (hidden radial k1 0.199, seed 13 of the benchmark: fitted 0.171 +-
+    0.002, held-out lever 0.071 mm, where the training images located with 0.1995 are off by 0.007 mm).
+    The selection keeps the analytic model (it needs every effect's prediction at once); the chosen
+    effects' values then take :data:`REFINE_STEPS` Gauss-Newton steps on the relocated training errors
+    (derivatives by differences over each parameter's typical size, the grey-level effects held at
+    their values), each kept only where it lowers the relocated cost, and their sigmas come from those
+    derivatives.
+    """
+    ana = [i for i, e in enumerate(model.effects) if e.forward == "analytic"]
+    if not ana:
+        return model, {}
+    idx = [(i, j) for i in ana for j in range(len(model.effects[i].params))]
+    lo = np.array([model.effects[i].lower[j] for i, j in idx])
+    hi = np.array([model.effects[i].upper[j] for i, j in idx])
+
+    def cell_at(vals: Sequence[np.ndarray]) -> Cell:
+        c = cell
+        for e, v in zip(model.effects, vals, strict=True):
+            c = e.apply(c, v)
+        return c
+
+    def resid(vals: Sequence[np.ndarray]) -> np.ndarray:
+        return locate_errors(train_obs, cell_at(vals), measured_arris, gated=False) / noise
+
+    def moved(vals: Sequence[np.ndarray], delta: np.ndarray) -> list[np.ndarray]:
+        out = [np.array(v, float) for v in vals]
+        for k, (i, j) in enumerate(idx):
+            out[i][j] = float(np.clip(out[i][j] + delta[k], lo[k], hi[k]))
+        return out
+
+    vals = [np.array(v, float) for v in model.values]
+    r = resid(vals)
+    start_cost = float(np.nansum(r**2))
+    sigmas = [np.array(s, float) for s in model.sigmas]
+    steps = 0
+    for _ in range(REFINE_STEPS):
+        step = np.array([model.effects[i].step[j] for i, j in idx])
+        cols = [(resid(moved(vals, step * np.eye(len(idx))[k])) - r) / step[k] for k in range(len(idx))]
+        ok = np.isfinite(r) & np.all([np.isfinite(c) for c in cols], axis=0)
+        if ok.sum() <= 2 * len(idx):
+            break
+        J = np.stack([c[ok] for c in cols], axis=1)
+        delta, *_ = np.linalg.lstsq(J, -r[ok], rcond=None)
+        trial = moved(vals, delta)
+        r_new = resid(trial)
+        both = ok & np.isfinite(r_new)
+        if not float(np.sum(r_new[both] ** 2)) < float(np.sum(r[both] ** 2)):
+            break
+        vals, r, steps = trial, r_new, steps + 1
+        sse = float(np.sum(r_new[both] ** 2))
+        cov = np.linalg.pinv(J.T @ J) * sse / max(int(both.sum()) - len(idx), 1)
+        for k, (i, j) in enumerate(idx):
+            sigmas[i][j] = float(np.sqrt(max(cov[k, k], 0.0)))
+    evidence = {
+        "steps": steps,
+        "cost_before": round(start_cost, 3),
+        "cost_after": round(float(np.nansum(r**2)), 3),
+        "values": {
+            model.effects[i].name: {"analytic": model.values[i].tolist(), "relocated": vals[i].tolist()}
+            for i in ana
+        },
+    }
+    if not steps:
+        return model, evidence
+    return replace(model, values=tuple(vals), sigmas=tuple(sigmas)), evidence
 
 
 #: the training images are located again with the extended cell at its response exponent times and over

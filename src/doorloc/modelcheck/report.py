@@ -166,6 +166,16 @@ def report_markdown(rep: ModelCheckReport) -> str:
             f"- step {s['step']}: `{s['candidate']}` held-out SSE ratio {s['cv_ratio']:.3g}, "
             f"F-test p = {s['f_test_p']:.2g} -> {'accepted' if s['accepted'] else 'rejected'}"
         )
+    ref = rep.refined_by_relocation
+    if ref.get("steps"):
+        moved = "; ".join(
+            f"`{name}` {', '.join(f'{a:.4g}' for a in v['analytic'])} -> {', '.join(f'{b:.4g}' for b in v['relocated'])}"
+            for name, v in ref["values"].items()
+        )
+        lines.append(
+            f"- refined on the training images located again ({ref['steps']} Gauss-Newton steps, cost "
+            f"{ref['cost_before']:.4g} -> {ref['cost_after']:.4g}): {moved}"
+        )
     ev = rep.response_measured_by_locate
     if ev.get("added"):
         lines.append(
