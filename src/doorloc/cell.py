@@ -110,11 +110,11 @@ class Cell:
     response_gamma_sigma : float or None
         1-sigma of ``response_gamma`` where it was measured (``camera.response_gamma_sigma``; taken from the
         calibration file with its exponent, written by ``doorloc cell init`` and by the model check); None
-        where it was not. A measured exponent is weighed against the one an image's plain edges show:
-        locate replaces it by the image's only where the two differ beyond their joint uncertainty (a
-        single real photograph's own sigma understates its scatter several times, see
-        :func:`doorloc.vision.response.board_response`), and otherwise counts the measurement's own
-        doubt in the answer's uncertainty.
+        where it was not. A measured exponent is weighed against the one an image's plain edges show
+        (:class:`doorloc.vision.response.ResponseFit`): locate replaces it by the image's where the two
+        disagree or the image measured it much better, and otherwise counts the measurement's own doubt
+        in the answer's uncertainty (a single real photograph's own sigma understates its scatter several
+        times, see :func:`doorloc.vision.response.board_response`).
     locate : LocateConfig
         The ``locate:`` section: thresholds and settings of the pipeline that a cell sets once.
     robot_section : dict or None

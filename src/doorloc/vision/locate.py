@@ -1167,8 +1167,8 @@ def _response_terms(
     sigma); after ``absorbed`` (the exponent in use was fitted) that 1-sigma shift counts too. Where the
     cell's exponent was itself measured (``response.claimed_sigma``) and is kept, the doubt is the shift
     to the exponent both measurements give together (:attr:`ResponseFit.combined`) with that one's
-    1-sigma shift (widened by their disagreement) in quadrature. An arris line takes the same step model between its background and its
-    face (a first-order figure).
+    1-sigma shift (widened by their disagreement) in quadrature. An arris line takes the same step model
+    between its background and its face (a first-order figure).
     """
     for k in EDGE_NAMES:
         if k == "far" and far_beside:
@@ -1185,8 +1185,6 @@ def _response_terms(
         )
         if not (math.isfinite(bias) and math.isfinite(spread)):
             continue
-        # the shift the measured mismatch makes beyond twice its own doubt (within that, the edges agree
-        # with the exponent in use)
         if absorbed:
             # the exponent in use is this image's measurement: its doubt counts in full
             doubt = math.hypot(max(abs(bias) - 2.0 * spread, 0.0), spread)
@@ -1206,6 +1204,8 @@ def _response_terms(
             if not math.isfinite(doubt):
                 continue
         else:
+            # the shift the measured mismatch makes beyond twice its own doubt (within that, the edges
+            # agree with the exponent in use)
             doubt = max(abs(bias) - 2.0 * spread, 0.0)
         model.extra_px.setdefault(k, {})["response"] = doubt
 
