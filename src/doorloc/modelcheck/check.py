@@ -221,9 +221,7 @@ def _parameters(model: FittedModel) -> dict[str, dict[str, dict[str, float]]]:
 
 
 def _extended_cell(cell: Cell, model: FittedModel, dataset: Dataset, causes: list[str]) -> Cell:
-    ext = cell
-    for e, v in zip(model.effects, model.values, strict=True):
-        ext = e.apply(ext, v)
+    ext = model.apply(cell)
     prov = dict(cell.provenance)
     prov["model_check"] = {
         "dataset": str(dataset.folder),
@@ -299,9 +297,11 @@ def check_model(
     if un["structured"]:
         causes.append("unexplained")
     say("refining the geometric effects on the training images located again")
-    model, refined = _refined_by_relocation(model, cell, train_obs, noise, measured_arris)
+    model, refined, ext_errors = _refined_by_relocation(model, cell, train_obs, noise, measured_arris)
     ext = _extended_cell(cell, model, ds, causes)
-    ext, response_bound = _with_response_bound(ext, model, pred, train_obs, noise, rows, measured_arris)
+    ext, response_bound = _with_response_bound(
+        ext, model, pred, train_obs, noise, rows, measured_arris, ext_errors
+    )
     say(f"response bound from the training poses: {response_bound}")
     held_obs = [obs[k] for k in held]
     before = errors[held]
@@ -405,9 +405,10 @@ def _refined_by_relocation(
     train_obs: Sequence[Observation],
     noise: np.ndarray,
     measured_arris: bool,
-) -> tuple[FittedModel, dict]:
+) -> tuple[FittedModel, dict, np.ndarray | None]:
     """The geometric (analytic) effects' values refined on the training images located again with the
-    cell they make, and the evidence (``report.json``'s ``refined_by_relocation``).
+    cell they make, the evidence (``report.json``'s ``refined_by_relocation``) and the training images'
+    errors located with the model returned (None where nothing was refined: no geometric effect).
 
     The analytic forward model predicts locate's pose from a least-squares line through each edge's
     seen range; locate's own robust fit weighs the points of a bent edge otherwise, so an effect that
@@ -421,19 +422,13 @@ def _refined_by_relocation(
     """
     ana = [i for i, e in enumerate(model.effects) if e.forward == "analytic"]
     if not ana:
-        return model, {}
+        return model, {}, None
     idx = [(i, j) for i in ana for j in range(len(model.effects[i].params))]
     lo = np.array([model.effects[i].lower[j] for i, j in idx])
     hi = np.array([model.effects[i].upper[j] for i, j in idx])
 
-    def cell_at(vals: Sequence[np.ndarray]) -> Cell:
-        c = cell
-        for e, v in zip(model.effects, vals, strict=True):
-            c = e.apply(c, v)
-        return c
-
-    def resid(vals: Sequence[np.ndarray]) -> np.ndarray:
-        return locate_errors(train_obs, cell_at(vals), measured_arris, gated=False) / noise
+    def errors(vals: Sequence[np.ndarray]) -> np.ndarray:
+        return locate_errors(train_obs, model.apply(cell, vals), measured_arris, gated=False)
 
     def moved(vals: Sequence[np.ndarray], delta: np.ndarray) -> list[np.ndarray]:
         out = [np.array(v, float) for v in vals]
@@ -442,24 +437,28 @@ def _refined_by_relocation(
         return out
 
     vals = [np.array(v, float) for v in model.values]
-    r = resid(vals)
+    err = errors(vals)
+    r = err / noise
     start_cost = float(np.nansum(r**2))
     sigmas = [np.array(s, float) for s in model.sigmas]
     steps = 0
     for _ in range(REFINE_STEPS):
         step = np.array([model.effects[i].step[j] for i, j in idx])
-        cols = [(resid(moved(vals, step * np.eye(len(idx))[k])) - r) / step[k] for k in range(len(idx))]
+        cols = [
+            (errors(moved(vals, step * np.eye(len(idx))[k])) / noise - r) / step[k] for k in range(len(idx))
+        ]
         ok = np.isfinite(r) & np.all([np.isfinite(c) for c in cols], axis=0)
         if ok.sum() <= 2 * len(idx):
             break
         J = np.stack([c[ok] for c in cols], axis=1)
         delta, *_ = np.linalg.lstsq(J, -r[ok], rcond=None)
         trial = moved(vals, delta)
-        r_new = resid(trial)
+        err_new = errors(trial)
+        r_new = err_new / noise
         both = ok & np.isfinite(r_new)
         if not float(np.sum(r_new[both] ** 2)) < float(np.sum(r[both] ** 2)):
             break
-        vals, r, steps = trial, r_new, steps + 1
+        vals, err, r, steps = trial, err_new, r_new, steps + 1
         sse = float(np.sum(r_new[both] ** 2))
         cov = np.linalg.pinv(J.T @ J) * sse / max(int(both.sum()) - len(idx), 1)
         for k, (i, j) in enumerate(idx):
@@ -474,8 +473,8 @@ def _refined_by_relocation(
         },
     }
     if not steps:
-        return model, evidence
-    return replace(model, values=tuple(vals), sigmas=tuple(sigmas)), evidence
+        return model, evidence, err
+    return replace(model, values=tuple(vals), sigmas=tuple(sigmas)), evidence, err
 
 
 #: the training images are located again with the extended cell at its response exponent times and over
@@ -491,8 +490,11 @@ def _with_response_bound(
     noise: np.ndarray,
     rows: np.ndarray,
     measured_arris: bool,
+    ext_errors: np.ndarray | None = None,
 ) -> tuple[Cell, dict]:
     """``ext`` with the camera-response doubt that the training poses allow, and the evidence.
+
+    ``ext_errors``: the training images' errors located with ``ext`` where the caller has them.
 
     A cell whose response was never measured lets locate doubt it over a wide range
     (``locate.response_unmeasured_factor``, 2.2 by default) wherever an image cannot check it itself, and
@@ -522,7 +524,11 @@ def _with_response_bound(
         k_probe = RESPONSE_PROBE_FACTOR
         hi = locate_errors(train_obs, replace(ext, response_gamma=g0 * k_probe), measured_arris, gated=False)
         lo = locate_errors(train_obs, replace(ext, response_gamma=g0 / k_probe), measured_arris, gated=False)
-        at = locate_errors(train_obs, ext, measured_arris, gated=False)
+        at = (
+            ext_errors
+            if ext_errors is not None
+            else locate_errors(train_obs, ext, measured_arris, gated=False)
+        )
         slope_g = (hi - lo) / (g0 * k_probe - g0 / k_probe)
         cols = [slope_g]
         for e, v in zip(model.effects, model.values, strict=True):

@@ -17,6 +17,7 @@ import numpy as np
 from scipy import stats
 from scipy.optimize import least_squares
 
+from doorloc.cell import Cell
 from doorloc.modelcheck.catalogue import Effect
 from doorloc.modelcheck.forward import AnalyticModel, RelocateTable
 
@@ -72,6 +73,12 @@ class FittedModel:
     @property
     def names(self) -> tuple[str, ...]:
         return tuple(e.name for e in self.effects)
+
+    def apply(self, cell: Cell, values: Sequence[np.ndarray] | None = None) -> Cell:
+        """``cell`` with the effects put in, in the model's order: the fitted values, or ``values``."""
+        for e, v in zip(self.effects, self.values if values is None else values, strict=True):
+            cell = e.apply(cell, v)
+        return cell
 
 
 def _bounds(e: Effect, pred: Predictor) -> tuple[np.ndarray, np.ndarray]:

@@ -123,9 +123,8 @@ class ResponseFit:
 
     @property
     def disagreement(self) -> float:
-        """``|gamma - claimed|`` in joint sigmas of the two measurements (inf where the claim was not one)."""
-        if not self.claimed_sigma > 0:
-            return math.inf
+        """``|gamma - claimed|`` in joint sigmas of the two measurements (the image's alone where the claim
+        was not measured)."""
         return abs(self.gamma - self.claimed) / math.hypot(self.sigma, self.claimed_sigma)
 
     @property
@@ -144,15 +143,13 @@ class ResponseFit:
         # two edges at least: one edge's texture can mimic a response, two rarely agree by chance
         # and a camera's response: below ~0.8 (darks lifted) no camera is made; such a fit is texture or
         # shading that the response cannot explain
+        if len(self.lines) < 2 or not RESPONSE_PLAUSIBLE[0] <= self.gamma <= RESPONSE_PLAUSIBLE[1]:
+            return False
+        # (for a claim that was not measured the combination is the image's own reading, and the two
+        # tests below are one: the reading beyond RESPONSE_ABSORB_SIGMAS of its sigmas)
+        g, se, _ = self.combined
         return (
-            len(self.lines) >= 2
-            and RESPONSE_PLAUSIBLE[0] <= self.gamma <= RESPONSE_PLAUSIBLE[1]
-            and (
-                abs(self.gamma - self.claimed) > RESPONSE_ABSORB_SIGMAS * self.sigma
-                if not self.claimed_sigma > 0
-                else self.disagreement > RESPONSE_ABSORB_SIGMAS
-                or abs(self.combined[0] - self.claimed) > RESPONSE_ABSORB_SIGMAS * self.combined[1]
-            )
+            abs(g - self.claimed) > RESPONSE_ABSORB_SIGMAS * se or self.disagreement > RESPONSE_ABSORB_SIGMAS
         )
 
 
