@@ -15,7 +15,13 @@ from doorloc.cell import DoorSize, load_cell
 from doorloc.pose import DoorPose
 from doorloc.sim.door import render_door
 from doorloc.sim.effects import Effects
-from doorloc.vision.arris_model import ArrisGeometry, fit_strip_profile
+from doorloc.vision.arris_model import (
+    STRIP_RADIANCE,
+    STRIP_RADIANCE_SIGMA,
+    ArrisGeometry,
+    deficit_prior,
+    fit_strip_profile,
+)
 from doorloc.vision.locate import locate
 
 CELL = load_cell(Path(__file__).parents[2] / "fixtures" / "cell_thesis.yaml")
@@ -197,6 +203,46 @@ def test_a_strip_narrower_than_the_blur_reports_that_its_level_is_unknown(level)
     assert fit is not None
     assert fit.deficit_sigma > 0.2
     assert abs(fit.deficit - (1.0 - level)) <= 2 * fit.deficit_sigma
+
+
+@pytest.mark.parametrize("face,background", [(200.0, 20.0), (120.0, 220.0), (60.0, 50.0)])
+def test_deficit_prior_is_the_strip_radiance_prior_in_units_of_the_contrast(face, background):
+    """A strip of radiance rho times the face's has the deficit (1 - rho) face / (face - background): the
+    prior's mean and sigma are STRIP_RADIANCE's, mapped so. On a door darker than its background a strip
+    darker than the face is a negative deficit (the neutral 0.5 would say: brighter than the face)."""
+    mean, sd = deficit_prior(face, background)
+    k = face / (face - background)
+    assert mean == pytest.approx((1.0 - STRIP_RADIANCE) * k)
+    assert sd == pytest.approx(STRIP_RADIANCE_SIGMA * abs(k))
+    assert (mean < 0) == (face < background)
+    # the strip's level (strip - background) / (face - background) = 1 - deficit: rho back
+    assert ((1.0 - mean) * (face - background) + background) / face == pytest.approx(STRIP_RADIANCE)
+
+
+@pytest.mark.parametrize("face,background", [(0.0, 0.0), (100.0, 100.0), (float("nan"), 10.0)])
+def test_deficit_prior_without_contrast_is_the_neutral_one(face, background):
+    assert deficit_prior(face, background) == (0.5, 0.5)
+
+
+def test_a_strip_narrower_than_the_blur_takes_its_place_from_the_prior():
+    """A 0.4 px strip a little darker than the face (radiance 0.9 of it, on a background a tenth of the face)
+    under 1.5 px of blur: the profiles cannot tell its level, the prior places it. The strip-radiance prior
+    comes within its sigma of the truth and nearer than the neutral 0.5 +- 0.5; its sigma stays honest."""
+    rng = np.random.default_rng(3)
+    face, background, rho = 1.0, 0.1, 0.9
+    level = (rho * face - background) / (face - background)
+    r, x, outer = _profiles(40, 0.4, level, 1.5, rng)
+    geom = ArrisGeometry(
+        ArrisSection(0.1, "chamfer", 30.0, -350.0), 0.0, 0.1, np.array([0.0, 1.0]), np.array([np.pi / 2, 0.0])
+    )
+    physical = fit_strip_profile(
+        r, x, outer, np.full(40, 0.4), geom, 0.002, 1.0, prior=deficit_prior(face, background)
+    )
+    neutral = fit_strip_profile(r, x, outer, np.full(40, 0.4), geom, 0.002, 1.0)
+    assert physical is not None and neutral is not None
+    truth = 1.0 - level
+    assert abs(physical.deficit - truth) < abs(neutral.deficit - truth)
+    assert abs(physical.deficit - truth) <= physical.deficit_sigma
 
 
 def test_a_strip_at_the_face_level_keeps_both_borders_in_doubt():

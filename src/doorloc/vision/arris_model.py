@@ -44,7 +44,7 @@ from doorloc.arris import ArrisSection
 from doorloc.pose import yaw_rotation_matrix
 from doorloc.vision.edges import Axis, EdgeSamples, _gather, oriented
 
-__all__ = ["ArrisGeometry", "StripFit", "arris_geometry", "fit_strip_profile", "arris_edges"]
+__all__ = ["ArrisGeometry", "StripFit", "arris_geometry", "deficit_prior", "fit_strip_profile", "arris_edges"]
 
 #: sub-intervals of a rounding's strip (uniform in image width) over which its shading is taken constant in
 #: the fit, at most
@@ -57,8 +57,22 @@ _PHASE_BINS = 8
 _FIT_LINES = 40
 #: plausible error of the Gaussian blur model, px (sets the model's doubt in the strip's deficit)
 BLUR_DOUBT = 0.1
-#: prior of the deficit: a strip somewhere between the background and the hinge face
+#: prior of the deficit where the two plateaus' radiances cannot say more (no contrast): a strip somewhere
+#: between the background and the hinge face
 PRIOR_DEFICIT, PRIOR_SIGMA = 0.5, 0.5
+#: prior of the strip's mean radiance over the hinge face's (linear light): mean and standard deviation.
+#: From physics, not fitted to any rendered set: the strip is the same wood turned away from the camera by
+#: 0-90 deg. Under light from anywhere in front of the door a Lambertian surface turned by theta gets about
+#: (1 + cos theta) / 2 of what the face gets: a 45 deg chamfer 0.85, a rounding (cos theta averaged over
+#: its image width, uniform in sin theta) 0.89. A light from one side brightens one arris and darkens the
+#: other; sanding and end grain move the albedo by some tens of per cent: +-0.45 (a grazing light can make
+#: a chamfer facing it glint at twice the face, arris bench seed 1092: the prior's tail, where a strip
+#: narrower than the blur is then misplaced by 2.7 sigma). It is what places the edge where the profiles
+#: cannot split a strip's area into its width and its level (a strip narrower than the blur): the neutral
+#: "between background and face" (0.5 +- 0.5 of the contrast) put the edge a quarter of such a strip's
+#: width outwards on average (arris bench, arrises of 0-0.3 mm: thickness +0.047 mm mean over 12
+#: chamfers) and, on a door darker than its background, assumed a strip brighter than the face.
+STRIP_RADIANCE, STRIP_RADIANCE_SIGMA = 0.9, 0.45
 #: prior of each strip cell's relative level ``(strip - background) / (face - background)``: about the
 #: middle, within a wide range (a strip in shadow is a little darker than the background, a lit one
 #: brighter than the face). Weak beside what the profiles say of a strip a pixel wide or more; on a strip
@@ -143,6 +157,28 @@ def arris_geometry(
             continue
         out[name] = ArrisGeometry(sec, float(sec.on_plane(th_b, a)), float(sec.on_plane(0.0, a)), tau, th)
     return out
+
+
+def deficit_prior(face: float, background: float) -> tuple[float, float]:
+    """The strip's deficit a priori, mean and standard deviation, from the plateaus' levels.
+
+    ``face`` and ``background`` are in linear light (zero at black). A strip of radiance ``rho`` times the
+    face's has the deficit ``(1 - rho) face / (face - background)``; ``rho`` is ``STRIP_RADIANCE +-
+    STRIP_RADIANCE_SIGMA``. Without a usable contrast (or a face at black) the neutral ``PRIOR_DEFICIT +-
+    PRIOR_SIGMA``.
+
+    >>> [round(v, 3) for v in deficit_prior(200.0, 20.0)]  # a bright face on a dark background
+    [0.111, 0.5]
+    >>> [round(v, 3) for v in deficit_prior(100.0, 200.0)]  # a door darker than its background
+    [-0.1, 0.45]
+    >>> deficit_prior(0.0, 0.0)  # no contrast: the neutral prior
+    (0.5, 0.5)
+    """
+    contrast = face - background
+    if not (math.isfinite(face) and math.isfinite(background)) or face <= 0 or abs(contrast) < 1e-6 * face:
+        return PRIOR_DEFICIT, PRIOR_SIGMA
+    k = face / contrast
+    return (1.0 - STRIP_RADIANCE) * k, STRIP_RADIANCE_SIGMA * abs(k)
 
 
 @dataclass(frozen=True)
@@ -396,6 +432,7 @@ def fit_strip_profile(
     noise: float,
     blur0: float = 1.0,
     search_px: float = 0.0,
+    prior: tuple[float, float] = (PRIOR_DEFICIT, PRIOR_SIGMA),
 ) -> StripFit | None:
     """Fit the strip's shading to normalised profiles (module docstring, step 2).
 
@@ -417,6 +454,8 @@ def fit_strip_profile(
     search_px : float
         How far the outer border may lie from its prediction beyond 2 px (a first pose that took the
         strip's inner border for the edge), px.
+    prior : (float, float)
+        The deficit's prior, mean and standard deviation (:func:`deficit_prior`; default the neutral one).
 
     Returns
     -------
@@ -432,8 +471,8 @@ def fit_strip_profile(
     plain step at either border). A local optimum and its curvature would then report one end of the
     valley with a confidence the data do not give. So the deficit is the mean of its posterior along the
     valley: the misfit profiled over the border's offset (the blur refitted at each; every valley of a
-    coarse profile over the search range refined and resolved finely), times the prior 0.5 +- 0.5 (a
-    strip somewhere between the background and the face), and its standard deviation the posterior's,
+    coarse profile over the search range refined and resolved finely), times the prior ``prior`` (the
+    strip's radiance a fraction of the face's: :func:`deficit_prior`), and its standard deviation the posterior's,
     widened by how far the deficit moves when the blur model is off by ``BLUR_DOUBT``. Within a valley
     the misfit weighs at the scale of the residuals; between valleys (and along a flat one) the
     residuals' excess over the noise counts as model error common to all the profiles, so that a model
@@ -551,7 +590,7 @@ def fit_strip_profile(
     order = np.argsort(deltas)
     deltas = deltas[order]
     dfc = np.concatenate([evc.deficit[keep], *(f[2] for f in fines)])[order]
-    logp = np.concatenate(ll)[order] - 0.5 * ((dfc - PRIOR_DEFICIT) / PRIOR_SIGMA) ** 2
+    logp = np.concatenate(ll)[order] - 0.5 * ((dfc - prior[0]) / prior[1]) ** 2
     dens = np.exp(logp - logp.max())
     # trapezoid weights over the (unevenly spaced) offsets
     gaps = np.diff(deltas)
@@ -581,7 +620,7 @@ def fit_strip_profile(
         dd = dd - np.clip(e1.grad[:, 0] / np.maximum(e1.hess[:, 0, 0], 1e-300), -0.5, 0.5)
     e1 = prob.evaluate(dd, sgm, basis)
     moved = float(np.max(np.abs(e1.deficit - ev0.deficit[0])))
-    sigma = min(math.hypot(post_sd, moved), PRIOR_SIGMA)
+    sigma = min(math.hypot(post_sd, moved), prior[1])
 
     # the fitted profiles themselves (every line, not binned), for the caller's window correction
     bounds = (outer[None, :, None] + d0) + width[None, :, None] * prob.frac
@@ -769,7 +808,8 @@ def arris_edges(
         outer = plateau + pad + half + rel_e[pick]
         # profile noise, normalised; at least the quantisation of the 8-bit scale (a noise-free render)
         nz = float(np.median(np.maximum(noise[pick], 0.3 / scale_to_8bit) / np.abs(D[pick])))
-        fit = fit_strip_profile(r, x, outer, w[pick], geom, nz, blur0, search_px=float(pad))
+        prior = deficit_prior(float(np.median(B[pick])), float(np.median(A[pick])))
+        fit = fit_strip_profile(r, x, outer, w[pick], geom, nz, blur0, search_px=float(pad), prior=prior)
     bias = 0.0
     if fit is not None:
         # The area estimator on the fitted, noise-free profiles: what the window's ends and the plateaus'
