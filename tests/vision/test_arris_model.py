@@ -359,3 +359,102 @@ def test_a_rounding_in_shadow_is_answered_and_its_shading_is_not_texture():
     ex, ez = res.x_mm - pose.x_mm, res.z_mm - pose.z_mm
     assert abs(ex) < 0.01 and abs(ez) < 0.01 and abs(res.thickness_mm - 50) < 0.05
     assert res.uncertainty.x_mm <= 0.05 and res.uncertainty.z_mm <= 0.05
+
+
+# Valid arris doors of the arris bench (bench/bench_arris.py --seed 7000) that were refused for a wrong
+# reason: seed, profile, arris mm, thickness mm, true pose (x, z, yaw), lighting and optics.
+_MISSED_ARRIS_DOORS = [
+    # a 0.75 mm chamfer brighter than the face: the far arris's coarse steps straddled its strip and tilted
+    # the first pose (edge_missing)
+    (
+        7048,
+        "chamfer",
+        0.755,
+        40,
+        (-1.965, -7.405, 0.181),
+        dict(
+            albedo_hinge=0.65,
+            albedo_chamfer=0.916,
+            albedo_background=0.093,
+            light_ambient=0.726,
+            light_directional=0.311,
+            light_azimuth_deg=48.391,
+            light_elevation_deg=46.441,
+            blur_sigma_px=1.132,
+            read_noise_dn=0.811,
+        ),
+    ),
+    # a dark 2.1 mm chamfer on a door whose first pose was thin enough to show its far face
+    # (thickness_mismatch)
+    (
+        7053,
+        "chamfer",
+        2.115,
+        40,
+        (-6.813, -2.809, 1.453),
+        dict(
+            albedo_hinge=0.834,
+            albedo_chamfer=0.326,
+            albedo_background=0.079,
+            light_ambient=0.735,
+            light_directional=0.353,
+            light_azimuth_deg=-18.237,
+            light_elevation_deg=48.369,
+            blur_sigma_px=1.714,
+            read_noise_dn=0.526,
+        ),
+    ),
+    # a 2.7 mm chamfer as bright as the face: the final pass fitted a border whose background lay beyond
+    # its window (edge_missing)
+    (
+        7075,
+        "chamfer",
+        2.674,
+        70,
+        (7.796, -3.483, 0.271),
+        dict(
+            albedo_hinge=0.812,
+            albedo_chamfer=0.847,
+            albedo_background=0.081,
+            light_ambient=0.564,
+            light_directional=0.072,
+            light_azimuth_deg=-69.703,
+            light_elevation_deg=33.593,
+            blur_sigma_px=0.649,
+            read_noise_dn=0.61,
+        ),
+    ),
+    # a 2.5 mm rounding, the camera 1.2 mm inside the far face's plane (edge_missing)
+    (
+        7558,
+        "round",
+        2.538,
+        40,
+        (-7.076, -1.616, -0.894),
+        dict(
+            albedo_hinge=0.792,
+            albedo_chamfer=0.505,
+            albedo_background=0.176,
+            light_ambient=0.766,
+            light_directional=0.141,
+            light_azimuth_deg=-38.793,
+            light_elevation_deg=2.156,
+            blur_sigma_px=1.227,
+            read_noise_dn=0.11,
+        ),
+    ),
+]
+
+
+@pytest.mark.parametrize("seed,profile,arris,thickness,truth,lighting", _MISSED_ARRIS_DOORS)
+def test_valid_arris_doors_are_not_refused_for_a_wrong_reason(
+    seed, profile, arris, thickness, truth, lighting
+):
+    door = DoorSize(900, thickness, 2100, arris_mm=arris, arris_profile=profile)
+    pose = DoorPose(*truth)
+    img = render_door(CELL, door, pose, effects=Effects(arris_profile=profile, **lighting), seed=seed).image
+    res = locate(img, CELL, door)
+    assert res.ok, res.error
+    assert abs(res.x_mm - pose.x_mm) <= 3 * res.uncertainty.x_mm
+    assert abs(res.z_mm - pose.z_mm) <= 3 * res.uncertainty.z_mm
+    assert abs(res.thickness_mm - thickness) <= 1.0

@@ -508,6 +508,17 @@ def fit_strip_profile(
     reach = search_px + max(2.0, w_med + 1.0)
     step = max(0.2, reach / 10.0)
     grid = np.arange(-reach, reach + 1e-9, step)
+    # A place for the border that puts the background (or the face) beyond the profile is not measured by
+    # it: the level there is free, and a strip of any level fits what remains (the levels' prior alone
+    # sets it). Such a place beat the right one by misfit on the final pass, whose window has no room for
+    # a strip's width outwards, and every line's edge left its window (arris bench seeds 7075, 7558: a
+    # strip about as bright as the face, a 2.7 mm chamfer's bottom end and a 2.5 mm rounding's far arris
+    # lost). The background and the face keep a pixel and twice the blur in view.
+    margin = 1.0 + 2.0 * max(blur0, 0.7)
+    lo_lim, hi_lim = float(np.max(x[0] + margin - outer)), float(np.min(x[-1] - margin - (outer + width)))
+    inside = (grid >= lo_lim) & (grid <= hi_lim)
+    if inside.sum() >= 3:
+        grid = grid[inside]
     sg, ev = prob.profile_blur(grid, np.full(grid.size, max(blur0, 0.7)), basis0, n_iter=2)
     i0 = int(np.argmin(ev.chi2))
     d0, s0, ev0 = prob.refine(float(grid[i0]), float(sg[i0]), basis0)
@@ -608,6 +619,18 @@ def fit_strip_profile(
         mean = (deficit + w_alt * alt[1]) / (1.0 + w_alt)
         post_sd = math.sqrt(post_sd**2 + w_alt / (1.0 + w_alt) ** 2 * (alt[1] - deficit) ** 2)
         deficit = mean
+
+    # The fitted shape (the caller's area-estimate correction and line-by-line fit start from it) is the
+    # valley's that the posterior favours, not the lowest misfit's: two places for the border can misfit
+    # alike (a strip at the face's level, and one at the background's a strip's width outwards whose
+    # background then lies beyond the window, so that any level fits it), and there the prior decides,
+    # as it does for the deficit. Taking the lowest misfit there put every line's edge a strip's width
+    # out of its window (arris bench seed 7075, a 2.7 mm chamfer as bright as the face: bottom end lost).
+    def _log_post(em: _Eval) -> float:
+        dev = (float(em.deficit[0]) - prior[0]) / prior[1]
+        return -(float(em.chi2[0]) - chi_min) / (2.0 * T_glob) - 0.5 * dev * dev
+
+    d0, s0, ev0 = max(modes, key=lambda m: _log_post(m[2]))
 
     # The model's own doubt: a strip narrower than the blur looks like a wider blur with another strip
     # level, and the real optics are no exact Gaussian. How far the deficit moves when the blur is off by

@@ -80,6 +80,9 @@ __all__ = ["LocateConfig", "locate", "locate_steps", "run_steps", "StepQuery", "
 
 #: plateau samples of the arris strip's profile fit, px
 ARRIS_PLATEAU_PX = 4
+#: largest angle between the two arrises' coarse lines (image) that their 2-px steps explain, deg; beyond it
+#: the far arris's line straddles its strip's two borders (:func:`_coarse_pose`)
+COARSE_ARRIS_SKEW_DEG = 0.5
 #: an arris strip narrower than this, px, is a plain step to the camera response's check (a chamfer of a few
 #: thousandths of a millimetre, a twentieth of a pixel: its lines are plain edges, on which the response is
 #: measured; as arris lines the unmeasured response's doubt put 0.19 mm on an answer 0.001 mm off)
@@ -331,8 +334,18 @@ def _sample(
             + 4
             + int(math.ceil(door.arris_mm / region.nominal_scale))
         )
+    # An arris door's thickness measured on a first pose can be up to the strip's width short (its inner
+    # border taken for the edge): whether the far face is in view is decided at the recipe's thickness
+    # then (arris bench seed 7558: a 2.5 mm rounding, the camera 1.2 mm inside the far face's plane, seen
+    # as beside it from a pose 2.6 mm thin: the far arris lost)
     tracks = region.tracks(
-        pose.corner, yaw_rad, pose.thickness_mm, keep, window_px=half + cfg.plateau + 2, arris=geoms
+        pose.corner,
+        yaw_rad,
+        pose.thickness_mm,
+        keep,
+        window_px=half + cfg.plateau + 2,
+        arris=geoms,
+        visibility_thickness_mm=max(pose.thickness_mm, door.thickness_mm) if geoms else None,
     )
     out = {}
     far_fit = None
@@ -643,7 +656,19 @@ def _coarse_pose(
     ]
     xz = np.split(region.plane_points(np.concatenate(uv)), np.cumsum([len(u) for u in uv])[:2])
     coarse_groups = {"bottom": (xz[0], True), "reference": (xz[1], False), "far": (xz[2], False)}
-    fit0 = fit_rectangle_edges(coarse_groups, scale_floor=0.05, n_iter=3)
+    # Across an arris strip the far arris's coarse steps (either polarity: beyond it may lie a far face) can
+    # be the strip's inner border on some scan lines and its outer one on others; a line within the
+    # search's tolerance of both then tilts (arris bench seed 7048, a 0.75 mm chamfer brighter than the
+    # face: 1.8 deg against the reference arris's 0.4, the first pass's windows off by up to 5 px at their
+    # ends, the far arris lost). Where the two arrises' coarse lines disagree by more than their coarse
+    # steps allow, the direction is the reference arris's and the bottom end's.
+    tilted = (
+        door.arris_mm > 0
+        and abs(math.degrees(math.atan(c.far.b) - math.atan(c.ref.b))) > COARSE_ARRIS_SKEW_DEG
+    )
+    fit0 = fit_rectangle_edges(
+        coarse_groups, scale_floor=0.05, n_iter=3, offset_only=("far",) if tilted else ()
+    )
     pose = pose_from_fit(fit0, region.face_map)
     if not (abs(pose.yaw_deg) < 20 and 0 < pose.thickness_mm < 3 * door.thickness_mm + 50):
         raise _Refused(

@@ -327,6 +327,7 @@ class SearchRegion:
         keep_px: float,
         window_px: float = 0.0,
         arris: dict | None = None,
+        visibility_thickness_mm: float | None = None,
     ) -> dict[str, Track]:
         """Scan lines across each edge of a door at this pose, and the predicted edge on each.
 
@@ -334,6 +335,8 @@ class SearchRegion:
         are left out: there the profile is not a clean straight step. ``arris`` (edge name ->
         :class:`doorloc.vision.arris_model.ArrisGeometry`) places an arris strip exactly: the predicted
         edge is then the strip's outer border, and ``outline_shift_px`` moves it to the sharp corner's line.
+        ``visibility_thickness_mm`` (default ``thickness_mm``) is the thickness that decides whether the far
+        face is in view.
         """
         ex = np.array([math.cos(yaw_rad), math.sin(yaw_rad)])
         ez = np.array([-math.sin(yaw_rad), math.cos(yaw_rad)])
@@ -381,7 +384,9 @@ class SearchRegion:
             scans = np.arange(int(math.ceil(s_lo)), int(math.floor(s_hi)) + 1)
             centre = _interp_on_scans(uv, lay.axis, scans)
             ok = np.isfinite(centre) & (centre >= 0) & (centre <= n_along - 1)
-            beside = name == "far" and self.far_face_visible(corner, yaw_rad, thickness_mm)
+            beside = name == "far" and self.far_face_visible(
+                corner, yaw_rad, thickness_mm if visibility_thickness_mm is None else visibility_thickness_mm
+            )
             band = None
             slope = 0.0
             if beside:
