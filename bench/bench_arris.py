@@ -17,7 +17,8 @@ standard error, RMS, the fraction within 2 claimed sigma and beyond 5, and the r
 
     OMP_NUM_THREADS=1 PYTHONPATH=src python bench/bench_arris.py [--n 24] [--sets arris,gamma,wrong-gamma,fixtures]
         [--response-factor F]   (the arris set with a cell whose response was measured, e.g. 1.11)
-        [--seed S]              (the arris set's first seed, default 1000: another draw of the same set)
+        [--seed S]              (another draw: the arris set's first seed, default 1000; the response sets'
+                                 move by S - 1000 with it)
 """
 
 from __future__ import annotations
@@ -254,7 +255,10 @@ def main() -> None:
         "what doorloc calibrate allows for a response measured to +-0.12 at 2.15 (Bouguet's photographs)",
     )
     ap.add_argument(
-        "--seed", type=int, default=1000, help="arris set: first seed (chamfers S.., roundings S+500..)"
+        "--seed",
+        type=int,
+        default=1000,
+        help="arris set: first seed (chamfers S.., roundings S+500..); the response sets' move by S - 1000",
     )
     args = ap.parse_args()
     sets = args.sets.split(",")
@@ -263,12 +267,13 @@ def main() -> None:
         ap.error(f"unknown set(s) {', '.join(unknown)}; the sets are {', '.join(known)}")
     if "arris" in sets:
         run_arris(args.n, seed0=args.seed, factor=args.response_factor)
+    g0 = 3000 + args.seed - 1000
     if "gamma" in sets:
-        run_gamma(args.n)
+        run_gamma(args.n, seed0=g0)
     if "wrong-gamma" in sets:
-        run_gamma(args.n, wrong=True, fixed=False)
+        run_gamma(args.n, wrong=True, fixed=False, seed0=g0)
     if "wrong-gamma-2.2" in sets:
-        run_gamma(args.n, wrong=True)
+        run_gamma(args.n, wrong=True, seed0=g0)
     if "fixtures" in sets:
         run_fixtures()
     if "timing" in sets:
