@@ -379,3 +379,36 @@ def test_a_low_contrast_rounding_that_splits_the_step_is_still_found(cell):
     empty = np.full_like(img, int(np.median(img[:100])))
     empty = np.clip(empty + np.random.default_rng(0).normal(0.0, 6.0, img.shape), 0, 255).astype(np.uint8)
     assert locate(empty, cell, door).error_code == "no_door"
+
+
+def test_a_far_face_as_bright_as_the_hinge_face_is_not_a_wrong_door(cell):
+    """A thin door shifted so that its far face is in view, that face lit as brightly as the hinge face: the
+    far arris makes no step, and the first clear one beyond the reference arris is the far face's back edge,
+    3.2 mm farther (bench_surfaces --seed 500, hard_006: refused as a 38.35 mm door where the recipe says
+    35.13). The coarse stage reads it as that back edge; the fine stage measures the door."""
+    door = DoorSize(900, 35.128, 2100)
+    pose = DoorPose(-9.067, 1.620, 0.849)
+    fx = Effects(
+        albedo_hinge=0.39,
+        albedo_side=0.383,
+        albedo_background=0.151,
+        light_ambient=0.724,
+        light_directional=0.129,
+        light_azimuth_deg=55.995,
+        light_elevation_deg=-6.705,
+        gradient_u=0.239,
+        gradient_v=0.02,
+        vignetting=0.267,
+        grain_contrast=0.082,
+        grain_period_mm=3.229,
+        shadow_strength=0.063,
+        shadow_z_mm=62.078,
+        blur_sigma_px=0.21,
+        read_noise_dn=2.281,
+    )
+    r = locate(render_door(cell, door, pose, effects=fx, seed=502006).image, cell, door)
+    assert r.ok, r.error
+    assert r.diagnostics["far_face_visible"]
+    assert abs(r.thickness_mm - door.thickness_mm) < 0.1
+    ex, ez, _, _ = _err(r, pose, door)
+    assert abs(ex) <= 3 * r.uncertainty.x_mm and abs(ez) <= 3 * r.uncertainty.z_mm

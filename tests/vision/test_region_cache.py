@@ -68,3 +68,30 @@ def test_cached_bands_cannot_be_changed_by_a_caller(cell):
     band = SearchRegion.cached(cell, DoorSize(900, 50, 2100), 30.0, 6.0).arris_band(4, 45.0)
     with pytest.raises(ValueError):
         band.lo[0] = 0
+
+
+@pytest.mark.parametrize("yaw_deg", [-1.5, 0.0, 2.0])
+@pytest.mark.parametrize("arris", [0.0, 2.0])
+def test_thickness_behind_far_face_undoes_the_back_edge_projection(cell, yaw_deg, arris):
+    """A far face in view: its back edge (depth face_y + W), projected through the camera onto the plane the
+    edges are measured on, lies beyond the far arris; from that distance the door's thickness comes back."""
+    from doorloc.vision.metric import PlaneMap
+
+    door = DoorSize(900, 40, 2100, arris_mm=arris)
+    region = SearchRegion.build(cell, door, 30.0, 6.0)
+    yaw = np.radians(yaw_deg)
+    ex, ez = np.array([np.cos(yaw), np.sin(yaw)]), np.array([-np.sin(yaw), np.cos(yaw)])
+    centre = region.plane_map.centre
+    # the camera 6 mm beyond the far face's plane (door +X), the corner below it
+    corner = centre[[0, 2]] - (door.thickness_mm + 6.0) * ex - 200.0 * ez
+    back = corner + door.thickness_mm * ex + 150.0 * ez  # a point of the far face's back edge (X, Z)
+    uv = PlaneMap(cell.posed_camera, region.face_y + door.width_mm).to_image(back[None])
+    seen = region.plane_map.to_plane(uv)[0]
+    measured = float((seen - corner) @ ex)
+    assert measured > door.thickness_mm + 0.05  # the back edge looks farther out than the far arris
+    assert region.thickness_behind_far_face(corner, yaw, measured) == pytest.approx(
+        door.thickness_mm, abs=1e-6
+    )
+    # no far face in view (the camera inside its plane): no such reading
+    inside = centre[[0, 2]] - (door.thickness_mm - 6.0) * ex - 200.0 * ez
+    assert region.thickness_behind_far_face(inside, yaw, door.thickness_mm + 0.5) is None

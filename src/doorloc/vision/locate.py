@@ -80,6 +80,9 @@ __all__ = ["LocateConfig", "locate", "locate_steps", "run_steps", "StepQuery", "
 
 #: plateau samples of the arris strip's profile fit, px
 ARRIS_PLATEAU_PX = 4
+#: how far the coarse stage's thickness may lie from the recipe's before a far face's back edge is taken for
+#: the far arris, and how near that reading must then come, mm (2-px coarse steps: ~0.4 mm each)
+COARSE_THICKNESS_MM = 1.0
 #: largest angle between the two arrises' coarse lines (image) that their 2-px steps explain, deg; beyond it
 #: the far arris's line straddles its strip's two borders (:func:`_coarse_pose`)
 COARSE_ARRIS_SKEW_DEG = 0.5
@@ -678,6 +681,17 @@ def _coarse_pose(
                 "the fixture and that the camera has not moved",
             )
         )
+    # A far face in view as bright as the hinge face hides the far arris's step: the first clear step is
+    # then the far face's back edge, which measures the band's width more (bench_surfaces --seed 500,
+    # hard_006: 38.35 mm of a 35.13 mm door, refused as the wrong door). Where the back edge of a door of
+    # the recipe's thickness lies there, that is what was found; the fine stage fits the band beside the
+    # arris and measures the thickness again.
+    # (fixed limits, not the cell's tolerance: the model check relocates with the tolerances lifted and
+    # must see the same poses)
+    if abs(pose.thickness_mm - door.thickness_mm) > COARSE_THICKNESS_MM:
+        behind = region.thickness_behind_far_face(pose.corner, math.radians(pose.yaw_deg), pose.thickness_mm)
+        if behind is not None and abs(behind - door.thickness_mm) <= COARSE_THICKNESS_MM:
+            pose = replace(pose, thickness_mm=behind)
     # A door far outside the envelope, or of quite another thickness (a panel where the recipe says a
     # door), is clear already here. The coarse lines take the strongest step across each arris strip,
     # which may be its inner border (a strip about as dark as the background): each edge then lies up

@@ -319,6 +319,24 @@ class SearchRegion:
         c = self.plane_map.centre[[0, 2]]
         return float(n @ c) > float(n @ np.asarray(corner, float)) + thickness_mm - margin_mm
 
+    def thickness_behind_far_face(
+        self, corner: np.ndarray, yaw_rad: float, measured_mm: float
+    ) -> float | None:
+        """The door thickness whose far face's back edge lies ``measured_mm`` beyond the reference arris.
+
+        Seen from beyond the far face's plane, that face is a band beside the far arris whose back edge (at
+        the depth ``face_y + W``) projects onto the hinge-face plane at ``u_c + k (u_far - u_c)``, ``k`` the
+        ratio of the two depths from the camera. A step found there instead of at the far arris (a far face
+        as bright as the hinge face) measures that much more. None where no far face would be in view.
+        """
+        n = np.array([math.cos(yaw_rad), math.sin(yaw_rad)])
+        centre = self.plane_map.centre
+        u_c = float(n @ centre[[0, 2]])
+        u_ref = float(n @ np.asarray(corner, float))
+        k = (self.plane_map.depth_y - centre[1]) / (self.face_y + self.door.width_mm - centre[1])
+        u_far = u_c + (u_ref + measured_mm - u_c) / k
+        return u_far - u_ref if u_far < u_c and k > 0 else None
+
     def tracks(
         self,
         corner: np.ndarray,
