@@ -259,18 +259,20 @@ class SearchRegion:
         hi = min(int(math.floor(np.nanmax(s))), n - 1 - self.border_px)
         return np.arange(lo, hi + 1, step)
 
-    def arris_band(self, step: int = 2, height_mm: float = 60.0) -> Band:
+    def arris_band(self, step: int = 2, height_mm: float = 60.0, start_mm: float = 0.0) -> Band:
         """Where the reference arris can be, on scan lines safely above any possible bottom end.
 
-        Only ``height_mm`` of the arris above the highest possible bottom end is searched: enough
-        for a coarse line, and the band stays narrow (yaw widens it with height).
+        Only ``height_mm`` of the arris above the highest possible bottom end (and ``start_mm`` above that)
+        is searched: enough for a coarse line, and the band stays narrow (yaw widens it with height).
         """
-        return self._memoised(("arris_band", step, height_mm), lambda: self._arris_band(step, height_mm))
+        return self._memoised(
+            ("arris_band", step, height_mm, start_mm), lambda: self._arris_band(step, height_mm, start_mm)
+        )
 
-    def _arris_band(self, step: int, height_mm: float) -> Band:
+    def _arris_band(self, step: int, height_mm: float, start_mm: float = 0.0) -> Band:
         lay = self.layouts["reference"]
         t = math.tan(self.yaw_range_rad)
-        z_lo = self.z_range_mm + (self.door.thickness_mm + self.x_range_mm) * t + 3.0
+        z_lo = self.z_range_mm + (self.door.thickness_mm + self.x_range_mm) * t + 3.0 + start_mm
         z_hi = max(min(self.z_top_mm, z_lo + height_mm), z_lo + 1.0)
         zs = np.linspace(z_lo, z_hi, 24)
         half = self.x_range_mm + (np.abs(zs) + self.z_range_mm) * t
