@@ -551,21 +551,22 @@ def _coarse_edges(
     # The reference arris is the first step into the door coming from -X (a visible far face can make
     # a stronger step of the same polarity further on).
     xdir = ref_lay.polarity * (1 if cfg.door_brighter else -1)  # along-direction of door +X
-    outer = (band_ref.lo if xdir > 0 else band_ref.hi).astype(float)
     sc = region.nominal_scale
     strip_half = _strip_half(door, sc) if door.arris_mm > 0 else None
-    ref_line = yield from _coarse_line(plane, band_ref, ref_lay, thr, 10, 0.4, strip_half, prefer=outer)
+    # A shadow across the door low down (a clamp, the fixture) can take the arris's step below the
+    # threshold over the whole first band: look higher up before saying there is no door (bench_surfaces
+    # --seed 500, hard_014: a shadow band over 30-70 mm, refused as no door). (Both bands are memoised
+    # with the region, built once per cell and door.)
+    first = band_ref
+    ref_line = None
+    for band_ref in (first, region.arris_band(step=4, height_mm=90.0, start_mm=45.0)):
+        outer = (band_ref.lo if xdir > 0 else band_ref.hi).astype(float)
+        ref_line = yield from _coarse_line(plane, band_ref, ref_lay, thr, 10, 0.4, strip_half, prefer=outer)
+        if ref_line is not None:
+            break
     if ref_line is None:
-        # A shadow across the door low down (a clamp, the fixture) can take the arris's step below the
-        # threshold over the whole band: look higher up before saying there is no door (bench_surfaces
-        # --seed 500, hard_014: a shadow band over 30-70 mm, refused as no door).
-        higher = region.arris_band(step=4, height_mm=90.0, start_mm=45.0)
-        outer_h = (higher.lo if xdir > 0 else higher.hi).astype(float)
-        ref_line = yield from _coarse_line(plane, higher, ref_lay, thr, 10, 0.4, strip_half, prefer=outer_h)
-        if ref_line is None:
-            raise _Refused(_no_door_reason(plane, band_ref, ref_lay.axis, cfg, s8))
-        band_ref = higher
-        tr.bands["reference"] = band_ref
+        raise _Refused(_no_door_reason(plane, first, ref_lay.axis, cfg, s8))
+    tr.bands["reference"] = band_ref
     tol = 3.0
 
     ref_at = ref_line.at(band_ref.scan)

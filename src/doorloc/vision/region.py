@@ -317,9 +317,19 @@ class SearchRegion:
         """True when the camera centre lies beyond the far face's plane (that face is then in view), or
         within ``margin_mm`` of it: the thickness being measured decides, so the answer must not flip
         between passes for a face seen nearly edge-on."""
+        u_c, u_ref = self._along_door_x(corner, yaw_rad)
+        return u_c > u_ref + thickness_mm - margin_mm
+
+    def _along_door_x(self, corner: np.ndarray, yaw_rad: float) -> tuple[float, float]:
+        """The camera centre's and the reference corner's coordinates along door +X (cell X-Z plane), mm."""
         n = np.array([math.cos(yaw_rad), math.sin(yaw_rad)])
-        c = self.plane_map.centre[[0, 2]]
-        return float(n @ c) > float(n @ np.asarray(corner, float)) + thickness_mm - margin_mm
+        return float(n @ self.plane_map.centre[[0, 2]]), float(n @ np.asarray(corner, float))
+
+    def _back_edge_ratio(self, near_depth_y: float) -> float:
+        """How much less than on the plane at ``near_depth_y`` a shift along X moves the far face's back edge
+        (depth ``face_y + W``) seen through the camera: the ratio of the two depths from it."""
+        c_y = self.plane_map.centre[1]
+        return (near_depth_y - c_y) / (self.face_y + self.door.width_mm - c_y)
 
     def thickness_behind_far_face(
         self, corner: np.ndarray, yaw_rad: float, measured_mm: float
@@ -331,11 +341,8 @@ class SearchRegion:
         ratio of the two depths from the camera. A step found there instead of at the far arris (a far face
         as bright as the hinge face) measures that much more. None where no far face would be in view.
         """
-        n = np.array([math.cos(yaw_rad), math.sin(yaw_rad)])
-        centre = self.plane_map.centre
-        u_c = float(n @ centre[[0, 2]])
-        u_ref = float(n @ np.asarray(corner, float))
-        k = (self.plane_map.depth_y - centre[1]) / (self.face_y + self.door.width_mm - centre[1])
+        u_c, u_ref = self._along_door_x(corner, yaw_rad)
+        k = self._back_edge_ratio(self.plane_map.depth_y)
         u_far = u_c + (u_ref + measured_mm - u_c) / k
         return u_far - u_ref if u_far < u_c and k > 0 else None
 
@@ -417,9 +424,7 @@ class SearchRegion:
                 band = width[ok]
                 # The band's outer edge (the far face's back edge) is W farther away: it moves k times
                 # as far as the arris when the thickness changes.
-                c_y = self.plane_map.centre[1]
-                k = (self.face_y - c_y) / (self.face_y + self.door.width_mm - c_y)
-                slope = -(1.0 - k)
+                slope = -(1.0 - self._back_edge_ratio(self.face_y))
             a = self.door.arris_mm
             shift = None
             if a > 0 and not beside and arris is not None and name in arris:
