@@ -7,6 +7,9 @@ Sets (each image: random pose inside the envelope, lighting, albedos, blur; see 
 - ``wrong-gamma``: cameras of gamma 1.0-2.4 and a cell file that says another value drawn from 1.0-2.4
   (at least 0.3 away): the error and the claimed uncertainty (the camera response is absorbed or flagged);
 - ``wrong-gamma-2.2``: gamma 2.2 cameras and a cell file that says 1.0;
+- ``square-gamma``, ``square-wrong-gamma`` (not in the default sets): as ``gamma`` and ``wrong-gamma``
+  (other seeds) with the door square to the camera (``|yaw| < 0.04 deg``: each edge at one pixel phase,
+  where the response is read between the pixels or, below 1 px of blur, not at all);
 - ``fixtures``: the committed rendered fixtures with a 1.5 mm chamfer and a gamma-2.2 camera
   (fixtures/rendered/effects), with the cell's ``response_gamma`` set to 2.2 and left at 1.0;
 - ``timing`` (not in the default sets): thread-CPU time per frame of locate on those fixtures, and the part
@@ -39,6 +42,8 @@ from doorloc.sim.effects import Effects
 from doorloc.vision.locate import locate
 
 ROOT = Path(__file__).parents[1]
+#: the square sets' largest yaw: the edges' phase then changes by under a quarter pixel along them
+SQUARE_YAW_DEG = 0.04
 
 
 def random_effects(rng: np.random.Generator, profile: str, gamma: float) -> Effects:
@@ -130,7 +135,9 @@ def run_arris(n: int, seed0: int = 1000, factor: float | None = None) -> None:
         _summary(f"arris {profile} 0-3 mm", rows, n)
 
 
-def run_gamma(n: int, wrong: bool = False, seed0: int = 3000, fixed: bool = True) -> None:
+def run_gamma(
+    n: int, wrong: bool = False, seed0: int = 3000, fixed: bool = True, max_yaw_deg: float = 1.5
+) -> None:
     base = load_cell(ROOT / "fixtures" / "cell_thesis.yaml")
     rows = []
     for i in range(n):
@@ -145,7 +152,7 @@ def run_gamma(n: int, wrong: bool = False, seed0: int = 3000, fixed: bool = True
         profile = str(rng.choice(["chamfer", "round"]))
         a = float(rng.choice([0.0, rng.uniform(0.5, 3.0)]))
         door = DoorSize(900, 50, 2100, arris_mm=a, arris_profile=profile)
-        pose = DoorPose(rng.uniform(-8, 8), rng.uniform(-8, 8), rng.uniform(-1.5, 1.5))
+        pose = DoorPose(rng.uniform(-8, 8), rng.uniform(-8, 8), rng.uniform(-max_yaw_deg, max_yaw_deg))
         fx = random_effects(rng, profile, g)
         img = render_door(base, door, pose, effects=fx, seed=seed).image
         cell = dataclasses.replace(base, response_gamma=claimed)
@@ -162,16 +169,17 @@ def run_gamma(n: int, wrong: bool = False, seed0: int = 3000, fixed: bool = True
                 fitted,
             )
         )
-    _summary(
+    name = (
         (
             "wrong response_gamma (camera 2.2, cell 1.0)"
             if fixed
             else "wrong response_gamma (camera and cell 1.0-2.4)"
         )
         if wrong
-        else "gamma 1.0-2.4 with the cell's response_gamma",
-        rows,
-        n,
+        else "gamma 1.0-2.4 with the cell's response_gamma"
+    )
+    _summary(
+        name + (f", square to the camera (|yaw| < {max_yaw_deg:g} deg)" if max_yaw_deg < 1.5 else ""), rows, n
     )
 
 
@@ -262,7 +270,16 @@ def main() -> None:
     )
     args = ap.parse_args()
     sets = args.sets.split(",")
-    known = ("arris", "gamma", "wrong-gamma", "wrong-gamma-2.2", "fixtures", "timing")
+    known = (
+        "arris",
+        "gamma",
+        "wrong-gamma",
+        "wrong-gamma-2.2",
+        "fixtures",
+        "timing",
+        "square-gamma",
+        "square-wrong-gamma",
+    )
     if unknown := [s for s in sets if s not in known]:
         ap.error(f"unknown set(s) {', '.join(unknown)}; the sets are {', '.join(known)}")
     if "arris" in sets:
@@ -274,6 +291,10 @@ def main() -> None:
         run_gamma(args.n, wrong=True, fixed=False, seed0=g0)
     if "wrong-gamma-2.2" in sets:
         run_gamma(args.n, wrong=True, seed0=g0)
+    if "square-gamma" in sets:
+        run_gamma(args.n, seed0=g0 + 5000, max_yaw_deg=SQUARE_YAW_DEG)
+    if "square-wrong-gamma" in sets:
+        run_gamma(args.n, wrong=True, fixed=False, seed0=g0 + 5000, max_yaw_deg=SQUARE_YAW_DEG)
     if "fixtures" in sets:
         run_fixtures()
     if "timing" in sets:

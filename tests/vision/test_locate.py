@@ -335,6 +335,39 @@ def test_the_answer_says_whether_the_camera_response_was_checked_and_why_not(cel
     assert "arris" in locate(img, cell, arrised).diagnostics["camera_response"]["unchecked_because"]
 
 
+def test_a_door_square_to_the_camera_checks_a_wrong_cell_exponent_between_the_pixels(cell):
+    """Square to the camera (yaw 0.03 deg: every edge point at one pixel phase), a gamma-2.17 camera in a cell
+    that says 1.0 (arris bench --seed 9000, seed 12517): answered 0.079 mm off at 6.8 sigma while the
+    response went unchecked. Blurred by 1.4 px, the transition is read between the pixels: the image's
+    exponent is the camera's within 2 of its sigma, its doubt flags the cell's exponent and the answer
+    lies within 2 sigma; told the camera's exponent, the same image keeps it."""
+    door = DoorSize(900, 50, 2100)
+    pose = DoorPose(6.79, 2.73, 0.0316)
+    fx = Effects(
+        albedo_hinge=0.62,
+        albedo_background=0.106,
+        light_ambient=0.72,
+        light_directional=0.40,
+        light_azimuth_deg=-33.0,
+        light_elevation_deg=41.6,
+        blur_sigma_px=1.44,
+        read_noise_dn=0.6,
+        gamma=2.17,
+    )
+    img = render_door(cell, door, pose, effects=fx, seed=12517).image
+    r = locate(img, replace(cell, response_gamma=1.0), door)
+    cr = r.diagnostics["camera_response"]
+    assert r.ok and cr["checked"] and all(v.get("one_phase") for v in cr["lines"].values()), cr
+    assert abs(cr["fitted"] - 2.17) < 2.0 * cr["sigma"] < 1.17
+    assert (
+        abs(r.x_mm - pose.x_mm) < 2.0 * r.uncertainty.x_mm
+        and abs(r.z_mm - pose.z_mm) < 2.0 * r.uncertainty.z_mm
+    )
+    right = locate(img, replace(cell, response_gamma=2.17), door)
+    assert right.ok and not right.diagnostics["camera_response"]["absorbed"]
+    assert abs(right.x_mm - pose.x_mm) < 0.01 and abs(right.z_mm - pose.z_mm) < 0.01
+
+
 def test_a_refusal_names_door_brighter_only_when_the_brightness_is_reversed(cell):
     """The hint is read where the door must lie whatever its placement: a missing bright door (a black
     image, an empty fixture) or a door too thin to have a point surely on its face gets none."""

@@ -17,14 +17,21 @@ N_COLS, N_ROWS, TILT = 400, 100, 0.031  # a near-horizontal edge: profiles run a
 
 
 def _step_image(
-    camera_gamma: float, blur: float, lo: float, hi: float, noise: float, seed: int
+    camera_gamma: float,
+    blur: float,
+    lo: float,
+    hi: float,
+    noise: float,
+    seed: int,
+    tilt: float = TILT,
+    row: float = 50.3,
 ) -> np.ndarray:
     """8-bit image of a blurred step (light ``lo`` above the edge, ``hi`` below), integrated over each pixel
     on an 8x finer grid, recorded as ``light ** (1 / camera_gamma)``."""
     f = 8
     sub = (np.arange(N_ROWS * f) + 0.5) / f - 0.5  # sub-pixel row centres
     u = np.arange(N_COLS)
-    edge = 50.3 + TILT * u  # row of the edge in each column
+    edge = row + tilt * u  # row of the edge in each column
     light = lo + (hi - lo) * ndtr((sub[:, None] - edge[None, :]) / blur)
     light = light.reshape(N_ROWS, f, N_COLS).mean(axis=1)
     raw = 255.0 * light ** (1.0 / camera_gamma)
@@ -32,9 +39,9 @@ def _step_image(
     return np.clip(np.round(raw), 0, 255).astype(np.uint8)
 
 
-def _samples(img: np.ndarray, used_gamma: float, half: int):
+def _samples(img: np.ndarray, used_gamma: float, half: int, tilt: float = TILT, row: float = 50.3):
     u = np.arange(20, N_COLS - 20)
-    return subpixel_edges(img, "col", u, 50.3 + TILT * u, half, lut=linearizing_lut(img.dtype, used_gamma))
+    return subpixel_edges(img, "col", u, row + tilt * u, half, lut=linearizing_lut(img.dtype, used_gamma))
 
 
 @pytest.mark.parametrize(
@@ -50,6 +57,29 @@ def test_the_response_is_measured_from_the_step_shape(camera_gamma, used_gamma, 
     assert abs(lr.gamma - camera_gamma) <= 3 * lr.sigma + 0.02, lr
     assert lr.sigma < 0.25
     assert lr.lo == pytest.approx(round(255 * 0.12 ** (1 / camera_gamma)) / 255, abs=0.02)
+
+
+@pytest.mark.parametrize("row", [50.0, 50.15, 50.3, 50.5, 50.8])
+@pytest.mark.parametrize(
+    ("camera_gamma", "used_gamma", "blur"), [(2.2, 1.0, 1.4), (1.0, 1.0, 1.1), (1.0, 2.2, 1.8)]
+)
+def test_an_edge_at_one_pixel_phase_is_read_between_its_pixels(row, camera_gamma, used_gamma, blur):
+    """An edge along a pixel row (a door square to the camera): every profile at one phase, each phase of
+    the pixel tried. The exponent is read by interpolation, flagged as such, within 2.5 of its sigma of the
+    camera's, and that sigma (with its floor for the spline's error) tells a linear camera from a 2.2 one
+    by more than 2 of it (one edge alone never replaces the cell's exponent: two together, 4 joint sigmas)."""
+    half = int(math.ceil(2 * blur + 1))
+    img = _step_image(camera_gamma, blur, 0.12, 0.8, 0.7, seed=5, tilt=0.0, row=row)
+    s = _samples(img, used_gamma, half, tilt=0.0, row=row)
+    lr = fit_line_response(img, s, s.valid, half, used_gamma, blur)
+    assert lr is not None and lr.one_phase
+    assert abs(lr.gamma - camera_gamma) <= 2.5 * lr.sigma, lr
+    other = 1.0 if camera_gamma > 1.5 else 2.2
+    assert abs(lr.gamma - other) > 2.0 * lr.sigma, lr
+    # a transition sharper than the spline can follow is not read at all
+    sharp = _step_image(camera_gamma, 0.6, 0.12, 0.8, 0.7, seed=5, tilt=0.0, row=row)
+    s = _samples(sharp, used_gamma, 3, tilt=0.0, row=row)
+    assert fit_line_response(sharp, s, s.valid, 3, used_gamma, 0.6) is None
 
 
 def test_edge_shift_follows_the_step_model():

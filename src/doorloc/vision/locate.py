@@ -57,9 +57,11 @@ from doorloc.vision.luminance import ImageFormatError, LuminancePlane, luminance
 from doorloc.vision.metric import MetricPose, pose_from_fit
 from doorloc.vision.region import EDGE_NAMES, Band, EdgeLayout, SearchRegion
 from doorloc.vision.response import (
+    RESPONSE_ONE_PHASE_MIN_BLUR_PX,
     RESPONSE_PLAUSIBLE,
     LineResponse,
     ResponseFit,
+    at_one_phase,
     combine_responses,
     edge_shift_px,
     fit_line_response,
@@ -934,6 +936,7 @@ def _locate(
             sigma=round(response.sigma, 4),
             lines={
                 k: {"gamma": round(v.gamma, 4), "sigma": round(v.sigma, 4), "skew_px": round(v.skew_px, 4)}
+                | ({"one_phase": True} if v.one_phase else {})
                 for k, v in per_line.items()
             },
         )
@@ -1098,19 +1101,21 @@ def _response_check_applies(samples: EdgeSamples, inliers: np.ndarray, blur_px: 
     """Whether the mean transition's asymmetry can be read on this line.
 
     The check averages the profiles on a 0.25 px grid aligned on the sub-pixel edge: that mean shows the
-    response's asymmetry only when the line's edge points fall at many pixel phases (an edge along a pixel
-    row or column puts all of them at one phase, and the pixel grid's own asymmetry reads as a skew) and
-    the edge is blurred over more than a pixel's width (a sharp step has no transition shape to read).
+    response's asymmetry where the line's edge points fall at many pixel phases and the edge is blurred
+    over more than a pixel's width (a sharp step has no transition shape to read). An edge along a pixel
+    row or column puts all of them at one phase; its transition is read between the pixels by
+    interpolation, which needs a blur of ``RESPONSE_ONE_PHASE_MIN_BLUR_PX`` (unchecked, doors square to
+    the camera in a cell whose exponent was not the camera's were answered 5-7 sigma off).
     """
     if not blur_px >= STEP_FIT_MIN_BLUR_PX:  # (the phases need not be counted then)
         return False
-    return _at_many_phases(samples, inliers)
+    return _at_many_phases(samples, inliers) or blur_px >= RESPONSE_ONE_PHASE_MIN_BLUR_PX
 
 
 def _at_many_phases(samples: EdgeSamples, inliers: np.ndarray) -> bool:
     """Whether the line's edge points fall in every quarter of a pixel (not along a pixel row or column)."""
     along = samples.along[inliers & samples.valid]
-    return (np.unique(np.floor((along % 1.0) * 4.0)).size if along.size else 0) >= 4
+    return bool(along.size) and not at_one_phase(along)
 
 
 def _blur_without_pixel(transition_px: float) -> float:
@@ -1150,7 +1155,8 @@ def _response_unchecked_because(
     if not any(_at_many_phases(samples[k], fit.weights[k] > 0) for k in plain):
         return (
             "the plain edges lie along pixel rows or columns (a door square to the camera): one pixel phase, "
-            "where the transition's asymmetry cannot be read"
+            f"where only a transition blurred by {RESPONSE_ONE_PHASE_MIN_BLUR_PX:g} px or more can be read "
+            "between the pixels"
         )
     return "the plain edges' transitions were too noisy or too few to read"
 
