@@ -1077,9 +1077,10 @@ def _faint_edge(plane, band: Band, layout: EdgeLayout, thr: float) -> tuple[floa
     edge does not; a door within the envelope's 2 deg drifts 0.6 px over them) make a line of steps of
     at least half the threshold ``thr`` through 60 % of the scan lines.
 
-    Only for the refusal's reason: a door 4-5 grey levels above its background, whose strongest step on
-    single scan lines was noise on 90 % of them, was refused as no door (bench_surfaces --n 40
-    --seed 500, hard_023 and thin_003: averaged, 54 and 38 of 56 lines on one line). Returns the
+    Only for the refusal's reason: doors 5.3 and 3.6 grey levels above their background under ~3 grey
+    levels of noise, whose strongest single-line steps (noise peaks of 7-10) put only 17 and 11 of 56
+    lines on one line, were refused as no door (bench_surfaces --n 40 --seed 500, hard_023 and
+    thin_003; averaged, 54 and 38 of 56). Returns the
     averaged steps' median on the line (plane units), the line's count of lines and the band's; None
     where no such line is.
     """
