@@ -292,10 +292,26 @@ def _coarse_line(
                 stride=2,
             ),
         )
-        strong = np.isfinite(along) & (strength >= thr)
-        line = ransac_line(band.scan[strong], along[strong], 3.0) if strong.sum() >= min_points else None
-        if line is not None and line.inliers.sum() >= min_fraction * max(len(band.scan), 1):
+        line = _line_through_steps(band.scan, along, strength, thr, min_points, min_fraction)
+        if line is not None:
             return line
+    return None
+
+
+def _line_through_steps(
+    scan: np.ndarray,
+    along: np.ndarray,
+    strength: np.ndarray,
+    thr: float,
+    min_points: int,
+    min_fraction: float,
+) -> ImageLine | None:
+    """The RANSAC line (3 px tolerance) through the scan lines' steps of at least ``thr``, or None without
+    ``min_points`` such steps or ``min_fraction`` of the scan lines on it."""
+    strong = np.isfinite(along) & (strength >= thr)
+    line = ransac_line(scan[strong], along[strong], 3.0) if strong.sum() >= min_points else None
+    if line is not None and line.inliers.sum() >= min_fraction * max(len(scan), 1):
+        return line
     return None
 
 
@@ -1080,9 +1096,8 @@ def _faint_edge(plane, band: Band, layout: EdgeLayout, thr: float) -> tuple[floa
     Only for the refusal's reason: doors 5.3 and 3.6 grey levels above their background under ~3 grey
     levels of noise, whose strongest single-line steps (noise peaks of 7-10) put only 17 and 11 of 56
     lines on one line, were refused as no door (bench_surfaces --n 40 --seed 500, hard_023 and
-    thin_003; averaged, 54 and 38 of 56). Returns the
-    averaged steps' median on the line (plane units), the line's count of lines and the band's; None
-    where no such line is.
+    thin_003; averaged, 54 and 38 of 56). Returns the averaged steps' median on the line (plane
+    units), the line's count of lines and the band's; None where no such line is.
     """
     P = plane if layout.axis == "col" else plane.T
     k = FAINT_EDGE_AVERAGE_PX
@@ -1092,14 +1107,11 @@ def _faint_edge(plane, band: Band, layout: EdgeLayout, thr: float) -> tuple[floa
     along, strength = coarse_edges(
         sub, "col", band.scan - c0, band.lo - r0, band.hi - r0, layout.polarity, half=2, stride=2
     )
-    strong = np.isfinite(along) & (strength >= 0.5 * thr)
-    n = len(band.scan)
-    if int(strong.sum()) < 10:
+    line = _line_through_steps(band.scan, along, strength, 0.5 * thr, 10, 0.6)
+    if line is None:
         return None
-    line = ransac_line(band.scan[strong], along[strong], 3.0)
-    if line is None or line.inliers.sum() < 0.6 * n:
-        return None
-    return float(np.median(strength[strong][line.inliers])), int(line.inliers.sum()), n
+    on = strength[np.isfinite(along) & (strength >= 0.5 * thr)][line.inliers]
+    return float(np.median(on)), int(line.inliers.sum()), len(band.scan)
 
 
 def _rows_across(plane, s8: float, ref: EdgeSamples, far: EdgeSamples) -> np.ndarray | None:
