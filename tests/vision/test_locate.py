@@ -368,6 +368,35 @@ def test_a_door_square_to_the_camera_checks_a_wrong_cell_exponent_between_the_pi
     assert abs(right.x_mm - pose.x_mm) < 0.01 and abs(right.z_mm - pose.z_mm) < 0.01
 
 
+def test_an_undithered_8_bit_image_does_not_replace_a_right_cell_exponent(cell):
+    """A 1.34 camera, 8 bits under 0.05 grey levels of noise (the rounding is not dithered), the cell right
+    (square bench seed 8000's scene at yaw -1 deg): both plain edges read 2.21, and 1.37 / 1.46 about as
+    symmetric. The 2.21 replaced the cell's exponent and the door was placed 0.107 mm off at 8 sigma; the
+    image cannot tell the two apart, so nothing is absorbed and the answer's doubt covers the reading."""
+    door = DoorSize(900, 50, 2100)
+    pose = DoorPose(4.34, 5.41, -1.0)
+    fx = Effects(
+        albedo_hinge=0.838,
+        albedo_background=0.1395,
+        light_ambient=0.591,
+        light_directional=0.543,
+        light_azimuth_deg=22.2,
+        light_elevation_deg=-16.3,
+        blur_sigma_px=1.69,
+        read_noise_dn=0.05,
+        gamma=1.343,
+    )
+    img = render_door(cell, door, pose, effects=fx, seed=8000).image
+    r = locate(img, replace(cell, response_gamma=1.343), door)
+    cr = r.diagnostics["camera_response"]
+    assert not cr["absorbed"] and cr["alternatives"], cr
+    if r.ok:
+        assert abs(r.x_mm - pose.x_mm) < 2.0 * r.uncertainty.x_mm
+        assert abs(r.z_mm - pose.z_mm) < 2.0 * r.uncertainty.z_mm
+    else:
+        assert r.error_code == "uncertain"
+
+
 def test_a_refusal_names_door_brighter_only_when_the_brightness_is_reversed(cell):
     """The hint is read where the door must lie whatever its placement: a missing bright door (a black
     image, an empty fixture) or a door too thin to have a point surely on its face gets none."""

@@ -117,6 +117,57 @@ def test_lines_that_disagree_do_not_make_a_confident_response():
     assert agree is not None and agree.sigma == pytest.approx(0.05 / math.sqrt(2)) and agree.absorb
 
 
+def test_an_ambiguous_reading_is_not_absorbed_and_a_measured_claim_picks_between_its_readings():
+    from doorloc.vision.response import LineResponse
+
+    # both edges read 2.25, and 1.38 about as symmetric (an undithered 8-bit 1.34 camera)
+    a = LineResponse(2.25, 0.05, 0.2, 0.9, 0.0, alternatives=(1.38,))
+    b = LineResponse(2.24, 0.05, 0.2, 0.9, 0.0, alternatives=(1.36,))
+    fit = combine_responses({"bottom": a, "reference": b}, 1.34)
+    assert fit is not None and fit.alternatives == (1.36, 1.38) and not fit.absorb
+    assert fit.gamma == pytest.approx(2.245)
+    # without the second readings the same edges would replace the cell's exponent
+    plain = {
+        "bottom": LineResponse(2.25, 0.05, 0.2, 0.9, 0.0),
+        "reference": LineResponse(2.24, 0.05, 0.2, 0.9, 0.0),
+    }
+    assert combine_responses(plain, 1.34).absorb  # type: ignore[union-attr]
+    # one edge that reads one exponent only decides
+    assert combine_responses({"bottom": a, "reference": plain["reference"]}, 1.34).alternatives == ()  # type: ignore[union-attr]
+    # a measured cell exponent tells the readings apart: the nearest is the image's
+    held = combine_responses({"bottom": a, "reference": b}, 1.34, claimed_sigma=0.05)
+    assert held is not None and held.gamma == pytest.approx(1.36) and 2.245 in held.alternatives
+
+
+def test_a_second_symmetric_exponent_is_reported():
+    """The asymmetry is not monotone in the exponent: a linear camera's transition between plateaus 20 and
+    230 grey levels, rounded to 8 bits under 0.1 grey level of noise (not dithered), is about as symmetric
+    at ~1.7-1.9; under a grey level of noise the least asymmetry is the noise's, and one reading stands."""
+    from doorloc.vision.response import _dithered, _exponent_with_scatter, _Transitions
+
+    rng = np.random.default_rng(1)
+    n, w, s = 224, 21, 1.2
+    lo, hi = 20.3 / 255, 230.6 / 255
+    centre = 10 + np.linspace(-0.5, 0.5, n, endpoint=False)
+    x = np.arange(w)
+
+    def g(y):
+        return y * ndtr(y / s) + s * np.exp(-0.5 * (y / s) ** 2) / math.sqrt(2 * math.pi)
+
+    light = lo + (hi - lo) * (g(x[None, :] + 0.5 - centre[:, None]) - g(x[None, :] - 0.5 - centre[:, None]))
+    raw = np.round((light + rng.normal(0, 0.1 / 255, light.shape)) * 255) / 255
+    assert not _dithered(raw, 255.0)
+    found = _exponent_with_scatter(_Transitions(raw, -centre, dithered=False), np.repeat(np.arange(8), 28), 8)
+    assert found is not None
+    gamma, _, alternatives = found
+    assert abs(gamma - 1.0) < 0.1
+    assert alternatives and all(1.5 < a < 2.2 for a in alternatives)
+    raw = np.round((light + rng.normal(0, 1.0 / 255, light.shape)) * 255) / 255
+    assert _dithered(raw, 255.0)
+    found = _exponent_with_scatter(_Transitions(raw, -centre), np.repeat(np.arange(8), 28), 8)
+    assert found is not None and abs(found[0] - 1.0) < 0.1 and found[2] == ()
+
+
 def test_a_measured_claim_holds_back_a_marginal_image_but_not_a_better_or_disagreeing_one():
     from doorloc.vision.response import ResponseFit
 

@@ -954,9 +954,12 @@ def _locate(
             lines={
                 k: {"gamma": round(v.gamma, 4), "sigma": round(v.sigma, 4), "skew_px": round(v.skew_px, 4)}
                 | ({"one_phase": True} if v.one_phase else {})
+                | ({"alternatives": [round(a, 4) for a in v.alternatives]} if v.alternatives else {})
                 for k, v in per_line.items()
             },
         )
+        if response.alternatives:
+            response_diag["alternatives"] = list(response.alternatives)
     tr.samples = samples
     tr.inliers = {k: fit.weights[k] > 0 for k in EDGE_NAMES}
     tr.pose = pose
@@ -1318,8 +1321,13 @@ def _response_terms(
                 continue
         else:
             # the shift the measured mismatch makes beyond twice its own doubt (within that, the edges
-            # agree with the exponent in use)
+            # agree with the exponent in use); where the edges read other exponents about as well, the
+            # largest of their shifts (the image cannot tell which the camera has)
             doubt = max(abs(bias) - 2.0 * spread, 0.0)
+            for ga in response.alternatives:
+                shift = edge_shift_px(lo, hi, float(np.clip(ga, *RESPONSE_PLAUSIBLE)), used_gamma, b, half)
+                if math.isfinite(shift):
+                    doubt = max(doubt, abs(shift) - 2.0 * spread)
         model.extra_px.setdefault(k, {})["response"] = doubt
 
 

@@ -29,7 +29,9 @@ differs from the cell's beyond ``RESPONSE_ABSORB_SIGMAS`` standard errors on two
 combination of the image's and, where the cell's exponent was measured, its ``camera.response_gamma_sigma``), locate
 measures again with the fitted one (the error is absorbed) and the doubt left is the shift that the
 exponent's standard error makes; otherwise the doubt is the shift between the cell's exponent and the
-fitted one beyond twice that (a right cell keeps its small sigma).
+fitted one beyond twice that (a right cell keeps its small sigma). Where every plain edge admits a second
+exponent about as well (the asymmetry is not monotone in the exponent: :func:`_least_asymmetric`), the
+image cannot tell the camera's: nothing is absorbed and the doubt is the largest shift of the readings.
 """
 
 from __future__ import annotations
@@ -88,6 +90,9 @@ RESPONSE_ONE_PHASE_SIGMA = 0.2
 #: the exponents a camera's response has (a linear sensor 1.0, video and sRGB about 2.2-2.4): only a fit
 #: inside is absorbed
 RESPONSE_PLAUSIBLE = (0.8, 3.0)
+#: another exponent whose transition is within this factor as symmetric as the best one's is a second
+#: reading of the same edge (:func:`_least_asymmetric`)
+RESPONSE_AMBIGUOUS_RATIO = 2.0
 
 
 @dataclass(frozen=True)
@@ -105,6 +110,9 @@ class LineResponse:
         The skew with the exponent the estimate used (diagnostics).
     one_phase : bool
         Read at one pixel phase, between the pixels by interpolation (:func:`_resampled_asymmetry`).
+    alternatives : tuple of float
+        Other exponents that make the transition about as symmetric (:func:`_least_asymmetric`): the edge
+        does not tell which one the camera has.
     """
 
     gamma: float
@@ -113,6 +121,7 @@ class LineResponse:
     hi: float
     skew_px: float
     one_phase: bool = False
+    alternatives: tuple[float, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -130,6 +139,10 @@ class ResponseFit:
     as good as the image holds back an image whose edges differ by a few of their own sigmas (a real
     photograph's own sigma understates its scatter several times, :func:`board_response`), up to
     sqrt(2) times the unmeasured threshold, and a loose one does not hold back a better image.
+
+    ``alternatives``: other exponents that every edge's transition admits about as well
+    (:attr:`LineResponse.alternatives`): the image cannot tell which the camera has, and nothing is
+    absorbed.
     """
 
     gamma: float
@@ -137,6 +150,7 @@ class ResponseFit:
     claimed: float
     lines: tuple[str, ...]
     claimed_sigma: float = 0.0
+    alternatives: tuple[float, ...] = ()
 
     @property
     def disagreement(self) -> float:
@@ -160,7 +174,11 @@ class ResponseFit:
         # two edges at least: one edge's texture can mimic a response, two rarely agree by chance
         # and a camera's response: below ~0.8 (darks lifted) no camera is made; such a fit is texture or
         # shading that the response cannot explain
-        if len(self.lines) < 2 or not RESPONSE_PLAUSIBLE[0] <= self.gamma <= RESPONSE_PLAUSIBLE[1]:
+        if (
+            len(self.lines) < 2
+            or self.alternatives
+            or not RESPONSE_PLAUSIBLE[0] <= self.gamma <= RESPONSE_PLAUSIBLE[1]
+        ):
             return False
         # (for a claim that was not measured the combination is the image's own reading, and the two
         # tests below are one: the reading beyond RESPONSE_ABSORB_SIGMAS of its sigmas)
@@ -175,12 +193,24 @@ class _Transitions:
     """Raw profiles across one edge (full scale 1) and the edge's place in them, for the skew in ``g``.
 
     ``one_phase``: the edge points fall at one pixel phase (an edge along a pixel row or column), and
-    :func:`_asymmetry` reads the transition between the pixels by interpolation.
+    :func:`_asymmetry` reads the transition between the pixels by interpolation. ``dithered``: the
+    plateaus' noise (half a grey level or more) dithers the rounding to grey levels, which then averages
+    out over the profiles (:func:`_least_asymmetric`).
     """
 
     raw: np.ndarray  # (N, 2 half + 1)
     offset: np.ndarray  # (N,) the window's first pixel centre minus the sub-pixel edge, px
     one_phase: bool = False
+    dithered: bool = True
+
+
+def _dithered(raw: np.ndarray, top: float) -> bool:
+    """Whether raw profiles (full scale 1, ``top`` grey levels) have half a grey level of noise or more on
+    their plateaus (the median over the profiles of the end pixels' scatter about their mean)."""
+    pk = RESPONSE_PLATEAU_PX
+    ends = [raw[:, :pk], raw[:, -pk:]]
+    var = sum(((e - e.mean(axis=1, keepdims=True)) ** 2).sum(axis=1) for e in ends) / (2 * pk - 2)
+    return bool(np.median(np.sqrt(var)) * top >= 0.5)
 
 
 def at_one_phase(offset_px: np.ndarray) -> bool:
@@ -202,9 +232,8 @@ def _transitions(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half
         return None
     top = 255.0 if plane.dtype == np.uint8 else 65535.0
     order = np.argsort(samples.scan[m][ok])  # contiguous blocks along the line
-    return _Transitions(
-        vals[ok][order].astype(np.float64) / top, (c0[ok] - half - e[ok])[order].astype(np.float64)
-    )
+    raw = vals[ok][order].astype(np.float64) / top
+    return _Transitions(raw, (c0[ok] - half - e[ok])[order].astype(np.float64), dithered=_dithered(raw, top))
 
 
 def _skew(t: _Transitions, rows: np.ndarray | slice, g: float) -> float:
@@ -279,7 +308,7 @@ def fit_line_response(
         return None
     if t.raw.shape[0] > RESPONSE_MAX_PROFILES:  # evenly along the line: enough for the shape
         k = int(math.ceil(t.raw.shape[0] / RESPONSE_MAX_PROFILES))
-        t = _Transitions(t.raw[::k], t.offset[::k])
+        t = _Transitions(t.raw[::k], t.offset[::k], dithered=t.dithered)
     t = replace(t, one_phase=one_phase)
     n_blocks = min(RESPONSE_SKEW_BLOCKS, t.raw.shape[0] // 12)
     if n_blocks < 3:
@@ -292,12 +321,15 @@ def fit_line_response(
     found = _exponent_with_scatter(t, blocks, n_blocks)
     if found is None:
         return None
-    g, se = found
+    g, se, alternatives = found
+    # an exponent no camera has is no second reading (the primary one is kept whatever it is: the
+    # doubt takes the nearest plausible one)
+    alternatives = tuple(a for a in alternatives if RESPONSE_PLAUSIBLE[0] <= a <= RESPONSE_PLAUSIBLE[1])
     if one_phase:
         # the interpolation's own error, which the blocks share (one phase, one spline error)
         se = math.hypot(se, RESPONSE_ONE_PHASE_SIGMA * g)
     lo, hi = plateau_levels(plane, samples, mask & samples.valid, wide)
-    return LineResponse(g, se, lo, hi, _skew(t, slice(None), used_gamma), one_phase)
+    return LineResponse(g, se, lo, hi, _skew(t, slice(None), used_gamma), one_phase, alternatives)
 
 
 def _one_phase_blur(t: _Transitions, used_gamma: float) -> float:
@@ -327,11 +359,14 @@ def _one_phase_blur(t: _Transitions, used_gamma: float) -> float:
     return math.sqrt(max(-1.0 / curv - 1.0 / 6.0, 0.0)) if curv < 0 else float("nan")
 
 
-def _exponent_with_scatter(t: _Transitions, blocks: np.ndarray, n_blocks: int) -> tuple[float, float] | None:
-    """The exponent of least asymmetry of all the profiles ``t`` and its standard error from the scatter of
-    the exponents of the blocks (``blocks`` (N,): each profile's block), at least ``RESPONSE_SIGMA_FLOOR``;
-    None where either is not found."""
-    g_hat = _least_asymmetric(t, np.geomspace(*RESPONSE_GAMMA_RANGE, 25))
+def _exponent_with_scatter(
+    t: _Transitions, blocks: np.ndarray, n_blocks: int
+) -> tuple[float, float, tuple[float, ...]] | None:
+    """The exponent of least asymmetry of all the profiles ``t``, its standard error from the scatter of
+    the exponents of the blocks (``blocks`` (N,): each profile's block), at least ``RESPONSE_SIGMA_FLOOR``,
+    and the other exponents about as symmetric (:func:`_least_asymmetric`); None where either of the first
+    two is not found."""
+    g_hat, alternatives = _least_asymmetric(t, np.geomspace(*RESPONSE_GAMMA_RANGE, 25))
     if not math.isfinite(g_hat):
         return None
     per_block = _least_asymmetric_blocks(t, g_hat * np.geomspace(1 / 1.6, 1.6, 11), blocks, n_blocks)
@@ -339,7 +374,7 @@ def _exponent_with_scatter(t: _Transitions, blocks: np.ndarray, n_blocks: int) -
     if per_block.size < 3:
         return None
     se = float(np.std(per_block, ddof=1)) / math.sqrt(per_block.size)
-    return g_hat, max(se, RESPONSE_SIGMA_FLOOR)
+    return g_hat, max(se, RESPONSE_SIGMA_FLOOR), alternatives
 
 
 def _asymmetry(
@@ -491,16 +526,45 @@ def _vertex(grid: np.ndarray, a: np.ndarray) -> float:
     return float(math.exp(min(max(x1 - (s0 + curv * (x1 - x0)) / (2.0 * curv), x0), x2)))
 
 
-def _least_asymmetric(t: _Transitions, grid: np.ndarray) -> float:
+def _least_asymmetric(t: _Transitions, grid: np.ndarray) -> tuple[float, tuple[float, ...]]:
     """The exponent of least :func:`_asymmetry`: the best of ``grid``, then of a grid four times finer
     between its neighbours (steps of 2.7 % on the 25-point range grid), refined by a parabola: good to
-    far below the exponent's standard error."""
+    far below the exponent's standard error. And the other exponents (each refined alike) where the
+    asymmetry has a minimum within ``RESPONSE_AMBIGUOUS_RATIO`` of the least, where the rounding to grey
+    levels is not dithered by noise (``t.dithered``): there the least asymmetry is the rounding's, the
+    same on every profile at one phase, and no measure of how well the two minima are told apart. Under
+    noise the least is a noise floor that the comparison of the two minima averages: on noisy linear
+    renders (1.2-2.8 grey levels) a second minimum at 2.2-2.5 came within 1.3-1.7 of the least, and
+    the primary reading was the camera's every time.
+
+    Why a second one: the asymmetry is not monotone in the exponent. Linearised with ``p`` times the
+    camera's exponent, the transition's slope is the blur's spread weighted by the light raised to
+    ``p - 1``, which for some ``p`` of about 2.5-3 (depending on the plateaus' ratio) is a spread shifted
+    towards the bright side and again nearly symmetric. On a rendered 1.34 camera (plateaus 59 and 236
+    grey levels, 1.7 px of blur) the asymmetry's two minima, at 1.38 and 3.6, differed by a factor 1.2 at
+    16 bits, and at 8 bits without noise to dither the rounding (every pixel of a 1/8 px bin rounded
+    alike) the false one at 2.25 was the lower: the cell's right exponent was replaced by it and the
+    door placed 0.11 mm off at 6 sigma.
+    """
     a = _asymmetry(t, grid)
     if not np.any(np.isfinite(a)):
-        return float("nan")
+        return float("nan"), ()
+
+    def refined(i: int) -> float:
+        fine = np.geomspace(grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)], 9)
+        return _vertex(fine, _asymmetry(t, fine))
+
     i = int(np.nanargmin(a))
-    fine = np.geomspace(grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)], 9)
-    return _vertex(fine, _asymmetry(t, fine))
+    others = [
+        j
+        for j in range(1, grid.size - 1)
+        if not t.dithered
+        and abs(j - i) > 2
+        and np.isfinite(a[j - 1 : j + 2]).all()
+        and a[j] <= min(a[j - 1], a[j + 1])
+        and a[j] <= RESPONSE_AMBIGUOUS_RATIO * a[i]
+    ]
+    return refined(i), tuple(g for g in (refined(j) for j in others) if math.isfinite(g))
 
 
 def _least_asymmetric_blocks(
@@ -529,6 +593,11 @@ def combine_responses(
 
     Its standard error is widened by the lines' disagreement beyond their own errors (Birge ratio), so
     two edges that disagree (texture, shading) do not make a confident camera response.
+
+    Where every line admits other exponents too (:attr:`LineResponse.alternatives`), the image's reading
+    is ambiguous: the alternatives are kept (:attr:`ResponseFit.alternatives`; one line without them
+    decides), and where the cell's exponent was measured, the reading nearest to it is the image's
+    (the calibration's measurement tells them apart).
     """
     ok = {k: v for k, v in lines.items() if math.isfinite(v.gamma) and math.isfinite(v.sigma) and v.sigma > 0}
     if not ok:
@@ -541,7 +610,15 @@ def combine_responses(
     if g.size > 1:
         chi2 = float(np.sum(w * (g - mean) ** 2)) / (g.size - 1)
         se *= math.sqrt(max(chi2, 1.0))
-    return ResponseFit(mean, se, claimed, tuple(ok), claimed_sigma)
+    alternatives: tuple[float, ...] = ()
+    if all(v.alternatives for v in ok.values()):
+        alternatives = tuple(sorted({round(a, 4) for v in ok.values() for a in v.alternatives}))
+        if claimed_sigma > 0:
+            readings = (mean, *alternatives)
+            nearest = min(readings, key=lambda r: abs(math.log(r / claimed)))
+            alternatives = tuple(r for r in readings if r != nearest)
+            mean = nearest
+    return ResponseFit(mean, se, claimed, tuple(ok), claimed_sigma, alternatives)
 
 
 def edge_shift_px(
@@ -663,7 +740,8 @@ def fit_board_response(
         offsets.append(off)
     if len(raws) < 3 * RESPONSE_SKEW_BLOCKS:
         return None
-    t = _Transitions(np.concatenate(raws), np.concatenate(offsets))
+    raw = np.concatenate(raws)
+    t = _Transitions(raw, np.concatenate(offsets), dithered=_dithered(raw, top))
     # blocks of whole edges (neighbouring edges share the board's print and light, far ones need not)
     n_blocks = 2 * RESPONSE_SKEW_BLOCKS
     edge_block = np.array_split(np.arange(len(raws)), n_blocks)
@@ -673,8 +751,9 @@ def fit_board_response(
     found = _exponent_with_scatter(t, blocks, n_blocks)
     if found is None:
         return None
+    g, se, alternatives = found
     lo, hi = (float(v) for v in np.median(t.raw[:, [0, -1]], axis=0))
-    return LineResponse(*found, lo, hi, _skew(t, slice(None), used_gamma))
+    return LineResponse(g, se, lo, hi, _skew(t, slice(None), used_gamma), alternatives=alternatives)
 
 
 #: fewest board images whose responses :func:`board_response` pools (their scatter is the doubt)
