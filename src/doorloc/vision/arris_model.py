@@ -42,7 +42,7 @@ from scipy.special import ndtr
 
 from doorloc.arris import ArrisSection
 from doorloc.pose import yaw_rotation_matrix
-from doorloc.vision.edges import Axis, EdgeSamples, _gather, oriented
+from doorloc.vision.edges import DITHERING_NOISE_LEVELS, Axis, EdgeSamples, _gather, oriented
 
 __all__ = ["ArrisGeometry", "StripFit", "arris_geometry", "deficit_prior", "fit_strip_profile", "arris_edges"]
 
@@ -596,9 +596,11 @@ def fit_strip_profile(
         places = places[(places >= lo_lim) & (places <= hi_lim)] if inside.sum() >= 3 else places
         if places.size == 0:
             places = np.array([d0])
-        terms = prob.pixel_terms(places, np.full(places.size, s0))
-        costs = prob.chi2_many(terms, cands)  # (shadings, places)
+        # (the free shading's own place scored with them, last, for the start it had alone before)
+        at = np.append(places, d0)
+        costs = prob.chi2_many(prob.pixel_terms(at, np.full(at.size, s0)), cands)  # (shadings, places)
         costs[1:] = np.where(costs[1:] < costs[:1] * 0.98, costs[1:], np.inf)  # a terminator must pay
+        here, costs = costs[:, -1], costs[:, :-1]
         # the shadings best at some place, each refined there (its own blur: the free shading's is not
         # the arc's where the two place the border apart)
         best_at = np.argmin(costs, axis=1)
@@ -607,11 +609,7 @@ def fit_strip_profile(
             for j in np.argsort(costs[np.arange(len(cands)), best_at])[:_SHADINGS_REFINED]
             if np.isfinite(costs[j, best_at[j]])
         ]
-        # and the best shading at the free shading's place (what was tried alone before)
-        at_best = prob.pixel_terms(np.array([d0]), np.array([s0]))
-        here = list(prob.chi2_many(at_best, cands)[:, 0])
-        k = int(np.argmin(here))
-        starts.append((k if here[k] < here[0] * 0.98 else 0, d0, s0))
+        starts.append((int(np.argmin(here)), d0, s0))  # the best shading at the free shading's place
         tried = [(j, *prob.refine(d, sd, cands[j], n_iter=4)) for j, d, sd in starts]
         j, d1, s1, _ = min(tried, key=lambda t: float(t[3].chi2[0]))
         b1 = cands[j]
@@ -912,10 +910,10 @@ def arris_edges(
         outer = plateau + pad + half + rel_e[pick]
         # profile noise, normalised; at least the quantisation of the 8-bit scale (a noise-free render)
         nz = float(np.median(np.maximum(noise[pick], 0.3 / scale_to_8bit) / np.abs(D[pick])))
-        # the rounding that the noise does not dither (under half a grey level of noise), normalised (one
+        # the rounding that the noise does not dither (DITHERING_NOISE_LEVELS), normalised (one
         # grey level taken as one unit of the linearised scale: a first-order figure under a camera response)
         dn = float(np.median(noise[pick])) * scale_to_8bit
-        undithered = min(max(1.0 - dn / 0.5, 0.0), 1.0)
+        undithered = min(max(1.0 - dn / DITHERING_NOISE_LEVELS, 0.0), 1.0)
         shared = undithered * float(np.median((1.0 / 12.0) / (D[pick] * scale_to_8bit) ** 2))
         prior = deficit_prior(float(np.median(B[pick])), float(np.median(A[pick])))
         fit = fit_strip_profile(

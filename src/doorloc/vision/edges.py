@@ -46,9 +46,15 @@ __all__ = [
     "texture_bias",
     "refine_step_fit",
     "block_artifact_ratio",
+    "DITHERING_NOISE_LEVELS",
 ]
 
 Axis = Literal["col", "row"]
+
+#: plateau noise (grey levels, 1-sigma) from which the noise dithers the rounding to grey levels; under it
+#: the pixels of one sub-pixel phase round alike, and averaging them does not average the rounding away
+#: (the response reading and the arris strip fit both ask)
+DITHERING_NOISE_LEVELS = 0.5
 
 
 def oriented(plane: np.ndarray, axis: Axis) -> np.ndarray:

@@ -44,7 +44,15 @@ from scipy.interpolate import CubicSpline
 from scipy.ndimage import uniform_filter1d
 from scipy.special import ndtr
 
-from doorloc.vision.edges import Axis, EdgeSamples, _gather, linearizing_lut, oriented, subpixel_edges
+from doorloc.vision.edges import (
+    DITHERING_NOISE_LEVELS,
+    Axis,
+    EdgeSamples,
+    _gather,
+    linearizing_lut,
+    oriented,
+    subpixel_edges,
+)
 
 __all__ = [
     "RESPONSE_ABSORB_SIGMAS",
@@ -205,12 +213,12 @@ class _Transitions:
 
 
 def _dithered(raw: np.ndarray, top: float) -> bool:
-    """Whether raw profiles (full scale 1, ``top`` grey levels) have half a grey level of noise or more on
-    their plateaus (the median over the profiles of the end pixels' scatter about their mean)."""
+    """Whether raw profiles (full scale 1, ``top`` grey levels) have ``DITHERING_NOISE_LEVELS`` of noise or
+    more on their plateaus (the median over the profiles of the end pixels' scatter about their mean)."""
     pk = RESPONSE_PLATEAU_PX
     ends = [raw[:, :pk], raw[:, -pk:]]
     var = sum(((e - e.mean(axis=1, keepdims=True)) ** 2).sum(axis=1) for e in ends) / (2 * pk - 2)
-    return bool(np.median(np.sqrt(var)) * top >= 0.5)
+    return bool(np.median(np.sqrt(var)) * top >= DITHERING_NOISE_LEVELS)
 
 
 def at_one_phase(offset_px: np.ndarray) -> bool:
@@ -308,7 +316,7 @@ def fit_line_response(
         return None
     if t.raw.shape[0] > RESPONSE_MAX_PROFILES:  # evenly along the line: enough for the shape
         k = int(math.ceil(t.raw.shape[0] / RESPONSE_MAX_PROFILES))
-        t = _Transitions(t.raw[::k], t.offset[::k], dithered=t.dithered)
+        t = replace(t, raw=t.raw[::k], offset=t.offset[::k])
     t = replace(t, one_phase=one_phase)
     n_blocks = min(RESPONSE_SKEW_BLOCKS, t.raw.shape[0] // 12)
     if n_blocks < 3:
