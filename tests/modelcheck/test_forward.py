@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -110,18 +111,22 @@ def test_the_relocation_tables_see_every_pose_a_cell_gives_not_production_s_verd
     """The effects fixtures (1.5 mm chamfer, gamma-2.2 camera, a cell saying 1.0): production refuses some
     as uncertain; a forward model needs their poses all the same (seed 481507: one training image whose
     thickness could not be checked at any arris left its row of the arris table at 0, and focal length was
-    named for a hidden arris)."""
+    named for a hidden arris). Production answers all of them at the default tolerance (their sigma
+    0.027-0.029 mm on x, from the exponent the cell cannot check); a cell allowing 0.028 mm refuses some."""
     from doorloc.modelcheck.check import _read_image
     from doorloc.modelcheck.dataset import read_dataset
     from doorloc.modelcheck.forward import locate_errors, observe
 
     fix = Path(__file__).parents[2] / "fixtures" / "rendered" / "effects"
     cell = load_cell(fix / "cell.yaml")
+    cell = replace(cell, locate=replace(cell.locate, max_uncertainty_mm=0.028))
     obs = observe(read_dataset(fix, cell).images[:12], cell, False, _read_image)
     gated = locate_errors(obs, cell, False)
     ungated = locate_errors(obs, cell, False, gated=False)
     refused = ~np.isfinite(gated).all(axis=1)
-    assert refused.any(), "the case this test is about: production refuses some of these"
+    assert refused.any() and not refused.all(), (
+        "the case this test is about: production refuses some of these"
+    )
     assert np.isfinite(ungated).all()
     # where production answers, the ungated relocation is the same answer
     np.testing.assert_array_equal(ungated[~refused], gated[~refused])

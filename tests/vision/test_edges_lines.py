@@ -75,6 +75,24 @@ def test_transition_width_measures_the_blur():
     assert abs(w - math.sqrt(4.0 + 1.0 / 12.0)) < 0.1
 
 
+@pytest.mark.parametrize("blur", [0.0, 0.5, 1.0, 1.5, 2.0])
+@pytest.mark.parametrize("row", [30.0, 30.1, 30.37, 30.5])
+def test_transition_width_of_an_edge_along_a_pixel_row(blur, row):
+    """Every profile at one pixel phase fills one bin in four of the width's 0.25 px grid: the width is
+    still the blur's (it was read three times too wide there: a sharp edge 2 px, a 1 px blur 1.5)."""
+    u = np.arange(300)
+    edges_v = np.full(u.size, row)
+    img = _box_step_image(edges_v, 20.0, 200.0, blur, n_rows=70)
+    s = subpixel_edges(img, "col", u, edges_v, 9, plateau=4)
+    w = transition_width(img, s, s.valid, 9)
+    if blur == 0.0:
+        # a sharp step at one phase: one or two pixels of gradient, 0 to 0.5 px apart (the phase decides)
+        assert w <= 0.55, w
+    else:
+        expected = math.sqrt(blur * blur + 1.0 / 12.0)
+        assert abs(w - expected) < max(0.15 * expected, 0.12), (w, expected)
+
+
 def test_coarse_edges_respects_polarity_and_band():
     img = np.full((40, 100), 50.0)
     img[:, 30:] = 200.0  # rising at u = 29.5

@@ -368,6 +368,70 @@ def test_a_door_square_to_the_camera_checks_a_wrong_cell_exponent_between_the_pi
     assert abs(right.x_mm - pose.x_mm) < 0.01 and abs(right.z_mm - pose.z_mm) < 0.01
 
 
+def test_a_square_door_whose_response_is_unread_carries_the_cells_doubt(cell):
+    """Square to the camera (yaw 0.02 deg) and blurred by 0.86 px, under the 1 px that a transition at one
+    pixel phase needs to be read: a 1.13 camera in a cell of 2.01 (square bench seed 9526) was answered
+    0.075 mm off at 7 sigma, the plain edges taking no doubt for the exponent nobody checked. They take the
+    cell's (``response_unmeasured_factor``) as arris lines do; a cell that says its exponent was
+    measured (factor 1) takes none, and is answered as confidently wrong as before."""
+    door = DoorSize(900, 50, 2100)
+    pose = DoorPose(-0.4625, -0.3854, 0.0201)
+    fx = Effects(
+        albedo_hinge=0.794,
+        albedo_background=0.063,
+        light_ambient=0.847,
+        light_directional=0.281,
+        light_azimuth_deg=-55.1,
+        light_elevation_deg=-21.7,
+        blur_sigma_px=0.864,
+        read_noise_dn=0.342,
+        gamma=1.128,
+    )
+    img = render_door(cell, door, pose, effects=fx, seed=9526).image
+    wrong = replace(cell, response_gamma=2.01)
+    r = locate(img, wrong, door)
+    assert "pixel rows or columns" in r.diagnostics["camera_response"]["unchecked_because"]
+    assert r.ok and abs(r.x_mm - pose.x_mm) > 0.03
+    assert (
+        abs(r.x_mm - pose.x_mm) < 2.0 * r.uncertainty.x_mm
+        and abs(r.z_mm - pose.z_mm) < 2.0 * r.uncertainty.z_mm
+    )
+    assert all(ln.response_sigma_mm > 0.03 for ln in r.lines if ln.name != "far")
+    told = locate(img, replace(wrong, locate=replace(wrong.locate, response_unmeasured_factor=1.0)), door)
+    assert told.ok and abs(told.x_mm - pose.x_mm) > 4.0 * told.uncertainty.x_mm
+
+
+def test_a_weak_reading_of_the_response_does_not_confirm_the_cell(cell):
+    """A 1.67 camera in a cell of 1.0, square to the camera (yaw 0.014 deg, square bench seed 9520): read
+    between the pixels as 1.65 +- 0.34, two of its sigmas from the cell's 1.0. Counted only beyond those
+    two sigmas, the doubt was nil and the door placed 0.056 mm off at 4.4 sigma; combined with the cell's
+    own doubt (its exponent known within ``response_unmeasured_factor``) the reading moves the exponent
+    most of the way, and the answer is covered or refused as uncertain."""
+    door = DoorSize(900, 50, 2100, arris_profile="round")
+    pose = DoorPose(-4.6856, -0.6889, 0.014)
+    fx = Effects(
+        arris_profile="round",
+        albedo_hinge=0.665,
+        albedo_background=0.064,
+        light_ambient=0.920,
+        light_directional=0.274,
+        light_azimuth_deg=46.9,
+        light_elevation_deg=27.3,
+        blur_sigma_px=0.990,
+        read_noise_dn=0.228,
+        gamma=1.673,
+    )
+    img = render_door(cell, door, pose, effects=fx, seed=9520).image
+    r = locate(img, replace(cell, response_gamma=1.0), door)
+    cr = r.diagnostics["camera_response"]
+    assert cr["checked"] and not cr["absorbed"] and abs(cr["fitted"] - 1.0) < 2.5 * cr["sigma"], cr
+    if r.ok:
+        assert abs(r.x_mm - pose.x_mm) < 2.0 * r.uncertainty.x_mm
+        assert abs(r.z_mm - pose.z_mm) < 2.0 * r.uncertainty.z_mm
+    else:
+        assert r.error_code == "uncertain" and "response" in r.error
+
+
 def test_an_undithered_8_bit_image_does_not_replace_a_right_cell_exponent(cell):
     """A 1.34 camera, 8 bits under 0.05 grey levels of noise (the rounding is not dithered), the cell right
     (square bench seed 8000's scene at yaw -1 deg): both plain edges read 2.21, and 1.37 / 1.46 about as

@@ -4,6 +4,7 @@ the renderer: a Gaussian-blurred, pixel-integrated step recorded through a power
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -11,7 +12,13 @@ import pytest
 from scipy.special import ndtr
 
 from doorloc.vision.edges import linearizing_lut, subpixel_edges
-from doorloc.vision.response import combine_responses, edge_shift_px, fit_line_response
+from doorloc.vision.response import (
+    LineResponse,
+    ResponseFit,
+    combine_responses,
+    edge_shift_px,
+    fit_line_response,
+)
 
 N_COLS, N_ROWS, TILT = 400, 100, 0.031  # a near-horizontal edge: profiles run along the columns
 
@@ -106,7 +113,6 @@ def test_the_shift_predicts_the_area_estimators_error(camera_gamma, used_gamma):
 
 
 def test_lines_that_disagree_do_not_make_a_confident_response():
-    from doorloc.vision.response import LineResponse
 
     a = LineResponse(2.0, 0.05, 0.1, 0.8, 0.0)
     b = LineResponse(1.4, 0.05, 0.1, 0.8, 0.0)
@@ -118,7 +124,6 @@ def test_lines_that_disagree_do_not_make_a_confident_response():
 
 
 def test_an_ambiguous_reading_is_not_absorbed_and_a_measured_claim_picks_between_its_readings():
-    from doorloc.vision.response import LineResponse
 
     # both edges read 2.25, and 1.38 about as symmetric (an undithered 8-bit 1.34 camera)
     a = LineResponse(2.25, 0.05, 0.2, 0.9, 0.0, alternatives=(1.38,))
@@ -168,8 +173,33 @@ def test_a_second_symmetric_exponent_is_reported():
     assert found is not None and abs(found[0] - 1.0) < 0.1 and found[2] == ()
 
 
+def test_a_reading_and_an_unmeasured_claim_combine_by_their_sigmas():
+    """A cell exponent nobody measured (1.0, known to +-1.2) and the image's reading: a precise reading
+    keeps its own value and sigma, a weak one (read between the pixels) moves the exponent most of the way
+    and keeps most of its sigma, and a reading no camera gives counts as the nearest one that does."""
+    g, s = ResponseFit(1.01, 0.03, 1.0, ("bottom", "reference")).with_unmeasured_claim(1.2)
+    assert g == pytest.approx(1.01, abs=0.001) and s == pytest.approx(0.03, rel=0.01)
+    g, s = ResponseFit(1.65, 0.34, 1.0, ("reference",)).with_unmeasured_claim(1.2)  # square seed 9520
+    assert 1.55 < g < 1.65 and 0.3 < s < 0.34
+    g, _ = ResponseFit(0.7, 0.05, 1.0, ("bottom", "reference")).with_unmeasured_claim(1.2)
+    assert g == pytest.approx(0.8, abs=0.01)
+
+
+def test_what_the_lines_share_does_not_average_down():
+    """Two edges square to the camera read through one lens: the interpolation's error (which follows the
+    lens's spread) is the same on both, and their pooled sigma keeps it (two such readings of a 1.43
+    camera, 1.26 +- 0.25 each, had pooled to +-0.18)."""
+    a = LineResponse(1.26, 0.25, 0.1, 0.8, 0.0, True, shared_sigma=0.24)
+    b = LineResponse(1.26, 0.25, 0.1, 0.8, 0.0, True, shared_sigma=0.24)
+    both = combine_responses({"bottom": a, "reference": b}, 1.0)
+    assert both is not None and both.sigma >= 0.24
+    free = combine_responses(
+        {"bottom": replace(a, shared_sigma=0.0), "reference": replace(b, shared_sigma=0.0)}, 1.0
+    )
+    assert free is not None and free.sigma == pytest.approx(0.25 / math.sqrt(2), rel=1e-6)
+
+
 def test_a_measured_claim_holds_back_a_marginal_image_but_not_a_better_or_disagreeing_one():
-    from doorloc.vision.response import ResponseFit
 
     two = ("bottom", "reference")
     # Bouguet-like calibration 2.15 +- 0.12 against an image's 2.6 +- 0.1: 4.5 of the image's sigmas off

@@ -1161,12 +1161,17 @@ def _mean_square(x: np.ndarray) -> float:
 def _response_check_applies(samples: EdgeSamples, inliers: np.ndarray, blur_px: float) -> bool:
     """Whether the mean transition's asymmetry can be read on this line.
 
-    The check averages the profiles on a 0.25 px grid aligned on the sub-pixel edge: that mean shows the
+    The check averages the profiles on a fine grid aligned on the sub-pixel edge: that mean shows the
     response's asymmetry where the line's edge points fall at many pixel phases and the edge is blurred
-    over more than a pixel's width (a sharp step has no transition shape to read). An edge along a pixel
-    row or column puts all of them at one phase; its transition is read between the pixels by
-    interpolation, which needs a blur of ``RESPONSE_ONE_PHASE_MIN_BLUR_PX`` (unchecked, doors square to
-    the camera in a cell whose exponent was not the camera's were answered 5-7 sigma off).
+    over more than half a pixel. (A sharp step integrated over the pixel is a one-pixel ramp, straight
+    in linear light and bent by a wrong exponent, and reads too: a 1.6 camera in a cell of 1.0 read 1.61
+    +- 0.10, a linear one in a cell of 2.2 1.01 +- 0.12; but at ~9 ms a line it made the sharp grid set's
+    frames 2.3 times slower. Such a line takes the cell's exponent within
+    ``LocateConfig.response_unmeasured_factor`` instead, :func:`_unmeasured_response_terms`: 0.028 mm on
+    the sharp grid fixtures.) An edge along a pixel row or column puts all of them at one phase; its
+    transition is read between the pixels by interpolation, which needs a blur of
+    ``RESPONSE_ONE_PHASE_MIN_BLUR_PX`` (unread and without a doubt, doors square to the camera in a cell
+    whose exponent was not the camera's had been answered 5-7 sigma off).
     """
     if not blur_px >= STEP_FIT_MIN_BLUR_PX:  # (the phases need not be counted then)
         return False
@@ -1206,13 +1211,13 @@ def _response_unchecked_because(
     arris_fits: dict[str, tuple[StripFit, float]] | None,
 ) -> str:
     """Why no edge of this image could show the camera response (``diagnostics.camera_response``): the
-    pose then rests on the cell's ``response_gamma`` as it stands, which a user should know."""
+    pose then rests on the cell's ``response_gamma`` within ``locate.response_unmeasured_factor``, which a
+    user should know."""
     plain = _plain_response_lines(arris_fits)
     if not plain:
         return "every edge is an arris strip, whose shading takes up the response"
-    blur_px = _blur_without_pixel(transition_px)
-    if not blur_px >= STEP_FIT_MIN_BLUR_PX:
-        return "the edges are sharper than the pixel: no transition shape to read"
+    if not _blur_without_pixel(transition_px) >= STEP_FIT_MIN_BLUR_PX:
+        return "the edges are sharper than half a pixel: their transition is not read"
     if not any(_at_many_phases(samples[k], fit.weights[k] > 0) for k in plain):
         return (
             "the plain edges lie along pixel rows or columns (a door square to the camera): one pixel phase, "
@@ -1273,62 +1278,90 @@ def _response_terms(
     far_beside: bool,
     model: EdgeModelTerms,
     absorbed: bool = False,
+    factor: float = 0.0,
 ) -> None:
     """Each line's response doubt (px) into ``model.extra_px[line]["response"]``, from the step model.
 
-    The edge was measured with ``used_gamma``; the camera's exponent is ``response.gamma`` +-
-    ``response.sigma``. The shift that the difference makes (:func:`doorloc.vision.response.edge_shift_px`
-    between the line's own plateaus, at the measured blur) counts beyond twice the shift of the exponent's
-    1-sigma (within that the edges agree with the exponent in use, and a right cell keeps its small
-    sigma); after ``absorbed`` (the exponent in use was fitted) that 1-sigma shift counts too. Where the
-    cell's exponent was itself measured (``response.claimed_sigma``) and is kept, the doubt is the shift
-    to the exponent both measurements give together (:attr:`ResponseFit.combined`) with that one's
-    1-sigma shift (widened by their disagreement) in quadrature. An arris line takes the same step model
-    between its background and its face (a first-order figure).
+    The edge was measured with ``used_gamma``; the image reads the camera's exponent as ``response.gamma``
+    +- ``response.sigma``. The doubt is built from the shift (:func:`doorloc.vision.response.edge_shift_px`
+    between the line's own plateaus, at the measured blur) to an exponent and the shift of its 1-sigma:
+
+    - after ``absorbed`` (the exponent in use is this image's reading): the reading's 1-sigma shift, and
+      what the shift to it leaves beyond twice that;
+    - where the cell's exponent was itself measured (``response.claimed_sigma``) and is kept: the shift to
+      the exponent both measurements give together (:attr:`ResponseFit.combined`) and its 1-sigma shift
+      (widened by their disagreement), in quadrature;
+    - where it was not, and the edges were read at many pixel phases: the shift to the reading beyond
+      twice the reading's 1-sigma shift (within that, the edges agree with the exponent in use, and a
+      right cell keeps its small sigma), or the largest shift to the other exponents the edges admit
+      about as well (``response.alternatives``: the image cannot tell which the camera has);
+    - where it was not, and a line was read between its pixels (``response.one_phase``, a door square
+      to the camera): such a reading (+-0.2-0.6) is weak evidence, and agreeing within two of its sigmas
+      proves little (a cell of 1.0 for a 1.67 camera, read 1.65 +- 0.34, was answered 0.056 mm off at
+      4.4 sigma). The cell's exponent, taken as known within ``factor`` (``LocateConfig.
+      response_unmeasured_factor``, one sigma ``used_gamma * (factor - 1)``), and the reading together
+      (:meth:`ResponseFit.with_unmeasured_claim`): the shift to their exponent and its 1-sigma shift in
+      quadrature. A reading no camera gives (beyond ``RESPONSE_PLAUSIBLE`` by two of its sigmas: two
+      lines of a 1.44 camera read 0.40 +- 0.08) is no reading: the cell's exponent within ``factor``
+      alone (:func:`_unmeasured_response_terms`).
+
+    That combination was tried on every reading and not taken: readings at many phases under strong
+    shading, vignetting and noise read a linear camera 0.4-0.9 +- 0.2, and the combination put
+    0.007-0.026 mm on each line of right cells' doors (tests/vision's hard photometry; the parity set's
+    ``rand`` renders, sigma up to 0.012 -> 0.079 mm); and weighing a point "the cell is exactly right"
+    against "another within the factor" by the reading's likelihood left square doors under a wrong cell
+    85 % within 2 sigma (bench_arris square-wrong-gamma --seed 9000), a weak reading favouring the point.
+
+    An arris line takes the same step model between its background and its face (a first-order figure).
     """
+    # between the pixels, against a cell exponent nobody measured: the reading and the claim together
+    weak = not absorbed and not response.claimed_sigma > 0 and response.one_phase and factor > 1.0
+    if weak:
+        lo_g, hi_g = RESPONSE_PLAUSIBLE
+        if not lo_g - 2.0 * response.sigma <= response.gamma <= hi_g + 2.0 * response.sigma:
+            _unmeasured_response_terms(plane, samples, fit, half, used_gamma, factor, far_beside, model)
+            return
+    # the exponent the evidence gives, gc +- sc
+    if absorbed:
+        gc, sc = response.gamma, response.sigma
+    elif response.claimed_sigma > 0:
+        gc, _, sc = response.combined
+    elif weak:
+        gc, sc = response.with_unmeasured_claim(used_gamma * (factor - 1.0))
+    else:
+        gc, sc = response.gamma, response.sigma
     for k in EDGE_NAMES:
         if k == "far" and far_beside:
             continue  # the far-face model reports its own doubt
         inl = fit.weights[k] > 0
         lo, hi = plateau_levels(plane, samples[k], inl & samples[k].valid, half)
-        # a fit outside a camera's exponents is asymmetry the response cannot make: the nearest one counts
-        g, sg = float(np.clip(response.gamma, *RESPONSE_PLAUSIBLE)), response.sigma
         b = model.blur_px
-        bias = edge_shift_px(lo, hi, g, used_gamma, b, half)
-        spread = 0.5 * abs(
-            edge_shift_px(lo, hi, g + sg, used_gamma, b, half)
-            - edge_shift_px(lo, hi, max(g - sg, 0.05), used_gamma, b, half)
-        )
-        if not (math.isfinite(bias) and math.isfinite(spread)):
-            continue
+
+        def shift(g: float, lo=lo, hi=hi, b=b) -> float:
+            return edge_shift_px(lo, hi, float(np.clip(g, *RESPONSE_PLAUSIBLE)), used_gamma, b, half)
+
+        def spread(g: float, sg: float) -> float:
+            return 0.5 * abs(shift(g + sg) - shift(max(g - sg, 0.05)))
+
+        bias, sp = shift(gc), spread(gc, sc)
         if absorbed:
             # the exponent in use is this image's measurement: its doubt counts in full
-            doubt = math.hypot(max(abs(bias) - 2.0 * spread, 0.0), spread)
+            doubt = math.hypot(max(abs(bias) - 2.0 * sp, 0.0), sp)
         elif response.claimed_sigma > 0:
-            # the cell's measured exponent kept: the shift to the exponent that both measurements give
-            # together, and that one's 1-sigma (widened by their disagreement)
-            gc, _, sc = response.combined
-            gc = float(np.clip(gc, *RESPONSE_PLAUSIBLE))
-            doubt = math.hypot(
-                edge_shift_px(lo, hi, gc, used_gamma, b, half),
-                0.5
-                * abs(
-                    edge_shift_px(lo, hi, gc + sc, used_gamma, b, half)
-                    - edge_shift_px(lo, hi, max(gc - sc, 0.05), used_gamma, b, half)
-                ),
-            )
-            if not math.isfinite(doubt):
-                continue
+            doubt = math.hypot(bias, sp)
+        elif weak:
+            doubt = math.hypot(bias, sp)
+            for ga in response.alternatives:
+                doubt = max(doubt, abs(shift(ga)))
         else:
             # the shift the measured mismatch makes beyond twice its own doubt (within that, the edges
             # agree with the exponent in use); where the edges read other exponents about as well, the
             # largest of their shifts (the image cannot tell which the camera has)
-            doubt = max(abs(bias) - 2.0 * spread, 0.0)
+            doubt = max(abs(bias) - 2.0 * sp, 0.0)
             for ga in response.alternatives:
-                shift = edge_shift_px(lo, hi, float(np.clip(ga, *RESPONSE_PLAUSIBLE)), used_gamma, b, half)
-                if math.isfinite(shift):
-                    doubt = max(doubt, abs(shift) - 2.0 * spread)
-        model.extra_px.setdefault(k, {})["response"] = doubt
+                doubt = max(doubt, abs(shift(ga)) - 2.0 * sp)
+        if math.isfinite(doubt):
+            model.extra_px.setdefault(k, {})["response"] = doubt
 
 
 def _unmeasured_response_terms(
@@ -1338,27 +1371,31 @@ def _unmeasured_response_terms(
     half: int,
     used_gamma: float,
     factor: float,
-    arris_fits: dict[str, tuple[StripFit, float]],
+    far_beside: bool,
     model: EdgeModelTerms,
 ) -> None:
-    """The response doubt (px) of each arris line when no plain edge measured the camera's response.
+    """The response doubt (px) of each line when the image did not measure the camera's response.
 
     The response is measured on plain edges only (:func:`_measure_response`): the shading of an arris
     strip is free in its fit and takes up what a wrong exponent does to the profile (a fit of the exponent
     to the strip's misfit was tried: on the arris bench it found the camera's exponent on some chamfers
-    and 0.8 or 3.0 on others, right cell or not). So on a door whose edges are all arrises the cell's
+    and 0.8 or 3.0 on others, right cell or not); a plain edge along a pixel row or column blurred by
+    less than ``RESPONSE_ONE_PHASE_MIN_BLUR_PX`` cannot be read between its pixels, and sharp edges are not
+    read (:func:`_response_check_applies`). Then the cell's
     ``response_gamma`` cannot be checked, and it is taken as known within a factor ``factor``
-    (``LocateConfig.response_unmeasured_factor``): the doubt is half the spread of the edge shift
+    (``LocateConfig.response_unmeasured_factor``): the doubt of every line (the far one's where no far-face
+    model reports its own) is half the spread of the edge shift
     (:func:`doorloc.vision.response.edge_shift_px`, the line's plateaus, the measured blur) between
-    ``used_gamma * factor`` and ``used_gamma / factor``. Without it the arris lines' answers under a
-    wrong cell exponent were biased by several of their sigmas (fixtures/rendered/effects: 1.0 for a
-    2.2 camera, z 0.035 mm at 2-3 sigma).
+    ``used_gamma * factor`` and ``used_gamma / factor``. Without it the arris lines' answers under a wrong
+    cell exponent were biased by several of their sigmas (fixtures/rendered/effects: 1.0 for a 2.2
+    camera, z 0.035 mm at 2-3 sigma), and a plain door square to the camera by up to 7 (a 1.13 camera in
+    a cell of 2.01, blur 0.86 px: x 0.075 mm off at sigma 0.010).
     """
     if not factor > 1.0:
         return
-    for k, (_, band_px) in arris_fits.items():
-        if band_px <= PLAIN_STRIP_PX:
-            continue  # a plain edge to the response: as on a sharp door's, where it could not be measured
+    for k in EDGE_NAMES:
+        if k == "far" and far_beside:
+            continue
         inl = fit.weights[k] > 0
         lo, hi = plateau_levels(plane, samples[k], inl & samples[k].valid, half)
         b = model.blur_px
@@ -1441,11 +1478,27 @@ def _gate_and_answer(
             }
     if response is not None:
         _response_terms(
-            plane, samples, fit, half, cell.response_gamma, response, far_beside, model, response_absorbed
+            plane,
+            samples,
+            fit,
+            half,
+            cell.response_gamma,
+            response,
+            far_beside,
+            model,
+            response_absorbed,
+            cfg.response_unmeasured_factor,
         )
-    elif arris_fits:
+    else:
         _unmeasured_response_terms(
-            plane, samples, fit, half, cell.response_gamma, cfg.response_unmeasured_factor, arris_fits, model
+            plane,
+            samples,
+            fit,
+            half,
+            cell.response_gamma,
+            cfg.response_unmeasured_factor,
+            far_beside,
+            model,
         )
     for k in EDGE_NAMES:
         s = samples[k]
@@ -1569,7 +1622,7 @@ def _gate_and_answer(
             ),
         )
         hint = _UNCERTAIN_HINT[worst]
-        if worst == "edge_model" and response is None and arris_fits:
+        if worst == "edge_model" and response is None:
             # the unchecked response is the largest doubt of a pose line: say so, and what lifts it
             big = [
                 max(model.extra_px.get(k, {}).items(), key=lambda kv: kv[1], default=("", 0.0))[0]
@@ -1619,8 +1672,10 @@ def _gate_and_answer(
 
 
 _UNCERTAIN_HINT = {
-    "response_unmeasured": "every edge of this door is an arris, on which the camera response cannot be "
-    "checked, and the cell's camera.response_gamma is taken as known only within the factor "
+    "response_unmeasured": "the camera response could not be checked on this image (diagnostics "
+    "camera_response.unchecked_because says why: every edge an arris, edges sharper than half a pixel, or a "
+    "door square to the camera), and "
+    "the cell's camera.response_gamma is taken as known only within the factor "
     "locate.response_unmeasured_factor; measure the response once (doorloc calibrate prints it from the "
     "chessboard photographs, with the factor they allow; or an image of a plain-edged door in this cell: its "
     "answer's diagnostics camera_response.fitted), put it in the cell file and set "
