@@ -7,8 +7,8 @@ off (``calibration_sigma_px=0``): what is tested is that the image-measurement p
 their cells say): they are located as with a measured response (``response_unmeasured_factor=1``; a cell
 that never measured it carries up to 0.065 mm more on the square, sharp doors of ``widths``, whose edges
 cannot show the response; tests/vision/test_locate.py covers that doubt). The effects folder's cell
-states a response that is not its camera's and keeps the default factor. The bounds are a few times what the code measures today
-(quoted next to each), so a regression fails them and noise does not.
+states a response that is not its camera's and keeps the default factor. The bounds are a few times what
+the code measures today (quoted next to each), so a regression fails them and noise does not.
 """
 
 from __future__ import annotations
