@@ -588,8 +588,9 @@ def fit_strip_profile(
         ]
         # Each shading at many places for the border, not only at the free shading's best: where the
         # strip's outer part is in shadow (at the background's level) the free shading has two places for
-        # the border that fit alike, and the arc's own best place is the one that tells them apart (arris bench seed 11524, a 1.2 mm rounding lit from 58 deg above:
-        # at the free shading's place the arc missed by 75 noise units, at its own 0.9 px away by 3).
+        # the border that fit alike, and the arc's own best place is the one that tells them apart (arris
+        # bench seed 11524, a 1.2 mm rounding lit from 58 deg above: at the free shading's place the arc
+        # missed by 75 noise units, at its own 0.9 px away by 3).
         # The places: steps of a quarter pixel within 2.5 px of the free shading's (the coarse profile's
         # steps grow with the strip's width, 1.3 px on a 12 px strip, wider than an arc's valley).
         places = d0 + np.arange(-2.5, 2.5 + 1e-9, 0.25)

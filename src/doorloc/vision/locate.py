@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Generator
+from collections.abc import Callable, Generator, Iterator
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -1268,6 +1268,31 @@ def _measure_response(
     return combine_responses(per_line, cell.response_gamma, cell.response_gamma_sigma or 0.0), per_line
 
 
+def _line_response_shifts(
+    plane,
+    samples: dict[str, EdgeSamples],
+    fit: RectangleFit,
+    half: int,
+    used_gamma: float,
+    far_beside: bool,
+    blur_px: float,
+) -> Iterator[tuple[str, Callable[[float], float]]]:
+    """Each line a camera exponent moves (the far one only where no far-face model reports its own doubt)
+    and the shift, px, that an exponent makes there: :func:`doorloc.vision.response.edge_shift_px`
+    between the line's own plateaus at ``blur_px``, the exponent brought within ``RESPONSE_PLAUSIBLE``
+    (a reading or a factor beyond them is no camera)."""
+    for k in EDGE_NAMES:
+        if k == "far" and far_beside:
+            continue
+        inl = fit.weights[k] > 0
+        lo, hi = plateau_levels(plane, samples[k], inl & samples[k].valid, half)
+
+        def shift(g: float, lo: float = lo, hi: float = hi) -> float:
+            return edge_shift_px(lo, hi, float(np.clip(g, *RESPONSE_PLAUSIBLE)), used_gamma, blur_px, half)
+
+        yield k, shift
+
+
 def _response_terms(
     plane,
     samples: dict[str, EdgeSamples],
@@ -1277,8 +1302,8 @@ def _response_terms(
     response: ResponseFit,
     far_beside: bool,
     model: EdgeModelTerms,
-    absorbed: bool = False,
-    factor: float = 0.0,
+    absorbed: bool,
+    factor: float,
 ) -> None:
     """Each line's response doubt (px) into ``model.extra_px[line]["response"]``, from the step model.
 
@@ -1330,17 +1355,9 @@ def _response_terms(
         gc, sc = response.with_unmeasured_claim(used_gamma * (factor - 1.0))
     else:
         gc, sc = response.gamma, response.sigma
-    for k in EDGE_NAMES:
-        if k == "far" and far_beside:
-            continue  # the far-face model reports its own doubt
-        inl = fit.weights[k] > 0
-        lo, hi = plateau_levels(plane, samples[k], inl & samples[k].valid, half)
-        b = model.blur_px
+    for k, shift in _line_response_shifts(plane, samples, fit, half, used_gamma, far_beside, model.blur_px):
 
-        def shift(g: float, lo=lo, hi=hi, b=b) -> float:
-            return edge_shift_px(lo, hi, float(np.clip(g, *RESPONSE_PLAUSIBLE)), used_gamma, b, half)
-
-        def spread(g: float, sg: float) -> float:
+        def spread(g: float, sg: float, shift: Callable[[float], float] = shift) -> float:
             return 0.5 * abs(shift(g + sg) - shift(max(g - sg, 0.05)))
 
         bias, sp = shift(gc), spread(gc, sc)
@@ -1393,16 +1410,8 @@ def _unmeasured_response_terms(
     """
     if not factor > 1.0:
         return
-    for k in EDGE_NAMES:
-        if k == "far" and far_beside:
-            continue
-        inl = fit.weights[k] > 0
-        lo, hi = plateau_levels(plane, samples[k], inl & samples[k].valid, half)
-        b = model.blur_px
-        # (within the exponents a camera has: a factor beyond them is no camera)
-        up = edge_shift_px(lo, hi, min(used_gamma * factor, RESPONSE_PLAUSIBLE[1]), used_gamma, b, half)
-        down = edge_shift_px(lo, hi, max(used_gamma / factor, RESPONSE_PLAUSIBLE[0]), used_gamma, b, half)
-        spread = 0.5 * abs(up - down)
+    for k, shift in _line_response_shifts(plane, samples, fit, half, used_gamma, far_beside, model.blur_px):
+        spread = 0.5 * abs(shift(used_gamma * factor) - shift(used_gamma / factor))
         if math.isfinite(spread):
             model.extra_px.setdefault(k, {})["response"] = spread
 

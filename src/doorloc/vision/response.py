@@ -29,8 +29,10 @@ differs from the cell's beyond ``RESPONSE_ABSORB_SIGMAS`` standard errors on two
 combination of the image's and, where the cell's exponent was measured, its ``camera.response_gamma_sigma``), locate
 measures again with the fitted one (the error is absorbed) and the doubt left is the shift that the
 exponent's standard error makes; otherwise the doubt is the shift between the cell's exponent and the
-fitted one beyond twice that (a right cell keeps its small sigma). Where every plain edge admits a second
-exponent about as well (the asymmetry is not monotone in the exponent: :func:`_least_asymmetric`), the
+fitted one beyond twice that (a right cell keeps its small sigma), except for a reading between the
+pixels (a door square to the camera), which is combined with the cell's exponent as known within
+``locate.response_unmeasured_factor`` (:meth:`ResponseFit.with_unmeasured_claim`). Where every plain
+edge admits a second exponent about as well (the asymmetry is not monotone in the exponent: :func:`_least_asymmetric`), the
 image cannot tell the camera's: nothing is absorbed and the doubt is the largest shift of the readings.
 """
 
@@ -198,9 +200,10 @@ class ResponseFit:
         within two of its sigmas of the claim as proof of it had left a cell of 1.0 for a 1.67 camera,
         read 1.65 +- 0.34 on a door square to the camera, 0.056 mm off at 4.4 sigma.
         """
-        g = float(np.clip(self.gamma, *RESPONSE_PLAUSIBLE))
-        w_i, w_c = 1.0 / self.sigma**2, 1.0 / prior_sigma**2
-        return (w_i * g + w_c * self.claimed) / (w_i + w_c), 1.0 / math.sqrt(w_i + w_c)
+        g, se, _ = replace(
+            self, gamma=float(np.clip(self.gamma, *RESPONSE_PLAUSIBLE)), claimed_sigma=prior_sigma
+        ).combined
+        return g, se
 
     @property
     def absorb(self) -> bool:
