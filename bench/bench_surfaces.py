@@ -13,6 +13,8 @@ effect drawn over a wide random range per image, so nothing is tuned to one look
                band, grain, gradients, vignetting, blur 0-2 px, shot and read noise, JPEG 80-95 or none,
                16-bit on some.
 - thin         hard photometry on thin doors (28-40 mm) shifted so the far face is in view.
+- combined     (not in the default sets) hard photometry on chamfered and rounded arrises (0-3 mm) lit
+               from either side, through a camera of response 1.0-2.4 that the cell file states.
 - fixtures/*   the committed rendered fixtures (grid, widths, distractors, effects).
 
 For every set: n, answered, RMS and max error, and the uncertainty's coverage: the fraction of
@@ -151,12 +153,41 @@ def thin_set(n: int, seed: int) -> Iterator[Item]:
         )
 
 
+def combined_set(n: int, seed: int) -> Iterator[Item]:
+    """Every effect at once: hard photometry (grain, gradients, vignetting, shadow, noise, JPEG) on doors
+    with a chamfer or rounding of 0-3 mm (none on a quarter), lit from either side, seen by a camera of
+    response exponent 1.0-2.4 that the cell file states (``run_rendered`` sets the cell's
+    ``response_gamma`` to the rendered one)."""
+    rng = np.random.default_rng(seed)
+    for i in range(n):
+        eff = _hard_effects(rng)
+        profile = str(rng.choice(["chamfer", "round"]))
+        arris = float(rng.uniform(0.3, 3.0)) if rng.random() < 0.75 else 0.0
+        hinge, chamfer = eff.albedo_hinge, float(rng.uniform(0.3, 0.95)) * eff.albedo_hinge / 0.6
+        amb, direct = float(rng.uniform(0.3, 1.0)), float(rng.uniform(0.0, 0.8))
+        k = min(1.0, 0.95 / (max(hinge, chamfer) * (amb + direct)))  # no face clips at white
+        eff = replace(
+            eff,
+            arris_profile=profile,  # type: ignore[arg-type]
+            albedo_chamfer=chamfer,
+            light_ambient=amb * k,
+            light_directional=direct * k,
+            light_azimuth_deg=float(rng.choice([-1.0, 1.0]) * rng.uniform(10.0, 80.0)),
+            light_elevation_deg=float(rng.uniform(-30.0, 60.0)),
+            blur_sigma_px=float(rng.uniform(0.6, 1.8)),
+            gamma=float(rng.uniform(1.0, 2.4)),
+        )
+        door = DoorSize(900, float(rng.uniform(30, 100)), 2100, arris_mm=arris, arris_profile=profile)  # type: ignore[arg-type]
+        yield f"combined_{i:03d}", _pose(rng), door, eff, seed * 1000 + i
+
+
 #: name -> generator(n, seed); add arris / response sets here
 SETS: dict[str, Callable[[int, int], Iterator[Item]]] = {
     "grain": grain_set,
     "plain": plain_set,
     "hard": hard_set,
     "thin": thin_set,
+    "combined": combined_set,
 }
 FIXTURES = ("grid", "widths", "distractors", "effects")
 
@@ -213,10 +244,16 @@ def run_rendered(cell: Cell, name: str, n: int, seed: int) -> dict:
     results = []
     for img_name, pose, door, eff, s in SETS[name](n, seed):
         img = render_door(cell, door, pose, effects=eff, seed=s).image
+        # the cell file states the camera's response (a set of non-linear cameras renders its exponent)
+        stated = (
+            cell
+            if eff is None or eff.gamma == cell.response_gamma
+            else replace(cell, response_gamma=eff.gamma)
+        )
         results.append(
             (
                 img_name,
-                locate(img, cell, door, image_name=img_name, config=cfg),
+                locate(img, stated, door, image_name=img_name, config=cfg),
                 (pose.x_mm, pose.z_mm, pose.yaw_deg),
             )
         )
