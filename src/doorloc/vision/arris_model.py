@@ -35,7 +35,8 @@ one batch: a few ms per edge (it was ~60-90 ms with numerical Jacobians and one 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.special import ndtr
@@ -210,6 +211,10 @@ class StripFit:
     model_deficit : float
         The deficit of the fitted profiles ``model`` (the best fit's, where ``deficit`` is the posterior
         mean along the valley).
+    deficit_at_blur : callable or None
+        ``blur_px -> deficit``: the deficit of the best fit with the blur held at another value (the
+        border's offset searched again over the fit's range), for the caller's check of the blur against
+        the image's other strips (one lens, one blur).
     """
 
     deficit: float
@@ -221,6 +226,7 @@ class StripFit:
     model: np.ndarray
     border: np.ndarray
     model_deficit: float
+    deficit_at_blur: Callable[[float], float] | None = field(default=None, compare=False, repr=False)
 
 
 def _pixel_terms(
@@ -735,6 +741,18 @@ def fit_strip_profile(
     misfit = math.sqrt(float(np.sum(resid**2)) / dof) / max(noise, 1e-6)
     c0, cb, band = ev0.coef[0, 0], ev0.coef[0, 1], ev0.coef[0, 2:]
     levels = (basis @ band - c0) / (cb - c0)
+
+    def deficit_at_blur(blur_px: float) -> float:
+        """The best fit's deficit with the blur held at ``blur_px``: the offset's coarse profile over the
+        search range, then Newton steps on the offset alone."""
+        b = max(float(blur_px), 0.1)
+        d = float(grid[int(np.argmin(prob.evaluate(grid, np.full(grid.size, b), basis).chi2))])
+        for _ in range(6):
+            e = prob.evaluate(np.array([d]), np.array([b]), basis, jac=True)
+            assert e.grad is not None and e.hess is not None
+            d -= float(np.clip(e.grad[0, 0] / max(float(e.hess[0, 0, 0]), 1e-300), -0.5, 0.5))
+        return float(prob.evaluate(np.array([d]), np.array([b]), basis).deficit[0])
+
     return StripFit(
         deficit,
         sigma,
@@ -745,6 +763,7 @@ def fit_strip_profile(
         model,
         outer + d0,
         float(np.mean(1.0 - levels)),
+        deficit_at_blur,
     )
 
 

@@ -37,7 +37,7 @@ from scipy.ndimage import uniform_filter1d
 from doorloc import __version__
 from doorloc.cell import Cell, DoorSize
 from doorloc.vision import quality as q
-from doorloc.vision.arris_model import StripFit, arris_edges, arris_geometry
+from doorloc.vision.arris_model import BLUR_DOUBT, StripFit, arris_edges, arris_geometry
 from doorloc.vision.coarse import coarse_edges
 from doorloc.vision.config import LocateConfig
 from doorloc.vision.edges import (
@@ -1416,6 +1416,41 @@ def _unmeasured_response_terms(
             model.extra_px.setdefault(k, {})["response"] = spread
 
 
+def _arris_blur_terms(
+    arris_fits: dict[str, tuple[StripFit, float]], model: EdgeModelTerms, diagnostics: dict
+) -> None:
+    """Each arris line's doubt (px) from a blur its strip fit does not share with the image's other strips.
+
+    One lens blurs every edge of the door alike, but each strip fit finds its own blur, which trades off
+    with the strip's shading and the border's place: texture beside a strip (wood grain along a rounding)
+    can take a fit to a wrong valley with a wrong blur. Seen on a 3 mm rounding with 6.5 % grain
+    (tests/vision/test_arris_model.py): the reference arris's strip read a blur of 1.76 px where the
+    bottom end's and the far arris's read 0.72 and 0.85 (the image's 0.72), and the door was placed
+    0.51 mm off in x with a sigma of 0.09 mm; that strip fitted at 0.72 px was 0.05 mm off. The strip fit
+    allows for ``arris_model.BLUR_DOUBT`` of blur; where a line's blur differs from the strips' median by
+    more, the change of its deficit at that median (:attr:`StripFit.deficit_at_blur`, against the same
+    search at its own blur) times the strip's width joins its ``arris`` doubt (``arris_correction_sigma_mm``;
+    ``diagnostics.arris_fit[line].blur_doubt_px``).
+    """
+    blurs = {k: float(strip.blur_px) for k, (strip, _) in arris_fits.items() if math.isfinite(strip.blur_px)}
+    if len(blurs) < 2:
+        return
+    # the image's blur: the strips' median (one strip led astray does not move it; of two, their mean)
+    shared = float(np.median(list(blurs.values())))
+    for k, (strip, band_px) in arris_fits.items():
+        if k not in blurs or strip.deficit_at_blur is None:
+            continue
+        if not abs(blurs[k] - shared) > BLUR_DOUBT:
+            continue
+        moved = abs(strip.deficit_at_blur(shared) - strip.deficit_at_blur(blurs[k])) * band_px
+        if math.isfinite(moved):
+            terms = model.extra_px.setdefault(k, {})
+            terms["arris"] = math.hypot(terms.get("arris", 0.0), moved)
+            diagnostics.setdefault("arris_fit", {}).setdefault(k, {}).update(
+                blur_strips_px=round(shared, 3), blur_doubt_px=round(moved, 4)
+            )
+
+
 def _gate_and_answer(
     name,
     cell,
@@ -1485,6 +1520,8 @@ def _gate_and_answer(
                 "misfit": round(strip.misfit, 3),
                 "offset_px": round(strip.offset_px, 4),
             }
+    if arris_fits:
+        _arris_blur_terms(arris_fits, model, diagnostics)
     if response is not None:
         _response_terms(
             plane,
