@@ -13,6 +13,7 @@ from doorloc.sim.door import render_door
 from doorloc.sim.effects import Effects
 from doorloc.vision.locate import LocateConfig, LocateTrace, locate
 from doorloc.vision.metric import PlaneMap
+from doorloc.vision.quality import check_thickness
 
 HARD = Effects(
     albedo_hinge=0.34,
@@ -317,6 +318,16 @@ def test_thickness_is_never_accepted_beyond_the_tolerance_it_claims(cell):
     img = render_door(cell, DoorSize(900, 32.85, 2100), pose, effects=THIN_HARD).image
     r = locate(img, cell, door, config=LocateConfig(thickness_tolerance_mm=0.3))
     assert not r.ok and r.error_code == "thickness_mismatch"
+
+
+def test_a_thickness_difference_within_the_measurements_doubt_is_no_mismatch():
+    """A wrong door ("check that the right door is in the fixture") is claimed only where the difference exceeds the tolerance by
+    more than the measurement's 1-sigma; below that the caller refuses ``uncertain`` (a valid door whose
+    chamfer the image could not resolve measured 1.67 mm thin at a sigma of 0.8 mm)."""
+    assert check_thickness(48.2, 50.0, 1.0).code == "thickness_mismatch"  # no doubt given: as before
+    assert check_thickness(48.2, 50.0, 1.0, sigma=0.9) is None
+    assert check_thickness(51.5, 50.0, 1.0, sigma=0.4).code == "thickness_mismatch"
+    assert check_thickness(float("nan"), 50.0, 1.0, sigma=0.4).code == "thickness_mismatch"
 
 
 def test_the_answer_says_whether_the_camera_response_was_checked_and_why_not(cell):

@@ -1619,7 +1619,7 @@ def _gate_and_answer(
         model.line_sigma_px("reference") * pose.scale_mm_per_px,
         model.line_sigma_px("far") * pose.scale_mm_per_px,
     )
-    refusals.append(q.check_thickness(pose.thickness_mm, door.thickness_mm, t_tol))
+    refusals.append(q.check_thickness(pose.thickness_mm, door.thickness_mm, t_tol, sigma=t_sigma))
     t_uncertain = abs(pose.thickness_mm - door.thickness_mm) + 3.0 * t_sigma > t_tol
     if t_uncertain and refusals[-1] is None:
         refusals.append(

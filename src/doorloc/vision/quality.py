@@ -153,14 +153,27 @@ def check_envelope(
 
 
 def check_thickness(
-    measured: float, expected: float, tolerance: float, stated_tolerance: float | None = None
+    measured: float,
+    expected: float,
+    tolerance: float,
+    stated_tolerance: float | None = None,
+    sigma: float = 0.0,
 ) -> Refusal | None:
     """The measured thickness must match the door's (a wrong recipe or a wrong door is caught here).
 
     ``stated_tolerance`` is the tolerance named in the message (the configured one, when a coarse
-    measurement is checked against a wider limit).
+    measurement is checked against a wider limit). ``sigma`` is the measurement's 1-sigma, mm: a
+    mismatch is claimed only where the difference exceeds the tolerance by more than that (a measurement
+    that cannot tell is the caller's ``uncertain``, not a wrong door: a valid door whose chamfer the image
+    could not resolve measured 1.67 mm thin with a sigma of 0.8 mm, and "check that the right door is in
+    the fixture" sent the operator after the wrong cause).
+
+    >>> check_thickness(48.2, 50.0, 1.0) is not None
+    True
+    >>> check_thickness(48.2, 50.0, 1.0, sigma=0.9) is None
+    True
     """
-    if not np.isfinite(measured) or abs(measured - expected) > tolerance:
+    if not np.isfinite(measured) or abs(measured - expected) > tolerance + max(sigma, 0.0):
         shown = tolerance if stated_tolerance is None else stated_tolerance
         return Refusal(
             "thickness_mismatch",
