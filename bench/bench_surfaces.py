@@ -15,6 +15,14 @@ effect drawn over a wide random range per image, so nothing is tuned to one look
 - thin         hard photometry on thin doors (28-40 mm) shifted so the far face is in view.
 - combined     (not in the default sets) hard photometry on chamfered and rounded arrises (0-3 mm) lit
                from either side, through a camera of response 1.0-2.4 that the cell file states.
+- thin-arris   (not in the default sets) thin doors (28-34 mm) with their far face in view and a 0.5-3 mm
+               chamfer or rounding on every arris, wide random lighting: the far arris's strip between the
+               hinge face and the far face.
+
+Every set also reports the thickness: RMS, and how often it lies within 2 (beyond 5) of the sigma its
+check used (``diagnostics.thickness_check.sigma_mm``). ``--response-factor F`` sets the rendered sets'
+``locate.response_unmeasured_factor`` (a cell whose response was measured: ``doorloc calibrate`` prints
+it; 1.11 for Bouguet's photographs).
 - fixtures/*   the committed rendered fixtures (grid, widths, distractors, effects).
 
 For every set: n, answered, RMS and max error, and the uncertainty's coverage: the fraction of
@@ -32,7 +40,7 @@ machine in the same run; per image the best of all its calls, then the median ov
 costs, not what other processes cost). One thread.
 
 Run:  OMP_NUM_THREADS=1 python bench/bench_surfaces.py [--n 60] [--seed 11] [--sets grain,plain,...]
-      [--speed] [--json out.json]
+      [--response-factor F] [--speed] [--json out.json]
 """
 
 from __future__ import annotations
@@ -181,6 +189,39 @@ def combined_set(n: int, seed: int) -> Iterator[Item]:
         yield f"combined_{i:03d}", _pose(rng), door, eff, seed * 1000 + i
 
 
+def thin_arris_set(n: int, seed: int) -> Iterator[Item]:
+    """Thin doors (28-34 mm) shifted towards -X so that the far face is in view, with a chamfer or rounding
+    of 0.5-3 mm on every arris: the far arris's strip lies between the hinge face and the far face. Wide
+    random lighting from either side, mild noise, a linear camera."""
+    rng = np.random.default_rng(seed)
+    for i in range(n):
+        profile = ("chamfer", "round")[i % 2]
+        hinge, chamfer = float(rng.uniform(0.5, 0.9)), float(rng.uniform(0.3, 0.95))
+        amb, direct = float(rng.uniform(0.2, 1.0)), float(rng.uniform(0.0, 0.9))
+        k = min(1.0, 0.95 / (max(hinge, chamfer) * (amb + direct)))  # no face clips at white
+        eff = Effects(
+            arris_profile=profile,  # type: ignore[arg-type]
+            albedo_hinge=hinge,
+            albedo_chamfer=chamfer,
+            albedo_background=float(rng.uniform(0.05, 0.2)),
+            light_ambient=amb * k,
+            light_directional=direct * k,
+            light_azimuth_deg=float(rng.choice([-1.0, 1.0]) * rng.uniform(10.0, 80.0)),
+            light_elevation_deg=float(rng.uniform(-30.0, 60.0)),
+            blur_sigma_px=float(rng.uniform(0.6, 1.8)),
+            read_noise_dn=float(rng.uniform(0.0, 1.0)),
+        )
+        door = DoorSize(
+            900,
+            float(rng.uniform(28, 34)),
+            2100,
+            arris_mm=float(rng.uniform(0.5, 3.0)),
+            arris_profile=profile,
+        )  # type: ignore[arg-type]
+        pose = DoorPose(*rng.uniform([-8, -8, -1.5], [0, 8, 1.5]))
+        yield f"thin_arris_{i:03d}", pose, door, eff, seed * 1000 + i
+
+
 #: name -> generator(n, seed); add arris / response sets here
 SETS: dict[str, Callable[[int, int], Iterator[Item]]] = {
     "grain": grain_set,
@@ -188,6 +229,7 @@ SETS: dict[str, Callable[[int, int], Iterator[Item]]] = {
     "hard": hard_set,
     "thin": thin_set,
     "combined": combined_set,
+    "thin-arris": thin_arris_set,
 }
 FIXTURES = ("grid", "widths", "distractors", "effects")
 
@@ -195,7 +237,7 @@ FIXTURES = ("grid", "widths", "distractors", "effects")
 # -- evaluation ------------------------------------------------------------------------------------------
 def _evaluate(results: list[tuple[str, object, tuple[float, float, float]]]) -> dict:
     """results: (image name, LocateResult, truth (x, z, yaw)) -> the set's figures."""
-    errs, sigs, refusals = [], [], []
+    errs, sigs, refusals, thick = [], [], [], []
     for name, r, truth in results:
         if not r.ok:  # type: ignore[attr-defined]
             refusals.append({"image": name, "code": r.error_code, "reason": r.error})  # type: ignore[attr-defined]
@@ -203,7 +245,18 @@ def _evaluate(results: list[tuple[str, object, tuple[float, float, float]]]) -> 
         errs.append((r.x_mm - truth[0], r.z_mm - truth[1], r.yaw_deg - truth[2]))  # type: ignore[attr-defined]
         u = r.uncertainty  # type: ignore[attr-defined]
         sigs.append((u.x_mm, u.z_mm, u.yaw_deg))
+        if len(truth) > 3:  # the thickness and the sigma its check used
+            thick.append((r.thickness_mm - truth[3], r.diagnostics["thickness_check"]["sigma_mm"]))  # type: ignore[attr-defined]
     out: dict = {"n": len(results), "ok": len(errs), "refusals": refusals}
+    if thick:
+        t = np.array(thick)
+        tz = np.abs(t[:, 0]) / t[:, 1]
+        out |= {
+            "rms_thickness_mm": float(np.sqrt(np.mean(t[:, 0] ** 2))),
+            "max_thickness_mm": float(np.max(np.abs(t[:, 0]))),
+            "thickness_within_2sigma": float(np.mean(tz <= 2.0)),
+            "thickness_beyond_5sigma": int(np.sum(tz > 5.0)),
+        }
     if not errs:
         return out
     e, s = np.array(errs), np.array(sigs)
@@ -233,14 +286,21 @@ def _print_set(name: str, s: dict, seed: int | None) -> None:
             f"{s['max_z_x_mm']:.1f}/{s['max_z_z_mm']:.1f}/{s['max_z_yaw_deg']:.1f} sigma; median sigma x "
             f"{s['median_sigma_x_mm']:.4f} z {s['median_sigma_z_mm']:.4f} mm yaw {s['median_sigma_yaw_deg']:.4f} deg"
         )
+    if "rms_thickness_mm" in s:
+        print(
+            f"{'':20s} thickness: RMS {s['rms_thickness_mm']:.4f} mm, max {s['max_thickness_mm']:.4f} mm, within 2 "
+            f"sigma {100 * s['thickness_within_2sigma']:.0f} %, beyond 5 sigma {s['thickness_beyond_5sigma']}"
+        )
     for r in s["refusals"]:
         print(f"{'':20s} refused {r['image']}: {r['code']}: {r['reason']}")
 
 
-def run_rendered(cell: Cell, name: str, n: int, seed: int) -> dict:
+def run_rendered(cell: Cell, name: str, n: int, seed: int, response_factor: float | None = None) -> dict:
     from doorloc.vision.locate import locate
 
     cfg = replace(cell.locate, calibration_sigma_px=0.0)  # the rendered camera is exact
+    if response_factor is not None:  # a cell whose response was measured (doorloc calibrate's factor)
+        cfg = replace(cfg, response_unmeasured_factor=response_factor)
     results = []
     for img_name, pose, door, eff, s in SETS[name](n, seed):
         img = render_door(cell, door, pose, effects=eff, seed=s).image
@@ -254,7 +314,7 @@ def run_rendered(cell: Cell, name: str, n: int, seed: int) -> dict:
             (
                 img_name,
                 locate(img, stated, door, image_name=img_name, config=cfg),
-                (pose.x_mm, pose.z_mm, pose.yaw_deg),
+                (pose.x_mm, pose.z_mm, pose.yaw_deg, door.thickness_mm),
             )
         )
     return _evaluate(results)
@@ -281,7 +341,12 @@ def run_fixture(folder: str) -> dict:
                 (
                     row["image"],
                     locate(img, cell, door, image_name=row["image"], config=cfg),
-                    (float(row["x_mm"]), float(row["z_mm"]), float(row["yaw_deg"])),
+                    (
+                        float(row["x_mm"]),
+                        float(row["z_mm"]),
+                        float(row["yaw_deg"]),
+                        float(row["thickness_mm"]),
+                    ),
                 )
             )
     return _evaluate(results)
@@ -350,6 +415,11 @@ def main() -> None:
     ap.add_argument(
         "--sets", default="grain,plain,hard,thin,fixtures", help="comma list of sets (fixtures = all folders)"
     )
+    ap.add_argument(
+        "--response-factor",
+        type=float,
+        help="rendered sets: locate.response_unmeasured_factor (a cell whose response was measured, e.g. 1.11)",
+    )
     ap.add_argument("--speed", action="store_true", help="also time the grid set against --baseline-src")
     ap.add_argument("--baseline-src", type=Path, default=Path("/work/main/src"))
     ap.add_argument("--rounds", type=int, default=3)
@@ -376,7 +446,7 @@ def main() -> None:
         if name not in SETS:
             raise SystemExit(f"unknown set {name!r}; known: {', '.join(SETS)}, fixtures")
         seed = args.seed + list(SETS).index(name)  # a set keeps its seed whichever sets run
-        s = run_rendered(cell, name, args.n, seed)
+        s = run_rendered(cell, name, args.n, seed, args.response_factor)
         s["seed"] = seed
         _print_set(name, s, seed)
         pooled_z += s.pop("_z", [])
