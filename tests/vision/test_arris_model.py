@@ -575,3 +575,65 @@ def test_a_strip_fit_that_reads_another_blur_than_the_images_other_strips_is_in_
         ref = next(ln for ln in res.lines if ln.name == "reference")
         assert abs(m["x_mm"] - pose.x_mm) <= 3 * ref.model_sigma_mm
     assert fits["reference"]["blur_doubt_px"] > 1.0
+
+
+_THIN_ARRIS_DOORS = [
+    # a 0.74 mm rounding on a 33.8 mm door lit from +79 deg: the strip was taken for the far face, and the
+    # door refused as 1.2 mm too thick (thickness_mismatch, 12 sigma)
+    (
+        3005,
+        "round",
+        0.7396,
+        33.761,
+        (-4.8461, 3.4388, 0.9667),
+        dict(
+            albedo_hinge=0.8304,
+            albedo_chamfer=0.5777,
+            albedo_background=0.0559,
+            light_ambient=0.6366,
+            light_directional=0.5074,
+            light_azimuth_deg=79.0916,
+            light_elevation_deg=40.4743,
+            blur_sigma_px=0.9017,
+            read_noise_dn=0.6509,
+        ),
+    ),
+    # a 0.58 mm chamfer on a 29.8 mm door: answered 0.43 mm thin at 7.6 sigma of its thickness
+    (
+        3006,
+        "chamfer",
+        0.5845,
+        29.787,
+        (-2.6892, -2.5015, -1.1997),
+        dict(
+            albedo_hinge=0.7279,
+            albedo_chamfer=0.7997,
+            albedo_background=0.1249,
+            light_ambient=0.2338,
+            light_directional=0.885,
+            light_azimuth_deg=-33.1468,
+            light_elevation_deg=20.9272,
+            blur_sigma_px=1.2852,
+            read_noise_dn=0.6661,
+        ),
+    ),
+]
+
+
+@pytest.mark.parametrize("seed,profile,arris,thickness,truth,lighting", _THIN_ARRIS_DOORS)
+def test_a_thin_doors_far_arris_strip_beside_its_far_face_is_modelled(
+    seed, profile, arris, thickness, truth, lighting
+):
+    """Beside a visible far face the far arris's strip lies between the hinge face and the far face: the
+    far-face fit models it (its level one more shared unknown) instead of taking it for either face."""
+    door = DoorSize(900, thickness, 2100, arris_mm=arris, arris_profile=profile)
+    pose = DoorPose(*truth)
+    img = render_door(CELL, door, pose, effects=Effects(arris_profile=profile, **lighting), seed=seed).image
+    cfg = dataclasses.replace(CELL.locate, calibration_sigma_px=0.0, response_unmeasured_factor=1.0)
+    res = locate(img, CELL, door, config=cfg)
+    assert res.ok, res.error
+    check = res.diagnostics["thickness_check"]
+    assert abs(res.thickness_mm - thickness) <= 3 * check["sigma_mm"]
+    assert abs(res.thickness_mm - thickness) <= 0.15
+    assert abs(res.x_mm - pose.x_mm) <= 3 * res.uncertainty.x_mm
+    assert res.diagnostics["far_face_visible"] and "strip_level" in res.diagnostics["far_face_fit"]

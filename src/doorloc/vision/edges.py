@@ -586,7 +586,10 @@ class FarFaceFit:
     model_sigma_px : float
         How far the arris moves if the band level were off by ``LEVEL_DOUBT`` or the blur by
         ``BLUR_DOUBT`` px (the two combined as independent errors): the doubt the model leaves, which
-        noise averaging does not reduce. Large where a narrow band cannot be told from the arris.
+        noise averaging does not reduce. Large where a narrow band cannot be told from the arris. With an
+        arris strip, also by the strip level's doubt (its fitted standard error and ``LEVEL_DOUBT``).
+    strip_level : float
+        The arris strip's relative level ``(S - A) / (B - A)`` (NaN without a strip).
     """
 
     band_level: float
@@ -594,6 +597,7 @@ class FarFaceFit:
     band_px: float
     arris_sigma_px: float
     model_sigma_px: float
+    strip_level: float = float("nan")
 
 
 #: plausible model errors of the far-face fit: band level (relative) and optical blur (px)
@@ -719,16 +723,20 @@ def _far_face_steps(
     band_slope: float,
     sigma: float,
     D: np.ndarray,
+    strip: np.ndarray | None = None,
 ) -> tuple[_StepPixels, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The far-face model's two unit steps on each profile, at the arrises ``e`` and the band's back edge
     (its width ``w0`` predicted at ``e0``, changing by ``band_slope`` per px, clipped at 0): the steps'
     pixels (:class:`_StepPixels`), where a band is in view, the arris's and the back edge's pixel values
-    ``C1``, ``C2`` and the model's derivative by the band level ``D (C1 - C2)``."""
+    ``C1``, ``C2`` and the model's derivative by the band level ``D (C1 - C2)``. With ``strip`` (N,) a third
+    step at ``e - strip`` (an arris strip's inner border on the hinge face), the steps' pixels' rows
+    ``2N..3N``."""
     n = e.size
     w_raw = w0 + band_slope * (e - e0)
     has_band = w_raw > 0
-    sp = _StepPixels(bounds, np.concatenate([e, e + np.where(has_band, w_raw, 0.0)]), sigma)
-    C1, C2 = sp.C[:n], sp.C[n:]
+    pos = [e, e + np.where(has_band, w_raw, 0.0)] + ([e - strip] if strip is not None else [])
+    sp = _StepPixels(bounds, np.concatenate(pos), sigma)
+    C1, C2 = sp.C[:n], sp.C[n : 2 * n]
     return sp, has_band, C1, C2, D[:, None] * (C1 - C2)
 
 
@@ -772,6 +780,8 @@ def subpixel_edges_far_face(
     lut: np.ndarray | None = None,
     n_iter: int = 10,
     fit_blur: bool = False,
+    strip_px: np.ndarray | None = None,
+    strip_radiance: tuple[float, float] = (0.9, 0.45),
 ) -> tuple[EdgeSamples, FarFaceFit]:
     """The far arris beside a visible far face, by fitting the whole profile across it.
 
@@ -805,6 +815,16 @@ def subpixel_edges_far_face(
         so the blur is best measured where the step is plain.
     fit_blur : bool
         Fit the blur too (starting at ``blur_px``); only sound where the band is much wider than the blur.
+    strip_px : ndarray (N,), optional
+        A chamfered or rounded far arris: the strip's width on the hinge-face side of ``e``, px (``e`` is
+        then the far face's near border, where the strip meets it). The profile is ``hinge face A | strip S
+        | far face L | background B``, the strip's relative level ``(S - A) / (B - A)`` one more shared
+        unknown, with the prior that the strip's radiance is ``strip_radiance`` (mean, standard deviation)
+        times the hinge face's (:data:`doorloc.vision.arris_model.STRIP_RADIANCE`). Without it a strip
+        took the far face's level or the hinge face's and the thickness was up to the strip's width off
+        with a sigma that did not know it (thin doors with 0.5-3 mm arrises: 1.2 mm at 12 sigma).
+    strip_radiance : (float, float)
+        The strip's radiance over the hinge face's, prior mean and standard deviation.
 
     Returns
     -------
@@ -820,12 +840,21 @@ def subpixel_edges_far_face(
     w0 = np.where(finite, w0, 0.0)
     c0 = np.round(np.where(finite, centre, 0.0)).astype(int)
     n_extra = int(math.ceil(max(float(np.max(w0, initial=0.0)), 0.0))) + 1
-    length = 2 * (half + plateau) + 1 + n_extra
+    ws = (
+        np.zeros(len(scan))
+        if strip_px is None
+        else np.where(np.isfinite(strip_px), np.maximum(np.asarray(strip_px, float), 0.0), 0.0)
+    )
+    has_strip = bool(np.any(ws > 0))
+    # the hinge face's plateau beyond the strip (and the blur beside it), and room for the border a
+    # strip's width either way (the second reading of the profile, below)
+    n_strip = int(math.ceil(float(ws.max(initial=0.0)) + 2.0 * blur_px)) if has_strip else 0
+    length = 2 * (half + plateau) + 1 + n_extra + 2 * n_strip
     if outward > 0:
-        start = c0 - half - plateau
+        start = c0 - half - plateau - n_strip
         vals, inside = _gather(P, scan, start, length, lut=lut)
     else:  # mirror so that the hinge face is at the low indices
-        start = c0 + half + plateau
+        start = c0 + half + plateau + n_strip
         vals, inside = _gather(P, scan, start - length + 1, length, lut=lut)
         vals, inside = vals[:, ::-1], inside[:, ::-1]
     vals = vals.astype(np.float64)
@@ -837,14 +866,32 @@ def subpixel_edges_far_face(
         B = _smooth_along(np.where(ok, B, np.nan), level_smooth)
     D = B - A
     ok &= np.isfinite(D) & (np.abs(D) > 0)
-    e0 = plateau + half + (centre - c0) * outward  # predicted arris, index units
+    e0 = plateau + n_strip + half + (centre - c0) * outward  # predicted arris, index units
     # Only the core (between the plateaus) carries the edges; the plateaus fix A and B.
     core = vals[ok, plateau : length - plateau]
     bounds = np.arange(plateau, length - plateau + 1, dtype=np.float64) - 0.5
     Ao, Do, e0o, w0o = A[ok], D[ok], e0[ok], w0[ok]
+    wso = ws[ok] if has_strip else None
     e = e0o.copy()
     sigma = float(np.clip(blur_px, 0.05, 5.0))
     n_ok = int(ok.sum())
+    # The strip's relative level (S - A) / (B - A) a priori: its radiance a fraction of the hinge face's
+    # (linear light), in units of the contrast; weighed at the profiles' noise.
+    mu0 = mu_sd = pull_mu = 0.0
+    levels_lo, levels_hi = -math.inf, math.inf
+    if has_strip and n_ok:
+        a_med, d_med = float(np.median(Ao)), float(np.median(Do))
+        k = -a_med / d_med if abs(d_med) > 1e-9 * max(abs(a_med), 1e-12) else 0.0
+        mu0 = (strip_radiance[0] - 1.0) * -k
+        mu_sd = max(strip_radiance[1] * abs(k), 0.05)
+        # The strip's and the far face's levels where their radiance is 0-3 times the hinge face's (the
+        # same wood: in shadow, or glinting). A far face seen nearly edge-on, a band of a hundredth of a
+        # pixel, otherwise took a level of -32 (a spike that moves the step at no cost: effects fixture
+        # img_0007, its bottom end then refused as not straight).
+        levels_lo, levels_hi = sorted((k, -2.0 * k))
+        ends = np.concatenate([vals[ok, :plateau], vals[ok, -plateau:]], axis=1)
+        noise_var = max(float(np.median(ends.var(axis=1))), (1e-3 * abs(d_med)) ** 2)
+        pull_mu = noise_var / mu_sd**2
     # The model's pieces at each set of arrises, kept for the few latest: the line search's accepted trial
     # is the next iteration's point, and the start search's winner the first one.
     cache: dict[tuple[bytes, float], dict[str, Any]] = {}
@@ -855,47 +902,61 @@ def subpixel_edges_far_face(
         if p is None:
             if len(cache) >= 4:
                 cache.pop(next(iter(cache)))
-            sp, has_band, C1, C2, J_lam = _far_face_steps(bounds, e, w0o, e0o, band_slope, sigma, Do)
+            sp, has_band, C1, C2, J_lam = _far_face_steps(bounds, e, w0o, e0o, band_slope, sigma, Do, wso)
             p = cache[key] = dict(
                 sp=sp, has_band=has_band, C1=C1, C2=C2, J_lam=J_lam, info=_dot(J_lam, J_lam)
             )
+            if has_strip:
+                p["J_mu"] = Do[:, None] * (sp.C[2 * n_ok :] - C1)  # the model's derivative by the strip level
         return p
 
-    def model_values(e: np.ndarray, lam: float, sigma: float) -> tuple[np.ndarray, dict[str, Any]]:
+    def model_values(
+        e: np.ndarray, lam: float, sigma: float, mu: float = 0.0
+    ) -> tuple[np.ndarray, dict[str, Any]]:
         p = pieces(e, sigma)
         a1 = (lam * Do)[:, None]  # L - A
         a2 = ((1.0 - lam) * Do)[:, None]  # B - L
-        return Ao[:, None] + a1 * p["C1"] + a2 * p["C2"], p
+        m = Ao[:, None] + a1 * p["C1"] + a2 * p["C2"]
+        if has_strip:
+            m = m + mu * p["J_mu"]  # + (S - A) at the strip's inner border - (S - A) at the far face's
+        return m, p
 
     def jacobians(
-        e: np.ndarray, lam: float, sigma: float, with_blur: bool
+        e: np.ndarray, lam: float, sigma: float, with_blur: bool, mu: float = 0.0
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
         """Model, its derivatives by the arrises (N, M), the band level and (``with_blur``) the blur."""
-        m, p = model_values(e, lam, sigma)
+        m, p = model_values(e, lam, sigma, mu)
         if "g" not in p:
             p["g"] = p["sp"].slope()
         g = p["g"]
-        a1 = (lam * Do)[:, None]
+        a1 = ((lam - mu) * Do)[:, None]
         a2 = ((1.0 - lam) * Do)[:, None]
-        J_e = -a1 * g[:n_ok] - a2 * g[n_ok:] * (1.0 + band_slope * p["has_band"])[:, None]
+        J_e = -a1 * g[:n_ok] - a2 * g[n_ok : 2 * n_ok] * (1.0 + band_slope * p["has_band"])[:, None]
+        if has_strip:
+            J_e = J_e - (mu * Do)[:, None] * g[2 * n_ok :]
         J_sig = None
         if with_blur:
             if "h" not in p:
                 p["h"] = p["sp"].blur_slope()
-            J_sig = a1 * p["h"][:n_ok] + a2 * p["h"][n_ok:]
+            h = p["h"]
+            J_sig = a1 * h[:n_ok] + a2 * h[n_ok : 2 * n_ok]
+            if has_strip:
+                J_sig = J_sig + (mu * Do)[:, None] * h[2 * n_ok :]
         return m, J_e, p["J_lam"], J_sig
 
     def level_and_cost(e: np.ndarray) -> tuple[float, float]:
         p = pieces(e, sigma)
-        return _band_level_and_cost(core, Ao, Do, p["C2"], p["J_lam"], p["info"])
+        # (a strip at its prior level while the start is searched)
+        C2 = p["C2"] + (mu0 / np.where(Do == 0, 1.0, Do))[:, None] * p["J_mu"] if has_strip else p["C2"]
+        return _band_level_and_cost(core, Ao, Do, C2, p["J_lam"], p["info"])
 
-    lam = 0.5
+    lam, mu = 0.5, mu0
     if n_ok:
         # Start from the best common shift of all arrises (half-pixel steps across the window): a
         # prediction that took the band's outer edge for the arris sits in a false minimum where the
         # band has shrunk to nothing, which Gauss-Newton would not leave.
         shifts = np.arange(-half, half + 0.25, 0.5)
-        if n_ok >= START_SUBSET_MIN_LINES:
+        if n_ok >= START_SUBSET_MIN_LINES and not has_strip:
             # The shifts' costs differ by whole bands of misfit: every START_SUBSET_EVERY-th scan line ranks
             # them, and the few best are then costed on every line (at a third of the work: the start search
             # was two thirds of the far face's time). Not a proof of the same winner, but it was on every
@@ -911,29 +972,33 @@ def subpixel_edges_far_face(
         e = e0o + best[1]
         lam = best[2]
 
-    def total_cost(e: np.ndarray, lam: float, sigma: float) -> float:
-        m, p = model_values(e, lam, sigma)
+    def total_cost(e: np.ndarray, lam: float, sigma: float, mu: float = 0.0) -> float:
+        m, p = model_values(e, lam, sigma, mu)
         pull = LEVEL_PRIOR_WEIGHT * p["info"]
         r = core - m
-        return _dot(r, r) + pull * (lam - 0.5) ** 2
+        c = _dot(r, r) + pull * (lam - 0.5) ** 2
+        return c + pull_mu * (mu - mu0) ** 2 if has_strip else c
 
-    cost = total_cost(e, lam, sigma) if n_ok else 0.0
-    for _ in range(n_iter if n_ok else 0):
-        # One Gauss-Newton step for every arris and the shared level (and blur) together: the normal
-        # equations have one unknown per scan line plus the shared ones, solved through the Schur
-        # complement (the arrises and the level are strongly coupled where the band is narrow).
-        m, J_e, J_lam, J_sig = jacobians(e, lam, sigma, fit_blur)
-        r = core - m
-        Jg = [J_lam] if J_sig is None else [J_lam, J_sig]  # the blur's column is 0 when it is not fitted
+    # the shared unknowns: the band level, the blur (its column 0 when not fitted) and the strip's level
+    n_sh = 3 if has_strip else 2
+
+    def shared_system(
+        J_e: np.ndarray, Jg: list[np.ndarray | None], r: np.ndarray, lam: float, mu: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The normal equations of the shared unknowns with the arrises eliminated (Schur complement)."""
         h_ee = np.maximum(np.einsum("nm,nm->n", J_e, J_e), 1e-12)
-        h_eg = np.zeros((n_ok, 2))
-        H = np.zeros((2, 2))
-        b_g = np.zeros(2)
+        h_eg = np.zeros((n_ok, n_sh))
+        H = np.zeros((n_sh, n_sh))
+        b_g = np.zeros(n_sh)
         for k, Jk in enumerate(Jg):
+            if Jk is None:
+                continue
             h_eg[:, k] = np.einsum("nm,nm->n", J_e, Jk)
             b_g[k] = _dot(Jk, r)
             for j in range(k + 1):
-                H[k, j] = H[j, k] = _dot(Jk, Jg[j])
+                Jj = Jg[j]
+                if Jj is not None:
+                    H[k, j] = H[j, k] = _dot(Jk, Jj)
         b_e = np.einsum("nm,nm->n", J_e, r)
         level_info = float(H[0, 0])  # sum of J_lam ** 2
         H -= (h_eg / h_ee[:, None]).T @ h_eg
@@ -947,30 +1012,91 @@ def subpixel_edges_far_face(
         prior = LEVEL_PRIOR_WEIGHT * level_info
         H[0, 0] += prior
         b_g[0] += prior * (0.5 - lam)
-        d_lam, d_sig = np.linalg.solve(H, b_g)
-        d_lam, d_sig = float(np.clip(d_lam, -1.0, 1.0)), float(np.clip(d_sig, -0.5, 0.5))
-        de = np.clip((b_e - h_eg @ np.array([d_lam, d_sig])) / h_ee, -1.0, 1.0)
-        # Only steps that lower the cost: the band's width is clipped at zero, a kink Gauss-Newton
-        # can jump across into the false minimum where the band has vanished.
-        for step in (1.0, 0.5, 0.25, 0.125):
-            trial = (e + step * de, lam + step * d_lam, float(np.clip(sigma + step * d_sig, 0.05, 5.0)))
-            c = total_cost(*trial)
-            if c <= cost:
+        if has_strip:  # the strip's level: its prior (a strip narrower than the blur trades it with e)
+            H[2, 2] += pull_mu
+            b_g[2] += pull_mu * (mu0 - mu)
+        return H, b_g, h_ee, h_eg, b_e
+
+    def gauss_newton(
+        e: np.ndarray, lam: float, sigma: float, mu: float
+    ) -> tuple[np.ndarray, float, float, float, float]:
+        cost = total_cost(e, lam, sigma, mu)
+        for _ in range(n_iter):
+            # One Gauss-Newton step for every arris and the shared level (and blur, and strip level)
+            # together: the normal equations have one unknown per scan line plus the shared ones, solved
+            # through the Schur complement (the arrises and the level are strongly coupled where the band
+            # is narrow).
+            m, J_e, J_lam, J_sig = jacobians(e, lam, sigma, fit_blur, mu)
+            r = core - m
+            Jg = [J_lam, J_sig] + ([pieces(e, sigma)["J_mu"]] if has_strip else [])
+            H, b_g, h_ee, h_eg, b_e = shared_system(J_e, Jg, r, lam, mu)
+            d = np.linalg.solve(H, b_g)
+            d_lam, d_sig = float(np.clip(d[0], -1.0, 1.0)), float(np.clip(d[1], -0.5, 0.5))
+            d_mu = float(np.clip(d[2], -1.0, 1.0)) if has_strip else 0.0
+            d_sh = np.array([d_lam, d_sig, d_mu][:n_sh])
+            de = np.clip((b_e - h_eg @ d_sh) / h_ee, -1.0, 1.0)
+            # Only steps that lower the cost: the band's width is clipped at zero, a kink Gauss-Newton
+            # can jump across into the false minimum where the band has vanished.
+            for step in (1.0, 0.5, 0.25, 0.125):
+                trial = (
+                    e + step * de,
+                    lam + step * d_lam,
+                    float(np.clip(sigma + step * d_sig, 0.05, 5.0)),
+                    mu + step * d_mu,
+                )
+                if has_strip:
+                    trial = (
+                        trial[0],
+                        min(max(trial[1], levels_lo), levels_hi),
+                        trial[2],
+                        min(max(trial[3], levels_lo), levels_hi),
+                    )
+                c = total_cost(*trial)
+                if c <= cost:
+                    break
+            else:
                 break
-        else:
-            break
-        e, lam, sigma = trial
-        done = cost - c <= 1e-9 * max(cost, 1e-12) or (
-            np.max(np.abs(step * de)) < 1e-4 and abs(step * d_lam) < 1e-4
-        )
-        cost = c
-        if done:
-            break
+            e, lam, sigma, mu = trial
+            done = cost - c <= 1e-9 * max(cost, 1e-12) or (
+                np.max(np.abs(step * de)) < 1e-4 and abs(step * d_lam) < 1e-4 and abs(step * d_mu) < 1e-4
+            )
+            cost = c
+            if done:
+                break
+        return e, lam, sigma, mu, cost
+
+    strip_doubt = 0.0
+    if n_ok:
+        e, lam, sigma, mu, cost = gauss_newton(e, lam, sigma, mu)
+    if n_ok and has_strip:
+        # A strip as bright as the far face (or as the hinge face) is also read as a door thinner (or
+        # thicker) by the strip's width, its far face wider (or its strip invisible): the two explain the
+        # profiles alike, and only their misfits tell them apart. Each is fitted from the other's place;
+        # the better is kept, and the other weighs in as a second place for the border (its misfit excess
+        # at the scale of the residuals of one scan line: a model's error is common to all of them).
+        assert wso is not None
+        w_med = float(np.median(wso))
+        chosen: tuple[np.ndarray, float, float, float, float] = (e, lam, sigma, mu, cost)
+        others = []
+        for sgn in (1.0, -1.0):
+            alt = gauss_newton(chosen[0] + sgn * w_med, chosen[1], chosen[2], mu0)
+            if np.all(np.abs(alt[0] - e0o) <= half + n_strip):
+                others.append(alt)
+        if others:
+            ranked = sorted([chosen, *others], key=lambda t: t[4])
+            chosen = ranked[0]
+            per_line = chosen[4] / max(n_ok, 1)
+            for alt in ranked[1:]:
+                q = math.exp(-min((alt[4] - chosen[4]) / (2.0 * max(per_line, 1e-300)), 50.0))
+                shift = float(np.median(alt[0] - chosen[0]))
+                strip_doubt = max(strip_doubt, abs(shift) * math.sqrt(q / (1.0 + q)))
+        e, lam, sigma, mu, cost = chosen
     e_all = np.full(len(scan), np.nan)
     e_sigma = np.full(len(scan), np.nan)
-    de_dlam = de_dsig = np.zeros(0)
+    de_dlam = de_dsig = de_dmu = np.zeros(0)
+    mu_doubt = 0.0
     if n_ok:
-        m, J_e, J_lam, J_sig = jacobians(e, lam, sigma, True)
+        m, J_e, J_lam, J_sig = jacobians(e, lam, sigma, True, mu)
         assert J_sig is not None
         r = core - m
         res_var = (r * r).sum(axis=1) / max(core.shape[1] - 1, 1)
@@ -980,9 +1106,21 @@ def subpixel_edges_far_face(
         # How each arris would move to keep fitting its profile if the level or the blur were off.
         de_dlam = -(J_e * J_lam).sum(axis=1) / info
         de_dsig = -(J_e * J_sig).sum(axis=1) / info
+        if has_strip:
+            J_mu = pieces(e, sigma)["J_mu"]
+            de_dmu = -(J_e * J_mu).sum(axis=1) / info
+            # the strip level's own doubt (shared by every scan line: the Schur complement's, at the
+            # residuals' scale) and that of one level standing for a strip's shading (a rounding's
+            # runs across it), as the band's
+            H, _, _, _, _ = shared_system(J_e, [J_lam, None, J_mu], r, lam, mu)
+            try:
+                var_mu = float(np.linalg.inv(H)[2, 2]) * float(np.median(res_var))
+            except np.linalg.LinAlgError:
+                var_mu = mu_sd**2
+            mu_doubt = math.hypot(math.sqrt(max(min(var_mu, mu_sd**2), 0.0)), LEVEL_DOUBT)
     e = e_all
     along = np.where(outward > 0, start + e, start - e)
-    valid = ok & np.isfinite(along) & (np.abs(e - e0) <= half) & np.isfinite(e_sigma)
+    valid = ok & np.isfinite(along) & (np.abs(e - e0) <= half + n_strip) & np.isfinite(e_sigma)
     w_fit = np.maximum(w0 + band_slope * (e - e0), 0.0)
     band_med = float(np.median(w_fit[valid])) if np.any(valid) else float("nan")
     model_sigma = (
@@ -990,6 +1128,8 @@ def subpixel_edges_far_face(
         if de_dlam.size
         else float("nan")
     )
+    if de_dmu.size:  # the strip's level, and another place for the border that fits about as well
+        model_sigma = math.hypot(model_sigma, float(np.median(de_dmu)) * mu_doubt, strip_doubt)
     noise = np.sqrt(0.5 * (vals[:, :plateau].var(axis=1) + vals[:, -plateau:].var(axis=1)))
     step = D * outward
     nan = np.full(len(scan), np.nan)
@@ -1008,7 +1148,12 @@ def subpixel_edges_far_face(
         valid,
     )
     fit = FarFaceFit(
-        lam, sigma, band_med, float(np.median(e_sigma[valid])) if np.any(valid) else float("nan"), model_sigma
+        lam,
+        sigma,
+        band_med,
+        float(np.median(e_sigma[valid])) if np.any(valid) else float("nan"),
+        model_sigma,
+        float(mu) if has_strip else float("nan"),
     )
     return samples, fit
 

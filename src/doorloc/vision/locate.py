@@ -37,7 +37,14 @@ from scipy.ndimage import uniform_filter1d
 from doorloc import __version__
 from doorloc.cell import Cell, DoorSize
 from doorloc.vision import quality as q
-from doorloc.vision.arris_model import BLUR_DOUBT, StripFit, arris_edges, arris_geometry
+from doorloc.vision.arris_model import (
+    BLUR_DOUBT,
+    STRIP_RADIANCE,
+    STRIP_RADIANCE_SIGMA,
+    StripFit,
+    arris_edges,
+    arris_geometry,
+)
 from doorloc.vision.coarse import coarse_edges
 from doorloc.vision.config import LocateConfig
 from doorloc.vision.edges import (
@@ -400,6 +407,8 @@ def _sample(
                     cfg.plateau,
                     scale8,
                     blur_px=optical_blur_px if np.isfinite(optical_blur_px) else 1.0,
+                    strip_px=t.strip_px[::every] if t.strip_px is not None else None,
+                    strip_radiance=(STRIP_RADIANCE, STRIP_RADIANCE_SIGMA),
                     **step_kw,
                 )
                 continue
@@ -992,7 +1001,7 @@ def _locate(
             "band_px": round(far_fit.band_px, 3),
             "arris_sigma_px": round(far_fit.arris_sigma_px, 4),
             "model_sigma_px": round(far_fit.model_sigma_px, 4),
-        }
+        } | ({"strip_level": round(far_fit.strip_level, 4)} if math.isfinite(far_fit.strip_level) else {})
     clock.lap("gate")
     res.diagnostics["timing_ms"] = clock.laps
     return res

@@ -72,6 +72,8 @@ class Track:
     outline_shift_px: np.ndarray | None = (
         None  # arris: sharp corner's line minus the strip's outer border, px
     )
+    #: beside the far face, an arris: the strip's width on the hinge-face side of the far face's border, px
+    strip_px: np.ndarray | None = None
 
 
 def _along_scan(uv: np.ndarray, axis: Axis) -> tuple[np.ndarray, np.ndarray]:
@@ -427,6 +429,12 @@ class SearchRegion:
                 slope = -(1.0 - self._back_edge_ratio(self.face_y))
             a = self.door.arris_mm
             shift = None
+            strip = None
+            if a > 0 and beside:
+                # The far face begins at the outline (depth face_y + a, on its plane); the strip runs from
+                # there to the hinge face's own edge, a mm inwards at depth face_y.
+                inner = self.face_map.to_image(pl + a * (-ex)[None])
+                strip = np.abs(_interp_on_scans(inner, lay.axis, scans[ok]) - centre[ok])
             if a > 0 and not beside and arris is not None and name in arris:
                 g = arris[name]
                 inward = ez if name == "bottom" else (ex if name == "reference" else -ex)
@@ -451,7 +459,7 @@ class SearchRegion:
                 inward = ez if name == "bottom" else (ex if name == "reference" else -ex)
                 inner = self.face_map.to_image(pl + a * inward[None])
                 band = np.abs(_interp_on_scans(inner, lay.axis, scans[ok]) - centre[ok])
-            out[name] = Track(scans[ok], centre[ok], beside, band, slope, shift)
+            out[name] = Track(scans[ok], centre[ok], beside, band, slope, shift, strip)
         return out
 
     def _far_face_band(
