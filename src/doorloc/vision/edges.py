@@ -782,6 +782,7 @@ def subpixel_edges_far_face(
     fit_blur: bool = False,
     strip_px: np.ndarray | None = None,
     strip_radiance: tuple[float, float] = (0.9, 0.45),
+    strip_shaded: bool = False,
 ) -> tuple[EdgeSamples, FarFaceFit]:
     """The far arris beside a visible far face, by fitting the whole profile across it.
 
@@ -825,6 +826,9 @@ def subpixel_edges_far_face(
         with a sigma that did not know it (thin doors with 0.5-3 mm arrises: 1.2 mm at 12 sigma).
     strip_radiance : (float, float)
         The strip's radiance over the hinge face's, prior mean and standard deviation.
+    strip_shaded : bool
+        The strip is a rounding, whose shading runs across it from the hinge face's level towards the far
+        face's: its one fitted level is in doubt by that range's spread too.
 
     Returns
     -------
@@ -1117,7 +1121,10 @@ def subpixel_edges_far_face(
                 var_mu = float(np.linalg.inv(H)[2, 2]) * float(np.median(res_var))
             except np.linalg.LinAlgError:
                 var_mu = mu_sd**2
-            mu_doubt = math.hypot(math.sqrt(max(min(var_mu, mu_sd**2), 0.0)), LEVEL_DOUBT)
+            # (a rounding's shading runs from the hinge face's level towards the far face's across the
+            # strip: one level stands for it within about a uniform spread over that range)
+            spread = abs(lam) / math.sqrt(12.0) if strip_shaded else 0.0
+            mu_doubt = math.hypot(math.sqrt(max(min(var_mu, mu_sd**2), 0.0)), max(LEVEL_DOUBT, spread))
     e = e_all
     along = np.where(outward > 0, start + e, start - e)
     valid = ok & np.isfinite(along) & (np.abs(e - e0) <= half + n_strip) & np.isfinite(e_sigma)

@@ -409,6 +409,7 @@ def _sample(
                     blur_px=optical_blur_px if np.isfinite(optical_blur_px) else 1.0,
                     strip_px=t.strip_px[::every] if t.strip_px is not None else None,
                     strip_radiance=(STRIP_RADIANCE, STRIP_RADIANCE_SIGMA),
+                    strip_shaded=door.arris_profile == "round",
                     **step_kw,
                 )
                 continue
