@@ -292,10 +292,14 @@ def test_thin_door_beside_its_far_face_measures_the_thickness(cell, pose, thickn
 
 
 def test_thickness_is_never_accepted_beyond_the_tolerance_it_claims(cell):
-    """With a tolerance near the measurement's doubt, an answer is either within it or refused as such."""
-    cfg = LocateConfig(thickness_tolerance_mm=0.04)
+    """With a tolerance near the measurement's doubt, an answer is either within it or refused as such.
+
+    (The tolerance was 0.04 mm while the far arris took no texture doubt; with the hinge face's grain
+    beside it counted, the 50 mm door's thickness, 0.010 mm off, carries a sigma of 0.010 instead of
+    0.006 mm and 0.04 mm refused every door here, leaving the accepted branch untested.)"""
+    cfg = LocateConfig(thickness_tolerance_mm=0.05)
     seen = set()
-    # thin doors beside the far face (their thickness in doubt) and one 50 mm door (measured to ~3 um)
+    # thin doors beside the far face (their thickness in doubt) and one 50 mm door (measured to ~0.01 mm)
     for i, (x, t) in enumerate([(-2.65, 32.25), (-1.5, 31.4), (-5.0, 30.3), (0.5, 29.6), (0.5, 50.0)]):
         pose, door = DoorPose(x, 1.0, 0.5), DoorSize(900, t, 2100)
         rd = render_door(
@@ -303,12 +307,12 @@ def test_thickness_is_never_accepted_beyond_the_tolerance_it_claims(cell):
         )
         r = locate(rd.image, cell, door, config=cfg)
         check = r.diagnostics["thickness_check"]
-        assert check["tolerance_mm"] == 0.04
+        assert check["tolerance_mm"] == 0.05
         if r.ok:
-            assert abs(r.thickness_mm - t) <= 0.04 and not check["uncertain"]
+            assert abs(r.thickness_mm - t) <= 0.05 and not check["uncertain"]
         else:
             assert r.error_code in ("uncertain", "thickness_mismatch"), r.error
-            assert check["uncertain"] or abs(check["difference_mm"]) > 0.04
+            assert check["uncertain"] or abs(check["difference_mm"]) > 0.05
         seen.add(r.ok)
     assert seen == {True, False}, (
         "both outcomes, accepted within the tolerance and refused, must be exercised"
