@@ -27,6 +27,17 @@ from doorloc.vision.locate import locate
 FIX = Path(__file__).resolve().parents[2] / "fixtures" / "rendered"
 
 
+def _door(row: dict[str, str]) -> DoorSize:
+    """The door of one truth.csv row."""
+    return DoorSize(
+        float(row["width_mm"]),
+        float(row["thickness_mm"]),
+        float(row["height_mm"]),
+        arris_mm=float(row["arris_mm"]),
+        arris_profile=row["arris_profile"],  # type: ignore[arg-type]
+    )
+
+
 def _run(
     folder: str, cell: Cell | None = None, response_known: bool = False
 ) -> tuple[np.ndarray, np.ndarray, list[tuple[str, str | None, str | None]]]:
@@ -41,14 +52,7 @@ def _run(
         rows = list(csv.DictReader(f))
     for row in rows:
         img = cv2.imread(str(FIX / folder / row["image"]), cv2.IMREAD_UNCHANGED)
-        door = DoorSize(
-            float(row["width_mm"]),
-            float(row["thickness_mm"]),
-            float(row["height_mm"]),
-            arris_mm=float(row["arris_mm"]),
-            arris_profile=row["arris_profile"],
-        )
-        r = locate(img, cell, door, image_name=row["image"], config=cfg)
+        r = locate(img, cell, _door(row), image_name=row["image"], config=cfg)
         if not r.ok:
             refused.append((row["image"], r.error_code, r.error))
             continue
@@ -163,14 +167,7 @@ def test_effects_fixtures_thickness_is_covered_by_its_sigma():
         rows = list(csv.DictReader(f))
     for row in rows:
         img = cv2.imread(str(FIX / "effects" / row["image"]), cv2.IMREAD_UNCHANGED)
-        door = DoorSize(
-            float(row["width_mm"]),
-            float(row["thickness_mm"]),
-            float(row["height_mm"]),
-            arris_mm=float(row["arris_mm"]),
-            arris_profile=row["arris_profile"],
-        )
-        r = locate(img, cell, door, image_name=row["image"], config=cfg)
+        r = locate(img, cell, _door(row), image_name=row["image"], config=cfg)
         check = r.diagnostics["thickness_check"]
         z.append(abs(check["difference_mm"]) / check["sigma_mm"])
     z_arr = np.array(z)
