@@ -161,6 +161,16 @@ def thin_set(n: int, seed: int) -> Iterator[Item]:
         )
 
 
+def _unclipped_light(
+    rng: np.random.Generator, brightest_albedo: float, ambient_min: float, directional_max: float
+) -> tuple[float, float]:
+    """Ambient and directional light drawn in ``[ambient_min, 1]`` and ``[0, directional_max]``, scaled down
+    together where the brightest face would clip at white."""
+    amb, direct = float(rng.uniform(ambient_min, 1.0)), float(rng.uniform(0.0, directional_max))
+    k = min(1.0, 0.95 / (brightest_albedo * (amb + direct)))
+    return amb * k, direct * k
+
+
 def combined_set(n: int, seed: int) -> Iterator[Item]:
     """Every effect at once: hard photometry (grain, gradients, vignetting, shadow, noise, JPEG) on doors
     with a chamfer or rounding of 0-3 mm (none on a quarter), lit from either side, seen by a camera of
@@ -172,14 +182,13 @@ def combined_set(n: int, seed: int) -> Iterator[Item]:
         profile = str(rng.choice(["chamfer", "round"]))
         arris = float(rng.uniform(0.3, 3.0)) if rng.random() < 0.75 else 0.0
         hinge, chamfer = eff.albedo_hinge, float(rng.uniform(0.3, 0.95)) * eff.albedo_hinge / 0.6
-        amb, direct = float(rng.uniform(0.3, 1.0)), float(rng.uniform(0.0, 0.8))
-        k = min(1.0, 0.95 / (max(hinge, chamfer) * (amb + direct)))  # no face clips at white
+        ambient, directional = _unclipped_light(rng, max(hinge, chamfer), 0.3, 0.8)
         eff = replace(
             eff,
             arris_profile=profile,  # type: ignore[arg-type]
             albedo_chamfer=chamfer,
-            light_ambient=amb * k,
-            light_directional=direct * k,
+            light_ambient=ambient,
+            light_directional=directional,
             light_azimuth_deg=float(rng.choice([-1.0, 1.0]) * rng.uniform(10.0, 80.0)),
             light_elevation_deg=float(rng.uniform(-30.0, 60.0)),
             blur_sigma_px=float(rng.uniform(0.6, 1.8)),
@@ -197,15 +206,14 @@ def thin_arris_set(n: int, seed: int) -> Iterator[Item]:
     for i in range(n):
         profile = ("chamfer", "round")[i % 2]
         hinge, chamfer = float(rng.uniform(0.5, 0.9)), float(rng.uniform(0.3, 0.95))
-        amb, direct = float(rng.uniform(0.2, 1.0)), float(rng.uniform(0.0, 0.9))
-        k = min(1.0, 0.95 / (max(hinge, chamfer) * (amb + direct)))  # no face clips at white
+        ambient, directional = _unclipped_light(rng, max(hinge, chamfer), 0.2, 0.9)
         eff = Effects(
             arris_profile=profile,  # type: ignore[arg-type]
             albedo_hinge=hinge,
             albedo_chamfer=chamfer,
             albedo_background=float(rng.uniform(0.05, 0.2)),
-            light_ambient=amb * k,
-            light_directional=direct * k,
+            light_ambient=ambient,
+            light_directional=directional,
             light_azimuth_deg=float(rng.choice([-1.0, 1.0]) * rng.uniform(10.0, 80.0)),
             light_elevation_deg=float(rng.uniform(-30.0, 60.0)),
             blur_sigma_px=float(rng.uniform(0.6, 1.8)),

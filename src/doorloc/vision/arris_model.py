@@ -447,6 +447,16 @@ class _StripProblem:
                     break
         return float(p[0]), float(p[1]), ev
 
+    def offset_at_blur(self, delta: np.ndarray, sigma: np.ndarray, basis: np.ndarray, n_iter: int) -> _Eval:
+        """The model with the offset refitted at a held blur (Newton steps on the offset alone, every
+        candidate at once, from ``delta``)."""
+        d = np.asarray(delta, float)
+        for _ in range(n_iter):
+            e = self.evaluate(d, sigma, basis, jac=True)
+            assert e.grad is not None and e.hess is not None
+            d = d - np.clip(e.grad[:, 0] / np.maximum(e.hess[:, 0, 0], 1e-300), -0.5, 0.5)
+        return self.evaluate(d, sigma, basis)
+
     def profile_blur(
         self, delta: np.ndarray, sigma: np.ndarray, basis: np.ndarray, n_iter: int = 3
     ) -> tuple[np.ndarray, _Eval]:
@@ -722,12 +732,7 @@ def fit_strip_profile(
     # level, and the real optics are no exact Gaussian. How far the deficit moves when the blur is off by
     # BLUR_DOUBT (the offset refitted):
     sgm = np.maximum(s0 + np.array([-BLUR_DOUBT, BLUR_DOUBT]), 0.05)
-    dd = np.full(2, d0)
-    for _ in range(3):
-        e1 = prob.evaluate(dd, sgm, basis, jac=True)
-        assert e1.grad is not None and e1.hess is not None
-        dd = dd - np.clip(e1.grad[:, 0] / np.maximum(e1.hess[:, 0, 0], 1e-300), -0.5, 0.5)
-    e1 = prob.evaluate(dd, sgm, basis)
+    e1 = prob.offset_at_blur(np.full(2, d0), sgm, basis, n_iter=3)
     moved = float(np.max(np.abs(e1.deficit - ev0.deficit[0])))
     sigma = min(math.hypot(post_sd, moved), prior[1])
 
@@ -746,12 +751,8 @@ def fit_strip_profile(
         """The best fit's deficit with the blur held at ``blur_px``: the offset's coarse profile over the
         search range, then Newton steps on the offset alone."""
         b = max(float(blur_px), 0.1)
-        d = float(grid[int(np.argmin(prob.evaluate(grid, np.full(grid.size, b), basis).chi2))])
-        for _ in range(6):
-            e = prob.evaluate(np.array([d]), np.array([b]), basis, jac=True)
-            assert e.grad is not None and e.hess is not None
-            d -= float(np.clip(e.grad[0, 0] / max(float(e.hess[0, 0, 0]), 1e-300), -0.5, 0.5))
-        return float(prob.evaluate(np.array([d]), np.array([b]), basis).deficit[0])
+        d = grid[int(np.argmin(prob.evaluate(grid, np.full(grid.size, b), basis).chi2))]
+        return float(prob.offset_at_blur(np.array([d]), np.array([b]), basis, n_iter=6).deficit[0])
 
     return StripFit(
         deficit,

@@ -911,7 +911,8 @@ def subpixel_edges_far_face(
                 sp=sp, has_band=has_band, C1=C1, C2=C2, J_lam=J_lam, info=_dot(J_lam, J_lam)
             )
             if has_strip:
-                p["J_mu"] = Do[:, None] * (sp.C[2 * n_ok :] - C1)  # the model's derivative by the strip level
+                p["C0"] = sp.C[2 * n_ok :]  # the strip's inner border
+                p["J_mu"] = Do[:, None] * (p["C0"] - C1)  # the model's derivative by the strip level
         return p
 
     def model_values(
@@ -951,7 +952,7 @@ def subpixel_edges_far_face(
     def level_and_cost(e: np.ndarray) -> tuple[float, float]:
         p = pieces(e, sigma)
         # (a strip at its prior level while the start is searched)
-        C2 = p["C2"] + (mu0 / np.where(Do == 0, 1.0, Do))[:, None] * p["J_mu"] if has_strip else p["C2"]
+        C2 = p["C2"] + mu0 * (p["C0"] - p["C1"]) if has_strip else p["C2"]
         return _band_level_and_cost(core, Ao, Do, C2, p["J_lam"], p["info"])
 
     lam, mu = 0.5, mu0

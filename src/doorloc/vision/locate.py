@@ -1628,10 +1628,7 @@ def _gate_and_answer(
     # quadrature, the effects fixtures' thicknesses, a 2.2 camera in a cell of 1.0, were 0.08-0.12 mm off
     # with 78 % of them beyond 2 sigma.)
     resp = [model.extra_px.get(k, {}).get("response", 0.0) for k in ("reference", "far")]
-    rest = [
-        math.sqrt(max(model.line_sigma_px(k) ** 2 - r * r, 0.0))
-        for k, r in zip(("reference", "far"), resp, strict=True)
-    ]
+    rest = [model.line_sigma_px(k, without=("response",)) for k in ("reference", "far")]
     t_sigma = math.hypot(
         fit.offset_sigma["reference"],
         fit.offset_sigma["far"],

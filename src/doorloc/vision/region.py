@@ -430,11 +430,6 @@ class SearchRegion:
             a = self.door.arris_mm
             shift = None
             strip = None
-            if a > 0 and beside:
-                # The far face begins at the outline (depth face_y + a, on its plane); the strip runs from
-                # there to the hinge face's own edge, a mm inwards at depth face_y.
-                inner = self.face_map.to_image(pl + a * (-ex)[None])
-                strip = np.abs(_interp_on_scans(inner, lay.axis, scans[ok]) - centre[ok])
             if a > 0 and not beside and arris is not None and name in arris:
                 g = arris[name]
                 inward = ez if name == "bottom" else (ex if name == "reference" else -ex)
@@ -453,12 +448,17 @@ class SearchRegion:
                 centre[sel] = outer[good]
                 band = np.abs(inner[good] - outer[good])
                 shift = nominal[good] - outer[good]
-            elif a > 0 and not beside:
+            elif a > 0:
                 # The arris strip runs from the outline (depth face_y + a) to the hinge face's own edge,
-                # a mm inwards at depth face_y.
+                # a mm inwards at depth face_y. Beside the far face it lies between the hinge face and the
+                # far face, which begins at the outline (on its plane): the far-face fit takes its width.
                 inward = ez if name == "bottom" else (ex if name == "reference" else -ex)
                 inner = self.face_map.to_image(pl + a * inward[None])
-                band = np.abs(_interp_on_scans(inner, lay.axis, scans[ok]) - centre[ok])
+                width = np.abs(_interp_on_scans(inner, lay.axis, scans[ok]) - centre[ok])
+                if beside:
+                    strip = width
+                else:
+                    band = width
             out[name] = Track(scans[ok], centre[ok], beside, band, slope, shift, strip)
         return out
 

@@ -114,15 +114,16 @@ class EdgeModelTerms:
     blur_px: float = 0.0
     extra_px: dict[str, dict[str, float]] = field(default_factory=dict)
 
-    def line_sigma_px(self, name: str) -> float:
-        """Total edge-model 1-sigma of one line's offset, px (floor, texture and extra terms in quadrature)."""
+    def line_sigma_px(self, name: str, without: tuple[str, ...] = ()) -> float:
+        """Total edge-model 1-sigma of one line's offset, px (floor, texture and extra terms in quadrature),
+        the extra terms named in ``without`` left out (a caller that combines them otherwise)."""
         t = self.texture_px.get(name, 0.0)
         blur = BLUR_MODEL_FRACTION * self.blur_px if math.isfinite(self.blur_px) else 0.0
         terms = [
             EDGE_MODEL_FLOOR_PX,
             blur,
             t if math.isfinite(t) else 0.0,
-            *self.extra_px.get(name, {}).values(),
+            *(v for k, v in self.extra_px.get(name, {}).items() if k not in without),
         ]
         return math.sqrt(sum(v * v for v in terms if math.isfinite(v)))
 
