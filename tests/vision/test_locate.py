@@ -589,6 +589,43 @@ def test_a_far_face_as_bright_as_the_hinge_face_is_not_a_wrong_door(cell):
     assert abs(ex) <= 3 * r.uncertainty.x_mm and abs(ez) <= 3 * r.uncertainty.z_mm
 
 
+def test_a_far_face_far_brighter_than_a_dim_hinge_face_is_not_the_reference_arris(cell):
+    """A 31 mm door shifted so that its far face is in view, lit from +74 deg: the hinge face 13 grey levels
+    above the background, the far face 50. The coarse reference search takes the outermost step of half the
+    strongest, which was the far face's: the far arris was then looked for beyond the door and the valid
+    door refused as edge_missing (bench_surfaces --sets combined --seed 500, image 23). The weaker step a
+    door's thickness nearer, with the hinge face's level behind it, is the reference arris."""
+    door = DoorSize(900, 30.953, 2100)
+    pose = DoorPose(-1.908, 8.301, 1.4105)
+    fx = Effects(
+        albedo_hinge=0.4215,
+        albedo_side=0.5172,
+        albedo_chamfer=0.5767,
+        albedo_background=0.1713,
+        light_ambient=0.3653,
+        light_directional=0.7043,
+        light_azimuth_deg=74.168,
+        light_elevation_deg=43.842,
+        gradient_u=-0.0737,
+        gradient_v=-0.1921,
+        vignetting=0.3803,
+        grain_contrast=0.0426,
+        grain_period_mm=3.236,
+        blur_sigma_px=1.7932,
+        read_noise_dn=2.1729,
+        gamma=1.2087,
+        jpeg_quality=80,
+    )
+    img = render_door(cell, door, pose, effects=fx, seed=504023).image
+    r = locate(img, replace(cell, response_gamma=1.2087), door)
+    assert r.error_code != "edge_missing", r.error
+    m = r.diagnostics["measured"] if not r.ok else {"x_mm": r.x_mm, "thickness_mm": r.thickness_mm}
+    assert abs(m["x_mm"] - pose.x_mm) < 0.5 and abs(m["thickness_mm"] - door.thickness_mm) < 0.5
+    if r.ok:
+        ex, ez, _, _ = _err(r, pose, door)
+        assert abs(ex) <= 3 * r.uncertainty.x_mm and abs(ez) <= 3 * r.uncertainty.z_mm
+
+
 def test_a_shadow_across_the_low_arris_is_no_reason_to_say_there_is_no_door(cell):
     """A shadow band over 30-70 mm of a low-contrast door takes the reference arris's step below the
     threshold where the coarse search looks first (bench_surfaces --seed 500, hard_014: refused as no

@@ -96,6 +96,9 @@ COARSE_THICKNESS_MM = 1.0
 #: largest angle between the two arrises' coarse lines (image) that their 2-px steps explain, deg; beyond it
 #: the far arris's line straddles its strip's two borders (:func:`_coarse_pose`)
 COARSE_ARRIS_SKEW_DEG = 0.5
+#: how far beyond the coarse reference line's tolerance a nearer reference arris is looked for, px: the
+#: stronger step's flank (blur up to ~3 px) stays out of the 2 x 2-px step detector (:func:`_nearer_reference`)
+NEARER_REFERENCE_CLEAR_PX = 13.0
 #: an arris strip narrower than this, px, is a plain step to the camera response's check (a chamfer of a few
 #: thousandths of a millimetre, a twentieth of a pixel: its lines are plain edges, on which the response is
 #: measured; as arris lines the unmeasured response's doubt put 0.19 mm on an answer 0.001 mm off)
@@ -303,6 +306,92 @@ def _coarse_line(
         if line is not None:
             return line
     return None
+
+
+def _nearer_reference(
+    plane,
+    band: Band,
+    layout: EdgeLayout,
+    ref_line: ImageLine,
+    xdir: int,
+    thr: float,
+    door: DoorSize,
+    scale_mm_per_px: float,
+    cfg: LocateConfig,
+) -> Generator[StepQuery, tuple[np.ndarray, np.ndarray], ImageLine]:
+    """The reference arris where a stronger step of its polarity lies a door's thickness further in.
+
+    The coarse reference search takes the outermost step of at least half the strongest on each scan line. A
+    far face lit far brighter than a dim hinge face (or a rounding's shading beside the far arris) makes a step
+    two or three times the reference arris's: the search then took the far side for the reference arris and
+    found no far arris beyond it (bench_surfaces --sets combined --seed 500, images 13 and 23: a 13 grey-level
+    hinge face beside a far face of 50). Between the outer end of the band and that line, a line of steps of the
+    same polarity and at least the contrast threshold is the reference arris when the door's thickness puts
+    the stronger line where the far side is looked for, and the level between the two stays the door's
+    (above the level outside it by half the threshold, in the door's polarity): a shadow's or a fixture's
+    edge outside the door is followed by background, not by a face up to the stronger line. The search is made
+    only where the level just outside the line differs from the background's at the band's outer end.
+    """
+    tol = 3.0
+    at = ref_line.at(band.scan)
+    # (clear of the stronger step's blurred flank, which the 2 x 2-px detector reads up to ~12 px away)
+    clear = tol + NEARER_REFERENCE_CLEAR_PX
+    if xdir > 0:
+        lo, hi = band.lo, np.floor(at - clear).astype(int)
+    else:
+        lo, hi = np.ceil(at + clear).astype(int), band.hi
+    keep = hi - lo >= 8
+    if np.count_nonzero(keep) < 10:
+        return ref_line
+    P = plane if layout.axis == "col" else plane.T
+    n_along = P.shape[0]
+    door_sign = xdir * layout.polarity  # +1: the door is the brighter
+    # Only where the level just outside the line is the door's, not the background's at the band's outer end,
+    # can a face lie outside it (the usual frame: background all the way, and no second search)
+    sub = np.flatnonzero(keep)[::4]
+    offs = np.arange(5)
+    just_out = np.round(at[sub] - xdir * clear).astype(int)[:, None] - xdir * offs
+    far_out = (lo if xdir > 0 else hi)[sub][:, None] + xdir * offs
+    level = lambda a: P[np.clip(a, 0, n_along - 1), band.scan[sub][:, None]].mean(axis=1)  # noqa: E731
+    if float(np.median((level(just_out) - level(far_out)) * door_sign)) < 0.5 * thr:
+        return ref_line
+    scan, lo, hi, at = band.scan[keep], lo[keep], hi[keep], at[keep]
+    outer = (lo if xdir > 0 else hi).astype(float)
+    along, strength = yield StepQuery(
+        plane,
+        dict(
+            axis=layout.axis,
+            scan=scan,
+            lo=lo,
+            hi=hi,
+            polarity=layout.polarity,
+            half=2,
+            prefer=outer,
+            prefer_fraction=0.5,
+            stride=2,
+        ),
+    )
+    line = _line_through_steps(scan, along, strength, thr, 10, 0.4 * len(band.scan) / len(scan))
+    if line is None:
+        return ref_line
+    inner = line.at(scan)
+    gap_mm = float(np.median((at - inner) * xdir)) * scale_mm_per_px
+    if not (cfg.min_thickness_mm <= gap_mm <= door.thickness_mm + cfg.thickness_search_mm):
+        return ref_line
+    # the level between the two lines (inset by the tolerance) against the level just outside the nearer one
+    step = np.empty(scan.size)
+    for k, (s, a, b) in enumerate(zip(scan, inner, at, strict=True)):
+        i0, i1 = sorted((int(round(a + xdir * tol)), int(round(b - xdir * tol))))
+        o0, o1 = sorted((int(round(a - xdir * tol)), int(round(a - xdir * (tol + 8)))))
+        if i1 - i0 < 2 or o0 < 0 or o1 >= n_along or i0 < 0 or i1 >= n_along:
+            step[k] = np.nan
+            continue
+        inside = float(np.median(P[i0 : i1 + 1, s]))
+        outside = float(np.median(P[o0 : o1 + 1, s]))
+        step[k] = (inside - outside) * door_sign
+    if not np.any(np.isfinite(step)) or float(np.nanmedian(step)) < 0.5 * thr:
+        return ref_line
+    return line
 
 
 def _line_through_steps(
@@ -595,6 +684,7 @@ def _coarse_edges(
             break
     if ref_line is None:
         raise _Refused(_no_door_reason(plane, first, ref_lay, cfg, s8))
+    ref_line = yield from _nearer_reference(plane, band_ref, ref_lay, ref_line, xdir, thr, door, sc, cfg)
     tr.bands["reference"] = band_ref
     tol = 3.0
 
