@@ -71,7 +71,7 @@ from doorloc.vision.response import (
     ResponseFit,
     at_one_phase,
     combine_responses,
-    edge_shift_px,
+    edge_shifts_px,
     fit_line_response,
     plateau_levels,
 )
@@ -1358,10 +1358,10 @@ def _measure_response(
             plane, samples[k], inl, half, cfg.plateau, linearizing_lut(plane.dtype, cell.response_gamma)
         ).offset_sigma_px
         dg = 0.05 * lr.gamma
-        slope = abs(
-            edge_shift_px(lr.lo, lr.hi, lr.gamma + dg, lr.gamma, blur_px, half)
-            - edge_shift_px(lr.lo, lr.hi, lr.gamma - dg, lr.gamma, blur_px, half)
-        ) / (2 * dg)
+        up, down = edge_shifts_px(
+            lr.lo, lr.hi, np.array([lr.gamma + dg, lr.gamma - dg]), lr.gamma, blur_px, half
+        )
+        slope = abs(float(up) - float(down)) / (2 * dg)
         if math.isfinite(tex) and tex > 0 and slope > 0:
             lr = replace(lr, sigma=math.hypot(lr.sigma, tex / slope))
         per_line[k] = lr
@@ -1376,21 +1376,23 @@ def _line_response_shifts(
     used_gamma: float,
     far_beside: bool,
     blur_px: float,
-) -> Iterator[tuple[str, Callable[[float], float]]]:
+) -> Iterator[tuple[str, Callable[[list[float]], np.ndarray]]]:
     """Each line a camera exponent moves (the far one only where no far-face model reports its own doubt)
-    and the shift, px, that an exponent makes there: :func:`doorloc.vision.response.edge_shift_px`
-    between the line's own plateaus at ``blur_px``, the exponent brought within ``RESPONSE_PLAUSIBLE``
-    (a reading or a factor beyond them is no camera)."""
+    and the shifts, px, that exponents make there (a list in, an array out: the step is modelled once for
+    all of them): :func:`doorloc.vision.response.edge_shifts_px` between the line's own plateaus at
+    ``blur_px``, each exponent brought within ``RESPONSE_PLAUSIBLE`` (a reading or a factor beyond them is
+    no camera)."""
     for k in EDGE_NAMES:
         if k == "far" and far_beside:
             continue
         inl = fit.weights[k] > 0
         lo, hi = plateau_levels(plane, samples[k], inl & samples[k].valid, half)
 
-        def shift(g: float, lo: float = lo, hi: float = hi) -> float:
-            return edge_shift_px(lo, hi, float(np.clip(g, *RESPONSE_PLAUSIBLE)), used_gamma, blur_px, half)
+        def shifts(gs: list[float], lo: float = lo, hi: float = hi) -> np.ndarray:
+            g = np.clip(np.asarray(gs, float), *RESPONSE_PLAUSIBLE)
+            return edge_shifts_px(lo, hi, g, used_gamma, blur_px, half)
 
-        yield k, shift
+        yield k, shifts
 
 
 def _response_terms(
@@ -1455,12 +1457,12 @@ def _response_terms(
         gc, sc = response.with_unmeasured_claim(used_gamma * (factor - 1.0))
     else:
         gc, sc = response.gamma, response.sigma
-    for k, shift in _line_response_shifts(plane, samples, fit, half, used_gamma, far_beside, model.blur_px):
-
-        def spread(g: float, sg: float, shift: Callable[[float], float] = shift) -> float:
-            return 0.5 * abs(shift(g + sg) - shift(max(g - sg, 0.05)))
-
-        bias, sp = shift(gc), spread(gc, sc)
+    alternatives = list(response.alternatives)
+    for k, shifts in _line_response_shifts(plane, samples, fit, half, used_gamma, far_beside, model.blur_px):
+        # the shift to the evidence's exponent, half the spread over its 1-sigma, and to each alternative
+        at = shifts([gc, gc + sc, max(gc - sc, 0.05), *alternatives])
+        bias, sp = float(at[0]), 0.5 * abs(float(at[1]) - float(at[2]))
+        shift_alt = [float(v) for v in at[3:]]
         if absorbed:
             # the exponent in use is this image's measurement: its doubt counts in full
             doubt = math.hypot(max(abs(bias) - 2.0 * sp, 0.0), sp)
@@ -1468,15 +1470,15 @@ def _response_terms(
             doubt = math.hypot(bias, sp)
         elif weak:
             doubt = math.hypot(bias, sp)
-            for ga in response.alternatives:
-                doubt = max(doubt, abs(shift(ga)))
+            for s_alt in shift_alt:
+                doubt = max(doubt, abs(s_alt))
         else:
             # the shift the measured mismatch makes beyond twice its own doubt (within that, the edges
             # agree with the exponent in use); where the edges read other exponents about as well, the
             # largest of their shifts (the image cannot tell which the camera has)
             doubt = max(abs(bias) - 2.0 * sp, 0.0)
-            for ga in response.alternatives:
-                doubt = max(doubt, abs(shift(ga)) - 2.0 * sp)
+            for s_alt in shift_alt:
+                doubt = max(doubt, abs(s_alt) - 2.0 * sp)
         if math.isfinite(doubt):
             model.extra_px.setdefault(k, {})["response"] = doubt
 
@@ -1510,8 +1512,9 @@ def _unmeasured_response_terms(
     """
     if not factor > 1.0:
         return
-    for k, shift in _line_response_shifts(plane, samples, fit, half, used_gamma, far_beside, model.blur_px):
-        spread = 0.5 * abs(shift(used_gamma * factor) - shift(used_gamma / factor))
+    for k, shifts in _line_response_shifts(plane, samples, fit, half, used_gamma, far_beside, model.blur_px):
+        up, down = shifts([used_gamma * factor, used_gamma / factor])
+        spread = 0.5 * abs(float(up) - float(down))
         if math.isfinite(spread):
             model.extra_px.setdefault(k, {})["response"] = spread
 

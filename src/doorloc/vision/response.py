@@ -55,6 +55,7 @@ from doorloc.vision.edges import (
     oriented,
     subpixel_edges,
 )
+from doorloc.vision.lines import _median
 
 __all__ = [
     "RESPONSE_ABSORB_SIGMAS",
@@ -69,6 +70,7 @@ __all__ = [
     "combine_responses",
     "at_one_phase",
     "edge_shift_px",
+    "edge_shifts_px",
     "fit_board_response",
     "fit_line_response",
     "plateau_levels",
@@ -679,19 +681,30 @@ def edge_shift_px(
     blur with the pixel's width in quadrature, recorded as ``light^(1 / camera_gamma)``, linearised with
     ``used_gamma`` and located by its area over the window ``[-half - 1/2, half + 1/2]``. Returns the
     estimate minus the true edge, along the dark-to-bright direction (0 when the two exponents agree).
+    :func:`edge_shifts_px` gives it for several camera exponents at once.
     """
+    return float(edge_shifts_px(lo, hi, np.array([camera_gamma], float), used_gamma, blur_px, half)[0])
+
+
+def edge_shifts_px(
+    lo: float, hi: float, camera_gammas: np.ndarray, used_gamma: float, blur_px: float, half: int
+) -> np.ndarray:
+    """:func:`edge_shift_px` for each of the camera exponents ``camera_gammas`` (G,), px (G,): the blurred
+    step is made once for all of them."""
+    camera_gammas = np.asarray(camera_gammas, float)
     if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo >= 0.0):
-        return float("nan")
+        return np.full(camera_gammas.shape, np.nan)
     s = math.sqrt(max(blur_px, 0.0) ** 2 + 1.0 / 12.0)
     w = half + 0.5
     # (401 samples: within 4e-6 px of 2001 over plateaus 0.05-0.9, blur 0-2 px, windows 3-12 px, and a
     # fifth of the time; every line of every image takes a few of these)
     x = np.linspace(-w, w, 401)
-    a, b = lo**camera_gamma, hi**camera_gamma
-    raw = (a + (b - a) * ndtr(x / s)) ** (1.0 / camera_gamma)
+    g = camera_gammas[:, None]
+    a, b = lo**g, hi**g
+    raw = (a + (b - a) * ndtr(x / s)) ** (1.0 / g)
     n = (raw**used_gamma - lo**used_gamma) / (hi**used_gamma - lo**used_gamma)
     # area estimator: the edge where a sharp step would hold the same area
-    return float(w - np.trapezoid(n, x))
+    return w - np.trapezoid(n, x, axis=-1)
 
 
 def plateau_levels(
@@ -702,12 +715,15 @@ def plateau_levels(
         return float("nan"), float("nan")
     P = oriented(plane, samples.axis)
     c0 = np.round(samples.along[mask]).astype(int)
-    vals, inside = _gather(P, samples.scan[mask], c0 - half - 1, 2 * half + 3)
-    ends = vals[inside.all(axis=1)][:, [0, -1]].astype(np.float64)
-    if ends.shape[0] < 3:
+    # the window's two end pixels alone, read directly (a profile inside the image at both ends is inside
+    # it all through; the medians are np.median's, without its generic machinery)
+    a, b = c0 - half - 1, c0 + half + 1
+    inside = (a >= 0) & (b < P.shape[0])
+    if int(np.count_nonzero(inside)) < 3:
         return float("nan"), float("nan")
+    scan = samples.scan[mask][inside]
     top = 255.0 if plane.dtype == np.uint8 else 65535.0
-    m = np.median(ends, axis=0) / top
+    m = [_median(P[ends[inside], scan].astype(np.float64)) / top for ends in (a, b)]
     return float(min(m)), float(max(m))
 
 
