@@ -213,7 +213,10 @@ def main() -> None:
     rounds: dict[str, list[dict]] = {label: [] for label, _ in runs}
     for _ in range(a.rounds):
         for label, src in runs:
-            env = dict(os.environ, PYTHONPATH=src)
+            # (the tree first; what else the path holds stays behind it: a machine's carried wheels)
+            env = dict(
+                os.environ, PYTHONPATH=os.pathsep.join(x for x in (src, os.environ.get("PYTHONPATH")) if x)
+            )
             p = subprocess.run(
                 [sys.executable, __file__, "--worker", "--repeats", str(a.repeats)],
                 env=env,

@@ -3,7 +3,9 @@
 # there; doorloc's other run-time wheels carried in .whl/, see /work/.library/device/README.md):
 # the batched path's parity on CUDA (tests/vision/test_batched.py) and frames/s of `doorloc batch`
 # (bench/bench_throughput.py) on 1, 8 and all cores, one-frame vs batched on CPU and CUDA.
-# Results: $OUT/throughput.json and $OUT/device.log.
+# With BEFORE=<another tree's src/> (carried), first the one-frame figures of bench/bench_speed.py on that
+# quiet machine's CPU, this tree against BEFORE in the same run.
+# Results: $OUT/throughput.json, $OUT/speed.json and $OUT/device.log.
 set -u -o pipefail
 OUT=${OUT:-/tmp/doorloc-device}; mkdir -p "$OUT"
 {
@@ -15,6 +17,10 @@ OUT=${OUT:-/tmp/doorloc-device}; mkdir -p "$OUT"
   export PYTHONPATH=${PYTHONPATH:+$PYTHONPATH:}$PWD/src OMP_NUM_THREADS=1 PYTHONUNBUFFERED=1
   python3 -c "import cv2, numpy, torch; print('cv2', cv2.__version__, 'numpy', numpy.__version__, 'torch', torch.__version__, torch.cuda.is_available())"
   timeout 200 python3 -m pytest -q -p no:cacheprovider tests/vision/test_batched.py -rs
+  if [ -n "${BEFORE:-}" ]; then
+    timeout "${SPEED_TIMEOUT:-240}" python3 bench/bench_speed.py --before "$BEFORE" --rounds "${ROUNDS:-3}" \
+      --no-throughput --json "$OUT/speed.json"
+  fi
   timeout "${BENCH_TIMEOUT:-330}" python3 bench/bench_throughput.py --frames "${FRAMES:-1296}" \
     --workers "${WORKERS:-1,8,all}" --devices none,cpu,cuda --json "$OUT/throughput.json"
 } 2>&1 | tee "$OUT/device.log"
