@@ -177,6 +177,31 @@ def test_far_face_fit_finds_the_arris_beside_a_band_of_any_brightness(width, blu
     assert fit.band_level == pytest.approx((band - 120.0) / (50.0 - 120.0), abs=0.1)
 
 
+@pytest.mark.parametrize(("band", "ambiguous"), [(52.0, True), (118.0, True), (85.0, False)])
+def test_a_band_like_the_background_or_the_hinge_face_names_its_other_reading(band, ambiguous):
+    """A far face about as dark as the background leaves one step, the arris; one about as bright as the
+    hinge face leaves one step too, its back edge. Each reading's other is a band's width away (inwards by
+    w / (1 + slope): the band widens as the arris moves in; outwards by w), and the true arris is one of the
+    two to within a pixel even where the fit takes the wrong one (the band 2 grey levels below the hinge
+    face, noise-free: the fit reads the step as the arris). A band half-way between has one reading."""
+    u = np.arange(160)
+    e1 = 30.0 + 0.013 * u
+    slope = -0.72
+    img = _far_face_image(e1, 3.0, 120.0, band, 50.0, 0.8)
+    s, fit = subpixel_edges_far_face(img, "col", u, e1, 6, np.full(u.size, 3.0), slope, +1, blur_px=0.8)
+    inner = slice(12, -12)
+    assert s.valid[inner].all()
+    if not ambiguous:
+        assert fit.other_reading_px == 0.0
+        assert np.max(np.abs(s.along - e1)[inner]) < 0.2
+        return
+    assert fit.other_reading_px != 0.0
+    miss = [float(np.median((s.along + d - e1)[inner])) for d in (0.0, fit.other_reading_px)]
+    # one reading within a pixel, and the arris within the reading's 2-sigma reach (sigma half the distance)
+    assert min(abs(m) for m in miss) < 1.0, miss
+    assert abs(miss[0]) <= abs(fit.other_reading_px), miss
+
+
 @pytest.mark.parametrize(
     "width,blur,band",
     [(0.5, 0.8, 190.0), (0.5, 1.6, 150.0), (1.0, 1.6, 190.0), (1.0, 0.8, 80.0), (1.5, 1.6, 150.0)],
