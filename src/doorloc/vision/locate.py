@@ -352,7 +352,10 @@ def _nearer_reference(
     offs = np.arange(5)
     just_out = np.round(at[sub] - xdir * clear).astype(int)[:, None] - xdir * offs
     far_out = (lo if xdir > 0 else hi)[sub][:, None] + xdir * offs
-    level = lambda a: P[np.clip(a, 0, n_along - 1), band.scan[sub][:, None]].mean(axis=1)  # noqa: E731
+
+    def level(a: np.ndarray) -> np.ndarray:
+        return P[np.clip(a, 0, n_along - 1), band.scan[sub][:, None]].mean(axis=1)
+
     if float(np.median((level(just_out) - level(far_out)) * door_sign)) < 0.5 * thr:
         return ref_line
     scan, lo, hi, at = band.scan[keep], lo[keep], hi[keep], at[keep]
@@ -1735,8 +1738,8 @@ def _gate_and_answer(
     # nearer the recipe (a wrong door passes only where its other reading lands on the recipe's thickness),
     # and the reported sigma reaches the other reading at 2 sigma. Readings more than twice the tolerance
     # apart are not weighed (the fitted one is judged alone, as without a band): a band that wide is seen
-    # (on bench_surfaces' grain, hard and thin sets, 60 doors each, all 9 such fitted readings were the
-    # door's, the other 2.6-20 mm off; the two wrong ones were read beside bands of 0.6-1.2 px, 0.4-0.8 mm).
+    # (on bench_surfaces' grain, hard and thin sets, 60 doors each, every fitted reading whose other lay
+    # 2.6-20 mm off was the door's; the two wrong ones were read beside bands of 0.6-1.2 px, 0.4-0.8 mm).
     other_mm = far_fit.other_reading_px * pose.scale_mm_per_px if far_beside and far_fit is not None else 0.0
     other = pose.thickness_mm + other_mm if 0.0 < abs(other_mm) <= 2.0 * t_tol else None
     nearest = (
