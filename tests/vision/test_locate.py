@@ -556,6 +556,38 @@ def test_a_low_contrast_rounding_that_splits_the_step_is_still_found(cell):
     assert locate(empty, cell, door).error_code == "no_door"
 
 
+def test_a_hinge_face_at_the_background_s_level_is_refused_for_its_contrast_not_its_thickness(cell):
+    """A hinge face lit to its background's level (0-1 grey levels apart), its 0.76 mm roundings showing as
+    faint lines: the reference arris's rounding is found, the far arris is not, and the door was refused
+    "the far arris was not found ... check that the door is 30.83 mm thick" (bench_surfaces --sets combined
+    --seed 500, image 8), which sends the operator to the door. The refusal names the contrast."""
+    door = DoorSize(900, 30.826, 2100, arris_mm=0.7565, arris_profile="round")
+    fx = Effects(
+        arris_profile="round",
+        albedo_hinge=0.2917,
+        albedo_side=0.3769,
+        albedo_chamfer=0.3635,
+        albedo_background=0.1512,
+        light_ambient=0.4035,
+        light_directional=0.3138,
+        light_azimuth_deg=61.895,
+        light_elevation_deg=45.508,
+        gradient_u=0.0035,
+        gradient_v=0.1139,
+        vignetting=0.0943,
+        grain_contrast=0.0446,
+        grain_period_mm=6.670,
+        blur_sigma_px=1.4105,
+        full_well_e=20000.0,
+        read_noise_dn=0.7528,
+        gamma=1.0159,
+        jpeg_quality=88,
+    )
+    img = render_door(cell, door, DoorPose(1.175, 2.045, 1.2155), effects=fx, seed=504008).image
+    r = locate(img, replace(cell, response_gamma=1.0159), door)
+    assert r.error_code == "low_contrast" and "from the background" in r.error, r.error
+
+
 def test_a_far_face_as_bright_as_the_hinge_face_is_not_a_wrong_door(cell):
     """A thin door shifted so that its far face is in view, that face lit as brightly as the hinge face: the
     far arris makes no step, and the first clear one beyond the reference arris is the far face's back edge,

@@ -739,8 +739,10 @@ def _coarse_edges(
         ):
             far_line = near_line
     if far_line is None or far_line.inliers.sum() < 0.3 * len(band_far.scan):
+        faint = _faint_face(plane, band_ref, ref_lay, ref_line, xdir, door.arris_mm / sc, thr, cfg, s8)
         raise _Refused(
-            q.Refusal(
+            faint
+            or q.Refusal(
                 "edge_missing",
                 f"the {HUMAN['far']} was not found within {door.thickness_mm + cfg.thickness_search_mm:.0f} mm of "
                 f"the reference arris; check that the door is {door.thickness_mm:g} mm thick and that "
@@ -762,8 +764,10 @@ def _coarse_edges(
     tr.bands["bottom"] = band_bot
     bot_line = yield from _coarse_line(plane, band_bot, bot_lay, thr, 5, 0.3, strip_half)
     if bot_line is None:
+        faint = _faint_face(plane, band_ref, ref_lay, ref_line, xdir, door.arris_mm / sc, thr, cfg, s8)
         raise _Refused(
-            q.Refusal(
+            faint
+            or q.Refusal(
                 "edge_missing",
                 f"the {HUMAN['bottom']} was not found between the arrises; check that "
                 "the door's bottom end is in view and nothing covers it",
@@ -1187,6 +1191,49 @@ def _no_door_reason(plane, band: Band, layout: EdgeLayout, cfg: LocateConfig, s8
         "no_door",
         "no door edge was found in the search region; check that a door lies in the fixture, "
         "that the lighting is on and that the camera has not moved",
+    )
+
+
+def _faint_face(
+    plane,
+    band: Band,
+    layout: EdgeLayout,
+    ref_line: ImageLine,
+    xdir: int,
+    strip_px: float,
+    thr: float,
+    cfg: LocateConfig,
+    s8: float,
+) -> q.Refusal | None:
+    """``low_contrast`` where the hinge face beside the found reference arris is less than the contrast
+    threshold ``thr`` (plane units) brighter than the background outside it (darker, for a dark door), else
+    None: the reason a far arris or a bottom end was not found is then the lighting, not the door.
+
+    Seen on bench_surfaces --sets combined --seed 500 (images 8 and 24): hinge faces 0.2 and -2 grey levels
+    from their background, whose arrises show only as a rounding's dip or glint, were refused "the far arris
+    was not found ... check that the door is 31 mm thick", which sent the operator to the door. The levels
+    are medians over 10 px on each side of the line, clear of it by 4 px and twice the arris strip's width
+    (``strip_px``).
+    """
+    P = plane if layout.axis == "col" else plane.T
+    n_along = P.shape[0]
+    at = np.round(ref_line.at(band.scan)).astype(int)[:, None]
+    # (clear of the arris strip on both sides by its width twice: the coarse line may hold either of its
+    # borders, and a rounding's shading reaches beyond them)
+    offs = np.arange(4, 14)[None, :] + 2 * int(math.ceil(strip_px))
+    inside = np.clip(at + xdir * offs, 0, n_along - 1)
+    outside = np.clip(at - xdir * offs, 0, n_along - 1)
+    scan = band.scan[:, None]
+    face = float(np.median(P[inside, scan]))
+    background = float(np.median(P[outside, scan]))
+    contrast = (face - background) * xdir * layout.polarity  # positive: the door as bright as the cell says
+    if contrast >= thr:
+        return None
+    return q.Refusal(
+        "low_contrast",
+        f"the hinge face beside the reference arris is {contrast * s8:.1f} grey levels from the background "
+        f"(locate.min_contrast is {cfg.min_contrast:g}): the door's other edges cannot be told from the "
+        "background; improve the lighting or the background behind the door",
     )
 
 
