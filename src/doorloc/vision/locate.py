@@ -1209,11 +1209,13 @@ def _faint_face(
     threshold ``thr`` (plane units) brighter than the background outside it (darker, for a dark door), else
     None: the reason a far arris or a bottom end was not found is then the lighting, not the door.
 
-    Seen on bench_surfaces --sets combined --seed 500 (images 8 and 24): hinge faces 0.2 and -2 grey levels
-    from their background, whose arrises show only as a rounding's dip or glint, were refused "the far arris
-    was not found ... check that the door is 31 mm thick", which sent the operator to the door. The levels
-    are medians over 10 px on each side of the line, clear of it by 4 px and twice the arris strip's width
-    (``strip_px``).
+    Seen on bench_surfaces --sets combined --seed 500, image 8: a hinge face 1 grey level from its
+    background, whose arrises show only as a rounding's faint lines, was refused "the far arris was not found
+    ... check that the door is 30.83 mm thick", which sent the operator to the door. The levels are medians
+    over 10 px on each side of the line, clear of it by 4 px and twice the arris strip's width
+    (``strip_px``). Where the coarse line is not the reference arris (image 24: a face darker than the
+    background in a shadow band, whose far arris took the reference search) the levels read another edge's
+    sides and the old reason stays.
     """
     P = plane if layout.axis == "col" else plane.T
     n_along = P.shape[0]
