@@ -59,6 +59,7 @@ import time  # noqa: E402
 from collections.abc import Callable, Iterator  # noqa: E402
 from dataclasses import replace  # noqa: E402
 from pathlib import Path  # noqa: E402
+from typing import TypedDict  # noqa: E402
 
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
@@ -171,6 +172,22 @@ def _unclipped_light(
     return amb * k, direct * k
 
 
+class _SideLight(TypedDict):
+    light_azimuth_deg: float
+    light_elevation_deg: float
+    blur_sigma_px: float
+
+
+def _side_light_and_blur(rng: np.random.Generator) -> _SideLight:
+    """The arris sets' light direction (from either side: azimuth +-10..80 deg, elevation -30..60 deg) and
+    blur (0.6-1.8 px), as ``Effects`` keywords."""
+    return _SideLight(
+        light_azimuth_deg=float(rng.choice([-1.0, 1.0]) * rng.uniform(10.0, 80.0)),
+        light_elevation_deg=float(rng.uniform(-30.0, 60.0)),
+        blur_sigma_px=float(rng.uniform(0.6, 1.8)),
+    )
+
+
 def combined_set(n: int, seed: int) -> Iterator[Item]:
     """Every effect at once: hard photometry (grain, gradients, vignetting, shadow, noise, JPEG) on doors
     with a chamfer or rounding of 0-3 mm (none on a quarter), lit from either side, seen by a camera of
@@ -189,9 +206,7 @@ def combined_set(n: int, seed: int) -> Iterator[Item]:
             albedo_chamfer=chamfer,
             light_ambient=ambient,
             light_directional=directional,
-            light_azimuth_deg=float(rng.choice([-1.0, 1.0]) * rng.uniform(10.0, 80.0)),
-            light_elevation_deg=float(rng.uniform(-30.0, 60.0)),
-            blur_sigma_px=float(rng.uniform(0.6, 1.8)),
+            **_side_light_and_blur(rng),
             gamma=float(rng.uniform(1.0, 2.4)),
         )
         door = DoorSize(900, float(rng.uniform(30, 100)), 2100, arris_mm=arris, arris_profile=profile)  # type: ignore[arg-type]
@@ -214,9 +229,7 @@ def thin_arris_set(n: int, seed: int) -> Iterator[Item]:
             albedo_background=float(rng.uniform(0.05, 0.2)),
             light_ambient=ambient,
             light_directional=directional,
-            light_azimuth_deg=float(rng.choice([-1.0, 1.0]) * rng.uniform(10.0, 80.0)),
-            light_elevation_deg=float(rng.uniform(-30.0, 60.0)),
-            blur_sigma_px=float(rng.uniform(0.6, 1.8)),
+            **_side_light_and_blur(rng),
             read_noise_dn=float(rng.uniform(0.0, 1.0)),
         )
         door = DoorSize(

@@ -52,6 +52,7 @@ from doorloc.vision.edges import (
     FarFaceFit,
     block_artifact_ratio,
     linearizing_lut,
+    oriented,
     refine_step_fit,
     step_blur,
     subpixel_edges,
@@ -343,7 +344,7 @@ def _nearer_reference(
     keep = hi - lo >= 8
     if np.count_nonzero(keep) < 10:
         return ref_line
-    P = plane if layout.axis == "col" else plane.T
+    P = oriented(plane, layout.axis)
     n_along = P.shape[0]
     door_sign = xdir * layout.polarity  # +1: the door is the brighter
     # Only where the level just outside the line is the door's, not the background's at the band's outer end,
@@ -663,7 +664,7 @@ def _coarse_edges(
     ref_lay, far_lay, bot_lay = (region.layouts[k] for k in ("reference", "far", "bottom"))
     band_ref = region.arris_band(step=4, height_mm=45.0)
     tr.bands["reference"] = band_ref
-    P = plane if ref_lay.axis == "col" else plane.T
+    P = oriented(plane, ref_lay.axis)
     sub = P[band_ref.lo.min() : band_ref.hi.max() + 1 : 3, band_ref.scan[::4]]
     r = q.check_exposure(sub.astype(np.float32) * s8, cfg.min_contrast, cfg.max_saturated_fraction)
     if r:
@@ -1128,7 +1129,7 @@ _PATTERN = q.Refusal(
 
 
 def _looks_like_pattern_here(plane, s8: float, band: Band, axis, cfg: LocateConfig) -> bool:
-    P = plane if axis == "col" else plane.T
+    P = oriented(plane, axis)
     rows = P[band.lo.min() : band.hi.max() + 1, band.scan[::8]].T.astype(np.float32) * s8
     return q.looks_like_pattern(rows, 4 * cfg.min_contrast)
 
@@ -1217,7 +1218,7 @@ def _faint_face(
     background in a shadow band, whose far arris took the reference search) the levels read another edge's
     sides and the old reason stays.
     """
-    P = plane if layout.axis == "col" else plane.T
+    P = oriented(plane, layout.axis)
     n_along = P.shape[0]
     at = np.round(ref_line.at(band.scan)).astype(int)[:, None]
     # (clear of the arris strip on both sides by its width twice: the coarse line may hold either of its
@@ -1255,7 +1256,7 @@ def _faint_edge(plane, band: Band, layout: EdgeLayout, thr: float) -> tuple[floa
     thin_003; averaged, 54 and 38 of 56). Returns the averaged steps' median on the line (plane
     units), the line's count of lines and the band's; None where no such line is.
     """
-    P = plane if layout.axis == "col" else plane.T
+    P = oriented(plane, layout.axis)
     k = FAINT_EDGE_AVERAGE_PX
     r0, r1 = int(band.lo.min()), int(band.hi.max()) + 1
     c0, c1 = max(int(band.scan.min()) - k, 0), min(int(band.scan.max()) + k + 1, P.shape[1])
@@ -1274,7 +1275,7 @@ def _rows_across(plane, s8: float, ref: EdgeSamples, far: EdgeSamples) -> np.nda
     """Grey profiles (0-255) across the door between and beyond its two arrises, for the pattern check."""
     if ref.scan.size == 0:
         return None
-    P = plane if ref.axis == "col" else plane.T
+    P = oriented(plane, ref.axis)
     a = np.concatenate([ref.along[np.isfinite(ref.along)], far.along[np.isfinite(far.along)]])
     if a.size == 0:
         return None
@@ -1791,11 +1792,9 @@ def _gate_and_answer(
     # 2.6-20 mm off was the door's; the two wrong ones were read beside bands of 0.6-1.2 px, 0.4-0.8 mm).
     other_mm = far_fit.other_reading_px * pose.scale_mm_per_px if far_beside and far_fit is not None else 0.0
     other = pose.thickness_mm + other_mm if 0.0 < abs(other_mm) <= 2.0 * t_tol else None
-    nearest = (
-        pose.thickness_mm
-        if other is None or abs(pose.thickness_mm - door.thickness_mm) <= abs(other - door.thickness_mm)
-        else other
-    )
+    # (the fitted reading where the two are as near)
+    readings = [pose.thickness_mm] + ([other] if other is not None else [])
+    nearest = min(readings, key=lambda t: abs(t - door.thickness_mm))
     refusals.append(q.check_thickness(nearest, door.thickness_mm, t_tol, sigma=t_sigma))
     t_uncertain = abs(nearest - door.thickness_mm) + 3.0 * t_sigma > t_tol
     if t_uncertain and refusals[-1] is None:
