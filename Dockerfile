@@ -19,6 +19,8 @@ COPY scripts/install-venv scripts/
 COPY pyproject.toml README.md ./
 COPY src src/
 RUN scripts/install-venv "$VIRTUAL_ENV" requirements/lock-service-py311.txt
+# locate's numba kernels, compiled into the image (the service would otherwise compile them at every start)
+RUN NUMBA_CACHE_DIR="$VIRTUAL_ENV/numba-cache" "$VIRTUAL_ENV/bin/python" -m doorloc.vision.jit
 
 # --- runtime: the virtual environment only, a non-root user, a health check ---
 FROM python:3.11-slim-bookworm
@@ -27,9 +29,12 @@ ENV PATH=/opt/doorloc/bin:$PATH \
     PYTHONDONTWRITEBYTECODE=1 PYTHONUNBUFFERED=1 \
     DOORLOC_CELL=/etc/doorloc/cell.yaml \
     DOORLOC_DATABASE_URL=sqlite:////var/lib/doorloc/recipes.db \
-    OMP_NUM_THREADS=1
+    OMP_NUM_THREADS=1 \
+    NUMBA_CACHE_DIR=/opt/doorloc/numba-cache
 RUN useradd --system --uid 10001 --home-dir /var/lib/doorloc --create-home doorloc
 COPY --from=build /opt/doorloc /opt/doorloc
+# numba reads its cache only from a folder it may write (it checks): the service user's
+COPY --from=build --chown=doorloc /opt/doorloc/numba-cache /opt/doorloc/numba-cache
 USER doorloc
 WORKDIR /var/lib/doorloc
 EXPOSE 8000

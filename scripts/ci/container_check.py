@@ -194,8 +194,8 @@ def replay_build(build: Stage, scratch: Path) -> tuple[Path, dict[str, str]]:
 def replay_runtime(runtime: Stage, venv: Path, scratch: Path) -> None:
     image_venv = env_of(runtime, {}).get("VIRTUAL_ENV", "/opt/doorloc")
     env = env_of(runtime, {"PATH": os.environ.get("PATH", "/usr/bin:/bin"), "VIRTUAL_ENV": image_venv})
-    env["PATH"] = env["PATH"].replace(image_venv, str(venv))
-    env["VIRTUAL_ENV"] = str(venv)
+    # paths into the image's venv (PATH, NUMBA_CACHE_DIR) lead into the one made here
+    env = {k: v.replace(image_venv, str(venv)) for k, v in env.items()}
     env["DOORLOC_DATABASE_URL"] = f"sqlite:///{scratch}/recipes.db"
     env["DOORLOC_CELL"] = str(ROOT / BUNDLED_CELL)
     home = scratch / "home"

@@ -7,7 +7,6 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -85,17 +84,3 @@ def test_random_bands_near_and_beyond_the_border_are_answered_identically(
         stride=stride,
     )
     assert _same(coarse.coarse_edges(img, **kw), reference.coarse_edges(img, **kw))
-
-
-@pytest.mark.parametrize("axis", ["col", "row"])
-def test_profiles_read_the_right_pixels(axis):
-    img = np.arange(12 * 20, dtype=np.uint16).reshape(12, 20)
-    P = img if axis == "col" else img.T
-    got = coarse.profiles(img, axis, np.array([3, 5]), np.array([-2, 4]), 6, stride=2)
-    want = np.stack(
-        [
-            P[np.clip(-2 + 2 * np.arange(6), 0, P.shape[0] - 1), 3],
-            P[np.clip(4 + 2 * np.arange(6), 0, P.shape[0] - 1), 5],
-        ]
-    )
-    assert np.array_equal(got, want)

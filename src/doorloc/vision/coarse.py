@@ -2,10 +2,10 @@
 
 :func:`coarse_edges` gives exactly what the first, plainer finder gave (kept as the reference in
 tests/vision/coarse_reference.py): the same arrays, bit for bit (the same float32 sums in the same
-order), with fewer and cheaper array operations: profiles are read with one flat ``take`` from the
-image instead of 2-D fancy indexing (which walks the transposed view for row profiles), the step
-response is taken on slices of the running sum instead of gathered indices, and the in-image test is
-done on the interval bounds instead of on every index.
+order). It is one compiled pass over each scan line (:mod:`doorloc.vision.jit`): the profile read
+straight from the image's buffer, the step response from integer window sums (8-bit images) or a float32
+running sum, the in-image test on the interval bounds, the strongest (or preferred) step kept; the array
+version it replaced built a dozen (scan lines, samples) arrays for that.
 The speed matters because this runs three times on every image before anything is known about it.
 """
 
@@ -14,64 +14,9 @@ from __future__ import annotations
 import numpy as np
 
 from doorloc.vision.edges import Axis
+from doorloc.vision.jit import kernel
 
-__all__ = ["coarse_edges", "profiles"]
-
-
-def profiles(
-    plane: np.ndarray, axis: Axis, scan: np.ndarray, start: np.ndarray, length: int, stride: int = 1
-) -> np.ndarray:
-    """Grey profiles ``P[start + stride k, scan]`` for ``k < length``, ``(N, length)`` in the plane's dtype.
-
-    ``P`` is the plane for ``axis="col"`` (profiles down columns) and its transpose for ``"row"``;
-    indices outside the image are clamped to its border (as :func:`doorloc.vision.edges._gather`).
-    """
-    h, w = plane.shape
-    n_along, pitch_along, pitch_scan = (h, w, 1) if axis == "col" else (w, 1, w)
-    flat = np.ascontiguousarray(plane).reshape(-1)
-    step = stride * pitch_along
-    if start.size and start.min() >= 0 and start.max() + stride * (length - 1) < n_along:
-        # all inside (the usual case): the rows of a strided view of the image (row b holds the profile
-        # that starts at flat index b), picked by their first index: no index array per sample
-        n_first = flat.size - step * (length - 1)
-        view = np.lib.stride_tricks.as_strided(
-            flat, shape=(n_first, length), strides=(flat.itemsize, step * flat.itemsize), writeable=False
-        )
-        return view[start * pitch_along + scan * pitch_scan]
-    idx = start[:, None] + stride * np.arange(length)[None, :]
-    np.clip(idx, 0, n_along - 1, out=idx)
-    return flat.take(idx * pitch_along + (scan * pitch_scan)[:, None])
-
-
-def _responses(vals: np.ndarray, half: int, exact_int: bool) -> np.ndarray:
-    """Step responses ``sum(next half) - sum(previous half)`` at every k in [half, length - half], float32.
-
-    As the reference finder: differences of a float32 running sum. For 8-bit grey levels every such sum is an
-    integer below 2**24, so float32 holds it exactly and integer window sums give the same numbers faster.
-    """
-    n, length = vals.shape
-    m = length - 2 * half + 1
-    if exact_int:
-        v = vals.astype(np.int32)
-        win = v[:, : length - half + 1].copy()  # win[:, i] = sum of v[:, i:i + half]
-        for t in range(1, half):
-            win += v[:, t : length - half + 1 + t]
-        # the difference of two integers below 2**24 is exact in float32 too: subtract into float32 at once
-        return np.subtract(win[:, half : half + m], win[:, :m], dtype=np.float32)
-    c = np.zeros((n, length + 1), np.float32)
-    np.cumsum(vals.astype(np.float32), axis=1, dtype=np.float32, out=c[:, 1:])
-    mid = c[:, half : length - half + 1]
-    return (c[:, 2 * half :] - mid) - (mid - c[:, :m])
-
-
-def _row_medians(x: np.ndarray) -> np.ndarray:
-    """``np.median(x, axis=1)`` of a finite float array (N, M): the same partition and mean of the middle
-    element(s), without np.median's generic machinery (and its NaN check: the values are finite)."""
-    k = x.shape[1] // 2
-    if x.shape[1] % 2:
-        return np.partition(x, k, axis=1)[:, k]
-    p = np.partition(x, [k - 1, k], axis=1)
-    return (p[:, k - 1] + p[:, k]) / x.dtype.type(2)
+__all__ = ["coarse_edges"]
 
 
 def coarse_edges(
@@ -126,52 +71,185 @@ def coarse_edges(
     length = int(np.max(hi - lo)) // stride + 1 if n else 0
     if n == 0 or length <= 2 * half + 1:
         return np.full(n, np.nan), np.zeros(n)
-    n_along = plane.shape[0] if axis == "col" else plane.shape[1]
-    vals = profiles(plane, axis, scan, lo, length, stride)
-    m = length - 2 * half + 1  # responses per scan line, at k = half + i
-    resp = _responses(vals, half, plane.dtype == np.uint8 and half <= 4096)
-    # (polarity * resp or |resp|) / half, in place where it can be: the same float32 operations
-    if not polarity:
-        resp = np.abs(resp)
-    elif polarity != 1:
-        resp *= polarity
-    resp /= half
-    # Sample j is usable when it lies in the image and in [lo, hi]: an interval [ja, jb] of each scan line.
-    # The detector at k needs samples k - half and min(k + half - 1, length - 1) usable.
-    ja = np.maximum(-(lo // stride), 0)
-    jb = np.minimum(np.minimum((n_along - 1 - lo) // stride, (hi - lo) // stride), length - 1)
-    ub = np.where(jb >= length - 1, jb, jb - 2 * half + 1)
-    i = np.arange(m)
-    # (ja is 0 on every scan line whose interval starts inside the image: then one comparison does)
-    ok = (
-        i[None, :] <= ub[:, None]
-        if ja.max() <= 0
-        else (i[None, :] >= ja[:, None]) & (i[None, :] <= ub[:, None])
+    h, w = plane.shape
+    n_along, pitch_along, pitch_scan = (h, w, 1) if axis == "col" else (w, 1, w)
+    return _strongest_steps(
+        np.ascontiguousarray(plane).reshape(-1),
+        pitch_along,
+        pitch_scan,
+        n_along,
+        scan,
+        lo,
+        hi,
+        length,
+        stride,
+        half,
+        int(polarity),
+        plane.dtype == np.uint8 and half <= 4096,
+        np.asarray(prefer, float) if prefer is not None else _NO_PREFER,
+        prefer is not None,
+        float(prefer_fraction),
     )
-    resp = np.where(ok, resp, np.float32(-np.inf))
-    rows = np.arange(n)
-    best = np.argmax(resp, axis=1)
-    if prefer is not None:
-        top = resp[rows, best]
-        peak = np.zeros_like(ok)
-        peak[:, 1:-1] = (resp[:, 1:-1] >= resp[:, :-2]) & (resp[:, 1:-1] > resp[:, 2:])
-        floor = 1.4826 * _row_medians(np.abs(np.where(ok, resp, np.float32(0.0))))
-        cand = peak & (resp >= np.maximum(prefer_fraction * top, 5.0 * floor)[:, None]) & (resp > 0)
-        # the candidate nearest to the preferred position (the first of equally near ones), on the
-        # candidates only: they are few
-        r_c, i_c = np.divmod(np.flatnonzero(cand), m)  # = np.nonzero(cand), for less
-        if r_c.size:
-            dist = np.abs((lo[r_c] + stride * (i_c + half) - 0.5 * stride) - np.asarray(prefer, float)[r_c])
-            # as numpy's argmin over a row: a NaN distance wins (and then nothing is preferred), inf never does
-            nan_rows = r_c[np.isnan(dist)]
-            use = np.isfinite(dist) & ~np.isin(r_c, nan_rows) if nan_rows.size else np.isfinite(dist)
-            r_c, i_c, dist = r_c[use], i_c[use], dist[use]
-            order = np.lexsort((i_c, dist, r_c))  # by row, then distance, then position
-            first = np.ones(order.size, bool)
-            first[1:] = r_c[order][1:] != r_c[order][:-1]
-            win = order[first]
-            best[r_c[win]] = i_c[win]
-    strength = resp[rows, best]
-    along = lo + stride * (best + half) - 0.5 * stride
-    along = np.where(np.isfinite(strength), along, np.nan)
-    return along.astype(float), np.where(np.isfinite(strength), strength, 0.0)
+
+
+_NO_PREFER = np.zeros(0)
+
+
+@kernel()
+def _select(x, k):
+    """Reorder ``x`` in place so that ``x[k]`` is its k-th smallest element, the ones before it no larger
+    and the ones after no smaller (as np.partition, without the copy: Hoare's selection)."""
+    lo, hi = 0, x.size - 1
+    while lo < hi:
+        pivot = x[(lo + hi) // 2]
+        i, j = lo, hi
+        while i <= j:
+            while x[i] < pivot:
+                i += 1
+            while x[j] > pivot:
+                j -= 1
+            if i <= j:
+                x[i], x[j] = x[j], x[i]
+                i += 1
+                j -= 1
+        if k <= j:
+            hi = j
+        elif k >= i:
+            lo = i
+        else:
+            break
+
+
+def _strongest_steps_warm_up(k) -> None:
+    img = np.zeros((16, 16), np.uint8)
+    img[:, 8:] = 100
+    for buf in (img.reshape(-1), img.astype(np.uint16).reshape(-1)):
+        for prefer in (_NO_PREFER, np.full(4, 8.0)):
+            k(
+                buf,
+                16,
+                1,
+                16,
+                np.arange(4),
+                np.full(4, 1),
+                np.full(4, 14),
+                14,
+                1,
+                2,
+                1,
+                buf.dtype == np.uint8,
+                prefer,
+                prefer.size > 0,
+                0.3,
+            )
+
+
+@kernel(_strongest_steps_warm_up)
+def _strongest_steps(
+    buf,
+    pitch_along,
+    pitch_scan,
+    n_along,
+    scan,
+    lo,
+    hi,
+    length,
+    stride,
+    half,
+    polarity,
+    exact_int,
+    prefer,
+    use_prefer,
+    prefer_fraction,
+):
+    """The search of :func:`coarse_edges` on each scan line, compiled (:mod:`doorloc.vision.jit`).
+
+    ``lo``, ``hi``: the intervals already widened by ``half * stride``; profile ``i`` is
+    ``buf[clamp(lo[i] + stride k) * pitch_along + scan[i] * pitch_scan]`` for ``k < length``. The same
+    float32 numbers as the array code this replaced, bit for bit (tests/vision/test_coarse.py holds it
+    to the first finder, tests/vision/coarse_reference.py): integer window sums for 8-bit images, else
+    differences of a float32 running sum; ties to the first position.
+    """
+    n = scan.size
+    m = length - 2 * half + 1
+    along = np.full(n, np.nan)
+    strength = np.zeros(n, np.float32)
+    v = np.empty(length, buf.dtype)
+    c = np.zeros(length + 1, np.float32)
+    win = np.empty(length - half + 1, np.int64)
+    resp = np.empty(m, np.float32)
+    mag = np.empty(m, np.float32)
+    neg_inf = np.float32(-np.inf)
+    fhalf = np.float32(half)
+    for i in range(n):
+        base = scan[i] * pitch_scan
+        for j in range(length):
+            jj = min(max(lo[i] + stride * j, 0), n_along - 1)
+            v[j] = buf[jj * pitch_along + base]
+        if exact_int:
+            # win[t] = v[t] + ... + v[t + half - 1]; the difference of two such integers (< 2**24) is
+            # exact in float32
+            for t in range(length - half + 1):
+                acc = 0
+                for u in range(half):
+                    acc += v[t + u]
+                win[t] = acc
+            for t in range(m):
+                resp[t] = np.float32(win[t + half]) - np.float32(win[t])
+        else:
+            for j in range(length):
+                c[j + 1] = c[j] + np.float32(v[j])
+            for t in range(m):
+                mid = c[t + half]
+                resp[t] = (c[t + 2 * half] - mid) - (mid - c[t])
+        # usable detector positions: samples in the image and in [lo, hi]
+        ja = max(-(lo[i] // stride), 0)
+        jb = min(min((n_along - 1 - lo[i]) // stride, (hi[i] - lo[i]) // stride), length - 1)
+        ub = jb if jb >= length - 1 else jb - 2 * half + 1
+        best = 0
+        for t in range(m):
+            r = resp[t]
+            if polarity == 0:
+                r = abs(r)
+            elif polarity != 1:
+                r = r * np.float32(polarity)
+            r = r / fhalf
+            resp[t] = r if (t >= ja and t <= ub) else neg_inf
+            if resp[t] > resp[best]:
+                best = t
+        if use_prefer:
+            top = resp[best]
+            # the noise floor: 1.4826 x the median |response| over the line (0 where not usable)
+            for t in range(m):
+                mag[t] = abs(resp[t]) if resp[t] != neg_inf else np.float32(0.0)
+            k = m // 2
+            _select(mag, k)
+            if m % 2:
+                med = mag[k]
+            else:
+                below = mag[0]
+                for t in range(1, k):
+                    below = max(below, mag[t])
+                med = (below + mag[k]) / np.float32(2.0)
+            floor = np.float32(1.4826) * med
+            thr = max(np.float32(prefer_fraction) * top, np.float32(5.0) * floor)
+            # the local maximum nearest the preferred position among those above thr (the first of equally
+            # near ones); a NaN preference prefers nothing
+            pick = -1
+            pick_d = np.inf
+            nan_seen = False
+            for t in range(1, m - 1):
+                r = resp[t]
+                if r >= resp[t - 1] and r > resp[t + 1] and r >= thr and r > 0:
+                    d = abs((lo[i] + stride * (t + half) - 0.5 * stride) - prefer[i])
+                    if d != d:
+                        nan_seen = True
+                    elif d < pick_d:
+                        pick, pick_d = t, d
+            if pick >= 0 and not nan_seen:
+                best = pick
+        s = resp[best]
+        if np.isfinite(s):
+            strength[i] = s
+            along[i] = lo[i] + stride * (best + half) - 0.5 * stride
+    return along, strength

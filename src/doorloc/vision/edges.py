@@ -31,6 +31,7 @@ from typing import Any, Literal
 import numpy as np
 from scipy.special import ndtr
 
+from doorloc.vision.jit import kernel
 from doorloc.vision.lines import _median  # np.median's value for less
 
 __all__ = [
@@ -249,6 +250,108 @@ def _linearizing_lut(eight_bit: bool, gamma: float) -> np.ndarray:
     return lut
 
 
+_NO_LUT = np.zeros(0, np.float32)
+
+
+def _area_edges_warm_up(k) -> None:
+    img = np.zeros((8, 8), np.uint8)
+    img[:, 4:] = 100
+    lut = np.arange(256, dtype=np.float32)
+    for buf in (img.reshape(-1), img.astype(np.uint16).reshape(-1)):
+        for table in (_NO_LUT, lut if buf.dtype == np.uint8 else np.arange(65536, dtype=np.float32)):
+            k(buf, 1, 8, 8, 8, np.arange(8), np.full(8, 1), np.ones(8, bool), 2, 1, table, 1)
+
+
+@kernel(_area_edges_warm_up)
+def _area_edges(
+    buf, pitch_along, pitch_scan, n_along, n_scan, scan, start, finite, half, plateau, lut, level_smooth
+):
+    """The area estimate of :func:`subpixel_edges` with flat plateaus, compiled (:mod:`doorloc.vision.jit`).
+
+    Profile ``i`` holds ``P[start[i] + j, scan[i]] = buf[(start[i] + j) * pitch_along + scan[i] * pitch_scan]``
+    for ``j < 2 (half + plateau) + 1`` (clamped to the image), mapped by ``lut`` (float32; empty: none).
+    Returns ``along`` (NaN where not valid), the two levels ``A``, ``B`` (float32 values unless smoothed along
+    the edge over ``level_smooth`` scan lines each side), ``noise`` (float32) and ``valid``: the numbers of
+    the numpy branch of :func:`subpixel_edges` up to the order of its float sums.
+    """
+    n = scan.size
+    length = 2 * (half + plateau) + 1
+    use_lut = lut.size > 0
+    A = np.empty(n)
+    B = np.empty(n)
+    S = np.empty(n)
+    noise = np.zeros(n, np.float32)
+    inside = np.empty(n, np.bool_)
+    row = np.empty(length, np.float32)
+    for i in range(n):
+        j0 = start[i]
+        inside[i] = j0 >= 0 and j0 + length - 1 < n_along
+        base = min(max(scan[i], 0), n_scan - 1) * pitch_scan
+        for j in range(length):
+            jj = min(max(j0 + j, 0), n_along - 1)
+            v = buf[jj * pitch_along + base]
+            row[j] = lut[v] if use_lut else np.float32(v)
+        # the plateau levels (float32 means, as numpy's) and their spread
+        a = np.float32(0.0)
+        b = np.float32(0.0)
+        for j in range(plateau):
+            a += row[j]
+            b += row[length - plateau + j]
+        a = a / np.float32(plateau)
+        b = b / np.float32(plateau)
+        if plateau > 1:
+            va = np.float32(0.0)
+            vb = np.float32(0.0)
+            for j in range(plateau):
+                da = row[j] - a
+                db = row[length - plateau + j] - b
+                va += da * da
+                vb += db * db
+            noise[i] = np.sqrt(np.float32(0.5) * (va / np.float32(plateau) + vb / np.float32(plateau)))
+        A[i] = a
+        B[i] = b
+        # the window's sum above the first level, in float64 (then minus the smoothed level, below)
+        s = 0.0
+        for j in range(plateau, plateau + 2 * half + 1):
+            s += row[j]
+        S[i] = s
+    if level_smooth > 0:
+        # each level averaged over level_smooth scan lines each side (running float32 sums, as np.cumsum
+        # of the float32 levels; a profile that leaves the image takes no part)
+        for X in (A, B):
+            cs = np.zeros(n + 1)
+            cnt = np.zeros(n + 1, np.int64)
+            run = np.float32(0.0)
+            for i in range(n):
+                if inside[i] and np.isfinite(X[i]):
+                    run += np.float32(X[i])
+                    cnt[i + 1] = cnt[i] + 1
+                else:
+                    cnt[i + 1] = cnt[i]
+                cs[i + 1] = run
+            Y = np.empty(n)
+            for i in range(n):
+                lo = max(i - level_smooth, 0)
+                hi = min(i + level_smooth + 1, n)
+                Y[i] = (cs[hi] - cs[lo]) / max(cnt[hi] - cnt[lo], 1)
+            X[:] = Y
+    along = np.empty(n)
+    valid = np.empty(n, np.bool_)
+    w = 2 * half + 1
+    for i in range(n):
+        a = A[i]
+        b = B[i] - a
+        # S = (window sum - (2 half + 1) A): the area between the profile and the first level
+        sa = S[i] - w * a
+        den = b + np.sqrt(b * b) * np.sign(b)
+        e = start[i] + plateau + 2 * half + 0.5 - 2.0 * sa / den if den != 0 else np.nan
+        c0 = start[i] + half + plateau
+        ok = finite[i] and inside[i] and np.isfinite(e) and abs(b) > 0 and abs(e - c0) <= half
+        valid[i] = ok
+        along[i] = e if ok else np.nan
+    return along, A, B, noise, valid
+
+
 def subpixel_edges(
     plane: np.ndarray,
     axis: Axis,
@@ -300,6 +403,36 @@ def subpixel_edges(
     c0 = np.round(np.where(finite, centre, 0.0)).astype(int)
     start = c0 - half - plateau
     length = 2 * (half + plateau) + 1
+    flat = _flat_view(P)
+    if not slope_smooth > 0 and flat is not None and plane.dtype in (np.uint8, np.uint16):
+        # flat plateaus (the default): compiled, one pass over each profile (_area_edges)
+        buf, pitch_along, pitch_scan = flat
+        along, A, B, noise, valid = _area_edges(
+            buf,
+            pitch_along,
+            pitch_scan,
+            P.shape[0],
+            P.shape[1],
+            scan,
+            start,
+            finite,
+            half,
+            plateau,
+            lut if lut is not None else _NO_LUT,
+            level_smooth if scan.size else 0,
+        )
+        if not level_smooth > 0:  # the levels stay in the profiles' float32, as the numpy branch below
+            A, B = A.astype(np.float32), B.astype(np.float32)
+        return EdgeSamples(
+            axis,
+            scan,
+            along,
+            (B - A) * scale_to_8bit,
+            noise * scale_to_8bit,
+            np.full(scan.size, np.nan),
+            np.maximum(A, B) * scale_to_8bit,
+            valid,
+        )
     vals, inside_ok = _gather_rows(P, scan, start, length, lut=lut)
     left = vals[:, :plateau]
     right = vals[:, -plateau:]

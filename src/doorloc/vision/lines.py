@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from doorloc.vision.jit import kernel
+
 __all__ = ["ImageLine", "ransac_line", "RectangleFit", "fit_rectangle_edges", "tukey_weights"]
 
 TUKEY_C = 4.685  # 95 % efficiency at the normal distribution
@@ -167,6 +169,125 @@ def _to_common(points: np.ndarray, along_x: bool) -> np.ndarray:
     return np.stack([points[:, 1], -points[:, 0]], axis=1) if along_x else points
 
 
+@kernel()
+def _irls_median(p, m):
+    """The median of ``p`` partitioned at ``m = p.size // 2`` (for an even size, the mean of the largest
+    element below ``m`` and ``p[m]``, as np.median)."""
+    if p.size % 2:
+        return p[m]
+    below = p[0]
+    for i in range(1, m):
+        below = max(below, p[i])
+    return (below + p[m]) / 2.0
+
+
+def _irls_warm_up(k) -> None:
+    P = np.array([[0.0, 0.0], [0.0, 1.0], [0.1, 2.0], [1.0, 0.0], [2.0, 0.1]])
+    k(P, np.array([0, 3]), np.array([3, 2]), np.ones(5, bool), np.ones(5), False, 1e-4, 9, 512)
+
+
+@kernel(_irls_warm_up)
+def _irls(P, starts, sizes, mask0, votes, use_votes, scale_floor, n_iter, max_samples):
+    """The IRLS loop of :func:`fit_rectangle_edges`, compiled (:mod:`doorloc.vision.jit`).
+
+    ``P`` (N, 2) points in the common frame, groups ``[starts[g], starts[g] + sizes[g])``; ``votes`` weigh
+    the direction where ``use_votes``. Returns ``(status, n0, n1, offsets (G,), residuals (N,), weights (N,),
+    centred points (N, 2))`` of the last iteration (the weights updated after it unless it converged);
+    ``status`` is ``-1 - g`` when group ``g`` has no weight left, else 0.
+    """
+    N = P.shape[0]
+    G = sizes.size
+    w = np.empty(N)
+    gid = np.empty(N, np.int64)
+    for g in range(G):
+        for i in range(starts[g], starts[g] + sizes[g]):
+            gid[i] = g
+    for i in range(N):
+        w[i] = 1.0 if mask0[i] else 0.0
+    Q = np.empty((N, 2))
+    r = np.empty(N)
+    means = np.empty((G, 2))
+    off = np.empty(G)
+    state = np.empty(2 + G)
+    prev = np.empty(2 + G)
+    have_prev = False
+    scale = scale_floor
+    n0, n1 = 1.0, 0.0
+    for it in range(n_iter):
+        for g in range(G):
+            sw = sx = sz = 0.0
+            for i in range(starts[g], starts[g] + sizes[g]):
+                sw += w[i]
+                sx += w[i] * P[i, 0]
+                sz += w[i] * P[i, 1]
+            if not sw > 0:
+                return -1 - g, n0, n1, off, r, w, Q
+            means[g, 0] = sx / sw
+            means[g, 1] = sz / sw
+        # weighted scatter of the centred points (the voting ones)
+        a = b = d = 0.0
+        for i in range(N):
+            q0 = P[i, 0] - means[gid[i], 0]
+            q1 = P[i, 1] - means[gid[i], 1]
+            Q[i, 0] = q0
+            Q[i, 1] = q1
+            wv = w[i] * votes[i] if use_votes else w[i]
+            a += wv * q0 * q0
+            b += wv * q0 * q1
+            d += wv * q1 * q1
+        # smallest-eigenvalue eigenvector of [[a, b], [b, d]], in closed form
+        lam = 0.5 * (a + d) - math.sqrt(0.25 * (a - d) ** 2 + b * b)
+        if abs(b) > 1e-300 or a > d:
+            n0, n1 = b, lam - a
+        else:
+            n0, n1 = 1.0, 0.0
+        if abs(lam - a) < 1e-300 and abs(b) < 1e-300:
+            n0, n1 = (1.0, 0.0) if a <= d else (0.0, 1.0)
+        h = math.hypot(n0, n1)
+        n0, n1 = n0 / h, n1 / h
+        if n0 < 0:
+            n0, n1 = -n0, -n1
+        for g in range(G):
+            off[g] = means[g, 0] * n0 + means[g, 1] * n1
+        for i in range(N):
+            r[i] = P[i, 0] * n0 + P[i, 1] * n1 - off[gid[i]]
+        state[0], state[1] = n0, n1
+        state[2:] = off
+        if have_prev and it > 3 and np.all(np.abs(state - prev) < 1e-8):
+            break
+        prev[:] = state
+        have_prev = True
+        if it < 4 or it % 2 == 0:  # the scale settles quickly; re-estimating it every time costs medians
+            # robust_scale: the MAD of the residuals with weight, at most max_samples of them evenly spread
+            kept = r[w > 0]
+            if kept.size == 0:
+                scale = scale_floor
+            else:
+                if kept.size > max_samples:
+                    kept = kept[:: kept.size // max_samples + 1]
+                m = kept.size // 2
+                med = _irls_median(np.partition(kept, m), m)
+                mad = _irls_median(np.partition(np.abs(kept - med), m), m)
+                scale = max(1.4826 * mad, scale_floor)
+        if it < 3:
+            # Huber: 1 inside, 1/u beyond (the first iterations: they cannot lose the solution)
+            c = 1.345 * scale
+            for i in range(N):
+                u = abs(r[i]) / c
+                w[i] = 1.0 / (u if (u > 1.0 or u != u) else 1.0)
+        else:
+            c = TUKEY_C * scale
+            for i in range(N):
+                u = r[i] / c
+                uu = u * u
+                t = 1.0 - (uu if uu < 1.0 else 1.0)  # NaN -> weight 0, as tukey_weights
+                w[i] = t * t
+        for i in range(N):
+            if not mask0[i]:
+                w[i] = w[i] * 0.0
+    return 0, n0, n1, off, r, w, Q
+
+
 def fit_rectangle_edges(
     groups: dict[str, tuple[np.ndarray, bool]],
     *,
@@ -217,50 +338,28 @@ def fit_rectangle_edges(
         if init_weights is not None
         else np.ones(len(P), bool)
     )
-    w = mask0.astype(float)
     voting_subset = any(k in offset_only for k in names)  # else votes are all 1 (w * 1.0 == w)
     votes = (
         np.concatenate([np.full(n, k not in offset_only, float) for k, n in zip(names, sizes_l, strict=True)])
         if voting_subset
         else None
     )
-    scale = scale_floor
-    prev: tuple[float, ...] | None = None
-    sizes = np.array(sizes_l)
-    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
-    for it in range(n_iter):
-        sw = np.add.reduceat(w, starts)
-        if sw.min() <= 0:
-            raise ValueError(f"no usable points on the {names[int(np.argmin(sw))]} line")
-        means = np.add.reduceat(w[:, None] * P, starts, axis=0) / sw[:, None]
-        Q = P - np.repeat(means, sizes, axis=0)  # = means[gid], without the gather
-        S = ((w * votes if votes is not None else w)[:, None] * Q).T @ Q
-        # Smallest-eigenvalue eigenvector of the 2x2 scatter, in closed form (Python floats: the same
-        # IEEE operations as on numpy scalars, without their overhead).
-        (a, b), (_, d) = S.tolist()
-        lam = 0.5 * (a + d) - math.sqrt(0.25 * (a - d) ** 2 + b * b)
-        n0, n1 = (b, lam - a) if abs(b) > 1e-300 or a > d else (1.0, 0.0)
-        if abs(lam - a) < 1e-300 and abs(b) < 1e-300:
-            n0, n1 = (1.0, 0.0) if a <= d else (0.0, 1.0)
-        h = math.hypot(n0, n1)
-        n0, n1 = n0 / h, n1 / h
-        if n0 < 0:
-            n0, n1 = -n0, -n1
-        n = np.array([n0, n1])
-        off = means @ n
-        r = P @ n - np.repeat(off, sizes)
-        state = (n0, n1, *off.tolist())
-        if prev is not None and it > 3 and all(abs(x - y) < 1e-8 for x, y in zip(state, prev, strict=True)):
-            break
-        prev = state
-        if it < 4 or it % 2 == 0:  # the scale settles quickly; re-estimating it every time costs medians
-            scale = robust_scale(r, w, scale_floor)
-        if it < 3:
-            # Huber: 1 inside, 1/u beyond (= where(u <= 1, 1, 1 / max(u, 1e-12)), in fewer passes)
-            w = 1.0 / np.maximum(np.abs(r) / (1.345 * scale), 1.0)
-        else:
-            w = tukey_weights(r, scale)
-        w = w * mask0
+    sizes = np.array(sizes_l, np.int64)
+    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
+    status, n0, n1, off, r, w, Q = _irls(
+        np.ascontiguousarray(P),
+        starts,
+        sizes,
+        mask0,
+        votes if votes is not None else np.ones(len(P)),
+        votes is not None,
+        float(scale_floor),
+        int(n_iter),
+        512,
+    )
+    if status < 0:
+        raise ValueError(f"no usable points on the {names[-1 - status]} line")
+    n = np.array([n0, n1])
     # Standard errors: residual variance over the weighted information of each parameter.
     sw = np.bincount(np.repeat(np.arange(G), sizes), weights=w, minlength=G)
     var = float((w * r * r).sum()) / max(float(sw.sum()) - G - 1, 1.0)
