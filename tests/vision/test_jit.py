@@ -5,11 +5,18 @@
   with and without a response table, plateaus of 1-3 px, smoothed levels or not, profiles leaving the image;
 - the joint line fit's loop (lines._irls) compiled against itself run by Python (numba's semantics: NaN,
   integer division, float32), and against a known answer with outliers;
+- the texture term (edges.texture_bias: its mean profiles and closed form compiled), the plateau levels
+  (response.plateau_levels) and the RANSAC line (lines.ransac_line) against their numpy versions
+  (numpy_reference.py), bit for bit (RANSAC: the same inliers, the line to 1e-12 px); the transition
+  width (edges.transition_width) to 1e-12 of itself (its sums add in another order);
 - the in-place selection of the coarse finder (coarse._select) against np.partition.
 The coarse step finder is held to the first finder bit for bit in test_coarse.py.
 """
 
 from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -18,8 +25,16 @@ from hypothesis import strategies as st
 
 from doorloc.vision import jit
 from doorloc.vision.coarse import _select
-from doorloc.vision.edges import linearizing_lut, subpixel_edges
-from doorloc.vision.lines import _irls, fit_rectangle_edges
+from doorloc.vision.edges import linearizing_lut, subpixel_edges, texture_bias, transition_width
+from doorloc.vision.lines import _irls, fit_rectangle_edges, ransac_line
+from doorloc.vision.response import plateau_levels
+
+_ref_spec = importlib.util.spec_from_file_location(
+    "numpy_reference", Path(__file__).with_name("numpy_reference.py")
+)
+assert _ref_spec is not None and _ref_spec.loader is not None
+reference = importlib.util.module_from_spec(_ref_spec)
+_ref_spec.loader.exec_module(reference)
 
 
 def _strided(plane: np.ndarray) -> np.ndarray:
@@ -134,3 +149,94 @@ def test_compile_kernels_compiles_every_kernel_locate_uses():
     import doorloc.vision.locate  # noqa: F401  (defines them all)
 
     assert jit.compile_kernels() >= 5
+
+
+def _grain_edge(rng, sixteen: bool, axis: str, gamma: float, n_lines: int, plateau: int = 1):
+    """A blurred edge beside wood-like grain (a random period and contrast), noise; its area-estimate samples."""
+    top = 65535 if sixteen else 255
+    n_along, n_scan = 120, 320
+    along = np.arange(n_along)[:, None]
+    edge = 60 + rng.uniform(-3, 3) + rng.uniform(-0.05, 0.05) * np.arange(n_scan)[None, :]
+    grain = rng.uniform(0, 0.05) * np.sin(2 * np.pi * along / rng.uniform(3, 12) + rng.uniform(0, 6))
+    blur = rng.uniform(0.4, 2.0)
+    img = 0.3 + 0.4 / (1 + np.exp(-(along - edge) / blur)) + grain + rng.normal(0, 0.01, (n_along, n_scan))
+    plane = np.clip(img * top, 0, top).astype(np.uint16 if sixteen else np.uint8)
+    if axis == "row":
+        plane = np.ascontiguousarray(plane.T)
+    lut = linearizing_lut(plane.dtype, gamma)
+    scan = np.sort(rng.choice(n_scan, n_lines, replace=False))
+    centre = edge[0, scan] + rng.normal(0, 0.5, n_lines)
+    smp = subpixel_edges(plane, axis, scan, centre, 4, plateau, 255.0 / top, level_smooth=5, lut=lut)
+    return plane, smp, lut
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    sixteen=st.booleans(),
+    gamma=st.sampled_from([1.0, 1.8]),
+    plateau=st.integers(1, 3),
+    axis=st.sampled_from(["col", "row"]),
+    skip=st.integers(0, 6),
+    side=st.sampled_from([-1, 1]),
+    blur=st.sampled_from([None, None, 0.9]),
+    n_lines=st.sampled_from([6, 40, 300]),
+)
+def test_texture_term_as_its_numpy_version(seed, sixteen, gamma, plateau, axis, skip, side, blur, n_lines):
+    rng = np.random.default_rng(seed)
+    plane, smp, lut = _grain_edge(rng, sixteen, axis, gamma, n_lines, plateau)
+    mask = rng.uniform(size=n_lines) > 0.1
+    kw = dict(lut=lut, blur_px=blur, door_skip_px=skip, door_side=side)
+    got = texture_bias(plane, smp, mask, 4, plateau, **kw)
+    want = reference.texture_bias(plane, smp, mask, 4, plateau, **kw)
+    np.testing.assert_array_equal(
+        [got.offset_sigma_px, got.tilt_sigma], [want.offset_sigma_px, want.tilt_sigma]
+    )
+    if n_lines >= 40:
+        assert np.isfinite(got.offset_sigma_px)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    sixteen=st.booleans(),
+    gamma=st.sampled_from([1.0, 2.2]),
+    axis=st.sampled_from(["col", "row"]),
+    n_lines=st.sampled_from([2, 5, 60, 300]),
+    half=st.integers(2, 9),
+)
+def test_transition_width_and_plateau_levels_as_their_numpy_versions(
+    seed, sixteen, gamma, axis, n_lines, half
+):
+    rng = np.random.default_rng(seed)
+    plane, smp, lut = _grain_edge(rng, sixteen, axis, gamma, n_lines)
+    mask = rng.uniform(size=n_lines) > 0.1
+    got, want = (
+        transition_width(plane, smp, mask, half, lut),
+        reference.transition_width(plane, smp, mask, half, lut),
+    )
+    np.testing.assert_allclose(got, want, rtol=1e-12)
+    if n_lines >= 60:
+        assert 0.3 < got < 3.0
+    got_l, want_l = plateau_levels(plane, smp, mask, half), reference.plateau_levels(plane, smp, mask, half)
+    np.testing.assert_array_equal(got_l, want_l)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    n=st.integers(0, 200),
+    outliers=st.floats(0.0, 0.7),
+    tol=st.sampled_from([1.0, 3.0]),
+)
+def test_ransac_line_as_its_numpy_version(seed, n, outliers, tol):
+    rng = np.random.default_rng(seed)
+    scan = np.sort(rng.choice(2000, n, replace=False)).astype(float)
+    along = 300 + rng.uniform(-0.1, 0.1) * scan + rng.normal(0, 0.5, n)
+    bad = rng.uniform(size=n) < outliers
+    along[bad] += rng.uniform(-50, 50, int(bad.sum()))
+    got, want = ransac_line(scan, along, tol), reference.ransac_line(scan, along, tol)
+    assert (got is None) == (want is None)
+    if got is not None and want is not None:
+        np.testing.assert_array_equal(got.inliers, want.inliers)
+        np.testing.assert_allclose([got.a, got.b], [want.a, want.b], rtol=0, atol=1e-12)

@@ -174,7 +174,19 @@ def _strongest_steps(
     m = length - 2 * half + 1
     along = np.full(n, np.nan)
     strength = np.zeros(n, np.float32)
-    v = np.empty(length, buf.dtype)
+    # every profile first, read in the buffer's order (down columns, row after row across the scan lines:
+    # neighbouring columns share cache lines; one column after another would miss the cache at every pixel)
+    V = np.empty((n, length), buf.dtype)
+    if pitch_along > pitch_scan:
+        for j in range(length):
+            for i in range(n):
+                jj = min(max(lo[i] + stride * j, 0), n_along - 1)
+                V[i, j] = buf[jj * pitch_along + scan[i] * pitch_scan]
+    else:
+        for i in range(n):
+            for j in range(length):
+                jj = min(max(lo[i] + stride * j, 0), n_along - 1)
+                V[i, j] = buf[jj * pitch_along + scan[i] * pitch_scan]
     c = np.zeros(length + 1, np.float32)
     win = np.empty(length - half + 1, np.int64)
     resp = np.empty(m, np.float32)
@@ -182,10 +194,7 @@ def _strongest_steps(
     neg_inf = np.float32(-np.inf)
     fhalf = np.float32(half)
     for i in range(n):
-        base = scan[i] * pitch_scan
-        for j in range(length):
-            jj = min(max(lo[i] + stride * j, 0), n_along - 1)
-            v[j] = buf[jj * pitch_along + base]
+        v = V[i]
         if exact_int:
             # win[t] = v[t] + ... + v[t + half - 1]; the difference of two such integers (< 2**24) is
             # exact in float32

@@ -31,7 +31,7 @@ from typing import Any, Literal
 import numpy as np
 from scipy.special import ndtr
 
-from doorloc.vision.jit import kernel
+from doorloc.vision.jit import grey, kernel
 from doorloc.vision.lines import _median  # np.median's value for less
 
 __all__ = [
@@ -276,7 +276,6 @@ def _area_edges(
     """
     n = scan.size
     length = 2 * (half + plateau) + 1
-    use_lut = lut.size > 0
     A = np.empty(n)
     B = np.empty(n)
     S = np.empty(n)
@@ -290,7 +289,7 @@ def _area_edges(
         for j in range(length):
             jj = min(max(j0 + j, 0), n_along - 1)
             v = buf[jj * pitch_along + base]
-            row[j] = lut[v] if use_lut else np.float32(v)
+            row[j] = grey(lut, v)
         # the plateau levels (float32 means, as numpy's) and their spread
         a = np.float32(0.0)
         b = np.float32(0.0)
@@ -506,46 +505,122 @@ def transition_width(
     if not np.any(m):
         return float("nan")
     P = oriented(plane, samples.axis)
-    e = samples.along[m]
-    c0 = np.round(e).astype(int)
-    vals, ok = _gather_rows(P, samples.scan[m], c0 - half, 2 * half + 1, lut=lut)
-    if not np.any(ok):
-        return float("nan")
-    step = samples.step[m]
-    if not ok.all():
-        vals, step, c0, e = vals[ok], step[ok], c0[ok], e[ok]
-    g = np.diff(vals, axis=1) / step[:, None]  # step is 0-255 scaled; ratios only matter
-    gsum = g.sum(axis=1, keepdims=True)
-    g = g / np.maximum(np.abs(gsum), 1e-6) * np.sign(gsum)
-    pos = np.arange(2 * half) + 0.5 - half + (c0 - e)[:, None]  # relative to each sub-pixel edge
-    # Re-bin on a 0.25 px grid relative to the edge to average the aligned gradient.
-    bins = np.round(pos * 4).astype(int)
-    lo = bins.min()
-    acc = np.bincount((bins - lo).ravel(), weights=g.ravel())
-    cnt = np.bincount((bins - lo).ravel())
-    gm = np.where(cnt > 0, acc / np.maximum(cnt, 1), 0.0)
-    # The peak of the mean (unit-area) gradient gives the width of a Gaussian transition without
-    # the noise that the tails add to a second moment. (Smoothed over the filled bins only: an edge along
-    # a pixel row or column fills one bin in four, and a plain three-bin mean read its peak a third as
-    # high, every such edge three times as wide as it is: a sharp one 2 px, blur 1 px 1.5.)
-    filled = (cnt > 0).astype(np.float64)
-    gs = np.convolve(gm, np.ones(3), mode="same") / np.maximum(
-        np.convolve(filled, np.ones(3), mode="same"), 1.0
+    flat = _flat_view(P)
+    if flat is None:
+        P = np.ascontiguousarray(P)
+        flat = _flat_view(P)
+        assert flat is not None
+    return float(
+        _mean_transition_width(
+            *flat,
+            P.shape[0],
+            samples.scan[m],
+            samples.along[m],
+            samples.step[m].astype(np.float64),
+            half,
+            lut if lut is not None else _NO_LUT,
+        )
     )
-    peak = float(gs.max())
-    if peak <= 0:
-        return float("nan")
-    sigma = 1.0 / (peak * math.sqrt(2.0 * math.pi))
+
+
+def _mean_transition_width_warm_up(k) -> None:
+    img = np.zeros((16, 16), np.uint8)
+    img[:, 8:] = 100
+    lut = np.arange(256, dtype=np.float32)
+    for buf in (img.reshape(-1), img.astype(np.uint16).reshape(-1)):
+        for table in (_NO_LUT, lut if buf.dtype == np.uint8 else np.arange(65536, dtype=np.float32)):
+            k(buf, 1, 16, 16, np.arange(6), np.full(6, 7.6), np.full(6, 100.0), 3, table)
+
+
+@kernel(_mean_transition_width_warm_up)
+def _mean_transition_width(buf, pitch_along, pitch_scan, n_along, scan, along, step, half, lut):
+    """:func:`transition_width` of the profiles around ``along`` on ``scan`` (``step``: their steps), compiled.
+
+    Each profile's gradient over ``[c0 - half, c0 + half]`` (``c0 = round(along)``, profiles leaving the
+    image skipped), normalised to unit area, binned at 1/4 px relative to its sub-pixel edge; the bins'
+    mean, smoothed over the filled bins, gives the width from its peak (or, below 1.5 px, from the second
+    moment within 3 px). NaN when no profile is usable.
+    """
+    n = scan.size
+    L = 2 * half + 1
+    row = np.empty(L)
+    g = np.empty(L - 1)
+    # bins: pos * 4 for pos in [-half - 1, half + 1]: offsets 0 .. 8 half + 8 from the lowest
+    n_bins = 8 * half + 9
+    acc = np.zeros(n_bins)
+    cnt = np.zeros(n_bins, np.int64)
+    lo_bin = 4 * (-half - 1)
+    lowest = n_bins
+    any_ok = False
+    for i in range(n):
+        c0 = np.rint(along[i])
+        start = int(c0) - half
+        if start < 0 or start + L - 1 >= n_along:
+            continue
+        any_ok = True
+        base = scan[i] * pitch_scan
+        for j in range(L):
+            v = buf[(start + j) * pitch_along + base]
+            row[j] = grey(lut, v)
+        gsum = 0.0
+        for j in range(L - 1):
+            g[j] = (np.float32(row[j + 1]) - np.float32(row[j])) / step[i]
+            gsum += g[j]
+        den = max(abs(gsum), 1e-6)
+        sgn = np.sign(gsum)
+        for j in range(L - 1):
+            pos = j + 0.5 - half + (c0 - along[i])
+            b = int(np.rint(pos * 4.0)) - lo_bin
+            acc[b] += g[j] / den * sgn
+            cnt[b] += 1
+            lowest = min(lowest, b)
+    if not any_ok:
+        return np.nan
+    # the bins from the lowest filled one up (as np.bincount from the minimum)
+    highest = 0
+    for b in range(n_bins):
+        if cnt[b] > 0:
+            highest = b
+    m = highest - lowest + 1
+    gm = np.zeros(m)
+    filled = np.zeros(m)
+    for q in range(m):
+        if cnt[lowest + q] > 0:
+            gm[q] = acc[lowest + q] / cnt[lowest + q]
+            filled[q] = 1.0
+    peak = -np.inf
+    for q in range(m):
+        sg = gm[q]
+        sf = filled[q]
+        if q > 0:
+            sg += gm[q - 1]
+            sf += filled[q - 1]
+        if q < m - 1:
+            sg += gm[q + 1]
+            sf += filled[q + 1]
+        peak = max(peak, sg / max(sf, 1.0))
+    if not peak > 0:
+        return np.nan
+    sigma = 1.0 / (peak * np.sqrt(2.0 * np.pi))
     if sigma < 1.5:
-        # A sharp edge sampled at few sub-pixel phases makes a spiky mean gradient whose peak says
-        # little: take the second moment within +-3 px instead (the tails, where noise lives, excluded).
-        x = (np.arange(gm.size) + lo) / 4.0
-        near = np.abs(x) <= 3.0
-        wsum = float(gm[near].sum())
+        # A sharp edge sampled at few sub-pixel phases makes a spiky mean gradient whose peak says little:
+        # the second moment within +-3 px instead (the tails, where noise lives, excluded).
+        wsum = 0.0
+        mom = 0.0
+        for q in range(m):
+            x = (q + lowest + lo_bin) / 4.0
+            if abs(x) <= 3.0:
+                wsum += gm[q]
+                mom += gm[q] * x
         if wsum > 0:
-            mu = float((gm[near] * x[near]).sum()) / wsum
-            sigma = math.sqrt(max(float((gm[near] * (x[near] - mu) ** 2).sum()) / wsum, 0.0))
-    return float(sigma)
+            mu = mom / wsum
+            var = 0.0
+            for q in range(m):
+                x = (q + lowest + lo_bin) / 4.0
+                if abs(x) <= 3.0:
+                    var += gm[q] * (x - mu) ** 2
+            sigma = np.sqrt(max(var / wsum, 0.0))
+    return sigma
 
 
 def subpixel_edges_banded(
@@ -1509,78 +1584,158 @@ def texture_bias(
     R = reach + skip  # the gathered half-window: the door side's profile starts skip px farther out
     skip_plus, skip_minus = (skip, 0) if door_side > 0 else (0, skip)
     c0 = np.round(samples.along[idx]).astype(int)
-    vals, ok = _gather_rows(P, samples.scan[idx], c0 - R, 2 * R + 1, lut=lut)
-    n_ok = int(np.count_nonzero(ok))
-    if n_ok < 8:
+    flat = _flat_view(P)
+    if flat is None:
+        P = np.ascontiguousarray(P)
+        flat = _flat_view(P)
+        assert flat is not None
+    # Mean profiles over the scan lines (the line fit's outliers are already out) of the two halves of
+    # the edge (their mean is the whole edge's), the step between the profiles' ends, and the distance
+    # between the halves' mean scan lines
+    T_lo, T_hi, D, lever, n_ok = _texture_profiles(
+        *flat,
+        P.shape[0],
+        P.shape[1],
+        samples.scan[idx],
+        c0 - R,
+        2 * R + 1,
+        plateau,
+        lut if lut is not None else _NO_LUT,
+    )
+    if n_ok < 8 or not D > 0:
         return TextureBias(float("nan"), float("nan"))
-    if n_ok < ok.size:
-        vals = vals[ok]
-        scan = samples.scan[idx][ok]
+    with_tilt = n_ok // 2 >= 4 and n_ok - n_ok // 2 >= 4
+    Ts = np.stack([0.5 * (T_lo + T_hi), T_hi, T_lo]) if with_tilt else (0.5 * (T_lo + T_hi))[None]
+    if blur_px is None:
+        # the area estimator's error on each mean profile, both sides (closed form, compiled)
+        pbs = _area_pseudo_bias(
+            Ts, R, reach, skip_plus, skip_minus, half + plateau, n_shifts, half, plateau, D
+        )
     else:
-        scan = samples.scan[idx]
-    if plateau == 1:
-        D = _median(np.abs(vals[:, -1] - vals[:, 0]))
-    else:
-        D = _median(np.abs(vals[:, -plateau:].mean(axis=1) - vals[:, :plateau].mean(axis=1)))
-    if not D > 0:
-        return TextureBias(float("nan"), float("nan"))
-    o = np.arange(half + plateau, half + plateau + n_shifts)
-    if blur_px is not None:
-        bounds = np.arange(-h, h + 2, dtype=np.float64) - 0.5
-        C0, _, _ = _pixel_step(bounds, np.zeros(1), max(float(blur_px), 0.05))
-        k = np.arange(-h, h + 1)
-        o = np.arange(h + 1, h + 1 + n_shifts)
-
-    def pseudo_bias(Ts: list[np.ndarray]) -> list[np.ndarray]:
-        """The estimator's error on each mean profile in ``Ts``: both sides' shifts, concatenated."""
-        # prof[j - 1] = pixel j beyond c0, each side: the two sides of every profile as the rows of one array
+        # the step fit's error on a clean step of this contrast with this texture on one side
+        # (every profile's every shift in one fit: the rows are fitted independently)
         profs = np.stack(
             [
                 p
                 for T in Ts
-                for p in (
-                    T[R + 1 + skip_plus : R + 1 + skip_plus + reach],
-                    T[: R - skip_minus][::-1][:reach],
-                )
+                for p in (T[R + 1 + skip_plus : R + 1 + skip_plus + reach], T[: R - skip_minus][::-1][:reach])
             ]
         )
-        if blur_px is None:
-            # the area estimator's error, closed form: for each shift o the window sum of pixels
-            # o+1..o+half minus half times the mean of the plateau o+half+1..o+half+plateau
-            c = np.zeros((profs.shape[0], profs.shape[1] + 1))
-            c[:, 1:] = np.cumsum(profs, axis=1)  # row by row, as on each profile alone
-            win = c[:, o + half] - c[:, o]
-            lev = (c[:, o + half + plateau] - c[:, o + half]) / plateau
-            err = (win - half * lev) / D
-        else:
-            # the step fit's error on a clean step of this contrast with this texture on one side
-            # (every profile's every shift in one fit: the rows are fitted independently)
-            tex = profs[:, o[:, None] + k[None, :] - 1]
-            tex = tex - tex.mean(axis=2, keepdims=True)
-            rows = (C0[None] * (D + tex)).reshape(-1, k.size)
-            err = _step_fit(rows, np.zeros(rows.shape[0]), bounds, max(float(blur_px), 0.05))
-            err = err.reshape(profs.shape[0], o.size)
-        return [np.concatenate([err[2 * i], err[2 * i + 1]]) for i in range(len(Ts))]
-
-    # Mean profiles over the scan lines (the line fit's outliers are already out) of the two halves of
-    # the edge; their mean is the whole edge's.
-    order = np.argsort(scan)
-    lo, hi = order[: order.size // 2], order[order.size // 2 :]
-    T_lo, T_hi = vals[lo].mean(axis=0, dtype=np.float64), vals[hi].mean(axis=0, dtype=np.float64)
-    with_tilt = lo.size >= 4 and hi.size >= 4
-    pbs = pseudo_bias([0.5 * (T_lo + T_hi), T_hi, T_lo] if with_tilt else [0.5 * (T_lo + T_hi)])
+        bounds = np.arange(-h, h + 2, dtype=np.float64) - 0.5
+        C0, _, _ = _pixel_step(bounds, np.zeros(1), max(float(blur_px), 0.05))
+        k = np.arange(-h, h + 1)
+        o = np.arange(h + 1, h + 1 + n_shifts)
+        tex = profs[:, o[:, None] + k[None, :] - 1]
+        tex = tex - tex.mean(axis=2, keepdims=True)
+        rows = (C0[None] * (D + tex)).reshape(-1, k.size)
+        err = _step_fit(rows, np.zeros(rows.shape[0]), bounds, max(float(blur_px), 0.05))
+        err = err.reshape(profs.shape[0], o.size)
+        pbs = np.stack([np.concatenate([err[2 * i], err[2 * i + 1]]) for i in range(len(Ts))])
     pb = pbs[0]
     # Both sides add (independent textures); the RMS over the shifts of each side, summed in quadrature.
     n = pb.size // 2
     off = math.sqrt(_mean_square(pb[:n]) + _mean_square(pb[n:]))
     tilt = float("nan")
-    if with_tilt:
+    if with_tilt and lever > 0:
         d = pbs[1] - pbs[2]
-        # mean scan line of each half (integer sums: exact, as np.mean's)
-        lever = int(scan[hi].sum()) / hi.size - int(scan[lo].sum()) / lo.size
-        if lever > 0:
-            tilt = math.sqrt(_mean_square(d[:n]) + _mean_square(d[n:])) / lever
+        tilt = math.sqrt(_mean_square(d[:n]) + _mean_square(d[n:])) / lever
     return TextureBias(off, tilt)
+
+
+def _texture_profiles_warm_up(k) -> None:
+    img = np.zeros((40, 40), np.uint8)
+    img[:, 20:] = 100
+    lut = np.arange(256, dtype=np.float32)
+    for buf in (img.reshape(-1), img.astype(np.uint16).reshape(-1)):
+        for table in (_NO_LUT, lut if buf.dtype == np.uint8 else np.arange(65536, dtype=np.float32)):
+            for plateau in (1, 2):
+                k(buf, 1, 40, 40, 40, np.arange(10), np.full(10, 5), 30, plateau, table)
+
+
+@kernel(_texture_profiles_warm_up)
+def _texture_profiles(buf, pitch_along, pitch_scan, n_along, n_scan, scan, start, length, plateau, lut):
+    """The mean profiles of :func:`texture_bias`, compiled (:mod:`doorloc.vision.jit`).
+
+    Profile ``i`` is ``P[start[i] + j, scan[i]]`` for ``j < length`` (``buf``, pitches as
+    :func:`_area_edges`), mapped by ``lut`` (empty: none); only profiles wholly inside the image count.
+    Returns ``(T_lo, T_hi, D, lever, n)``: the float64 means of the profiles of the lower and the upper
+    half of the scan lines (sorted; numpy's sums, row after row), the median step between the profiles'
+    two end plateaus, the distance between the halves' mean scan lines, and the profiles counted.
+    """
+    n_all = scan.size
+    ok = np.empty(n_all, np.bool_)
+    for i in range(n_all):
+        ok[i] = start[i] >= 0 and start[i] + length - 1 < n_along
+    rows = np.flatnonzero(ok)
+    n = rows.size
+    T_lo = np.zeros(length)
+    T_hi = np.zeros(length)
+    if n < 8:
+        return T_lo, T_hi, np.nan, np.nan, n
+    vals = np.empty((n, length), np.float32)
+    steps = np.empty(n, np.float32)
+    for r in range(n):
+        i = rows[r]
+        base = scan[i] * pitch_scan
+        for j in range(length):
+            v = buf[(start[i] + j) * pitch_along + base]
+            vals[r, j] = grey(lut, v)
+        a = np.float32(0.0)
+        b = np.float32(0.0)
+        for j in range(plateau):
+            a += vals[r, j]
+            b += vals[r, length - plateau + j]
+        steps[r] = abs(b / np.float32(plateau) - a / np.float32(plateau)) if plateau > 1 else abs(b - a)
+    # the median step (np.median's value)
+    srt = np.sort(steps)
+    k = n // 2
+    D = float(srt[k]) if n % 2 else float((srt[k - 1] + srt[k]) / np.float32(2.0))  # in float32, as _median
+    order = np.argsort(scan[rows])
+    lo_sum = 0
+    hi_sum = 0
+    for q in range(n):
+        r = order[q]
+        T = T_lo if q < k else T_hi
+        for j in range(length):
+            T[j] += vals[r, j]
+        if q < k:
+            lo_sum += scan[rows[r]]
+        else:
+            hi_sum += scan[rows[r]]
+    for j in range(length):
+        T_lo[j] /= k
+        T_hi[j] /= n - k
+    lever = hi_sum / (n - k) - lo_sum / k if k > 0 else np.nan
+    return T_lo, T_hi, D, lever, n
+
+
+def _area_pseudo_bias_warm_up(k) -> None:
+    k(np.ones((3, 61)), 30, 30, 0, 0, 4, 12, 3, 1, 1.0)
+
+
+@kernel(_area_pseudo_bias_warm_up)
+def _area_pseudo_bias(Ts, R, reach, skip_plus, skip_minus, first, n_shifts, half, plateau, D):
+    """The area estimator's error on texture alone (:func:`texture_bias`, closed form), compiled.
+
+    For each mean profile ``Ts[t]`` (gathered ``R`` px either side of the edge) and each side (beyond the
+    edge: from ``R + 1 + skip_plus``; before it, outwards: from ``R - 1 - skip_minus``), at the shifts
+    ``o = first .. first + n_shifts - 1``: the window sum of pixels ``o + 1 .. o + half`` minus ``half``
+    times the mean of the plateau beyond it, over ``D``. Returns ``(len(Ts), 2 n_shifts)``: one side's
+    shifts, then the other's.
+    """
+    out = np.empty((Ts.shape[0], 2 * n_shifts))
+    c = np.zeros(reach + 1)
+    for t in range(Ts.shape[0]):
+        for side in range(2):
+            for j in range(reach):
+                x = Ts[t, R + 1 + skip_plus + j] if side == 0 else Ts[t, R - skip_minus - 1 - j]
+                c[j + 1] = c[j] + x
+            for q in range(n_shifts):
+                o = first + q
+                win = c[o + half] - c[o]
+                lev = (c[o + half + plateau] - c[o + half]) / plateau
+                out[t, side * n_shifts + q] = (win - half * lev) / D
+    return out
 
 
 def _mean_square(x: np.ndarray) -> float:
@@ -1593,6 +1748,31 @@ def _spread_indices(n: int, k: int) -> np.ndarray:
     """``np.linspace(0, n - 1, k).astype(int)``, made once per (n, k) (read-only)."""
     out = np.linspace(0, n - 1, k).astype(int)
     out.setflags(write=False)
+    return out
+
+
+def _abs_step_sums_warm_up(k) -> None:
+    for dtype in (np.uint8, np.uint16):
+        for ax in (0, 1):
+            k(np.zeros((40, 40), dtype)[2:30, 3:33], ax)
+
+
+@kernel(_abs_step_sums_warm_up)
+def _abs_step_sums(crop, ax):
+    """``np.abs(np.diff(crop, axis=ax)).sum(axis=1 - ax)`` of an integer image, as int64 (exact), compiled."""
+    h, w = crop.shape
+    if ax == 1:
+        out = np.zeros(w - 1, np.int64)
+        for r in range(h):
+            for c in range(w - 1):
+                out[c] += abs(np.int64(crop[r, c + 1]) - np.int64(crop[r, c]))
+    else:
+        out = np.zeros(h - 1, np.int64)
+        for r in range(h - 1):
+            acc = 0
+            for c in range(w):
+                acc += abs(np.int64(crop[r + 1, c]) - np.int64(crop[r, c]))
+            out[r] = acc
     return out
 
 
@@ -1621,13 +1801,12 @@ def block_artifact_ratio(
     if min(crop.shape) < 32:
         return float("nan")
     exact_int = crop.dtype.kind in "ui" and crop.dtype.itemsize <= 2 and max(crop.shape) <= 256
-    ci = crop.astype(np.int16 if crop.dtype.itemsize == 1 else np.int32) if exact_int else None
     out = []
     for ax, o in ((1, u0), (0, v0)):
-        if ci is not None:
-            # Integer differences summed exactly: the float32 mean's sums are integers below 2**24 (exact),
-            # so this is the same mean for a fraction of the work (and no transposed copy).
-            s = np.abs(np.diff(ci, axis=ax)).sum(axis=1 - ax)
+        if exact_int:
+            # Integer differences summed exactly (compiled): the float32 mean's sums are integers below
+            # 2**24 (exact), so this is the same mean for a fraction of the work (and no transposed copy).
+            s = _abs_step_sums(crop, ax)
             d = (s.astype(np.float32) / np.float32(crop.shape[1 - ax])) * scale_to_8bit
         else:
             arr = crop if ax == 1 else crop.T

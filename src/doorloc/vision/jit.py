@@ -20,8 +20,11 @@ from collections.abc import Callable
 from typing import Any, TypeVar
 
 import numba
+import numpy as np
+from numba import types
+from numba.extending import overload
 
-__all__ = ["kernel", "compile_kernels"]
+__all__ = ["kernel", "compile_kernels", "grey"]
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -30,21 +33,42 @@ _KERNELS: list[tuple[Any, Callable[[Any], None] | None]] = []
 
 
 def kernel(warm_up: Callable[[Any], None] | None = None) -> Callable[[F], F]:
-    """Decorator: compile ``fn`` with numba (``njit``, no GIL held, cached on disk where it can be).
+    """Decorator: compile ``fn`` with numba (``njit``, no GIL held, numpy's float errors, cached on disk
+    where it can be).
 
     ``warm_up(k)`` calls the kernel ``k`` once with the argument types locate passes (numba compiles one
     version per type signature): :func:`compile_kernels` runs it. A kernel only other kernels call needs none.
     """
 
     def wrap(fn: F) -> F:
+        # error_model="numpy": a float division by zero gives inf or NaN, as the array code did (numba's
+        # default raises ZeroDivisionError, as Python does)
         try:
-            k = numba.njit(cache=True, nogil=True)(fn)
+            k = numba.njit(cache=True, nogil=True, error_model="numpy")(fn)
         except RuntimeError:  # numba found no writable place for its cache: compile in each process
-            k = numba.njit(nogil=True)(fn)
+            k = numba.njit(nogil=True, error_model="numpy")(fn)
         _KERNELS.append((k, warm_up))
         return k  # type: ignore[return-value]
 
     return wrap
+
+
+def grey(lut: np.ndarray, value: Any) -> np.float32:
+    """A stored grey level as float32, mapped by ``lut`` (float32, one entry per level) unless it is empty.
+
+    For kernels: an integer plane's level indexes the table; a float plane's (synthetic images, tests)
+    is taken as it is (no table applies). Called from Python, the same.
+    """
+    if lut.size > 0 and np.issubdtype(type(value), np.integer):
+        return np.float32(lut[value])
+    return np.float32(value)
+
+
+@overload(grey)
+def _grey_compiled(lut, value):  # the kernel version: chosen by the level's type when a kernel is compiled
+    if isinstance(value, types.Integer):
+        return lambda lut, value: lut[value] if lut.size > 0 else np.float32(value)
+    return lambda lut, value: np.float32(value)
 
 
 def compile_kernels() -> int:

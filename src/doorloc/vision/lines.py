@@ -75,13 +75,19 @@ class ImageLine:
         return self.a + self.b * np.asarray(scan, float)
 
 
-def _lsq_line(s: np.ndarray, a: np.ndarray) -> tuple[float, float]:
+@kernel()
+def _lsq_line(s, a):
     """Least-squares ``a = a0 + b s``; returns (b, a0)."""
-    sm, am = s.sum() / s.size, a.sum() / a.size  # = s.mean(), a.mean(): the same sum and division
-    ds = s - sm
-    den = float(ds @ ds)
-    b = float(ds @ (a - am)) / den if den > 0 else 0.0
-    return b, float(am - b * sm)
+    sm = s.sum() / s.size
+    am = a.sum() / a.size
+    den = 0.0
+    num = 0.0
+    for q in range(s.size):
+        d = s[q] - sm
+        den += d * d
+        num += d * (a[q] - am)
+    b = num / den if den > 0 else 0.0
+    return b, am - b * sm
 
 
 def ransac_line(
@@ -98,26 +104,52 @@ def ransac_line(
     if n < 5:
         return None
     i, j = _sample_pairs(n, n_trials, seed)
-    ds = s[j] - s[i]
-    ok = np.abs(ds) >= max(1.0, 0.1 * (s.max() - s.min()))
-    if not np.any(ok):
-        return None
-    i, j, ds = i[ok], j[ok], ds[ok]
-    b = (a[j] - a[i]) / ds
-    a0 = a[i] - b * s[i]
-    res = np.abs(a[None, :] - (a0[:, None] + b[:, None] * s[None, :]))
-    counts = (res <= tol_px).sum(axis=1)
-    k = int(np.argmax(counts))
-    inl = res[k] <= tol_px
+    found, aa, bb, inl = _ransac(s, a, i, j, float(tol_px))
+    return ImageLine(aa, bb, inl) if found else None
+
+
+def _ransac_warm_up(k) -> None:
+    s = np.arange(8.0)
+    k(s, 2.0 * s, np.array([0, 1, 2]), np.array([5, 6, 7]), 3.0)
+
+
+@kernel(_ransac_warm_up)
+def _ransac(s, a, i, j, tol_px):
+    """The search of :func:`ransac_line`, compiled (:mod:`doorloc.vision.jit`): the sample pairs ``(i, j)``
+    far enough apart along the scan, the one with the most samples within ``tol_px`` (the first of
+    equals), then least squares on its consensus set twice. Returns ``(found, a0, b, inliers)``."""
+    n = s.size
+    inl = np.zeros(n, np.bool_)
+    span = s.max() - s.min()
+    min_ds = max(1.0, 0.1 * span)
+    best = -1
+    best_b = best_a0 = 0.0
+    for t in range(i.size):
+        ds = s[j[t]] - s[i[t]]
+        if not abs(ds) >= min_ds:
+            continue
+        b = (a[j[t]] - a[i[t]]) / ds
+        a0 = a[i[t]] - b * s[i[t]]
+        count = 0
+        for q in range(n):
+            if abs(a[q] - (a0 + b * s[q])) <= tol_px:
+                count += 1
+        if count > best:
+            best, best_b, best_a0 = count, b, a0
+    if best < 0:
+        return False, 0.0, 0.0, inl
+    for q in range(n):
+        inl[q] = abs(a[q] - (best_a0 + best_b * s[q])) <= tol_px
     for _ in range(2):  # least-squares polish on the consensus set
         if inl.sum() < 3:
             break
         bb, aa = _lsq_line(s[inl], a[inl])
-        inl = np.abs(a - (aa + bb * s)) <= tol_px
+        for q in range(n):
+            inl[q] = abs(a[q] - (aa + bb * s[q])) <= tol_px
     if inl.sum() < 3:
-        return None
+        return False, 0.0, 0.0, inl
     bb, aa = _lsq_line(s[inl], a[inl])
-    return ImageLine(float(aa), float(bb), inl)
+    return True, aa, bb, inl
 
 
 @functools.lru_cache(maxsize=256)

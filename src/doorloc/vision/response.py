@@ -55,7 +55,7 @@ from doorloc.vision.edges import (
     oriented,
     subpixel_edges,
 )
-from doorloc.vision.lines import _median
+from doorloc.vision.jit import kernel
 
 __all__ = [
     "RESPONSE_ABSORB_SIGMAS",
@@ -713,18 +713,42 @@ def plateau_levels(
     """The dark and bright plateau's raw grey level just beyond the window (medians, full scale 1)."""
     if int(mask.sum()) < 3:
         return float("nan"), float("nan")
-    P = oriented(plane, samples.axis)
-    c0 = np.round(samples.along[mask]).astype(int)
-    # the window's two end pixels alone, read directly (a profile inside the image at both ends is inside
-    # it all through; the medians are np.median's, without its generic machinery)
-    a, b = c0 - half - 1, c0 + half + 1
-    inside = (a >= 0) & (b < P.shape[0])
-    if int(np.count_nonzero(inside)) < 3:
-        return float("nan"), float("nan")
-    scan = samples.scan[mask][inside]
+    P = oriented(plane, samples.axis)  # (for rows, the plane's transpose: an F-ordered view, no copy)
     top = 255.0 if plane.dtype == np.uint8 else 65535.0
-    m = [_median(P[ends[inside], scan].astype(np.float64)) / top for ends in (a, b)]
-    return float(min(m)), float(max(m))
+    lo, hi = _end_pixel_medians(P, samples.scan[mask], samples.along[mask], half)
+    return lo / top, hi / top
+
+
+def _end_pixel_medians_warm_up(k) -> None:
+    for dtype in (np.uint8, np.uint16):
+        P = np.zeros((12, 12), dtype)
+        k(P, np.arange(5), np.full(5, 6.0), 2)
+        k(P.T, np.arange(5), np.full(5, 6.0), 2)
+
+
+@kernel(_end_pixel_medians_warm_up)
+def _end_pixel_medians(P, scan, along, half):
+    """The medians of the pixels just beyond the window ``round(along) +- half`` on each scan line of ``P``
+    (``P[along, scan]``; lines whose window leaves the image skipped), the smaller first; NaN with fewer
+    than 3 lines (np.median's values, compiled)."""
+    n = scan.size
+    ends = np.empty((2, n))
+    m = 0
+    for i in range(n):
+        c0 = int(np.rint(along[i]))
+        a, b = c0 - half - 1, c0 + half + 1
+        if a >= 0 and b < P.shape[0]:
+            ends[0, m] = P[a, scan[i]]
+            ends[1, m] = P[b, scan[i]]
+            m += 1
+    if m < 3:
+        return np.nan, np.nan
+    med = np.empty(2)
+    k = m // 2
+    for e in range(2):
+        srt = np.sort(ends[e, :m])
+        med[e] = srt[k] if m % 2 else (srt[k - 1] + srt[k]) / 2.0
+    return min(med[0], med[1]), max(med[0], med[1])
 
 
 def fit_board_response(

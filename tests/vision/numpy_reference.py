@@ -1,0 +1,273 @@
+"""The functions whose loops are now numba kernels (doorloc.vision.jit), as they were written with numpy:
+the references tests/vision/test_jit.py holds the compiled ones to (texture_bias, transition_width,
+plateau_levels, ransac_line; the area estimate is held to subpixel_edges' own numpy branch, the coarse
+finder to coarse_reference.py)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from doorloc.vision.edges import (
+    EdgeSamples,
+    TextureBias,
+    _gather_rows,
+    _mean_square,
+    _median,
+    _pixel_step,
+    _spread_indices,
+    _step_fit,
+    oriented,
+)
+from doorloc.vision.lines import ImageLine, _sample_pairs
+
+
+def texture_bias(
+    plane: np.ndarray,
+    samples: EdgeSamples,
+    mask: np.ndarray,
+    half: int,
+    plateau: int,
+    lut: np.ndarray | None = None,
+    n_shifts: int = 12,
+    max_lines: int = 128,
+    blur_px: float | None = None,
+    door_skip_px: int = 0,
+    door_side: int = 1,
+) -> TextureBias:
+    """Estimate the texture bias of the sub-pixel edge estimate on one edge from the texture beside its window.
+
+    The estimators take the edge's two grey levels from near the transition and assume they hold under it;
+    surface texture (wood grain along the edge) breaks that. The texture under the transition cannot be
+    told from the step, but texture that runs along the edge is the same on every scan line at the same
+    distance from it, so its mean profile beside the window is measured with little noise (the mean over
+    the scan lines that the line fit kept, aligned on their edge points). Taking the texture as stationary across the edge, the
+    estimator is run on that texture as if it lay under the window, at ``n_shifts`` positions beyond it on
+    each side; the RMS of the edge shifts it makes is the 1-sigma. A plain or smoothly shaded surface
+    gives ~0 (noise only).
+
+    With ``blur_px`` None the estimator is :func:`subpixel_edges` (window ``half``, ``plateau`` px levels,
+    a closed form); otherwise :func:`refine_step_fit` with that blur, run on a clean step with the texture added.
+
+    Parameters
+    ----------
+    plane, samples, half, plateau, lut
+        As given to :func:`subpixel_edges` (``half`` the final window half-size).
+    mask : ndarray (N,) bool
+        The samples the line fit kept.
+    door_skip_px, door_side : int
+        On an arris line the door side beside the edge is the arris strip, whose shading is no texture
+        (a rounding's runs from dark to bright across it): its texture is read ``door_skip_px`` farther
+        out, beyond the strip, on the side ``door_side`` (+1: increasing ``along``).
+
+    Returns
+    -------
+    TextureBias
+        NaN fields when fewer than 8 samples are usable.
+    """
+    m = mask & samples.valid & np.isfinite(samples.along)
+    idx = np.flatnonzero(m)
+    if idx.size < 8:
+        return TextureBias(float("nan"), float("nan"))
+    if idx.size > max_lines:  # a mean profile needs no more
+        idx = idx[_spread_indices(idx.size, max_lines)]
+    P = oriented(plane, samples.axis)
+    h = half + 1
+    reach = max(2 * (half + plateau), 2 * h) + n_shifts + 2
+    skip = max(int(door_skip_px), 0)
+    R = reach + skip  # the gathered half-window: the door side's profile starts skip px farther out
+    skip_plus, skip_minus = (skip, 0) if door_side > 0 else (0, skip)
+    c0 = np.round(samples.along[idx]).astype(int)
+    vals, ok = _gather_rows(P, samples.scan[idx], c0 - R, 2 * R + 1, lut=lut)
+    n_ok = int(np.count_nonzero(ok))
+    if n_ok < 8:
+        return TextureBias(float("nan"), float("nan"))
+    if n_ok < ok.size:
+        vals = vals[ok]
+        scan = samples.scan[idx][ok]
+    else:
+        scan = samples.scan[idx]
+    if plateau == 1:
+        D = _median(np.abs(vals[:, -1] - vals[:, 0]))
+    else:
+        D = _median(np.abs(vals[:, -plateau:].mean(axis=1) - vals[:, :plateau].mean(axis=1)))
+    if not D > 0:
+        return TextureBias(float("nan"), float("nan"))
+    o = np.arange(half + plateau, half + plateau + n_shifts)
+    if blur_px is not None:
+        bounds = np.arange(-h, h + 2, dtype=np.float64) - 0.5
+        C0, _, _ = _pixel_step(bounds, np.zeros(1), max(float(blur_px), 0.05))
+        k = np.arange(-h, h + 1)
+        o = np.arange(h + 1, h + 1 + n_shifts)
+
+    def pseudo_bias(Ts: list[np.ndarray]) -> list[np.ndarray]:
+        """The estimator's error on each mean profile in ``Ts``: both sides' shifts, concatenated."""
+        # prof[j - 1] = pixel j beyond c0, each side: the two sides of every profile as the rows of one array
+        profs = np.stack(
+            [
+                p
+                for T in Ts
+                for p in (
+                    T[R + 1 + skip_plus : R + 1 + skip_plus + reach],
+                    T[: R - skip_minus][::-1][:reach],
+                )
+            ]
+        )
+        if blur_px is None:
+            # the area estimator's error, closed form: for each shift o the window sum of pixels
+            # o+1..o+half minus half times the mean of the plateau o+half+1..o+half+plateau
+            c = np.zeros((profs.shape[0], profs.shape[1] + 1))
+            c[:, 1:] = np.cumsum(profs, axis=1)  # row by row, as on each profile alone
+            win = c[:, o + half] - c[:, o]
+            lev = (c[:, o + half + plateau] - c[:, o + half]) / plateau
+            err = (win - half * lev) / D
+        else:
+            # the step fit's error on a clean step of this contrast with this texture on one side
+            # (every profile's every shift in one fit: the rows are fitted independently)
+            tex = profs[:, o[:, None] + k[None, :] - 1]
+            tex = tex - tex.mean(axis=2, keepdims=True)
+            rows = (C0[None] * (D + tex)).reshape(-1, k.size)
+            err = _step_fit(rows, np.zeros(rows.shape[0]), bounds, max(float(blur_px), 0.05))
+            err = err.reshape(profs.shape[0], o.size)
+        return [np.concatenate([err[2 * i], err[2 * i + 1]]) for i in range(len(Ts))]
+
+    # Mean profiles over the scan lines (the line fit's outliers are already out) of the two halves of
+    # the edge; their mean is the whole edge's.
+    order = np.argsort(scan)
+    lo, hi = order[: order.size // 2], order[order.size // 2 :]
+    T_lo, T_hi = vals[lo].mean(axis=0, dtype=np.float64), vals[hi].mean(axis=0, dtype=np.float64)
+    with_tilt = lo.size >= 4 and hi.size >= 4
+    pbs = pseudo_bias([0.5 * (T_lo + T_hi), T_hi, T_lo] if with_tilt else [0.5 * (T_lo + T_hi)])
+    pb = pbs[0]
+    # Both sides add (independent textures); the RMS over the shifts of each side, summed in quadrature.
+    n = pb.size // 2
+    off = math.sqrt(_mean_square(pb[:n]) + _mean_square(pb[n:]))
+    tilt = float("nan")
+    if with_tilt:
+        d = pbs[1] - pbs[2]
+        # mean scan line of each half (integer sums: exact, as np.mean's)
+        lever = int(scan[hi].sum()) / hi.size - int(scan[lo].sum()) / lo.size
+        if lever > 0:
+            tilt = math.sqrt(_mean_square(d[:n]) + _mean_square(d[n:])) / lever
+    return TextureBias(off, tilt)
+
+
+def transition_width(
+    plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half: int, lut: np.ndarray | None = None
+) -> float:
+    """RMS width (px) of the mean edge transition of the masked samples: the optical blur plus the pixel.
+
+    The profiles are aligned on their sub-pixel edge, normalised by their step and averaged before
+    the second moment of the gradient is taken, so noise averages out instead of inflating the width.
+    Returns NaN when no sample is usable.
+    """
+    m = mask & samples.valid
+    if not np.any(m):
+        return float("nan")
+    P = oriented(plane, samples.axis)
+    e = samples.along[m]
+    c0 = np.round(e).astype(int)
+    vals, ok = _gather_rows(P, samples.scan[m], c0 - half, 2 * half + 1, lut=lut)
+    if not np.any(ok):
+        return float("nan")
+    step = samples.step[m]
+    if not ok.all():
+        vals, step, c0, e = vals[ok], step[ok], c0[ok], e[ok]
+    g = np.diff(vals, axis=1) / step[:, None]  # step is 0-255 scaled; ratios only matter
+    gsum = g.sum(axis=1, keepdims=True)
+    g = g / np.maximum(np.abs(gsum), 1e-6) * np.sign(gsum)
+    pos = np.arange(2 * half) + 0.5 - half + (c0 - e)[:, None]  # relative to each sub-pixel edge
+    # Re-bin on a 0.25 px grid relative to the edge to average the aligned gradient.
+    bins = np.round(pos * 4).astype(int)
+    lo = bins.min()
+    acc = np.bincount((bins - lo).ravel(), weights=g.ravel())
+    cnt = np.bincount((bins - lo).ravel())
+    gm = np.where(cnt > 0, acc / np.maximum(cnt, 1), 0.0)
+    # The peak of the mean (unit-area) gradient gives the width of a Gaussian transition without
+    # the noise that the tails add to a second moment. (Smoothed over the filled bins only: an edge along
+    # a pixel row or column fills one bin in four, and a plain three-bin mean read its peak a third as
+    # high, every such edge three times as wide as it is: a sharp one 2 px, blur 1 px 1.5.)
+    filled = (cnt > 0).astype(np.float64)
+    gs = np.convolve(gm, np.ones(3), mode="same") / np.maximum(
+        np.convolve(filled, np.ones(3), mode="same"), 1.0
+    )
+    peak = float(gs.max())
+    if peak <= 0:
+        return float("nan")
+    sigma = 1.0 / (peak * math.sqrt(2.0 * math.pi))
+    if sigma < 1.5:
+        # A sharp edge sampled at few sub-pixel phases makes a spiky mean gradient whose peak says
+        # little: take the second moment within +-3 px instead (the tails, where noise lives, excluded).
+        x = (np.arange(gm.size) + lo) / 4.0
+        near = np.abs(x) <= 3.0
+        wsum = float(gm[near].sum())
+        if wsum > 0:
+            mu = float((gm[near] * x[near]).sum()) / wsum
+            sigma = math.sqrt(max(float((gm[near] * (x[near] - mu) ** 2).sum()) / wsum, 0.0))
+    return float(sigma)
+
+
+def plateau_levels(
+    plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half: int
+) -> tuple[float, float]:
+    """The dark and bright plateau's raw grey level just beyond the window (medians, full scale 1)."""
+    if int(mask.sum()) < 3:
+        return float("nan"), float("nan")
+    P = oriented(plane, samples.axis)
+    c0 = np.round(samples.along[mask]).astype(int)
+    # the window's two end pixels alone, read directly (a profile inside the image at both ends is inside
+    # it all through; the medians are np.median's, without its generic machinery)
+    a, b = c0 - half - 1, c0 + half + 1
+    inside = (a >= 0) & (b < P.shape[0])
+    if int(np.count_nonzero(inside)) < 3:
+        return float("nan"), float("nan")
+    scan = samples.scan[mask][inside]
+    top = 255.0 if plane.dtype == np.uint8 else 65535.0
+    m = [_median(P[ends[inside], scan].astype(np.float64)) / top for ends in (a, b)]
+    return float(min(m)), float(max(m))
+
+
+def _lsq_line(s: np.ndarray, a: np.ndarray) -> tuple[float, float]:
+    """Least-squares ``a = a0 + b s``; returns (b, a0)."""
+    sm, am = s.sum() / s.size, a.sum() / a.size  # = s.mean(), a.mean(): the same sum and division
+    ds = s - sm
+    den = float(ds @ ds)
+    b = float(ds @ (a - am)) / den if den > 0 else 0.0
+    return b, float(am - b * sm)
+
+
+def ransac_line(
+    scan: np.ndarray, along: np.ndarray, tol_px: float, n_trials: int = 48, seed: int = 0
+) -> ImageLine | None:
+    """Coarse line through (scan, along) samples that tolerates many outliers.
+
+    Vectorised RANSAC over ``n_trials`` random sample pairs, then least squares on the inliers of
+    the best pair. Returns None with fewer than 5 samples. Deterministic for a given ``seed``.
+    """
+    s = np.asarray(scan, float)
+    a = np.asarray(along, float)
+    n = s.size
+    if n < 5:
+        return None
+    i, j = _sample_pairs(n, n_trials, seed)
+    ds = s[j] - s[i]
+    ok = np.abs(ds) >= max(1.0, 0.1 * (s.max() - s.min()))
+    if not np.any(ok):
+        return None
+    i, j, ds = i[ok], j[ok], ds[ok]
+    b = (a[j] - a[i]) / ds
+    a0 = a[i] - b * s[i]
+    res = np.abs(a[None, :] - (a0[:, None] + b[:, None] * s[None, :]))
+    counts = (res <= tol_px).sum(axis=1)
+    k = int(np.argmax(counts))
+    inl = res[k] <= tol_px
+    for _ in range(2):  # least-squares polish on the consensus set
+        if inl.sum() < 3:
+            break
+        bb, aa = _lsq_line(s[inl], a[inl])
+        inl = np.abs(a - (aa + bb * s)) <= tol_px
+    if inl.sum() < 3:
+        return None
+    bb, aa = _lsq_line(s[inl], a[inl])
+    return ImageLine(float(aa), float(bb), inl)
