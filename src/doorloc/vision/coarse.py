@@ -120,6 +120,24 @@ def _select(x, k):
             break
 
 
+@kernel()
+def _nearest_peak(resp, thr, lo, stride, half, prefer):
+    """The local maximum of ``resp`` (at least ``thr`` and > 0) whose step lies nearest ``prefer`` (the first
+    of equally near ones): ``(position, a NaN distance was met)``; position -1 where none."""
+    pick = -1
+    pick_d = np.inf
+    nan_seen = False
+    for t in range(1, resp.size - 1):
+        r = resp[t]
+        if r >= resp[t - 1] and r > resp[t + 1] and r >= thr and r > 0:
+            d = abs((lo + stride * (t + half) - 0.5 * stride) - prefer)
+            if d != d:
+                nan_seen = True
+            elif d < pick_d:
+                pick, pick_d = t, d
+    return pick, nan_seen
+
+
 def _strongest_steps_warm_up(k) -> None:
     img = np.zeros((16, 16), np.uint8)
     img[:, 8:] = 100
@@ -198,10 +216,12 @@ def _strongest_steps(
         if exact_int:
             # win[t] = v[t] + ... + v[t + half - 1]; the difference of two such integers (< 2**24) is
             # exact in float32
-            for t in range(length - half + 1):
-                acc = 0
-                for u in range(half):
-                    acc += v[t + u]
+            acc = 0
+            for u in range(half):
+                acc += v[u]
+            win[0] = acc
+            for t in range(1, length - half + 1):  # (integers: the running sum is exact)
+                acc += np.int64(v[t + half - 1]) - np.int64(v[t - 1])
                 win[t] = acc
             for t in range(m):
                 resp[t] = np.float32(win[t + half]) - np.float32(win[t])
@@ -227,34 +247,32 @@ def _strongest_steps(
             if resp[t] > resp[best]:
                 best = t
         if use_prefer:
-            top = resp[best]
-            # the noise floor: 1.4826 x the median |response| over the line (0 where not usable)
+            # the local maximum nearest the preferred position among those of at least prefer_fraction of
+            # the strongest and 5 noise floors (1.4826 x the median |response| over the line, 0 where not
+            # usable); a NaN preference prefers nothing
+            low = np.float32(prefer_fraction) * resp[best]
+            total = 0.0
             for t in range(m):
                 mag[t] = abs(resp[t]) if resp[t] != neg_inf else np.float32(0.0)
-            k = m // 2
-            _select(mag, k)
-            if m % 2:
-                med = mag[k]
-            else:
-                below = mag[0]
-                for t in range(1, k):
-                    below = max(below, mag[t])
-                med = (below + mag[k]) / np.float32(2.0)
-            floor = np.float32(1.4826) * med
-            thr = max(np.float32(prefer_fraction) * top, np.float32(5.0) * floor)
-            # the local maximum nearest the preferred position among those above thr (the first of equally
-            # near ones); a NaN preference prefers nothing
-            pick = -1
-            pick_d = np.inf
-            nan_seen = False
-            for t in range(1, m - 1):
-                r = resp[t]
-                if r >= resp[t - 1] and r > resp[t + 1] and r >= thr and r > 0:
-                    d = abs((lo[i] + stride * (t + half) - 0.5 * stride) - prefer[i])
-                    if d != d:
-                        nan_seen = True
-                    elif d < pick_d:
-                        pick, pick_d = t, d
+                total += mag[t]
+            pick, nan_seen = _nearest_peak(resp, low, lo[i], stride, half, prefer[i])
+            # The median needs a selection over the line; a pick at least 5 x 1.4826 x twice the mean
+            # |response| (the median of values >= 0 is at most twice their mean) passes the floor without it
+            # (with a margin for the float32 products): the nearest above the lower threshold is then the
+            # nearest above both.
+            if pick >= 0 and not nan_seen and not resp[pick] >= 14.826 * (total / m) * (1.0 + 1e-6):
+                k = m // 2
+                _select(mag, k)
+                if m % 2:
+                    med = mag[k]
+                else:
+                    below = mag[0]
+                    for t in range(1, k):
+                        below = max(below, mag[t])
+                    med = (below + mag[k]) / np.float32(2.0)
+                thr = max(low, np.float32(5.0) * (np.float32(1.4826) * med))
+                if thr > low:
+                    pick, nan_seen = _nearest_peak(resp, thr, lo[i], stride, half, prefer[i])
             if pick >= 0 and not nan_seen:
                 best = pick
         s = resp[best]

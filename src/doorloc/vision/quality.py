@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from doorloc.cell import Envelope
+from doorloc.vision.lines import _median  # np.median's value, without its generic machinery
 
 __all__ = [
     "Refusal",
@@ -70,7 +71,7 @@ def check_exposure(sample: np.ndarray, min_contrast: float, max_saturated_fracti
 
 def check_overexposed(bright_levels: np.ndarray) -> Refusal | None:
     """The hinge face itself clips at white: edge positions would be biased."""
-    if bright_levels.size and float(np.median(bright_levels)) >= 249.0:
+    if bright_levels.size and _median(np.asarray(bright_levels)) >= 249.0:
         return Refusal(
             "overexposed",
             "the hinge face is overexposed (its grey level clips at white), which biases "
