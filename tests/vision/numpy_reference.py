@@ -271,3 +271,45 @@ def ransac_line(
         return None
     bb, aa = _lsq_line(s[inl], a[inl])
     return ImageLine(float(aa), float(bb), inl)
+
+
+def plane_map_to_plane(m, uv: np.ndarray) -> np.ndarray:
+    """:meth:`doorloc.vision.metric.PlaneMap.to_plane` as written with numpy (``m`` the map)."""
+    uv = np.asarray(uv, float).reshape(-1, 2)
+    if m._distorted:
+        xy = m.camera.undistort(uv)
+        x, y = xy[:, 0], xy[:, 1]
+    else:
+        fx, sk, cx, fy, cy = m._k
+        y = (uv[:, 1] - cy) / fy
+        x = (uv[:, 0] - cx - sk * y) / fx
+    R = m.R.tolist()
+    dx = R[0][0] * x + R[1][0] * y + R[2][0]
+    dy = R[0][1] * x + R[1][1] * y + R[2][1]
+    dz = R[0][2] * x + R[1][2] * y + R[2][2]
+    c = m.centre.tolist()
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = (m.depth_y - c[1]) / dy
+    s = np.where(s > 0, s, np.nan)
+    out = np.empty((len(uv), 2))
+    out[:, 0] = c[0] + s * dx
+    out[:, 1] = c[2] + s * dz
+    return out
+
+
+def plane_map_to_image(m, xz: np.ndarray) -> np.ndarray:
+    """:meth:`doorloc.vision.metric.PlaneMap.to_image` as written with numpy."""
+    xz = np.asarray(xz, float).reshape(-1, 2)
+    R, t, Y = m.R.tolist(), m.t.tolist(), m.depth_y
+    X, Z = xz[:, 0], xz[:, 1]
+    pc = [R[i][0] * X + R[i][1] * Y + R[i][2] * Z + t[i] for i in range(3)]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        zc = np.where(pc[2] > 0, pc[2], np.nan)
+        x, y = pc[0] / zc, pc[1] / zc
+    if m._distorted:
+        return m.camera.normalized_to_pixel(m.camera.distort(np.stack([x, y], 1)))
+    fx, sk, cx, fy, cy = m._k
+    out = np.empty((len(xz), 2))
+    out[:, 0] = fx * x + sk * y + cx
+    out[:, 1] = fy * y + cy
+    return out

@@ -9,6 +9,7 @@
   (response.plateau_levels) and the RANSAC line (lines.ransac_line) against their numpy versions
   (numpy_reference.py), bit for bit (RANSAC: the same inliers, the line to 1e-12 px); the transition
   width (edges.transition_width) to 1e-12 of itself (its sums add in another order);
+- the plane map (metric.PlaneMap: rays to a cell plane and back) against its numpy version, bit for bit;
 - the in-place selection of the coarse finder (coarse._select) against np.partition.
 The coarse step finder is held to the first finder bit for bit in test_coarse.py.
 """
@@ -240,3 +241,24 @@ def test_ransac_line_as_its_numpy_version(seed, n, outliers, tol):
     if got is not None and want is not None:
         np.testing.assert_array_equal(got.inliers, want.inliers)
         np.testing.assert_allclose([got.a, got.b], [want.a, want.b], rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("distorted", [False, True])
+@pytest.mark.parametrize("depth_y", [0.0, 31.5, -400.0])
+def test_plane_map_as_its_numpy_version(distorted, depth_y):
+    from doorloc.calib.camera import CameraModel, Extrinsics, PosedCamera
+    from doorloc.vision.metric import PlaneMap
+
+    cam = CameraModel.from_values(
+        [[1400, 0, 960], [0, 1402, 540], [0, 0, 1]],
+        [-0.08, 0.02, 0.001, -0.0005, 0.0] if distorted else [0, 0, 0, 0, 0],
+        (1920, 1080),
+    )
+    m = PlaneMap(PosedCamera(cam, Extrinsics([1.5, 0.1, -0.05], [-20.0, 15.0, 600.0])), depth_y)
+    uv = np.random.default_rng(3).uniform([-50, -50], [1970, 1130], (400, 2))
+    xz = m.to_plane(uv)
+    np.testing.assert_array_equal(xz, reference.plane_map_to_plane(m, uv))
+    ok = xz[np.isfinite(xz[:, 0])]
+    assert ok.shape[0] > 100
+    np.testing.assert_array_equal(m.to_image(ok), reference.plane_map_to_image(m, ok))
+    np.testing.assert_allclose(m.to_image(ok), uv[np.isfinite(xz[:, 0])], atol=1e-6)

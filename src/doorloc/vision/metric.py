@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from doorloc.calib.camera import PosedCamera
+from doorloc.vision.jit import kernel
 from doorloc.vision.lines import RectangleFit
 
 __all__ = ["PlaneMap", "plane_points", "image_points", "MetricPose", "pose_from_fit"]
@@ -41,17 +42,12 @@ class PlaneMap:
         self.posed = posed
         self.camera = posed.camera
         self.depth_y = float(depth_y)
-        self.R = posed.extrinsics.rotation
-        self.t = posed.extrinsics.tvec_mm
+        self.R = np.ascontiguousarray(posed.extrinsics.rotation, dtype=np.float64)
+        self.t = np.ascontiguousarray(posed.extrinsics.tvec_mm, dtype=np.float64)
         self.centre = -self.R.T @ self.t
         self._distorted = bool(np.any(self.camera.coeffs12))
         K = self.camera.camera_matrix
         self._k = (K[0, 0], K[0, 1], K[0, 2], K[1, 1], K[1, 2])
-        # the rotation, translation and centre as Python floats: the same products as with numpy
-        # scalars, without indexing an array for each (locate maps a few points at a time, often)
-        self._R = self.R.tolist()
-        self._t = self.t.tolist()
-        self._c = self.centre.tolist()
 
     def at_depth(self, depth_y: float) -> PlaneMap:
         """The same camera onto another plane ``Y = depth_y``."""
@@ -67,28 +63,14 @@ class PlaneMap:
             fx, sk, cx, fy, cy = self._k
             y = (uv[:, 1] - cy) / fy
             x = (uv[:, 0] - cx - sk * y) / fx
-        R = self._R  # cell direction = R^T (x, y, 1)
-        dx = R[0][0] * x + R[1][0] * y + R[2][0]
-        dy = R[0][1] * x + R[1][1] * y + R[2][1]
-        dz = R[0][2] * x + R[1][2] * y + R[2][2]
-        c = self._c
-        with np.errstate(divide="ignore", invalid="ignore"):
-            s = (self.depth_y - c[1]) / dy
-        s = np.where(s > 0, s, np.nan)
-        out = np.empty((len(uv), 2))
-        out[:, 0] = c[0] + s * dx
-        out[:, 1] = c[2] + s * dz
-        return out
+        return _rays_to_plane(
+            np.ascontiguousarray(x), np.ascontiguousarray(y), self.R, self.centre, self.depth_y
+        )
 
     def to_image(self, xz: np.ndarray) -> np.ndarray:
         """``(X, Z)`` mm on the plane -> pixels ``(N, 2)``."""
         xz = np.asarray(xz, float).reshape(-1, 2)
-        R, t, Y = self._R, self._t, self.depth_y
-        X, Z = xz[:, 0], xz[:, 1]
-        pc = [R[i][0] * X + R[i][1] * Y + R[i][2] * Z + t[i] for i in range(3)]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            zc = np.where(pc[2] > 0, pc[2], np.nan)
-            x, y = pc[0] / zc, pc[1] / zc
+        x, y = _plane_to_rays(np.ascontiguousarray(xz), self.R, self.t, self.depth_y)
         if self._distorted:
             return self.camera.normalized_to_pixel(self.camera.distort(np.stack([x, y], 1)))
         fx, sk, cx, fy, cy = self._k
@@ -108,6 +90,49 @@ class PlaneMap:
         q = self.to_plane(np.array([[u, v], [u + 1.0, v], [u, v + 1.0]]))
         a, b = q[1] - q[0], q[2] - q[0]
         return float(math.sqrt(abs(a[0] * b[1] - a[1] * b[0])))
+
+
+def _rays_warm_up(k) -> None:
+    k(np.zeros(2), np.zeros(2), np.eye(3), np.ones(3), 5.0)
+
+
+@kernel(_rays_warm_up)
+def _rays_to_plane(x, y, R, centre, depth_y):
+    """Normalised image points ``(x, y)`` -> ``(X, Z)`` (N, 2) where their rays from ``centre`` meet the
+    plane ``Y = depth_y`` (the cell direction ``R^T (x, y, 1)``); NaN where the ray runs away from it."""
+    out = np.empty((x.size, 2))
+    for i in range(x.size):
+        dx = R[0, 0] * x[i] + R[1, 0] * y[i] + R[2, 0]
+        dy = R[0, 1] * x[i] + R[1, 1] * y[i] + R[2, 1]
+        dz = R[0, 2] * x[i] + R[1, 2] * y[i] + R[2, 2]
+        s = (depth_y - centre[1]) / dy
+        if not s > 0:
+            s = np.nan
+        out[i, 0] = centre[0] + s * dx
+        out[i, 1] = centre[2] + s * dz
+    return out
+
+
+def _plane_warm_up(k) -> None:
+    k(np.zeros((2, 2)), np.eye(3), np.ones(3), 5.0)
+
+
+@kernel(_plane_warm_up)
+def _plane_to_rays(xz, R, t, depth_y):
+    """``(X, Z)`` (N, 2) on the plane ``Y = depth_y`` -> normalised image points ``x``, ``y`` (N,) (camera
+    frame ``R p + t``; NaN behind the camera)."""
+    n = xz.shape[0]
+    x = np.empty(n)
+    y = np.empty(n)
+    for i in range(n):
+        X, Z = xz[i, 0], xz[i, 1]
+        p0 = R[0, 0] * X + R[0, 1] * depth_y + R[0, 2] * Z + t[0]
+        p1 = R[1, 0] * X + R[1, 1] * depth_y + R[1, 2] * Z + t[1]
+        p2 = R[2, 0] * X + R[2, 1] * depth_y + R[2, 2] * Z + t[2]
+        zc = p2 if p2 > 0 else np.nan
+        x[i] = p0 / zc
+        y[i] = p1 / zc
+    return x, y
 
 
 def plane_points(posed: PosedCamera, uv: np.ndarray, depth_y: float) -> np.ndarray:
