@@ -13,6 +13,7 @@ The locate function is a parameter so callers (and tests) can choose it; by defa
 from __future__ import annotations
 
 import base64
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
@@ -78,10 +79,17 @@ class DoorChoice:
         return cls(door, recipe.door_id, recipe, version)
 
 
+@functools.cache
 def default_locate_fn() -> LocateFn:
-    """The real pipeline, :func:`doorloc.vision.locate.locate` (imported on first use: it pulls in OpenCV)."""
+    """The real pipeline, :func:`doorloc.vision.locate.locate` (imported on first use: it pulls in OpenCV).
+
+    Its numba kernels are loaded from their disk cache (or compiled) here, once per process, so that the
+    first locate's time is its own and not the kernels' (~0.5 s).
+    """
+    from doorloc.vision.jit import compile_kernels
     from doorloc.vision.locate import locate
 
+    compile_kernels()
     return locate
 
 

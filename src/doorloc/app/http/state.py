@@ -87,12 +87,9 @@ class ServiceState:
                 self.keys = KeyStore(self.store.engine)
             if self.locate_fn is None:
                 from doorloc.app.answer import default_locate_fn
-                from doorloc.vision.jit import compile_kernels
 
+                # (it loads locate's compiled kernels now, not in the first request)
                 self.locate_fn = default_locate_fn()
-                # locate's compiled loops now (loaded from numba's disk cache, or compiled once), not in
-                # the first request
-                compile_kernels()
             self.load_error = None
             _log.info(
                 "ready", extra={"fields": {"event": "ready", "cell": self.settings.cell, **self.cell_ids()}}
