@@ -78,6 +78,12 @@ def test_area_kernel_gives_the_numpy_branch_numbers(seed, sixteen, gamma, platea
     fast = subpixel_edges(plane, axis, scan, centre, half, **kw)
     ref = subpixel_edges(_strided(plane), axis, scan, centre, half, **kw)
     assert np.count_nonzero(fast.valid) > n_scan // 2
+    none = subpixel_edges(
+        plane, axis, scan[:0], centre[:0], half, **kw
+    )  # no scan line: the same empty arrays
+    none_ref = subpixel_edges(_strided(plane), axis, scan[:0], centre[:0], half, **kw)
+    for field in ("along", "step", "noise", "bright", "valid"):
+        assert getattr(none, field).dtype == getattr(none_ref, field).dtype and getattr(none, field).size == 0
     for field in ("along", "step", "noise", "bright", "valid"):
         a, b = getattr(fast, field), getattr(ref, field)
         assert a.dtype == b.dtype, field

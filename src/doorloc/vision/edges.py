@@ -420,7 +420,7 @@ def subpixel_edges(
             lut if lut is not None else _NO_LUT,
             level_smooth if scan.size else 0,
         )
-        if not level_smooth > 0:  # the levels stay in the profiles' float32, as the numpy branch below
+        if not (level_smooth > 0 and scan.size):  # unsmoothed levels stay float32, as in the numpy branch
             A, B = A.astype(np.float32), B.astype(np.float32)
         return EdgeSamples(
             axis,
