@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from doorloc.vision.edges import Axis
+from doorloc.vision.edges import Axis, _buffer, oriented
 from doorloc.vision.jit import kernel
 
 __all__ = ["coarse_edges"]
@@ -71,13 +71,13 @@ def coarse_edges(
     length = int(np.max(hi - lo)) // stride + 1 if n else 0
     if n == 0 or length <= 2 * half + 1:
         return np.full(n, np.nan), np.zeros(n)
-    h, w = plane.shape
-    n_along, pitch_along, pitch_scan = (h, w, 1) if axis == "col" else (w, 1, w)
+    P = oriented(plane, axis)
+    buf, pitch_along, pitch_scan = _buffer(P)
     return _strongest_steps(
-        np.ascontiguousarray(plane).reshape(-1),
+        buf,
         pitch_along,
         pitch_scan,
-        n_along,
+        P.shape[0],
         scan,
         lo,
         hi,

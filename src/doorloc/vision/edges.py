@@ -163,6 +163,16 @@ def _flat_view(P: np.ndarray) -> tuple[np.ndarray, int, int] | None:
     return None
 
 
+def _buffer(P: np.ndarray) -> tuple[np.ndarray, int, int]:
+    """``(buf, pitch0, pitch1)`` with ``P[i, j] == buf[i * pitch0 + j * pitch1]``, for a kernel: a view of a
+    plane or its transpose (:func:`_flat_view`), else of a C-ordered copy."""
+    flat = _flat_view(P)
+    if flat is None:
+        flat = _flat_view(np.ascontiguousarray(P))
+        assert flat is not None
+    return flat
+
+
 def _take_profiles(
     P: np.ndarray, scan: np.ndarray, start: np.ndarray, length: int, stride: int = 1
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -505,11 +515,7 @@ def transition_width(
     if not np.any(m):
         return float("nan")
     P = oriented(plane, samples.axis)
-    flat = _flat_view(P)
-    if flat is None:
-        P = np.ascontiguousarray(P)
-        flat = _flat_view(P)
-        assert flat is not None
+    flat = _buffer(P)
     return float(
         _mean_transition_width(
             *flat,
@@ -1584,11 +1590,7 @@ def texture_bias(
     R = reach + skip  # the gathered half-window: the door side's profile starts skip px farther out
     skip_plus, skip_minus = (skip, 0) if door_side > 0 else (0, skip)
     c0 = np.round(samples.along[idx]).astype(int)
-    flat = _flat_view(P)
-    if flat is None:
-        P = np.ascontiguousarray(P)
-        flat = _flat_view(P)
-        assert flat is not None
+    flat = _buffer(P)
     # Mean profiles over the scan lines (the line fit's outliers are already out) of the two halves of
     # the edge (their mean is the whole edge's), the step between the profiles' ends, and the distance
     # between the halves' mean scan lines
