@@ -10,6 +10,8 @@
   (numpy_reference.py), bit for bit (RANSAC: the same inliers, the line to 1e-12 px); the transition
   width (edges.transition_width) to 1e-12 of itself (its sums add in another order);
 - the plane map (metric.PlaneMap: rays to a cell plane and back) against its numpy version, bit for bit;
+- the search region's polyline interpolation (region._interp_on_scans) against np.interp over the sorted
+  points, bit for bit;
 - the in-place selection of the coarse finder (coarse._select) against np.partition.
 The coarse step finder is held to the first finder bit for bit in test_coarse.py.
 """
@@ -268,3 +270,40 @@ def test_plane_map_as_its_numpy_version(distorted, depth_y):
     assert ok.shape[0] > 100
     np.testing.assert_array_equal(m.to_image(ok), reference.plane_map_to_image(m, ok))
     np.testing.assert_allclose(m.to_image(ok), uv[np.isfinite(xz[:, 0])], atol=1e-6)
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    n=st.integers(0, 60),
+    decreasing=st.booleans(),
+    scan_is_u=st.booleans(),
+    spoil=st.sampled_from(["none", "nan", "repeat", "shuffle"]),
+    layout=st.sampled_from(["C", "F", "strided"]),
+)
+def test_polyline_interpolation_as_np_interp_over_the_sorted_points(
+    seed, n, decreasing, scan_is_u, spoil, layout
+):
+    # region._interp_on_scans: compiled for polylines monotonic in scan, sorted by numpy for the others;
+    # either way np.interp's numbers on _sorted_polyline's points (NaN beyond the polyline)
+    from doorloc.vision.region import _interp_monotonic, _interp_on_scans, _interp_sorted, _sorted_polyline
+
+    rng = np.random.default_rng(seed)
+    scan = np.cumsum(rng.uniform(0.01, 30.0, n)) + rng.uniform(-50, 50)
+    scan = scan[::-1] if decreasing else scan
+    along = rng.normal(0, 100, n)
+    uv = np.column_stack([scan, along] if scan_is_u else [along, scan])
+    if n > 2 and spoil == "nan":
+        uv[rng.integers(0, n), rng.integers(0, 2)] = np.nan
+    elif n > 2 and spoil == "repeat":
+        uv[1, 0 if scan_is_u else 1] = uv[0, 0 if scan_is_u else 1]
+    elif n > 3 and spoil == "shuffle":
+        uv = uv[rng.permutation(n)]
+    uv = {"C": uv, "F": np.asfortranarray(uv), "strided": uv[::2]}[layout]
+    axis = "col" if scan_is_u else "row"
+    lo = int(np.floor(np.nanmin(scan))) - 5 if n else 0
+    scans = np.arange(lo, lo + int(rng.integers(0, 500)))
+    want = _interp_sorted(*_sorted_polyline(uv, axis), scans)
+    np.testing.assert_array_equal(_interp_on_scans(uv, axis, scans), want)
+    if spoil == "none":
+        assert _interp_monotonic(uv, scan_is_u, scans)[1]  # the compiled path answered

@@ -23,6 +23,7 @@ import numpy as np
 from doorloc.calib.camera import PosedCamera
 from doorloc.cell import Cell, DoorSize, Envelope, Fixture
 from doorloc.vision.edges import Axis
+from doorloc.vision.jit import kernel
 from doorloc.vision.metric import PlaneMap
 
 __all__ = ["EdgeLayout", "Band", "Track", "SearchRegion", "EDGE_NAMES"]
@@ -119,8 +120,72 @@ def _interp_sorted(s: np.ndarray, a: np.ndarray, scans: np.ndarray) -> np.ndarra
 
 def _interp_on_scans(uv: np.ndarray, axis: Axis, scans: np.ndarray) -> np.ndarray:
     """Along-coordinate of the polyline ``uv`` on each scan line (NaN outside the polyline's span)."""
+    out, monotonic = _interp_monotonic(uv, axis == "col", scans)
+    if monotonic:
+        return out
     s, a = _sorted_polyline(uv, axis)
     return _interp_sorted(s, a, scans)
+
+
+def _interp_monotonic_warm_up(k) -> None:
+    uv = np.column_stack([np.linspace(0.0, 9.0, 10), np.linspace(5.0, 6.0, 10)])
+    for pts in (uv, uv[:, ::-1], np.asfortranarray(uv)):
+        k(pts, True, np.arange(12))
+
+
+@kernel(_interp_monotonic_warm_up)
+def _interp_monotonic(uv, scan_is_u, scans):
+    """:func:`_interp_sorted` of :func:`_sorted_polyline` for a polyline whose finite points are strictly
+    monotonic in scan (the usual case: a projected edge), compiled: ``(along on each scan, True)``, or
+    ``(anything, False)`` for any other polyline (the caller sorts it).
+
+    The interpolation is np.interp's, operation for operation (the slope of the segment ``s[j] <= x <
+    s[j + 1]`` times ``x - s[j]`` plus ``a[j]``; a scan on a point or at the last point takes its value).
+    """
+    js, ja = (0, 1) if scan_is_u else (1, 0)
+    n = uv.shape[0]
+    s = np.empty(n)
+    a = np.empty(n)
+    m = 0
+    for i in range(n):
+        si, ai = uv[i, js], uv[i, ja]
+        if np.isfinite(si) and np.isfinite(ai):
+            s[m] = si
+            a[m] = ai
+            m += 1
+    out = np.full(scans.size, np.nan)
+    if m < 2:
+        return out, True
+    up = s[1] > s[0]
+    for i in range(m - 1):
+        if (s[i + 1] > s[i]) != up or s[i + 1] == s[i]:
+            return out, False
+    if not up:
+        s[:m] = s[:m][::-1].copy()
+        a[:m] = a[:m][::-1].copy()
+    j = 0
+    for i in range(scans.size):
+        x = float(scans[i])
+        if not (x >= s[0] and x <= s[m - 1]):
+            continue
+        if x == s[m - 1]:
+            out[i] = a[m - 1]
+            continue
+        while s[j + 1] <= x:  # scans increase: the segment only moves on
+            j += 1
+        while s[j] > x:  # (unless they do not)
+            j -= 1
+        if s[j] == x:
+            out[i] = a[j]
+            continue
+        slope = (a[j + 1] - a[j]) / (s[j + 1] - s[j])
+        v = slope * (x - s[j]) + a[j]
+        if np.isnan(v):
+            v = slope * (x - s[j + 1]) + a[j + 1]
+            if np.isnan(v) and a[j] == a[j + 1]:
+                v = a[j]
+        out[i] = v
+    return out, True
 
 
 @dataclass(frozen=True)
