@@ -6,6 +6,8 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from doorloc.cell import DoorSize, load_cell
 from doorloc.pose import DoorPose
@@ -124,6 +126,29 @@ def _paint_clamp(img: np.ndarray, cell, door: DoorSize) -> np.ndarray:
     out = img.copy()
     out[int(v0) : int(v1), int(u0) : int(u1)] = 90
     return out
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    n=st.integers(1, 3000),
+    kind=st.sampled_from(["uniform", "clusters", "flat"]),
+    scale=st.sampled_from([1.0, 0.5, 0.99, 1.3, 255.0 / 65535.0 * 257.0]),
+)
+def test_exposure_check_reads_numpys_percentiles_from_the_histogram(seed, n, kind, scale):
+    # quality._exposure_from_histogram stands for np.percentile([1, 99]) and the saturated fraction of
+    # the 8-bit levels times the scale (as float32): the same numbers
+    from doorloc.vision.quality import _exposure_from_histogram
+
+    rng = np.random.default_rng(seed)
+    levels = {
+        "uniform": rng.integers(0, 256, n),
+        "clusters": rng.integers(0, 3, n) * 120 + rng.integers(0, 2, n),
+        "flat": np.full(n, rng.integers(0, 256)),
+    }[kind].astype(np.uint8)
+    sample = levels.astype(np.float32) * scale
+    p1, p99 = np.percentile(sample, [1, 99])
+    assert _exposure_from_histogram(levels.reshape(1, -1)[:, ::1], scale) == (p1, p99, np.mean(sample >= 250))
 
 
 @pytest.mark.parametrize(

@@ -666,7 +666,7 @@ def _coarse_edges(
     tr.bands["reference"] = band_ref
     P = oriented(plane, ref_lay.axis)
     sub = P[band_ref.lo.min() : band_ref.hi.max() + 1 : 3, band_ref.scan[::4]]
-    r = q.check_exposure(sub.astype(np.float32) * s8, cfg.min_contrast, cfg.max_saturated_fraction)
+    r = q.check_exposure(sub, cfg.min_contrast, cfg.max_saturated_fraction, s8)
     if r:
         raise _Refused(r)
 

@@ -6,6 +6,7 @@ live in :class:`doorloc.vision.locate.LocateConfig`; nothing here holds state.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -45,16 +46,25 @@ def check_image_size(size: tuple[int, int], calibrated: tuple[int, int]) -> Refu
     return None
 
 
-def check_exposure(sample: np.ndarray, min_contrast: float, max_saturated_fraction: float) -> Refusal | None:
-    """Black or saturated image, judged on grey levels (0-255 scale) sampled over the search region."""
-    p1, p99 = np.percentile(sample, [1, 99])
+def check_exposure(
+    levels: np.ndarray, min_contrast: float, max_saturated_fraction: float, scale_to_8bit: float = 1.0
+) -> Refusal | None:
+    """Black or saturated image, judged on grey levels sampled over the search region.
+
+    ``levels`` as stored; ``levels * scale_to_8bit`` (float32) is the 0-255 scale the thresholds use.
+    """
+    if levels.dtype == np.uint8 and levels.size:
+        p1, p99, sat = _exposure_from_histogram(levels, scale_to_8bit)
+    else:
+        sample = levels.astype(np.float32) * scale_to_8bit
+        p1, p99 = np.percentile(sample, [1, 99])
+        sat = float(np.mean(sample >= 250))
     if p99 < 25 and p99 - p1 < min_contrast:
         return Refusal(
             "black_image",
             "the image is black (no light or the lens is covered); check the lighting, "
             "the lens cap and the exposure time",
         )
-    sat = float(np.mean(sample >= 250))
     if sat > max_saturated_fraction:
         return Refusal(
             "saturated_image",
@@ -67,6 +77,32 @@ def check_exposure(sample: np.ndarray, min_contrast: float, max_saturated_fracti
             "check that a door is in the fixture and that the lighting is on",
         )
     return None
+
+
+def _exposure_from_histogram(levels: np.ndarray, scale_to_8bit: float) -> tuple[float, float, float]:
+    """The 1st and 99th percentiles and the saturated fraction (>= 250) of 8-bit ``levels`` times
+    ``scale_to_8bit``: np.percentile's and np.mean's numbers, from the levels' histogram.
+
+    (np.percentile partitions the sample in its generic machinery: ~0.1 ms of a 5 ms frame. A percentile is
+    a linear interpolation between two order statistics, which the histogram gives; the interpolation
+    below is numpy's ``_lerp`` with its float32 differences and float64 weights.)
+    """
+    counts = np.bincount(levels.ravel(), minlength=256)
+    value = np.arange(256, dtype=np.float32) * scale_to_8bit  # what levels.astype(float32) * scale holds
+    rank_end = np.cumsum(counts)  # the sorted sample's index after the last of each level
+    n = int(rank_end[-1])
+    out = []
+    for q in (1 / 100, 99 / 100):
+        at = (n - 1) * q
+        # (at the top numpy takes the last value twice: its weight then multiplies a zero difference)
+        lo, hi, t = (
+            (n - 1, n - 1, 0.0) if at >= n - 1 else (math.floor(at), math.floor(at) + 1, at - math.floor(at))
+        )
+        a, b = (value[int(np.searchsorted(rank_end, k, side="right"))] for k in (lo, hi))
+        d = b - a  # float32, as numpy takes it
+        out.append(float(b) - float(d) * (1.0 - t) if t >= 0.5 else float(a) + float(d) * t)
+    saturated = int(counts[value >= 250].sum()) / n
+    return out[0], out[1], saturated
 
 
 def check_overexposed(bright_levels: np.ndarray) -> Refusal | None:
