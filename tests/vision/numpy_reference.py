@@ -1,6 +1,6 @@
 """The functions whose loops are now numba kernels (doorloc.vision.jit), as they were written with numpy:
 the references tests/vision/test_jit.py holds the compiled ones to (texture_bias, transition_width,
-plateau_levels, ransac_line; the area estimate is held to subpixel_edges' own numpy branch, the coarse
+plateau_levels, ransac_line, the response's asymmetry; the area estimate is held to subpixel_edges' own numpy branch, the coarse
 finder to coarse_reference.py)."""
 
 from __future__ import annotations
@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.ndimage import uniform_filter1d
 
 from doorloc.vision.edges import (
     EdgeSamples,
@@ -21,6 +22,7 @@ from doorloc.vision.edges import (
     oriented,
 )
 from doorloc.vision.lines import ImageLine, _sample_pairs
+from doorloc.vision.response import RESPONSE_LEVEL_ROWS, RESPONSE_PLATEAU_PX, _resampled_asymmetry
 
 
 def texture_bias(
@@ -313,3 +315,63 @@ def plane_map_to_image(m, xz: np.ndarray) -> np.ndarray:
     out[:, 0] = fx * x + sk * y + cx
     out[:, 1] = fy * y + cy
     return out
+
+
+def asymmetry(t, gammas: np.ndarray, blocks: np.ndarray | None = None, n_blocks: int = 0) -> np.ndarray:
+    """:func:`doorloc.vision.response._asymmetry` as written with numpy."""
+    G = len(gammas)
+    with np.errstate(divide="ignore"):
+        v = np.exp(np.asarray(gammas, float)[:, None, None] * np.log(t.raw)[None])  # (G, N, W)
+    N, W = v.shape[1], v.shape[2]
+    pk = RESPONSE_PLATEAU_PX
+    # Shading across the edge (an illumination gradient, vignetting) multiplies the light by a slope
+    # that tilts both plateaus alike and would read as asymmetry: take it out, as the median relative
+    # slope of the plateau pixels over the line.
+    xs = np.arange(pk) - (pk - 1) / 2.0
+    # (sums over the few plateau pixels as whole-array adds: numpy's reductions over a short strided last
+    # axis cost more than the arithmetic)
+    slope = [sum(xs[j] * v[:, :, j + o] for j in range(pk)) / (xs @ xs) for o in (0, W - pk)]
+    level = [sum(v[:, :, j + o] for j in range(1, pk)) + v[:, :, o] for o in (0, W - pk)]
+    rel = np.concatenate([s / np.maximum(m / pk, 1e-9) for s, m in zip(slope, level, strict=True)], axis=1)
+    tilt = np.median(rel, axis=1)
+    tilt = np.where(np.isfinite(tilt), tilt, 0.0)
+    # the tilt's scale at each pixel, and the levels of the tilted ends as their means over it
+    scale = 1.0 / (1.0 + tilt[:, None, None] * (np.arange(W) - (W - 1) / 2.0)[None, None, :])
+    v = v * scale
+    size = min(2 * RESPONSE_LEVEL_ROWS + 1, N)
+    lo = uniform_filter1d(sum(v[:, :, j] for j in range(pk)) / pk, size, axis=1, mode="nearest")[:, :, None]
+    hi = uniform_filter1d(sum(v[:, :, W - pk + j] for j in range(pk)) / pk, size, axis=1, mode="nearest")[
+        :, :, None
+    ]
+    v = v[:, :, pk:-pk]
+    span = hi - lo
+    good = np.abs(span[:, :, 0]) > 1e-9  # (G, N)
+    n = (v - lo) / np.where(good[:, :, None], span, 1.0)  # 0 on the first end, 1 on the last: any polarity
+    L = n.shape[2]
+    # area estimate, index units: (L - 1) minus the trapezoid area of the normalised profile
+    centre = (L - 1) - (n.sum(axis=2) - 0.5 * (n[:, :, 0] + n[:, :, -1]))
+    if t.one_phase:
+        return _resampled_asymmetry(n, centre, good, blocks, n_blocks)
+    d = np.arange(L)[None, None, :] - centre[:, :, None]
+    inner = (np.abs(d) <= (L - 1) / 2.0 - 1.0) & good[:, :, None]
+    B = 4 * (L - 1)  # |d| * 8 never exceeds it inside
+    nb = 2 * B + 1
+    groups = np.arange(G)[:, None, None] * max(n_blocks, 1)
+    if blocks is not None:
+        groups = groups + blocks[None, :, None]
+        rows_ok = np.stack([np.bincount(blocks, weights=gd, minlength=n_blocks) for gd in good])
+    else:
+        rows_ok = good.sum(axis=1, keepdims=True)
+    n_groups = G * max(n_blocks, 1)
+    key = (groups * nb + np.round(d * 8).astype(np.int64) + B)[inner]
+    acc = np.bincount(key, weights=n[inner], minlength=n_groups * nb).reshape(n_groups, nb)
+    cnt = np.bincount(key, minlength=n_groups * nb).reshape(n_groups, nb)
+    cp, cn = cnt[:, B + 1 :], cnt[:, B - 1 :: -1]  # bins at +d and -d, d = 1/8, 2/8, ...
+    both = (cp > 0) & (cn > 0)
+    r = np.where(
+        both, acc[:, B + 1 :] / np.maximum(cp, 1) + acc[:, B - 1 :: -1] / np.maximum(cn, 1) - 1.0, 0.0
+    )
+    m = both.sum(axis=1)
+    out = np.where(m >= 4, (r * r).sum(axis=1) / np.maximum(m, 1), np.nan)
+    out = np.where(rows_ok.reshape(-1) >= 3, out, np.nan)
+    return out.reshape(G, n_blocks) if blocks is not None else out

@@ -12,7 +12,8 @@
 - the plane map (metric.PlaneMap: rays to a cell plane and back) against its numpy version, bit for bit;
 - the search region's polyline interpolation (region._interp_on_scans) against np.interp over the sorted
   points, bit for bit;
-- the in-place selection of the coarse finder (coarse._select) against np.partition.
+- the in-place selection (jit.select_kth) against np.partition, numpy's pairwise sum (jit.pairwise_sum)
+  against ndarray.sum.
 The coarse step finder is held to the first finder bit for bit in test_coarse.py.
 """
 
@@ -27,7 +28,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from doorloc.vision import jit
-from doorloc.vision.coarse import _select
 from doorloc.vision.edges import linearizing_lut, subpixel_edges, texture_bias, transition_width
 from doorloc.vision.lines import _irls, fit_rectangle_edges, ransac_line
 from doorloc.vision.response import plateau_levels
@@ -148,7 +148,7 @@ def test_select_puts_the_kth_smallest_in_place(values, data):
     x = np.array(values, np.float32)
     k = data.draw(st.integers(0, x.size - 1))
     y = x.copy()
-    _select(y, k)
+    jit.select_kth(y, k)
     assert y[k] == np.partition(x, k)[k]
     assert np.all(y[:k] <= y[k]) and np.all(y[k + 1 :] >= y[k])
     np.testing.assert_array_equal(np.sort(y), np.sort(x))
@@ -307,3 +307,58 @@ def test_polyline_interpolation_as_np_interp_over_the_sorted_points(
     np.testing.assert_array_equal(_interp_on_scans(uv, axis, scans), want)
     if spoil == "none":
         assert _interp_monotonic(uv, scan_is_u, scans)[1]  # the compiled path answered
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    n=st.integers(3, 260),
+    half=st.integers(4, 12),
+    blocks=st.sampled_from([0, 3, 8]),
+    one_phase=st.booleans(),
+    spoil=st.sampled_from(["none", "flat_rows", "zeros", "shading"]),
+)
+def test_response_asymmetry_as_its_numpy_version(seed, n, half, blocks, one_phase, spoil):
+    # response._asymmetry (its normalisation and its paired bins compiled) against the numpy code, bit for
+    # bit: blurred steps at random phases, exponents, plateaus and noise; rows without contrast, zero
+    # levels (log 0), a shading tilt; with and without blocks; read at one phase (the spline path)
+    from scipy.special import ndtr
+
+    from doorloc.vision.response import _asymmetry, _Transitions
+
+    rng = np.random.default_rng(seed)
+    x = np.arange(-half, half + 1)[None, :] - rng.uniform(-0.5, 0.5, (n, 1))
+    lo, hi = rng.uniform(0.02, 0.4), rng.uniform(0.5, 0.95)
+    raw = (lo + (hi - lo) * ndtr(x / rng.uniform(0.4, 2.5))) ** (1 / rng.uniform(0.5, 2.5))
+    raw = raw + rng.normal(0, rng.uniform(0, 0.02), raw.shape)
+    if spoil == "flat_rows":
+        raw[rng.uniform(size=n) < 0.3] = 0.4
+    elif spoil == "zeros":
+        raw[rng.uniform(size=raw.shape) < 0.05] = 0.0
+    elif spoil == "shading":
+        raw = raw * (1 + 0.02 * np.arange(raw.shape[1]))[None, :]
+    raw = np.clip(raw, 0.0, 1.0)
+    t = _Transitions(raw, np.zeros(n), one_phase=one_phase)
+    gammas = np.geomspace(0.4, 5.0, 25)
+    blk = rng.integers(0, blocks, n) if blocks else None
+    want = reference.asymmetry(t, gammas, blk, blocks)
+    np.testing.assert_array_equal(_asymmetry(t, gammas, blk, blocks), want)
+    if spoil == "none" and not one_phase and n >= 20 and half >= 6:
+        assert np.isfinite(want).any()  # (the comparison saw numbers, not only NaN)
+
+
+@settings(max_examples=100, deadline=None)
+@given(seed=st.integers(0, 10_000), n=st.integers(0, 3000), size=st.integers(1, 17))
+def test_pairwise_sum_and_running_mean_as_numpy_and_scipy(seed, n, size):
+    from scipy.ndimage import uniform_filter1d
+
+    from doorloc.vision.response import _running_mean_nearest
+
+    rng = np.random.default_rng(seed)
+    a = rng.normal(size=n) * np.exp(rng.normal(0, 4, n))
+    lo = int(rng.integers(0, n + 1))
+    assert jit.pairwise_sum(a, lo, n - lo) == a[lo:].sum()
+    if n >= size:
+        np.testing.assert_array_equal(
+            _running_mean_nearest(a, size), uniform_filter1d(a, size, mode="nearest")
+        )

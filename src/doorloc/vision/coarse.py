@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from doorloc.vision.edges import Axis, _buffer, oriented
-from doorloc.vision.jit import kernel
+from doorloc.vision.jit import kernel, select_kth
 
 __all__ = ["coarse_edges"]
 
@@ -93,31 +93,6 @@ def coarse_edges(
 
 
 _NO_PREFER = np.zeros(0)
-
-
-@kernel()
-def _select(x, k):
-    """Reorder ``x`` in place so that ``x[k]`` is its k-th smallest element, the ones before it no larger
-    and the ones after no smaller (as np.partition, without the copy: Hoare's selection)."""
-    lo, hi = 0, x.size - 1
-    while lo < hi:
-        pivot = x[(lo + hi) // 2]
-        i, j = lo, hi
-        while i <= j:
-            while x[i] < pivot:
-                i += 1
-            while x[j] > pivot:
-                j -= 1
-            if i <= j:
-                x[i], x[j] = x[j], x[i]
-                i += 1
-                j -= 1
-        if k <= j:
-            hi = j
-        elif k >= i:
-            lo = i
-        else:
-            break
 
 
 @kernel()
@@ -262,7 +237,7 @@ def _strongest_steps(
             # nearest above both.
             if pick >= 0 and not nan_seen and not resp[pick] >= 14.826 * (total / m) * (1.0 + 1e-6):
                 k = m // 2
-                _select(mag, k)
+                select_kth(mag, k)
                 if m % 2:
                     med = mag[k]
                 else:

@@ -24,7 +24,7 @@ import numpy as np
 from numba import types
 from numba.extending import overload
 
-__all__ = ["kernel", "compile_kernels", "grey"]
+__all__ = ["kernel", "compile_kernels", "grey", "pairwise_sum", "select_kth"]
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -32,23 +32,29 @@ F = TypeVar("F", bound=Callable[..., Any])
 _KERNELS: list[tuple[Any, Callable[[Any], None] | None]] = []
 
 
-def kernel(warm_up: Callable[[Any], None] | None = None) -> Callable[[F], F]:
+def kernel(warm_up: Callable[[Any], None] | None = None, inline: bool = False) -> Callable[[F], F]:
     """Decorator: compile ``fn`` with numba (``njit``, no GIL held, numpy's float errors, cached on disk
     where it can be).
 
     ``warm_up(k)`` calls the kernel ``k`` once with the argument types locate passes (numba compiles one
     version per type signature): :func:`compile_kernels` runs it. A kernel only other kernels call needs none.
+    ``inline``: other kernels take its body in place of a call (for a small helper called per row).
     """
 
     def wrap(fn: F) -> F:
         # error_model="numpy": a float division by zero gives inf or NaN, as the array code did (numba's
         # default raises ZeroDivisionError, as Python does)
+        opts: dict[str, Any] = {
+            "nogil": True,
+            "error_model": "numpy",
+            "inline": "always" if inline else "never",
+        }
         try:
-            k = numba.njit(cache=True, nogil=True, error_model="numpy")(fn)
+            k = numba.njit(cache=True, **opts)(fn)
         except RuntimeError:  # numba found no writable place for its cache: compile in each process
-            k = numba.njit(nogil=True, error_model="numpy")(fn)
+            k = numba.njit(**opts)(fn)
         _KERNELS.append((k, warm_up))
-        return k  # type: ignore[return-value]
+        return k
 
     return wrap
 
@@ -69,6 +75,105 @@ def _grey_compiled(lut, value):  # the kernel version: chosen by the level's typ
     if isinstance(value, types.Integer):
         return lambda lut, value: lut[value] if lut.size > 0 else np.float32(value)
     return lambda lut, value: np.float32(value)
+
+
+@kernel()
+def select_kth(x, k):
+    """Reorder ``x`` in place so that ``x[k]`` is its k-th smallest element, the ones before it no larger
+    and the ones after no smaller (as np.partition, without the copy: Hoare's selection)."""
+    lo, hi = 0, x.size - 1
+    while lo < hi:
+        pivot = x[(lo + hi) // 2]
+        i, j = lo, hi
+        while i <= j:
+            while x[i] < pivot:
+                i += 1
+            while x[j] > pivot:
+                j -= 1
+            if i <= j:
+                x[i], x[j] = x[j], x[i]
+                i += 1
+                j -= 1
+        if k <= j:
+            hi = j
+        elif k >= i:
+            lo = i
+        else:
+            break
+
+
+@kernel(inline=True)
+def pairwise_sum(a, lo, n):
+    """``a[lo:lo + n].sum()`` in numpy's order: its pairwise summation along a contiguous row (eight
+    running sums over blocks of up to 128 values; longer rows split in halves, the first a multiple of 8,
+    and the halves' sums added). The halving runs on a stack, not by recursion: numba's disk cache does
+    not load a recursive kernel reliably (a cached one crashed the process here)."""
+    if n <= 128:
+        return _pairwise_block(a, lo, n)
+    return _pairwise_halves(a, lo, n)
+
+
+@kernel()
+def _pairwise_halves(a, lo, n):
+    """:func:`pairwise_sum` of more than 128 values (its halving, on a stack)."""
+    los = np.empty(64, np.int64)
+    ns = np.empty(64, np.int64)
+    phase = np.zeros(64, np.int64)  # 0: split, 1: left half summed, 2: both
+    left = np.empty(64)
+    sp = 0
+    los[0], ns[0] = lo, n
+    ret = 0.0
+    while True:
+        m = ns[sp]
+        h = m // 2 - (m // 2) % 8
+        if m <= 128:
+            ret = _pairwise_block(a, los[sp], m)
+            sp -= 1
+        elif phase[sp] == 0:
+            phase[sp] = 1
+            sp += 1
+            los[sp], ns[sp], phase[sp] = los[sp - 1], h, 0
+            continue
+        elif phase[sp] == 1:
+            left[sp] = ret
+            phase[sp] = 2
+            sp += 1
+            los[sp], ns[sp], phase[sp] = los[sp - 1] + h, m - h, 0
+            continue
+        else:
+            ret = left[sp] + ret
+            sp -= 1
+        if sp < 0:
+            return ret
+
+
+@kernel(inline=True)
+def _pairwise_block(a, lo, n):
+    """numpy's pairwise sum of ``a[lo:lo + n]``, ``n <= 128`` (see :func:`pairwise_sum`)."""
+    if n < 8:
+        res = 0.0
+        for i in range(n):
+            res += a[lo + i]
+        return res
+    # (eight scalars, not an array: an allocation per row cost more than the sum)
+    r0, r1, r2, r3 = a[lo], a[lo + 1], a[lo + 2], a[lo + 3]
+    r4, r5, r6, r7 = a[lo + 4], a[lo + 5], a[lo + 6], a[lo + 7]
+    i = 8
+    while i < n - (n % 8):
+        r0 += a[lo + i]
+        r1 += a[lo + i + 1]
+        r2 += a[lo + i + 2]
+        r3 += a[lo + i + 3]
+        r4 += a[lo + i + 4]
+        r5 += a[lo + i + 5]
+        r6 += a[lo + i + 6]
+        r7 += a[lo + i + 7]
+        i += 8
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < n:
+        res += a[lo + i]
+        i += 1
+    return res
 
 
 def compile_kernels() -> int:

@@ -44,7 +44,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.interpolate import CubicSpline
-from scipy.ndimage import uniform_filter1d
 from scipy.special import ndtr
 
 from doorloc.vision.edges import (
@@ -56,7 +55,7 @@ from doorloc.vision.edges import (
     oriented,
     subpixel_edges,
 )
-from doorloc.vision.jit import kernel
+from doorloc.vision.jit import kernel, pairwise_sum, select_kth
 
 __all__ = [
     "RESPONSE_ABSORB_SIGMAS",
@@ -438,67 +437,168 @@ def _asymmetry(
     from 1 over 1/8-px bins of ``d`` filled on both sides (NaN if fewer than 4 are, or fewer than 3
     profiles have two distinct plateaus).
 
-    All exponents (and blocks) are evaluated in one pass of array operations: this runs on every plain
-    edge of every image, and one exponent at a time cost ~100 ms per image in numpy's per-call overhead.
+    All exponents (and blocks) are evaluated in one call of two compiled kernels
+    (:func:`_normalised_profiles`, :func:`_paired_asymmetry`): this runs on every plain edge of every image.
     Blocks share the whole line's shading tilt and level smoothing (a slow shading is the line's, and a
     block's own median of a few dozen plateau slopes would only add noise to its exponent).
     """
-    G = len(gammas)
     with np.errstate(divide="ignore"):
         v = np.exp(np.asarray(gammas, float)[:, None, None] * np.log(t.raw)[None])  # (G, N, W)
-    N, W = v.shape[1], v.shape[2]
-    pk = RESPONSE_PLATEAU_PX
-    # Shading across the edge (an illumination gradient, vignetting) multiplies the light by a slope
-    # that tilts both plateaus alike and would read as asymmetry: take it out, as the median relative
-    # slope of the plateau pixels over the line.
-    xs = np.arange(pk) - (pk - 1) / 2.0
-    # (sums over the few plateau pixels as whole-array adds: numpy's reductions over a short strided last
-    # axis cost more than the arithmetic)
-    slope = [sum(xs[j] * v[:, :, j + o] for j in range(pk)) / (xs @ xs) for o in (0, W - pk)]
-    level = [sum(v[:, :, j + o] for j in range(1, pk)) + v[:, :, o] for o in (0, W - pk)]
-    rel = np.concatenate([s / np.maximum(m / pk, 1e-9) for s, m in zip(slope, level, strict=True)], axis=1)
-    tilt = np.median(rel, axis=1)
-    tilt = np.where(np.isfinite(tilt), tilt, 0.0)
-    # the tilt's scale at each pixel, and the levels of the tilted ends as their means over it
-    scale = 1.0 / (1.0 + tilt[:, None, None] * (np.arange(W) - (W - 1) / 2.0)[None, None, :])
-    v = v * scale
-    size = min(2 * RESPONSE_LEVEL_ROWS + 1, N)
-    lo = uniform_filter1d(sum(v[:, :, j] for j in range(pk)) / pk, size, axis=1, mode="nearest")[:, :, None]
-    hi = uniform_filter1d(sum(v[:, :, W - pk + j] for j in range(pk)) / pk, size, axis=1, mode="nearest")[
-        :, :, None
-    ]
-    v = v[:, :, pk:-pk]
-    span = hi - lo
-    good = np.abs(span[:, :, 0]) > 1e-9  # (G, N)
-    n = (v - lo) / np.where(good[:, :, None], span, 1.0)  # 0 on the first end, 1 on the last: any polarity
-    L = n.shape[2]
-    # area estimate, index units: (L - 1) minus the trapezoid area of the normalised profile
-    centre = (L - 1) - (n.sum(axis=2) - 0.5 * (n[:, :, 0] + n[:, :, -1]))
+    N = v.shape[1]
+    n, centre, good = _normalised_profiles(v, RESPONSE_PLATEAU_PX, min(2 * RESPONSE_LEVEL_ROWS + 1, N))
     if t.one_phase:
         return _resampled_asymmetry(n, centre, good, blocks, n_blocks)
-    d = np.arange(L)[None, None, :] - centre[:, :, None]
-    inner = (np.abs(d) <= (L - 1) / 2.0 - 1.0) & good[:, :, None]
-    B = 4 * (L - 1)  # |d| * 8 never exceeds it inside
-    nb = 2 * B + 1
-    groups = np.arange(G)[:, None, None] * max(n_blocks, 1)
-    if blocks is not None:
-        groups = groups + blocks[None, :, None]
-        rows_ok = np.stack([np.bincount(blocks, weights=gd, minlength=n_blocks) for gd in good])
-    else:
-        rows_ok = good.sum(axis=1, keepdims=True)
-    n_groups = G * max(n_blocks, 1)
-    key = (groups * nb + np.round(d * 8).astype(np.int64) + B)[inner]
-    acc = np.bincount(key, weights=n[inner], minlength=n_groups * nb).reshape(n_groups, nb)
-    cnt = np.bincount(key, minlength=n_groups * nb).reshape(n_groups, nb)
-    cp, cn = cnt[:, B + 1 :], cnt[:, B - 1 :: -1]  # bins at +d and -d, d = 1/8, 2/8, ...
-    both = (cp > 0) & (cn > 0)
-    r = np.where(
-        both, acc[:, B + 1 :] / np.maximum(cp, 1) + acc[:, B - 1 :: -1] / np.maximum(cn, 1) - 1.0, 0.0
-    )
-    m = both.sum(axis=1)
-    out = np.where(m >= 4, (r * r).sum(axis=1) / np.maximum(m, 1), np.nan)
-    out = np.where(rows_ok.reshape(-1) >= 3, out, np.nan)
-    return out.reshape(G, n_blocks) if blocks is not None else out
+    blk = blocks.astype(np.int64) if blocks is not None else np.zeros(N, dtype=np.int64)
+    out = _paired_asymmetry(n, centre, good, blk, max(n_blocks, 1))
+    return out if blocks is not None else out[:, 0]
+
+
+# The two steps of _asymmetry are compiled: written with numpy they were ~30 passes over (G, N, W) arrays
+# of a few hundred kB, ~1.2 ms per call and 9 calls per edge-measuring image (11 ms of its ~27). The raw
+# levels are raised to the exponents by numpy (its vectorised exp); the kernels give the numbers the
+# numpy code gave, bit for bit: its sums in its order (numpy's pairwise sum along a row, scipy's running
+# sum in uniform_filter1d), its median, its bincount (tests/vision/test_jit.py holds them to the numpy
+# version kept in tests/vision/numpy_reference.py).
+
+
+def _normalised_warm_up(k) -> None:
+    k(np.full((2, 5, 10), 0.5), 3, 3)
+
+
+@kernel(_normalised_warm_up)
+def _normalised_profiles(v, pk, size):
+    """:func:`_asymmetry`'s profiles ``v`` (G, N, W) (light: raw levels raised to each exponent) without
+    their shading tilt, normalised by their plateaus (``pk`` px at each end, averaged over ``size`` scan
+    lines) over the inner ``L = W - 2 pk`` pixels: ``n`` (G, N, L), each profile's area centre (G, N,
+    index units) and whether its plateaus differ (G, N)."""
+    G, N, W = v.shape
+    L = W - 2 * pk
+    n = np.empty((G, N, L))
+    centre = np.empty((G, N))
+    good = np.zeros((G, N), dtype=np.bool_)
+    xs = np.empty(pk)
+    xx = 0.0
+    for j in range(pk):
+        xs[j] = j - (pk - 1) / 2.0
+        xx += xs[j] * xs[j]  # (exact: a sum of squares of multiples of 1/2)
+    rel = np.empty(2 * N)
+    scale = np.empty(W)
+    ends = np.empty((2, N))
+    row = np.empty(L)
+    for g in range(G):
+        # Shading across the edge (an illumination gradient, vignetting) multiplies the light by a slope
+        # that tilts both plateaus alike and would read as asymmetry: take it out, as the median relative
+        # slope of the plateau pixels over the line.
+        any_nan = False
+        for e in range(2):
+            o = 0 if e == 0 else W - pk
+            for i in range(N):
+                sl = 0.0
+                for j in range(pk):
+                    sl += xs[j] * v[g, i, j + o]
+                sl = sl / xx
+                lev = 0.0
+                for j in range(1, pk):
+                    lev += v[g, i, j + o]
+                lev = lev + v[g, i, o]
+                m = lev / pk
+                r = sl / (m if (m > 1e-9 or np.isnan(m)) else 1e-9)  # np.maximum(m, 1e-9)
+                rel[e * N + i] = r
+                any_nan = any_nan or np.isnan(r)
+        tilt = np.nan
+        if N > 0 and not any_nan:  # np.median: the mean of the middle two (NaN where one is NaN)
+            select_kth(rel, N - 1)
+            tilt = (rel[N - 1] + rel[N:].min()) / 2.0
+        if not np.isfinite(tilt):
+            tilt = 0.0
+        for w in range(W):
+            scale[w] = 1.0 / (1.0 + tilt * (w - (W - 1) / 2.0))
+        # the plateaus' levels: their means over the end pixels, then over neighbouring scan lines
+        for e in range(2):
+            o = 0 if e == 0 else W - pk
+            for i in range(N):
+                sm = 0.0
+                for j in range(pk):
+                    sm += v[g, i, o + j] * scale[o + j]
+                ends[e, i] = sm / pk
+        lo = _running_mean_nearest(ends[0], size)
+        hi = _running_mean_nearest(ends[1], size)
+        for i in range(N):
+            span = hi[i] - lo[i]
+            good[g, i] = abs(span) > 1e-9
+            den = span if good[g, i] else 1.0
+            for k in range(L):
+                # 0 on the first end, 1 on the last: any polarity
+                row[k] = (v[g, i, pk + k] * scale[pk + k] - lo[i]) / den
+                n[g, i, k] = row[k]
+            # area estimate, index units: (L - 1) minus the trapezoid area of the normalised profile
+            centre[g, i] = (L - 1) - (pairwise_sum(row, 0, L) - 0.5 * (row[0] + row[L - 1]))
+    return n, centre, good
+
+
+def _paired_warm_up(k) -> None:
+    k(np.full((2, 5, 6), 0.5), np.full((2, 5), 2.5), np.ones((2, 5), np.bool_), np.zeros(5, np.int64), 1)
+
+
+@kernel(_paired_warm_up)
+def _paired_asymmetry(n, centre, good, blocks, nb):
+    """:func:`_asymmetry`'s measure over the normalised profiles (:func:`_normalised_profiles`) of each
+    block (``blocks`` (N,) < ``nb``): (G, nb)."""
+    G, N, L = n.shape
+    B = 4 * (L - 1)  # |d| * 8 never exceeds it inside the reach
+    nbins = 2 * B + 1
+    out = np.empty((G, nb))
+    acc = np.zeros((nb, nbins))
+    cnt = np.zeros((nb, nbins), dtype=np.int64)
+    rows_ok = np.zeros(nb)
+    rr = np.empty(B)
+    reach = (L - 1) / 2.0 - 1.0
+    for g in range(G):
+        acc[:] = 0.0
+        cnt[:] = 0
+        rows_ok[:] = 0.0
+        for i in range(N):
+            if not good[g, i]:
+                continue
+            b = blocks[i]
+            rows_ok[b] += 1.0
+            for k in range(L):
+                d = k - centre[g, i]
+                if abs(d) <= reach:
+                    at = int(np.rint(d * 8)) + B
+                    acc[b, at] += n[g, i, k]
+                    cnt[b, at] += 1
+        for b in range(nb):
+            m = 0
+            for k in range(B):
+                cp, cn = cnt[b, B + 1 + k], cnt[b, B - 1 - k]  # bins at +d and -d, d = (k + 1) / 8
+                if cp > 0 and cn > 0:
+                    r = acc[b, B + 1 + k] / cp + acc[b, B - 1 - k] / cn - 1.0
+                    rr[k] = r * r
+                    m += 1
+                else:
+                    rr[k] = 0.0
+            out[g, b] = pairwise_sum(rr, 0, B) / m if m >= 4 and rows_ok[b] >= 3 else np.nan
+    return out
+
+
+@kernel()
+def _running_mean_nearest(x, size):
+    """scipy.ndimage.uniform_filter1d(x, size, mode="nearest") as scipy computes it (a running sum over the
+    line extended by its end values, each output the sum over ``size``)."""
+    N = x.size
+    out = np.empty(N)
+    if N == 0:
+        return out
+    s1 = size // 2
+    tot = 0.0
+    for k in range(size):
+        tot += x[min(max(k - s1, 0), N - 1)]
+    out[0] = tot / size
+    for i in range(1, N):
+        tot += x[min(i + size - 1 - s1, N - 1)] - x[max(i - 1 - s1, 0)]
+        out[i] = tot / size
+    return out
 
 
 def _resampled_asymmetry(
