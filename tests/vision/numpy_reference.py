@@ -1,6 +1,6 @@
 """The functions whose loops are now numba kernels (doorloc.vision.jit), as they were written with numpy:
 the references tests/vision/test_jit.py holds the compiled ones to (texture_bias, transition_width,
-plateau_levels, ransac_line, the response's asymmetry; the area estimate is held to subpixel_edges' own numpy branch, the coarse
+plateau_levels, ransac_line, the response's asymmetry, the step fit; the area estimate is held to subpixel_edges' own numpy branch, the coarse
 finder to coarse_reference.py)."""
 
 from __future__ import annotations
@@ -375,3 +375,25 @@ def asymmetry(t, gammas: np.ndarray, blocks: np.ndarray | None = None, n_blocks:
     out = np.where(m >= 4, (r * r).sum(axis=1) / np.maximum(m, 1), np.nan)
     out = np.where(rows_ok.reshape(-1) >= 3, out, np.nan)
     return out.reshape(G, n_blocks) if blocks is not None else out
+
+
+def step_fit(
+    vals: np.ndarray, e: np.ndarray, bounds: np.ndarray, sigma: float, n_iter: int = 6
+) -> np.ndarray:
+    """:func:`doorloc.vision.edges._step_fit` as written with numpy (over the compiled pixel model)."""
+    vals = np.asarray(vals, np.float64)
+    e = np.asarray(e, np.float64).copy()
+    for _ in range(n_iter):
+        C, g, _ = _pixel_step(bounds, e, sigma)
+        X0 = 1.0 - C
+        s00, s01, s11 = (X0 * X0).sum(1), (X0 * C).sum(1), (C * C).sum(1)
+        b0, b1 = (X0 * vals).sum(1), (C * vals).sum(1)
+        det = s00 * s11 - s01 * s01
+        with np.errstate(divide="ignore", invalid="ignore"):
+            A = (s11 * b0 - s01 * b1) / det
+            B = (s00 * b1 - s01 * b0) / det
+            r = vals - (A[:, None] * X0 + B[:, None] * C)
+            J = (B - A)[:, None] * g  # -dm/de (g = -dC/de)
+            de = -(J * r).sum(1) / (J * J).sum(1)
+        e = e + np.clip(np.where(np.isfinite(de), de, 0.0), -0.5, 0.5)
+    return e

@@ -9,7 +9,8 @@
   (response.plateau_levels) and the RANSAC line (lines.ransac_line) against their numpy versions
   (numpy_reference.py), bit for bit (RANSAC: the same inliers, the line to 1e-12 px); the transition
   width (edges.transition_width) to 1e-12 of itself (its sums add in another order);
-- the plane map (metric.PlaneMap: rays to a cell plane and back) against its numpy version, bit for bit;
+- the plane map (metric.PlaneMap: rays to a cell plane and back) and the step fit (edges._step_fit) against
+  their numpy versions, bit for bit;
 - the search region's polyline interpolation (region._interp_on_scans) against np.interp over the sorted
   points, bit for bit;
 - the in-place selection (jit.select_kth) against np.partition, numpy's pairwise sum (jit.pairwise_sum)
@@ -362,3 +363,29 @@ def test_pairwise_sum_and_running_mean_as_numpy_and_scipy(seed, n, size):
         np.testing.assert_array_equal(
             _running_mean_nearest(a, size), uniform_filter1d(a, size, mode="nearest")
         )
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    n=st.integers(1, 300),
+    h=st.integers(3, 12),
+    blur=st.floats(0.05, 2.5),
+    noise=st.sampled_from([0.0, 2.0, 20.0]),
+    flat=st.booleans(),
+)
+def test_step_fit_as_its_numpy_version(seed, n, h, blur, noise, flat):
+    # edges._step_fit (its Gauss-Newton rows compiled) against the numpy loop over the same pixel model,
+    # bit for bit: noisy and clean steps, a profile without a step (its determinant 0: no move)
+    from doorloc.vision.edges import _pixel_step, _step_fit
+
+    rng = np.random.default_rng(seed)
+    bounds = np.arange(-h, h + 2, dtype=np.float64) - 0.5
+    e0 = rng.uniform(-0.5, 0.5, n)
+    C, _, _ = _pixel_step(bounds, e0 + rng.normal(0, 0.2, n), blur)
+    lo, hi = rng.uniform(10, 80, n), rng.uniform(120, 240, n)
+    vals = lo[:, None] + (hi - lo)[:, None] * C + rng.normal(0, noise + 1e-9, C.shape)
+    if flat:
+        vals[0] = 50.0
+    want = reference.step_fit(vals, e0, bounds, blur)
+    np.testing.assert_array_equal(_step_fit(vals, e0, bounds, blur), want)

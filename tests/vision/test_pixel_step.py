@@ -43,6 +43,6 @@ def test_tail_skipping_pixel_step_equals_the_dense_one(sigma, n_px, seed):
 def test_tail_skipping_is_used_for_a_narrow_blur_and_not_for_a_wide_one():
     bounds = np.arange(41, dtype=np.float64) - 0.5
     e = np.array([10.3, 20.7])
-    assert _StepPixels(bounds, e, 0.1).cols is not None  # a few boundaries per edge
-    assert _StepPixels(bounds, e, 3.0).cols is None  # the tails cover the window: evaluated densely
-    assert _StepPixels(bounds, np.array([np.nan, 3.0]), 0.1).cols is None  # NaN as the dense model gives it
+    assert _StepPixels(bounds, e, 0.1).windowed  # a few boundaries per edge
+    assert not _StepPixels(bounds, e, 3.0).windowed  # the tails cover the window: evaluated densely
+    assert not _StepPixels(bounds, np.array([np.nan, 3.0]), 0.1).windowed  # NaN as the dense model gives it

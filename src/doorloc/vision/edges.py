@@ -29,9 +29,8 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
-from scipy.special import ndtr
 
-from doorloc.vision.jit import grey, kernel
+from doorloc.vision.jit import grey, kernel, pairwise_sum
 from doorloc.vision.lines import _median  # np.median's value for less
 
 __all__ = [
@@ -843,58 +842,95 @@ BAND_SIDE_MIN_PX = 0.25
 STEP_TAIL_SIGMAS = 10.0
 
 
-def _gaussian_step_terms(y: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``Phi(y / sigma)``, ``phi(y / sigma)`` and the integral of ``Phi`` over ``y`` (``G``), elementwise."""
-    u = y * (1.0 / sigma)
-    Phi = ndtr(u)
-    phi = np.exp(-0.5 * u * u) * (1.0 / math.sqrt(2.0 * math.pi))
-    return Phi, phi, y * Phi + sigma * phi  # G: integral of Phi(y / sigma) dy
-
-
 class _StepPixels:
-    """Unit steps at ``e`` (N,), blurred by a Gaussian ``sigma`` and integrated over pixels, with their
-    derivatives evaluated only when asked for (:func:`_pixel_step` gives all three).
+    """Unit steps at ``e`` (N,), blurred by a Gaussian ``sigma`` and integrated over pixels (compiled:
+    :func:`_step_pixel_values`), with their derivatives (:func:`_pixel_step` gives all three).
 
     ``bounds`` (M + 1,) are the pixel boundaries, ascending (pixel ``i`` spans ``bounds[i]..bounds[i + 1]``).
-    The Gaussian terms (``ndtr``, ``exp``: most of the cost) are evaluated only on the boundaries within
+    The Gaussian terms (``Phi``, ``exp``: most of the cost) are evaluated only on the boundaries within
     :data:`STEP_TAIL_SIGMAS` blur sigmas of each edge; beyond them the step's exact limits (``Phi`` 0 or 1,
     ``phi`` 0, its integral 0 or ``y``) stand in, which differ from the full evaluation by less than 1e-22.
     A narrow blur (rendered and most real frames: sigma < 0.2 px) thus costs a few boundaries per scan
-    line instead of the whole window.
+    line instead of the whole window. ``windowed``: whether it did (else every boundary was evaluated).
     """
 
     def __init__(self, bounds: np.ndarray, e: np.ndarray, sigma: float) -> None:
-        self.y = y = bounds[None, :] - e[:, None]
-        n_b = bounds.size
-        cut = STEP_TAIL_SIGMAS * sigma
-        lo = np.searchsorted(bounds, e - cut, side="left")
-        hi = np.searchsorted(bounds, e + cut, side="right")
-        K = int(np.max(hi - lo, initial=0)) + 1
-        self.cols: np.ndarray | None = None
-        if 2 * K >= n_b or not np.all(np.isfinite(e)):
-            self.Phi, self.phi, G = _gaussian_step_terms(y, sigma)
-        else:
-            # Each row's window: K boundaries from its first one within the cut (moved left at the far end).
-            self.cols = np.minimum(lo, n_b - K)[:, None] + np.arange(K)[None, :]
-            self.Phi, self.phi, G_w = _gaussian_step_terms(np.take_along_axis(y, self.cols, axis=1), sigma)
-            G = np.maximum(y, 0.0)
-            np.put_along_axis(G, self.cols, G_w, axis=1)
-        #: pixel values ``C`` (N, M)
-        self.C = np.diff(G, axis=1)
-
-    def _full(self, win: np.ndarray, outside: np.ndarray) -> np.ndarray:
-        if self.cols is None:
-            return win
-        np.put_along_axis(outside, self.cols, win, axis=1)
-        return outside
+        self.C, self._g, self._h, self.windowed = _step_pixel_values(
+            np.ascontiguousarray(bounds, np.float64), np.ascontiguousarray(e, np.float64), float(sigma)
+        )
 
     def slope(self) -> np.ndarray:
         """``-dC/de`` (N, M)."""
-        return np.diff(self._full(self.Phi, (self.y > 0.0).astype(np.float64)), axis=1)
+        return self._g
 
     def blur_slope(self) -> np.ndarray:
         """``dC/dsigma`` (N, M)."""
-        return np.diff(self._full(self.phi, np.zeros_like(self.y)), axis=1)
+        return self._h
+
+
+@kernel(inline=True)
+def _ndtr(a):
+    """The standard normal CDF: scipy.special.ndtr's formula over the C library's erf and erfc (scipy's
+    own are not callable from a cached kernel; the two agree to an ulp or two)."""
+    x = a * 0.7071067811865476  # 1 / sqrt(2)
+    z = abs(x)
+    if z < 0.7071067811865476:
+        return 0.5 + 0.5 * math.erf(x)
+    y = 0.5 * math.erfc(z)
+    return 1.0 - y if x > 0 else y
+
+
+def _step_pixel_values_warm_up(k) -> None:
+    k(np.arange(7.0) - 3.5, np.array([0.2, -0.4]), 0.1, STEP_TAIL_SIGMAS)
+    k(np.arange(7.0) - 3.5, np.array([0.2, np.nan]), 2.0, STEP_TAIL_SIGMAS)
+
+
+@kernel(_step_pixel_values_warm_up)
+def _step_pixel_values(bounds, e, sigma, tail_sigmas=STEP_TAIL_SIGMAS):
+    """The pixel values ``C``, ``-dC/de`` and ``dC/dsigma`` (N, M) of :class:`_StepPixels`, and whether the
+    Gaussian terms were evaluated near the edges only.
+
+    Near each edge: ``Phi(y / sigma)``, ``phi(y / sigma)`` and the integral of ``Phi`` over ``y``,
+    ``y Phi + sigma phi``, on a window of ``K`` boundaries per row (from the first within the tail cut,
+    moved left at the far end; ``K`` the widest row's count plus one); everywhere where ``2 K`` reaches the
+    boundary count or an edge is not finite.
+    """
+    N, n_b = e.size, bounds.size
+    cut = tail_sigmas * sigma
+    lo = np.searchsorted(bounds, e - cut, side="left")
+    hi = np.searchsorted(bounds, e + cut, side="right")
+    K = 1
+    finite = True
+    for i in range(N):
+        K = max(K, hi[i] - lo[i] + 1)
+        finite = finite and np.isfinite(e[i])
+    windowed = 2 * K < n_b and finite
+    C = np.empty((N, n_b - 1))
+    g = np.empty((N, n_b - 1))
+    h = np.empty((N, n_b - 1))
+    inv = 1.0 / sigma
+    norm = 1.0 / math.sqrt(2.0 * math.pi)
+    G = np.empty(n_b)
+    P = np.empty(n_b)
+    p = np.empty(n_b)
+    for i in range(N):
+        j0, j1 = (min(lo[i], n_b - K), min(lo[i], n_b - K) + K) if windowed else (0, n_b)
+        for j in range(n_b):
+            y = bounds[j] - e[i]
+            if j0 <= j < j1:
+                u = y * inv
+                P[j] = _ndtr(u)
+                p[j] = math.exp(-0.5 * u * u) * norm
+                G[j] = y * P[j] + sigma * p[j]
+            else:
+                P[j] = 1.0 if y > 0.0 else 0.0
+                p[j] = 0.0
+                G[j] = max(y, 0.0)
+        for j in range(n_b - 1):
+            C[i, j] = G[j + 1] - G[j]
+            g[i, j] = P[j + 1] - P[j]
+            h[i, j] = p[j + 1] - p[j]
+    return C, g, h, windowed
 
 
 def _dot(a: np.ndarray, b: np.ndarray) -> float:
@@ -1455,23 +1491,50 @@ def _step_fit(
     ``C`` is a Gaussian-blurred unit step integrated over each pixel (:func:`_pixel_step`), ``bounds`` the
     pixel boundaries in the coordinates of ``e``. Per row, ``A`` and ``B`` are solved linearly for the
     current edge and the edge takes a Gauss-Newton step (clipped to half a pixel) - a variable-projection
-    fit with three unknowns per scan line.
+    fit with three unknowns per scan line (compiled: :func:`_step_fit_rows`).
     """
-    vals = np.asarray(vals, np.float64)
-    e = np.asarray(e, np.float64).copy()
+    return _step_fit_rows(
+        np.ascontiguousarray(vals, np.float64),
+        np.array(e, np.float64),
+        np.ascontiguousarray(bounds, np.float64),
+        float(sigma),
+        n_iter,
+    )
+
+
+def _step_fit_warm_up(k) -> None:
+    k(np.full((2, 6), 0.5), np.zeros(2), np.arange(7.0) - 3.5, 0.5, 2)
+
+
+@kernel(_step_fit_warm_up)
+def _step_fit_rows(vals, e, bounds, sigma, n_iter):
+    """:func:`_step_fit`'s iterations (``e`` updated in place and returned): each row's sums in numpy's
+    order (written with numpy, 7 row sums and a dozen array operations per iteration took 2-3 ms of a
+    textured frame's step fits)."""
+    N, M = vals.shape
+    t = np.empty((7, M))
     for _ in range(n_iter):
-        C, g, _ = _pixel_step(bounds, e, sigma)
-        X0 = 1.0 - C
-        s00, s01, s11 = (X0 * X0).sum(1), (X0 * C).sum(1), (C * C).sum(1)
-        b0, b1 = (X0 * vals).sum(1), (C * vals).sum(1)
-        det = s00 * s11 - s01 * s01
-        with np.errstate(divide="ignore", invalid="ignore"):
+        C, g, _, _ = _step_pixel_values(bounds, e, sigma)
+        for i in range(N):
+            for k in range(M):
+                x0 = 1.0 - C[i, k]
+                t[0, k] = x0 * x0
+                t[1, k] = x0 * C[i, k]
+                t[2, k] = C[i, k] * C[i, k]
+                t[3, k] = x0 * vals[i, k]
+                t[4, k] = C[i, k] * vals[i, k]
+            s00, s01, s11 = pairwise_sum(t[0], 0, M), pairwise_sum(t[1], 0, M), pairwise_sum(t[2], 0, M)
+            b0, b1 = pairwise_sum(t[3], 0, M), pairwise_sum(t[4], 0, M)
+            det = s00 * s11 - s01 * s01
             A = (s11 * b0 - s01 * b1) / det
             B = (s00 * b1 - s01 * b0) / det
-            r = vals - (A[:, None] * X0 + B[:, None] * C)
-            J = (B - A)[:, None] * g  # -dm/de (g = -dC/de)
-            de = -(J * r).sum(1) / (J * J).sum(1)
-        e = e + np.clip(np.where(np.isfinite(de), de, 0.0), -0.5, 0.5)
+            for k in range(M):
+                r = vals[i, k] - (A * (1.0 - C[i, k]) + B * C[i, k])
+                J = (B - A) * g[i, k]  # -dm/de (g = -dC/de)
+                t[5, k] = J * r
+                t[6, k] = J * J
+            de = -pairwise_sum(t[5], 0, M) / pairwise_sum(t[6], 0, M)
+            e[i] = e[i] + (min(max(de, -0.5), 0.5) if np.isfinite(de) else 0.0)
     return e
 
 
