@@ -5,7 +5,9 @@
 # (bench/bench_throughput.py) on 1, 8 and all cores, one-frame vs batched on CPU and CUDA.
 # With BEFORE=<another tree's src/> (carried), first the one-frame figures of bench/bench_speed.py on that
 # quiet machine's CPU, this tree against BEFORE in the same run.
-# Results: $OUT/throughput.json, $OUT/speed.json and $OUT/device.log.
+# Results: $OUT/throughput.json, $OUT/speed.json and $OUT/device.log. With many workers, give BATCH_SIZE
+# small enough for several batches per worker in the steady state (bench_throughput counts from the
+# end of the first 2 x workers batches).
 set -u -o pipefail
 OUT=${OUT:-/tmp/doorloc-device}; mkdir -p "$OUT"
 {
@@ -23,5 +25,6 @@ OUT=${OUT:-/tmp/doorloc-device}; mkdir -p "$OUT"
       --no-throughput --json "$OUT/speed.json"
   fi
   timeout "${BENCH_TIMEOUT:-330}" python3 bench/bench_throughput.py --frames "${FRAMES:-1296}" \
-    --workers "${WORKERS:-1,8,all}" --devices none,cpu,cuda --json "$OUT/throughput.json"
+    --workers "${WORKERS:-1,8,all}" --devices none,cpu,cuda --batch-size "${BATCH_SIZE:-32}" \
+    --json "$OUT/throughput.json"
 } 2>&1 | tee "$OUT/device.log"

@@ -860,8 +860,9 @@ def _end_pixel_medians(P, scan, along, half):
     med = np.empty(2)
     k = m // 2
     for e in range(2):
-        srt = np.sort(ends[e, :m])
-        med[e] = srt[k] if m % 2 else (srt[k - 1] + srt[k]) / 2.0
+        x = ends[e, :m]
+        select_kth(x, k)  # (a selection, not a sort: the same order statistics)
+        med[e] = x[k] if m % 2 else (x[:k].max() + x[k]) / 2.0
     return min(med[0], med[1]), max(med[0], med[1])
 
 
