@@ -856,7 +856,10 @@ class _StepPixels:
 
     def __init__(self, bounds: np.ndarray, e: np.ndarray, sigma: float) -> None:
         self.C, self._g, self._h, self.windowed = _step_pixel_values(
-            np.ascontiguousarray(bounds, np.float64), np.ascontiguousarray(e, np.float64), float(sigma)
+            np.ascontiguousarray(bounds, np.float64),
+            np.ascontiguousarray(e, np.float64),
+            float(sigma),
+            STEP_TAIL_SIGMAS,
         )
 
     def slope(self) -> np.ndarray:
@@ -886,9 +889,9 @@ def _step_pixel_values_warm_up(k) -> None:
 
 
 @kernel(_step_pixel_values_warm_up)
-def _step_pixel_values(bounds, e, sigma, tail_sigmas=STEP_TAIL_SIGMAS):
+def _step_pixel_values(bounds, e, sigma, tail_sigmas):
     """The pixel values ``C``, ``-dC/de`` and ``dC/dsigma`` (N, M) of :class:`_StepPixels`, and whether the
-    Gaussian terms were evaluated near the edges only.
+    Gaussian terms were evaluated near the edges only (within ``tail_sigmas`` blur sigmas).
 
     Near each edge: ``Phi(y / sigma)``, ``phi(y / sigma)`` and the integral of ``Phi`` over ``y``,
     ``y Phi + sigma phi``, on a window of ``K`` boundaries per row (from the first within the tail cut,
@@ -1514,7 +1517,7 @@ def _step_fit_rows(vals, e, bounds, sigma, n_iter):
     N, M = vals.shape
     t = np.empty((7, M))
     for _ in range(n_iter):
-        C, g, _, _ = _step_pixel_values(bounds, e, sigma)
+        C, g, _, _ = _step_pixel_values(bounds, e, sigma, STEP_TAIL_SIGMAS)
         for i in range(N):
             for k in range(M):
                 x0 = 1.0 - C[i, k]

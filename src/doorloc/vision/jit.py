@@ -5,7 +5,9 @@ numpy, each iteration is ~20 array calls of a few microseconds on arrays too sma
 and the fits were a sixth of a clean frame (issue 14). The same loop compiled runs several times faster.
 The kernels are plain Python over numpy arrays (``kernel.py_func`` runs one uncompiled;
 ``NUMBA_DISABLE_JIT=1`` runs them all so), written to give the numbers the numpy code gave up to
-rounding.
+rounding. Two helpers here serve several kernels: :func:`select_kth` (np.partition's order statistic,
+in place) and :func:`pairwise_sum` (a row's sum in numpy's own order, so that a compiled sum gives
+numpy's number to the bit).
 
 numba compiles a kernel on its first call and caches the machine code on disk (beside the source, or
 under ``NUMBA_CACHE_DIR``; where neither can be written, each process compiles its own). The first call on
