@@ -13,7 +13,11 @@ Frames: every committed fixture (fixtures/rendered/*, 117 1080p grey PNGs, each 
   step finder, the one-frame one on CPU, and with the torch finder), when torch is installed. CUDA is
   measured only where torch sees a GPU (``--cuda``).
 
-Run:  OMP_NUM_THREADS=1 python bench/bench_speed.py [--before /work/main/src] [--rounds 3] [--json out.json]
+With ``--paired`` (and ``--before``) each frame is also timed in the two trees' processes in turn, frame by
+frame (:func:`measure_paired`): on a shared machine whose speed drifts the two trees then see the same
+machine, which whole passes minutes apart do not.
+
+Run:  OMP_NUM_THREADS=1 python bench/bench_speed.py [--before /work/main/src] [--rounds 3] [--paired] [--json out.json]
 """
 
 from __future__ import annotations
@@ -127,6 +131,94 @@ def measure_one_frame(repeats: int) -> dict:
     return out
 
 
+def serve_paired(repeats: int) -> None:
+    """Paired mode's worker: after a warm-up, reads frame indices on stdin and answers each with its
+    locate's and the baseline's thread-CPU ms (the best of ``repeats``), one JSON line per frame."""
+    import cv2
+
+    cv2.setNumThreads(1)
+    sys.path.insert(0, str(REPO / "bench"))
+    from bench_locate import baseline
+
+    from doorloc.vision.locate import locate
+
+    frames = _frames()
+    for _, cell, door, img, _ in frames:
+        locate(img, cell, door)
+        baseline(img, cell, door)
+    print(json.dumps({"names": [f[0] for f in frames]}), flush=True)
+
+    def cpu_ms(fn, *args) -> float:
+        best = float("inf")
+        for _ in range(repeats):
+            c0 = time.thread_time()
+            fn(*args)
+            best = min(best, (time.thread_time() - c0) * 1e3)
+        return best
+
+    for line in sys.stdin:
+        _, cell, door, img, _ = frames[int(line)]
+        out = {
+            "locate": cpu_ms(locate, img, cell, door),
+            "baseline": cpu_ms(baseline, img, cell, door),
+        }
+        print(json.dumps(out), flush=True)
+
+
+def measure_paired(trees: dict[str, str], rounds: int, repeats: int) -> dict:
+    """Each frame timed in every tree's worker in turn (the order alternating), ``rounds`` times: the trees
+    see the machine in the same second, not minutes apart, which a shared machine's drifting speed
+    needs (its medians moved by a third from one run to the next). Per frame the median over rounds;
+    then the medians over the frames (all, the grid set), and the median of the per-frame ratios."""
+    procs = {}
+    for label, src in trees.items():
+        env = dict(
+            os.environ, PYTHONPATH=os.pathsep.join(x for x in (src, os.environ.get("PYTHONPATH")) if x)
+        )
+        procs[label] = subprocess.Popen(
+            [sys.executable, __file__, "--paired-worker", "--repeats", str(repeats)],
+            env=env,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+        )
+    names = [json.loads(procs[label].stdout.readline())["names"] for label in trees][0]
+    times: dict[str, dict[str, list[list[float]]]] = {
+        label: {"locate": [[] for _ in names], "baseline": [[] for _ in names]} for label in trees
+    }
+    order = list(trees)
+    for r in range(rounds):
+        for i in range(len(names)):
+            for label in order if (i + r) % 2 == 0 else order[::-1]:
+                p = procs[label]
+                p.stdin.write(f"{i}\n")
+                p.stdin.flush()
+                got = json.loads(p.stdout.readline())
+                for k in ("locate", "baseline"):
+                    times[label][k][i].append(got[k])
+    for p in procs.values():
+        p.stdin.close()
+        p.wait()
+    grid = [i for i, n in enumerate(names) if n.startswith("grid/")]
+    out: dict = {"frames": len(names), "rounds": rounds}
+    per = {lab: {k: [statistics.median(t) for t in v] for k, v in ts.items()} for lab, ts in times.items()}
+    for label in trees:
+        out[label] = {
+            "locate_ms": statistics.median(per[label]["locate"]),
+            "locate_grid_ms": statistics.median(per[label]["locate"][i] for i in grid),
+            "baseline_ms": statistics.median(per[label]["baseline"]),
+            "per_frame_locate_ms": dict(zip(names, per[label]["locate"], strict=True)),
+        }
+    if len(trees) == 2:
+        a, b = order
+        ratio = [x / y for x, y in zip(per[b]["locate"], per[a]["locate"], strict=True)]
+        out["speedup"] = {
+            "locate": statistics.median(ratio),
+            "locate_grid": statistics.median(ratio[i] for i in grid),
+        }
+    return out
+
+
 def _locate_file(args) -> bool:
     import cv2
 
@@ -201,10 +293,19 @@ def main() -> None:
     ap.add_argument("--no-throughput", action="store_true")
     ap.add_argument("--cuda", action="store_true")
     ap.add_argument("--json")
+    ap.add_argument(
+        "--paired",
+        action="store_true",
+        help="also time locate frame by frame in both trees in turn (needs --before; see measure_paired)",
+    )
     ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
+    ap.add_argument("--paired-worker", action="store_true", help=argparse.SUPPRESS)
     a = ap.parse_args()
     if a.worker:
         print(json.dumps(measure_one_frame(a.repeats)))
+        return
+    if a.paired_worker:
+        serve_paired(a.repeats)
         return
     res: dict = {"cpus": os.cpu_count(), "load_avg_at_start": os.getloadavg()}
     runs = [("after", str(REPO / "src"))] + ([("before", a.before)] if a.before else [])
@@ -239,6 +340,8 @@ def main() -> None:
                 res[label][k] = {m: statistics.median(r[k][m] for r in rs) for m in ("wall_ms", "cpu_ms")} | {
                     "n": sum(r[k]["n"] for r in rs)
                 }
+    if a.paired and a.before:
+        res["paired"] = measure_paired({"after": str(REPO / "src"), "before": a.before}, a.rounds, 3)
     if not a.no_throughput:
         sys.path.insert(0, str(REPO / "src"))
         res["throughput"] = measure_throughput(a.repeats, a.cuda)
@@ -290,6 +393,22 @@ def main() -> None:
         print(
             "  stages (thread CPU ms, before -> after): "
             + ", ".join(f"{k} {sb[k]:.3f} -> {sa.get(k, float('nan')):.3f}" for k in sb)
+        )
+    if "paired" in res:
+        pr = res["paired"]
+        print(
+            f"\npaired (each frame in both trees in turn, {pr['rounds']} rounds, best of 3 each; thread CPU ms,"
+            " medians over the frames):"
+        )
+        for label in ("after", "before"):
+            v = pr[label]
+            print(
+                f"  {label:6s} locate {v['locate_ms']:6.3f}   grid {v['locate_grid_ms']:6.3f}   "
+                f"baseline {v['baseline_ms']:6.3f}   locate / baseline {v['locate_ms'] / v['baseline_ms']:.2f}"
+            )
+        sp = pr["speedup"]
+        print(
+            f"  speed-up, median of per-frame ratios: locate {sp['locate']:.2f}x, grid {sp['locate_grid']:.2f}x"
         )
     if "throughput" in res:
         print("\nframes/s over the 81 grid PNGs (decode + locate):")
