@@ -88,3 +88,15 @@ def test_serve_refuses_a_broken_cell_file_with_a_sentence(tmp_path):
     )
     assert p.returncode == 2
     assert "not valid YAML" in p.stderr and "Traceback" not in p.stderr
+
+
+def test_workers_share_the_cpus_for_locating_unless_told(monkeypatch):
+    from doorloc.app.settings import ServiceSettings, default_locate_concurrency
+
+    assert default_locate_concurrency(1, cpus=8) == 8
+    assert default_locate_concurrency(2, cpus=8) == 4
+    assert default_locate_concurrency(3, cpus=2) == 1  # never none
+    monkeypatch.delenv("DOORLOC_LOCATE_CONCURRENCY", raising=False)
+    assert ServiceSettings().locate_concurrency == default_locate_concurrency(1)
+    monkeypatch.setenv("DOORLOC_LOCATE_CONCURRENCY", "3")  # what `doorloc serve` sets, unless given
+    assert ServiceSettings().locate_concurrency == 3

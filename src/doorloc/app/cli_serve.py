@@ -57,6 +57,9 @@ def register(app: typer.Typer) -> None:
         # The workers are separate processes that build the app from the environment (create_app_from_env).
         os.environ["DOORLOC_CELL"] = str(Path(cell_path).resolve())
         os.environ["DOORLOC_LOG_LEVEL"] = log_level.upper()
+        from doorloc.app.settings import default_locate_concurrency
+
+        os.environ.setdefault("DOORLOC_LOCATE_CONCURRENCY", str(default_locate_concurrency(workers)))
         _run_uvicorn(host, port, workers, log_level, ssl_certfile, ssl_keyfile)
 
     @app.command("batch")

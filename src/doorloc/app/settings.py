@@ -17,7 +17,7 @@ import os
 from pydantic import Field, SecretStr, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
-__all__ = ["ServiceSettings"]
+__all__ = ["ServiceSettings", "default_locate_concurrency"]
 
 #: 20 MB: a lossless 1080p grey PNG is ~1-3 MB, a 4K colour PNG ~15 MB.
 DEFAULT_MAX_UPLOAD_BYTES = 20 * 1000 * 1000
@@ -26,6 +26,15 @@ DEFAULT_MAX_PIXELS = 50_000_000
 #: 100 MB decoded (width x height x channels x bytes per sample): a 4K 16-bit colour frame is 50 MB;
 #: a 7000x7000 16-bit RGBA PNG (381 kB on the wire) would be 392 MB
 DEFAULT_MAX_DECODED_BYTES = 100_000_000
+
+
+def default_locate_concurrency(workers: int, cpus: int | None = None) -> int:
+    """Images each of ``workers`` service processes locates at once by default: the CPUs shared among them.
+
+    (Each worker taking every CPU put ``workers`` images on each core: at 16 clients on 2 CPUs with 2
+    workers the server spent more CPU per request than one thread does, in the contention.)
+    """
+    return max(1, (cpus if cpus is not None else os.cpu_count() or 1) // max(1, workers))
 
 
 class ServiceSettings(BaseSettings):
@@ -60,9 +69,10 @@ class ServiceSettings(BaseSettings):
         description="a locate request that has not got a CPU slot (or its whole body) by then answers 503",
     )
     locate_concurrency: int = Field(
-        default_factory=lambda: max(1, os.cpu_count() or 1),
+        default_factory=lambda: default_locate_concurrency(1),
         gt=0,
-        description="images located at the same time in one worker process (the rest wait their turn)",
+        description="images located at the same time in one worker process (the rest wait their turn); "
+        "default: the CPU count shared among `doorloc serve --workers`",
     )
     opencv_threads: int = Field(
         1,
