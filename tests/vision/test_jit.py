@@ -13,8 +13,11 @@
   their numpy versions, bit for bit;
 - the search region's polyline interpolation (region._interp_on_scans) against np.interp over the sorted
   points, bit for bit;
+- the camera response's asymmetry measure (response._asymmetry: its normalised profiles and paired bins
+  compiled) against its numpy version, bit for bit, at many phases and at one (the spline path);
 - the in-place selection (jit.select_kth) against np.partition, numpy's pairwise sum (jit.pairwise_sum)
-  against ndarray.sum.
+  against ndarray.sum, the running mean (response._running_mean_nearest) against uniform_filter1d.
+The blurred-step pixel model (edges._step_pixel_values) is held to its dense formula in test_pixel_step.py.
 The coarse step finder is held to the first finder bit for bit in test_coarse.py.
 """
 
