@@ -165,6 +165,12 @@ def serve_paired(repeats: int) -> None:
         print(json.dumps(out), flush=True)
 
 
+def _env_for(src: str) -> dict[str, str]:
+    """The environment of a worker that measures the doorloc under ``src``: that tree first on the path;
+    what else the path holds stays behind it (a lent machine's carried wheels)."""
+    return dict(os.environ, PYTHONPATH=os.pathsep.join(x for x in (src, os.environ.get("PYTHONPATH")) if x))
+
+
 def measure_paired(trees: dict[str, str], rounds: int, repeats: int) -> dict:
     """Each frame timed in every tree's worker in turn (the order alternating), ``rounds`` times: the trees
     see the machine in the same second, not minutes apart, which a shared machine's drifting speed
@@ -172,12 +178,9 @@ def measure_paired(trees: dict[str, str], rounds: int, repeats: int) -> dict:
     then the medians over the frames (all, the grid set), and the median of the per-frame ratios."""
     procs = {}
     for label, src in trees.items():
-        env = dict(
-            os.environ, PYTHONPATH=os.pathsep.join(x for x in (src, os.environ.get("PYTHONPATH")) if x)
-        )
         procs[label] = subprocess.Popen(
             [sys.executable, __file__, "--paired-worker", "--repeats", str(repeats)],
-            env=env,
+            env=_env_for(src),
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             text=True,
@@ -314,13 +317,9 @@ def main() -> None:
     rounds: dict[str, list[dict]] = {label: [] for label, _ in runs}
     for _ in range(a.rounds):
         for label, src in runs:
-            # (the tree first; what else the path holds stays behind it: a machine's carried wheels)
-            env = dict(
-                os.environ, PYTHONPATH=os.pathsep.join(x for x in (src, os.environ.get("PYTHONPATH")) if x)
-            )
             p = subprocess.run(
                 [sys.executable, __file__, "--worker", "--repeats", str(a.repeats)],
-                env=env,
+                env=_env_for(src),
                 capture_output=True,
                 text=True,
                 check=True,

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -262,13 +263,19 @@ def _linearizing_lut(eight_bit: bool, gamma: float) -> np.ndarray:
 _NO_LUT = np.zeros(0, np.float32)
 
 
-def _area_edges_warm_up(k) -> None:
-    img = np.zeros((8, 8), np.uint8)
-    img[:, 4:] = 100
-    lut = np.arange(256, dtype=np.float32)
+def _warm_up_planes(n: int) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """(flat buffer, level table) of an ``n`` x ``n`` step image for the kernels' warm-ups: the argument
+    types locate passes a plane kernel (8- and 16-bit levels, without and with a response table)."""
+    img = np.zeros((n, n), np.uint8)
+    img[:, n // 2 :] = 100
     for buf in (img.reshape(-1), img.astype(np.uint16).reshape(-1)):
-        for table in (_NO_LUT, lut if buf.dtype == np.uint8 else np.arange(65536, dtype=np.float32)):
-            k(buf, 1, 8, 8, 8, np.arange(8), np.full(8, 1), np.ones(8, bool), 2, 1, table, 1)
+        yield buf, _NO_LUT
+        yield buf, np.arange(256 if buf.dtype == np.uint8 else 65536, dtype=np.float32)
+
+
+def _area_edges_warm_up(k) -> None:
+    for buf, table in _warm_up_planes(8):
+        k(buf, 1, 8, 8, 8, np.arange(8), np.full(8, 1), np.ones(8, bool), 2, 1, table, 1)
 
 
 @kernel(_area_edges_warm_up)
@@ -529,12 +536,8 @@ def transition_width(
 
 
 def _mean_transition_width_warm_up(k) -> None:
-    img = np.zeros((16, 16), np.uint8)
-    img[:, 8:] = 100
-    lut = np.arange(256, dtype=np.float32)
-    for buf in (img.reshape(-1), img.astype(np.uint16).reshape(-1)):
-        for table in (_NO_LUT, lut if buf.dtype == np.uint8 else np.arange(65536, dtype=np.float32)):
-            k(buf, 1, 16, 16, np.arange(6), np.full(6, 7.6), np.full(6, 100.0), 3, table)
+    for buf, table in _warm_up_planes(16):
+        k(buf, 1, 16, 16, np.arange(6), np.full(6, 7.6), np.full(6, 100.0), 3, table)
 
 
 @kernel(_mean_transition_width_warm_up)
@@ -1711,13 +1714,9 @@ def texture_bias(
 
 
 def _texture_profiles_warm_up(k) -> None:
-    img = np.zeros((40, 40), np.uint8)
-    img[:, 20:] = 100
-    lut = np.arange(256, dtype=np.float32)
-    for buf in (img.reshape(-1), img.astype(np.uint16).reshape(-1)):
-        for table in (_NO_LUT, lut if buf.dtype == np.uint8 else np.arange(65536, dtype=np.float32)):
-            for plateau in (1, 2):
-                k(buf, 1, 40, 40, 40, np.arange(10), np.full(10, 5), 30, plateau, table)
+    for buf, table in _warm_up_planes(40):
+        for plateau in (1, 2):
+            k(buf, 1, 40, 40, 40, np.arange(10), np.full(10, 5), 30, plateau, table)
 
 
 @kernel(_texture_profiles_warm_up)

@@ -5,9 +5,10 @@ numpy, each iteration is ~20 array calls of a few microseconds on arrays too sma
 and the fits were a sixth of a clean frame (issue 14). The same loop compiled runs several times faster.
 The kernels are plain Python over numpy arrays (``kernel.py_func`` runs one uncompiled;
 ``NUMBA_DISABLE_JIT=1`` runs them all so), written to give the numbers the numpy code gave up to
-rounding. Two helpers here serve several kernels: :func:`select_kth` (np.partition's order statistic,
-in place) and :func:`pairwise_sum` (a row's sum in numpy's own order, so that a compiled sum gives
-numpy's number to the bit).
+rounding. A few helpers here serve several kernels: :func:`select_kth` (np.partition's order statistic,
+in place), :func:`partitioned_median` and :func:`median_in_place` (np.median's value) and
+:func:`pairwise_sum` (a row's sum in numpy's own order, so that a compiled sum gives numpy's number to
+the bit).
 
 numba compiles a kernel on its first call and caches the machine code on disk (beside the source, or
 under ``NUMBA_CACHE_DIR``; where neither can be written, each process compiles its own). The first call on
@@ -26,7 +27,15 @@ import numpy as np
 from numba import types
 from numba.extending import overload
 
-__all__ = ["kernel", "compile_kernels", "grey", "pairwise_sum", "select_kth"]
+__all__ = [
+    "kernel",
+    "compile_kernels",
+    "grey",
+    "median_in_place",
+    "pairwise_sum",
+    "partitioned_median",
+    "select_kth",
+]
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -102,6 +111,27 @@ def select_kth(x, k):
             lo = i
         else:
             break
+
+
+@kernel(inline=True)
+def partitioned_median(p, m):
+    """The median of ``p`` partitioned at ``m = p.size // 2`` (as by :func:`select_kth` or np.partition):
+    ``p[m]``, or for an even size the mean of the largest element below ``m`` and ``p[m]``, as np.median
+    gives it (float64)."""
+    if p.size % 2:
+        return p[m]
+    below = p[0]
+    for i in range(1, m):
+        below = max(below, p[i])
+    return (below + p[m]) / 2.0
+
+
+@kernel(inline=True)
+def median_in_place(x):
+    """np.median of ``x`` (no NaN), by selection: ``x`` is reordered."""
+    m = x.size // 2
+    select_kth(x, m)
+    return partitioned_median(x, m)
 
 
 @kernel(inline=True)

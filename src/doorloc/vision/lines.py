@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from doorloc.vision.jit import kernel
+from doorloc.vision.jit import kernel, partitioned_median
 
 __all__ = ["ImageLine", "ransac_line", "RectangleFit", "fit_rectangle_edges", "tukey_weights"]
 
@@ -201,18 +201,6 @@ def _to_common(points: np.ndarray, along_x: bool) -> np.ndarray:
     return np.stack([points[:, 1], -points[:, 0]], axis=1) if along_x else points
 
 
-@kernel()
-def _irls_median(p, m):
-    """The median of ``p`` partitioned at ``m = p.size // 2`` (for an even size, the mean of the largest
-    element below ``m`` and ``p[m]``, as np.median)."""
-    if p.size % 2:
-        return p[m]
-    below = p[0]
-    for i in range(1, m):
-        below = max(below, p[i])
-    return (below + p[m]) / 2.0
-
-
 def _irls_warm_up(k) -> None:
     P = np.array([[0.0, 0.0], [0.0, 1.0], [0.1, 2.0], [1.0, 0.0], [2.0, 0.1]])
     k(P, np.array([0, 3]), np.array([3, 2]), np.ones(5, bool), np.ones(5), False, 1e-4, 9, 512)
@@ -298,8 +286,8 @@ def _irls(P, starts, sizes, mask0, votes, use_votes, scale_floor, n_iter, max_sa
                 if kept.size > max_samples:
                     kept = kept[:: kept.size // max_samples + 1]
                 m = kept.size // 2
-                med = _irls_median(np.partition(kept, m), m)
-                mad = _irls_median(np.partition(np.abs(kept - med), m), m)
+                med = partitioned_median(np.partition(kept, m), m)
+                mad = partitioned_median(np.partition(np.abs(kept - med), m), m)
                 scale = max(1.4826 * mad, scale_floor)
         if it < 3:
             # Huber: 1 inside, 1/u beyond (the first iterations: they cannot lose the solution)

@@ -55,7 +55,7 @@ from doorloc.vision.edges import (
     oriented,
     subpixel_edges,
 )
-from doorloc.vision.jit import kernel, pairwise_sum, select_kth
+from doorloc.vision.jit import kernel, median_in_place, pairwise_sum
 
 __all__ = [
     "RESPONSE_ABSORB_SIGMAS",
@@ -506,9 +506,8 @@ def _normalised_profiles(v, pk, size):
                 rel[e * N + i] = r
                 any_nan = any_nan or np.isnan(r)
         tilt = np.nan
-        if N > 0 and not any_nan:  # np.median: the mean of the middle two (NaN where one is NaN)
-            select_kth(rel, N - 1)
-            tilt = (rel[N - 1] + rel[N:].min()) / 2.0
+        if N > 0 and not any_nan:  # (np.median is NaN where a value is)
+            tilt = median_in_place(rel)
         if not np.isfinite(tilt):
             tilt = 0.0
         for w in range(W):
@@ -857,13 +856,8 @@ def _end_pixel_medians(P, scan, along, half):
             m += 1
     if m < 3:
         return np.nan, np.nan
-    med = np.empty(2)
-    k = m // 2
-    for e in range(2):
-        x = ends[e, :m]
-        select_kth(x, k)  # (a selection, not a sort: the same order statistics)
-        med[e] = x[k] if m % 2 else (x[:k].max() + x[k]) / 2.0
-    return min(med[0], med[1]), max(med[0], med[1])
+    a, b = median_in_place(ends[0, :m]), median_in_place(ends[1, :m])
+    return min(a, b), max(a, b)
 
 
 def fit_board_response(
