@@ -16,7 +16,9 @@
 - the camera response's asymmetry measure (response._asymmetry: its normalised profiles and paired bins
   compiled) against its numpy version, bit for bit, at many phases and at one (the spline path);
 - the in-place selection (jit.select_kth) against np.partition, numpy's pairwise sum (jit.pairwise_sum)
-  against ndarray.sum, the running mean (response._running_mean_nearest) against uniform_filter1d.
+  against ndarray.sum, the running mean (response._running_mean_nearest) against uniform_filter1d;
+- the JPEG block ratio (edges.block_artifact_ratio: its integer path compiled) and the gate's per-line
+  figures (quality.line_figures) against their numpy versions, bit for bit.
 The blurred-step pixel model (edges._step_pixel_values) is held to its dense formula in test_pixel_step.py.
 The coarse step finder is held to the first finder bit for bit in test_coarse.py.
 """
@@ -392,3 +394,63 @@ def test_step_fit_as_its_numpy_version(seed, n, h, blur, noise, flat):
         vals[0] = 50.0
     want = reference.step_fit(vals, e0, bounds, blur)
     np.testing.assert_array_equal(_step_fit(vals, e0, bounds, blur), want)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    sixteen=st.booleans(),
+    blocky=st.booleans(),
+    noise=st.sampled_from([0.0, 0.6, 4.0]),
+    centre=st.tuples(st.floats(-20, 420), st.floats(-20, 320)),
+    half=st.sampled_from([16, 40, 96]),
+)
+def test_block_ratio_as_its_numpy_version(seed, sixteen, blocky, noise, centre, half):
+    # edges.block_artifact_ratio (its integer path compiled: exact sums, float32 means, medians by
+    # selection) against the numpy code, bit for bit: with and without 8x8 block steps, at crops that the
+    # image's border cuts, 8- and 16-bit
+    from doorloc.vision.edges import block_artifact_ratio
+
+    rng = np.random.default_rng(seed)
+    top = 65535 if sixteen else 255
+    img = rng.uniform(0.2, 0.8) + 0.1 * np.sin(np.arange(400)[None, :] / rng.uniform(5, 40))
+    img = np.repeat(img, 300, axis=0) + rng.normal(0, noise / 255, (300, 400))
+    if blocky:  # a level per 8x8 block on top
+        img = img + np.kron(rng.normal(0, 0.01, (38, 50)), np.ones((8, 8)))[:300, :400]
+    plane = np.clip(img * top, 0, top).astype(np.uint16 if sixteen else np.uint8)
+    s8 = 255.0 / top
+    got = block_artifact_ratio(plane, np.array(centre), half=half, scale_to_8bit=s8)
+    want = reference.block_artifact_ratio(plane, np.array(centre), half=half, scale_to_8bit=s8)
+    np.testing.assert_array_equal(got, want)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    n=st.integers(1, 400),
+    kept=st.sampled_from([0.0, 0.1, 0.8, 1.0]),
+    nan=st.sampled_from([None, "step", "noise"]),
+)
+def test_line_figures_as_numpy(seed, n, kept, nan):
+    # quality.line_figures (the gate's per-line figures compiled) against the numpy expressions it
+    # replaced, bit for bit: no inliers, a few, all; a NaN among the inliers' steps or noise figures
+    from doorloc.vision.lines import _median
+    from doorloc.vision.quality import line_figures
+
+    rng = np.random.default_rng(seed)
+    w = np.where(rng.uniform(size=n) < kept, rng.uniform(0.1, 1.0, n), 0.0)
+    res = rng.normal(0, 0.05, n)
+    step = rng.normal(0, 60, n)
+    noise = rng.uniform(0, 3, n).astype(np.float32)
+    inl = w > 0
+    if nan is not None and inl.any():
+        (step if nan == "step" else noise)[np.flatnonzero(inl)[-1]] = np.nan
+    got = line_figures(w, res, step, noise)
+    n_i = int(inl.sum())
+    want = (
+        (n_i, float((res[inl] * res[inl]).sum()) / n_i, _median(np.abs(step[inl])), _median(noise[inl]))
+        if n_i
+        else (0, np.nan, 0.0, np.nan)
+    )
+    assert got[0] == want[0]
+    np.testing.assert_array_equal(np.array(got[1:]), np.array(want[1:]))

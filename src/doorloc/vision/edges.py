@@ -31,7 +31,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from doorloc.vision.jit import grey, kernel, pairwise_sum
+from doorloc.vision.jit import grey, kernel, median_in_place, pairwise_sum
 from doorloc.vision.lines import _median  # np.median's value for less
 
 __all__ = [
@@ -1646,107 +1646,121 @@ def texture_bias(
     TextureBias
         NaN fields when fewer than 8 samples are usable.
     """
-    m = mask & samples.valid & np.isfinite(samples.along)
-    idx = np.flatnonzero(m)
-    if idx.size < 8:
-        return TextureBias(float("nan"), float("nan"))
-    if idx.size > max_lines:  # a mean profile needs no more
-        idx = idx[_spread_indices(idx.size, max_lines)]
     P = oriented(plane, samples.axis)
     h = half + 1
     reach = max(2 * (half + plateau), 2 * h) + n_shifts + 2
     skip = max(int(door_skip_px), 0)
     R = reach + skip  # the gathered half-window: the door side's profile starts skip px farther out
     skip_plus, skip_minus = (skip, 0) if door_side > 0 else (0, skip)
-    c0 = np.round(samples.along[idx]).astype(int)
-    flat = _buffer(P)
     # Mean profiles over the scan lines (the line fit's outliers are already out) of the two halves of
-    # the edge (their mean is the whole edge's), the step between the profiles' ends, and the distance
-    # between the halves' mean scan lines
-    T_lo, T_hi, D, lever, n_ok = _texture_profiles(
-        *flat,
+    # the edge and of the whole edge, the step between the profiles' ends, and the distance between the
+    # halves' mean scan lines
+    profiles = (
+        *_buffer(P),
         P.shape[0],
         P.shape[1],
-        samples.scan[idx],
-        c0 - R,
-        2 * R + 1,
+        samples.scan,
+        samples.along,
+        np.ascontiguousarray(mask, np.bool_),
+        samples.valid,
+        max_lines,
+        R,
         plateau,
         lut if lut is not None else _NO_LUT,
     )
+    if blur_px is None:
+        # the area estimator's error on each mean profile, both sides (closed form), and its RMS: all
+        # compiled in one call (the Python between the steps cost more than they did)
+        off, tilt = _area_texture_bias(*profiles, reach, skip_plus, skip_minus, n_shifts, half)
+        return TextureBias(off, tilt)
+    Ts, D, lever, n_ok = _texture_profiles(*profiles)
     if n_ok < 8 or not D > 0:
         return TextureBias(float("nan"), float("nan"))
-    with_tilt = n_ok // 2 >= 4 and n_ok - n_ok // 2 >= 4
-    Ts = np.stack([0.5 * (T_lo + T_hi), T_hi, T_lo]) if with_tilt else (0.5 * (T_lo + T_hi))[None]
-    if blur_px is None:
-        # the area estimator's error on each mean profile, both sides (closed form, compiled)
-        pbs = _area_pseudo_bias(
-            Ts, R, reach, skip_plus, skip_minus, half + plateau, n_shifts, half, plateau, D
-        )
-    else:
-        # the step fit's error on a clean step of this contrast with this texture on one side
-        # (every profile's every shift in one fit: the rows are fitted independently)
-        profs = np.stack(
-            [
-                p
-                for T in Ts
-                for p in (T[R + 1 + skip_plus : R + 1 + skip_plus + reach], T[: R - skip_minus][::-1][:reach])
-            ]
-        )
-        bounds = np.arange(-h, h + 2, dtype=np.float64) - 0.5
-        C0, _, _ = _pixel_step(bounds, np.zeros(1), max(float(blur_px), 0.05))
-        k = np.arange(-h, h + 1)
-        o = np.arange(h + 1, h + 1 + n_shifts)
-        tex = profs[:, o[:, None] + k[None, :] - 1]
-        tex = tex - tex.mean(axis=2, keepdims=True)
-        rows = (C0[None] * (D + tex)).reshape(-1, k.size)
-        err = _step_fit(rows, np.zeros(rows.shape[0]), bounds, max(float(blur_px), 0.05))
-        err = err.reshape(profs.shape[0], o.size)
-        pbs = np.stack([np.concatenate([err[2 * i], err[2 * i + 1]]) for i in range(len(Ts))])
-    pb = pbs[0]
+    # the step fit's error on a clean step of this contrast with this texture on one side
+    # (every profile's every shift in one fit: the rows are fitted independently)
+    profs = np.stack(
+        [
+            p
+            for T in Ts
+            for p in (T[R + 1 + skip_plus : R + 1 + skip_plus + reach], T[: R - skip_minus][::-1][:reach])
+        ]
+    )
+    bounds = np.arange(-h, h + 2, dtype=np.float64) - 0.5
+    C0, _, _ = _pixel_step(bounds, np.zeros(1), max(float(blur_px), 0.05))
+    k = np.arange(-h, h + 1)
+    o = np.arange(h + 1, h + 1 + n_shifts)
+    tex = profs[:, o[:, None] + k[None, :] - 1]
+    tex = tex - tex.mean(axis=2, keepdims=True)
+    rows = (C0[None] * (D + tex)).reshape(-1, k.size)
+    err = _step_fit(rows, np.zeros(rows.shape[0]), bounds, max(float(blur_px), 0.05))
+    err = err.reshape(profs.shape[0], o.size)
+    pbs = np.stack([np.concatenate([err[2 * i], err[2 * i + 1]]) for i in range(len(Ts))])
     # Both sides add (independent textures); the RMS over the shifts of each side, summed in quadrature.
-    n = pb.size // 2
-    off = math.sqrt(_mean_square(pb[:n]) + _mean_square(pb[n:]))
+    n = n_shifts
+    off = math.sqrt(_mean_square(pbs[0, :n]) + _mean_square(pbs[0, n:]))
     tilt = float("nan")
-    if with_tilt and lever > 0:
+    if lever > 0:
         d = pbs[1] - pbs[2]
         tilt = math.sqrt(_mean_square(d[:n]) + _mean_square(d[n:])) / lever
     return TextureBias(off, tilt)
 
 
-def _texture_profiles_warm_up(k) -> None:
+def _texture_warm_up(k, *extra) -> None:
     for buf, table in _warm_up_planes(40):
         for plateau in (1, 2):
-            k(buf, 1, 40, 40, 40, np.arange(10), np.full(10, 5), 30, plateau, table)
+            on = np.ones(10, np.bool_)
+            k(buf, 1, 40, 40, 40, np.arange(10), np.full(10, 20.3), on, on, 128, 10, plateau, table, *extra)
 
 
-@kernel(_texture_profiles_warm_up)
-def _texture_profiles(buf, pitch_along, pitch_scan, n_along, n_scan, scan, start, length, plateau, lut):
+@kernel(_texture_warm_up)
+def _texture_profiles(
+    buf, pitch_along, pitch_scan, n_along, n_scan, scan, along, mask, valid, max_lines, R, plateau, lut
+):
     """The mean profiles of :func:`texture_bias`, compiled (:mod:`doorloc.vision.jit`).
 
-    Profile ``i`` is ``P[start[i] + j, scan[i]]`` for ``j < length`` (``buf``, pitches as
-    :func:`_area_edges`), mapped by ``lut`` (empty: none); only profiles wholly inside the image count.
-    Returns ``(T_lo, T_hi, D, lever, n)``: the float64 means of the profiles of the lower and the upper
-    half of the scan lines (sorted; numpy's sums, row after row), the median step between the profiles'
-    two end plateaus, the distance between the halves' mean scan lines, and the profiles counted.
+    The scan lines: those with ``mask``, ``valid`` and a finite ``along``, at most ``max_lines`` of them
+    spread evenly (``np.linspace``'s indices). Profile ``i`` is ``P[round(along[i]) - R + j, scan[i]]`` for
+    ``j <= 2 R`` (``buf``, pitches as :func:`_area_edges`), mapped by ``lut`` (empty: none); only profiles
+    wholly inside the image count. Returns ``(Ts, D, lever, n)``: ``Ts`` (3, 2 R + 1) the float64 means of
+    the profiles of both halves, of the upper and of the lower half of the scan lines (sorted; numpy's sums,
+    row after row), ``D`` the median step between the profiles' two end plateaus (``plateau`` px each),
+    ``lever`` the distance between the halves' mean scan lines and ``n`` the profiles counted (``Ts`` zero
+    and ``D``, ``lever`` NaN below 8).
     """
-    n_all = scan.size
-    ok = np.empty(n_all, np.bool_)
-    for i in range(n_all):
-        ok[i] = start[i] >= 0 and start[i] + length - 1 < n_along
-    rows = np.flatnonzero(ok)
-    n = rows.size
-    T_lo = np.zeros(length)
-    T_hi = np.zeros(length)
+    length = 2 * R + 1
+    Ts = np.zeros((3, length))
+    picked = np.empty(scan.size, np.int64)
+    m = 0
+    for i in range(scan.size):
+        if mask[i] and valid[i] and np.isfinite(along[i]):
+            picked[m] = i
+            m += 1
+    if m < 8:
+        return Ts, np.nan, np.nan, 0
+    if m > max_lines:  # a mean profile needs no more: np.linspace(0, m - 1, max_lines).astype(int)
+        step = (m - 1) / (max_lines - 1)
+        for q in range(max_lines - 1):
+            picked[q] = picked[int(q * step)]
+        picked[max_lines - 1] = picked[m - 1]
+        m = max_lines
+    rows = np.empty(m, np.int64)
+    start = np.empty(m, np.int64)
+    n = 0
+    for q in range(m):
+        i = picked[q]
+        s0 = int(np.rint(along[i])) - R
+        if s0 >= 0 and s0 + length - 1 < n_along:
+            rows[n] = i
+            start[n] = s0
+            n += 1
     if n < 8:
-        return T_lo, T_hi, np.nan, np.nan, n
+        return Ts, np.nan, np.nan, n
     vals = np.empty((n, length), np.float32)
     steps = np.empty(n, np.float32)
     for r in range(n):
-        i = rows[r]
-        base = scan[i] * pitch_scan
+        base = scan[rows[r]] * pitch_scan
         for j in range(length):
-            v = buf[(start[i] + j) * pitch_along + base]
-            vals[r, j] = grey(lut, v)
+            vals[r, j] = grey(lut, buf[(start[r] + j) * pitch_along + base])
         a = np.float32(0.0)
         b = np.float32(0.0)
         for j in range(plateau):
@@ -1762,37 +1776,58 @@ def _texture_profiles(buf, pitch_along, pitch_scan, n_along, n_scan, scan, start
     hi_sum = 0
     for q in range(n):
         r = order[q]
-        T = T_lo if q < k else T_hi
+        t = 2 if q < k else 1  # Ts[2]: the lower half's, Ts[1]: the upper's
         for j in range(length):
-            T[j] += vals[r, j]
+            Ts[t, j] += vals[r, j]
         if q < k:
             lo_sum += scan[rows[r]]
         else:
             hi_sum += scan[rows[r]]
     for j in range(length):
-        T_lo[j] /= k
-        T_hi[j] /= n - k
-    lever = hi_sum / (n - k) - lo_sum / k if k > 0 else np.nan
-    return T_lo, T_hi, D, lever, n
+        Ts[2, j] /= k
+        Ts[1, j] /= n - k
+        Ts[0, j] = 0.5 * (Ts[2, j] + Ts[1, j])
+    lever = hi_sum / (n - k) - lo_sum / k
+    return Ts, D, lever, n
 
 
-def _area_pseudo_bias_warm_up(k) -> None:
-    k(np.ones((3, 61)), 30, 30, 0, 0, 4, 12, 3, 1, 1.0)
-
-
-@kernel(_area_pseudo_bias_warm_up)
-def _area_pseudo_bias(Ts, R, reach, skip_plus, skip_minus, first, n_shifts, half, plateau, D):
-    """The area estimator's error on texture alone (:func:`texture_bias`, closed form), compiled.
-
-    For each mean profile ``Ts[t]`` (gathered ``R`` px either side of the edge) and each side (beyond the
-    edge: from ``R + 1 + skip_plus``; before it, outwards: from ``R - 1 - skip_minus``), at the shifts
-    ``o = first .. first + n_shifts - 1``: the window sum of pixels ``o + 1 .. o + half`` minus ``half``
-    times the mean of the plateau beyond it, over ``D``. Returns ``(len(Ts), 2 n_shifts)``: one side's
-    shifts, then the other's.
+@kernel(lambda k: _texture_warm_up(k, 30, 0, 0, 12, 3))
+def _area_texture_bias(
+    buf,
+    pitch_along,
+    pitch_scan,
+    n_along,
+    n_scan,
+    scan,
+    along,
+    mask,
+    valid,
+    max_lines,
+    R,
+    plateau,
+    lut,
+    reach,
+    skip_plus,
+    skip_minus,
+    n_shifts,
+    half,
+):
+    """:func:`texture_bias`'s ``(offset_sigma_px, tilt_sigma)`` for the area estimator (window ``half``),
+    compiled: the mean profiles (:func:`_texture_profiles`, the first arguments), then on each and each side
+    (beyond the edge: from ``R + 1 + skip_plus``; before it, outwards: from ``R - 1 - skip_minus``), at the
+    shifts ``o = half + plateau .. half + plateau + n_shifts - 1``, the closed form of the estimator's error
+    on texture alone: the window sum of pixels ``o + 1 .. o + half`` minus ``half`` times the mean of the
+    plateau beyond it, over the step ``D``; their RMS (numpy's sums). NaN without 8 profiles or a step.
     """
-    out = np.empty((Ts.shape[0], 2 * n_shifts))
+    Ts, D, lever, n = _texture_profiles(
+        buf, pitch_along, pitch_scan, n_along, n_scan, scan, along, mask, valid, max_lines, R, plateau, lut
+    )
+    if n < 8 or not D > 0:
+        return np.nan, np.nan
+    pbs = np.empty((3, 2 * n_shifts))
     c = np.zeros(reach + 1)
-    for t in range(Ts.shape[0]):
+    first = half + plateau
+    for t in range(3):
         for side in range(2):
             for j in range(reach):
                 x = Ts[t, R + 1 + skip_plus + j] if side == 0 else Ts[t, R - skip_minus - 1 - j]
@@ -1801,21 +1836,31 @@ def _area_pseudo_bias(Ts, R, reach, skip_plus, skip_minus, first, n_shifts, half
                 o = first + q
                 win = c[o + half] - c[o]
                 lev = (c[o + half + plateau] - c[o + half]) / plateau
-                out[t, side * n_shifts + q] = (win - half * lev) / D
-    return out
+                pbs[t, side * n_shifts + q] = (win - half * lev) / D
+    # Both sides add (independent textures); the RMS over the shifts of each side, summed in quadrature.
+    sq = np.empty(2 * n_shifts)
+    for j in range(2 * n_shifts):
+        sq[j] = pbs[0, j] * pbs[0, j]
+    off = math.sqrt(
+        pairwise_sum(sq, 0, n_shifts) / n_shifts + pairwise_sum(sq, n_shifts, n_shifts) / n_shifts
+    )
+    tilt = np.nan
+    if lever > 0:
+        for j in range(2 * n_shifts):
+            d = pbs[1, j] - pbs[2, j]
+            sq[j] = d * d
+        tilt = (
+            math.sqrt(
+                pairwise_sum(sq, 0, n_shifts) / n_shifts + pairwise_sum(sq, n_shifts, n_shifts) / n_shifts
+            )
+            / lever
+        )
+    return off, tilt
 
 
 def _mean_square(x: np.ndarray) -> float:
     """``float(np.mean(x ** 2))`` of a 1-D float64 array (the same sum, without np.mean's dispatch)."""
     return float((x * x).sum()) / x.size
-
-
-@functools.lru_cache(maxsize=64)
-def _spread_indices(n: int, k: int) -> np.ndarray:
-    """``np.linspace(0, n - 1, k).astype(int)``, made once per (n, k) (read-only)."""
-    out = np.linspace(0, n - 1, k).astype(int)
-    out.setflags(write=False)
-    return out
 
 
 def _abs_step_sums_warm_up(k) -> None:
@@ -1843,6 +1888,40 @@ def _abs_step_sums(crop, ax):
     return out
 
 
+def _block_step_ratio_warm_up(k) -> None:
+    for dtype in (np.uint8, np.uint16):
+        k(np.zeros((40, 40), dtype)[2:36, 3:38], 5, 7, 1.0, 0.05)
+
+
+@kernel(_block_step_ratio_warm_up)
+def _block_step_ratio(crop, u0, v0, scale_to_8bit, min_excess):
+    """:func:`block_artifact_ratio` of an integer ``crop`` (at most 256 px a side) whose first pixel is
+    ``(u0, v0)``, compiled: the same float32 means (exact integer sums, :func:`_abs_step_sums`) and medians."""
+    sc = np.float32(scale_to_8bit)
+    out = 0.0
+    for ax in (1, 0):
+        s = _abs_step_sums(crop, ax)
+        n = np.float32(crop.shape[1 - ax])
+        o = u0 if ax == 1 else v0
+        n_on = 0
+        for i in range(s.size):
+            n_on += (o + i) % 8 == 7
+        on_d = np.empty(n_on, np.float32)
+        off_d = np.empty(s.size - n_on, np.float32)
+        a = b = 0
+        for i in range(s.size):
+            d = (np.float32(s[i]) / n) * sc
+            if (o + i) % 8 == 7:
+                on_d[a] = d
+                a += 1
+            else:
+                off_d[b] = d
+                b += 1
+        on, off = median_in_place(on_d), median_in_place(off_d)
+        out = max(out, on / max(off, 1e-3) if on - off >= min_excess else 1.0)
+    return out
+
+
 def block_artifact_ratio(
     plane: np.ndarray,
     centre_px: np.ndarray,
@@ -1860,24 +1939,21 @@ def block_artifact_ratio(
     steps exceed the others by less than ``min_excess`` grey levels (0-255 scale; a noise-free image that
     never was a JPEG has all its medians near 0), the ratio is taken as 1.
     """
-    c = np.asarray(centre_px, float)
-    if not np.all(np.isfinite(c)):
+    cu, cv = float(centre_px[0]), float(centre_px[1])
+    if not (math.isfinite(cu) and math.isfinite(cv)):
         return float("nan")
-    u0, v0 = max(int(c[0]) - half, 0), max(int(c[1]) - half, 0)
+    u0, v0 = max(int(cu) - half, 0), max(int(cv) - half, 0)
     crop = plane[v0 : v0 + 2 * half, u0 : u0 + 2 * half]
     if min(crop.shape) < 32:
         return float("nan")
-    exact_int = crop.dtype.kind in "ui" and crop.dtype.itemsize <= 2 and max(crop.shape) <= 256
+    if crop.dtype.kind in "ui" and crop.dtype.itemsize <= 2 and max(crop.shape) <= 256:
+        # Integer differences summed exactly (compiled): the float32 mean's sums are integers below
+        # 2**24 (exact), so this is the same mean for a fraction of the work (and no transposed copy).
+        return float(_block_step_ratio(crop, u0, v0, scale_to_8bit, min_excess))
     out = []
     for ax, o in ((1, u0), (0, v0)):
-        if exact_int:
-            # Integer differences summed exactly (compiled): the float32 mean's sums are integers below
-            # 2**24 (exact), so this is the same mean for a fraction of the work (and no transposed copy).
-            s = _abs_step_sums(crop, ax)
-            d = (s.astype(np.float32) / np.float32(crop.shape[1 - ax])) * scale_to_8bit
-        else:
-            arr = crop if ax == 1 else crop.T
-            d = np.abs(np.diff(arr.astype(np.float32), axis=1)).mean(axis=0) * scale_to_8bit
+        arr = crop if ax == 1 else crop.T
+        d = np.abs(np.diff(arr.astype(np.float32), axis=1)).mean(axis=0) * scale_to_8bit
         boundary = (o + np.arange(d.size)) % 8 == 7
         on, off = _median(d[boundary]), _median(d[~boundary])
         out.append(on / max(off, 1e-3) if on - off >= min_excess else 1.0)

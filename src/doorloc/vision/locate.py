@@ -61,7 +61,7 @@ from doorloc.vision.edges import (
     texture_bias,
     transition_width,
 )
-from doorloc.vision.lines import ImageLine, RectangleFit, _median, fit_rectangle_edges, ransac_line
+from doorloc.vision.lines import ImageLine, RectangleFit, fit_rectangle_edges, ransac_line
 from doorloc.vision.luminance import ImageFormatError, LuminancePlane, luminance_plane
 from doorloc.vision.metric import MetricPose, pose_from_fit
 from doorloc.vision.region import EDGE_NAMES, Band, EdgeLayout, SearchRegion
@@ -1307,11 +1307,6 @@ def _residual_structure_tilt(samples: EdgeSamples, residual_px: np.ndarray, inli
     return float(np.std(means, ddof=1) / math.sqrt(spread)) if spread > 0 else float("nan")
 
 
-def _mean_square(x: np.ndarray) -> float:
-    """``float(np.mean(x ** 2))`` of a 1-D float64 array (the same sum, without np.mean's dispatch)."""
-    return float((x * x).sum()) / x.size
-
-
 def _response_check_applies(samples: EdgeSamples, inliers: np.ndarray, blur_px: float) -> bool:
     """Whether the mean transition's asymmetry can be read on this line.
 
@@ -1705,13 +1700,10 @@ def _gate_and_answer(
         )
     for k in EDGE_NAMES:
         s = samples[k]
-        w = fit.weights[k]
-        inl = w > 0
         n_s = int(s.scan.size)
-        n_i = int(inl.sum())
-        rms_mm = math.sqrt(_mean_square(fit.residuals[k][inl])) if n_i else float("nan")
+        n_i, mean_square, contrast, noise = q.line_figures(fit.weights[k], fit.residuals[k], s.step, s.noise)
+        rms_mm = math.sqrt(mean_square) if n_i else float("nan")
         rms_px = rms_mm / pose.scale_mm_per_px
-        contrast = _median(np.abs(s.step[inl])) if n_i else 0.0
         # what the edge model leaves in doubt (floor, texture, far-face model...), on top of the noise
         extra = {"model_sigma_mm": round(model.line_sigma_px(k) * pose.scale_mm_per_px, 6)}
         for term, key in (("arris", "arris_correction_sigma_mm"), ("response", "response_sigma_mm")):
@@ -1725,7 +1717,7 @@ def _gate_and_answer(
                 rms_residual_px=round(rms_px, 4),
                 rms_residual_mm=round(rms_mm, 5),
                 contrast=round(contrast, 1),
-                noise=round(_median(s.noise[inl]), 2) if n_i else None,
+                noise=round(noise, 2) if n_i else None,
                 offset_sigma_mm=round(fit.offset_sigma[k], 5),
                 **extra,
             )

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from doorloc.cell import Envelope
+from doorloc.vision.jit import kernel, median_in_place, pairwise_sum
 from doorloc.vision.lines import _median  # np.median's value, without its generic machinery
 
 __all__ = [
@@ -23,6 +24,7 @@ __all__ = [
     "check_corner_support",
     "check_line",
     "check_overexposed",
+    "line_figures",
     "looks_like_pattern",
 ]
 
@@ -114,6 +116,45 @@ def check_overexposed(bright_levels: np.ndarray) -> Refusal | None:
             "the edges; reduce the exposure time or the lighting",
         )
     return None
+
+
+def _line_figures_warm_up(k) -> None:
+    k(
+        np.array([1.0, 0.0, 2.0]),
+        np.array([0.1, 0.2, -0.3]),
+        np.array([50.0, 60.0, -70.0]),
+        np.ones(3, np.float32),
+    )
+
+
+@kernel(_line_figures_warm_up)
+def line_figures(weights, residuals, step, noise):
+    """The figures :func:`check_line` judges, over a fitted line's inliers (``weights > 0``), compiled:
+    ``(n_inliers, mean square residual, median |step|, median noise)`` in the units given (the residual
+    squared; the medians np.median's values, in the arrays' own float type, NaN where one is NaN); without
+    inliers ``(0, NaN, 0.0, NaN)``."""
+    m = 0
+    for i in range(weights.size):
+        if weights[i] > 0:
+            m += 1
+    if m == 0:
+        return 0, np.nan, 0.0, np.nan
+    sq = np.empty(m)
+    steps = np.empty(m, step.dtype)
+    noises = np.empty(m, noise.dtype)
+    j = 0
+    nan_step = nan_noise = False
+    for i in range(weights.size):
+        if weights[i] > 0:
+            sq[j] = residuals[i] * residuals[i]
+            steps[j] = abs(step[i])
+            noises[j] = noise[i]
+            nan_step = nan_step or np.isnan(steps[j])
+            nan_noise = nan_noise or np.isnan(noises[j])
+            j += 1
+    contrast = np.nan if nan_step else median_in_place(steps)
+    spread = np.nan if nan_noise else median_in_place(noises)
+    return m, pairwise_sum(sq, 0, m) / m, contrast, spread
 
 
 def check_line(

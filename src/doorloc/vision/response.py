@@ -824,30 +824,30 @@ def plateau_levels(
     plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half: int
 ) -> tuple[float, float]:
     """The dark and bright plateau's raw grey level just beyond the window (medians, full scale 1)."""
-    if int(mask.sum()) < 3:
-        return float("nan"), float("nan")
     P = oriented(plane, samples.axis)  # (for rows, the plane's transpose: an F-ordered view, no copy)
     top = 255.0 if plane.dtype == np.uint8 else 65535.0
-    lo, hi = _end_pixel_medians(P, samples.scan[mask], samples.along[mask], half)
+    lo, hi = _end_pixel_medians(P, samples.scan, samples.along, np.ascontiguousarray(mask, np.bool_), half)
     return lo / top, hi / top
 
 
 def _end_pixel_medians_warm_up(k) -> None:
     for dtype in (np.uint8, np.uint16):
         P = np.zeros((12, 12), dtype)
-        k(P, np.arange(5), np.full(5, 6.0), 2)
-        k(P.T, np.arange(5), np.full(5, 6.0), 2)
+        for Q in (P, P.T):
+            k(Q, np.arange(5), np.full(5, 6.0), np.ones(5, np.bool_), 2)
 
 
 @kernel(_end_pixel_medians_warm_up)
-def _end_pixel_medians(P, scan, along, half):
+def _end_pixel_medians(P, scan, along, mask, half):
     """The medians of the pixels just beyond the window ``round(along) +- half`` on each scan line of ``P``
-    (``P[along, scan]``; lines whose window leaves the image skipped), the smaller first; NaN with fewer
-    than 3 lines (np.median's values, compiled)."""
+    (``P[along, scan]``) with ``mask`` (lines whose window leaves the image skipped), the smaller first;
+    NaN with fewer than 3 lines (np.median's values, compiled)."""
     n = scan.size
     ends = np.empty((2, n))
     m = 0
     for i in range(n):
+        if not mask[i]:
+            continue
         c0 = int(np.rint(along[i]))
         a, b = c0 - half - 1, c0 + half + 1
         if a >= 0 and b < P.shape[0]:
