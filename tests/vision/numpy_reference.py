@@ -418,3 +418,52 @@ def block_artifact_ratio(
         on, off = _median(d[boundary]), _median(d[~boundary])
         out.append(on / max(off, 1e-3) if on - off >= min_excess else 1.0)
     return max(out)
+
+
+def pixel_terms(edges: np.ndarray, bounds: np.ndarray, sigma: np.ndarray):
+    """:func:`doorloc.vision.arris_model._pixel_terms` as written with numpy (scipy's ndtr, every border)."""
+    from scipy.special import ndtr
+
+    s = np.asarray(sigma, float)[:, None, None, None]
+    y = edges[None, None, :, None] - bounds[:, :, None, :]  # (B, R, P+1, J)
+    u = y / s
+    cdf = ndtr(u)
+    pdf = np.exp(-0.5 * u * u) * (1.0 / math.sqrt(2.0 * math.pi))
+    g = y * cdf + s * pdf
+    return g[:, :, 1:] - g[:, :, :-1], cdf[:, :, :-1] - cdf[:, :, 1:], pdf[:, :, 1:] - pdf[:, :, :-1]
+
+
+def strip_solve(prob, terms, basis: np.ndarray, jac: bool = False):
+    """:meth:`doorloc.vision.arris_model._StripProblem.solve` as written with numpy (batched matrix
+    products): ``(chi2, coef, deficit, grad, hess)``."""
+    from doorloc.vision.arris_model import PRIOR_LEVEL, _mix
+
+    prim, d_b, d_s = terms
+    M, const = _mix(basis, prob.n_cells)
+    B = prim.shape[0]
+    A = (prim @ M + const).reshape(B, -1, M.shape[1])
+    y, w = prob.y.ravel(), prob.w
+    AwT = A.transpose(0, 2, 1) * w
+    C = basis.shape[0]
+    P = np.concatenate([np.full((C, 1), PRIOR_LEVEL - 1.0), np.full((C, 1), -PRIOR_LEVEL), basis], axis=1)
+    P = P * math.sqrt(prob.prior_weight)
+    N = AwT @ A + P.T @ P + 1e-12 * np.eye(M.shape[1])
+    coef = np.linalg.solve(N, (AwT @ y)[..., None])[..., 0]
+    f = (A @ coef[..., None])[..., 0] - y
+    fp = coef @ P.T
+    chi2 = (f * f) @ w + (fp * fp).sum(axis=1)
+    c0, cb, band = coef[:, 0], coef[:, 1], coef[:, 2:]
+    levels = (band @ basis.T - c0[:, None]) / (cb - c0)[:, None]
+    deficit = np.mean(1.0 - levels, axis=1)
+    grad = hess = None
+    if jac:
+        v = (coef @ M.T)[:, :, None]
+        n_j = prim.shape[-1]
+        J = np.concatenate([(d_b.reshape(B, -1, n_j) @ v), (d_s.reshape(B, -1, n_j) @ v)], axis=2)
+        dcoef = np.linalg.solve(N, AwT @ J)
+        J = J - A @ dcoef
+        Jp = -(P @ dcoef)
+        JwT = J.transpose(0, 2, 1) * w
+        grad = 2.0 * ((JwT @ f[..., None])[..., 0] + (Jp.transpose(0, 2, 1) @ fp[..., None])[..., 0])
+        hess = 2.0 * (JwT @ J + Jp.transpose(0, 2, 1) @ Jp)
+    return chi2, coef, deficit, grad, hess

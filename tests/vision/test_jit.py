@@ -18,7 +18,11 @@
 - the in-place selection (jit.select_kth) against np.partition, numpy's pairwise sum (jit.pairwise_sum)
   against ndarray.sum, the running mean (response._running_mean_nearest) against uniform_filter1d;
 - the JPEG block ratio (edges.block_artifact_ratio: its integer path compiled) and the gate's per-line
-  figures (quality.line_figures) against their numpy versions, bit for bit.
+  figures (quality.line_figures) against their numpy versions, bit for bit;
+- the arris strip fit's pixel terms (arris_model._pixel_terms) and its linear solve
+  (arris_model._StripProblem.solve) against their numpy versions, to rounding (the C library's erfc is not
+  scipy's; the normal equations are summed in another order and are ill-conditioned: the coefficients to
+  1e-6 of their scale).
 The blurred-step pixel model (edges._step_pixel_values) is held to its dense formula in test_pixel_step.py.
 The coarse step finder is held to the first finder bit for bit in test_coarse.py.
 """
@@ -454,3 +458,72 @@ def test_line_figures_as_numpy(seed, n, kept, nan):
     )
     assert got[0] == want[0]
     np.testing.assert_array_equal(np.array(got[1:]), np.array(want[1:]))
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    n_cand=st.integers(1, 25),
+    n_rows=st.integers(1, 8),
+    n_cells=st.sampled_from([1, 4, 9]),
+    width=st.integers(12, 48),
+    one_blur=st.booleans(),
+)
+def test_strip_pixel_terms_as_their_numpy_version(seed, n_cand, n_rows, n_cells, width, one_blur):
+    # arris_model._pixel_terms (compiled, Gaussian terms near each boundary only) against the array formula
+    # over scipy's ndtr: within a few ulps of the values (the C library's erfc is not scipy's), blurs
+    # from a twentieth of a pixel to wider than the profile, one blur for every candidate or one each
+    from doorloc.vision.arris_model import _pixel_terms
+
+    rng = np.random.default_rng(seed)
+    edges = np.arange(width + 1) - 0.5
+    bounds = rng.uniform(-3, width + 3, (n_cand, n_rows, 1)) + np.sort(rng.uniform(0, 5, n_cells + 1))
+    sigma = rng.uniform(0.05, 8.0, 1 if one_blur else n_cand)
+    got = _pixel_terms(edges, bounds, sigma)
+    want = reference.pixel_terms(edges, bounds, np.broadcast_to(sigma, (n_cand,)))
+    for g, w in zip(got, want, strict=True):
+        assert g.shape == w.shape
+        np.testing.assert_allclose(g, w, rtol=0, atol=1e-13 * width)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    n_cand=st.integers(1, 12),
+    bins=st.integers(1, 8),
+    n_cells=st.sampled_from([1, 4, 8]),
+    noise=st.sampled_from([0.002, 0.02, 0.1]),
+    jac=st.booleans(),
+)
+def test_strip_solve_as_its_numpy_version(seed, n_cand, bins, n_cells, noise, jac):
+    # arris_model._StripProblem.solve (compiled: the normal equations summed in vector lanes, solved by
+    # elimination) against the batched matrix products it replaced: the misfit to 1e-12, the coefficients of
+    # the (ill-conditioned) normal equations, the deficit and the derivatives to 1e-6 relative
+    from doorloc.vision.arris_model import _StripProblem
+
+    rng = np.random.default_rng(seed)
+    x = np.arange(36, dtype=float)
+    outer, width = rng.uniform(14, 18, 60), rng.uniform(0.5, 6.0, 60)
+    r = np.clip((x[None] - outer[:, None]) / width[:, None], 0, 1) * rng.uniform(0.3, 1.0)
+    r = r + (x[None] > (outer + width)[:, None]) * (1 - r) + rng.normal(0, noise, r.shape)
+    prob = _StripProblem(r, x, outer, width, n_cells, bins, noise)
+    tau = (np.arange(n_cells) + 0.5) / n_cells
+    basis = (
+        np.ones((n_cells, 1))
+        if n_cells == 1
+        else np.maximum(0.0, 1.0 - np.abs(tau[:, None] * 3 - np.arange(4)))
+    )
+    terms = prob.pixel_terms(rng.uniform(-2, 2, n_cand), rng.uniform(0.3, 2.0, n_cand))
+    got = prob.solve(terms, basis, jac)
+    chi2, coef, deficit, grad, hess = reference.strip_solve(prob, terms, basis, jac)
+    np.testing.assert_allclose(got.chi2, chi2, rtol=1e-12)
+    scale = np.abs(coef).max(axis=1, keepdims=True)
+    np.testing.assert_allclose(got.coef / scale, coef / scale, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(got.deficit, deficit, rtol=1e-6, atol=1e-9)
+    if jac:
+        assert grad is not None and hess is not None and got.grad is not None and got.hess is not None
+        gs = np.abs(grad).max() + np.abs(hess).max() * 1e-6
+        np.testing.assert_allclose(got.grad, grad, rtol=1e-6, atol=1e-9 * gs)
+        np.testing.assert_allclose(got.hess, hess, rtol=1e-6)
+    else:
+        assert got.grad is None and got.hess is None

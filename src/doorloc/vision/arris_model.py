@@ -39,11 +39,19 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.special import ndtr
 
 from doorloc.arris import ArrisSection
 from doorloc.pose import yaw_rotation_matrix
-from doorloc.vision.edges import DITHERING_NOISE_LEVELS, Axis, EdgeSamples, _gather, oriented
+from doorloc.vision.edges import (
+    DITHERING_NOISE_LEVELS,
+    STEP_TAIL_SIGMAS,
+    Axis,
+    EdgeSamples,
+    _gather,
+    _ndtr,
+    oriented,
+)
+from doorloc.vision.jit import kernel
 
 __all__ = ["ArrisGeometry", "StripFit", "arris_geometry", "deficit_prior", "fit_strip_profile", "arris_edges"]
 
@@ -234,20 +242,69 @@ def _pixel_terms(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Each pixel's integral of a blurred unit level beyond each boundary, and its derivatives.
 
-    ``edges`` (P+1,) the pixel borders; ``bounds`` (B, R, J) the boundaries of each candidate ``B`` and row
-    ``R``; ``sigma`` (B,) the Gaussian blur. With ``G(y) = y Phi(y / s) + s phi(y / s)`` (the integral of
-    the Gaussian CDF) the pixel between borders ``e0, e1`` sees ``G(e1 - b) - G(e0 - b)`` of the level
-    beyond ``b``; ``dG/db = -Phi`` and ``dG/ds = phi`` are closed form. Returns ``prim``, ``d prim / d b``
-    and ``d prim / d s``, each (B, R, P, J).
+    ``edges`` (P+1,) the pixel borders, ascending; ``bounds`` (B, R, J) the boundaries of each candidate
+    ``B`` and row ``R``; ``sigma`` (B,) the Gaussian blur. With ``G(y) = y Phi(y / s) + s phi(y / s)`` (the
+    integral of the Gaussian CDF) the pixel between borders ``e0, e1`` sees ``G(e1 - b) - G(e0 - b)`` of the
+    level beyond ``b``; ``dG/db = -Phi`` and ``dG/ds = phi`` are closed form. Returns ``prim``,
+    ``d prim / d b`` and ``d prim / d s``, each (B, R, P, J) (compiled: :func:`_pixel_terms_compiled`).
     """
-    s = sigma[:, None, None, None]
-    y = edges[None, None, :, None] - bounds[:, :, None, :]  # (B, R, P+1, J)
-    u = y / s
-    cdf = ndtr(u)
-    pdf = np.exp(-0.5 * u * u) * (1.0 / math.sqrt(2.0 * math.pi))
-    g = y * cdf + s * pdf
-    # consecutive pixels share their borders: G once per pixel border, then differences
-    return g[:, :, 1:] - g[:, :, :-1], cdf[:, :, :-1] - cdf[:, :, 1:], pdf[:, :, 1:] - pdf[:, :, :-1]
+    sigma = np.asarray(sigma, np.float64).reshape(-1)
+    n_b = max(bounds.shape[0], sigma.size)  # (the candidates broadcast, as in the array formula)
+    return _pixel_terms_compiled(
+        np.ascontiguousarray(edges, np.float64),
+        np.ascontiguousarray(np.broadcast_to(bounds, (n_b, *bounds.shape[1:])), np.float64),
+        np.ascontiguousarray(np.broadcast_to(sigma, (n_b,))),
+        STEP_TAIL_SIGMAS,
+    )
+
+
+def _pixel_terms_warm_up(k) -> None:
+    k(np.arange(12.0) - 5.5, np.array([[[-0.3, 0.6]], [[0.1, 1.2]]]), np.array([0.4, 1.1]), STEP_TAIL_SIGMAS)
+
+
+@kernel(_pixel_terms_warm_up)
+def _pixel_terms_compiled(edges, bounds, sigma, tail_sigmas):
+    """:func:`_pixel_terms`, compiled. The Gaussian terms (most of the cost: the strip fit evaluates them
+    for every candidate, bin and cell boundary at every pixel border, 20-40 ms of an arris frame as array
+    code) only at the borders within ``tail_sigmas`` blur sigmas of each boundary; beyond them the exact
+    limits (``Phi`` 0 or 1, ``phi`` 0, ``G`` 0 or ``y``), as :class:`doorloc.vision.edges._StepPixels`:
+    they differ from the full evaluation by less than 1e-22. ``Phi`` is :func:`doorloc.vision.edges._ndtr`
+    (the C library's erf/erfc, within an ulp or two of scipy's)."""
+    n_b, n_r, n_j = bounds.shape
+    n_e = edges.size
+    prim = np.empty((n_b, n_r, n_e - 1, n_j))
+    d_b = np.empty((n_b, n_r, n_e - 1, n_j))
+    d_s = np.empty((n_b, n_r, n_e - 1, n_j))
+    G = np.empty(n_e)
+    C = np.empty(n_e)
+    D = np.empty(n_e)
+    norm = 1.0 / math.sqrt(2.0 * math.pi)
+    for b in range(n_b):
+        s = sigma[b]
+        cut = tail_sigmas * s
+        for r in range(n_r):
+            for j in range(n_j):
+                at = bounds[b, r, j]
+                lo = np.searchsorted(edges, at - cut, side="left")
+                hi = np.searchsorted(edges, at + cut, side="right")
+                for p in range(n_e):
+                    y = edges[p] - at
+                    if lo <= p < hi and math.isfinite(y):
+                        u = y / s
+                        C[p] = _ndtr(u)
+                        D[p] = math.exp(-0.5 * u * u) * norm
+                        G[p] = y * C[p] + s * D[p]
+                    elif y != y:  # a NaN boundary: NaN terms, as the array code gave
+                        C[p] = D[p] = G[p] = np.nan
+                    else:
+                        C[p] = 1.0 if y > 0.0 else 0.0
+                        D[p] = 0.0
+                        G[p] = max(y, 0.0)
+                for p in range(n_e - 1):
+                    prim[b, r, p, j] = G[p + 1] - G[p]
+                    d_b[b, r, p, j] = C[p] - C[p + 1]
+                    d_s[b, r, p, j] = D[p + 1] - D[p]
+    return prim, d_b, d_s
 
 
 def _strip_basis(geom: ArrisGeometry, n_cells: int, terminator: float | None, lit_below: bool) -> np.ndarray:
@@ -287,6 +344,181 @@ class _Eval:
     deficit: np.ndarray  # (B,)
     grad: np.ndarray | None  # (B, 2) d chi2 / d (offset, blur), variable projection
     hess: np.ndarray | None  # (B, 2, 2) its Gauss-Newton Hessian
+
+
+@kernel(inline=True)
+def _lu_solve(N, R):
+    """Solve ``N X = R`` in place (``N`` (m, m) becomes its LU factors with partial pivoting, ``R`` (m, k)
+    becomes ``X``): Gaussian elimination as LAPACK's getrf/getrs, for the strip's few unknowns (numba's
+    np.linalg.solve copies and calls LAPACK per system: most of the time at this size)."""
+    m = N.shape[0]
+    for k in range(m):
+        p = k
+        for i in range(k + 1, m):
+            if abs(N[i, k]) > abs(N[p, k]):
+                p = i
+        if p != k:
+            for j in range(m):
+                N[k, j], N[p, j] = N[p, j], N[k, j]
+            for j in range(R.shape[1]):
+                R[k, j], R[p, j] = R[p, j], R[k, j]
+        inv = 1.0 / N[k, k]
+        for i in range(k + 1, m):
+            N[i, k] *= inv
+            for j in range(k + 1, m):
+                N[i, j] -= N[i, k] * N[k, j]
+            for j in range(R.shape[1]):
+                R[i, j] -= N[i, k] * R[k, j]
+    for j in range(R.shape[1]):
+        for k in range(m - 1, -1, -1):
+            acc = R[k, j]
+            for i in range(k + 1, m):
+                acc -= N[k, i] * R[i, j]
+            R[k, j] = acc / N[k, k]
+
+
+def _strip_solve_warm_up(k) -> None:
+    for m in (1, 3):
+        basis = np.ones((2, m))
+        M, const = _mix(basis, 2)
+        prim = np.random.default_rng(0).uniform(size=(2, 3, 5, 3))
+        P = np.concatenate([np.full((2, 1), -0.5), np.full((2, 1), -0.5), basis], axis=1)
+        for jac in (False, True):
+            k(prim, prim, prim, M, const, np.ones(15), np.ones(15), P, basis, jac)
+
+
+@kernel(_strip_solve_warm_up, reassociate=True)
+def _strip_solve(prim, d_b, d_s, M, const, y, w, P, basis, jac):
+    """:meth:`_StripProblem.solve`, compiled: for each candidate ``b`` the design ``A = prim[b] M + const``
+    (``n = R * P`` rows), the normal equations ``A'WA + P'P + 1e-12 I`` with the levels' prior rows ``P``,
+    the coefficients, ``chi2``, the deficit, and with ``jac`` the variable projection's gradient and
+    Gauss-Newton Hessian by (offset, blur). The array code's formulas; its matrix products summed in
+    vector lanes (``reassociate``) instead of BLAS's blocks: the same numbers to rounding, and the
+    coefficients, of ill-conditioned normal equations, to ~1e-9 relative. (As array code, ~20 array
+    operations per call on a few hundred rows: 0.3 ms a call, a third of an arris frame.)
+    """
+    n_b, n_r, n_p, n_j = prim.shape
+    n = n_r * n_p
+    m = M.shape[1]
+    n_c = P.shape[0]
+    chi2 = np.empty(n_b)
+    coef = np.empty((n_b, m))
+    deficit = np.empty(n_b)
+    grad = np.zeros((n_b, 2))
+    hess = np.zeros((n_b, 2, 2))
+    PtP = np.zeros((m, m))
+    for c in range(m):
+        for e in range(m):
+            for k in range(n_c):
+                PtP[c, e] += P[k, c] * P[k, e]
+    At = np.empty((m, n))  # the design, one row per column of A (the sums below run along rows)
+    Aw = np.empty((m, n))  # ... times the weights
+    Jm = np.empty((2, n))
+    f = np.empty(n)
+    fp = np.empty(n_c)
+    N = np.empty((m, m))
+    N0 = np.empty((m, m))
+    R = np.empty((m, 1))
+    R2 = np.empty((m, 2))
+    v = np.empty(n_j)
+    for b in range(n_b):
+        pb = prim[b].reshape(n, n_j)
+        for c in range(m):
+            for i in range(n):
+                acc = 0.0
+                for j in range(n_j):
+                    acc += pb[i, j] * M[j, c]
+                At[c, i] = acc + const[c]
+                Aw[c, i] = At[c, i] * w[i]
+        for c in range(m):
+            for e in range(c, m):
+                acc = 0.0
+                for i in range(n):
+                    acc += Aw[c, i] * At[e, i]
+                N[c, e] = N[e, c] = (acc + PtP[c, e]) + (1e-12 if c == e else 0.0)
+            acc = 0.0
+            for i in range(n):
+                acc += Aw[c, i] * y[i]
+            R[c, 0] = acc
+        N0[:, :] = N
+        _lu_solve(N, R)
+        x = R[:, 0]
+        coef[b] = x
+        f[:] = 0.0
+        for c in range(m):
+            for i in range(n):
+                f[i] += At[c, i] * x[c]
+        c2 = 0.0
+        for i in range(n):
+            f[i] -= y[i]
+            c2 += f[i] * f[i] * w[i]
+        for k in range(n_c):
+            acc = 0.0
+            for c in range(m):
+                acc += P[k, c] * x[c]
+            fp[k] = acc
+            c2 += acc * acc
+        chi2[b] = c2
+        c0, cb = x[0], x[1]
+        dsum = 0.0
+        for k in range(n_c):
+            lev = 0.0
+            for q in range(m - 2):
+                lev += basis[k, q] * x[2 + q]
+            dsum += 1.0 - (lev - c0) / (cb - c0)
+        deficit[b] = dsum / n_c
+        if not jac:
+            continue
+        # variable projection (Kaufman): d f / d theta = (I - A A+) (dA / d theta) coef, where
+        # (dA / d theta) coef = (d prim / d theta) (M coef)
+        for j in range(n_j):
+            acc = 0.0
+            for c in range(m):
+                acc += M[j, c] * x[c]
+            v[j] = acc
+        db, ds = d_b[b].reshape(n, n_j), d_s[b].reshape(n, n_j)
+        for i in range(n):
+            a0 = 0.0
+            a1 = 0.0
+            for j in range(n_j):
+                a0 += db[i, j] * v[j]
+                a1 += ds[i, j] * v[j]
+            Jm[0, i] = a0
+            Jm[1, i] = a1
+        for c in range(m):
+            for t in range(2):
+                acc = 0.0
+                for i in range(n):
+                    acc += Aw[c, i] * Jm[t, i]
+                R2[c, t] = acc
+        _lu_solve(N0, R2)  # d coef / d (offset, blur), (m, 2)
+        for c in range(m):
+            for t in range(2):
+                for i in range(n):
+                    Jm[t, i] -= At[c, i] * R2[c, t]
+        g0 = g1 = h00 = h01 = h11 = 0.0
+        for i in range(n):
+            j0, j1 = Jm[0, i] * w[i], Jm[1, i] * w[i]
+            g0 += j0 * f[i]
+            g1 += j1 * f[i]
+            h00 += j0 * Jm[0, i]
+            h01 += j0 * Jm[1, i]
+            h11 += j1 * Jm[1, i]
+        # the prior rows do not move with the offset or the blur: only through the coefficients
+        for k in range(n_c):
+            p0 = p1 = 0.0
+            for c in range(m):
+                p0 -= P[k, c] * R2[c, 0]
+                p1 -= P[k, c] * R2[c, 1]
+            g0 += p0 * fp[k]
+            g1 += p1 * fp[k]
+            h00 += p0 * p0
+            h01 += p0 * p1
+            h11 += p1 * p1
+        grad[b, 0], grad[b, 1] = 2.0 * g0, 2.0 * g1
+        hess[b, 0, 0], hess[b, 1, 1] = 2.0 * h00, 2.0 * h11
+        hess[b, 0, 1] = hess[b, 1, 0] = 2.0 * h01
+    return chi2, coef, deficit, grad, hess
 
 
 class _StripProblem:
@@ -347,43 +579,19 @@ class _StripProblem:
     def solve(
         self, terms: tuple[np.ndarray, np.ndarray, np.ndarray], basis: np.ndarray, jac: bool = False
     ) -> _Eval:
-        """The levels solved linearly for one shading basis, given :meth:`pixel_terms`."""
+        """The levels solved linearly for one shading basis, given :meth:`pixel_terms` (compiled:
+        :func:`_strip_solve`)."""
         prim, d_b, d_s = terms
         M, const = _mix(basis, self.n_cells)
-        B = prim.shape[0]
-        A = (prim @ M + const).reshape(B, -1, M.shape[1])  # (B, n, m)
-        y = self.y.ravel()
-        w = self.w
-        AwT = A.transpose(0, 2, 1) * w  # (B, m, n)
         # the levels' prior (class docstring): rows P, target 0, the same for every candidate
         C = basis.shape[0]
         P = np.concatenate(
             [np.full((C, 1), PRIOR_LEVEL - 1.0), np.full((C, 1), -PRIOR_LEVEL), basis], axis=1
         ) * math.sqrt(self.prior_weight)
-        N = AwT @ A + P.T @ P + 1e-12 * np.eye(M.shape[1])
-        coef = np.linalg.solve(N, (AwT @ y)[..., None])[..., 0]
-        f = (A @ coef[..., None])[..., 0] - y  # (B, n)
-        fp = coef @ P.T  # (B, C) the prior rows' residuals
-        chi2 = (f * f) @ w + (fp * fp).sum(axis=1)
-        c0, cb, band = coef[:, 0], coef[:, 1], coef[:, 2:]
-        levels = (band @ basis.T - c0[:, None]) / (cb - c0)[:, None]
-        deficit = np.mean(1.0 - levels, axis=1)
-        grad = hess = None
-        if jac:
-            # variable projection (Kaufman): d f / d theta = (I - A A+) (dA / d theta) coef, where
-            # (dA / d theta) coef = (d prim / d theta) (M coef)
-            v = (coef @ M.T)[:, :, None]  # (B, J, 1)
-            n_j = prim.shape[-1]
-            J = np.concatenate(
-                [(d_b.reshape(B, -1, n_j) @ v), (d_s.reshape(B, -1, n_j) @ v)], axis=2
-            )  # (B, n, 2)
-            dcoef = np.linalg.solve(N, AwT @ J)  # (B, m, 2)
-            J = J - A @ dcoef
-            Jp = -(P @ dcoef)  # the prior rows do not move with the offset or the blur: only through coef
-            JwT = J.transpose(0, 2, 1) * w
-            grad = 2.0 * ((JwT @ f[..., None])[..., 0] + (Jp.transpose(0, 2, 1) @ fp[..., None])[..., 0])
-            hess = 2.0 * (JwT @ J + Jp.transpose(0, 2, 1) @ Jp)
-        return _Eval(chi2, coef, deficit, grad, hess)
+        chi2, coef, deficit, grad, hess = _strip_solve(
+            prim, d_b, d_s, M, const, self.y.ravel(), self.w, P, np.ascontiguousarray(basis, np.float64), jac
+        )
+        return _Eval(chi2, coef, deficit, grad if jac else None, hess if jac else None)
 
     def chi2_many(
         self, terms: tuple[np.ndarray, np.ndarray, np.ndarray], bases: list[np.ndarray]

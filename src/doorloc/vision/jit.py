@@ -43,13 +43,18 @@ F = TypeVar("F", bound=Callable[..., Any])
 _KERNELS: list[tuple[Any, Callable[[Any], None] | None]] = []
 
 
-def kernel(warm_up: Callable[[Any], None] | None = None, inline: bool = False) -> Callable[[F], F]:
+def kernel(
+    warm_up: Callable[[Any], None] | None = None, inline: bool = False, reassociate: bool = False
+) -> Callable[[F], F]:
     """Decorator: compile ``fn`` with numba (``njit``, no GIL held, numpy's float errors, cached on disk
     where it can be).
 
     ``warm_up(k)`` calls the kernel ``k`` once with the argument types locate passes (numba compiles one
     version per type signature): :func:`compile_kernels` runs it. A kernel only other kernels call needs none.
     ``inline``: other kernels take its body in place of a call (for a small helper called per row).
+    ``reassociate``: sums may be reordered and products fused (LLVM's ``reassoc`` and ``contract``: vector
+    lanes for the reductions; NaN and infinity keep their meaning) where the code they stand for summed in
+    an order of its own (BLAS) anyway: the numbers change by rounding only.
     """
 
     def wrap(fn: F) -> F:
@@ -60,6 +65,8 @@ def kernel(warm_up: Callable[[Any], None] | None = None, inline: bool = False) -
             "error_model": "numpy",
             "inline": "always" if inline else "never",
         }
+        if reassociate:
+            opts["fastmath"] = {"reassoc", "contract"}
         try:
             k = numba.njit(cache=True, **opts)(fn)
         except RuntimeError:  # numba found no writable place for its cache: compile in each process
