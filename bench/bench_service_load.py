@@ -7,8 +7,13 @@ Issue 14's figure, requests per second per core next to ``1000 / (decode + locat
 clients run on the same machine as the server, so the wall-clock rate per core would charge the server
 for the clients' CPU. Instead the server's own CPU seconds over the run (all its processes, from /proc)
 give ``requests per server CPU-second``, which is the rate per core of a server that has its cores to
-itself. The ideal next to it is measured in this process on the same PNGs: the median thread-CPU
-time of ``decode_image`` + ``locate`` (one thread).
+itself. The ideal next to it is measured twice: in this process on the same PNGs before the run (the
+median thread-CPU time of ``decode_image`` + ``locate``, one thread), and by the server itself during the
+run (each answer's ``Server-Timing``: the worker thread's CPU ms of decoding and measuring that very
+request; their mean). The second is immune to the machine's speed drifting between the two measurements
+(a shared machine's speed moved the first by a third from run to run); its share of the server's CPU
+seconds is the fraction of the server's time spent measuring images, the rest being HTTP, parsing,
+queueing and the event loop.
 
     python bench/bench_service_load.py --clients 16 --seconds 60 --workers 2
 """
@@ -26,7 +31,20 @@ import httpx
 from service_harness import CELL, cpu_seconds, doorloc_serve, rendered_pngs, rss_mb
 
 
-async def _client(base: str, pngs: list, stop_at: float, k: int, latencies: list, errors: list) -> None:
+def _server_cpu_ms(header: str) -> float:
+    """The sum of a ``Server-Timing`` header's durations (doorloc: decode and locate, thread CPU ms)."""
+    total = 0.0
+    for part in header.split(","):
+        for param in part.split(";")[1:]:
+            key, _, value = param.strip().partition("=")
+            if key == "dur":
+                total += float(value)
+    return total
+
+
+async def _client(
+    base: str, pngs: list, stop_at: float, k: int, latencies: list, errors: list, server_ms: list
+) -> None:
     async with httpx.AsyncClient(base_url=base, timeout=120) as client:
         i = k
         while time.monotonic() < stop_at:
@@ -42,6 +60,7 @@ async def _client(base: str, pngs: list, stop_at: float, k: int, latencies: list
                     errors.append(f"refused: {r.json()['error']}")
                 else:
                     latencies.append(dt)
+                    server_ms.append(_server_cpu_ms(r.headers.get("server-timing", "")))
             except httpx.HTTPError as e:
                 errors.append(f"{type(e).__name__}: {e}")
 
@@ -54,17 +73,18 @@ async def _sample_rss(pid: int, stop_at: float, samples: list) -> None:
 
 async def _run(
     base: str, pid: int, pngs: list, clients: int, seconds: float
-) -> tuple[list, list, float, list]:
+) -> tuple[list, list, float, list, list]:
     latencies: list[float] = []
     errors: list[str] = []
     rss_samples: list[float] = []
+    server_ms: list[float] = []
     t0 = time.monotonic()
     stop_at = t0 + seconds
     await asyncio.gather(
         _sample_rss(pid, stop_at, rss_samples),
-        *(_client(base, pngs, stop_at, k, latencies, errors) for k in range(clients)),
+        *(_client(base, pngs, stop_at, k, latencies, errors, server_ms) for k in range(clients)),
     )
-    return latencies, errors, time.monotonic() - t0, rss_samples
+    return latencies, errors, time.monotonic() - t0, rss_samples, server_ms
 
 
 def decode_and_locate_ms(pngs: list, repeats: int = 5) -> float:
@@ -111,7 +131,9 @@ def main() -> None:
             for k in range(args.workers):
                 c.post("/v1/locate", files={"image": ("warm.png", pngs[k % len(pngs)][0], "image/png")})
         rss_start, cpu_start = rss_mb(pid), cpu_seconds(pid)
-        latencies, errors, wall, rss_samples = asyncio.run(_run(base, pid, pngs, args.clients, args.seconds))
+        latencies, errors, wall, rss_samples, server_ms = asyncio.run(
+            _run(base, pid, pngs, args.clients, args.seconds)
+        )
         rss_end, cpu_end = rss_mb(pid), cpu_seconds(pid)
     server_cpu_s = cpu_end - cpu_start
     lat_ms = sorted(x * 1e3 for x in latencies)
@@ -134,6 +156,12 @@ def main() -> None:
         "rps_per_server_cpu_s": round(len(latencies) / server_cpu_s, 2) if server_cpu_s > 0 else None,
         "decode_locate_ms": round(ideal_ms, 2),
         "ideal_rps_per_core": round(1000.0 / ideal_ms, 2),
+        # the same, timed by the server on each answered request (Server-Timing), during the run
+        "server_decode_locate_ms": round(statistics.mean(server_ms), 2) if server_ms else None,
+        "server_ideal_rps_per_core": round(1000.0 / statistics.mean(server_ms), 2) if server_ms else None,
+        "measuring_share_of_server_cpu": (
+            round(sum(server_ms) / 1e3 / server_cpu_s, 3) if server_ms and server_cpu_s > 0 else None
+        ),
         "rss_start_mb": round(rss_start, 1),
         "rss_end_mb": round(rss_end, 1),
         "rss_every_10s_mb": rss_samples,
@@ -153,6 +181,12 @@ def main() -> None:
             f"ideal 1000 / {figures['decode_locate_ms']} ms = {figures['ideal_rps_per_core']}: "
             f"{100 * figures['rps_per_server_cpu_s'] / figures['ideal_rps_per_core']:.0f} % of it; "
             f"p99 / p50 = {figures['p99_over_p50']}"
+        )
+    if figures["measuring_share_of_server_cpu"] is not None:
+        print(
+            f"timed by the server (Server-Timing, mean decode + locate {figures['server_decode_locate_ms']} ms "
+            f"during the run): ideal {figures['server_ideal_rps_per_core']} req per core, "
+            f"{100 * figures['measuring_share_of_server_cpu']:.0f} % of the server's CPU spent measuring images"
         )
 
 

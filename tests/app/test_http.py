@@ -66,6 +66,24 @@ def test_locate_by_size_gives_the_pose_and_no_targets(client, small_png):
     assert a["targets"] == [] and "door_id" in a["targets_note"]
 
 
+def test_an_answer_says_what_it_cost_the_worker_in_server_timing(client, small_png):
+    # Server-Timing: the thread CPU ms of decoding and of measuring (what bench_service_load's per-core
+    # figure is weighed against)
+    r = _post(client, small_png, width_mm="800", thickness_mm="45")
+    assert r.status_code == 200, r.text
+    metrics = {}
+    for part in r.headers["server-timing"].split(","):
+        name, *params = (p.strip() for p in part.split(";"))
+        fields = dict(p.split("=", 1) for p in params)
+        assert fields["desc"] == '"thread CPU ms"'
+        metrics[name] = float(fields["dur"])
+    assert set(metrics) == {"decode", "locate"}
+    assert all(v >= 0.0 for v in metrics.values())
+    # a request that cannot be measured (not an image) spends nothing there and says nothing
+    bad = _post(client, b"not an image at all", width_mm="800", thickness_mm="45")
+    assert bad.status_code == 415 and "server-timing" not in bad.headers
+
+
 def test_locate_by_door_id_gives_targets_moved_by_the_pose(client, small_png, recipe, cell):
     from doorloc.pose import DoorPose
     from doorloc.recipes.targets import targets_for_pose
