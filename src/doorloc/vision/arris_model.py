@@ -250,10 +250,14 @@ def _pixel_terms(
     """
     sigma = np.asarray(sigma, np.float64).reshape(-1)
     n_b = max(bounds.shape[0], sigma.size)  # (the candidates broadcast, as in the array formula)
+    if bounds.shape[0] != n_b:
+        bounds = np.broadcast_to(bounds, (n_b, *bounds.shape[1:]))
+    if sigma.size != n_b:
+        sigma = np.broadcast_to(sigma, (n_b,))
     return _pixel_terms_compiled(
         np.ascontiguousarray(edges, np.float64),
-        np.ascontiguousarray(np.broadcast_to(bounds, (n_b, *bounds.shape[1:])), np.float64),
-        np.ascontiguousarray(np.broadcast_to(sigma, (n_b,))),
+        np.ascontiguousarray(bounds, np.float64),
+        np.ascontiguousarray(sigma),
         STEP_TAIL_SIGMAS,
     )
 
