@@ -398,28 +398,6 @@ def step_fit(
     return e
 
 
-def block_artifact_ratio(
-    plane: np.ndarray, centre_px, half: int = 96, scale_to_8bit: float = 1.0, min_excess: float = 0.05
-) -> float:
-    """:func:`doorloc.vision.edges.block_artifact_ratio` as written with numpy (float32 means of the
-    absolute steps, their medians on and off the 8x8 block boundaries)."""
-    c = np.asarray(centre_px, float)
-    if not np.all(np.isfinite(c)):
-        return float("nan")
-    u0, v0 = max(int(c[0]) - half, 0), max(int(c[1]) - half, 0)
-    crop = plane[v0 : v0 + 2 * half, u0 : u0 + 2 * half]
-    if min(crop.shape) < 32:
-        return float("nan")
-    out = []
-    for ax, o in ((1, u0), (0, v0)):
-        arr = crop if ax == 1 else crop.T
-        d = np.abs(np.diff(arr.astype(np.float32), axis=1)).mean(axis=0) * scale_to_8bit
-        boundary = (o + np.arange(d.size)) % 8 == 7
-        on, off = _median(d[boundary]), _median(d[~boundary])
-        out.append(on / max(off, 1e-3) if on - off >= min_excess else 1.0)
-    return max(out)
-
-
 def pixel_terms(edges: np.ndarray, bounds: np.ndarray, sigma: np.ndarray):
     """:func:`doorloc.vision.arris_model._pixel_terms` as written with numpy (scipy's ndtr, every border)."""
     from scipy.special import ndtr

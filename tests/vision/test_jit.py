@@ -17,8 +17,8 @@
   compiled) against its numpy version, bit for bit, at many phases and at one (the spline path);
 - the in-place selection (jit.select_kth) against np.partition, numpy's pairwise sum (jit.pairwise_sum)
   against ndarray.sum, the running mean (response._running_mean_nearest) against uniform_filter1d;
-- the JPEG block ratio (edges.block_artifact_ratio: its integer path compiled) and the gate's per-line
-  figures (quality.line_figures) against their numpy versions, bit for bit;
+- the JPEG block ratio (edges.block_artifact_ratio: its integer path compiled) against its numpy branch and
+  the gate's per-line figures (quality.line_figures) against their numpy expressions, bit for bit;
 - the arris strip fit's pixel terms (arris_model._pixel_terms) and its linear solve
   (arris_model._StripProblem.solve) against their numpy versions, to rounding (the C library's erfc is not
   scipy's; the normal equations are summed in another order and are ill-conditioned: the coefficients to
@@ -410,9 +410,9 @@ def test_step_fit_as_its_numpy_version(seed, n, h, blur, noise, flat):
     half=st.sampled_from([16, 40, 96]),
 )
 def test_block_ratio_as_its_numpy_version(seed, sixteen, blocky, noise, centre, half):
-    # edges.block_artifact_ratio (its integer path compiled: exact sums, float32 means, medians by
-    # selection) against the numpy code, bit for bit: with and without 8x8 block steps, at crops that the
-    # image's border cuts, 8- and 16-bit
+    # edges.block_artifact_ratio's integer path (compiled: exact sums, float32 means, medians by selection)
+    # against its numpy branch, which a float plane of the same levels takes, bit for bit: with and without
+    # 8x8 block steps, at crops that the image's border cuts, 8- and 16-bit
     from doorloc.vision.edges import block_artifact_ratio
 
     rng = np.random.default_rng(seed)
@@ -424,7 +424,7 @@ def test_block_ratio_as_its_numpy_version(seed, sixteen, blocky, noise, centre, 
     plane = np.clip(img * top, 0, top).astype(np.uint16 if sixteen else np.uint8)
     s8 = 255.0 / top
     got = block_artifact_ratio(plane, np.array(centre), half=half, scale_to_8bit=s8)
-    want = reference.block_artifact_ratio(plane, np.array(centre), half=half, scale_to_8bit=s8)
+    want = block_artifact_ratio(plane.astype(np.float32), np.array(centre), half=half, scale_to_8bit=s8)
     np.testing.assert_array_equal(got, want)
 
 
