@@ -22,7 +22,8 @@
 - the arris strip fit's pixel terms (arris_model._pixel_terms) and its linear solve
   (arris_model._StripProblem.solve) against their numpy versions, to rounding (the C library's erfc is not
   scipy's; the normal equations are summed in another order and are ill-conditioned: the coefficients to
-  1e-6 of their scale).
+  1e-6 of their scale), and the far-face Gauss-Newton step's sums (edges._far_face_sums, _far_face_misfit)
+  against the (N, M) arrays they replaced, to rounding.
 The blurred-step pixel model (edges._step_pixel_values) is held to its dense formula in test_pixel_step.py.
 The coarse step finder is held to the first finder bit for bit in test_coarse.py.
 """
@@ -527,3 +528,55 @@ def test_strip_solve_as_its_numpy_version(seed, n_cand, bins, n_cells, noise, ja
         np.testing.assert_allclose(got.hess, hess, rtol=1e-6)
     else:
         assert got.grad is None and got.hess is None
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    n=st.integers(1, 300),
+    n_m=st.integers(4, 30),
+    with_blur=st.booleans(),
+    has_strip=st.booleans(),
+)
+def test_far_face_sums_as_the_array_code(seed, n, n_m, with_blur, has_strip):
+    # edges._far_face_sums and _far_face_misfit (the far-face Gauss-Newton step's sums, compiled) against
+    # the model, residuals and derivatives formed as (N, M) arrays, as subpixel_edges_far_face formed them:
+    # to rounding (the sums run in vector lanes)
+    from doorloc.vision.edges import _far_face_misfit, _far_face_sums
+
+    rng = np.random.default_rng(seed)
+    core = rng.uniform(0, 255, (n, n_m))
+    A, D = rng.uniform(20, 80, n), rng.uniform(50, 150, n)
+    C1, C2, C0 = (rng.uniform(0, 1, (n, n_m)) for _ in range(3))
+    g, h = rng.normal(0, 0.3, (3 * n, n_m)), rng.normal(0, 0.3, (3 * n, n_m))
+    has_band = rng.uniform(size=n) > 0.3
+    band_slope, lam, mu = -rng.uniform(0, 0.2), rng.uniform(-0.5, 1.5), rng.uniform(-0.5, 0.5) * has_strip
+    # the array code
+    Dc = D[:, None]
+    m = A[:, None] + (lam * Dc) * C1 + ((1.0 - lam) * Dc) * C2
+    J_mu = Dc * (C0 - C1)
+    if has_strip:
+        m = m + mu * J_mu
+    r = core - m
+    a1, a2 = (lam - mu) * Dc, (1.0 - lam) * Dc
+    J_e = -a1 * g[:n] - a2 * g[n : 2 * n] * (1.0 + band_slope * has_band)[:, None]
+    J_sig = a1 * h[:n] + a2 * h[n : 2 * n]
+    if has_strip:
+        J_e = J_e - (mu * Dc) * g[2 * n :]
+        J_sig = J_sig + (mu * Dc) * h[2 * n :]
+    Jg = [Dc * (C1 - C2), J_sig if with_blur else np.zeros_like(r)] + ([J_mu] if has_strip else [])
+    want_H = np.array([[np.sum(a * b) for b in Jg] for a in Jg])
+    want_b = np.array([np.sum(a * r) for a in Jg])
+    want_eg = np.stack([np.sum(J_e * a, axis=1) for a in Jg], axis=1)
+    h_ee, h_eg, b_e, H, b_g = _far_face_sums(
+        core, A, D, C1, C2, C0, g, h, has_band, band_slope, lam, mu, with_blur, has_strip
+    )
+    np.testing.assert_allclose(h_ee, np.maximum(np.sum(J_e * J_e, axis=1), 1e-12), rtol=1e-12)
+    np.testing.assert_allclose(b_e, np.sum(J_e * r, axis=1), rtol=1e-9, atol=1e-9 * np.abs(J_e * r).sum())
+    np.testing.assert_allclose(h_eg, want_eg, rtol=1e-9, atol=1e-9 * np.abs(J_e).sum() * np.abs(Jg[0]).max())
+    np.testing.assert_allclose(H, want_H, rtol=1e-12)
+    np.testing.assert_allclose(b_g, want_b, rtol=1e-9, atol=1e-9 * np.abs(r).sum() * np.abs(Jg[0]).max())
+    C0_arg = C0 if has_strip else C1
+    np.testing.assert_allclose(
+        _far_face_misfit(core, A, D, C1, C2, C0_arg, lam, mu, has_strip), np.sum(r * r), rtol=1e-12
+    )

@@ -1013,6 +1013,98 @@ def _far_face_steps(
     return sp, has_band, C1, C2, D[:, None] * (C1 - C2)
 
 
+def _far_face_warm_up(k, system: bool) -> None:
+    C = np.full((3, 4), 0.5)
+    g = np.full((9, 4), 0.1)
+    band = np.ones(3, np.bool_)
+    for strip in (False, True):
+        if system:
+            for blur in (False, True):
+                k(C, np.ones(3), np.ones(3), C, C, C, g, g, band, -0.1, 0.5, 0.1, blur, strip)
+        else:
+            k(C, np.ones(3), np.ones(3), C, C, C, 0.5, 0.1, strip)
+
+
+@kernel(lambda k: _far_face_warm_up(k, False), reassociate=True)
+def _far_face_misfit(core, A, D, C1, C2, C0, lam, mu, has_strip):
+    """The far-face model's sum of squared residuals over the profiles' cores (compiled): the model
+    ``A + lam D C1 + (1 - lam) D C2`` (+ ``mu D (C0 - C1)`` with a strip) as the array code formed it,
+    element by element; the sum in vector lanes (numpy's dot summed in blocks of its own)."""
+    n, n_m = core.shape
+    acc = 0.0
+    for i in range(n):
+        a1 = lam * D[i]
+        a2 = (1.0 - lam) * D[i]
+        for j in range(n_m):
+            m = A[i] + a1 * C1[i, j] + a2 * C2[i, j]
+            if has_strip:
+                m = m + mu * (D[i] * (C0[i, j] - C1[i, j]))
+            r = core[i, j] - m
+            acc += r * r
+    return acc
+
+
+@kernel(lambda k: _far_face_warm_up(k, True), reassociate=True)
+def _far_face_sums(core, A, D, C1, C2, C0, g, h, has_band, band_slope, lam, mu, with_blur, has_strip):
+    """The far-face Gauss-Newton step's sums (compiled; the array code formed the model, its residuals and
+    its derivatives as (N, M) arrays, ~25 array operations an iteration at any N): per profile ``h_ee``
+    (the arris derivative's squares, at least 1e-12), ``h_eg`` (its products with the shared unknowns'
+    derivatives: band level, blur, strip level) and ``b_e`` (with the residuals); ``H`` and ``b_g``, the
+    shared unknowns' products among themselves and with the residuals. ``g``, ``h``: the steps' slopes
+    (rows ``0..N`` the arrises, ``N..2N`` the back edges, ``2N..3N`` a strip's inner borders); columns of
+    an unknown not fitted (the blur without ``with_blur``, the strip level without ``has_strip``) are 0.
+    """
+    n, n_m = core.shape
+    n_sh = 3 if has_strip else 2
+    h_ee = np.empty(n)
+    h_eg = np.zeros((n, n_sh))
+    b_e = np.empty(n)
+    H = np.zeros((n_sh, n_sh))
+    b_g = np.zeros(n_sh)
+    Jg = np.zeros(3)
+    for i in range(n):
+        a1m = lam * D[i]  # the model's
+        a2 = (1.0 - lam) * D[i]
+        a1 = (lam - mu) * D[i]  # the arris derivative's (a strip's level takes its share)
+        fb = 1.0 + band_slope * has_band[i]
+        muD = mu * D[i]
+        ee = 0.0
+        er = 0.0
+        eg0 = eg1 = eg2 = 0.0
+        for j in range(n_m):
+            m = A[i] + a1m * C1[i, j] + a2 * C2[i, j]
+            Je = -a1 * g[i, j] - a2 * g[n + i, j] * fb
+            Jg[0] = D[i] * (C1[i, j] - C2[i, j])
+            if with_blur:
+                Jg[1] = a1 * h[i, j] + a2 * h[n + i, j]
+            if has_strip:
+                Jg[2] = D[i] * (C0[i, j] - C1[i, j])
+                m = m + mu * Jg[2]
+                Je = Je - muD * g[2 * n + i, j]
+                if with_blur:
+                    Jg[1] = Jg[1] + muD * h[2 * n + i, j]
+            r = core[i, j] - m
+            ee += Je * Je
+            er += Je * r
+            eg0 += Je * Jg[0]
+            eg1 += Je * Jg[1]
+            eg2 += Je * Jg[2]
+            for k in range(n_sh):
+                b_g[k] += Jg[k] * r
+                for q in range(k + 1):
+                    H[k, q] += Jg[k] * Jg[q]
+        h_ee[i] = max(ee, 1e-12)
+        b_e[i] = er
+        h_eg[i, 0] = eg0
+        h_eg[i, 1] = eg1
+        if has_strip:
+            h_eg[i, 2] = eg2
+    for k in range(n_sh):
+        for q in range(k):
+            H[q, k] = H[k, q]
+    return h_ee, h_eg, b_e, H, b_g
+
+
 def _band_level_and_cost(
     core: np.ndarray, A: np.ndarray, D: np.ndarray, C2: np.ndarray, J_lam: np.ndarray, info: float
 ) -> tuple[float, float]:
@@ -1251,10 +1343,10 @@ def subpixel_edges_far_face(
         lam = best[2]
 
     def total_cost(e: np.ndarray, lam: float, sigma: float, mu: float = 0.0) -> float:
-        m, p = model_values(e, lam, sigma, mu)
+        p = pieces(e, sigma)
         pull = LEVEL_PRIOR_WEIGHT * p["info"]
-        r = core - m
-        c = _dot(r, r) + pull * (lam - 0.5) ** 2
+        C0 = p["C0"] if has_strip else p["C1"]
+        c = _far_face_misfit(core, Ao, Do, p["C1"], p["C2"], C0, lam, mu, has_strip) + pull * (lam - 0.5) ** 2
         return c + pull_mu * (mu - mu0) ** 2 if has_strip else c
 
     # the shared unknowns: the band level, the blur (its column 0 when not fitted) and the strip's level
@@ -1278,6 +1370,46 @@ def subpixel_edges_far_face(
                 if Jj is not None:
                     H[k, j] = H[j, k] = _dot(Jk, Jj)
         b_e = np.einsum("nm,nm->n", J_e, r)
+        return schur(H, b_g, h_ee, h_eg, b_e, lam, mu)
+
+    def step_system(
+        e: np.ndarray, lam: float, sigma: float, mu: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:func:`shared_system` at a Gauss-Newton iterate, its sums compiled (:func:`_far_face_sums`)."""
+        p = pieces(e, sigma)
+        if "g" not in p:
+            p["g"] = p["sp"].slope()
+        if fit_blur and "h" not in p:
+            p["h"] = p["sp"].blur_slope()
+        C0 = p["C0"] if has_strip else p["C1"]
+        h = p["h"] if fit_blur else p["g"]
+        sums = _far_face_sums(
+            core,
+            Ao,
+            Do,
+            p["C1"],
+            p["C2"],
+            C0,
+            p["g"],
+            h,
+            p["has_band"],
+            band_slope,
+            lam,
+            mu,
+            fit_blur,
+            has_strip,
+        )
+        return schur(sums[3], sums[4], sums[0], sums[1], sums[2], lam, mu)
+
+    def schur(
+        H: np.ndarray,
+        b_g: np.ndarray,
+        h_ee: np.ndarray,
+        h_eg: np.ndarray,
+        b_e: np.ndarray,
+        lam: float,
+        mu: float,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         level_info = float(H[0, 0])  # sum of J_lam ** 2
         H -= (h_eg / h_ee[:, None]).T @ h_eg
         b_g -= (h_eg * (b_e / h_ee)[:, None]).sum(axis=0)
@@ -1304,10 +1436,7 @@ def subpixel_edges_far_face(
             # together: the normal equations have one unknown per scan line plus the shared ones, solved
             # through the Schur complement (the arrises and the level are strongly coupled where the band
             # is narrow).
-            m, J_e, J_lam, J_sig = jacobians(e, lam, sigma, fit_blur, mu)
-            r = core - m
-            Jg = [J_lam, J_sig] + ([pieces(e, sigma)["J_mu"]] if has_strip else [])
-            H, b_g, h_ee, h_eg, b_e = shared_system(J_e, Jg, r, lam, mu)
+            H, b_g, h_ee, h_eg, b_e = step_system(e, lam, sigma, mu)
             d = np.linalg.solve(H, b_g)
             d_lam, d_sig = float(np.clip(d[0], -1.0, 1.0)), float(np.clip(d[1], -0.5, 0.5))
             d_mu = float(np.clip(d[2], -1.0, 1.0)) if has_strip else 0.0
