@@ -237,7 +237,12 @@ def test_transition_width_and_plateau_levels_as_their_numpy_versions(
     )
     np.testing.assert_allclose(got, want, rtol=1e-12)
     if n_lines >= 60:
-        assert 0.3 < got < 3.0
+        # a width, not garbage: finite, and an RMS over the window (|x| <= half + 1/2). (It was 0.3 < got <
+        # 3.0, which the generator's own edges break: logistic scales up to 2 px have RMS widths up to
+        # 3.6 px, and the grain inside the window moves the mean gradient's second moment both ways; over
+        # 4000 draws at every half-window it read 0 to 0.62 of half + 1/2. Seed 9 read 3.04 px for a
+        # scale of 1.86 px, whose RMS width is 3.39.)
+        assert np.isfinite(got) and 0.0 <= got <= half + 0.5
     got_l, want_l = plateau_levels(plane, smp, mask, half), reference.plateau_levels(plane, smp, mask, half)
     np.testing.assert_array_equal(got_l, want_l)
 
@@ -565,17 +570,22 @@ def test_far_face_sums_as_the_array_code(seed, n, n_m, with_blur, has_strip):
         J_e = J_e - (mu * Dc) * g[2 * n :]
         J_sig = J_sig + (mu * Dc) * h[2 * n :]
     Jg = [Dc * (C1 - C2), J_sig if with_blur else np.zeros_like(r)] + ([J_mu] if has_strip else [])
-    want_H = np.array([[np.sum(a * b) for b in Jg] for a in Jg])
-    want_b = np.array([np.sum(a * r) for a in Jg])
-    want_eg = np.stack([np.sum(J_e * a, axis=1) for a in Jg], axis=1)
     h_ee, h_eg, b_e, H, b_g = _far_face_sums(
         core, A, D, C1, C2, C0, g, h, has_band, band_slope, lam, mu, with_blur, has_strip
     )
-    np.testing.assert_allclose(h_ee, np.maximum(np.sum(J_e * J_e, axis=1), 1e-12), rtol=1e-12)
-    np.testing.assert_allclose(b_e, np.sum(J_e * r, axis=1), rtol=1e-9, atol=1e-9 * np.abs(J_e * r).sum())
-    np.testing.assert_allclose(h_eg, want_eg, rtol=1e-9, atol=1e-9 * np.abs(J_e).sum() * np.abs(Jg[0]).max())
-    np.testing.assert_allclose(H, want_H, rtol=1e-12)
-    np.testing.assert_allclose(b_g, want_b, rtol=1e-9, atol=1e-9 * np.abs(r).sum() * np.abs(Jg[0]).max())
+
+    def close(got, terms, axis=None):
+        # a sum taken in another order differs by at most (count - 1) ulps of the sum of its terms' sizes
+        want, size = np.sum(terms, axis=axis), np.sum(np.abs(terms), axis=axis)
+        assert np.all(np.abs(got - want) <= 1e-11 * size + 1e-300), (got, want)
+
+    close(h_ee, J_e * J_e, axis=1)
+    close(b_e, J_e * r, axis=1)
+    for k, Jk in enumerate(Jg):
+        close(h_eg[:, k], J_e * Jk, axis=1)
+        close(b_g[k], Jk * r)
+        for j, Jj in enumerate(Jg):
+            close(H[k, j], Jk * Jj)
     C0_arg = C0 if has_strip else C1
     np.testing.assert_allclose(
         _far_face_misfit(core, A, D, C1, C2, C0_arg, lam, mu, has_strip), np.sum(r * r), rtol=1e-12
