@@ -131,9 +131,13 @@ def test_line_fit_loop_compiled_as_run_by_python(seed, n_out, offset_only):
     args = (P, starts, sizes, mask0, votes, offset_only, 1e-4, 9, 512)
     compiled, python = _irls(*args), _irls.py_func(*args)
     assert compiled[0] == python[0] == 0
-    # (math.hypot rounds differently compiled and in CPython, and nine re-weightings carry an ulp to ~1e-10)
+    # (math.hypot rounds differently compiled and in CPython, and nine re-weightings carry an ulp to a few
+    # 1e-9 of the weights: compared at 1e-8 of each array's scale, since the points' coordinates along the
+    # line are measured from the weighted centroid, which such weights move by that much of the lines'
+    # length for every point alike; seed 4864 moved it 6.4e-9 px, 1e-7 relative for a point beside it)
     for a, b in zip(compiled[1:], python[1:], strict=True):
-        np.testing.assert_allclose(a, b, rtol=1e-8, atol=1e-9)
+        scale = float(np.max(np.abs(b))) if np.size(b) else 0.0
+        np.testing.assert_allclose(a, b, rtol=1e-8, atol=1e-8 * scale + 1e-12)
 
 
 def test_line_fit_finds_the_rectangle_through_outliers_and_names_an_empty_line():
