@@ -14,7 +14,6 @@ from doorloc.vision.edges import (
     EdgeSamples,
     TextureBias,
     _gather_rows,
-    _mean_square,
     _median,
     _pixel_step,
     _step_fit,
@@ -22,6 +21,11 @@ from doorloc.vision.edges import (
 )
 from doorloc.vision.lines import ImageLine, _sample_pairs
 from doorloc.vision.response import RESPONSE_LEVEL_ROWS, RESPONSE_PLATEAU_PX, _resampled_asymmetry
+
+
+def _mean_square(x: np.ndarray) -> float:
+    """``float(np.mean(x ** 2))`` of a 1-D float64 array (the same sum, without np.mean's dispatch)."""
+    return float((x * x).sum()) / x.size
 
 
 def texture_bias(

@@ -1824,13 +1824,7 @@ def texture_bias(
     err = _step_fit(rows, np.zeros(rows.shape[0]), bounds, max(float(blur_px), 0.05))
     err = err.reshape(profs.shape[0], o.size)
     pbs = np.stack([np.concatenate([err[2 * i], err[2 * i + 1]]) for i in range(len(Ts))])
-    # Both sides add (independent textures); the RMS over the shifts of each side, summed in quadrature.
-    n = n_shifts
-    off = math.sqrt(_mean_square(pbs[0, :n]) + _mean_square(pbs[0, n:]))
-    tilt = float("nan")
-    if lever > 0:
-        d = pbs[1] - pbs[2]
-        tilt = math.sqrt(_mean_square(d[:n]) + _mean_square(d[n:])) / lever
+    off, tilt = _texture_sigmas(pbs, n_shifts, lever)
     return TextureBias(off, tilt)
 
 
@@ -1966,30 +1960,28 @@ def _area_texture_bias(
                 win = c[o + half] - c[o]
                 lev = (c[o + half + plateau] - c[o + half]) / plateau
                 pbs[t, side * n_shifts + q] = (win - half * lev) / D
-    # Both sides add (independent textures); the RMS over the shifts of each side, summed in quadrature.
-    sq = np.empty(2 * n_shifts)
-    for j in range(2 * n_shifts):
+    return _texture_sigmas(pbs, n_shifts, lever)
+
+
+@kernel(lambda k: k(np.ones((3, 24)), 12, 2.0))
+def _texture_sigmas(pbs, n_shifts, lever):
+    """:class:`TextureBias`'s two figures from the estimator's errors ``pbs`` (3, 2 n_shifts): on the whole
+    edge's mean profile, its upper and its lower half's, each side's ``n_shifts`` shifts in a row. Both
+    sides add (independent textures): the RMS over the shifts of each side, summed in quadrature, for the
+    offset; the same of the halves' difference over ``lever`` for the tilt (NaN without a lever). numpy's
+    sums (:func:`doorloc.vision.jit.pairwise_sum`); both estimators' callers share it."""
+    n = n_shifts
+    sq = np.empty(2 * n)
+    for j in range(2 * n):
         sq[j] = pbs[0, j] * pbs[0, j]
-    off = math.sqrt(
-        pairwise_sum(sq, 0, n_shifts) / n_shifts + pairwise_sum(sq, n_shifts, n_shifts) / n_shifts
-    )
+    off = math.sqrt(pairwise_sum(sq, 0, n) / n + pairwise_sum(sq, n, n) / n)
     tilt = np.nan
     if lever > 0:
-        for j in range(2 * n_shifts):
+        for j in range(2 * n):
             d = pbs[1, j] - pbs[2, j]
             sq[j] = d * d
-        tilt = (
-            math.sqrt(
-                pairwise_sum(sq, 0, n_shifts) / n_shifts + pairwise_sum(sq, n_shifts, n_shifts) / n_shifts
-            )
-            / lever
-        )
+        tilt = math.sqrt(pairwise_sum(sq, 0, n) / n + pairwise_sum(sq, n, n) / n) / lever
     return off, tilt
-
-
-def _mean_square(x: np.ndarray) -> float:
-    """``float(np.mean(x ** 2))`` of a 1-D float64 array (the same sum, without np.mean's dispatch)."""
-    return float((x * x).sum()) / x.size
 
 
 def _abs_step_sums_warm_up(k) -> None:
