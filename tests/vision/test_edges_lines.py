@@ -251,13 +251,13 @@ def test_far_face_start_ranked_on_a_subset_of_scan_lines_gives_the_exhaustive_se
     img = img * (1.0 + 0.08 * np.sin(u / rng.uniform(3.0, 9.0)))[None, :] + rng.normal(0.0, 8.0, img.shape)
     miss = rng.uniform(-5.0, 5.0)
     args = (img, "col", u, e1 + miss, 6, np.full(u.size, 3.0), -0.72, +1)
-    ranked = []
-    rank = edges_mod._subset_level_costs
-    monkeypatch.setattr(edges_mod, "_subset_level_costs", lambda *a: ranked.append(1) or rank(*a))
+    every = []  # the scan-line strides the start search costed its shifts on
+    costs = edges_mod._far_face_start_costs
+    monkeypatch.setattr(edges_mod, "_far_face_start_costs", lambda *a: every.append(a[-1]) or costs(*a))
     s, fit = subpixel_edges_far_face(*args, blur_px=1.0)
-    assert ranked  # the subset ranking ran
+    assert every[0] > 1 and every[1:] == [1]  # the subset ranking ran, then the best on every line
     monkeypatch.setattr(edges_mod, "START_SUBSET_MIN_LINES", 10**9)
     s_all, fit_all = subpixel_edges_far_face(*args, blur_px=1.0)
-    assert len(ranked) == 1
+    assert every[2:] == [1]  # every shift on every line
     np.testing.assert_array_equal(s.along, s_all.along)
     assert str(fit) == str(fit_all)  # (NaN fields compare unequal)

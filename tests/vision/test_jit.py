@@ -22,8 +22,9 @@
 - the arris strip fit's pixel terms (arris_model._pixel_terms) and its linear solve
   (arris_model._StripProblem.solve) against their numpy versions, to rounding (the C library's erfc is not
   scipy's; the normal equations are summed in another order and are ill-conditioned: the coefficients to
-  1e-6 of their scale), and the far-face Gauss-Newton step's sums (edges._far_face_sums, _far_face_misfit)
-  against the (N, M) arrays they replaced, to rounding.
+  1e-6 of their scale), and the far-face fit's sums (edges._far_face_sums, _far_face_misfit, _far_face_start_costs:
+  its steps' pixel values formed per scan line) against the (N, M) arrays of the dense step model they
+  replaced, to rounding.
 The blurred-step pixel model (edges._step_pixel_values) is held to its dense formula in test_pixel_step.py.
 The coarse step finder is held to the first finder bit for bit in test_coarse.py.
 """
@@ -544,23 +545,44 @@ def test_strip_solve_as_its_numpy_version(seed, n_cand, bins, n_cells, noise, ja
     seed=st.integers(0, 10_000),
     n=st.integers(1, 300),
     n_m=st.integers(4, 30),
+    sigma=st.sampled_from([0.05, 0.3, 1.0, 2.5]),
     with_blur=st.booleans(),
     has_strip=st.booleans(),
 )
-def test_far_face_sums_as_the_array_code(seed, n, n_m, with_blur, has_strip):
-    # edges._far_face_sums and _far_face_misfit (the far-face Gauss-Newton step's sums, compiled) against
-    # the model, residuals and derivatives formed as (N, M) arrays, as subpixel_edges_far_face formed them:
-    # to rounding (the sums run in vector lanes)
-    from doorloc.vision.edges import _far_face_misfit, _far_face_sums
+def test_far_face_kernels_as_the_array_code(seed, n, n_m, sigma, with_blur, has_strip):
+    # edges._far_face_sums, _far_face_misfit and _far_face_start_costs (the far-face fit's sums, compiled,
+    # its steps' pixel values formed per scan line) against the model, residuals and derivatives formed as
+    # (N, M) arrays from the dense step model (edges._pixel_step), as subpixel_edges_far_face formed them
+    # before: to rounding (the sums run in vector lanes; the Gaussian tails the kernels skip are < 1e-22)
+    from doorloc.vision.edges import (
+        LEVEL_PRIOR_WEIGHT,
+        STEP_TAIL_SIGMAS,
+        _far_face_misfit,
+        _far_face_start_costs,
+        _far_face_sums,
+        _pixel_step,
+    )
 
     rng = np.random.default_rng(seed)
     core = rng.uniform(0, 255, (n, n_m))
-    A, D = rng.uniform(20, 80, n), rng.uniform(50, 150, n)
-    C1, C2, C0 = (rng.uniform(0, 1, (n, n_m)) for _ in range(3))
-    g, h = rng.normal(0, 0.3, (3 * n, n_m)), rng.normal(0, 0.3, (3 * n, n_m))
-    has_band = rng.uniform(size=n) > 0.3
-    band_slope, lam, mu = -rng.uniform(0, 0.2), rng.uniform(-0.5, 1.5), rng.uniform(-0.5, 0.5) * has_strip
-    # the array code
+    A, D = rng.uniform(20, 80, n), rng.uniform(-150, 150, n)
+    bounds = np.arange(n_m + 1.0) + rng.uniform(2.5, 5.5)
+    e0 = rng.uniform(bounds[0] + 1, bounds[-1] - 1, n)
+    e = e0 + rng.normal(0, 1.0, n)
+    w0 = rng.uniform(-2.0, 6.0, n)
+    band_slope = -rng.uniform(0.0, 0.9)
+    strip = rng.uniform(0.2, 3.0, n) * has_strip
+    lam, mu = rng.uniform(-0.5, 1.5), rng.uniform(-0.5, 0.5) * has_strip
+
+    def steps(e):
+        w_raw = w0 + band_slope * (e - e0)
+        has_band = w_raw > 0
+        pos = [e, e + np.where(has_band, w_raw, 0.0)] + ([e - strip] if has_strip else [])
+        C, g, h = _pixel_step(bounds, np.concatenate(pos), sigma)
+        C0 = C[2 * n :] if has_strip else C[:n]
+        return C[:n], C[n : 2 * n], C0, g, h, has_band
+
+    C1, C2, C0, g, h, has_band = steps(e)
     Dc = D[:, None]
     m = A[:, None] + (lam * Dc) * C1 + ((1.0 - lam) * Dc) * C2
     J_mu = Dc * (C0 - C1)
@@ -573,24 +595,51 @@ def test_far_face_sums_as_the_array_code(seed, n, n_m, with_blur, has_strip):
     if has_strip:
         J_e = J_e - (mu * Dc) * g[2 * n :]
         J_sig = J_sig + (mu * Dc) * h[2 * n :]
-    Jg = [Dc * (C1 - C2), J_sig if with_blur else np.zeros_like(r)] + ([J_mu] if has_strip else [])
-    h_ee, h_eg, b_e, H, b_g = _far_face_sums(
-        core, A, D, C1, C2, C0, g, h, has_band, band_slope, lam, mu, with_blur, has_strip
-    )
+    J_lam = Dc * (C1 - C2)
+    Jg = [J_lam, J_sig if with_blur else np.zeros_like(r)] + ([J_mu] if has_strip else [])
+    args = (core, A, D, bounds, e, w0, e0, band_slope, sigma, STEP_TAIL_SIGMAS, strip, has_strip, lam, mu)
+    h_ee, h_eg, b_e, H, b_g, rr = _far_face_sums(*args, with_blur)
 
     def close(got, terms, axis=None):
         # a sum taken in another order differs by at most (count - 1) ulps of the sum of its terms' sizes
+        # (1e-12 absolute: the tails the kernels skip change a term by < 1e-22 of its scale, ~1e5)
         want, size = np.sum(terms, axis=axis), np.sum(np.abs(terms), axis=axis)
-        assert np.all(np.abs(got - want) <= 1e-11 * size + 1e-300), (got, want)
+        assert np.all(np.abs(got - want) <= 1e-11 * size + 1e-12), (got, want)
 
-    close(h_ee, J_e * J_e, axis=1)
+    close(h_ee, J_e * J_e, axis=1)  # (where its sum is >= 1e-12, its floor)
     close(b_e, J_e * r, axis=1)
+    close(rr, r * r, axis=1)
+    assert h_eg.shape == (n, len(Jg)) and H.shape == (len(Jg), len(Jg))
     for k, Jk in enumerate(Jg):
         close(h_eg[:, k], J_e * Jk, axis=1)
         close(b_g[k], Jk * r)
         for j, Jj in enumerate(Jg):
             close(H[k, j], Jk * Jj)
-    C0_arg = C0 if has_strip else C1
-    np.testing.assert_allclose(
-        _far_face_misfit(core, A, D, C1, C2, C0_arg, lam, mu, has_strip), np.sum(r * r), rtol=1e-12
-    )
+    misfit, info = _far_face_misfit(*args)
+    close(misfit, r * r)
+    close(info, J_lam * J_lam)
+
+    # the start search: each common shift's cost with the band level solved, a strip at its prior level
+    shifts = np.arange(-2.0, 2.25, 0.5)
+    mu0 = mu
+    for every in (1, 3):
+        costs, lams = _far_face_start_costs(
+            core, A, D, bounds, e0, w0, band_slope, sigma, STEP_TAIL_SIGMAS, strip, has_strip, mu0,
+            LEVEL_PRIOR_WEIGHT, shifts, every,
+        )  # fmt: skip
+        rows = slice(0, None, every)
+        for s, shift in enumerate(shifts):
+            C1, C2, C0, _, _, _ = steps(e0 + shift)
+            J = (Dc * (C1 - C2))[rows]
+            C2m = C2 + mu0 * (C0 - C1) if has_strip else C2
+            r0 = (core - (A[:, None] + Dc * C2m))[rows]
+            info = np.sum(J * J)
+            pull = LEVEL_PRIOR_WEIGHT * info
+            lam_s = (np.sum(J * r0) + pull * 0.5) / max(info + pull, 1e-12)
+            # rounding, and the tails the kernel skips (< 1e-22 of D per term), which the level's floor
+            # on its information (1e-12) magnifies where the band is far narrower than a pixel
+            tails = 1e-21 * np.sum(np.abs(Dc[rows]) * (np.abs(r0) + np.abs(J) + 1.0)) * (1.0 + abs(lam_s))
+            scale = (1e-11 * (np.sum(np.abs(J * r0)) + pull) + tails) / max(info + pull, 1e-12) + 1e-12
+            assert abs(lams[s] - lam_s) <= scale + 1e-9 * abs(lam_s), (lams[s], lam_s)
+            rs = r0 - J * lams[s]
+            close(costs[s] - pull * (lams[s] - 0.5) ** 2, rs * rs)

@@ -27,7 +27,7 @@ import functools
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Literal
 
 import numpy as np
 
@@ -939,11 +939,6 @@ def _step_pixel_values(bounds, e, sigma, tail_sigmas):
     return C, g, h, windowed
 
 
-def _dot(a: np.ndarray, b: np.ndarray) -> float:
-    """Sum of the elementwise product of two arrays of one shape, without the product array."""
-    return float(np.dot(a.ravel(), b.ravel()))
-
-
 #: the far face's start search ranks its shifts on every START_SUBSET_EVERY-th scan line or fewer (about
 #: START_SUBSET_LINES of them), where it has at least START_SUBSET_MIN_LINES, and costs the
 #: START_SUBSET_KEEP best on all of them
@@ -953,139 +948,213 @@ START_SUBSET_MIN_LINES = 40
 START_SUBSET_KEEP = 4
 
 
-def _subset_level_costs(
-    core: np.ndarray,
-    A: np.ndarray,
-    D: np.ndarray,
-    w0: np.ndarray,
-    e0: np.ndarray,
-    bounds: np.ndarray,
-    band_slope: float,
-    sigma: float,
-    shifts: np.ndarray,
-    every: int,
-) -> np.ndarray:
-    """The far-face fit's cost (band level solved, its pull included) of each common shift of the arrises
-    ``e0 + shift``, on every ``every``-th profile only: a ranking of the shifts, not their cost."""
-    rows = slice(0, None, every)
-    core, A, D, w0, e0 = core[rows], A[rows], D[rows], w0[rows], e0[rows]
-    # All shifts in one set of array operations (the subset's arrays are small: per-shift calls cost
-    # their numpy overhead many times over). Each shift's profiles are the rows of one block; the steps'
-    # pixels are those of a per-shift call (a wider Gaussian window moves a pixel value by < 1e-22, far
-    # below the grey levels' rounding), and the band level and cost of each block are
-    # _band_level_and_cost's, summed per block.
-    n_s, n = shifts.size, e0.size
-    tile = lambda a: np.tile(a, n_s)  # noqa: E731
-    e = (e0[None, :] + shifts[:, None]).ravel()
-    _, _, _, C2, J_lam = _far_face_steps(bounds, e, tile(w0), tile(e0), band_slope, sigma, tile(D))
-    C2 = C2.reshape(n_s, n, -1)
-    J_lam = J_lam.reshape(n_s, n, -1)
-    info = np.einsum("snm,snm->s", J_lam, J_lam)
-    pull = LEVEL_PRIOR_WEIGHT * info
-    r0 = core[None] - (A[None, :, None] + D[None, :, None] * C2)
-    lam = (np.einsum("snm,snm->s", J_lam, r0) + pull * 0.5) / np.maximum(info + pull, 1e-12)
-    r = r0 - J_lam * lam[:, None, None]
-    return np.einsum("snm,snm->s", r, r) + pull * (lam - 0.5) ** 2
+@kernel(inline=True)
+def _unit_step_boundaries(bounds, x, sigma, cut, G, P, p, slopes):
+    """A unit step at ``x`` blurred by a Gaussian ``sigma``, on each pixel boundary (M + 1,): the
+    integral of its CDF ``G`` and, with ``slopes``, the CDF ``P`` and the density ``p`` per unit
+    ``y / sigma``, as :func:`_step_pixel_values` forms them; the Gaussian terms on the boundaries within
+    ``cut`` of ``x`` only, the exact limits elsewhere (every boundary for an
+    ``x`` not finite). A row's pixel values are the differences of neighbouring boundaries'
+    (``C = G[j+1] - G[j]``, ...)."""
+    n_b = bounds.size
+    j0, j1 = 0, n_b
+    if math.isfinite(x):
+        while j0 < n_b and bounds[j0] < x - cut:
+            j0 += 1
+        j1 = j0
+        while j1 < n_b and bounds[j1] <= x + cut:
+            j1 += 1
+    for j in range(j0):
+        G[j] = 0.0
+    for j in range(j1, n_b):
+        G[j] = bounds[j] - x
+    if slopes:
+        for j in range(j0):
+            P[j] = 0.0
+            p[j] = 0.0
+        for j in range(j1, n_b):
+            P[j] = 1.0
+            p[j] = 0.0
+    inv = 1.0 / sigma
+    norm = 1.0 / math.sqrt(2.0 * math.pi)
+    for j in range(j0, j1):
+        y = bounds[j] - x
+        u = y * inv
+        Pj = _ndtr(u)
+        pj = math.exp(-0.5 * u * u) * norm
+        G[j] = y * Pj + sigma * pj
+        if slopes:
+            P[j] = Pj
+            p[j] = pj
 
 
-def _far_face_steps(
-    bounds: np.ndarray,
-    e: np.ndarray,
-    w0: np.ndarray,
-    e0: np.ndarray,
-    band_slope: float,
-    sigma: float,
-    D: np.ndarray,
-    strip: np.ndarray | None = None,
-) -> tuple[_StepPixels, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The far-face model's two unit steps on each profile, at the arrises ``e`` and the band's back edge
-    (its width ``w0`` predicted at ``e0``, changing by ``band_slope`` per px, clipped at 0): the steps'
-    pixels (:class:`_StepPixels`), where a band is in view, the arris's and the back edge's pixel values
-    ``C1``, ``C2`` and the model's derivative by the band level ``D (C1 - C2)``. With ``strip`` (N,) a third
-    step at ``e - strip`` (an arris strip's inner border on the hinge face), the steps' pixels' rows
-    ``2N..3N``."""
-    n = e.size
+@kernel(inline=True)
+def _far_face_row(bounds, e, w0, e0, band_slope, strip, has_strip, sigma, cut, S, slopes):
+    """One scan line's far-face steps at the arris ``e``: the arris, the band's back edge (its width ``w0``
+    predicted at ``e0``, changing by ``band_slope`` per px, clipped at 0) and, with ``has_strip``, a strip's
+    inner border at ``e - strip``, each on the pixel boundaries (:func:`_unit_step_boundaries`) into the
+    rows of ``S`` (9, M + 1): ``G, P, p`` of the arris, then the back edge's, then the strip's. Returns
+    whether a band is in view."""
     w_raw = w0 + band_slope * (e - e0)
     has_band = w_raw > 0
-    pos = [e, e + np.where(has_band, w_raw, 0.0)] + ([e - strip] if strip is not None else [])
-    sp = _StepPixels(bounds, np.concatenate(pos), sigma)
-    C1, C2 = sp.C[:n], sp.C[n : 2 * n]
-    return sp, has_band, C1, C2, D[:, None] * (C1 - C2)
+    _unit_step_boundaries(bounds, e, sigma, cut, S[0], S[1], S[2], slopes)
+    if has_band:
+        _unit_step_boundaries(bounds, e + w_raw, sigma, cut, S[3], S[4], S[5], slopes)
+    else:  # the back edge at the arris (step_blur's plain steps: no band anywhere)
+        S[3:6] = S[0:3]
+    if has_strip:
+        _unit_step_boundaries(bounds, e - strip, sigma, cut, S[6], S[7], S[8], slopes)
+    return has_band
 
 
-def _far_face_warm_up(k, system: bool) -> None:
-    C = np.full((3, 4), 0.5)
-    g = np.full((9, 4), 0.1)
-    band = np.ones(3, np.bool_)
+def _far_face_warm_up(k, *extra) -> None:
+    core, v, bounds = np.full((3, 4), 0.5), np.ones(3), np.arange(5.0) - 0.5
     for strip in (False, True):
-        if system:
-            for blur in (False, True):
-                k(C, np.ones(3), np.ones(3), C, C, C, g, g, band, -0.1, 0.5, 0.1, blur, strip)
-        else:
-            k(C, np.ones(3), np.ones(3), C, C, C, 0.5, 0.1, strip)
+        k(core, v, v, bounds, v, v, v, -0.1, 0.1, STEP_TAIL_SIGMAS, v, strip, *extra)
 
 
-@kernel(lambda k: _far_face_warm_up(k, False), reassociate=True)
-def _far_face_misfit(core, A, D, C1, C2, C0, lam, mu, has_strip):
-    """The far-face model's sum of squared residuals over the profiles' cores (compiled): the model
-    ``A + lam D C1 + (1 - lam) D C2`` (+ ``mu D (C0 - C1)`` with a strip) as the array code formed it,
-    element by element; the sum in vector lanes (numpy's dot summed in blocks of its own)."""
+def _far_face_start_costs_warm_up(k) -> None:
+    core, v, bounds, shifts = np.full((3, 4), 0.5), np.ones(3), np.arange(5.0) - 0.5, np.array([-0.5, 0.5])
+    for strip in (False, True):
+        k(core, v, v, bounds, v, v, -0.1, 0.1, STEP_TAIL_SIGMAS, v, strip, 0.1, LEVEL_PRIOR_WEIGHT, shifts, 2)
+
+
+@kernel(_far_face_start_costs_warm_up, reassociate=True)
+def _far_face_start_costs(
+    core, A, D, bounds, e0, w0, band_slope, sigma, tail, strip, has_strip, mu0, level_weight, shifts, every
+):
+    """The far-face fit's cost at each common shift of the arrises ``e0 + shift``, the band level solved
+    (the model is linear in it) with its pull towards 0.5 included, and that level; on every ``every``-th
+    profile only (a ranking of the shifts) or all (``every`` 1). A strip, if any, at its prior level
+    ``mu0``."""
     n, n_m = core.shape
+    rows = np.arange(0, n, every)
+    J = np.empty((rows.size, n_m))
+    r0 = np.empty((rows.size, n_m))
+    S = np.empty((9, n_m + 1))
+    cut = tail * sigma
+    costs = np.empty(shifts.size)
+    lams = np.empty(shifts.size)
+    for s in range(shifts.size):
+        info = 0.0
+        jr = 0.0
+        for k in range(rows.size):
+            i = rows[k]
+            _far_face_row(
+                bounds, e0[i] + shifts[s], w0[i], e0[i], band_slope, strip[i], has_strip, sigma, cut, S, False
+            )
+            for j in range(n_m):
+                C1 = S[0, j + 1] - S[0, j]
+                C2 = S[3, j + 1] - S[3, j]
+                Jl = D[i] * (C1 - C2)
+                if has_strip:
+                    C2 = C2 + mu0 * ((S[6, j + 1] - S[6, j]) - C1)
+                r = core[i, j] - (A[i] + D[i] * C2)  # the model at band level 0
+                J[k, j] = Jl
+                r0[k, j] = r
+                info += Jl * Jl
+                jr += Jl * r
+        pull = level_weight * info
+        lam = (jr + pull * 0.5) / max(info + pull, 1e-12)
+        cost = 0.0
+        for k in range(rows.size):
+            for j in range(n_m):
+                r = r0[k, j] - J[k, j] * lam
+                cost += r * r
+        costs[s] = cost + pull * (lam - 0.5) ** 2
+        lams[s] = lam
+    return costs, lams
+
+
+@kernel(lambda k: _far_face_warm_up(k, 0.5, 0.1), reassociate=True)
+def _far_face_misfit(core, A, D, bounds, e, w0, e0, band_slope, sigma, tail, strip, has_strip, lam, mu):
+    """The far-face model's sum of squared residuals over the profiles' cores, and the sum of squares of
+    its derivative by the band level (the level's pull is that times LEVEL_PRIOR_WEIGHT): the model
+    ``A + lam D C1 + (1 - lam) D C2`` (+ ``mu D (C0 - C1)`` with a strip), ``C1``, ``C2``, ``C0`` the
+    arrises', back edges' and strip borders' pixel values (:func:`_far_face_row`)."""
+    n, n_m = core.shape
+    S = np.empty((9, n_m + 1))
+    cut = tail * sigma
     acc = 0.0
+    info = 0.0
     for i in range(n):
+        _far_face_row(bounds, e[i], w0[i], e0[i], band_slope, strip[i], has_strip, sigma, cut, S, False)
         a1 = lam * D[i]
         a2 = (1.0 - lam) * D[i]
         for j in range(n_m):
-            m = A[i] + a1 * C1[i, j] + a2 * C2[i, j]
+            C1 = S[0, j + 1] - S[0, j]
+            C2 = S[3, j + 1] - S[3, j]
+            m = A[i] + a1 * C1 + a2 * C2
             if has_strip:
-                m = m + mu * (D[i] * (C0[i, j] - C1[i, j]))
+                m = m + mu * (D[i] * ((S[6, j + 1] - S[6, j]) - C1))
             r = core[i, j] - m
             acc += r * r
-    return acc
+            Jl = D[i] * (C1 - C2)
+            info += Jl * Jl
+    return acc, info
 
 
-@kernel(lambda k: _far_face_warm_up(k, True), reassociate=True)
-def _far_face_sums(core, A, D, C1, C2, C0, g, h, has_band, band_slope, lam, mu, with_blur, has_strip):
-    """The far-face Gauss-Newton step's sums (compiled; the array code formed the model, its residuals and
-    its derivatives as (N, M) arrays, ~25 array operations an iteration at any N): per profile ``h_ee``
-    (the arris derivative's squares, at least 1e-12), ``h_eg`` (its products with the shared unknowns'
-    derivatives: band level, blur, strip level) and ``b_e`` (with the residuals); ``H`` and ``b_g``, the
-    shared unknowns' products among themselves and with the residuals. ``g``, ``h``: the steps' slopes
-    (rows ``0..N`` the arrises, ``N..2N`` the back edges, ``2N..3N`` a strip's inner borders); columns of
-    an unknown not fitted (the blur without ``with_blur``, the strip level without ``has_strip``) are 0.
+def _far_face_sums_warm_up(k) -> None:
+    for blur in (False, True):
+        _far_face_warm_up(k, 0.5, 0.1, blur)
+
+
+@kernel(_far_face_sums_warm_up, reassociate=True)
+def _far_face_sums(
+    core, A, D, bounds, e, w0, e0, band_slope, sigma, tail, strip, has_strip, lam, mu, with_blur
+):
+    """The far-face Gauss-Newton step's sums at the arrises ``e`` (the model of :func:`_far_face_misfit`):
+    per profile ``h_ee`` (the arris derivative's squares, at least 1e-12), ``h_eg`` (its products with the
+    shared unknowns' derivatives: band level, blur, strip level), ``b_e`` (with the residuals) and ``rr``
+    (the residuals' squares); ``H`` and ``b_g``, the shared unknowns' products among themselves and with
+    the residuals. Columns of an unknown not fitted (the blur without ``with_blur``, the strip level
+    without ``has_strip``) are 0.
+
+    The steps' pixel values and slopes are formed per scan line (:func:`_far_face_row`), never as (N, M)
+    arrays (allocating and filling nine of those per evaluation was most of the fit's time).
     """
     n, n_m = core.shape
     n_sh = 3 if has_strip else 2
+    S = np.empty((9, n_m + 1))
+    cut = tail * sigma
     h_ee = np.empty(n)
     h_eg = np.zeros((n, n_sh))
     b_e = np.empty(n)
+    rr = np.empty(n)
     H = np.zeros((n_sh, n_sh))
     b_g = np.zeros(n_sh)
     Jg = np.zeros(3)
     for i in range(n):
+        has_band = _far_face_row(
+            bounds, e[i], w0[i], e0[i], band_slope, strip[i], has_strip, sigma, cut, S, True
+        )
         a1m = lam * D[i]  # the model's
         a2 = (1.0 - lam) * D[i]
         a1 = (lam - mu) * D[i]  # the arris derivative's (a strip's level takes its share)
-        fb = 1.0 + band_slope * has_band[i]
+        fb = 1.0 + band_slope * has_band
         muD = mu * D[i]
         ee = 0.0
         er = 0.0
+        sr = 0.0
         eg0 = eg1 = eg2 = 0.0
         for j in range(n_m):
-            m = A[i] + a1m * C1[i, j] + a2 * C2[i, j]
-            Je = -a1 * g[i, j] - a2 * g[n + i, j] * fb
-            Jg[0] = D[i] * (C1[i, j] - C2[i, j])
+            C1 = S[0, j + 1] - S[0, j]
+            C2 = S[3, j + 1] - S[3, j]
+            m = A[i] + a1m * C1 + a2 * C2
+            Je = -a1 * (S[1, j + 1] - S[1, j]) - a2 * (S[4, j + 1] - S[4, j]) * fb
+            Jg[0] = D[i] * (C1 - C2)
             if with_blur:
-                Jg[1] = a1 * h[i, j] + a2 * h[n + i, j]
+                Jg[1] = a1 * (S[2, j + 1] - S[2, j]) + a2 * (S[5, j + 1] - S[5, j])
             if has_strip:
-                Jg[2] = D[i] * (C0[i, j] - C1[i, j])
+                Jg[2] = D[i] * ((S[6, j + 1] - S[6, j]) - C1)
                 m = m + mu * Jg[2]
-                Je = Je - muD * g[2 * n + i, j]
+                Je = Je - muD * (S[7, j + 1] - S[7, j])
                 if with_blur:
-                    Jg[1] = Jg[1] + muD * h[2 * n + i, j]
+                    Jg[1] = Jg[1] + muD * (S[8, j + 1] - S[8, j])
             r = core[i, j] - m
             ee += Je * Je
             er += Je * r
+            sr += r * r
             eg0 += Je * Jg[0]
             eg1 += Je * Jg[1]
             eg2 += Je * Jg[2]
@@ -1095,6 +1164,7 @@ def _far_face_sums(core, A, D, C1, C2, C0, g, h, has_band, band_slope, lam, mu, 
                     H[k, q] += Jg[k] * Jg[q]
         h_ee[i] = max(ee, 1e-12)
         b_e[i] = er
+        rr[i] = sr
         h_eg[i, 0] = eg0
         h_eg[i, 1] = eg1
         if has_strip:
@@ -1102,21 +1172,7 @@ def _far_face_sums(core, A, D, C1, C2, C0, g, h, has_band, band_slope, lam, mu, 
     for k in range(n_sh):
         for q in range(k):
             H[q, k] = H[k, q]
-    return h_ee, h_eg, b_e, H, b_g
-
-
-def _band_level_and_cost(
-    core: np.ndarray, A: np.ndarray, D: np.ndarray, C2: np.ndarray, J_lam: np.ndarray, info: float
-) -> tuple[float, float]:
-    """The far-face model is linear in the band level: its least-squares value (with the pull towards 0.5
-    of :func:`subpixel_edges_far_face`'s iterations) and the fit's cost, pull included, for given arrises
-    (their unit steps' back-edge pixel values ``C2`` and the level's derivative ``J_lam``, ``info`` its
-    sum of squares)."""
-    pull = LEVEL_PRIOR_WEIGHT * info
-    r0 = core - (A[:, None] + D[:, None] * C2)  # the model at band level 0
-    lam = (_dot(J_lam, r0) + pull * 0.5) / max(info + pull, 1e-12)
-    r = r0 - J_lam * lam
-    return lam, _dot(r, r) + pull * (lam - 0.5) ** 2
+    return h_ee, h_eg, b_e, H, b_g, rr
 
 
 def _pixel_step(bounds: np.ndarray, e: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -1261,64 +1317,16 @@ def subpixel_edges_far_face(
         ends = np.concatenate([vals[ok, :plateau], vals[ok, -plateau:]], axis=1)
         noise_var = max(float(np.median(ends.var(axis=1))), (1e-3 * abs(d_med)) ** 2)
         pull_mu = noise_var / mu_sd**2
-    # The model's pieces at each set of arrises, kept for the few latest: the line search's accepted trial
-    # is the next iteration's point, and the start search's winner the first one.
-    cache: dict[tuple[bytes, float], dict[str, Any]] = {}
+    # The model's arguments after the profiles and levels: the pixel boundaries, the band's predicted
+    # width, the strip's, the blur's tail cut (the kernels form the steps' pixel values per scan line).
+    strip_o = wso if wso is not None else np.zeros(n_ok)
 
-    def pieces(e: np.ndarray, sigma: float) -> dict[str, Any]:
-        key = (e.tobytes(), sigma)
-        p = cache.get(key)
-        if p is None:
-            if len(cache) >= 4:
-                cache.pop(next(iter(cache)))
-            sp, has_band, C1, C2, J_lam = _far_face_steps(bounds, e, w0o, e0o, band_slope, sigma, Do, wso)
-            p = cache[key] = dict(
-                sp=sp, has_band=has_band, C1=C1, C2=C2, J_lam=J_lam, info=_dot(J_lam, J_lam)
-            )
-            if has_strip:
-                p["C0"] = sp.C[2 * n_ok :]  # the strip's inner border
-                p["J_mu"] = Do[:, None] * (p["C0"] - C1)  # the model's derivative by the strip level
-        return p
-
-    def model_values(
-        e: np.ndarray, lam: float, sigma: float, mu: float = 0.0
-    ) -> tuple[np.ndarray, dict[str, Any]]:
-        p = pieces(e, sigma)
-        a1 = (lam * Do)[:, None]  # L - A
-        a2 = ((1.0 - lam) * Do)[:, None]  # B - L
-        m = Ao[:, None] + a1 * p["C1"] + a2 * p["C2"]
-        if has_strip:
-            m = m + mu * p["J_mu"]  # + (S - A) at the strip's inner border - (S - A) at the far face's
-        return m, p
-
-    def jacobians(
-        e: np.ndarray, lam: float, sigma: float, with_blur: bool, mu: float = 0.0
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
-        """Model, its derivatives by the arrises (N, M), the band level and (``with_blur``) the blur."""
-        m, p = model_values(e, lam, sigma, mu)
-        if "g" not in p:
-            p["g"] = p["sp"].slope()
-        g = p["g"]
-        a1 = ((lam - mu) * Do)[:, None]
-        a2 = ((1.0 - lam) * Do)[:, None]
-        J_e = -a1 * g[:n_ok] - a2 * g[n_ok : 2 * n_ok] * (1.0 + band_slope * p["has_band"])[:, None]
-        if has_strip:
-            J_e = J_e - (mu * Do)[:, None] * g[2 * n_ok :]
-        J_sig = None
-        if with_blur:
-            if "h" not in p:
-                p["h"] = p["sp"].blur_slope()
-            h = p["h"]
-            J_sig = a1 * h[:n_ok] + a2 * h[n_ok : 2 * n_ok]
-            if has_strip:
-                J_sig = J_sig + (mu * Do)[:, None] * h[2 * n_ok :]
-        return m, J_e, p["J_lam"], J_sig
-
-    def level_and_cost(e: np.ndarray) -> tuple[float, float]:
-        p = pieces(e, sigma)
-        # (a strip at its prior level while the start is searched)
-        C2 = p["C2"] + mu0 * (p["C0"] - p["C1"]) if has_strip else p["C2"]
-        return _band_level_and_cost(core, Ao, Do, C2, p["J_lam"], p["info"])
+    def sums(e: np.ndarray, lam: float, sigma: float, mu: float, with_blur: bool) -> tuple[np.ndarray, ...]:
+        """:func:`_far_face_sums` at the arrises ``e``: ``h_ee, h_eg, b_e, H, b_g, rr``."""
+        return _far_face_sums(
+            core, Ao, Do, bounds, e, w0o, e0o, band_slope, sigma, STEP_TAIL_SIGMAS, strip_o, has_strip,
+            lam, mu, with_blur,
+        )  # fmt: skip
 
     lam, mu = 0.5, mu0
     if n_ok:
@@ -1326,80 +1334,60 @@ def subpixel_edges_far_face(
         # prediction that took the band's outer edge for the arris sits in a false minimum where the
         # band has shrunk to nothing, which Gauss-Newton would not leave.
         shifts = np.arange(-half, half + 0.25, 0.5)
+
+        def start_costs(shifts: np.ndarray, every: int) -> tuple[np.ndarray, np.ndarray]:
+            # (a strip at its prior level while the start is searched)
+            return _far_face_start_costs(
+                core, Ao, Do, bounds, e0o, w0o, band_slope, sigma, STEP_TAIL_SIGMAS, strip_o, has_strip,
+                mu0, LEVEL_PRIOR_WEIGHT, shifts, every,
+            )  # fmt: skip
+
         if n_ok >= START_SUBSET_MIN_LINES and not has_strip:
             # The shifts' costs differ by whole bands of misfit: every START_SUBSET_EVERY-th scan line ranks
             # them, and the few best are then costed on every line (at a third of the work: the start search
             # was two thirds of the far face's time). Not a proof of the same winner, but it was on every
             # parity case, 130 random renders and the noisy cases of test_edges_lines.
             every = max(START_SUBSET_EVERY, n_ok // START_SUBSET_LINES)
-            sub = _subset_level_costs(core, Ao, Do, w0o, e0o, bounds, band_slope, sigma, shifts, every)
+            sub, _ = start_costs(shifts, every)
             shifts = shifts[np.sort(np.argsort(sub, kind="stable")[:START_SUBSET_KEEP])]
+        costs, lams = start_costs(shifts, 1)
         best = (math.inf, 0.0, 0.5)
-        for shift in shifts:
-            lam_s, cost = level_and_cost(e0o + shift)
+        for shift, cost, lam_s in zip(shifts.tolist(), costs.tolist(), lams.tolist(), strict=True):
             if cost < best[0]:
                 best = (cost, shift, lam_s)
         e = e0o + best[1]
         lam = best[2]
 
     def total_cost(e: np.ndarray, lam: float, sigma: float, mu: float = 0.0) -> float:
-        p = pieces(e, sigma)
-        pull = LEVEL_PRIOR_WEIGHT * p["info"]
-        C0 = p["C0"] if has_strip else p["C1"]
-        c = _far_face_misfit(core, Ao, Do, p["C1"], p["C2"], C0, lam, mu, has_strip) + pull * (lam - 0.5) ** 2
+        misfit, info = _far_face_misfit(
+            core,
+            Ao,
+            Do,
+            bounds,
+            e,
+            w0o,
+            e0o,
+            band_slope,
+            sigma,
+            STEP_TAIL_SIGMAS,
+            strip_o,
+            has_strip,
+            lam,
+            mu,
+        )
+        c = misfit + LEVEL_PRIOR_WEIGHT * info * (lam - 0.5) ** 2
         return c + pull_mu * (mu - mu0) ** 2 if has_strip else c
 
     # the shared unknowns: the band level, the blur (its column 0 when not fitted) and the strip's level
     n_sh = 3 if has_strip else 2
 
-    def shared_system(
-        J_e: np.ndarray, Jg: list[np.ndarray | None], r: np.ndarray, lam: float, mu: float
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """The normal equations of the shared unknowns with the arrises eliminated (Schur complement)."""
-        h_ee = np.maximum(np.einsum("nm,nm->n", J_e, J_e), 1e-12)
-        h_eg = np.zeros((n_ok, n_sh))
-        H = np.zeros((n_sh, n_sh))
-        b_g = np.zeros(n_sh)
-        for k, Jk in enumerate(Jg):
-            if Jk is None:
-                continue
-            h_eg[:, k] = np.einsum("nm,nm->n", J_e, Jk)
-            b_g[k] = _dot(Jk, r)
-            for j in range(k + 1):
-                Jj = Jg[j]
-                if Jj is not None:
-                    H[k, j] = H[j, k] = _dot(Jk, Jj)
-        b_e = np.einsum("nm,nm->n", J_e, r)
-        return schur(H, b_g, h_ee, h_eg, b_e, lam, mu)
-
     def step_system(
         e: np.ndarray, lam: float, sigma: float, mu: float
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """:func:`shared_system` at a Gauss-Newton iterate, its sums compiled (:func:`_far_face_sums`)."""
-        p = pieces(e, sigma)
-        if "g" not in p:
-            p["g"] = p["sp"].slope()
-        if fit_blur and "h" not in p:
-            p["h"] = p["sp"].blur_slope()
-        C0 = p["C0"] if has_strip else p["C1"]
-        h = p["h"] if fit_blur else p["g"]
-        sums = _far_face_sums(
-            core,
-            Ao,
-            Do,
-            p["C1"],
-            p["C2"],
-            C0,
-            p["g"],
-            h,
-            p["has_band"],
-            band_slope,
-            lam,
-            mu,
-            fit_blur,
-            has_strip,
-        )
-        return schur(sums[3], sums[4], sums[0], sums[1], sums[2], lam, mu)
+        """The normal equations of the shared unknowns at a Gauss-Newton iterate, the arrises eliminated
+        (Schur complement), and the arrises' own terms."""
+        h_ee, h_eg, b_e, H, b_g, _ = sums(e, lam, sigma, mu, fit_blur)
+        return schur(H, b_g, h_ee, h_eg, b_e, lam, mu)
 
     def schur(
         H: np.ndarray,
@@ -1511,23 +1499,22 @@ def subpixel_edges_far_face(
     de_dlam = de_dsig = de_dmu = np.zeros(0)
     mu_doubt = 0.0
     if n_ok:
-        m, J_e, J_lam, J_sig = jacobians(e, lam, sigma, True, mu)
-        assert J_sig is not None
-        r = core - m
-        res_var = (r * r).sum(axis=1) / max(core.shape[1] - 1, 1)
-        info = np.maximum((J_e * J_e).sum(axis=1), 1e-12)
+        h_ee, h_eg, b_e, H, b_g, rr = sums(e, lam, sigma, mu, True)
+        res_var = rr / max(core.shape[1] - 1, 1)
+        info = h_ee  # the arris derivative's squares
         e_sigma[ok] = np.sqrt(res_var / info)
         e_all[ok] = e
         # How each arris would move to keep fitting its profile if the level or the blur were off.
-        de_dlam = -(J_e * J_lam).sum(axis=1) / info
-        de_dsig = -(J_e * J_sig).sum(axis=1) / info
+        de_dlam = -h_eg[:, 0] / info
+        de_dsig = -h_eg[:, 1] / info
         if has_strip:
-            J_mu = pieces(e, sigma)["J_mu"]
-            de_dmu = -(J_e * J_mu).sum(axis=1) / info
+            de_dmu = -h_eg[:, 2] / info
             # the strip level's own doubt (shared by every scan line: the Schur complement's, at the
-            # residuals' scale) and that of one level standing for a strip's shading (a rounding's
-            # runs across it), as the band's
-            H, _, _, _, _ = shared_system(J_e, [J_lam, None, J_mu], r, lam, mu)
+            # residuals' scale; the blur not among the unknowns) and that of one level standing for a
+            # strip's shading (a rounding's runs across it), as the band's
+            h_eg[:, 1] = b_g[1] = 0.0
+            H[1, :] = H[:, 1] = 0.0
+            H, _, _, _, _ = schur(H, b_g, h_ee, h_eg, b_e, lam, mu)
             try:
                 var_mu = float(np.linalg.inv(H)[2, 2]) * float(np.median(res_var))
             except np.linalg.LinAlgError:
