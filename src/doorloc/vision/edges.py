@@ -874,16 +874,67 @@ class _StepPixels:
         return self._h
 
 
+#: Cephes' erfc (S. L. Moshier's library, as in scipy.special): erfc(z) = exp(-z^2) P(z) / Q(z) for
+#: 1 <= z < 8 and exp(-z^2) R(z) / S(z) beyond, the denominators' leading 1 implicit
+_ERFC_P = (
+    2.46196981473530512524e-10, 5.64189564831068821977e-1, 7.46321056442269912687e0,
+    4.86371970985681366614e1, 1.96520832956077098242e2, 5.26445194995477358631e2,
+    9.34528527171957607540e2, 1.02755188689515710272e3, 5.57535335369399327526e2,
+)  # fmt: skip
+_ERFC_Q = (
+    1.32281951154744992508e1, 8.67072140885989742329e1, 3.54937778887819891062e2,
+    9.75708501743205489753e2, 1.82390916687909736289e3, 2.24633760818710981792e3,
+    1.65666309194161350182e3, 5.57535340817727675546e2,
+)  # fmt: skip
+_ERFC_R = (
+    5.64189583547755073984e-1, 1.27536670759978104416e0, 5.01905042251180477414e0,
+    6.16021097993053585195e0, 7.40974269950448939160e0, 2.97886665372100240670e0,
+)  # fmt: skip
+_ERFC_S = (
+    2.26052863220117276590e0, 9.39603524938001434673e0, 1.20489539808096656605e1,
+    1.70814450747565897222e1, 9.60896809063285878198e0, 3.36907645100081516050e0,
+)  # fmt: skip
+
+
 @kernel(inline=True)
-def _ndtr(a):
-    """The standard normal CDF: scipy.special.ndtr's formula over the C library's erf and erfc (scipy's
-    own are not callable from a cached kernel; the two agree to an ulp or two)."""
-    x = a * 0.7071067811865476  # 1 / sqrt(2)
+def _normal_cdf_pdf(u):
+    """The standard normal CDF ``Phi(u)`` and density ``phi(u)``, with one exponential between them.
+
+    The blurred-step models need both on every boundary near an edge; the C library's erfc computes its own
+    ``exp(-z^2)`` (and more: 32 ns a call here against 9 ns for exp), so for ``|u| >= sqrt(2)`` the CDF is
+    Cephes' rational form times the density's exponential (``z^2 = u^2 / 2``). Within ``|u| < 1`` it is
+    scipy.special.ndtr's ``0.5 + 0.5 erf(u / sqrt(2))``, between them ``0.5 erfc`` of the C library, as
+    before (23 ns for both, against 41). Against scipy's ndtr: within 2e-14 relative in the tails up to
+    ``|u| = 10`` (the exponential's argument rounded once, not split as Cephes' expx2 does), an ulp or two
+    elsewhere.
+    """
+    E = math.exp(-0.5 * u * u)
+    phi = E * 0.3989422804014327  # 1 / sqrt(2 pi)
+    x = u * 0.7071067811865476  # 1 / sqrt(2)
     z = abs(x)
     if z < 0.7071067811865476:
-        return 0.5 + 0.5 * math.erf(x)
-    y = 0.5 * math.erfc(z)
-    return 1.0 - y if x > 0 else y
+        return 0.5 + 0.5 * math.erf(x), phi
+    if z < 1.0:
+        y = 0.5 * math.erfc(z)
+    elif z < 8.0:
+        P, Q = _ERFC_P, _ERFC_Q
+        num = P[0]
+        for c in P[1:]:
+            num = num * z + c
+        den = z + Q[0]
+        for c in Q[1:]:
+            den = den * z + c
+        y = 0.5 * E * num / den
+    else:
+        R, S = _ERFC_R, _ERFC_S
+        num = R[0]
+        for c in R[1:]:
+            num = num * z + c
+        den = z + S[0]
+        for c in S[1:]:
+            den = den * z + c
+        y = 0.5 * E * num / den
+    return (1.0 - y if x > 0 else y), phi
 
 
 def _step_pixel_values_warm_up(k) -> None:
@@ -915,7 +966,6 @@ def _step_pixel_values(bounds, e, sigma, tail_sigmas):
     g = np.empty((N, n_b - 1))
     h = np.empty((N, n_b - 1))
     inv = 1.0 / sigma
-    norm = 1.0 / math.sqrt(2.0 * math.pi)
     G = np.empty(n_b)
     P = np.empty(n_b)
     p = np.empty(n_b)
@@ -924,9 +974,7 @@ def _step_pixel_values(bounds, e, sigma, tail_sigmas):
         for j in range(n_b):
             y = bounds[j] - e[i]
             if j0 <= j < j1:
-                u = y * inv
-                P[j] = _ndtr(u)
-                p[j] = math.exp(-0.5 * u * u) * norm
+                P[j], p[j] = _normal_cdf_pdf(y * inv)
                 G[j] = y * P[j] + sigma * p[j]
             else:
                 P[j] = 1.0 if y > 0.0 else 0.0
@@ -976,12 +1024,9 @@ def _unit_step_boundaries(bounds, x, sigma, cut, G, P, p, slopes):
             P[j] = 1.0
             p[j] = 0.0
     inv = 1.0 / sigma
-    norm = 1.0 / math.sqrt(2.0 * math.pi)
     for j in range(j0, j1):
         y = bounds[j] - x
-        u = y * inv
-        Pj = _ndtr(u)
-        pj = math.exp(-0.5 * u * u) * norm
+        Pj, pj = _normal_cdf_pdf(y * inv)
         G[j] = y * Pj + sigma * pj
         if slopes:
             P[j] = Pj
