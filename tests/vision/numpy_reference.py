@@ -1,6 +1,7 @@
 """The functions whose loops are now numba kernels (doorloc.vision.jit), as they were written with numpy:
 the references tests/vision/test_jit.py holds the compiled ones to (texture_bias, transition_width,
-plateau_levels, ransac_line, the response's asymmetry, the step fit; the area estimate is held to subpixel_edges' own numpy branch, the coarse
+plateau_levels, ransac_line, the response's asymmetry, the step fit, the arris strip's pixel terms and solve, the
+far-face Gauss-Newton loop; the area estimate is held to subpixel_edges' own numpy branch, the coarse
 finder to coarse_reference.py)."""
 
 from __future__ import annotations
@@ -449,3 +450,73 @@ def strip_solve(prob, terms, basis: np.ndarray, jac: bool = False):
         grad = 2.0 * ((JwT @ f[..., None])[..., 0] + (Jp.transpose(0, 2, 1) @ fp[..., None])[..., 0])
         hess = 2.0 * (JwT @ J + Jp.transpose(0, 2, 1) @ Jp)
     return chi2, coef, deficit, grad, hess
+
+
+def far_face_gauss_newton(
+    core, A, D, bounds, e, w0, e0, band_slope, sigma, tail, strip, has_strip, lam, mu, fit_blur, n_iter,
+    level_weight, pull_mu, mu0, levels_lo, levels_hi,
+):  # fmt: skip
+    """subpixel_edges_far_face's Gauss-Newton iterations as they were written in Python over the compiled
+    sums (edges._far_face_gauss_newton compiles the loop, the Schur complement and the step)."""
+    from doorloc.vision.edges import _far_face_misfit, _far_face_sums
+
+    n_sh = 3 if has_strip else 2
+
+    def total_cost(e, lam, sigma, mu):
+        misfit, info = _far_face_misfit(
+            core, A, D, bounds, e, w0, e0, band_slope, sigma, tail, strip, has_strip, lam, mu
+        )
+        c = misfit + level_weight * info * (lam - 0.5) ** 2
+        return c + pull_mu * (mu - mu0) ** 2 if has_strip else c
+
+    def step_system(e, lam, sigma, mu):
+        h_ee, h_eg, b_e, H, b_g, _ = _far_face_sums(
+            core, A, D, bounds, e, w0, e0, band_slope, sigma, tail, strip, has_strip, lam, mu, fit_blur
+        )
+        level_info = float(H[0, 0])
+        H -= (h_eg / h_ee[:, None]).T @ h_eg
+        b_g -= (h_eg * (b_e / h_ee)[:, None]).sum(axis=0)
+        H += np.diag(np.maximum(np.diag(H), 1e-12) * 1e-6 + 1e-9)
+        prior = level_weight * level_info
+        H[0, 0] += prior
+        b_g[0] += prior * (0.5 - lam)
+        if has_strip:
+            H[2, 2] += pull_mu
+            b_g[2] += pull_mu * (mu0 - mu)
+        return H, b_g, h_ee, h_eg, b_e
+
+    cost = total_cost(e, lam, sigma, mu)
+    for _ in range(n_iter):
+        H, b_g, h_ee, h_eg, b_e = step_system(e, lam, sigma, mu)
+        d = np.linalg.solve(H, b_g)
+        d_lam, d_sig = float(np.clip(d[0], -1.0, 1.0)), float(np.clip(d[1], -0.5, 0.5))
+        d_mu = float(np.clip(d[2], -1.0, 1.0)) if has_strip else 0.0
+        d_sh = np.array([d_lam, d_sig, d_mu][:n_sh])
+        de = np.clip((b_e - h_eg @ d_sh) / h_ee, -1.0, 1.0)
+        for step in (1.0, 0.5, 0.25, 0.125):
+            trial = (
+                e + step * de,
+                lam + step * d_lam,
+                float(np.clip(sigma + step * d_sig, 0.05, 5.0)),
+                mu + step * d_mu,
+            )
+            if has_strip:
+                trial = (
+                    trial[0],
+                    min(max(trial[1], levels_lo), levels_hi),
+                    trial[2],
+                    min(max(trial[3], levels_lo), levels_hi),
+                )
+            c = total_cost(*trial)
+            if c <= cost:
+                break
+        else:
+            break
+        e, lam, sigma, mu = trial
+        done = cost - c <= 1e-9 * max(cost, 1e-12) or (
+            np.max(np.abs(step * de)) < 1e-4 and abs(step * d_lam) < 1e-4 and abs(step * d_mu) < 1e-4
+        )
+        cost = c
+        if done:
+            break
+    return e, lam, sigma, mu, cost

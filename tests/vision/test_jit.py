@@ -32,6 +32,7 @@ The coarse step finder is held to the first finder bit for bit in test_coarse.py
 from __future__ import annotations
 
 import importlib.util
+import math
 from pathlib import Path
 
 import numpy as np
@@ -643,3 +644,54 @@ def test_far_face_kernels_as_the_array_code(seed, n, n_m, sigma, with_blur, has_
             assert abs(lams[s] - lam_s) <= scale + 1e-9 * abs(lam_s), (lams[s], lam_s)
             rs = r0 - J * lams[s]
             close(costs[s] - pull * (lams[s] - 0.5) ** 2, rs * rs)
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    n=st.integers(1, 200),
+    fit_blur=st.booleans(),
+    has_strip=st.booleans(),
+    noise=st.sampled_from([0.0, 0.5, 3.0]),
+)
+def test_far_face_gauss_newton_as_its_python_loop(seed, n, fit_blur, has_strip, noise):
+    # edges._far_face_gauss_newton (the far-face fit's iterations compiled: the loop, the Schur complement,
+    # the step and its halvings) against the loop as it was written in Python over the same sums
+    # (numpy_reference.far_face_gauss_newton), on profiles of the model itself with noise, started off the
+    # answer: the same iterate to rounding, or, where rounding decides whether a last tiny step lowers the
+    # cost, a point as converged (the loop's own step tolerance, 1e-4 px, and the cost to 1e-9)
+    from doorloc.vision.edges import LEVEL_PRIOR_WEIGHT, STEP_TAIL_SIGMAS, _far_face_gauss_newton, _pixel_step
+
+    rng = np.random.default_rng(seed)
+    n_m = 24
+    bounds = np.arange(n_m + 1.0) + 3.5
+    e_true = rng.uniform(10.0, 16.0) + 0.01 * np.arange(n) + rng.normal(0, 0.05, n)
+    e0 = e_true + rng.normal(0, 0.3, n)
+    w0 = np.full(n, rng.uniform(0.3, 5.0)) + rng.normal(0, 0.1, n)
+    band_slope = -rng.uniform(0.0, 0.8)
+    strip = np.full(n, rng.uniform(0.5, 3.0)) if has_strip else np.zeros(n)
+    A, D = rng.uniform(20, 80, n), rng.uniform(50, 150, n) * rng.choice([-1.0, 1.0])
+    lam_t, sig_t, mu_t = rng.uniform(0.1, 0.9), rng.uniform(0.3, 1.5), rng.uniform(-0.4, 0.4) * has_strip
+    w = np.maximum(w0 + band_slope * (e_true - e0), 0.0)
+    pos = [e_true, e_true + w] + ([e_true - strip] if has_strip else [])
+    C, _, _ = _pixel_step(bounds, np.concatenate(pos), sig_t)
+    C1, C2 = C[:n], C[n : 2 * n]
+    model = A[:, None] + (lam_t * D)[:, None] * C1 + ((1 - lam_t) * D)[:, None] * C2
+    if has_strip:
+        model += mu_t * D[:, None] * (C[2 * n :] - C1)
+    core = model + rng.normal(0, noise, model.shape) if noise else model
+    lo, hi = (-1.0, 2.0) if has_strip else (-math.inf, math.inf)
+    args = (core, A, D, bounds, e0 + rng.normal(0, 0.2, n), w0, e0, band_slope, sig_t * rng.uniform(0.7, 1.3))
+    args += (STEP_TAIL_SIGMAS, strip, has_strip, 0.5, 0.0, fit_blur, 10, LEVEL_PRIOR_WEIGHT, 0.3, 0.0, lo, hi)
+    e_in = args[4].copy()
+    # one step from the start (no later step for rounding to decide): the same iterate to rounding
+    one = args[:15] + (1,) + args[16:]
+    got, want = _far_face_gauss_newton(*one), reference.far_face_gauss_newton(*one)
+    np.testing.assert_allclose(got[0], want[0], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(got[1:5], want[1:5], rtol=1e-9, atol=1e-9)
+    got = _far_face_gauss_newton(*args)
+    want = reference.far_face_gauss_newton(*args)
+    np.testing.assert_array_equal(args[4], e_in)  # the start is not written over
+    np.testing.assert_allclose(got[0], want[0], rtol=0, atol=2e-4)
+    np.testing.assert_allclose(got[1:4], want[1:4], rtol=0, atol=2e-4)
+    assert abs(got[4] - want[4]) <= 1e-9 * abs(want[4]) + 1e-9, (got[4], want[4])

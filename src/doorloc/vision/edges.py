@@ -1220,6 +1220,158 @@ def _far_face_sums(
     return h_ee, h_eg, b_e, H, b_g, rr
 
 
+@kernel(inline=True)
+def _clip(x, lo, hi):
+    """``np.clip`` of a number (NaN stays NaN)."""
+    return lo if x < lo else (hi if x > hi else x)
+
+
+@kernel(inline=True)
+def _py_max(a, b):
+    """Python's ``max(a, b)`` of two numbers (``a`` unless ``b`` is larger: a NaN ``a`` stays)."""
+    return b if b > a else a
+
+
+@kernel(inline=True)
+def _py_min(a, b):
+    """Python's ``min(a, b)`` of two numbers (``a`` unless ``b`` is smaller)."""
+    return b if b < a else a
+
+
+def _far_face_schur_warm_up(k) -> None:
+    for n_sh in (2, 3):
+        k(np.eye(n_sh), np.ones(n_sh), np.ones(3), np.ones((3, n_sh)), np.ones(3), 0.5, 0.1)
+        k(
+            np.eye(n_sh),
+            np.ones(n_sh),
+            np.ones(3),
+            np.ones((3, n_sh)),
+            np.ones(3),
+            0.5,
+            0.1,
+            0.02,
+            n_sh == 3,
+            1.0,
+            0.2,
+        )
+
+
+@kernel(_far_face_schur_warm_up)
+def _far_face_schur(
+    H, b_g, h_ee, h_eg, b_e, lam, mu, level_weight=LEVEL_PRIOR_WEIGHT, has_strip=False, pull_mu=0.0, mu0=0.0
+):
+    """The far-face normal equations of the shared unknowns (band level, blur, strip level) with the
+    arrises eliminated (Schur complement), in place in ``H`` and ``b_g``, from :func:`_far_face_sums`.
+
+    With the level's pull towards mid-grey (``level_weight`` times its information) and, with a strip,
+    the strip level's pull ``pull_mu`` towards its prior ``mu0``; a small ridge keeps a level that no
+    scan line sees (a band nowhere in view) from leaving the system singular."""
+    n, n_sh = h_eg.shape
+    level_info = H[0, 0]  # sum of J_lam ** 2
+    for k in range(n_sh):
+        for q in range(n_sh):
+            acc = 0.0
+            for i in range(n):
+                acc += h_eg[i, k] / h_ee[i] * h_eg[i, q]
+            H[k, q] -= acc
+        acc = 0.0
+        for i in range(n):
+            acc += h_eg[i, k] * (b_e[i] / h_ee[i])
+        b_g[k] -= acc
+    for k in range(n_sh):
+        H[k, k] += max(H[k, k], 1e-12) * 1e-6 + 1e-9
+    # Where the band is much narrower than the blur, its level and the arrises trade off (the Schur
+    # complement keeps little of the level's information): a weak pull towards mid-grey between the two
+    # sides then settles the level, as little as the data allow.
+    prior = level_weight * level_info
+    H[0, 0] += prior
+    b_g[0] += prior * (0.5 - lam)
+    if has_strip:  # the strip's level: its prior (a strip narrower than the blur trades it with e)
+        H[2, 2] += pull_mu
+        b_g[2] += pull_mu * (mu0 - mu)
+
+
+def _far_face_gauss_newton_warm_up(k) -> None:
+    core, v, bounds = np.full((3, 4), 0.5), np.ones(3), np.arange(5.0) - 0.5
+    for strip in (False, True):
+        for blur in (False, True):
+            k(core, v, v, bounds, v.copy(), v, v, -0.1, 0.5, STEP_TAIL_SIGMAS, v, strip, 0.5, 0.1, blur, 2,
+              LEVEL_PRIOR_WEIGHT, 1.0, 0.1, -1.0, 2.0)  # fmt: skip
+
+
+@kernel(_far_face_gauss_newton_warm_up)
+def _far_face_gauss_newton(
+    core, A, D, bounds, e, w0, e0, band_slope, sigma, tail, strip, has_strip, lam, mu, fit_blur, n_iter,
+    level_weight, pull_mu, mu0, levels_lo, levels_hi,
+):  # fmt: skip
+    """:func:`subpixel_edges_far_face`'s Gauss-Newton iterations from the arrises ``e`` (N,), band level
+    ``lam``, blur ``sigma`` and strip level ``mu``: each step moves every arris and the shared unknowns
+    together (one unknown per scan line plus the shared ones, solved through the Schur complement: the
+    arrises and the level are strongly coupled where the band is narrow), and is taken whole or halved
+    up to three times, only where it lowers the cost (the band's width is clipped at zero, a kink a full
+    step can jump across into the false minimum where the band has vanished). Returns the final
+    ``e, lam, sigma, mu`` and cost (misfit and pulls). Compiled: as Python, ~20 numpy calls a step."""
+    e = e.copy()
+    n = e.size
+
+    def cost_at(e, lam, sigma, mu):
+        misfit, info = _far_face_misfit(
+            core, A, D, bounds, e, w0, e0, band_slope, sigma, tail, strip, has_strip, lam, mu
+        )
+        c = misfit + level_weight * info * (lam - 0.5) ** 2
+        return c + pull_mu * (mu - mu0) ** 2 if has_strip else c
+
+    cost = cost_at(e, lam, sigma, mu)
+    de = np.empty(n)
+    trial = np.empty(n)
+    for _ in range(n_iter):
+        h_ee, h_eg, b_e, H, b_g, _rr = _far_face_sums(
+            core, A, D, bounds, e, w0, e0, band_slope, sigma, tail, strip, has_strip, lam, mu, fit_blur
+        )
+        _far_face_schur(H, b_g, h_ee, h_eg, b_e, lam, mu, level_weight, has_strip, pull_mu, mu0)
+        d = np.linalg.solve(H, b_g)
+        d_lam, d_sig = _clip(d[0], -1.0, 1.0), _clip(d[1], -0.5, 0.5)
+        d_mu = _clip(d[2], -1.0, 1.0) if has_strip else 0.0
+        for i in range(n):
+            acc = h_eg[i, 0] * d_lam + h_eg[i, 1] * d_sig
+            if has_strip:
+                acc += h_eg[i, 2] * d_mu
+            de[i] = _clip((b_e[i] - acc) / h_ee[i], -1.0, 1.0)
+        accepted = False
+        step = 1.0
+        t_lam, t_sig, t_mu, c = lam, sigma, mu, cost
+        for _h in range(4):
+            for i in range(n):
+                trial[i] = e[i] + step * de[i]
+            t_lam = lam + step * d_lam
+            t_sig = _clip(sigma + step * d_sig, 0.05, 5.0)
+            t_mu = mu + step * d_mu
+            if has_strip:
+                t_lam = _py_min(_py_max(t_lam, levels_lo), levels_hi)
+                t_mu = _py_min(_py_max(t_mu, levels_lo), levels_hi)
+            c = cost_at(trial, t_lam, t_sig, t_mu)
+            if c <= cost:
+                accepted = True
+                break
+            step *= 0.5
+        if not accepted:
+            break
+        big = 0.0  # np.max(np.abs(step * de)), NaN as numpy's
+        for i in range(n):
+            v = abs(step * de[i])
+            if v > big or v != v:
+                big = v
+        e, trial = trial, e
+        lam, sigma, mu = t_lam, t_sig, t_mu
+        done = cost - c <= 1e-9 * _py_max(cost, 1e-12) or (
+            big < 1e-4 and abs(step * d_lam) < 1e-4 and abs(step * d_mu) < 1e-4
+        )
+        cost = c
+        if done:
+            break
+    return e, lam, sigma, mu, cost
+
+
 def _pixel_step(bounds: np.ndarray, e: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Unit steps at ``e`` (N,), blurred by a Gaussian ``sigma`` and integrated over pixels.
 
@@ -1403,107 +1555,13 @@ def subpixel_edges_far_face(
         e = e0o + best[1]
         lam = best[2]
 
-    def total_cost(e: np.ndarray, lam: float, sigma: float, mu: float = 0.0) -> float:
-        misfit, info = _far_face_misfit(
-            core,
-            Ao,
-            Do,
-            bounds,
-            e,
-            w0o,
-            e0o,
-            band_slope,
-            sigma,
-            STEP_TAIL_SIGMAS,
-            strip_o,
-            has_strip,
-            lam,
-            mu,
-        )
-        c = misfit + LEVEL_PRIOR_WEIGHT * info * (lam - 0.5) ** 2
-        return c + pull_mu * (mu - mu0) ** 2 if has_strip else c
-
-    # the shared unknowns: the band level, the blur (its column 0 when not fitted) and the strip's level
-    n_sh = 3 if has_strip else 2
-
-    def step_system(
-        e: np.ndarray, lam: float, sigma: float, mu: float
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """The normal equations of the shared unknowns at a Gauss-Newton iterate, the arrises eliminated
-        (Schur complement), and the arrises' own terms."""
-        h_ee, h_eg, b_e, H, b_g, _ = sums(e, lam, sigma, mu, fit_blur)
-        return schur(H, b_g, h_ee, h_eg, b_e, lam, mu)
-
-    def schur(
-        H: np.ndarray,
-        b_g: np.ndarray,
-        h_ee: np.ndarray,
-        h_eg: np.ndarray,
-        b_e: np.ndarray,
-        lam: float,
-        mu: float,
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        level_info = float(H[0, 0])  # sum of J_lam ** 2
-        H -= (h_eg / h_ee[:, None]).T @ h_eg
-        b_g -= (h_eg * (b_e / h_ee)[:, None]).sum(axis=0)
-        H += np.diag(
-            np.maximum(np.diag(H), 1e-12) * 1e-6 + 1e-9
-        )  # a band nowhere in view leaves its level free
-        # Where the band is much narrower than the blur, its level and the arrises trade off (the
-        # Schur complement keeps little of the level's information): a weak pull towards mid-grey
-        # between the two sides then settles the level, as little as the data allow.
-        prior = LEVEL_PRIOR_WEIGHT * level_info
-        H[0, 0] += prior
-        b_g[0] += prior * (0.5 - lam)
-        if has_strip:  # the strip's level: its prior (a strip narrower than the blur trades it with e)
-            H[2, 2] += pull_mu
-            b_g[2] += pull_mu * (mu0 - mu)
-        return H, b_g, h_ee, h_eg, b_e
-
     def gauss_newton(
         e: np.ndarray, lam: float, sigma: float, mu: float
     ) -> tuple[np.ndarray, float, float, float, float]:
-        cost = total_cost(e, lam, sigma, mu)
-        for _ in range(n_iter):
-            # One Gauss-Newton step for every arris and the shared level (and blur, and strip level)
-            # together: the normal equations have one unknown per scan line plus the shared ones, solved
-            # through the Schur complement (the arrises and the level are strongly coupled where the band
-            # is narrow).
-            H, b_g, h_ee, h_eg, b_e = step_system(e, lam, sigma, mu)
-            d = np.linalg.solve(H, b_g)
-            d_lam, d_sig = float(np.clip(d[0], -1.0, 1.0)), float(np.clip(d[1], -0.5, 0.5))
-            d_mu = float(np.clip(d[2], -1.0, 1.0)) if has_strip else 0.0
-            d_sh = np.array([d_lam, d_sig, d_mu][:n_sh])
-            de = np.clip((b_e - h_eg @ d_sh) / h_ee, -1.0, 1.0)
-            # Only steps that lower the cost: the band's width is clipped at zero, a kink Gauss-Newton
-            # can jump across into the false minimum where the band has vanished.
-            for step in (1.0, 0.5, 0.25, 0.125):
-                trial = (
-                    e + step * de,
-                    lam + step * d_lam,
-                    float(np.clip(sigma + step * d_sig, 0.05, 5.0)),
-                    mu + step * d_mu,
-                )
-                if has_strip:
-                    trial = (
-                        trial[0],
-                        min(max(trial[1], levels_lo), levels_hi),
-                        trial[2],
-                        min(max(trial[3], levels_lo), levels_hi),
-                    )
-                c = total_cost(*trial)
-                if c <= cost:
-                    break
-            else:
-                break
-            e, lam, sigma, mu = trial
-            done = cost - c <= 1e-9 * max(cost, 1e-12) or (
-                np.max(np.abs(step * de)) < 1e-4 and abs(step * d_lam) < 1e-4 and abs(step * d_mu) < 1e-4
-            )
-            cost = c
-            if done:
-                break
-        return e, lam, sigma, mu, cost
+        return _far_face_gauss_newton(
+            core, Ao, Do, bounds, e, w0o, e0o, band_slope, sigma, STEP_TAIL_SIGMAS, strip_o, has_strip,
+            lam, mu, fit_blur, n_iter, LEVEL_PRIOR_WEIGHT, pull_mu, mu0, levels_lo, levels_hi,
+        )  # fmt: skip
 
     strip_doubt = 0.0
     if n_ok:
@@ -1559,7 +1617,7 @@ def subpixel_edges_far_face(
             # strip's shading (a rounding's runs across it), as the band's
             h_eg[:, 1] = b_g[1] = 0.0
             H[1, :] = H[:, 1] = 0.0
-            H, _, _, _, _ = schur(H, b_g, h_ee, h_eg, b_e, lam, mu)
+            _far_face_schur(H, b_g, h_ee, h_eg, b_e, lam, mu, LEVEL_PRIOR_WEIGHT, has_strip, pull_mu, mu0)
             try:
                 var_mu = float(np.linalg.inv(H)[2, 2]) * float(np.median(res_var))
             except np.linalg.LinAlgError:
