@@ -1502,7 +1502,7 @@ def subpixel_edges_far_face(
     mu0 = mu_sd = pull_mu = 0.0
     levels_lo, levels_hi = -math.inf, math.inf
     if has_strip and n_ok:
-        a_med, d_med = float(np.median(Ao)), float(np.median(Do))
+        a_med, d_med = _median(Ao), _median(Do)
         k = -a_med / d_med if abs(d_med) > 1e-9 * max(abs(a_med), 1e-12) else 0.0
         mu0 = (strip_radiance[0] - 1.0) * -k
         mu_sd = max(strip_radiance[1] * abs(k), 0.05)
@@ -1512,7 +1512,7 @@ def subpixel_edges_far_face(
         # img_0007, its bottom end then refused as not straight).
         levels_lo, levels_hi = sorted((k, -2.0 * k))
         ends = np.concatenate([vals[ok, :plateau], vals[ok, -plateau:]], axis=1)
-        noise_var = max(float(np.median(ends.var(axis=1))), (1e-3 * abs(d_med)) ** 2)
+        noise_var = max(_median(ends.var(axis=1)), (1e-3 * abs(d_med)) ** 2)
         pull_mu = noise_var / mu_sd**2
     # The model's arguments after the profiles and levels: the pixel boundaries, the band's predicted
     # width, the strip's, the blur's tail cut (the kernels form the steps' pixel values per scan line).
@@ -1573,7 +1573,7 @@ def subpixel_edges_far_face(
         # the better is kept, and the other weighs in as a second place for the border (its misfit excess
         # at the scale of the residuals of one scan line: a model's error is common to all of them).
         assert wso is not None
-        w_med = float(np.median(wso))
+        w_med = _median(wso)
         chosen: tuple[np.ndarray, float, float, float, float] = (e, lam, sigma, mu, cost)
         others = []
         for sgn in (1.0, -1.0):
@@ -1586,12 +1586,12 @@ def subpixel_edges_far_face(
             per_line = chosen[4] / max(n_ok, 1)
             for alt in ranked[1:]:
                 q = math.exp(-min((alt[4] - chosen[4]) / (2.0 * max(per_line, 1e-300)), 50.0))
-                shift = float(np.median(alt[0] - chosen[0]))
+                shift = _median(alt[0] - chosen[0])
                 strip_doubt = max(strip_doubt, abs(shift) * math.sqrt(q / (1.0 + q)))
         e, lam, sigma, mu, cost = chosen
     other_reading = 0.0
     if n_ok and not has_strip and min(abs(lam), abs(1.0 - lam)) <= BAND_SIDE_LEVEL:
-        w_med = float(np.median(np.maximum(w0o + band_slope * (e - e0o), 0.0)))
+        w_med = _median(np.maximum(w0o + band_slope * (e - e0o), 0.0))
         if w_med >= BAND_SIDE_MIN_PX:
             # The band read as the background's: the step is the arris here, and the far face's back edge in
             # the other reading, whose arris lies inwards by its band's width, w / (1 + band_slope) (the band
@@ -1619,7 +1619,7 @@ def subpixel_edges_far_face(
             H[1, :] = H[:, 1] = 0.0
             _far_face_schur(H, b_g, h_ee, h_eg, b_e, lam, mu, LEVEL_PRIOR_WEIGHT, has_strip, pull_mu, mu0)
             try:
-                var_mu = float(np.linalg.inv(H)[2, 2]) * float(np.median(res_var))
+                var_mu = float(np.linalg.inv(H)[2, 2]) * _median(res_var)
             except np.linalg.LinAlgError:
                 var_mu = mu_sd**2
             # (a rounding's shading runs from the hinge face's level towards the far face's across the
@@ -1630,14 +1630,14 @@ def subpixel_edges_far_face(
     along = np.where(outward > 0, start + e, start - e)
     valid = ok & np.isfinite(along) & (np.abs(e - e0) <= half + n_strip) & np.isfinite(e_sigma)
     w_fit = np.maximum(w0 + band_slope * (e - e0), 0.0)
-    band_med = float(np.median(w_fit[valid])) if np.any(valid) else float("nan")
+    band_med = _median(w_fit[valid]) if np.any(valid) else float("nan")
     model_sigma = (
-        math.hypot(float(np.median(de_dlam)) * LEVEL_DOUBT, float(np.median(de_dsig)) * BLUR_DOUBT)
+        math.hypot(_median(de_dlam) * LEVEL_DOUBT, _median(de_dsig) * BLUR_DOUBT)
         if de_dlam.size
         else float("nan")
     )
     if de_dmu.size:  # the strip's level, and another place for the border that fits about as well
-        model_sigma = math.hypot(model_sigma, float(np.median(de_dmu)) * mu_doubt, strip_doubt)
+        model_sigma = math.hypot(model_sigma, _median(de_dmu) * mu_doubt, strip_doubt)
     noise = np.sqrt(0.5 * (vals[:, :plateau].var(axis=1) + vals[:, -plateau:].var(axis=1)))
     step = D * outward
     nan = np.full(len(scan), np.nan)
@@ -1659,7 +1659,7 @@ def subpixel_edges_far_face(
         lam,
         sigma,
         band_med,
-        float(np.median(e_sigma[valid])) if np.any(valid) else float("nan"),
+        _median(e_sigma[valid]) if np.any(valid) else float("nan"),
         model_sigma,
         float(mu) if has_strip else float("nan"),
         other_reading,
