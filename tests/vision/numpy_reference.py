@@ -1,7 +1,7 @@
 """The functions whose loops are now numba kernels (doorloc.vision.jit), as they were written with numpy:
 the references tests/vision/test_jit.py holds the compiled ones to (texture_bias, transition_width,
 plateau_levels, ransac_line, the response's asymmetry, the step fit, the arris strip's pixel terms and solve, the
-far-face Gauss-Newton loop; the area estimate is held to subpixel_edges' own numpy branch, the coarse
+far-face Gauss-Newton loop, the arris lines' borders; the area estimate is held to subpixel_edges' own numpy branch, the coarse
 finder to coarse_reference.py)."""
 
 from __future__ import annotations
@@ -520,3 +520,53 @@ def far_face_gauss_newton(
         if done:
             break
     return e, lam, sigma, mu, cost
+
+
+def line_borders(
+    vals: np.ndarray,
+    x: np.ndarray,
+    border0: np.ndarray,
+    width: np.ndarray,
+    levels: np.ndarray,
+    blur_px: float,
+    n_iter: int = 6,
+) -> np.ndarray:
+    """arris_model._line_borders as it was written with numpy (the (N, P, J) pixel terms of
+    arris_model._pixel_terms, ~25 array operations an iteration)."""
+    from doorloc.vision.arris_model import _pixel_terms
+
+    n_cells = levels.size
+    frac = np.arange(n_cells + 1) / n_cells
+    jumps = np.diff(np.concatenate([[0.0], levels, [1.0]]))  # (C + 1,) each boundary's step
+    edges = np.concatenate([x[:1] - 0.5, x + 0.5])
+    b = np.asarray(border0, float).copy()
+    ok = np.isfinite(b) & np.isfinite(width)
+    b[~ok] = 0.0
+    w = np.where(ok, width, 0.0)
+    sigma = np.array([max(float(blur_px), 0.05)])
+    step = np.zeros_like(b)
+    for _ in range(n_iter):
+        bounds = (b[:, None] + w[:, None] * frac[None, :])[None]  # (1, N, J)
+        prim, d_b, _ = _pixel_terms(edges, bounds, sigma)
+        shape = prim[0] @ jumps  # (N, P)
+        dshape = d_b[0] @ jumps  # d shape / d b
+        # A and D by least squares on each line: [1, shape] (N, P, 2)
+        s_mean = shape.mean(axis=1, keepdims=True)
+        v_mean = vals.mean(axis=1, keepdims=True)
+        sc, vc = shape - s_mean, vals - v_mean
+        ss = (sc * sc).sum(axis=1)
+        D = np.where(ss > 1e-12, (sc * vc).sum(axis=1) / np.maximum(ss, 1e-12), np.nan)
+        A = v_mean[:, 0] - D * s_mean[:, 0]
+        res = A[:, None] + D[:, None] * shape - vals
+        # the border's Gauss-Newton step, the levels projected out (variable projection)
+        J = D[:, None] * dshape
+        Jc = J - J.mean(axis=1, keepdims=True)
+        Jp = Jc - ((Jc * sc).sum(axis=1) / np.maximum(ss, 1e-12))[:, None] * sc
+        jj = (Jp * Jp).sum(axis=1)
+        step = np.where(jj > 1e-18, -(Jp * res).sum(axis=1) / np.maximum(jj, 1e-18), np.nan)
+        step = np.clip(step, -0.5, 0.5)
+        b = b + np.where(np.isfinite(step), step, 0.0)
+        if np.nanmax(np.abs(step), initial=0.0) < 1e-4:
+            break
+    good = ok & np.isfinite(step) & (np.abs(step) < 0.5) & np.isfinite(D) & (np.abs(D) > 0)
+    return np.where(good, b, np.nan)

@@ -695,3 +695,44 @@ def test_far_face_gauss_newton_as_its_python_loop(seed, n, fit_blur, has_strip, 
     np.testing.assert_allclose(got[0], want[0], rtol=0, atol=2e-4)
     np.testing.assert_allclose(got[1:4], want[1:4], rtol=0, atol=2e-4)
     assert abs(got[4] - want[4]) <= 1e-9 * abs(want[4]) + 1e-9, (got[4], want[4])
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    n=st.integers(1, 150),
+    n_cells=st.integers(1, 6),
+    blur=st.sampled_from([0.02, 0.4, 1.0, 2.5]),
+    noise=st.sampled_from([0.0, 0.01, 0.2]),
+    spoil=st.booleans(),
+)
+def test_line_borders_as_their_numpy_version(seed, n, n_cells, blur, noise, spoil):
+    # arris_model._line_borders (each line's strip border fitted, compiled per line) against the array code
+    # it replaced (numpy_reference.line_borders): to rounding (the shape's sum over the strip's boundaries
+    # was a matrix product, summed in BLAS's order), NaN where it gave NaN; lines with no contrast, a
+    # border or width not finite, and a start off by up to 2 px among them
+    from doorloc.vision.arris_model import _line_borders
+
+    rng = np.random.default_rng(seed)
+    n_px = 28
+    x = np.arange(n_px, dtype=float)
+    outer = rng.uniform(6.0, 12.0, n)
+    width = rng.uniform(0.5, 8.0, n)
+    levels = np.sort(rng.uniform(-0.2, 1.3, n_cells))
+    edges = np.concatenate([[0.0], levels, [1.0]])
+    vals = np.zeros((n, n_px))
+    for c in range(n_cells + 1):  # background 0 | cells | face 1, as area fractions of each pixel
+        left = outer + width * c / n_cells if c else np.full(n, -np.inf)
+        vals += (edges[c + 1] - edges[c]) * np.clip(x[None, :] + 0.5 - left[:, None], 0.0, 1.0)
+    vals = (
+        rng.uniform(10, 50, (n, 1)) + rng.uniform(40, 200, (n, 1)) * vals + rng.normal(0, noise, vals.shape)
+    )
+    start = outer + rng.uniform(-2.0, 2.0, n)
+    if spoil and n > 3:
+        vals[0] = 77.0  # no contrast
+        start[1] = np.nan
+        width[2] = np.inf
+    got = _line_borders(vals, x, start, width, levels, blur)
+    want = reference.line_borders(vals, x, start, width, levels, blur)
+    np.testing.assert_array_equal(np.isnan(got), np.isnan(want))
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-8)

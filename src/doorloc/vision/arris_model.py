@@ -51,7 +51,7 @@ from doorloc.vision.edges import (
     _normal_cdf_pdf,
     oriented,
 )
-from doorloc.vision.jit import kernel
+from doorloc.vision.jit import kernel, pairwise_sum
 
 __all__ = ["ArrisGeometry", "StripFit", "arris_geometry", "deficit_prior", "fit_strip_profile", "arris_edges"]
 
@@ -1001,43 +1001,126 @@ def _line_borders(
     weighs pixels by how much the border's place changes them: the strip's outer border (background to
     strip, where no face texture lies) pins it; the face's texture only enters through ``D``.
     Returns NaN for a line whose fit fails (no contrast, or a step beyond half a pixel on its last
-    iteration).
+    iteration). Compiled (:func:`_line_borders_compiled`): as array code, ~25 (N, P) array operations
+    and the (N, P, J) pixel terms an iteration.
     """
     n_cells = levels.size
     frac = np.arange(n_cells + 1) / n_cells
     jumps = np.diff(np.concatenate([[0.0], levels, [1.0]]))  # (C + 1,) each boundary's step
     edges = np.concatenate([x[:1] - 0.5, x + 0.5])
-    b = np.asarray(border0, float).copy()
-    ok = np.isfinite(b) & np.isfinite(width)
-    b[~ok] = 0.0
-    w = np.where(ok, width, 0.0)
-    sigma = np.array([max(float(blur_px), 0.05)])
-    step = np.zeros_like(b)
+    return _line_borders_compiled(
+        np.ascontiguousarray(vals, np.float64),
+        np.ascontiguousarray(edges, np.float64),
+        np.array(border0, np.float64),
+        np.ascontiguousarray(width, np.float64),
+        frac,
+        np.ascontiguousarray(jumps, np.float64),
+        max(float(blur_px), 0.05),
+        STEP_TAIL_SIGMAS,
+        n_iter,
+    )
+
+
+def _line_borders_warm_up(k) -> None:
+    vals = np.tile(np.linspace(10.0, 100.0, 12), (3, 1))
+    edges = np.arange(13.0) - 0.5
+    k(
+        vals,
+        edges,
+        np.full(3, 5.0),
+        np.full(3, 2.0),
+        np.linspace(0, 1, 4),
+        np.full(4, 0.25),
+        0.8,
+        STEP_TAIL_SIGMAS,
+        6,
+    )
+
+
+@kernel(_line_borders_warm_up)
+def _line_borders_compiled(vals, edges, b, w_in, frac, jumps, sigma, tail_sigmas, n_iter):
+    """:func:`_line_borders`' iterations (``b`` (N,) updated in place): per line the shape and its slope
+    from the boundary terms of :func:`_pixel_terms_compiled` (the same Gaussian terms near each boundary),
+    never as (N, P, J) arrays; each line's sums in numpy's pairwise order (:func:`jit.pairwise_sum`), the
+    shape's sum over boundaries in their order (the array code's matrix product summed in BLAS's)."""
+    n, n_p = vals.shape
+    n_e = edges.size
+    n_j = jumps.size
+    cut = tail_sigmas * sigma
+    ok = np.empty(n, np.bool_)
+    w = np.empty(n)
+    for i in range(n):
+        ok[i] = math.isfinite(b[i]) and math.isfinite(w_in[i])
+        if not ok[i]:
+            b[i] = 0.0
+        w[i] = w_in[i] if ok[i] else 0.0
+    step = np.zeros(n)
+    D = np.full(n, np.nan)
+    G = np.empty(n_e)
+    C = np.empty(n_e)
+    shape = np.empty(n_p)
+    dshape = np.empty(n_p)
+    t = np.empty((4, n_p))
     for _ in range(n_iter):
-        bounds = (b[:, None] + w[:, None] * frac[None, :])[None]  # (1, N, J)
-        prim, d_b, _ = _pixel_terms(edges, bounds, sigma)
-        shape = prim[0] @ jumps  # (N, P)
-        dshape = d_b[0] @ jumps  # d shape / d b
-        # A and D by least squares on each line: [1, shape] (N, P, 2)
-        s_mean = shape.mean(axis=1, keepdims=True)
-        v_mean = vals.mean(axis=1, keepdims=True)
-        sc, vc = shape - s_mean, vals - v_mean
-        ss = (sc * sc).sum(axis=1)
-        D = np.where(ss > 1e-12, (sc * vc).sum(axis=1) / np.maximum(ss, 1e-12), np.nan)
-        A = v_mean[:, 0] - D * s_mean[:, 0]
-        res = A[:, None] + D[:, None] * shape - vals
-        # the border's Gauss-Newton step, the levels projected out (variable projection)
-        J = D[:, None] * dshape
-        Jc = J - J.mean(axis=1, keepdims=True)
-        Jp = Jc - ((Jc * sc).sum(axis=1) / np.maximum(ss, 1e-12))[:, None] * sc
-        jj = (Jp * Jp).sum(axis=1)
-        step = np.where(jj > 1e-18, -(Jp * res).sum(axis=1) / np.maximum(jj, 1e-18), np.nan)
-        step = np.clip(step, -0.5, 0.5)
-        b = b + np.where(np.isfinite(step), step, 0.0)
-        if np.nanmax(np.abs(step), initial=0.0) < 1e-4:
+        big = 0.0
+        for i in range(n):
+            shape[:] = 0.0
+            dshape[:] = 0.0
+            for j in range(n_j):
+                at = b[i] + w[i] * frac[j]
+                lo = np.searchsorted(edges, at - cut, side="left")
+                hi = np.searchsorted(edges, at + cut, side="right")
+                for p in range(n_e):
+                    y = edges[p] - at
+                    if lo <= p < hi and math.isfinite(y):
+                        C[p], phi = _normal_cdf_pdf(y / sigma)
+                        G[p] = y * C[p] + sigma * phi
+                    elif y != y:  # a NaN boundary: NaN terms, as the array code gave
+                        C[p] = G[p] = np.nan
+                    else:
+                        C[p] = 1.0 if y > 0.0 else 0.0
+                        G[p] = max(y, 0.0)
+                for p in range(n_p):
+                    shape[p] += (G[p + 1] - G[p]) * jumps[j]
+                    dshape[p] += (C[p] - C[p + 1]) * jumps[j]
+            # A and D by least squares on the line: [1, shape]
+            s_mean = pairwise_sum(shape, 0, n_p) / n_p
+            v_mean = pairwise_sum(vals[i], 0, n_p) / n_p
+            for p in range(n_p):
+                sc = shape[p] - s_mean
+                t[0, p] = sc * sc
+                t[1, p] = sc * (vals[i, p] - v_mean)
+            ss = pairwise_sum(t[0], 0, n_p)
+            D[i] = pairwise_sum(t[1], 0, n_p) / max(ss, 1e-12) if ss > 1e-12 else np.nan
+            A = v_mean - D[i] * s_mean
+            # the border's Gauss-Newton step, the levels projected out (variable projection)
+            for p in range(n_p):
+                t[2, p] = D[i] * dshape[p]
+            j_mean = pairwise_sum(t[2], 0, n_p) / n_p
+            for p in range(n_p):
+                t[2, p] = t[2, p] - j_mean  # Jc
+                t[3, p] = t[2, p] * (shape[p] - s_mean)
+            k = pairwise_sum(t[3], 0, n_p) / max(ss, 1e-12)
+            for p in range(n_p):
+                jp = t[2, p] - k * (shape[p] - s_mean)
+                t[0, p] = jp * jp
+                t[1, p] = jp * ((A + D[i] * shape[p]) - vals[i, p])
+            jj = pairwise_sum(t[0], 0, n_p)
+            s = -pairwise_sum(t[1], 0, n_p) / max(jj, 1e-18) if jj > 1e-18 else np.nan
+            s = -0.5 if s < -0.5 else (0.5 if s > 0.5 else s)
+            step[i] = s
+            if math.isfinite(s):
+                b[i] = b[i] + s
+                big = max(big, abs(s))
+        if big < 1e-4:
             break
-    good = ok & np.isfinite(step) & (np.abs(step) < 0.5) & np.isfinite(D) & (np.abs(D) > 0)
-    return np.where(good, b, np.nan)
+    for i in range(n):
+        good = (
+            ok[i] and math.isfinite(step[i]) and abs(step[i]) < 0.5 and math.isfinite(D[i]) and abs(D[i]) > 0
+        )
+        if not good:
+            b[i] = np.nan
+    return b
 
 
 def arris_edges(
