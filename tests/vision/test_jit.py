@@ -736,3 +736,22 @@ def test_line_borders_as_their_numpy_version(seed, n, n_cells, blur, noise, spoi
     want = reference.line_borders(vals, x, start, width, levels, blur)
     np.testing.assert_array_equal(np.isnan(got), np.isnan(want))
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-8)
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 10_000), n=st.integers(1, 1500), n_p=st.integers(1, 40), bins=st.integers(1, 12))
+def test_strip_bin_means_as_numpy(seed, n, n_p, bins):
+    # arris_model._bin_means (the strip problem's per-bin counts and means, compiled) against the masks and
+    # means it replaced: bit for bit (rows added in order, the 1-D means' sums pairwise, as numpy's)
+    from doorloc.vision.arris_model import _bin_means
+
+    rng = np.random.default_rng(seed)
+    r = rng.normal(0, 1, (n, n_p)) * 10 ** rng.uniform(-3, 3)
+    outer, width = rng.normal(5, 3, n), rng.uniform(0, 9, n)
+    k = rng.integers(0, bins, n)
+    used = np.unique(k)
+    count, y, o, w = _bin_means(r, outer, width, k, used)
+    np.testing.assert_array_equal(count, [np.sum(k == b) for b in used])
+    np.testing.assert_array_equal(y, np.stack([r[k == b].mean(axis=0) for b in used]))
+    np.testing.assert_array_equal(o, [outer[k == b].mean() for b in used])
+    np.testing.assert_array_equal(w, [width[k == b].mean() for b in used])
