@@ -544,6 +544,40 @@ def test_strip_solve_as_its_numpy_version(seed, n_cand, bins, n_cells, noise, ja
 @settings(max_examples=40, deadline=None)
 @given(
     seed=st.integers(0, 10_000),
+    n_delta=st.integers(1, 12),
+    one_blur=st.booleans(),
+    bins=st.integers(1, 8),
+    n_cells=st.sampled_from([1, 4, 8]),
+    jac=st.booleans(),
+)
+def test_strip_evaluate_as_its_terms_then_solve(seed, n_delta, one_blur, bins, n_cells, jac):
+    # arris_model._StripProblem.evaluate (compiled one candidate at a time: _strip_evaluate) against the
+    # two kernels over all candidates (pixel_terms, then solve) that it stands for: bit for bit, a single
+    # blur broadcast over the offsets as they broadcast it
+    from doorloc.vision.arris_model import _StripProblem
+
+    rng = np.random.default_rng(seed)
+    x = np.arange(36, dtype=float)
+    outer, width = rng.uniform(14, 18, 60), rng.uniform(0.5, 6.0, 60)
+    r = np.clip((x[None] - outer[:, None]) / width[:, None], 0, 1) * rng.uniform(0.3, 1.0)
+    r = r + (x[None] > (outer + width)[:, None]) * (1 - r) + rng.normal(0, 0.02, r.shape)
+    prob = _StripProblem(r, x, outer, width, n_cells, bins, 0.02)
+    basis = np.ones((n_cells, 1)) if n_cells == 1 else rng.uniform(0, 1, (n_cells, 3))
+    delta = rng.uniform(-2, 2, n_delta)
+    sigma = rng.uniform(0.01, 2.0, 1 if one_blur else n_delta)
+    got = prob.evaluate(delta, sigma, basis, jac)
+    want = prob.solve(prob.pixel_terms(delta, sigma), basis, jac)
+    for field in ("chi2", "coef", "deficit", "grad", "hess"):
+        a, b = getattr(got, field), getattr(want, field)
+        if b is None:
+            assert a is None
+        else:
+            np.testing.assert_array_equal(a, b)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
     n=st.integers(1, 300),
     n_m=st.integers(4, 30),
     sigma=st.sampled_from([0.05, 0.3, 1.0, 2.5]),

@@ -279,6 +279,15 @@ def _pixel_terms_compiled(edges, bounds, sigma, tail_sigmas):
     prim = np.empty((n_b, n_r, n_e - 1, n_j))
     d_b = np.empty((n_b, n_r, n_e - 1, n_j))
     d_s = np.empty((n_b, n_r, n_e - 1, n_j))
+    _pixel_terms_fill(edges, bounds, sigma, tail_sigmas, prim, d_b, d_s)
+    return prim, d_b, d_s
+
+
+@kernel(inline=True)
+def _pixel_terms_fill(edges, bounds, sigma, tail_sigmas, prim, d_b, d_s):
+    """:func:`_pixel_terms_compiled`'s terms written into ``prim``, ``d_b``, ``d_s`` (B, R, P, J)."""
+    n_b, n_r, n_j = bounds.shape
+    n_e = edges.size
     G = np.empty(n_e)
     C = np.empty(n_e)
     D = np.empty(n_e)
@@ -305,7 +314,6 @@ def _pixel_terms_compiled(edges, bounds, sigma, tail_sigmas):
                     prim[b, r, p, j] = G[p + 1] - G[p]
                     d_b[b, r, p, j] = C[p] - C[p + 1]
                     d_s[b, r, p, j] = D[p + 1] - D[p]
-    return prim, d_b, d_s
 
 
 def _strip_basis(geom: ArrisGeometry, n_cells: int, terminator: float | None, lit_below: bool) -> np.ndarray:
@@ -522,6 +530,67 @@ def _strip_solve(prim, d_b, d_s, M, const, y, w, P, basis, jac):
     return chi2, coef, deficit, grad, hess
 
 
+def _strip_evaluate_warm_up(k) -> None:
+    edges = np.arange(13.0) - 0.5
+    for m in (1, 3):
+        basis = np.ones((2, m))
+        M, const = _mix(basis, 2)
+        P = np.concatenate([np.full((2, 1), -0.5), np.full((2, 1), -0.5), basis], axis=1)
+        v = np.array([4.0, 5.0, 6.0])
+        for jac in (False, True):
+            k(
+                edges,
+                v,
+                v,
+                np.linspace(0, 1, 3),
+                v,
+                v,
+                STEP_TAIL_SIGMAS,
+                M,
+                const,
+                np.ones(36),
+                np.ones(36),
+                P,
+                basis,
+                jac,
+            )
+
+
+@kernel(_strip_evaluate_warm_up)
+def _strip_evaluate(edges, outer, width, frac, delta, sigma, tail_sigmas, M, const, y, w, P, basis, jac):
+    """:meth:`_StripProblem.evaluate`: for each candidate ``b`` (offset ``delta[b]``, blur ``sigma[b]``)
+    the strip's pixel terms (:func:`_pixel_terms_fill`, its boundaries ``outer + delta[b] + width frac``)
+    and their solve (:func:`_strip_solve`), one candidate at a time: the same numbers as the two kernels
+    over all candidates, without their (B, R, P, J) arrays (three of them written and read again per
+    call, a few hundred kB: most of an arris frame's time in the strip fit went to them)."""
+    n_b, n_r, n_j = delta.size, outer.size, frac.size
+    n_p = edges.size - 1
+    m = M.shape[1]
+    bounds = np.empty((1, n_r, n_j))
+    sig = np.empty(1)
+    prim = np.empty((1, n_r, n_p, n_j))
+    d_b = np.empty((1, n_r, n_p, n_j))
+    d_s = np.empty((1, n_r, n_p, n_j))
+    chi2 = np.empty(n_b)
+    coef = np.empty((n_b, m))
+    deficit = np.empty(n_b)
+    grad = np.zeros((n_b, 2))
+    hess = np.zeros((n_b, 2, 2))
+    for b in range(n_b):
+        for r in range(n_r):
+            for j in range(n_j):
+                bounds[0, r, j] = (outer[r] + delta[b]) + width[r] * frac[j]
+        sig[0] = sigma[b]
+        _pixel_terms_fill(edges, bounds, sig, tail_sigmas, prim, d_b, d_s)
+        c2, cf, df, gr, hs = _strip_solve(prim, d_b, d_s, M, const, y, w, P, basis, jac)
+        chi2[b] = c2[0]
+        coef[b] = cf[0]
+        deficit[b] = df[0]
+        grad[b] = gr[0]
+        hess[b] = hs[0]
+    return chi2, coef, deficit, grad, hess
+
+
 def _bin_means_warm_up(k) -> None:
     k(np.ones((5, 4)), np.arange(5.0), np.ones(5), np.array([0, 2, 2, 0, 1]), np.array([0, 1, 2]))
 
@@ -611,7 +680,44 @@ class _StripProblem:
         self._basis_terms: dict[tuple[tuple[int, ...], bytes], tuple[np.ndarray, ...]] = {}
 
     def evaluate(self, delta: np.ndarray, sigma: np.ndarray, basis: np.ndarray, jac: bool = False) -> _Eval:
-        return self.solve(self.pixel_terms(delta, sigma), basis, jac)
+        """:meth:`solve` of :meth:`pixel_terms` at a batch of (offset, blur) candidates (compiled, one
+        candidate at a time: :func:`_strip_evaluate`)."""
+        delta = np.atleast_1d(np.asarray(delta, float))
+        sigma = np.maximum(np.atleast_1d(np.asarray(sigma, float)), 0.05)
+        n_b = max(delta.size, sigma.size)  # (the candidates broadcast, as in pixel_terms)
+        M, const, P, basis_c = self._basis_terms_of(basis)
+        chi2, coef, deficit, grad, hess = _strip_evaluate(
+            self.edges,
+            self.outer,
+            self.width,
+            self.frac,
+            np.ascontiguousarray(np.broadcast_to(delta, (n_b,))),
+            np.ascontiguousarray(np.broadcast_to(sigma, (n_b,))),
+            STEP_TAIL_SIGMAS,
+            M,
+            const,
+            self.y_flat,
+            self.w,
+            P,
+            basis_c,
+            jac,
+        )
+        return _Eval(chi2, coef, deficit, grad if jac else None, hess if jac else None)
+
+    def _basis_terms_of(self, basis: np.ndarray) -> tuple[np.ndarray, ...]:
+        """A shading basis's mix (:func:`_mix`), its levels' prior rows and the basis itself, contiguous:
+        a fit solves for a few bases ~20 times each, so they are kept by value."""
+        key = (basis.shape, basis.tobytes())
+        got = self._basis_terms.get(key)
+        if got is None:
+            M, const = _mix(basis, self.n_cells)
+            # the levels' prior (class docstring): rows P, target 0, the same for every candidate
+            C = basis.shape[0]
+            P = np.concatenate(
+                [np.full((C, 1), PRIOR_LEVEL - 1.0), np.full((C, 1), -PRIOR_LEVEL), basis], axis=1
+            ) * math.sqrt(self.prior_weight)
+            got = self._basis_terms[key] = (M, const, P, np.ascontiguousarray(basis, np.float64))
+        return got
 
     def pixel_terms(self, delta: np.ndarray, sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """:func:`_pixel_terms` of the strip's boundaries at a batch of (offset, blur) candidates: what
@@ -627,18 +733,7 @@ class _StripProblem:
         """The levels solved linearly for one shading basis, given :meth:`pixel_terms` (compiled:
         :func:`_strip_solve`)."""
         prim, d_b, d_s = terms
-        # a fit solves for a few bases ~20 times each: their mixes and prior rows are kept by value
-        key = (basis.shape, basis.tobytes())
-        got = self._basis_terms.get(key)
-        if got is None:
-            M, const = _mix(basis, self.n_cells)
-            # the levels' prior (class docstring): rows P, target 0, the same for every candidate
-            C = basis.shape[0]
-            P = np.concatenate(
-                [np.full((C, 1), PRIOR_LEVEL - 1.0), np.full((C, 1), -PRIOR_LEVEL), basis], axis=1
-            ) * math.sqrt(self.prior_weight)
-            got = self._basis_terms[key] = (M, const, P, np.ascontiguousarray(basis, np.float64))
-        M, const, P, basis_c = got
+        M, const, P, basis_c = self._basis_terms_of(basis)
         chi2, coef, deficit, grad, hess = _strip_solve(
             prim, d_b, d_s, M, const, self.y_flat, self.w, P, basis_c, jac
         )
