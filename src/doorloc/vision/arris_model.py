@@ -1185,13 +1185,10 @@ def _line_borders_warm_up(k) -> None:
 @kernel(_line_borders_warm_up)
 def _line_borders_compiled(vals, edges, b, w_in, frac, jumps, sigma, tail_sigmas, n_iter):
     """:func:`_line_borders`' iterations (``b`` (N,) updated in place): per line the shape and its slope
-    from the boundary terms of :func:`_pixel_terms_compiled` (the same Gaussian terms near each boundary),
-    never as (N, P, J) arrays; each line's sums in numpy's pairwise order (:func:`jit.pairwise_sum`), the
+    from its boundaries' pixel terms (:func:`_pixel_terms_fill`), never as (N, P, J) arrays; each line's sums in numpy's pairwise order (:func:`jit.pairwise_sum`), the
     shape's sum over boundaries in their order (the array code's matrix product summed in BLAS's)."""
     n, n_p = vals.shape
-    n_e = edges.size
     n_j = jumps.size
-    cut = tail_sigmas * sigma
     ok = np.empty(n, np.bool_)
     w = np.empty(n)
     for i in range(n):
@@ -1201,33 +1198,26 @@ def _line_borders_compiled(vals, edges, b, w_in, frac, jumps, sigma, tail_sigmas
         w[i] = w_in[i] if ok[i] else 0.0
     step = np.zeros(n)
     D = np.full(n, np.nan)
-    G = np.empty(n_e)
-    C = np.empty(n_e)
+    bounds = np.empty((1, 1, n_j))
+    sig = np.full(1, sigma)
+    prim = np.empty((1, 1, n_p, n_j))
+    d_b = np.empty((1, 1, n_p, n_j))
+    d_s = np.empty((1, 1, n_p, n_j))
     shape = np.empty(n_p)
     dshape = np.empty(n_p)
     t = np.empty((4, n_p))
     for _ in range(n_iter):
         big = 0.0
         for i in range(n):
+            for j in range(n_j):
+                bounds[0, 0, j] = b[i] + w[i] * frac[j]
+            _pixel_terms_fill(edges, bounds, sig, tail_sigmas, prim, d_b, d_s)
             shape[:] = 0.0
             dshape[:] = 0.0
             for j in range(n_j):
-                at = b[i] + w[i] * frac[j]
-                lo = np.searchsorted(edges, at - cut, side="left")
-                hi = np.searchsorted(edges, at + cut, side="right")
-                for p in range(n_e):
-                    y = edges[p] - at
-                    if lo <= p < hi and math.isfinite(y):
-                        C[p], phi = _normal_cdf_pdf(y / sigma)
-                        G[p] = y * C[p] + sigma * phi
-                    elif y != y:  # a NaN boundary: NaN terms, as the array code gave
-                        C[p] = G[p] = np.nan
-                    else:
-                        C[p] = 1.0 if y > 0.0 else 0.0
-                        G[p] = max(y, 0.0)
                 for p in range(n_p):
-                    shape[p] += (G[p + 1] - G[p]) * jumps[j]
-                    dshape[p] += (C[p] - C[p + 1]) * jumps[j]
+                    shape[p] += prim[0, 0, p, j] * jumps[j]
+                    dshape[p] += d_b[0, 0, p, j] * jumps[j]
             # A and D by least squares on the line: [1, shape]
             s_mean = pairwise_sum(shape, 0, n_p) / n_p
             v_mean = pairwise_sum(vals[i], 0, n_p) / n_p
