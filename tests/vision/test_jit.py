@@ -20,12 +20,16 @@
 - the JPEG block ratio (edges.block_artifact_ratio: its integer path compiled) against its numpy branch and
   the gate's per-line figures (quality.line_figures) against their numpy expressions, bit for bit;
 - the arris strip fit's pixel terms (arris_model._pixel_terms) and its linear solve
-  (arris_model._StripProblem.solve) against their numpy versions, to rounding (the C library's erfc is not
-  scipy's; the normal equations are summed in another order and are ill-conditioned: the coefficients to
-  1e-6 of their scale), and the far-face fit's sums (edges._far_face_sums, _far_face_misfit, _far_face_start_costs:
-  its steps' pixel values formed per scan line) against the (N, M) arrays of the dense step model they
-  replaced, to rounding.
-The blurred-step pixel model (edges._step_pixel_values) is held to its dense formula in test_pixel_step.py.
+  (arris_model._StripProblem.solve) against their numpy versions, to rounding (the normal CDF is not
+  scipy's to the last ulp; the normal equations are summed in another order and are ill-conditioned: the
+  coefficients to 1e-6 of their scale); its evaluation one candidate at a time (_StripProblem.evaluate)
+  against those two, and its per-bin means (arris_model._bin_means) against numpy's, bit for bit; the
+  arris lines' border fit (arris_model._line_borders) against its numpy version, to 1e-8 px;
+- the far-face fit's sums (edges._far_face_sums, _far_face_misfit, _far_face_start_costs: its steps'
+  pixel values formed per scan line) against the (N, M) arrays of the dense step model they replaced, to
+  rounding, and its Gauss-Newton loop (edges._far_face_gauss_newton) against the loop as written in Python.
+The blurred-step pixel model (edges._step_pixel_values) and its normal CDF are held to their dense formula
+and scipy in test_pixel_step.py.
 The coarse step finder is held to the first finder bit for bit in test_coarse.py.
 """
 
@@ -498,6 +502,17 @@ def test_strip_pixel_terms_as_their_numpy_version(seed, n_cand, n_rows, n_cells,
         np.testing.assert_allclose(g, w, rtol=0, atol=1e-13 * width)
 
 
+def _strip_problem(rng, n_cells: int, bins: int, noise: float):
+    """An arris strip problem (arris_model._StripProblem) on 60 ramp-shaped strip profiles with noise."""
+    from doorloc.vision.arris_model import _StripProblem
+
+    x = np.arange(36, dtype=float)
+    outer, width = rng.uniform(14, 18, 60), rng.uniform(0.5, 6.0, 60)
+    r = np.clip((x[None] - outer[:, None]) / width[:, None], 0, 1) * rng.uniform(0.3, 1.0)
+    r = r + (x[None] > (outer + width)[:, None]) * (1 - r) + rng.normal(0, noise, r.shape)
+    return _StripProblem(r, x, outer, width, n_cells, bins, noise)
+
+
 @settings(max_examples=40, deadline=None)
 @given(
     seed=st.integers(0, 10_000),
@@ -511,14 +526,8 @@ def test_strip_solve_as_its_numpy_version(seed, n_cand, bins, n_cells, noise, ja
     # arris_model._StripProblem.solve (compiled: the normal equations summed in vector lanes, solved by
     # elimination) against the batched matrix products it replaced: the misfit to 1e-12, the coefficients of
     # the (ill-conditioned) normal equations, the deficit and the derivatives to 1e-6 relative
-    from doorloc.vision.arris_model import _StripProblem
-
     rng = np.random.default_rng(seed)
-    x = np.arange(36, dtype=float)
-    outer, width = rng.uniform(14, 18, 60), rng.uniform(0.5, 6.0, 60)
-    r = np.clip((x[None] - outer[:, None]) / width[:, None], 0, 1) * rng.uniform(0.3, 1.0)
-    r = r + (x[None] > (outer + width)[:, None]) * (1 - r) + rng.normal(0, noise, r.shape)
-    prob = _StripProblem(r, x, outer, width, n_cells, bins, noise)
+    prob = _strip_problem(rng, n_cells, bins, noise)
     tau = (np.arange(n_cells) + 0.5) / n_cells
     basis = (
         np.ones((n_cells, 1))
@@ -554,14 +563,8 @@ def test_strip_evaluate_as_its_terms_then_solve(seed, n_delta, one_blur, bins, n
     # arris_model._StripProblem.evaluate (compiled one candidate at a time: _strip_evaluate) against the
     # two kernels over all candidates (pixel_terms, then solve) that it stands for: bit for bit, a single
     # blur broadcast over the offsets as they broadcast it
-    from doorloc.vision.arris_model import _StripProblem
-
     rng = np.random.default_rng(seed)
-    x = np.arange(36, dtype=float)
-    outer, width = rng.uniform(14, 18, 60), rng.uniform(0.5, 6.0, 60)
-    r = np.clip((x[None] - outer[:, None]) / width[:, None], 0, 1) * rng.uniform(0.3, 1.0)
-    r = r + (x[None] > (outer + width)[:, None]) * (1 - r) + rng.normal(0, 0.02, r.shape)
-    prob = _StripProblem(r, x, outer, width, n_cells, bins, 0.02)
+    prob = _strip_problem(rng, n_cells, bins, 0.02)
     basis = np.ones((n_cells, 1)) if n_cells == 1 else rng.uniform(0, 1, (n_cells, 3))
     delta = rng.uniform(-2, 2, n_delta)
     sigma = rng.uniform(0.01, 2.0, 1 if one_blur else n_delta)

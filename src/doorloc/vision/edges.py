@@ -916,25 +916,23 @@ def _normal_cdf_pdf(u):
         return 0.5 + 0.5 * math.erf(x), phi
     if z < 1.0:
         y = 0.5 * math.erfc(z)
-    elif z < 8.0:
-        P, Q = _ERFC_P, _ERFC_Q
-        num = P[0]
-        for c in P[1:]:
-            num = num * z + c
-        den = z + Q[0]
-        for c in Q[1:]:
-            den = den * z + c
-        y = 0.5 * E * num / den
     else:
-        R, S = _ERFC_R, _ERFC_S
-        num = R[0]
-        for c in R[1:]:
-            num = num * z + c
-        den = z + S[0]
-        for c in S[1:]:
-            den = den * z + c
+        num, den = _rational(z, _ERFC_P, _ERFC_Q) if z < 8.0 else _rational(z, _ERFC_R, _ERFC_S)
         y = 0.5 * E * num / den
     return (1.0 - y if x > 0 else y), phi
+
+
+@kernel(inline=True)
+def _rational(z, num, den):
+    """The polynomials ``num(z)`` and ``den(z)``, their coefficients highest power first, ``den``'s leading
+    1 implicit (Cephes' polevl / p1evl)."""
+    p = num[0]
+    for c in num[1:]:
+        p = p * z + c
+    q = z + den[0]
+    for c in den[1:]:
+        q = q * z + c
+    return p, q
 
 
 def _step_pixel_values_warm_up(k) -> None:
