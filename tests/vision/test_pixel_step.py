@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.special import ndtr
 
-from doorloc.vision.edges import _pixel_step, _StepPixels
+from doorloc.vision.edges import STEP_TAIL_SIGMAS, _pixel_step, _step_pixel_values
 
 
 def _dense(bounds: np.ndarray, e: np.ndarray, sigma: float):
@@ -44,9 +44,13 @@ def test_tail_skipping_pixel_step_equals_the_dense_one(sigma, n_px, seed):
 def test_tail_skipping_is_used_for_a_narrow_blur_and_not_for_a_wide_one():
     bounds = np.arange(41, dtype=np.float64) - 0.5
     e = np.array([10.3, 20.7])
-    assert _StepPixels(bounds, e, 0.1).windowed  # a few boundaries per edge
-    assert not _StepPixels(bounds, e, 3.0).windowed  # the tails cover the window: evaluated densely
-    assert not _StepPixels(bounds, np.array([np.nan, 3.0]), 0.1).windowed  # NaN as the dense model gives it
+
+    def windowed(e: np.ndarray, sigma: float) -> bool:
+        return _step_pixel_values(bounds, e, sigma, STEP_TAIL_SIGMAS)[3]
+
+    assert windowed(e, 0.1)  # a few boundaries per edge
+    assert not windowed(e, 3.0)  # the tails cover the window: evaluated densely
+    assert not windowed(np.array([np.nan, 3.0]), 0.1)  # NaN as the dense model gives it
 
 
 def test_normal_cdf_and_density_as_scipy_s_over_the_tail_cut():

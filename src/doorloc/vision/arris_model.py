@@ -271,7 +271,7 @@ def _pixel_terms_compiled(edges, bounds, sigma, tail_sigmas):
     """:func:`_pixel_terms`, compiled. The Gaussian terms (most of the cost: the strip fit evaluates them
     for every candidate, bin and cell boundary at every pixel border, 20-40 ms of an arris frame as array
     code) only at the borders within ``tail_sigmas`` blur sigmas of each boundary; beyond them the exact
-    limits (``Phi`` 0 or 1, ``phi`` 0, ``G`` 0 or ``y``), as :class:`doorloc.vision.edges._StepPixels`:
+    limits (``Phi`` 0 or 1, ``phi`` 0, ``G`` 0 or ``y``), as :func:`doorloc.vision.edges._pixel_step`:
     they differ from the full evaluation by less than 1e-22. ``Phi`` and ``phi`` are
     :func:`doorloc.vision.edges._normal_cdf_pdf` (within 2e-14 of scipy's ndtr, relative)."""
     n_b, n_r, n_j = bounds.shape

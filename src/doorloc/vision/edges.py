@@ -845,35 +845,6 @@ BAND_SIDE_MIN_PX = 0.25
 STEP_TAIL_SIGMAS = 10.0
 
 
-class _StepPixels:
-    """Unit steps at ``e`` (N,), blurred by a Gaussian ``sigma`` and integrated over pixels (compiled:
-    :func:`_step_pixel_values`), with their derivatives (:func:`_pixel_step` gives all three).
-
-    ``bounds`` (M + 1,) are the pixel boundaries, ascending (pixel ``i`` spans ``bounds[i]..bounds[i + 1]``).
-    The Gaussian terms (``Phi``, ``exp``: most of the cost) are evaluated only on the boundaries within
-    :data:`STEP_TAIL_SIGMAS` blur sigmas of each edge; beyond them the step's exact limits (``Phi`` 0 or 1,
-    ``phi`` 0, its integral 0 or ``y``) stand in, which differ from the full evaluation by less than 1e-22.
-    A narrow blur (rendered and most real frames: sigma < 0.2 px) thus costs a few boundaries per scan
-    line instead of the whole window. ``windowed``: whether it did (else every boundary was evaluated).
-    """
-
-    def __init__(self, bounds: np.ndarray, e: np.ndarray, sigma: float) -> None:
-        self.C, self._g, self._h, self.windowed = _step_pixel_values(
-            np.ascontiguousarray(bounds, np.float64),
-            np.ascontiguousarray(e, np.float64),
-            float(sigma),
-            STEP_TAIL_SIGMAS,
-        )
-
-    def slope(self) -> np.ndarray:
-        """``-dC/de`` (N, M)."""
-        return self._g
-
-    def blur_slope(self) -> np.ndarray:
-        """``dC/dsigma`` (N, M)."""
-        return self._h
-
-
 #: Cephes' erfc (S. L. Moshier's library, as in scipy.special): erfc(z) = exp(-z^2) P(z) / Q(z) for
 #: 1 <= z < 8 and exp(-z^2) R(z) / S(z) beyond, the denominators' leading 1 implicit
 _ERFC_P = (
@@ -942,7 +913,7 @@ def _step_pixel_values_warm_up(k) -> None:
 
 @kernel(_step_pixel_values_warm_up)
 def _step_pixel_values(bounds, e, sigma, tail_sigmas):
-    """The pixel values ``C``, ``-dC/de`` and ``dC/dsigma`` (N, M) of :class:`_StepPixels`, and whether the
+    """The pixel values ``C``, ``-dC/de`` and ``dC/dsigma`` (N, M) of :func:`_pixel_step`, and whether the
     Gaussian terms were evaluated near the edges only (within ``tail_sigmas`` blur sigmas).
 
     Near each edge: ``Phi(y / sigma)``, ``phi(y / sigma)`` and the integral of ``Phi`` over ``y``,
@@ -1371,13 +1342,24 @@ def _far_face_gauss_newton(
 
 
 def _pixel_step(bounds: np.ndarray, e: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Unit steps at ``e`` (N,), blurred by a Gaussian ``sigma`` and integrated over pixels.
+    """Unit steps at ``e`` (N,), blurred by a Gaussian ``sigma`` and integrated over pixels (compiled:
+    :func:`_step_pixel_values`).
 
-    ``bounds`` (M + 1,) are the pixel boundaries (pixel ``i`` spans ``bounds[i]..bounds[i + 1]``). Returns,
-    each (N, M), the pixel values ``C``, ``-dC/de`` (``g``) and ``dC/dsigma`` (``h``).
+    ``bounds`` (M + 1,) are the pixel boundaries, ascending (pixel ``i`` spans ``bounds[i]..bounds[i + 1]``).
+    Returns, each (N, M), the pixel values ``C``, ``-dC/de`` (``g``) and ``dC/dsigma`` (``h``). The Gaussian
+    terms (``Phi``, ``exp``: most of the cost) are evaluated only on the boundaries within
+    :data:`STEP_TAIL_SIGMAS` blur sigmas of each edge; beyond them the step's exact limits (``Phi`` 0 or 1,
+    ``phi`` 0, its integral 0 or ``y``) stand in, which differ from the full evaluation by less than 1e-22.
+    A narrow blur (rendered and most real frames: sigma < 0.2 px) thus costs a few boundaries per scan line
+    instead of the whole window.
     """
-    sp = _StepPixels(bounds, e, sigma)
-    return sp.C, sp.slope(), sp.blur_slope()
+    C, g, h, _ = _step_pixel_values(
+        np.ascontiguousarray(bounds, np.float64),
+        np.ascontiguousarray(e, np.float64),
+        float(sigma),
+        STEP_TAIL_SIGMAS,
+    )
+    return C, g, h
 
 
 def subpixel_edges_far_face(
