@@ -16,9 +16,10 @@ On CPU the step searches are answered by the one-frame finder itself, frame by f
 torch's per-operation cost to pay off (measured: torch's batched answers took 1.4-1.7 ms of CPU per frame
 where the one-frame finder takes 1.1 ms), and stacking the frames into one CPU tensor alone cost more
 than the whole search (a 2 MB copy per 1080p frame, ~5 ms of CPU with its page faults). So the batched
-CPU path does the one-frame path's work and no more, each frame's steps to its answer before the next frame
-(taking eight frames' steps in turn only traded the caches' locality), and gains whatever makes the
-one-frame functions faster. On CUDA the frames are copied one by one into a device tensor (no stacked copy on the host).
+CPU path does the one-frame path's work and no more, each frame's steps to its answer before the next
+frame's (taking eight frames' steps in turn only traded the caches' locality), and gains whatever makes the
+one-frame functions faster. On CUDA the frames are copied one by one into a device tensor (no stacked copy
+on the host).
 ``locate_batch(..., finder="torch")`` uses the torch finder on CPU too (for comparisons and tests).
 
 What is not (yet): the RANSAC lines, the coarse pose and the **fine sub-pixel stage** (edge points, far-face
@@ -403,15 +404,12 @@ def locate_batch(
                 for (b, _), res in zip(batch, found, strict=True):
                     _advance(group[b], res, b, pending, answers, members)
 
-        if use_torch:
-            run(steps)
-        else:
-            # The one-frame finder answers each frame's searches alone, so nothing is gained by taking the
-            # frames' steps in turn, and it cost: each step of eight interleaved frames met another 2 MB
-            # frame and its arrays in the caches (batched locate 7.3-8.3 ms a frame against 6.5-7.5 ms
-            # one-frame). Each frame runs to its answer.
-            for b, g in steps.items():
-                run({b: g})
+        # The one-frame finder answers each frame's searches alone, so nothing is gained by taking the frames'
+        # steps in turn, and it cost: each step of eight interleaved frames met another 2 MB frame and its
+        # arrays in the caches (batched locate 7.3-8.3 ms a frame against 6.5-7.5 ms one-frame). Without
+        # torch each frame runs to its answer.
+        for group in [steps] if use_torch else [{b: g} for b, g in steps.items()]:
+            run(group)
     return [a for a in answers if a is not None]
 
 

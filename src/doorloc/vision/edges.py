@@ -1209,28 +1209,14 @@ def _py_min(a, b):
 
 def _far_face_schur_warm_up(k) -> None:
     for n_sh in (2, 3):
-        k(np.eye(n_sh), np.ones(n_sh), np.ones(3), np.ones((3, n_sh)), np.ones(3), 0.5, 0.1)
-        k(
-            np.eye(n_sh),
-            np.ones(n_sh),
-            np.ones(3),
-            np.ones((3, n_sh)),
-            np.ones(3),
-            0.5,
-            0.1,
-            0.02,
-            n_sh == 3,
-            1.0,
-            0.2,
-        )
+        k(np.eye(n_sh), np.ones(n_sh), np.ones(3), np.ones((3, n_sh)), np.ones(3), 0.5, 0.1, 0.02, 1.0, 0.2)
 
 
 @kernel(_far_face_schur_warm_up)
-def _far_face_schur(
-    H, b_g, h_ee, h_eg, b_e, lam, mu, level_weight=LEVEL_PRIOR_WEIGHT, has_strip=False, pull_mu=0.0, mu0=0.0
-):
-    """The far-face normal equations of the shared unknowns (band level, blur, strip level) with the
-    arrises eliminated (Schur complement), in place in ``H`` and ``b_g``, from :func:`_far_face_sums`.
+def _far_face_schur(H, b_g, h_ee, h_eg, b_e, lam, mu, level_weight, pull_mu, mu0):
+    """The far-face normal equations of the shared unknowns (band level, blur and, with a third column, a
+    strip's level) with the arrises eliminated (Schur complement), in place in ``H`` and ``b_g``, from
+    :func:`_far_face_sums`.
 
     With the level's pull towards mid-grey (``level_weight`` times its information) and, with a strip,
     the strip level's pull ``pull_mu`` towards its prior ``mu0``; a small ridge keeps a level that no
@@ -1255,7 +1241,7 @@ def _far_face_schur(
     prior = level_weight * level_info
     H[0, 0] += prior
     b_g[0] += prior * (0.5 - lam)
-    if has_strip:  # the strip's level: its prior (a strip narrower than the blur trades it with e)
+    if n_sh == 3:  # the strip's level: its prior (a strip narrower than the blur trades it with e)
         H[2, 2] += pull_mu
         b_g[2] += pull_mu * (mu0 - mu)
 
@@ -1297,7 +1283,7 @@ def _far_face_gauss_newton(
         h_ee, h_eg, b_e, H, b_g, _rr = _far_face_sums(
             core, A, D, bounds, e, w0, e0, band_slope, sigma, tail, strip, has_strip, lam, mu, fit_blur
         )
-        _far_face_schur(H, b_g, h_ee, h_eg, b_e, lam, mu, level_weight, has_strip, pull_mu, mu0)
+        _far_face_schur(H, b_g, h_ee, h_eg, b_e, lam, mu, level_weight, pull_mu, mu0)
         d = np.linalg.solve(H, b_g)
         d_lam, d_sig = _clip(d[0], -1.0, 1.0), _clip(d[1], -0.5, 0.5)
         d_mu = _clip(d[2], -1.0, 1.0) if has_strip else 0.0
@@ -1494,16 +1480,7 @@ def subpixel_edges_far_face(
         ends = np.concatenate([vals[ok, :plateau], vals[ok, -plateau:]], axis=1)
         noise_var = max(_median(ends.var(axis=1)), (1e-3 * abs(d_med)) ** 2)
         pull_mu = noise_var / mu_sd**2
-    # The model's arguments after the profiles and levels: the pixel boundaries, the band's predicted
-    # width, the strip's, the blur's tail cut (the kernels form the steps' pixel values per scan line).
-    strip_o = wso if wso is not None else np.zeros(n_ok)
-
-    def sums(e: np.ndarray, lam: float, sigma: float, mu: float, with_blur: bool) -> tuple[np.ndarray, ...]:
-        """:func:`_far_face_sums` at the arrises ``e``: ``h_ee, h_eg, b_e, H, b_g, rr``."""
-        return _far_face_sums(
-            core, Ao, Do, bounds, e, w0o, e0o, band_slope, sigma, STEP_TAIL_SIGMAS, strip_o, has_strip,
-            lam, mu, with_blur,
-        )  # fmt: skip
+    strip_o = wso if wso is not None else np.zeros(n_ok)  # (the kernels take a width on every line)
 
     lam, mu = 0.5, mu0
     if n_ok:
@@ -1582,7 +1559,10 @@ def subpixel_edges_far_face(
     de_dlam = de_dsig = de_dmu = np.zeros(0)
     mu_doubt = 0.0
     if n_ok:
-        h_ee, h_eg, b_e, H, b_g, rr = sums(e, lam, sigma, mu, True)
+        h_ee, h_eg, b_e, H, b_g, rr = _far_face_sums(
+            core, Ao, Do, bounds, e, w0o, e0o, band_slope, sigma, STEP_TAIL_SIGMAS, strip_o, has_strip,
+            lam, mu, True,
+        )  # fmt: skip
         res_var = rr / max(core.shape[1] - 1, 1)
         info = h_ee  # the arris derivative's squares
         e_sigma[ok] = np.sqrt(res_var / info)
@@ -1597,7 +1577,7 @@ def subpixel_edges_far_face(
             # strip's shading (a rounding's runs across it), as the band's
             h_eg[:, 1] = b_g[1] = 0.0
             H[1, :] = H[:, 1] = 0.0
-            _far_face_schur(H, b_g, h_ee, h_eg, b_e, lam, mu, LEVEL_PRIOR_WEIGHT, has_strip, pull_mu, mu0)
+            _far_face_schur(H, b_g, h_ee, h_eg, b_e, lam, mu, LEVEL_PRIOR_WEIGHT, pull_mu, mu0)
             try:
                 var_mu = float(np.linalg.inv(H)[2, 2]) * _median(res_var)
             except np.linalg.LinAlgError:
