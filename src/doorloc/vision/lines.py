@@ -255,15 +255,20 @@ def _irls(P, starts, sizes, mask0, votes, use_votes, scale_floor, n_iter, max_sa
             a += wv * q0 * q0
             b += wv * q0 * q1
             d += wv * q1 * q1
-        # smallest-eigenvalue eigenvector of [[a, b], [b, d]], in closed form
+        # smallest-eigenvalue eigenvector of [[a, b], [b, d]], in closed form, from the row of
+        # (A - lam I) with the larger entries: for a line near one axis the other row's lam - a (or
+        # lam - d) is a difference of near-equal numbers whose rounding (~1e-16 of the scatter) would
+        # turn the normal by ~1e-16 / angle rad (1e-6 deg at an angle of 3e-7 deg)
         lam = 0.5 * (a + d) - math.sqrt(0.25 * (a - d) ** 2 + b * b)
-        if abs(b) > 1e-300 or a > d:
-            n0, n1 = b, lam - a
+        u0, u1 = b, lam - a
+        v0, v1 = lam - d, b
+        if u0 * u0 + u1 * u1 >= v0 * v0 + v1 * v1:
+            n0, n1 = u0, u1
         else:
-            n0, n1 = 1.0, 0.0
-        if abs(lam - a) < 1e-300 and abs(b) < 1e-300:
-            n0, n1 = (1.0, 0.0) if a <= d else (0.0, 1.0)
+            n0, n1 = v0, v1
         h = math.hypot(n0, n1)
+        if not h > 0:  # an isotropic scatter (or none): any normal fits it
+            n0, n1, h = 1.0, 0.0, 1.0
         n0, n1 = n0 / h, n1 / h
         if n0 < 0:
             n0, n1 = -n0, -n1
