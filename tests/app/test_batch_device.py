@@ -80,3 +80,20 @@ def test_unknown_device_is_refused_clearly(folder, tmp_path):
     )
     assert p.returncode == 2 and "unknown device" in p.stderr and "Traceback" not in p.stderr
     assert not (tmp_path / "x.jsonl").exists() or (tmp_path / "x.jsonl").read_text() == ""
+
+
+def test_a_chunk_located_together_gives_the_records_of_its_frames_alone(folder):
+    # on CPU locate_chunk locates frame by frame; the whole-chunk call is the CUDA path's, held here on CPU
+    import torch
+
+    from doorloc.app.batch import FileLimits, _locate_together, locate_chunk, plan_batch
+    from doorloc.cell import load_cell
+
+    cell = load_cell(FIX / "cell.yaml")
+    items = plan_batch(folder, cell)
+    together = _locate_together(items, cell, torch.device("cpu"), FileLimits())
+    alone = locate_chunk(items, cell, "cpu", FileLimits())
+    by_image = {r["image"]: _comparable(r) for r in alone}
+    assert len(together) == len(alone) == len(items) == 7
+    assert {r["image"]: _comparable(r) for r in together} == by_image
+    assert sum(r["status"] == "answered" for r in alone) >= 3 and by_image["broken.png"]["status"] == "failed"

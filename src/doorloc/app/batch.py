@@ -38,7 +38,7 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 from multiprocessing import get_context
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from doorloc.app.answer import DoorChoice, LocateFn, answer_image, door_from_fields, provenance_of
 from doorloc.app.imagesniff import (
@@ -50,6 +50,9 @@ from doorloc.app.imagesniff import (
 )
 from doorloc.app.settings import DEFAULT_MAX_DECODED_BYTES, DEFAULT_MAX_PIXELS
 from doorloc.cell import Cell
+
+if TYPE_CHECKING:  # torch is the optional extra; only run_batched's workers import it
+    import torch
 
 __all__ = [
     "BatchItem",
@@ -650,8 +653,25 @@ def _configure_worker_torch() -> None:
 
 
 def locate_chunk(chunk: list[BatchItem], cell: Cell, device: str, limits: FileLimits) -> list[dict[str, Any]]:
-    """Decode one batch of items and locate its frames together on ``device``; one record per item."""
-    from doorloc.vision.batched import locate_batch, resolve_device
+    """Decode one batch of items and locate its frames together on ``device``; one record per item.
+
+    On CPU the frames' step searches are answered frame by frame anyway (:func:`locate_batch`'s ``auto``
+    finder), so each frame is decoded just before it is located: decoding the whole batch first only
+    pushed each frame out of the caches before its turn came.
+    """
+    from doorloc.vision.batched import resolve_device
+
+    dev = resolve_device(device)
+    if dev.type == "cpu":
+        return [rec for it in chunk for rec in _locate_together([it], cell, dev, limits)]
+    return _locate_together(chunk, cell, dev, limits)
+
+
+def _locate_together(
+    chunk: list[BatchItem], cell: Cell, dev: torch.device, limits: FileLimits
+) -> list[dict[str, Any]]:
+    """Decode ``chunk`` and locate its frames in one :func:`locate_batch` call on ``dev``."""
+    from doorloc.vision.batched import locate_batch
 
     decoded = [_decode(it, cell, limits) for it in chunk]
     records = [rec for rec in decoded if isinstance(rec, dict)]
@@ -661,7 +681,7 @@ def locate_chunk(chunk: list[BatchItem], cell: Cell, device: str, limits: FileLi
         cell,
         [it.choice.door for it, _ in ok],
         names=[it.image for it, _ in ok],
-        device=resolve_device(device),
+        device=dev,
     )
     for (it, img), a in zip(ok, answers, strict=True):
         if a.fallback:
