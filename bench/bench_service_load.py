@@ -131,9 +131,11 @@ def main() -> None:
             for k in range(args.workers):
                 c.post("/v1/locate", files={"image": ("warm.png", pngs[k % len(pngs)][0], "image/png")})
         rss_start, cpu_start = rss_mb(pid), cpu_seconds(pid)
+        client_cpu_start = time.process_time()
         latencies, errors, wall, rss_samples, server_ms = asyncio.run(
             _run(base, pid, pngs, args.clients, args.seconds)
         )
+        client_cpu_s = time.process_time() - client_cpu_start
         rss_end, cpu_end = rss_mb(pid), cpu_seconds(pid)
     server_cpu_s = cpu_end - cpu_start
     lat_ms = sorted(x * 1e3 for x in latencies)
@@ -153,6 +155,8 @@ def main() -> None:
         "p99_over_p50": round(p(0.99) / p(0.50), 2) if lat_ms else None,
         "cpu_count": os.cpu_count(),
         "server_cpu_s": round(server_cpu_s, 1),
+        # the load clients' own CPU (this process): taken from the same cores as the server's
+        "client_cpu_s": round(client_cpu_s, 1),
         "rps_per_server_cpu_s": round(len(latencies) / server_cpu_s, 2) if server_cpu_s > 0 else None,
         "decode_locate_ms": round(ideal_ms, 2),
         "ideal_rps_per_core": round(1000.0 / ideal_ms, 2),
