@@ -13,7 +13,8 @@ run (each answer's ``Server-Timing``: the worker thread's CPU ms of decoding and
 request; their mean). The second is immune to the machine's speed drifting between the two measurements
 (a shared machine's speed moved the first by a third from run to run); its share of the server's CPU
 seconds is the fraction of the server's time spent measuring images, the rest being HTTP, parsing,
-queueing and the event loop.
+queueing and the event loop. A third ideal times decode + locate alone in one process per CPU at once
+(no HTTP, no clients): what each core does when every core is busy, as in a loaded server.
 
     python bench/bench_service_load.py --clients 16 --seconds 60 --workers 2
 """
@@ -108,6 +109,32 @@ def decode_and_locate_ms(pngs: list, repeats: int = 5) -> float:
     return statistics.median(times)
 
 
+def _timed_at_once(pngs: list, barrier, results) -> None:  # noqa: ANN001 - multiprocessing objects
+    decode_and_locate_ms(pngs, repeats=1)  # imports and compiled kernels loaded before the clock starts
+    barrier.wait()
+    results.put(decode_and_locate_ms(pngs))
+
+
+def decode_and_locate_ms_at_once(pngs: list, processes: int) -> float:
+    """:func:`decode_and_locate_ms` timed in ``processes`` processes at the same time (the median of theirs).
+
+    A loaded server keeps every core busy: where cores share caches and memory (or a host's other tenants),
+    one thread's decode + locate costs more then than on an idle machine. This is the ideal of a server
+    whose cores all measure at once, with nothing of HTTP in it.
+    """
+    import multiprocessing as mp
+
+    ctx = mp.get_context("spawn")
+    barrier, results = ctx.Barrier(processes), ctx.Queue()
+    procs = [ctx.Process(target=_timed_at_once, args=(pngs, barrier, results)) for _ in range(processes)]
+    for p in procs:
+        p.start()
+    times = [results.get(timeout=600) for _ in procs]
+    for p in procs:
+        p.join()
+    return statistics.median(times)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--clients", type=int, default=16)
@@ -124,6 +151,8 @@ def main() -> None:
 
     pngs = rendered_pngs(args.images)
     ideal_ms = decode_and_locate_ms(pngs)
+    busy = os.cpu_count() or 1
+    loaded_ms = decode_and_locate_ms_at_once(pngs, busy)
     max_queue = args.clients if args.max_queue is None else args.max_queue
     with doorloc_serve(args.workers, {"DOORLOC_MAX_QUEUE": str(max_queue)}) as (base, pid):
         # one warm-up request per worker, so the first timed requests do not pay for imports
@@ -160,6 +189,9 @@ def main() -> None:
         "rps_per_server_cpu_s": round(len(latencies) / server_cpu_s, 2) if server_cpu_s > 0 else None,
         "decode_locate_ms": round(ideal_ms, 2),
         "ideal_rps_per_core": round(1000.0 / ideal_ms, 2),
+        # the same timed in one process per CPU at once, no HTTP: what each core does when all are busy
+        "decode_locate_ms_all_cpus_busy": round(loaded_ms, 2),
+        "ideal_rps_per_core_all_cpus_busy": round(1000.0 / loaded_ms, 2),
         # the same, timed by the server on each answered request (Server-Timing), during the run
         "server_decode_locate_ms": round(statistics.mean(server_ms), 2) if server_ms else None,
         "server_ideal_rps_per_core": round(1000.0 / statistics.mean(server_ms), 2) if server_ms else None,
@@ -185,6 +217,12 @@ def main() -> None:
             f"ideal 1000 / {figures['decode_locate_ms']} ms = {figures['ideal_rps_per_core']}: "
             f"{100 * figures['rps_per_server_cpu_s'] / figures['ideal_rps_per_core']:.0f} % of it; "
             f"p99 / p50 = {figures['p99_over_p50']}"
+        )
+    if figures["rps_per_server_cpu_s"]:
+        print(
+            f"with every CPU measuring at once ({busy} processes, no HTTP): decode + locate "
+            f"{figures['decode_locate_ms_all_cpus_busy']} ms, ideal {figures['ideal_rps_per_core_all_cpus_busy']} "
+            f"req per core: {100 * figures['rps_per_server_cpu_s'] / figures['ideal_rps_per_core_all_cpus_busy']:.0f} % of it"
         )
     if figures["measuring_share_of_server_cpu"] is not None:
         print(
