@@ -15,6 +15,7 @@
   points, bit for bit;
 - the camera response's asymmetry measure (response._asymmetry: its normalised profiles and paired bins
   compiled) against its numpy version, bit for bit, at many phases and at one (the spline path);
+- the least finite value's index (response._least_index) against np.nanargmin;
 - the in-place selection (jit.select_kth) against np.partition, numpy's pairwise sum (jit.pairwise_sum)
   against ndarray.sum, the running mean (response._running_mean_nearest) against uniform_filter1d;
 - the JPEG block ratio (edges.block_artifact_ratio: its integer path compiled) against its numpy branch and
@@ -792,3 +793,26 @@ def test_strip_bin_means_as_numpy(seed, n, n_p, bins):
     np.testing.assert_array_equal(y, np.stack([r[k == b].mean(axis=0) for b in used]))
     np.testing.assert_array_equal(o, [outer[k == b].mean() for b in used])
     np.testing.assert_array_equal(w, [width[k == b].mean() for b in used])
+
+
+@settings(max_examples=100, deadline=None)
+@given(
+    values=st.lists(
+        st.sampled_from([np.nan, np.inf, 0.5, 1.0, 2.0]) | st.floats(-1e3, 1e3), min_size=1, max_size=30
+    ),
+    column=st.booleans(),
+)
+def test_least_index_is_nanargmin_where_a_value_is_finite(values, column):
+    # response._vertex's index of the least asymmetry (ties: the first; NaN skipped), on a contiguous
+    # array and on a table's column as _least_asymmetric_blocks passes it
+    from doorloc.vision.response import _least_index
+
+    a = np.array(values, float)
+    if column:
+        table = np.zeros((a.size, 3))
+        table[:, 1] = a
+        a = table[:, 1]
+    if np.any(np.isfinite(a)):
+        assert _least_index(a) == np.nanargmin(a)
+    else:
+        assert _least_index(a) == -1
