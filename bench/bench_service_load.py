@@ -27,6 +27,8 @@ import json
 import os
 import statistics
 import time
+from multiprocessing.queues import Queue
+from multiprocessing.synchronize import Barrier
 
 import httpx
 from service_harness import CELL, cpu_seconds, doorloc_serve, rendered_pngs, rss_mb
@@ -109,7 +111,8 @@ def decode_and_locate_ms(pngs: list, repeats: int = 5) -> float:
     return statistics.median(times)
 
 
-def _timed_at_once(pngs: list, barrier, results) -> None:  # noqa: ANN001 - multiprocessing objects
+def _timed_at_once(pngs: list, barrier: Barrier, results: Queue) -> None:
+    """One of :func:`decode_and_locate_ms_at_once`'s processes: warm up, wait for the others, time."""
     decode_and_locate_ms(pngs, repeats=1)  # imports and compiled kernels loaded before the clock starts
     barrier.wait()
     results.put(decode_and_locate_ms(pngs))
