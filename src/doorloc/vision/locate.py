@@ -1823,7 +1823,7 @@ def _gate_and_answer(
         "far_face_in_view": far_beside,
         "other_reading_mm": round(other, 4) if other is not None else None,
     }
-    unc, terms = _pose_uncertainty(cell, cfg, region, samples, fit, pose, model)
+    unc, terms = _pose_uncertainty(cell, cfg, region, samples, fit, pose, model, far_votes=not far_beside)
     diagnostics["uncertainty_terms"] = {k: [round(v, 6) for v in t] for k, t in terms.items()}
     if (
         unc.x_mm > cfg.max_uncertainty_mm
@@ -1977,10 +1977,13 @@ def _edge_model_terms(
             door_side=side,
         )
         if k == "far":
-            # The far arris gives only the thickness (its direction is the reference arris's): its texture
-            # doubt is the thickness's alone. (Without it the grain set's thicknesses, the hinge face's
-            # grain beside the far arris as beside the reference one, were 85 % within 2 sigma.)
+            # The far arris's offset gives only the thickness: its texture doubt is the thickness's, not the
+            # corner's. (Without it the grain set's thicknesses, the hinge face's grain beside the far arris
+            # as beside the reference one, were 85 % within 2 sigma.) Its direction votes on the door's in
+            # the joint fit where no far face is beside it, so its texture tilt counts in the yaw
+            # (:func:`_pose_uncertainty`).
             terms.extra_px.setdefault(k, {})["texture"] = tb.offset_sigma_px
+            terms.tilt[k] = tb.tilt_sigma
             continue
         terms.texture_px[k] = tb.offset_sigma_px
         terms.tilt[k] = tb.tilt_sigma
@@ -1995,11 +1998,17 @@ def _pose_uncertainty(
     fit: RectangleFit,
     pose: MetricPose,
     model: EdgeModelTerms,
+    far_votes: bool = True,
 ) -> tuple[PoseUncertainty, dict[str, tuple[float, float, float]]]:
-    """The answer's 1-sigma uncertainty and its terms (x_mm, z_mm, yaw_deg each), :mod:`doorloc.vision.uncertainty`."""
+    """The answer's 1-sigma uncertainty and its terms (x_mm, z_mm, yaw_deg each), :mod:`doorloc.vision.uncertainty`.
+
+    ``far_votes``: whether the far arris voted on the door's direction in the joint fit (it does unless a
+    far face is beside it, :func:`_fit`); its tilt then moves the yaw as the others' do.
+    """
     sc = pose.scale_mm_per_px
     lever, spread, extent = {}, {}, {}
-    for k in ("reference", "bottom"):
+    voting = ("reference", "bottom", "far") if far_votes else ("reference", "bottom")
+    for k in voting:
         s = samples[k]
         inl = (fit.weights[k] > 0) & np.isfinite(s.along)
         c_scan = pose.corner_px[0] if s.axis == "col" else pose.corner_px[1]
@@ -2017,15 +2026,17 @@ def _pose_uncertainty(
         corner_fit_sigma(fit.offset_sigma["bottom"], fit.angle_sigma_rad, lever["bottom"]),
         math.degrees(fit.angle_sigma_rad),
     )
-    # The yaw's edge-model doubt: each line's texture tilt, weighted as the joint fit weighs the lines
-    # (by the spread of their points along them); a tilt moves the corner by tilt x lever.
-    # (the floor: a bias that changes by twice the floor from one end of a line to the other)
+    # The yaw's edge-model doubt: each voting line's texture tilt, weighted as the joint fit weighs the
+    # lines (by the spread of their points along them); a tilt moves the corner by tilt x lever.
+    # (the floor: a bias that changes by twice the floor from one end of a line to the other). The far
+    # arris counts where it voted: left out, a tilt that grain gave it was answered as the door's yaw at
+    # 6.3 sigma (bench_surfaces --seed 9200, thin_016: 0.0076 deg for a claimed 0.0012).
     tilts = {
         k: math.hypot(
             model.tilt.get(k, 0.0) if math.isfinite(model.tilt.get(k, 0.0)) else 0.0,
             2.0 * EDGE_MODEL_FLOOR_PX / max(extent[k], 1.0),
         )
-        for k in ("reference", "bottom")
+        for k in voting
     }
     wsum = sum(spread.values())
     yaw_m = (
