@@ -801,9 +801,10 @@ class FarFaceFit:
         Median standard error of one arris point from the profile noise, px.
     model_sigma_px : float
         How far the arris moves if the band level were off by ``LEVEL_DOUBT`` or the blur by
-        ``BLUR_DOUBT`` px (the two combined as independent errors): the doubt the model leaves, which
-        noise averaging does not reduce. Large where a narrow band cannot be told from the arris. With an
-        arris strip, also by the strip level's doubt (its fitted standard error and ``LEVEL_DOUBT``).
+        ``BLUR_DOUBT`` px (the two combined as independent errors; a blur that is off also pulls the fitted
+        levels, whose move counts with it): the doubt the model leaves, which noise averaging does not
+        reduce. Large where a narrow band cannot be told from the arris. With an arris strip, also by the
+        strip level's doubt (its fitted standard error and ``LEVEL_DOUBT``).
     strip_level : float
         The arris strip's relative level ``(S - A) / (B - A)`` (NaN without a strip).
     other_reading_px : float
@@ -1327,6 +1328,43 @@ def _far_face_gauss_newton(
     return e, lam, sigma, mu, cost
 
 
+def _levels_per_blur(
+    H: np.ndarray,
+    b_g: np.ndarray,
+    h_ee: np.ndarray,
+    h_eg: np.ndarray,
+    b_e: np.ndarray,
+    lam: float,
+    mu: float,
+    pull_mu: float,
+    mu0: float,
+    has_strip: bool,
+) -> tuple[float, float]:
+    """How far the far-face fit's band level (and a strip's level) move per px of error in the blur it was
+    given, the arrises refitted along: from the step's sums at the answer (:func:`_far_face_sums` with the
+    blur's column, not changed here) through the Schur complement the fit solves, pulls included. Each at
+    most ``1 / BLUR_DOUBT`` (a blur off by its doubt moves a level by at most its whole range, hinge face to
+    background; the linear reading does not hold beyond it).
+
+    Why: beside a band about as narrow as the blur the level and the blur trade off, and the fit's level
+    follows whatever blur it was given. Counted as the blur's doubt at a fixed level, the arris's doubt
+    missed that: a 1 px band beside a 1.4 px blur, its level read 0.55 for a far face about as bright as the
+    hinge face, put the thickness 0.26 mm off at 7 sigma (bench_surfaces --seed 9100, hard_007; a blur off
+    by 0.15 px moves that level by 0.55); with the level's pull counted, 2.5 sigma.
+    """
+    Hs, bs = H.copy(), b_g.copy()
+    _far_face_schur(Hs, bs, h_ee, h_eg, b_e, lam, mu, LEVEL_PRIOR_WEIGHT, pull_mu, mu0)
+    free = [0, 2] if has_strip else [0]
+    try:
+        pull = np.linalg.solve(Hs[np.ix_(free, free)], -Hs[free, 1])
+    except np.linalg.LinAlgError:
+        return 0.0, 0.0
+    if not np.all(np.isfinite(pull)):
+        return 0.0, 0.0
+    cap = 1.0 / BLUR_DOUBT
+    return float(np.clip(pull[0], -cap, cap)), float(np.clip(pull[1], -cap, cap)) if has_strip else 0.0
+
+
 def _pixel_step(bounds: np.ndarray, e: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Unit steps at ``e`` (N,), blurred by a Gaussian ``sigma`` and integrated over pixels (compiled:
     :func:`_step_pixel_values`).
@@ -1567,9 +1605,20 @@ def subpixel_edges_far_face(
         info = h_ee  # the arris derivative's squares
         e_sigma[ok] = np.sqrt(res_var / info)
         e_all[ok] = e
-        # How each arris would move to keep fitting its profile if the level or the blur were off.
+        # How each arris would move to keep fitting its profile if the level or the blur were off. The
+        # blur is not fitted here (the reference arris's): where the band is about as narrow as the blur,
+        # a blur that is off pulls the fitted level with it, and the level moves the arris too, at most by
+        # the band's (and a strip's) width: the readings a level can give lie between the arris and the
+        # band's back edge.
         de_dlam = -h_eg[:, 0] / info
-        de_dsig = -h_eg[:, 1] / info
+        lam_per_blur, mu_per_blur = _levels_per_blur(
+            H, b_g, h_ee, h_eg, b_e, lam, mu, pull_mu, mu0, has_strip
+        )
+        pulled = de_dlam * lam_per_blur
+        if has_strip:
+            pulled = pulled - h_eg[:, 2] / info * mu_per_blur
+        reach = (np.maximum(w0o + band_slope * (e - e0o), 0.0) + strip_o) / BLUR_DOUBT
+        de_dsig = -h_eg[:, 1] / info + np.clip(pulled, -reach, reach)
         if has_strip:
             de_dmu = -h_eg[:, 2] / info
             # the strip level's own doubt (shared by every scan line: the Schur complement's, at the
