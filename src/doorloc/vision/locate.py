@@ -707,38 +707,31 @@ def _coarse_edges(
     # The far arris is the first clear step beyond the reference arris: the hinge face ends there, and
     # what follows (background, or the far face of a thin door shifted towards -X, brighter or darker
     # than the hinge face) does not matter. Taking the first step, not the one nearest the expected
-    # thickness, measures the door that is there (a 12 mm panel where a 50 mm door was expected).
-    near = (band_far.lo if xdir > 0 else band_far.hi).astype(float)
-    along_f, strength_f = yield StepQuery(
-        plane,
-        dict(
-            axis=far_lay.axis,
-            scan=band_far.scan,
-            lo=band_far.lo,
-            hi=band_far.hi,
-            polarity=0,
-            half=2,
-            prefer=near,
-            stride=2,
-            # an arris strip makes a weak first step (face -> strip): skip it
-            prefer_fraction=0.3 if door.arris_mm > 0 else 0.1,
-        ),
-    )
-    strong_f = np.isfinite(along_f) & (strength_f >= thr)
-    far_line = ransac_line(band_far.scan[strong_f], along_f[strong_f], tol) if strong_f.sum() >= 10 else None
-    if far_line is not None:
-        # Beside a wide far face a faint arris step (hinge face -> far face) may win on only part of the
-        # scan lines, and the far face's stronger back edge on the rest: a line of steps nearer to the
-        # reference arris with enough support is the arris (unless it is only an arris strip's inner edge).
-        nearer = strong_f & ((far_line.at(band_far.scan) - along_f) * xdir > tol)
-        near_line = ransac_line(band_far.scan[nearer], along_f[nearer], tol) if nearer.sum() >= 10 else None
-        strip_px = door.arris_mm / sc + 3.0
-        if (
-            near_line is not None
-            and near_line.inliers.sum() >= 0.3 * len(band_far.scan)
-            and np.median((far_line.at(band_far.scan) - near_line.at(band_far.scan)) * xdir) > strip_px
-        ):
-            far_line = near_line
+    # thickness, measures the door that is there (a 12 mm panel where a 50 mm door was expected). A step
+    # that the hinge face's own grain makes is passed over: beyond it the face's level comes back.
+    P_far = oriented(plane, far_lay.axis)
+    search = band_far
+    for _skip in range(FACE_TEXTURE_SKIPS + 1):
+        far_line = yield from _first_far_line(plane, search, far_lay, thr, tol, xdir, door, sc)
+        if far_line is None:
+            break
+        # (only a door thinner than the recipe's needs the look: a grain line lies inside the face)
+        thickness = float(np.median((far_line.at(search.scan) - ref_line.at(search.scan)) * xdir)) * sc
+        thinner = thickness < door.thickness_mm - 2.0 * cfg.thickness_tolerance_mm
+        if not thinner or not _face_texture_line(P_far, search.scan, far_line, ref_line, xdir, thr):
+            break
+        # A grain line of the hinge face, parallel to the arrises, made the first clear step (the face's
+        # level comes back beyond it): look again beyond it (bench_surfaces --seed 9100, thin_028: a
+        # 36 mm door under 9 % grain with a 2.9 mm period, taken as 7 mm thick and refused as having no
+        # bottom end).
+        beyond = far_line.at(search.scan) + 3.0 * xdir
+        lo = np.maximum(search.lo, np.ceil(beyond)).astype(int) if xdir > 0 else search.lo
+        hi = search.hi if xdir > 0 else np.minimum(search.hi, np.floor(beyond)).astype(int)
+        keep = hi - lo >= 4
+        search = Band(search.scan[keep], lo[keep], hi[keep])
+        far_line = None
+        if search.scan.size < 0.3 * len(band_far.scan):
+            break
     if far_line is None or far_line.inliers.sum() < 0.3 * len(band_far.scan):
         faint = _faint_face(plane, band_ref, ref_lay, ref_line, xdir, door.arris_mm / sc, thr, cfg, s8)
         raise _Refused(
@@ -1173,6 +1166,93 @@ def _brightness_reversed(plane, s8: float, region: SearchRegion, cell: Cell, cfg
 def _strip_half(door: DoorSize, scale_mm_per_px: float) -> int:
     """Half width (strided samples of 2 px) of a coarse step detector whose halves span an arris strip."""
     return 2 + int(math.ceil(0.5 * door.arris_mm / scale_mm_per_px))
+
+
+def _first_far_line(
+    plane, band: Band, layout: EdgeLayout, thr: float, tol: float, xdir: int, door: DoorSize, sc: float
+) -> Generator[StepQuery, tuple[np.ndarray, np.ndarray], ImageLine | None]:
+    """The far arris's coarse line: the first clear step on each scan line of ``band`` coming from the
+    reference arris (``xdir``: the along-direction of door +X), RANSAC over them (tolerance ``tol`` px)."""
+    near = (band.lo if xdir > 0 else band.hi).astype(float)
+    along_f, strength_f = yield StepQuery(
+        plane,
+        dict(
+            axis=layout.axis,
+            scan=band.scan,
+            lo=band.lo,
+            hi=band.hi,
+            polarity=0,
+            half=2,
+            prefer=near,
+            stride=2,
+            # an arris strip makes a weak first step (face -> strip): skip it
+            prefer_fraction=0.3 if door.arris_mm > 0 else 0.1,
+        ),
+    )
+    strong_f = np.isfinite(along_f) & (strength_f >= thr)
+    far_line = ransac_line(band.scan[strong_f], along_f[strong_f], tol) if strong_f.sum() >= 10 else None
+    if far_line is not None:
+        # Beside a wide far face a faint arris step (hinge face -> far face) may win on only part of the
+        # scan lines, and the far face's stronger back edge on the rest: a line of steps nearer to the
+        # reference arris with enough support is the arris (unless it is only an arris strip's inner edge).
+        nearer = strong_f & ((far_line.at(band.scan) - along_f) * xdir > tol)
+        near_line = ransac_line(band.scan[nearer], along_f[nearer], tol) if nearer.sum() >= 10 else None
+        strip_px = door.arris_mm / sc + 3.0
+        if (
+            near_line is not None
+            and near_line.inliers.sum() >= 0.3 * len(band.scan)
+            and np.median((far_line.at(band.scan) - near_line.at(band.scan)) * xdir) > strip_px
+        ):
+            far_line = near_line
+    return far_line
+
+
+#: grain lines of the hinge face that the far arris's search may pass over (:func:`_face_texture_line`)
+FACE_TEXTURE_SKIPS = 12
+#: px beside a candidate far-arris line where its wide levels start, and how many are read on each side
+_TEXTURE_GAP_PX = 3
+_TEXTURE_WIDE_PX = 15
+
+
+def _face_texture_line(
+    P, scan: np.ndarray, line: ImageLine, ref_line: ImageLine, xdir: int, thr: float
+) -> bool:
+    """Whether a step line found beyond the reference arris is the hinge face's own texture (a grain line
+    running along the edge), not the face's end.
+
+    ``P``: the plane, oriented ``[along, scan]``; ``xdir``: the along-direction of door +X. On every fourth
+    scan line: the step's size right at the line (the means of 4 px on either side) and the difference of
+    the mean levels over ``_TEXTURE_WIDE_PX`` px on either side, ``_TEXTURE_GAP_PX`` px away from it
+    (inside, towards the reference arris, at most what lies between the two). Beyond the face's end the
+    level stays off the face's (background, a far face, an arris strip: the wide difference is about the
+    step); beyond a grain line it comes back (a stripe a few px wide, then face again: the wide difference is
+    a fraction of the step). Texture where, over the scan lines with a step of at least ``thr`` at the
+    line, the median of the wide difference over the step is less than a half.
+    """
+    n_along = P.shape[0]
+    s = scan[::4].astype(np.int64)
+    at = line.at(s)
+    room = np.floor((at - ref_line.at(s)) * xdir).astype(np.int64) - 2 * _TEXTURE_GAP_PX
+    if s.size < 5:
+        return False
+    width = int(min(_TEXTURE_WIDE_PX, room.min()))
+    if width < 4:
+        return False
+    # the columns: 4 px outside the line, the wide ones outside, 4 px inside, the wide ones inside
+    offsets = np.concatenate([np.arange(1, 5), _TEXTURE_GAP_PX + np.arange(width)])
+    offsets = np.concatenate([offsets, -offsets])
+    idx = np.rint(at).astype(np.int64)[:, None] + xdir * offsets[None, :]
+    ok = ((idx >= 0) & (idx < n_along)).all(axis=1)
+    if int(ok.sum()) < 5:
+        return False
+    v = P[idx[ok], s[ok][:, None]].astype(np.float64)  # (lines, offsets)
+    half = 4 + width
+    step = np.abs(v[:, :4].mean(axis=1) - v[:, half : half + 4].mean(axis=1))
+    off = np.abs(v[:, 4:half].mean(axis=1) - v[:, half + 4 :].mean(axis=1))
+    clear = step >= thr  # the scan lines where the line lies on a step (its RANSAC inliers, about)
+    if int(clear.sum()) < 5:
+        return False
+    return float(np.median(off[clear] / step[clear])) < 0.5
 
 
 def _no_door_reason(plane, band: Band, layout: EdgeLayout, cfg: LocateConfig, s8: float) -> q.Refusal:
