@@ -715,9 +715,10 @@ def _coarse_edges(
         far_line = yield from _first_far_line(plane, search, far_lay, thr, tol, xdir, door, sc)
         if far_line is None:
             break
-        # (only a door thinner than the recipe's needs the look: a grain line lies inside the face)
+        # (only a door thinner than the recipe's needs the look: a grain line lies inside the face; an
+        # arris strip's inner border, a strip's width in, is the far arris's, which the fine stage places)
         thickness = float(np.median((far_line.at(search.scan) - ref_line.at(search.scan)) * xdir)) * sc
-        thinner = thickness < door.thickness_mm - 2.0 * cfg.thickness_tolerance_mm
+        thinner = thickness < door.thickness_mm - 2.0 * (cfg.thickness_tolerance_mm + door.arris_mm)
         if not thinner or not _face_texture_line(P_far, search.scan, far_line, ref_line, xdir, thr):
             break
         # A grain line of the hinge face, parallel to the arrises, made the first clear step (the face's
