@@ -1354,15 +1354,19 @@ def _levels_per_blur(
     """
     Hs, bs = H.copy(), b_g.copy()
     _far_face_schur(Hs, bs, h_ee, h_eg, b_e, lam, mu, LEVEL_PRIOR_WEIGHT, pull_mu, mu0)
-    free = [0, 2] if has_strip else [0]
-    try:
-        pull = np.linalg.solve(Hs[np.ix_(free, free)], -Hs[free, 1])
-    except np.linalg.LinAlgError:
-        return 0.0, 0.0
-    if not np.all(np.isfinite(pull)):
+    # the levels' rows of the reduced normal equations, solved for a unit blur change (one or two
+    # unknowns: in closed form)
+    if has_strip:
+        det = Hs[0, 0] * Hs[2, 2] - Hs[0, 2] * Hs[2, 0]
+        d_lam = (-Hs[0, 1] * Hs[2, 2] + Hs[0, 2] * Hs[2, 1]) / det if det != 0 else math.nan
+        d_mu = (-Hs[2, 1] * Hs[0, 0] + Hs[2, 0] * Hs[0, 1]) / det if det != 0 else math.nan
+    else:
+        d_lam = -Hs[0, 1] / Hs[0, 0] if Hs[0, 0] != 0 else math.nan
+        d_mu = 0.0
+    if not (math.isfinite(d_lam) and math.isfinite(d_mu)):
         return 0.0, 0.0
     cap = 1.0 / BLUR_DOUBT
-    return float(np.clip(pull[0], -cap, cap)), float(np.clip(pull[1], -cap, cap)) if has_strip else 0.0
+    return min(max(float(d_lam), -cap), cap), min(max(float(d_mu), -cap), cap)
 
 
 def _pixel_step(bounds: np.ndarray, e: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
