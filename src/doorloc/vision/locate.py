@@ -717,7 +717,8 @@ def _coarse_edges(
             break
         # (only a door thinner than the recipe's needs the look: a grain line lies inside the face; an
         # arris strip's inner border, a strip's width in, is the far arris's, which the fine stage places)
-        thickness = float(np.median((far_line.at(search.scan) - ref_line.at(search.scan)) * xdir)) * sc
+        mid = search.scan[search.scan.size // 2 : search.scan.size // 2 + 1]
+        thickness = float((far_line.at(mid) - ref_line.at(mid))[0]) * xdir * sc
         thinner = thickness < door.thickness_mm - 2.0 * (cfg.thickness_tolerance_mm + door.arris_mm)
         if not thinner or not _face_texture_line(P_far, search.scan, far_line, ref_line, xdir, thr):
             break
