@@ -85,6 +85,7 @@ from doorloc.vision.uncertainty import (
     calibration_pose_sigma,
     combine,
     corner_fit_sigma,
+    jpeg_tilt_sigma,
 )
 
 __all__ = ["LocateConfig", "locate", "locate_steps", "run_steps", "StepQuery", "LocateTrace"]
@@ -1369,6 +1370,18 @@ def _rows_across(plane, s8: float, ref: EdgeSamples, far: EdgeSamples) -> np.nda
 RESIDUAL_BLOCKS = 4
 
 
+def _image_slope(samples: EdgeSamples, points: np.ndarray) -> float:
+    """A line's slope in the image (px across per px along the scan) over the ``points`` (N,) bool of its
+    samples, by least squares; NaN with fewer than 3 or all on one scan line."""
+    if int(points.sum()) < 3:
+        return float("nan")
+    s = samples.scan[points].astype(np.float64)
+    a = samples.along[points]
+    ds = s - s.mean()
+    ss = float(ds @ ds)
+    return float(ds @ (a - a.mean())) / ss if ss > 0 else float("nan")
+
+
 def _residual_structure_tilt(samples: EdgeSamples, residual_px: np.ndarray, inliers: np.ndarray) -> float:
     """Standard error of a line's tilt (px per px) from the structure of its residuals along it.
 
@@ -1733,6 +1746,12 @@ def _gate_and_answer(
     if blocks > JPEG_BLOCK_RATIO:
         for k in EDGE_NAMES:
             model.extra_px.setdefault(k, {})["jpeg"] = JPEG_EDGE_DOUBT_PX
+            # and along the line, as the edge's phase in the 8-px blocks changes
+            inl = (fit.weights[k] > 0) & np.isfinite(samples[k].along)
+            slope = _image_slope(samples[k], inl)
+            t0 = model.tilt.get(k, 0.0)
+            t_jpeg = jpeg_tilt_sigma(slope, samples[k].scan[inl])
+            model.tilt[k] = math.hypot(t0 if math.isfinite(t0) else 0.0, t_jpeg)
     for k in EDGE_NAMES:
         inl = fit.weights[k] > 0
         if arris_fits and k in arris_fits:
