@@ -22,7 +22,9 @@ terms (each also reported in ``diagnostics["uncertainty_terms"]``):
     - ``JPEG_EDGE_DOUBT_PX`` where the image shows JPEG block artifacts
       (:func:`doorloc.vision.edges.block_artifact_ratio` above ``JPEG_BLOCK_RATIO``): the block
       quantization moves an edge that runs along a block row or column the same way on every scan line
-      (0.01-0.07 px measured on nearly noise-free quality-88 renders, where no other term sees it);
+      (0.01-0.07 px measured on nearly noise-free quality-88 renders, where no other term sees it), and
+      an edge at a small angle to the blocks by an amount that drifts along it: its tilt
+      (:func:`jpeg_tilt_sigma`) joins the line's texture tilt in the yaw;
     - any term that an edge model reports for itself in :attr:`EdgeModelTerms.extra_px` (the far-face
       fit today; an arris-offset or camera-response correction adds its doubt there, px across the
       edge, keyed by line name: ``"bottom"``, ``"reference"`` or ``"far"``).
