@@ -17,7 +17,7 @@ from doorloc.vision.edges import (
     subpixel_edges_far_face,
     transition_width,
 )
-from doorloc.vision.lines import fit_rectangle_edges, ransac_line
+from doorloc.vision.lines import fit_image_line, fit_rectangle_edges, ransac_line
 
 
 def _box_step_image(
@@ -306,3 +306,18 @@ def test_far_face_start_ranked_on_a_subset_of_scan_lines_gives_the_exhaustive_se
     assert every[2:] == [1]  # every shift on every line
     np.testing.assert_array_equal(s.along, s_all.along)
     assert str(fit) == str(fit_all)  # (NaN fields compare unequal)
+
+
+def test_fit_image_line_is_the_least_squares_line_and_refuses_too_few_samples():
+    rng = np.random.default_rng(3)
+    scan = np.sort(rng.choice(1000, 50, replace=False))
+    along = 12.5 + 0.013 * scan
+    line = fit_image_line(scan, along)
+    assert line.b == pytest.approx(0.013, abs=1e-12) and line.a == pytest.approx(12.5, abs=1e-9)
+    assert line.inliers.all() and line.inliers.size == scan.size
+    noisy = along + rng.normal(0, 0.3, scan.size)
+    b, a = np.polyfit(scan, noisy, 1)
+    got = fit_image_line(scan, noisy)
+    assert got.b == pytest.approx(b, rel=1e-9) and got.a == pytest.approx(a, rel=1e-9)
+    with pytest.raises(ValueError, match="two or more"):
+        fit_image_line(scan[:1], along[:1])

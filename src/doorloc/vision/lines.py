@@ -16,7 +16,14 @@ import numpy as np
 
 from doorloc.vision.jit import kernel, partitioned_median
 
-__all__ = ["ImageLine", "ransac_line", "RectangleFit", "fit_rectangle_edges", "tukey_weights"]
+__all__ = [
+    "ImageLine",
+    "fit_image_line",
+    "ransac_line",
+    "RectangleFit",
+    "fit_rectangle_edges",
+    "tukey_weights",
+]
 
 TUKEY_C = 4.685  # 95 % efficiency at the normal distribution
 
@@ -88,6 +95,23 @@ def _lsq_line(s, a):
         num += d * (a[q] - am)
     b = num / den if den > 0 else 0.0
     return b, am - b * sm
+
+
+def fit_image_line(scan: np.ndarray, along: np.ndarray) -> ImageLine:
+    """The least-squares line ``along = a + b * scan`` through all the samples (every one an inlier; ``b`` 0
+    where they share one scan line).
+
+    Raises
+    ------
+    ValueError
+        Fewer than 2 samples, or ``scan`` and ``along`` of different lengths.
+    """
+    s = np.asarray(scan, np.float64)
+    a = np.asarray(along, np.float64)
+    if s.shape != a.shape or s.ndim != 1 or s.size < 2:
+        raise ValueError(f"need two or more (scan, along) samples of one length, got {s.shape} and {a.shape}")
+    b, a0 = _lsq_line(s, a)
+    return ImageLine(float(a0), float(b), np.ones(s.size, bool))
 
 
 def ransac_line(

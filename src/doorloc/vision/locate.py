@@ -61,7 +61,7 @@ from doorloc.vision.edges import (
     texture_bias,
     transition_width,
 )
-from doorloc.vision.lines import ImageLine, RectangleFit, fit_rectangle_edges, ransac_line
+from doorloc.vision.lines import ImageLine, RectangleFit, fit_image_line, fit_rectangle_edges, ransac_line
 from doorloc.vision.luminance import ImageFormatError, LuminancePlane, luminance_plane
 from doorloc.vision.metric import MetricPose, pose_from_fit
 from doorloc.vision.region import EDGE_NAMES, Band, EdgeLayout, SearchRegion
@@ -1370,18 +1370,6 @@ def _rows_across(plane, s8: float, ref: EdgeSamples, far: EdgeSamples) -> np.nda
 RESIDUAL_BLOCKS = 4
 
 
-def _image_slope(samples: EdgeSamples, points: np.ndarray) -> float:
-    """A line's slope in the image (px across per px along the scan) over the ``points`` (N,) bool of its
-    samples, by least squares; NaN with fewer than 3 or all on one scan line."""
-    if int(points.sum()) < 3:
-        return float("nan")
-    s = samples.scan[points].astype(np.float64)
-    a = samples.along[points]
-    ds = s - s.mean()
-    ss = float(ds @ ds)
-    return float(ds @ (a - a.mean())) / ss if ss > 0 else float("nan")
-
-
 def _residual_structure_tilt(samples: EdgeSamples, residual_px: np.ndarray, inliers: np.ndarray) -> float:
     """Standard error of a line's tilt (px per px) from the structure of its residuals along it.
 
@@ -1748,10 +1736,9 @@ def _gate_and_answer(
             model.extra_px.setdefault(k, {})["jpeg"] = JPEG_EDGE_DOUBT_PX
             # and along the line, as the edge's phase in the 8-px blocks changes
             inl = (fit.weights[k] > 0) & np.isfinite(samples[k].along)
-            slope = _image_slope(samples[k], inl)
-            t0 = model.tilt.get(k, 0.0)
-            t_jpeg = jpeg_tilt_sigma(slope, samples[k].scan[inl])
-            model.tilt[k] = math.hypot(t0 if math.isfinite(t0) else 0.0, t_jpeg)
+            scan, along = samples[k].scan[inl], samples[k].along[inl]
+            slope = fit_image_line(scan, along).b if scan.size >= 3 else math.nan
+            model.add_tilt(k, jpeg_tilt_sigma(slope, scan))
     for k in EDGE_NAMES:
         inl = fit.weights[k] > 0
         if arris_fits and k in arris_fits:
@@ -1761,10 +1748,9 @@ def _gate_and_answer(
             # What it leaves in doubt along the line (the strip's shading and the texture beside it change
             # along the edge; the texture term reads only beyond the strip): the tilt that the residuals'
             # structure over quarters of the line could hide.
-            tilt = _residual_structure_tilt(samples[k], fit.residuals[k] / pose.scale_mm_per_px, inl)
-            if math.isfinite(tilt):
-                t0 = model.tilt.get(k, 0.0)
-                model.tilt[k] = math.hypot(t0 if math.isfinite(t0) else 0.0, tilt)
+            model.add_tilt(
+                k, _residual_structure_tilt(samples[k], fit.residuals[k] / pose.scale_mm_per_px, inl)
+            )
             diagnostics.setdefault("arris_fit", {})[k] = {
                 "deficit": round(strip.deficit, 4),
                 "deficit_sigma": round(strip.deficit_sigma, 5),

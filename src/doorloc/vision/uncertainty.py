@@ -117,6 +117,12 @@ class EdgeModelTerms:
     blur_px: float = 0.0
     extra_px: dict[str, dict[str, float]] = field(default_factory=dict)
 
+    def add_tilt(self, name: str, tilt: float) -> None:
+        """Add an independent tilt doubt (px per px) to line ``name``'s, in quadrature (a non-finite one, or
+        a non-finite tilt already there, counts as 0)."""
+        t0 = self.tilt.get(name, 0.0)
+        self.tilt[name] = math.hypot(t0 if math.isfinite(t0) else 0.0, tilt if math.isfinite(tilt) else 0.0)
+
     def line_sigma_px(self, name: str, without: tuple[str, ...] = ()) -> float:
         """Total edge-model 1-sigma of one line's offset, px (floor, texture and extra terms in quadrature),
         the extra terms named in ``without`` left out (a caller that combines them otherwise)."""
