@@ -21,7 +21,9 @@ from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError,
 
 from doorloc.calib.camera import CameraModel, Extrinsics, PosedCamera
 from doorloc.calib.io import CalibrationFileError, load_calibration
+from doorloc.domain import ArrisProfile, DoorSize
 from doorloc.fileio import atomic_write_text
+from doorloc.robot.section import RobotSectionError, robot_section_from_doc
 from doorloc.vision.config import LocateConfig
 
 __all__ = [
@@ -67,33 +69,6 @@ class Envelope:
     x_mm: float = 10.0
     z_mm: float = 10.0
     yaw_deg: float = 2.0
-
-
-ArrisProfile = Literal["chamfer", "round"]
-
-
-@dataclass(frozen=True)
-class DoorSize:
-    """Nominal door dimensions, mm, and the arris on the edges around the hinge face.
-
-    ``arris_mm`` is the chamfer's leg or the rounding's radius (0: sharp edges); ``arris_profile`` says which.
-    """
-
-    width_mm: float = 900.0
-    thickness_mm: float = 50.0
-    height_mm: float = 2100.0
-    arris_mm: float = 0.0
-    arris_profile: ArrisProfile = "chamfer"
-
-    def __post_init__(self) -> None:
-        for name in ("width_mm", "thickness_mm", "height_mm"):
-            v = getattr(self, name)
-            if not (isinstance(v, int | float) and np.isfinite(v) and v > 0):
-                raise ValueError(f"door {name} must be a positive number of millimetres, got {v!r}")
-        if not (0 <= self.arris_mm < self.thickness_mm / 2):
-            raise ValueError(f"door arris_mm must be in [0, thickness/2), got {self.arris_mm!r}")
-        if self.arris_profile not in get_args(ArrisProfile):
-            raise ValueError(f"door arris_profile must be 'chamfer' or 'round', got {self.arris_profile!r}")
 
 
 @dataclass(frozen=True)
@@ -317,8 +292,6 @@ def parse_cell(
     if cd.robot is not None:
         # the robot: section has its own strict model (doorloc.robot.section); check it here so a typo
         # in it is an error of the cell file like any other
-        from doorloc.robot.section import RobotSectionError, robot_section_from_doc
-
         try:
             robot_section_from_doc(cd.robot, source)
         except RobotSectionError as e:

@@ -27,7 +27,7 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
 
-from doorloc.cell import DoorSize
+from doorloc.domain import DoorSize
 from doorloc.limits import DOOR_RANGES_MM, TOOL_DIAMETER_RANGE_MM, check_range
 
 __all__ = [

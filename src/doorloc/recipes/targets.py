@@ -21,12 +21,11 @@ cell that wants it passes ``base_orientation=TOOL_Z_ALONG_CELL_Y`` (the quaterni
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from pydantic import BaseModel, ConfigDict
 from scipy.spatial.transform import Rotation
 
+from doorloc.domain import TOOL_Y_ALONG_CELL_Y, TOOL_Z_ALONG_CELL_Y, Quat
 from doorloc.pose import DoorPose, door_to_cell
 from doorloc.recipes.models import DoorRecipe
 from doorloc.recipes.paths import DEFAULT_CLEARANCE_MM, PathPoint, PointKind, recipe_path
@@ -39,12 +38,6 @@ __all__ = [
     "TOOL_Y_ALONG_CELL_Y",
     "TOOL_Z_ALONG_CELL_Y",
 ]
-
-Quat = tuple[float, float, float, float]
-#: default tool orientation at yaw 0: tool frame = cell axes, spindle along tool +Y = cell +Y
-TOOL_Y_ALONG_CELL_Y: Quat = (1.0, 0.0, 0.0, 0.0)
-#: alternative: spindle along tool +Z = cell +Y, tool +X = cell +X (a rotation by -90 deg about X)
-TOOL_Z_ALONG_CELL_Y: Quat = (math.sqrt(0.5), -math.sqrt(0.5), 0.0, 0.0)
 
 
 class Target(BaseModel):

@@ -28,6 +28,8 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 from scipy.spatial.transform import Rotation
 
+from doorloc.domain import tool_base_orientation
+
 __all__ = ["Placement", "RobotSection", "robot_section_from_doc", "RobotSectionError"]
 
 Quat = tuple[float, float, float, float]
@@ -167,9 +169,7 @@ class RobotSection(BaseModel):
 
     def base_orientation(self) -> Quat:
         """Tool orientation at yaw 0 for :func:`doorloc.recipes.targets.targets_for_pose`."""
-        from doorloc.recipes.targets import TOOL_Y_ALONG_CELL_Y, TOOL_Z_ALONG_CELL_Y
-
-        return TOOL_Y_ALONG_CELL_Y if self.spindle_axis == "y" else TOOL_Z_ALONG_CELL_Y
+        return tool_base_orientation(self.spindle_axis)
 
     def robot_path(self, cell_dir: str | Path | None = None) -> str | None:
         """``model`` as :func:`doorloc.robot.model.load_robot` takes it (a relative file resolved at the cell)."""
