@@ -9,8 +9,8 @@ from fastapi.testclient import TestClient
 
 from doorloc.app.answer import DoorChoice, door_from_fields
 from doorloc.app.batch import BatchSetupError, plan_batch
-from doorloc.app.cli_locate import _door_choice
 from doorloc.app.http import create_app
+from doorloc.app.services import resolve_door
 from doorloc.app.settings import ServiceSettings
 from doorloc.cell import DoorSize
 
@@ -39,9 +39,10 @@ def test_sizes_take_the_cell_default_arris_unless_given(round_cell):
 
 
 def test_cli_door_arris_and_profile(round_cell):
-    c = _door_choice(round_cell, 800, 45, None, 2.5, None, None, "chamfer")
+    # what `doorloc locate --door-width 800 --door-thickness 45 [--door-arris 2.5 --arris-profile chamfer]` asks
+    c = resolve_door(round_cell, None, width_mm=800, thickness_mm=45, arris_mm=2.5, arris_profile="chamfer")
     assert (c.door.arris_mm, c.door.arris_profile) == (2.5, "chamfer")
-    c = _door_choice(round_cell, 800, 45, None, None, None, None)
+    c = resolve_door(round_cell, None, width_mm=800, thickness_mm=45)
     assert (c.door.arris_mm, c.door.arris_profile) == (1.5, "round")
 
 

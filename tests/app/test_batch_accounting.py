@@ -18,7 +18,16 @@ import numpy as np
 import pytest
 
 from doorloc.app.answer import DoorChoice
-from doorloc.app.batch import BatchItem, FileLimits, locate_item, plan_batch, read_file_checked
+from doorloc.app.batch import (
+    BatchItem,
+    FileLimits,
+    claims_an_image,
+    locate_item,
+    plan_batch,
+    plan_folder,
+    read_file_checked,
+)
+from doorloc.cell import load_cell
 
 from .conftest import CELL_PATH, stand_in_locate
 
@@ -59,10 +68,10 @@ def odd_folder(tmp_path):
 
 def test_every_file_gets_a_record_with_its_reason(odd_folder, cell):
     items = plan_batch(odd_folder, cell)
+    assert plan_folder(odd_folder, cell)[1] == ["notes.txt"]  # neither is nor claims to be an image: skipped
     assert {it.image for it in items} == {
         "good.png",
         "empty.png",
-        "notes.txt",
         "huge.png",
         "bomb16.png",
         "pipe.png",
@@ -73,7 +82,6 @@ def test_every_file_gets_a_record_with_its_reason(odd_folder, cell):
     assert codes == {
         "good.png": ("answered", None),
         "empty.png": ("failed", "empty_file"),
-        "notes.txt": ("failed", "not_an_image"),
         "huge.png": ("failed", "too_large"),
         "bomb16.png": ("failed", "too_large"),
         "pipe.png": ("failed", "not_a_regular_file"),
@@ -102,9 +110,33 @@ def test_batch_cli_does_not_hang_on_a_fifo_and_counts_every_file(odd_folder, tmp
     )
     assert p.returncode == 1, p.stderr
     recs = [json.loads(x) for x in out.read_text().splitlines()]
-    assert len(recs) == 7
-    assert "7 images:" in p.stderr and "6 failed" in p.stderr and "not_a_regular_file: 1" in p.stderr
+    assert len(recs) == 6
+    assert "6 images:" in p.stderr and "5 failed" in p.stderr and "not_a_regular_file: 1" in p.stderr
     assert "empty_file: 1" in p.stderr and "too_large: 2" in p.stderr
+    assert "skipped 1 file that is not an image (notes.txt)" in p.stderr
+
+
+def test_a_folder_of_no_images_skips_them_with_a_count_and_exits_0(tmp_path):
+    """A cell folder beside the images (cell.yaml, truth.csv, notes) is not a folder of failures."""
+    root = tmp_path / "in"
+    root.mkdir()
+    (root / "cell.yaml").write_text("camera: {}\n")
+    (root / "truth.csv").write_text("image,x_mm\n")
+    (root / "notes.md").write_text("# notes\n")
+    (root / "renamed.dat").write_bytes(cv2.imencode(".png", np.full((8, 8), 9, np.uint8))[1].tobytes())
+    assert [n for n in plan_folder(root, load_cell(CELL_PATH))[1]] == ["cell.yaml", "notes.md", "truth.csv"]
+    assert claims_an_image(root / "renamed.dat") and not claims_an_image(root / "notes.md")
+    (root / "renamed.dat").unlink()
+    out = tmp_path / "r.jsonl"
+    p = subprocess.run(
+        [*DOORLOC, "batch", str(root), "--cell", str(CELL_PATH), "--out", str(out), "--workers", "1"],
+        capture_output=True,
+        text=True,
+        timeout=180,
+    )
+    assert p.returncode == 0, p.stderr
+    assert "skipped 3 files that are not an image (cell.yaml, notes.md, truth.csv)" in p.stderr
+    assert "0 images" in p.stderr
 
 
 def test_results_file_inside_the_folder_is_not_a_job_item(odd_folder, cell):

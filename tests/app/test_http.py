@@ -23,6 +23,15 @@ def test_health_and_readiness(client):
     assert r.json()["cell_id"].startswith("sha256:")
 
 
+def test_one_cell_hash_in_readiness_and_results(client, small_png, cell):
+    """The audit trail names a cell by one digest: /readyz, /v1/cell and every result's provenance."""
+    ready = client.get("/readyz").json()
+    prov = _post(client, small_png, width_mm="800", thickness_mm="45").json()["provenance"]
+    assert prov["cell_sha256"] == cell.sha256 and prov["calibration_sha256"] == cell.calibration_sha256
+    assert ready["cell_id"] == "sha256:" + prov["cell_sha256"]
+    assert ready["calibration_id"] == "sha256:" + prov["calibration_sha256"]
+
+
 def test_not_ready_without_a_cell_answers_503_with_the_reason():
     with TestClient(create_app(ServiceSettings(cell=None))) as c:
         assert c.get("/healthz").status_code == 200

@@ -83,6 +83,25 @@ def test_cell_init_stores_the_calibration_relative_to_the_cell_file(tmp_path):
     assert cell.default_door.width_mm == 1000.0
 
 
+def test_cell_files_name_a_calibration_outside_their_folder_relatively(tmp_path):
+    """cell init and calibrate-cell: a cell folder checked out elsewhere still finds its calibration."""
+    cal = tmp_path / "calib" / "camera.yaml"
+    cal.parent.mkdir()
+    cal.write_bytes(CAMERA.read_bytes())
+    cell_file = tmp_path / "cells" / "a" / "cell.yaml"
+    cell_file.parent.mkdir(parents=True)
+    r = _run("cell", "init", "--calibration", cal, "--out", cell_file)
+    assert r.exit_code == 0, r.output
+    assert "calibration: ../../calib/camera.yaml" in cell_file.read_text()
+    placed = tmp_path / "cells" / "placed.yaml"
+    args = ("--pattern", "9x6", "--square", "20", "--board-origin", "-50", "0", "90", "--out", placed)
+    r = _run("calibrate-cell", BOARDS / "cell_board.png", "--cell", cell_file, *args)
+    assert r.exit_code == 0, r.output
+    assert "calibration: ../calib/camera.yaml" in placed.read_text()  # rebased to where it was written
+    assert str(tmp_path) not in placed.read_text().split("provenance:")[0]
+    assert load_cell(placed).camera.image_size == (1920, 1080)
+
+
 def test_cell_init_never_replaces_a_cell_file_unless_forced(tmp_path):
     out = tmp_path / "cell.yaml"
     out.write_text("calibrated: keep me\n")

@@ -21,8 +21,26 @@ def _functions(tree: ast.AST):
             yield node
 
 
-def _is_entry_point(fn: ast.FunctionDef | ast.AsyncFunctionDef) -> bool:
-    """Decorated ``@app.command(...)`` (typer) or ``@router.get(...)`` and the like (FastAPI)."""
+def _registered(tree: ast.AST) -> set[str]:
+    """Names of functions registered by a call, ``app.command("x")(fn)`` or ``router.get("/x")(fn)``."""
+    names = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Call) and node.args:
+            f = node.func.func
+            if (
+                isinstance(f, ast.Attribute)
+                and f.attr in _ENTRY_DECORATORS
+                and isinstance(node.args[0], ast.Name)
+            ):
+                names.add(node.args[0].id)
+    return names
+
+
+def _is_entry_point(fn: ast.FunctionDef | ast.AsyncFunctionDef, registered: set[str] = frozenset()) -> bool:
+    """Decorated ``@app.command(...)`` (typer) or ``@router.get(...)`` and the like (FastAPI), or registered
+    by a call (``app.command("x")(fn)``)."""
+    if fn.name in registered:
+        return True
     for d in fn.decorator_list:
         call = d.func if isinstance(d, ast.Call) else d
         if isinstance(call, ast.Attribute) and call.attr in _ENTRY_DECORATORS:
@@ -62,9 +80,10 @@ def _own_lines(fn: ast.FunctionDef | ast.AsyncFunctionDef) -> int:
 def function_lengths(path: Path) -> list[tuple[str, int, bool]]:
     """``(name, body lines, is_entry_point)`` for every function in ``path``; entry points counted whole."""
     tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    registered = _registered(tree)
     out = []
     for fn in _functions(tree):
-        entry = _is_entry_point(fn)
+        entry = _is_entry_point(fn, registered)
         out.append((fn.name, _body_lines(fn) if entry else _own_lines(fn), entry))
     return out
 
@@ -96,6 +115,34 @@ def test_the_measure_sees_a_long_command(tmp_path):
     lengths = {name: (n, entry) for name, n, entry in function_lengths(src)}
     assert lengths["x"] == (70, True)  # its body; over the limit
     assert lengths["register"] == (1, False)  # the return; the command is counted on its own
+    src.write_text(
+        f"def x() -> None:\n{body[4:].replace(chr(10) + '    ', chr(10))}\n\ndef register(app):\n    app.command('x')(x)\n"
+    )
+    assert {name: (n, entry) for name, n, entry in function_lengths(src)}["x"] == (
+        70,
+        True,
+    )  # registered by call
+    assert [name for name, n in whole_lengths(src) if n > MAX_FUNCTION_LINES] == []  # 72 lines whole
+    src.write_text("def register(app):\n    def x():\n" + "".join(f"        x{i} = {i}\n" for i in range(79)))
+    assert whole_lengths(src) == [("register", 81), ("x", 80)]  # the register holding it counts it too
+
+
+#: no function in app/ longer than this, counted whole (signature, docstring, nested functions and all)
+MAX_FUNCTION_LINES = 80
+
+
+def whole_lengths(path: Path) -> list[tuple[str, int]]:
+    """``(name, lines from its ``def`` to its end)`` of every function in ``path``."""
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    return [(fn.name, _lines(fn)) for fn in _functions(tree)]
+
+
+@pytest.mark.parametrize("path", APP_FILES, ids=lambda p: str(p.relative_to(APP)))
+def test_no_function_in_app_is_long(path):
+    """A long function in a shell is work that belongs in the library (a ``register`` holding its commands
+    counts whole, so commands are written at module level and registered by name)."""
+    too_long = [f"{name} ({n} lines)" for name, n in whole_lengths(path) if n > MAX_FUNCTION_LINES]
+    assert not too_long, f"{path.name}: {', '.join(too_long)}"
 
 
 # ---------------------------------------------------------------------------------------------- import circles

@@ -81,6 +81,22 @@ def test_database_from_environment(tmp_path):
     assert "GOLDEN-1" in run("recipes", "list", env={"DOORLOC_DATABASE_URL": url}).stdout
 
 
+def test_one_database_option_and_plain_help(db):
+    """--db everywhere (serve and batch still take their older --database-url, unlisted); --pose reads X Z YAW or
+    X,Z,YAW; flags show no type; `version` is kept for scripts but only --version is listed."""
+    assert run("targets", "--door-id", "GOLDEN-1", "--pose", "0,0,0", "--db", db).exit_code == 0
+    same = run("targets", "--door-id", "GOLDEN-1", "--pose", "0", "0", "0", "--db", db)
+    assert run("targets", "--door-id", "GOLDEN-1", "--pose=0,0,0", "--db", db).stdout == same.stdout
+    for command in ("serve", "batch", "locate", "reach", "targets", "recipes list", "keys list"):
+        help_text = run(*command.split(), "--help").stdout
+        assert "--db URL" in help_text and "--database-url" not in help_text, command
+        assert "<bool>" not in help_text, command
+    assert "X Z YAW" in run("reach", "--help").stdout
+    top = run("--help").stdout
+    assert "--version" in top and " version " not in top
+    assert run("version").exit_code == 0 and run("--version").exit_code == 0
+
+
 def test_targets_use_the_cell_fixture_and_robot_section(db, tmp_path):
     run("recipes", "import", GOLDEN / "golden_recipe.csv", "--db", db)
     cell_src = (Path(__file__).parents[2] / "fixtures" / "cell_thesis.yaml").read_text()

@@ -78,3 +78,25 @@ def test_bad_input_exits_2(db, tmp_path):
     assert r.exit_code == 2 and "unknown robot 'irb9999'" in r.output
     r = _reach(db, "--door-id", "THESIS-190", "--pose", "0", "0")
     assert r.exit_code == 2
+
+
+def test_reach_says_which_cell_and_robot_it_used(db, tmp_path):
+    r = _reach(db, "--door-id", "THESIS-1350", "--pose", "-10,10,2")  # one word, as people paste a pose
+    assert r.exit_code == 0, r.output
+    assert "the bundled thesis cell" in r.stderr and "irb6600-175-2.55" in r.stderr and "--cell" in r.stderr
+    assert json.loads(r.stdout)["feasible"] is True
+    cell = tmp_path / "cell.yaml"
+    cell.write_text((REPO / "fixtures" / "cell_thesis.yaml").read_text())
+    r = _reach(db, "--door-id", "THESIS-1350", "--pose", "-10", "10", "2", "--cell", str(cell))
+    assert r.exit_code == 0 and f"cell {cell}" in r.stderr and "bundled" not in r.stderr
+
+
+def test_a_cell_without_a_robot_section_is_named_as_such(db, tmp_path):
+    import yaml
+
+    doc = yaml.safe_load((REPO / "fixtures" / "cell_thesis.yaml").read_text())
+    doc.pop("robot")
+    cell = tmp_path / "cell.yaml"
+    cell.write_text(yaml.safe_dump(doc))
+    r = _reach(db, "--door-id", "THESIS-190", "--pose", "0", "0", "0", "--cell", str(cell))
+    assert r.exit_code == 2 and "has no robot: section" in r.stderr and "model:" in r.stderr

@@ -232,7 +232,8 @@ def test_work_window_holds_the_table_4_6_flange_positions():
 
 
 def test_a_tool_frame_with_the_spindle_on_z_gives_the_same_answer():
-    from doorloc.app.answer import DoorChoice, answer_image
+    from doorloc.app.answer import DoorChoice
+    from doorloc.app.services import answer_image
     from doorloc.cell import parse_cell
     from doorloc.vision.result import LocateResult
 

@@ -1,41 +1,45 @@
-"""One image in, one answer out: the flow the HTTP service and the batch runner share.
+"""The answer to one image: the door it was measured as, and the typed answer the service layer returns.
 
-``decode -> locate -> targets (when the door has a recipe) -> optional RAPID text / overlay``.
-
-The answer is the SPEC section 3 result (:class:`doorloc.vision.result.LocateResult`) as a JSON-ready
-dict, plus the door it was measured as (``door_id``, ``door``) and the robot targets of its recipe in the
-cell frame (``targets``; empty with a ``targets_note`` when there is no recipe or no pose).
-
-The locate function is a parameter so callers (and tests) can choose it; by default it is
-:func:`doorloc.vision.locate.locate`.
+The answer is the SPEC section 3 result (:class:`doorloc.vision.result.LocateResult`) plus the door it was
+measured as (``door_id``, ``door``), the robot targets of its recipe in the cell frame (``targets``;
+empty with a ``targets_note`` when there is no recipe or no pose) and, when the cell names a robot, the
+reach report. :func:`doorloc.app.services.answer_image` makes it; the CLI prints it, the HTTP route
+returns it, the batch runner appends it.
 """
 
 from __future__ import annotations
 
 import base64
-import functools
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
+from pydantic import BaseModel, Field
 
-from doorloc.cell import Cell, DoorSize
+from doorloc.cell import Cell
+from doorloc.domain import DoorSize
+from doorloc.recipes.models import DoorRecipe
+from doorloc.recipes.targets import Target
+from doorloc.robot.reach import ReachReport
+from doorloc.vision.result import LocateResult, Provenance
 
 __all__ = [
     "Answer",
     "DoorChoice",
+    "DoorOut",
     "LocateFn",
-    "answer_image",
-    "default_locate_fn",
+    "LocateResponse",
     "door_from_fields",
     "overlay_png",
     "provenance_of",
     "NO_RECIPE_NOTE",
+    "NO_POSE_NOTE",
+    "NO_REACH_NOTE",
 ]
 
 #: ``locate(image, cell, door, *, image_name="", config=None, trace=None) -> LocateResult``
-LocateFn = Callable[..., Any]
+LocateFn = Callable[..., LocateResult]
 
 NO_RECIPE_NOTE = (
     "no targets: the door was given by its dimensions, not by a door_id with a recipe; "
@@ -45,12 +49,70 @@ NO_POSE_NOTE = "no targets: the door was not located (see error)"
 NO_REACH_NOTE = "no targets: the robot cannot follow them (see error and reach)"
 
 
+class DoorOut(BaseModel):
+    """The nominal door the image was measured as, mm."""
+
+    width_mm: float
+    thickness_mm: float
+    height_mm: float
+
+    @classmethod
+    def of(cls, door: DoorSize) -> DoorOut:
+        return cls(width_mm=door.width_mm, thickness_mm=door.thickness_mm, height_mm=door.height_mm)
+
+
+class LocateResponse(LocateResult):
+    """The SPEC section 3 result plus the door and its robot targets."""
+
+    door_id: str | None = Field(
+        None, description="the recipe used, or null when the door was given by its size"
+    )
+    door: DoorOut
+    targets: list[Target] = Field(
+        description="hinge targets in the cell frame; empty without a recipe or a pose"
+    )
+    targets_note: str | None = Field(None, description="why targets is empty, else null")
+    rapid: str | None = Field(None, description="with ?rapid=true: the targets as RAPID-readable text")
+    overlay_png: str | None = Field(
+        None, description="with ?overlay=true: the overlay image, base64-encoded PNG"
+    )
+    reach: ReachReport | None = Field(
+        None,
+        description="when the cell names a robot: reach, joints, confdata, inverse condition and deflection per "
+        "target (SPEC section 9); an infeasible target turns the answer into a refusal",
+    )
+    measured_pose: dict[str, float] | None = Field(
+        None, description="on a reach refusal: the pose that was measured (x_mm, z_mm, yaw_deg)"
+    )
+
+
+#: answer fields a JSON line or the CLI carries only when they were asked for or happened
+_ON_REQUEST = ("rapid", "overlay_png", "measured_pose")
+
+
 @dataclass(frozen=True)
 class Answer:
-    """The locate result itself, and the JSON-ready answer built from it."""
+    """The locate result itself, the typed answer built from it, and what it cost.
 
-    result: Any  # doorloc.vision.result.LocateResult
-    fields: dict[str, Any]
+    ``cpu_ms``: thread CPU time, ms, of decoding (``decode``, 0 for an image given decoded) and of measuring
+    (``locate``: locate, targets, reach and what else the answer holds).
+    """
+
+    result: LocateResult
+    response: LocateResponse
+    cpu_ms: dict[str, float] = field(default_factory=dict)
+    #: the optional fields that were asked for (shown even when null)
+    requested: frozenset[str] = frozenset()
+    #: the decoded image the answer is about (to draw an overlay from)
+    image: np.ndarray | None = field(default=None, repr=False, compare=False)
+
+    @property
+    def fields(self) -> dict[str, Any]:
+        """The answer as a JSON-ready dict, optional fields (``rapid``, ``overlay_png``, ``measured_pose``) only
+        when asked for or present."""
+        r = self.response
+        drop = {k for k in _ON_REQUEST if getattr(r, k) is None and k not in self.requested}
+        return r.model_dump(mode="json", exclude=drop)
 
 
 @dataclass(frozen=True)
@@ -59,12 +121,16 @@ class DoorChoice:
 
     door: DoorSize
     door_id: str | None = None
-    recipe: Any | None = None  # doorloc.recipes.models.DoorRecipe
+    recipe: DoorRecipe | None = None
     recipe_version: int | None = None  # the stored recipe's version (results name it in their provenance)
 
     @classmethod
     def from_recipe(
-        cls, recipe: Any, cell: Cell | None = None, arris_mm: float | None = None, version: int | None = None
+        cls,
+        recipe: DoorRecipe,
+        cell: Cell | None = None,
+        arris_mm: float | None = None,
+        version: int | None = None,
     ) -> DoorChoice:
         """The door a stored recipe describes (its size, id, the recipe for the targets and its version).
 
@@ -77,20 +143,6 @@ class DoorChoice:
         if arris_mm is not None:
             door = replace(door, arris_mm=float(arris_mm))
         return cls(door, recipe.door_id, recipe, version)
-
-
-@functools.cache
-def default_locate_fn() -> LocateFn:
-    """The real pipeline, :func:`doorloc.vision.locate.locate` (imported on first use: it pulls in OpenCV).
-
-    Its numba kernels are loaded from their disk cache (or compiled) here, once per process, so that the
-    first locate's time is its own and not the kernels' (~0.5 s).
-    """
-    from doorloc.vision.jit import compile_kernels
-    from doorloc.vision.locate import locate
-
-    compile_kernels()
-    return locate
 
 
 def door_from_fields(
@@ -123,136 +175,21 @@ def door_from_fields(
     return DoorSize(width, thickness, height, arris, arris_profile or d.arris_profile)  # type: ignore[arg-type]
 
 
-def provenance_of(cell: Cell, choice: DoorChoice) -> dict[str, Any]:
+def provenance_of(cell: Cell, choice: DoorChoice) -> Provenance:
     """SPEC section 3 ``provenance`` of an answer about ``choice`` in ``cell`` (also for records no locate made)."""
     from doorloc import __version__
 
-    return {
-        "version": __version__,
-        "cell_sha256": cell.sha256,
-        "calibration_sha256": cell.calibration_sha256,
-        "recipe_version": choice.recipe_version,
-    }
+    return Provenance(
+        version=__version__,
+        cell_sha256=cell.sha256,
+        calibration_sha256=cell.calibration_sha256,
+        recipe_version=choice.recipe_version,
+    )
 
 
-def answer_image(
-    image: np.ndarray,
-    cell: Cell,
-    choice: DoorChoice,
-    *,
-    image_name: str,
-    locate_fn: LocateFn | None = None,
-    rapid: bool = False,
-    trace: Any | None = None,
-) -> Answer:
-    """Locate the door in ``image`` and turn its recipe into cell-frame targets.
-
-    Parameters
-    ----------
-    image : ndarray, shape (H, W) or (H, W, 3), uint8 or uint16
-        The camera image in the calibrated pixel frame.
-    cell : Cell
-        The robot cell (camera, fixture, envelope).
-    choice : DoorChoice
-        Door size, and the recipe when the door has one.
-    image_name : str
-        Name reported in the result's ``image`` field.
-    locate_fn : callable, optional
-        Replaces :func:`doorloc.vision.locate.locate`.
-    rapid : bool
-        Add ``rapid``: the targets as RAPID-readable text (None without targets).
-    trace : doorloc.vision.locate.LocateTrace, optional
-        Filled by locate with what it saw; pass the same trace to :func:`overlay_png` so the overlay
-        does not run locate a second time.
-
-    Returns
-    -------
-    Answer
-        ``.result`` the LocateResult; ``.fields`` the JSON-ready answer: SPEC section 3 fields plus ``door_id``, ``door`` (mm), ``targets`` (list of dicts: name, x_mm,
-        y_mm, z_mm, quat, hinge), ``targets_note`` (why the list is empty, else None) and, on request, ``rapid``.
-        When the cell names a robot, ``reach`` (:class:`doorloc.robot.reach.ReachReport`, else None); a target
-        the robot cannot follow turns the answer into a refusal (``ok`` false, ``error_code`` the reach
-        reason, pose fields null, the measured pose under ``measured_pose``, no targets).
-    """
-    locate = locate_fn or default_locate_fn()
-    extra = {} if trace is None else {"trace": trace}
-    result = locate(image, cell, choice.door, image_name=image_name, **extra)
-    answer = result.model_dump(mode="json")
-    answer["provenance"] = provenance_of(cell, choice) | {
-        k: v for k, v in (answer.get("provenance") or {}).items() if k != "recipe_version"
-    }
-    answer["door_id"] = choice.door_id
-    answer["door"] = {
-        "width_mm": choice.door.width_mm,
-        "thickness_mm": choice.door.thickness_mm,
-        "height_mm": choice.door.height_mm,
-    }
-    targets: list[Any] = []
-    if choice.recipe is None:
-        note: str | None = NO_RECIPE_NOTE
-    elif not result.ok:
-        note = NO_POSE_NOTE
-    else:
-        from doorloc.pose import DoorPose
-        from doorloc.recipes.targets import targets_for_pose
-
-        pose = DoorPose(result.x_mm, result.z_mm, result.yaw_deg)
-        targets = targets_for_pose(choice.recipe, pose, cell.face_y(choice.door))
-        note = None
-    reach = _reach_block(cell, targets)
-    answer["reach"] = None if reach is None else reach.model_dump(mode="json")
-    if reach is not None and not reach.feasible:
-        # targets the robot cannot follow are wrong targets: the answer becomes a refusal (SPEC section 9)
-        answer["measured_pose"] = {k: answer[k] for k in ("x_mm", "z_mm", "yaw_deg")}
-        answer.update(
-            ok=False,
-            error_code=reach.error_code,
-            error=f"the robot cannot mill this door here: {reach.reason}",
-            x_mm=None,
-            z_mm=None,
-            yaw_deg=None,
-            uncertainty=None,
-        )
-        targets, note = [], NO_REACH_NOTE
-    answer["targets"] = [t.model_dump(mode="json") for t in targets]
-    answer["targets_note"] = note
-    if rapid:
-        if targets:
-            from doorloc.recipes.rapid import rapid_text
-
-            answer["rapid"] = rapid_text(targets)
-        else:
-            answer["rapid"] = None
-    return Answer(result, answer)
-
-
-def _reach_block(cell: Cell, targets: list[Any]) -> Any | None:
-    """The reach report of the targets when the cell names a robot (None without a robot or targets)."""
-    if not targets or not cell.robot_section:
-        return None
-    from doorloc.robot.reach import check_reach, setup_for_cell
-
-    setup = setup_for_cell(cell)
-    if setup is None:
-        return None
-    if setup.section.spindle_axis != "y":
-        # the targets carry the spindle on tool +Y; re-express them for a tool frame with the spindle on +Z
-        from scipy.spatial.transform import Rotation
-
-        from doorloc.recipes.targets import TOOL_Z_ALONG_CELL_Y
-
-        to_z = Rotation.from_quat(TOOL_Z_ALONG_CELL_Y, scalar_first=True)
-        quats = (Rotation.from_quat([t.quat for t in targets], scalar_first=True) * to_z).as_quat(
-            scalar_first=True
-        )
-        quats[quats[:, 0] < 0] *= -1
-        targets = [
-            t.model_copy(update={"quat": tuple(q)}) for t, q in zip(targets, quats.tolist(), strict=True)
-        ]
-    return check_reach(setup, targets)
-
-
-def overlay_png(image: np.ndarray, result: Any, cell: Cell, door: DoorSize, trace: Any | None = None) -> str:
+def overlay_png(
+    image: np.ndarray, result: LocateResult, cell: Cell, door: DoorSize, trace: Any | None = None
+) -> str:
     """The overlay (edges, corner, pose drawn on the image) as a base64-encoded PNG string.
 
     ``trace`` is the LocateTrace of the call that produced ``result``; without it locate runs again.

@@ -40,7 +40,7 @@ from multiprocessing import get_context
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from doorloc.app.answer import DoorChoice, LocateFn, answer_image, door_from_fields, provenance_of
+from doorloc.app.answer import DoorChoice, DoorOut, LocateFn, provenance_of
 from doorloc.app.imagesniff import (
     HEADER_BYTES_NEEDED,
     MAGIC_BYTES_NEEDED,
@@ -48,6 +48,7 @@ from doorloc.app.imagesniff import (
     sniff_image,
     sniff_kind,
 )
+from doorloc.app.services import DoorChoiceError, RecipeLookup, answer_image, resolve_door
 from doorloc.app.settings import DEFAULT_MAX_DECODED_BYTES, DEFAULT_MAX_PIXELS
 from doorloc.cell import Cell
 
@@ -56,6 +57,12 @@ if TYPE_CHECKING:  # torch is the optional extra; only run_batched's workers imp
 
 __all__ = [
     "BatchItem",
+    "BatchJob",
+    "BatchOptions",
+    "claims_an_image",
+    "not_images_sentence",
+    "open_job",
+    "plan_folder",
     "BatchSummary",
     "BatchSetupError",
     "FileLimits",
@@ -161,6 +168,48 @@ def list_files(root: str | os.PathLike, exclude: Iterable[str | os.PathLike] = (
     return found
 
 
+#: names that claim an image: such a file gets a record whatever it holds (``not_an_image`` when it is none)
+IMAGE_NAME_SUFFIXES = frozenset({".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp"})
+
+
+def claims_an_image(path: str | os.PathLike) -> bool:
+    """True for a file the job must account for: a name that claims an image, first bytes that are one, or a
+    file that cannot be looked into without risk (a FIFO, socket or device, never opened here; an unreadable
+    one). A plain file that neither is nor claims to be an image (``truth.csv``, ``notes.md``) is False."""
+    if Path(path).suffix.lower() in IMAGE_NAME_SUFFIXES:
+        return True
+    try:
+        if not stat.S_ISREG(os.stat(path).st_mode):
+            return True
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_NOCTTY", 0))
+    except OSError:
+        return True
+    try:
+        head = os.read(fd, MAGIC_BYTES_NEEDED)
+    except OSError:
+        return True
+    finally:
+        os.close(fd)
+    return sniff_kind(head) is not None
+
+
+def plan_folder(
+    root: str | os.PathLike, cell: Cell, exclude: Iterable[str | os.PathLike] = ()
+) -> tuple[list[BatchItem], list[str]]:
+    """Every image under ``root`` as the cell's default door, and the files left out as no images (paths
+    relative to ``root``). A file whose name claims an image stays in (it gets a ``failed`` record saying
+    what it is) and so do special files (:func:`claims_an_image`)."""
+    root = Path(root)
+    items, not_images = [], []
+    for p in list_files(root, [*exclude]):
+        name = p.relative_to(root).as_posix()
+        if claims_an_image(p):
+            items.append(BatchItem(name, str(p), DoorChoice(cell.default_door)))
+        else:
+            not_images.append(name)
+    return items, not_images
+
+
 def _float_or_none(row: dict[str, str], key: str, where: str) -> float | None:
     v = (row.get(key) or "").strip()
     if not v:
@@ -180,9 +229,8 @@ def plan_batch(
 ) -> list[BatchItem]:
     """The job: each file with its door.
 
-    Without a manifest: every file under ``root`` (images and anything else, which will get a
-    ``failed`` record saying what it is), as the cell's default door; ``exclude`` leaves out the job's
-    own files. With one (CSV with ``image`` and ``door_id`` or ``width_mm,thickness_mm[,height_mm]``,
+    Without a manifest: every image under ``root`` (:func:`plan_folder`), as the cell's default door;
+    ``exclude`` leaves out the job's own files. With one (CSV with ``image`` and ``door_id`` or ``width_mm,thickness_mm[,height_mm]``,
     optional ``arris_mm``): exactly its rows, image paths relative to ``root``. ``recipe_lookup(door_id)``
     returns a recipe, a ``(recipe, version)`` pair, or None.
     """
@@ -190,10 +238,7 @@ def plan_batch(
     if not root.is_dir():
         raise BatchSetupError(f"{root} is not a folder; give the folder that holds the images")
     if manifest is None:
-        return [
-            BatchItem(p.relative_to(root).as_posix(), str(p), DoorChoice(cell.default_door))
-            for p in list_files(root, [*exclude])
-        ]
+        return plan_folder(root, cell, exclude)[0]
     try:
         text = Path(manifest).read_text(encoding="utf-8-sig")
     except OSError as e:
@@ -203,58 +248,60 @@ def plan_batch(
         raise BatchSetupError(f"{manifest}: the first line must name the columns, with at least 'image'")
     items: list[BatchItem] = []
     seen: set[str] = set()
-    recipes: dict[str, Any] = {}
+    lookup = _cached(recipe_lookup)
     for line_no, row in enumerate(reader, start=2):
-        where = f"{manifest} line {line_no}"
-        image = (row.get("image") or "").strip()
-        if not image:
-            raise BatchSetupError(f"{where}: 'image' is empty")
-        if image in seen:
-            raise BatchSetupError(f"{where}: image '{image}' is listed twice")
-        seen.add(image)
-        path = str(root / image)
-        door_id = (row.get("door_id") or "").strip() or None
-        if door_id is not None:
-            if door_id not in recipes:
-                try:
-                    recipes[door_id] = recipe_lookup(door_id) if recipe_lookup is not None else None
-                except ValueError as e:  # a stored recipe that today's rules refuse
-                    recipes[door_id] = e
-            found = recipes[door_id]
-            if found is None or isinstance(found, ValueError):
-                why = (
-                    str(found)
-                    if found is not None
-                    else f"no door recipe with id '{door_id}' in the recipe database"
-                )
-                items.append(BatchItem(image, path, DoorChoice(cell.default_door, door_id), why))
-            else:
-                recipe, version = found if isinstance(found, tuple) else (found, None)
-                try:
-                    items.append(
-                        BatchItem(
-                            image,
-                            path,
-                            DoorChoice.from_recipe(
-                                recipe, cell, _float_or_none(row, "arris_mm", where), version
-                            ),
-                        )
-                    )
-                except ValueError as e:
-                    raise BatchSetupError(f"{where}: {e}") from None
-            continue
-        try:
-            door = door_from_fields(
-                cell,
-                _float_or_none(row, "width_mm", where),
-                _float_or_none(row, "thickness_mm", where),
-                _float_or_none(row, "height_mm", where),
-                _float_or_none(row, "arris_mm", where),
-            )
-        except ValueError as e:
-            raise BatchSetupError(f"{where}: {e}") from None
-        items.append(BatchItem(image, path, DoorChoice(door)))
+        item = _manifest_item(row, f"{manifest} line {line_no}", root, cell, lookup)
+        if item.image in seen:
+            raise BatchSetupError(f"{manifest} line {line_no}: image '{item.image}' is listed twice")
+        seen.add(item.image)
+        items.append(item)
     return items
+
+
+def _cached(lookup: RecipeLookup | None) -> RecipeLookup:
+    """``lookup`` asked once per door id (a manifest names the same door on many rows); None finds nothing.
+
+    A lookup may return a bare recipe (no version) as well as a ``(recipe, version)`` pair."""
+    known: dict[str, Any] = {}
+
+    def cached(door_id: str) -> Any:
+        if door_id not in known:
+            try:
+                found = lookup(door_id) if lookup is not None else None
+                known[door_id] = found if found is None or isinstance(found, tuple) else (found, None)
+            except ValueError as e:  # a stored recipe that today's rules refuse: asked again, refused again
+                known[door_id] = e
+        if isinstance(known[door_id], ValueError):
+            raise known[door_id]
+        return known[door_id]
+
+    return cached
+
+
+def _manifest_item(
+    row: dict[str, str], where: str, root: Path, cell: Cell, lookup: RecipeLookup
+) -> BatchItem:
+    """One manifest row as a job item. A door id without a usable recipe is a row that fails (a record
+    saying why); a size outside the accepted ranges stops the job before it starts (BatchSetupError)."""
+    image = (row.get("image") or "").strip()
+    if not image:
+        raise BatchSetupError(f"{where}: 'image' is empty")
+    path = str(root / image)
+    door_id = (row.get("door_id") or "").strip() or None
+    # with a door id the recipe gives the size and the size columns are not read
+    w, t, h = (
+        None if door_id else _float_or_none(row, k, where) for k in ("width_mm", "thickness_mm", "height_mm")
+    )
+    try:
+        arris = _float_or_none(row, "arris_mm", where)
+        choice = resolve_door(
+            cell, lookup, door_id=door_id, width_mm=w, thickness_mm=t, height_mm=h, arris_mm=arris
+        )
+    except DoorChoiceError as e:
+        if door_id is not None and e.code in ("unknown_door", "unusable_recipe"):
+            return BatchItem(image, path, DoorChoice(cell.default_door, door_id), str(e))
+        raise BatchSetupError(f"{where}: {e}") from None
+    return BatchItem(image, path, choice)
 
 
 # ---------------------------------------------------------------------------------------------- one image
@@ -266,19 +313,14 @@ def _failed(item: BatchItem, code: str, error: str, cell: Cell | None = None) ->
     record = LocateResult.refusal(item.image, code, error).model_dump(mode="json")
     record.update(
         door_id=item.choice.door_id,
-        door=_door_dict(item.choice),
+        door=DoorOut.of(item.choice.door).model_dump(),
         targets=[],
         targets_note=None,
         status=FAILED,
     )
     if cell is not None:
-        record["provenance"] = provenance_of(cell, item.choice)
+        record["provenance"] = provenance_of(cell, item.choice).model_dump(mode="json")
     return record
-
-
-def _door_dict(choice: DoorChoice) -> dict[str, float]:
-    d = choice.door
-    return {"width_mm": d.width_mm, "thickness_mm": d.thickness_mm, "height_mm": d.height_mm}
 
 
 def read_file_checked(path: str, limits: FileLimits) -> tuple[bytes | None, str, str]:
@@ -769,7 +811,9 @@ def check_resume(done: dict[str, dict[str, Any]], items: list[BatchItem], cell: 
     by_image = {it.image: it for it in items}
     for image, record in done.items():
         it = by_image.get(image)
-        want = provenance_of(cell, it.choice if it is not None else DoorChoice(cell.default_door))
+        want = provenance_of(cell, it.choice if it is not None else DoorChoice(cell.default_door)).model_dump(
+            mode="json"
+        )
         have = record.get("provenance")
         if not isinstance(have, dict):
             raise BatchSetupError(
@@ -784,3 +828,92 @@ def check_resume(done: dict[str, dict[str, Any]], items: list[BatchItem], cell: 
                     f"{have.get(k)!r} in the record of '{image}', {want.get(k)!r} now); one results file must "
                     "not mix two models: start a new --out, or restore what changed"
                 )
+
+
+# ---------------------------------------------------------------------------------------------- one call
+
+
+@dataclass(frozen=True)
+class BatchOptions:
+    """How a job runs: ``backend`` local or ray, ``workers`` processes, ``device`` (cpu, cuda, auto: batches
+    of ``batch_size`` frames on torch; None: one frame at a time)."""
+
+    backend: str = "local"
+    workers: int = 1
+    ray_address: str | None = None
+    device: str | None = None
+    batch_size: int = 32
+
+    def check(self) -> None:
+        """Raise BatchSetupError with a sentence for an unknown backend or an unusable device."""
+        if self.backend not in ("local", "ray"):
+            raise BatchSetupError(f"--backend must be 'local' or 'ray', not '{self.backend}'")
+        if self.device is None:
+            return
+        try:
+            from doorloc.vision.batched import resolve_device
+
+            resolve_device(self.device)
+        except ImportError:
+            raise BatchSetupError("--device needs torch: pip install 'doorloc[torch]'") from None
+        except ValueError as e:
+            raise BatchSetupError(str(e)) from None
+
+    def backend_for(self, cell: Cell) -> Callable[[list[BatchItem]], Iterable[dict[str, Any]]]:
+        """``items -> records`` on the chosen backend."""
+
+        def run(todo: list[BatchItem]) -> Iterable[dict[str, Any]]:
+            if self.device is not None:
+                return run_batched(
+                    todo, cell, device=self.device, batch_size=self.batch_size, workers=self.workers
+                )
+            if self.backend == "ray":
+                return run_ray(todo, cell, workers=self.workers, ray_address=self.ray_address)
+            return run_local(todo, cell, workers=self.workers)
+
+        return run
+
+
+@dataclass
+class BatchJob:
+    """A job ready to run: its items, its open results file, the files left out as no images."""
+
+    items: list[BatchItem]
+    log: ResultsLog
+    not_images: list[str] = field(default_factory=list)
+
+
+def open_job(
+    folder: str | os.PathLike,
+    cell: Cell,
+    out: str | os.PathLike,
+    *,
+    manifest: str | os.PathLike | None = None,
+    recipe_lookup: Callable[[str], Any] | None = None,
+    resume: bool = False,
+) -> BatchJob:
+    """The job's items and its results file, opened (and checked against ``--resume``'s records).
+
+    Raises BatchSetupError (or OSError) with a sentence; nothing is left open then.
+    """
+    own_files = [out, *([manifest] if manifest else [])]
+    not_images: list[str] = []
+    if manifest is None:
+        if not Path(folder).is_dir():
+            raise BatchSetupError(f"{folder} is not a folder; give the folder that holds the images")
+        items, not_images = plan_folder(folder, cell, own_files)
+    else:
+        items = plan_batch(folder, cell, manifest, recipe_lookup, exclude=own_files)
+    log = ResultsLog(out, resume)
+    try:
+        check_resume(log.done, items, cell)
+    except BatchSetupError:
+        log.close()
+        raise
+    return BatchJob(items, log, not_images)
+
+
+def not_images_sentence(names: list[str]) -> str:
+    """``skipped 2 files that are not images (notes.md, truth.csv)`` (at most five named)."""
+    shown = ", ".join(names[:5]) + (f" and {len(names) - 5} more" if len(names) > 5 else "")
+    return f"skipped {len(names)} file{'s' if len(names) != 1 else ''} that {'are' if len(names) != 1 else 'is'} not an image ({shown})"

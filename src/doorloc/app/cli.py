@@ -31,6 +31,7 @@ app = typer.Typer(
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
+    rich_markup_mode=None,
 )
 
 
@@ -66,14 +67,24 @@ for _module in (
     _module.register(app)
 
 
-@app.command("version")
+@app.command("version", hidden=True)  # kept for scripts; `doorloc --version` is the documented one
 def version() -> None:
     """Print the doorloc version."""
     typer.echo(__version__)
 
 
+def quiet_opencv() -> None:
+    """Keep OpenCV's own ``[ WARN:...]`` lines off the terminal: where an image cannot be read doorloc says so
+    itself, in a sentence (OPENCV_LOG_LEVEL, when set, wins). Set before OpenCV loads; workers inherit it."""
+    os.environ.setdefault("OPENCV_LOG_LEVEL", "FATAL")
+    if "cv2" in sys.modules:
+        cv2 = sys.modules["cv2"]
+        cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_FATAL)
+
+
 def main() -> None:
     """Console-script entry point."""
+    quiet_opencv()
     try:
         app()
     except (ValueError, OSError) as e:  # a last line of defence; commands report their own errors first

@@ -18,11 +18,11 @@ from doorloc.app.errors import EXIT_FAILED, EXIT_REFUSED, EXIT_USAGE, fail
 if TYPE_CHECKING:  # the calibration modules load only when a command runs (fast `doorloc --help`)
     import numpy as np
 
+    from doorloc.app.services import CameraPlacement
     from doorloc.calib.calibrate import Candidate
-    from doorloc.calib.camera import CameraModel
+    from doorloc.calib.camera import CameraModel, DistortionValidity
     from doorloc.calib.detect import SkippedImage
     from doorloc.calib.folder import CalibrationOutcome
-    from doorloc.cell import Cell
     from doorloc.vision.response import BoardResponse
 
 
@@ -104,19 +104,6 @@ def _echo_calibration(outcome: CalibrationOutcome, out: Path, fmt: str) -> None:
         typer.echo(f"warning: {w}", err=True)
 
 
-def _board_response(images_dir: Path, outcome: CalibrationOutcome, board) -> BoardResponse | None:
-    """The camera response measured on the chessboard photographs that gave views (read again here: the
-    calibration keeps corners, not images). None for a ChArUco board (its corners need not all be seen)."""
-    from doorloc.calib.detect import Chessboard
-    from doorloc.calib.folder import full_board_views, read_folder
-    from doorloc.vision.response import board_response
-
-    if not isinstance(board, Chessboard):
-        return None
-    views = full_board_views(read_folder(images_dir), outcome.detected.scan, board)
-    return board_response(views, board.cols, board.rows)
-
-
 def _echo_response(response: BoardResponse | None) -> None:
     """The measured camera response and the cell-file lines it allows (SPEC section 2)."""
     if response is None:
@@ -139,43 +126,6 @@ def _echo_response(response: BoardResponse | None) -> None:
     )
 
 
-def _read_cell_image(image: Path, size: tuple[int, int]) -> np.ndarray:
-    """The board image for ``calibrate-cell``; exit 2 if unreadable or not the camera's image size."""
-    from doorloc.calib.folder import read_image_file
-
-    im, err = read_image_file(image)
-    if im is None:
-        raise fail(f"{image} {err}")
-    if (im.shape[1], im.shape[0]) != size:
-        raise fail(
-            f"{image} is {im.shape[1]}x{im.shape[0]} but the cell's camera was calibrated at "
-            f"{size[0]}x{size[1]}"
-        )
-    return im
-
-
-def _placed_cell_yaml(cell_path: Path, placed: Cell, placed_by: dict) -> str:
-    """The cell file text with the new extrinsics; a reference to a calibration file is kept (rebased)."""
-    import yaml
-
-    from doorloc.cell import cell_to_dict
-
-    doc = cell_to_dict(placed)
-    try:
-        raw = yaml.safe_load(cell_path.read_text(encoding="utf-8")) or {}
-        cal_ref = (raw.get("camera") or {}).get("calibration")
-    except (OSError, yaml.YAMLError):
-        cal_ref = None
-    if cal_ref:
-        # Keep the reference to the calibration file (it carries observed_radius_px), made absolute.
-        p = Path(cal_ref)
-        if not p.is_absolute():
-            p = (cell_path.parent / p).resolve()
-        doc["camera"] = {"calibration": str(p), **doc["camera"]}
-    doc.setdefault("provenance", {})["cell_calibration"] = placed_by
-    return yaml.safe_dump(doc, sort_keys=False, default_flow_style=None)
-
-
 def _warn_beyond_valid_radius(camera: CameraModel, pixels: list[np.ndarray], cell_path: Path) -> None:
     """Warn when the board or the reference corner lies where the camera model is not to be trusted."""
     import numpy as np
@@ -196,238 +146,245 @@ def _warn_beyond_valid_radius(camera: CameraModel, pixels: list[np.ndarray], cel
         )
 
 
+BoardSide = Annotated[float, typer.Option("--square", metavar="MM", help="square side, mm")]
+CharucoFlag = Annotated[bool, typer.Option("--charuco", help="the board is a ChArUco board")]
+MarkerOption = Annotated[float | None, typer.Option(metavar="MM", help="ChArUco marker side, mm")]
+DictionaryOption = Annotated[str, typer.Option(help="ChArUco ArUco dictionary")]
+LegacyFlag = Annotated[bool, typer.Option("--legacy", help="ChArUco board in OpenCV's pre-4.6 layout")]
+CellAxis = Annotated[tuple[float, float, float], typer.Option(metavar="X Y Z")]
+
+
+def calibrate_cmd(
+    images_dir: Annotated[
+        Path, typer.Argument(help="folder of board photographs (one camera, one image size)")
+    ],
+    pattern: Annotated[
+        str,
+        typer.Option(
+            metavar="COLSxROWS",
+            help="chessboard: inner corners (e.g. 9x6; the Bouguet set: 13x12); ChArUco: squares",
+        ),
+    ],
+    square: BoardSide,
+    out: Annotated[Path, typer.Option(help="calibration file to write (camera.yaml)")],
+    charuco: CharucoFlag = False,
+    marker: MarkerOption = None,
+    dictionary: DictionaryOption = "DICT_4X4_50",
+    legacy: LegacyFlag = False,
+    report: Annotated[Path | None, typer.Option(help="folder for calibration_report.json and .png")] = None,
+    fmt: Annotated[
+        str, typer.Option("--format", help="opencv (FileStorage YAML) or ros (camera_info)")
+    ] = "opencv",
+    model: Annotated[
+        str, typer.Option(help="'auto' (choose by held-out error) or a candidate, e.g. plumb_bob")
+    ] = "auto",
+    folds: Annotated[int, typer.Option(min=2, help="K of the K-fold held-out model selection")] = 5,
+    min_views: Annotated[int, typer.Option(min=3, help="fewest usable views to calibrate with")] = 4,
+    camera_name: Annotated[str, typer.Option(help="camera name stored in the file")] = "doorloc",
+) -> None:
+    """Calibrate a camera from photographs of a chessboard or ChArUco board.
+
+    With a chessboard it also measures the camera's response on the squares' edges (written to the
+    file as response_gamma +- response_gamma_sigma, and printed as the cell-file lines it allows).
+    Images without a board, unreadable files and images of another size are skipped with a
+    reason; the calibration goes ahead if enough views remain. Exit codes: 0 done, 2 bad
+    arguments or input, 3 too few usable views (nothing written).
+    """
+    from doorloc.app.services import calibrate_camera
+    from doorloc.calib.calibrate import CalibrationError
+    from doorloc.calib.folder import CalibrationInputError, TooFewViewsError
+    from doorloc.calib.io import save_calibration
+    from doorloc.calib.report import write_report
+
+    if fmt not in ("opencv", "ros"):
+        raise fail(f"--format must be opencv or ros, got {fmt!r}")
+    try:
+        board = _board(pattern, square, charuco, marker, dictionary, legacy)
+        done = calibrate_camera(
+            images_dir,
+            board,
+            candidates=_candidates(model),
+            n_folds=folds,
+            min_views=min_views,
+            camera_name=camera_name,
+        )
+    except TooFewViewsError as e:
+        _echo_skipped(e.detected.skipped)
+        raise fail(f"{e} (nothing written)", EXIT_FAILED) from None
+    except CalibrationError as e:
+        raise fail(f"{e} (nothing written)", EXIT_FAILED) from None
+    except (CalibrationInputError, ValueError) as e:  # no images, or a bad --pattern, --marker or --model
+        raise fail(str(e)) from None
+    _echo_skipped(done.outcome.detected.skipped)
+    if done.response_problem:
+        typer.echo(f"warning: the camera response was not measured ({done.response_problem})", err=True)
+    save_calibration(done.calibration, out, fmt)
+    if report is not None:
+        d = done.outcome.detected
+        write_report(report, done.outcome.result, d.scan, board, d.background)
+    _echo_calibration(done.outcome, out, fmt)
+    _echo_response(done.response)
+
+
+def calibrate_cell_cmd(
+    image: Annotated[Path, typer.Argument(help="one image of the board lying on the hinge-face plane")],
+    cell: Annotated[Path, typer.Option(help="cell file with the calibrated camera (cell.yaml)")],
+    pattern: Annotated[
+        str, typer.Option(metavar="COLSxROWS", help="chessboard inner corners; ChArUco: squares")
+    ],
+    square: BoardSide,
+    board_origin: Annotated[
+        tuple[float, float, float],
+        typer.Option(
+            metavar="X Y Z",
+            help="cell position (mm) of the board origin: chessboard corner 0 = the inner corner seen top-left; "
+            "ChArUco corner id 0",
+        ),
+    ],
+    out: Annotated[Path, typer.Option(help="cell file to write (may be the same as --cell)")],
+    board_x_axis: Annotated[
+        tuple[float, float, float],
+        typer.Option(
+            metavar="X Y Z",
+            help="cell direction of the board's rows (image-right in the reference mount: +X)",
+        ),
+    ] = (1.0, 0.0, 0.0),
+    board_y_axis: Annotated[
+        tuple[float, float, float],
+        typer.Option(
+            metavar="X Y Z",
+            help="cell direction of the board's columns (image-down in the reference mount: -Z)",
+        ),
+    ] = (0.0, 0.0, -1.0),
+    charuco: CharucoFlag = False,
+    marker: MarkerOption = None,
+    dictionary: DictionaryOption = "DICT_4X4_50",
+    legacy: LegacyFlag = False,
+    max_rms: Annotated[float, typer.Option(help="refuse (exit 1, nothing written) above this RMS, px")] = 1.0,
+) -> None:
+    """Camera extrinsics from one image of a board at a known place in the cell -> cell.yaml.
+
+    Prints the reprojection error and the mm per pixel at the reference corner. Exit codes:
+    0 written, 1 refused (no board, or a poor fit), 2 bad arguments or files.
+    """
+    from doorloc.app.services import PlacementRefused, place_camera
+    from doorloc.cell import CellFileError
+    from doorloc.fileio import atomic_write_text
+
+    try:
+        board = _board(pattern, square, charuco, marker, dictionary, legacy)
+        placed = place_camera(
+            cell,
+            image,
+            board,
+            board_origin,
+            board_x_axis,
+            board_y_axis,
+            board_label=pattern,
+            out_path=out,
+            max_rms_px=max_rms,
+        )
+    except PlacementRefused as e:
+        raise fail(str(e), EXIT_REFUSED) from None
+    except (ValueError, CellFileError) as e:
+        raise fail(str(e)) from None
+    atomic_write_text(out, placed.cell_yaml)
+    _echo_placement(out, placed, cell)
+
+
+def _echo_placement(out: Path, placed: CameraPlacement, cell_path: Path) -> None:
+    """What ``doorloc calibrate-cell`` prints after writing: the extrinsics, the fit, the scale."""
+    res = placed.fit
+    typer.echo(
+        f"wrote {out}: rvec {[round(float(v), 6) for v in res.extrinsics.rvec]} "
+        f"tvec_mm {[round(float(v), 3) for v in res.extrinsics.tvec_mm]}"
+    )
+    typer.echo(
+        f"board RMS {res.rms_px:.3f} px (max {res.max_residual_px:.3f} px, {res.n_corners} corners); "
+        f"reference corner at pixel ({res.reference_corner_px[0]:.1f}, {res.reference_corner_px[1]:.1f}), "
+        f"{res.scale_mm_per_px:.4f} mm/px; reference corner uncertainty "
+        f"{res.reference_corner_sigma_px * res.scale_mm_per_px:.4f} mm (1 sigma, intrinsics exact)"
+    )
+    _warn_beyond_valid_radius(placed.camera, [placed.corners_px, res.reference_corner_px], cell_path)
+
+
+def validity_cmd(
+    path: Annotated[Path, typer.Argument(help="a calibration file (OpenCV or ROS YAML) or a cell file")],
+    as_json: Annotated[bool, typer.Option("--json", help="print the validity report as JSON")] = False,
+) -> None:
+    """Where a camera model can be trusted: fold-over radius, observed radius, the image corners.
+
+    Exit code 0 when the distortion model is one-to-one over the whole image, 1 when it folds
+    over inside the image (unusable beyond the fold radius), 2 for an unreadable file.
+    """
+    from doorloc.calib.camera import distortion_validity
+    from doorloc.calib.io import CalibrationFileError, load_calibration
+    from doorloc.cell import CellFileError, load_cell
+
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as e:
+        raise fail(f"cannot read {path}: {getattr(e, 'strerror', None) or e}") from None
+    try:
+        # A cell file has a top-level 'camera:' mapping; a calibration file has 'camera_matrix'.
+        if re.search(r"^camera:", text, flags=re.MULTILINE):
+            camera = load_cell(path).camera
+        else:
+            camera = load_calibration(path).camera
+    except (CalibrationFileError, CellFileError) as e:
+        raise fail(str(e)) from None
+    v = distortion_validity(camera)
+    if as_json:
+        typer.echo(json.dumps({"file": str(path), **v.to_dict()}, indent=2))
+    else:
+        typer.echo("\n".join(_validity_lines(path, camera, v)))
+        for w in v.warnings:
+            typer.echo(f"warning: {w}", err=True)
+    if not v.corners_inside_fold:
+        raise typer.Exit(EXIT_REFUSED)
+
+
+def _validity_lines(path: Path, camera: CameraModel, v: DistortionValidity) -> list[str]:
+    """The validity report as lines for a person."""
+    lines = [
+        f"{path}: {camera.image_size[0]}x{camera.image_size[1]}, distortion "
+        f"[{', '.join(f'{c:.6g}' for c in camera.dist_coeffs)}]"
+    ]
+    if v.fold_radius_px is None:
+        lines.append("fold-over radius: none (the distortion is one-to-one out to three image diagonals)")
+    else:
+        lines.append(
+            f"fold-over radius: {v.fold_radius_px:.1f} px from the principal point "
+            f"(image corners at {v.corner_radius_px:.1f} px)"
+        )
+    obs = "unknown" if v.observed_radius_px is None else f"{v.observed_radius_px:.1f} px"
+    valid = "unknown" if v.valid_radius_px is None else f"{v.valid_radius_px:.1f} px"
+    lines.append(f"observed radius: {obs}; valid radius: {valid}")
+    for c in v.corner_report:
+        angle = (
+            "no ray (beyond the fold)"
+            if c["field_angle_deg"] is None
+            else f"field angle {c['field_angle_deg']:.1f} deg"
+        )
+        land = c["ideal_ray_lands_at_px"]
+        lines.append(
+            f"  {c['corner']:12s} pixel ({c['pixel'][0]:.1f}, {c['pixel'][1]:.1f}): "
+            f"{'undistortable' if c['undistortable'] else 'NOT undistortable'}, {angle}; the ray a "
+            f"pinhole sees there is sent to ({round(land[0])}, {round(land[1])}), "
+            f"{c['distortion_shift_px']:.0f} px away"
+        )
+    if not v.corners_inside_fold:
+        lines.append(
+            f"UNUSABLE beyond {v.fold_radius_px:.0f} px from the principal point: the model folds over inside the image"
+        )
+    return lines
+
+
 def register(app: typer.Typer) -> None:
     """Add this area's subcommands to the root app."""
-
-    @app.command("calibrate")
-    def calibrate(
-        images_dir: Annotated[
-            Path, typer.Argument(help="folder of board photographs (one camera, one image size)")
-        ],
-        pattern: Annotated[
-            str, typer.Option(help="chessboard: inner corners COLSxROWS (e.g. 9x6); ChArUco: squares")
-        ],
-        square: Annotated[float, typer.Option(help="square side, mm")],
-        out: Annotated[Path, typer.Option(help="calibration file to write (camera.yaml)")],
-        charuco: Annotated[bool, typer.Option("--charuco", help="the board is a ChArUco board")] = False,
-        marker: Annotated[float | None, typer.Option(help="ChArUco marker side, mm")] = None,
-        dictionary: Annotated[str, typer.Option(help="ChArUco ArUco dictionary")] = "DICT_4X4_50",
-        legacy: Annotated[
-            bool, typer.Option("--legacy", help="ChArUco board in OpenCV's pre-4.6 layout")
-        ] = False,
-        report: Annotated[
-            Path | None, typer.Option(help="folder for calibration_report.json and .png")
-        ] = None,
-        fmt: Annotated[
-            str, typer.Option("--format", help="opencv (FileStorage YAML) or ros (camera_info)")
-        ] = "opencv",
-        model: Annotated[
-            str, typer.Option(help="'auto' (choose by held-out error) or a candidate, e.g. plumb_bob")
-        ] = "auto",
-        folds: Annotated[int, typer.Option(min=2, help="K of the K-fold held-out model selection")] = 5,
-        min_views: Annotated[int, typer.Option(min=3, help="fewest usable views to calibrate with")] = 4,
-        camera_name: Annotated[str, typer.Option(help="camera name stored in the file")] = "doorloc",
-    ) -> None:
-        """Calibrate a camera from photographs of a chessboard or ChArUco board.
-
-        With a chessboard it also measures the camera's response on the squares' edges (written to the
-        file as response_gamma +- response_gamma_sigma, and printed as the cell-file lines it allows).
-        Images without a board, unreadable files and images of another size are skipped with a
-        reason; the calibration goes ahead if enough views remain. Exit codes: 0 done, 2 bad
-        arguments or input, 3 too few usable views (nothing written).
-        """
-        from dataclasses import replace
-
-        from doorloc.calib.calibrate import CalibrationError
-        from doorloc.calib.folder import CalibrationInputError, TooFewViewsError, calibrate_folder
-        from doorloc.calib.io import save_calibration
-        from doorloc.calib.report import write_report
-
-        if fmt not in ("opencv", "ros"):
-            raise fail(f"--format must be opencv or ros, got {fmt!r}")
-        try:
-            board = _board(pattern, square, charuco, marker, dictionary, legacy)
-            outcome = calibrate_folder(
-                images_dir, board, candidates=_candidates(model), n_folds=folds, min_views=min_views
-            )
-        except TooFewViewsError as e:
-            _echo_skipped(e.detected.skipped)
-            raise fail(f"{e} (nothing written)", EXIT_FAILED) from None
-        except CalibrationError as e:
-            raise fail(f"{e} (nothing written)", EXIT_FAILED) from None
-        except (CalibrationInputError, ValueError) as e:  # no images, or a bad --pattern, --marker or --model
-            raise fail(str(e)) from None
-        _echo_skipped(outcome.detected.skipped)
-        try:
-            response = _board_response(images_dir, outcome, board)
-        except Exception as e:  # noqa: BLE001 - an extra measurement must not cost the calibration itself
-            typer.echo(f"warning: the camera response was not measured ({type(e).__name__}: {e})", err=True)
-            response = None
-        cal = outcome.calibration_file(camera_name)
-        if response is not None:
-            cal = replace(cal, response_gamma=response.gamma, response_gamma_sigma=response.sigma)
-        save_calibration(cal, out, fmt)
-        if report is not None:
-            d = outcome.detected
-            write_report(report, outcome.result, d.scan, board, d.background)
-        _echo_calibration(outcome, out, fmt)
-        _echo_response(response)
-
-    @app.command("calibrate-cell")
-    def calibrate_cell(
-        image: Annotated[Path, typer.Argument(help="one image of the board lying on the hinge-face plane")],
-        cell: Annotated[Path, typer.Option(help="cell file with the calibrated camera (cell.yaml)")],
-        pattern: Annotated[str, typer.Option(help="chessboard inner corners COLSxROWS; ChArUco: squares")],
-        square: Annotated[float, typer.Option(help="square side, mm")],
-        board_origin: Annotated[
-            tuple[float, float, float],
-            typer.Option(
-                help="cell position (mm) of the board origin: chessboard corner 0 = the inner corner seen top-left; "
-                "ChArUco corner id 0"
-            ),
-        ],
-        out: Annotated[Path, typer.Option(help="cell file to write (may be the same as --cell)")],
-        board_x_axis: Annotated[
-            tuple[float, float, float],
-            typer.Option(help="cell direction of the board's rows (image-right in the reference mount: +X)"),
-        ] = (1.0, 0.0, 0.0),
-        board_y_axis: Annotated[
-            tuple[float, float, float],
-            typer.Option(
-                help="cell direction of the board's columns (image-down in the reference mount: -Z)"
-            ),
-        ] = (0.0, 0.0, -1.0),
-        charuco: Annotated[bool, typer.Option("--charuco", help="the board is a ChArUco board")] = False,
-        marker: Annotated[float | None, typer.Option(help="ChArUco marker side, mm")] = None,
-        dictionary: Annotated[str, typer.Option(help="ChArUco ArUco dictionary")] = "DICT_4X4_50",
-        legacy: Annotated[
-            bool, typer.Option("--legacy", help="ChArUco board in OpenCV's pre-4.6 layout")
-        ] = False,
-        max_rms: Annotated[
-            float, typer.Option(help="refuse (exit 1, nothing written) above this RMS, px")
-        ] = 1.0,
-    ) -> None:
-        """Camera extrinsics from one image of a board at a known place in the cell -> cell.yaml.
-
-        Prints the reprojection error and the mm per pixel at the reference corner. Exit codes:
-        0 written, 1 refused (no board, or a poor fit), 2 bad arguments or files.
-        """
-        from doorloc.calib.cell import CellCalibrationError, board_points_in_cell, calibrate_cell_extrinsics
-        from doorloc.calib.detect import detect_board
-        from doorloc.cell import CellFileError, load_cell
-        from doorloc.fileio import atomic_write_text
-
-        try:
-            board = _board(pattern, square, charuco, marker, dictionary, legacy)
-            the_cell = load_cell(cell)
-        except (ValueError, CellFileError) as e:
-            raise fail(str(e)) from None
-        det = detect_board(_read_cell_image(image, the_cell.camera.image_size), board)
-        if det is None:
-            raise fail(f"no board ({pattern}) found in {image}; nothing written", EXIT_REFUSED)
-        try:
-            pts = board_points_in_cell(det.object_points(board), board_origin, board_x_axis, board_y_axis)
-            face_y = the_cell.face_y(the_cell.default_door)
-            res = calibrate_cell_extrinsics(the_cell.camera, pts, det.corners_px, face_y)
-        except CellCalibrationError as e:
-            raise fail(f"{e}; nothing written", EXIT_REFUSED) from None
-        if res.rms_px > max_rms:
-            raise fail(
-                f"board reprojection RMS {res.rms_px:.2f} px exceeds --max-rms {max_rms} px: check "
-                "--board-origin, the axes and that the board lies flat; nothing written",
-                EXIT_REFUSED,
-            )
-        # What placed the camera: kept with the file (the cell file's provenance section).
-        placed_by = {
-            "image": str(image),
-            "board": pattern,
-            "square_mm": square,
-            "board_origin_mm": list(board_origin),
-            **res.to_dict(),
-        }
-        atomic_write_text(out, _placed_cell_yaml(cell, the_cell.with_extrinsics(res.extrinsics), placed_by))
-        typer.echo(
-            f"wrote {out}: rvec {[round(float(v), 6) for v in res.extrinsics.rvec]} "
-            f"tvec_mm {[round(float(v), 3) for v in res.extrinsics.tvec_mm]}"
-        )
-        typer.echo(
-            f"board RMS {res.rms_px:.3f} px (max {res.max_residual_px:.3f} px, {res.n_corners} corners); "
-            f"reference corner at pixel ({res.reference_corner_px[0]:.1f}, {res.reference_corner_px[1]:.1f}), "
-            f"{res.scale_mm_per_px:.4f} mm/px; reference corner uncertainty "
-            f"{res.reference_corner_sigma_px * res.scale_mm_per_px:.4f} mm (1 sigma, intrinsics exact)"
-        )
-        _warn_beyond_valid_radius(the_cell.camera, [det.corners_px, res.reference_corner_px], cell)
-
-    @app.command("validity")
-    def validity(
-        path: Annotated[Path, typer.Argument(help="a calibration file (OpenCV or ROS YAML) or a cell file")],
-        as_json: Annotated[bool, typer.Option("--json", help="print the validity report as JSON")] = False,
-    ) -> None:
-        """Where a camera model can be trusted: fold-over radius, observed radius, the image corners.
-
-        Exit code 0 when the distortion model is one-to-one over the whole image, 1 when it folds
-        over inside the image (unusable beyond the fold radius), 2 for an unreadable file.
-        """
-        from doorloc.calib.camera import distortion_validity
-        from doorloc.calib.io import CalibrationFileError, load_calibration
-        from doorloc.cell import CellFileError, load_cell
-
-        try:
-            text = path.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as e:
-            raise fail(f"cannot read {path}: {getattr(e, 'strerror', None) or e}") from None
-        try:
-            # A cell file has a top-level 'camera:' mapping; a calibration file has 'camera_matrix'.
-            if re.search(r"^camera:", text, flags=re.MULTILINE):
-                camera = load_cell(path).camera
-            else:
-                camera = load_calibration(path).camera
-        except (CalibrationFileError, CellFileError) as e:
-            raise fail(str(e)) from None
-        v = distortion_validity(camera)
-        if as_json:
-            typer.echo(json.dumps({"file": str(path), **v.to_dict()}, indent=2))
-        else:
-            typer.echo(
-                f"{path}: {camera.image_size[0]}x{camera.image_size[1]}, distortion "
-                f"[{', '.join(f'{c:.6g}' for c in camera.dist_coeffs)}]"
-            )
-            if v.fold_radius_px is None:
-                typer.echo(
-                    "fold-over radius: none (the distortion is one-to-one out to three image diagonals)"
-                )
-            else:
-                typer.echo(
-                    f"fold-over radius: {v.fold_radius_px:.1f} px from the principal point "
-                    f"(image corners at {v.corner_radius_px:.1f} px)"
-                )
-            obs = "unknown" if v.observed_radius_px is None else f"{v.observed_radius_px:.1f} px"
-            typer.echo(
-                f"observed radius: {obs}; valid radius: "
-                f"{'unknown' if v.valid_radius_px is None else f'{v.valid_radius_px:.1f} px'}"
-            )
-            for c in v.corner_report:
-                angle = (
-                    "no ray (beyond the fold)"
-                    if c["field_angle_deg"] is None
-                    else f"field angle {c['field_angle_deg']:.1f} deg"
-                )
-                land = c["ideal_ray_lands_at_px"]
-                typer.echo(
-                    f"  {c['corner']:12s} pixel ({c['pixel'][0]:.1f}, {c['pixel'][1]:.1f}): "
-                    f"{'undistortable' if c['undistortable'] else 'NOT undistortable'}, {angle}; the ray a "
-                    f"pinhole sees there is sent to ({round(land[0])}, {round(land[1])}), "
-                    f"{c['distortion_shift_px']:.0f} px away"
-                )
-            if not v.corners_inside_fold:
-                typer.echo(
-                    f"UNUSABLE beyond {v.fold_radius_px:.0f} px from the principal point: the model folds "
-                    "over inside the image"
-                )
-            for w in v.warnings:
-                typer.echo(f"warning: {w}", err=True)
-        if not v.corners_inside_fold:
-            raise typer.Exit(EXIT_REFUSED)
+    app.command("calibrate")(calibrate_cmd)
+    app.command("calibrate-cell")(calibrate_cell_cmd)
+    app.command("validity")(validity_cmd)
 
 
 __all__ = ["register", "parse_pattern", "EXIT_USAGE"]

@@ -7,7 +7,7 @@ import json
 import typer
 
 from doorloc.app.access import Role
-from doorloc.app.cli_recipes import DB_HELP, _open_store
+from doorloc.app.cli_common import DbOption, open_store
 from doorloc.app.errors import EXIT_USAGE, fail
 
 keys_app = typer.Typer(
@@ -23,12 +23,12 @@ def create_cmd(
     role: Role = typer.Option(
         ..., "--role", help="operator (locate, read), engineer (also change recipes), metrics"
     ),
-    db: str = typer.Option(None, "--db", help=DB_HELP),
+    db: DbOption = None,
 ) -> None:
     """Create a key and print it once (only its hash is stored: keep the printed key safe)."""
     from doorloc.app.access import AccessKeyError, KeyStore
 
-    with _open_store(db) as store:
+    with open_store(db) as store:
         try:
             created = KeyStore(store.engine).create(name, role)
         except AccessKeyError as e:
@@ -42,13 +42,13 @@ def create_cmd(
 
 @keys_app.command("list")
 def list_cmd(
-    db: str = typer.Option(None, "--db", help=DB_HELP),
+    db: DbOption = None,
     as_json: bool = typer.Option(False, "--json", help="print JSON instead of a table"),
 ) -> None:
     """List the keys (never their secrets), revoked ones too."""
     from doorloc.app.access import KeyStore
 
-    with _open_store(db) as store:
+    with open_store(db) as store:
         keys = KeyStore(store.engine).list()
     if as_json:
         typer.echo(
@@ -76,12 +76,12 @@ def list_cmd(
 @keys_app.command("revoke")
 def revoke_cmd(
     name: str = typer.Argument(..., help="the key's name or key id"),
-    db: str = typer.Option(None, "--db", help=DB_HELP),
+    db: DbOption = None,
 ) -> None:
     """Revoke a key (by name: every active key of that name); the service refuses it from the next request."""
     from doorloc.app.access import AccessKeyError, KeyStore
 
-    with _open_store(db) as store:
+    with open_store(db) as store:
         try:
             ids = KeyStore(store.engine).revoke(name)
         except AccessKeyError as e:

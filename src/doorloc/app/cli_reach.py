@@ -1,7 +1,8 @@
 """`doorloc reach`: can the robot mill this door at this pose? (shared/SPEC.md section 9)
 
 Exit codes: 0 every target feasible, 1 not (the output says which target and why), 2 bad input
-(unknown door, bad cell or robot file), 3 the recipe database could not be opened.
+(unknown door, bad cell or robot file, a cell that names no robot), 3 the recipe database could not be
+opened. Which cell and robot were used goes to stderr; the report alone to stdout.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ from pathlib import Path
 
 import typer
 
-from doorloc.app.cli_recipes import DB_HELP, _open_store
+from doorloc.app.cli_common import DbOption, PoseCommand, PoseOption, recipe_lookup
 from doorloc.app.errors import EXIT_REFUSED, fail
 
 
@@ -23,11 +24,11 @@ class ReachFormat(StrEnum):
 
 def reach_cmd(
     door_id: str = typer.Option(..., "--door-id", help="door id (barcode) of a stored recipe"),
-    pose: tuple[float, float, float] = typer.Option(..., "--pose", help="measured pose: X_MM Z_MM YAW_DEG"),
+    pose: PoseOption = ...,  # type: ignore[assignment]
     cell: Path = typer.Option(
         None, "--cell", help="cell.yaml with a robot: section; default: the bundled thesis cell"
     ),
-    db: str = typer.Option(None, "--db", help=DB_HELP),
+    db: DbOption = None,
     fmt: ReachFormat = typer.Option(ReachFormat.json, "--format", help="json or table"),
     plot: Path = typer.Option(None, "--plot", help="write the (r, z) work window with the targets as a PNG"),
 ) -> None:
@@ -35,34 +36,25 @@ def reach_cmd(
 
     Exit 0 when every target is feasible, 1 when not, 2 for bad input.
     """
-    from doorloc.cell import CellFileError, load_cell
+    from doorloc.app.services import reach_for_recipe
+    from doorloc.cell import CellFileError
     from doorloc.pose import DoorPose
-    from doorloc.robot.reach import reach_for_door, report_table, setup_for_cell, thesis_cell_path
+    from doorloc.robot.reach import report_table
 
     try:
-        the_cell = load_cell(cell if cell is not None else thesis_cell_path())
-        setup = setup_for_cell(the_cell)
-    except (CellFileError, ValueError) as e:  # RobotSectionError / RobotFileError are ValueErrors
+        outcome = reach_for_recipe(door_id, DoorPose(*pose), recipe_lookup(db), cell)
+    except (CellFileError, ValueError) as e:  # robot section/file errors, no robot, no recipe
         raise fail(str(e)) from None
-    if setup is None:
-        raise fail(
-            f"{cell}: the robot: section names no robot model (robot: {{model: irb6600-175-2.55, ...}})"
-        )
-    with _open_store(db) as store:
-        recipe = store.get(door_id)
-    if recipe is None:
-        raise fail(
-            f"no recipe for door {door_id!r} in the database; import one with 'doorloc recipes import'"
-        )
-    report = reach_for_door(setup, recipe, DoorPose(*pose), the_cell.face_y(recipe.door_size()))
+    typer.echo(f"doorloc: {outcome.describe()}", err=True)
     if plot is not None:
         from doorloc.fileio import atomic_write_bytes
         from doorloc.robot.window import window_png
 
         try:
-            atomic_write_bytes(plot, window_png(setup, report))
+            atomic_write_bytes(plot, window_png(outcome.setup, outcome.report))
         except OSError as e:
             raise fail(f"cannot write {plot}: {e.strerror or e}") from None
+    report = outcome.report
     sys.stdout.write(
         report.model_dump_json(indent=2) + "\n" if fmt is ReachFormat.json else report_table(report)
     )
@@ -72,4 +64,4 @@ def reach_cmd(
 
 def register(app: typer.Typer) -> None:
     """Add `doorloc reach` to the root app."""
-    app.command("reach")(reach_cmd)
+    app.command("reach", cls=PoseCommand)(reach_cmd)

@@ -14,9 +14,8 @@ from pathlib import Path
 
 import typer
 
+from doorloc.app.cli_common import DbOption, PoseCommand, PoseOption, open_store
 from doorloc.app.errors import EXIT_FAILED, EXIT_REFUSED, EXIT_USAGE, fail
-
-DB_HELP = "recipe database URL (SQLAlchemy); default: $DOORLOC_DATABASE_URL, else ./doorloc.db (SQLite)"
 
 
 class ListFormat(StrEnum):
@@ -33,15 +32,6 @@ class TargetFormat(StrEnum):
     json = "json"
     rapid_text = "rapid-text"
     rapid_module = "rapid-module"
-
-
-def _open_store(db: str | None):
-    from doorloc.recipes.store import RecipeStore, RecipeStoreError, database_url
-
-    try:
-        return RecipeStore(database_url(db) if db else database_url())
-    except RecipeStoreError as e:
-        raise fail(str(e), EXIT_FAILED) from None
 
 
 def _emit(text: str, out: Path | None) -> None:
@@ -67,11 +57,11 @@ recipes_app = typer.Typer(
 
 
 @recipes_app.command("init-db")
-def init_db(db: str = typer.Option(None, "--db", help=DB_HELP)) -> None:
+def init_db(db: DbOption = None) -> None:
     """Create or upgrade the recipe database schema (Alembic 'upgrade head') and print its revision."""
     from doorloc.recipes.store import redacted_url, schema_revision
 
-    store = _open_store(db)
+    store = open_store(db)
     with store:
         typer.echo(f"{redacted_url(store.url)}: schema at revision {schema_revision(store.engine)}")
 
@@ -91,7 +81,7 @@ def import_cmd(
     file: Path = typer.Argument(
         ..., help="recipe file: .csv or .xlsx, one row per hinge, door fields repeated"
     ),
-    db: str = typer.Option(None, "--db", help=DB_HELP),
+    db: DbOption = None,
     dry_run: bool = typer.Option(
         False, "--dry-run", help="check the file and show what would change; write nothing"
     ),
@@ -122,7 +112,7 @@ def import_cmd(
         return
     from sqlalchemy.exc import SQLAlchemyError
 
-    with _open_store(db) as store:
+    with open_store(db) as store:
         preview = store.preview(recipes)
         changed = {k: v for k, v in preview.items() if v}
         new = sum(v is None for v in preview.values())
@@ -158,11 +148,11 @@ def import_cmd(
 @recipes_app.command("history")
 def history_cmd(
     door_id: str = typer.Argument(..., help="door id (barcode)"),
-    db: str = typer.Option(None, "--db", help=DB_HELP),
+    db: DbOption = None,
     as_json: bool = typer.Option(False, "--json", help="print JSON (with each version's whole recipe)"),
 ) -> None:
     """Every version of a door recipe: who changed what, when."""
-    with _open_store(db) as store:
+    with open_store(db) as store:
         versions = store.history(door_id)
     if not versions:
         raise fail(f"no recipe for door {door_id!r} was ever stored")
@@ -193,10 +183,10 @@ def history_cmd(
 @recipes_app.command("delete")
 def delete_cmd(
     door_id: str = typer.Argument(..., help="door id (barcode)"),
-    db: str = typer.Option(None, "--db", help=DB_HELP),
+    db: DbOption = None,
 ) -> None:
     """Retire a door recipe: locate and targets no longer use it; its history stays."""
-    with _open_store(db) as store:
+    with open_store(db) as store:
         if not store.delete(door_id, by=_cli_user()):
             raise fail(f"no recipe for door {door_id!r} in the database")
     typer.echo(
@@ -206,11 +196,11 @@ def delete_cmd(
 
 @recipes_app.command("list")
 def list_cmd(
-    db: str = typer.Option(None, "--db", help=DB_HELP),
+    db: DbOption = None,
     fmt: ListFormat = typer.Option(ListFormat.table, "--format", help="table or json"),
 ) -> None:
     """List the stored recipes (door id, size, number of hinges)."""
-    store = _open_store(db)
+    store = open_store(db)
     with store:
         rows = store.list()
     if fmt is ListFormat.json:
@@ -241,13 +231,13 @@ def list_cmd(
 @recipes_app.command("show")
 def show_cmd(
     door_id: str = typer.Argument(..., help="door id (barcode)"),
-    db: str = typer.Option(None, "--db", help=DB_HELP),
+    db: DbOption = None,
     fmt: RecipeFormat = typer.Option(RecipeFormat.json, "--format", help="json or csv (the import layout)"),
 ) -> None:
     """Print one recipe."""
     from doorloc.recipes.importer import recipes_to_csv
 
-    store = _open_store(db)
+    store = open_store(db)
     with store:
         recipe = store.get(door_id)
     if recipe is None:
@@ -262,7 +252,7 @@ def show_cmd(
 
 @recipes_app.command("export")
 def export_cmd(
-    db: str = typer.Option(None, "--db", help=DB_HELP),
+    db: DbOption = None,
     out: Path = typer.Option(None, "--out", "-o", help="output file (written atomically); default stdout"),
     fmt: RecipeFormat = typer.Option(
         None, "--format", help="csv (the import layout) or json; default from --out"
@@ -273,7 +263,7 @@ def export_cmd(
 
     if fmt is None:
         fmt = RecipeFormat.json if out is not None and out.suffix.lower() == ".json" else RecipeFormat.csv
-    store = _open_store(db)
+    store = open_store(db)
     with store:
         recipes = list(store.iter_recipes())
     text = (
@@ -286,14 +276,14 @@ def export_cmd(
 
 def targets_cmd(
     door_id: str = typer.Option(..., "--door-id", help="door id (barcode) of a stored recipe"),
-    pose: tuple[float, float, float] = typer.Option(..., "--pose", help="measured pose: X_MM Z_MM YAW_DEG"),
+    pose: PoseOption = ...,  # type: ignore[assignment]
     fmt: TargetFormat = typer.Option(TargetFormat.json, "--format", help="json, rapid-text or rapid-module"),
     cell: Path = typer.Option(
         None,
         "--cell",
         help="cell.yaml: fixture (hinge-face depth) and optional robot: section (tool/wobj data)",
     ),
-    db: str = typer.Option(None, "--db", help=DB_HELP),
+    db: DbOption = None,
     out: Path = typer.Option(None, "--out", "-o", help="output file (written atomically); default stdout"),
     clearance: float = typer.Option(
         10.0, "--clearance", min=0.0, help="approach/retract distance before the face, mm"
@@ -321,7 +311,7 @@ def targets_cmd(
         except ValidationError as e:
             first = e.errors(include_url=False)[0]
             raise fail(f"{cell}: robot.{'.'.join(map(str, first['loc']))}: {first['msg']}") from None
-    store = _open_store(db)
+    store = open_store(db)
     with store:
         recipe = store.get(door_id)
     if recipe is None:
@@ -356,4 +346,4 @@ def targets_cmd(
 def register(app: typer.Typer) -> None:
     """Add this area's subcommands to the root app."""
     app.add_typer(recipes_app, name="recipes")
-    app.command("targets")(targets_cmd)
+    app.command("targets", cls=PoseCommand)(targets_cmd)

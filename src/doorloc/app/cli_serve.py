@@ -8,153 +8,124 @@ from typing import Annotated
 
 import typer
 
+from doorloc.app.cli_common import DbAliasOption, DbOption, load_cell_or_fail, recipe_lookup
 from doorloc.app.errors import EXIT_FAILED, EXIT_OK, EXIT_REFUSED, fail
 
 
-def register(app: typer.Typer) -> None:
-    """Add this area's subcommands to the root app."""
-
-    @app.command("serve")
-    def serve(
-        cell: Annotated[
-            Path | None, typer.Option(help="cell file (cell.yaml); default: $DOORLOC_CELL")
-        ] = None,
-        host: Annotated[
-            str, typer.Option(help="address to listen on (0.0.0.0 for every interface)")
-        ] = "127.0.0.1",
-        port: Annotated[int, typer.Option(help="TCP port")] = 8000,
-        workers: Annotated[
-            int, typer.Option(min=1, help="worker processes (each answers requests in parallel)")
-        ] = 1,
-        database_url: Annotated[
-            str | None,
-            typer.Option(help="recipe database URL; default: $DOORLOC_DATABASE_URL or the store's default"),
-        ] = None,
-        log_level: Annotated[str, typer.Option(help="debug, info, warning or error")] = "info",
-        insecure: Annotated[
-            bool,
-            typer.Option(
-                help="listen on a non-loopback address although no API key exists (anyone may then "
-                "change recipes)"
-            ),
-        ] = False,
-        ssl_certfile: Annotated[
-            Path | None, typer.Option(help="serve HTTPS with this PEM certificate (chain)")
-        ] = None,
-        ssl_keyfile: Annotated[Path | None, typer.Option(help="private key of --ssl-certfile (PEM)")] = None,
-    ) -> None:
-        """Run the HTTP service (POST /v1/locate, operator page at /, OpenAPI at /docs).
-
-        On an address other than loopback it needs API keys (doorloc keys create) unless --insecure is given.
-        """
-        cell_path = _checked_cell(cell)
-        _check_bind(host, insecure, _has_keys(database_url))
-        if (ssl_certfile is None) != (ssl_keyfile is None):
-            raise fail("give both --ssl-certfile and --ssl-keyfile for HTTPS, or neither")
-        for f in (ssl_certfile, ssl_keyfile):
-            if f is not None and not f.is_file():
-                raise fail(f"no such file: {f}")
-        # The workers are separate processes that build the app from the environment (create_app_from_env).
-        os.environ["DOORLOC_CELL"] = str(Path(cell_path).resolve())
-        os.environ["DOORLOC_LOG_LEVEL"] = log_level.upper()
-        from doorloc.app.settings import default_locate_concurrency
-
-        os.environ.setdefault("DOORLOC_LOCATE_CONCURRENCY", str(default_locate_concurrency(workers)))
-        _run_uvicorn(host, port, workers, log_level, ssl_certfile, ssl_keyfile)
-
-    @app.command("batch")
-    def batch(
-        folder: Annotated[
-            Path, typer.Argument(help="folder of images (searched recursively, images recognised by content)")
-        ],
-        cell: Annotated[Path, typer.Option(help="cell file (cell.yaml)")],
-        out: Annotated[Path, typer.Option(help="results file, one JSON line per image")],
-        manifest: Annotated[
-            Path | None,
-            typer.Option(
-                help="CSV: image and door_id, or width_mm,thickness_mm[,height_mm]; default: every image, the cell's door"
-            ),
-        ] = None,
-        resume: Annotated[
-            bool, typer.Option(help="continue an interrupted job: skip images already in --out")
-        ] = False,
-        workers: Annotated[int, typer.Option(min=1, help="parallel worker processes")] = max(
-            1, (os.cpu_count() or 2) - 1
+def serve_cmd(
+    cell: Annotated[Path | None, typer.Option(help="cell file (cell.yaml); default: $DOORLOC_CELL")] = None,
+    host: Annotated[
+        str, typer.Option(help="address to listen on (0.0.0.0 for every interface)")
+    ] = "127.0.0.1",
+    port: Annotated[int, typer.Option(help="TCP port")] = 8000,
+    workers: Annotated[
+        int, typer.Option(min=1, help="worker processes (each answers requests in parallel)")
+    ] = 1,
+    db: DbOption = None,
+    database_url: DbAliasOption = None,
+    log_level: Annotated[str, typer.Option(help="debug, info, warning or error")] = "info",
+    insecure: Annotated[
+        bool,
+        typer.Option(
+            "--insecure",
+            help="listen on a non-loopback address although no API key exists (anyone may then change recipes)",
         ),
-        backend: Annotated[
-            str, typer.Option(help="local (worker processes) or ray (Ray Data: the doorloc ray extra)")
-        ] = "local",
-        ray_address: Annotated[
-            str | None, typer.Option(help="Ray cluster address (ray backend); default: a local instance")
-        ] = None,
-        database_url: Annotated[
-            str | None, typer.Option(help="recipe database URL (for door_id in the manifest)")
-        ] = None,
-        device: Annotated[
-            str | None,
-            typer.Option(
-                help="cpu, cuda or auto: locate batches of frames on torch (the doorloc torch extra); default: one frame at a time"
-            ),
-        ] = None,
-        batch_size: Annotated[int, typer.Option(min=1, help="frames per batch with --device")] = 32,
-    ) -> None:
-        """Locate the door in every image of a folder; append one result line per image to --out.
+    ] = False,
+    ssl_certfile: Annotated[
+        Path | None, typer.Option(help="serve HTTPS with this PEM certificate (chain)")
+    ] = None,
+    ssl_keyfile: Annotated[Path | None, typer.Option(help="private key of --ssl-certfile (PEM)")] = None,
+) -> None:
+    """Run the HTTP service (POST /v1/locate, operator page at /, OpenAPI at /docs).
 
-        Exit code 0 when every image was answered, 1 when some were refused or failed, 2 for bad arguments.
-        """
-        from doorloc.app import batch as batch_mod
-        from doorloc.cell import CellFileError, load_cell
+    On an address other than loopback it needs API keys (doorloc keys create) unless --insecure is given.
+    """
+    cell_path = _checked_cell(cell)
+    _check_bind(host, insecure, _has_keys(db or database_url))
+    if (ssl_certfile is None) != (ssl_keyfile is None):
+        raise fail("give both --ssl-certfile and --ssl-keyfile for HTTPS, or neither")
+    for f in (ssl_certfile, ssl_keyfile):
+        if f is not None and not f.is_file():
+            raise fail(f"no such file: {f}")
+    # The workers are separate processes that build the app from the environment (create_app_from_env).
+    os.environ["DOORLOC_CELL"] = str(Path(cell_path).resolve())
+    os.environ["DOORLOC_LOG_LEVEL"] = log_level.upper()
+    from doorloc.app.settings import default_locate_concurrency
 
-        if backend not in ("local", "ray"):
-            raise fail(f"--backend must be 'local' or 'ray', not '{backend}'")
-        if device is not None:
-            try:
-                from doorloc.vision.batched import resolve_device
+    os.environ.setdefault("DOORLOC_LOCATE_CONCURRENCY", str(default_locate_concurrency(workers)))
+    _run_uvicorn(host, port, workers, log_level, ssl_certfile, ssl_keyfile)
 
-                resolve_device(device)
-            except ImportError:
-                raise fail("--device needs torch: pip install 'doorloc[torch]'") from None
-            except ValueError as e:
-                raise fail(str(e)) from None
+
+def batch_cmd(
+    folder: Annotated[
+        Path,
+        typer.Argument(
+            help="folder of images (searched recursively; by content or name: other files are skipped with a count)"
+        ),
+    ],
+    cell: Annotated[Path, typer.Option(help="cell file (cell.yaml)")],
+    out: Annotated[Path, typer.Option(help="results file, one JSON line per image")],
+    manifest: Annotated[
+        Path | None,
+        typer.Option(
+            help="CSV: image and door_id, or width_mm,thickness_mm[,height_mm]; default: every image, the cell's door"
+        ),
+    ] = None,
+    resume: Annotated[
+        bool, typer.Option("--resume", help="continue an interrupted job: skip images already in --out")
+    ] = False,
+    workers: Annotated[int, typer.Option(min=1, help="parallel worker processes")] = max(
+        1, (os.cpu_count() or 2) - 1
+    ),
+    backend: Annotated[
+        str, typer.Option(help="local (worker processes) or ray (Ray Data: the doorloc ray extra)")
+    ] = "local",
+    ray_address: Annotated[
+        str | None, typer.Option(help="Ray cluster address (ray backend); default: a local instance")
+    ] = None,
+    db: DbOption = None,
+    database_url: DbAliasOption = None,
+    device: Annotated[
+        str | None,
+        typer.Option(
+            help="cpu, cuda or auto: locate batches of frames on torch (the doorloc torch extra); default: one frame at a time"
+        ),
+    ] = None,
+    batch_size: Annotated[int, typer.Option(min=1, help="frames per batch with --device")] = 32,
+) -> None:
+    """Locate the door in every image of a folder; append one result line per image to --out.
+
+    Exit code 0 when every image was answered, 1 when some were refused or failed, 2 for bad arguments.
+    """
+    from doorloc.app import batch as batch_mod
+
+    options = batch_mod.BatchOptions(backend, workers, ray_address, device, batch_size)
+    the_cell = load_cell_or_fail(cell)
+    try:
+        options.check()
+        lookup = recipe_lookup(db or database_url) if manifest else None
+        job = batch_mod.open_job(
+            folder, the_cell, out, manifest=manifest, recipe_lookup=lookup, resume=resume
+        )
+    except (batch_mod.BatchSetupError, OSError) as e:
+        raise fail(str(e)) from None
+    if job.not_images:
+        typer.echo(f"doorloc: {batch_mod.not_images_sentence(job.not_images)}", err=True)
+    with job.log:
         try:
-            the_cell = load_cell(cell)
-        except CellFileError as e:
-            raise fail(str(e)) from None
-        try:
-            items = batch_mod.plan_batch(
-                folder,
-                the_cell,
-                manifest,
-                _recipe_lookup(database_url) if manifest else None,
-                exclude=[out, *([manifest] if manifest else [])],
-            )
-            log = batch_mod.ResultsLog(out, resume)
-        except (batch_mod.BatchSetupError, OSError) as e:
-            raise fail(str(e)) from None
-        try:
-            batch_mod.check_resume(log.done, items, the_cell)
+            summary = _run_with_progress(job.items, job.log, options.backend_for(the_cell))
         except batch_mod.BatchSetupError as e:
-            log.close()
             raise fail(str(e)) from None
+        except OSError as e:
+            raise fail(f"cannot write {out}: {e.strerror or e}", EXIT_FAILED) from None
+    typer.echo(f"{out}: {summary.text()}", err=True)
+    raise typer.Exit(EXIT_OK if summary.answered == summary.total else EXIT_REFUSED)
 
-        def run_backend(todo):
-            if device is not None:
-                return batch_mod.run_batched(
-                    todo, the_cell, device=device, batch_size=batch_size, workers=workers
-                )
-            if backend == "ray":
-                return batch_mod.run_ray(todo, the_cell, workers=workers, ray_address=ray_address)
-            return batch_mod.run_local(todo, the_cell, workers=workers)
 
-        with log:
-            try:
-                summary = _run_with_progress(items, log, run_backend)
-            except batch_mod.BatchSetupError as e:
-                raise fail(str(e)) from None
-            except OSError as e:
-                raise fail(f"cannot write {out}: {e.strerror or e}", EXIT_FAILED) from None
-        typer.echo(f"{out}: {summary.text()}", err=True)
-        raise typer.Exit(EXIT_OK if summary.answered == summary.total else EXIT_REFUSED)
+def register(app: typer.Typer) -> None:
+    """Add `doorloc serve` and `doorloc batch` to the root app."""
+    app.command("serve")(serve_cmd)
+    app.command("batch")(batch_cmd)
 
 
 def _checked_cell(cell: Path | None) -> str:
@@ -212,6 +183,8 @@ def _run_uvicorn(
 
     import uvicorn
 
+    from doorloc.app.logs import uvicorn_log_config
+
     own_metrics_dir = "PROMETHEUS_MULTIPROC_DIR" not in os.environ
     if own_metrics_dir:
         os.environ["PROMETHEUS_MULTIPROC_DIR"] = tempfile.mkdtemp(prefix="doorloc-metrics-")
@@ -224,6 +197,7 @@ def _run_uvicorn(
             workers=workers,
             log_level=log_level.lower(),
             access_log=False,  # the service logs every request itself, as JSON with its request id
+            log_config=uvicorn_log_config(log_level),  # uvicorn's own lines as JSON too
             ssl_certfile=str(ssl_certfile) if ssl_certfile else None,
             ssl_keyfile=str(ssl_keyfile) if ssl_keyfile else None,
             http=_http_protocol(),
@@ -285,19 +259,3 @@ def _run_with_progress(items, log, run_backend):
             progress.update(task, rate=f"{speed:.2f} img/s" if speed else "")
 
         return batch_mod.run_job(items, log, run_backend, advance)
-
-
-def _recipe_lookup(database_url: str | None):
-    """``door_id -> (DoorRecipe, version) | None`` from the recipe database (opened on first use)."""
-    store = None
-
-    def lookup(door_id: str):
-        nonlocal store
-        if store is None:
-            from doorloc.recipes.store import RecipeStore
-            from doorloc.recipes.store import database_url as default_url
-
-            store = RecipeStore(default_url(database_url))  # None: $DOORLOC_DATABASE_URL or the default
-        return store.get_versioned(door_id)
-
-    return lookup

@@ -11,7 +11,7 @@ import logging
 import sys
 import time
 
-__all__ = ["JsonLineFormatter", "configure_json_logging"]
+__all__ = ["JsonLineFormatter", "configure_json_logging", "uvicorn_log_config"]
 
 
 class JsonLineFormatter(logging.Formatter):
@@ -41,3 +41,20 @@ def configure_json_logging(level: str = "INFO") -> None:
     logger.handlers[:] = [handler]
     logger.setLevel(level.upper())
     logger.propagate = False
+
+
+def uvicorn_log_config(level: str = "INFO") -> dict:
+    """A ``logging.config.dictConfig`` for uvicorn that writes its own lines (start-up, errors) as the same
+    JSON lines as doorloc's, so one log holds one format."""
+    return {
+        "version": 1,
+        "disable_existing_loggers": False,
+        "formatters": {"json": {"()": JsonLineFormatter}},
+        "handlers": {
+            "stderr": {"class": "logging.StreamHandler", "formatter": "json", "stream": "ext://sys.stderr"}
+        },
+        "loggers": {
+            name: {"handlers": ["stderr"], "level": level.upper(), "propagate": False}
+            for name in ("uvicorn", "uvicorn.error", "uvicorn.access")
+        },
+    }

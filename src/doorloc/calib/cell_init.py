@@ -18,10 +18,17 @@ import numpy as np
 import yaml
 from scipy.spatial.transform import Rotation
 
-from doorloc.cell import CellFileError, DoorSize, Envelope, Fixture, parse_cell
+from doorloc.cell import Cell, CellFileError, DoorSize, Envelope, Fixture, cell_to_dict, parse_cell
 from doorloc.fileio import atomic_write_text
 
-__all__ = ["REFERENCE_MOUNT_RVEC", "StartingCell", "starting_cell_document", "write_starting_cell"]
+__all__ = [
+    "REFERENCE_MOUNT_RVEC",
+    "StartingCell",
+    "placed_cell_yaml",
+    "reference_from",
+    "starting_cell_document",
+    "write_starting_cell",
+]
 
 #: Rodrigues vector of the reference mount: a rotation of +90 deg about X takes cell +Y (into the door)
 #: to the camera's optical axis and cell +Z (up) to image-up.
@@ -71,7 +78,7 @@ def starting_cell_document(
         The camera calibration (OpenCV FileStorage or ROS camera_info YAML).
     cell_path : path
         Where the cell file will be written; ``camera.calibration`` is stored relative to its folder
-        when the calibration lies below it, absolute otherwise.
+        (:func:`reference_from`), so the two files move together.
     start : StartingCell, optional
         Nominal placement, fixture, envelope and door (the thesis cell's values when None).
 
@@ -81,9 +88,8 @@ def starting_cell_document(
         The calibration cannot be read, or the values do not make a valid cell.
     """
     start = start or StartingCell()
-    cal = Path(calibration).resolve()
     base = Path(cell_path).resolve().parent
-    cal_ref = str(cal.relative_to(base)) if cal.is_relative_to(base) else str(cal)
+    cal_ref = reference_from(calibration, cell_path)
     doc: dict[str, Any] = {
         "camera": {
             "calibration": cal_ref,
@@ -134,3 +140,38 @@ def write_starting_cell(
     )
     atomic_write_text(cell_path, header + yaml.safe_dump(doc, sort_keys=False, default_flow_style=None))
     return doc
+
+
+def reference_from(target: str | os.PathLike, cell_path: str | os.PathLike) -> str:
+    """``target`` as a cell file at ``cell_path`` names it: relative to the cell file's folder (``../x.yaml``
+    included), so a cell folder can be moved or checked out elsewhere; absolute only where no relative
+    path exists (another drive)."""
+    target_abs = Path(target).resolve()
+    try:
+        return Path(os.path.relpath(target_abs, Path(cell_path).resolve().parent)).as_posix()
+    except ValueError:  # Windows: another drive
+        return str(target_abs)
+
+
+def placed_cell_yaml(
+    cell_path: str | os.PathLike, placed: Cell, placed_by: dict[str, Any], out_path: str | os.PathLike
+) -> str:
+    """The text of the cell file ``placed`` (new extrinsics) to be written at ``out_path``.
+
+    A reference to a calibration file in the cell file at ``cell_path`` is kept (it carries
+    ``observed_radius_px``), rebased to ``out_path``'s folder; ``placed_by`` is kept under
+    ``provenance.cell_calibration`` (what placed the camera).
+    """
+    doc = cell_to_dict(placed)
+    try:
+        raw = yaml.safe_load(Path(cell_path).read_text(encoding="utf-8")) or {}
+        cal_ref = (raw.get("camera") or {}).get("calibration")
+    except (OSError, yaml.YAMLError):
+        cal_ref = None
+    if cal_ref:
+        p = Path(cal_ref)
+        if not p.is_absolute():
+            p = Path(cell_path).parent / p
+        doc["camera"] = {"calibration": reference_from(p, out_path), **doc["camera"]}
+    doc.setdefault("provenance", {})["cell_calibration"] = placed_by
+    return yaml.safe_dump(doc, sort_keys=False, default_flow_style=None)

@@ -40,8 +40,8 @@ async def list_doors(
     limit: Annotated[int, Query(ge=1, le=1000, description="ids per page")] = 100,
     offset: Annotated[int, Query(ge=0, le=10_000_000, description="index of the first id")] = 0,
 ) -> DoorList:
-    rows = await call_store(lambda: state.store.list(limit=limit, offset=offset))
-    total = await call_store(state.store.count)
+    rows = await call_store(lambda: state.recipes.list(limit=limit, offset=offset))
+    total = await call_store(state.recipes.count)
     ids = [i if isinstance(i, str) else i.door_id for i in rows]
     more = offset + len(ids) < total
     return DoorList(
@@ -58,7 +58,7 @@ async def list_doors(
 async def door_history(
     door_id: DoorId, _who: Operator, state: Annotated[ServiceState, Depends(ready_state)]
 ) -> RecipeHistory:
-    versions = await call_store(state.store.history, door_id)
+    versions = await call_store(state.recipes.history, door_id)
     if not versions:
         raise ProblemError(
             404, "unknown_door", f"There is no door recipe with id '{door_id}', and there never was."
@@ -89,7 +89,7 @@ async def door_history(
 async def get_door(
     door_id: DoorId, _who: Operator, response: Response, state: Annotated[ServiceState, Depends(ready_state)]
 ) -> DoorRecipe:
-    found = await call_store(state.store.get_versioned, door_id)
+    found = await call_store(state.recipes.get_versioned, door_id)
     if found is None:
         raise ProblemError(404, "unknown_door", f"There is no door recipe with id '{door_id}'; PUT it first.")
     response.headers["X-Recipe-Version"] = str(found[1])
@@ -117,7 +117,7 @@ async def put_door(
             f"The recipe's door_id '{recipe.door_id}' differs from the one in the URL '{door_id}'; make them equal.",
         )
     try:
-        version = await call_store(lambda: state.store.put(recipe, by=who.name))
+        version = await call_store(lambda: state.recipes.put(recipe, by=who.name))
     except ValueError as e:
         raise ProblemError(422, "invalid_recipe", f"The recipe cannot be stored: {e}.") from None
     response.headers["X-Recipe-Version"] = str(version)
@@ -133,6 +133,6 @@ async def put_door(
 async def delete_door(
     door_id: DoorId, who: Engineer, state: Annotated[ServiceState, Depends(ready_state)]
 ) -> Response:
-    if not await call_store(lambda: state.store.delete(door_id, by=who.name)):
+    if not await call_store(lambda: state.recipes.delete(door_id, by=who.name)):
         raise ProblemError(404, "unknown_door", f"There is no door recipe with id '{door_id}' to retire.")
     return Response(status_code=204)

@@ -18,12 +18,12 @@ from fastapi import APIRouter, Depends, File, Form, Query, Request, Response, Up
 from pydantic import Field
 
 from doorloc.app.access import Role
-from doorloc.app.answer import DoorChoice, answer_image, door_from_fields, overlay_png
+from doorloc.app.answer import Answer, DoorChoice, LocateResponse
 from doorloc.app.http.dependencies import call_store, ready_state, require_role
 from doorloc.app.http.problems import ProblemError, problem_responses
-from doorloc.app.http.schemas import LocateResponse
 from doorloc.app.http.state import ServiceState
 from doorloc.app.imagesniff import decode_limit_problem, sniff_image
+from doorloc.app.services import DoorChoiceError, answer_image, resolve_door
 from doorloc.recipes.models import DOOR_ID_PATTERN
 
 __all__ = ["router"]
@@ -65,7 +65,7 @@ async def post_locate(
         bool, Query(description="add overlay_png: the image with what was found drawn on it")
     ] = False,
     rapid: Annotated[bool, Query(description="add rapid: the targets as RAPID-readable text")] = False,
-) -> dict:
+) -> LocateResponse:
     """Measure where the door lies (SPEC section 3 result) and move its recipe's hinge targets by that pose.
 
     A door that cannot be located is still a 200 answer, with ``ok: false`` and ``error`` saying why;
@@ -89,9 +89,7 @@ async def post_locate(
         choice = await _door_choice(state, door_id, width_mm, thickness_mm, height_mm, arris_mm)
         await _cpu_slot(state, request.scope.get("state", {}).get("deadline"))
         try:
-            fields, cpu_ms = await anyio.to_thread.run_sync(
-                _measure, data, name, state, choice, overlay, rapid
-            )
+            answer = await anyio.to_thread.run_sync(_measure, data, name, state, choice, overlay, rapid)
         finally:
             state.limiter.release()
             state.admitted -= 1
@@ -101,27 +99,32 @@ async def post_locate(
     finally:
         state.metrics.in_flight.dec()
     response.headers["Server-Timing"] = ", ".join(
-        f'{k};dur={v:.3f};desc="thread CPU ms"' for k, v in cpu_ms.items()
+        f'{k};dur={v:.3f};desc="thread CPU ms"' for k, v in answer.cpu_ms.items()
     )
-    state.metrics.observe_locate(fields["ok"], fields.get("error_code"), fields.get("elapsed_ms") or 0.0)
+    _log_located(state, request, answer.response, door_id)
+    return answer.response
+
+
+def _log_located(state: ServiceState, request: Request, a: LocateResponse, door_id: str | None) -> None:
+    """Count the answer in the metrics and log it (one JSON line with the request id)."""
+    state.metrics.observe_locate(a.ok, a.error_code, a.elapsed_ms or 0.0)
     _log.info(
         "located",
         extra={
             "fields": {
                 "event": "located",
                 "request_id": request.scope.get("state", {}).get("request_id"),
-                "image": name,
-                "ok": fields["ok"],
-                "error_code": fields.get("error_code"),
-                "x_mm": fields.get("x_mm"),
-                "z_mm": fields.get("z_mm"),
-                "yaw_deg": fields.get("yaw_deg"),
+                "image": a.image,
+                "ok": a.ok,
+                "error_code": a.error_code,
+                "x_mm": a.x_mm,
+                "z_mm": a.z_mm,
+                "yaw_deg": a.yaw_deg,
                 "door_id": door_id,
-                "elapsed_ms": fields.get("elapsed_ms"),
+                "elapsed_ms": a.elapsed_ms,
             }
         },
     )
-    return fields
 
 
 async def _cpu_slot(state: ServiceState, deadline: float | None) -> None:
@@ -194,58 +197,42 @@ async def _door_choice(
     height_mm: float | None,
     arris_mm: float | None = None,
 ) -> DoorChoice:
-    assert state.cell is not None
-    sizes_given = any(v is not None for v in (width_mm, thickness_mm, height_mm))
-    if door_id is not None:
-        if sizes_given:
-            raise ProblemError(
-                422,
-                "ambiguous_door",
-                "Give either door_id (the recipe has the door's size) or width_mm/thickness_mm/height_mm, not both.",
-            )
-        found = await call_store(state.store.get_versioned, door_id)
-        if found is None:
-            raise ProblemError(
-                422,
-                "unknown_door",
-                f"There is no door recipe with id '{door_id}'; import it (doorloc recipes import) or PUT /v1/doors/{door_id}.",
-            )
-        recipe, version = found
-        try:
-            return DoorChoice.from_recipe(recipe, state.cell, arris_mm, version)
-        except ValueError as e:
-            raise ProblemError(422, "invalid_door", f"The door size is not usable: {e}.") from None
+    """:func:`doorloc.app.services.resolve_door` in a worker thread (it may read the recipe database)."""
+    assert state.cell is not None  # the route depends on ready_state
+    cell, store = state.cell, state.recipes
+
+    def resolve() -> DoorChoice:
+        return resolve_door(
+            cell,
+            store.get_versioned,
+            door_id=door_id,
+            width_mm=width_mm,
+            thickness_mm=thickness_mm,
+            height_mm=height_mm,
+            arris_mm=arris_mm,
+        )
+
     try:
-        return DoorChoice(door_from_fields(state.cell, width_mm, thickness_mm, height_mm, arris_mm))
-    except ValueError as e:
-        raise ProblemError(422, "invalid_door", f"The door size is not usable: {e}.") from None
+        choice: DoorChoice = await call_store(resolve)
+    except DoorChoiceError as e:
+        raise ProblemError(422, e.code, f"{str(e)[0].upper()}{str(e)[1:]}.") from None
+    return choice
 
 
 def _measure(
     data: bytes, name: str, state: ServiceState, choice: DoorChoice, overlay: bool, rapid: bool
-) -> tuple[dict, dict[str, float]]:
-    """The answer's fields, and the thread CPU ms of decoding and of measuring (``decode``, ``locate``)."""
-    from doorloc.vision.imageio import ImageDecodeError, decode_image
+) -> Answer:
+    """The answer, with the thread CPU ms of decoding and of measuring (``decode``, ``locate``)."""
+    from doorloc.vision.imageio import ImageDecodeError
 
     assert state.cell is not None  # the route depends on ready_state
-    t0 = time.thread_time()
     try:
-        image = decode_image(data, name=name)
+        return answer_image(
+            data, state.cell, choice, image_name=name, locate_fn=state.locate_fn, rapid=rapid, overlay=overlay
+        )
     except ImageDecodeError as e:
         raise ProblemError(
             422,
             "undecodable_image",
             f"The image could not be decoded ({e}); the file is probably damaged or truncated: send it again.",
         ) from None
-    t1 = time.thread_time()
-    trace = None
-    if overlay:
-        from doorloc.vision.locate import LocateTrace
-
-        trace = LocateTrace()
-    answer = answer_image(
-        image, state.cell, choice, image_name=name, locate_fn=state.locate_fn, rapid=rapid, trace=trace
-    )
-    if overlay:
-        answer.fields["overlay_png"] = overlay_png(image, answer.result, state.cell, choice.door, trace)
-    return answer.fields, {"decode": (t1 - t0) * 1e3, "locate": (time.thread_time() - t1) * 1e3}

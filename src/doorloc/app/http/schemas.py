@@ -6,9 +6,7 @@ from typing import Any
 
 from pydantic import BaseModel, Field
 
-from doorloc.recipes.targets import Target
-from doorloc.robot.reach import ReachReport
-from doorloc.vision.result import LocateResult
+from doorloc.app.answer import DoorOut, LocateResponse
 
 __all__ = [
     "DoorOut",
@@ -22,47 +20,14 @@ __all__ = [
 ]
 
 
-class DoorOut(BaseModel):
-    """The nominal door the image was measured as, mm."""
-
-    width_mm: float
-    thickness_mm: float
-    height_mm: float
-
-
-class LocateResponse(LocateResult):
-    """The SPEC section 3 result plus the door and its robot targets."""
-
-    door_id: str | None = Field(
-        None, description="the recipe used, or null when the door was given by its size"
-    )
-    door: DoorOut
-    targets: list[Target] = Field(
-        description="hinge targets in the cell frame; empty without a recipe or a pose"
-    )
-    targets_note: str | None = Field(None, description="why targets is empty, else null")
-    rapid: str | None = Field(None, description="with ?rapid=true: the targets as RAPID-readable text")
-    overlay_png: str | None = Field(
-        None, description="with ?overlay=true: the overlay image, base64-encoded PNG"
-    )
-    reach: ReachReport | None = Field(
-        None,
-        description="when the cell names a robot: reach, joints, confdata, inverse condition and deflection per "
-        "target (SPEC section 9); an infeasible target turns the answer into a refusal",
-    )
-    measured_pose: dict[str, float] | None = Field(
-        None, description="on a reach refusal: the pose that was measured (x_mm, z_mm, yaw_deg)"
-    )
-
-
 class CellInfo(BaseModel):
     """The cell and camera calibration in use, with content ids for audit trails."""
 
     cell_id: str = Field(
-        description="content hash of the whole cell (camera, extrinsics, fixture, envelope, door)"
+        description="'sha256:' + the cell file's SHA-256, the provenance.cell_sha256 of every result made with it"
     )
     calibration_id: str = Field(
-        description="content hash of the camera calibration (K, distortion, image size)"
+        description="'sha256:' + the camera calibration's SHA-256, the provenance.calibration_sha256 of results"
     )
     source: str | None = Field(None, description="name of the cell file (without its folder)")
     cell: dict[str, Any] = Field(description="the cell in SPEC section 2 layout, camera inline")

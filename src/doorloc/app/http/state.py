@@ -14,20 +14,16 @@ from typing import Any
 
 import anyio
 
+from doorloc.app.access import KeyStore
 from doorloc.app.answer import LocateFn
 from doorloc.app.http.metrics import ServiceMetrics
 from doorloc.app.settings import ServiceSettings
 from doorloc.cell import Cell, cell_to_dict
+from doorloc.recipes.store import RecipeStore, database_url
 
-__all__ = ["ServiceState", "content_id"]
+__all__ = ["ServiceState"]
 
 _log = logging.getLogger("doorloc.http")
-
-
-def content_id(obj: Any) -> str:
-    """A short content hash of a JSON-able value: equal content, equal id (``sha256:`` + 16 hex digits)."""
-    text = json.dumps(obj, sort_keys=True, separators=(",", ":"), default=str)
-    return "sha256:" + hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
 @dataclass
@@ -38,10 +34,10 @@ class ServiceState:
     metrics: ServiceMetrics
     locate_fn: LocateFn | None = None
     cell: Cell | None = None
-    store: Any = (
-        None  # doorloc.recipes.store.RecipeStore (None until loaded; routes take it after ready_state)
-    )
-    keys: Any | None = None  # doorloc.app.access.KeyStore, on the store's database
+    #: the recipe database (None until loaded; routes take it after ready_state)
+    store: RecipeStore | None = None
+    #: the API keys, on the store's database
+    keys: KeyStore | None = None
     load_error: str | None = None
     limiter: anyio.CapacityLimiter = field(init=False)
     #: locate requests in this worker right now, running or waiting for a CPU slot (routes_locate._cpu_slot)
@@ -58,6 +54,13 @@ class ServiceState:
     @property
     def overloaded(self) -> bool:
         return self.admitted >= self.capacity
+
+    @property
+    def recipes(self) -> RecipeStore:
+        """The recipe store of a ready service (routes reach it after ``ready_state``)."""
+        if self.store is None:
+            raise RuntimeError("the recipe store is not loaded (the service is not ready)")
+        return self.store
 
     @property
     def ready(self) -> bool:
@@ -78,15 +81,11 @@ class ServiceState:
 
                 self.cell = load_cell(self.settings.cell)
             if self.store is None:
-                from doorloc.recipes.store import RecipeStore, database_url
-
                 self.store = RecipeStore(database_url(self.settings))
             if self.keys is None and getattr(self.store, "engine", None) is not None:
-                from doorloc.app.access import KeyStore
-
                 self.keys = KeyStore(self.store.engine)
             if self.locate_fn is None:
-                from doorloc.app.answer import default_locate_fn
+                from doorloc.app.services import default_locate_fn
 
                 # (it loads locate's compiled kernels now, not in the first request)
                 self.locate_fn = default_locate_fn()
@@ -99,13 +98,20 @@ class ServiceState:
             _log.error("not ready", extra={"fields": {"event": "not_ready", "reason": self.load_error}})
 
     def cell_ids(self) -> dict[str, str]:
-        """Content ids of the cell in use and of its camera calibration (for audit trails)."""
+        """Ids of the cell in use and of its camera calibration (for audit trails): ``sha256:`` + the same
+        digests every result carries as ``provenance.cell_sha256`` and ``provenance.calibration_sha256``
+        (the files' bytes). A cell built in code, with no file, gets the digest of its content instead."""
         if self.cell is None:
             return {}
         doc = cell_to_dict(self.cell)
+        camera = {k: doc["camera"][k] for k in ("image_size", "camera_matrix", "dist_coeffs")}
         return {
-            "cell_id": content_id(doc),
-            "calibration_id": content_id(
-                {k: doc["camera"][k] for k in ("image_size", "camera_matrix", "dist_coeffs")}
-            ),
+            "cell_id": "sha256:" + (self.cell.sha256 or _digest(doc)),
+            "calibration_id": "sha256:" + (self.cell.calibration_sha256 or _digest(camera)),
         }
+
+
+def _digest(obj: Any) -> str:
+    return hashlib.sha256(
+        json.dumps(obj, sort_keys=True, separators=(",", ":"), default=str).encode()
+    ).hexdigest()

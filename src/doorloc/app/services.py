@@ -1,0 +1,462 @@
+"""The calls behind every face of doorloc: CLI commands, HTTP routes and the batch runner adapt these.
+
+- :func:`resolve_door`: the door an image shows, from a recipe id or from its sizes (one rule for all).
+- :func:`answer_image`: decode -> locate -> targets -> reach, as a typed :class:`~doorloc.app.answer.Answer`.
+- :func:`reach_for_recipe`: the reach report of a stored door at a given pose (``doorloc reach``).
+
+Each raises an error with a sentence a person can act on (:class:`DoorChoiceError`, :class:`ReachSetupError`,
+:class:`doorloc.vision.imageio.ImageDecodeError`); the adapters turn it into an exit code or an HTTP status.
+"""
+
+from __future__ import annotations
+
+import functools
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Literal
+
+import numpy as np
+
+from doorloc.app.answer import (
+    NO_POSE_NOTE,
+    NO_REACH_NOTE,
+    NO_RECIPE_NOTE,
+    Answer,
+    DoorChoice,
+    DoorOut,
+    LocateFn,
+    LocateResponse,
+    door_from_fields,
+    overlay_png,
+    provenance_of,
+)
+from doorloc.cell import Cell
+from doorloc.pose import DoorPose
+from doorloc.recipes.models import DoorRecipe
+from doorloc.recipes.targets import Target, targets_for_pose
+from doorloc.robot.reach import ReachReport, ReachSetup, reach_for_door, setup_for_cell
+from doorloc.vision.result import LocateResult
+
+if TYPE_CHECKING:  # the calibration modules load when a calibration runs
+    from doorloc.calib.calibrate import Candidate
+    from doorloc.calib.camera import CameraModel
+    from doorloc.calib.cell import CellCalibration
+    from doorloc.calib.detect import CharucoSpec, Chessboard
+    from doorloc.calib.folder import CalibrationOutcome
+    from doorloc.calib.io import CalibrationFile
+    from doorloc.vision.response import BoardResponse
+
+    Board = Chessboard | CharucoSpec
+
+__all__ = [
+    "DoorChoiceError",
+    "RecipeLookup",
+    "ReachOutcome",
+    "ReachSetupError",
+    "CameraCalibration",
+    "CameraPlacement",
+    "PlacementRefused",
+    "answer_image",
+    "calibrate_camera",
+    "place_camera",
+    "default_locate_fn",
+    "reach_for_recipe",
+    "reach_of_cell",
+    "resolve_door",
+]
+
+#: ``door_id -> (recipe, version) | None``; may raise ValueError for a stored recipe today's rules refuse
+RecipeLookup = Callable[[str], "tuple[DoorRecipe, int | None] | None"]
+
+DoorProblem = Literal["ambiguous_door", "unknown_door", "invalid_door", "unusable_recipe"]
+
+
+class DoorChoiceError(ValueError):
+    """The door cannot be chosen; ``code`` says why (``ambiguous_door``, ``unknown_door``, ``invalid_door``,
+    ``unusable_recipe``)."""
+
+    def __init__(self, code: DoorProblem, message: str) -> None:
+        super().__init__(message)
+        self.code: DoorProblem = code
+
+
+class ReachSetupError(ValueError):
+    """The cell cannot be checked for reach (no robot named); the message says what to add."""
+
+
+@functools.cache
+def default_locate_fn() -> LocateFn:
+    """The real pipeline, :func:`doorloc.vision.locate.locate` (imported on first use: it pulls in OpenCV).
+
+    Its numba kernels are loaded from their disk cache (or compiled) here, once per process, so that the
+    first locate's time is its own and not the kernels'.
+    """
+    from doorloc.vision.jit import compile_kernels
+    from doorloc.vision.locate import locate
+
+    compile_kernels()
+    return locate
+
+
+def resolve_door(
+    cell: Cell,
+    lookup: RecipeLookup | None,
+    *,
+    door_id: str | None = None,
+    width_mm: float | None = None,
+    thickness_mm: float | None = None,
+    height_mm: float | None = None,
+    arris_mm: float | None = None,
+    arris_profile: str | None = None,
+) -> DoorChoice:
+    """The door an image shows: the stored recipe ``door_id`` (via ``lookup``), else the given sizes (mm).
+
+    Sizes left out come from the cell's default door. ``arris_mm`` and ``arris_profile`` override the
+    recipe's and the cell's. Raises :class:`DoorChoiceError`: ``ambiguous_door`` (an id and sizes),
+    ``unknown_door`` (no such recipe), ``invalid_door`` (a size outside the accepted ranges),
+    ``unusable_recipe`` (a stored recipe today's rules refuse).
+    """
+    if door_id is None:
+        try:
+            return DoorChoice(
+                door_from_fields(cell, width_mm, thickness_mm, height_mm, arris_mm, arris_profile)
+            )
+        except ValueError as e:
+            raise DoorChoiceError("invalid_door", f"the door size is not usable: {e}") from None
+    if any(v is not None for v in (width_mm, thickness_mm, height_mm)):
+        raise DoorChoiceError(
+            "ambiguous_door",
+            "give either a door id (its recipe has the door's size) or the door's width/thickness/height, not both",
+        )
+    try:
+        found = lookup(door_id) if lookup is not None else None
+    except ValueError as e:  # a stored recipe that today's rules refuse
+        raise DoorChoiceError(
+            "invalid_door", f"the stored recipe of door {door_id!r} is not usable: {e}"
+        ) from None
+    if found is None:
+        raise DoorChoiceError(
+            "unknown_door",
+            f"no door recipe with id {door_id!r} in the recipe database; import it first (doorloc recipes "
+            "import, or PUT /v1/doors/ID) or give the door's size instead",
+        )
+    recipe, version = found
+    try:
+        choice = DoorChoice.from_recipe(recipe, cell, arris_mm, version)
+        if arris_profile is not None:
+            choice = replace(choice, door=replace(choice.door, arris_profile=arris_profile))  # type: ignore[arg-type]
+    except ValueError as e:
+        raise DoorChoiceError("invalid_door", f"the door size is not usable: {e}") from None
+    return choice
+
+
+def reach_of_cell(cell: Cell, recipe: DoorRecipe, pose: DoorPose, face_y_mm: float) -> ReachReport | None:
+    """The reach report of ``recipe``'s targets at ``pose`` when ``cell`` names a robot, else None.
+
+    The one reach path: :func:`doorloc.robot.reach.reach_for_door` with the cell's tool orientation.
+    """
+    setup = setup_for_cell(cell)
+    return None if setup is None else reach_for_door(setup, recipe, pose, face_y_mm)
+
+
+def _targets_and_reach(
+    cell: Cell, choice: DoorChoice, result: LocateResult
+) -> tuple[list[Target], str | None, ReachReport | None]:
+    """The cell-frame targets of the choice's recipe at the measured pose, why there are none, the reach."""
+    if choice.recipe is None:
+        return [], NO_RECIPE_NOTE, None
+    if not result.ok or result.x_mm is None or result.z_mm is None or result.yaw_deg is None:
+        return [], NO_POSE_NOTE, None
+    pose = DoorPose(result.x_mm, result.z_mm, result.yaw_deg)
+    face_y = cell.face_y(choice.door)
+    targets = targets_for_pose(choice.recipe, pose, face_y)
+    return targets, None, (reach_of_cell(cell, choice.recipe, pose, face_y) if targets else None)
+
+
+def _refused_for_reach(result: LocateResult, reach: ReachReport) -> dict[str, Any]:
+    """Targets the robot cannot follow are wrong targets: the answer becomes a refusal (SPEC section 9)."""
+    return {
+        "measured_pose": {"x_mm": result.x_mm, "z_mm": result.z_mm, "yaw_deg": result.yaw_deg},
+        "ok": False,
+        "error_code": reach.error_code,
+        "error": f"the robot cannot mill this door here: {reach.reason}",
+        "x_mm": None,
+        "z_mm": None,
+        "yaw_deg": None,
+        "uncertainty": None,
+    }
+
+
+def answer_image(
+    image: np.ndarray | bytes,
+    cell: Cell,
+    choice: DoorChoice,
+    *,
+    image_name: str,
+    locate_fn: LocateFn | None = None,
+    rapid: bool = False,
+    overlay: bool = False,
+    trace: Any | None = None,
+) -> Answer:
+    """Locate the door in ``image``, turn its recipe into cell-frame targets and check the robot reaches them.
+
+    Parameters
+    ----------
+    image : ndarray (H, W) or (H, W, 3), uint8 or uint16; or the encoded file's bytes
+        The camera image in the calibrated pixel frame; bytes are decoded first
+        (:class:`doorloc.vision.imageio.ImageDecodeError` when they cannot be).
+    cell, choice
+        The robot cell; the door (size, and the recipe when it has one: :func:`resolve_door`).
+    image_name : str
+        Name reported in the result's ``image`` field.
+    locate_fn : callable, optional
+        Replaces :func:`doorloc.vision.locate.locate`.
+    rapid, overlay : bool
+        Add ``rapid`` (the targets as RAPID-readable text; null without targets) and ``overlay_png``.
+    trace : doorloc.vision.locate.LocateTrace, optional
+        Filled by locate with what it saw (to draw an overlay without locating twice).
+
+    Returns
+    -------
+    Answer
+        ``.result`` the LocateResult; ``.response`` the :class:`~doorloc.app.answer.LocateResponse`: SPEC
+        section 3 fields plus ``door_id``, ``door`` (mm), ``targets`` (cell frame, mm; quaternions scalar
+        first), ``targets_note`` (why the list is empty) and, when the cell names a robot, ``reach``. A
+        target the robot cannot follow turns the answer into a refusal (``ok`` false, ``error_code`` the
+        reach reason, pose fields null, the measured pose under ``measured_pose``, no targets).
+    """
+    t0 = time.thread_time()
+    if isinstance(image, bytes):
+        from doorloc.vision.imageio import decode_image
+
+        image = decode_image(image, name=image_name)
+    t1 = time.thread_time()
+    if overlay and trace is None:
+        from doorloc.vision.locate import LocateTrace
+
+        trace = LocateTrace()
+    locate = locate_fn or default_locate_fn()
+    result = locate(
+        image, cell, choice.door, image_name=image_name, **({} if trace is None else {"trace": trace})
+    )
+    targets, note, reach = _targets_and_reach(cell, choice, result)
+    fields = result.model_dump()
+    # locate's own provenance (what it measured with) stands; the recipe version is the choice's
+    seen = fields.get("provenance") or {}
+    fields["provenance"] = provenance_of(cell, choice).model_dump() | {
+        k: v for k, v in seen.items() if k != "recipe_version"
+    }
+    if reach is not None and not reach.feasible:
+        fields |= _refused_for_reach(result, reach)
+        targets, note = [], NO_REACH_NOTE
+    response = LocateResponse(
+        **fields,
+        door_id=choice.door_id,
+        door=DoorOut.of(choice.door),
+        targets=targets,
+        targets_note=note,
+        reach=reach,
+        rapid=_rapid(targets) if rapid else None,
+        overlay_png=overlay_png(image, result, cell, choice.door, trace) if overlay else None,
+    )
+    requested = frozenset(k for k, on in (("rapid", rapid), ("overlay_png", overlay)) if on)
+    cpu_ms = {"decode": (t1 - t0) * 1e3, "locate": (time.thread_time() - t1) * 1e3}
+    return Answer(result, response, cpu_ms, requested, image)
+
+
+def _rapid(targets: list[Target]) -> str | None:
+    if not targets:
+        return None
+    from doorloc.recipes.rapid import rapid_text
+
+    return rapid_text(targets)
+
+
+# ---------------------------------------------------------------------------------------------- reach
+
+
+@dataclass(frozen=True)
+class ReachOutcome:
+    """A reach report and what it was made with: the cell file, whether it is the bundled one, the robot."""
+
+    report: ReachReport
+    setup: ReachSetup
+    cell_path: Path
+    bundled_cell: bool
+
+    @property
+    def robot(self) -> str:
+        return str(self.setup.section.model)
+
+    def describe(self) -> str:
+        """One line naming the cell and robot used (for a person; the report itself goes to stdout)."""
+        where = "the bundled thesis cell" if self.bundled_cell else f"cell {self.cell_path}"
+        hint = " (give --cell for your own cell)" if self.bundled_cell else ""
+        return f"reach with {where}, robot {self.robot}{hint}"
+
+
+def reach_for_recipe(
+    door_id: str, pose: DoorPose, lookup: RecipeLookup, cell_path: str | Path | None = None
+) -> ReachOutcome:
+    """Reach, joints, singularity and deflection of every hinge target of the stored door at ``pose``.
+
+    ``cell_path`` None: the bundled thesis cell (:func:`doorloc.robot.reach.thesis_cell_path`). Raises
+    :class:`doorloc.cell.CellFileError` or a robot file error (a bad cell), :class:`ReachSetupError` (the
+    cell names no robot), :class:`DoorChoiceError` (no such recipe).
+    """
+    from doorloc.cell import load_cell
+    from doorloc.robot.reach import thesis_cell_path
+
+    bundled = cell_path is None
+    path = Path(thesis_cell_path() if cell_path is None else cell_path)
+    cell = load_cell(path)
+    setup = setup_for_cell(cell)
+    if setup is None:
+        raise ReachSetupError(
+            f"{path}: "
+            + (
+                "has no robot: section, so there is no robot to check; add one naming the robot and where it "
+                "stands (robot: {model: irb6600-175-2.55, base: ..., tool: ...}; shared/SPEC.md section 9)"
+                if not cell.robot_section
+                else "the robot: section names no robot model; add model: (e.g. robot: {model: irb6600-175-2.55})"
+            )
+        )
+    found = lookup(door_id)
+    if found is None:
+        raise DoorChoiceError(
+            "unknown_door",
+            f"no recipe for door {door_id!r} in the database; import one with 'doorloc recipes import'",
+        )
+    recipe = found[0]
+    report = reach_for_door(setup, recipe, pose, cell.face_y(recipe.door_size()))
+    return ReachOutcome(report, setup, path, bundled)
+
+
+# ---------------------------------------------------------------------------------------------- calibration
+
+
+@dataclass(frozen=True)
+class CameraCalibration:
+    """A camera calibrated from a folder of board photographs, ready to write.
+
+    ``calibration`` is the file's content (the measured camera response in it when there was one);
+    ``response`` the response measured on the chessboard's squares (None: not measured, and
+    ``response_problem`` says why when the measurement itself failed).
+    """
+
+    outcome: CalibrationOutcome
+    calibration: CalibrationFile
+    response: BoardResponse | None
+    response_problem: str | None = None
+
+
+def calibrate_camera(
+    images_dir: str | Path,
+    board: Board,
+    *,
+    candidates: tuple[Candidate, ...] | None = None,
+    n_folds: int = 5,
+    min_views: int = 4,
+    camera_name: str = "doorloc",
+) -> CameraCalibration:
+    """Calibrate a camera from the board photographs in ``images_dir`` and measure its response.
+
+    Raises :class:`doorloc.calib.folder.TooFewViewsError` (its ``detected`` says what each image gave),
+    :class:`doorloc.calib.calibrate.CalibrationError`, :class:`doorloc.calib.folder.CalibrationInputError`.
+    """
+    from doorloc.calib.calibrate import CANDIDATES
+    from doorloc.calib.detect import Chessboard
+    from doorloc.calib.folder import calibrate_folder, full_board_views, read_folder
+    from doorloc.vision.response import board_response
+
+    outcome = calibrate_folder(
+        images_dir, board, candidates=candidates or tuple(CANDIDATES), n_folds=n_folds, min_views=min_views
+    )
+    cal = outcome.calibration_file(camera_name)
+    if not isinstance(board, Chessboard):  # a ChArUco board's corners need not all be seen
+        return CameraCalibration(outcome, cal, None)
+    try:
+        # read again: the calibration keeps corners, not images
+        views = full_board_views(read_folder(images_dir), outcome.detected.scan, board)
+        response = board_response(views, board.cols, board.rows)
+    except Exception as e:  # noqa: BLE001 - an extra measurement must not cost the calibration itself
+        return CameraCalibration(outcome, cal, None, f"{type(e).__name__}: {e}")
+    if response is not None:
+        cal = replace(cal, response_gamma=response.gamma, response_gamma_sigma=response.sigma)
+    return CameraCalibration(outcome, cal, response)
+
+
+class PlacementRefused(ValueError):
+    """The board image cannot place the camera (no board, a poor fit); nothing is written."""
+
+
+@dataclass(frozen=True)
+class CameraPlacement:
+    """The camera placed in the cell by one board image: the fit, and the cell file text to write."""
+
+    fit: CellCalibration
+    cell_yaml: str
+    #: the board's corners found in the image, px
+    corners_px: np.ndarray
+    #: the camera placed (intrinsics as in the cell file; its extrinsics are ``fit.extrinsics``)
+    camera: CameraModel
+
+
+def place_camera(
+    cell_path: Path,
+    image_path: Path,
+    board: Board,
+    board_origin_mm: tuple[float, float, float],
+    board_x_axis: tuple[float, float, float],
+    board_y_axis: tuple[float, float, float],
+    *,
+    board_label: str,
+    out_path: Path,
+    max_rms_px: float,
+) -> CameraPlacement:
+    """Camera extrinsics from one image of a board at a known place in the cell (mm, cell frame).
+
+    ``board_label`` names the board in messages and in the written provenance (``9x6``).
+
+    Raises :class:`doorloc.cell.CellFileError` or ValueError (unusable files: exit 2 in the CLI) and
+    :class:`PlacementRefused` (no board, a fit worse than ``max_rms_px``).
+    """
+    from doorloc.calib.cell import CellCalibrationError, board_points_in_cell, calibrate_cell_extrinsics
+    from doorloc.calib.cell_init import placed_cell_yaml
+    from doorloc.calib.detect import detect_board
+    from doorloc.calib.folder import read_image_file
+    from doorloc.cell import load_cell
+
+    cell = load_cell(cell_path)
+    im, err = read_image_file(image_path)
+    if im is None:
+        raise ValueError(f"{image_path} {err}")
+    size = cell.camera.image_size
+    if (im.shape[1], im.shape[0]) != size:
+        raise ValueError(
+            f"{image_path} is {im.shape[1]}x{im.shape[0]} but the cell's camera was calibrated at {size[0]}x{size[1]}"
+        )
+    det = detect_board(im, board)
+    if det is None:
+        raise PlacementRefused(f"no board ({board_label}) found in {image_path}; nothing written")
+    try:
+        pts = board_points_in_cell(det.object_points(board), board_origin_mm, board_x_axis, board_y_axis)
+        fit = calibrate_cell_extrinsics(cell.camera, pts, det.corners_px, cell.face_y(cell.default_door))
+    except CellCalibrationError as e:
+        raise PlacementRefused(f"{e}; nothing written") from None
+    if fit.rms_px > max_rms_px:
+        raise PlacementRefused(
+            f"board reprojection RMS {fit.rms_px:.2f} px exceeds --max-rms {max_rms_px} px: check "
+            "--board-origin, the axes and that the board lies flat; nothing written"
+        )
+    placed_by = {
+        "image": str(image_path),
+        "board": board_label,
+        "square_mm": board.square_mm,
+        "board_origin_mm": list(board_origin_mm),
+        **fit.to_dict(),
+    }
+    text = placed_cell_yaml(cell_path, cell.with_extrinsics(fit.extrinsics), placed_by, out_path)
+    return CameraPlacement(fit, text, det.corners_px, cell.camera)
