@@ -196,6 +196,17 @@ def test_validity_reads_cell_files(tmp_path):
     assert r.exit_code == EXIT_USAGE and "cannot read" in r.output
 
 
+def test_a_wrong_pattern_says_which_board_the_photographs_show(messy_dir, tmp_path):
+    few = tmp_path / "few"
+    few.mkdir()
+    for name in ("left01.jpg", "left02.jpg", "left03.jpg", "left04.jpg"):
+        shutil.copy(messy_dir / name, few / name)
+    out = tmp_path / "camera.yaml"
+    r = runner.invoke(app, ["calibrate", str(few), "--pattern", "10x7", "--square", "25", "--out", str(out)])
+    assert r.exit_code == EXIT_FAILED and not out.exists()
+    assert "show a 9x6 chessboard (inner corners), not 10x7: give --pattern 9x6" in r.output
+
+
 def test_a_failing_response_measurement_does_not_cost_the_calibration(messy_dir, tmp_path, monkeypatch):
     import doorloc.vision.response as response
 

@@ -11,6 +11,7 @@ Each raises an error with a sentence a person can act on (:class:`DoorChoiceErro
 from __future__ import annotations
 
 import functools
+import logging
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -86,17 +87,30 @@ class ReachSetupError(ValueError):
     """The cell cannot be checked for reach (no robot named); the message says what to add."""
 
 
+#: a kernel load slower than this was a compile (loading the cached kernels takes about a second)
+COMPILE_NOTICE_S = 5.0
+
+
 @functools.cache
 def default_locate_fn() -> LocateFn:
     """The real pipeline, :func:`doorloc.vision.locate.locate` (imported on first use: it pulls in OpenCV).
 
     Its numba kernels are loaded from their disk cache (or compiled) here, once per process, so that the
-    first locate's time is its own and not the kernels'.
+    first locate's time is its own and not the kernels'. A compile (the first run on a machine: minutes) is
+    announced once, with its duration, on the ``doorloc.app`` logger.
     """
     from doorloc.vision.jit import compile_kernels
     from doorloc.vision.locate import locate
 
-    compile_kernels()
+    t0 = time.perf_counter()
+    n = compile_kernels()
+    seconds = time.perf_counter() - t0
+    if seconds > COMPILE_NOTICE_S:  # compiled, not loaded: say once why this first answer waited
+        logging.getLogger("doorloc.app").warning(
+            f"doorloc: locate's {n} numba kernels were compiled in {seconds:.1f} s; they are cached now, "
+            "so later runs load them in about a second",
+            extra={"fields": {"event": "kernels_compiled", "kernels": n, "seconds": round(seconds, 1)}},
+        )
     return locate
 
 
@@ -368,12 +382,25 @@ def calibrate_camera(
     """
     from doorloc.calib.calibrate import CANDIDATES
     from doorloc.calib.detect import Chessboard
-    from doorloc.calib.folder import calibrate_folder, full_board_views, read_folder
+    from doorloc.calib.folder import TooFewViewsError, calibrate_folder, full_board_views, read_folder
     from doorloc.vision.response import board_response
 
-    outcome = calibrate_folder(
-        images_dir, board, candidates=candidates or tuple(CANDIDATES), n_folds=n_folds, min_views=min_views
-    )
+    try:
+        outcome = calibrate_folder(
+            images_dir,
+            board,
+            candidates=candidates or tuple(CANDIDATES),
+            n_folds=n_folds,
+            min_views=min_views,
+        )
+    except TooFewViewsError as e:
+        if not isinstance(board, Chessboard) or (seen := _board_seen_instead(images_dir, board)) is None:
+            raise
+        raise TooFewViewsError(
+            f"{e}; the photographs show a {seen[0]}x{seen[1]} chessboard (inner corners), not "
+            f"{board.cols}x{board.rows}: give --pattern {seen[0]}x{seen[1]}",
+            e.detected,
+        ) from None
     cal = outcome.calibration_file(camera_name)
     if not isinstance(board, Chessboard):  # a ChArUco board's corners need not all be seen
         return CameraCalibration(outcome, cal, None)
@@ -386,6 +413,24 @@ def calibrate_camera(
     if response is not None:
         cal = replace(cal, response_gamma=response.gamma, response_gamma_sigma=response.sigma)
     return CameraCalibration(outcome, cal, response)
+
+
+def _board_seen_instead(
+    images_dir: str | Path, board: Chessboard, at_most: int = 3
+) -> tuple[int, int] | None:
+    """The chessboard the first images without ``board`` show instead (a wrong ``--pattern``), or None."""
+    from doorloc.calib.detect import nearby_chessboard
+    from doorloc.calib.folder import read_folder
+
+    looked = 0
+    for _name, image, _why in read_folder(images_dir):
+        if image is None or looked >= at_most:
+            continue
+        looked += 1
+        seen = nearby_chessboard(image, board)
+        if seen is not None:
+            return seen
+    return None
 
 
 class PlacementRefused(ValueError):

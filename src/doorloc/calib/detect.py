@@ -262,6 +262,36 @@ def detect_chessboard(image: np.ndarray, board: Chessboard, *, refine: bool = Tr
     return BoardDetection(c, np.arange(int(board.cols) * int(board.rows)), (w, h), method, hw, sq)
 
 
+def nearby_chessboard(image: np.ndarray, board: Chessboard) -> tuple[int, int] | None:
+    """The inner-corner count ``(cols, rows)`` of a chessboard ``image`` does show where ``board`` is not found.
+
+    Tries the usual mistakes: squares counted instead of inner corners (one more each way), one count off,
+    columns and rows swapped. None when none of those is found either. For a message, not for measuring:
+    the classic detector with its fast check, no refinement.
+    """
+    gray = to_gray(image)
+    c, r = int(board.cols), int(board.rows)
+    tries = [
+        (c - 1, r - 1),
+        (r, c),
+        (c - 1, r),
+        (c, r - 1),
+        (r - 1, c - 1),
+        (c + 1, r + 1),
+        (c + 1, r),
+        (c, r + 1),
+    ]
+    flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_FAST_CHECK
+    for cols, rows in dict.fromkeys(tries):
+        if (
+            min(cols, rows) >= 2
+            and (cols, rows) != (c, r)
+            and cv2.findChessboardCorners(gray, (cols, rows), flags=flags)[0]
+        ):
+            return cols, rows
+    return None
+
+
 def detect_charuco(
     image: np.ndarray, board: CharucoSpec, *, refine: bool = True, min_corners: int = 6
 ) -> BoardDetection | None:
