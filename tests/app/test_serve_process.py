@@ -75,6 +75,9 @@ def test_serve_with_two_workers_answers_and_stops(cell, tmp_path):
     assert proc.returncode == 0, out
     # structured request log: one JSON line per request, with its id
     assert '"event": "request"' in out and '"route": "/v1/locate"' in out
+    # uvicorn's own lines (start-up, shut-down) in the same JSON form, not its plain "INFO:     ..." text
+    assert '"logger": "uvicorn.error"' in out
+    assert not [line for line in out.splitlines() if line.startswith(("INFO:", "WARNING:", "ERROR:"))], out
 
 
 def test_serve_refuses_a_broken_cell_file_with_a_sentence(tmp_path):

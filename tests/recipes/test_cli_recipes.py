@@ -84,6 +84,7 @@ def test_database_from_environment(tmp_path):
 def test_one_database_option_and_plain_help(db):
     """--db everywhere (serve and batch still take their older --database-url, unlisted); --pose reads X Z YAW or
     X,Z,YAW; flags show no type; `version` is kept for scripts but only --version is listed."""
+    assert run("recipes", "import", GOLDEN / "golden_recipe.csv", "--db", db).exit_code == 0
     assert run("targets", "--door-id", "GOLDEN-1", "--pose", "0,0,0", "--db", db).exit_code == 0
     same = run("targets", "--door-id", "GOLDEN-1", "--pose", "0", "0", "0", "--db", db)
     assert run("targets", "--door-id", "GOLDEN-1", "--pose=0,0,0", "--db", db).stdout == same.stdout
@@ -93,7 +94,8 @@ def test_one_database_option_and_plain_help(db):
         assert "<bool>" not in help_text, command
     assert "X Z YAW" in run("reach", "--help").stdout
     top = run("--help").stdout
-    assert "--version" in top and " version " not in top
+    commands = top.split("Commands:")[1]
+    assert "--version" in top and "render" in commands and "\n  version " not in commands
     assert run("version").exit_code == 0 and run("--version").exit_code == 0
 
 
