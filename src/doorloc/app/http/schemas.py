@@ -25,9 +25,9 @@ __all__ = [
 class DoorOut(BaseModel):
     """The nominal door the image was measured as, mm."""
 
-    width_mm: float
-    thickness_mm: float
-    height_mm: float
+    width_mm: float = Field(description="nominal door width (along cell +Y), mm")
+    thickness_mm: float = Field(description="nominal door thickness (along cell +X), mm")
+    height_mm: float = Field(description="nominal door height (along cell +Z), mm")
 
 
 class LocateResponse(LocateResult):
@@ -36,7 +36,7 @@ class LocateResponse(LocateResult):
     door_id: str | None = Field(
         None, description="the recipe used, or null when the door was given by its size"
     )
-    door: DoorOut
+    door: DoorOut = Field(description="the nominal door the image was measured as (recipe or given size), mm")
     targets: list[Target] = Field(
         description="hinge targets in the cell frame; empty without a recipe or a pose"
     )
@@ -74,14 +74,16 @@ class Health(BaseModel):
 
 class Readiness(BaseModel):
     status: str = Field(description="'ready' when the cell and calibration are loaded")
-    cell_id: str | None = None
-    calibration_id: str | None = None
+    cell_id: str | None = Field(None, description="content hash of the cell in use (as in /v1/cell)")
+    calibration_id: str | None = Field(
+        None, description="content hash of the camera calibration in use (as in /v1/cell)"
+    )
 
 
 class DoorList(BaseModel):
     """One page of the door ids in the recipe database (ordered by id)."""
 
-    door_ids: list[str]
+    door_ids: list[str] = Field(description="the door ids on this page, in id order")
     total: int = Field(description="how many recipes are stored")
     limit: int = Field(description="page size used")
     offset: int = Field(description="index of the first id on this page")
@@ -92,15 +94,15 @@ class RecipeChangeOut(BaseModel):
     field: str = Field(
         description="changed field, e.g. 'width_mm' or 'hinges[1].z_mm' ('hinges': their number)"
     )
-    old: Any = None
-    new: Any = None
+    old: Any = Field(None, description="the value before the change (null: the field was not set)")
+    new: Any = Field(None, description="the value after the change (null: the field was removed)")
 
 
 class RecipeVersionOut(BaseModel):
     """One change of a door recipe: who, when, what."""
 
-    door_id: str
-    version: int
+    door_id: str = Field(description="the door recipe's id")
+    version: int = Field(description="recipe version, counting from 1")
     action: str = Field(
         description="created, updated, deleted (retired) or migrated (stored before history existed)"
     )
@@ -113,5 +115,5 @@ class RecipeVersionOut(BaseModel):
 
 
 class RecipeHistory(BaseModel):
-    door_id: str
-    versions: list[RecipeVersionOut]
+    door_id: str = Field(description="the door recipe's id")
+    versions: list[RecipeVersionOut] = Field(description="every version, oldest first")
