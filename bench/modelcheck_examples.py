@@ -1,4 +1,4 @@
-"""The thesis's worked examples for `check-model` (README), one command each.
+"""The thesis's worked examples for `check-model` (docs/benchmarks.md, "Model check"), one command each.
 
     PYTHONPATH=src python bench/modelcheck_examples.py pixel-aspect
     PYTHONPATH=src python bench/modelcheck_examples.py distortion

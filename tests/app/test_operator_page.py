@@ -105,3 +105,80 @@ def test_upload_shows_pose_overlay_and_targets_then_an_error_sentence(live_serve
             assert "is not a PNG, JPEG, TIFF or BMP image" in page.text_content("#error")
         finally:
             browser.close()
+
+
+def _dominant(answer: dict, key: str, index: int) -> str:
+    """The term the page should name for one pose value (the rule it states, computed from the JSON)."""
+    d = answer["diagnostics"]
+    if d.get("uncertainty_budget") is not None:
+        parts = {t["source"]: t[key] for t in d["uncertainty_budget"]}
+    else:
+        parts = {name: t[index] for name, t in d["uncertainty_terms"].items()}
+    return max(parts, key=lambda k: parts[k]).replace("_", " ")
+
+
+def test_pose_values_show_their_one_sigma_and_the_dominant_uncertainty_term(live_server, cell, tmp_path):
+    _require_chromium()
+    import numpy as np
+    from playwright.sync_api import sync_playwright
+
+    from doorloc.pose import DoorPose
+    from doorloc.sim.door import render_door
+
+    door_png = tmp_path / "door.png"
+    rendered = render_door(cell, cell.default_door, DoorPose(-2.0, 5.0, -0.4), seed=11).image
+    door_png.write_bytes(cv2.imencode(".png", rendered)[1].tobytes())
+    # a budget whose largest entry differs per pose value, so the page must pick per value, by name
+    budget = [
+        {"source": "calibration", "x_mm": 0.004, "z_mm": 0.001, "yaw_deg": 0.0001, "thickness_mm": 0.002},
+        {"source": "edge_noise", "x_mm": 0.001, "z_mm": 0.003, "yaw_deg": 0.0002, "thickness_mm": 0.001},
+        {"source": "jpeg_tilt", "x_mm": 0.0005, "z_mm": 0.0005, "yaw_deg": 0.0009, "thickness_mm": 0.0},
+        {"source": "far_face", "x_mm": 0.0, "z_mm": 0.0, "yaw_deg": 0.0, "thickness_mm": 0.006},
+    ]
+
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS, headless=True)
+        try:
+            page = browser.new_page()
+            page.goto(live_server + "/")
+            page.wait_for_function("document.getElementById('ready').textContent === 'ready'", timeout=20_000)
+            page.fill("#door_id", "D-100")
+
+            # 1. the answer as the service gives it
+            with page.expect_response(lambda r: "/v1/locate" in r.url) as got:
+                page.set_input_files("#image", str(door_png))
+            answer = got.value.json()
+            assert answer["ok"], answer["error"]
+            page.wait_for_function("document.getElementById('sigma-x').textContent.startsWith('±')")
+            for row, key, index in (("x", "x_mm", 0), ("z", "z_mm", 1), ("yaw", "yaw_deg", 2)):
+                shown = page.text_content(f"#sigma-{row}")
+                assert float(shown.removeprefix("± ")) == pytest.approx(answer["uncertainty"][key], rel=0.05)
+                assert page.text_content(f"#dominant-{row}") == _dominant(answer, key, index)
+            sigma_t = answer["diagnostics"]["thickness_check"]["sigma_mm"]
+            assert float(page.text_content("#sigma-thickness").removeprefix("± ")) == pytest.approx(
+                sigma_t, rel=0.05
+            )
+            if "uncertainty_budget" not in answer["diagnostics"]:  # the named terms have no thickness part
+                assert page.text_content("#dominant-thickness") == ""
+
+            # 2. the same answer with a budget: each value names its own largest term
+            budgeted = {**answer, "diagnostics": {**answer["diagnostics"], "uncertainty_budget": budget}}
+            page.route("**/v1/locate*", lambda route: route.fulfill(json=budgeted))
+            page.set_input_files("#image", [])
+            page.set_input_files("#image", str(door_png))
+            page.wait_for_function("document.getElementById('dominant-x').textContent === 'calibration'")
+            assert page.text_content("#dominant-z") == "edge noise"
+            assert page.text_content("#dominant-yaw") == "jpeg tilt"
+            assert page.text_content("#dominant-thickness") == "far face"
+
+            # 3. a refusal shows no sigma and names no term
+            page.unroute("**/v1/locate*")
+            black = tmp_path / "black.png"
+            width, height = cell.camera.image_size
+            black.write_bytes(cv2.imencode(".png", np.zeros((height, width), np.uint8))[1].tobytes())
+            page.set_input_files("#image", str(black))
+            page.wait_for_function("document.getElementById('status').textContent === 'refused'")
+            assert page.text_content("#sigma-x") == "—"
+            assert page.text_content("#dominant-x") == ""
+        finally:
+            browser.close()

@@ -1,4 +1,4 @@
-"""`doorloc cell init` and the README's first hour: calibration -> starting cell -> calibrate-cell -> locate."""
+"""`doorloc cell init` and the guide's first hour (docs/guide.md): calibration -> starting cell -> calibrate-cell -> locate."""
 
 from __future__ import annotations
 
@@ -32,7 +32,7 @@ def _run(*args: object):
 
 
 def test_first_hour_from_a_calibration_to_a_located_door(tmp_path):
-    """The README's walk-through with the bundled thesis camera and board image."""
+    """The guide's walk-through (docs/guide.md) with the bundled thesis camera and board image."""
     cell_file = tmp_path / "cell.yaml"
     r = _run("cell", "init", "--calibration", CAMERA, "--out", cell_file)
     assert r.exit_code == 0, r.output

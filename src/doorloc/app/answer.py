@@ -52,9 +52,9 @@ NO_REACH_NOTE = "no targets: the robot cannot follow them (see error and reach)"
 class DoorOut(BaseModel):
     """The nominal door the image was measured as, mm."""
 
-    width_mm: float
-    thickness_mm: float
-    height_mm: float
+    width_mm: float = Field(description="nominal door width (along cell +Y), mm")
+    thickness_mm: float = Field(description="nominal door thickness (along cell +X), mm")
+    height_mm: float = Field(description="nominal door height (along cell +Z), mm")
 
     @classmethod
     def of(cls, door: DoorSize) -> DoorOut:
@@ -67,7 +67,7 @@ class LocateResponse(LocateResult):
     door_id: str | None = Field(
         None, description="the recipe used, or null when the door was given by its size"
     )
-    door: DoorOut
+    door: DoorOut = Field(description="the nominal door the image was measured as (recipe or given size), mm")
     targets: list[Target] = Field(
         description="hinge targets in the cell frame; empty without a recipe or a pose"
     )

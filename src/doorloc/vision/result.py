@@ -81,7 +81,9 @@ class LocateResult(BaseModel):
     model_config = ConfigDict(extra="allow")
 
     image: str = Field(description="image name or path as given")
-    ok: bool
+    ok: bool = Field(
+        description="true: the door was located and the pose fields hold its pose; false: refused"
+    )
     x_mm: float | None = Field(None, description="shift of the reference corner along cell +X, mm")
     z_mm: float | None = Field(None, description="shift of the reference corner along cell +Z, mm")
     yaw_deg: float | None = Field(None, description="door rotation in the hinge-face plane, degrees")

@@ -39,14 +39,19 @@ class Health(BaseModel):
 
 class Readiness(BaseModel):
     status: str = Field(description="'ready' when the cell and calibration are loaded")
-    cell_id: str | None = None
-    calibration_id: str | None = None
+    cell_id: str | None = Field(
+        None,
+        description="'sha256:' + the cell file's SHA-256 (as in /v1/cell and results' provenance.cell_sha256)",
+    )
+    calibration_id: str | None = Field(
+        None, description="'sha256:' + the camera calibration's SHA-256 (as in provenance.calibration_sha256)"
+    )
 
 
 class DoorList(BaseModel):
     """One page of the door ids in the recipe database (ordered by id)."""
 
-    door_ids: list[str]
+    door_ids: list[str] = Field(description="the door ids on this page, in id order")
     total: int = Field(description="how many recipes are stored")
     limit: int = Field(description="page size used")
     offset: int = Field(description="index of the first id on this page")
@@ -57,15 +62,15 @@ class RecipeChangeOut(BaseModel):
     field: str = Field(
         description="changed field, e.g. 'width_mm' or 'hinges[1].z_mm' ('hinges': their number)"
     )
-    old: Any = None
-    new: Any = None
+    old: Any = Field(None, description="the value before the change (null: the field was not set)")
+    new: Any = Field(None, description="the value after the change (null: the field was removed)")
 
 
 class RecipeVersionOut(BaseModel):
     """One change of a door recipe: who, when, what."""
 
-    door_id: str
-    version: int
+    door_id: str = Field(description="the door recipe's id")
+    version: int = Field(description="recipe version, counting from 1")
     action: str = Field(
         description="created, updated, deleted (retired) or migrated (stored before history existed)"
     )
@@ -78,5 +83,5 @@ class RecipeVersionOut(BaseModel):
 
 
 class RecipeHistory(BaseModel):
-    door_id: str
-    versions: list[RecipeVersionOut]
+    door_id: str = Field(description="the door recipe's id")
+    versions: list[RecipeVersionOut] = Field(description="every version, oldest first")

@@ -55,6 +55,7 @@ function showAnswer(a) {
   $("pose-scale").textContent = fmt(a.scale_mm_per_px, 5);
   $("pose-corner").textContent = a.corner_px ? a.corner_px.map((v) => fmt(v, 2)).join(", ") : "—";
   $("pose-elapsed").textContent = fmt(a.elapsed_ms, 0);
+  showUncertainty(a);
   if (a.overlay_png) {
     $("overlay").src = "data:image/png;base64," + a.overlay_png;
   } else {
@@ -69,6 +70,31 @@ function showAnswer(a) {
   ]));
   showReach(a.reach);
   showError(a.ok ? "" : a.error);
+}
+
+// Each pose value's 1-sigma, and the uncertainty term that contributes most to it: by its name in
+// diagnostics.uncertainty_budget ([{source, x_mm, z_mm, yaw_deg, thickness_mm}]) where the answer has one,
+// else in diagnostics.uncertainty_terms ({name: [x_mm, z_mm, yaw_deg]}, no thickness part).
+function dominantTerm(d, key, index) {
+  const parts = Array.isArray(d.uncertainty_budget)
+    ? d.uncertainty_budget.map((t) => [t.source, t[key]])
+    : Object.entries(d.uncertainty_terms || {}).map(([name, t]) => [name, index === null ? null : t[index]]);
+  const best = parts.filter(([, v]) => typeof v === "number" && v > 0).sort((p, q) => q[1] - p[1])[0];
+  return best ? String(best[0]).replaceAll("_", " ") : "";
+}
+
+function showUncertainty(a) {
+  const u = a.uncertainty || {};
+  const d = a.diagnostics || {};
+  const thickness = a.ok && d.thickness_check ? d.thickness_check.sigma_mm : null;
+  for (const [row, key, index, sigma] of [
+    ["x", "x_mm", 0, u.x_mm], ["z", "z_mm", 1, u.z_mm], ["yaw", "yaw_deg", 2, u.yaw_deg],
+    ["thickness", "thickness_mm", null, thickness],
+  ]) {
+    const known = sigma !== null && sigma !== undefined;
+    $("sigma-" + row).textContent = known ? "± " + Number(sigma).toPrecision(2) : "—";
+    $("dominant-" + row).textContent = known ? dominantTerm(d, key, index) : "";
+  }
 }
 
 // The reach block (SPEC section 9): present when the cell names a robot and there were targets.
