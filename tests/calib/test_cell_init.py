@@ -9,7 +9,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 from typer.testing import CliRunner
 
@@ -133,6 +133,7 @@ def test_cell_init_refuses_an_impossible_door(tmp_path):
     assert "thickness" in r.output and not (tmp_path / "cell.yaml").exists()
 
 
+@settings(deadline=None)  # each example reads the calibration file: no wall-clock limit in a test
 @given(st.tuples(*[st.floats(-2000, 2000, allow_nan=False)] * 3))
 def test_the_starting_placement_puts_the_camera_centre_where_asked(centre):
     doc = starting_cell_document(CAMERA, ROOT / "cell.yaml", StartingCell(camera_centre_mm=centre))

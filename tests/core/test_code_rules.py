@@ -234,3 +234,12 @@ def test_the_circle_test_sees_a_lazy_circle(tmp_path):
     (pkg / "b.py").write_text("x = 1\n")
     assert import_circle(import_graph(tmp_path), CIRCLES_ALLOWED_INSIDE) is None
     assert set(import_circle(import_graph(tmp_path)) or []) == {"doorloc.vision.p", "doorloc.vision.q"}
+
+
+@pytest.mark.parametrize("path", sorted(APP.glob("cli*.py")), ids=lambda p: p.name)
+def test_cli_commands_are_short_whole(path):
+    """Counted whole too (options and help included), a command stays within the limit: its options are
+    shared declarations (cli_common) and its work a library call."""
+    commands = {name for name, _, entry in function_lengths(path) if entry}
+    too_long = [f"{n} ({k} lines)" for n, k in whole_lengths(path) if n in commands and k > MAX_COMMAND_LINES]
+    assert not too_long, f"{path.name}: {', '.join(too_long)}"

@@ -18,7 +18,7 @@ from doorloc.app.errors import EXIT_FAILED, EXIT_REFUSED, EXIT_USAGE, fail
 if TYPE_CHECKING:  # the calibration modules load only when a command runs (fast `doorloc --help`)
     import numpy as np
 
-    from doorloc.app.services import CameraPlacement
+    from doorloc.app.services import CameraCalibration, CameraPlacement
     from doorloc.calib.calibrate import Candidate
     from doorloc.calib.camera import CameraModel, DistortionValidity
     from doorloc.calib.detect import SkippedImage
@@ -146,12 +146,49 @@ def _warn_beyond_valid_radius(camera: CameraModel, pixels: list[np.ndarray], cel
         )
 
 
+Vec3 = tuple[float, float, float]
 BoardSide = Annotated[float, typer.Option("--square", metavar="MM", help="square side, mm")]
 CharucoFlag = Annotated[bool, typer.Option("--charuco", help="the board is a ChArUco board")]
 MarkerOption = Annotated[float | None, typer.Option(metavar="MM", help="ChArUco marker side, mm")]
 DictionaryOption = Annotated[str, typer.Option(help="ChArUco ArUco dictionary")]
 LegacyFlag = Annotated[bool, typer.Option("--legacy", help="ChArUco board in OpenCV's pre-4.6 layout")]
-CellAxis = Annotated[tuple[float, float, float], typer.Option(metavar="X Y Z")]
+
+
+def _board_or_fail(
+    pattern: str, square: float, charuco: bool, marker: float | None, dictionary: str, legacy: bool
+):
+    """:func:`_board`, exit 2 with its sentence for a bad ``--pattern``, ``--square`` or ``--marker``."""
+    try:
+        return _board(pattern, square, charuco, marker, dictionary, legacy)
+    except ValueError as e:
+        raise fail(str(e)) from None
+
+
+def _calibrated(
+    images_dir: Path, board, model: str, folds: int, min_views: int, camera_name: str
+) -> CameraCalibration:
+    """:func:`doorloc.app.services.calibrate_camera`; exit 3 (nothing written) when too few views show the
+    board or the fit fails, 2 for no images or a bad ``--model``."""
+    from doorloc.app.services import calibrate_camera
+    from doorloc.calib.calibrate import CalibrationError
+    from doorloc.calib.folder import CalibrationInputError, TooFewViewsError
+
+    try:
+        return calibrate_camera(
+            images_dir,
+            board,
+            candidates=_candidates(model),
+            n_folds=folds,
+            min_views=min_views,
+            camera_name=camera_name,
+        )
+    except TooFewViewsError as e:
+        _echo_skipped(e.detected.skipped)
+        raise fail(f"{e} (nothing written)", EXIT_FAILED) from None
+    except CalibrationError as e:
+        raise fail(f"{e} (nothing written)", EXIT_FAILED) from None
+    except (CalibrationInputError, ValueError) as e:  # no images, or a bad --model
+        raise fail(str(e)) from None
 
 
 def calibrate_cmd(
@@ -190,31 +227,13 @@ def calibrate_cmd(
     reason; the calibration goes ahead if enough views remain. Exit codes: 0 done, 2 bad
     arguments or input, 3 too few usable views (nothing written).
     """
-    from doorloc.app.services import calibrate_camera
-    from doorloc.calib.calibrate import CalibrationError
-    from doorloc.calib.folder import CalibrationInputError, TooFewViewsError
     from doorloc.calib.io import save_calibration
     from doorloc.calib.report import write_report
 
     if fmt not in ("opencv", "ros"):
         raise fail(f"--format must be opencv or ros, got {fmt!r}")
-    try:
-        board = _board(pattern, square, charuco, marker, dictionary, legacy)
-        done = calibrate_camera(
-            images_dir,
-            board,
-            candidates=_candidates(model),
-            n_folds=folds,
-            min_views=min_views,
-            camera_name=camera_name,
-        )
-    except TooFewViewsError as e:
-        _echo_skipped(e.detected.skipped)
-        raise fail(f"{e} (nothing written)", EXIT_FAILED) from None
-    except CalibrationError as e:
-        raise fail(f"{e} (nothing written)", EXIT_FAILED) from None
-    except (CalibrationInputError, ValueError) as e:  # no images, or a bad --pattern, --marker or --model
-        raise fail(str(e)) from None
+    board = _board_or_fail(pattern, square, charuco, marker, dictionary, legacy)
+    done = _calibrated(images_dir, board, model, folds, min_views, camera_name)
     _echo_skipped(done.outcome.detected.skipped)
     if done.response_problem:
         typer.echo(f"warning: the camera response was not measured ({done.response_problem})", err=True)
@@ -243,18 +262,10 @@ def calibrate_cell_cmd(
     ],
     out: Annotated[Path, typer.Option(help="cell file to write (may be the same as --cell)")],
     board_x_axis: Annotated[
-        tuple[float, float, float],
-        typer.Option(
-            metavar="X Y Z",
-            help="cell direction of the board's rows (image-right in the reference mount: +X)",
-        ),
+        Vec3, typer.Option(metavar="X Y Z", help="cell direction of the board's rows (image-right: +X)")
     ] = (1.0, 0.0, 0.0),
     board_y_axis: Annotated[
-        tuple[float, float, float],
-        typer.Option(
-            metavar="X Y Z",
-            help="cell direction of the board's columns (image-down in the reference mount: -Z)",
-        ),
+        Vec3, typer.Option(metavar="X Y Z", help="cell direction of the board's columns (image-down: -Z)")
     ] = (0.0, 0.0, -1.0),
     charuco: CharucoFlag = False,
     marker: MarkerOption = None,
@@ -271,18 +282,11 @@ def calibrate_cell_cmd(
     from doorloc.cell import CellFileError
     from doorloc.fileio import atomic_write_text
 
+    board = _board_or_fail(pattern, square, charuco, marker, dictionary, legacy)
+    axes = (board_origin, board_x_axis, board_y_axis)
     try:
-        board = _board(pattern, square, charuco, marker, dictionary, legacy)
         placed = place_camera(
-            cell,
-            image,
-            board,
-            board_origin,
-            board_x_axis,
-            board_y_axis,
-            board_label=pattern,
-            out_path=out,
-            max_rms_px=max_rms,
+            cell, image, board, *axes, board_label=pattern, out_path=out, max_rms_px=max_rms
         )
     except PlacementRefused as e:
         raise fail(str(e), EXIT_REFUSED) from None

@@ -63,9 +63,7 @@ def locate_cmd(
     """Locate the door in one image and print the result JSON (exit 0 located, 1 refused, 2 bad input)."""
     from doorloc.app.batch import FileLimits, read_file_checked
     from doorloc.app.cli_common import load_cell_or_fail, recipe_lookup
-    from doorloc.app.services import DoorChoiceError, answer_image, resolve_door
-    from doorloc.vision.imageio import ImageDecodeError
-    from doorloc.vision.locate import LocateTrace
+    from doorloc.app.services import DoorChoiceError, resolve_door
 
     cell = load_cell_or_fail(cell_file)
     sizes = {"width_mm": door_width, "thickness_mm": door_thickness, "height_mm": door_height}
@@ -79,15 +77,28 @@ def locate_cmd(
     data, _code, why = read_file_checked(str(image), FileLimits())
     if data is None:
         raise fail(why, EXIT_USAGE)
+    answer = answer_with_overlay(data, str(image), cell, choice, overlay)
+    typer.echo(json.dumps(answer.fields, indent=indent or None))
+    raise typer.Exit(EXIT_OK if answer.response.ok else EXIT_REFUSED)  # a reach refusal too
+
+
+def answer_with_overlay(
+    data: bytes, name: str, cell: Cell, choice: DoorChoice, overlay: Path | None
+) -> Answer:
+    """:func:`doorloc.app.services.answer_image` of the file's bytes, the overlay written when asked for;
+    exit 2 for an image that cannot be decoded or an overlay that cannot be written."""
+    from doorloc.app.services import answer_image
+    from doorloc.vision.imageio import ImageDecodeError
+    from doorloc.vision.locate import LocateTrace
+
     trace = LocateTrace() if overlay is not None else None
     try:
-        answer = answer_image(data, cell, choice, image_name=str(image), trace=trace)
+        answer = answer_image(data, cell, choice, image_name=name, trace=trace)
     except ImageDecodeError as e:
         raise fail(str(e), EXIT_USAGE) from None
     if overlay is not None:
         write_overlay(overlay, answer, cell, choice, trace)
-    typer.echo(json.dumps(answer.fields, indent=indent or None))
-    raise typer.Exit(EXIT_OK if answer.response.ok else EXIT_REFUSED)  # a reach refusal too
+    return answer
 
 
 def write_overlay(

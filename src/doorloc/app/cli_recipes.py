@@ -11,11 +11,16 @@ import json
 import sys
 from enum import StrEnum
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import typer
 
 from doorloc.app.cli_common import DbOption, PoseCommand, PoseOption, open_store
 from doorloc.app.errors import EXIT_FAILED, EXIT_REFUSED, EXIT_USAGE, fail
+
+if TYPE_CHECKING:
+    from doorloc.cell import Fixture
+    from doorloc.recipes.rapid import RobotSetup
 
 
 class ListFormat(StrEnum):
@@ -76,6 +81,17 @@ def _cli_user() -> str:
         return "cli:unknown"
 
 
+def _echo_changes(changed: dict) -> None:
+    """What an import would change in stored recipes (stderr; at most 20 doors, 6 changes each)."""
+    for door_id, changes in list(changed.items())[:20]:
+        shown = "; ".join(str(c) for c in changes[:6]) + (
+            f"; ... {len(changes) - 6} more" if len(changes) > 6 else ""
+        )
+        typer.echo(f"  {door_id} would change: {shown}", err=True)
+    if len(changed) > 20:
+        typer.echo(f"  ... and {len(changed) - 20} more door(s)", err=True)
+
+
 @recipes_app.command("import")
 def import_cmd(
     file: Path = typer.Argument(
@@ -116,13 +132,7 @@ def import_cmd(
         preview = store.preview(recipes)
         changed = {k: v for k, v in preview.items() if v}
         new = sum(v is None for v in preview.values())
-        for door_id, changes in list(changed.items())[:20]:
-            shown = "; ".join(str(c) for c in changes[:6]) + (
-                f"; ... {len(changes) - 6} more" if len(changes) > 6 else ""
-            )
-            typer.echo(f"  {door_id} would change: {shown}", err=True)
-        if len(changed) > 20:
-            typer.echo(f"  ... and {len(changed) - 20} more door(s)", err=True)
+        _echo_changes(changed)
         summary = (
             f"{file}: {len(recipes)} door(s), {hinges} hinge(s): {new} new, {len(changed)} changed, "
             f"{len(recipes) - new - len(changed)} unchanged"
@@ -294,23 +304,11 @@ def targets_cmd(
     Without --cell the hinge-face depth comes from the default fixture (face_y_mm 0 at a 900 mm door,
     -0.5 mm per mm of width) and the RAPID module uses the default tool/work-object data.
     """
-    from pydantic import ValidationError
-
-    from doorloc.cell import CellFileError, Fixture, load_cell
     from doorloc.pose import DoorPose
-    from doorloc.recipes.rapid import RobotSetup, rapid_module, rapid_text, robot_setup_from_cell_file
+    from doorloc.recipes.rapid import rapid_module, rapid_text
     from doorloc.recipes.targets import targets_for_pose
 
-    fixture, robot = Fixture(), RobotSetup()
-    if cell is not None:
-        try:
-            fixture = load_cell(cell).fixture
-            robot = robot_setup_from_cell_file(cell)
-        except CellFileError as e:
-            raise fail(str(e)) from None
-        except ValidationError as e:
-            first = e.errors(include_url=False)[0]
-            raise fail(f"{cell}: robot.{'.'.join(map(str, first['loc']))}: {first['msg']}") from None
+    fixture, robot = _fixture_and_robot(cell)
     store = open_store(db)
     with store:
         recipe = store.get(door_id)
@@ -341,6 +339,24 @@ def targets_cmd(
             + "\n"
         )
     _emit(text, out)
+
+
+def _fixture_and_robot(cell: Path | None) -> tuple[Fixture, RobotSetup]:
+    """The cell file's fixture and RAPID robot data (the defaults without a cell); exit 2 for a bad file."""
+    from pydantic import ValidationError
+
+    from doorloc.cell import CellFileError, Fixture, load_cell
+    from doorloc.recipes.rapid import RobotSetup, robot_setup_from_cell_file
+
+    if cell is None:
+        return Fixture(), RobotSetup()
+    try:
+        return load_cell(cell).fixture, robot_setup_from_cell_file(cell)
+    except CellFileError as e:
+        raise fail(str(e)) from None
+    except ValidationError as e:
+        first = e.errors(include_url=False)[0]
+        raise fail(f"{cell}: robot.{'.'.join(map(str, first['loc']))}: {first['msg']}") from None
 
 
 def register(app: typer.Typer) -> None:

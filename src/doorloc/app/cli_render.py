@@ -83,10 +83,7 @@ def render(
         c = load_cell(cell)
     except CellFileError as e:
         raise fail(str(e), EXIT_USAGE) from None
-    if (out_dir / "truth.csv").exists() and not force:
-        raise fail(f"{out_dir} already holds a data set (truth.csv); choose another folder or pass --force")
-    if out_dir.exists() and not out_dir.is_dir():
-        raise fail(f"{out_dir} exists and is not a folder")
+    check_out_dir(out_dir, force)
     try:
         fx = parse_effects(effect or [])
         doors = door_list(c.default_door, thickness, width, height, arris)
@@ -106,6 +103,14 @@ def render(
     except OSError as e:
         raise fail(f"cannot write to {out_dir}: {e.strerror or e}", EXIT_USAGE) from None
     typer.echo(f"wrote {len(items)} images, {truth} and {out_dir / 'cell.yaml'}")
+
+
+def check_out_dir(out_dir: Path, force: bool) -> None:
+    """Exit 2 when ``out_dir`` already holds a data set (unless ``force``) or is not a folder."""
+    if (out_dir / "truth.csv").exists() and not force:
+        raise fail(f"{out_dir} already holds a data set (truth.csv); choose another folder or pass --force")
+    if out_dir.exists() and not out_dir.is_dir():
+        raise fail(f"{out_dir} exists and is not a folder")
 
 
 def door_list(

@@ -3,13 +3,17 @@
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
 from doorloc.app.cli_common import DbAliasOption, DbOption, load_cell_or_fail, recipe_lookup
 from doorloc.app.errors import EXIT_FAILED, EXIT_OK, EXIT_REFUSED, fail
+
+if TYPE_CHECKING:
+    from doorloc.app.batch import BatchJob, BatchSummary
 
 
 def serve_cmd(
@@ -111,13 +115,7 @@ def batch_cmd(
         raise fail(str(e)) from None
     if job.not_images:
         typer.echo(f"doorloc: {batch_mod.not_images_sentence(job.not_images)}", err=True)
-    with job.log:
-        try:
-            summary = _run_with_progress(job.items, job.log, options.backend_for(the_cell))
-        except batch_mod.BatchSetupError as e:
-            raise fail(str(e)) from None
-        except OSError as e:
-            raise fail(f"cannot write {out}: {e.strerror or e}", EXIT_FAILED) from None
+    summary = _run_or_fail(job, options.backend_for(the_cell), out)
     typer.echo(f"{out}: {summary.text()}", err=True)
     raise typer.Exit(EXIT_OK if summary.answered == summary.total else EXIT_REFUSED)
 
@@ -126,6 +124,20 @@ def register(app: typer.Typer) -> None:
     """Add `doorloc serve` and `doorloc batch` to the root app."""
     app.command("serve")(serve_cmd)
     app.command("batch")(batch_cmd)
+
+
+def _run_or_fail(job: BatchJob, backend: Callable, out: Path) -> BatchSummary:
+    """Run the job with a progress bar; exit 2 for a backend that cannot start, 3 for a results file that
+    cannot be written. Returns the summary."""
+    from doorloc.app.batch import BatchSetupError
+
+    with job.log:
+        try:
+            return _run_with_progress(job.items, job.log, backend)
+        except BatchSetupError as e:
+            raise fail(str(e)) from None
+        except OSError as e:
+            raise fail(f"cannot write {out}: {e.strerror or e}", EXIT_FAILED) from None
 
 
 def _checked_cell(cell: Path | None) -> str:
