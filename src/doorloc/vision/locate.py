@@ -51,8 +51,6 @@ from doorloc.vision.edges import (
     EdgeSamples,
     FarFaceFit,
     block_artifact_ratio,
-    linearizing_lut,
-    oriented,
     refine_step_fit,
     step_blur,
     subpixel_edges,
@@ -77,6 +75,7 @@ from doorloc.vision.response import (
     plateau_levels,
 )
 from doorloc.vision.result import LineQuality, LocateResult, PhysicalModel, PoseUncertainty, Provenance
+from doorloc.vision.sampling import linearizing_lut, oriented
 from doorloc.vision.uncertainty import (
     EDGE_MODEL_FLOOR_PX,
     JPEG_BLOCK_RATIO,

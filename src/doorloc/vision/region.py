@@ -22,9 +22,9 @@ import numpy as np
 
 from doorloc.calib.camera import PosedCamera
 from doorloc.cell import Cell, DoorSize, Envelope, Fixture
-from doorloc.vision.edges import Axis
 from doorloc.vision.jit import kernel
 from doorloc.vision.metric import PlaneMap
+from doorloc.vision.sampling import Axis
 
 __all__ = ["EdgeLayout", "Band", "Track", "SearchRegion", "EDGE_NAMES"]
 
