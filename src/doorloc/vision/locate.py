@@ -77,14 +77,16 @@ from doorloc.vision.response import (
 from doorloc.vision.result import LineQuality, LocateResult, PhysicalModel, PoseUncertainty, Provenance
 from doorloc.vision.sampling import linearizing_lut, oriented
 from doorloc.vision.uncertainty import (
-    EDGE_MODEL_FLOOR_PX,
+    CAMERA_RESPONSE,
     JPEG_BLOCK_RATIO,
     JPEG_EDGE_DOUBT_PX,
+    Budget,
     EdgeModelTerms,
+    LineDoubt,
+    LineLever,
     calibration_pose_sigma,
-    combine,
-    corner_fit_sigma,
     jpeg_tilt_sigma,
+    propagate,
 )
 
 __all__ = ["LocateConfig", "locate", "locate_steps", "run_steps", "StepQuery", "LocateTrace"]
@@ -1534,11 +1536,11 @@ def _response_terms(
     used_gamma: float,
     response: ResponseFit,
     far_beside: bool,
-    model: EdgeModelTerms,
+    blur_px: float,
     absorbed: bool,
     factor: float,
-) -> None:
-    """Each line's response doubt (px) into ``model.extra_px[line]["response"]``, from the step model.
+) -> list[LineDoubt]:
+    """Each line's response doubt (px), from the step model.
 
     The edge was measured with ``used_gamma``; the image reads the camera's exponent as ``response.gamma``
     +- ``response.sigma``. The doubt is built from the shift (:func:`doorloc.vision.response.edge_shift_px`
@@ -1577,8 +1579,9 @@ def _response_terms(
     if weak:
         lo_g, hi_g = RESPONSE_PLAUSIBLE
         if not lo_g - 2.0 * response.sigma <= response.gamma <= hi_g + 2.0 * response.sigma:
-            _unmeasured_response_terms(plane, samples, fit, half, used_gamma, factor, far_beside, model)
-            return
+            return _unmeasured_response_terms(
+                plane, samples, fit, half, used_gamma, factor, far_beside, blur_px
+            )
     # the exponent the evidence gives, gc +- sc
     if absorbed:
         gc, sc = response.gamma, response.sigma
@@ -1589,7 +1592,8 @@ def _response_terms(
     else:
         gc, sc = response.gamma, response.sigma
     alternatives = list(response.alternatives)
-    for k, shifts in _line_response_shifts(plane, samples, fit, half, used_gamma, far_beside, model.blur_px):
+    doubts = []
+    for k, shifts in _line_response_shifts(plane, samples, fit, half, used_gamma, far_beside, blur_px):
         # the shift to the evidence's exponent, half the spread over its 1-sigma, and to each alternative
         at = shifts([gc, gc + sc, max(gc - sc, 0.05), *alternatives])
         bias, sp = float(at[0]), 0.5 * abs(float(at[1]) - float(at[2]))
@@ -1611,7 +1615,8 @@ def _response_terms(
             for s_alt in shift_alt:
                 doubt = max(doubt, abs(s_alt) - 2.0 * sp)
         if math.isfinite(doubt):
-            model.extra_px.setdefault(k, {})["response"] = doubt
+            doubts.append(LineDoubt("response", k, doubt, group=CAMERA_RESPONSE))
+    return doubts
 
 
 def _unmeasured_response_terms(
@@ -1622,8 +1627,8 @@ def _unmeasured_response_terms(
     used_gamma: float,
     factor: float,
     far_beside: bool,
-    model: EdgeModelTerms,
-) -> None:
+    blur_px: float,
+) -> list[LineDoubt]:
     """The response doubt (px) of each line when the image did not measure the camera's response.
 
     The response is measured on plain edges only (:func:`_measure_response`): the shading of an arris
@@ -1642,17 +1647,17 @@ def _unmeasured_response_terms(
     a cell of 2.01, blur 0.86 px: x 0.075 mm off at sigma 0.010).
     """
     if not factor > 1.0:
-        return
-    for k, shifts in _line_response_shifts(plane, samples, fit, half, used_gamma, far_beside, model.blur_px):
+        return []
+    doubts = []
+    for k, shifts in _line_response_shifts(plane, samples, fit, half, used_gamma, far_beside, blur_px):
         up, down = shifts([used_gamma * factor, used_gamma / factor])
         spread = 0.5 * abs(float(up) - float(down))
         if math.isfinite(spread):
-            model.extra_px.setdefault(k, {})["response"] = spread
+            doubts.append(LineDoubt("response", k, spread, group=CAMERA_RESPONSE))
+    return doubts
 
 
-def _arris_blur_terms(
-    arris_fits: dict[str, tuple[StripFit, float]], model: EdgeModelTerms, diagnostics: dict
-) -> None:
+def _arris_blur_doubts(arris_fits: dict[str, tuple[StripFit, float]], diagnostics: dict) -> dict[str, float]:
     """Each arris line's doubt (px) from a blur its strip fit does not share with the image's other strips.
 
     One lens blurs every edge of the door alike, but each strip fit finds its own blur, which trades off
@@ -1667,8 +1672,9 @@ def _arris_blur_terms(
     ``diagnostics.arris_fit[line].blur_doubt_px``).
     """
     blurs = {k: float(strip.blur_px) for k, (strip, _) in arris_fits.items() if math.isfinite(strip.blur_px)}
+    out: dict[str, float] = {}
     if len(blurs) < 2:
-        return
+        return out
     # the image's blur: the strips' median (one strip led astray does not move it; of two, their mean)
     shared = float(np.median(list(blurs.values())))
     for k, (strip, band_px) in arris_fits.items():
@@ -1678,11 +1684,62 @@ def _arris_blur_terms(
             continue
         moved = abs(strip.deficit_at_blur(shared) - strip.deficit_at_blur(blurs[k])) * band_px
         if math.isfinite(moved):
-            terms = model.extra_px.setdefault(k, {})
-            terms["arris"] = math.hypot(terms.get("arris", 0.0), moved)
+            out[k] = moved
             diagnostics.setdefault("arris_fit", {}).setdefault(k, {}).update(
                 blur_strips_px=round(shared, 3), blur_doubt_px=round(moved, 4)
             )
+    return out
+
+
+def _jpeg_doubts(samples: dict[str, EdgeSamples], fit: RectangleFit) -> list[LineDoubt]:
+    """Each line's JPEG doubt where the image shows block artifacts: ``JPEG_EDGE_DOUBT_PX`` across it, and
+    the tilt (:func:`doorloc.vision.uncertainty.jpeg_tilt_sigma`) as the edge's phase in the 8-px blocks
+    changes along it."""
+    doubts = []
+    for k in EDGE_NAMES:
+        inl = (fit.weights[k] > 0) & np.isfinite(samples[k].along)
+        scan, along = samples[k].scan[inl], samples[k].along[inl]
+        slope = fit_image_line(scan, along).b if scan.size >= 3 else math.nan
+        doubts.append(LineDoubt("jpeg", k, JPEG_EDGE_DOUBT_PX, tilt=jpeg_tilt_sigma(slope, scan)))
+    return doubts
+
+
+def _arris_doubts(
+    arris_fits: dict[str, tuple[StripFit, float]],
+    samples: dict[str, EdgeSamples],
+    fit: RectangleFit,
+    scale_mm_per_px: float,
+    diagnostics: dict,
+) -> list[LineDoubt]:
+    """What the arris correction leaves in doubt on each arris line (and its figures into
+    ``diagnostics["arris_fit"]``): across it, the strip's fitted deficit times its width, and the blur its
+    fit does not share with the other strips (:func:`_arris_blur_doubts`); along it (the strip's shading
+    and the texture beside it change along the edge; the texture term reads only beyond the strip), the
+    tilt that the residuals' structure over quarters of the line could hide."""
+    for k in EDGE_NAMES:
+        if k in arris_fits:
+            strip, band_px = arris_fits[k]
+            diagnostics.setdefault("arris_fit", {})[k] = {
+                "deficit": round(strip.deficit, 4),
+                "deficit_sigma": round(strip.deficit_sigma, 5),
+                "strip_px": round(band_px, 3),
+                "blur_px": round(strip.blur_px, 3),
+                "misfit": round(strip.misfit, 3),
+                "offset_px": round(strip.offset_px, 4),
+            }
+    moved = _arris_blur_doubts(arris_fits, diagnostics)
+    doubts = []
+    for k in EDGE_NAMES:
+        if k not in arris_fits:
+            continue
+        strip, band_px = arris_fits[k]
+        offset = strip.deficit_sigma * band_px
+        if k in moved:
+            offset = math.hypot(offset, moved[k])
+        inl = fit.weights[k] > 0
+        tilt = _residual_structure_tilt(samples[k], fit.residuals[k] / scale_mm_per_px, inl)
+        doubts.append(LineDoubt("arris", k, offset, tilt=tilt))
+    return doubts
 
 
 def _gate_and_answer(
@@ -1726,63 +1783,43 @@ def _gate_and_answer(
         )
         for k, (strip, band_px) in (arris_fits or {}).items()
     }
-    model = _edge_model_terms(plane, samples, fit, half, cfg, cell, far_fit, step_fitted or {}, strips)
-    model.blur_px = _blur_without_pixel(blur)
+    model = EdgeModelTerms(
+        tuple(_edge_model_doubts(plane, samples, fit, half, cfg, cell, far_fit, step_fitted or {}, strips)),
+        _blur_without_pixel(blur),
+    )
     blocks = block_artifact_ratio(plane, pose.corner_px, scale_to_8bit=s8)
     diagnostics["jpeg_block_ratio"] = round(blocks, 3) if math.isfinite(blocks) else None
     if blocks > JPEG_BLOCK_RATIO:
-        for k in EDGE_NAMES:
-            model.extra_px.setdefault(k, {})["jpeg"] = JPEG_EDGE_DOUBT_PX
-            # and along the line, as the edge's phase in the 8-px blocks changes
-            inl = (fit.weights[k] > 0) & np.isfinite(samples[k].along)
-            scan, along = samples[k].scan[inl], samples[k].along[inl]
-            slope = fit_image_line(scan, along).b if scan.size >= 3 else math.nan
-            model.add_tilt(k, jpeg_tilt_sigma(slope, scan))
-    for k in EDGE_NAMES:
-        inl = fit.weights[k] > 0
-        if arris_fits and k in arris_fits:
-            # What the arris correction leaves in doubt: the strip's fitted deficit times its width.
-            strip, band_px = arris_fits[k]
-            model.extra_px.setdefault(k, {})["arris"] = strip.deficit_sigma * band_px
-            # What it leaves in doubt along the line (the strip's shading and the texture beside it change
-            # along the edge; the texture term reads only beyond the strip): the tilt that the residuals'
-            # structure over quarters of the line could hide.
-            model.add_tilt(
-                k, _residual_structure_tilt(samples[k], fit.residuals[k] / pose.scale_mm_per_px, inl)
-            )
-            diagnostics.setdefault("arris_fit", {})[k] = {
-                "deficit": round(strip.deficit, 4),
-                "deficit_sigma": round(strip.deficit_sigma, 5),
-                "strip_px": round(band_px, 3),
-                "blur_px": round(strip.blur_px, 3),
-                "misfit": round(strip.misfit, 3),
-                "offset_px": round(strip.offset_px, 4),
-            }
+        model = model.with_doubts(*_jpeg_doubts(samples, fit))
     if arris_fits:
-        _arris_blur_terms(arris_fits, model, diagnostics)
+        model = model.with_doubts(*_arris_doubts(arris_fits, samples, fit, pose.scale_mm_per_px, diagnostics))
     if response is not None:
-        _response_terms(
-            plane,
-            samples,
-            fit,
-            half,
-            cell.response_gamma,
-            response,
-            far_beside,
-            model,
-            response_absorbed,
-            cfg.response_unmeasured_factor,
+        model = model.with_doubts(
+            *_response_terms(
+                plane,
+                samples,
+                fit,
+                half,
+                cell.response_gamma,
+                response,
+                far_beside,
+                model.blur_px,
+                response_absorbed,
+                cfg.response_unmeasured_factor,
+            )
         )
     else:
-        _unmeasured_response_terms(
-            plane,
-            samples,
-            fit,
-            half,
-            cell.response_gamma,
-            cfg.response_unmeasured_factor,
-            far_beside,
-            model,
+        model = model.with_doubts(
+            *_unmeasured_response_terms(
+                plane,
+                samples,
+                fit,
+                half,
+                cell.response_gamma,
+                cfg.response_unmeasured_factor,
+                far_beside,
+                model.blur_px,
+            )
         )
     for k in EDGE_NAMES:
         s = samples[k]
@@ -1793,8 +1830,9 @@ def _gate_and_answer(
         # what the edge model leaves in doubt (floor, texture, far-face model...), on top of the noise
         extra = {"model_sigma_mm": round(model.line_sigma_px(k) * pose.scale_mm_per_px, 6)}
         for term, key in (("arris", "arris_correction_sigma_mm"), ("response", "response_sigma_mm")):
-            if term in model.extra_px.get(k, {}):
-                extra[key] = round(model.extra_px[k][term] * pose.scale_mm_per_px, 5)
+            doubt = model.offset_px(k, term)
+            if doubt is not None:
+                extra[key] = round(doubt * pose.scale_mm_per_px, 5)
         lines.append(
             LineQuality(
                 name=k,
@@ -1846,21 +1884,6 @@ def _gate_and_answer(
         )
     )
     t_tol = cfg.thickness_tolerance_mm
-    # Standard uncertainty of the thickness: the two arris offsets' noise, and beside a visible far face
-    # what its model leaves in doubt (a band narrower than the blur is hard to tell from the arris).
-    # The two arrises' response doubts share their cause (one camera exponent moves both edges outwards
-    # or both inwards, and the thickness by their sum): they add, the rest in quadrature. (Added in
-    # quadrature, the effects fixtures' thicknesses, a 2.2 camera in a cell of 1.0, were 0.08-0.12 mm off
-    # with 78 % of them beyond 2 sigma.)
-    resp = [model.extra_px.get(k, {}).get("response", 0.0) for k in ("reference", "far")]
-    rest = [model.line_sigma_px(k, without=("response",)) for k in ("reference", "far")]
-    t_sigma = math.hypot(
-        fit.offset_sigma["reference"],
-        fit.offset_sigma["far"],
-        rest[0] * pose.scale_mm_per_px,
-        rest[1] * pose.scale_mm_per_px,
-        (resp[0] + resp[1]) * pose.scale_mm_per_px,
-    )
     # A far face whose band looks like the background or like the hinge face reads two ways, a band's width
     # apart (edges.FarFaceFit.other_reading_px), and the image cannot tell which: the check takes the reading
     # nearer the recipe (a wrong door passes only where its other reading lands on the recipe's thickness),
@@ -1870,6 +1893,24 @@ def _gate_and_answer(
     # 2.6-20 mm off was the door's; the two wrong ones were read beside bands of 0.6-1.2 px, 0.4-0.8 mm).
     other_mm = far_fit.other_reading_px * pose.scale_mm_per_px if far_beside and far_fit is not None else 0.0
     other = pose.thickness_mm + other_mm if 0.0 < abs(other_mm) <= 2.0 * t_tol else None
+    # Standard uncertainty of the thickness: the two arris offsets' noise, and beside a visible far face
+    # what its model leaves in doubt (a band narrower than the blur is hard to tell from the arris).
+    # The two arrises' response doubts share their cause (one camera exponent moves both edges outwards
+    # or both inwards, and the thickness by their sum): they add, the rest in quadrature. (Added in
+    # quadrature, the effects fixtures' thicknesses, a 2.2 camera in a cell of 1.0, were 0.08-0.12 mm off
+    # with 78 % of them beyond 2 sigma.)
+    budget = _budget(
+        cell,
+        cfg,
+        region,
+        samples,
+        fit,
+        pose,
+        model,
+        far_votes=not far_beside,
+        other_mm=other_mm if other is not None else None,
+    )
+    t_sigma = budget.thickness_mm
     # (the fitted reading where the two are as near)
     readings = [pose.thickness_mm] + ([other] if other is not None else [])
     nearest = min(readings, key=lambda t: abs(t - door.thickness_mm))
@@ -1886,8 +1927,7 @@ def _gate_and_answer(
                 "image again",
             )
         )
-    if other is not None:
-        t_sigma = math.hypot(t_sigma, 0.5 * other_mm)
+    t_sigma = budget.thickness_reported_mm
     # standard errors of the corner from the line offsets
     sig = math.hypot(fit.offset_sigma["reference"], fit.offset_sigma["bottom"])
     diagnostics["corner_sigma_mm"] = sig
@@ -1909,8 +1949,10 @@ def _gate_and_answer(
         "far_face_in_view": far_beside,
         "other_reading_mm": round(other, 4) if other is not None else None,
     }
-    unc, terms = _pose_uncertainty(cell, cfg, region, samples, fit, pose, model, far_votes=not far_beside)
+    unc = PoseUncertainty(x_mm=budget.x_mm, z_mm=budget.z_mm, yaw_deg=budget.yaw_deg)
+    terms = budget.groups
     diagnostics["uncertainty_terms"] = {k: [round(v, 6) for v in t] for k, t in terms.items()}
+    diagnostics["uncertainty_budget"] = [t.as_dict() for t in budget.terms]
     if (
         unc.x_mm > cfg.max_uncertainty_mm
         or unc.z_mm > cfg.max_uncertainty_mm
@@ -1927,10 +1969,7 @@ def _gate_and_answer(
         hint = _UNCERTAIN_HINT[worst]
         if worst == "edge_model" and response is None:
             # the unchecked response is the largest doubt of a pose line: say so, and what lifts it
-            big = [
-                max(model.extra_px.get(k, {}).items(), key=lambda kv: kv[1], default=("", 0.0))[0]
-                for k in ("bottom", "reference")
-            ]
+            big = [model.largest_source(k, among=_MODEL_REPORTED) for k in ("bottom", "reference")]
             if "response" in big:
                 hint = _UNCERTAIN_HINT["response_unmeasured"]
         refusals.append(
@@ -2028,7 +2067,7 @@ def _step_fit_lines(cfg: LocateConfig, widths: dict[str, float]) -> dict[str, fl
     return {k: optical for k, w in ok.items() if w <= 1.25 * narrow}
 
 
-def _edge_model_terms(
+def _edge_model_doubts(
     plane,
     samples: dict[str, EdgeSamples],
     fit: RectangleFit,
@@ -2038,17 +2077,18 @@ def _edge_model_terms(
     far_fit: FarFaceFit | None,
     step_fitted: dict[str, float],
     strips: dict[str, tuple[int, int]] | None = None,
-) -> EdgeModelTerms:
-    """Edge-model doubts per line (:class:`doorloc.vision.uncertainty.EdgeModelTerms`), px across the edge.
+) -> list[LineDoubt]:
+    """The doubts the edge models know of each line (:class:`doorloc.vision.uncertainty.LineDoubt`): the
+    far-face model's own, else the texture beside the edge (across it and along it).
 
     ``strips``: per arris line, the pixels its strip (and the blur beside it) takes on the door side, and
     that side (+1: increasing ``along``); the texture there is read beyond the strip.
     """
-    terms = EdgeModelTerms()
+    doubts = []
     lut = linearizing_lut(plane.dtype, cell.response_gamma)
     for k in EDGE_NAMES:
         if k == "far" and far_fit is not None:  # what the far-face model leaves in doubt (band level, blur)
-            terms.extra_px.setdefault(k, {})["far_face"] = far_fit.model_sigma_px
+            doubts.append(LineDoubt("far_face", k, far_fit.model_sigma_px))
             continue
         skip, side = (strips or {}).get(k, (0, 1))
         tb = texture_bias(
@@ -2062,21 +2102,21 @@ def _edge_model_terms(
             door_skip_px=skip,
             door_side=side,
         )
-        if k == "far":
-            # The far arris's offset gives only the thickness: its texture doubt is the thickness's, not the
-            # corner's. (Without it the grain set's thicknesses, the hinge face's grain beside the far arris
-            # as beside the reference one, were 85 % within 2 sigma.) Its direction votes on the door's in
-            # the joint fit where no far face is beside it, so its texture tilt counts in the yaw
-            # (:func:`_pose_uncertainty`).
-            terms.extra_px.setdefault(k, {})["texture"] = tb.offset_sigma_px
-            terms.tilt[k] = tb.tilt_sigma
-            continue
-        terms.texture_px[k] = tb.offset_sigma_px
-        terms.tilt[k] = tb.tilt_sigma
-    return terms
+        # The far arris's offset gives only the thickness: its texture doubt is the thickness's, not the
+        # corner's. (Without it the grain set's thicknesses, the hinge face's grain beside the far arris
+        # as beside the reference one, were 85 % within 2 sigma.) Its direction votes on the door's in
+        # the joint fit where no far face is beside it, so its texture tilt counts in the yaw
+        # (:func:`doorloc.vision.uncertainty.propagate`).
+        doubts.append(LineDoubt("texture", k, tb.offset_sigma_px, tilt=tb.tilt_sigma))
+    return doubts
 
 
-def _pose_uncertainty(
+#: the doubts a line's edge model reports besides the texture beside it (the texture of a pose line is its
+#: own term; which of these is largest names the hint of an uncertain pose)
+_MODEL_REPORTED = ("far_face", "jpeg", "arris", "response")
+
+
+def _budget(
     cell: Cell,
     cfg: LocateConfig,
     region: SearchRegion,
@@ -2084,58 +2124,24 @@ def _pose_uncertainty(
     fit: RectangleFit,
     pose: MetricPose,
     model: EdgeModelTerms,
-    far_votes: bool = True,
-) -> tuple[PoseUncertainty, dict[str, tuple[float, float, float]]]:
-    """The answer's 1-sigma uncertainty and its terms (x_mm, z_mm, yaw_deg each), :mod:`doorloc.vision.uncertainty`.
+    far_votes: bool,
+    other_mm: float | None,
+) -> Budget:
+    """The answer's uncertainty (:func:`doorloc.vision.uncertainty.propagate`): the lines' levers from their
+    inlier points, the calibration's and the cell's terms. (Nine arguments: what the propagation reads of
+    the cell, the fit and the pose, gathered here so that it reads no locate state.)
 
     ``far_votes``: whether the far arris voted on the door's direction in the joint fit (it does unless a
-    far face is beside it, :func:`_fit`); its tilt then moves the yaw as the others' do.
+    far face is beside it, :func:`_fit`); its tilt then moves the yaw as the others' do. ``other_mm``: how
+    far a far face's other reading lies, where it is weighed.
     """
     sc = pose.scale_mm_per_px
-    lever, spread, extent = {}, {}, {}
-    voting = ("reference", "bottom", "far") if far_votes else ("reference", "bottom")
-    for k in voting:
+    levers = {}
+    for k in ("reference", "bottom", "far") if far_votes else ("reference", "bottom"):
         s = samples[k]
         inl = (fit.weights[k] > 0) & np.isfinite(s.along)
-        c_scan = pose.corner_px[0] if s.axis == "col" else pose.corner_px[1]
-        sc_in = s.scan[inl].astype(float)
-        if sc_in.size:
-            # integer scan lines: their sum is exact, so this is np.mean's value
-            mean = float(sc_in.sum()) / sc_in.size
-            lever[k] = abs(mean - c_scan) * sc
-            spread[k] = float(((sc_in - mean) ** 2).sum())
-            extent[k] = float(sc_in.max() - sc_in.min())
-        else:
-            lever[k] = spread[k] = extent[k] = 0.0
-    fit_t = (
-        corner_fit_sigma(fit.offset_sigma["reference"], fit.angle_sigma_rad, lever["reference"]),
-        corner_fit_sigma(fit.offset_sigma["bottom"], fit.angle_sigma_rad, lever["bottom"]),
-        math.degrees(fit.angle_sigma_rad),
-    )
-    # The yaw's edge-model doubt: each voting line's texture tilt, weighted as the joint fit weighs the
-    # lines (by the spread of their points along them); a tilt moves the corner by tilt x lever.
-    # (the floor: a bias that changes by twice the floor from one end of a line to the other). The far
-    # arris counts where it voted: left out, a tilt that grain gave it was answered as the door's yaw at
-    # 6.3 sigma (bench_surfaces --seed 9200, thin_016: 0.0076 deg for a claimed 0.0012).
-    tilts = {
-        k: math.hypot(
-            model.tilt.get(k, 0.0) if math.isfinite(model.tilt.get(k, 0.0)) else 0.0,
-            2.0 * EDGE_MODEL_FLOOR_PX / max(extent[k], 1.0),
-        )
-        for k in voting
-    }
-    wsum = sum(spread.values())
-    yaw_m = (
-        math.sqrt(sum((spread[k] * (tilts[k] if math.isfinite(tilts[k]) else 0.0)) ** 2 for k in tilts))
-        / wsum
-        if wsum > 0
-        else 0.0
-    )
-    model_t = (
-        math.hypot(model.line_sigma_px("reference") * sc, yaw_m * lever["reference"]),
-        math.hypot(model.line_sigma_px("bottom") * sc, yaw_m * lever["bottom"]),
-        math.degrees(yaw_m),
-    )
+        corner_scan = pose.corner_px[0] if s.axis == "col" else pose.corner_px[1]
+        levers[k] = LineLever.of_points(s.scan[inl], corner_scan, sc)
     cal_t = calibration_pose_sigma(
         cell.posed_camera,
         region.face_map.depth_y,
@@ -2146,11 +2152,5 @@ def _pose_uncertainty(
         cfg.calibration_sigma_px,
         sc,
     )
-    terms = {
-        "fit": fit_t,
-        "edge_model": model_t,
-        "calibration": cal_t,
-        "cell": (cfg.cell_sigma_mm, cfg.cell_sigma_mm, cfg.cell_sigma_deg),
-    }
-    x, z, yaw = combine(terms)
-    return PoseUncertainty(x_mm=x, z_mm=z, yaw_deg=yaw), terms
+    camera = {"calibration": cal_t, "cell": (cfg.cell_sigma_mm, cfg.cell_sigma_mm, cfg.cell_sigma_deg)}
+    return propagate(model, fit.offset_sigma, fit.angle_sigma_rad, levers, sc, camera, other_mm)
