@@ -229,7 +229,7 @@ def test_an_absorbed_response_that_the_edges_contradict_is_dropped(monkeypatch):
     two = ("bottom", "reference")
     readings = []
 
-    def flip_flop(plane, samples, fit, half, blur, cell, cfg, arris_fits):
+    def flip_flop(plane, refined, cell, cfg):
         readings.append(cell.response_gamma)
         g = 2.68 if len(readings) == 1 else 1.02  # 2.68 with the cell's 1.0, then 1.02 with 2.68
         return ResponseFit(g, 0.05, cell.response_gamma, two), {}

@@ -861,6 +861,43 @@ def _coarse_pose(
 
 
 @dataclass(frozen=True)
+class Refined:
+    """What the refine stage found: the sub-pixel edge points, their joint fit and the pose from it.
+
+    Attributes
+    ----------
+    samples : dict[str, EdgeSamples]
+        Edge points per line (``"bottom"``, ``"reference"``, ``"far"``).
+    fit : RectangleFit
+        The joint line fit.
+    pose : MetricPose
+        The pose from it.
+    blur_px : float
+        The transition width measured in the first pass, px (its optical blur: :func:`_blur_without_pixel`).
+    half : int
+        The final windows' half width, px.
+    far_beside : bool
+        Whether a far face was seen beside the far arris (the far line then measures only the thickness).
+    far_fit : FarFaceFit or None
+        The far-face model's fit, where it ran.
+    step_fitted : dict[str, float]
+        The lines whose points the blurred-step fit refined, and the blur it used, px.
+    arris_fits : dict[str, tuple[StripFit, float]]
+        Per line with an arris strip, its profile fit and the strip's width, px (read only).
+    """
+
+    samples: dict[str, EdgeSamples]
+    fit: RectangleFit
+    pose: MetricPose
+    blur_px: float
+    half: int
+    far_beside: bool
+    far_fit: FarFaceFit | None
+    step_fitted: dict[str, float]
+    arris_fits: dict[str, tuple[StripFit, float]]
+
+
+@dataclass(frozen=True)
 class _Profiles:
     samples: EdgeSamples
     mask: np.ndarray
@@ -875,15 +912,14 @@ def _refine(
     cfg: LocateConfig,
     clock: _Clock,
     response_gamma: float = 1.0,
-    arris_fits: dict[str, tuple[StripFit, float]] | None = None,
-):
-    """Sub-pixel edge points and the joint line fit, in passes (module docstring).
+) -> Refined:
+    """The refine stage: sub-pixel edge points and the joint line fit, in passes (module docstring).
 
     ``response_gamma`` is the camera's (``camera.response_gamma`` in the cell file): grey levels are turned
     back into light before the sub-pixel estimate, which needs them proportional.
-
-    Returns ``(samples, fit, pose, blur_px, window_half_px, far_face_beside, far_face_fit)``.
     """
+    # each pass's arris strip fits, per line (a line's last fit stands where a later pass found none)
+    arris_fits: dict[str, tuple[StripFit, float]] = {}
     half = cfg.half_window_max
     blur = float("nan")
     optical_blur = float("nan")
@@ -944,7 +980,7 @@ def _refine(
                 # The far arris model needs the optical blur alone: measured on the reference arris.
                 optical_blur = _optical_blur(plane, ref0, cfg, blur, arris_fits)
         _pass += 1
-    return samples, fit, pose, blur, half, far_beside, far_fit, sampled.step_fitted
+    return Refined(samples, fit, pose, blur, half, far_beside, far_fit, sampled.step_fitted, arris_fits)
 
 
 def _optical_blur(
@@ -1009,12 +1045,52 @@ def _locate(
     clock.lap("coarse")
     pose = _coarse_pose(coarse, plane, s8, region, cell, door, cfg)
     clock.lap("coarse_pose")
-    arris_fits: dict[str, tuple[StripFit, float]] = {}
-    samples, fit, pose, blur, half, far_beside, far_fit, step_fitted = _refine(
-        plane, s8, region, pose, cfg, clock, cell.response_gamma, arris_fits
-    )
+    refined = _refine(plane, s8, region, pose, cfg, clock, cell.response_gamma)
+    check = _check_response(plane, s8, region, cfg, clock, cell, refined)
+    refined = check.refined
+    samples, fit, pose = refined.samples, refined.fit, refined.pose
+    tr.samples = samples
+    tr.inliers = {k: fit.weights[k] > 0 for k in EDGE_NAMES}
+    tr.pose = pose
+    doubts = _edge_doubts(plane, s8, region, cfg, check)
+    res = _gate_and_answer(name, door, cfg, region, check, doubts, plane, s8)
+    res.diagnostics["camera_response"] = check.diagnostics
+    res.diagnostics["far_face_visible"] = refined.far_beside
+    far_fit = refined.far_fit
+    if far_fit is not None:
+        res.diagnostics["far_face_fit"] = {
+            "band_level": round(far_fit.band_level, 4),
+            "blur_px": round(far_fit.blur_px, 3),
+            "band_px": round(far_fit.band_px, 3),
+            "arris_sigma_px": round(far_fit.arris_sigma_px, 4),
+            "model_sigma_px": round(far_fit.model_sigma_px, 4),
+            "other_reading_px": round(far_fit.other_reading_px, 3),
+        } | ({"strip_level": round(far_fit.strip_level, 4)} if math.isfinite(far_fit.strip_level) else {})
+    clock.lap("gate")
+    res.diagnostics["timing_ms"] = clock.laps
+    return res
+
+
+@dataclass(frozen=True)
+class ResponseCheck:
+    """What the response check stage found: the refined edges the answer rests on (read again with this
+    image's camera exponent where it showed another than the cell's), the cell as used, the image's
+    reading of the camera response (None where unchecked), per line, and its diagnostics."""
+
+    refined: Refined
+    cell: Cell
+    response: ResponseFit | None
+    absorbed: bool
+    diagnostics: dict[str, Any]
+
+
+def _check_response(
+    plane, s8: float, region: SearchRegion, cfg: LocateConfig, clock: _Clock, cell: Cell, refined: Refined
+) -> ResponseCheck:
+    """The response check stage: the camera response read off the plain edges, and where it differs from
+    the cell's, the edges refined again with it (the absorb-and-rerun) and read once more."""
     used_cell = cell
-    response, per_line = _measure_response(plane, samples, fit, half, blur, cell, cfg, arris_fits)
+    response, per_line = _measure_response(plane, refined, cell, cfg)
     response_diag: dict[str, Any] = {"cell_gamma": cell.response_gamma, "absorbed": False}
     unstable: float | None = None
     if cell.response_gamma_sigma is not None:
@@ -1023,13 +1099,10 @@ def _locate(
         # The plain edges show another camera response than the cell's: measure again with theirs (the
         # bias a wrong response gives every edge, arris strips included, is then gone), and check again.
         response_diag.update(absorbed=True, first_fit=round(response.gamma, 4))
-        first = (samples, fit, pose, blur, half, far_beside, far_fit, step_fitted, arris_fits)
+        first = refined
         used_cell = replace(cell, response_gamma=response.gamma, response_gamma_sigma=None)
-        arris_fits = {}
-        samples, fit, pose, blur, half, far_beside, far_fit, step_fitted = _refine(
-            plane, s8, region, pose, cfg, clock, response.gamma, arris_fits
-        )
-        again = _measure_response(plane, samples, fit, half, blur, used_cell, cfg, arris_fits)
+        refined = _refine(plane, s8, region, refined.pose, cfg, clock, response.gamma)
+        again = _measure_response(plane, refined, used_cell, cfg)
         if again[0] is not None and again[0].absorb:
             # Read again with the absorbed exponent in use, the edges show yet another one: their reading
             # depends on where the edges were placed, so it is no measurement of the camera (seen: a lens
@@ -1037,7 +1110,7 @@ def _locate(
             # then 1.02 read with 2.68, and the answer refused for a 0.1 mm response doubt). The cell's
             # exponent stands, unchecked.
             unstable = round(again[0].gamma, 4)
-            samples, fit, pose, blur, half, far_beside, far_fit, step_fitted, arris_fits = first
+            refined = first
             used_cell, response = cell, None
             response_diag.update(absorbed=False, second_fit=unstable)
         elif again[0] is not None:
@@ -1047,7 +1120,7 @@ def _locate(
     response_diag["used"] = "image" if response_diag["absorbed"] else "cell"
     if response is None:
         response_diag["unchecked_because"] = (
-            _response_unchecked_because(samples, fit, blur, arris_fits)
+            _response_unchecked_because(refined.samples, refined.fit, refined.blur_px, refined.arris_fits)
             if unstable is None
             else f"the edges read {response_diag['first_fit']} with the cell's exponent in use and {unstable} "
             "with that one: a reading that follows the edges' placement, not the camera's response"
@@ -1065,43 +1138,7 @@ def _locate(
         )
         if response.alternatives:
             response_diag["alternatives"] = list(response.alternatives)
-    tr.samples = samples
-    tr.inliers = {k: fit.weights[k] > 0 for k in EDGE_NAMES}
-    tr.pose = pose
-    res = _gate_and_answer(
-        name,
-        used_cell,
-        door,
-        cfg,
-        region,
-        samples,
-        fit,
-        pose,
-        blur,
-        half,
-        plane,
-        s8,
-        far_beside,
-        step_fitted,
-        far_fit,
-        arris_fits,
-        response,
-        bool(response_diag["absorbed"]),
-    )
-    res.diagnostics["camera_response"] = response_diag
-    res.diagnostics["far_face_visible"] = far_beside
-    if far_fit is not None:
-        res.diagnostics["far_face_fit"] = {
-            "band_level": round(far_fit.band_level, 4),
-            "blur_px": round(far_fit.blur_px, 3),
-            "band_px": round(far_fit.band_px, 3),
-            "arris_sigma_px": round(far_fit.arris_sigma_px, 4),
-            "model_sigma_px": round(far_fit.model_sigma_px, 4),
-            "other_reading_px": round(far_fit.other_reading_px, 3),
-        } | ({"strip_level": round(far_fit.strip_level, 4)} if math.isfinite(far_fit.strip_level) else {})
-    clock.lap("gate")
-    res.diagnostics["timing_ms"] = clock.laps
-    return res
+    return ResponseCheck(refined, used_cell, response, bool(response_diag["absorbed"]), response_diag)
 
 
 class _Clock:
@@ -1461,21 +1498,15 @@ def _response_unchecked_because(
 
 
 def _measure_response(
-    plane,
-    samples: dict[str, EdgeSamples],
-    fit: RectangleFit,
-    half: int,
-    transition_px: float,
-    cell: Cell,
-    cfg: LocateConfig,
-    arris_fits: dict[str, tuple[StripFit, float]] | None,
+    plane, refined: Refined, cell: Cell, cfg: LocateConfig
 ) -> tuple[ResponseFit | None, dict[str, LineResponse]]:
     """The camera response measured on the plain edges (:func:`doorloc.vision.response.fit_line_response`).
 
     Plain: the bottom end and the reference arris without an arris strip, at many pixel phases and blurred
     (:func:`_response_check_applies`). None where no edge qualifies.
     """
-    blur_px = _blur_without_pixel(transition_px)
+    samples, fit, half, arris_fits = refined.samples, refined.fit, refined.half, refined.arris_fits
+    blur_px = _blur_without_pixel(refined.blur_px)
     per_line: dict[str, LineResponse] = {}
     for k in _plain_response_lines(arris_fits):
         inl = fit.weights[k] > 0
@@ -1742,37 +1773,16 @@ def _arris_doubts(
     return doubts
 
 
-def _gate_and_answer(
-    name,
-    cell,
-    door,
-    cfg,
-    region,
-    samples,
-    fit,
-    pose,
-    blur,
-    half,
-    plane,
-    s8,
-    far_beside: bool = False,
-    step_fitted: dict[str, float] | None = None,
-    far_fit: FarFaceFit | None = None,
-    arris_fits: dict[str, tuple[StripFit, float]] | None = None,
-    response: ResponseFit | None = None,
-    response_absorbed: bool = False,
-) -> LocateResult:
-    lines, refusals = [], []
-    corner_px = pose.corner_px
-    diagnostics: dict = {
-        "blur_px": round(blur, 3),
-        "window_half_px": half,
-        "face_y_mm": region.face_y,
-        "edge_depth_y_mm": region.edge_depth_y,
-        "fit_scale_mm": fit.scale,
-        "yaw_sigma_deg": math.degrees(fit.angle_sigma_rad),
-        "thickness_expected_mm": door.thickness_mm,
-    }
+def _edge_doubts(
+    plane, s8: float, region: SearchRegion, cfg: LocateConfig, check: ResponseCheck
+) -> tuple[EdgeModelTerms, dict[str, Any]]:
+    """The doubts stage: every line's edge-model doubts (:class:`doorloc.vision.uncertainty.LineDoubt`), each
+    from the code that knows it: the texture beside the edge or the far-face model, JPEG's blocks where the
+    image shows them, the arris correction, the camera response. The stage that reads the pixels for them,
+    so that the gate reads none. With them, the figures the diagnostics report (``jpeg_block_ratio``,
+    ``arris_fit``)."""
+    r, cell = check.refined, check.cell
+    samples, fit = r.samples, r.fit
     # An arris line's door side is its strip, whose shading the texture term would read as texture (on a
     # rounding, 0.1-0.2 mm of doubt on edges found to 0.002 mm, refused as uncertain): its texture is read
     # beyond the strip and the blur's reach.
@@ -1781,46 +1791,73 @@ def _gate_and_answer(
             int(math.ceil(band_px + 3.0 * strip.blur_px)),
             region.layouts[k].polarity * (1 if cfg.door_brighter else -1),
         )
-        for k, (strip, band_px) in (arris_fits or {}).items()
+        for k, (strip, band_px) in r.arris_fits.items()
     }
     model = EdgeModelTerms(
-        tuple(_edge_model_doubts(plane, samples, fit, half, cfg, cell, far_fit, step_fitted or {}, strips)),
-        _blur_without_pixel(blur),
+        tuple(_edge_model_doubts(plane, samples, fit, r.half, cfg, cell, r.far_fit, r.step_fitted, strips)),
+        _blur_without_pixel(r.blur_px),
     )
-    blocks = block_artifact_ratio(plane, pose.corner_px, scale_to_8bit=s8)
-    diagnostics["jpeg_block_ratio"] = round(blocks, 3) if math.isfinite(blocks) else None
+    figures: dict[str, Any] = {}
+    blocks = block_artifact_ratio(plane, r.pose.corner_px, scale_to_8bit=s8)
+    figures["jpeg_block_ratio"] = round(blocks, 3) if math.isfinite(blocks) else None
     if blocks > JPEG_BLOCK_RATIO:
         model = model.with_doubts(*_jpeg_doubts(samples, fit))
-    if arris_fits:
-        model = model.with_doubts(*_arris_doubts(arris_fits, samples, fit, pose.scale_mm_per_px, diagnostics))
-    if response is not None:
-        model = model.with_doubts(
-            *_response_terms(
-                plane,
-                samples,
-                fit,
-                half,
-                cell.response_gamma,
-                response,
-                far_beside,
-                model.blur_px,
-                response_absorbed,
-                cfg.response_unmeasured_factor,
-            )
+    if r.arris_fits:
+        model = model.with_doubts(*_arris_doubts(r.arris_fits, samples, fit, r.pose.scale_mm_per_px, figures))
+    if check.response is not None:
+        response = _response_terms(
+            plane,
+            samples,
+            fit,
+            r.half,
+            cell.response_gamma,
+            check.response,
+            r.far_beside,
+            model.blur_px,
+            check.absorbed,
+            cfg.response_unmeasured_factor,
         )
     else:
-        model = model.with_doubts(
-            *_unmeasured_response_terms(
-                plane,
-                samples,
-                fit,
-                half,
-                cell.response_gamma,
-                cfg.response_unmeasured_factor,
-                far_beside,
-                model.blur_px,
-            )
+        response = _unmeasured_response_terms(
+            plane,
+            samples,
+            fit,
+            r.half,
+            cell.response_gamma,
+            cfg.response_unmeasured_factor,
+            r.far_beside,
+            model.blur_px,
         )
+    return model.with_doubts(*response), figures
+
+
+def _gate_and_answer(
+    name: str,
+    door: DoorSize,
+    cfg: LocateConfig,
+    region: SearchRegion,
+    check: ResponseCheck,
+    doubts: tuple[EdgeModelTerms, dict[str, Any]],
+    plane,
+    s8: float,
+) -> LocateResult:
+    """The gate: the answer, or the refusal with its reason, from the refined edges, the response check and
+    the lines' doubts. (It reads the pixels only to tell a pattern from a door where the edges failed.)"""
+    r, cell, response = check.refined, check.cell, check.response
+    model, figures = doubts
+    samples, fit, pose, far_beside, far_fit = r.samples, r.fit, r.pose, r.far_beside, r.far_fit
+    lines, refusals = [], []
+    corner_px = pose.corner_px
+    diagnostics: dict = {
+        "blur_px": round(r.blur_px, 3),
+        "window_half_px": r.half,
+        "face_y_mm": region.face_y,
+        "edge_depth_y_mm": region.edge_depth_y,
+        "fit_scale_mm": fit.scale,
+        "yaw_sigma_deg": math.degrees(fit.angle_sigma_rad),
+        "thickness_expected_mm": door.thickness_mm,
+        **figures,
+    }
     for k in EDGE_NAMES:
         s = samples[k]
         n_s = int(s.scan.size)
