@@ -12,6 +12,14 @@ The flow (thesis section 3.7, made metric and robust)::
       -> pass 2 with windows centred on the fitted lines and sized to the measured blur -> pose
       -> quality gate -> LocateResult
 
+As code, :func:`_locate` visits each stage once, each handing the next a frozen value
+(:mod:`doorloc.vision.state`): the coarse stage (:func:`_coarse_edges`, :func:`_coarse_pose`) -> the refine
+stage (:func:`_refine`, passes of :func:`_sample` and :func:`_fit`) -> :class:`~doorloc.vision.state.Refined`
+-> the response check (:func:`doorloc.vision.response_check.check_response`, which owns the absorb-and-rerun)
+-> :class:`~doorloc.vision.state.ResponseCheck` -> the doubts stage (:func:`doorloc.vision.doubts.edge_doubts`:
+every line's doubts, typed) -> the gate (:func:`doorloc.vision.gate.gate_and_answer`: the checks, the
+uncertainty from :func:`doorloc.vision.uncertainty.propagate`, the answer or the refusal).
+
 :func:`locate` never raises for a bad image: every failure comes back as a refusal (``ok=false``,
 ``error_code``, ``error``). The codes: ``bad_image`` (not an 8/16-bit grey or colour array),
 ``wrong_image_size``, ``black_image``, ``saturated_image``, ``low_contrast``, ``no_door``, ``not_a_door``
@@ -27,7 +35,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Generator, Iterator
+from collections.abc import Callable, Generator
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -38,7 +46,6 @@ from doorloc import __version__
 from doorloc.cell import Cell, DoorSize
 from doorloc.vision import quality as q
 from doorloc.vision.arris_model import (
-    BLUR_DOUBT,
     STRIP_RADIANCE,
     STRIP_RADIANCE_SIGMA,
     StripFit,
@@ -47,10 +54,10 @@ from doorloc.vision.arris_model import (
 )
 from doorloc.vision.coarse import coarse_edges
 from doorloc.vision.config import LocateConfig
+from doorloc.vision.doubts import edge_doubts
 from doorloc.vision.edges import (
     EdgeSamples,
     FarFaceFit,
-    block_artifact_ratio,
     refine_step_fit,
     step_blur,
     subpixel_edges,
@@ -59,35 +66,15 @@ from doorloc.vision.edges import (
     texture_bias,
     transition_width,
 )
-from doorloc.vision.lines import ImageLine, RectangleFit, fit_image_line, fit_rectangle_edges, ransac_line
+from doorloc.vision.gate import HUMAN, PATTERN, gate_and_answer
+from doorloc.vision.lines import ImageLine, RectangleFit, fit_rectangle_edges, ransac_line
 from doorloc.vision.luminance import ImageFormatError, LuminancePlane, luminance_plane
 from doorloc.vision.metric import MetricPose, pose_from_fit
 from doorloc.vision.region import EDGE_NAMES, Band, EdgeLayout, SearchRegion
-from doorloc.vision.response import (
-    RESPONSE_ONE_PHASE_MIN_BLUR_PX,
-    RESPONSE_PLAUSIBLE,
-    LineResponse,
-    ResponseFit,
-    at_one_phase,
-    combine_responses,
-    edge_shifts_px,
-    fit_line_response,
-    plateau_levels,
-)
-from doorloc.vision.result import LineQuality, LocateResult, PhysicalModel, PoseUncertainty, Provenance
+from doorloc.vision.response_check import STEP_FIT_MIN_BLUR_PX, check_response
+from doorloc.vision.result import LocateResult, PhysicalModel, Provenance
 from doorloc.vision.sampling import linearizing_lut, oriented
-from doorloc.vision.uncertainty import (
-    CAMERA_RESPONSE,
-    JPEG_BLOCK_RATIO,
-    JPEG_EDGE_DOUBT_PX,
-    Budget,
-    EdgeModelTerms,
-    LineDoubt,
-    LineLever,
-    calibration_pose_sigma,
-    jpeg_tilt_sigma,
-    propagate,
-)
+from doorloc.vision.state import Refined
 
 __all__ = ["LocateConfig", "locate", "locate_steps", "run_steps", "StepQuery", "LocateTrace"]
 
@@ -102,19 +89,6 @@ COARSE_ARRIS_SKEW_DEG = 0.5
 #: how far beyond the coarse reference line's tolerance a nearer reference arris is looked for, px: the
 #: stronger step's flank (blur up to ~3 px) stays out of the 2 x 2-px step detector (:func:`_nearer_reference`)
 NEARER_REFERENCE_CLEAR_PX = 13.0
-#: an arris strip narrower than this, px, is a plain step to the camera response's check (a chamfer of a few
-#: thousandths of a millimetre, a twentieth of a pixel: its lines are plain edges, on which the response is
-#: measured; as arris lines the unmeasured response's doubt put 0.19 mm on an answer 0.001 mm off)
-PLAIN_STRIP_PX = 0.1
-
-#: the final pass fits a blurred step (LocateConfig.step_fit) only above this optical blur, px
-STEP_FIT_MIN_BLUR_PX = 0.5
-
-HUMAN = {
-    "bottom": "bottom end of the door (X-line)",
-    "reference": "reference-face arris (Z-line)",
-    "far": "far arris (door thickness)",
-}
 
 
 @dataclass
@@ -842,7 +816,7 @@ def _coarse_pose(
     )
     if r:
         if _looks_like_pattern_here(plane, s8, c.ref_band, ref_lay.axis, cfg):
-            r = _PATTERN
+            r = PATTERN
         raise _Refused(
             r,
             diagnostics={
@@ -858,43 +832,6 @@ def _coarse_pose(
     if r:
         raise _Refused(r, diagnostics={"measured": {"thickness_mm": pose.thickness_mm, "coarse": True}})
     return pose
-
-
-@dataclass(frozen=True)
-class Refined:
-    """What the refine stage found: the sub-pixel edge points, their joint fit and the pose from it.
-
-    Attributes
-    ----------
-    samples : dict[str, EdgeSamples]
-        Edge points per line (``"bottom"``, ``"reference"``, ``"far"``).
-    fit : RectangleFit
-        The joint line fit.
-    pose : MetricPose
-        The pose from it.
-    blur_px : float
-        The transition width measured in the first pass, px (its optical blur: :func:`_blur_without_pixel`).
-    half : int
-        The final windows' half width, px.
-    far_beside : bool
-        Whether a far face was seen beside the far arris (the far line then measures only the thickness).
-    far_fit : FarFaceFit or None
-        The far-face model's fit, where it ran.
-    step_fitted : dict[str, float]
-        The lines whose points the blurred-step fit refined, and the blur it used, px.
-    arris_fits : dict[str, tuple[StripFit, float]]
-        Per line with an arris strip, its profile fit and the strip's width, px (read only).
-    """
-
-    samples: dict[str, EdgeSamples]
-    fit: RectangleFit
-    pose: MetricPose
-    blur_px: float
-    half: int
-    far_beside: bool
-    far_fit: FarFaceFit | None
-    step_fitted: dict[str, float]
-    arris_fits: dict[str, tuple[StripFit, float]]
 
 
 @dataclass(frozen=True)
@@ -1046,14 +983,16 @@ def _locate(
     pose = _coarse_pose(coarse, plane, s8, region, cell, door, cfg)
     clock.lap("coarse_pose")
     refined = _refine(plane, s8, region, pose, cfg, clock, cell.response_gamma)
-    check = _check_response(plane, s8, region, cfg, clock, cell, refined)
+    check = check_response(
+        plane, cell, cfg, refined, lambda start, gamma: _refine(plane, s8, region, start, cfg, clock, gamma)
+    )
     refined = check.refined
     samples, fit, pose = refined.samples, refined.fit, refined.pose
     tr.samples = samples
     tr.inliers = {k: fit.weights[k] > 0 for k in EDGE_NAMES}
     tr.pose = pose
-    doubts = _edge_doubts(plane, s8, region, cfg, check)
-    res = _gate_and_answer(name, door, cfg, region, check, doubts, plane, s8)
+    doubts = edge_doubts(plane, s8, region, cfg, check)
+    res = gate_and_answer(name, door, cfg, region, check, doubts, plane, s8)
     res.diagnostics["camera_response"] = check.diagnostics
     res.diagnostics["far_face_visible"] = refined.far_beside
     far_fit = refined.far_fit
@@ -1071,76 +1010,6 @@ def _locate(
     return res
 
 
-@dataclass(frozen=True)
-class ResponseCheck:
-    """What the response check stage found: the refined edges the answer rests on (read again with this
-    image's camera exponent where it showed another than the cell's), the cell as used, the image's
-    reading of the camera response (None where unchecked), per line, and its diagnostics."""
-
-    refined: Refined
-    cell: Cell
-    response: ResponseFit | None
-    absorbed: bool
-    diagnostics: dict[str, Any]
-
-
-def _check_response(
-    plane, s8: float, region: SearchRegion, cfg: LocateConfig, clock: _Clock, cell: Cell, refined: Refined
-) -> ResponseCheck:
-    """The response check stage: the camera response read off the plain edges, and where it differs from
-    the cell's, the edges refined again with it (the absorb-and-rerun) and read once more."""
-    used_cell = cell
-    response, per_line = _measure_response(plane, refined, cell, cfg)
-    response_diag: dict[str, Any] = {"cell_gamma": cell.response_gamma, "absorbed": False}
-    unstable: float | None = None
-    if cell.response_gamma_sigma is not None:
-        response_diag["cell_sigma"] = cell.response_gamma_sigma
-    if response is not None and response.absorb:
-        # The plain edges show another camera response than the cell's: measure again with theirs (the
-        # bias a wrong response gives every edge, arris strips included, is then gone), and check again.
-        response_diag.update(absorbed=True, first_fit=round(response.gamma, 4))
-        first = refined
-        used_cell = replace(cell, response_gamma=response.gamma, response_gamma_sigma=None)
-        refined = _refine(plane, s8, region, refined.pose, cfg, clock, response.gamma)
-        again = _measure_response(plane, refined, used_cell, cfg)
-        if again[0] is not None and again[0].absorb:
-            # Read again with the absorbed exponent in use, the edges show yet another one: their reading
-            # depends on where the edges were placed, so it is no measurement of the camera (seen: a lens
-            # distortion the cell models only in part, k1 0.17 for 0.20; 2.68 read with the cell's 1.0,
-            # then 1.02 read with 2.68, and the answer refused for a 0.1 mm response doubt). The cell's
-            # exponent stands, unchecked.
-            unstable = round(again[0].gamma, 4)
-            refined = first
-            used_cell, response = cell, None
-            response_diag.update(absorbed=False, second_fit=unstable)
-        elif again[0] is not None:
-            response, per_line = again
-    response_diag["checked"] = response is not None
-    # whose exponent the answer rests on: the cell's (measured or stated) or this image's own
-    response_diag["used"] = "image" if response_diag["absorbed"] else "cell"
-    if response is None:
-        response_diag["unchecked_because"] = (
-            _response_unchecked_because(refined.samples, refined.fit, refined.blur_px, refined.arris_fits)
-            if unstable is None
-            else f"the edges read {response_diag['first_fit']} with the cell's exponent in use and {unstable} "
-            "with that one: a reading that follows the edges' placement, not the camera's response"
-        )
-    if response is not None:
-        response_diag.update(
-            fitted=round(response.gamma, 4),
-            sigma=round(response.sigma, 4),
-            lines={
-                k: {"gamma": round(v.gamma, 4), "sigma": round(v.sigma, 4), "skew_px": round(v.skew_px, 4)}
-                | ({"one_phase": True} if v.one_phase else {})
-                | ({"alternatives": [round(a, 4) for a in v.alternatives]} if v.alternatives else {})
-                for k, v in per_line.items()
-            },
-        )
-        if response.alternatives:
-            response_diag["alternatives"] = list(response.alternatives)
-    return ResponseCheck(refined, used_cell, response, bool(response_diag["absorbed"]), response_diag)
-
-
 class _Clock:
     """Stage timings (ms) for the diagnostics; a stage run twice (the third pass of the fine stage, when a
     far face is in view, runs as ``edges2`` / ``fit2`` again) counts both runs."""
@@ -1153,13 +1022,6 @@ class _Clock:
         t = time.perf_counter()
         self.laps[name] = round(self.laps.get(name, 0.0) + (t - self.t) * 1e3, 3)
         self.t = t
-
-
-_PATTERN = q.Refusal(
-    "not_a_door",
-    "a regular pattern (a calibration board?) is in view instead of a door; "
-    "remove it and place a door in the fixture",
-)
 
 
 def _looks_like_pattern_here(plane, s8: float, band: Band, axis, cfg: LocateConfig) -> bool:
@@ -1298,7 +1160,7 @@ def _face_texture_line(
 
 def _no_door_reason(plane, band: Band, layout: EdgeLayout, cfg: LocateConfig, s8: float) -> q.Refusal:
     if _looks_like_pattern_here(plane, s8, band, layout.axis, cfg):
-        return _PATTERN
+        return PATTERN
     faint = _faint_edge(plane, band, layout, cfg.min_contrast / s8)
     if faint is not None:
         steps, found, lines = faint
@@ -1392,681 +1254,6 @@ def _faint_edge(plane, band: Band, layout: EdgeLayout, thr: float) -> tuple[floa
     return float(np.median(on)), int(line.inliers.sum()), len(band.scan)
 
 
-def _rows_across(plane, s8: float, ref: EdgeSamples, far: EdgeSamples) -> np.ndarray | None:
-    """Grey profiles (0-255) across the door between and beyond its two arrises, for the pattern check."""
-    if ref.scan.size == 0:
-        return None
-    P = oriented(plane, ref.axis)
-    a = np.concatenate([ref.along[np.isfinite(ref.along)], far.along[np.isfinite(far.along)]])
-    if a.size == 0:
-        return None
-    lo, hi = int(max(a.min() - 150, 0)), int(min(a.max() + 150, P.shape[0] - 1))
-    return P[lo : hi + 1, ref.scan[::8]].T.astype(np.float32) * s8
-
-
-#: contiguous blocks along a line over which its residuals' structure is read (:func:`_residual_structure_tilt`)
-RESIDUAL_BLOCKS = 4
-
-
-def _residual_structure_tilt(samples: EdgeSamples, residual_px: np.ndarray, inliers: np.ndarray) -> float:
-    """Standard error of a line's tilt (px per px) from the structure of its residuals along it.
-
-    The line fit's own standard error takes the residuals as independent; a bias that changes slowly along
-    the edge shows instead as residuals whose means over ``RESIDUAL_BLOCKS`` contiguous blocks differ.
-    Taken as independent block errors of that scatter, the slope they allow is ``sd(block means) /
-    sqrt(sum (s_i - mean s)^2)`` over the blocks' centres ``s_i`` (px). NaN with too few points.
-    """
-    m = inliers & np.isfinite(residual_px)
-    if int(m.sum()) < 8 * RESIDUAL_BLOCKS:
-        return float("nan")
-    order = np.argsort(samples.scan[m])
-    scan, res = samples.scan[m][order].astype(float), residual_px[m][order]
-    blocks = np.array_split(np.arange(scan.size), RESIDUAL_BLOCKS)
-    means = np.array([res[b].mean() for b in blocks])
-    centres = np.array([scan[b].mean() for b in blocks])
-    spread = float(np.sum((centres - centres.mean()) ** 2))
-    return float(np.std(means, ddof=1) / math.sqrt(spread)) if spread > 0 else float("nan")
-
-
-def _response_check_applies(samples: EdgeSamples, inliers: np.ndarray, blur_px: float) -> bool:
-    """Whether the mean transition's asymmetry can be read on this line.
-
-    The check averages the profiles on a fine grid aligned on the sub-pixel edge: that mean shows the
-    response's asymmetry where the line's edge points fall at many pixel phases and the edge is blurred
-    over more than half a pixel. (A sharp step integrated over the pixel is a one-pixel ramp, straight
-    in linear light and bent by a wrong exponent, and reads too: a 1.6 camera in a cell of 1.0 read 1.61
-    +- 0.10, a linear one in a cell of 2.2 1.01 +- 0.12; but at ~9 ms a line it made the sharp grid set's
-    frames 2.3 times slower. Such a line takes the cell's exponent within
-    ``LocateConfig.response_unmeasured_factor`` instead, :func:`_unmeasured_response_terms`: 0.028 mm on
-    the sharp grid fixtures.) An edge along a pixel row or column puts all of them at one phase; its
-    transition is read between the pixels by interpolation, which needs a blur of
-    ``RESPONSE_ONE_PHASE_MIN_BLUR_PX`` (unread and without a doubt, doors square to the camera in a cell
-    whose exponent was not the camera's had been answered 5-7 sigma off).
-    """
-    if not blur_px >= STEP_FIT_MIN_BLUR_PX:  # (the phases need not be counted then)
-        return False
-    return _at_many_phases(samples, inliers) or blur_px >= RESPONSE_ONE_PHASE_MIN_BLUR_PX
-
-
-def _at_many_phases(samples: EdgeSamples, inliers: np.ndarray) -> bool:
-    """Whether the line's edge points fall in every quarter of a pixel (not along a pixel row or column)."""
-    along = samples.along[inliers & samples.valid]
-    return bool(along.size) and not at_one_phase(along)
-
-
-def _blur_without_pixel(transition_px: float) -> float:
-    """The optical blur (Gaussian sigma, px) in a transition's RMS width: the pixel's own 1/12 px^2 taken out
-    (0 where the width is unknown)."""
-    return (
-        math.sqrt(max(transition_px * transition_px - 1.0 / 12.0, 0.0))
-        if math.isfinite(transition_px)
-        else 0.0
-    )
-
-
-def _plain_response_lines(arris_fits: dict[str, tuple[StripFit, float]] | None) -> list[str]:
-    """The lines the camera response is read on: the bottom end and the reference arris unless an arris strip
-    lies along them (not the far arris: a far face seen edge-on can make a narrow band beside it)."""
-    return [
-        k
-        for k in EDGE_NAMES
-        if k != "far" and not (arris_fits and k in arris_fits and arris_fits[k][1] > PLAIN_STRIP_PX)
-    ]
-
-
-def _response_unchecked_because(
-    samples: dict[str, EdgeSamples],
-    fit: RectangleFit,
-    transition_px: float,
-    arris_fits: dict[str, tuple[StripFit, float]] | None,
-) -> str:
-    """Why no edge of this image could show the camera response (``diagnostics.camera_response``): the
-    pose then rests on the cell's ``response_gamma`` within ``locate.response_unmeasured_factor``, which a
-    user should know."""
-    plain = _plain_response_lines(arris_fits)
-    if not plain:
-        return "every edge is an arris strip, whose shading takes up the response"
-    if not _blur_without_pixel(transition_px) >= STEP_FIT_MIN_BLUR_PX:
-        return "the edges are sharper than half a pixel: their transition is not read"
-    if not any(_at_many_phases(samples[k], fit.weights[k] > 0) for k in plain):
-        return (
-            "the plain edges lie along pixel rows or columns (a door square to the camera): one pixel phase, "
-            f"where only a transition blurred by {RESPONSE_ONE_PHASE_MIN_BLUR_PX:g} px or more can be read "
-            "between the pixels"
-        )
-    return "the plain edges' transitions were too noisy or too few to read"
-
-
-def _measure_response(
-    plane, refined: Refined, cell: Cell, cfg: LocateConfig
-) -> tuple[ResponseFit | None, dict[str, LineResponse]]:
-    """The camera response measured on the plain edges (:func:`doorloc.vision.response.fit_line_response`).
-
-    Plain: the bottom end and the reference arris without an arris strip, at many pixel phases and blurred
-    (:func:`_response_check_applies`). None where no edge qualifies.
-    """
-    samples, fit, half, arris_fits = refined.samples, refined.fit, refined.half, refined.arris_fits
-    blur_px = _blur_without_pixel(refined.blur_px)
-    per_line: dict[str, LineResponse] = {}
-    for k in _plain_response_lines(arris_fits):
-        inl = fit.weights[k] > 0
-        if not _response_check_applies(samples[k], inl, blur_px):
-            continue
-        lr = fit_line_response(plane, samples[k], inl, half, cell.response_gamma, blur_px)
-        if lr is None:
-            continue
-        # Texture beside the edge (grain along it) skews the transition the same way on every scan line,
-        # which the block scatter does not see: the edge bias it can make (the texture term) read as an
-        # exponent error through the step model's sensitivity, in quadrature.
-        tex = texture_bias(
-            plane, samples[k], inl, half, cfg.plateau, linearizing_lut(plane.dtype, cell.response_gamma)
-        ).offset_sigma_px
-        dg = 0.05 * lr.gamma
-        up, down = edge_shifts_px(
-            lr.lo, lr.hi, np.array([lr.gamma + dg, lr.gamma - dg]), lr.gamma, blur_px, half
-        )
-        slope = abs(float(up) - float(down)) / (2 * dg)
-        if math.isfinite(tex) and tex > 0 and slope > 0:
-            lr = replace(lr, sigma=math.hypot(lr.sigma, tex / slope))
-        per_line[k] = lr
-    return combine_responses(per_line, cell.response_gamma, cell.response_gamma_sigma or 0.0), per_line
-
-
-def _line_response_shifts(
-    plane,
-    samples: dict[str, EdgeSamples],
-    fit: RectangleFit,
-    half: int,
-    used_gamma: float,
-    far_beside: bool,
-    blur_px: float,
-) -> Iterator[tuple[str, Callable[[list[float]], np.ndarray]]]:
-    """Each line a camera exponent moves (the far one only where no far-face model reports its own doubt)
-    and the shifts, px, that exponents make there (a list in, an array out: the step is modelled once for
-    all of them): :func:`doorloc.vision.response.edge_shifts_px` between the line's own plateaus at
-    ``blur_px``, each exponent brought within ``RESPONSE_PLAUSIBLE`` (a reading or a factor beyond them is
-    no camera)."""
-    for k in EDGE_NAMES:
-        if k == "far" and far_beside:
-            continue
-        inl = fit.weights[k] > 0
-        lo, hi = plateau_levels(plane, samples[k], inl & samples[k].valid, half)
-
-        def shifts(gs: list[float], lo: float = lo, hi: float = hi) -> np.ndarray:
-            g = np.clip(np.asarray(gs, float), *RESPONSE_PLAUSIBLE)
-            return edge_shifts_px(lo, hi, g, used_gamma, blur_px, half)
-
-        yield k, shifts
-
-
-def _response_terms(
-    plane,
-    samples: dict[str, EdgeSamples],
-    fit: RectangleFit,
-    half: int,
-    used_gamma: float,
-    response: ResponseFit,
-    far_beside: bool,
-    blur_px: float,
-    absorbed: bool,
-    factor: float,
-) -> list[LineDoubt]:
-    """Each line's response doubt (px), from the step model.
-
-    The edge was measured with ``used_gamma``; the image reads the camera's exponent as ``response.gamma``
-    +- ``response.sigma``. The doubt is built from the shift (:func:`doorloc.vision.response.edge_shift_px`
-    between the line's own plateaus, at the measured blur) to an exponent and the shift of its 1-sigma:
-
-    - after ``absorbed`` (the exponent in use is this image's reading): the reading's 1-sigma shift, and
-      what the shift to it leaves beyond twice that;
-    - where the cell's exponent was itself measured (``response.claimed_sigma``) and is kept: the shift to
-      the exponent both measurements give together (:attr:`ResponseFit.combined`) and its 1-sigma shift
-      (widened by their disagreement), in quadrature;
-    - where it was not, and the edges were read at many pixel phases: the shift to the reading beyond
-      twice the reading's 1-sigma shift (within that, the edges agree with the exponent in use, and a
-      right cell keeps its small sigma), or the largest shift to the other exponents the edges admit
-      about as well (``response.alternatives``: the image cannot tell which the camera has);
-    - where it was not, and a line was read between its pixels (``response.one_phase``, a door square
-      to the camera): such a reading (+-0.2-0.6) is weak evidence, and agreeing within two of its sigmas
-      proves little (a cell of 1.0 for a 1.67 camera, read 1.65 +- 0.34, was answered 0.056 mm off at
-      4.4 sigma). The cell's exponent, taken as known within ``factor`` (``LocateConfig.
-      response_unmeasured_factor``, one sigma ``used_gamma * (factor - 1)``), and the reading together
-      (:meth:`ResponseFit.with_unmeasured_claim`): the shift to their exponent and its 1-sigma shift in
-      quadrature. A reading no camera gives (beyond ``RESPONSE_PLAUSIBLE`` by two of its sigmas: two
-      lines of a 1.44 camera read 0.40 +- 0.08) is no reading: the cell's exponent within ``factor``
-      alone (:func:`_unmeasured_response_terms`).
-
-    That combination was tried on every reading and not taken: readings at many phases under strong
-    shading, vignetting and noise read a linear camera 0.4-0.9 +- 0.2, and the combination put
-    0.007-0.026 mm on each line of right cells' doors (tests/vision's hard photometry; the parity set's
-    ``rand`` renders, sigma up to 0.012 -> 0.079 mm); and weighing a point "the cell is exactly right"
-    against "another within the factor" by the reading's likelihood left square doors under a wrong cell
-    85 % within 2 sigma (bench_arris square-wrong-gamma --seed 9000), a weak reading favouring the point.
-
-    An arris line takes the same step model between its background and its face (a first-order figure).
-    """
-    # between the pixels, against a cell exponent nobody measured: the reading and the claim together
-    weak = not absorbed and not response.claimed_sigma > 0 and response.one_phase and factor > 1.0
-    if weak:
-        lo_g, hi_g = RESPONSE_PLAUSIBLE
-        if not lo_g - 2.0 * response.sigma <= response.gamma <= hi_g + 2.0 * response.sigma:
-            return _unmeasured_response_terms(
-                plane, samples, fit, half, used_gamma, factor, far_beside, blur_px
-            )
-    # the exponent the evidence gives, gc +- sc
-    if absorbed:
-        gc, sc = response.gamma, response.sigma
-    elif response.claimed_sigma > 0:
-        gc, _, sc = response.combined
-    elif weak:
-        gc, sc = response.with_unmeasured_claim(used_gamma * (factor - 1.0))
-    else:
-        gc, sc = response.gamma, response.sigma
-    alternatives = list(response.alternatives)
-    doubts = []
-    for k, shifts in _line_response_shifts(plane, samples, fit, half, used_gamma, far_beside, blur_px):
-        # the shift to the evidence's exponent, half the spread over its 1-sigma, and to each alternative
-        at = shifts([gc, gc + sc, max(gc - sc, 0.05), *alternatives])
-        bias, sp = float(at[0]), 0.5 * abs(float(at[1]) - float(at[2]))
-        shift_alt = [float(v) for v in at[3:]]
-        if absorbed:
-            # the exponent in use is this image's measurement: its doubt counts in full
-            doubt = math.hypot(max(abs(bias) - 2.0 * sp, 0.0), sp)
-        elif response.claimed_sigma > 0:
-            doubt = math.hypot(bias, sp)
-        elif weak:
-            doubt = math.hypot(bias, sp)
-            for s_alt in shift_alt:
-                doubt = max(doubt, abs(s_alt))
-        else:
-            # the shift the measured mismatch makes beyond twice its own doubt (within that, the edges
-            # agree with the exponent in use); where the edges read other exponents about as well, the
-            # largest of their shifts (the image cannot tell which the camera has)
-            doubt = max(abs(bias) - 2.0 * sp, 0.0)
-            for s_alt in shift_alt:
-                doubt = max(doubt, abs(s_alt) - 2.0 * sp)
-        if math.isfinite(doubt):
-            doubts.append(LineDoubt("response", k, doubt, group=CAMERA_RESPONSE))
-    return doubts
-
-
-def _unmeasured_response_terms(
-    plane,
-    samples: dict[str, EdgeSamples],
-    fit: RectangleFit,
-    half: int,
-    used_gamma: float,
-    factor: float,
-    far_beside: bool,
-    blur_px: float,
-) -> list[LineDoubt]:
-    """The response doubt (px) of each line when the image did not measure the camera's response.
-
-    The response is measured on plain edges only (:func:`_measure_response`): the shading of an arris
-    strip is free in its fit and takes up what a wrong exponent does to the profile (a fit of the exponent
-    to the strip's misfit was tried: on the arris bench it found the camera's exponent on some chamfers
-    and 0.8 or 3.0 on others, right cell or not); a plain edge along a pixel row or column blurred by
-    less than ``RESPONSE_ONE_PHASE_MIN_BLUR_PX`` cannot be read between its pixels, and sharp edges are not
-    read (:func:`_response_check_applies`). Then the cell's
-    ``response_gamma`` cannot be checked, and it is taken as known within a factor ``factor``
-    (``LocateConfig.response_unmeasured_factor``): the doubt of every line (the far one's where no far-face
-    model reports its own) is half the spread of the edge shift
-    (:func:`doorloc.vision.response.edge_shift_px`, the line's plateaus, the measured blur) between
-    ``used_gamma * factor`` and ``used_gamma / factor``. Without it the arris lines' answers under a wrong
-    cell exponent were biased by several of their sigmas (fixtures/rendered/effects: 1.0 for a 2.2
-    camera, z 0.035 mm at 2-3 sigma), and a plain door square to the camera by up to 7 (a 1.13 camera in
-    a cell of 2.01, blur 0.86 px: x 0.075 mm off at sigma 0.010).
-    """
-    if not factor > 1.0:
-        return []
-    doubts = []
-    for k, shifts in _line_response_shifts(plane, samples, fit, half, used_gamma, far_beside, blur_px):
-        up, down = shifts([used_gamma * factor, used_gamma / factor])
-        spread = 0.5 * abs(float(up) - float(down))
-        if math.isfinite(spread):
-            doubts.append(LineDoubt("response", k, spread, group=CAMERA_RESPONSE))
-    return doubts
-
-
-def _arris_blur_doubts(arris_fits: dict[str, tuple[StripFit, float]], diagnostics: dict) -> dict[str, float]:
-    """Each arris line's doubt (px) from a blur its strip fit does not share with the image's other strips.
-
-    One lens blurs every edge of the door alike, but each strip fit finds its own blur, which trades off
-    with the strip's shading and the border's place: texture beside a strip (wood grain along a rounding)
-    can take a fit to a wrong valley with a wrong blur. Seen on a 3 mm rounding with 6.5 % grain
-    (tests/vision/test_arris_model.py): the reference arris's strip read a blur of 1.76 px where the
-    bottom end's and the far arris's read 0.72 and 0.85 (the image's 0.72), and the door was placed
-    0.51 mm off in x with a sigma of 0.09 mm; that strip fitted at 0.72 px was 0.05 mm off. The strip fit
-    allows for ``arris_model.BLUR_DOUBT`` of blur; where a line's blur differs from the strips' median by
-    more, the change of its deficit at that median (:attr:`StripFit.deficit_at_blur`, against the same
-    search at its own blur) times the strip's width joins its ``arris`` doubt (``arris_correction_sigma_mm``;
-    ``diagnostics.arris_fit[line].blur_doubt_px``).
-    """
-    blurs = {k: float(strip.blur_px) for k, (strip, _) in arris_fits.items() if math.isfinite(strip.blur_px)}
-    out: dict[str, float] = {}
-    if len(blurs) < 2:
-        return out
-    # the image's blur: the strips' median (one strip led astray does not move it; of two, their mean)
-    shared = float(np.median(list(blurs.values())))
-    for k, (strip, band_px) in arris_fits.items():
-        if k not in blurs or strip.deficit_at_blur is None:
-            continue
-        if not abs(blurs[k] - shared) > BLUR_DOUBT:
-            continue
-        moved = abs(strip.deficit_at_blur(shared) - strip.deficit_at_blur(blurs[k])) * band_px
-        if math.isfinite(moved):
-            out[k] = moved
-            diagnostics.setdefault("arris_fit", {}).setdefault(k, {}).update(
-                blur_strips_px=round(shared, 3), blur_doubt_px=round(moved, 4)
-            )
-    return out
-
-
-def _jpeg_doubts(samples: dict[str, EdgeSamples], fit: RectangleFit) -> list[LineDoubt]:
-    """Each line's JPEG doubt where the image shows block artifacts: ``JPEG_EDGE_DOUBT_PX`` across it, and
-    the tilt (:func:`doorloc.vision.uncertainty.jpeg_tilt_sigma`) as the edge's phase in the 8-px blocks
-    changes along it."""
-    doubts = []
-    for k in EDGE_NAMES:
-        inl = (fit.weights[k] > 0) & np.isfinite(samples[k].along)
-        scan, along = samples[k].scan[inl], samples[k].along[inl]
-        slope = fit_image_line(scan, along).b if scan.size >= 3 else math.nan
-        doubts.append(LineDoubt("jpeg", k, JPEG_EDGE_DOUBT_PX, tilt=jpeg_tilt_sigma(slope, scan)))
-    return doubts
-
-
-def _arris_doubts(
-    arris_fits: dict[str, tuple[StripFit, float]],
-    samples: dict[str, EdgeSamples],
-    fit: RectangleFit,
-    scale_mm_per_px: float,
-    diagnostics: dict,
-) -> list[LineDoubt]:
-    """What the arris correction leaves in doubt on each arris line (and its figures into
-    ``diagnostics["arris_fit"]``): across it, the strip's fitted deficit times its width, and the blur its
-    fit does not share with the other strips (:func:`_arris_blur_doubts`); along it (the strip's shading
-    and the texture beside it change along the edge; the texture term reads only beyond the strip), the
-    tilt that the residuals' structure over quarters of the line could hide."""
-    for k in EDGE_NAMES:
-        if k in arris_fits:
-            strip, band_px = arris_fits[k]
-            diagnostics.setdefault("arris_fit", {})[k] = {
-                "deficit": round(strip.deficit, 4),
-                "deficit_sigma": round(strip.deficit_sigma, 5),
-                "strip_px": round(band_px, 3),
-                "blur_px": round(strip.blur_px, 3),
-                "misfit": round(strip.misfit, 3),
-                "offset_px": round(strip.offset_px, 4),
-            }
-    moved = _arris_blur_doubts(arris_fits, diagnostics)
-    doubts = []
-    for k in EDGE_NAMES:
-        if k not in arris_fits:
-            continue
-        strip, band_px = arris_fits[k]
-        offset = strip.deficit_sigma * band_px
-        if k in moved:
-            offset = math.hypot(offset, moved[k])
-        inl = fit.weights[k] > 0
-        tilt = _residual_structure_tilt(samples[k], fit.residuals[k] / scale_mm_per_px, inl)
-        doubts.append(LineDoubt("arris", k, offset, tilt=tilt))
-    return doubts
-
-
-def _edge_doubts(
-    plane, s8: float, region: SearchRegion, cfg: LocateConfig, check: ResponseCheck
-) -> tuple[EdgeModelTerms, dict[str, Any]]:
-    """The doubts stage: every line's edge-model doubts (:class:`doorloc.vision.uncertainty.LineDoubt`), each
-    from the code that knows it: the texture beside the edge or the far-face model, JPEG's blocks where the
-    image shows them, the arris correction, the camera response. The stage that reads the pixels for them,
-    so that the gate reads none. With them, the figures the diagnostics report (``jpeg_block_ratio``,
-    ``arris_fit``)."""
-    r, cell = check.refined, check.cell
-    samples, fit = r.samples, r.fit
-    # An arris line's door side is its strip, whose shading the texture term would read as texture (on a
-    # rounding, 0.1-0.2 mm of doubt on edges found to 0.002 mm, refused as uncertain): its texture is read
-    # beyond the strip and the blur's reach.
-    strips = {
-        k: (
-            int(math.ceil(band_px + 3.0 * strip.blur_px)),
-            region.layouts[k].polarity * (1 if cfg.door_brighter else -1),
-        )
-        for k, (strip, band_px) in r.arris_fits.items()
-    }
-    model = EdgeModelTerms(
-        tuple(_edge_model_doubts(plane, samples, fit, r.half, cfg, cell, r.far_fit, r.step_fitted, strips)),
-        _blur_without_pixel(r.blur_px),
-    )
-    figures: dict[str, Any] = {}
-    blocks = block_artifact_ratio(plane, r.pose.corner_px, scale_to_8bit=s8)
-    figures["jpeg_block_ratio"] = round(blocks, 3) if math.isfinite(blocks) else None
-    if blocks > JPEG_BLOCK_RATIO:
-        model = model.with_doubts(*_jpeg_doubts(samples, fit))
-    if r.arris_fits:
-        model = model.with_doubts(*_arris_doubts(r.arris_fits, samples, fit, r.pose.scale_mm_per_px, figures))
-    if check.response is not None:
-        response = _response_terms(
-            plane,
-            samples,
-            fit,
-            r.half,
-            cell.response_gamma,
-            check.response,
-            r.far_beside,
-            model.blur_px,
-            check.absorbed,
-            cfg.response_unmeasured_factor,
-        )
-    else:
-        response = _unmeasured_response_terms(
-            plane,
-            samples,
-            fit,
-            r.half,
-            cell.response_gamma,
-            cfg.response_unmeasured_factor,
-            r.far_beside,
-            model.blur_px,
-        )
-    return model.with_doubts(*response), figures
-
-
-def _gate_and_answer(
-    name: str,
-    door: DoorSize,
-    cfg: LocateConfig,
-    region: SearchRegion,
-    check: ResponseCheck,
-    doubts: tuple[EdgeModelTerms, dict[str, Any]],
-    plane,
-    s8: float,
-) -> LocateResult:
-    """The gate: the answer, or the refusal with its reason, from the refined edges, the response check and
-    the lines' doubts. (It reads the pixels only to tell a pattern from a door where the edges failed.)"""
-    r, cell, response = check.refined, check.cell, check.response
-    model, figures = doubts
-    samples, fit, pose, far_beside, far_fit = r.samples, r.fit, r.pose, r.far_beside, r.far_fit
-    lines, refusals = [], []
-    corner_px = pose.corner_px
-    diagnostics: dict = {
-        "blur_px": round(r.blur_px, 3),
-        "window_half_px": r.half,
-        "face_y_mm": region.face_y,
-        "edge_depth_y_mm": region.edge_depth_y,
-        "fit_scale_mm": fit.scale,
-        "yaw_sigma_deg": math.degrees(fit.angle_sigma_rad),
-        "thickness_expected_mm": door.thickness_mm,
-        **figures,
-    }
-    for k in EDGE_NAMES:
-        s = samples[k]
-        n_s = int(s.scan.size)
-        n_i, mean_square, contrast, noise = q.line_figures(fit.weights[k], fit.residuals[k], s.step, s.noise)
-        rms_mm = math.sqrt(mean_square) if n_i else float("nan")
-        rms_px = rms_mm / pose.scale_mm_per_px
-        # what the edge model leaves in doubt (floor, texture, far-face model...), on top of the noise
-        extra = {"model_sigma_mm": round(model.line_sigma_px(k) * pose.scale_mm_per_px, 6)}
-        for term, key in (("arris", "arris_correction_sigma_mm"), ("response", "response_sigma_mm")):
-            doubt = model.offset_px(k, term)
-            if doubt is not None:
-                extra[key] = round(doubt * pose.scale_mm_per_px, 5)
-        lines.append(
-            LineQuality(
-                name=k,
-                n_points=n_s,
-                n_inliers=n_i,
-                rms_residual_px=round(rms_px, 4),
-                rms_residual_mm=round(rms_mm, 5),
-                contrast=round(contrast, 1),
-                noise=round(noise, 2) if n_i else None,
-                offset_sigma_mm=round(fit.offset_sigma[k], 5),
-                **extra,
-            )
-        )
-        # Beside a visible far face the far arris only measures the thickness (it takes no part in the
-        # pose): a looser straightness check.
-        loose = k == "far" and far_beside
-        refusals.append(
-            q.check_line(
-                k,
-                HUMAN[k],
-                n_s,
-                n_i,
-                rms_px,
-                contrast,
-                cfg.min_inliers,
-                cfg.min_inlier_fraction * (0.5 if loose else 1.0),
-                cfg.max_rms_residual_px * (2.0 if loose else 1.0),
-                cfg.min_contrast,
-            )
-        )
-    # corner support: the points next to the corner on the bottom end and the reference arris
-    for k in ("bottom", "reference"):
-        s = samples[k]
-        lay = region.layouts[k]
-        c_scan = corner_px[0] if lay.axis == "col" else corner_px[1]
-        near = np.abs(s.scan - c_scan) <= cfg.corner_zone_px
-        n = int(np.count_nonzero(near))
-        fits = (fit.weights[k] > 0) | (
-            np.abs(fit.residuals[k]) <= cfg.corner_tolerance_px * pose.scale_mm_per_px
-        )
-        frac = int(np.count_nonzero(fits[near])) / n if n else 0.0
-        diagnostics[f"corner_support_{k}"] = round(frac, 3)
-        refusals.append(q.check_corner_support(HUMAN[k], frac, n, cfg.min_corner_support))
-    bright = np.concatenate([samples[k].bright[fit.weights[k] > 0] for k in EDGE_NAMES])
-    refusals.append(q.check_overexposed(bright))
-    refusals.append(
-        q.check_envelope(
-            pose.x_mm, pose.z_mm, pose.yaw_deg, cell.envelope, cfg.envelope_margin_mm, cfg.envelope_margin_deg
-        )
-    )
-    t_tol = cfg.thickness_tolerance_mm
-    # A far face whose band looks like the background or like the hinge face reads two ways, a band's width
-    # apart (edges.FarFaceFit.other_reading_px), and the image cannot tell which: the check takes the reading
-    # nearer the recipe (a wrong door passes only where its other reading lands on the recipe's thickness),
-    # and the reported sigma reaches the other reading at 2 sigma. Readings more than twice the tolerance
-    # apart are not weighed (the fitted one is judged alone, as without a band): a band that wide is seen
-    # (on bench_surfaces' grain, hard and thin sets, 60 doors each, every fitted reading whose other lay
-    # 2.6-20 mm off was the door's; the two wrong ones were read beside bands of 0.6-1.2 px, 0.4-0.8 mm).
-    other_mm = far_fit.other_reading_px * pose.scale_mm_per_px if far_beside and far_fit is not None else 0.0
-    other = pose.thickness_mm + other_mm if 0.0 < abs(other_mm) <= 2.0 * t_tol else None
-    # Standard uncertainty of the thickness: the two arris offsets' noise, and beside a visible far face
-    # what its model leaves in doubt (a band narrower than the blur is hard to tell from the arris).
-    # The two arrises' response doubts share their cause (one camera exponent moves both edges outwards
-    # or both inwards, and the thickness by their sum): they add, the rest in quadrature. (Added in
-    # quadrature, the effects fixtures' thicknesses, a 2.2 camera in a cell of 1.0, were 0.08-0.12 mm off
-    # with 78 % of them beyond 2 sigma.)
-    budget = _budget(
-        cell,
-        cfg,
-        region,
-        samples,
-        fit,
-        pose,
-        model,
-        far_votes=not far_beside,
-        other_mm=other_mm if other is not None else None,
-    )
-    t_sigma = budget.thickness_mm
-    # (the fitted reading where the two are as near)
-    readings = [pose.thickness_mm] + ([other] if other is not None else [])
-    nearest = min(readings, key=lambda t: abs(t - door.thickness_mm))
-    refusals.append(q.check_thickness(nearest, door.thickness_mm, t_tol, sigma=t_sigma))
-    t_uncertain = abs(nearest - door.thickness_mm) + 3.0 * t_sigma > t_tol
-    if t_uncertain and refusals[-1] is None:
-        refusals.append(
-            q.Refusal(
-                "uncertain",
-                f"the door's thickness cannot be checked: it measures "
-                f"{nearest:.2f} +- {3 * t_sigma:.2f} mm against {door.thickness_mm:.2f} mm "
-                f"(tolerance {t_tol:g} mm){' with its far face seen nearly edge-on' if far_beside else ''}; "
-                "check the door and the recipe, or move the door a little along X and take the "
-                "image again",
-            )
-        )
-    t_sigma = budget.thickness_reported_mm
-    # standard errors of the corner from the line offsets
-    sig = math.hypot(fit.offset_sigma["reference"], fit.offset_sigma["bottom"])
-    diagnostics["corner_sigma_mm"] = sig
-    if sig > cfg.max_sigma_mm:
-        refusals.append(
-            q.Refusal(
-                "uncertain",
-                f"the corner is uncertain to {sig:.3f} mm (limit {cfg.max_sigma_mm} mm): "
-                "the edges are too noisy; check focus, lighting and exposure",
-            )
-        )
-    diagnostics["thickness_check"] = {
-        "measured_mm": round(pose.thickness_mm, 4),
-        "expected_mm": door.thickness_mm,
-        "difference_mm": round(pose.thickness_mm - door.thickness_mm, 4),
-        "tolerance_mm": t_tol,
-        "sigma_mm": round(t_sigma, 5),
-        "uncertain": t_uncertain,
-        "far_face_in_view": far_beside,
-        "other_reading_mm": round(other, 4) if other is not None else None,
-    }
-    unc = PoseUncertainty(x_mm=budget.x_mm, z_mm=budget.z_mm, yaw_deg=budget.yaw_deg)
-    terms = budget.groups
-    diagnostics["uncertainty_terms"] = {k: [round(v, 6) for v in t] for k, t in terms.items()}
-    diagnostics["uncertainty_budget"] = [t.as_dict() for t in budget.terms]
-    if (
-        unc.x_mm > cfg.max_uncertainty_mm
-        or unc.z_mm > cfg.max_uncertainty_mm
-        or unc.yaw_deg > cfg.max_uncertainty_deg
-    ):
-        worst = max(
-            terms,
-            key=lambda k: max(
-                terms[k][0] / cfg.max_uncertainty_mm,
-                terms[k][1] / cfg.max_uncertainty_mm,
-                terms[k][2] / cfg.max_uncertainty_deg,
-            ),
-        )
-        hint = _UNCERTAIN_HINT[worst]
-        if worst == "edge_model" and response is None:
-            # the unchecked response is the largest doubt of a pose line: say so, and what lifts it
-            big = [model.largest_source(k, among=_MODEL_REPORTED) for k in ("bottom", "reference")]
-            if "response" in big:
-                hint = _UNCERTAIN_HINT["response_unmeasured"]
-        refusals.append(
-            q.Refusal(
-                "uncertain",
-                f"the pose is uncertain to x {unc.x_mm:.3f} mm, z {unc.z_mm:.3f} mm, "
-                f"yaw {unc.yaw_deg:.3f} deg (1 sigma; the cell allows {cfg.max_uncertainty_mm:g} mm, "
-                f"{cfg.max_uncertainty_deg:g} deg), mostly from the {worst.replace('_', ' ')}; " + hint,
-            )
-        )
-    first = next((r for r in refusals if r is not None), None)
-    if first is not None and first.code in ("edge_not_straight", "edge_missing", "corner_hidden"):
-        # A pose outside the envelope explains broken edges best (the door lies beyond the region).
-        env = next((r for r in refusals if r is not None and r.code == "outside_envelope"), None)
-        first = env or first
-    if first is not None and first.code in ("edge_not_straight", "edge_missing"):
-        band = _rows_across(plane, s8, samples["reference"], samples["far"])
-        if band is not None and q.looks_like_pattern(band, 4 * cfg.min_contrast):
-            first = _PATTERN
-    if first is not None:
-        diagnostics["measured"] = {
-            "x_mm": pose.x_mm,
-            "z_mm": pose.z_mm,
-            "yaw_deg": pose.yaw_deg,
-            "thickness_mm": pose.thickness_mm,
-        }
-        diagnostics["all_refusals"] = [r.code for r in refusals if r is not None]
-        return LocateResult.refusal(name, first.code, first.message, lines=lines, diagnostics=diagnostics)
-    return LocateResult(
-        image=name,
-        ok=True,
-        x_mm=pose.x_mm,
-        z_mm=pose.z_mm,
-        yaw_deg=pose.yaw_deg,
-        thickness_mm=pose.thickness_mm,
-        scale_mm_per_px=pose.scale_mm_per_px,
-        corner_px=[float(corner_px[0]), float(corner_px[1])],
-        uncertainty=unc,
-        lines=lines,
-        diagnostics=diagnostics,
-    )
-
-
-_UNCERTAIN_HINT = {
-    "response_unmeasured": "the camera response could not be checked on this image (diagnostics "
-    "camera_response.unchecked_because says why: every edge an arris, edges sharper than half a pixel, or a "
-    "door square to the camera), and "
-    "the cell's camera.response_gamma is taken as known only within the factor "
-    "locate.response_unmeasured_factor; measure the response once (doorloc calibrate prints it from the "
-    "chessboard photographs, with the factor they allow; or an image of a plain-edged door in this cell: its "
-    "answer's diagnostics camera_response.fitted), put it in the cell file and set "
-    "locate.response_unmeasured_factor to what the measurement allows",
-    "fit": "the edges are too noisy; check focus, lighting and exposure",
-    "edge_model": "the door's edges do not look like clean steps (strong grain or marks along an edge, an arris or "
-    "a camera response the cell does not describe); check the cell's door and camera settings",
-    "calibration": "the camera calibration is too uncertain here; calibrate again with views covering the door's corner",
-    "cell": "the cell's camera placement is too uncertain; run the cell check again",
-}
-
-
 #: the step fit replaces the area estimate only where they differ by less than this many of the area
 #: estimator's texture sigma (plus STEP_FIT_AGREE_FLOOR_PX): a larger shift is a profile shape that the
 #: step model lacks, not texture
@@ -2102,92 +1289,3 @@ def _step_fit_lines(cfg: LocateConfig, widths: dict[str, float]) -> dict[str, fl
     if optical < STEP_FIT_MIN_BLUR_PX:
         return {}
     return {k: optical for k, w in ok.items() if w <= 1.25 * narrow}
-
-
-def _edge_model_doubts(
-    plane,
-    samples: dict[str, EdgeSamples],
-    fit: RectangleFit,
-    half: int,
-    cfg: LocateConfig,
-    cell: Cell,
-    far_fit: FarFaceFit | None,
-    step_fitted: dict[str, float],
-    strips: dict[str, tuple[int, int]] | None = None,
-) -> list[LineDoubt]:
-    """The doubts the edge models know of each line (:class:`doorloc.vision.uncertainty.LineDoubt`): the
-    far-face model's own, else the texture beside the edge (across it and along it).
-
-    ``strips``: per arris line, the pixels its strip (and the blur beside it) takes on the door side, and
-    that side (+1: increasing ``along``); the texture there is read beyond the strip.
-    """
-    doubts = []
-    lut = linearizing_lut(plane.dtype, cell.response_gamma)
-    for k in EDGE_NAMES:
-        if k == "far" and far_fit is not None:  # what the far-face model leaves in doubt (band level, blur)
-            doubts.append(LineDoubt("far_face", k, far_fit.model_sigma_px))
-            continue
-        skip, side = (strips or {}).get(k, (0, 1))
-        tb = texture_bias(
-            plane,
-            samples[k],
-            fit.weights[k] > 0,
-            half,
-            cfg.plateau,
-            lut,
-            blur_px=step_fitted.get(k),
-            door_skip_px=skip,
-            door_side=side,
-        )
-        # The far arris's offset gives only the thickness: its texture doubt is the thickness's, not the
-        # corner's. (Without it the grain set's thicknesses, the hinge face's grain beside the far arris
-        # as beside the reference one, were 85 % within 2 sigma.) Its direction votes on the door's in
-        # the joint fit where no far face is beside it, so its texture tilt counts in the yaw
-        # (:func:`doorloc.vision.uncertainty.propagate`).
-        doubts.append(LineDoubt("texture", k, tb.offset_sigma_px, tilt=tb.tilt_sigma))
-    return doubts
-
-
-#: the doubts a line's edge model reports besides the texture beside it (the texture of a pose line is its
-#: own term; which of these is largest names the hint of an uncertain pose)
-_MODEL_REPORTED = ("far_face", "jpeg", "arris", "response")
-
-
-def _budget(
-    cell: Cell,
-    cfg: LocateConfig,
-    region: SearchRegion,
-    samples: dict[str, EdgeSamples],
-    fit: RectangleFit,
-    pose: MetricPose,
-    model: EdgeModelTerms,
-    far_votes: bool,
-    other_mm: float | None,
-) -> Budget:
-    """The answer's uncertainty (:func:`doorloc.vision.uncertainty.propagate`): the lines' levers from their
-    inlier points, the calibration's and the cell's terms. (Nine arguments: what the propagation reads of
-    the cell, the fit and the pose, gathered here so that it reads no locate state.)
-
-    ``far_votes``: whether the far arris voted on the door's direction in the joint fit (it does unless a
-    far face is beside it, :func:`_fit`); its tilt then moves the yaw as the others' do. ``other_mm``: how
-    far a far face's other reading lies, where it is weighed.
-    """
-    sc = pose.scale_mm_per_px
-    levers = {}
-    for k in ("reference", "bottom", "far") if far_votes else ("reference", "bottom"):
-        s = samples[k]
-        inl = (fit.weights[k] > 0) & np.isfinite(s.along)
-        corner_scan = pose.corner_px[0] if s.axis == "col" else pose.corner_px[1]
-        levers[k] = LineLever.of_points(s.scan[inl], corner_scan, sc)
-    cal_t = calibration_pose_sigma(
-        cell.posed_camera,
-        region.face_map.depth_y,
-        pose.corner_px,
-        pose.yaw_deg,
-        cell.calibration_covariance,
-        cell.calibration_covariance_names,
-        cfg.calibration_sigma_px,
-        sc,
-    )
-    camera = {"calibration": cal_t, "cell": (cfg.cell_sigma_mm, cfg.cell_sigma_mm, cfg.cell_sigma_deg)}
-    return propagate(model, fit.offset_sigma, fit.angle_sigma_rad, levers, sc, camera, other_mm)
