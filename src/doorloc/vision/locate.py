@@ -46,24 +46,17 @@ from doorloc import __version__
 from doorloc.cell import Cell, DoorSize
 from doorloc.vision import quality as q
 from doorloc.vision.arris_model import (
-    STRIP_RADIANCE,
-    STRIP_RADIANCE_SIGMA,
     StripFit,
-    arris_edges,
     arris_geometry,
 )
 from doorloc.vision.coarse import coarse_edges
 from doorloc.vision.config import LocateConfig
 from doorloc.vision.doubts import edge_doubts
+from doorloc.vision.edge_models import ARRIS_PLATEAU_PX, EDGE_MODELS, PassSettings, ScanWindow, edge_kind
 from doorloc.vision.edges import (
     EdgeSamples,
     FarFaceFit,
-    refine_step_fit,
     step_blur,
-    subpixel_edges,
-    subpixel_edges_banded,
-    subpixel_edges_far_face,
-    texture_bias,
     transition_width,
 )
 from doorloc.vision.gate import HUMAN, PATTERN, gate_and_answer
@@ -78,8 +71,6 @@ from doorloc.vision.state import Refined
 
 __all__ = ["LocateConfig", "locate", "locate_steps", "run_steps", "StepQuery", "LocateTrace"]
 
-#: plateau samples of the arris strip's profile fit, px
-ARRIS_PLATEAU_PX = 4
 #: how far the coarse stage's thickness may lie from the recipe's before a far face's back edge is taken for
 #: the far arris, and how near that reading must then come, mm (2-px coarse steps: ~0.4 mm each)
 COARSE_THICKNESS_MM = 1.0
@@ -445,108 +436,39 @@ def _sample(
         arris=geoms,
         visibility_thickness_mm=max(pose.thickness_mm, door.thickness_mm) if geoms else None,
     )
-    out = {}
-    far_fit = None
-    beside = tracks["far"].beside_far_face
-    step_fitted: set[str] = set()  # lines refined by the blurred-step fit
+    settings = PassSettings(
+        every=every,
+        sharp=sharp,
+        optical_blur_px=optical_blur_px,
+        slope_smooth=max(cfg.slope_smooth // every, 1) if cfg.slope_smooth else 0,
+        door=door,
+        arris=geoms,
+        step_blur_px=step_fit or {},
+    )
+    out, far_fit, step_fitted = {}, None, {}
     for name in EDGE_NAMES:
-        lay = region.layouts[name]
-        t = tracks[name]
-        step_kw: dict[str, Any] = dict(
-            level_smooth=max(cfg.level_smooth // every, 1) if cfg.level_smooth else 0, lut=lut
-        )
-        scan, centre = t.scan[::every], t.centre[::every]
-        if t.band_px is not None and t.band_px.size:
-            band = t.band_px[::every]
-            interior = lay.polarity * (1 if cfg.door_brighter else -1)
-            if t.beside_far_face:
-                # Hinge face | far face (a band of any width and brightness) | background: fit the
-                # profile's shape, two blurred steps with the band's width from the geometry. The
-                # blur comes from the plain reference arris (beside a narrow band, blur, band level
-                # and width trade off); only the first pass, which just centres the windows, guesses it.
-                out[name], far_fit = subpixel_edges_far_face(
-                    plane,
-                    lay.axis,
-                    scan,
-                    centre,
-                    half,
-                    band,
-                    t.band_slope,
-                    -interior,
-                    cfg.plateau,
-                    scale8,
-                    blur_px=optical_blur_px if np.isfinite(optical_blur_px) else 1.0,
-                    strip_px=t.strip_px[::every] if t.strip_px is not None else None,
-                    strip_radiance=(STRIP_RADIANCE, STRIP_RADIANCE_SIGMA),
-                    strip_shaded=door.arris_profile == "round",
-                    **step_kw,
-                )
-                continue
-            if geoms is not None and name in geoms and t.outline_shift_px is not None:
-                # An arris strip lies on the door side of the outline: its outer border from the strip's
-                # fitted shading, then moved to the sharp corner's line by the geometry.
-                blur0 = optical_blur_px if np.isfinite(optical_blur_px) else 1.0
-                # The strip's profile fit takes 4-px plateaus (the face beside the strip pins its
-                # brightness, most of all on narrow strips); each line's levels for its area estimate the
-                # plain step's, right beside the window: taken farther out they pick up texture along the
-                # edge (the effects fixtures' grain: their yaw was up to 0.022 deg off).
-                smp, strip = arris_edges(
-                    plane,
-                    lay.axis,
-                    scan,
-                    centre,
-                    half,
-                    band,
-                    interior,
-                    geoms[name],
-                    max(cfg.plateau, ARRIS_PLATEAU_PX),
-                    scale8,
-                    lut=lut,
-                    blur0=blur0,
-                    search=every > 1,
-                    level_px=cfg.plateau,
-                    # (the far arris's strip can take another level in the first pass than in the
-                    # final one, which its window was placed for: there the area estimate; the line fit
-                    # in both passes lost every far point on 2 of 48 arris bench frames)
-                    line_fit=name != "far" or every == 1,
-                )
-                out[name] = replace(smp, along=smp.along + t.outline_shift_px[::every])
-                if arris_fits is not None and strip is not None:
-                    arris_fits[name] = (strip, float(np.median(band)))
-                continue
-            # An arris strip lies on the door side of the outline.
-            out[name], _ = subpixel_edges_banded(
-                plane,
-                lay.axis,
-                scan,
-                centre,
-                half,
-                band,
-                interior,
-                cfg.plateau,
-                scale8,
-                sharp=sharp,
-                band_slope=t.band_slope,
-                **step_kw,
-            )
-            continue
-        out[name] = subpixel_edges(
+        lay, t = region.layouts[name], tracks[name]
+        window = ScanWindow(
             plane,
             lay.axis,
-            scan,
-            centre,
+            t.scan[::every],
+            t.centre[::every],
             half,
             cfg.plateau,
             scale8,
-            slope_smooth=max(cfg.slope_smooth // every, 1) if cfg.slope_smooth else 0,
-            **step_kw,
+            lut,
+            level_smooth=max(cfg.level_smooth // every, 1) if cfg.level_smooth else 0,
+            door_side=lay.polarity * (1 if cfg.door_brighter else -1),
         )
-        if step_fit and name in step_fit:
-            fitted = refine_step_fit(plane, out[name], half, step_fit[name], lut)
-            if _step_fit_agrees(plane, out[name], fitted, half, cfg.plateau, lut):
-                out[name] = fitted
-                step_fitted.add(name)
-    return _Sampled(out, beside, far_fit, {k: (step_fit or {})[k] for k in step_fitted})
+        reading = EDGE_MODELS[edge_kind(name, t, settings)].read(window, name, t, settings)
+        out[name] = reading.samples
+        if reading.far_fit is not None:
+            far_fit = reading.far_fit
+        if reading.strip is not None and arris_fits is not None:
+            arris_fits[name] = reading.strip
+        if reading.step_blur_px is not None:
+            step_fitted[name] = reading.step_blur_px
+    return _Sampled(out, tracks["far"].beside_far_face, far_fit, step_fitted)
 
 
 @dataclass(frozen=True)
@@ -1252,24 +1174,6 @@ def _faint_edge(plane, band: Band, layout: EdgeLayout, thr: float) -> tuple[floa
         return None
     on = strength[np.isfinite(along) & (strength >= 0.5 * thr)][line.inliers]
     return float(np.median(on)), int(line.inliers.sum()), len(band.scan)
-
-
-#: the step fit replaces the area estimate only where they differ by less than this many of the area
-#: estimator's texture sigma (plus STEP_FIT_AGREE_FLOOR_PX): a larger shift is a profile shape that the
-#: step model lacks, not texture
-STEP_FIT_AGREE_SIGMAS = 3.0
-STEP_FIT_AGREE_FLOOR_PX = 0.003
-
-
-def _step_fit_agrees(plane, area: EdgeSamples, fitted: EdgeSamples, half: int, plateau: int, lut) -> bool:
-    """Whether the step fit's shift of an edge is what texture beside it explains (see the constants)."""
-    d = fitted.along - area.along
-    d = d[np.isfinite(d)]
-    if d.size < 8:
-        return False
-    tex = texture_bias(plane, area, area.valid, half, plateau, lut).offset_sigma_px
-    tex = tex if math.isfinite(tex) else 0.0
-    return abs(float(np.median(d))) <= STEP_FIT_AGREE_SIGMAS * math.hypot(tex, STEP_FIT_AGREE_FLOOR_PX)
 
 
 def _step_fit_lines(cfg: LocateConfig, widths: dict[str, float]) -> dict[str, float]:
