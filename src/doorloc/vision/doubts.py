@@ -292,7 +292,7 @@ def _response_terms(
     else:
         gc, sc = response.gamma, response.sigma
     alternatives = list(response.alternatives)
-    doubts = []
+    per_line = {}
     for k, shifts in _line_response_shifts(plane, samples, fit, half, used_gamma, far_beside, blur_px):
         # the shift to the evidence's exponent, half the spread over its 1-sigma, and to each alternative
         at = shifts([gc, gc + sc, max(gc - sc, 0.05), *alternatives])
@@ -314,9 +314,14 @@ def _response_terms(
             doubt = max(abs(bias) - 2.0 * sp, 0.0)
             for s_alt in shift_alt:
                 doubt = max(doubt, abs(s_alt) - 2.0 * sp)
-        if math.isfinite(doubt):
-            doubts.append(LineDoubt("response", k, doubt, group=CAMERA_RESPONSE))
-    return doubts
+        per_line[k] = doubt
+    return _response_doubts(per_line)
+
+
+def _response_doubts(px: dict[str, float]) -> list[LineDoubt]:
+    """The camera response's doubts of the lines (px; the finite ones): one correlation group, as one camera
+    exponent moves every edge."""
+    return [LineDoubt("response", k, v, group=CAMERA_RESPONSE) for k, v in px.items() if math.isfinite(v)]
 
 
 def _unmeasured_response_terms(
@@ -348,13 +353,12 @@ def _unmeasured_response_terms(
     """
     if not factor > 1.0:
         return []
-    doubts = []
+    per_line = {}
     for k, shifts in _line_response_shifts(plane, samples, fit, half, used_gamma, far_beside, blur_px):
         up, down = shifts([used_gamma * factor, used_gamma / factor])
         spread = 0.5 * abs(float(up) - float(down))
-        if math.isfinite(spread):
-            doubts.append(LineDoubt("response", k, spread, group=CAMERA_RESPONSE))
-    return doubts
+        per_line[k] = spread
+    return _response_doubts(per_line)
 
 
 def _line_response_shifts(

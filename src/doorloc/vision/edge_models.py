@@ -110,6 +110,11 @@ class ScanWindow:
     level_smooth: int
     door_side: int
 
+    @property
+    def lines(self) -> tuple[np.ndarray, Axis, np.ndarray, np.ndarray, int]:
+        """``(plane, axis, scan, centre, half)``: the arguments every estimator takes first."""
+        return self.plane, self.axis, self.scan, self.centre, self.half
+
 
 @dataclass(frozen=True)
 class PassSettings:
@@ -162,11 +167,7 @@ class PlainArea:
     def read(self, window: ScanWindow, name: str, track: Track, settings: PassSettings) -> EdgeReading:
         w = window
         samples = subpixel_edges(
-            w.plane,
-            w.axis,
-            w.scan,
-            w.centre,
-            w.half,
+            *w.lines,
             w.plateau,
             w.scale_to_8bit,
             slope_smooth=settings.slope_smooth,
@@ -209,11 +210,7 @@ class Banded:
         w = window
         assert track.band_px is not None
         samples, _ = subpixel_edges_banded(
-            w.plane,
-            w.axis,
-            w.scan,
-            w.centre,
-            w.half,
+            *w.lines,
             track.band_px[:: settings.every],
             w.door_side,
             w.plateau,
@@ -236,11 +233,7 @@ class FarFace:
         w, every = window, settings.every
         assert track.band_px is not None
         samples, far_fit = subpixel_edges_far_face(
-            w.plane,
-            w.axis,
-            w.scan,
-            w.centre,
-            w.half,
+            *w.lines,
             track.band_px[::every],
             track.band_slope,
             -w.door_side,
@@ -271,11 +264,7 @@ class ArrisStrip:
         assert track.band_px is not None and track.outline_shift_px is not None and settings.arris is not None
         band = track.band_px[::every]
         samples, strip = arris_edges(
-            w.plane,
-            w.axis,
-            w.scan,
-            w.centre,
-            w.half,
+            *w.lines,
             band,
             w.door_side,
             settings.arris[name],
