@@ -21,9 +21,10 @@ from doorloc.vision.edges import EdgeSamples
 from doorloc.vision.lines import RectangleFit
 from doorloc.vision.metric import MetricPose
 from doorloc.vision.region import EDGE_NAMES, SearchRegion
+from doorloc.vision.response import ResponseFit
 from doorloc.vision.result import LineQuality, LocateResult, PoseUncertainty
 from doorloc.vision.sampling import oriented
-from doorloc.vision.state import ResponseCheck
+from doorloc.vision.state import Refined, ResponseCheck
 from doorloc.vision.uncertainty import (
     Budget,
     EdgeModelTerms,
@@ -60,12 +61,15 @@ def gate_and_answer(
     s8: float,
 ) -> LocateResult:
     """The gate: the answer, or the refusal with its reason, from the refined edges, the response check and
-    the lines' doubts. (It reads the pixels only to tell a pattern from a door where the edges failed.)"""
-    r, cell, response = check.refined, check.cell, check.response
+    the lines' doubts. (It reads the pixels only to tell a pattern from a door where the edges failed.)
+
+    The checks in the order they are weighed (the first that refuses is the answer's reason, unless a pose
+    outside the envelope or a pattern in view explains it better, :func:`_first_refusal`): each line's
+    support and straightness, the corner's support, overexposure, the envelope, the thickness, the corner's
+    and the pose's uncertainty."""
+    r, cell = check.refined, check.cell
     model, figures = doubts
-    samples, fit, pose, far_beside, far_fit = r.samples, r.fit, r.pose, r.far_beside, r.far_fit
-    lines, refusals = [], []
-    corner_px = pose.corner_px
+    fit, pose = r.fit, r.pose
     diagnostics: dict = {
         "blur_px": round(r.blur_px, 3),
         "window_half_px": r.half,
@@ -76,6 +80,82 @@ def gate_and_answer(
         "thickness_expected_mm": door.thickness_mm,
         **figures,
     }
+    lines, refusals = _line_checks(r, model, cfg)
+    refusals += _corner_support(r, region, cfg, diagnostics)
+    bright = np.concatenate([r.samples[k].bright[fit.weights[k] > 0] for k in EDGE_NAMES])
+    refusals.append(q.check_overexposed(bright))
+    refusals.append(
+        q.check_envelope(
+            pose.x_mm, pose.z_mm, pose.yaw_deg, cell.envelope, cfg.envelope_margin_mm, cfg.envelope_margin_deg
+        )
+    )
+    other_mm, other = _other_reading(r, cfg.thickness_tolerance_mm)
+    # Standard uncertainty of the thickness: the two arris offsets' noise, and beside a visible far face
+    # what its model leaves in doubt (a band narrower than the blur is hard to tell from the arris).
+    # The two arrises' response doubts share their cause (one camera exponent moves both edges outwards
+    # or both inwards, and the thickness by their sum): they add, the rest in quadrature. (Added in
+    # quadrature, the effects fixtures' thicknesses, a 2.2 camera in a cell of 1.0, were 0.08-0.12 mm off
+    # with 78 % of them beyond 2 sigma.)
+    budget = _budget(
+        cell,
+        cfg,
+        region,
+        r.samples,
+        fit,
+        pose,
+        model,
+        far_votes=not r.far_beside,
+        other_mm=other_mm if other is not None else None,
+    )
+    t_refusals, t_uncertain = _thickness_check(r, door, cfg, budget.thickness_mm, other)
+    refusals += t_refusals
+    refusals.append(_corner_sigma_check(fit, cfg, diagnostics))
+    t_sigma = budget.thickness_reported_mm
+    t_tol = cfg.thickness_tolerance_mm
+    far_beside = r.far_beside
+    diagnostics["thickness_check"] = {
+        "measured_mm": round(pose.thickness_mm, 4),
+        "expected_mm": door.thickness_mm,
+        "difference_mm": round(pose.thickness_mm - door.thickness_mm, 4),
+        "tolerance_mm": t_tol,
+        "sigma_mm": round(t_sigma, 5),
+        "uncertain": t_uncertain,
+        "far_face_in_view": far_beside,
+        "other_reading_mm": round(other, 4) if other is not None else None,
+    }
+    unc = PoseUncertainty(x_mm=budget.x_mm, z_mm=budget.z_mm, yaw_deg=budget.yaw_deg)
+    diagnostics["uncertainty_terms"] = {k: [round(v, 6) for v in t] for k, t in budget.groups.items()}
+    diagnostics["uncertainty_budget"] = [t.as_dict() for t in budget.terms]
+    refusals.append(_pose_check(unc, budget.groups, model, check.response, cfg))
+    first = _first_refusal(refusals, r, plane, s8, cfg)
+    if first is not None:
+        diagnostics["measured"] = {
+            "x_mm": pose.x_mm,
+            "z_mm": pose.z_mm,
+            "yaw_deg": pose.yaw_deg,
+            "thickness_mm": pose.thickness_mm,
+        }
+        diagnostics["all_refusals"] = [x.code for x in refusals if x is not None]
+        return LocateResult.refusal(name, first.code, first.message, lines=lines, diagnostics=diagnostics)
+    return LocateResult(
+        image=name,
+        ok=True,
+        x_mm=pose.x_mm,
+        z_mm=pose.z_mm,
+        yaw_deg=pose.yaw_deg,
+        thickness_mm=pose.thickness_mm,
+        scale_mm_per_px=pose.scale_mm_per_px,
+        corner_px=[float(pose.corner_px[0]), float(pose.corner_px[1])],
+        uncertainty=unc,
+        lines=lines,
+        diagnostics=diagnostics,
+    )
+
+
+def _line_checks(r: Refined, model: EdgeModelTerms, cfg: LocateConfig) -> tuple[list[LineQuality], list]:
+    """Each line's figures (:class:`doorloc.vision.result.LineQuality`) and its check (None where it passes)."""
+    samples, fit, pose, far_beside = r.samples, r.fit, r.pose, r.far_beside
+    lines, refusals = [], []
     for k in EDGE_NAMES:
         s = samples[k]
         n_s = int(s.scan.size)
@@ -118,7 +198,13 @@ def gate_and_answer(
                 cfg.min_contrast,
             )
         )
-    # corner support: the points next to the corner on the bottom end and the reference arris
+    return lines, refusals
+
+
+def _corner_support(r: Refined, region: SearchRegion, cfg: LocateConfig, diagnostics: dict) -> list:
+    """The checks of the points next to the corner on the bottom end and the reference arris."""
+    samples, fit, pose, corner_px = r.samples, r.fit, r.pose, r.pose.corner_px
+    refusals = []
     for k in ("bottom", "reference"):
         s = samples[k]
         lay = region.layouts[k]
@@ -131,14 +217,12 @@ def gate_and_answer(
         frac = int(np.count_nonzero(fits[near])) / n if n else 0.0
         diagnostics[f"corner_support_{k}"] = round(frac, 3)
         refusals.append(q.check_corner_support(HUMAN[k], frac, n, cfg.min_corner_support))
-    bright = np.concatenate([samples[k].bright[fit.weights[k] > 0] for k in EDGE_NAMES])
-    refusals.append(q.check_overexposed(bright))
-    refusals.append(
-        q.check_envelope(
-            pose.x_mm, pose.z_mm, pose.yaw_deg, cell.envelope, cfg.envelope_margin_mm, cfg.envelope_margin_deg
-        )
-    )
-    t_tol = cfg.thickness_tolerance_mm
+    return refusals
+
+
+def _other_reading(r: Refined, t_tol: float) -> tuple[float, float | None]:
+    """How far a far face's other reading lies, mm, and that reading of the thickness where it is weighed."""
+    pose, far_fit, far_beside = r.pose, r.far_fit, r.far_beside
     # A far face whose band looks like the background or like the hinge face reads two ways, a band's width
     # apart (edges.FarFaceFit.other_reading_px), and the image cannot tell which: the check takes the reading
     # nearer the recipe (a wrong door passes only where its other reading lands on the recipe's thickness),
@@ -148,24 +232,16 @@ def gate_and_answer(
     # 2.6-20 mm off was the door's; the two wrong ones were read beside bands of 0.6-1.2 px, 0.4-0.8 mm).
     other_mm = far_fit.other_reading_px * pose.scale_mm_per_px if far_beside and far_fit is not None else 0.0
     other = pose.thickness_mm + other_mm if 0.0 < abs(other_mm) <= 2.0 * t_tol else None
-    # Standard uncertainty of the thickness: the two arris offsets' noise, and beside a visible far face
-    # what its model leaves in doubt (a band narrower than the blur is hard to tell from the arris).
-    # The two arrises' response doubts share their cause (one camera exponent moves both edges outwards
-    # or both inwards, and the thickness by their sum): they add, the rest in quadrature. (Added in
-    # quadrature, the effects fixtures' thicknesses, a 2.2 camera in a cell of 1.0, were 0.08-0.12 mm off
-    # with 78 % of them beyond 2 sigma.)
-    budget = _budget(
-        cell,
-        cfg,
-        region,
-        samples,
-        fit,
-        pose,
-        model,
-        far_votes=not far_beside,
-        other_mm=other_mm if other is not None else None,
-    )
-    t_sigma = budget.thickness_mm
+    return other_mm, other
+
+
+def _thickness_check(
+    r: Refined, door: DoorSize, cfg: LocateConfig, t_sigma: float, other: float | None
+) -> tuple[list, bool]:
+    """The thickness's checks (against the recipe, and whether its uncertainty lets it be checked) and
+    whether it is uncertain."""
+    pose, far_beside, t_tol = r.pose, r.far_beside, cfg.thickness_tolerance_mm
+    refusals: list = []
     # (the fitted reading where the two are as near)
     readings = [pose.thickness_mm] + ([other] if other is not None else [])
     nearest = min(readings, key=lambda t: abs(t - door.thickness_mm))
@@ -182,32 +258,30 @@ def gate_and_answer(
                 "image again",
             )
         )
-    t_sigma = budget.thickness_reported_mm
-    # standard errors of the corner from the line offsets
+    return refusals, t_uncertain
+
+
+def _corner_sigma_check(fit: RectangleFit, cfg: LocateConfig, diagnostics: dict) -> q.Refusal | None:
+    """The check of the corner's standard error from the line offsets."""
     sig = math.hypot(fit.offset_sigma["reference"], fit.offset_sigma["bottom"])
     diagnostics["corner_sigma_mm"] = sig
     if sig > cfg.max_sigma_mm:
-        refusals.append(
-            q.Refusal(
-                "uncertain",
-                f"the corner is uncertain to {sig:.3f} mm (limit {cfg.max_sigma_mm} mm): "
-                "the edges are too noisy; check focus, lighting and exposure",
-            )
+        return q.Refusal(
+            "uncertain",
+            f"the corner is uncertain to {sig:.3f} mm (limit {cfg.max_sigma_mm} mm): "
+            "the edges are too noisy; check focus, lighting and exposure",
         )
-    diagnostics["thickness_check"] = {
-        "measured_mm": round(pose.thickness_mm, 4),
-        "expected_mm": door.thickness_mm,
-        "difference_mm": round(pose.thickness_mm - door.thickness_mm, 4),
-        "tolerance_mm": t_tol,
-        "sigma_mm": round(t_sigma, 5),
-        "uncertain": t_uncertain,
-        "far_face_in_view": far_beside,
-        "other_reading_mm": round(other, 4) if other is not None else None,
-    }
-    unc = PoseUncertainty(x_mm=budget.x_mm, z_mm=budget.z_mm, yaw_deg=budget.yaw_deg)
-    terms = budget.groups
-    diagnostics["uncertainty_terms"] = {k: [round(v, 6) for v in t] for k, t in terms.items()}
-    diagnostics["uncertainty_budget"] = [t.as_dict() for t in budget.terms]
+    return None
+
+
+def _pose_check(
+    unc: PoseUncertainty,
+    terms: dict[str, tuple[float, float, float]],
+    model: EdgeModelTerms,
+    response: ResponseFit | None,
+    cfg: LocateConfig,
+) -> q.Refusal | None:
+    """The check of the pose's uncertainty against the cell's limits, naming the term that weighs most."""
     if (
         unc.x_mm > cfg.max_uncertainty_mm
         or unc.z_mm > cfg.max_uncertainty_mm
@@ -227,14 +301,19 @@ def gate_and_answer(
             big = [model.largest_source(k, among=_MODEL_REPORTED) for k in ("bottom", "reference")]
             if "response" in big:
                 hint = _UNCERTAIN_HINT["response_unmeasured"]
-        refusals.append(
-            q.Refusal(
-                "uncertain",
-                f"the pose is uncertain to x {unc.x_mm:.3f} mm, z {unc.z_mm:.3f} mm, "
-                f"yaw {unc.yaw_deg:.3f} deg (1 sigma; the cell allows {cfg.max_uncertainty_mm:g} mm, "
-                f"{cfg.max_uncertainty_deg:g} deg), mostly from the {worst.replace('_', ' ')}; " + hint,
-            )
+        return q.Refusal(
+            "uncertain",
+            f"the pose is uncertain to x {unc.x_mm:.3f} mm, z {unc.z_mm:.3f} mm, "
+            f"yaw {unc.yaw_deg:.3f} deg (1 sigma; the cell allows {cfg.max_uncertainty_mm:g} mm, "
+            f"{cfg.max_uncertainty_deg:g} deg), mostly from the {worst.replace('_', ' ')}; " + hint,
         )
+    return None
+
+
+def _first_refusal(refusals: list, r: Refined, plane, s8: float, cfg: LocateConfig) -> q.Refusal | None:
+    """The answer's reason among the refusals: the first, unless a pose outside the envelope explains broken
+    edges, or broken edges are a regular pattern in view."""
+    samples = r.samples
     first = next((r for r in refusals if r is not None), None)
     if first is not None and first.code in ("edge_not_straight", "edge_missing", "corner_hidden"):
         # A pose outside the envelope explains broken edges best (the door lies beyond the region).
@@ -244,28 +323,7 @@ def gate_and_answer(
         band = _rows_across(plane, s8, samples["reference"], samples["far"])
         if band is not None and q.looks_like_pattern(band, 4 * cfg.min_contrast):
             first = PATTERN
-    if first is not None:
-        diagnostics["measured"] = {
-            "x_mm": pose.x_mm,
-            "z_mm": pose.z_mm,
-            "yaw_deg": pose.yaw_deg,
-            "thickness_mm": pose.thickness_mm,
-        }
-        diagnostics["all_refusals"] = [r.code for r in refusals if r is not None]
-        return LocateResult.refusal(name, first.code, first.message, lines=lines, diagnostics=diagnostics)
-    return LocateResult(
-        image=name,
-        ok=True,
-        x_mm=pose.x_mm,
-        z_mm=pose.z_mm,
-        yaw_deg=pose.yaw_deg,
-        thickness_mm=pose.thickness_mm,
-        scale_mm_per_px=pose.scale_mm_per_px,
-        corner_px=[float(corner_px[0]), float(corner_px[1])],
-        uncertainty=unc,
-        lines=lines,
-        diagnostics=diagnostics,
-    )
+    return first
 
 
 _UNCERTAIN_HINT = {
