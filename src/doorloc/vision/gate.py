@@ -20,7 +20,7 @@ from doorloc.vision.config import LocateConfig
 from doorloc.vision.edges import EdgeSamples
 from doorloc.vision.lines import RectangleFit
 from doorloc.vision.metric import MetricPose
-from doorloc.vision.region import EDGE_NAMES, SearchRegion
+from doorloc.vision.region import EDGE_NAMES, HUMAN, SearchRegion
 from doorloc.vision.response import ResponseFit
 from doorloc.vision.result import LineQuality, LocateResult, PoseUncertainty
 from doorloc.vision.sampling import oriented
@@ -33,14 +33,7 @@ from doorloc.vision.uncertainty import (
     propagate,
 )
 
-__all__ = ["HUMAN", "PATTERN", "gate_and_answer"]
-
-
-HUMAN = {
-    "bottom": "bottom end of the door (X-line)",
-    "reference": "reference-face arris (Z-line)",
-    "far": "far arris (door thickness)",
-}
+__all__ = ["PATTERN", "gate_and_answer"]
 
 
 PATTERN = q.Refusal(

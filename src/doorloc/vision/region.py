@@ -26,9 +26,16 @@ from doorloc.vision.jit import kernel
 from doorloc.vision.metric import PlaneMap
 from doorloc.vision.sampling import Axis
 
-__all__ = ["EdgeLayout", "Band", "Track", "SearchRegion", "EDGE_NAMES"]
+__all__ = ["EdgeLayout", "Band", "Track", "SearchRegion", "EDGE_NAMES", "HUMAN"]
 
 EDGE_NAMES = ("bottom", "reference", "far")
+
+#: each line as a person names it, in refusals
+HUMAN = {
+    "bottom": "bottom end of the door (X-line)",
+    "reference": "reference-face arris (Z-line)",
+    "far": "far arris (door thickness)",
+}
 
 
 @dataclass(frozen=True)

@@ -6,10 +6,12 @@ the refined state the answer rests on, the camera response read off the image) -
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 from typing import Any
 
 from doorloc.cell import Cell
+from doorloc.vision import quality as q
 from doorloc.vision.arris_model import StripFit
 from doorloc.vision.edges import EdgeSamples, FarFaceFit
 from doorloc.vision.lines import RectangleFit
@@ -18,7 +20,7 @@ from doorloc.vision.response import (
     ResponseFit,
 )
 
-__all__ = ["Refined", "ResponseCheck"]
+__all__ = ["Refined", "Refused", "ResponseCheck", "StageClock"]
 
 
 @dataclass(frozen=True)
@@ -69,3 +71,27 @@ class ResponseCheck:
     response: ResponseFit | None
     absorbed: bool
     diagnostics: dict[str, Any]
+
+
+class Refused(Exception):
+    """A stage's refusal of the image (:class:`doorloc.vision.quality.Refusal`) with its diagnostics: what
+    locate answers with where a stage cannot go on."""
+
+    def __init__(self, refusal: q.Refusal, **diag) -> None:
+        super().__init__(refusal.message)
+        self.refusal = refusal
+        self.diag = diag
+
+
+class StageClock:
+    """Stage timings (ms) for the diagnostics; a stage run twice (the third pass of the fine stage, when a
+    far face is in view, runs as ``edges2`` / ``fit2`` again) counts both runs."""
+
+    def __init__(self) -> None:
+        self.t = time.perf_counter()
+        self.laps: dict[str, float] = {}
+
+    def lap(self, name: str) -> None:
+        t = time.perf_counter()
+        self.laps[name] = round(self.laps.get(name, 0.0) + (t - self.t) * 1e3, 3)
+        self.t = t
