@@ -51,6 +51,7 @@ source's 1-sigma contribution, so that the dominant term can be read off):
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -68,7 +69,11 @@ __all__ = [
     "CAMERA_RESPONSE",
     "DOUBT_SOURCES",
     "EdgeModelTerms",
+    "Budget",
+    "BudgetTerm",
     "LineDoubt",
+    "LineLever",
+    "propagate",
     "calibration_pose_sigma",
     "combine",
     "corner_fit_sigma",
@@ -105,6 +110,9 @@ _DIST_INDEX = {
 #: the edge-model doubts a line can carry besides the floor and the blur term, in the order a line's total
 #: adds them (the order fixes the last bits of the sums)
 DOUBT_SOURCES = ("texture", "far_face", "jpeg", "arris", "response")
+
+#: the lines a doubt can move
+EDGE_LINES = ("bottom", "reference", "far")
 
 #: the correlation group of the camera-response doubts: one camera exponent moves every edge the same way
 #: (both arrises outwards or both inwards), so their doubts add linearly where one figure takes both
@@ -163,10 +171,14 @@ class EdgeModelTerms:
         """These terms and ``more``."""
         return EdgeModelTerms(self.doubts + more, self.blur_px)
 
+    @functools.cached_property
+    def _in_order(self) -> tuple[LineDoubt, ...]:
+        """The doubts in the order of :data:`DOUBT_SOURCES` (sorted once: the budget asks many times)."""
+        return tuple(sorted(self.doubts, key=lambda d: DOUBT_SOURCES.index(d.source)))
+
     def of_line(self, line: str, without: tuple[str, ...] = ()) -> list[LineDoubt]:
         """The doubts of one line in the order of :data:`DOUBT_SOURCES`, the sources in ``without`` left out."""
-        mine = [d for d in self.doubts if d.line == line and d.source not in without]
-        return sorted(mine, key=lambda d: DOUBT_SOURCES.index(d.source))
+        return [d for d in self._in_order if d.line == line and d.source not in without]
 
     def offset_px(self, line: str, source: str) -> float | None:
         """One doubt's offset 1-sigma, px; None where the line carries none from ``source``."""
@@ -410,24 +422,30 @@ def _source_terms(
     """Each edge-model source's contribution: its offsets move x (reference line), z (bottom line) and the
     thickness (reference and far lines); its tilts the yaw and, through the levers, x and z."""
     sc = scale_mm_per_px
-    lines = ("bottom", "reference", "far")
-    blur = _finite(BLUR_MODEL_FRACTION * model.blur_px) if math.isfinite(model.blur_px) else 0.0
-    floor_tilt = {k: 2.0 * EDGE_MODEL_FLOOR_PX / max(lv.extent_px, 1.0) for k, lv in levers.items()}
+    blur = BLUR_MODEL_FRACTION * model.blur_px if math.isfinite(model.blur_px) else 0.0
+    wsum = sum(lv.spread_px2 for lv in levers.values())
+    # per source: its offset (px) and tilt on each line, and whether its doubts share one cause
+    shares: dict[str, tuple[dict[str, float], dict[str, float], bool]] = {
+        "floor": (
+            dict.fromkeys(EDGE_LINES, EDGE_MODEL_FLOOR_PX),
+            {k: 2.0 * EDGE_MODEL_FLOOR_PX / max(lv.extent_px, 1.0) for k, lv in levers.items()},
+            False,
+        ),
+        "blur": (dict.fromkeys(EDGE_LINES, _finite(blur)), {}, False),
+    }
+    for d in model._in_order:
+        offset, tilt, linked = shares.setdefault(d.source, ({}, {}, False))
+        offset[d.line], tilt[d.line] = _finite(d.offset_px), _finite(d.tilt)
+        if d.group is not None and not linked:
+            shares[d.source] = (offset, tilt, True)
     out = []
-    for source in ("floor", "blur", *DOUBT_SOURCES):
-        mine = [d for d in model.doubts if d.source == source]
-        if source == "floor":
-            offset, tilt = dict.fromkeys(lines, EDGE_MODEL_FLOOR_PX), floor_tilt
-        elif source == "blur":
-            offset, tilt = dict.fromkeys(lines, blur), {}
-        elif mine:
-            offset = {d.line: _finite(d.offset_px) for d in mine}
-            tilt = {d.line: _finite(d.tilt) for d in mine}
-        else:
-            continue
-        yaw = _yaw_rad(levers, {k: tilt.get(k, 0.0) for k in levers})
+    for source, (offset, tilt, linked) in shares.items():
+        yaw = (
+            math.sqrt(sum((lv.spread_px2 * tilt.get(k, 0.0)) ** 2 for k, lv in levers.items())) / wsum
+            if wsum > 0
+            else 0.0
+        )
         ref, bot, far = (offset.get(k, 0.0) for k in ("reference", "bottom", "far"))
-        linked = any(d.group is not None for d in mine)
         out.append(
             BudgetTerm(
                 source,
