@@ -17,7 +17,7 @@ import numpy as np
 from doorloc.cell import Cell
 from doorloc.vision.arris_model import BLUR_DOUBT, StripFit
 from doorloc.vision.config import LocateConfig
-from doorloc.vision.edges import EdgeSamples, FarFaceFit, block_artifact_ratio, texture_bias
+from doorloc.vision.edges import EdgeSamples, block_artifact_ratio, texture_bias
 from doorloc.vision.lines import RectangleFit, fit_image_line
 from doorloc.vision.region import EDGE_NAMES, SearchRegion
 from doorloc.vision.response import (
@@ -28,7 +28,7 @@ from doorloc.vision.response import (
 )
 from doorloc.vision.response_check import blur_without_pixel
 from doorloc.vision.sampling import linearizing_lut
-from doorloc.vision.state import ResponseCheck
+from doorloc.vision.state import Refined, ResponseCheck
 from doorloc.vision.uncertainty import (
     CAMERA_RESPONSE,
     JPEG_BLOCK_RATIO,
@@ -62,7 +62,7 @@ def edge_doubts(
         for k, (strip, band_px) in r.arris_fits.items()
     }
     model = EdgeModelTerms(
-        tuple(_edge_model_doubts(plane, samples, fit, r.half, cfg, cell, r.far_fit, r.step_fitted, strips)),
+        tuple(_edge_model_doubts(plane, r, cfg, cell, strips)),
         blur_without_pixel(r.blur_px),
     )
     figures: dict[str, Any] = {}
@@ -75,40 +75,22 @@ def edge_doubts(
     if check.response is not None:
         response = _response_terms(
             plane,
-            samples,
-            fit,
-            r.half,
+            r,
             cell.response_gamma,
             check.response,
-            r.far_beside,
             model.blur_px,
             check.absorbed,
             cfg.response_unmeasured_factor,
         )
     else:
         response = _unmeasured_response_terms(
-            plane,
-            samples,
-            fit,
-            r.half,
-            cell.response_gamma,
-            cfg.response_unmeasured_factor,
-            r.far_beside,
-            model.blur_px,
+            plane, r, cell.response_gamma, cfg.response_unmeasured_factor, model.blur_px
         )
     return model.with_doubts(*response), figures
 
 
 def _edge_model_doubts(
-    plane,
-    samples: dict[str, EdgeSamples],
-    fit: RectangleFit,
-    half: int,
-    cfg: LocateConfig,
-    cell: Cell,
-    far_fit: FarFaceFit | None,
-    step_fitted: dict[str, float],
-    strips: dict[str, tuple[int, int]] | None = None,
+    plane, r: Refined, cfg: LocateConfig, cell: Cell, strips: dict[str, tuple[int, int]] | None = None
 ) -> list[LineDoubt]:
     """The doubts the edge models know of each line (:class:`doorloc.vision.uncertainty.LineDoubt`): the
     far-face model's own, else the texture beside the edge (across it and along it).
@@ -116,6 +98,7 @@ def _edge_model_doubts(
     ``strips``: per arris line, the pixels its strip (and the blur beside it) takes on the door side, and
     that side (+1: increasing ``along``); the texture there is read beyond the strip.
     """
+    samples, fit, half, far_fit, step_fitted = r.samples, r.fit, r.half, r.far_fit, r.step_fitted
     doubts = []
     lut = linearizing_lut(plane.dtype, cell.response_gamma)
     for k in EDGE_NAMES:
@@ -229,16 +212,7 @@ def _arris_blur_doubts(arris_fits: dict[str, tuple[StripFit, float]], diagnostic
 
 
 def _response_terms(
-    plane,
-    samples: dict[str, EdgeSamples],
-    fit: RectangleFit,
-    half: int,
-    used_gamma: float,
-    response: ResponseFit,
-    far_beside: bool,
-    blur_px: float,
-    absorbed: bool,
-    factor: float,
+    plane, r: Refined, used_gamma: float, response: ResponseFit, blur_px: float, absorbed: bool, factor: float
 ) -> list[LineDoubt]:
     """Each line's response doubt (px), from the step model.
 
@@ -279,9 +253,7 @@ def _response_terms(
     if weak:
         lo_g, hi_g = RESPONSE_PLAUSIBLE
         if not lo_g - 2.0 * response.sigma <= response.gamma <= hi_g + 2.0 * response.sigma:
-            return _unmeasured_response_terms(
-                plane, samples, fit, half, used_gamma, factor, far_beside, blur_px
-            )
+            return _unmeasured_response_terms(plane, r, used_gamma, factor, blur_px)
     # the exponent the evidence gives, gc +- sc
     if absorbed:
         gc, sc = response.gamma, response.sigma
@@ -293,7 +265,7 @@ def _response_terms(
         gc, sc = response.gamma, response.sigma
     alternatives = list(response.alternatives)
     per_line = {}
-    for k, shifts in _line_response_shifts(plane, samples, fit, half, used_gamma, far_beside, blur_px):
+    for k, shifts in _line_response_shifts(plane, r, used_gamma, blur_px):
         # the shift to the evidence's exponent, half the spread over its 1-sigma, and to each alternative
         at = shifts([gc, gc + sc, max(gc - sc, 0.05), *alternatives])
         bias, sp = float(at[0]), 0.5 * abs(float(at[1]) - float(at[2]))
@@ -325,14 +297,7 @@ def _response_doubts(px: dict[str, float]) -> list[LineDoubt]:
 
 
 def _unmeasured_response_terms(
-    plane,
-    samples: dict[str, EdgeSamples],
-    fit: RectangleFit,
-    half: int,
-    used_gamma: float,
-    factor: float,
-    far_beside: bool,
-    blur_px: float,
+    plane, r: Refined, used_gamma: float, factor: float, blur_px: float
 ) -> list[LineDoubt]:
     """The response doubt (px) of each line when the image did not measure the camera's response.
 
@@ -354,7 +319,7 @@ def _unmeasured_response_terms(
     if not factor > 1.0:
         return []
     per_line = {}
-    for k, shifts in _line_response_shifts(plane, samples, fit, half, used_gamma, far_beside, blur_px):
+    for k, shifts in _line_response_shifts(plane, r, used_gamma, blur_px):
         up, down = shifts([used_gamma * factor, used_gamma / factor])
         spread = 0.5 * abs(float(up) - float(down))
         per_line[k] = spread
@@ -362,19 +327,14 @@ def _unmeasured_response_terms(
 
 
 def _line_response_shifts(
-    plane,
-    samples: dict[str, EdgeSamples],
-    fit: RectangleFit,
-    half: int,
-    used_gamma: float,
-    far_beside: bool,
-    blur_px: float,
+    plane, r: Refined, used_gamma: float, blur_px: float
 ) -> Iterator[tuple[str, Callable[[list[float]], np.ndarray]]]:
     """Each line a camera exponent moves (the far one only where no far-face model reports its own doubt)
     and the shifts, px, that exponents make there (a list in, an array out: the step is modelled once for
     all of them): :func:`doorloc.vision.response.edge_shifts_px` between the line's own plateaus at
     ``blur_px``, each exponent brought within ``RESPONSE_PLAUSIBLE`` (a reading or a factor beyond them is
     no camera)."""
+    samples, fit, half, far_beside = r.samples, r.fit, r.half, r.far_beside
     for k in EDGE_NAMES:
         if k == "far" and far_beside:
             continue

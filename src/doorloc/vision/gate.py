@@ -19,7 +19,6 @@ from doorloc.vision import quality as q
 from doorloc.vision.config import LocateConfig
 from doorloc.vision.edges import EdgeSamples
 from doorloc.vision.lines import RectangleFit
-from doorloc.vision.metric import MetricPose
 from doorloc.vision.region import EDGE_NAMES, HUMAN, SearchRegion
 from doorloc.vision.response import ResponseFit
 from doorloc.vision.result import LineQuality, LocateResult, PoseUncertainty
@@ -89,17 +88,7 @@ def gate_and_answer(
     # or both inwards, and the thickness by their sum): they add, the rest in quadrature. (Added in
     # quadrature, the effects fixtures' thicknesses, a 2.2 camera in a cell of 1.0, were 0.08-0.12 mm off
     # with 78 % of them beyond 2 sigma.)
-    budget = _budget(
-        cell,
-        cfg,
-        region,
-        r.samples,
-        fit,
-        pose,
-        model,
-        far_votes=not r.far_beside,
-        other_mm=other_mm if other is not None else None,
-    )
+    budget = _budget(cell, cfg, region, r, model, other_mm if other is not None else None)
     t_refusals, t_uncertain = _thickness_check(r, door, cfg, budget.thickness_mm, other)
     refusals += t_refusals
     refusals.append(_corner_sigma_check(fit, cfg, diagnostics))
@@ -345,21 +334,18 @@ def _budget(
     cell: Cell,
     cfg: LocateConfig,
     region: SearchRegion,
-    samples: dict[str, EdgeSamples],
-    fit: RectangleFit,
-    pose: MetricPose,
+    r: Refined,
     model: EdgeModelTerms,
-    far_votes: bool,
     other_mm: float | None,
 ) -> Budget:
     """The answer's uncertainty (:func:`doorloc.vision.uncertainty.propagate`): the lines' levers from their
-    inlier points, the calibration's and the cell's terms. (Nine arguments: what the propagation reads of
-    the cell, the fit and the pose, gathered here so that it reads no locate state.)
+    inlier points, the calibration's and the cell's terms.
 
     ``far_votes``: whether the far arris voted on the door's direction in the joint fit (it does unless a
     far face is beside it); its tilt then moves the yaw as the others' do. ``other_mm``: how far a far
     face's other reading lies, where it is weighed.
     """
+    samples, fit, pose, far_votes = r.samples, r.fit, r.pose, not r.far_beside
     sc = pose.scale_mm_per_px
     levers = {}
     for k in ("reference", "bottom", "far") if far_votes else ("reference", "bottom"):
