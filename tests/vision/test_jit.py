@@ -183,6 +183,12 @@ def test_compile_kernels_compiles_every_kernel_locate_uses():
     assert jit.compile_kernels() >= 5
 
 
+def test_the_warm_up_compiles_locate_s_kernels():
+    from doorloc.vision.warmup import compile_locate_kernels
+
+    assert compile_locate_kernels() >= 5
+
+
 def _grain_edge(rng, sixteen: bool, axis: str, gamma: float, n_lines: int, plateau: int = 1):
     """A blurred edge beside wood-like grain (a random period and contrast), noise; its area-estimate samples."""
     top = 65535 if sixteen else 255
