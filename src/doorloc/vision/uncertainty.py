@@ -176,9 +176,15 @@ class EdgeModelTerms:
         """The doubts in the order of :data:`DOUBT_SOURCES` (sorted once: the budget asks many times)."""
         return tuple(sorted(self.doubts, key=lambda d: DOUBT_SOURCES.index(d.source)))
 
+    @functools.cached_property
+    def _by_line(self) -> dict[str, tuple[LineDoubt, ...]]:
+        """Each line's doubts in the order of :data:`DOUBT_SOURCES`."""
+        return {k: tuple(d for d in self._in_order if d.line == k) for k in EDGE_LINES}
+
     def of_line(self, line: str, without: tuple[str, ...] = ()) -> list[LineDoubt]:
         """The doubts of one line in the order of :data:`DOUBT_SOURCES`, the sources in ``without`` left out."""
-        return [d for d in self._in_order if d.line == line and d.source not in without]
+        mine = self._by_line.get(line, ())
+        return [d for d in mine if d.source not in without] if without else list(mine)
 
     def offset_px(self, line: str, source: str) -> float | None:
         """One doubt's offset 1-sigma, px; None where the line carries none from ``source``."""
