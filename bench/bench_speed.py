@@ -83,12 +83,21 @@ def _stages(frames, repeats) -> dict:
     """Median thread-CPU ms of each stage of locate (its own stage clock, ``diagnostics.timing_ms``, read
     with the thread's CPU clock instead of the wall clock) over the frames without a visible far face (the
     median frame's path; the far-face fit of the others is in edges.py, which this work leaves alone)."""
+    import importlib
     import types
 
     import doorloc.vision.locate as L
 
-    wall = L.time
-    L.time = types.SimpleNamespace(perf_counter=time.thread_time)
+    # the module whose clock the stages read: locate's own in older trees, doorloc.vision.state's since
+    # the stages moved out of locate
+    try:
+        clock = importlib.import_module("doorloc.vision.state")
+        if not hasattr(clock, "StageClock"):
+            clock = L
+    except ImportError:
+        clock = L
+    wall = clock.time
+    clock.time = types.SimpleNamespace(perf_counter=time.thread_time)
     laps: dict[str, list[float]] = {}
     try:
         for _ in range(repeats):
@@ -98,7 +107,7 @@ def _stages(frames, repeats) -> dict:
                     for k, v in r.diagnostics.get("timing_ms", {}).items():
                         laps.setdefault(k, []).append(v)
     finally:
-        L.time = wall
+        clock.time = wall
     return {k: round(statistics.median(v), 3) for k, v in laps.items()}
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from doorloc.vision.edges import Axis, _gather, oriented
+from doorloc.vision.sampling import Axis, gather_profiles, oriented
 
 
 def coarse_edges(
@@ -60,7 +60,7 @@ def coarse_edges(
     length = int(np.max(hi - lo)) // stride + 1 if scan.size else 0
     if scan.size == 0 or length <= 2 * half + 1:
         return np.full(scan.size, np.nan), np.zeros(scan.size)
-    vals, inside = _gather(P, scan, lo, length, stride)
+    vals, inside = gather_profiles(P, scan, lo, length, stride)
     inside &= np.arange(length)[None, :] * stride <= (hi - lo)[:, None]
     c = np.concatenate(
         [np.zeros((len(scan), 1), np.float32), np.cumsum(vals, axis=1, dtype=np.float32)], axis=1

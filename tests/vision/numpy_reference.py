@@ -14,14 +14,12 @@ from scipy.ndimage import uniform_filter1d
 from doorloc.vision.edges import (
     EdgeSamples,
     TextureBias,
-    _gather_rows,
-    _median,
     _pixel_step,
     _step_fit,
-    oriented,
 )
 from doorloc.vision.lines import ImageLine, _sample_pairs
 from doorloc.vision.response import RESPONSE_LEVEL_ROWS, RESPONSE_PLATEAU_PX, _resampled_asymmetry
+from doorloc.vision.sampling import gather_profile_rows, median, oriented
 
 
 def _mean_square(x: np.ndarray) -> float:
@@ -85,7 +83,7 @@ def texture_bias(
     R = reach + skip  # the gathered half-window: the door side's profile starts skip px farther out
     skip_plus, skip_minus = (skip, 0) if door_side > 0 else (0, skip)
     c0 = np.round(samples.along[idx]).astype(int)
-    vals, ok = _gather_rows(P, samples.scan[idx], c0 - R, 2 * R + 1, lut=lut)
+    vals, ok = gather_profile_rows(P, samples.scan[idx], c0 - R, 2 * R + 1, lut=lut)
     n_ok = int(np.count_nonzero(ok))
     if n_ok < 8:
         return TextureBias(float("nan"), float("nan"))
@@ -95,9 +93,9 @@ def texture_bias(
     else:
         scan = samples.scan[idx]
     if plateau == 1:
-        D = _median(np.abs(vals[:, -1] - vals[:, 0]))
+        D = median(np.abs(vals[:, -1] - vals[:, 0]))
     else:
-        D = _median(np.abs(vals[:, -plateau:].mean(axis=1) - vals[:, :plateau].mean(axis=1)))
+        D = median(np.abs(vals[:, -plateau:].mean(axis=1) - vals[:, :plateau].mean(axis=1)))
     if not D > 0:
         return TextureBias(float("nan"), float("nan"))
     o = np.arange(half + plateau, half + plateau + n_shifts)
@@ -174,7 +172,7 @@ def transition_width(
     P = oriented(plane, samples.axis)
     e = samples.along[m]
     c0 = np.round(e).astype(int)
-    vals, ok = _gather_rows(P, samples.scan[m], c0 - half, 2 * half + 1, lut=lut)
+    vals, ok = gather_profile_rows(P, samples.scan[m], c0 - half, 2 * half + 1, lut=lut)
     if not np.any(ok):
         return float("nan")
     step = samples.step[m]
@@ -230,7 +228,7 @@ def plateau_levels(
         return float("nan"), float("nan")
     scan = samples.scan[mask][inside]
     top = 255.0 if plane.dtype == np.uint8 else 65535.0
-    m = [_median(P[ends[inside], scan].astype(np.float64)) / top for ends in (a, b)]
+    m = [median(P[ends[inside], scan].astype(np.float64)) / top for ends in (a, b)]
     return float(min(m)), float(max(m))
 
 

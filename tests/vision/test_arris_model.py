@@ -221,6 +221,7 @@ def test_an_absorbed_response_that_the_edges_contradict_is_dropped(monkeypatch):
     they show yet another (a reading that follows the edges' placement: seen under a lens distortion the
     cell models in part), the cell's exponent stands, unchecked, and the answer is the first one."""
     import doorloc.vision.locate as L
+    import doorloc.vision.response_check as RC
     from doorloc.vision.response import ResponseFit
 
     door = DoorSize(900, 50, 2100)
@@ -229,18 +230,18 @@ def test_an_absorbed_response_that_the_edges_contradict_is_dropped(monkeypatch):
     two = ("bottom", "reference")
     readings = []
 
-    def flip_flop(plane, samples, fit, half, blur, cell, cfg, arris_fits):
+    def flip_flop(plane, refined, cell, cfg):
         readings.append(cell.response_gamma)
         g = 2.68 if len(readings) == 1 else 1.02  # 2.68 with the cell's 1.0, then 1.02 with 2.68
         return ResponseFit(g, 0.05, cell.response_gamma, two), {}
 
-    monkeypatch.setattr(L, "_measure_response", flip_flop)
+    monkeypatch.setattr(RC, "measure_response", flip_flop)
     res = L.locate(img, CELL, door)
     assert readings == [1.0, 2.68]
     cr = res.diagnostics["camera_response"]
     assert res.ok and not cr["absorbed"] and not cr["checked"] and cr["used"] == "cell"
     assert cr["first_fit"] == 2.68 and cr["second_fit"] == 1.02 and "placement" in cr["unchecked_because"]
-    monkeypatch.setattr(L, "_measure_response", lambda *a: (None, {}))
+    monkeypatch.setattr(RC, "measure_response", lambda *a: (None, {}))
     plain = L.locate(img, CELL, door)
     assert (res.x_mm, res.z_mm, res.yaw_deg) == (plain.x_mm, plain.z_mm, plain.yaw_deg)
     assert res.uncertainty == plain.uncertainty

@@ -46,9 +46,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from doorloc.vision import jit
-from doorloc.vision.edges import linearizing_lut, subpixel_edges, texture_bias, transition_width
+from doorloc.vision.edges import subpixel_edges, texture_bias, transition_width
 from doorloc.vision.lines import _irls, fit_rectangle_edges, ransac_line
 from doorloc.vision.response import plateau_levels
+from doorloc.vision.sampling import linearizing_lut
 
 _ref_spec = importlib.util.spec_from_file_location(
     "numpy_reference", Path(__file__).with_name("numpy_reference.py")
@@ -180,6 +181,12 @@ def test_compile_kernels_compiles_every_kernel_locate_uses():
     import doorloc.vision.locate  # noqa: F401  (defines them all)
 
     assert jit.compile_kernels() >= 5
+
+
+def test_the_warm_up_compiles_locate_s_kernels():
+    from doorloc.vision.warmup import compile_locate_kernels
+
+    assert compile_locate_kernels() >= 5
 
 
 def _grain_edge(rng, sixteen: bool, axis: str, gamma: float, n_lines: int, plateau: int = 1):
@@ -455,8 +462,8 @@ def test_block_ratio_as_its_numpy_version(seed, sixteen, blocky, noise, centre, 
 def test_line_figures_as_numpy(seed, n, kept, nan):
     # quality.line_figures (the gate's per-line figures compiled) against the numpy expressions it
     # replaced, bit for bit: no inliers, a few, all; a NaN among the inliers' steps or noise figures
-    from doorloc.vision.lines import _median
     from doorloc.vision.quality import line_figures
+    from doorloc.vision.sampling import median
 
     rng = np.random.default_rng(seed)
     w = np.where(rng.uniform(size=n) < kept, rng.uniform(0.1, 1.0, n), 0.0)
@@ -469,7 +476,7 @@ def test_line_figures_as_numpy(seed, n, kept, nan):
     got = line_figures(w, res, step, noise)
     n_i = int(inl.sum())
     want = (
-        (n_i, float((res[inl] * res[inl]).sum()) / n_i, _median(np.abs(step[inl])), _median(noise[inl]))
+        (n_i, float((res[inl] * res[inl]).sum()) / n_i, median(np.abs(step[inl])), median(noise[inl]))
         if n_i
         else (0, np.nan, 0.0, np.nan)
     )

@@ -59,13 +59,14 @@ def test_normal_cdf_and_density_as_scipy_s_over_the_tail_cut():
     # argument rounded once) and an ulp of 1 absolute, over the +-10 sigma the models evaluate
     import numba
 
-    from doorloc.vision.edges import STEP_TAIL_SIGMAS, _normal_cdf_pdf
+    from doorloc.vision.edges import STEP_TAIL_SIGMAS
+    from doorloc.vision.sampling import normal_cdf_pdf
 
     @numba.njit
     def both(u):
         P, p = np.empty(u.size), np.empty(u.size)
         for i in range(u.size):
-            P[i], p[i] = _normal_cdf_pdf(u[i])
+            P[i], p[i] = normal_cdf_pdf(u[i])
         return P, p
 
     cut = STEP_TAIL_SIGMAS

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy.special import ndtr
 
-from doorloc.vision.edges import linearizing_lut, subpixel_edges
+from doorloc.vision.edges import subpixel_edges
 from doorloc.vision.response import (
     LineResponse,
     ResponseFit,
@@ -19,6 +19,7 @@ from doorloc.vision.response import (
     edge_shift_px,
     fit_line_response,
 )
+from doorloc.vision.sampling import linearizing_lut
 
 N_COLS, N_ROWS, TILT = 400, 100, 0.031  # a near-horizontal edge: profiles run along the columns
 

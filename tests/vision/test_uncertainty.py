@@ -21,12 +21,16 @@ from doorloc.vision.edges import refine_step_fit, subpixel_edges, texture_bias
 from doorloc.vision.locate import locate
 from doorloc.vision.metric import PlaneMap
 from doorloc.vision.uncertainty import (
+    CAMERA_RESPONSE,
     EDGE_MODEL_FLOOR_PX,
     JPEG_BLOCK_RATIO,
     JPEG_EDGE_DOUBT_PX,
     EdgeModelTerms,
+    LineDoubt,
+    LineLever,
     calibration_pose_sigma,
     jpeg_tilt_sigma,
+    propagate,
 )
 
 NAMES = ("fx", "fy", "cx", "cy", "k1")
@@ -108,11 +112,100 @@ def test_step_fit_is_exact_on_a_plain_step_and_beats_the_area_estimate_on_grain(
 
 
 def test_edge_model_terms_add_in_quadrature():
-    t = EdgeModelTerms(texture_px={"reference": 0.03}, extra_px={"reference": {"arris": 0.04}})
+    t = EdgeModelTerms((LineDoubt("texture", "reference", 0.03), LineDoubt("arris", "reference", 0.04)))
     assert t.line_sigma_px("reference") == pytest.approx(
         math.sqrt(0.03**2 + 0.04**2 + EDGE_MODEL_FLOOR_PX**2)
     )
     assert t.line_sigma_px("bottom") == pytest.approx(EDGE_MODEL_FLOOR_PX)
+
+
+_LEVERS = {
+    "reference": LineLever(30.0, 2.0e6, 900.0),
+    "bottom": LineLever(20.0, 5.0e5, 400.0),
+    "far": LineLever(35.0, 1.5e6, 800.0),
+}
+_CAMERA = {"calibration": (0.004, 0.005, 0.002), "cell": (0.01, 0.01, 0.003)}
+
+
+def _budget_of(doubts, other_mm=None):
+    model = EdgeModelTerms(tuple(doubts), blur_px=0.9)
+    offsets = {"reference": 0.002, "bottom": 0.003, "far": 0.004}
+    return propagate(model, offsets, 2e-5, _LEVERS, 0.2, _CAMERA, other_mm)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(
+        st.tuples(
+            st.sampled_from(["texture", "far_face", "jpeg", "arris", "response"]),
+            st.sampled_from(["bottom", "reference", "far"]),
+            st.floats(0.0, 0.3),
+            st.floats(0.0, 1e-3),
+        ),
+        max_size=8,
+        unique_by=lambda t: (t[0], t[1]),
+    ),
+    st.one_of(st.none(), st.floats(-4.0, 4.0)),
+)
+def test_the_budget_s_terms_make_up_the_uncertainty(doubts, other_mm):
+    b = _budget_of(
+        [LineDoubt(s, k, o, t, CAMERA_RESPONSE if s == "response" else None) for s, k, o, t in doubts],
+        other_mm,
+    )
+    # each source's share, in quadrature, is the pose's and the thickness's sigma: nothing counted twice
+    # or left out
+    for field, total in (("x_mm", b.x_mm), ("z_mm", b.z_mm), ("yaw_deg", b.yaw_deg)):
+        assert math.hypot(*(getattr(t, field) for t in b.terms)) == pytest.approx(total, rel=1e-9)
+    t_terms = [t.thickness_mm for t in b.terms if t.thickness_mm is not None]
+    assert math.hypot(*t_terms) == pytest.approx(b.thickness_reported_mm, rel=1e-9)
+    assert {t.source for t in b.terms} >= {"fit", "floor", "blur", "calibration", "cell"}
+    assert len({t.source for t in b.terms}) == len(b.terms)
+
+
+def test_one_camera_exponent_moves_both_arrises_so_their_doubts_add_in_the_thickness():
+    both = [LineDoubt("response", k, 0.1, group=CAMERA_RESPONSE) for k in ("reference", "far")]
+    apart = [LineDoubt("response", k, 0.1) for k in ("reference", "far")]
+    linked, independent = _budget_of(both), _budget_of(apart)
+    share = {t.source: t for t in linked.terms}["response"]
+    assert share.thickness_mm == pytest.approx(0.2 * 0.2)  # (0.1 + 0.1) px at 0.2 mm/px
+    assert {t.source: t for t in independent.terms}["response"].thickness_mm == pytest.approx(
+        math.hypot(0.1, 0.1) * 0.2
+    )
+    assert linked.thickness_mm > independent.thickness_mm
+    # the pose is the same either way: x moves with the reference line only
+    assert (linked.x_mm, linked.z_mm, linked.yaw_deg) == (
+        independent.x_mm,
+        independent.z_mm,
+        independent.yaw_deg,
+    )
+    assert share.x_mm == pytest.approx(0.1 * 0.2) and share.z_mm == 0.0
+
+
+def test_the_answer_reports_its_budget_by_source(cell):
+    """diagnostics["uncertainty_budget"]: each source's 1-sigma share of the pose and the thickness, which
+    in quadrature make the reported ones (so the dominant term can be read off)."""
+    door = DoorSize(900, 50, 2100)
+    fx = Effects(grain_contrast=0.03, blur_sigma_px=1.2, read_noise_dn=1.0, jpeg_quality=85)
+    r = locate(render_door(cell, door, DoorPose(2.0, -3.0, 0.4), effects=fx, seed=3).image, cell, door)
+    assert r.ok, r.error
+    budget = r.diagnostics["uncertainty_budget"]
+    assert all(set(t) == {"source", "x_mm", "z_mm", "yaw_deg", "thickness_mm"} for t in budget)
+    sources = [t["source"] for t in budget]
+    assert len(set(sources)) == len(sources)
+    assert {"fit", "floor", "blur", "texture", "jpeg", "response", "calibration", "cell"} <= set(sources)
+    for key in ("x_mm", "z_mm", "yaw_deg"):
+        assert math.hypot(*(t[key] for t in budget)) == pytest.approx(getattr(r.uncertainty, key), abs=1e-6)
+    thickness = [t["thickness_mm"] for t in budget if t["thickness_mm"] is not None]
+    assert math.hypot(*thickness) == pytest.approx(r.diagnostics["thickness_check"]["sigma_mm"], abs=1e-5)
+
+
+def test_a_tilt_moves_the_yaw_and_through_the_lever_the_corner():
+    b = _budget_of([LineDoubt("jpeg", "bottom", 0.0, tilt=1e-4)])
+    jpeg = {t.source: t for t in b.terms}["jpeg"]
+    assert jpeg.yaw_deg > 0 and jpeg.thickness_mm == 0.0
+    # the yaw's doubt times each line's lever
+    assert jpeg.x_mm == pytest.approx(math.radians(jpeg.yaw_deg) * 30.0)
+    assert jpeg.z_mm == pytest.approx(math.radians(jpeg.yaw_deg) * 20.0)
 
 
 def _covariance(sig=(0.8, 0.8, 0.5, 0.5, 1e-3)) -> np.ndarray:

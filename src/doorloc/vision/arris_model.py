@@ -42,16 +42,9 @@ import numpy as np
 
 from doorloc.arris import ArrisSection
 from doorloc.pose import yaw_rotation_matrix
-from doorloc.vision.edges import (
-    DITHERING_NOISE_LEVELS,
-    STEP_TAIL_SIGMAS,
-    Axis,
-    EdgeSamples,
-    _gather,
-    _normal_cdf_pdf,
-    oriented,
-)
+from doorloc.vision.edges import DITHERING_NOISE_LEVELS, STEP_TAIL_SIGMAS, EdgeSamples
 from doorloc.vision.jit import kernel, pairwise_sum
+from doorloc.vision.sampling import Axis, gather_profiles, normal_cdf_pdf, oriented
 
 __all__ = ["ArrisGeometry", "StripFit", "arris_geometry", "deficit_prior", "fit_strip_profile", "arris_edges"]
 
@@ -302,7 +295,7 @@ def _pixel_terms_fill(edges, bounds, sigma, tail_sigmas, prim, d_b, d_s):
                 for p in range(n_e):
                     y = edges[p] - at
                     if lo <= p < hi and math.isfinite(y):
-                        C[p], D[p] = _normal_cdf_pdf(y / s)
+                        C[p], D[p] = normal_cdf_pdf(y / s)
                         G[p] = y * C[p] + s * D[p]
                     elif y != y:  # a NaN boundary: NaN terms, as the array code gave
                         C[p] = D[p] = G[p] = np.nan
@@ -1329,9 +1322,9 @@ def arris_edges(
     c0 = np.round(np.where(finite, centre, 0.0)).astype(int)
     length = 2 * (half + plateau + pad) + 1 + n_extra
     if door_side > 0:
-        vals, inside = _gather(P, scan, c0 - half - plateau - pad, length, lut=lut)
+        vals, inside = gather_profiles(P, scan, c0 - half - plateau - pad, length, lut=lut)
     else:  # mirror so that the door side is at increasing index
-        vals, inside = _gather(P, scan, c0 + half + plateau + pad - length + 1, length, lut=lut)
+        vals, inside = gather_profiles(P, scan, c0 + half + plateau + pad - length + 1, length, lut=lut)
         vals, inside = vals[:, ::-1], inside[:, ::-1]
     vals = vals.astype(np.float64)
     left, right = vals[:, :plateau], vals[:, -plateau:]

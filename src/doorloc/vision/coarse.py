@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from doorloc.vision.edges import Axis, _buffer, oriented
 from doorloc.vision.jit import kernel, select_kth
+from doorloc.vision.sampling import Axis, oriented, pixel_buffer
 
 __all__ = ["coarse_edges"]
 
@@ -72,7 +72,7 @@ def coarse_edges(
     if n == 0 or length <= 2 * half + 1:
         return np.full(n, np.nan), np.zeros(n)
     P = oriented(plane, axis)
-    buf, pitch_along, pitch_scan = _buffer(P)
+    buf, pitch_along, pitch_scan = pixel_buffer(P)
     return _strongest_steps(
         buf,
         pitch_along,

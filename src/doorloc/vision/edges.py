@@ -23,22 +23,30 @@ when the window is centred on the edge.
 
 from __future__ import annotations
 
-import functools
 import math
-from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
 
 from doorloc.vision.jit import grey, kernel, median_in_place, pairwise_sum
-from doorloc.vision.lines import _median  # np.median's value for less
+from doorloc.vision.sampling import (
+    NO_LUT,
+    Axis,
+    flat_view,
+    gather_profile_rows,
+    gather_profiles,
+    median,
+    normal_cdf_pdf,
+    oriented,
+    pixel_buffer,
+    smooth_along,
+    smooth_along_rows,
+    warm_up_planes,
+)
 
 __all__ = [
-    "Axis",
     "EdgeSamples",
     "FarFaceFit",
-    "oriented",
     "subpixel_edges",
     "subpixel_edges_banded",
     "subpixel_edges_far_face",
@@ -50,17 +58,10 @@ __all__ = [
     "DITHERING_NOISE_LEVELS",
 ]
 
-Axis = Literal["col", "row"]
-
 #: plateau noise (grey levels, 1-sigma) from which the noise dithers the rounding to grey levels; under it
 #: the pixels of one sub-pixel phase round alike, and averaging them does not average the rounding away
 #: (the response reading and the arris strip fit both ask)
 DITHERING_NOISE_LEVELS = 0.5
-
-
-def oriented(plane: np.ndarray, axis: Axis) -> np.ndarray:
-    """View with profiles along axis 0: ``P[along, scan]`` (the plane itself for columns, its transpose for rows)."""
-    return plane if axis == "col" else plane.T
 
 
 @dataclass(frozen=True)
@@ -115,166 +116,8 @@ class EdgeSamples:
         )
 
 
-def _smooth_along(x: np.ndarray, n: int) -> np.ndarray:
-    """Moving average over ``2 n + 1`` neighbours (fewer at the ends and where ``x`` is NaN)."""
-    ok = np.isfinite(x)
-    c = np.concatenate([[0.0], np.cumsum(np.where(ok, x, 0.0))])
-    m = np.concatenate([[0], np.cumsum(ok)])
-    i = np.arange(x.size)
-    lo, hi = np.maximum(i - n, 0), np.minimum(i + n + 1, x.size)
-    return (c[hi] - c[lo]) / np.maximum(m[hi] - m[lo], 1)
-
-
-def _smooth_along_rows(x: np.ndarray, n: int) -> np.ndarray:
-    """:func:`_smooth_along` of each row of ``x`` (K, N), in one pass (the same numbers: running sums are
-    sequential either way; with no NaN the counts are the window lengths)."""
-    k, size = x.shape
-    lo, hi, length = _smoothing_windows(size, n)
-    ok = np.isfinite(x)
-    all_ok = bool(ok.all())
-    c = np.zeros((k, size + 1))
-    c[:, 1:] = np.cumsum(x if all_ok else np.where(ok, x, 0.0), axis=1)  # in x's precision, as _smooth_along
-    if all_ok:
-        return (c[:, hi] - c[:, lo]) / length
-    m = np.zeros((k, size + 1), np.int64)
-    np.cumsum(ok, axis=1, out=m[:, 1:])
-    return (c[:, hi] - c[:, lo]) / np.maximum(m[:, hi] - m[:, lo], 1)
-
-
-@functools.lru_cache(maxsize=64)
-def _smoothing_windows(size: int, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Window bounds ``lo``, ``hi`` of :func:`_smooth_along` over ``size`` samples and ``max(hi - lo, 1)``
-    (read-only, made once per size)."""
-    i = np.arange(size)
-    lo, hi = np.maximum(i - n, 0), np.minimum(i + n + 1, size)
-    length = np.maximum(hi - lo, 1)
-    for a in (lo, hi, length):
-        a.setflags(write=False)
-    return lo, hi, length
-
-
-def _flat_view(P: np.ndarray) -> tuple[np.ndarray, int, int] | None:
-    """``(flat, pitch0, pitch1)`` with ``P[i, j] == flat[i * pitch0 + j * pitch1]`` for a plane or its
-    transpose stored contiguously (a view, no copy); None for other layouts."""
-    if P.flags.c_contiguous:
-        return P.reshape(-1), P.shape[1], 1
-    if P.flags.f_contiguous:
-        return P.T.reshape(-1), 1, P.shape[0]
-    return None
-
-
-def _buffer(P: np.ndarray) -> tuple[np.ndarray, int, int]:
-    """``(buf, pitch0, pitch1)`` with ``P[i, j] == buf[i * pitch0 + j * pitch1]``, for a kernel: a view of a
-    plane or its transpose (:func:`_flat_view`), else of a C-ordered copy."""
-    flat = _flat_view(P)
-    if flat is None:
-        flat = _flat_view(np.ascontiguousarray(P))
-        assert flat is not None
-    return flat
-
-
-def _take_profiles(
-    P: np.ndarray, scan: np.ndarray, start: np.ndarray, length: int, stride: int = 1
-) -> tuple[np.ndarray, np.ndarray]:
-    """Raw profiles ``P[start + stride k, scan]`` (N, length), clamped to the image, and the per-row flag
-    "every sample lies in the image".
-
-    One flat ``take`` from the plane's buffer instead of 2-D fancy indexing (which walks the transposed
-    view for row profiles and costs several times more); other layouts fall back to fancy indexing.
-    """
-    n_along, n_scan = P.shape
-    k = stride * np.arange(length)
-    last = start + k[-1] if length else start
-    lo_end, hi_end = np.minimum(start, last), np.maximum(start, last)
-    rows_in = (lo_end >= 0) & (hi_end < n_along)
-    flat = _flat_view(P)
-    if flat is not None and scan.size and int(scan.min()) >= 0 and int(scan.max()) < n_scan:
-        f, p0, p1 = flat
-        if stride > 0 and int(lo_end.min()) >= 0 and int(hi_end.max()) < n_along:
-            # all inside (the usual case): rows of a strided view of the buffer (row b holds the profile
-            # that starts at flat index b), picked by their first index - no index array per sample
-            view = np.lib.stride_tricks.as_strided(
-                f,
-                shape=(f.size - stride * p0 * (length - 1), length),
-                strides=(f.itemsize, stride * p0 * f.itemsize),
-                writeable=False,
-            )
-            return view[start * p0 + scan * p1], rows_in
-        idx = start[:, None] + k[None, :]
-        np.clip(idx, 0, n_along - 1, out=idx)
-        return f.take(idx * p0 + (scan * p1)[:, None]), rows_in
-    idx = start[:, None] + k[None, :]
-    return P[np.clip(idx, 0, n_along - 1), scan[:, None]], rows_in
-
-
-def _gather(
-    P: np.ndarray,
-    scan: np.ndarray,
-    start: np.ndarray,
-    length: int,
-    stride: int = 1,
-    lut: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Profiles ``P[start + stride k, scan]`` for k < length as float32 (N, length), and an in-image mask.
-
-    ``lut`` (float32, one entry per grey level) maps the stored values first, e.g. to linear light.
-    """
-    vals, _ = _gather_rows(P, scan, start, length, stride, lut)
-    idx = start[:, None] + stride * np.arange(length)[None, :]
-    inside = (idx >= 0) & (idx < P.shape[0])
-    return vals, inside
-
-
-def _gather_rows(
-    P: np.ndarray,
-    scan: np.ndarray,
-    start: np.ndarray,
-    length: int,
-    stride: int = 1,
-    lut: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
-    """As :func:`_gather`, with the in-image flag per profile (N,) (``inside.all(axis=1)``) instead of
-    per sample: what most callers need, for less work."""
-    raw, rows_in = _take_profiles(P, np.asarray(scan), np.asarray(start), length, stride)
-    vals = lut[raw] if lut is not None else raw.astype(np.float32)
-    return vals, rows_in
-
-
-def linearizing_lut(dtype: np.dtype, gamma: float) -> np.ndarray | None:
-    """Look-up table undoing a camera response ``out = in ** (1 / gamma)``, in grey levels of ``dtype``.
-
-    The area estimator needs grey levels proportional to light; None when ``gamma`` is 1. The table is
-    made once per (dtype, gamma) and shared (read-only): a 16-bit one takes longer than a locate.
-    """
-    if gamma == 1.0:
-        return None
-    return _linearizing_lut(np.dtype(dtype) == np.uint8, float(gamma))
-
-
-@functools.lru_cache(maxsize=16)
-def _linearizing_lut(eight_bit: bool, gamma: float) -> np.ndarray:
-    top = 255.0 if eight_bit else 65535.0
-    x = np.arange(int(top) + 1, dtype=np.float64) / top
-    lut = (x**gamma * top).astype(np.float32)
-    lut.setflags(write=False)
-    return lut
-
-
-_NO_LUT = np.zeros(0, np.float32)
-
-
-def _warm_up_planes(n: int) -> Iterator[tuple[np.ndarray, np.ndarray]]:
-    """(flat buffer, level table) of an ``n`` x ``n`` step image for the kernels' warm-ups: the argument
-    types locate passes a plane kernel (8- and 16-bit levels, without and with a response table)."""
-    img = np.zeros((n, n), np.uint8)
-    img[:, n // 2 :] = 100
-    for buf in (img.reshape(-1), img.astype(np.uint16).reshape(-1)):
-        yield buf, _NO_LUT
-        yield buf, np.arange(256 if buf.dtype == np.uint8 else 65536, dtype=np.float32)
-
-
 def _area_edges_warm_up(k) -> None:
-    for buf, table in _warm_up_planes(8):
+    for buf, table in warm_up_planes(8):
         k(buf, 1, 8, 8, 8, np.arange(8), np.full(8, 1), np.ones(8, bool), 2, 1, table, 1)
 
 
@@ -418,7 +261,7 @@ def subpixel_edges(
     c0 = np.round(np.where(finite, centre, 0.0)).astype(int)
     start = c0 - half - plateau
     length = 2 * (half + plateau) + 1
-    flat = _flat_view(P)
+    flat = flat_view(P)
     if not slope_smooth > 0 and flat is not None and plane.dtype in (np.uint8, np.uint16):
         # flat plateaus (the default): compiled, one pass over each profile (_area_edges)
         buf, pitch_along, pitch_scan = flat
@@ -433,7 +276,7 @@ def subpixel_edges(
             finite,
             half,
             plateau,
-            lut if lut is not None else _NO_LUT,
+            lut if lut is not None else NO_LUT,
             level_smooth if scan.size else 0,
         )
         if not (level_smooth > 0 and scan.size):  # unsmoothed levels stay float32, as in the numpy branch
@@ -448,7 +291,7 @@ def subpixel_edges(
             np.maximum(A, B) * scale_to_8bit,
             valid,
         )
-    vals, inside_ok = _gather_rows(P, scan, start, length, lut=lut)
+    vals, inside_ok = gather_profile_rows(P, scan, start, length, lut=lut)
     left = vals[:, :plateau]
     right = vals[:, -plateau:]
     core = vals[:, plateau : plateau + 2 * half + 1]
@@ -460,7 +303,7 @@ def subpixel_edges(
         noise = np.sqrt(0.5 * (left.var(axis=1) + right.var(axis=1)))
     if level_smooth > 0 and scan.size:
         AB = np.stack([A, B])
-        A, B = _smooth_along_rows(AB if inside_ok.all() else np.where(inside_ok, AB, np.nan), level_smooth)
+        A, B = smooth_along_rows(AB if inside_ok.all() else np.where(inside_ok, AB, np.nan), level_smooth)
     step = B - A
     hp = half + 0.5
     if slope_smooth > 0 and plateau > 1 and scan.size:
@@ -474,7 +317,7 @@ def subpixel_edges(
             a1 = np.full(scan.size, np.nanmedian(a1))
             b1 = np.full(scan.size, np.nanmedian(b1))
         else:
-            a1, b1 = _smooth_along_rows(np.stack([a1, b1]), slope_smooth)
+            a1, b1 = smooth_along_rows(np.stack([a1, b1]), slope_smooth)
         off = hp + (plateau + 1) / 2.0 - 0.5  # window centre to plateau centres, px
         kc = np.arange(-half, half + 1, dtype=np.float32)
         S = (core - (A[:, None] + a1[:, None] * (kc[None, :] + off))).sum(axis=1)
@@ -521,7 +364,7 @@ def transition_width(
     if not np.any(m):
         return float("nan")
     P = oriented(plane, samples.axis)
-    flat = _buffer(P)
+    flat = pixel_buffer(P)
     return float(
         _mean_transition_width(
             *flat,
@@ -530,13 +373,13 @@ def transition_width(
             samples.along[m],
             samples.step[m].astype(np.float64),
             half,
-            lut if lut is not None else _NO_LUT,
+            lut if lut is not None else NO_LUT,
         )
     )
 
 
 def _mean_transition_width_warm_up(k) -> None:
-    for buf, table in _warm_up_planes(16):
+    for buf, table in warm_up_planes(16):
         k(buf, 1, 16, 16, np.arange(6), np.full(6, 7.6), np.full(6, 100.0), 3, table)
 
 
@@ -686,10 +529,10 @@ def subpixel_edges_banded(
     length = 2 * (half + plateau) + 1 + n_extra
     if door_side > 0:
         start = c0 - half - plateau
-        vals, inside = _gather(P, scan, start, length, lut=lut)
+        vals, inside = gather_profiles(P, scan, start, length, lut=lut)
     else:  # mirror so that the door side is at increasing index
         start = c0 + half + plateau
-        vals, inside = _gather(P, scan, start - length + 1, length, lut=lut)
+        vals, inside = gather_profiles(P, scan, start - length + 1, length, lut=lut)
         vals, inside = vals[:, ::-1], inside[:, ::-1]
     left = vals[:, :plateau]
     right = vals[:, -plateau:]
@@ -698,8 +541,8 @@ def subpixel_edges_banded(
     B = right.mean(axis=1)
     if level_smooth > 0 and scan.size:
         ok_in = inside.all(axis=1)
-        A = _smooth_along(np.where(ok_in, A, np.nan), level_smooth)
-        B = _smooth_along(np.where(ok_in, B, np.nan), level_smooth)
+        A = smooth_along(np.where(ok_in, A, np.nan), level_smooth)
+        B = smooth_along(np.where(ok_in, B, np.nan), level_smooth)
     # Band level: the grey value at the band's centre (linear interpolation), median over the edge,
     # from the scan lines where the band is at least 2 px wide (a pixel wholly inside it).
     rel_e = (centre - c0) * door_side  # predicted edge relative to c0, in mirrored coordinates
@@ -846,67 +689,6 @@ BAND_SIDE_MIN_PX = 0.25
 STEP_TAIL_SIGMAS = 10.0
 
 
-#: Cephes' erfc (S. L. Moshier's library, as in scipy.special): erfc(z) = exp(-z^2) P(z) / Q(z) for
-#: 1 <= z < 8 and exp(-z^2) R(z) / S(z) beyond, the denominators' leading 1 implicit
-_ERFC_P = (
-    2.46196981473530512524e-10, 5.64189564831068821977e-1, 7.46321056442269912687e0,
-    4.86371970985681366614e1, 1.96520832956077098242e2, 5.26445194995477358631e2,
-    9.34528527171957607540e2, 1.02755188689515710272e3, 5.57535335369399327526e2,
-)  # fmt: skip
-_ERFC_Q = (
-    1.32281951154744992508e1, 8.67072140885989742329e1, 3.54937778887819891062e2,
-    9.75708501743205489753e2, 1.82390916687909736289e3, 2.24633760818710981792e3,
-    1.65666309194161350182e3, 5.57535340817727675546e2,
-)  # fmt: skip
-_ERFC_R = (
-    5.64189583547755073984e-1, 1.27536670759978104416e0, 5.01905042251180477414e0,
-    6.16021097993053585195e0, 7.40974269950448939160e0, 2.97886665372100240670e0,
-)  # fmt: skip
-_ERFC_S = (
-    2.26052863220117276590e0, 9.39603524938001434673e0, 1.20489539808096656605e1,
-    1.70814450747565897222e1, 9.60896809063285878198e0, 3.36907645100081516050e0,
-)  # fmt: skip
-
-
-@kernel(inline=True)
-def _normal_cdf_pdf(u):
-    """The standard normal CDF ``Phi(u)`` and density ``phi(u)``, with one exponential between them.
-
-    The blurred-step models need both on every boundary near an edge; the C library's erfc computes its own
-    ``exp(-z^2)`` (and more: 32 ns a call here against 9 ns for exp), so for ``|u| >= sqrt(2)`` the CDF is
-    Cephes' rational form times the density's exponential (``z^2 = u^2 / 2``). Within ``|u| < 1`` it is
-    scipy.special.ndtr's ``0.5 + 0.5 erf(u / sqrt(2))``, between them ``0.5 erfc`` of the C library, as
-    before (23 ns for both, against 41). Against scipy's ndtr: within 2e-14 relative in the tails up to
-    ``|u| = 10`` (the exponential's argument rounded once, not split as Cephes' expx2 does), an ulp or two
-    elsewhere.
-    """
-    E = math.exp(-0.5 * u * u)
-    phi = E * 0.3989422804014327  # 1 / sqrt(2 pi)
-    x = u * 0.7071067811865476  # 1 / sqrt(2)
-    z = abs(x)
-    if z < 0.7071067811865476:
-        return 0.5 + 0.5 * math.erf(x), phi
-    if z < 1.0:
-        y = 0.5 * math.erfc(z)
-    else:
-        num, den = _rational(z, _ERFC_P, _ERFC_Q) if z < 8.0 else _rational(z, _ERFC_R, _ERFC_S)
-        y = 0.5 * E * num / den
-    return (1.0 - y if x > 0 else y), phi
-
-
-@kernel(inline=True)
-def _rational(z, num, den):
-    """The polynomials ``num(z)`` and ``den(z)``, their coefficients highest power first, ``den``'s leading
-    1 implicit (Cephes' polevl / p1evl)."""
-    p = num[0]
-    for c in num[1:]:
-        p = p * z + c
-    q = z + den[0]
-    for c in den[1:]:
-        q = q * z + c
-    return p, q
-
-
 def _step_pixel_values_warm_up(k) -> None:
     k(np.arange(7.0) - 3.5, np.array([0.2, -0.4]), 0.1, STEP_TAIL_SIGMAS)
     k(np.arange(7.0) - 3.5, np.array([0.2, np.nan]), 2.0, STEP_TAIL_SIGMAS)
@@ -944,7 +726,7 @@ def _step_pixel_values(bounds, e, sigma, tail_sigmas):
         for j in range(n_b):
             y = bounds[j] - e[i]
             if j0 <= j < j1:
-                P[j], p[j] = _normal_cdf_pdf(y * inv)
+                P[j], p[j] = normal_cdf_pdf(y * inv)
                 G[j] = y * P[j] + sigma * p[j]
             else:
                 P[j] = 1.0 if y > 0.0 else 0.0
@@ -996,7 +778,7 @@ def _unit_step_boundaries(bounds, x, sigma, cut, G, P, p, slopes):
     inv = 1.0 / sigma
     for j in range(j0, j1):
         y = bounds[j] - x
-        Pj, pj = _normal_cdf_pdf(y * inv)
+        Pj, pj = normal_cdf_pdf(y * inv)
         G[j] = y * Pj + sigma * pj
         if slopes:
             P[j] = Pj
@@ -1482,18 +1264,18 @@ def subpixel_edges_far_face(
     length = 2 * (half + plateau) + 1 + n_extra + 2 * n_strip
     if outward > 0:
         start = c0 - half - plateau - n_strip
-        vals, inside = _gather(P, scan, start, length, lut=lut)
+        vals, inside = gather_profiles(P, scan, start, length, lut=lut)
     else:  # mirror so that the hinge face is at the low indices
         start = c0 + half + plateau + n_strip
-        vals, inside = _gather(P, scan, start - length + 1, length, lut=lut)
+        vals, inside = gather_profiles(P, scan, start - length + 1, length, lut=lut)
         vals, inside = vals[:, ::-1], inside[:, ::-1]
     vals = vals.astype(np.float64)
     A = vals[:, :plateau].mean(axis=1)
     B = vals[:, -plateau:].mean(axis=1)
     ok = finite & inside.all(axis=1)
     if level_smooth > 0 and scan.size:
-        A = _smooth_along(np.where(ok, A, np.nan), level_smooth)
-        B = _smooth_along(np.where(ok, B, np.nan), level_smooth)
+        A = smooth_along(np.where(ok, A, np.nan), level_smooth)
+        B = smooth_along(np.where(ok, B, np.nan), level_smooth)
     D = B - A
     ok &= np.isfinite(D) & (np.abs(D) > 0)
     e0 = plateau + n_strip + half + (centre - c0) * outward  # predicted arris, index units
@@ -1510,7 +1292,7 @@ def subpixel_edges_far_face(
     mu0 = mu_sd = pull_mu = 0.0
     levels_lo, levels_hi = -math.inf, math.inf
     if has_strip and n_ok:
-        a_med, d_med = _median(Ao), _median(Do)
+        a_med, d_med = median(Ao), median(Do)
         k = -a_med / d_med if abs(d_med) > 1e-9 * max(abs(a_med), 1e-12) else 0.0
         mu0 = (strip_radiance[0] - 1.0) * -k
         mu_sd = max(strip_radiance[1] * abs(k), 0.05)
@@ -1520,7 +1302,7 @@ def subpixel_edges_far_face(
         # img_0007, its bottom end then refused as not straight).
         levels_lo, levels_hi = sorted((k, -2.0 * k))
         ends = np.concatenate([vals[ok, :plateau], vals[ok, -plateau:]], axis=1)
-        noise_var = max(_median(ends.var(axis=1)), (1e-3 * abs(d_med)) ** 2)
+        noise_var = max(median(ends.var(axis=1)), (1e-3 * abs(d_med)) ** 2)
         pull_mu = noise_var / mu_sd**2
     strip_o = wso if wso is not None else np.zeros(n_ok)  # (the kernels take a width on every line)
 
@@ -1572,7 +1354,7 @@ def subpixel_edges_far_face(
         # the better is kept, and the other weighs in as a second place for the border (its misfit excess
         # at the scale of the residuals of one scan line: a model's error is common to all of them).
         assert wso is not None
-        w_med = _median(wso)
+        w_med = median(wso)
         chosen: tuple[np.ndarray, float, float, float, float] = (e, lam, sigma, mu, cost)
         others = []
         for sgn in (1.0, -1.0):
@@ -1585,12 +1367,12 @@ def subpixel_edges_far_face(
             per_line = chosen[4] / max(n_ok, 1)
             for alt in ranked[1:]:
                 q = math.exp(-min((alt[4] - chosen[4]) / (2.0 * max(per_line, 1e-300)), 50.0))
-                shift = _median(alt[0] - chosen[0])
+                shift = median(alt[0] - chosen[0])
                 strip_doubt = max(strip_doubt, abs(shift) * math.sqrt(q / (1.0 + q)))
         e, lam, sigma, mu, cost = chosen
     other_reading = 0.0
     if n_ok and not has_strip and min(abs(lam), abs(1.0 - lam)) <= BAND_SIDE_LEVEL:
-        w_med = _median(np.maximum(w0o + band_slope * (e - e0o), 0.0))
+        w_med = median(np.maximum(w0o + band_slope * (e - e0o), 0.0))
         if w_med >= BAND_SIDE_MIN_PX:
             # The band read as the background's: the step is the arris here, and the far face's back edge in
             # the other reading, whose arris lies inwards by its band's width, w / (1 + band_slope) (the band
@@ -1632,7 +1414,7 @@ def subpixel_edges_far_face(
             H[1, :] = H[:, 1] = 0.0
             _far_face_schur(H, b_g, h_ee, h_eg, b_e, lam, mu, LEVEL_PRIOR_WEIGHT, pull_mu, mu0)
             try:
-                var_mu = float(np.linalg.inv(H)[2, 2]) * _median(res_var)
+                var_mu = float(np.linalg.inv(H)[2, 2]) * median(res_var)
             except np.linalg.LinAlgError:
                 var_mu = mu_sd**2
             # (a rounding's shading runs from the hinge face's level towards the far face's across the
@@ -1643,14 +1425,14 @@ def subpixel_edges_far_face(
     along = np.where(outward > 0, start + e, start - e)
     valid = ok & np.isfinite(along) & (np.abs(e - e0) <= half + n_strip) & np.isfinite(e_sigma)
     w_fit = np.maximum(w0 + band_slope * (e - e0), 0.0)
-    band_med = _median(w_fit[valid]) if np.any(valid) else float("nan")
+    band_med = median(w_fit[valid]) if np.any(valid) else float("nan")
     model_sigma = (
-        math.hypot(_median(de_dlam) * LEVEL_DOUBT, _median(de_dsig) * BLUR_DOUBT)
+        math.hypot(median(de_dlam) * LEVEL_DOUBT, median(de_dsig) * BLUR_DOUBT)
         if de_dlam.size
         else float("nan")
     )
     if de_dmu.size:  # the strip's level, and another place for the border that fits about as well
-        model_sigma = math.hypot(model_sigma, _median(de_dmu) * mu_doubt, strip_doubt)
+        model_sigma = math.hypot(model_sigma, median(de_dmu) * mu_doubt, strip_doubt)
     noise = np.sqrt(0.5 * (vals[:, :plateau].var(axis=1) + vals[:, -plateau:].var(axis=1)))
     step = D * outward
     nan = np.full(len(scan), np.nan)
@@ -1672,7 +1454,7 @@ def subpixel_edges_far_face(
         lam,
         sigma,
         band_med,
-        _median(e_sigma[valid]) if np.any(valid) else float("nan"),
+        median(e_sigma[valid]) if np.any(valid) else float("nan"),
         model_sigma,
         float(mu) if has_strip else float("nan"),
         other_reading,
@@ -1798,7 +1580,7 @@ def refine_step_fit(
     a0 = samples.along[ok]
     c0 = np.round(a0).astype(int)
     h = half + 1
-    vals, inside = _gather(P, samples.scan[ok], c0 - h, 2 * h + 1, lut=lut)
+    vals, inside = gather_profiles(P, samples.scan[ok], c0 - h, 2 * h + 1, lut=lut)
     bounds = np.arange(-h, h + 2, dtype=np.float64) - 0.5
     e = _step_fit(vals, a0 - c0, bounds, max(float(blur_px), 0.05))
     fitted = c0 + e
@@ -1888,7 +1670,7 @@ def texture_bias(
     # the edge and of the whole edge, the step between the profiles' ends, and the distance between the
     # halves' mean scan lines
     profiles = (
-        *_buffer(P),
+        *pixel_buffer(P),
         P.shape[0],
         P.shape[1],
         samples.scan,
@@ -1898,7 +1680,7 @@ def texture_bias(
         max_lines,
         R,
         plateau,
-        lut if lut is not None else _NO_LUT,
+        lut if lut is not None else NO_LUT,
     )
     if blur_px is None:
         # the area estimator's error on each mean profile, both sides (closed form), and its RMS: all
@@ -1932,7 +1714,7 @@ def texture_bias(
 
 
 def _texture_warm_up(k, *extra) -> None:
-    for buf, table in _warm_up_planes(40):
+    for buf, table in warm_up_planes(40):
         for plateau in (1, 2):
             on = np.ones(10, np.bool_)
             k(buf, 1, 40, 40, 40, np.arange(10), np.full(10, 20.3), on, on, 128, 10, plateau, table, *extra)
@@ -1996,7 +1778,7 @@ def _texture_profiles(
     # the median step (np.median's value)
     srt = np.sort(steps)
     k = n // 2
-    D = float(srt[k]) if n % 2 else float((srt[k - 1] + srt[k]) / np.float32(2.0))  # in float32, as _median
+    D = float(srt[k]) if n % 2 else float((srt[k - 1] + srt[k]) / np.float32(2.0))  # in float32, as median
     order = np.argsort(scan[rows])
     lo_sum = 0
     hi_sum = 0
@@ -2179,6 +1961,6 @@ def block_artifact_ratio(
         arr = crop if ax == 1 else crop.T
         d = np.abs(np.diff(arr.astype(np.float32), axis=1)).mean(axis=0) * scale_to_8bit
         boundary = (o + np.arange(d.size)) % 8 == 7
-        on, off = _median(d[boundary]), _median(d[~boundary])
+        on, off = median(d[boundary]), median(d[~boundary])
         out.append(on / max(off, 1e-3) if on - off >= min_excess else 1.0)
     return max(out)

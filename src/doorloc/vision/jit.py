@@ -13,8 +13,8 @@ the bit).
 numba compiles a kernel on its first call and caches the machine code on disk (beside the source, or
 under ``NUMBA_CACHE_DIR``; where neither can be written, each process compiles its own). The first call on
 a machine takes seconds; later processes load the cached code in a fraction of a second.
-:func:`compile_kernels` compiles them all: the service calls it at start so that no request waits for it,
-and the container image calls it when it is built.
+:func:`compile_kernels` compiles them all (:mod:`doorloc.vision.warmup`, locate's): the service calls it at
+start so that no request waits for it, and the container image calls it when it is built.
 """
 
 from __future__ import annotations
@@ -223,14 +223,10 @@ def compile_kernels() -> int:
     return len(_KERNELS)
 
 
-if (
-    __name__ == "__main__"
-):  # python -m doorloc.vision.jit: compile locate's kernels (scripts/setup, the image)
-    import time
+if __name__ == "__main__":
+    # ``python -m doorloc.vision.jit``, the command the setup script and the container image have run: the
+    # warm-up itself lives above locate (doorloc.vision.warmup), so that this library imports none of the
+    # modules that import it; run by name, it is a command, not an import
+    import runpy
 
-    import doorloc.vision.locate  # noqa: F401  (defines the kernels)
-    from doorloc.vision import jit  # the imported module (this file runs as __main__, with its own list)
-
-    t0 = time.perf_counter()
-    n = jit.compile_kernels()
-    print(f"doorloc: {n} numba kernels compiled or loaded from the cache in {time.perf_counter() - t0:.1f} s")
+    runpy.run_module("doorloc.vision.warmup", run_name="__main__", alter_sys=True)

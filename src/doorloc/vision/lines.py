@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from doorloc.vision.jit import kernel, partitioned_median
+from doorloc.vision.sampling import median  # np.median's value, without its generic machinery
 
 __all__ = [
     "ImageLine",
@@ -48,22 +49,7 @@ def robust_scale(
         return floor
     if r.size > max_samples:
         r = r[:: r.size // max_samples + 1]
-    return max(1.4826 * _median(np.abs(r - _median(r))), floor)
-
-
-def _median(x: np.ndarray) -> float:
-    """``np.median`` of a 1-D float array, the same value bit for bit, without its generic machinery.
-
-    The IRLS loops take two medians per iteration on a few hundred residuals, where ``np.median``'s
-    dispatch costs more than the partition itself.
-    """
-    n = x.size
-    k = n // 2
-    # as np.median: partition at the middle element(s) and the last one (NaN check), mean of the middle
-    p = np.partition(x, [k - 1, k, n - 1] if n % 2 == 0 and n > 1 else [k, n - 1])
-    if np.isnan(p[-1]):
-        return float("nan")
-    return float(p[k]) if n % 2 else float((p[k - 1] + p[k]) / 2.0)
+    return max(1.4826 * median(np.abs(r - median(r))), floor)
 
 
 @dataclass(frozen=True)

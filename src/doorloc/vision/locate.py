@@ -12,6 +12,15 @@ The flow (thesis section 3.7, made metric and robust)::
       -> pass 2 with windows centred on the fitted lines and sized to the measured blur -> pose
       -> quality gate -> LocateResult
 
+As code, :func:`_locate` visits each stage once, each handing the next a frozen value
+(:mod:`doorloc.vision.state`): the coarse stage (:func:`_coarse_edges`, :func:`_coarse_pose`) -> the refine
+stage (:func:`doorloc.vision.refine.refine`: passes over the edge models of
+:mod:`doorloc.vision.edge_models`) -> :class:`~doorloc.vision.state.Refined` -> the response check
+(:func:`doorloc.vision.response_check.check_response`, which owns the absorb-and-rerun) ->
+:class:`~doorloc.vision.state.ResponseCheck` -> the doubts stage (:func:`doorloc.vision.doubts.edge_doubts`:
+every line's doubts, typed) -> the gate (:func:`doorloc.vision.gate.gate_and_answer`: the checks, the
+uncertainty from :func:`doorloc.vision.uncertainty.propagate`, the answer or the refusal).
+
 :func:`locate` never raises for a bad image: every failure comes back as a refusal (``ok=false``,
 ``error_code``, ``error``). The codes: ``bad_image`` (not an 8/16-bit grey or colour array),
 ``wrong_image_size``, ``black_image``, ``saturated_image``, ``low_contrast``, ``no_door``, ``not_a_door``
@@ -27,7 +36,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Generator, Iterator
+from collections.abc import Callable, Generator
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -37,61 +46,25 @@ from scipy.ndimage import uniform_filter1d
 from doorloc import __version__
 from doorloc.cell import Cell, DoorSize
 from doorloc.vision import quality as q
-from doorloc.vision.arris_model import (
-    BLUR_DOUBT,
-    STRIP_RADIANCE,
-    STRIP_RADIANCE_SIGMA,
-    StripFit,
-    arris_edges,
-    arris_geometry,
-)
 from doorloc.vision.coarse import coarse_edges
 from doorloc.vision.config import LocateConfig
+from doorloc.vision.doubts import edge_doubts
 from doorloc.vision.edges import (
     EdgeSamples,
-    FarFaceFit,
-    block_artifact_ratio,
-    linearizing_lut,
-    oriented,
-    refine_step_fit,
-    step_blur,
-    subpixel_edges,
-    subpixel_edges_banded,
-    subpixel_edges_far_face,
-    texture_bias,
-    transition_width,
 )
-from doorloc.vision.lines import ImageLine, RectangleFit, fit_image_line, fit_rectangle_edges, ransac_line
+from doorloc.vision.gate import PATTERN, gate_and_answer
+from doorloc.vision.lines import ImageLine, fit_rectangle_edges, ransac_line
 from doorloc.vision.luminance import ImageFormatError, LuminancePlane, luminance_plane
 from doorloc.vision.metric import MetricPose, pose_from_fit
-from doorloc.vision.region import EDGE_NAMES, Band, EdgeLayout, SearchRegion
-from doorloc.vision.response import (
-    RESPONSE_ONE_PHASE_MIN_BLUR_PX,
-    RESPONSE_PLAUSIBLE,
-    LineResponse,
-    ResponseFit,
-    at_one_phase,
-    combine_responses,
-    edge_shifts_px,
-    fit_line_response,
-    plateau_levels,
-)
-from doorloc.vision.result import LineQuality, LocateResult, PhysicalModel, PoseUncertainty, Provenance
-from doorloc.vision.uncertainty import (
-    EDGE_MODEL_FLOOR_PX,
-    JPEG_BLOCK_RATIO,
-    JPEG_EDGE_DOUBT_PX,
-    EdgeModelTerms,
-    calibration_pose_sigma,
-    combine,
-    corner_fit_sigma,
-    jpeg_tilt_sigma,
-)
+from doorloc.vision.refine import refine
+from doorloc.vision.region import EDGE_NAMES, HUMAN, Band, EdgeLayout, SearchRegion
+from doorloc.vision.response_check import check_response
+from doorloc.vision.result import LocateResult, PhysicalModel, Provenance
+from doorloc.vision.sampling import oriented
+from doorloc.vision.state import Refused, StageClock
 
 __all__ = ["LocateConfig", "locate", "locate_steps", "run_steps", "StepQuery", "LocateTrace"]
 
-#: plateau samples of the arris strip's profile fit, px
-ARRIS_PLATEAU_PX = 4
 #: how far the coarse stage's thickness may lie from the recipe's before a far face's back edge is taken for
 #: the far arris, and how near that reading must then come, mm (2-px coarse steps: ~0.4 mm each)
 COARSE_THICKNESS_MM = 1.0
@@ -101,19 +74,6 @@ COARSE_ARRIS_SKEW_DEG = 0.5
 #: how far beyond the coarse reference line's tolerance a nearer reference arris is looked for, px: the
 #: stronger step's flank (blur up to ~3 px) stays out of the 2 x 2-px step detector (:func:`_nearer_reference`)
 NEARER_REFERENCE_CLEAR_PX = 13.0
-#: an arris strip narrower than this, px, is a plain step to the camera response's check (a chamfer of a few
-#: thousandths of a millimetre, a twentieth of a pixel: its lines are plain edges, on which the response is
-#: measured; as arris lines the unmeasured response's doubt put 0.19 mm on an answer 0.001 mm off)
-PLAIN_STRIP_PX = 0.1
-
-#: the final pass fits a blurred step (LocateConfig.step_fit) only above this optical blur, px
-STEP_FIT_MIN_BLUR_PX = 0.5
-
-HUMAN = {
-    "bottom": "bottom end of the door (X-line)",
-    "reference": "reference-face arris (Z-line)",
-    "far": "far arris (door thickness)",
-}
 
 
 @dataclass
@@ -125,13 +85,6 @@ class LocateTrace:
     inliers: dict[str, np.ndarray] = field(default_factory=dict)
     pose: MetricPose | None = None
     region: SearchRegion | None = None
-
-
-class _Refused(Exception):
-    def __init__(self, refusal: q.Refusal, **diag) -> None:
-        super().__init__(refusal.message)
-        self.refusal = refusal
-        self.diag = diag
 
 
 def locate(
@@ -228,7 +181,7 @@ def locate_steps(
     tr = trace if trace is not None else LocateTrace()
     try:
         res = yield from _locate(image, cell, door, cfg, tr, image_name, luminance)
-    except _Refused as r:
+    except Refused as r:
         res = LocateResult.refusal(
             image_name,
             r.refusal.code,
@@ -416,232 +369,6 @@ def _line_through_steps(
     return None
 
 
-def _sample(
-    plane,
-    region: SearchRegion,
-    pose: MetricPose,
-    yaw_rad: float,
-    half: int,
-    cfg: LocateConfig,
-    scale8: float,
-    every: int = 1,
-    sharp: bool = False,
-    optical_blur_px: float = float("nan"),
-    response_gamma: float = 1.0,
-    step_fit: dict[str, float] | None = None,
-    arris_fits: dict[str, tuple[StripFit, float]] | None = None,
-) -> _Sampled:
-    keep = half + cfg.plateau + 4
-    lut = linearizing_lut(plane.dtype, response_gamma)
-    door = region.door
-    geoms = (
-        arris_geometry(
-            door.arris_mm,
-            door.arris_profile,
-            region.plane_map.centre,
-            pose.corner,
-            pose.yaw_deg,
-            region.face_y,
-            pose.thickness_mm,
-        )
-        if door.arris_mm > 0
-        else None
-    )
-    if geoms:
-        # Near a corner the other edge's arris strip (about the arris wide from the sharp corner) crosses
-        # the scan lines: the strip's profile fit would see two strips there and misfit. Keep its width
-        # (and the strip fit's wider plateaus) clear of the corners.
-        keep = (
-            half
-            + max(cfg.plateau, ARRIS_PLATEAU_PX)
-            + 4
-            + int(math.ceil(door.arris_mm / region.nominal_scale))
-        )
-    # An arris door's thickness measured on a first pose can be up to the strip's width short (its inner
-    # border taken for the edge): whether the far face is in view is decided at the recipe's thickness
-    # then (arris bench seed 7558: a 2.5 mm rounding, the camera 1.2 mm inside the far face's plane, seen
-    # as beside it from a pose 2.6 mm thin: the far arris lost)
-    tracks = region.tracks(
-        pose.corner,
-        yaw_rad,
-        pose.thickness_mm,
-        keep,
-        window_px=half + cfg.plateau + 2,
-        arris=geoms,
-        visibility_thickness_mm=max(pose.thickness_mm, door.thickness_mm) if geoms else None,
-    )
-    out = {}
-    far_fit = None
-    beside = tracks["far"].beside_far_face
-    step_fitted: set[str] = set()  # lines refined by the blurred-step fit
-    for name in EDGE_NAMES:
-        lay = region.layouts[name]
-        t = tracks[name]
-        step_kw: dict[str, Any] = dict(
-            level_smooth=max(cfg.level_smooth // every, 1) if cfg.level_smooth else 0, lut=lut
-        )
-        scan, centre = t.scan[::every], t.centre[::every]
-        if t.band_px is not None and t.band_px.size:
-            band = t.band_px[::every]
-            interior = lay.polarity * (1 if cfg.door_brighter else -1)
-            if t.beside_far_face:
-                # Hinge face | far face (a band of any width and brightness) | background: fit the
-                # profile's shape, two blurred steps with the band's width from the geometry. The
-                # blur comes from the plain reference arris (beside a narrow band, blur, band level
-                # and width trade off); only the first pass, which just centres the windows, guesses it.
-                out[name], far_fit = subpixel_edges_far_face(
-                    plane,
-                    lay.axis,
-                    scan,
-                    centre,
-                    half,
-                    band,
-                    t.band_slope,
-                    -interior,
-                    cfg.plateau,
-                    scale8,
-                    blur_px=optical_blur_px if np.isfinite(optical_blur_px) else 1.0,
-                    strip_px=t.strip_px[::every] if t.strip_px is not None else None,
-                    strip_radiance=(STRIP_RADIANCE, STRIP_RADIANCE_SIGMA),
-                    strip_shaded=door.arris_profile == "round",
-                    **step_kw,
-                )
-                continue
-            if geoms is not None and name in geoms and t.outline_shift_px is not None:
-                # An arris strip lies on the door side of the outline: its outer border from the strip's
-                # fitted shading, then moved to the sharp corner's line by the geometry.
-                blur0 = optical_blur_px if np.isfinite(optical_blur_px) else 1.0
-                # The strip's profile fit takes 4-px plateaus (the face beside the strip pins its
-                # brightness, most of all on narrow strips); each line's levels for its area estimate the
-                # plain step's, right beside the window: taken farther out they pick up texture along the
-                # edge (the effects fixtures' grain: their yaw was up to 0.022 deg off).
-                smp, strip = arris_edges(
-                    plane,
-                    lay.axis,
-                    scan,
-                    centre,
-                    half,
-                    band,
-                    interior,
-                    geoms[name],
-                    max(cfg.plateau, ARRIS_PLATEAU_PX),
-                    scale8,
-                    lut=lut,
-                    blur0=blur0,
-                    search=every > 1,
-                    level_px=cfg.plateau,
-                    # (the far arris's strip can take another level in the first pass than in the
-                    # final one, which its window was placed for: there the area estimate; the line fit
-                    # in both passes lost every far point on 2 of 48 arris bench frames)
-                    line_fit=name != "far" or every == 1,
-                )
-                out[name] = replace(smp, along=smp.along + t.outline_shift_px[::every])
-                if arris_fits is not None and strip is not None:
-                    arris_fits[name] = (strip, float(np.median(band)))
-                continue
-            # An arris strip lies on the door side of the outline.
-            out[name], _ = subpixel_edges_banded(
-                plane,
-                lay.axis,
-                scan,
-                centre,
-                half,
-                band,
-                interior,
-                cfg.plateau,
-                scale8,
-                sharp=sharp,
-                band_slope=t.band_slope,
-                **step_kw,
-            )
-            continue
-        out[name] = subpixel_edges(
-            plane,
-            lay.axis,
-            scan,
-            centre,
-            half,
-            cfg.plateau,
-            scale8,
-            slope_smooth=max(cfg.slope_smooth // every, 1) if cfg.slope_smooth else 0,
-            **step_kw,
-        )
-        if step_fit and name in step_fit:
-            fitted = refine_step_fit(plane, out[name], half, step_fit[name], lut)
-            if _step_fit_agrees(plane, out[name], fitted, half, cfg.plateau, lut):
-                out[name] = fitted
-                step_fitted.add(name)
-    return _Sampled(out, beside, far_fit, {k: (step_fit or {})[k] for k in step_fitted})
-
-
-@dataclass(frozen=True)
-class _Sampled:
-    """Edge points of one pass: per line, whether a far face was beside the far arris, its fit, and the
-    lines whose points the blurred-step fit refined (name -> the blur it used, px)."""
-
-    samples: dict[str, EdgeSamples]
-    far_beside: bool
-    far_fit: FarFaceFit | None
-    step_fitted: dict[str, float]
-
-
-def _fit(
-    samples: dict[str, EdgeSamples],
-    region: SearchRegion,
-    cfg: LocateConfig,
-    every: int = 1,
-    n_iter: int = 9,
-    far_offset_only: bool = False,
-) -> tuple[RectangleFit, dict]:
-    groups, init = {}, {}
-    subsets = {
-        name: samples[name].subset(np.arange(samples[name].scan.size) % every == 0)
-        if every > 1
-        else samples[name]
-        for name in EDGE_NAMES
-    }
-    # all edge points back-projected in one call (point by point: the same numbers, less overhead)
-    xz_all = region.plane_points(np.concatenate([subsets[name].uv() for name in EDGE_NAMES]))
-    first = 0
-    for name in EDGE_NAMES:
-        s = subsets[name]
-        xz = xz_all[first : first + s.scan.size]
-        first += s.scan.size
-        pol = region.layouts[name].polarity
-        if name == "far" and far_offset_only:  # beside the far face: either polarity
-            pol = int(np.sign(np.nanmedian(s.step))) or pol
-        finite = np.isfinite(xz)
-        good = s.valid & (pol * s.step >= 0.5 * cfg.min_contrast)
-        good &= finite.all(axis=1)
-        if np.count_nonzero(good) < 3:
-            raise _Refused(
-                q.Refusal(
-                    "edge_missing",
-                    f"the {HUMAN[name]} was not found (no clean step of the expected "
-                    "polarity); check that the door lies in the fixture and nothing covers that edge",
-                )
-            )
-        groups[name] = (np.where(finite, xz, 0.0), region.layouts[name].along_x)
-        init[name] = good.astype(float)
-    try:
-        fit = fit_rectangle_edges(
-            groups,
-            scale_floor=1e-4,
-            init_weights=init,
-            n_iter=n_iter,
-            offset_only=("far",) if far_offset_only else (),
-        )
-    except ValueError as e:  # a line lost all its points to the robust weights
-        raise _Refused(
-            q.Refusal(
-                "edge_missing",
-                f"the door's edges do not fit a rectangle ({e}); check that the "
-                "door lies in the fixture and nothing covers its edges",
-            )
-        ) from None
-    return fit, init
-
-
 @dataclass(frozen=True)
 class _CoarseEdges:
     """Pixel-accurate lines of the three edges and the bands they were found in."""
@@ -669,7 +396,7 @@ def _coarse_edges(
     sub = P[band_ref.lo.min() : band_ref.hi.max() + 1 : 3, band_ref.scan[::4]]
     r = q.check_exposure(sub, cfg.min_contrast, cfg.max_saturated_fraction, s8)
     if r:
-        raise _Refused(r)
+        raise Refused(r)
 
     # The reference arris is the first step into the door coming from -X (a visible far face can make
     # a stronger step of the same polarity further on).
@@ -688,7 +415,7 @@ def _coarse_edges(
         if ref_line is not None:
             break
     if ref_line is None:
-        raise _Refused(_no_door_reason(plane, first, ref_lay, cfg, s8))
+        raise Refused(_no_door_reason(plane, first, ref_lay, cfg, s8))
     ref_line = yield from _nearer_reference(plane, band_ref, ref_lay, ref_line, xdir, thr, door, sc, cfg)
     tr.bands["reference"] = band_ref
     tol = 3.0
@@ -737,7 +464,7 @@ def _coarse_edges(
             break
     if far_line is None or far_line.inliers.sum() < 0.3 * len(band_far.scan):
         faint = _faint_face(plane, band_ref, ref_lay, ref_line, xdir, door.arris_mm / sc, thr, cfg, s8)
-        raise _Refused(
+        raise Refused(
             faint
             or q.Refusal(
                 "edge_missing",
@@ -762,7 +489,7 @@ def _coarse_edges(
     bot_line = yield from _coarse_line(plane, band_bot, bot_lay, thr, 5, 0.3, strip_half)
     if bot_line is None:
         faint = _faint_face(plane, band_ref, ref_lay, ref_line, xdir, door.arris_mm / sc, thr, cfg, s8)
-        raise _Refused(
+        raise Refused(
             faint
             or q.Refusal(
                 "edge_missing",
@@ -807,7 +534,7 @@ def _coarse_pose(
     )
     pose = pose_from_fit(fit0, region.face_map)
     if not (abs(pose.yaw_deg) < 20 and 0 < pose.thickness_mm < 3 * door.thickness_mm + 50):
-        raise _Refused(
+        raise Refused(
             q.Refusal(
                 "no_door",
                 "the edges found do not form a door's corner; check that a door lies in "
@@ -841,8 +568,8 @@ def _coarse_pose(
     )
     if r:
         if _looks_like_pattern_here(plane, s8, c.ref_band, ref_lay.axis, cfg):
-            r = _PATTERN
-        raise _Refused(
+            r = PATTERN
+        raise Refused(
             r,
             diagnostics={
                 "measured": {"x_mm": pose.x_mm, "z_mm": pose.z_mm, "yaw_deg": pose.yaw_deg, "coarse": True}
@@ -855,125 +582,8 @@ def _coarse_pose(
         cfg.thickness_tolerance_mm,
     )
     if r:
-        raise _Refused(r, diagnostics={"measured": {"thickness_mm": pose.thickness_mm, "coarse": True}})
+        raise Refused(r, diagnostics={"measured": {"thickness_mm": pose.thickness_mm, "coarse": True}})
     return pose
-
-
-@dataclass(frozen=True)
-class _Profiles:
-    samples: EdgeSamples
-    mask: np.ndarray
-    lut: np.ndarray | None
-
-
-def _refine(
-    plane,
-    s8: float,
-    region: SearchRegion,
-    pose: MetricPose,
-    cfg: LocateConfig,
-    clock: _Clock,
-    response_gamma: float = 1.0,
-    arris_fits: dict[str, tuple[StripFit, float]] | None = None,
-):
-    """Sub-pixel edge points and the joint line fit, in passes (module docstring).
-
-    ``response_gamma`` is the camera's (``camera.response_gamma`` in the cell file): grey levels are turned
-    back into light before the sub-pixel estimate, which needs them proportional.
-
-    Returns ``(samples, fit, pose, blur_px, window_half_px, far_face_beside, far_face_fit)``.
-    """
-    half = cfg.half_window_max
-    blur = float("nan")
-    optical_blur = float("nan")
-    step_fit: dict[str, float] = {}
-    ref0: _Profiles | None = None  # the reference arris's first-pass profiles (for the blur)
-    n_pass = 2
-    _pass = 0
-    while _pass < n_pass:
-        # The first pass, on every fifth scan line, only centres and sizes the final windows.
-        sampled = _sample(
-            plane,
-            region,
-            pose,
-            math.radians(pose.yaw_deg),
-            half,
-            cfg,
-            s8,
-            every=5 if _pass == 0 else 1,
-            sharp=_pass > 0 and blur < 0.6,
-            optical_blur_px=optical_blur,
-            response_gamma=response_gamma,
-            step_fit=step_fit if _pass > 0 else {},
-            arris_fits=arris_fits,
-        )
-        samples, far_beside, far_fit = sampled.samples, sampled.far_beside, sampled.far_fit
-        if far_beside and _pass >= 1 and not np.isfinite(optical_blur) and ref0 is not None:
-            # The far face came into view after the first pass: measure the blur and look again.
-            optical_blur = _optical_blur(plane, ref0, cfg, blur, arris_fits)
-            n_pass = max(n_pass, _pass + 2)
-        elif far_beside and _pass == 1:
-            # The far face's band width follows from the thickness being measured: one more round.
-            n_pass = 3
-        clock.lap(f"edges{min(_pass + 1, 2)}")
-        fit, _ = _fit(samples, region, cfg, n_iter=6 if _pass == 0 else 9, far_offset_only=far_beside)
-        pose = pose_from_fit(fit, region.face_map)
-        clock.lap(f"fit{min(_pass + 1, 2)}")
-        if _pass == 0:
-            # Size the final window to the measured blur: wide enough for the transition, no wider (noise).
-            # (on the bottom end and the reference arris: beside the far arris a far face or an arris
-            # strip can make two steps that look like blur)
-            lut = linearizing_lut(plane.dtype, response_gamma)
-            widths = [
-                transition_width(plane, samples[k], fit.weights[k] > 0, half, lut)
-                for k in ("bottom", "reference")
-            ]
-            # np.nanmax of the pair when one is finite, without numpy
-            blur = (
-                float(max(w for w in widths if not math.isnan(w)))
-                if any(math.isfinite(w) for w in widths)
-                else float(cfg.half_window_max)
-            )
-            step_fit = _step_fit_lines(cfg, dict(zip(("bottom", "reference"), widths, strict=True)))
-            half = min(
-                max(math.ceil(cfg.window_blur_factor * blur + 1.0), cfg.half_window_min), cfg.half_window_max
-            )
-            ref0 = _Profiles(samples["reference"], fit.weights["reference"] > 0, lut)
-            if far_beside:
-                # The far arris model needs the optical blur alone: measured on the reference arris.
-                optical_blur = _optical_blur(plane, ref0, cfg, blur, arris_fits)
-        _pass += 1
-    return samples, fit, pose, blur, half, far_beside, far_fit, sampled.step_fitted
-
-
-def _optical_blur(
-    plane,
-    ref: _Profiles,
-    cfg: LocateConfig,
-    transition_px: float,
-    arris_fits: dict[str, tuple[StripFit, float]] | None,
-) -> float:
-    """The optical blur (Gaussian sigma, px) that the far-face model needs, from the reference arris.
-
-    On a plain reference arris the step's own blur (:func:`doorloc.vision.edges.step_blur`). Where the
-    reference arris has a chamfered or rounded strip, its profile is background | strip | face: a step
-    blur fit would take the strip's width for blur (3.5 px on the effects fixtures' 1.5 mm chamfer for an
-    optical blur of 0.8 px; the far-face fit then lost every scan line and the frame was refused), so
-    the blur that the strip's shading fit found with the strip modelled is used instead.
-    """
-    if arris_fits and "reference" in arris_fits:
-        b = float(arris_fits["reference"][0].blur_px)
-        if math.isfinite(b) and b > 0:
-            return b
-    return step_blur(
-        plane,
-        ref.samples,
-        ref.mask,
-        cfg.half_window_max,
-        cfg.plateau,
-        ref.lut,
-        blur_px=math.sqrt(max(transition_px * transition_px - 1.0 / 12.0, 0.04)),
-    )
 
 
 def _locate(
@@ -988,107 +598,40 @@ def _locate(
     try:
         lum = lum if lum is not None else luminance_plane(image)
     except ImageFormatError as e:
-        raise _Refused(q.Refusal("bad_image", f"{e}")) from None
+        raise Refused(q.Refusal("bad_image", f"{e}")) from None
     r = q.check_image_size(lum.size, cell.camera.image_size)
     if r:
-        raise _Refused(r)
+        raise Refused(r)
     plane, s8 = lum.plane, lum.scale_to_8bit
-    clock = _Clock()
+    clock = StageClock()
     region = SearchRegion.cached(cell, door, cfg.search_margin_mm, cfg.search_margin_deg, cfg.door_brighter)
     tr.region = region
     clock.lap("region")
     try:
         coarse = yield from _coarse_edges(plane, s8, region, door, cfg, tr)
-    except _Refused as e:
+    except Refused as e:
         if e.refusal.code in ("no_door", "edge_missing") and _brightness_reversed(
             plane, s8, region, cell, cfg
         ):
-            raise _Refused(q.Refusal(e.refusal.code, _REVERSED[cfg.door_brighter])) from None
+            raise Refused(q.Refusal(e.refusal.code, _REVERSED[cfg.door_brighter])) from None
         raise
     clock.lap("coarse")
     pose = _coarse_pose(coarse, plane, s8, region, cell, door, cfg)
     clock.lap("coarse_pose")
-    arris_fits: dict[str, tuple[StripFit, float]] = {}
-    samples, fit, pose, blur, half, far_beside, far_fit, step_fitted = _refine(
-        plane, s8, region, pose, cfg, clock, cell.response_gamma, arris_fits
+    refined = refine(plane, s8, region, pose, cfg, clock, cell.response_gamma)
+    check = check_response(
+        plane, cell, cfg, refined, lambda start, gamma: refine(plane, s8, region, start, cfg, clock, gamma)
     )
-    used_cell = cell
-    response, per_line = _measure_response(plane, samples, fit, half, blur, cell, cfg, arris_fits)
-    response_diag: dict[str, Any] = {"cell_gamma": cell.response_gamma, "absorbed": False}
-    unstable: float | None = None
-    if cell.response_gamma_sigma is not None:
-        response_diag["cell_sigma"] = cell.response_gamma_sigma
-    if response is not None and response.absorb:
-        # The plain edges show another camera response than the cell's: measure again with theirs (the
-        # bias a wrong response gives every edge, arris strips included, is then gone), and check again.
-        response_diag.update(absorbed=True, first_fit=round(response.gamma, 4))
-        first = (samples, fit, pose, blur, half, far_beside, far_fit, step_fitted, arris_fits)
-        used_cell = replace(cell, response_gamma=response.gamma, response_gamma_sigma=None)
-        arris_fits = {}
-        samples, fit, pose, blur, half, far_beside, far_fit, step_fitted = _refine(
-            plane, s8, region, pose, cfg, clock, response.gamma, arris_fits
-        )
-        again = _measure_response(plane, samples, fit, half, blur, used_cell, cfg, arris_fits)
-        if again[0] is not None and again[0].absorb:
-            # Read again with the absorbed exponent in use, the edges show yet another one: their reading
-            # depends on where the edges were placed, so it is no measurement of the camera (seen: a lens
-            # distortion the cell models only in part, k1 0.17 for 0.20; 2.68 read with the cell's 1.0,
-            # then 1.02 read with 2.68, and the answer refused for a 0.1 mm response doubt). The cell's
-            # exponent stands, unchecked.
-            unstable = round(again[0].gamma, 4)
-            samples, fit, pose, blur, half, far_beside, far_fit, step_fitted, arris_fits = first
-            used_cell, response = cell, None
-            response_diag.update(absorbed=False, second_fit=unstable)
-        elif again[0] is not None:
-            response, per_line = again
-    response_diag["checked"] = response is not None
-    # whose exponent the answer rests on: the cell's (measured or stated) or this image's own
-    response_diag["used"] = "image" if response_diag["absorbed"] else "cell"
-    if response is None:
-        response_diag["unchecked_because"] = (
-            _response_unchecked_because(samples, fit, blur, arris_fits)
-            if unstable is None
-            else f"the edges read {response_diag['first_fit']} with the cell's exponent in use and {unstable} "
-            "with that one: a reading that follows the edges' placement, not the camera's response"
-        )
-    if response is not None:
-        response_diag.update(
-            fitted=round(response.gamma, 4),
-            sigma=round(response.sigma, 4),
-            lines={
-                k: {"gamma": round(v.gamma, 4), "sigma": round(v.sigma, 4), "skew_px": round(v.skew_px, 4)}
-                | ({"one_phase": True} if v.one_phase else {})
-                | ({"alternatives": [round(a, 4) for a in v.alternatives]} if v.alternatives else {})
-                for k, v in per_line.items()
-            },
-        )
-        if response.alternatives:
-            response_diag["alternatives"] = list(response.alternatives)
+    refined = check.refined
+    samples, fit, pose = refined.samples, refined.fit, refined.pose
     tr.samples = samples
     tr.inliers = {k: fit.weights[k] > 0 for k in EDGE_NAMES}
     tr.pose = pose
-    res = _gate_and_answer(
-        name,
-        used_cell,
-        door,
-        cfg,
-        region,
-        samples,
-        fit,
-        pose,
-        blur,
-        half,
-        plane,
-        s8,
-        far_beside,
-        step_fitted,
-        far_fit,
-        arris_fits,
-        response,
-        bool(response_diag["absorbed"]),
-    )
-    res.diagnostics["camera_response"] = response_diag
-    res.diagnostics["far_face_visible"] = far_beside
+    doubts = edge_doubts(plane, s8, region, cfg, check)
+    res = gate_and_answer(name, door, cfg, region, check, doubts, plane, s8)
+    res.diagnostics["camera_response"] = check.diagnostics
+    res.diagnostics["far_face_visible"] = refined.far_beside
+    far_fit = refined.far_fit
     if far_fit is not None:
         res.diagnostics["far_face_fit"] = {
             "band_level": round(far_fit.band_level, 4),
@@ -1101,27 +644,6 @@ def _locate(
     clock.lap("gate")
     res.diagnostics["timing_ms"] = clock.laps
     return res
-
-
-class _Clock:
-    """Stage timings (ms) for the diagnostics; a stage run twice (the third pass of the fine stage, when a
-    far face is in view, runs as ``edges2`` / ``fit2`` again) counts both runs."""
-
-    def __init__(self) -> None:
-        self.t = time.perf_counter()
-        self.laps: dict[str, float] = {}
-
-    def lap(self, name: str) -> None:
-        t = time.perf_counter()
-        self.laps[name] = round(self.laps.get(name, 0.0) + (t - self.t) * 1e3, 3)
-        self.t = t
-
-
-_PATTERN = q.Refusal(
-    "not_a_door",
-    "a regular pattern (a calibration board?) is in view instead of a door; "
-    "remove it and place a door in the fixture",
-)
 
 
 def _looks_like_pattern_here(plane, s8: float, band: Band, axis, cfg: LocateConfig) -> bool:
@@ -1260,7 +782,7 @@ def _face_texture_line(
 
 def _no_door_reason(plane, band: Band, layout: EdgeLayout, cfg: LocateConfig, s8: float) -> q.Refusal:
     if _looks_like_pattern_here(plane, s8, band, layout.axis, cfg):
-        return _PATTERN
+        return PATTERN
     faint = _faint_edge(plane, band, layout, cfg.min_contrast / s8)
     if faint is not None:
         steps, found, lines = faint
@@ -1352,806 +874,3 @@ def _faint_edge(plane, band: Band, layout: EdgeLayout, thr: float) -> tuple[floa
         return None
     on = strength[np.isfinite(along) & (strength >= 0.5 * thr)][line.inliers]
     return float(np.median(on)), int(line.inliers.sum()), len(band.scan)
-
-
-def _rows_across(plane, s8: float, ref: EdgeSamples, far: EdgeSamples) -> np.ndarray | None:
-    """Grey profiles (0-255) across the door between and beyond its two arrises, for the pattern check."""
-    if ref.scan.size == 0:
-        return None
-    P = oriented(plane, ref.axis)
-    a = np.concatenate([ref.along[np.isfinite(ref.along)], far.along[np.isfinite(far.along)]])
-    if a.size == 0:
-        return None
-    lo, hi = int(max(a.min() - 150, 0)), int(min(a.max() + 150, P.shape[0] - 1))
-    return P[lo : hi + 1, ref.scan[::8]].T.astype(np.float32) * s8
-
-
-#: contiguous blocks along a line over which its residuals' structure is read (:func:`_residual_structure_tilt`)
-RESIDUAL_BLOCKS = 4
-
-
-def _residual_structure_tilt(samples: EdgeSamples, residual_px: np.ndarray, inliers: np.ndarray) -> float:
-    """Standard error of a line's tilt (px per px) from the structure of its residuals along it.
-
-    The line fit's own standard error takes the residuals as independent; a bias that changes slowly along
-    the edge shows instead as residuals whose means over ``RESIDUAL_BLOCKS`` contiguous blocks differ.
-    Taken as independent block errors of that scatter, the slope they allow is ``sd(block means) /
-    sqrt(sum (s_i - mean s)^2)`` over the blocks' centres ``s_i`` (px). NaN with too few points.
-    """
-    m = inliers & np.isfinite(residual_px)
-    if int(m.sum()) < 8 * RESIDUAL_BLOCKS:
-        return float("nan")
-    order = np.argsort(samples.scan[m])
-    scan, res = samples.scan[m][order].astype(float), residual_px[m][order]
-    blocks = np.array_split(np.arange(scan.size), RESIDUAL_BLOCKS)
-    means = np.array([res[b].mean() for b in blocks])
-    centres = np.array([scan[b].mean() for b in blocks])
-    spread = float(np.sum((centres - centres.mean()) ** 2))
-    return float(np.std(means, ddof=1) / math.sqrt(spread)) if spread > 0 else float("nan")
-
-
-def _response_check_applies(samples: EdgeSamples, inliers: np.ndarray, blur_px: float) -> bool:
-    """Whether the mean transition's asymmetry can be read on this line.
-
-    The check averages the profiles on a fine grid aligned on the sub-pixel edge: that mean shows the
-    response's asymmetry where the line's edge points fall at many pixel phases and the edge is blurred
-    over more than half a pixel. (A sharp step integrated over the pixel is a one-pixel ramp, straight
-    in linear light and bent by a wrong exponent, and reads too: a 1.6 camera in a cell of 1.0 read 1.61
-    +- 0.10, a linear one in a cell of 2.2 1.01 +- 0.12; but at ~9 ms a line it made the sharp grid set's
-    frames 2.3 times slower. Such a line takes the cell's exponent within
-    ``LocateConfig.response_unmeasured_factor`` instead, :func:`_unmeasured_response_terms`: 0.028 mm on
-    the sharp grid fixtures.) An edge along a pixel row or column puts all of them at one phase; its
-    transition is read between the pixels by interpolation, which needs a blur of
-    ``RESPONSE_ONE_PHASE_MIN_BLUR_PX`` (unread and without a doubt, doors square to the camera in a cell
-    whose exponent was not the camera's had been answered 5-7 sigma off).
-    """
-    if not blur_px >= STEP_FIT_MIN_BLUR_PX:  # (the phases need not be counted then)
-        return False
-    return _at_many_phases(samples, inliers) or blur_px >= RESPONSE_ONE_PHASE_MIN_BLUR_PX
-
-
-def _at_many_phases(samples: EdgeSamples, inliers: np.ndarray) -> bool:
-    """Whether the line's edge points fall in every quarter of a pixel (not along a pixel row or column)."""
-    along = samples.along[inliers & samples.valid]
-    return bool(along.size) and not at_one_phase(along)
-
-
-def _blur_without_pixel(transition_px: float) -> float:
-    """The optical blur (Gaussian sigma, px) in a transition's RMS width: the pixel's own 1/12 px^2 taken out
-    (0 where the width is unknown)."""
-    return (
-        math.sqrt(max(transition_px * transition_px - 1.0 / 12.0, 0.0))
-        if math.isfinite(transition_px)
-        else 0.0
-    )
-
-
-def _plain_response_lines(arris_fits: dict[str, tuple[StripFit, float]] | None) -> list[str]:
-    """The lines the camera response is read on: the bottom end and the reference arris unless an arris strip
-    lies along them (not the far arris: a far face seen edge-on can make a narrow band beside it)."""
-    return [
-        k
-        for k in EDGE_NAMES
-        if k != "far" and not (arris_fits and k in arris_fits and arris_fits[k][1] > PLAIN_STRIP_PX)
-    ]
-
-
-def _response_unchecked_because(
-    samples: dict[str, EdgeSamples],
-    fit: RectangleFit,
-    transition_px: float,
-    arris_fits: dict[str, tuple[StripFit, float]] | None,
-) -> str:
-    """Why no edge of this image could show the camera response (``diagnostics.camera_response``): the
-    pose then rests on the cell's ``response_gamma`` within ``locate.response_unmeasured_factor``, which a
-    user should know."""
-    plain = _plain_response_lines(arris_fits)
-    if not plain:
-        return "every edge is an arris strip, whose shading takes up the response"
-    if not _blur_without_pixel(transition_px) >= STEP_FIT_MIN_BLUR_PX:
-        return "the edges are sharper than half a pixel: their transition is not read"
-    if not any(_at_many_phases(samples[k], fit.weights[k] > 0) for k in plain):
-        return (
-            "the plain edges lie along pixel rows or columns (a door square to the camera): one pixel phase, "
-            f"where only a transition blurred by {RESPONSE_ONE_PHASE_MIN_BLUR_PX:g} px or more can be read "
-            "between the pixels"
-        )
-    return "the plain edges' transitions were too noisy or too few to read"
-
-
-def _measure_response(
-    plane,
-    samples: dict[str, EdgeSamples],
-    fit: RectangleFit,
-    half: int,
-    transition_px: float,
-    cell: Cell,
-    cfg: LocateConfig,
-    arris_fits: dict[str, tuple[StripFit, float]] | None,
-) -> tuple[ResponseFit | None, dict[str, LineResponse]]:
-    """The camera response measured on the plain edges (:func:`doorloc.vision.response.fit_line_response`).
-
-    Plain: the bottom end and the reference arris without an arris strip, at many pixel phases and blurred
-    (:func:`_response_check_applies`). None where no edge qualifies.
-    """
-    blur_px = _blur_without_pixel(transition_px)
-    per_line: dict[str, LineResponse] = {}
-    for k in _plain_response_lines(arris_fits):
-        inl = fit.weights[k] > 0
-        if not _response_check_applies(samples[k], inl, blur_px):
-            continue
-        lr = fit_line_response(plane, samples[k], inl, half, cell.response_gamma, blur_px)
-        if lr is None:
-            continue
-        # Texture beside the edge (grain along it) skews the transition the same way on every scan line,
-        # which the block scatter does not see: the edge bias it can make (the texture term) read as an
-        # exponent error through the step model's sensitivity, in quadrature.
-        tex = texture_bias(
-            plane, samples[k], inl, half, cfg.plateau, linearizing_lut(plane.dtype, cell.response_gamma)
-        ).offset_sigma_px
-        dg = 0.05 * lr.gamma
-        up, down = edge_shifts_px(
-            lr.lo, lr.hi, np.array([lr.gamma + dg, lr.gamma - dg]), lr.gamma, blur_px, half
-        )
-        slope = abs(float(up) - float(down)) / (2 * dg)
-        if math.isfinite(tex) and tex > 0 and slope > 0:
-            lr = replace(lr, sigma=math.hypot(lr.sigma, tex / slope))
-        per_line[k] = lr
-    return combine_responses(per_line, cell.response_gamma, cell.response_gamma_sigma or 0.0), per_line
-
-
-def _line_response_shifts(
-    plane,
-    samples: dict[str, EdgeSamples],
-    fit: RectangleFit,
-    half: int,
-    used_gamma: float,
-    far_beside: bool,
-    blur_px: float,
-) -> Iterator[tuple[str, Callable[[list[float]], np.ndarray]]]:
-    """Each line a camera exponent moves (the far one only where no far-face model reports its own doubt)
-    and the shifts, px, that exponents make there (a list in, an array out: the step is modelled once for
-    all of them): :func:`doorloc.vision.response.edge_shifts_px` between the line's own plateaus at
-    ``blur_px``, each exponent brought within ``RESPONSE_PLAUSIBLE`` (a reading or a factor beyond them is
-    no camera)."""
-    for k in EDGE_NAMES:
-        if k == "far" and far_beside:
-            continue
-        inl = fit.weights[k] > 0
-        lo, hi = plateau_levels(plane, samples[k], inl & samples[k].valid, half)
-
-        def shifts(gs: list[float], lo: float = lo, hi: float = hi) -> np.ndarray:
-            g = np.clip(np.asarray(gs, float), *RESPONSE_PLAUSIBLE)
-            return edge_shifts_px(lo, hi, g, used_gamma, blur_px, half)
-
-        yield k, shifts
-
-
-def _response_terms(
-    plane,
-    samples: dict[str, EdgeSamples],
-    fit: RectangleFit,
-    half: int,
-    used_gamma: float,
-    response: ResponseFit,
-    far_beside: bool,
-    model: EdgeModelTerms,
-    absorbed: bool,
-    factor: float,
-) -> None:
-    """Each line's response doubt (px) into ``model.extra_px[line]["response"]``, from the step model.
-
-    The edge was measured with ``used_gamma``; the image reads the camera's exponent as ``response.gamma``
-    +- ``response.sigma``. The doubt is built from the shift (:func:`doorloc.vision.response.edge_shift_px`
-    between the line's own plateaus, at the measured blur) to an exponent and the shift of its 1-sigma:
-
-    - after ``absorbed`` (the exponent in use is this image's reading): the reading's 1-sigma shift, and
-      what the shift to it leaves beyond twice that;
-    - where the cell's exponent was itself measured (``response.claimed_sigma``) and is kept: the shift to
-      the exponent both measurements give together (:attr:`ResponseFit.combined`) and its 1-sigma shift
-      (widened by their disagreement), in quadrature;
-    - where it was not, and the edges were read at many pixel phases: the shift to the reading beyond
-      twice the reading's 1-sigma shift (within that, the edges agree with the exponent in use, and a
-      right cell keeps its small sigma), or the largest shift to the other exponents the edges admit
-      about as well (``response.alternatives``: the image cannot tell which the camera has);
-    - where it was not, and a line was read between its pixels (``response.one_phase``, a door square
-      to the camera): such a reading (+-0.2-0.6) is weak evidence, and agreeing within two of its sigmas
-      proves little (a cell of 1.0 for a 1.67 camera, read 1.65 +- 0.34, was answered 0.056 mm off at
-      4.4 sigma). The cell's exponent, taken as known within ``factor`` (``LocateConfig.
-      response_unmeasured_factor``, one sigma ``used_gamma * (factor - 1)``), and the reading together
-      (:meth:`ResponseFit.with_unmeasured_claim`): the shift to their exponent and its 1-sigma shift in
-      quadrature. A reading no camera gives (beyond ``RESPONSE_PLAUSIBLE`` by two of its sigmas: two
-      lines of a 1.44 camera read 0.40 +- 0.08) is no reading: the cell's exponent within ``factor``
-      alone (:func:`_unmeasured_response_terms`).
-
-    That combination was tried on every reading and not taken: readings at many phases under strong
-    shading, vignetting and noise read a linear camera 0.4-0.9 +- 0.2, and the combination put
-    0.007-0.026 mm on each line of right cells' doors (tests/vision's hard photometry; the parity set's
-    ``rand`` renders, sigma up to 0.012 -> 0.079 mm); and weighing a point "the cell is exactly right"
-    against "another within the factor" by the reading's likelihood left square doors under a wrong cell
-    85 % within 2 sigma (bench_arris square-wrong-gamma --seed 9000), a weak reading favouring the point.
-
-    An arris line takes the same step model between its background and its face (a first-order figure).
-    """
-    # between the pixels, against a cell exponent nobody measured: the reading and the claim together
-    weak = not absorbed and not response.claimed_sigma > 0 and response.one_phase and factor > 1.0
-    if weak:
-        lo_g, hi_g = RESPONSE_PLAUSIBLE
-        if not lo_g - 2.0 * response.sigma <= response.gamma <= hi_g + 2.0 * response.sigma:
-            _unmeasured_response_terms(plane, samples, fit, half, used_gamma, factor, far_beside, model)
-            return
-    # the exponent the evidence gives, gc +- sc
-    if absorbed:
-        gc, sc = response.gamma, response.sigma
-    elif response.claimed_sigma > 0:
-        gc, _, sc = response.combined
-    elif weak:
-        gc, sc = response.with_unmeasured_claim(used_gamma * (factor - 1.0))
-    else:
-        gc, sc = response.gamma, response.sigma
-    alternatives = list(response.alternatives)
-    for k, shifts in _line_response_shifts(plane, samples, fit, half, used_gamma, far_beside, model.blur_px):
-        # the shift to the evidence's exponent, half the spread over its 1-sigma, and to each alternative
-        at = shifts([gc, gc + sc, max(gc - sc, 0.05), *alternatives])
-        bias, sp = float(at[0]), 0.5 * abs(float(at[1]) - float(at[2]))
-        shift_alt = [float(v) for v in at[3:]]
-        if absorbed:
-            # the exponent in use is this image's measurement: its doubt counts in full
-            doubt = math.hypot(max(abs(bias) - 2.0 * sp, 0.0), sp)
-        elif response.claimed_sigma > 0:
-            doubt = math.hypot(bias, sp)
-        elif weak:
-            doubt = math.hypot(bias, sp)
-            for s_alt in shift_alt:
-                doubt = max(doubt, abs(s_alt))
-        else:
-            # the shift the measured mismatch makes beyond twice its own doubt (within that, the edges
-            # agree with the exponent in use); where the edges read other exponents about as well, the
-            # largest of their shifts (the image cannot tell which the camera has)
-            doubt = max(abs(bias) - 2.0 * sp, 0.0)
-            for s_alt in shift_alt:
-                doubt = max(doubt, abs(s_alt) - 2.0 * sp)
-        if math.isfinite(doubt):
-            model.extra_px.setdefault(k, {})["response"] = doubt
-
-
-def _unmeasured_response_terms(
-    plane,
-    samples: dict[str, EdgeSamples],
-    fit: RectangleFit,
-    half: int,
-    used_gamma: float,
-    factor: float,
-    far_beside: bool,
-    model: EdgeModelTerms,
-) -> None:
-    """The response doubt (px) of each line when the image did not measure the camera's response.
-
-    The response is measured on plain edges only (:func:`_measure_response`): the shading of an arris
-    strip is free in its fit and takes up what a wrong exponent does to the profile (a fit of the exponent
-    to the strip's misfit was tried: on the arris bench it found the camera's exponent on some chamfers
-    and 0.8 or 3.0 on others, right cell or not); a plain edge along a pixel row or column blurred by
-    less than ``RESPONSE_ONE_PHASE_MIN_BLUR_PX`` cannot be read between its pixels, and sharp edges are not
-    read (:func:`_response_check_applies`). Then the cell's
-    ``response_gamma`` cannot be checked, and it is taken as known within a factor ``factor``
-    (``LocateConfig.response_unmeasured_factor``): the doubt of every line (the far one's where no far-face
-    model reports its own) is half the spread of the edge shift
-    (:func:`doorloc.vision.response.edge_shift_px`, the line's plateaus, the measured blur) between
-    ``used_gamma * factor`` and ``used_gamma / factor``. Without it the arris lines' answers under a wrong
-    cell exponent were biased by several of their sigmas (fixtures/rendered/effects: 1.0 for a 2.2
-    camera, z 0.035 mm at 2-3 sigma), and a plain door square to the camera by up to 7 (a 1.13 camera in
-    a cell of 2.01, blur 0.86 px: x 0.075 mm off at sigma 0.010).
-    """
-    if not factor > 1.0:
-        return
-    for k, shifts in _line_response_shifts(plane, samples, fit, half, used_gamma, far_beside, model.blur_px):
-        up, down = shifts([used_gamma * factor, used_gamma / factor])
-        spread = 0.5 * abs(float(up) - float(down))
-        if math.isfinite(spread):
-            model.extra_px.setdefault(k, {})["response"] = spread
-
-
-def _arris_blur_terms(
-    arris_fits: dict[str, tuple[StripFit, float]], model: EdgeModelTerms, diagnostics: dict
-) -> None:
-    """Each arris line's doubt (px) from a blur its strip fit does not share with the image's other strips.
-
-    One lens blurs every edge of the door alike, but each strip fit finds its own blur, which trades off
-    with the strip's shading and the border's place: texture beside a strip (wood grain along a rounding)
-    can take a fit to a wrong valley with a wrong blur. Seen on a 3 mm rounding with 6.5 % grain
-    (tests/vision/test_arris_model.py): the reference arris's strip read a blur of 1.76 px where the
-    bottom end's and the far arris's read 0.72 and 0.85 (the image's 0.72), and the door was placed
-    0.51 mm off in x with a sigma of 0.09 mm; that strip fitted at 0.72 px was 0.05 mm off. The strip fit
-    allows for ``arris_model.BLUR_DOUBT`` of blur; where a line's blur differs from the strips' median by
-    more, the change of its deficit at that median (:attr:`StripFit.deficit_at_blur`, against the same
-    search at its own blur) times the strip's width joins its ``arris`` doubt (``arris_correction_sigma_mm``;
-    ``diagnostics.arris_fit[line].blur_doubt_px``).
-    """
-    blurs = {k: float(strip.blur_px) for k, (strip, _) in arris_fits.items() if math.isfinite(strip.blur_px)}
-    if len(blurs) < 2:
-        return
-    # the image's blur: the strips' median (one strip led astray does not move it; of two, their mean)
-    shared = float(np.median(list(blurs.values())))
-    for k, (strip, band_px) in arris_fits.items():
-        if k not in blurs or strip.deficit_at_blur is None:
-            continue
-        if not abs(blurs[k] - shared) > BLUR_DOUBT:
-            continue
-        moved = abs(strip.deficit_at_blur(shared) - strip.deficit_at_blur(blurs[k])) * band_px
-        if math.isfinite(moved):
-            terms = model.extra_px.setdefault(k, {})
-            terms["arris"] = math.hypot(terms.get("arris", 0.0), moved)
-            diagnostics.setdefault("arris_fit", {}).setdefault(k, {}).update(
-                blur_strips_px=round(shared, 3), blur_doubt_px=round(moved, 4)
-            )
-
-
-def _gate_and_answer(
-    name,
-    cell,
-    door,
-    cfg,
-    region,
-    samples,
-    fit,
-    pose,
-    blur,
-    half,
-    plane,
-    s8,
-    far_beside: bool = False,
-    step_fitted: dict[str, float] | None = None,
-    far_fit: FarFaceFit | None = None,
-    arris_fits: dict[str, tuple[StripFit, float]] | None = None,
-    response: ResponseFit | None = None,
-    response_absorbed: bool = False,
-) -> LocateResult:
-    lines, refusals = [], []
-    corner_px = pose.corner_px
-    diagnostics: dict = {
-        "blur_px": round(blur, 3),
-        "window_half_px": half,
-        "face_y_mm": region.face_y,
-        "edge_depth_y_mm": region.edge_depth_y,
-        "fit_scale_mm": fit.scale,
-        "yaw_sigma_deg": math.degrees(fit.angle_sigma_rad),
-        "thickness_expected_mm": door.thickness_mm,
-    }
-    # An arris line's door side is its strip, whose shading the texture term would read as texture (on a
-    # rounding, 0.1-0.2 mm of doubt on edges found to 0.002 mm, refused as uncertain): its texture is read
-    # beyond the strip and the blur's reach.
-    strips = {
-        k: (
-            int(math.ceil(band_px + 3.0 * strip.blur_px)),
-            region.layouts[k].polarity * (1 if cfg.door_brighter else -1),
-        )
-        for k, (strip, band_px) in (arris_fits or {}).items()
-    }
-    model = _edge_model_terms(plane, samples, fit, half, cfg, cell, far_fit, step_fitted or {}, strips)
-    model.blur_px = _blur_without_pixel(blur)
-    blocks = block_artifact_ratio(plane, pose.corner_px, scale_to_8bit=s8)
-    diagnostics["jpeg_block_ratio"] = round(blocks, 3) if math.isfinite(blocks) else None
-    if blocks > JPEG_BLOCK_RATIO:
-        for k in EDGE_NAMES:
-            model.extra_px.setdefault(k, {})["jpeg"] = JPEG_EDGE_DOUBT_PX
-            # and along the line, as the edge's phase in the 8-px blocks changes
-            inl = (fit.weights[k] > 0) & np.isfinite(samples[k].along)
-            scan, along = samples[k].scan[inl], samples[k].along[inl]
-            slope = fit_image_line(scan, along).b if scan.size >= 3 else math.nan
-            model.add_tilt(k, jpeg_tilt_sigma(slope, scan))
-    for k in EDGE_NAMES:
-        inl = fit.weights[k] > 0
-        if arris_fits and k in arris_fits:
-            # What the arris correction leaves in doubt: the strip's fitted deficit times its width.
-            strip, band_px = arris_fits[k]
-            model.extra_px.setdefault(k, {})["arris"] = strip.deficit_sigma * band_px
-            # What it leaves in doubt along the line (the strip's shading and the texture beside it change
-            # along the edge; the texture term reads only beyond the strip): the tilt that the residuals'
-            # structure over quarters of the line could hide.
-            model.add_tilt(
-                k, _residual_structure_tilt(samples[k], fit.residuals[k] / pose.scale_mm_per_px, inl)
-            )
-            diagnostics.setdefault("arris_fit", {})[k] = {
-                "deficit": round(strip.deficit, 4),
-                "deficit_sigma": round(strip.deficit_sigma, 5),
-                "strip_px": round(band_px, 3),
-                "blur_px": round(strip.blur_px, 3),
-                "misfit": round(strip.misfit, 3),
-                "offset_px": round(strip.offset_px, 4),
-            }
-    if arris_fits:
-        _arris_blur_terms(arris_fits, model, diagnostics)
-    if response is not None:
-        _response_terms(
-            plane,
-            samples,
-            fit,
-            half,
-            cell.response_gamma,
-            response,
-            far_beside,
-            model,
-            response_absorbed,
-            cfg.response_unmeasured_factor,
-        )
-    else:
-        _unmeasured_response_terms(
-            plane,
-            samples,
-            fit,
-            half,
-            cell.response_gamma,
-            cfg.response_unmeasured_factor,
-            far_beside,
-            model,
-        )
-    for k in EDGE_NAMES:
-        s = samples[k]
-        n_s = int(s.scan.size)
-        n_i, mean_square, contrast, noise = q.line_figures(fit.weights[k], fit.residuals[k], s.step, s.noise)
-        rms_mm = math.sqrt(mean_square) if n_i else float("nan")
-        rms_px = rms_mm / pose.scale_mm_per_px
-        # what the edge model leaves in doubt (floor, texture, far-face model...), on top of the noise
-        extra = {"model_sigma_mm": round(model.line_sigma_px(k) * pose.scale_mm_per_px, 6)}
-        for term, key in (("arris", "arris_correction_sigma_mm"), ("response", "response_sigma_mm")):
-            if term in model.extra_px.get(k, {}):
-                extra[key] = round(model.extra_px[k][term] * pose.scale_mm_per_px, 5)
-        lines.append(
-            LineQuality(
-                name=k,
-                n_points=n_s,
-                n_inliers=n_i,
-                rms_residual_px=round(rms_px, 4),
-                rms_residual_mm=round(rms_mm, 5),
-                contrast=round(contrast, 1),
-                noise=round(noise, 2) if n_i else None,
-                offset_sigma_mm=round(fit.offset_sigma[k], 5),
-                **extra,
-            )
-        )
-        # Beside a visible far face the far arris only measures the thickness (it takes no part in the
-        # pose): a looser straightness check.
-        loose = k == "far" and far_beside
-        refusals.append(
-            q.check_line(
-                k,
-                HUMAN[k],
-                n_s,
-                n_i,
-                rms_px,
-                contrast,
-                cfg.min_inliers,
-                cfg.min_inlier_fraction * (0.5 if loose else 1.0),
-                cfg.max_rms_residual_px * (2.0 if loose else 1.0),
-                cfg.min_contrast,
-            )
-        )
-    # corner support: the points next to the corner on the bottom end and the reference arris
-    for k in ("bottom", "reference"):
-        s = samples[k]
-        lay = region.layouts[k]
-        c_scan = corner_px[0] if lay.axis == "col" else corner_px[1]
-        near = np.abs(s.scan - c_scan) <= cfg.corner_zone_px
-        n = int(np.count_nonzero(near))
-        fits = (fit.weights[k] > 0) | (
-            np.abs(fit.residuals[k]) <= cfg.corner_tolerance_px * pose.scale_mm_per_px
-        )
-        frac = int(np.count_nonzero(fits[near])) / n if n else 0.0
-        diagnostics[f"corner_support_{k}"] = round(frac, 3)
-        refusals.append(q.check_corner_support(HUMAN[k], frac, n, cfg.min_corner_support))
-    bright = np.concatenate([samples[k].bright[fit.weights[k] > 0] for k in EDGE_NAMES])
-    refusals.append(q.check_overexposed(bright))
-    refusals.append(
-        q.check_envelope(
-            pose.x_mm, pose.z_mm, pose.yaw_deg, cell.envelope, cfg.envelope_margin_mm, cfg.envelope_margin_deg
-        )
-    )
-    t_tol = cfg.thickness_tolerance_mm
-    # Standard uncertainty of the thickness: the two arris offsets' noise, and beside a visible far face
-    # what its model leaves in doubt (a band narrower than the blur is hard to tell from the arris).
-    # The two arrises' response doubts share their cause (one camera exponent moves both edges outwards
-    # or both inwards, and the thickness by their sum): they add, the rest in quadrature. (Added in
-    # quadrature, the effects fixtures' thicknesses, a 2.2 camera in a cell of 1.0, were 0.08-0.12 mm off
-    # with 78 % of them beyond 2 sigma.)
-    resp = [model.extra_px.get(k, {}).get("response", 0.0) for k in ("reference", "far")]
-    rest = [model.line_sigma_px(k, without=("response",)) for k in ("reference", "far")]
-    t_sigma = math.hypot(
-        fit.offset_sigma["reference"],
-        fit.offset_sigma["far"],
-        rest[0] * pose.scale_mm_per_px,
-        rest[1] * pose.scale_mm_per_px,
-        (resp[0] + resp[1]) * pose.scale_mm_per_px,
-    )
-    # A far face whose band looks like the background or like the hinge face reads two ways, a band's width
-    # apart (edges.FarFaceFit.other_reading_px), and the image cannot tell which: the check takes the reading
-    # nearer the recipe (a wrong door passes only where its other reading lands on the recipe's thickness),
-    # and the reported sigma reaches the other reading at 2 sigma. Readings more than twice the tolerance
-    # apart are not weighed (the fitted one is judged alone, as without a band): a band that wide is seen
-    # (on bench_surfaces' grain, hard and thin sets, 60 doors each, every fitted reading whose other lay
-    # 2.6-20 mm off was the door's; the two wrong ones were read beside bands of 0.6-1.2 px, 0.4-0.8 mm).
-    other_mm = far_fit.other_reading_px * pose.scale_mm_per_px if far_beside and far_fit is not None else 0.0
-    other = pose.thickness_mm + other_mm if 0.0 < abs(other_mm) <= 2.0 * t_tol else None
-    # (the fitted reading where the two are as near)
-    readings = [pose.thickness_mm] + ([other] if other is not None else [])
-    nearest = min(readings, key=lambda t: abs(t - door.thickness_mm))
-    refusals.append(q.check_thickness(nearest, door.thickness_mm, t_tol, sigma=t_sigma))
-    t_uncertain = abs(nearest - door.thickness_mm) + 3.0 * t_sigma > t_tol
-    if t_uncertain and refusals[-1] is None:
-        refusals.append(
-            q.Refusal(
-                "uncertain",
-                f"the door's thickness cannot be checked: it measures "
-                f"{nearest:.2f} +- {3 * t_sigma:.2f} mm against {door.thickness_mm:.2f} mm "
-                f"(tolerance {t_tol:g} mm){' with its far face seen nearly edge-on' if far_beside else ''}; "
-                "check the door and the recipe, or move the door a little along X and take the "
-                "image again",
-            )
-        )
-    if other is not None:
-        t_sigma = math.hypot(t_sigma, 0.5 * other_mm)
-    # standard errors of the corner from the line offsets
-    sig = math.hypot(fit.offset_sigma["reference"], fit.offset_sigma["bottom"])
-    diagnostics["corner_sigma_mm"] = sig
-    if sig > cfg.max_sigma_mm:
-        refusals.append(
-            q.Refusal(
-                "uncertain",
-                f"the corner is uncertain to {sig:.3f} mm (limit {cfg.max_sigma_mm} mm): "
-                "the edges are too noisy; check focus, lighting and exposure",
-            )
-        )
-    diagnostics["thickness_check"] = {
-        "measured_mm": round(pose.thickness_mm, 4),
-        "expected_mm": door.thickness_mm,
-        "difference_mm": round(pose.thickness_mm - door.thickness_mm, 4),
-        "tolerance_mm": t_tol,
-        "sigma_mm": round(t_sigma, 5),
-        "uncertain": t_uncertain,
-        "far_face_in_view": far_beside,
-        "other_reading_mm": round(other, 4) if other is not None else None,
-    }
-    unc, terms = _pose_uncertainty(cell, cfg, region, samples, fit, pose, model, far_votes=not far_beside)
-    diagnostics["uncertainty_terms"] = {k: [round(v, 6) for v in t] for k, t in terms.items()}
-    if (
-        unc.x_mm > cfg.max_uncertainty_mm
-        or unc.z_mm > cfg.max_uncertainty_mm
-        or unc.yaw_deg > cfg.max_uncertainty_deg
-    ):
-        worst = max(
-            terms,
-            key=lambda k: max(
-                terms[k][0] / cfg.max_uncertainty_mm,
-                terms[k][1] / cfg.max_uncertainty_mm,
-                terms[k][2] / cfg.max_uncertainty_deg,
-            ),
-        )
-        hint = _UNCERTAIN_HINT[worst]
-        if worst == "edge_model" and response is None:
-            # the unchecked response is the largest doubt of a pose line: say so, and what lifts it
-            big = [
-                max(model.extra_px.get(k, {}).items(), key=lambda kv: kv[1], default=("", 0.0))[0]
-                for k in ("bottom", "reference")
-            ]
-            if "response" in big:
-                hint = _UNCERTAIN_HINT["response_unmeasured"]
-        refusals.append(
-            q.Refusal(
-                "uncertain",
-                f"the pose is uncertain to x {unc.x_mm:.3f} mm, z {unc.z_mm:.3f} mm, "
-                f"yaw {unc.yaw_deg:.3f} deg (1 sigma; the cell allows {cfg.max_uncertainty_mm:g} mm, "
-                f"{cfg.max_uncertainty_deg:g} deg), mostly from the {worst.replace('_', ' ')}; " + hint,
-            )
-        )
-    first = next((r for r in refusals if r is not None), None)
-    if first is not None and first.code in ("edge_not_straight", "edge_missing", "corner_hidden"):
-        # A pose outside the envelope explains broken edges best (the door lies beyond the region).
-        env = next((r for r in refusals if r is not None and r.code == "outside_envelope"), None)
-        first = env or first
-    if first is not None and first.code in ("edge_not_straight", "edge_missing"):
-        band = _rows_across(plane, s8, samples["reference"], samples["far"])
-        if band is not None and q.looks_like_pattern(band, 4 * cfg.min_contrast):
-            first = _PATTERN
-    if first is not None:
-        diagnostics["measured"] = {
-            "x_mm": pose.x_mm,
-            "z_mm": pose.z_mm,
-            "yaw_deg": pose.yaw_deg,
-            "thickness_mm": pose.thickness_mm,
-        }
-        diagnostics["all_refusals"] = [r.code for r in refusals if r is not None]
-        return LocateResult.refusal(name, first.code, first.message, lines=lines, diagnostics=diagnostics)
-    return LocateResult(
-        image=name,
-        ok=True,
-        x_mm=pose.x_mm,
-        z_mm=pose.z_mm,
-        yaw_deg=pose.yaw_deg,
-        thickness_mm=pose.thickness_mm,
-        scale_mm_per_px=pose.scale_mm_per_px,
-        corner_px=[float(corner_px[0]), float(corner_px[1])],
-        uncertainty=unc,
-        lines=lines,
-        diagnostics=diagnostics,
-    )
-
-
-_UNCERTAIN_HINT = {
-    "response_unmeasured": "the camera response could not be checked on this image (diagnostics "
-    "camera_response.unchecked_because says why: every edge an arris, edges sharper than half a pixel, or a "
-    "door square to the camera), and "
-    "the cell's camera.response_gamma is taken as known only within the factor "
-    "locate.response_unmeasured_factor; measure the response once (doorloc calibrate prints it from the "
-    "chessboard photographs, with the factor they allow; or an image of a plain-edged door in this cell: its "
-    "answer's diagnostics camera_response.fitted), put it in the cell file and set "
-    "locate.response_unmeasured_factor to what the measurement allows",
-    "fit": "the edges are too noisy; check focus, lighting and exposure",
-    "edge_model": "the door's edges do not look like clean steps (strong grain or marks along an edge, an arris or "
-    "a camera response the cell does not describe); check the cell's door and camera settings",
-    "calibration": "the camera calibration is too uncertain here; calibrate again with views covering the door's corner",
-    "cell": "the cell's camera placement is too uncertain; run the cell check again",
-}
-
-
-#: the step fit replaces the area estimate only where they differ by less than this many of the area
-#: estimator's texture sigma (plus STEP_FIT_AGREE_FLOOR_PX): a larger shift is a profile shape that the
-#: step model lacks, not texture
-STEP_FIT_AGREE_SIGMAS = 3.0
-STEP_FIT_AGREE_FLOOR_PX = 0.003
-
-
-def _step_fit_agrees(plane, area: EdgeSamples, fitted: EdgeSamples, half: int, plateau: int, lut) -> bool:
-    """Whether the step fit's shift of an edge is what texture beside it explains (see the constants)."""
-    d = fitted.along - area.along
-    d = d[np.isfinite(d)]
-    if d.size < 8:
-        return False
-    tex = texture_bias(plane, area, area.valid, half, plateau, lut).offset_sigma_px
-    tex = tex if math.isfinite(tex) else 0.0
-    return abs(float(np.median(d))) <= STEP_FIT_AGREE_SIGMAS * math.hypot(tex, STEP_FIT_AGREE_FLOOR_PX)
-
-
-def _step_fit_lines(cfg: LocateConfig, widths: dict[str, float]) -> dict[str, float]:
-    """The lines the final pass refines by the blurred-step fit, with the optical blur (px) it uses.
-
-    The blur is the same on every edge; an edge whose transition looks wider than the narrowest carries a
-    second structure (an end face seen nearly edge-on, a strip) that the step model lacks, while the area
-    estimator is exact whatever the shape: only edges within 25 % of the narrowest width are fitted, with
-    that width's blur. Below ``STEP_FIT_MIN_BLUR_PX`` none is: the area estimator is exact there and its
-    window small (little texture in it), while the step model's shape depends on the pixel phase.
-    """
-    ok = {k: w for k, w in widths.items() if math.isfinite(w)}
-    if not cfg.step_fit or not ok:
-        return {}
-    narrow = min(ok.values())
-    optical = math.sqrt(max(narrow * narrow - 1.0 / 12.0, 0.0))
-    if optical < STEP_FIT_MIN_BLUR_PX:
-        return {}
-    return {k: optical for k, w in ok.items() if w <= 1.25 * narrow}
-
-
-def _edge_model_terms(
-    plane,
-    samples: dict[str, EdgeSamples],
-    fit: RectangleFit,
-    half: int,
-    cfg: LocateConfig,
-    cell: Cell,
-    far_fit: FarFaceFit | None,
-    step_fitted: dict[str, float],
-    strips: dict[str, tuple[int, int]] | None = None,
-) -> EdgeModelTerms:
-    """Edge-model doubts per line (:class:`doorloc.vision.uncertainty.EdgeModelTerms`), px across the edge.
-
-    ``strips``: per arris line, the pixels its strip (and the blur beside it) takes on the door side, and
-    that side (+1: increasing ``along``); the texture there is read beyond the strip.
-    """
-    terms = EdgeModelTerms()
-    lut = linearizing_lut(plane.dtype, cell.response_gamma)
-    for k in EDGE_NAMES:
-        if k == "far" and far_fit is not None:  # what the far-face model leaves in doubt (band level, blur)
-            terms.extra_px.setdefault(k, {})["far_face"] = far_fit.model_sigma_px
-            continue
-        skip, side = (strips or {}).get(k, (0, 1))
-        tb = texture_bias(
-            plane,
-            samples[k],
-            fit.weights[k] > 0,
-            half,
-            cfg.plateau,
-            lut,
-            blur_px=step_fitted.get(k),
-            door_skip_px=skip,
-            door_side=side,
-        )
-        if k == "far":
-            # The far arris's offset gives only the thickness: its texture doubt is the thickness's, not the
-            # corner's. (Without it the grain set's thicknesses, the hinge face's grain beside the far arris
-            # as beside the reference one, were 85 % within 2 sigma.) Its direction votes on the door's in
-            # the joint fit where no far face is beside it, so its texture tilt counts in the yaw
-            # (:func:`_pose_uncertainty`).
-            terms.extra_px.setdefault(k, {})["texture"] = tb.offset_sigma_px
-            terms.tilt[k] = tb.tilt_sigma
-            continue
-        terms.texture_px[k] = tb.offset_sigma_px
-        terms.tilt[k] = tb.tilt_sigma
-    return terms
-
-
-def _pose_uncertainty(
-    cell: Cell,
-    cfg: LocateConfig,
-    region: SearchRegion,
-    samples: dict[str, EdgeSamples],
-    fit: RectangleFit,
-    pose: MetricPose,
-    model: EdgeModelTerms,
-    far_votes: bool = True,
-) -> tuple[PoseUncertainty, dict[str, tuple[float, float, float]]]:
-    """The answer's 1-sigma uncertainty and its terms (x_mm, z_mm, yaw_deg each), :mod:`doorloc.vision.uncertainty`.
-
-    ``far_votes``: whether the far arris voted on the door's direction in the joint fit (it does unless a
-    far face is beside it, :func:`_fit`); its tilt then moves the yaw as the others' do.
-    """
-    sc = pose.scale_mm_per_px
-    lever, spread, extent = {}, {}, {}
-    voting = ("reference", "bottom", "far") if far_votes else ("reference", "bottom")
-    for k in voting:
-        s = samples[k]
-        inl = (fit.weights[k] > 0) & np.isfinite(s.along)
-        c_scan = pose.corner_px[0] if s.axis == "col" else pose.corner_px[1]
-        sc_in = s.scan[inl].astype(float)
-        if sc_in.size:
-            # integer scan lines: their sum is exact, so this is np.mean's value
-            mean = float(sc_in.sum()) / sc_in.size
-            lever[k] = abs(mean - c_scan) * sc
-            spread[k] = float(((sc_in - mean) ** 2).sum())
-            extent[k] = float(sc_in.max() - sc_in.min())
-        else:
-            lever[k] = spread[k] = extent[k] = 0.0
-    fit_t = (
-        corner_fit_sigma(fit.offset_sigma["reference"], fit.angle_sigma_rad, lever["reference"]),
-        corner_fit_sigma(fit.offset_sigma["bottom"], fit.angle_sigma_rad, lever["bottom"]),
-        math.degrees(fit.angle_sigma_rad),
-    )
-    # The yaw's edge-model doubt: each voting line's texture tilt, weighted as the joint fit weighs the
-    # lines (by the spread of their points along them); a tilt moves the corner by tilt x lever.
-    # (the floor: a bias that changes by twice the floor from one end of a line to the other). The far
-    # arris counts where it voted: left out, a tilt that grain gave it was answered as the door's yaw at
-    # 6.3 sigma (bench_surfaces --seed 9200, thin_016: 0.0076 deg for a claimed 0.0012).
-    tilts = {
-        k: math.hypot(
-            model.tilt.get(k, 0.0) if math.isfinite(model.tilt.get(k, 0.0)) else 0.0,
-            2.0 * EDGE_MODEL_FLOOR_PX / max(extent[k], 1.0),
-        )
-        for k in voting
-    }
-    wsum = sum(spread.values())
-    yaw_m = (
-        math.sqrt(sum((spread[k] * (tilts[k] if math.isfinite(tilts[k]) else 0.0)) ** 2 for k in tilts))
-        / wsum
-        if wsum > 0
-        else 0.0
-    )
-    model_t = (
-        math.hypot(model.line_sigma_px("reference") * sc, yaw_m * lever["reference"]),
-        math.hypot(model.line_sigma_px("bottom") * sc, yaw_m * lever["bottom"]),
-        math.degrees(yaw_m),
-    )
-    cal_t = calibration_pose_sigma(
-        cell.posed_camera,
-        region.face_map.depth_y,
-        pose.corner_px,
-        pose.yaw_deg,
-        cell.calibration_covariance,
-        cell.calibration_covariance_names,
-        cfg.calibration_sigma_px,
-        sc,
-    )
-    terms = {
-        "fit": fit_t,
-        "edge_model": model_t,
-        "calibration": cal_t,
-        "cell": (cfg.cell_sigma_mm, cfg.cell_sigma_mm, cfg.cell_sigma_deg),
-    }
-    x, z, yaw = combine(terms)
-    return PoseUncertainty(x_mm=x, z_mm=z, yaw_deg=yaw), terms

@@ -13,7 +13,7 @@ import numpy as np
 
 from doorloc.cell import Envelope
 from doorloc.vision.jit import kernel, median_in_place, pairwise_sum
-from doorloc.vision.lines import _median  # np.median's value, without its generic machinery
+from doorloc.vision.sampling import median  # np.median's value, without its generic machinery
 
 __all__ = [
     "Refusal",
@@ -109,7 +109,7 @@ def _exposure_from_histogram(levels: np.ndarray, scale_to_8bit: float) -> tuple[
 
 def check_overexposed(bright_levels: np.ndarray) -> Refusal | None:
     """The hinge face itself clips at white: edge positions would be biased."""
-    if bright_levels.size and _median(np.asarray(bright_levels)) >= 249.0:
+    if bright_levels.size and median(np.asarray(bright_levels)) >= 249.0:
         return Refusal(
             "overexposed",
             "the hinge face is overexposed (its grey level clips at white), which biases "

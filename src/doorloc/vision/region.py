@@ -22,13 +22,20 @@ import numpy as np
 
 from doorloc.calib.camera import PosedCamera
 from doorloc.cell import Cell, DoorSize, Envelope, Fixture
-from doorloc.vision.edges import Axis
 from doorloc.vision.jit import kernel
 from doorloc.vision.metric import PlaneMap
+from doorloc.vision.sampling import Axis
 
-__all__ = ["EdgeLayout", "Band", "Track", "SearchRegion", "EDGE_NAMES"]
+__all__ = ["EdgeLayout", "Band", "Track", "SearchRegion", "EDGE_NAMES", "HUMAN"]
 
 EDGE_NAMES = ("bottom", "reference", "far")
+
+#: each line as a person names it, in refusals
+HUMAN = {
+    "bottom": "bottom end of the door (X-line)",
+    "reference": "reference-face arris (Z-line)",
+    "far": "far arris (door thickness)",
+}
 
 
 @dataclass(frozen=True)

@@ -46,16 +46,9 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.special import ndtr
 
-from doorloc.vision.edges import (
-    DITHERING_NOISE_LEVELS,
-    Axis,
-    EdgeSamples,
-    _gather,
-    linearizing_lut,
-    oriented,
-    subpixel_edges,
-)
+from doorloc.vision.edges import DITHERING_NOISE_LEVELS, EdgeSamples, subpixel_edges
 from doorloc.vision.jit import kernel, median_in_place, pairwise_sum
+from doorloc.vision.sampling import Axis, gather_profiles, linearizing_lut, oriented
 
 __all__ = [
     "RESPONSE_ABSORB_SIGMAS",
@@ -264,7 +257,7 @@ def _transitions(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half
     P = oriented(plane, samples.axis)
     e = samples.along[m]
     c0 = np.round(e).astype(int)
-    vals, inside = _gather(P, samples.scan[m], c0 - half, 2 * half + 1)
+    vals, inside = gather_profiles(P, samples.scan[m], c0 - half, 2 * half + 1)
     ok = inside.all(axis=1)
     if int(ok.sum()) < 10:
         return None
@@ -948,7 +941,7 @@ def fit_board_response(
         H = half + RESPONSE_PLATEAU_PX
         e = smp.along[ok]
         c0 = np.round(e).astype(int)
-        vals, inside = _gather(oriented(plane, axis), scan[ok], c0 - H, 2 * H + 1)
+        vals, inside = gather_profiles(oriented(plane, axis), scan[ok], c0 - H, 2 * H + 1)
         keep = inside.all(axis=1)
         raw = vals[keep].astype(np.float64) / top
         off = (c0 - H - e)[keep].astype(np.float64)

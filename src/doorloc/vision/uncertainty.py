@@ -1,7 +1,10 @@
 """The 1-sigma standard uncertainty of a located pose: fit noise + edge model + calibrations.
 
 Every ``ok`` answer carries ``uncertainty: {x_mm, z_mm, yaw_deg}``, the quadrature sum of independent
-terms (each also reported in ``diagnostics["uncertainty_terms"]``):
+terms (each also reported in ``diagnostics["uncertainty_terms"]``), all of it computed in one place,
+:func:`propagate`, which also gives the thickness's sigma and each source's share of both
+(``diagnostics["uncertainty_budget"]``: a list of ``{source, x_mm, z_mm, yaw_deg, thickness_mm}``, each the
+source's 1-sigma contribution, so that the dominant term can be read off):
 
 ``fit``
     The joint line fit's standard errors from the residual scatter (image noise). The corner lies away
@@ -25,9 +28,10 @@ terms (each also reported in ``diagnostics["uncertainty_terms"]``):
       (0.01-0.07 px measured on nearly noise-free quality-88 renders, where no other term sees it), and
       an edge at a small angle to the blocks by an amount that drifts along it: its tilt
       (:func:`jpeg_tilt_sigma`) joins the line's texture tilt in the yaw;
-    - any term that an edge model reports for itself in :attr:`EdgeModelTerms.extra_px` (the far-face
-      fit today; an arris-offset or camera-response correction adds its doubt there, px across the
-      edge, keyed by line name: ``"bottom"``, ``"reference"`` or ``"far"``).
+    - whatever term an edge model or a correction knows of its own line, contributed as a typed
+      :class:`LineDoubt` (source, line, offset and tilt, correlation group): the far-face fit, the arris
+      correction, the camera response (one correlation group: a camera exponent moves both arrises
+      alike). The texture and JPEG terms above are such doubts too.
 
     The line's total is reported as ``lines[i].model_sigma_mm``.
 ``calibration``
@@ -47,8 +51,9 @@ terms (each also reported in ``diagnostics["uncertainty_terms"]``):
 
 from __future__ import annotations
 
+import functools
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -61,7 +66,14 @@ __all__ = [
     "EDGE_MODEL_FLOOR_PX",
     "JPEG_BLOCK_RATIO",
     "JPEG_EDGE_DOUBT_PX",
+    "CAMERA_RESPONSE",
+    "DOUBT_SOURCES",
     "EdgeModelTerms",
+    "Budget",
+    "BudgetTerm",
+    "LineDoubt",
+    "LineLever",
+    "propagate",
     "calibration_pose_sigma",
     "combine",
     "corner_fit_sigma",
@@ -95,46 +107,107 @@ _DIST_INDEX = {
 }
 
 
-@dataclass
-class EdgeModelTerms:
-    """Edge-model doubts per line, px across the edge (the ``edge_model`` term of the module docstring).
+#: the edge-model doubts a line can carry besides the floor and the blur term, in the order a line's total
+#: adds them (the order fixes the last bits of the sums)
+DOUBT_SOURCES = ("texture", "far_face", "jpeg", "arris", "response")
+
+#: the lines a doubt can move
+EDGE_LINES = ("bottom", "reference", "far")
+
+#: the correlation group of the camera-response doubts: one camera exponent moves every edge the same way
+#: (both arrises outwards or both inwards), so their doubts add linearly where one figure takes both
+CAMERA_RESPONSE = "camera_response"
+
+
+@dataclass(frozen=True)
+class LineDoubt:
+    """One named 1-sigma doubt of one edge line, contributed by the code that knows it.
 
     Attributes
     ----------
-    texture_px : dict[str, float]
-        Texture bias 1-sigma per line (:func:`doorloc.vision.edges.texture_bias`).
-    tilt : dict[str, float]
-        Texture bias 1-sigma of each line's direction, px per px along the line.
-    blur_px : float
-        Optical blur (Gaussian sigma, px) measured on the image, for the blur term.
-    extra_px : dict[str, dict[str, float]]
-        Further named terms per line, px, filled by whatever edge model or correction knows its own
-        doubt (e.g. ``extra_px["far"]["far_face"]``, ``extra_px["reference"]["arris"]``).
+    source : str
+        What it comes from, one of :data:`DOUBT_SOURCES` (``"texture"``: grain beside the edge; ``"far_face"``:
+        the far-face model; ``"jpeg"``: block quantisation; ``"arris"``: the arris correction;
+        ``"response"``: the camera response).
+    line : str
+        The line it moves: ``"bottom"``, ``"reference"`` or ``"far"``.
+    offset_px : float
+        1-sigma of the line's place across the edge, px (the same on every scan line of it).
+    tilt : float
+        1-sigma of the line's direction, px across per px along (0 where the doubt does not tilt it).
+    group : str or None
+        Correlation group: doubts of one group on different lines share their cause and add linearly in a
+        figure both lines make (the thickness); None for a doubt independent of every other.
     """
 
-    texture_px: dict[str, float] = field(default_factory=dict)
-    tilt: dict[str, float] = field(default_factory=dict)
+    source: str
+    line: str
+    offset_px: float = 0.0
+    tilt: float = 0.0
+    group: str | None = None
+
+
+def _finite(v: float) -> float:
+    return v if math.isfinite(v) else 0.0
+
+
+@dataclass(frozen=True)
+class EdgeModelTerms:
+    """Edge-model doubts of the lines (the ``edge_model`` term of the module docstring): the floor and the
+    blur term every line carries, and the :class:`LineDoubt` s the edge models and detectors contribute.
+
+    Attributes
+    ----------
+    doubts : tuple of LineDoubt
+        At most one per source and line.
+    blur_px : float
+        Optical blur (Gaussian sigma, px) measured on the image, for the blur term.
+    """
+
+    doubts: tuple[LineDoubt, ...] = ()
     blur_px: float = 0.0
-    extra_px: dict[str, dict[str, float]] = field(default_factory=dict)
 
-    def add_tilt(self, name: str, tilt: float) -> None:
-        """Add an independent tilt doubt (px per px) to line ``name``'s, in quadrature (a non-finite one, or
-        a non-finite tilt already there, counts as 0)."""
-        t0 = self.tilt.get(name, 0.0)
-        self.tilt[name] = math.hypot(t0 if math.isfinite(t0) else 0.0, tilt if math.isfinite(tilt) else 0.0)
+    def with_doubts(self, *more: LineDoubt) -> EdgeModelTerms:
+        """These terms and ``more``."""
+        return EdgeModelTerms(self.doubts + more, self.blur_px)
 
-    def line_sigma_px(self, name: str, without: tuple[str, ...] = ()) -> float:
-        """Total edge-model 1-sigma of one line's offset, px (floor, texture and extra terms in quadrature),
-        the extra terms named in ``without`` left out (a caller that combines them otherwise)."""
-        t = self.texture_px.get(name, 0.0)
+    @functools.cached_property
+    def _in_order(self) -> tuple[LineDoubt, ...]:
+        """The doubts in the order of :data:`DOUBT_SOURCES` (sorted once: the budget asks many times)."""
+        return tuple(sorted(self.doubts, key=lambda d: DOUBT_SOURCES.index(d.source)))
+
+    @functools.cached_property
+    def _by_line(self) -> dict[str, tuple[LineDoubt, ...]]:
+        """Each line's doubts in the order of :data:`DOUBT_SOURCES`."""
+        return {k: tuple(d for d in self._in_order if d.line == k) for k in EDGE_LINES}
+
+    def of_line(self, line: str, without: tuple[str, ...] = ()) -> list[LineDoubt]:
+        """The doubts of one line in the order of :data:`DOUBT_SOURCES`, the sources in ``without`` left out."""
+        mine = self._by_line.get(line, ())
+        return [d for d in mine if d.source not in without] if without else list(mine)
+
+    def offset_px(self, line: str, source: str) -> float | None:
+        """One doubt's offset 1-sigma, px; None where the line carries none from ``source``."""
+        return next((d.offset_px for d in self.doubts if d.line == line and d.source == source), None)
+
+    def largest_source(self, line: str, among: tuple[str, ...]) -> str:
+        """The source of ``among`` whose offset doubt on ``line`` is largest ("" where it carries none)."""
+        found = [(d.source, d.offset_px) for d in self.of_line(line) if d.source in among]
+        return max(found, key=lambda kv: kv[1], default=("", 0.0))[0]
+
+    def line_sigma_px(self, line: str, without: tuple[str, ...] = ()) -> float:
+        """Total edge-model 1-sigma of one line's offset, px (floor, blur and the line's doubts in quadrature),
+        the sources named in ``without`` left out (a caller that combines them otherwise)."""
         blur = BLUR_MODEL_FRACTION * self.blur_px if math.isfinite(self.blur_px) else 0.0
-        terms = [
-            EDGE_MODEL_FLOOR_PX,
-            blur,
-            t if math.isfinite(t) else 0.0,
-            *(v for k, v in self.extra_px.get(name, {}).items() if k not in without),
-        ]
+        terms = [EDGE_MODEL_FLOOR_PX, blur, *(d.offset_px for d in self.of_line(line, without))]
         return math.sqrt(sum(v * v for v in terms if math.isfinite(v)))
+
+    def tilt(self, line: str) -> float:
+        """1-sigma of one line's direction from its doubts, px per px, in quadrature (non-finite ones as 0)."""
+        t = 0.0
+        for d in self.of_line(line):
+            t = math.hypot(t, _finite(d.tilt))
+        return t
 
 
 def jpeg_tilt_sigma(slope: float, scan_px: np.ndarray, doubt_px: float = JPEG_EDGE_DOUBT_PX) -> float:
@@ -253,3 +326,211 @@ def combine(terms: dict[str, tuple[float, float, float]]) -> tuple[float, float,
     a = np.array([[v if math.isfinite(v) else 0.0 for v in t] for t in terms.values()], float)
     s = np.sqrt((a * a).sum(axis=0))
     return float(s[0]), float(s[1]), float(s[2])
+
+
+@dataclass(frozen=True)
+class LineLever:
+    """Where a line's inlier points lie against the corner: what turns the line's tilt into the pose's doubt.
+
+    Attributes
+    ----------
+    lever_mm : float
+        Distance from the points' centroid along the line to the corner, mm.
+    spread_px2 : float
+        Sum of the squared distances of the points' scan lines from their mean, px^2: the weight the joint
+        fit gives the line's direction.
+    extent_px : float
+        First to last scan line, px.
+    """
+
+    lever_mm: float
+    spread_px2: float
+    extent_px: float
+
+    @classmethod
+    def of_points(cls, scan_px: np.ndarray, corner_scan_px: float, scale_mm_per_px: float) -> LineLever:
+        """The lever of the points on scan lines ``scan_px`` (N,) for a corner on scan line ``corner_scan_px``."""
+        s = scan_px.astype(float)
+        if not s.size:
+            return cls(0.0, 0.0, 0.0)
+        # integer scan lines: their sum is exact, so this is np.mean's value
+        mean = float(s.sum()) / s.size
+        return cls(
+            abs(mean - corner_scan_px) * scale_mm_per_px,
+            float(((s - mean) ** 2).sum()),
+            float(s.max() - s.min()),
+        )
+
+
+@dataclass(frozen=True)
+class BudgetTerm:
+    """One source's 1-sigma contribution to the answer (``diagnostics["uncertainty_budget"]``): x, z (mm) and
+    yaw (deg) of the pose, and the thickness (mm; None for a term the thickness's sigma does not count: the
+    calibration and the camera's placement move both arrises alike)."""
+
+    source: str
+    x_mm: float
+    z_mm: float
+    yaw_deg: float
+    thickness_mm: float | None
+
+    def as_dict(self) -> dict[str, str | float | None]:
+        return {
+            "source": self.source,
+            "x_mm": round(self.x_mm, 7),
+            "z_mm": round(self.z_mm, 7),
+            "yaw_deg": round(self.yaw_deg, 7),
+            "thickness_mm": None if self.thickness_mm is None else round(self.thickness_mm, 7),
+        }
+
+
+@dataclass(frozen=True)
+class Budget:
+    """The answer's uncertainty, all of it from :func:`propagate`.
+
+    Attributes
+    ----------
+    x_mm, z_mm, yaw_deg : float
+        The pose's 1-sigma.
+    thickness_mm : float
+        The thickness's 1-sigma the thickness check weighs.
+    thickness_reported_mm : float
+        The same, reaching a far face's other reading where the image cannot tell the two apart.
+    groups : dict[str, tuple[float, float, float]]
+        The pose's terms of the module docstring, (x_mm, z_mm, yaw_deg) each
+        (``diagnostics["uncertainty_terms"]``).
+    terms : tuple of BudgetTerm
+        Each source's contribution (``diagnostics["uncertainty_budget"]``); in quadrature they give the
+        pose's and the thickness's sigma.
+    """
+
+    x_mm: float
+    z_mm: float
+    yaw_deg: float
+    thickness_mm: float
+    thickness_reported_mm: float
+    groups: dict[str, tuple[float, float, float]]
+    terms: tuple[BudgetTerm, ...]
+
+
+def _yaw_rad(levers: dict[str, LineLever], tilts: dict[str, float]) -> float:
+    """The yaw's doubt from the voting lines' tilts (px per px), weighted as the joint fit weighs the lines
+    (by the spread of their points along them)."""
+    wsum = sum(lv.spread_px2 for lv in levers.values())
+    if not wsum > 0:
+        return 0.0
+    return math.sqrt(sum((levers[k].spread_px2 * _finite(tilts[k])) ** 2 for k in tilts)) / wsum
+
+
+def _source_terms(
+    model: EdgeModelTerms, levers: dict[str, LineLever], scale_mm_per_px: float
+) -> list[BudgetTerm]:
+    """Each edge-model source's contribution: its offsets move x (reference line), z (bottom line) and the
+    thickness (reference and far lines); its tilts the yaw and, through the levers, x and z."""
+    sc = scale_mm_per_px
+    blur = BLUR_MODEL_FRACTION * model.blur_px if math.isfinite(model.blur_px) else 0.0
+    wsum = sum(lv.spread_px2 for lv in levers.values())
+    # per source: its offset (px) and tilt on each line, and whether its doubts share one cause
+    shares: dict[str, tuple[dict[str, float], dict[str, float], bool]] = {
+        "floor": (
+            dict.fromkeys(EDGE_LINES, EDGE_MODEL_FLOOR_PX),
+            {k: 2.0 * EDGE_MODEL_FLOOR_PX / max(lv.extent_px, 1.0) for k, lv in levers.items()},
+            False,
+        ),
+        "blur": (dict.fromkeys(EDGE_LINES, _finite(blur)), {}, False),
+    }
+    for d in model._in_order:
+        offset, tilt, linked = shares.setdefault(d.source, ({}, {}, False))
+        offset[d.line], tilt[d.line] = _finite(d.offset_px), _finite(d.tilt)
+        if d.group is not None and not linked:
+            shares[d.source] = (offset, tilt, True)
+    out = []
+    for source, (offset, tilt, linked) in shares.items():
+        yaw = (
+            math.sqrt(sum((lv.spread_px2 * tilt.get(k, 0.0)) ** 2 for k, lv in levers.items())) / wsum
+            if wsum > 0
+            else 0.0
+        )
+        ref, bot, far = (offset.get(k, 0.0) for k in ("reference", "bottom", "far"))
+        out.append(
+            BudgetTerm(
+                source,
+                math.hypot(ref * sc, yaw * levers["reference"].lever_mm),
+                math.hypot(bot * sc, yaw * levers["bottom"].lever_mm),
+                math.degrees(yaw),
+                (ref + far) * sc if linked else math.hypot(ref, far) * sc,
+            )
+        )
+    return out
+
+
+def propagate(
+    model: EdgeModelTerms,
+    offset_sigma_mm: dict[str, float],
+    angle_sigma_rad: float,
+    levers: dict[str, LineLever],
+    scale_mm_per_px: float,
+    camera_terms: dict[str, tuple[float, float, float]],
+    other_reading_mm: float | None = None,
+) -> Budget:
+    """The one place where the answer's doubts become its uncertainty, for the pose and the thickness.
+
+    ``model``: the lines' edge-model doubts; ``offset_sigma_mm``, ``angle_sigma_rad``: the joint line fit's
+    standard errors (:class:`doorloc.vision.lines.RectangleFit`); ``levers``: the lines that voted on the
+    door's direction (the reference arris and the bottom end, and the far arris where it voted);
+    ``camera_terms``: the pose's ``calibration`` and ``cell`` terms, (x_mm, z_mm, yaw_deg) each;
+    ``other_reading_mm``: how far a far face's other reading lies, where the image cannot tell which.
+
+    The pose: the ``fit`` term (each line's offset error and the angle's error times the lever, in
+    quadrature), the ``edge_model`` term (each pose line's doubts in quadrature, and the yaw that the voting
+    lines' tilts give, times the lever) and the camera's terms, in quadrature (:func:`combine`). The
+    thickness: both arrises' fit errors and doubts in quadrature, except the doubts of one correlation
+    group (:attr:`LineDoubt.group`), which share their cause and add. Every source's share of it all is
+    reported as a :class:`BudgetTerm`.
+    """
+    sc = scale_mm_per_px
+    ref, bot = levers["reference"], levers["bottom"]
+    fit_t = (
+        corner_fit_sigma(offset_sigma_mm["reference"], angle_sigma_rad, ref.lever_mm),
+        corner_fit_sigma(offset_sigma_mm["bottom"], angle_sigma_rad, bot.lever_mm),
+        math.degrees(angle_sigma_rad),
+    )
+    # (the floor: a bias that changes by twice the floor from one end of a line to the other)
+    tilts = {
+        k: math.hypot(model.tilt(k), 2.0 * EDGE_MODEL_FLOOR_PX / max(lv.extent_px, 1.0))
+        for k, lv in levers.items()
+    }
+    yaw_m = _yaw_rad(levers, tilts)
+    model_t = (
+        math.hypot(model.line_sigma_px("reference") * sc, yaw_m * ref.lever_mm),
+        math.hypot(model.line_sigma_px("bottom") * sc, yaw_m * bot.lever_mm),
+        math.degrees(yaw_m),
+    )
+    groups = {"fit": fit_t, "edge_model": model_t, **camera_terms}
+    x, z, yaw = combine(groups)
+    # the thickness: the doubts of a correlation group add (one camera exponent moves both arrises
+    # outwards or both inwards, and the thickness by their sum), the rest in quadrature
+    arrises = ("reference", "far")
+    linked = sorted(
+        {CAMERA_RESPONSE} | {d.group for d in model.doubts if d.group is not None and d.line in arrises}
+    )
+    linked_sources = tuple({d.source for d in model.doubts if d.group is not None})
+    rest = [model.line_sigma_px(k, without=linked_sources) for k in arrises]
+    sums = [sum(d.offset_px for k in arrises for d in model.of_line(k) if d.group == g) for g in linked]
+    t_sigma = math.hypot(
+        offset_sigma_mm["reference"],
+        offset_sigma_mm["far"],
+        rest[0] * sc,
+        rest[1] * sc,
+        *(s * sc for s in sums),
+    )
+    terms = [
+        BudgetTerm("fit", *fit_t, math.hypot(offset_sigma_mm["reference"], offset_sigma_mm["far"])),
+        *_source_terms(model, levers, sc),
+    ]
+    t_reported = t_sigma
+    if other_reading_mm is not None:
+        t_reported = math.hypot(t_sigma, 0.5 * other_reading_mm)
+        terms.append(BudgetTerm("far_face_other_reading", 0.0, 0.0, 0.0, abs(0.5 * other_reading_mm)))
+    terms += [BudgetTerm(name, *t, None) for name, t in camera_terms.items()]
+    return Budget(x, z, yaw, t_sigma, t_reported, groups, tuple(terms))

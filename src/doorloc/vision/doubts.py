@@ -1,0 +1,372 @@
+"""The doubts stage of locate: every line's edge-model doubts, each from the code that knows it.
+
+:func:`edge_doubts` gathers them as :class:`doorloc.vision.uncertainty.LineDoubt` values: the texture beside
+each edge (or the far-face model's own doubt), JPEG's block quantisation where the image shows it, what the
+arris correction leaves, and the camera response's (measured, absorbed or taken on the cell's word). It reads
+the pixels; :func:`doorloc.vision.uncertainty.propagate` turns the doubts into the answer's uncertainty.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import numpy as np
+
+from doorloc.cell import Cell
+from doorloc.vision.arris_model import BLUR_DOUBT, StripFit
+from doorloc.vision.config import LocateConfig
+from doorloc.vision.edges import EdgeSamples, block_artifact_ratio, texture_bias
+from doorloc.vision.lines import RectangleFit, fit_image_line
+from doorloc.vision.region import EDGE_NAMES, SearchRegion
+from doorloc.vision.response import (
+    RESPONSE_PLAUSIBLE,
+    ResponseFit,
+    edge_shifts_px,
+    plateau_levels,
+)
+from doorloc.vision.response_check import blur_without_pixel
+from doorloc.vision.sampling import linearizing_lut
+from doorloc.vision.state import Refined, ResponseCheck
+from doorloc.vision.uncertainty import (
+    CAMERA_RESPONSE,
+    JPEG_BLOCK_RATIO,
+    JPEG_EDGE_DOUBT_PX,
+    EdgeModelTerms,
+    LineDoubt,
+    jpeg_tilt_sigma,
+)
+
+__all__ = ["edge_doubts"]
+
+
+def edge_doubts(
+    plane, s8: float, region: SearchRegion, cfg: LocateConfig, check: ResponseCheck
+) -> tuple[EdgeModelTerms, dict[str, Any]]:
+    """The doubts stage: every line's edge-model doubts (:class:`doorloc.vision.uncertainty.LineDoubt`), each
+    from the code that knows it: the texture beside the edge or the far-face model, JPEG's blocks where the
+    image shows them, the arris correction, the camera response. The stage that reads the pixels for them,
+    so that the gate reads none. With them, the figures the diagnostics report (``jpeg_block_ratio``,
+    ``arris_fit``)."""
+    r, cell = check.refined, check.cell
+    samples, fit = r.samples, r.fit
+    # An arris line's door side is its strip, whose shading the texture term would read as texture (on a
+    # rounding, 0.1-0.2 mm of doubt on edges found to 0.002 mm, refused as uncertain): its texture is read
+    # beyond the strip and the blur's reach.
+    strips = {
+        k: (
+            int(math.ceil(band_px + 3.0 * strip.blur_px)),
+            region.layouts[k].polarity * (1 if cfg.door_brighter else -1),
+        )
+        for k, (strip, band_px) in r.arris_fits.items()
+    }
+    model = EdgeModelTerms(
+        tuple(_edge_model_doubts(plane, r, cfg, cell, strips)),
+        blur_without_pixel(r.blur_px),
+    )
+    figures: dict[str, Any] = {}
+    blocks = block_artifact_ratio(plane, r.pose.corner_px, scale_to_8bit=s8)
+    figures["jpeg_block_ratio"] = round(blocks, 3) if math.isfinite(blocks) else None
+    if blocks > JPEG_BLOCK_RATIO:
+        model = model.with_doubts(*_jpeg_doubts(samples, fit))
+    if r.arris_fits:
+        model = model.with_doubts(*_arris_doubts(r.arris_fits, samples, fit, r.pose.scale_mm_per_px, figures))
+    if check.response is not None:
+        response = _response_terms(
+            plane,
+            r,
+            cell.response_gamma,
+            check.response,
+            model.blur_px,
+            check.absorbed,
+            cfg.response_unmeasured_factor,
+        )
+    else:
+        response = _unmeasured_response_terms(
+            plane, r, cell.response_gamma, cfg.response_unmeasured_factor, model.blur_px
+        )
+    return model.with_doubts(*response), figures
+
+
+def _edge_model_doubts(
+    plane, r: Refined, cfg: LocateConfig, cell: Cell, strips: dict[str, tuple[int, int]] | None = None
+) -> list[LineDoubt]:
+    """The doubts the edge models know of each line (:class:`doorloc.vision.uncertainty.LineDoubt`): the
+    far-face model's own, else the texture beside the edge (across it and along it).
+
+    ``strips``: per arris line, the pixels its strip (and the blur beside it) takes on the door side, and
+    that side (+1: increasing ``along``); the texture there is read beyond the strip.
+    """
+    samples, fit, half, far_fit, step_fitted = r.samples, r.fit, r.half, r.far_fit, r.step_fitted
+    doubts = []
+    lut = linearizing_lut(plane.dtype, cell.response_gamma)
+    for k in EDGE_NAMES:
+        if k == "far" and far_fit is not None:  # what the far-face model leaves in doubt (band level, blur)
+            doubts.append(LineDoubt("far_face", k, far_fit.model_sigma_px))
+            continue
+        skip, side = (strips or {}).get(k, (0, 1))
+        tb = texture_bias(
+            plane,
+            samples[k],
+            fit.weights[k] > 0,
+            half,
+            cfg.plateau,
+            lut,
+            blur_px=step_fitted.get(k),
+            door_skip_px=skip,
+            door_side=side,
+        )
+        # The far arris's offset gives only the thickness: its texture doubt is the thickness's, not the
+        # corner's. (Without it the grain set's thicknesses, the hinge face's grain beside the far arris
+        # as beside the reference one, were 85 % within 2 sigma.) Its direction votes on the door's in
+        # the joint fit where no far face is beside it, so its texture tilt counts in the yaw
+        # (:func:`doorloc.vision.uncertainty.propagate`).
+        doubts.append(LineDoubt("texture", k, tb.offset_sigma_px, tilt=tb.tilt_sigma))
+    return doubts
+
+
+def _jpeg_doubts(samples: dict[str, EdgeSamples], fit: RectangleFit) -> list[LineDoubt]:
+    """Each line's JPEG doubt where the image shows block artifacts: ``JPEG_EDGE_DOUBT_PX`` across it, and
+    the tilt (:func:`doorloc.vision.uncertainty.jpeg_tilt_sigma`) as the edge's phase in the 8-px blocks
+    changes along it."""
+    doubts = []
+    for k in EDGE_NAMES:
+        inl = (fit.weights[k] > 0) & np.isfinite(samples[k].along)
+        scan, along = samples[k].scan[inl], samples[k].along[inl]
+        slope = fit_image_line(scan, along).b if scan.size >= 3 else math.nan
+        doubts.append(LineDoubt("jpeg", k, JPEG_EDGE_DOUBT_PX, tilt=jpeg_tilt_sigma(slope, scan)))
+    return doubts
+
+
+def _arris_doubts(
+    arris_fits: dict[str, tuple[StripFit, float]],
+    samples: dict[str, EdgeSamples],
+    fit: RectangleFit,
+    scale_mm_per_px: float,
+    diagnostics: dict,
+) -> list[LineDoubt]:
+    """What the arris correction leaves in doubt on each arris line (and its figures into
+    ``diagnostics["arris_fit"]``): across it, the strip's fitted deficit times its width, and the blur its
+    fit does not share with the other strips (:func:`_arris_blur_doubts`); along it (the strip's shading
+    and the texture beside it change along the edge; the texture term reads only beyond the strip), the
+    tilt that the residuals' structure over quarters of the line could hide."""
+    for k in EDGE_NAMES:
+        if k in arris_fits:
+            strip, band_px = arris_fits[k]
+            diagnostics.setdefault("arris_fit", {})[k] = {
+                "deficit": round(strip.deficit, 4),
+                "deficit_sigma": round(strip.deficit_sigma, 5),
+                "strip_px": round(band_px, 3),
+                "blur_px": round(strip.blur_px, 3),
+                "misfit": round(strip.misfit, 3),
+                "offset_px": round(strip.offset_px, 4),
+            }
+    moved = _arris_blur_doubts(arris_fits, diagnostics)
+    doubts = []
+    for k in EDGE_NAMES:
+        if k not in arris_fits:
+            continue
+        strip, band_px = arris_fits[k]
+        offset = strip.deficit_sigma * band_px
+        if k in moved:
+            offset = math.hypot(offset, moved[k])
+        inl = fit.weights[k] > 0
+        tilt = _residual_structure_tilt(samples[k], fit.residuals[k] / scale_mm_per_px, inl)
+        doubts.append(LineDoubt("arris", k, offset, tilt=tilt))
+    return doubts
+
+
+def _arris_blur_doubts(arris_fits: dict[str, tuple[StripFit, float]], diagnostics: dict) -> dict[str, float]:
+    """Each arris line's doubt (px) from a blur its strip fit does not share with the image's other strips.
+
+    One lens blurs every edge of the door alike, but each strip fit finds its own blur, which trades off
+    with the strip's shading and the border's place: texture beside a strip (wood grain along a rounding)
+    can take a fit to a wrong valley with a wrong blur. Seen on a 3 mm rounding with 6.5 % grain
+    (tests/vision/test_arris_model.py): the reference arris's strip read a blur of 1.76 px where the
+    bottom end's and the far arris's read 0.72 and 0.85 (the image's 0.72), and the door was placed
+    0.51 mm off in x with a sigma of 0.09 mm; that strip fitted at 0.72 px was 0.05 mm off. The strip fit
+    allows for ``arris_model.BLUR_DOUBT`` of blur; where a line's blur differs from the strips' median by
+    more, the change of its deficit at that median (:attr:`StripFit.deficit_at_blur`, against the same
+    search at its own blur) times the strip's width joins its ``arris`` doubt (``arris_correction_sigma_mm``;
+    ``diagnostics.arris_fit[line].blur_doubt_px``).
+    """
+    blurs = {k: float(strip.blur_px) for k, (strip, _) in arris_fits.items() if math.isfinite(strip.blur_px)}
+    out: dict[str, float] = {}
+    if len(blurs) < 2:
+        return out
+    # the image's blur: the strips' median (one strip led astray does not move it; of two, their mean)
+    shared = float(np.median(list(blurs.values())))
+    for k, (strip, band_px) in arris_fits.items():
+        if k not in blurs or strip.deficit_at_blur is None:
+            continue
+        if not abs(blurs[k] - shared) > BLUR_DOUBT:
+            continue
+        moved = abs(strip.deficit_at_blur(shared) - strip.deficit_at_blur(blurs[k])) * band_px
+        if math.isfinite(moved):
+            out[k] = moved
+            diagnostics.setdefault("arris_fit", {}).setdefault(k, {}).update(
+                blur_strips_px=round(shared, 3), blur_doubt_px=round(moved, 4)
+            )
+    return out
+
+
+def _response_terms(
+    plane, r: Refined, used_gamma: float, response: ResponseFit, blur_px: float, absorbed: bool, factor: float
+) -> list[LineDoubt]:
+    """Each line's response doubt (px), from the step model.
+
+    The edge was measured with ``used_gamma``; the image reads the camera's exponent as ``response.gamma``
+    +- ``response.sigma``. The doubt is built from the shift (:func:`doorloc.vision.response.edge_shift_px`
+    between the line's own plateaus, at the measured blur) to an exponent and the shift of its 1-sigma:
+
+    - after ``absorbed`` (the exponent in use is this image's reading): the reading's 1-sigma shift, and
+      what the shift to it leaves beyond twice that;
+    - where the cell's exponent was itself measured (``response.claimed_sigma``) and is kept: the shift to
+      the exponent both measurements give together (:attr:`ResponseFit.combined`) and its 1-sigma shift
+      (widened by their disagreement), in quadrature;
+    - where it was not, and the edges were read at many pixel phases: the shift to the reading beyond
+      twice the reading's 1-sigma shift (within that, the edges agree with the exponent in use, and a
+      right cell keeps its small sigma), or the largest shift to the other exponents the edges admit
+      about as well (``response.alternatives``: the image cannot tell which the camera has);
+    - where it was not, and a line was read between its pixels (``response.one_phase``, a door square
+      to the camera): such a reading (+-0.2-0.6) is weak evidence, and agreeing within two of its sigmas
+      proves little (a cell of 1.0 for a 1.67 camera, read 1.65 +- 0.34, was answered 0.056 mm off at
+      4.4 sigma). The cell's exponent, taken as known within ``factor`` (``LocateConfig.
+      response_unmeasured_factor``, one sigma ``used_gamma * (factor - 1)``), and the reading together
+      (:meth:`ResponseFit.with_unmeasured_claim`): the shift to their exponent and its 1-sigma shift in
+      quadrature. A reading no camera gives (beyond ``RESPONSE_PLAUSIBLE`` by two of its sigmas: two
+      lines of a 1.44 camera read 0.40 +- 0.08) is no reading: the cell's exponent within ``factor``
+      alone (:func:`_unmeasured_response_terms`).
+
+    That combination was tried on every reading and not taken: readings at many phases under strong
+    shading, vignetting and noise read a linear camera 0.4-0.9 +- 0.2, and the combination put
+    0.007-0.026 mm on each line of right cells' doors (tests/vision's hard photometry; the parity set's
+    ``rand`` renders, sigma up to 0.012 -> 0.079 mm); and weighing a point "the cell is exactly right"
+    against "another within the factor" by the reading's likelihood left square doors under a wrong cell
+    85 % within 2 sigma (bench_arris square-wrong-gamma --seed 9000), a weak reading favouring the point.
+
+    An arris line takes the same step model between its background and its face (a first-order figure).
+    """
+    # between the pixels, against a cell exponent nobody measured: the reading and the claim together
+    weak = not absorbed and not response.claimed_sigma > 0 and response.one_phase and factor > 1.0
+    if weak:
+        lo_g, hi_g = RESPONSE_PLAUSIBLE
+        if not lo_g - 2.0 * response.sigma <= response.gamma <= hi_g + 2.0 * response.sigma:
+            return _unmeasured_response_terms(plane, r, used_gamma, factor, blur_px)
+    # the exponent the evidence gives, gc +- sc
+    if absorbed:
+        gc, sc = response.gamma, response.sigma
+    elif response.claimed_sigma > 0:
+        gc, _, sc = response.combined
+    elif weak:
+        gc, sc = response.with_unmeasured_claim(used_gamma * (factor - 1.0))
+    else:
+        gc, sc = response.gamma, response.sigma
+    alternatives = list(response.alternatives)
+    per_line = {}
+    for k, shifts in _line_response_shifts(plane, r, used_gamma, blur_px):
+        # the shift to the evidence's exponent, half the spread over its 1-sigma, and to each alternative
+        at = shifts([gc, gc + sc, max(gc - sc, 0.05), *alternatives])
+        bias, sp = float(at[0]), 0.5 * abs(float(at[1]) - float(at[2]))
+        shift_alt = [float(v) for v in at[3:]]
+        if absorbed:
+            # the exponent in use is this image's measurement: its doubt counts in full
+            doubt = math.hypot(max(abs(bias) - 2.0 * sp, 0.0), sp)
+        elif response.claimed_sigma > 0:
+            doubt = math.hypot(bias, sp)
+        elif weak:
+            doubt = math.hypot(bias, sp)
+            for s_alt in shift_alt:
+                doubt = max(doubt, abs(s_alt))
+        else:
+            # the shift the measured mismatch makes beyond twice its own doubt (within that, the edges
+            # agree with the exponent in use); where the edges read other exponents about as well, the
+            # largest of their shifts (the image cannot tell which the camera has)
+            doubt = max(abs(bias) - 2.0 * sp, 0.0)
+            for s_alt in shift_alt:
+                doubt = max(doubt, abs(s_alt) - 2.0 * sp)
+        per_line[k] = doubt
+    return _response_doubts(per_line)
+
+
+def _response_doubts(px: dict[str, float]) -> list[LineDoubt]:
+    """The camera response's doubts of the lines (px; the finite ones): one correlation group, as one camera
+    exponent moves every edge."""
+    return [LineDoubt("response", k, v, group=CAMERA_RESPONSE) for k, v in px.items() if math.isfinite(v)]
+
+
+def _unmeasured_response_terms(
+    plane, r: Refined, used_gamma: float, factor: float, blur_px: float
+) -> list[LineDoubt]:
+    """The response doubt (px) of each line when the image did not measure the camera's response.
+
+    The response is measured on plain edges only (:func:`measure_response`): the shading of an arris
+    strip is free in its fit and takes up what a wrong exponent does to the profile (a fit of the exponent
+    to the strip's misfit was tried: on the arris bench it found the camera's exponent on some chamfers
+    and 0.8 or 3.0 on others, right cell or not); a plain edge along a pixel row or column blurred by
+    less than ``RESPONSE_ONE_PHASE_MIN_BLUR_PX`` cannot be read between its pixels, and sharp edges are not
+    read (:func:`response_check_applies`). Then the cell's
+    ``response_gamma`` cannot be checked, and it is taken as known within a factor ``factor``
+    (``LocateConfig.response_unmeasured_factor``): the doubt of every line (the far one's where no far-face
+    model reports its own) is half the spread of the edge shift
+    (:func:`doorloc.vision.response.edge_shift_px`, the line's plateaus, the measured blur) between
+    ``used_gamma * factor`` and ``used_gamma / factor``. Without it the arris lines' answers under a wrong
+    cell exponent were biased by several of their sigmas (fixtures/rendered/effects: 1.0 for a 2.2
+    camera, z 0.035 mm at 2-3 sigma), and a plain door square to the camera by up to 7 (a 1.13 camera in
+    a cell of 2.01, blur 0.86 px: x 0.075 mm off at sigma 0.010).
+    """
+    if not factor > 1.0:
+        return []
+    per_line = {}
+    for k, shifts in _line_response_shifts(plane, r, used_gamma, blur_px):
+        up, down = shifts([used_gamma * factor, used_gamma / factor])
+        spread = 0.5 * abs(float(up) - float(down))
+        per_line[k] = spread
+    return _response_doubts(per_line)
+
+
+def _line_response_shifts(
+    plane, r: Refined, used_gamma: float, blur_px: float
+) -> Iterator[tuple[str, Callable[[list[float]], np.ndarray]]]:
+    """Each line a camera exponent moves (the far one only where no far-face model reports its own doubt)
+    and the shifts, px, that exponents make there (a list in, an array out: the step is modelled once for
+    all of them): :func:`doorloc.vision.response.edge_shifts_px` between the line's own plateaus at
+    ``blur_px``, each exponent brought within ``RESPONSE_PLAUSIBLE`` (a reading or a factor beyond them is
+    no camera)."""
+    samples, fit, half, far_beside = r.samples, r.fit, r.half, r.far_beside
+    for k in EDGE_NAMES:
+        if k == "far" and far_beside:
+            continue
+        inl = fit.weights[k] > 0
+        lo, hi = plateau_levels(plane, samples[k], inl & samples[k].valid, half)
+
+        def shifts(gs: list[float], lo: float = lo, hi: float = hi) -> np.ndarray:
+            g = np.clip(np.asarray(gs, float), *RESPONSE_PLAUSIBLE)
+            return edge_shifts_px(lo, hi, g, used_gamma, blur_px, half)
+
+        yield k, shifts
+
+
+#: contiguous blocks along a line over which its residuals' structure is read (:func:`_residual_structure_tilt`)
+RESIDUAL_BLOCKS = 4
+
+
+def _residual_structure_tilt(samples: EdgeSamples, residual_px: np.ndarray, inliers: np.ndarray) -> float:
+    """Standard error of a line's tilt (px per px) from the structure of its residuals along it.
+
+    The line fit's own standard error takes the residuals as independent; a bias that changes slowly along
+    the edge shows instead as residuals whose means over ``RESIDUAL_BLOCKS`` contiguous blocks differ.
+    Taken as independent block errors of that scatter, the slope they allow is ``sd(block means) /
+    sqrt(sum (s_i - mean s)^2)`` over the blocks' centres ``s_i`` (px). NaN with too few points.
+    """
+    m = inliers & np.isfinite(residual_px)
+    if int(m.sum()) < 8 * RESIDUAL_BLOCKS:
+        return float("nan")
+    order = np.argsort(samples.scan[m])
+    scan, res = samples.scan[m][order].astype(float), residual_px[m][order]
+    blocks = np.array_split(np.arange(scan.size), RESIDUAL_BLOCKS)
+    means = np.array([res[b].mean() for b in blocks])
+    centres = np.array([scan[b].mean() for b in blocks])
+    spread = float(np.sum((centres - centres.mean()) ** 2))
+    return float(np.std(means, ddof=1) / math.sqrt(spread)) if spread > 0 else float("nan")

@@ -1,0 +1,304 @@
+"""Edge models: how one edge of the door is read off the pixels along its scan lines, by kind of edge.
+
+Every model reads a :class:`ScanWindow` (the plane, the scan lines and the window on each, the levels'
+table) and returns an :class:`EdgeReading` (the edge points, and what the model fitted on the way). Which
+model reads an edge is a lookup by its kind (:func:`edge_kind`, :data:`EDGE_MODELS`):
+
+``plain``
+    A step between the door and the background: the area estimator
+    (:func:`doorloc.vision.edges.subpixel_edges`).
+``step_fit``
+    A plain step that the refine stage has the blurred-step fit refine, where texture beside it moves the
+    plateaus (:func:`doorloc.vision.edges.refine_step_fit`; kept where texture explains its shift).
+``banded``
+    A step with a band beside it on the door side (an arris strip whose shading is not modelled): the area
+    estimator between the band and the background (:func:`doorloc.vision.edges.subpixel_edges_banded`).
+``arris_strip``
+    A chamfered or rounded arris whose strip the geometry predicts: the strip's shading fitted, the sharp
+    corner's line from its outer border (:func:`doorloc.vision.arris_model.arris_edges`).
+``far_face``
+    The far arris with the door's far face seen beside it: two blurred steps, hinge face | far face |
+    background (:func:`doorloc.vision.edges.subpixel_edges_far_face`).
+
+A new model is a class with a ``read`` method of :class:`EdgeModel`'s shape, an entry in
+:data:`EDGE_MODELS`, and a rule in :func:`edge_kind`; the doubts it knows join the uncertainty budget through
+:mod:`doorloc.vision.doubts`. The numba kernels stay inside the estimators.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Protocol
+
+import numpy as np
+
+from doorloc.cell import DoorSize
+from doorloc.vision.arris_model import (
+    STRIP_RADIANCE,
+    STRIP_RADIANCE_SIGMA,
+    ArrisGeometry,
+    StripFit,
+    arris_edges,
+)
+from doorloc.vision.edges import (
+    EdgeSamples,
+    FarFaceFit,
+    refine_step_fit,
+    subpixel_edges,
+    subpixel_edges_banded,
+    subpixel_edges_far_face,
+    texture_bias,
+)
+from doorloc.vision.region import Track
+from doorloc.vision.sampling import Axis
+
+__all__ = [
+    "ARRIS_PLATEAU_PX",
+    "EDGE_MODELS",
+    "EdgeModel",
+    "EdgeReading",
+    "PassSettings",
+    "ScanWindow",
+    "edge_kind",
+]
+
+#: plateau samples of the arris strip's profile fit, px
+ARRIS_PLATEAU_PX = 4
+
+#: the step fit replaces the area estimate only where they differ by less than this many of the area
+#: estimator's texture sigma (plus STEP_FIT_AGREE_FLOOR_PX): a larger shift is a profile shape that the
+#: step model lacks, not texture
+STEP_FIT_AGREE_SIGMAS = 3.0
+STEP_FIT_AGREE_FLOOR_PX = 0.003
+
+
+@dataclass(frozen=True)
+class ScanWindow:
+    """What every edge model reads.
+
+    Attributes
+    ----------
+    plane : ndarray
+        The luminance plane (grey levels).
+    axis : "col" or "row"
+        Profiles along image columns or rows (:func:`doorloc.vision.sampling.oriented`).
+    scan, centre : ndarray (N,)
+        The scan lines and the predicted edge on each, px.
+    half : int
+        The window's half width, px.
+    plateau : int
+        Plateau samples beside the window, px.
+    scale_to_8bit : float
+        Factor from the plane's grey levels to 0-255.
+    lut : ndarray or None
+        The table turning grey levels into linear light (:func:`doorloc.vision.sampling.linearizing_lut`).
+    level_smooth : int
+        Scan lines over which the plateau levels are averaged (0: none).
+    door_side : int
+        +1 where the door lies towards increasing ``along``, -1 towards decreasing.
+    """
+
+    plane: np.ndarray
+    axis: Axis
+    scan: np.ndarray
+    centre: np.ndarray
+    half: int
+    plateau: int
+    scale_to_8bit: float
+    lut: np.ndarray | None
+    level_smooth: int
+    door_side: int
+
+    @property
+    def lines(self) -> tuple[np.ndarray, Axis, np.ndarray, np.ndarray, int]:
+        """``(plane, axis, scan, centre, half)``: the arguments every estimator takes first."""
+        return self.plane, self.axis, self.scan, self.centre, self.half
+
+
+@dataclass(frozen=True)
+class PassSettings:
+    """What one pass of the refine stage tells every model beyond its window.
+
+    ``every``: the pass reads every n-th scan line of a track; ``sharp``: the edges are sharper than the
+    windows assume; ``optical_blur_px``: the blur measured on the reference arris (NaN before it is);
+    ``slope_smooth``: scan lines for the plain estimator's slope; ``door``: the door's size and arris;
+    ``arris``: the strips' geometry per line where the door has an arris; ``step_blur_px``: the lines the
+    blurred-step fit refines, and the blur it uses.
+    """
+
+    every: int
+    sharp: bool
+    optical_blur_px: float
+    slope_smooth: int
+    door: DoorSize
+    arris: dict[str, ArrisGeometry] | None
+    step_blur_px: dict[str, float]
+
+    @property
+    def blur_guess_px(self) -> float:
+        """The optical blur, or 1 px where it is not measured yet (the first pass only centres windows)."""
+        return self.optical_blur_px if np.isfinite(self.optical_blur_px) else 1.0
+
+
+@dataclass(frozen=True)
+class EdgeReading:
+    """What a model read on one edge: its points, and what it fitted on the way.
+
+    ``far_fit``: the far-face model's fit; ``strip``: the arris strip's profile fit and the strip's width,
+    px; ``step_blur_px``: the blur with which the blurred-step fit refined the points.
+    """
+
+    samples: EdgeSamples
+    far_fit: FarFaceFit | None = None
+    strip: tuple[StripFit, float] | None = None
+    step_blur_px: float | None = None
+
+
+class EdgeModel(Protocol):
+    def read(self, window: ScanWindow, name: str, track: Track, settings: PassSettings) -> EdgeReading:
+        """The edge ``name`` on the scan lines of ``window`` (its ``track``, read every ``settings.every``)."""
+        ...
+
+
+class PlainArea:
+    """A plain step: the area estimator."""
+
+    def read(self, window: ScanWindow, name: str, track: Track, settings: PassSettings) -> EdgeReading:
+        w = window
+        samples = subpixel_edges(
+            *w.lines,
+            w.plateau,
+            w.scale_to_8bit,
+            slope_smooth=settings.slope_smooth,
+            level_smooth=w.level_smooth,
+            lut=w.lut,
+        )
+        return EdgeReading(samples)
+
+
+class StepFit:
+    """A plain step refined by the blurred-step fit, where the shift it makes is what texture beside the
+    edge explains (:data:`STEP_FIT_AGREE_SIGMAS`); else the area estimate stands."""
+
+    def read(self, window: ScanWindow, name: str, track: Track, settings: PassSettings) -> EdgeReading:
+        area = PlainArea().read(window, name, track, settings).samples
+        blur = settings.step_blur_px[name]
+        fitted = refine_step_fit(window.plane, area, window.half, blur, window.lut)
+        if _step_fit_agrees(window, area, fitted):
+            return EdgeReading(fitted, step_blur_px=blur)
+        return EdgeReading(area)
+
+
+def _step_fit_agrees(window: ScanWindow, area: EdgeSamples, fitted: EdgeSamples) -> bool:
+    """Whether the step fit's shift of an edge is what texture beside it explains (see the constants)."""
+    d = fitted.along - area.along
+    d = d[np.isfinite(d)]
+    if d.size < 8:
+        return False
+    tex = texture_bias(
+        window.plane, area, area.valid, window.half, window.plateau, window.lut
+    ).offset_sigma_px
+    tex = tex if math.isfinite(tex) else 0.0
+    return abs(float(np.median(d))) <= STEP_FIT_AGREE_SIGMAS * math.hypot(tex, STEP_FIT_AGREE_FLOOR_PX)
+
+
+class Banded:
+    """A step with a band beside it on the door side: the area estimator between band and background."""
+
+    def read(self, window: ScanWindow, name: str, track: Track, settings: PassSettings) -> EdgeReading:
+        w = window
+        assert track.band_px is not None
+        samples, _ = subpixel_edges_banded(
+            *w.lines,
+            track.band_px[:: settings.every],
+            w.door_side,
+            w.plateau,
+            w.scale_to_8bit,
+            sharp=settings.sharp,
+            band_slope=track.band_slope,
+            level_smooth=w.level_smooth,
+            lut=w.lut,
+        )
+        return EdgeReading(samples)
+
+
+class FarFace:
+    """Hinge face | far face (a band of any width and brightness) | background: the profile's shape, two
+    blurred steps with the band's width from the geometry. The blur comes from the plain reference arris
+    (beside a narrow band, blur, band level and width trade off); only the first pass, which just centres
+    the windows, guesses it."""
+
+    def read(self, window: ScanWindow, name: str, track: Track, settings: PassSettings) -> EdgeReading:
+        w, every = window, settings.every
+        assert track.band_px is not None
+        samples, far_fit = subpixel_edges_far_face(
+            *w.lines,
+            track.band_px[::every],
+            track.band_slope,
+            -w.door_side,
+            w.plateau,
+            w.scale_to_8bit,
+            blur_px=settings.blur_guess_px,
+            strip_px=track.strip_px[::every] if track.strip_px is not None else None,
+            strip_radiance=(STRIP_RADIANCE, STRIP_RADIANCE_SIGMA),
+            strip_shaded=settings.door.arris_profile == "round",
+            level_smooth=w.level_smooth,
+            lut=w.lut,
+        )
+        return EdgeReading(samples, far_fit=far_fit)
+
+
+class ArrisStrip:
+    """An arris strip on the door side of the outline: its outer border from the strip's fitted shading,
+    then moved to the sharp corner's line by the geometry.
+
+    The strip's profile fit takes 4-px plateaus (:data:`ARRIS_PLATEAU_PX`: the face beside the strip pins
+    its brightness, most of all on narrow strips); each line's levels for its area estimate the plain
+    step's, right beside the window: taken farther out they pick up texture along the edge (the effects
+    fixtures' grain: their yaw was up to 0.022 deg off).
+    """
+
+    def read(self, window: ScanWindow, name: str, track: Track, settings: PassSettings) -> EdgeReading:
+        w, every = window, settings.every
+        assert track.band_px is not None and track.outline_shift_px is not None and settings.arris is not None
+        band = track.band_px[::every]
+        samples, strip = arris_edges(
+            *w.lines,
+            band,
+            w.door_side,
+            settings.arris[name],
+            max(w.plateau, ARRIS_PLATEAU_PX),
+            w.scale_to_8bit,
+            lut=w.lut,
+            blur0=settings.blur_guess_px,
+            search=every > 1,
+            level_px=w.plateau,
+            # (the far arris's strip can take another level in the first pass than in the final one,
+            # which its window was placed for: there the area estimate; the line fit in both passes lost
+            # every far point on 2 of 48 arris bench frames)
+            line_fit=name != "far" or every == 1,
+        )
+        samples = replace(samples, along=samples.along + track.outline_shift_px[::every])
+        return EdgeReading(samples, strip=(strip, float(np.median(band))) if strip is not None else None)
+
+
+#: the model that reads each kind of edge (:func:`edge_kind`)
+EDGE_MODELS: dict[str, EdgeModel] = {
+    "plain": PlainArea(),
+    "step_fit": StepFit(),
+    "banded": Banded(),
+    "arris_strip": ArrisStrip(),
+    "far_face": FarFace(),
+}
+
+
+def edge_kind(name: str, track: Track, settings: PassSettings) -> str:
+    """The kind of the edge ``name`` on this pass: which of :data:`EDGE_MODELS` reads it."""
+    if track.band_px is None or not track.band_px.size:
+        return "step_fit" if name in settings.step_blur_px else "plain"
+    if track.beside_far_face:
+        return "far_face"
+    if settings.arris is not None and name in settings.arris and track.outline_shift_px is not None:
+        return "arris_strip"
+    return "banded"

@@ -1,0 +1,379 @@
+"""The gate of locate: from the refined state, the response check and the lines' doubts, the answer or a
+refusal with its reason (:func:`gate_and_answer`). It decides; the pixels it reads are only those that tell
+a pattern (a calibration board) from a door whose edges failed.
+
+The refusal codes it gives: ``edge_missing``, ``edge_not_straight``, ``corner_hidden``, ``overexposed``,
+``outside_envelope``, ``thickness_mismatch``, ``uncertain``, ``not_a_door`` (:mod:`doorloc.vision.quality`
+holds the checks and their messages).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from doorloc.cell import Cell, DoorSize
+from doorloc.vision import quality as q
+from doorloc.vision.config import LocateConfig
+from doorloc.vision.edges import EdgeSamples
+from doorloc.vision.lines import RectangleFit
+from doorloc.vision.region import EDGE_NAMES, HUMAN, SearchRegion
+from doorloc.vision.response import ResponseFit
+from doorloc.vision.result import LineQuality, LocateResult, PoseUncertainty
+from doorloc.vision.sampling import oriented
+from doorloc.vision.state import Refined, ResponseCheck
+from doorloc.vision.uncertainty import (
+    Budget,
+    EdgeModelTerms,
+    LineLever,
+    calibration_pose_sigma,
+    propagate,
+)
+
+__all__ = ["PATTERN", "gate_and_answer"]
+
+
+PATTERN = q.Refusal(
+    "not_a_door",
+    "a regular pattern (a calibration board?) is in view instead of a door; "
+    "remove it and place a door in the fixture",
+)
+
+
+def gate_and_answer(
+    name: str,
+    door: DoorSize,
+    cfg: LocateConfig,
+    region: SearchRegion,
+    check: ResponseCheck,
+    doubts: tuple[EdgeModelTerms, dict[str, Any]],
+    plane,
+    s8: float,
+) -> LocateResult:
+    """The gate: the answer, or the refusal with its reason, from the refined edges, the response check and
+    the lines' doubts. (It reads the pixels only to tell a pattern from a door where the edges failed.)
+
+    The checks in the order they are weighed (the first that refuses is the answer's reason, unless a pose
+    outside the envelope or a pattern in view explains it better, :func:`_first_refusal`): each line's
+    support and straightness, the corner's support, overexposure, the envelope, the thickness, the corner's
+    and the pose's uncertainty."""
+    r, cell = check.refined, check.cell
+    model, figures = doubts
+    fit, pose = r.fit, r.pose
+    diagnostics: dict = {
+        "blur_px": round(r.blur_px, 3),
+        "window_half_px": r.half,
+        "face_y_mm": region.face_y,
+        "edge_depth_y_mm": region.edge_depth_y,
+        "fit_scale_mm": fit.scale,
+        "yaw_sigma_deg": math.degrees(fit.angle_sigma_rad),
+        "thickness_expected_mm": door.thickness_mm,
+        **figures,
+    }
+    lines, refusals = _line_checks(r, model, cfg)
+    refusals += _corner_support(r, region, cfg, diagnostics)
+    bright = np.concatenate([r.samples[k].bright[fit.weights[k] > 0] for k in EDGE_NAMES])
+    refusals.append(q.check_overexposed(bright))
+    refusals.append(
+        q.check_envelope(
+            pose.x_mm, pose.z_mm, pose.yaw_deg, cell.envelope, cfg.envelope_margin_mm, cfg.envelope_margin_deg
+        )
+    )
+    other_mm, other = _other_reading(r, cfg.thickness_tolerance_mm)
+    # Standard uncertainty of the thickness: the two arris offsets' noise, and beside a visible far face
+    # what its model leaves in doubt (a band narrower than the blur is hard to tell from the arris).
+    # The two arrises' response doubts share their cause (one camera exponent moves both edges outwards
+    # or both inwards, and the thickness by their sum): they add, the rest in quadrature. (Added in
+    # quadrature, the effects fixtures' thicknesses, a 2.2 camera in a cell of 1.0, were 0.08-0.12 mm off
+    # with 78 % of them beyond 2 sigma.)
+    budget = _budget(cell, cfg, region, r, model, other_mm if other is not None else None)
+    t_refusals, t_uncertain = _thickness_check(r, door, cfg, budget.thickness_mm, other)
+    refusals += t_refusals
+    refusals.append(_corner_sigma_check(fit, cfg, diagnostics))
+    t_sigma = budget.thickness_reported_mm
+    t_tol = cfg.thickness_tolerance_mm
+    far_beside = r.far_beside
+    diagnostics["thickness_check"] = {
+        "measured_mm": round(pose.thickness_mm, 4),
+        "expected_mm": door.thickness_mm,
+        "difference_mm": round(pose.thickness_mm - door.thickness_mm, 4),
+        "tolerance_mm": t_tol,
+        "sigma_mm": round(t_sigma, 5),
+        "uncertain": t_uncertain,
+        "far_face_in_view": far_beside,
+        "other_reading_mm": round(other, 4) if other is not None else None,
+    }
+    unc = PoseUncertainty(x_mm=budget.x_mm, z_mm=budget.z_mm, yaw_deg=budget.yaw_deg)
+    diagnostics["uncertainty_terms"] = {k: [round(v, 6) for v in t] for k, t in budget.groups.items()}
+    diagnostics["uncertainty_budget"] = [t.as_dict() for t in budget.terms]
+    refusals.append(_pose_check(unc, budget.groups, model, check.response, cfg))
+    first = _first_refusal(refusals, r, plane, s8, cfg)
+    if first is not None:
+        diagnostics["measured"] = {
+            "x_mm": pose.x_mm,
+            "z_mm": pose.z_mm,
+            "yaw_deg": pose.yaw_deg,
+            "thickness_mm": pose.thickness_mm,
+        }
+        diagnostics["all_refusals"] = [x.code for x in refusals if x is not None]
+        return LocateResult.refusal(name, first.code, first.message, lines=lines, diagnostics=diagnostics)
+    return LocateResult(
+        image=name,
+        ok=True,
+        x_mm=pose.x_mm,
+        z_mm=pose.z_mm,
+        yaw_deg=pose.yaw_deg,
+        thickness_mm=pose.thickness_mm,
+        scale_mm_per_px=pose.scale_mm_per_px,
+        corner_px=[float(pose.corner_px[0]), float(pose.corner_px[1])],
+        uncertainty=unc,
+        lines=lines,
+        diagnostics=diagnostics,
+    )
+
+
+def _line_checks(r: Refined, model: EdgeModelTerms, cfg: LocateConfig) -> tuple[list[LineQuality], list]:
+    """Each line's figures (:class:`doorloc.vision.result.LineQuality`) and its check (None where it passes)."""
+    samples, fit, pose, far_beside = r.samples, r.fit, r.pose, r.far_beside
+    lines, refusals = [], []
+    for k in EDGE_NAMES:
+        s = samples[k]
+        n_s = int(s.scan.size)
+        n_i, mean_square, contrast, noise = q.line_figures(fit.weights[k], fit.residuals[k], s.step, s.noise)
+        rms_mm = math.sqrt(mean_square) if n_i else float("nan")
+        rms_px = rms_mm / pose.scale_mm_per_px
+        # what the edge model leaves in doubt (floor, texture, far-face model...), on top of the noise
+        extra = {"model_sigma_mm": round(model.line_sigma_px(k) * pose.scale_mm_per_px, 6)}
+        for term, key in (("arris", "arris_correction_sigma_mm"), ("response", "response_sigma_mm")):
+            doubt = model.offset_px(k, term)
+            if doubt is not None:
+                extra[key] = round(doubt * pose.scale_mm_per_px, 5)
+        lines.append(
+            LineQuality(
+                name=k,
+                n_points=n_s,
+                n_inliers=n_i,
+                rms_residual_px=round(rms_px, 4),
+                rms_residual_mm=round(rms_mm, 5),
+                contrast=round(contrast, 1),
+                noise=round(noise, 2) if n_i else None,
+                offset_sigma_mm=round(fit.offset_sigma[k], 5),
+                **extra,
+            )
+        )
+        # Beside a visible far face the far arris only measures the thickness (it takes no part in the
+        # pose): a looser straightness check.
+        loose = k == "far" and far_beside
+        refusals.append(
+            q.check_line(
+                k,
+                HUMAN[k],
+                n_s,
+                n_i,
+                rms_px,
+                contrast,
+                cfg.min_inliers,
+                cfg.min_inlier_fraction * (0.5 if loose else 1.0),
+                cfg.max_rms_residual_px * (2.0 if loose else 1.0),
+                cfg.min_contrast,
+            )
+        )
+    return lines, refusals
+
+
+def _corner_support(r: Refined, region: SearchRegion, cfg: LocateConfig, diagnostics: dict) -> list:
+    """The checks of the points next to the corner on the bottom end and the reference arris."""
+    samples, fit, pose, corner_px = r.samples, r.fit, r.pose, r.pose.corner_px
+    refusals = []
+    for k in ("bottom", "reference"):
+        s = samples[k]
+        lay = region.layouts[k]
+        c_scan = corner_px[0] if lay.axis == "col" else corner_px[1]
+        near = np.abs(s.scan - c_scan) <= cfg.corner_zone_px
+        n = int(np.count_nonzero(near))
+        fits = (fit.weights[k] > 0) | (
+            np.abs(fit.residuals[k]) <= cfg.corner_tolerance_px * pose.scale_mm_per_px
+        )
+        frac = int(np.count_nonzero(fits[near])) / n if n else 0.0
+        diagnostics[f"corner_support_{k}"] = round(frac, 3)
+        refusals.append(q.check_corner_support(HUMAN[k], frac, n, cfg.min_corner_support))
+    return refusals
+
+
+def _other_reading(r: Refined, t_tol: float) -> tuple[float, float | None]:
+    """How far a far face's other reading lies, mm, and that reading of the thickness where it is weighed."""
+    pose, far_fit, far_beside = r.pose, r.far_fit, r.far_beside
+    # A far face whose band looks like the background or like the hinge face reads two ways, a band's width
+    # apart (edges.FarFaceFit.other_reading_px), and the image cannot tell which: the check takes the reading
+    # nearer the recipe (a wrong door passes only where its other reading lands on the recipe's thickness),
+    # and the reported sigma reaches the other reading at 2 sigma. Readings more than twice the tolerance
+    # apart are not weighed (the fitted one is judged alone, as without a band): a band that wide is seen
+    # (on bench_surfaces' grain, hard and thin sets, 60 doors each, every fitted reading whose other lay
+    # 2.6-20 mm off was the door's; the two wrong ones were read beside bands of 0.6-1.2 px, 0.4-0.8 mm).
+    other_mm = far_fit.other_reading_px * pose.scale_mm_per_px if far_beside and far_fit is not None else 0.0
+    other = pose.thickness_mm + other_mm if 0.0 < abs(other_mm) <= 2.0 * t_tol else None
+    return other_mm, other
+
+
+def _thickness_check(
+    r: Refined, door: DoorSize, cfg: LocateConfig, t_sigma: float, other: float | None
+) -> tuple[list, bool]:
+    """The thickness's checks (against the recipe, and whether its uncertainty lets it be checked) and
+    whether it is uncertain."""
+    pose, far_beside, t_tol = r.pose, r.far_beside, cfg.thickness_tolerance_mm
+    refusals: list = []
+    # (the fitted reading where the two are as near)
+    readings = [pose.thickness_mm] + ([other] if other is not None else [])
+    nearest = min(readings, key=lambda t: abs(t - door.thickness_mm))
+    refusals.append(q.check_thickness(nearest, door.thickness_mm, t_tol, sigma=t_sigma))
+    t_uncertain = abs(nearest - door.thickness_mm) + 3.0 * t_sigma > t_tol
+    if t_uncertain and refusals[-1] is None:
+        refusals.append(
+            q.Refusal(
+                "uncertain",
+                f"the door's thickness cannot be checked: it measures "
+                f"{nearest:.2f} +- {3 * t_sigma:.2f} mm against {door.thickness_mm:.2f} mm "
+                f"(tolerance {t_tol:g} mm){' with its far face seen nearly edge-on' if far_beside else ''}; "
+                "check the door and the recipe, or move the door a little along X and take the "
+                "image again",
+            )
+        )
+    return refusals, t_uncertain
+
+
+def _corner_sigma_check(fit: RectangleFit, cfg: LocateConfig, diagnostics: dict) -> q.Refusal | None:
+    """The check of the corner's standard error from the line offsets."""
+    sig = math.hypot(fit.offset_sigma["reference"], fit.offset_sigma["bottom"])
+    diagnostics["corner_sigma_mm"] = sig
+    if sig > cfg.max_sigma_mm:
+        return q.Refusal(
+            "uncertain",
+            f"the corner is uncertain to {sig:.3f} mm (limit {cfg.max_sigma_mm} mm): "
+            "the edges are too noisy; check focus, lighting and exposure",
+        )
+    return None
+
+
+def _pose_check(
+    unc: PoseUncertainty,
+    terms: dict[str, tuple[float, float, float]],
+    model: EdgeModelTerms,
+    response: ResponseFit | None,
+    cfg: LocateConfig,
+) -> q.Refusal | None:
+    """The check of the pose's uncertainty against the cell's limits, naming the term that weighs most."""
+    if (
+        unc.x_mm > cfg.max_uncertainty_mm
+        or unc.z_mm > cfg.max_uncertainty_mm
+        or unc.yaw_deg > cfg.max_uncertainty_deg
+    ):
+        worst = max(
+            terms,
+            key=lambda k: max(
+                terms[k][0] / cfg.max_uncertainty_mm,
+                terms[k][1] / cfg.max_uncertainty_mm,
+                terms[k][2] / cfg.max_uncertainty_deg,
+            ),
+        )
+        hint = _UNCERTAIN_HINT[worst]
+        if worst == "edge_model" and response is None:
+            # the unchecked response is the largest doubt of a pose line: say so, and what lifts it
+            big = [model.largest_source(k, among=_MODEL_REPORTED) for k in ("bottom", "reference")]
+            if "response" in big:
+                hint = _UNCERTAIN_HINT["response_unmeasured"]
+        return q.Refusal(
+            "uncertain",
+            f"the pose is uncertain to x {unc.x_mm:.3f} mm, z {unc.z_mm:.3f} mm, "
+            f"yaw {unc.yaw_deg:.3f} deg (1 sigma; the cell allows {cfg.max_uncertainty_mm:g} mm, "
+            f"{cfg.max_uncertainty_deg:g} deg), mostly from the {worst.replace('_', ' ')}; " + hint,
+        )
+    return None
+
+
+def _first_refusal(refusals: list, r: Refined, plane, s8: float, cfg: LocateConfig) -> q.Refusal | None:
+    """The answer's reason among the refusals: the first, unless a pose outside the envelope explains broken
+    edges, or broken edges are a regular pattern in view."""
+    samples = r.samples
+    first = next((r for r in refusals if r is not None), None)
+    if first is not None and first.code in ("edge_not_straight", "edge_missing", "corner_hidden"):
+        # A pose outside the envelope explains broken edges best (the door lies beyond the region).
+        env = next((r for r in refusals if r is not None and r.code == "outside_envelope"), None)
+        first = env or first
+    if first is not None and first.code in ("edge_not_straight", "edge_missing"):
+        band = _rows_across(plane, s8, samples["reference"], samples["far"])
+        if band is not None and q.looks_like_pattern(band, 4 * cfg.min_contrast):
+            first = PATTERN
+    return first
+
+
+_UNCERTAIN_HINT = {
+    "response_unmeasured": "the camera response could not be checked on this image (diagnostics "
+    "camera_response.unchecked_because says why: every edge an arris, edges sharper than half a pixel, or a "
+    "door square to the camera), and "
+    "the cell's camera.response_gamma is taken as known only within the factor "
+    "locate.response_unmeasured_factor; measure the response once (doorloc calibrate prints it from the "
+    "chessboard photographs, with the factor they allow; or an image of a plain-edged door in this cell: its "
+    "answer's diagnostics camera_response.fitted), put it in the cell file and set "
+    "locate.response_unmeasured_factor to what the measurement allows",
+    "fit": "the edges are too noisy; check focus, lighting and exposure",
+    "edge_model": "the door's edges do not look like clean steps (strong grain or marks along an edge, an arris or "
+    "a camera response the cell does not describe); check the cell's door and camera settings",
+    "calibration": "the camera calibration is too uncertain here; calibrate again with views covering the door's corner",
+    "cell": "the cell's camera placement is too uncertain; run the cell check again",
+}
+
+
+#: the doubts a line's edge model reports besides the texture beside it (the texture of a pose line is its
+#: own term; which of these is largest names the hint of an uncertain pose)
+_MODEL_REPORTED = ("far_face", "jpeg", "arris", "response")
+
+
+def _budget(
+    cell: Cell,
+    cfg: LocateConfig,
+    region: SearchRegion,
+    r: Refined,
+    model: EdgeModelTerms,
+    other_mm: float | None,
+) -> Budget:
+    """The answer's uncertainty (:func:`doorloc.vision.uncertainty.propagate`): the lines' levers from their
+    inlier points, the calibration's and the cell's terms.
+
+    ``far_votes``: whether the far arris voted on the door's direction in the joint fit (it does unless a
+    far face is beside it); its tilt then moves the yaw as the others' do. ``other_mm``: how far a far
+    face's other reading lies, where it is weighed.
+    """
+    samples, fit, pose, far_votes = r.samples, r.fit, r.pose, not r.far_beside
+    sc = pose.scale_mm_per_px
+    levers = {}
+    for k in ("reference", "bottom", "far") if far_votes else ("reference", "bottom"):
+        s = samples[k]
+        inl = (fit.weights[k] > 0) & np.isfinite(s.along)
+        corner_scan = pose.corner_px[0] if s.axis == "col" else pose.corner_px[1]
+        levers[k] = LineLever.of_points(s.scan[inl], corner_scan, sc)
+    cal_t = calibration_pose_sigma(
+        cell.posed_camera,
+        region.face_map.depth_y,
+        pose.corner_px,
+        pose.yaw_deg,
+        cell.calibration_covariance,
+        cell.calibration_covariance_names,
+        cfg.calibration_sigma_px,
+        sc,
+    )
+    camera = {"calibration": cal_t, "cell": (cfg.cell_sigma_mm, cfg.cell_sigma_mm, cfg.cell_sigma_deg)}
+    return propagate(model, fit.offset_sigma, fit.angle_sigma_rad, levers, sc, camera, other_mm)
+
+
+def _rows_across(plane, s8: float, ref: EdgeSamples, far: EdgeSamples) -> np.ndarray | None:
+    """Grey profiles (0-255) across the door between and beyond its two arrises, for the pattern check."""
+    if ref.scan.size == 0:
+        return None
+    P = oriented(plane, ref.axis)
+    a = np.concatenate([ref.along[np.isfinite(ref.along)], far.along[np.isfinite(far.along)]])
+    if a.size == 0:
+        return None
+    lo, hi = int(max(a.min() - 150, 0)), int(min(a.max() + 150, P.shape[0] - 1))
+    return P[lo : hi + 1, ref.scan[::8]].T.astype(np.float32) * s8

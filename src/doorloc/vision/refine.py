@@ -1,0 +1,318 @@
+"""The refine stage of locate: sub-pixel edge points along every scan line of each edge and the joint line
+fit, in passes (the first, on every fifth scan line, centres and sizes the final windows; beside a far face
+one more). Each edge is read by the model its kind names (:mod:`doorloc.vision.edge_models`); what the stage
+finds is a :class:`doorloc.vision.state.Refined`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from doorloc.vision import quality as q
+from doorloc.vision.arris_model import StripFit, arris_geometry
+from doorloc.vision.config import LocateConfig
+from doorloc.vision.edge_models import ARRIS_PLATEAU_PX, EDGE_MODELS, PassSettings, ScanWindow, edge_kind
+from doorloc.vision.edges import EdgeSamples, FarFaceFit, step_blur, transition_width
+from doorloc.vision.lines import RectangleFit, fit_rectangle_edges
+from doorloc.vision.metric import MetricPose, pose_from_fit
+from doorloc.vision.region import EDGE_NAMES, HUMAN, SearchRegion
+from doorloc.vision.response_check import STEP_FIT_MIN_BLUR_PX
+from doorloc.vision.sampling import linearizing_lut
+from doorloc.vision.state import Refined, Refused, StageClock
+
+__all__ = ["refine"]
+
+
+@dataclass(frozen=True)
+class _Sampled:
+    """Edge points of one pass: per line, whether a far face was beside the far arris, its fit, and the
+    lines whose points the blurred-step fit refined (name -> the blur it used, px)."""
+
+    samples: dict[str, EdgeSamples]
+    far_beside: bool
+    far_fit: FarFaceFit | None
+    step_fitted: dict[str, float]
+
+
+def _sample(
+    plane,
+    region: SearchRegion,
+    pose: MetricPose,
+    yaw_rad: float,
+    half: int,
+    cfg: LocateConfig,
+    scale8: float,
+    every: int = 1,
+    sharp: bool = False,
+    optical_blur_px: float = float("nan"),
+    response_gamma: float = 1.0,
+    step_fit: dict[str, float] | None = None,
+    arris_fits: dict[str, tuple[StripFit, float]] | None = None,
+) -> _Sampled:
+    keep = half + cfg.plateau + 4
+    lut = linearizing_lut(plane.dtype, response_gamma)
+    door = region.door
+    geoms = (
+        arris_geometry(
+            door.arris_mm,
+            door.arris_profile,
+            region.plane_map.centre,
+            pose.corner,
+            pose.yaw_deg,
+            region.face_y,
+            pose.thickness_mm,
+        )
+        if door.arris_mm > 0
+        else None
+    )
+    if geoms:
+        # Near a corner the other edge's arris strip (about the arris wide from the sharp corner) crosses
+        # the scan lines: the strip's profile fit would see two strips there and misfit. Keep its width
+        # (and the strip fit's wider plateaus) clear of the corners.
+        keep = (
+            half
+            + max(cfg.plateau, ARRIS_PLATEAU_PX)
+            + 4
+            + int(math.ceil(door.arris_mm / region.nominal_scale))
+        )
+    # An arris door's thickness measured on a first pose can be up to the strip's width short (its inner
+    # border taken for the edge): whether the far face is in view is decided at the recipe's thickness
+    # then (arris bench seed 7558: a 2.5 mm rounding, the camera 1.2 mm inside the far face's plane, seen
+    # as beside it from a pose 2.6 mm thin: the far arris lost)
+    tracks = region.tracks(
+        pose.corner,
+        yaw_rad,
+        pose.thickness_mm,
+        keep,
+        window_px=half + cfg.plateau + 2,
+        arris=geoms,
+        visibility_thickness_mm=max(pose.thickness_mm, door.thickness_mm) if geoms else None,
+    )
+    settings = PassSettings(
+        every=every,
+        sharp=sharp,
+        optical_blur_px=optical_blur_px,
+        slope_smooth=max(cfg.slope_smooth // every, 1) if cfg.slope_smooth else 0,
+        door=door,
+        arris=geoms,
+        step_blur_px=step_fit or {},
+    )
+    out, far_fit, step_fitted = {}, None, {}
+    for name in EDGE_NAMES:
+        lay, t = region.layouts[name], tracks[name]
+        window = ScanWindow(
+            plane,
+            lay.axis,
+            t.scan[::every],
+            t.centre[::every],
+            half,
+            cfg.plateau,
+            scale8,
+            lut,
+            level_smooth=max(cfg.level_smooth // every, 1) if cfg.level_smooth else 0,
+            door_side=lay.polarity * (1 if cfg.door_brighter else -1),
+        )
+        reading = EDGE_MODELS[edge_kind(name, t, settings)].read(window, name, t, settings)
+        out[name] = reading.samples
+        if reading.far_fit is not None:
+            far_fit = reading.far_fit
+        if reading.strip is not None and arris_fits is not None:
+            arris_fits[name] = reading.strip
+        if reading.step_blur_px is not None:
+            step_fitted[name] = reading.step_blur_px
+    return _Sampled(out, tracks["far"].beside_far_face, far_fit, step_fitted)
+
+
+def _fit(
+    samples: dict[str, EdgeSamples],
+    region: SearchRegion,
+    cfg: LocateConfig,
+    every: int = 1,
+    n_iter: int = 9,
+    far_offset_only: bool = False,
+) -> tuple[RectangleFit, dict]:
+    groups, init = {}, {}
+    subsets = {
+        name: samples[name].subset(np.arange(samples[name].scan.size) % every == 0)
+        if every > 1
+        else samples[name]
+        for name in EDGE_NAMES
+    }
+    # all edge points back-projected in one call (point by point: the same numbers, less overhead)
+    xz_all = region.plane_points(np.concatenate([subsets[name].uv() for name in EDGE_NAMES]))
+    first = 0
+    for name in EDGE_NAMES:
+        s = subsets[name]
+        xz = xz_all[first : first + s.scan.size]
+        first += s.scan.size
+        pol = region.layouts[name].polarity
+        if name == "far" and far_offset_only:  # beside the far face: either polarity
+            pol = int(np.sign(np.nanmedian(s.step))) or pol
+        finite = np.isfinite(xz)
+        good = s.valid & (pol * s.step >= 0.5 * cfg.min_contrast)
+        good &= finite.all(axis=1)
+        if np.count_nonzero(good) < 3:
+            raise Refused(
+                q.Refusal(
+                    "edge_missing",
+                    f"the {HUMAN[name]} was not found (no clean step of the expected "
+                    "polarity); check that the door lies in the fixture and nothing covers that edge",
+                )
+            )
+        groups[name] = (np.where(finite, xz, 0.0), region.layouts[name].along_x)
+        init[name] = good.astype(float)
+    try:
+        fit = fit_rectangle_edges(
+            groups,
+            scale_floor=1e-4,
+            init_weights=init,
+            n_iter=n_iter,
+            offset_only=("far",) if far_offset_only else (),
+        )
+    except ValueError as e:  # a line lost all its points to the robust weights
+        raise Refused(
+            q.Refusal(
+                "edge_missing",
+                f"the door's edges do not fit a rectangle ({e}); check that the "
+                "door lies in the fixture and nothing covers its edges",
+            )
+        ) from None
+    return fit, init
+
+
+@dataclass(frozen=True)
+class _Profiles:
+    samples: EdgeSamples
+    mask: np.ndarray
+    lut: np.ndarray | None
+
+
+def refine(
+    plane,
+    s8: float,
+    region: SearchRegion,
+    pose: MetricPose,
+    cfg: LocateConfig,
+    clock: StageClock,
+    response_gamma: float = 1.0,
+) -> Refined:
+    """The refine stage: sub-pixel edge points and the joint line fit, in passes (module docstring).
+
+    ``response_gamma`` is the camera's (``camera.response_gamma`` in the cell file): grey levels are turned
+    back into light before the sub-pixel estimate, which needs them proportional.
+    """
+    # each pass's arris strip fits, per line (a line's last fit stands where a later pass found none)
+    arris_fits: dict[str, tuple[StripFit, float]] = {}
+    half = cfg.half_window_max
+    blur = float("nan")
+    optical_blur = float("nan")
+    step_fit: dict[str, float] = {}
+    ref0: _Profiles | None = None  # the reference arris's first-pass profiles (for the blur)
+    n_pass = 2
+    _pass = 0
+    while _pass < n_pass:
+        # The first pass, on every fifth scan line, only centres and sizes the final windows.
+        sampled = _sample(
+            plane,
+            region,
+            pose,
+            math.radians(pose.yaw_deg),
+            half,
+            cfg,
+            s8,
+            every=5 if _pass == 0 else 1,
+            sharp=_pass > 0 and blur < 0.6,
+            optical_blur_px=optical_blur,
+            response_gamma=response_gamma,
+            step_fit=step_fit if _pass > 0 else {},
+            arris_fits=arris_fits,
+        )
+        samples, far_beside, far_fit = sampled.samples, sampled.far_beside, sampled.far_fit
+        if far_beside and _pass >= 1 and not np.isfinite(optical_blur) and ref0 is not None:
+            # The far face came into view after the first pass: measure the blur and look again.
+            optical_blur = _optical_blur(plane, ref0, cfg, blur, arris_fits)
+            n_pass = max(n_pass, _pass + 2)
+        elif far_beside and _pass == 1:
+            # The far face's band width follows from the thickness being measured: one more round.
+            n_pass = 3
+        clock.lap(f"edges{min(_pass + 1, 2)}")
+        fit, _ = _fit(samples, region, cfg, n_iter=6 if _pass == 0 else 9, far_offset_only=far_beside)
+        pose = pose_from_fit(fit, region.face_map)
+        clock.lap(f"fit{min(_pass + 1, 2)}")
+        if _pass == 0:
+            # Size the final window to the measured blur: wide enough for the transition, no wider (noise).
+            # (on the bottom end and the reference arris: beside the far arris a far face or an arris
+            # strip can make two steps that look like blur)
+            lut = linearizing_lut(plane.dtype, response_gamma)
+            widths = [
+                transition_width(plane, samples[k], fit.weights[k] > 0, half, lut)
+                for k in ("bottom", "reference")
+            ]
+            # np.nanmax of the pair when one is finite, without numpy
+            blur = (
+                float(max(w for w in widths if not math.isnan(w)))
+                if any(math.isfinite(w) for w in widths)
+                else float(cfg.half_window_max)
+            )
+            step_fit = _step_fit_lines(cfg, dict(zip(("bottom", "reference"), widths, strict=True)))
+            half = min(
+                max(math.ceil(cfg.window_blur_factor * blur + 1.0), cfg.half_window_min), cfg.half_window_max
+            )
+            ref0 = _Profiles(samples["reference"], fit.weights["reference"] > 0, lut)
+            if far_beside:
+                # The far arris model needs the optical blur alone: measured on the reference arris.
+                optical_blur = _optical_blur(plane, ref0, cfg, blur, arris_fits)
+        _pass += 1
+    return Refined(samples, fit, pose, blur, half, far_beside, far_fit, sampled.step_fitted, arris_fits)
+
+
+def _optical_blur(
+    plane,
+    ref: _Profiles,
+    cfg: LocateConfig,
+    transition_px: float,
+    arris_fits: dict[str, tuple[StripFit, float]] | None,
+) -> float:
+    """The optical blur (Gaussian sigma, px) that the far-face model needs, from the reference arris.
+
+    On a plain reference arris the step's own blur (:func:`doorloc.vision.edges.step_blur`). Where the
+    reference arris has a chamfered or rounded strip, its profile is background | strip | face: a step
+    blur fit would take the strip's width for blur (3.5 px on the effects fixtures' 1.5 mm chamfer for an
+    optical blur of 0.8 px; the far-face fit then lost every scan line and the frame was refused), so
+    the blur that the strip's shading fit found with the strip modelled is used instead.
+    """
+    if arris_fits and "reference" in arris_fits:
+        b = float(arris_fits["reference"][0].blur_px)
+        if math.isfinite(b) and b > 0:
+            return b
+    return step_blur(
+        plane,
+        ref.samples,
+        ref.mask,
+        cfg.half_window_max,
+        cfg.plateau,
+        ref.lut,
+        blur_px=math.sqrt(max(transition_px * transition_px - 1.0 / 12.0, 0.04)),
+    )
+
+
+def _step_fit_lines(cfg: LocateConfig, widths: dict[str, float]) -> dict[str, float]:
+    """The lines the final pass refines by the blurred-step fit, with the optical blur (px) it uses.
+
+    The blur is the same on every edge; an edge whose transition looks wider than the narrowest carries a
+    second structure (an end face seen nearly edge-on, a strip) that the step model lacks, while the area
+    estimator is exact whatever the shape: only edges within 25 % of the narrowest width are fitted, with
+    that width's blur. Below ``STEP_FIT_MIN_BLUR_PX`` none is: the area estimator is exact there and its
+    window small (little texture in it), while the step model's shape depends on the pixel phase.
+    """
+    ok = {k: w for k, w in widths.items() if math.isfinite(w)}
+    if not cfg.step_fit or not ok:
+        return {}
+    narrow = min(ok.values())
+    optical = math.sqrt(max(narrow * narrow - 1.0 / 12.0, 0.0))
+    if optical < STEP_FIT_MIN_BLUR_PX:
+        return {}
+    return {k: optical for k, w in ok.items() if w <= 1.25 * narrow}

@@ -1,0 +1,217 @@
+"""The response check stage of locate: the camera's response read off the plain edges of the image, and
+where it differs from the cell's, the edges refined again with the image's own exponent (absorbed) and read
+once more (:func:`check_response`). What it finds is a :class:`doorloc.vision.state.ResponseCheck`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+
+from doorloc.cell import Cell
+from doorloc.vision.arris_model import StripFit
+from doorloc.vision.config import LocateConfig
+from doorloc.vision.edges import EdgeSamples, texture_bias
+from doorloc.vision.lines import RectangleFit
+from doorloc.vision.metric import MetricPose
+from doorloc.vision.region import EDGE_NAMES
+from doorloc.vision.response import (
+    RESPONSE_ONE_PHASE_MIN_BLUR_PX,
+    LineResponse,
+    ResponseFit,
+    at_one_phase,
+    combine_responses,
+    edge_shifts_px,
+    fit_line_response,
+)
+from doorloc.vision.sampling import linearizing_lut
+from doorloc.vision.state import Refined, ResponseCheck
+
+__all__ = [
+    "STEP_FIT_MIN_BLUR_PX",
+    "PLAIN_STRIP_PX",
+    "blur_without_pixel",
+    "check_response",
+    "measure_response",
+    "response_check_applies",
+]
+
+
+#: the final pass fits a blurred step (LocateConfig.step_fit) only above this optical blur, px
+STEP_FIT_MIN_BLUR_PX = 0.5
+
+
+#: an arris strip narrower than this, px, is a plain step to the camera response's check (a chamfer of a few
+#: thousandths of a millimetre, a twentieth of a pixel: its lines are plain edges, on which the response is
+#: measured; as arris lines the unmeasured response's doubt put 0.19 mm on an answer 0.001 mm off)
+PLAIN_STRIP_PX = 0.1
+
+
+def check_response(
+    plane: np.ndarray,
+    cell: Cell,
+    cfg: LocateConfig,
+    refined: Refined,
+    refine_again: Callable[[MetricPose, float], Refined],
+) -> ResponseCheck:
+    """The response check stage: the camera response read off the plain edges, and where it differs from
+    the cell's, the edges refined again with it (the absorb-and-rerun, ``refine_again(pose, gamma)``: the
+    refine stage from ``pose`` with the camera exponent ``gamma``) and read once more."""
+    used_cell = cell
+    response, per_line = measure_response(plane, refined, cell, cfg)
+    response_diag: dict[str, Any] = {"cell_gamma": cell.response_gamma, "absorbed": False}
+    unstable: float | None = None
+    if cell.response_gamma_sigma is not None:
+        response_diag["cell_sigma"] = cell.response_gamma_sigma
+    if response is not None and response.absorb:
+        # The plain edges show another camera response than the cell's: measure again with theirs (the
+        # bias a wrong response gives every edge, arris strips included, is then gone), and check again.
+        response_diag.update(absorbed=True, first_fit=round(response.gamma, 4))
+        first = refined
+        used_cell = replace(cell, response_gamma=response.gamma, response_gamma_sigma=None)
+        refined = refine_again(refined.pose, response.gamma)
+        again = measure_response(plane, refined, used_cell, cfg)
+        if again[0] is not None and again[0].absorb:
+            # Read again with the absorbed exponent in use, the edges show yet another one: their reading
+            # depends on where the edges were placed, so it is no measurement of the camera (seen: a lens
+            # distortion the cell models only in part, k1 0.17 for 0.20; 2.68 read with the cell's 1.0,
+            # then 1.02 read with 2.68, and the answer refused for a 0.1 mm response doubt). The cell's
+            # exponent stands, unchecked.
+            unstable = round(again[0].gamma, 4)
+            refined = first
+            used_cell, response = cell, None
+            response_diag.update(absorbed=False, second_fit=unstable)
+        elif again[0] is not None:
+            response, per_line = again
+    response_diag["checked"] = response is not None
+    # whose exponent the answer rests on: the cell's (measured or stated) or this image's own
+    response_diag["used"] = "image" if response_diag["absorbed"] else "cell"
+    if response is None:
+        response_diag["unchecked_because"] = (
+            _response_unchecked_because(refined.samples, refined.fit, refined.blur_px, refined.arris_fits)
+            if unstable is None
+            else f"the edges read {response_diag['first_fit']} with the cell's exponent in use and {unstable} "
+            "with that one: a reading that follows the edges' placement, not the camera's response"
+        )
+    if response is not None:
+        response_diag.update(
+            fitted=round(response.gamma, 4),
+            sigma=round(response.sigma, 4),
+            lines={
+                k: {"gamma": round(v.gamma, 4), "sigma": round(v.sigma, 4), "skew_px": round(v.skew_px, 4)}
+                | ({"one_phase": True} if v.one_phase else {})
+                | ({"alternatives": [round(a, 4) for a in v.alternatives]} if v.alternatives else {})
+                for k, v in per_line.items()
+            },
+        )
+        if response.alternatives:
+            response_diag["alternatives"] = list(response.alternatives)
+    return ResponseCheck(refined, used_cell, response, bool(response_diag["absorbed"]), response_diag)
+
+
+def response_check_applies(samples: EdgeSamples, inliers: np.ndarray, blur_px: float) -> bool:
+    """Whether the mean transition's asymmetry can be read on this line.
+
+    The check averages the profiles on a fine grid aligned on the sub-pixel edge: that mean shows the
+    response's asymmetry where the line's edge points fall at many pixel phases and the edge is blurred
+    over more than half a pixel. (A sharp step integrated over the pixel is a one-pixel ramp, straight
+    in linear light and bent by a wrong exponent, and reads too: a 1.6 camera in a cell of 1.0 read 1.61
+    +- 0.10, a linear one in a cell of 2.2 1.01 +- 0.12; but at ~9 ms a line it made the sharp grid set's
+    frames 2.3 times slower. Such a line takes the cell's exponent within
+    ``LocateConfig.response_unmeasured_factor`` instead, :mod:`doorloc.vision.doubts`: 0.028 mm on
+    the sharp grid fixtures.) An edge along a pixel row or column puts all of them at one phase; its
+    transition is read between the pixels by interpolation, which needs a blur of
+    ``RESPONSE_ONE_PHASE_MIN_BLUR_PX`` (unread and without a doubt, doors square to the camera in a cell
+    whose exponent was not the camera's had been answered 5-7 sigma off).
+    """
+    if not blur_px >= STEP_FIT_MIN_BLUR_PX:  # (the phases need not be counted then)
+        return False
+    return _at_many_phases(samples, inliers) or blur_px >= RESPONSE_ONE_PHASE_MIN_BLUR_PX
+
+
+def _at_many_phases(samples: EdgeSamples, inliers: np.ndarray) -> bool:
+    """Whether the line's edge points fall in every quarter of a pixel (not along a pixel row or column)."""
+    along = samples.along[inliers & samples.valid]
+    return bool(along.size) and not at_one_phase(along)
+
+
+def blur_without_pixel(transition_px: float) -> float:
+    """The optical blur (Gaussian sigma, px) in a transition's RMS width: the pixel's own 1/12 px^2 taken out
+    (0 where the width is unknown)."""
+    return (
+        math.sqrt(max(transition_px * transition_px - 1.0 / 12.0, 0.0))
+        if math.isfinite(transition_px)
+        else 0.0
+    )
+
+
+def _plain_response_lines(arris_fits: dict[str, tuple[StripFit, float]] | None) -> list[str]:
+    """The lines the camera response is read on: the bottom end and the reference arris unless an arris strip
+    lies along them (not the far arris: a far face seen edge-on can make a narrow band beside it)."""
+    return [
+        k
+        for k in EDGE_NAMES
+        if k != "far" and not (arris_fits and k in arris_fits and arris_fits[k][1] > PLAIN_STRIP_PX)
+    ]
+
+
+def _response_unchecked_because(
+    samples: dict[str, EdgeSamples],
+    fit: RectangleFit,
+    transition_px: float,
+    arris_fits: dict[str, tuple[StripFit, float]] | None,
+) -> str:
+    """Why no edge of this image could show the camera response (``diagnostics.camera_response``): the
+    pose then rests on the cell's ``response_gamma`` within ``locate.response_unmeasured_factor``, which a
+    user should know."""
+    plain = _plain_response_lines(arris_fits)
+    if not plain:
+        return "every edge is an arris strip, whose shading takes up the response"
+    if not blur_without_pixel(transition_px) >= STEP_FIT_MIN_BLUR_PX:
+        return "the edges are sharper than half a pixel: their transition is not read"
+    if not any(_at_many_phases(samples[k], fit.weights[k] > 0) for k in plain):
+        return (
+            "the plain edges lie along pixel rows or columns (a door square to the camera): one pixel phase, "
+            f"where only a transition blurred by {RESPONSE_ONE_PHASE_MIN_BLUR_PX:g} px or more can be read "
+            "between the pixels"
+        )
+    return "the plain edges' transitions were too noisy or too few to read"
+
+
+def measure_response(
+    plane, refined: Refined, cell: Cell, cfg: LocateConfig
+) -> tuple[ResponseFit | None, dict[str, LineResponse]]:
+    """The camera response measured on the plain edges (:func:`doorloc.vision.response.fit_line_response`).
+
+    Plain: the bottom end and the reference arris without an arris strip, at many pixel phases and blurred
+    (:func:`response_check_applies`). None where no edge qualifies.
+    """
+    samples, fit, half, arris_fits = refined.samples, refined.fit, refined.half, refined.arris_fits
+    blur_px = blur_without_pixel(refined.blur_px)
+    per_line: dict[str, LineResponse] = {}
+    for k in _plain_response_lines(arris_fits):
+        inl = fit.weights[k] > 0
+        if not response_check_applies(samples[k], inl, blur_px):
+            continue
+        lr = fit_line_response(plane, samples[k], inl, half, cell.response_gamma, blur_px)
+        if lr is None:
+            continue
+        # Texture beside the edge (grain along it) skews the transition the same way on every scan line,
+        # which the block scatter does not see: the edge bias it can make (the texture term) read as an
+        # exponent error through the step model's sensitivity, in quadrature.
+        tex = texture_bias(
+            plane, samples[k], inl, half, cfg.plateau, linearizing_lut(plane.dtype, cell.response_gamma)
+        ).offset_sigma_px
+        dg = 0.05 * lr.gamma
+        up, down = edge_shifts_px(
+            lr.lo, lr.hi, np.array([lr.gamma + dg, lr.gamma - dg]), lr.gamma, blur_px, half
+        )
+        slope = abs(float(up) - float(down)) / (2 * dg)
+        if math.isfinite(tex) and tex > 0 and slope > 0:
+            lr = replace(lr, sigma=math.hypot(lr.sigma, tex / slope))
+        per_line[k] = lr
+    return combine_responses(per_line, cell.response_gamma, cell.response_gamma_sigma or 0.0), per_line

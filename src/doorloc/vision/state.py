@@ -1,0 +1,97 @@
+"""The typed state that locate's stages pass on: each a frozen value, made by one stage and read by the next.
+
+:class:`Refined` (the refine stage's edge points, fit and pose) -> :class:`ResponseCheck` (the response check:
+the refined state the answer rests on, the camera response read off the image) -> the doubts stage and the gate.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any
+
+from doorloc.cell import Cell
+from doorloc.vision import quality as q
+from doorloc.vision.arris_model import StripFit
+from doorloc.vision.edges import EdgeSamples, FarFaceFit
+from doorloc.vision.lines import RectangleFit
+from doorloc.vision.metric import MetricPose
+from doorloc.vision.response import (
+    ResponseFit,
+)
+
+__all__ = ["Refined", "Refused", "ResponseCheck", "StageClock"]
+
+
+@dataclass(frozen=True)
+class Refined:
+    """What the refine stage found: the sub-pixel edge points, their joint fit and the pose from it.
+
+    Attributes
+    ----------
+    samples : dict[str, EdgeSamples]
+        Edge points per line (``"bottom"``, ``"reference"``, ``"far"``).
+    fit : RectangleFit
+        The joint line fit.
+    pose : MetricPose
+        The pose from it.
+    blur_px : float
+        The transition width measured in the first pass, px (its optical blur: :func:`blur_without_pixel`).
+    half : int
+        The final windows' half width, px.
+    far_beside : bool
+        Whether a far face was seen beside the far arris (the far line then measures only the thickness).
+    far_fit : FarFaceFit or None
+        The far-face model's fit, where it ran.
+    step_fitted : dict[str, float]
+        The lines whose points the blurred-step fit refined, and the blur it used, px.
+    arris_fits : dict[str, tuple[StripFit, float]]
+        Per line with an arris strip, its profile fit and the strip's width, px (read only).
+    """
+
+    samples: dict[str, EdgeSamples]
+    fit: RectangleFit
+    pose: MetricPose
+    blur_px: float
+    half: int
+    far_beside: bool
+    far_fit: FarFaceFit | None
+    step_fitted: dict[str, float]
+    arris_fits: dict[str, tuple[StripFit, float]]
+
+
+@dataclass(frozen=True)
+class ResponseCheck:
+    """What the response check stage found: the refined edges the answer rests on (read again with this
+    image's camera exponent where it showed another than the cell's), the cell as used, the image's
+    reading of the camera response (None where unchecked), per line, and its diagnostics."""
+
+    refined: Refined
+    cell: Cell
+    response: ResponseFit | None
+    absorbed: bool
+    diagnostics: dict[str, Any]
+
+
+class Refused(Exception):
+    """A stage's refusal of the image (:class:`doorloc.vision.quality.Refusal`) with its diagnostics: what
+    locate answers with where a stage cannot go on."""
+
+    def __init__(self, refusal: q.Refusal, **diag) -> None:
+        super().__init__(refusal.message)
+        self.refusal = refusal
+        self.diag = diag
+
+
+class StageClock:
+    """Stage timings (ms) for the diagnostics; a stage run twice (the third pass of the fine stage, when a
+    far face is in view, runs as ``edges2`` / ``fit2`` again) counts both runs."""
+
+    def __init__(self) -> None:
+        self.t = time.perf_counter()
+        self.laps: dict[str, float] = {}
+
+    def lap(self, name: str) -> None:
+        t = time.perf_counter()
+        self.laps[name] = round(self.laps.get(name, 0.0) + (t - self.t) * 1e3, 3)
+        self.t = t
