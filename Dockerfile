@@ -20,7 +20,7 @@ COPY pyproject.toml README.md ./
 COPY src src/
 RUN scripts/install-venv "$VIRTUAL_ENV" requirements/lock-service-py311.txt
 # locate's numba kernels, compiled into the image (the service would otherwise compile them at every start)
-RUN NUMBA_CACHE_DIR="$VIRTUAL_ENV/numba-cache" "$VIRTUAL_ENV/bin/python" -m doorloc.vision.jit
+RUN NUMBA_CACHE_DIR="$VIRTUAL_ENV/numba-cache" "$VIRTUAL_ENV/bin/python" -m doorloc.vision.warmup
 
 # --- runtime: the virtual environment only, a non-root user, a health check ---
 FROM python:3.11-slim-bookworm

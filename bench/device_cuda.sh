@@ -18,7 +18,7 @@ OUT=${OUT:-/tmp/doorloc-device}; mkdir -p "$OUT"
   fi
   export PYTHONPATH=${PYTHONPATH:+$PYTHONPATH:}$PWD/src OMP_NUM_THREADS=1 PYTHONUNBUFFERED=1
   python3 -c "import cv2, numpy, numba, torch; print('cv2', cv2.__version__, 'numpy', numpy.__version__, 'numba', numba.__version__, 'torch', torch.__version__, torch.cuda.is_available())"
-  python3 -m doorloc.vision.jit  # compile locate's kernels once, before anything is timed
+  python3 -m doorloc.vision.warmup  # compile locate's kernels once, before anything is timed
   timeout "${TEST_TIMEOUT:-200}" python3 -m pytest -q -p no:cacheprovider tests/vision/test_batched.py -rs
   if [ -n "${BEFORE:-}" ]; then
     timeout "${SPEED_TIMEOUT:-240}" python3 bench/bench_speed.py --before "$BEFORE" --rounds "${ROUNDS:-3}" \

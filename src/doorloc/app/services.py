@@ -99,11 +99,11 @@ def default_locate_fn() -> LocateFn:
     first locate's time is its own and not the kernels'. A compile (the first run on a machine: minutes) is
     announced once, with its duration, on the ``doorloc.app`` logger.
     """
-    from doorloc.vision.jit import compile_kernels
     from doorloc.vision.locate import locate
+    from doorloc.vision.warmup import compile_locate_kernels
 
     t0 = time.perf_counter()
-    n = compile_kernels()
+    n = compile_locate_kernels()
     seconds = time.perf_counter() - t0
     if seconds > COMPILE_NOTICE_S:  # compiled, not loaded: say once why this first answer waited
         logging.getLogger("doorloc.app").warning(

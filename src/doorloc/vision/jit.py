@@ -222,11 +222,3 @@ def compile_kernels() -> int:
             warm_up(k)
     return len(_KERNELS)
 
-
-if __name__ == "__main__":
-    # ``python -m doorloc.vision.jit``, the command the setup script and the container image have run: the
-    # warm-up itself lives above locate (doorloc.vision.warmup), so that this library imports none of the
-    # modules that import it; run by name, it is a command, not an import
-    import runpy
-
-    runpy.run_module("doorloc.vision.warmup", run_name="__main__", alter_sys=True)
