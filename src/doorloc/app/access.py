@@ -13,8 +13,11 @@ comparing the two hashes with :func:`hmac.compare_digest`. Deriving costs ~10-50
 :class:`KeyStore` remembers which presented secrets it has already verified (a SHA-256 of them, compared
 in constant time too); revocation is still seen at once because the row is read on every request.
 
-With no key in the database the service is open (loopback development use); ``doorloc serve`` refuses
-to listen on a non-loopback address in that state unless it is given ``--insecure``.
+A service demands a key for every ``/v1`` request and ``/metrics``. Only ``doorloc serve --open`` on a
+loopback address, with no key in the database, answers without one (development use); once it has seen a
+key it stays closed, even when every key is revoked. An unknown key id costs the same scrypt derivation as
+a wrong secret for a known one, and each client address may send only so many wrong keys a minute
+(:class:`FailureBudget`).
 
 Examples
 --------
@@ -56,6 +59,8 @@ __all__ = [
     "role_allows",
     "LEGACY_KEY_NAME",
     "ANY_ACTIVE_TTL_S",
+    "FailureBudget",
+    "is_loopback",
 ]
 
 #: scrypt cost: 2**14 x 8 x 128 B = 16 MiB and ~10-50 ms per derivation (the interactive-login setting of RFC 7914)
@@ -126,6 +131,10 @@ class KeyInfo:
 
 def _derive(secret: str, salt: bytes) -> bytes:
     return hashlib.scrypt(secret.encode(), salt=salt, **_SCRYPT)
+
+
+_DUMMY_SALT = bytes(16)
+_DUMMY_HASH = bytes(32)
 
 
 class KeyStore:
@@ -206,10 +215,11 @@ class KeyStore:
                 self._verified.pop(i, None)
         return ids
 
-    def any_active(self, max_age_s: float = 0.0) -> bool:
+    def any_active(self, max_age_s: float = 0.0, remember: bool = True) -> bool:
         """True when at least one key is not revoked (the service then demands a key).
 
-        ``max_age_s`` > 0 accepts an answer read that recently (the service asks on every keyless request).
+        ``max_age_s`` > 0 accepts an answer read that recently (the service asks on every keyless request);
+        ``remember=False`` reads the database without keeping the answer for later calls.
         """
         now = time.monotonic()
         known = self.cached_any_active(max_age_s)
@@ -219,7 +229,8 @@ class KeyStore:
             answer = (
                 conn.scalar(select(ApiKeyRow.id).where(ApiKeyRow.revoked_at.is_(None)).limit(1)) is not None
             )
-        self._any_active = (now, answer)
+        if remember:
+            self._any_active = (now, answer)
         return answer
 
     def cached_any_active(self, max_age_s: float) -> bool | None:
@@ -242,6 +253,9 @@ class KeyStore:
                 )
             ).one_or_none()
         if row is None:
+            # derive anyway, from a dummy salt: an unknown id then costs what a known one with a wrong secret
+            # does, so the answer's timing does not say which key ids exist
+            hmac.compare_digest(_derive(presented, _DUMMY_SALT), _DUMMY_HASH)
             return None
         fingerprint = hashlib.sha256(presented.encode()).digest()
         with self._lock:
@@ -255,3 +269,60 @@ class KeyStore:
                 self._verified.pop(next(iter(self._verified)))
             self._verified[key_id] = fingerprint
         return Principal(row.name, Role(row.role), key_id)
+
+
+class FailureBudget:
+    """Wrong keys each client address may send per minute (a sliding window), so guessing keys is slow.
+
+    Bounded memory: at most ``max_clients`` addresses are remembered (the oldest forgotten first). Not
+    thread-safe; the service calls it from its event loop only.
+
+    Examples
+    --------
+    >>> b = FailureBudget(2, clock=lambda: 100.0)
+    >>> b.record("10.0.0.9"); b.record("10.0.0.9"); b.retry_after("10.0.0.9")
+    60
+    >>> b.retry_after("10.0.0.7") is None
+    True
+    """
+
+    def __init__(self, per_minute: int, max_clients: int = 4096, clock=time.monotonic) -> None:  # noqa: ANN001
+        self.per_minute = per_minute
+        self.max_clients = max_clients
+        self._clock = clock
+        self._failures: dict[str, list[float]] = {}
+
+    def _recent(self, client: str) -> list[float]:
+        now = self._clock()
+        times = [t for t in self._failures.get(client, ()) if now - t < 60.0]
+        if times:
+            self._failures[client] = times
+        else:
+            self._failures.pop(client, None)
+        return times
+
+    def retry_after(self, client: str) -> int | None:
+        """Seconds until ``client`` may try a key again, or None when it is within its budget."""
+        times = self._recent(client)
+        if len(times) < self.per_minute:
+            return None
+        return max(1, int(60.0 - (self._clock() - times[-self.per_minute])) + 1)
+
+    def record(self, client: str) -> None:
+        """Count one wrong key from ``client``."""
+        times = self._recent(client)
+        if not times and len(self._failures) >= self.max_clients:
+            self._failures.pop(next(iter(self._failures)))
+        self._failures[client] = [*times, self._clock()][-self.per_minute :]
+
+
+def is_loopback(host: str) -> bool:
+    """True for addresses only this machine can reach (127.0.0.0/8, ::1, 'localhost')."""
+    import ipaddress
+
+    if host.lower() == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:  # a host name other than localhost may resolve to anything
+        return False

@@ -19,11 +19,12 @@ from pydantic import Field
 
 from doorloc.app.access import Role
 from doorloc.app.answer import DoorChoice, answer_image, door_from_fields, overlay_png
+from doorloc.app.http.admission import client_of, decode_upload, release_cpu_slot, take_cpu_slot
 from doorloc.app.http.dependencies import call_store, ready_state, require_role
 from doorloc.app.http.problems import ProblemError, problem_responses
 from doorloc.app.http.schemas import LocateResponse
 from doorloc.app.http.state import ServiceState
-from doorloc.app.imagesniff import decode_limit_problem, sniff_image
+from doorloc.app.imagesniff import decode_limit_code, decode_limit_problem, sniff_image
 from doorloc.recipes.models import DOOR_ID_PATTERN
 
 __all__ = ["router"]
@@ -87,14 +88,15 @@ async def post_locate(
     try:
         _check_upload(data, name, state)
         choice = await _door_choice(state, door_id, width_mm, thickness_mm, height_mm, arris_mm)
-        await _cpu_slot(state, request.scope.get("state", {}).get("deadline"))
+        deadline = request.scope.get("state", {}).get("deadline")
+        client = client_of(request.scope.get("state", {}))
+        await take_cpu_slot(state, deadline, client)
         try:
             fields, cpu_ms = await anyio.to_thread.run_sync(
-                _measure, data, name, state, choice, overlay, rapid
+                _measure, data, name, state, choice, overlay, rapid, deadline
             )
         finally:
-            state.limiter.release()
-            state.admitted -= 1
+            release_cpu_slot(state, client)
     except ProblemError as e:
         state.metrics.rejected_uploads.labels(e.code).inc()
         raise
@@ -124,38 +126,6 @@ async def post_locate(
     return fields
 
 
-async def _cpu_slot(state: ServiceState, deadline: float | None) -> None:
-    """Take a place in the worker's bounded queue and wait for a CPU slot until the request's deadline.
-
-    503 Retry-After at once when the queue is full, or when no slot came free by the deadline. On return
-    the caller holds a limiter token and a queue place (``state.admitted``) and must release both.
-    """
-    if state.overloaded:
-        raise ProblemError(
-            503,
-            "overloaded",
-            f"This worker is already measuring or queueing {state.admitted} images (its limit); retry after the "
-            "number of seconds in Retry-After.",
-            headers={"Retry-After": "2"},
-        )
-    left = (deadline - time.monotonic()) if deadline is not None else state.settings.request_deadline_s
-    state.admitted += 1
-    try:
-        with anyio.fail_after(max(left, 0.001)):
-            await state.limiter.acquire()
-    except BaseException as e:  # timed out, or the client went away: give the queue place back
-        state.admitted -= 1
-        if not isinstance(e, TimeoutError):
-            raise
-        raise ProblemError(
-            503,
-            "overloaded",
-            f"No CPU slot came free within the request deadline ({state.settings.request_deadline_s:g} s): this "
-            "worker is overloaded; retry after the number of seconds in Retry-After.",
-            headers={"Retry-After": "5"},
-        ) from None
-
-
 def _check_upload(data: bytes, name: str, state: ServiceState) -> None:
     if not data:
         raise ProblemError(
@@ -176,12 +146,18 @@ def _check_upload(data: bytes, name: str, state: ServiceState) -> None:
             f"The {header.kind.upper()} header of '{name}' is cut short or malformed, so its size cannot be read; "
             "the file is probably truncated: send it again.",
         )
-    problem = decode_limit_problem(header, name, state.settings.max_pixels, state.settings.max_decoded_bytes)
+    problem = decode_limit_problem(
+        header,
+        name,
+        state.settings.max_pixels,
+        state.settings.max_decoded_bytes,
+        state.settings.max_jpeg_scans,
+    )
     if problem is not None:
         cam_w, cam_h = state.cell.camera.image_size if state.cell else ("?", "?")
         raise ProblemError(
             422,
-            "too_many_pixels",
+            decode_limit_code(header, state.settings.max_pixels, state.settings.max_decoded_bytes),
             f"{problem[0].upper()}{problem[1:]}; send the camera's own image ({cam_w}x{cam_h}).",
         )
 
@@ -222,21 +198,21 @@ async def _door_choice(
 
 
 def _measure(
-    data: bytes, name: str, state: ServiceState, choice: DoorChoice, overlay: bool, rapid: bool
+    data: bytes,
+    name: str,
+    state: ServiceState,
+    choice: DoorChoice,
+    overlay: bool,
+    rapid: bool,
+    deadline: float | None = None,
 ) -> tuple[dict, dict[str, float]]:
-    """The answer's fields, and the thread CPU ms of decoding and of measuring (``decode``, ``locate``)."""
-    from doorloc.vision.imageio import ImageDecodeError, decode_image
+    """The answer's fields, and the thread CPU ms of decoding and of measuring (``decode``, ``locate``).
 
+    (Decoding runs in a limited decoding process: ``decode`` is then this thread's share, the hand-over.)
+    """
     assert state.cell is not None  # the route depends on ready_state
     t0 = time.thread_time()
-    try:
-        image = decode_image(data, name=name)
-    except ImageDecodeError as e:
-        raise ProblemError(
-            422,
-            "undecodable_image",
-            f"The image could not be decoded ({e}); the file is probably damaged or truncated: send it again.",
-        ) from None
+    image = decode_upload(state, data, name, deadline)
     t1 = time.thread_time()
     trace = None
     if overlay:
@@ -246,6 +222,11 @@ def _measure(
     answer = answer_image(
         image, state.cell, choice, image_name=name, locate_fn=state.locate_fn, rapid=rapid, trace=trace
     )
-    if overlay:
+    # drawn only for an answered image of a sane size: a refused 7.2 MB JPEG once made a 97 MB answer
+    if (
+        overlay
+        and answer.fields.get("ok")
+        and image.shape[0] * image.shape[1] <= state.settings.overlay_max_pixels
+    ):
         answer.fields["overlay_png"] = overlay_png(image, answer.result, state.cell, choice.door, trace)
     return answer.fields, {"decode": (t1 - t0) * 1e3, "locate": (time.thread_time() - t1) * 1e3}

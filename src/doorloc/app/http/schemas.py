@@ -43,7 +43,9 @@ class LocateResponse(LocateResult):
     targets_note: str | None = Field(None, description="why targets is empty, else null")
     rapid: str | None = Field(None, description="with ?rapid=true: the targets as RAPID-readable text")
     overlay_png: str | None = Field(
-        None, description="with ?overlay=true: the overlay image, base64-encoded PNG"
+        None,
+        description="with ?overlay=true: the overlay image, base64-encoded PNG (only for an answered image "
+        "of at most DOORLOC_OVERLAY_MAX_PIXELS)",
     )
     reach: ReachReport | None = Field(
         None,
@@ -74,6 +76,10 @@ class Health(BaseModel):
 
 class Readiness(BaseModel):
     status: str = Field(description="'ready' when the cell and calibration are loaded")
+    access: str = Field(
+        "keys",
+        description="'keys': every /v1 request needs an API key; 'open': none needed (loopback development)",
+    )
     cell_id: str | None = None
     calibration_id: str | None = None
 
