@@ -208,3 +208,15 @@ def test_failure_budget_counts_a_sliding_minute():
     assert 1 <= b.retry_after("a") <= 31
     now[0] = 60.5
     assert b.retry_after("a") is None
+
+
+def test_a_verified_key_still_passes_when_its_address_is_over_budget(make_client, keys):
+    """Guessing from one address (a NAT, a proxy) must not lock out the valid keys used from it."""
+    c = make_client(auth_failures_per_minute=2)
+    k = keys.create("panel", Role.operator)
+    assert c.get("/v1/doors", headers=_h(k)).status_code == 200  # verified once
+    wrong = {"X-API-Key": "dlk_000000000000_" + "A" * 43}
+    assert [c.get("/v1/doors", headers=wrong).status_code for _ in range(3)] == [401, 401, 429]
+    assert c.get("/v1/doors", headers=_h(k)).status_code == 200
+    other = keys.create("never used", Role.operator)  # not verified yet: refused until the budget recovers
+    assert c.get("/v1/doors", headers=_h(other)).status_code == 429

@@ -67,6 +67,8 @@ __all__ = [
 _SCRYPT = {"n": 2**14, "r": 8, "p": 1, "dklen": 32, "maxmem": 64 * 1024 * 1024}
 _KEY_FORMAT = re.compile(r"^dlk_([0-9a-f]{12})_([A-Za-z0-9_-]{20,100})$")
 _NAME_FORMAT = re.compile(r"^[A-Za-z0-9][A-Za-z0-9 ._:@/-]{0,63}$")
+#: scrypt derivations one KeyStore runs at once (memory: this x 16 MiB)
+_PARALLEL_DERIVATIONS = 2
 #: verified secrets remembered per KeyStore (bounded: a flood of distinct keys cannot grow memory)
 _CACHE_SIZE = 1024
 #: how long "are there any keys at all?" is remembered: an open (keyless) service starts demanding keys at most
@@ -151,6 +153,8 @@ class KeyStore:
         self._verified: dict[str, bytes] = {}
         self._lock = threading.Lock()
         self._any_active: tuple[float, bool] | None = None  # (monotonic time, answer)
+        # scrypt takes 16 MiB and ~10-50 ms: a flood of wrong keys runs this many at once, not one per thread
+        self._derivations = threading.BoundedSemaphore(_PARALLEL_DERIVATIONS)
 
     def create(self, name: str, role: Role | str) -> CreatedKey:
         """Make a key for ``name`` with ``role``; its secret is in the answer and nowhere else."""
@@ -240,8 +244,12 @@ class KeyStore:
             return cached[1]
         return None
 
-    def authenticate(self, presented: str) -> Principal | None:
-        """The key's holder, or None when ``presented`` is not an active key."""
+    def authenticate(self, presented: str, verified_only: bool = False) -> Principal | None:
+        """The key's holder, or None when ``presented`` is not an active key.
+
+        ``verified_only``: accept only a key already verified (no scrypt derivation): what a client over its
+        wrong-key budget may still use, so that guessing from an address does not lock out its valid keys.
+        """
         m = _KEY_FORMAT.match(presented)
         if m is None:
             return None
@@ -253,16 +261,23 @@ class KeyStore:
                 )
             ).one_or_none()
         if row is None:
+            if verified_only:
+                return None
             # derive anyway, from a dummy salt: an unknown id then costs what a known one with a wrong secret
             # does, so the answer's timing does not say which key ids exist
-            hmac.compare_digest(_derive(presented, _DUMMY_SALT), _DUMMY_HASH)
+            with self._derivations:
+                hmac.compare_digest(_derive(presented, _DUMMY_SALT), _DUMMY_HASH)
             return None
         fingerprint = hashlib.sha256(presented.encode()).digest()
         with self._lock:
             known = self._verified.get(key_id)
         if known is not None and hmac.compare_digest(known, fingerprint):
             return Principal(row.name, Role(row.role), key_id)
-        if not hmac.compare_digest(_derive(presented, bytes.fromhex(row.salt)), bytes.fromhex(row.key_hash)):
+        if verified_only:
+            return None
+        with self._derivations:
+            derived = _derive(presented, bytes.fromhex(row.salt))
+        if not hmac.compare_digest(derived, bytes.fromhex(row.key_hash)):
             return None
         with self._lock:
             if len(self._verified) >= _CACHE_SIZE:
