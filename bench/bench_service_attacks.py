@@ -126,9 +126,16 @@ def _raw_until_answer(s: socket.socket) -> int | str:
 # ---------------------------------------------------------------------------------------------- attack clients
 
 
-def attack_client(
-    kind: str, k: int, base: str, keys: dict, stop: threading.Event, out: Counter, lock
-) -> None:  # noqa: ANN001
+def attack_client(  # noqa: ANN001
+    kind: str,
+    k: int,
+    base: str,
+    keys: dict,
+    stop: threading.Event,
+    out: Counter,
+    lock,
+    door_png: bytes | None,
+) -> None:
     host, port = base.removeprefix("http://").split(":")
     att = {"X-API-Key": keys["attacker"]}
     payloads = {}
@@ -139,7 +146,7 @@ def attack_client(
     elif kind == "overlay_refused":
         payloads["f"] = noise_jpeg()
     elif kind == "fair_flood":
-        payloads["f"] = rendered_pngs(1, seed0=50 + k)[0][0]
+        payloads["f"] = door_png
     with httpx.Client(base_url=base, timeout=120) as client:
         for _ in range(10_000):  # bounded; the window ends it through `stop`
             if stop.is_set():
@@ -213,8 +220,9 @@ def attack_client(
 
 def attack_process(kind: str, n: int, base: str, keys: dict, stop, running, out) -> None:  # noqa: ANN001
     lock, statuses, stop_t = threading.Lock(), Counter(), threading.Event()
+    door_png = rendered_pngs(1, seed0=50)[0][0] if kind == "fair_flood" else None  # once, before the start
     threads = [
-        threading.Thread(target=attack_client, args=(kind, k, base, keys, stop_t, statuses, lock))
+        threading.Thread(target=attack_client, args=(kind, k, base, keys, stop_t, statuses, lock, door_png))
         for k in range(n)
     ]
     for t in threads:

@@ -41,6 +41,7 @@ import re
 import secrets
 import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from enum import StrEnum
@@ -153,8 +154,9 @@ class KeyStore:
         self._verified: dict[str, bytes] = {}
         self._lock = threading.Lock()
         self._any_active: tuple[float, bool] | None = None  # (monotonic time, answer)
-        # scrypt takes 16 MiB and ~10-50 ms: a flood of wrong keys runs this many at once, not one per thread
-        self._derivations = threading.BoundedSemaphore(_PARALLEL_DERIVATIONS)
+        # scrypt takes 16 MiB and ~10-50 ms: derivations run on this many threads of their own, so a flood of
+        # wrong keys neither runs one per request thread nor leaves a freed 16 MiB in every thread's malloc arena
+        self._derivations = ThreadPoolExecutor(_PARALLEL_DERIVATIONS, thread_name_prefix="doorloc-scrypt")
 
     def create(self, name: str, role: Role | str) -> CreatedKey:
         """Make a key for ``name`` with ``role``; its secret is in the answer and nowhere else."""
@@ -265,8 +267,9 @@ class KeyStore:
                 return None
             # derive anyway, from a dummy salt: an unknown id then costs what a known one with a wrong secret
             # does, so the answer's timing does not say which key ids exist
-            with self._derivations:
-                hmac.compare_digest(_derive(presented, _DUMMY_SALT), _DUMMY_HASH)
+            hmac.compare_digest(
+                self._derivations.submit(_derive, presented, _DUMMY_SALT).result(), _DUMMY_HASH
+            )
             return None
         fingerprint = hashlib.sha256(presented.encode()).digest()
         with self._lock:
@@ -275,8 +278,7 @@ class KeyStore:
             return Principal(row.name, Role(row.role), key_id)
         if verified_only:
             return None
-        with self._derivations:
-            derived = _derive(presented, bytes.fromhex(row.salt))
+        derived = self._derivations.submit(_derive, presented, bytes.fromhex(row.salt)).result()
         if not hmac.compare_digest(derived, bytes.fromhex(row.key_hash)):
             return None
         with self._lock:
