@@ -2,7 +2,8 @@
 
 - :func:`take_cpu_slot` / :func:`release_cpu_slot`: a bounded queue per worker (its CPU slots plus
   ``max_queue``), and within it a share per client (its API key): one client flooding the service fills
-  only its own share, so another client's image still finds a place;
+  only its own share, so another client's image still finds a place, and the free CPU slots go to the
+  waiting clients in turn (:class:`~doorloc.app.fairslots.FairSlots`), not in arrival order;
 - :func:`decode_upload`: decoding in the worker's limited decoding processes
   (:class:`~doorloc.app.decodepool.DecodePool`) within what is left of the request's deadline.
 """
@@ -59,7 +60,7 @@ async def take_cpu_slot(state: ServiceState, deadline: float | None, client: str
     state.client_admitted[client] = held + 1
     try:
         with anyio.fail_after(max(left, 0.001)):
-            await state.limiter.acquire()
+            await state.limiter.acquire(client)
     except BaseException as e:  # timed out, or the client went away: give the queue place back
         _forget(state, client)
         if not isinstance(e, TimeoutError):

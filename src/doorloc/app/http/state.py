@@ -12,11 +12,10 @@ import logging
 from dataclasses import dataclass, field
 from typing import Any
 
-import anyio
-
 from doorloc.app.access import FailureBudget
 from doorloc.app.answer import LocateFn
 from doorloc.app.decodepool import DecodePool
+from doorloc.app.fairslots import FairSlots
 from doorloc.app.http.metrics import ServiceMetrics
 from doorloc.app.settings import ServiceSettings
 from doorloc.cell import Cell, cell_to_dict
@@ -45,7 +44,7 @@ class ServiceState:
     )
     keys: Any | None = None  # doorloc.app.access.KeyStore, on the store's database
     load_error: str | None = None
-    limiter: anyio.CapacityLimiter = field(init=False)
+    limiter: FairSlots = field(init=False)
     #: locate requests in this worker right now, running or waiting for a CPU slot (routes_locate._cpu_slot)
     admitted: int = 0
     #: True once a key exists or was presented: the service then never answers without one (fails closed)
@@ -57,7 +56,7 @@ class ServiceState:
     client_admitted: dict[str, int] = field(init=False, default_factory=dict)
 
     def __post_init__(self) -> None:
-        self.limiter = anyio.CapacityLimiter(self.settings.locate_concurrency)
+        self.limiter = FairSlots(self.settings.locate_concurrency)
         self.auth_failures = FailureBudget(self.settings.auth_failures_per_minute)
         self.decoder = (
             None
