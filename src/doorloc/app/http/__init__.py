@@ -28,7 +28,7 @@ from fastapi.staticfiles import StaticFiles
 from doorloc import __version__
 from doorloc.app.answer import LocateFn
 from doorloc.app.http import routes_doors, routes_locate, routes_ops
-from doorloc.app.http.guards import BodyDeadline, HostCheck, KeyGate, SecurityHeaders
+from doorloc.app.http.guards import BodyDeadline, HostCheck, KeyGate, LocateShedding, SecurityHeaders
 from doorloc.app.http.metrics import ServiceMetrics
 from doorloc.app.http.middleware import BodySizeLimit, LocateAdmission, RequestContext
 from doorloc.app.http.problems import install_problem_handlers
@@ -99,6 +99,7 @@ def create_app(
     app.add_middleware(LocateAdmission, deadline_s=settings.request_deadline_s)
     app.add_middleware(BodyDeadline, timeout_s=settings.body_timeout_s)
     app.add_middleware(BodySizeLimit, max_body_bytes=settings.max_upload_bytes)
+    app.add_middleware(LocateShedding, state=state)
     app.add_middleware(KeyGate, state=state, routes=app.router.routes)
     app.add_middleware(HostCheck, allowed=settings.allowed_hosts, open_access=settings.open_access)
     app.add_middleware(SecurityHeaders)

@@ -19,7 +19,7 @@ from doorloc.app.decodepool import DecodeRefused
 from doorloc.app.http.problems import ProblemError
 from doorloc.app.http.state import ServiceState
 
-__all__ = ["client_of", "take_cpu_slot", "release_cpu_slot", "decode_upload"]
+__all__ = ["client_of", "shedding_problem", "take_cpu_slot", "release_cpu_slot", "decode_upload"]
 
 
 def client_of(scope_state: dict) -> str:
@@ -31,15 +31,12 @@ def client_of(scope_state: dict) -> str:
     return ""
 
 
-async def take_cpu_slot(state: ServiceState, deadline: float | None, client: str) -> None:
-    """Take a place in the worker's bounded queue and wait for a CPU slot until the request's deadline.
-
-    503 Retry-After at once when the queue is full or ``client`` already holds its share of it, or when no
-    slot came free by the deadline. On return the caller holds a limiter token and a queue place and must
-    give both back with :func:`release_cpu_slot`.
-    """
+def shedding_problem(state: ServiceState, client: str) -> ProblemError | None:
+    """The 503 for a locate request that would find the worker's queue, or ``client``'s share of it, full;
+    None when it may go on. Asked twice: before the body is read (so a flood's refused uploads are never
+    parsed) and again when the image asks for its CPU slot."""
     if state.overloaded:
-        raise ProblemError(
+        return ProblemError(
             503,
             "overloaded",
             f"This worker is already measuring or queueing {state.admitted} images (its limit); retry after the "
@@ -48,13 +45,27 @@ async def take_cpu_slot(state: ServiceState, deadline: float | None, client: str
         )
     held = state.client_admitted.get(client, 0)
     if client and held >= state.per_client_limit:
-        raise ProblemError(
+        return ProblemError(
             503,
             "overloaded",
             f"This client already has {held} images being measured or queued here, its share of this worker; "
             "wait for an answer, then retry after the number of seconds in Retry-After.",
             headers={"Retry-After": "2"},
         )
+    return None
+
+
+async def take_cpu_slot(state: ServiceState, deadline: float | None, client: str) -> None:
+    """Take a place in the worker's bounded queue and wait for a CPU slot until the request's deadline.
+
+    503 Retry-After at once when the queue is full or ``client`` already holds its share of it, or when no
+    slot came free by the deadline. On return the caller holds a limiter token and a queue place and must
+    give both back with :func:`release_cpu_slot`.
+    """
+    problem = shedding_problem(state, client)
+    if problem is not None:
+        raise problem
+    held = state.client_admitted.get(client, 0)
     left = (deadline - time.monotonic()) if deadline is not None else state.settings.request_deadline_s
     state.admitted += 1
     state.client_admitted[client] = held + 1

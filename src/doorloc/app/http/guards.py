@@ -18,12 +18,21 @@ import anyio
 from starlette.routing import BaseRoute, Match
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
+from doorloc.app.http.admission import client_of, shedding_problem
 from doorloc.app.http.dependencies import resolve_principal
 from doorloc.app.http.middleware import BodyTimeout, send_problem
 from doorloc.app.http.problems import ProblemError
 from doorloc.app.http.state import ServiceState
 
-__all__ = ["HostCheck", "KeyGate", "BodyDeadline", "SecurityHeaders", "host_name", "CONTENT_SECURITY_POLICY"]
+__all__ = [
+    "HostCheck",
+    "KeyGate",
+    "LocateShedding",
+    "BodyDeadline",
+    "SecurityHeaders",
+    "host_name",
+    "CONTENT_SECURITY_POLICY",
+]
 
 #: same-origin scripts and styles only (the operator page and the bundled API docs ship theirs); overlays are
 #: data: URLs; no page may frame this one
@@ -118,6 +127,25 @@ class KeyGate:
         state = scope.setdefault("state", {})
         state["who"] = who
         state["principal"] = who.name
+        await self.app(scope, receive, send)
+
+
+class LocateShedding:
+    """Answer 503 Retry-After to an image upload that the worker's queue, or its client's share of it, has no
+    room for, before its body is read: a flooding client's refused uploads cost no multipart parsing."""
+
+    def __init__(self, app: ASGIApp, state: ServiceState, path: str = "/v1/locate") -> None:
+        self.app = app
+        self.state = state
+        self.path = path
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] == "http" and scope["method"] == "POST" and scope["path"] == self.path:
+            problem = shedding_problem(self.state, client_of(scope.get("state", {})))
+            if problem is not None:
+                headers = [(k.lower().encode(), v.encode()) for k, v in (problem.headers or {}).items()]
+                await send_problem(scope, send, problem.status, problem.code, problem.detail, headers)
+                return
         await self.app(scope, receive, send)
 
 
