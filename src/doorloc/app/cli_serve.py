@@ -38,13 +38,17 @@ def register(app: typer.Typer) -> None:
             bool,
             typer.Option(
                 "--open",
+                envvar="DOORLOC_OPEN_ACCESS",
                 help="answer without API keys while none exists (every caller an engineer): loopback "
                 "addresses only, for development; /readyz says 'access: open'",
             ),
         ] = False,
         create_database: Annotated[
             bool,
-            typer.Option(help="create the recipe database if its SQLite file does not exist (else an error)"),
+            typer.Option(
+                envvar="DOORLOC_CREATE_DATABASE",
+                help="create the recipe database if its SQLite file does not exist (else an error)",
+            ),
         ] = False,
         ssl_certfile: Annotated[
             Path | None, typer.Option(help="serve HTTPS with this PEM certificate (chain)")
