@@ -4,7 +4,9 @@
 # default) lives on a volume. Set DOORLOC_DATABASE_URL for PostgreSQL. The service listens on 0.0.0.0, which
 # `doorloc serve` allows only with API keys: create them in the database volume (`doorloc keys create --role
 # operator|engineer|metrics NAME`) or pass one engineer key as a secret in DOORLOC_API_KEY; without keys
-# the container exits with that sentence. TLS: a reverse proxy in front (docs/deploy.md).
+# the container exits with that sentence. The database on the volume is created on first start (the image's
+# own URL, not a typed one); set DOORLOC_ALLOWED_HOSTS to the names clients use (the image allows any, as
+# keys are required). TLS: a reverse proxy in front (docs/deploy.md).
 # Versions come from the lock (requirements/lock-service-py311.txt, the same versions as CI's lock);
 # torch is not in it: the service does not need it.
 # No container engine runs on the development machines: scripts/ci/container_check.py (run by .ci/run)
@@ -30,7 +32,9 @@ ENV PATH=/opt/doorloc/bin:$PATH \
     DOORLOC_CELL=/etc/doorloc/cell.yaml \
     DOORLOC_DATABASE_URL=sqlite:////var/lib/doorloc/recipes.db \
     OMP_NUM_THREADS=1 \
-    NUMBA_CACHE_DIR=/opt/doorloc/numba-cache
+    NUMBA_CACHE_DIR=/opt/doorloc/numba-cache \
+    DOORLOC_CREATE_DATABASE=true \
+    DOORLOC_ALLOWED_HOSTS=*
 RUN useradd --system --uid 10001 --home-dir /var/lib/doorloc --create-home doorloc
 COPY --from=build /opt/doorloc /opt/doorloc
 # numba reads its cache only from a folder it may write (it checks): the service user's

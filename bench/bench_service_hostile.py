@@ -1,6 +1,7 @@
 """Hostile load: normal-request latency while 20 hostile uploads are in flight, and 50 parallel recipe writers.
 
-Against a real `doorloc serve` on 127.0.0.1 (no keys: loopback). Phases:
+Against a real `doorloc serve` on 127.0.0.1 (``--open``: no keys, loopback). Each attack of the later
+hostile-network probe, one at a time and with keys, is in bench/bench_service_attacks.py. Phases:
 
 1. unloaded: ``--normal`` sequential POST /v1/locate of rendered 1080p doors; median and p90 latency;
 2. the same while 20 hostile clients (in their own process) keep uploads in flight until the phase ends: decompression bombs
@@ -73,7 +74,7 @@ def slow_upload(base: str) -> int:
     host, port = base.removeprefix("http://").split(":")
     with socket.create_connection((host, int(port)), timeout=120) as s:
         s.sendall(
-            b"POST /v1/locate HTTP/1.1\r\nHost: x\r\nContent-Type: multipart/form-data; boundary=zz\r\n"
+            b"POST /v1/locate HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: multipart/form-data; boundary=zz\r\n"
             b"Content-Length: 100000\r\n\r\n--zz\r\nCont"
         )
         data = s.recv(4096)

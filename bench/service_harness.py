@@ -71,11 +71,28 @@ def cpu_seconds(pid: int) -> float:
 
 
 @contextlib.contextmanager
-def doorloc_serve(workers: int = 1, extra_env: dict[str, str] | None = None) -> Iterator[tuple[str, int]]:
-    """Start `doorloc serve` on 127.0.0.1; yield (base URL, server pid) once /readyz answers 200."""
+def doorloc_serve(
+    workers: int = 1, extra_env: dict[str, str] | None = None, keys: dict[str, str] | None = None
+) -> Iterator[tuple[str, int]]:
+    """Start `doorloc serve` on 127.0.0.1; yield (base URL, server pid) once /readyz answers 200.
+
+    Without ``keys`` the service is open (``--open``, loopback). With ``keys`` (names -> role), each key is
+    created first and the service demands keys; the dict's values are replaced by the keys' secrets.
+    """
     port = free_port()
     with tempfile.TemporaryDirectory() as tmp:
-        env = {**os.environ, "DOORLOC_DATABASE_URL": f"sqlite:///{tmp}/recipes.db", **(extra_env or {})}
+        url = f"sqlite:///{tmp}/recipes.db"
+        env = {**os.environ, "DOORLOC_DATABASE_URL": url, **(extra_env or {})}
+        access = ["--open", "--create-database"]
+        if keys:
+            from doorloc.app.access import KeyStore
+            from doorloc.recipes.store import RecipeStore
+
+            with RecipeStore(url) as store:
+                made = KeyStore(store.engine)
+                for name, role in list(keys.items()):
+                    keys[name] = made.create(name, role).secret
+            access = []
         log = open(Path(tmp) / "serve.log", "w")  # noqa: SIM115 - closed below
         proc = subprocess.Popen(
             [
@@ -93,6 +110,7 @@ def doorloc_serve(workers: int = 1, extra_env: dict[str, str] | None = None) -> 
                 str(workers),
                 "--log-level",
                 "warning",
+                *access,
             ],
             env=env,
             stdout=log,

@@ -21,6 +21,9 @@ __all__ = [
     "DOOR_RANGES_MM",
     "SPEC_RANGES_MM",
     "TOOL_DIAMETER_RANGE_MM",
+    "SPINDLE_RPM_RANGE",
+    "FEED_RANGE_MM_S",
+    "TOOL_REACH_MM",
     "check_range",
     "door_size_problems",
     "range_sentence",
@@ -41,13 +44,25 @@ DOOR_RANGES_MM: dict[str, tuple[float, float]] = {
 }
 #: end mills for hinge pockets: 3-50 mm
 TOOL_DIAMETER_RANGE_MM = (3.0, 50.0)
+#: the spindle's speed range, rev/min: a woodworking electro-spindle runs ~1,000-24,000 (some 30,000); the
+#: thesis's recipes use 3,200 and 18,000. 100,000 is a typo, not a setting
+SPINDLE_RPM_RANGE = (1000.0, 30000.0)
+#: milling feed along the path, mm/s: up to 30 m/min in wood; 5,000 mm/s is a typo
+FEED_RANGE_MM_S = (0.1, 500.0)
+#: deepest pocket the hinge cutter reaches, mm: the cutting length of a hinge-mortise end mill (hinge leaves
+#: are 2-5 mm thick). A pocket is also shallower than the door is thick
+TOOL_REACH_MM = 25.0
 
 _WORDS = {
     "thickness_mm": "door thickness",
     "width_mm": "door width",
     "height_mm": "door height",
     "tool_diameter_mm": "tool diameter",
+    "spindle_rpm": "spindle speed",
+    "feed_mm_s": "feed rate",
 }
+#: units of the non-length fields in the sentences
+_UNITS = {"spindle_rpm": "rev/min", "feed_mm_s": "mm/s"}
 
 
 class DoorRangeError(ValueError):
@@ -63,7 +78,10 @@ def range_sentence(field: str, value: float, lo: float, hi: float) -> str:
     what = _WORDS.get(field, field)
     spec = SPEC_RANGES_MM.get(field)
     note = f" (the cell is built for {spec[0]:g}-{spec[1]:g} mm)" if spec else ""
-    return f"{what} ({field}) {value:g} mm is outside the accepted {lo:g}-{hi:g} mm{note}"
+    if field in ("spindle_rpm", "feed_mm_s"):
+        note = " (the spindle's range)" if field == "spindle_rpm" else " (the cell's milling feeds)"
+    unit = _UNITS.get(field, "mm")
+    return f"{what} ({field}) {value:g} {unit} is outside the accepted {lo:g}-{hi:g} {unit}{note}"
 
 
 def check_range(field: str, value: float, bounds: tuple[float, float] | None = None) -> float:

@@ -39,6 +39,14 @@ def stand_in_locate(image, cell, door, *, image_name="", config=None, trace=None
     )
 
 
+def dev_settings(**settings) -> ServiceSettings:
+    """Settings of an in-process test app: open access (no key needed while none exists) and the test
+    clients' host names, unless ``settings`` say otherwise."""
+    return ServiceSettings(
+        **{"open_access": True, "allowed_hosts": ["testserver", "test", "127.0.0.1"], **settings}
+    )
+
+
 def png_bytes(image: np.ndarray) -> bytes:
     ok, buf = cv2.imencode(".png", image)
     assert ok
@@ -77,11 +85,14 @@ def store(recipe):
 
 @pytest.fixture
 def make_client(cell, store):
-    """``make_client(**settings)``: a TestClient on an app with the stand-in locate (lifespan run)."""
+    """``make_client(**settings)``: a TestClient on an app with the stand-in locate (lifespan run).
+
+    Open access (no key needed while none exists) and the TestClient's host name unless the settings say
+    otherwise."""
     clients = []
 
     def make(**settings) -> TestClient:
-        app = create_app(ServiceSettings(**settings), cell=cell, store=store, locate_fn=stand_in_locate)
+        app = create_app(dev_settings(**settings), cell=cell, store=store, locate_fn=stand_in_locate)
         c = TestClient(app, raise_server_exceptions=False)
         c.__enter__()
         clients.append(c)

@@ -13,6 +13,7 @@ from typer.testing import CliRunner
 from doorloc.app.access import AccessKeyError, KeyStore, Role, role_allows
 from doorloc.app.cli import app as cli_app
 from doorloc.app.cli_serve import is_loopback
+from doorloc.recipes.store import RecipeStore
 from doorloc.recipes.tables import ApiKeyRow
 
 CELL_FILE = str(Path(__file__).resolve().parents[2] / "fixtures" / "cell_thesis.yaml")
@@ -156,3 +157,66 @@ def test_serve_refuses_a_non_loopback_bind_without_keys(tmp_path):
     assert p.returncode == 2, p.stderr
     assert "refusing to listen on 0.0.0.0 without API keys" in p.stderr and "--insecure" in p.stderr
     assert "Traceback" not in p.stderr
+    # a proxy in front is no substitute for keys: the message must not offer one
+    assert "reverse proxy does not replace them" in p.stderr and "127.0.0.1 behind" not in p.stderr
+
+
+def test_serve_open_only_on_loopback(tmp_path):
+    env = {
+        "DOORLOC_DATABASE_URL": f"sqlite:///{tmp_path / 'r.db'}",
+        "PATH": "/usr/bin:/bin",
+        "PYTHONPATH": str(Path(__file__).resolve().parents[2] / "src"),
+    }
+    base = [sys.executable, "-m", "doorloc", "serve", "--cell", CELL_FILE, "--port", "1", "--create-database"]
+    p = subprocess.run(
+        [*base, "--host", "192.168.1.5", "--open"], capture_output=True, text=True, timeout=120, env=env
+    )
+    assert p.returncode == 2 and "without API keys" in p.stderr, p.stderr
+    p = subprocess.run([*base, "--host", "127.0.0.1"], capture_output=True, text=True, timeout=120, env=env)
+    assert p.returncode == 2 and "--open" in p.stderr and "doorloc keys create" in p.stderr, p.stderr
+
+
+def test_an_unknown_key_id_costs_a_derivation_like_a_known_one(monkeypatch):
+    """Issue defect: an unknown id answered in 3.4 ms, a known one with a wrong secret in 67 ms."""
+    import hashlib
+
+    keys = KeyStore(RecipeStore("sqlite://").engine)
+    known = keys.create("panel", Role.operator)
+    calls = []
+    real = hashlib.scrypt
+
+    def counting(*a, **k):
+        calls.append(1)
+        return real(*a, **k)
+
+    monkeypatch.setattr(hashlib, "scrypt", counting)
+    assert keys.authenticate(known.secret[:-4] + "AAAA") is None
+    assert keys.authenticate("dlk_000000000000_" + "A" * 43) is None
+    assert len(calls) == 2
+
+
+def test_failure_budget_counts_a_sliding_minute():
+    from doorloc.app.access import FailureBudget
+
+    now = [0.0]
+    b = FailureBudget(3, clock=lambda: now[0])
+    for _ in range(3):
+        assert b.retry_after("a") is None
+        b.record("a")
+    assert b.retry_after("a") == 61 and b.retry_after("b") is None
+    now[0] = 30.0
+    assert 1 <= b.retry_after("a") <= 31
+    now[0] = 60.5
+    assert b.retry_after("a") is None
+
+
+def test_a_verified_key_still_passes_when_its_address_is_over_budget(make_client, keys):
+    """Guessing from one address (a NAT, a proxy) must not lock out the valid keys used from it."""
+    c = make_client(auth_failures_per_minute=2)
+    k = keys.create("panel", Role.operator)
+    assert c.get("/v1/doors", headers=_h(k)).status_code == 200  # verified once
+    wrong = {"X-API-Key": "dlk_000000000000_" + "A" * 43}
+    assert [c.get("/v1/doors", headers=wrong).status_code for _ in range(3)] == [401, 401, 429]
+    assert c.get("/v1/doors", headers=_h(k)).status_code == 200
+    other = keys.create("never used", Role.operator)  # not verified yet: refused until the budget recovers
+    assert c.get("/v1/doors", headers=_h(other)).status_code == 429

@@ -11,10 +11,9 @@ from doorloc.app.answer import DoorChoice, door_from_fields
 from doorloc.app.batch import BatchSetupError, plan_batch
 from doorloc.app.http import create_app
 from doorloc.app.services import resolve_door
-from doorloc.app.settings import ServiceSettings
 from doorloc.cell import DoorSize
 
-from .conftest import stand_in_locate
+from .conftest import dev_settings, stand_in_locate
 
 
 @pytest.fixture
@@ -68,7 +67,7 @@ def test_http_form_field_arris_mm(round_cell, store, small_png):
         seen.append(door)
         return stand_in_locate(image, cell, door, **kw)
 
-    app = create_app(ServiceSettings(), cell=round_cell, store=store, locate_fn=capture)
+    app = create_app(dev_settings(), cell=round_cell, store=store, locate_fn=capture)
     with TestClient(app) as c:
         r = c.post(
             "/v1/locate",

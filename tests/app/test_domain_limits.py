@@ -14,7 +14,7 @@ from doorloc.limits import DOOR_RANGES_MM, door_size_problems
 from doorloc.recipes.importer import RecipeImportError, load_recipe_file
 from doorloc.recipes.tables import DoorRow
 
-from .conftest import CELL_PATH
+from .conftest import CELL_PATH, dev_settings
 
 
 def _post(client, png, **form):
@@ -89,7 +89,6 @@ def test_an_exception_in_a_route_is_500_with_an_incident_id_logged_with_its_trac
     from fastapi.testclient import TestClient
 
     from doorloc.app.http import create_app
-    from doorloc.app.settings import ServiceSettings
 
     from .conftest import png_bytes
 
@@ -98,7 +97,7 @@ def test_an_exception_in_a_route_is_500_with_an_incident_id_logged_with_its_trac
 
     import numpy as np
 
-    app = create_app(ServiceSettings(), cell=cell, store=store, locate_fn=broken_locate)
+    app = create_app(dev_settings(), cell=cell, store=store, locate_fn=broken_locate)
     with TestClient(app, raise_server_exceptions=False) as c, caplog.at_level(logging.INFO, logger="doorloc"):
         r = c.post(
             "/v1/locate", files={"image": ("a.png", png_bytes(np.full((8, 8), 9, np.uint8)), "image/png")}

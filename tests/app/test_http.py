@@ -10,6 +10,8 @@ from doorloc.app.http import create_app
 from doorloc.app.settings import ServiceSettings
 from doorloc.recipes.rapid import parse_rapid_text
 
+from .conftest import dev_settings
+
 
 def _post(client, data: bytes, name: str = "door.png", query: str = "", **form):
     return client.post("/v1/locate" + query, files={"image": (name, data, "image/png")}, data=form)
@@ -33,7 +35,7 @@ def test_one_cell_hash_in_readiness_and_results(client, small_png, cell):
 
 
 def test_not_ready_without_a_cell_answers_503_with_the_reason():
-    with TestClient(create_app(ServiceSettings(cell=None))) as c:
+    with TestClient(create_app(dev_settings(cell=None))) as c:
         assert c.get("/healthz").status_code == 200
         r = c.get("/readyz")
         assert r.status_code == 503
@@ -46,7 +48,7 @@ def test_not_ready_without_a_cell_answers_503_with_the_reason():
 def test_not_ready_with_a_broken_cell_file(tmp_path):
     bad = tmp_path / "cell.yaml"
     bad.write_text("camera: {}\n")
-    with TestClient(create_app(ServiceSettings(cell=str(bad), database_url="sqlite://"))) as c:
+    with TestClient(create_app(dev_settings(cell=str(bad), database_url="sqlite://"))) as c:
         r = c.get("/readyz")
         assert r.status_code == 503
         assert "camera" in r.json()["detail"]
@@ -245,7 +247,7 @@ def test_real_pipeline_on_a_rendered_door(cell, store, recipe, encode_png):
 
     truth = DoorPose(-5.0, 7.5, 1.1)
     png = encode_png(render_door(cell, recipe.door_size(), truth, seed=7).image)
-    with TestClient(create_app(ServiceSettings(), cell=cell, store=store)) as c:
+    with TestClient(create_app(dev_settings(), cell=cell, store=store)) as c:
         r = c.post(
             "/v1/locate?overlay=true&rapid=true",
             files={"image": ("d.png", png, "image/png")},
@@ -278,7 +280,7 @@ def test_an_unreachable_recipe_database_is_503_not_500(cell, small_png, tmp_path
 
     db = tmp_path / "r.db"
     store = RecipeStore(f"sqlite:///{db}")
-    with TestClient(create_app(ServiceSettings(), cell=cell, store=store, locate_fn=None)) as c:
+    with TestClient(create_app(dev_settings(), cell=cell, store=store, locate_fn=None)) as c:
         store.engine.dispose()
         db.unlink()
         db.mkdir()  # a folder where the database file was: every query fails

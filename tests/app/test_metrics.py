@@ -6,10 +6,9 @@ import numpy as np
 from fastapi.testclient import TestClient
 
 from doorloc.app.http import create_app
-from doorloc.app.settings import ServiceSettings
 from doorloc.vision.result import LocateResult
 
-from .conftest import png_bytes
+from .conftest import dev_settings, png_bytes
 
 
 def _buggy_locate(image, cell, door, *, image_name="", config=None, trace=None):
@@ -18,7 +17,7 @@ def _buggy_locate(image, cell, door, *, image_name="", config=None, trace=None):
 
 def test_internal_errors_are_not_refusals(cell, store):
     """Issue defect: internal errors were counted as refusals."""
-    app = create_app(ServiceSettings(), cell=cell, store=store, locate_fn=_buggy_locate)
+    app = create_app(dev_settings(), cell=cell, store=store, locate_fn=_buggy_locate)
     with TestClient(app) as c:
         r = c.post(
             "/v1/locate", files={"image": ("a.png", png_bytes(np.full((8, 8), 9, np.uint8)), "image/png")}

@@ -45,9 +45,10 @@ def live_server(cell, store):
     import uvicorn
 
     from doorloc.app.http import create_app
-    from doorloc.app.settings import ServiceSettings
 
-    app = create_app(ServiceSettings(), cell=cell, store=store)
+    from .conftest import dev_settings
+
+    app = create_app(dev_settings(), cell=cell, store=store)
     sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
     sock.bind(("127.0.0.1", 0))
     port = sock.getsockname()[1]
@@ -82,7 +83,9 @@ def test_upload_shows_pose_overlay_and_targets_then_an_error_sentence(live_serve
     with sync_playwright() as p:
         browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS, headless=True)
         try:
-            page = browser.new_page()
+            page = browser.new_page(
+                bypass_csp=True
+            )  # wait_for_function evaluates strings: the page's CSP forbids that
             page.goto(live_server + "/")
             page.wait_for_function("document.getElementById('ready').textContent === 'ready'", timeout=20_000)
 
@@ -180,5 +183,47 @@ def test_pose_values_show_their_one_sigma_and_the_dominant_uncertainty_term(live
             page.wait_for_function("document.getElementById('status').textContent === 'refused'")
             assert page.text_content("#sigma-x") == "—"
             assert page.text_content("#dominant-x") == ""
+        finally:
+            browser.close()
+
+
+def test_api_docs_render_with_the_network_cut_and_the_key_stays_in_the_tab(live_server):
+    """/docs runs from the bundled Swagger UI: every request to another origin is refused here, and the page
+    still renders the API. The operator page keeps a key in sessionStorage (this tab), never localStorage."""
+    _require_chromium()
+    from playwright.sync_api import sync_playwright
+
+    foreign: list[str] = []
+
+    def only_this_origin(route):
+        if route.request.url.startswith(live_server):
+            route.continue_()
+        else:
+            foreign.append(route.request.url)
+            route.abort()
+
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS, headless=True)
+        try:
+            page = browser.new_page()
+            page.route("**/*", only_this_origin)
+            violations: list[str] = []
+            page.on(
+                "console",
+                lambda m: violations.append(m.text) if "Content Security Policy" in m.text else None,
+            )
+            page.goto(live_server + "/docs")
+            page.wait_for_selector(".swagger-ui .info .title", timeout=30_000)
+            assert "doorloc" in page.text_content(".swagger-ui .info .title")
+            page.wait_for_selector(".opblock-summary-path", timeout=30_000)
+            assert "/v1/locate" in page.locator(".opblock-summary-path").all_text_contents()
+            assert foreign == [] and violations == [], (foreign, violations)
+
+            page.goto(live_server + "/")
+            page.click("summary")  # the key field is folded away
+            page.fill("#api_key", "dlk_example_key")
+            page.evaluate("apiHeaders()")
+            assert page.evaluate("sessionStorage.getItem('doorloc.api_key')") == "dlk_example_key"
+            assert page.evaluate("localStorage.getItem('doorloc.api_key')") is None
         finally:
             browser.close()

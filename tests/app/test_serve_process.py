@@ -43,6 +43,8 @@ def test_serve_with_two_workers_answers_and_stops(cell, tmp_path):
             str(port),
             "--workers",
             "2",
+            "--open",
+            "--create-database",
         ],
         env=env,
         stdout=subprocess.PIPE,

@@ -50,7 +50,12 @@ def post(tmp_path):
             doc.pop("robot")
         cell = parse_cell(doc, REPO / "fixtures", "cell.yaml")
         c = TestClient(
-            create_app(ServiceSettings(), cell=cell, store=store, locate_fn=_locate_at(x_mm)),
+            create_app(
+                ServiceSettings(open_access=True, allowed_hosts=["testserver"]),
+                cell=cell,
+                store=store,
+                locate_fn=_locate_at(x_mm),
+            ),
             raise_server_exceptions=False,
         )
         c.__enter__()

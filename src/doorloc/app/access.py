@@ -13,8 +13,11 @@ comparing the two hashes with :func:`hmac.compare_digest`. Deriving costs ~10-50
 :class:`KeyStore` remembers which presented secrets it has already verified (a SHA-256 of them, compared
 in constant time too); revocation is still seen at once because the row is read on every request.
 
-With no key in the database the service is open (loopback development use); ``doorloc serve`` refuses
-to listen on a non-loopback address in that state unless it is given ``--insecure``.
+A service demands a key for every ``/v1`` request and ``/metrics``. Only ``doorloc serve --open`` on a
+loopback address, with no key in the database, answers without one (development use); once it has seen a
+key it stays closed, even when every key is revoked. An unknown key id costs the same scrypt derivation as
+a wrong secret for a known one, and each client address may send only so many wrong keys a minute
+(:class:`FailureBudget`).
 
 Examples
 --------
@@ -38,6 +41,7 @@ import re
 import secrets
 import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from enum import StrEnum
@@ -56,12 +60,16 @@ __all__ = [
     "role_allows",
     "LEGACY_KEY_NAME",
     "ANY_ACTIVE_TTL_S",
+    "FailureBudget",
+    "is_loopback",
 ]
 
 #: scrypt cost: 2**14 x 8 x 128 B = 16 MiB and ~10-50 ms per derivation (the interactive-login setting of RFC 7914)
 _SCRYPT = {"n": 2**14, "r": 8, "p": 1, "dklen": 32, "maxmem": 64 * 1024 * 1024}
 _KEY_FORMAT = re.compile(r"^dlk_([0-9a-f]{12})_([A-Za-z0-9_-]{20,100})$")
 _NAME_FORMAT = re.compile(r"^[A-Za-z0-9][A-Za-z0-9 ._:@/-]{0,63}$")
+#: scrypt derivations one KeyStore runs at once (memory: this x 16 MiB)
+_PARALLEL_DERIVATIONS = 2
 #: verified secrets remembered per KeyStore (bounded: a flood of distinct keys cannot grow memory)
 _CACHE_SIZE = 1024
 #: how long "are there any keys at all?" is remembered: an open (keyless) service starts demanding keys at most
@@ -128,6 +136,10 @@ def _derive(secret: str, salt: bytes) -> bytes:
     return hashlib.scrypt(secret.encode(), salt=salt, **_SCRYPT)
 
 
+_DUMMY_SALT = bytes(16)
+_DUMMY_HASH = bytes(32)
+
+
 class KeyStore:
     """API keys in the recipe database (table ``api_keys``, Alembic revision 0002).
 
@@ -142,6 +154,9 @@ class KeyStore:
         self._verified: dict[str, bytes] = {}
         self._lock = threading.Lock()
         self._any_active: tuple[float, bool] | None = None  # (monotonic time, answer)
+        # scrypt takes 16 MiB and ~10-50 ms: derivations run on this many threads of their own, so a flood of
+        # wrong keys neither runs one per request thread nor leaves a freed 16 MiB in every thread's malloc arena
+        self._derivations = ThreadPoolExecutor(_PARALLEL_DERIVATIONS, thread_name_prefix="doorloc-scrypt")
 
     def create(self, name: str, role: Role | str) -> CreatedKey:
         """Make a key for ``name`` with ``role``; its secret is in the answer and nowhere else."""
@@ -206,10 +221,11 @@ class KeyStore:
                 self._verified.pop(i, None)
         return ids
 
-    def any_active(self, max_age_s: float = 0.0) -> bool:
+    def any_active(self, max_age_s: float = 0.0, remember: bool = True) -> bool:
         """True when at least one key is not revoked (the service then demands a key).
 
-        ``max_age_s`` > 0 accepts an answer read that recently (the service asks on every keyless request).
+        ``max_age_s`` > 0 accepts an answer read that recently (the service asks on every keyless request);
+        ``remember=False`` reads the database without keeping the answer for later calls.
         """
         now = time.monotonic()
         known = self.cached_any_active(max_age_s)
@@ -219,7 +235,8 @@ class KeyStore:
             answer = (
                 conn.scalar(select(ApiKeyRow.id).where(ApiKeyRow.revoked_at.is_(None)).limit(1)) is not None
             )
-        self._any_active = (now, answer)
+        if remember:
+            self._any_active = (now, answer)
         return answer
 
     def cached_any_active(self, max_age_s: float) -> bool | None:
@@ -229,8 +246,12 @@ class KeyStore:
             return cached[1]
         return None
 
-    def authenticate(self, presented: str) -> Principal | None:
-        """The key's holder, or None when ``presented`` is not an active key."""
+    def authenticate(self, presented: str, verified_only: bool = False) -> Principal | None:
+        """The key's holder, or None when ``presented`` is not an active key.
+
+        ``verified_only``: accept only a key already verified (no scrypt derivation): what a client over its
+        wrong-key budget may still use, so that guessing from an address does not lock out its valid keys.
+        """
         m = _KEY_FORMAT.match(presented)
         if m is None:
             return None
@@ -242,16 +263,83 @@ class KeyStore:
                 )
             ).one_or_none()
         if row is None:
+            if verified_only:
+                return None
+            # derive anyway, from a dummy salt: an unknown id then costs what a known one with a wrong secret
+            # does, so the answer's timing does not say which key ids exist
+            hmac.compare_digest(
+                self._derivations.submit(_derive, presented, _DUMMY_SALT).result(), _DUMMY_HASH
+            )
             return None
         fingerprint = hashlib.sha256(presented.encode()).digest()
         with self._lock:
             known = self._verified.get(key_id)
         if known is not None and hmac.compare_digest(known, fingerprint):
             return Principal(row.name, Role(row.role), key_id)
-        if not hmac.compare_digest(_derive(presented, bytes.fromhex(row.salt)), bytes.fromhex(row.key_hash)):
+        if verified_only:
+            return None
+        derived = self._derivations.submit(_derive, presented, bytes.fromhex(row.salt)).result()
+        if not hmac.compare_digest(derived, bytes.fromhex(row.key_hash)):
             return None
         with self._lock:
             if len(self._verified) >= _CACHE_SIZE:
                 self._verified.pop(next(iter(self._verified)))
             self._verified[key_id] = fingerprint
         return Principal(row.name, Role(row.role), key_id)
+
+
+class FailureBudget:
+    """Wrong keys each client address may send per minute (a sliding window), so guessing keys is slow.
+
+    Bounded memory: at most ``max_clients`` addresses are remembered (the oldest forgotten first). Not
+    thread-safe; the service calls it from its event loop only.
+
+    Examples
+    --------
+    >>> b = FailureBudget(2, clock=lambda: 100.0)
+    >>> b.record("10.0.0.9"); b.record("10.0.0.9"); b.retry_after("10.0.0.9")
+    60
+    >>> b.retry_after("10.0.0.7") is None
+    True
+    """
+
+    def __init__(self, per_minute: int, max_clients: int = 4096, clock=time.monotonic) -> None:  # noqa: ANN001
+        self.per_minute = per_minute
+        self.max_clients = max_clients
+        self._clock = clock
+        self._failures: dict[str, list[float]] = {}
+
+    def _recent(self, client: str) -> list[float]:
+        now = self._clock()
+        times = [t for t in self._failures.get(client, ()) if now - t < 60.0]
+        if times:
+            self._failures[client] = times
+        else:
+            self._failures.pop(client, None)
+        return times
+
+    def retry_after(self, client: str) -> int | None:
+        """Seconds until ``client`` may try a key again, or None when it is within its budget."""
+        times = self._recent(client)
+        if len(times) < self.per_minute:
+            return None
+        return max(1, int(60.0 - (self._clock() - times[-self.per_minute])) + 1)
+
+    def record(self, client: str) -> None:
+        """Count one wrong key from ``client``."""
+        times = self._recent(client)
+        if not times and len(self._failures) >= self.max_clients:
+            self._failures.pop(next(iter(self._failures)))
+        self._failures[client] = [*times, self._clock()][-self.per_minute :]
+
+
+def is_loopback(host: str) -> bool:
+    """True for addresses only this machine can reach (127.0.0.0/8, ::1, 'localhost')."""
+    import ipaddress
+
+    if host.lower() == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:  # a host name other than localhost may resolve to anything
+        return False

@@ -74,7 +74,9 @@ class LocateResponse(LocateResult):
     targets_note: str | None = Field(None, description="why targets is empty, else null")
     rapid: str | None = Field(None, description="with ?rapid=true: the targets as RAPID-readable text")
     overlay_png: str | None = Field(
-        None, description="with ?overlay=true: the overlay image, base64-encoded PNG"
+        None,
+        description="with ?overlay=true: the overlay image, base64-encoded PNG (only for an answered image "
+        "of at most DOORLOC_OVERLAY_MAX_PIXELS)",
     )
     reach: ReachReport | None = Field(
         None,

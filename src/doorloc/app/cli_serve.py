@@ -9,11 +9,14 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
+from doorloc.app.access import is_loopback
 from doorloc.app.cli_common import DbAliasOption, DbOption, load_cell_or_fail, recipe_lookup
 from doorloc.app.errors import EXIT_FAILED, EXIT_OK, EXIT_REFUSED, fail
 
 if TYPE_CHECKING:
     from doorloc.app.batch import BatchJob, BatchSummary
+
+__all__ = ["register", "is_loopback"]
 
 
 def serve_cmd(
@@ -28,11 +31,21 @@ def serve_cmd(
     db: DbOption = None,
     database_url: DbAliasOption = None,
     log_level: Annotated[str, typer.Option(help="debug, info, warning or error")] = "info",
-    insecure: Annotated[
+    open_access: Annotated[
         bool,
         typer.Option(
-            "--insecure",
-            help="listen on a non-loopback address although no API key exists (anyone may then change recipes)",
+            "--open",
+            envvar="DOORLOC_OPEN_ACCESS",
+            help="answer without API keys while none exists (every caller an engineer): loopback "
+            "addresses only, for development; /readyz says 'access: open'",
+        ),
+    ] = False,
+    create_database: Annotated[
+        bool,
+        typer.Option(
+            "--create-database",
+            envvar="DOORLOC_CREATE_DATABASE",
+            help="create the recipe database if its SQLite file does not exist (else an error)",
         ),
     ] = False,
     ssl_certfile: Annotated[
@@ -42,10 +55,11 @@ def serve_cmd(
 ) -> None:
     """Run the HTTP service (POST /v1/locate, operator page at /, OpenAPI at /docs).
 
-    On an address other than loopback it needs API keys (doorloc keys create) unless --insecure is given.
+    Every request needs an API key (doorloc keys create); only --open on a loopback address answers
+    without one, while no key exists.
     """
     cell_path = _checked_cell(cell)
-    _check_bind(host, insecure, _has_keys(db or database_url))
+    _check_access(host, db or database_url, open_access, create_database)
     if (ssl_certfile is None) != (ssl_keyfile is None):
         raise fail("give both --ssl-certfile and --ssl-keyfile for HTTPS, or neither")
     for f in (ssl_certfile, ssl_keyfile):
@@ -57,7 +71,7 @@ def serve_cmd(
     from doorloc.app.settings import default_locate_concurrency
 
     os.environ.setdefault("DOORLOC_LOCATE_CONCURRENCY", str(default_locate_concurrency(workers)))
-    _run_uvicorn(host, port, workers, log_level, ssl_certfile, ssl_keyfile)
+    _run_uvicorn(host, port, workers, log_level, ssl_certfile, ssl_keyfile, _checked_settings())
 
 
 def batch_cmd(
@@ -154,43 +168,115 @@ def _checked_cell(cell: Path | None) -> str:
     return cell_path
 
 
-def _has_keys(database_url: str | None) -> bool:
-    """Migrate the recipe database once (so N workers do not race to) and say whether any API key exists."""
+def _check_access(host: str, database_url: str | None, open_access: bool, create_database: bool) -> None:
+    """Fail closed before any worker starts: a database that exists (unless created on purpose), keys or
+    an explicit --open on loopback, and the Host names the service answers to."""
+    if open_access:
+        os.environ["DOORLOC_OPEN_ACCESS"] = "true"
+    if create_database:
+        os.environ["DOORLOC_CREATE_DATABASE"] = "true"
+    missing = _missing_database(database_url, create_database)
+    # a database that does not exist holds no key: on a public address that is the first thing to say
+    _check_bind(host, open_access, missing is None and _has_keys())
+    if missing is not None:
+        raise fail(missing)
+    _default_allowed_hosts(host)
+
+
+def _missing_database(database_url: str | None, create: bool) -> str | None:
+    """Why the recipe database cannot be used (it does not exist and ``create`` is not given), or None.
+
+    A mistyped SQLite URL must not start a service on a fresh database without recipes or keys.
+    """
     if database_url:
         os.environ["DOORLOC_DATABASE_URL"] = database_url
+    from doorloc.app.settings import missing_database
+    from doorloc.recipes.store import database_url as resolve_url
+
+    return None if create else missing_database(resolve_url(None))
+
+
+def _has_keys() -> bool:
+    """Migrate the recipe database once (so N workers do not race to) and say whether any API key exists."""
+    from doorloc.recipes.store import database_url as resolve_url
+
+    url = resolve_url(None)
     try:
         from doorloc.app.access import KeyStore
         from doorloc.recipes.store import RecipeStore
-        from doorloc.recipes.store import database_url as resolve_url
 
-        with RecipeStore(resolve_url(None)) as store:
+        with RecipeStore(url) as store:
             return KeyStore(store.engine).any_active() or bool(os.environ.get("DOORLOC_API_KEY"))
     except Exception as e:  # noqa: BLE001 - any database failure is reported as one sentence
         raise fail(f"cannot open the recipe database: {e}") from None
 
 
-def _check_bind(host: str, insecure: bool, has_keys: bool) -> None:
-    """Refuse a non-loopback address without API keys unless --insecure (then warn)."""
-    if has_keys or is_loopback(host):
+def _check_bind(host: str, open_access: bool, has_keys: bool) -> None:
+    """Without API keys, refuse to start unless --open on a loopback address (then say so)."""
+    if has_keys:
+        if open_access:
+            typer.echo(
+                "doorloc: API keys exist, so --open has no effect: every request needs a key", err=True
+            )
         return
-    if not insecure:
+    if not is_loopback(host):
         raise fail(
             f"refusing to listen on {host} without API keys: anyone who reaches it could change the door "
-            "recipes that drive the robot. Create keys first (doorloc keys create --role engineer NAME), "
-            "listen on 127.0.0.1 behind a reverse proxy, or pass --insecure to accept the risk"
+            "recipes that drive the robot. Create keys first (doorloc keys create --role engineer NAME); "
+            "a reverse proxy does not replace them, and there is no --insecure override"
+        )
+    if not open_access:
+        raise fail(
+            "no API key exists, so every request would be refused: create one (doorloc keys create --role "
+            "engineer NAME), or pass --open to answer without keys on this loopback address (development)"
         )
     typer.echo(
-        f"doorloc: warning: listening on {host} with no API keys (--insecure): anyone who reaches "
-        "this port can change door recipes",
+        f"doorloc: warning: --open: {host} answers without API keys (every caller may change door recipes) "
+        "until the first key is created",
         err=True,
     )
 
 
+def _default_allowed_hosts(host: str) -> None:
+    """DOORLOC_ALLOWED_HOSTS, when not set: the loopback names and the address listened on."""
+    if os.environ.get("DOORLOC_ALLOWED_HOSTS"):
+        return
+    if host in ("0.0.0.0", "::", ""):
+        raise fail(
+            f"listening on every interface ({host or 'all'}): set DOORLOC_ALLOWED_HOSTS to the names and "
+            "addresses clients use to reach this service (e.g. doorloc.plant.example,10.0.4.7), or '*'"
+        )
+    names = ["localhost", "127.0.0.1", "::1"]
+    if host not in names:
+        names.append(host)
+    os.environ["DOORLOC_ALLOWED_HOSTS"] = ",".join(names)
+
+
+def _checked_settings():
+    """The service's settings from DOORLOC_*, validated once here (the workers read the same)."""
+    from pydantic import ValidationError
+
+    from doorloc.app.settings import ServiceSettings
+
+    try:
+        return ServiceSettings()
+    except ValidationError as e:
+        raise fail(f"invalid DOORLOC_* setting: {e}") from None
+
+
 def _run_uvicorn(
-    host: str, port: int, workers: int, log_level: str, ssl_certfile: Path | None, ssl_keyfile: Path | None
+    host: str,
+    port: int,
+    workers: int,
+    log_level: str,
+    ssl_certfile: Path | None,
+    ssl_keyfile: Path | None,
+    settings,  # noqa: ANN001 - doorloc.app.settings.ServiceSettings
 ) -> None:
-    """Run uvicorn; /metrics adds up every worker through a prometheus multiprocess folder made here."""
+    """Run uvicorn with the server's own limits; /metrics adds up every worker through a prometheus
+    multiprocess folder made here and removed at exit, SIGTERM included."""
     import shutil
+    import signal
     import tempfile
 
     import uvicorn
@@ -200,6 +286,14 @@ def _run_uvicorn(
     own_metrics_dir = "PROMETHEUS_MULTIPROC_DIR" not in os.environ
     if own_metrics_dir:
         os.environ["PROMETHEUS_MULTIPROC_DIR"] = tempfile.mkdtemp(prefix="doorloc-metrics-")
+
+    def exit_on_signal(_signum: int, _frame: object) -> None:
+        # a requested stop after uvicorn's graceful shutdown is a success, as it is with several workers
+        raise SystemExit(0)
+
+    # uvicorn handles SIGTERM itself while it runs, then restores the handler it found and raises the signal
+    # again: with the default handler that would end the process before the finally below removes the folder
+    previous = signal.signal(signal.SIGTERM, exit_on_signal)
     try:
         uvicorn.run(
             "doorloc.app.http:create_app_from_env",
@@ -213,8 +307,15 @@ def _run_uvicorn(
             ssl_certfile=str(ssl_certfile) if ssl_certfile else None,
             ssl_keyfile=str(ssl_keyfile) if ssl_keyfile else None,
             http=_http_protocol(),
+            timeout_keep_alive=max(1, round(settings.keep_alive_s)),
+            limit_concurrency=settings.max_connections,
+            h11_max_incomplete_event_size=settings.max_header_bytes,
+            # X-Forwarded-For / -Proto believed only from the configured proxies (uvicorn's default trusts 127.0.0.1)
+            proxy_headers=bool(settings.trusted_proxies),
+            forwarded_allow_ips=",".join(settings.trusted_proxies) or None,
         )
     finally:
+        signal.signal(signal.SIGTERM, previous)
         if own_metrics_dir:
             shutil.rmtree(os.environ.pop("PROMETHEUS_MULTIPROC_DIR"), ignore_errors=True)
 
@@ -224,18 +325,6 @@ def _http_protocol() -> str:
     import importlib.util
 
     return "doorloc.app.http.protocol:ProblemJsonHTTP" if importlib.util.find_spec("httptools") else "auto"
-
-
-def is_loopback(host: str) -> bool:
-    """True for addresses only this machine can reach (127.0.0.0/8, ::1, 'localhost')."""
-    import ipaddress
-
-    if host.lower() == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host.strip("[]")).is_loopback
-    except ValueError:  # a host name other than localhost may resolve to anything
-        return False
 
 
 def _run_with_progress(items, log, run_backend):

@@ -13,11 +13,14 @@ Examples
 from __future__ import annotations
 
 import os
+from typing import Annotated
 
 from pydantic import Field, SecretStr, field_validator
-from pydantic_settings import BaseSettings, SettingsConfigDict
+from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
-__all__ = ["ServiceSettings", "default_locate_concurrency"]
+from doorloc.app.imagesniff import DEFAULT_MAX_JPEG_SCANS
+
+__all__ = ["ServiceSettings", "default_locate_concurrency", "missing_database"]
 
 #: 20 MB: a lossless 1080p grey PNG is ~1-3 MB, a 4K colour PNG ~15 MB.
 DEFAULT_MAX_UPLOAD_BYTES = 20 * 1000 * 1000
@@ -81,8 +84,114 @@ class ServiceSettings(BaseSettings):
     )
     log_level: str = Field("INFO", description="level of the structured request log")
 
+    # ---- access
+    open_access: bool = Field(
+        False,
+        description="serve without API keys (every caller an engineer): only on a loopback address "
+        "(doorloc serve --open), and only while no key exists; otherwise every request needs a key",
+    )
+    create_database: bool = Field(
+        False,
+        description="create the recipe database when its SQLite file does not exist (else that is an error: "
+        "a mistyped URL must not become a fresh, keyless database)",
+    )
+    allowed_hosts: Annotated[list[str], NoDecode] = Field(
+        default_factory=lambda: ["localhost", "127.0.0.1", "::1"],
+        description="names the Host header may carry (port ignored); '*' allows any (not with open_access); "
+        "doorloc serve adds its --host",
+    )
+    trusted_proxies: Annotated[list[str], NoDecode] = Field(
+        default_factory=list,
+        description="addresses of reverse proxies whose X-Forwarded-For / X-Forwarded-Proto are believed; "
+        "empty: none (the connection's own address is the client)",
+    )
+    auth_failures_per_minute: int = Field(
+        10,
+        ge=1,
+        description="wrong or unknown API keys one client address may send per minute; more answer 429",
+    )
+
+    # ---- the HTTP server itself (uvicorn and its protocol, per connection)
+    max_header_bytes: int = Field(
+        32 * 1024, ge=1024, description="largest request line plus headers, bytes; more answer 431"
+    )
+    max_headers: int = Field(100, ge=8, description="most header fields in one request; more answer 431")
+    header_timeout_s: float = Field(
+        10.0,
+        gt=0,
+        description="a request line and headers not received by then (from the connection or "
+        "the previous answer) answer 408 and the connection is closed",
+    )
+    body_timeout_s: float = Field(
+        30.0, gt=0, description="a request body (other than an image upload) not received by then answers 408"
+    )
+    keep_alive_s: float = Field(5.0, gt=0, description="an idle keep-alive connection is closed after this")
+    max_connections: int = Field(
+        256,
+        ge=1,
+        description="open connections one worker serves; more answer 503 (uvicorn limit_concurrency)",
+    )
+
+    # ---- decoding
+    max_jpeg_scans: int = Field(
+        DEFAULT_MAX_JPEG_SCANS, ge=1, description="scans a JPEG may hold (each is a pass over the image)"
+    )
+    decode_cpu_s: float = Field(
+        10.0,
+        gt=0,
+        description="CPU seconds one image may take to decode (its decoding process is ended then)",
+    )
+    decode_memory_bytes: int = Field(
+        400_000_000,
+        gt=0,
+        description="memory (address space) a decoding process may add for one image, bytes",
+    )
+    decode_in_threads: bool = Field(
+        False,
+        description="decode in the service's own threads instead of limited worker processes (no CPU-time or "
+        "memory bound beyond the header checks; for tests and debugging)",
+    )
+    overlay_max_pixels: int = Field(
+        8_300_000, gt=0, description="largest image (width*height) an overlay is drawn for (4K UHD)"
+    )
+    max_per_client: int | None = Field(
+        None,
+        ge=1,
+        description="locate requests one client (API key) may have running or queued in a worker; "
+        "default: half the worker's slots plus queue, at least 1",
+    )
+
+    @field_validator("allowed_hosts", "trusted_proxies", mode="before")
+    @classmethod
+    def _comma_list(cls, v: object) -> object:
+        # DOORLOC_ALLOWED_HOSTS=a,b as well as JSON
+        if isinstance(v, str) and not v.lstrip().startswith("["):
+            return [x.strip() for x in v.split(",") if x.strip()]
+        return v
+
     @field_validator("api_key", "cell", "database_url", mode="before")
     @classmethod
     def _empty_is_unset(cls, v: object) -> object:
         # DOORLOC_API_KEY= (set but empty) must not mean "the key is the empty string"
         return None if v == "" else v
+
+
+def missing_database(url: str) -> str | None:
+    """Why ``url`` names no existing database (a sentence), or None (it exists, or is not a file-backed SQLite URL).
+
+    A mistyped SQLite path would otherwise be created empty, with no recipes and no API keys.
+    """
+    from sqlalchemy.engine import make_url
+
+    u = make_url(url)
+    if not u.get_backend_name() == "sqlite" or u.database in (None, "", ":memory:") or "mode=memory" in url:
+        return None
+    path = u.database
+    if path.startswith("file:"):
+        return None  # a URI filename: its options decide
+    if os.path.exists(path):
+        return None
+    return (
+        f"the recipe database {path} does not exist; check the URL (DOORLOC_DATABASE_URL / --database-url), or "
+        "create it on purpose with doorloc keys create (which also makes the first key) or --create-database"
+    )

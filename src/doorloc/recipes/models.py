@@ -28,7 +28,14 @@ from typing import Annotated, Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
 
 from doorloc.domain import DoorSize
-from doorloc.limits import DOOR_RANGES_MM, TOOL_DIAMETER_RANGE_MM, check_range
+from doorloc.limits import (
+    DOOR_RANGES_MM,
+    FEED_RANGE_MM_S,
+    SPINDLE_RPM_RANGE,
+    TOOL_DIAMETER_RANGE_MM,
+    TOOL_REACH_MM,
+    check_range,
+)
 
 __all__ = [
     "PointCorrection",
@@ -120,12 +127,16 @@ class DoorFields(_Frozen):
     spindle_rpm: Annotated[float, Field(gt=0, le=100_000, allow_inf_nan=False)]
     feed_mm_s: Annotated[float, Field(gt=0, le=5_000, allow_inf_nan=False)]
 
-    @field_validator("width_mm", "height_mm", "thickness_mm", "tool_diameter_mm")
+    @field_validator("width_mm", "height_mm", "thickness_mm", "tool_diameter_mm", "spindle_rpm", "feed_mm_s")
     @classmethod
     def _in_range(cls, v: float, info: ValidationInfo) -> float:
         # the accepted ranges live in doorloc.limits (shared with the HTTP API and the CLI)
         name = info.field_name or ""
-        bounds = TOOL_DIAMETER_RANGE_MM if name == "tool_diameter_mm" else DOOR_RANGES_MM[name]
+        bounds = {
+            "tool_diameter_mm": TOOL_DIAMETER_RANGE_MM,
+            "spindle_rpm": SPINDLE_RPM_RANGE,
+            "feed_mm_s": FEED_RANGE_MM_S,
+        }.get(name) or DOOR_RANGES_MM[name]
         return check_range(name, v, bounds)
 
 
@@ -183,7 +194,8 @@ def recipe_problems(r: DoorRecipe) -> list[RecipeProblem]:
     """Every cross-field rule the recipe breaks (empty when it is millable).
 
     Rules: the arris is less than half the thickness; each pocket lies inside the door
-    (``x + width <= thickness``, ``z + length <= height``, ``depth < width`` of the door); the corner
+    (``x + width <= thickness``, ``z + length <= height``, ``depth < width`` of the door), and is no
+    deeper than the cutter reaches or the door is thick (:data:`doorloc.limits.TOOL_REACH_MM`); the corner
     radius fits the pocket; the tool fits the corner radius (``tool_diameter <= 2 * corner_radius``),
     a 6-point path cuts no more than :data:`CORNER_OVERCUT_TOLERANCE_MM` past the corner arcs
     (``(corner_radius - tool_radius) * (sqrt 2 - 1)``), and the contour clears the whole pocket
@@ -228,6 +240,16 @@ def recipe_problems(r: DoorRecipe) -> list[RecipeProblem]:
                     f"{name}.depth_mm",
                     f"hinge {n} pocket depth {_g(h.depth_mm)} mm must be less "
                     f"than the door width {_g(r.width_mm)} mm",
+                    i,
+                )
+            )
+        elif h.depth_mm >= r.thickness_mm or h.depth_mm > TOOL_REACH_MM:
+            out.append(
+                RecipeProblem(
+                    f"{name}.depth_mm",
+                    f"hinge {n} pocket depth {_g(h.depth_mm)} mm is deeper than the hinge cutter reaches "
+                    f"({_g(TOOL_REACH_MM)} mm) or the door is thick ({_g(r.thickness_mm)} mm); a hinge leaf "
+                    "needs 2-5 mm",
                     i,
                 )
             )

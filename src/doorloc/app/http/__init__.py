@@ -8,7 +8,7 @@ Examples
 --------
 >>> from fastapi.testclient import TestClient
 >>> from doorloc.app.settings import ServiceSettings
->>> app = create_app(ServiceSettings(cell=None))
+>>> app = create_app(ServiceSettings(cell=None, allowed_hosts=["testserver"]))
 >>> with TestClient(app) as client:
 ...     client.get("/healthz").json(), client.get("/readyz").status_code
 ({'status': 'ok'}, 503)
@@ -28,6 +28,7 @@ from fastapi.staticfiles import StaticFiles
 from doorloc import __version__
 from doorloc.app.answer import LocateFn
 from doorloc.app.http import routes_doors, routes_locate, routes_ops
+from doorloc.app.http.guards import BodyDeadline, HostCheck, KeyGate, LocateShedding, SecurityHeaders
 from doorloc.app.http.metrics import ServiceMetrics
 from doorloc.app.http.middleware import BodySizeLimit, LocateAdmission, RequestContext
 from doorloc.app.http.problems import install_problem_handlers
@@ -69,16 +70,23 @@ def create_app(
         cv2.setNumThreads(settings.opencv_threads)
         if not state.ready or state.locate_fn is None or state.keys is None:
             await anyio.to_thread.run_sync(state.load)
-        async with anyio.create_task_group() as tg:
-            tg.start_soon(_sample_process_forever, state.metrics)
-            yield
-            tg.cancel_scope.cancel()
+        try:
+            async with anyio.create_task_group() as tg:
+                tg.start_soon(_sample_process_forever, state.metrics)
+                yield
+                tg.cancel_scope.cancel()
+        finally:
+            if state.decoder is not None:
+                state.decoder.close()
 
     app = FastAPI(
         title="doorloc",
         version=__version__,
         summary="Locate a wooden door in a milling cell and turn its recipe into robot targets.",
         lifespan=lifespan,
+        # /docs is the bundled Swagger UI (routes_ops.api_docs), not FastAPI's page that loads it from a CDN
+        docs_url=None,
+        redoc_url=None,
     )
     app.state.service = state
     install_problem_handlers(app)
@@ -86,9 +94,15 @@ def create_app(
     app.include_router(routes_locate.router, tags=["locate"])
     app.include_router(routes_doors.router)
     app.mount("/static", StaticFiles(directory=STATIC_DIR), name="static")
-    # add_middleware wraps from the inside out: RequestContext sees every request, including 413s.
+    # add_middleware wraps from the inside out: RequestContext sees every request, including 413s; the host
+    # and the key are checked before a byte of the body is read (KeyGate outside the body readers)
     app.add_middleware(LocateAdmission, deadline_s=settings.request_deadline_s)
+    app.add_middleware(BodyDeadline, timeout_s=settings.body_timeout_s)
     app.add_middleware(BodySizeLimit, max_body_bytes=settings.max_upload_bytes)
+    app.add_middleware(LocateShedding, state=state)
+    app.add_middleware(KeyGate, state=state, routes=app.router.routes)
+    app.add_middleware(HostCheck, allowed=settings.allowed_hosts, open_access=settings.open_access)
+    app.add_middleware(SecurityHeaders)
     app.add_middleware(RequestContext, metrics=state.metrics)
     return app
 

@@ -16,14 +16,22 @@ from doorloc.app.access import ANY_ACTIVE_TTL_S, LEGACY_KEY_NAME, Principal, Rol
 from doorloc.app.http.problems import ProblemError
 from doorloc.app.http.state import ServiceState
 
-__all__ = ["get_state", "ready_state", "require_role", "require_api_key", "call_store"]
+__all__ = [
+    "get_state",
+    "ready_state",
+    "require_role",
+    "require_api_key",
+    "call_store",
+    "resolve_principal",
+    "ANONYMOUS",
+]
 
 _api_key_header = APIKeyHeader(
     name="X-API-Key",
     auto_error=False,
     description="an API key (doorloc keys create); required once any key exists or DOORLOC_API_KEY is set",
 )
-#: the caller when the service has no keys at all (only allowed on loopback, see doorloc serve)
+#: the caller when the service is open (``open_access``, loopback only, see doorloc serve --open) and has no key
 ANONYMOUS = Principal("anonymous", Role.engineer)
 
 
@@ -35,10 +43,29 @@ def _unauthorized(detail: str) -> ProblemError:
     return ProblemError(401, "unauthorized", detail, headers={"WWW-Authenticate": "APIKey"})
 
 
-async def _principal(state: ServiceState, given: str | None) -> Principal:
-    """Who sent the request: 401 for a missing or unknown key, the anonymous engineer on an open service."""
+async def resolve_principal(state: ServiceState, given: str | None, client: str) -> Principal:
+    """Who sent the request, from its X-API-Key (``given``) alone: no body has been read yet.
+
+    401 for a missing or wrong key; 429 once ``client`` (its address) has sent more wrong keys this minute
+    than ``auth_failures_per_minute`` (no key is then even checked); the anonymous engineer only on an open
+    service (``open_access``, loopback) while no key has ever been seen. A service that has seen a key once
+    never opens again, even when every key is revoked: it fails closed.
+    """
     legacy = state.settings.api_key
     if given:
+        retry = state.auth_failures.retry_after(client)
+        if retry is not None:
+            # over budget: only a key verified before passes (no derivation), so a guesser sharing an address
+            # (a NAT, a proxy) does not lock out the valid keys used from it
+            known = None if state.keys is None else await call_store(state.keys.authenticate, given, True)
+            if known is not None:
+                return known
+            raise ProblemError(
+                429,
+                "too_many_failures",
+                f"Too many wrong API keys from {client}; wait {retry} s (see Retry-After) and check the key.",
+                headers={"Retry-After": str(retry)},
+            )
         # the legacy single key: compare fixed-length digests so the comparison time says nothing about the key
         if legacy is not None and hmac.compare_digest(
             hashlib.sha256(given.encode()).digest(),
@@ -49,15 +76,22 @@ async def _principal(state: ServiceState, given: str | None) -> Principal:
             raise _service_not_ready(state)
         who = await call_store(state.keys.authenticate, given)
         if who is None:
+            state.auth_failures.record(client)
             raise _unauthorized(
                 "The API key in X-API-Key is not valid (unknown, mistyped or revoked); "
                 "ask the cell's administrator for a key (doorloc keys create)."
             )
+        state.keys_seen = True
         return who
-    if legacy is not None:
+    if legacy is not None or state.keys_seen:
         raise _unauthorized(
             "This service needs an API key: send it in the X-API-Key header "
             "(ask the cell's administrator for it)."
+        )
+    if not state.settings.open_access:
+        raise _unauthorized(
+            "This service needs an API key in the X-API-Key header. If none exists yet, the administrator "
+            "creates one (doorloc keys create --role engineer NAME)."
         )
     if state.keys is None:
         raise _service_not_ready(state)
@@ -66,6 +100,7 @@ async def _principal(state: ServiceState, given: str | None) -> Principal:
     if keys_exist is None:
         keys_exist = await call_store(state.keys.any_active)
     if keys_exist:
+        state.keys_seen = True  # from now on closed, whatever happens to the keys
         raise _unauthorized(
             "This service needs an API key: send it in the X-API-Key header "
             "(ask the cell's administrator for it)."
@@ -81,7 +116,11 @@ def require_role(role: Role) -> Callable[..., Any]:
         state: ServiceState = Depends(get_state),
         given: str | None = Security(_api_key_header),
     ) -> Principal:
-        who = await _principal(state, given)
+        # the key gate (doorloc.app.http.guards.KeyGate) has already resolved it, before the body was read
+        who = request.scope.get("state", {}).get("who")
+        if who is None:
+            client = request.client.host if request.client else ""
+            who = await resolve_principal(state, given, client)
         request.scope.setdefault("state", {})["principal"] = who.name
         if not role_allows(who.role, role):
             raise ProblemError(

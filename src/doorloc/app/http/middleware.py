@@ -22,7 +22,14 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 from doorloc.app.http.metrics import ServiceMetrics
 from doorloc.app.http.problems import PROBLEM_MEDIA_TYPE
 
-__all__ = ["BodySizeLimit", "BodyTooLarge", "LocateAdmission", "RequestContext"]
+__all__ = [
+    "BodySizeLimit",
+    "BodyTooLarge",
+    "BodyTimeout",
+    "LocateAdmission",
+    "RequestContext",
+    "send_problem",
+]
 
 _log = logging.getLogger("doorloc.http")
 _REQUEST_ID = re.compile(r"^[A-Za-z0-9._-]{1,64}$")
@@ -56,7 +63,7 @@ class BodySizeLimit:
         limit = self.max_body_bytes
         declared = _header(scope, b"content-length")
         if declared is not None and declared.isdigit() and int(declared) > limit:
-            await _send_problem(scope, send, 413, "too_large", _too_large_sentence(limit))
+            await send_problem(scope, send, 413, "too_large", _too_large_sentence(limit))
             return
         received = 0
         started = False
@@ -82,7 +89,7 @@ class BodySizeLimit:
             # Normally the app's HTTPException handler answers; this catches reads outside a route.
             if started:
                 raise
-            await _send_problem(scope, send, 413, "too_large", _too_large_sentence(limit))
+            await send_problem(scope, send, 413, "too_large", _too_large_sentence(limit))
 
 
 class LocateAdmission:
@@ -108,7 +115,7 @@ class LocateAdmission:
         if (
             ctype and ctype != "multipart/form-data"
         ):  # no type at all: the form's own 422 names the missing image
-            await _send_problem(
+            await send_problem(
                 scope,
                 send,
                 415,
@@ -131,7 +138,7 @@ class LocateAdmission:
         try:
             await self.app(scope, receive_by_deadline, send)
         except BodyTimeout as e:
-            await _send_problem(scope, send, 408, "request_timeout", str(e.detail))
+            await send_problem(scope, send, 408, "request_timeout", str(e.detail))
 
 
 class BodyTimeout(StarletteHTTPException):
@@ -204,7 +211,7 @@ def _header(scope: Scope, name: bytes) -> str | None:
     return None
 
 
-async def _send_problem(
+async def send_problem(
     scope: Scope,
     send: Send,
     status: int,

@@ -58,6 +58,7 @@ _DESCRIPTIONS = {
     415: "The upload is not a PNG, JPEG, TIFF or BMP image (judged by its bytes).",
     422: "A field is missing or invalid, or the image cannot be decoded or declares too many pixels.",
     408: "The request body did not arrive within the request deadline.",
+    429: "Too many wrong API keys from this address this minute (see Retry-After).",
     503: "The service is not ready (the cell or its calibration is not loaded), the recipe database is unreachable, "
     "or this worker is overloaded (see Retry-After).",
 }
@@ -66,6 +67,9 @@ _DESCRIPTIONS = {
 def problem_responses(*statuses: int) -> dict[int | str, dict[str, Any]]:
     """``responses=`` for a route: each status answered as application/problem+json with the Problem schema."""
     schema = Problem.model_json_schema()
+    if 401 in statuses and 429 not in statuses:
+        # a route that checks keys also answers 429 to an address past its wrong-key budget
+        statuses = (*statuses, 429)
     return {
         s: {
             "description": _DESCRIPTIONS.get(s, HTTPStatus(s).phrase),

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import logging
 import time
+from dataclasses import replace
 from typing import Annotated
 
 import anyio
@@ -18,11 +19,12 @@ from fastapi import APIRouter, Depends, File, Form, Query, Request, Response, Up
 from pydantic import Field
 
 from doorloc.app.access import Role
-from doorloc.app.answer import Answer, DoorChoice, LocateResponse
+from doorloc.app.answer import Answer, DoorChoice, LocateResponse, overlay_png
+from doorloc.app.http.admission import client_of, decode_upload, release_cpu_slot, take_cpu_slot
 from doorloc.app.http.dependencies import call_store, ready_state, require_role
 from doorloc.app.http.problems import ProblemError, problem_responses
 from doorloc.app.http.state import ServiceState
-from doorloc.app.imagesniff import decode_limit_problem, sniff_image
+from doorloc.app.imagesniff import decode_limit_code, decode_limit_problem, sniff_image
 from doorloc.app.services import DoorChoiceError, answer_image, resolve_door
 from doorloc.recipes.models import DOOR_ID_PATTERN
 
@@ -87,12 +89,15 @@ async def post_locate(
     try:
         _check_upload(data, name, state)
         choice = await _door_choice(state, door_id, width_mm, thickness_mm, height_mm, arris_mm)
-        await _cpu_slot(state, request.scope.get("state", {}).get("deadline"))
+        deadline = request.scope.get("state", {}).get("deadline")
+        client = client_of(request.scope.get("state", {}))
+        await take_cpu_slot(state, deadline, client)
         try:
-            answer = await anyio.to_thread.run_sync(_measure, data, name, state, choice, overlay, rapid)
+            answer = await anyio.to_thread.run_sync(
+                _measure, data, name, state, choice, overlay, rapid, deadline
+            )
         finally:
-            state.limiter.release()
-            state.admitted -= 1
+            release_cpu_slot(state, client)
     except ProblemError as e:
         state.metrics.rejected_uploads.labels(e.code).inc()
         raise
@@ -127,38 +132,6 @@ def _log_located(state: ServiceState, request: Request, a: LocateResponse, door_
     )
 
 
-async def _cpu_slot(state: ServiceState, deadline: float | None) -> None:
-    """Take a place in the worker's bounded queue and wait for a CPU slot until the request's deadline.
-
-    503 Retry-After at once when the queue is full, or when no slot came free by the deadline. On return
-    the caller holds a limiter token and a queue place (``state.admitted``) and must release both.
-    """
-    if state.overloaded:
-        raise ProblemError(
-            503,
-            "overloaded",
-            f"This worker is already measuring or queueing {state.admitted} images (its limit); retry after the "
-            "number of seconds in Retry-After.",
-            headers={"Retry-After": "2"},
-        )
-    left = (deadline - time.monotonic()) if deadline is not None else state.settings.request_deadline_s
-    state.admitted += 1
-    try:
-        with anyio.fail_after(max(left, 0.001)):
-            await state.limiter.acquire()
-    except BaseException as e:  # timed out, or the client went away: give the queue place back
-        state.admitted -= 1
-        if not isinstance(e, TimeoutError):
-            raise
-        raise ProblemError(
-            503,
-            "overloaded",
-            f"No CPU slot came free within the request deadline ({state.settings.request_deadline_s:g} s): this "
-            "worker is overloaded; retry after the number of seconds in Retry-After.",
-            headers={"Retry-After": "5"},
-        ) from None
-
-
 def _check_upload(data: bytes, name: str, state: ServiceState) -> None:
     if not data:
         raise ProblemError(
@@ -179,12 +152,18 @@ def _check_upload(data: bytes, name: str, state: ServiceState) -> None:
             f"The {header.kind.upper()} header of '{name}' is cut short or malformed, so its size cannot be read; "
             "the file is probably truncated: send it again.",
         )
-    problem = decode_limit_problem(header, name, state.settings.max_pixels, state.settings.max_decoded_bytes)
+    problem = decode_limit_problem(
+        header,
+        name,
+        state.settings.max_pixels,
+        state.settings.max_decoded_bytes,
+        state.settings.max_jpeg_scans,
+    )
     if problem is not None:
         cam_w, cam_h = state.cell.camera.image_size if state.cell else ("?", "?")
         raise ProblemError(
             422,
-            "too_many_pixels",
+            decode_limit_code(header, state.settings.max_pixels, state.settings.max_decoded_bytes),
             f"{problem[0].upper()}{problem[1:]}; send the camera's own image ({cam_w}x{cam_h}).",
         )
 
@@ -220,19 +199,42 @@ async def _door_choice(
 
 
 def _measure(
-    data: bytes, name: str, state: ServiceState, choice: DoorChoice, overlay: bool, rapid: bool
+    data: bytes,
+    name: str,
+    state: ServiceState,
+    choice: DoorChoice,
+    overlay: bool,
+    rapid: bool,
+    deadline: float | None = None,
 ) -> Answer:
-    """The answer, with the thread CPU ms of decoding and of measuring (``decode``, ``locate``)."""
-    from doorloc.vision.imageio import ImageDecodeError
+    """The answer, with the thread CPU ms of decoding and of measuring (``decode``, ``locate``).
 
+    (Decoding runs in a limited decoding process: ``decode`` is then this thread's share, the hand-over.)
+    The overlay is drawn only for an answered image of a sane size: a refused 7.2 MB JPEG once made a
+    97 MB answer.
+    """
     assert state.cell is not None  # the route depends on ready_state
-    try:
-        return answer_image(
-            data, state.cell, choice, image_name=name, locate_fn=state.locate_fn, rapid=rapid, overlay=overlay
-        )
-    except ImageDecodeError as e:
-        raise ProblemError(
-            422,
-            "undecodable_image",
-            f"The image could not be decoded ({e}); the file is probably damaged or truncated: send it again.",
-        ) from None
+    t0 = time.thread_time()
+    image = decode_upload(state, data, name, deadline)
+    decode_ms = (time.thread_time() - t0) * 1e3
+    trace = None
+    if overlay:
+        from doorloc.vision.locate import LocateTrace
+
+        trace = LocateTrace()
+    answer = answer_image(
+        image, state.cell, choice, image_name=name, locate_fn=state.locate_fn, rapid=rapid, trace=trace
+    )
+    drawn = None
+    if (
+        overlay
+        and answer.response.ok
+        and image.shape[0] * image.shape[1] <= state.settings.overlay_max_pixels
+    ):
+        drawn = overlay_png(image, answer.result, state.cell, choice.door, trace)
+    return replace(
+        answer,
+        response=answer.response.model_copy(update={"overlay_png": drawn}),
+        cpu_ms={"decode": decode_ms, "locate": answer.cpu_ms["locate"]},
+        requested=answer.requested | ({"overlay_png"} if overlay else set()),
+    )

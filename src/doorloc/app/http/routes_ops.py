@@ -42,7 +42,7 @@ async def readyz(state: Annotated[ServiceState, Depends(ready_state)]) -> Readin
             f"This worker is at its limit ({state.admitted} locate requests running or queued); retry shortly.",
             headers={"Retry-After": "2"},
         )
-    return Readiness(status="ready", **state.cell_ids())
+    return Readiness(status="ready", access=state.access_mode, **state.cell_ids())
 
 
 @router.get(
@@ -81,4 +81,11 @@ async def get_cell(state: Annotated[ServiceState, Depends(ready_state)]) -> Cell
 @router.get("/", response_class=HTMLResponse, include_in_schema=False)
 async def operator_page() -> HTMLResponse:
     html = resources.files("doorloc.app").joinpath("static/index.html").read_text(encoding="utf-8")
+    return HTMLResponse(html)
+
+
+@router.get("/docs", response_class=HTMLResponse, include_in_schema=False)
+async def api_docs() -> HTMLResponse:
+    """Swagger UI from the package's own files (static/vendor/swagger-ui): nothing is loaded from another site."""
+    html = resources.files("doorloc.app").joinpath("static/docs.html").read_text(encoding="utf-8")
     return HTMLResponse(html)

@@ -39,6 +39,10 @@ class Health(BaseModel):
 
 class Readiness(BaseModel):
     status: str = Field(description="'ready' when the cell and calibration are loaded")
+    access: str = Field(
+        "keys",
+        description="'keys': every /v1 request needs an API key; 'open': none needed (loopback development)",
+    )
     cell_id: str | None = Field(
         None,
         description="'sha256:' + the cell file's SHA-256 (as in /v1/cell and results' provenance.cell_sha256)",

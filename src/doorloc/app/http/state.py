@@ -12,12 +12,12 @@ import logging
 from dataclasses import dataclass, field
 from typing import Any
 
-import anyio
-
-from doorloc.app.access import KeyStore
+from doorloc.app.access import FailureBudget, KeyStore
 from doorloc.app.answer import LocateFn
+from doorloc.app.decodepool import DecodePool
+from doorloc.app.fairslots import FairSlots
 from doorloc.app.http.metrics import ServiceMetrics
-from doorloc.app.settings import ServiceSettings
+from doorloc.app.settings import ServiceSettings, missing_database
 from doorloc.cell import Cell, cell_to_dict
 from doorloc.recipes.store import RecipeStore, database_url
 
@@ -39,12 +39,43 @@ class ServiceState:
     #: the API keys, on the store's database
     keys: KeyStore | None = None
     load_error: str | None = None
-    limiter: anyio.CapacityLimiter = field(init=False)
+    limiter: FairSlots = field(init=False)
     #: locate requests in this worker right now, running or waiting for a CPU slot (routes_locate._cpu_slot)
     admitted: int = 0
+    #: True once a key exists or was presented: the service then never answers without one (fails closed)
+    keys_seen: bool = False
+    auth_failures: FailureBudget = field(init=False)
+    #: the decoding processes (None: decode in threads, settings.decode_in_threads)
+    decoder: DecodePool | None = field(init=False)
+    #: per client (key name, else address): locate requests running or queued (fair shedding)
+    client_admitted: dict[str, int] = field(init=False, default_factory=dict)
 
     def __post_init__(self) -> None:
-        self.limiter = anyio.CapacityLimiter(self.settings.locate_concurrency)
+        self.limiter = FairSlots(self.settings.locate_concurrency)
+        self.auth_failures = FailureBudget(self.settings.auth_failures_per_minute)
+        self.decoder = (
+            None
+            if self.settings.decode_in_threads
+            else DecodePool(
+                self.settings.locate_concurrency,
+                self.settings.decode_cpu_s,
+                self.settings.decode_memory_bytes,
+            )
+        )
+
+    @property
+    def per_client_limit(self) -> int:
+        """Locate requests one client may have running or queued in this worker at once."""
+        if self.settings.max_per_client is not None:
+            return self.settings.max_per_client
+        return max(1, self.capacity // 2)
+
+    @property
+    def access_mode(self) -> str:
+        """'open' while the service answers without a key (open_access, no key seen), else 'keys'."""
+        if self.settings.open_access and not self.keys_seen and self.settings.api_key is None:
+            return "open"
+        return "keys"
 
     @property
     def capacity(self) -> int:
@@ -81,9 +112,15 @@ class ServiceState:
 
                 self.cell = load_cell(self.settings.cell)
             if self.store is None:
-                self.store = RecipeStore(database_url(self.settings))
+                url = database_url(self.settings)
+                missing = None if self.settings.create_database else missing_database(url)
+                if missing is not None:
+                    raise ValueError(missing)
+                self.store = RecipeStore(url)
             if self.keys is None and getattr(self.store, "engine", None) is not None:
                 self.keys = KeyStore(self.store.engine)
+            if self.keys is not None and self.keys.any_active(remember=False):
+                self.keys_seen = True
             if self.locate_fn is None:
                 from doorloc.app.services import default_locate_fn
 

@@ -5,9 +5,12 @@
 const $ = (id) => document.getElementById(id);
 const fmt = (v, digits) => (v === null || v === undefined ? "—" : Number(v).toFixed(digits));
 
+// The key lives for this tab only (sessionStorage): closing the tab forgets it, and no other tab or later
+// visit can read it.
 function apiHeaders() {
-  const key = $("api_key").value || localStorage.getItem("doorloc.api_key") || "";
-  if ($("api_key").value) localStorage.setItem("doorloc.api_key", $("api_key").value);
+  localStorage.removeItem("doorloc.api_key"); // where earlier versions kept it
+  const key = $("api_key").value || sessionStorage.getItem("doorloc.api_key") || "";
+  if ($("api_key").value) sessionStorage.setItem("doorloc.api_key", $("api_key").value);
   return key ? { "X-API-Key": key } : {};
 }
 

@@ -1,0 +1,133 @@
+"""Who gets a CPU slot for an image, and how an admitted image is decoded.
+
+- :func:`take_cpu_slot` / :func:`release_cpu_slot`: a bounded queue per worker (its CPU slots plus
+  ``max_queue``), and within it a share per client (its API key): one client flooding the service fills
+  only its own share, so another client's image still finds a place, and the free CPU slots go to the
+  waiting clients in turn (:class:`~doorloc.app.fairslots.FairSlots`), not in arrival order;
+- :func:`decode_upload`: decoding in the worker's limited decoding processes
+  (:class:`~doorloc.app.decodepool.DecodePool`) within what is left of the request's deadline.
+"""
+
+from __future__ import annotations
+
+import time
+
+import anyio
+import numpy as np
+
+from doorloc.app.decodepool import DecodeRefused
+from doorloc.app.http.problems import ProblemError
+from doorloc.app.http.state import ServiceState
+
+__all__ = ["client_of", "shedding_problem", "take_cpu_slot", "release_cpu_slot", "decode_upload"]
+
+
+def client_of(scope_state: dict) -> str:
+    """The client a request counts against: its API key's name, or "" (no share) for the one anonymous
+    caller of an open (loopback development) service and the legacy single key."""
+    who = scope_state.get("who")
+    if who is not None and getattr(who, "key_id", None) is not None:
+        return f"key:{who.name}"
+    return ""
+
+
+def shedding_problem(state: ServiceState, client: str) -> ProblemError | None:
+    """The 503 for a locate request that would find the worker's queue, or ``client``'s share of it, full;
+    None when it may go on. Asked twice: before the body is read (so a flood's refused uploads are never
+    parsed) and again when the image asks for its CPU slot."""
+    if state.overloaded:
+        return ProblemError(
+            503,
+            "overloaded",
+            f"This worker is already measuring or queueing {state.admitted} images (its limit); retry after the "
+            "number of seconds in Retry-After.",
+            headers={"Retry-After": "2"},
+        )
+    held = state.client_admitted.get(client, 0)
+    if client and held >= state.per_client_limit:
+        return ProblemError(
+            503,
+            "overloaded",
+            f"This client already has {held} images being measured or queued here, its share of this worker; "
+            "wait for an answer, then retry after the number of seconds in Retry-After.",
+            headers={"Retry-After": "2"},
+        )
+    return None
+
+
+async def take_cpu_slot(state: ServiceState, deadline: float | None, client: str) -> None:
+    """Take a place in the worker's bounded queue and wait for a CPU slot until the request's deadline.
+
+    503 Retry-After at once when the queue is full or ``client`` already holds its share of it, or when no
+    slot came free by the deadline. On return the caller holds a limiter token and a queue place and must
+    give both back with :func:`release_cpu_slot`.
+    """
+    problem = shedding_problem(state, client)
+    if problem is not None:
+        raise problem
+    held = state.client_admitted.get(client, 0)
+    left = (deadline - time.monotonic()) if deadline is not None else state.settings.request_deadline_s
+    state.admitted += 1
+    state.client_admitted[client] = held + 1
+    try:
+        with anyio.fail_after(max(left, 0.001)):
+            await state.limiter.acquire(client)
+    except BaseException as e:  # timed out, or the client went away: give the queue place back
+        _forget(state, client)
+        if not isinstance(e, TimeoutError):
+            raise
+        raise ProblemError(
+            503,
+            "overloaded",
+            f"No CPU slot came free within the request deadline ({state.settings.request_deadline_s:g} s): this "
+            "worker is overloaded; retry after the number of seconds in Retry-After.",
+            headers={"Retry-After": "5"},
+        ) from None
+
+
+def _forget(state: ServiceState, client: str) -> None:
+    state.admitted -= 1
+    left = state.client_admitted.get(client, 1) - 1
+    if left > 0:
+        state.client_admitted[client] = left
+    else:
+        state.client_admitted.pop(client, None)
+
+
+def release_cpu_slot(state: ServiceState, client: str) -> None:
+    """Give back what :func:`take_cpu_slot` gave."""
+    state.limiter.release()
+    _forget(state, client)
+
+
+def decode_upload(state: ServiceState, data: bytes, name: str, deadline: float | None) -> np.ndarray:
+    """The uploaded image decoded within the limits (blocking: call it in a worker thread).
+
+    Raises ProblemError 422 (undecodable, or past the decoding CPU-time or memory limit) or 503 (the
+    deadline passed first).
+    """
+    from doorloc.vision.imageio import ImageDecodeError, decode_image
+
+    left = (deadline - time.monotonic()) if deadline is not None else state.settings.request_deadline_s
+    try:
+        if state.decoder is None:
+            image = decode_image(data, name=name)
+        else:
+            image = state.decoder.decode(data, name, timeout_s=left)
+    except ImageDecodeError as e:
+        raise ProblemError(
+            422,
+            "undecodable_image",
+            f"The image could not be decoded ({e}); the file is probably damaged or truncated: send it again.",
+        ) from None
+    except DecodeRefused as e:
+        headers = {"Retry-After": "5"} if e.status == 503 else None
+        raise ProblemError(e.status, e.code, e.detail, headers=headers) from None
+    if image.nbytes > state.settings.max_decoded_bytes:
+        raise ProblemError(
+            422,
+            "too_many_pixels",
+            f"The image '{name}' decoded to {image.nbytes / 1e6:.0f} MB, more than is accepted here "
+            f"({state.settings.max_decoded_bytes / 1e6:.0f} MB); send the camera's own image.",
+        )
+    return image

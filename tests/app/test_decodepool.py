@@ -1,0 +1,89 @@
+"""Decoding in limited worker processes, and the decoders' work read from the header before decoding."""
+
+from __future__ import annotations
+
+import struct
+
+import cv2
+import numpy as np
+import pytest
+
+from doorloc.app.decodepool import DecodePool, DecodeRefused
+from doorloc.app.imagesniff import decode_limit_problem, sniff_image
+
+
+def _progressive_jpeg(extra_scans: int, side: int = 1024) -> bytes:
+    img = np.random.default_rng(0).integers(0, 255, (side, side), np.uint8)
+    data = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_PROGRESSIVE, 1])[1].tobytes()
+    last = data.rfind(b"\xff\xda")
+    (length,) = struct.unpack(">H", data[last + 2 : last + 4])
+    eoi = data.rfind(b"\xff\xd9")
+    return data[:eoi] + data[last : last + 2 + length] * extra_scans + data[eoi:]
+
+
+def test_header_gives_the_scan_count_and_the_coefficient_buffer():
+    plain = sniff_image(cv2.imencode(".jpg", np.zeros((30, 40), np.uint8))[1].tobytes())
+    assert plain.scans == 1 and not plain.progressive and plain.work_bytes == 30 * 40
+    bomb = sniff_image(_progressive_jpeg(500, side=64))
+    assert bomb.progressive and bomb.scans > 500
+    assert bomb.work_bytes == 64 * 64 * (1 + 2)  # pixels, plus 2-byte coefficients
+    assert "scans" in decode_limit_problem(bomb, "b.jpg", 50_000_000, 100_000_000, max_jpeg_scans=100)
+    assert decode_limit_problem(bomb, "b.jpg", 50_000_000, 100_000_000, max_jpeg_scans=1000) is None
+
+
+def test_tiff_float_samples_are_four_bytes_and_refused():
+    import io
+
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.fromarray(np.zeros((30, 40), np.float32)).save(buf, format="TIFF")
+    h = sniff_image(buf.getvalue())
+    assert h.sample_bytes == 4 and h.odd_samples
+    assert "32-bit" in decode_limit_problem(h, "f.tif", 50_000_000, 100_000_000)
+
+
+@pytest.fixture(scope="module")
+def pool():
+    with DecodePool(1, cpu_s=1, memory_bytes=300_000_000) as p:
+        yield p
+
+
+def test_a_normal_image_decodes_as_in_process(pool):
+    img = np.random.default_rng(2).integers(0, 65535, (90, 120, 3), np.uint16)
+    out = pool.decode(cv2.imencode(".png", img)[1].tobytes(), "door.png", timeout_s=60)
+    assert out.dtype == np.uint16 and np.array_equal(out, img)
+
+
+def test_a_decoder_past_its_cpu_limit_is_ended_and_replaced(pool):
+    with pytest.raises(DecodeRefused) as e:
+        pool.decode(_progressive_jpeg(40_000), "bomb.jpg", timeout_s=120)  # ~7 s of decoding
+    assert e.value.status == 422 and e.value.code == "decode_limit" and "CPU" in e.value.detail
+    assert pool.decode(cv2.imencode(".png", np.ones((4, 4), np.uint8))[1].tobytes(), "a.png", 60).shape == (
+        4,
+        4,
+    )
+    assert pool.killed >= 1
+
+
+def test_a_decode_past_its_memory_limit_is_refused(pool):
+    big = cv2.imencode(".png", np.zeros((12000, 14000), np.uint16))[1].tobytes()  # 336 MB decoded
+    with pytest.raises(DecodeRefused) as e:
+        pool.decode(big, "big.png", timeout_s=120)
+    assert e.value.status == 422 and e.value.code == "decode_limit" and "MB of memory" in e.value.detail
+
+
+def test_the_deadline_answers_503(pool):
+    with pytest.raises(DecodeRefused) as e:
+        pool.decode(_progressive_jpeg(40_000), "bomb.jpg", timeout_s=0.2)
+    assert e.value.status == 503 and e.value.code == "overloaded"
+    assert pool.decode(cv2.imencode(".png", np.ones((4, 4), np.uint8))[1].tobytes(), "a.png", 60).shape == (
+        4,
+        4,
+    )
+
+
+def test_undecodable_bytes_are_422(pool):
+    with pytest.raises(DecodeRefused) as e:
+        pool.decode(b"\x89PNG\r\n\x1a\n" + b"\0" * 100, "cut.png", timeout_s=60)
+    assert e.value.status == 422 and e.value.code == "undecodable_image"
