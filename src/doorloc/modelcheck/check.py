@@ -3,10 +3,16 @@
 1. Locate every image with the given cell; pose errors = measured minus reference.
 2. Split off a held-out third (never used to fit or choose).
 3. On the training images: forward models of every catalogue effect (analytic through the camera model,
-   or by locating again for grey-level effects), forward selection by cross-validated error with an
-   F-test against the noise measured from the data; then a test for structure no catalogue entry explains.
-4. Extended cell = the given cell with the fitted values put in (with a ``provenance:`` section).
-5. Locate the held-out images with the extended cell: the held-out RMS before and after is the gain.
+   or by locating again for grey-level effects: the arris in both profiles, each judged by locate itself,
+   thickness reading included), forward selection by cross-validated error plus each fitted value's
+   prior penalty (:mod:`doorloc.modelcheck.priors`) with an F-test against the noise measured from the
+   data, continuing past a cause that leaves structure and trying the best singles in pairs; then a test
+   for structure no catalogue entry explains.
+4. Extended cell = the given cell with the fitted values put in (with a ``provenance:`` section that
+   flags any value beyond 5 prior sigmas as implausible).
+5. Locate the held-out images with the extended cell: the held-out RMS before and after is the gain; a
+   held-out image it refuses is reported with locate's reason, and the verdict then says not to use it
+   (:mod:`doorloc.modelcheck.verdict`).
 """
 
 from __future__ import annotations

@@ -4,8 +4,11 @@ The pose errors of the training images (measured minus reference, rows ``(x_mm, 
 thickness_mm)``) are divided by the noise scale of each component and fitted with
 ``scipy.optimize.least_squares`` (a handful of smooth parameters: finite differences are cheap and
 exact enough; autograd would add a torch dependency for nothing here). Effects are chosen by forward
-selection on the K-fold cross-validated (held-out) error, and each step must also pass an F-test
-whose noise variance is measured from the data (the residual of the larger model).
+selection on the K-fold cross-validated (held-out) error plus the prior's chi-square of the fitted
+values (a penalised criterion: a surrogate far outside what the calibration allows loses to a plausible
+cause that fits about as well), and each step must also pass an F-test whose noise variance is measured
+from the data (the residual of the larger model). The fitted values themselves are the data's (no
+shrinkage towards the prior): the prior judges plausibility, it does not move a measurement.
 """
 
 from __future__ import annotations

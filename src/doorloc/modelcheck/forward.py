@@ -116,13 +116,21 @@ def observe(
     read: Callable[[MeasuredImage], np.ndarray],
     keep_images: bool = True,
 ) -> list[Observation]:
-    """Locate every image with ``cell`` and keep what the forward models need (see :class:`Observation`)."""
+    """Locate every image with ``cell`` and keep what the forward models need (see :class:`Observation`).
+
+    Without the refusals that only judge an answer's uncertainty (:func:`locate_errors`): the model check
+    needs the pose the cell gives. A cell that lacks the doors' arris doubts every thickness it cannot
+    check, and production's gate refused 39 of 40 images of a rounded 0.79 mm arris (thickness 39.73 +-
+    1.51 mm against 40): the check then refused the data set as "too far from the images", the very
+    case it exists for.
+    """
     out = []
+    cfg = _ungated(cell.locate)
     for it in items:
         img = read(it)
         door = door_for(it, cell, measured_arris)
         tr = LocateTrace()
-        r = locate(img, cell, door, image_name=it.image, trace=tr)
+        r = locate(img, cell, door, image_name=it.image, trace=tr, config=cfg)
         nan4 = np.full(4, np.nan)
         if not r.ok or tr.region is None or tr.pose is None:
             out.append(
