@@ -407,6 +407,20 @@ def check_model(
     )
     rep.heldout_rms_before["lever_mm"] = g_before
     rep.heldout_rms_after["lever_mm"] = g_after
+    # the cell file says how it fared on the images it was not fitted to, and the verdict on it
+    prov = dict(ext.provenance)
+    prov["model_check"] = {
+        **prov["model_check"],
+        "verified": _jsonable(
+            {
+                "heldout_images": len(held_obs),
+                "refused": len(refused_after),
+                "gain": rep.heldout_gain,
+                "verdict": rep.verdict["status"],
+            }
+        ),
+    }
+    ext = replace(ext, provenance=prov)
     if write:
         from doorloc.modelcheck.report import write_report
 
