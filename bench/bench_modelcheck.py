@@ -235,7 +235,9 @@ def main() -> int:
             f"time per data set (check only): median {statistics.median(times):.0f} s, max {max(times):.0f} s"
         )
     if args.json:
-        Path(args.json).write_text(json.dumps(done, indent=1, default=float))
+        Path(args.json).write_text(
+            json.dumps(done, indent=1, default=lambda o: o if isinstance(o, float) else repr(o))
+        )
     return 0
 
 
