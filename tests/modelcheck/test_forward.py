@@ -152,3 +152,19 @@ def test_a_response_locate_measured_on_most_images_is_a_cause():
     # a few images are no evidence, and a response already named is not added twice
     assert _with_absorbed_response(none, obs([2.39] * 5 + [np.nan] * 23), CATALOGUE)[0].names == ()
     assert _with_absorbed_response(model, obs(measured), CATALOGUE)[0].names == ("response_gamma",)
+
+
+def test_a_response_measured_on_edges_with_an_arris_the_cell_lacked_is_no_cause():
+    """A rounded arris the nominal cell lacked reads as a camera response on its edges (hidden 0.41 mm,
+    linear camera: 1.87 measured); with the arris named, that measurement is no evidence of a response."""
+    from types import SimpleNamespace
+
+    from doorloc.modelcheck.catalogue import arris_variants
+    from doorloc.modelcheck.check import _with_absorbed_response
+    from doorloc.modelcheck.fit import FittedModel
+
+    arris = arris_variants(CELL)[1]
+    named = FittedModel((arris,), (np.array([0.38]),), (np.array([0.003]),), 0.0, 0)
+    obs = [SimpleNamespace(response_absorbed=1.87) for _ in range(28)]
+    model, ev = _with_absorbed_response(named, obs, CATALOGUE)
+    assert model.names == ("arris",) and "added" not in ev and ev["skipped"]

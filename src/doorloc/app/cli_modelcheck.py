@@ -27,6 +27,9 @@ def register(app: typer.Typer) -> None:
             Path, typer.Option("--out", help="REPORT_DIR: report.json, report.md, plots, extended cell")
         ],
         seed: Annotated[int, typer.Option(help="seed of the held-out draw")] = 0,
+        as_json: Annotated[
+            bool, typer.Option("--json", help="print report.json to stdout instead of the summary")
+        ] = False,
     ) -> None:
         """Locate every image, name the cause of the errors from the catalogue, fit it, write the extended
         cell and the held-out gain (exit 0 done, 2 bad input)."""
@@ -51,12 +54,10 @@ def register(app: typer.Typer) -> None:
             raise fail(str(e), EXIT_USAGE) from None
         except OSError as e:
             raise fail(f"cannot write the report to {out}: {e.strerror or e}", EXIT_USAGE) from None
-        causes = ", ".join(rep.causes) if rep.causes else "none (no significant effect)"
-        typer.echo(f"causes: {causes}")
-        b, a = rep.heldout_rms_before, rep.heldout_rms_after
-        typer.echo(
-            f"held-out RMS ({len(rep.heldout_images)} images) x {b['x_mm']:.4f} -> {a['x_mm']:.4f} mm, "
-            f"z {b['z_mm']:.4f} -> {a['z_mm']:.4f} mm, yaw {b['yaw_deg']:.5f} -> {a['yaw_deg']:.5f} deg; "
-            f"gain {rep.heldout_gain:.1f}x"
-        )
-        typer.echo(f"wrote {out / 'report.json'}, {out / 'report.md'} and {out / rep.extended_cell}")
+        if as_json:
+            typer.echo((out / "report.json").read_text(encoding="utf-8"))
+            return
+        v = rep.verdict
+        typer.echo(f"{v['status']}: {v['headline']}")
+        typer.echo(f"action: {v['action']}")
+        typer.echo(f"report: {out / 'report.md'} (and report.json, the plots, {rep.extended_cell})")

@@ -11,6 +11,8 @@ import numpy as np
 
 from doorloc.fileio import atomic_write_bytes, atomic_write_text
 from doorloc.modelcheck.forward import COMPONENTS
+from doorloc.modelcheck.priors import IMPLAUSIBLE_SIGMAS
+from doorloc.modelcheck.verdict import LEVER_EXPLAINED, meaning, verdict_of
 
 if TYPE_CHECKING:
     from doorloc.modelcheck.check import ModelCheckReport
@@ -107,64 +109,165 @@ def _plots(rep: ModelCheckReport, out: Path) -> list[str]:
     return names
 
 
-def report_markdown(rep: ModelCheckReport) -> str:
-    """A person's summary of the check."""
-    lines = [
-        "# Model check",
+def _comment(c: str, b: float, a: float, noise: float) -> str:
+    """Why a held-out component moved the way it did, in words."""
+    if not (np.isfinite(a) and np.isfinite(b)):
+        return "not measured (refused images)"
+    if a <= b * 0.95:
+        return "better"
+    if a <= b * 1.05:
+        return "unchanged"
+    if np.isfinite(noise) and max(a, b) <= 2 * noise:
+        return (
+            f"worse, but both within twice its noise ({noise:.2g} {_UNIT[c]}): this component was already "
+            "right and moved by noise only"
+        )
+    return "worse: the extended model trades this component for the others; look at heldout.png"
+
+
+def _headline_sections(rep: ModelCheckReport) -> list[str]:
+    v = verdict_of(rep)
+    return [
+        f"# Model check: {v.status.replace('_', ' ')}",
         "",
-        f"- data set: `{rep.dataset}`",
-        f"- cell: `{rep.cell}`",
-        f"- images: {len(rep.train_images)} training, {len(rep.heldout_images)} held out, "
-        f"{len(rep.refused)} refused by locate",
+        f"**Verdict.** {v.headline}",
+        "",
+        f"**Action.** {v.action}",
+        "",
+        f"Data set `{rep.dataset}`, cell `{rep.cell}`: {len(rep.train_images)} images to fit, "
+        f"{len(rep.heldout_images)} held out to judge (never used to fit or choose), {len(rep.refused)} that "
+        "locate refused with the given cell.",
         "",
     ]
-    if rep.causes == []:
+
+
+def _considered_sections(rep: ModelCheckReport) -> list[str]:
+    if not rep.considered:
+        return []
+    lines = [
+        "## Causes considered",
+        "",
+        "Each known cause was fitted alone to the training images. *Explains* is the share of the pose error "
+        "it takes away on images left out of its fit (cross-validated). *Prior* is how many sigmas its fitted "
+        "value lies from the cell's own, against what the calibration and the shop allow (1 sigma shown); a "
+        f"cause beyond {IMPLAUSIBLE_SIGMAS:g} sigma is implausible. *Score* = held-out error + prior "
+        "penalty (sigmas squared), in noise units squared: lowest wins.",
+        "",
+        "| cause | explains | fitted value | prior (1 sigma) | sigmas from cell | score |",
+        "|---|---|---|---|---|---|",
+    ]
+    for t in rep.considered:
+        label = t["cause"] + (f" ({t['variant']})" if t.get("variant") else "")
+        vals = ", ".join(f"{k} {v:+.4g}" for k, v in t["values"].items())
+        prior = rep.priors.get(t["cause"], {})
+        psig = ", ".join(f"{x:.3g}" for x in prior.get("sigma", ()))
+        away = float(np.sqrt(t["prior_chi2"]))
         lines.append(
-            "**Causes: none** - no significant effect; the cell model explains these data to their noise."
+            f"| `{label}` | {100 * (1 - t['cv_ratio']):.1f} % | {vals} | {psig} | {away:.1f} | {t['score']:.4g} |"
         )
-    else:
-        lines.append("**Causes: " + ", ".join(f"`{c}`" for c in rep.causes) + "**")
-    lines += ["", "## Fitted parameters (1 sigma)", ""]
-    for cause, ps in rep.parameters.items():
-        for p, v in ps.items():
-            lines.append(f"- `{cause}`.{p} = {v['value']:.6g} +- {v['sigma']:.2g}")
-    if not rep.parameters:
-        lines.append("- none")
+    named = [c for c in rep.causes if c != "unexplained"]
+    winner = rep.considered[0]
+    runner = next((t for t in rep.considered[1:] if t["cause"] != winner["cause"]), None)
+    lines.append("")
+    if named:
+        lines.append(
+            f"**Why `{named[0]}`.** It has the lowest score: it explains "
+            f"{100 * (1 - winner['cv_ratio']):.1f} % of the error on images outside its fit with a value "
+            f"{np.sqrt(winner['prior_chi2']):.1f} sigma from the cell's."
+            + (
+                f" Together with it: {', '.join(f'`{c}`' for c in named[1:])} (selection steps below)."
+                if len(named) > 1
+                else ""
+            )
+        )
+    if runner is not None:
+        what = meaning(runner["cause"], runner["values"], runner.get("variant", ""))
+        lines.append(
+            f"**Runner-up `{runner['cause']}`** would mean {what}; it explains "
+            f"{100 * (1 - runner['cv_ratio']):.1f} % at {np.sqrt(runner['prior_chi2']):.1f} sigma from the "
+            f"cell's value (score {runner['score']:.4g} against {winner['score']:.4g})."
+        )
+    lines.append("")
+    return lines
+
+
+def report_markdown(rep: ModelCheckReport) -> str:
+    """A person's summary of the check: verdict and action first, every figure explained."""
+    lines = _headline_sections(rep)
+    named = [c for c in rep.causes if c != "unexplained"]
+    lines += ["## What was found", ""]
+    if not rep.causes:
+        lines.append("No cause: the cell model explains these data to their noise.")
+    for cause in named:
+        pl = rep.plausibility.get(cause, {})
+        vals = {p: v["value"] for p, v in rep.parameters.get(cause, {}).items()}
+        lines.append(f"- `{cause}`: {meaning(cause, vals, pl.get('variant', ''))}.")
+        for p, v in rep.parameters.get(cause, {}).items():
+            lines.append(f"  - {p} = {v['value']:.6g} +- {v['sigma']:.2g} (1 sigma from these data)")
+        if pl:
+            flag = "**implausible**" if pl["implausible"] else "plausible"
+            lines.append(
+                f"  - {pl['sigmas_from_cell']:.1f} sigma from the cell's value under its prior "
+                f"({', '.join(f'{k} {s:.3g}' for k, s in pl['prior_sigma'].items())}, {pl['prior_source']}): {flag}"
+            )
+    if "unexplained" in rep.causes:
+        lines.append(
+            "- `unexplained`: the errors left over still follow the door's pose, size or image position "
+            "(test below); no known cause accounts for that part."
+        )
     if rep.indistinguishable:
-        lines += ["", "## Not distinguishable on these data", ""]
+        lines += ["", "Not distinguishable on these data:", ""]
         for cause, alts in rep.indistinguishable.items():
             lines.append(f"- `{cause}`: " + "; ".join(alts))
+    lines.append("")
+    lines += _considered_sections(rep)
     lines += [
+        "## Held-out check (images not used to fit)",
         "",
-        "## Held-out error (images not used to fit)",
+        "RMS error of the held-out images' poses, located with the given cell and again with the extended "
+        f"cell. `lever_mm` is {LEVER_EXPLAINED}; the gain is its before / after.",
         "",
-        "| | given cell | extended cell |",
-        "|---|---|---|",
+        "| | given cell | extended cell | |",
+        "|---|---|---|---|",
     ]
     for c in [*COMPONENTS, "lever_mm"]:
         b, a = rep.heldout_rms_before.get(c), rep.heldout_rms_after.get(c)
         if b is not None and a is not None:
-            lines.append(f"| {c} ({_UNIT[c]}) | {b:.5f} | {a:.5f} |")
+            noise = (
+                float(np.hypot(rep.noise.get("x_mm", np.nan), rep.noise.get("z_mm", np.nan)))
+                if c == "lever_mm"
+                else rep.noise.get(c, np.nan)
+            )
+            lines.append(f"| {c} ({_UNIT[c]}) | {b:.5f} | {a:.5f} | {_comment(c, b, a, noise)} |")
     if rep.heldout_refused_after:
         lines += [
             "",
-            f"**The extended cell's locate refused {len(rep.heldout_refused_after)} held-out image(s)** "
-            f"({', '.join(rep.heldout_refused_after[:5])}): no gain is claimed.",
+            f"**Locate with the extended cell refused {len(rep.heldout_refused_after)} held-out image(s)** "
+            f"({', '.join(rep.heldout_refused_after[:5])}): no gain is claimed. Why: "
+            + "; ".join(rep.heldout_refusal_reasons[:3]),
         ]
+    lines += ["", f"Gain: **{rep.heldout_gain:.1f}x**.", ""]
     lines += [
+        "## Selection steps",
         "",
-        f"Gain: **{rep.heldout_gain:.1f}x** (RMS error of a point 1 m up the door, before / after).",
-        "",
-        "## Alternatives (cross-validated weighted RMS, first selection step)",
+        "A cause is added when it is real and worth it. *Real*: the F-test's p is the chance that noise alone "
+        "would improve the fit this much (small = real). *Worth it*: on images left out of the fit it takes "
+        "away at least 75 % of what the model before it left (held-out ratio < 0.25). A cause that takes away "
+        "much but not enough is kept provisionally while a second is tried with it.",
         "",
     ]
-    for alt in rep.alternatives:
-        lines.append(f"- `{alt['cause']}`: {alt['cv_rms_weighted']:.3g}")
-    lines += ["", "## Selection steps", ""]
     for s in rep.selection_steps:
+        verdict = (
+            "accepted"
+            if s["accepted"]
+            else "kept provisionally"
+            if s.get("provisional")
+            else "rejected: "
+            + ("not real (p too large)" if s["f_test_p"] >= 1e-4 else "not worth it (ratio too large)")
+        )
         lines.append(
-            f"- step {s['step']}: `{s['candidate']}` held-out SSE ratio {s['cv_ratio']:.3g}, "
-            f"F-test p = {s['f_test_p']:.2g} -> {'accepted' if s['accepted'] else 'rejected'}"
+            f"- step {s['step']}: `{s['candidate']}` leaves {s['cv_ratio']:.3g} of the held-out error, "
+            f"p = {s['f_test_p']:.2g} -> {verdict}"
         )
     ref = rep.refined_by_relocation
     if ref.get("steps"):
@@ -173,7 +276,7 @@ def report_markdown(rep: ModelCheckReport) -> str:
             for name, v in ref["values"].items()
         )
         lines.append(
-            f"- refined on the training images located again ({ref['steps']} Gauss-Newton steps, cost "
+            f"- refined by locating the training images again ({ref['steps']} Gauss-Newton steps, cost "
             f"{ref['cost_before']:.4g} -> {ref['cost_after']:.4g}): {moved}"
         )
     ev = rep.response_measured_by_locate
@@ -184,13 +287,19 @@ def report_markdown(rep: ModelCheckReport) -> str:
             f"nothing of it): median {ev['median']:.3f} +- {ev['sigma']:.3f}"
         )
     u = rep.unexplained_test
+    left = "yes: reported as `unexplained`" if u.get("structured") else "no: what is left is noise"
     lines += [
         "",
-        f"Structure left after the model (linear in pose, door size, corner pixel): p = "
-        f"{u.get('f_test_p', 1.0):.2g}, held-out ratio {u.get('cv_ratio', 1.0):.3g} -> "
-        f"{'structured (unexplained)' if u.get('structured') else 'noise'}",
+        "## Anything left?",
         "",
-        "Noise per component (1 sigma, weights): " + ", ".join(f"{k} {v:.2g}" for k, v in rep.noise.items()),
+        "The opposite question: after the causes above, do the errors still follow the door's pose, size or "
+        "image position (a linear fit)? Here a small p means *something is left*; it must also hold on "
+        "images left out (ratio < 0.5) and be at least 2 % of the original error to count. "
+        f"p = {u.get('f_test_p', 1.0):.2g}, held-out ratio {u.get('cv_ratio', 1.0):.3g}, "
+        f"share {100 * u.get('share_of_original', 0.0):.1f} % -> {left}.",
+        "",
+        "Noise per component (1 sigma; locate's own uncertainty with the reference's): "
+        + ", ".join(f"{k} {v:.2g}" for k, v in rep.noise.items()),
         "",
         f"Extended cell: `{rep.extended_cell}` (locate, batch and serve read it like any cell file).",
         "",
