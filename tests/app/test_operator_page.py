@@ -83,9 +83,8 @@ def test_upload_shows_pose_overlay_and_targets_then_an_error_sentence(live_serve
     with sync_playwright() as p:
         browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS, headless=True)
         try:
-            page = browser.new_page(
-                bypass_csp=True
-            )  # wait_for_function evaluates strings: the page's CSP forbids that
+            # wait_for_function evaluates strings, which the page's CSP forbids
+            page = browser.new_page(bypass_csp=True)
             page.goto(live_server + "/")
             page.wait_for_function("document.getElementById('ready').textContent === 'ready'", timeout=20_000)
 
@@ -142,7 +141,7 @@ def test_pose_values_show_their_one_sigma_and_the_dominant_uncertainty_term(live
     with sync_playwright() as p:
         browser = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS, headless=True)
         try:
-            page = browser.new_page()
+            page = browser.new_page(bypass_csp=True)  # as above: wait_for_function evaluates strings
             page.goto(live_server + "/")
             page.wait_for_function("document.getElementById('ready').textContent === 'ready'", timeout=20_000)
             page.fill("#door_id", "D-100")
