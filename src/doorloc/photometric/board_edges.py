@@ -25,7 +25,14 @@ import numpy as np
 from doorloc.calib.camera import CameraModel
 from doorloc.vision.edges import subpixel_edges
 
-__all__ = ["EdgeWindows", "BoardEdges", "EdgeSettings", "board_edge_curves", "measure_board_edges"]
+__all__ = [
+    "EdgeWindows",
+    "BoardEdges",
+    "EdgeSettings",
+    "board_edge_curves",
+    "measure_board_edges",
+    "per_edge_median",
+]
 
 
 @dataclass(frozen=True)
@@ -119,10 +126,11 @@ class BoardEdges:
 
     def edge_offsets_px(self) -> np.ndarray:
         """Median offset of each edge over its scan lines, px (E,)."""
-        return _per_edge_median(self.windows.edge, self.offset_px, self.n_edges)
+        return per_edge_median(self.windows.edge, self.offset_px, self.n_edges)
 
 
-def _per_edge_median(edge: np.ndarray, x: np.ndarray, n: int) -> np.ndarray:
+def per_edge_median(edge: np.ndarray, x: np.ndarray, n: int) -> np.ndarray:
+    """Median of ``x`` over each edge's scan lines (``edge`` the edge of each, ``n`` edges; NaN where none)."""
     out = np.full(n, np.nan)
     ok = np.isfinite(x)
     order = np.argsort(edge[ok], kind="stable")
