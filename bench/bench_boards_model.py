@@ -90,7 +90,7 @@ def real() -> None:
 def hidden(seeds: int, controls: int, views: int) -> None:
     board = Checkerboard(9, 6, 25.0)
     print(f"hidden effects in rendered boards ({views} photographs each; camera fx 600, k1 -0.2)")
-    named = total = 0
+    named = named_or_tie = total = 0
     with tempfile.TemporaryDirectory() as tmp:
         cal = Path(tmp) / "camera.yaml"
         save_calibration(CalibrationFile(CAMERA), cal)
@@ -114,12 +114,16 @@ def hidden(seeds: int, controls: int, views: int) -> None:
                 false_alarms += not ok
             else:
                 ok = name in c.causes
+                told_apart = ok or any(name in others for others in c.alternatives.values())
                 named += ok
+                named_or_tie += told_apart
                 total += 1
             vals = ", ".join(f"{k} {v:.3g}" for k, v in values.items())
+            alts = f" (cannot tell apart: {c.alternatives})" if c.alternatives else ""
             print(
                 f"  {name} (seed {seed}{'; ' + vals if vals else ''}): named {c.causes} -> {'ok' if ok else 'MISSED'}; "
                 f"offset {off['before']:.3f} -> {off['after']:.3f} px, profile {prof['before']:.2f} -> {prof['after']:.2f}"
+                + alts
             )
         print(
             f"  named {named}/{total} ({100 * named / max(total, 1):.0f} %); false alarms {false_alarms}/{controls}"

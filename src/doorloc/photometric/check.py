@@ -99,7 +99,7 @@ class BoardCheck:
     selection: Selection
     blur: BlurTerms
     tail_gain: tuple[float, float]
-    camera: CameraModel
+    camera: CameraModel | None
     calibration_source: str
     alternatives: dict[str, list[str]] = field(default_factory=dict)
     skipped: list[str] = field(default_factory=list)
@@ -319,4 +319,4 @@ def check_photographs(
     rms_after = float(np.sqrt(np.nanmean(heldout_after**2)))
     if rms_after > max(0.03, 1.5 * floor) and rms_after > 2.0 * floor:
         causes.append("unexplained")
-    return BoardCheck(causes, model, parameters, results, sel, bt, tail_gain, None, "", sel.alternatives)  # type: ignore[arg-type]
+    return BoardCheck(causes, model, parameters, results, sel, bt, tail_gain, None, "", sel.alternatives)

@@ -264,7 +264,10 @@ def write_board_report(
         atomic_write_bytes(out / name, data)
     atomic_write_text(out / "report.json", json.dumps(report_dict(check), indent=2, allow_nan=False) + "\n")
     atomic_write_text(out / "report.md", report_markdown(check))
-    base = calibration or CalibrationFile(check.camera)
+    camera = calibration.camera if calibration is not None else check.camera
+    if camera is None:
+        raise ValueError("a board check without a camera needs the calibration to extend")
+    base = calibration or CalibrationFile(camera)
     stamp = datetime.now(UTC).strftime("%Y-%m-%d")
     ext = CalibrationFile(
         base.camera,
