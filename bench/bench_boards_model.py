@@ -10,7 +10,8 @@
   one catalogue effect hidden at a random strength, and controls with none: is the effect named, does the held-out
   offset or profile misfit fall, and do the controls answer [].
 
-Run:  OMP_NUM_THREADS=1 python bench/bench_boards_model.py [real] [hidden --seeds 3 --controls 5 --views 8]
+Run:  OMP_NUM_THREADS=1 python bench/bench_boards_model.py [real] [hidden --seeds 3 --controls 5 --views 8
+      [--effects response_gamma,print_spread] [--first-seed 0]]
 """
 
 from __future__ import annotations
@@ -87,15 +88,15 @@ def real() -> None:
         summary(folder, check_boards(DATA / folder, board))
 
 
-def hidden(seeds: int, controls: int, views: int) -> None:
+def hidden(seeds: int, controls: int, views: int, effects: list[str], first_seed: int = 0) -> None:
     board = Checkerboard(9, 6, 25.0)
     print(f"hidden effects in rendered boards ({views} photographs each; camera fx 600, k1 -0.2)")
     named = named_or_tie = total = 0
     with tempfile.TemporaryDirectory() as tmp:
         cal = Path(tmp) / "camera.yaml"
         save_calibration(CalibrationFile(CAMERA), cal)
-        runs = [(name, s) for name in HIDDEN for s in range(seeds)] + [
-            ("control", s) for s in range(controls)
+        runs = [(name, s) for name in effects for s in range(first_seed, first_seed + seeds)] + [
+            ("control", s) for s in range(first_seed, first_seed + controls)
         ]
         false_alarms = 0
         for name, s in runs:
@@ -136,11 +137,13 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--controls", type=int, default=5)
     ap.add_argument("--views", type=int, default=8)
+    ap.add_argument("--effects", default=",".join(HIDDEN), help="comma-separated catalogue names to hide")
+    ap.add_argument("--first-seed", type=int, default=0, help="index of the first seed of each effect")
     args = ap.parse_args()
     if "real" in args.parts:
         real()
     if "hidden" in args.parts:
-        hidden(args.seeds, args.controls, args.views)
+        hidden(args.seeds, args.controls, args.views, args.effects.split(","), args.first_seed)
 
 
 if __name__ == "__main__":

@@ -17,6 +17,8 @@ Signatures of the edge-moving causes, on the signed offset (+ towards the bright
   saturation move (towards the dark side), the more the nearer;
 - ``response_curvature``: a toe or shoulder bending the log-log response: edges move by an amount that depends
   on where on the grey scale both levels sit, not on their ratio only;
+- ``psf_asymmetry``: a fixed image vector projected on each edge's normal: opposite edges of one square move
+  opposite ways, so the offset depends on the edge's direction, not on its blur, levels or scale;
 - ``print_spread``: a fixed length on the board, so an offset proportional to the board's scale (px per mm)
   and independent of the blur.
 """
@@ -74,6 +76,15 @@ EDGE_CAUSES: tuple[Cause, ...] = (
         (0.3, -1.5),
         (4.0, 1.5),
         "a toe or shoulder beyond a power law: the move depends on where both levels sit on the grey scale",
+    ),
+    Cause(
+        "psf_asymmetry",
+        ("edge_shift_u_px", "edge_shift_v_px"),
+        (0.0, 0.0),
+        (-1.0, -1.0),
+        (1.0, 1.0),
+        "edges move by a fixed image vector projected on their normal: opposite edges of a square move "
+        "opposite ways (a point spread that is not point-symmetric)",
     ),
     Cause(
         "print_spread",

@@ -227,7 +227,9 @@ def check_photographs(
     def centres(i: int, m: PhotometricModel) -> np.ndarray:
         """Each edge's transition centre as the model places it (px from the true edge)."""
         e = photos[i].edges
-        o = place_edges(photos[i], m) + m.print_spread_mm * e.px_per_mm[e.windows.edge]
+        n = e.normal[e.windows.edge]
+        asym = m.edge_shift_u_px * n[:, 0] + m.edge_shift_v_px * n[:, 1]
+        o = place_edges(photos[i], m) + m.print_spread_mm * e.px_per_mm[e.windows.edge] + asym
         return per_edge_median(e.windows.edge, o, e.n_edges)
 
     shifts = [centres(i, fold_models[i]) for i in range(len(photos))]

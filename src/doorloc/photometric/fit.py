@@ -62,7 +62,8 @@ class Photograph:
 
 def place_edges(photo: Photograph, model: PhotometricModel) -> np.ndarray:
     """Offsets (px, + towards bright) of the edges placed with ``model``: the area estimator reads the pixels
-    through the model's response, then the print's board-length shift is taken off (N,)."""
+    through the model's response, then the print's board-length shift and the point spread's asymmetric
+    shift along each edge's normal are taken off (N,)."""
     w = photo.edges.windows
     s = photo.settings
     lut = None if model.linear_response else model.linearizing_lut()
@@ -77,13 +78,33 @@ def place_edges(photo: Photograph, model: PhotometricModel) -> np.ndarray:
         out[sel] = np.where(
             es.valid, (es.along - w.true_along[sel]) * w.cos[sel] * w.bright_sign[sel], np.nan
         )
-    return out - model.print_spread_mm * photo.edges.px_per_mm[w.edge]
+    n = photo.edges.normal[w.edge]  # each edge's normal towards its bright side (image px)
+    asym = model.edge_shift_u_px * n[:, 0] + model.edge_shift_v_px * n[:, 1]
+    return out - model.print_spread_mm * photo.edges.px_per_mm[w.edge] - asym
 
 
 def photo_median(photo: Photograph, model: PhotometricModel) -> float:
+    """The photograph's median offset over all its edges' scan lines with ``model``, px."""
     o = place_edges(photo, model)
     ok = np.isfinite(o)
     return float(np.median(o[ok])) if ok.any() else float("nan")
+
+
+def direction_medians(photo: Photograph, model: PhotometricModel) -> np.ndarray:
+    """The photograph's median offset over the edges whose bright side faces each way (+u, +v, -u, -v), px (4,).
+
+    What causes are chosen by: a bias that depends on the edge's direction cancels in the photograph's
+    median over all edges when the directions are balanced, but not in these four.
+    """
+    o = place_edges(photo, model)
+    n = photo.edges.normal[photo.edges.windows.edge]
+    quadrant = np.round(np.arctan2(n[:, 1], n[:, 0]) / (np.pi / 2)).astype(int) % 4
+    out = np.full(4, np.nan)
+    for q in range(4):
+        ok = (quadrant == q) & np.isfinite(o)
+        if ok.sum() >= 10:
+            out[q] = np.median(o[ok])
+    return out
 
 
 def noise_floor_px(photo: Photograph) -> float:
@@ -155,14 +176,25 @@ def fit_causes(
             out.append(np.where(c > 0, s / np.maximum(c, 1), 0.0)[has] / np.sqrt(max(has.sum(), 1)))
         return np.concatenate(out)
 
-    res = least_squares(
-        residuals,
-        np.asarray(x0, float),
-        bounds=(lo, hi),
-        loss="soft_l1",
-        f_scale=0.02,
-        diff_step=1e-3,
-        x_scale="jac",
+    # two starts: the cause's own and the base model's values (a curve that bends the other way from the
+    # cause's start is found from the plain model); the lower cost wins
+    starts = [np.asarray(x0, float), np.clip([float(getattr(base, n)) for n in names], lo, hi)]
+    if np.allclose(starts[0], starts[1]):
+        starts = starts[:1]
+    res = min(
+        (
+            least_squares(
+                residuals,
+                x,
+                bounds=(lo, hi),
+                loss="soft_l1",
+                f_scale=0.02,
+                diff_step=1e-3,
+                x_scale="jac",
+            )
+            for x in starts
+        ),
+        key=lambda r: float(r.cost),
     )
     model = base.with_values(**dict(zip(names, map(float, res.x), strict=True)))
     return CauseFit(
@@ -179,10 +211,16 @@ class HeldOut:
     offsets_px: np.ndarray
     fits: list[CauseFit]
     sigma: dict[str, float]
+    by_direction_px: np.ndarray  # (n, 4): :func:`direction_medians` of each photograph, held out
 
     @property
     def rms_px(self) -> float:
         return float(np.sqrt(np.nanmean(self.offsets_px**2)))
+
+    @property
+    def score_px(self) -> float:
+        """RMS over photographs and the four edge directions of the held-out median offsets, px."""
+        return float(np.sqrt(np.nanmean(self.by_direction_px**2)))
 
 
 def folds_by_photograph(n: int, k: int) -> np.ndarray:
@@ -200,6 +238,7 @@ def held_out(
     """
     n = len(photos)
     offs = np.full(n, np.nan)
+    by_dir = np.full((n, 4), np.nan)
     fits: list[CauseFit] = [CauseFit((), (), (), base, float("nan"))] * n
     per_fold = []
     for f_id in np.unique(folds):
@@ -208,13 +247,14 @@ def held_out(
         for i in np.flatnonzero(folds == f_id).tolist():
             fits[i] = f
             offs[i] = photo_median(photos[i], f.model)
+            by_dir[i] = direction_medians(photos[i], f.model)
     sigma: dict[str, float] = {}
     k = len(per_fold)
     if k > 1 and per_fold[0].names:
         v = np.array([f.values for f in per_fold])
         sd = np.sqrt((k - 1) / k * ((v - v.mean(0)) ** 2).sum(0))
         sigma = dict(zip(per_fold[0].names, map(float, sd), strict=True))
-    return HeldOut(tuple(c.name for c in causes), offs, fits, sigma)
+    return HeldOut(tuple(c.name for c in causes), offs, fits, sigma, by_dir)
 
 
 @dataclass(frozen=True)
@@ -236,8 +276,15 @@ class Selection:
 
 
 def _gain_z(before: np.ndarray, after: np.ndarray) -> tuple[float, float]:
-    """Mean paired reduction of squared offsets and its standard error."""
-    d = before**2 - after**2
+    """Mean paired reduction of squared offsets (per photograph: the mean over its edge directions) and its
+    standard error."""
+
+    def per_photo(x: np.ndarray) -> np.ndarray:
+        sq = np.where(np.isfinite(x), x**2, 0.0)
+        n = np.isfinite(x).sum(axis=1)
+        return np.where(n > 0, sq.sum(axis=1) / np.maximum(n, 1), np.nan)
+
+    d = per_photo(before) - per_photo(after)
     d = d[np.isfinite(d)]
     if d.size < 2:
         return 0.0, float("inf")
@@ -250,44 +297,46 @@ def select_causes(
     folds: int = 5,
     progress: Callable[[str], None] | None = None,
 ) -> Selection:
-    """Forward selection by held-out photographs: add the cause that lowers the leave-one-out offsets most,
-    while the lowering is significant (:data:`KEEP_SIGMAS`, paired over photographs)."""
+    """Forward selection by held-out photographs: add the cause that lowers the held-out offsets most (each
+    photograph's medians by edge direction, :func:`direction_medians`), while the lowering is significant
+    (:data:`KEEP_SIGMAS`, paired over photographs)."""
     plain = np.array([photo_median(p, PLAIN) for p in photos])
+    plain_dir = np.array([direction_medians(p, PLAIN) for p in photos])
     fold_of = folds_by_photograph(len(photos), folds)
     current: list[Cause] = []
-    cur_off = plain
+    cur_off = plain_dir
     cur_ho: HeldOut | None = None
     steps: list[dict[str, float]] = []
     alternatives: dict[str, list[str]] = {}
     remaining = list(catalogue)
     while remaining:
         trials = {c.name: held_out(photos, [*current, c], fold_of) for c in remaining}
-        steps.append({k: v.rms_px for k, v in trials.items()})
+        steps.append({k: v.score_px for k, v in trials.items()})
         if progress:
             progress(
-                "held-out RMS with " + ", ".join(f"+{k} {v.rms_px:.3f}" for k, v in trials.items()) + " px"
+                "held-out RMS by edge direction with "
+                + ", ".join(f"+{k} {v.score_px:.3f}" for k, v in trials.items())
+                + " px"
             )
-        best = min(trials, key=lambda k: trials[k].rms_px)
-        gain, se = _gain_z(cur_off, trials[best].offsets_px)
+        best = min(trials, key=lambda k: trials[k].score_px)
+        gain, se = _gain_z(cur_off, trials[best].by_direction_px)
         if not gain > KEEP_SIGMAS * se:
             break
         ties = []
         for k, v in trials.items():
             if k == best:
                 continue
-            g, s = _gain_z(v.offsets_px, trials[best].offsets_px)
-            if (
-                g <= TIE_SIGMAS * s
-                and _gain_z(cur_off, v.offsets_px)[0] > KEEP_SIGMAS * _gain_z(cur_off, v.offsets_px)[1]
-            ):
+            g, s = _gain_z(v.by_direction_px, trials[best].by_direction_px)
+            g0, s0 = _gain_z(cur_off, v.by_direction_px)
+            if g <= TIE_SIGMAS * s and g0 > KEEP_SIGMAS * s0:
                 ties.append(k)
         cause = next(c for c in remaining if c.name == best)
         current.append(cause)
         remaining.remove(cause)
         if ties:
             alternatives[best] = ties
-        cur_off, cur_ho = trials[best].offsets_px, trials[best]
+        cur_off, cur_ho = trials[best].by_direction_px, trials[best]
     final = fit_causes(photos, current)
     if cur_ho is None:
-        cur_ho = HeldOut((), plain, [], {})
+        cur_ho = HeldOut((), plain, [], {}, plain_dir)
     return Selection(tuple(c.name for c in current), final, cur_ho, plain, steps, alternatives)

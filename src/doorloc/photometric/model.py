@@ -15,6 +15,10 @@ even blur, a perfect print):
   camera tone curves do;
 - ``print_spread_mm``: the printed dark squares are larger than the board's geometry by this much on each
   side (toner or ink spread; negative: the light squares are larger), board millimetres;
+- ``edge_shift_u_px``, ``edge_shift_v_px``: a point spread that is not point-symmetric (a one-sided smear
+  along the lines of an analogue or rolling read-out, coma, a demosaicking lag) moves every edge by the
+  projection of this vector (image px) on its normal, while the X-junctions, which see only the spread's
+  symmetric part, stay nearer: the edges' displacement from the corners' frame;
 - ``psf_tail``: fraction of the point spread's light in a wide halo (exponential, ``psf_tail_px`` scale)
   beside the Gaussian core;
 - ``blur_field``: blur growing towards the image corners: the blur's variance grows by this much (px^2) from
@@ -23,7 +27,7 @@ even blur, a perfect print):
   horizontal ones (``cos 2 phi``, ``phi`` the edge normal's angle from the image u axis): astigmatism, or a
   sensor's or demosaicking's direction preference.
 
-Only the response and the print move an edge placed in linear light; the others change its profile (and so
+Only the response, the print and the spread's asymmetry move an edge placed in linear light; the others change its profile (and so
 what an estimator that is not unbiased for them reports). Veiling glare (light scattered over the whole
 image) adds the same light on both sides of an edge: in linear light it neither moves nor reshapes an edge,
 so board edges cannot tell it from the black squares' own reflectance, and it is not a parameter here. The response maps are written here by hand because
@@ -45,6 +49,8 @@ PARAMETER_UNITS = {
     "shoulder": "fraction of full scale",
     "curvature": "1/ln^2",
     "print_spread_mm": "mm on the board",
+    "edge_shift_u_px": "px",
+    "edge_shift_v_px": "px",
     "psf_tail": "fraction of light",
     "psf_tail_px": "px",
     "blur_field": "px^2",
@@ -61,6 +67,8 @@ class PhotometricModel:
     shoulder: float = 1.0
     curvature: float = 0.0
     print_spread_mm: float = 0.0
+    edge_shift_u_px: float = 0.0
+    edge_shift_v_px: float = 0.0
     psf_tail: float = 0.0
     psf_tail_px: float = 4.0
     blur_field: float = 0.0
@@ -122,6 +130,11 @@ class PhotometricModel:
             z = np.clip((gp - k) / (1.0 - k), 0.0, 0.995)
             gp = np.where(gp > k, k + (1.0 - k) * np.arctanh(z), gp)
         lg = np.log(gp)
+        if self.curvature != 0.0:
+            # the log-log parabola turns back where gamma + 2 curvature ln g' = 0: a response never falls,
+            # so the curve is held flat beyond that level (dark end for curvature > 0, bright end below 0)
+            turn = -self.gamma / (2.0 * self.curvature)
+            lg = np.maximum(lg, turn) if self.curvature > 0 else np.minimum(lg, turn)
         return np.exp(self.gamma * lg + self.curvature * lg * lg) * (g > self.black_level)
 
     def grey_from_light(self, light: np.ndarray) -> np.ndarray:
