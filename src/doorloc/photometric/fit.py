@@ -43,6 +43,8 @@ __all__ = [
 
 #: a cause is kept when it lowers the held-out squared offsets by this many standard errors (paired over photographs)
 KEEP_SIGMAS = 2.0
+#: a cause that halves a held-out bias this many times the noise's standard error is kept too
+BIAS_OVER_NOISE = 5.0
 #: candidates within this many standard errors of the best at a step cannot be told apart from it
 TIE_SIGMAS = 1.0
 
@@ -302,6 +304,7 @@ def select_causes(
     (:data:`KEEP_SIGMAS`, paired over photographs)."""
     plain = np.array([photo_median(p, PLAIN) for p in photos])
     plain_dir = np.array([direction_medians(p, PLAIN) for p in photos])
+    floor = float(np.sqrt(np.nanmean([noise_floor_px(p) ** 2 for p in photos])))
     fold_of = folds_by_photograph(len(photos), folds)
     current: list[Cause] = []
     cur_off = plain_dir
@@ -320,7 +323,11 @@ def select_causes(
             )
         best = min(trials, key=lambda k: trials[k].score_px)
         gain, se = _gain_z(cur_off, trials[best].by_direction_px)
-        if not gain > KEEP_SIGMAS * se:
+        before = float(np.sqrt(np.nanmean(cur_off**2)))
+        # significant paired over photographs, or (few photographs, the bias on some only) a bias well above
+        # the noise at least halved
+        halved = trials[best].score_px < 0.5 * before and before > BIAS_OVER_NOISE * floor
+        if not (gain > KEEP_SIGMAS * se or halved):
             break
         ties = []
         for k, v in trials.items():
