@@ -63,6 +63,12 @@ class CalibrationFile:
     #: ``camera.response_gamma`` and ``locate.response_unmeasured_factor`` can be set from
     response_gamma: float | None = None
     response_gamma_sigma: float | None = None
+    #: the camera's photometric model (``photometric_model``: parameter name -> value, as
+    #: :class:`doorloc.photometric.model.PhotometricModel` names them; None where not measured) and where it
+    #: came from (``photometric_model_provenance``: the command, the photographs, the date). Readers older
+    #: than the section keep it in ``extra``; the photometric package checks the names where it uses them.
+    photometric_model: dict[str, float] | None = None
+    photometric_model_provenance: str | None = None
 
 
 def _covariance_from(doc: dict, source: str) -> tuple[np.ndarray | None, tuple[str, ...]]:
@@ -181,8 +187,11 @@ def parse_calibration(text: str, source: str = "<calibration>") -> CalibrationFi
         "intrinsics_covariance_names",
         "response_gamma",
         "response_gamma_sigma",
+        "photometric_model",
+        "photometric_model_provenance",
     }
     cov, cov_names = _covariance_from(doc, source)
+    photometric = _photometric_from(doc, source)
     try:
         response = [
             float(doc[k]) if doc.get(k) is not None else None
@@ -202,8 +211,34 @@ def parse_calibration(text: str, source: str = "<calibration>") -> CalibrationFi
         extra,
         cov,
         cov_names,
-        *response,
+        response_gamma=response[0],
+        response_gamma_sigma=response[1],
+        photometric_model=photometric,
+        photometric_model_provenance=str(doc["photometric_model_provenance"])
+        if doc.get("photometric_model_provenance") is not None
+        else None,
     )
+
+
+def _photometric_from(doc: dict, source: str) -> dict[str, float] | None:
+    pm = doc.get("photometric_model")
+    if pm is None:
+        return None
+    if not isinstance(pm, dict) or not all(isinstance(k, str) for k in pm):
+        raise CalibrationFileError(
+            f"{source}: 'photometric_model' must be a mapping of parameter names to numbers"
+        )
+    out = {}
+    for k, v in pm.items():
+        try:
+            out[k] = float(v)
+        except (TypeError, ValueError):
+            raise CalibrationFileError(
+                f"{source}: photometric_model.{k} must be a number, got {v!r}"
+            ) from None
+        if not np.isfinite(out[k]):
+            raise CalibrationFileError(f"{source}: photometric_model.{k} must be finite")
+    return out
 
 
 def load_calibration(path: str | os.PathLike) -> CalibrationFile:
@@ -279,6 +314,12 @@ def dump_opencv_yaml(cal: CalibrationFile) -> str:
     for k in ("response_gamma", "response_gamma_sigma"):
         if getattr(cal, k) is not None:
             out.append(f"{k}: {_fmt(getattr(cal, k))}")
+    if cal.photometric_model is not None:
+        # a FileStorage map: cv2.FileStorage and older doorloc readers both take it (the latter into extra)
+        out.append("photometric_model:")
+        out.extend(f"   {k}: {_fmt(v)}" for k, v in cal.photometric_model.items())
+    if cal.photometric_model_provenance is not None:
+        out.append(_cv_string("photometric_model_provenance", cal.photometric_model_provenance))
     return "\n".join(out) + "\n"
 
 
@@ -313,6 +354,10 @@ def dump_ros_yaml(cal: CalibrationFile) -> str:
     for k in ("response_gamma", "response_gamma_sigma"):
         if getattr(cal, k) is not None:
             doc[k] = float(getattr(cal, k))
+    if cal.photometric_model is not None:
+        doc["photometric_model"] = {k: float(v) for k, v in cal.photometric_model.items()}
+    if cal.photometric_model_provenance is not None:
+        doc["photometric_model_provenance"] = cal.photometric_model_provenance
     return yaml.safe_dump(doc, sort_keys=False, default_flow_style=None)
 
 

@@ -1,0 +1,130 @@
+"""The catalogue of photometric causes: what each frees in the :class:`~doorloc.photometric.model.PhotometricModel`
+and the signature by which the board's edges tell it from the others.
+
+Two kinds. **Edge-moving** causes shift an edge that the area estimator places (the estimator is exact for
+any blur of a step in linear light, so only a response that is not affine, or a print whose squares are not
+the board's geometry, moves it): they are fitted to the edges' offsets from the corner lines and selected by
+held-out photographs. **Profile** causes change an edge's shape but not where an estimator in linear light
+puts it: they are read from the edges' profiles and blurs (:mod:`doorloc.photometric.profiles`).
+
+Signatures of the edge-moving causes, on the signed offset (+ towards the bright side):
+
+- ``response_gamma``: a power-law response read as linear moves every edge towards the dark side by a length
+  proportional to its blur and growing with its contrast ratio;
+- ``response_toe``: a pedestal under the power law (black level): the dark side's level matters more than the
+  ratio alone says, so dim, low-contrast edges move differently from bright ones at the same ratio;
+- ``response_shoulder``: highlights compressed near full scale: only edges whose bright level comes near
+  saturation move (towards the dark side), the more the nearer;
+- ``response_curvature``: a toe or shoulder bending the log-log response: edges move by an amount that depends
+  on where on the grey scale both levels sit, not on their ratio only;
+- ``psf_asymmetry``: a fixed image vector projected on each edge's normal: opposite edges of one square move
+  opposite ways, so the offset depends on the edge's direction, not on its blur, levels or scale;
+- ``print_spread``: a fixed length on the board, so an offset proportional to the board's scale (px per mm)
+  and independent of the blur.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+__all__ = ["Cause", "EDGE_CAUSES", "PROFILE_CAUSES", "CAUSES_BY_NAME", "CATALOGUE_NAMES"]
+
+
+@dataclass(frozen=True)
+class Cause:
+    """One catalogue entry: its name, the model parameters it frees (with start values and bounds) and its
+    signature in plain words."""
+
+    name: str
+    parameters: tuple[str, ...]
+    start: tuple[float, ...]
+    lower: tuple[float, ...]
+    upper: tuple[float, ...]
+    signature: str
+    moves_edges: bool = True
+
+
+EDGE_CAUSES: tuple[Cause, ...] = (
+    Cause(
+        "response_gamma",
+        ("gamma",),
+        (1.4,),
+        (0.3,),
+        (4.0,),
+        "edges move towards the dark side in proportion to their blur, more at high contrast ratio",
+    ),
+    Cause(
+        "response_toe",
+        ("gamma", "black_level"),
+        (1.4, 0.02),
+        (0.3, -0.15),
+        (4.0, 0.4),
+        "a pedestal (black level) under a power-law response: dim edges move unlike bright ones of equal ratio",
+    ),
+    Cause(
+        "response_shoulder",
+        ("shoulder",),
+        (0.8,),
+        (0.05,),
+        (1.0,),
+        "highlights compressed near full scale: edges with a bright level near saturation move towards the dark side",
+    ),
+    Cause(
+        "response_curvature",
+        ("gamma", "curvature"),
+        (1.4, 0.0),
+        (0.3, -1.5),
+        (4.0, 1.5),
+        "a toe or shoulder beyond a power law: the move depends on where both levels sit on the grey scale",
+    ),
+    Cause(
+        "psf_asymmetry",
+        ("edge_shift_u_px", "edge_shift_v_px"),
+        (0.0, 0.0),
+        (-1.0, -1.0),
+        (1.0, 1.0),
+        "edges move by a fixed image vector projected on their normal: opposite edges of a square move "
+        "opposite ways (a point spread that is not point-symmetric)",
+    ),
+    Cause(
+        "print_spread",
+        ("print_spread_mm",),
+        (0.0,),
+        (-2.0,),
+        (2.0,),
+        "a fixed length on the board (toner or ink spread): offset proportional to px per mm, not to blur",
+    ),
+)
+
+PROFILE_CAUSES: tuple[Cause, ...] = (
+    Cause(
+        "blur_field",
+        ("blur_field",),
+        (0.0,),
+        (-5.0,),
+        (5.0,),
+        "blur changes from the image centre to its corners",
+        False,
+    ),
+    Cause(
+        "blur_anisotropy",
+        ("blur_anisotropy",),
+        (0.0,),
+        (-5.0,),
+        (5.0,),
+        "edges of one direction are blurrier than the others (astigmatism, demosaicking)",
+        False,
+    ),
+    Cause(
+        "psf_tail",
+        ("psf_tail",),
+        (0.0,),
+        (0.0,),
+        (0.9,),
+        "the levels approach their plateaus slowly: a halo beside the Gaussian core of the point spread",
+        False,
+    ),
+)
+
+CAUSES_BY_NAME = {c.name: c for c in EDGE_CAUSES + PROFILE_CAUSES}
+CATALOGUE_NAMES = tuple(CAUSES_BY_NAME)

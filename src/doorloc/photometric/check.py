@@ -1,0 +1,324 @@
+"""The model check on photographs of a board: measure, fit, choose by held-out photographs, report.
+
+:func:`check_boards` is the one call behind ``doorloc check-model --boards`` (the shared specification's
+section 8b); its result holds every figure of ``report.json``. Steps:
+
+1. find the board in each photograph (:mod:`doorloc.calib.detect`); the calibration is the one given or,
+   without one, calibrated from the same photographs (:mod:`doorloc.calib.folder`);
+2. place every square edge with the plain model and measure its offset from the board's line
+   (:mod:`~doorloc.photometric.board_edges`);
+3. choose the edge-moving causes by photographs held out (:mod:`~doorloc.photometric.fit`), then the profile
+   causes: the point spread's halo by held-out profile misfit, the blur's field and direction terms by held-out
+   edge blurs (:mod:`~doorloc.photometric.blur`);
+4. each photograph's figures with the plain model and with the model fitted without its fold.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from doorloc.calib.camera import CameraModel
+from doorloc.calib.detect import Chessboard, to_gray
+from doorloc.calib.folder import CalibrationError, CalibrationInputError, detect_views, read_folder
+from doorloc.calib.io import CalibrationFile
+from doorloc.photometric.blur import BlurTerms, EdgeBlurs, blur_terms
+from doorloc.photometric.board_edges import BoardEdges, EdgeSettings, measure_board_edges, per_edge_median
+from doorloc.photometric.catalogue import EDGE_CAUSES
+from doorloc.photometric.fit import (
+    Photograph,
+    Selection,
+    folds_by_photograph,
+    noise_floor_px,
+    place_edges,
+    select_causes,
+)
+from doorloc.photometric.model import PLAIN, PhotometricModel
+from doorloc.photometric.profiles import EdgeProfiles, fit_profiles
+
+__all__ = [
+    "BoardCheckError",
+    "BoardCheckOptions",
+    "BoardCheck",
+    "PhotographResult",
+    "check_boards",
+    "check_photographs",
+]
+
+#: fewest photographs with the whole board a check is attempted with (one held out, two to fit)
+MIN_PHOTOGRAPHS = 3
+#: halo fractions tried for the point spread's tail (``psf_tail``), with its scale ``psf_tail_px``
+TAIL_GRID = ((0.02, 3.0), (0.05, 3.0), (0.1, 3.0), (0.05, 6.0), (0.1, 6.0))
+#: held-out standard errors a profile cause's gain must exceed
+KEEP_SIGMAS = 2.0
+
+
+class BoardCheckError(ValueError):
+    """Input the check cannot use (no folder, no images, too few photographs showing the whole board);
+    the message says what to do."""
+
+
+@dataclass(frozen=True)
+class BoardCheckOptions:
+    """``folds``: photographs are held out in this many folds (>= the number of photographs: one at a time);
+    ``settings``: how edges are placed."""
+
+    folds: int = 5
+    settings: EdgeSettings = EdgeSettings()
+
+
+@dataclass(frozen=True)
+class PhotographResult:
+    """One photograph's figures (px, grey levels)."""
+
+    image: str
+    heldout: bool
+    n_edges: int
+    offset_before_px: float
+    offset_after_px: float
+    noise_px: float
+    profile_rms_before: float
+    profile_rms_after: float
+    noise_grey: float
+    edges: BoardEdges
+    profiles_before: EdgeProfiles
+    profiles_after: EdgeProfiles
+
+
+@dataclass(frozen=True)
+class BoardCheck:
+    """Everything the check found (``report.json``'s figures and what the plots need)."""
+
+    causes: list[str]
+    model: PhotometricModel
+    parameters: dict[str, dict[str, dict[str, float]]]
+    photographs: list[PhotographResult]
+    selection: Selection
+    blur: BlurTerms
+    tail_gain: tuple[float, float]
+    camera: CameraModel | None
+    calibration_source: str
+    alternatives: dict[str, list[str]] = field(default_factory=dict)
+    skipped: list[str] = field(default_factory=list)
+
+    def heldout_rms(self, attr: str) -> dict[str, float]:
+        h = [p for p in self.photographs if p.heldout]
+
+        def rms(v: list[float]) -> float:
+            a = np.asarray(v, float)
+            a = a[np.isfinite(a)]
+            return float(np.sqrt(np.mean(a**2))) if a.size else float("nan")
+
+        return {
+            "before": rms([getattr(p, f"{attr}_before" + ("_px" if attr == "offset" else "")) for p in h]),
+            "after": rms([getattr(p, f"{attr}_after" + ("_px" if attr == "offset" else "")) for p in h]),
+        }
+
+    @property
+    def noise_grey(self) -> float:
+        return float(np.median([p.noise_grey for p in self.photographs]))
+
+    @property
+    def offset_standard_error_px(self) -> float:
+        """RMS over photographs of each one's median offset's standard error (what noise alone leaves), px."""
+        return float(np.sqrt(np.nanmean([p.noise_px**2 for p in self.photographs])))
+
+
+def check_boards(
+    images_dir: str | os.PathLike,
+    board: Chessboard,
+    calibration: CalibrationFile | None = None,
+    options: BoardCheckOptions = BoardCheckOptions(),
+    progress: Callable[[str], None] | None = None,
+) -> BoardCheck:
+    """Read the photographs in ``images_dir``, find ``board``, calibrate if no ``calibration`` is given, then
+    :func:`check_photographs`. Raises :class:`BoardCheckError` for input it cannot use."""
+    from doorloc.calib.folder import calibrate_detected
+
+    say = progress or (lambda _m: None)
+    try:
+        images = read_folder(images_dir)
+    except CalibrationInputError as e:
+        raise BoardCheckError(str(e)) from None
+    detected = detect_views(images, board)
+    full = [v for v in detected.views if v.n == board.n_corners]
+    skipped = [f"{s.name}: {s.reason}" for s in detected.skipped] + [
+        f"{v.name}: only part of the board is seen" for v in detected.views if v.n != board.n_corners
+    ]
+    if len(full) < MIN_PHOTOGRAPHS:
+        raise BoardCheckError(
+            f"only {len(full)} of {len(images)} images in {images_dir} show the whole {board.cols}x{board.rows} "
+            f"board; the check needs at least {MIN_PHOTOGRAPHS} (is --pattern the inner corners, COLSxROWS?)"
+        )
+    if calibration is None:
+        say(f"no calibration given: calibrating from the {len(detected.views)} photographs")
+        try:
+            camera = calibrate_detected(detected).result.camera
+        except CalibrationError as e:
+            raise BoardCheckError(
+                f"cannot calibrate from these photographs ({e}); give --calibration"
+            ) from None
+        source = "calibrated from the same photographs"
+    else:
+        camera = calibration.camera
+        source = "given"
+    if detected.scan.image_size is not None and tuple(detected.scan.image_size) != tuple(camera.image_size):
+        raise BoardCheckError(
+            f"the photographs are {detected.scan.image_size[0]}x{detected.scan.image_size[1]} px but the "
+            f"calibration is for {camera.image_size[0]}x{camera.image_size[1]} px"
+        )
+    by_name = {name: im for name, im, _ in images if im is not None}
+    photos = []
+    for v in full:
+        gray = to_gray(by_name[v.name])
+        corners = v.image_points[np.argsort(v.ids)]
+        edges = measure_board_edges(
+            gray,
+            corners,
+            board.cols,
+            board.rows,
+            board.square_mm,
+            camera,
+            image=v.name,
+            settings=options.settings,
+        )
+        if np.isfinite(edges.offset_px).sum() == 0:
+            skipped.append(f"{v.name}: squares too small to read an edge on")
+            continue
+        photos.append(Photograph(gray, edges, options.settings))
+    if len(photos) < MIN_PHOTOGRAPHS:
+        raise BoardCheckError(
+            f"only {len(photos)} photographs have squares large enough to read edges on "
+            f"(the edge windows need squares of about {(options.settings.half + options.settings.plateau) / 0.3:.0f} px)"
+        )
+    say(f"{len(photos)} photographs, {sum(p.edges.n_edges for p in photos)} edges")
+    result = check_photographs(photos, options, progress)
+    return BoardCheck(
+        result.causes,
+        result.model,
+        result.parameters,
+        result.photographs,
+        result.selection,
+        result.blur,
+        result.tail_gain,
+        camera,
+        source,
+        result.alternatives,
+        skipped,
+    )
+
+
+def check_photographs(
+    photos: list[Photograph],
+    options: BoardCheckOptions = BoardCheckOptions(),
+    progress: Callable[[str], None] | None = None,
+) -> BoardCheck:
+    """The check on measured photographs (module docstring, steps 3 and 4); ``camera`` is left unset (None)."""
+    folds = folds_by_photograph(len(photos), options.folds)
+    sel = select_causes(photos, EDGE_CAUSES, folds=options.folds, progress=progress)
+    model = sel.fit.model
+    fold_models = [f.model for f in sel.heldout.fits] if sel.causes else [PLAIN] * len(photos)
+    # the point spread's halo: held-out profile misfit with the halo fitted on the other folds
+    keep = [np.isfinite(p.edges.offset_px) for p in photos]
+
+    def centres(i: int, m: PhotometricModel) -> np.ndarray:
+        """Each edge's transition centre as the model places it (px from the true edge)."""
+        e = photos[i].edges
+        n = e.normal[e.windows.edge]
+        asym = m.edge_shift_u_px * n[:, 0] + m.edge_shift_v_px * n[:, 1]
+        o = place_edges(photos[i], m) + m.print_spread_mm * e.px_per_mm[e.windows.edge] + asym
+        return per_edge_median(e.windows.edge, o, e.n_edges)
+
+    shifts = [centres(i, fold_models[i]) for i in range(len(photos))]
+    plain_shifts = [centres(i, PLAIN) for i in range(len(photos))]
+
+    def misfit(i: int, m: PhotometricModel) -> float:
+        return fit_profiles(photos[i].edges, m, keep[i], shifts[i]).rms_over_windows()
+
+    base = np.array([misfit(i, fold_models[i]) for i in range(len(photos))])
+    # each photograph's misfit with each halo, under the model its fold fitted (reused by every fold)
+    with_tail = np.array(
+        [
+            [misfit(i, fold_models[i].with_values(psf_tail=t, psf_tail_px=b)) for t, b in TAIL_GRID]
+            for i in range(len(photos))
+        ]
+    )
+    tail_choice: dict[int, tuple[float, float]] = {}
+    trial = np.empty(len(photos))
+    for f in np.unique(folds).tolist():
+        train = folds != f
+        tail_choice[int(f)] = TAIL_GRID[int(np.argmin((with_tail[train] ** 2).mean(0)))]
+        held = np.flatnonzero(~train)
+        trial[held] = with_tail[held, TAIL_GRID.index(tail_choice[int(f)])]
+    d = base**2 - trial**2
+    tail_gain = (float(d.mean()), float(d.std(ddof=1) / np.sqrt(d.size)))
+    causes = list(sel.causes)
+    parameters: dict[str, dict[str, dict[str, float]]] = {}
+    for c in EDGE_CAUSES:
+        if c.name in causes:
+            parameters[c.name] = {
+                n: {
+                    "value": float(getattr(model, n)),
+                    "sigma": float(sel.heldout.sigma.get(n, float("nan"))),
+                    # a value on its range's end: the data ask for more than this form of the cause allows
+                    "at_bound": float(min(abs(getattr(model, n) - lo), abs(getattr(model, n) - hi)) < 1e-3),
+                }
+                for n, lo, hi in zip(c.parameters, c.lower, c.upper, strict=True)
+            }
+    if tail_gain[0] > KEEP_SIGMAS * tail_gain[1]:
+        scores_all = [
+            np.mean(
+                [misfit(i, model.with_values(psf_tail=t, psf_tail_px=b)) ** 2 for i in range(len(photos))]
+            )
+            for t, b in TAIL_GRID
+        ]
+        t, b = TAIL_GRID[int(np.argmin(scores_all))]
+        vals = np.array([tail_choice[int(f)][0] for f in folds])
+        model = model.with_values(psf_tail=t, psf_tail_px=b)
+        fold_models = [
+            m.with_values(psf_tail=tail_choice[int(f)][0], psf_tail_px=tail_choice[int(f)][1])
+            for m, f in zip(fold_models, folds, strict=True)
+        ]
+        causes.append("psf_tail")
+        parameters["psf_tail"] = {
+            "psf_tail": {"value": t, "sigma": float(np.std(vals))},
+            "psf_tail_px": {"value": b, "sigma": float("nan")},
+        }
+    # profiles before and after, and the blurs they give
+    results = []
+    blurs = []
+    for i, p in enumerate(photos):
+        before = fit_profiles(p.edges, PLAIN, keep[i], plain_shifts[i])
+        after = fit_profiles(p.edges, fold_models[i], keep[i], shifts[i])
+        blurs.append(EdgeBlurs(after.blur_px, p.edges.mid_px, p.edges.normal, p.edges.image_size))
+        noise = p.edges.noise[np.isfinite(p.edges.noise)]
+        results.append(
+            PhotographResult(
+                p.name,
+                True,
+                p.edges.n_edges,
+                float(sel.plain_px[i]),
+                float(sel.heldout.offsets_px[i]) if sel.causes else float(sel.plain_px[i]),
+                noise_floor_px(p),
+                before.rms_over_windows(),
+                after.rms_over_windows(),
+                float(np.median(noise)) if noise.size else float("nan"),
+                p.edges,
+                before,
+                after,
+            )
+        )
+    bt = blur_terms(blurs, folds)
+    for name in bt.causes:
+        causes.append(name)
+        parameters[name] = {name: {"value": bt.values[name], "sigma": bt.sigma[name]}}
+        model = model.with_values(**{name: bt.values[name]})
+    heldout_after = np.array([r.offset_after_px for r in results])
+    floor = float(np.sqrt(np.nanmean([r.noise_px**2 for r in results])))
+    rms_after = float(np.sqrt(np.nanmean(heldout_after**2)))
+    if rms_after > max(0.03, 1.5 * floor) and rms_after > 2.0 * floor:
+        causes.append("unexplained")
+    return BoardCheck(causes, model, parameters, results, sel, bt, tail_gain, None, "", sel.alternatives)

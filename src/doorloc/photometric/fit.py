@@ -1,0 +1,349 @@
+"""Fit the edge-moving causes of the catalogue to a set of board photographs and choose among them by
+photographs held out.
+
+The practice follows camera calibration's (mrcal's cross-validation, doorloc's own calibrate): a cause is
+kept only if the model fitted *without* a photograph places that photograph's edges better, paired over
+photographs. The reference is the board: an edge's offset from the line between its two inner corners.
+The corners never place an edge: the model only chooses the table through which the area estimator reads
+the pixels and the board-length shift of the print; the edge is then placed from the pixels alone.
+
+Residuals: per edge, the mean offset over its scan lines (samples the plain estimate calls outliers,
+beyond 4 robust sigmas of their edge's median, are left out once for all fits, so the sum stays smooth in
+the parameters), each photograph weighted equally. Parameter 1-sigma: the jackknife over photographs
+(the leave-one-out fits that give the held-out figures), which carries the scatter between photographs that
+a Jacobian-based sigma of correlated scan lines would not.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from doorloc.photometric.board_edges import BoardEdges, EdgeSettings
+from doorloc.photometric.catalogue import EDGE_CAUSES, Cause
+from doorloc.photometric.model import PLAIN, PhotometricModel
+from doorloc.vision.edges import subpixel_edges
+
+__all__ = [
+    "Photograph",
+    "CauseFit",
+    "Selection",
+    "place_edges",
+    "fit_causes",
+    "held_out",
+    "select_causes",
+    "noise_floor_px",
+    "folds_by_photograph",
+    "photo_median",
+    "HeldOut",
+]
+
+#: a cause is kept when it lowers the held-out squared offsets by this many standard errors (paired over photographs)
+KEEP_SIGMAS = 2.0
+#: a cause that halves a held-out bias this many times the noise's standard error is kept too
+BIAS_OVER_NOISE = 5.0
+#: candidates within this many standard errors of the best at a step cannot be told apart from it
+TIE_SIGMAS = 1.0
+
+
+@dataclass(frozen=True)
+class Photograph:
+    """A board photograph's pixels and its measured edges (plain model)."""
+
+    gray: np.ndarray
+    edges: BoardEdges
+    settings: EdgeSettings = EdgeSettings()
+
+    @property
+    def name(self) -> str:
+        return self.edges.image
+
+
+def place_edges(photo: Photograph, model: PhotometricModel) -> np.ndarray:
+    """Offsets (px, + towards bright) of the edges placed with ``model``: the area estimator reads the pixels
+    through the model's response, then the print's board-length shift and the point spread's asymmetric
+    shift along each edge's normal are taken off (N,)."""
+    w = photo.edges.windows
+    s = photo.settings
+    lut = None if model.linear_response else model.linearizing_lut()
+    out = np.full(w.edge.size, np.nan)
+    for is_col in (True, False):
+        sel = np.flatnonzero(w.axis == is_col)
+        if sel.size == 0:
+            continue
+        es = subpixel_edges(
+            photo.gray, "col" if is_col else "row", w.scan[sel], w.true_along[sel], s.half, s.plateau, lut=lut
+        )
+        out[sel] = np.where(
+            es.valid, (es.along - w.true_along[sel]) * w.cos[sel] * w.bright_sign[sel], np.nan
+        )
+    n = photo.edges.normal[w.edge]  # each edge's normal towards its bright side (image px)
+    asym = model.edge_shift_u_px * n[:, 0] + model.edge_shift_v_px * n[:, 1]
+    return out - model.print_spread_mm * photo.edges.px_per_mm[w.edge] - asym
+
+
+def photo_median(photo: Photograph, model: PhotometricModel) -> float:
+    """The photograph's median offset over all its edges' scan lines with ``model``, px."""
+    o = place_edges(photo, model)
+    ok = np.isfinite(o)
+    return float(np.median(o[ok])) if ok.any() else float("nan")
+
+
+def direction_medians(photo: Photograph, model: PhotometricModel) -> np.ndarray:
+    """The photograph's median offset over the edges whose bright side faces each way (+u, +v, -u, -v), px (4,).
+
+    What causes are chosen by: a bias that depends on the edge's direction cancels in the photograph's
+    median over all edges when the directions are balanced, but not in these four.
+    """
+    o = place_edges(photo, model)
+    n = photo.edges.normal[photo.edges.windows.edge]
+    quadrant = np.round(np.arctan2(n[:, 1], n[:, 0]) / (np.pi / 2)).astype(int) % 4
+    out = np.full(4, np.nan)
+    for q in range(4):
+        ok = (quadrant == q) & np.isfinite(o)
+        if ok.sum() >= 10:
+            out[q] = np.median(o[ok])
+    return out
+
+
+def noise_floor_px(photo: Photograph) -> float:
+    """Standard error of a photograph's median offset from the scatter between its edges, px."""
+    e = photo.edges.edge_offsets_px()
+    e = e[np.isfinite(e)]
+    if e.size < 3:
+        return float("nan")
+    mad = 1.4826 * np.median(np.abs(e - np.median(e)))
+    return float(1.2533 * mad / np.sqrt(e.size))
+
+
+def _inliers(photo: Photograph) -> np.ndarray:
+    o = photo.edges.offset_px
+    med = photo.edges.edge_offsets_px()[photo.edges.windows.edge]
+    dev = np.abs(o - med)
+    ok = np.isfinite(dev)
+    s = 1.4826 * np.median(dev[ok]) if ok.any() else 0.0
+    return ok & (dev <= 4.0 * max(s, 0.02))
+
+
+@dataclass(frozen=True)
+class CauseFit:
+    """The model fitted for a set of causes on some photographs: its values and the training cost."""
+
+    causes: tuple[str, ...]
+    names: tuple[str, ...]
+    values: tuple[float, ...]
+    model: PhotometricModel
+    cost: float
+
+
+def _free(causes: Sequence[Cause]) -> tuple[list[str], list[float], list[float], list[float]]:
+    names: list[str] = []
+    x0: list[float] = []
+    lo: list[float] = []
+    hi: list[float] = []
+    for c in causes:
+        for n, s, a, b in zip(c.parameters, c.start, c.lower, c.upper, strict=True):
+            if n not in names:
+                names.append(n)
+                x0.append(s)
+                lo.append(a)
+                hi.append(b)
+    return names, x0, lo, hi
+
+
+def fit_causes(
+    photos: Sequence[Photograph], causes: Sequence[Cause], base: PhotometricModel = PLAIN
+) -> CauseFit:
+    """Least-squares fit of the parameters ``causes`` free, on ``photos`` (module docstring)."""
+    names, x0, lo, hi = _free(causes)
+    if not names:
+        return CauseFit((), (), (), base, float("nan"))
+    masks = [_inliers(p) for p in photos]
+    edges = [p.edges.windows.edge for p in photos]
+    n_e = [p.edges.n_edges for p in photos]
+    # the edges with inlier samples: a fixed set, so the residual vector keeps its length
+    used = [np.bincount(e[m], minlength=ne) > 0 for e, m, ne in zip(edges, masks, n_e, strict=True)]
+
+    def residuals(x: np.ndarray) -> np.ndarray:
+        m = base.with_values(**dict(zip(names, map(float, x), strict=True)))
+        out = []
+        for p, mk, e, ne, has in zip(photos, masks, edges, n_e, used, strict=True):
+            o = place_edges(p, m)
+            ok = mk & np.isfinite(o)
+            s = np.bincount(e[ok], o[ok], minlength=ne)
+            c = np.bincount(e[ok], minlength=ne)
+            out.append(np.where(c > 0, s / np.maximum(c, 1), 0.0)[has] / np.sqrt(max(has.sum(), 1)))
+        return np.concatenate(out)
+
+    # two starts: the cause's own and the base model's values (a curve that bends the other way from the
+    # cause's start is found from the plain model); the lower cost wins
+    starts = [np.asarray(x0, float), np.clip([float(getattr(base, n)) for n in names], lo, hi)]
+    if np.allclose(starts[0], starts[1]):
+        starts = starts[:1]
+    res = min(
+        (
+            least_squares(
+                residuals,
+                x,
+                bounds=(lo, hi),
+                loss="soft_l1",
+                f_scale=0.02,
+                diff_step=1e-3,
+                x_scale="jac",
+            )
+            for x in starts
+        ),
+        key=lambda r: float(r.cost),
+    )
+    model = base.with_values(**dict(zip(names, map(float, res.x), strict=True)))
+    return CauseFit(
+        tuple(c.name for c in causes), tuple(names), tuple(float(v) for v in res.x), model, float(res.cost)
+    )
+
+
+@dataclass(frozen=True)
+class HeldOut:
+    """Leave-one-photograph-out results of one cause set: each photograph's median offset with the model
+    fitted without it (px), the fits, and the jackknife 1-sigma of each parameter."""
+
+    causes: tuple[str, ...]
+    offsets_px: np.ndarray
+    fits: list[CauseFit]
+    sigma: dict[str, float]
+    by_direction_px: np.ndarray  # (n, 4): :func:`direction_medians` of each photograph, held out
+
+    @property
+    def rms_px(self) -> float:
+        return float(np.sqrt(np.nanmean(self.offsets_px**2)))
+
+    @property
+    def score_px(self) -> float:
+        """RMS over photographs and the four edge directions of the held-out median offsets, px."""
+        return float(np.sqrt(np.nanmean(self.by_direction_px**2)))
+
+
+def folds_by_photograph(n: int, k: int) -> np.ndarray:
+    """Fold of each of ``n`` photographs (in their order: neighbours in a sequence go to different folds);
+    ``k >= n`` is leave-one-out."""
+    return np.arange(n) % max(1, min(k, n))
+
+
+def held_out(
+    photos: Sequence[Photograph], causes: Sequence[Cause], folds: np.ndarray, base: PhotometricModel = PLAIN
+) -> HeldOut:
+    """Each photograph's median offset placed with the model fitted without its fold of photographs.
+
+    ``fits[i]`` is the model photograph ``i`` was placed with; the 1-sigma is the delete-a-fold jackknife.
+    """
+    n = len(photos)
+    offs = np.full(n, np.nan)
+    by_dir = np.full((n, 4), np.nan)
+    fits: list[CauseFit] = [CauseFit((), (), (), base, float("nan"))] * n
+    per_fold = []
+    for f_id in np.unique(folds):
+        f = fit_causes([p for j, p in enumerate(photos) if folds[j] != f_id], causes, base)
+        per_fold.append(f)
+        for i in np.flatnonzero(folds == f_id).tolist():
+            fits[i] = f
+            offs[i] = photo_median(photos[i], f.model)
+            by_dir[i] = direction_medians(photos[i], f.model)
+    sigma: dict[str, float] = {}
+    k = len(per_fold)
+    if k > 1 and per_fold[0].names:
+        v = np.array([f.values for f in per_fold])
+        sd = np.sqrt((k - 1) / k * ((v - v.mean(0)) ** 2).sum(0))
+        sigma = dict(zip(per_fold[0].names, map(float, sd), strict=True))
+    return HeldOut(tuple(c.name for c in causes), offs, fits, sigma, by_dir)
+
+
+@dataclass(frozen=True)
+class Selection:
+    """What the held-out comparison chose.
+
+    ``causes``: the kept causes in the order they were added; ``final``: its fit on all photographs and its
+    held-out results; ``plain_px``: each photograph's median offset with the plain model; ``steps``: per step,
+    each candidate's held-out RMS (px); ``alternatives``: causes the data cannot tell apart from a kept one
+    (``{kept: [others]}``).
+    """
+
+    causes: tuple[str, ...]
+    fit: CauseFit
+    heldout: HeldOut
+    plain_px: np.ndarray
+    steps: list[dict[str, float]] = field(default_factory=list)
+    alternatives: dict[str, list[str]] = field(default_factory=dict)
+
+
+def _gain_z(before: np.ndarray, after: np.ndarray) -> tuple[float, float]:
+    """Mean paired reduction of squared offsets (per photograph: the mean over its edge directions) and its
+    standard error."""
+
+    def per_photo(x: np.ndarray) -> np.ndarray:
+        sq = np.where(np.isfinite(x), x**2, 0.0)
+        n = np.isfinite(x).sum(axis=1)
+        return np.where(n > 0, sq.sum(axis=1) / np.maximum(n, 1), np.nan)
+
+    d = per_photo(before) - per_photo(after)
+    d = d[np.isfinite(d)]
+    if d.size < 2:
+        return 0.0, float("inf")
+    return float(d.mean()), float(d.std(ddof=1) / np.sqrt(d.size))
+
+
+def select_causes(
+    photos: Sequence[Photograph],
+    catalogue: Sequence[Cause] = EDGE_CAUSES,
+    folds: int = 5,
+    progress: Callable[[str], None] | None = None,
+) -> Selection:
+    """Forward selection by held-out photographs: add the cause that lowers the held-out offsets most (each
+    photograph's medians by edge direction, :func:`direction_medians`), while the lowering is significant
+    (:data:`KEEP_SIGMAS`, paired over photographs)."""
+    plain = np.array([photo_median(p, PLAIN) for p in photos])
+    plain_dir = np.array([direction_medians(p, PLAIN) for p in photos])
+    floor = float(np.sqrt(np.nanmean([noise_floor_px(p) ** 2 for p in photos])))
+    fold_of = folds_by_photograph(len(photos), folds)
+    current: list[Cause] = []
+    cur_off = plain_dir
+    cur_ho: HeldOut | None = None
+    steps: list[dict[str, float]] = []
+    alternatives: dict[str, list[str]] = {}
+    remaining = list(catalogue)
+    while remaining:
+        trials = {c.name: held_out(photos, [*current, c], fold_of) for c in remaining}
+        steps.append({k: v.score_px for k, v in trials.items()})
+        if progress:
+            progress(
+                "held-out RMS by edge direction with "
+                + ", ".join(f"+{k} {v.score_px:.3f}" for k, v in trials.items())
+                + " px"
+            )
+        best = min(trials, key=lambda k: trials[k].score_px)
+        gain, se = _gain_z(cur_off, trials[best].by_direction_px)
+        before = float(np.sqrt(np.nanmean(cur_off**2)))
+        # significant paired over photographs, or (few photographs, the bias on some only) a bias well above
+        # the noise at least halved
+        halved = trials[best].score_px < 0.5 * before and before > BIAS_OVER_NOISE * floor
+        if not (gain > KEEP_SIGMAS * se or halved):
+            break
+        ties = []
+        for k, v in trials.items():
+            if k == best:
+                continue
+            g, s = _gain_z(v.by_direction_px, trials[best].by_direction_px)
+            g0, s0 = _gain_z(cur_off, v.by_direction_px)
+            if g <= TIE_SIGMAS * s and g0 > KEEP_SIGMAS * s0:
+                ties.append(k)
+        cause = next(c for c in remaining if c.name == best)
+        current.append(cause)
+        remaining.remove(cause)
+        if ties:
+            alternatives[best] = ties
+        cur_off, cur_ho = trials[best].by_direction_px, trials[best]
+    final = fit_causes(photos, current)
+    if cur_ho is None:
+        cur_ho = HeldOut((), plain, [], {}, plain_dir)
+    return Selection(tuple(c.name for c in current), final, cur_ho, plain, steps, alternatives)

@@ -1,0 +1,158 @@
+"""The camera's photometric model: how linear light on the sensor becomes stored grey levels, and what
+the print and the optics add to a straight black-white edge.
+
+Parameters (each 0 or 1 switches its effect off; :data:`PLAIN` is the plain model: linear response,
+even blur, a perfect print):
+
+- ``gamma``: power-law response, ``light = g ** gamma`` for the stored grey ``g`` in [0, 1];
+- ``black_level``: the grey level zero light is stored at (a pedestal), fraction of full scale; the
+  power law applies above it;
+- ``shoulder``: the level (fraction of full scale, above the pedestal) where the response's shoulder starts
+  compressing highlights towards full scale (``g = k + (1 - k) tanh((x - k) / (1 - k))`` above it, ``x`` the
+  power law's output); 1 = no shoulder. Sensors and tone curves near saturation do this;
+- ``curvature``: toe/shoulder of the response beyond a power law, ``ln light = gamma ln g' + curvature (ln g')^2``
+  (``g'`` the grey above the pedestal): a characteristic curve that bends in log-log as film's and many
+  camera tone curves do;
+- ``print_spread_mm``: the printed dark squares are larger than the board's geometry by this much on each
+  side (toner or ink spread; negative: the light squares are larger), board millimetres;
+- ``edge_shift_u_px``, ``edge_shift_v_px``: a point spread that is not point-symmetric (a one-sided smear
+  along the lines of an analogue or rolling read-out, coma, a demosaicking lag) moves every edge by the
+  projection of this vector (image px) on its normal, while the X-junctions, which see only the spread's
+  symmetric part, stay nearer: the edges' displacement from the corners' frame;
+- ``psf_tail``: fraction of the point spread's light in a wide halo (exponential, ``psf_tail_px`` scale)
+  beside the Gaussian core;
+- ``blur_field``: blur growing towards the image corners: the blur's variance grows by this much (px^2) from
+  the image centre to its corner, in proportion to ``(r / r_corner)^2``;
+- ``blur_anisotropy``: the blur's variance (px^2) added across vertical edges and taken off across
+  horizontal ones (``cos 2 phi``, ``phi`` the edge normal's angle from the image u axis): astigmatism, or a
+  sensor's or demosaicking's direction preference.
+
+Only the response, the print and the spread's asymmetry move an edge placed in linear light; the others change its profile (and so
+what an estimator that is not unbiased for them reports). Veiling glare (light scattered over the whole
+image) adds the same light on both sides of an edge: in linear light it neither moves nor reshapes an edge,
+so board edges cannot tell it from the black squares' own reflectance, and it is not a parameter here. The response maps are written here by hand because
+no library models a camera response of this form; they are small closed forms.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, fields, replace
+
+import numpy as np
+
+__all__ = ["PhotometricModel", "PLAIN", "PARAMETER_UNITS"]
+
+#: each parameter's unit, for reports and files
+PARAMETER_UNITS = {
+    "gamma": "exponent",
+    "black_level": "fraction of full scale",
+    "shoulder": "fraction of full scale",
+    "curvature": "1/ln^2",
+    "print_spread_mm": "mm on the board",
+    "edge_shift_u_px": "px",
+    "edge_shift_v_px": "px",
+    "psf_tail": "fraction of light",
+    "psf_tail_px": "px",
+    "blur_field": "px^2",
+    "blur_anisotropy": "px^2",
+}
+
+
+@dataclass(frozen=True)
+class PhotometricModel:
+    """A camera's photometric model (module docstring); the defaults are the plain model."""
+
+    gamma: float = 1.0
+    black_level: float = 0.0
+    shoulder: float = 1.0
+    curvature: float = 0.0
+    print_spread_mm: float = 0.0
+    edge_shift_u_px: float = 0.0
+    edge_shift_v_px: float = 0.0
+    psf_tail: float = 0.0
+    psf_tail_px: float = 4.0
+    blur_field: float = 0.0
+    blur_anisotropy: float = 0.0
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if not np.isfinite(v):
+                raise ValueError(f"photometric model: {f.name} must be a finite number, got {v}")
+        if not 0.2 <= self.gamma <= 5.0:
+            raise ValueError(f"photometric model: gamma {self.gamma} outside 0.2..5")
+        if not -0.2 <= self.black_level < 0.5:
+            raise ValueError(f"photometric model: black_level {self.black_level} outside -0.2..0.5")
+        if not 0.05 <= self.shoulder <= 1.0:
+            raise ValueError(f"photometric model: shoulder {self.shoulder} outside 0.05..1")
+        if not 0.0 <= self.psf_tail < 1.0:
+            raise ValueError("photometric model: psf_tail is a fraction in [0, 1)")
+        if not self.psf_tail_px > 0:
+            raise ValueError("photometric model: psf_tail_px must be positive")
+
+    @property
+    def is_plain(self) -> bool:
+        return self == PLAIN
+
+    @property
+    def linear_response(self) -> bool:
+        """True where stored grey is proportional to light above zero (no table is needed to read it)."""
+        return self.gamma == 1 and self.black_level == 0 and self.curvature == 0 and self.shoulder == 1
+
+    def to_dict(self) -> dict[str, float]:
+        return {k: float(v) for k, v in asdict(self).items()}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> PhotometricModel:
+        """Read the parameters of a file's ``photometric_model`` mapping; unknown keys are errors."""
+        names = {f.name for f in fields(cls)}
+        unknown = sorted(set(d) - names)
+        if unknown:
+            raise ValueError(
+                f"photometric model: unknown parameter(s) {', '.join(unknown)}; known: {', '.join(sorted(names))}"
+            )
+        try:
+            return cls(**{k: float(v) for k, v in d.items()})
+        except (TypeError, ValueError) as e:
+            raise ValueError(f"photometric model: {e}") from None
+
+    def with_values(self, **values: float) -> PhotometricModel:
+        return replace(self, **values)
+
+    # --- response -------------------------------------------------------------------------------------
+    def light_from_grey(self, g: np.ndarray) -> np.ndarray:
+        """Relative linear light (0 at zero light, 1 at full scale) from stored grey ``g`` in [0, 1]."""
+        g = np.asarray(g, float)
+        gp = np.clip((g - self.black_level) / (1.0 - self.black_level), 1e-6, None)
+        k = self.shoulder
+        if k < 1.0:
+            # undo the shoulder; the last levels before full scale carry no more than this much highlight
+            z = np.clip((gp - k) / (1.0 - k), 0.0, 0.995)
+            gp = np.where(gp > k, k + (1.0 - k) * np.arctanh(z), gp)
+        lg = np.log(gp)
+        if self.curvature != 0.0:
+            # the log-log parabola turns back where gamma + 2 curvature ln g' = 0: a response never falls,
+            # so the curve is held flat beyond that level (dark end for curvature > 0, bright end below 0)
+            turn = -self.gamma / (2.0 * self.curvature)
+            lg = np.maximum(lg, turn) if self.curvature > 0 else np.minimum(lg, turn)
+        return np.exp(self.gamma * lg + self.curvature * lg * lg) * (g > self.black_level)
+
+    def grey_from_light(self, light: np.ndarray) -> np.ndarray:
+        """Stored grey in [0, 1] from relative linear light (inverse of :meth:`light_from_grey`, tabulated)."""
+        L, g = self.response_table()
+        return np.interp(np.clip(np.asarray(light, float), 0.0, None), L, g)
+
+    def response_table(self, n: int = 4097) -> tuple[np.ndarray, np.ndarray]:
+        """``(light, grey)`` at ``n`` grey levels in [0, 1], where the light rises (all of it for sane curves)."""
+        g = np.linspace(0.0, 1.0, n)
+        L = self.light_from_grey(g)
+        ok = np.concatenate([[True], np.diff(L) > 0])
+        return L[ok], g[ok]
+
+    def linearizing_lut(self, top: int = 255) -> np.ndarray:
+        """Table from each stored level (0..top) to linear light on the same scale (float32), for
+        :func:`doorloc.vision.edges.subpixel_edges`'s ``lut``."""
+        return (self.light_from_grey(np.arange(top + 1) / top) * top).astype(np.float32)
+
+
+PLAIN = PhotometricModel()

@@ -1,0 +1,119 @@
+"""Edge profiles: each edge's blur and levels fitted across its scan lines, and how well a photometric model
+reproduces the measured grey levels.
+
+The model of one scan line's window: the pixel's stored grey is the response applied to linear light
+``La + (Lb - La) E(d)``, ``d`` the pixel centre's distance from the true edge along the normal (+ towards
+bright, px) moved by the print's spread, and ``E`` the edge spread function: a Gaussian of the edge's blur
+combined with the pixel's footprint (its projection on the normal has variance 1/12 px^2 at every angle),
+optionally with an exponential halo (``psf_tail``). Per edge, the blur and both linear levels are free; the
+levels are solved by linear least squares in linear light for each blur on a grid, and the blur with the
+least grey-level misfit is kept (a grid, not a solver: one vectorised pass over all edges of a photograph).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.special import ndtr
+
+from doorloc.photometric.board_edges import BoardEdges
+from doorloc.photometric.model import PhotometricModel
+
+__all__ = ["EdgeProfiles", "fit_profiles", "edge_spread"]
+
+#: the blur grid searched (Gaussian sigma of the optics, px); the least misfit is refined by a parabola
+BLUR_GRID_PX = np.round(np.arange(0.2, 3.51, 0.1), 3)
+
+
+def edge_spread(d: np.ndarray, blur_px: np.ndarray | float, model: PhotometricModel) -> np.ndarray:
+    """Fraction of the step reached at signed distance ``d`` (px) from the edge, for Gaussian optics of
+    ``blur_px`` over a pixel footprint, with the model's halo (exponential, mean free path ``psf_tail_px``)."""
+    s = np.sqrt(np.asarray(blur_px, float) ** 2 + 1.0 / 12.0)
+    core = ndtr(d / s)
+    if model.psf_tail <= 0:
+        return core
+    b = model.psf_tail_px
+    lap = np.where(d < 0, 0.5 * np.exp(np.minimum(d, 0) / b), 1.0 - 0.5 * np.exp(-np.maximum(d, 0) / b))
+    return (1.0 - model.psf_tail) * core + model.psf_tail * lap
+
+
+@dataclass(frozen=True)
+class EdgeProfiles:
+    """Per edge (E,): ``blur_px`` (Gaussian sigma of the optics), ``dark``, ``bright`` (linear light, 0-1 of
+    full scale), ``rms`` (grey levels, the misfit over its windows), ``n`` (samples). ``residual`` (N, L) grey,
+    data minus model, for each scan line's window; ``distance`` (N, L) px from the true edge."""
+
+    blur_px: np.ndarray
+    dark: np.ndarray
+    bright: np.ndarray
+    rms: np.ndarray
+    n: np.ndarray
+    residual: np.ndarray
+    distance: np.ndarray
+
+    def rms_over_windows(self) -> float:
+        """RMS misfit over every window sample of the photograph, grey levels."""
+        r = self.residual[np.isfinite(self.residual)]
+        return float(np.sqrt(np.mean(r**2))) if r.size else float("nan")
+
+
+def fit_profiles(
+    edges: BoardEdges,
+    model: PhotometricModel,
+    keep: np.ndarray | None = None,
+    edge_shift_px: np.ndarray | None = None,
+) -> EdgeProfiles:
+    """Fit each edge's blur and levels under ``model`` (module docstring); ``keep`` (N,) selects scan lines.
+
+    ``edge_shift_px`` (E,): where each edge's transition is centred, px from the true edge along the normal
+    (+ towards bright): the model's own placement, so that the misfit measures the profile's shape and not
+    the edge's position (which the offsets measure). None: the true edge moved by the print's spread.
+    """
+    w = edges.windows if keep is None else edges.windows.subset(keep)
+    g = w.grey / 255.0
+    y = model.light_from_grey(g)
+    if edge_shift_px is None:
+        d = w.distance_px() - model.print_spread_mm * edges.px_per_mm[w.edge][:, None]
+    else:
+        d = w.distance_px() - np.nan_to_num(np.asarray(edge_shift_px, float))[w.edge][:, None]
+    e = np.repeat(w.edge, g.shape[1])
+    n_e = edges.n_edges
+    cnt = np.bincount(e, minlength=n_e).astype(float)
+    sy = np.bincount(e, y.ravel(), minlength=n_e)
+    table = model.response_table()
+
+    def levels_and_misfit(blur: np.ndarray | float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        E = edge_spread(d, blur, model).ravel()
+        se = np.bincount(e, E, minlength=n_e)
+        see = np.bincount(e, E * E, minlength=n_e)
+        sey = np.bincount(e, E * y.ravel(), minlength=n_e)
+        # y = a + c E: normal equations per edge
+        det = cnt * see - se * se
+        with np.errstate(divide="ignore", invalid="ignore"):
+            c = (cnt * sey - se * sy) / det
+            a = (sy - c * se) / cnt
+        L = a[e] + c[e] * E
+        pred = L if model.linear_response else np.interp(np.clip(L, 0.0, None), *table)
+        return a, a + c, np.bincount(e, (pred - g.ravel()) ** 2, minlength=n_e)
+
+    sse_grid = np.array([levels_and_misfit(sigma)[2] for sigma in BLUR_GRID_PX])  # (S, E)
+    sse_grid[~np.isfinite(sse_grid)] = np.inf
+    k = np.argmin(sse_grid, axis=0)
+    kk = np.clip(k, 1, BLUR_GRID_PX.size - 2)
+    cols = np.arange(n_e)
+    s0, s1, s2 = sse_grid[kk - 1, cols], sse_grid[kk, cols], sse_grid[kk + 1, cols]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        step = 0.5 * (s0 - s2) / (s0 - 2 * s1 + s2)
+    step = np.where(np.isfinite(step) & (k == kk), np.clip(step, -1.0, 1.0), 0.0)
+    out_blur = np.interp(k + step, np.arange(BLUR_GRID_PX.size), BLUR_GRID_PX)
+    out_blur[cnt == 0] = np.nan
+    out_a, out_b, _ = levels_and_misfit(np.where(np.isfinite(out_blur), out_blur, 1.0)[w.edge][:, None])
+    out_a[cnt == 0] = np.nan
+    out_b[cnt == 0] = np.nan
+    E = edge_spread(d, out_blur[w.edge][:, None], model)
+    L = out_a[w.edge][:, None] + (out_b - out_a)[w.edge][:, None] * E
+    pred = L if model.linear_response else model.grey_from_light(L)
+    resid = (g - pred) * 255.0
+    rms = np.sqrt(np.bincount(e, resid.ravel() ** 2, minlength=n_e) / np.maximum(cnt, 1))
+    return EdgeProfiles(out_blur, out_a, out_b, rms, cnt, resid, d)

@@ -1,0 +1,196 @@
+"""Boards rendered as a real camera makes them: a camera's photometric model
+(:class:`doorloc.photometric.model.PhotometricModel`) applied to the renderer's exact box-filtered radiance.
+
+Image formation here: the printed board (its dark squares grown by the print's spread,
+:class:`PrintedCheckerboard`) -> exact box-filtered radiance (:mod:`doorloc.sim.raster`) -> exposure ->
+optics: a Gaussian blur whose variance changes over the field and with direction (``blur_field``,
+``blur_anisotropy``) plus the point spread's halo (``psf_tail``) -> read noise -> the response (power law,
+shoulder, curvature, pedestal; :meth:`PhotometricModel.grey_from_light`) -> 8-bit levels -> optional JPEG.
+
+The Gaussian's change over the field is drawn by blending images blurred at a few sigmas (linear in the
+variance between the two nearest), which is exact where the blur is uniform and smooth where it is not.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from scipy.special import k0
+
+from doorloc.calib.camera import CameraModel
+from doorloc.photometric.model import PhotometricModel
+from doorloc.sim.boards import Checkerboard, RenderedBoard, render_board
+from doorloc.sim.raster import GridTexture
+
+__all__ = ["PrintedCheckerboard", "CameraRendering", "apply_camera", "render_photographed_board"]
+
+
+@dataclass(frozen=True)
+class PrintedCheckerboard(Checkerboard):
+    """A :class:`~doorloc.sim.boards.Checkerboard` as printed: the dark squares grown by ``spread_mm`` on each
+    side (toner or ink spread; negative: the light squares grow). The inner corners stay where they are (an
+    X-junction of grown squares is still point-symmetric)."""
+
+    spread_mm: float = 0.0
+
+    def texture(self) -> GridTexture:
+        base = super().texture()
+        d = float(self.spread_mm)
+        if d == 0.0:
+            return base
+        a = abs(d)
+        s = np.unique(np.concatenate([base.s_lines - a, base.s_lines + a]))
+        t = np.unique(np.concatenate([base.t_lines - a, base.t_lines + a]))
+        sc = np.concatenate([[s[0] - 1.0], 0.5 * (s[1:] + s[:-1]), [s[-1] + 1.0]])
+        tc = np.concatenate([[t[0] - 1.0], 0.5 * (t[1:] + t[:-1]), [t[-1] + 1.0]])
+        S, T = np.meshgrid(sc, tc, indexing="ij")
+        # grow the dark squares by a (square neighbourhood): the darkest reflectance within a of each cell
+        looks = [base.lookup(S + i * 1.01 * a, T + j * 1.01 * a) for i in (-1, 0, 1) for j in (-1, 0, 1)]
+        vals = np.min(looks, axis=0) if d > 0 else np.max(looks, axis=0)
+        return GridTexture(s, t, vals)
+
+
+@dataclass(frozen=True)
+class CameraRendering:
+    """What the camera adds beyond its photometric model, per photograph: ``blur_px`` (Gaussian sigma of the
+    optics at the image centre), ``exposure`` (radiance 1 -> this fraction of full scale), ``read_noise``
+    (grey levels, 1-sigma, before the response), ``jpeg_quality`` (0: none)."""
+
+    blur_px: float = 1.0
+    exposure: float = 1.0
+    read_noise: float = 0.0
+    jpeg_quality: int = 0
+
+
+def _tail_kernel(scale_px: float) -> np.ndarray:
+    """2-D isotropic kernel whose line spread is ``exp(-|x| / b) / (2 b)`` (``K0(r / b) / (2 pi b^2)``)."""
+    r_max = int(np.ceil(8 * scale_px))
+    y, x = np.mgrid[-r_max : r_max + 1, -r_max : r_max + 1]
+    r = np.hypot(x, y)
+    kern = k0(np.maximum(r, 0.25) / scale_px)  # the singular centre taken at a quarter pixel
+    return (kern / kern.sum()).astype(np.float32)
+
+
+def _blur(img: np.ndarray, sigma_x: float, sigma_y: float) -> np.ndarray:
+    if sigma_x <= 0.05 and sigma_y <= 0.05:
+        return img.copy()
+    return cv2.GaussianBlur(
+        img, (0, 0), max(sigma_x, 0.05), sigmaY=max(sigma_y, 0.05), borderType=cv2.BORDER_REFLECT
+    )
+
+
+def apply_camera(
+    radiance: np.ndarray, model: PhotometricModel, rendering: CameraRendering, seed: int = 0
+) -> np.ndarray:
+    """The 8-bit photograph (H, W) a camera with ``model`` makes of box-filtered ``radiance`` (module docstring)."""
+    img = np.asarray(radiance, np.float32) * np.float32(rendering.exposure)
+    h, w = img.shape
+    var0 = rendering.blur_px**2
+    ax = 0.5 * model.blur_anisotropy  # across vertical edges (x): +, across horizontal ones (y): -
+
+    def blurred(var: float) -> np.ndarray:
+        vx, vy = max(var + ax, 0.0), max(var - ax, 0.0)
+        return _blur(img, float(np.sqrt(vx)), float(np.sqrt(vy)))
+
+    if model.blur_field == 0.0:
+        out = blurred(var0)
+    else:
+        yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
+        c = np.array([(w - 1) / 2.0, (h - 1) / 2.0], np.float32)
+        r2 = ((xx - c[0]) ** 2 + (yy - c[1]) ** 2) / float((c**2).sum())
+        var_map = np.maximum(var0 + model.blur_field * r2, 0.0)
+        grid = np.linspace(float(var_map.min()), float(var_map.max()), 6)
+        stack = [blurred(float(v)) for v in grid]
+        pos = np.clip((var_map - grid[0]) / max(grid[1] - grid[0], 1e-9), 0, len(grid) - 1.000001)
+        i0 = np.floor(pos).astype(int)
+        f = (pos - i0).astype(np.float32)
+        S = np.stack(stack)
+        rows, cols = np.mgrid[0:h, 0:w]
+        out = (1 - f) * S[i0, rows, cols] + f * S[np.minimum(i0 + 1, len(grid) - 1), rows, cols]
+    if model.psf_tail > 0:
+        halo = cv2.filter2D(img, -1, _tail_kernel(model.psf_tail_px), borderType=cv2.BORDER_REFLECT)
+        out = (1 - model.psf_tail) * out + model.psf_tail * halo
+    if rendering.read_noise > 0:
+        rng = np.random.default_rng([seed, 7919])
+        out = out + rng.standard_normal(out.shape, dtype=np.float32) * np.float32(
+            rendering.read_noise / 255.0
+        )
+    grey = model.grey_from_light(np.clip(out, 0.0, None))
+    u8 = np.rint(np.clip(grey, 0.0, 1.0) * 255).astype(np.uint8)
+    if rendering.jpeg_quality:
+        ok, buf = cv2.imencode(".jpg", u8, [cv2.IMWRITE_JPEG_QUALITY, int(rendering.jpeg_quality)])
+        if not ok:
+            raise RuntimeError("JPEG encoding failed")
+        u8 = cv2.imdecode(buf, cv2.IMREAD_GRAYSCALE)
+    return u8
+
+
+def render_photographed_board(
+    camera: CameraModel,
+    board: Checkerboard,
+    rvec,
+    tvec_mm,
+    model: PhotometricModel,
+    rendering: CameraRendering = CameraRendering(),
+    *,
+    seed: int = 0,
+    background: float = 0.3,
+) -> RenderedBoard:
+    """Render ``board`` at pose ``(rvec, tvec_mm)`` as a camera with photometric ``model`` photographs it:
+    the print's spread from the model, then :func:`apply_camera`. ``image`` is the photograph; ``radiance``
+    the box-filtered radiance of the printed board."""
+    printed = PrintedCheckerboard(
+        board.cols, board.rows, board.square_mm, board.margin_mm, model.print_spread_mm
+    )
+    rb = render_board(camera, printed, rvec, tvec_mm, background=background)
+    image = apply_camera(rb.radiance, model, rendering, seed)
+    return RenderedBoard(image, rb.corners_px, rb.ids, rb.object_points, rb.in_image, rb.radiance)
+
+
+def random_board_views(
+    camera: CameraModel,
+    board: Checkerboard,
+    model: PhotometricModel,
+    n_views: int,
+    seed: int,
+    *,
+    square_px: tuple[float, float] = (30.0, 45.0),
+    blur_px: tuple[float, float] = (0.6, 1.4),
+    exposure: tuple[float, float] = (0.55, 1.05),
+    read_noise: tuple[float, float] = (0.5, 1.5),
+) -> list[tuple[str, np.ndarray]]:
+    """``n_views`` photographs ``(name, image)`` of ``board`` by a camera with ``model``, each at a random pose
+    that shows the whole board (squares ``square_px`` wide near the middle), with the blur at the centre,
+    exposure and read noise drawn per photograph from the given ranges."""
+    rng = np.random.default_rng(seed)
+    f = 0.5 * (camera.fx + camera.fy)
+    w, h = camera.image_size
+    centre = np.array([(board.cols - 1) * board.square_mm / 2, (board.rows - 1) * board.square_mm / 2, 0.0])
+    views: list[tuple[str, np.ndarray]] = []
+    tries = 0
+    while len(views) < n_views:
+        tries += 1
+        if tries > 50 * n_views:
+            raise ValueError("cannot place the board inside the image at the asked scale")
+        rvec = np.array([rng.uniform(-0.45, 0.45), rng.uniform(-0.45, 0.45), rng.uniform(-0.3, 0.3)])
+        z = f * board.square_mm / rng.uniform(*square_px)
+        R = cv2.Rodrigues(rvec)[0]
+        off = np.array([rng.uniform(-0.25, 0.25) * w, rng.uniform(-0.25, 0.25) * h]) * z / f
+        tvec = -R @ centre + np.array([off[0], off[1], z])
+        look = CameraRendering(
+            float(rng.uniform(*blur_px)), float(rng.uniform(*exposure)), float(rng.uniform(*read_noise))
+        )
+        rb = render_photographed_board(camera, board, rvec, tvec, model, look, seed=seed * 1000 + len(views))
+        margin = 2 * board.square_mm * f / z
+        c = rb.corners_px
+        if not (
+            c[:, 0].min() > margin
+            and c[:, 0].max() < w - 1 - margin
+            and c[:, 1].min() > margin
+            and c[:, 1].max() < h - 1 - margin
+        ):
+            continue
+        views.append((f"view{len(views):02d}.png", rb.image))
+    return views

@@ -1,0 +1,107 @@
+"""Board edges placed and measured against the corner lines: rendered boards with a known print, the real
+photographs' plain-model figure, and the photometric model's response maps."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from doorloc.calib.camera import CameraModel
+from doorloc.calib.detect import Chessboard, detect_chessboard, to_gray
+from doorloc.calib.folder import read_folder
+from doorloc.calib.io import load_calibration
+from doorloc.photometric.board_edges import board_edge_curves, measure_board_edges
+from doorloc.photometric.model import PhotometricModel
+from doorloc.sim.boards import Checkerboard
+from doorloc.sim.photometric import random_board_views
+
+DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data"
+CAMERA = CameraModel.from_values(
+    [[600, 0, 319.5], [0, 600, 239.5], [0, 0, 1]], [-0.2, 0.05, 0, 0, 0], (640, 480)
+)
+
+
+def _offsets(model: PhotometricModel, seed: int, n: int = 2) -> tuple[list[float], list[float]]:
+    meds, scale = [], []
+    for name, img in random_board_views(CAMERA, Checkerboard(9, 6, 25.0), model, n, seed):
+        det = detect_chessboard(img, Chessboard(9, 6, 25.0))
+        assert det is not None, name
+        be = measure_board_edges(img, det.corners_px[np.argsort(det.ids)], 9, 6, 25.0, CAMERA, image=name)
+        assert be.n_edges == 8 * 6 + 9 * 5
+        meds.append(be.median_offset_px())
+        scale.append(float(np.median(be.px_per_mm)))
+    return meds, scale
+
+
+def test_plain_rendered_board_has_no_offset():
+    meds, _ = _offsets(PhotometricModel(), seed=11)
+    assert np.all(np.abs(meds) < 0.02), meds
+
+
+def test_print_spread_moves_edges_by_its_length_on_the_board():
+    spread = 0.2
+    meds, scale = _offsets(PhotometricModel(print_spread_mm=spread), seed=12)
+    # dark squares grown: each edge lies towards the bright side by spread_mm at the board's scale
+    np.testing.assert_allclose(meds, spread * np.asarray(scale), atol=0.04)
+
+
+def test_edge_curve_follows_the_distortion_not_the_chord():
+    cam = CameraModel.from_values(
+        [[600, 0, 319.5], [0, 600, 239.5], [0, 0, 1]], [-0.4, 0.1, 0, 0, 0], (640, 480)
+    )
+    # two corners far from the centre: the distorted image of the straight edge bows away from the chord
+    obj = np.array([[-150.0, -100.0, 400.0], [-100.0, -100.0, 400.0]])
+    uv = cam.project(obj)
+    curve, _ = board_edge_curves(uv, 2, 1, cam, np.array([0.5]))
+    true_mid = cam.project(0.5 * (obj[0] + obj[1])[None])[0]
+    np.testing.assert_allclose(curve[0, 0], true_mid, atol=1e-6)
+    assert np.linalg.norm(curve[0, 0] - uv.mean(0)) > 0.05
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    st.floats(0.5, 3.0),
+    st.floats(0.0, 0.15),
+    st.floats(0.4, 1.0),
+    st.floats(-0.3, 0.3),
+    st.floats(0.02, 0.98),
+)
+def test_response_maps_invert_each_other(gamma, black, shoulder, curvature, g):
+    m = PhotometricModel(gamma=gamma, black_level=black, shoulder=shoulder, curvature=curvature)
+    L, table_g = m.response_table()
+    rises = np.diff(m.light_from_grey(np.array([g - 2e-3, g + 2e-3])))[0] > 0
+    if g <= black + 0.01 or not rises or g > table_g[-1]:
+        return  # no inverse where the response is flat (held flat beyond the curvature's turning point)
+    back = m.grey_from_light(m.light_from_grey(np.array([g])))[0]
+    assert back == pytest.approx(g, abs=2e-3)
+
+
+def test_model_refuses_unknown_or_bad_values():
+    with pytest.raises(ValueError, match="unknown"):
+        PhotometricModel.from_dict({"gama": 2.0})
+    with pytest.raises(ValueError, match="gamma"):
+        PhotometricModel(gamma=-1.0)
+    assert PhotometricModel.from_dict(PhotometricModel(gamma=2.0).to_dict()) == PhotometricModel(gamma=2.0)
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not (DATA / "opencv-left").is_dir(), reason="../shared/data/opencv-left is not here")
+def test_opencv_left_plain_offsets_as_measured_before():
+    """The plain model's figure on OpenCV's left camera (published calibration): bright areas look larger on
+    most photographs, RMS over photographs about 0.23 px."""
+    cam = load_calibration(DATA / "opencv-left" / "published_left_intrinsics.yml").camera
+    meds = []
+    for name, img, _ in read_folder(DATA / "opencv-left", "left*.jpg"):
+        gray = to_gray(img)
+        det = detect_chessboard(gray, Chessboard(9, 6, 25.0))
+        assert det is not None, name
+        meds.append(
+            measure_board_edges(gray, det.corners_px[np.argsort(det.ids)], 9, 6, 25.0, cam).median_offset_px()
+        )
+    meds = np.asarray(meds)
+    assert 0.18 < np.sqrt(np.mean(meds**2)) < 0.28
+    assert np.sum(meds < 0) >= 10 and meds.min() < -0.35

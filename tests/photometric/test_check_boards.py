@@ -1,0 +1,126 @@
+"""`doorloc check-model --boards` on rendered board photographs: a photometric effect drawn at random (seed
+printed) is hidden in them and must be named with a held-out gain; a control must answer []; bad input exits 2
+with a sentence and writes nothing."""
+
+from __future__ import annotations
+
+import json
+import os
+import random
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from doorloc.app.cli import app
+from doorloc.calib.camera import CameraModel
+from doorloc.calib.io import CalibrationFile, load_calibration, save_calibration
+from doorloc.photometric.model import PhotometricModel
+from doorloc.sim.boards import Checkerboard
+from doorloc.sim.photometric import random_board_views
+
+CAMERA = CameraModel.from_values(
+    [[600, 0, 319.5], [0, 600, 239.5], [0, 0, 1]], [-0.2, 0.05, 0, 0, 0], (640, 480)
+)
+VIEWS = 6
+
+#: effects whose strength moves edges by well over the noise of six photographs, each drawn in its range
+HIDDEN = {
+    "response_gamma": lambda r: {"gamma": r.uniform(1.8, 2.4)},
+    "response_shoulder": lambda r: {"shoulder": r.uniform(0.6, 0.75)},
+    "print_spread": lambda r: {"print_spread_mm": r.choice([-1, 1]) * r.uniform(0.15, 0.25)},
+}
+
+
+def _boards(folder: Path, model: PhotometricModel, seed: int) -> Path:
+    folder.mkdir()
+    for name, img in random_board_views(CAMERA, Checkerboard(9, 6, 25.0), model, VIEWS, seed):
+        cv2.imwrite(str(folder / name), img)
+    cal = folder.parent / "camera.yaml"
+    save_calibration(CalibrationFile(CAMERA), cal)
+    return cal
+
+
+def _run(folder: Path, cal: Path, out: Path):
+    return CliRunner().invoke(
+        app,
+        [
+            "check-model",
+            "--boards",
+            str(folder),
+            "--pattern",
+            "9x6",
+            "--square",
+            "25",
+            "--calibration",
+            str(cal),
+            "--out",
+            str(out),
+        ],
+    )
+
+
+@pytest.mark.slow
+def test_hidden_effect_is_named_and_gains_on_held_out_photographs(tmp_path):
+    seed = int(os.environ.get("DOORLOC_TEST_SEED", random.randrange(1_000_000)))
+    rng = np.random.default_rng(seed)
+    name = list(HIDDEN)[int(rng.integers(len(HIDDEN)))]
+    values = HIDDEN[name](rng)
+    print(f"seed {seed}: hidden {name} {values}")
+    cal = _boards(tmp_path / "boards", PhotometricModel(**values), seed)
+    res = _run(tmp_path / "boards", cal, tmp_path / "report")
+    assert res.exit_code == 0, res.output
+    rep = json.loads((tmp_path / "report" / "report.json").read_text())
+    assert name in rep["causes"], (seed, rep["causes"])
+    off = rep["heldout_edge_offset_rms_px"]
+    assert off["after"] < 0.5 * off["before"], (seed, off)
+    assert all(i["heldout"] for i in rep["images"]) and len(rep["images"]) == VIEWS
+    ext = load_calibration(tmp_path / "report" / rep["extended_model"])
+    assert ext.photometric_model is not None and "check-model --boards" in (
+        ext.photometric_model_provenance or ""
+    )
+    assert (tmp_path / "report" / "report.md").read_text().startswith("# Model check")
+
+
+@pytest.mark.slow
+def test_control_answers_nothing(tmp_path):
+    seed = int(os.environ.get("DOORLOC_TEST_SEED", random.randrange(1_000_000)))
+    print(f"seed {seed}: control")
+    cal = _boards(tmp_path / "boards", PhotometricModel(), seed)
+    res = _run(tmp_path / "boards", cal, tmp_path / "report")
+    assert res.exit_code == 0, res.output
+    rep = json.loads((tmp_path / "report" / "report.json").read_text())
+    assert rep["causes"] == [], (seed, rep["causes"])
+    assert rep["heldout_edge_offset_rms_px"]["before"] < 0.03
+
+
+def test_bad_input_exits_2_and_writes_nothing(tmp_path):
+    cal = tmp_path / "camera.yaml"
+    save_calibration(CalibrationFile(CAMERA), cal)
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    res = _run(empty, cal, tmp_path / "out1")
+    assert res.exit_code == 2 and "no image files" in res.output
+    assert not (tmp_path / "out1").exists()
+    res = CliRunner().invoke(
+        app,
+        [
+            "check-model",
+            "--boards",
+            str(empty),
+            "--pattern",
+            "nine",
+            "--square",
+            "25",
+            "--out",
+            str(tmp_path / "o"),
+        ],
+    )
+    assert res.exit_code == 2 and "--pattern" in res.output
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(cal.read_text() + "photometric_model:\n   gama: 2.0\n")
+    res = _run(empty, bad, tmp_path / "out2")
+    assert res.exit_code == 2 and "gama" in res.output
+    assert not (tmp_path / "out2").exists()
