@@ -221,4 +221,3 @@ def compile_kernels() -> int:
         if warm_up is not None:
             warm_up(k)
     return len(_KERNELS)
-
