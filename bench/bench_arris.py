@@ -1,4 +1,4 @@
-"""Arris and camera-response bias of locate on rendered doors (issue 11 acceptance), seeds printed.
+"""Arris and camera-response bias of locate on rendered doors, seeds printed.
 
 Sets (each image: random pose inside the envelope, lighting, albedos, blur; see ``random_effects``):
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""Accuracy, refusals and speed of `doorloc.vision.locate` over rendered sets (issue 4 acceptance figures).
+"""Accuracy, refusals and speed of `doorloc.vision.locate` over rendered sets (the accuracy and speed figures).
 
 Sets (all rendered with `doorloc.sim.door.render_door` through the thesis cell, fixtures/cell_thesis.yaml):
 

@@ -1,4 +1,4 @@
-"""Reach check timing and the Table 4.8 deflection against the thesis's 0.3 mm statement (issue 13).
+"""Reach check timing and the Table 4.8 deflection against the thesis's 0.3 mm statement.
 
 Prints:
 

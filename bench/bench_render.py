@@ -1,4 +1,4 @@
-"""Render time of one 1920x1080 door image on one core (issue 3 acceptance: median <= 1 s).
+"""Render time of one 1920x1080 door image on one core (goal: median <= 1 s).
 
 Thread pools are pinned to one thread before numpy/OpenCV load. Prints the median and quartiles over
 the +-10 mm / +-2 deg pose grid, plain and with every cheap effect on (grain, light, vignetting, blur,

@@ -1,4 +1,4 @@
-"""Board corners found by OpenCV in rendered boards vs the true corners (issue 3 acceptance: <= 0.05 px RMS).
+"""Board corners found by OpenCV in rendered boards vs the true corners (goal: <= 0.05 px RMS).
 
 Renders a 9x6 checkerboard (25 mm squares) at several poses through the thesis camera matrix with a
 moderate barrel distortion, sharp and with a 0.8 px optical blur, and prints the RMS distance between the

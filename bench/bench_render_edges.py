@@ -1,4 +1,4 @@
-"""Edge-position agreement of the renderer with the analytic projection (issue 3 acceptance).
+"""Edge-position agreement of the renderer with the analytic projection (an acceptance figure).
 
 Renders straight edges at 0, 2 and 30 degrees to the pixel grid, as a face outline (silhouette) and as a
 texture line, with and without lens distortion, and prints the RMS / max of (area-method measured edge

@@ -3,7 +3,7 @@
 Prints errors (transport errors, non-200 answers, ok=false), throughput, p50/p99 latency and the
 server's RSS (all its processes) at start and end.
 
-Issue 14's figure, requests per second per core next to ``1000 / (decode + locate ms)``: the load
+The service figure, requests per second per core next to ``1000 / (decode + locate ms)``: the load
 clients run on the same machine as the server, so the wall-clock rate per core would charge the server
 for the clients' CPU. Instead the server's own CPU seconds over the run (all its processes, from /proc)
 give ``requests per server CPU-second``, which is the rate per core of a server that has its cores to

@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""Speed of locate (issue 14): one frame on one thread, decode + locate, and frames/s over a folder.
+"""Speed of locate: one frame on one thread, decode + locate, and frames/s over a folder.
 
 Frames: every committed fixture (fixtures/rendered/*, 117 1080p grey PNGs, each with its door from truth.csv).
 
@@ -127,7 +127,7 @@ def measure_one_frame(repeats: int) -> dict:
         locate(img, cell, door)
     out = {"doorloc": str(Path(sys.modules["doorloc"].__file__).parent)}
     out["locate"] = _time(lambda f: locate(f[3], f[1], f[2]), frames, repeats)
-    # the grid set alone (81 of the 117 frames: the figure issue 14 quotes)
+    # the grid set alone (81 of the 117 frames: the headline figure)
     grid = [f for f in frames if f[0].startswith("grid/")]
     out["locate.grid"] = _time(lambda f: locate(f[3], f[1], f[2]), grid, repeats)
     out["stages_cpu_ms"] = _stages(frames, repeats)

@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""Real door surfaces (issue 11): accuracy on wood grain, and whether the claimed uncertainty covers the error.
+"""Real door surfaces: accuracy on wood grain, and whether the claimed uncertainty covers the error.
 
 Sets (rendered through the thesis cell, fixtures/cell_thesis.yaml, each with its seed printed; every
 effect drawn over a wide random range per image, so nothing is tuned to one look):

@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""Frames/s of ``doorloc batch`` over a folder of 1080p frames (issue 14, "many frames"), decode included.
+"""Frames/s of ``doorloc batch`` over a folder of 1080p frames ("many frames"), decode included.
 
 The folder: the 81 grid fixtures (1080p grey, each with its door from truth.csv, written into a manifest),
 repeated to ``--frames`` files, once as PNG and once as JPEG (quality 95). For each format, each worker
@@ -12,7 +12,7 @@ count and each path the job runs through the library calls ``doorloc batch`` mak
   start-up and the drain at the end, where workers run out of work, are out), and ``fps_job``: the whole
   job, start-up included;
 - parity: every record of the batched paths against the one-frame record of the same file: the same
-  status and refusal, pose within 0.001 mm / 0.0001 deg (issue 14's parity figure).
+  status and refusal, pose within 0.001 mm / 0.0001 deg (the batched path's parity figure).
 
 CUDA runs only where torch sees a GPU. The machine (CPU count, GPU name) is printed with the numbers.
 

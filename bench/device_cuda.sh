@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The CUDA checks of issue 14 on a lent GPU machine (Python 3.12 with torch, numpy, scipy, OpenCV already
+# The CUDA checks of the batched path on a lent GPU machine (Python 3.12 with torch, numpy, scipy, OpenCV already
 # there; doorloc's other run-time wheels carried in .whl/, see /work/.library/device/README.md):
 # the batched path's parity on CUDA (tests/vision/test_batched.py) and frames/s of `doorloc batch`
 # (bench/bench_throughput.py) on 1, 8 and all cores, one-frame vs batched on CPU and CUDA.

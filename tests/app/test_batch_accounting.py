@@ -1,4 +1,4 @@
-"""Batch accounts for every file (issue 15): special, empty, unreadable, huge and non-image files get a record with
+"""Batch accounts for every file: special, empty, unreadable, huge and non-image files get a record with
 the reason; workers die with the batch process; --resume refuses a results file made with another model."""
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Recorded answers of the one-frame locate on every committed fixture, for the speed parity test.
 
-The speed work (issue 14) must not change a single answer: ``test_locate_parity.py`` runs :func:`cases`
+Speed and structure work must not change a single answer: ``test_locate_parity.py`` runs :func:`cases`
 through today's :func:`doorloc.vision.locate.locate` and compares with ``data/locate_golden.json``, which
 was last written after the issue-11 estimator changes (texture step fit, arris strip, response check) with::
 
@@ -130,7 +130,7 @@ def summary(r: LocateResult) -> dict:
     return out
 
 
-#: tolerances of the parity test (issue 14: poses within 1e-4 mm of the recorded ones)
+#: tolerances of the parity test (poses within 1e-4 mm of the recorded ones)
 TOL = {
     "x_mm": 1e-4,
     "z_mm": 1e-4,

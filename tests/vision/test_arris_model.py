@@ -158,7 +158,7 @@ def test_sharp_door_has_no_arris_correction():
 
 def test_a_wrong_response_gamma_is_measured_and_absorbed_on_plain_edges():
     """A gamma-2.2 camera with a cell that says linear: the plain edges' shape shows the response, locate
-    measures again with it, and the answer is as good as with the right cell (issue 11)."""
+    measures again with it, and the answer is as good as with the right cell."""
     door = DoorSize(900, 50, 2100)
     pose = DoorPose(-2.0, 1.5, -0.4)
     img = render_door(

@@ -283,7 +283,7 @@ def test_far_face_start_ranked_on_a_subset_of_scan_lines_gives_the_exhaustive_se
     seed, monkeypatch
 ):
     """The start search ranks its shifts on a subset of the scan lines and costs the best few on all of them
-    (speed, issue 14): on noisy, grainy profiles with a prediction off by up to 5 px it ends exactly where
+    (speed): on noisy, grainy profiles with a prediction off by up to 5 px it ends exactly where
     costing every shift on every line ends (ranking on 10 lines and keeping only the best fails 3 of these)."""
     import doorloc.vision.edges as edges_mod
 

@@ -1,5 +1,5 @@
 """The speed work changes no answer: locate on every fixture (and inputs derived from them) gives the
-poses recorded from the code before it, within 1e-4 mm, and the same refusals (issue 14).
+poses recorded from the code before it, within 1e-4 mm, and the same refusals.
 
 The recorded answers are ``data/locate_golden.json``; see ``locate_golden.py`` for how they were made
 and when to record them again.

@@ -1568,7 +1568,7 @@ def refine_step_fit(
     texture under the window and at the plateaus. Fitting ``A + (B - A) C(k; e, blur)`` to the window itself
     (``half + 1`` px each side, ``A`` and ``B`` free per scan line) takes both levels from right beside
     the transition instead, and weighs the pixels by how much they say about the edge (the steep part):
-    on the bench's wood-grain set it halves the area estimator's error (issue 11), and on clean steps it is
+    on the bench's wood-grain set it halves the area estimator's error, and on clean steps it is
     as exact. ``blur_px`` (Gaussian sigma, px, without the pixel) only shapes the model: a symmetric
     misfit of it does not move a symmetric edge. Points that the fit moves by more than a pixel, or not
     to a finite value, keep the area estimate.

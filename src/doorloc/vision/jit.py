@@ -2,7 +2,7 @@
 
 Why numba: a robust line fit re-weights one or two thousand points nine times per call; written with
 numpy, each iteration is ~20 array calls of a few microseconds on arrays too small to amortise them,
-and the fits were a sixth of a clean frame (issue 14). The same loop compiled runs several times faster.
+and the fits were a sixth of a clean frame. The same loop compiled runs several times faster.
 The kernels are plain Python over numpy arrays (``kernel.py_func`` runs one uncompiled;
 ``NUMBA_DISABLE_JIT=1`` runs them all so), written to give the numbers the numpy code gave up to
 rounding. A few helpers here serve several kernels: :func:`select_kth` (np.partition's order statistic,
