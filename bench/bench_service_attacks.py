@@ -31,13 +31,14 @@ import argparse
 import multiprocessing
 import socket
 import statistics
-import struct
 import threading
 import time
 from collections import Counter
 
 import httpx
 from service_harness import cpu_seconds, doorloc_serve, rendered_pngs, rss_mb
+
+from doorloc.sim.hostile import progressive_jpeg_bomb, tiff_header
 
 RECIPE = {
     "door_id": "BENCH-1",
@@ -65,36 +66,6 @@ LOAD_ATTACKS = [
 
 
 # ---------------------------------------------------------------------------------------------- payloads
-
-
-def progressive_jpeg(extra_scans: int, side: int = 1024) -> bytes:
-    import cv2
-    import numpy as np
-
-    img = np.random.default_rng(0).integers(0, 255, (side, side), np.uint8)
-    data = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_PROGRESSIVE, 1])[1].tobytes()
-    last = data.rfind(b"\xff\xda")
-    (length,) = struct.unpack(">H", data[last + 2 : last + 4])
-    eoi = data.rfind(b"\xff\xd9")
-    return data[:eoi] + data[last : last + 2 + length] * extra_scans + data[eoi:]
-
-
-def tiff(width: int, height: int, tile: int | None, bits: int = 8, sample_format: int = 1) -> bytes:
-    tags = [(256, 4, width), (257, 4, height), (258, 3, bits), (259, 3, 1), (262, 3, 1), (277, 3, 1)]
-    tags.append((339, 3, sample_format))
-    data_offset = 8 + 2 + 12 * (len(tags) + 4) + 4
-    if tile is not None:
-        tags += [(322, 4, tile), (323, 4, tile), (324, 4, data_offset), (325, 4, 250_000)]
-    else:
-        tags += [(273, 4, data_offset), (278, 4, height), (279, 4, 250_000)]
-    tags.sort()
-    ifd = struct.pack("<H", len(tags))
-    for tag, typ, value in tags:
-        ifd += struct.pack("<HHI", tag, typ, 1) + (
-            struct.pack("<HH", value, 0) if typ == 3 else struct.pack("<I", value)
-        )
-    head = b"II*\x00" + struct.pack("<I", 8) + ifd + struct.pack("<I", 0)
-    return head + b"\x00" * (data_offset - len(head)) + bytes(250_000)
 
 
 def noise_jpeg(w: int = 4000, h: int = 3000) -> bytes:
@@ -140,9 +111,13 @@ def attack_client(  # noqa: ANN001
     att = {"X-API-Key": keys["attacker"]}
     payloads = {}
     if kind == "jpeg_scans":
-        payloads["f"] = progressive_jpeg(60_000)
+        payloads["f"] = progressive_jpeg_bomb(60_000)
     elif kind == "tiff_tiles":
-        payloads["f"] = tiff(64, 64, 16368, bits=16) if k % 2 == 0 else tiff(4000, 3000, None, 32, 3)
+        payloads["f"] = (
+            tiff_header(64, 64, 16368, bits=16, data_bytes=250_000)
+            if k % 2 == 0
+            else tiff_header(4000, 3000, None, 32, 3, data_bytes=250_000)
+        )
     elif kind == "overlay_refused":
         payloads["f"] = noise_jpeg()
     elif kind == "fair_flood":

@@ -2,29 +2,19 @@
 
 from __future__ import annotations
 
-import struct
-
 import cv2
 import numpy as np
 import pytest
 
 from doorloc.app.decodepool import DecodePool, DecodeRefused
 from doorloc.app.imagesniff import decode_limit_problem, sniff_image
-
-
-def _progressive_jpeg(extra_scans: int, side: int = 1024) -> bytes:
-    img = np.random.default_rng(0).integers(0, 255, (side, side), np.uint8)
-    data = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_PROGRESSIVE, 1])[1].tobytes()
-    last = data.rfind(b"\xff\xda")
-    (length,) = struct.unpack(">H", data[last + 2 : last + 4])
-    eoi = data.rfind(b"\xff\xd9")
-    return data[:eoi] + data[last : last + 2 + length] * extra_scans + data[eoi:]
+from doorloc.sim.hostile import progressive_jpeg_bomb
 
 
 def test_header_gives_the_scan_count_and_the_coefficient_buffer():
     plain = sniff_image(cv2.imencode(".jpg", np.zeros((30, 40), np.uint8))[1].tobytes())
     assert plain.scans == 1 and not plain.progressive and plain.work_bytes == 30 * 40
-    bomb = sniff_image(_progressive_jpeg(500, side=64))
+    bomb = sniff_image(progressive_jpeg_bomb(500, side=64))
     assert bomb.progressive and bomb.scans > 500
     assert bomb.work_bytes == 64 * 64 * (1 + 2)  # pixels, plus 2-byte coefficients
     assert "scans" in decode_limit_problem(bomb, "b.jpg", 50_000_000, 100_000_000, max_jpeg_scans=100)
@@ -57,7 +47,7 @@ def test_a_normal_image_decodes_as_in_process(pool):
 
 def test_a_decoder_past_its_cpu_limit_is_ended_and_replaced(pool):
     with pytest.raises(DecodeRefused) as e:
-        pool.decode(_progressive_jpeg(40_000), "bomb.jpg", timeout_s=120)  # ~7 s of decoding
+        pool.decode(progressive_jpeg_bomb(40_000), "bomb.jpg", timeout_s=120)  # ~7 s of decoding
     assert e.value.status == 422 and e.value.code == "decode_limit" and "CPU" in e.value.detail
     assert pool.decode(cv2.imencode(".png", np.ones((4, 4), np.uint8))[1].tobytes(), "a.png", 60).shape == (
         4,
@@ -75,7 +65,7 @@ def test_a_decode_past_its_memory_limit_is_refused(pool):
 
 def test_the_deadline_answers_503(pool):
     with pytest.raises(DecodeRefused) as e:
-        pool.decode(_progressive_jpeg(40_000), "bomb.jpg", timeout_s=0.2)
+        pool.decode(progressive_jpeg_bomb(40_000), "bomb.jpg", timeout_s=0.2)
     assert e.value.status == 503 and e.value.code == "overloaded"
     assert pool.decode(cv2.imencode(".png", np.ones((4, 4), np.uint8))[1].tobytes(), "a.png", 60).shape == (
         4,

@@ -18,6 +18,7 @@ import pytest
 
 from doorloc.app.access import KeyStore, Role
 from doorloc.recipes.store import RecipeStore
+from doorloc.sim.hostile import progressive_jpeg_bomb, tiff_header
 
 from .conftest import launch_serve, png_bytes, stop_serve
 
@@ -429,44 +430,10 @@ def test_paging_is_bounded(svc):
 # ---------------------------------------------------------------------------------------------- decoding bombs
 
 
-def _progressive_jpeg(extra_scans: int, side: int = 1024) -> bytes:
-    """A progressive JPEG with ``extra_scans`` empty scans (a scan header, no data) before its end: each costs
-    the decoder a pass over the image, a dozen bytes on the wire."""
-    import cv2
-    import numpy as np
-
-    img = np.random.default_rng(0).integers(0, 255, (side, side), np.uint8)
-    data = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_PROGRESSIVE, 1])[1].tobytes()
-    last = data.rfind(b"\xff\xda")
-    (length,) = struct.unpack(">H", data[last + 2 : last + 4])
-    eoi = data.rfind(b"\xff\xd9")
-    return data[:eoi] + data[last : last + 2 + length] * extra_scans + data[eoi:]
-
-
-def _tiff(width: int, height: int, tile: int | None, bits: int = 8, sample_format: int = 1) -> bytes:
-    """A little-endian one-sample TIFF header (with ``tile`` x ``tile`` tiles when given) and a little data."""
-    tags = [(256, 4, width), (257, 4, height), (258, 3, bits), (259, 3, 1), (262, 3, 1), (277, 3, 1)]
-    tags.append((339, 3, sample_format))
-    data_offset = 8 + 2 + 12 * (len(tags) + 4) + 4
-    if tile is not None:
-        tags += [(322, 4, tile), (323, 4, tile), (324, 4, data_offset), (325, 4, 64)]
-    else:
-        tags += [(273, 4, data_offset), (278, 4, height), (279, 4, 64)]
-    tags.sort()
-    ifd = struct.pack("<H", len(tags))
-    for tag, typ, value in tags:
-        ifd += struct.pack("<HHI", tag, typ, 1) + (
-            struct.pack("<HH", value, 0) if typ == 3 else struct.pack("<I", value)
-        )
-    ifd += struct.pack("<I", 0)
-    head = b"II*\x00" + struct.pack("<I", 8) + ifd
-    return head + b"\x00" * (data_offset - len(head)) + b"\x00" * 64
-
-
 def test_a_jpeg_with_thousands_of_scans_is_refused_before_decoding(svc):
     """Issue defect: a 908 KB progressive JPEG of 60,000 near-empty scans cost 12 s of decoding."""
     base, h, _ = svc
-    bomb = _progressive_jpeg(5000)
+    bomb = progressive_jpeg_bomb(5000)
     body = _problem(
         httpx.post(f"{base}/v1/locate", files=_img(bomb, "b.jpg"), headers=h[Role.operator], timeout=60),
         422,
@@ -479,7 +446,7 @@ def test_a_decoder_past_its_cpu_limit_ends_its_worker_and_the_service_goes_on(ti
     """Issue defect: decoding was not bounded in time; two bombs made every other locate wait 30 s for a 503.
 
     Here the scan limit is lifted, so the bomb reaches the decoder: its process is ended at 1 s of CPU."""
-    bomb = _progressive_jpeg(40000)  # ~7 s of decoding on one core
+    bomb = progressive_jpeg_bomb(40000)  # ~7 s of decoding on one core
     r = httpx.post(f"{tight}/v1/locate", files=_img(bomb, "b.jpg"), timeout=60)
     # ended at 1 s of CPU (422), or, on a machine too busy to give it that within the 3 s deadline, at the
     # deadline (503): bounded either way (tests/app/test_decodepool.py holds the CPU limit by itself)
@@ -493,12 +460,12 @@ def test_a_decoder_past_its_cpu_limit_ends_its_worker_and_the_service_goes_on(ti
 def test_tiff_tiles_and_float_samples_are_counted_before_decoding(svc):
     """Issue defect: a 260 KB TIFF of 64x64 px with 16368^2 tiles took 1 GB; 32-bit floats counted as 16-bit."""
     base, h, _ = svc
-    tiles = _tiff(64, 64, tile=16368, bits=16)
+    tiles = tiff_header(64, 64, tile=16368, bits=16)
     body = _problem(
         httpx.post(f"{base}/v1/locate", files=_img(tiles, "t.tif"), headers=h[Role.operator], timeout=60), 422
     )
     assert "tiles" in body["detail"]
-    floats = _tiff(4000, 3000, tile=None, bits=32, sample_format=3)
+    floats = tiff_header(4000, 3000, tile=None, bits=32, sample_format=3)
     body = _problem(
         httpx.post(f"{base}/v1/locate", files=_img(floats, "f.tif"), headers=h[Role.operator], timeout=60),
         422,

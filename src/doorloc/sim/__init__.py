@@ -9,4 +9,6 @@
   optics/sensor pipeline;
 - :mod:`doorloc.sim.dataset` — pose grids, ``truth.csv`` writing/reading, ``doorloc render``'s work;
 - :mod:`doorloc.sim.edgecheck` — the independent area-method check of rendered edge positions.
+- :mod:`doorloc.sim.hostile` — image files made to cost a decoder far more than their size (the
+  service's hostile-client tests and benchmark).
 """
