@@ -27,6 +27,8 @@ import pytest
 import yaml
 from fastapi.testclient import TestClient
 
+from .conftest import dev_settings
+
 REPO = Path(__file__).resolve().parents[2]
 DOC = REPO / "docs" / "result.md"
 RENDERED = REPO / "fixtures" / "rendered"
@@ -167,14 +169,13 @@ def _thesis_cell_with_robot_base(tmp_path: Path, shift_mm: float) -> Path:
 def http_answers(tmp_path, store) -> list[dict]:
     """Real HTTP answers: targets, RAPID, overlay and reach; a reach refusal; a door given by its size."""
     from doorloc.app.http import create_app
-    from doorloc.app.settings import ServiceSettings
     from doorloc.cell import load_cell
 
     answers = []
     with open(GRID_IMAGE, "rb") as f:
         png = f.read()
     for cell_path in (REPO / "fixtures" / "cell_thesis.yaml", _thesis_cell_with_robot_base(tmp_path, 3000.0)):
-        app = create_app(ServiceSettings(), cell=load_cell(cell_path), store=store)
+        app = create_app(dev_settings(), cell=load_cell(cell_path), store=store)
         with TestClient(app) as client:
             r = client.post(
                 "/v1/locate?overlay=true&rapid=true",
