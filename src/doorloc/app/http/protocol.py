@@ -165,21 +165,7 @@ class ProblemJsonHTTP(HttpToolsProtocol):
     def send_400_response(self, msg: str) -> None:
         self._refused = True
         self._disarm_head_timer()
-        body = problem_400_body(msg)
-        head = [b"HTTP/1.1 400 Bad Request\r\n"]
-        for name, value in self.server_state.default_headers:
-            head += [name, b": ", value, b"\r\n"]
-        head += [
-            b"content-type: ",
-            PROBLEM_MEDIA_TYPE.encode(),
-            b"\r\n",
-            b"content-length: ",
-            str(len(body)).encode(),
-            b"\r\n",
-            b"connection: close\r\n\r\n",
-        ]
-        self.transport.write(b"".join(head) + body)
-        self.transport.close()
+        self._send_problem_and_close(400, problem_400_body(msg))
 
     def _write_problem(self, status: int, code: str, detail: str) -> None:
         body = json.dumps(
@@ -191,6 +177,10 @@ class ProblemJsonHTTP(HttpToolsProtocol):
                 "detail": detail,
             }
         ).encode()
+        self._send_problem_and_close(status, body)
+
+    def _send_problem_and_close(self, status: int, body: bytes) -> None:
+        """Write a problem+json answer with the server's default headers, then close the connection."""
         head = [f"HTTP/1.1 {status} {HTTPStatus(status).phrase}\r\n".encode()]
         for name, value in self.server_state.default_headers:
             head += [name, b": ", value, b"\r\n"]
