@@ -36,23 +36,10 @@ import time
 from collections import Counter
 
 import httpx
-from service_harness import cpu_seconds, doorloc_serve, rendered_pngs, rss_mb
+from service_harness import RECIPE, cpu_seconds, doorloc_serve, rendered_pngs, rss_mb
 
 from doorloc.sim.hostile import progressive_jpeg_bomb, tiff_header
 
-RECIPE = {
-    "door_id": "BENCH-1",
-    "width_mm": 900,
-    "height_mm": 2100,
-    "thickness_mm": 50,
-    "arris_mm": 0,
-    "hinges": [
-        {"z_mm": 250, "length_mm": 100, "width_mm": 30, "x_mm": 10, "depth_mm": 3, "corner_radius_mm": 8}
-    ],
-    "tool_diameter_mm": 16,
-    "spindle_rpm": 18000,
-    "feed_mm_s": 25,
-}
 LOAD_ATTACKS = [
     "jpeg_scans",
     "header_100mb",

@@ -31,21 +31,7 @@ from collections import Counter
 from concurrent.futures import ThreadPoolExecutor
 
 import httpx
-from service_harness import doorloc_serve, rendered_pngs, rss_mb
-
-RECIPE = {
-    "door_id": "BENCH-1",
-    "width_mm": 900,
-    "height_mm": 2100,
-    "thickness_mm": 50,
-    "arris_mm": 0,
-    "hinges": [
-        {"z_mm": 250, "length_mm": 100, "width_mm": 30, "x_mm": 10, "depth_mm": 3, "corner_radius_mm": 8}
-    ],
-    "tool_diameter_mm": 16,
-    "spindle_rpm": 18000,
-    "feed_mm_s": 25,
-}
+from service_harness import RECIPE, doorloc_serve, rendered_pngs, rss_mb
 
 
 def png_bomb(w: int, h: int, depth: int, colour: int) -> bytes:

@@ -18,6 +18,21 @@ import httpx
 REPO = Path(__file__).resolve().parents[1]
 CELL = REPO / "fixtures" / "cell_thesis.yaml"
 
+#: the door recipe the service benchmarks store and locate against
+RECIPE = {
+    "door_id": "BENCH-1",
+    "width_mm": 900,
+    "height_mm": 2100,
+    "thickness_mm": 50,
+    "arris_mm": 0,
+    "hinges": [
+        {"z_mm": 250, "length_mm": 100, "width_mm": 30, "x_mm": 10, "depth_mm": 3, "corner_radius_mm": 8}
+    ],
+    "tool_diameter_mm": 16,
+    "spindle_rpm": 18000,
+    "feed_mm_s": 25,
+}
+
 
 def free_port() -> int:
     with socket.socket() as s:
