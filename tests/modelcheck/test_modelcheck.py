@@ -1,7 +1,9 @@
 """check-model on rendered measured sets: a hidden effect is named and fixed, a control answers [].
 
-The hidden effect is drawn at random from the catalogue on every run; the seed is printed. Replay a run
-with ``DOORLOC_MODELCHECK_SEED=<seed>``.
+The hidden effect is drawn from the catalogue with a seed that is printed. The default seed is fixed, so that
+the suite gives the same answer on every machine (seed 900067 hides a 2 mm rounded arris, a case that once
+made this test's own check of the nominal cell fail); ``DOORLOC_MODELCHECK_SEED=<seed>`` replays another draw
+and ``DOORLOC_MODELCHECK_SEED=random`` draws a fresh one. ``bench/bench_modelcheck.py`` covers many draws.
 """
 
 from __future__ import annotations
@@ -41,26 +43,33 @@ def nominal(thesis_cell_path):
 
 @pytest.fixture(scope="module")
 def hidden_seed() -> int:
-    env = os.environ.get("DOORLOC_MODELCHECK_SEED")
-    seed = int(env) if env else secrets.randbelow(1_000_000)
+    env = os.environ.get("DOORLOC_MODELCHECK_SEED", "900067")
+    seed = secrets.randbelow(1_000_000) if env == "random" else int(env)
     print(f"\nhidden-effect seed: {seed} (replay with DOORLOC_MODELCHECK_SEED={seed})")
     return seed
 
 
-def _heldout_rms(report_dir, dataset_dir, cell, images) -> np.ndarray:
-    """RMS (x, z, yaw) of the held-out images located with ``cell``, the way production would."""
+def _heldout_errors(dataset_dir, cell, images) -> dict[str, np.ndarray | None]:
+    """Per held-out image, the (x, z, yaw) error located with ``cell`` the way production would; None if refused."""
     ds = read_dataset(dataset_dir, cell)
-    errs = []
+    errs: dict[str, np.ndarray | None] = {}
     for it in ds.images:
         if it.image not in images:
             continue
         door = door_for(it, cell, measured_arris=False)
         r = locate(read_image(it.path), cell, door)
-        assert r.ok, r.error
-        errs.append(
-            [r.x_mm - it.reference.x_mm, r.z_mm - it.reference.z_mm, r.yaw_deg - it.reference.yaw_deg]
+        errs[it.image] = (
+            np.array(
+                [r.x_mm - it.reference.x_mm, r.z_mm - it.reference.z_mm, r.yaw_deg - it.reference.yaw_deg]
+            )
+            if r.ok
+            else None
         )
-    return np.sqrt(np.mean(np.square(errs), axis=0))
+    return errs
+
+
+def _rms(errs: dict[str, np.ndarray | None], images) -> np.ndarray:
+    return np.sqrt(np.mean(np.square([errs[i] for i in images]), axis=0))
 
 
 def test_hidden_effect_is_named_and_the_extended_cell_fixes_it(
@@ -105,14 +114,21 @@ def test_hidden_effect_is_named_and_the_extended_cell_fixes_it(
     # The gain is real only if production uses it: the extended cell file, loaded like any cell file.
     ext = load_cell(out / rep["extended_cell"])
     assert ext.provenance["model_check"]["causes"] == rep["causes"]
-    before = _heldout_rms(out, data, nominal, rep["heldout_images"])
-    after = _heldout_rms(out, data, ext, rep["heldout_images"])
-    lever = lambda e: float(np.hypot(np.hypot(e[0], e[1]), 1000 * np.radians(e[2])))  # noqa: E731
-    need = 1 if already_at_noise else (2 if at_noise_after else 5)
-    assert lever(after) * need <= lever(before) * (1.05 if already_at_noise else 1), (
-        before,
-        after,
-    )
+    before_errs = _heldout_errors(data, nominal, rep["heldout_images"])
+    after_errs = _heldout_errors(data, ext, rep["heldout_images"])
+    # The extended cell answers every held-out image. The nominal cell may refuse some: a large hidden
+    # effect (a 2 mm rounded arris the cell does not know) makes a door read thinner than its recipe, and
+    # refusing it is the nominal cell's right answer. Its errors are compared where it did answer.
+    assert all(e is not None for e in after_errs.values()), [i for i, e in after_errs.items() if e is None]
+    both = [i for i, e in before_errs.items() if e is not None]
+    if both:
+        before, after = _rms(before_errs, both), _rms(after_errs, both)
+        lever = lambda e: float(np.hypot(np.hypot(e[0], e[1]), 1000 * np.radians(e[2])))  # noqa: E731
+        need = 1 if already_at_noise else (2 if at_noise_after else 5)
+        assert lever(after) * need <= lever(before) * (1.05 if already_at_noise else 1), (
+            before,
+            after,
+        )
     for p in ("residuals.png", "edge_residuals.png", "heldout.png", "report.md"):
         assert (out / p).is_file()
     # and the command line reads it like any cell file
