@@ -44,8 +44,10 @@ __all__ = [
     "BoardCheckOptions",
     "BoardCheck",
     "PhotographResult",
+    "MeasuredBoards",
     "check_boards",
     "check_photographs",
+    "measure_boards",
 ]
 
 #: fewest photographs with the whole board a check is attempted with (one held out, two to fit)
@@ -127,15 +129,27 @@ class BoardCheck:
         return float(np.sqrt(np.nanmean([p.noise_px**2 for p in self.photographs])))
 
 
-def check_boards(
+@dataclass(frozen=True)
+class MeasuredBoards:
+    """A folder of board photographs measured with the plain model: the photographs whose whole board was
+    found, the camera they were measured through and where it came from, and why others were skipped."""
+
+    photographs: list[Photograph]
+    camera: CameraModel
+    camera_source: str
+    skipped: list[str]
+
+
+def measure_boards(
     images_dir: str | os.PathLike,
     board: Chessboard,
     calibration: CalibrationFile | None = None,
-    options: BoardCheckOptions = BoardCheckOptions(),
+    settings: EdgeSettings = EdgeSettings(),
     progress: Callable[[str], None] | None = None,
-) -> BoardCheck:
-    """Read the photographs in ``images_dir``, find ``board``, calibrate if no ``calibration`` is given, then
-    :func:`check_photographs`. Raises :class:`BoardCheckError` for input it cannot use."""
+) -> MeasuredBoards:
+    """Steps 1 and 2 of the check: read the photographs in ``images_dir``, find ``board``, calibrate if no
+    ``calibration`` is given, and place every square edge with the plain model. Raises
+    :class:`BoardCheckError` for input it cannot use."""
     from doorloc.calib.folder import calibrate_detected
 
     say = progress or (lambda _m: None)
@@ -183,19 +197,32 @@ def check_boards(
             board.square_mm,
             camera,
             image=v.name,
-            settings=options.settings,
+            settings=settings,
         )
         if np.isfinite(edges.offset_px).sum() == 0:
             skipped.append(f"{v.name}: squares too small to read an edge on")
             continue
-        photos.append(Photograph(gray, edges, options.settings))
+        photos.append(Photograph(gray, edges, settings))
     if len(photos) < MIN_PHOTOGRAPHS:
         raise BoardCheckError(
             f"only {len(photos)} photographs have squares large enough to read edges on "
-            f"(the edge windows need squares of about {(options.settings.half + options.settings.plateau) / 0.3:.0f} px)"
+            f"(the edge windows need squares of about {(settings.half + settings.plateau) / 0.3:.0f} px)"
         )
     say(f"{len(photos)} photographs, {sum(p.edges.n_edges for p in photos)} edges")
-    result = check_photographs(photos, options, progress)
+    return MeasuredBoards(photos, camera, source, skipped)
+
+
+def check_boards(
+    images_dir: str | os.PathLike,
+    board: Chessboard,
+    calibration: CalibrationFile | None = None,
+    options: BoardCheckOptions = BoardCheckOptions(),
+    progress: Callable[[str], None] | None = None,
+) -> BoardCheck:
+    """:func:`measure_boards`, then :func:`check_photographs`. Raises :class:`BoardCheckError` for input it
+    cannot use."""
+    measured = measure_boards(images_dir, board, calibration, options.settings, progress)
+    result = check_photographs(measured.photographs, options, progress)
     return BoardCheck(
         result.causes,
         result.model,
@@ -204,10 +231,10 @@ def check_boards(
         result.selection,
         result.blur,
         result.tail_gain,
-        camera,
-        source,
+        measured.camera,
+        measured.camera_source,
         result.alternatives,
-        skipped,
+        measured.skipped,
     )
 
 
