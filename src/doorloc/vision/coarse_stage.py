@@ -20,11 +20,17 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
-from scipy.ndimage import uniform_filter1d
 
 from doorloc.cell import Cell, DoorSize
 from doorloc.vision import quality as q
-from doorloc.vision.coarse import coarse_edges
+from doorloc.vision.coarse import line_through_steps
+from doorloc.vision.coarse_refusals import (
+    REVERSED_BRIGHTNESS,
+    brightness_reversed,
+    faint_face,
+    looks_like_pattern_here,
+    no_door_reason,
+)
 from doorloc.vision.config import LocateConfig
 from doorloc.vision.gate import PATTERN
 from doorloc.vision.lines import ImageLine, fit_rectangle_edges, ransac_line
@@ -54,6 +60,45 @@ class StepQuery:
 
     plane: np.ndarray
     kwargs: dict[str, Any]
+
+
+@dataclass(frozen=True)
+class Coarse:
+    """What the coarse stage hands the refine stage: the three edges' lines and the pose from them."""
+
+    edges: CoarseEdges
+    pose: MetricPose
+
+
+def find_coarse(
+    lum: LuminancePlane,
+    region: SearchRegion,
+    cell: Cell,
+    door: DoorSize,
+    cfg: LocateConfig,
+    clock: StageClock,
+    bands: dict[str, Band],
+) -> Generator[StepQuery, tuple[np.ndarray, np.ndarray], Coarse]:
+    """The coarse stage: the three edges in the search region, then the pose from them (laps ``coarse`` and
+    ``coarse_pose`` on ``clock``).
+
+    ``bands``: the trace's, given each band as it is chosen (a refusal's overlay shows where the stage
+    looked). Refuses (:class:`~doorloc.vision.state.Refused`) where no door is found, naming a hinge face
+    on the other side of the background's brightness than the cell says where that is the cause.
+    """
+    plane, s8 = lum.plane, lum.scale_to_8bit
+    try:
+        edges = yield from _coarse_edges(plane, s8, region, door, cfg, bands)
+    except Refused as e:
+        if e.refusal.code in ("no_door", "edge_missing") and brightness_reversed(
+            plane, s8, region, cell, cfg
+        ):
+            raise Refused(q.Refusal(e.refusal.code, REVERSED_BRIGHTNESS[cfg.door_brighter])) from None
+        raise
+    clock.lap("coarse")
+    pose = _coarse_pose(edges, plane, s8, region, cell, door, cfg)
+    clock.lap("coarse_pose")
+    return Coarse(edges, pose)
 
 
 def _coarse_line(
@@ -91,22 +136,14 @@ def _coarse_line(
                 stride=2,
             ),
         )
-        line = _line_through_steps(band.scan, along, strength, thr, min_points, min_fraction)
+        line = line_through_steps(band.scan, along, strength, thr, min_points, min_fraction)
         if line is not None:
             return line
     return None
 
 
 def _nearer_reference(
-    plane,
-    band: Band,
-    layout: EdgeLayout,
-    ref_line: ImageLine,
-    xdir: int,
-    thr: float,
-    door: DoorSize,
-    scale_mm_per_px: float,
-    cfg: LocateConfig,
+    s: _Search, band: Band, ref_line: ImageLine
 ) -> Generator[StepQuery, tuple[np.ndarray, np.ndarray], ImageLine]:
     """The reference arris where a stronger step of its polarity lies a door's thickness further in.
 
@@ -121,6 +158,7 @@ def _nearer_reference(
     edge outside the door is followed by background, not by a face up to the stronger line. The search is made
     only where the level just outside the line differs from the background's at the band's outer end.
     """
+    plane, layout, xdir, thr = s.plane, s.region.layouts["reference"], s.xdir, s.thr
     tol = 3.0
     at = ref_line.at(band.scan)
     # (clear of the stronger step's blurred flank, which the 2 x 2-px detector reads up to ~12 px away)
@@ -163,44 +201,64 @@ def _nearer_reference(
             stride=2,
         ),
     )
-    line = _line_through_steps(scan, along, strength, thr, 10, 0.4 * len(band.scan) / len(scan))
+    line = line_through_steps(scan, along, strength, thr, 10, 0.4 * len(band.scan) / len(scan))
     if line is None:
         return ref_line
     inner = line.at(scan)
-    gap_mm = float(np.median((at - inner) * xdir)) * scale_mm_per_px
-    if not (cfg.min_thickness_mm <= gap_mm <= door.thickness_mm + cfg.thickness_search_mm):
+    gap_mm = float(np.median((at - inner) * xdir)) * s.sc
+    if not (s.cfg.min_thickness_mm <= gap_mm <= s.door.thickness_mm + s.cfg.thickness_search_mm):
         return ref_line
     # the level between the two lines (inset by the tolerance) against the level just outside the nearer one
-    step = np.empty(scan.size)
-    for k, (s, a, b) in enumerate(zip(scan, inner, at, strict=True)):
-        i0, i1 = sorted((int(round(a + xdir * tol)), int(round(b - xdir * tol))))
-        o0, o1 = sorted((int(round(a - xdir * tol)), int(round(a - xdir * (tol + 8)))))
-        if i1 - i0 < 2 or o0 < 0 or o1 >= n_along or i0 < 0 or i1 >= n_along:
-            step[k] = np.nan
-            continue
-        inside = float(np.median(P[i0 : i1 + 1, s]))
-        outside = float(np.median(P[o0 : o1 + 1, s]))
-        step[k] = (inside - outside) * door_sign
+    step = _step_into_door(P, scan, inner, at, xdir, tol, door_sign)
     if not np.any(np.isfinite(step)) or float(np.nanmedian(step)) < 0.5 * thr:
         return ref_line
     return line
 
 
-def _line_through_steps(
+def _step_into_door(
+    P: np.ndarray,
     scan: np.ndarray,
-    along: np.ndarray,
-    strength: np.ndarray,
-    thr: float,
-    min_points: int,
-    min_fraction: float,
-) -> ImageLine | None:
-    """The RANSAC line (3 px tolerance) through the scan lines' steps of at least ``thr``, or None without
-    ``min_points`` such steps or ``min_fraction`` of the scan lines on it."""
-    strong = np.isfinite(along) & (strength >= thr)
-    line = ransac_line(scan[strong], along[strong], 3.0) if strong.sum() >= min_points else None
-    if line is not None and line.inliers.sum() >= min_fraction * max(len(scan), 1):
-        return line
-    return None
+    inner: np.ndarray,
+    outer: np.ndarray,
+    xdir: int,
+    tol: float,
+    door_sign: int,
+) -> np.ndarray:
+    """On each scan line (``P`` oriented ``[along, scan]``), the median level between the lines at ``inner``
+    and ``outer`` (each inset by ``tol`` px; ``xdir`` the along-direction of door +X) less the median over 8 px just
+    outside ``inner``, in the door's polarity (``door_sign``); NaN where either reaches past the image."""
+    n_along = P.shape[0]
+    step = np.empty(scan.size)
+    for k, (col, a, b) in enumerate(zip(scan, inner, outer, strict=True)):
+        i0, i1 = sorted((int(round(a + xdir * tol)), int(round(b - xdir * tol))))
+        o0, o1 = sorted((int(round(a - xdir * tol)), int(round(a - xdir * (tol + 8)))))
+        if i1 - i0 < 2 or o0 < 0 or o1 >= n_along or i0 < 0 or i1 >= n_along:
+            step[k] = np.nan
+            continue
+        inside = float(np.median(P[i0 : i1 + 1, col]))
+        outside = float(np.median(P[o0 : o1 + 1, col]))
+        step[k] = (inside - outside) * door_sign
+    return step
+
+
+@dataclass(frozen=True)
+class _Search:
+    """What every coarse search in one image reads: the luminance ``plane`` and its 8-bit scale ``s8``, the
+    region, the door and the settings, and what follows from them."""
+
+    plane: np.ndarray
+    s8: float
+    region: SearchRegion
+    door: DoorSize
+    cfg: LocateConfig
+    #: the contrast threshold, plane units
+    thr: float
+    #: the along-direction of door +X on the arrises' scan lines
+    xdir: int
+    #: the region's nominal scale, mm/px
+    sc: float
+    #: the step detector's half width that spans an arris strip (:func:`_strip_half`; None without an arris)
+    strip_half: int | None
 
 
 @dataclass(frozen=True)
@@ -218,12 +276,14 @@ class CoarseEdges:
 def _coarse_edges(
     plane, s8: float, region: SearchRegion, door: DoorSize, cfg: LocateConfig, bands: dict[str, Band]
 ) -> Generator[StepQuery, tuple[np.ndarray, np.ndarray], CoarseEdges]:
-    """Find the three edges to a pixel or two in the search region (strided step finder + RANSAC).
+    """Find the three edges to a pixel or two in the search region (strided step finder + RANSAC), each band
+    given to ``bands`` as it is chosen.
 
-    A coroutine: each step search is yielded as a :class:`StepQuery` (see :func:`doorloc.vision.locate.locate_steps`)."""
+    A coroutine: each step search is yielded as a :class:`StepQuery` (see
+    :func:`doorloc.vision.locate.locate_steps`)."""
     thr = cfg.min_contrast / s8
     # -- search region: coarse steps ------------------------------------------------------------
-    ref_lay, far_lay, bot_lay = (region.layouts[k] for k in ("reference", "far", "bottom"))
+    ref_lay = region.layouts["reference"]
     band_ref = region.arris_band(step=4, height_mm=45.0)
     bands["reference"] = band_ref
     P = oriented(plane, ref_lay.axis)
@@ -237,52 +297,103 @@ def _coarse_edges(
     xdir = ref_lay.polarity * (1 if cfg.door_brighter else -1)  # along-direction of door +X
     sc = region.nominal_scale
     strip_half = _strip_half(door, sc) if door.arris_mm > 0 else None
+    search = _Search(plane, s8, region, door, cfg, thr, xdir, sc, strip_half)
+    band_ref, ref_line = yield from _reference_line(search, band_ref)
+    bands["reference"] = band_ref
+
+    band_far = _far_band(search, band_ref, ref_line)
+    bands["far"] = band_far
+    far_line = yield from _far_line(search, band_far, ref_line)
+    if far_line is None or far_line.inliers.sum() < 0.3 * len(band_far.scan):
+        raise Refused(
+            _faint_face(search, band_ref, ref_line)
+            or q.Refusal(
+                "edge_missing",
+                f"the {HUMAN['far']} was not found within {door.thickness_mm + cfg.thickness_search_mm:.0f} mm of "
+                f"the reference arris; check that the door is {door.thickness_mm:g} mm thick and that "
+                "nothing covers its far edge",
+            )
+        )
+
+    band_bot = _bottom_band(search, ref_line, far_line)
+    bands["bottom"] = band_bot
+    bot_line = yield from _coarse_line(plane, band_bot, region.layouts["bottom"], thr, 5, 0.3, strip_half)
+    if bot_line is None:
+        raise Refused(
+            _faint_face(search, band_ref, ref_line)
+            or q.Refusal(
+                "edge_missing",
+                f"the {HUMAN['bottom']} was not found between the arrises; check that "
+                "the door's bottom end is in view and nothing covers it",
+            )
+        )
+
+    return CoarseEdges(ref_line, far_line, bot_line, band_ref, band_far, band_bot)
+
+
+def _reference_line(
+    s: _Search, first: Band
+) -> Generator[StepQuery, tuple[np.ndarray, np.ndarray], tuple[Band, ImageLine]]:
+    """The reference arris's coarse line and the band it was found in (``first``, or one higher up)."""
+    ref_lay = s.region.layouts["reference"]
     # A shadow across the door low down (a clamp, the fixture) can take the arris's step below the
     # threshold over the whole first band: look higher up before saying there is no door (bench_surfaces
     # --seed 500, hard_014: a shadow band over 30-70 mm, refused as no door). (Both bands are memoised
     # with the region, built once per cell and door.)
-    first = band_ref
     ref_line = None
-    for band_ref in (first, region.arris_band(step=4, height_mm=90.0, start_mm=45.0)):
-        outer = (band_ref.lo if xdir > 0 else band_ref.hi).astype(float)
-        ref_line = yield from _coarse_line(plane, band_ref, ref_lay, thr, 10, 0.4, strip_half, prefer=outer)
+    band_ref = first
+    for band_ref in (first, s.region.arris_band(step=4, height_mm=90.0, start_mm=45.0)):
+        outer = (band_ref.lo if s.xdir > 0 else band_ref.hi).astype(float)
+        ref_line = yield from _coarse_line(
+            s.plane, band_ref, ref_lay, s.thr, 10, 0.4, s.strip_half, prefer=outer
+        )
         if ref_line is not None:
             break
     if ref_line is None:
-        raise Refused(_no_door_reason(plane, first, ref_lay, cfg, s8))
-    ref_line = yield from _nearer_reference(plane, band_ref, ref_lay, ref_line, xdir, thr, door, sc, cfg)
-    bands["reference"] = band_ref
-    tol = 3.0
+        raise Refused(no_door_reason(s.plane, first, ref_lay, s.cfg, s.s8))
+    ref_line = yield from _nearer_reference(s, band_ref, ref_line)
+    return band_ref, ref_line
 
+
+def _far_band(s: _Search, band_ref: Band, ref_line: ImageLine) -> Band:
+    """Where the far arris is looked for: from the thinnest door the settings allow to the recipe's
+    thickness and its search margin, beyond the reference arris."""
     ref_at = ref_line.at(band_ref.scan)
-    a1 = ref_at + xdir * cfg.min_thickness_mm / sc
-    a2 = ref_at + xdir * (door.thickness_mm + cfg.thickness_search_mm) / sc
-    n_along = plane.shape[0] if far_lay.axis == "col" else plane.shape[1]
+    a1 = ref_at + s.xdir * s.cfg.min_thickness_mm / s.sc
+    a2 = ref_at + s.xdir * (s.door.thickness_mm + s.cfg.thickness_search_mm) / s.sc
+    n_along = s.plane.shape[0] if s.region.layouts["far"].axis == "col" else s.plane.shape[1]
     band_far = Band(
         band_ref.scan,
         np.clip(np.floor(np.minimum(a1, a2)), 2, n_along - 3).astype(int),
         np.clip(np.ceil(np.maximum(a1, a2)), 2, n_along - 3).astype(int),
     )
     keep = band_far.hi - band_far.lo >= 4
-    band_far = Band(band_far.scan[keep], band_far.lo[keep], band_far.hi[keep])
-    bands["far"] = band_far
+    return Band(band_far.scan[keep], band_far.lo[keep], band_far.hi[keep])
+
+
+def _far_line(
+    s: _Search, band_far: Band, ref_line: ImageLine
+) -> Generator[StepQuery, tuple[np.ndarray, np.ndarray], ImageLine | None]:
+    """The far arris's coarse line in ``band_far``, past the hinge face's grain lines (None where none)."""
+    tol = 3.0
+    xdir = s.xdir
     # The far arris is the first clear step beyond the reference arris: the hinge face ends there, and
     # what follows (background, or the far face of a thin door shifted towards -X, brighter or darker
     # than the hinge face) does not matter. Taking the first step, not the one nearest the expected
     # thickness, measures the door that is there (a 12 mm panel where a 50 mm door was expected). A step
     # that the hinge face's own grain makes is passed over: beyond it the face's level comes back.
-    P_far = oriented(plane, far_lay.axis)
+    P_far = oriented(s.plane, s.region.layouts["far"].axis)
     search = band_far
     for _skip in range(FACE_TEXTURE_SKIPS + 1):
-        far_line = yield from _first_far_line(plane, search, far_lay, thr, tol, xdir, door, sc)
+        far_line = yield from _first_far_line(s, search, tol)
         if far_line is None:
             break
         # (only a door thinner than the recipe's needs the look: a grain line lies inside the face; an
         # arris strip's inner border, a strip's width in, is the far arris's, which the fine stage places)
         mid = search.scan[search.scan.size // 2 : search.scan.size // 2 + 1]
-        thickness = float((far_line.at(mid) - ref_line.at(mid))[0]) * xdir * sc
-        thinner = thickness < door.thickness_mm - 2.0 * (cfg.thickness_tolerance_mm + door.arris_mm)
-        if not thinner or not _face_texture_line(P_far, search.scan, far_line, ref_line, xdir, thr):
+        thickness = float((far_line.at(mid) - ref_line.at(mid))[0]) * xdir * s.sc
+        thinner = thickness < s.door.thickness_mm - 2.0 * (s.cfg.thickness_tolerance_mm + s.door.arris_mm)
+        if not thinner or not _face_texture_line(P_far, search.scan, far_line, ref_line, xdir, s.thr):
             break
         # A grain line of the hinge face, parallel to the arrises, made the first clear step (the face's
         # level comes back beyond it): look again beyond it (bench_surfaces --seed 9100, thin_028: a
@@ -296,49 +407,67 @@ def _coarse_edges(
         far_line = None
         if search.scan.size < 0.3 * len(band_far.scan):
             break
-    if far_line is None or far_line.inliers.sum() < 0.3 * len(band_far.scan):
-        faint = _faint_face(plane, band_ref, ref_lay, ref_line, xdir, door.arris_mm / sc, thr, cfg, s8)
-        raise Refused(
-            faint
-            or q.Refusal(
-                "edge_missing",
-                f"the {HUMAN['far']} was not found within {door.thickness_mm + cfg.thickness_search_mm:.0f} mm of "
-                f"the reference arris; check that the door is {door.thickness_mm:g} mm thick and that "
-                "nothing covers its far edge",
-            )
-        )
+    return far_line
 
-    # bottom end: scan lines between the two arrises, at the nominal corner height
-    corner0 = region.nominal_corner_px
-    s_corner = corner0[1] if ref_lay.axis == "row" else corner0[0]
+
+def _bottom_band(s: _Search, ref_line: ImageLine, far_line: ImageLine) -> Band:
+    """Where the bottom end is looked for: scan lines between the two arrises, at the nominal corner height."""
+    corner0 = s.region.nominal_corner_px
+    s_corner = corner0[1] if s.region.layouts["reference"].axis == "row" else corner0[0]
     u_ref, u_far = ref_line.at(s_corner), far_line.at(s_corner)
-    u_exp = u_ref + xdir * door.thickness_mm / sc
-    if abs(u_far - u_exp) * sc > 3.0:  # far arris doubtful here: span the bottom end by the door's thickness
+    u_exp = u_ref + s.xdir * s.door.thickness_mm / s.sc
+    if (
+        abs(u_far - u_exp) * s.sc > 3.0
+    ):  # far arris doubtful here: span the bottom end by the door's thickness
         u_far = u_exp if abs(u_exp - u_ref) < abs(u_far - u_ref) else u_far
     lo_s, hi_s = sorted((u_ref, u_far))
     inset = 0.15 * (hi_s - lo_s) + 6.0
     scans_b = np.arange(int(math.ceil(lo_s + inset)), int(math.floor(hi_s - inset)) + 1, 3)
-    band_bot = region.bottom_band(scans_b)
-    bands["bottom"] = band_bot
-    bot_line = yield from _coarse_line(plane, band_bot, bot_lay, thr, 5, 0.3, strip_half)
-    if bot_line is None:
-        faint = _faint_face(plane, band_ref, ref_lay, ref_line, xdir, door.arris_mm / sc, thr, cfg, s8)
-        raise Refused(
-            faint
-            or q.Refusal(
-                "edge_missing",
-                f"the {HUMAN['bottom']} was not found between the arrises; check that "
-                "the door's bottom end is in view and nothing covers it",
-            )
-        )
-
-    return CoarseEdges(ref_line, far_line, bot_line, band_ref, band_far, band_bot)
+    return s.region.bottom_band(scans_b)
 
 
 def _coarse_pose(
     c: CoarseEdges, plane, s8: float, region: SearchRegion, cell: Cell, door: DoorSize, cfg: LocateConfig
 ) -> MetricPose:
     """Pose from the coarse lines; refuses at once what is plainly not a door in place."""
+    pose = _pose_from_lines(c, region, door)
+    # A door far outside the envelope, or of quite another thickness (a panel where the recipe says a
+    # door), is clear already here. The coarse lines take the strongest step across each arris strip,
+    # which may be its inner border (a strip about as dark as the background): each edge then lies up
+    # to the arris's size inside the door, and the thickness up to twice that short (a 2.1 mm rounding
+    # in shadow measured 46.15 mm of a 50 mm door here, a valid door refused). The limits allow for it.
+    arris_slack = door.arris_mm
+    r = q.check_envelope(
+        pose.x_mm,
+        pose.z_mm,
+        pose.yaw_deg,
+        cell.envelope,
+        cfg.envelope_margin_mm + 3.0 + arris_slack,
+        cfg.envelope_margin_deg + 0.5,
+    )
+    if r:
+        if looks_like_pattern_here(plane, s8, c.ref_band, region.layouts["reference"].axis, cfg):
+            r = PATTERN
+        raise Refused(
+            r,
+            diagnostics={
+                "measured": {"x_mm": pose.x_mm, "z_mm": pose.z_mm, "yaw_deg": pose.yaw_deg, "coarse": True}
+            },
+        )
+    r = q.check_thickness(
+        pose.thickness_mm,
+        door.thickness_mm,
+        cfg.thickness_tolerance_mm + 2.0 + 2.0 * arris_slack,
+        cfg.thickness_tolerance_mm,
+    )
+    if r:
+        raise Refused(r, diagnostics={"measured": {"thickness_mm": pose.thickness_mm, "coarse": True}})
+    return pose
+
+
+def _pose_from_lines(c: CoarseEdges, region: SearchRegion, door: DoorSize) -> MetricPose:
+    """The pose from the coarse lines mapped to the hinge-face plane; refuses (``no_door``) where they form
+    no door's corner."""
     ref_lay, far_lay, bot_lay = (region.layouts[k] for k in ("reference", "far", "bottom"))
 
     def uvs(line, band, axis):
@@ -386,80 +515,13 @@ def _coarse_pose(
         behind = region.thickness_behind_far_face(pose.corner, math.radians(pose.yaw_deg), pose.thickness_mm)
         if behind is not None and abs(behind - door.thickness_mm) <= COARSE_THICKNESS_MM:
             pose = replace(pose, thickness_mm=behind)
-    # A door far outside the envelope, or of quite another thickness (a panel where the recipe says a
-    # door), is clear already here. The coarse lines take the strongest step across each arris strip,
-    # which may be its inner border (a strip about as dark as the background): each edge then lies up
-    # to the arris's size inside the door, and the thickness up to twice that short (a 2.1 mm rounding
-    # in shadow measured 46.15 mm of a 50 mm door here, a valid door refused). The limits allow for it.
-    arris_slack = door.arris_mm
-    r = q.check_envelope(
-        pose.x_mm,
-        pose.z_mm,
-        pose.yaw_deg,
-        cell.envelope,
-        cfg.envelope_margin_mm + 3.0 + arris_slack,
-        cfg.envelope_margin_deg + 0.5,
-    )
-    if r:
-        if _looks_like_pattern_here(plane, s8, c.ref_band, ref_lay.axis, cfg):
-            r = PATTERN
-        raise Refused(
-            r,
-            diagnostics={
-                "measured": {"x_mm": pose.x_mm, "z_mm": pose.z_mm, "yaw_deg": pose.yaw_deg, "coarse": True}
-            },
-        )
-    r = q.check_thickness(
-        pose.thickness_mm,
-        door.thickness_mm,
-        cfg.thickness_tolerance_mm + 2.0 + 2.0 * arris_slack,
-        cfg.thickness_tolerance_mm,
-    )
-    if r:
-        raise Refused(r, diagnostics={"measured": {"thickness_mm": pose.thickness_mm, "coarse": True}})
     return pose
 
 
-def _looks_like_pattern_here(plane, s8: float, band: Band, axis, cfg: LocateConfig) -> bool:
-    P = oriented(plane, axis)
-    rows = P[band.lo.min() : band.hi.max() + 1, band.scan[::8]].T.astype(np.float32) * s8
-    return q.looks_like_pattern(rows, 4 * cfg.min_contrast)
-
-
-_REVERSED = {
-    True: "the hinge face looks darker than the background here, and the cell says the door is the brighter "
-    "(locate.door_brighter: true); if this cell's doors are darker, set locate.door_brighter: false in the "
-    "cell file, else check the lighting",
-    False: "the hinge face looks brighter than the background here, and the cell says the door is the darker "
-    "(locate.door_brighter: false); if this cell's doors are brighter, set locate.door_brighter: true in the "
-    "cell file, else check the lighting",
-}
-
-
-def _brightness_reversed(plane, s8: float, region: SearchRegion, cell: Cell, cfg: LocateConfig) -> bool:
-    """Whether the hinge face is clearly on the other side of the background's brightness than the cell's
-    ``locate.door_brighter`` says, where it must lie whatever the door's placement in the envelope: used to
-    name the cause when no edge of the expected polarity was found.
-
-    Read on the hinge face's centre line (half the thickness in from the reference arris) and beyond the
-    reference arris by the search region's reach, 20-80 mm up from the bottom end: medians of 13 pixels each
-    (the door lies in the cell's envelope: on a door no thicker than twice the envelope's x, plus its yaw's
-    reach, no point is surely on the face, and nothing is said).
-    """
-    zs = np.linspace(20.0, 80.0, 13)
-    x_face, x_back = 0.5 * region.door.thickness_mm, -(region.x_range_mm + 8.0)
-    if x_face <= cell.envelope.x_mm + 3.0:  # (+3 mm: the envelope's yaw over 80 mm)
-        return False
-    h, w = plane.shape
-    levels = []
-    for x in (x_face, x_back):
-        uv = np.round(region.image_points(np.stack([np.full_like(zs, x), zs], axis=1))).astype(int)
-        inside = (uv[:, 0] >= 0) & (uv[:, 0] < w) & (uv[:, 1] >= 0) & (uv[:, 1] < h)
-        if inside.sum() < 7:
-            return False
-        levels.append(float(np.median(plane[uv[inside, 1], uv[inside, 0]])) * s8)
-    d = levels[0] - levels[1]
-    return abs(d) >= cfg.min_contrast and (d < 0) == cfg.door_brighter
+def _faint_face(s: _Search, band: Band, ref_line: ImageLine) -> q.Refusal | None:
+    """:func:`doorloc.vision.coarse_refusals.faint_face` beside the reference arris ``ref_line`` in ``band``."""
+    strip_px = s.door.arris_mm / s.sc
+    return faint_face(s.plane, s.s8, band, s.region.layouts["reference"], ref_line, s.xdir, strip_px, s.cfg)
 
 
 def _strip_half(door: DoorSize, scale_mm_per_px: float) -> int:
@@ -468,10 +530,11 @@ def _strip_half(door: DoorSize, scale_mm_per_px: float) -> int:
 
 
 def _first_far_line(
-    plane, band: Band, layout: EdgeLayout, thr: float, tol: float, xdir: int, door: DoorSize, sc: float
+    s: _Search, band: Band, tol: float
 ) -> Generator[StepQuery, tuple[np.ndarray, np.ndarray], ImageLine | None]:
     """The far arris's coarse line: the first clear step on each scan line of ``band`` coming from the
-    reference arris (``xdir``: the along-direction of door +X), RANSAC over them (tolerance ``tol`` px)."""
+    reference arris, RANSAC over them (tolerance ``tol`` px)."""
+    plane, layout, thr, xdir, door, sc = s.plane, s.region.layouts["far"], s.thr, s.xdir, s.door, s.sc
     near = (band.lo if xdir > 0 else band.hi).astype(float)
     along_f, strength_f = yield StepQuery(
         plane,
@@ -552,138 +615,3 @@ def _face_texture_line(
     if int(clear.sum()) < 5:
         return False
     return float(np.median(off[clear] / step[clear])) < 0.5
-
-
-def _no_door_reason(plane, band: Band, layout: EdgeLayout, cfg: LocateConfig, s8: float) -> q.Refusal:
-    if _looks_like_pattern_here(plane, s8, band, layout.axis, cfg):
-        return PATTERN
-    faint = _faint_edge(plane, band, layout, cfg.min_contrast / s8)
-    if faint is not None:
-        steps, found, lines = faint
-        return q.Refusal(
-            "low_contrast",
-            f"a faint edge lies where the door's reference arris should be ({steps * s8:.1f} grey levels "
-            f"averaged along it, on {found} of {lines} scan lines; locate.min_contrast is "
-            f"{cfg.min_contrast:g}): too faint against the image noise to measure; improve the lighting or "
-            "the background behind the door",
-        )
-    return q.Refusal(
-        "no_door",
-        "no door edge was found in the search region; check that a door lies in the fixture, "
-        "that the lighting is on and that the camera has not moved",
-    )
-
-
-def _faint_face(
-    plane,
-    band: Band,
-    layout: EdgeLayout,
-    ref_line: ImageLine,
-    xdir: int,
-    strip_px: float,
-    thr: float,
-    cfg: LocateConfig,
-    s8: float,
-) -> q.Refusal | None:
-    """``low_contrast`` where the hinge face beside the found reference arris is less than the contrast
-    threshold ``thr`` (plane units) brighter than the background outside it (darker, for a dark door), else
-    None: the reason a far arris or a bottom end was not found is then the lighting, not the door.
-
-    Seen on bench_surfaces --sets combined --seed 500, image 8: a hinge face 1 grey level from its
-    background, whose arrises show only as a rounding's faint lines, was refused "the far arris was not found
-    ... check that the door is 30.83 mm thick", which sent the operator to the door. The levels are medians
-    over 10 px on each side of the line, clear of it by 4 px and twice the arris strip's width
-    (``strip_px``). Where the coarse line is not the reference arris (image 24: a face darker than the
-    background in a shadow band, whose far arris took the reference search) the levels read another edge's
-    sides and the old reason stays.
-    """
-    P = oriented(plane, layout.axis)
-    n_along = P.shape[0]
-    at = np.round(ref_line.at(band.scan)).astype(int)[:, None]
-    # (clear of the arris strip on both sides by its width twice: the coarse line may hold either of its
-    # borders, and a rounding's shading reaches beyond them)
-    offs = np.arange(4, 14)[None, :] + 2 * int(math.ceil(strip_px))
-    inside = np.clip(at + xdir * offs, 0, n_along - 1)
-    outside = np.clip(at - xdir * offs, 0, n_along - 1)
-    scan = band.scan[:, None]
-    face = float(np.median(P[inside, scan]))
-    background = float(np.median(P[outside, scan]))
-    contrast = (face - background) * xdir * layout.polarity  # positive: the door as bright as the cell says
-    if contrast >= thr:
-        return None
-    return q.Refusal(
-        "low_contrast",
-        f"the hinge face beside the reference arris is {contrast * s8:.1f} grey levels from the background "
-        f"(locate.min_contrast is {cfg.min_contrast:g}): the door's other edges cannot be told from the "
-        "background; improve the lighting or the background behind the door",
-    )
-
-
-#: pixels (each side) along the edge over which :func:`_faint_edge` averages each scan line
-FAINT_EDGE_AVERAGE_PX = 8
-
-
-def _faint_edge(plane, band: Band, layout: EdgeLayout, thr: float) -> tuple[float, int, int] | None:
-    """A door edge too faint for the coarse search: the steps of ``band`` averaged over the
-    ``2 FAINT_EDGE_AVERAGE_PX + 1`` px along the edge around each scan line (noise averages down, the
-    edge does not; a door within the envelope's 2 deg drifts 0.6 px over them) make a line of steps of
-    at least half the threshold ``thr`` through 60 % of the scan lines.
-
-    Only for the refusal's reason: doors 5.3 and 3.6 grey levels above their background under ~3 grey
-    levels of noise, whose strongest single-line steps (noise peaks of 7-10) put only 17 and 11 of 56
-    lines on one line, were refused as no door (bench_surfaces --n 40 --seed 500, hard_023 and
-    thin_003; averaged, 54 and 38 of 56). Returns the averaged steps' median on the line (plane
-    units), the line's count of lines and the band's; None where no such line is.
-    """
-    P = oriented(plane, layout.axis)
-    k = FAINT_EDGE_AVERAGE_PX
-    r0, r1 = int(band.lo.min()), int(band.hi.max()) + 1
-    c0, c1 = max(int(band.scan.min()) - k, 0), min(int(band.scan.max()) + k + 1, P.shape[1])
-    sub = uniform_filter1d(np.asarray(P[r0:r1, c0:c1], np.float32), 2 * k + 1, axis=1, mode="nearest")
-    along, strength = coarse_edges(
-        sub, "col", band.scan - c0, band.lo - r0, band.hi - r0, layout.polarity, half=2, stride=2
-    )
-    line = _line_through_steps(band.scan, along, strength, 0.5 * thr, 10, 0.6)
-    if line is None:
-        return None
-    on = strength[np.isfinite(along) & (strength >= 0.5 * thr)][line.inliers]
-    return float(np.median(on)), int(line.inliers.sum()), len(band.scan)
-
-
-@dataclass(frozen=True)
-class Coarse:
-    """What the coarse stage hands the refine stage: the three edges' lines and the pose from them."""
-
-    edges: CoarseEdges
-    pose: MetricPose
-
-
-def find_coarse(
-    lum: LuminancePlane,
-    region: SearchRegion,
-    cell: Cell,
-    door: DoorSize,
-    cfg: LocateConfig,
-    clock: StageClock,
-    bands: dict[str, Band],
-) -> Generator[StepQuery, tuple[np.ndarray, np.ndarray], Coarse]:
-    """The coarse stage: the three edges in the search region, then the pose from them (laps ``coarse`` and
-    ``coarse_pose`` on ``clock``).
-
-    ``bands``: the trace's, given each band as it is chosen (a refusal's overlay shows where the stage
-    looked). Refuses (:class:`~doorloc.vision.state.Refused`) where no door is found, naming a hinge face
-    on the other side of the background's brightness than the cell says where that is the cause.
-    """
-    plane, s8 = lum.plane, lum.scale_to_8bit
-    try:
-        edges = yield from _coarse_edges(plane, s8, region, door, cfg, bands)
-    except Refused as e:
-        if e.refusal.code in ("no_door", "edge_missing") and _brightness_reversed(
-            plane, s8, region, cell, cfg
-        ):
-            raise Refused(q.Refusal(e.refusal.code, _REVERSED[cfg.door_brighter])) from None
-        raise
-    clock.lap("coarse")
-    pose = _coarse_pose(edges, plane, s8, region, cell, door, cfg)
-    clock.lap("coarse_pose")
-    return Coarse(edges, pose)
