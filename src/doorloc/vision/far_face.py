@@ -101,6 +101,227 @@ START_SUBSET_MIN_LINES = 40
 START_SUBSET_KEEP = 4
 
 
+@dataclass(frozen=True)
+class _Profiles:
+    """The far-face fit's data on its usable scan lines, in the kernels' index units (mirrored so that the
+    hinge face lies at the low indices): the cores between the plateaus ``core`` (N, M), the hinge face's
+    level ``A`` and the contrast ``D`` per line, the cores' pixel boundaries ``bounds``, the predicted arris
+    ``e0`` and band width ``w0`` there, the band's ``band_slope``, the strip widths ``strip`` (zeros without
+    one) and ``has_strip``. Its methods call the kernels of :mod:`doorloc.vision.far_face_kernels`."""
+
+    core: np.ndarray
+    A: np.ndarray
+    D: np.ndarray
+    bounds: np.ndarray
+    e0: np.ndarray
+    w0: np.ndarray
+    band_slope: float
+    strip: np.ndarray
+    has_strip: bool
+
+    def band_width(self, e: np.ndarray) -> np.ndarray:
+        """The band's width with the arrises at ``e``, px (0 where it has vanished)."""
+        return np.maximum(self.w0 + self.band_slope * (e - self.e0), 0.0)
+
+    def start_costs(
+        self, sigma: float, mu0: float, shifts: np.ndarray, every: int
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The cost at each common shift of the predicted arrises and the band level it solves for, on every
+        ``every``-th line (a strip at its prior level ``mu0``)."""
+        return far_face_start_costs(
+            self.core, self.A, self.D, self.bounds, self.e0, self.w0, self.band_slope, sigma, STEP_TAIL_SIGMAS,
+            self.strip, self.has_strip, mu0, LEVEL_PRIOR_WEIGHT, shifts, every,
+        )  # fmt: skip
+
+    def gauss_newton(
+        self,
+        prior: _StripPrior,
+        e: np.ndarray,
+        lam: float,
+        sigma: float,
+        mu: float,
+        fit_blur: bool,
+        n_iter: int,
+    ) -> tuple[np.ndarray, float, float, float, float]:
+        """The Gauss-Newton iterations from ``e, lam, sigma, mu``: the final ones and the cost."""
+        return far_face_gauss_newton(
+            self.core, self.A, self.D, self.bounds, e, self.w0, self.e0, self.band_slope, sigma,
+            STEP_TAIL_SIGMAS, self.strip, self.has_strip, lam, mu, fit_blur, n_iter, LEVEL_PRIOR_WEIGHT,
+            prior.pull_mu, prior.mu0, prior.levels_lo, prior.levels_hi,
+        )  # fmt: skip
+
+    def sums(self, e: np.ndarray, lam: float, sigma: float, mu: float) -> tuple[np.ndarray, ...]:
+        """The Gauss-Newton step's sums at the answer, the blur's column included."""
+        return far_face_sums(
+            self.core, self.A, self.D, self.bounds, e, self.w0, self.e0, self.band_slope, sigma,
+            STEP_TAIL_SIGMAS, self.strip, self.has_strip, lam, mu, True,
+        )  # fmt: skip
+
+
+@dataclass(frozen=True)
+class _StripPrior:
+    """An arris strip's relative level a priori (``mu0``, ``mu_sd``) and its pull's weight ``pull_mu``, and
+    the range ``levels_lo .. levels_hi`` the strip's and the far face's levels are held to (none without a
+    strip)."""
+
+    mu0: float = 0.0
+    mu_sd: float = 0.0
+    pull_mu: float = 0.0
+    levels_lo: float = -math.inf
+    levels_hi: float = math.inf
+
+
+def _strip_prior(prof: _Profiles, ends: np.ndarray, strip_radiance: tuple[float, float]) -> _StripPrior:
+    """The strip's relative level ``(S - A) / (B - A)`` a priori: its radiance ``strip_radiance`` (mean,
+    standard deviation) times the hinge face's (linear light), in units of the contrast; weighed at the
+    noise of the profiles' plateaus ``ends``."""
+    a_med, d_med = median(prof.A), median(prof.D)
+    k = -a_med / d_med if abs(d_med) > 1e-9 * max(abs(a_med), 1e-12) else 0.0
+    mu0 = (strip_radiance[0] - 1.0) * -k
+    mu_sd = max(strip_radiance[1] * abs(k), 0.05)
+    # The strip's and the far face's levels where their radiance is 0-3 times the hinge face's (the
+    # same wood: in shadow, or glinting). A far face seen nearly edge-on, a band of a hundredth of a
+    # pixel, otherwise took a level of -32 (a spike that moves the step at no cost: effects fixture
+    # img_0007, its bottom end then refused as not straight).
+    levels_lo, levels_hi = sorted((k, -2.0 * k))
+    noise_var = max(median(ends.var(axis=1)), (1e-3 * abs(d_med)) ** 2)
+    return _StripPrior(mu0, mu_sd, noise_var / mu_sd**2, levels_lo, levels_hi)
+
+
+def _start(prof: _Profiles, sigma: float, mu0: float, half: int) -> tuple[np.ndarray, float]:
+    """The arrises and band level to start the fit from: the best common shift of all predicted arrises
+    (half-pixel steps across the window ``half``).
+
+    A prediction that took the band's outer edge for the arris sits in a false minimum where the band has
+    shrunk to nothing, which Gauss-Newton would not leave."""
+    shifts = np.arange(-half, half + 0.25, 0.5)
+    n_ok = prof.core.shape[0]
+    if n_ok >= START_SUBSET_MIN_LINES and not prof.has_strip:
+        # The shifts' costs differ by whole bands of misfit: every START_SUBSET_EVERY-th scan line ranks
+        # them, and the few best are then costed on every line (at a third of the work: the start search
+        # was two thirds of the far face's time). Not a proof of the same winner, but it was on every
+        # parity case, 130 random renders and the noisy cases of test_edges_lines.
+        every = max(START_SUBSET_EVERY, n_ok // START_SUBSET_LINES)
+        sub, _ = prof.start_costs(sigma, mu0, shifts, every)
+        shifts = shifts[np.sort(np.argsort(sub, kind="stable")[:START_SUBSET_KEEP])]
+    costs, lams = prof.start_costs(sigma, mu0, shifts, 1)
+    best = (math.inf, 0.0, 0.5)
+    for shift, cost, lam_s in zip(shifts.tolist(), costs.tolist(), lams.tolist(), strict=True):
+        if cost < best[0]:
+            best = (cost, shift, lam_s)
+    return prof.e0 + best[1], best[2]
+
+
+_Fit = tuple[np.ndarray, float, float, float, float]  # the arrises, band level, blur, strip level and cost
+
+
+def _other_strip_reading(
+    prof: _Profiles, prior: _StripPrior, fit: _Fit, fit_blur: bool, n_iter: int, reach: float
+) -> tuple[_Fit, float]:
+    """The better of a strip's two readings, and how far the other puts the border (px, its weight
+    included).
+
+    A strip as bright as the far face (or as the hinge face) is also read as a door thinner (or thicker) by
+    the strip's width, its far face wider (or its strip invisible): the two explain the profiles alike, and
+    only their misfits tell them apart. Each is fitted from the other's place (arrises within ``reach`` px
+    of the prediction); the better is kept, and the other weighs in as a second place for the border (its
+    misfit excess at the scale of the residuals of one scan line: a model's error is common to all of them).
+    """
+    w_med = median(prof.strip)
+    chosen = fit
+    strip_doubt = 0.0
+    others = []
+    for sgn in (1.0, -1.0):
+        alt = prof.gauss_newton(
+            prior, chosen[0] + sgn * w_med, chosen[1], chosen[2], prior.mu0, fit_blur, n_iter
+        )
+        if np.all(np.abs(alt[0] - prof.e0) <= reach):
+            others.append(alt)
+    if others:
+        ranked = sorted([chosen, *others], key=lambda t: t[4])
+        chosen = ranked[0]
+        per_line = chosen[4] / max(prof.core.shape[0], 1)
+        for alt in ranked[1:]:
+            q = math.exp(-min((alt[4] - chosen[4]) / (2.0 * max(per_line, 1e-300)), 50.0))
+            shift = median(alt[0] - chosen[0])
+            strip_doubt = max(strip_doubt, abs(shift) * math.sqrt(q / (1.0 + q)))
+    return chosen, strip_doubt
+
+
+def _other_band_reading(prof: _Profiles, e: np.ndarray, lam: float) -> float:
+    """:attr:`FarFaceFit.other_reading_px` of a fit without a strip (0 where the band's level tells the two
+    readings apart)."""
+    if min(abs(lam), abs(1.0 - lam)) > BAND_SIDE_LEVEL:
+        return 0.0
+    w_med = median(prof.band_width(e))
+    if w_med < BAND_SIDE_MIN_PX:
+        return 0.0
+    # The band read as the background's: the step is the arris here, and the far face's back edge in
+    # the other reading, whose arris lies inwards by its band's width, w / (1 + band_slope) (the band
+    # widens as the arris moves in). Read as the hinge face's: the other way, by this band's width.
+    return float(-w_med / max(1.0 + prof.band_slope, 0.1) if lam >= 0.5 else w_med)
+
+
+@dataclass(frozen=True)
+class _ArrisDoubts:
+    """How well the fit places each arris: its standard error from the profile's noise ``e_sigma`` (px),
+    and how far it moves per unit of error in the band level, the blur and the strip level (``de_dlam``,
+    ``de_dsig``, ``de_dmu``: the last empty without a strip) with the strip level's doubt ``mu_doubt``."""
+
+    e_sigma: np.ndarray
+    de_dlam: np.ndarray
+    de_dsig: np.ndarray
+    de_dmu: np.ndarray
+    mu_doubt: float
+
+    def model_sigma(self, strip_doubt: float) -> float:
+        """:attr:`FarFaceFit.model_sigma_px`: the level's and the blur's doubts (and a strip's, and the other
+        place ``strip_doubt`` for its border that fits about as well) as the arris's move, px."""
+        sigma = math.hypot(median(self.de_dlam) * LEVEL_DOUBT, median(self.de_dsig) * BLUR_DOUBT)
+        if self.de_dmu.size:
+            sigma = math.hypot(sigma, median(self.de_dmu) * self.mu_doubt, strip_doubt)
+        return sigma
+
+
+def _arris_doubts(prof: _Profiles, prior: _StripPrior, fit: _Fit, strip_shaded: bool) -> _ArrisDoubts:
+    """The arrises' doubts at the answer ``fit`` (``strip_shaded``: the strip is a rounding)."""
+    e, lam, sigma, mu, _ = fit
+    h_ee, h_eg, b_e, H, b_g, rr = prof.sums(e, lam, sigma, mu)
+    res_var = rr / max(prof.core.shape[1] - 1, 1)
+    info = h_ee  # the arris derivative's squares
+    e_sigma = np.sqrt(res_var / info)
+    # How each arris would move to keep fitting its profile if the level or the blur were off. The
+    # blur is not fitted here (the reference arris's): where the band is about as narrow as the blur,
+    # a blur that is off pulls the fitted level with it, and the level moves the arris too, at most by
+    # the band's (and a strip's) width: the readings a level can give lie between the arris and the
+    # band's back edge.
+    de_dlam = -h_eg[:, 0] / info
+    lam_per_blur, mu_per_blur = _levels_per_blur(H, b_g, h_ee, h_eg, b_e, lam, mu, prior)
+    pulled = de_dlam * lam_per_blur
+    if prof.has_strip:
+        pulled = pulled - h_eg[:, 2] / info * mu_per_blur
+    reach = (prof.band_width(e) + prof.strip) / BLUR_DOUBT
+    de_dsig = -h_eg[:, 1] / info + np.clip(pulled, -reach, reach)
+    if not prof.has_strip:
+        return _ArrisDoubts(e_sigma, de_dlam, de_dsig, np.zeros(0), 0.0)
+    de_dmu = -h_eg[:, 2] / info
+    # the strip level's own doubt (shared by every scan line: the Schur complement's, at the
+    # residuals' scale; the blur not among the unknowns) and that of one level standing for a
+    # strip's shading (a rounding's runs across it), as the band's
+    h_eg[:, 1] = b_g[1] = 0.0
+    H[1, :] = H[:, 1] = 0.0
+    far_face_schur(H, b_g, h_ee, h_eg, b_e, lam, mu, LEVEL_PRIOR_WEIGHT, prior.pull_mu, prior.mu0)
+    try:
+        var_mu = float(np.linalg.inv(H)[2, 2]) * median(res_var)
+    except np.linalg.LinAlgError:
+        var_mu = prior.mu_sd**2
+    # (a rounding's shading runs from the hinge face's level towards the far face's across the
+    # strip: one level stands for it within about a uniform spread over that range)
+    spread = abs(lam) / math.sqrt(12.0) if strip_shaded else 0.0
+    mu_doubt = math.hypot(math.sqrt(max(min(var_mu, prior.mu_sd**2), 0.0)), max(LEVEL_DOUBT, spread))
+    return _ArrisDoubts(e_sigma, de_dlam, de_dsig, de_dmu, mu_doubt)
+
+
 def _levels_per_blur(
     H: np.ndarray,
     b_g: np.ndarray,
@@ -109,15 +330,14 @@ def _levels_per_blur(
     b_e: np.ndarray,
     lam: float,
     mu: float,
-    pull_mu: float,
-    mu0: float,
-    has_strip: bool,
+    prior: _StripPrior,
 ) -> tuple[float, float]:
     """How far the far-face fit's band level (and a strip's level) move per px of error in the blur it was
-    given, the arrises refitted along: from the step's sums at the answer (:func:`far_face_sums` with the
-    blur's column, not changed here) through the Schur complement the fit solves, pulls included. Each at
-    most ``1 / BLUR_DOUBT`` (a blur off by its doubt moves a level by at most its whole range, hinge face to
-    background; the linear reading does not hold beyond it).
+    given, the arrises refitted along: from the step's sums at the answer
+    (:func:`doorloc.vision.far_face_kernels.far_face_sums` with the blur's column, not changed here) through
+    the Schur complement the fit solves, pulls included. Each at most ``1 / BLUR_DOUBT`` (a blur off by its
+    doubt moves a level by at most its whole range, hinge face to background; the linear reading does not
+    hold beyond it).
 
     Why: beside a band about as narrow as the blur the level and the blur trade off, and the fit's level
     follows whatever blur it was given. Counted as the blur's doubt at a fixed level, the arris's doubt
@@ -126,10 +346,10 @@ def _levels_per_blur(
     by 0.15 px moves that level by 0.55); with the level's pull counted, 2.5 sigma.
     """
     Hs, bs = H.copy(), b_g.copy()
-    far_face_schur(Hs, bs, h_ee, h_eg, b_e, lam, mu, LEVEL_PRIOR_WEIGHT, pull_mu, mu0)
+    far_face_schur(Hs, bs, h_ee, h_eg, b_e, lam, mu, LEVEL_PRIOR_WEIGHT, prior.pull_mu, prior.mu0)
     # the levels' rows of the reduced normal equations, solved for a unit blur change (one or two
-    # unknowns: in closed form)
-    if has_strip:
+    # unknowns: in closed form; a strip's level is the third)
+    if H.shape[0] == 3:
         det = Hs[0, 0] * Hs[2, 2] - Hs[0, 2] * Hs[2, 0]
         d_lam = (-Hs[0, 1] * Hs[2, 2] + Hs[0, 2] * Hs[2, 1]) / det if det != 0 else math.nan
         d_mu = (-Hs[2, 1] * Hs[0, 0] + Hs[2, 0] * Hs[0, 1]) / det if det != 0 else math.nan
@@ -142,6 +362,8 @@ def _levels_per_blur(
     return min(max(float(d_lam), -cap), cap), min(max(float(d_mu), -cap), cap)
 
 
+# (long for its docstring: the far face's geometry and the reader's settings are keywords with defaults,
+# as the edge model passes them; the fit's phases are the functions above)
 def subpixel_edges_far_face(
     plane: np.ndarray,
     axis: Axis,
@@ -249,163 +471,44 @@ def subpixel_edges_far_face(
     D = B - A
     ok &= np.isfinite(D) & (np.abs(D) > 0)
     e0 = plateau + n_strip + half + (centre - c0) * outward  # predicted arris, index units
-    # Only the core (between the plateaus) carries the edges; the plateaus fix A and B.
-    core = vals[ok, plateau : length - plateau]
-    bounds = np.arange(plateau, length - plateau + 1, dtype=np.float64) - 0.5
-    Ao, Do, e0o, w0o = A[ok], D[ok], e0[ok], w0[ok]
-    wso = ws[ok] if has_strip else None
-    e = e0o.copy()
-    sigma = float(np.clip(blur_px, 0.05, 5.0))
     n_ok = int(ok.sum())
-    # The strip's relative level (S - A) / (B - A) a priori: its radiance a fraction of the hinge face's
-    # (linear light), in units of the contrast; weighed at the profiles' noise.
-    mu0 = mu_sd = pull_mu = 0.0
-    levels_lo, levels_hi = -math.inf, math.inf
-    if has_strip and n_ok:
-        a_med, d_med = median(Ao), median(Do)
-        k = -a_med / d_med if abs(d_med) > 1e-9 * max(abs(a_med), 1e-12) else 0.0
-        mu0 = (strip_radiance[0] - 1.0) * -k
-        mu_sd = max(strip_radiance[1] * abs(k), 0.05)
-        # The strip's and the far face's levels where their radiance is 0-3 times the hinge face's (the
-        # same wood: in shadow, or glinting). A far face seen nearly edge-on, a band of a hundredth of a
-        # pixel, otherwise took a level of -32 (a spike that moves the step at no cost: effects fixture
-        # img_0007, its bottom end then refused as not straight).
-        levels_lo, levels_hi = sorted((k, -2.0 * k))
-        ends = np.concatenate([vals[ok, :plateau], vals[ok, -plateau:]], axis=1)
-        noise_var = max(median(ends.var(axis=1)), (1e-3 * abs(d_med)) ** 2)
-        pull_mu = noise_var / mu_sd**2
-    strip_o = wso if wso is not None else np.zeros(n_ok)  # (the kernels take a width on every line)
-
-    lam, mu = 0.5, mu0
-    if n_ok:
-        # Start from the best common shift of all arrises (half-pixel steps across the window): a
-        # prediction that took the band's outer edge for the arris sits in a false minimum where the
-        # band has shrunk to nothing, which Gauss-Newton would not leave.
-        shifts = np.arange(-half, half + 0.25, 0.5)
-
-        def start_costs(shifts: np.ndarray, every: int) -> tuple[np.ndarray, np.ndarray]:
-            # (a strip at its prior level while the start is searched)
-            return far_face_start_costs(
-                core, Ao, Do, bounds, e0o, w0o, band_slope, sigma, STEP_TAIL_SIGMAS, strip_o, has_strip,
-                mu0, LEVEL_PRIOR_WEIGHT, shifts, every,
-            )  # fmt: skip
-
-        if n_ok >= START_SUBSET_MIN_LINES and not has_strip:
-            # The shifts' costs differ by whole bands of misfit: every START_SUBSET_EVERY-th scan line ranks
-            # them, and the few best are then costed on every line (at a third of the work: the start search
-            # was two thirds of the far face's time). Not a proof of the same winner, but it was on every
-            # parity case, 130 random renders and the noisy cases of test_edges_lines.
-            every = max(START_SUBSET_EVERY, n_ok // START_SUBSET_LINES)
-            sub, _ = start_costs(shifts, every)
-            shifts = shifts[np.sort(np.argsort(sub, kind="stable")[:START_SUBSET_KEEP])]
-        costs, lams = start_costs(shifts, 1)
-        best = (math.inf, 0.0, 0.5)
-        for shift, cost, lam_s in zip(shifts.tolist(), costs.tolist(), lams.tolist(), strict=True):
-            if cost < best[0]:
-                best = (cost, shift, lam_s)
-        e = e0o + best[1]
-        lam = best[2]
-
-    def gauss_newton(
-        e: np.ndarray, lam: float, sigma: float, mu: float
-    ) -> tuple[np.ndarray, float, float, float, float]:
-        return far_face_gauss_newton(
-            core, Ao, Do, bounds, e, w0o, e0o, band_slope, sigma, STEP_TAIL_SIGMAS, strip_o, has_strip,
-            lam, mu, fit_blur, n_iter, LEVEL_PRIOR_WEIGHT, pull_mu, mu0, levels_lo, levels_hi,
-        )  # fmt: skip
-
-    strip_doubt = 0.0
-    if n_ok:
-        e, lam, sigma, mu, cost = gauss_newton(e, lam, sigma, mu)
-    if n_ok and has_strip:
-        # A strip as bright as the far face (or as the hinge face) is also read as a door thinner (or
-        # thicker) by the strip's width, its far face wider (or its strip invisible): the two explain the
-        # profiles alike, and only their misfits tell them apart. Each is fitted from the other's place;
-        # the better is kept, and the other weighs in as a second place for the border (its misfit excess
-        # at the scale of the residuals of one scan line: a model's error is common to all of them).
-        assert wso is not None
-        w_med = median(wso)
-        chosen: tuple[np.ndarray, float, float, float, float] = (e, lam, sigma, mu, cost)
-        others = []
-        for sgn in (1.0, -1.0):
-            alt = gauss_newton(chosen[0] + sgn * w_med, chosen[1], chosen[2], mu0)
-            if np.all(np.abs(alt[0] - e0o) <= half + n_strip):
-                others.append(alt)
-        if others:
-            ranked = sorted([chosen, *others], key=lambda t: t[4])
-            chosen = ranked[0]
-            per_line = chosen[4] / max(n_ok, 1)
-            for alt in ranked[1:]:
-                q = math.exp(-min((alt[4] - chosen[4]) / (2.0 * max(per_line, 1e-300)), 50.0))
-                shift = median(alt[0] - chosen[0])
-                strip_doubt = max(strip_doubt, abs(shift) * math.sqrt(q / (1.0 + q)))
-        e, lam, sigma, mu, cost = chosen
-    other_reading = 0.0
-    if n_ok and not has_strip and min(abs(lam), abs(1.0 - lam)) <= BAND_SIDE_LEVEL:
-        w_med = median(np.maximum(w0o + band_slope * (e - e0o), 0.0))
-        if w_med >= BAND_SIDE_MIN_PX:
-            # The band read as the background's: the step is the arris here, and the far face's back edge in
-            # the other reading, whose arris lies inwards by its band's width, w / (1 + band_slope) (the band
-            # widens as the arris moves in). Read as the hinge face's: the other way, by this band's width.
-            other_reading = float(-w_med / max(1.0 + band_slope, 0.1) if lam >= 0.5 else w_med)
-    e_all = np.full(len(scan), np.nan)
-    e_sigma = np.full(len(scan), np.nan)
-    de_dlam = de_dsig = de_dmu = np.zeros(0)
-    mu_doubt = 0.0
-    if n_ok:
-        h_ee, h_eg, b_e, H, b_g, rr = far_face_sums(
-            core, Ao, Do, bounds, e, w0o, e0o, band_slope, sigma, STEP_TAIL_SIGMAS, strip_o, has_strip,
-            lam, mu, True,
-        )  # fmt: skip
-        res_var = rr / max(core.shape[1] - 1, 1)
-        info = h_ee  # the arris derivative's squares
-        e_sigma[ok] = np.sqrt(res_var / info)
-        e_all[ok] = e
-        # How each arris would move to keep fitting its profile if the level or the blur were off. The
-        # blur is not fitted here (the reference arris's): where the band is about as narrow as the blur,
-        # a blur that is off pulls the fitted level with it, and the level moves the arris too, at most by
-        # the band's (and a strip's) width: the readings a level can give lie between the arris and the
-        # band's back edge.
-        de_dlam = -h_eg[:, 0] / info
-        lam_per_blur, mu_per_blur = _levels_per_blur(
-            H, b_g, h_ee, h_eg, b_e, lam, mu, pull_mu, mu0, has_strip
-        )
-        pulled = de_dlam * lam_per_blur
-        if has_strip:
-            pulled = pulled - h_eg[:, 2] / info * mu_per_blur
-        reach = (np.maximum(w0o + band_slope * (e - e0o), 0.0) + strip_o) / BLUR_DOUBT
-        de_dsig = -h_eg[:, 1] / info + np.clip(pulled, -reach, reach)
-        if has_strip:
-            de_dmu = -h_eg[:, 2] / info
-            # the strip level's own doubt (shared by every scan line: the Schur complement's, at the
-            # residuals' scale; the blur not among the unknowns) and that of one level standing for a
-            # strip's shading (a rounding's runs across it), as the band's
-            h_eg[:, 1] = b_g[1] = 0.0
-            H[1, :] = H[:, 1] = 0.0
-            far_face_schur(H, b_g, h_ee, h_eg, b_e, lam, mu, LEVEL_PRIOR_WEIGHT, pull_mu, mu0)
-            try:
-                var_mu = float(np.linalg.inv(H)[2, 2]) * median(res_var)
-            except np.linalg.LinAlgError:
-                var_mu = mu_sd**2
-            # (a rounding's shading runs from the hinge face's level towards the far face's across the
-            # strip: one level stands for it within about a uniform spread over that range)
-            spread = abs(lam) / math.sqrt(12.0) if strip_shaded else 0.0
-            mu_doubt = math.hypot(math.sqrt(max(min(var_mu, mu_sd**2), 0.0)), max(LEVEL_DOUBT, spread))
-    e = e_all
-    along = np.where(outward > 0, start + e, start - e)
-    valid = ok & np.isfinite(along) & (np.abs(e - e0) <= half + n_strip) & np.isfinite(e_sigma)
-    w_fit = np.maximum(w0 + band_slope * (e - e0), 0.0)
-    band_med = median(w_fit[valid]) if np.any(valid) else float("nan")
-    model_sigma = (
-        math.hypot(median(de_dlam) * LEVEL_DOUBT, median(de_dsig) * BLUR_DOUBT)
-        if de_dlam.size
-        else float("nan")
+    # Only the core (between the plateaus) carries the edges; the plateaus fix A and B.
+    prof = _Profiles(
+        vals[ok, plateau : length - plateau],
+        A[ok],
+        D[ok],
+        np.arange(plateau, length - plateau + 1, dtype=np.float64) - 0.5,
+        e0[ok],
+        w0[ok],
+        band_slope,
+        ws[ok] if has_strip else np.zeros(n_ok),  # (the kernels take a width on every line)
+        has_strip,
     )
-    if de_dmu.size:  # the strip's level, and another place for the border that fits about as well
-        model_sigma = math.hypot(model_sigma, median(de_dmu) * mu_doubt, strip_doubt)
+    prior = _StripPrior()
+    if has_strip and n_ok:
+        prior = _strip_prior(
+            prof, np.concatenate([vals[ok, :plateau], vals[ok, -plateau:]], axis=1), strip_radiance
+        )
+    fit: _Fit = (prof.e0.copy(), 0.5, float(np.clip(blur_px, 0.05, 5.0)), prior.mu0, math.nan)
+    strip_doubt = other_reading = 0.0
+    e_all, e_sigma = np.full(len(scan), np.nan), np.full(len(scan), np.nan)
+    model_sigma = float("nan")
+    if n_ok:
+        e, lam = _start(prof, fit[2], prior.mu0, half)
+        fit = prof.gauss_newton(prior, e, lam, fit[2], fit[3], fit_blur, n_iter)
+        if has_strip:
+            fit, strip_doubt = _other_strip_reading(prof, prior, fit, fit_blur, n_iter, half + n_strip)
+        else:
+            other_reading = _other_band_reading(prof, fit[0], fit[1])
+        doubts = _arris_doubts(prof, prior, fit, strip_shaded)
+        e_all[ok], e_sigma[ok] = fit[0], doubts.e_sigma
+        model_sigma = doubts.model_sigma(strip_doubt)
+    _, lam, sigma, mu, _ = fit
+    along = np.where(outward > 0, start + e_all, start - e_all)
+    valid = ok & np.isfinite(along) & (np.abs(e_all - e0) <= half + n_strip) & np.isfinite(e_sigma)
+    w_fit = np.maximum(w0 + band_slope * (e_all - e0), 0.0)
+    band_med = median(w_fit[valid]) if np.any(valid) else float("nan")
     noise = np.sqrt(0.5 * (vals[:, :plateau].var(axis=1) + vals[:, -plateau:].var(axis=1)))
-    step = D * outward
-    nan = np.full(len(scan), np.nan)
     # the brightest level seen (the saturation check): the band's fitted level only as far as a pixel of
     # the profile reaches it (a level fitted beyond them, 1258 grey levels on a chamfer read with the
     # wrong camera exponent, is no pixel's, and refused a door peaking at 228 as overexposed)
@@ -414,13 +517,13 @@ def subpixel_edges_far_face(
         axis,
         scan,
         np.where(valid, along, np.nan),
-        step * scale_to_8bit,
+        D * outward * scale_to_8bit,
         noise * scale_to_8bit,
-        nan,
+        np.full(len(scan), np.nan),
         np.maximum(np.maximum(A, B), band_level) * scale_to_8bit,
         valid,
     )
-    fit = FarFaceFit(
+    fit_out = FarFaceFit(
         lam,
         sigma,
         band_med,
@@ -429,7 +532,7 @@ def subpixel_edges_far_face(
         float(mu) if has_strip else float("nan"),
         other_reading,
     )
-    return samples, fit
+    return samples, fit_out
 
 
 def step_blur(
