@@ -74,6 +74,7 @@ def _area_edges_warm_up(k) -> None:
         k(buf, 1, 8, 8, 8, np.arange(8), np.full(8, 1), np.ones(8, bool), 2, 1, table, 1)
 
 
+# (flat arguments and one long loop: a numba kernel over the plane's buffer, :mod:`doorloc.vision.jit`)
 @kernel(_area_edges_warm_up)
 def _area_edges(
     buf, pitch_along, pitch_scan, n_along, n_scan, scan, start, finite, half, plateau, lut, level_smooth
@@ -163,6 +164,7 @@ def _area_edges(
     return along, A, B, noise, valid
 
 
+# (long for its docstring: each setting is a keyword with a default, what the readers and the response pass)
 def subpixel_edges(
     plane: np.ndarray,
     axis: Axis,
@@ -258,17 +260,49 @@ def subpixel_edges(
         AB = np.stack([A, B])
         A, B = smooth_along_rows(AB if inside_ok.all() else np.where(inside_ok, AB, np.nan), level_smooth)
     step = B - A
+    L = _window_length(left, right, core, A, B, half, slope_smooth)
+    along = start + plateau + 2 * half + 0.5 - L
+    width = np.full(scan.size, np.nan)  # per-sample widths are too noisy to use; see transition_width
+    valid = finite & inside_ok & np.isfinite(along) & (np.abs(step) > 0)
+    # The estimate must lie inside its window; otherwise the transition was not captured.
+    valid &= np.abs(along - c0) <= half
+    return EdgeSamples(
+        axis,
+        scan,
+        np.where(valid, along, np.nan),
+        step * scale_to_8bit,
+        noise * scale_to_8bit,
+        width,
+        np.maximum(A, B) * scale_to_8bit,
+        valid,
+    )
+
+
+def _window_length(
+    left: np.ndarray,
+    right: np.ndarray,
+    core: np.ndarray,
+    A: np.ndarray,
+    B: np.ndarray,
+    half: int,
+    slope_smooth: int,
+) -> np.ndarray:
+    """:func:`subpixel_edges`' area equation solved on each profile: the length ``L`` of its window beyond
+    the edge (px), from the window's samples ``core`` (N, 2 half + 1), the plateaus ``left`` and ``right``
+    (N, plateau) and their levels ``A``, ``B``; with ``slope_smooth``, the levels extrapolated under the
+    transition along the plateaus' slopes."""
+    plateau = left.shape[1]
     hp = half + 0.5
-    if slope_smooth > 0 and plateau > 1 and scan.size:
+    if slope_smooth > 0 and plateau > 1 and A.size:
         # Plateau slopes (shading, wood grain parallel to the edge), smoothed along the edge: the levels
         # are extrapolated linearly under the transition instead of being assumed flat.
         kp = np.arange(plateau) - (plateau - 1) / 2.0
         den = float((kp * kp).sum())
         a1 = ((left - A[:, None]) * kp).sum(axis=1) / den
         b1 = ((right - B[:, None]) * kp).sum(axis=1) / den
-        if slope_smooth >= scan.size:  # one slope per side for the whole edge (smooth shading)
-            a1 = np.full(scan.size, np.nanmedian(a1))
-            b1 = np.full(scan.size, np.nanmedian(b1))
+        if slope_smooth >= A.size:  # one slope per side for the whole edge (smooth shading)
+            a1 = np.full(A.size, np.nanmedian(a1))
+            b1 = np.full(A.size, np.nanmedian(b1))
         else:
             a1, b1 = smooth_along_rows(np.stack([a1, b1]), slope_smooth)
         off = hp + (plateau + 1) / 2.0 - 0.5  # window centre to plateau centres, px
@@ -287,21 +321,7 @@ def subpixel_edges(
         b = B64 - A64
         with np.errstate(divide="ignore", invalid="ignore"):
             L = 2.0 * S / (b + np.sqrt(b * b) * np.sign(b))
-    along = start + plateau + 2 * half + 0.5 - L
-    width = np.full(scan.size, np.nan)  # per-sample widths are too noisy to use; see transition_width
-    valid = finite & inside_ok & np.isfinite(along) & (np.abs(step) > 0)
-    # The estimate must lie inside its window; otherwise the transition was not captured.
-    valid &= np.abs(along - c0) <= half
-    return EdgeSamples(
-        axis,
-        scan,
-        np.where(valid, along, np.nan),
-        step * scale_to_8bit,
-        noise * scale_to_8bit,
-        width,
-        np.maximum(A, B) * scale_to_8bit,
-        valid,
-    )
+    return L
 
 
 def transition_width(
@@ -336,6 +356,7 @@ def _mean_transition_width_warm_up(k) -> None:
         k(buf, 1, 16, 16, np.arange(6), np.full(6, 7.6), np.full(6, 100.0), 3, table)
 
 
+# (flat arguments and one long loop: a numba kernel over the plane's buffer, :mod:`doorloc.vision.jit`)
 @kernel(_mean_transition_width_warm_up)
 def _mean_transition_width(buf, pitch_along, pitch_scan, n_along, scan, along, step, half, lut):
     """:func:`transition_width` of the profiles around ``along`` on ``scan`` (``step``: their steps), compiled.
@@ -427,6 +448,7 @@ def _mean_transition_width(buf, pitch_along, pitch_scan, n_along, scan, along, s
     return sigma
 
 
+# (as subpixel_edges: the band's geometry and the reader's settings are keywords with defaults; one area equation)
 def subpixel_edges_banded(
     plane: np.ndarray,
     axis: Axis,

@@ -63,6 +63,7 @@ def _unit_step_boundaries(bounds, x, sigma, cut, G, P, p, slopes):
             p[j] = pj
 
 
+# (flat arguments: a numba kernel, called per iteration; see the module docstring)
 @kernel(inline=True)
 def _far_face_row(bounds, e, w0, e0, band_slope, strip, has_strip, sigma, cut, S, slopes):
     """One scan line's far-face steps at the arris ``e``: the arris, the band's back edge (its width ``w0``
@@ -110,6 +111,7 @@ def _far_face_start_costs_warm_up(k) -> None:
         )
 
 
+# (flat arguments: a numba kernel, called per iteration; see the module docstring)
 @kernel(_far_face_start_costs_warm_up, reassociate=True)
 def far_face_start_costs(
     core, A, D, bounds, e0, w0, band_slope, sigma, tail, strip, has_strip, mu0, level_weight, shifts, every
@@ -157,6 +159,7 @@ def far_face_start_costs(
     return costs, lams
 
 
+# (flat arguments: a numba kernel, called per iteration; see the module docstring)
 @kernel(lambda k: _far_face_warm_up(k, 0.5, 0.1), reassociate=True)
 def _far_face_misfit(core, A, D, bounds, e, w0, e0, band_slope, sigma, tail, strip, has_strip, lam, mu):
     """The far-face model's sum of squared residuals over the profiles' cores, and the sum of squares of
@@ -190,6 +193,7 @@ def _far_face_sums_warm_up(k) -> None:
         _far_face_warm_up(k, 0.5, 0.1, blur)
 
 
+# (flat arguments: a numba kernel, called per iteration; see the module docstring)
 @kernel(_far_face_sums_warm_up, reassociate=True)
 def far_face_sums(
     core, A, D, bounds, e, w0, e0, band_slope, sigma, tail, strip, has_strip, lam, mu, with_blur
@@ -289,6 +293,7 @@ def _far_face_schur_warm_up(k) -> None:
         k(np.eye(n_sh), np.ones(n_sh), np.ones(3), np.ones((3, n_sh)), np.ones(3), 0.5, 0.1, 0.02, 1.0, 0.2)
 
 
+# (flat arguments: a numba kernel, called per iteration; see the module docstring)
 @kernel(_far_face_schur_warm_up)
 def far_face_schur(H, b_g, h_ee, h_eg, b_e, lam, mu, level_weight, pull_mu, mu0):
     """The far-face normal equations of the shared unknowns (band level, blur and, with a third column, a
@@ -331,6 +336,7 @@ def _far_face_gauss_newton_warm_up(k) -> None:
               _WARM_UP_LEVEL_WEIGHT, 1.0, 0.1, -1.0, 2.0)  # fmt: skip
 
 
+# (flat arguments: a numba kernel, called per iteration; see the module docstring)
 @kernel(_far_face_gauss_newton_warm_up)
 def far_face_gauss_newton(
     core, A, D, bounds, e, w0, e0, band_slope, sigma, tail, strip, has_strip, lam, mu, fit_blur, n_iter,

@@ -33,6 +33,7 @@ class TextureBias:
     tilt_sigma: float
 
 
+# (its settings are keywords with defaults, as the edge models and the response check pass them)
 def texture_bias(
     plane: np.ndarray,
     samples: EdgeSamples,
@@ -115,6 +116,15 @@ def texture_bias(
             for p in (T[R + 1 + skip_plus : R + 1 + skip_plus + reach], T[: R - skip_minus][::-1][:reach])
         ]
     )
+    off, tilt = _texture_sigmas(_step_fit_errors(profs, D, h, n_shifts, blur_px), n_shifts, lever)
+    return TextureBias(off, tilt)
+
+
+def _step_fit_errors(profs: np.ndarray, D: float, h: int, n_shifts: int, blur_px: float) -> np.ndarray:
+    """:func:`texture_bias`'s errors of the step fit (window ``h`` px each side of the edge, blur ``blur_px``)
+    on a clean step of contrast ``D`` with the texture of ``profs`` (each mean profile's two sides, beyond
+    the edge and before it, outwards, in turn) on one side, at ``n_shifts`` shifts beyond the window: (the
+    profiles, 2 n_shifts), each side's shifts in a row."""
     bounds = np.arange(-h, h + 2, dtype=np.float64) - 0.5
     C0, _, _ = pixel_step(bounds, np.zeros(1), max(float(blur_px), 0.05))
     k = np.arange(-h, h + 1)
@@ -124,9 +134,7 @@ def texture_bias(
     rows = (C0[None] * (D + tex)).reshape(-1, k.size)
     err = step_fit(rows, np.zeros(rows.shape[0]), bounds, max(float(blur_px), 0.05))
     err = err.reshape(profs.shape[0], o.size)
-    pbs = np.stack([np.concatenate([err[2 * i], err[2 * i + 1]]) for i in range(len(Ts))])
-    off, tilt = _texture_sigmas(pbs, n_shifts, lever)
-    return TextureBias(off, tilt)
+    return np.stack([np.concatenate([err[2 * i], err[2 * i + 1]]) for i in range(profs.shape[0] // 2)])
 
 
 def _texture_warm_up(k, *extra) -> None:
@@ -136,6 +144,7 @@ def _texture_warm_up(k, *extra) -> None:
             k(buf, 1, 40, 40, 40, np.arange(10), np.full(10, 20.3), on, on, 128, 10, plateau, table, *extra)
 
 
+# (flat arguments: a numba kernel over the plane's buffer, :mod:`doorloc.vision.jit`)
 @kernel(_texture_warm_up)
 def _texture_profiles(
     buf, pitch_along, pitch_scan, n_along, n_scan, scan, along, mask, valid, max_lines, R, plateau, lut
@@ -215,6 +224,7 @@ def _texture_profiles(
     return Ts, D, lever, n
 
 
+# (flat arguments: a numba kernel over the plane's buffer, :mod:`doorloc.vision.jit`)
 @kernel(lambda k: _texture_warm_up(k, 30, 0, 0, 12, 3))
 def _area_texture_bias(
     buf,
