@@ -13,9 +13,9 @@ The flow (thesis section 3.7, made metric and robust)::
       -> quality gate -> LocateResult
 
 As code, :func:`_locate` visits each stage once, each handing the next a frozen value
-(:mod:`doorloc.vision.state`): the coarse stage (:func:`doorloc.vision.coarse_stage.find_coarse`) ->
-:class:`~doorloc.vision.coarse_stage.Coarse` -> the refine
-stage (:func:`doorloc.vision.refine.refine`: passes over the edge models of
+(:mod:`doorloc.vision.state`): the coarse stage (:func:`doorloc.vision.coarse_stage.find_coarse`, the
+reasons of its refusals in :mod:`doorloc.vision.coarse_refusals`) -> :class:`~doorloc.vision.coarse_stage.Coarse`
+-> the refine stage (:func:`doorloc.vision.refine.refine`: passes over the edge models of
 :mod:`doorloc.vision.edge_models`) -> :class:`~doorloc.vision.state.Refined` -> the response check
 (:func:`doorloc.vision.response_check.check_response`, which owns the absorb-and-rerun) ->
 :class:`~doorloc.vision.state.ResponseCheck` -> the doubts stage (:func:`doorloc.vision.doubts.edge_doubts`:
@@ -49,7 +49,8 @@ from doorloc.vision.coarse import coarse_edges
 from doorloc.vision.coarse_stage import StepQuery, find_coarse
 from doorloc.vision.config import LocateConfig
 from doorloc.vision.doubts import edge_doubts
-from doorloc.vision.edges import EdgeSamples
+from doorloc.vision.edge_samples import EdgeSamples
+from doorloc.vision.far_face import FarFaceFit
 from doorloc.vision.gate import gate_and_answer
 from doorloc.vision.luminance import ImageFormatError, LuminancePlane, luminance_plane
 from doorloc.vision.metric import MetricPose
@@ -234,16 +235,20 @@ def _locate(
     res = gate_and_answer(name, door, cfg, region, check, doubts, plane, s8)
     res.diagnostics["camera_response"] = check.diagnostics
     res.diagnostics["far_face_visible"] = refined.far_beside
-    far_fit = refined.far_fit
-    if far_fit is not None:
-        res.diagnostics["far_face_fit"] = {
-            "band_level": round(far_fit.band_level, 4),
-            "blur_px": round(far_fit.blur_px, 3),
-            "band_px": round(far_fit.band_px, 3),
-            "arris_sigma_px": round(far_fit.arris_sigma_px, 4),
-            "model_sigma_px": round(far_fit.model_sigma_px, 4),
-            "other_reading_px": round(far_fit.other_reading_px, 3),
-        } | ({"strip_level": round(far_fit.strip_level, 4)} if math.isfinite(far_fit.strip_level) else {})
+    if refined.far_fit is not None:
+        res.diagnostics["far_face_fit"] = _far_face_diagnostics(refined.far_fit)
     clock.lap("gate")
     res.diagnostics["timing_ms"] = clock.laps
     return res
+
+
+def _far_face_diagnostics(far_fit: FarFaceFit) -> dict[str, float]:
+    """The far-face fit as the result's diagnostics report it (rounded)."""
+    return {
+        "band_level": round(far_fit.band_level, 4),
+        "blur_px": round(far_fit.blur_px, 3),
+        "band_px": round(far_fit.band_px, 3),
+        "arris_sigma_px": round(far_fit.arris_sigma_px, 4),
+        "model_sigma_px": round(far_fit.model_sigma_px, 4),
+        "other_reading_px": round(far_fit.other_reading_px, 3),
+    } | ({"strip_level": round(far_fit.strip_level, 4)} if math.isfinite(far_fit.strip_level) else {})
