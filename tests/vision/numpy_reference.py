@@ -11,15 +11,13 @@ import math
 import numpy as np
 from scipy.ndimage import uniform_filter1d
 
-from doorloc.vision.edges import (
-    EdgeSamples,
-    TextureBias,
-    _pixel_step,
-    _step_fit,
-)
+from doorloc.vision.blurred_step import pixel_step
+from doorloc.vision.blurred_step import step_fit as compiled_step_fit
+from doorloc.vision.edge_samples import EdgeSamples
 from doorloc.vision.lines import ImageLine, _sample_pairs
 from doorloc.vision.response import RESPONSE_LEVEL_ROWS, RESPONSE_PLATEAU_PX, _resampled_asymmetry
 from doorloc.vision.sampling import gather_profile_rows, median, oriented
+from doorloc.vision.texture import TextureBias
 
 
 def _mean_square(x: np.ndarray) -> float:
@@ -101,7 +99,7 @@ def texture_bias(
     o = np.arange(half + plateau, half + plateau + n_shifts)
     if blur_px is not None:
         bounds = np.arange(-h, h + 2, dtype=np.float64) - 0.5
-        C0, _, _ = _pixel_step(bounds, np.zeros(1), max(float(blur_px), 0.05))
+        C0, _, _ = pixel_step(bounds, np.zeros(1), max(float(blur_px), 0.05))
         k = np.arange(-h, h + 1)
         o = np.arange(h + 1, h + 1 + n_shifts)
 
@@ -132,7 +130,7 @@ def texture_bias(
             tex = profs[:, o[:, None] + k[None, :] - 1]
             tex = tex - tex.mean(axis=2, keepdims=True)
             rows = (C0[None] * (D + tex)).reshape(-1, k.size)
-            err = _step_fit(rows, np.zeros(rows.shape[0]), bounds, max(float(blur_px), 0.05))
+            err = compiled_step_fit(rows, np.zeros(rows.shape[0]), bounds, max(float(blur_px), 0.05))
             err = err.reshape(profs.shape[0], o.size)
         return [np.concatenate([err[2 * i], err[2 * i + 1]]) for i in range(len(Ts))]
 
@@ -382,11 +380,11 @@ def asymmetry(t, gammas: np.ndarray, blocks: np.ndarray | None = None, n_blocks:
 def step_fit(
     vals: np.ndarray, e: np.ndarray, bounds: np.ndarray, sigma: float, n_iter: int = 6
 ) -> np.ndarray:
-    """:func:`doorloc.vision.edges._step_fit` as written with numpy (over the compiled pixel model)."""
+    """:func:`doorloc.vision.blurred_step.step_fit` as written with numpy (over the compiled pixel model)."""
     vals = np.asarray(vals, np.float64)
     e = np.asarray(e, np.float64).copy()
     for _ in range(n_iter):
-        C, g, _ = _pixel_step(bounds, e, sigma)
+        C, g, _ = pixel_step(bounds, e, sigma)
         X0 = 1.0 - C
         s00, s01, s11 = (X0 * X0).sum(1), (X0 * C).sum(1), (C * C).sum(1)
         b0, b1 = (X0 * vals).sum(1), (C * vals).sum(1)
@@ -455,8 +453,8 @@ def far_face_gauss_newton(
     level_weight, pull_mu, mu0, levels_lo, levels_hi,
 ):  # fmt: skip
     """subpixel_edges_far_face's Gauss-Newton iterations as they were written in Python over the compiled
-    sums (edges._far_face_gauss_newton compiles the loop, the Schur complement and the step)."""
-    from doorloc.vision.edges import _far_face_misfit, _far_face_sums
+    sums (far_face_kernels.far_face_gauss_newton compiles the loop, the Schur complement and the step)."""
+    from doorloc.vision.far_face_kernels import _far_face_misfit, far_face_sums
 
     n_sh = 3 if has_strip else 2
 
@@ -468,7 +466,7 @@ def far_face_gauss_newton(
         return c + pull_mu * (mu - mu0) ** 2 if has_strip else c
 
     def step_system(e, lam, sigma, mu):
-        h_ee, h_eg, b_e, H, b_g, _ = _far_face_sums(
+        h_ee, h_eg, b_e, H, b_g, _ = far_face_sums(
             core, A, D, bounds, e, w0, e0, band_slope, sigma, tail, strip, has_strip, lam, mu, fit_blur
         )
         level_info = float(H[0, 0])

@@ -10,13 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from doorloc.vision.coarse import coarse_edges
-from doorloc.vision.edges import (
-    BLUR_DOUBT,
-    step_blur,
-    subpixel_edges,
-    subpixel_edges_far_face,
-    transition_width,
-)
+from doorloc.vision.edges import subpixel_edges, transition_width
+from doorloc.vision.far_face import BLUR_DOUBT, step_blur, subpixel_edges_far_face
 from doorloc.vision.lines import fit_image_line, fit_rectangle_edges, ransac_line
 
 
@@ -285,7 +280,7 @@ def test_far_face_start_ranked_on_a_subset_of_scan_lines_gives_the_exhaustive_se
     """The start search ranks its shifts on a subset of the scan lines and costs the best few on all of them
     (speed): on noisy, grainy profiles with a prediction off by up to 5 px it ends exactly where
     costing every shift on every line ends (ranking on 10 lines and keeping only the best fails 3 of these)."""
-    import doorloc.vision.edges as edges_mod
+    import doorloc.vision.far_face as far_face_mod
 
     rng = np.random.default_rng(seed)
     u = np.arange(400)
@@ -297,11 +292,11 @@ def test_far_face_start_ranked_on_a_subset_of_scan_lines_gives_the_exhaustive_se
     miss = rng.uniform(-5.0, 5.0)
     args = (img, "col", u, e1 + miss, 6, np.full(u.size, 3.0), -0.72, +1)
     every = []  # the scan-line strides the start search costed its shifts on
-    costs = edges_mod._far_face_start_costs
-    monkeypatch.setattr(edges_mod, "_far_face_start_costs", lambda *a: every.append(a[-1]) or costs(*a))
+    costs = far_face_mod.far_face_start_costs
+    monkeypatch.setattr(far_face_mod, "far_face_start_costs", lambda *a: every.append(a[-1]) or costs(*a))
     s, fit = subpixel_edges_far_face(*args, blur_px=1.0)
     assert every[0] > 1 and every[1:] == [1]  # the subset ranking ran, then the best on every line
-    monkeypatch.setattr(edges_mod, "START_SUBSET_MIN_LINES", 10**9)
+    monkeypatch.setattr(far_face_mod, "START_SUBSET_MIN_LINES", 10**9)
     s_all, fit_all = subpixel_edges_far_face(*args, blur_px=1.0)
     assert every[2:] == [1]  # every shift on every line
     np.testing.assert_array_equal(s.along, s_all.along)

@@ -5,11 +5,11 @@
   with and without a response table, plateaus of 1-3 px, smoothed levels or not, profiles leaving the image;
 - the joint line fit's loop (lines._irls) compiled against itself run by Python (numba's semantics: NaN,
   integer division, float32), and against a known answer with outliers;
-- the texture term (edges.texture_bias: its mean profiles and closed form compiled), the plateau levels
+- the texture term (texture.texture_bias: its mean profiles and closed form compiled), the plateau levels
   (response.plateau_levels) and the RANSAC line (lines.ransac_line) against their numpy versions
   (numpy_reference.py), bit for bit (RANSAC: the same inliers, the line to 1e-12 px); the transition
   width (edges.transition_width) to 1e-12 of itself (its sums add in another order);
-- the plane map (metric.PlaneMap: rays to a cell plane and back) and the step fit (edges._step_fit) against
+- the plane map (metric.PlaneMap: rays to a cell plane and back) and the step fit (blurred_step.step_fit) against
   their numpy versions, bit for bit;
 - the search region's polyline interpolation (region._interp_on_scans) against np.interp over the sorted
   points, bit for bit;
@@ -18,7 +18,7 @@
 - the least finite value's index (response._least_index) against np.nanargmin;
 - the in-place selection (jit.select_kth) against np.partition, numpy's pairwise sum (jit.pairwise_sum)
   against ndarray.sum, the running mean (response._running_mean_nearest) against uniform_filter1d;
-- the JPEG block ratio (edges.block_artifact_ratio: its integer path compiled) against its numpy branch and
+- the JPEG block ratio (jpeg_blocks.block_artifact_ratio: its integer path compiled) against its numpy branch and
   the gate's per-line figures (quality.line_figures) against their numpy expressions, bit for bit;
 - the arris strip fit's pixel terms (arris_model._pixel_terms) and its linear solve
   (arris_model._StripProblem.solve) against their numpy versions, to rounding (the normal CDF is not
@@ -26,10 +26,10 @@
   coefficients to 1e-6 of their scale); its evaluation one candidate at a time (_StripProblem.evaluate)
   against those two, and its per-bin means (arris_model._bin_means) against numpy's, bit for bit; the
   arris lines' border fit (arris_model._line_borders) against its numpy version, to 1e-8 px;
-- the far-face fit's sums (edges._far_face_sums, _far_face_misfit, _far_face_start_costs: its steps'
+- the far-face fit's sums (far_face_kernels.far_face_sums, _far_face_misfit, far_face_start_costs: its steps'
   pixel values formed per scan line) against the (N, M) arrays of the dense step model they replaced, to
-  rounding, and its Gauss-Newton loop (edges._far_face_gauss_newton) against the loop as written in Python.
-The blurred-step pixel model (edges._step_pixel_values) and its normal CDF are held to their dense formula
+  rounding, and its Gauss-Newton loop (far_face_kernels.far_face_gauss_newton) against the loop as written in Python.
+The blurred-step pixel model (blurred_step._step_pixel_values) and its normal CDF are held to their dense formula
 and scipy in test_pixel_step.py.
 The coarse step finder is held to the first finder bit for bit in test_coarse.py.
 """
@@ -46,10 +46,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from doorloc.vision import jit
-from doorloc.vision.edges import subpixel_edges, texture_bias, transition_width
+from doorloc.vision.edges import subpixel_edges, transition_width
 from doorloc.vision.lines import _irls, fit_rectangle_edges, ransac_line
 from doorloc.vision.response import plateau_levels
 from doorloc.vision.sampling import linearizing_lut
+from doorloc.vision.texture import texture_bias
 
 _ref_spec = importlib.util.spec_from_file_location(
     "numpy_reference", Path(__file__).with_name("numpy_reference.py")
@@ -408,20 +409,20 @@ def test_pairwise_sum_and_running_mean_as_numpy_and_scipy(seed, n, size):
     flat=st.booleans(),
 )
 def test_step_fit_as_its_numpy_version(seed, n, h, blur, noise, flat):
-    # edges._step_fit (its Gauss-Newton rows compiled) against the numpy loop over the same pixel model,
+    # blurred_step.step_fit (its Gauss-Newton rows compiled) against the numpy loop over the same pixel model,
     # bit for bit: noisy and clean steps, a profile without a step (its determinant 0: no move)
-    from doorloc.vision.edges import _pixel_step, _step_fit
+    from doorloc.vision.blurred_step import pixel_step, step_fit
 
     rng = np.random.default_rng(seed)
     bounds = np.arange(-h, h + 2, dtype=np.float64) - 0.5
     e0 = rng.uniform(-0.5, 0.5, n)
-    C, _, _ = _pixel_step(bounds, e0 + rng.normal(0, 0.2, n), blur)
+    C, _, _ = pixel_step(bounds, e0 + rng.normal(0, 0.2, n), blur)
     lo, hi = rng.uniform(10, 80, n), rng.uniform(120, 240, n)
     vals = lo[:, None] + (hi - lo)[:, None] * C + rng.normal(0, noise + 1e-9, C.shape)
     if flat:
         vals[0] = 50.0
     want = reference.step_fit(vals, e0, bounds, blur)
-    np.testing.assert_array_equal(_step_fit(vals, e0, bounds, blur), want)
+    np.testing.assert_array_equal(step_fit(vals, e0, bounds, blur), want)
 
 
 @settings(max_examples=60, deadline=None)
@@ -437,7 +438,7 @@ def test_block_ratio_as_its_numpy_version(seed, sixteen, blocky, noise, centre, 
     # edges.block_artifact_ratio's integer path (compiled: exact sums, float32 means, medians by selection)
     # against its numpy branch, which a float plane of the same levels takes, bit for bit: with and without
     # 8x8 block steps, at crops that the image's border cuts, 8- and 16-bit
-    from doorloc.vision.edges import block_artifact_ratio
+    from doorloc.vision.jpeg_blocks import block_artifact_ratio
 
     rng = np.random.default_rng(seed)
     top = 65535 if sixteen else 255
@@ -596,18 +597,13 @@ def test_strip_evaluate_as_its_terms_then_solve(seed, n_delta, one_blur, bins, n
     has_strip=st.booleans(),
 )
 def test_far_face_kernels_as_the_array_code(seed, n, n_m, sigma, with_blur, has_strip):
-    # edges._far_face_sums, _far_face_misfit and _far_face_start_costs (the far-face fit's sums, compiled,
+    # far_face_kernels.far_face_sums, _far_face_misfit and far_face_start_costs (the far-face fit's sums, compiled,
     # its steps' pixel values formed per scan line) against the model, residuals and derivatives formed as
-    # (N, M) arrays from the dense step model (edges._pixel_step), as subpixel_edges_far_face formed them
+    # (N, M) arrays from the dense step model (blurred_step.pixel_step), as subpixel_edges_far_face formed them
     # before: to rounding (the sums run in vector lanes; the Gaussian tails the kernels skip are < 1e-22)
-    from doorloc.vision.edges import (
-        LEVEL_PRIOR_WEIGHT,
-        STEP_TAIL_SIGMAS,
-        _far_face_misfit,
-        _far_face_start_costs,
-        _far_face_sums,
-        _pixel_step,
-    )
+    from doorloc.vision.blurred_step import STEP_TAIL_SIGMAS, pixel_step
+    from doorloc.vision.far_face import LEVEL_PRIOR_WEIGHT
+    from doorloc.vision.far_face_kernels import _far_face_misfit, far_face_start_costs, far_face_sums
 
     rng = np.random.default_rng(seed)
     core = rng.uniform(0, 255, (n, n_m))
@@ -624,7 +620,7 @@ def test_far_face_kernels_as_the_array_code(seed, n, n_m, sigma, with_blur, has_
         w_raw = w0 + band_slope * (e - e0)
         has_band = w_raw > 0
         pos = [e, e + np.where(has_band, w_raw, 0.0)] + ([e - strip] if has_strip else [])
-        C, g, h = _pixel_step(bounds, np.concatenate(pos), sigma)
+        C, g, h = pixel_step(bounds, np.concatenate(pos), sigma)
         C0 = C[2 * n :] if has_strip else C[:n]
         return C[:n], C[n : 2 * n], C0, g, h, has_band
 
@@ -644,7 +640,7 @@ def test_far_face_kernels_as_the_array_code(seed, n, n_m, sigma, with_blur, has_
     J_lam = Dc * (C1 - C2)
     Jg = [J_lam, J_sig if with_blur else np.zeros_like(r)] + ([J_mu] if has_strip else [])
     args = (core, A, D, bounds, e, w0, e0, band_slope, sigma, STEP_TAIL_SIGMAS, strip, has_strip, lam, mu)
-    h_ee, h_eg, b_e, H, b_g, rr = _far_face_sums(*args, with_blur)
+    h_ee, h_eg, b_e, H, b_g, rr = far_face_sums(*args, with_blur)
 
     def close(got, terms, axis=None):
         # a sum taken in another order differs by at most (count - 1) ulps of the sum of its terms' sizes
@@ -669,7 +665,7 @@ def test_far_face_kernels_as_the_array_code(seed, n, n_m, sigma, with_blur, has_
     shifts = np.arange(-2.0, 2.25, 0.5)
     mu0 = mu
     for every in (1, 3):
-        costs, lams = _far_face_start_costs(
+        costs, lams = far_face_start_costs(
             core, A, D, bounds, e0, w0, band_slope, sigma, STEP_TAIL_SIGMAS, strip, has_strip, mu0,
             LEVEL_PRIOR_WEIGHT, shifts, every,
         )  # fmt: skip
@@ -700,12 +696,14 @@ def test_far_face_kernels_as_the_array_code(seed, n, n_m, sigma, with_blur, has_
     noise=st.sampled_from([0.0, 0.5, 3.0]),
 )
 def test_far_face_gauss_newton_as_its_python_loop(seed, n, fit_blur, has_strip, noise):
-    # edges._far_face_gauss_newton (the far-face fit's iterations compiled: the loop, the Schur complement,
+    # far_face_kernels.far_face_gauss_newton (the far-face fit's iterations compiled: the loop, the Schur complement,
     # the step and its halvings) against the loop as it was written in Python over the same sums
     # (numpy_reference.far_face_gauss_newton), on profiles of the model itself with noise, started off the
     # answer: the same iterate to rounding, or, where rounding decides whether a last tiny step lowers the
     # cost, a point as converged (the loop's own step tolerance, 1e-4 px, and the cost to 1e-9)
-    from doorloc.vision.edges import LEVEL_PRIOR_WEIGHT, STEP_TAIL_SIGMAS, _far_face_gauss_newton, _pixel_step
+    from doorloc.vision.blurred_step import STEP_TAIL_SIGMAS, pixel_step
+    from doorloc.vision.far_face import LEVEL_PRIOR_WEIGHT
+    from doorloc.vision.far_face_kernels import far_face_gauss_newton
 
     rng = np.random.default_rng(seed)
     n_m = 24
@@ -719,7 +717,7 @@ def test_far_face_gauss_newton_as_its_python_loop(seed, n, fit_blur, has_strip, 
     lam_t, sig_t, mu_t = rng.uniform(0.1, 0.9), rng.uniform(0.3, 1.5), rng.uniform(-0.4, 0.4) * has_strip
     w = np.maximum(w0 + band_slope * (e_true - e0), 0.0)
     pos = [e_true, e_true + w] + ([e_true - strip] if has_strip else [])
-    C, _, _ = _pixel_step(bounds, np.concatenate(pos), sig_t)
+    C, _, _ = pixel_step(bounds, np.concatenate(pos), sig_t)
     C1, C2 = C[:n], C[n : 2 * n]
     model = A[:, None] + (lam_t * D)[:, None] * C1 + ((1 - lam_t) * D)[:, None] * C2
     if has_strip:
@@ -731,10 +729,10 @@ def test_far_face_gauss_newton_as_its_python_loop(seed, n, fit_blur, has_strip, 
     e_in = args[4].copy()
     # one step from the start (no later step for rounding to decide): the same iterate to rounding
     one = args[:15] + (1,) + args[16:]
-    got, want = _far_face_gauss_newton(*one), reference.far_face_gauss_newton(*one)
+    got, want = far_face_gauss_newton(*one), reference.far_face_gauss_newton(*one)
     np.testing.assert_allclose(got[0], want[0], rtol=0, atol=1e-9)
     np.testing.assert_allclose(got[1:5], want[1:5], rtol=1e-9, atol=1e-9)
-    got = _far_face_gauss_newton(*args)
+    got = far_face_gauss_newton(*args)
     want = reference.far_face_gauss_newton(*args)
     np.testing.assert_array_equal(args[4], e_in)  # the start is not written over
     np.testing.assert_allclose(got[0], want[0], rtol=0, atol=2e-4)

@@ -10,11 +10,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.special import ndtr
 
-from doorloc.vision.edges import STEP_TAIL_SIGMAS, _pixel_step, _step_pixel_values
+from doorloc.vision.blurred_step import STEP_TAIL_SIGMAS, _step_pixel_values, pixel_step
 
 
 def _dense(bounds: np.ndarray, e: np.ndarray, sigma: float):
-    """The model on every boundary (what :func:`_pixel_step` computed before it skipped the tails)."""
+    """The model on every boundary (what :func:`pixel_step` computed before it skipped the tails)."""
     y = bounds[None, :] - e[:, None]
     u = y / sigma
     Phi = ndtr(u)
@@ -34,7 +34,7 @@ def test_tail_skipping_pixel_step_equals_the_dense_one(sigma, n_px, seed):
     bounds = np.arange(n_px + 1, dtype=np.float64) - 0.5 + float(rng.integers(-5, 6))
     # edges inside, near and beyond the pixel row
     e = rng.uniform(bounds[0] - 3.0, bounds[-1] + 3.0, size=40)
-    got = _pixel_step(bounds, e, sigma)
+    got = pixel_step(bounds, e, sigma)
     want = _dense(bounds, e, sigma)
     for g, w in zip(got, want, strict=True):
         assert g.shape == w.shape
@@ -54,12 +54,12 @@ def test_tail_skipping_is_used_for_a_narrow_blur_and_not_for_a_wide_one():
 
 
 def test_normal_cdf_and_density_as_scipy_s_over_the_tail_cut():
-    # edges._normal_cdf_pdf (Cephes' erfc form sharing the density's exponential, what the step models
+    # sampling.normal_cdf_pdf (Cephes' erfc form sharing the density's exponential, what the step models
     # evaluate near every edge) against scipy.special.ndtr: within 2e-14 relative (the exponential's
     # argument rounded once) and an ulp of 1 absolute, over the +-10 sigma the models evaluate
     import numba
 
-    from doorloc.vision.edges import STEP_TAIL_SIGMAS
+    from doorloc.vision.blurred_step import STEP_TAIL_SIGMAS
     from doorloc.vision.sampling import normal_cdf_pdf
 
     @numba.njit

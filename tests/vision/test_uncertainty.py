@@ -17,7 +17,8 @@ from doorloc.cell import DoorSize, load_cell
 from doorloc.pose import DoorPose
 from doorloc.sim.door import render_door
 from doorloc.sim.effects import Effects
-from doorloc.vision.edges import refine_step_fit, subpixel_edges, texture_bias
+from doorloc.vision.blurred_step import refine_step_fit
+from doorloc.vision.edges import subpixel_edges, texture_bias
 from doorloc.vision.locate import locate
 from doorloc.vision.metric import PlaneMap
 from doorloc.vision.uncertainty import (

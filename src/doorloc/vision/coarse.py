@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from doorloc.vision.jit import kernel, select_kth
+from doorloc.vision.lines import ImageLine, ransac_line
 from doorloc.vision.sampling import Axis, oriented, pixel_buffer
 
 __all__ = ["coarse_edges"]
@@ -255,3 +256,20 @@ def _strongest_steps(
             strength[i] = s
             along[i] = lo[i] + stride * (best + half) - 0.5 * stride
     return along, strength
+
+
+def line_through_steps(
+    scan: np.ndarray,
+    along: np.ndarray,
+    strength: np.ndarray,
+    thr: float,
+    min_points: int,
+    min_fraction: float,
+) -> ImageLine | None:
+    """The RANSAC line (3 px tolerance) through the scan lines' steps of at least ``thr``, or None without
+    ``min_points`` such steps or ``min_fraction`` of the scan lines on it."""
+    strong = np.isfinite(along) & (strength >= thr)
+    line = ransac_line(scan[strong], along[strong], 3.0) if strong.sum() >= min_points else None
+    if line is not None and line.inliers.sum() >= min_fraction * max(len(scan), 1):
+        return line
+    return None

@@ -40,7 +40,7 @@ class LocateConfig:
         ``window_blur_factor``; ``level_smooth`` averages them along the edge against noise).
     step_fit : bool
         In the final pass, refine each plain edge point by fitting a blurred step with free levels to its
-        window (:func:`doorloc.vision.edges.refine_step_fit`): robust to texture along the edge (wood
+        window (:func:`doorloc.vision.blurred_step.refine_step_fit`): robust to texture along the edge (wood
         grain); False keeps the area estimator alone.
     slope_smooth : int
         Scan lines on each side over which the plateau slopes are averaged (0: flat plateaus, the

@@ -17,7 +17,8 @@ import numpy as np
 from doorloc.cell import Cell
 from doorloc.vision.arris_model import BLUR_DOUBT, StripFit
 from doorloc.vision.config import LocateConfig
-from doorloc.vision.edges import EdgeSamples, block_artifact_ratio, texture_bias
+from doorloc.vision.edge_samples import EdgeSamples
+from doorloc.vision.jpeg_blocks import block_artifact_ratio
 from doorloc.vision.lines import RectangleFit, fit_image_line
 from doorloc.vision.region import EDGE_NAMES, SearchRegion
 from doorloc.vision.response import (
@@ -29,6 +30,7 @@ from doorloc.vision.response import (
 from doorloc.vision.response_check import blur_without_pixel
 from doorloc.vision.sampling import linearizing_lut
 from doorloc.vision.state import Refined, ResponseCheck
+from doorloc.vision.texture import texture_bias
 from doorloc.vision.uncertainty import (
     CAMERA_RESPONSE,
     JPEG_BLOCK_RATIO,

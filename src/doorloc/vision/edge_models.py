@@ -9,7 +9,7 @@ model reads an edge is a lookup by its kind (:func:`edge_kind`, :data:`EDGE_MODE
     (:func:`doorloc.vision.edges.subpixel_edges`).
 ``step_fit``
     A plain step that the refine stage has the blurred-step fit refine, where texture beside it moves the
-    plateaus (:func:`doorloc.vision.edges.refine_step_fit`; kept where texture explains its shift).
+    plateaus (:func:`doorloc.vision.blurred_step.refine_step_fit`; kept where texture explains its shift).
 ``banded``
     A step with a band beside it on the door side (an arris strip whose shading is not modelled): the area
     estimator between the band and the background (:func:`doorloc.vision.edges.subpixel_edges_banded`).
@@ -18,7 +18,7 @@ model reads an edge is a lookup by its kind (:func:`edge_kind`, :data:`EDGE_MODE
     corner's line from its outer border (:func:`doorloc.vision.arris_model.arris_edges`).
 ``far_face``
     The far arris with the door's far face seen beside it: two blurred steps, hinge face | far face |
-    background (:func:`doorloc.vision.edges.subpixel_edges_far_face`).
+    background (:func:`doorloc.vision.far_face.subpixel_edges_far_face`).
 
 A new model is a class with a ``read`` method of :class:`EdgeModel`'s shape, an entry in
 :data:`EDGE_MODELS`, and a rule in :func:`edge_kind`; the doubts it knows join the uncertainty budget through
@@ -41,17 +41,13 @@ from doorloc.vision.arris_model import (
     StripFit,
     arris_edges,
 )
-from doorloc.vision.edges import (
-    EdgeSamples,
-    FarFaceFit,
-    refine_step_fit,
-    subpixel_edges,
-    subpixel_edges_banded,
-    subpixel_edges_far_face,
-    texture_bias,
-)
+from doorloc.vision.blurred_step import refine_step_fit
+from doorloc.vision.edge_samples import EdgeSamples
+from doorloc.vision.edges import subpixel_edges, subpixel_edges_banded
+from doorloc.vision.far_face import FarFaceFit, subpixel_edges_far_face
 from doorloc.vision.region import Track
 from doorloc.vision.sampling import Axis
+from doorloc.vision.texture import texture_bias
 
 __all__ = [
     "ARRIS_PLATEAU_PX",

@@ -15,7 +15,9 @@ from doorloc.vision import quality as q
 from doorloc.vision.arris_model import StripFit, arris_geometry
 from doorloc.vision.config import LocateConfig
 from doorloc.vision.edge_models import ARRIS_PLATEAU_PX, EDGE_MODELS, PassSettings, ScanWindow, edge_kind
-from doorloc.vision.edges import EdgeSamples, FarFaceFit, step_blur, transition_width
+from doorloc.vision.edge_samples import EdgeSamples
+from doorloc.vision.edges import transition_width
+from doorloc.vision.far_face import FarFaceFit, step_blur
 from doorloc.vision.lines import RectangleFit, fit_rectangle_edges
 from doorloc.vision.metric import MetricPose, pose_from_fit
 from doorloc.vision.region import EDGE_NAMES, HUMAN, SearchRegion
@@ -278,7 +280,7 @@ def _optical_blur(
 ) -> float:
     """The optical blur (Gaussian sigma, px) that the far-face model needs, from the reference arris.
 
-    On a plain reference arris the step's own blur (:func:`doorloc.vision.edges.step_blur`). Where the
+    On a plain reference arris the step's own blur (:func:`doorloc.vision.far_face.step_blur`). Where the
     reference arris has a chamfered or rounded strip, its profile is background | strip | face: a step
     blur fit would take the strip's width for blur (3.5 px on the effects fixtures' 1.5 mm chamfer for an
     optical blur of 0.8 px; the far-face fit then lost every scan line and the frame was refused), so

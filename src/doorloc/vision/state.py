@@ -13,7 +13,8 @@ from typing import Any
 from doorloc.cell import Cell
 from doorloc.vision import quality as q
 from doorloc.vision.arris_model import StripFit
-from doorloc.vision.edges import EdgeSamples, FarFaceFit
+from doorloc.vision.edge_samples import EdgeSamples
+from doorloc.vision.far_face import FarFaceFit
 from doorloc.vision.lines import RectangleFit
 from doorloc.vision.metric import MetricPose
 from doorloc.vision.response import (

@@ -20,10 +20,10 @@ source's 1-sigma contribution, so that the dominant term can be read off):
       rendered steps the edge sits 0.005-0.01 px outwards per px of blur (0.001-0.0035 mm at blur
       0.5-1.8 px), the same before and after the plateaus moved next to the window; a real lens's
       blur is not Gaussian nor the same across the edge, so this is kept as a doubt, not corrected;
-    - the texture term, :func:`doorloc.vision.edges.texture_bias` (wood grain along the edge, measured
+    - the texture term, :func:`doorloc.vision.texture.texture_bias` (wood grain along the edge, measured
       on the texture beside the window);
     - ``JPEG_EDGE_DOUBT_PX`` where the image shows JPEG block artifacts
-      (:func:`doorloc.vision.edges.block_artifact_ratio` above ``JPEG_BLOCK_RATIO``): the block
+      (:func:`doorloc.vision.jpeg_blocks.block_artifact_ratio` above ``JPEG_BLOCK_RATIO``): the block
       quantization moves an edge that runs along a block row or column the same way on every scan line
       (0.01-0.07 px measured on nearly noise-free quality-88 renders, where no other term sees it), and
       an edge at a small angle to the blocks by an amount that drifts along it: its tilt

@@ -1,0 +1,63 @@
+"""The edge points every edge reader returns: :class:`EdgeSamples`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from doorloc.vision.sampling import Axis
+
+__all__ = ["EdgeSamples"]
+
+
+@dataclass(frozen=True)
+class EdgeSamples:
+    """Edge positions found on a set of scan lines.
+
+    Attributes
+    ----------
+    axis : "col" or "row"
+        Profiles run along columns (``scan`` = u, ``along`` = v) or rows (``scan`` = v, ``along`` = u).
+    scan : ndarray (N,) int
+        Scan-line coordinate.
+    along : ndarray (N,) float
+        Sub-pixel edge position on the scan line, px (NaN where none).
+    step : ndarray (N,) float
+        Signed grey-level step ``B - A`` across the edge in the direction of increasing ``along``, 0-255 scale.
+    noise : ndarray (N,) float
+        Grey-level spread on the plateaus (0-255 scale), a per-sample noise figure.
+    width : ndarray (N,) float
+        Reserved for a per-sample transition width, px (NaN: :func:`transition_width` measures the
+        width of a whole edge, which noise does not inflate).
+    bright : ndarray (N,) float
+        The brighter of the two plateau levels, 0-255 scale (saturation check).
+    valid : ndarray (N,) bool
+        Window inside the image and estimate finite.
+    """
+
+    axis: Axis
+    scan: np.ndarray
+    along: np.ndarray
+    step: np.ndarray
+    noise: np.ndarray
+    width: np.ndarray
+    bright: np.ndarray
+    valid: np.ndarray
+
+    def uv(self) -> np.ndarray:
+        """Edge points as image ``(u, v)``, shape (N, 2)."""
+        s = self.scan.astype(float)
+        return np.stack([s, self.along], 1) if self.axis == "col" else np.stack([self.along, s], 1)
+
+    def subset(self, mask: np.ndarray) -> EdgeSamples:
+        return EdgeSamples(
+            self.axis,
+            self.scan[mask],
+            self.along[mask],
+            self.step[mask],
+            self.noise[mask],
+            self.width[mask],
+            self.bright[mask],
+            self.valid[mask],
+        )

@@ -1,0 +1,576 @@
+"""The far arris beside a visible far face: a fit of the whole profile's shape, and the blur of a plain step.
+
+Beside a visible far face (a thin door shifted towards -X, seen from a camera beyond the far face's plane)
+the profile across the far arris holds two blurred steps, the arris and the far face's back edge, a band
+of unknown level between them. :func:`subpixel_edges_far_face` fits them (its loops compiled in
+:mod:`doorloc.vision.far_face_kernels`); :func:`step_blur` is the same fit without a band, the optical blur
+of a plain step.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from doorloc.vision.blurred_step import STEP_TAIL_SIGMAS
+from doorloc.vision.edge_samples import EdgeSamples
+from doorloc.vision.far_face_kernels import (
+    far_face_gauss_newton,
+    far_face_schur,
+    far_face_start_costs,
+    far_face_sums,
+)
+from doorloc.vision.sampling import Axis, gather_profiles, median, oriented, smooth_along
+
+__all__ = [
+    "BLUR_DOUBT",
+    "FarFaceFit",
+    "LEVEL_DOUBT",
+    "LEVEL_PRIOR_WEIGHT",
+    "step_blur",
+    "subpixel_edges_far_face",
+]
+
+
+@dataclass(frozen=True)
+class FarFaceFit:
+    """What :func:`subpixel_edges_far_face` found besides the edge points.
+
+    Attributes
+    ----------
+    band_level : float
+        The far face's grey level relative to the two sides, ``(L - A) / (B - A)`` (``A`` the hinge
+        face, ``B`` the background): 0 when the band looks like the hinge face, 1 like the background,
+        > 1 brighter than the hinge face on a dark background... (any real value).
+    blur_px : float
+        Optical blur (Gaussian sigma, px) that fits the profiles best.
+    band_px : float
+        Median band width over the valid scan lines, px.
+    arris_sigma_px : float
+        Median standard error of one arris point from the profile noise, px.
+    model_sigma_px : float
+        How far the arris moves if the band level were off by ``LEVEL_DOUBT`` or the blur by
+        ``BLUR_DOUBT`` px (the two combined as independent errors; a blur that is off also pulls the fitted
+        levels, whose move counts with it): the doubt the model leaves, which noise averaging does not
+        reduce. Large where a narrow band cannot be told from the arris. With an arris strip, also by the
+        strip level's doubt (its fitted standard error and ``LEVEL_DOUBT``).
+    strip_level : float
+        The arris strip's relative level ``(S - A) / (B - A)`` (NaN without a strip).
+    other_reading_px : float
+        Where the band's other reading puts the arris, px from this one, positive away from the hinge face
+        (a thicker door); 0 where the band's level tells the two readings apart. A band about as bright as
+        the background (level near 1) leaves one step, the arris; a band about as bright as the hinge face
+        (near 0) leaves one step too, the far face's back edge: the same profile, read as a door a band
+        thinner or thicker (see :data:`BAND_SIDE_LEVEL`).
+    """
+
+    band_level: float
+    blur_px: float
+    band_px: float
+    arris_sigma_px: float
+    model_sigma_px: float
+    strip_level: float = float("nan")
+    other_reading_px: float = 0.0
+
+
+#: plausible model errors of the far-face fit: band level (relative) and optical blur (px)
+LEVEL_DOUBT = 0.1
+BLUR_DOUBT = 0.15
+#: weight of the pull of the far face's relative level towards 0.5, as a fraction of its raw information
+LEVEL_PRIOR_WEIGHT = 0.02
+#: a band whose fitted level lies within this of the hinge face's (0) or the background's (1), and which is at
+#: least BAND_SIDE_MIN_PX wide, has another reading (:attr:`FarFaceFit.other_reading_px`): a far face as bright
+#: as the hinge face beside a dark background and one as dark as the background differ only by that
+#: level's few grey levels at the place the other reading puts the arris, which wood grain hides (grain set
+#: seed 11, image 40: a 31 mm door under ambient light alone, its far face 3 grey levels below the hinge
+#: face under 5 % grain, was measured 0.80 mm thick at a sigma of 0.034 mm). A fit of both readings on
+#: profiles long enough for both was tried: the hinge face's level, read farther in, moved with the grain
+#: and made the other reading's misfit decide (49 scan lines' worth on that door) where the data cannot.
+BAND_SIDE_LEVEL = 0.2
+BAND_SIDE_MIN_PX = 0.25
+
+
+#: the far face's start search ranks its shifts on every START_SUBSET_EVERY-th scan line or fewer (about
+#: START_SUBSET_LINES of them), where it has at least START_SUBSET_MIN_LINES, and costs the
+#: START_SUBSET_KEEP best on all of them
+START_SUBSET_EVERY = 4
+START_SUBSET_LINES = 48
+START_SUBSET_MIN_LINES = 40
+START_SUBSET_KEEP = 4
+
+
+@dataclass(frozen=True)
+class _Profiles:
+    """The far-face fit's data on its usable scan lines, in the kernels' index units (mirrored so that the
+    hinge face lies at the low indices): the cores between the plateaus ``core`` (N, M), the hinge face's
+    level ``A`` and the contrast ``D`` per line, the cores' pixel boundaries ``bounds``, the predicted arris
+    ``e0`` and band width ``w0`` there, the band's ``band_slope``, the strip widths ``strip`` (zeros without
+    one) and ``has_strip``. Its methods call the kernels of :mod:`doorloc.vision.far_face_kernels`."""
+
+    core: np.ndarray
+    A: np.ndarray
+    D: np.ndarray
+    bounds: np.ndarray
+    e0: np.ndarray
+    w0: np.ndarray
+    band_slope: float
+    strip: np.ndarray
+    has_strip: bool
+
+    def band_width(self, e: np.ndarray) -> np.ndarray:
+        """The band's width with the arrises at ``e``, px (0 where it has vanished)."""
+        return np.maximum(self.w0 + self.band_slope * (e - self.e0), 0.0)
+
+    def start_costs(
+        self, sigma: float, mu0: float, shifts: np.ndarray, every: int
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The cost at each common shift of the predicted arrises and the band level it solves for, on every
+        ``every``-th line (a strip at its prior level ``mu0``)."""
+        return far_face_start_costs(
+            self.core, self.A, self.D, self.bounds, self.e0, self.w0, self.band_slope, sigma, STEP_TAIL_SIGMAS,
+            self.strip, self.has_strip, mu0, LEVEL_PRIOR_WEIGHT, shifts, every,
+        )  # fmt: skip
+
+    def gauss_newton(
+        self,
+        prior: _StripPrior,
+        e: np.ndarray,
+        lam: float,
+        sigma: float,
+        mu: float,
+        fit_blur: bool,
+        n_iter: int,
+    ) -> tuple[np.ndarray, float, float, float, float]:
+        """The Gauss-Newton iterations from ``e, lam, sigma, mu``: the final ones and the cost."""
+        return far_face_gauss_newton(
+            self.core, self.A, self.D, self.bounds, e, self.w0, self.e0, self.band_slope, sigma,
+            STEP_TAIL_SIGMAS, self.strip, self.has_strip, lam, mu, fit_blur, n_iter, LEVEL_PRIOR_WEIGHT,
+            prior.pull_mu, prior.mu0, prior.levels_lo, prior.levels_hi,
+        )  # fmt: skip
+
+    def sums(self, e: np.ndarray, lam: float, sigma: float, mu: float) -> tuple[np.ndarray, ...]:
+        """The Gauss-Newton step's sums at the answer, the blur's column included."""
+        return far_face_sums(
+            self.core, self.A, self.D, self.bounds, e, self.w0, self.e0, self.band_slope, sigma,
+            STEP_TAIL_SIGMAS, self.strip, self.has_strip, lam, mu, True,
+        )  # fmt: skip
+
+
+@dataclass(frozen=True)
+class _StripPrior:
+    """An arris strip's relative level a priori (``mu0``, ``mu_sd``) and its pull's weight ``pull_mu``, and
+    the range ``levels_lo .. levels_hi`` the strip's and the far face's levels are held to (none without a
+    strip)."""
+
+    mu0: float = 0.0
+    mu_sd: float = 0.0
+    pull_mu: float = 0.0
+    levels_lo: float = -math.inf
+    levels_hi: float = math.inf
+
+
+def _strip_prior(prof: _Profiles, ends: np.ndarray, strip_radiance: tuple[float, float]) -> _StripPrior:
+    """The strip's relative level ``(S - A) / (B - A)`` a priori: its radiance ``strip_radiance`` (mean,
+    standard deviation) times the hinge face's (linear light), in units of the contrast; weighed at the
+    noise of the profiles' plateaus ``ends``."""
+    a_med, d_med = median(prof.A), median(prof.D)
+    k = -a_med / d_med if abs(d_med) > 1e-9 * max(abs(a_med), 1e-12) else 0.0
+    mu0 = (strip_radiance[0] - 1.0) * -k
+    mu_sd = max(strip_radiance[1] * abs(k), 0.05)
+    # The strip's and the far face's levels where their radiance is 0-3 times the hinge face's (the
+    # same wood: in shadow, or glinting). A far face seen nearly edge-on, a band of a hundredth of a
+    # pixel, otherwise took a level of -32 (a spike that moves the step at no cost: effects fixture
+    # img_0007, its bottom end then refused as not straight).
+    levels_lo, levels_hi = sorted((k, -2.0 * k))
+    noise_var = max(median(ends.var(axis=1)), (1e-3 * abs(d_med)) ** 2)
+    return _StripPrior(mu0, mu_sd, noise_var / mu_sd**2, levels_lo, levels_hi)
+
+
+def _start(prof: _Profiles, sigma: float, mu0: float, half: int) -> tuple[np.ndarray, float]:
+    """The arrises and band level to start the fit from: the best common shift of all predicted arrises
+    (half-pixel steps across the window ``half``).
+
+    A prediction that took the band's outer edge for the arris sits in a false minimum where the band has
+    shrunk to nothing, which Gauss-Newton would not leave."""
+    shifts = np.arange(-half, half + 0.25, 0.5)
+    n_ok = prof.core.shape[0]
+    if n_ok >= START_SUBSET_MIN_LINES and not prof.has_strip:
+        # The shifts' costs differ by whole bands of misfit: every START_SUBSET_EVERY-th scan line ranks
+        # them, and the few best are then costed on every line (at a third of the work: the start search
+        # was two thirds of the far face's time). Not a proof of the same winner, but it was on every
+        # parity case, 130 random renders and the noisy cases of test_edges_lines.
+        every = max(START_SUBSET_EVERY, n_ok // START_SUBSET_LINES)
+        sub, _ = prof.start_costs(sigma, mu0, shifts, every)
+        shifts = shifts[np.sort(np.argsort(sub, kind="stable")[:START_SUBSET_KEEP])]
+    costs, lams = prof.start_costs(sigma, mu0, shifts, 1)
+    best = (math.inf, 0.0, 0.5)
+    for shift, cost, lam_s in zip(shifts.tolist(), costs.tolist(), lams.tolist(), strict=True):
+        if cost < best[0]:
+            best = (cost, shift, lam_s)
+    return prof.e0 + best[1], best[2]
+
+
+_Fit = tuple[np.ndarray, float, float, float, float]  # the arrises, band level, blur, strip level and cost
+
+
+def _other_strip_reading(
+    prof: _Profiles, prior: _StripPrior, fit: _Fit, fit_blur: bool, n_iter: int, reach: float
+) -> tuple[_Fit, float]:
+    """The better of a strip's two readings, and how far the other puts the border (px, its weight
+    included).
+
+    A strip as bright as the far face (or as the hinge face) is also read as a door thinner (or thicker) by
+    the strip's width, its far face wider (or its strip invisible): the two explain the profiles alike, and
+    only their misfits tell them apart. Each is fitted from the other's place (arrises within ``reach`` px
+    of the prediction); the better is kept, and the other weighs in as a second place for the border (its
+    misfit excess at the scale of the residuals of one scan line: a model's error is common to all of them).
+    """
+    w_med = median(prof.strip)
+    chosen = fit
+    strip_doubt = 0.0
+    others = []
+    for sgn in (1.0, -1.0):
+        alt = prof.gauss_newton(
+            prior, chosen[0] + sgn * w_med, chosen[1], chosen[2], prior.mu0, fit_blur, n_iter
+        )
+        if np.all(np.abs(alt[0] - prof.e0) <= reach):
+            others.append(alt)
+    if others:
+        ranked = sorted([chosen, *others], key=lambda t: t[4])
+        chosen = ranked[0]
+        per_line = chosen[4] / max(prof.core.shape[0], 1)
+        for alt in ranked[1:]:
+            q = math.exp(-min((alt[4] - chosen[4]) / (2.0 * max(per_line, 1e-300)), 50.0))
+            shift = median(alt[0] - chosen[0])
+            strip_doubt = max(strip_doubt, abs(shift) * math.sqrt(q / (1.0 + q)))
+    return chosen, strip_doubt
+
+
+def _other_band_reading(prof: _Profiles, e: np.ndarray, lam: float) -> float:
+    """:attr:`FarFaceFit.other_reading_px` of a fit without a strip (0 where the band's level tells the two
+    readings apart)."""
+    if min(abs(lam), abs(1.0 - lam)) > BAND_SIDE_LEVEL:
+        return 0.0
+    w_med = median(prof.band_width(e))
+    if w_med < BAND_SIDE_MIN_PX:
+        return 0.0
+    # The band read as the background's: the step is the arris here, and the far face's back edge in
+    # the other reading, whose arris lies inwards by its band's width, w / (1 + band_slope) (the band
+    # widens as the arris moves in). Read as the hinge face's: the other way, by this band's width.
+    return float(-w_med / max(1.0 + prof.band_slope, 0.1) if lam >= 0.5 else w_med)
+
+
+@dataclass(frozen=True)
+class _ArrisDoubts:
+    """How well the fit places each arris: its standard error from the profile's noise ``e_sigma`` (px),
+    and how far it moves per unit of error in the band level, the blur and the strip level (``de_dlam``,
+    ``de_dsig``, ``de_dmu``: the last empty without a strip) with the strip level's doubt ``mu_doubt``."""
+
+    e_sigma: np.ndarray
+    de_dlam: np.ndarray
+    de_dsig: np.ndarray
+    de_dmu: np.ndarray
+    mu_doubt: float
+
+    def model_sigma(self, strip_doubt: float) -> float:
+        """:attr:`FarFaceFit.model_sigma_px`: the level's and the blur's doubts (and a strip's, and the other
+        place ``strip_doubt`` for its border that fits about as well) as the arris's move, px."""
+        sigma = math.hypot(median(self.de_dlam) * LEVEL_DOUBT, median(self.de_dsig) * BLUR_DOUBT)
+        if self.de_dmu.size:
+            sigma = math.hypot(sigma, median(self.de_dmu) * self.mu_doubt, strip_doubt)
+        return sigma
+
+
+def _arris_doubts(prof: _Profiles, prior: _StripPrior, fit: _Fit, strip_shaded: bool) -> _ArrisDoubts:
+    """The arrises' doubts at the answer ``fit`` (``strip_shaded``: the strip is a rounding)."""
+    e, lam, sigma, mu, _ = fit
+    h_ee, h_eg, b_e, H, b_g, rr = prof.sums(e, lam, sigma, mu)
+    res_var = rr / max(prof.core.shape[1] - 1, 1)
+    info = h_ee  # the arris derivative's squares
+    e_sigma = np.sqrt(res_var / info)
+    # How each arris would move to keep fitting its profile if the level or the blur were off. The
+    # blur is not fitted here (the reference arris's): where the band is about as narrow as the blur,
+    # a blur that is off pulls the fitted level with it, and the level moves the arris too, at most by
+    # the band's (and a strip's) width: the readings a level can give lie between the arris and the
+    # band's back edge.
+    de_dlam = -h_eg[:, 0] / info
+    lam_per_blur, mu_per_blur = _levels_per_blur(H, b_g, h_ee, h_eg, b_e, lam, mu, prior)
+    pulled = de_dlam * lam_per_blur
+    if prof.has_strip:
+        pulled = pulled - h_eg[:, 2] / info * mu_per_blur
+    reach = (prof.band_width(e) + prof.strip) / BLUR_DOUBT
+    de_dsig = -h_eg[:, 1] / info + np.clip(pulled, -reach, reach)
+    if not prof.has_strip:
+        return _ArrisDoubts(e_sigma, de_dlam, de_dsig, np.zeros(0), 0.0)
+    de_dmu = -h_eg[:, 2] / info
+    # the strip level's own doubt (shared by every scan line: the Schur complement's, at the
+    # residuals' scale; the blur not among the unknowns) and that of one level standing for a
+    # strip's shading (a rounding's runs across it), as the band's
+    h_eg[:, 1] = b_g[1] = 0.0
+    H[1, :] = H[:, 1] = 0.0
+    far_face_schur(H, b_g, h_ee, h_eg, b_e, lam, mu, LEVEL_PRIOR_WEIGHT, prior.pull_mu, prior.mu0)
+    try:
+        var_mu = float(np.linalg.inv(H)[2, 2]) * median(res_var)
+    except np.linalg.LinAlgError:
+        var_mu = prior.mu_sd**2
+    # (a rounding's shading runs from the hinge face's level towards the far face's across the
+    # strip: one level stands for it within about a uniform spread over that range)
+    spread = abs(lam) / math.sqrt(12.0) if strip_shaded else 0.0
+    mu_doubt = math.hypot(math.sqrt(max(min(var_mu, prior.mu_sd**2), 0.0)), max(LEVEL_DOUBT, spread))
+    return _ArrisDoubts(e_sigma, de_dlam, de_dsig, de_dmu, mu_doubt)
+
+
+def _levels_per_blur(
+    H: np.ndarray,
+    b_g: np.ndarray,
+    h_ee: np.ndarray,
+    h_eg: np.ndarray,
+    b_e: np.ndarray,
+    lam: float,
+    mu: float,
+    prior: _StripPrior,
+) -> tuple[float, float]:
+    """How far the far-face fit's band level (and a strip's level) move per px of error in the blur it was
+    given, the arrises refitted along: from the step's sums at the answer
+    (:func:`doorloc.vision.far_face_kernels.far_face_sums` with the blur's column, not changed here) through
+    the Schur complement the fit solves, pulls included. Each at most ``1 / BLUR_DOUBT`` (a blur off by its
+    doubt moves a level by at most its whole range, hinge face to background; the linear reading does not
+    hold beyond it).
+
+    Why: beside a band about as narrow as the blur the level and the blur trade off, and the fit's level
+    follows whatever blur it was given. Counted as the blur's doubt at a fixed level, the arris's doubt
+    missed that: a 1 px band beside a 1.4 px blur, its level read 0.55 for a far face about as bright as the
+    hinge face, put the thickness 0.26 mm off at 7 sigma (bench_surfaces --seed 9100, hard_007; a blur off
+    by 0.15 px moves that level by 0.55); with the level's pull counted, 2.5 sigma.
+    """
+    Hs, bs = H.copy(), b_g.copy()
+    far_face_schur(Hs, bs, h_ee, h_eg, b_e, lam, mu, LEVEL_PRIOR_WEIGHT, prior.pull_mu, prior.mu0)
+    # the levels' rows of the reduced normal equations, solved for a unit blur change (one or two
+    # unknowns: in closed form; a strip's level is the third)
+    if H.shape[0] == 3:
+        det = Hs[0, 0] * Hs[2, 2] - Hs[0, 2] * Hs[2, 0]
+        d_lam = (-Hs[0, 1] * Hs[2, 2] + Hs[0, 2] * Hs[2, 1]) / det if det != 0 else math.nan
+        d_mu = (-Hs[2, 1] * Hs[0, 0] + Hs[2, 0] * Hs[0, 1]) / det if det != 0 else math.nan
+    else:
+        d_lam = -Hs[0, 1] / Hs[0, 0] if Hs[0, 0] != 0 else math.nan
+        d_mu = 0.0
+    if not (math.isfinite(d_lam) and math.isfinite(d_mu)):
+        return 0.0, 0.0
+    cap = 1.0 / BLUR_DOUBT
+    return min(max(float(d_lam), -cap), cap), min(max(float(d_mu), -cap), cap)
+
+
+# (long for its docstring: the far face's geometry and the reader's settings are keywords with defaults,
+# as the edge model passes them; the fit's phases are the functions above)
+def subpixel_edges_far_face(
+    plane: np.ndarray,
+    axis: Axis,
+    scan: np.ndarray,
+    centre: np.ndarray,
+    half: int,
+    band_px: np.ndarray,
+    band_slope: float,
+    outward: int,
+    plateau: int = 4,
+    scale_to_8bit: float = 1.0,
+    blur_px: float = 1.0,
+    level_smooth: int = 0,
+    lut: np.ndarray | None = None,
+    n_iter: int = 10,
+    fit_blur: bool = False,
+    strip_px: np.ndarray | None = None,
+    strip_radiance: tuple[float, float] = (0.9, 0.45),
+    strip_shaded: bool = False,
+) -> tuple[EdgeSamples, FarFaceFit]:
+    """The far arris beside a visible far face, by fitting the whole profile across it.
+
+    Seen from a camera beyond the far face's plane, the profile across the far arris is
+    ``hinge face A | far face L, width w | background B``: two steps, the arris at ``e`` and the far
+    face's back edge at ``e + w``. The band width follows from the geometry,
+    ``w = band_px + band_slope (e - centre)`` (the back edge lies the door's width farther away and moves
+    less), so each scan line has one unknown, ``e``; the band's relative level
+    ``(L - A) / (B - A)`` (the same all along the edge under any smooth shading) and the optical blur
+    are shared by all scan lines. They are fitted by Gauss-Newton on the pixel values, with each pixel
+    modelled as a Gaussian-blurred step integrated over the pixel.
+
+    Unlike the area estimator this uses the shape of the profile, so a narrow band brighter than the
+    hinge face (which moves the profile's centroid the wrong way as the arris moves) does not make the
+    estimate ill-conditioned.
+
+    Parameters
+    ----------
+    plane, axis, scan, centre, half, plateau, scale_to_8bit, level_smooth, lut
+        As :func:`subpixel_edges`.
+    band_px : ndarray (N,)
+        Predicted band width on each scan line at the predicted edge ``centre``, px, signed: <= 0
+        where no band is in view (the far face seen edge-on or from behind).
+    band_slope : float
+        ``dw / de`` as the arris moves outwards (``-(1 - k)``, ``k`` the back edge's relative scale).
+    outward : +1 or -1
+        Direction of increasing ``along`` that leads from the hinge face across the arris.
+    blur_px : float
+        The optical blur (Gaussian sigma), px, e.g. from :func:`step_blur` on another edge; with a band
+        narrower than the blur, the band's level, its width and the blur trade off against each other,
+        so the blur is best measured where the step is plain.
+    fit_blur : bool
+        Fit the blur too (starting at ``blur_px``); only sound where the band is much wider than the blur.
+    strip_px : ndarray (N,), optional
+        A chamfered or rounded far arris: the strip's width on the hinge-face side of ``e``, px (``e`` is
+        then the far face's near border, where the strip meets it). The profile is ``hinge face A | strip S
+        | far face L | background B``, the strip's relative level ``(S - A) / (B - A)`` one more shared
+        unknown, with the prior that the strip's radiance is ``strip_radiance`` (mean, standard deviation)
+        times the hinge face's (:data:`doorloc.vision.arris_model.STRIP_RADIANCE`). Without it a strip
+        took the far face's level or the hinge face's and the thickness was up to the strip's width off
+        with a sigma that did not know it (thin doors with 0.5-3 mm arrises: 1.2 mm at 12 sigma).
+    strip_radiance : (float, float)
+        The strip's radiance over the hinge face's, prior mean and standard deviation.
+    strip_shaded : bool
+        The strip is a rounding, whose shading runs across it from the hinge face's level towards the far
+        face's: its one fitted level is in doubt by that range's spread too.
+
+    Returns
+    -------
+    samples : EdgeSamples
+        ``along`` = the arris; ``step`` = ``B - A`` signed along ``along``.
+    fit : FarFaceFit
+    """
+    P = oriented(plane, axis)
+    scan = np.asarray(scan, int)
+    centre = np.asarray(centre, float)
+    w0 = np.asarray(band_px, float)
+    finite = np.isfinite(centre) & np.isfinite(w0)
+    w0 = np.where(finite, w0, 0.0)
+    c0 = np.round(np.where(finite, centre, 0.0)).astype(int)
+    n_extra = int(math.ceil(max(float(np.max(w0, initial=0.0)), 0.0))) + 1
+    ws = (
+        np.zeros(len(scan))
+        if strip_px is None
+        else np.where(np.isfinite(strip_px), np.maximum(np.asarray(strip_px, float), 0.0), 0.0)
+    )
+    has_strip = bool(np.any(ws > 0))
+    # the hinge face's plateau beyond the strip (and the blur beside it), and room for the border a
+    # strip's width either way (the second reading of the profile, below)
+    n_strip = int(math.ceil(float(ws.max(initial=0.0)) + 2.0 * blur_px)) if has_strip else 0
+    length = 2 * (half + plateau) + 1 + n_extra + 2 * n_strip
+    if outward > 0:
+        start = c0 - half - plateau - n_strip
+        vals, inside = gather_profiles(P, scan, start, length, lut=lut)
+    else:  # mirror so that the hinge face is at the low indices
+        start = c0 + half + plateau + n_strip
+        vals, inside = gather_profiles(P, scan, start - length + 1, length, lut=lut)
+        vals, inside = vals[:, ::-1], inside[:, ::-1]
+    vals = vals.astype(np.float64)
+    A = vals[:, :plateau].mean(axis=1)
+    B = vals[:, -plateau:].mean(axis=1)
+    ok = finite & inside.all(axis=1)
+    if level_smooth > 0 and scan.size:
+        A = smooth_along(np.where(ok, A, np.nan), level_smooth)
+        B = smooth_along(np.where(ok, B, np.nan), level_smooth)
+    D = B - A
+    ok &= np.isfinite(D) & (np.abs(D) > 0)
+    e0 = plateau + n_strip + half + (centre - c0) * outward  # predicted arris, index units
+    n_ok = int(ok.sum())
+    # Only the core (between the plateaus) carries the edges; the plateaus fix A and B.
+    prof = _Profiles(
+        vals[ok, plateau : length - plateau],
+        A[ok],
+        D[ok],
+        np.arange(plateau, length - plateau + 1, dtype=np.float64) - 0.5,
+        e0[ok],
+        w0[ok],
+        band_slope,
+        ws[ok] if has_strip else np.zeros(n_ok),  # (the kernels take a width on every line)
+        has_strip,
+    )
+    prior = _StripPrior()
+    if has_strip and n_ok:
+        prior = _strip_prior(
+            prof, np.concatenate([vals[ok, :plateau], vals[ok, -plateau:]], axis=1), strip_radiance
+        )
+    fit: _Fit = (prof.e0.copy(), 0.5, float(np.clip(blur_px, 0.05, 5.0)), prior.mu0, math.nan)
+    strip_doubt = other_reading = 0.0
+    e_all, e_sigma = np.full(len(scan), np.nan), np.full(len(scan), np.nan)
+    model_sigma = float("nan")
+    if n_ok:
+        e, lam = _start(prof, fit[2], prior.mu0, half)
+        fit = prof.gauss_newton(prior, e, lam, fit[2], fit[3], fit_blur, n_iter)
+        if has_strip:
+            fit, strip_doubt = _other_strip_reading(prof, prior, fit, fit_blur, n_iter, half + n_strip)
+        else:
+            other_reading = _other_band_reading(prof, fit[0], fit[1])
+        doubts = _arris_doubts(prof, prior, fit, strip_shaded)
+        e_all[ok], e_sigma[ok] = fit[0], doubts.e_sigma
+        model_sigma = doubts.model_sigma(strip_doubt)
+    _, lam, sigma, mu, _ = fit
+    along = np.where(outward > 0, start + e_all, start - e_all)
+    valid = ok & np.isfinite(along) & (np.abs(e_all - e0) <= half + n_strip) & np.isfinite(e_sigma)
+    w_fit = np.maximum(w0 + band_slope * (e_all - e0), 0.0)
+    band_med = median(w_fit[valid]) if np.any(valid) else float("nan")
+    noise = np.sqrt(0.5 * (vals[:, :plateau].var(axis=1) + vals[:, -plateau:].var(axis=1)))
+    # the brightest level seen (the saturation check): the band's fitted level only as far as a pixel of
+    # the profile reaches it (a level fitted beyond them, 1258 grey levels on a chamfer read with the
+    # wrong camera exponent, is no pixel's, and refused a door peaking at 228 as overexposed)
+    band_level = np.minimum(A + lam * D, vals.max(axis=1))
+    samples = EdgeSamples(
+        axis,
+        scan,
+        np.where(valid, along, np.nan),
+        D * outward * scale_to_8bit,
+        noise * scale_to_8bit,
+        np.full(len(scan), np.nan),
+        np.maximum(np.maximum(A, B), band_level) * scale_to_8bit,
+        valid,
+    )
+    fit_out = FarFaceFit(
+        lam,
+        sigma,
+        band_med,
+        median(e_sigma[valid]) if np.any(valid) else float("nan"),
+        model_sigma,
+        float(mu) if has_strip else float("nan"),
+        other_reading,
+    )
+    return samples, fit_out
+
+
+def step_blur(
+    plane: np.ndarray,
+    samples: EdgeSamples,
+    mask: np.ndarray,
+    half: int,
+    plateau: int = 4,
+    lut: np.ndarray | None = None,
+    blur_px: float = 1.0,
+    max_lines: int = 160,
+) -> float:
+    """Optical blur (Gaussian sigma, px, the pixel's own width not included) of a plain step edge.
+
+    Each profile across the edge is modelled as a Gaussian-blurred step integrated over the pixels
+    (the model of :func:`subpixel_edges_far_face` without a band) and the blur shared by all profiles
+    is fitted with every edge position. Unlike :func:`transition_width` this is not inflated by noise
+    or texture. Returns NaN when no sample is usable.
+    """
+    idx = np.flatnonzero(mask & samples.valid)
+    if idx.size == 0:
+        return float("nan")
+    idx = idx[:: max(idx.size // max_lines, 1)]
+    sub = samples.subset(np.isin(np.arange(samples.scan.size), idx))
+    _, fit = subpixel_edges_far_face(
+        plane,
+        sub.axis,
+        sub.scan,
+        sub.along,
+        half,
+        np.full(sub.scan.size, -1.0),
+        0.0,
+        1,
+        plateau,
+        1.0,
+        blur_px=blur_px,
+        lut=lut,
+        fit_blur=True,
+        n_iter=15,
+    )
+    return fit.blur_px
