@@ -19,6 +19,7 @@ beyond 5, and the refusals by code; answers whose thickness the image could not 
 
     OMP_NUM_THREADS=1 PYTHONPATH=src python bench/bench_arris_range.py [--n 16] [--seed 7000]
         [--sets round,chamfer,ambient,small,sharp,grain] [--thickness-check refuse|report]
+        [--response-factor F]   (a cell whose camera response was measured, e.g. 1.11)
 """
 
 from __future__ import annotations
@@ -154,6 +155,13 @@ def main() -> None:
         default=None,
         help="the cell's locate.thickness_check (default: the cell's)",
     )
+    ap.add_argument(
+        "--response-factor",
+        type=float,
+        default=None,
+        help="the cell's locate.response_unmeasured_factor (default: the cell's, 2.2, a response stated, not "
+        "measured); e.g. 1.11, what doorloc calibrate allows for a response measured to +-0.12 at 2.15",
+    )
     args = ap.parse_args()
     sets = args.sets.split(",")
     if unknown := [s for s in sets if s not in SETS]:
@@ -162,6 +170,10 @@ def main() -> None:
     if args.thickness_check is not None:
         cell = dataclasses.replace(
             cell, locate=dataclasses.replace(cell.locate, thickness_check=args.thickness_check)
+        )
+    if args.response_factor is not None:
+        cell = dataclasses.replace(
+            cell, locate=dataclasses.replace(cell.locate, response_unmeasured_factor=args.response_factor)
         )
     for name in sets:
         k = list(SETS).index(name)
