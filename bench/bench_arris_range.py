@@ -9,7 +9,9 @@ and noise come from :func:`bench_arris.random_effects`), the camera's gamma is t
 - ``ambient``: rounds and chamfers of 0.5-3 mm under ambient light alone;
 - ``small``: rounds and chamfers of 0.5-1 mm under 1.0-1.5 px of blur (where the strip and the blur trade off);
 - ``sharp``: doors without an arris (the range's 0 mm end), otherwise as ``round``;
-- ``grain``: arrises of 0-3 mm (either profile) with wood grain of 0-10 % along the height (period 2-8 mm).
+- ``grain``: arrises of 0-3 mm (either profile) with wood grain of 0-10 % along the height (period 2-8 mm);
+- ``dark``: rounds and chamfers of 0.5-3 mm whose wood is as dark as the background, under ambient light
+  (the arris's outer border has no contrast: it must be refused, or answered with an honest doubt).
 
 Per image: the seed, the conditions, the errors of x, z, yaw and thickness and their claimed sigmas
 (x, z, yaw: the answer's ``uncertainty``; thickness: ``diagnostics.thickness_check.sigma_mm``), or the
@@ -18,7 +20,7 @@ beyond 5, and the refusals by code; answers whose thickness the image could not 
 ``locate.thickness_check: report``) are counted apart.
 
     OMP_NUM_THREADS=1 PYTHONPATH=src python bench/bench_arris_range.py [--n 16] [--seed 7000]
-        [--sets round,chamfer,ambient,small,sharp,grain] [--thickness-check refuse|report]
+        [--sets round,chamfer,ambient,small,sharp,grain,dark] [--thickness-check refuse|report]
         [--response-factor F]   (a cell whose camera response was measured, e.g. 1.11)
 """
 
@@ -56,6 +58,16 @@ SETS: dict[str, dict] = {
     "grain": dict(
         arris=(0.0, 3.0), profiles=("round", "chamfer"), blur=(0.7, 1.8), ambient=False, grain=(0.0, 0.10)
     ),
+    # the arris's wood as dark as the background behind it, under ambient light: its outer border (a
+    # rounding's silhouette) has no contrast
+    "dark": dict(
+        arris=(0.5, 3.0),
+        profiles=("round", "chamfer"),
+        blur=(0.7, 1.8),
+        ambient=True,
+        grain=(0, 0),
+        arris_as_background=True,
+    ),
 }
 
 
@@ -85,6 +97,8 @@ def draw(name: str, i: int, seed: int):
         grain_contrast=float(rng.uniform(*spec["grain"])),
         grain_period_mm=float(rng.uniform(2.0, 8.0)),
     )
+    if spec.get("arris_as_background"):
+        fx = dataclasses.replace(fx, albedo_chamfer=fx.albedo_background)
     if spec["ambient"]:
         fx = dataclasses.replace(
             fx, light_ambient=fx.light_ambient + fx.light_directional, light_directional=0.0
