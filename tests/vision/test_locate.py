@@ -386,6 +386,31 @@ def test_thickness_policy_refuses_or_reports_an_unverified_thickness_and_always_
         assert not r.ok and r.error_code == "thickness_mismatch" and r.thickness_verified is None
 
 
+@pytest.mark.parametrize("profile", ["round", "chamfer"])
+def test_an_arris_as_dark_as_the_background_is_never_answered_confidently_wrong(cell, profile):
+    """A 2 mm arris whose wood is as dark as the background behind it (ambient light): its outer border has no
+    contrast, and its strip can be read as part of the face, the edge then a strip's width inside the door
+    with a small doubt. Whatever the thickness policy, the door is refused or answered within its doubt
+    (the thickness check is what refuses it now: both arrises read inwards make the door ~3.7 mm thin)."""
+    door, pose = DoorSize(900, 50, 2100, arris_mm=2.0, arris_profile=profile), DoorPose(1.0, 2.0, 0.3)
+    fx = Effects(
+        arris_profile=profile,
+        albedo_hinge=0.7,
+        albedo_chamfer=0.3,
+        albedo_background=0.3,
+        blur_sigma_px=1.0,
+        read_noise_dn=0.5,
+    )
+    img = render_door(cell, door, pose, effects=fx, seed=3).image
+    for policy in ("refuse", "report"):
+        r = locate(img, cell, door, config=LocateConfig(thickness_check=policy))
+        if r.ok:
+            assert abs(r.x_mm - pose.x_mm) <= 3.0 * r.uncertainty.x_mm, (policy, r.x_mm, r.uncertainty)
+            assert abs(r.z_mm - pose.z_mm) <= 3.0 * r.uncertainty.z_mm, (policy, r.z_mm, r.uncertainty)
+        else:
+            assert r.error_code in ("uncertain", "thickness_mismatch"), r.error
+
+
 def test_a_thickness_difference_within_the_measurements_doubt_is_no_mismatch():
     """A wrong door ("check that the right door is in the fixture") is claimed only where the difference exceeds the tolerance by
     more than the measurement's 1-sigma; below that the caller refuses ``uncertain`` (a valid door whose
