@@ -234,6 +234,22 @@ def test_unknown_cell_key_is_named_with_the_allowed_ones(thesis_cell_path, secti
     assert allowed in str(e.value)
 
 
+@pytest.mark.parametrize("policy", ["refuse", "report"])
+def test_thickness_check_policy_is_read_from_the_cell(tmp_path, thesis_cell_path, policy):
+    doc = yaml.safe_load(Path(thesis_cell_path).read_text())
+    assert parse_cell(doc, Path(thesis_cell_path).parent, "cell.yaml").locate.thickness_check == "refuse"
+    doc["locate"] = {"thickness_check": policy}
+    assert parse_cell(doc, Path(thesis_cell_path).parent, "cell.yaml").locate.thickness_check == policy
+
+
+def test_unknown_thickness_check_policy_is_an_error(thesis_cell_path):
+    doc = yaml.safe_load(Path(thesis_cell_path).read_text())
+    doc["locate"] = {"thickness_check": "ignore"}
+    with pytest.raises(CellFileError, match="thickness_check") as e:
+        parse_cell(doc, Path(thesis_cell_path).parent, "cell.yaml")
+    assert "refuse" in str(e.value) and "report" in str(e.value)
+
+
 def test_cell_physical_settings_round_trip_and_hashes(tmp_path, thesis_cell_path):
     doc = yaml.safe_load(Path(thesis_cell_path).read_text())
     doc["camera"]["response_gamma"] = 2.2

@@ -349,6 +349,68 @@ def test_thickness_is_never_accepted_beyond_the_tolerance_it_claims(cell):
     assert not r.ok and r.error_code == "thickness_mismatch"
 
 
+def test_thickness_policy_refuses_or_reports_an_unverified_thickness_and_always_refuses_a_wrong_one(cell):
+    """``locate.thickness_check``: a thickness the image cannot verify is refused ``uncertain`` under
+    ``refuse`` and answered with ``thickness_verified: false`` and the reason under ``report`` (the same pose);
+    a door that measures wrong at confidence is refused under either; a verified thickness says so."""
+    refuse = LocateConfig(thickness_tolerance_mm=0.05)
+    report = replace(refuse, thickness_check="report")
+    unverified = 0
+    for i, (x, t) in enumerate([(-2.65, 32.25), (-1.5, 31.4), (-5.0, 30.3), (0.5, 29.6)]):
+        pose, door = DoorPose(x, 1.0, 0.5), DoorSize(900, t, 2100)
+        img = render_door(cell, door, pose, effects=THIN_HARD, seed=i).image
+        a, b = locate(img, cell, door, config=refuse), locate(img, cell, door, config=report)
+        if a.ok:
+            assert b.ok and a.thickness_verified is True and b.thickness_verified is True
+            assert a.thickness_unverified_reason is None
+            continue
+        only_thickness = a.diagnostics["all_refusals"] == ["uncertain"] and a.error.startswith(
+            "the door's thickness cannot be checked"
+        )
+        if not only_thickness:  # refused for another reason (or a mismatch): refused under report too
+            assert not b.ok and b.error_code == a.error_code
+            continue
+        unverified += 1
+        assert b.ok and b.thickness_verified is False and b.thickness_unverified_reason == a.error
+        assert b.diagnostics["thickness_check"]["uncertain"]
+        assert (b.x_mm, b.z_mm, b.yaw_deg, b.thickness_mm) == tuple(
+            a.diagnostics["measured"][k] for k in ("x_mm", "z_mm", "yaw_deg", "thickness_mm")
+        )
+        assert abs(b.x_mm - x) < 0.05 and abs(b.thickness_mm - t) < 1.0
+    assert unverified, "no door here had its thickness unverified: the report branch went untested"
+    # a door 0.6 mm thicker than its recipe (tolerance 0.3 mm): refused under report as under refuse
+    pose, door = DoorPose(-2.65, 1.0, 0.5), DoorSize(900, 32.25, 2100)
+    img = render_door(cell, DoorSize(900, 32.85, 2100), pose, effects=THIN_HARD).image
+    for policy in ("refuse", "report"):
+        r = locate(img, cell, door, config=LocateConfig(thickness_tolerance_mm=0.3, thickness_check=policy))
+        assert not r.ok and r.error_code == "thickness_mismatch" and r.thickness_verified is None
+
+
+@pytest.mark.parametrize("profile", ["round", "chamfer"])
+def test_an_arris_as_dark_as_the_background_is_never_answered_confidently_wrong(cell, profile):
+    """A 2 mm arris whose wood is as dark as the background behind it (ambient light): its outer border has no
+    contrast, and its strip can be read as part of the face, the edge then a strip's width inside the door
+    with a small doubt. Whatever the thickness policy, the door is refused or answered within its doubt
+    (the thickness check is what refuses it now: both arrises read inwards make the door ~3.7 mm thin)."""
+    door, pose = DoorSize(900, 50, 2100, arris_mm=2.0, arris_profile=profile), DoorPose(1.0, 2.0, 0.3)
+    fx = Effects(
+        arris_profile=profile,
+        albedo_hinge=0.7,
+        albedo_chamfer=0.3,
+        albedo_background=0.3,
+        blur_sigma_px=1.0,
+        read_noise_dn=0.5,
+    )
+    img = render_door(cell, door, pose, effects=fx, seed=3).image
+    for policy in ("refuse", "report"):
+        r = locate(img, cell, door, config=LocateConfig(thickness_check=policy))
+        if r.ok:
+            assert abs(r.x_mm - pose.x_mm) <= 3.0 * r.uncertainty.x_mm, (policy, r.x_mm, r.uncertainty)
+            assert abs(r.z_mm - pose.z_mm) <= 3.0 * r.uncertainty.z_mm, (policy, r.z_mm, r.uncertainty)
+        else:
+            assert r.error_code in ("uncertain", "thickness_mismatch"), r.error
+
+
 def test_a_thickness_difference_within_the_measurements_doubt_is_no_mismatch():
     """A wrong door ("check that the right door is in the fixture") is claimed only where the difference exceeds the tolerance by
     more than the measurement's 1-sigma; below that the caller refuses ``uncertain`` (a valid door whose

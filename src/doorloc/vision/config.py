@@ -8,6 +8,7 @@ here: it is a property of the camera, ``camera.response_gamma`` in the cell file
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
 __all__ = ["LocateConfig"]
 
@@ -52,6 +53,13 @@ class LocateConfig:
         (``min_thickness_mm`` .. door thickness + ``thickness_search_mm``).
     thickness_tolerance_mm : float
         Refuse when the measured thickness differs from the door's by more.
+    thickness_check : ``"refuse"`` or ``"report"``
+        What an answer whose thickness the image cannot verify gets (its measurement's 3 sigma reach past
+        ``thickness_tolerance_mm``: a rounded far arris against a background of nearly its shade, a far face
+        seen edge-on). ``"refuse"`` (the default): refused ``uncertain``, the sentence saying why. ``"report"``:
+        answered, with ``thickness_verified: false`` and the reason in ``thickness_unverified_reason``, for a
+        line that checks the door's thickness elsewhere. Under either a door that measures wrong beyond the
+        tolerance at confidence is refused ``thickness_mismatch``; nothing passes silently.
     min_inliers, min_inlier_fraction, max_rms_residual_px : int, float, float
         Line-fit gate.
     corner_zone_px, min_corner_support : float
@@ -102,6 +110,7 @@ class LocateConfig:
     min_thickness_mm: float = 4.0
     thickness_search_mm: float = 15.0
     thickness_tolerance_mm: float = 1.0
+    thickness_check: Literal["refuse", "report"] = "refuse"
     min_inliers: int = 40
     min_inlier_fraction: float = 0.6
     max_rms_residual_px: float = 1.5

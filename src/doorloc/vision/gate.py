@@ -89,7 +89,13 @@ def gate_and_answer(
     # quadrature, the effects fixtures' thicknesses, a 2.2 camera in a cell of 1.0, were 0.08-0.12 mm off
     # with 78 % of them beyond 2 sigma.)
     budget = _budget(cell, cfg, region, r, model, other_mm if other is not None else None)
-    t_refusals, t_uncertain = _thickness_check(r, door, cfg, budget.thickness_mm, other)
+    silhouette = _far_silhouette_contrast(r)
+    t_refusals, t_uncertain = _thickness_check(r, door, cfg, budget.thickness_mm, other, silhouette)
+    # Under ``thickness_check: report`` a thickness the image cannot verify is said in the answer, not refused
+    # (a thickness that is wrong at confidence is refused under either policy: it is not in this list).
+    unverified = [x for x in t_refusals if x is not None and x.code == "uncertain"]
+    if cfg.thickness_check == "report":
+        t_refusals = [x for x in t_refusals if x not in unverified]
     refusals += t_refusals
     refusals.append(_corner_sigma_check(fit, cfg, diagnostics))
     t_sigma = budget.thickness_reported_mm
@@ -104,6 +110,7 @@ def gate_and_answer(
         "uncertain": t_uncertain,
         "far_face_in_view": far_beside,
         "other_reading_mm": round(other, 4) if other is not None else None,
+        "far_silhouette_contrast": round(silhouette, 2) if silhouette is not None else None,
     }
     unc = PoseUncertainty(x_mm=budget.x_mm, z_mm=budget.z_mm, yaw_deg=budget.yaw_deg)
     diagnostics["uncertainty_terms"] = {k: [round(v, 6) for v in t] for k, t in budget.groups.items()}
@@ -129,6 +136,8 @@ def gate_and_answer(
         scale_mm_per_px=pose.scale_mm_per_px,
         corner_px=[float(pose.corner_px[0]), float(pose.corner_px[1])],
         uncertainty=unc,
+        thickness_verified=not unverified,
+        thickness_unverified_reason=unverified[0].message if unverified else None,
         lines=lines,
         diagnostics=diagnostics,
     )
@@ -217,11 +226,34 @@ def _other_reading(r: Refined, t_tol: float) -> tuple[float, float | None]:
     return other_mm, other
 
 
+def _far_silhouette_contrast(r: Refined) -> float | None:
+    """The grey-level step (0-255 scale, linear light) between the background and the far arris's strip next to
+    its outer border (a rounding's silhouette, a chamfer's outer edge); None where the far arris has no strip fit.
+
+    The strip fit's level next to the outer border, as a fraction of the background-to-face step, times that
+    step: where it is small the border's place cannot be seen and the thickness rests on the strip's inner end
+    and the shading model alone."""
+    if "far" not in r.arris_fits or r.far_beside:
+        return None
+    strip, _ = r.arris_fits["far"]
+    s = r.samples["far"]
+    step = s.step[np.isfinite(s.step)]
+    if strip.levels.size == 0 or step.size == 0:
+        return None
+    return float(abs(strip.levels[0]) * np.median(np.abs(step)))
+
+
 def _thickness_check(
-    r: Refined, door: DoorSize, cfg: LocateConfig, t_sigma: float, other: float | None
+    r: Refined,
+    door: DoorSize,
+    cfg: LocateConfig,
+    t_sigma: float,
+    other: float | None,
+    silhouette: float | None = None,
 ) -> tuple[list, bool]:
     """The thickness's checks (against the recipe, and whether its uncertainty lets it be checked) and
-    whether it is uncertain."""
+    whether it is uncertain. ``silhouette``: the far arris's outer border's contrast, grey levels
+    (:func:`_far_silhouette_contrast`); below the edges' ``min_contrast`` the reason names it."""
     pose, far_beside, t_tol = r.pose, r.far_beside, cfg.thickness_tolerance_mm
     refusals: list = []
     # (the fitted reading where the two are as near)
@@ -229,7 +261,19 @@ def _thickness_check(
     nearest = min(readings, key=lambda t: abs(t - door.thickness_mm))
     refusals.append(q.check_thickness(nearest, door.thickness_mm, t_tol, sigma=t_sigma))
     t_uncertain = abs(nearest - door.thickness_mm) + 3.0 * t_sigma > t_tol
-    if t_uncertain and refusals[-1] is None:
+    if t_uncertain and refusals[-1] is None and silhouette is not None and silhouette < cfg.min_contrast:
+        refusals.append(
+            q.Refusal(
+                "uncertain",
+                f"the door's thickness cannot be checked: it measures "
+                f"{nearest:.2f} +- {3 * t_sigma:.2f} mm against {door.thickness_mm:.2f} mm "
+                f"(tolerance {t_tol:g} mm), as the far arris's outer edge hardly stands out from the "
+                f"background behind it (a step of {silhouette:.1f} grey levels; edges need "
+                f"{cfg.min_contrast:g}); light the door's far side differently or put a background of "
+                "another shade behind it, and take the image again",
+            )
+        )
+    elif t_uncertain and refusals[-1] is None:
         refusals.append(
             q.Refusal(
                 "uncertain",

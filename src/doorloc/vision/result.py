@@ -88,6 +88,15 @@ class LocateResult(BaseModel):
     z_mm: float | None = Field(None, description="shift of the reference corner along cell +Z, mm")
     yaw_deg: float | None = Field(None, description="door rotation in the hinge-face plane, degrees")
     thickness_mm: float | None = Field(None, description="measured door thickness, mm")
+    thickness_verified: bool | None = Field(
+        None,
+        description="true: the measured thickness was checked against the door's within the tolerance; false: "
+        "the image could not verify it (answered only under locate.thickness_check: report, the reason in "
+        "thickness_unverified_reason); null when refused",
+    )
+    thickness_unverified_reason: str | None = Field(
+        None, description="why the thickness could not be verified, a sentence; null when it was"
+    )
     scale_mm_per_px: float | None = Field(
         None, description="dynamic scaling factor at the corner, mm per pixel"
     )
