@@ -54,7 +54,10 @@ function showAnswer(a) {
   $("pose-x").textContent = fmt(a.x_mm, 3);
   $("pose-z").textContent = fmt(a.z_mm, 3);
   $("pose-yaw").textContent = fmt(a.yaw_deg, 4);
-  $("pose-thickness").textContent = fmt(a.thickness_mm, 2);
+  // a cell with locate.thickness_check: report answers a door whose thickness the image could not verify;
+  // the operator must see that, and why, next to the value
+  $("pose-thickness").textContent = fmt(a.thickness_mm, 2) + (a.thickness_verified === false ? " (not verified)" : "");
+  $("pose-thickness").title = a.thickness_unverified_reason || "";
   $("pose-scale").textContent = fmt(a.scale_mm_per_px, 5);
   $("pose-corner").textContent = a.corner_px ? a.corner_px.map((v) => fmt(v, 2)).join(", ") : "—";
   $("pose-elapsed").textContent = fmt(a.elapsed_ms, 0);
