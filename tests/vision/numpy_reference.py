@@ -15,7 +15,7 @@ from doorloc.vision.blurred_step import pixel_step
 from doorloc.vision.blurred_step import step_fit as compiled_step_fit
 from doorloc.vision.edge_samples import EdgeSamples
 from doorloc.vision.lines import ImageLine, _sample_pairs
-from doorloc.vision.response import RESPONSE_LEVEL_ROWS, RESPONSE_PLATEAU_PX, _resampled_asymmetry
+from doorloc.vision.response_asymmetry import RESPONSE_LEVEL_ROWS, RESPONSE_PLATEAU_PX, _resampled_asymmetry
 from doorloc.vision.sampling import gather_profile_rows, median, oriented
 from doorloc.vision.texture import TextureBias
 
@@ -318,7 +318,7 @@ def plane_map_to_image(m, xz: np.ndarray) -> np.ndarray:
 
 
 def asymmetry(t, gammas: np.ndarray, blocks: np.ndarray | None = None, n_blocks: int = 0) -> np.ndarray:
-    """:func:`doorloc.vision.response._asymmetry` as written with numpy."""
+    """:func:`doorloc.vision.response_asymmetry.asymmetry` as written with numpy."""
     G = len(gammas)
     with np.errstate(divide="ignore"):
         v = np.exp(np.asarray(gammas, float)[:, None, None] * np.log(t.raw)[None])  # (G, N, W)

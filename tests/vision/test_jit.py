@@ -13,11 +13,11 @@
   their numpy versions, bit for bit;
 - the search region's polyline interpolation (region._interp_on_scans) against np.interp over the sorted
   points, bit for bit;
-- the camera response's asymmetry measure (response._asymmetry: its normalised profiles and paired bins
+- the camera response's asymmetry measure (response_asymmetry.asymmetry: its normalised profiles and paired bins
   compiled) against its numpy version, bit for bit, at many phases and at one (the spline path);
-- the least finite value's index (response._least_index) against np.nanargmin;
+- the least finite value's index (response_asymmetry._least_index) against np.nanargmin;
 - the in-place selection (jit.select_kth) against np.partition, numpy's pairwise sum (jit.pairwise_sum)
-  against ndarray.sum, the running mean (response._running_mean_nearest) against uniform_filter1d;
+  against ndarray.sum, the running mean (response_asymmetry._running_mean_nearest) against uniform_filter1d;
 - the JPEG block ratio (jpeg_blocks.block_artifact_ratio: its integer path compiled) against its numpy branch and
   the gate's per-line figures (quality.line_figures) against their numpy expressions, bit for bit;
 - the arris strip fit's pixel terms (arris_model._pixel_terms) and its linear solve
@@ -351,15 +351,15 @@ def test_polyline_interpolation_as_np_interp_over_the_sorted_points(
     half=st.integers(4, 12),
     blocks=st.sampled_from([0, 3, 8]),
     one_phase=st.booleans(),
-    spoil=st.sampled_from(["none", "flat_rows", "zeros", "shading"]),
+    spoil=st.sampled_from(["none", "flat_rows", "zeros", "shading", "grey_levels"]),
 )
 def test_response_asymmetry_as_its_numpy_version(seed, n, half, blocks, one_phase, spoil):
-    # response._asymmetry (its normalisation and its paired bins compiled) against the numpy code, bit for
+    # response_asymmetry.asymmetry (its normalisation and its paired bins compiled) against the numpy code, bit for
     # bit: blurred steps at random phases, exponents, plateaus and noise; rows without contrast, zero
-    # levels (log 0), a shading tilt; with and without blocks; read at one phase (the spline path)
+    # levels (log 0), a shading tilt, 8-bit grey levels; with and without blocks; read at one phase (the spline path)
     from scipy.special import ndtr
 
-    from doorloc.vision.response import _asymmetry, _Transitions
+    from doorloc.vision.response_asymmetry import Transitions, asymmetry
 
     rng = np.random.default_rng(seed)
     x = np.arange(-half, half + 1)[None, :] - rng.uniform(-0.5, 0.5, (n, 1))
@@ -373,11 +373,13 @@ def test_response_asymmetry_as_its_numpy_version(seed, n, half, blocks, one_phas
     elif spoil == "shading":
         raw = raw * (1 + 0.02 * np.arange(raw.shape[1]))[None, :]
     raw = np.clip(raw, 0.0, 1.0)
-    t = _Transitions(raw, np.zeros(n), one_phase=one_phase)
+    if spoil == "grey_levels":  # a camera's 8-bit levels: many pixels share each (the levels' table)
+        raw = np.round(raw * 255.0) / 255.0
+    t = Transitions(raw, np.zeros(n), one_phase=one_phase)
     gammas = np.geomspace(0.4, 5.0, 25)
     blk = rng.integers(0, blocks, n) if blocks else None
     want = reference.asymmetry(t, gammas, blk, blocks)
-    np.testing.assert_array_equal(_asymmetry(t, gammas, blk, blocks), want)
+    np.testing.assert_array_equal(asymmetry(t, gammas, blk, blocks), want)
     if spoil == "none" and not one_phase and n >= 20 and half >= 6:
         assert np.isfinite(want).any()  # (the comparison saw numbers, not only NaN)
 
@@ -387,7 +389,7 @@ def test_response_asymmetry_as_its_numpy_version(seed, n, half, blocks, one_phas
 def test_pairwise_sum_and_running_mean_as_numpy_and_scipy(seed, n, size):
     from scipy.ndimage import uniform_filter1d
 
-    from doorloc.vision.response import _running_mean_nearest
+    from doorloc.vision.response_asymmetry import _running_mean_nearest
 
     rng = np.random.default_rng(seed)
     a = rng.normal(size=n) * np.exp(rng.normal(0, 4, n))
@@ -435,7 +437,7 @@ def test_step_fit_as_its_numpy_version(seed, n, h, blur, noise, flat):
     half=st.sampled_from([16, 40, 96]),
 )
 def test_block_ratio_as_its_numpy_version(seed, sixteen, blocky, noise, centre, half):
-    # edges.block_artifact_ratio's integer path (compiled: exact sums, float32 means, medians by selection)
+    # jpeg_blocks.block_artifact_ratio's integer path (compiled: exact sums, float32 means, medians by selection)
     # against its numpy branch, which a float plane of the same levels takes, bit for bit: with and without
     # 8x8 block steps, at crops that the image's border cuts, 8- and 16-bit
     from doorloc.vision.jpeg_blocks import block_artifact_ratio
@@ -810,7 +812,7 @@ def test_strip_bin_means_as_numpy(seed, n, n_p, bins):
 def test_least_index_is_nanargmin_where_a_value_is_finite(values, column):
     # response._vertex's index of the least asymmetry (ties: the first; NaN skipped), on a contiguous
     # array and on a table's column as _least_asymmetric_blocks passes it
-    from doorloc.vision.response import _least_index
+    from doorloc.vision.response_asymmetry import _least_index
 
     a = np.array(values, float)
     if column:

@@ -149,7 +149,7 @@ def test_a_second_symmetric_exponent_is_reported():
     """The asymmetry is not monotone in the exponent: a linear camera's transition between plateaus 20 and
     230 grey levels, rounded to 8 bits under 0.1 grey level of noise (not dithered), is about as symmetric
     at ~1.7-1.9; under a grey level of noise the least asymmetry is the noise's, and one reading stands."""
-    from doorloc.vision.response import _dithered, _exponent_with_scatter, _Transitions
+    from doorloc.vision.response_asymmetry import Transitions, dithered, exponent_with_scatter
 
     rng = np.random.default_rng(1)
     n, w, s = 224, 21, 1.2
@@ -162,15 +162,15 @@ def test_a_second_symmetric_exponent_is_reported():
 
     light = lo + (hi - lo) * (g(x[None, :] + 0.5 - centre[:, None]) - g(x[None, :] - 0.5 - centre[:, None]))
     raw = np.round((light + rng.normal(0, 0.1 / 255, light.shape)) * 255) / 255
-    assert not _dithered(raw, 255.0)
-    found = _exponent_with_scatter(_Transitions(raw, -centre, dithered=False), np.repeat(np.arange(8), 28), 8)
+    assert not dithered(raw, 255.0)
+    found = exponent_with_scatter(Transitions(raw, -centre, dithered=False), np.repeat(np.arange(8), 28), 8)
     assert found is not None
     gamma, _, alternatives = found
     assert abs(gamma - 1.0) < 0.1
     assert alternatives and all(1.5 < a < 2.2 for a in alternatives)
     raw = np.round((light + rng.normal(0, 1.0 / 255, light.shape)) * 255) / 255
-    assert _dithered(raw, 255.0)
-    found = _exponent_with_scatter(_Transitions(raw, -centre), np.repeat(np.arange(8), 28), 8)
+    assert dithered(raw, 255.0)
+    found = exponent_with_scatter(Transitions(raw, -centre), np.repeat(np.arange(8), 28), 8)
     assert found is not None and abs(found[0] - 1.0) < 0.1 and found[2] == ()
 
 

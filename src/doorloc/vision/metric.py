@@ -18,6 +18,7 @@ import numpy as np
 
 from doorloc.calib.camera import PosedCamera
 from doorloc.vision.jit import kernel
+from doorloc.vision.lens import MAX_ITER, distort_to_pixels, undistort_pixels
 from doorloc.vision.lines import RectangleFit
 
 __all__ = ["PlaneMap", "plane_points", "image_points", "MetricPose", "pose_from_fit"]
@@ -48,6 +49,9 @@ class PlaneMap:
         self._distorted = bool(np.any(self.camera.coeffs12))
         K = self.camera.camera_matrix
         self._k = (K[0, 0], K[0, 1], K[0, 2], K[1, 1], K[1, 2])
+        # the camera matrix and distortion as the compiled lens model takes them (doorloc.vision.lens)
+        self._kvec = np.array(self._k, dtype=np.float64)
+        self._coeffs = np.ascontiguousarray(self.camera.coeffs12, dtype=np.float64)
 
     def at_depth(self, depth_y: float) -> PlaneMap:
         """The same camera onto another plane ``Y = depth_y``."""
@@ -57,7 +61,7 @@ class PlaneMap:
         """Pixels ``(N, 2)`` -> ``(X, Z)`` mm on the plane, shape ``(N, 2)`` (NaN where no ray)."""
         uv = np.asarray(uv, float).reshape(-1, 2)
         if self._distorted:
-            xy = self.camera.undistort(uv)
+            xy = undistort_pixels(np.ascontiguousarray(uv), self._kvec, self._coeffs, MAX_ITER)
             x, y = xy[:, 0], xy[:, 1]
         else:
             fx, sk, cx, fy, cy = self._k
@@ -72,7 +76,7 @@ class PlaneMap:
         xz = np.asarray(xz, float).reshape(-1, 2)
         x, y = _plane_to_rays(np.ascontiguousarray(xz), self.R, self.t, self.depth_y)
         if self._distorted:
-            return self.camera.normalized_to_pixel(self.camera.distort(np.stack([x, y], 1)))
+            return distort_to_pixels(x, y, self._kvec, self._coeffs)
         fx, sk, cx, fy, cy = self._k
         out = np.empty((len(xz), 2))
         out[:, 0] = fx * x + sk * y + cx

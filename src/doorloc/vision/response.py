@@ -14,7 +14,7 @@ plain lines of one image (one camera, one response). An edge along a pixel row o
 to the camera) samples its transition at one pixel phase only, where no pixel at ``+d`` has a partner at
 ``-d``: the mean transition is read between its pixels by a cubic spline, where the optical blur (1 px
 and more) makes it smooth enough, with a floor on the exponent's standard error for the spline's own
-error (:func:`_resampled_asymmetry`).
+error (:mod:`doorloc.vision.response_asymmetry`).
 
 :func:`board_response` measures the same on the calibration photographs' chessboard edges (``doorloc
 calibrate`` stores it with the camera model): a camera's response once, where hundreds of plain edges at
@@ -32,7 +32,7 @@ exponent's standard error makes; otherwise the doubt is the shift between the ce
 fitted one beyond twice that (a right cell keeps its small sigma), except for a reading between the
 pixels (a door square to the camera), which is combined with the cell's exponent as known within
 ``locate.response_unmeasured_factor`` (:meth:`ResponseFit.with_unmeasured_claim`). Where every plain
-edge admits a second exponent about as well (the asymmetry is not monotone in the exponent: :func:`_least_asymmetric`), the
+edge admits a second exponent about as well (the asymmetry is not monotone in the exponent: :func:`least_asymmetric`), the
 image cannot tell the camera's: nothing is absorbed and the doubt is the largest shift of the readings.
 """
 
@@ -43,11 +43,19 @@ import math
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 from scipy.special import ndtr
 
-from doorloc.vision.edges import DITHERING_NOISE_LEVELS, EdgeSamples, subpixel_edges
-from doorloc.vision.jit import kernel, median_in_place, pairwise_sum
+from doorloc.vision.edges import EdgeSamples, subpixel_edges
+from doorloc.vision.jit import kernel, median_in_place
+from doorloc.vision.response_asymmetry import (
+    RESPONSE_GAMMA_RANGE,
+    RESPONSE_PLATEAU_PX,
+    RESPONSE_SIGMA_FLOOR,
+    Transitions,
+    dithered,
+    exponent_with_scatter,
+    transition_skew_px,
+)
 from doorloc.vision.sampling import Axis, gather_profiles, linearizing_lut, oriented
 
 __all__ = [
@@ -71,23 +79,15 @@ __all__ = [
 
 #: contiguous blocks along the line over which the skew is measured again, for its standard error
 RESPONSE_SKEW_BLOCKS = 8
-#: exponents searched for the camera's response (a camera's gamma lies well inside)
-RESPONSE_GAMMA_RANGE = (0.4, 5.0)
 #: half width of the window the transition is read over, in blur sigmas (plus 1.5 px)
 RESPONSE_WINDOW_BLURS = 3.0
-#: plateau pixels at each end of a profile that set its levels, and the scan lines (each side) they are
-#: averaged over
-RESPONSE_PLATEAU_PX = 3
-RESPONSE_LEVEL_ROWS = 8
 #: profiles the fit uses at most (every k-th along the line)
 RESPONSE_MAX_PROFILES = 320
-#: the smallest standard error of a line's exponent (8 blocks estimate a scatter to about +-25 %)
-RESPONSE_SIGMA_FLOOR = 0.02
 #: the fitted response replaces the cell's when it differs by more than this many standard errors
 RESPONSE_ABSORB_SIGMAS = 4.0
 #: an edge at one pixel phase (along a pixel row or column) is read between its pixels by interpolation
 #: only from this optical blur on (Gaussian sigma, px; sharper transitions are not smooth on the pixel
-#: scale), and its exponent's 1-sigma is at least this fraction of it (:func:`_resampled_asymmetry`):
+#: scale), and its exponent's 1-sigma is at least this fraction of it (:mod:`doorloc.vision.response_asymmetry`):
 #: on rendered doors square to the camera (wide random lighting and albedos, blur 1.1-1.7 px, exponents
 #: 1.0-2.4) the readings were 23 % RMS off, and their pulls 1.0 RMS with this floor (1.7 with 0.1)
 RESPONSE_ONE_PHASE_MIN_BLUR_PX = 1.0
@@ -100,9 +100,6 @@ RESPONSE_ONE_PHASE_PSF = 0.5
 #: the exponents a camera's response has (a linear sensor 1.0, video and sRGB about 2.2-2.4): only a fit
 #: inside is absorbed
 RESPONSE_PLAUSIBLE = (0.8, 3.0)
-#: another exponent whose transition is within this factor as symmetric as the best one's is a second
-#: reading of the same edge (:func:`_least_asymmetric`)
-RESPONSE_AMBIGUOUS_RATIO = 2.0
 
 
 @dataclass(frozen=True)
@@ -119,9 +116,9 @@ class LineResponse:
     skew_px : float
         The skew with the exponent the estimate used (diagnostics).
     one_phase : bool
-        Read at one pixel phase, between the pixels by interpolation (:func:`_resampled_asymmetry`).
+        Read at one pixel phase, between the pixels by interpolation (:func:`asymmetry`).
     alternatives : tuple of float
-        Other exponents that make the transition about as symmetric (:func:`_least_asymmetric`): the edge
+        Other exponents that make the transition about as symmetric (:func:`least_asymmetric`): the edge
         does not tell which one the camera has.
     shared_sigma : float
         The part of ``sigma`` that every line of the image shares (at one phase, the interpolation's
@@ -219,38 +216,13 @@ class ResponseFit:
         )
 
 
-@dataclass(frozen=True)
-class _Transitions:
-    """Raw profiles across one edge (full scale 1) and the edge's place in them, for the skew in ``g``.
-
-    ``one_phase``: the edge points fall at one pixel phase (an edge along a pixel row or column), and
-    :func:`_asymmetry` reads the transition between the pixels by interpolation. ``dithered``: the
-    plateaus' noise (half a grey level or more) dithers the rounding to grey levels, which then averages
-    out over the profiles (:func:`_least_asymmetric`).
-    """
-
-    raw: np.ndarray  # (N, 2 half + 1)
-    offset: np.ndarray  # (N,) the window's first pixel centre minus the sub-pixel edge, px
-    one_phase: bool = False
-    dithered: bool = True
-
-
-def _dithered(raw: np.ndarray, top: float) -> bool:
-    """Whether raw profiles (full scale 1, ``top`` grey levels) have ``DITHERING_NOISE_LEVELS`` of noise or
-    more on their plateaus (the median over the profiles of the end pixels' scatter about their mean)."""
-    pk = RESPONSE_PLATEAU_PX
-    ends = [raw[:, :pk], raw[:, -pk:]]
-    var = sum(((e - e.mean(axis=1, keepdims=True)) ** 2).sum(axis=1) for e in ends) / (2 * pk - 2)
-    return bool(np.median(np.sqrt(var)) * top >= DITHERING_NOISE_LEVELS)
-
-
 def at_one_phase(offset_px: np.ndarray) -> bool:
     """Whether edge points at these sub-pixel offsets (px) miss a quarter of the pixel phases (an edge
     along a pixel row or column), where the mean transition cannot be read at every offset."""
     return np.unique(np.floor((np.asarray(offset_px) % 1.0) * 4.0)).size < 4
 
 
-def _transitions(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half: int) -> _Transitions | None:
+def _transitions(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half: int) -> Transitions | None:
     m = mask & samples.valid
     if int(m.sum()) < 10:
         return None
@@ -264,39 +236,7 @@ def _transitions(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half
     top = 255.0 if plane.dtype == np.uint8 else 65535.0
     order = np.argsort(samples.scan[m][ok])  # contiguous blocks along the line
     raw = vals[ok][order].astype(np.float64) / top
-    return _Transitions(raw, (c0[ok] - half - e[ok])[order].astype(np.float64), dithered=_dithered(raw, top))
-
-
-def _skew(t: _Transitions, rows: np.ndarray | slice, g: float) -> float:
-    """The skew (50 % crossing minus centre of mass of the mean transition, px) of the profiles ``rows`` with raw levels raised to ``g``."""
-    vals = t.raw[rows] ** g
-    off = t.offset[rows]
-    d = np.diff(vals, axis=1)
-    tot = d.sum(axis=1, keepdims=True)
-    good = np.abs(tot[:, 0]) > 1e-9
-    if int(good.sum()) < 3:
-        return float("nan")
-    # positions from the dark side to the bright one: the skew's sign then says which way the exponent
-    # is off, whichever the edge's polarity
-    pos = (np.arange(d.shape[1]) + 0.5 + off[good][:, None]) * np.sign(tot[good])
-    d = d[good] / tot[good]
-    bins = np.round(pos * 4).astype(int)
-    lo = bins.min()
-    acc = np.bincount((bins - lo).ravel(), weights=d.ravel())
-    cnt = np.bincount((bins - lo).ravel())
-    x = (np.arange(cnt.size) + lo) / 4.0
-    filled = cnt > 0
-    gm = np.interp(x, x[filled], acc[filled] / cnt[filled])
-    if gm.sum() <= 0:
-        return float("nan")
-    w = gm / gm.sum()
-    centre = float(np.sum(w * x))
-    cum = np.cumsum(w) - 0.5 * w
-    k = int(np.searchsorted(cum, 0.5))
-    if k <= 0 or k >= x.size:
-        return float("nan")
-    f = (0.5 - cum[k - 1]) / max(cum[k] - cum[k - 1], 1e-12)
-    return float(x[k - 1] + f * (x[k] - x[k - 1]) - centre)
+    return Transitions(raw, (c0[ok] - half - e[ok])[order].astype(np.float64), dithered=dithered(raw, top))
 
 
 def fit_line_response(
@@ -350,7 +290,7 @@ def fit_line_response(
     blocks = np.repeat(
         np.arange(n_blocks), [len(b) for b in np.array_split(np.arange(t.raw.shape[0]), n_blocks)]
     )
-    found = _exponent_with_scatter(t, blocks, n_blocks)
+    found = exponent_with_scatter(t, blocks, n_blocks)
     if found is None:
         return None
     g, se, alternatives = found
@@ -365,11 +305,18 @@ def fit_line_response(
         se = math.hypot(se, shared)
     lo, hi = plateau_levels(plane, samples, mask & samples.valid, wide)
     return LineResponse(
-        g, se, lo, hi, _skew(t, slice(None), used_gamma), one_phase, alternatives, shared_sigma=shared
+        g,
+        se,
+        lo,
+        hi,
+        transition_skew_px(t, slice(None), used_gamma),
+        one_phase,
+        alternatives,
+        shared_sigma=shared,
     )
 
 
-def _one_phase_blur(t: _Transitions, used_gamma: float) -> float:
+def _one_phase_blur(t: Transitions, used_gamma: float) -> float:
     """The optical blur (Gaussian sigma, px) of a transition sampled at one pixel phase, NaN if unreadable.
 
     The profiles linearised with ``used_gamma``, normalised by their plateaus and averaged (the noise
@@ -394,352 +341,6 @@ def _one_phase_blur(t: _Transitions, used_gamma: float) -> float:
     a = np.log(step[j - 1 : j + 2])
     curv = float(a[0] - 2.0 * a[1] + a[2])
     return math.sqrt(max(-1.0 / curv - 1.0 / 6.0, 0.0)) if curv < 0 else float("nan")
-
-
-def _exponent_with_scatter(
-    t: _Transitions, blocks: np.ndarray, n_blocks: int
-) -> tuple[float, float, tuple[float, ...]] | None:
-    """The exponent of least asymmetry of all the profiles ``t``, its standard error from the scatter of
-    the exponents of the blocks (``blocks`` (N,): each profile's block), at least ``RESPONSE_SIGMA_FLOOR``,
-    and the other exponents about as symmetric (:func:`_least_asymmetric`); None where either of the first
-    two is not found."""
-    g_hat, alternatives = _least_asymmetric(t, np.geomspace(*RESPONSE_GAMMA_RANGE, 25))
-    if not math.isfinite(g_hat):
-        return None
-    per_block = _least_asymmetric_blocks(t, g_hat * np.geomspace(1 / 1.6, 1.6, 11), blocks, n_blocks)
-    per_block = per_block[np.isfinite(per_block)]
-    if per_block.size < 3:
-        return None
-    se = float(np.std(per_block, ddof=1)) / math.sqrt(per_block.size)
-    return g_hat, max(se, RESPONSE_SIGMA_FLOOR), alternatives
-
-
-def _asymmetry(
-    t: _Transitions, gammas: np.ndarray, blocks: np.ndarray | None = None, n_blocks: int = 0
-) -> np.ndarray:
-    """How far the profiles, with raw levels raised to each of ``gammas``, are from a step blurred by an
-    even spread: shape ``(G,)``, or ``(G, n_blocks)`` over the rows of each block (``blocks`` (N,) the
-    block of each profile).
-
-    Each profile is normalised by its plateaus (the mean of ``RESPONSE_PLATEAU_PX`` pixels at each end,
-    averaged over ``2 RESPONSE_LEVEL_ROWS + 1`` neighbouring scan lines: single noisy end pixels raised to
-    the trial exponent would make the normalised noise, and so this measure's floor, depend on the
-    exponent and pull its minimum) and centred on its own area estimate (exact for a pixel-integrated
-    step under any even point-spread function); in linear light the pixel values at distances ``+d`` and
-    ``-d`` from that centre then add up to 1. The measure is the mean square of that sum's departure
-    from 1 over 1/8-px bins of ``d`` filled on both sides (NaN if fewer than 4 are, or fewer than 3
-    profiles have two distinct plateaus).
-
-    All exponents (and blocks) are evaluated in one call of two compiled kernels
-    (:func:`_normalised_profiles`, :func:`_paired_asymmetry`): this runs on every plain edge of every image.
-    Blocks share the whole line's shading tilt and level smoothing (a slow shading is the line's, and a
-    block's own median of a few dozen plateau slopes would only add noise to its exponent).
-    """
-    with np.errstate(divide="ignore"):
-        v = np.exp(np.asarray(gammas, float)[:, None, None] * np.log(t.raw)[None])  # (G, N, W)
-    N = v.shape[1]
-    n, centre, good = _normalised_profiles(v, RESPONSE_PLATEAU_PX, min(2 * RESPONSE_LEVEL_ROWS + 1, N))
-    if t.one_phase:
-        return _resampled_asymmetry(n, centre, good, blocks, n_blocks)
-    blk = blocks.astype(np.int64) if blocks is not None else np.zeros(N, dtype=np.int64)
-    out = _paired_asymmetry(n, centre, good, blk, max(n_blocks, 1))
-    return out if blocks is not None else out[:, 0]
-
-
-# The two steps of _asymmetry are compiled: written with numpy they were ~30 passes over (G, N, W) arrays
-# of a few hundred kB, ~1.2 ms per call and 9 calls per edge-measuring image (11 ms of its ~27). The raw
-# levels are raised to the exponents by numpy (its vectorised exp); the kernels give the numbers the
-# numpy code gave, bit for bit: its sums in its order (numpy's pairwise sum along a row, scipy's running
-# sum in uniform_filter1d), its median, its bincount (tests/vision/test_jit.py holds them to the numpy
-# version kept in tests/vision/numpy_reference.py).
-
-
-def _normalised_warm_up(k) -> None:
-    k(np.full((2, 5, 10), 0.5), 3, 3)
-
-
-@kernel(_normalised_warm_up)
-def _normalised_profiles(v, pk, size):
-    """:func:`_asymmetry`'s profiles ``v`` (G, N, W) (light: raw levels raised to each exponent) without
-    their shading tilt, normalised by their plateaus (``pk`` px at each end, averaged over ``size`` scan
-    lines) over the inner ``L = W - 2 pk`` pixels: ``n`` (G, N, L), each profile's area centre (G, N,
-    index units) and whether its plateaus differ (G, N)."""
-    G, N, W = v.shape
-    L = W - 2 * pk
-    n = np.empty((G, N, L))
-    centre = np.empty((G, N))
-    good = np.zeros((G, N), dtype=np.bool_)
-    xs = np.empty(pk)
-    xx = 0.0
-    for j in range(pk):
-        xs[j] = j - (pk - 1) / 2.0
-        xx += xs[j] * xs[j]  # (exact: a sum of squares of multiples of 1/2)
-    rel = np.empty(2 * N)
-    scale = np.empty(W)
-    ends = np.empty((2, N))
-    row = np.empty(L)
-    for g in range(G):
-        # Shading across the edge (an illumination gradient, vignetting) multiplies the light by a slope
-        # that tilts both plateaus alike and would read as asymmetry: take it out, as the median relative
-        # slope of the plateau pixels over the line.
-        any_nan = False
-        for e in range(2):
-            o = 0 if e == 0 else W - pk
-            for i in range(N):
-                sl = 0.0
-                for j in range(pk):
-                    sl += xs[j] * v[g, i, j + o]
-                sl = sl / xx
-                lev = 0.0
-                for j in range(1, pk):
-                    lev += v[g, i, j + o]
-                lev = lev + v[g, i, o]
-                m = lev / pk
-                r = sl / (m if (m > 1e-9 or np.isnan(m)) else 1e-9)  # np.maximum(m, 1e-9)
-                rel[e * N + i] = r
-                any_nan = any_nan or np.isnan(r)
-        tilt = np.nan
-        if N > 0 and not any_nan:  # (np.median is NaN where a value is)
-            tilt = median_in_place(rel)
-        if not np.isfinite(tilt):
-            tilt = 0.0
-        for w in range(W):
-            scale[w] = 1.0 / (1.0 + tilt * (w - (W - 1) / 2.0))
-        # the plateaus' levels: their means over the end pixels, then over neighbouring scan lines
-        for e in range(2):
-            o = 0 if e == 0 else W - pk
-            for i in range(N):
-                sm = 0.0
-                for j in range(pk):
-                    sm += v[g, i, o + j] * scale[o + j]
-                ends[e, i] = sm / pk
-        lo = _running_mean_nearest(ends[0], size)
-        hi = _running_mean_nearest(ends[1], size)
-        for i in range(N):
-            span = hi[i] - lo[i]
-            good[g, i] = abs(span) > 1e-9
-            den = span if good[g, i] else 1.0
-            for k in range(L):
-                # 0 on the first end, 1 on the last: any polarity
-                row[k] = (v[g, i, pk + k] * scale[pk + k] - lo[i]) / den
-                n[g, i, k] = row[k]
-            # area estimate, index units: (L - 1) minus the trapezoid area of the normalised profile
-            centre[g, i] = (L - 1) - (pairwise_sum(row, 0, L) - 0.5 * (row[0] + row[L - 1]))
-    return n, centre, good
-
-
-def _paired_warm_up(k) -> None:
-    k(np.full((2, 5, 6), 0.5), np.full((2, 5), 2.5), np.ones((2, 5), np.bool_), np.zeros(5, np.int64), 1)
-
-
-@kernel(_paired_warm_up)
-def _paired_asymmetry(n, centre, good, blocks, nb):
-    """:func:`_asymmetry`'s measure over the normalised profiles (:func:`_normalised_profiles`) of each
-    block (``blocks`` (N,) < ``nb``): (G, nb)."""
-    G, N, L = n.shape
-    B = 4 * (L - 1)  # |d| * 8 never exceeds it inside the reach
-    nbins = 2 * B + 1
-    out = np.empty((G, nb))
-    acc = np.zeros((nb, nbins))
-    cnt = np.zeros((nb, nbins), dtype=np.int64)
-    rows_ok = np.zeros(nb)
-    rr = np.empty(B)
-    reach = (L - 1) / 2.0 - 1.0
-    for g in range(G):
-        acc[:] = 0.0
-        cnt[:] = 0
-        rows_ok[:] = 0.0
-        for i in range(N):
-            if not good[g, i]:
-                continue
-            b = blocks[i]
-            rows_ok[b] += 1.0
-            for k in range(L):
-                d = k - centre[g, i]
-                if abs(d) <= reach:
-                    at = int(np.rint(d * 8)) + B
-                    acc[b, at] += n[g, i, k]
-                    cnt[b, at] += 1
-        for b in range(nb):
-            m = 0
-            for k in range(B):
-                cp, cn = cnt[b, B + 1 + k], cnt[b, B - 1 - k]  # bins at +d and -d, d = (k + 1) / 8
-                if cp > 0 and cn > 0:
-                    r = acc[b, B + 1 + k] / cp + acc[b, B - 1 - k] / cn - 1.0
-                    rr[k] = r * r
-                    m += 1
-                else:
-                    rr[k] = 0.0
-            out[g, b] = pairwise_sum(rr, 0, B) / m if m >= 4 and rows_ok[b] >= 3 else np.nan
-    return out
-
-
-@kernel()
-def _running_mean_nearest(x, size):
-    """scipy.ndimage.uniform_filter1d(x, size, mode="nearest") as scipy computes it (a running sum over the
-    line extended by its end values, each output the sum over ``size``)."""
-    N = x.size
-    out = np.empty(N)
-    if N == 0:
-        return out
-    s1 = size // 2
-    tot = 0.0
-    for k in range(size):
-        tot += x[min(max(k - s1, 0), N - 1)]
-    out[0] = tot / size
-    for i in range(1, N):
-        tot += x[min(i + size - 1 - s1, N - 1)] - x[max(i - 1 - s1, 0)]
-        out[i] = tot / size
-    return out
-
-
-def _resampled_asymmetry(
-    n: np.ndarray, centre: np.ndarray, good: np.ndarray, blocks: np.ndarray | None, n_blocks: int
-) -> np.ndarray:
-    """:func:`_asymmetry`'s measure where every profile samples the transition at one pixel phase.
-
-    There the pixels at ``+d`` from the centre have no partners at ``-d``: the profiles of each block
-    (normalised ``n`` (G, N, L), their area centres ``centre`` (G, N), ``good`` (G, N)) are averaged
-    (their phases lie within a fraction of a pixel: the mean is the transition smoothed by an even spread,
-    still symmetric in linear light) and the mean transition is read at ``centre +- d`` by a cubic spline
-    through its pixels. The spline is exact enough only where the blur makes the transition smooth on the
-    pixel scale (optical sigma 1 px and more: errors of a few per cent in the exponent on synthetic steps,
-    up to a fifth at high exponents, where the measure is flat), so its readings carry a floor
-    (``RESPONSE_ONE_PHASE_SIGMA``). A cubic spline and not a local kernel: on the same synthetic steps
-    (exponents 1.0-2.2, blur 1.0-1.4 px, six phases) Keys' cubic convolution and a Lanczos-3 window
-    misread the exponent by up to 0.6 and 2.0, the spline by up to 0.06 below 1.6 and 0.5 at 2.2. Same
-    shapes and NaN rules as :func:`_asymmetry`.
-    """
-    G, N, L = n.shape
-    nb = max(n_blocks, 1)
-    blk = blocks if blocks is not None else np.zeros(N, dtype=np.int64)
-    onehot = np.zeros((N, nb))
-    onehot[np.arange(N), blk] = 1.0
-    w = good.astype(np.float64)
-    cnt = w @ onehot  # (G, nb) profiles per group
-    mean_n = np.einsum("gn,nb,gnl->gbl", w, onehot, np.where(good[:, :, None], n, 0.0))
-    mean_c = np.einsum("gn,nb,gn->gb", w, onehot, np.where(good, centre, 0.0))
-    ok = cnt >= 3
-    mean_n = np.where(ok[:, :, None], mean_n / np.maximum(cnt, 1.0)[:, :, None], 0.0).reshape(G * nb, L)
-    mean_c = np.where(ok, mean_c / np.maximum(cnt, 1.0), 0.0).reshape(G * nb)
-    coef = CubicSpline(np.arange(L, dtype=np.float64), mean_n, axis=1).c  # (4, L - 1, G nb)
-    d = np.arange(1, 4 * (L - 1) + 1) / 8.0
-    d = d[d <= (L - 1) / 2.0 - 1.0]
-    cols = np.arange(G * nb)[:, None]
-
-    def at(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        inside = (x >= 0.0) & (x <= L - 1)
-        i = np.clip(np.floor(x).astype(np.int64), 0, L - 2)
-        u = x - i
-        c = coef[:, i, cols]  # (4, G nb, D)
-        return ((c[0] * u + c[1]) * u + c[2]) * u + c[3], inside
-
-    fp, ip = at(mean_c[:, None] + d[None, :])
-    fn, i_n = at(mean_c[:, None] - d[None, :])
-    both = ip & i_n
-    r = np.where(both, fp + fn - 1.0, 0.0)
-    m = both.sum(axis=1)
-    out = np.where((m >= 4) & ok.reshape(-1), (r * r).sum(axis=1) / np.maximum(m, 1), np.nan)
-    return out.reshape(G, nb) if blocks is not None else out.reshape(G)
-
-
-def _least_index_warm_up(k) -> None:
-    k(np.array([1.0, np.nan, 0.5]))
-    k(np.ones((3, 2))[:, 0])  # a block's column of _least_asymmetric_blocks' (G, n_blocks) table
-
-
-@kernel(_least_index_warm_up)
-def _least_index(a):
-    """``np.nanargmin(a)`` where ``a`` has a finite value, else -1 (the first index of the least value that
-    is not NaN: with a finite value present the least is finite, as nanargmin's NaN-as-infinity finds it).
-    Compiled because :func:`_vertex` runs ~30 times per edge-measuring image, and nanargmin's masks and
-    copies were half of its ~34 us."""
-    best = -1
-    finite = False
-    for k in range(a.size):
-        v = a[k]
-        if not np.isnan(v) and (best < 0 or v < a[best]):
-            best = k
-        finite = finite or np.isfinite(v)
-    return best if finite else -1
-
-
-def _vertex(grid: np.ndarray, a: np.ndarray) -> float:
-    """The minimum of ``a`` over the increasing ``grid``: the vertex of the parabola (in ``log g``) through
-    the least value and its two neighbours; the least grid value at an end or beside a NaN."""
-    i = int(_least_index(a))
-    if i < 0:
-        return float("nan")
-    if i == 0 or i == grid.size - 1 or not (math.isfinite(a[i - 1]) and math.isfinite(a[i + 1])):
-        return float(grid[i])
-    # the parabola through three points in closed form (np.polyfit's least squares on three points is the
-    # same curve at ~50x the cost; this runs ~40 times per line)
-    x0, x1, x2 = (math.log(float(g)) for g in grid[i - 1 : i + 2])
-    y0, y1, y2 = float(a[i - 1]), float(a[i]), float(a[i + 1])
-    s0, s2 = (y0 - y1) / (x0 - x1), (y2 - y1) / (x2 - x1)
-    curv = (s2 - s0) / (x2 - x0)
-    if curv <= 0:
-        return float(grid[i])
-    # slope at x1 of the parabola: s0 + curv (x1 - x0), so its vertex lies that over 2 curv before x1
-    return float(math.exp(min(max(x1 - (s0 + curv * (x1 - x0)) / (2.0 * curv), x0), x2)))
-
-
-def _least_asymmetric(t: _Transitions, grid: np.ndarray) -> tuple[float, tuple[float, ...]]:
-    """The exponent of least :func:`_asymmetry`: the best of ``grid``, then of a grid four times finer
-    between its neighbours (steps of 2.7 % on the 25-point range grid), refined by a parabola: good to
-    far below the exponent's standard error. And the other exponents (each refined alike) where the
-    asymmetry has a minimum within ``RESPONSE_AMBIGUOUS_RATIO`` of the least, where the rounding to grey
-    levels is not dithered by noise (``t.dithered``): there the least asymmetry is the rounding's, the
-    same on every profile at one phase, and no measure of how well the two minima are told apart. Under
-    noise the least is a noise floor that the comparison of the two minima averages: on noisy linear
-    renders (1.2-2.8 grey levels) a second minimum at 2.2-2.5 came within 1.3-1.7 of the least, and
-    the primary reading was the camera's every time.
-
-    Why a second one: the asymmetry is not monotone in the exponent. Linearised with ``p`` times the
-    camera's exponent, the transition's slope is the blur's spread weighted by the light raised to
-    ``p - 1``, which for some ``p`` of about 2.5-3 (depending on the plateaus' ratio) is a spread shifted
-    towards the bright side and again nearly symmetric. On a rendered 1.34 camera (plateaus 59 and 236
-    grey levels, 1.7 px of blur) the asymmetry's two minima, at 1.38 and 3.6, differed by a factor 1.2 at
-    16 bits, and at 8 bits without noise to dither the rounding (every pixel of a 1/8 px bin rounded
-    alike) the false one at 2.25 was the lower: the cell's right exponent was replaced by it and the
-    door placed 0.11 mm off at 8 sigma.
-    """
-    a = _asymmetry(t, grid)
-    i = int(_least_index(a))
-    if i < 0:
-        return float("nan"), ()
-
-    def refined(i: int) -> float:
-        fine = np.geomspace(grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)], 9)
-        return _vertex(fine, _asymmetry(t, fine))
-
-    others = [
-        j
-        for j in range(1, grid.size - 1)
-        if not t.dithered
-        and abs(j - i) > 2
-        and np.isfinite(a[j - 1 : j + 2]).all()
-        and a[j] <= min(a[j - 1], a[j + 1])
-        and a[j] <= RESPONSE_AMBIGUOUS_RATIO * a[i]
-    ]
-    return refined(i), tuple(g for g in (refined(j) for j in others) if math.isfinite(g))
-
-
-def _least_asymmetric_blocks(
-    t: _Transitions, grid: np.ndarray, blocks: np.ndarray, n_blocks: int
-) -> np.ndarray:
-    """:func:`_least_asymmetric` on each block of profiles (NaN where a block has no minimum)."""
-    a = _asymmetry(t, grid, blocks, n_blocks)  # (G, n_blocks)
-    coarse = [_vertex(grid, a[:, k]) for k in range(n_blocks)]  # (NaN where a block has no finite value)
-    found = [g for g in coarse if math.isfinite(g)]
-    if not found:
-        return np.full(n_blocks, np.nan)
-    step = grid[1] / grid[0]
-    fine = np.geomspace(min(found) / step, max(found) * step, 21)
-    af = _asymmetry(t, fine, blocks, n_blocks)
-    return np.array(
-        [_vertex(fine, af[:, k]) if math.isfinite(coarse[k]) else math.nan for k in range(n_blocks)]
-    )
 
 
 def combine_responses(
@@ -954,19 +555,21 @@ def fit_board_response(
     if len(raws) < 3 * RESPONSE_SKEW_BLOCKS:
         return None
     raw = np.concatenate(raws)
-    t = _Transitions(raw, np.concatenate(offsets), dithered=_dithered(raw, top))
+    t = Transitions(raw, np.concatenate(offsets), dithered=dithered(raw, top))
     # blocks of whole edges (neighbouring edges share the board's print and light, far ones need not)
     n_blocks = 2 * RESPONSE_SKEW_BLOCKS
     edge_block = np.array_split(np.arange(len(raws)), n_blocks)
     blocks = np.concatenate(
         [np.full(raws[i].shape[0], k) for k, idx in enumerate(edge_block) for i in idx]
     ).astype(np.int64)
-    found = _exponent_with_scatter(t, blocks, n_blocks)
+    found = exponent_with_scatter(t, blocks, n_blocks)
     if found is None:
         return None
     g, se, alternatives = found
     lo, hi = (float(v) for v in np.median(t.raw[:, [0, -1]], axis=0))
-    return LineResponse(g, se, lo, hi, _skew(t, slice(None), used_gamma), alternatives=alternatives)
+    return LineResponse(
+        g, se, lo, hi, transition_skew_px(t, slice(None), used_gamma), alternatives=alternatives
+    )
 
 
 #: fewest board images whose responses :func:`board_response` pools (their scatter is the doubt)
