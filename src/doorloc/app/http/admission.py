@@ -19,7 +19,14 @@ from doorloc.app.decodepool import DecodeRefused
 from doorloc.app.http.problems import ProblemError
 from doorloc.app.http.state import ServiceState
 
-__all__ = ["client_of", "shedding_problem", "take_cpu_slot", "release_cpu_slot", "decode_upload"]
+__all__ = [
+    "client_of",
+    "shedding_problem",
+    "take_cpu_slot",
+    "release_cpu_slot",
+    "decode_upload",
+    "refusal_problem",
+]
 
 
 def client_of(scope_state: dict) -> str:
@@ -100,6 +107,12 @@ def release_cpu_slot(state: ServiceState, client: str) -> None:
     _forget(state, client)
 
 
+def refusal_problem(e: DecodeRefused) -> ProblemError:
+    """The problem answer of an image the limited worker processes did not decode or locate."""
+    headers = {"Retry-After": "5"} if e.status == 503 else None
+    return ProblemError(e.status, e.code, e.detail, headers=headers)
+
+
 def decode_upload(state: ServiceState, data: bytes, name: str, deadline: float | None) -> np.ndarray:
     """The uploaded image decoded within the limits (blocking: call it in a worker thread).
 
@@ -121,8 +134,7 @@ def decode_upload(state: ServiceState, data: bytes, name: str, deadline: float |
             f"The image could not be decoded ({e}); the file is probably damaged or truncated: send it again.",
         ) from None
     except DecodeRefused as e:
-        headers = {"Retry-After": "5"} if e.status == 503 else None
-        raise ProblemError(e.status, e.code, e.detail, headers=headers) from None
+        raise refusal_problem(e) from None
     if image.nbytes > state.settings.max_decoded_bytes:
         raise ProblemError(
             422,
