@@ -173,6 +173,13 @@ class ServiceSettings(BaseSettings):
         description="locate requests one client (API key) may have running or queued in a worker; "
         "default: half the worker's slots plus queue, at least 1",
     )
+    max_per_address: int | None = Field(
+        None,
+        ge=1,
+        description="locate requests one client address (after trusted proxies) may have running or queued "
+        "under one API key in a worker, so that one machine sharing a key cannot take the key's whole share; "
+        "default: half the key's share, rounded up",
+    )
 
     @field_validator("allowed_hosts", "trusted_proxies", mode="before")
     @classmethod

@@ -24,6 +24,7 @@ from doorloc.app.access import Role
 from doorloc.app.answer import Answer, DoorChoice, LocateResponse, overlay_png
 from doorloc.app.decodepool import DecodeRefused
 from doorloc.app.http.admission import (
+    address_of,
     client_of,
     decode_upload,
     refusal_problem,
@@ -99,14 +100,14 @@ async def post_locate(
         _check_upload(data, name, state)
         choice = await _door_choice(state, door_id, width_mm, thickness_mm, height_mm, arris_mm)
         deadline = request.scope.get("state", {}).get("deadline")
-        client = client_of(request.scope.get("state", {}))
-        await take_cpu_slot(state, deadline, client)
+        client, address = client_of(request.scope.get("state", {})), address_of(request.scope)
+        await take_cpu_slot(state, deadline, client, address)
         try:
             answer = await anyio.to_thread.run_sync(
                 _measure, data, name, state, choice, overlay, rapid, deadline
             )
         finally:
-            release_cpu_slot(state, client)
+            release_cpu_slot(state, client, address)
     except ProblemError as e:
         state.metrics.rejected_uploads.labels(e.code).inc()
         raise

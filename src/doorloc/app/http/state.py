@@ -52,6 +52,8 @@ class ServiceState:
     locator: DecodePool | None = field(init=False)
     #: per client (key name, else address): locate requests running or queued (fair shedding)
     client_admitted: dict[str, int] = field(init=False, default_factory=dict)
+    #: per (key, client address) within a key's share: locate requests running or queued
+    address_admitted: dict[tuple[str, str], int] = field(init=False, default_factory=dict)
 
     def __post_init__(self) -> None:
         self.limiter = FairSlots(self.settings.locate_concurrency)
@@ -93,6 +95,13 @@ class ServiceState:
         if self.settings.max_per_client is not None:
             return self.settings.max_per_client
         return max(1, self.capacity // 2)
+
+    @property
+    def per_address_limit(self) -> int:
+        """Locate requests one address may have running or queued under one key in this worker at once."""
+        if self.settings.max_per_address is not None:
+            return self.settings.max_per_address
+        return max(1, -(-self.per_client_limit // 2))
 
     @property
     def access_mode(self) -> str:
