@@ -13,7 +13,7 @@ import json
 import os
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Literal, get_args
+from typing import Annotated, Any, Literal, get_args
 
 import numpy as np
 import yaml
@@ -23,6 +23,7 @@ from doorloc.calib.camera import CameraModel, Extrinsics, PosedCamera
 from doorloc.calib.io import CalibrationFileError, load_calibration
 from doorloc.domain import ArrisProfile, DoorSize
 from doorloc.fileio import atomic_write_text
+from doorloc.limits import DEFAULT_MILLING_LIMITS, MillingLimits
 from doorloc.robot.section import RobotSectionError, robot_section_from_doc
 from doorloc.vision.config import LocateConfig
 
@@ -94,6 +95,9 @@ class Cell:
         The ``locate:`` section: thresholds and settings of the pipeline that a cell sets once.
     robot_section : dict or None
         The ``robot:`` section as written (robot model, base, tool; shared/SPEC.md section 9).
+    milling : MillingLimits
+        The ``milling:`` section: the spindle's speed range, the feeds and the hinge cutter's reach that bound
+        every recipe milled here (doorloc's defaults, :mod:`doorloc.limits`, for what the file leaves out).
     provenance : dict
         What made this file (e.g. the model check that extended it: dataset, date, software version).
     sha256, calibration_sha256 : str or None
@@ -119,6 +123,7 @@ class Cell:
     calibration_sha256: str | None = None
     calibration_covariance: np.ndarray | None = field(default=None, compare=False)
     calibration_covariance_names: tuple[str, ...] = ()
+    milling: MillingLimits = DEFAULT_MILLING_LIMITS
 
     @property
     def posed_camera(self) -> PosedCamera:
@@ -181,6 +186,35 @@ class _DoorDoc(_Section):
     arris_profile: Literal["chamfer", "round"] = "chamfer"
 
 
+PositiveNum = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+
+
+class _MillingDoc(_Section):
+    """The spindle and the hinge cutter (``milling:``); a key left out is doorloc's default (doorloc.limits).
+
+    The upper ends stay below what no spindle or robot feed is (100,000 rev/min, 5,000 mm/s): a typo there
+    would otherwise open the recipes' own bounds.
+    """
+
+    spindle_rpm: tuple[PositiveNum, PositiveNum] | None = None
+    feed_mm_s: tuple[PositiveNum, PositiveNum] | None = None
+    tool_reach_mm: PositiveNum | None = None
+
+    @model_validator(mode="after")
+    def _ranges(self) -> _MillingDoc:
+        for name, top in (("spindle_rpm", 100_000.0), ("feed_mm_s", 5_000.0)):
+            r = getattr(self, name)
+            if r is not None and not r[0] < r[1] <= top:
+                raise ValueError(
+                    f"{name} must be [lowest, highest] with lowest < highest <= {top:g}, got {list(r)}"
+                )
+        return self
+
+    def limits(self, source: str) -> MillingLimits:
+        given = {k: v for k, v in self.model_dump().items() if v is not None}
+        return replace(DEFAULT_MILLING_LIMITS, **given, source=source, stated=frozenset(given))
+
+
 class _CellDoc(_Section):
     camera: _CameraDoc
     fixture: _FixtureDoc = Field(default_factory=_FixtureDoc)
@@ -188,6 +222,7 @@ class _CellDoc(_Section):
     door: _DoorDoc = Field(default_factory=_DoorDoc)
     locate: dict[str, Any] = Field(default_factory=dict)
     robot: dict[str, Any] | None = None
+    milling: _MillingDoc = Field(default_factory=_MillingDoc)
     provenance: dict[str, Any] = Field(default_factory=dict)
 
 
@@ -375,6 +410,7 @@ def parse_cell(
         calibration_sha256=calibration_sha,
         calibration_covariance=cov,
         calibration_covariance_names=cov_names,
+        milling=cd.milling.limits(str(source)),
     )
 
 
@@ -437,6 +473,9 @@ def cell_to_dict(cell: Cell) -> dict:
         doc["locate"] = changed
     if cell.robot_section is not None:
         doc["robot"] = cell.robot_section
+    milling = {k: getattr(cell.milling, k) for k in sorted(cell.milling.stated)}
+    if milling:
+        doc["milling"] = {k: list(v) if isinstance(v, tuple) else v for k, v in milling.items()}
     if cell.provenance:
         doc["provenance"] = cell.provenance
     return doc

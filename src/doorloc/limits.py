@@ -16,8 +16,11 @@ Examples
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
 
 __all__ = [
+    "MillingLimits",
+    "DEFAULT_MILLING_LIMITS",
     "DOOR_RANGES_MM",
     "SPEC_RANGES_MM",
     "TOOL_DIAMETER_RANGE_MM",
@@ -53,6 +56,44 @@ FEED_RANGE_MM_S = (0.1, 500.0)
 #: are 2-5 mm thick). A pocket is also shallower than the door is thick
 TOOL_REACH_MM = 25.0
 
+
+@dataclass(frozen=True)
+class MillingLimits:
+    """What the cell's spindle and hinge cutter can do: the bounds a recipe's speed, feed and depth must keep.
+
+    A cell file states them in its ``milling:`` section (shared/SPEC.md section 2); each bound it leaves out is
+    doorloc's default (:data:`SPINDLE_RPM_RANGE`, :data:`FEED_RANGE_MM_S`, :data:`TOOL_REACH_MM`).
+
+    Attributes
+    ----------
+    spindle_rpm : (float, float)
+        The spindle's speed range, rev/min.
+    feed_mm_s : (float, float)
+        The milling feeds the cell runs, mm/s along the path.
+    tool_reach_mm : float
+        The deepest pocket the hinge cutter mills, mm (its cutting length).
+    source : str or None
+        The cell file that stated them (None: no cell file).
+    stated : frozenset of str
+        The bounds (``spindle_rpm``, ``feed_mm_s``, ``tool_reach_mm``) that file states; the others are defaults.
+    """
+
+    spindle_rpm: tuple[float, float] = SPINDLE_RPM_RANGE
+    feed_mm_s: tuple[float, float] = FEED_RANGE_MM_S
+    tool_reach_mm: float = TOOL_REACH_MM
+    source: str | None = None
+    stated: frozenset[str] = field(default_factory=frozenset)
+
+    def origin(self, bound: str) -> str:
+        """Where ``bound`` came from, for a refusal: ``"milling.spindle_rpm in cell.yaml"`` or the default."""
+        if bound in self.stated:
+            return f"milling.{bound} in {self.source or 'the cell file'}"
+        return f"doorloc's default; a cell file sets it as milling.{bound}"
+
+
+#: the bounds of a cell whose file states none
+DEFAULT_MILLING_LIMITS = MillingLimits()
+
 _WORDS = {
     "thickness_mm": "door thickness",
     "width_mm": "door width",
@@ -73,19 +114,29 @@ class DoorRangeError(ValueError):
         self.field = field
 
 
-def range_sentence(field: str, value: float, lo: float, hi: float) -> str:
-    """``"door width (width_mm) 1e+308 mm is outside the accepted 150-1500 mm ..."``: what is wrong and what is accepted."""
+def range_sentence(
+    field: str, value: float, lo: float, hi: float, milling: MillingLimits | None = None
+) -> str:
+    """``"door width (width_mm) 1e+308 mm is outside the accepted 150-1500 mm ..."``: what is wrong and what is
+    accepted (for the spindle speed and the feed, which bound it is and where it came from: ``milling``)."""
     what = _WORDS.get(field, field)
     spec = SPEC_RANGES_MM.get(field)
     note = f" (the cell is built for {spec[0]:g}-{spec[1]:g} mm)" if spec else ""
     if field in ("spindle_rpm", "feed_mm_s"):
-        note = " (the spindle's range)" if field == "spindle_rpm" else " (the cell's milling feeds)"
+        whose = "the spindle's range" if field == "spindle_rpm" else "the cell's milling feeds"
+        note = f" ({whose}: {(milling or DEFAULT_MILLING_LIMITS).origin(field)})"
     unit = _UNITS.get(field, "mm")
     return f"{what} ({field}) {value:g} {unit} is outside the accepted {lo:g}-{hi:g} {unit}{note}"
 
 
-def check_range(field: str, value: float, bounds: tuple[float, float] | None = None) -> float:
-    """``value`` when it is a finite number inside the field's range, else DoorRangeError naming the field."""
+def check_range(
+    field: str,
+    value: float,
+    bounds: tuple[float, float] | None = None,
+    milling: MillingLimits | None = None,
+) -> float:
+    """``value`` when it is a finite number inside the field's range, else DoorRangeError naming the field
+    (``milling``: where the spindle speed's and feed's ranges came from, for the sentence)."""
     lo, hi = bounds or DOOR_RANGES_MM[field]
     v = float(value)
     if not math.isfinite(v):
@@ -94,7 +145,7 @@ def check_range(field: str, value: float, bounds: tuple[float, float] | None = N
             f"{_WORDS.get(field, field)} ({field}) must be a finite number of millimetres, got {value!r}",
         )
     if not lo <= v <= hi:
-        raise DoorRangeError(field, range_sentence(field, v, lo, hi))
+        raise DoorRangeError(field, range_sentence(field, v, lo, hi, milling))
     return v
 
 

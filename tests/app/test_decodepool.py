@@ -77,3 +77,38 @@ def test_undecodable_bytes_are_422(pool):
     with pytest.raises(DecodeRefused) as e:
         pool.decode(b"\x89PNG\r\n\x1a\n" + b"\0" * 100, "cut.png", timeout_s=60)
     assert e.value.status == 422 and e.value.code == "undecodable_image"
+
+
+# ---------------------------------------------------------------------------------------------- locating
+
+
+def spinning_locate(image, cell, door, *, image_name="", trace=None):
+    """A locate that an image makes pathological: it never ends (a worker must be ended from outside)."""
+    if int(image[0, 0]) == 255:
+        while True:
+            pass
+    from doorloc.vision.result import LocateResult
+
+    return LocateResult.refusal(image_name, "no_door", f"{image.shape} seen")
+
+
+def test_a_locate_past_its_cpu_limit_ends_its_worker_and_the_next_is_answered():
+    from doorloc.cell import load_cell
+
+    from .conftest import CELL_PATH
+
+    cell = load_cell(CELL_PATH)
+    quiet, wild = np.zeros((6, 8), np.uint8), np.full((6, 8), 255, np.uint8)
+    with DecodePool(1, cpu_s=1, memory_bytes=300_000_000, locate_fn=spinning_locate, locate_cpu_s=1) as pool:
+        pool.start()
+        assert (
+            "(6, 8) seen" in pool.locate(quiet, cell, cell.default_door, image_name="q", timeout_s=60).error
+        )
+        with pytest.raises(DecodeRefused) as e:
+            pool.locate(wild, cell, cell.default_door, image_name="w", timeout_s=60)
+        assert (e.value.status, e.value.code) == (422, "locate_limit") and "CPU time" in e.value.detail
+        assert pool.killed == 1
+        # a fresh worker answers the next image (decoding too: one pool for both)
+        assert pool.locate(quiet, cell, cell.default_door, image_name="q", timeout_s=60).ok is False
+        png = cv2.imencode(".png", quiet)[1].tobytes()
+        assert pool.decode(png, "q.png", timeout_s=60).shape == (6, 8)

@@ -68,3 +68,31 @@ def test_slots_are_never_handed_out_twice(n):
         return peak[0], slots.free
 
     assert _run(script) == (n, n)
+
+
+def test_within_a_shared_key_each_address_gets_its_turn():
+    """One machine flooding with a shared key does not put another machine's request (same key) behind all of
+    its own; other keys keep their turn among the keys."""
+
+    async def script():
+        slots, order = FairSlots(1), []
+        await slots.acquire("key:line", "10.0.0.5")
+
+        async def one(client, member, tag):
+            await slots.acquire(client, member)
+            order.append(tag)
+            slots.release()
+
+        async with anyio.create_task_group() as tg:
+            for k in range(4):
+                tg.start_soon(one, "key:line", "10.0.0.5", f"flood{k}")
+                await anyio.sleep(0.005)
+            tg.start_soon(one, "key:line", "10.0.0.6", "panel")
+            await anyio.sleep(0.005)
+            tg.start_soon(one, "key:office", "10.0.1.1", "office")
+            await anyio.sleep(0.005)
+            slots.release()
+        return order
+
+    # keys in turn (line, office, line, ...), and within the line's key its two addresses in turn
+    assert _run(script) == ["flood0", "office", "panel", "flood1", "flood2", "flood3"]

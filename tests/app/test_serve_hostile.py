@@ -457,6 +457,48 @@ def test_a_decoder_past_its_cpu_limit_ends_its_worker_and_the_service_goes_on(ti
     assert httpx.post(f"{tight}/v1/locate", files=_img(SMALL), timeout=60).status_code == 200
 
 
+def _descendants(pid: int) -> list[int]:
+    from pathlib import Path
+
+    out, todo = [], [pid]
+    while todo:
+        for task in Path(f"/proc/{todo.pop()}/task").glob("*/children"):
+            kids = [int(k) for k in task.read_text().split()]
+            out += kids
+            todo += kids
+    return out
+
+
+def test_locate_runs_in_a_process_with_cpu_and_memory_limits(tmp_path, cell):
+    """The locate step of a request runs in a worker process with a CPU-time and a memory limit (a pathological
+    image ends that process, 422 locate_limit: tests/app/test_decodepool.py ends one at its CPU limit) that
+    holds locate's kernels; a real door is still measured."""
+    from pathlib import Path
+
+    from doorloc.pose import DoorPose
+    from doorloc.sim.door import render_door
+
+    env = {"DOORLOC_LOCATE_CONCURRENCY": "1", "DOORLOC_LOCATE_MEMORY_BYTES": "300000000"}
+    base, proc, log = launch_serve(tmp_path, "--workers", "1", "--open", "--create-database", env=env)
+    try:
+        truth = DoorPose(1.0, -2.0, 0.3)
+        door = png_bytes(render_door(cell, cell.default_door, truth, seed=5).image)
+        r = httpx.post(f"{base}/v1/locate", files=_img(door), timeout=60)
+        assert r.status_code == 200 and abs(r.json()["x_mm"] - truth.x_mm) < 0.05, r.text
+
+        def jit_loaded(pid: int) -> bool:
+            return "llvmlite" in Path(f"/proc/{pid}/maps").read_text()
+
+        locators = [p for p in _descendants(proc.pid) if jit_loaded(p)]
+        assert len(locators) == 1, locators  # one CPU slot: one locating process
+        limits = Path(f"/proc/{locators[0]}/limits").read_text().splitlines()
+        cpu = next(line for line in limits if line.startswith("Max cpu time"))
+        memory = next(line for line in limits if line.startswith("Max address space"))
+        assert cpu.split()[3] != "unlimited" and memory.split()[3] != "unlimited", limits
+    finally:
+        stop_serve(proc, log)
+
+
 def test_tiff_tiles_and_float_samples_are_counted_before_decoding(svc):
     """Issue defect: a 260 KB TIFF of 64x64 px with 16368^2 tiles took 1 GB; 32-bit floats counted as 16-bit."""
     base, h, _ = svc

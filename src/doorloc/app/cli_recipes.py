@@ -11,16 +11,29 @@ import json
 import sys
 from enum import StrEnum
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from doorloc.app.cli_common import DbOption, PoseCommand, PoseOption, open_store
+from doorloc.app.cli_common import DbOption, PoseCommand, PoseOption, load_cell_or_fail, open_store
 from doorloc.app.errors import EXIT_FAILED, EXIT_REFUSED, EXIT_USAGE, fail
 
 if TYPE_CHECKING:
     from doorloc.cell import Fixture
+    from doorloc.limits import MillingLimits
+    from doorloc.recipes.models import DoorRecipe
     from doorloc.recipes.rapid import RobotSetup
+
+
+#: ``--cell`` of the commands that only need the cell's spindle and cutter bounds (its ``milling:`` section)
+MillingCellOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--cell",
+        help="cell.yaml whose milling: section (spindle speeds, feeds, tool reach) bounds the recipes; "
+        "default: doorloc's defaults",
+    ),
+]
 
 
 class ListFormat(StrEnum):
@@ -104,24 +117,14 @@ def import_cmd(
     replace: bool = typer.Option(
         False, "--replace", help="overwrite stored recipes that differ (each a new version)"
     ),
+    cell: MillingCellOption = None,
 ) -> None:
     """Import a recipe file in one transaction: all its doors, or (with any bad row) none.
 
     Doors already stored with a different recipe are listed with what would change; they are only
-    overwritten with --replace (each change becomes a new version in the recipe's history).
+    overwritten with --replace (each a new version in the history). --cell: its spindle and cutter bounds.
     """
-    from doorloc.recipes.importer import RecipeImportError, load_recipe_file
-
-    if not file.is_file():
-        raise fail(f"no such recipe file: {file}")
-    try:
-        recipes = load_recipe_file(file)
-    except RecipeImportError as e:
-        raise fail(str(e), EXIT_USAGE) from None
-    except OSError as e:
-        raise fail(f"cannot read {file}: {e.strerror or e}") from None
-    except Exception as e:  # e.g. a damaged .xlsx (zip/xml errors from openpyxl)
-        raise fail(f"cannot read {file} as a recipe file: {e.__class__.__name__}: {e}") from None
+    recipes = _read_recipe_file(file, cell)
     hinges = sum(len(r.hinges) for r in recipes)
     if dry_run and db is None:
         typer.echo(f"{file}: {len(recipes)} door(s), {hinges} hinge(s) OK (dry run, nothing written)")
@@ -308,14 +311,8 @@ def targets_cmd(
     from doorloc.recipes.rapid import rapid_module, rapid_text
     from doorloc.recipes.targets import targets_for_pose
 
-    fixture, robot = _fixture_and_robot(cell)
-    store = open_store(db)
-    with store:
-        recipe = store.get(door_id)
-    if recipe is None:
-        raise fail(
-            f"no recipe for door {door_id!r} in the database; import one with 'doorloc recipes import'"
-        )
+    fixture, robot, milling = _fixture_and_robot(cell)
+    recipe = _stored_recipe(db, door_id, milling)
     door_pose = DoorPose(*pose)
     face_y = fixture.face_y(recipe.width_mm)
     targets = targets_for_pose(
@@ -341,17 +338,64 @@ def targets_cmd(
     _emit(text, out)
 
 
-def _fixture_and_robot(cell: Path | None) -> tuple[Fixture, RobotSetup]:
-    """The cell file's fixture and RAPID robot data (the defaults without a cell); exit 2 for a bad file."""
+def _read_recipe_file(file: Path, cell: Path | None) -> list[DoorRecipe]:
+    """The recipes of ``file`` held to ``cell``'s spindle and cutter bounds; exit 2 with what is wrong."""
+    from doorloc.recipes.importer import RecipeImportError, load_recipe_file
+
+    milling = _milling_of(cell)
+    if not file.is_file():
+        raise fail(f"no such recipe file: {file}")
+    try:
+        recipes = load_recipe_file(file, milling)
+    except RecipeImportError as e:
+        raise fail(str(e), EXIT_USAGE) from None
+    except OSError as e:
+        raise fail(f"cannot read {file}: {e.strerror or e}") from None
+    except Exception as e:  # e.g. a damaged .xlsx (zip/xml errors from openpyxl)
+        raise fail(f"cannot read {file} as a recipe file: {e.__class__.__name__}: {e}") from None
+    return recipes
+
+
+def _milling_of(cell: Path | None) -> MillingLimits:
+    """The cell file's spindle and cutter bounds (doorloc's defaults without a cell); exit 2 for a bad file."""
+    from doorloc.limits import DEFAULT_MILLING_LIMITS
+
+    return DEFAULT_MILLING_LIMITS if cell is None else load_cell_or_fail(cell).milling
+
+
+def _stored_recipe(db: str | None, door_id: str, milling: MillingLimits) -> DoorRecipe:
+    """The stored recipe of ``door_id``, held to the cell's spindle and cutter; exit 2 without one or beyond them."""
+    from doorloc.recipes.models import milling_problems
+
+    with open_store(db) as store:
+        recipe = store.get(door_id)
+    if recipe is None:
+        raise fail(
+            f"no recipe for door {door_id!r} in the database; import one with 'doorloc recipes import'"
+        )
+    problems = milling_problems(recipe, milling)
+    if problems:
+        raise fail(
+            f"the recipe of door {door_id!r} asks more than the cell's spindle and cutter give: "
+            + "; ".join(p.message for p in problems)
+        )
+    return recipe
+
+
+def _fixture_and_robot(cell: Path | None) -> tuple[Fixture, RobotSetup, MillingLimits]:
+    """The cell file's fixture, RAPID robot data and milling bounds (the defaults without a cell); exit 2 for
+    a bad file."""
     from pydantic import ValidationError
 
     from doorloc.cell import CellFileError, Fixture, load_cell
+    from doorloc.limits import DEFAULT_MILLING_LIMITS
     from doorloc.recipes.rapid import RobotSetup, robot_setup_from_cell_file
 
     if cell is None:
-        return Fixture(), RobotSetup()
+        return Fixture(), RobotSetup(), DEFAULT_MILLING_LIMITS
     try:
-        return load_cell(cell).fixture, robot_setup_from_cell_file(cell)
+        loaded = load_cell(cell)
+        return loaded.fixture, robot_setup_from_cell_file(cell), loaded.milling
     except CellFileError as e:
         raise fail(str(e)) from None
     except ValidationError as e:

@@ -3,7 +3,9 @@
 A plain FIFO limiter serves waiting requests in arrival order: a client that keeps its share of the queue full
 puts all of its requests ahead of another client's one. :class:`FairSlots` keeps one FIFO per client and, when a
 slot frees, hands it to the next client in turn; a client with one waiting request waits for at most one
-request of each other client. (No library offers this for anyio; it is a dozen lines.)
+request of each other client. A client (an API key) may stand for several members (the addresses using that
+key): within a client the turn goes round its members the same way, so one member of a shared key cannot put
+another's request behind all of its own. (No library offers this for anyio; it is a few dozen lines.)
 
 Examples
 --------
@@ -46,46 +48,54 @@ class _Waiter:
 
 
 class FairSlots:
-    """``slots`` tokens; waiting acquirers are served one client at a time in turn (event-loop use only)."""
+    """``slots`` tokens; waiting acquirers are served one client at a time in turn, and within a client one
+    member at a time in turn (event-loop use only)."""
 
     def __init__(self, slots: int) -> None:
         self.free = slots
-        #: waiting requests per client; dict order is the turn order (a served client moves to the end)
-        self._waiting: dict[str, deque[_Waiter]] = {}
+        #: waiting requests per client and member; dict order is the turn order (a served one moves to the end)
+        self._waiting: dict[str, dict[str, deque[_Waiter]]] = {}
 
     @property
     def waiting(self) -> int:
-        return sum(len(q) for q in self._waiting.values())
+        return sum(len(q) for members in self._waiting.values() for q in members.values())
 
-    async def acquire(self, client: str) -> None:
+    async def acquire(self, client: str, member: str = "") -> None:
         """Wait for a slot (cancellable: a cancelled wait gives back a slot it was handed)."""
         if self.free > 0 and not self._waiting:
             self.free -= 1
             return
         waiter = _Waiter()
-        self._waiting.setdefault(client, deque()).append(waiter)
+        self._waiting.setdefault(client, {}).setdefault(member, deque()).append(waiter)
         try:
             await waiter.event.wait()
         except BaseException:
             if waiter.granted:
                 self.release()
             else:
-                queue = self._waiting.get(client)
+                members = self._waiting.get(client, {})
+                queue = members.get(member)
                 if queue is not None and waiter in queue:
                     queue.remove(waiter)
                     if not queue:
+                        del members[member]
+                    if not members:
                         del self._waiting[client]
             raise
 
     def release(self) -> None:
-        """Give a slot back: to the next waiting client in turn, else to the free pool."""
+        """Give a slot back: to the next waiting client (and its next member) in turn, else to the free pool."""
         if not self._waiting:
             self.free += 1
             return
         client = next(iter(self._waiting))
-        queue = self._waiting.pop(client)
+        members = self._waiting.pop(client)
+        member = next(iter(members))
+        queue = members.pop(member)
         waiter = queue.popleft()
         if queue:
-            self._waiting[client] = queue  # to the end of the turn
+            members[member] = queue  # to the end of the client's turn
+        if members:
+            self._waiting[client] = members  # to the end of the turn
         waiter.granted = True
         waiter.event.set()

@@ -35,7 +35,7 @@ from doorloc.app.answer import (
 )
 from doorloc.cell import Cell
 from doorloc.pose import DoorPose
-from doorloc.recipes.models import DoorRecipe
+from doorloc.recipes.models import DoorRecipe, milling_problems
 from doorloc.recipes.targets import Target, targets_for_pose
 from doorloc.robot.reach import ReachReport, ReachSetup, reach_for_door, setup_for_cell
 from doorloc.vision.result import LocateResult
@@ -157,6 +157,7 @@ def resolve_door(
             "import, or PUT /v1/doors/ID) or give the door's size instead",
         )
     recipe, version = found
+    _check_milling(recipe, cell)
     try:
         choice = DoorChoice.from_recipe(recipe, cell, arris_mm, version)
         if arris_profile is not None:
@@ -164,6 +165,18 @@ def resolve_door(
     except ValueError as e:
         raise DoorChoiceError("invalid_door", f"the door size is not usable: {e}") from None
     return choice
+
+
+def _check_milling(recipe: DoorRecipe, cell: Cell) -> None:
+    """``unusable_recipe`` for a stored recipe beyond the cell's spindle or cutter (its ``milling:`` section)."""
+    problems = milling_problems(recipe, cell.milling)
+    if problems:
+        raise DoorChoiceError(
+            "unusable_recipe",
+            f"the recipe of door {recipe.door_id!r} asks more than this cell's spindle and cutter give: "
+            + "; ".join(p.message for p in problems)
+            + "; correct the recipe (PUT /v1/doors/ID or doorloc recipes import --replace)",
+        )
 
 
 def reach_of_cell(cell: Cell, recipe: DoorRecipe, pose: DoorPose, face_y_mm: float) -> ReachReport | None:
@@ -344,6 +357,7 @@ def reach_for_recipe(
             f"no recipe for door {door_id!r} in the database; import one with 'doorloc recipes import'",
         )
     recipe = found[0]
+    _check_milling(recipe, cell)
     report = reach_for_door(setup, recipe, pose, cell.face_y(recipe.door_size()))
     return ReachOutcome(report, setup, path, bundled)
 

@@ -148,8 +148,21 @@ class ServiceSettings(BaseSettings):
     )
     decode_in_threads: bool = Field(
         False,
-        description="decode in the service's own threads instead of limited worker processes (no CPU-time or "
-        "memory bound beyond the header checks; for tests and debugging)",
+        description="decode and locate in the service's own threads instead of limited worker processes (no "
+        "CPU-time or memory bound beyond the header checks; for tests and debugging)",
+    )
+    # ---- locating (in the same limited worker processes)
+    locate_cpu_s: float = Field(
+        10.0,
+        gt=0,
+        description="CPU seconds locating the door in one image may take (its process is ended then; a 1080p "
+        "frame takes about 0.03 s)",
+    )
+    locate_memory_bytes: int = Field(
+        400_000_000,
+        gt=0,
+        description="memory (address space) locating the door in one image may add to its process, bytes (a "
+        "1080p frame needs under 8 MB)",
     )
     overlay_max_pixels: int = Field(
         8_300_000, gt=0, description="largest image (width*height) an overlay is drawn for (4K UHD)"
@@ -159,6 +172,13 @@ class ServiceSettings(BaseSettings):
         ge=1,
         description="locate requests one client (API key) may have running or queued in a worker; "
         "default: half the worker's slots plus queue, at least 1",
+    )
+    max_per_address: int | None = Field(
+        None,
+        ge=1,
+        description="locate requests one client address (after trusted proxies) may have running or queued "
+        "under one API key in a worker, so that one machine sharing a key cannot take the key's whole share; "
+        "default: half the key's share, rounded up",
     )
 
     @field_validator("allowed_hosts", "trusted_proxies", mode="before")

@@ -27,7 +27,8 @@ from typing import Any
 
 from pydantic import ValidationError
 
-from doorloc.recipes.models import SKIP_CROSS_CHECKS, DoorFields, DoorRecipe, Hinge, recipe_problems
+from doorloc.limits import DEFAULT_MILLING_LIMITS, MillingLimits
+from doorloc.recipes.models import MILLING, SKIP_CROSS_CHECKS, DoorFields, DoorRecipe, Hinge, recipe_problems
 
 __all__ = [
     "DOOR_COLUMNS",
@@ -250,7 +251,9 @@ class _DoorGroup:
 
 
 def parse_recipe_rows(
-    rows: Iterable[tuple[int, dict[str, Any]]], source: str = "recipe file"
+    rows: Iterable[tuple[int, dict[str, Any]]],
+    source: str = "recipe file",
+    milling: MillingLimits = DEFAULT_MILLING_LIMITS,
 ) -> list[DoorRecipe]:
     """Validate table rows into recipes, or raise :class:`RecipeImportError` listing every problem.
 
@@ -260,6 +263,8 @@ def parse_recipe_rows(
         From :func:`read_rows`: the first item is ``(1, {"__header__": [column names]})``.
     source : str
         Name used in the error message.
+    milling : MillingLimits
+        The cell's spindle speed range, feeds and cutter reach (doorloc's defaults without a cell).
     """
     it = iter(rows)
     first = next(it, None)
@@ -290,7 +295,7 @@ def parse_recipe_rows(
             door_part["door_id"] = _door_id_text(door_part["door_id"])
         row_issues: list[ImportIssue] = []
         try:
-            fields = DoorFields.model_validate(door_part)
+            fields = DoorFields.model_validate(door_part, context={MILLING: milling})
         except ValidationError as e:
             fields = None
             row_issues += _pydantic_issues(e, line, lambda f: f)
@@ -338,8 +343,8 @@ def parse_recipe_rows(
             issues.append(ImportIssue(g.lines[20], None, f"door {door_id}: more than 20 hinges"))
             continue
         data = {**g.fields.model_dump(), "hinges": g.hinges}
-        recipe = DoorRecipe.model_validate(data, context={SKIP_CROSS_CHECKS: True})
-        problems = recipe_problems(recipe)
+        recipe = DoorRecipe.model_validate(data, context={SKIP_CROSS_CHECKS: True, MILLING: milling})
+        problems = recipe_problems(recipe, milling)
         for p in problems:
             line = g.lines[p.hinge] if p.hinge is not None else g.first_line
             name = p.field.split(".")[-1]
@@ -352,11 +357,14 @@ def parse_recipe_rows(
     return recipes
 
 
-def load_recipe_file(path: str | os.PathLike) -> list[DoorRecipe]:
-    """Read and validate a whole CSV/XLSX recipe file (nothing is written anywhere)."""
+def load_recipe_file(
+    path: str | os.PathLike, milling: MillingLimits = DEFAULT_MILLING_LIMITS
+) -> list[DoorRecipe]:
+    """Read and validate a whole CSV/XLSX recipe file (nothing is written anywhere) against the cell's
+    spindle and cutter bounds ``milling`` (:attr:`doorloc.cell.Cell.milling`)."""
     p = Path(path)
     try:
-        return parse_recipe_rows(read_rows(p), str(p))
+        return parse_recipe_rows(read_rows(p), str(p), milling)
     except UnicodeDecodeError as e:
         raise RecipeImportError(
             str(p), [ImportIssue(1, None, f"not UTF-8 text ({e.reason}); save the CSV as UTF-8")]

@@ -29,11 +29,11 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validat
 
 from doorloc.domain import DoorSize
 from doorloc.limits import (
+    DEFAULT_MILLING_LIMITS,
     DOOR_RANGES_MM,
-    FEED_RANGE_MM_S,
-    SPINDLE_RPM_RANGE,
     TOOL_DIAMETER_RANGE_MM,
-    TOOL_REACH_MM,
+    DoorRangeError,
+    MillingLimits,
     check_range,
 )
 
@@ -43,9 +43,11 @@ __all__ = [
     "DoorFields",
     "DoorRecipe",
     "SKIP_CROSS_CHECKS",
+    "MILLING",
     "CORNER_OVERCUT_TOLERANCE_MM",
     "RecipeProblem",
     "recipe_problems",
+    "milling_problems",
     "DOOR_ID_PATTERN",
 ]
 
@@ -62,6 +64,19 @@ CORNER_OVERCUT_TOLERANCE_MM = 0.5
 #: context flag for ``model_validate``: build the recipe without the cross-field checks
 #: (an importer then calls :func:`recipe_problems` itself to map each problem to a row and column)
 SKIP_CROSS_CHECKS = "skip_cross_checks"
+
+#: context key for ``model_validate``: the :class:`~doorloc.limits.MillingLimits` (spindle speed, feed, tool
+#: reach) to check against, the cell's; None leaves those bounds to be checked where the recipe meets a cell
+#: (:func:`milling_problems`), as a recipe read back from the database is. Without it: doorloc's defaults
+MILLING = "milling"
+
+
+def _milling_of(info: ValidationInfo) -> MillingLimits | None:
+    ctx = info.context
+    if isinstance(ctx, dict) and MILLING in ctx:
+        limits: MillingLimits | None = ctx[MILLING]
+        return limits
+    return DEFAULT_MILLING_LIMITS
 
 
 class _Frozen(BaseModel):
@@ -130,14 +145,17 @@ class DoorFields(_Frozen):
     @field_validator("width_mm", "height_mm", "thickness_mm", "tool_diameter_mm", "spindle_rpm", "feed_mm_s")
     @classmethod
     def _in_range(cls, v: float, info: ValidationInfo) -> float:
-        # the accepted ranges live in doorloc.limits (shared with the HTTP API and the CLI)
+        # the accepted ranges live in doorloc.limits (shared with the HTTP API and the CLI); the spindle's
+        # speed and the feed are the cell's (validation context MILLING)
         name = info.field_name or ""
-        bounds = {
-            "tool_diameter_mm": TOOL_DIAMETER_RANGE_MM,
-            "spindle_rpm": SPINDLE_RPM_RANGE,
-            "feed_mm_s": FEED_RANGE_MM_S,
-        }.get(name) or DOOR_RANGES_MM[name]
-        return check_range(name, v, bounds)
+        if name in ("spindle_rpm", "feed_mm_s"):
+            milling = _milling_of(info)
+            if milling is None:
+                return v
+            return check_range(name, v, getattr(milling, name), milling)
+        return check_range(
+            name, v, TOOL_DIAMETER_RANGE_MM if name == "tool_diameter_mm" else DOOR_RANGES_MM[name]
+        )
 
 
 class DoorRecipe(DoorFields):
@@ -167,7 +185,7 @@ class DoorRecipe(DoorFields):
     def _cross_checks(self, info: ValidationInfo) -> DoorRecipe:
         if info.context and info.context.get(SKIP_CROSS_CHECKS):
             return self
-        problems = recipe_problems(self)
+        problems = recipe_problems(self, _milling_of(info))
         if problems:
             raise ValueError("; ".join(f"{p.field}: {p.message}" for p in problems))
         return self
@@ -190,12 +208,44 @@ def _g(v: float) -> str:
     return f"{v:g}"
 
 
-def recipe_problems(r: DoorRecipe) -> list[RecipeProblem]:
+def _too_deep(r: DoorRecipe, i: int, milling: MillingLimits) -> RecipeProblem:
+    depth = r.hinges[i].depth_mm
+    return RecipeProblem(
+        f"hinges[{i}].depth_mm",
+        f"hinge {i + 1} pocket depth {_g(depth)} mm is deeper than the hinge cutter reaches "
+        f"(tool_reach_mm {_g(milling.tool_reach_mm)} mm: {milling.origin('tool_reach_mm')}); a hinge leaf "
+        "needs 2-5 mm",
+        i,
+    )
+
+
+def milling_problems(r: DoorRecipe, milling: MillingLimits) -> list[RecipeProblem]:
+    """Every bound of the cell's spindle and cutter the recipe breaks: its spindle speed and feed outside their
+    ranges, a pocket deeper than the tool reaches. Each sentence names the bound and where it came from (the
+    cell file's ``milling:`` key, or doorloc's default)."""
+    out: list[RecipeProblem] = []
+    for name in ("spindle_rpm", "feed_mm_s"):
+        try:
+            check_range(name, getattr(r, name), getattr(milling, name), milling)
+        except DoorRangeError as e:
+            out.append(RecipeProblem(name, str(e)))
+    out += [
+        _too_deep(r, i, milling)
+        for i, h in enumerate(r.hinges)
+        if milling.tool_reach_mm < h.depth_mm < min(r.thickness_mm, r.width_mm)
+    ]
+    return out
+
+
+def recipe_problems(
+    r: DoorRecipe, milling: MillingLimits | None = DEFAULT_MILLING_LIMITS
+) -> list[RecipeProblem]:
     """Every cross-field rule the recipe breaks (empty when it is millable).
 
     Rules: the arris is less than half the thickness; each pocket lies inside the door
-    (``x + width <= thickness``, ``z + length <= height``, ``depth < width`` of the door), and is no
-    deeper than the cutter reaches or the door is thick (:data:`doorloc.limits.TOOL_REACH_MM`); the corner
+    (``x + width <= thickness``, ``z + length <= height``, ``depth < width`` of the door), and is shallower
+    than the door is thick and no deeper than the cutter reaches (``milling.tool_reach_mm``, the cell's; None:
+    left to :func:`milling_problems` where the recipe meets a cell); the corner
     radius fits the pocket; the tool fits the corner radius (``tool_diameter <= 2 * corner_radius``),
     a 6-point path cuts no more than :data:`CORNER_OVERCUT_TOLERANCE_MM` past the corner arcs
     (``(corner_radius - tool_radius) * (sqrt 2 - 1)``), and the contour clears the whole pocket
@@ -243,16 +293,17 @@ def recipe_problems(r: DoorRecipe) -> list[RecipeProblem]:
                     i,
                 )
             )
-        elif h.depth_mm >= r.thickness_mm or h.depth_mm > TOOL_REACH_MM:
+        elif h.depth_mm >= r.thickness_mm:
             out.append(
                 RecipeProblem(
                     f"{name}.depth_mm",
-                    f"hinge {n} pocket depth {_g(h.depth_mm)} mm is deeper than the hinge cutter reaches "
-                    f"({_g(TOOL_REACH_MM)} mm) or the door is thick ({_g(r.thickness_mm)} mm); a hinge leaf "
-                    "needs 2-5 mm",
+                    f"hinge {n} pocket depth {_g(h.depth_mm)} mm must be less than the door thickness "
+                    f"{_g(r.thickness_mm)} mm; a hinge leaf needs 2-5 mm",
                     i,
                 )
             )
+        elif milling is not None and h.depth_mm > milling.tool_reach_mm:
+            out.append(_too_deep(r, i, milling))
         if h.corner_radius_mm > min(h.width_mm, h.length_mm) / 2 + 1e-9:
             out.append(
                 RecipeProblem(

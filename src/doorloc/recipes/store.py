@@ -38,7 +38,7 @@ from sqlalchemy.exc import IntegrityError, OperationalError, SQLAlchemyError
 from sqlalchemy.orm import Session, selectinload
 from sqlalchemy.pool import StaticPool
 
-from doorloc.recipes.models import DoorRecipe, Hinge, PointCorrection
+from doorloc.recipes.models import MILLING, DoorRecipe, Hinge, PointCorrection
 from doorloc.recipes.tables import DoorRow, HingeRow, RecipeVersionRow
 
 _T = TypeVar("_T")
@@ -330,16 +330,20 @@ def _build_recipe(row: DoorRow) -> DoorRecipe:
         )
         for h in row.hinges
     ]
-    return DoorRecipe(
-        door_id=row.door_id,
-        width_mm=row.width_mm,
-        height_mm=row.height_mm,
-        thickness_mm=row.thickness_mm,
-        arris_mm=row.arris_mm,
-        hinges=hinges,
-        tool_diameter_mm=row.tool_diameter_mm,
-        spindle_rpm=row.spindle_rpm,
-        feed_mm_s=row.feed_mm_s,
+    # the cell's spindle and cutter bounds are checked where the recipe meets the cell (its milling: section)
+    return DoorRecipe.model_validate(
+        {
+            "door_id": row.door_id,
+            "width_mm": row.width_mm,
+            "height_mm": row.height_mm,
+            "thickness_mm": row.thickness_mm,
+            "arris_mm": row.arris_mm,
+            "hinges": hinges,
+            "tool_diameter_mm": row.tool_diameter_mm,
+            "spindle_rpm": row.spindle_rpm,
+            "feed_mm_s": row.feed_mm_s,
+        },
+        context={MILLING: None},
     )
 
 
@@ -416,7 +420,7 @@ class RecipeStore:
             recipe = None
             if r.recipe is not None:
                 try:
-                    recipe = DoorRecipe.model_validate(r.recipe)
+                    recipe = DoorRecipe.model_validate(r.recipe, context={MILLING: None})
                 except ValueError:  # a version that today's rules refuse is still part of the history
                     recipe = None
             out.append(

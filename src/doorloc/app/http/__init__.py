@@ -76,8 +76,9 @@ def create_app(
                 yield
                 tg.cancel_scope.cancel()
         finally:
-            if state.decoder is not None:
-                state.decoder.close()
+            for pool in (state.decoder, state.locator):
+                if pool is not None:
+                    pool.close()
 
     app = FastAPI(
         title="doorloc",

@@ -1,9 +1,11 @@
 """Who gets a CPU slot for an image, and how an admitted image is decoded.
 
 - :func:`take_cpu_slot` / :func:`release_cpu_slot`: a bounded queue per worker (its CPU slots plus
-  ``max_queue``), and within it a share per client (its API key): one client flooding the service fills
-  only its own share, so another client's image still finds a place, and the free CPU slots go to the
-  waiting clients in turn (:class:`~doorloc.app.fairslots.FairSlots`), not in arrival order;
+  ``max_queue``), within it a share per client (its API key), and within a key's share a smaller one per
+  address using that key (the connection's, or the one a trusted proxy forwarded): one client flooding the
+  service fills only its own share, so another client's image still finds a place, even one sent with the
+  same shared key from another machine; the free CPU slots go to the waiting keys in turn, and within a key
+  to its addresses in turn (:class:`~doorloc.app.fairslots.FairSlots`), not in arrival order;
 - :func:`decode_upload`: decoding in the worker's limited decoding processes
   (:class:`~doorloc.app.decodepool.DecodePool`) within what is left of the request's deadline.
 """
@@ -11,6 +13,8 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Mapping
+from typing import Any, TypeVar
 
 import anyio
 import numpy as np
@@ -19,7 +23,17 @@ from doorloc.app.decodepool import DecodeRefused
 from doorloc.app.http.problems import ProblemError
 from doorloc.app.http.state import ServiceState
 
-__all__ = ["client_of", "shedding_problem", "take_cpu_slot", "release_cpu_slot", "decode_upload"]
+_Key = TypeVar("_Key")
+
+__all__ = [
+    "client_of",
+    "address_of",
+    "shedding_problem",
+    "take_cpu_slot",
+    "release_cpu_slot",
+    "decode_upload",
+    "refusal_problem",
+]
 
 
 def client_of(scope_state: dict) -> str:
@@ -31,10 +45,16 @@ def client_of(scope_state: dict) -> str:
     return ""
 
 
-def shedding_problem(state: ServiceState, client: str) -> ProblemError | None:
-    """The 503 for a locate request that would find the worker's queue, or ``client``'s share of it, full;
-    None when it may go on. Asked twice: before the body is read (so a flood's refused uploads are never
-    parsed) and again when the image asks for its CPU slot."""
+def address_of(scope: Mapping[str, Any]) -> str:
+    """The address a request came from: the connection's, or the client's that a trusted proxy forwarded
+    (uvicorn's proxy headers, ``trusted_proxies``, have replaced it in the scope already)."""
+    return str((scope.get("client") or ("", 0))[0])
+
+
+def shedding_problem(state: ServiceState, client: str, address: str = "") -> ProblemError | None:
+    """The 503 for a locate request that would find the worker's queue, ``client``'s share of it, or the share
+    of ``address`` within that key's, full; None when it may go on. Asked twice: before the body is read (so a
+    flood's refused uploads are never parsed) and again when the image asks for its CPU slot."""
     if state.overloaded:
         return ProblemError(
             503,
@@ -52,28 +72,39 @@ def shedding_problem(state: ServiceState, client: str) -> ProblemError | None:
             "wait for an answer, then retry after the number of seconds in Retry-After.",
             headers={"Retry-After": "2"},
         )
+    from_address = state.address_admitted.get((client, address), 0)
+    if client and from_address >= state.per_address_limit:
+        return ProblemError(
+            503,
+            "overloaded",
+            f"This address already has {from_address} images being measured or queued here under its API key, "
+            "its share of the key's places (others using the same key keep theirs); wait for an answer, then "
+            "retry after the number of seconds in Retry-After.",
+            headers={"Retry-After": "2"},
+        )
     return None
 
 
-async def take_cpu_slot(state: ServiceState, deadline: float | None, client: str) -> None:
+async def take_cpu_slot(state: ServiceState, deadline: float | None, client: str, address: str = "") -> None:
     """Take a place in the worker's bounded queue and wait for a CPU slot until the request's deadline.
 
     503 Retry-After at once when the queue is full or ``client`` already holds its share of it, or when no
     slot came free by the deadline. On return the caller holds a limiter token and a queue place and must
     give both back with :func:`release_cpu_slot`.
     """
-    problem = shedding_problem(state, client)
+    problem = shedding_problem(state, client, address)
     if problem is not None:
         raise problem
     held = state.client_admitted.get(client, 0)
     left = (deadline - time.monotonic()) if deadline is not None else state.settings.request_deadline_s
     state.admitted += 1
     state.client_admitted[client] = held + 1
+    state.address_admitted[(client, address)] = state.address_admitted.get((client, address), 0) + 1
     try:
         with anyio.fail_after(max(left, 0.001)):
-            await state.limiter.acquire(client)
+            await state.limiter.acquire(client, address)
     except BaseException as e:  # timed out, or the client went away: give the queue place back
-        _forget(state, client)
+        _forget(state, client, address)
         if not isinstance(e, TimeoutError):
             raise
         raise ProblemError(
@@ -85,19 +116,30 @@ async def take_cpu_slot(state: ServiceState, deadline: float | None, client: str
         ) from None
 
 
-def _forget(state: ServiceState, client: str) -> None:
+def _forget(state: ServiceState, client: str, address: str) -> None:
     state.admitted -= 1
-    left = state.client_admitted.get(client, 1) - 1
+    _count_down(state.client_admitted, client)
+    _count_down(state.address_admitted, (client, address))
+
+
+def _count_down(counts: dict[_Key, int], key: _Key) -> None:
+    left = counts.get(key, 1) - 1
     if left > 0:
-        state.client_admitted[client] = left
+        counts[key] = left
     else:
-        state.client_admitted.pop(client, None)
+        counts.pop(key, None)
 
 
-def release_cpu_slot(state: ServiceState, client: str) -> None:
+def release_cpu_slot(state: ServiceState, client: str, address: str = "") -> None:
     """Give back what :func:`take_cpu_slot` gave."""
     state.limiter.release()
-    _forget(state, client)
+    _forget(state, client, address)
+
+
+def refusal_problem(e: DecodeRefused) -> ProblemError:
+    """The problem answer of an image the limited worker processes did not decode or locate."""
+    headers = {"Retry-After": "5"} if e.status == 503 else None
+    return ProblemError(e.status, e.code, e.detail, headers=headers)
 
 
 def decode_upload(state: ServiceState, data: bytes, name: str, deadline: float | None) -> np.ndarray:
@@ -121,8 +163,7 @@ def decode_upload(state: ServiceState, data: bytes, name: str, deadline: float |
             f"The image could not be decoded ({e}); the file is probably damaged or truncated: send it again.",
         ) from None
     except DecodeRefused as e:
-        headers = {"Retry-After": "5"} if e.status == 503 else None
-        raise ProblemError(e.status, e.code, e.detail, headers=headers) from None
+        raise refusal_problem(e) from None
     if image.nbytes > state.settings.max_decoded_bytes:
         raise ProblemError(
             422,

@@ -18,7 +18,7 @@ import anyio
 from starlette.routing import BaseRoute, Match
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from doorloc.app.http.admission import client_of, shedding_problem
+from doorloc.app.http.admission import address_of, client_of, shedding_problem
 from doorloc.app.http.dependencies import resolve_principal
 from doorloc.app.http.middleware import BodyTimeout, send_problem
 from doorloc.app.http.problems import ProblemError
@@ -141,7 +141,7 @@ class LocateShedding:
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] == "http" and scope["method"] == "POST" and scope["path"] == self.path:
-            problem = shedding_problem(self.state, client_of(scope.get("state", {})))
+            problem = shedding_problem(self.state, client_of(scope.get("state", {})), address_of(scope))
             if problem is not None:
                 headers = [(k.lower().encode(), v.encode()) for k, v in (problem.headers or {}).items()]
                 await send_problem(scope, send, problem.status, problem.code, problem.detail, headers)

@@ -9,16 +9,19 @@ answers); its recipe is still reachable through locate and the CLI.
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Any
 
-from fastapi import APIRouter, Depends, Path, Query, Response
+from fastapi import APIRouter, Body, Depends, Path, Query, Response
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+from pydantic import ValidationError
 
 from doorloc.app.access import Principal, Role
 from doorloc.app.http.dependencies import call_store, ready_state, require_role
 from doorloc.app.http.problems import ProblemError, problem_responses
 from doorloc.app.http.schemas import DoorList, RecipeHistory, RecipeVersionOut
 from doorloc.app.http.state import ServiceState
-from doorloc.recipes.models import DOOR_ID_PATTERN, DoorRecipe
+from doorloc.recipes.models import DOOR_ID_PATTERN, MILLING, DoorRecipe
 
 __all__ = ["router"]
 
@@ -87,13 +90,18 @@ async def door_history(
     summary="Get a door recipe",
 )
 async def get_door(
-    door_id: DoorId, _who: Operator, response: Response, state: Annotated[ServiceState, Depends(ready_state)]
-) -> DoorRecipe:
+    door_id: DoorId, _who: Operator, state: Annotated[ServiceState, Depends(ready_state)]
+) -> Response:
     found = await call_store(state.recipes.get_versioned, door_id)
     if found is None:
         raise ProblemError(404, "unknown_door", f"There is no door recipe with id '{door_id}'; PUT it first.")
-    response.headers["X-Recipe-Version"] = str(found[1])
-    return found[0]
+    return _recipe_answer(*found)
+
+
+def _recipe_answer(recipe: DoorRecipe, version: int) -> Response:
+    """The recipe as stored, its version in ``X-Recipe-Version``. Answered as it is, not validated again as a
+    response model: that would hold it to doorloc's default spindle bounds instead of the cell's."""
+    return JSONResponse(recipe.model_dump(mode="json"), headers={"X-Recipe-Version": str(version)})
 
 
 # 404 too: a path holding characters no door id has (e.g. a newline) matches no route at all.
@@ -102,14 +110,29 @@ async def get_door(
     response_model=DoorRecipe,
     responses=problem_responses(400, 401, 403, 404, 413, 422, 503),
     summary="Create or replace a door recipe (a new version in its history)",
+    # the body is a DoorRecipe, validated against the cell's spindle and cutter (its milling: section)
+    openapi_extra={
+        "requestBody": {
+            "required": True,
+            "content": {"application/json": {"schema": {"$ref": "#/components/schemas/DoorRecipe"}}},
+        }
+    },
 )
 async def put_door(
     door_id: DoorId,
-    recipe: DoorRecipe,
+    body: Annotated[dict[str, Any], Body()],
     who: Engineer,
-    response: Response,
     state: Annotated[ServiceState, Depends(ready_state)],
-) -> DoorRecipe:
+) -> Response:
+    """Store the recipe as a new version; its spindle speed, feed and hinge depths must keep within the cell's
+    spindle and cutter (the cell file's ``milling:`` section, else doorloc's defaults), the 422 naming the bound."""
+    assert state.cell is not None  # ready_state
+    try:
+        recipe = DoorRecipe.model_validate(body, context={MILLING: state.cell.milling})
+    except ValidationError as e:
+        raise RequestValidationError(
+            [{**err, "loc": ("body", *err["loc"])} for err in e.errors(include_url=False)]
+        ) from None
     if recipe.door_id != door_id:
         raise ProblemError(
             422,
@@ -120,8 +143,7 @@ async def put_door(
         version = await call_store(lambda: state.recipes.put(recipe, by=who.name))
     except ValueError as e:
         raise ProblemError(422, "invalid_recipe", f"The recipe cannot be stored: {e}.") from None
-    response.headers["X-Recipe-Version"] = str(version)
-    return recipe
+    return _recipe_answer(recipe, version)
 
 
 @router.delete(

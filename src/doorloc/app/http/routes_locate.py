@@ -2,8 +2,10 @@
 
 Order of the checks, cheapest first, so a bad upload costs almost nothing: size (while streaming, in
 the middleware) -> kind by magic bytes (415) -> declared pixel count (422, before decoding) -> decode
-(422) -> locate. Decoding and locating run in worker threads under the app's CapacityLimiter, so the
-event loop keeps answering health checks while images are being measured.
+(422) -> locate. Each request holds a CPU slot of the app's FairSlots while decoding and locating, which run in
+limited worker processes (:class:`~doorloc.app.decodepool.DecodePool`: an image past their CPU-time or memory
+limit ends its process and is answered 422), waited for in a worker thread, so the event loop keeps answering
+health checks while images are being measured.
 """
 
 from __future__ import annotations
@@ -20,7 +22,15 @@ from pydantic import Field
 
 from doorloc.app.access import Role
 from doorloc.app.answer import Answer, DoorChoice, LocateResponse, overlay_png
-from doorloc.app.http.admission import client_of, decode_upload, release_cpu_slot, take_cpu_slot
+from doorloc.app.decodepool import DecodeRefused
+from doorloc.app.http.admission import (
+    address_of,
+    client_of,
+    decode_upload,
+    refusal_problem,
+    release_cpu_slot,
+    take_cpu_slot,
+)
 from doorloc.app.http.dependencies import call_store, ready_state, require_role
 from doorloc.app.http.problems import ProblemError, problem_responses
 from doorloc.app.http.state import ServiceState
@@ -90,14 +100,14 @@ async def post_locate(
         _check_upload(data, name, state)
         choice = await _door_choice(state, door_id, width_mm, thickness_mm, height_mm, arris_mm)
         deadline = request.scope.get("state", {}).get("deadline")
-        client = client_of(request.scope.get("state", {}))
-        await take_cpu_slot(state, deadline, client)
+        client, address = client_of(request.scope.get("state", {})), address_of(request.scope)
+        await take_cpu_slot(state, deadline, client, address)
         try:
             answer = await anyio.to_thread.run_sync(
                 _measure, data, name, state, choice, overlay, rapid, deadline
             )
         finally:
-            release_cpu_slot(state, client)
+            release_cpu_slot(state, client, address)
     except ProblemError as e:
         state.metrics.rejected_uploads.labels(e.code).inc()
         raise
@@ -209,7 +219,8 @@ def _measure(
 ) -> Answer:
     """The answer, with the thread CPU ms of decoding and of measuring (``decode``, ``locate``).
 
-    (Decoding runs in a limited decoding process: ``decode`` is then this thread's share, the hand-over.)
+    (Decoding and locating run in the limited worker processes: ``decode`` and ``locate`` are then this
+    thread's share, the hand-over, besides the targets and the reach check.)
     The overlay is drawn only for an answered image of a sane size: a refused 7.2 MB JPEG once made a
     97 MB answer.
     """
@@ -222,9 +233,19 @@ def _measure(
         from doorloc.vision.locate import LocateTrace
 
         trace = LocateTrace()
-    answer = answer_image(
-        image, state.cell, choice, image_name=name, locate_fn=state.locate_fn, rapid=rapid, trace=trace
-    )
+    left = (deadline - time.monotonic()) if deadline is not None else state.settings.request_deadline_s
+    try:
+        answer = answer_image(
+            image,
+            state.cell,
+            choice,
+            image_name=name,
+            locate_fn=state.locate_in(left),
+            rapid=rapid,
+            trace=trace,
+        )
+    except DecodeRefused as e:  # the image made locate pass its limits, or the deadline passed
+        raise refusal_problem(e) from None
     drawn = None
     if (
         overlay

@@ -6,6 +6,7 @@ service is alive (``/healthz``) but not ready (``/readyz`` 503), and locate requ
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import logging
@@ -47,21 +48,46 @@ class ServiceState:
     auth_failures: FailureBudget = field(init=False)
     #: the decoding processes (None: decode in threads, settings.decode_in_threads)
     decoder: DecodePool | None = field(init=False)
+    #: the locating processes (None: locate in threads: decode_in_threads, or a locate_fn given in code)
+    locator: DecodePool | None = field(init=False)
     #: per client (key name, else address): locate requests running or queued (fair shedding)
     client_admitted: dict[str, int] = field(init=False, default_factory=dict)
+    #: per (key, client address) within a key's share: locate requests running or queued
+    address_admitted: dict[tuple[str, str], int] = field(init=False, default_factory=dict)
 
     def __post_init__(self) -> None:
         self.limiter = FairSlots(self.settings.locate_concurrency)
         self.auth_failures = FailureBudget(self.settings.auth_failures_per_minute)
-        self.decoder = (
-            None
-            if self.settings.decode_in_threads
-            else DecodePool(
+        self.decoder = None
+        self.locator = None
+        if not self.settings.decode_in_threads:
+            self.decoder = DecodePool(
                 self.settings.locate_concurrency,
                 self.settings.decode_cpu_s,
                 self.settings.decode_memory_bytes,
             )
-        )
+            if self.locate_fn is None:
+                # the real pipeline runs in limited processes of its own (a locate given in code, a test's
+                # stand-in, runs in the thread that asks): a decoding bomb then ends a decoding process, which
+                # restarts in milliseconds, not one that holds locate's kernels
+                from doorloc.vision.locate import locate
+
+                self.locator = DecodePool(
+                    self.settings.locate_concurrency,
+                    self.settings.locate_cpu_s,
+                    self.settings.locate_memory_bytes,
+                    locate_fn=locate,
+                    locate_cpu_s=self.settings.locate_cpu_s,
+                )
+
+    def locate_in(self, deadline_s: float) -> LocateFn:
+        """The locate step of one request: in the limited worker processes (within ``deadline_s`` seconds)
+        when the service locates there, else ``locate_fn`` in the calling thread."""
+        pool = self.locator
+        if pool is None:
+            assert self.locate_fn is not None  # a ready service has one
+            return self.locate_fn
+        return functools.partial(pool.locate, timeout_s=deadline_s)
 
     @property
     def per_client_limit(self) -> int:
@@ -69,6 +95,13 @@ class ServiceState:
         if self.settings.max_per_client is not None:
             return self.settings.max_per_client
         return max(1, self.capacity // 2)
+
+    @property
+    def per_address_limit(self) -> int:
+        """Locate requests one address may have running or queued under one key in this worker at once."""
+        if self.settings.max_per_address is not None:
+            return self.settings.max_per_address
+        return max(1, -(-self.per_client_limit // 2))
 
     @property
     def access_mode(self) -> str:
@@ -121,7 +154,12 @@ class ServiceState:
                 self.keys = KeyStore(self.store.engine)
             if self.keys is not None and self.keys.any_active(remember=False):
                 self.keys_seen = True
-            if self.locate_fn is None:
+            if self.locator is not None:
+                # the locating processes load locate's compiled kernels now, not in the first request; this
+                # process never locates itself
+                self.locator.start()
+                self.locate_fn = self.locator.locate_fn
+            elif self.locate_fn is None:
                 from doorloc.app.services import default_locate_fn
 
                 # (it loads locate's compiled kernels now, not in the first request)
