@@ -7,14 +7,16 @@ geometry (:class:`doorloc.arris.ArrisSection`); the strip's brightness does not:
 the wood and the camera's response. Where an edge estimator that assumes a plain step puts the edge inside
 the strip depends on that brightness, so locate measures it:
 
-1. :func:`arris_geometry`: from the current pose, each arris's cross-section seen from the camera: the
-   outer border's place on the outline plane (``y = a``; inwards from the sharp corner's line, mm), the
-   inner border's, and the map from the fraction of the strip's image width to the surface angle ``theta``;
+1. :func:`arris_geometry` (:mod:`doorloc.vision.arris_geometry`): from the current pose, each arris's
+   cross-section seen from the camera: the outer border's place on the outline plane (``y = a``; inwards
+   from the sharp corner's line, mm), the inner border's, and the map from the fraction of the strip's image width to the surface angle ``theta``;
 2. :func:`fit_strip_profile`: the strip's shading, fitted to the profiles of many scan lines at once
    (linear light, each normalised by its own two plateaus): background | strip | hinge face, blurred by a
    Gaussian and integrated over the pixels, with the outer border's offset and the blur free, and the strip
    a chamfer's constant level or a rounding's shading (free and piecewise linear, or a Lambert arc where
-   that fits about as well; the two weighed where they disagree). What it returns is the strip's *deficit*: the fraction of its width by which the area of the strip falls short
+   that fits about as well; the two weighed where they disagree; where the arc fits worse, its deficit
+   under the light fitted to it is a prior on the free shading's, as wide as the two disagree). What it
+   returns is the strip's *deficit*: the fraction of its width by which the area of the strip falls short
    of the hinge face, the mean of its posterior along the valley where the border's offset and the
    strip's level trade off;
 3. :func:`arris_edges`: per scan line the area estimator (blur-free: it only uses areas) with that deficit,
@@ -40,8 +42,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from doorloc.arris import ArrisSection
-from doorloc.pose import yaw_rotation_matrix
+from doorloc.vision.arris_geometry import ArrisGeometry, arris_geometry
 from doorloc.vision.edges import DITHERING_NOISE_LEVELS, STEP_TAIL_SIGMAS, EdgeSamples
 from doorloc.vision.jit import kernel, pairwise_sum
 from doorloc.vision.sampling import Axis, gather_profiles, normal_cdf_pdf, oriented
@@ -61,6 +62,9 @@ _SHADINGS_REFINED = 4
 _FIT_LINES = 40
 #: plausible error of the Gaussian blur model, px (sets the model's doubt in the strip's deficit)
 BLUR_DOUBT = 0.1
+#: least doubt in the deficit of a rounding's Lambert shading under the light fitted to it (a real finish is
+#: no exact Lambertian, nor its light one direction): 0.03 of the strip's width
+LIT_DEFICIT_FLOOR = 0.03
 #: prior of the deficit where the two plateaus' radiances cannot say more (no contrast): a strip somewhere
 #: between the background and the hinge face
 PRIOR_DEFICIT, PRIOR_SIGMA = 0.5, 0.5
@@ -82,85 +86,6 @@ STRIP_RADIANCE, STRIP_RADIANCE_SIGMA = 0.9, 0.45
 #: brighter than the face). Weak beside what the profiles say of a strip a pixel wide or more; on a strip
 #: much narrower than a pixel it is what keeps the levels finite (module docstring of _StripProblem)
 PRIOR_LEVEL, PRIOR_LEVEL_SIGMA = 0.5, 1.0
-
-
-@dataclass(frozen=True)
-class ArrisGeometry:
-    """One arris seen from the camera, in its cross-section (:mod:`doorloc.arris`).
-
-    Attributes
-    ----------
-    section : ArrisSection
-        Size, profile and the camera centre in cross-section coordinates.
-    w_outer_mm, w_inner_mm : float
-        The strip's outer and inner borders on the outline plane ``y = a``, measured inwards from the
-        sharp corner's line, mm (a chamfer: ``0`` and about ``a``; a rounding's silhouette lies a little inside ``0``).
-    tau, theta : ndarray
-        Fraction of the strip's image width from its outer border (0) to its inner border (1), and the
-        surface angle there (``theta = 0`` on the hinge face), increasing ``tau``.
-    """
-
-    section: ArrisSection
-    w_outer_mm: float
-    w_inner_mm: float
-    tau: np.ndarray
-    theta: np.ndarray
-
-    def theta_at(self, tau: np.ndarray) -> np.ndarray:
-        return np.interp(tau, self.tau, self.theta)
-
-
-def arris_geometry(
-    size_mm: float,
-    profile: str,
-    eye_cell: np.ndarray,
-    corner_xz: np.ndarray,
-    yaw_deg: float,
-    face_y: float,
-    thickness_mm: float,
-) -> dict[str, ArrisGeometry]:
-    """Cross-sections of the bottom, reference and far arrises for a door at this pose.
-
-    Parameters
-    ----------
-    size_mm, profile : float, str
-        The arris (chamfer leg or rounding radius, mm; ``"chamfer"`` or ``"round"``).
-    eye_cell : ndarray (3,)
-        Camera centre, cell frame, mm.
-    corner_xz : ndarray (2,)
-        The reference corner (cell X, Z), mm; ``yaw_deg`` the door's yaw.
-    face_y : float
-        Depth of the hinge face, mm.
-    thickness_mm : float
-        Door thickness (where the far arris is), mm.
-
-    Returns
-    -------
-    dict
-        ``{"bottom": ..., "reference": ..., "far": ...}``; an arris with nothing in view is left out.
-    """
-    R = yaw_rotation_matrix(yaw_deg)
-    eye = R.T @ (np.asarray(eye_cell, float) - np.array([corner_xz[0], face_y, corner_xz[1]]))
-    coords = {
-        "reference": (eye[0], eye[1]),
-        "bottom": (eye[2], eye[1]),
-        "far": (thickness_mm - eye[0], eye[1]),
-    }
-    out = {}
-    for name, (ew, ey) in coords.items():
-        sec = ArrisSection(size_mm, profile, float(ew), float(ey))
-        th_a, th_b = sec.visible_arc()
-        if not np.isfinite(th_a) or th_a > 1e-9:
-            continue  # the hinge side of the arris is turned away: not a strip beside the hinge face
-        a = size_mm
-        th = np.linspace(0.0, th_b, 257)
-        on_face = sec.on_plane(th, 0.0)
-        tau = (on_face - on_face[-1]) / (on_face[0] - on_face[-1])  # 1 at the inner border, 0 at the outer
-        tau, th = tau[::-1], th[::-1]  # increasing tau: from the outer border inwards
-        if np.any(np.diff(tau) <= 0):
-            continue
-        out[name] = ArrisGeometry(sec, float(sec.on_plane(th_b, a)), float(sec.on_plane(0.0, a)), tau, th)
-    return out
 
 
 def deficit_prior(face: float, background: float) -> tuple[float, float]:
@@ -827,6 +752,45 @@ class _StripProblem:
         return s, ev
 
 
+def _posterior_moments(deltas: np.ndarray, deficits: np.ndarray, logp: np.ndarray) -> tuple[float, float]:
+    """Mean and standard deviation of the deficit over the border's offsets ``deltas`` (sorted, px) given
+    the log-posterior density ``logp`` there (trapezoid weights over the unevenly spaced offsets)."""
+    dens = np.exp(logp - logp.max())
+    gaps = np.diff(deltas)
+    tw = np.zeros(deltas.size)
+    tw[:-1] += 0.5 * gaps
+    tw[1:] += 0.5 * gaps
+    pw = dens * tw
+    pw /= pw.sum()
+    mean = float(pw @ deficits)
+    return mean, math.sqrt(max(float(pw @ (deficits - mean) ** 2), 0.0))
+
+
+def _lit_deficit(
+    prob: _StripProblem,
+    tried: list[tuple[int, float, float, _Eval]],
+    best: tuple[float, float, _Eval],
+    free_basis: np.ndarray,
+    t_free: float,
+) -> tuple[float, float]:
+    """The deficit of a rounding's Lambert shading (the light's direction fitted) and its doubt.
+
+    The doubt: the spread of the deficits of the lights tried, each weighed by its misfit (the lights the
+    profiles cannot tell apart), how far the free shading's deficit lies from the arc's at the arc's own
+    place and blur (where the profiles ask for another shading than the light's), and ``LIT_DEFICIT_FLOOR``
+    (a real surface is no exact Lambertian, nor its light one direction).
+    """
+    d1, s1, ev1 = best
+    chi = np.array([float(ev.chi2[0]) for *_, ev in tried] + [float(ev1.chi2[0])])
+    dfs = np.array([float(ev.deficit[0]) for *_, ev in tried] + [float(ev1.deficit[0])])
+    wts = np.exp(-(chi - chi.min()) / (2.0 * t_free))
+    wts /= wts.sum()
+    spread = math.sqrt(max(float(wts @ (dfs - float(ev1.deficit[0])) ** 2), 0.0))
+    free_here = float(prob.evaluate(np.array([d1]), np.array([s1]), free_basis).deficit[0])
+    doubt = math.sqrt(LIT_DEFICIT_FLOOR**2 + spread**2 + (free_here - float(ev1.deficit[0])) ** 2)
+    return float(ev1.deficit[0]), doubt
+
+
 def fit_strip_profile(
     r: np.ndarray,
     x: np.ndarray,
@@ -938,6 +902,8 @@ def fit_strip_profile(
     basis = basis0
     # the other shading model's misfit, deficit, and its linear parameters beyond the one in use
     alt: tuple[float, float, int] | None = None
+    # the lit arc's deficit and its own doubt, a prior on the free shading's (when the arc is not in use)
+    lit: tuple[float, float] | None = None
     if round_:
         # The free shading lets the level next to the silhouette trade off with the border's place; a
         # Lambert arc (the light's direction unknown, its terminator anywhere) does not. It is taken where
@@ -984,6 +950,7 @@ def fit_strip_profile(
             basis, d0, s0, ev0 = b1, d1, s1, ev1
         else:
             alt = (float(ev1.chi2[0]), float(ev1.deficit[0]), -extra)
+            lit = _lit_deficit(prob, tried, (d1, s1, ev1), basis0, t_free)
 
     # The posterior of the deficit along the valley: the coarse profile over the whole search range, and
     # around each of its valleys a fine one (its width from that valley's curvature) that resolves it.
@@ -1039,16 +1006,20 @@ def fit_strip_profile(
     deltas = deltas[order]
     dfc = np.concatenate([evc.deficit[keep], *(f[2] for f in fines)])[order]
     logp = np.concatenate(ll)[order] - 0.5 * ((dfc - prior[0]) / prior[1]) ** 2
-    dens = np.exp(logp - logp.max())
-    # trapezoid weights over the (unevenly spaced) offsets
-    gaps = np.diff(deltas)
-    tw = np.zeros(deltas.size)
-    tw[:-1] += 0.5 * gaps
-    tw[1:] += 0.5 * gaps
-    pw = dens * tw
-    pw /= pw.sum()
-    deficit = float(pw @ dfc)
-    post_sd = math.sqrt(max(float(pw @ (dfc - deficit) ** 2), 0.0))
+    deficit, post_sd = _posterior_moments(deltas, dfc, logp)
+    if lit is not None:
+        # The lit arc's shading, a prior on the free shading's deficit: the free levels trade off with the
+        # border's place along a valley that the light's shading cuts short where the two agree. Its width
+        # is never narrower than the two disagree by (a prior the data contradict must not narrow them).
+        lit_sd = max(lit[1], abs(deficit - lit[0]))
+        held, held_sd = _posterior_moments(deltas, dfc, logp - 0.5 * ((dfc - lit[0]) / lit_sd) ** 2)
+        # A prior that narrows one valley leaves the mean between the data's and its own; one that takes it
+        # beyond both has chosen between the valleys of a skewed posterior, which it cannot tell apart any
+        # better than the profiles (a 1.2 mm rounding in shadow at its silhouette: its first pass's bottom
+        # end read 1.005 for a free 0.89 and an arc's 0.97, and the final pass went to a valley with
+        # another blur, z in doubt by 0.18 mm): there the free shading's posterior stands.
+        if min(deficit, lit[0]) <= held <= max(deficit, lit[0]) and held_sd <= post_sd:
+            deficit, post_sd = held, held_sd
     if alt is not None:
         # The other shading model (Lambert arc or free shading) is one more place for the answer, weighed
         # as another valley is: a rounding whose two models disagree is in doubt by their difference.
