@@ -400,7 +400,7 @@ def step_fit(
 
 
 def pixel_terms(edges: np.ndarray, bounds: np.ndarray, sigma: np.ndarray):
-    """:func:`doorloc.vision.arris_model._pixel_terms` as written with numpy (scipy's ndtr, every border)."""
+    """:func:`doorloc.vision.arris_strip.pixel_terms` as written with numpy (scipy's ndtr, every border)."""
     from scipy.special import ndtr
 
     s = np.asarray(sigma, float)[:, None, None, None]
@@ -413,9 +413,10 @@ def pixel_terms(edges: np.ndarray, bounds: np.ndarray, sigma: np.ndarray):
 
 
 def strip_solve(prob, terms, basis: np.ndarray, jac: bool = False):
-    """:meth:`doorloc.vision.arris_model._StripProblem.solve` as written with numpy (batched matrix
+    """:meth:`doorloc.vision.arris_strip.StripProblem.solve` as written with numpy (batched matrix
     products): ``(chi2, coef, deficit, grad, hess)``."""
-    from doorloc.vision.arris_model import PRIOR_LEVEL, _mix
+    from doorloc.vision.arris_strip import PRIOR_LEVEL
+    from doorloc.vision.arris_strip import mix_cells as _mix
 
     prim, d_b, d_s = terms
     M, const = _mix(basis, prob.n_cells)
@@ -527,9 +528,9 @@ def line_borders(
     blur_px: float,
     n_iter: int = 6,
 ) -> np.ndarray:
-    """arris_model._line_borders as it was written with numpy (the (N, P, J) pixel terms of
-    arris_model._pixel_terms, ~25 array operations an iteration)."""
-    from doorloc.vision.arris_model import _pixel_terms
+    """arris_lines._line_borders as it was written with numpy (the (N, P, J) pixel terms of
+    arris_strip.pixel_terms, ~25 array operations an iteration)."""
+    from doorloc.vision.arris_strip import pixel_terms as _pixel_terms
 
     n_cells = levels.size
     frac = np.arange(n_cells + 1) / n_cells

@@ -366,7 +366,7 @@ def test_each_lines_border_from_the_strip_shape_is_not_moved_by_grain_beside_the
     """Wood grain on the face beside a chamfer strip, wandering across the edge from line to line: the
     area estimate takes in its integral over the window (the effects fixtures' 0.2-0.7 px); the border
     fitted with the strip's shape takes it in only through the face's level."""
-    from doorloc.vision.arris_model import _line_borders
+    from doorloc.vision.arris_lines import _line_borders
 
     rng = np.random.default_rng(23)
     n, width, level, blur = 200, 6.5, 0.6, 0.8
@@ -520,7 +520,7 @@ def test_valid_arris_doors_are_not_refused_for_a_wrong_reason(
 def test_rounding_that_no_noise_dithers_weighs_each_phase_bin_as_one_measurement():
     """Profiles binned at one phase share their rounding where the noise does not dither it: a bin of many
     profiles then weighs no more than the shared variance allows, however many it holds."""
-    from doorloc.vision.arris_model import _StripProblem
+    from doorloc.vision.arris_strip import StripProblem as _StripProblem
 
     rng = np.random.default_rng(3)
     r, x, outer = _profiles(64, 4.0, 0.5, 1.0, rng)

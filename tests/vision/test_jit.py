@@ -20,12 +20,12 @@
   against ndarray.sum, the running mean (response_asymmetry._running_mean_nearest) against uniform_filter1d;
 - the JPEG block ratio (jpeg_blocks.block_artifact_ratio: its integer path compiled) against its numpy branch and
   the gate's per-line figures (quality.line_figures) against their numpy expressions, bit for bit;
-- the arris strip fit's pixel terms (arris_model._pixel_terms) and its linear solve
-  (arris_model._StripProblem.solve) against their numpy versions, to rounding (the normal CDF is not
+- the arris strip fit's pixel terms (arris_strip.pixel_terms) and its linear solve
+  (arris_strip.StripProblem.solve) against their numpy versions, to rounding (the normal CDF is not
   scipy's to the last ulp; the normal equations are summed in another order and are ill-conditioned: the
   coefficients to 1e-6 of their scale); its evaluation one candidate at a time (_StripProblem.evaluate)
-  against those two, and its per-bin means (arris_model._bin_means) against numpy's, bit for bit; the
-  arris lines' border fit (arris_model._line_borders) against its numpy version, to 1e-8 px;
+  against those two, and its per-bin means (arris_strip._bin_means) against numpy's, bit for bit; the
+  arris lines' border fit (arris_lines._line_borders) against its numpy version, to 1e-8 px;
 - the far-face fit's sums (far_face_kernels.far_face_sums, _far_face_misfit, far_face_start_costs: its steps'
   pixel values formed per scan line) against the (N, M) arrays of the dense step model they replaced, to
   rounding, and its Gauss-Newton loop (far_face_kernels.far_face_gauss_newton) against the loop as written in Python.
@@ -497,10 +497,10 @@ def test_line_figures_as_numpy(seed, n, kept, nan):
     one_blur=st.booleans(),
 )
 def test_strip_pixel_terms_as_their_numpy_version(seed, n_cand, n_rows, n_cells, width, one_blur):
-    # arris_model._pixel_terms (compiled, Gaussian terms near each boundary only) against the array formula
+    # arris_strip.pixel_terms (compiled, Gaussian terms near each boundary only) against the array formula
     # over scipy's ndtr: within a few ulps of the values (the C library's erfc is not scipy's), blurs
     # from a twentieth of a pixel to wider than the profile, one blur for every candidate or one each
-    from doorloc.vision.arris_model import _pixel_terms
+    from doorloc.vision.arris_strip import pixel_terms as _pixel_terms
 
     rng = np.random.default_rng(seed)
     edges = np.arange(width + 1) - 0.5
@@ -514,8 +514,8 @@ def test_strip_pixel_terms_as_their_numpy_version(seed, n_cand, n_rows, n_cells,
 
 
 def _strip_problem(rng, n_cells: int, bins: int, noise: float):
-    """An arris strip problem (arris_model._StripProblem) on 60 ramp-shaped strip profiles with noise."""
-    from doorloc.vision.arris_model import _StripProblem
+    """An arris strip problem (arris_strip.StripProblem) on 60 ramp-shaped strip profiles with noise."""
+    from doorloc.vision.arris_strip import StripProblem as _StripProblem
 
     x = np.arange(36, dtype=float)
     outer, width = rng.uniform(14, 18, 60), rng.uniform(0.5, 6.0, 60)
@@ -534,7 +534,7 @@ def _strip_problem(rng, n_cells: int, bins: int, noise: float):
     jac=st.booleans(),
 )
 def test_strip_solve_as_its_numpy_version(seed, n_cand, bins, n_cells, noise, jac):
-    # arris_model._StripProblem.solve (compiled: the normal equations summed in vector lanes, solved by
+    # arris_strip.StripProblem.solve (compiled: the normal equations summed in vector lanes, solved by
     # elimination) against the batched matrix products it replaced: the misfit to 1e-12, the coefficients of
     # the (ill-conditioned) normal equations, the deficit and the derivatives to 1e-6 relative
     rng = np.random.default_rng(seed)
@@ -571,7 +571,7 @@ def test_strip_solve_as_its_numpy_version(seed, n_cand, bins, n_cells, noise, ja
     jac=st.booleans(),
 )
 def test_strip_evaluate_as_its_terms_then_solve(seed, n_delta, one_blur, bins, n_cells, jac):
-    # arris_model._StripProblem.evaluate (compiled one candidate at a time: _strip_evaluate) against the
+    # arris_strip.StripProblem.evaluate (compiled one candidate at a time: _strip_evaluate) against the
     # two kernels over all candidates (pixel_terms, then solve) that it stands for: bit for bit, a single
     # blur broadcast over the offsets as they broadcast it
     rng = np.random.default_rng(seed)
@@ -752,11 +752,11 @@ def test_far_face_gauss_newton_as_its_python_loop(seed, n, fit_blur, has_strip, 
     spoil=st.booleans(),
 )
 def test_line_borders_as_their_numpy_version(seed, n, n_cells, blur, noise, spoil):
-    # arris_model._line_borders (each line's strip border fitted, compiled per line) against the array code
+    # arris_lines._line_borders (each line's strip border fitted, compiled per line) against the array code
     # it replaced (numpy_reference.line_borders): to rounding (the shape's sum over the strip's boundaries
     # was a matrix product, summed in BLAS's order), NaN where it gave NaN; lines with no contrast, a
     # border or width not finite, and a start off by up to 2 px among them
-    from doorloc.vision.arris_model import _line_borders
+    from doorloc.vision.arris_lines import _line_borders
 
     rng = np.random.default_rng(seed)
     n_px = 28
@@ -786,9 +786,9 @@ def test_line_borders_as_their_numpy_version(seed, n, n_cells, blur, noise, spoi
 @settings(max_examples=60, deadline=None)
 @given(seed=st.integers(0, 10_000), n=st.integers(1, 1500), n_p=st.integers(1, 40), bins=st.integers(1, 12))
 def test_strip_bin_means_as_numpy(seed, n, n_p, bins):
-    # arris_model._bin_means (the strip problem's per-bin counts and means, compiled) against the masks and
+    # arris_strip._bin_means (the strip problem's per-bin counts and means, compiled) against the masks and
     # means it replaced: bit for bit (rows added in order, the 1-D means' sums pairwise, as numpy's)
-    from doorloc.vision.arris_model import _bin_means
+    from doorloc.vision.arris_strip import _bin_means
 
     rng = np.random.default_rng(seed)
     r = rng.normal(0, 1, (n, n_p)) * 10 ** rng.uniform(-3, 3)

@@ -15,7 +15,7 @@ model reads an edge is a lookup by its kind (:func:`edge_kind`, :data:`EDGE_MODE
     estimator between the band and the background (:func:`doorloc.vision.edges.subpixel_edges_banded`).
 ``arris_strip``
     A chamfered or rounded arris whose strip the geometry predicts: the strip's shading fitted, the sharp
-    corner's line from its outer border (:func:`doorloc.vision.arris_model.arris_edges`).
+    corner's line from its outer border (:func:`doorloc.vision.arris_lines.arris_edges`).
 ``far_face``
     The far arris with the door's far face seen beside it: two blurred steps, hinge face | far face |
     background (:func:`doorloc.vision.far_face.subpixel_edges_far_face`).
@@ -34,13 +34,9 @@ from typing import Protocol
 import numpy as np
 
 from doorloc.cell import DoorSize
-from doorloc.vision.arris_model import (
-    STRIP_RADIANCE,
-    STRIP_RADIANCE_SIGMA,
-    ArrisGeometry,
-    StripFit,
-    arris_edges,
-)
+from doorloc.vision.arris_geometry import ArrisGeometry
+from doorloc.vision.arris_lines import arris_edges
+from doorloc.vision.arris_model import STRIP_RADIANCE, STRIP_RADIANCE_SIGMA, StripFit
 from doorloc.vision.blurred_step import refine_step_fit
 from doorloc.vision.edge_samples import EdgeSamples
 from doorloc.vision.edges import subpixel_edges, subpixel_edges_banded
