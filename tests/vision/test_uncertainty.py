@@ -18,9 +18,10 @@ from doorloc.pose import DoorPose
 from doorloc.sim.door import render_door
 from doorloc.sim.effects import Effects
 from doorloc.vision.blurred_step import refine_step_fit
-from doorloc.vision.edges import subpixel_edges, texture_bias
+from doorloc.vision.edges import subpixel_edges
 from doorloc.vision.locate import locate
 from doorloc.vision.metric import PlaneMap
+from doorloc.vision.texture import texture_bias
 from doorloc.vision.uncertainty import (
     CAMERA_RESPONSE,
     EDGE_MODEL_FLOOR_PX,

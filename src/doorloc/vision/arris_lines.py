@@ -13,7 +13,9 @@ import numpy as np
 from doorloc.vision.arris_geometry import ArrisGeometry
 from doorloc.vision.arris_model import FIT_LINES, StripFit, deficit_prior, fit_strip_profile
 from doorloc.vision.arris_strip import pixel_terms_fill
-from doorloc.vision.edges import DITHERING_NOISE_LEVELS, STEP_TAIL_SIGMAS, EdgeSamples
+from doorloc.vision.blurred_step import STEP_TAIL_SIGMAS
+from doorloc.vision.edge_samples import EdgeSamples
+from doorloc.vision.edges import DITHERING_NOISE_LEVELS
 from doorloc.vision.jit import kernel, pairwise_sum
 from doorloc.vision.sampling import Axis, gather_profiles, oriented
 

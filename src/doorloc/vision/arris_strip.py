@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from doorloc.vision.arris_geometry import ArrisGeometry
-from doorloc.vision.edges import STEP_TAIL_SIGMAS
+from doorloc.vision.blurred_step import STEP_TAIL_SIGMAS
 from doorloc.vision.jit import kernel, pairwise_sum
 from doorloc.vision.sampling import normal_cdf_pdf
 

@@ -34,7 +34,6 @@ import math
 
 import numpy as np
 
-from doorloc.vision.blurred_step import STEP_TAIL_SIGMAS
 from doorloc.vision.edge_samples import EdgeSamples
 from doorloc.vision.jit import grey, kernel
 from doorloc.vision.sampling import (
@@ -49,17 +48,11 @@ from doorloc.vision.sampling import (
     smooth_along_rows,
     warm_up_planes,
 )
-from doorloc.vision.texture import texture_bias
 
-# (EdgeSamples, STEP_TAIL_SIGMAS and texture_bias live in edge_samples, blurred_step and texture: re-exported for
-# the modules that read them here)
 __all__ = [
     "DITHERING_NOISE_LEVELS",
-    "EdgeSamples",
-    "STEP_TAIL_SIGMAS",
     "subpixel_edges",
     "subpixel_edges_banded",
-    "texture_bias",
     "transition_width",
 ]
 

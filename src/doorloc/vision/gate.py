@@ -17,7 +17,7 @@ import numpy as np
 from doorloc.cell import Cell, DoorSize
 from doorloc.vision import quality as q
 from doorloc.vision.config import LocateConfig
-from doorloc.vision.edges import EdgeSamples
+from doorloc.vision.edge_samples import EdgeSamples
 from doorloc.vision.lines import RectangleFit
 from doorloc.vision.region import EDGE_NAMES, HUMAN, SearchRegion
 from doorloc.vision.response import ResponseFit

@@ -45,7 +45,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.special import ndtr
 
-from doorloc.vision.edges import EdgeSamples, subpixel_edges
+from doorloc.vision.edge_samples import EdgeSamples
+from doorloc.vision.edges import subpixel_edges
 from doorloc.vision.jit import kernel, median_in_place
 from doorloc.vision.response_asymmetry import (
     RESPONSE_GAMMA_RANGE,

@@ -15,7 +15,7 @@ import numpy as np
 from doorloc.cell import Cell
 from doorloc.vision.arris_model import StripFit
 from doorloc.vision.config import LocateConfig
-from doorloc.vision.edges import EdgeSamples, texture_bias
+from doorloc.vision.edge_samples import EdgeSamples
 from doorloc.vision.lines import RectangleFit
 from doorloc.vision.metric import MetricPose
 from doorloc.vision.region import EDGE_NAMES
@@ -30,6 +30,7 @@ from doorloc.vision.response import (
 )
 from doorloc.vision.sampling import linearizing_lut
 from doorloc.vision.state import Refined, ResponseCheck
+from doorloc.vision.texture import texture_bias
 
 __all__ = [
     "STEP_FIT_MIN_BLUR_PX",
