@@ -255,10 +255,12 @@ class DecodePool:
                 if not self._closed:
                     self._idle.put(self._start())
             finally:
-                self._starting -= 1
+                with self._lock:  # the count is read and written from request threads and refill threads
+                    self._starting -= 1
 
         if self.locate_fn is not None:
-            self._starting += 1
+            with self._lock:
+                self._starting += 1
             threading.Thread(target=start, daemon=True, name="doorloc-pool-refill").start()
 
     def _next_worker(self, timeout_s: float, what: str) -> _Worker:

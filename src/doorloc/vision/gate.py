@@ -261,29 +261,23 @@ def _thickness_check(
     nearest = min(readings, key=lambda t: abs(t - door.thickness_mm))
     refusals.append(q.check_thickness(nearest, door.thickness_mm, t_tol, sigma=t_sigma))
     t_uncertain = abs(nearest - door.thickness_mm) + 3.0 * t_sigma > t_tol
-    if t_uncertain and refusals[-1] is None and silhouette is not None and silhouette < cfg.min_contrast:
-        refusals.append(
-            q.Refusal(
-                "uncertain",
-                f"the door's thickness cannot be checked: it measures "
-                f"{nearest:.2f} +- {3 * t_sigma:.2f} mm against {door.thickness_mm:.2f} mm "
-                f"(tolerance {t_tol:g} mm), as the far arris's outer edge hardly stands out from the "
-                f"background behind it (a step of {silhouette:.1f} grey levels; edges need "
-                f"{cfg.min_contrast:g}); light the door's far side differently or put a background of "
-                "another shade behind it, and take the image again",
-            )
+    if t_uncertain and refusals[-1] is None:
+        measured = (
+            f"the door's thickness cannot be checked: it measures {nearest:.2f} +- {3 * t_sigma:.2f} mm against "
+            f"{door.thickness_mm:.2f} mm (tolerance {t_tol:g} mm)"
         )
-    elif t_uncertain and refusals[-1] is None:
-        refusals.append(
-            q.Refusal(
-                "uncertain",
-                f"the door's thickness cannot be checked: it measures "
-                f"{nearest:.2f} +- {3 * t_sigma:.2f} mm against {door.thickness_mm:.2f} mm "
-                f"(tolerance {t_tol:g} mm){' with its far face seen nearly edge-on' if far_beside else ''}; "
-                "check the door and the recipe, or move the door a little along X and take the "
-                "image again",
+        if silhouette is not None and silhouette < cfg.min_contrast:
+            why = (
+                f", as the far arris's outer edge hardly stands out from the background behind it (a step of "
+                f"{silhouette:.1f} grey levels; edges need {cfg.min_contrast:g}); light the door's far side "
+                "differently or put a background of another shade behind it, and take the image again"
             )
-        )
+        else:
+            why = (
+                f"{' with its far face seen nearly edge-on' if far_beside else ''}; check the door and the "
+                "recipe, or move the door a little along X and take the image again"
+            )
+        refusals.append(q.Refusal("uncertain", measured + why))
     return refusals, t_uncertain
 
 
