@@ -67,6 +67,18 @@ def _status(data: bytes) -> int | str:
     return int(data.split(b" ", 2)[1]) if data.startswith(b"HTTP/1.1 ") else "closed"
 
 
+def _flood(host: str, port: str, head: bytes, fill: bytes, chunks: int) -> int | str:
+    """Send ``head``, then ``chunks`` 64 kB chunks of ``fill`` unless the server closes first; its status."""
+    with socket.create_connection((host, int(port)), timeout=60) as s:
+        s.sendall(head)
+        try:
+            for _ in range(chunks):
+                s.sendall(fill * 65536)
+        except OSError:
+            pass
+        return _raw_until_answer(s)
+
+
 def _raw_until_answer(s: socket.socket) -> int | str:
     data = b""
     s.settimeout(60)
@@ -141,26 +153,22 @@ def attack_client(  # noqa: ANN001
                     if status == 429:
                         stop.wait(1.0)
                 elif kind == "keyless_19mb":
-                    with socket.create_connection((host, int(port)), timeout=60) as s:
-                        s.sendall(
-                            b"POST /v1/locate HTTP/1.1\r\nHost: 127.0.0.1\r\n"
-                            b"Content-Type: multipart/form-data; boundary=zz\r\nContent-Length: 19000000\r\n\r\n"
-                        )
-                        try:
-                            for _ in range(290):  # 19 MB in 64 kB chunks, unless the server closes first
-                                s.sendall(b"\0" * 65536)
-                        except OSError:
-                            pass
-                        status = _raw_until_answer(s)
+                    status = _flood(
+                        host,
+                        port,
+                        b"POST /v1/locate HTTP/1.1\r\nHost: 127.0.0.1\r\n"
+                        b"Content-Type: multipart/form-data; boundary=zz\r\nContent-Length: 19000000\r\n\r\n",
+                        b"\0",
+                        290,  # 19 MB in 64 kB chunks, unless the server closes first
+                    )
                 elif kind == "header_100mb":
-                    with socket.create_connection((host, int(port)), timeout=60) as s:
-                        s.sendall(b"GET /healthz HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Big: ")
-                        try:
-                            for _ in range(1600):  # 100 MB in 64 kB chunks, unless the server closes first
-                                s.sendall(b"a" * 65536)
-                        except OSError:
-                            pass
-                        status = _raw_until_answer(s)
+                    status = _flood(
+                        host,
+                        port,
+                        b"GET /healthz HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Big: ",
+                        b"a",
+                        1600,  # 100 MB in 64 kB chunks, unless the server closes first
+                    )
                 elif kind == "slow_headers":
                     with socket.create_connection((host, int(port)), timeout=120) as s:
                         s.sendall(b"GET /healthz HTTP/1.1\r\nHost: 127.0.0.1\r\n")
