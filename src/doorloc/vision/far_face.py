@@ -362,8 +362,38 @@ def _levels_per_blur(
     return min(max(float(d_lam), -cap), cap), min(max(float(d_mu), -cap), cap)
 
 
-# (long for its docstring: the far face's geometry and the reader's settings are keywords with defaults,
-# as the edge model passes them; the fit's phases are the functions above)
+@dataclass(frozen=True)
+class _FitSettings:
+    """How :func:`_fit_arrises` fits: ``fit_blur`` and ``n_iter`` as :func:`subpixel_edges_far_face`'s, the
+    window's half-size ``half`` and a strip's room either way ``n_strip`` (px), and ``strip_shaded`` (the
+    strip is a rounding)."""
+
+    fit_blur: bool
+    n_iter: int
+    half: int
+    n_strip: int
+    strip_shaded: bool
+
+
+def _fit_arrises(
+    prof: _Profiles, prior: _StripPrior, fit: _Fit, settings: _FitSettings
+) -> tuple[_Fit, np.ndarray, float, float]:
+    """The far-face fit on the usable lines from ``fit``'s blur and strip level (index units, px): the
+    answer, each arris's standard deviation, the model's doubt (px) and
+    :attr:`FarFaceFit.other_reading_px`."""
+    strip_doubt = other_reading = 0.0
+    e, lam = _start(prof, fit[2], prior.mu0, settings.half)
+    fit = prof.gauss_newton(prior, e, lam, fit[2], fit[3], settings.fit_blur, settings.n_iter)
+    if prof.has_strip:
+        fit, strip_doubt = _other_strip_reading(
+            prof, prior, fit, settings.fit_blur, settings.n_iter, settings.half + settings.n_strip
+        )
+    else:
+        other_reading = _other_band_reading(prof, fit[0], fit[1])
+    doubts = _arris_doubts(prof, prior, fit, settings.strip_shaded)
+    return fit, doubts.e_sigma, doubts.model_sigma(strip_doubt), other_reading
+
+
 def subpixel_edges_far_face(
     plane: np.ndarray,
     axis: Axis,
@@ -436,6 +466,8 @@ def subpixel_edges_far_face(
         ``along`` = the arris; ``step`` = ``B - A`` signed along ``along``.
     fit : FarFaceFit
     """
+    # why many parameters: the edge reader's common window (as subpixel_edges) plus the far face's geometry and the fit's settings, keywords with defaults as the edge model, step_blur and the tests pass them
+    # why long: its docstring documents those parameters; the body gathers the window, fits (_fit_arrises) and assembles the samples, all three over the same window arrays
     P = oriented(plane, axis)
     scan = np.asarray(scan, int)
     centre = np.asarray(centre, float)
@@ -490,19 +522,14 @@ def subpixel_edges_far_face(
             prof, np.concatenate([vals[ok, :plateau], vals[ok, -plateau:]], axis=1), strip_radiance
         )
     fit: _Fit = (prof.e0.copy(), 0.5, float(np.clip(blur_px, 0.05, 5.0)), prior.mu0, math.nan)
-    strip_doubt = other_reading = 0.0
+    other_reading = 0.0
     e_all, e_sigma = np.full(len(scan), np.nan), np.full(len(scan), np.nan)
     model_sigma = float("nan")
     if n_ok:
-        e, lam = _start(prof, fit[2], prior.mu0, half)
-        fit = prof.gauss_newton(prior, e, lam, fit[2], fit[3], fit_blur, n_iter)
-        if has_strip:
-            fit, strip_doubt = _other_strip_reading(prof, prior, fit, fit_blur, n_iter, half + n_strip)
-        else:
-            other_reading = _other_band_reading(prof, fit[0], fit[1])
-        doubts = _arris_doubts(prof, prior, fit, strip_shaded)
-        e_all[ok], e_sigma[ok] = fit[0], doubts.e_sigma
-        model_sigma = doubts.model_sigma(strip_doubt)
+        fit, e_sigma_ok, model_sigma, other_reading = _fit_arrises(
+            prof, prior, fit, _FitSettings(fit_blur, n_iter, half, n_strip, strip_shaded)
+        )
+        e_all[ok], e_sigma[ok] = fit[0], e_sigma_ok
     _, lam, sigma, mu, _ = fit
     along = np.where(outward > 0, start + e_all, start - e_all)
     valid = ok & np.isfinite(along) & (np.abs(e_all - e0) <= half + n_strip) & np.isfinite(e_sigma)
