@@ -270,7 +270,7 @@ def arris_edges(
     """
     scan = np.asarray(scan, int)
     centre = np.asarray(centre, float)
-    prof = _strip_profiles(plane, axis, scan, centre, half, band_px, window)
+    prof = _strip_profiles(oriented(plane, axis), scan, centre, half, band_px, window)
     fit, bias = _strip_shading(prof, geom, window)
     if fit is None:
         nan = np.full(len(scan), np.nan)
@@ -303,18 +303,18 @@ def arris_edges(
 
 
 def _strip_profiles(
-    plane: np.ndarray,
-    axis: Axis,
+    P: np.ndarray,
     scan: np.ndarray,
     centre: np.ndarray,
     half: int,
     band_px: np.ndarray,
     window: StripWindow,
 ) -> _StripProfiles:
-    """Each scan line's profile across the strip (image px: ``scan`` the lines, ``centre`` the predicted
-    outer border along them, ``band_px`` the strip's width), mirrored to the door's side, and its levels."""
+    """Each scan line's profile across the strip, mirrored to the door's side, and its levels: ``P`` the
+    plane oriented along the scan (:func:`oriented`), image px: ``scan`` the lines, ``centre`` the
+    predicted outer border along them, ``half`` the window's half-size beyond the strip, ``band_px`` the
+    strip's width."""
     door_side, plateau, lut, level_px = window.door_side, window.plateau, window.lut, window.level_px
-    P = oriented(plane, axis)
     w = np.maximum(np.asarray(band_px, float), 0.0)
     finite = np.isfinite(centre) & np.isfinite(w)
     n_extra = int(math.ceil(np.nanmax(w))) if np.any(finite) else 0
