@@ -264,8 +264,7 @@ def fit_strip_profile(
         return None
     round_ = geom.section.profile == "round"
     w_med = float(np.median(width))
-    # cells of at most half a pixel across a rounding's strip (its shading changes across it); a chamfer's
-    # is one level
+    # a rounding's shading changes across its strip: cells of at most half a pixel; a chamfer's is one level
     n_cells = int(np.clip(math.ceil(2.0 * w_med), 4, _STRIP_CELLS)) if round_ else 1
     prob = StripProblem(r, x, outer, width, n_cells, _PHASE_BINS, noise, shared)
     basis0 = _free_basis(n_cells, w_med, round_)
