@@ -7,6 +7,7 @@ points to the sharp corner's line by the geometry (:mod:`doorloc.vision.arris_ge
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -19,7 +20,7 @@ from doorloc.vision.edges import DITHERING_NOISE_LEVELS
 from doorloc.vision.jit import kernel, pairwise_sum
 from doorloc.vision.sampling import Axis, gather_profiles, oriented
 
-__all__ = ["arris_edges"]
+__all__ = ["StripWindow", "arris_edges"]
 
 
 def _line_borders(
@@ -87,6 +88,7 @@ def _line_borders_compiled(vals, edges, b, w_in, frac, jumps, sigma, tail_sigmas
     """:func:`_line_borders`' iterations (``b`` (N,) updated in place): per line the shape and its slope
     from its boundaries' pixel terms (:func:`pixel_terms_fill`), never as (N, P, J) arrays; each line's sums in numpy's pairwise order (:func:`jit.pairwise_sum`), the
     shape's sum over boundaries in their order (the array code's matrix product summed in BLAS's)."""
+    # why many parameters: a numba nopython kernel: the profiles, pixel edges, start borders, widths, cell boundaries, jumps, blur, tail and iteration count pass as arrays and scalars (no dataclass in nopython code); _line_borders prepares them
     n, n_p = vals.shape
     n_j = jumps.size
     ok = np.empty(n, np.bool_)
@@ -158,40 +160,14 @@ def _line_borders_compiled(vals, edges, b, w_in, frac, jumps, sigma, tail_sigmas
     return b
 
 
-def arris_edges(
-    plane: np.ndarray,
-    axis: Axis,
-    scan: np.ndarray,
-    centre: np.ndarray,
-    half: int,
-    band_px: np.ndarray,
-    door_side: int,
-    geom: ArrisGeometry,
-    plateau: int = 4,
-    scale_to_8bit: float = 1.0,
-    lut: np.ndarray | None = None,
-    blur0: float = 1.0,
-    search: bool = False,
-    level_px: int | None = None,
-    line_fit: bool = True,
-) -> tuple[EdgeSamples, StripFit | None]:
-    """Outer border of an arris strip on each scan line (module docstring, step 3).
+@dataclass(frozen=True)
+class StripWindow:
+    """How :func:`arris_edges` reads an arris strip's windows.
 
-    Parameters
+    Attributes
     ----------
-    plane : ndarray
-        Grey image plane.
-    axis, scan : as :func:`doorloc.vision.edges.subpixel_edges`.
-    centre : ndarray (N,)
-        Predicted outer border on each scan line, px.
-    half : int
-        Window half-size beyond the strip, px.
-    band_px : ndarray (N,)
-        Strip width on each scan line, px.
     door_side : +1 or -1
         +1 when the door (strip, then face) lies at increasing ``along``.
-    geom : ArrisGeometry
-        The arris's geometry.
     plateau : int
         Samples on each side for the plateau levels.
     scale_to_8bit : float
@@ -211,6 +187,79 @@ def arris_edges(
     line_fit : bool
         Each line's border from the fitted strip shape (:func:`_line_borders`) where that fit holds, the
         area estimate elsewhere; False: the area estimate on every line.
+    """
+
+    door_side: int
+    plateau: int = 4
+    scale_to_8bit: float = 1.0
+    lut: np.ndarray | None = None
+    blur0: float = 1.0
+    search: bool = False
+    level_px: int | None = None
+    line_fit: bool = True
+
+
+@dataclass(frozen=True)
+class _StripProfiles:
+    """The scan lines' profiles across an arris strip, mirrored so that the door lies at increasing index
+    (linear light), and what the area estimate takes of them.
+
+    ``vals`` (N, L) the profiles, window and plateaus; ``c0`` (N,) each window's centre (rounded predicted
+    border, px); ``pad`` the search's widening, px; ``w`` (N,) the strip's width, px; ``rel_e`` (N,) the
+    predicted border relative to ``c0`` (mirrored, px); ``A``, ``B``, ``D`` (N,) the plateaus' levels and
+    step; ``D_e``, ``S`` (N,) the area estimate's step (of its ``nl`` samples beside the window) and sum;
+    ``good`` (N,) the lines in the image with a step; ``noise`` (N,) the plateaus' noise; ``half`` the
+    window's half-size beyond the strip, px.
+    """
+
+    vals: np.ndarray
+    c0: np.ndarray
+    half: int
+    pad: int
+    w: np.ndarray
+    rel_e: np.ndarray
+    A: np.ndarray
+    B: np.ndarray
+    D: np.ndarray
+    D_e: np.ndarray
+    S: np.ndarray
+    nl: int
+    good: np.ndarray
+    noise: np.ndarray
+
+    @property
+    def length(self) -> int:
+        """Samples of each profile."""
+        return int(self.vals.shape[1])
+
+
+def arris_edges(
+    plane: np.ndarray,
+    axis: Axis,
+    scan: np.ndarray,
+    centre: np.ndarray,
+    half: int,
+    band_px: np.ndarray,
+    geom: ArrisGeometry,
+    window: StripWindow,
+) -> tuple[EdgeSamples, StripFit | None]:
+    """Outer border of an arris strip on each scan line (module docstring, step 3).
+
+    Parameters
+    ----------
+    plane : ndarray
+        Grey image plane.
+    axis, scan : as :func:`doorloc.vision.edges.subpixel_edges`.
+    centre : ndarray (N,)
+        Predicted outer border on each scan line, px.
+    half : int
+        Window half-size beyond the strip, px.
+    band_px : ndarray (N,)
+        Strip width on each scan line, px.
+    geom : ArrisGeometry
+        The arris's geometry.
+    window : StripWindow
+        The door's side, the plateaus, the grey scale and how the strip is fitted.
 
     Returns
     -------
@@ -219,13 +268,57 @@ def arris_edges(
     fit : StripFit or None
         The strip's shading; None when it could not be fitted (then no sample is valid).
     """
-    P = oriented(plane, axis)
     scan = np.asarray(scan, int)
     centre = np.asarray(centre, float)
+    prof = _strip_profiles(oriented(plane, axis), scan, centre, half, band_px, window)
+    fit, bias = _strip_shading(prof, geom, window)
+    if fit is None:
+        nan = np.full(len(scan), np.nan)
+        return EdgeSamples(axis, scan, nan, nan, nan, nan, nan, np.zeros(len(scan), bool)), None
+    e_mirror, in_window = _line_edges(prof, fit, bias, centre, window)
+    c0, door_side, scale_to_8bit, A, B, D = (
+        prof.c0,
+        window.door_side,
+        window.scale_to_8bit,
+        prof.A,
+        prof.B,
+        prof.D,
+    )
+    along = c0 + door_side * e_mirror
+    valid = prof.good & np.isfinite(along) & in_window
+    nan = np.full(len(scan), np.nan)
+    return (
+        EdgeSamples(
+            axis,
+            scan,
+            np.where(valid, along, np.nan),
+            D * door_side * scale_to_8bit,
+            prof.noise * scale_to_8bit,
+            nan,
+            np.maximum(A, B) * scale_to_8bit,
+            valid,
+        ),
+        fit,
+    )
+
+
+def _strip_profiles(
+    P: np.ndarray,
+    scan: np.ndarray,
+    centre: np.ndarray,
+    half: int,
+    band_px: np.ndarray,
+    window: StripWindow,
+) -> _StripProfiles:
+    """Each scan line's profile across the strip, mirrored to the door's side, and its levels: ``P`` the
+    plane oriented along the scan (:func:`oriented`), image px: ``scan`` the lines, ``centre`` the
+    predicted outer border along them, ``half`` the window's half-size beyond the strip, ``band_px`` the
+    strip's width."""
+    door_side, plateau, lut, level_px = window.door_side, window.plateau, window.lut, window.level_px
     w = np.maximum(np.asarray(band_px, float), 0.0)
     finite = np.isfinite(centre) & np.isfinite(w)
     n_extra = int(math.ceil(np.nanmax(w))) if np.any(finite) else 0
-    pad = n_extra if search else 0
+    pad = n_extra if window.search else 0
     c0 = np.round(np.where(finite, centre, 0.0)).astype(int)
     length = 2 * (half + plateau + pad) + 1 + n_extra
     if door_side > 0:
@@ -249,13 +342,24 @@ def arris_edges(
     rel_e = (centre - c0) * door_side  # predicted border relative to c0, mirrored coordinates
     good = finite & inside.all(axis=1) & (np.abs(D) > 0)
     noise = np.sqrt(0.5 * (left.var(axis=1) + right.var(axis=1)))
-    idx = np.nonzero(good)[0]
+    return _StripProfiles(vals, c0, half, pad, w, rel_e, A, B, D, D_e, S, nl, good, noise)
+
+
+def _strip_shading(
+    prof: _StripProfiles, geom: ArrisGeometry, window: StripWindow
+) -> tuple[StripFit | None, float]:
+    """The strip's shading fitted to up to ``FIT_LINES`` of the profiles (:func:`fit_strip_profile`), and
+    the area estimator's bias on the fitted profiles (px, mirrored; 0 without a fit)."""
+    plateau, scale_to_8bit = window.plateau, window.scale_to_8bit
+    vals, A, B, D, noise, w, nl = prof.vals, prof.A, prof.B, prof.D, prof.noise, prof.w, prof.nl
+    pad, length = prof.pad, prof.length
+    idx = np.nonzero(prof.good)[0]
     fit = None
     if idx.size >= 5:
         pick = idx[np.linspace(0, idx.size - 1, min(idx.size, FIT_LINES)).round().astype(int)]
         r = (vals[pick] - A[pick, None]) / D[pick, None]
         x = np.arange(length, dtype=float)
-        outer = plateau + pad + half + rel_e[pick]
+        outer = plateau + pad + prof.half + prof.rel_e[pick]
         # profile noise, normalised; at least the quantisation of the 8-bit scale (a noise-free render)
         nz = float(np.median(np.maximum(noise[pick], 0.3 / scale_to_8bit) / np.abs(D[pick])))
         # the rounding that the noise does not dither (DITHERING_NOISE_LEVELS), normalised (one
@@ -265,7 +369,7 @@ def arris_edges(
         shared = undithered * float(np.median((1.0 / 12.0) / (D[pick] * scale_to_8bit) ** 2))
         prior = deficit_prior(float(np.median(B[pick])), float(np.median(A[pick])))
         fit = fit_strip_profile(
-            r, x, outer, w[pick], geom, nz, blur0, search_px=float(pad), prior=prior, shared=shared
+            r, x, outer, w[pick], geom, nz, window.blur0, search_px=float(pad), prior=prior, shared=shared
         )
     bias = 0.0
     if fit is not None:
@@ -277,21 +381,31 @@ def arris_edges(
         s_m = (mod[:, plateau : length - plateau] - a_m[:, None]).sum(axis=1)
         e_m = (length - 2 * plateau - 0.5) - s_m / (b_m - a_m) - w[pick] * fit.model_deficit
         bias = float(np.median(e_m - (fit.border - plateau)))
-    if fit is None:
-        nan = np.full(len(scan), np.nan)
-        return EdgeSamples(axis, scan, nan, nan, nan, nan, nan, np.zeros(len(scan), bool)), None
+    return fit, bias
+
+
+def _line_edges(
+    prof: _StripProfiles, fit: StripFit, bias: float, centre: np.ndarray, window: StripWindow
+) -> tuple[np.ndarray, np.ndarray]:
+    """Each line's outer border relative to its window's centre ``c0`` (px, mirrored to the door's side)
+    and whether it lies in its window: the area estimate with the fitted deficit, refined by the fitted
+    strip shape (:func:`_line_borders`) where ``window.line_fit``; ``centre`` the predicted border, image
+    px."""
+    plateau, door_side = window.plateau, window.door_side
+    vals, w, c0, good, rel_e = prof.vals, prof.w, prof.c0, prof.good, prof.rel_e
+    half, pad, length = prof.half, prof.pad, prof.length
     with np.errstate(divide="ignore", invalid="ignore"):
         K = (
-            core.shape[1] - 0.5
+            length - 2 * plateau - 0.5
         )  # door-side end of the window (core index units; core starts at c0 - half - pad)
-        e_area = K - S / D_e - w * fit.deficit - bias - (half + pad)  # relative to c0
+        e_area = K - prof.S / prof.D_e - w * fit.deficit - bias - (half + pad)  # relative to c0
     # Each line's border from the fitted strip shape (:func:`_line_borders`), started at the area estimate
     # (vals index units: the window's first pixel is index 0, c0 at plateau + pad + half). The shape is
     # the best fit's, whose deficit may differ from the posterior's in use (a flat valley): the fit
     # starts from the area estimate with the best fit's deficit, and its border moves back by the
     # difference.
     x0 = plateau + pad + half
-    if not line_fit:
+    if not window.line_fit:
         e_model = e_area
     else:
         e_model = (
@@ -312,7 +426,7 @@ def arris_edges(
         e_mirror = np.where(np.abs(e_model - e_area) <= 1.0 + 0.25 * w, e_model, e_area)
         # a line whose area estimate lies in its window has an edge point (the window was placed for it)
         in_window = np.abs(door_side * e_area + c0 - centre) <= half + pad
-    if line_fit:
+    if window.line_fit:
         # A strip much darker or brighter than both sides (a chamfer in shadow: face 150, strip 85,
         # background 133) leaves the area estimate ill-conditioned (its deficit is divided by a contrast the
         # strip dwarfs): on such a bottom end 40 % of the lines' estimates fell out of their 3-px windows
@@ -340,19 +454,4 @@ def arris_edges(
                 )
             e_mirror[np.flatnonzero(lost)[held]] = e_lost[held]
             in_window[np.flatnonzero(lost)[held]] = True
-    along = c0 + door_side * e_mirror
-    valid = good & np.isfinite(along) & in_window
-    nan = np.full(len(scan), np.nan)
-    return (
-        EdgeSamples(
-            axis,
-            scan,
-            np.where(valid, along, np.nan),
-            D * door_side * scale_to_8bit,
-            noise * scale_to_8bit,
-            nan,
-            np.maximum(A, B) * scale_to_8bit,
-            valid,
-        ),
-        fit,
-    )
+    return e_mirror, in_window

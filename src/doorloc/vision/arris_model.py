@@ -257,16 +257,27 @@ def fit_strip_profile(
     that misses its profiles by more than their noise does not choose between two places for the border
     by less than that.
     """
+    # why many parameters: the profiles, their predicted strip and noise, and four independent settings with defaults (start blur, search reach, the deficit's prior, the undithered variance) that the callers pass by keyword
     ok = np.all(np.isfinite(r), axis=1) & np.isfinite(outer) & np.isfinite(width) & (width > 0)
     r, outer, width = r[ok], outer[ok], width[ok]
     if r.shape[0] < 5:
         return None
     round_ = geom.section.profile == "round"
     w_med = float(np.median(width))
-    # cells of at most half a pixel across a rounding's strip (its shading changes across it); a chamfer's
-    # is one level
+    # a rounding's shading changes across its strip: cells of at most half a pixel; a chamfer's is one level
     n_cells = int(np.clip(math.ceil(2.0 * w_med), 4, _STRIP_CELLS)) if round_ else 1
     prob = StripProblem(r, x, outer, width, n_cells, _PHASE_BINS, noise, shared)
+    basis0 = _free_basis(n_cells, w_med, round_)
+    coarse, best = _coarse_offsets(prob, x, outer, width, basis0, blur0, search_px + max(2.0, w_med + 1.0))
+    shading = _Shading(basis0, *best)
+    if round_:
+        shading = _rounding_shading(prob, geom, n_cells, noise, coarse, shading)
+    return _posterior_fit(prob, (r, outer, width), coarse, shading, basis0, noise, prior)
+
+
+def _free_basis(n_cells: int, w_med: float, round_: bool) -> np.ndarray:
+    """The strip's shading basis with its levels free, ``(n_cells, levels)``: on a rounding piecewise linear
+    across the strip's width (``w_med`` its median width, px), on a chamfer one level."""
     if round_:
         # A rounding's shading free, piecewise linear across its strip on parts at least _PART_PX wide
         # (what the blur leaves of the shading's detail): a Lambert model of the arc would need the light,
@@ -275,15 +286,60 @@ def fit_strip_profile(
         n_parts = int(np.clip(math.floor(w_med / _PART_PX), 1, 8))
         # piecewise linear in the strip's width (hat functions on n_parts + 1 knots, at the cells' centres)
         tau = (np.arange(n_cells) + 0.5) / n_cells
-        basis0 = np.maximum(0.0, 1.0 - np.abs(tau[:, None] * n_parts - np.arange(n_parts + 1)[None, :]))
-    else:
-        basis0 = np.ones((n_cells, 1))  # a chamfer's strip: one level
+        return np.maximum(0.0, 1.0 - np.abs(tau[:, None] * n_parts - np.arange(n_parts + 1)[None, :]))
+    return np.ones((n_cells, 1))  # a chamfer's strip: one level
 
+
+@dataclass(frozen=True)
+class _OffsetProfile:
+    """The coarse profile of the misfit over the outer border's offset (px from its prediction, along the
+    mirrored scan towards the door), the blur refitted at each offset.
+
+    ``grid`` the offsets (px), ``blur`` the blur fitted at each (px), ``evaluation`` the free shading's
+    fit there, ``step`` the grid's spacing (px); ``lo_lim``, ``hi_lim`` the offsets that keep the
+    background and the face in view (px) and ``limited`` whether the grid was cut to them.
+    """
+
+    grid: np.ndarray
+    blur: np.ndarray
+    evaluation: StripEvaluation
+    step: float
+    lo_lim: float
+    hi_lim: float
+    limited: bool
+
+
+@dataclass(frozen=True)
+class _Shading:
+    """The strip's shading model in use and its best fit: ``basis`` (cells, levels), the border's offset
+    and the blur (px), their evaluation; ``alt`` the other shading model's misfit, deficit, and its linear
+    parameters beyond the one in use; ``lit`` the lit arc's deficit and its own doubt, a prior on the free
+    shading's (when the arc is not in use)."""
+
+    basis: np.ndarray
+    offset: float
+    blur: float
+    evaluation: StripEvaluation
+    alt: tuple[float, float, int] | None = None
+    lit: tuple[float, float] | None = None
+
+
+def _coarse_offsets(
+    prob: StripProblem,
+    x: np.ndarray,
+    outer: np.ndarray,
+    width: np.ndarray,
+    basis0: np.ndarray,
+    blur0: float,
+    reach: float,
+) -> tuple[_OffsetProfile, tuple[float, float, StripEvaluation]]:
+    """The misfit's coarse profile over the border's offset within ``reach`` px either way (``x``, ``outer``,
+    ``width`` as :func:`fit_strip_profile`'s, px), and its best point refined: offset (px), blur (px) and
+    evaluation."""
     # The offset has local minima on narrow strips (strip and border trade places): profile the misfit over
     # a grid of offsets across the search range (the blur refitted at each), and refine from the best.
     # A strip at the face's level and one at the background's are both a plain step, at the outer or at
     # the inner border: the search (and the posterior) spans both, a strip's width and more either way.
-    reach = search_px + max(2.0, w_med + 1.0)
     step = max(0.2, reach / 10.0)
     grid = np.arange(-reach, reach + 1e-9, step)
     # A place for the border that puts the background (or the face) beyond the profile is not measured by
@@ -295,65 +351,100 @@ def fit_strip_profile(
     margin = 1.0 + 2.0 * max(blur0, 0.7)
     lo_lim, hi_lim = float(np.max(x[0] + margin - outer)), float(np.min(x[-1] - margin - (outer + width)))
     inside = (grid >= lo_lim) & (grid <= hi_lim)
-    if inside.sum() >= 3:
+    limited = bool(inside.sum() >= 3)
+    if limited:
         grid = grid[inside]
     sg, ev = prob.profile_blur(grid, np.full(grid.size, max(blur0, 0.7)), basis0, n_iter=2)
     i0 = int(np.argmin(ev.chi2))
-    d0, s0, ev0 = prob.refine(float(grid[i0]), float(sg[i0]), basis0)
+    best = prob.refine(float(grid[i0]), float(sg[i0]), basis0)
+    return _OffsetProfile(grid, sg, ev, step, lo_lim, hi_lim, limited), best
 
-    basis = basis0
-    # the other shading model's misfit, deficit, and its linear parameters beyond the one in use
-    alt: tuple[float, float, int] | None = None
-    # the lit arc's deficit and its own doubt, a prior on the free shading's (when the arc is not in use)
-    lit: tuple[float, float] | None = None
-    if round_:
-        # The free shading lets the level next to the silhouette trade off with the border's place; a
-        # Lambert arc (the light's direction unknown, its terminator anywhere) does not. It is taken where
-        # it explains the profiles about as well as the free shading (the extra parameters' worth of misfit
-        # and three standard deviations of it more, at the misfit's scale).
-        t_free = max(float(ev0.chi2[0]) / max(prob.y.size - basis0.shape[1] - 4, 1), noise**2)
-        cands = [strip_basis(geom, n_cells, None, False)] + [
-            strip_basis(geom, n_cells, t, lb)
-            for t in np.linspace(0.025, 0.975, 20) * float(geom.theta.max())
-            for lb in (False, True)
-        ]
-        # Each shading at many places for the border, not only at the free shading's best: where the
-        # strip's outer part is in shadow (at the background's level) the free shading has two places for
-        # the border that fit alike, and the arc's own best place is the one that tells them apart (arris
-        # bench seed 11524, a 1.2 mm rounding lit from 58 deg above: at the free shading's place the arc
-        # missed by 75 noise units, at its own 0.9 px away by 3).
-        # The places: steps of a quarter pixel within 2.5 px of the free shading's (the coarse profile's
-        # steps grow with the strip's width, 1.3 px on a 12 px strip, wider than an arc's valley).
-        places = d0 + np.arange(-2.5, 2.5 + 1e-9, 0.25)
-        places = places[(places >= lo_lim) & (places <= hi_lim)] if inside.sum() >= 3 else places
-        if places.size == 0:
-            places = np.array([d0])
-        # (the free shading's own place scored with them, last, for the start it had alone before)
-        at = np.append(places, d0)
-        costs = prob.chi2_many(prob.pixel_terms(at, np.full(at.size, s0)), cands)  # (shadings, places)
-        costs[1:] = np.where(costs[1:] < costs[:1] * 0.98, costs[1:], np.inf)  # a terminator must pay
-        here, costs = costs[:, -1], costs[:, :-1]
-        # the shadings best at some place, each refined there (its own blur: the free shading's is not
-        # the arc's where the two place the border apart)
-        best_at = np.argmin(costs, axis=1)
-        starts = [
-            (int(j), float(places[best_at[j]]), s0)
-            for j in np.argsort(costs[np.arange(len(cands)), best_at])[:_SHADINGS_REFINED]
-            if np.isfinite(costs[j, best_at[j]])
-        ]
-        starts.append((int(np.argmin(here)), d0, s0))  # the best shading at the free shading's place
-        tried = [(j, *prob.refine(d, sd, cands[j], n_iter=4)) for j, d, sd in starts]
-        j, d1, s1, _ = min(tried, key=lambda t: float(t[3].chi2[0]))
-        b1 = cands[j]
-        d1, s1, ev1 = prob.refine(d1, s1, b1)
-        extra = max(basis0.shape[1] - b1.shape[1], 1)
-        if (float(ev1.chi2[0]) - float(ev0.chi2[0])) / t_free <= extra + 3.0 * math.sqrt(2.0 * extra):
-            alt = (float(ev0.chi2[0]), float(ev0.deficit[0]), extra)
-            basis, d0, s0, ev0 = b1, d1, s1, ev1
-        else:
-            alt = (float(ev1.chi2[0]), float(ev1.deficit[0]), -extra)
-            lit = _lit_deficit(prob, tried, (d1, s1, ev1), basis0, t_free)
 
+def _rounding_shading(
+    prob: StripProblem,
+    geom: ArrisGeometry,
+    n_cells: int,
+    noise: float,
+    coarse: _OffsetProfile,
+    free: _Shading,
+) -> _Shading:
+    """A rounding's shading: the free one (``free``) or a Lambert arc where that explains the profiles
+    about as well, the other model's misfit and deficit kept (``alt``) and, where the free shading stays,
+    the arc's deficit as a prior on it (``lit``). Offsets and blurs in px, as :func:`_coarse_offsets`'."""
+    basis0, d0, s0, ev0 = free.basis, free.offset, free.blur, free.evaluation
+    # The free shading lets the level next to the silhouette trade off with the border's place; a
+    # Lambert arc (the light's direction unknown, its terminator anywhere) does not. It is taken where
+    # it explains the profiles about as well as the free shading (the extra parameters' worth of misfit
+    # and three standard deviations of it more, at the misfit's scale).
+    t_free = max(float(ev0.chi2[0]) / max(prob.y.size - basis0.shape[1] - 4, 1), noise**2)
+    cands = [strip_basis(geom, n_cells, None, False)] + [
+        strip_basis(geom, n_cells, t, lb)
+        for t in np.linspace(0.025, 0.975, 20) * float(geom.theta.max())
+        for lb in (False, True)
+    ]
+    # Each shading at many places for the border, not only at the free shading's best: where the
+    # strip's outer part is in shadow (at the background's level) the free shading has two places for
+    # the border that fit alike, and the arc's own best place is the one that tells them apart (arris
+    # bench seed 11524, a 1.2 mm rounding lit from 58 deg above: at the free shading's place the arc
+    # missed by 75 noise units, at its own 0.9 px away by 3).
+    # The places: steps of a quarter pixel within 2.5 px of the free shading's (the coarse profile's
+    # steps grow with the strip's width, 1.3 px on a 12 px strip, wider than an arc's valley).
+    places = d0 + np.arange(-2.5, 2.5 + 1e-9, 0.25)
+    places = places[(places >= coarse.lo_lim) & (places <= coarse.hi_lim)] if coarse.limited else places
+    if places.size == 0:
+        places = np.array([d0])
+    # (the free shading's own place scored with them, last, for the start it had alone before)
+    at = np.append(places, d0)
+    costs = prob.chi2_many(prob.pixel_terms(at, np.full(at.size, s0)), cands)  # (shadings, places)
+    costs[1:] = np.where(costs[1:] < costs[:1] * 0.98, costs[1:], np.inf)  # a terminator must pay
+    here, costs = costs[:, -1], costs[:, :-1]
+    # the shadings best at some place, each refined there (its own blur: the free shading's is not
+    # the arc's where the two place the border apart)
+    best_at = np.argmin(costs, axis=1)
+    starts = [
+        (int(j), float(places[best_at[j]]), s0)
+        for j in np.argsort(costs[np.arange(len(cands)), best_at])[:_SHADINGS_REFINED]
+        if np.isfinite(costs[j, best_at[j]])
+    ]
+    starts.append((int(np.argmin(here)), d0, s0))  # the best shading at the free shading's place
+    tried = [(j, *prob.refine(d, sd, cands[j], n_iter=4)) for j, d, sd in starts]
+    j, d1, s1, _ = min(tried, key=lambda t: float(t[3].chi2[0]))
+    b1 = cands[j]
+    d1, s1, ev1 = prob.refine(d1, s1, b1)
+    extra = max(basis0.shape[1] - b1.shape[1], 1)
+    if (float(ev1.chi2[0]) - float(ev0.chi2[0])) / t_free <= extra + 3.0 * math.sqrt(2.0 * extra):
+        return _Shading(b1, d1, s1, ev1, alt=(float(ev0.chi2[0]), float(ev0.deficit[0]), extra))
+    alt = (float(ev1.chi2[0]), float(ev1.deficit[0]), -extra)
+    lit = _lit_deficit(prob, tried, (d1, s1, ev1), basis0, t_free)
+    return _Shading(basis0, d0, s0, ev0, alt=alt, lit=lit)
+
+
+@dataclass(frozen=True)
+class _Posterior:
+    """The deficit's posterior along the valley (:func:`_valley_posterior`): its mean and standard
+    deviation (fractions of the strip's width), the valleys' refined fits ``modes`` (offset px, blur px,
+    evaluation), the least misfit over the profiles ``chi_min`` and the misfit's scale between valleys
+    ``t_glob`` (normalised variance)."""
+
+    deficit: float
+    sd: float
+    modes: list[tuple[float, float, StripEvaluation]]
+    chi_min: float
+    t_glob: float
+
+
+def _valley_posterior(
+    prob: StripProblem,
+    coarse: _OffsetProfile,
+    shading: _Shading,
+    basis0: np.ndarray,
+    noise: float,
+    prior: tuple[float, float],
+) -> _Posterior:
+    """The posterior of the deficit along the valley of the border's offset (px), under ``shading``, the
+    prior ``prior`` (mean, sd) times the misfit's likelihood; the other shading model not yet weighed."""
+    basis, d0, s0, ev0 = shading.basis, shading.offset, shading.blur, shading.evaluation
+    grid, sg, ev, step = coarse.grid, coarse.blur, coarse.evaluation, coarse.step
     # The posterior of the deficit along the valley: the coarse profile over the whole search range, and
     # around each of its valleys a fine one (its width from that valley's curvature) that resolves it.
     # Another valley (a strip at the face's level, seen as one at the background's a strip's width away)
@@ -409,6 +500,23 @@ def fit_strip_profile(
     dfc = np.concatenate([evc.deficit[keep], *(f[2] for f in fines)])[order]
     logp = np.concatenate(ll)[order] - 0.5 * ((dfc - prior[0]) / prior[1]) ** 2
     deficit, post_sd = _posterior_moments(deltas, dfc, logp)
+    deficit, post_sd = _with_other_shading(shading, deltas, dfc, logp, deficit, post_sd, T_glob)
+    return _Posterior(deficit, post_sd, modes, chi_min, T_glob)
+
+
+def _with_other_shading(
+    shading: _Shading,
+    deltas: np.ndarray,
+    dfc: np.ndarray,
+    logp: np.ndarray,
+    deficit: float,
+    post_sd: float,
+    T_glob: float,
+) -> tuple[float, float]:
+    """The deficit's mean and standard deviation (fractions of the strip's width) with a rounding's other
+    shading model weighed in: the lit arc's deficit as a prior, the other model as one more valley.
+    ``deltas`` (px), ``dfc`` and ``logp``: the offsets, deficits and log-posterior of the valley."""
+    lit, alt, ev0 = shading.lit, shading.alt, shading.evaluation
     if lit is not None:
         # The lit arc's shading, a prior on the free shading's deficit: the free levels trade off with the
         # border's place along a valley that the light's shading cuts short where the two agree. Its width
@@ -435,6 +543,27 @@ def fit_strip_profile(
         mean = (deficit + w_alt * alt[1]) / (1.0 + w_alt)
         post_sd = math.sqrt(post_sd**2 + w_alt / (1.0 + w_alt) ** 2 * (alt[1] - deficit) ** 2)
         deficit = mean
+    return deficit, post_sd
+
+
+def _posterior_fit(
+    prob: StripProblem,
+    lines: tuple[np.ndarray, np.ndarray, np.ndarray],
+    coarse: _OffsetProfile,
+    shading: _Shading,
+    basis0: np.ndarray,
+    noise: float,
+    prior: tuple[float, float],
+) -> StripFit:
+    """The :class:`StripFit`: the posterior's deficit (:func:`_valley_posterior`), widened by the blur
+    model's doubt, and the fitted profiles of the valley the posterior favours on every line of ``lines``
+    (the profiles ``r``, their predicted outer border and strip width, px, as :func:`fit_strip_profile`'s;
+    ``prob`` holds them binned)."""
+    post = _valley_posterior(prob, coarse, shading, basis0, noise, prior)
+    deficit, post_sd, chi_min, T_glob = post.deficit, post.sd, post.chi_min, post.t_glob
+    basis, grid = shading.basis, coarse.grid
+    r, outer, width = lines
+    n_cells = prob.n_cells
 
     # The fitted shape (the caller's area-estimate correction and line-by-line fit start from it) is the
     # valley's that the posterior favours, not the lowest misfit's: two places for the border can misfit
@@ -446,7 +575,7 @@ def fit_strip_profile(
         dev = (float(em.deficit[0]) - prior[0]) / prior[1]
         return -(float(em.chi2[0]) - chi_min) / (2.0 * T_glob) - 0.5 * dev * dev
 
-    d0, s0, ev0 = max(modes, key=lambda m: _log_post(m[2]))
+    d0, s0, ev0 = max(post.modes, key=lambda m: _log_post(m[2]))
 
     # The model's own doubt: a strip narrower than the blur looks like a wider blur with another strip
     # level, and the real optics are no exact Gaussian. How far the deficit moves when the blur is off by

@@ -206,6 +206,8 @@ def _strip_solve(prim, d_b, d_s, M, const, y, w, P, basis, jac):
     coefficients, of ill-conditioned normal equations, to ~1e-9 relative. (As array code, ~20 array
     operations per call on a few hundred rows: 0.3 ms a call, a third of an arris frame.)
     """
+    # why many parameters: a numba nopython kernel: the pixel terms, the basis's mix, the data, weights and the levels' prior rows pass as arrays (no dataclass in nopython code)
+    # why long: per candidate the design (At, Aw), its normal equations' LU factors and the residual are built once and shared by the solve, chi2, the deficit and the variable projection's gradient and Hessian; split into kernels they would be passed and re-read per candidate in the hot loop
     n_b, n_r, n_p, n_j = prim.shape
     n = n_r * n_p
     m = M.shape[1]
@@ -363,6 +365,7 @@ def _strip_evaluate(edges, outer, width, frac, delta, sigma, tail_sigmas, M, con
     and their solve (:func:`_strip_solve`), one candidate at a time: the same numbers as the two kernels
     over all candidates, without their (B, R, P, J) arrays (three of them written and read again per
     call, a few hundred kB: most of an arris frame's time in the strip fit went to them)."""
+    # why many parameters: a numba nopython kernel fusing pixel_terms_fill and _strip_solve per candidate: it takes both kernels' arrays and scalars (no dataclass in nopython code); StripProblem.evaluate is its one caller
     n_b, n_r, n_j = delta.size, outer.size, frac.size
     n_p = edges.size - 1
     m = M.shape[1]

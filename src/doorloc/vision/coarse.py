@@ -65,6 +65,7 @@ def coarse_edges(
     strength : ndarray (N,) float
         Step response there, grey levels of the plane (signed by polarity, so >0 is the right way).
     """
+    # why many parameters: the coarse stage's queries are keyword dicts of exactly these names (batched.py replays them per image, tests/vision/coarse_reference.py takes the same), so the names are the query's format
     scan = np.asarray(scan, int)
     lo = np.asarray(lo, int) - half * stride
     hi = np.asarray(hi, int) + half * stride
@@ -164,6 +165,8 @@ def _strongest_steps(
     to the first finder, tests/vision/coarse_reference.py): integer window sums for 8-bit images, else
     differences of a float32 running sum; ties to the first position.
     """
+    # why many parameters: a numba nopython kernel reading the image buffer by its pitches (no array view or dataclass crosses into nopython code): the buffer, its layout, the scan lines' intervals and the search's settings pass one by one
+    # why long: the profiles are gathered in the buffer's order and searched in the same compiled loop; split, the (N, length) profiles would cross a call boundary per image and the window sums are held bit for bit against tests/vision/coarse_reference.py
     n = scan.size
     m = length - 2 * half + 1
     along = np.full(n, np.nan)

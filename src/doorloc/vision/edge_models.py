@@ -35,7 +35,7 @@ import numpy as np
 
 from doorloc.cell import DoorSize
 from doorloc.vision.arris_geometry import ArrisGeometry
-from doorloc.vision.arris_lines import arris_edges
+from doorloc.vision.arris_lines import StripWindow, arris_edges
 from doorloc.vision.arris_model import STRIP_RADIANCE, STRIP_RADIANCE_SIGMA, StripFit
 from doorloc.vision.blurred_step import refine_step_fit
 from doorloc.vision.edge_samples import EdgeSamples
@@ -258,18 +258,20 @@ class ArrisStrip:
         samples, strip = arris_edges(
             *w.lines,
             band,
-            w.door_side,
             settings.arris[name],
-            max(w.plateau, ARRIS_PLATEAU_PX),
-            w.scale_to_8bit,
-            lut=w.lut,
-            blur0=settings.blur_guess_px,
-            search=every > 1,
-            level_px=w.plateau,
-            # (the far arris's strip can take another level in the first pass than in the final one,
-            # which its window was placed for: there the area estimate; the line fit in both passes lost
-            # every far point on 2 of 48 arris bench frames)
-            line_fit=name != "far" or every == 1,
+            StripWindow(
+                w.door_side,
+                max(w.plateau, ARRIS_PLATEAU_PX),
+                w.scale_to_8bit,
+                lut=w.lut,
+                blur0=settings.blur_guess_px,
+                search=every > 1,
+                level_px=w.plateau,
+                # (the far arris's strip can take another level in the first pass than in the final one,
+                # which its window was placed for: there the area estimate; the line fit in both passes
+                # lost every far point on 2 of 48 arris bench frames)
+                line_fit=name != "far" or every == 1,
+            ),
         )
         samples = replace(samples, along=samples.along + track.outline_shift_px[::every])
         return EdgeReading(samples, strip=(strip, float(np.median(band))) if strip is not None else None)

@@ -362,8 +362,211 @@ def _levels_per_blur(
     return min(max(float(d_lam), -cap), cap), min(max(float(d_mu), -cap), cap)
 
 
-# (long for its docstring: the far face's geometry and the reader's settings are keywords with defaults,
-# as the edge model passes them; the fit's phases are the functions above)
+@dataclass(frozen=True)
+class _FitSettings:
+    """How :func:`_fit_arrises` fits: ``fit_blur`` and ``n_iter`` as :func:`subpixel_edges_far_face`'s, the
+    window's half-size ``half`` and a strip's room either way ``n_strip`` (px), and ``strip_shaded`` (the
+    strip is a rounding)."""
+
+    fit_blur: bool
+    n_iter: int
+    half: int
+    n_strip: int
+    strip_shaded: bool
+
+
+def _fit_arrises(
+    prof: _Profiles, prior: _StripPrior, fit: _Fit, settings: _FitSettings
+) -> tuple[_Fit, np.ndarray, float, float]:
+    """The far-face fit on the usable lines from ``fit``'s blur and strip level (index units, px): the
+    answer, each arris's standard deviation, the model's doubt (px) and
+    :attr:`FarFaceFit.other_reading_px`."""
+    strip_doubt = other_reading = 0.0
+    e, lam = _start(prof, fit[2], prior.mu0, settings.half)
+    fit = prof.gauss_newton(prior, e, lam, fit[2], fit[3], settings.fit_blur, settings.n_iter)
+    if prof.has_strip:
+        fit, strip_doubt = _other_strip_reading(
+            prof, prior, fit, settings.fit_blur, settings.n_iter, settings.half + settings.n_strip
+        )
+    else:
+        other_reading = _other_band_reading(prof, fit[0], fit[1])
+    doubts = _arris_doubts(prof, prior, fit, settings.strip_shaded)
+    return fit, doubts.e_sigma, doubts.model_sigma(strip_doubt), other_reading
+
+
+@dataclass(frozen=True)
+class _Reach:
+    """How :func:`subpixel_edges_far_face` reads its window (as :func:`subpixel_edges`): the search's half
+    width and the plateaus' length, px; the start blur, px; the levels' smoothing along the edge, scan
+    lines; and the look-up table to linear light (None: the values as they are)."""
+
+    half: int
+    plateau: int
+    blur_px: float
+    level_smooth: int
+    lut: np.ndarray | None
+
+
+@dataclass(frozen=True)
+class _FarFaceWindow:
+    """The profiles across the far arris, the hinge face at the low indices.
+
+    ``scan`` the scan lines; ``w0`` the predicted band and ``ws`` the strip width per line, px;
+    ``n_strip`` the room for a strip on either side, px; ``start`` the window's first pixel along the edge
+    (its last when ``outward`` < 0);
+    ``vals`` (N, length) the profiles in linear light; ``A``, ``B`` the hinge face's and the background's
+    levels, ``D = B - A``; ``ok`` the usable lines; ``e0`` the predicted arris, index units."""
+
+    reach: _Reach
+    scan: np.ndarray
+    outward: int
+    w0: np.ndarray
+    ws: np.ndarray
+    has_strip: bool
+    n_strip: int
+    start: np.ndarray
+    vals: np.ndarray
+    A: np.ndarray
+    B: np.ndarray
+    D: np.ndarray
+    ok: np.ndarray
+    e0: np.ndarray
+
+
+def _far_face_window(
+    P: np.ndarray,
+    scan: np.ndarray,
+    centre: np.ndarray,
+    band_px: np.ndarray,
+    strip_px: np.ndarray | None,
+    outward: int,
+    reach: _Reach,
+) -> _FarFaceWindow:
+    """Gather the profiles across the far arris from the oriented plane ``P`` (arguments as
+    :func:`subpixel_edges_far_face`), mirrored so that the hinge face is at the low indices."""
+    half, plateau, blur_px = reach.half, reach.plateau, reach.blur_px
+    scan = np.asarray(scan, int)
+    centre = np.asarray(centre, float)
+    w0 = np.asarray(band_px, float)
+    finite = np.isfinite(centre) & np.isfinite(w0)
+    w0 = np.where(finite, w0, 0.0)
+    c0 = np.round(np.where(finite, centre, 0.0)).astype(int)
+    n_extra = int(math.ceil(max(float(np.max(w0, initial=0.0)), 0.0))) + 1
+    ws = (
+        np.zeros(len(scan))
+        if strip_px is None
+        else np.where(np.isfinite(strip_px), np.maximum(np.asarray(strip_px, float), 0.0), 0.0)
+    )
+    has_strip = bool(np.any(ws > 0))
+    # the hinge face's plateau beyond the strip (and the blur beside it), and room for the border a
+    # strip's width either way (the second reading of the profile, below)
+    n_strip = int(math.ceil(float(ws.max(initial=0.0)) + 2.0 * blur_px)) if has_strip else 0
+    length = 2 * (half + plateau) + 1 + n_extra + 2 * n_strip
+    if outward > 0:
+        start = c0 - half - plateau - n_strip
+        vals, inside = gather_profiles(P, scan, start, length, lut=reach.lut)
+    else:  # mirror so that the hinge face is at the low indices
+        start = c0 + half + plateau + n_strip
+        vals, inside = gather_profiles(P, scan, start - length + 1, length, lut=reach.lut)
+        vals, inside = vals[:, ::-1], inside[:, ::-1]
+    vals = vals.astype(np.float64)
+    A = vals[:, :plateau].mean(axis=1)
+    B = vals[:, -plateau:].mean(axis=1)
+    ok = finite & inside.all(axis=1)
+    if reach.level_smooth > 0 and scan.size:
+        A = smooth_along(np.where(ok, A, np.nan), reach.level_smooth)
+        B = smooth_along(np.where(ok, B, np.nan), reach.level_smooth)
+    D = B - A
+    ok &= np.isfinite(D) & (np.abs(D) > 0)
+    e0 = plateau + n_strip + half + (centre - c0) * outward  # predicted arris, index units
+    return _FarFaceWindow(reach, scan, outward, w0, ws, has_strip, n_strip, start, vals, A, B, D, ok, e0)
+
+
+@dataclass(frozen=True)
+class _Outcome:
+    """The fit's arris per scan line, index units, and its standard error, px (NaN on unusable lines);
+    the model's doubt and the band's other reading, px (:class:`FarFaceFit`)."""
+
+    e_all: np.ndarray
+    e_sigma: np.ndarray
+    model_sigma: float
+    other_reading: float
+
+
+def _fit_window(
+    win: _FarFaceWindow, band_slope: float, strip_radiance: tuple[float, float], settings: _FitSettings
+) -> tuple[_Fit, _Outcome]:
+    """Fit the arrises, the band's level, the blur and the strip's level to the window's usable lines
+    (:func:`_fit_arrises`); the start values where none is usable."""
+    plateau, ok, has_strip, vals = win.reach.plateau, win.ok, win.has_strip, win.vals
+    length = vals.shape[1]
+    n_ok = int(ok.sum())
+    # Only the core (between the plateaus) carries the edges; the plateaus fix A and B.
+    prof = _Profiles(
+        vals[ok, plateau : length - plateau],
+        win.A[ok],
+        win.D[ok],
+        np.arange(plateau, length - plateau + 1, dtype=np.float64) - 0.5,
+        win.e0[ok],
+        win.w0[ok],
+        band_slope,
+        win.ws[ok] if has_strip else np.zeros(n_ok),  # (the kernels take a width on every line)
+        has_strip,
+    )
+    prior = _StripPrior()
+    if has_strip and n_ok:
+        prior = _strip_prior(
+            prof, np.concatenate([vals[ok, :plateau], vals[ok, -plateau:]], axis=1), strip_radiance
+        )
+    fit: _Fit = (prof.e0.copy(), 0.5, float(np.clip(win.reach.blur_px, 0.05, 5.0)), prior.mu0, math.nan)
+    other_reading = 0.0
+    e_all, e_sigma = np.full(len(win.scan), np.nan), np.full(len(win.scan), np.nan)
+    model_sigma = float("nan")
+    if n_ok:
+        fit, e_sigma_ok, model_sigma, other_reading = _fit_arrises(prof, prior, fit, settings)
+        e_all[ok], e_sigma[ok] = fit[0], e_sigma_ok
+    return fit, _Outcome(e_all, e_sigma, model_sigma, other_reading)
+
+
+def _far_face_answer(
+    win: _FarFaceWindow, fit: _Fit, outcome: _Outcome, axis: Axis, band_slope: float, scale_to_8bit: float
+) -> tuple[EdgeSamples, FarFaceFit]:
+    """The edge points (``along`` the arris, px; levels in 8-bit grey levels) and the fit's summary."""
+    scan, outward, start, e0 = win.scan, win.outward, win.start, win.e0
+    e_all, e_sigma = outcome.e_all, outcome.e_sigma
+    half, plateau, vals, A, B, D = win.reach.half, win.reach.plateau, win.vals, win.A, win.B, win.D
+    _, lam, sigma, mu, _ = fit
+    along = np.where(outward > 0, start + e_all, start - e_all)
+    valid = win.ok & np.isfinite(along) & (np.abs(e_all - e0) <= half + win.n_strip) & np.isfinite(e_sigma)
+    w_fit = np.maximum(win.w0 + band_slope * (e_all - e0), 0.0)
+    band_med = median(w_fit[valid]) if np.any(valid) else float("nan")
+    noise = np.sqrt(0.5 * (vals[:, :plateau].var(axis=1) + vals[:, -plateau:].var(axis=1)))
+    # the brightest level seen (the saturation check): the band's fitted level only as far as a pixel of
+    # the profile reaches it (a level fitted beyond them, 1258 grey levels on a chamfer read with the
+    # wrong camera exponent, is no pixel's, and refused a door peaking at 228 as overexposed)
+    band_level = np.minimum(A + lam * D, vals.max(axis=1))
+    samples = EdgeSamples(
+        axis,
+        scan,
+        np.where(valid, along, np.nan),
+        D * outward * scale_to_8bit,
+        noise * scale_to_8bit,
+        np.full(len(scan), np.nan),
+        np.maximum(np.maximum(A, B), band_level) * scale_to_8bit,
+        valid,
+    )
+    fit_out = FarFaceFit(
+        lam,
+        sigma,
+        band_med,
+        median(e_sigma[valid]) if np.any(valid) else float("nan"),
+        outcome.model_sigma,
+        float(mu) if win.has_strip else float("nan"),
+        outcome.other_reading,
+    )
+    return samples, fit_out
+
+
 def subpixel_edges_far_face(
     plane: np.ndarray,
     axis: Axis,
@@ -436,103 +639,13 @@ def subpixel_edges_far_face(
         ``along`` = the arris; ``step`` = ``B - A`` signed along ``along``.
     fit : FarFaceFit
     """
-    P = oriented(plane, axis)
-    scan = np.asarray(scan, int)
-    centre = np.asarray(centre, float)
-    w0 = np.asarray(band_px, float)
-    finite = np.isfinite(centre) & np.isfinite(w0)
-    w0 = np.where(finite, w0, 0.0)
-    c0 = np.round(np.where(finite, centre, 0.0)).astype(int)
-    n_extra = int(math.ceil(max(float(np.max(w0, initial=0.0)), 0.0))) + 1
-    ws = (
-        np.zeros(len(scan))
-        if strip_px is None
-        else np.where(np.isfinite(strip_px), np.maximum(np.asarray(strip_px, float), 0.0), 0.0)
+    # why many parameters: the edge reader's common window (as subpixel_edges) plus the far face's geometry and the fit's settings, keywords with defaults as the edge model, step_blur and the tests pass them
+    reach = _Reach(half, plateau, blur_px, level_smooth, lut)
+    win = _far_face_window(oriented(plane, axis), scan, centre, band_px, strip_px, outward, reach)
+    fit, outcome = _fit_window(
+        win, band_slope, strip_radiance, _FitSettings(fit_blur, n_iter, half, win.n_strip, strip_shaded)
     )
-    has_strip = bool(np.any(ws > 0))
-    # the hinge face's plateau beyond the strip (and the blur beside it), and room for the border a
-    # strip's width either way (the second reading of the profile, below)
-    n_strip = int(math.ceil(float(ws.max(initial=0.0)) + 2.0 * blur_px)) if has_strip else 0
-    length = 2 * (half + plateau) + 1 + n_extra + 2 * n_strip
-    if outward > 0:
-        start = c0 - half - plateau - n_strip
-        vals, inside = gather_profiles(P, scan, start, length, lut=lut)
-    else:  # mirror so that the hinge face is at the low indices
-        start = c0 + half + plateau + n_strip
-        vals, inside = gather_profiles(P, scan, start - length + 1, length, lut=lut)
-        vals, inside = vals[:, ::-1], inside[:, ::-1]
-    vals = vals.astype(np.float64)
-    A = vals[:, :plateau].mean(axis=1)
-    B = vals[:, -plateau:].mean(axis=1)
-    ok = finite & inside.all(axis=1)
-    if level_smooth > 0 and scan.size:
-        A = smooth_along(np.where(ok, A, np.nan), level_smooth)
-        B = smooth_along(np.where(ok, B, np.nan), level_smooth)
-    D = B - A
-    ok &= np.isfinite(D) & (np.abs(D) > 0)
-    e0 = plateau + n_strip + half + (centre - c0) * outward  # predicted arris, index units
-    n_ok = int(ok.sum())
-    # Only the core (between the plateaus) carries the edges; the plateaus fix A and B.
-    prof = _Profiles(
-        vals[ok, plateau : length - plateau],
-        A[ok],
-        D[ok],
-        np.arange(plateau, length - plateau + 1, dtype=np.float64) - 0.5,
-        e0[ok],
-        w0[ok],
-        band_slope,
-        ws[ok] if has_strip else np.zeros(n_ok),  # (the kernels take a width on every line)
-        has_strip,
-    )
-    prior = _StripPrior()
-    if has_strip and n_ok:
-        prior = _strip_prior(
-            prof, np.concatenate([vals[ok, :plateau], vals[ok, -plateau:]], axis=1), strip_radiance
-        )
-    fit: _Fit = (prof.e0.copy(), 0.5, float(np.clip(blur_px, 0.05, 5.0)), prior.mu0, math.nan)
-    strip_doubt = other_reading = 0.0
-    e_all, e_sigma = np.full(len(scan), np.nan), np.full(len(scan), np.nan)
-    model_sigma = float("nan")
-    if n_ok:
-        e, lam = _start(prof, fit[2], prior.mu0, half)
-        fit = prof.gauss_newton(prior, e, lam, fit[2], fit[3], fit_blur, n_iter)
-        if has_strip:
-            fit, strip_doubt = _other_strip_reading(prof, prior, fit, fit_blur, n_iter, half + n_strip)
-        else:
-            other_reading = _other_band_reading(prof, fit[0], fit[1])
-        doubts = _arris_doubts(prof, prior, fit, strip_shaded)
-        e_all[ok], e_sigma[ok] = fit[0], doubts.e_sigma
-        model_sigma = doubts.model_sigma(strip_doubt)
-    _, lam, sigma, mu, _ = fit
-    along = np.where(outward > 0, start + e_all, start - e_all)
-    valid = ok & np.isfinite(along) & (np.abs(e_all - e0) <= half + n_strip) & np.isfinite(e_sigma)
-    w_fit = np.maximum(w0 + band_slope * (e_all - e0), 0.0)
-    band_med = median(w_fit[valid]) if np.any(valid) else float("nan")
-    noise = np.sqrt(0.5 * (vals[:, :plateau].var(axis=1) + vals[:, -plateau:].var(axis=1)))
-    # the brightest level seen (the saturation check): the band's fitted level only as far as a pixel of
-    # the profile reaches it (a level fitted beyond them, 1258 grey levels on a chamfer read with the
-    # wrong camera exponent, is no pixel's, and refused a door peaking at 228 as overexposed)
-    band_level = np.minimum(A + lam * D, vals.max(axis=1))
-    samples = EdgeSamples(
-        axis,
-        scan,
-        np.where(valid, along, np.nan),
-        D * outward * scale_to_8bit,
-        noise * scale_to_8bit,
-        np.full(len(scan), np.nan),
-        np.maximum(np.maximum(A, B), band_level) * scale_to_8bit,
-        valid,
-    )
-    fit_out = FarFaceFit(
-        lam,
-        sigma,
-        band_med,
-        median(e_sigma[valid]) if np.any(valid) else float("nan"),
-        model_sigma,
-        float(mu) if has_strip else float("nan"),
-        other_reading,
-    )
-    return samples, fit_out
+    return _far_face_answer(win, fit, outcome, axis, band_slope, scale_to_8bit)
 
 
 def step_blur(

@@ -71,6 +71,7 @@ def _far_face_row(bounds, e, w0, e0, band_slope, strip, has_strip, sigma, cut, S
     inner border at ``e - strip``, each on the pixel boundaries (:func:`_unit_step_boundaries`) into the
     rows of ``S`` (9, M + 1): ``G, P, p`` of the arris, then the back edge's, then the strip's. Returns
     whether a band is in view."""
+    # why many parameters: an inline numba kernel called per scan line from the compiled loops; the line's pixel boundaries, arris, band and strip arrive as separate arrays and scalars (nopython code takes no dataclass) and S, slopes are filled in place
     w_raw = w0 + band_slope * (e - e0)
     has_band = w_raw > 0
     _unit_step_boundaries(bounds, e, sigma, cut, S[0], S[1], S[2], slopes)
@@ -120,6 +121,7 @@ def far_face_start_costs(
     (the model is linear in it) with its pull towards 0.5 included, and that level; on every ``every``-th
     profile only (a ranking of the shifts) or all (``every`` 1). A strip, if any, at its prior level
     ``mu0``."""
+    # why many parameters: a numba nopython kernel (no dataclass in nopython code): the profiles' cores, their levels, the band's and the strip's per-line arrays and the fit's scalars each pass on their own; the list is what far_face.subpixel_edges_far_face and the warm-up call
     n, n_m = core.shape
     rows = np.arange(0, n, every)
     J = np.empty((rows.size, n_m))
@@ -166,6 +168,7 @@ def _far_face_misfit(core, A, D, bounds, e, w0, e0, band_slope, sigma, tail, str
     its derivative by the band level (the level's pull is that times _WARM_UP_LEVEL_WEIGHT): the model
     ``A + lam D C1 + (1 - lam) D C2`` (+ ``mu D (C0 - C1)`` with a strip), ``C1``, ``C2``, ``C0`` the
     arrises', back edges' and strip borders' pixel values (:func:`_far_face_row`)."""
+    # why many parameters: a numba nopython kernel (no dataclass in nopython code): the model's profiles, levels, arrises, band, blur and strip pass as separate arrays and scalars, as far_face_gauss_newton calls it inside its iterations
     n, n_m = core.shape
     S = np.empty((9, n_m + 1))
     cut = tail * sigma
@@ -208,6 +211,7 @@ def far_face_sums(
     The steps' pixel values and slopes are formed per scan line (:func:`_far_face_row`), never as (N, M)
     arrays (allocating and filling nine of those per evaluation was most of the fit's time).
     """
+    # why many parameters: a numba nopython kernel (no dataclass in nopython code): the Gauss-Newton step's inputs (profiles, levels, arrises, band, blur, strip, level pulls) and its output arrays pass one by one
     n, n_m = core.shape
     n_sh = 3 if has_strip else 2
     S = np.empty((9, n_m + 1))
@@ -303,6 +307,7 @@ def far_face_schur(H, b_g, h_ee, h_eg, b_e, lam, mu, level_weight, pull_mu, mu0)
     With the level's pull towards mid-grey (``level_weight`` times its information) and, with a strip,
     the strip level's pull ``pull_mu`` towards its prior ``mu0``; a small ridge keeps a level that no
     scan line sees (a band nowhere in view) from leaving the system singular."""
+    # why many parameters: a numba kernel solving the normal equations in place: its blocks (H, b_g, h_ee, h_eg, b_e) and the damping and pulls' scalars are separate arrays and numbers in nopython code
     n, n_sh = h_eg.shape
     level_info = H[0, 0]  # sum of J_lam ** 2
     for k in range(n_sh):
@@ -349,6 +354,7 @@ def far_face_gauss_newton(
     up to three times, only where it lowers the cost (the band's width is clipped at zero, a kink a full
     step can jump across into the false minimum where the band has vanished). Returns the final
     ``e, lam, sigma, mu`` and cost (misfit and pulls). Compiled: as Python, ~20 numpy calls a step."""
+    # why many parameters: the whole far-face iteration runs in one compiled call (as Python it was ~20 numpy calls a step), so every array and setting of the fit passes on its own: nopython code takes no dataclass
     e = e.copy()
     n = e.size
 

@@ -33,7 +33,6 @@ class TextureBias:
     tilt_sigma: float
 
 
-# (its settings are keywords with defaults, as the edge models and the response check pass them)
 def texture_bias(
     plane: np.ndarray,
     samples: EdgeSamples,
@@ -77,6 +76,7 @@ def texture_bias(
     TextureBias
         NaN fields when fewer than 8 samples are usable.
     """
+    # why many parameters: the edge's window as the estimator read it (half, plateau, lut) and the texture's settings, keywords with defaults as the edge models, the doubts, the response check and the reference test pass them
     P = oriented(plane, samples.axis)
     h = half + 1
     reach = max(2 * (half + plateau), 2 * h) + n_shifts + 2
@@ -104,6 +104,23 @@ def texture_bias(
         # compiled in one call (the Python between the steps cost more than they did)
         off, tilt = _area_texture_bias(*profiles, reach, skip_plus, skip_minus, n_shifts, half)
         return TextureBias(off, tilt)
+    return _step_fit_texture_bias(profiles, R, reach, skip_plus, skip_minus, h, n_shifts, blur_px)
+
+
+def _step_fit_texture_bias(
+    profiles: tuple,
+    R: int,
+    reach: int,
+    skip_plus: int,
+    skip_minus: int,
+    h: int,
+    n_shifts: int,
+    blur_px: float,
+) -> TextureBias:
+    """:func:`texture_bias` for the step fit (:func:`refine_step_fit`, blur ``blur_px``, window ``h`` px each
+    side): the mean profiles (:func:`_texture_profiles` of ``profiles``, its arguments; ``R`` their
+    half-window, px), each side's ``reach`` px beyond the edge (``skip_plus``, ``skip_minus`` px skipped on each), as texture beside a
+    clean step."""
     Ts, D, lever, n_ok = _texture_profiles(*profiles)
     if n_ok < 8 or not D > 0:
         return TextureBias(float("nan"), float("nan"))
@@ -160,6 +177,7 @@ def _texture_profiles(
     ``lever`` the distance between the halves' mean scan lines and ``n`` the profiles counted (``Ts`` zero
     and ``D``, ``lever`` NaN below 8).
     """
+    # why many parameters: a numba nopython kernel reading the image buffer by its pitches: the buffer, its layout, the scan lines with their masks and the profile's reach, plateau and look-up table pass as arrays and scalars (no dataclass in nopython code)
     length = 2 * R + 1
     Ts = np.zeros((3, length))
     picked = np.empty(scan.size, np.int64)
@@ -253,6 +271,7 @@ def _area_texture_bias(
     on texture alone: the window sum of pixels ``o + 1 .. o + half`` minus ``half`` times the mean of the
     plateau beyond it, over the step ``D``; their RMS (numpy's sums). NaN without 8 profiles or a step.
     """
+    # why many parameters: a numba nopython kernel: _texture_profiles' arguments first (it calls it), then the area estimator's reach, skipped sides, shifts and window; nopython code takes no dataclass
     Ts, D, lever, n = _texture_profiles(
         buf, pitch_along, pitch_scan, n_along, n_scan, scan, along, mask, valid, max_lines, R, plateau, lut
     )
