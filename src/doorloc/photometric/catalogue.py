@@ -31,7 +31,28 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["Cause", "EDGE_CAUSES", "PROFILE_CAUSES", "CAUSES_BY_NAME", "CATALOGUE_NAMES"]
+from scipy.stats import norm
+
+__all__ = [
+    "Cause",
+    "EDGE_CAUSES",
+    "PROFILE_CAUSES",
+    "CAUSES_BY_NAME",
+    "CATALOGUE_NAMES",
+    "KEEP_SIGMAS",
+    "keep_sigmas",
+]
+
+#: a single cause is kept when its held-out gain exceeds this many of its standard errors
+KEEP_SIGMAS = 2.0
+
+
+def keep_sigmas(n_compared: int) -> float:
+    """Standard errors a held-out gain must exceed when ``n_compared`` causes are tried at once: the best of
+    several candidates passes a fixed threshold by chance more often than one does, so the threshold is
+    raised until the chance that any of them passes on noise alone is that of one cause at
+    :data:`KEEP_SIGMAS` (Bonferroni; 2.0 for one, 2.40 for three, 2.77 for eight)."""
+    return float(norm.isf(norm.sf(KEEP_SIGMAS) / max(1, int(n_compared))))
 
 
 @dataclass(frozen=True)

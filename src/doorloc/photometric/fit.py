@@ -24,7 +24,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from doorloc.photometric.board_edges import BoardEdges, EdgeSettings
-from doorloc.photometric.catalogue import EDGE_CAUSES, Cause
+from doorloc.photometric.catalogue import EDGE_CAUSES, KEEP_SIGMAS, Cause, keep_sigmas
 from doorloc.photometric.clipping import (
     censored_offsets_px,
     clip_candidates,
@@ -50,8 +50,6 @@ __all__ = [
     "HeldOut",
 ]
 
-#: a cause is kept when it lowers the held-out squared offsets by this many standard errors (paired over photographs)
-KEEP_SIGMAS = 2.0
 #: a cause that halves a held-out bias this many times the noise's standard error is kept too
 BIAS_OVER_NOISE = 5.0
 #: candidates within this many standard errors of the best at a step cannot be told apart from it
@@ -381,7 +379,8 @@ def select_causes(
 ) -> Selection:
     """Forward selection by held-out photographs: add the cause that lowers the held-out offsets most (each
     photograph's medians by edge direction, :func:`direction_medians`), while the lowering is significant
-    (:data:`KEEP_SIGMAS`, paired over photographs)."""
+    (paired over photographs, by :func:`~doorloc.photometric.catalogue.keep_sigmas` of the candidates tried at
+    the step: a control's best candidate must not pass by the luck of the draw)."""
     plain = np.array([photo_median(p, PLAIN) for p in photos])
     plain_dir = np.array([direction_medians(p, PLAIN) for p in photos])
     floor = float(np.sqrt(np.nanmean([noise_floor_px(p) ** 2 for p in photos])))
@@ -407,7 +406,7 @@ def select_causes(
         # significant paired over photographs, or (few photographs, the bias on some only) a bias well above
         # the noise at least halved
         halved = trials[best].score_px < 0.5 * before and before > BIAS_OVER_NOISE * floor
-        if not (gain > KEEP_SIGMAS * se or halved):
+        if not (gain > keep_sigmas(len(trials)) * se or halved):
             break
         ties = []
         for k, v in trials.items():
