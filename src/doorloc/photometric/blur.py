@@ -15,9 +15,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["EdgeBlurs", "BlurTerms", "blur_terms"]
+from doorloc.photometric.catalogue import PROFILE_CAUSES, keep_sigmas
 
-KEEP_SIGMAS = 2.0
+__all__ = ["EdgeBlurs", "BlurTerms", "blur_terms"]
 
 
 @dataclass(frozen=True)
@@ -91,7 +91,7 @@ def blur_terms(photos: Sequence[EdgeBlurs], folds: np.ndarray) -> BlurTerms:
         d = base - trial
         g, se = float(d.mean()), float(d.std(ddof=1) / np.sqrt(d.size)) if d.size > 1 else float("inf")
         gains[_NAMES[j]] = (g, se)
-        if g > KEEP_SIGMAS * se:
+        if g > keep_sigmas(len(PROFILE_CAUSES)) * se:
             kept.append(j)
             base = trial
     values: dict[str, float] = {}

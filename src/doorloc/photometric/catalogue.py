@@ -17,6 +17,10 @@ Signatures of the edge-moving causes, on the signed offset (+ towards the bright
   saturation move (towards the dark side), the more the nearer;
 - ``response_curvature``: a toe or shoulder bending the log-log response: edges move by an amount that depends
   on where on the grey scale both levels sit, not on their ratio only;
+- ``sensor_clipping``: the sensor or tone curve saturates below an overexposed square's light: only edges
+  whose bright square reaches the clip level (a plateau piled at that level, a profile that flattens early)
+  move, towards the dark side, by an amount growing with how far the square's light lies beyond the clip;
+  not with the edge's direction or the board's scale;
 - ``psf_asymmetry``: a fixed image vector projected on each edge's normal: opposite edges of one square move
   opposite ways, so the offset depends on the edge's direction, not on its blur, levels or scale;
 - ``print_spread``: a fixed length on the board, so an offset proportional to the board's scale (px per mm)
@@ -27,7 +31,28 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["Cause", "EDGE_CAUSES", "PROFILE_CAUSES", "CAUSES_BY_NAME", "CATALOGUE_NAMES"]
+from scipy.stats import norm
+
+__all__ = [
+    "Cause",
+    "EDGE_CAUSES",
+    "PROFILE_CAUSES",
+    "CAUSES_BY_NAME",
+    "CATALOGUE_NAMES",
+    "KEEP_SIGMAS",
+    "keep_sigmas",
+]
+
+#: a single cause is kept when its held-out gain exceeds this many of its standard errors
+KEEP_SIGMAS = 2.0
+
+
+def keep_sigmas(n_compared: int) -> float:
+    """Standard errors a held-out gain must exceed when ``n_compared`` causes are tried at once: the best of
+    several candidates passes a fixed threshold by chance more often than one does, so the threshold is
+    raised until the chance that any of them passes on noise alone is that of one cause at
+    :data:`KEEP_SIGMAS` (Bonferroni; 2.0 for one, 2.40 for three, 2.77 for eight)."""
+    return float(norm.isf(norm.sf(KEEP_SIGMAS) / max(1, int(n_compared))))
 
 
 @dataclass(frozen=True)
@@ -76,6 +101,15 @@ EDGE_CAUSES: tuple[Cause, ...] = (
         (0.3, -1.5),
         (4.0, 1.5),
         "a toe or shoulder beyond a power law: the move depends on where both levels sit on the grey scale",
+    ),
+    Cause(
+        "sensor_clipping",
+        ("clip_level",),
+        (0.95,),
+        (0.2,),
+        (1.0,),
+        "overexposed squares stored at a clip level: only edges whose bright plateau sits at that level move, "
+        "towards the dark side, the more the further the light lies beyond the clip; not with direction or scale",
     ),
     Cause(
         "psf_asymmetry",

@@ -27,7 +27,7 @@ from doorloc.calib.folder import CalibrationError, CalibrationInputError, detect
 from doorloc.calib.io import CalibrationFile
 from doorloc.photometric.blur import BlurTerms, EdgeBlurs, blur_terms
 from doorloc.photometric.board_edges import BoardEdges, EdgeSettings, measure_board_edges, per_edge_median
-from doorloc.photometric.catalogue import EDGE_CAUSES
+from doorloc.photometric.catalogue import EDGE_CAUSES, PROFILE_CAUSES, keep_sigmas
 from doorloc.photometric.fit import (
     Photograph,
     Selection,
@@ -54,8 +54,6 @@ __all__ = [
 MIN_PHOTOGRAPHS = 3
 #: halo fractions tried for the point spread's tail (``psf_tail``), with its scale ``psf_tail_px``
 TAIL_GRID = ((0.02, 3.0), (0.05, 3.0), (0.1, 3.0), (0.05, 6.0), (0.1, 6.0))
-#: held-out standard errors a profile cause's gain must exceed
-KEEP_SIGMAS = 2.0
 
 
 class BoardCheckError(ValueError):
@@ -295,7 +293,8 @@ def check_photographs(
                 }
                 for n, lo, hi in zip(c.parameters, c.lower, c.upper, strict=True)
             }
-    if tail_gain[0] > KEEP_SIGMAS * tail_gain[1]:
+    # the halo and the blur's two terms are the profile causes tried on every check
+    if tail_gain[0] > keep_sigmas(len(PROFILE_CAUSES)) * tail_gain[1]:
         scores_all = [
             np.mean(
                 [misfit(i, model.with_values(psf_tail=t, psf_tail_px=b)) ** 2 for i in range(len(photos))]

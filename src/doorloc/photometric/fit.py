@@ -18,13 +18,22 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 from scipy.optimize import least_squares
 
 from doorloc.photometric.board_edges import BoardEdges, EdgeSettings
-from doorloc.photometric.catalogue import EDGE_CAUSES, Cause
+from doorloc.photometric.catalogue import EDGE_CAUSES, KEEP_SIGMAS, Cause, keep_sigmas
+from doorloc.photometric.clipping import (
+    censored_offsets_px,
+    clip_candidates,
+    clipped_lines,
+    near_clip_edges,
+    unclipped_blur_px,
+)
 from doorloc.photometric.model import PLAIN, PhotometricModel
+from doorloc.photometric.profiles import fit_profiles
 from doorloc.vision.edges import subpixel_edges
 
 __all__ = [
@@ -41,8 +50,6 @@ __all__ = [
     "HeldOut",
 ]
 
-#: a cause is kept when it lowers the held-out squared offsets by this many standard errors (paired over photographs)
-KEEP_SIGMAS = 2.0
 #: a cause that halves a held-out bias this many times the noise's standard error is kept too
 BIAS_OVER_NOISE = 5.0
 #: candidates within this many standard errors of the best at a step cannot be told apart from it
@@ -61,11 +68,37 @@ class Photograph:
     def name(self) -> str:
         return self.edges.image
 
+    @cached_property
+    def edge_blur_px(self) -> np.ndarray:
+        """Each edge's blur (Gaussian sigma of the optics, px) from its profile under the plain model (E,)."""
+        return fit_profiles(self.edges, PLAIN, np.isfinite(self.edges.offset_px)).blur_px
+
+    def unclipped_blur_px(self, clip_level: float) -> float:
+        """The camera's blur (px) measured on the edges whose bright plateau stays below the band under a
+        clip at ``clip_level`` (:func:`~doorloc.photometric.clipping.near_clip_edges`); NaN where too few do."""
+        return unclipped_blur_px(self.edge_blur_px, near_clip_edges(self.edges, clip_level))
+
+    def camera_blur_px(self, model: PhotometricModel) -> float:
+        """The blur (px) the clipped edges are read with: the photograph's own unclipped edges', else the
+        model's ``clipped_blur_px``, else all its edges'.
+
+        A clipped edge's own profile reads too sharp (its top flattens early: 0.68-0.79 px against 0.9-0.96
+        on OpenCV's photographs), and the clipped edges' censored fits trade a wider blur against a larger
+        true step (1.0-1.3 px): neither is used."""
+        blur = self.unclipped_blur_px(model.clip_level)
+        if np.isfinite(blur):
+            return blur
+        if model.clipped_blur_px > 0:
+            return model.clipped_blur_px
+        b = self.edge_blur_px
+        return float(np.nanmedian(b)) if np.isfinite(b).any() else 1.0
+
 
 def place_edges(photo: Photograph, model: PhotometricModel) -> np.ndarray:
     """Offsets (px, + towards bright) of the edges placed with ``model``: the area estimator reads the pixels
-    through the model's response, then the print's board-length shift and the point spread's asymmetric
-    shift along each edge's normal are taken off (N,)."""
+    through the model's response (scan lines whose bright square the model's clip level reaches are placed
+    by the censored fit of :mod:`doorloc.photometric.clipping` instead), then the print's board-length shift
+    and the point spread's asymmetric shift along each edge's normal are taken off (N,)."""
     w = photo.edges.windows
     s = photo.settings
     lut = None if model.linear_response else model.linearizing_lut()
@@ -80,6 +113,9 @@ def place_edges(photo: Photograph, model: PhotometricModel) -> np.ndarray:
         out[sel] = np.where(
             es.valid, (es.along - w.true_along[sel]) * w.cos[sel] * w.bright_sign[sel], np.nan
         )
+    if model.clips:
+        lines = np.flatnonzero(clipped_lines(photo.edges, model.clip_level) & np.isfinite(out))
+        out[lines] = censored_offsets_px(photo.edges, lines, photo.camera_blur_px(model), model)
     n = photo.edges.normal[w.edge]  # each edge's normal towards its bright side (image px)
     asym = model.edge_shift_u_px * n[:, 0] + model.edge_shift_v_px * n[:, 1]
     return out - model.print_spread_mm * photo.edges.px_per_mm[w.edge] - asym
@@ -154,10 +190,27 @@ def _free(causes: Sequence[Cause]) -> tuple[list[str], list[float], list[float],
     return names, x0, lo, hi
 
 
+#: the robust loss's scale on an edge's mean offset (px): offsets beyond it count less than squared
+LOSS_SCALE_PX = 0.02
+
+
+def set_blur_px(photos: Sequence[Photograph], clip_level: float) -> float:
+    """The median over ``photos`` of each one's blur on its edges a clip at ``clip_level`` leaves unclipped,
+    px (0 where none has enough)."""
+    b = np.array([p.unclipped_blur_px(clip_level) for p in photos])
+    return float(np.median(b[np.isfinite(b)])) if np.isfinite(b).any() else 0.0
+
+
 def fit_causes(
     photos: Sequence[Photograph], causes: Sequence[Cause], base: PhotometricModel = PLAIN
 ) -> CauseFit:
-    """Least-squares fit of the parameters ``causes`` free, on ``photos`` (module docstring)."""
+    """Least-squares fit of the parameters ``causes`` free, on ``photos`` (module docstring).
+
+    A clip level is not a smooth parameter (a scan line is clipped or not): it is chosen among the levels
+    where the photographs' bright plateaus lie (:func:`~doorloc.photometric.clipping.clip_candidates`) by the
+    same robust cost, alone, with the blur of these photographs' unclipped edges for those with none
+    (``clipped_blur_px``); the other parameters are then fitted at that level.
+    """
     names, x0, lo, hi = _free(causes)
     if not names:
         return CauseFit((), (), (), base, float("nan"))
@@ -167,8 +220,7 @@ def fit_causes(
     # the edges with inlier samples: a fixed set, so the residual vector keeps its length
     used = [np.bincount(e[m], minlength=ne) > 0 for e, m, ne in zip(edges, masks, n_e, strict=True)]
 
-    def residuals(x: np.ndarray) -> np.ndarray:
-        m = base.with_values(**dict(zip(names, map(float, x), strict=True)))
+    def residuals_of(m: PhotometricModel) -> np.ndarray:
         out = []
         for p, mk, e, ne, has in zip(photos, masks, edges, n_e, used, strict=True):
             o = place_edges(p, m)
@@ -177,6 +229,30 @@ def fit_causes(
             c = np.bincount(e[ok], minlength=ne)
             out.append(np.where(c > 0, s / np.maximum(c, 1), 0.0)[has] / np.sqrt(max(has.sum(), 1)))
         return np.concatenate(out)
+
+    def robust_cost(r: np.ndarray) -> float:
+        # least_squares' soft_l1 cost, so a fixed model's cost compares with a fitted one's
+        z = (r / LOSS_SCALE_PX) ** 2
+        return float(0.5 * LOSS_SCALE_PX**2 * np.sum(2.0 * (np.sqrt(1.0 + z) - 1.0)))
+
+    clip_free = "clip_level" in names
+    if clip_free:
+        i = names.index("clip_level")
+        levels = clip_candidates(np.concatenate([p.edges.bright for p in photos]))
+        trial = [
+            base.with_values(clip_level=float(c), clipped_blur_px=set_blur_px(photos, c)) for c in levels
+        ]
+        costs = [robust_cost(residuals_of(m)) for m in trial]
+        base = trial[int(np.argmin(costs))]
+        cost_clip = float(min(costs))
+        del names[i], x0[i], lo[i], hi[i]
+        if not names:
+            return CauseFit(
+                tuple(c.name for c in causes), ("clip_level",), (base.clip_level,), base, cost_clip
+            )
+
+    def residuals(x: np.ndarray) -> np.ndarray:
+        return residuals_of(base.with_values(**dict(zip(names, map(float, x), strict=True))))
 
     # two starts: the cause's own and the base model's values (a curve that bends the other way from the
     # cause's start is found from the plain model); the lower cost wins
@@ -190,7 +266,7 @@ def fit_causes(
                 x,
                 bounds=(lo, hi),
                 loss="soft_l1",
-                f_scale=0.02,
+                f_scale=LOSS_SCALE_PX,
                 diff_step=1e-3,
                 x_scale="jac",
             )
@@ -199,9 +275,11 @@ def fit_causes(
         key=lambda r: float(r.cost),
     )
     model = base.with_values(**dict(zip(names, map(float, res.x), strict=True)))
-    return CauseFit(
-        tuple(c.name for c in causes), tuple(names), tuple(float(v) for v in res.x), model, float(res.cost)
-    )
+    if clip_free:
+        names, values = ["clip_level", *names], [base.clip_level, *map(float, res.x)]
+    else:
+        values = [float(v) for v in res.x]
+    return CauseFit(tuple(c.name for c in causes), tuple(names), tuple(values), model, float(res.cost))
 
 
 @dataclass(frozen=True)
@@ -301,7 +379,8 @@ def select_causes(
 ) -> Selection:
     """Forward selection by held-out photographs: add the cause that lowers the held-out offsets most (each
     photograph's medians by edge direction, :func:`direction_medians`), while the lowering is significant
-    (:data:`KEEP_SIGMAS`, paired over photographs)."""
+    (paired over photographs, by :func:`~doorloc.photometric.catalogue.keep_sigmas` of the candidates tried at
+    the step: a control's best candidate must not pass by the luck of the draw)."""
     plain = np.array([photo_median(p, PLAIN) for p in photos])
     plain_dir = np.array([direction_medians(p, PLAIN) for p in photos])
     floor = float(np.sqrt(np.nanmean([noise_floor_px(p) ** 2 for p in photos])))
@@ -327,7 +406,7 @@ def select_causes(
         # significant paired over photographs, or (few photographs, the bias on some only) a bias well above
         # the noise at least halved
         halved = trials[best].score_px < 0.5 * before and before > BIAS_OVER_NOISE * floor
-        if not (gain > KEEP_SIGMAS * se or halved):
+        if not (gain > keep_sigmas(len(trials)) * se or halved):
             break
         ties = []
         for k, v in trials.items():

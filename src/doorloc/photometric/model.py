@@ -13,6 +13,13 @@ even blur, a perfect print):
 - ``curvature``: toe/shoulder of the response beyond a power law, ``ln light = gamma ln g' + curvature (ln g')^2``
   (``g'`` the grey above the pedestal): a characteristic curve that bends in log-log as film's and many
   camera tone curves do;
+- ``clip_level``: the stored grey level (fraction of full scale) at which the sensor or its tone curve
+  saturates: light beyond it is stored at this level, so an overexposed square's plateau is its clip and not
+  its light; 1 = no clipping. It cannot be undone by a table: an edge whose bright square is clipped is placed
+  from its unclipped samples (:mod:`doorloc.photometric.clipping`);
+- ``clipped_blur_px``: the optics' blur (Gaussian sigma, px) such an edge is read with in a photograph whose
+  squares are nearly all clipped (it has no edges of its own to measure the blur on): measured on the
+  unclipped edges of the photographs the clip level was fitted on; 0 = the photograph's own edges';
 - ``print_spread_mm``: the printed dark squares are larger than the board's geometry by this much on each
   side (toner or ink spread; negative: the light squares are larger), board millimetres;
 - ``edge_shift_u_px``, ``edge_shift_v_px``: a point spread that is not point-symmetric (a one-sided smear
@@ -27,7 +34,7 @@ even blur, a perfect print):
   horizontal ones (``cos 2 phi``, ``phi`` the edge normal's angle from the image u axis): astigmatism, or a
   sensor's or demosaicking's direction preference.
 
-Only the response, the print and the spread's asymmetry move an edge placed in linear light; the others change its profile (and so
+Only the response, its clipping, the print and the spread's asymmetry move an edge placed in linear light; the others change its profile (and so
 what an estimator that is not unbiased for them reports). Veiling glare (light scattered over the whole
 image) adds the same light on both sides of an edge: in linear light it neither moves nor reshapes an edge,
 so board edges cannot tell it from the black squares' own reflectance, and it is not a parameter here. The response maps are written here by hand because
@@ -48,6 +55,8 @@ PARAMETER_UNITS = {
     "black_level": "fraction of full scale",
     "shoulder": "fraction of full scale",
     "curvature": "1/ln^2",
+    "clip_level": "fraction of full scale",
+    "clipped_blur_px": "px",
     "print_spread_mm": "mm on the board",
     "edge_shift_u_px": "px",
     "edge_shift_v_px": "px",
@@ -66,6 +75,8 @@ class PhotometricModel:
     black_level: float = 0.0
     shoulder: float = 1.0
     curvature: float = 0.0
+    clip_level: float = 1.0
+    clipped_blur_px: float = 0.0
     print_spread_mm: float = 0.0
     edge_shift_u_px: float = 0.0
     edge_shift_v_px: float = 0.0
@@ -85,6 +96,10 @@ class PhotometricModel:
             raise ValueError(f"photometric model: black_level {self.black_level} outside -0.2..0.5")
         if not 0.05 <= self.shoulder <= 1.0:
             raise ValueError(f"photometric model: shoulder {self.shoulder} outside 0.05..1")
+        if not 0.2 <= self.clip_level <= 1.0:
+            raise ValueError(f"photometric model: clip_level {self.clip_level} outside 0.2..1")
+        if not 0.0 <= self.clipped_blur_px <= 10.0:
+            raise ValueError(f"photometric model: clipped_blur_px {self.clipped_blur_px} outside 0..10")
         if not 0.0 <= self.psf_tail < 1.0:
             raise ValueError("photometric model: psf_tail is a fraction in [0, 1)")
         if not self.psf_tail_px > 0:
@@ -96,7 +111,8 @@ class PhotometricModel:
 
     @property
     def linear_response(self) -> bool:
-        """True where stored grey is proportional to light above zero (no table is needed to read it)."""
+        """True where stored grey is proportional to light above zero (no table is needed to read it), up to
+        the clip level where there is one."""
         return self.gamma == 1 and self.black_level == 0 and self.curvature == 0 and self.shoulder == 1
 
     def to_dict(self) -> dict[str, float]:
@@ -137,10 +153,17 @@ class PhotometricModel:
             lg = np.maximum(lg, turn) if self.curvature > 0 else np.minimum(lg, turn)
         return np.exp(self.gamma * lg + self.curvature * lg * lg) * (g > self.black_level)
 
+    @property
+    def clips(self) -> bool:
+        """True where the sensor saturates below full scale (``clip_level`` < 1)."""
+        return self.clip_level < 1.0
+
     def grey_from_light(self, light: np.ndarray) -> np.ndarray:
-        """Stored grey in [0, 1] from relative linear light (inverse of :meth:`light_from_grey`, tabulated)."""
+        """Stored grey in [0, 1] from relative linear light (inverse of :meth:`light_from_grey`, tabulated),
+        held at the clip level."""
         L, g = self.response_table()
-        return np.interp(np.clip(np.asarray(light, float), 0.0, None), L, g)
+        grey = np.interp(np.clip(np.asarray(light, float), 0.0, None), L, g)
+        return np.minimum(grey, self.clip_level) if self.clips else grey
 
     def response_table(self, n: int = 4097) -> tuple[np.ndarray, np.ndarray]:
         """``(light, grey)`` at ``n`` grey levels in [0, 1], where the light rises (all of it for sane curves)."""
