@@ -162,38 +162,46 @@ class TorchStepFinder:
         return out
 
     def _answer_group(self, queries, axis: str, half: int, stride: int, with_prefer: bool):
+        """``(along, strength)`` for each query of one group (one axis, window ``half``, ``stride`` and
+        whether a position is preferred), as :func:`doorloc.vision.coarse.coarse_edges` gives them: the
+        responses of every scan line at once, the strongest (or the preferred candidate's) position, px."""
         B, H, W = self.planes.shape
         n_along, pitch_along, pitch_scan = (H, W, 1) if axis == "col" else (W, 1, W)
         dev = self.device
-        rows = [np.asarray(kw["scan"], int).size for _, kw in queries]
-        cat = np.concatenate
-        frame = torch.as_tensor(
-            cat([np.full(n, b) for n, (b, _) in zip(rows, queries, strict=True)]), device=dev
-        )
-        scan = torch.as_tensor(cat([np.asarray(kw["scan"], np.int64) for _, kw in queries]), device=dev)
-        lo = (
-            torch.as_tensor(cat([np.asarray(kw["lo"], np.int64) for _, kw in queries]), device=dev)
-            - half * stride
-        )
-        hi = (
-            torch.as_tensor(cat([np.asarray(kw["hi"], np.int64) for _, kw in queries]), device=dev)
-            + half * stride
-        )
-        # each query's own profile length (the one-frame finder's, which its medians depend on)
-        q_len = [
-            int(np.max(np.asarray(kw["hi"], int) - np.asarray(kw["lo"], int) + 2 * half * stride)) // stride
-            + 1
-            for _, kw in queries
-        ]
-        length = torch.as_tensor(cat([np.full(n, L) for n, L in zip(rows, q_len, strict=True)]), device=dev)
-        pol = torch.as_tensor(
-            cat([np.full(n, int(kw["polarity"])) for n, (_, kw) in zip(rows, queries, strict=True)]),
-            device=dev,
-        )
-        L = max(q_len)
+        g = _GroupRows.stack(queries, half, stride, dev)
+        resp, ok = self._responses(g, half, stride, n_along, (pitch_along, pitch_scan))
+        M = g.L - 2 * half + 1
+        i = torch.arange(M, device=dev)
+        k = i + half
+        r = torch.arange(resp.shape[0], device=dev)
+        best = torch.argmax(resp, dim=1)  # the first of equal maxima, as numpy
+        if with_prefer:
+            best = _preferred(queries, g, resp, ok, best, half, stride)
+        strength = resp[r, best]
+        along = (g.lo + stride * k[best]).to(torch.float64) - 0.5 * stride
+        finite = torch.isfinite(strength)
+        along = torch.where(finite, along, torch.tensor(np.nan, dtype=torch.float64, device=dev))
+        strength = torch.where(finite, strength, torch.zeros_like(strength))
+        along_np, strength_np = along.cpu().numpy(), strength.cpu().numpy()
+        out, start = [], 0
+        for n in g.rows:
+            out.append((along_np[start : start + n].copy(), strength_np[start : start + n].copy()))
+            start += n
+        return out
+
+    def _responses(
+        self, g: _GroupRows, half: int, stride: int, n_along: int, pitch: tuple[int, int]
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """The step detector's response (R, M) on every row of the group, signed by its polarity and -inf
+        where a response is not the row's own (samples outside the image or ``[lo, hi]``), and where it is
+        (``ok``); ``pitch`` the flat planes' steps along and across the scan lines."""
+        pitch_along, pitch_scan = pitch
+        B, H, W = self.planes.shape
+        dev = self.device
+        lo, hi, length, pol, L = g.lo, g.hi, g.length, g.pol, g.L
         M = L - 2 * half + 1
         j = torch.arange(L, device=dev)
-        base = frame * (H * W) + scan * pitch_scan
+        base = g.frame * (H * W) + g.scan * pitch_scan
         if bool((lo >= 0).all()) and bool((lo + stride * (L - 1) < n_along).all()):
             # every sample of every row inside the image (the usual case): one index per sample
             flat_idx = (base + lo * pitch_along)[:, None] + (stride * pitch_along) * j[None, :]
@@ -226,68 +234,113 @@ class TorchStepFinder:
         ub = torch.minimum(torch.where(jb >= length - 1, jb, jb - 2 * half + 1), n_resp - 1)
         i = torch.arange(M, device=dev)
         ok = (i[None, :] >= ja[:, None]) & (i[None, :] <= ub[:, None])
-        k = i + half
         neg_inf = torch.tensor(-np.inf, dtype=torch.float32, device=dev)
-        resp = torch.where(ok, resp, neg_inf)
-        r = torch.arange(resp.shape[0], device=dev)
-        best = torch.argmax(resp, dim=1)  # the first of equal maxima, as numpy
-        if with_prefer:
-            prefer = torch.as_tensor(cat([np.asarray(kw["prefer"], float) for _, kw in queries]), device=dev)
-            frac = torch.as_tensor(
-                cat(
-                    [
-                        np.full(n, float(kw.get("prefer_fraction", 0.3)))
-                        for n, (_, kw) in zip(rows, queries, strict=True)
-                    ]
-                ),
-                device=dev,
-            )
-            top = resp[r, best]
-            peak = torch.zeros_like(ok)
-            peak[:, 1:-1] = (resp[:, 1:-1] >= resp[:, :-2]) & (resp[:, 1:-1] > resp[:, 2:])
-            peak &= torch.arange(M, device=dev)[None, :] < (n_resp - 1)[:, None]  # not a row's last response
-            # numpy's median over each row's own responses (masked ones count as 0): the mean of the two
-            # middle values, taken per response count (rows of one query share it; a batch has few counts)
-            a = torch.where(ok, resp, torch.zeros_like(resp)).abs()
-            floor = torch.empty(resp.shape[0], dtype=torch.float32, device=dev)
-            for m in torch.unique(n_resp).tolist():
-                sel = n_resp == m
-                rows_m = a[sel, :m]
-                m_lo = torch.kthvalue(rows_m, (m - 1) // 2 + 1, dim=1).values
-                m_hi = torch.kthvalue(rows_m, m // 2 + 1, dim=1).values if m % 2 == 0 else m_lo
-                floor[sel] = (m_lo + m_hi) / 2.0
-            floor = 1.4826 * floor
-            thr = torch.maximum((frac.to(torch.float32) * top), 5.0 * floor)
-            cand = peak & (resp >= thr[:, None]) & (resp > 0)
-            # the candidate nearest to the preferred position, the first of equally near ones, on the
-            # candidates only (as numpy's argmin over the row; NaN wins there, so such a row prefers nothing)
-            r_c, i_c = torch.nonzero(cand, as_tuple=True)
-            if r_c.numel():
-                dist = (
-                    (lo[r_c] + stride * (i_c + half)).to(torch.float64) - 0.5 * stride - prefer[r_c]
-                ).abs()
-                nan_rows = torch.zeros(resp.shape[0], dtype=torch.bool, device=dev)
-                nan_rows[r_c[torch.isnan(dist)]] = True
-                use = torch.isfinite(dist) & ~nan_rows[r_c]
-                r_c, i_c, dist = r_c[use], i_c[use], dist[use]
-                inf64 = torch.full((resp.shape[0],), np.inf, dtype=torch.float64, device=dev)
-                row_min = inf64.scatter_reduce(0, r_c, dist, reduce="amin")
-                big = torch.full((resp.shape[0],), M, dtype=torch.int64, device=dev)
-                near = big.scatter_reduce(
-                    0, r_c, torch.where(dist == row_min[r_c], i_c, torch.full_like(i_c, M)), reduce="amin"
-                )
-                best = torch.where(near < M, near, best)
-        strength = resp[r, best]
-        along = (lo + stride * k[best]).to(torch.float64) - 0.5 * stride
-        finite = torch.isfinite(strength)
-        along = torch.where(finite, along, torch.tensor(np.nan, dtype=torch.float64, device=dev))
-        strength = torch.where(finite, strength, torch.zeros_like(strength))
-        along_np, strength_np = along.cpu().numpy(), strength.cpu().numpy()
-        out, start = [], 0
-        for n in rows:
-            out.append((along_np[start : start + n].copy(), strength_np[start : start + n].copy()))
-            start += n
-        return out
+        return torch.where(ok, resp, neg_inf), ok
+
+
+@dataclass(frozen=True)
+class _GroupRows:
+    """One group's step searches stacked scan line by scan line on the device: ``rows`` scan lines per query,
+    each row's ``frame``, ``scan`` line, first and last sample ``lo``, ``hi`` along it (px, the window's
+    ``half * stride`` included), its own profile ``length`` (samples, as the one-frame finder's, which its
+    medians depend on) and ``pol``\arity; ``L`` the longest profile."""
+
+    rows: list[int]
+    frame: torch.Tensor
+    scan: torch.Tensor
+    lo: torch.Tensor
+    hi: torch.Tensor
+    length: torch.Tensor
+    pol: torch.Tensor
+    L: int
+
+    @classmethod
+    def stack(cls, queries, half: int, stride: int, dev: torch.device) -> _GroupRows:
+        """The rows of ``queries`` (``(frame index, coarse_edges keyword arguments)``) on ``dev``."""
+        rows = [np.asarray(kw["scan"], int).size for _, kw in queries]
+        cat = np.concatenate
+        frame = torch.as_tensor(
+            cat([np.full(n, b) for n, (b, _) in zip(rows, queries, strict=True)]), device=dev
+        )
+        scan = torch.as_tensor(cat([np.asarray(kw["scan"], np.int64) for _, kw in queries]), device=dev)
+        lo = (
+            torch.as_tensor(cat([np.asarray(kw["lo"], np.int64) for _, kw in queries]), device=dev)
+            - half * stride
+        )
+        hi = (
+            torch.as_tensor(cat([np.asarray(kw["hi"], np.int64) for _, kw in queries]), device=dev)
+            + half * stride
+        )
+        # each query's own profile length (the one-frame finder's, which its medians depend on)
+        q_len = [
+            int(np.max(np.asarray(kw["hi"], int) - np.asarray(kw["lo"], int) + 2 * half * stride)) // stride
+            + 1
+            for _, kw in queries
+        ]
+        length = torch.as_tensor(cat([np.full(n, L) for n, L in zip(rows, q_len, strict=True)]), device=dev)
+        pol = torch.as_tensor(
+            cat([np.full(n, int(kw["polarity"])) for n, (_, kw) in zip(rows, queries, strict=True)]),
+            device=dev,
+        )
+        return cls(rows, frame, scan, lo, hi, length, pol, max(q_len))
+
+
+def _preferred(
+    queries, g: _GroupRows, resp: torch.Tensor, ok: torch.Tensor, best: torch.Tensor, half: int, stride: int
+) -> torch.Tensor:
+    """Each row's response index as :func:`doorloc.vision.coarse.coarse_edges` picks it with ``prefer``: the
+    candidate peak (over ``prefer_fraction`` of the row's strongest and 5 robust sigmas of its responses)
+    nearest to the preferred position, else ``best`` (the strongest)."""
+    dev = resp.device
+    rows, lo = g.rows, g.lo
+    M = resp.shape[1]
+    n_resp = g.length - 2 * half + 1
+    r = torch.arange(resp.shape[0], device=dev)
+    cat = np.concatenate
+    prefer = torch.as_tensor(cat([np.asarray(kw["prefer"], float) for _, kw in queries]), device=dev)
+    frac = torch.as_tensor(
+        cat(
+            [
+                np.full(n, float(kw.get("prefer_fraction", 0.3)))
+                for n, (_, kw) in zip(rows, queries, strict=True)
+            ]
+        ),
+        device=dev,
+    )
+    top = resp[r, best]
+    peak = torch.zeros_like(ok)
+    peak[:, 1:-1] = (resp[:, 1:-1] >= resp[:, :-2]) & (resp[:, 1:-1] > resp[:, 2:])
+    peak &= torch.arange(M, device=dev)[None, :] < (n_resp - 1)[:, None]  # not a row's last response
+    # numpy's median over each row's own responses (masked ones count as 0): the mean of the two
+    # middle values, taken per response count (rows of one query share it; a batch has few counts)
+    a = torch.where(ok, resp, torch.zeros_like(resp)).abs()
+    floor = torch.empty(resp.shape[0], dtype=torch.float32, device=dev)
+    for m in torch.unique(n_resp).tolist():
+        sel = n_resp == m
+        rows_m = a[sel, :m]
+        m_lo = torch.kthvalue(rows_m, (m - 1) // 2 + 1, dim=1).values
+        m_hi = torch.kthvalue(rows_m, m // 2 + 1, dim=1).values if m % 2 == 0 else m_lo
+        floor[sel] = (m_lo + m_hi) / 2.0
+    floor = 1.4826 * floor
+    thr = torch.maximum((frac.to(torch.float32) * top), 5.0 * floor)
+    cand = peak & (resp >= thr[:, None]) & (resp > 0)
+    # the candidate nearest to the preferred position, the first of equally near ones, on the
+    # candidates only (as numpy's argmin over the row; NaN wins there, so such a row prefers nothing)
+    r_c, i_c = torch.nonzero(cand, as_tuple=True)
+    if r_c.numel():
+        dist = ((lo[r_c] + stride * (i_c + half)).to(torch.float64) - 0.5 * stride - prefer[r_c]).abs()
+        nan_rows = torch.zeros(resp.shape[0], dtype=torch.bool, device=dev)
+        nan_rows[r_c[torch.isnan(dist)]] = True
+        use = torch.isfinite(dist) & ~nan_rows[r_c]
+        r_c, i_c, dist = r_c[use], i_c[use], dist[use]
+        inf64 = torch.full((resp.shape[0],), np.inf, dtype=torch.float64, device=dev)
+        row_min = inf64.scatter_reduce(0, r_c, dist, reduce="amin")
+        big = torch.full((resp.shape[0],), M, dtype=torch.int64, device=dev)
+        near = big.scatter_reduce(
+            0, r_c, torch.where(dist == row_min[r_c], i_c, torch.full_like(i_c, M)), reduce="amin"
+        )
+        best = torch.where(near < M, near, best)
+    return best
 
 
 def _stackable(image: np.ndarray, shape: tuple[int, int]) -> str | None:
@@ -346,8 +399,13 @@ def locate_batch(
     if finder not in ("auto", "torch", "plane"):
         raise ValueError(f"unknown step finder {finder!r}; use auto, torch or plane")
     n = len(images)
-    names = list(names) if names is not None else [""] * n
-    per_door = list(doors) if isinstance(doors, Sequence) else [doors] * n
+    frames = _Frames(
+        images,
+        cell,
+        list(doors) if isinstance(doors, Sequence) else [doors] * n,
+        list(names) if names is not None else [""] * n,
+        config,
+    )
     w, h = cell.camera.image_size
     answers: list[BatchAnswer | None] = [None] * n
     planes: list[np.ndarray] = []
@@ -355,15 +413,9 @@ def locate_batch(
     for i, img in enumerate(images):
         why = _stackable(img, (h, w))
         if why is not None:
-            answers[i] = BatchAnswer(locate(img, cell, per_door[i], image_name=names[i], config=config), why)
+            answers[i] = frames.alone(i, why)
             continue
-        if img.ndim == 3 and img.shape[2] == 1:
-            img = img[..., 0]
-        if img.ndim == 3:  # OpenCV's fixed-point BT.601 conversion, exactly as the one-frame path
-            import cv2
-
-            img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY if img.shape[2] == 3 else cv2.COLOR_BGRA2GRAY)
-        planes.append(img)
+        planes.append(_grey(img))
         members.append(i)
     if members:
         use_torch = finder == "torch" or (finder == "auto" and dev.type != "cpu")
@@ -374,43 +426,75 @@ def locate_batch(
             b: locate_steps(
                 images[i],
                 cell,
-                per_door[i],
-                image_name=names[i],
+                frames.doors[i],
+                image_name=frames.names[i],
                 config=config,
                 luminance=LuminancePlane(planes[b], 1.0),
             )
             for b, i in enumerate(members)
         }
-
-        def run(group: dict[int, Steps]) -> None:
-            """The frames of ``group`` to their answers, each round of their step searches answered
-            together."""
-            pending: dict[int, StepQuery] = {}
-            for b, g in group.items():
-                _advance(g, None, b, pending, answers, members)
-            while pending:
-                batch = list(pending.items())
-                try:
-                    found = finder_impl.answer([(b, q.kwargs) for b, q in batch])
-                except Exception as e:  # noqa: BLE001 - the one-frame path still answers these frames
-                    for b, _ in batch:
-                        i = members[b]
-                        answers[i] = BatchAnswer(
-                            locate(images[i], cell, per_door[i], image_name=names[i], config=config),
-                            f"batched step search failed ({type(e).__name__}: {e})",
-                        )
-                    break
-                pending = {}
-                for (b, _), res in zip(batch, found, strict=True):
-                    _advance(group[b], res, b, pending, answers, members)
-
         # The one-frame finder answers each frame's searches alone, so nothing is gained by taking the frames'
         # steps in turn, and it cost: each step of eight interleaved frames met another 2 MB frame and its
         # arrays in the caches (batched locate 7.3-8.3 ms a frame against 6.5-7.5 ms one-frame). Without
         # torch each frame runs to its answer.
         for group in [steps] if use_torch else [{b: g} for b, g in steps.items()]:
-            run(group)
+            _run_group(group, finder_impl, frames, answers, members)
     return [a for a in answers if a is not None]
+
+
+def _grey(img: np.ndarray) -> np.ndarray:
+    """A stackable 8-bit frame's luminance plane (H, W), exactly as the one-frame path takes it."""
+    if img.ndim == 3 and img.shape[2] == 1:
+        img = img[..., 0]
+    if img.ndim == 3:  # OpenCV's fixed-point BT.601 conversion, exactly as the one-frame path
+        import cv2
+
+        img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY if img.shape[2] == 3 else cv2.COLOR_BGRA2GRAY)
+    return img
+
+
+@dataclass(frozen=True)
+class _Frames:
+    """The batch's frames and what each is located with: the cell, each frame's door and name, the config."""
+
+    images: Sequence[np.ndarray]
+    cell: Cell
+    doors: list[DoorSize | None]
+    names: list[str]
+    config: LocateConfig | None
+
+    def alone(self, i: int, why: str) -> BatchAnswer:
+        """Frame ``i`` through the one-frame path, ``why`` it did not go through the batched one."""
+        return BatchAnswer(
+            locate(self.images[i], self.cell, self.doors[i], image_name=self.names[i], config=self.config),
+            why,
+        )
+
+
+def _run_group(
+    group: dict[int, Steps],
+    finder: StepFinder,
+    frames: _Frames,
+    answers: list[BatchAnswer | None],
+    members: list[int],
+) -> None:
+    """The frames of ``group`` (batch index -> its locate coroutine) to their answers, each round of their
+    step searches answered together; if the finder fails, the one-frame path answers them."""
+    pending: dict[int, StepQuery] = {}
+    for b, g in group.items():
+        _advance(g, None, b, pending, answers, members)
+    while pending:
+        batch = list(pending.items())
+        try:
+            found = finder.answer([(b, q.kwargs) for b, q in batch])
+        except Exception as e:  # noqa: BLE001 - the one-frame path still answers these frames
+            for b, _ in batch:
+                i = members[b]
+                answers[i] = frames.alone(i, f"batched step search failed ({type(e).__name__}: {e})")
+            break
+        pending = {}
+        for (b, _), res in zip(batch, found, strict=True):
+            _advance(group[b], res, b, pending, answers, members)
 
 
 def _advance(

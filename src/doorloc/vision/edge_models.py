@@ -38,11 +38,10 @@ from doorloc.vision.arris_geometry import ArrisGeometry
 from doorloc.vision.arris_lines import StripWindow, arris_edges
 from doorloc.vision.arris_model import STRIP_RADIANCE, STRIP_RADIANCE_SIGMA, StripFit
 from doorloc.vision.blurred_step import refine_step_fit
-from doorloc.vision.edge_samples import EdgeSamples
+from doorloc.vision.edge_samples import EdgeSamples, ScanWindow
 from doorloc.vision.edges import subpixel_edges, subpixel_edges_banded
 from doorloc.vision.far_face import FarFaceFit, subpixel_edges_far_face
 from doorloc.vision.region import Track
-from doorloc.vision.sampling import Axis
 from doorloc.vision.texture import texture_bias
 
 __all__ = [
@@ -63,49 +62,6 @@ ARRIS_PLATEAU_PX = 4
 #: step model lacks, not texture
 STEP_FIT_AGREE_SIGMAS = 3.0
 STEP_FIT_AGREE_FLOOR_PX = 0.003
-
-
-@dataclass(frozen=True)
-class ScanWindow:
-    """What every edge model reads.
-
-    Attributes
-    ----------
-    plane : ndarray
-        The luminance plane (grey levels).
-    axis : "col" or "row"
-        Profiles along image columns or rows (:func:`doorloc.vision.sampling.oriented`).
-    scan, centre : ndarray (N,)
-        The scan lines and the predicted edge on each, px.
-    half : int
-        The window's half width, px.
-    plateau : int
-        Plateau samples beside the window, px.
-    scale_to_8bit : float
-        Factor from the plane's grey levels to 0-255.
-    lut : ndarray or None
-        The table turning grey levels into linear light (:func:`doorloc.vision.sampling.linearizing_lut`).
-    level_smooth : int
-        Scan lines over which the plateau levels are averaged (0: none).
-    door_side : int
-        +1 where the door lies towards increasing ``along``, -1 towards decreasing.
-    """
-
-    plane: np.ndarray
-    axis: Axis
-    scan: np.ndarray
-    centre: np.ndarray
-    half: int
-    plateau: int
-    scale_to_8bit: float
-    lut: np.ndarray | None
-    level_smooth: int
-    door_side: int
-
-    @property
-    def lines(self) -> tuple[np.ndarray, Axis, np.ndarray, np.ndarray, int]:
-        """``(plane, axis, scan, centre, half)``: the arguments every estimator takes first."""
-        return self.plane, self.axis, self.scan, self.centre, self.half
 
 
 @dataclass(frozen=True)
@@ -202,15 +158,7 @@ class Banded:
         w = window
         assert track.band_px is not None
         samples, _ = subpixel_edges_banded(
-            *w.lines,
-            track.band_px[:: settings.every],
-            w.door_side,
-            w.plateau,
-            w.scale_to_8bit,
-            sharp=settings.sharp,
-            band_slope=track.band_slope,
-            level_smooth=w.level_smooth,
-            lut=w.lut,
+            w, track.band_px[:: settings.every], band_slope=track.band_slope, sharp=settings.sharp
         )
         return EdgeReading(samples)
 

@@ -1,4 +1,4 @@
-"""The edge points every edge reader returns: :class:`EdgeSamples`."""
+"""What every edge reader reads, :class:`ScanWindow`, and the edge points it returns, :class:`EdgeSamples`."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 
 from doorloc.vision.sampling import Axis
 
-__all__ = ["EdgeSamples"]
+__all__ = ["EdgeSamples", "ScanWindow"]
 
 
 @dataclass(frozen=True)
@@ -61,3 +61,46 @@ class EdgeSamples:
             self.bright[mask],
             self.valid[mask],
         )
+
+
+@dataclass(frozen=True)
+class ScanWindow:
+    """What every edge model reads.
+
+    Attributes
+    ----------
+    plane : ndarray
+        The luminance plane (grey levels).
+    axis : "col" or "row"
+        Profiles along image columns or rows (:func:`doorloc.vision.sampling.oriented`).
+    scan, centre : ndarray (N,)
+        The scan lines and the predicted edge on each, px.
+    half : int
+        The window's half width, px.
+    plateau : int
+        Plateau samples beside the window, px.
+    scale_to_8bit : float
+        Factor from the plane's grey levels to 0-255.
+    lut : ndarray or None
+        The table turning grey levels into linear light (:func:`doorloc.vision.sampling.linearizing_lut`).
+    level_smooth : int
+        Scan lines over which the plateau levels are averaged (0: none).
+    door_side : int
+        +1 where the door lies towards increasing ``along``, -1 towards decreasing.
+    """
+
+    plane: np.ndarray
+    axis: Axis
+    scan: np.ndarray
+    centre: np.ndarray
+    half: int
+    plateau: int
+    scale_to_8bit: float
+    lut: np.ndarray | None
+    level_smooth: int
+    door_side: int
+
+    @property
+    def lines(self) -> tuple[np.ndarray, Axis, np.ndarray, np.ndarray, int]:
+        """``(plane, axis, scan, centre, half)``: the arguments every estimator takes first."""
+        return self.plane, self.axis, self.scan, self.centre, self.half

@@ -31,10 +31,11 @@ models that choose among them, :mod:`doorloc.vision.edge_models`.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
-from doorloc.vision.edge_samples import EdgeSamples
+from doorloc.vision.edge_samples import EdgeSamples, ScanWindow
 from doorloc.vision.jit import grey, kernel
 from doorloc.vision.sampling import (
     NO_LUT,
@@ -67,7 +68,6 @@ def _area_edges_warm_up(k) -> None:
         k(buf, 1, 8, 8, 8, np.arange(8), np.full(8, 1), np.ones(8, bool), 2, 1, table, 1)
 
 
-# (flat arguments and one long loop: a numba kernel over the plane's buffer, :mod:`doorloc.vision.jit`)
 @kernel(_area_edges_warm_up)
 def _area_edges(
     buf, pitch_along, pitch_scan, n_along, n_scan, scan, start, finite, half, plateau, lut, level_smooth
@@ -80,6 +80,8 @@ def _area_edges(
     the edge over ``level_smooth`` scan lines each side), ``noise`` (float32) and ``valid``: the numbers of
     the numpy branch of :func:`subpixel_edges` up to the order of its float sums.
     """
+    # why many parameters: a numba nopython kernel over the plane's flat buffer takes arrays and scalars only
+    # why long: one compiled pass per profile (levels, noise, area) and the levels' running sums, as numpy's
     n = scan.size
     length = 2 * (half + plateau) + 1
     A = np.empty(n)
@@ -157,7 +159,6 @@ def _area_edges(
     return along, A, B, noise, valid
 
 
-# (long for its docstring: each setting is a keyword with a default, what the readers and the response pass)
 def subpixel_edges(
     plane: np.ndarray,
     axis: Axis,
@@ -202,33 +203,17 @@ def subpixel_edges(
     -------
     EdgeSamples
     """
+    # why many parameters: the public area reader (photometric fit, board response, tests) keeps its keywords
     P = oriented(plane, axis)
     scan = np.asarray(scan, int)
     centre = np.asarray(centre, float)
     finite = np.isfinite(centre)
     c0 = np.round(np.where(finite, centre, 0.0)).astype(int)
-    start = c0 - half - plateau
-    length = 2 * (half + plateau) + 1
+    windows = _AreaWindows(P, scan, c0 - half - plateau, finite, c0, half, plateau)
     flat = flat_view(P)
     if not slope_smooth > 0 and flat is not None and plane.dtype in (np.uint8, np.uint16):
         # flat plateaus (the default): compiled, one pass over each profile (_area_edges)
-        buf, pitch_along, pitch_scan = flat
-        along, A, B, noise, valid = _area_edges(
-            buf,
-            pitch_along,
-            pitch_scan,
-            P.shape[0],
-            P.shape[1],
-            scan,
-            start,
-            finite,
-            half,
-            plateau,
-            lut if lut is not None else NO_LUT,
-            level_smooth if scan.size else 0,
-        )
-        if not (level_smooth > 0 and scan.size):  # unsmoothed levels stay float32, as in the numpy branch
-            A, B = A.astype(np.float32), B.astype(np.float32)
+        along, A, B, noise, valid = _area_edges_compiled(windows, flat, lut, level_smooth)
         return EdgeSamples(
             axis,
             scan,
@@ -239,7 +224,73 @@ def subpixel_edges(
             np.maximum(A, B) * scale_to_8bit,
             valid,
         )
-    vals, inside_ok = gather_profile_rows(P, scan, start, length, lut=lut)
+    along, A, B, noise, valid = _area_edges_numpy(windows, lut, level_smooth, slope_smooth)
+    step = B - A
+    width = np.full(scan.size, np.nan)  # per-sample widths are too noisy to use; see transition_width
+    return EdgeSamples(
+        axis,
+        scan,
+        np.where(valid, along, np.nan),
+        step * scale_to_8bit,
+        noise * scale_to_8bit,
+        width,
+        np.maximum(A, B) * scale_to_8bit,
+        valid,
+    )
+
+
+@dataclass(frozen=True)
+class _AreaWindows:
+    """The windows :func:`subpixel_edges` reads: the plane ``P`` oriented so that profiles run along its axis
+    0, the scan lines ``scan``, each profile's first sample ``start`` (the low plateau's), where the predicted
+    edge is ``finite``, the window's centre ``c0`` (the prediction rounded), its ``half`` width and the
+    ``plateau`` beside it, px."""
+
+    P: np.ndarray
+    scan: np.ndarray
+    start: np.ndarray
+    finite: np.ndarray
+    c0: np.ndarray
+    half: int
+    plateau: int
+
+
+def _area_edges_compiled(
+    windows: _AreaWindows, flat: tuple[np.ndarray, int, int], lut: np.ndarray | None, level_smooth: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`subpixel_edges` with flat plateaus over the plane's pixel buffer ``flat`` (buffer, pitch along
+    and across the scan lines): ``(along, A, B, noise, valid)``, the edge (px, NaN where not valid), the two
+    levels and the plateaus' noise in the plane's grey levels."""
+    w = windows
+    buf, pitch_along, pitch_scan = flat
+    along, A, B, noise, valid = _area_edges(
+        buf,
+        pitch_along,
+        pitch_scan,
+        w.P.shape[0],
+        w.P.shape[1],
+        w.scan,
+        w.start,
+        w.finite,
+        w.half,
+        w.plateau,
+        lut if lut is not None else NO_LUT,
+        level_smooth if w.scan.size else 0,
+    )
+    if not (level_smooth > 0 and w.scan.size):  # unsmoothed levels stay float32, as in the numpy branch
+        A, B = A.astype(np.float32), B.astype(np.float32)
+    return along, A, B, noise, valid
+
+
+def _area_edges_numpy(
+    windows: _AreaWindows, lut: np.ndarray | None, level_smooth: int, slope_smooth: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`subpixel_edges` in numpy (any plane; sloped plateaus): ``(along, A, B, noise, valid)``, the edge
+    (px, not yet NaN where not valid), the two levels and the plateaus' noise in the plane's grey levels."""
+    w = windows
+    half, plateau, scan = w.half, w.plateau, w.scan
+    length = 2 * (half + plateau) + 1
+    vals, inside_ok = gather_profile_rows(w.P, scan, w.start, length, lut=lut)
     left = vals[:, :plateau]
     right = vals[:, -plateau:]
     core = vals[:, plateau : plateau + 2 * half + 1]
@@ -254,21 +305,11 @@ def subpixel_edges(
         A, B = smooth_along_rows(AB if inside_ok.all() else np.where(inside_ok, AB, np.nan), level_smooth)
     step = B - A
     L = _window_length(left, right, core, A, B, half, slope_smooth)
-    along = start + plateau + 2 * half + 0.5 - L
-    width = np.full(scan.size, np.nan)  # per-sample widths are too noisy to use; see transition_width
-    valid = finite & inside_ok & np.isfinite(along) & (np.abs(step) > 0)
+    along = w.start + plateau + 2 * half + 0.5 - L
+    valid = w.finite & inside_ok & np.isfinite(along) & (np.abs(step) > 0)
     # The estimate must lie inside its window; otherwise the transition was not captured.
-    valid &= np.abs(along - c0) <= half
-    return EdgeSamples(
-        axis,
-        scan,
-        np.where(valid, along, np.nan),
-        step * scale_to_8bit,
-        noise * scale_to_8bit,
-        width,
-        np.maximum(A, B) * scale_to_8bit,
-        valid,
-    )
+    valid &= np.abs(along - w.c0) <= half
+    return along, A, B, noise, valid
 
 
 def _window_length(
@@ -349,7 +390,6 @@ def _mean_transition_width_warm_up(k) -> None:
         k(buf, 1, 16, 16, np.arange(6), np.full(6, 7.6), np.full(6, 100.0), 3, table)
 
 
-# (flat arguments and one long loop: a numba kernel over the plane's buffer, :mod:`doorloc.vision.jit`)
 @kernel(_mean_transition_width_warm_up)
 def _mean_transition_width(buf, pitch_along, pitch_scan, n_along, scan, along, step, half, lut):
     """:func:`transition_width` of the profiles around ``along`` on ``scan`` (``step``: their steps), compiled.
@@ -359,6 +399,8 @@ def _mean_transition_width(buf, pitch_along, pitch_scan, n_along, scan, along, s
     mean, smoothed over the filled bins, gives the width from its peak (or, below 1.5 px, from the second
     moment within 3 px). NaN when no profile is usable.
     """
+    # why many parameters: a numba nopython kernel over the plane's flat buffer takes arrays and scalars only
+    # why long: binning, the bins' smoothed peak and the second moment share one compiled pass's arrays
     n = scan.size
     L = 2 * half + 1
     row = np.empty(L)
@@ -441,21 +483,8 @@ def _mean_transition_width(buf, pitch_along, pitch_scan, n_along, scan, along, s
     return sigma
 
 
-# (as subpixel_edges: the band's geometry and the reader's settings are keywords with defaults; one area equation)
 def subpixel_edges_banded(
-    plane: np.ndarray,
-    axis: Axis,
-    scan: np.ndarray,
-    centre: np.ndarray,
-    half: int,
-    band_px: np.ndarray,
-    door_side: int,
-    plateau: int = 4,
-    scale_to_8bit: float = 1.0,
-    level_smooth: int = 0,
-    sharp: bool = False,
-    band_slope: float = 0.0,
-    lut: np.ndarray | None = None,
+    window: ScanWindow, band_px: np.ndarray, band_slope: float = 0.0, sharp: bool = False
 ) -> tuple[EdgeSamples, float]:
     """Outer edge of a step with a band of unknown, uniform grey level on its door side (a chamfered or
     rounded arris seen as a strip between the background and the hinge face).
@@ -467,18 +496,19 @@ def subpixel_edges_banded(
 
     Parameters
     ----------
+    window : ScanWindow
+        The plane, scan lines, predicted edges and window as for :func:`subpixel_edges`, and ``door_side``:
+        +1 when the door (band, then face) lies at increasing ``along``.
     band_px : ndarray (N,)
         Band width on each scan line, px (>= 0).
-    door_side : +1 or -1
-        +1 when the door (band, then face) lies at increasing ``along``.
-    sharp : bool
-        The image has no optical blur (pixels are pure area samples). A band narrower than 3 px may have no
-        pixel wholly inside it; its level is then found as the one whose pixel-area model of the mixed
-        pixels fits best (instead of being assumed mid-grey).
     band_slope : float
         How the band width changes when the edge moves by 1 px towards the door side (0 for an arris
         strip; ``-(1 - k)`` for the far face's band, whose outer edge moves only ``k`` times as far).
         The area equation is solved with ``w = band_px + band_slope (e - centre)``.
+    sharp : bool
+        The image has no optical blur (pixels are pure area samples). A band narrower than 3 px may have no
+        pixel wholly inside it; its level is then found as the one whose pixel-area model of the mixed
+        pixels fits best (instead of being assumed mid-grey).
 
     Returns
     -------
@@ -487,9 +517,75 @@ def subpixel_edges_banded(
     band_level : float
         The band's grey level ``L`` (0-255 scale), NaN if it could not be measured.
     """
-    P = oriented(plane, axis)
-    scan = np.asarray(scan, int)
-    centre = np.asarray(centre, float)
+    p = _banded_profiles(window, band_px)
+    half, door_side, c0, A, B, w = window.half, window.door_side, p.c0, p.A, p.B, p.w
+    L = _band_level(p, band_slope, sharp)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        # distance from the door-side end of the window back to the outer edge; a band too narrow to
+        # measure anywhere is taken at mid-grey between the two sides (error at most half its width)
+        rho = 1.0 - ((L - A) / (B - A) if np.isfinite(L) else 0.5)  # 1 - band level, relative
+        K = (
+            p.vals.shape[1] - 2 * window.plateau - 0.5
+        )  # door-side end of the window, core index units (core starts at mirrored c0 - half)
+        e_pred = half + p.rel_e
+        # K - e = w rho + S / D with w = w_pred + slope (e - e_pred), solved for e. A band much brighter
+        # than the face makes this ill-conditioned (the area hardly changes as the edge moves): then
+        # nothing is returned (all samples invalid) and the caller measures the plain step instead.
+        conditioned = 1.0 + band_slope * np.nanmedian(rho) >= 0.5
+        e_mirror = (K - (w - band_slope * e_pred) * rho - p.S / (B - A)) / (1.0 + band_slope * rho)
+        along = np.where(door_side > 0, c0 - half + e_mirror, c0 + half - e_mirror)
+    step = (B - A) * door_side
+    valid = p.finite & p.inside & np.isfinite(along) & (np.abs(B - A) > 0) & conditioned
+    valid &= np.abs(along - p.centre) <= half
+    nan = np.full(len(p.scan), np.nan)
+    s8 = window.scale_to_8bit
+    return (
+        EdgeSamples(
+            window.axis,
+            p.scan,
+            np.where(valid, along, np.nan),
+            step * s8,
+            p.noise * s8,
+            nan,
+            np.maximum(np.maximum(A, B), L if np.isfinite(L) else 0) * s8,
+            valid,
+        ),
+        L * s8,
+    )
+
+
+@dataclass(frozen=True)
+class _Banded:
+    """:func:`subpixel_edges_banded`'s profiles, mirrored so that the door side lies at increasing index:
+    their values ``vals`` (N, length), whether each lies wholly ``inside`` the image, where the prediction and
+    the band width are ``finite``, the scan lines ``scan``, the predicted edge ``centre`` and its rounding
+    ``c0`` (px along the scan line), the band's width ``w`` (px), the predicted edge relative to ``c0`` in
+    mirrored coordinates ``rel_e``, the two levels ``A``, ``B`` (smoothed along the edge where asked), the
+    window's area above ``A`` (``S``) and the plateaus' ``noise``, in the plane's grey levels."""
+
+    vals: np.ndarray
+    inside: np.ndarray
+    finite: np.ndarray
+    scan: np.ndarray
+    centre: np.ndarray
+    c0: np.ndarray
+    w: np.ndarray
+    rel_e: np.ndarray
+    A: np.ndarray
+    B: np.ndarray
+    S: np.ndarray
+    noise: np.ndarray
+    half: int
+    plateau: int
+
+
+def _banded_profiles(window: ScanWindow, band_px: np.ndarray) -> _Banded:
+    """The profiles of :func:`subpixel_edges_banded` (``band_px`` the band's width per scan line, px), read
+    over the window, its plateaus and the widest band, and their levels."""
+    half, plateau, door_side = window.half, window.plateau, window.door_side
+    P = oriented(window.plane, window.axis)
+    scan = np.asarray(window.scan, int)
+    centre = np.asarray(window.centre, float)
     w = np.maximum(np.asarray(band_px, float), 0.0)
     finite = np.isfinite(centre) & np.isfinite(w)
     n_extra = int(math.ceil(np.nanmax(w))) if np.any(finite) else 0
@@ -497,67 +593,46 @@ def subpixel_edges_banded(
     length = 2 * (half + plateau) + 1 + n_extra
     if door_side > 0:
         start = c0 - half - plateau
-        vals, inside = gather_profiles(P, scan, start, length, lut=lut)
+        vals, inside = gather_profiles(P, scan, start, length, lut=window.lut)
     else:  # mirror so that the door side is at increasing index
         start = c0 + half + plateau
-        vals, inside = gather_profiles(P, scan, start - length + 1, length, lut=lut)
+        vals, inside = gather_profiles(P, scan, start - length + 1, length, lut=window.lut)
         vals, inside = vals[:, ::-1], inside[:, ::-1]
     left = vals[:, :plateau]
     right = vals[:, -plateau:]
     core = vals[:, plateau : length - plateau]
     A = left.mean(axis=1)
     B = right.mean(axis=1)
-    if level_smooth > 0 and scan.size:
+    if window.level_smooth > 0 and scan.size:
         ok_in = inside.all(axis=1)
-        A = smooth_along(np.where(ok_in, A, np.nan), level_smooth)
-        B = smooth_along(np.where(ok_in, B, np.nan), level_smooth)
-    # Band level: the grey value at the band's centre (linear interpolation), median over the edge,
-    # from the scan lines where the band is at least 2 px wide (a pixel wholly inside it).
+        A = smooth_along(np.where(ok_in, A, np.nan), window.level_smooth)
+        B = smooth_along(np.where(ok_in, B, np.nan), window.level_smooth)
     rel_e = (centre - c0) * door_side  # predicted edge relative to c0, in mirrored coordinates
-    pos = plateau + half + rel_e + w / 2.0  # index into vals
+    S = (core - A[:, None]).sum(axis=1)
+    noise = np.sqrt(0.5 * (left.var(axis=1) + right.var(axis=1)))
+    all_inside = np.asarray(inside.all(axis=1))
+    return _Banded(vals, all_inside, finite, scan, centre, c0, w, rel_e, A, B, S, noise, half, plateau)
+
+
+def _band_level(p: _Banded, band_slope: float, sharp: bool) -> float:
+    """The band's grey level (the plane's units, NaN where it cannot be measured): the grey value at the
+    band's centre (linear interpolation), median over the edge, from the scan lines where the band is wide
+    enough to hold a whole pixel; on a ``sharp`` image with none that wide, the level whose pixel-area model
+    fits best (:func:`_band_level_from_pixels`)."""
+    vals, w, finite, plateau, half = p.vals, p.w, p.finite, p.plateau, p.half
+    length = vals.shape[1]
+    pos = plateau + half + p.rel_e + w / 2.0  # index into vals
     i0 = np.clip(np.floor(pos).astype(int), 0, length - 2)
     fr = pos - i0
-    mid = vals[np.arange(len(scan)), i0] * (1 - fr) + vals[np.arange(len(scan)), i0 + 1] * fr
+    mid = vals[np.arange(len(p.scan)), i0] * (1 - fr) + vals[np.arange(len(p.scan)), i0 + 1] * fr
     # A whole pixel inside the band; a band whose width follows the edge (far face) needs more room,
     # as its predicted position may still be off.
-    wide = finite & (w >= (3.0 if band_slope else 2.0)) & inside.all(axis=1)
+    wide = finite & (w >= (3.0 if band_slope else 2.0)) & p.inside
     L = float(np.median(mid[wide])) if np.any(wide) else float("nan")
-    S = (core - A[:, None]).sum(axis=1)
-    good = finite & inside.all(axis=1)
+    good = finite & p.inside
     if not np.isfinite(L) and sharp and np.any(good & (w > 0.2)):  # too narrow to hold a whole pixel
-        L = _band_level_from_pixels(vals[good], A[good], B[good], S[good], w[good], plateau, half)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        # distance from the door-side end of the window back to the outer edge; a band too narrow to
-        # measure anywhere is taken at mid-grey between the two sides (error at most half its width)
-        rho = 1.0 - ((L - A) / (B - A) if np.isfinite(L) else 0.5)  # 1 - band level, relative
-        K = (
-            core.shape[1] - 0.5
-        )  # door-side end of the window, core index units (core starts at mirrored c0 - half)
-        e_pred = half + rel_e
-        # K - e = w rho + S / D with w = w_pred + slope (e - e_pred), solved for e. A band much brighter
-        # than the face makes this ill-conditioned (the area hardly changes as the edge moves): then
-        # nothing is returned (all samples invalid) and the caller measures the plain step instead.
-        conditioned = 1.0 + band_slope * np.nanmedian(rho) >= 0.5
-        e_mirror = (K - (w - band_slope * e_pred) * rho - S / (B - A)) / (1.0 + band_slope * rho)
-        along = np.where(door_side > 0, c0 - half + e_mirror, c0 + half - e_mirror)
-    step = (B - A) * door_side
-    noise = np.sqrt(0.5 * (left.var(axis=1) + right.var(axis=1)))
-    valid = finite & inside.all(axis=1) & np.isfinite(along) & (np.abs(B - A) > 0) & conditioned
-    valid &= np.abs(along - centre) <= half
-    nan = np.full(len(scan), np.nan)
-    return (
-        EdgeSamples(
-            axis,
-            scan,
-            np.where(valid, along, np.nan),
-            step * scale_to_8bit,
-            noise * scale_to_8bit,
-            nan,
-            np.maximum(np.maximum(A, B), L if np.isfinite(L) else 0) * scale_to_8bit,
-            valid,
-        ),
-        L * scale_to_8bit,
-    )
+        L = _band_level_from_pixels(vals[good], p.A[good], p.B[good], p.S[good], w[good], plateau, half)
+    return L
 
 
 def _band_level_from_pixels(vals, A, B, S, w, plateau: int, half: int, n_levels: int = 61) -> float:

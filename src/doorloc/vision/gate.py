@@ -62,16 +62,7 @@ def gate_and_answer(
     r, cell = check.refined, check.cell
     model, figures = doubts
     fit, pose = r.fit, r.pose
-    diagnostics: dict = {
-        "blur_px": round(r.blur_px, 3),
-        "window_half_px": r.half,
-        "face_y_mm": region.face_y,
-        "edge_depth_y_mm": region.edge_depth_y,
-        "fit_scale_mm": fit.scale,
-        "yaw_sigma_deg": math.degrees(fit.angle_sigma_rad),
-        "thickness_expected_mm": door.thickness_mm,
-        **figures,
-    }
+    diagnostics = _fit_diagnostics(r, region, door, figures)
     lines, refusals = _line_checks(r, model, cfg)
     refusals += _corner_support(r, region, cfg, diagnostics)
     bright = np.concatenate([r.samples[k].bright[fit.weights[k] > 0] for k in EDGE_NAMES])
@@ -98,20 +89,9 @@ def gate_and_answer(
         t_refusals = [x for x in t_refusals if x not in unverified]
     refusals += t_refusals
     refusals.append(_corner_sigma_check(fit, cfg, diagnostics))
-    t_sigma = budget.thickness_reported_mm
-    t_tol = cfg.thickness_tolerance_mm
-    far_beside = r.far_beside
-    diagnostics["thickness_check"] = {
-        "measured_mm": round(pose.thickness_mm, 4),
-        "expected_mm": door.thickness_mm,
-        "difference_mm": round(pose.thickness_mm - door.thickness_mm, 4),
-        "tolerance_mm": t_tol,
-        "sigma_mm": round(t_sigma, 5),
-        "uncertain": t_uncertain,
-        "far_face_in_view": far_beside,
-        "other_reading_mm": round(other, 4) if other is not None else None,
-        "far_silhouette_contrast": round(silhouette, 2) if silhouette is not None else None,
-    }
+    diagnostics["thickness_check"] = _thickness_diagnostics(
+        r, door, cfg, budget.thickness_reported_mm, t_uncertain, other, silhouette
+    )
     unc = PoseUncertainty(x_mm=budget.x_mm, z_mm=budget.z_mm, yaw_deg=budget.yaw_deg)
     diagnostics["uncertainty_terms"] = {k: [round(v, 6) for v in t] for k, t in budget.groups.items()}
     diagnostics["uncertainty_budget"] = [t.as_dict() for t in budget.terms]
@@ -141,6 +121,50 @@ def gate_and_answer(
         lines=lines,
         diagnostics=diagnostics,
     )
+
+
+def _fit_diagnostics(r: Refined, region: SearchRegion, door: DoorSize, figures: dict[str, Any]) -> dict:
+    """The answer's first diagnostics: the refine stage's blur and window (px), the hinge-face plane's and the
+    edges' depths (mm), the line fit's residual scale (mm) and yaw doubt (degrees), the expected thickness
+    (mm) and the edge models' ``figures``."""
+    fit = r.fit
+    return {
+        "blur_px": round(r.blur_px, 3),
+        "window_half_px": r.half,
+        "face_y_mm": region.face_y,
+        "edge_depth_y_mm": region.edge_depth_y,
+        "fit_scale_mm": fit.scale,
+        "yaw_sigma_deg": math.degrees(fit.angle_sigma_rad),
+        "thickness_expected_mm": door.thickness_mm,
+        **figures,
+    }
+
+
+def _thickness_diagnostics(
+    r: Refined,
+    door: DoorSize,
+    cfg: LocateConfig,
+    sigma_mm: float,
+    uncertain: bool,
+    other: float | None,
+    silhouette: float | None,
+) -> dict:
+    """The thickness check's figures for the answer's diagnostics (mm): the measured and the expected
+    thickness, their difference, the tolerance, the reported standard uncertainty ``sigma_mm``, whether the
+    check found it ``uncertain``, whether the far face was in view, the other reading ``other`` where there
+    is one and the far silhouette's contrast (grey levels)."""
+    pose = r.pose
+    return {
+        "measured_mm": round(pose.thickness_mm, 4),
+        "expected_mm": door.thickness_mm,
+        "difference_mm": round(pose.thickness_mm - door.thickness_mm, 4),
+        "tolerance_mm": cfg.thickness_tolerance_mm,
+        "sigma_mm": round(sigma_mm, 5),
+        "uncertain": uncertain,
+        "far_face_in_view": r.far_beside,
+        "other_reading_mm": round(other, 4) if other is not None else None,
+        "far_silhouette_contrast": round(silhouette, 2) if silhouette is not None else None,
+    }
 
 
 def _line_checks(r: Refined, model: EdgeModelTerms, cfg: LocateConfig) -> tuple[list[LineQuality], list]:
@@ -177,16 +201,17 @@ def _line_checks(r: Refined, model: EdgeModelTerms, cfg: LocateConfig) -> tuple[
         loose = k == "far" and far_beside
         refusals.append(
             q.check_line(
-                k,
                 HUMAN[k],
                 n_s,
                 n_i,
                 rms_px,
                 contrast,
-                cfg.min_inliers,
-                cfg.min_inlier_fraction * (0.5 if loose else 1.0),
-                cfg.max_rms_residual_px * (2.0 if loose else 1.0),
-                cfg.min_contrast,
+                q.LineLimits(
+                    cfg.min_inliers,
+                    cfg.min_inlier_fraction * (0.5 if loose else 1.0),
+                    cfg.max_rms_residual_px * (2.0 if loose else 1.0),
+                    cfg.min_contrast,
+                ),
             )
         )
     return lines, refusals

@@ -225,6 +225,8 @@ def _irls(P, starts, sizes, mask0, votes, use_votes, scale_floor, n_iter, max_sa
     centred points (N, 2))`` of the last iteration (the weights updated after it unless it converged);
     ``status`` is ``-1 - g`` when group ``g`` has no weight left, else 0.
     """
+    # why many parameters: a numba nopython kernel takes arrays and scalars only (the line groups flattened)
+    # why long: one compiled IRLS iteration (means, closed-form normal, MAD scale, weights) as numpy sums it
     N = P.shape[0]
     G = sizes.size
     w = np.empty(N)
@@ -323,6 +325,36 @@ def _irls(P, starts, sizes, mask0, votes, use_votes, scale_floor, n_iter, max_sa
     return 0, n0, n1, off, r, w, Q
 
 
+def _stacked_groups(
+    groups: dict[str, tuple[np.ndarray, bool]],
+    init_weights: dict[str, np.ndarray] | None,
+    offset_only: tuple[str, ...],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray, np.ndarray]:
+    """:func:`fit_rectangle_edges`' groups as the IRLS kernel takes them:
+    ``(P, mask0, votes, sizes, starts)``, the points of all groups in the common frame (N, 2) mm, in the
+    order of ``groups``; where a starting weight is > 0; each point's vote on the direction (None: all vote);
+    each group's size and first index."""
+    names = list(groups)
+    sizes_l = [len(groups[k][0]) for k in names]
+    if 0 in sizes_l:
+        raise ValueError("a line group has no points")
+    P = np.concatenate([_to_common(np.asarray(groups[k][0], float), groups[k][1]) for k in names])
+    mask0 = (
+        np.concatenate([np.asarray(init_weights[k], float) for k in names]) > 0
+        if init_weights is not None
+        else np.ones(len(P), bool)
+    )
+    voting_subset = any(k in offset_only for k in names)  # else votes are all 1 (w * 1.0 == w)
+    votes = (
+        np.concatenate([np.full(n, k not in offset_only, float) for k, n in zip(names, sizes_l, strict=True)])
+        if voting_subset
+        else None
+    )
+    sizes = np.array(sizes_l, np.int64)
+    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
+    return P, mask0, votes, sizes, starts
+
+
 def fit_rectangle_edges(
     groups: dict[str, tuple[np.ndarray, bool]],
     *,
@@ -363,24 +395,8 @@ def fit_rectangle_edges(
     1.0
     """
     names = list(groups)
-    sizes_l = [len(groups[k][0]) for k in names]
-    if 0 in sizes_l:
-        raise ValueError("a line group has no points")
-    P = np.concatenate([_to_common(np.asarray(groups[k][0], float), groups[k][1]) for k in names])
+    P, mask0, votes, sizes, starts = _stacked_groups(groups, init_weights, offset_only)
     G = len(names)
-    mask0 = (
-        np.concatenate([np.asarray(init_weights[k], float) for k in names]) > 0
-        if init_weights is not None
-        else np.ones(len(P), bool)
-    )
-    voting_subset = any(k in offset_only for k in names)  # else votes are all 1 (w * 1.0 == w)
-    votes = (
-        np.concatenate([np.full(n, k not in offset_only, float) for k, n in zip(names, sizes_l, strict=True)])
-        if voting_subset
-        else None
-    )
-    sizes = np.array(sizes_l, np.int64)
-    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
     status, n0, n1, off, r, w, Q = _irls(
         np.ascontiguousarray(P),
         starts,

@@ -74,8 +74,6 @@ def draw_overlay(
     ndarray (H, W, 3) uint8
         BGR overlay.
     """
-    import cv2
-
     from doorloc.vision.locate import locate
 
     door = door or cell.default_door
@@ -83,10 +81,20 @@ def draw_overlay(
         trace = LocateTrace()
         locate(image, cell, door, image_name=result.image, trace=trace)
     out = _bgr(image)
-    h, w = out.shape[:2]
+    _draw_bands(out, trace)
+    _draw_points(out, trace)
+    _draw_pose(out, trace)
+    _draw_cell_axes(out, cell, door)
+    _draw_text_box(out, result, door)
+    return out
+
+
+def _draw_bands(out: np.ndarray, trace: LocateTrace) -> None:
+    """The search bands (thin grey), drawn on ``out`` (BGR, image px at 4 fractional bits)."""
+    import cv2
+
     shift = 4
     region = trace.region
-    # search bands
     for name, band in trace.bands.items():
         if region is None or band.scan.size == 0:
             continue
@@ -94,7 +102,13 @@ def draw_overlay(
         for edge in (band.lo, band.hi):
             uv = np.stack([band.scan, edge], 1) if axis == "col" else np.stack([edge, band.scan], 1)
             cv2.polylines(out, [np.round(uv * 16).astype(np.int32)], False, _GREY, 1, cv2.LINE_AA, shift)
-    # edge points
+
+
+def _draw_points(out: np.ndarray, trace: LocateTrace) -> None:
+    """The edge points (green: used by the line fit, red: rejected), at most about 150 of each a line."""
+    import cv2
+
+    shift = 4
     for name, s in trace.samples.items():
         uv = s.uv()
         inl = trace.inliers.get(name, np.ones(len(uv), bool))
@@ -102,26 +116,41 @@ def draw_overlay(
             pts = pts[np.isfinite(pts).all(axis=1)]
             for p in pts[:: max(len(pts) // 150, 1)]:
                 cv2.circle(out, _pt(p), 2 * 16, col, -1, cv2.LINE_AA, shift)
-    # fitted lines and corner
-    pose = trace.pose
-    if pose is not None and region is not None:
-        ex, ez = pose.x_axis, pose.z_axis
-        far = pose.corner + pose.thickness_mm * ex
-        t = np.linspace(-5.0, region.z_top_mm + 30.0, 60)
-        for base in (pose.corner, far):
-            uv = region.image_points(base[None] + t[:, None] * ez[None])
-            uv = uv[np.isfinite(uv).all(axis=1)]
-            cv2.polylines(out, [np.round(uv * 16).astype(np.int32)], False, _CYAN, 1, cv2.LINE_AA, shift)
-        tx = np.linspace(-8.0, pose.thickness_mm + 8.0, 30)
-        uv = region.image_points(pose.corner[None] + tx[:, None] * ex[None])
+
+
+def _draw_pose(out: np.ndarray, trace: LocateTrace) -> None:
+    """The fitted lines (cyan, extended along the door's Z from -5 mm to 30 mm above the region's top, and
+    along X 8 mm beyond the thickness) and the corner (yellow cross), from the pose on the hinge-face
+    plane."""
+    import cv2
+
+    shift = 4
+    pose, region = trace.pose, trace.region
+    if pose is None or region is None:
+        return
+    ex, ez = pose.x_axis, pose.z_axis
+    far = pose.corner + pose.thickness_mm * ex
+    t = np.linspace(-5.0, region.z_top_mm + 30.0, 60)
+    for base in (pose.corner, far):
+        uv = region.image_points(base[None] + t[:, None] * ez[None])
+        uv = uv[np.isfinite(uv).all(axis=1)]
         cv2.polylines(out, [np.round(uv * 16).astype(np.int32)], False, _CYAN, 1, cv2.LINE_AA, shift)
-        c = pose.corner_px
-        for d in ((1, 0), (0, 1)):
-            a = (c[0] - 14 * d[0], c[1] - 14 * d[1])
-            b = (c[0] + 14 * d[0], c[1] + 14 * d[1])
-            cv2.line(out, _pt(a), _pt(b), _YELLOW, 2, cv2.LINE_AA, shift)
-        cv2.circle(out, _pt(c), 6 * 16, _YELLOW, 1, cv2.LINE_AA, shift)
-    # cell axes at the nominal corner (the cell origin), 10 mm long
+    tx = np.linspace(-8.0, pose.thickness_mm + 8.0, 30)
+    uv = region.image_points(pose.corner[None] + tx[:, None] * ex[None])
+    cv2.polylines(out, [np.round(uv * 16).astype(np.int32)], False, _CYAN, 1, cv2.LINE_AA, shift)
+    c = pose.corner_px
+    for d in ((1, 0), (0, 1)):
+        a = (c[0] - 14 * d[0], c[1] - 14 * d[1])
+        b = (c[0] + 14 * d[0], c[1] + 14 * d[1])
+        cv2.line(out, _pt(a), _pt(b), _YELLOW, 2, cv2.LINE_AA, shift)
+    cv2.circle(out, _pt(c), 6 * 16, _YELLOW, 1, cv2.LINE_AA, shift)
+
+
+def _draw_cell_axes(out: np.ndarray, cell: Cell, door: DoorSize) -> None:
+    """The cell axes at the nominal corner (the cell origin on the hinge-face plane), 10 mm long."""
+    import cv2
+
+    shift = 4
     pc = cell.posed_camera
     fy = cell.face_y(door)
     o, xa, za = pc.project_cell(np.array([[0.0, fy, 0.0], [10.0, fy, 0.0], [0.0, fy, 10.0]]))
@@ -134,7 +163,14 @@ def draw_overlay(
         cv2.putText(
             out, "Z", (int(za[0]) - 5, int(za[1]) - 6), cv2.FONT_HERSHEY_SIMPLEX, 0.5, _AX_Z, 1, cv2.LINE_AA
         )
-    # text box
+
+
+def _draw_text_box(out: np.ndarray, result: LocateResult, door: DoorSize) -> None:
+    """The answer or the refusal and each line's quality, in a darkened box at the bottom left (the door
+    fills the top of the image); text sized to the image width (1920 px: scale 1)."""
+    import cv2
+
+    h, w = out.shape[:2]
     if result.ok:
         lines = [
             f"OK  x {result.x_mm:+.3f} mm   z {result.z_mm:+.3f} mm   yaw {result.yaw_deg:+.4f} deg",
@@ -168,7 +204,6 @@ def draw_overlay(
             max(int(math.ceil(scale)), 1),
             cv2.LINE_AA,
         )
-    return out
 
 
 def _wrap(text: str, width: int) -> list[str]:

@@ -23,6 +23,7 @@ __all__ = [
     "check_thickness",
     "check_corner_support",
     "check_line",
+    "LineLimits",
     "check_overexposed",
     "line_figures",
     "looks_like_pattern",
@@ -157,19 +158,30 @@ def line_figures(weights, residuals, step, noise):
     return m, pairwise_sum(sq, 0, m) / m, contrast, spread
 
 
+@dataclass(frozen=True)
+class LineLimits:
+    """What :func:`check_line` asks of a fitted edge: at least ``min_inliers`` inliers and that fraction of
+    its points (``min_inlier_fraction``), an RMS residual of at most ``max_rms_px`` px and a contrast of at
+    least ``min_contrast`` grey levels (0-255)."""
+
+    min_inliers: int
+    min_inlier_fraction: float
+    max_rms_px: float
+    min_contrast: float
+
+
 def check_line(
-    name: str,
     human: str,
     n_samples: int,
     n_inliers: int,
     rms_px: float,
     contrast: float,
-    min_inliers: int,
-    min_inlier_fraction: float,
-    max_rms_px: float,
-    min_contrast: float,
+    limits: LineLimits,
 ) -> Refusal | None:
-    """One fitted edge: enough support, straight enough, contrasted enough."""
+    """One fitted edge (``human``: its name in the sentences): enough support, straight enough, contrasted
+    enough (``rms_px`` px, ``contrast`` grey levels 0-255)."""
+    min_inliers, min_inlier_fraction = limits.min_inliers, limits.min_inlier_fraction
+    max_rms_px, min_contrast = limits.max_rms_px, limits.min_contrast
     if n_samples == 0 or n_inliers < min_inliers:
         return Refusal(
             "edge_missing",

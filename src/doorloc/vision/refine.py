@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from doorloc.vision import quality as q
+from doorloc.vision.arris_geometry import ArrisGeometry
 from doorloc.vision.arris_model import StripFit, arris_geometry
 from doorloc.vision.config import LocateConfig
 from doorloc.vision.edge_models import ARRIS_PLATEAU_PX, EDGE_MODELS, PassSettings, ScanWindow, edge_kind
@@ -39,23 +40,26 @@ class _Sampled:
     step_fitted: dict[str, float]
 
 
-def _sample(
-    plane,
-    region: SearchRegion,
-    pose: MetricPose,
-    yaw_rad: float,
-    half: int,
-    cfg: LocateConfig,
-    scale8: float,
-    every: int = 1,
-    sharp: bool = False,
-    optical_blur_px: float = float("nan"),
-    response_gamma: float = 1.0,
-    step_fit: dict[str, float] | None = None,
-    arris_fits: dict[str, tuple[StripFit, float]] | None = None,
-) -> _Sampled:
+@dataclass(frozen=True)
+class _Pass:
+    """What one pass of the refine stage changes: the window's half width ``half`` (px), every n-th scan line
+    read (``every``), whether the edges are sharper than the windows assume (``sharp``), the optical blur
+    measured on the reference arris (``optical_blur_px``, NaN before it is) and the lines the blurred-step fit
+    refines with the blur it uses (``step_fit``, px)."""
+
+    half: int
+    every: int = 1
+    sharp: bool = False
+    optical_blur_px: float = float("nan")
+    step_fit: dict[str, float] | None = None
+
+
+def _arris_and_keep(
+    region: SearchRegion, pose: MetricPose, half: int, cfg: LocateConfig
+) -> tuple[dict[str, ArrisGeometry] | None, int]:
+    """The arris strips' geometry per line at ``pose`` (None without an arris) and how far from the corners
+    (px) the scan lines stay: the window, its plateaus and 4 px, and with an arris its strip's width."""
     keep = half + cfg.plateau + 4
-    lut = linearizing_lut(plane.dtype, response_gamma)
     door = region.door
     geoms = (
         arris_geometry(
@@ -80,6 +84,27 @@ def _sample(
             + 4
             + int(math.ceil(door.arris_mm / region.nominal_scale))
         )
+    return geoms, keep
+
+
+def _sample(
+    plane,
+    scale8: float,
+    region: SearchRegion,
+    pose: MetricPose,
+    cfg: LocateConfig,
+    this_pass: _Pass,
+    response_gamma: float = 1.0,
+    arris_fits: dict[str, tuple[StripFit, float]] | None = None,
+) -> _Sampled:
+    """One pass's edge points on every edge of the door at ``pose``, each read by the model of its kind;
+    ``scale8`` turns ``plane``'s grey levels to 0-255, ``response_gamma`` them to light; each line's arris
+    strip fit goes into ``arris_fits``."""
+    half, every = this_pass.half, this_pass.every
+    yaw_rad = math.radians(pose.yaw_deg)
+    lut = linearizing_lut(plane.dtype, response_gamma)
+    door = region.door
+    geoms, keep = _arris_and_keep(region, pose, half, cfg)
     # An arris door's thickness measured on a first pose can be up to the strip's width short (its inner
     # border taken for the edge): whether the far face is in view is decided at the recipe's thickness
     # then (arris bench seed 7558: a 2.5 mm rounding, the camera 1.2 mm inside the far face's plane, seen
@@ -95,12 +120,12 @@ def _sample(
     )
     settings = PassSettings(
         every=every,
-        sharp=sharp,
-        optical_blur_px=optical_blur_px,
+        sharp=this_pass.sharp,
+        optical_blur_px=this_pass.optical_blur_px,
         slope_smooth=max(cfg.slope_smooth // every, 1) if cfg.slope_smooth else 0,
         door=door,
         arris=geoms,
-        step_blur_px=step_fit or {},
+        step_blur_px=this_pass.step_fit or {},
     )
     out, far_fit, step_fitted = {}, None, {}
     for name in EDGE_NAMES:
@@ -217,21 +242,14 @@ def refine(
     _pass = 0
     while _pass < n_pass:
         # The first pass, on every fifth scan line, only centres and sizes the final windows.
-        sampled = _sample(
-            plane,
-            region,
-            pose,
-            math.radians(pose.yaw_deg),
+        this_pass = _Pass(
             half,
-            cfg,
-            s8,
             every=5 if _pass == 0 else 1,
             sharp=_pass > 0 and blur < 0.6,
             optical_blur_px=optical_blur,
-            response_gamma=response_gamma,
             step_fit=step_fit if _pass > 0 else {},
-            arris_fits=arris_fits,
         )
+        sampled = _sample(plane, s8, region, pose, cfg, this_pass, response_gamma, arris_fits)
         samples, far_beside, far_fit = sampled.samples, sampled.far_beside, sampled.far_fit
         if far_beside and _pass >= 1 and not np.isfinite(optical_blur) and ref0 is not None:
             # The far face came into view after the first pass: measure the blur and look again.

@@ -22,6 +22,7 @@ import numpy as np
 
 from doorloc.calib.camera import PosedCamera
 from doorloc.cell import Cell, DoorSize, Envelope, Fixture
+from doorloc.vision.arris_geometry import ArrisGeometry
 from doorloc.vision.jit import kernel
 from doorloc.vision.metric import PlaneMap
 from doorloc.vision.sampling import Axis
@@ -463,28 +464,7 @@ class SearchRegion:
             pl = polylines[name]
             uv = uv_all[first : first + len(pl)]
             first += len(pl)
-            s, _ = _along_scan(uv, lay.axis)
-            n_scan = self.image_size[0] if lay.axis == "col" else self.image_size[1]
-            n_along = self.image_size[1] if lay.axis == "col" else self.image_size[0]
-            e_uv = (
-                uv_ends if name == "bottom" else uv_ends[[0, 0]] if name == "reference" else uv_ends[[1, 1]]
-            )
-            e_s, _ = _along_scan(e_uv, lay.axis)
-            if name == "bottom":
-                s_lo, s_hi = np.sort(e_s)
-                s_lo, s_hi = s_lo + keep_px, s_hi - keep_px
-            else:
-                # From the corner towards the door's far end (the direction of increasing tz).
-                d = np.sign(s[-1] - s[0]) or 1.0
-                if d > 0:
-                    s_lo, s_hi = e_s[0] + keep_px, np.fmax.reduce(s)  # = np.nanmax, less dispatch
-                else:
-                    s_lo, s_hi = np.fmin.reduce(s), e_s[0] - keep_px
-            s_lo = max(s_lo, self.border_px)
-            s_hi = min(s_hi, n_scan - 1 - self.border_px)
-            scans = np.arange(int(math.ceil(s_lo)), int(math.floor(s_hi)) + 1)
-            centre = _interp_on_scans(uv, lay.axis, scans)
-            ok = np.isfinite(centre) & (centre >= 0) & (centre <= n_along - 1)
+            scans, centre, ok = self._scan_lines(name, uv, uv_ends, keep_px)
             beside = name == "far" and self.far_face_visible(
                 corner, yaw_rad, thickness_mm if visibility_thickness_mm is None else visibility_thickness_mm
             )
@@ -503,23 +483,10 @@ class SearchRegion:
             shift = None
             strip = None
             if a > 0 and not beside and arris is not None and name in arris:
-                g = arris[name]
                 inward = ez if name == "bottom" else (ex if name == "reference" else -ex)
-                nominal = centre[ok]
-                outer = _interp_on_scans(
-                    self.image_points(pl + g.w_outer_mm * inward[None]), lay.axis, scans[ok]
+                ok, centre, band, shift = self._strip_borders(
+                    pl, lay.axis, scans, centre, ok, inward, arris[name]
                 )
-                inner = _interp_on_scans(
-                    self.image_points(pl + g.w_inner_mm * inward[None]), lay.axis, scans[ok]
-                )
-                good = np.isfinite(outer) & np.isfinite(inner)
-                sel = np.nonzero(ok)[0][good]
-                ok = np.zeros_like(ok)
-                ok[sel] = True
-                centre = centre.copy()
-                centre[sel] = outer[good]
-                band = np.abs(inner[good] - outer[good])
-                shift = nominal[good] - outer[good]
             elif a > 0:
                 # The arris strip runs from the outline (depth face_y + a) to the hinge face's own edge,
                 # a mm inwards at depth face_y. Beside the far face it lies between the hinge face and the
@@ -533,6 +500,64 @@ class SearchRegion:
                     band = width
             out[name] = Track(scans[ok], centre[ok], beside, band, slope, shift, strip)
         return out
+
+    def _scan_lines(
+        self, name: str, uv: np.ndarray, uv_ends: np.ndarray, keep_px: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The scan lines across the edge ``name`` whose image polyline is ``uv`` (px), ``uv_ends`` the image
+        corner and far corner: ``(scans, centre, ok)``, the integer scan lines between the corners
+        (``keep_px`` inside them) and the image border, the predicted edge on each (px along the scan line)
+        and where it lies inside the image."""
+        lay = self.layouts[name]
+        s, _ = _along_scan(uv, lay.axis)
+        n_scan = self.image_size[0] if lay.axis == "col" else self.image_size[1]
+        n_along = self.image_size[1] if lay.axis == "col" else self.image_size[0]
+        e_uv = uv_ends if name == "bottom" else uv_ends[[0, 0]] if name == "reference" else uv_ends[[1, 1]]
+        e_s, _ = _along_scan(e_uv, lay.axis)
+        if name == "bottom":
+            s_lo, s_hi = np.sort(e_s)
+            s_lo, s_hi = s_lo + keep_px, s_hi - keep_px
+        else:
+            # From the corner towards the door's far end (the direction of increasing tz).
+            d = np.sign(s[-1] - s[0]) or 1.0
+            if d > 0:
+                s_lo, s_hi = e_s[0] + keep_px, np.fmax.reduce(s)  # = np.nanmax, less dispatch
+            else:
+                s_lo, s_hi = np.fmin.reduce(s), e_s[0] - keep_px
+        s_lo = max(s_lo, self.border_px)
+        s_hi = min(s_hi, n_scan - 1 - self.border_px)
+        scans = np.arange(int(math.ceil(s_lo)), int(math.floor(s_hi)) + 1)
+        centre = _interp_on_scans(uv, lay.axis, scans)
+        ok = np.isfinite(centre) & (centre >= 0) & (centre <= n_along - 1)
+        return scans, centre, ok
+
+    def _strip_borders(
+        self,
+        pl: np.ndarray,
+        axis: Axis,
+        scans: np.ndarray,
+        centre: np.ndarray,
+        ok: np.ndarray,
+        inward: np.ndarray,
+        g: ArrisGeometry,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """An arris strip placed exactly by its geometry ``g`` on the edge's polyline ``pl`` (cell X-Z on the
+        hinge-face plane, mm; ``inward`` the unit direction into the hinge face):
+        ``(ok, centre, band, shift)``, the scan lines kept (both borders in view), the predicted edge moved to
+        the strip's outer border (px), the strip's width and the sharp corner's line minus the outer border on
+        the kept lines, px."""
+        nominal = centre[ok]
+        outer = _interp_on_scans(self.image_points(pl + g.w_outer_mm * inward[None]), axis, scans[ok])
+        inner = _interp_on_scans(self.image_points(pl + g.w_inner_mm * inward[None]), axis, scans[ok])
+        good = np.isfinite(outer) & np.isfinite(inner)
+        sel = np.nonzero(ok)[0][good]
+        ok = np.zeros_like(ok)
+        ok[sel] = True
+        centre = centre.copy()
+        centre[sel] = outer[good]
+        band = np.abs(inner[good] - outer[good])
+        shift = nominal[good] - outer[good]
+        return ok, centre, band, shift
 
     def _far_face_band(
         self, pl, uv, scans, centre, window_px, axis, outward: float

@@ -521,36 +521,10 @@ def fit_board_response(
         (corners[r, c], corners[r + 1, c]) for r in range(rows - 1) for c in range(cols)
     ]
     for p0, p1 in pairs:
-        d = p1 - p0
-        length = float(np.hypot(*d))
-        # Scan lines across the edge's middle 40 %: a profile there meets the square's other edges no nearer
-        # than 0.42 of a square (at 45 deg; farther at other angles), so a window (plateaus included) of
-        # 0.3 of a square each side stays clear of them and of their blur.
-        half = want
-        if not (np.all(np.isfinite(d)) and half + RESPONSE_PLATEAU_PX <= 0.3 * length):
-            continue  # squares too small for the transition and its plateaus
-        axis: Axis = "col" if abs(d[0]) >= abs(d[1]) else "row"  # profiles across the edge
-        i_s, i_a = (0, 1) if axis == "col" else (1, 0)
-        s0, s1 = sorted((p0[i_s] + 0.3 * d[i_s], p0[i_s] + 0.7 * d[i_s]))
-        scan = np.arange(int(math.ceil(s0)), int(math.floor(s1)) + 1)
-        if scan.size < 4:
+        found_edge = _board_edge_profiles(plane, p0, p1, want, lut, top)
+        if found_edge is None:
             continue
-        centre = p0[i_a] + (scan - p0[i_s]) * (d[i_a] / d[i_s])
-        smp = subpixel_edges(plane, axis, scan, centre, half, RESPONSE_PLATEAU_PX, lut=lut)
-        ok = smp.valid & np.isfinite(smp.along) & (np.abs(smp.along - centre) < 2.0)
-        if int(ok.sum()) < 4:
-            continue
-        H = half + RESPONSE_PLATEAU_PX
-        e = smp.along[ok]
-        c0 = np.round(e).astype(int)
-        vals, inside = gather_profiles(oriented(plane, axis), scan[ok], c0 - H, 2 * H + 1)
-        keep = inside.all(axis=1)
-        raw = vals[keep].astype(np.float64) / top
-        off = (c0 - H - e)[keep].astype(np.float64)
-        if raw.shape[0] < 4:
-            continue
-        if raw[:, -RESPONSE_PLATEAU_PX:].mean() < raw[:, :RESPONSE_PLATEAU_PX].mean():
-            raw, off = raw[:, ::-1], -off - 2 * H  # dark to bright, as every other edge
+        raw, off = found_edge
         raws.append(raw)
         offsets.append(off)
     if len(raws) < 3 * RESPONSE_SKEW_BLOCKS:
@@ -571,6 +545,46 @@ def fit_board_response(
     return LineResponse(
         g, se, lo, hi, transition_skew_px(t, slice(None), used_gamma), alternatives=alternatives
     )
+
+
+def _board_edge_profiles(
+    plane: np.ndarray, p0: np.ndarray, p1: np.ndarray, half: int, lut: np.ndarray | None, top: float
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """The raw profiles across a board's edge between the inner corners ``p0`` and ``p1`` (image px), for
+    :func:`fit_board_response`: ``(raw, off)``, each profile's grey levels over ``2 (half + plateau) + 1``
+    pixels divided by ``top`` and turned to run dark to bright, and its first pixel's offset from the edge
+    placed by the area estimator (``lut`` turns grey levels to light), px. None where the square is too
+    small for the window or fewer than 4 profiles are usable."""
+    d = p1 - p0
+    length = float(np.hypot(*d))
+    # Scan lines across the edge's middle 40 %: a profile there meets the square's other edges no nearer
+    # than 0.42 of a square (at 45 deg; farther at other angles), so a window (plateaus included) of
+    # 0.3 of a square each side stays clear of them and of their blur.
+    if not (np.all(np.isfinite(d)) and half + RESPONSE_PLATEAU_PX <= 0.3 * length):
+        return None  # squares too small for the transition and its plateaus
+    axis: Axis = "col" if abs(d[0]) >= abs(d[1]) else "row"  # profiles across the edge
+    i_s, i_a = (0, 1) if axis == "col" else (1, 0)
+    s0, s1 = sorted((p0[i_s] + 0.3 * d[i_s], p0[i_s] + 0.7 * d[i_s]))
+    scan = np.arange(int(math.ceil(s0)), int(math.floor(s1)) + 1)
+    if scan.size < 4:
+        return None
+    centre = p0[i_a] + (scan - p0[i_s]) * (d[i_a] / d[i_s])
+    smp = subpixel_edges(plane, axis, scan, centre, half, RESPONSE_PLATEAU_PX, lut=lut)
+    ok = smp.valid & np.isfinite(smp.along) & (np.abs(smp.along - centre) < 2.0)
+    if int(ok.sum()) < 4:
+        return None
+    H = half + RESPONSE_PLATEAU_PX
+    e = smp.along[ok]
+    c0 = np.round(e).astype(int)
+    vals, inside = gather_profiles(oriented(plane, axis), scan[ok], c0 - H, 2 * H + 1)
+    keep = inside.all(axis=1)
+    raw = vals[keep].astype(np.float64) / top
+    off = (c0 - H - e)[keep].astype(np.float64)
+    if raw.shape[0] < 4:
+        return None
+    if raw[:, -RESPONSE_PLATEAU_PX:].mean() < raw[:, :RESPONSE_PLATEAU_PX].mean():
+        raw, off = raw[:, ::-1], -off - 2 * H  # dark to bright, as every other edge
+    return raw, off
 
 
 #: fewest board images whose responses :func:`board_response` pools (their scatter is the doubt)
