@@ -5,6 +5,8 @@
 - No import cycle among the package's modules, counting every import a file holds (inside functions and
   under ``if __name__ == "__main__"`` too: a command-line block that imports its importers closes a loop
   for a reader as surely as a top-level import).
+- No module over 700 lines; a function over 80 lines or 8 parameters says why in its head (a numba kernel's
+  arguments are arrays and scalars, so its list stays flat; a kernel split in two may sum in another order).
 """
 
 from __future__ import annotations
@@ -110,3 +112,62 @@ def test_the_rules_see_a_private_import_and_a_loop(tmp_path):
     (pkg / "c.py").write_text("")
     graph, _ = module_imports(pkg, PACKAGE)
     assert not cycle(graph)
+
+
+#: the sizes past which a module or a function must say why it is that big
+MAX_MODULE_LINES = 700
+MAX_FUNCTION_LINES = 80
+MAX_PARAMETERS = 8
+WHY_LONG = "# why long:"
+WHY_MANY = "# why many parameters:"
+
+
+def unexplained_sizes(folder: Path) -> list[str]:
+    """Every module over :data:`MAX_MODULE_LINES` lines and every function over :data:`MAX_FUNCTION_LINES`
+    lines (``def`` to its last line) or :data:`MAX_PARAMETERS` parameters (``self`` and ``cls`` not counted)
+    whose head does not say why, in a ``# why long: ...`` or ``# why many parameters: ...`` comment between
+    its ``def`` and its first statement after the docstring."""
+    found = []
+    for path in sorted(folder.glob("*.py")):
+        lines = path.read_text(encoding="utf-8").splitlines()
+        if len(lines) > MAX_MODULE_LINES:
+            found.append(f"{path.stem}: {len(lines)} lines")
+        for node in ast.walk(ast.parse("\n".join(lines), filename=str(path))):
+            if not isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+                continue
+            a = node.args
+            params = len(a.posonlyargs) + len(a.args) + len(a.kwonlyargs)
+            params += (a.vararg is not None) + (a.kwarg is not None)
+            if a.args and a.args[0].arg in ("self", "cls"):
+                params -= 1
+            length = node.end_lineno - node.lineno + 1  # type: ignore[operator]
+            body = node.body[1:] if ast.get_docstring(node) is not None and len(node.body) > 1 else node.body
+            head = "\n".join(lines[node.lineno - 1 : body[0].lineno - 1])
+            if length > MAX_FUNCTION_LINES and WHY_LONG not in head:
+                found.append(f"{path.stem}.{node.name}: {length} lines")
+            if params > MAX_PARAMETERS and WHY_MANY not in head:
+                found.append(f"{path.stem}.{node.name}: {params} parameters")
+    return found
+
+
+def test_long_functions_and_long_parameter_lists_say_why():
+    found = unexplained_sizes(VISION)
+    assert not found, f"split them, or say why in a '{WHY_LONG}' / '{WHY_MANY}' comment: " + "; ".join(found)
+
+
+def test_the_size_rule_sees_a_long_function_and_reads_its_reason(tmp_path):
+    long_body = "".join(f"    x{i} = {i}\n" for i in range(MAX_FUNCTION_LINES))
+    many = ", ".join(f"p{i}" for i in range(MAX_PARAMETERS + 1))
+    (tmp_path / "m.py").write_text(
+        f'def long():\n    """Doc."""\n{long_body}\n'
+        f"def wide(self, {many[:-4]}):\n    return 1\n"
+        f"def wider({many}):\n    return 1\n"
+    )
+    assert unexplained_sizes(tmp_path) == ["m.long: 82 lines", "m.wider: 9 parameters"]
+    (tmp_path / "m.py").write_text(
+        f'def long():\n    """Doc."""\n    {WHY_LONG} one table, read in one pass\n{long_body}\n'
+        f"def wider({many}):\n    {WHY_MANY} a compiled kernel's arguments\n    return 1\n"
+    )
+    assert unexplained_sizes(tmp_path) == []
+    (tmp_path / "m.py").write_text("\n" * (MAX_MODULE_LINES + 1))
+    assert unexplained_sizes(tmp_path) == ["m: 701 lines"]
