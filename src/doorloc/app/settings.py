@@ -139,19 +139,19 @@ class ServiceSettings(BaseSettings):
     decode_cpu_s: float = Field(
         10.0,
         gt=0,
-        description="CPU seconds one image may take to decode (its decoding process is ended then)",
+        description="CPU seconds one image may take to decode (its worker process is ended then)",
     )
     decode_memory_bytes: int = Field(
         400_000_000,
         gt=0,
-        description="memory (address space) a decoding process may add for one image, bytes",
+        description="memory (address space) a worker process may add while decoding one image, bytes",
     )
     decode_in_threads: bool = Field(
         False,
         description="decode and locate in the service's own threads instead of limited worker processes (no "
         "CPU-time or memory bound beyond the header checks; for tests and debugging)",
     )
-    # ---- locating (in the same limited worker processes)
+    # ---- locating (in the same limited worker process, after decoding: one job per image)
     locate_cpu_s: float = Field(
         10.0,
         gt=0,
@@ -161,8 +161,8 @@ class ServiceSettings(BaseSettings):
     locate_memory_bytes: int = Field(
         400_000_000,
         gt=0,
-        description="memory (address space) locating the door in one image may add to its process, bytes (a "
-        "1080p frame needs under 8 MB)",
+        description="memory (address space) locating the door in one image may add to its worker process, the "
+        "decoded image held, bytes (a 1080p frame needs under 8 MB)",
     )
     overlay_max_pixels: int = Field(
         8_300_000, gt=0, description="largest image (width*height) an overlay is drawn for (4K UHD)"

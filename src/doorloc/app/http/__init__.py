@@ -76,9 +76,8 @@ def create_app(
                 yield
                 tg.cancel_scope.cancel()
         finally:
-            for pool in (state.decoder, state.locator):
-                if pool is not None:
-                    pool.close()
+            if state.workers is not None:
+                state.workers.close()
 
     app = FastAPI(
         title="doorloc",
