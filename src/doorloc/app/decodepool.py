@@ -129,6 +129,11 @@ def _worker_main(conn: Connection, memory_bytes: int, locate_fn: Any = None) -> 
     cv2.setNumThreads(1)  # one image per worker; its own thread pool would only add address space
     import doorloc.vision.imageio  # noqa: F401 - imported now, not under the first image's limits
 
+    if isinstance(locate_fn, str):  # "module:function", imported here only (the service never loads it)
+        import importlib
+
+        module, _, function = locate_fn.partition(":")
+        locate_fn = getattr(importlib.import_module(module), function)
     if locate_fn is not None:
         # locate's kernels, loaded (or compiled) now and not counted in the limit: no request waits for them
         from doorloc.vision.warmup import compile_locate_kernels
@@ -236,9 +241,10 @@ class DecodePool:
     memory_bytes : int
         Address space a worker may add to what it holds after start-up (the decoded image, the decoder's
         buffers; for a locating pool the pipeline's arrays too), bytes.
-    locate_fn : callable, optional
-        The locate step (:func:`doorloc.vision.locate.locate`; picklable by name) that
-        :meth:`decode_and_locate` runs in the workers after decoding; None: a pool that only decodes.
+    locate_fn : callable or str, optional
+        The locate step (:func:`doorloc.vision.locate.locate`; picklable by name, or named
+        ``"module:function"`` so that only the workers import it) that :meth:`decode_and_locate` runs in the
+        workers after decoding; None: a pool that only decodes.
     locate_cpu_s : float
         CPU seconds one locate may take (after the image's decoding, which has its own ``cpu_s``).
     locate_memory_bytes : int or None

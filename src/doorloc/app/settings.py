@@ -34,10 +34,15 @@ DEFAULT_MAX_DECODED_BYTES = 100_000_000
 def default_locate_concurrency(workers: int, cpus: int | None = None) -> int:
     """Images each of ``workers`` service processes locates at once by default: the CPUs shared among them.
 
+    ``cpus`` defaults to the CPUs this process may run on (its affinity: a container's or ``taskset``'s CPU
+    set), not every CPU of the machine.
+
     (Each worker taking every CPU put ``workers`` images on each core: at 16 clients on 2 CPUs with 2
     workers the server spent more CPU per request than one thread does, in the contention.)
     """
-    return max(1, (cpus if cpus is not None else os.cpu_count() or 1) // max(1, workers))
+    if cpus is None:
+        cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    return max(1, cpus // max(1, workers))
 
 
 class ServiceSettings(BaseSettings):

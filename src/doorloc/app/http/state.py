@@ -32,6 +32,8 @@ class ServiceState:
 
     settings: ServiceSettings
     metrics: ServiceMetrics
+    #: the locate step when it runs in this process's threads (given in code, or decode_in_threads' default);
+    #: None while the worker processes locate
     locate_fn: LocateFn | None = None
     cell: Cell | None = None
     #: the recipe database (None until loaded; routes take it after ready_state)
@@ -59,12 +61,9 @@ class ServiceState:
         self.auth_failures = FailureBudget(self.settings.auth_failures_per_minute)
         self.workers = None
         if not self.settings.decode_in_threads:
-            # the real pipeline is loaded by the workers (each holds locate's kernels); a stand-in is not
-            pipeline: LocateFn | None = None
-            if self.locate_fn is None:
-                from doorloc.vision.locate import locate
-
-                pipeline = locate
+            # the real pipeline is imported by the workers only (each holds locate's kernels; this process
+            # never locates, so it does not load numba); a locate given in code runs here
+            pipeline = "doorloc.vision.locate:locate" if self.locate_fn is None else None
             self.workers = DecodePool(
                 self.settings.locate_concurrency,
                 self.settings.decode_cpu_s,
@@ -145,10 +144,9 @@ class ServiceState:
             if self.keys is not None and self.keys.any_active(remember=False):
                 self.keys_seen = True
             if self.workers is not None and self.locates_in_workers:
-                # the worker processes load locate's compiled kernels now, not in the first request; this
-                # process never locates itself
+                # the worker processes load locate's compiled kernels now, not in the first request (those
+                # still missing: a second call starts none); this process never locates itself
                 self.workers.start()
-                self.locate_fn = self.workers.locate_fn
             elif self.locate_fn is None:
                 from doorloc.app.services import default_locate_fn
 
