@@ -4,7 +4,9 @@ forkserver, the limited worker processes), and their sum.
     OMP_NUM_THREADS=1 python bench/bench_service_memory.py --workers 1 --slots 1 --locates 5
 
 The locates are rendered 1080p doors of the bundled thesis cell (PNG with sensor noise); each must answer 200.
-A process that holds locate's compiled kernels (llvmlite mapped) is marked "kernels".
+A process that has numba loaded (llvmlite mapped: a locating worker, with locate's kernels) is marked
+"numba". PSS shares the pages several processes map (the forkserver's libraries, copy-on-write in the workers
+it forks) among them: its sum is the memory the service takes; RSS counts a shared page in each process.
 """
 
 from __future__ import annotations
@@ -29,11 +31,15 @@ def _tree(pid: int) -> list[int]:
     return out
 
 
-def _rss_mb(pid: int) -> float:
-    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-        if line.startswith("VmRSS:"):
-            return int(line.split()[1]) / 1024
-    return 0.0
+def _rss_pss_mb(pid: int) -> tuple[float, float]:
+    """Resident memory, and its proportional share (pages shared with other processes, e.g. a forkserver's
+    copy-on-write ones, divided among them), MB."""
+    values = {}
+    for line in Path(f"/proc/{pid}/smaps_rollup").read_text().splitlines():
+        key, _, rest = line.partition(":")
+        if key in ("Rss", "Pss"):
+            values[key] = int(rest.split()[0]) / 1024
+    return values.get("Rss", 0.0), values.get("Pss", 0.0)
 
 
 def _describe(pid: int) -> str:
@@ -51,7 +57,7 @@ def _describe(pid: int) -> str:
     else:
         kind = "serve"
     if "llvmlite" in Path(f"/proc/{pid}/maps").read_text():
-        kind += " (kernels)"
+        kind += " (numba)"
     return kind
 
 
@@ -69,14 +75,14 @@ def main() -> None:
                 png = pngs[i % len(pngs)][0]
                 r = c.post("/v1/locate", files={"image": (f"d{i}.png", png, "image/png")})
                 assert r.status_code == 200 and r.json()["ok"], r.text
-        rows = [(p, _describe(p), _rss_mb(p)) for p in _tree(pid)]
+        rows = [(p, _describe(p), *_rss_pss_mb(p)) for p in _tree(pid)]
     print(
         f"`doorloc serve --workers {args.workers}`, {args.slots} CPU slot(s) each, after {args.locates} locates\n"
     )
-    print("| process | RSS MB |\n|---|---|")
-    for p, kind, mb in rows:
-        print(f"| {p} {kind} | {mb:.0f} |")
-    print(f"| all | {sum(mb for _, _, mb in rows):.0f} |")
+    print("| process | RSS MB | PSS MB |\n|---|---|---|")
+    for p, kind, rss, pss in rows:
+        print(f"| {p} {kind} | {rss:.0f} | {pss:.0f} |")
+    print(f"| all | {sum(r[2] for r in rows):.0f} | {sum(r[3] for r in rows):.0f} |")
 
 
 if __name__ == "__main__":
