@@ -1,6 +1,7 @@
 """One limited worker process per request decodes the upload and locates in it (the real pipeline): the answer
 is the one the service gives when it decodes and locates in its own threads, and a decoding bomb is still
-refused as a decode."""
+refused as a decode. A progressive JPEG or a TIFF is decoded in a decoding-only process first (its header bounds
+its decoding work only loosely), so such a bomb never ends a worker holding locate's kernels."""
 
 from __future__ import annotations
 
@@ -72,7 +73,13 @@ def test_one_job_answers_as_the_threads_do(real_client, cell, recipe, seed):
     rng = np.random.default_rng(seed)
     truth = DoorPose(float(rng.uniform(-8, 8)), float(rng.uniform(-8, 8)), float(rng.uniform(-1.5, 1.5)))
     print(f"seed {seed}: {truth}")
-    door = png_bytes(render_door(cell, recipe.door_size(), truth, seed=seed).image)
+    import cv2
+
+    rendered = render_door(cell, recipe.door_size(), truth, seed=seed).image
+    door = png_bytes(rendered)
+    progressive = cv2.imencode(
+        ".jpg", rendered, [cv2.IMWRITE_JPEG_QUALITY, 98, cv2.IMWRITE_JPEG_PROGRESSIVE, 1]
+    )[1].tobytes()
     black = png_bytes(np.zeros((1080, 1920), np.uint8))
     workers = real_client(locate_concurrency=1)
     threads = real_client(decode_in_threads=True)
@@ -83,6 +90,7 @@ def test_one_job_answers_as_the_threads_do(real_client, cell, recipe, seed):
         and not threads.app.state.service.locates_in_workers
     )
     for png, query in ((door, "?overlay=true&rapid=true"), (black, "?overlay=true"), (door, "")):
+        assert state.decoders is not None and not state.decoders._workers  # one job: no decoding-only process
         answers = []
         for c in (workers, threads):
             r = c.post(
@@ -101,19 +109,37 @@ def test_one_job_answers_as_the_threads_do(real_client, cell, recipe, seed):
         assert drawn == ("overlay" in query and png is door), answers[0]["ok"]
     located = answers[0]
     assert located["ok"] and abs(located["x_mm"] - truth.x_mm) < 0.1 and located["targets"]
-    assert workers.app.state.service.workers.killed == 0
+    # a progressive JPEG: decoded in a decoding-only process, then located by the worker, as in the threads
+    answers = []
+    for c in (workers, threads):
+        r = c.post(
+            "/v1/locate?overlay=true",
+            files={"image": ("d.jpg", progressive, "image/jpeg")},
+            data={"door_id": "D-100"},
+        )
+        assert r.status_code == 200, r.text
+        answers.append(r.json())
+    assert _without_timings(answers[0]) == _without_timings(answers[1])
+    _same_overlay(answers[0]["overlay_png"], answers[1]["overlay_png"])
+    assert answers[0]["ok"] and len(state.decoders._workers) == 1
+    assert state.workers.killed == 0 and state.decoders.killed == 0
 
 
-def test_one_job_refuses_a_decoding_bomb_with_the_decode_wording(real_client, cell, recipe):
+def test_a_decoding_bomb_is_refused_with_the_decode_wording_and_the_locating_worker_kept(
+    real_client, cell, recipe
+):
+    """A progressive JPEG bomb (scan limit lifted) ends a decoding-only process: 422 decode_limit, the locating
+    worker keeps its kernels and locates the next image at once. (The one-job path with a bomb in it:
+    tests/app/test_decodepool.py.)"""
     workers = real_client(locate_concurrency=1, decode_cpu_s=1, max_jpeg_scans=100_000)
-    pool = workers.app.state.service.workers
-    before = [w.process.pid for w in pool._workers]
+    state = workers.app.state.service
+    before = [w.process.pid for w in state.workers._workers]
     r = workers.post("/v1/locate", files={"image": ("b.jpg", progressive_jpeg_bomb(40_000), "image/jpeg")})
     body = r.json()
     assert (r.status_code, body["code"]) == (422, "decode_limit"), body
     assert body["detail"].startswith("Decoding the image took more than 1 s of CPU time"), body
-    assert pool.killed == 1
+    assert state.decoders.killed == 1 and state.workers.killed == 0
     door = png_bytes(render_door(cell, recipe.door_size(), DoorPose(1.0, -2.0, 0.3), seed=5).image)
     r = workers.post("/v1/locate", files={"image": ("d.png", door, "image/png")}, data={"door_id": "D-100"})
     assert r.status_code == 200 and r.json()["ok"], r.text
-    assert [w.process.pid for w in pool._workers] != before  # a fresh worker located it
+    assert [w.process.pid for w in state.workers._workers] == before  # the same worker located it

@@ -161,7 +161,8 @@ def _worker_main(conn: Connection, memory_bytes: int, locate_fn: Any = None) -> 
         except MemoryError:  # the upload itself did not fit: end quietly, the parent answers 422
             os._exit(_OUT_OF_MEMORY)
         budget(*budgets[0])
-        reply = _decode_step(args[0], args[1])
+        # (an image decoded already, in a decoding-only process, skips the step)
+        reply = ("ok", args[0]) if isinstance(args[0], np.ndarray) else _decode_step(args[0], args[1])
         if job == "decode_locate" and reply[0] == "ok":
             image, reply = reply[1], ("decoded", reply[1].nbytes)
             if image.nbytes > args[4]:
@@ -424,7 +425,7 @@ class DecodePool:
 
     def decode_and_locate(
         self,
-        data: bytes,
+        data: bytes | np.ndarray,
         name: str,
         cell: Cell,
         door: DoorSize,
@@ -439,7 +440,8 @@ class DecodePool:
         The image is decoded within the decoding limits (``cpu_s``, ``memory_bytes``), then
         ``locate_fn(image, cell, door, image_name=name)`` runs within locate's (``locate_cpu_s``,
         ``locate_memory_bytes``); the image never leaves the worker. ``overlay_max_pixels`` (None: no overlay)
-        asks for the overlay of a located door in an image of at most that many pixels.
+        asks for the overlay of a located door in an image of at most that many pixels. ``data`` may be the
+        image decoded already (a decoding-only pool's :meth:`decode`): it then crosses the pipe and is located.
 
         Raises
         ------

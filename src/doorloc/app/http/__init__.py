@@ -77,8 +77,9 @@ def create_app(
                 yield
                 tg.cancel_scope.cancel()
         finally:
-            if state.workers is not None:
-                state.workers.close()
+            for pool in (state.workers, state.decoders):
+                if pool is not None:
+                    pool.close()
 
     app = FastAPI(
         title="doorloc",

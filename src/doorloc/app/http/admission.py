@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 import anyio
 import numpy as np
 
-from doorloc.app.decodepool import DecodeRefused, Located, decoded_too_large
+from doorloc.app.decodepool import DecodePool, DecodeRefused, Located, decoded_too_large
 from doorloc.app.http.problems import ProblemError
 from doorloc.app.http.state import ServiceState
 
@@ -36,6 +36,7 @@ __all__ = [
     "take_cpu_slot",
     "release_cpu_slot",
     "decode_upload",
+    "decodes_apart",
     "locate_upload",
     "refusal_problem",
 ]
@@ -147,8 +148,22 @@ def refusal_problem(e: DecodeRefused) -> ProblemError:
     return ProblemError(e.status, e.code, e.detail, headers=headers)
 
 
-def decode_upload(state: ServiceState, data: bytes, name: str, deadline: float | None) -> np.ndarray:
-    """The uploaded image decoded within the limits (blocking: call it in a worker thread).
+def decodes_apart(data: bytes) -> bool:
+    """Whether an upload is decoded in a decoding-only process before it is located: a progressive JPEG or a
+    TIFF, whose decoding work the header bounds only loosely (scans, tiles, compression schemes). A PNG, BMP or
+    baseline JPEG, whose decoding work is about its declared pixels (a camera's images), is decoded and located
+    in one job."""
+    from doorloc.app.imagesniff import sniff_image
+
+    header = sniff_image(data)
+    return header is None or header.kind == "tiff" or header.progressive
+
+
+def decode_upload(
+    state: ServiceState, data: bytes, name: str, deadline: float | None, pool: DecodePool | None = None
+) -> np.ndarray:
+    """The uploaded image decoded within the limits (blocking: call it in a worker thread), in ``pool`` (default:
+    the worker processes, or this thread with ``decode_in_threads``).
 
     Raises ProblemError 422 (undecodable, or past the decoding CPU-time or memory limit) or 503 (the
     deadline passed first).
@@ -157,10 +172,11 @@ def decode_upload(state: ServiceState, data: bytes, name: str, deadline: float |
 
     left = (deadline - time.monotonic()) if deadline is not None else state.settings.request_deadline_s
     try:
-        if state.workers is None:
+        pool = pool or state.workers
+        if pool is None:
             image = decode_image(data, name=name)
         else:
-            image = state.workers.decode(data, name, timeout_s=left)
+            image = pool.decode(data, name, timeout_s=left)
     except ImageDecodeError as e:
         raise ProblemError(
             422,
@@ -186,10 +202,13 @@ def locate_upload(
     locate in the worker processes would.
     """
     assert state.workers is not None and state.cell is not None
+    image: bytes | np.ndarray = data
+    if state.decoders is not None and decodes_apart(data):
+        image = decode_upload(state, data, name, deadline, pool=state.decoders)
     left = (deadline - time.monotonic()) if deadline is not None else state.settings.request_deadline_s
     try:
         return state.workers.decode_and_locate(
-            data,
+            image,
             name,
             state.cell,
             door,

@@ -48,9 +48,13 @@ class ServiceState:
     keys_seen: bool = False
     auth_failures: FailureBudget = field(init=False)
     #: the limited worker processes (None: decode and locate in threads, settings.decode_in_threads). They
-    #: decode each image and then locate in it (one job per request) unless a locate_fn was given in code
-    #: (a test's stand-in), which then runs in the thread that asks, on the image they decoded
+    #: decode each image and then locate in it (one job per request; see `decoders` for the exceptions) unless
+    #: a locate_fn was given in code (a test's stand-in), which then runs in the thread that asks, on their image
     workers: DecodePool | None = field(init=False)
+    #: decoding-only processes (started on first use; None unless the workers locate) for uploads whose
+    #: decoding work their header does not bound (admission.decodes_apart): a decoding bomb among them ends one
+    #: of these, which restarts in milliseconds, not a worker holding locate's kernels
+    decoders: DecodePool | None = field(init=False)
     #: per client (key name, else address): locate requests running or queued (fair shedding)
     client_admitted: dict[str, int] = field(init=False, default_factory=dict)
     #: per (key, client address) within a key's share: locate requests running or queued
@@ -60,6 +64,7 @@ class ServiceState:
         self.limiter = FairSlots(self.settings.locate_concurrency)
         self.auth_failures = FailureBudget(self.settings.auth_failures_per_minute)
         self.workers = None
+        self.decoders = None
         if not self.settings.decode_in_threads:
             # the real pipeline is imported by the workers only (each holds locate's kernels; this process
             # never locates, so it does not load numba); a locate given in code runs here
@@ -72,6 +77,12 @@ class ServiceState:
                 locate_cpu_s=self.settings.locate_cpu_s,
                 locate_memory_bytes=self.settings.locate_memory_bytes,
             )
+            if pipeline is not None:
+                self.decoders = DecodePool(
+                    self.settings.locate_concurrency,
+                    self.settings.decode_cpu_s,
+                    self.settings.decode_memory_bytes,
+                )
 
     @property
     def locates_in_workers(self) -> bool:
