@@ -10,6 +10,13 @@ with its window. Printed as a Markdown table (docs/deploy.md holds one).
 
     python bench/bench_service_attacks.py --workers 1
     python bench/bench_service_attacks.py --workers 2 --only jpeg_scans,fair_flood
+    python bench/bench_service_attacks.py --workers 1 --server-cpus 0 --client-cpus 1
+
+``--server-cpus`` / ``--client-cpus`` (Linux): the service (and every process it starts) runs only on the first
+CPU set, this script, its measuring client and the attack clients only on the second, so that the attackers'
+own CPU does not slow the server's answers; the affinity read back from every process, and ``uptime`` at the
+start and the end (other work on the machine still shares its CPUs), are printed with the table. Without them
+everything shares every CPU.
 
 The attacks (the probe's numbering):
 
@@ -36,7 +43,7 @@ import time
 from collections import Counter
 
 import httpx
-from service_harness import RECIPE, cpu_seconds, doorloc_serve, rendered_pngs, rss_mb
+from service_harness import RECIPE, affinity_of_tree, cpu_seconds, doorloc_serve, rendered_pngs, rss_mb
 
 from doorloc.sim.hostile import progressive_jpeg_bomb, tiff_header
 
@@ -349,15 +356,25 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--normal", type=int, default=6, help="normal locates per block (unloaded, then during)")
     ap.add_argument("--only", default="", help="comma-separated attacks (default: all)")
+    ap.add_argument("--server-cpus", default="", help="CPUs of the service, e.g. 0 or 0-1 (default: all)")
+    ap.add_argument(
+        "--client-cpus", default="", help="CPUs of this script and the attack clients, e.g. 1 (default: all)"
+    )
     args = ap.parse_args()
     only = [a for a in args.only.split(",") if a] or LOAD_ATTACKS
+    server_cpus, client_cpus = _cpu_set(args.server_cpus), _cpu_set(args.client_cpus)
+    import os
+    import subprocess
+
+    if client_cpus is not None:
+        os.sched_setaffinity(0, client_cpus)  # before any client starts: they inherit it
+    uptime_start = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
 
     pngs = rendered_pngs(3)
     keys = {"normal": "operator", "attacker": "operator", "admin": "engineer"}
     env = {"OMP_NUM_THREADS": "1", "DOORLOC_REQUEST_DEADLINE_S": "10"}
-    with doorloc_serve(args.workers, extra_env=env, keys=keys) as (base, pid):
-        import os
-
+    with doorloc_serve(args.workers, extra_env=env, keys=keys, cpus=server_cpus) as (base, pid):
+        server_affinity = affinity_of_tree(pid)
         os.environ["BENCH_DATABASE_URL"] = "sqlite:///" + str(_database_of(pid))
         adm = {"X-API-Key": keys["admin"]}
         assert httpx.put(f"{base}/v1/doors/BENCH-1", json=RECIPE, headers=adm, timeout=60).status_code == 200
@@ -368,12 +385,31 @@ def main() -> None:
             run_attack(kind, base, pid, keys, pngs, args.normal) for kind in only if kind in LOAD_ATTACKS
         ]
         rows.append(revoke_last_key(base, keys))
-    print(f"\n{args.workers} worker(s); normal locate = 1080p rendered door, {args.normal} per block\n")
+        server_affinity |= affinity_of_tree(pid)  # the workers started since (replacements) too
+    uptime_end = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
+    print(f"\n{args.workers} worker(s); normal locate = 1080p rendered door, {args.normal} per block")
+    print(f"machine: {os.cpu_count()} CPUs; uptime at the start: {uptime_start}; at the end: {uptime_end}")
+    cpus_of_server = sorted({c for cs in server_affinity.values() for c in cs})
+    print(
+        f"affinity: server, its {len(server_affinity)} processes: CPUs {cpus_of_server}; this script, the "
+        f"measuring and attack clients: CPUs {sorted(os.sched_getaffinity(0))}\n"
+    )
     cols = ["attack", "answers", "cpu", "rss", "unloaded", "during", "ratio", "normal"]
     print("| " + " | ".join(cols) + " |")
     print("|" + "---|" * len(cols))
     for r in rows:
         print("| " + " | ".join(str(r.get(c, "")) for c in cols) + " |")
+
+
+def _cpu_set(text: str) -> set[int] | None:
+    """``"0"``, ``"0,2"`` or ``"0-3"`` as a set of CPU numbers; "" -> None (every CPU)."""
+    if not text:
+        return None
+    cpus: set[int] = set()
+    for part in text.split(","):
+        lo, _, hi = part.partition("-")
+        cpus |= set(range(int(lo), int(hi or lo) + 1))
+    return cpus
 
 
 def _database_of(pid: int):  # noqa: ANN202

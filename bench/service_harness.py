@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
 import signal
 import socket
@@ -50,6 +51,19 @@ def _children(pid: int) -> list[int]:
     return kids
 
 
+def affinity_of_tree(pid: int) -> dict[int, list[int]]:
+    """The CPUs each process of a process tree may run on (pid -> sorted CPU numbers), from Linux."""
+    out, todo = {}, [pid]
+    while todo:
+        p = todo.pop()
+        try:
+            out[p] = sorted(os.sched_getaffinity(p))
+        except OSError:
+            continue
+        todo += _children(p)
+    return out
+
+
 def rss_mb(pid: int) -> float:
     """Resident memory of a process and all its descendants, MB (from /proc)."""
     total_kb, todo = 0, [pid]
@@ -87,12 +101,17 @@ def cpu_seconds(pid: int) -> float:
 
 @contextlib.contextmanager
 def doorloc_serve(
-    workers: int = 1, extra_env: dict[str, str] | None = None, keys: dict[str, str] | None = None
+    workers: int = 1,
+    extra_env: dict[str, str] | None = None,
+    keys: dict[str, str] | None = None,
+    cpus: set[int] | None = None,
 ) -> Iterator[tuple[str, int]]:
     """Start `doorloc serve` on 127.0.0.1; yield (base URL, server pid) once /readyz answers 200.
 
     Without ``keys`` the service is open (``--open``, loopback). With ``keys`` (names -> role), each key is
     created first and the service demands keys; the dict's values are replaced by the keys' secrets.
+    ``cpus``: the CPUs the service and every process it starts may run on (Linux affinity, set before it
+    starts, so its workers inherit it); None: those of this process.
     """
     port = free_port()
     with tempfile.TemporaryDirectory() as tmp:
@@ -132,6 +151,7 @@ def doorloc_serve(
             stderr=subprocess.STDOUT,
             start_new_session=True,
             cwd=REPO,
+            preexec_fn=None if cpus is None else functools.partial(os.sched_setaffinity, 0, cpus),
         )
         base = f"http://127.0.0.1:{port}"
         try:

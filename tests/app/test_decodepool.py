@@ -92,23 +92,97 @@ def spinning_locate(image, cell, door, *, image_name="", trace=None):
     return LocateResult.refusal(image_name, "no_door", f"{image.shape} seen")
 
 
-def test_a_locate_past_its_cpu_limit_ends_its_worker_and_the_next_is_answered():
+def _thesis_cell():
     from doorloc.cell import load_cell
 
     from .conftest import CELL_PATH
 
-    cell = load_cell(CELL_PATH)
-    quiet, wild = np.zeros((6, 8), np.uint8), np.full((6, 8), 255, np.uint8)
+    return load_cell(CELL_PATH)
+
+
+def test_a_locate_past_its_cpu_limit_ends_its_worker_and_the_next_is_answered():
+    cell = _thesis_cell()
+    quiet = cv2.imencode(".png", np.zeros((6, 8), np.uint8))[1].tobytes()
+    wild = cv2.imencode(".png", np.full((6, 8), 255, np.uint8))[1].tobytes()
     with DecodePool(1, cpu_s=1, memory_bytes=300_000_000, locate_fn=spinning_locate, locate_cpu_s=1) as pool:
         pool.start()
-        assert (
-            "(6, 8) seen" in pool.locate(quiet, cell, cell.default_door, image_name="q", timeout_s=60).error
-        )
+
+        def located(png: bytes, name: str):
+            return pool.decode_and_locate(
+                png, name, cell, cell.default_door, max_decoded_bytes=10**8, timeout_s=60
+            ).result
+
+        assert "(6, 8) seen" in located(quiet, "q.png").error
         with pytest.raises(DecodeRefused) as e:
-            pool.locate(wild, cell, cell.default_door, image_name="w", timeout_s=60)
+            located(wild, "w.png")
         assert (e.value.status, e.value.code) == (422, "locate_limit") and "CPU time" in e.value.detail
         assert pool.killed == 1
-        # a fresh worker answers the next image (decoding too: one pool for both)
-        assert pool.locate(quiet, cell, cell.default_door, image_name="q", timeout_s=60).ok is False
-        png = cv2.imencode(".png", quiet)[1].tobytes()
-        assert pool.decode(png, "q.png", timeout_s=60).shape == (6, 8)
+        # a fresh worker answers the next image (decoding alone too: one pool for both)
+        assert located(quiet, "q.png").ok is False
+        assert pool.decode(quiet, "q.png", timeout_s=60).shape == (6, 8)
+
+
+def test_one_job_refuses_a_decoding_bomb_as_a_decode_and_the_next_image_is_located():
+    """Decoding and locating run as one job in one worker: a decoding bomb ends that worker with the decode
+    wording (422 decode_limit, never locate_limit), a fresh worker takes its place and locates the next image;
+    an image that decodes larger than accepted is refused before locate runs."""
+    cell = _thesis_cell()
+    quiet = cv2.imencode(".png", np.zeros((6, 8), np.uint8))[1].tobytes()
+    with DecodePool(1, cpu_s=1, memory_bytes=300_000_000, locate_fn=spinning_locate, locate_cpu_s=1) as pool:
+        pool.start()
+        first = pool._workers[0].process.pid
+        with pytest.raises(DecodeRefused) as e:
+            pool.decode_and_locate(
+                progressive_jpeg_bomb(40_000),  # ~7 s of decoding
+                "bomb.jpg",
+                cell,
+                cell.default_door,
+                max_decoded_bytes=10**8,
+                timeout_s=120,
+            )
+        assert (e.value.status, e.value.code) == (422, "decode_limit"), e.value.detail
+        assert e.value.detail.startswith("Decoding the image took more than 1 s of CPU time"), e.value.detail
+        assert pool.killed == 1
+        got = pool.decode_and_locate(
+            quiet, "q.png", cell, cell.default_door, max_decoded_bytes=10**8, timeout_s=60
+        )
+        assert "(6, 8) seen" in got.result.error and got.overlay_png is None
+        assert [w.process.pid for w in pool._workers] != [first]  # the bomb's worker was replaced
+        # decoded to more than accepted: 422 too_many_pixels, and locate never ran (the image would spin it)
+        wild = cv2.imencode(".png", np.full((60, 80), 255, np.uint8))[1].tobytes()
+        with pytest.raises(DecodeRefused) as e:
+            pool.decode_and_locate(
+                wild, "w.png", cell, cell.default_door, max_decoded_bytes=4000, timeout_s=60
+            )
+        assert (e.value.status, e.value.code) == (
+            422,
+            "too_many_pixels",
+        ) and "'w.png' decoded to" in e.value.detail
+        assert pool.killed == 1
+
+
+def test_one_job_says_which_step_the_deadline_stopped():
+    cell = _thesis_cell()
+    wild = cv2.imencode(".png", np.full((6, 8), 255, np.uint8))[1].tobytes()
+    with DecodePool(1, cpu_s=5, memory_bytes=300_000_000, locate_fn=spinning_locate, locate_cpu_s=30) as pool:
+        pool.start()
+        with pytest.raises(DecodeRefused) as e:
+            pool.decode_and_locate(
+                progressive_jpeg_bomb(40_000),
+                "b.jpg",
+                cell,
+                cell.default_door,
+                max_decoded_bytes=10**8,
+                timeout_s=0.3,
+            )
+        assert (e.value.status, e.value.code) == (503, "overloaded") and "not decoded" in e.value.detail
+        # (its worker was ended: the next image waits for the fresh one, which loads locate's kernels)
+        quiet = cv2.imencode(".png", np.zeros((6, 8), np.uint8))[1].tobytes()
+        assert not pool.decode_and_locate(
+            quiet, "q.png", cell, cell.default_door, max_decoded_bytes=10**8, timeout_s=120
+        ).result.ok
+        with pytest.raises(DecodeRefused) as e:
+            pool.decode_and_locate(
+                wild, "w.png", cell, cell.default_door, max_decoded_bytes=10**8, timeout_s=3
+            )
+        assert (e.value.status, e.value.code) == (503, "overloaded") and "not located" in e.value.detail

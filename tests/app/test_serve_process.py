@@ -105,3 +105,15 @@ def test_workers_share_the_cpus_for_locating_unless_told(monkeypatch):
     assert ServiceSettings().locate_concurrency == default_locate_concurrency(1)
     monkeypatch.setenv("DOORLOC_LOCATE_CONCURRENCY", "3")  # what `doorloc serve` sets, unless given
     assert ServiceSettings().locate_concurrency == 3
+
+
+def test_the_default_cpu_slots_are_the_cpus_the_service_may_run_on(monkeypatch):
+    """A service pinned to some CPUs (taskset, a container's CPU set) counts those, not the machine's."""
+    import os
+
+    from doorloc.app.settings import default_locate_concurrency
+
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {3, 5, 6}, raising=False)
+    monkeypatch.setattr(os, "cpu_count", lambda: 64)
+    assert default_locate_concurrency(1) == 3
+    assert default_locate_concurrency(2) == 1

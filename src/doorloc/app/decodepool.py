@@ -10,15 +10,18 @@ worker: the request is answered 422 (or 503 when the deadline passed on a busy m
 its place, and every other request goes on.
 
 The same holds for locating: an image the header checks pass can still make the pipeline work far harder than
-a camera frame does. A pool given ``locate_fn`` also runs that step of each request in its workers
-(:meth:`DecodePool.locate`), each within its own CPU-time limit and the worker's memory limit, and a pathological
-image ends its worker (422 ``locate_limit``) instead of holding a CPU slot of the service. Such a pool's workers
-load locate's numba kernels when they start (:mod:`doorloc.vision.warmup`), before their memory limit is set, and
-a worker ended by a limit is replaced at once in the background, so no request waits for the kernels.
+a camera frame does. A pool given ``locate_fn`` runs a request's whole measurement in one of its workers
+(:meth:`DecodePool.decode_and_locate`): the worker decodes the bytes within the decoding limits, then locates
+within locate's own CPU-time and memory limits, and sends back the result (and the overlay, when asked for),
+never the decoded array. A decoding bomb ends its worker as a decode (422 ``decode_limit``), a pathological
+image as a locate (422 ``locate_limit``): the worker tells the pool when decoding is done. Such a pool's workers
+load locate's numba kernels when they start (:mod:`doorloc.vision.warmup`), before their memory limit is set,
+and a worker ended by a limit is replaced at once in the background, so no request waits for the kernels.
 
-The pipe carries the encoded bytes in and the decoded array out (a 1080p grey frame: 2 MB, ~1 ms), and for a
-locate the array, the cell and the door in and the result out. ``multiprocessing``'s forkserver starts workers:
-a fork of a process that has imported only numpy and OpenCV, not of the service with its threads and event loop.
+The pipe carries the encoded bytes in and, for :meth:`DecodePool.decode`, the decoded array out (a 1080p grey
+frame: 2 MB, ~1 ms); for :meth:`DecodePool.decode_and_locate` the bytes, the cell and the door in and the
+result out. ``multiprocessing``'s forkserver starts workers: a fork of a process that has imported only numpy
+and OpenCV, not of the service with its threads and event loop.
 
 Examples
 --------
@@ -37,13 +40,14 @@ import os
 import queue
 import signal
 import threading
-from dataclasses import dataclass, fields
+import time
+from dataclasses import dataclass
 from multiprocessing.connection import Connection
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-__all__ = ["DecodePool", "DecodeRefused"]
+__all__ = ["DecodePool", "DecodeRefused", "Located", "decoded_too_large"]
 
 if TYPE_CHECKING:
     from doorloc.cell import Cell
@@ -70,6 +74,33 @@ class DecodeRefused(Exception):
         self.detail = detail
 
 
+class _DecodedTooLarge(Exception):
+    def __init__(self, nbytes: int) -> None:
+        super().__init__(nbytes)
+        self.nbytes = nbytes
+
+
+@dataclass(frozen=True)
+class _Step:
+    """One step of a job: its name (``decode``, ``locate``), the past participle a refusal says, its budget."""
+
+    job: str
+    what: str
+    cpu_s: float
+    memory_bytes: int
+
+
+@dataclass(frozen=True)
+class Located:
+    """What :meth:`DecodePool.decode_and_locate` gives back: locate's result, the overlay (base64 PNG, or None:
+    not asked for, not located, or the image was too large to draw), and this thread's CPU ms until the
+    worker had decoded the image (handing the bytes over)."""
+
+    result: LocateResult
+    overlay_png: str | None
+    decode_thread_ms: float
+
+
 def _address_space_bytes() -> int:
     with open("/proc/self/status") as f:
         for line in f:
@@ -79,21 +110,30 @@ def _address_space_bytes() -> int:
 
 
 def _worker_main(conn: Connection, memory_bytes: int, locate_fn: Any = None) -> None:
-    """A worker: (job, arguments, cpu seconds, memory bytes) in, ("ok", value) or (code, sentence) out, until EOF.
+    """A worker: (job, arguments, step budgets) in, ("ok", value) or (code, sentence) out, until EOF.
 
-    ``memory_bytes`` bounds what the worker ever adds to its start-up size (the hard limit); each job's own
-    budget is a soft limit below it, from the worker's size when the job starts.
+    ``memory_bytes`` bounds what the worker ever adds to its start-up size (the hard limit); each step's own
+    budget, ``(cpu seconds, memory bytes)``, is a soft limit below it, from the worker's size when the step
+    starts.
 
-    Jobs: ``("decode", (bytes, name))`` -> the decoded array; ``("locate", (image, cell, door, name, traced))``
-    -> ``(LocateResult, LocateTrace or None)`` from ``locate_fn`` (given only to a pool that locates).
+    Jobs: ``("decode", (bytes, name))`` -> the decoded array; ``("decode_locate", (bytes, name, cell, door,
+    max_decoded_bytes, overlay_max_pixels))`` -> ``("decoded", nbytes)`` once decoding is done (so the pool
+    knows which step a limit ended), then ``(LocateResult, overlay PNG or None)`` from ``locate_fn`` (given
+    only to a pool that locates); a decoded image of more than ``max_decoded_bytes`` answers
+    ``("too_big", nbytes)`` and is not located.
     """
     import resource
 
     import cv2
 
-    from doorloc.vision.imageio import ImageDecodeError, decode_image
-
     cv2.setNumThreads(1)  # one image per worker; its own thread pool would only add address space
+    import doorloc.vision.imageio  # noqa: F401 - imported now, not under the first image's limits
+
+    if isinstance(locate_fn, str):  # "module:function", imported here only (the service never loads it)
+        import importlib
+
+        module, _, function = locate_fn.partition(":")
+        locate_fn = getattr(importlib.import_module(module), function)
     if locate_fn is not None:
         # locate's kernels, loaded (or compiled) now and not counted in the limit: no request waits for them
         from doorloc.vision.warmup import compile_locate_kernels
@@ -102,32 +142,36 @@ def _worker_main(conn: Connection, memory_bytes: int, locate_fn: Any = None) -> 
     # the limit is what the worker has now plus the budget: numpy's, OpenCV's and numba's own mappings are not counted
     hard = _address_space_bytes() + memory_bytes
     resource.setrlimit(resource.RLIMIT_AS, (hard, hard))
+
+    def budget(cpu_s: float, step_bytes: int) -> None:
+        usage = resource.getrusage(resource.RUSAGE_SELF)
+        # RLIMIT_CPU counts the process's whole life: the soft limit is moved to "now + budget" per step;
+        # past it the kernel sends SIGXCPU, whose default action ends the worker
+        soft = math.ceil(usage.ru_utime + usage.ru_stime + cpu_s)
+        resource.setrlimit(resource.RLIMIT_CPU, (soft, resource.RLIM_INFINITY))
+        # likewise the memory: "now + this step's budget", never past the worker's hard limit
+        resource.setrlimit(resource.RLIMIT_AS, (min(_address_space_bytes() + step_bytes, hard), hard))
+
     conn.send(("ready", None))
     while True:
         try:
-            job, args, cpu_s, job_bytes = conn.recv()
+            job, args, budgets = conn.recv()
         except (EOFError, OSError):
             return
         except MemoryError:  # the upload itself did not fit: end quietly, the parent answers 422
             os._exit(_OUT_OF_MEMORY)
-        usage = resource.getrusage(resource.RUSAGE_SELF)
-        # RLIMIT_CPU counts the process's whole life: the soft limit is moved to "now + budget" per job;
-        # past it the kernel sends SIGXCPU, whose default action ends the worker
-        soft = math.ceil(usage.ru_utime + usage.ru_stime + cpu_s)
-        resource.setrlimit(resource.RLIMIT_CPU, (soft, resource.RLIM_INFINITY))
-        # likewise the memory: "now + this job's budget", never past the worker's hard limit
-        resource.setrlimit(resource.RLIMIT_AS, (min(_address_space_bytes() + job_bytes, hard), hard))
-        try:
-            if job == "locate":
-                reply: tuple[str, Any] = ("ok", _locate(locate_fn, *args))
+        budget(*budgets[0])
+        # (an image decoded already, in a decoding-only process, skips the step)
+        reply = ("ok", args[0]) if isinstance(args[0], np.ndarray) else _decode_step(args[0], args[1])
+        if job == "decode_locate" and reply[0] == "ok":
+            image, reply = reply[1], ("decoded", reply[1].nbytes)
+            if image.nbytes > args[4]:
+                reply = ("too_big", image.nbytes)
             else:
-                reply = ("ok", decode_image(args[0], name=args[1]))
-        except ImageDecodeError as e:
-            # OpenCV reports an allocation past the limit as a decoding error of its own
-            out_of_memory = "Insufficient memory" in str(e) or "Failed to allocate" in str(e)
-            reply = ("memory", "") if out_of_memory else ("undecodable", str(e))
-        except MemoryError:
-            reply = ("memory", "")
+                conn.send(reply)
+                budget(*budgets[1])
+                reply = _locate_step(locate_fn, image, args[1], args[2], args[3], args[5])
+            del image
         try:
             conn.send(reply)
         except MemoryError:
@@ -135,16 +179,43 @@ def _worker_main(conn: Connection, memory_bytes: int, locate_fn: Any = None) -> 
         del reply
 
 
-def _locate(
-    locate_fn: Any, image: np.ndarray, cell: Any, door: Any, name: str, traced: bool
-) -> tuple[Any, Any]:
-    trace = None
-    if traced:
-        from doorloc.vision.locate import LocateTrace
+def _decode_step(data: bytes, name: str) -> tuple[str, Any]:
+    from doorloc.vision.imageio import ImageDecodeError, decode_image
 
-        trace = LocateTrace()
-    result = locate_fn(image, cell, door, image_name=name, **({} if trace is None else {"trace": trace}))
-    return result, trace
+    try:
+        return "ok", decode_image(data, name=name)
+    except ImageDecodeError as e:
+        # OpenCV reports an allocation past the limit as a decoding error of its own
+        out_of_memory = "Insufficient memory" in str(e) or "Failed to allocate" in str(e)
+        return ("memory", "") if out_of_memory else ("undecodable", str(e))
+    except MemoryError:
+        return "memory", ""
+
+
+def _locate_step(
+    locate_fn: Any, image: np.ndarray, name: str, cell: Any, door: Any, overlay_max_pixels: int | None
+) -> tuple[str, Any]:
+    """("ok", (result, overlay)): the overlay (base64 PNG) is drawn here, where the image is, for a located
+    door of at most ``overlay_max_pixels`` (None: no overlay asked for)."""
+    try:
+        trace = None
+        if overlay_max_pixels is not None:
+            from doorloc.vision.locate import LocateTrace
+
+            trace = LocateTrace()
+        result = locate_fn(image, cell, door, image_name=name, **({} if trace is None else {"trace": trace}))
+        drawn = None
+        if (
+            overlay_max_pixels is not None
+            and result.ok
+            and image.shape[0] * image.shape[1] <= overlay_max_pixels
+        ):
+            from doorloc.app.answer import overlay_png
+
+            drawn = overlay_png(image, result, cell, door, trace)
+        return "ok", (result, drawn)
+    except MemoryError:
+        return "memory", ""
 
 
 @dataclass
@@ -171,13 +242,15 @@ class DecodePool:
     memory_bytes : int
         Address space a worker may add to what it holds after start-up (the decoded image, the decoder's
         buffers; for a locating pool the pipeline's arrays too), bytes.
-    locate_fn : callable, optional
-        The locate step (:func:`doorloc.vision.locate.locate`; picklable by name) that :meth:`locate` runs in
-        the workers; None: a pool that only decodes.
+    locate_fn : callable or str, optional
+        The locate step (:func:`doorloc.vision.locate.locate`; picklable by name, or named
+        ``"module:function"`` so that only the workers import it) that :meth:`decode_and_locate` runs in the
+        workers after decoding; None: a pool that only decodes.
     locate_cpu_s : float
-        CPU seconds one locate may take.
+        CPU seconds one locate may take (after the image's decoding, which has its own ``cpu_s``).
     locate_memory_bytes : int or None
-        Address space one locate may add (None: ``memory_bytes``); a worker's own limit is the larger of the two.
+        Address space one locate may add to its worker, the decoded image held (None: ``memory_bytes``); a
+        locating worker's own limit is the sum of the two budgets.
     """
 
     def __init__(
@@ -217,7 +290,7 @@ class DecodePool:
         parent, child = ctx.Pipe()
         process = ctx.Process(
             target=_worker_main,
-            args=(child, max(self.memory_bytes, self.locate_memory_bytes), self.locate_fn),
+            args=(child, self._worker_bytes(), self.locate_fn),
             daemon=True,
             name="doorloc-decode" if self.locate_fn is None else "doorloc-locate",
         )
@@ -234,6 +307,11 @@ class DecodePool:
         with self._lock:
             self._workers.append(worker)
         return worker
+
+    def _worker_bytes(self) -> int:
+        """What a worker may ever add to its start-up size: a decode's budget, and a locate's on top of the
+        image it decoded."""
+        return self.memory_bytes + (self.locate_memory_bytes if self.locate_fn is not None else 0)
 
     def _retire(self, worker: _Worker) -> None:
         worker.kill()
@@ -253,7 +331,13 @@ class DecodePool:
         def start() -> None:
             try:
                 if not self._closed:
-                    self._idle.put(self._start())
+                    worker = self._start()
+                    if self._closed:  # the pool closed while this one loaded its kernels
+                        self._retire(worker)
+                    else:
+                        self._idle.put(worker)
+            except DecodeRefused:
+                pass  # it could not start (the pool closing, the machine out of processes): a request starts one
             finally:
                 with self._lock:  # the count is read and written from request threads and refill threads
                     self._starting -= 1
@@ -272,45 +356,58 @@ class DecodePool:
         except queue.Empty:
             raise _deadline_passed(what) from None
 
-    def _run(
-        self, job: str, args: tuple, cpu_s: float, memory_bytes: int, timeout_s: float, what: str
-    ) -> Any:
-        """Run one job in an idle worker (started if none is); its value, or DecodeRefused."""
+    def _run(self, job: str, args: tuple, steps: tuple[_Step, ...], timeout_s: float) -> tuple[Any, float]:
+        """Run one job in an idle worker (started if none is), its steps in turn; its value and this thread's
+        CPU seconds until its first step was done, or DecodeRefused naming the step that was stopped."""
         if self._closed:
             raise DecodeRefused(503, "not_ready", "The service is shutting down; retry shortly.")
+        end = time.monotonic() + max(timeout_s, 0.001)
+        t0 = time.thread_time()
+        first_done = 0.0
+        step = steps[0]
         if not self._slots.acquire(timeout=max(timeout_s, 0.001)):
-            raise _deadline_passed(what)
+            raise _deadline_passed(step.what)
         try:
             try:
                 worker = self._idle.get_nowait()
             except queue.Empty:
-                worker = self._next_worker(timeout_s, what)
+                worker = self._next_worker(end - time.monotonic(), step.what)
             try:
-                worker.conn.send((job, args, cpu_s, memory_bytes))
-                if not worker.conn.poll(max(timeout_s, 0.001)):
-                    self._retire(worker)
-                    self._replace_soon()
-                    raise _deadline_passed(what)
-                kind, value = worker.conn.recv()
+                worker.conn.send((job, args, [(s.cpu_s, s.memory_bytes) for s in steps]))
+                while True:
+                    if not worker.conn.poll(max(end - time.monotonic(), 0.001)):
+                        self._retire(worker)
+                        self._replace_soon()
+                        raise _deadline_passed(step.what)
+                    kind, value = worker.conn.recv()
+                    if kind != "decoded":
+                        break
+                    # the worker decoded the image and now locates: a limit past here is locate's
+                    step, first_done = steps[1], time.thread_time() - t0
             except (EOFError, OSError):
                 worker.process.join(timeout=5)
                 code = worker.process.exitcode
                 self._retire(worker)
                 self.killed += 1
                 self._replace_soon()
-                raise _limit_reached(job, code, cpu_s, memory_bytes) from None
+                raise _limit_reached(step, code) from None
             self._idle.put(worker)
         finally:
             self._slots.release()
         if kind == "ok":
-            return value
+            return value, first_done
         if kind == "memory":
-            raise _limit_reached(job, None, cpu_s, memory_bytes)
+            raise _limit_reached(step, None)
+        if kind == "too_big":
+            raise _DecodedTooLarge(value)
         raise DecodeRefused(
             422,
             "undecodable_image",
             f"The image could not be decoded ({value}); the file is probably damaged or truncated: send it again.",
         )
+
+    def _decoding(self) -> _Step:
+        return _Step("decode", "decoded", self.cpu_s, self.memory_bytes)
 
     def decode(self, data: bytes, name: str, timeout_s: float) -> np.ndarray:
         """The decoded image (as :func:`doorloc.vision.imageio.decode_image` returns it); blocks, so call it
@@ -323,37 +420,48 @@ class DecodePool:
             more CPU time or memory than a decode may take: its worker was ended), 503 ``overloaded`` (no
             answer within ``timeout_s``, the request's deadline).
         """
-        image: np.ndarray = self._run(
-            "decode", (data, name), self.cpu_s, self.memory_bytes, timeout_s, "decoded"
-        )
+        image: np.ndarray = self._run("decode", (data, name), (self._decoding(),), timeout_s)[0]
         return image
 
-    def locate(
+    def decode_and_locate(
         self,
-        image: np.ndarray,
+        data: bytes | np.ndarray,
+        name: str,
         cell: Cell,
         door: DoorSize,
         *,
-        image_name: str = "",
-        trace: Any = None,
+        max_decoded_bytes: int,
+        overlay_max_pixels: int | None = None,
         timeout_s: float,
-    ) -> LocateResult:
-        """``locate_fn(image, cell, door, image_name=..., trace=...)`` run in a worker; blocks.
+    ) -> Located:
+        """Decode ``data`` and locate the door in it, both in one worker; blocks, so call it from a worker
+        thread.
 
-        ``trace`` (a :class:`doorloc.vision.locate.LocateTrace`) is filled with what the worker's locate saw.
-        Raises :class:`DecodeRefused`: 422 ``locate_limit`` (the image made locate need more CPU time or memory
-        than one may take: its worker was ended), 503 ``overloaded`` (no answer within ``timeout_s``).
+        The image is decoded within the decoding limits (``cpu_s``, ``memory_bytes``), then
+        ``locate_fn(image, cell, door, image_name=name)`` runs within locate's (``locate_cpu_s``,
+        ``locate_memory_bytes``); the image never leaves the worker. ``overlay_max_pixels`` (None: no overlay)
+        asks for the overlay of a located door in an image of at most that many pixels. ``data`` may be the
+        image decoded already (a decoding-only pool's :meth:`decode`): it then crosses the pipe and is located.
+
+        Raises
+        ------
+        DecodeRefused
+            as :meth:`decode` for the decoding (``undecodable_image``, ``decode_limit``, 503 ``overloaded``
+            "not decoded"); 422 ``too_many_pixels`` (decoded to more than ``max_decoded_bytes``: not
+            located); 422 ``locate_limit`` (the image made locate need more CPU time or memory than one may
+            take: its worker was ended); 503 ``overloaded`` "not located" (the deadline passed while locating).
         """
         if self.locate_fn is None:
             raise RuntimeError("this pool was made without a locate_fn: it only decodes")
-        args = (image, cell, door, image_name, trace is not None)
-        result, seen = self._run(
-            "locate", args, self.locate_cpu_s, self.locate_memory_bytes, timeout_s, "located"
-        )
-        if trace is not None and seen is not None:
-            for name in (f.name for f in fields(seen)):
-                setattr(trace, name, getattr(seen, name))
-        return result
+        locating = _Step("locate", "located", self.locate_cpu_s, self.locate_memory_bytes)
+        args = (data, name, cell, door, max_decoded_bytes, overlay_max_pixels)
+        try:
+            (result, drawn), decode_s = self._run(
+                "decode_locate", args, (self._decoding(), locating), timeout_s
+            )
+        except _DecodedTooLarge as e:
+            raise decoded_too_large(name, e.nbytes, max_decoded_bytes) from None
+        return Located(result, drawn, decode_s * 1e3)
 
     def close(self) -> None:
         """End every worker (the service's shutdown)."""
@@ -373,24 +481,34 @@ def _deadline_passed(what: str = "decoded") -> DecodeRefused:
     )
 
 
-def _limit_reached(job: str, exitcode: int | None, cpu_s: float, memory_bytes: int) -> DecodeRefused:
-    step = "Locating the door in the image" if job == "locate" else "Decoding the image"
+def _limit_reached(step: _Step, exitcode: int | None) -> DecodeRefused:
+    name = "Locating the door in the image" if step.job == "locate" else "Decoding the image"
     if exitcode == -signal.SIGXCPU:
-        why = f"more than {cpu_s:g} s of CPU time"
+        why = f"more than {step.cpu_s:g} s of CPU time"
     elif exitcode is None or exitcode == _OUT_OF_MEMORY:
-        why = f"more than {memory_bytes / 1e6:.0f} MB of memory"
+        why = f"more than {step.memory_bytes / 1e6:.0f} MB of memory"
     else:
         why = f"more than one may take (its process ended with code {exitcode})"
-    if job == "locate":
+    if step.job == "locate":
         return DecodeRefused(
             422,
             "locate_limit",
-            f"{step} took {why}, so it was stopped; a camera image of a door never does: send the camera's "
+            f"{name} took {why}, so it was stopped; a camera image of a door never does: send the camera's "
             "own image of the door in the cell.",
         )
     return DecodeRefused(
         422,
         "decode_limit",
-        f"{step} took {why}, so it was stopped; a camera image never does: send the camera's "
+        f"{name} took {why}, so it was stopped; a camera image never does: send the camera's "
         "own PNG or baseline JPEG.",
+    )
+
+
+def decoded_too_large(name: str, nbytes: int, max_decoded_bytes: int) -> DecodeRefused:
+    """The 422 of an image that decoded to more than ``max_decoded_bytes`` (its header said less)."""
+    return DecodeRefused(
+        422,
+        "too_many_pixels",
+        f"The image '{name}' decoded to {nbytes / 1e6:.0f} MB, more than is accepted here "
+        f"({max_decoded_bytes / 1e6:.0f} MB); send the camera's own image.",
     )

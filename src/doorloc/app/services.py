@@ -60,6 +60,7 @@ __all__ = [
     "CameraPlacement",
     "PlacementRefused",
     "answer_image",
+    "answer_located",
     "calibrate_camera",
     "place_camera",
     "default_locate_fn",
@@ -268,6 +269,25 @@ def answer_image(
     result = locate(
         image, cell, choice.door, image_name=image_name, **({} if trace is None else {"trace": trace})
     )
+    drawn = overlay_png(image, result, cell, choice.door, trace) if overlay else None
+    answer = answer_located(result, cell, choice, rapid=rapid, overlay=drawn, requested_overlay=overlay)
+    cpu_ms = {"decode": (t1 - t0) * 1e3, "locate": (time.thread_time() - t1) * 1e3}
+    return replace(answer, cpu_ms=cpu_ms, image=image)
+
+
+def answer_located(
+    result: LocateResult,
+    cell: Cell,
+    choice: DoorChoice,
+    *,
+    rapid: bool = False,
+    overlay: str | None = None,
+    requested_overlay: bool = False,
+) -> Answer:
+    """The answer to a located image (:func:`answer_image` once locate has run, wherever it ran): the
+    recipe's targets moved by the pose, the reach check, ``rapid`` when asked for, and ``overlay`` (a base64
+    PNG drawn already, or None; ``requested_overlay``: it was asked for, so the answer shows it even null).
+    ``cpu_ms`` is left empty and ``image`` None: the caller knows them."""
     targets, note, reach = _targets_and_reach(cell, choice, result)
     fields = result.model_dump()
     # locate's own provenance (what it measured with) stands; the recipe version is the choice's
@@ -286,11 +306,10 @@ def answer_image(
         targets_note=note,
         reach=reach,
         rapid=_rapid(targets) if rapid else None,
-        overlay_png=overlay_png(image, result, cell, choice.door, trace) if overlay else None,
+        overlay_png=overlay,
     )
-    requested = frozenset(k for k, on in (("rapid", rapid), ("overlay_png", overlay)) if on)
-    cpu_ms = {"decode": (t1 - t0) * 1e3, "locate": (time.thread_time() - t1) * 1e3}
-    return Answer(result, response, cpu_ms, requested, image)
+    requested = frozenset(k for k, on in (("rapid", rapid), ("overlay_png", requested_overlay)) if on)
+    return Answer(result, response, requested=requested)
 
 
 def _rapid(targets: list[Target]) -> str | None:

@@ -34,10 +34,15 @@ DEFAULT_MAX_DECODED_BYTES = 100_000_000
 def default_locate_concurrency(workers: int, cpus: int | None = None) -> int:
     """Images each of ``workers`` service processes locates at once by default: the CPUs shared among them.
 
+    ``cpus`` defaults to the CPUs this process may run on (its affinity: a container's or ``taskset``'s CPU
+    set), not every CPU of the machine.
+
     (Each worker taking every CPU put ``workers`` images on each core: at 16 clients on 2 CPUs with 2
     workers the server spent more CPU per request than one thread does, in the contention.)
     """
-    return max(1, (cpus if cpus is not None else os.cpu_count() or 1) // max(1, workers))
+    if cpus is None:
+        cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    return max(1, cpus // max(1, workers))
 
 
 class ServiceSettings(BaseSettings):
@@ -139,19 +144,19 @@ class ServiceSettings(BaseSettings):
     decode_cpu_s: float = Field(
         10.0,
         gt=0,
-        description="CPU seconds one image may take to decode (its decoding process is ended then)",
+        description="CPU seconds one image may take to decode (its worker process is ended then)",
     )
     decode_memory_bytes: int = Field(
         400_000_000,
         gt=0,
-        description="memory (address space) a decoding process may add for one image, bytes",
+        description="memory (address space) a worker process may add while decoding one image, bytes",
     )
     decode_in_threads: bool = Field(
         False,
         description="decode and locate in the service's own threads instead of limited worker processes (no "
         "CPU-time or memory bound beyond the header checks; for tests and debugging)",
     )
-    # ---- locating (in the same limited worker processes)
+    # ---- locating (in the same limited worker process, after decoding: one job per image)
     locate_cpu_s: float = Field(
         10.0,
         gt=0,
@@ -161,8 +166,8 @@ class ServiceSettings(BaseSettings):
     locate_memory_bytes: int = Field(
         400_000_000,
         gt=0,
-        description="memory (address space) locating the door in one image may add to its process, bytes (a "
-        "1080p frame needs under 8 MB)",
+        description="memory (address space) locating the door in one image may add to its worker process, the "
+        "decoded image held, bytes (a 1080p frame needs under 8 MB)",
     )
     overlay_max_pixels: int = Field(
         8_300_000, gt=0, description="largest image (width*height) an overlay is drawn for (4K UHD)"

@@ -68,6 +68,7 @@ def create_app(
 
         # Requests already run in parallel threads; OpenCV's own pool on top would oversubscribe the cores.
         cv2.setNumThreads(settings.opencv_threads)
+        # (while the worker processes locate, locate_fn stays None: load then starts them, once)
         if not state.ready or state.locate_fn is None or state.keys is None:
             await anyio.to_thread.run_sync(state.load)
         try:
@@ -76,7 +77,7 @@ def create_app(
                 yield
                 tg.cancel_scope.cancel()
         finally:
-            for pool in (state.decoder, state.locator):
+            for pool in (state.workers, state.decoders):
                 if pool is not None:
                     pool.close()
 

@@ -6,22 +6,26 @@
   service fills only its own share, so another client's image still finds a place, even one sent with the
   same shared key from another machine; the free CPU slots go to the waiting keys in turn, and within a key
   to its addresses in turn (:class:`~doorloc.app.fairslots.FairSlots`), not in arrival order;
-- :func:`decode_upload`: decoding in the worker's limited decoding processes
-  (:class:`~doorloc.app.decodepool.DecodePool`) within what is left of the request's deadline.
+- :func:`locate_upload`: decoding and locating in one of the worker's limited processes
+  (:class:`~doorloc.app.decodepool.DecodePool`) within what is left of the request's deadline, one job per
+  request; :func:`decode_upload`: decoding alone (there, or in the thread), for a locate that runs in the thread.
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Mapping
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import anyio
 import numpy as np
 
-from doorloc.app.decodepool import DecodeRefused
+from doorloc.app.decodepool import DecodePool, DecodeRefused, Located, decoded_too_large
 from doorloc.app.http.problems import ProblemError
 from doorloc.app.http.state import ServiceState
+
+if TYPE_CHECKING:
+    from doorloc.domain import DoorSize
 
 _Key = TypeVar("_Key")
 
@@ -32,6 +36,8 @@ __all__ = [
     "take_cpu_slot",
     "release_cpu_slot",
     "decode_upload",
+    "decodes_apart",
+    "locate_upload",
     "refusal_problem",
 ]
 
@@ -142,8 +148,22 @@ def refusal_problem(e: DecodeRefused) -> ProblemError:
     return ProblemError(e.status, e.code, e.detail, headers=headers)
 
 
-def decode_upload(state: ServiceState, data: bytes, name: str, deadline: float | None) -> np.ndarray:
-    """The uploaded image decoded within the limits (blocking: call it in a worker thread).
+def decodes_apart(data: bytes) -> bool:
+    """Whether an upload is decoded in a decoding-only process before it is located: a progressive JPEG or a
+    TIFF, whose decoding work the header bounds only loosely (scans, tiles, compression schemes). A PNG, BMP or
+    baseline JPEG, whose decoding work is about its declared pixels (a camera's images), is decoded and located
+    in one job."""
+    from doorloc.app.imagesniff import sniff_image
+
+    header = sniff_image(data)
+    return header is None or header.kind == "tiff" or header.progressive
+
+
+def decode_upload(
+    state: ServiceState, data: bytes, name: str, deadline: float | None, pool: DecodePool | None = None
+) -> np.ndarray:
+    """The uploaded image decoded within the limits (blocking: call it in a worker thread), in ``pool`` (default:
+    the worker processes, or this thread with ``decode_in_threads``).
 
     Raises ProblemError 422 (undecodable, or past the decoding CPU-time or memory limit) or 503 (the
     deadline passed first).
@@ -152,10 +172,11 @@ def decode_upload(state: ServiceState, data: bytes, name: str, deadline: float |
 
     left = (deadline - time.monotonic()) if deadline is not None else state.settings.request_deadline_s
     try:
-        if state.decoder is None:
+        pool = pool or state.workers
+        if pool is None:
             image = decode_image(data, name=name)
         else:
-            image = state.decoder.decode(data, name, timeout_s=left)
+            image = pool.decode(data, name, timeout_s=left)
     except ImageDecodeError as e:
         raise ProblemError(
             422,
@@ -165,10 +186,35 @@ def decode_upload(state: ServiceState, data: bytes, name: str, deadline: float |
     except DecodeRefused as e:
         raise refusal_problem(e) from None
     if image.nbytes > state.settings.max_decoded_bytes:
-        raise ProblemError(
-            422,
-            "too_many_pixels",
-            f"The image '{name}' decoded to {image.nbytes / 1e6:.0f} MB, more than is accepted here "
-            f"({state.settings.max_decoded_bytes / 1e6:.0f} MB); send the camera's own image.",
-        )
+        raise refusal_problem(decoded_too_large(name, image.nbytes, state.settings.max_decoded_bytes))
     return image
+
+
+def locate_upload(
+    state: ServiceState, data: bytes, name: str, door: DoorSize, overlay: bool, deadline: float | None
+) -> Located:
+    """The uploaded image decoded and the door located in it, in one limited worker process (blocking: call
+    it in a worker thread; ``state.locates_in_workers`` must hold). ``overlay``: draw the overlay of a located
+    door there too, for an image of at most ``overlay_max_pixels``.
+
+    Raises ProblemError 422 (undecodable, decoded past ``max_decoded_bytes``, past the decoding or the
+    locating CPU-time or memory limit) or 503 (the deadline passed first), as :func:`decode_upload` and a
+    locate in the worker processes would.
+    """
+    assert state.workers is not None and state.cell is not None
+    image: bytes | np.ndarray = data
+    if state.decoders is not None and decodes_apart(data):
+        image = decode_upload(state, data, name, deadline, pool=state.decoders)
+    left = (deadline - time.monotonic()) if deadline is not None else state.settings.request_deadline_s
+    try:
+        return state.workers.decode_and_locate(
+            image,
+            name,
+            state.cell,
+            door,
+            max_decoded_bytes=state.settings.max_decoded_bytes,
+            overlay_max_pixels=state.settings.overlay_max_pixels if overlay else None,
+            timeout_s=left,
+        )
+    except DecodeRefused as e:
+        raise refusal_problem(e) from None

@@ -3,9 +3,9 @@
 Order of the checks, cheapest first, so a bad upload costs almost nothing: size (while streaming, in
 the middleware) -> kind by magic bytes (415) -> declared pixel count (422, before decoding) -> decode
 (422) -> locate. Each request holds a CPU slot of the app's FairSlots while decoding and locating, which run in
-limited worker processes (:class:`~doorloc.app.decodepool.DecodePool`: an image past their CPU-time or memory
-limit ends its process and is answered 422), waited for in a worker thread, so the event loop keeps answering
-health checks while images are being measured.
+one limited worker process per request (:class:`~doorloc.app.decodepool.DecodePool`: an image past its
+decoding or locating CPU-time or memory limit ends that process and is answered 422), waited for in a worker
+thread, so the event loop keeps answering health checks while images are being measured.
 """
 
 from __future__ import annotations
@@ -22,12 +22,11 @@ from pydantic import Field
 
 from doorloc.app.access import Role
 from doorloc.app.answer import Answer, DoorChoice, LocateResponse, overlay_png
-from doorloc.app.decodepool import DecodeRefused
 from doorloc.app.http.admission import (
     address_of,
     client_of,
     decode_upload,
-    refusal_problem,
+    locate_upload,
     release_cpu_slot,
     take_cpu_slot,
 )
@@ -35,7 +34,7 @@ from doorloc.app.http.dependencies import call_store, ready_state, require_role
 from doorloc.app.http.problems import ProblemError, problem_responses
 from doorloc.app.http.state import ServiceState
 from doorloc.app.imagesniff import decode_limit_code, decode_limit_problem, sniff_image
-from doorloc.app.services import DoorChoiceError, answer_image, resolve_door
+from doorloc.app.services import DoorChoiceError, answer_image, answer_located, resolve_door
 from doorloc.recipes.models import DOOR_ID_PATTERN
 
 __all__ = ["router"]
@@ -219,43 +218,49 @@ def _measure(
 ) -> Answer:
     """The answer, with the thread CPU ms of decoding and of measuring (``decode``, ``locate``).
 
-    (Decoding and locating run in the limited worker processes: ``decode`` and ``locate`` are then this
-    thread's share, the hand-over, besides the targets and the reach check.)
+    When the service locates in its limited worker processes, one of them decodes the image and locates in it
+    (one job: the decoded image never crosses a pipe), and ``decode`` and ``locate`` are this thread's share:
+    the hand-over, besides the targets and the reach check. A locate given in code runs here, on the image
+    decoded in a worker process (or in this thread: ``decode_in_threads``).
     The overlay is drawn only for an answered image of a sane size: a refused 7.2 MB JPEG once made a
     97 MB answer.
     """
     assert state.cell is not None  # the route depends on ready_state
-    t0 = time.thread_time()
-    image = decode_upload(state, data, name, deadline)
-    decode_ms = (time.thread_time() - t0) * 1e3
-    trace = None
-    if overlay:
-        from doorloc.vision.locate import LocateTrace
+    if state.locates_in_workers:
+        t0 = time.thread_time()
+        located = locate_upload(state, data, name, choice.door, overlay, deadline)
+        answer = answer_located(located.result, state.cell, choice, rapid=rapid, overlay=located.overlay_png)
+        cpu_ms = {
+            "decode": located.decode_thread_ms,
+            "locate": (time.thread_time() - t0) * 1e3 - located.decode_thread_ms,
+        }
+    else:
+        assert state.locate_fn is not None  # a ready service has one
+        t0 = time.thread_time()
+        image = decode_upload(state, data, name, deadline)
+        decode_ms = (time.thread_time() - t0) * 1e3
+        trace = None
+        if overlay:
+            from doorloc.vision.locate import LocateTrace
 
-        trace = LocateTrace()
-    left = (deadline - time.monotonic()) if deadline is not None else state.settings.request_deadline_s
-    try:
+            trace = LocateTrace()
         answer = answer_image(
-            image,
-            state.cell,
-            choice,
-            image_name=name,
-            locate_fn=state.locate_in(left),
-            rapid=rapid,
-            trace=trace,
+            image, state.cell, choice, image_name=name, locate_fn=state.locate_fn, rapid=rapid, trace=trace
         )
-    except DecodeRefused as e:  # the image made locate pass its limits, or the deadline passed
-        raise refusal_problem(e) from None
-    drawn = None
-    if (
-        overlay
-        and answer.response.ok
-        and image.shape[0] * image.shape[1] <= state.settings.overlay_max_pixels
-    ):
-        drawn = overlay_png(image, answer.result, state.cell, choice.door, trace)
+        drawn = None
+        if (
+            overlay
+            and answer.response.ok
+            and image.shape[0] * image.shape[1] <= state.settings.overlay_max_pixels
+        ):
+            drawn = overlay_png(image, answer.result, state.cell, choice.door, trace)
+        answer = replace(answer, response=answer.response.model_copy(update={"overlay_png": drawn}))
+        cpu_ms = {"decode": decode_ms, "locate": answer.cpu_ms["locate"]}
+    # the overlay of a door located but refused for reach is not shown: only an answered image's is
+    drawn = answer.response.overlay_png if answer.response.ok else None
     return replace(
         answer,
         response=answer.response.model_copy(update={"overlay_png": drawn}),
-        cpu_ms={"decode": decode_ms, "locate": answer.cpu_ms["locate"]},
+        cpu_ms=cpu_ms,
         requested=answer.requested | ({"overlay_png"} if overlay else set()),
     )

@@ -6,7 +6,6 @@ service is alive (``/healthz``) but not ready (``/readyz`` 503), and locate requ
 
 from __future__ import annotations
 
-import functools
 import hashlib
 import json
 import logging
@@ -33,6 +32,8 @@ class ServiceState:
 
     settings: ServiceSettings
     metrics: ServiceMetrics
+    #: the locate step when it runs in this process's threads (given in code, or decode_in_threads' default);
+    #: None while the worker processes locate
     locate_fn: LocateFn | None = None
     cell: Cell | None = None
     #: the recipe database (None until loaded; routes take it after ready_state)
@@ -46,10 +47,14 @@ class ServiceState:
     #: True once a key exists or was presented: the service then never answers without one (fails closed)
     keys_seen: bool = False
     auth_failures: FailureBudget = field(init=False)
-    #: the decoding processes (None: decode in threads, settings.decode_in_threads)
-    decoder: DecodePool | None = field(init=False)
-    #: the locating processes (None: locate in threads: decode_in_threads, or a locate_fn given in code)
-    locator: DecodePool | None = field(init=False)
+    #: the limited worker processes (None: decode and locate in threads, settings.decode_in_threads). They
+    #: decode each image and then locate in it (one job per request; see `decoders` for the exceptions) unless
+    #: a locate_fn was given in code (a test's stand-in), which then runs in the thread that asks, on their image
+    workers: DecodePool | None = field(init=False)
+    #: decoding-only processes (started on first use; None unless the workers locate) for uploads whose
+    #: decoding work their header does not bound (admission.decodes_apart): a decoding bomb among them ends one
+    #: of these, which restarts in milliseconds, not a worker holding locate's kernels
+    decoders: DecodePool | None = field(init=False)
     #: per client (key name, else address): locate requests running or queued (fair shedding)
     client_admitted: dict[str, int] = field(init=False, default_factory=dict)
     #: per (key, client address) within a key's share: locate requests running or queued
@@ -58,36 +63,31 @@ class ServiceState:
     def __post_init__(self) -> None:
         self.limiter = FairSlots(self.settings.locate_concurrency)
         self.auth_failures = FailureBudget(self.settings.auth_failures_per_minute)
-        self.decoder = None
-        self.locator = None
+        self.workers = None
+        self.decoders = None
         if not self.settings.decode_in_threads:
-            self.decoder = DecodePool(
+            # the real pipeline is imported by the workers only (each holds locate's kernels; this process
+            # never locates, so it does not load numba); a locate given in code runs here
+            pipeline = "doorloc.vision.locate:locate" if self.locate_fn is None else None
+            self.workers = DecodePool(
                 self.settings.locate_concurrency,
                 self.settings.decode_cpu_s,
                 self.settings.decode_memory_bytes,
+                locate_fn=pipeline,
+                locate_cpu_s=self.settings.locate_cpu_s,
+                locate_memory_bytes=self.settings.locate_memory_bytes,
             )
-            if self.locate_fn is None:
-                # the real pipeline runs in limited processes of its own (a locate given in code, a test's
-                # stand-in, runs in the thread that asks): a decoding bomb then ends a decoding process, which
-                # restarts in milliseconds, not one that holds locate's kernels
-                from doorloc.vision.locate import locate
-
-                self.locator = DecodePool(
+            if pipeline is not None:
+                self.decoders = DecodePool(
                     self.settings.locate_concurrency,
-                    self.settings.locate_cpu_s,
-                    self.settings.locate_memory_bytes,
-                    locate_fn=locate,
-                    locate_cpu_s=self.settings.locate_cpu_s,
+                    self.settings.decode_cpu_s,
+                    self.settings.decode_memory_bytes,
                 )
 
-    def locate_in(self, deadline_s: float) -> LocateFn:
-        """The locate step of one request: in the limited worker processes (within ``deadline_s`` seconds)
-        when the service locates there, else ``locate_fn`` in the calling thread."""
-        pool = self.locator
-        if pool is None:
-            assert self.locate_fn is not None  # a ready service has one
-            return self.locate_fn
-        return functools.partial(pool.locate, timeout_s=deadline_s)
+    @property
+    def locates_in_workers(self) -> bool:
+        """Whether a request's image is decoded and located in one limited worker process (one job)."""
+        return self.workers is not None and self.workers.locate_fn is not None
 
     @property
     def per_client_limit(self) -> int:
@@ -154,11 +154,10 @@ class ServiceState:
                 self.keys = KeyStore(self.store.engine)
             if self.keys is not None and self.keys.any_active(remember=False):
                 self.keys_seen = True
-            if self.locator is not None:
-                # the locating processes load locate's compiled kernels now, not in the first request; this
-                # process never locates itself
-                self.locator.start()
-                self.locate_fn = self.locator.locate_fn
+            if self.workers is not None and self.locates_in_workers:
+                # the worker processes load locate's compiled kernels now, not in the first request (those
+                # still missing: a second call starts none); this process never locates itself
+                self.workers.start()
             elif self.locate_fn is None:
                 from doorloc.app.services import default_locate_fn
 
