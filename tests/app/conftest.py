@@ -89,10 +89,17 @@ def make_client(cell, store):
 
     Open access (no key needed while none exists) and the TestClient's host name unless the settings say
     otherwise."""
+    yield from app_clients(cell, store, stand_in_locate)
+
+
+def app_clients(cell, store, locate_fn=None):
+    """A fixture's body: yields ``make(**settings)``, which makes a TestClient on an app with ``locate_fn``
+    (None: the real pipeline, in the service's worker processes unless the settings say threads), lifespan
+    run; every client made is closed when the fixture ends."""
     clients = []
 
     def make(**settings) -> TestClient:
-        app = create_app(dev_settings(**settings), cell=cell, store=store, locate_fn=stand_in_locate)
+        app = create_app(dev_settings(**settings), cell=cell, store=store, locate_fn=locate_fn)
         c = TestClient(app, raise_server_exceptions=False)
         c.__enter__()
         clients.append(c)

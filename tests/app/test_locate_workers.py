@@ -6,14 +6,12 @@ its decoding work only loosely), so such a bomb never ends a worker holding loca
 from __future__ import annotations
 
 import pytest
-from fastapi.testclient import TestClient
 
-from doorloc.app.http import create_app
 from doorloc.pose import DoorPose
 from doorloc.sim.door import render_door
 from doorloc.sim.hostile import progressive_jpeg_bomb
 
-from .conftest import dev_settings, png_bytes
+from .conftest import app_clients, png_bytes
 
 #: what differs between two locates of the same image: the time they took
 TIMINGS = {"elapsed_ms"}
@@ -22,19 +20,7 @@ TIMINGS = {"elapsed_ms"}
 @pytest.fixture
 def real_client(cell, store):
     """``real_client(**settings)``: a TestClient on an app with the real locate (lifespan run)."""
-    clients = []
-
-    def make(**settings) -> TestClient:
-        c = TestClient(
-            create_app(dev_settings(**settings), cell=cell, store=store), raise_server_exceptions=False
-        )
-        c.__enter__()
-        clients.append(c)
-        return c
-
-    yield make
-    for c in clients:
-        c.__exit__(None, None, None)
+    yield from app_clients(cell, store)
 
 
 def _without_timings(answer: dict) -> dict:
