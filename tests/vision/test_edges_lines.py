@@ -10,8 +10,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from doorloc.vision.coarse import coarse_edges
+from doorloc.vision.edge_samples import ScanWindow
 from doorloc.vision.edges import subpixel_edges, transition_width
-from doorloc.vision.far_face import BLUR_DOUBT, step_blur, subpixel_edges_far_face
+from doorloc.vision.far_face import BLUR_DOUBT, FarBand, step_blur, subpixel_edges_far_face
 from doorloc.vision.lines import fit_image_line, fit_rectangle_edges, ransac_line
 
 
@@ -189,7 +190,9 @@ def test_far_face_fit_finds_the_arris_beside_a_band_of_any_brightness(width, blu
     img = _far_face_image(e1, width, 120.0, band, 50.0, blur)
     centre = e1 + miss  # a prediction off by up to 2 px; the band width predicted there follows the geometry
     s, fit = subpixel_edges_far_face(
-        img, "col", u, centre, 6, width + slope * (centre - e1), slope, +1, blur_px=blur
+        ScanWindow.across(img, "col", u, centre, 6, door_side=-1),
+        FarBand(width + slope * (centre - e1), slope),
+        blur_px=blur,
     )
     inner = slice(12, -12)
     assert s.valid[inner].all()
@@ -209,7 +212,11 @@ def test_a_band_like_the_background_or_the_hinge_face_names_its_other_reading(ba
     e1 = 30.0 + 0.013 * u
     slope = -0.72
     img = _far_face_image(e1, 3.0, 120.0, band, 50.0, 0.8)
-    s, fit = subpixel_edges_far_face(img, "col", u, e1, 6, np.full(u.size, 3.0), slope, +1, blur_px=0.8)
+    s, fit = subpixel_edges_far_face(
+        ScanWindow.across(img, "col", u, e1, 6, door_side=-1),
+        FarBand(np.full(u.size, 3.0), slope),
+        blur_px=0.8,
+    )
     inner = slice(12, -12)
     assert s.valid[inner].all()
     if not ambiguous:
@@ -233,7 +240,11 @@ def test_far_face_fit_beside_a_band_narrower_than_the_blur_stays_within_a_pixel_
     u = np.arange(160)
     e1 = 30.0 + 0.013 * u
     img = _far_face_image(e1, width, 120.0, band, 50.0, blur)
-    s, _ = subpixel_edges_far_face(img, "col", u, e1 + 0.6, 6, width - 0.72 * 0.6, -0.72, +1, blur_px=blur)
+    s, _ = subpixel_edges_far_face(
+        ScanWindow.across(img, "col", u, e1 + 0.6, 6, door_side=-1),
+        FarBand(width - 0.72 * 0.6, -0.72),
+        blur_px=blur,
+    )
     assert s.valid[12:-12].all() and np.max(np.abs(s.along - e1)[12:-12]) < 1.5
 
 
@@ -249,7 +260,9 @@ def test_the_far_face_doubt_covers_a_blur_off_by_its_doubt_beside_a_narrow_band(
     e1 = 30.0 + 0.013 * u
     img = _far_face_image(e1, width, 120.0, band, 50.0, blur)
     s, fit = subpixel_edges_far_face(
-        img, "col", u, e1, 6, np.full(u.size, width), -0.72, +1, blur_px=blur + blur_off
+        ScanWindow.across(img, "col", u, e1, 6, door_side=-1),
+        FarBand(np.full(u.size, width), -0.72),
+        blur_px=blur + blur_off,
     )
     miss = float(np.median((s.along - e1)[12:-12]))
     assert abs(miss) > 0.25  # the case: a miss of a quarter pixel and more
@@ -261,14 +274,18 @@ def test_far_face_fit_without_a_band_is_a_plain_step_and_step_blur_measures_the_
     e1 = 30.0 + 0.013 * u
     img = _far_face_image(e1, 0.0, 120.0, 120.0, 50.0, 1.2)
     s, fit = subpixel_edges_far_face(
-        img, "col", u, e1 + 0.7, 6, np.full(u.size, -1.5), -0.72, +1, blur_px=1.2
+        ScanWindow.across(img, "col", u, e1 + 0.7, 6, door_side=-1),
+        FarBand(np.full(u.size, -1.5), -0.72),
+        blur_px=1.2,
     )
     assert np.max(np.abs(s.along - e1)[12:-12]) < 0.01 and fit.band_px == 0.0
     plain = subpixel_edges(img, "col", u, e1, 6, plateau=4)
     assert step_blur(img, plain, np.arange(u.size) % 10 > 0, 6) == pytest.approx(1.2, abs=0.03)
     # mirrored: the hinge face below, the background above
     s2, _ = subpixel_edges_far_face(
-        img[::-1], "col", u, 79 - e1 + 0.5, 6, np.full(u.size, -0.5), -0.72, -1, blur_px=1.2
+        ScanWindow.across(img[::-1], "col", u, 79 - e1 + 0.5, 6, door_side=+1),
+        FarBand(np.full(u.size, -0.5), -0.72),
+        blur_px=1.2,
     )
     assert np.max(np.abs(s2.along - (79 - e1))[12:-12]) < 0.01
 
@@ -290,7 +307,10 @@ def test_far_face_start_ranked_on_a_subset_of_scan_lines_gives_the_exhaustive_se
     )
     img = img * (1.0 + 0.08 * np.sin(u / rng.uniform(3.0, 9.0)))[None, :] + rng.normal(0.0, 8.0, img.shape)
     miss = rng.uniform(-5.0, 5.0)
-    args = (img, "col", u, e1 + miss, 6, np.full(u.size, 3.0), -0.72, +1)
+    args = (
+        ScanWindow.across(img, "col", u, e1 + miss, 6, door_side=-1),
+        FarBand(np.full(u.size, 3.0), -0.72),
+    )
     every = []  # the scan-line strides the start search costed its shifts on
     costs = far_face_mod.far_face_start_costs
     monkeypatch.setattr(far_face_mod, "far_face_start_costs", lambda *a: every.append(a[-1]) or costs(*a))

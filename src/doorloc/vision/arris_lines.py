@@ -15,10 +15,10 @@ from doorloc.vision.arris_geometry import ArrisGeometry
 from doorloc.vision.arris_model import FIT_LINES, StripFit, deficit_prior, fit_strip_profile
 from doorloc.vision.arris_strip import pixel_terms_fill
 from doorloc.vision.blurred_step import STEP_TAIL_SIGMAS
-from doorloc.vision.edge_samples import EdgeSamples
+from doorloc.vision.edge_samples import EdgeSamples, ScanWindow
 from doorloc.vision.edges import DITHERING_NOISE_LEVELS
 from doorloc.vision.jit import kernel, pairwise_sum
-from doorloc.vision.sampling import Axis, gather_profiles, oriented
+from doorloc.vision.sampling import gather_profiles, oriented
 
 __all__ = ["StripWindow", "arris_edges"]
 
@@ -166,14 +166,11 @@ class StripWindow:
 
     Attributes
     ----------
-    door_side : +1 or -1
-        +1 when the door (strip, then face) lies at increasing ``along``.
-    plateau : int
-        Samples on each side for the plateau levels.
-    scale_to_8bit : float
-        Grey-level scale to 0-255.
-    lut : ndarray or None
-        Linearising look-up table (camera response).
+    lines : ScanWindow
+        The scan lines across the strip's outer border and its predicted position on each; ``half`` the
+        window's half-size beyond the strip, ``plateau`` the samples on each side for the plateau levels,
+        ``door_side`` +1 when the door (strip, then face) lies at increasing ``along`` (its
+        ``level_smooth`` is not used: each line's levels are its own, see ``level_px``).
     blur0 : float
         Starting blur for the shading fit, px.
     search : bool
@@ -189,14 +186,31 @@ class StripWindow:
         area estimate elsewhere; False: the area estimate on every line.
     """
 
-    door_side: int
-    plateau: int = 4
-    scale_to_8bit: float = 1.0
-    lut: np.ndarray | None = None
+    lines: ScanWindow
     blur0: float = 1.0
     search: bool = False
     level_px: int | None = None
     line_fit: bool = True
+
+    @property
+    def door_side(self) -> int:
+        """+1 when the door lies at increasing ``along``."""
+        return self.lines.door_side
+
+    @property
+    def plateau(self) -> int:
+        """Samples on each side for the plateau levels."""
+        return self.lines.plateau
+
+    @property
+    def scale_to_8bit(self) -> float:
+        """Grey-level scale to 0-255."""
+        return self.lines.scale_to_8bit
+
+    @property
+    def lut(self) -> np.ndarray | None:
+        """Linearising look-up table (camera response), or None."""
+        return self.lines.lut
 
 
 @dataclass(frozen=True)
@@ -234,32 +248,21 @@ class _StripProfiles:
 
 
 def arris_edges(
-    plane: np.ndarray,
-    axis: Axis,
-    scan: np.ndarray,
-    centre: np.ndarray,
-    half: int,
+    window: StripWindow,
     band_px: np.ndarray,
     geom: ArrisGeometry,
-    window: StripWindow,
 ) -> tuple[EdgeSamples, StripFit | None]:
     """Outer border of an arris strip on each scan line (module docstring, step 3).
 
     Parameters
     ----------
-    plane : ndarray
-        Grey image plane.
-    axis, scan : as :func:`doorloc.vision.edges.subpixel_edges`.
-    centre : ndarray (N,)
-        Predicted outer border on each scan line, px.
-    half : int
-        Window half-size beyond the strip, px.
+    window : StripWindow
+        The scan lines across the strip's outer border, the door's side, the plateaus, the grey scale and
+        how the strip is fitted.
     band_px : ndarray (N,)
         Strip width on each scan line, px.
     geom : ArrisGeometry
         The arris's geometry.
-    window : StripWindow
-        The door's side, the plateaus, the grey scale and how the strip is fitted.
 
     Returns
     -------
@@ -268,9 +271,9 @@ def arris_edges(
     fit : StripFit or None
         The strip's shading; None when it could not be fitted (then no sample is valid).
     """
-    scan = np.asarray(scan, int)
-    centre = np.asarray(centre, float)
-    prof = _strip_profiles(oriented(plane, axis), scan, centre, half, band_px, window)
+    lines = window.lines
+    axis, scan, centre = lines.axis, np.asarray(lines.scan, int), np.asarray(lines.centre, float)
+    prof = _strip_profiles(oriented(lines.plane, axis), scan, centre, lines.half, band_px, window)
     fit, bias = _strip_shading(prof, geom, window)
     if fit is None:
         nan = np.full(len(scan), np.nan)

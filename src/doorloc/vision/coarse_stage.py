@@ -37,7 +37,7 @@ from doorloc.vision.lines import ImageLine, fit_rectangle_edges, ransac_line
 from doorloc.vision.luminance import LuminancePlane
 from doorloc.vision.metric import MetricPose, pose_from_fit
 from doorloc.vision.region import HUMAN, Band, EdgeLayout, SearchRegion
-from doorloc.vision.sampling import oriented
+from doorloc.vision.sampling import Axis, oriented
 from doorloc.vision.state import Refused, StageClock
 
 __all__ = ["Coarse", "CoarseEdges", "StepQuery", "find_coarse"]
@@ -60,6 +60,23 @@ class StepQuery:
 
     plane: np.ndarray
     kwargs: dict[str, Any]
+
+    @classmethod
+    def in_band(
+        cls,
+        plane: np.ndarray,
+        axis: Axis,
+        band: Band,
+        polarity: int,
+        half: int,
+        prefer: np.ndarray | None,
+        prefer_fraction: float,
+    ) -> StepQuery:
+        """The strongest step of ``polarity`` (0: either) on every other scan line of ``band``, of halves
+        ``half`` px; where ``prefer`` (px, per scan line) is given, the step nearest it of at least
+        ``prefer_fraction`` of the strongest."""
+        kwargs = dict(axis=axis, scan=band.scan, lo=band.lo, hi=band.hi, polarity=polarity, half=half)
+        return cls(plane, kwargs | dict(prefer=prefer, prefer_fraction=prefer_fraction, stride=2))
 
 
 @dataclass(frozen=True)
@@ -122,19 +139,8 @@ def _coarse_line(
     for half in (2, strip_half):
         if half is None:
             break
-        along, strength = yield StepQuery(
-            plane,
-            dict(
-                axis=layout.axis,
-                scan=band.scan,
-                lo=band.lo,
-                hi=band.hi,
-                polarity=layout.polarity,
-                half=half,
-                prefer=prefer,
-                prefer_fraction=0.5,
-                stride=2,
-            ),
+        along, strength = yield StepQuery.in_band(
+            plane, layout.axis, band, layout.polarity, half, prefer, 0.5
         )
         line = line_through_steps(band.scan, along, strength, thr, min_points, min_fraction)
         if line is not None:
@@ -187,19 +193,8 @@ def _nearer_reference(
         return ref_line
     scan, lo, hi, at = band.scan[keep], lo[keep], hi[keep], at[keep]
     outer = (lo if xdir > 0 else hi).astype(float)
-    along, strength = yield StepQuery(
-        plane,
-        dict(
-            axis=layout.axis,
-            scan=scan,
-            lo=lo,
-            hi=hi,
-            polarity=layout.polarity,
-            half=2,
-            prefer=outer,
-            prefer_fraction=0.5,
-            stride=2,
-        ),
+    along, strength = yield StepQuery.in_band(
+        plane, layout.axis, Band(scan, lo, hi), layout.polarity, 2, outer, 0.5
     )
     line = line_through_steps(scan, along, strength, thr, 10, 0.4 * len(band.scan) / len(scan))
     if line is None:
@@ -536,21 +531,9 @@ def _first_far_line(
     reference arris, RANSAC over them (tolerance ``tol`` px)."""
     plane, layout, thr, xdir, door, sc = s.plane, s.region.layouts["far"], s.thr, s.xdir, s.door, s.sc
     near = (band.lo if xdir > 0 else band.hi).astype(float)
-    along_f, strength_f = yield StepQuery(
-        plane,
-        dict(
-            axis=layout.axis,
-            scan=band.scan,
-            lo=band.lo,
-            hi=band.hi,
-            polarity=0,
-            half=2,
-            prefer=near,
-            stride=2,
-            # an arris strip makes a weak first step (face -> strip): skip it
-            prefer_fraction=0.3 if door.arris_mm > 0 else 0.1,
-        ),
-    )
+    # an arris strip makes a weak first step (face -> strip): skip it
+    skip_weak = 0.3 if door.arris_mm > 0 else 0.1
+    along_f, strength_f = yield StepQuery.in_band(plane, layout.axis, band, 0, 2, near, skip_weak)
     strong_f = np.isfinite(along_f) & (strength_f >= thr)
     far_line = ransac_line(band.scan[strong_f], along_f[strong_f], tol) if strong_f.sum() >= 10 else None
     if far_line is not None:

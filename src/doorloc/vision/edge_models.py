@@ -40,7 +40,7 @@ from doorloc.vision.arris_model import STRIP_RADIANCE, STRIP_RADIANCE_SIGMA, Str
 from doorloc.vision.blurred_step import refine_step_fit
 from doorloc.vision.edge_samples import EdgeSamples, ScanWindow
 from doorloc.vision.edges import subpixel_edges, subpixel_edges_banded
-from doorloc.vision.far_face import FarFaceFit, subpixel_edges_far_face
+from doorloc.vision.far_face import FarBand, FarFaceFit, subpixel_edges_far_face
 from doorloc.vision.region import Track
 from doorloc.vision.texture import texture_bias
 
@@ -172,20 +172,14 @@ class FarFace:
     def read(self, window: ScanWindow, name: str, track: Track, settings: PassSettings) -> EdgeReading:
         w, every = window, settings.every
         assert track.band_px is not None
-        samples, far_fit = subpixel_edges_far_face(
-            *w.lines,
+        band = FarBand(
             track.band_px[::every],
             track.band_slope,
-            -w.door_side,
-            w.plateau,
-            w.scale_to_8bit,
-            blur_px=settings.blur_guess_px,
             strip_px=track.strip_px[::every] if track.strip_px is not None else None,
             strip_radiance=(STRIP_RADIANCE, STRIP_RADIANCE_SIGMA),
             strip_shaded=settings.door.arris_profile == "round",
-            level_smooth=w.level_smooth,
-            lut=w.lut,
         )
+        samples, far_fit = subpixel_edges_far_face(w, band, blur_px=settings.blur_guess_px)
         return EdgeReading(samples, far_fit=far_fit)
 
 
@@ -204,14 +198,8 @@ class ArrisStrip:
         assert track.band_px is not None and track.outline_shift_px is not None and settings.arris is not None
         band = track.band_px[::every]
         samples, strip = arris_edges(
-            *w.lines,
-            band,
-            settings.arris[name],
             StripWindow(
-                w.door_side,
-                max(w.plateau, ARRIS_PLATEAU_PX),
-                w.scale_to_8bit,
-                lut=w.lut,
+                replace(w, plateau=max(w.plateau, ARRIS_PLATEAU_PX)),
                 blur0=settings.blur_guess_px,
                 search=every > 1,
                 level_px=w.plateau,
@@ -220,6 +208,8 @@ class ArrisStrip:
                 # lost every far point on 2 of 48 arris bench frames)
                 line_fit=name != "far" or every == 1,
             ),
+            band,
+            settings.arris[name],
         )
         samples = replace(samples, along=samples.along + track.outline_shift_px[::every])
         return EdgeReading(samples, strip=(strip, float(np.median(band))) if strip is not None else None)

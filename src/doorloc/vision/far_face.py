@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from doorloc.vision.blurred_step import STEP_TAIL_SIGMAS
-from doorloc.vision.edge_samples import EdgeSamples
+from doorloc.vision.edge_samples import EdgeSamples, ScanWindow
 from doorloc.vision.far_face_kernels import (
     far_face_gauss_newton,
     far_face_schur,
@@ -26,6 +26,7 @@ from doorloc.vision.sampling import Axis, gather_profiles, median, oriented, smo
 
 __all__ = [
     "BLUR_DOUBT",
+    "FarBand",
     "FarFaceFit",
     "LEVEL_DOUBT",
     "LEVEL_PRIOR_WEIGHT",
@@ -567,59 +568,19 @@ def _far_face_answer(
     return samples, fit_out
 
 
-def subpixel_edges_far_face(
-    plane: np.ndarray,
-    axis: Axis,
-    scan: np.ndarray,
-    centre: np.ndarray,
-    half: int,
-    band_px: np.ndarray,
-    band_slope: float,
-    outward: int,
-    plateau: int = 4,
-    scale_to_8bit: float = 1.0,
-    blur_px: float = 1.0,
-    level_smooth: int = 0,
-    lut: np.ndarray | None = None,
-    n_iter: int = 10,
-    fit_blur: bool = False,
-    strip_px: np.ndarray | None = None,
-    strip_radiance: tuple[float, float] = (0.9, 0.45),
-    strip_shaded: bool = False,
-) -> tuple[EdgeSamples, FarFaceFit]:
-    """The far arris beside a visible far face, by fitting the whole profile across it.
+@dataclass(frozen=True)
+class FarBand:
+    """What lies beside the far arris on the far side: the far face's band and, on a chamfered or rounded
+    arris, the strip on the hinge-face side.
 
-    Seen from a camera beyond the far face's plane, the profile across the far arris is
-    ``hinge face A | far face L, width w | background B``: two steps, the arris at ``e`` and the far
-    face's back edge at ``e + w``. The band width follows from the geometry,
-    ``w = band_px + band_slope (e - centre)`` (the back edge lies the door's width farther away and moves
-    less), so each scan line has one unknown, ``e``; the band's relative level
-    ``(L - A) / (B - A)`` (the same all along the edge under any smooth shading) and the optical blur
-    are shared by all scan lines. They are fitted by Gauss-Newton on the pixel values, with each pixel
-    modelled as a Gaussian-blurred step integrated over the pixel.
-
-    Unlike the area estimator this uses the shape of the profile, so a narrow band brighter than the
-    hinge face (which moves the profile's centroid the wrong way as the arris moves) does not make the
-    estimate ill-conditioned.
-
-    Parameters
+    Attributes
     ----------
-    plane, axis, scan, centre, half, plateau, scale_to_8bit, level_smooth, lut
-        As :func:`subpixel_edges`.
-    band_px : ndarray (N,)
-        Predicted band width on each scan line at the predicted edge ``centre``, px, signed: <= 0
-        where no band is in view (the far face seen edge-on or from behind).
-    band_slope : float
+    width_px : ndarray (N,)
+        Predicted band width on each scan line at the window's predicted edge, px, signed: <= 0 where no
+        band is in view (the far face seen edge-on or from behind).
+    slope : float
         ``dw / de`` as the arris moves outwards (``-(1 - k)``, ``k`` the back edge's relative scale).
-    outward : +1 or -1
-        Direction of increasing ``along`` that leads from the hinge face across the arris.
-    blur_px : float
-        The optical blur (Gaussian sigma), px, e.g. from :func:`step_blur` on another edge; with a band
-        narrower than the blur, the band's level, its width and the blur trade off against each other,
-        so the blur is best measured where the step is plain.
-    fit_blur : bool
-        Fit the blur too (starting at ``blur_px``); only sound where the band is much wider than the blur.
-    strip_px : ndarray (N,), optional
+    strip_px : ndarray (N,) or None
         A chamfered or rounded far arris: the strip's width on the hinge-face side of ``e``, px (``e`` is
         then the far face's near border, where the strip meets it). The profile is ``hinge face A | strip S
         | far face L | background B``, the strip's relative level ``(S - A) / (B - A)`` one more shared
@@ -632,6 +593,53 @@ def subpixel_edges_far_face(
     strip_shaded : bool
         The strip is a rounding, whose shading runs across it from the hinge face's level towards the far
         face's: its one fitted level is in doubt by that range's spread too.
+    """
+
+    width_px: np.ndarray
+    slope: float
+    strip_px: np.ndarray | None = None
+    strip_radiance: tuple[float, float] = (0.9, 0.45)
+    strip_shaded: bool = False
+
+
+def subpixel_edges_far_face(
+    window: ScanWindow,
+    band: FarBand,
+    blur_px: float = 1.0,
+    fit_blur: bool = False,
+    n_iter: int = 10,
+) -> tuple[EdgeSamples, FarFaceFit]:
+    """The far arris beside a visible far face, by fitting the whole profile across it.
+
+    Seen from a camera beyond the far face's plane, the profile across the far arris is
+    ``hinge face A | far face L, width w | background B``: two steps, the arris at ``e`` and the far
+    face's back edge at ``e + w``. The band width follows from the geometry,
+    ``w = band.width_px + band.slope (e - centre)`` (the back edge lies the door's width farther away and moves
+    less), so each scan line has one unknown, ``e``; the band's relative level
+    ``(L - A) / (B - A)`` (the same all along the edge under any smooth shading) and the optical blur
+    are shared by all scan lines. They are fitted by Gauss-Newton on the pixel values, with each pixel
+    modelled as a Gaussian-blurred step integrated over the pixel.
+
+    Unlike the area estimator this uses the shape of the profile, so a narrow band brighter than the
+    hinge face (which moves the profile's centroid the wrong way as the arris moves) does not make the
+    estimate ill-conditioned.
+
+    Parameters
+    ----------
+    window : ScanWindow
+        The scan lines across the far arris, its predicted position on each, the window and plateaus as
+        :func:`subpixel_edges` reads them; ``door_side`` the side of the hinge face, so that increasing
+        ``along`` times ``-door_side`` leads from the hinge face across the arris.
+    band : FarBand
+        The far face's band beside the arris, and the strip of a chamfered or rounded arris.
+    blur_px : float
+        The optical blur (Gaussian sigma), px, e.g. from :func:`step_blur` on another edge; with a band
+        narrower than the blur, the band's level, its width and the blur trade off against each other,
+        so the blur is best measured where the step is plain.
+    fit_blur : bool
+        Fit the blur too (starting at ``blur_px``); only sound where the band is much wider than the blur.
+    n_iter : int
+        Gauss-Newton iterations at the most.
 
     Returns
     -------
@@ -639,13 +647,18 @@ def subpixel_edges_far_face(
         ``along`` = the arris; ``step`` = ``B - A`` signed along ``along``.
     fit : FarFaceFit
     """
-    # why many parameters: the edge reader's common window (as subpixel_edges) plus the far face's geometry and the fit's settings, keywords with defaults as the edge model, step_blur and the tests pass them
-    reach = _Reach(half, plateau, blur_px, level_smooth, lut)
-    win = _far_face_window(oriented(plane, axis), scan, centre, band_px, strip_px, outward, reach)
-    fit, outcome = _fit_window(
-        win, band_slope, strip_radiance, _FitSettings(fit_blur, n_iter, half, win.n_strip, strip_shaded)
+    w = window
+    reach = _Reach(w.half, w.plateau, blur_px, w.level_smooth, w.lut)
+    win = _far_face_window(
+        oriented(w.plane, w.axis), w.scan, w.centre, band.width_px, band.strip_px, -w.door_side, reach
     )
-    return _far_face_answer(win, fit, outcome, axis, band_slope, scale_to_8bit)
+    fit, outcome = _fit_window(
+        win,
+        band.slope,
+        band.strip_radiance,
+        _FitSettings(fit_blur, n_iter, w.half, win.n_strip, band.strip_shaded),
+    )
+    return _far_face_answer(win, fit, outcome, w.axis, band.slope, w.scale_to_8bit)
 
 
 def step_blur(
@@ -671,18 +684,9 @@ def step_blur(
     idx = idx[:: max(idx.size // max_lines, 1)]
     sub = samples.subset(np.isin(np.arange(samples.scan.size), idx))
     _, fit = subpixel_edges_far_face(
-        plane,
-        sub.axis,
-        sub.scan,
-        sub.along,
-        half,
-        np.full(sub.scan.size, -1.0),
-        0.0,
-        1,
-        plateau,
-        1.0,
+        ScanWindow.across(plane, sub.axis, sub.scan, sub.along, half, plateau=plateau, lut=lut, door_side=-1),
+        FarBand(np.full(sub.scan.size, -1.0), 0.0),
         blur_px=blur_px,
-        lut=lut,
         fit_blur=True,
         n_iter=15,
     )
