@@ -176,6 +176,12 @@ def _far_face_image(
     return cv2.GaussianBlur(img, (0, 0), blur, borderType=cv2.BORDER_REFLECT) if blur > 0 else img
 
 
+def _far_window(img: np.ndarray, u: np.ndarray, centre: np.ndarray, door_side: int) -> ScanWindow:
+    """Columns ``u`` across a far arris predicted at ``centre``: 6-px half window, 4-px plateaus, grey levels
+    0-255 as they are, the hinge face on ``door_side``."""
+    return ScanWindow(img, "col", u, centre, 6, 4, 1.0, None, 0, door_side)
+
+
 @pytest.mark.parametrize(
     "width,blur", [(1.5, 0.8), (2.5, 0.8), (2.5, 1.6), (4.0, 1.6), (12.0, 0.8), (12.0, 1.6)]
 )
@@ -190,7 +196,7 @@ def test_far_face_fit_finds_the_arris_beside_a_band_of_any_brightness(width, blu
     img = _far_face_image(e1, width, 120.0, band, 50.0, blur)
     centre = e1 + miss  # a prediction off by up to 2 px; the band width predicted there follows the geometry
     s, fit = subpixel_edges_far_face(
-        ScanWindow.across(img, "col", u, centre, 6, door_side=-1),
+        _far_window(img, u, centre, -1),
         FarBand(width + slope * (centre - e1), slope),
         blur_px=blur,
     )
@@ -213,7 +219,7 @@ def test_a_band_like_the_background_or_the_hinge_face_names_its_other_reading(ba
     slope = -0.72
     img = _far_face_image(e1, 3.0, 120.0, band, 50.0, 0.8)
     s, fit = subpixel_edges_far_face(
-        ScanWindow.across(img, "col", u, e1, 6, door_side=-1),
+        _far_window(img, u, e1, -1),
         FarBand(np.full(u.size, 3.0), slope),
         blur_px=0.8,
     )
@@ -241,7 +247,7 @@ def test_far_face_fit_beside_a_band_narrower_than_the_blur_stays_within_a_pixel_
     e1 = 30.0 + 0.013 * u
     img = _far_face_image(e1, width, 120.0, band, 50.0, blur)
     s, _ = subpixel_edges_far_face(
-        ScanWindow.across(img, "col", u, e1 + 0.6, 6, door_side=-1),
+        _far_window(img, u, e1 + 0.6, -1),
         FarBand(width - 0.72 * 0.6, -0.72),
         blur_px=blur,
     )
@@ -260,7 +266,7 @@ def test_the_far_face_doubt_covers_a_blur_off_by_its_doubt_beside_a_narrow_band(
     e1 = 30.0 + 0.013 * u
     img = _far_face_image(e1, width, 120.0, band, 50.0, blur)
     s, fit = subpixel_edges_far_face(
-        ScanWindow.across(img, "col", u, e1, 6, door_side=-1),
+        _far_window(img, u, e1, -1),
         FarBand(np.full(u.size, width), -0.72),
         blur_px=blur + blur_off,
     )
@@ -274,7 +280,7 @@ def test_far_face_fit_without_a_band_is_a_plain_step_and_step_blur_measures_the_
     e1 = 30.0 + 0.013 * u
     img = _far_face_image(e1, 0.0, 120.0, 120.0, 50.0, 1.2)
     s, fit = subpixel_edges_far_face(
-        ScanWindow.across(img, "col", u, e1 + 0.7, 6, door_side=-1),
+        _far_window(img, u, e1 + 0.7, -1),
         FarBand(np.full(u.size, -1.5), -0.72),
         blur_px=1.2,
     )
@@ -283,7 +289,7 @@ def test_far_face_fit_without_a_band_is_a_plain_step_and_step_blur_measures_the_
     assert step_blur(img, plain, np.arange(u.size) % 10 > 0, 6) == pytest.approx(1.2, abs=0.03)
     # mirrored: the hinge face below, the background above
     s2, _ = subpixel_edges_far_face(
-        ScanWindow.across(img[::-1], "col", u, 79 - e1 + 0.5, 6, door_side=+1),
+        _far_window(img[::-1], u, 79 - e1 + 0.5, +1),
         FarBand(np.full(u.size, -0.5), -0.72),
         blur_px=1.2,
     )
@@ -308,7 +314,7 @@ def test_far_face_start_ranked_on_a_subset_of_scan_lines_gives_the_exhaustive_se
     img = img * (1.0 + 0.08 * np.sin(u / rng.uniform(3.0, 9.0)))[None, :] + rng.normal(0.0, 8.0, img.shape)
     miss = rng.uniform(-5.0, 5.0)
     args = (
-        ScanWindow.across(img, "col", u, e1 + miss, 6, door_side=-1),
+        _far_window(img, u, e1 + miss, -1),
         FarBand(np.full(u.size, 3.0), -0.72),
     )
     every = []  # the scan-line strides the start search costed its shifts on

@@ -100,26 +100,6 @@ class ScanWindow:
     level_smooth: int
     door_side: int
 
-    @classmethod
-    def across(
-        cls,
-        plane: np.ndarray,
-        axis: Axis,
-        scan: np.ndarray,
-        centre: np.ndarray,
-        half: int,
-        *,
-        plateau: int = 4,
-        scale_to_8bit: float = 1.0,
-        lut: np.ndarray | None = None,
-        level_smooth: int = 0,
-        door_side: int = 1,
-    ) -> ScanWindow:
-        """A window across one edge with the usual defaults: 4-px plateaus, grey levels already 0-255, no
-        linearising table, no level smoothing, the door towards increasing ``along``."""
-        # why many parameters: the window's own fields, the last five keywords with the estimators' defaults
-        return cls(plane, axis, scan, centre, half, plateau, scale_to_8bit, lut, level_smooth, door_side)
-
     @property
     def lines(self) -> tuple[np.ndarray, Axis, np.ndarray, np.ndarray, int]:
         """``(plane, axis, scan, centre, half)``: the arguments every estimator takes first."""

@@ -684,7 +684,7 @@ def step_blur(
     idx = idx[:: max(idx.size // max_lines, 1)]
     sub = samples.subset(np.isin(np.arange(samples.scan.size), idx))
     _, fit = subpixel_edges_far_face(
-        ScanWindow.across(plane, sub.axis, sub.scan, sub.along, half, plateau=plateau, lut=lut, door_side=-1),
+        ScanWindow(plane, sub.axis, sub.scan, sub.along, half, plateau, 1.0, lut, 0, -1),
         FarBand(np.full(sub.scan.size, -1.0), 0.0),
         blur_px=blur_px,
         fit_blur=True,
