@@ -15,20 +15,7 @@ import argparse
 from pathlib import Path
 
 import httpx
-from service_harness import doorloc_serve, rendered_pngs
-
-
-def _tree(pid: int) -> list[int]:
-    out, todo = [], [pid]
-    while todo:
-        p = todo.pop()
-        out.append(p)
-        for task in Path(f"/proc/{p}/task").glob("*"):
-            try:
-                todo += [int(x) for x in (task / "children").read_text().split()]
-            except OSError:
-                pass
-    return out
+from service_harness import doorloc_serve, process_tree, rendered_pngs
 
 
 def _rss_pss_mb(pid: int) -> tuple[float, float]:
@@ -75,7 +62,7 @@ def main() -> None:
                 png = pngs[i % len(pngs)][0]
                 r = c.post("/v1/locate", files={"image": (f"d{i}.png", png, "image/png")})
                 assert r.status_code == 200 and r.json()["ok"], r.text
-        rows = [(p, _describe(p), *_rss_pss_mb(p)) for p in _tree(pid)]
+        rows = [(p, _describe(p), *_rss_pss_mb(p)) for p in process_tree(pid)]
     print(
         f"`doorloc serve --workers {args.workers}`, {args.slots} CPU slot(s) each, after {args.locates} locates\n"
     )

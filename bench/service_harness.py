@@ -41,41 +41,37 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
-def _children(pid: int) -> list[int]:
-    kids = []
-    for task in Path(f"/proc/{pid}/task").glob("*"):
-        try:
-            kids += [int(x) for x in (task / "children").read_text().split()]
-        except OSError:
-            pass
-    return kids
+def process_tree(pid: int) -> list[int]:
+    """A process and all its live descendants (pids, the process first), from Linux's /proc."""
+    out, todo = [], [pid]
+    while todo:
+        p = todo.pop()
+        out.append(p)
+        for task in Path(f"/proc/{p}/task").glob("*"):
+            try:
+                todo += [int(x) for x in (task / "children").read_text().split()]
+            except OSError:
+                pass
+    return out
 
 
 def affinity_of_tree(pid: int) -> dict[int, list[int]]:
     """The CPUs each process of a process tree may run on (pid -> sorted CPU numbers), from Linux."""
-    out, todo = {}, [pid]
-    while todo:
-        p = todo.pop()
-        try:
+    out = {}
+    for p in process_tree(pid):
+        with contextlib.suppress(OSError):
             out[p] = sorted(os.sched_getaffinity(p))
-        except OSError:
-            continue
-        todo += _children(p)
     return out
 
 
 def rss_mb(pid: int) -> float:
     """Resident memory of a process and all its descendants, MB (from /proc)."""
-    total_kb, todo = 0, [pid]
-    while todo:
-        p = todo.pop()
-        try:
+    total_kb = 0
+    for p in process_tree(pid):
+        with contextlib.suppress(OSError):
             for line in Path(f"/proc/{p}/status").read_text().splitlines():
                 if line.startswith("VmRSS:"):
                     total_kb += int(line.split()[1])
-        except OSError:
-            continue
-        todo += _children(p)
     return total_kb / 1024
 
 
@@ -86,16 +82,14 @@ def cpu_seconds(pid: int) -> float:
     else the machine did meanwhile (the load clients run on the same machine).
     """
     tick = os.sysconf("SC_CLK_TCK")
-    total, todo = 0, [pid]
-    while todo:
-        p = todo.pop()
+    total = 0
+    for p in process_tree(pid):
         try:
             # the fields after the command name, which is in parentheses and may itself hold spaces
             fields = Path(f"/proc/{p}/stat").read_text().rsplit(")", 1)[1].split()
         except OSError:
             continue
         total += int(fields[11]) + int(fields[12])  # utime, stime (fields 14 and 15 of stat)
-        todo += _children(p)
     return total / tick
 
 

@@ -47,6 +47,15 @@ def dev_settings(**settings) -> ServiceSettings:
     )
 
 
+def post_locate(client, image: bytes, name: str, query: str = "", **form: str) -> dict:
+    """POST ``image`` (named ``name``; its type from the suffix) to ``/v1/locate{query}`` with the form fields,
+    assert HTTP 200 and return the answer."""
+    mime = "image/jpeg" if name.endswith((".jpg", ".jpeg")) else "image/png"
+    r = client.post(f"/v1/locate{query}", files={"image": (name, image, mime)}, data=form)
+    assert r.status_code == 200, r.text
+    return r.json()
+
+
 def png_bytes(image: np.ndarray) -> bytes:
     ok, buf = cv2.imencode(".png", image)
     assert ok

@@ -11,7 +11,7 @@ from doorloc.pose import DoorPose
 from doorloc.sim.door import render_door
 from doorloc.sim.hostile import progressive_jpeg_bomb
 
-from .conftest import app_clients, png_bytes
+from .conftest import app_clients, png_bytes, post_locate
 
 #: what differs between two locates of the same image: the time they took
 TIMINGS = {"elapsed_ms"}
@@ -98,13 +98,7 @@ def test_one_job_answers_as_the_threads_do(real_client, cell, recipe, seed):
     # a progressive JPEG: decoded in a decoding-only process, then located by the worker, as in the threads
     answers = []
     for c in (workers, threads):
-        r = c.post(
-            "/v1/locate?overlay=true",
-            files={"image": ("d.jpg", progressive, "image/jpeg")},
-            data={"door_id": "D-100"},
-        )
-        assert r.status_code == 200, r.text
-        answers.append(r.json())
+        answers.append(post_locate(c, progressive, "d.jpg", "?overlay=true", door_id="D-100"))
     assert _without_timings(answers[0]) == _without_timings(answers[1])
     _same_overlay(answers[0]["overlay_png"], answers[1]["overlay_png"])
     assert answers[0]["ok"] and len(state.decoders._workers) == 1

@@ -27,7 +27,7 @@ import pytest
 import yaml
 from fastapi.testclient import TestClient
 
-from .conftest import dev_settings
+from .conftest import dev_settings, post_locate
 
 REPO = Path(__file__).resolve().parents[2]
 DOC = REPO / "docs" / "result.md"
@@ -177,20 +177,10 @@ def http_answers(tmp_path, store) -> list[dict]:
     for cell_path in (REPO / "fixtures" / "cell_thesis.yaml", _thesis_cell_with_robot_base(tmp_path, 3000.0)):
         app = create_app(dev_settings(), cell=load_cell(cell_path), store=store)
         with TestClient(app) as client:
-            r = client.post(
-                "/v1/locate?overlay=true&rapid=true",
-                files={"image": ("img_0031.png", png, "image/png")},
-                data={"door_id": "D-100"},
+            answers.append(
+                post_locate(client, png, "img_0031.png", "?overlay=true&rapid=true", door_id="D-100")
             )
-            assert r.status_code == 200, r.text
-            answers.append(r.json())
-            r = client.post(
-                "/v1/locate",
-                files={"image": ("img.png", png, "image/png")},
-                data={"width_mm": "900", "thickness_mm": "50"},
-            )
-            assert r.status_code == 200, r.text
-            answers.append(r.json())
+            answers.append(post_locate(client, png, "img.png", width_mm="900", thickness_mm="50"))
     assert answers[0]["ok"] and answers[0]["reach"]["feasible"] and answers[0]["targets"]
     assert not answers[2]["ok"] and answers[2]["measured_pose"], "the moved robot should refuse the door"
     return answers
