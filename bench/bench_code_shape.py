@@ -30,4 +30,3 @@ print(f"longest command or route body (statements, limit {rules.MAX_COMMAND_LINE
 print(f"longest function in app/ (def to end, limit {rules.MAX_FUNCTION_LINES}):", *sorted(whole)[-3:])
 graph = rules.import_graph(REPO / "src")
 print("import circle, any:", rules.import_circle(graph))
-print("import circle outside vision/'s own:", rules.import_circle(graph, rules.CIRCLES_ALLOWED_INSIDE))
