@@ -30,9 +30,8 @@ HIDDEN = {
     "response_gamma": lambda r: {"gamma": r.uniform(1.8, 2.4)},
     "response_shoulder": lambda r: {"shoulder": r.uniform(0.6, 0.75)},
     "print_spread": lambda r: {"print_spread_mm": r.choice([-1, 1]) * r.uniform(0.15, 0.25)},
-    # exposures run 0.55-1.05 of full scale: the brighter photographs' light squares pass the clip. Missed
-    # today at seed 4245 (clip 0.718, one photograph of six clipped, its censored fit overcorrected to
-    # +0.23 px), which bench_boards_model counts
+    # exposures run 0.55-1.05 of full scale: the brighter photographs' light squares pass the clip (seed
+    # 4245: clip 0.718, one photograph of six clipped, named)
     "sensor_clipping": lambda r: {"clip_level": r.uniform(0.6, 0.72)},
 }
 

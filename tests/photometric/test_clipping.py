@@ -1,5 +1,6 @@
 """The sensor's clip level: the renderer stores light beyond it at that level, the model file validates it,
-and an edge whose bright square is clipped is the one the censored fit re-places."""
+and an edge whose bright square is clipped is the one the censored fit re-places: unclipped edges stay
+where they are, clipped ones come back to the board's lines (random blur, clip and exposure; seeds printed)."""
 
 from __future__ import annotations
 
@@ -8,9 +9,16 @@ import pytest
 
 from doorloc.calib.camera import CameraModel
 from doorloc.photometric.board_edges import measure_board_edges
-from doorloc.photometric.clipping import clipped_lines
+from doorloc.photometric.clipping import (
+    censored_blur_px,
+    censored_offsets_px,
+    clipped_lines,
+    flat_topped_edges,
+    unclipped_contrast,
+)
+from doorloc.photometric.fit import Photograph, place_edges
 from doorloc.photometric.model import PhotometricModel
-from doorloc.sim.boards import Checkerboard
+from doorloc.sim.boards import BOARD_BLACK, BOARD_WHITE, Checkerboard
 from doorloc.sim.photometric import CameraRendering, render_photographed_board
 
 CAMERA = CameraModel.from_values(
@@ -56,3 +64,68 @@ def test_model_file_validates_the_clip_level():
         PhotometricModel.from_dict({"clip_level": 1.2})
     g = PhotometricModel(clip_level=0.6).grey_from_light(np.array([0.3, 0.6, 0.9]))
     assert np.allclose(g, [0.3, 0.6, 0.6], atol=1e-3)
+
+
+def _random_board(seed: int, clip: float, exposure: float, blur: float):
+    rng = np.random.default_rng(seed)
+    rvec = np.array([rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), rng.uniform(-0.2, 0.2)])
+    tvec = np.array([-100.0, -62.5, 0.0]) + np.array(
+        [rng.uniform(-20, 20), rng.uniform(-20, 20), rng.uniform(400, 520)]
+    )
+    rb = render_photographed_board(
+        CAMERA,
+        Checkerboard(9, 6, 25.0),
+        rvec,
+        tvec,
+        PhotometricModel(clip_level=clip),
+        CameraRendering(blur, exposure, float(rng.uniform(0.5, 1.5))),
+        seed=seed,
+    )
+    return rb.image, measure_board_edges(rb.image, rb.corners_px, 9, 6, 25.0, CAMERA)
+
+
+@pytest.mark.parametrize("seed", [501, 502, 503])
+def test_censored_fit_leaves_unclipped_edges_where_they_are(seed):
+    rng = np.random.default_rng(seed)
+    blur, exposure = float(rng.uniform(0.6, 1.4)), float(rng.uniform(0.55, 1.0))
+    print(f"seed {seed}: blur {blur:.2f} px, exposure {exposure:.2f}")
+    image, e = _random_board(seed, 1.0, exposure, blur)
+    # no edge of an unclipped board is flat-topped (its plateaus carry the noise): a clip level among its
+    # plateaus leaves every edge where the area estimator puts it
+    assert not flat_topped_edges(e).any()
+    photo = Photograph(image, e)
+    high = float(np.nanpercentile(e.bright, 90) / 255.0)
+    assert np.array_equal(
+        place_edges(photo, PhotometricModel(clip_level=high)),
+        place_edges(photo, PhotometricModel()),
+        equal_nan=True,
+    )
+    # every line read as if clipped at its own plateau moves by little: the step from the board's contrast is
+    # the plateau's up to the contrast's scatter over the edges (the larger of it and the plateau's step is
+    # taken, so half the edges err towards the bright side by that scatter)
+    lines = np.flatnonzero(np.isfinite(e.offset_px))
+    contrast = unclipped_contrast(e, PhotometricModel(), np.zeros(e.n_edges, bool))
+    assert abs(contrast - BOARD_WHITE / BOARD_BLACK) < 0.05 * BOARD_WHITE / BOARD_BLACK
+    o = censored_offsets_px(e, lines, blur, contrast, PhotometricModel())
+    assert abs(np.nanmedian(o) - np.nanmedian(e.offset_px[lines])) < 0.02
+
+
+@pytest.mark.parametrize("seed", [601, 602, 603, 604])
+def test_censored_fit_places_clipped_edges_with_the_blur_it_reads(seed):
+    # the board's contrast from the camera's other photographs (here: the renderer's reflectances), the
+    # blur read from the clipped lines themselves: the edges come back to the board's lines
+    rng = np.random.default_rng(seed)
+    blur, clip = float(rng.uniform(0.6, 1.4)), float(rng.uniform(0.6, 0.75))
+    exposure = float(rng.uniform(clip / BOARD_WHITE + 0.05, 1.05))
+    print(f"seed {seed}: blur {blur:.2f} px, clip {clip:.3f}, exposure {exposure:.2f}")
+    _, e = _random_board(seed, clip, exposure, blur)
+    model = PhotometricModel(clip_level=clip)
+    lines = np.flatnonzero(clipped_lines(e, clip) & np.isfinite(e.offset_px))
+    assert lines.size > 0.8 * np.isfinite(e.offset_px).sum()
+    plain = np.nanmedian(e.offset_px[lines])
+    assert plain < -0.1
+    contrast = BOARD_WHITE / BOARD_BLACK
+    read = censored_blur_px(e, lines, contrast, model)
+    assert abs(read - blur) < 0.05
+    o = censored_offsets_px(e, lines, read, contrast, model)
+    assert abs(np.nanmedian(o)) < 0.02, (plain, np.nanmedian(o))

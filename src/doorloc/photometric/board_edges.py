@@ -133,12 +133,15 @@ def per_edge_median(edge: np.ndarray, x: np.ndarray, n: int) -> np.ndarray:
     """Median of ``x`` over each edge's scan lines (``edge`` the edge of each, ``n`` edges; NaN where none)."""
     out = np.full(n, np.nan)
     ok = np.isfinite(x)
-    order = np.argsort(edge[ok], kind="stable")
-    e, v = edge[ok][order], x[ok][order]
-    bounds = np.searchsorted(e, np.arange(n + 1))
-    for i in range(n):
-        if bounds[i + 1] > bounds[i]:
-            out[i] = np.median(v[bounds[i] : bounds[i + 1]])
+    e, v = np.asarray(edge)[ok], np.asarray(x, float)[ok]
+    order = np.lexsort((v, e))  # by edge, then by value within each edge
+    v = v[order]
+    count = np.bincount(e, minlength=n)
+    start = np.concatenate([[0], np.cumsum(count)[:-1]])
+    has = count > 0
+    lo = start[has] + (count[has] - 1) // 2
+    hi = start[has] + count[has] // 2
+    out[has] = 0.5 * (v[lo] + v[hi])
     return out
 
 

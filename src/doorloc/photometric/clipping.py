@@ -1,26 +1,45 @@
-"""Edges whose bright square the camera clipped: placed from their unclipped samples.
+"""Edges whose bright square the camera clipped: placed from their unclipped samples, the clipped ones as
+lower bounds.
 
 A sensor (or its tone curve) that saturates stores every light beyond its clip level at that level, so an
 overexposed square's plateau is the clip and not its light. The area estimator takes the plateau for the
 square's level: the step it balances is too small on the bright side and it moves the edge towards the dark
 side, the more the further the true level lies beyond the clip. No table undoes that (the light beyond the
-clip is gone), so such an edge is placed by a censored fit instead: the scan line's samples below ``cut`` of
-the way from its dark plateau to its clipped one are fitted with the edge spread of the camera's blur,
+clip is gone), so such an edge is placed by a censored fit instead (a Tobit model in the limit of small
+noise): on each scan line, in linear light above the dark plateau,
 
-    light = dark + A E(d - x0),     A >= clipped plateau - dark,
+    light = A E(d - x0),
 
-``x0`` (px along the normal, + towards bright) the edge, ``A`` the true step (free, at least the clipped
-one). The blur is measured on the photograph's edges whose bright plateau stays below the cut's band under
-the clip (their profiles, :func:`doorloc.photometric.profiles.fit_profiles`); never on the offsets. A line counts as clipped where its
-bright plateau reaches the clip level (within a grey level's rounding).
+``E`` the edge spread of the camera's blur, ``x0`` (px along the normal, + towards bright) the edge. Samples
+below ``cut`` of the way from the dark plateau to the clipped one are fitted by least squares; the others
+(at the clip, or in the band just under it where demosaicking and compression spread the clip) are lower
+bounds on the light, which count only where the model falls below them.
 
-Written by hand: a censored step fit with a known spread is a few closed forms, vectorised over scan lines
-(``A`` solved per line for each ``x0``, ``x0`` by a grid refined by parabolas); no library offers it.
+The true step ``A`` is not left free: a step seen only below the clip trades its height against its
+position (a taller step further towards the bright side fits the same foot), and a height bounded below by
+the clipped plateau moves even unclipped edges towards the bright side. It is read instead from what the
+clip leaves: the board's light squares reflect a fixed multiple of its dark squares' light under the same
+illumination, so ``A = (ratio - 1) x dark``, with the dark plateau of the edge itself (never clipped) and
+the ratio of the light squares' to the dark squares' light measured on the photograph's edges whose bright
+plateau stays below the cut's band under the clip (:func:`unclipped_contrast`; where a photograph has too
+few, on the other photographs of the camera), at least the clipped step. The blur is measured on the same
+edges (their profiles, :func:`doorloc.photometric.profiles.fit_profiles`); where too few, on the clipped
+lines themselves, whose foot gives the blur once the step is known (:func:`censored_blur_px`). Neither is
+ever read from the offsets. A line counts as clipped where its bright plateau reaches the clip
+level (within a grey level's rounding) and its edge's bright plateau is flat (a clip stores one level; light
+below it carries the sensor's noise).
+
+Written by hand: a censored step fit with a known spread and height is a one-parameter search, vectorised
+over scan lines (a grid refined by parabolas; the blur by scipy's bounded scalar search around it); no
+library offers it.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
+from scipy.optimize import minimize_scalar
 
 from doorloc.photometric.board_edges import BoardEdges, per_edge_median
 from doorloc.photometric.model import PhotometricModel
@@ -29,13 +48,16 @@ from doorloc.photometric.profiles import edge_spread
 __all__ = [
     "CUT",
     "clipped_lines",
+    "flat_topped_edges",
     "near_clip_edges",
     "unclipped_blur_px",
+    "unclipped_contrast",
     "censored_offsets_px",
+    "censored_blur_px",
     "clip_candidates",
 ]
 
-#: samples above this fraction of the way from the dark plateau to the clipped one are left out of the fit
+#: samples above this fraction of the way from the dark plateau to the clipped one are lower bounds only
 #: (the last levels before a clip often bend: demosaicking and compression spread the clip over them)
 CUT = 0.85
 #: a plateau this many grey levels under the clip level still counts as clipped (8-bit rounding)
@@ -44,21 +66,41 @@ CLIP_TOLERANCE_GREY = 1.0
 _X0_GRID = np.linspace(-2.5, 2.5, 21)
 
 
+#: a scan line's bright plateau is flat where its mean lies this close (grey) to the window's brightest sample
+#: (on an 8-bit scale: every plateau sample at that level)
+FLAT_GREY = 0.25
+#: an edge is flat-topped where at least this fraction of its scan lines, and at least this many, are flat
+FLAT_FRACTION = 0.8
+FLAT_LINES = 5
+
+
+def flat_topped_edges(edges: BoardEdges) -> np.ndarray:
+    """Edges (E,) whose bright plateau is flat on nearly every scan line: every plateau sample at the window's
+    brightest level, as a clip stores it, where an unclipped plateau carries the sensor's noise."""
+    win = edges.windows
+    flat = np.isfinite(edges.bright) & (win.grey.max(1) - edges.bright <= FLAT_GREY)
+    n = np.bincount(win.edge, minlength=edges.n_edges)
+    k = np.bincount(win.edge, flat, minlength=edges.n_edges)
+    return (k >= FLAT_LINES) & (k >= FLAT_FRACTION * n)
+
+
 def clipped_lines(edges: BoardEdges, clip_level: float) -> np.ndarray:
-    """Scan lines (N,) whose bright plateau reaches ``clip_level`` (fraction of full scale)."""
-    return np.isfinite(edges.bright) & (edges.bright >= 255.0 * clip_level - CLIP_TOLERANCE_GREY)
+    """Scan lines (N,) of a flat-topped edge (:func:`flat_topped_edges`) whose bright plateau reaches
+    ``clip_level`` (fraction of full scale): a plateau that is high but noisy is light the sensor stored."""
+    high = np.isfinite(edges.bright) & (edges.bright >= 255.0 * clip_level - CLIP_TOLERANCE_GREY)
+    return high & flat_topped_edges(edges)[edges.windows.edge]
 
 
 def near_clip_edges(edges: BoardEdges, clip_level: float, cut: float = CUT) -> np.ndarray:
     """Edges (E,) whose median bright plateau lies above ``cut`` of the way from their dark plateau to
-    ``clip_level``: in the band where the levels before a clip bend, so their profile does not give the
-    camera's blur."""
+    ``clip_level``: in the band where the levels before a clip bend, so neither their profile nor their
+    levels give the camera's blur or the board's contrast."""
     b = per_edge_median(edges.windows.edge, edges.bright, edges.n_edges)
     d = per_edge_median(edges.windows.edge, edges.dark, edges.n_edges)
     return ~(np.isfinite(b) & np.isfinite(d)) | (b - d >= cut * (255.0 * clip_level - d))
 
 
-#: fewest edges not clipped the blur is read from; with fewer, it is read from the clipped edges' fits
+#: fewest edges not clipped the blur and contrast are read from; with fewer, they are read from the set's
 MIN_UNCLIPPED_EDGES = 5
 
 
@@ -70,60 +112,122 @@ def unclipped_blur_px(edge_blur_px: np.ndarray, clipped: np.ndarray) -> float:
     return float(np.median(b[ok])) if ok.sum() >= MIN_UNCLIPPED_EDGES else float("nan")
 
 
-def _sse_and_amp(
+def _reader(model: PhotometricModel) -> Callable[[np.ndarray], np.ndarray]:
+    return (lambda v: np.asarray(v, float)) if model.linear_response else model.light_from_grey
+
+
+def unclipped_contrast(edges: BoardEdges, model: PhotometricModel, clipped: np.ndarray) -> float:
+    """The board's contrast in the photograph: the median over the edges not ``clipped`` (E,) of their light
+    square's light over their dark square's (plateaus, linear light of ``model``'s response); NaN where fewer
+    than :data:`MIN_UNCLIPPED_EDGES` edges are not clipped and have a dark square above zero light."""
+    read = _reader(model)
+    b = read(per_edge_median(edges.windows.edge, edges.bright, edges.n_edges) / 255.0)
+    d = read(per_edge_median(edges.windows.edge, edges.dark, edges.n_edges) / 255.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = b / d
+    ok = ~clipped & np.isfinite(r) & (d > 0) & (r > 1)
+    return float(np.median(r[ok])) if ok.sum() >= MIN_UNCLIPPED_EDGES else float("nan")
+
+
+def _tobit_sse(
     d: np.ndarray,
     y: np.ndarray,
-    w: np.ndarray,
+    exact: np.ndarray,
     x0: np.ndarray,
     blur: float,
+    amp: np.ndarray,
     model: PhotometricModel,
-    floor: np.ndarray,
 ) -> np.ndarray:
-    E = edge_spread(d - x0[:, None], blur, model)
-    amp = np.maximum((w * y * E).sum(1) / np.maximum((w * E * E).sum(1), 1e-12), floor)
-    return (w * (y - amp[:, None] * E) ** 2).sum(1)
+    r = y - amp[:, None] * edge_spread(d - x0[:, None], blur, model)
+    # exact samples count both ways; lower bounds only where the model stays under them
+    return np.where(exact, r * r, np.maximum(r, 0.0) ** 2).sum(1)
 
 
-def _censored_fit(
-    edges: BoardEdges, lines: np.ndarray, blur_px: float, model: PhotometricModel, cut: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """Each line's edge (px) and the fit's squared misfit (light^2) by the censored fit (module docstring)."""
+def _censored_problem(
+    edges: BoardEdges, lines: np.ndarray, contrast: float, model: PhotometricModel, cut: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Each line's samples (distance px, light above its dark plateau), which are exact, and its step."""
     win = edges.windows
-    g = win.grey[lines] / 255.0
-    read = (lambda v: np.asarray(v, float)) if model.linear_response else model.light_from_grey
+    read = _reader(model)
     dark = read(edges.dark[lines] / 255.0)
     top = read(edges.bright[lines] / 255.0)
-    y = read(g) - dark[:, None]
+    edge_dark = read(per_edge_median(win.edge, edges.dark, edges.n_edges) / 255.0)[win.edge[lines]]
+    y = read(win.grey[lines] / 255.0) - dark[:, None]
     floor = top - dark
-    w = (y < cut * floor[:, None]).astype(float)
-    d = win.distance_px()[lines]
-    sse = np.stack(
-        [_sse_and_amp(d, y, w, np.full(lines.size, x), blur_px, model, floor) for x in _X0_GRID], 1
-    )
-    k = np.clip(np.argmin(sse, 1), 1, _X0_GRID.size - 2)
+    amp = np.maximum((contrast - 1.0) * edge_dark, floor) if np.isfinite(contrast) else floor
+    return win.distance_px()[lines], y, y < cut * floor[:, None], amp
+
+
+def _best_x0(
+    d: np.ndarray, y: np.ndarray, exact: np.ndarray, blur: float, amp: np.ndarray, model: PhotometricModel
+) -> tuple[np.ndarray, np.ndarray]:
+    """Each line's edge (px) with the least censored misfit, and that misfit (light^2)."""
+
+    def sse(x0: np.ndarray) -> np.ndarray:
+        return _tobit_sse(d, y, exact, x0, blur, amp, model)
+
+    grid = np.stack([sse(np.full(y.shape[0], x)) for x in _X0_GRID], 1)
+    k = np.clip(np.argmin(grid, 1), 1, _X0_GRID.size - 2)
     x0 = _X0_GRID[k]
     # two parabola steps: the grid's spacing, then a twentieth of it
     for h in (_X0_GRID[1] - _X0_GRID[0], 0.05 * (_X0_GRID[1] - _X0_GRID[0])):
-        s0, s1, s2 = (_sse_and_amp(d, y, w, x0 + t, blur_px, model, floor) for t in (-h, 0.0, h))
+        s0, s1, s2 = sse(x0 - h), sse(x0), sse(x0 + h)
         with np.errstate(divide="ignore", invalid="ignore"):
             step = 0.5 * (s0 - s2) / (s0 - 2 * s1 + s2)
         x0 = x0 + h * np.where(np.isfinite(step) & (s0 - 2 * s1 + s2 > 0), np.clip(step, -1.0, 1.0), 0.0)
-    enough = w.sum(1) >= 3
-    return np.where(enough, x0, np.nan), np.where(
-        enough, _sse_and_amp(d, y, w, x0, blur_px, model, floor), 0.0
+    return x0, sse(x0)
+
+
+#: the range a photograph's clipped edges' blur is searched in (Gaussian sigma of the optics, px), and the most
+#: scan lines it is read from (evenly spread over the photograph's clipped lines)
+CENSORED_BLUR_RANGE_PX = (0.3, 3.0)
+CENSORED_BLUR_LINES = 300
+
+
+def censored_blur_px(
+    edges: BoardEdges, lines: np.ndarray, contrast: float, model: PhotometricModel, cut: float = CUT
+) -> float:
+    """The camera's blur (Gaussian sigma of the optics, px) read from a photograph's clipped scan lines
+    ``lines`` with their true step known (the board's ``contrast``): the blur whose censored fits (module
+    docstring) leave the least misfit summed over the lines, each line's edge free. With the step fixed, the
+    foot's width gives the blur; with it free, a wider blur and a taller step fit the same foot. NaN without
+    a contrast or with fewer than ten lines of three samples below the cut."""
+    lines = np.asarray(lines, int)
+    if not np.isfinite(contrast) or lines.size < 10:
+        return float("nan")
+    pick = lines[np.unique(np.linspace(0, lines.size - 1, min(lines.size, CENSORED_BLUR_LINES)).astype(int))]
+    d, y, exact, amp = _censored_problem(edges, pick, contrast, model, cut)
+    ok = exact.sum(1) >= 3
+    if ok.sum() < 10:
+        return float("nan")
+    d, y, exact, amp = d[ok], y[ok], exact[ok], amp[ok]
+    res = minimize_scalar(
+        lambda b: float(_best_x0(d, y, exact, float(b), amp, model)[1].sum()),
+        bounds=CENSORED_BLUR_RANGE_PX,
+        method="bounded",
+        options={"xatol": 0.003},
     )
+    return float(res.x)
 
 
 def censored_offsets_px(
-    edges: BoardEdges, lines: np.ndarray, blur_px: float, model: PhotometricModel, cut: float = CUT
+    edges: BoardEdges,
+    lines: np.ndarray,
+    blur_px: float,
+    contrast: float,
+    model: PhotometricModel,
+    cut: float = CUT,
 ) -> np.ndarray:
     """Offset (px, + towards bright) of each scan line in ``lines`` (indices) by the censored fit (module
-    docstring), in the linear light of ``model``'s response; NaN where fewer than three samples are below the
-    cut."""
+    docstring) with the camera's blur ``blur_px`` and the board's ``contrast`` (light over dark square; NaN:
+    the clipped step), in the linear light of ``model``'s response; NaN where fewer than three samples are
+    below the cut."""
     lines = np.asarray(lines, int)
     if lines.size == 0:
         return np.zeros(0)
-    return _censored_fit(edges, lines, blur_px, model, cut)[0]
+    d, y, exact, amp = _censored_problem(edges, lines, contrast, model, cut)
+    x0 = _best_x0(d, y, exact, blur_px, amp, model)[0]
+    return np.where(exact.sum(1) >= 3, x0, np.nan)
 
 
 def clip_candidates(brights: np.ndarray) -> np.ndarray:

@@ -26,11 +26,13 @@ from scipy.optimize import least_squares
 from doorloc.photometric.board_edges import BoardEdges, EdgeSettings
 from doorloc.photometric.catalogue import EDGE_CAUSES, KEEP_SIGMAS, Cause, keep_sigmas
 from doorloc.photometric.clipping import (
+    censored_blur_px,
     censored_offsets_px,
     clip_candidates,
     clipped_lines,
     near_clip_edges,
     unclipped_blur_px,
+    unclipped_contrast,
 )
 from doorloc.photometric.model import PLAIN, PhotometricModel
 from doorloc.photometric.profiles import fit_profiles
@@ -80,18 +82,57 @@ class Photograph:
 
     def camera_blur_px(self, model: PhotometricModel) -> float:
         """The blur (px) the clipped edges are read with: the photograph's own unclipped edges', else the
-        model's ``clipped_blur_px``, else all its edges'.
+        one its clipped edges' censored fits read with their true step known
+        (:func:`~doorloc.photometric.clipping.censored_blur_px`), else the model's ``clipped_blur_px``, else
+        all its edges'.
 
         A clipped edge's own profile reads too sharp (its top flattens early: 0.68-0.79 px against 0.9-0.96
-        on OpenCV's photographs), and the clipped edges' censored fits trade a wider blur against a larger
-        true step (1.0-1.3 px): neither is used."""
+        on OpenCV's photographs), and a censored fit with the step free trades a wider blur against a taller
+        step (1.0-1.3 px): neither is used."""
         blur = self.unclipped_blur_px(model.clip_level)
         if np.isfinite(blur):
             return blur
+        contrast = self.camera_contrast(model)
+        if np.isfinite(contrast):
+            key = (
+                model.gamma,
+                model.black_level,
+                model.shoulder,
+                model.curvature,
+                model.clip_level,
+                contrast,
+            )
+            if key not in self._censored_blur:
+                lines = np.flatnonzero(
+                    clipped_lines(self.edges, model.clip_level) & np.isfinite(self.edges.offset_px)
+                )
+                self._censored_blur[key] = censored_blur_px(self.edges, lines, contrast, model)
+            blur = self._censored_blur[key]
+            if np.isfinite(blur):
+                return blur
         if model.clipped_blur_px > 0:
             return model.clipped_blur_px
         b = self.edge_blur_px
         return float(np.nanmedian(b)) if np.isfinite(b).any() else 1.0
+
+    @cached_property
+    def _censored_blur(self) -> dict[tuple[float, ...], float]:
+        # the clipped edges' blur under each response, clip and contrast asked for (a fit's many calls
+        # ask for the same few)
+        return {}
+
+    def unclipped_contrast(self, model: PhotometricModel) -> float:
+        """The board's contrast (light square's light over dark square's, in ``model``'s linear light) on the
+        edges whose bright plateau stays below the band under ``model``'s clip; NaN where too few do."""
+        return unclipped_contrast(self.edges, model, near_clip_edges(self.edges, model.clip_level))
+
+    def camera_contrast(self, model: PhotometricModel) -> float:
+        """The contrast the clipped edges' true steps are read with: the photograph's own unclipped edges',
+        else the model's ``clipped_contrast``, else NaN (the step is then the clipped one: no correction)."""
+        c = self.unclipped_contrast(model)
+        if np.isfinite(c):
+            return c
+        return model.clipped_contrast if model.clipped_contrast > 1 else float("nan")
 
 
 def place_edges(photo: Photograph, model: PhotometricModel) -> np.ndarray:
@@ -115,7 +156,9 @@ def place_edges(photo: Photograph, model: PhotometricModel) -> np.ndarray:
         )
     if model.clips:
         lines = np.flatnonzero(clipped_lines(photo.edges, model.clip_level) & np.isfinite(out))
-        out[lines] = censored_offsets_px(photo.edges, lines, photo.camera_blur_px(model), model)
+        out[lines] = censored_offsets_px(
+            photo.edges, lines, photo.camera_blur_px(model), photo.camera_contrast(model), model
+        )
     n = photo.edges.normal[w.edge]  # each edge's normal towards its bright side (image px)
     asym = model.edge_shift_u_px * n[:, 0] + model.edge_shift_v_px * n[:, 1]
     return out - model.print_spread_mm * photo.edges.px_per_mm[w.edge] - asym
@@ -201,6 +244,23 @@ def set_blur_px(photos: Sequence[Photograph], clip_level: float) -> float:
     return float(np.median(b[np.isfinite(b)])) if np.isfinite(b).any() else 0.0
 
 
+def set_contrast(photos: Sequence[Photograph], model: PhotometricModel) -> float:
+    """The median over ``photos`` of each one's board contrast on the edges ``model``'s clip leaves
+    unclipped (0 where none has enough)."""
+    c = np.array([p.unclipped_contrast(model) for p in photos])
+    return float(np.median(c[np.isfinite(c)])) if np.isfinite(c).any() else 0.0
+
+
+def with_clip_references(photos: Sequence[Photograph], model: PhotometricModel) -> PhotometricModel:
+    """``model`` with the blur and contrast a photograph with too few unclipped edges reads its clipped
+    edges with (``clipped_blur_px``, ``clipped_contrast``), measured on ``photos``; unchanged without a clip."""
+    if not model.clips:
+        return model
+    return model.with_values(
+        clipped_blur_px=set_blur_px(photos, model.clip_level), clipped_contrast=set_contrast(photos, model)
+    )
+
+
 def fit_causes(
     photos: Sequence[Photograph], causes: Sequence[Cause], base: PhotometricModel = PLAIN
 ) -> CauseFit:
@@ -208,8 +268,9 @@ def fit_causes(
 
     A clip level is not a smooth parameter (a scan line is clipped or not): it is chosen among the levels
     where the photographs' bright plateaus lie (:func:`~doorloc.photometric.clipping.clip_candidates`) by the
-    same robust cost, alone, with the blur of these photographs' unclipped edges for those with none
-    (``clipped_blur_px``); the other parameters are then fitted at that level.
+    same robust cost, alone (the highest of equal cost), with the blur and board contrast of these photographs' unclipped edges for those
+    with none (``clipped_blur_px``, ``clipped_contrast``: :func:`with_clip_references`, measured again
+    through every response tried); the other parameters are then fitted at that level.
     """
     names, x0, lo, hi = _free(causes)
     if not names:
@@ -239,20 +300,24 @@ def fit_causes(
     if clip_free:
         i = names.index("clip_level")
         levels = clip_candidates(np.concatenate([p.edges.bright for p in photos]))
-        trial = [
-            base.with_values(clip_level=float(c), clipped_blur_px=set_blur_px(photos, c)) for c in levels
-        ]
-        costs = [robust_cost(residuals_of(m)) for m in trial]
-        base = trial[int(np.argmin(costs))]
-        cost_clip = float(min(costs))
+        trial = [with_clip_references(photos, base.with_values(clip_level=float(c))) for c in levels]
+        costs = np.array([robust_cost(residuals_of(m)) for m in trial])
+        # levels that flag the same lines cost the same: the highest of them, the least the data ask for
+        # (where no photograph here is clipped, a clip above all their plateaus)
+        tied = np.flatnonzero(costs <= costs.min() * (1.0 + 1e-9) + 1e-15)
+        base = trial[int(tied[-1])]
+        cost_clip = float(costs.min())
         del names[i], x0[i], lo[i], hi[i]
         if not names:
             return CauseFit(
                 tuple(c.name for c in causes), ("clip_level",), (base.clip_level,), base, cost_clip
             )
 
+    def model_at(x: np.ndarray) -> PhotometricModel:
+        return with_clip_references(photos, base.with_values(**dict(zip(names, map(float, x), strict=True))))
+
     def residuals(x: np.ndarray) -> np.ndarray:
-        return residuals_of(base.with_values(**dict(zip(names, map(float, x), strict=True))))
+        return residuals_of(model_at(x))
 
     # two starts: the cause's own and the base model's values (a curve that bends the other way from the
     # cause's start is found from the plain model); the lower cost wins
@@ -274,7 +339,7 @@ def fit_causes(
         ),
         key=lambda r: float(r.cost),
     )
-    model = base.with_values(**dict(zip(names, map(float, res.x), strict=True)))
+    model = model_at(res.x)
     if clip_free:
         names, values = ["clip_level", *names], [base.clip_level, *map(float, res.x)]
     else:

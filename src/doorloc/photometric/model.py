@@ -20,6 +20,9 @@ even blur, a perfect print):
 - ``clipped_blur_px``: the optics' blur (Gaussian sigma, px) such an edge is read with in a photograph whose
   squares are nearly all clipped (it has no edges of its own to measure the blur on): measured on the
   unclipped edges of the photographs the clip level was fitted on; 0 = the photograph's own edges';
+- ``clipped_contrast``: the board's light squares' light over its dark squares' (linear light) such an edge's
+  true step is read with in such a photograph: measured on the unclipped edges of the photographs the clip
+  level was fitted on; 0 = the photograph's own edges';
 - ``print_spread_mm``: the printed dark squares are larger than the board's geometry by this much on each
   side (toner or ink spread; negative: the light squares are larger), board millimetres;
 - ``edge_shift_u_px``, ``edge_shift_v_px``: a point spread that is not point-symmetric (a one-sided smear
@@ -57,6 +60,7 @@ PARAMETER_UNITS = {
     "curvature": "1/ln^2",
     "clip_level": "fraction of full scale",
     "clipped_blur_px": "px",
+    "clipped_contrast": "ratio of light",
     "print_spread_mm": "mm on the board",
     "edge_shift_u_px": "px",
     "edge_shift_v_px": "px",
@@ -77,6 +81,7 @@ class PhotometricModel:
     curvature: float = 0.0
     clip_level: float = 1.0
     clipped_blur_px: float = 0.0
+    clipped_contrast: float = 0.0
     print_spread_mm: float = 0.0
     edge_shift_u_px: float = 0.0
     edge_shift_v_px: float = 0.0
@@ -100,6 +105,10 @@ class PhotometricModel:
             raise ValueError(f"photometric model: clip_level {self.clip_level} outside 0.2..1")
         if not 0.0 <= self.clipped_blur_px <= 10.0:
             raise ValueError(f"photometric model: clipped_blur_px {self.clipped_blur_px} outside 0..10")
+        if not (self.clipped_contrast == 0.0 or 1.0 < self.clipped_contrast <= 1e4):
+            raise ValueError(
+                f"photometric model: clipped_contrast {self.clipped_contrast} is 0 (unset) or a ratio in 1..1e4"
+            )
         if not 0.0 <= self.psf_tail < 1.0:
             raise ValueError("photometric model: psf_tail is a fraction in [0, 1)")
         if not self.psf_tail_px > 0:
