@@ -21,8 +21,8 @@ _spec.loader.exec_module(bench)
 
 CELL = load_cell(ROOT / "fixtures" / "cell_thesis.yaml")
 REFUSAL = (
-    "locate answered on only 0 of 40 images with this cell (first refusal: overexposed: the hinge face is "
-    "overexposed); the cell is too far from the images for a model check"
+    "locate answered on only 0 of 40 images with this cell (refused: overexposed 40; overexposed: the hinge "
+    "face is overexposed): 40 of 40 images cannot be measured as taken, whatever the cell; retake the data set"
 )
 
 
