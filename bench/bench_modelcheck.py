@@ -7,7 +7,8 @@ Cases, each from its own seed (printed; replay one with ``--only K``):
 
 - singles: every catalogue effect at the magnitudes of :data:`MAGNITUDES` (from about the smallest that
   moves the poses by 3 noise units to the largest realistic one; each drawn within +-20 % of its step,
-  random sign), ``--seeds`` data sets each; an arris is rounded or chamfered at random;
+  random sign), ``--seeds`` data sets each; an arris is rounded or chamfered at random (named right only
+  with its profile);
 - pairs: the catalogue shuffled into pairs so that every effect appears once, then random pairs, up to
   ``--pairs`` (an arris never with a camera response: one grey-level forward model at a time);
 - controls: no effect, under lighting nuisances (gradient, vignetting, directional light, albedo, blur,
@@ -180,10 +181,15 @@ def run_case(
         if beyond
         else {}
     )
+    # an arris is named right only with its profile: a rounded arris answered as a chamfer extends the cell
+    # with the wrong edge model
+    profile = rep.plausibility.get("arris", {}).get("variant")
+    profile_right = "arris" not in case["hidden"] or profile == case["profile"]
     return {
         "checkable": True,
         "named": rep.causes,
-        "right": sorted(rep.causes) == sorted(case["hidden"]),
+        "arris_profile": profile,
+        "right": sorted(rep.causes) == sorted(case["hidden"]) and profile_right,
         "gain": rep.heldout_gain,
         "verdict": rep.verdict["status"],
         "beyond_prior": beyond,
@@ -207,7 +213,8 @@ def case_line(case: dict) -> str:
         return f"{head}NOT CHECKABLE: {case['not_checkable']}"
     beyond = case["beyond_prior"]
     return (
-        f"{head}{case['named']} {'OK' if case['right'] else 'WRONG'}; gain {case['gain']:.1f}x; "
+        f"{head}{case['named']}{' ' + case['arris_profile'] if case.get('arris_profile') else ''} "
+        f"{'OK' if case['right'] else 'WRONG'}; gain {case['gain']:.1f}x; "
         f"{case['verdict']}"
         f"{'; beyond prior ' + json.dumps({c: round(v, 1) for c, v in beyond.items()}) if beyond else ''}"
         f"; check {case['check_s']:.0f} s"

@@ -72,3 +72,30 @@ def test_any_other_failure_of_the_check_still_stops_the_bench(tmp_path):
 
     with pytest.raises(KeyError):
         bench.run_case(_case(0, "control", {}), CELL, tmp_path, 40, render=_render, check=broken)
+
+
+def _arris_report(out: Path, variant: str):
+    """A stand-in report that names a 0.3 mm arris of ``variant`` and passes its verification."""
+    from types import SimpleNamespace
+
+    return SimpleNamespace(
+        causes=["arris"],
+        plausibility={"arris": {"sigmas_from_cell": 0.2, "variant": variant}},
+        heldout_gain=20.0,
+        verdict={"status": "extend"},
+        extended_cell="cell_extended.yaml",
+        heldout_refused_after=[],
+        heldout_rms_before={},
+        heldout_rms_after={},
+    )
+
+
+@pytest.mark.parametrize(("answered", "right"), [("round", True), ("chamfer", False)])
+def test_an_arris_is_named_right_only_with_its_profile(tmp_path, answered, right):
+    # a hidden rounded 0.32 mm arris answered as a 0.22 mm chamfer was counted right on its name alone
+    case = {**_case(0, "single", {"arris": [0.32]}), "profile": "round"}
+    out = bench.run_case(
+        case, CELL, tmp_path, 40, render=_render, check=lambda d, n, o: _arris_report(o, answered)
+    )
+    assert out["arris_profile"] == answered and out["right"] is right
+    assert f"['arris'] {answered} {'OK' if right else 'WRONG'}" in bench.case_line({**case, **out})
