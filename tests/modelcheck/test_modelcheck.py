@@ -19,7 +19,7 @@ from typer.testing import CliRunner
 from doorloc.app.cli import app
 from doorloc.cell import load_cell
 from doorloc.modelcheck import check_model
-from doorloc.modelcheck.dataset import read_dataset
+from doorloc.modelcheck.dataset import read_dataset, too_few_located
 from doorloc.modelcheck.forward import door_for
 from doorloc.modelcheck.synth import SetSpec, draw_hidden_effect, render_measured_set
 from doorloc.vision.imageio import read_image
@@ -179,6 +179,34 @@ def test_bad_data_sets_exit_2_with_a_sentence(tmp_path, thesis_cell_path, nomina
     r = runner.invoke(app, ["check-model", str(few), *args])
     assert r.exit_code == 2 and "lacks column" in r.output
     assert not (tmp_path / "rep" / "report.json").exists()
+
+
+def test_images_refused_for_their_exposure_ask_for_new_images_not_a_new_cell(
+    tmp_path, thesis_cell_path, nominal
+):
+    # a light that clips the hinge face on every image: locate refuses them all `overexposed` whatever the
+    # cell; the message once blamed the cell ("check the camera and extrinsics first")
+    from dataclasses import replace
+
+    from doorloc.modelcheck.synth import MEASURED_PHOTOMETRY
+
+    glare = replace(MEASURED_PHOTOMETRY, albedo_hinge=1.0, light_directional=0.4, light_azimuth_deg=0.0)
+    render_measured_set(tmp_path / "data", nominal, {}, SetSpec(n_images=15, seed=3, photometry=glare))
+    out = tmp_path / "rep"
+    r = CliRunner().invoke(
+        app, ["check-model", str(tmp_path / "data"), "--cell", str(thesis_cell_path), "--out", str(out)]
+    )
+    assert r.exit_code == 2, r.output
+    assert "overexposed 15" in r.output and "retake" in r.output, r.output
+    assert "extrinsics" not in r.output
+    assert not (out / "report.json").exists()
+
+
+def test_a_data_set_refused_on_its_geometry_points_at_the_cell():
+    refusals = ["edge_missing: no hinge-face edge", "overexposed: the hinge face clips", "edge_missing: none"]
+    msg = str(too_few_located(0, 3, refusals))
+    assert "refused: edge_missing 2, overexposed 1" in msg
+    assert "check the camera and extrinsics" in msg and "retake" not in msg
 
 
 def test_an_effect_outside_the_catalogue_is_unexplained(tmp_path_factory, nominal):

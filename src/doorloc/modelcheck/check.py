@@ -31,7 +31,7 @@ import numpy as np
 from doorloc import __version__
 from doorloc.cell import Cell, measured_response_factor, save_cell
 from doorloc.modelcheck.catalogue import CATALOGUE, Effect, arris_variants
-from doorloc.modelcheck.dataset import Dataset, DatasetError, MeasuredImage, read_dataset
+from doorloc.modelcheck.dataset import Dataset, DatasetError, MeasuredImage, read_dataset, too_few_located
 from doorloc.modelcheck.fit import (
     FittedModel,
     Predictor,
@@ -310,11 +310,7 @@ def check_model(
     refused = [{"image": o.item.image, "error": o.refusal} for o in obs_all if not o.ok]
     obs = [o for o in obs_all if o.ok]
     if len(obs) < 12:
-        raise DatasetError(
-            f"locate answered on only {len(obs)} of {len(ds)} images with this cell "
-            f"(first refusal: {refused[0]['error'] if refused else '-'}); the cell is too far from "
-            "the images for a model check: check the camera and extrinsics first"
-        )
+        raise too_few_located(len(obs), len(ds), [r["error"] for r in refused])
     errors = np.array([o.error for o in obs])
     sig_locate = np.nanmedian(np.array([o.sigma for o in obs]), axis=0)
     noise = np.sqrt(np.nan_to_num(sig_locate) ** 2 + np.asarray(options.reference_noise) ** 2)

@@ -11,17 +11,33 @@ from __future__ import annotations
 
 import csv
 import os
+from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 
 from doorloc.cell import Cell, DoorSize
 from doorloc.pose import DoorPose
 
-__all__ = ["DatasetError", "MeasuredImage", "Dataset", "read_dataset", "REQUIRED_COLUMNS", "MIN_IMAGES"]
+__all__ = [
+    "DatasetError",
+    "MeasuredImage",
+    "Dataset",
+    "read_dataset",
+    "too_few_located",
+    "REQUIRED_COLUMNS",
+    "MIN_IMAGES",
+    "IMAGE_REFUSALS",
+]
 
 REQUIRED_COLUMNS = ("image", "x_mm", "z_mm", "yaw_deg", "width_mm", "thickness_mm")
 #: Fewest images a model check accepts: a held-out third and a cross-validated training set need this many.
 MIN_IMAGES = 15
+
+
+#: locate's refusal codes that fault the image itself (exposure, contrast, format), whatever the cell
+IMAGE_REFUSALS = frozenset(
+    {"bad_image", "wrong_image_size", "black_image", "saturated_image", "low_contrast", "overexposed"}
+)
 
 
 class DatasetError(ValueError):
@@ -111,3 +127,30 @@ def read_dataset(folder: str | os.PathLike, cell: Cell, min_images: int = MIN_IM
             "(30-60 recommended, several door widths and thicknesses, poses over the envelope)"
         )
     return Dataset(root, tuple(items))
+
+
+def too_few_located(answered: int, total: int, refusals: list[str]) -> DatasetError:
+    """The error for a data set that locate answered on too few images with the given cell.
+
+    ``refusals``: each refused image's ``error_code: message``. The most frequent refusal decides the
+    advice: one that faults the images (:data:`IMAGE_REFUSALS`: lighting that clips the hinge face on
+    every image is refused ``overexposed`` whatever the cell) asks for new images; any other points at
+    the cell (camera, extrinsics), which the images then disagree with too far for a model check.
+    """
+    codes = Counter(r.split(":", 1)[0].strip() for r in refusals)
+    if not codes:
+        return DatasetError(f"locate answered on only {answered} of {total} images with this cell")
+    code, n = codes.most_common(1)[0]
+    example = next(r for r in refusals if r.split(":", 1)[0].strip() == code)
+    tally = ", ".join(f"{c} {k}" for c, k in codes.most_common())
+    head = (
+        f"locate answered on only {answered} of {total} images with this cell (refused: {tally}; {example})"
+    )
+    if code in IMAGE_REFUSALS:
+        return DatasetError(
+            f"{head}: {n} of {total} images cannot be measured as taken, whatever the cell; retake the "
+            "data set with the lighting or exposure fixed"
+        )
+    return DatasetError(
+        f"{head}: the cell is too far from the images for a model check; check the camera and extrinsics first"
+    )

@@ -76,7 +76,7 @@ class Observation:
     image : ndarray or None
         The grey levels (kept for relocation).
     ok : bool
-        Whether locate answered; ``refusal`` says why not.
+        Whether locate answered; ``refusal`` says why not (``error_code: message``).
     error : ndarray (4,)
         Measured minus reference pose (:data:`COMPONENTS`).
     sigma : ndarray (4,)
@@ -138,7 +138,7 @@ def observe(
                     it,
                     img if keep_images else None,
                     False,
-                    r.error or "",
+                    f"{r.error_code}: {r.error}" if not r.ok else "internal_error: no traced pose",
                     nan4,
                     nan4,
                     np.full(2, np.nan),
