@@ -100,8 +100,8 @@ def _sample(
     arris_fits: dict[str, tuple[StripFit, float]] | None = None,
 ) -> _Sampled:
     """One pass's edge points on its edges (``this_pass.lines``) at ``pose``, each read by the model of its
-    kind; ``scale8`` turns ``plane``'s grey levels to 0-255, ``response_gamma``
-    them to light; each line's arris strip fit goes into ``arris_fits``."""
+    kind; ``scale8`` turns ``plane``'s grey levels to 0-255, ``response_gamma`` them to light; each line's
+    arris strip fit goes into ``arris_fits``."""
     half, every = this_pass.half, this_pass.every
     yaw_rad = math.radians(pose.yaw_deg)
     lut = linearizing_lut(plane.dtype, response_gamma)
@@ -307,7 +307,7 @@ def arris_response_shifts(
     final pose and windows, its grey levels turned to light with each exponent: the median over the scan
     lines of the difference to its reading with ``used_gamma``. This is the shift the camera response
     makes on what locate measures there: the strip's fitted shading takes up part of a wrong exponent's
-    distortion, which a plain step's figure (:func:`doorloc.vision.response.edge_shifts_px`) cannot know.
+    distortion or adds to it, which a plain step's figure (:func:`doorloc.vision.response.edge_shifts_px`) cannot know.
     A line whose reading fails at an exponent gets NaN there; a line the far-face model reads, no entry.
     """
     # why many parameters: the image and its grey scale, the search region, the refined state and the
