@@ -712,3 +712,91 @@ def test_a_roundings_free_shading_is_held_to_the_lit_arcs_where_the_two_agree():
     assert abs(measured["x_mm"] - pose.x_mm) < 0.02
     assert abs(measured["thickness_mm"] - door.thickness_mm) < 0.02
     assert res.diagnostics["arris_fit"]["reference"]["deficit_sigma"] < 0.1
+
+
+#: (door, pose, effects, seed) of two doors of the arris range bench (bench/bench_arris_range.py, seed 7000):
+#: a 0.65 mm rounding through a gamma-1.33 camera under 1.47 px of blur (small set, seed 10004), and a 3 mm
+#: chamfer as dark as the background under ambient light, gamma 2.33 (dark set, seed 13003)
+RESPONSE_SHIFT_DOORS = {
+    "small rounding": (
+        DoorSize(900, 70.0, 2100, arris_mm=0.651, arris_profile="round"),
+        DoorPose(-0.647, -2.189, -0.590),
+        Effects(
+            albedo_hinge=0.720,
+            albedo_chamfer=0.612,
+            albedo_background=0.149,
+            light_ambient=0.835,
+            light_directional=0.251,
+            light_azimuth_deg=-56.7,
+            light_elevation_deg=44.4,
+            arris_profile="round",
+            blur_sigma_px=1.475,
+            read_noise_dn=0.409,
+            gamma=1.334,
+        ),
+        10004,
+    ),
+    "dark chamfer": (
+        DoorSize(900, 70.0, 2100, arris_mm=2.988, arris_profile="chamfer"),
+        DoorPose(0.340, 1.968, -1.230),
+        Effects(
+            albedo_hinge=0.816,
+            albedo_chamfer=0.084,
+            albedo_background=0.084,
+            light_ambient=0.851,
+            light_directional=0.0,
+            arris_profile="chamfer",
+            blur_sigma_px=1.732,
+            read_noise_dn=0.159,
+            gamma=2.328,
+        ),
+        13003,
+    ),
+}
+
+
+@pytest.mark.parametrize("case", list(RESPONSE_SHIFT_DOORS))
+def test_an_arris_lines_response_doubt_is_the_shift_its_own_model_makes(case):
+    """Where every edge is an arris the image cannot measure the camera's response, and the cell's exponent
+    is taken as known within ``response_unmeasured_factor``: each arris line's doubt is half the range of
+    the shifts its strip model makes when read with the factor's two exponents (not a plain step's: the
+    strip's fitted shading takes up part of the distortion, or adds to it). Those shifts are the real ones:
+    the door located with the cell at either exponent moves by about what they say.
+
+    The small rounding: read with 2.94 the reference arris's strip moves 1.07 px and the bottom end's
+    0.96 px; located with a cell of 2.94 the door moved 0.84 px in x and 1.14 px in z. Its lines' doubts
+    are 0.75-0.79 px, where the plain step's figure (half its spread between 2.94 and 0.80) was 0.58 px.
+    The dark chamfer: the strips read +0.28 / -0.61 px at 3.0 / 1.06, the door moved +0.29 / -0.63 px in
+    x; its doubts are 0.44 px, where the plain step's figure was 0.07 px (a cell at 1.06 would have been
+    answered 0.13 mm off at 8 of its sigmas)."""
+    door, pose, fx, seed = RESPONSE_SHIFT_DOORS[case]
+    gamma = fx.gamma
+    img = render_door(CELL, door, pose, effects=fx, seed=seed).image
+    loose = dataclasses.replace(
+        CELL.locate, max_uncertainty_mm=10.0, max_uncertainty_deg=10.0, thickness_tolerance_mm=10.0
+    )
+    res = locate(img, dataclasses.replace(CELL, response_gamma=gamma, locate=loose), door)
+    assert res.ok, res.error
+    sc = res.scale_mm_per_px
+    fits = res.diagnostics["arris_fit"]
+    shifts = {}
+    for ln in res.lines:
+        moved = fits[ln.name]["response_shifts_px"]
+        assert fits[ln.name]["response_gammas"] == pytest.approx(
+            [min(gamma * 2.2, 3.0), max(gamma / 2.2, 0.8)], abs=1e-3
+        )
+        assert all(v is not None for v in moved), ln.name
+        shifts[ln.name] = moved
+        half_range = 0.5 * (max(0.0, *moved) - min(0.0, *moved))
+        assert ln.response_sigma_mm == pytest.approx(half_range * sc, rel=0.01, abs=2e-5), ln.name
+    # located with the cell at either exponent (no response doubt), the door moves by about the shifts
+    for i, exponent in enumerate(fits["reference"]["response_gammas"]):
+        at = dataclasses.replace(
+            CELL, response_gamma=exponent, locate=dataclasses.replace(loose, response_unmeasured_factor=1.0)
+        )
+        other = locate(img, at, door)
+        assert other.ok, other.error
+        for got_mm, line in ((other.x_mm - res.x_mm, "reference"), (other.z_mm - res.z_mm, "bottom")):
+            said = abs(shifts[line][i])
+            assert said > 0.2, f"{line}: a shift this test can tell from noise"
+            assert 0.5 * said <= abs(got_mm) / sc <= 2.0 * said, (exponent, line, got_mm / sc, shifts[line])

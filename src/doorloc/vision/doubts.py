@@ -20,6 +20,7 @@ from doorloc.vision.config import LocateConfig
 from doorloc.vision.edge_samples import EdgeSamples
 from doorloc.vision.jpeg_blocks import block_artifact_ratio
 from doorloc.vision.lines import RectangleFit, fit_image_line
+from doorloc.vision.refine import arris_response_shifts
 from doorloc.vision.region import EDGE_NAMES, SearchRegion
 from doorloc.vision.response import (
     RESPONSE_PLAUSIBLE,
@@ -85,8 +86,19 @@ def edge_doubts(
             cfg.response_unmeasured_factor,
         )
     else:
+
+        def arris_shifts(gammas: list[float]) -> dict[str, np.ndarray]:
+            # (each arris line's shifts, px, at those exponents: diagnostics.arris_fit[line])
+            shifts = arris_response_shifts(plane, s8, region, r, cfg, cell.response_gamma, gammas)
+            for k, v in shifts.items():
+                figures.setdefault("arris_fit", {}).setdefault(k, {}).update(
+                    response_gammas=[round(float(g), 3) for g in gammas],
+                    response_shifts_px=[round(float(x), 4) if math.isfinite(x) else None for x in v],
+                )
+            return shifts
+
         response = _unmeasured_response_terms(
-            plane, r, cell.response_gamma, cfg.response_unmeasured_factor, model.blur_px
+            plane, r, cell.response_gamma, cfg.response_unmeasured_factor, model.blur_px, arris_shifts
         )
     return model.with_doubts(*response), figures
 
@@ -299,7 +311,12 @@ def _response_doubts(px: dict[str, float]) -> list[LineDoubt]:
 
 
 def _unmeasured_response_terms(
-    plane, r: Refined, used_gamma: float, factor: float, blur_px: float
+    plane,
+    r: Refined,
+    used_gamma: float,
+    factor: float,
+    blur_px: float,
+    arris_shifts: Callable[[list[float]], dict[str, np.ndarray]] | None = None,
 ) -> list[LineDoubt]:
     """The response doubt (px) of each line when the image did not measure the camera's response.
 
@@ -317,11 +334,26 @@ def _unmeasured_response_terms(
     cell exponent were biased by several of their sigmas (fixtures/rendered/effects: 1.0 for a 2.2
     camera, z 0.035 mm at 2-3 sigma), and a plain door square to the camera by up to 7 (a 1.13 camera in
     a cell of 2.01, blur 0.86 px: x 0.075 mm off at sigma 0.010).
+
+    An arris line's shifts are its own model's where ``arris_shifts`` is given (exponents in, per line
+    the shifts out, px: :func:`doorloc.vision.refine.arris_response_shifts`, the strip read again with
+    each exponent): its fitted shading takes up part of the distortion that moves a plain step, or adds
+    to it (on three 0.65-0.87 mm roundings located again with the cell at the two exponents, the plain
+    step's figure was 0.5-3.7 times the door's real move; the strip's own, 0.9-2.3 times). Its
+    doubt is half the range of the shifts at the two exponents and at ``used_gamma`` (no shift), which
+    is the plain step's half spread where the two move it apart, and half the larger where both move it
+    the same way. A line whose strip is lost at an exponent keeps the plain step's figure.
     """
     if not factor > 1.0:
         return []
+    exponents = list(np.clip([used_gamma * factor, used_gamma / factor], *RESPONSE_PLAUSIBLE))
+    own = arris_shifts(exponents) if arris_shifts is not None else {}
     per_line = {}
     for k, shifts in _line_response_shifts(plane, r, used_gamma, blur_px):
+        if k in own and np.all(np.isfinite(own[k])):
+            moved = [0.0, *(float(v) for v in own[k])]
+            per_line[k] = 0.5 * (max(moved) - min(moved))
+            continue
         up, down = shifts([used_gamma * factor, used_gamma / factor])
         spread = 0.5 * abs(float(up) - float(down))
         per_line[k] = spread

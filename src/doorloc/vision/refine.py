@@ -26,7 +26,7 @@ from doorloc.vision.response_check import STEP_FIT_MIN_BLUR_PX
 from doorloc.vision.sampling import linearizing_lut
 from doorloc.vision.state import Refined, Refused, StageClock
 
-__all__ = ["refine"]
+__all__ = ["arris_response_shifts", "refine"]
 
 
 @dataclass(frozen=True)
@@ -45,13 +45,15 @@ class _Pass:
     """What one pass of the refine stage changes: the window's half width ``half`` (px), every n-th scan line
     read (``every``), whether the edges are sharper than the windows assume (``sharp``), the optical blur
     measured on the reference arris (``optical_blur_px``, NaN before it is) and the lines the blurred-step fit
-    refines with the blur it uses (``step_fit``, px)."""
+    refines with the blur it uses (``step_fit``, px); the edges it reads (``lines``: all three but where the
+    arris lines are read again)."""
 
     half: int
     every: int = 1
     sharp: bool = False
     optical_blur_px: float = float("nan")
     step_fit: dict[str, float] | None = None
+    lines: tuple[str, ...] = EDGE_NAMES
 
 
 def _arris_and_keep(
@@ -97,9 +99,9 @@ def _sample(
     response_gamma: float = 1.0,
     arris_fits: dict[str, tuple[StripFit, float]] | None = None,
 ) -> _Sampled:
-    """One pass's edge points on every edge of the door at ``pose``, each read by the model of its kind;
-    ``scale8`` turns ``plane``'s grey levels to 0-255, ``response_gamma`` them to light; each line's arris
-    strip fit goes into ``arris_fits``."""
+    """One pass's edge points on its edges (``this_pass.lines``) at ``pose``, each read by the model of its
+    kind; ``scale8`` turns ``plane``'s grey levels to 0-255, ``response_gamma`` them to light; each line's
+    arris strip fit goes into ``arris_fits``."""
     half, every = this_pass.half, this_pass.every
     yaw_rad = math.radians(pose.yaw_deg)
     lut = linearizing_lut(plane.dtype, response_gamma)
@@ -128,7 +130,7 @@ def _sample(
         step_blur_px=this_pass.step_fit or {},
     )
     out, far_fit, step_fitted = {}, None, {}
-    for name in EDGE_NAMES:
+    for name in this_pass.lines:
         lay, t = region.layouts[name], tracks[name]
         window = ScanWindow(
             plane,
@@ -287,6 +289,54 @@ def refine(
                 optical_blur = _optical_blur(plane, ref0, cfg, blur, arris_fits)
         _pass += 1
     return Refined(samples, fit, pose, blur, half, far_beside, far_fit, sampled.step_fitted, arris_fits)
+
+
+def arris_response_shifts(
+    plane,
+    s8: float,
+    region: SearchRegion,
+    refined: Refined,
+    cfg: LocateConfig,
+    used_gamma: float,
+    camera_gammas: list[float],
+) -> dict[str, np.ndarray]:
+    """How far each arris line's points move, px along its scan lines, were the camera's exponent each of
+    ``camera_gammas`` instead of ``used_gamma`` (the one ``refined`` was read with).
+
+    The arris strip model (:class:`doorloc.vision.edge_models.ArrisStrip`) reads each line again at the
+    final pose and windows, its grey levels turned to light with each exponent: the median over the scan
+    lines of the difference to its reading with ``used_gamma``. This is the shift the camera response
+    makes on what locate measures there: the strip's fitted shading takes up part of a wrong exponent's
+    distortion or adds to it, which a plain step's figure (:func:`doorloc.vision.response.edge_shifts_px`) cannot know.
+    A line whose reading fails at an exponent gets NaN there; a line the far-face model reads, no entry.
+    """
+    # why many parameters: the image and its grey scale, the search region, the refined state and the
+    # config that fixed its windows, the exponent it was read with and those to try
+    # (beside a far face the far-face model reads the far line, and reports its own doubt)
+    names = tuple(
+        k for k in EDGE_NAMES if k in refined.arris_fits and not (k == "far" and refined.far_beside)
+    )
+    if not names:
+        return {}
+    optical = float("nan")
+    if refined.far_beside and "reference" in refined.arris_fits:
+        optical = float(refined.arris_fits["reference"][0].blur_px)
+    this_pass = _Pass(refined.half, optical_blur_px=optical, step_fit=refined.step_fitted, lines=names)
+    read = [
+        _sample(plane, s8, region, refined.pose, cfg, this_pass, g, {}).samples
+        for g in [used_gamma, *camera_gammas]
+    ]
+    out = {}
+    for k in names:
+        shifts = np.full(len(camera_gammas), np.nan)
+        base = read[0][k]
+        for i, other in enumerate(read[1:]):
+            d = other[k].along - base.along
+            d = d[base.valid & other[k].valid & np.isfinite(d)]
+            if d.size >= 5:
+                shifts[i] = float(np.median(d))
+        out[k] = shifts
+    return out
 
 
 def _optical_blur(
