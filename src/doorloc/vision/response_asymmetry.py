@@ -69,17 +69,23 @@ class Transitions:
     dithered: bool = True
 
     @functools.cached_property
-    def log_levels(self) -> tuple[np.ndarray, np.ndarray]:
-        """The distinct raw levels' logarithms (U,) and each pixel's index into them (N, W).
+    def levels(self) -> tuple[np.ndarray, np.ndarray]:
+        """The distinct raw levels (U,) and each pixel's index into them (N, W).
 
         A camera's profiles hold a few hundred grey levels (8 bits: at most 256) in thousands of pixels:
-        :func:`asymmetry` raises each level to each trial exponent once, not each pixel (the same
-        ``exp(g log raw)`` for every pixel of a level, so the same numbers). Made once per profiles, which
-        :func:`asymmetry` reads four times or more.
+        :func:`asymmetry` and :func:`transition_skew_px` raise each level to each trial exponent once, not
+        each pixel (an elementwise function of the level, so the same numbers). Made once per profiles,
+        which :func:`asymmetry` reads four times or more.
         """
         levels, index = np.unique(self.raw, return_inverse=True)
+        return levels, index.reshape(self.raw.shape)
+
+    @functools.cached_property
+    def log_levels(self) -> tuple[np.ndarray, np.ndarray]:
+        """The distinct raw levels' logarithms (U,) and each pixel's index into them (N, W) (:attr:`levels`)."""
+        levels, index = self.levels
         with np.errstate(divide="ignore"):
-            return np.log(levels), index.reshape(self.raw.shape)
+            return np.log(levels), index
 
 
 def dithered(raw: np.ndarray, top: float) -> bool:
@@ -93,7 +99,11 @@ def dithered(raw: np.ndarray, top: float) -> bool:
 
 def transition_skew_px(t: Transitions, rows: np.ndarray | slice, g: float) -> float:
     """The skew (50 % crossing minus centre of mass of the mean transition, px) of the profiles ``rows`` with raw levels raised to ``g``."""
-    vals = t.raw[rows] ** g
+    if isinstance(rows, slice) and rows == slice(None):  # each level raised once (Transitions.levels)
+        levels, index = t.levels
+        vals = (levels**g)[index]
+    else:
+        vals = t.raw[rows] ** g
     off = t.offset[rows]
     d = np.diff(vals, axis=1)
     tot = d.sum(axis=1, keepdims=True)
