@@ -69,17 +69,23 @@ class Transitions:
     dithered: bool = True
 
     @functools.cached_property
-    def log_levels(self) -> tuple[np.ndarray, np.ndarray]:
-        """The distinct raw levels' logarithms (U,) and each pixel's index into them (N, W).
+    def levels(self) -> tuple[np.ndarray, np.ndarray]:
+        """The distinct raw levels (U,) and each pixel's index into them (N, W).
 
         A camera's profiles hold a few hundred grey levels (8 bits: at most 256) in thousands of pixels:
-        :func:`asymmetry` raises each level to each trial exponent once, not each pixel (the same
-        ``exp(g log raw)`` for every pixel of a level, so the same numbers). Made once per profiles, which
-        :func:`asymmetry` reads four times or more.
+        :func:`asymmetry` and :func:`transition_skew_px` raise each level to each trial exponent once, not
+        each pixel (an elementwise function of the level, so the same numbers). Made once per profiles,
+        which :func:`asymmetry` reads four times or more.
         """
         levels, index = np.unique(self.raw, return_inverse=True)
+        return levels, index.reshape(self.raw.shape)
+
+    @functools.cached_property
+    def log_levels(self) -> tuple[np.ndarray, np.ndarray]:
+        """The distinct raw levels' logarithms (U,) and each pixel's index into them (N, W) (:attr:`levels`)."""
+        levels, index = self.levels
         with np.errstate(divide="ignore"):
-            return np.log(levels), index.reshape(self.raw.shape)
+            return np.log(levels), index
 
 
 def dithered(raw: np.ndarray, top: float) -> bool:
@@ -93,7 +99,11 @@ def dithered(raw: np.ndarray, top: float) -> bool:
 
 def transition_skew_px(t: Transitions, rows: np.ndarray | slice, g: float) -> float:
     """The skew (50 % crossing minus centre of mass of the mean transition, px) of the profiles ``rows`` with raw levels raised to ``g``."""
-    vals = t.raw[rows] ** g
+    if isinstance(rows, slice) and rows == slice(None):  # each level raised once (Transitions.levels)
+        levels, index = t.levels
+        vals = (levels**g)[index]
+    else:
+        vals = t.raw[rows] ** g
     off = t.offset[rows]
     d = np.diff(vals, axis=1)
     tot = d.sum(axis=1, keepdims=True)
@@ -163,9 +173,11 @@ def asymmetry(
     block's own median of a few dozen plateau slopes would only add noise to its exponent).
     """
     log_levels, index = t.log_levels
-    v = np.exp(np.asarray(gammas, float)[:, None] * log_levels[None])[:, index]  # (G, N, W)
-    N = v.shape[1]
-    n, centre, good = _normalised_profiles(v, RESPONSE_PLATEAU_PX, min(2 * RESPONSE_LEVEL_ROWS + 1, N))
+    light = np.exp(np.asarray(gammas, float)[:, None] * log_levels[None])  # (G, U): each level's light
+    N = index.shape[0]
+    n, centre, good = _normalised_profiles(
+        light, index, RESPONSE_PLATEAU_PX, min(2 * RESPONSE_LEVEL_ROWS + 1, N)
+    )
     if t.one_phase:
         return _resampled_asymmetry(n, centre, good, blocks, n_blocks)
     blk = blocks.astype(np.int64) if blocks is not None else np.zeros(N, dtype=np.int64)
@@ -182,16 +194,22 @@ def asymmetry(
 
 
 def _normalised_warm_up(k) -> None:
-    k(np.full((2, 5, 10), 0.5), 3, 3)
+    k(np.full((2, 3), 0.5), np.zeros((5, 10), np.int64), 3, 3)
 
 
 @kernel(_normalised_warm_up)
-def _normalised_profiles(v, pk, size):
-    """:func:`asymmetry`'s profiles ``v`` (G, N, W) (light: raw levels raised to each exponent) without
-    their shading tilt, normalised by their plateaus (``pk`` px at each end, averaged over ``size`` scan
-    lines) over the inner ``L = W - 2 pk`` pixels: ``n`` (G, N, L), each profile's area centre (G, N,
-    index units) and whether its plateaus differ (G, N)."""
-    G, N, W = v.shape
+def _normalised_profiles(light, index, pk, size):
+    """:func:`asymmetry`'s profiles (light: raw levels raised to each exponent, ``light[g, index[i, w]]``
+    for exponent ``g``, profile ``i``, pixel ``w``; the (G, N, W) array is never formed) without their
+    shading tilt, normalised by their plateaus (``pk`` px at each end, averaged over ``size`` scan lines)
+    over the inner ``L = W - 2 pk`` pixels: ``n`` (G, N, L), each profile's area centre (G, N, index
+    units) and whether its plateaus differ (G, N).
+
+    The levels' table and the index, not the (G, N, W) profiles: numpy's ``light[:, index]`` lays that array
+    out with the exponent as its fastest axis, and this loop read it across the strides at twice the cost
+    of the table's look-ups (and the gather itself was a fifth of :func:`asymmetry`). The same numbers."""
+    G = light.shape[0]
+    N, W = index.shape
     L = W - 2 * pk
     n = np.empty((G, N, L))
     centre = np.empty((G, N))
@@ -215,12 +233,12 @@ def _normalised_profiles(v, pk, size):
             for i in range(N):
                 sl = 0.0
                 for j in range(pk):
-                    sl += xs[j] * v[g, i, j + o]
+                    sl += xs[j] * light[g, index[i, j + o]]
                 sl = sl / xx
                 lev = 0.0
                 for j in range(1, pk):
-                    lev += v[g, i, j + o]
-                lev = lev + v[g, i, o]
+                    lev += light[g, index[i, j + o]]
+                lev = lev + light[g, index[i, o]]
                 m = lev / pk
                 r = sl / (m if (m > 1e-9 or np.isnan(m)) else 1e-9)  # np.maximum(m, 1e-9)
                 rel[e * N + i] = r
@@ -238,7 +256,7 @@ def _normalised_profiles(v, pk, size):
             for i in range(N):
                 sm = 0.0
                 for j in range(pk):
-                    sm += v[g, i, o + j] * scale[o + j]
+                    sm += light[g, index[i, o + j]] * scale[o + j]
                 ends[e, i] = sm / pk
         lo = _running_mean_nearest(ends[0], size)
         hi = _running_mean_nearest(ends[1], size)
@@ -248,7 +266,7 @@ def _normalised_profiles(v, pk, size):
             den = span if good[g, i] else 1.0
             for k in range(L):
                 # 0 on the first end, 1 on the last: any polarity
-                row[k] = (v[g, i, pk + k] * scale[pk + k] - lo[i]) / den
+                row[k] = (light[g, index[i, pk + k]] * scale[pk + k] - lo[i]) / den
                 n[g, i, k] = row[k]
             # area estimate, index units: (L - 1) minus the trapezoid area of the normalised profile
             centre[g, i] = (L - 1) - (pairwise_sum(row, 0, L) - 0.5 * (row[0] + row[L - 1]))
