@@ -99,11 +99,8 @@ def dithered(raw: np.ndarray, top: float) -> bool:
 
 def transition_skew_px(t: Transitions, rows: np.ndarray | slice, g: float) -> float:
     """The skew (50 % crossing minus centre of mass of the mean transition, px) of the profiles ``rows`` with raw levels raised to ``g``."""
-    if isinstance(rows, slice) and rows == slice(None):  # each level raised once (Transitions.levels)
-        levels, index = t.levels
-        vals = (levels**g)[index]
-    else:
-        vals = t.raw[rows] ** g
+    levels, index = t.levels  # each distinct level raised once, whichever rows are asked for
+    vals = (levels**g)[index[rows]]
     off = t.offset[rows]
     d = np.diff(vals, axis=1)
     tot = d.sum(axis=1, keepdims=True)
