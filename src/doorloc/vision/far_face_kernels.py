@@ -168,14 +168,40 @@ def _far_face_misfit(core, A, D, bounds, e, w0, e0, band_slope, sigma, tail, str
     its derivative by the band level (the level's pull is that times _WARM_UP_LEVEL_WEIGHT): the model
     ``A + lam D C1 + (1 - lam) D C2`` (+ ``mu D (C0 - C1)`` with a strip), ``C1``, ``C2``, ``C0`` the
     arrises', back edges' and strip borders' pixel values (:func:`_far_face_row`)."""
-    # why many parameters: a numba nopython kernel (no dataclass in nopython code): the model's profiles, levels, arrises, band, blur and strip pass as separate arrays and scalars, as far_face_gauss_newton calls it inside its iterations
+    # why many parameters: a numba nopython kernel (no dataclass in nopython code): the model's profiles, levels, arrises, band, blur and strip pass as separate arrays and scalars, as the tests call it
+    rows = np.empty((core.shape[0], 9, core.shape[1] + 1))
+    has_band = np.empty(core.shape[0], dtype=np.bool_)
+    return _far_face_misfit_rows(
+        core, A, D, bounds, e, w0, e0, band_slope, sigma, tail, strip, has_strip, lam, mu, rows, has_band
+    )
+
+
+def _far_face_misfit_rows_warm_up(k) -> None:
+    core, v, bounds = np.full((3, 4), 0.5), np.ones(3), np.arange(5.0) - 0.5
+    for strip in (False, True):
+        k(core, v, v, bounds, v, v, v, -0.1, 0.1, STEP_TAIL_SIGMAS, v, strip, 0.5, 0.1,
+          np.empty((3, 9, 5)), np.empty(3, np.bool_))  # fmt: skip
+
+
+# (flat arguments: a numba kernel, called per iteration; see the module docstring)
+@kernel(_far_face_misfit_rows_warm_up, reassociate=True)
+def _far_face_misfit_rows(
+    core, A, D, bounds, e, w0, e0, band_slope, sigma, tail, strip, has_strip, lam, mu, rows, has_band
+):
+    """:func:`_far_face_misfit`, each scan line's steps and their slopes (:func:`_far_face_row`) left in
+    ``rows`` (N, 9, M + 1) and whether its band is in view in ``has_band`` (N,): the Gauss-Newton step
+    that follows an accepted trial reads them there (:func:`_far_face_sums_from_rows`) instead of forming
+    them again (the Gaussian terms are most of the fit's time)."""
+    # why many parameters: _far_face_misfit's, and the two arrays the steps are left in
     n, n_m = core.shape
-    S = np.empty((9, n_m + 1))
     cut = tail * sigma
     acc = 0.0
     info = 0.0
     for i in range(n):
-        _far_face_row(bounds, e[i], w0[i], e0[i], band_slope, strip[i], has_strip, sigma, cut, S, False)
+        S = rows[i]
+        has_band[i] = _far_face_row(
+            bounds, e[i], w0[i], e0[i], band_slope, strip[i], has_strip, sigma, cut, S, True
+        )
         a1 = lam * D[i]
         a2 = (1.0 - lam) * D[i]
         for j in range(n_m):
@@ -213,9 +239,31 @@ def far_face_sums(
     """
     # why many parameters: a numba nopython kernel (no dataclass in nopython code): the Gauss-Newton step's inputs (profiles, levels, arrises, band, blur, strip, level pulls) and its output arrays pass one by one
     n, n_m = core.shape
-    n_sh = 3 if has_strip else 2
-    S = np.empty((9, n_m + 1))
+    rows = np.empty((n, 9, n_m + 1))
+    has_band = np.empty(n, dtype=np.bool_)
     cut = tail * sigma
+    for i in range(n):
+        has_band[i] = _far_face_row(
+            bounds, e[i], w0[i], e0[i], band_slope, strip[i], has_strip, sigma, cut, rows[i], True
+        )
+    return _far_face_sums_from_rows(core, A, D, rows, has_band, band_slope, has_strip, lam, mu, with_blur)
+
+
+def _far_face_sums_from_rows_warm_up(k) -> None:
+    core, v = np.full((3, 4), 0.5), np.ones(3)
+    for strip in (False, True):
+        for blur in (False, True):
+            k(core, v, v, np.zeros((3, 9, 5)), np.ones(3, np.bool_), -0.1, strip, 0.5, 0.1, blur)
+
+
+# (flat arguments: a numba kernel, called per iteration; see the module docstring)
+@kernel(_far_face_sums_from_rows_warm_up, reassociate=True)
+def _far_face_sums_from_rows(core, A, D, rows, has_band, band_slope, has_strip, lam, mu, with_blur):
+    """:func:`far_face_sums` from each scan line's steps and slopes ``rows`` (N, 9, M + 1) and whether its
+    band is in view ``has_band`` (N,), as :func:`_far_face_row` forms them."""
+    # why many parameters: far_face_sums' model terms (no dataclass in nopython code), its steps formed
+    n, n_m = core.shape
+    n_sh = 3 if has_strip else 2
     h_ee = np.empty(n)
     h_eg = np.zeros((n, n_sh))
     b_e = np.empty(n)
@@ -224,13 +272,12 @@ def far_face_sums(
     b_g = np.zeros(n_sh)
     Jg = np.zeros(3)
     for i in range(n):
-        has_band = _far_face_row(
-            bounds, e[i], w0[i], e0[i], band_slope, strip[i], has_strip, sigma, cut, S, True
-        )
+        S = rows[i]
+        has_band_i = has_band[i]
         a1m = lam * D[i]  # the model's
         a2 = (1.0 - lam) * D[i]
         a1 = (lam - mu) * D[i]  # the arris derivative's (a strip's level takes its share)
-        fb = 1.0 + band_slope * has_band
+        fb = 1.0 + band_slope * has_band_i
         muD = mu * D[i]
         ee = 0.0
         er = 0.0
@@ -357,20 +404,23 @@ def far_face_gauss_newton(
     # why many parameters: the whole far-face iteration runs in one compiled call (as Python it was ~20 numpy calls a step), so every array and setting of the fit passes on its own: nopython code takes no dataclass
     e = e.copy()
     n = e.size
+    # each scan line's steps at the arrises ``e`` (left by the cost there) and at a trial's
+    rows, rows_trial = np.empty((n, 9, core.shape[1] + 1)), np.empty((n, 9, core.shape[1] + 1))
+    band, band_trial = np.empty(n, dtype=np.bool_), np.empty(n, dtype=np.bool_)
 
-    def cost_at(e, lam, sigma, mu):
-        misfit, info = _far_face_misfit(
-            core, A, D, bounds, e, w0, e0, band_slope, sigma, tail, strip, has_strip, lam, mu
+    def cost_at(e, lam, sigma, mu, rows, band):
+        misfit, info = _far_face_misfit_rows(
+            core, A, D, bounds, e, w0, e0, band_slope, sigma, tail, strip, has_strip, lam, mu, rows, band
         )
         c = misfit + level_weight * info * (lam - 0.5) ** 2
         return c + pull_mu * (mu - mu0) ** 2 if has_strip else c
 
-    cost = cost_at(e, lam, sigma, mu)
+    cost = cost_at(e, lam, sigma, mu, rows, band)
     de = np.empty(n)
     trial = np.empty(n)
     for _ in range(n_iter):
-        h_ee, h_eg, b_e, H, b_g, _rr = far_face_sums(
-            core, A, D, bounds, e, w0, e0, band_slope, sigma, tail, strip, has_strip, lam, mu, fit_blur
+        h_ee, h_eg, b_e, H, b_g, _rr = _far_face_sums_from_rows(
+            core, A, D, rows, band, band_slope, has_strip, lam, mu, fit_blur
         )
         far_face_schur(H, b_g, h_ee, h_eg, b_e, lam, mu, level_weight, pull_mu, mu0)
         d = np.linalg.solve(H, b_g)
@@ -393,7 +443,7 @@ def far_face_gauss_newton(
             if has_strip:
                 t_lam = _py_min(_py_max(t_lam, levels_lo), levels_hi)
                 t_mu = _py_min(_py_max(t_mu, levels_lo), levels_hi)
-            c = cost_at(trial, t_lam, t_sig, t_mu)
+            c = cost_at(trial, t_lam, t_sig, t_mu, rows_trial, band_trial)
             if c <= cost:
                 accepted = True
                 break
@@ -406,6 +456,8 @@ def far_face_gauss_newton(
             if v > big or v != v:
                 big = v
         e, trial = trial, e
+        rows, rows_trial = rows_trial, rows
+        band, band_trial = band_trial, band
         lam, sigma, mu = t_lam, t_sig, t_mu
         done = cost - c <= 1e-9 * _py_max(cost, 1e-12) or (
             big < 1e-4 and abs(step * d_lam) < 1e-4 and abs(step * d_mu) < 1e-4
