@@ -384,6 +384,29 @@ def test_response_asymmetry_as_its_numpy_version(seed, n, half, blocks, one_phas
         assert np.isfinite(want).any()  # (the comparison saw numbers, not only NaN)
 
 
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_response_asymmetry_same_through_either_levels_index(seed, monkeypatch):
+    # Transitions.levels indexes its levels with 16 bits where they allow, else with numpy's own index:
+    # the asymmetry and the skew are the same numbers through either (8-bit grey levels, blocks, both paths)
+    import doorloc.vision.response_asymmetry as ra
+
+    rng = np.random.default_rng(seed)
+    raw = np.round(rng.uniform(0.05, 0.95, (60, 15)) * 255.0) / 255.0
+    raw.sort(axis=1)
+    off = rng.uniform(-8.0, -6.0, 60)
+    gammas, blk = np.geomspace(0.4, 5.0, 25), rng.integers(0, 4, 60)
+    narrow = [ra.Transitions(raw, off, one_phase=p) for p in (False, True)]
+    assert all(t.levels[1].dtype == np.uint16 for t in narrow)  # (cached: made before the patch)
+    monkeypatch.setattr(ra, "_INDEX_LEVELS", 0)
+    wide = [ra.Transitions(raw, off, one_phase=p) for p in (False, True)]
+    for a, b in zip(narrow, wide, strict=True):
+        assert b.levels[1].dtype == np.intp
+        want = ra.asymmetry(b, gammas, blk, 4)
+        assert np.isfinite(want).any()
+        np.testing.assert_array_equal(ra.asymmetry(a, gammas, blk, 4), want)
+        assert ra.transition_skew_px(a, slice(None), 2.2) == ra.transition_skew_px(b, slice(None), 2.2)
+
+
 @settings(max_examples=100, deadline=None)
 @given(seed=st.integers(0, 10_000), n=st.integers(0, 3000), size=st.integers(1, 17))
 def test_pairwise_sum_and_running_mean_as_numpy_and_scipy(seed, n, size):
