@@ -407,6 +407,35 @@ def test_response_asymmetry_same_through_either_levels_index(seed, monkeypatch):
         assert ra.transition_skew_px(a, slice(None), 2.2) == ra.transition_skew_px(b, slice(None), 2.2)
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_least_asymmetric_as_its_grids_read_in_full(seed):
+    # least_asymmetric reads its finer grids' two ends from the grid's values instead of again: the exponents
+    # (the least and, undithered, the other minima) are those of every finer grid read in full
+    from scipy.special import ndtr
+
+    import doorloc.vision.response_asymmetry as ra
+
+    rng = np.random.default_rng(seed)
+    n = 120
+    x = np.arange(-7, 8)[None, :] - rng.uniform(-0.5, 0.5, (n, 1))
+    lo, hi = rng.uniform(0.05, 0.3), rng.uniform(0.6, 0.95)
+    raw = (lo + (hi - lo) * ndtr(x / rng.uniform(0.6, 2.0))) ** (1 / rng.uniform(0.6, 2.6))
+    raw = np.clip(np.round((raw + rng.normal(0, 0.004, raw.shape)) * 255.0) / 255.0, 0.0, 1.0)
+    grid = ra._RANGE_GRID
+
+    def in_full(t: ra.Transitions, i: int) -> float:
+        fine = np.geomspace(grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)], 9)
+        return ra._vertex(fine, ra.asymmetry(t, fine))
+
+    for dithered in (True, False):
+        t = ra.Transitions(raw, -7.0 - x[:, 0] + np.arange(-7, 8).mean(), dithered=dithered)
+        a = ra.asymmetry(t, grid)
+
+        best, others = ra.least_asymmetric(t, grid)
+        assert np.isfinite(best) and best == in_full(t, int(np.nanargmin(a)))
+        assert all(g in {in_full(t, j) for j in range(1, grid.size - 1)} for g in others)
+
+
 @settings(max_examples=100, deadline=None)
 @given(seed=st.integers(0, 10_000), n=st.integers(0, 3000), size=st.integers(1, 17))
 def test_pairwise_sum_and_running_mean_as_numpy_and_scipy(seed, n, size):

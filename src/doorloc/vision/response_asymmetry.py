@@ -433,6 +433,15 @@ def _vertex(grid: np.ndarray, a: np.ndarray) -> float:
     return float(math.exp(min(max(x1 - (s0 + curv * (x1 - x0)) / (2.0 * curv), x0), x2)))
 
 
+@functools.lru_cache(maxsize=64)
+def _refined_grid(lo: float, hi: float) -> np.ndarray:
+    """:func:`least_asymmetric`'s finer grid between two neighbours of its grid, made once per pair (the
+    range grid has 25; read-only: the cache hands the same array out)."""
+    fine = np.geomspace(lo, hi, 9)
+    fine.flags.writeable = False
+    return fine
+
+
 def least_asymmetric(t: Transitions, grid: np.ndarray) -> tuple[float, tuple[float, ...]]:
     """The exponent of least :func:`asymmetry`: the best of ``grid``, then of a grid four times finer
     between its neighbours (steps of 2.7 % on the 25-point range grid), refined by a parabola: good to
@@ -459,8 +468,16 @@ def least_asymmetric(t: Transitions, grid: np.ndarray) -> tuple[float, tuple[flo
         return float("nan"), ()
 
     def refined(i: int) -> float:
-        fine = np.geomspace(grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)], 9)
-        return _vertex(fine, asymmetry(t, fine))
+        lo, hi = max(i - 1, 0), min(i + 1, grid.size - 1)
+        fine = _refined_grid(float(grid[lo]), float(grid[hi]))
+        if t.one_phase:
+            return _vertex(fine, asymmetry(t, fine))
+        # np.geomspace's ends are its arguments exactly, and each exponent's asymmetry on the paired path is
+        # its own (the kernels loop over the exponents): the ends' values are the range grid's, read again
+        af = np.empty(fine.size)
+        af[1:-1] = asymmetry(t, fine[1:-1])
+        af[0], af[-1] = a[lo], a[hi]
+        return _vertex(fine, af)
 
     others = [
         j
