@@ -46,6 +46,10 @@ HIDDEN = {
     "psf_tail": lambda r: {"psf_tail": r.uniform(0.06, 0.15), "psf_tail_px": 3.0},
     # last, so the other effects keep their seeds; exposures run 0.55-1.05: most light squares pass the clip
     "sensor_clipping": lambda r: {"clip_level": r.uniform(0.6, 0.75)},
+    # a white level below the brighter photographs' light squares, reached through a shoulder 0.15-0.3 wide
+    "soft_saturation": lambda r: (lambda w: {"white_level": w, "shoulder": w - r.uniform(0.15, 0.3)})(
+        r.uniform(0.75, 0.9)
+    ),
 }
 
 CAMERA = CameraModel.from_values(

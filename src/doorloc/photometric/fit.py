@@ -47,6 +47,7 @@ __all__ = [
     "held_out",
     "select_causes",
     "noise_floor_px",
+    "white_starts",
     "folds_by_photograph",
     "photo_median",
     "HeldOut",
@@ -98,6 +99,7 @@ class Photograph:
                 model.gamma,
                 model.black_level,
                 model.shoulder,
+                model.white_level,
                 model.curvature,
                 model.clip_level,
                 contrast,
@@ -322,6 +324,16 @@ def fit_causes(
     # two starts: the cause's own and the base model's values (a curve that bends the other way from the
     # cause's start is found from the plain model); the lower cost wins
     starts = [np.asarray(x0, float), np.clip([float(getattr(base, n)) for n in names], lo, hi)]
+    if "white_level" in names and "shoulder" in names:
+        # a shoulder above every plateau moves no edge (no gradient to follow): the cause's start is the
+        # least costly of knees and white levels placed at the plateaus these photographs have
+        iw, ik = names.index("white_level"), names.index("shoulder")
+        grid = []
+        for k, w in white_starts(np.concatenate([p.edges.bright for p in photos])):
+            x = starts[0].copy()
+            x[iw], x[ik] = w, k
+            grid.append(np.clip(x, lo, hi))
+        starts[0] = min(grid, key=lambda x: robust_cost(residuals(x)))
     if np.allclose(starts[0], starts[1]):
         starts = starts[:1]
     res = min(
@@ -345,6 +357,20 @@ def fit_causes(
     else:
         values = [float(v) for v in res.x]
     return CauseFit(tuple(c.name for c in causes), tuple(names), tuple(values), model, float(res.cost))
+
+
+def white_starts(brights: np.ndarray) -> list[tuple[float, float]]:
+    """``(shoulder, white_level)`` pairs (fraction of full scale) worth starting a soft saturation's fit from,
+    for plateaus ``brights`` (grey): white levels just above the highest plateaus, knees from 0.1 to 0.35
+    below them, so that the shoulder reaches the brighter edges."""
+    b = np.asarray(brights, float)
+    b = b[np.isfinite(b)]
+    top = float(np.percentile(b, 99.5)) / 255.0 if b.size else 1.0
+    return [
+        (w - span, w)
+        for w in sorted({min(1.0, top + d) for d in (0.005, 0.02, 0.05)})
+        for span in (0.1, 0.2, 0.35)
+    ]
 
 
 @dataclass(frozen=True)

@@ -10,6 +10,12 @@ even blur, a perfect print):
 - ``shoulder``: the level (fraction of full scale, above the pedestal) where the response's shoulder starts
   compressing highlights towards full scale (``g = k + (1 - k) tanh((x - k) / (1 - k))`` above it, ``x`` the
   power law's output); 1 = no shoulder. Sensors and tone curves near saturation do this;
+- ``white_level``: the stored grey level (fraction of full scale) the shoulder saturates towards: above the
+  shoulder ``g = k + (W - k) tanh((x - k) / (W - k))`` approaches ``W`` smoothly instead of full scale
+  (a sensor's full well reached softly, or a tone curve whose knee ends below 255, as many cameras' do
+  10-15 levels below it); levels at or above it carry no more highlight. 1 = full scale; a shoulder at or
+  above it is a hard saturation at ``W``. Unlike ``clip_level`` it bends the response below the
+  saturation, so edges whose bright level sits in the last part below it move too;
 - ``curvature``: toe/shoulder of the response beyond a power law, ``ln light = gamma ln g' + curvature (ln g')^2``
   (``g'`` the grey above the pedestal): a characteristic curve that bends in log-log as film's and many
   camera tone curves do;
@@ -57,6 +63,7 @@ PARAMETER_UNITS = {
     "gamma": "exponent",
     "black_level": "fraction of full scale",
     "shoulder": "fraction of full scale",
+    "white_level": "fraction of full scale",
     "curvature": "1/ln^2",
     "clip_level": "fraction of full scale",
     "clipped_blur_px": "px",
@@ -78,6 +85,7 @@ class PhotometricModel:
     gamma: float = 1.0
     black_level: float = 0.0
     shoulder: float = 1.0
+    white_level: float = 1.0
     curvature: float = 0.0
     clip_level: float = 1.0
     clipped_blur_px: float = 0.0
@@ -101,6 +109,10 @@ class PhotometricModel:
             raise ValueError(f"photometric model: black_level {self.black_level} outside -0.2..0.5")
         if not 0.05 <= self.shoulder <= 1.0:
             raise ValueError(f"photometric model: shoulder {self.shoulder} outside 0.05..1")
+        if not 0.5 <= self.white_level <= 1.0:
+            raise ValueError(f"photometric model: white_level {self.white_level} outside 0.5..1")
+        if not self.white_level > self.black_level + 0.05:
+            raise ValueError("photometric model: white_level must lie above black_level")
         if not 0.2 <= self.clip_level <= 1.0:
             raise ValueError(f"photometric model: clip_level {self.clip_level} outside 0.2..1")
         if not 0.0 <= self.clipped_blur_px <= 10.0:
@@ -122,7 +134,13 @@ class PhotometricModel:
     def linear_response(self) -> bool:
         """True where stored grey is proportional to light above zero (no table is needed to read it), up to
         the clip level where there is one."""
-        return self.gamma == 1 and self.black_level == 0 and self.curvature == 0 and self.shoulder == 1
+        return (
+            self.gamma == 1
+            and self.black_level == 0
+            and self.curvature == 0
+            and self.shoulder == 1
+            and self.white_level == 1
+        )
 
     def to_dict(self) -> dict[str, float]:
         return {k: float(v) for k, v in asdict(self).items()}
@@ -149,11 +167,15 @@ class PhotometricModel:
         """Relative linear light (0 at zero light, 1 at full scale) from stored grey ``g`` in [0, 1]."""
         g = np.asarray(g, float)
         gp = np.clip((g - self.black_level) / (1.0 - self.black_level), 1e-6, None)
-        k = self.shoulder
-        if k < 1.0:
-            # undo the shoulder; the last levels before full scale carry no more than this much highlight
-            z = np.clip((gp - k) / (1.0 - k), 0.0, 0.995)
-            gp = np.where(gp > k, k + (1.0 - k) * np.arctanh(z), gp)
+        # the white level on the power law's scale (above the pedestal); a knee above it is a hard saturation
+        w = (self.white_level - self.black_level) / (1.0 - self.black_level)
+        k = min(self.shoulder, w)
+        if k < w:
+            # undo the shoulder; the last levels before the white level carry no more than this much highlight
+            z = np.clip((gp - k) / (w - k), 0.0, 0.995)
+            gp = np.where(gp > k, k + (w - k) * np.arctanh(z), gp)
+        elif w < 1.0:
+            gp = np.minimum(gp, w)
         lg = np.log(gp)
         if self.curvature != 0.0:
             # the log-log parabola turns back where gamma + 2 curvature ln g' = 0: a response never falls,

@@ -5,7 +5,8 @@ Image formation here: the printed board (its dark squares grown by the print's s
 :class:`PrintedCheckerboard`) -> exact box-filtered radiance (:mod:`doorloc.sim.raster`) -> exposure ->
 optics: a Gaussian blur whose variance changes over the field and with direction (``blur_field``,
 ``blur_anisotropy``) plus the point spread's halo (``psf_tail``) -> read noise -> the response (power law,
-shoulder, curvature, pedestal, the sensor's clip level; :meth:`PhotometricModel.grey_from_light`) -> 8-bit
+shoulder and its white level, curvature, pedestal, the sensor's clip level;
+:meth:`PhotometricModel.grey_from_light`) -> 8-bit
 levels -> optional JPEG.
 
 The Gaussian's change over the field is drawn by blending images blurred at a few sigmas (linear in the
