@@ -168,3 +168,42 @@ def test_a_response_measured_on_edges_with_an_arris_the_cell_lacked_is_no_cause(
     obs = [SimpleNamespace(response_absorbed=1.87) for _ in range(28)]
     model, ev = _with_absorbed_response(named, obs, CATALOGUE)
     assert model.names == ("arris",) and "added" not in ev and ev["skipped"]
+
+
+def test_a_grey_level_table_is_exact_at_the_values_it_is_refined_at():
+    """A grey-level table interpolates between its grid values, and locate's pose is not smooth in the
+    response (it replaces a cell's response by the one it measures where they differ): between grid values
+    the table can be far off (hidden response 1.563 between grid values 1.5 and 1.8: fitted 1.584 with a
+    weighted SSE of 26 where locating at 1.563 leaves 4.3). A value added to the table is predicted as the
+    images located there, the old grid values keep theirs, and the model check's refinement puts the
+    response's own best value on the grid."""
+    from doorloc.modelcheck.check import _grey_levels_refined, _read_image
+    from doorloc.modelcheck.dataset import read_dataset
+    from doorloc.modelcheck.fit import Predictor
+    from doorloc.modelcheck.forward import RelocateTable, locate_errors, observe
+
+    fix = Path(__file__).parents[2] / "fixtures" / "rendered" / "effects"
+    cell = load_cell(fix / "cell.yaml")
+    obs = [o for o in observe(read_dataset(fix, cell).images[:8], cell, False, _read_image) if o.ok]
+    response = next(e for e in CATALOGUE if e.name == "response_gamma")
+    coarse = RelocateTable(response, obs, cell, False, [1.0, 1.5, 2.6])
+    fine = coarse.with_values([2.2])
+    assert list(fine.grid) == [1.0, 1.5, 2.2, 2.6] and list(coarse.grid) == [1.0, 1.5, 2.6]
+    base = np.array([o.error for o in obs])
+    at = base - locate_errors(obs, replace(cell, response_gamma=2.2), False, gated=False)
+    assert np.isfinite(at).all()
+    np.testing.assert_allclose(fine.predict(2.2), at, atol=1e-12)
+    assert np.max(np.abs(coarse.predict(2.2) - at)) > 1e-4, (
+        "the case this test is about: interpolation is off"
+    )
+    for v in coarse.grid:
+        np.testing.assert_allclose(fine.predict(v), coarse.predict(v), atol=1e-12)
+    errors = base
+    noise = np.array([0.01, 0.01, 0.002, 0.01])
+    rows = np.arange(len(obs))
+    pred, evidence = _grey_levels_refined(
+        Predictor(AnalyticModel(obs, cell, False), {response.key: coarse}), errors, noise, rows
+    )
+    steps = evidence[response.key]
+    assert len(steps) >= 2 and steps[-1]["sse"] < steps[0]["sse"]
+    assert np.min(np.abs(pred.tables[response.key].grid - steps[-1]["value"])) < 1e-3

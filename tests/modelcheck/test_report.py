@@ -119,3 +119,14 @@ def test_verdicts_in_plain_words():
     assert refused.status == "not_verified" and "uncertain" in refused.headline
     assert "Do not use" in refused.action
     assert verdict_of(_report(causes=["unexplained"], parameters={}, plausibility={})).status == "unexplained"
+
+
+def test_a_grey_level_value_located_again_is_reported_with_its_error_before_and_after():
+    steps = [
+        {"value": 1.5839, "sse": 25.95, "grid_values": 8},
+        {"value": 1.5587, "sse": 4.064, "grid_values": 9},
+    ]
+    md = report_markdown(_report(grey_levels_refined={"response_gamma": steps}))
+    assert "`response_gamma` located again at its own best value" in md
+    assert "1.584 (weighted SSE 25.95) -> 1.559 (4.064)" in md
+    assert "located again at its own best value" not in report_markdown(_report())

@@ -18,6 +18,7 @@ Pose errors are rows ``(x_mm, z_mm, yaw_deg, thickness_mm)``: measured minus ref
 
 from __future__ import annotations
 
+import copy
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
@@ -300,7 +301,7 @@ class RelocateTable:
 
     The prediction at value ``v`` is ``error(nominal) - error(v)`` (what the candidate model would take
     away), interpolated monotonically (PCHIP) between grid values; a refusal at a grid value is bridged
-    from its neighbours.
+    from its neighbours. :meth:`with_values` adds grid values (the prediction is exact at a grid value).
     """
 
     def __init__(
@@ -312,17 +313,23 @@ class RelocateTable:
         grid: Sequence[float],
     ) -> None:
         self.effect = effect
+        self._obs = list(obs)
+        self._nominal = nominal
+        self._measured_arris = measured_arris
+        self._base = np.array([o.error for o in obs])
         self.grid = np.asarray(sorted(grid), float)
-        base = np.array([o.error for o in obs])
-        tab = []
-        for v in self.grid:
-            cell = effect.apply(nominal, [v])
-            if cell == nominal:
-                # the nominal cell's own poses: nothing to take away (and a locate of every image saved)
-                tab.append(np.where(np.isfinite(base), 0.0, np.nan))
-                continue
-            tab.append(base - locate_errors(obs, cell, measured_arris, gated=False))
-        T = np.array(tab)  # (grid, n, 4)
+        self._raw = np.array([self._taken_away(v) for v in self.grid])  # (grid, n, 4), NaN where refused
+        self._build()
+
+    def _taken_away(self, value: float) -> np.ndarray:
+        cell = self.effect.apply(self._nominal, [value])
+        if cell == self._nominal:
+            # the nominal cell's own poses: nothing to take away (and a locate of every image saved)
+            return np.where(np.isfinite(self._base), 0.0, np.nan)
+        return self._base - locate_errors(self._obs, cell, self._measured_arris, gated=False)
+
+    def _build(self) -> None:
+        T = self._raw.copy()
         for k in range(T.shape[1]):
             for c in range(4):
                 col = T[:, k, c]
@@ -333,6 +340,19 @@ class RelocateTable:
                     col[bad] = np.interp(self.grid[bad], self.grid[~bad], col[~bad])
         self.table = T
         self._interp = PchipInterpolator(self.grid, T, axis=0, extrapolate=False)
+
+    def with_values(self, values: Sequence[float]) -> RelocateTable:
+        """A copy with the images also located at ``values`` (those not yet on the grid)."""
+        new = [float(v) for v in values if not np.any(self.grid == float(v))]
+        out = copy.copy(self)
+        if not new:
+            return out
+        grid = np.concatenate([self.grid, new])
+        raw = np.concatenate([self._raw, np.array([self._taken_away(v) for v in new])])
+        order = np.argsort(grid)
+        out.grid, out._raw = grid[order], raw[order]
+        out._build()
+        return out
 
     def predict(self, value: float, rows: np.ndarray | None = None) -> np.ndarray:
         v = float(np.clip(value, self.grid[0], self.grid[-1]))

@@ -279,6 +279,13 @@ def report_markdown(rep: ModelCheckReport) -> str:
             f"- refined by locating the training images again ({ref['steps']} Gauss-Newton steps, cost "
             f"{ref['cost_before']:.4g} -> {ref['cost_after']:.4g}): {moved}"
         )
+    for key, grey in rep.grey_levels_refined.items():
+        if len(grey) > 1:
+            lines.append(
+                f"- `{key}` located again at its own best value before the selection (its table is exact "
+                f"only there): {grey[0]['value']:.4g} (weighted SSE {grey[0]['sse']:.4g}) -> "
+                f"{grey[-1]['value']:.4g} ({grey[-1]['sse']:.4g})"
+            )
     ev = rep.response_measured_by_locate
     if ev.get("added"):
         lines.append(
