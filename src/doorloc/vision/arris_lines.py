@@ -290,6 +290,10 @@ def arris_edges(
     along = c0 + door_side * e_mirror
     valid = prof.good & np.isfinite(along) & in_window
     nan = np.full(len(scan), np.nan)
+    # the strongest step of the fitted shape (background | strip cells | face), per line in grey levels:
+    # what locates the point where the face's own step is faint (a strip darker or brighter than both sides)
+    jumps = np.diff(np.concatenate([[0.0], fit.levels, [1.0]]))
+    strip_contrast = float(np.max(np.abs(jumps))) * np.abs(D) * scale_to_8bit
     return (
         EdgeSamples(
             axis,
@@ -300,6 +304,7 @@ def arris_edges(
             nan,
             np.maximum(A, B) * scale_to_8bit,
             valid,
+            strip_contrast,
         ),
         fit,
     )

@@ -34,6 +34,10 @@ class EdgeSamples:
         The brighter of the two plateau levels, 0-255 scale (saturation check).
     valid : ndarray (N,) bool
         Window inside the image and estimate finite.
+    strip_contrast : ndarray (N,) float or None
+        On an arris line (:func:`doorloc.vision.arris_lines.arris_edges`): the grey-level step (0-255, its
+        size) of the strongest border of the strip's fitted shape that locates the point; None on an edge
+        without a strip.
     """
 
     axis: Axis
@@ -44,6 +48,7 @@ class EdgeSamples:
     width: np.ndarray
     bright: np.ndarray
     valid: np.ndarray
+    strip_contrast: np.ndarray | None = None
 
     def uv(self) -> np.ndarray:
         """Edge points as image ``(u, v)``, shape (N, 2)."""
@@ -60,7 +65,25 @@ class EdgeSamples:
             self.width[mask],
             self.bright[mask],
             self.valid[mask],
+            self.strip_contrast[mask] if self.strip_contrast is not None else None,
         )
+
+    def located_contrast(self, polarity: int, enough: float) -> np.ndarray:
+        """Per sample, the step that locates the edge, 0-255, signed by ``polarity`` (>0: the expected way).
+
+        The door's step ``step`` where it alone is ``enough`` (the edges' least contrast) the expected way.
+        On an arris line whose face hardly differs from the background, or is darker (a strip darker or
+        brighter than both sides: a chamfer in shadow between a face and a background of one shade, a lit
+        rounding beside a face in shadow), the strip's borders locate the point, not the face's step (the
+        strip's shape is fitted with its levels free, whatever their order): there the stronger of the face's
+        step and the strip's strongest border (``strip_contrast``). Whether a sample reaches a
+        threshold up to ``enough`` is as for the stronger of the two everywhere. In the array type of
+        ``step``.
+        """
+        c = polarity * self.step
+        if self.strip_contrast is None:
+            return c
+        return np.where(c < enough, np.maximum(c, self.strip_contrast), c).astype(self.step.dtype, copy=False)
 
 
 @dataclass(frozen=True)

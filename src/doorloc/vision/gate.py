@@ -63,7 +63,7 @@ def gate_and_answer(
     model, figures = doubts
     fit, pose = r.fit, r.pose
     diagnostics = _fit_diagnostics(r, region, door, figures)
-    lines, refusals = _line_checks(r, model, cfg)
+    lines, refusals = _line_checks(r, region, model, cfg)
     refusals += _corner_support(r, region, cfg, diagnostics)
     bright = np.concatenate([r.samples[k].bright[fit.weights[k] > 0] for k in EDGE_NAMES])
     refusals.append(q.check_overexposed(bright))
@@ -167,14 +167,18 @@ def _thickness_diagnostics(
     }
 
 
-def _line_checks(r: Refined, model: EdgeModelTerms, cfg: LocateConfig) -> tuple[list[LineQuality], list]:
+def _line_checks(
+    r: Refined, region: SearchRegion, model: EdgeModelTerms, cfg: LocateConfig
+) -> tuple[list[LineQuality], list]:
     """Each line's figures (:class:`doorloc.vision.result.LineQuality`) and its check (None where it passes)."""
     samples, fit, pose, far_beside = r.samples, r.fit, r.pose, r.far_beside
     lines, refusals = [], []
     for k in EDGE_NAMES:
         s = samples[k]
         n_s = int(s.scan.size)
-        n_i, mean_square, contrast, noise = q.line_figures(fit.weights[k], fit.residuals[k], s.step, s.noise)
+        # (the step that located each point: on an arris line with a faint face step, its strip's border)
+        located = s.located_contrast(region.layouts[k].polarity, cfg.min_contrast)
+        n_i, mean_square, contrast, noise = q.line_figures(fit.weights[k], fit.residuals[k], located, s.noise)
         rms_mm = math.sqrt(mean_square) if n_i else float("nan")
         rms_px = rms_mm / pose.scale_mm_per_px
         # what the edge model leaves in doubt (floor, texture, far-face model...), on top of the noise
