@@ -47,7 +47,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-__all__ = ["DecodePool", "DecodeRefused", "Located", "decoded_too_large"]
+__all__ = ["DecodePool", "DecodeRefused", "Located", "decoded_too_large", "lower_cpu_priority"]
 
 if TYPE_CHECKING:
     from doorloc.cell import Cell
@@ -109,7 +109,32 @@ def _address_space_bytes() -> int:
     return 0
 
 
-def _worker_main(conn: Connection, memory_bytes: int, locate_fn: Any = None) -> None:
+def lower_cpu_priority(increment: int, every_thread: bool = True) -> bool:
+    """Lower this process's CPU priority by ``increment`` nice levels (an unprivileged process may only lower
+    its own); True if it was lowered.
+
+    Linux keeps a nice level per thread, and a thread inherits its creator's: ``every_thread`` lowers each
+    thread running now (``/proc/self/task``), so every thread started later is lowered too. Elsewhere a nice
+    level is the process's. Where the platform has none (Windows) or refuses, nothing changes (False).
+    """
+    if increment <= 0 or not hasattr(os, "setpriority"):
+        return False
+    try:
+        tids = [int(t) for t in os.listdir("/proc/self/task")] if every_thread else [0]
+    except OSError:
+        tids = [0]  # no /proc (macOS, BSD): the nice level is the process's
+    lowered = False
+    for tid in tids:
+        try:
+            now = os.getpriority(os.PRIO_PROCESS, tid)
+            os.setpriority(os.PRIO_PROCESS, tid, min(now + increment, 19))
+            lowered = True
+        except OSError:
+            pass  # a thread that ended meanwhile, or a platform that refuses
+    return lowered
+
+
+def _worker_main(conn: Connection, memory_bytes: int, locate_fn: Any = None, nice: int = 0) -> None:
     """A worker: (job, arguments, step budgets) in, ("ok", value) or (code, sentence) out, until EOF.
 
     ``memory_bytes`` bounds what the worker ever adds to its start-up size (the hard limit); each step's own
@@ -139,6 +164,8 @@ def _worker_main(conn: Connection, memory_bytes: int, locate_fn: Any = None) -> 
         from doorloc.vision.warmup import compile_locate_kernels
 
         compile_locate_kernels()
+    # (after loading the kernels, which then take no longer than in any other worker)
+    lower_cpu_priority(nice, every_thread=False)
     # the limit is what the worker has now plus the budget: numpy's, OpenCV's and numba's own mappings are not counted
     hard = _address_space_bytes() + memory_bytes
     resource.setrlimit(resource.RLIMIT_AS, (hard, hard))
@@ -251,6 +278,9 @@ class DecodePool:
     locate_memory_bytes : int or None
         Address space one locate may add to its worker, the decoded image held (None: ``memory_bytes``); a
         locating worker's own limit is the sum of the two budgets.
+    nice : int
+        Nice levels the workers lower their CPU priority by once started (0: as the process that started
+        the pool's first worker): on a busy CPU a job here yields to one in a pool of better priority.
     """
 
     def __init__(
@@ -261,8 +291,10 @@ class DecodePool:
         locate_fn: Any = None,
         locate_cpu_s: float = 10.0,
         locate_memory_bytes: int | None = None,
+        nice: int = 0,
     ) -> None:
         self.size = size
+        self.nice = nice
         self.cpu_s = cpu_s
         self.memory_bytes = memory_bytes
         self.locate_fn = locate_fn
@@ -290,9 +322,10 @@ class DecodePool:
         parent, child = ctx.Pipe()
         process = ctx.Process(
             target=_worker_main,
-            args=(child, self._worker_bytes(), self.locate_fn),
+            args=(child, self._worker_bytes(), self.locate_fn, self.nice),
             daemon=True,
-            name="doorloc-decode" if self.locate_fn is None else "doorloc-locate",
+            name=("doorloc-decode" if self.locate_fn is None else "doorloc-locate")
+            + ("-low" if self.nice > 0 else ""),
         )
         process.start()
         child.close()
