@@ -112,14 +112,17 @@ class RecentUse:
     """Seconds of worker time per client, each decaying by half every ``half_life_s`` seconds.
 
     A client is *over its share* when its recent time is more than ``factor`` times an equal share of all
-    present clients' (those with recent time, and those named as waiting): 75 % of the total with two
-    clients, 50 % with three. A client alone is never over its share, however much it uses.
+    present clients' (those with recent time, and those named as waiting): with the default factor 1, more
+    than half of the total with two clients, a third with three. A client alone is never over its share,
+    however much it uses. (A factor of 1 rather than more: a client that always has a job waiting, served
+    in turn with a client that sends one image at a time, takes a little over half of the worker time, not
+    more; the client that used less recently is the one to go first, as in the kernel's own fair scheduler.)
 
     Examples
     --------
     >>> now = [0.0]
     >>> use = RecentUse(half_life_s=10.0, clock=lambda: now[0])
-    >>> use.add("a", 2.0); use.add("b", 0.1)
+    >>> use.add("a", 2.0); use.add("b", 1.9)
     >>> use.over_share("a"), use.over_share("b")
     (True, False)
     >>> alone = RecentUse(); alone.add("a", 5.0); alone.over_share("a")
@@ -132,7 +135,7 @@ class RecentUse:
     FORGET_S = 1e-3
 
     def __init__(
-        self, half_life_s: float = 10.0, factor: float = 1.5, clock: Callable[[], float] = time.monotonic
+        self, half_life_s: float = 5.0, factor: float = 1.0, clock: Callable[[], float] = time.monotonic
     ) -> None:
         self.half_life_s = half_life_s
         self.factor = factor
