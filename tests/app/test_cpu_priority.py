@@ -130,6 +130,47 @@ def test_a_pools_workers_run_at_its_nice_level_and_still_decode():
     assert nice == min(os.getpriority(os.PRIO_PROCESS, 0) + 6, 19)
 
 
+def busy_locate(image, cell, door, *, image_name="", trace=None):
+    """A stand-in locate that spends about 0.3 s of CPU on an image whose first pixel is 200."""
+    import time
+
+    from doorloc.vision.result import LocateResult
+
+    if int(image[0, 0]) == 200:
+        end = time.process_time() + 0.3
+        while time.process_time() < end:
+            pass
+    return LocateResult.refusal(image_name, "no_door", "stand-in")
+
+
+def test_the_jobs_worker_cpu_time_is_counted_not_the_time_its_slot_was_held():
+    from .test_decodepool import _thesis_cell
+
+    cell = _thesis_cell()
+    busy, quiet = (png_bytes(np.full((6, 8), v, np.uint8)) for v in (200, 7))
+    with DecodePool(1, cpu_s=5, memory_bytes=300_000_000, locate_fn=busy_locate, nice=2) as pool:
+        got = [
+            pool.decode_and_locate(
+                data, "x.png", cell, cell.default_door, max_decoded_bytes=10**8, timeout_s=60
+            )
+            for data in (busy, quiet)
+        ]
+    assert got[0].worker_cpu_s >= 0.25 and got[1].worker_cpu_s < 0.1
+
+    state = _state(over_share_nice=12)
+
+    async def hold(cpu_s: float | None) -> None:
+        turn = await take_cpu_slot(state, None, "key:line", "a")
+        turn.worker_cpu_s = cpu_s
+        await anyio.sleep(0.2)  # waiting behind others (on a busy CPU) is not use
+        release_cpu_slot(state, "key:line", "a", turn)
+
+    anyio.run(hold, 0.01)
+    assert state.recent_use.seconds("key:line") == pytest.approx(0.01, abs=0.002)
+    anyio.run(hold, None)  # a job refused or stopped: the time held counts
+    assert state.recent_use.seconds("key:line") >= 0.2
+
+
 def _descendants(pid: int) -> list[int]:
     found, todo = [], [pid]
     while todo:

@@ -94,11 +94,13 @@ class _Step:
 class Located:
     """What :meth:`DecodePool.decode_and_locate` gives back: locate's result, the overlay (base64 PNG, or None:
     not asked for, not located, or the image was too large to draw), and this thread's CPU ms until the
-    worker had decoded the image (handing the bytes over)."""
+    worker had decoded the image (handing the bytes over), and the worker's own CPU time for the job."""
 
     result: LocateResult
     overlay_png: str | None
     decode_thread_ms: float
+    #: the worker process's CPU seconds for the whole job (decoding and locating)
+    worker_cpu_s: float = 0.0
 
 
 def _address_space_bytes() -> int:
@@ -187,6 +189,7 @@ def _worker_main(conn: Connection, memory_bytes: int, locate_fn: Any = None, nic
             return
         except MemoryError:  # the upload itself did not fit: end quietly, the parent answers 422
             os._exit(_OUT_OF_MEMORY)
+        started = time.process_time()
         budget(*budgets[0])
         # (an image decoded already, in a decoding-only process, skips the step)
         reply = ("ok", args[0]) if isinstance(args[0], np.ndarray) else _decode_step(args[0], args[1])
@@ -199,10 +202,11 @@ def _worker_main(conn: Connection, memory_bytes: int, locate_fn: Any = None, nic
                 budget(*budgets[1])
                 reply = _locate_step(locate_fn, image, args[1], args[2], args[3], args[5])
             del image
+        # the job's CPU seconds (this process's), for the service's account of who used the workers
         try:
-            conn.send(reply)
+            conn.send((*reply, time.process_time() - started))
         except MemoryError:
-            conn.send(("memory", ""))
+            conn.send(("memory", "", time.process_time() - started))
         del reply
 
 
@@ -389,9 +393,12 @@ class DecodePool:
         except queue.Empty:
             raise _deadline_passed(what) from None
 
-    def _run(self, job: str, args: tuple, steps: tuple[_Step, ...], timeout_s: float) -> tuple[Any, float]:
-        """Run one job in an idle worker (started if none is), its steps in turn; its value and this thread's
-        CPU seconds until its first step was done, or DecodeRefused naming the step that was stopped."""
+    def _run(
+        self, job: str, args: tuple, steps: tuple[_Step, ...], timeout_s: float
+    ) -> tuple[Any, float, float]:
+        """Run one job in an idle worker (started if none is), its steps in turn; its value, this thread's
+        CPU seconds until its first step was done and the worker's CPU seconds for the job, or DecodeRefused
+        naming the step that was stopped."""
         if self._closed:
             raise DecodeRefused(503, "not_ready", "The service is shutting down; retry shortly.")
         end = time.monotonic() + max(timeout_s, 0.001)
@@ -412,7 +419,7 @@ class DecodePool:
                         self._retire(worker)
                         self._replace_soon()
                         raise _deadline_passed(step.what)
-                    kind, value = worker.conn.recv()
+                    kind, value, *cpu = worker.conn.recv()
                     if kind != "decoded":
                         break
                     # the worker decoded the image and now locates: a limit past here is locate's
@@ -428,7 +435,7 @@ class DecodePool:
         finally:
             self._slots.release()
         if kind == "ok":
-            return value, first_done
+            return value, first_done, cpu[0] if cpu else 0.0
         if kind == "memory":
             raise _limit_reached(step, None)
         if kind == "too_big":
@@ -489,12 +496,12 @@ class DecodePool:
         locating = _Step("locate", "located", self.locate_cpu_s, self.locate_memory_bytes)
         args = (data, name, cell, door, max_decoded_bytes, overlay_max_pixels)
         try:
-            (result, drawn), decode_s = self._run(
+            (result, drawn), decode_s, worker_s = self._run(
                 "decode_locate", args, (self._decoding(), locating), timeout_s
             )
         except _DecodedTooLarge as e:
             raise decoded_too_large(name, e.nbytes, max_decoded_bytes) from None
-        return Located(result, drawn, decode_s * 1e3)
+        return Located(result, drawn, decode_s * 1e3, worker_s)
 
     def close(self) -> None:
         """End every worker (the service's shutdown)."""

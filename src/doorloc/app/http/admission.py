@@ -96,13 +96,15 @@ def shedding_problem(state: ServiceState, client: str, address: str = "") -> Pro
     return None
 
 
-@dataclass(frozen=True)
+@dataclass
 class CpuTurn:
     """A CPU slot held: in the lower-priority workers' slots (``over_share``) or the others', since
-    ``started`` (monotonic seconds)."""
+    ``started`` (monotonic seconds); ``worker_cpu_s``: the CPU seconds its job took in a worker process, once
+    known (else the time the slot was held is counted as the client's: a refused or stopped job's)."""
 
     over_share: bool
     started: float
+    worker_cpu_s: float | None = None
 
 
 async def take_cpu_slot(
@@ -168,7 +170,10 @@ def release_cpu_slot(
     else:
         state.limiter.release()
     if turn is not None:
-        state.recent_use.add(client, time.monotonic() - turn.started)
+        # the worker's CPU time, not the time held: a job that waited for the CPU behind others at a lower
+        # priority must not count that wait against its client (it would keep it there)
+        used = turn.worker_cpu_s if turn.worker_cpu_s is not None else time.monotonic() - turn.started
+        state.recent_use.add(client, used)
     _forget(state, client, address)
 
 
@@ -227,12 +232,12 @@ def locate_upload(
     door: DoorSize,
     overlay: bool,
     deadline: float | None,
-    over_share: bool = False,
+    turn: CpuTurn | None = None,
 ) -> Located:
     """The uploaded image decoded and the door located in it, in one limited worker process (blocking: call
     it in a worker thread; ``state.locates_in_workers`` must hold). ``overlay``: draw the overlay of a located
-    door there too, for an image of at most ``overlay_max_pixels``. ``over_share``: in one of the
-    lower-priority workers (a turn of :func:`take_cpu_slot` in their slots).
+    door there too, for an image of at most ``overlay_max_pixels``. ``turn`` (from :func:`take_cpu_slot`): in
+    one of the lower-priority workers for a turn in their slots; the job's worker CPU time is noted in it.
 
     Raises ProblemError 422 (undecodable, decoded past ``max_decoded_bytes``, past the decoding or the
     locating CPU-time or memory limit) or 503 (the deadline passed first), as :func:`decode_upload` and a
@@ -243,9 +248,10 @@ def locate_upload(
     if state.decoders is not None and decodes_apart(data):
         image = decode_upload(state, data, name, deadline, pool=state.decoders)
     left = (deadline - time.monotonic()) if deadline is not None else state.settings.request_deadline_s
+    over_share = turn is not None and turn.over_share and state.over_share is not None
     pool = state.over_share if over_share and state.over_share is not None else state.workers
     try:
-        return pool.decode_and_locate(
+        located = pool.decode_and_locate(
             image,
             name,
             state.cell,
@@ -256,3 +262,6 @@ def locate_upload(
         )
     except DecodeRefused as e:
         raise refusal_problem(e) from None
+    if turn is not None:
+        turn.worker_cpu_s = located.worker_cpu_s
+    return located

@@ -23,6 +23,7 @@ from pydantic import Field
 from doorloc.app.access import Role
 from doorloc.app.answer import Answer, DoorChoice, LocateResponse, overlay_png
 from doorloc.app.http.admission import (
+    CpuTurn,
     address_of,
     client_of,
     decode_upload,
@@ -103,7 +104,7 @@ async def post_locate(
         turn = await take_cpu_slot(state, deadline, client, address)
         try:
             answer = await anyio.to_thread.run_sync(
-                _measure, data, name, state, choice, overlay, rapid, deadline, turn.over_share
+                _measure, data, name, state, choice, overlay, rapid, deadline, turn
             )
         finally:
             release_cpu_slot(state, client, address, turn)
@@ -215,12 +216,12 @@ def _measure(
     overlay: bool,
     rapid: bool,
     deadline: float | None = None,
-    over_share: bool = False,
+    turn: CpuTurn | None = None,
 ) -> Answer:
     """The answer, with the thread CPU ms of decoding and of measuring (``decode``, ``locate``).
 
     When the service locates in its limited worker processes, one of them decodes the image and locates in it
-    (one job: the decoded image never crosses a pipe; a lower-priority one for ``over_share``), and ``decode`` and ``locate`` are this thread's share:
+    (one job: the decoded image never crosses a pipe; a lower-priority one for an ``over_share`` turn), and ``decode`` and ``locate`` are this thread's share:
     the hand-over, besides the targets and the reach check. A locate given in code runs here, on the image
     decoded in a worker process (or in this thread: ``decode_in_threads``).
     The overlay is drawn only for an answered image of a sane size: a refused 7.2 MB JPEG once made a
@@ -229,7 +230,7 @@ def _measure(
     assert state.cell is not None  # the route depends on ready_state
     if state.locates_in_workers:
         t0 = time.thread_time()
-        located = locate_upload(state, data, name, choice.door, overlay, deadline, over_share)
+        located = locate_upload(state, data, name, choice.door, overlay, deadline, turn)
         answer = answer_located(located.result, state.cell, choice, rapid=rapid, overlay=located.overlay_png)
         cpu_ms = {
             "decode": located.decode_thread_ms,
