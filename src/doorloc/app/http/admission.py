@@ -164,7 +164,7 @@ def release_cpu_slot(
     state: ServiceState, client: str, address: str = "", turn: CpuTurn | None = None
 ) -> None:
     """Give back what :func:`take_cpu_slot` gave (``turn``, its answer; None: a slot of the normal workers),
-    counting the time it was held as ``client``'s worker time."""
+    counting its job's worker CPU time (else the time the slot was held) as ``client``'s recent use."""
     if turn is not None and turn.over_share and state.over_share_limiter is not None:
         state.over_share_limiter.release()
     else:

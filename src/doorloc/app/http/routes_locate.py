@@ -97,7 +97,9 @@ async def post_locate(
     name = image.filename or "upload"
     state.metrics.in_flight.inc()
     try:
-        _check_upload(data, name, state)
+        # in a thread: reading a large JPEG's markers takes tens of ms, which on the event loop would hold up
+        # every other client's request meanwhile (an attacker's stream of 12 MB JPEGs held each for that long)
+        await anyio.to_thread.run_sync(_check_upload, data, name, state)
         choice = await _door_choice(state, door_id, width_mm, thickness_mm, height_mm, arris_mm)
         deadline = request.scope.get("state", {}).get("deadline")
         client, address = client_of(request.scope.get("state", {})), address_of(request.scope)
