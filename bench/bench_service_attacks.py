@@ -16,7 +16,9 @@ with its window. Printed as a Markdown table (docs/deploy.md holds one).
 CPU set, this script, its measuring client and the attack clients only on the second, so that the attackers'
 own CPU does not slow the server's answers; the affinity read back from every process, and ``uptime`` at the
 start and the end (other work on the machine still shares its CPUs), are printed with the table. Without them
-everything shares every CPU.
+everything shares every CPU. ``--attack-nice N`` (Unix): the attack clients run N nice levels below the
+measuring client, as if on other machines: with only two CPUs they otherwise share the measuring client's
+CPU with it, and a normal locate would wait for its own client to get the CPU, whatever the server does.
 
 The attacks (the probe's numbering):
 
@@ -195,7 +197,11 @@ def attack_client(  # noqa: ANN001
                 out[f"{status}{extra}"] += 1
 
 
-def attack_process(kind: str, n: int, base: str, keys: dict, stop, running, out) -> None:  # noqa: ANN001
+def attack_process(kind: str, n: int, base: str, keys: dict, stop, running, out, nice: int = 0) -> None:  # noqa: ANN001
+    if nice > 0:
+        import os
+
+        os.nice(nice)  # before any client thread starts: they inherit it
     lock, statuses, stop_t = threading.Lock(), Counter(), threading.Event()
     door_png = rendered_pngs(1, seed0=50)[0][0] if kind == "fair_flood" else None  # once, before the start
     threads = [
@@ -244,11 +250,13 @@ CLIENTS = {
 }
 
 
-def run_attack(kind: str, base: str, pid: int, keys: dict, pngs: list, n: int) -> dict:
+def run_attack(kind: str, base: str, pid: int, keys: dict, pngs: list, n: int, attack_nice: int = 0) -> dict:
     unloaded, _ = normal_times(base, keys["normal"], pngs, n)
     ctx = multiprocessing.get_context("spawn")
     stop, running, out = ctx.Event(), ctx.Event(), ctx.Queue()
-    proc = ctx.Process(target=attack_process, args=(kind, CLIENTS[kind], base, keys, stop, running, out))
+    proc = ctx.Process(
+        target=attack_process, args=(kind, CLIENTS[kind], base, keys, stop, running, out, attack_nice)
+    )
     proc.start()
     running.wait(180)
     peak = [rss_mb(pid)]
@@ -360,6 +368,9 @@ def main() -> None:
     ap.add_argument(
         "--client-cpus", default="", help="CPUs of this script and the attack clients, e.g. 1 (default: all)"
     )
+    ap.add_argument(
+        "--attack-nice", type=int, default=0, help="nice levels of the attack clients below the measuring one"
+    )
     args = ap.parse_args()
     only = [a for a in args.only.split(",") if a] or LOAD_ATTACKS
     server_cpus, client_cpus = _cpu_set(args.server_cpus), _cpu_set(args.client_cpus)
@@ -382,12 +393,17 @@ def main() -> None:
         # the single checks first: the key timing needs a fresh wrong-key budget
         rows = single_checks(base, keys)
         rows += [
-            run_attack(kind, base, pid, keys, pngs, args.normal) for kind in only if kind in LOAD_ATTACKS
+            run_attack(kind, base, pid, keys, pngs, args.normal, args.attack_nice)
+            for kind in only
+            if kind in LOAD_ATTACKS
         ]
         rows.append(revoke_last_key(base, keys))
         server_affinity |= affinity_of_tree(pid)  # the workers started since (replacements) too
     uptime_end = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
-    print(f"\n{args.workers} worker(s); normal locate = 1080p rendered door, {args.normal} per block")
+    print(
+        f"\n{args.workers} worker(s); normal locate = 1080p rendered door, {args.normal} per block; attack "
+        f"clients {args.attack_nice} nice levels below it"
+    )
     print(f"machine: {os.cpu_count()} CPUs; uptime at the start: {uptime_start}; at the end: {uptime_end}")
     cpus_of_server = sorted({c for cs in server_affinity.values() for c in cs})
     print(

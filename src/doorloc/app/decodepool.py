@@ -47,7 +47,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-__all__ = ["DecodePool", "DecodeRefused", "Located", "decoded_too_large"]
+__all__ = ["DecodePool", "DecodeRefused", "Located", "decoded_too_large", "lower_cpu_priority"]
 
 if TYPE_CHECKING:
     from doorloc.cell import Cell
@@ -94,11 +94,13 @@ class _Step:
 class Located:
     """What :meth:`DecodePool.decode_and_locate` gives back: locate's result, the overlay (base64 PNG, or None:
     not asked for, not located, or the image was too large to draw), and this thread's CPU ms until the
-    worker had decoded the image (handing the bytes over)."""
+    worker had decoded the image (handing the bytes over), and the worker's own CPU time for the job."""
 
     result: LocateResult
     overlay_png: str | None
     decode_thread_ms: float
+    #: the worker process's CPU seconds for the whole job (decoding and locating)
+    worker_cpu_s: float = 0.0
 
 
 def _address_space_bytes() -> int:
@@ -109,7 +111,32 @@ def _address_space_bytes() -> int:
     return 0
 
 
-def _worker_main(conn: Connection, memory_bytes: int, locate_fn: Any = None) -> None:
+def lower_cpu_priority(increment: int, every_thread: bool = True) -> bool:
+    """Lower this process's CPU priority by ``increment`` nice levels (an unprivileged process may only lower
+    its own); True if it was lowered.
+
+    Linux keeps a nice level per thread, and a thread inherits its creator's: ``every_thread`` lowers each
+    thread running now (``/proc/self/task``), so every thread started later is lowered too. Elsewhere a nice
+    level is the process's. Where the platform has none (Windows) or refuses, nothing changes (False).
+    """
+    if increment <= 0 or not hasattr(os, "setpriority"):
+        return False
+    try:
+        tids = [int(t) for t in os.listdir("/proc/self/task")] if every_thread else [0]
+    except OSError:
+        tids = [0]  # no /proc (macOS, BSD): the nice level is the process's
+    lowered = False
+    for tid in tids:
+        try:
+            now = os.getpriority(os.PRIO_PROCESS, tid)
+            os.setpriority(os.PRIO_PROCESS, tid, min(now + increment, 19))
+            lowered = True
+        except OSError:
+            pass  # a thread that ended meanwhile, or a platform that refuses
+    return lowered
+
+
+def _worker_main(conn: Connection, memory_bytes: int, locate_fn: Any = None, nice: int = 0) -> None:
     """A worker: (job, arguments, step budgets) in, ("ok", value) or (code, sentence) out, until EOF.
 
     ``memory_bytes`` bounds what the worker ever adds to its start-up size (the hard limit); each step's own
@@ -139,6 +166,8 @@ def _worker_main(conn: Connection, memory_bytes: int, locate_fn: Any = None) -> 
         from doorloc.vision.warmup import compile_locate_kernels
 
         compile_locate_kernels()
+    # (after loading the kernels, which then take no longer than in any other worker)
+    lower_cpu_priority(nice, every_thread=False)
     # the limit is what the worker has now plus the budget: numpy's, OpenCV's and numba's own mappings are not counted
     hard = _address_space_bytes() + memory_bytes
     resource.setrlimit(resource.RLIMIT_AS, (hard, hard))
@@ -160,6 +189,7 @@ def _worker_main(conn: Connection, memory_bytes: int, locate_fn: Any = None) -> 
             return
         except MemoryError:  # the upload itself did not fit: end quietly, the parent answers 422
             os._exit(_OUT_OF_MEMORY)
+        started = time.process_time()
         budget(*budgets[0])
         # (an image decoded already, in a decoding-only process, skips the step)
         reply = ("ok", args[0]) if isinstance(args[0], np.ndarray) else _decode_step(args[0], args[1])
@@ -172,10 +202,11 @@ def _worker_main(conn: Connection, memory_bytes: int, locate_fn: Any = None) -> 
                 budget(*budgets[1])
                 reply = _locate_step(locate_fn, image, args[1], args[2], args[3], args[5])
             del image
+        # the job's CPU seconds (this process's), for the service's account of who used the workers
         try:
-            conn.send(reply)
+            conn.send((*reply, time.process_time() - started))
         except MemoryError:
-            conn.send(("memory", ""))
+            conn.send(("memory", "", time.process_time() - started))
         del reply
 
 
@@ -251,6 +282,9 @@ class DecodePool:
     locate_memory_bytes : int or None
         Address space one locate may add to its worker, the decoded image held (None: ``memory_bytes``); a
         locating worker's own limit is the sum of the two budgets.
+    nice : int
+        Nice levels the workers lower their CPU priority by once started (0: as the process that started
+        the pool's first worker): on a busy CPU a job here yields to one in a pool of better priority.
     """
 
     def __init__(
@@ -261,8 +295,10 @@ class DecodePool:
         locate_fn: Any = None,
         locate_cpu_s: float = 10.0,
         locate_memory_bytes: int | None = None,
+        nice: int = 0,
     ) -> None:
         self.size = size
+        self.nice = nice
         self.cpu_s = cpu_s
         self.memory_bytes = memory_bytes
         self.locate_fn = locate_fn
@@ -290,9 +326,10 @@ class DecodePool:
         parent, child = ctx.Pipe()
         process = ctx.Process(
             target=_worker_main,
-            args=(child, self._worker_bytes(), self.locate_fn),
+            args=(child, self._worker_bytes(), self.locate_fn, self.nice),
             daemon=True,
-            name="doorloc-decode" if self.locate_fn is None else "doorloc-locate",
+            name=("doorloc-decode" if self.locate_fn is None else "doorloc-locate")
+            + ("-low" if self.nice > 0 else ""),
         )
         process.start()
         child.close()
@@ -356,9 +393,12 @@ class DecodePool:
         except queue.Empty:
             raise _deadline_passed(what) from None
 
-    def _run(self, job: str, args: tuple, steps: tuple[_Step, ...], timeout_s: float) -> tuple[Any, float]:
-        """Run one job in an idle worker (started if none is), its steps in turn; its value and this thread's
-        CPU seconds until its first step was done, or DecodeRefused naming the step that was stopped."""
+    def _run(
+        self, job: str, args: tuple, steps: tuple[_Step, ...], timeout_s: float
+    ) -> tuple[Any, float, float]:
+        """Run one job in an idle worker (started if none is), its steps in turn; its value, this thread's
+        CPU seconds until its first step was done and the worker's CPU seconds for the job, or DecodeRefused
+        naming the step that was stopped."""
         if self._closed:
             raise DecodeRefused(503, "not_ready", "The service is shutting down; retry shortly.")
         end = time.monotonic() + max(timeout_s, 0.001)
@@ -379,7 +419,7 @@ class DecodePool:
                         self._retire(worker)
                         self._replace_soon()
                         raise _deadline_passed(step.what)
-                    kind, value = worker.conn.recv()
+                    kind, value, *cpu = worker.conn.recv()
                     if kind != "decoded":
                         break
                     # the worker decoded the image and now locates: a limit past here is locate's
@@ -395,7 +435,7 @@ class DecodePool:
         finally:
             self._slots.release()
         if kind == "ok":
-            return value, first_done
+            return value, first_done, cpu[0] if cpu else 0.0
         if kind == "memory":
             raise _limit_reached(step, None)
         if kind == "too_big":
@@ -456,12 +496,12 @@ class DecodePool:
         locating = _Step("locate", "located", self.locate_cpu_s, self.locate_memory_bytes)
         args = (data, name, cell, door, max_decoded_bytes, overlay_max_pixels)
         try:
-            (result, drawn), decode_s = self._run(
+            (result, drawn), decode_s, worker_s = self._run(
                 "decode_locate", args, (self._decoding(), locating), timeout_s
             )
         except _DecodedTooLarge as e:
             raise decoded_too_large(name, e.nbytes, max_decoded_bytes) from None
-        return Located(result, drawn, decode_s * 1e3)
+        return Located(result, drawn, decode_s * 1e3, worker_s)
 
     def close(self) -> None:
         """End every worker (the service's shutdown)."""

@@ -169,6 +169,23 @@ class ServiceSettings(BaseSettings):
         description="memory (address space) locating the door in one image may add to its worker process, the "
         "decoded image held, bytes (a 1080p frame needs under 8 MB)",
     )
+    serve_nice: int = Field(
+        5,
+        ge=0,
+        le=19,
+        description="nice levels the serving process (its HTTP event loop, which answers and refuses requests) "
+        "lowers its CPU priority by once its worker processes have started, so that a locate in progress "
+        "keeps the CPU while many cheap requests are refused; 0: same priority (Unix; ignored elsewhere)",
+    )
+    over_share_nice: int = Field(
+        15,
+        ge=0,
+        le=19,
+        description="nice levels of the extra worker processes (one per CPU slot) that run the jobs of a client "
+        "which used more than its share of worker time recently while another client was present, so another "
+        "client's job overtakes them on the CPU; 0: no extra workers, every job waits for the CPU slots in "
+        "turn (Unix; elsewhere the extra workers run at the same priority)",
+    )
     overlay_max_pixels: int = Field(
         8_300_000, gt=0, description="largest image (width*height) an overlay is drawn for (4K UHD)"
     )

@@ -77,7 +77,7 @@ def create_app(
                 yield
                 tg.cancel_scope.cancel()
         finally:
-            for pool in (state.workers, state.decoders):
+            for pool in (state.workers, state.decoders, state.over_share):
                 if pool is not None:
                     pool.close()
 

@@ -5,7 +5,10 @@
   address using that key (the connection's, or the one a trusted proxy forwarded): one client flooding the
   service fills only its own share, so another client's image still finds a place, even one sent with the
   same shared key from another machine; the free CPU slots go to the waiting keys in turn, and within a key
-  to its addresses in turn (:class:`~doorloc.app.fairslots.FairSlots`), not in arrival order;
+  to its addresses in turn (:class:`~doorloc.app.fairslots.FairSlots`), not in arrival order; a client that
+  used more than its share of worker time recently while another client is present
+  (:class:`~doorloc.app.fairslots.RecentUse`) waits for the slots of the lower-priority workers instead, so
+  the other client's job does not wait behind its job and overtakes it on a busy CPU;
 - :func:`locate_upload`: decoding and locating in one of the worker's limited processes
   (:class:`~doorloc.app.decodepool.DecodePool`) within what is left of the request's deadline, one job per
   request; :func:`decode_upload`: decoding alone (there, or in the thread), for a locate that runs in the thread.
@@ -15,6 +18,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, TypeVar
 
 import anyio
@@ -33,6 +37,7 @@ __all__ = [
     "client_of",
     "address_of",
     "shedding_problem",
+    "CpuTurn",
     "take_cpu_slot",
     "release_cpu_slot",
     "decode_upload",
@@ -91,12 +96,26 @@ def shedding_problem(state: ServiceState, client: str, address: str = "") -> Pro
     return None
 
 
-async def take_cpu_slot(state: ServiceState, deadline: float | None, client: str, address: str = "") -> None:
+@dataclass
+class CpuTurn:
+    """A CPU slot held: in the lower-priority workers' slots (``over_share``) or the others', since
+    ``started`` (monotonic seconds); ``worker_cpu_s``: the CPU seconds its job took in a worker process, once
+    known (else the time the slot was held is counted as the client's: a refused or stopped job's)."""
+
+    over_share: bool
+    started: float
+    worker_cpu_s: float | None = None
+
+
+async def take_cpu_slot(
+    state: ServiceState, deadline: float | None, client: str, address: str = ""
+) -> CpuTurn:
     """Take a place in the worker's bounded queue and wait for a CPU slot until the request's deadline.
 
     503 Retry-After at once when the queue is full or ``client`` already holds its share of it, or when no
-    slot came free by the deadline. On return the caller holds a limiter token and a queue place and must
-    give both back with :func:`release_cpu_slot`.
+    slot came free by the deadline. The slot is one of the lower-priority workers' (``over_share``) when
+    ``client`` used more than its share of worker time recently while another client is present. On return
+    the caller holds a limiter token and a queue place and must give both back with :func:`release_cpu_slot`.
     """
     problem = shedding_problem(state, client, address)
     if problem is not None:
@@ -106,9 +125,13 @@ async def take_cpu_slot(state: ServiceState, deadline: float | None, client: str
     state.admitted += 1
     state.client_admitted[client] = held + 1
     state.address_admitted[(client, address)] = state.address_admitted.get((client, address), 0) + 1
+    over_share = state.over_share_limiter is not None and state.recent_use.over_share(
+        client, state.client_admitted
+    )
+    limiter = state.over_share_limiter if over_share and state.over_share_limiter else state.limiter
     try:
         with anyio.fail_after(max(left, 0.001)):
-            await state.limiter.acquire(client, address)
+            await limiter.acquire(client, address)
     except BaseException as e:  # timed out, or the client went away: give the queue place back
         _forget(state, client, address)
         if not isinstance(e, TimeoutError):
@@ -120,6 +143,7 @@ async def take_cpu_slot(state: ServiceState, deadline: float | None, client: str
             "worker is overloaded; retry after the number of seconds in Retry-After.",
             headers={"Retry-After": "5"},
         ) from None
+    return CpuTurn(over_share, time.monotonic())
 
 
 def _forget(state: ServiceState, client: str, address: str) -> None:
@@ -136,9 +160,20 @@ def _count_down(counts: dict[_Key, int], key: _Key) -> None:
         counts.pop(key, None)
 
 
-def release_cpu_slot(state: ServiceState, client: str, address: str = "") -> None:
-    """Give back what :func:`take_cpu_slot` gave."""
-    state.limiter.release()
+def release_cpu_slot(
+    state: ServiceState, client: str, address: str = "", turn: CpuTurn | None = None
+) -> None:
+    """Give back what :func:`take_cpu_slot` gave (``turn``, its answer; None: a slot of the normal workers),
+    counting its job's worker CPU time (else the time the slot was held) as ``client``'s recent use."""
+    if turn is not None and turn.over_share and state.over_share_limiter is not None:
+        state.over_share_limiter.release()
+    else:
+        state.limiter.release()
+    if turn is not None:
+        # the worker's CPU time, not the time held: a job that waited for the CPU behind others at a lower
+        # priority must not count that wait against its client (it would keep it there)
+        used = turn.worker_cpu_s if turn.worker_cpu_s is not None else time.monotonic() - turn.started
+        state.recent_use.add(client, used)
     _forget(state, client, address)
 
 
@@ -191,11 +226,18 @@ def decode_upload(
 
 
 def locate_upload(
-    state: ServiceState, data: bytes, name: str, door: DoorSize, overlay: bool, deadline: float | None
+    state: ServiceState,
+    data: bytes,
+    name: str,
+    door: DoorSize,
+    overlay: bool,
+    deadline: float | None,
+    turn: CpuTurn | None = None,
 ) -> Located:
     """The uploaded image decoded and the door located in it, in one limited worker process (blocking: call
     it in a worker thread; ``state.locates_in_workers`` must hold). ``overlay``: draw the overlay of a located
-    door there too, for an image of at most ``overlay_max_pixels``.
+    door there too, for an image of at most ``overlay_max_pixels``. ``turn`` (from :func:`take_cpu_slot`): in
+    one of the lower-priority workers for a turn in their slots; the job's worker CPU time is noted in it.
 
     Raises ProblemError 422 (undecodable, decoded past ``max_decoded_bytes``, past the decoding or the
     locating CPU-time or memory limit) or 503 (the deadline passed first), as :func:`decode_upload` and a
@@ -206,8 +248,10 @@ def locate_upload(
     if state.decoders is not None and decodes_apart(data):
         image = decode_upload(state, data, name, deadline, pool=state.decoders)
     left = (deadline - time.monotonic()) if deadline is not None else state.settings.request_deadline_s
+    over_share = turn is not None and turn.over_share and state.over_share is not None
+    pool = state.over_share if over_share and state.over_share is not None else state.workers
     try:
-        return state.workers.decode_and_locate(
+        located = pool.decode_and_locate(
             image,
             name,
             state.cell,
@@ -218,3 +262,6 @@ def locate_upload(
         )
     except DecodeRefused as e:
         raise refusal_problem(e) from None
+    if turn is not None:
+        turn.worker_cpu_s = located.worker_cpu_s
+    return located

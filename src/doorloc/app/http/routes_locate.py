@@ -23,6 +23,7 @@ from pydantic import Field
 from doorloc.app.access import Role
 from doorloc.app.answer import Answer, DoorChoice, LocateResponse, overlay_png
 from doorloc.app.http.admission import (
+    CpuTurn,
     address_of,
     client_of,
     decode_upload,
@@ -96,17 +97,19 @@ async def post_locate(
     name = image.filename or "upload"
     state.metrics.in_flight.inc()
     try:
-        _check_upload(data, name, state)
+        # in a thread: reading a large JPEG's markers takes tens of ms, which on the event loop would hold up
+        # every other client's request meanwhile (an attacker's stream of 12 MB JPEGs held each for that long)
+        await anyio.to_thread.run_sync(_check_upload, data, name, state)
         choice = await _door_choice(state, door_id, width_mm, thickness_mm, height_mm, arris_mm)
         deadline = request.scope.get("state", {}).get("deadline")
         client, address = client_of(request.scope.get("state", {})), address_of(request.scope)
-        await take_cpu_slot(state, deadline, client, address)
+        turn = await take_cpu_slot(state, deadline, client, address)
         try:
             answer = await anyio.to_thread.run_sync(
-                _measure, data, name, state, choice, overlay, rapid, deadline
+                _measure, data, name, state, choice, overlay, rapid, deadline, turn
             )
         finally:
-            release_cpu_slot(state, client, address)
+            release_cpu_slot(state, client, address, turn)
     except ProblemError as e:
         state.metrics.rejected_uploads.labels(e.code).inc()
         raise
@@ -215,11 +218,12 @@ def _measure(
     overlay: bool,
     rapid: bool,
     deadline: float | None = None,
+    turn: CpuTurn | None = None,
 ) -> Answer:
     """The answer, with the thread CPU ms of decoding and of measuring (``decode``, ``locate``).
 
     When the service locates in its limited worker processes, one of them decodes the image and locates in it
-    (one job: the decoded image never crosses a pipe), and ``decode`` and ``locate`` are this thread's share:
+    (one job: the decoded image never crosses a pipe; a lower-priority one for an ``over_share`` turn), and ``decode`` and ``locate`` are this thread's share:
     the hand-over, besides the targets and the reach check. A locate given in code runs here, on the image
     decoded in a worker process (or in this thread: ``decode_in_threads``).
     The overlay is drawn only for an answered image of a sane size: a refused 7.2 MB JPEG once made a
@@ -228,7 +232,7 @@ def _measure(
     assert state.cell is not None  # the route depends on ready_state
     if state.locates_in_workers:
         t0 = time.thread_time()
-        located = locate_upload(state, data, name, choice.door, overlay, deadline)
+        located = locate_upload(state, data, name, choice.door, overlay, deadline, turn)
         answer = answer_located(located.result, state.cell, choice, rapid=rapid, overlay=located.overlay_png)
         cpu_ms = {
             "decode": located.decode_thread_ms,

@@ -14,8 +14,8 @@ from typing import Any
 
 from doorloc.app.access import FailureBudget, KeyStore
 from doorloc.app.answer import LocateFn
-from doorloc.app.decodepool import DecodePool
-from doorloc.app.fairslots import FairSlots
+from doorloc.app.decodepool import DecodePool, lower_cpu_priority
+from doorloc.app.fairslots import FairSlots, RecentUse
 from doorloc.app.http.metrics import ServiceMetrics
 from doorloc.app.settings import ServiceSettings, missing_database
 from doorloc.cell import Cell, cell_to_dict
@@ -42,6 +42,11 @@ class ServiceState:
     keys: KeyStore | None = None
     load_error: str | None = None
     limiter: FairSlots = field(init=False)
+    #: the CPU slots of the lower-priority workers (`over_share`), for the jobs of a client over its share of
+    #: recent worker time (None: no such workers, settings.over_share_nice == 0, or no worker processes)
+    over_share_limiter: FairSlots | None = field(init=False)
+    #: each client's recent worker time (seconds held a CPU slot), which decides who is over its share
+    recent_use: RecentUse = field(init=False)
     #: locate requests in this worker right now, running or waiting for a CPU slot (routes_locate._cpu_slot)
     admitted: int = 0
     #: True once a key exists or was presented: the service then never answers without one (fails closed)
@@ -55,6 +60,11 @@ class ServiceState:
     #: decoding work their header does not bound (admission.decodes_apart): a decoding bomb among them ends one
     #: of these, which restarts in milliseconds, not a worker holding locate's kernels
     decoders: DecodePool | None = field(init=False)
+    #: locating workers like `workers`, of lower CPU priority (settings.over_share_nice), for the jobs of a
+    #: client over its share of recent worker time: another client's job in `workers` overtakes them on a busy CPU
+    over_share: DecodePool | None = field(init=False)
+    #: whether this process has lowered its own CPU priority (settings.serve_nice; once, after the workers start)
+    serve_niced: bool = False
     #: per client (key name, else address): locate requests running or queued (fair shedding)
     client_admitted: dict[str, int] = field(init=False, default_factory=dict)
     #: per (key, client address) within a key's share: locate requests running or queued
@@ -63,8 +73,11 @@ class ServiceState:
     def __post_init__(self) -> None:
         self.limiter = FairSlots(self.settings.locate_concurrency)
         self.auth_failures = FailureBudget(self.settings.auth_failures_per_minute)
+        self.recent_use = RecentUse()
         self.workers = None
         self.decoders = None
+        self.over_share = None
+        self.over_share_limiter = None
         if not self.settings.decode_in_threads:
             # the real pipeline is imported by the workers only (each holds locate's kernels; this process
             # never locates, so it does not load numba); a locate given in code runs here
@@ -83,6 +96,17 @@ class ServiceState:
                     self.settings.decode_cpu_s,
                     self.settings.decode_memory_bytes,
                 )
+            if pipeline is not None and self.settings.over_share_nice > 0:
+                self.over_share = DecodePool(
+                    self.settings.locate_concurrency,
+                    self.settings.decode_cpu_s,
+                    self.settings.decode_memory_bytes,
+                    locate_fn=pipeline,
+                    locate_cpu_s=self.settings.locate_cpu_s,
+                    locate_memory_bytes=self.settings.locate_memory_bytes,
+                    nice=self.settings.over_share_nice,
+                )
+                self.over_share_limiter = FairSlots(self.settings.locate_concurrency)
 
     @property
     def locates_in_workers(self) -> bool:
@@ -158,6 +182,11 @@ class ServiceState:
                 # the worker processes load locate's compiled kernels now, not in the first request (those
                 # still missing: a second call starts none); this process never locates itself
                 self.workers.start()
+                if self.over_share is not None:
+                    self.over_share.start()
+                if not self.serve_niced:
+                    # the workers (forked from a server started before this) keep their priority
+                    self.serve_niced = lower_cpu_priority(self.settings.serve_nice)
             elif self.locate_fn is None:
                 from doorloc.app.services import default_locate_fn
 
