@@ -31,7 +31,7 @@ from doorloc.modelcheck.catalogue import Effect, Values
 from doorloc.modelcheck.dataset import MeasuredImage
 from doorloc.pose import DoorPose
 from doorloc.vision.config import LocateConfig
-from doorloc.vision.lines import fit_rectangle_edges
+from doorloc.vision.lines import fit_rectangle_lines
 from doorloc.vision.locate import LocateTrace, locate
 from doorloc.vision.metric import PlaneMap
 from doorloc.vision.region import EDGE_NAMES
@@ -266,11 +266,10 @@ def _seen_pose(true_map: PlaneMap, nominal_map: PlaneMap, g: _Geometry) -> np.nd
         return np.full(4, np.nan)
     b = g.bounds
     groups = {name: (seen[b[i] : b[i + 1]], name == "bottom") for i, name in enumerate(EDGE_NAMES)}
-    fit = fit_rectangle_edges(groups, n_iter=1)
-    t = fit.angle_rad
+    t, offsets = fit_rectangle_lines(groups, n_iter=1)
     ct, st = math.cos(t), math.sin(t)
-    cr, cb = fit.offsets["reference"], fit.offsets["bottom"]
-    return np.array([ct * cr - st * cb, st * cr + ct * cb, math.degrees(t), fit.offsets["far"] - cr])
+    cr, cb = offsets["reference"], offsets["bottom"]
+    return np.array([ct * cr - st * cb, st * cr + ct * cb, math.degrees(t), offsets["far"] - cr])
 
 
 class AnalyticModel:
