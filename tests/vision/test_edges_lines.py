@@ -13,7 +13,7 @@ from doorloc.vision.coarse import coarse_edges
 from doorloc.vision.edge_samples import ScanWindow
 from doorloc.vision.edges import subpixel_edges, transition_width
 from doorloc.vision.far_face import BLUR_DOUBT, FarBand, step_blur, subpixel_edges_far_face
-from doorloc.vision.lines import fit_image_line, fit_rectangle_edges, ransac_line
+from doorloc.vision.lines import fit_image_line, fit_rectangle_edges, fit_rectangle_lines, ransac_line
 
 
 def _box_step_image(
@@ -151,6 +151,23 @@ def test_rectangle_fit_of_exact_lines_keeps_a_tiny_angle(yaw_deg, x0, z0, thickn
     assert abs(fit.angle_rad - t) < 1e-14
     assert abs(fit.offsets["reference"] - c @ ex) < 1e-12
     assert abs(fit.offsets["bottom"] - c @ ez) < 1e-12
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.floats(-3.0, 3.0), st.floats(20, 110), st.integers(1, 9), st.integers(0, 2**31 - 1))
+def test_the_lines_alone_are_the_rectangle_fit_s_bit_for_bit(yaw_deg, thickness, n_iter, seed):
+    rng = np.random.default_rng(seed)
+    t = math.radians(yaw_deg)
+    ex, ez = np.array([math.cos(t), math.sin(t)]), np.array([-math.sin(t), math.cos(t)])
+    zs, xs = np.linspace(1, 80, 24), np.linspace(2, thickness - 2, 24)
+    groups = {
+        "bottom": (xs[:, None] * ex + rng.normal(0, 0.01, (24, 1)) * ez, True),
+        "reference": (zs[:, None] * ez + rng.normal(0, 0.01, (24, 1)) * ex, False),
+        "far": (thickness * ex + zs[:, None] * ez + rng.normal(0, 0.01, (24, 1)) * ex, False),
+    }
+    groups["far"][0][:3] += 1.5 * ex  # outliers, so that later iterations reweigh
+    fit = fit_rectangle_edges(groups, n_iter=n_iter)
+    assert fit_rectangle_lines(groups, n_iter=n_iter) == (fit.angle_rad, fit.offsets)
 
 
 def test_ransac_line_ignores_outliers():

@@ -31,7 +31,7 @@ from doorloc.modelcheck.catalogue import Effect, Values
 from doorloc.modelcheck.dataset import MeasuredImage
 from doorloc.pose import DoorPose
 from doorloc.vision.config import LocateConfig
-from doorloc.vision.lines import fit_rectangle_edges
+from doorloc.vision.lines import fit_rectangle_lines
 from doorloc.vision.locate import LocateTrace, locate
 from doorloc.vision.metric import PlaneMap
 from doorloc.vision.region import EDGE_NAMES
@@ -224,45 +224,52 @@ def locate_errors(
 
 @dataclass(frozen=True)
 class _Geometry:
-    """One image's door points (door frame, on the hinge face) for the analytic model."""
+    """One image's door points for the analytic model: on the hinge face at the image's reference pose,
+    cell (X, Z) mm, every edge's in one array (``xz``, in :data:`EDGE_NAMES` order, ``bounds`` slicing it),
+    so that each prediction maps them through the cameras in one call."""
 
     door: DoorSize
-    pose: DoorPose
-    pts: dict[str, np.ndarray]  # name -> (N, 2) door-frame (px, pz)
+    xz: np.ndarray  # (3 * _N_EDGE, 2)
+    bounds: tuple[int, ...]
 
 
 def _geometry(o: Observation, door: DoorSize) -> _Geometry:
     T = door.thickness_mm
     default = {"bottom": (0.05 * T, 0.95 * T), "reference": (1.0, 60.0), "far": (1.0, 60.0)}
-    pts = {}
+    pts = []
     for name in EDGE_NAMES:
         lo, hi = o.ranges.get(name, default[name])
         a = np.linspace(lo, hi, _N_EDGE)
         if name == "bottom":
-            pts[name] = np.stack([a, np.zeros_like(a)], 1)
+            pts.append(np.stack([a, np.zeros_like(a)], 1))
         else:
-            pts[name] = np.stack([np.full_like(a, 0.0 if name == "reference" else T), a], 1)
-    return _Geometry(door, o.item.reference, pts)
+            pts.append(np.stack([np.full_like(a, 0.0 if name == "reference" else T), a], 1))
+    # door frame (px, pz) -> cell (X, Z) at the reference pose: the same for every candidate cell
+    pose = o.item.reference
+    c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
+    door_pts = np.concatenate(pts)
+    px, pz = door_pts[:, 0], door_pts[:, 1]
+    xz = np.stack([pose.x_mm + px * c - pz * s, pose.z_mm + px * s + pz * c], 1)
+    return _Geometry(door, xz, tuple(np.cumsum([0] + [len(q) for q in pts]).tolist()))
 
 
-def _seen_pose(true_cell: Cell, nominal_cell: Cell, g: _Geometry, nominal_map: PlaneMap) -> np.ndarray:
-    """The pose (x, z, yaw, thickness) the nominal cell reports for the door at ``g.pose`` in ``true_cell``'s world."""
-    depth = true_cell.fixture.face_y(g.door.width_mm) + g.door.arris_mm
-    true_map = PlaneMap(true_cell.posed_camera, depth)
-    c, s = math.cos(g.pose.yaw_rad), math.sin(g.pose.yaw_rad)
-    groups = {}
-    for name in EDGE_NAMES:
-        px, pz = g.pts[name][:, 0], g.pts[name][:, 1]
-        xz = np.stack([g.pose.x_mm + px * c - pz * s, g.pose.z_mm + px * s + pz * c], 1)
-        seen = nominal_map.to_plane(true_map.to_image(xz))
-        if not np.isfinite(seen).all():
-            return np.full(4, np.nan)
-        groups[name] = (seen, name == "bottom")
-    fit = fit_rectangle_edges(groups, n_iter=1)
-    t = fit.angle_rad
+def _face_depth(cell: Cell, door: DoorSize) -> float:
+    """The plane (cell Y, mm) of the door's outline in ``cell``: its hinge face, moved out by the arris."""
+    return cell.fixture.face_y(door.width_mm) + door.arris_mm
+
+
+def _seen_pose(true_map: PlaneMap, nominal_map: PlaneMap, g: _Geometry) -> np.ndarray:
+    """The pose (x, z, yaw, thickness) the nominal cell (``nominal_map``) reports for the door of ``g`` seen
+    in the world of the true cell (``true_map``, at the same door's outline plane)."""
+    seen = nominal_map.to_plane(true_map.to_image(g.xz))
+    if not np.isfinite(seen).all():
+        return np.full(4, np.nan)
+    b = g.bounds
+    groups = {name: (seen[b[i] : b[i + 1]], name == "bottom") for i, name in enumerate(EDGE_NAMES)}
+    t, offsets = fit_rectangle_lines(groups, n_iter=1)
     ct, st = math.cos(t), math.sin(t)
-    cr, cb = fit.offsets["reference"], fit.offsets["bottom"]
-    return np.array([ct * cr - st * cb, st * cr + ct * cb, math.degrees(t), fit.offsets["far"] - cr])
+    cr, cb = offsets["reference"], offsets["bottom"]
+    return np.array([ct * cr - st * cb, st * cr + ct * cb, math.degrees(t), offsets["far"] - cr])
 
 
 class AnalyticModel:
@@ -275,13 +282,8 @@ class AnalyticModel:
     def __init__(self, obs: Sequence[Observation], nominal: Cell, measured_arris: bool) -> None:
         self.nominal = nominal
         self.geom = [_geometry(o, door_for(o.item, nominal, measured_arris)) for o in obs]
-        self.maps = [
-            PlaneMap(nominal.posed_camera, nominal.fixture.face_y(g.door.width_mm) + g.door.arris_mm)
-            for g in self.geom
-        ]
-        self.base = np.array(
-            [_seen_pose(nominal, nominal, g, m) for g, m in zip(self.geom, self.maps, strict=True)]
-        )
+        self.maps = [PlaneMap(nominal.posed_camera, _face_depth(nominal, g.door)) for g in self.geom]
+        self.base = np.array([_seen_pose(m, m, g) for g, m in zip(self.geom, self.maps, strict=True)])
 
     def predict(
         self, effects: Sequence[Effect], values: Sequence[Values], rows: np.ndarray | None = None
@@ -290,10 +292,16 @@ class AnalyticModel:
         for e, v in zip(effects, values, strict=True):
             cell = e.apply(cell, v)
         idx = np.arange(len(self.geom)) if rows is None else rows
-        out = np.array([_seen_pose(cell, self.nominal, self.geom[k], self.maps[k]) for k in idx]).reshape(
-            -1, 4
-        )
-        return out - self.base[idx]
+        posed = cell.posed_camera
+        true_maps: dict[float, PlaneMap] = {}  # one per outline plane: the doors come in a few sizes
+        out = []
+        for k in idx:
+            g = self.geom[k]
+            depth = _face_depth(cell, g.door)
+            if depth not in true_maps:
+                true_maps[depth] = PlaneMap(posed, depth)
+            out.append(_seen_pose(true_maps[depth], self.maps[k], g))
+        return np.array(out).reshape(-1, 4) - self.base[idx]
 
 
 class RelocateTable:

@@ -127,7 +127,7 @@ def render_measured_set(
         door = doors[k % len(doors)]
         pose = DoorPose(float(lh[k, 0] * env.x_mm), float(lh[k, 1] * env.z_mm), float(lh[k, 2] * env.yaw_deg))
         rd = render_door(true_cell, door, pose, effects=fx, seed=spec.seed * 1000 + k)
-        ok, png = cv2.imencode(".png", rd.image, [cv2.IMWRITE_PNG_COMPRESSION, 3])
+        ok, png = cv2.imencode(".png", rd.image, [cv2.IMWRITE_PNG_COMPRESSION, 1])
         if not ok:
             raise RuntimeError("PNG encoding failed")
         name = f"img_{k:03d}.png"
