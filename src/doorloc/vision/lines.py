@@ -396,29 +396,15 @@ def fit_rectangle_edges(
     1.0
     """
     names = list(groups)
-    P, mask0, votes, sizes, starts = _stacked_groups(groups, init_weights, offset_only)
     G = len(names)
-    status, n0, n1, off, r, w, Q = _irls(
-        np.ascontiguousarray(P),
-        starts,
-        sizes,
-        mask0,
-        votes if votes is not None else np.ones(len(P)),
-        votes is not None,
-        float(scale_floor),
-        int(n_iter),
-        512,
-    )
-    if status < 0:
-        raise ValueError(f"no usable points on the {names[-1 - status]} line")
-    n = np.array([n0, n1])
+    n, off, r, w, Q, votes, sizes = _rectangle_irls(groups, init_weights, offset_only, scale_floor, n_iter)
     # Standard errors: residual variance over the weighted information of each parameter.
     sw = np.bincount(np.repeat(np.arange(G), sizes), weights=w, minlength=G)
     var = float((w * r * r).sum()) / max(float(sw.sum()) - G - 1, 1.0)
     tdir = np.array([-n[1], n[0]])
     spread = float(((w * votes if votes is not None else w) * (Q @ tdir) ** 2).sum())
     ang_sigma = math.sqrt(var / max(spread, 1e-12))
-    bounds = np.concatenate([starts, [len(P)]]).tolist()
+    bounds = np.concatenate([[0], np.cumsum(sizes)]).tolist()
     sw_l = sw.tolist()
     off_sigma = {k: math.sqrt(var / max(sw_l[i], 1e-12)) for i, k in enumerate(names)}
     res = {k: r[bounds[i] : bounds[i + 1]] for i, k in enumerate(names)}
@@ -437,20 +423,27 @@ def fit_rectangle_lines(
     For callers that fit thousands of outlines and read only the lines (the model check's analytic forward
     model): the statistics cost more than the fit itself there.
     """
+    n, off, *_ = _rectangle_irls(groups, None, (), scale_floor, n_iter)
+    return float(np.arctan2(n[1], n[0])), dict(zip(list(groups), off.tolist(), strict=True))
+
+
+def _rectangle_irls(groups, init_weights, offset_only, scale_floor: float, n_iter: int):
+    """The joint IRLS of :func:`fit_rectangle_edges`: the common normal ``n`` (2,), the offsets, residuals,
+    weights, stacked points, votes (None: every point votes) and group sizes; ValueError naming a line that
+    lost every point."""
     names = list(groups)
-    P, mask0, votes, sizes, starts = _stacked_groups(groups, None, ())
-    status, n0, n1, off, _, _, _ = _irls(
+    P, mask0, votes, sizes, starts = _stacked_groups(groups, init_weights, offset_only)
+    status, n0, n1, off, r, w, Q = _irls(
         np.ascontiguousarray(P),
         starts,
         sizes,
         mask0,
-        np.ones(len(P)),
-        False,
+        votes if votes is not None else np.ones(len(P)),
+        votes is not None,
         float(scale_floor),
         int(n_iter),
         512,
     )
     if status < 0:
         raise ValueError(f"no usable points on the {names[-1 - status]} line")
-    n = np.array([n0, n1])
-    return float(np.arctan2(n[1], n[0])), dict(zip(names, off.tolist(), strict=True))
+    return np.array([n0, n1]), off, r, w, Q, votes, sizes

@@ -82,14 +82,7 @@ class ServiceState:
             # the real pipeline is imported by the workers only (each holds locate's kernels; this process
             # never locates, so it does not load numba); a locate given in code runs here
             pipeline = "doorloc.vision.locate:locate" if self.locate_fn is None else None
-            self.workers = DecodePool(
-                self.settings.locate_concurrency,
-                self.settings.decode_cpu_s,
-                self.settings.decode_memory_bytes,
-                locate_fn=pipeline,
-                locate_cpu_s=self.settings.locate_cpu_s,
-                locate_memory_bytes=self.settings.locate_memory_bytes,
-            )
+            self.workers = self._locating_pool(pipeline)
             if pipeline is not None:
                 self.decoders = DecodePool(
                     self.settings.locate_concurrency,
@@ -97,16 +90,21 @@ class ServiceState:
                     self.settings.decode_memory_bytes,
                 )
             if pipeline is not None and self.settings.over_share_nice > 0:
-                self.over_share = DecodePool(
-                    self.settings.locate_concurrency,
-                    self.settings.decode_cpu_s,
-                    self.settings.decode_memory_bytes,
-                    locate_fn=pipeline,
-                    locate_cpu_s=self.settings.locate_cpu_s,
-                    locate_memory_bytes=self.settings.locate_memory_bytes,
-                    nice=self.settings.over_share_nice,
-                )
+                self.over_share = self._locating_pool(pipeline, nice=self.settings.over_share_nice)
                 self.over_share_limiter = FairSlots(self.settings.locate_concurrency)
+
+    def _locating_pool(self, pipeline: str | None, nice: int = 0) -> DecodePool:
+        """The worker processes that decode and locate (``pipeline``; None: decode only), one per CPU slot,
+        with the settings' limits, at ``nice`` levels below the service."""
+        return DecodePool(
+            self.settings.locate_concurrency,
+            self.settings.decode_cpu_s,
+            self.settings.decode_memory_bytes,
+            locate_fn=pipeline,
+            locate_cpu_s=self.settings.locate_cpu_s,
+            locate_memory_bytes=self.settings.locate_memory_bytes,
+            nice=nice,
+        )
 
     @property
     def locates_in_workers(self) -> bool:
