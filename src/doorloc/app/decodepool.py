@@ -47,7 +47,14 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-__all__ = ["DecodePool", "DecodeRefused", "Located", "decoded_too_large", "lower_cpu_priority"]
+__all__ = [
+    "DecodePool",
+    "DecodeRefused",
+    "Located",
+    "decoded_too_large",
+    "lower_cpu_priority",
+    "nice_at_least",
+]
 
 if TYPE_CHECKING:
     from doorloc.cell import Cell
@@ -134,6 +141,22 @@ def lower_cpu_priority(increment: int, every_thread: bool = True) -> bool:
         except OSError:
             pass  # a thread that ended meanwhile, or a platform that refuses
     return lowered
+
+
+def nice_at_least(level: int) -> bool:
+    """Lower every thread of this process to nice ``level`` (at most 19) where it runs at a better priority;
+    True if this process now runs at ``level`` or below it.
+
+    Idempotent, unlike :func:`lower_cpu_priority`: a process that holds a second service (an application
+    that embeds it, or tests) is not lowered twice.
+    """
+    if not hasattr(os, "getpriority"):
+        return False
+    try:
+        now = os.getpriority(os.PRIO_PROCESS, 0)
+    except OSError:
+        return False
+    return lower_cpu_priority(min(level, 19) - now) or now >= min(level, 19)
 
 
 def _worker_main(conn: Connection, memory_bytes: int, locate_fn: Any = None, nice: int = 0) -> None:
@@ -283,8 +306,10 @@ class DecodePool:
         Address space one locate may add to its worker, the decoded image held (None: ``memory_bytes``); a
         locating worker's own limit is the sum of the two budgets.
     nice : int
-        Nice levels the workers lower their CPU priority by once started (0: as the process that started
-        the pool's first worker): on a busy CPU a job here yields to one in a pool of better priority.
+        Nice levels the workers lower their CPU priority by once started, counted from the forkserver they
+        start from (it keeps the priority this process had when its first worker of any pool started; a
+        service lowers its own after that): on a busy CPU a job here yields to one in a pool of better
+        priority.
     """
 
     def __init__(
@@ -361,6 +386,18 @@ class DecodePool:
         started = [self._start() for _ in range(self.size - len(self._workers))]
         for w in started:
             self._idle.put(w)
+
+    def worker_nice(self) -> int | None:
+        """The nice level of a started worker (None: none started, or the platform has no nice levels)."""
+        if not hasattr(os, "getpriority"):
+            return None
+        for worker in list(self._workers):
+            if worker.process.pid:
+                try:
+                    return os.getpriority(os.PRIO_PROCESS, worker.process.pid)
+                except OSError:  # it ended meanwhile
+                    continue
+        return None
 
     def _replace_soon(self) -> None:
         """A fresh worker for one that was ended, started in the background (it may load kernels for seconds)."""

@@ -14,7 +14,7 @@ from typing import Any
 
 from doorloc.app.access import FailureBudget, KeyStore
 from doorloc.app.answer import LocateFn
-from doorloc.app.decodepool import DecodePool, lower_cpu_priority
+from doorloc.app.decodepool import DecodePool, nice_at_least
 from doorloc.app.fairslots import FairSlots, RecentUse
 from doorloc.app.http.metrics import ServiceMetrics
 from doorloc.app.settings import ServiceSettings, missing_database
@@ -182,9 +182,13 @@ class ServiceState:
                 self.workers.start()
                 if self.over_share is not None:
                     self.over_share.start()
-                if not self.serve_niced:
-                    # the workers (forked from a server started before this) keep their priority
-                    self.serve_niced = lower_cpu_priority(self.settings.serve_nice)
+                if not self.serve_niced and self.settings.serve_nice > 0:
+                    # the workers (forked from a server started before this) keep their priority; this
+                    # process goes serve_nice below them, once: a second service in the same process (an
+                    # application embedding it, tests) finds it there already
+                    base = self.workers.worker_nice()
+                    if base is not None:
+                        self.serve_niced = nice_at_least(base + self.settings.serve_nice)
             elif self.locate_fn is None:
                 from doorloc.app.services import default_locate_fn
 
