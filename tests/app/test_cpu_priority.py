@@ -96,6 +96,14 @@ def test_without_lower_priority_workers_every_job_takes_the_same_slots():
     assert not flood.over_share and not line_got_a_slot  # one slot, held by the flood
 
 
+def _own_process(code: str) -> str:
+    """What ``code`` prints, run in a Python process of its own (a priority lowered there stays there)."""
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=60)
+    assert out.returncode == 0, out.stderr
+    return out.stdout
+
+
 @unix_only
 def test_lower_cpu_priority_lowers_every_thread_and_those_started_later():
     code = (
@@ -110,10 +118,7 @@ def test_lower_cpu_priority_lowers_every_thread_and_those_started_later():
         "later.start(); later.join(); e.set(); t.join()\n"
         "print(before, len(tids), now, got)\n"
     )
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=60)
-    assert out.returncode == 0, out.stderr
-    before, threads, now, later = out.stdout.split(" ", 3)
+    before, threads, now, later = _own_process(code).split(" ", 3)
     want = min(int(before) + 4, 19)
     assert (now, later.strip()) == (f"[{want}]", f"[{want}]")
     assert sys.platform != "linux" or int(threads) >= 2  # the waiting thread was lowered too
@@ -130,10 +135,7 @@ def test_a_service_lowers_its_process_once_however_many_it_holds():
         "second = nice_at_least(before + 3)\n"
         "print(before, first, second, os.getpriority(os.PRIO_PROCESS, 0))\n"
     )
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=60)
-    assert out.returncode == 0, out.stderr
-    before, first, second, after = out.stdout.split()
+    before, first, second, after = _own_process(code).split()
     assert (first, second, int(after)) == ("True", "True", min(int(before) + 3, 19))
 
 
