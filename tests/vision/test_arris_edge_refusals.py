@@ -1,4 +1,5 @@
-"""Arris doors whose edges are in the image must not be refused ``edge_missing``.
+"""Arris doors whose edges are in the image must not be refused ``edge_missing``; one whose arris cannot be
+seen is refused in words that say so.
 
 The doors are those of the arris range bench (bench/bench_arris_range.py --seed 7300; each case's bench seed
 is its render seed), its effects written out (rounded to the digits shown).
@@ -63,6 +64,27 @@ DOORS = {
             gamma=1.908,
         ),
     ),
+    # a 2.9 mm chamfer whose wood is as dark as the background (strip and background albedo 0.062, face
+    # 0.88) under ambient light: the strip's outer border has no contrast, so no scan line's strip is read
+    13307: (
+        "chamfer",
+        2.911,
+        70.0,
+        (4.673, -5.084, -0.453),
+        dict(
+            albedo_hinge=0.882,
+            albedo_chamfer=0.062,
+            albedo_background=0.062,
+            light_ambient=0.978,
+            light_directional=0.0,
+            light_azimuth_deg=66.953,
+            light_elevation_deg=46.641,
+            grain_period_mm=6.858,
+            blur_sigma_px=1.263,
+            read_noise_dn=0.133,
+            gamma=1.682,
+        ),
+    ),
 }
 
 
@@ -101,6 +123,16 @@ def test_an_arris_line_whose_face_step_is_faint_is_located_by_its_strip():
         _within(res, door, pose, 2.0)
     else:
         assert res.error_code == "uncertain", res.error
+
+
+def test_an_arris_as_dark_as_the_background_is_refused_in_words_that_say_so():
+    """No border of the strip can be told from the background: the door is refused as an edge not found,
+    and the refusal names the arris strip and what the operator can change (light, background), not only
+    "check that the door lies in the fixture"."""
+    _, _, res = _locate(13307)
+    assert not res.ok
+    assert res.error_code == "edge_missing", res.error
+    assert "arris strip could not be read" in res.error and "background" in res.error, res.error
 
 
 def _samples(step, strip):

@@ -188,13 +188,7 @@ def _fit(
         good = s.valid & (s.located_contrast(pol, cfg.min_contrast) >= 0.5 * cfg.min_contrast)
         good &= finite.all(axis=1)
         if np.count_nonzero(good) < 3:
-            raise Refused(
-                q.Refusal(
-                    "edge_missing",
-                    f"the {HUMAN[name]} was not found (no clean step of the expected "
-                    "polarity); check that the door lies in the fixture and nothing covers that edge",
-                )
-            )
+            raise Refused(q.Refusal("edge_missing", _missing_edge_reason(name, s)))
         groups[name] = (np.where(finite, xz, 0.0), region.layouts[name].along_x)
         init[name] = good.astype(float)
     offset_only = ("far",) if far_offset_only else ()
@@ -223,6 +217,24 @@ def _fit(
             )
         ) from None
     return fit, init
+
+
+def _missing_edge_reason(name: str, s: EdgeSamples) -> str:
+    """The operator's words for a line with fewer than three usable points."""
+    if s.strip_contrast is not None and s.scan.size and not s.valid.any():
+        # Every scan line's strip fit failed: the strip's shape was not found anywhere along the edge. On
+        # an arris whose wood is as dark as what lies behind the door (arris range bench, dark set) the
+        # strip's outer border has no contrast, and the one step the image shows may be either border.
+        return (
+            f"the {HUMAN[name]} was not found: its arris strip could not be read anywhere along the edge "
+            "(an arris about as dark as the background behind the door shows no outer border); light the "
+            "door's edges from the side or put a lighter background behind the door, and check that "
+            "nothing covers that edge"
+        )
+    return (
+        f"the {HUMAN[name]} was not found (no clean step of the expected polarity); check that the door "
+        "lies in the fixture and nothing covers that edge"
+    )
 
 
 @dataclass(frozen=True)
