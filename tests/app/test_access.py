@@ -220,3 +220,34 @@ def test_a_verified_key_still_passes_when_its_address_is_over_budget(make_client
     assert c.get("/v1/doors", headers=_h(k)).status_code == 200
     other = keys.create("never used", Role.operator)  # not verified yet: refused until the budget recovers
     assert c.get("/v1/doors", headers=_h(other)).status_code == 429
+
+
+def test_a_refused_key_is_answered_after_the_refusal_delay_and_only_a_quarter_of_connections_wait(
+    make_client, keys, monkeypatch
+):
+    """A keyless or wrong-key request waits ``auth_refusal_delay_s`` before its 401/429 (a flood of them is
+    then answered a few times a second per connection), a valid key never waits, and once a quarter of
+    ``max_connections`` are waiting further refusals are answered at once, so refusals cannot hold every
+    connection."""
+    import doorloc.app.http.guards as guards
+
+    waits: list[float] = []
+
+    async def no_sleep(s: float) -> None:  # the wait itself, recorded instead of slept
+        waits.append(s)
+
+    monkeypatch.setattr(guards.anyio, "sleep", no_sleep)
+    c = make_client(auth_refusal_delay_s=0.75, max_connections=8)
+    k = keys.create("panel", Role.operator)
+    assert c.get("/v1/doors", headers=_h(k)).status_code == 200
+    assert waits == []
+    assert c.get("/v1/doors").status_code == 401
+    assert c.get("/v1/doors", headers={"X-API-Key": "dlk_000000000000_" + "A" * 43}).status_code == 401
+    assert waits == [0.75, 0.75]
+    state = c.app.state.service
+    state.refusals_waiting = 2  # a quarter of 8 connections already waiting
+    assert c.get("/v1/doors").status_code == 401
+    assert waits == [0.75, 0.75]
+    state.refusals_waiting = 0
+    assert make_client(auth_refusal_delay_s=0).get("/v1/doors").status_code == 401
+    assert waits == [0.75, 0.75]

@@ -115,6 +115,14 @@ class ServiceSettings(BaseSettings):
         ge=1,
         description="wrong or unknown API keys one client address may send per minute; more answer 429",
     )
+    auth_refusal_delay_s: float = Field(
+        0.5,
+        ge=0,
+        le=10,
+        description="seconds a request refused for its key (401, 429) waits before its answer, so that a flood "
+        "of keyless or wrong-key requests is answered a few times a second per connection instead of hundreds; "
+        "at most a quarter of max_connections wait at once, the rest are answered at once (0: no wait)",
+    )
 
     # ---- the HTTP server itself (uvicorn and its protocol, per connection)
     max_header_bytes: int = Field(
