@@ -133,7 +133,6 @@ class KeyGate:
         state["principal"] = who.name
         await self.app(scope, receive, send)
 
-
     async def _hold_refusal(self) -> None:
         """Wait ``auth_refusal_delay_s`` before a key refusal is answered. Twenty clients posting keyless
         19 MB uploads were answered several hundred times a second (each a new connection, its head parsed,
