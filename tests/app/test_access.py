@@ -5,6 +5,7 @@ from __future__ import annotations
 import subprocess
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 from sqlalchemy import select
@@ -236,7 +237,8 @@ def test_a_refused_key_is_answered_after_the_refusal_delay_and_only_a_quarter_of
     async def no_sleep(s: float) -> None:  # the wait itself, recorded instead of slept
         waits.append(s)
 
-    monkeypatch.setattr(guards.anyio, "sleep", no_sleep)
+    # the guards' module alone sees this anyio (the service's own loops keep sleeping for real)
+    monkeypatch.setattr(guards, "anyio", SimpleNamespace(sleep=no_sleep, fail_after=guards.anyio.fail_after))
     c = make_client(auth_refusal_delay_s=0.75, max_connections=8)
     k = keys.create("panel", Role.operator)
     assert c.get("/v1/doors", headers=_h(k)).status_code == 200
@@ -251,3 +253,32 @@ def test_a_refused_key_is_answered_after_the_refusal_delay_and_only_a_quarter_of
     state.refusals_waiting = 0
     assert make_client(auth_refusal_delay_s=0).get("/v1/doors").status_code == 401
     assert waits == [0.75, 0.75]
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="per-thread CPU priority is Linux's")
+def test_key_derivations_run_below_the_serving_threads_cpu_priority(store, monkeypatch):
+    """A flood of wrong keys costs a scrypt derivation each; they run some nice levels below the thread that
+    asks (the service's), so its other answers keep the CPU meanwhile."""
+    import hashlib
+    import os
+    import threading
+
+    def nice_here() -> int:
+        return os.getpriority(os.PRIO_PROCESS, threading.get_native_id())
+
+    base = nice_here()
+    if base > 16:
+        pytest.skip(f"this process already runs at nice {base}")
+    seen: list[int] = []
+    real_scrypt = hashlib.scrypt
+
+    def scrypt_noting_priority(*a, **k):
+        seen.append(nice_here())
+        return real_scrypt(*a, **k)
+
+    monkeypatch.setattr(hashlib, "scrypt", scrypt_noting_priority)
+    unknown = "dlk_000000000000_" + "A" * 43
+    assert KeyStore(store.engine, derivation_nice=3).authenticate(unknown) is None
+    assert KeyStore(store.engine).authenticate(unknown) is None
+    assert seen == [base + 3, base]
+    assert nice_here() == base  # the asking thread keeps its priority

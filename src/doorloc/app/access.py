@@ -37,8 +37,10 @@ from __future__ import annotations
 import builtins
 import hashlib
 import hmac
+import os
 import re
 import secrets
+import sys
 import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -136,6 +138,21 @@ def _derive(secret: str, salt: bytes) -> bytes:
     return hashlib.scrypt(secret.encode(), salt=salt, **_SCRYPT)
 
 
+def _lower_thread_priority(levels: int) -> None:
+    """Lower the calling thread's CPU priority by ``levels`` nice levels (Linux only, where nice is a
+    property of each thread; elsewhere it would lower the whole process, so nothing is done there).
+
+    A flood of wrong keys costs one scrypt derivation each (it releases the GIL and runs beside the event
+    loop); at a lower priority than the event loop, the service's other answers keep the CPU meanwhile."""
+    if levels <= 0 or not sys.platform.startswith("linux"):
+        return
+    try:
+        tid = threading.get_native_id()
+        os.setpriority(os.PRIO_PROCESS, tid, min(os.getpriority(os.PRIO_PROCESS, tid) + levels, 19))
+    except OSError:  # a sandbox may forbid it: the derivation then runs at the process's priority
+        pass
+
+
 _DUMMY_SALT = bytes(16)
 _DUMMY_HASH = bytes(32)
 
@@ -149,14 +166,19 @@ class KeyStore:
         The recipe database's engine (``RecipeStore.engine``), already migrated.
     """
 
-    def __init__(self, engine: Engine) -> None:
+    def __init__(self, engine: Engine, derivation_nice: int = 0) -> None:
         self.engine = engine
         self._verified: dict[str, bytes] = {}
         self._lock = threading.Lock()
         self._any_active: tuple[float, bool] | None = None  # (monotonic time, answer)
         # scrypt takes 16 MiB and ~10-50 ms: derivations run on this many threads of their own, so a flood of
         # wrong keys neither runs one per request thread nor leaves a freed 16 MiB in every thread's malloc arena
-        self._derivations = ThreadPoolExecutor(_PARALLEL_DERIVATIONS, thread_name_prefix="doorloc-scrypt")
+        self._derivations = ThreadPoolExecutor(
+            _PARALLEL_DERIVATIONS,
+            thread_name_prefix="doorloc-scrypt",
+            initializer=_lower_thread_priority,
+            initargs=(derivation_nice,),
+        )
 
     def create(self, name: str, role: Role | str) -> CreatedKey:
         """Make a key for ``name`` with ``role``; its secret is in the answer and nowhere else."""

@@ -177,6 +177,14 @@ class ServiceSettings(BaseSettings):
         description="memory (address space) locating the door in one image may add to its worker process, the "
         "decoded image held, bytes (a 1080p frame needs under 8 MB)",
     )
+    key_derivation_nice: int = Field(
+        10,
+        ge=0,
+        le=19,
+        description="nice levels the threads that derive API keys (scrypt, ~50 ms each; a flood of wrong keys "
+        "costs one each) run below the serving process, so that its other answers keep the CPU meanwhile; "
+        "0: same priority (Linux, where each thread has its own; ignored elsewhere)",
+    )
     serve_nice: int = Field(
         5,
         ge=0,

@@ -175,7 +175,7 @@ class ServiceState:
                     raise ValueError(missing)
                 self.store = RecipeStore(url)
             if self.keys is None and getattr(self.store, "engine", None) is not None:
-                self.keys = KeyStore(self.store.engine)
+                self.keys = KeyStore(self.store.engine, derivation_nice=self.settings.key_derivation_nice)
             if self.keys is not None and self.keys.any_active(remember=False):
                 self.keys_seen = True
             if self.workers is not None and self.locates_in_workers:
