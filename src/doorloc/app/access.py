@@ -37,7 +37,6 @@ from __future__ import annotations
 import builtins
 import hashlib
 import hmac
-import os
 import re
 import secrets
 import sys
@@ -50,6 +49,7 @@ from enum import StrEnum
 
 from sqlalchemy import Engine, insert, select, update
 
+from doorloc.app.decodepool import lower_cpu_priority
 from doorloc.recipes.tables import ApiKeyRow
 
 __all__ = [
@@ -144,13 +144,8 @@ def _lower_thread_priority(levels: int) -> None:
 
     A flood of wrong keys costs one scrypt derivation each (it releases the GIL and runs beside the event
     loop); at a lower priority than the event loop, the service's other answers keep the CPU meanwhile."""
-    if levels <= 0 or not sys.platform.startswith("linux"):
-        return
-    try:
-        tid = threading.get_native_id()
-        os.setpriority(os.PRIO_PROCESS, tid, min(os.getpriority(os.PRIO_PROCESS, tid) + levels, 19))
-    except OSError:  # a sandbox may forbid it: the derivation then runs at the process's priority
-        pass
+    if sys.platform.startswith("linux"):
+        lower_cpu_priority(levels, every_thread=False)  # a sandbox may refuse: then it runs as before
 
 
 _DUMMY_SALT = bytes(16)
