@@ -230,15 +230,17 @@ def test_a_refused_key_is_answered_after_the_refusal_delay_and_only_a_quarter_of
     then answered a few times a second per connection), a valid key never waits, and once a quarter of
     ``max_connections`` are waiting further refusals are answered at once, so refusals cannot hold every
     connection."""
-    import doorloc.app.http.guards as guards
+    import doorloc.app.http.admission as admission
 
     waits: list[float] = []
 
     async def no_sleep(s: float) -> None:  # the wait itself, recorded instead of slept
         waits.append(s)
 
-    # the guards' module alone sees this anyio (the service's own loops keep sleeping for real)
-    monkeypatch.setattr(guards, "anyio", SimpleNamespace(sleep=no_sleep, fail_after=guards.anyio.fail_after))
+    # the admission module alone sees this anyio (the service's own loops keep sleeping for real)
+    monkeypatch.setattr(
+        admission, "anyio", SimpleNamespace(sleep=no_sleep, fail_after=admission.anyio.fail_after)
+    )
     c = make_client(auth_refusal_delay_s=0.75, max_connections=8)
     k = keys.create("panel", Role.operator)
     assert c.get("/v1/doors", headers=_h(k)).status_code == 200

@@ -144,6 +144,48 @@ def test_png_header_declaring_50000_squared_is_refused_before_decoding(client, s
     _still_serving(client, small_png)
 
 
+def test_an_upload_that_is_no_measurable_image_is_answered_after_the_refusal_delay(
+    make_client, small_png, monkeypatch
+):
+    """A decoding bomb, a file that is no image and a truncated one wait ``image_refusal_delay_s`` before their
+    4xx (a stream of them is then answered a few times a second per connection); a measurable image and a
+    request refused for its door choice never wait; once a quarter of ``max_connections`` are waiting, further
+    refusals are answered at once."""
+    from types import SimpleNamespace
+
+    import doorloc.app.http.admission as admission
+
+    waits: list[float] = []
+
+    async def no_sleep(s: float) -> None:  # the wait itself, recorded instead of slept
+        waits.append(s)
+
+    monkeypatch.setattr(
+        admission, "anyio", SimpleNamespace(sleep=no_sleep, fail_after=admission.anyio.fail_after)
+    )
+    client = make_client(image_refusal_delay_s=0.6, max_connections=8)
+    _still_serving(client, small_png)
+    r = client.post(
+        "/v1/locate", files={"image": ("d.png", small_png, "image/png")}, data={"door_id": "NO-SUCH"}
+    )
+    assert r.status_code == 422 and waits == []
+    bomb = _png_header_only(50000, 50000)
+    _assert_problem(
+        client.post("/v1/locate", files={"image": ("b.png", bomb, "image/png")}), 422, "too_many_pixels"
+    )
+    _assert_problem(
+        client.post("/v1/locate", files={"image": ("t.png", b"text" * 9, "image/png")}), 415, "not_an_image"
+    )
+    cut = client.post("/v1/locate", files={"image": ("c.png", small_png[:200], "image/png")})
+    _assert_problem(cut, 422, "undecodable_image")
+    assert waits == [0.6, 0.6, 0.6]
+    client.app.state.service.refusals_waiting = 2  # a quarter of 8 connections already waiting
+    _assert_problem(
+        client.post("/v1/locate", files={"image": ("b.png", bomb, "image/png")}), 422, "too_many_pixels"
+    )
+    assert waits == [0.6, 0.6, 0.6]
+
+
 def test_rejections_are_counted_by_reason(client):
     client.post("/v1/locate", files={"image": ("t.png", b"text", "image/png")})
     assert 'doorloc_rejected_uploads_total{reason="not_an_image"} 1.0' in client.get("/metrics").text

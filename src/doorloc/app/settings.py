@@ -123,6 +123,15 @@ class ServiceSettings(BaseSettings):
         "of keyless or wrong-key requests is answered a few times a second per connection instead of hundreds; "
         "at most a quarter of max_connections wait at once, the rest are answered at once (0: no wait)",
     )
+    image_refusal_delay_s: float = Field(
+        0.5,
+        ge=0,
+        le=10,
+        description="seconds an upload refused as no measurable image (415, or 422: empty, malformed, past "
+        "the decoding bounds or a worker's CPU-time or memory limit) waits before its answer, so that "
+        "a stream of decoding bombs is answered a few times a second per connection; the same cap as "
+        "auth_refusal_delay_s on the connections waiting (0: no wait)",
+    )
 
     # ---- the HTTP server itself (uvicorn and its protocol, per connection)
     max_header_bytes: int = Field(

@@ -37,6 +37,7 @@ __all__ = [
     "client_of",
     "address_of",
     "shedding_problem",
+    "hold_refusal",
     "CpuTurn",
     "take_cpu_slot",
     "release_cpu_slot",
@@ -94,6 +95,24 @@ def shedding_problem(state: ServiceState, client: str, address: str = "") -> Pro
             headers={"Retry-After": "2"},
         )
     return None
+
+
+async def hold_refusal(state: ServiceState, delay_s: float) -> None:
+    """Wait ``delay_s`` before a refusal is answered: a key refused (401, 429) or an upload that is no measurable
+    image (a decoding bomb, a file past the bounds). Twenty clients posting keyless 19 MB uploads were answered
+    several hundred times a second, and four posting 260 kB TIFFs that declare 1 GB tiles nearly 150 times a
+    second (each a request parsed, a problem answer and the access log): a core of the event loop and worker
+    threads that serve every other client. Waiting costs a sleeping task, and a client that waits for its
+    answer then sends a few requests a second per connection. Only a quarter of ``max_connections`` may wait at
+    once (every kind of refusal together), so that refusals cannot hold the rest; further ones are answered at
+    once."""
+    if delay_s <= 0 or state.refusals_waiting >= max(1, state.settings.max_connections // 4):
+        return
+    state.refusals_waiting += 1
+    try:
+        await anyio.sleep(delay_s)
+    finally:
+        state.refusals_waiting -= 1
 
 
 @dataclass

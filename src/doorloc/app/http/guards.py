@@ -4,8 +4,8 @@
   site cannot reach a loopback service through DNS rebinding;
 - :class:`KeyGate`: every ``/v1`` request and ``/metrics`` needs a valid API key, checked here, so a keyless
   19 MB upload is answered 401 without a byte of it being spooled or parsed (FastAPI reads a route's body
-  before its dependencies run); a refused key's answer waits ``auth_refusal_delay_s`` (a flood of them is then
-  answered a few times a second per connection); the caller found is handed to the route in
+  before its dependencies run); a refused key's answer waits ``auth_refusal_delay_s`` (:func:`~doorloc.app.http.
+  admission.hold_refusal`: a flood of them is then answered a few times a second per connection); the caller found is handed to the route in
   ``scope["state"]["who"]``;
 - :class:`BodyDeadline`: a body (other than an image upload, which has its own deadline) that has not
   arrived within ``body_timeout_s`` is answered 408;
@@ -20,7 +20,7 @@ import anyio
 from starlette.routing import BaseRoute, Match
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from doorloc.app.http.admission import address_of, client_of, shedding_problem
+from doorloc.app.http.admission import address_of, client_of, hold_refusal, shedding_problem
 from doorloc.app.http.dependencies import resolve_principal
 from doorloc.app.http.middleware import BodyTimeout, send_problem
 from doorloc.app.http.problems import ProblemError
@@ -124,7 +124,7 @@ class KeyGate:
             who = await resolve_principal(self.state, given, client)
         except ProblemError as e:
             if e.status in (401, 429):
-                await self._hold_refusal()
+                await hold_refusal(self.state, self.state.settings.auth_refusal_delay_s)
             headers = [(k.lower().encode(), v.encode()) for k, v in (e.headers or {}).items()]
             await send_problem(scope, send, e.status, e.code, e.detail, headers)
             return
@@ -132,22 +132,6 @@ class KeyGate:
         state["who"] = who
         state["principal"] = who.name
         await self.app(scope, receive, send)
-
-    async def _hold_refusal(self) -> None:
-        """Wait ``auth_refusal_delay_s`` before a key refusal is answered. Twenty clients posting keyless
-        19 MB uploads were answered several hundred times a second (each a new connection, its head parsed,
-        a problem answer, the access log): half a core of the event loop that serves every other client.
-        Waiting costs a sleeping task and the connection's first 64 kB (uvicorn stops reading a body the app
-        does not take), and a client that waits for its answer then sends a few requests a second. Only a
-        quarter of the connections may wait at once, so that refusals cannot fill the rest."""
-        cfg = self.state.settings
-        if cfg.auth_refusal_delay_s <= 0 or self.state.refusals_waiting >= max(1, cfg.max_connections // 4):
-            return
-        self.state.refusals_waiting += 1
-        try:
-            await anyio.sleep(cfg.auth_refusal_delay_s)
-        finally:
-            self.state.refusals_waiting -= 1
 
 
 class LocateShedding:

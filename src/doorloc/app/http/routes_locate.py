@@ -27,6 +27,7 @@ from doorloc.app.http.admission import (
     address_of,
     client_of,
     decode_upload,
+    hold_refusal,
     locate_upload,
     release_cpu_slot,
     take_cpu_slot,
@@ -43,6 +44,12 @@ __all__ = ["router"]
 _log = logging.getLogger("doorloc.http")
 
 router = APIRouter(dependencies=[Depends(require_role(Role.operator))])
+
+#: refusals of an upload that is no measurable image (as opposed to a door choice or a full queue): answered
+#: after settings.image_refusal_delay_s, so a stream of decoding bombs costs a few requests a second per connection
+UNMEASURABLE_UPLOAD_CODES = frozenset(
+    {"empty_image", "not_an_image", "undecodable_image", "too_many_pixels", "decode_limit", "locate_limit"}
+)
 
 # Coarse bounds here; the accepted door ranges (doorloc.limits) are checked by door_from_fields, naming the field.
 DoorMm = Annotated[float | None, Field(gt=0, allow_inf_nan=False)]
@@ -112,6 +119,8 @@ async def post_locate(
             release_cpu_slot(state, client, address, turn)
     except ProblemError as e:
         state.metrics.rejected_uploads.labels(e.code).inc()
+        if e.code in UNMEASURABLE_UPLOAD_CODES:
+            await hold_refusal(state, state.settings.image_refusal_delay_s)
         raise
     finally:
         state.metrics.in_flight.dec()

@@ -52,7 +52,8 @@ class ServiceState:
     #: True once a key exists or was presented: the service then never answers without one (fails closed)
     keys_seen: bool = False
     auth_failures: FailureBudget = field(init=False)
-    #: requests refused for their key that wait settings.auth_refusal_delay_s before their answer right now
+    #: refused requests (a key, or an upload that is no measurable image) waiting before their answer right now
+    #: (admission.hold_refusal)
     refusals_waiting: int = 0
     #: the limited worker processes (None: decode and locate in threads, settings.decode_in_threads). They
     #: decode each image and then locate in it (one job per request; see `decoders` for the exceptions) unless
