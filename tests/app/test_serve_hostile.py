@@ -525,6 +525,20 @@ def test_tiff_tiles_and_float_samples_are_counted_before_decoding(svc):
     assert "32-bit" in body["detail"]
 
 
+def test_a_stream_of_decoding_bombs_is_answered_a_few_times_a_second(svc):
+    """Four clients posting TIFF tile bombs were answered about 140 times a second (each upload parsed and
+    logged beside every other client's work); each refusal now waits the image refusal delay (0.5 s), so one
+    connection sending them back to back is answered at most a few times a second."""
+    base, h, _ = svc
+    tiles = tiff_header(64, 64, tile=16368, bits=16)
+    answered, t0 = 0, time.monotonic()
+    with httpx.Client(base_url=base, headers=h[Role.operator], timeout=60) as client:
+        while time.monotonic() - t0 < 2.0:
+            _problem(client.post("/v1/locate", files=_img(tiles, "t.tif")), 422, "decode_limit")
+            answered += 1
+    assert 1 <= answered <= 5, answered
+
+
 # ---------------------------------------------------------------------------------------------- the server's own limits
 
 
