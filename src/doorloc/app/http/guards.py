@@ -4,9 +4,9 @@
   site cannot reach a loopback service through DNS rebinding;
 - :class:`KeyGate`: every ``/v1`` request and ``/metrics`` needs a valid API key, checked here, so a keyless
   19 MB upload is answered 401 without a byte of it being spooled or parsed (FastAPI reads a route's body
-  before its dependencies run); a refused key's answer waits ``auth_refusal_delay_s`` (:func:`~doorloc.app.http.
-  admission.hold_refusal`: a flood of them is then answered a few times a second per connection); the caller found is handed to the route in
-  ``scope["state"]["who"]``;
+  before its dependencies run); a refused key's answer waits ``auth_refusal_delay_s`` (``hold_refusal``: a
+  flood of them is then answered a few times a second per connection); the caller found is handed to the
+  route in ``scope["state"]["who"]``;
 - :class:`BodyDeadline`: a body (other than an image upload, which has its own deadline) that has not
   arrived within ``body_timeout_s`` is answered 408;
 - :class:`SecurityHeaders`: CSP, frame denial, nosniff, no referrer, and HSTS on HTTPS, on every answer.
