@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from types import SimpleNamespace
 
 import cv2
 import numpy as np
@@ -229,3 +230,20 @@ def start_serve():
     yield start
     for proc, log in started:
         stop_serve(proc, log)
+
+
+@pytest.fixture
+def refusal_waits(monkeypatch) -> list[float]:
+    """The waits before refusals (``admission.hold_refusal``), recorded instead of slept: the admission
+    module alone sees this anyio, so the service's own loops keep sleeping for real."""
+    import doorloc.app.http.admission as admission
+
+    waits: list[float] = []
+
+    async def no_sleep(s: float) -> None:
+        waits.append(s)
+
+    monkeypatch.setattr(
+        admission, "anyio", SimpleNamespace(sleep=no_sleep, fail_after=admission.anyio.fail_after)
+    )
+    return waits

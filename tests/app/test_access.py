@@ -5,7 +5,6 @@ from __future__ import annotations
 import subprocess
 import sys
 from pathlib import Path
-from types import SimpleNamespace
 
 import pytest
 from sqlalchemy import select
@@ -224,23 +223,13 @@ def test_a_verified_key_still_passes_when_its_address_is_over_budget(make_client
 
 
 def test_a_refused_key_is_answered_after_the_refusal_delay_and_only_a_quarter_of_connections_wait(
-    make_client, keys, monkeypatch
+    make_client, keys, refusal_waits
 ):
     """A keyless or wrong-key request waits ``auth_refusal_delay_s`` before its 401/429 (a flood of them is
     then answered a few times a second per connection), a valid key never waits, and once a quarter of
     ``max_connections`` are waiting further refusals are answered at once, so refusals cannot hold every
     connection."""
-    import doorloc.app.http.admission as admission
-
-    waits: list[float] = []
-
-    async def no_sleep(s: float) -> None:  # the wait itself, recorded instead of slept
-        waits.append(s)
-
-    # the admission module alone sees this anyio (the service's own loops keep sleeping for real)
-    monkeypatch.setattr(
-        admission, "anyio", SimpleNamespace(sleep=no_sleep, fail_after=admission.anyio.fail_after)
-    )
+    waits = refusal_waits
     c = make_client(auth_refusal_delay_s=0.75, max_connections=8)
     k = keys.create("panel", Role.operator)
     assert c.get("/v1/doors", headers=_h(k)).status_code == 200

@@ -145,24 +145,13 @@ def test_png_header_declaring_50000_squared_is_refused_before_decoding(client, s
 
 
 def test_an_upload_that_is_no_measurable_image_is_answered_after_the_refusal_delay(
-    make_client, small_png, monkeypatch
+    make_client, small_png, refusal_waits
 ):
     """A decoding bomb, a file that is no image and a truncated one wait ``image_refusal_delay_s`` before their
     4xx (a stream of them is then answered a few times a second per connection); a measurable image and a
     request refused for its door choice never wait; once a quarter of ``max_connections`` are waiting, further
     refusals are answered at once."""
-    from types import SimpleNamespace
-
-    import doorloc.app.http.admission as admission
-
-    waits: list[float] = []
-
-    async def no_sleep(s: float) -> None:  # the wait itself, recorded instead of slept
-        waits.append(s)
-
-    monkeypatch.setattr(
-        admission, "anyio", SimpleNamespace(sleep=no_sleep, fail_after=admission.anyio.fail_after)
-    )
+    waits = refusal_waits
     client = make_client(image_refusal_delay_s=0.6, max_connections=8)
     _still_serving(client, small_png)
     r = client.post(
