@@ -79,6 +79,37 @@ def test_a_client_over_its_share_waits_for_the_lower_priority_slots_not_for_the_
     assert state.recent_use.seconds("key:line") > 0.05  # the time it held the slot counted
 
 
+def test_a_client_over_its_share_takes_an_idle_ordinary_slot_when_the_lower_ones_are_taken():
+    """Two clients of about equal recent use take turns being over their share; each waited for the one
+    lower-priority slot while the ordinary slot stood idle. A job over its share takes a free ordinary slot
+    when the lower-priority ones are all taken and nobody waits for an ordinary one; otherwise it waits."""
+    state = _state(over_share_nice=12)
+    state.recent_use.add("key:flood", 5.0)
+    state.recent_use.add("key:line", 0.05)
+
+    async def script():
+        first = await take_cpu_slot(state, None, "key:flood", "a")  # over its share: the lower slot
+        second = await take_cpu_slot(state, None, "key:flood", "a")  # that one taken, the ordinary idle
+        got = []
+
+        async def flood_third():
+            got.append(await take_cpu_slot(state, None, "key:flood", "c"))  # another of its addresses
+
+        async with anyio.create_task_group() as tg:
+            tg.start_soon(flood_third)  # every slot taken: it waits for its own kind
+            await anyio.sleep(0.05)
+            waited = not got
+            release_cpu_slot(state, "key:flood", "a", first)
+        release_cpu_slot(state, "key:flood", "a", second)
+        release_cpu_slot(state, "key:flood", "c", got[0])
+        return first, second, got[0], waited
+
+    first, second, third, waited = anyio.run(script)
+    assert first.over_share and not second.over_share
+    assert waited and third.over_share
+    assert state.limiter.free == 1 and state.over_share_limiter.free == 1 and state.admitted == 0
+
+
 def test_without_lower_priority_workers_every_job_takes_the_same_slots():
     state = _state(over_share_nice=0)
     assert state.over_share is None and state.over_share_limiter is None
