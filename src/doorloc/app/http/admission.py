@@ -145,13 +145,12 @@ async def take_cpu_slot(
     state.admitted += 1
     state.client_admitted[client] = held + 1
     state.address_admitted[(client, address)] = state.address_admitted.get((client, address), 0) + 1
-    over_share = state.over_share_limiter is not None and state.recent_use.over_share(
-        client, state.client_admitted
-    )
+    lower = state.over_share_limiter
+    over_share = lower is not None and state.recent_use.over_share(client, state.client_admitted)
     if (
         over_share
-        and state.over_share_limiter is not None
-        and state.over_share_limiter.free == 0
+        and lower is not None
+        and lower.free == 0
         and state.limiter.free > 0
         and not state.limiter.waiting
     ):
@@ -160,7 +159,7 @@ async def take_cpu_slot(
         # slot stood free; the job that takes it runs at the ordinary priority, and the first client under its
         # share to arrive meanwhile waits for it
         over_share = False
-    limiter = state.over_share_limiter if over_share and state.over_share_limiter else state.limiter
+    limiter = lower if over_share and lower is not None else state.limiter
     try:
         with anyio.fail_after(max(left, 0.001)):
             await limiter.acquire(client, address)
