@@ -423,3 +423,14 @@ def test_opencv_written_names_read_back_as_opencv_reads_them(tmp_path, name):
     fs.release()
     assert _cv_read(path)["camera_name"] == name
     assert load_calibration(path).camera_name == name
+
+
+@pytest.mark.parametrize("name", ["\\'", "a\\\\'b", "'\\", "it's \\n not a newline"])
+def test_a_camera_name_with_backslashes_before_quotes_reads_back_as_written(tmp_path, name):
+    """OpenCV writes a backslash as \\\\ and a quote as \\' ; a backslash before a quote (\\\\\\' ) must keep
+    its backslash when the quote's escape is turned into YAML (the property test above drew the name \\')."""
+    cam = CameraModel.from_values([[50, 0, 8], [0, 50, 8], [0, 0, 1]], [], (16, 16))
+    path = tmp_path / "camera.yaml"
+    save_calibration(CalibrationFile(cam, None, [], name), path, "opencv")
+    assert _cv_read(path)["camera_name"] == name
+    assert load_calibration(path).camera_name == name

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import unicodedata
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -132,6 +133,15 @@ def _ros_matrix(v: Any, name: str, src: str) -> np.ndarray:
     raise CalibrationFileError(f"{src}: '{name}' is not a matrix")
 
 
+#: one backslash escape of OpenCV's double-quoted strings (the backslash and the character it escapes)
+_OPENCV_ESCAPE = re.compile(r"\\.")
+
+
+def _yaml_escape(m: re.Match[str]) -> str:
+    """OpenCV's escape as YAML reads it: ``\\'`` (a quote) has no YAML form but the quote itself."""
+    return "'" if m.group(0) == "\\'" else m.group(0)
+
+
 def parse_calibration(text: str, source: str = "<calibration>") -> CalibrationFile:
     """Parse OpenCV FileStorage YAML or ROS camera_info YAML text into a :class:`CalibrationFile`."""
     lines = text.splitlines()
@@ -142,8 +152,9 @@ def parse_calibration(text: str, source: str = "<calibration>") -> CalibrationFi
         if lines[0].startswith("%YAML:"):
             lines = lines[1:]
         # OpenCV escapes a single quote inside its double-quoted strings as \' , an escape YAML does not
-        # have (PyYAML refuses it); OpenCV writes no other backslash-quote pair.
-        lines = [ln.replace("\\'", "'") for ln in lines]
+        # have (PyYAML refuses it). Escapes are read in pairs from the left, so that an escaped backslash
+        # before a quote (\\' : a backslash, then the quote) keeps its backslash.
+        lines = [_OPENCV_ESCAPE.sub(_yaml_escape, ln) for ln in lines]
     # OpenCV writes "!!opencv-matrix"; PyYAML resolves "!!x" to "tag:yaml.org,2002:x".
     try:
         doc = yaml.load("\n".join(lines), Loader=loader)  # both loaders are SafeLoaders
