@@ -79,35 +79,71 @@ def test_a_client_over_its_share_waits_for_the_lower_priority_slots_not_for_the_
     assert state.recent_use.seconds("key:line") > 0.05  # the time it held the slot counted
 
 
-def test_a_client_over_its_share_takes_an_idle_ordinary_slot_when_the_lower_ones_are_taken():
-    """Two clients of about equal recent use take turns being over their share; each waited for the one
-    lower-priority slot while the ordinary slot stood idle. A job over its share takes a free ordinary slot
-    when the lower-priority ones are all taken and nobody waits for an ordinary one; otherwise it waits."""
+def test_a_client_with_nothing_else_in_flight_takes_an_idle_ordinary_slot_when_the_lower_ones_are_taken():
+    """A steady client that had the service to itself when a flood arrived is the one over its share for a
+    while; its images waited for the lower-priority slot while the ordinary one stood idle. With nothing else
+    in flight it takes the idle ordinary slot; a client with another image in flight waits for its own kind."""
     state = _state(over_share_nice=12)
-    state.recent_use.add("key:flood", 5.0)
-    state.recent_use.add("key:line", 0.05)
+    state.recent_use.add("key:line", 5.0)
+    state.recent_use.add("key:bulk", 5.0)
+    state.recent_use.add("key:flood", 0.05)  # just arrived
 
     async def script():
-        first = await take_cpu_slot(state, None, "key:flood", "a")  # over its share: the lower slot
-        second = await take_cpu_slot(state, None, "key:flood", "a")  # that one taken, the ordinary idle
+        bulk = await take_cpu_slot(state, None, "key:bulk", "a")  # over its share: the lower slot
+        line = await take_cpu_slot(state, None, "key:line", "b")  # over too, the lower slot taken: ordinary
         got = []
 
-        async def flood_third():
-            got.append(await take_cpu_slot(state, None, "key:flood", "c"))  # another of its addresses
+        async def bulk_again():
+            got.append(await take_cpu_slot(state, None, "key:bulk", "c"))  # another in flight: below
 
         async with anyio.create_task_group() as tg:
-            tg.start_soon(flood_third)  # every slot taken: it waits for its own kind
+            tg.start_soon(bulk_again)
+            await anyio.sleep(0.05)
+            release_cpu_slot(state, "key:line", "b", line)  # the ordinary slot idle again
             await anyio.sleep(0.05)
             waited = not got
-            release_cpu_slot(state, "key:flood", "a", first)
-        release_cpu_slot(state, "key:flood", "a", second)
-        release_cpu_slot(state, "key:flood", "c", got[0])
-        return first, second, got[0], waited
+            release_cpu_slot(state, "key:bulk", "a", bulk)
+        release_cpu_slot(state, "key:bulk", "c", got[0])
+        return bulk, line, got[0], waited
 
-    first, second, third, waited = anyio.run(script)
-    assert first.over_share and not second.over_share
-    assert waited and third.over_share
+    bulk, line, again, waited = anyio.run(script)
+    assert bulk.over_share and not line.over_share
+    assert waited and again.over_share
     assert state.limiter.free == 1 and state.over_share_limiter.free == 1 and state.admitted == 0
+
+
+def test_a_client_over_its_share_leaves_idle_ordinary_slots_to_the_others():
+    """A job over its share that took an idle ordinary slot ran beside a steady client's image at the same
+    priority, and a flood that took every ordinary slot between that client's images made each of them wait
+    for a whole job. It waits for the lower-priority slots (as many as the ordinary ones) instead."""
+    state = _state(over_share_nice=12, locate_concurrency=2)
+    state.recent_use.add("key:flood", 5.0)
+    state.recent_use.add("key:line", 0.05)
+    assert state.over_share_limiter is not None
+
+    async def script():
+        lower = [await take_cpu_slot(state, None, "key:flood", a) for a in ("a", "c")]  # both lower slots
+        got = []
+
+        async def flood_again():
+            got.append(await take_cpu_slot(state, None, "key:flood", "d"))  # another of its addresses
+
+        async with anyio.create_task_group() as tg:
+            tg.start_soon(flood_again)  # both ordinary slots idle, the lower ones taken: it waits
+            await anyio.sleep(0.05)
+            waited = not got
+            lines = [await take_cpu_slot(state, None, "key:line", a) for a in ("b", "e")]  # both, at once
+            release_cpu_slot(state, "key:flood", "a", lower[0])
+        release_cpu_slot(state, "key:flood", "c", lower[1])
+        release_cpu_slot(state, "key:flood", "d", got[0])
+        for a, turn in zip(("b", "e"), lines, strict=True):
+            release_cpu_slot(state, "key:line", a, turn)
+        return lower, got[0], lines, waited
+
+    lower, again, lines, waited = anyio.run(script)
+    assert all(t.over_share for t in lower)
+    assert waited and again.over_share and not any(t.over_share for t in lines)
+    assert state.limiter.free == 2 and state.over_share_limiter.free == 2 and state.admitted == 0
 
 
 def test_without_lower_priority_workers_every_job_takes_the_same_slots():

@@ -133,8 +133,10 @@ async def take_cpu_slot(
 
     503 Retry-After at once when the queue is full or ``client`` already holds its share of it, or when no
     slot came free by the deadline. The slot is one of the lower-priority workers' (``over_share``) when
-    ``client`` used more than its share of worker time recently while another client is present, unless those
-    slots are all taken and an ordinary one is free with nobody waiting for it. On return
+    ``client`` used more than its share of worker time recently while another client is present; then, with
+    another image in flight, even while an ordinary slot is idle (the lower-priority workers have as many
+    slots, so such a client alone still has every core), and with none, only until the lower slots are all
+    taken (then an idle ordinary slot nobody waits for is its). On return
     the caller holds a limiter token and a queue place and must give both back with :func:`release_cpu_slot`.
     """
     problem = shedding_problem(state, client, address)
@@ -149,15 +151,18 @@ async def take_cpu_slot(
     over_share = lower is not None and state.recent_use.over_share(client, state.client_admitted)
     if (
         over_share
+        and held == 0
         and lower is not None
         and lower.free == 0
         and state.limiter.free > 0
         and not state.limiter.waiting
     ):
-        # an idle ordinary slot is not left idle: two clients of about equal recent use take turns being over
-        # their share, and each then waited for the one lower-priority slot (100-190 ms) while the ordinary
-        # slot stood free; the job that takes it runs at the ordinary priority, and the first client under its
-        # share to arrive meanwhile waits for it
+        # a client with nothing else in flight takes an idle ordinary slot when the lower-priority ones are
+        # taken: a steady client that had the service to itself when a flood arrived is the one over its share
+        # for a while, and its images waited for the lower slot (100-190 ms) while the ordinary one stood idle.
+        # A client with another image in flight never does: its images then ran beside a steady client's at the
+        # same priority, and a flood that took every ordinary slot between that client's images made each of
+        # them wait for a whole job of the flood's
         over_share = False
     limiter = lower if over_share and lower is not None else state.limiter
     try:
