@@ -10,7 +10,7 @@ import pytest
 from sqlalchemy import select
 from typer.testing import CliRunner
 
-from doorloc.app.access import AccessKeyError, KeyStore, Role, role_allows
+from doorloc.app.access import AccessKeyError, FailureBudget, KeyStore, Role, role_allows
 from doorloc.app.cli import app as cli_app
 from doorloc.app.cli_serve import is_loopback
 from doorloc.recipes.store import RecipeStore
@@ -196,8 +196,6 @@ def test_an_unknown_key_id_costs_a_derivation_like_a_known_one(monkeypatch):
 
 
 def test_failure_budget_counts_a_sliding_minute():
-    from doorloc.app.access import FailureBudget
-
     now = [0.0]
     b = FailureBudget(3, clock=lambda: now[0])
     for _ in range(3):
@@ -218,8 +216,32 @@ def test_a_verified_key_still_passes_when_its_address_is_over_budget(make_client
     wrong = {"X-API-Key": "dlk_000000000000_" + "A" * 43}
     assert [c.get("/v1/doors", headers=wrong).status_code for _ in range(3)] == [401, 401, 429]
     assert c.get("/v1/doors", headers=_h(k)).status_code == 200
-    other = keys.create("never used", Role.operator)  # not verified yet: refused until the budget recovers
-    assert c.get("/v1/doors", headers=_h(other)).status_code == 429
+
+
+def test_a_key_not_verified_yet_is_tried_a_few_times_a_minute_from_an_address_over_budget(make_client, keys):
+    """Behind one NAT, a machine that keeps sending a stale key must not lock out for the whole minute another
+    machine's valid key that this worker has not verified yet (after a restart): each key is tried once a
+    minute, a few keys a minute (each trial a derivation, as for a key within the budget)."""
+    c = make_client(auth_failures_per_minute=2)
+    stale = {"X-API-Key": "dlk_000000000000_" + "A" * 43}
+    assert [c.get("/v1/doors", headers=stale).status_code for _ in range(6)] == [401, 401] + [429] * 4
+    panel = keys.create("panel", Role.operator)  # never used
+    assert c.get("/v1/doors", headers=_h(panel)).status_code == 200  # its trial (the stale key had one)
+    assert c.get("/v1/doors", headers=_h(panel)).status_code == 200  # verified now
+    guess = {"X-API-Key": "dlk_000000000000_" + "B" * 43}
+    assert c.get("/v1/doors", headers=guess).status_code == 429  # the third trial, failed
+    late = keys.create("late panel", Role.operator)
+    assert c.get("/v1/doors", headers=_h(late)).status_code == 429  # no trial left this minute
+
+
+def test_failure_budget_trials_each_key_once_a_minute_and_a_few_keys_a_minute():
+    now = [0.0]
+    b = FailureBudget(1, clock=lambda: now[0])
+    assert b.may_try("a", "k1") and not b.may_try("a", "k1")  # the same key again: not this minute
+    assert b.may_try("a", "k2") and b.may_try("a", "k3") and not b.may_try("a", "k4")
+    assert b.may_try("b", "k1")  # per address
+    now[0] = 60.5
+    assert b.may_try("a", "k1")
 
 
 def test_a_refused_key_is_answered_after_the_refusal_delay_and_only_a_quarter_of_connections_wait(

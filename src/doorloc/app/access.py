@@ -320,11 +320,19 @@ class FailureBudget:
     True
     """
 
+    #: keys an address over its budget may still have checked a minute, each key once: a client behind the
+    #: same NAT or proxy as another that keeps sending a wrong key (a stale one in its settings), whose key
+    #: this worker has not verified yet (after a restart; each worker of a service has its own), is then not
+    #: refused for the whole minute
+    TRIALS_PER_MINUTE = 3
+
     def __init__(self, per_minute: int, max_clients: int = 4096, clock=time.monotonic) -> None:  # noqa: ANN001
         self.per_minute = per_minute
         self.max_clients = max_clients
         self._clock = clock
         self._failures: dict[str, list[float]] = {}
+        #: address -> {digest of a key tried over budget: when}
+        self._trials: dict[str, dict[bytes, float]] = {}
 
     def _recent(self, client: str) -> list[float]:
         now = self._clock()
@@ -341,6 +349,22 @@ class FailureBudget:
         if len(times) < self.per_minute:
             return None
         return max(1, int(60.0 - (self._clock() - times[-self.per_minute])) + 1)
+
+    def may_try(self, client: str, presented: str) -> bool:
+        """Whether ``presented`` (a key as sent) may still be checked from ``client`` although it is over its
+        budget: each key once a minute, at most :attr:`TRIALS_PER_MINUTE` keys a minute (a trial that fails is
+        a wrong key like any other). A key sent again and again is checked once a minute, however often."""
+        now = self._clock()
+        digest = hashlib.sha256(presented.encode()).digest()  # the keys themselves are not kept
+        tried = {k: t for k, t in self._trials.get(client, {}).items() if now - t < 60.0}
+        if digest in tried or len(tried) >= self.TRIALS_PER_MINUTE:
+            self._trials[client] = tried
+            return False
+        if client not in self._trials and len(self._trials) >= self.max_clients:
+            self._trials.pop(next(iter(self._trials)))
+        tried[digest] = now
+        self._trials[client] = tried
+        return True
 
     def record(self, client: str) -> None:
         """Count one wrong key from ``client``."""

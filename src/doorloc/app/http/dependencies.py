@@ -47,7 +47,8 @@ async def resolve_principal(state: ServiceState, given: str | None, client: str)
     """Who sent the request, from its X-API-Key (``given``) alone: no body has been read yet.
 
     401 for a missing or wrong key; 429 once ``client`` (its address) has sent more wrong keys this minute
-    than ``auth_failures_per_minute`` (no key is then even checked); the anonymous engineer only on an open
+    than ``auth_failures_per_minute`` (then only a key verified before passes, and a key not verified yet
+    only on one of the address's few trials a minute: ``FailureBudget.may_try``); the anonymous engineer only on an open
     service (``open_access``, loopback) while no key has ever been seen. A service that has seen a key once
     never opens again, even when every key is revoked: it fails closed.
     """
@@ -55,11 +56,18 @@ async def resolve_principal(state: ServiceState, given: str | None, client: str)
     if given:
         retry = state.auth_failures.retry_after(client)
         if retry is not None:
-            # over budget: only a key verified before passes (no derivation), so a guesser sharing an address
-            # (a NAT, a proxy) does not lock out the valid keys used from it
-            known = None if state.keys is None else await call_store(state.keys.authenticate, given, True)
+            # over budget: a key verified before passes (no derivation), so a guesser sharing an address (a NAT,
+            # a proxy) does not lock out the valid keys used from it; a key not verified yet is derived only on
+            # one of the address's few trials a minute (each key once), known key id or not alike
+            trial = state.auth_failures.may_try(client, given)
+            known = (
+                None if state.keys is None else await call_store(state.keys.authenticate, given, not trial)
+            )
             if known is not None:
+                state.keys_seen = True
                 return known
+            if trial:
+                state.auth_failures.record(client)
             raise ProblemError(
                 429,
                 "too_many_failures",
