@@ -224,8 +224,8 @@ def attack_process(kind: str, n: int, base: str, keys: dict, stop, running, out,
 
 #: the measuring client's own address (Linux routes all of 127/8 to loopback): the attack clients all send from
 #: 127.0.0.1, as if from one machine, and the measuring client is another machine's, so a budget or share per
-#: address that the attackers exhaust is not also its own (a valid key not yet verified by a worker is refused
-#: with 429 from an address over its wrong-key budget, by design)
+#: address that the attackers exhaust is not also its own (from an address over its wrong-key budget, a valid
+#: key a worker has not verified yet is checked only on a few trials a minute, which the guessers use up)
 NORMAL_ADDRESS = "127.0.0.2"
 
 
