@@ -49,8 +49,8 @@ async def resolve_principal(state: ServiceState, given: str | None, client: str)
     401 for a missing or wrong key; 429 once ``client`` (its address) has sent more wrong keys this minute
     than ``auth_failures_per_minute`` (then only a key verified before passes, and a key not verified yet
     only on one of the address's few trials a minute: ``FailureBudget.may_try``); the anonymous engineer
-    only on an open service (``open_access``, loopback) while no key has ever been seen. A service that has seen a key once
-    never opens again, even when every key is revoked: it fails closed.
+    only on an open service (``open_access``, loopback) while no key has ever been seen. A service that has
+    seen a key once never opens again, even when every key is revoked: it fails closed.
     """
     legacy = state.settings.api_key
     if given:
