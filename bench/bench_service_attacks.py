@@ -6,7 +6,8 @@ another machine would; "attacker": operator, the attacking clients, from 127.0.0
 each attack: ``--normal`` sequential locates of rendered 1080p doors unloaded (median), then the attack's
 clients start (threads in their own process, so their GIL does not slow the measuring client), the same
 locates are timed during it, and the server's CPU seconds (all its processes, from /proc) over that window
-and its peak resident memory are read. Every attack loop is bounded and ends with its window. Printed as a Markdown table (docs/deploy.md holds one).
+and its peak resident memory are read. Every attack loop is bounded and ends with its window. Printed as a
+Markdown table (docs/deploy.md holds one).
 
     python bench/bench_service_attacks.py --workers 1
     python bench/bench_service_attacks.py --workers 2 --only jpeg_scans,fair_flood
