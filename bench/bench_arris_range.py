@@ -32,6 +32,13 @@ thickness 0.09), the worst 0.30; ``within``, the worst 1.27; ``bound``, 90 % wit
         [--response-factor F]   (a cell whose camera response was measured, e.g. 1.11)
         [--cell-gamma-off within|bound]   (the cell told a wrong exponent: the camera's times the cell's
                                            factor to a power drawn from -1..1 (within), or at +-1 (bound))
+        [--open-limits]   (the cell's limits on the uncertainty opened and the thickness reported: the errors
+                           and sigmas of every door, those the cell would refuse counted apart)
+
+``--open-limits`` measures what the model gets wrong on the doors it refuses as uncertain: are their
+sigmas as large as their errors (an honest refusal: the model must improve), or far larger (the doubt is
+what must shrink)? The limits opened are ``locate.max_uncertainty_mm``, ``max_uncertainty_deg`` and
+``max_sigma_mm``, and the thickness check is ``report``; refusals of another kind stay.
 """
 
 from __future__ import annotations
@@ -51,6 +58,7 @@ from bench_arris import random_effects  # noqa: E402
 from doorloc.cell import DoorSize, load_cell  # noqa: E402
 from doorloc.pose import DoorPose  # noqa: E402
 from doorloc.sim.door import render_door  # noqa: E402
+from doorloc.vision.config import LocateConfig  # noqa: E402
 from doorloc.vision.locate import locate  # noqa: E402
 
 ROOT = Path(__file__).parents[1]
@@ -89,6 +97,7 @@ class Outcome:
     errors: tuple[float, float, float, float] = (math.nan,) * 4  # x, z, yaw, thickness
     sigmas: tuple[float, float, float, float] = (math.nan,) * 4
     thickness_verified: bool = True
+    over_limits: bool = False  # answered only because the limits were opened (``--open-limits``)
 
 
 def draw(name: str, i: int, seed: int):
@@ -132,8 +141,18 @@ def told_gamma(gamma: float, factor: float, off: str | None, seed: int) -> float
 
 
 def run_one(
-    cell, door: DoorSize, pose: DoorPose, fx, gamma: float, seed: int, label: str, told: float | None = None
+    cell,
+    door: DoorSize,
+    pose: DoorPose,
+    fx,
+    gamma: float,
+    seed: int,
+    label: str,
+    told: float | None = None,
+    limits: LocateConfig | None = None,
 ) -> Outcome:
+    """Locate one rendered door and compare with its true pose. ``limits``: the cell's own ``locate``
+    settings where ``cell``'s are opened (``--open-limits``): an answer beyond them is marked."""
     img = render_door(cell, door, pose, effects=fx, seed=seed).image
     res = locate(img, dataclasses.replace(cell, response_gamma=gamma if told is None else told), door)
     if not res.ok:
@@ -149,12 +168,19 @@ def run_one(
     u = res.uncertainty
     sigmas = (u.x_mm, u.z_mm, u.yaw_deg, float(tc.get("sigma_mm", math.nan)))
     verified = bool(getattr(res, "thickness_verified", True) is not False)
+    over = limits is not None and (
+        max(u.x_mm, u.z_mm) > limits.max_uncertainty_mm
+        or u.yaw_deg > limits.max_uncertainty_deg
+        or float(res.diagnostics.get("corner_sigma_mm", 0.0)) > limits.max_sigma_mm
+        or (not verified and limits.thickness_check == "refuse")
+    )
     print(
         f"  seed {seed:6d} {label:44s} ex {errors[0]:+.4f} ez {errors[1]:+.4f} eyaw {errors[2]:+.5f} "
         f"dT {errors[3]:+.4f} sigma {sigmas[0]:.4f} {sigmas[1]:.4f} {sigmas[2]:.5f} {sigmas[3]:.4f}"
         + ("" if verified else " thickness UNVERIFIED")
+        + (" OVER THE CELL'S LIMITS" if over else "")
     )
-    return Outcome(None, errors, sigmas, verified)
+    return Outcome(None, errors, sigmas, verified, over)
 
 
 def summary(name: str, rows: list[Outcome]) -> None:
@@ -164,9 +190,11 @@ def summary(name: str, rows: list[Outcome]) -> None:
         if r.code is not None:
             codes[r.code] = codes.get(r.code, 0) + 1
     unverified = sum(1 for r in ok if not r.thickness_verified)
+    over = sum(1 for r in ok if r.over_limits)
     print(
         f"{name}: {len(ok)}/{len(rows)} answered ({len(ok) / max(len(rows), 1):.0%}), "
         f"{unverified} of them with the thickness unverified; refused: {codes or 'none'}"
+        + (f"; {over} answered only with the limits opened" if over else "")
     )
     if not ok:
         return
@@ -210,6 +238,12 @@ def main() -> None:
         help="the cell states a wrong exponent: the camera's times the cell's factor to a power drawn from "
         "-1..1 (within) or at -1 or +1 (bound); default: the camera's",
     )
+    ap.add_argument(
+        "--open-limits",
+        action="store_true",
+        help="open the cell's limits on the uncertainty and report the thickness: every door's errors and "
+        "sigmas, those the cell would refuse marked",
+    )
     args = ap.parse_args()
     sets = args.sets.split(",")
     if unknown := [s for s in sets if s not in SETS]:
@@ -223,6 +257,13 @@ def main() -> None:
         cell = dataclasses.replace(
             cell, locate=dataclasses.replace(cell.locate, response_unmeasured_factor=args.response_factor)
         )
+    limits = None
+    if args.open_limits:
+        limits = cell.locate
+        opened = dict(
+            max_uncertainty_mm=1e6, max_uncertainty_deg=1e6, max_sigma_mm=1e6, thickness_check="report"
+        )
+        cell = dataclasses.replace(cell, locate=dataclasses.replace(cell.locate, **opened))
     for name in sets:
         k = list(SETS).index(name)
         rows = []
@@ -237,7 +278,7 @@ def main() -> None:
                 + (f" grain={fx.grain_contrast:.3f}" if fx.grain_contrast else "")
                 + (f" cell {told:.2f}" if args.cell_gamma_off else "")
             )
-            rows.append(run_one(cell, door, pose, fx, gamma, seed, label, told))
+            rows.append(run_one(cell, door, pose, fx, gamma, seed, label, told, limits))
         summary(f"{name} (seeds {args.seed + 1000 * k}..{args.seed + 1000 * k + args.n - 1})", rows)
         sys.stdout.flush()
 
