@@ -11,7 +11,9 @@ and noise come from :func:`bench_arris.random_effects`), the camera's gamma is t
 - ``sharp``: doors without an arris (the range's 0 mm end), otherwise as ``round``;
 - ``grain``: arrises of 0-3 mm (either profile) with wood grain of 0-10 % along the height (period 2-8 mm);
 - ``dark``: rounds and chamfers of 0.5-3 mm whose wood is as dark as the background, under ambient light
-  (the arris's outer border has no contrast: it must be refused, or answered with an honest doubt).
+  (the arris's outer border has no contrast: it must be refused, or answered with an honest doubt);
+- ``focused``, ``focused_dark``: as ``round`` and ``chamfer`` together, and as ``dark``, through a sharp lens
+  (0.3-0.7 px of blur).
 
 Per image: the seed, the conditions, the errors of x, z, yaw and thickness and their claimed sigmas
 (x, z, yaw: the answer's ``uncertainty``; thickness: ``diagnostics.thickness_check.sigma_mm``), or the
@@ -28,7 +30,7 @@ thickness 0.09), the worst 0.30; ``within``, the worst 1.27; ``bound``, 90 % wit
 1.69, every one within 2 (answered: round 9, chamfer 13-14, ambient 11-12, small 5-7 of 16).
 
     OMP_NUM_THREADS=1 PYTHONPATH=src python bench/bench_arris_range.py [--n 16] [--seed 7000]
-        [--sets round,chamfer,ambient,small,sharp,grain,dark] [--thickness-check refuse|report]
+        [--sets round,chamfer,ambient,small,sharp,grain,dark,focused,focused_dark] [--thickness-check refuse|report]
         [--response-factor F]   (a cell whose camera response was measured, e.g. 1.11)
         [--cell-gamma-off within|bound]   (the cell told a wrong exponent: the camera's times the cell's
                                            factor to a power drawn from -1..1 (within), or at +-1 (bound))
@@ -82,6 +84,19 @@ SETS: dict[str, dict] = {
         arris=(0.5, 3.0),
         profiles=("round", "chamfer"),
         blur=(0.7, 1.8),
+        ambient=True,
+        grain=(0, 0),
+        arris_as_background=True,
+    ),
+    # a sharp lens (0.3-0.7 px of blur): every border of a strip resolved, and a strip at one plateau's level
+    # indistinguishable from a plain step at its other border
+    "focused": dict(
+        arris=(0.5, 3.0), profiles=("round", "chamfer"), blur=(0.3, 0.7), ambient=False, grain=(0, 0)
+    ),
+    "focused_dark": dict(
+        arris=(0.5, 3.0),
+        profiles=("round", "chamfer"),
+        blur=(0.3, 0.7),
         ambient=True,
         grain=(0, 0),
         arris_as_background=True,
