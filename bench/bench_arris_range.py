@@ -93,15 +93,8 @@ SETS: dict[str, dict] = {
     "focused": dict(
         arris=(0.5, 3.0), profiles=("round", "chamfer"), blur=(0.3, 0.7), ambient=False, grain=(0, 0)
     ),
-    "focused_dark": dict(
-        arris=(0.5, 3.0),
-        profiles=("round", "chamfer"),
-        blur=(0.3, 0.7),
-        ambient=True,
-        grain=(0, 0),
-        arris_as_background=True,
-    ),
 }
+SETS["focused_dark"] = dict(SETS["dark"], blur=(0.3, 0.7))  # ``dark`` through the sharp lens
 
 
 @dataclasses.dataclass(frozen=True)
