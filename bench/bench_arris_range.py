@@ -30,7 +30,8 @@ thickness 0.09), the worst 0.30; ``within``, the worst 1.27; ``bound``, 90 % wit
 1.69, every one within 2 (answered: round 9, chamfer 13-14, ambient 11-12, small 5-7 of 16).
 
     OMP_NUM_THREADS=1 PYTHONPATH=src python bench/bench_arris_range.py [--n 16] [--seed 7000]
-        [--sets round,chamfer,ambient,small,sharp,grain,dark,focused,focused_dark] [--thickness-check refuse|report]
+        [--sets round,chamfer,ambient,small,sharp,grain,dark,focused,focused_dark]
+        [--thickness-check refuse|report]
         [--response-factor F]   (a cell whose camera response was measured, e.g. 1.11)
         [--cell-gamma-off within|bound]   (the cell told a wrong exponent: the camera's times the cell's
                                            factor to a power drawn from -1..1 (within), or at +-1 (bound))
