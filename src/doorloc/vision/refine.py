@@ -357,14 +357,12 @@ def _held_to_first_pass(
     right answer refused (a 1.22 mm rounding, z sigma 0.064 -> 0.55 mm).
     """
     out = dict(final)
-    for k, (strip, band_px) in final.items():
-        if k not in first or k not in READINGS_UNCHECKED:
+    for k in READINGS_UNCHECKED:
+        if k not in final or k not in first:
             continue
-        s1 = first[k][0]
-        if abs(s1.deficit - s1.model_deficit) < READINGS_GAP:
-            continue
+        (strip, band_px), s1 = final[k], first[k][0]
         floor = math.hypot(s1.deficit_sigma, strip.deficit - s1.deficit)
-        if floor > strip.deficit_sigma:
+        if abs(s1.deficit - s1.model_deficit) >= READINGS_GAP and floor > strip.deficit_sigma:
             out[k] = (replace(strip, deficit_sigma=floor), band_px)
     return out
 
