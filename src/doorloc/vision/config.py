@@ -56,7 +56,8 @@ class LocateConfig:
     thickness_check : ``"refuse"`` or ``"report"``
         What an answer whose thickness the image cannot verify gets (its measurement's 3 sigma reach past
         ``thickness_tolerance_mm``: a rounded far arris against a background of nearly its shade, a far face
-        seen edge-on). ``"refuse"`` (the default): refused ``uncertain``, the sentence saying why. ``"report"``:
+        seen edge-on, a far arris whose strip shows one step that its other reading puts on the recipe's
+        thickness). ``"refuse"`` (the default): refused ``uncertain``, the sentence saying why. ``"report"``:
         answered, with ``thickness_verified: false`` and the reason in ``thickness_unverified_reason``, for a
         line that checks the door's thickness elsewhere. Under either a door that measures wrong beyond the
         tolerance at confidence is refused ``thickness_mismatch``; nothing passes silently.
