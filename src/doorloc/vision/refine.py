@@ -196,7 +196,7 @@ def _fit(
         good = s.valid & (s.located_contrast(pol, cfg.min_contrast) >= 0.5 * cfg.min_contrast)
         good &= finite.all(axis=1)
         if np.count_nonzero(good) < 3:
-            raise Refused(q.Refusal("edge_missing", _missing_edge_reason(name, s)))
+            raise Refused(q.Refusal("edge_missing", _missing_edge_reason(name, s, cfg.min_contrast)))
         groups[name] = (np.where(finite, xz, 0.0), region.layouts[name].along_x)
         init[name] = good.astype(float)
     offset_only = ("far",) if far_offset_only else ()
@@ -227,8 +227,21 @@ def _fit(
     return fit, init
 
 
-def _missing_edge_reason(name: str, s: EdgeSamples) -> str:
-    """The operator's words for a line with fewer than three usable points."""
+def _missing_edge_reason(name: str, s: EdgeSamples, min_contrast: float) -> str:
+    """The operator's words for a line with fewer than three usable points (``min_contrast``: the least step
+    an edge needs, grey levels)."""
+    face_step = np.abs(s.step[np.isfinite(s.step)])
+    if s.strip_contrast is not None and face_step.size and float(np.median(face_step)) < min_contrast:
+        # The strip's shading is read against the step from the background to the hinge face: where the two
+        # are as bright, a strip that stands out from both has nothing to be measured against (arris range
+        # bench, round seed 8124: a bright 2.6 mm rounding on a face within a grey level of its background,
+        # every line's strip fit missing its profiles by hundreds of noise units).
+        return (
+            f"the {HUMAN[name]} was not found: the hinge face hardly differs from the background behind the "
+            f"door (a step of {float(np.median(face_step)):.1f} grey levels; edges need {min_contrast:g}), so "
+            "its arris strip could not be read; put a lighter or darker background behind the door, or light "
+            "the door's face differently"
+        )
     if s.strip_contrast is not None and s.scan.size and not s.valid.any():
         # Every scan line's strip fit failed: the strip's shape was not found anywhere along the edge. On
         # an arris whose wood is as dark as what lies behind the door (arris range bench, dark set) the
