@@ -37,6 +37,8 @@ thickness 0.09), the worst 0.30; ``within``, the worst 1.27; ``bound``, 90 % wit
                                            factor to a power drawn from -1..1 (within), or at +-1 (bound))
         [--open-limits]   (the cell's limits on the uncertainty opened and the thickness reported: the errors
                            and sigmas of every door, those the cell would refuse counted apart)
+        [--light-told]    (the cell states its light's direction, locate.light_direction_deg, as measured
+                           once for fixed lamps: the renderer's)
 
 ``--open-limits`` measures what the model gets wrong on the doors it refuses as uncertain: are their
 sigmas as large as their errors (an honest refusal: the model must improve), or far larger (the doubt is
@@ -253,6 +255,12 @@ def main() -> None:
         help="open the cell's limits on the uncertainty and report the thickness: every door's errors and "
         "sigmas, those the cell would refuse marked",
     )
+    ap.add_argument(
+        "--light-told",
+        action="store_true",
+        help="the cell states its light (locate.light_direction_deg: the renderer's direction, as a cell that "
+        "measured its fixed lamps once would)",
+    )
     args = ap.parse_args()
     sets = args.sets.split(",")
     if unknown := [s for s in sets if s not in SETS]:
@@ -287,7 +295,17 @@ def main() -> None:
                 + (f" grain={fx.grain_contrast:.3f}" if fx.grain_contrast else "")
                 + (f" cell {told:.2f}" if args.cell_gamma_off else "")
             )
-            rows.append(run_one(cell, door, pose, fx, gamma, seed, label, told, limits))
+            lit = (
+                dataclasses.replace(
+                    cell,
+                    locate=dataclasses.replace(
+                        cell.locate, light_direction_deg=(fx.light_azimuth_deg, fx.light_elevation_deg)
+                    ),
+                )
+                if args.light_told
+                else cell
+            )
+            rows.append(run_one(lit, door, pose, fx, gamma, seed, label, told, limits))
         summary(f"{name} (seeds {args.seed + 1000 * k}..{args.seed + 1000 * k + args.n - 1})", rows)
         sys.stdout.flush()
 

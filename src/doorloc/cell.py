@@ -468,7 +468,11 @@ def cell_to_dict(cell: Cell) -> dict:
             "arris_profile": cell.default_door.arris_profile,
         },
     }
-    changed = {k: v for k, v in dataclasses.asdict(cell.locate).items() if v != getattr(LocateConfig(), k)}
+    changed = {
+        k: list(v) if isinstance(v, tuple) else v
+        for k, v in dataclasses.asdict(cell.locate).items()
+        if v != getattr(LocateConfig(), k)
+    }
     if changed:
         doc["locate"] = changed
     if cell.robot_section is not None:

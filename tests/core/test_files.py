@@ -250,11 +250,23 @@ def test_unknown_thickness_check_policy_is_an_error(thesis_cell_path):
     assert "refuse" in str(e.value) and "report" in str(e.value)
 
 
+def test_the_cells_light_is_read_as_a_direction_and_checked(thesis_cell_path):
+    doc = yaml.safe_load(Path(thesis_cell_path).read_text())
+    assert parse_cell(doc, Path(thesis_cell_path).parent, "cell.yaml").locate.light_direction_deg is None
+    doc["locate"] = {"light_direction_deg": [70, 22.5]}
+    cell = parse_cell(doc, Path(thesis_cell_path).parent, "cell.yaml")
+    assert cell.locate.light_direction_deg == (70.0, 22.5)
+    for bad in ([70], [70, 120], "west"):
+        doc["locate"] = {"light_direction_deg": bad}
+        with pytest.raises(CellFileError, match="light_direction_deg"):
+            parse_cell(doc, Path(thesis_cell_path).parent, "cell.yaml")
+
+
 def test_cell_physical_settings_round_trip_and_hashes(tmp_path, thesis_cell_path):
     doc = yaml.safe_load(Path(thesis_cell_path).read_text())
     doc["camera"]["response_gamma"] = 2.2
     doc["door"]["arris_mm"], doc["door"]["arris_profile"] = 1.5, "round"
-    doc["locate"] = {"door_brighter": False, "thickness_tolerance_mm": 0.5}
+    doc["locate"] = {"door_brighter": False, "thickness_tolerance_mm": 0.5, "light_direction_deg": [70, 22.5]}
     doc["provenance"] = {"made_by": "test"}
     (tmp_path / "cell.yaml").write_text(yaml.safe_dump(doc))
     cell = load_cell(tmp_path / "cell.yaml")

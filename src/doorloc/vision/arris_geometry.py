@@ -31,6 +31,9 @@ class ArrisGeometry:
     tau, theta : ndarray
         Fraction of the strip's image width from its outer border (0) to its inner border (1), and the
         surface angle there (``theta = 0`` on the hinge face), increasing ``tau``.
+    normals_cell : (ndarray (3,), ndarray (3,)) or None
+        Outward unit normals, cell frame, of the hinge face and of the arris's other face (the reference
+        face, the bottom end or the far face): the arc's normal at ``theta`` is ``cos theta n1 + sin theta n2``.
     """
 
     section: ArrisSection
@@ -38,9 +41,20 @@ class ArrisGeometry:
     w_inner_mm: float
     tau: np.ndarray
     theta: np.ndarray
+    normals_cell: tuple[np.ndarray, np.ndarray] | None = None
 
     def theta_at(self, tau: np.ndarray) -> np.ndarray:
         return np.interp(tau, self.tau, self.theta)
+
+
+#: outward normals in the door's frame (the cell's at yaw 0, the reference corner at the origin): the hinge
+#: face looks at the camera (-Y), the reference face -X, the far face +X, the bottom end -Z
+_HINGE_NORMAL = np.array([0.0, -1.0, 0.0])
+_SIDE_NORMALS = {
+    "reference": np.array([-1.0, 0.0, 0.0]),
+    "far": np.array([1.0, 0.0, 0.0]),
+    "bottom": np.array([0.0, 0.0, -1.0]),
+}
 
 
 def arris_geometry(
@@ -92,5 +106,8 @@ def arris_geometry(
         tau, th = tau[::-1], th[::-1]  # increasing tau: from the outer border inwards
         if np.any(np.diff(tau) <= 0):
             continue
-        out[name] = ArrisGeometry(sec, float(sec.on_plane(th_b, a)), float(sec.on_plane(0.0, a)), tau, th)
+        normals = (R @ _HINGE_NORMAL, R @ _SIDE_NORMALS[name])
+        out[name] = ArrisGeometry(
+            sec, float(sec.on_plane(th_b, a)), float(sec.on_plane(0.0, a)), tau, th, normals
+        )
     return out

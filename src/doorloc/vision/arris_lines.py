@@ -184,6 +184,8 @@ class StripWindow:
     line_fit : bool
         Each line's border from the fitted strip shape (:func:`_line_borders`) where that fit holds, the
         area estimate elsewhere; False: the area estimate on every line.
+    light_cell : ndarray (3,) or None
+        The cell's light, a unit vector towards it (cell frame), for a rounding's shading; None: free.
     """
 
     lines: ScanWindow
@@ -191,6 +193,7 @@ class StripWindow:
     search: bool = False
     level_px: int | None = None
     line_fit: bool = True
+    light_cell: np.ndarray | None = None
 
     @property
     def door_side(self) -> int:
@@ -377,7 +380,17 @@ def _strip_shading(
         shared = undithered * float(np.median((1.0 / 12.0) / (D[pick] * scale_to_8bit) ** 2))
         prior = deficit_prior(float(np.median(B[pick])), float(np.median(A[pick])))
         fit = fit_strip_profile(
-            r, x, outer, w[pick], geom, nz, window.blur0, search_px=float(pad), prior=prior, shared=shared
+            r,
+            x,
+            outer,
+            w[pick],
+            geom,
+            nz,
+            window.blur0,
+            search_px=float(pad),
+            prior=prior,
+            shared=shared,
+            light_cell=window.light_cell,
         )
     bias = 0.0
     if fit is not None:

@@ -128,6 +128,21 @@ def strip_basis(geom: ArrisGeometry, n_cells: int, terminator: float | None, lit
     return np.stack([np.ones(n_cells), np.maximum(s, 0.0).mean(axis=1)], axis=1)
 
 
+def lit_basis(geom: ArrisGeometry, n_cells: int, light_cell: np.ndarray) -> np.ndarray:
+    """A rounding's shading under a known light, shape (C, 2): the Lambert irradiance ``max(0, n . l)`` of
+    the arc's normal ``n`` (:attr:`ArrisGeometry.normals_cell`) towards the light ``light_cell`` (unit vector,
+    cell frame), cell means over 16 sub-samples, and a constant. In the fit's units (0 on the background, 1
+    on the face) a Lambertian strip is affine in its irradiance: its albedo times the irradiance, less the
+    background's share; the constant also takes an ambient light."""
+    assert geom.normals_cell is not None
+    n1, n2 = geom.normals_cell
+    tau = (np.arange(n_cells)[:, None] + (np.arange(16)[None, :] + 0.5) / 16) / n_cells
+    th = geom.theta_at(tau)
+    irr = np.maximum(0.0, np.cos(th) * float(n1 @ light_cell) + np.sin(th) * float(n2 @ light_cell))
+    m = irr.mean(axis=1)
+    return np.stack([m, np.ones(n_cells)], axis=1)
+
+
 def mix_cells(basis: np.ndarray, n_cells: int) -> tuple[np.ndarray, np.ndarray]:
     """The map from the boundary terms ``prim`` (J = C + 1) to the design's columns, and its constant.
 

@@ -7,10 +7,13 @@ here: it is a property of the camera, ``camera.response_gamma`` in the cell file
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Literal
 
-__all__ = ["LocateConfig"]
+import numpy as np
+
+__all__ = ["LocateConfig", "light_direction_cell"]
 
 
 @dataclass(frozen=True)
@@ -61,6 +64,15 @@ class LocateConfig:
         answered, with ``thickness_verified: false`` and the reason in ``thickness_unverified_reason``, for a
         line that checks the door's thickness elsewhere. Under either a door that measures wrong beyond the
         tolerance at confidence is refused ``thickness_mismatch``; nothing passes silently.
+    light_direction_deg : (float, float) or None
+        Direction towards the cell's main light, ``[azimuth, elevation]`` in degrees in the cell frame: the
+        unit vector ``(cos el sin az, -cos el cos az, sin el)`` (azimuth 0 towards the camera's side of the
+        hinge face, -Y; positive towards +X; elevation towards +Z). Measured once where the lamps are fixed.
+        Where it is given, a rounded arris's strip is shaded as a Lambertian arc under that light (its albedo
+        and the background's share free) instead of a free shading whose level trades off with the strip's
+        border; a finish that is no Lambertian, or a light that is no single direction, costs
+        ``arris_model.LIT_DEFICIT_FLOOR`` of the strip's width in its doubt. None (the default): the free
+        shading.
     min_inliers, min_inlier_fraction, max_rms_residual_px : int, float, float
         Line-fit gate.
     corner_zone_px, min_corner_support : float
@@ -125,4 +137,28 @@ class LocateConfig:
     max_uncertainty_deg: float = 0.05
     calibration_sigma_px: float = 0.05
     cell_sigma_mm: float = 0.0
+    light_direction_deg: tuple[float, float] | None = None
+
+    def __post_init__(self) -> None:
+        if self.light_direction_deg is not None:
+            az, el = self.light_direction_deg
+            if not (-180.0 <= az <= 180.0 and -90.0 <= el <= 90.0):
+                raise ValueError(
+                    f"light_direction_deg is [azimuth, elevation] with azimuth in -180..180 and elevation in "
+                    f"-90..90 degrees, got [{az:g}, {el:g}]"
+                )
+
     cell_sigma_deg: float = 0.0
+
+
+def light_direction_cell(direction_deg: tuple[float, float] | None) -> np.ndarray | None:
+    """The unit vector towards a light at ``[azimuth, elevation]`` degrees, cell frame
+    (:attr:`LocateConfig.light_direction_deg`); None for None.
+
+    >>> [round(float(v), 3) for v in light_direction_cell((90.0, 0.0))]  # from +X
+    [1.0, -0.0, 0.0]
+    """
+    if direction_deg is None:
+        return None
+    az, el = (math.radians(float(v)) for v in direction_deg)
+    return np.array([math.cos(el) * math.sin(az), -math.cos(el) * math.cos(az), math.sin(el)])

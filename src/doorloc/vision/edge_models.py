@@ -72,7 +72,8 @@ class PassSettings:
     windows assume; ``optical_blur_px``: the blur measured on the reference arris (NaN before it is);
     ``slope_smooth``: scan lines for the plain estimator's slope; ``door``: the door's size and arris;
     ``arris``: the strips' geometry per line where the door has an arris; ``step_blur_px``: the lines the
-    blurred-step fit refines, and the blur it uses.
+    blurred-step fit refines, and the blur it uses; ``light_cell``: the cell's light (a unit vector towards
+    it, cell frame) where the cell states it.
     """
 
     every: int
@@ -82,6 +83,7 @@ class PassSettings:
     door: DoorSize
     arris: dict[str, ArrisGeometry] | None
     step_blur_px: dict[str, float]
+    light_cell: np.ndarray | None = None
 
     @property
     def blur_guess_px(self) -> float:
@@ -207,6 +209,7 @@ class ArrisStrip:
                 # which its window was placed for: there the area estimate; the line fit in both passes
                 # lost every far point on 2 of 48 arris bench frames)
                 line_fit=name != "far" or every == 1,
+                light_cell=settings.light_cell,
             ),
             band,
             settings.arris[name],

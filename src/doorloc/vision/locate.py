@@ -195,6 +195,7 @@ def locate_steps(
         arris_profile=door.arris_profile,
         door_brighter=cfg.door_brighter,
         face_y_mm=cell.face_y(door),
+        light_direction_deg=list(cfg.light_direction_deg) if cfg.light_direction_deg is not None else None,
     )
     res.elapsed_ms = (time.perf_counter() - t0) * 1e3
     return res

@@ -14,7 +14,7 @@ import numpy as np
 from doorloc.vision import quality as q
 from doorloc.vision.arris_geometry import ArrisGeometry
 from doorloc.vision.arris_model import StripFit, arris_geometry
-from doorloc.vision.config import LocateConfig
+from doorloc.vision.config import LocateConfig, light_direction_cell
 from doorloc.vision.edge_models import ARRIS_PLATEAU_PX, EDGE_MODELS, PassSettings, ScanWindow, edge_kind
 from doorloc.vision.edge_samples import EdgeSamples
 from doorloc.vision.edges import transition_width
@@ -136,6 +136,7 @@ def _sample(
         door=door,
         arris=geoms,
         step_blur_px=this_pass.step_fit or {},
+        light_cell=light_direction_cell(cfg.light_direction_deg),
     )
     out, far_fit, step_fitted = {}, None, {}
     for name in this_pass.lines:

@@ -57,6 +57,11 @@ class PhysicalModel(BaseModel):
     face_y_mm: float | None = Field(
         None, description="hinge-face depth used for this door, mm (cell frame Y)"
     )
+    light_direction_deg: list[float] | None = Field(
+        None,
+        description="the cell's light, [azimuth, elevation] deg in the cell frame, that rounded arrises were "
+        "shaded under (locate.light_direction_deg); null: not stated, a free shading",
+    )
 
 
 class LineQuality(BaseModel):
