@@ -137,6 +137,7 @@ class LocateConfig:
     max_uncertainty_deg: float = 0.05
     calibration_sigma_px: float = 0.05
     cell_sigma_mm: float = 0.0
+    cell_sigma_deg: float = 0.0
     light_direction_deg: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
@@ -147,8 +148,6 @@ class LocateConfig:
                     f"light_direction_deg is [azimuth, elevation] with azimuth in -180..180 and elevation in "
                     f"-90..90 degrees, got [{az:g}, {el:g}]"
                 )
-
-    cell_sigma_deg: float = 0.0
 
 
 def light_direction_cell(direction_deg: tuple[float, float] | None) -> np.ndarray | None:
