@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-__all__ = ["DoorPose", "door_to_cell", "cell_to_door", "yaw_rotation_matrix"]
+__all__ = ["DoorPose", "door_to_cell", "cell_to_door", "direction_cell", "yaw_rotation_matrix"]
 
 
 @dataclass(frozen=True)
@@ -68,6 +68,19 @@ def yaw_rotation_matrix(yaw_deg: float) -> np.ndarray:
     [0.0, 0.0, 1.0]
     """
     return Rotation.from_euler("y", -yaw_deg, degrees=True).as_matrix()
+
+
+def direction_cell(azimuth_deg: float, elevation_deg: float) -> np.ndarray:
+    """The unit vector, cell frame, at ``azimuth_deg`` from -Y (out of the hinge face, towards the camera's
+    side) turning towards +X, raised by ``elevation_deg`` towards +Z: ``(cos el sin az, -cos el cos az,
+    sin el)``. The one convention for a light's direction (the renderer's and the cell's
+    ``locate.light_direction_deg``).
+
+    >>> [round(float(v), 3) for v in direction_cell(90.0, 0.0)]  # from +X
+    [1.0, -0.0, 0.0]
+    """
+    az, el = math.radians(azimuth_deg), math.radians(elevation_deg)
+    return np.array([math.cos(el) * math.sin(az), -math.cos(el) * math.cos(az), math.sin(el)])
 
 
 def door_to_cell(points_door: np.ndarray, pose: DoorPose, face_y: float = 0.0) -> np.ndarray:

@@ -14,11 +14,12 @@ scene radiance (per-face albedo x (ambient + directional Lambert), wood grain, s
 
 from __future__ import annotations
 
-import math
 from dataclasses import asdict, dataclass, fields
 from typing import Any
 
 import numpy as np
+
+from doorloc.pose import direction_cell
 
 __all__ = ["Effects", "form_image", "lambert_shade", "wood_grain"]
 
@@ -155,9 +156,8 @@ class Effects:
         return cls(**kw)
 
     def light_direction_cell(self) -> np.ndarray:
-        """Unit vector towards the light, cell frame, shape (3,)."""
-        az, el = math.radians(self.light_azimuth_deg), math.radians(self.light_elevation_deg)
-        return np.array([math.cos(el) * math.sin(az), -math.cos(el) * math.cos(az), math.sin(el)])
+        """Unit vector towards the light, cell frame, shape (3,) (:func:`doorloc.pose.direction_cell`)."""
+        return direction_cell(self.light_azimuth_deg, self.light_elevation_deg)
 
 
 def lambert_shade(effects: Effects, albedo: float, normal_cell: np.ndarray) -> float:

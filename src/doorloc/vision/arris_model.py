@@ -372,6 +372,14 @@ def _coarse_offsets(
     return _OffsetProfile(grid, sg, ev, step, lo_lim, hi_lim, limited), best
 
 
+def _border_places(coarse: _OffsetProfile, centre: float, reach: float) -> np.ndarray:
+    """Places for the outer border (px, as :func:`_coarse_offsets`' offsets) a quarter pixel apart within
+    ``reach`` px of ``centre``, those that keep the background and the face in view where the coarse profile
+    was cut to them: where a fixed shading model is refined at its own best place."""
+    places = centre + np.arange(-reach, reach + 1e-9, 0.25)
+    return places[(places >= coarse.lo_lim) & (places <= coarse.hi_lim)] if coarse.limited else places
+
+
 def _rounding_shading(
     prob: StripProblem,
     geom: ArrisGeometry,
@@ -401,8 +409,7 @@ def _rounding_shading(
     # missed by 75 noise units, at its own 0.9 px away by 3).
     # The places: steps of a quarter pixel within 2.5 px of the free shading's (the coarse profile's
     # steps grow with the strip's width, 1.3 px on a 12 px strip, wider than an arc's valley).
-    places = d0 + np.arange(-2.5, 2.5 + 1e-9, 0.25)
-    places = places[(places >= coarse.lo_lim) & (places <= coarse.hi_lim)] if coarse.limited else places
+    places = _border_places(coarse, d0, 2.5)
     if places.size == 0:
         places = np.array([d0])
     # (the free shading's own place scored with them, last, for the start it had alone before)
@@ -451,10 +458,7 @@ def _told_light_shading(
     arris bench's round set (seed 7900, the renderer's light told): answered 11 -> 14 of 16, x / z RMS
     0.0155 / 0.0067 -> 0.0032 / 0.0024 mm."""
     basis = lit_basis(geom, n_cells, light_cell)
-    places = free.offset + np.arange(-2.0, 2.0 + 1e-9, 0.25)
-    if coarse.limited:
-        places = places[(places >= coarse.lo_lim) & (places <= coarse.hi_lim)]
-    starts = [free.offset, *places.tolist()]
+    starts = [free.offset, *_border_places(coarse, free.offset, 2.0).tolist()]
     fits = [prob.refine(float(d), free.blur, basis, n_iter=6) for d in starts]
     d1, s1, ev1 = min(fits, key=lambda f: float(f[2].chi2[0]))
     # (the free shading is not weighed in as another model, as a Lambert arc fitted to the strip is: with

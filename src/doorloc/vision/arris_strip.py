@@ -116,12 +116,17 @@ def pixel_terms_fill(edges, bounds, sigma, tail_sigmas, prim, d_b, d_s):
                     d_s[b, r, p, j] = D[p + 1] - D[p]
 
 
+def _cell_thetas(geom: ArrisGeometry, n_cells: int, sub: int) -> np.ndarray:
+    """The surface angle at ``sub`` evenly spaced points inside each of the strip's ``n_cells`` cells, (C, sub)."""
+    tau = (np.arange(n_cells)[:, None] + (np.arange(sub)[None, :] + 0.5) / sub) / n_cells
+    return geom.theta_at(tau)
+
+
 def strip_basis(geom: ArrisGeometry, n_cells: int, terminator: float | None, lit_below: bool) -> np.ndarray:
     """A rounding's Lambert shading basis on the strip cells, shape (C, k): ``1, cos, sin`` of ``theta`` (a
     light whose terminator lies off the arc), or ``1, max(0, +-sin(theta - terminator))``."""
     # cell means over 8 sub-samples: near the silhouette theta changes fast across one cell
-    tau = (np.arange(n_cells)[:, None] + (np.arange(8)[None, :] + 0.5) / 8) / n_cells
-    th = geom.theta_at(tau)
+    th = _cell_thetas(geom, n_cells, 8)
     if terminator is None:
         return np.stack([np.ones(n_cells), np.cos(th).mean(axis=1), np.sin(th).mean(axis=1)], axis=1)
     s = np.sin(th - terminator) * (-1.0 if lit_below else 1.0)
@@ -136,8 +141,7 @@ def lit_basis(geom: ArrisGeometry, n_cells: int, light_cell: np.ndarray) -> np.n
     background's share; the constant also takes an ambient light."""
     assert geom.normals_cell is not None
     n1, n2 = geom.normals_cell
-    tau = (np.arange(n_cells)[:, None] + (np.arange(16)[None, :] + 0.5) / 16) / n_cells
-    th = geom.theta_at(tau)
+    th = _cell_thetas(geom, n_cells, 16)
     irr = np.maximum(0.0, np.cos(th) * float(n1 @ light_cell) + np.sin(th) * float(n2 @ light_cell))
     m = irr.mean(axis=1)
     return np.stack([m, np.ones(n_cells)], axis=1)

@@ -7,13 +7,10 @@ here: it is a property of the camera, ``camera.response_gamma`` in the cell file
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Literal
 
-import numpy as np
-
-__all__ = ["LocateConfig", "light_direction_cell"]
+__all__ = ["LocateConfig"]
 
 
 @dataclass(frozen=True)
@@ -67,7 +64,7 @@ class LocateConfig:
     light_direction_deg : (float, float) or None
         Direction towards the cell's main light, ``[azimuth, elevation]`` in degrees in the cell frame: the
         unit vector ``(cos el sin az, -cos el cos az, sin el)`` (azimuth 0 towards the camera's side of the
-        hinge face, -Y; positive towards +X; elevation towards +Z). Measured once where the lamps are fixed.
+        hinge face, -Y; positive towards +X; elevation towards +Z; :func:`doorloc.pose.direction_cell`). Measured once where the lamps are fixed.
         Where it is given, a rounded arris's strip is shaded as a Lambertian arc under that light (its albedo
         and the background's share free) instead of a free shading whose level trades off with the strip's
         border; a finish that is no Lambertian, or a light that is no single direction, costs
@@ -148,16 +145,3 @@ class LocateConfig:
                     f"light_direction_deg is [azimuth, elevation] with azimuth in -180..180 and elevation in "
                     f"-90..90 degrees, got [{az:g}, {el:g}]"
                 )
-
-
-def light_direction_cell(direction_deg: tuple[float, float] | None) -> np.ndarray | None:
-    """The unit vector towards a light at ``[azimuth, elevation]`` degrees, cell frame
-    (:attr:`LocateConfig.light_direction_deg`); None for None.
-
-    >>> [round(float(v), 3) for v in light_direction_cell((90.0, 0.0))]  # from +X
-    [1.0, -0.0, 0.0]
-    """
-    if direction_deg is None:
-        return None
-    az, el = (math.radians(float(v)) for v in direction_deg)
-    return np.array([math.cos(el) * math.sin(az), -math.cos(el) * math.cos(az), math.sin(el)])

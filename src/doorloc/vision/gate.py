@@ -326,7 +326,11 @@ def _thickness_check(
     # a thickness that misses the recipe (beyond the tolerance, or within it by more than its doubt allows)
     # may be a side arris's strip read the other way
     missed = mismatch is not None or abs(nearest - door.thickness_mm) > MISREAD_SIGMAS * t_sigma
-    misread = _misread_strips(nearest, door, t_tol, t_sigma, strip_shifts or {}) if missed else None
+    misread = (
+        _misread_strips(nearest, door, t_tol, t_sigma, strip_shifts or {}, mismatch is not None)
+        if missed
+        else None
+    )
     if misread is not None:
         refusal, keys = misread
         # a misread reference arris moves the door's x as far as its thickness: refused under either policy
@@ -354,14 +358,19 @@ def _thickness_check(
 
 
 def _misread_strips(
-    measured: float, door: DoorSize, t_tol: float, t_sigma: float, strip_shifts: dict[str, float]
+    measured: float,
+    door: DoorSize,
+    t_tol: float,
+    t_sigma: float,
+    strip_shifts: dict[str, float],
+    beyond: bool,
 ) -> tuple[q.Refusal, tuple[str, ...]] | None:
     """Where a thickness ``measured`` (mm) that misses the recipe lands on it with one or both side arrises'
     strips read the other way (``strip_shifts``, mm: :func:`_strip_other_readings`), the ``uncertain``
     refusal that says so and the arrises it names; else None (a wrong door, or another cause).
 
-    Missing the recipe: beyond the tolerance (then the other reading must pass the tolerance), or within it by
-    more than ``MISREAD_SIGMAS`` sigmas (then the other reading must lie within as many). The image cannot
+    Missing the recipe: beyond the tolerance (``beyond``; then the other reading must pass the tolerance), or
+    within it by more than ``MISREAD_SIGMAS`` sigmas (then the other reading must lie within as many). The image cannot
     tell such a door from one whose thickness is off by a strip's width: it is refused as uncertain, naming
     the arris and what would tell, neither sent after the wrong door nor answered. Measured, arrises as dark
     as the background through a sharp lens (`bench_arris_range.py --sets focused_dark --seed 8100 --n 32`):
@@ -373,7 +382,6 @@ def _misread_strips(
     keys = [k for k in ("reference", "far") if k in strip_shifts]
     subsets = [(k,) for k in keys] + ([tuple(keys)] if len(keys) == 2 else [])
     readings = {sub: measured + sum(strip_shifts[k] for k in sub) for sub in subsets}
-    beyond = q.check_thickness(measured, door.thickness_mm, t_tol, sigma=t_sigma) is not None
     fits = [
         sub
         for sub, t in readings.items()

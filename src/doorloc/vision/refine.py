@@ -11,10 +11,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from doorloc.pose import direction_cell
 from doorloc.vision import quality as q
 from doorloc.vision.arris_geometry import ArrisGeometry
 from doorloc.vision.arris_model import StripFit, arris_geometry
-from doorloc.vision.config import LocateConfig, light_direction_cell
+from doorloc.vision.config import LocateConfig
 from doorloc.vision.edge_models import ARRIS_PLATEAU_PX, EDGE_MODELS, PassSettings, ScanWindow, edge_kind
 from doorloc.vision.edge_samples import EdgeSamples
 from doorloc.vision.edges import transition_width
@@ -136,7 +137,7 @@ def _sample(
         door=door,
         arris=geoms,
         step_blur_px=this_pass.step_fit or {},
-        light_cell=light_direction_cell(cfg.light_direction_deg),
+        light_cell=direction_cell(*cfg.light_direction_deg) if cfg.light_direction_deg is not None else None,
     )
     out, far_fit, step_fitted = {}, None, {}
     for name in this_pass.lines:
