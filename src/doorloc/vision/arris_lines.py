@@ -7,7 +7,7 @@ points to the sharp corner's line by the geometry (:mod:`doorloc.vision.arris_ge
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -226,7 +226,8 @@ class _StripProfiles:
     predicted border relative to ``c0`` (mirrored, px); ``A``, ``B``, ``D`` (N,) the plateaus' levels and
     step; ``D_e``, ``S`` (N,) the area estimate's step (of its ``nl`` samples beside the window) and sum;
     ``good`` (N,) the lines in the image with a step; ``noise`` (N,) the plateaus' noise; ``half`` the
-    window's half-size beyond the strip, px.
+    window's half-size beyond the strip, px; ``clipped`` (N,) the lines with two or more pixels at the image's
+    top code (white-clipped) inside the window.
     """
 
     vals: np.ndarray
@@ -243,6 +244,7 @@ class _StripProfiles:
     nl: int
     good: np.ndarray
     noise: np.ndarray
+    clipped: np.ndarray
 
     @property
     def length(self) -> int:
@@ -292,6 +294,8 @@ def arris_edges(
     )
     along = c0 + door_side * e_mirror
     valid = prof.good & np.isfinite(along) & in_window
+    # a strip whose highlight clips at white has no shading to fit: how many of its lines do (the gate's)
+    fit = replace(fit, clipped_share=float(np.mean(prof.clipped[prof.good])) if prof.good.any() else 0.0)
     nan = np.full(len(scan), np.nan)
     # the strongest step of the fitted shape (background | strip cells | face), per line in grey levels:
     # what locates the point where the face's own step is faint (a strip darker or brighter than both sides)
@@ -353,7 +357,20 @@ def _strip_profiles(
     rel_e = (centre - c0) * door_side  # predicted border relative to c0, mirrored coordinates
     good = finite & inside.all(axis=1) & (np.abs(D) > 0)
     noise = np.sqrt(0.5 * (left.var(axis=1) + right.var(axis=1)))
-    return _StripProfiles(vals, c0, half, pad, w, rel_e, A, B, D, D_e, S, nl, good, noise)
+    top = _white_level(P.dtype, lut)
+    clipped = np.zeros(len(vals), bool) if top is None else np.count_nonzero(core >= top, axis=1) >= 2
+    return _StripProfiles(vals, c0, half, pad, w, rel_e, A, B, D, D_e, S, nl, good, noise, clipped)
+
+
+def _white_level(dtype: np.dtype, lut: np.ndarray | None) -> float | None:
+    """The value a white-clipped pixel has in the strip's profiles (the top code of an integer image, through
+    the linearising table where there is one); None for a float image, which has no top code."""
+    if not np.issubdtype(dtype, np.integer):
+        return None
+    top = int(np.iinfo(dtype).max)
+    if lut is None:
+        return float(top)
+    return float(lut[min(top, len(lut) - 1)])
 
 
 def _strip_shading(

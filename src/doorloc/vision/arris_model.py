@@ -141,6 +141,10 @@ class StripFit:
         ``blur_px -> deficit``: the deficit of the best fit with the blur held at another value (the
         border's offset searched again over the fit's range), for the caller's check of the blur against
         the image's other strips (one lens, one blur).
+    clipped_share : float
+        The share of the strip's scan lines with white-clipped pixels (two or more at the image's top code)
+        beside the border: a highlight the sensor cut off, whose shading the fit cannot read (the gate refuses
+        above ``LocateConfig.max_clipped_arris_fraction``).
     """
 
     deficit: float
@@ -153,6 +157,7 @@ class StripFit:
     border: np.ndarray
     model_deficit: float
     deficit_at_blur: Callable[[float], float] | None = field(default=None, compare=False, repr=False)
+    clipped_share: float = 0.0
 
 
 def _posterior_moments(deltas: np.ndarray, deficits: np.ndarray, logp: np.ndarray) -> tuple[float, float]:

@@ -93,6 +93,9 @@ class LocateConfig:
         Refuse when the fit's standard error of x or z exceeds this.
     max_saturated_fraction : float
         Refuse when more of the search region is white-clipped.
+    max_clipped_arris_fraction : float
+        Refuse ``overexposed`` when more of an arris strip's scan lines than this have white-clipped pixels
+        beside its border (a highlight on the arris the sensor cut off: its shading cannot be read).
     max_uncertainty_mm, max_uncertainty_deg : float
         The cell's tolerance on the answer's 1-sigma uncertainty (:mod:`doorloc.vision.uncertainty`):
         refuse ``uncertain`` when that of x or z exceeds ``max_uncertainty_mm`` or that of the yaw
@@ -130,6 +133,7 @@ class LocateConfig:
     response_unmeasured_factor: float = 2.2
     max_sigma_mm: float = 0.05
     max_saturated_fraction: float = 0.5
+    max_clipped_arris_fraction: float = 0.1
     max_uncertainty_mm: float = 0.1
     max_uncertainty_deg: float = 0.05
     calibration_sigma_px: float = 0.05
@@ -138,6 +142,10 @@ class LocateConfig:
     light_direction_deg: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
+        if not 0.0 <= self.max_clipped_arris_fraction <= 1.0:
+            raise ValueError(
+                f"max_clipped_arris_fraction is a share of scan lines in 0..1, got {self.max_clipped_arris_fraction:g}"
+            )
         if self.light_direction_deg is not None:
             az, el = self.light_direction_deg
             if not (-180.0 <= az <= 180.0 and -90.0 <= el <= 90.0):

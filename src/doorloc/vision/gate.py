@@ -67,6 +67,9 @@ def gate_and_answer(
     refusals += _corner_support(r, region, cfg, diagnostics)
     bright = np.concatenate([r.samples[k].bright[fit.weights[k] > 0] for k in EDGE_NAMES])
     refusals.append(q.check_overexposed(bright))
+    if r.arris_fits:
+        clipped = {HUMAN[k]: strip.clipped_share for k, (strip, _) in r.arris_fits.items()}
+        refusals.append(q.check_arris_clipped(clipped, cfg.max_clipped_arris_fraction))
     refusals.append(
         q.check_envelope(
             pose.x_mm, pose.z_mm, pose.yaw_deg, cell.envelope, cfg.envelope_margin_mm, cfg.envelope_margin_deg
