@@ -67,9 +67,7 @@ def gate_and_answer(
     refusals += _corner_support(r, region, cfg, diagnostics)
     bright = np.concatenate([r.samples[k].bright[fit.weights[k] > 0] for k in EDGE_NAMES])
     refusals.append(q.check_overexposed(bright))
-    if r.arris_fits:
-        clipped = {HUMAN[k]: strip.clipped_share for k, (strip, _) in r.arris_fits.items()}
-        refusals.append(q.check_arris_clipped(clipped, cfg.max_clipped_arris_fraction))
+    refusals.append(_arris_clipped(r, cfg))
     refusals.append(
         q.check_envelope(
             pose.x_mm, pose.z_mm, pose.yaw_deg, cell.envelope, cfg.envelope_margin_mm, cfg.envelope_margin_deg
@@ -123,6 +121,15 @@ def gate_and_answer(
         lines=lines,
         diagnostics=diagnostics,
     )
+
+
+def _arris_clipped(r: Refined, cfg: LocateConfig) -> q.Refusal | None:
+    """The arris strips' white clipping (:func:`doorloc.vision.quality.check_arris_clipped`), each strip named
+    by its edge."""
+    if not r.arris_fits:
+        return None
+    clipped = {HUMAN[k]: strip.clipped_share for k, (strip, _) in r.arris_fits.items()}
+    return q.check_arris_clipped(clipped, cfg.max_clipped_arris_fraction)
 
 
 def _fit_diagnostics(r: Refined, region: SearchRegion, door: DoorSize, figures: dict[str, Any]) -> dict:
