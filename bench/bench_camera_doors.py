@@ -18,8 +18,12 @@ them and measures what that costs:
   (:func:`stated_exponent`: what a power-law measurement of the camera reads) and nothing else of the model;
   the rendered camera's geometry is exact, so the calibration term is off (``calibration_sigma_px`` 0), as in
   bench_surfaces;
-- beside each camera, the same scenes through the plain model with the same exponent (a camera the cell
-  describes exactly): the difference between the two columns is what the camera's photometry does to locate.
+- ``told``: the same photographs, the cell's calibration carrying the camera's response as well
+  (``Cell.camera_response``: locate maps the levels through it, :func:`doorloc.vision.luminance.camera_levels`),
+  where the model's response goes beyond a power law;
+- ``plain``: the same scenes through a power-law camera of the stated exponent (a camera the cell describes
+  exactly): the difference between the columns is what the camera's photometry does to locate, and what
+  telling its response gives back.
 
 Per column: answered, RMS and max error of x, z, yaw, the share within 2 claimed sigma and the count beyond 5,
 the largest |error| / sigma, and the refusals by code.
@@ -117,9 +121,15 @@ def scenes(n: int, seed: int):
         yield f"door_{i:03d}", _pose(rng), door, scene, cam, seed * 1000 + i
 
 
-def run_column(cell, model: PhotometricModel, gamma: float, items) -> dict:
-    """Locate every item photographed through ``model``; the cell states the exponent ``gamma``."""
-    stated = dataclasses.replace(cell, response_gamma=gamma, response_gamma_sigma=None)
+def run_column(cell, model: PhotometricModel, gamma: float, items, told: bool = False) -> dict:
+    """Locate every item photographed through ``model``; the cell states the exponent ``gamma`` (and, with
+    ``told``, the model's response beyond it)."""
+    stated = dataclasses.replace(
+        cell,
+        response_gamma=gamma,
+        response_gamma_sigma=None,
+        camera_response=model if told and model.beyond_power_law else None,
+    )
     cfg = dataclasses.replace(stated.locate, calibration_sigma_px=0.0)
     errs, sigs, lines = [], [], []
     codes: Counter[str] = Counter()
@@ -196,10 +206,11 @@ def main() -> None:
         out[where] = {
             "response_gamma": gamma,
             "camera": run_column(cell, model, gamma, items),
+            "told": run_column(cell, model, gamma, items, told=True),
             "plain": run_column(cell, PhotometricModel(gamma=gamma), gamma, items),
         }
-        show("camera", out[where]["camera"])
-        show("plain", out[where]["plain"])
+        for column in ("camera", "told", "plain"):
+            show(column, out[where][column])
     if a.json:
         Path(a.json).write_text(
             json.dumps(out, indent=1, default=lambda x: None if not math.isfinite(x) else x)

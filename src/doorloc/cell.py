@@ -24,6 +24,7 @@ from doorloc.calib.io import CalibrationFileError, load_calibration
 from doorloc.domain import ArrisProfile, DoorSize
 from doorloc.fileio import atomic_write_text
 from doorloc.limits import DEFAULT_MILLING_LIMITS, MillingLimits
+from doorloc.photometric.model import PhotometricModel
 from doorloc.robot.section import RobotSectionError, robot_section_from_doc
 from doorloc.vision.config import LocateConfig
 
@@ -91,6 +92,13 @@ class Cell:
         disagree or the image measured it much better, and otherwise counts the measurement's own doubt
         in the answer's uncertainty (a single real photograph's own sigma understates its scatter several
         times, see :func:`doorloc.vision.response.board_response`).
+    camera_response : PhotometricModel or None
+        The camera's response where its calibration file's photometric model (``photometric_model``, written
+        by ``doorloc check-model --boards``) goes beyond a power law (a pedestal, a shoulder, a white level
+        below full scale, curvature), or the cell states it inline (``camera.response_model``, as a saved
+        cell writes it): locate maps each image's levels through it to those a camera of
+        ``response_gamma`` would store (:func:`doorloc.vision.luminance.camera_levels`). None where the
+        calibration has no such model (the power law ``response_gamma`` is then the whole response).
     locate : LocateConfig
         The ``locate:`` section: thresholds and settings of the pipeline that a cell sets once.
     robot_section : dict or None
@@ -123,6 +131,7 @@ class Cell:
     calibration_sha256: str | None = None
     calibration_covariance: np.ndarray | None = field(default=None, compare=False)
     calibration_covariance_names: tuple[str, ...] = ()
+    camera_response: PhotometricModel | None = None
     milling: MillingLimits = DEFAULT_MILLING_LIMITS
 
     @property
@@ -153,6 +162,9 @@ class _CameraDoc(_Section):
     extrinsics: _ExtrinsicsDoc
     response_gamma: float = Field(1.0, gt=0.25, lt=5.0)
     response_gamma_sigma: float | None = Field(None, gt=0.0, lt=5.0)
+    #: the camera's response beyond the power law (photometric model parameters), inline: a cell saved
+    #: with its camera inline keeps what its calibration file's ``photometric_model`` said of the response
+    response_model: dict[str, float] | None = None
 
     @model_validator(mode="before")
     @classmethod
@@ -339,6 +351,7 @@ def parse_cell(
         cov: np.ndarray | None = None
         cov_names: tuple[str, ...] = ()
         measured_response: tuple[float, float] | None = None
+        camera_response: PhotometricModel | None = None
         if cam_doc.calibration is not None:
             cal_path = Path(cam_doc.calibration)
             if not cal_path.is_absolute() and base_dir is not None:
@@ -354,6 +367,12 @@ def parse_cell(
             cov, cov_names = cal.covariance, cal.covariance_names
             if cal.response_gamma is not None and cal.response_gamma_sigma is not None:
                 measured_response = (cal.response_gamma, cal.response_gamma_sigma)
+            if cal.photometric_model:
+                photometric = PhotometricModel.from_dict(cal.photometric_model)
+                camera_response = photometric if photometric.beyond_power_law else None
+        if cam_doc.response_model is not None:
+            inline = PhotometricModel.from_dict(cam_doc.response_model)
+            camera_response = inline if inline.beyond_power_law else None
         if cam_doc.camera_matrix is not None:
             K = np.asarray(cam_doc.camera_matrix, float)
         if cam_doc.dist_coeffs is not None:
@@ -410,6 +429,7 @@ def parse_cell(
         calibration_sha256=calibration_sha,
         calibration_covariance=cov,
         calibration_covariance_names=cov_names,
+        camera_response=camera_response,
         milling=cd.milling.limits(str(source)),
     )
 
@@ -447,6 +467,11 @@ def cell_to_dict(cell: Cell) -> dict:
             **(
                 {"response_gamma_sigma": cell.response_gamma_sigma}
                 if cell.response_gamma_sigma is not None
+                else {}
+            ),
+            **(
+                {"response_model": cell.camera_response.response_parameters()}
+                if cell.camera_response is not None
                 else {}
             ),
         },

@@ -203,6 +203,38 @@ class PhotometricModel:
         ok = np.concatenate([[True], np.diff(L) > 0])
         return L[ok], g[ok]
 
+    @property
+    def beyond_power_law(self) -> bool:
+        """True where the response has a part no power law describes (a pedestal, a shoulder, a white level
+        below full scale, curvature in log-log): what a cell's ``response_gamma`` alone cannot carry."""
+        return not (
+            self.black_level == 0.0
+            and self.shoulder == 1.0
+            and self.white_level == 1.0
+            and self.curvature == 0.0
+        )
+
+    def response_parameters(self) -> dict[str, float]:
+        """The response's own parameters (the power law and what goes beyond it), as files and results name
+        them."""
+        return {
+            k: float(getattr(self, k))
+            for k in ("gamma", "black_level", "shoulder", "white_level", "curvature")
+        }
+
+    def power_law_levels(self, gamma: float, top_in: int) -> np.ndarray:
+        """Each stored level ``0..top_in`` as the level a camera of the power law ``grey = light ** (1 /
+        gamma)`` would store for the same light, on ``0..65535`` (uint16; full scale where this response's
+        full scale lies): ``65535 (L(g) / L(1)) ** (1 / gamma)``, ``L`` :meth:`light_from_grey`. Through
+        it, a pipeline that linearises with the power law ``gamma`` reads this camera's light."""
+        g = np.arange(top_in + 1, dtype=np.float64) / top_in
+        light = self.light_from_grey(g)
+        top_light = float(light[-1])
+        if not top_light > 0.0:
+            raise ValueError("photometric model: the response stores no light at full scale")
+        v = np.clip(light / top_light, 0.0, 1.0) ** (1.0 / gamma)
+        return np.rint(v * 65535.0).astype(np.uint16)
+
     def linearizing_lut(self, top: int = 255) -> np.ndarray:
         """Table from each stored level (0..top) to linear light on the same scale (float32), for
         :func:`doorloc.vision.edges.subpixel_edges`'s ``lut``."""

@@ -52,7 +52,7 @@ from doorloc.vision.doubts import edge_doubts
 from doorloc.vision.edge_samples import EdgeSamples
 from doorloc.vision.far_face import FarFaceFit
 from doorloc.vision.gate import gate_and_answer
-from doorloc.vision.luminance import ImageFormatError, LuminancePlane, luminance_plane
+from doorloc.vision.luminance import ImageFormatError, LuminancePlane, camera_levels, luminance_plane
 from doorloc.vision.metric import MetricPose
 from doorloc.vision.refine import refine
 from doorloc.vision.region import EDGE_NAMES, Band, SearchRegion
@@ -196,6 +196,9 @@ def locate_steps(
         door_brighter=cfg.door_brighter,
         face_y_mm=cell.face_y(door),
         light_direction_deg=list(cfg.light_direction_deg) if cfg.light_direction_deg is not None else None,
+        camera_response=cell.camera_response.response_parameters()
+        if cell.camera_response is not None
+        else None,
     )
     res.elapsed_ms = (time.perf_counter() - t0) * 1e3
     return res
@@ -211,7 +214,9 @@ def _locate(
     lum: LuminancePlane | None = None,
 ) -> Generator[StepQuery, tuple[np.ndarray, np.ndarray], LocateResult]:
     try:
-        lum = lum if lum is not None else luminance_plane(image)
+        lum = camera_levels(
+            lum if lum is not None else luminance_plane(image), cell.camera_response, cell.response_gamma
+        )
     except ImageFormatError as e:
         raise Refused(q.Refusal("bad_image", f"{e}")) from None
     r = q.check_image_size(lum.size, cell.camera.image_size)

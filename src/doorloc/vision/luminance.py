@@ -3,15 +3,21 @@
 Colour images are turned into luminance with the ITU-R BT.601 weights OpenCV uses
 (Y = 0.299 R + 0.587 G + 0.114 B). 16-bit images are kept at full depth; ``scale_to_8bit`` tells
 callers how to express grey levels on the familiar 0-255 scale, so thresholds mean the same for both.
+A camera whose response goes beyond a power law (its calibration's photometric model) has its levels
+mapped to those a power-law camera would store (:func:`camera_levels`), so that the rest of locate, which
+linearises with the cell's ``response_gamma``, reads its light.
 """
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["LuminancePlane", "ImageFormatError", "luminance_plane"]
+from doorloc.photometric.model import PhotometricModel
+
+__all__ = ["LuminancePlane", "ImageFormatError", "camera_levels", "luminance_plane"]
 
 
 class ImageFormatError(ValueError):
@@ -75,3 +81,28 @@ def luminance_plane(image: np.ndarray) -> LuminancePlane:
     if plane.shape[0] < 8 or plane.shape[1] < 8:
         raise ImageFormatError(f"image is only {plane.shape[1]}x{plane.shape[0]} pixels")
     return LuminancePlane(plane, 1.0 if plane.dtype == np.uint8 else 255.0 / 65535.0)
+
+
+def camera_levels(lum: LuminancePlane, response: PhotometricModel | None, gamma: float) -> LuminancePlane:
+    """The luminance ``lum`` as a camera of the power law ``grey = light ** (1 / gamma)`` would have stored
+    it, where the camera's own response (``response``, a cell's ``camera_response``) goes beyond a power law;
+    ``lum`` itself where it does not (None).
+
+    16-bit levels (``scale_to_8bit`` 255/65535), through the model's table
+    (:meth:`doorloc.photometric.model.PhotometricModel.power_law_levels`): a camera's shoulder or pedestal
+    undone before any edge is placed, and the response check, the doubts and the thresholds then see the
+    levels of the power law they model. The mapping keeps the camera's full scale at full scale, so a
+    clipped pixel stays at the top code.
+    """
+    if response is None:
+        return lum
+    top_in = 255 if lum.plane.dtype == np.uint8 else 65535
+    return LuminancePlane(_power_law_levels(response, float(gamma), top_in)[lum.plane], 255.0 / 65535.0)
+
+
+@functools.lru_cache(maxsize=8)
+def _power_law_levels(response: PhotometricModel, gamma: float, top_in: int) -> np.ndarray:
+    # one table per camera, exponent and depth (a 16-bit one costs more than a locate): read-only, shared
+    table = response.power_law_levels(gamma, top_in)
+    table.setflags(write=False)
+    return table

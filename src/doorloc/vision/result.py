@@ -62,6 +62,12 @@ class PhysicalModel(BaseModel):
         description="the cell's light, [azimuth, elevation] deg in the cell frame, that rounded arrises were "
         "shaded under (locate.light_direction_deg); null: not stated, a free shading",
     )
+    camera_response: dict[str, float] | None = Field(
+        None,
+        description="the camera's response beyond a power law that the grey levels were mapped through before "
+        "the power law response_gamma (the calibration's photometric model: gamma, black_level, shoulder, "
+        "white_level, curvature); null: the power law alone",
+    )
 
 
 class LineQuality(BaseModel):
