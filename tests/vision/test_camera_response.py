@@ -63,6 +63,15 @@ def test_a_camera_the_power_law_describes_is_not_remapped():
     assert SHOULDER.beyond_power_law
 
 
+@pytest.mark.parametrize("dtype,top", [(np.uint8, 255), (np.uint16, 65535)])
+def test_an_image_is_mapped_through_the_table_at_either_depth(dtype, top):
+    """8- and 16-bit images go through the same table (its 8-bit path is OpenCV's LUT) into 16-bit levels."""
+    img = np.linspace(0, top, 64 * 48).astype(dtype).reshape(48, 64)
+    out = camera_levels(luminance_plane(img), SHOULDER, 1.5)
+    assert out.plane.dtype == np.uint16 and out.scale_to_8bit == pytest.approx(255 / 65535)
+    np.testing.assert_array_equal(out.plane, SHOULDER.power_law_levels(1.5, top)[img])
+
+
 def test_a_cell_takes_the_response_its_calibration_carries_and_keeps_it_when_saved(tmp_path):
     """`doorloc check-model --boards` writes the camera's photometric model into its calibration file: a cell
     on that file carries the response where it goes beyond a power law, and a cell saved with its camera

