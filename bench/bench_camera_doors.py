@@ -18,9 +18,12 @@ them and measures what that costs:
   (:func:`stated_exponent`: what a power-law measurement of the camera reads) and nothing else of the model;
   the rendered camera's geometry is exact, so the calibration term is off (``calibration_sigma_px`` 0), as in
   bench_surfaces;
-- ``told``: the same photographs, the cell's calibration carrying the camera's response as well
-  (``Cell.camera_response``: locate maps the levels through it, :func:`doorloc.vision.luminance.camera_levels`),
-  where the model's response goes beyond a power law;
+- the point spread's asymmetry (``edge_shift_u_px``, ``edge_shift_v_px``: every edge moved against the
+  corners' frame the calibration was made in) is rendered by moving the principal point of the camera the
+  doors are rendered through by that much (the cell keeps the calibrated one);
+- ``told``: the same photographs, the cell carrying the camera's model as well (``Cell.camera_photometry``:
+  locate maps the levels through its response, :func:`doorloc.vision.luminance.camera_levels`, and takes the
+  edges' shift off);
 - ``plain``: the same scenes through a power-law camera of the stated exponent (a camera the cell describes
   exactly): the difference between the columns is what the camera's photometry does to locate, and what
   telling its response gives back.
@@ -56,6 +59,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 
 from bench_surfaces import _hard_effects, _pose  # noqa: E402
 
+from doorloc.calib.camera import CameraModel  # noqa: E402
 from doorloc.calib.io import load_calibration  # noqa: E402
 from doorloc.cell import DoorSize, load_cell  # noqa: E402
 from doorloc.photometric.model import PLAIN, PhotometricModel  # noqa: E402
@@ -121,20 +125,31 @@ def scenes(n: int, seed: int):
         yield f"door_{i:03d}", _pose(rng), door, scene, cam, seed * 1000 + i
 
 
+def seen_through(cell, model: PhotometricModel):
+    """The cell whose camera the doors are rendered through: its principal point moved by the model's edge
+    shift (which moves every edge's image by it, as the point spread's asymmetry does)."""
+    cam = cell.camera
+    K = cam.camera_matrix.copy()
+    K[0, 2] += model.edge_shift_u_px
+    K[1, 2] += model.edge_shift_v_px
+    return dataclasses.replace(cell, camera=CameraModel(K, cam.dist_coeffs, cam.image_size))
+
+
 def run_column(cell, model: PhotometricModel, gamma: float, items, told: bool = False) -> dict:
     """Locate every item photographed through ``model``; the cell states the exponent ``gamma`` (and, with
-    ``told``, the model's response beyond it)."""
+    ``told``, the model itself)."""
     stated = dataclasses.replace(
         cell,
         response_gamma=gamma,
         response_gamma_sigma=None,
-        camera_response=model if told and model.beyond_power_law else None,
+        camera_photometry=model if told and (model.beyond_power_law or model.moves_edges) else None,
     )
+    seen = seen_through(cell, model)
     cfg = dataclasses.replace(stated.locate, calibration_sigma_px=0.0)
     errs, sigs, lines = [], [], []
     codes: Counter[str] = Counter()
     for name, pose, door, scene, cam, s in items:
-        rd = render_door(cell, door, pose, effects=scene, seed=s)
+        rd = render_door(seen, door, pose, effects=scene, seed=s)
         bright = float(np.percentile(rd.radiance, 99.5))
         cam = dataclasses.replace(cam, exposure=cam.exposure / max(bright, 1e-6))
         img = apply_camera(rd.radiance, model, cam, seed=s)

@@ -92,13 +92,15 @@ class Cell:
         disagree or the image measured it much better, and otherwise counts the measurement's own doubt
         in the answer's uncertainty (a single real photograph's own sigma understates its scatter several
         times, see :func:`doorloc.vision.response.board_response`).
-    camera_response : PhotometricModel or None
-        The camera's response where its calibration file's photometric model (``photometric_model``, written
-        by ``doorloc check-model --boards``) goes beyond a power law (a pedestal, a shoulder, a white level
-        below full scale, curvature), or the cell states it inline (``camera.response_model``, as a saved
-        cell writes it): locate maps each image's levels through it to those a camera of
-        ``response_gamma`` would store (:func:`doorloc.vision.luminance.camera_levels`). None where the
-        calibration has no such model (the power law ``response_gamma`` is then the whole response).
+    camera_photometry : PhotometricModel or None
+        The camera's photometric model where its calibration file's (``photometric_model``, written by
+        ``doorloc check-model --boards``), or the cell's own inline (``camera.photometric_model``, as a saved
+        cell writes it), says something locate uses: a response beyond a power law (a pedestal, a shoulder,
+        a white level below full scale, curvature), through which locate maps each image's levels to those a
+        camera of ``response_gamma`` would store (:func:`doorloc.vision.luminance.camera_levels`), or a point
+        spread that moves every edge against the corners' frame (``edge_shift_u_px``, ``edge_shift_v_px``),
+        which locate takes off its edges. None where there is no such model (the power law
+        ``response_gamma`` is then the whole response).
     locate : LocateConfig
         The ``locate:`` section: thresholds and settings of the pipeline that a cell sets once.
     robot_section : dict or None
@@ -131,7 +133,7 @@ class Cell:
     calibration_sha256: str | None = None
     calibration_covariance: np.ndarray | None = field(default=None, compare=False)
     calibration_covariance_names: tuple[str, ...] = ()
-    camera_response: PhotometricModel | None = None
+    camera_photometry: PhotometricModel | None = None
     milling: MillingLimits = DEFAULT_MILLING_LIMITS
 
     @property
@@ -162,9 +164,9 @@ class _CameraDoc(_Section):
     extrinsics: _ExtrinsicsDoc
     response_gamma: float = Field(1.0, gt=0.25, lt=5.0)
     response_gamma_sigma: float | None = Field(None, gt=0.0, lt=5.0)
-    #: the camera's response beyond the power law (photometric model parameters), inline: a cell saved
-    #: with its camera inline keeps what its calibration file's ``photometric_model`` said of the response
-    response_model: dict[str, float] | None = None
+    #: the camera's photometric model (its parameters), inline: a cell saved with its camera inline keeps
+    #: what its calibration file's ``photometric_model`` said that locate uses
+    photometric_model: dict[str, float] | None = None
 
     @model_validator(mode="before")
     @classmethod
@@ -351,7 +353,7 @@ def parse_cell(
         cov: np.ndarray | None = None
         cov_names: tuple[str, ...] = ()
         measured_response: tuple[float, float] | None = None
-        camera_response: PhotometricModel | None = None
+        camera_photometry: PhotometricModel | None = None
         if cam_doc.calibration is not None:
             cal_path = Path(cam_doc.calibration)
             if not cal_path.is_absolute() and base_dir is not None:
@@ -368,11 +370,9 @@ def parse_cell(
             if cal.response_gamma is not None and cal.response_gamma_sigma is not None:
                 measured_response = (cal.response_gamma, cal.response_gamma_sigma)
             if cal.photometric_model:
-                photometric = PhotometricModel.from_dict(cal.photometric_model)
-                camera_response = photometric if photometric.beyond_power_law else None
-        if cam_doc.response_model is not None:
-            inline = PhotometricModel.from_dict(cam_doc.response_model)
-            camera_response = inline if inline.beyond_power_law else None
+                camera_photometry = _used_by_locate(PhotometricModel.from_dict(cal.photometric_model))
+        if cam_doc.photometric_model is not None:
+            camera_photometry = _used_by_locate(PhotometricModel.from_dict(cam_doc.photometric_model))
         if cam_doc.camera_matrix is not None:
             K = np.asarray(cam_doc.camera_matrix, float)
         if cam_doc.dist_coeffs is not None:
@@ -429,7 +429,7 @@ def parse_cell(
         calibration_sha256=calibration_sha,
         calibration_covariance=cov,
         calibration_covariance_names=cov_names,
-        camera_response=camera_response,
+        camera_photometry=camera_photometry,
         milling=cd.milling.limits(str(source)),
     )
 
@@ -451,6 +451,12 @@ def load_cell(path: str | os.PathLike) -> Cell:
     return parse_cell(doc, p.parent, str(p), sha256=hashlib.sha256(raw).hexdigest())
 
 
+def _used_by_locate(model: PhotometricModel) -> PhotometricModel | None:
+    """``model`` where it says something locate uses (a response beyond a power law, edges moved by the point
+    spread's asymmetry), else None."""
+    return model if model.beyond_power_law or model.moves_edges else None
+
+
 def cell_to_dict(cell: Cell) -> dict:
     """The cell as a YAML-ready mapping with the camera inline (SPEC section 2 keys)."""
     cam = cell.camera
@@ -470,8 +476,8 @@ def cell_to_dict(cell: Cell) -> dict:
                 else {}
             ),
             **(
-                {"response_model": cell.camera_response.response_parameters()}
-                if cell.camera_response is not None
+                {"photometric_model": cell.camera_photometry.locate_parameters()}
+                if cell.camera_photometry is not None
                 else {}
             ),
         },

@@ -1,6 +1,7 @@
-"""A camera whose response goes beyond a power law (its calibration's photometric model: a shoulder, a
-pedestal, curvature): the cell carries it, locate maps the levels through it, and the door is placed as a
-power-law camera's would be."""
+"""A camera whose photometric model (its calibration's, from ``doorloc check-model --boards``) says what a
+power law cannot: a response with a shoulder, a pedestal or curvature, which locate maps the levels through,
+and a point spread that moves every edge against the corners' frame, which locate takes off. The cell
+carries the model, and the door is placed as a power-law camera's would be."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from doorloc.calib.camera import CameraModel
 from doorloc.calib.io import CalibrationFile, save_calibration
 from doorloc.cell import DoorSize, load_cell, save_cell
 from doorloc.photometric.model import PhotometricModel
@@ -54,7 +56,7 @@ def test_the_mapped_levels_carry_the_cameras_light(gamma, black, shoulder, curva
 
 
 def test_a_camera_the_power_law_describes_is_not_remapped():
-    """Without a response beyond the power law (the cell's ``camera_response`` None) the image's levels are
+    """Without a response beyond the power law (the cell's ``camera_photometry`` None) the image's levels are
     the camera's, untouched (no copy)."""
     img = np.arange(64, dtype=np.uint8).reshape(8, 8)
     lum = luminance_plane(img)
@@ -74,12 +76,14 @@ def test_an_image_is_mapped_through_the_table_at_either_depth(dtype, top):
 
 def test_a_cell_takes_the_response_its_calibration_carries_and_keeps_it_when_saved(tmp_path):
     """`doorloc check-model --boards` writes the camera's photometric model into its calibration file: a cell
-    on that file carries the response where it goes beyond a power law, and a cell saved with its camera
-    inline keeps it (``camera.response_model``); a model that is a power law alone leaves the cell's
+    on that file carries it where it says what locate uses (a response beyond a power law, edges moved by
+    the point spread), and a cell saved with its camera inline keeps it (``camera.photometric_model``); a
+    model that is a power law alone (the print's spread is the board's, not the camera's) leaves the cell's
     ``response_gamma`` the whole response."""
     ext = "  extrinsics: {rvec: [1.5707963268, 0, 0], tvec_mm: [-30, 40, 350]}\n"
     for name, model, carried in (
         ("shoulder", PhotometricModel(gamma=1.1, shoulder=0.6, psf_tail=0.05), True),
+        ("shift", PhotometricModel(gamma=2.2, edge_shift_v_px=-0.19), True),
         ("power", PhotometricModel(gamma=2.2, print_spread_mm=0.1), False),
     ):
         save_calibration(
@@ -88,15 +92,15 @@ def test_a_cell_takes_the_response_its_calibration_carries_and_keeps_it_when_sav
         (tmp_path / f"cell_{name}.yaml").write_text(f"camera:\n  calibration: {name}.yaml\n" + ext)
         cell = load_cell(tmp_path / f"cell_{name}.yaml")
         if not carried:
-            assert cell.camera_response is None
+            assert cell.camera_photometry is None
             continue
-        assert cell.camera_response == model
+        assert cell.camera_photometry == model
         save_cell(cell, tmp_path / "inline.yaml")
         back = load_cell(tmp_path / "inline.yaml")
-        assert back.camera_response is not None
-        assert back.camera_response.response_parameters() == model.response_parameters()
+        assert back.camera_photometry is not None
+        assert back.camera_photometry.locate_parameters() == model.locate_parameters()
     (tmp_path / "bad.yaml").write_text(
-        "camera:\n  calibration: shoulder.yaml\n  response_model: {knee: 0.5}\n" + ext
+        "camera:\n  calibration: shoulder.yaml\n  photometric_model: {knee: 0.5}\n" + ext
     )
     with pytest.raises(ValueError, match="knee"):
         load_cell(tmp_path / "bad.yaml")
@@ -115,15 +119,40 @@ def test_a_door_through_a_shoulder_camera_is_placed_through_its_response(seed, p
     img = apply_camera(
         radiance, SHOULDER, CameraRendering(blur_px=1.2, exposure=exposure, read_noise=1.0), seed
     )
-    told = locate(img, dataclasses.replace(CELL, camera_response=SHOULDER), door)
+    told = locate(img, dataclasses.replace(CELL, camera_photometry=SHOULDER), door)
     assert told.ok, told.error
     u = told.uncertainty
     e = (told.x_mm - truth.x_mm, told.z_mm - truth.z_mm, told.yaw_deg - truth.yaw_deg)
     assert abs(e[0]) <= min(2 * u.x_mm, 0.01) and abs(e[1]) <= min(2 * u.z_mm, 0.01)
     assert abs(e[2]) <= 2 * u.yaw_deg
-    assert told.model.camera_response == SHOULDER.response_parameters()
+    assert told.model.camera_photometry == SHOULDER.locate_parameters()
     # the same photograph read with the power law alone: the response is what moved the edges
     plain = locate(img, CELL, door)
-    assert plain.model.camera_response is None
+    assert plain.model.camera_photometry is None
     if plain.ok:
         assert abs(plain.x_mm - told.x_mm) > 0.05 and abs(plain.z_mm - told.z_mm) > 0.05
+
+
+def test_edges_moved_by_the_point_spread_are_taken_back():
+    """A point spread that is not point-symmetric moves every edge by a vector against the corners' frame the
+    calibration was made in (Bouguet's photographs read v -0.19 +- 0.02 px): rendered so (the principal point
+    moved by the shift, which moves every edge's image by it), the door read without the shift is off by the
+    shift's worth in z; with the cell carrying it, within 2 of its sigmas and 0.005 mm."""
+    shift = PhotometricModel(edge_shift_u_px=0.05, edge_shift_v_px=-0.25)
+    cam = CELL.camera
+    K = cam.camera_matrix.copy()
+    K[0, 2] += 0.05
+    K[1, 2] -= 0.25
+    seen = dataclasses.replace(CELL, camera=CameraModel(K, cam.dist_coeffs, cam.image_size))
+    door, truth = DoorSize(900, 50.0, 2100), DoorPose(4.0, -3.0, 0.8)
+    img = render_door(seen, door, truth, effects=Effects(blur_sigma_px=1.0, read_noise_dn=1.0), seed=3).image
+    told = locate(img, dataclasses.replace(CELL, camera_photometry=shift), door)
+    assert told.ok, told.error
+    u = told.uncertainty
+    assert abs(told.x_mm - truth.x_mm) <= min(2 * u.x_mm, 0.005)
+    assert abs(told.z_mm - truth.z_mm) <= min(2 * u.z_mm, 0.005)
+    assert abs(told.yaw_deg - truth.yaw_deg) <= 2 * u.yaw_deg
+    assert told.model.camera_photometry == shift.locate_parameters()
+    plain = locate(img, CELL, door)
+    assert plain.ok, plain.error
+    assert abs(plain.z_mm - told.z_mm) > 0.03  # 0.25 px at about 0.21 mm a pixel

@@ -214,12 +214,27 @@ class PhotometricModel:
             and self.curvature == 0.0
         )
 
-    def response_parameters(self) -> dict[str, float]:
-        """The response's own parameters (the power law and what goes beyond it), as files and results name
+    @property
+    def moves_edges(self) -> bool:
+        """True where the point spread's asymmetry moves every edge against the corners' frame
+        (``edge_shift_u_px``, ``edge_shift_v_px``): the calibration's geometry, made from corners, then
+        places edges by that much off."""
+        return self.edge_shift_u_px != 0.0 or self.edge_shift_v_px != 0.0
+
+    def locate_parameters(self) -> dict[str, float]:
+        """What locate takes of the model (the response and the edges' shift), as files and results name
         them."""
         return {
             k: float(getattr(self, k))
-            for k in ("gamma", "black_level", "shoulder", "white_level", "curvature")
+            for k in (
+                "gamma",
+                "black_level",
+                "shoulder",
+                "white_level",
+                "curvature",
+                "edge_shift_u_px",
+                "edge_shift_v_px",
+            )
         }
 
     def power_law_levels(self, gamma: float, top_in: int) -> np.ndarray:

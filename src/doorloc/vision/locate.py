@@ -38,11 +38,12 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Generator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from doorloc import __version__
+from doorloc.calib.camera import CameraModel
 from doorloc.cell import Cell, DoorSize
 from doorloc.vision import quality as q
 from doorloc.vision.coarse import coarse_edges
@@ -196,8 +197,8 @@ def locate_steps(
         door_brighter=cfg.door_brighter,
         face_y_mm=cell.face_y(door),
         light_direction_deg=list(cfg.light_direction_deg) if cfg.light_direction_deg is not None else None,
-        camera_response=cell.camera_response.response_parameters()
-        if cell.camera_response is not None
+        camera_photometry=cell.camera_photometry.locate_parameters()
+        if cell.camera_photometry is not None
         else None,
     )
     res.elapsed_ms = (time.perf_counter() - t0) * 1e3
@@ -213,9 +214,12 @@ def _locate(
     name: str,
     lum: LuminancePlane | None = None,
 ) -> Generator[StepQuery, tuple[np.ndarray, np.ndarray], LocateResult]:
+    photometry = cell.camera_photometry
     try:
         lum = camera_levels(
-            lum if lum is not None else luminance_plane(image), cell.camera_response, cell.response_gamma
+            lum if lum is not None else luminance_plane(image),
+            photometry if photometry is not None and photometry.beyond_power_law else None,
+            cell.response_gamma,
         )
     except ImageFormatError as e:
         raise Refused(q.Refusal("bad_image", f"{e}")) from None
@@ -223,6 +227,7 @@ def _locate(
     if r:
         raise Refused(r)
     plane, s8 = lum.plane, lum.scale_to_8bit
+    cell = edge_camera_cell(cell)
     clock = StageClock()
     region = SearchRegion.cached(cell, door, cfg.search_margin_mm, cfg.search_margin_deg, cfg.door_brighter)
     tr.region = region
@@ -246,6 +251,21 @@ def _locate(
     clock.lap("gate")
     res.diagnostics["timing_ms"] = clock.laps
     return res
+
+
+def edge_camera_cell(cell: Cell) -> Cell:
+    """``cell`` with the camera its edges are seen through: where the camera's point spread moves every edge
+    by ``(edge_shift_u_px, edge_shift_v_px)`` against the corners' frame its calibration was made in
+    (:attr:`doorloc.cell.Cell.camera_photometry`), the principal point moved by that much, which moves the
+    image of every edge, and nothing else, by it; ``cell`` itself where there is no such shift."""
+    pm = cell.camera_photometry
+    if pm is None or not pm.moves_edges:
+        return cell
+    cam = cell.camera
+    K = cam.camera_matrix.copy()
+    K[0, 2] += pm.edge_shift_u_px
+    K[1, 2] += pm.edge_shift_v_px
+    return replace(cell, camera=CameraModel(K, cam.dist_coeffs, cam.image_size, cam.observed_radius_px))
 
 
 def _far_face_diagnostics(far_fit: FarFaceFit) -> dict[str, float]:

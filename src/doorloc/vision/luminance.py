@@ -85,7 +85,7 @@ def luminance_plane(image: np.ndarray) -> LuminancePlane:
 
 def camera_levels(lum: LuminancePlane, response: PhotometricModel | None, gamma: float) -> LuminancePlane:
     """The luminance ``lum`` as a camera of the power law ``grey = light ** (1 / gamma)`` would have stored
-    it, where the camera's own response (``response``, a cell's ``camera_response``) goes beyond a power law;
+    it, where the camera's own response (``response``, a cell's ``camera_photometry`` where its response goes beyond a power law) goes beyond a power law;
     ``lum`` itself where it does not (None).
 
     16-bit levels (``scale_to_8bit`` 255/65535), through the model's table

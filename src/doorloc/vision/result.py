@@ -62,11 +62,13 @@ class PhysicalModel(BaseModel):
         description="the cell's light, [azimuth, elevation] deg in the cell frame, that rounded arrises were "
         "shaded under (locate.light_direction_deg); null: not stated, a free shading",
     )
-    camera_response: dict[str, float] | None = Field(
+    camera_photometry: dict[str, float] | None = Field(
         None,
-        description="the camera's response beyond a power law that the grey levels were mapped through before "
-        "the power law response_gamma (the calibration's photometric model: gamma, black_level, shoulder, "
-        "white_level, curvature); null: the power law alone",
+        description="the camera's photometric model as locate used it (the calibration's, or "
+        "camera.photometric_model): its response (gamma, black_level, shoulder, white_level, curvature), "
+        "through which the grey levels were mapped to the power law response_gamma where it goes beyond one, "
+        "and the edges' shift by the point spread's asymmetry (edge_shift_u_px, edge_shift_v_px, image px), "
+        "taken off every edge; null: none (the power law alone, no shift)",
     )
 
 
