@@ -85,6 +85,8 @@ def test_hidden_effect_is_named_and_gains_on_held_out_photographs(tmp_path):
     assert ext.photometric_model is not None and "check-model --boards" in (
         ext.photometric_model_provenance or ""
     )
+    # what the model leaves on the held-out photographs' edges goes with it, as locate's measured doubt
+    assert ext.photometric_model["residual_edge_px"] == pytest.approx(off["after"], rel=1e-3)
     assert (tmp_path / "report" / "report.md").read_text().startswith("# Model check")
 
 

@@ -156,3 +156,24 @@ def test_edges_moved_by_the_point_spread_are_taken_back():
     plain = locate(img, CELL, door)
     assert plain.ok, plain.error
     assert abs(plain.z_mm - told.z_mm) > 0.03  # 0.25 px at about 0.21 mm a pixel
+
+
+def test_what_the_cameras_model_leaves_on_real_edges_is_in_every_answers_doubt():
+    """The model's measured error on the camera's real edges (``residual_edge_px``: `check-model --boards`'s
+    held-out RMS of the photographs' median edge offset) is a term of its own in the uncertainty budget
+    (``camera``): that many pixels on every edge, at the door's scale, and the answer's sigma grows by it."""
+    door, truth = DoorSize(900, 50.0, 2100), DoorPose(2.0, 1.0, 0.5)
+    img = render_door(CELL, door, truth, effects=Effects(blur_sigma_px=1.0, read_noise_dn=1.0), seed=4).image
+    measured = locate(
+        img, dataclasses.replace(CELL, camera_photometry=PhotometricModel(residual_edge_px=0.1)), door
+    )
+    plain = locate(img, CELL, door)
+    assert measured.ok and plain.ok
+    terms = {t["source"]: t for t in measured.diagnostics["uncertainty_budget"]}
+    assert "camera" not in {t["source"] for t in plain.diagnostics["uncertainty_budget"]}
+    assert terms["camera"]["x_mm"] == pytest.approx(0.1 * measured.scale_mm_per_px, rel=0.05)
+    assert terms["camera"]["z_mm"] == pytest.approx(0.1 * measured.scale_mm_per_px, rel=0.05)
+    # the same camera's error on both arrises: the thickness takes it twice
+    assert terms["camera"]["thickness_mm"] == pytest.approx(0.2 * measured.scale_mm_per_px, rel=0.05)
+    assert measured.uncertainty.x_mm > plain.uncertainty.x_mm
+    assert measured.x_mm == plain.x_mm and measured.z_mm == plain.z_mm

@@ -347,4 +347,7 @@ def check_photographs(
     rms_after = float(np.sqrt(np.nanmean(heldout_after**2)))
     if rms_after > max(0.03, 1.5 * floor) and rms_after > 2.0 * floor:
         causes.append("unexplained")
+    # what the model leaves on these photographs' edges, held out: locate's measured doubt of every edge
+    if np.isfinite(rms_after):
+        model = model.with_values(residual_edge_px=min(rms_after, 5.0))
     return BoardCheck(causes, model, parameters, results, sel, bt, tail_gain, None, "", sel.alternatives)

@@ -41,7 +41,11 @@ even blur, a perfect print):
   the image centre to its corner, in proportion to ``(r / r_corner)^2``;
 - ``blur_anisotropy``: the blur's variance (px^2) added across vertical edges and taken off across
   horizontal ones (``cos 2 phi``, ``phi`` the edge normal's angle from the image u axis): astigmatism, or a
-  sensor's or demosaicking's direction preference.
+  sensor's or demosaicking's direction preference;
+- ``residual_edge_px``: what the model leaves unexplained on the camera's real edges, px: the RMS over
+  photographs held out of their median edge offset from the board's corner lines, with the model
+  (``doorloc check-model --boards``); not an effect but the model's measured error, which locate counts in
+  every edge's doubt. 0 = not measured.
 
 Only the response, its clipping, the print and the spread's asymmetry move an edge placed in linear light; the others change its profile (and so
 what an estimator that is not unbiased for them reports). Veiling glare (light scattered over the whole
@@ -75,6 +79,7 @@ PARAMETER_UNITS = {
     "psf_tail_px": "px",
     "blur_field": "px^2",
     "blur_anisotropy": "px^2",
+    "residual_edge_px": "px",
 }
 
 
@@ -97,6 +102,7 @@ class PhotometricModel:
     psf_tail_px: float = 4.0
     blur_field: float = 0.0
     blur_anisotropy: float = 0.0
+    residual_edge_px: float = 0.0
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -125,6 +131,8 @@ class PhotometricModel:
             raise ValueError("photometric model: psf_tail is a fraction in [0, 1)")
         if not self.psf_tail_px > 0:
             raise ValueError("photometric model: psf_tail_px must be positive")
+        if not 0.0 <= self.residual_edge_px <= 5.0:
+            raise ValueError(f"photometric model: residual_edge_px {self.residual_edge_px} outside 0..5 px")
 
     @property
     def is_plain(self) -> bool:
@@ -234,6 +242,7 @@ class PhotometricModel:
                 "curvature",
                 "edge_shift_u_px",
                 "edge_shift_v_px",
+                "residual_edge_px",
             )
         }
 

@@ -75,6 +75,13 @@ def edge_doubts(
         model = model.with_doubts(*_jpeg_doubts(samples, fit))
     if r.arris_fits:
         model = model.with_doubts(*_arris_doubts(r.arris_fits, samples, fit, r.pose.scale_mm_per_px, figures))
+    if cell.camera_photometry is not None and cell.camera_photometry.residual_edge_px > 0:
+        # what the camera's model leaves on its real edges (measured on its board photographs, held out): one
+        # camera's error, the same way on every edge (the photographs' bright areas larger or smaller)
+        residual = cell.camera_photometry.residual_edge_px
+        model = model.with_doubts(
+            *(LineDoubt("camera", k, residual, group="camera_model") for k in EDGE_NAMES)
+        )
     if check.response is not None:
         response = _response_terms(
             plane,

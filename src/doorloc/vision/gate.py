@@ -520,7 +520,7 @@ _UNCERTAIN_HINT = {
 
 #: the doubts a line's edge model reports besides the texture beside it (the texture of a pose line is its
 #: own term; which of these is largest names the hint of an uncertain pose)
-_MODEL_REPORTED = ("far_face", "jpeg", "arris", "response")
+_MODEL_REPORTED = ("far_face", "jpeg", "arris", "response", "camera")
 
 
 def _budget(

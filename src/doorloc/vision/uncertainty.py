@@ -109,7 +109,7 @@ _DIST_INDEX = {
 
 #: the edge-model doubts a line can carry besides the floor and the blur term, in the order a line's total
 #: adds them (the order fixes the last bits of the sums)
-DOUBT_SOURCES = ("texture", "far_face", "jpeg", "arris", "response")
+DOUBT_SOURCES = ("texture", "far_face", "jpeg", "arris", "response", "camera")
 
 #: the lines a doubt can move
 EDGE_LINES = ("bottom", "reference", "far")
@@ -128,7 +128,8 @@ class LineDoubt:
     source : str
         What it comes from, one of :data:`DOUBT_SOURCES` (``"texture"``: grain beside the edge; ``"far_face"``:
         the far-face model; ``"jpeg"``: block quantisation; ``"arris"``: the arris correction;
-        ``"response"``: the camera response).
+        ``"response"``: the camera response; ``"camera"``: what the camera's photometric model leaves
+        unexplained on real edges).
     line : str
         The line it moves: ``"bottom"``, ``"reference"`` or ``"far"``.
     offset_px : float
