@@ -99,8 +99,9 @@ class Cell:
         a white level below full scale, curvature), through which locate maps each image's levels to those a
         camera of ``response_gamma`` would store (:func:`doorloc.vision.luminance.camera_levels`), or a point
         spread that moves every edge against the corners' frame (``edge_shift_u_px``, ``edge_shift_v_px``),
-        which locate takes off its edges. None where there is no such model (the power law
-        ``response_gamma`` is then the whole response).
+        which locate takes off its edges, or the model's measured error on the camera's real edges
+        (``residual_edge_px``), which locate counts in every edge's doubt. None where there is no such model
+        (the power law ``response_gamma`` is then the whole response).
     locate : LocateConfig
         The ``locate:`` section: thresholds and settings of the pipeline that a cell sets once.
     robot_section : dict or None

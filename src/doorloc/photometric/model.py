@@ -230,8 +230,8 @@ class PhotometricModel:
         return self.edge_shift_u_px != 0.0 or self.edge_shift_v_px != 0.0
 
     def locate_parameters(self) -> dict[str, float]:
-        """What locate takes of the model (the response and the edges' shift), as files and results name
-        them."""
+        """What locate takes of the model (the response, the edges' shift and the residual on real edges), as
+        files and results name them."""
         return {
             k: float(getattr(self, k))
             for k in (
