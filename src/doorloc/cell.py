@@ -38,6 +38,7 @@ __all__ = [
     "load_cell",
     "parse_cell",
     "cell_to_dict",
+    "edge_camera_cell",
     "save_cell",
 ]
 
@@ -456,6 +457,22 @@ def _used_by_locate(model: PhotometricModel) -> PhotometricModel | None:
     """``model`` where it says something locate uses (a response beyond a power law, edges moved by the point
     spread's asymmetry, its measured error on real edges), else None."""
     return model if model.beyond_power_law or model.moves_edges or model.residual_edge_px > 0 else None
+
+
+def edge_camera_cell(cell: Cell) -> Cell:
+    """``cell`` with the camera its edges are seen through: where the camera's point spread moves every edge
+    by ``(edge_shift_u_px, edge_shift_v_px)`` against the corners' frame its calibration was made in
+    (:attr:`Cell.camera_photometry`), the principal point moved by that much, which moves the
+    image of every edge, and nothing else, by it; ``cell`` itself where there is no such shift. Locate reads
+    its edges through it; the renderer draws them through it."""
+    pm = cell.camera_photometry
+    if pm is None or not pm.moves_edges:
+        return cell
+    cam = cell.camera
+    K = cam.camera_matrix.copy()
+    K[0, 2] += pm.edge_shift_u_px
+    K[1, 2] += pm.edge_shift_v_px
+    return replace(cell, camera=CameraModel(K, cam.dist_coeffs, cam.image_size, cam.observed_radius_px))
 
 
 def cell_to_dict(cell: Cell) -> dict:

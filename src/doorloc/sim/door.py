@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from doorloc.arris import ArrisSection
-from doorloc.cell import Cell, DoorSize
+from doorloc.cell import Cell, DoorSize, edge_camera_cell
 from doorloc.pose import DoorPose, door_to_cell, yaw_rotation_matrix
 from doorloc.sim.effects import Effects, form_image, lambert_shade, wood_grain
 from doorloc.sim.raster import GridTexture, Surface, paint_rectangles, render_radiance
@@ -393,7 +393,8 @@ def render_door(
     Parameters
     ----------
     cell : Cell
-        Camera (intrinsics, distortion, extrinsics) and fixture (hinge-face depth for the door width).
+        Camera (intrinsics, distortion, extrinsics) and fixture (hinge-face depth for the door width); its
+        ``camera_photometry`` where it has one (the response beyond a power law, the edges' shift).
     door : DoorSize
         Door dimensions (mm) and arris size.
     pose : DoorPose
@@ -409,8 +410,17 @@ def render_door(
     """
     effects = effects or Effects()
     fg, bg, names = scene_surfaces(cell, door, pose, effects, seed)
-    radiance = render_radiance(cell.camera, fg, bg)
-    image = form_image(radiance, effects, seed, principal_point=(cell.camera.cx, cell.camera.cy))
+    # a camera whose point spread moves every edge draws them through its moved principal point, and its
+    # response beyond a power law stores the levels (the cell's camera_photometry, as locate reads them)
+    seen = edge_camera_cell(cell)
+    radiance = render_radiance(seen.camera, fg, bg)
+    image = form_image(
+        radiance,
+        effects,
+        seed,
+        principal_point=(cell.camera.cx, cell.camera.cy),
+        response=cell.camera_photometry,
+    )
     corner = true_corner_px(cell, door, pose)
     face_y = cell.face_y(door)
     corner_cell = door_to_cell(np.zeros((1, 3)), pose, face_y)[0]

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from doorloc.photometric.model import PhotometricModel
 from doorloc.pose import direction_cell
 
 __all__ = ["Effects", "form_image", "lambert_shade", "wood_grain"]
@@ -195,7 +196,13 @@ def wood_grain(effects: Effects, seed: int):
     return grain
 
 
-def form_image(radiance: np.ndarray, effects: Effects, seed: int = 0, principal_point=None) -> np.ndarray:
+def form_image(
+    radiance: np.ndarray,
+    effects: Effects,
+    seed: int = 0,
+    principal_point=None,
+    response: PhotometricModel | None = None,
+) -> np.ndarray:
     """Turn a rendered radiance image into the sensor's output image.
 
     Parameters
@@ -208,6 +215,11 @@ def form_image(radiance: np.ndarray, effects: Effects, seed: int = 0, principal_
         Seeds the noise; the same seed gives the same bytes.
     principal_point : (float, float) or None
         Centre of vignetting (defaults to the image centre).
+    response : PhotometricModel or None
+        A camera response beyond a power law (a cell's ``camera_photometry``): full-scale light is stored at
+        full scale and every level below as the model's response stores it
+        (:meth:`~doorloc.photometric.model.PhotometricModel.grey_from_light`), in place of
+        ``effects.gamma``. None (or a model that is a power law): ``effects.gamma``.
 
     Returns
     -------
@@ -243,7 +255,11 @@ def form_image(radiance: np.ndarray, effects: Effects, seed: int = 0, principal_
             var = np.maximum(img, 0) * np.float32(1.0 / effects.full_well_e) + var
         img = img + np.sqrt(var) * rng.standard_normal(img.shape, dtype=np.float32)
     img = np.clip(img, 0.0, 1.0, out=img if img is not radiance else None)
-    if effects.gamma != 1.0:
+    if response is not None and response.beyond_power_law:
+        # full-scale light at the response's full scale, as locate's mapping reads it (vision.luminance)
+        top_light = float(response.light_from_grey(np.array([1.0]))[0])
+        img = response.grey_from_light(img * top_light).astype(np.float32)
+    elif effects.gamma != 1.0:
         img = cv2.pow(img, 1.0 / effects.gamma)
     if effects.color:
         tint = np.array([0.80, 0.93, 1.0], np.float32)  # BGR: a warm wood tone

@@ -38,13 +38,12 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Generator
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from doorloc import __version__
-from doorloc.calib.camera import CameraModel
-from doorloc.cell import Cell, DoorSize
+from doorloc.cell import Cell, DoorSize, edge_camera_cell
 from doorloc.vision import quality as q
 from doorloc.vision.coarse import coarse_edges
 from doorloc.vision.coarse_stage import StepQuery, find_coarse
@@ -251,21 +250,6 @@ def _locate(
     clock.lap("gate")
     res.diagnostics["timing_ms"] = clock.laps
     return res
-
-
-def edge_camera_cell(cell: Cell) -> Cell:
-    """``cell`` with the camera its edges are seen through: where the camera's point spread moves every edge
-    by ``(edge_shift_u_px, edge_shift_v_px)`` against the corners' frame its calibration was made in
-    (:attr:`doorloc.cell.Cell.camera_photometry`), the principal point moved by that much, which moves the
-    image of every edge, and nothing else, by it; ``cell`` itself where there is no such shift."""
-    pm = cell.camera_photometry
-    if pm is None or not pm.moves_edges:
-        return cell
-    cam = cell.camera
-    K = cam.camera_matrix.copy()
-    K[0, 2] += pm.edge_shift_u_px
-    K[1, 2] += pm.edge_shift_v_px
-    return replace(cell, camera=CameraModel(K, cam.dist_coeffs, cam.image_size, cam.observed_radius_px))
 
 
 def _far_face_diagnostics(far_fit: FarFaceFit) -> dict[str, float]:
