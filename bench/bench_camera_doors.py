@@ -127,7 +127,9 @@ def scenes(n: int, seed: int):
 
 def seen_through(cell, model: PhotometricModel):
     """The cell whose camera the doors are rendered through: its principal point moved by the model's edge
-    shift (which moves every edge's image by it, as the point spread's asymmetry does)."""
+    shift (which moves every edge's image by it, as the point spread's asymmetry does). Written here rather
+    than taken from :func:`doorloc.cell.edge_camera_cell`, so that the bench's truth does not rest on the code
+    it measures (a sign error there would agree with itself)."""
     cam = cell.camera
     K = cam.camera_matrix.copy()
     K[0, 2] += model.edge_shift_u_px

@@ -357,16 +357,13 @@ def _strip_profiles(
     rel_e = (centre - c0) * door_side  # predicted border relative to c0, mirrored coordinates
     good = finite & inside.all(axis=1) & (np.abs(D) > 0)
     noise = np.sqrt(0.5 * (left.var(axis=1) + right.var(axis=1)))
-    top = _white_level(P.dtype, lut)
-    clipped = np.zeros(len(vals), bool) if top is None else np.count_nonzero(core >= top, axis=1) >= 2
+    clipped = np.count_nonzero(core >= _white_level(P.dtype, lut), axis=1) >= 2
     return _StripProfiles(vals, c0, half, pad, w, rel_e, A, B, D, D_e, S, nl, good, noise, clipped)
 
 
-def _white_level(dtype: np.dtype, lut: np.ndarray | None) -> float | None:
-    """The value a white-clipped pixel has in the strip's profiles (the top code of an integer image, through
-    the linearising table where there is one); None for a float image, which has no top code."""
-    if not np.issubdtype(dtype, np.integer):
-        return None
+def _white_level(dtype: np.dtype, lut: np.ndarray | None) -> float:
+    """The value a white-clipped pixel has in the strip's profiles: the top code of the (8- or 16-bit) plane,
+    through the linearising table where there is one."""
     top = int(np.iinfo(dtype).max)
     if lut is None:
         return float(top)

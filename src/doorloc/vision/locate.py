@@ -213,12 +213,9 @@ def _locate(
     name: str,
     lum: LuminancePlane | None = None,
 ) -> Generator[StepQuery, tuple[np.ndarray, np.ndarray], LocateResult]:
-    photometry = cell.camera_photometry
     try:
         lum = camera_levels(
-            lum if lum is not None else luminance_plane(image),
-            photometry if photometry is not None and photometry.beyond_power_law else None,
-            cell.response_gamma,
+            lum if lum is not None else luminance_plane(image), cell.camera_photometry, cell.response_gamma
         )
     except ImageFormatError as e:
         raise Refused(q.Refusal("bad_image", f"{e}")) from None

@@ -85,8 +85,8 @@ def luminance_plane(image: np.ndarray) -> LuminancePlane:
 
 def camera_levels(lum: LuminancePlane, response: PhotometricModel | None, gamma: float) -> LuminancePlane:
     """The luminance ``lum`` as a camera of the power law ``grey = light ** (1 / gamma)`` would have stored
-    it, where the camera's own response goes beyond a power law (``response``: a cell's
-    ``camera_photometry`` whose response does); ``lum`` itself where ``response`` is None.
+    it, where the camera's own response (``response``, a cell's ``camera_photometry``) goes beyond a power
+    law; ``lum`` itself where it does not, or ``response`` is None.
 
     16-bit levels (``scale_to_8bit`` 255/65535), through the model's table
     (:meth:`doorloc.photometric.model.PhotometricModel.power_law_levels`): a camera's shoulder or pedestal
@@ -94,7 +94,7 @@ def camera_levels(lum: LuminancePlane, response: PhotometricModel | None, gamma:
     levels of the power law they model. The mapping keeps the camera's full scale at full scale, so a
     clipped pixel stays at the top code.
     """
-    if response is None:
+    if response is None or not response.beyond_power_law:
         return lum
     import cv2
 
