@@ -19,6 +19,8 @@ Pixels follow OpenCV's convention (origin at the centre of the top-left pixel).
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import cv2
@@ -254,17 +256,34 @@ def _rms(res: list[np.ndarray]) -> float:
     return float(np.sqrt(np.mean(np.sum(allr**2, axis=1)))) if len(allr) else float("nan")
 
 
+@contextmanager
+def _one_opencv_thread() -> Iterator[None]:
+    """OpenCV's calibration sums over its worker threads in whatever order they finish, so two runs on the same
+    corners differ in the last bits (1e-13 to 1e-10 px on the public board sets), and what is fitted downstream
+    of a calibration (the photometric model check) can carry that into different answers. One thread makes a
+    calibration repeatable; it costs nothing measurable here (0.9-2.2 s either way on the public sets). The
+    count is OpenCV's process-wide setting, put back as it was."""
+    before = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        yield
+    finally:
+        cv2.setNumThreads(before)
+
+
 def fit_model(views: list[View], image_size: tuple[int, int], candidate: Candidate) -> ModelFit:
-    """Fit ``candidate`` to ``views`` with ``cv2.calibrateCamera`` (Levenberg-Marquardt).
+    """Fit ``candidate`` to ``views`` with ``cv2.calibrateCamera`` (Levenberg-Marquardt), on one thread so that
+    the same views always give the same camera to the last bit.
 
     Raises :class:`CalibrationError` if OpenCV cannot fit (e.g. degenerate views).
     """
     obj, img = _cv_inputs(views)
     K0 = np.eye(3)
     try:
-        _, K, d, rvecs, tvecs = cv2.calibrateCamera(
-            obj, img, tuple(int(s) for s in image_size), K0, None, flags=candidate.flags, criteria=_TERM
-        )
+        with _one_opencv_thread():
+            _, K, d, rvecs, tvecs = cv2.calibrateCamera(
+                obj, img, tuple(int(s) for s in image_size), K0, None, flags=candidate.flags, criteria=_TERM
+            )
     except cv2.error as e:
         raise CalibrationError(f"OpenCV could not fit the {candidate.name} model: {e.err or e}") from None
     d = np.asarray(d, float).ravel()[: candidate.n_coeffs]
