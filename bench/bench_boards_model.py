@@ -77,7 +77,8 @@ def summary(name: str, c: BoardCheck) -> None:
     )
     print(
         f"    held-out profile misfit RMS: plain {prof['before']:.2f}, extended {prof['after']:.2f} grey levels; "
-        f"noise {c.noise_grey:.2f} (1.5x: {1.5 * c.noise_grey:.2f})"
+        f"noise on the plateaus: median {c.noise_grey:.2f} (1.5x: {1.5 * c.noise_grey:.2f}), RMS over the "
+        f"windows {c.noise_rms_grey:.2f} (1.5x: {1.5 * c.noise_rms_grey:.2f})"
     )
     print(
         "    per photograph (before -> after px): "

@@ -14,7 +14,7 @@ from doorloc.calib.camera import CameraModel
 from doorloc.calib.detect import Chessboard, detect_chessboard, to_gray
 from doorloc.calib.folder import read_folder
 from doorloc.calib.io import load_calibration
-from doorloc.photometric.board_edges import board_edge_curves, measure_board_edges
+from doorloc.photometric.board_edges import BoardEdges, EdgeWindows, board_edge_curves, measure_board_edges
 from doorloc.photometric.model import PhotometricModel
 from doorloc.sim.boards import Checkerboard
 from doorloc.sim.photometric import random_board_views
@@ -105,3 +105,41 @@ def test_opencv_left_plain_offsets_as_measured_before():
     meds = np.asarray(meds)
     assert 0.18 < np.sqrt(np.mean(meds**2)) < 0.28
     assert np.sum(meds < 0) >= 10 and meds.min() < -0.35
+
+
+def _windows_of(grey: np.ndarray) -> BoardEdges:
+    n = grey.shape[0]
+    w = EdgeWindows(
+        np.zeros(n, int),
+        np.ones(n, bool),
+        np.arange(n),
+        np.full(n, 7.0),
+        np.ones(n),
+        np.ones(n),
+        np.zeros(n, int),
+        grey,
+    )
+    nan = np.full(n, np.nan)
+    one = np.zeros((1, 2))
+    return BoardEdges("synthetic", (64, 64), one, one, np.ones(1), np.ones(1), w, nan, nan, nan, nan)
+
+
+@pytest.mark.parametrize("sigma", [0.7, 2.0, 5.0])
+def test_plateau_spread_rms_reads_the_noise_sigma(sigma):
+    rng = np.random.default_rng(3)
+    step = np.where(np.arange(15) < 7, 40.0, 180.0)
+    # each scan line with its own levels (light falling off along the edge): only the spread about them counts
+    levels = rng.uniform(-10, 10, (4000, 1))
+    grey = step[None, :] + levels + rng.normal(0.0, sigma, (4000, 15))
+    assert BoardEdges.plateau_spread_rms(_windows_of(grey), 3) == pytest.approx(sigma, rel=0.03)
+
+
+def test_plateau_spread_rms_is_an_rms_not_a_median():
+    rng = np.random.default_rng(4)
+    grey = np.where(np.arange(15) < 7, 40.0, 180.0)[None, :] + rng.normal(0.0, 1.0, (4000, 15))
+    # one scan line in ten on a textured patch: the RMS rises well above the typical line's spread
+    grey[::10] += rng.normal(0.0, 6.0, (400, 15))
+    be = _windows_of(grey)
+    assert be.plateau_spread_rms(3) == pytest.approx(np.sqrt(1.0 + 0.1 * 36.0), rel=0.05)
+    assert be.plateau_spread_rms(3, np.arange(4000) % 10 != 0) == pytest.approx(1.0, rel=0.05)
+    assert np.isnan(be.plateau_spread_rms(1))

@@ -128,6 +128,21 @@ class BoardEdges:
         """Median offset of each edge over its scan lines, px (E,)."""
         return per_edge_median(self.windows.edge, self.offset_px, self.n_edges)
 
+    def plateau_spread_rms(self, plateau: int, keep: np.ndarray | None = None) -> float:
+        """What a flat square's grey levels vary by, as an RMS over the windows (grey levels): each window's
+        two plateau runs (``plateau`` samples at its ends) about their own means, with the degrees of freedom
+        the means take counted (so pure noise of sigma s gives s). Sensor noise, the print's texture, JPEG's
+        blocks: everything no edge model can draw. ``noise`` is the same spread per scan line, whose median
+        the check quotes; an RMS of a heavy-tailed spread lies well above its median, and this is the figure a
+        profile misfit (an RMS over the windows) compares with. ``keep`` (N,) selects scan lines; NaN where
+        none is left or ``plateau`` < 2."""
+        g = self.windows.grey if keep is None else self.windows.grey[np.asarray(keep)]
+        if plateau < 2 or g.shape[0] == 0 or 2 * plateau > g.shape[1]:
+            return float("nan")
+        runs = (g[:, :plateau], g[:, -plateau:])
+        sq = sum(float(((r - r.mean(axis=1, keepdims=True)) ** 2).sum()) for r in runs)
+        return float(np.sqrt(sq / (2 * g.shape[0] * (plateau - 1))))
+
 
 def per_edge_median(edge: np.ndarray, x: np.ndarray, n: int) -> np.ndarray:
     """Median of ``x`` over each edge's scan lines (``edge`` the edge of each, ``n`` edges; NaN where none)."""

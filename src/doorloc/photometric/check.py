@@ -83,6 +83,7 @@ class PhotographResult:
     profile_rms_before: float
     profile_rms_after: float
     noise_grey: float
+    noise_rms_grey: float
     edges: BoardEdges
     profiles_before: EdgeProfiles
     profiles_after: EdgeProfiles
@@ -119,7 +120,16 @@ class BoardCheck:
 
     @property
     def noise_grey(self) -> float:
+        """Median over photographs of each one's median plateau spread (grey levels)."""
         return float(np.median([p.noise_grey for p in self.photographs]))
+
+    @property
+    def noise_rms_grey(self) -> float:
+        """RMS over photographs of each one's plateau spread RMS over its windows (grey levels): the noise a
+        profile misfit is compared with (:meth:`~doorloc.photometric.board_edges.BoardEdges.plateau_spread_rms`)."""
+        v = np.asarray([p.noise_rms_grey for p in self.photographs], float)
+        v = v[np.isfinite(v)]
+        return float(np.sqrt(np.mean(v**2))) if v.size else float("nan")
 
     @property
     def offset_standard_error_px(self) -> float:
@@ -332,6 +342,7 @@ def check_photographs(
                 before.rms_over_windows(),
                 after.rms_over_windows(),
                 float(np.median(noise)) if noise.size else float("nan"),
+                p.edges.plateau_spread_rms(p.settings.plateau, keep[i]),
                 p.edges,
                 before,
                 after,

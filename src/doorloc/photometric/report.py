@@ -69,6 +69,7 @@ def report_dict(check: BoardCheck) -> dict:
                 "edge_offset_standard_error_px": _num(p.noise_px),
                 "profile_rms": {"before": _num(p.profile_rms_before), "after": _num(p.profile_rms_after)},
                 "noise": _num(p.noise_grey),
+                "noise_rms": _num(p.noise_rms_grey),
             }
             for p in check.photographs
         ],
@@ -76,6 +77,7 @@ def report_dict(check: BoardCheck) -> dict:
         "heldout_edge_offset_standard_error_px": _num(check.offset_standard_error_px),
         "heldout_profile_rms": {k: _num(v) for k, v in prof.items()},
         "noise": _num(check.noise_grey),
+        "noise_rms": _num(check.noise_rms_grey),
         "extended_model": EXTENDED_CALIBRATION,
         "photometric_model": check.model.to_dict(),
         "alternatives": check.alternatives,
@@ -141,6 +143,14 @@ def report_markdown(check: BoardCheck) -> str:
     if check.alternatives:
         lines += ["", "The data cannot tell these apart (held-out figures within one standard error):"]
         lines += [f"- {k}: also {', '.join(v)}" for k, v in check.alternatives.items()]
+    if named and prof["after"] > prof["before"] + 0.05 * prof["before"]:
+        lines += [
+            "",
+            f"**The extended model draws these edges' profiles worse** than the plain one ({prof['before']:.2f} "
+            f"-> {prof['after']:.2f} grey levels, held out): its causes are fitted to where the edges lie, not to "
+            "their shapes, and a response that places them may still bend their profiles wrongly; what shapes "
+            "them is beyond this catalogue.",
+        ]
     lines += [
         "",
         "## Figures",
@@ -150,8 +160,10 @@ def report_markdown(check: BoardCheck) -> str:
         f"| held-out edge offset, RMS over photographs (px) | {off['before']:.4f} | {off['after']:.4f} |",
         f"| held-out profile misfit, RMS (grey levels) | {prof['before']:.2f} | {prof['after']:.2f} |",
         "",
-        f"Noise on the plateaus: {check.noise_grey:.2f} grey levels; standard error of a photograph's median "
-        f"offset from its edges' scatter: {se:.4f} px. Calibration: {check.calibration_source}.",
+        f"Noise on the plateaus: {check.noise_grey:.2f} grey levels (median of each scan line's spread), "
+        f"{check.noise_rms_grey:.2f} as an RMS over the windows (the figure the profile misfit compares with); "
+        f"standard error of a photograph's median offset from its edges' scatter: {se:.4f} px. "
+        f"Calibration: {check.calibration_source}.",
         "",
         "| photograph | edges | offset before (px) | offset after, held out (px) | profile RMS before | after |",
         "|---|---|---|---|---|---|",
