@@ -82,12 +82,14 @@ def read_model(path: Path) -> tuple[str, PhotometricModel]:
 
 
 def stated_exponent(model: PhotometricModel) -> float:
-    """The exponent of the power law nearest the model's response over the grey levels 0.1-0.95 (least squares
-    of log light against log grey, through full scale): what a cell describing the camera by a power law
-    states."""
+    """The exponent of the power law nearest the model's response over the grey levels 0.1-0.95 that store some
+    light (above a pedestal; least squares of log light against log grey, through full scale): what a cell
+    describing the camera by a power law states."""
     g = np.linspace(0.1, 0.95, 200)
+    light = model.light_from_grey(g)
+    g, light = g[light > 0], light[light > 0]
     lg = np.log(g)
-    return float(np.sum(lg * np.log(model.light_from_grey(g))) / np.sum(lg * lg))
+    return float(np.sum(lg * np.log(light)) / np.sum(lg * lg))
 
 
 def scenes(n: int, seed: int):
