@@ -62,7 +62,7 @@ def test_white_level_validated_and_read_from_files():
 
 
 @pytest.mark.parametrize("white, knee", [(0.8, 0.6), (0.9, 0.65)])
-def test_renderer_compresses_towards_the_white_level_without_clipping(white, knee):
+def test_renderer_rolls_off_to_the_white_level_at_a_finite_light(white, knee):
     rvec = np.array([0.1, -0.2, 0.05])
     tvec = -np.array([100.0, 62.5, 0.0]) + np.array([0.0, 0.0, 450.0])
     model = PhotometricModel(shoulder=knee, white_level=white)
@@ -71,13 +71,22 @@ def test_renderer_compresses_towards_the_white_level_without_clipping(white, kne
         look = CameraRendering(0.8, exposure, 0.5)
         return render_photographed_board(CAMERA, Checkerboard(9, 6, 25.0), rvec, tvec, m, look, seed=5).image
 
-    light = shot(PhotometricModel(), 1.05) > 200  # the light squares: light 0.945, beyond both white levels
-    a, b = shot(model, 1.05), shot(model, 1.25)
-    # the light squares sit in the shoulder, below the white level, and more light still stores higher
-    # (a clip would store both exposures at one level)
+    light = shot(PhotometricModel(), 1.05) > 200  # the light squares (light 0.9 x the exposure)
     top = int(np.rint(white * 255))
-    assert max(a.max(), b.max()) <= top
-    assert knee * 255 + 0.5 * (white - knee) * 255 < np.median(a[light]) < np.median(b[light]) <= top - 1
+    full_well = knee + 2.0 * (white - knee)  # the light the shoulder reaches the white level at
+    inside = [shot(model, e) for e in (0.8 * full_well / 0.9, 0.9 * full_well / 0.9)]
+    levels = [float(np.median(im[light])) for im in inside]
+    # in the shoulder: the roll-off's levels (compressed below the linear response, above the knee), and
+    # more light stores higher
+    for x, level in zip((0.8 * full_well, 0.9 * full_well), levels, strict=True):
+        expected = 255 * (white - (white - knee) * (1.0 - (x - knee) / (2.0 * (white - knee))) ** 2)
+        assert abs(level - expected) <= 1.5, (x, level, expected)
+        assert knee * 255 < level < min(x, white) * 255
+    assert levels[0] < levels[1] < top
+    # beyond it every light is stored at the white level, never above it
+    beyond = shot(model, 1.2 * full_well / 0.9)
+    assert beyond.max() <= top and np.median(beyond[light]) == top
+    assert max(im.max() for im in inside) <= top
 
 
 def test_fit_starts_place_the_white_level_just_above_the_plateaus():

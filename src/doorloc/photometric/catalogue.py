@@ -21,10 +21,11 @@ Signatures of the edge-moving causes, on the signed offset (+ towards the bright
   whose bright square reaches the clip level (a plateau piled at that level, a profile that flattens early)
   move, towards the dark side, by an amount growing with how far the square's light lies beyond the clip;
   not with the edge's direction or the board's scale;
-- ``soft_saturation``: a shoulder that saturates smoothly at its own white level below full scale (a full
-  well reached softly, a tone curve's knee ending 10-15 levels below 255): edges whose bright level lies in
-  the shoulder move towards the dark side, more the nearer it is to the white level, and no stored level
-  lies above it (no plateau piles at one level, unlike a clip);
+- ``soft_saturation``: a shoulder that rolls off to its own white level below full scale, reached at a finite
+  light (a full well reached softly, a tone curve's knee ending 10-15 levels below 255): edges whose bright
+  level lies in the shoulder move towards the dark side, more the nearer it is to the white level, and no
+  stored level lies above it; unlike a clip, the levels below the white level are bent too, so edges whose
+  bright square stays under it move as well;
 - ``psf_asymmetry``: a fixed image vector projected on each edge's normal: opposite edges of one square move
   opposite ways, so the offset depends on the edge's direction, not on its blur, levels or scale;
 - ``print_spread``: a fixed length on the board, so an offset proportional to the board's scale (px per mm)
@@ -121,8 +122,8 @@ EDGE_CAUSES: tuple[Cause, ...] = (
         (0.8, 0.97),
         (0.05, 0.6),
         (1.0, 1.0),
-        "highlights compressed smoothly towards a white level below full scale: edges whose bright level lies "
-        "in the shoulder move towards the dark side, the more the nearer to the white level",
+        "highlights rolled off to a white level below full scale, reached at a finite light: edges whose bright "
+        "level lies in the shoulder move towards the dark side, the more the nearer to the white level",
     ),
     Cause(
         "psf_asymmetry",
