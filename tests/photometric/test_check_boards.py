@@ -139,3 +139,23 @@ def test_bad_input_exits_2_and_writes_nothing(tmp_path):
     res = _run(empty, bad, tmp_path / "out2")
     assert res.exit_code == 2 and "gama" in res.output
     assert not (tmp_path / "out2").exists()
+
+
+def test_report_says_when_the_extended_model_draws_profiles_worse(tmp_path):
+    from dataclasses import replace
+
+    from doorloc.calib.detect import Chessboard
+    from doorloc.photometric.check import check_boards
+    from doorloc.photometric.report import report_markdown
+
+    cal = _boards(tmp_path / "boards", PhotometricModel(), 4242)
+    check = check_boards(tmp_path / "boards", Chessboard(9, 6, 25.0), load_calibration(cal))
+    named = replace(check, causes=["response_shoulder"])
+    assert "draws these edges' profiles worse" not in report_markdown(named)
+    worse = replace(
+        named,
+        photographs=[replace(p, profile_rms_after=1.2 * p.profile_rms_before) for p in check.photographs],
+    )
+    assert "draws these edges' profiles worse" in report_markdown(worse)
+    # a model that names nothing has nothing to draw worse
+    assert "draws these edges' profiles worse" not in report_markdown(replace(worse, causes=[]))
