@@ -52,6 +52,14 @@ HIDDEN = {
     ),
 }
 
+#: causes the renderer makes beside the photometric model: the spread's asymmetry as a ghost (a fraction of the
+#: light displaced by 2.5-4 px in a random direction, :class:`~doorloc.sim.photometric.CameraRendering`)
+HIDDEN_RENDERED = {
+    "psf_asymmetry": lambda r: (lambda a, d, phi: (a, d * np.cos(phi), d * np.sin(phi)))(
+        r.uniform(0.2, 0.3), r.uniform(2.5, 4.0), r.uniform(0, 2 * np.pi)
+    ),
+}
+
 CAMERA = CameraModel.from_values(
     [[600, 0, 319.5], [0, 600, 239.5], [0, 0, 1]], [-0.2, 0.05, 0, 0, 0], (640, 480)
 )
@@ -107,13 +115,17 @@ def hidden(seeds: int, controls: int, views: int, effects: list[str], first_seed
         ]
         false_alarms = 0
         for name, s in runs:
-            seed = 35000 + 97 * s + (list(HIDDEN).index(name) if name in HIDDEN else 50)
+            order = list(HIDDEN) + list(HIDDEN_RENDERED)
+            seed = 35000 + 97 * s + (order.index(name) if name in order else 50)
             rng = np.random.default_rng(seed)
             values = HIDDEN[name](rng) if name in HIDDEN else {}
-            model = PhotometricModel(**values)
+            ghost = HIDDEN_RENDERED[name](rng) if name in HIDDEN_RENDERED else (0.0, 0.0, 0.0)
+            if ghost[0]:
+                values = {"ghost": ghost[0], "ghost_du_px": ghost[1], "ghost_dv_px": ghost[2]}
+            model = PhotometricModel(**{k: v for k, v in values.items() if not k.startswith("ghost")})
             folder = Path(tmp) / f"{name}_{s}"
             folder.mkdir()
-            for fname, img in random_board_views(CAMERA, board, model, views, seed):
+            for fname, img in random_board_views(CAMERA, board, model, views, seed, ghost=ghost):
                 cv2.imwrite(str(folder / fname), img)
             c = check_boards(folder, Chessboard(9, 6, 25.0), CalibrationFile(CAMERA))
             off, prof = c.heldout_rms("offset"), c.heldout_rms("profile_rms")
@@ -144,7 +156,11 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--controls", type=int, default=5)
     ap.add_argument("--views", type=int, default=8)
-    ap.add_argument("--effects", default=",".join(HIDDEN), help="comma-separated catalogue names to hide")
+    ap.add_argument(
+        "--effects",
+        default=",".join([*HIDDEN, *HIDDEN_RENDERED]),
+        help="comma-separated catalogue names to hide",
+    )
     ap.add_argument("--first-seed", type=int, default=0, help="index of the first seed of each effect")
     args = ap.parse_args()
     if "real" in args.parts:

@@ -4,7 +4,8 @@
 Image formation here: the printed board (its dark squares grown by the print's spread,
 :class:`PrintedCheckerboard`) -> exact box-filtered radiance (:mod:`doorloc.sim.raster`) -> exposure ->
 optics: a Gaussian blur whose variance changes over the field and with direction (``blur_field``,
-``blur_anisotropy``) plus the point spread's halo (``psf_tail``) -> read noise -> the response (power law,
+``blur_anisotropy``) plus the point spread's halo (``psf_tail``) and a ghost (:class:`CameraRendering`, the
+spread's asymmetry) -> read noise -> the response (power law,
 shoulder and its white level, curvature, pedestal, the sensor's clip level;
 :meth:`PhotometricModel.grey_from_light`) -> 8-bit
 levels -> optional JPEG.
@@ -58,12 +59,20 @@ class PrintedCheckerboard(Checkerboard):
 class CameraRendering:
     """What the camera adds beyond its photometric model, per photograph: ``blur_px`` (Gaussian sigma of the
     optics at the image centre), ``exposure`` (radiance 1 -> this fraction of full scale), ``read_noise``
-    (grey levels, 1-sigma, before the response), ``jpeg_quality`` (0: none)."""
+    (grey levels, 1-sigma, before the response), ``jpeg_quality`` (0: none), ``ghost`` ``(fraction, du,
+    dv)``: that fraction of the light displaced by ``(du, dv)`` image px after the blur (an analogue
+    read-out's smear or ringing, interlaced fields out of register, a reflection in the optics): a point
+    spread that is not point-symmetric. Its light moves a straight edge by the whole displacement's share
+    (``fraction`` times its projection on the edge's normal), but an X-junction by less once the
+    displacement exceeds the blur (a ghost of 0.3 at 3 px under a 1 px blur: a horizontal edge moves 0.90 px,
+    the corner 0.56 px): the edges' displacement from the corners' frame that the catalogue's
+    ``psf_asymmetry`` reads (as ``edge_shift_u_px``, ``edge_shift_v_px``)."""
 
     blur_px: float = 1.0
     exposure: float = 1.0
     read_noise: float = 0.0
     jpeg_quality: int = 0
+    ghost: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
 def _tail_kernel(scale_px: float) -> np.ndarray:
@@ -114,6 +123,16 @@ def apply_camera(
     if model.psf_tail > 0:
         halo = cv2.filter2D(img, -1, _tail_kernel(model.psf_tail_px), borderType=cv2.BORDER_REFLECT)
         out = (1 - model.psf_tail) * out + model.psf_tail * halo
+    fraction, du, dv = rendering.ghost
+    if fraction > 0:
+        moved = cv2.warpAffine(
+            out,
+            np.array([[1.0, 0.0, du], [0.0, 1.0, dv]], np.float32),
+            (w, h),
+            flags=cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_REFLECT,
+        )
+        out = (1 - np.float32(fraction)) * out + np.float32(fraction) * moved
     if rendering.read_noise > 0:
         rng = np.random.default_rng([seed, 7919])
         out = out + rng.standard_normal(out.shape, dtype=np.float32) * np.float32(
@@ -162,10 +181,12 @@ def random_board_views(
     blur_px: tuple[float, float] = (0.6, 1.4),
     exposure: tuple[float, float] = (0.55, 1.05),
     read_noise: tuple[float, float] = (0.5, 1.5),
+    ghost: tuple[float, float, float] = (0.0, 0.0, 0.0),
 ) -> list[tuple[str, np.ndarray]]:
     """``n_views`` photographs ``(name, image)`` of ``board`` by a camera with ``model``, each at a random pose
     that shows the whole board (squares ``square_px`` wide near the middle), with the blur at the centre,
-    exposure and read noise drawn per photograph from the given ranges."""
+    exposure and read noise drawn per photograph from the given ranges, and the camera's ``ghost`` in every
+    one (:class:`CameraRendering`)."""
     rng = np.random.default_rng(seed)
     f = 0.5 * (camera.fx + camera.fy)
     w, h = camera.image_size
@@ -182,7 +203,10 @@ def random_board_views(
         off = np.array([rng.uniform(-0.25, 0.25) * w, rng.uniform(-0.25, 0.25) * h]) * z / f
         tvec = -R @ centre + np.array([off[0], off[1], z])
         look = CameraRendering(
-            float(rng.uniform(*blur_px)), float(rng.uniform(*exposure)), float(rng.uniform(*read_noise))
+            float(rng.uniform(*blur_px)),
+            float(rng.uniform(*exposure)),
+            float(rng.uniform(*read_noise)),
+            ghost=ghost,
         )
         rb = render_photographed_board(camera, board, rvec, tvec, model, look, seed=seed * 1000 + len(views))
         margin = 2 * board.square_mm * f / z
