@@ -85,8 +85,11 @@ def test_hidden_effect_is_named_and_gains_on_held_out_photographs(tmp_path):
     assert ext.photometric_model is not None and "check-model --boards" in (
         ext.photometric_model_provenance or ""
     )
-    # what the model leaves on the held-out photographs' edges goes with it, as locate's measured doubt
-    assert ext.photometric_model["residual_edge_px"] == pytest.approx(off["after"], rel=1e-3)
+    # what the model leaves on the held-out photographs' edges goes with it, as locate's measured doubt: their
+    # medians' RMS or, where larger, that by edge direction (noise taken off), which on these renders (no
+    # effect that changes with the direction) adds little
+    residual = ext.photometric_model["residual_edge_px"]
+    assert off["after"] * (1 - 1e-3) <= residual <= off["after"] + 0.02, (seed, residual, off)
     assert (tmp_path / "report" / "report.md").read_text().startswith("# Model check")
 
 
@@ -188,3 +191,30 @@ def test_hidden_ghost_is_named_as_the_spreads_asymmetry(tmp_path):
         seed,
         shift,
     )
+
+
+@pytest.mark.slow
+def test_a_bias_that_changes_direction_from_photograph_to_photograph_is_in_the_edge_residual(tmp_path):
+    # each photograph with its own ghost (camera shake, fields out of register): no fixed shift explains the
+    # edges, their median over all directions cancels much of it, and locate's per-edge doubt must carry it
+    from doorloc.calib.detect import Chessboard
+    from doorloc.photometric.check import check_boards
+
+    seed = int(os.environ.get("DOORLOC_TEST_SEED", 4242))
+    rng = np.random.default_rng(seed)
+    folder = tmp_path / "boards"
+    folder.mkdir()
+    for i in range(8):
+        phi = rng.uniform(0, 2 * np.pi)
+        ghost = (0.25, 3.5 * np.cos(phi), 3.5 * np.sin(phi))
+        ((_, img),) = random_board_views(
+            CAMERA, Checkerboard(9, 6, 25.0), PhotometricModel(), 1, seed * 100 + i, ghost=ghost
+        )
+        cv2.imwrite(str(folder / f"view{i:02d}.png"), img)
+    c = check_boards(folder, Chessboard(9, 6, 25.0), CalibrationFile(CAMERA))
+    median_rms = c.heldout_rms("offset")["after"]
+    print(
+        f"seed {seed}: causes {c.causes}, median RMS {median_rms:.3f}, residual {c.model.residual_edge_px:.3f} px"
+    )
+    # the photographs' medians keep only part of it (edges of each direction are not balanced in every view)
+    assert c.model.residual_edge_px > max(0.1, 2 * median_rms)

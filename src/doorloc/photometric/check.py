@@ -31,6 +31,7 @@ from doorloc.photometric.catalogue import EDGE_CAUSES, PROFILE_CAUSES, keep_sigm
 from doorloc.photometric.fit import (
     Photograph,
     Selection,
+    direction_noise_floor_px,
     folds_by_photograph,
     noise_floor_px,
     place_edges,
@@ -358,7 +359,30 @@ def check_photographs(
     rms_after = float(np.sqrt(np.nanmean(heldout_after**2)))
     if rms_after > max(0.03, 1.5 * floor) and rms_after > 2.0 * floor:
         causes.append("unexplained")
-    # what the model leaves on these photographs' edges, held out: locate's measured doubt of every edge
-    if np.isfinite(rms_after):
-        model = model.with_values(residual_edge_px=min(rms_after, 5.0))
+    # what the model leaves on these photographs' edges, held out: locate's measured doubt of every edge. A
+    # door's edge faces one way, so the figure is the larger of the photographs' medians and their medians by
+    # edge direction (less the noise of the latter: a quarter of the edges each), which a bias that changes
+    # sign with the direction from photograph to photograph leaves and the median over all directions hides
+    edge_px = _edge_residual_px(rms_after, sel.heldout.by_direction_px, photos)
+    if np.isfinite(edge_px):
+        model = model.with_values(residual_edge_px=min(edge_px, 5.0))
     return BoardCheck(causes, model, parameters, results, sel, bt, tail_gain, None, "", sel.alternatives)
+
+
+def _edge_residual_px(median_rms_px: float, by_direction_px: np.ndarray, photos: list[Photograph]) -> float:
+    """What the model leaves on one edge of this camera, px: the held-out RMS of the photographs' medians
+    (``median_rms_px``) or, where larger, the RMS of their medians by edge direction (``by_direction_px``,
+    photographs x 4) with those medians' own noise taken off in quadrature; NaN where neither is finite."""
+    by_dir = np.asarray(by_direction_px, float)
+    noise = np.array([direction_noise_floor_px(p) for p in photos])
+    ok = np.isfinite(by_dir) & np.isfinite(noise)
+    directional = (
+        float(np.sqrt(max(np.mean(by_dir[ok] ** 2) - np.mean(noise[ok] ** 2), 0.0)))
+        if ok.any()
+        else float("nan")
+    )
+    return (
+        float(np.nanmax([median_rms_px, directional]))
+        if np.isfinite([median_rms_px, directional]).any()
+        else float("nan")
+    )

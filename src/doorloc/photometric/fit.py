@@ -47,6 +47,7 @@ __all__ = [
     "held_out",
     "select_causes",
     "noise_floor_px",
+    "direction_noise_floor_px",
     "white_starts",
     "folds_by_photograph",
     "photo_median",
@@ -187,6 +188,20 @@ def direction_medians(photo: Photograph, model: PhotometricModel) -> np.ndarray:
         ok = (quadrant == q) & np.isfinite(o)
         if ok.sum() >= 10:
             out[q] = np.median(o[ok])
+    return out
+
+
+def direction_noise_floor_px(photo: Photograph) -> np.ndarray:
+    """Standard error of each of :func:`direction_medians`' four medians from the scatter between the edges of
+    that direction, px (4,; NaN where fewer than three edges face that way)."""
+    e = photo.edges.edge_offsets_px()
+    n = photo.edges.normal
+    quadrant = np.round(np.arctan2(n[:, 1], n[:, 0]) / (np.pi / 2)).astype(int) % 4
+    out = np.full(4, np.nan)
+    for q in range(4):
+        x = e[(quadrant == q) & np.isfinite(e)]
+        if x.size >= 3:
+            out[q] = 1.2533 * 1.4826 * np.median(np.abs(x - np.median(x))) / np.sqrt(x.size)
     return out
 
 

@@ -50,8 +50,10 @@ even blur, a perfect print):
   sensor's or demosaicking's direction preference;
 - ``residual_edge_px``: what the model leaves unexplained on the camera's real edges, px: the RMS over
   photographs held out of their median edge offset from the board's corner lines, with the model
-  (``doorloc check-model --boards``); not an effect but the model's measured error, which locate counts in
-  every edge's doubt. 0 = not measured.
+  (``doorloc check-model --boards``), or, where larger, the RMS of those medians taken by edge direction
+  (their noise taken off): a door's edge faces one way, and a bias whose direction changes from photograph
+  to photograph cancels in the median over all directions only; not an effect but the model's measured
+  error, which locate counts in every edge's doubt. 0 = not measured.
 
 Only the response, its clipping, the print and the spread's asymmetry move an edge placed in linear light; the others change its profile (and so
 what an estimator that is not unbiased for them reports). Veiling glare (light scattered over the whole
