@@ -120,9 +120,10 @@ def hidden(seeds: int, controls: int, views: int, effects: list[str], first_seed
             rng = np.random.default_rng(seed)
             values = HIDDEN[name](rng) if name in HIDDEN else {}
             ghost = HIDDEN_RENDERED[name](rng) if name in HIDDEN_RENDERED else (0.0, 0.0, 0.0)
-            if ghost[0]:
-                values = {"ghost": ghost[0], "ghost_du_px": ghost[1], "ghost_dv_px": ghost[2]}
-            model = PhotometricModel(**{k: v for k, v in values.items() if not k.startswith("ghost")})
+            model = PhotometricModel(**values)
+            shown = (
+                {"ghost": ghost[0], "ghost_du_px": ghost[1], "ghost_dv_px": ghost[2]} if ghost[0] else values
+            )
             folder = Path(tmp) / f"{name}_{s}"
             folder.mkdir()
             for fname, img in random_board_views(CAMERA, board, model, views, seed, ghost=ghost):
@@ -138,7 +139,7 @@ def hidden(seeds: int, controls: int, views: int, effects: list[str], first_seed
                 named += ok
                 named_or_tie += told_apart
                 total += 1
-            vals = ", ".join(f"{k} {v:.3g}" for k, v in values.items())
+            vals = ", ".join(f"{k} {v:.3g}" for k, v in shown.items())
             alts = f" (cannot tell apart: {c.alternatives})" if c.alternatives else ""
             print(
                 f"  {name} (seed {seed}{'; ' + vals if vals else ''}): named {c.causes} -> {'ok' if ok else 'MISSED'}; "

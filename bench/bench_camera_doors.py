@@ -146,7 +146,7 @@ def run_column(cell, model: PhotometricModel, gamma: float, items, told: bool = 
         cell,
         response_gamma=gamma,
         response_gamma_sigma=None,
-        camera_photometry=model if told and (model.beyond_power_law or model.moves_edges) else None,
+        camera_photometry=model if told and model.used_by_locate else None,
     )
     seen = seen_through(cell, model)
     cfg = dataclasses.replace(stated.locate, calibration_sigma_px=0.0)

@@ -454,9 +454,8 @@ def load_cell(path: str | os.PathLike) -> Cell:
 
 
 def _used_by_locate(model: PhotometricModel) -> PhotometricModel | None:
-    """``model`` where it says something locate uses (a response beyond a power law, edges moved by the point
-    spread's asymmetry, its measured error on real edges), else None."""
-    return model if model.beyond_power_law or model.moves_edges or model.residual_edge_px > 0 else None
+    """``model`` where it says something locate uses (:attr:`PhotometricModel.used_by_locate`), else None."""
+    return model if model.used_by_locate else None
 
 
 def edge_camera_cell(cell: Cell) -> Cell:

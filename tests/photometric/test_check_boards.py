@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+from dataclasses import replace
 from pathlib import Path
 
 import cv2
@@ -15,8 +16,11 @@ from typer.testing import CliRunner
 
 from doorloc.app.cli import app
 from doorloc.calib.camera import CameraModel
+from doorloc.calib.detect import Chessboard
 from doorloc.calib.io import CalibrationFile, load_calibration, save_calibration
+from doorloc.photometric.check import check_boards
 from doorloc.photometric.model import PhotometricModel
+from doorloc.photometric.report import report_markdown
 from doorloc.sim.boards import Checkerboard
 from doorloc.sim.photometric import random_board_views
 
@@ -145,11 +149,6 @@ def test_bad_input_exits_2_and_writes_nothing(tmp_path):
 
 
 def test_report_says_when_the_extended_model_draws_profiles_worse(tmp_path):
-    from dataclasses import replace
-
-    from doorloc.calib.detect import Chessboard
-    from doorloc.photometric.check import check_boards
-    from doorloc.photometric.report import report_markdown
 
     cal = _boards(tmp_path / "boards", PhotometricModel(), 4242)
     check = check_boards(tmp_path / "boards", Chessboard(9, 6, 25.0), load_calibration(cal))
@@ -169,8 +168,6 @@ def test_hidden_ghost_is_named_as_the_spreads_asymmetry(tmp_path):
     # a ghost (a fifth of the light 3-4 px away, a random direction) moves the edges against the corners:
     # psf_asymmetry must be named, its shift pointing the ghost's way. A fixed default draw; DOORLOC_TEST_SEED
     # tries another.
-    from doorloc.calib.detect import Chessboard
-    from doorloc.photometric.check import check_boards
 
     seed = int(os.environ.get("DOORLOC_TEST_SEED", 4242))
     rng = np.random.default_rng(seed)
@@ -197,8 +194,6 @@ def test_hidden_ghost_is_named_as_the_spreads_asymmetry(tmp_path):
 def test_a_bias_that_changes_direction_from_photograph_to_photograph_is_in_the_edge_residual(tmp_path):
     # each photograph with its own ghost (camera shake, fields out of register): no fixed shift explains the
     # edges, their median over all directions cancels much of it, and locate's per-edge doubt must carry it
-    from doorloc.calib.detect import Chessboard
-    from doorloc.photometric.check import check_boards
 
     seed = int(os.environ.get("DOORLOC_TEST_SEED", 4242))
     rng = np.random.default_rng(seed)

@@ -377,12 +377,7 @@ def _edge_residual_px(median_rms_px: float, by_direction_px: np.ndarray, photos:
     noise = np.array([direction_noise_floor_px(p) for p in photos])
     ok = np.isfinite(by_dir) & np.isfinite(noise)
     directional = (
-        float(np.sqrt(max(np.mean(by_dir[ok] ** 2) - np.mean(noise[ok] ** 2), 0.0)))
-        if ok.any()
-        else float("nan")
+        np.sqrt(max(np.mean(by_dir[ok] ** 2) - np.mean(noise[ok] ** 2), 0.0)) if ok.any() else np.nan
     )
-    return (
-        float(np.nanmax([median_rms_px, directional]))
-        if np.isfinite([median_rms_px, directional]).any()
-        else float("nan")
-    )
+    both = np.array([median_rms_px, directional], float)
+    return float(np.max(both[np.isfinite(both)])) if np.isfinite(both).any() else float("nan")

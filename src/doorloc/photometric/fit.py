@@ -174,6 +174,19 @@ def photo_median(photo: Photograph, model: PhotometricModel) -> float:
     return float(np.median(o[ok])) if ok.any() else float("nan")
 
 
+def _quadrant(normal: np.ndarray) -> np.ndarray:
+    """Which way each normal (N, 2) faces: 0 +u, 1 +v, 2 -u, 3 -v (N,)."""
+    return np.round(np.arctan2(normal[:, 1], normal[:, 0]) / (np.pi / 2)).astype(int) % 4
+
+
+def _median_standard_error(x: np.ndarray) -> float:
+    """Standard error of the median of ``x`` from its scatter (MAD), NaN for fewer than three values."""
+    if x.size < 3:
+        return float("nan")
+    mad = 1.4826 * np.median(np.abs(x - np.median(x)))
+    return float(1.2533 * mad / np.sqrt(x.size))
+
+
 def direction_medians(photo: Photograph, model: PhotometricModel) -> np.ndarray:
     """The photograph's median offset over the edges whose bright side faces each way (+u, +v, -u, -v), px (4,).
 
@@ -181,8 +194,7 @@ def direction_medians(photo: Photograph, model: PhotometricModel) -> np.ndarray:
     median over all edges when the directions are balanced, but not in these four.
     """
     o = place_edges(photo, model)
-    n = photo.edges.normal[photo.edges.windows.edge]
-    quadrant = np.round(np.arctan2(n[:, 1], n[:, 0]) / (np.pi / 2)).astype(int) % 4
+    quadrant = _quadrant(photo.edges.normal[photo.edges.windows.edge])
     out = np.full(4, np.nan)
     for q in range(4):
         ok = (quadrant == q) & np.isfinite(o)
@@ -195,24 +207,14 @@ def direction_noise_floor_px(photo: Photograph) -> np.ndarray:
     """Standard error of each of :func:`direction_medians`' four medians from the scatter between the edges of
     that direction, px (4,; NaN where fewer than three edges face that way)."""
     e = photo.edges.edge_offsets_px()
-    n = photo.edges.normal
-    quadrant = np.round(np.arctan2(n[:, 1], n[:, 0]) / (np.pi / 2)).astype(int) % 4
-    out = np.full(4, np.nan)
-    for q in range(4):
-        x = e[(quadrant == q) & np.isfinite(e)]
-        if x.size >= 3:
-            out[q] = 1.2533 * 1.4826 * np.median(np.abs(x - np.median(x))) / np.sqrt(x.size)
-    return out
+    quadrant = _quadrant(photo.edges.normal)
+    return np.array([_median_standard_error(e[(quadrant == q) & np.isfinite(e)]) for q in range(4)])
 
 
 def noise_floor_px(photo: Photograph) -> float:
     """Standard error of a photograph's median offset from the scatter between its edges, px."""
     e = photo.edges.edge_offsets_px()
-    e = e[np.isfinite(e)]
-    if e.size < 3:
-        return float("nan")
-    mad = 1.4826 * np.median(np.abs(e - np.median(e)))
-    return float(1.2533 * mad / np.sqrt(e.size))
+    return _median_standard_error(e[np.isfinite(e)])
 
 
 def _inliers(photo: Photograph) -> np.ndarray:

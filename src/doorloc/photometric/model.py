@@ -237,6 +237,12 @@ class PhotometricModel:
         places edges by that much off."""
         return self.edge_shift_u_px != 0.0 or self.edge_shift_v_px != 0.0
 
+    @property
+    def used_by_locate(self) -> bool:
+        """True where the model says something locate uses: a response beyond a power law, edges moved by the
+        point spread's asymmetry, or its measured error on real edges."""
+        return self.beyond_power_law or self.moves_edges or self.residual_edge_px > 0
+
     def locate_parameters(self) -> dict[str, float]:
         """What locate takes of the model (the response, the edges' shift and the residual on real edges), as
         files and results name them."""
