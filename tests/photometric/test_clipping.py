@@ -16,8 +16,8 @@ from doorloc.photometric.clipping import (
     flat_topped_edges,
     unclipped_contrast,
 )
-from doorloc.photometric.fit import Photograph, place_edges
-from doorloc.photometric.model import PhotometricModel
+from doorloc.photometric.fit import Photograph, place_edges, with_clip_references
+from doorloc.photometric.model import CLIPPED_CONTRAST_MAX, PhotometricModel
 from doorloc.sim.boards import BOARD_BLACK, BOARD_WHITE, Checkerboard
 from doorloc.sim.photometric import CameraRendering, render_photographed_board
 
@@ -64,6 +64,22 @@ def test_model_file_validates_the_clip_level():
         PhotometricModel.from_dict({"clip_level": 1.2})
     g = PhotometricModel(clip_level=0.6).grey_from_light(np.array([0.3, 0.6, 0.9]))
     assert np.allclose(g, [0.3, 0.6, 0.6], atol=1e-3)
+
+
+def test_a_response_far_from_the_cameras_is_costed_not_fatal():
+    # a fit's search may try a power law of 4 on a linear camera's photographs, through which the board's
+    # contrast reads 1:52000, more than a model holds: the clip's references take the most it holds
+    image, e = _random_board(501, 1.0, 0.9, 0.8)
+    photo = Photograph(image, e)
+    far = PhotometricModel(gamma=4.0, clip_level=0.95)
+    assert photo.unclipped_contrast(far) > CLIPPED_CONTRAST_MAX
+    assert with_clip_references([photo], far).clipped_contrast == CLIPPED_CONTRAST_MAX
+    # a sane response keeps the contrast it reads
+    near = PhotometricModel(gamma=2.0, clip_level=0.95)
+    assert with_clip_references([photo], near).clipped_contrast == pytest.approx(
+        photo.unclipped_contrast(near)
+    )
+    place_edges(photo, with_clip_references([photo], far))  # and the edges are placed through it
 
 
 def _random_board(seed: int, clip: float, exposure: float, blur: float):

@@ -34,7 +34,7 @@ from doorloc.photometric.clipping import (
     unclipped_blur_px,
     unclipped_contrast,
 )
-from doorloc.photometric.model import PLAIN, PhotometricModel
+from doorloc.photometric.model import CLIPPED_CONTRAST_MAX, PLAIN, PhotometricModel
 from doorloc.photometric.profiles import fit_profiles
 from doorloc.vision.edges import subpixel_edges
 
@@ -275,9 +275,13 @@ def with_clip_references(photos: Sequence[Photograph], model: PhotometricModel) 
     edges with (``clipped_blur_px``, ``clipped_contrast``), measured on ``photos``; unchanged without a clip."""
     if not model.clips:
         return model
-    return model.with_values(
-        clipped_blur_px=set_blur_px(photos, model.clip_level), clipped_contrast=set_contrast(photos, model)
-    )
+    # Read through a response far from the camera's (a power law of 4 for a linear camera, as a fit's search
+    # may try), a board's contrast can exceed what a model holds (1:52000 measured): held at the most it
+    # holds, so the trial is costed (and loses) instead of ending the check; a contrast of 1 or less
+    # (a response that falls) is none
+    contrast = set_contrast(photos, model)
+    contrast = min(contrast, CLIPPED_CONTRAST_MAX) if contrast > 1.0 else 0.0
+    return model.with_values(clipped_blur_px=set_blur_px(photos, model.clip_level), clipped_contrast=contrast)
 
 
 def fit_causes(

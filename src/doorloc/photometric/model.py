@@ -68,7 +68,11 @@ from dataclasses import asdict, dataclass, fields, replace
 
 import numpy as np
 
-__all__ = ["PhotometricModel", "PLAIN", "PARAMETER_UNITS"]
+__all__ = ["PhotometricModel", "PLAIN", "PARAMETER_UNITS", "CLIPPED_CONTRAST_MAX"]
+
+#: the largest board contrast (light over dark, linear light) a model file holds as ``clipped_contrast``: far
+#: beyond any print's (a matt black and white print reflect about 1:20-1:50)
+CLIPPED_CONTRAST_MAX = 1e4
 
 #: each parameter's unit, for reports and files
 PARAMETER_UNITS = {
@@ -131,9 +135,10 @@ class PhotometricModel:
             raise ValueError(f"photometric model: clip_level {self.clip_level} outside 0.2..1")
         if not 0.0 <= self.clipped_blur_px <= 10.0:
             raise ValueError(f"photometric model: clipped_blur_px {self.clipped_blur_px} outside 0..10")
-        if not (self.clipped_contrast == 0.0 or 1.0 < self.clipped_contrast <= 1e4):
+        if not (self.clipped_contrast == 0.0 or 1.0 < self.clipped_contrast <= CLIPPED_CONTRAST_MAX):
             raise ValueError(
-                f"photometric model: clipped_contrast {self.clipped_contrast} is 0 (unset) or a ratio in 1..1e4"
+                f"photometric model: clipped_contrast {self.clipped_contrast} is 0 (unset) or a ratio in "
+                f"1..{CLIPPED_CONTRAST_MAX:g}"
             )
         if not 0.0 <= self.psf_tail < 1.0:
             raise ValueError("photometric model: psf_tail is a fraction in [0, 1)")
