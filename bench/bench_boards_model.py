@@ -27,7 +27,7 @@ from doorloc.calib.camera import CameraModel
 from doorloc.calib.detect import Chessboard
 from doorloc.calib.io import CalibrationFile, save_calibration
 from doorloc.photometric.check import BoardCheck, check_boards
-from doorloc.photometric.model import PhotometricModel
+from doorloc.photometric.model import TONE_KNOTS, TONE_NAMES, PhotometricModel
 from doorloc.sim.boards import Checkerboard
 from doorloc.sim.photometric import random_board_views
 
@@ -50,6 +50,14 @@ HIDDEN = {
     "soft_saturation": lambda r: (lambda w: {"white_level": w, "shoulder": w - r.uniform(0.15, 0.3)})(
         r.uniform(0.75, 0.9)
     ),
+    # a bend of ln light over the grey scale that no closed form draws: a whole sine wave of random phase through
+    # the six knots (half a wave is a log-log curvature, and is named so); its slope, at most 6 x 0.15 ln per
+    # full scale, keeps the response monotone
+    "response_tone": lambda r: (
+        lambda a, phi: {
+            n: a * np.sin(2 * np.pi * g + phi) for n, g in zip(TONE_NAMES, TONE_KNOTS, strict=True)
+        }
+    )(r.uniform(0.1, 0.15), r.uniform(0, 2 * np.pi)),
 }
 
 #: causes the renderer makes beside the photometric model: the spread's asymmetry as a ghost (a fraction of the
@@ -59,6 +67,14 @@ HIDDEN_RENDERED = {
         r.uniform(0.2, 0.3), r.uniform(2.5, 4.0), r.uniform(0, 2 * np.pi)
     ),
 }
+
+#: effects that need more photographs than ``--views`` (the free tone curve is read on each photograph's median:
+#: 16, where a paired gain over the photographs can reach its threshold); the controls are then rendered with as many
+MIN_VIEWS = {"response_tone": 16}
+
+#: each effect's place in the seeds (35000 + 97 seed + place): an effect added later goes at the end, so that the
+#: others keep their draws
+SEED_ORDER = [*(k for k in HIDDEN if k != "response_tone"), *HIDDEN_RENDERED, "response_tone"]
 
 CAMERA = CameraModel.from_values(
     [[600, 0, 319.5], [0, 600, 239.5], [0, 0, 1]], [-0.2, 0.05, 0, 0, 0], (640, 480)
@@ -105,7 +121,12 @@ def real() -> None:
 
 def hidden(seeds: int, controls: int, views: int, effects: list[str], first_seed: int = 0) -> None:
     board = Checkerboard(9, 6, 25.0)
-    print(f"hidden effects in rendered boards ({views} photographs each; camera fx 600, k1 -0.2)")
+    control_views = max([views, *(MIN_VIEWS.get(e, 0) for e in effects)])
+    print(
+        f"hidden effects in rendered boards ({views} photographs each, more where an effect needs them: "
+        f"{ {e: n for e, n in MIN_VIEWS.items() if e in effects and n > views} }; controls {control_views}; "
+        "camera fx 600, k1 -0.2)"
+    )
     named = named_or_tie = total = 0
     with tempfile.TemporaryDirectory() as tmp:
         cal = Path(tmp) / "camera.yaml"
@@ -115,8 +136,7 @@ def hidden(seeds: int, controls: int, views: int, effects: list[str], first_seed
         ]
         false_alarms = 0
         for name, s in runs:
-            order = list(HIDDEN) + list(HIDDEN_RENDERED)
-            seed = 35000 + 97 * s + (order.index(name) if name in order else 50)
+            seed = 35000 + 97 * s + (SEED_ORDER.index(name) if name in SEED_ORDER else 50)
             rng = np.random.default_rng(seed)
             values = HIDDEN[name](rng) if name in HIDDEN else {}
             ghost = HIDDEN_RENDERED[name](rng) if name in HIDDEN_RENDERED else (0.0, 0.0, 0.0)
@@ -126,7 +146,8 @@ def hidden(seeds: int, controls: int, views: int, effects: list[str], first_seed
             )
             folder = Path(tmp) / f"{name}_{s}"
             folder.mkdir()
-            for fname, img in random_board_views(CAMERA, board, model, views, seed, ghost=ghost):
+            n_views = control_views if name == "control" else max(views, MIN_VIEWS.get(name, 0))
+            for fname, img in random_board_views(CAMERA, board, model, n_views, seed, ghost=ghost):
                 cv2.imwrite(str(folder / fname), img)
             c = check_boards(folder, Chessboard(9, 6, 25.0), CalibrationFile(CAMERA))
             off, prof = c.heldout_rms("offset"), c.heldout_rms("profile_rms")

@@ -25,6 +25,13 @@ even blur, a perfect print):
 - ``curvature``: toe/shoulder of the response beyond a power law, ``ln light = gamma ln g' + curvature (ln g')^2``
   (``g'`` the grey above the pedestal): a characteristic curve that bends in log-log as film's and many
   camera tone curves do;
+- ``tone_1`` .. ``tone_6``: a tone curve no closed form above describes, measured free: ``ln light`` is
+  raised by a piecewise-linear function of the stored grey through 0 at black and these values at the grey
+  levels 1/6, 2/6, .. 1 (:data:`TONE_KNOTS`), as photometric calibration measures a response without
+  assuming its form (Debevec and Malik's free response, Grossberg and Nayar's empirical curves). On Bouguet's
+  photographs the closed forms leave each photograph's edges off by an amount that follows its exposure
+  (correlation -0.86 with its dark level), which this curve takes from 0.063 to 0.023 px held out (2026-11-29);
+  0 everywhere = no correction;
 - ``clip_level``: the stored grey level (fraction of full scale) at which the sensor or its tone curve
   saturates: light beyond it is stored at this level, so an overexposed square's plateau is its clip and not
   its light; 1 = no clipping. It cannot be undone by a table: an edge whose bright square is clipped is placed
@@ -68,11 +75,17 @@ from dataclasses import asdict, dataclass, fields, replace
 
 import numpy as np
 
-__all__ = ["PhotometricModel", "PLAIN", "PARAMETER_UNITS", "CLIPPED_CONTRAST_MAX"]
+__all__ = ["PhotometricModel", "PLAIN", "PARAMETER_UNITS", "CLIPPED_CONTRAST_MAX", "TONE_KNOTS", "TONE_NAMES"]
 
 #: the largest board contrast (light over dark, linear light) a model file holds as ``clipped_contrast``: far
 #: beyond any print's (a matt black and white print reflect about 1:20-1:50)
 CLIPPED_CONTRAST_MAX = 1e4
+
+#: the stored grey levels (fraction of full scale) where the free tone curve's values ``tone_1..6`` sit
+TONE_KNOTS = np.arange(1, 7) / 6.0
+#: the free tone curve's parameters, in the order of :data:`TONE_KNOTS`
+TONE_NAMES = tuple(f"tone_{k}" for k in range(1, 7))
+_TONE_GREY = np.concatenate([[0.0], TONE_KNOTS])  # the curve is 0 at black: it bends, it does not scale
 
 #: each parameter's unit, for reports and files
 PARAMETER_UNITS = {
@@ -82,6 +95,7 @@ PARAMETER_UNITS = {
     "white_level": "fraction of full scale",
     "curvature": "1/ln^2",
     "clip_level": "fraction of full scale",
+    **{f"tone_{k}": "ln light" for k in range(1, 7)},
     "clipped_blur_px": "px",
     "clipped_contrast": "ratio of light",
     "print_spread_mm": "mm on the board",
@@ -104,6 +118,12 @@ class PhotometricModel:
     shoulder: float = 1.0
     white_level: float = 1.0
     curvature: float = 0.0
+    tone_1: float = 0.0
+    tone_2: float = 0.0
+    tone_3: float = 0.0
+    tone_4: float = 0.0
+    tone_5: float = 0.0
+    tone_6: float = 0.0
     clip_level: float = 1.0
     clipped_blur_px: float = 0.0
     clipped_contrast: float = 0.0
@@ -131,6 +151,8 @@ class PhotometricModel:
             raise ValueError(f"photometric model: white_level {self.white_level} outside 0.5..1")
         if not self.white_level > self.black_level + 0.05:
             raise ValueError("photometric model: white_level must lie above black_level")
+        if any(not -3.0 <= v <= 3.0 for v in self.tone):
+            raise ValueError(f"photometric model: tone values {self.tone} outside -3..3 (ln light)")
         if not 0.2 <= self.clip_level <= 1.0:
             raise ValueError(f"photometric model: clip_level {self.clip_level} outside 0.2..1")
         if not 0.0 <= self.clipped_blur_px <= 10.0:
@@ -161,7 +183,17 @@ class PhotometricModel:
             and self.curvature == 0
             and self.shoulder == 1
             and self.white_level == 1
+            and not self.has_tone
         )
+
+    @property
+    def tone(self) -> tuple[float, ...]:
+        """The free tone curve's values at :data:`TONE_KNOTS` (ln light)."""
+        return tuple(getattr(self, n) for n in TONE_NAMES)
+
+    @property
+    def has_tone(self) -> bool:
+        return any(v != 0.0 for v in self.tone)
 
     def to_dict(self) -> dict[str, float]:
         return {k: float(v) for k, v in asdict(self).items()}
@@ -203,7 +235,10 @@ class PhotometricModel:
             # so the curve is held flat beyond that level (dark end for curvature > 0, bright end below 0)
             turn = -self.gamma / (2.0 * self.curvature)
             lg = np.maximum(lg, turn) if self.curvature > 0 else np.minimum(lg, turn)
-        return np.exp(self.gamma * lg + self.curvature * lg * lg) * (g > self.black_level)
+        ln_light = self.gamma * lg + self.curvature * lg * lg
+        if self.has_tone:
+            ln_light = ln_light + np.interp(g, _TONE_GREY, np.concatenate([[0.0], self.tone]))
+        return np.exp(ln_light) * (g > self.black_level)
 
     @property
     def clips(self) -> bool:
@@ -233,6 +268,7 @@ class PhotometricModel:
             and self.shoulder == 1.0
             and self.white_level == 1.0
             and self.curvature == 0.0
+            and not self.has_tone
         )
 
     @property
@@ -259,6 +295,7 @@ class PhotometricModel:
                 "shoulder",
                 "white_level",
                 "curvature",
+                *TONE_NAMES,
                 "edge_shift_u_px",
                 "edge_shift_v_px",
                 "residual_edge_px",

@@ -65,7 +65,8 @@ class PhysicalModel(BaseModel):
     camera_photometry: dict[str, float] | None = Field(
         None,
         description="the camera's photometric model as locate used it (the calibration's, or "
-        "camera.photometric_model): its response (gamma, black_level, shoulder, white_level, curvature), "
+        "camera.photometric_model): its response (gamma, black_level, shoulder, white_level, curvature, the free tone curve "
+        "tone_1..tone_6), "
         "through which the grey levels were mapped to the power law response_gamma where it goes beyond one, "
         "and the edges' shift by the point spread's asymmetry (edge_shift_u_px, edge_shift_v_px, image px), "
         "taken off every edge, and what the model leaves unexplained on the camera's real edges (residual_edge_px, "
