@@ -95,7 +95,7 @@ PARAMETER_UNITS = {
     "white_level": "fraction of full scale",
     "curvature": "1/ln^2",
     "clip_level": "fraction of full scale",
-    **{f"tone_{k}": "ln light" for k in range(1, 7)},
+    **dict.fromkeys(TONE_NAMES, "ln light"),
     "clipped_blur_px": "px",
     "clipped_contrast": "ratio of light",
     "print_spread_mm": "mm on the board",
