@@ -95,6 +95,11 @@ def test_hidden_effect_is_named_and_gains_on_held_out_photographs(tmp_path):
     residual = ext.photometric_model["residual_edge_px"]
     assert off["after"] * (1 - 1e-3) <= residual <= off["after"] + 0.02, (seed, residual, off)
     assert (tmp_path / "report" / "report.md").read_text().startswith("# Model check")
+    # six photographs are too few for the free tone curve (one median each, two per parameter): the report says so
+    assert "needs 12 photographs, 6 given" in rep["not_tried"]["response_tone"]
+    assert (
+        "Not tried, too few photographs:\n- response_tone:" in (tmp_path / "report" / "report.md").read_text()
+    )
 
 
 @pytest.mark.slow

@@ -519,7 +519,7 @@ class Selection:
     ``causes``: the kept causes in the order they were added; ``final``: its fit on all photographs and its
     held-out results; ``plain_px``: each photograph's median offset with the plain model; ``steps``: per step,
     each candidate's held-out RMS (px); ``alternatives``: causes the data cannot tell apart from a kept one
-    (``{kept: [others]}``).
+    (``{kept: [others]}``); ``not_tried``: causes the photographs are too few to measure, and why.
     """
 
     causes: tuple[str, ...]
@@ -528,6 +528,7 @@ class Selection:
     plain_px: np.ndarray
     steps: list[dict[str, float]] = field(default_factory=list)
     alternatives: dict[str, list[str]] = field(default_factory=dict)
+    not_tried: dict[str, str] = field(default_factory=dict)
 
 
 def _gain_z(before: np.ndarray, after: np.ndarray) -> tuple[float, float]:
@@ -603,7 +604,13 @@ def select_causes(
             alternatives[best] = ties
         cur_off, cur_ho = trials[best].by_direction_px, trials[best]
     # a free curve is read on the photographs' medians, one number each: it needs twice its parameters
-    if tried_last is not None and len(photos) >= 2 * len(tried_last.parameters):
+    not_tried: dict[str, str] = {}
+    if tried_last is not None and len(photos) < 2 * len(tried_last.parameters):
+        not_tried[tried_last.name] = (
+            f"it is read on each photograph's median offset and needs {2 * len(tried_last.parameters)} "
+            f"photographs, {len(photos)} given; 16 or more at different exposures measure it"
+        )
+    elif tried_last is not None:
         trial = held_out(photos, [*current, tried_last], fold_of)
         steps.append({tried_last.name: trial.score_px})
         if progress:
@@ -625,4 +632,4 @@ def select_causes(
     final = fit_causes(photos, current)
     if cur_ho is None:
         cur_ho = HeldOut((), plain, [], {}, plain_dir)
-    return Selection(tuple(c.name for c in current), final, cur_ho, plain, steps, alternatives)
+    return Selection(tuple(c.name for c in current), final, cur_ho, plain, steps, alternatives, not_tried)

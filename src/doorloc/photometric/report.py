@@ -81,6 +81,7 @@ def report_dict(check: BoardCheck) -> dict:
         "extended_model": EXTENDED_CALIBRATION,
         "photometric_model": check.model.to_dict(),
         "alternatives": check.alternatives,
+        "not_tried": check.selection.not_tried,
         "selection_steps": [{k: _num(v) for k, v in step.items()} for step in check.selection.steps],
         "blur_terms_gain": {
             k: {"gain": _num(g), "standard_error": _num(s)} for k, (g, s) in check.blur.gains.items()
@@ -143,6 +144,9 @@ def report_markdown(check: BoardCheck) -> str:
     if check.alternatives:
         lines += ["", "The data cannot tell these apart (held-out figures within one standard error):"]
         lines += [f"- {k}: also {', '.join(v)}" for k, v in check.alternatives.items()]
+    if check.selection.not_tried:
+        lines += ["", "Not tried, too few photographs:"]
+        lines += [f"- {k}: {v}" for k, v in check.selection.not_tried.items()]
     if named and prof["after"] > prof["before"] + 0.05 * prof["before"]:
         lines += [
             "",
