@@ -27,7 +27,7 @@ from doorloc.calib.folder import CalibrationError, CalibrationInputError, detect
 from doorloc.calib.io import CalibrationFile
 from doorloc.photometric.blur import BlurTerms, EdgeBlurs, blur_terms
 from doorloc.photometric.board_edges import BoardEdges, EdgeSettings, measure_board_edges, per_edge_median
-from doorloc.photometric.catalogue import EDGE_CAUSES, PROFILE_CAUSES, TONE_CAUSE, keep_sigmas
+from doorloc.photometric.catalogue import CAUSES_BY_NAME, EDGE_CAUSES, PROFILE_CAUSES, keep_sigmas
 from doorloc.photometric.fit import (
     Photograph,
     Selection,
@@ -293,7 +293,7 @@ def check_photographs(
     tail_gain = (float(d.mean()), float(d.std(ddof=1) / np.sqrt(d.size)))
     causes = list(sel.causes)
     parameters: dict[str, dict[str, dict[str, float]]] = {}
-    for c in (*EDGE_CAUSES, TONE_CAUSE):
+    for c in CAUSES_BY_NAME.values():  # in the catalogue's order
         if c.name in causes:
             parameters[c.name] = {
                 n: {

@@ -416,8 +416,11 @@ def _fit_on_medians(
     names, _, lo, hi = _free(causes)
     k = len(names)
 
+    def model_at(x: np.ndarray) -> PhotometricModel:
+        return edge_fit.model.with_values(**dict(zip(names, map(float, x), strict=True)))
+
     def medians(x: np.ndarray) -> np.ndarray:
-        m = edge_fit.model.with_values(**dict(zip(names, map(float, x), strict=True)))
+        m = model_at(x)
         return np.array([photo_median(p, m) for p in photos])
 
     x = np.zeros(k)
@@ -438,7 +441,7 @@ def _fit_on_medians(
         all_causes,
         (*edge_fit.names, *names),
         (*edge_fit.values, *map(float, x)),
-        edge_fit.model.with_values(**dict(zip(names, map(float, x), strict=True))),
+        model_at(x),
         float(0.5 * np.nansum(r**2)),
     )
 
