@@ -8,6 +8,9 @@ Frames, two columns:
   distortion, a measured camera response, shot and read noise, blur, a lighting gradient; sharp-edged doors at
   random poses in the envelope; PNG and JPEG; the seed is printed, ``--seed`` repeats it, ``--frames-dir``
   keeps the folder and reuses it);
+- ``realistic_calibrated``: the same frames in the same cell with ``locate.response_check:
+  where_unmeasured``: the camera response the cell measured (2.2 +- 0.05) is not read again on every frame
+  (a tree without that setting has no such column);
 - ``fixtures``: every committed fixture (fixtures/rendered/*, 117 clean 1080p grey PNGs with zero
   distortion, each with its door from truth.csv).
 
@@ -57,7 +60,7 @@ REPO = Path(__file__).resolve().parents[1]
 FIX = REPO / "fixtures" / "rendered"
 SETS = ("grid", "effects", "widths", "distractors")
 #: the two columns of frames (see the module's docstring)
-GROUPS = ("realistic", "fixtures")
+GROUPS = ("realistic", "realistic_calibrated", "fixtures")
 
 
 def _read_set(folder: Path, label: str) -> list:
@@ -85,8 +88,24 @@ def _read_set(folder: Path, label: str) -> list:
 
 
 def _frames(sets=SETS, realistic: Path | None = None):
-    """The realistic frames in ``realistic`` (if given), then the fixtures of ``sets``."""
+    """The realistic frames in ``realistic`` (if given), again in a cell that trusts its measured response
+    (where the tree has that setting), then the fixtures of ``sets``."""
+    import dataclasses
+
+    from doorloc.vision.config import LocateConfig
+
     out = [] if realistic is None else _read_set(realistic, "realistic")
+    if out and "response_check" in {f.name for f in dataclasses.fields(LocateConfig)}:
+        out += [
+            (
+                n.replace("realistic/", "realistic_calibrated/", 1),
+                replace(c, locate=replace(c.locate, response_check="where_unmeasured")),
+                d,
+                img,
+                p,
+            )
+            for n, c, d, img, p in out
+        ]
     for s in sets:
         out += _read_set(FIX / s, f"fixtures/{s}")
     return out
@@ -241,6 +260,8 @@ def measure_one_frame(repeats: int, realistic: Path) -> dict:
     out: dict = {"doorloc": str(Path(sys.modules["doorloc"].__file__).parent)}
     for group in GROUPS:
         fs = [f for f in frames if f[0].startswith(group + "/")]
+        if not fs:
+            continue
         g: dict = {}
         g["locate"] = _time(lambda f: locate(f[3], f[1], f[2]), fs, repeats)
         g["baseline"] = _time(lambda f: baseline(f[3], f[1], f[2]), fs, repeats)
@@ -268,7 +289,7 @@ def _answer(r) -> dict:
 
 
 def serve_paired(repeats: int, realistic: Path) -> None:
-    """Paired mode's worker: after a warm-up, reads frame indices on stdin and answers each with its
+    """Paired mode's worker: after a warm-up, reads frame names on stdin and answers each with its
     locate's and the baseline's thread-CPU ms (the best of ``repeats``) and locate's answer, one JSON line
     per frame."""
     import cv2
@@ -293,8 +314,9 @@ def serve_paired(repeats: int, realistic: Path) -> None:
             best = min(best, (time.thread_time() - c0) * 1e3)
         return best
 
+    by_name = {f[0]: f for f in frames}
     for line in sys.stdin:
-        _, cell, door, img, _ = frames[int(line)]
+        _, cell, door, img, _ = by_name[line.strip()]
         out = {
             "locate": cpu_ms(locate, img, cell, door),
             "baseline": cpu_ms(baseline, img, cell, door),
@@ -343,7 +365,9 @@ def measure_paired(trees: dict[str, str], rounds: int, repeats: int, realistic: 
             stdout=subprocess.PIPE,
             text=True,
         )
-    names = [json.loads(procs[label].stdout.readline())["names"] for label in trees][0]
+    # the frames every tree has (a column that an older tree lacks is left out)
+    listed = [json.loads(procs[label].stdout.readline())["names"] for label in trees]
+    names = [n for n in listed[0] if all(n in other for other in listed[1:])]
     times: dict[str, dict[str, list[list[float]]]] = {
         label: {"locate": [[] for _ in names], "baseline": [[] for _ in names]} for label in trees
     }
@@ -353,7 +377,7 @@ def measure_paired(trees: dict[str, str], rounds: int, repeats: int, realistic: 
         for i in range(len(names)):
             for label in order if (i + r) % 2 == 0 else order[::-1]:
                 p = procs[label]
-                p.stdin.write(f"{i}\n")
+                p.stdin.write(f"{names[i]}\n")
                 p.stdin.flush()
                 got = json.loads(p.stdout.readline())
                 for k in ("locate", "baseline"):
@@ -365,6 +389,7 @@ def measure_paired(trees: dict[str, str], rounds: int, repeats: int, realistic: 
     out: dict = {"frames": len(names), "rounds": rounds}
     per = {lab: {k: [statistics.median(t) for t in v] for k, v in ts.items()} for lab, ts in times.items()}
     columns = {g: [i for i, n in enumerate(names) if n.startswith(g + "/")] for g in GROUPS}
+    columns = {g: idx for g, idx in columns.items() if idx}
     columns["fixtures.grid"] = [i for i, n in enumerate(names) if n.startswith("fixtures/grid/")]
     for label in trees:
         out[label] = {
@@ -528,7 +553,7 @@ def _measure(a, res: dict, frames_dir: Path) -> None:
         for label, _ in runs:
             rs = rounds[label]
             res[label] = {"doorloc": rs[0]["doorloc"], "rounds": rs}
-            for g in GROUPS:
+            for g in (g for g in GROUPS if g in rs[0]):
                 out = res[label][g] = {
                     "stages_cpu_ms": {
                         k: statistics.median(r[g]["stages_cpu_ms"][k] for r in rs)
@@ -553,7 +578,7 @@ def _measure(a, res: dict, frames_dir: Path) -> None:
     )
     for label, _ in runs if not a.no_one_frame else ():
         print(f"\n{label}: {res[label]['doorloc']}")
-        for g in GROUPS:
+        for g in (g for g in GROUPS if g in res[label]):
             r = res[label][g]
             print(f"  {g}:")
             for k in (
@@ -584,7 +609,7 @@ def _measure(a, res: dict, frames_dir: Path) -> None:
             )
     if a.before and not a.no_one_frame:
         print(f"\nspeed-up, median of {a.rounds} per-round ratios (before / after):")
-        for g in GROUPS:
+        for g in (g for g in GROUPS if g in rounds["before"][0]):
             for k in ("locate", "locate.grid", "decode+locate.png", "decode+locate.jpg"):
                 if k not in rounds["before"][0][g]:
                     continue
@@ -608,7 +633,7 @@ def _measure(a, res: dict, frames_dir: Path) -> None:
             f"\npaired (each frame in both trees in turn, {pr['rounds']} rounds, best of 3 each; thread CPU ms,"
             " medians over the frames):"
         )
-        for g in (*GROUPS, "fixtures.grid"):
+        for g in (g for g in (*GROUPS, "fixtures.grid") if g in pr["speedup"]):
             for label in ("after", "before"):
                 v = pr[label][g]
                 print(

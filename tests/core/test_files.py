@@ -209,6 +209,17 @@ def test_a_cell_takes_the_response_its_calibration_measured_unless_it_states_its
             },
             "width_mm",
         ),
+        (
+            {
+                "camera": {
+                    "image_size": [10, 10],
+                    "camera_matrix": [[1, 0, 5], [0, 1, 5], [0, 0, 1]],
+                    "extrinsics": {"rvec": [0, 0, 0], "tvec_mm": [0, 0, 1]},
+                },
+                "locate": {"response_check": "sometimes"},
+            },
+            "response_check.*every_image.*where_unmeasured",
+        ),
     ],
 )
 def test_bad_cell_names_the_problem(tmp_path, doc, match):

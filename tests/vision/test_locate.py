@@ -524,6 +524,41 @@ def test_the_answer_says_whether_the_camera_response_was_checked_and_why_not(cel
     assert "arris" in locate(img, cell, arrised).diagnostics["camera_response"]["unchecked_because"]
 
 
+def test_a_cell_that_trusts_its_measured_response_does_not_read_it_again(cell):
+    """Under ``locate.response_check: where_unmeasured`` a cell whose response was measured (2.2 +- 0.05)
+    is not read again on the image (the reading is a third of a realistic frame's locate): the answer says
+    so, and rests on the cell's exponent within its measured 2-sigma range, which covers a camera at that
+    range's end (2.3). A cell whose response nobody measured is read as before, and so is every image
+    under the default. What the setting gives up: a camera changed since its calibration (1.8) is
+    absorbed under the default and answered to a few thousandths; trusted, it is 1.7 sigma off."""
+    door = DoorSize(900, 50, 2100)
+    pose = DoorPose(3.1, -2.2, 0.4)
+    measured = replace(cell, response_gamma=2.2, response_gamma_sigma=0.05)
+    measured = replace(
+        measured, locate=replace(measured.locate, response_unmeasured_factor=1 + 2 * 0.05 / 2.2)
+    )
+
+    def located(camera_gamma, c, policy):
+        fx = Effects(
+            albedo_hinge=0.7, albedo_background=0.1, blur_sigma_px=0.8, read_noise_dn=0.5, gamma=camera_gamma
+        )
+        img = render_door(cell, door, pose, effects=fx, seed=2).image
+        r = locate(img, replace(c, locate=replace(c.locate, response_check=policy)), door)
+        assert r.ok, r.error
+        errs = abs(r.x_mm - pose.x_mm) / r.uncertainty.x_mm, abs(r.z_mm - pose.z_mm) / r.uncertainty.z_mm
+        return r.diagnostics["camera_response"], max(errs), abs(r.x_mm - pose.x_mm)
+
+    trusted, within, _ = located(2.3, measured, "where_unmeasured")
+    assert not trusted["checked"] and "locate.response_check" in trusted["unchecked_because"]
+    assert within < 2.0
+    assert located(2.3, measured, "every_image")[0]["checked"]
+    assert located(2.3, replace(cell, response_gamma=2.2), "where_unmeasured")[0]["checked"]
+    checked, _, checked_err = located(1.8, measured, "every_image")
+    assert checked["absorbed"] and checked_err < 0.005
+    unseen, sigmas, unseen_err = located(1.8, measured, "where_unmeasured")
+    assert not unseen["checked"] and unseen_err > 0.015 and sigmas > 1.0
+
+
 def test_a_door_square_to_the_camera_checks_a_wrong_cell_exponent_between_the_pixels(cell):
     """Square to the camera (yaw 0.03 deg: every edge point at one pixel phase), a gamma-2.17 camera in a cell
     that says 1.0 (arris bench --seed 9000, seed 12517): answered 0.079 mm off at 6.8 sigma while the

@@ -89,6 +89,16 @@ class LocateConfig:
         ``doorloc calibrate`` measures it on the chessboard photographs and prints the factor they allow
         (``1 + 2 sigma / gamma``; stored as ``response_gamma`` and ``response_gamma_sigma`` in the calibration
         file), or a plain-edged door in the same cell (``diagnostics.camera_response.fitted``).
+    response_check : ``"every_image"`` or ``"where_unmeasured"``
+        Where the camera's response is read off each image's plain edges. ``"every_image"`` (the default):
+        on every image that can show it, the cell's exponent checked and, where the edges show another,
+        replaced by theirs (a camera whose settings changed since its calibration is caught on the image).
+        ``"where_unmeasured"``: only where the cell's response was not measured (no
+        ``camera.response_gamma_sigma``, from ``doorloc calibrate`` or the cell); where it was, every image
+        rests on the cell's exponent within ``response_unmeasured_factor`` (its measured 2-sigma range
+        unless the cell sets it) and the reading's cost (3 of a realistic 1080p frame's 9 ms) is saved. A
+        camera changed since its calibration is then not seen by locate: for a cell whose camera is locked
+        and re-calibrated when changed.
     max_sigma_mm : float
         Refuse when the fit's standard error of x or z exceeds this.
     max_saturated_fraction : float
@@ -131,6 +141,7 @@ class LocateConfig:
     min_corner_support: float = 0.6
     corner_tolerance_px: float = 0.25
     response_unmeasured_factor: float = 2.2
+    response_check: Literal["every_image", "where_unmeasured"] = "every_image"
     max_sigma_mm: float = 0.05
     max_saturated_fraction: float = 0.5
     max_clipped_arris_fraction: float = 0.1

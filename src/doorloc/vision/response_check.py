@@ -61,9 +61,12 @@ def check_response(
 ) -> ResponseCheck:
     """The response check stage: the camera response read off the plain edges, and where it differs from
     the cell's, the edges refined again with it (the absorb-and-rerun, ``refine_again(pose, gamma)``: the
-    refine stage from ``pose`` with the camera exponent ``gamma``) and read once more."""
+    refine stage from ``pose`` with the camera exponent ``gamma``) and read once more. Under
+    ``locate.response_check: where_unmeasured`` a cell whose response was measured is not read again (the
+    doubts stage then takes its exponent within ``locate.response_unmeasured_factor``)."""
     used_cell = cell
-    response, per_line = measure_response(plane, refined, cell, cfg)
+    trusted = cfg.response_check == "where_unmeasured" and cell.response_gamma_sigma is not None
+    response, per_line = (None, {}) if trusted else measure_response(plane, refined, cell, cfg)
     response_diag: dict[str, Any] = {"cell_gamma": cell.response_gamma, "absorbed": False}
     unstable: float | None = None
     if cell.response_gamma_sigma is not None:
@@ -93,7 +96,12 @@ def check_response(
     response_diag["used"] = "image" if response_diag["absorbed"] else "cell"
     if response is None:
         response_diag["unchecked_because"] = (
-            _response_unchecked_because(refined.samples, refined.fit, refined.blur_px, refined.arris_fits)
+            "the cell's response was measured (camera.response_gamma_sigma) and locate.response_check is "
+            "where_unmeasured: the image is not read again"
+            if trusted
+            else _response_unchecked_because(
+                refined.samples, refined.fit, refined.blur_px, refined.arris_fits
+            )
             if unstable is None
             else f"the edges read {response_diag['first_fit']} with the cell's exponent in use and {unstable} "
             "with that one: a reading that follows the edges' placement, not the camera's response"
