@@ -965,6 +965,34 @@ def test_grain_lines_along_the_hinge_face_are_not_its_far_arris(cell):
     assert abs(et) < 0.1
 
 
+def test_a_grain_band_wider_than_the_stripe_test_is_not_the_far_arris(cell):
+    """Grain of 22 % contrast and a 7.7 mm period makes bands 15-20 px wide, wider than the stripe test's
+    look beside a step: a band's edge 29.8 mm from the reference arris was taken for the far arris of a
+    49.5 mm door whose far edge the vignetting darkens, and the valid door refused as the wrong one
+    (``bench_surfaces.py --sets grain_strong``, seed 17, door 27). What lies between that step and the
+    recipe's far arris has the face's level, not the background's beyond."""
+    door = DoorSize(900, 49.52371931352654, 2100)
+    pose = DoorPose(3.341963687819627, 8.09669453328684, 1.8925225428325922)
+    fx = Effects(
+        albedo_hinge=0.4196981565951673,
+        albedo_side=0.5827737888419371,
+        albedo_background=0.29357166185424066,
+        gradient_u=-0.19939329855759588,
+        gradient_v=-0.1265310293340412,
+        vignetting=0.23711739395084394,
+        grain_contrast=0.22418739456334366,
+        grain_period_mm=7.697727356992928,
+        blur_sigma_px=1.0729546462057136,
+        read_noise_dn=0.43998471025446584,
+        jpeg_quality=88,
+    )
+    r = locate(render_door(cell, door, pose, effects=fx, seed=17027).image, cell, door)
+    assert r.ok, r.error
+    ex, ez, _, et = _err(r, pose, door)
+    assert abs(ex) <= 3 * r.uncertainty.x_mm and abs(ez) <= 3 * r.uncertainty.z_mm
+    assert abs(et) < 0.1
+
+
 def test_an_arris_strip_brighter_than_the_grained_face_is_not_taken_for_grain(cell):
     """The far arris's first step on a chamfered door is the strip's inner border, a strip's width in;
     beyond it a strip brighter than the face and then the dark background average to about the face's

@@ -388,7 +388,12 @@ def _far_line(
         mid = search.scan[search.scan.size // 2 : search.scan.size // 2 + 1]
         thickness = float((far_line.at(mid) - ref_line.at(mid))[0]) * xdir * s.sc
         thinner = thickness < s.door.thickness_mm - 2.0 * (s.cfg.thickness_tolerance_mm + s.door.arris_mm)
-        if not thinner or not _face_texture_line(P_far, search.scan, far_line, ref_line, xdir, s.thr):
+        if not thinner or not (
+            _face_texture_line(P_far, search.scan, far_line, ref_line, xdir, s.thr)
+            or _face_continues(
+                P_far, search.scan, far_line, ref_line, xdir, s.door.thickness_mm / s.sc, s.thr
+            )
+        ):
             break
         # A grain line of the hinge face, parallel to the arrises, made the first clear step (the face's
         # level comes back beyond it): look again beyond it (bench_surfaces --seed 9100, thin_028: a
@@ -550,6 +555,54 @@ def _first_far_line(
         ):
             far_line = near_line
     return far_line
+
+
+def _face_continues(
+    P, scan: np.ndarray, line: ImageLine, ref_line: ImageLine, xdir: int, expected_px: float, thr: float
+) -> bool:
+    """Whether the hinge face goes on beyond a step line found short of the recipe's thickness: a grain
+    stripe wider than :func:`_face_texture_line`'s look (grain of 22 % contrast and a 7.7 mm period, its
+    bands 15-20 px wide: a 49.5 mm door read 29.8 mm thick and refused as the wrong door,
+    ``bench_surfaces.py --sets grain_strong``, seed 17, door 27).
+
+    On every fourth scan line, the mean levels of the face (from the reference arris to the line), of what
+    lies between the line and the recipe's far arris (``expected_px`` from the reference arris along the
+    scan line, about: the coarse scale), and beyond that. The face goes on where, over the scan lines
+    whose face and beyond differ by at least ``thr``, what lies between is nearer the face than what lies
+    beyond by a factor two (median). A door that is there thinner (a panel) has background between, as
+    beyond; the test is then false.
+    """
+    n_along = P.shape[0]
+    s = scan[::4].astype(np.int64)
+    if s.size < 5:
+        return False
+    g = _TEXTURE_GAP_PX
+    ref, at = ref_line.at(s), line.at(s)
+    # along-offsets from the reference arris, px (door +X positive), per scan line
+    near = np.floor((at - ref) * xdir).astype(np.int64)
+    far = int(math.floor(expected_px))
+    if far - g - (int(near.max()) + g) < 4 or int(near.min()) - 2 * g < 4:
+        return False
+
+    def mean_between(a0: np.ndarray, a1: np.ndarray) -> np.ndarray:
+        # the mean level over along-offsets a0..a1 (from the reference arris) on each scan line, NaN outside
+        out = np.full(s.size, np.nan)
+        for i in range(s.size):
+            idx = np.rint(ref[i] + xdir * np.arange(a0[i], a1[i] + 1)).astype(np.int64)
+            if idx.size >= 4 and idx.min() >= 0 and idx.max() < n_along:
+                out[i] = float(P[idx, s[i]].astype(np.float64).mean())
+        return out
+
+    ones = np.ones(s.size, np.int64)
+    face = mean_between(g * ones, near - g)
+    between = mean_between(near + g, (far - g) * ones)
+    beyond = mean_between((far + g) * ones, (far + g + _TEXTURE_WIDE_PX) * ones)
+    clear = np.isfinite(face) & np.isfinite(between) & np.isfinite(beyond) & (np.abs(face - beyond) >= thr)
+    if int(clear.sum()) < 5:
+        return False
+    return float(np.median(np.abs(between[clear] - face[clear]))) < 0.5 * float(
+        np.median(np.abs(between[clear] - beyond[clear]))
+    )
 
 
 #: grain lines of the hinge face that the far arris's search may pass over (:func:`_face_texture_line`)
