@@ -94,14 +94,14 @@ def check_response(
     response_diag["checked"] = response is not None
     # whose exponent the answer rests on: the cell's (measured or stated) or this image's own
     response_diag["used"] = "image" if response_diag["absorbed"] else "cell"
-    if response is None:
+    if response is None and trusted:
         response_diag["unchecked_because"] = (
             "the cell's response was measured (camera.response_gamma_sigma) and locate.response_check is "
             "where_unmeasured: the image is not read again"
-            if trusted
-            else _response_unchecked_because(
-                refined.samples, refined.fit, refined.blur_px, refined.arris_fits
-            )
+        )
+    elif response is None:
+        response_diag["unchecked_because"] = (
+            _response_unchecked_because(refined.samples, refined.fit, refined.blur_px, refined.arris_fits)
             if unstable is None
             else f"the edges read {response_diag['first_fit']} with the cell's exponent in use and {unstable} "
             "with that one: a reading that follows the edges' placement, not the camera's response"
