@@ -204,6 +204,50 @@ def test_bad_inputs_are_refused_with_a_specific_reason(cell, case, code):
     assert r.error and r.error.endswith(tuple("abcdefghijklmnopqrstuvwxyz)"))  # a sentence, not a traceback
 
 
+def test_a_door_the_lighting_hides_is_not_called_missing(cell):
+    """A door 4 grey levels darker than its background, in a cell whose doors are the brighter (every edge
+    under the contrast threshold): no edge is found, and the refusal says that the image where the hinge
+    face must lie hardly differs from the background, not only "check that a door lies in the fixture"
+    (``bench_surfaces.py --sets combined --seed 400``, image 30, its draw to the last digit). An empty
+    fixture says so too, in the same words, for the operator to tell which."""
+    door = DoorSize(900, 61.51577200008097, 2100, arris_profile="round")
+    pose = DoorPose(-5.555462893218513, -2.4013922812541733, -0.9286083695278706)
+    fx = Effects(
+        albedo_hinge=0.5556627120593798,
+        albedo_side=0.41166135464747167,
+        albedo_chamfer=0.5340629520967098,
+        albedo_background=0.24076798159239204,
+        light_ambient=0.3290862012959668,
+        light_directional=0.05056974835900272,
+        light_azimuth_deg=-15.234359524912488,
+        light_elevation_deg=25.766802242392664,
+        gradient_u=0.19863083187319952,
+        gradient_v=0.07837799261148298,
+        vignetting=0.1430064684821625,
+        grain_contrast=0.040892117940906116,
+        grain_period_mm=5.9243202584101065,
+        shadow_strength=0.041996495219259175,
+        shadow_z_mm=47.19491993486295,
+        arris_profile="round",
+        blur_sigma_px=0.8884866662831905,
+        full_well_e=20000.0,
+        read_noise_dn=2.7199628335724317,
+        gamma=2.3287176803605636,
+    )
+    img = render_door(cell, door, pose, effects=fx, seed=404030).image
+    r = locate(img, replace(cell, response_gamma=fx.gamma), door)
+    assert r.error_code == "no_door", r.error
+    assert "grey levels darker than the background" in r.error and "lighting" in r.error
+    w, h = cell.camera.image_size
+    empty = np.clip(np.random.default_rng(0).normal(35, 2, (h, w)), 0, 255).astype(np.uint8)
+    r = locate(empty, cell, DoorSize(900, 50, 2100))
+    assert (
+        r.error_code == "no_door"
+        and "at the level of the background" in r.error
+        and "place a door" in r.error
+    )
+
+
 def test_overexposed_hinge_face_is_refused_as_such(cell):
     """A hinge face clipped at white hides where the edge lies: refused, with the reason, not guessed."""
     pose, door = DoorPose(1.0, -2.0, 0.5), DoorSize(900, 50, 2100)

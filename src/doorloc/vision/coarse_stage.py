@@ -28,6 +28,7 @@ from doorloc.vision.coarse_refusals import (
     REVERSED_BRIGHTNESS,
     brightness_reversed,
     faint_face,
+    indistinct_face,
     looks_like_pattern_here,
     no_door_reason,
 )
@@ -111,6 +112,9 @@ def find_coarse(
             plane, s8, region, cell, cfg
         ):
             raise Refused(q.Refusal(e.refusal.code, REVERSED_BRIGHTNESS[cfg.door_brighter])) from None
+        hidden = indistinct_face(plane, s8, region, cell, cfg) if e.refusal.code == "no_door" else None
+        if hidden is not None:
+            raise Refused(q.Refusal("no_door", hidden)) from None
         raise
     clock.lap("coarse")
     pose = _coarse_pose(edges, plane, s8, region, cell, door, cfg)
