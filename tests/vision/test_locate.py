@@ -542,6 +542,42 @@ def test_a_side_arris_read_either_way_is_uncertain_not_a_wrong_door(
             assert ("along X" in r.error) == (misread != "far"), r.error
 
 
+def test_a_thickness_that_cannot_be_checked_on_an_uncertain_pose_says_both(cell):
+    """A 0.31 mm rounding under 1.6 px of blur, 16 bits, a 1.8 camera the cell states
+    (``bench_surfaces.py --sets combined``, seed 15, image 11, its draw to the last digit): its thickness
+    cannot be checked and its pose is too uncertain besides. The refusal gave only the thickness's
+    reason ("move the door a little along X"), which does not help the pose; both are said."""
+    door = DoorSize(900, 72.81089155691737, 2100, arris_mm=0.3136725476953783, arris_profile="round")
+    pose = DoorPose(2.2839772425558262, 1.3310720387260861, 0.554152217963924)
+    fx = Effects(
+        albedo_hinge=0.35937660740133265,
+        albedo_side=0.4989456032230908,
+        albedo_chamfer=0.19468748706849695,
+        albedo_background=0.20110371406330968,
+        light_ambient=0.7709172238146029,
+        light_directional=0.46457763988054374,
+        light_azimuth_deg=-25.06702424927711,
+        light_elevation_deg=26.234845024476954,
+        gradient_u=-0.05335633845373794,
+        gradient_v=0.05931918145248655,
+        vignetting=0.10456009171209253,
+        grain_contrast=0.027775661828879295,
+        grain_period_mm=2.523041187502276,
+        shadow_z_mm=26.104463210112606,
+        arris_profile="round",
+        blur_sigma_px=1.6466063062708924,
+        read_noise_dn=0.4782280652401192,
+        gamma=1.7996064527806888,
+        bit_depth=16,
+    )
+    img = render_door(cell, door, pose, effects=fx, seed=15011).image
+    r = locate(
+        img, replace(cell, response_gamma=fx.gamma), door, config=LocateConfig(calibration_sigma_px=0.0)
+    )
+    assert r.error_code == "uncertain", r.error
+    assert "thickness cannot be checked" in r.error and "the pose is uncertain as well" in r.error, r.error
+
+
 def test_a_thickness_difference_within_the_measurements_doubt_is_no_mismatch():
     """A wrong door ("check that the right door is in the fixture") is claimed only where the difference exceeds the tolerance by
     more than the measurement's 1-sigma; below that the caller refuses ``uncertain`` (a valid door whose

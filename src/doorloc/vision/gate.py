@@ -66,8 +66,7 @@ def gate_and_answer(
     lines, refusals = _line_checks(r, region, model, cfg)
     refusals += _corner_support(r, region, cfg, diagnostics)
     bright = np.concatenate([r.samples[k].bright[fit.weights[k] > 0] for k in EDGE_NAMES])
-    refusals.append(q.check_overexposed(bright))
-    refusals.append(_arris_clipped(r, cfg))
+    refusals += [q.check_overexposed(bright), _arris_clipped(r, cfg)]
     refusals.append(
         q.check_envelope(
             pose.x_mm, pose.z_mm, pose.yaw_deg, cell.envelope, cfg.envelope_margin_mm, cfg.envelope_margin_deg
@@ -95,8 +94,10 @@ def gate_and_answer(
     unc = PoseUncertainty(x_mm=budget.x_mm, z_mm=budget.z_mm, yaw_deg=budget.yaw_deg)
     diagnostics["uncertainty_terms"] = {k: [round(v, 6) for v in t] for k, t in budget.groups.items()}
     diagnostics["uncertainty_budget"] = [t.as_dict() for t in budget.terms]
-    refusals.append(_pose_check(unc, budget.groups, model, check.response, cfg))
-    first = _first_refusal(refusals, r, plane, s8, cfg)
+    refusals.append(pose_refusal := _pose_check(unc, budget.groups, model, check.response, cfg))
+    first = _with_uncertain_pose(
+        _first_refusal(refusals, r, plane, s8, cfg), unverified, pose_refusal, unc, cfg
+    )
     if first is not None:
         diagnostics["measured"] = {
             "x_mm": pose.x_mm,
@@ -120,6 +121,28 @@ def gate_and_answer(
         thickness_unverified_reason=unverified[0].message if unverified else None,
         lines=lines,
         diagnostics=diagnostics,
+    )
+
+
+def _with_uncertain_pose(
+    first: q.Refusal | None,
+    unverified: list[q.Refusal],
+    pose: q.Refusal | None,
+    unc: PoseUncertainty,
+    cfg: LocateConfig,
+) -> q.Refusal | None:
+    """The answer's reason ``first``; where it is a thickness the image cannot verify (``unverified``) and the
+    pose is refused as too uncertain besides (``pose``), both said. The thickness's reason asks to move the
+    door or check it, which does not help a pose too uncertain (``bench_surfaces.py --sets combined``: every
+    door refused for its thickness was refused for its pose as well, and the operator read only the
+    thickness)."""
+    if first is None or not unverified or first is not unverified[0] or pose is None:
+        return first
+    return q.Refusal(
+        first.code,
+        f"{first.message}; the pose is uncertain as well (x {unc.x_mm:.3f} mm, z {unc.z_mm:.3f} mm, yaw "
+        f"{unc.yaw_deg:.3f} deg, 1 sigma; the cell allows {cfg.max_uncertainty_mm:g} mm, "
+        f"{cfg.max_uncertainty_deg:g} deg)",
     )
 
 
