@@ -52,7 +52,7 @@ def test_the_mapped_levels_carry_the_cameras_light(gamma, black, shoulder, curva
     read = (table / 65535.0) ** stated
     # 16-bit rounding, carried through the power law: half a code times its slope, the slope's most over
     # that half code (the power law of 1-2.4 is convex: at the code's upper end; at the rounded code itself
-    # it fell 1e-3 short on a level half a code from its neighbours, gamma 2.5 stated 1.1)
+    # it fell half a percent short on a level rounded by nearly half a code, gamma 2.5 stated 1.1)
     tol = stated * np.maximum((table + 0.5) / 65535.0, 1e-3) ** (stated - 1.0) * (0.5 / 65535.0) + 1e-12
     assert np.all(np.abs(read - np.clip(light, 0.0, 1.0)) <= tol + 1e-9)
 
