@@ -1,7 +1,7 @@
 #!/usr/bin/env python
 """Speed of locate: one frame on one thread, decode + locate, and frames/s over a folder.
 
-Frames, two columns:
+Frames, three columns:
 
 - ``realistic`` (the headline): 1080p frames as a real camera gives them, rendered at the start of the run
   with doorloc's own renderer into a temporary folder (:func:`render_realistic`: a lens with barrel
@@ -59,7 +59,7 @@ import numpy as np  # noqa: E402
 REPO = Path(__file__).resolve().parents[1]
 FIX = REPO / "fixtures" / "rendered"
 SETS = ("grid", "effects", "widths", "distractors")
-#: the two columns of frames (see the module's docstring)
+#: the columns of frames (see the module's docstring)
 GROUPS = ("realistic", "realistic_calibrated", "fixtures")
 
 
