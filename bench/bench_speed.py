@@ -50,7 +50,7 @@ import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
 from concurrent.futures import ProcessPoolExecutor  # noqa: E402
-from dataclasses import replace  # noqa: E402
+from dataclasses import fields, replace  # noqa: E402
 from multiprocessing import get_context  # noqa: E402
 from pathlib import Path  # noqa: E402
 
@@ -90,12 +90,10 @@ def _read_set(folder: Path, label: str) -> list:
 def _frames(sets=SETS, realistic: Path | None = None):
     """The realistic frames in ``realistic`` (if given), again in a cell that trusts its measured response
     (where the tree has that setting), then the fixtures of ``sets``."""
-    import dataclasses
-
     from doorloc.vision.config import LocateConfig
 
     out = [] if realistic is None else _read_set(realistic, "realistic")
-    if out and "response_check" in {f.name for f in dataclasses.fields(LocateConfig)}:
+    if out and "response_check" in {f.name for f in fields(LocateConfig)}:
         out += [
             (
                 n.replace("realistic/", "realistic_calibrated/", 1),

@@ -2,9 +2,9 @@
 
 Where no reference arris, far arris or bottom end was found, the stage says why as a person can act on it:
 a calibration pattern in view (:func:`looks_like_pattern_here`), a hinge face on the other side of the
-background's brightness than the cell says (:func:`brightness_reversed`), an edge or a face too faint for
-the noise (:func:`faint_edge`, :func:`faint_face`), a hinge face the lighting hides against the background
-(:func:`indistinct_face`), or no door (:func:`no_door_reason`).
+background's brightness than the cell says, or one the lighting hides against it (:func:`face_refusal`), an
+edge or a face too faint for the noise (:func:`faint_edge`, :func:`faint_face`), or no door
+(:func:`no_door_reason`).
 """
 
 from __future__ import annotations
@@ -26,8 +26,8 @@ from doorloc.vision.sampling import oriented
 __all__ = [
     "FAINT_EDGE_AVERAGE_PX",
     "REVERSED_BRIGHTNESS",
-    "brightness_reversed",
     "face_minus_background",
+    "face_refusal",
     "faint_edge",
     "faint_face",
     "indistinct_face",
@@ -79,26 +79,35 @@ def face_minus_background(plane, s8: float, region: SearchRegion, cell: Cell) ->
     return levels[0] - levels[1]
 
 
-def brightness_reversed(plane, s8: float, region: SearchRegion, cell: Cell, cfg: LocateConfig) -> bool:
-    """Whether the hinge face is clearly on the other side of the background's brightness than the cell's
-    ``locate.door_brighter`` says (:func:`face_minus_background`): used to name the cause when no edge of the
-    expected polarity was found."""
+def face_refusal(
+    code: str, plane, s8: float, region: SearchRegion, cell: Cell, cfg: LocateConfig
+) -> q.Refusal | None:
+    """A better reason for the coarse stage's refusal ``code`` (``no_door`` or ``edge_missing``) read off the
+    hinge face's level against the background's (:func:`face_minus_background`, read once), or None: a face
+    clearly on the other side of the background's brightness than the cell's ``locate.door_brighter`` says
+    (:data:`REVERSED_BRIGHTNESS`, either code), or, where no door edge was found, a face within the contrast
+    threshold of the background (:func:`indistinct_face`)."""
+    if code not in ("no_door", "edge_missing"):
+        return None
     d = face_minus_background(plane, s8, region, cell)
-    return d is not None and abs(d) >= cfg.min_contrast and (d < 0) == cfg.door_brighter
+    if d is None:
+        return None
+    if abs(d) >= cfg.min_contrast and (d < 0) == cfg.door_brighter:
+        return q.Refusal(code, REVERSED_BRIGHTNESS[cfg.door_brighter])
+    if code == "no_door" and abs(d) < cfg.min_contrast:
+        return q.Refusal(code, indistinct_face(d, cfg))
+    return None
 
 
-def indistinct_face(plane, s8: float, region: SearchRegion, cell: Cell, cfg: LocateConfig) -> str | None:
-    """Where no door edge was found and the image where the hinge face must lie is within the contrast
-    threshold of the background behind the door (:func:`face_minus_background`), the reason in the
-    operator's words (an empty fixture or a door the lighting hides: both are said); else None.
+def indistinct_face(d: float, cfg: LocateConfig) -> str:
+    """The reason, in the operator's words, where no door edge was found and the image where the hinge face must
+    lie is ``d`` grey levels from the background behind the door, within the contrast threshold (an empty
+    fixture or a door the lighting hides: both are said).
 
     Seen on ``bench_surfaces.py --sets combined --seed 400``, images 30 and 34: doors 4 grey levels darker
     than their background in a cell whose doors are the brighter, refused "no door edge was found ...
     check that a door lies in the fixture", which sent the operator to a fixture that held a door.
     """
-    d = face_minus_background(plane, s8, region, cell)
-    if d is None or abs(d) >= cfg.min_contrast:
-        return None
     level = (
         "at the level of the background behind the door"
         if abs(d) < 2.0  # (a median of 13 pixels wanders by a grey level or so on a noisy background)

@@ -25,10 +25,8 @@ from doorloc.cell import Cell, DoorSize
 from doorloc.vision import quality as q
 from doorloc.vision.coarse import line_through_steps
 from doorloc.vision.coarse_refusals import (
-    REVERSED_BRIGHTNESS,
-    brightness_reversed,
+    face_refusal,
     faint_face,
-    indistinct_face,
     looks_like_pattern_here,
     no_door_reason,
 )
@@ -108,13 +106,9 @@ def find_coarse(
     try:
         edges = yield from _coarse_edges(plane, s8, region, door, cfg, bands)
     except Refused as e:
-        if e.refusal.code in ("no_door", "edge_missing") and brightness_reversed(
-            plane, s8, region, cell, cfg
-        ):
-            raise Refused(q.Refusal(e.refusal.code, REVERSED_BRIGHTNESS[cfg.door_brighter])) from None
-        hidden = indistinct_face(plane, s8, region, cell, cfg) if e.refusal.code == "no_door" else None
-        if hidden is not None:
-            raise Refused(q.Refusal("no_door", hidden)) from None
+        better = face_refusal(e.refusal.code, plane, s8, region, cell, cfg)
+        if better is not None:
+            raise Refused(better) from None
         raise
     clock.lap("coarse")
     pose = _coarse_pose(edges, plane, s8, region, cell, door, cfg)
