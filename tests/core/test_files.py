@@ -271,6 +271,13 @@ def test_the_cells_light_is_read_as_a_direction_and_checked(thesis_cell_path):
         doc["locate"] = {"light_direction_deg": bad}
         with pytest.raises(CellFileError, match="light_direction_deg"):
             parse_cell(doc, Path(thesis_cell_path).parent, "cell.yaml")
+    assert cell.locate.light_direction_sigma_deg == 10.0
+    doc["locate"] = {"light_direction_deg": [70, 22.5], "light_direction_sigma_deg": 3}
+    assert parse_cell(doc, Path(thesis_cell_path).parent, "cell.yaml").locate.light_direction_sigma_deg == 3.0
+    for bad in (-1, 120, "a few"):
+        doc["locate"] = {"light_direction_sigma_deg": bad}
+        with pytest.raises(CellFileError, match="light_direction_sigma_deg"):
+            parse_cell(doc, Path(thesis_cell_path).parent, "cell.yaml")
 
 
 def test_cell_physical_settings_round_trip_and_hashes(tmp_path, thesis_cell_path):

@@ -13,7 +13,7 @@ import numpy as np
 
 from doorloc.vision.arris_geometry import ArrisGeometry
 from doorloc.vision.arris_model import FIT_LINES, StripFit, deficit_prior, fit_strip_profile
-from doorloc.vision.arris_strip import pixel_terms_fill
+from doorloc.vision.arris_strip import StatedLight, pixel_terms_fill
 from doorloc.vision.blurred_step import STEP_TAIL_SIGMAS
 from doorloc.vision.edge_samples import EdgeSamples, ScanWindow
 from doorloc.vision.edges import DITHERING_NOISE_LEVELS
@@ -184,8 +184,9 @@ class StripWindow:
     line_fit : bool
         Each line's border from the fitted strip shape (:func:`_line_borders`) where that fit holds, the
         area estimate elsewhere; False: the area estimate on every line.
-    light_cell : ndarray (3,) or None
-        The cell's light, a unit vector towards it (cell frame), for a rounding's shading; None: free.
+    light : StatedLight or None
+        The cell's light (its direction in the cell frame and its doubt), for a rounding's shading; None:
+        free.
     """
 
     lines: ScanWindow
@@ -193,7 +194,7 @@ class StripWindow:
     search: bool = False
     level_px: int | None = None
     line_fit: bool = True
-    light_cell: np.ndarray | None = None
+    light: StatedLight | None = None
 
     @property
     def door_side(self) -> int:
@@ -404,7 +405,7 @@ def _strip_shading(
             search_px=float(pad),
             prior=prior,
             shared=shared,
-            light_cell=window.light_cell,
+            light=window.light,
         )
     bias = 0.0
     if fit is not None:

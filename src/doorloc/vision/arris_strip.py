@@ -21,6 +21,7 @@ from doorloc.vision.jit import kernel, pairwise_sum
 from doorloc.vision.sampling import normal_cdf_pdf
 
 __all__ = [
+    "StatedLight",
     "StripProblem",
     "StripEvaluation",
     "strip_basis",
@@ -131,6 +132,31 @@ def strip_basis(geom: ArrisGeometry, n_cells: int, terminator: float | None, lit
         return np.stack([np.ones(n_cells), np.cos(th).mean(axis=1), np.sin(th).mean(axis=1)], axis=1)
     s = np.sin(th - terminator) * (-1.0 if lit_below else 1.0)
     return np.stack([np.ones(n_cells), np.maximum(s, 0.0).mean(axis=1)], axis=1)
+
+
+@dataclass(frozen=True)
+class StatedLight:
+    """The cell's light as its file states it (``locate.light_direction_deg``): ``direction_cell`` a unit
+    vector towards it (cell frame), and ``sigma_rad`` how far the true direction may lie from it, 1 sigma,
+    radians, any way round (``locate.light_direction_sigma_deg``)."""
+
+    direction_cell: np.ndarray
+    sigma_rad: float = 0.0
+
+    def turned(self) -> tuple[np.ndarray, ...]:
+        """The stated direction turned by ``sigma_rad`` four ways (up and down, to either side): the mean
+        square of what a strip's fit moves between them is what a direction off by ``sigma_rad`` the
+        other way round moves it by, on average over the ways. Empty where the direction is exact."""
+        if self.sigma_rad <= 0.0:
+            return ()
+        d = np.asarray(self.direction_cell, float)
+        side = np.cross(d, [0.0, 0.0, 1.0])
+        if np.linalg.norm(side) < 1e-9:  # a light straight above or below: any side will do
+            side = np.array([1.0, 0.0, 0.0])
+        side = side / np.linalg.norm(side)
+        up = np.cross(side, d)
+        c, s = math.cos(self.sigma_rad), math.sin(self.sigma_rad)
+        return tuple(c * d + s * k * axis for axis in (side, up) for k in (1.0, -1.0))
 
 
 def lit_basis(geom: ArrisGeometry, n_cells: int, light_cell: np.ndarray) -> np.ndarray:

@@ -70,6 +70,14 @@ class LocateConfig:
         border; a finish that is no Lambertian, or a light that is no single direction, costs
         ``arris_model.LIT_DEFICIT_FLOOR`` of the strip's width in its doubt. None (the default): the free
         shading.
+    light_direction_sigma_deg : float
+        How far the true light may lie from ``light_direction_deg``, 1 sigma, degrees, any way round (a lamp
+        whose position was measured with a tape: a few degrees; a broad panel or a lamp guessed at: more).
+        Each rounded strip is fitted again under the light turned by it four ways, and what its border
+        moves goes into its doubt. Default 10; 0 takes the stated light as exact (a 0.74 mm rounding's
+        door whose light was stated 40 degrees off was then answered 0.11 mm wrong at 3.2 sigma). A strip
+        the stated light fits far worse than a free shading does is fitted as if no light were stated
+        (``arris_model.STATED_LIGHT_MISFIT_RATIO``; ``diagnostics.arris_fit.<line>.stated_light``).
     min_inliers, min_inlier_fraction, max_rms_residual_px : int, float, float
         Line-fit gate.
     corner_zone_px, min_corner_support : float
@@ -151,11 +159,16 @@ class LocateConfig:
     cell_sigma_mm: float = 0.0
     cell_sigma_deg: float = 0.0
     light_direction_deg: tuple[float, float] | None = None
+    light_direction_sigma_deg: float = 10.0
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.max_clipped_arris_fraction <= 1.0:
             raise ValueError(
                 f"max_clipped_arris_fraction is a share of scan lines in 0..1, got {self.max_clipped_arris_fraction:g}"
+            )
+        if not 0.0 <= self.light_direction_sigma_deg <= 90.0:
+            raise ValueError(
+                f"light_direction_sigma_deg is an angle in 0..90 degrees, got {self.light_direction_sigma_deg:g}"
             )
         if self.light_direction_deg is not None:
             az, el = self.light_direction_deg

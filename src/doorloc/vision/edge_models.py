@@ -37,6 +37,7 @@ from doorloc.cell import DoorSize
 from doorloc.vision.arris_geometry import ArrisGeometry
 from doorloc.vision.arris_lines import StripWindow, arris_edges
 from doorloc.vision.arris_model import STRIP_RADIANCE, STRIP_RADIANCE_SIGMA, StripFit
+from doorloc.vision.arris_strip import StatedLight
 from doorloc.vision.blurred_step import refine_step_fit
 from doorloc.vision.edge_samples import EdgeSamples, ScanWindow
 from doorloc.vision.edges import subpixel_edges, subpixel_edges_banded
@@ -72,8 +73,8 @@ class PassSettings:
     windows assume; ``optical_blur_px``: the blur measured on the reference arris (NaN before it is);
     ``slope_smooth``: scan lines for the plain estimator's slope; ``door``: the door's size and arris;
     ``arris``: the strips' geometry per line where the door has an arris; ``step_blur_px``: the lines the
-    blurred-step fit refines, and the blur it uses; ``light_cell``: the cell's light (a unit vector towards
-    it, cell frame) where the cell states it.
+    blurred-step fit refines, and the blur it uses; ``light``: the cell's light (its direction in the cell
+    frame and its doubt) where the cell states it.
     """
 
     every: int
@@ -83,7 +84,7 @@ class PassSettings:
     door: DoorSize
     arris: dict[str, ArrisGeometry] | None
     step_blur_px: dict[str, float]
-    light_cell: np.ndarray | None = None
+    light: StatedLight | None = None
 
     @property
     def blur_guess_px(self) -> float:
@@ -209,7 +210,7 @@ class ArrisStrip:
                 # which its window was placed for: there the area estimate; the line fit in both passes
                 # lost every far point on 2 of 48 arris bench frames)
                 line_fit=name != "far" or every == 1,
-                light_cell=settings.light_cell,
+                light=settings.light,
             ),
             band,
             settings.arris[name],

@@ -196,6 +196,9 @@ def locate_steps(
         door_brighter=cfg.door_brighter,
         face_y_mm=cell.face_y(door),
         light_direction_deg=list(cfg.light_direction_deg) if cfg.light_direction_deg is not None else None,
+        light_direction_sigma_deg=cfg.light_direction_sigma_deg
+        if cfg.light_direction_deg is not None
+        else None,
         camera_photometry=cell.camera_photometry.locate_parameters()
         if cell.camera_photometry is not None
         else None,

@@ -15,6 +15,7 @@ from doorloc.pose import direction_cell
 from doorloc.vision import quality as q
 from doorloc.vision.arris_geometry import ArrisGeometry
 from doorloc.vision.arris_model import StripFit, arris_geometry
+from doorloc.vision.arris_strip import StatedLight
 from doorloc.vision.config import LocateConfig
 from doorloc.vision.edge_models import ARRIS_PLATEAU_PX, EDGE_MODELS, PassSettings, ScanWindow, edge_kind
 from doorloc.vision.edge_samples import EdgeSamples
@@ -98,6 +99,13 @@ def _arris_and_keep(
     return geoms, keep
 
 
+def _stated_light(cfg: LocateConfig) -> StatedLight | None:
+    """The cell's light as its ``locate`` section states it, or None where it states none."""
+    if cfg.light_direction_deg is None:
+        return None
+    return StatedLight(direction_cell(*cfg.light_direction_deg), math.radians(cfg.light_direction_sigma_deg))
+
+
 def _sample(
     plane,
     scale8: float,
@@ -137,7 +145,7 @@ def _sample(
         door=door,
         arris=geoms,
         step_blur_px=this_pass.step_fit or {},
-        light_cell=direction_cell(*cfg.light_direction_deg) if cfg.light_direction_deg is not None else None,
+        light=_stated_light(cfg),
     )
     out, far_fit, step_fitted = {}, None, {}
     for name in this_pass.lines:

@@ -62,6 +62,11 @@ class PhysicalModel(BaseModel):
         description="the cell's light, [azimuth, elevation] deg in the cell frame, that rounded arrises were "
         "shaded under (locate.light_direction_deg); null: not stated, a free shading",
     )
+    light_direction_sigma_deg: float | None = Field(
+        None,
+        description="how far the stated light may lie from the true one, 1 sigma, deg "
+        "(locate.light_direction_sigma_deg), carried into the rounded arrises' doubt; null: no light stated",
+    )
     camera_photometry: dict[str, float] | None = Field(
         None,
         description="the camera's photometric model as locate used it (the calibration's, or "
