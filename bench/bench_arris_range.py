@@ -39,6 +39,9 @@ thickness 0.09), the worst 0.30; ``within``, the worst 1.27; ``bound``, 90 % wit
                            and sigmas of every door, those the cell would refuse counted apart)
         [--light-told]    (the cell states its light's direction, locate.light_direction_deg, as measured
                            once for fixed lamps: the renderer's)
+        [--light-error DEG]   (with --light-told: the stated direction DEG off the renderer's, turned a
+                               way drawn from the door's seed)
+        [--light-sigma DEG]   (the cell's locate.light_direction_sigma_deg; default the cell's, 10)
 
 ``--open-limits`` measures what the model gets wrong on the doors it refuses as uncertain: are their
 sigmas as large as their errors (an honest refusal: the model must improve), or far larger (the doubt is
@@ -61,7 +64,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from bench_arris import random_effects  # noqa: E402
 
 from doorloc.cell import DoorSize, load_cell  # noqa: E402
-from doorloc.pose import DoorPose  # noqa: E402
+from doorloc.pose import DoorPose, direction_cell  # noqa: E402
 from doorloc.sim.door import render_door  # noqa: E402
 from doorloc.vision.config import LocateConfig  # noqa: E402
 from doorloc.vision.locate import locate  # noqa: E402
@@ -224,6 +227,25 @@ def summary(name: str, rows: list[Outcome]) -> None:
         )
 
 
+def stated_light(
+    azimuth_deg: float, elevation_deg: float, error_deg: float, seed: int
+) -> tuple[float, float]:
+    """The light's direction as a cell states it: ``error_deg`` off the true ``[azimuth, elevation]``
+    (deg), turned about the true direction by an angle drawn from ``seed``; exact where ``error_deg`` is 0."""
+    if error_deg == 0.0:
+        return azimuth_deg, elevation_deg
+    true = direction_cell(azimuth_deg, elevation_deg)
+    side = np.cross(true, [0.0, 0.0, 1.0])
+    side = side / np.linalg.norm(side) if np.linalg.norm(side) > 1e-9 else np.array([1.0, 0.0, 0.0])
+    up = np.cross(side, true)
+    turn = np.random.default_rng([seed, 4242]).uniform(0.0, 2 * np.pi)
+    e = math.radians(error_deg)
+    d = math.cos(e) * true + math.sin(e) * (math.cos(turn) * side + math.sin(turn) * up)
+    elevation = math.degrees(math.asin(max(-1.0, min(1.0, d[2]))))
+    azimuth = math.degrees(math.atan2(d[0], -d[1]))
+    return azimuth, elevation
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=16, help="doors per set")
@@ -261,6 +283,19 @@ def main() -> None:
         help="the cell states its light (locate.light_direction_deg: the renderer's direction, as a cell that "
         "measured its fixed lamps once would)",
     )
+    ap.add_argument(
+        "--light-error",
+        type=float,
+        default=0.0,
+        help="with --light-told: the stated direction off the renderer's by this angle, deg, in a direction "
+        "drawn from the door's seed (a lamp measured with a tape and stated to a few degrees)",
+    )
+    ap.add_argument(
+        "--light-sigma",
+        type=float,
+        default=None,
+        help="the cell's locate.light_direction_sigma_deg (default: the cell's); 0 takes the stated light as exact",
+    )
     args = ap.parse_args()
     sets = args.sets.split(",")
     if unknown := [s for s in sets if s not in SETS]:
@@ -273,6 +308,10 @@ def main() -> None:
     if args.response_factor is not None:
         cell = dataclasses.replace(
             cell, locate=dataclasses.replace(cell.locate, response_unmeasured_factor=args.response_factor)
+        )
+    if args.light_sigma is not None:
+        cell = dataclasses.replace(
+            cell, locate=dataclasses.replace(cell.locate, light_direction_sigma_deg=args.light_sigma)
         )
     limits = None
     if args.open_limits:
@@ -299,7 +338,10 @@ def main() -> None:
                 dataclasses.replace(
                     cell,
                     locate=dataclasses.replace(
-                        cell.locate, light_direction_deg=(fx.light_azimuth_deg, fx.light_elevation_deg)
+                        cell.locate,
+                        light_direction_deg=stated_light(
+                            fx.light_azimuth_deg, fx.light_elevation_deg, args.light_error, seed
+                        ),
                     ),
                 )
                 if args.light_told
