@@ -431,6 +431,24 @@ def test_we_read_what_opencv_writes(tmp_path, cal, dist_shape):
     assert back.camera_name == cal.camera_name
 
 
+@pytest.mark.parametrize(
+    "name", ["\u2028", "line\u2028sep", "para\u2029", "nel\x85", "del\x7f", "c1\x9b", "\ufffe"]
+)
+def test_a_name_opencv_reads_back_we_read_back(tmp_path, name):
+    """Characters OpenCV writes raw inside its quotes and reads back, which YAML folds into a space (the line
+    and paragraph separators, NEL) or cannot carry raw (DEL, C1 controls, U+FFFE): found by hypothesis in
+    :func:`test_we_read_what_opencv_writes` (a name of one U+2028 was read as a space)."""
+    path = tmp_path / "camera.yml"
+    fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE | cv2.FILE_STORAGE_FORMAT_YAML)
+    fs.write("image_width", 640)
+    fs.write("image_height", 480)
+    fs.write("camera_name", name)
+    fs.write("camera_matrix", np.array([[500.0, 0, 320], [0, 500, 240], [0, 0, 1]]))
+    fs.release()
+    assert _opencv_round_trips_name(tmp_path / "name.yml", name)
+    assert load_calibration(path).camera_name == name
+
+
 @pytest.mark.parametrize("name", ["bell\x07", "nul\x00", "del\x7f", "\ufffe", "line\u2028separator"])
 def test_camera_name_a_file_cannot_carry_is_refused_before_writing(tmp_path, name):
     cam = CameraModel.from_values([[700.5, 0, 320.25], [0, 701.0, 240.0], [0, 0, 1]], [], (640, 480))

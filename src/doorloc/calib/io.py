@@ -142,9 +142,23 @@ def _yaml_escape(m: re.Match[str]) -> str:
     return "'" if m.group(0) == "\\'" else m.group(0)
 
 
+#: characters OpenCV writes raw inside its double-quoted strings (and reads back) that YAML cannot carry
+#: raw: DEL and the C1 controls are not printable there, NEL, LS and PS are line breaks (which a quoted
+#: string folds into a space), U+FFFE and U+FFFF are no characters
+_YAML_UNPRINTABLE = re.compile("[\x7f-\x9f\u2028\u2029\ufffe\uffff]")
+
+
+def _yaml_char_escape(m: re.Match[str]) -> str:
+    """The YAML double-quoted escape of one such character."""
+    c = ord(m.group(0))
+    return f"\\x{c:02x}" if c <= 0xFF else f"\\u{c:04x}"
+
+
 def parse_calibration(text: str, source: str = "<calibration>") -> CalibrationFile:
     """Parse OpenCV FileStorage YAML or ROS camera_info YAML text into a :class:`CalibrationFile`."""
-    lines = text.splitlines()
+    # (split at line feeds only: str.splitlines also splits at the line and paragraph separators, NEL and
+    # form feeds that a camera's name may hold inside its quotes)
+    lines = text.split("\n")
     loader: type[yaml.SafeLoader] = _CalibrationLoader
     # OpenCV 4 heads its files "%YAML:1.0" (not YAML: dropped), OpenCV 5 "%YAML 1.2"; ROS files have none.
     if lines and lines[0].startswith("%YAML"):
@@ -154,7 +168,9 @@ def parse_calibration(text: str, source: str = "<calibration>") -> CalibrationFi
         # OpenCV escapes a single quote inside its double-quoted strings as \' , an escape YAML does not
         # have (PyYAML refuses it). Escapes are read in pairs from the left, so that an escaped backslash
         # before a quote (\\' : a backslash, then the quote) keeps its backslash.
-        lines = [_OPENCV_ESCAPE.sub(_yaml_escape, ln) for ln in lines]
+        lines = [
+            _YAML_UNPRINTABLE.sub(_yaml_char_escape, _OPENCV_ESCAPE.sub(_yaml_escape, ln)) for ln in lines
+        ]
     # OpenCV writes "!!opencv-matrix"; PyYAML resolves "!!x" to "tag:yaml.org,2002:x".
     try:
         doc = yaml.load("\n".join(lines), Loader=loader)  # both loaders are SafeLoaders
