@@ -55,6 +55,8 @@ from doorloc.cell import Cell
 if TYPE_CHECKING:  # torch is the optional extra; only run_batched's workers import it
     import torch
 
+    from doorloc.vision.cell_light import LightMeasurement
+
 __all__ = [
     "BatchItem",
     "BatchJob",
@@ -71,6 +73,7 @@ __all__ = [
     "list_files",
     "find_images",
     "plan_batch",
+    "measure_light_in_folder",
     "locate_item",
     "run_local",
     "run_ray",
@@ -256,6 +259,30 @@ def plan_batch(
         seen.add(item.image)
         items.append(item)
     return items
+
+
+def measure_light_in_folder(
+    root: str | os.PathLike, cell_path: str | os.PathLike, manifest: str | os.PathLike | None = None
+) -> LightMeasurement:
+    """The cell's light measured from the door images under ``root``, their doors from ``manifest`` (as
+    :func:`plan_batch` reads it, ``door_id`` rows excepted: no recipe database here) or else the cell's
+    default door: :func:`doorloc.vision.cell_light.measure_cell_light`.
+
+    Raises :class:`doorloc.cell.CellFileError`, :class:`BatchSetupError`,
+    :class:`doorloc.vision.imageio.ImageDecodeError` (unusable files) and
+    :class:`doorloc.vision.cell_light.LightNotMeasurable` (the images cannot tell the light).
+    """
+    from doorloc.cell import load_cell
+    from doorloc.vision.cell_light import measure_cell_light
+    from doorloc.vision.imageio import read_image
+
+    cell = load_cell(cell_path)
+    items = plan_batch(root, cell, manifest)
+    if problems := [f"{it.image}: {it.problem}" for it in items if it.problem]:
+        raise BatchSetupError("; ".join(problems[:5]) + ("; ..." if len(problems) > 5 else ""))
+    if not items:
+        raise BatchSetupError(f"no images under {root}")
+    return measure_cell_light([(read_image(it.path), it.choice.door) for it in items], cell)
 
 
 def _cached(lookup: RecipeLookup | None) -> RecipeLookup:

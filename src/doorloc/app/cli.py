@@ -17,6 +17,7 @@ from doorloc.app import (
     cli_calibrate,
     cli_cell,
     cli_keys,
+    cli_light,
     cli_locate,
     cli_modelcheck,
     cli_reach,
@@ -56,6 +57,7 @@ def _root(
 for _module in (
     cli_calibrate,
     cli_cell,
+    cli_light,
     cli_locate,
     cli_render,
     cli_recipes,

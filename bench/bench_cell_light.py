@@ -1,0 +1,115 @@
+"""The cell's light measured from its doors, and what locate gains with it on doors held out.
+
+Each cell draws one light (azimuth +-10..80 deg either side, elevation -30..60 deg, as the arris bench's
+lights), one camera exponent (1.0-2.4, stated in the cell as measured, ``response_unmeasured_factor``
+1.11) and renders doors with rounded arrises of 0.5-3 mm as the arris bench's ``round`` set draws them
+(blur, albedos, noise, poses), every door under the cell's light. The light is measured from the first
+``--measure`` doors (:func:`doorloc.vision.cell_light.measure_cell_light`); the next ``--test`` doors are
+located three ways: no light stated (the free shading), the measured light with its measured doubt, and
+the renderer's own light (the default doubt). Per cell: the measured direction, its angle from the true
+one, its doubt and any other direction the doors could not rule out; per way: the answered share, RMS of
+x and z, and the share within 2 claimed sigma and beyond 5.
+
+    OMP_NUM_THREADS=1 PYTHONPATH=src python bench/bench_cell_light.py [--cells 3] [--first-cell 0]
+        [--measure 8] [--test 16] [--seed 8500]
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).parent))
+
+from bench_arris_range import draw  # noqa: E402
+
+from doorloc.cell import load_cell  # noqa: E402
+from doorloc.pose import direction_cell  # noqa: E402
+from doorloc.sim.door import render_door  # noqa: E402
+from doorloc.vision.cell_light import measure_cell_light  # noqa: E402
+from doorloc.vision.locate import locate  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _summary(label: str, rows: list[tuple[float, float, float, float] | None]) -> None:
+    ok = [r for r in rows if r is not None]
+    if not ok:
+        print(f"  {label:9s} answered 0/{len(rows)}")
+        return
+    e = np.array(ok)
+    ratio = np.abs(e[:, :2]) / e[:, 2:]
+    print(
+        f"  {label:9s} answered {len(ok)}/{len(rows)}, x / z RMS {math.sqrt(np.mean(e[:, 0] ** 2)):.4f} / "
+        f"{math.sqrt(np.mean(e[:, 1] ** 2)):.4f} mm, within 2 sigma {100 * np.mean(ratio <= 2):.0f} %, beyond 5 "
+        f"{int(np.sum(ratio.max(axis=1) > 5))}, worst {ratio.max():.2f} sigma"
+    )
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--cells", type=int, default=3)
+    ap.add_argument("--first-cell", type=int, default=0)
+    ap.add_argument("--measure", type=int, default=8, help="doors the light is measured from")
+    ap.add_argument("--test", type=int, default=16, help="doors located after, held out")
+    ap.add_argument("--seed", type=int, default=8500)
+    args = ap.parse_args()
+    base = load_cell(ROOT / "fixtures" / "cell_thesis.yaml")
+    for c in range(args.first_cell, args.first_cell + args.cells):
+        rng = np.random.default_rng([args.seed, c])
+        light = (float(rng.choice([-1, 1]) * rng.uniform(10, 80)), float(rng.uniform(-30, 60)))
+        gamma = float(rng.uniform(1.0, 2.4))
+        cell = dataclasses.replace(
+            base,
+            response_gamma=gamma,
+            locate=dataclasses.replace(base.locate, response_unmeasured_factor=1.11),
+        )
+        frames = []
+        for i in range(args.measure + args.test):
+            seed = args.seed * 100 + 1000 * c + i
+            door, pose, fx, _ = draw("round", i, seed)
+            fx = dataclasses.replace(
+                fx, light_azimuth_deg=light[0], light_elevation_deg=light[1], gamma=gamma
+            )
+            frames.append((render_door(cell, door, pose, effects=fx, seed=seed).image, door, pose))
+        m = measure_cell_light([(im, d) for im, d, _ in frames[: args.measure]], cell)
+        off = math.degrees(
+            math.acos(min(1.0, float(direction_cell(*m.direction_deg) @ direction_cell(*light))))
+        )
+        print(
+            f"cell {c}: light [{light[0]:+.1f}, {light[1]:+.1f}], gamma {gamma:.2f}; measured "
+            f"[{m.direction_deg[0]:+.1f}, {m.direction_deg[1]:+.1f}] +- {m.sigma_deg:g} deg ({off:.1f} deg off; "
+            f"{m.strips} strips of {m.doors} doors, score {m.score:.3f})"
+            + (
+                f"; also [{m.runner_up_deg[0]:+.0f}, {m.runner_up_deg[1]:+.0f}] at {m.runner_up_score:.3f}"
+                if m.runner_up_deg
+                else ""
+            )
+        )
+        ways = {
+            "no light": dataclasses.replace(cell.locate, light_direction_deg=None),
+            "measured": dataclasses.replace(
+                cell.locate, light_direction_deg=m.direction_deg, light_direction_sigma_deg=m.sigma_deg
+            ),
+            "true": dataclasses.replace(cell.locate, light_direction_deg=light),
+        }
+        for label, cfg in ways.items():
+            rows = []
+            for im, door, pose in frames[args.measure :]:
+                r = locate(im, cell, door, config=cfg)
+                rows.append(
+                    (r.x_mm - pose.x_mm, r.z_mm - pose.z_mm, r.uncertainty.x_mm, r.uncertainty.z_mm)
+                    if r.ok
+                    else None
+                )
+            _summary(label, rows)
+        sys.stdout.flush()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,116 @@
+"""The cell's light measured from its doors (``doorloc.vision.cell_light``) and ``doorloc measure-light``."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+import cv2
+import pytest
+import yaml
+from typer.testing import CliRunner
+
+from doorloc.app.cli import app
+from doorloc.cell import DoorSize, load_cell
+from doorloc.pose import DoorPose, direction_cell
+from doorloc.sim.door import render_door
+from doorloc.sim.effects import Effects
+from doorloc.vision import cell_light
+from doorloc.vision.cell_light import LightMeasurement, LightNotMeasurable, measure_cell_light
+
+CELL_PATH = Path(__file__).parents[2] / "fixtures" / "cell_thesis.yaml"
+CELL = load_cell(CELL_PATH)
+LIGHT = (-45.0, 15.0)
+
+
+def _door(arris_mm: float, profile: str, pose: DoorPose, blur: float, seed: int):
+    door = DoorSize(900, 50.0, 2100, arris_mm=arris_mm, arris_profile=profile)
+    fx = Effects(
+        arris_profile=profile,
+        albedo_hinge=0.7,
+        albedo_chamfer=0.65,
+        albedo_background=0.12,
+        light_ambient=0.45,
+        light_directional=0.6,
+        light_azimuth_deg=LIGHT[0],
+        light_elevation_deg=LIGHT[1],
+        blur_sigma_px=blur,
+        read_noise_dn=0.5,
+        gamma=1.8,
+    )
+    return render_door(CELL, door, pose, effects=fx, seed=seed).image, door
+
+
+def test_the_light_of_a_cell_is_found_near_its_direction():
+    """Two doors with roundings of 2.4 and 1.6 mm under the cell's lamp at azimuth -45, elevation 15 deg: on
+    a coarse grid 40 deg apart that holds the lamp's mirror across the camera's axis (40, 20) as well as a
+    direction near it (-40, 20), and its quarter steps around the best, the measured light lies within
+    10 deg of the lamp, its doubt at least the floor, and both doors' strips voted."""
+    frames = [
+        _door(2.4, "round", DoorPose(2.0, -3.0, 0.6), 1.1, 1),
+        _door(1.6, "round", DoorPose(-4.0, 2.0, -1.0), 1.3, 2),
+    ]
+    cell = dataclasses.replace(CELL, response_gamma=1.8)
+    m = measure_cell_light(
+        frames, cell, azimuths=(-80.0, -40.0, 0.0, 40.0, 80.0), elevations=(20.0,), fine_steps=1
+    )
+    off = math.degrees(math.acos(min(1.0, float(direction_cell(*m.direction_deg) @ direction_cell(*LIGHT)))))
+    assert off <= 10.0, (m, off)
+    assert m.sigma_deg >= cell_light.MEASURED_SIGMA_FLOOR_DEG
+    assert m.doors == 2 and m.strips >= 4
+
+
+def test_doors_without_a_rounding_cannot_tell_the_light():
+    frames = [
+        _door(2.0, "chamfer", DoorPose(0.0, 0.0, 0.0), 1.0, 3),
+        _door(0.0, "chamfer", DoorPose(), 1.0, 4),
+    ]
+    with pytest.raises(LightNotMeasurable, match="rounded arris"):
+        measure_cell_light(frames, CELL)
+
+
+def _folder_with_one_door(tmp_path: Path) -> Path:
+    d = tmp_path / "doors"
+    d.mkdir()
+    cv2.imwrite(str(d / "door_1.png"), _door(2.0, "round", DoorPose(1.0, 1.0, 0.5), 1.0, 5)[0])
+    return d
+
+
+def test_measure_light_prints_the_lines_for_the_cell_and_warns_of_another_side(tmp_path, monkeypatch):
+    seen = {}
+
+    def measured(frames, cell):
+        seen["doors"] = [door for _, door in frames]
+        return LightMeasurement(
+            (-44.0, 16.0), 10.0, 0.021, 6, 2, runner_up_deg=(40.0, 20.0), runner_up_score=0.05
+        )
+
+    monkeypatch.setattr(cell_light, "measure_cell_light", measured)
+    folder = _folder_with_one_door(tmp_path)
+    (tmp_path / "doors.csv").write_text("image,width_mm,thickness_mm,arris_mm\ndoor_1.png,900,50,2.0\n")
+    doc = yaml.safe_load(CELL_PATH.read_text())
+    doc["door"]["arris_profile"] = "round"
+    doc["camera"]["dist_coeffs"] = [0.0] * 5
+    cell_path = tmp_path / "cell.yaml"
+    cell_path.write_text(yaml.safe_dump(doc))
+    res = CliRunner().invoke(
+        app,
+        ["measure-light", str(folder), "--cell", str(cell_path), "--manifest", str(tmp_path / "doors.csv")],
+    )
+    assert res.exit_code == 0, res.output
+    assert seen["doors"][0].arris_mm == 2.0 and seen["doors"][0].arris_profile == "round"
+    assert (
+        "light_direction_deg: [-44.0, 16.0]" in res.stdout and "light_direction_sigma_deg: 10" in res.stdout
+    )
+    assert "azimuth +40" in res.stderr and "which side" in res.stderr
+
+
+def test_measure_light_exits_1_where_the_doors_have_no_rounding_and_2_on_bad_input(tmp_path):
+    folder = _folder_with_one_door(tmp_path)
+    res = CliRunner().invoke(app, ["measure-light", str(folder), "--cell", str(CELL_PATH)])
+    assert res.exit_code == 1, res.output
+    assert "rounded arris" in res.stderr and "Traceback" not in res.output
+    res = CliRunner().invoke(app, ["measure-light", str(tmp_path / "nowhere"), "--cell", str(CELL_PATH)])
+    assert res.exit_code == 2, res.output
+    assert "nowhere" in res.stderr and "Traceback" not in res.output
