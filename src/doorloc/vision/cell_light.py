@@ -35,8 +35,8 @@ __all__ = [
 ]
 
 #: the first grid, deg: azimuths from one side of the hinge face to the other, elevations from below the
-#: door's bottom end to high above it (a light behind the face, |azimuth| > 90, lights no strip the
-#: camera sees)
+#: door's bottom end to high above it (a light behind the hinge face, |azimuth| > 90, would leave the
+#: face itself dark)
 COARSE_AZIMUTHS = tuple(range(-80, 81, 20))
 COARSE_ELEVATIONS = (-20, 0, 20, 40, 60)
 #: a second least of the mean log ratio this close to the least, and this far from it (deg), is named as
