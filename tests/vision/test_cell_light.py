@@ -46,15 +46,23 @@ def test_the_light_of_a_cell_is_found_near_its_direction():
     """Two doors with roundings of 2.4 and 1.6 mm under the cell's lamp at azimuth -45, elevation 15 deg: on
     a coarse grid 40 deg apart that holds the lamp's mirror across the camera's axis (40, 20) as well as a
     direction near it (-40, 20), and its quarter steps around the best, the measured light lies within
-    10 deg of the lamp, its doubt at least the floor, and both doors' strips voted."""
+    10 deg of the lamp, its doubt at least the floor, and both doors' strips voted; each direction tried
+    is reported as it is scored."""
     frames = [
         _door(2.4, "round", DoorPose(2.0, -3.0, 0.6), 1.1, 1),
         _door(1.6, "round", DoorPose(-4.0, 2.0, -1.0), 1.3, 2),
     ]
     cell = dataclasses.replace(CELL, response_gamma=1.8)
+    heard: list[str] = []
     m = measure_cell_light(
-        frames, cell, azimuths=(-80.0, -40.0, 0.0, 40.0, 80.0), elevations=(20.0,), fine_steps=1
+        frames,
+        cell,
+        azimuths=(-80.0, -40.0, 0.0, 40.0, 80.0),
+        elevations=(20.0,),
+        fine_steps=1,
+        progress=heard.append,
     )
+    assert len(heard) == 5 + 8 and heard[-1].endswith("(8 of 8)")  # every direction scored is told
     off = math.degrees(math.acos(min(1.0, float(direction_cell(*m.direction_deg) @ direction_cell(*LIGHT)))))
     assert off <= 10.0, (m, off)
     assert m.sigma_deg >= cell_light.MEASURED_SIGMA_FLOOR_DEG
@@ -80,7 +88,7 @@ def _folder_with_one_door(tmp_path: Path) -> Path:
 def test_measure_light_prints_the_lines_for_the_cell_and_warns_of_another_side(tmp_path, monkeypatch):
     seen = {}
 
-    def measured(frames, cell):
+    def measured(frames, cell, progress=None):
         seen["doors"] = [door for _, door in frames]
         return LightMeasurement(
             (-44.0, 16.0), 10.0, 0.021, 6, 2, runner_up_deg=(40.0, 20.0), runner_up_score=0.05

@@ -262,11 +262,14 @@ def plan_batch(
 
 
 def measure_light_in_folder(
-    root: str | os.PathLike, cell_path: str | os.PathLike, manifest: str | os.PathLike | None = None
+    root: str | os.PathLike,
+    cell_path: str | os.PathLike,
+    manifest: str | os.PathLike | None = None,
+    progress: Callable[[str], None] | None = None,
 ) -> LightMeasurement:
     """The cell's light measured from the door images under ``root``, their doors from ``manifest`` (as
     :func:`plan_batch` reads it, ``door_id`` rows excepted: no recipe database here) or else the cell's
-    default door: :func:`doorloc.vision.cell_light.measure_cell_light`.
+    default door: :func:`doorloc.vision.cell_light.measure_cell_light` (``progress`` its).
 
     Raises :class:`doorloc.cell.CellFileError`, :class:`BatchSetupError`,
     :class:`doorloc.vision.imageio.ImageDecodeError` (unusable files) and
@@ -282,7 +285,9 @@ def measure_light_in_folder(
         raise BatchSetupError("; ".join(problems[:5]) + ("; ..." if len(problems) > 5 else ""))
     if not items:
         raise BatchSetupError(f"no images under {root}")
-    return measure_cell_light([(read_image(it.path), it.choice.door) for it in items], cell)
+    return measure_cell_light(
+        [(read_image(it.path), it.choice.door) for it in items], cell, progress=progress
+    )
 
 
 def _cached(lookup: RecipeLookup | None) -> RecipeLookup:

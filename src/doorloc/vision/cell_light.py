@@ -17,7 +17,7 @@ minutes, once for a cell.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -79,10 +79,13 @@ def _angle_deg(a: tuple[float, float], b: tuple[float, float]) -> float:
 
 
 def _scores(
-    frames: Sequence[tuple[np.ndarray, DoorSize]], cell: Cell, lights: Sequence[tuple[float, float]]
+    frames: Sequence[tuple[np.ndarray, DoorSize]],
+    cell: Cell,
+    lights: Sequence[tuple[float, float]],
+    progress: Callable[[str], None] | None = None,
 ) -> tuple[dict[tuple[float, float], float], int, int]:
     """Each light's mean log misfit ratio over the rounded strips of ``frames``; the strips and the doors
-    that voted (under the first light)."""
+    that voted (under the first light). ``progress`` hears of each light done."""
     out: dict[tuple[float, float], float] = {}
     strips = doors = 0
     for k, light in enumerate(lights):
@@ -101,6 +104,10 @@ def _scores(
         if k == 0:
             strips = len(logs)
         out[light] = float(np.mean(logs)) if logs else math.nan
+        if progress is not None:
+            progress(
+                f"light [{light[0]:+.0f}, {light[1]:+.0f}] deg: {out[light]:.3f} ({k + 1} of {len(lights)})"
+            )
     return out, strips, doors
 
 
@@ -111,13 +118,14 @@ def measure_cell_light(
     azimuths: Sequence[float] = COARSE_AZIMUTHS,
     elevations: Sequence[float] = COARSE_ELEVATIONS,
     fine_steps: int = 2,
+    progress: Callable[[str], None] | None = None,
 ) -> LightMeasurement:
     """The direction of the cell's light from images of its doors, ``frames`` (image, door) pairs, the doors
     with rounded arrises (``arris_profile: round``; chamfers and sharp edges do not tell the light).
 
     The mean log misfit ratio over the doors' rounded strips at every ``azimuths`` x ``elevations``
     direction (deg, cell frame), then on a grid a quarter of its steps wide around the least, ``fine_steps``
-    of them each way.
+    of them each way. ``progress`` hears a line for each direction scored (a locate of every door).
 
     Raises
     ------
@@ -131,7 +139,7 @@ def measure_cell_light(
             "default door or the manifest): only a rounding's shading tells the light"
         )
     coarse = [(float(a), float(e)) for e in elevations for a in azimuths]
-    scores, strips, doors = _scores(frames, cell, coarse)
+    scores, strips, doors = _scores(frames, cell, coarse, progress)
     if strips == 0 or all(math.isnan(v) for v in scores.values()):
         raise LightNotMeasurable(
             "locate fitted no rounded arris strip on these images: they cannot tell the light "
@@ -151,7 +159,7 @@ def measure_cell_light(
         for i in steps
         if (i, j) != (0, 0)
     ]
-    fine_scores, _, _ = _scores(frames, cell, fine)
+    fine_scores, _, _ = _scores(frames, cell, fine, progress)
     scores.update(fine_scores)
     best = min(scores, key=at)
     near = [k for k in [*fine, best] if at(k) <= scores[best] + RUNNER_UP_MARGIN]
