@@ -33,7 +33,9 @@ def measure_light_cmd(
     from doorloc.vision.imageio import ImageDecodeError
 
     try:
-        m = measure_light_in_folder(images_dir, cell, manifest, progress=lambda m: typer.echo(m, err=True))
+        m = measure_light_in_folder(
+            images_dir, cell, manifest, progress=lambda line: typer.echo(line, err=True)
+        )
     except LightNotMeasurable as e:
         raise fail(str(e), EXIT_REFUSED) from None
     except (CellFileError, BatchSetupError, ImageDecodeError) as e:
