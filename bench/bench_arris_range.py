@@ -64,7 +64,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from bench_arris import random_effects  # noqa: E402
 
 from doorloc.cell import DoorSize, load_cell  # noqa: E402
-from doorloc.pose import DoorPose, direction_cell  # noqa: E402
+from doorloc.pose import DoorPose, direction_cell, directions_across  # noqa: E402
 from doorloc.sim.door import render_door  # noqa: E402
 from doorloc.vision.config import LocateConfig  # noqa: E402
 from doorloc.vision.locate import locate  # noqa: E402
@@ -235,9 +235,7 @@ def stated_light(
     if error_deg == 0.0:
         return azimuth_deg, elevation_deg
     true = direction_cell(azimuth_deg, elevation_deg)
-    side = np.cross(true, [0.0, 0.0, 1.0])
-    side = side / np.linalg.norm(side) if np.linalg.norm(side) > 1e-9 else np.array([1.0, 0.0, 0.0])
-    up = np.cross(side, true)
+    side, up = directions_across(true)
     turn = np.random.default_rng([seed, 4242]).uniform(0.0, 2 * np.pi)
     e = math.radians(error_deg)
     d = math.cos(e) * true + math.sin(e) * (math.cos(turn) * side + math.sin(turn) * up)

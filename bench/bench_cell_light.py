@@ -7,8 +7,9 @@ lights), one camera exponent (1.0-2.4, stated in the cell as measured, ``respons
 ``--measure`` doors (:func:`doorloc.vision.cell_light.measure_cell_light`); the next ``--test`` doors are
 located three ways: no light stated (the free shading), the measured light with its measured doubt, and
 the renderer's own light (the default doubt). Per cell: the measured direction, its angle from the true
-one, its doubt and any other direction the doors could not rule out; per way: the answered share, RMS of
-x and z, and the share within 2 claimed sigma and beyond 5.
+one, its doubt and any other direction the doors could not rule out; per way: the answered share and the
+refusals, and RMS of x, z and yaw with the shares within 2 claimed sigma and beyond 5 (the arris bench's
+summary).
 
     OMP_NUM_THREADS=1 PYTHONPATH=src python bench/bench_cell_light.py [--cells 3] [--first-cell 0]
         [--measure 8] [--test 16] [--seed 8500]
@@ -26,7 +27,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
 
-from bench_arris_range import draw  # noqa: E402
+from bench_arris_range import Outcome, draw, summary  # noqa: E402
 
 from doorloc.cell import load_cell  # noqa: E402
 from doorloc.pose import direction_cell  # noqa: E402
@@ -35,20 +36,6 @@ from doorloc.vision.cell_light import measure_cell_light  # noqa: E402
 from doorloc.vision.locate import locate  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def _summary(label: str, rows: list[tuple[float, float, float, float] | None]) -> None:
-    ok = [r for r in rows if r is not None]
-    if not ok:
-        print(f"  {label:9s} answered 0/{len(rows)}")
-        return
-    e = np.array(ok)
-    ratio = np.abs(e[:, :2]) / e[:, 2:]
-    print(
-        f"  {label:9s} answered {len(ok)}/{len(rows)}, x / z RMS {math.sqrt(np.mean(e[:, 0] ** 2)):.4f} / "
-        f"{math.sqrt(np.mean(e[:, 1] ** 2)):.4f} mm, within 2 sigma {100 * np.mean(ratio <= 2):.0f} %, beyond 5 "
-        f"{int(np.sum(ratio.max(axis=1) > 5))}, worst {ratio.max():.2f} sigma"
-    )
 
 
 def main() -> None:
@@ -103,11 +90,15 @@ def main() -> None:
             for im, door, pose in frames[args.measure :]:
                 r = locate(im, cell, door, config=cfg)
                 rows.append(
-                    (r.x_mm - pose.x_mm, r.z_mm - pose.z_mm, r.uncertainty.x_mm, r.uncertainty.z_mm)
+                    Outcome(
+                        None,
+                        (r.x_mm - pose.x_mm, r.z_mm - pose.z_mm, r.yaw_deg - pose.yaw_deg, math.nan),
+                        (r.uncertainty.x_mm, r.uncertainty.z_mm, r.uncertainty.yaw_deg, math.nan),
+                    )
                     if r.ok
-                    else None
+                    else Outcome(r.error_code)
                 )
-            _summary(label, rows)
+            summary(f"  {label}", rows)
         sys.stdout.flush()
 
 

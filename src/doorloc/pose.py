@@ -28,7 +28,14 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-__all__ = ["DoorPose", "door_to_cell", "cell_to_door", "direction_cell", "yaw_rotation_matrix"]
+__all__ = [
+    "DoorPose",
+    "door_to_cell",
+    "cell_to_door",
+    "direction_cell",
+    "directions_across",
+    "yaw_rotation_matrix",
+]
 
 
 @dataclass(frozen=True)
@@ -81,6 +88,23 @@ def direction_cell(azimuth_deg: float, elevation_deg: float) -> np.ndarray:
     """
     az, el = math.radians(azimuth_deg), math.radians(elevation_deg)
     return np.array([math.cos(el) * math.sin(az), -math.cos(el) * math.cos(az), math.sin(el)])
+
+
+def directions_across(direction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors square to the unit vector ``direction`` (cell frame) and to each other: ``side``,
+    horizontal (``direction x +Z``; +X for a direction straight up or down), and ``up`` (``side x
+    direction``), the ways a direction is turned to say how far off it may be.
+
+    >>> side, up = directions_across(direction_cell(0.0, 0.0))  # towards the camera's side, -Y
+    >>> [round(float(v), 3) + 0.0 for v in side], [round(float(v), 3) + 0.0 for v in up]
+    ([-1.0, 0.0, 0.0], [0.0, 0.0, 1.0])
+    """
+    d = np.asarray(direction, float)
+    side = np.cross(d, [0.0, 0.0, 1.0])
+    if np.linalg.norm(side) < 1e-9:  # straight up or down: any horizontal side will do
+        side = np.array([1.0, 0.0, 0.0])
+    side = side / np.linalg.norm(side)
+    return side, np.cross(side, d)
 
 
 def door_to_cell(points_door: np.ndarray, pose: DoorPose, face_y: float = 0.0) -> np.ndarray:

@@ -170,6 +170,16 @@ class StripFit:
     clipped_share: float = 0.0
     stated_light_misfit: float | None = None
 
+    @property
+    def stated_light_used(self) -> bool | None:
+        """Whether the cell's stated light shaded this rounding (None: no light stated, or no rounding)."""
+        return None if self.stated_light_misfit is None else _light_explains(self.stated_light_misfit)
+
+
+def _light_explains(misfit_over_free: float) -> bool:
+    """Whether a rounding's misfit under the stated light, over its free shading's, lets the light be used."""
+    return misfit_over_free <= STATED_LIGHT_MISFIT_RATIO
+
 
 def _posterior_moments(deltas: np.ndarray, deficits: np.ndarray, logp: np.ndarray) -> tuple[float, float]:
     """Mean and standard deviation of the deficit over the border's offsets ``deltas`` (sorted, px) given
@@ -296,15 +306,8 @@ def fit_strip_profile(
     if round_:
         told = None
         if light is not None and geom.normals_cell is not None:
-            told = _told_light_shading(prob, geom, n_cells, coarse, shading, light)
-            light_misfit = float(told.evaluation.chi2[0]) / max(float(shading.evaluation.chi2[0]), 1e-300)
-        # A light stated wrong (a sign of the azimuth, a lamp moved) fits a rounding's shading far worse
-        # than its free shading does, and placed a 2.9 mm rounding's door 0.37 mm off at 4.5 sigma (arris
-        # bench round set, seed 8122, the light stated 110 deg off): such a strip is fitted as without it.
-        if told is not None and light_misfit is not None and light_misfit <= STATED_LIGHT_MISFIT_RATIO:
-            shading = told
-        else:
-            shading = _rounding_shading(prob, geom, n_cells, noise, coarse, shading)
+            told, light_misfit = _told_light_shading(prob, geom, n_cells, coarse, shading, light)
+        shading = told if told is not None else _rounding_shading(prob, geom, n_cells, noise, coarse, shading)
     fit = _posterior_fit(prob, (r, outer, width), coarse, shading, basis0, noise, prior)
     return fit if light_misfit is None else replace(fit, stated_light_misfit=light_misfit)
 
@@ -469,12 +472,16 @@ def _told_light_shading(
     coarse: _OffsetProfile,
     free: _Shading,
     light: StatedLight,
-) -> _Shading:
+) -> tuple[_Shading | None, float]:
     """A rounding's shading under the cell's light (:func:`doorloc.vision.arris_strip.lit_basis`): refined at
     its own best place for the border (steps of a quarter pixel within 2 px of the free shading's, as the
-    Lambert arcs are). Its doubt: ``LIT_DEFICIT_FLOOR`` (the model's own) and what the deficit moves when
-    the light is turned by its stated sigma (:meth:`StatedLight.turned`, each turn refitted from the best
-    place), in quadrature. Offsets and blurs in px, as :func:`_coarse_offsets`'.
+    Lambert arcs are), and its misfit over the free shading's (``free``). None for the shading where that
+    ratio exceeds ``STATED_LIGHT_MISFIT_RATIO``: a light stated wrong (a sign of the azimuth, a lamp moved)
+    fits far worse than a free shading, and placed a 2.9 mm rounding's door 0.37 mm off at 4.5 sigma (arris
+    bench round set, seed 8122, the light stated 110 deg off); such a strip is fitted as without a light.
+    Its doubt: ``LIT_DEFICIT_FLOOR`` (the model's own) and what the deficit moves when the light is turned
+    by its stated sigma (:meth:`StatedLight.turned`, each turn refitted from the best place), in
+    quadrature. Offsets and blurs in px, as :func:`_coarse_offsets`'.
 
     Why: the free shading's levels trade off with the border's place along a valley the profiles hardly
     cut (a rounding of 1-2 mm under 1-2 px of blur is placed to a few hundredths of a mm), and the light
@@ -492,13 +499,16 @@ def _told_light_shading(
     # (the free shading is not weighed in as another model, as a Lambert arc fitted to the strip is: with
     # its more levels it fits the noise better, and weighed by its misfit it took the answer back to its own
     # valley: a 0.74 mm rounding, small set seed 10903, x 0.004 -> 0.085 mm)
+    misfit = float(ev1.chi2[0]) / max(float(free.evaluation.chi2[0]), 1e-300)
+    if not _light_explains(misfit):
+        return None, misfit
     moved = [
         float(prob.refine(d1, s1, lit_basis(geom, n_cells, t), n_iter=6)[2].deficit[0])
         - float(ev1.deficit[0])
         for t in light.turned()
     ]
     light_doubt = math.sqrt(sum(m * m for m in moved) / len(moved)) if moved else 0.0
-    return _Shading(basis, d1, s1, ev1, model_doubt=math.hypot(LIT_DEFICIT_FLOOR, light_doubt))
+    return _Shading(basis, d1, s1, ev1, model_doubt=math.hypot(LIT_DEFICIT_FLOOR, light_doubt)), misfit
 
 
 @dataclass(frozen=True)

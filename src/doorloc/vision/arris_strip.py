@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from doorloc.pose import directions_across
 from doorloc.vision.arris_geometry import ArrisGeometry
 from doorloc.vision.blurred_step import STEP_TAIL_SIGMAS
 from doorloc.vision.jit import kernel, pairwise_sum
@@ -150,11 +151,7 @@ class StatedLight:
         if self.sigma_rad <= 0.0:
             return ()
         d = np.asarray(self.direction_cell, float)
-        side = np.cross(d, [0.0, 0.0, 1.0])
-        if np.linalg.norm(side) < 1e-9:  # a light straight above or below: any side will do
-            side = np.array([1.0, 0.0, 0.0])
-        side = side / np.linalg.norm(side)
-        up = np.cross(side, d)
+        side, up = directions_across(d)
         c, s = math.cos(self.sigma_rad), math.sin(self.sigma_rad)
         return tuple(c * d + s * k * axis for axis in (side, up) for k in (1.0, -1.0))
 

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from doorloc.cell import Cell
-from doorloc.vision.arris_model import BLUR_DOUBT, STATED_LIGHT_MISFIT_RATIO, StripFit
+from doorloc.vision.arris_model import BLUR_DOUBT, StripFit
 from doorloc.vision.config import LocateConfig
 from doorloc.vision.edge_samples import EdgeSamples
 from doorloc.vision.jpeg_blocks import block_artifact_ratio
@@ -187,7 +187,7 @@ def _arris_doubts(
                 # whether the cell's stated light explained this rounding (else fitted as if none were stated)
                 diagnostics["arris_fit"][k]["stated_light"] = {
                     "misfit_over_free": round(strip.stated_light_misfit, 3),
-                    "used": strip.stated_light_misfit <= STATED_LIGHT_MISFIT_RATIO,
+                    "used": strip.stated_light_used,
                 }
     moved = _arris_blur_doubts(arris_fits, diagnostics)
     doubts = []
