@@ -50,6 +50,7 @@ from doorloc.vision.arris_strip import (
     lit_basis,
     mix_cells,
     pixel_terms,
+    stated_light_explains,
     strip_basis,
 )
 
@@ -71,12 +72,6 @@ BLUR_DOUBT = 0.1
 #: least doubt in the deficit of a rounding's Lambert shading under the light fitted to it (a real finish is
 #: no exact Lambertian, nor its light one direction): 0.03 of the strip's width
 LIT_DEFICIT_FLOOR = 0.03
-#: most misfit of a rounding's shading under the cell's stated light over its free shading's for the
-#: stated light to be used on that strip (beyond it the strip is fitted as where no light is stated). A
-#: light stated right fits within 1.15 times the free shading's misfit on 90 of the 93 strips of the arris
-#: bench's round set (seed 8100, 31 doors), within 1.42 on all (a 2.7 mm rounding's); stated 110 deg off,
-#: most strips 2-100 times
-STATED_LIGHT_MISFIT_RATIO = 2.0
 #: prior of the deficit where the two plateaus' radiances cannot say more (no contrast): a strip somewhere
 #: between the background and the hinge face
 PRIOR_DEFICIT, PRIOR_SIGMA = 0.5, 0.5
@@ -154,7 +149,7 @@ class StripFit:
         above ``LocateConfig.max_clipped_arris_fraction``).
     stated_light_misfit : float or None
         A rounding's misfit under the cell's stated light over its free shading's (None: no light stated, or
-        no rounding); beyond ``STATED_LIGHT_MISFIT_RATIO`` the stated light was not used on this strip.
+        no rounding); beyond ``arris_strip.STATED_LIGHT_MISFIT_RATIO`` the stated light was not used on this strip.
     """
 
     deficit: float
@@ -173,12 +168,7 @@ class StripFit:
     @property
     def stated_light_used(self) -> bool | None:
         """Whether the cell's stated light shaded this rounding (None: no light stated, or no rounding)."""
-        return None if self.stated_light_misfit is None else _light_explains(self.stated_light_misfit)
-
-
-def _light_explains(misfit_over_free: float) -> bool:
-    """Whether a rounding's misfit under the stated light, over its free shading's, lets the light be used."""
-    return misfit_over_free <= STATED_LIGHT_MISFIT_RATIO
+        return None if self.stated_light_misfit is None else stated_light_explains(self.stated_light_misfit)
 
 
 def _posterior_moments(deltas: np.ndarray, deficits: np.ndarray, logp: np.ndarray) -> tuple[float, float]:
@@ -476,7 +466,7 @@ def _told_light_shading(
     """A rounding's shading under the cell's light (:func:`doorloc.vision.arris_strip.lit_basis`): refined at
     its own best place for the border (steps of a quarter pixel within 2 px of the free shading's, as the
     Lambert arcs are), and its misfit over the free shading's (``free``). None for the shading where that
-    ratio exceeds ``STATED_LIGHT_MISFIT_RATIO``: a light stated wrong (a sign of the azimuth, a lamp moved)
+    ratio exceeds ``arris_strip.STATED_LIGHT_MISFIT_RATIO``: a light stated wrong (a sign of the azimuth, a lamp moved)
     fits far worse than a free shading, and placed a 2.9 mm rounding's door 0.37 mm off at 4.5 sigma (arris
     bench round set, seed 8122, the light stated 110 deg off); such a strip is fitted as without a light.
     Its doubt: ``LIT_DEFICIT_FLOOR`` (the model's own) and what the deficit moves when the light is turned
@@ -489,7 +479,7 @@ def _told_light_shading(
     for the cell leaves the strip two unknowns, its albedo and the background's share. Measured on the
     arris bench's round set (seed 7900, the renderer's light told): answered 11 -> 14 of 16, x / z RMS
     0.0155 / 0.0067 -> 0.0032 / 0.0024 mm. The turns, because a light stated wrong, yet near enough to fit
-    the strip (``STATED_LIGHT_MISFIT_RATIO``), places the border wrong at the floor's confidence: stated 40
+    the strip (``arris_strip.STATED_LIGHT_MISFIT_RATIO``), places the border wrong at the floor's confidence: stated 40
     deg off, a 0.74 mm rounding's door (small set, seed 11100) was answered 0.109 mm off in x at 3.2 sigma,
     with the turns at 1.8."""
     basis = lit_basis(geom, n_cells, light.direction_cell)
@@ -500,7 +490,7 @@ def _told_light_shading(
     # its more levels it fits the noise better, and weighed by its misfit it took the answer back to its own
     # valley: a 0.74 mm rounding, small set seed 10903, x 0.004 -> 0.085 mm)
     misfit = float(ev1.chi2[0]) / max(float(free.evaluation.chi2[0]), 1e-300)
-    if not _light_explains(misfit):
+    if not stated_light_explains(misfit):
         return None, misfit
     moved = [
         float(prob.refine(d1, s1, lit_basis(geom, n_cells, t), n_iter=6)[2].deficit[0])

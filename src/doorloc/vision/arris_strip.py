@@ -22,9 +22,11 @@ from doorloc.vision.jit import kernel, pairwise_sum
 from doorloc.vision.sampling import normal_cdf_pdf
 
 __all__ = [
+    "STATED_LIGHT_MISFIT_RATIO",
     "StatedLight",
     "StripProblem",
     "StripEvaluation",
+    "stated_light_explains",
     "strip_basis",
     "pixel_terms",
     "mix_cells",
@@ -133,6 +135,19 @@ def strip_basis(geom: ArrisGeometry, n_cells: int, terminator: float | None, lit
         return np.stack([np.ones(n_cells), np.cos(th).mean(axis=1), np.sin(th).mean(axis=1)], axis=1)
     s = np.sin(th - terminator) * (-1.0 if lit_below else 1.0)
     return np.stack([np.ones(n_cells), np.maximum(s, 0.0).mean(axis=1)], axis=1)
+
+
+#: most misfit of a rounding's shading under the cell's stated light over its free shading's for the
+#: stated light to be used on that strip (beyond it the strip is fitted as where no light is stated). A
+#: light stated right fits within 1.15 times the free shading's misfit on 90 of the 93 strips of the arris
+#: bench's round set (seed 8100, 31 doors), within 1.42 on all (a 2.7 mm rounding's); stated 110 deg off,
+#: most strips 2-100 times
+STATED_LIGHT_MISFIT_RATIO = 2.0
+
+
+def stated_light_explains(misfit_over_free: float) -> bool:
+    """Whether a rounding's misfit under the stated light, over its free shading's, lets the light be used."""
+    return misfit_over_free <= STATED_LIGHT_MISFIT_RATIO
 
 
 @dataclass(frozen=True)

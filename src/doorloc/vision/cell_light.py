@@ -8,7 +8,7 @@ the mean log ratio has its least near the true direction. :func:`measure_cell_li
 of directions, then over a grid four times finer around the best.
 
 Why by locating each door under each trial light, not by a fit of its own: the ratio is what locate itself
-will use to decide whether the stated light explains a strip (``arris_model.STATED_LIGHT_MISFIT_RATIO``),
+will use to decide whether the stated light explains a strip (``arris_strip.STATED_LIGHT_MISFIT_RATIO``),
 measured on the strips locate finds, in its frames; a second model of the strips would be a second thing
 to keep right. It costs a locate per door and trial light (about half a second a door with roundings):
 minutes, once for a cell.
