@@ -585,7 +585,7 @@ class FarBand:
         then the far face's near border, where the strip meets it). The profile is ``hinge face A | strip S
         | far face L | background B``, the strip's relative level ``(S - A) / (B - A)`` one more shared
         unknown, with the prior that the strip's radiance is ``strip_radiance`` (mean, standard deviation)
-        times the hinge face's (:data:`doorloc.vision.arris_model.STRIP_RADIANCE`). Without it a strip
+        times the hinge face's (:data:`doorloc.vision.strip_prior.STRIP_RADIANCE`). Without it a strip
         took the far face's level or the hinge face's and the thickness was up to the strip's width off
         with a sigma that did not know it (thin doors with 0.5-3 mm arrises: 1.2 mm at 12 sigma).
     strip_radiance : (float, float)

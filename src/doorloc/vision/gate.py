@@ -318,7 +318,7 @@ def _strip_other_readings(r: Refined) -> dict[str, float]:
 
     A strip at the hinge face's level and one at the background's both show one step, the first at the
     strip's outer border and the second at its inner border, a strip's width apart, and the profiles fit
-    both alike: only the strip's radiance prior (:data:`doorloc.vision.arris_model.STRIP_RADIANCE`) chose
+    both alike: only the strip's radiance prior (:data:`doorloc.vision.strip_prior.STRIP_RADIANCE`) chose
     between them. A deficit ``d`` places the outer border ``d`` strip widths outwards from where a plain step
     would, so the other reading (deficit 1 for a strip read at the face's level, 0 for one read at the
     background's) moves the edge by the deficits' difference times the width. The far arris beside a seen
