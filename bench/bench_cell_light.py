@@ -9,7 +9,7 @@ located three ways: no light stated (the free shading), the measured light with 
 the renderer's own light (the default doubt). Per cell: the measured direction, its angle from the true
 one, its doubt and any other direction the doors could not rule out; per way: the answered share and the
 refusals, and RMS of x, z and yaw with the shares within 2 claimed sigma and beyond 5 (the arris bench's
-summary).
+summary). The time the measurement took (thread CPU, the first cell's includes compiling).
 
     OMP_NUM_THREADS=1 PYTHONPATH=src python bench/bench_cell_light.py [--cells 3] [--first-cell 0]
         [--measure 8] [--test 16] [--seed 8500]
@@ -21,6 +21,7 @@ import argparse
 import dataclasses
 import math
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -64,14 +65,16 @@ def main() -> None:
                 fx, light_azimuth_deg=light[0], light_elevation_deg=light[1], gamma=gamma
             )
             frames.append((render_door(cell, door, pose, effects=fx, seed=seed).image, door, pose))
+        t0 = time.thread_time()
         m = measure_cell_light([(im, d) for im, d, _ in frames[: args.measure]], cell)
+        took = time.thread_time() - t0
         off = math.degrees(
             math.acos(min(1.0, float(direction_cell(*m.direction_deg) @ direction_cell(*light))))
         )
         print(
             f"cell {c}: light [{light[0]:+.1f}, {light[1]:+.1f}], gamma {gamma:.2f}; measured "
             f"[{m.direction_deg[0]:+.1f}, {m.direction_deg[1]:+.1f}] +- {m.sigma_deg:g} deg ({off:.1f} deg off; "
-            f"{m.strips} strips of {m.doors} doors, score {m.score:.3f})"
+            f"{m.strips} strips of {m.doors} doors, score {m.score:.3f}; {took:.1f} s thread CPU)"
             + (
                 f"; also [{m.runner_up_deg[0]:+.0f}, {m.runner_up_deg[1]:+.0f}] at {m.runner_up_score:.3f}"
                 if m.runner_up_deg

@@ -20,7 +20,7 @@ from doorloc.sim.door import render_door
 from doorloc.sim.effects import Effects
 from doorloc.vision.arris_model import ArrisGeometry, fit_strip_profile
 from doorloc.vision.arris_strip import StatedLight
-from doorloc.vision.locate import locate
+from doorloc.vision.locate import LocateTrace, locate
 from doorloc.vision.strip_prior import STRIP_RADIANCE, STRIP_RADIANCE_SIGMA, deficit_prior
 
 CELL = load_cell(Path(__file__).parents[2] / "fixtures" / "cell_thesis.yaml")
@@ -860,6 +860,41 @@ def test_a_rounding_under_the_cells_stated_light_is_placed_to_a_hundredth():
     ex, ez = res.x_mm - pose.x_mm, res.z_mm - pose.z_mm
     assert abs(ex) <= 0.01 and abs(ez) <= 0.01, (ex, ez)
     assert abs(ex) <= 3 * res.uncertainty.x_mm and abs(ez) <= 3 * res.uncertainty.z_mm
+
+
+def test_a_roundings_misfit_under_any_light_is_the_one_locate_weighs_for_the_stated_light():
+    """``StripFit.misfit_under_light`` (what ``doorloc measure-light`` scores each trial light by) gives for
+    the stated light's direction the very ratio locate weighed that light by on every rounded strip
+    (``stated_light_misfit``), and for a light from the other side of the camera a worse one."""
+    door = DoorSize(900, 70.0, 2100, arris_mm=2.205, arris_profile="round")
+    fx = Effects(
+        arris_profile="round",
+        albedo_hinge=0.565,
+        albedo_chamfer=0.311,
+        albedo_background=0.0908,
+        light_ambient=0.345,
+        light_directional=0.144,
+        light_azimuth_deg=-59.25,
+        light_elevation_deg=36.6,
+        blur_sigma_px=1.673,
+        read_noise_dn=0.183,
+        gamma=1.151,
+    )
+    img = render_door(CELL, door, DoorPose(-2.903, 3.498, 1.395), effects=fx, seed=7912).image
+    lit = dataclasses.replace(
+        CELL,
+        response_gamma=fx.gamma,
+        locate=dataclasses.replace(CELL.locate, light_direction_deg=(-59.25, 36.6)),
+    )
+    trace = LocateTrace()
+    locate(img, lit, door, trace=trace)
+    rounded = [f for f in trace.arris_fits.values() if f.misfit_under_light is not None]
+    assert len(rounded) >= 2
+    for f in rounded:
+        assert f.stated_light_misfit is not None
+        assert f.misfit_under_light(direction_cell(-59.25, 36.6)) == f.stated_light_misfit
+    mirrored = [f.misfit_under_light(direction_cell(59.25, 36.6)) for f in rounded]
+    assert sum(math.log(m) for m in mirrored) > sum(math.log(f.stated_light_misfit) for f in rounded)
 
 
 def test_a_light_stated_wrong_is_no_confident_answer():

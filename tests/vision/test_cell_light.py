@@ -62,7 +62,8 @@ def test_the_light_of_a_cell_is_found_near_its_direction():
         fine_steps=1,
         progress=heard.append,
     )
-    assert len(heard) == 5 + 8 and heard[-1].endswith("(8 of 8)")  # every direction scored is told
+    assert len(heard) == 2 + 5 + 8 and heard[-1].endswith("(8 of 8)")  # every door and direction is told
+    assert heard[0].startswith("door 1 of 2 located")
     off = math.degrees(math.acos(min(1.0, float(direction_cell(*m.direction_deg) @ direction_cell(*LIGHT)))))
     assert off <= 10.0, (m, off)
     assert m.sigma_deg >= cell_light.MEASURED_SIGMA_FLOOR_DEG

@@ -113,6 +113,11 @@ class StripFit:
     stated_light_misfit : float or None
         A rounding's misfit under the cell's stated light over its free shading's (None: no light stated, or
         no rounding); beyond ``arris_strip.STATED_LIGHT_MISFIT_RATIO`` the stated light was not used on this strip.
+    misfit_under_light : callable or None
+        ``direction -> ratio``: a rounding's misfit under a light from ``direction`` (unit vector towards
+        the light, cell frame) over its free shading's, found as ``stated_light_misfit`` is for the stated
+        light (for measuring the cell's light from its doors: :mod:`doorloc.vision.cell_light`); None on a
+        chamfer, or where the strip's surface normals are not known.
     """
 
     deficit: float
@@ -127,6 +132,7 @@ class StripFit:
     deficit_at_blur: Callable[[float], float] | None = field(default=None, compare=False, repr=False)
     clipped_share: float = 0.0
     stated_light_misfit: float | None = None
+    misfit_under_light: Callable[[np.ndarray], float] | None = field(default=None, compare=False, repr=False)
 
     @property
     def stated_light_used(self) -> bool | None:
@@ -254,7 +260,7 @@ def fit_strip_profile(
     prob = StripProblem(r, x, outer, width, n_cells, _PHASE_BINS, noise, shared)
     basis0 = _free_basis(n_cells, w_med, round_)
     coarse, best = _coarse_offsets(prob, x, outer, width, basis0, blur0, search_px + max(2.0, w_med + 1.0))
-    shading = _Shading(basis0, *best)
+    shading = free = _Shading(basis0, *best)
     light_misfit: float | None = None
     if round_:
         told = None
@@ -262,7 +268,13 @@ def fit_strip_profile(
             told, light_misfit = _told_light_shading(prob, geom, n_cells, coarse, shading, light)
         shading = told if told is not None else _rounding_shading(prob, geom, n_cells, noise, coarse, shading)
     fit = _posterior_fit(prob, (r, outer, width), coarse, shading, basis0, noise, prior)
-    return fit if light_misfit is None else replace(fit, stated_light_misfit=light_misfit)
+    if not round_ or geom.normals_cell is None:
+        return fit
+    return replace(
+        fit,
+        stated_light_misfit=light_misfit,
+        misfit_under_light=lambda direction: _under_light(prob, geom, n_cells, coarse, free, direction)[2],
+    )
 
 
 def _free_basis(n_cells: int, w_med: float, round_: bool) -> np.ndarray:
@@ -445,14 +457,10 @@ def _told_light_shading(
     the strip (``arris_strip.STATED_LIGHT_MISFIT_RATIO``), places the border wrong at the floor's confidence: stated 40
     deg off, a 0.74 mm rounding's door (small set, seed 11100) was answered 0.109 mm off in x at 3.2 sigma,
     with the turns at 1.8."""
-    basis = lit_basis(geom, n_cells, light.direction_cell)
-    starts = [free.offset, *_border_places(coarse, free.offset, 2.0).tolist()]
-    fits = [prob.refine(float(d), free.blur, basis, n_iter=6) for d in starts]
-    d1, s1, ev1 = min(fits, key=lambda f: float(f[2].chi2[0]))
+    basis, (d1, s1, ev1), misfit = _under_light(prob, geom, n_cells, coarse, free, light.direction_cell)
     # (the free shading is not weighed in as another model, as a Lambert arc fitted to the strip is: with
     # its more levels it fits the noise better, and weighed by its misfit it took the answer back to its own
     # valley: a 0.74 mm rounding, small set seed 10903, x 0.004 -> 0.085 mm)
-    misfit = float(ev1.chi2[0]) / max(float(free.evaluation.chi2[0]), 1e-300)
     if not stated_light_explains(misfit):
         return None, misfit
     moved = [
@@ -462,6 +470,24 @@ def _told_light_shading(
     ]
     light_doubt = math.sqrt(sum(m * m for m in moved) / len(moved)) if moved else 0.0
     return _Shading(basis, d1, s1, ev1, model_doubt=math.hypot(LIT_DEFICIT_FLOOR, light_doubt)), misfit
+
+
+def _under_light(
+    prob: StripProblem,
+    geom: ArrisGeometry,
+    n_cells: int,
+    coarse: _OffsetProfile,
+    free: _Shading,
+    direction: np.ndarray,
+) -> tuple[np.ndarray, tuple[float, float, StripEvaluation], float]:
+    """A rounding's Lambert shading under a light from ``direction`` (unit vector, cell frame): its basis,
+    its fit refined at its own best place for the border (steps of a quarter pixel within 2 px of the free
+    shading's ``free``; offset and blur px) and its misfit over the free shading's."""
+    basis = lit_basis(geom, n_cells, direction)
+    starts = [free.offset, *_border_places(coarse, free.offset, 2.0).tolist()]
+    fits = [prob.refine(float(d), free.blur, basis, n_iter=6) for d in starts]
+    best = min(fits, key=lambda f: float(f[2].chi2[0]))
+    return basis, best, float(best[2].chi2[0]) / max(float(free.evaluation.chi2[0]), 1e-300)
 
 
 @dataclass(frozen=True)

@@ -7,11 +7,15 @@ many directions about alike), but the lamps of a cell are fixed: over several do
 the mean log ratio has its least near the true direction. :func:`measure_cell_light` takes it over a grid
 of directions, then over a grid four times finer around the best.
 
-Why by locating each door under each trial light, not by a fit of its own: the ratio is what locate itself
-will use to decide whether the stated light explains a strip (``arris_strip.STATED_LIGHT_MISFIT_RATIO``),
-measured on the strips locate finds, in its frames; a second model of the strips would be a second thing
-to keep right. It costs a locate per door and trial light (about half a second a door with roundings):
-minutes, once for a cell.
+Why from locate's own strip fits, not a fit of its own: the ratio is what locate itself will use to decide
+whether the stated light explains a strip (``arris_strip.STATED_LIGHT_MISFIT_RATIO``), measured on the
+strips locate finds, in its frames; a second model of the strips would be a second thing to keep right.
+Each door is located once, without a light (``LocateTrace.arris_fits``), and its rounded strips are scored
+under every trial light (``StripFit.misfit_under_light``): the strips are the ones a locate under that light
+would fit, read at the pose found without it (the stated light moves a rounded door's pose by hundredths of
+a millimetre, a strip's profiles by as little). Locating each door again under each trial light gave the
+same directions within 2 deg on the rendered cells of ``bench/bench_cell_light.py``, at fifty times the
+cost.
 """
 
 from __future__ import annotations
@@ -24,7 +28,7 @@ import numpy as np
 
 from doorloc.cell import Cell, DoorSize
 from doorloc.pose import direction_cell
-from doorloc.vision.locate import locate
+from doorloc.vision.locate import LocateTrace, locate
 
 __all__ = [
     "COARSE_AZIMUTHS",
@@ -78,37 +82,47 @@ def _angle_deg(a: tuple[float, float], b: tuple[float, float]) -> float:
     return math.degrees(math.acos(max(-1.0, min(1.0, c))))
 
 
+#: a rounded strip's misfit under a light from a direction (unit vector, cell frame) over its free shading's
+StripScore = Callable[[np.ndarray], float]
+
+
 def _scores(
-    frames: Sequence[tuple[np.ndarray, DoorSize]],
-    cell: Cell,
+    strips: Sequence[Sequence[StripScore]],
     lights: Sequence[tuple[float, float]],
     progress: Callable[[str], None] | None = None,
-) -> tuple[dict[tuple[float, float], float], int, int]:
-    """Each light's mean log misfit ratio over the rounded strips of ``frames``; the strips and the doors
-    that voted (under the first light). ``progress`` hears of each light done."""
+) -> dict[tuple[float, float], float]:
+    """Each light's mean log misfit ratio over the rounded strips of the doors, ``strips`` (per door);
+    ``progress`` hears of each light done."""
     out: dict[tuple[float, float], float] = {}
-    strips = doors = 0
     for k, light in enumerate(lights):
-        # (the light's doubt is not wanted here: its turns would only cost time)
-        cfg = replace(cell.locate, light_direction_deg=light, light_direction_sigma_deg=0.0)
-        logs: list[float] = []
-        for image, door in frames:
-            res = locate(image, cell, door, config=cfg)
-            ratios = [
-                f["stated_light"]["misfit_over_free"]
-                for f in res.diagnostics.get("arris_fit", {}).values()
-                if "stated_light" in f
-            ]
-            logs += [math.log(max(r, 1e-3)) for r in ratios]
-            doors += int(k == 0 and bool(ratios))
-        if k == 0:
-            strips = len(logs)
+        direction = direction_cell(*light)
+        logs = [math.log(max(score(direction), 1e-3)) for door in strips for score in door]
         out[light] = float(np.mean(logs)) if logs else math.nan
         if progress is not None:
             progress(
                 f"light [{light[0]:+.0f}, {light[1]:+.0f}] deg: {out[light]:.3f} ({k + 1} of {len(lights)})"
             )
-    return out, strips, doors
+    return out
+
+
+def _rounded_strips(
+    frames: Sequence[tuple[np.ndarray, DoorSize]],
+    cell: Cell,
+    progress: Callable[[str], None] | None = None,
+) -> list[list[StripScore]]:
+    """Per frame, its rounded strips as locate fitted them (``StripFit.misfit_under_light``), each door
+    located once without a light; ``progress`` hears of each door done."""
+    cfg = replace(cell.locate, light_direction_deg=None)
+    out = []
+    for k, (image, door) in enumerate(frames):
+        trace = LocateTrace()
+        locate(image, cell, door, config=cfg, trace=trace)
+        out.append(
+            [f.misfit_under_light for f in trace.arris_fits.values() if f.misfit_under_light is not None]
+        )
+        if progress is not None:
+            progress(f"door {k + 1} of {len(frames)} located: {len(out[-1])} rounded strips")
+    return out
 
 
 def measure_cell_light(
@@ -125,7 +139,7 @@ def measure_cell_light(
 
     The mean log misfit ratio over the doors' rounded strips at every ``azimuths`` x ``elevations``
     direction (deg, cell frame), then on a grid a quarter of its steps wide around the least, ``fine_steps``
-    of them each way. ``progress`` hears a line for each direction scored (a locate of every door).
+    of them each way. ``progress`` hears a line for each door located and each direction scored.
 
     Raises
     ------
@@ -139,17 +153,16 @@ def measure_cell_light(
             "default door or the manifest): only a rounding's shading tells the light"
         )
     coarse = [(float(a), float(e)) for e in elevations for a in azimuths]
-    scores, strips, doors = _scores(frames, cell, coarse, progress)
-    if strips == 0 or all(math.isnan(v) for v in scores.values()):
+    per_door = _rounded_strips(frames, cell, progress)
+    strips, doors = sum(len(d) for d in per_door), sum(1 for d in per_door if d)
+    if strips == 0:
         raise LightNotMeasurable(
             "locate fitted no rounded arris strip on these images: they cannot tell the light "
             "(check that the doors are in the fixture and their recipes' arris_mm)"
         )
+    scores = _scores(per_door, coarse, progress)
 
-    def at(k: tuple[float, float]) -> float:
-        return scores[k] if not math.isnan(scores[k]) else math.inf  # (a light no strip was fitted under)
-
-    best = min(scores, key=at)
+    best = min(scores, key=scores.__getitem__)
     da = (azimuths[1] - azimuths[0]) / 4 if len(azimuths) > 1 else 5.0
     de = (elevations[1] - elevations[0]) / 4 if len(elevations) > 1 else 5.0
     steps = range(-fine_steps, fine_steps + 1)
@@ -159,17 +172,16 @@ def measure_cell_light(
         for i in steps
         if (i, j) != (0, 0)
     ]
-    fine_scores, _, _ = _scores(frames, cell, fine, progress)
-    scores.update(fine_scores)
-    best = min(scores, key=at)
-    near = [k for k in [*fine, best] if at(k) <= scores[best] + RUNNER_UP_MARGIN]
+    scores.update(_scores(per_door, fine, progress))
+    best = min(scores, key=scores.__getitem__)
+    near = [k for k in [*fine, best] if scores[k] <= scores[best] + RUNNER_UP_MARGIN]
     sigma = max(MEASURED_SIGMA_FLOOR_DEG, max(_angle_deg(best, k) for k in near))
     others = [
         k
         for k in coarse
-        if _angle_deg(best, k) >= RUNNER_UP_APART_DEG and at(k) <= scores[best] + RUNNER_UP_MARGIN
+        if _angle_deg(best, k) >= RUNNER_UP_APART_DEG and scores[k] <= scores[best] + RUNNER_UP_MARGIN
     ]
-    runner = min(others, key=at) if others else None
+    runner = min(others, key=scores.__getitem__) if others else None
     return LightMeasurement(
         direction_deg=best,
         sigma_deg=round(sigma, 1),

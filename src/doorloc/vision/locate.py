@@ -45,6 +45,7 @@ import numpy as np
 from doorloc import __version__
 from doorloc.cell import Cell, DoorSize, edge_camera_cell
 from doorloc.vision import quality as q
+from doorloc.vision.arris_model import StripFit
 from doorloc.vision.coarse import coarse_edges
 from doorloc.vision.coarse_stage import StepQuery, find_coarse
 from doorloc.vision.config import LocateConfig
@@ -72,6 +73,8 @@ class LocateTrace:
     inliers: dict[str, np.ndarray] = field(default_factory=dict)
     pose: MetricPose | None = None
     region: SearchRegion | None = None
+    #: the final arris strip fits per line (rounded and chamfered arrises), as the uncertainty took them
+    arris_fits: dict[str, StripFit] = field(default_factory=dict)
 
 
 def locate(
@@ -241,6 +244,7 @@ def _locate(
     tr.samples = samples
     tr.inliers = {k: fit.weights[k] > 0 for k in EDGE_NAMES}
     tr.pose = pose
+    tr.arris_fits = {k: strip for k, (strip, _) in refined.arris_fits.items()}
     doubts = edge_doubts(plane, s8, region, cfg, check)
     res = gate_and_answer(name, door, cfg, region, check, doubts, plane, s8)
     res.diagnostics["camera_response"] = check.diagnostics
