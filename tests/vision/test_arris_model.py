@@ -19,8 +19,8 @@ from doorloc.pose import DoorPose, direction_cell
 from doorloc.sim.door import render_door
 from doorloc.sim.effects import Effects
 from doorloc.vision.arris_model import ArrisGeometry, fit_strip_profile
-from doorloc.vision.arris_strip import StatedLight
 from doorloc.vision.locate import LocateTrace, locate
+from doorloc.vision.stated_light import StatedLight
 from doorloc.vision.strip_prior import STRIP_RADIANCE, STRIP_RADIANCE_SIGMA, deficit_prior
 
 CELL = load_cell(Path(__file__).parents[2] / "fixtures" / "cell_thesis.yaml")

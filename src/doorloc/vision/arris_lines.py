@@ -13,12 +13,13 @@ import numpy as np
 
 from doorloc.vision.arris_geometry import ArrisGeometry
 from doorloc.vision.arris_model import FIT_LINES, StripFit, fit_strip_profile
-from doorloc.vision.arris_strip import StatedLight, pixel_terms_fill
+from doorloc.vision.arris_strip import pixel_terms_fill
 from doorloc.vision.blurred_step import STEP_TAIL_SIGMAS
 from doorloc.vision.edge_samples import EdgeSamples, ScanWindow
 from doorloc.vision.edges import DITHERING_NOISE_LEVELS
 from doorloc.vision.jit import kernel, pairwise_sum
 from doorloc.vision.sampling import gather_profiles, oriented
+from doorloc.vision.stated_light import StatedLight
 from doorloc.vision.strip_prior import deficit_prior
 
 __all__ = ["StripWindow", "arris_edges"]

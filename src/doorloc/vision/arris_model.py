@@ -44,15 +44,14 @@ import numpy as np
 
 from doorloc.vision.arris_geometry import ArrisGeometry, arris_geometry
 from doorloc.vision.arris_strip import (
-    StatedLight,
     StripEvaluation,
     StripProblem,
     lit_basis,
     mix_cells,
     pixel_terms,
-    stated_light_explains,
     strip_basis,
 )
+from doorloc.vision.stated_light import StatedLight, stated_light_explains
 from doorloc.vision.strip_prior import PRIOR_DEFICIT, PRIOR_SIGMA
 
 __all__ = ["ArrisGeometry", "StripFit", "arris_geometry", "fit_strip_profile"]
@@ -112,7 +111,7 @@ class StripFit:
         above ``LocateConfig.max_clipped_arris_fraction``).
     stated_light_misfit : float or None
         A rounding's misfit under the cell's stated light over its free shading's (None: no light stated, or
-        no rounding); beyond ``arris_strip.STATED_LIGHT_MISFIT_RATIO`` the stated light was not used on this strip.
+        no rounding); beyond ``stated_light.STATED_LIGHT_MISFIT_RATIO`` the stated light was not used on this strip.
     misfit_under_light : callable or None
         ``direction -> ratio``: a rounding's misfit under a light from ``direction`` (unit vector towards
         the light, cell frame) over its free shading's, found as ``stated_light_misfit`` is for the stated
@@ -441,7 +440,7 @@ def _told_light_shading(
     """A rounding's shading under the cell's light (:func:`doorloc.vision.arris_strip.lit_basis`): refined at
     its own best place for the border (steps of a quarter pixel within 2 px of the free shading's, as the
     Lambert arcs are), and its misfit over the free shading's (``free``). None for the shading where that
-    ratio exceeds ``arris_strip.STATED_LIGHT_MISFIT_RATIO``: a light stated wrong (a sign of the azimuth, a lamp moved)
+    ratio exceeds ``stated_light.STATED_LIGHT_MISFIT_RATIO``: a light stated wrong (a sign of the azimuth, a lamp moved)
     fits far worse than a free shading, and placed a 2.9 mm rounding's door 0.37 mm off at 4.5 sigma (arris
     bench round set, seed 8122, the light stated 110 deg off); such a strip is fitted as without a light.
     Its doubt: ``LIT_DEFICIT_FLOOR`` (the model's own) and what the deficit moves when the light is turned
@@ -454,7 +453,7 @@ def _told_light_shading(
     for the cell leaves the strip two unknowns, its albedo and the background's share. Measured on the
     arris bench's round set (seed 7900, the renderer's light told): answered 11 -> 14 of 16, x / z RMS
     0.0155 / 0.0067 -> 0.0032 / 0.0024 mm. The turns, because a light stated wrong, yet near enough to fit
-    the strip (``arris_strip.STATED_LIGHT_MISFIT_RATIO``), places the border wrong at the floor's confidence: stated 40
+    the strip (``stated_light.STATED_LIGHT_MISFIT_RATIO``), places the border wrong at the floor's confidence: stated 40
     deg off, a 0.74 mm rounding's door (small set, seed 11100) was answered 0.109 mm off in x at 3.2 sigma,
     with the turns at 1.8."""
     basis, (d1, s1, ev1), misfit = _under_light(prob, geom, n_cells, coarse, free, light.direction_cell)

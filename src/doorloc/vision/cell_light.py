@@ -8,7 +8,7 @@ the mean log ratio has its least near the true direction. :func:`measure_cell_li
 of directions, then over a grid four times finer around the best.
 
 Why from locate's own strip fits, not a fit of its own: the ratio is what locate itself will use to decide
-whether the stated light explains a strip (``arris_strip.STATED_LIGHT_MISFIT_RATIO``), measured on the
+whether the stated light explains a strip (``stated_light.STATED_LIGHT_MISFIT_RATIO``), measured on the
 strips locate finds, in its frames; a second model of the strips would be a second thing to keep right.
 Each door is located once, without a light (``LocateTrace.arris_fits``), and its rounded strips are scored
 under every trial light (``StripFit.misfit_under_light``): the strips are the ones a locate under that light

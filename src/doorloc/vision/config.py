@@ -77,7 +77,7 @@ class LocateConfig:
         moves goes into its doubt. Default 10; 0 takes the stated light as exact (a 0.74 mm rounding's
         door whose light was stated 40 degrees off was then answered 0.11 mm wrong at 3.2 sigma). A strip
         the stated light fits far worse than a free shading does is fitted as if no light were stated
-        (``arris_strip.STATED_LIGHT_MISFIT_RATIO``; ``diagnostics.arris_fit.<line>.stated_light``).
+        (``stated_light.STATED_LIGHT_MISFIT_RATIO``; ``diagnostics.arris_fit.<line>.stated_light``).
     min_inliers, min_inlier_fraction, max_rms_residual_px : int, float, float
         Line-fit gate.
     corner_zone_px, min_corner_support : float

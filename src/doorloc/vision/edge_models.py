@@ -37,12 +37,12 @@ from doorloc.cell import DoorSize
 from doorloc.vision.arris_geometry import ArrisGeometry
 from doorloc.vision.arris_lines import StripWindow, arris_edges
 from doorloc.vision.arris_model import StripFit
-from doorloc.vision.arris_strip import StatedLight
 from doorloc.vision.blurred_step import refine_step_fit
 from doorloc.vision.edge_samples import EdgeSamples, ScanWindow
 from doorloc.vision.edges import subpixel_edges, subpixel_edges_banded
 from doorloc.vision.far_face import FarBand, FarFaceFit, subpixel_edges_far_face
 from doorloc.vision.region import Track
+from doorloc.vision.stated_light import StatedLight
 from doorloc.vision.strip_prior import STRIP_RADIANCE, STRIP_RADIANCE_SIGMA
 from doorloc.vision.texture import texture_bias
 

@@ -15,7 +15,6 @@ from doorloc.pose import direction_cell
 from doorloc.vision import quality as q
 from doorloc.vision.arris_geometry import ArrisGeometry
 from doorloc.vision.arris_model import StripFit, arris_geometry
-from doorloc.vision.arris_strip import StatedLight
 from doorloc.vision.config import LocateConfig
 from doorloc.vision.edge_models import ARRIS_PLATEAU_PX, EDGE_MODELS, PassSettings, ScanWindow, edge_kind
 from doorloc.vision.edge_samples import EdgeSamples
@@ -27,6 +26,7 @@ from doorloc.vision.region import EDGE_NAMES, HUMAN, SearchRegion
 from doorloc.vision.response_check import STEP_FIT_MIN_BLUR_PX
 from doorloc.vision.sampling import linearizing_lut
 from doorloc.vision.state import Refined, Refused, StageClock
+from doorloc.vision.stated_light import StatedLight
 
 __all__ = ["arris_response_shifts", "refine"]
 
