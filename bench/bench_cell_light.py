@@ -12,7 +12,9 @@ refusals, and RMS of x, z and yaw with the shares within 2 claimed sigma and bey
 summary). The time the measurement took (thread CPU, the first cell's includes compiling).
 
     OMP_NUM_THREADS=1 PYTHONPATH=src python bench/bench_cell_light.py [--cells 3] [--first-cell 0]
-        [--measure 8] [--test 16] [--seed 8500]
+        [--measure 8] [--test 16] [--seed 8500] [--ambient]
+
+``--ambient``: the same doors under ambient light alone; the measurement is to refuse (no direction).
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ from bench_arris_range import Outcome, draw, summary  # noqa: E402
 from doorloc.cell import load_cell  # noqa: E402
 from doorloc.pose import direction_cell  # noqa: E402
 from doorloc.sim.door import render_door  # noqa: E402
-from doorloc.vision.cell_light import measure_cell_light  # noqa: E402
+from doorloc.vision.cell_light import LightNotMeasurable, measure_cell_light  # noqa: E402
 from doorloc.vision.locate import locate  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -46,6 +48,11 @@ def main() -> None:
     ap.add_argument("--measure", type=int, default=8, help="doors the light is measured from")
     ap.add_argument("--test", type=int, default=16, help="doors located after, held out")
     ap.add_argument("--seed", type=int, default=8500)
+    ap.add_argument(
+        "--ambient",
+        action="store_true",
+        help="the cell's doors under ambient light alone (the lamp's share added to it): no direction to measure",
+    )
     args = ap.parse_args()
     base = load_cell(ROOT / "fixtures" / "cell_thesis.yaml")
     for c in range(args.first_cell, args.first_cell + args.cells):
@@ -64,9 +71,17 @@ def main() -> None:
             fx = dataclasses.replace(
                 fx, light_azimuth_deg=light[0], light_elevation_deg=light[1], gamma=gamma
             )
+            if args.ambient:
+                fx = dataclasses.replace(
+                    fx, light_ambient=fx.light_ambient + fx.light_directional, light_directional=0.0
+                )
             frames.append((render_door(cell, door, pose, effects=fx, seed=seed).image, door, pose))
         t0 = time.thread_time()
-        m = measure_cell_light([(im, d) for im, d, _ in frames[: args.measure]], cell)
+        try:
+            m = measure_cell_light([(im, d) for im, d, _ in frames[: args.measure]], cell)
+        except LightNotMeasurable as e:
+            print(f"cell {c}: {'ambient light' if args.ambient else 'the lamp'}; not measured: {e}")
+            continue
         took = time.thread_time() - t0
         off = math.degrees(
             math.acos(min(1.0, float(direction_cell(*m.direction_deg) @ direction_cell(*light))))

@@ -24,15 +24,15 @@ CELL = load_cell(CELL_PATH)
 LIGHT = (-45.0, 15.0)
 
 
-def _door(arris_mm: float, profile: str, pose: DoorPose, blur: float, seed: int):
+def _door(arris_mm: float, profile: str, pose: DoorPose, blur: float, seed: int, lamp: bool = True):
     door = DoorSize(900, 50.0, 2100, arris_mm=arris_mm, arris_profile=profile)
     fx = Effects(
         arris_profile=profile,
         albedo_hinge=0.7,
         albedo_chamfer=0.65,
         albedo_background=0.12,
-        light_ambient=0.45,
-        light_directional=0.6,
+        light_ambient=0.45 if lamp else 1.05,
+        light_directional=0.6 if lamp else 0.0,
         light_azimuth_deg=LIGHT[0],
         light_elevation_deg=LIGHT[1],
         blur_sigma_px=blur,
@@ -68,6 +68,18 @@ def test_the_light_of_a_cell_is_found_near_its_direction():
     assert off <= 10.0, (m, off)
     assert m.sigma_deg >= cell_light.MEASURED_SIGMA_FLOOR_DEG
     assert m.doors == 2 and m.strips >= 4
+
+
+def test_doors_under_a_diffuse_light_tell_no_direction():
+    """The same two roundings under ambient light alone: their strips fit every direction about alike, so no
+    direction is stated (it would have been printed with a doubt of 10 deg, and a light stated wrong lets
+    a strip's shading choose the wrong border)."""
+    frames = [
+        _door(2.4, "round", DoorPose(2.0, -3.0, 0.6), 1.1, 1, lamp=False),
+        _door(1.6, "round", DoorPose(-4.0, 2.0, -1.0), 1.3, 2, lamp=False),
+    ]
+    with pytest.raises(LightNotMeasurable, match="diffuse"):
+        measure_cell_light(frames, dataclasses.replace(CELL, response_gamma=1.8))
 
 
 def test_doors_without_a_rounding_cannot_tell_the_light():

@@ -47,6 +47,11 @@ COARSE_ELEVATIONS = (-20, 0, 20, 40, 60)
 #: another light the doors cannot rule out: the mirror of the true light across the camera's axis scored
 #: within 0.02 of it on eight doors lit from azimuth -55 deg
 RUNNER_UP_MARGIN, RUNNER_UP_APART_DEG = 0.05, 40.0
+#: a share of the first grid's directions scoring within ``RUNNER_UP_MARGIN`` of the best beyond which the
+#: doors cannot tell a direction: on three rendered cells (``bench/bench_cell_light.py``'s first three) 1-2
+#: of the 45 did under the cell's lamp, all 45 under ambient light alone (scores within 0.004 of each
+#: other), where a direction would still have been printed with a doubt of 10 deg
+DIFFUSE_SHARE = 0.5
 #: the stated doubt of a measured light, deg, at least: the turns of ``locate.light_direction_sigma_deg``
 #: at 10 deg cost no answer where the light is right, and a light 10 deg off stays within 2 sigma
 MEASURED_SIGMA_FLOOR_DEG = 10.0
@@ -144,8 +149,8 @@ def measure_cell_light(
     Raises
     ------
     LightNotMeasurable
-        No frame has a rounded arris whose strip locate could fit (the images, or their doors, cannot
-        tell the light).
+        No frame has a rounded arris whose strip locate could fit, or the strips fit every direction
+        about alike (a diffuse light, or roundings too small to tell it): the images cannot tell the light.
     """
     if not any(door.arris_mm > 0 and door.arris_profile == "round" for _, door in frames):
         raise LightNotMeasurable(
@@ -161,6 +166,14 @@ def measure_cell_light(
             "(check that the doors are in the fixture and their recipes' arris_mm)"
         )
     scores = _scores(per_door, coarse, progress)
+    least = min(scores.values())
+    alike = sum(v <= least + RUNNER_UP_MARGIN for v in scores.values())
+    if alike > DIFFUSE_SHARE * len(coarse):
+        raise LightNotMeasurable(
+            f"the doors' roundings are shaded about alike under {alike} of the {len(coarse)} directions "
+            "tried: the light is diffuse (or the roundings too small to tell it), and no direction can be "
+            "stated; leave locate.light_direction_deg unset"
+        )
 
     best = min(scores, key=scores.__getitem__)
     da = (azimuths[1] - azimuths[0]) / 4 if len(azimuths) > 1 else 5.0
