@@ -14,8 +14,8 @@ Each door is located once, without a light (``LocateTrace.arris_fits``), and its
 under every trial light (``StripFit.misfit_under_light``): the strips are the ones a locate under that light
 would fit, read at the pose found without it (the stated light moves a rounded door's pose by hundredths of
 a millimetre, a strip's profiles by as little). Locating each door again under each trial light gave the
-same directions within 2 deg on the rendered cells of ``bench/bench_cell_light.py``, at fifty times the
-cost.
+same directions on the six rendered cells of ``bench/bench_cell_light.py`` (scores within 0.007), at
+about fifteen times the cost.
 """
 
 from __future__ import annotations
@@ -48,9 +48,9 @@ COARSE_ELEVATIONS = (-20, 0, 20, 40, 60)
 #: within 0.02 of it on eight doors lit from azimuth -55 deg
 RUNNER_UP_MARGIN, RUNNER_UP_APART_DEG = 0.05, 40.0
 #: a share of the first grid's directions scoring within ``RUNNER_UP_MARGIN`` of the best beyond which the
-#: doors cannot tell a direction: on three rendered cells (``bench/bench_cell_light.py``'s first three) 1-2
-#: of the 45 did under the cell's lamp, all 45 under ambient light alone (scores within 0.004 of each
-#: other), where a direction would still have been printed with a doubt of 10 deg
+#: doors cannot tell a direction: on the six rendered cells of ``bench/bench_cell_light.py`` 1-2 of the 45
+#: did under the cell's lamp, all 45 under ambient light alone (``--ambient``: scores within 0.001-0.008 of
+#: each other), where a direction would still have been printed with a doubt of 10 deg
 DIFFUSE_SHARE = 0.5
 #: the stated doubt of a measured light, deg, at least: the turns of ``locate.light_direction_sigma_deg``
 #: at 10 deg cost no answer where the light is right, and a light 10 deg off stays within 2 sigma
