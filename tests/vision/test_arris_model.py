@@ -829,11 +829,12 @@ def test_a_strips_one_step_read_as_either_border_by_the_first_pass_stays_in_doub
         assert res.error_code == "uncertain", res.error
 
 
-def test_a_rounding_under_the_cells_stated_light_is_placed_to_a_hundredth():
-    """A 2.2 mm rounding lit from the side (arris bench round set, seed 7912): its free shading trades off
-    with the border's place and the door was answered 0.047 mm off in x. With the cell's light stated
-    (``locate.light_direction_deg``, the renderer's), the strip is a Lambertian arc under it, its albedo and
-    the background's share free: placed within 0.01 mm, and within 3 of its sigmas."""
+#: arris bench round set, seed 7912: a 2.2 mm rounding lit from the side (azimuth -59.25, elevation 36.6)
+LIGHT_7912 = (-59.25, 36.6)
+
+
+def _rounding_7912():
+    """The door, its pose, its image and its cell with the renderer's light stated."""
     door = DoorSize(900, 70.0, 2100, arris_mm=2.205, arris_profile="round")
     pose = DoorPose(-2.903, 3.498, 1.395)
     fx = Effects(
@@ -843,8 +844,8 @@ def test_a_rounding_under_the_cells_stated_light_is_placed_to_a_hundredth():
         albedo_background=0.0908,
         light_ambient=0.345,
         light_directional=0.144,
-        light_azimuth_deg=-59.25,
-        light_elevation_deg=36.6,
+        light_azimuth_deg=LIGHT_7912[0],
+        light_elevation_deg=LIGHT_7912[1],
         blur_sigma_px=1.673,
         read_noise_dn=0.183,
         gamma=1.151,
@@ -853,8 +854,17 @@ def test_a_rounding_under_the_cells_stated_light_is_placed_to_a_hundredth():
     lit = dataclasses.replace(
         CELL,
         response_gamma=fx.gamma,
-        locate=dataclasses.replace(CELL.locate, light_direction_deg=(-59.25, 36.6)),
+        locate=dataclasses.replace(CELL.locate, light_direction_deg=LIGHT_7912),
     )
+    return door, pose, img, lit
+
+
+def test_a_rounding_under_the_cells_stated_light_is_placed_to_a_hundredth():
+    """A 2.2 mm rounding lit from the side (arris bench round set, seed 7912): its free shading trades off
+    with the border's place and the door was answered 0.047 mm off in x. With the cell's light stated
+    (``locate.light_direction_deg``, the renderer's), the strip is a Lambertian arc under it, its albedo and
+    the background's share free: placed within 0.01 mm, and within 3 of its sigmas."""
+    door, pose, img, lit = _rounding_7912()
     res = locate(img, lit, door)
     assert res.ok, res.error
     ex, ez = res.x_mm - pose.x_mm, res.z_mm - pose.z_mm
@@ -866,34 +876,15 @@ def test_a_roundings_misfit_under_any_light_is_the_one_locate_weighs_for_the_sta
     """``StripFit.misfit_under_light`` (what ``doorloc measure-light`` scores each trial light by) gives for
     the stated light's direction the very ratio locate weighed that light by on every rounded strip
     (``stated_light_misfit``), and for a light from the other side of the camera a worse one."""
-    door = DoorSize(900, 70.0, 2100, arris_mm=2.205, arris_profile="round")
-    fx = Effects(
-        arris_profile="round",
-        albedo_hinge=0.565,
-        albedo_chamfer=0.311,
-        albedo_background=0.0908,
-        light_ambient=0.345,
-        light_directional=0.144,
-        light_azimuth_deg=-59.25,
-        light_elevation_deg=36.6,
-        blur_sigma_px=1.673,
-        read_noise_dn=0.183,
-        gamma=1.151,
-    )
-    img = render_door(CELL, door, DoorPose(-2.903, 3.498, 1.395), effects=fx, seed=7912).image
-    lit = dataclasses.replace(
-        CELL,
-        response_gamma=fx.gamma,
-        locate=dataclasses.replace(CELL.locate, light_direction_deg=(-59.25, 36.6)),
-    )
+    door, _, img, lit = _rounding_7912()
     trace = LocateTrace()
     locate(img, lit, door, trace=trace)
     rounded = [f for f in trace.arris_fits.values() if f.misfit_under_light is not None]
     assert len(rounded) >= 2
     for f in rounded:
         assert f.stated_light_misfit is not None
-        assert f.misfit_under_light(direction_cell(-59.25, 36.6)) == f.stated_light_misfit
-    mirrored = [f.misfit_under_light(direction_cell(59.25, 36.6)) for f in rounded]
+        assert f.misfit_under_light(direction_cell(*LIGHT_7912)) == f.stated_light_misfit
+    mirrored = [f.misfit_under_light(direction_cell(-LIGHT_7912[0], LIGHT_7912[1])) for f in rounded]
     assert sum(math.log(m) for m in mirrored) > sum(math.log(f.stated_light_misfit) for f in rounded)
 
 
