@@ -888,6 +888,43 @@ def test_a_roundings_misfit_under_any_light_is_the_one_locate_weighs_for_the_sta
     assert sum(math.log(m) for m in mirrored) > sum(math.log(f.stated_light_misfit) for f in rounded)
 
 
+def test_a_dark_roundings_bottom_end_is_not_read_a_strips_width_off():
+    """A 2.4 mm rounding as dark as the background under ambient light (arris bench focused_dark, seed
+    15910). Its bottom end shows one step, which a strip at the face's level whose border is that step fits
+    as well as a strip at the background's a strip's width outwards. The coarse grid of border places (2.3
+    px apart) stepped over the second reading's valley (narrow under 0.36 px of blur), and the posterior
+    weighed the first alone. Without a light the door was refused (its thickness unverified); with the
+    cell's light stated 110 deg wrong its far arris was read and the door answered 2.14 mm off in z at 32
+    sigma. Both readings are now refined: within 3 sigma, or refused."""
+    door = DoorSize(900, 50.0, 2100, arris_mm=2.3951, arris_profile="round")
+    pose = DoorPose(-6.3001, -1.8504, 0.5065)
+    fx = Effects(
+        arris_profile="round",
+        albedo_hinge=0.8921,
+        albedo_chamfer=0.11194,
+        albedo_background=0.11194,
+        light_ambient=1.0649,
+        light_directional=0.0,
+        blur_sigma_px=0.3554,
+        read_noise_dn=0.5114,
+        gamma=1.9222,
+    )
+    img = render_door(CELL, door, pose, effects=fx, seed=15910).image
+    stated = dataclasses.replace(
+        CELL,
+        response_gamma=fx.gamma,
+        locate=dataclasses.replace(
+            CELL.locate, light_direction_deg=(68.49, -80.48), response_unmeasured_factor=1.11
+        ),
+    )
+    res = locate(img, stated, door)
+    if res.ok:
+        assert abs(res.z_mm - pose.z_mm) <= 3 * res.uncertainty.z_mm, (res.z_mm - pose.z_mm, res.uncertainty)
+        assert abs(res.x_mm - pose.x_mm) <= 3 * res.uncertainty.x_mm, (res.x_mm - pose.x_mm, res.uncertainty)
+    else:
+        assert res.error_code == "uncertain", res.error
+
+
 def test_a_light_stated_wrong_is_no_confident_answer():
     """A 0.74 mm rounding lit from azimuth -65, elevation 16 deg (arris bench small set, seed 11100), its cell's
     light stated 40 deg off ([-29.3, 42.4]): close enough that its strips fit as well as with a free

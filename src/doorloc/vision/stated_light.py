@@ -20,10 +20,8 @@ __all__ = ["STATED_LIGHT_MISFIT_RATIO", "StatedLight", "stated_light_explains"]
 #: stated light to be used on that strip (beyond it the strip is fitted as where no light is stated). A
 #: light stated right fits within 1.15 times the free shading's misfit on 90 of the 93 strips of the arris
 #: bench's round set (seed 8100, 31 doors), within 1.42 on all (a 2.7 mm rounding's); stated 110 deg off,
-#: most strips 2-100 times. What it cannot catch is a light far off that still fits: stated 110 deg off, a
-#: 2.4 mm rounding as dark as the background under ambient light (arris bench focused_dark, seed 15910) had
-#: its far arris read and its bottom end read a strip's width inwards: z 2.14 mm off at 32 sigma (refused
-#: without a light, its thickness unverified)
+#: most strips 2-100 times. A light far off that still fits is not caught here: what keeps it honest is the
+#: doubt of its turns and the strip's posterior over both its readings (arris_model._valley_posterior)
 STATED_LIGHT_MISFIT_RATIO = 2.0
 
 
