@@ -45,6 +45,8 @@ thickness 0.09), the worst 0.30; ``within``, the worst 1.27; ``bound``, 90 % wit
         [--light-from-door]   (each door's light measured from its own roundings, as measure-light does
                                for a cell, and stated with the doubt it measured: an experiment, not a
                                setting locate offers; see docs/benchmarks.md)
+        [--door-light-always]   (with --light-from-door: the best direction stated even where the door's
+                                 strips score most directions alike)
 
 ``--open-limits`` measures what the model gets wrong on the doors it refuses as uncertain: are their
 sigmas as large as their errors (an honest refusal: the model must improve), or far larger (the doubt is
@@ -69,7 +71,7 @@ from bench_arris import random_effects  # noqa: E402
 from doorloc.cell import DoorSize, load_cell  # noqa: E402
 from doorloc.pose import DoorPose, direction_cell, directions_across  # noqa: E402
 from doorloc.sim.door import render_door  # noqa: E402
-from doorloc.vision.cell_light import LightNotMeasurable, measure_cell_light  # noqa: E402
+from doorloc.vision.cell_light import DIFFUSE_SHARE, LightNotMeasurable, measure_cell_light  # noqa: E402
 from doorloc.vision.config import LocateConfig  # noqa: E402
 from doorloc.vision.locate import locate  # noqa: E402
 
@@ -169,6 +171,7 @@ def run_one(
     told: float | None = None,
     limits: LocateConfig | None = None,
     light_from_door: bool = False,
+    diffuse_share: float = DIFFUSE_SHARE,
 ) -> Outcome:
     """Locate one rendered door and compare with its true pose. ``limits``: the cell's own ``locate``
     settings where ``cell``'s are opened (``--open-limits``): an answer beyond them is marked.
@@ -177,7 +180,7 @@ def run_one(
     cell = dataclasses.replace(cell, response_gamma=gamma if told is None else told)
     if light_from_door:
         try:
-            own = measure_cell_light([(img, door)], cell)
+            own = measure_cell_light([(img, door)], cell, diffuse_share=diffuse_share)
             lit = dict(light_direction_deg=own.direction_deg, light_direction_sigma_deg=own.sigma_deg)
             cell = dataclasses.replace(cell, locate=dataclasses.replace(cell.locate, **lit))
             label += (
@@ -311,6 +314,11 @@ def main() -> None:
         help="each door's light measured from its own roundings and stated with its measured doubt",
     )
     ap.add_argument(
+        "--door-light-always",
+        action="store_true",
+        help="with --light-from-door: state the door's best direction even where its strips score most alike",
+    )
+    ap.add_argument(
         "--light-sigma",
         type=float,
         default=None,
@@ -367,7 +375,21 @@ def main() -> None:
                 if args.light_told
                 else cell
             )
-            rows.append(run_one(lit, door, pose, fx, gamma, seed, label, told, limits, args.light_from_door))
+            rows.append(
+                run_one(
+                    lit,
+                    door,
+                    pose,
+                    fx,
+                    gamma,
+                    seed,
+                    label,
+                    told,
+                    limits,
+                    args.light_from_door,
+                    1.01 if args.door_light_always else DIFFUSE_SHARE,
+                )
+            )
         summary(f"{name} (seeds {args.seed + 1000 * k}..{args.seed + 1000 * k + args.n - 1})", rows)
         sys.stdout.flush()
 

@@ -33,6 +33,7 @@ from doorloc.vision.locate import LocateTrace, locate
 __all__ = [
     "COARSE_AZIMUTHS",
     "COARSE_ELEVATIONS",
+    "DIFFUSE_SHARE",
     "LightMeasurement",
     "LightNotMeasurable",
     "measure_cell_light",
@@ -137,6 +138,7 @@ def measure_cell_light(
     azimuths: Sequence[float] = COARSE_AZIMUTHS,
     elevations: Sequence[float] = COARSE_ELEVATIONS,
     fine_steps: int = 2,
+    diffuse_share: float = DIFFUSE_SHARE,
     progress: Callable[[str], None] | None = None,
 ) -> LightMeasurement:
     """The direction of the cell's light from images of its doors, ``frames`` (image, door) pairs, the doors
@@ -144,7 +146,9 @@ def measure_cell_light(
 
     The mean log misfit ratio over the doors' rounded strips at every ``azimuths`` x ``elevations``
     direction (deg, cell frame), then on a grid a quarter of its steps wide around the least, ``fine_steps``
-    of them each way. ``progress`` hears a line for each door located and each direction scored.
+    of them each way. ``diffuse_share``: the share of the first grid's directions scoring alike
+    (``RUNNER_UP_MARGIN``) beyond which no direction is stated (1 or more: the best is always stated).
+    ``progress`` hears a line for each door located and each direction scored.
 
     Raises
     ------
@@ -168,7 +172,7 @@ def measure_cell_light(
     scores = _scores(per_door, coarse, progress)
     least = min(scores.values())
     alike = sum(v <= least + RUNNER_UP_MARGIN for v in scores.values())
-    if alike > DIFFUSE_SHARE * len(coarse):
+    if alike > diffuse_share * len(coarse):
         raise LightNotMeasurable(
             f"the doors' roundings are shaded about alike under {alike} of the {len(coarse)} directions "
             "tried: the light is diffuse (or the roundings too small to tell it), and no direction can be "
