@@ -187,7 +187,7 @@ def run_one(
                 f" own light [{own.direction_deg[0]:+.0f}, {own.direction_deg[1]:+.0f}] +-{own.sigma_deg:g}"
             )
         except LightNotMeasurable:
-            pass  # (no rounding: located as without a light)
+            pass  # (no rounding, or its strips tell no direction: located as without a light)
     res = locate(img, cell, door)
     if not res.ok:
         print(f"  seed {seed:6d} {label:44s} REFUSED {res.error_code}: {(res.error or '')[:110]}")
