@@ -33,7 +33,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from bench_arris_range import Outcome, draw, summary  # noqa: E402
 
 from doorloc.cell import load_cell  # noqa: E402
-from doorloc.pose import direction_cell  # noqa: E402
+from doorloc.pose import directions_apart_deg  # noqa: E402
 from doorloc.sim.door import render_door  # noqa: E402
 from doorloc.vision.cell_light import LightNotMeasurable, measure_cell_light  # noqa: E402
 from doorloc.vision.locate import locate  # noqa: E402
@@ -83,9 +83,7 @@ def main() -> None:
             print(f"cell {c}: {'ambient light' if args.ambient else 'the lamp'}; not measured: {e}")
             continue
         took = time.thread_time() - t0
-        off = math.degrees(
-            math.acos(min(1.0, float(direction_cell(*m.direction_deg) @ direction_cell(*light))))
-        )
+        off = directions_apart_deg(m.direction_deg, light)
         print(
             f"cell {c}: light [{light[0]:+.1f}, {light[1]:+.1f}], gamma {gamma:.2f}; measured "
             f"[{m.direction_deg[0]:+.1f}, {m.direction_deg[1]:+.1f}] +- {m.sigma_deg:g} deg ({off:.1f} deg off; "

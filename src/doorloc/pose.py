@@ -34,6 +34,7 @@ __all__ = [
     "cell_to_door",
     "direction_cell",
     "directions_across",
+    "directions_apart_deg",
     "yaw_rotation_matrix",
 ]
 
@@ -105,6 +106,17 @@ def directions_across(direction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         side = np.array([1.0, 0.0, 0.0])
     side = side / np.linalg.norm(side)
     return side, np.cross(side, d)
+
+
+def directions_apart_deg(a: tuple[float, float], b: tuple[float, float]) -> float:
+    """The angle between two directions given as ``[azimuth, elevation]`` (deg, as :func:`direction_cell`
+    takes them), deg.
+
+    >>> round(directions_apart_deg((-45.0, 0.0), (45.0, 0.0)), 6)
+    90.0
+    """
+    c = float(direction_cell(*a) @ direction_cell(*b))
+    return math.degrees(math.acos(max(-1.0, min(1.0, c))))
 
 
 def door_to_cell(points_door: np.ndarray, pose: DoorPose, face_y: float = 0.0) -> np.ndarray:

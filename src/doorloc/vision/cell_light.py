@@ -27,7 +27,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from doorloc.cell import Cell, DoorSize
-from doorloc.pose import direction_cell
+from doorloc.pose import direction_cell, directions_apart_deg
 from doorloc.vision.locate import LocateTrace, locate
 
 __all__ = [
@@ -59,7 +59,8 @@ MEASURED_SIGMA_FLOOR_DEG = 10.0
 
 
 class LightNotMeasurable(ValueError):
-    """The images cannot tell the light: no door with a rounded arris, or no strip locate could fit."""
+    """The images cannot tell the light: no door with a rounded arris, no strip locate could fit, or strips
+    that fit most directions alike (a diffuse light)."""
 
 
 @dataclass(frozen=True)
@@ -83,11 +84,6 @@ class LightMeasurement:
     runner_up_score: float | None = None
 
 
-def _angle_deg(a: tuple[float, float], b: tuple[float, float]) -> float:
-    c = float(direction_cell(*a) @ direction_cell(*b))
-    return math.degrees(math.acos(max(-1.0, min(1.0, c))))
-
-
 #: a rounded strip's misfit under a light from a direction (unit vector, cell frame) over its free shading's
 StripScore = Callable[[np.ndarray], float]
 
@@ -97,13 +93,13 @@ def _scores(
     lights: Sequence[tuple[float, float]],
     progress: Callable[[str], None] | None = None,
 ) -> dict[tuple[float, float], float]:
-    """Each light's mean log misfit ratio over the rounded strips of the doors, ``strips`` (per door);
-    ``progress`` hears of each light done."""
+    """Each light's mean log misfit ratio over the rounded strips of the doors, ``strips`` (per door, at
+    least one strip in all); ``progress`` hears of each light done."""
     out: dict[tuple[float, float], float] = {}
     for k, light in enumerate(lights):
         direction = direction_cell(*light)
         logs = [math.log(max(score(direction), 1e-3)) for door in strips for score in door]
-        out[light] = float(np.mean(logs)) if logs else math.nan
+        out[light] = float(np.mean(logs))
         if progress is not None:
             progress(
                 f"light [{light[0]:+.0f}, {light[1]:+.0f}] deg: {out[light]:.3f} ({k + 1} of {len(lights)})"
@@ -192,11 +188,12 @@ def measure_cell_light(
     scores.update(_scores(per_door, fine, progress))
     best = min(scores, key=scores.__getitem__)
     near = [k for k in [*fine, best] if scores[k] <= scores[best] + RUNNER_UP_MARGIN]
-    sigma = max(MEASURED_SIGMA_FLOOR_DEG, max(_angle_deg(best, k) for k in near))
+    sigma = max(MEASURED_SIGMA_FLOOR_DEG, max(directions_apart_deg(best, k) for k in near))
     others = [
         k
         for k in coarse
-        if _angle_deg(best, k) >= RUNNER_UP_APART_DEG and scores[k] <= scores[best] + RUNNER_UP_MARGIN
+        if directions_apart_deg(best, k) >= RUNNER_UP_APART_DEG
+        and scores[k] <= scores[best] + RUNNER_UP_MARGIN
     ]
     runner = min(others, key=scores.__getitem__) if others else None
     return LightMeasurement(
