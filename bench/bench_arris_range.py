@@ -42,11 +42,8 @@ thickness 0.09), the worst 0.30; ``within``, the worst 1.27; ``bound``, 90 % wit
         [--light-error DEG]   (with --light-told: the stated direction DEG off the renderer's, turned a
                                way drawn from the door's seed)
         [--light-sigma DEG]   (the cell's locate.light_direction_sigma_deg; default the cell's, 10)
-        [--light-from-door]   (each door's light measured from its own roundings, as measure-light does
-                               for a cell, and stated with the doubt it measured: an experiment, not a
-                               setting locate offers; see docs/benchmarks.md)
-        [--door-light-always]   (with --light-from-door: the best direction stated even where the door's
-                                 strips score most directions alike)
+        [--no-door-light]   (locate.light_from_door false: where no light is stated, a rounding's shading
+                             free only, not also sought under the door's own light)
 
 ``--open-limits`` measures what the model gets wrong on the doors it refuses as uncertain: are their
 sigmas as large as their errors (an honest refusal: the model must improve), or far larger (the doubt is
@@ -71,7 +68,6 @@ from bench_arris import random_effects  # noqa: E402
 from doorloc.cell import DoorSize, load_cell  # noqa: E402
 from doorloc.pose import DoorPose, direction_cell, directions_across  # noqa: E402
 from doorloc.sim.door import render_door  # noqa: E402
-from doorloc.vision.cell_light import DIFFUSE_SHARE, LightNotMeasurable, measure_cell_light  # noqa: E402
 from doorloc.vision.config import LocateConfig  # noqa: E402
 from doorloc.vision.locate import locate  # noqa: E402
 
@@ -170,25 +166,17 @@ def run_one(
     label: str,
     told: float | None = None,
     limits: LocateConfig | None = None,
-    light_from_door: bool = False,
-    diffuse_share: float = DIFFUSE_SHARE,
 ) -> Outcome:
     """Locate one rendered door and compare with its true pose. ``limits``: the cell's own ``locate``
-    settings where ``cell``'s are opened (``--open-limits``): an answer beyond them is marked.
-    ``light_from_door``: the cell states the light measured from this door's own roundings."""
+    settings where ``cell``'s are opened (``--open-limits``): an answer beyond them is marked."""
     img = render_door(cell, door, pose, effects=fx, seed=seed).image
     cell = dataclasses.replace(cell, response_gamma=gamma if told is None else told)
-    if light_from_door:
-        try:
-            own = measure_cell_light([(img, door)], cell, diffuse_share=diffuse_share)
-            lit = dict(light_direction_deg=own.direction_deg, light_direction_sigma_deg=own.sigma_deg)
-            cell = dataclasses.replace(cell, locate=dataclasses.replace(cell.locate, **lit))
-            label += (
-                f" own light [{own.direction_deg[0]:+.0f}, {own.direction_deg[1]:+.0f}] +-{own.sigma_deg:g}"
-            )
-        except LightNotMeasurable:
-            pass  # (no rounding, or its strips tell no direction: located as without a light)
     res = locate(img, cell, door)
+    own = res.diagnostics.get("door_light")
+    if own is not None:
+        label += f" own light [{own['direction_deg'][0]:+.0f}, {own['direction_deg'][1]:+.0f}]" + (
+            "" if own["used"] else " unused"
+        )
     if not res.ok:
         print(f"  seed {seed:6d} {label:44s} REFUSED {res.error_code}: {(res.error or '')[:110]}")
         return Outcome(res.error_code)
@@ -309,14 +297,9 @@ def main() -> None:
         "drawn from the door's seed (a lamp measured with a tape and stated to a few degrees)",
     )
     ap.add_argument(
-        "--light-from-door",
+        "--no-door-light",
         action="store_true",
-        help="each door's light measured from its own roundings and stated with its measured doubt",
-    )
-    ap.add_argument(
-        "--door-light-always",
-        action="store_true",
-        help="with --light-from-door: state the door's best direction even where its strips score most alike",
+        help="locate.light_from_door false: a rounding without a stated light is shaded freely only",
     )
     ap.add_argument(
         "--light-sigma",
@@ -337,6 +320,8 @@ def main() -> None:
         cell = dataclasses.replace(
             cell, locate=dataclasses.replace(cell.locate, response_unmeasured_factor=args.response_factor)
         )
+    if args.no_door_light:
+        cell = dataclasses.replace(cell, locate=dataclasses.replace(cell.locate, light_from_door=False))
     if args.light_sigma is not None:
         cell = dataclasses.replace(
             cell, locate=dataclasses.replace(cell.locate, light_direction_sigma_deg=args.light_sigma)
@@ -386,8 +371,6 @@ def main() -> None:
                     label,
                     told,
                     limits,
-                    args.light_from_door,
-                    1.01 if args.door_light_always else DIFFUSE_SHARE,
                 )
             )
         summary(f"{name} (seeds {args.seed + 1000 * k}..{args.seed + 1000 * k + args.n - 1})", rows)

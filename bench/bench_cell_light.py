@@ -5,8 +5,9 @@ lights), one camera exponent (1.0-2.4, stated in the cell as measured, ``respons
 1.11) and renders doors with rounded arrises of 0.5-3 mm as the arris bench's ``round`` set draws them
 (blur, albedos, noise, poses), every door under the cell's light. The light is measured from the first
 ``--measure`` doors (:func:`doorloc.vision.cell_light.measure_cell_light`); the next ``--test`` doors are
-located three ways: no light stated (the free shading), the measured light with its measured doubt, and
-the renderer's own light (the default doubt). Per cell: the measured direction, its angle from the true
+located four ways: no light stated (the free shading, ``locate.light_from_door`` off), each door's own
+light (``light_from_door``, the default), the measured light with its measured doubt, and the renderer's
+own light (the default doubt). Per cell: the measured direction, its angle from the true
 one, its doubt and any other direction the doors could not rule out; per way: the answered share and the
 refusals, and RMS of x, z and yaw with the shares within 2 claimed sigma and beyond 5 (the arris bench's
 summary). The time the measurement took (thread CPU, the first cell's includes compiling).
@@ -95,7 +96,10 @@ def main() -> None:
             )
         )
         ways = {
-            "no light": dataclasses.replace(cell.locate, light_direction_deg=None),
+            "no light": dataclasses.replace(cell.locate, light_direction_deg=None, light_from_door=False),
+            "each door's own": dataclasses.replace(
+                cell.locate, light_direction_deg=None, light_from_door=True
+            ),
             "measured": dataclasses.replace(
                 cell.locate, light_direction_deg=m.direction_deg, light_direction_sigma_deg=m.sigma_deg
             ),

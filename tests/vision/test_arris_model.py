@@ -24,6 +24,9 @@ from doorloc.vision.stated_light import StatedLight
 from doorloc.vision.strip_prior import STRIP_RADIANCE, STRIP_RADIANCE_SIGMA, deficit_prior
 
 CELL = load_cell(Path(__file__).parents[2] / "fixtures" / "cell_thesis.yaml")
+#: the cell's settings with a rounding's shading free only (no light sought from the door's own strips,
+#: ``locate.light_from_door``): what the tests of the free shading hold it to
+FREE_SHADINGS = dataclasses.replace(CELL.locate, light_from_door=False)
 
 
 def _profiles(
@@ -410,7 +413,7 @@ def test_a_rounding_in_shadow_is_answered_and_its_shading_is_not_texture():
         read_noise_dn=0.4,
     )
     img = render_door(CELL, door, pose, effects=fx, seed=1542).image
-    res = locate(img, CELL, door)
+    res = locate(img, CELL, door, config=FREE_SHADINGS)
     assert res.ok, res.error
     ex, ez = res.x_mm - pose.x_mm, res.z_mm - pose.z_mm
     assert abs(ex) < 0.01 and abs(ez) < 0.01 and abs(res.thickness_mm - 50) < 0.05
@@ -563,7 +566,7 @@ def test_a_strip_fit_that_reads_another_blur_than_the_images_other_strips_is_in_
     )
     img = render_door(CELL, door, pose, effects=eff, seed=15038).image
     cell = dataclasses.replace(CELL, response_gamma=1.4325)
-    res = locate(img, cell, door, config=dataclasses.replace(cell.locate, calibration_sigma_px=0.0))
+    res = locate(img, cell, door, config=dataclasses.replace(FREE_SHADINGS, calibration_sigma_px=0.0))
     fits = res.diagnostics["arris_fit"]
     assert fits["reference"]["blur_px"] > 1.5 * fits["bottom"]["blur_px"], "the scene must show the effect"
     m = res.diagnostics["measured"] if not res.ok else {"x_mm": res.x_mm, "z_mm": res.z_mm}
@@ -704,7 +707,7 @@ def test_a_roundings_free_shading_is_held_to_the_lit_arcs_where_the_two_agree():
         gamma=1.97549,
     )
     img = render_door(CELL, door, pose, effects=fx, seed=7000).image
-    res = locate(img, dataclasses.replace(CELL, response_gamma=1.97549), door)
+    res = locate(img, dataclasses.replace(CELL, response_gamma=1.97549), door, config=FREE_SHADINGS)
     measured = (
         res.diagnostics["measured"] if not res.ok else {"x_mm": res.x_mm, "thickness_mm": res.thickness_mm}
     )
@@ -873,18 +876,20 @@ def test_a_rounding_under_the_cells_stated_light_is_placed_to_a_hundredth():
 
 
 def test_a_roundings_misfit_under_any_light_is_the_one_locate_weighs_for_the_stated_light():
-    """``StripFit.misfit_under_light`` (what ``doorloc measure-light`` scores each trial light by) gives for
+    """``StripFit.misfit_under_lights`` (what ``doorloc measure-light`` scores each trial light by) gives for
     the stated light's direction the very ratio locate weighed that light by on every rounded strip
     (``stated_light_misfit``), and for a light from the other side of the camera a worse one."""
     door, _, img, lit = _rounding_7912()
     trace = LocateTrace()
     locate(img, lit, door, trace=trace)
-    rounded = [f for f in trace.arris_fits.values() if f.misfit_under_light is not None]
+    rounded = [f for f in trace.arris_fits.values() if f.misfit_under_lights is not None]
     assert len(rounded) >= 2
     for f in rounded:
         assert f.stated_light_misfit is not None
-        assert f.misfit_under_light(direction_cell(*LIGHT_7912)) == f.stated_light_misfit
-    mirrored = [f.misfit_under_light(direction_cell(-LIGHT_7912[0], LIGHT_7912[1])) for f in rounded]
+        assert f.misfit_under_lights(direction_cell(*LIGHT_7912)[None])[0] == f.stated_light_misfit
+    mirrored = [
+        f.misfit_under_lights(direction_cell(-LIGHT_7912[0], LIGHT_7912[1])[None])[0] for f in rounded
+    ]
     assert sum(math.log(m) for m in mirrored) > sum(math.log(f.stated_light_misfit) for f in rounded)
 
 

@@ -25,7 +25,7 @@ def measure_light_cmd(
 ) -> None:
     """The direction of the cell's main light, measured from doors with rounded arrises -> the lines to add
     to the cell file's locate section. Each door is located once and its rounded strips scored under about
-    70 trial directions (about 20 s for 8 doors on one core). Exit codes: 0 measured, 1 the images
+    70 trial directions (about 5 s for 8 doors on one core). Exit codes: 0 measured, 1 the images
     cannot tell the light, 2 bad arguments or files."""
     from doorloc.app.batch import BatchSetupError, measure_light_in_folder
     from doorloc.cell import CellFileError

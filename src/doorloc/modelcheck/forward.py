@@ -369,10 +369,19 @@ class RelocateTable:
 
 
 def _ungated(cfg: LocateConfig) -> LocateConfig:
-    """``cfg`` without the refusals that judge only the answer's uncertainty (:func:`locate_errors`)."""
+    """``cfg`` without the refusals that judge only the answer's uncertainty (:func:`locate_errors`), and
+    without a rounded door's own light (``locate.light_from_door``): that light is chosen image by image
+    among directions its strips often fit about alike, and kept only where its answer passes the gate; with
+    the gate's limits lifted it would always stand, and a relocation at another arris or exponent could
+    choose another direction, a jump in the relocation tables that no effect of the cell explains."""
     big = 1e6
     return replace(
-        cfg, thickness_tolerance_mm=big, max_uncertainty_mm=big, max_uncertainty_deg=big, max_sigma_mm=big
+        cfg,
+        thickness_tolerance_mm=big,
+        max_uncertainty_mm=big,
+        max_uncertainty_deg=big,
+        max_sigma_mm=big,
+        light_from_door=False,
     )
 
 

@@ -28,10 +28,9 @@ the strip depends on that brightness, so locate measures it:
 What the deficit leaves in doubt (the posterior's standard deviation, widened by the blur model's doubt)
 is reported per line as ``arris_correction_sigma_mm`` for the uncertainty budget.
 
-Cost: the profiles are binned by the outer border's sub-pixel phase (``_PHASE_BINS`` rows instead of one
-per scan line), the levels are solved linearly inside every evaluation (variable projection) with closed
-form derivatives of the pixel integrals in the offset and the blur, and grids of offsets are evaluated as
-one batch: a few ms per edge (it was ~60-90 ms with numerical Jacobians and one design per evaluation).
+Cost: profiles binned by the outer border's sub-pixel phase (``_PHASE_BINS`` rows), the levels solved
+linearly in every evaluation (variable projection) with closed form derivatives in the offset and the
+blur, grids of offsets evaluated as one batch: a few ms per edge (~60-90 ms with numerical Jacobians).
 """
 
 from __future__ import annotations
@@ -112,11 +111,11 @@ class StripFit:
     stated_light_misfit : float or None
         A rounding's misfit under the cell's stated light over its free shading's (None: no light stated, or
         no rounding); beyond ``stated_light.STATED_LIGHT_MISFIT_RATIO`` the stated light was not used on this strip.
-    misfit_under_light : callable or None
-        ``direction -> ratio``: a rounding's misfit under a light from ``direction`` (unit vector towards
-        the light, cell frame) over its free shading's, found as ``stated_light_misfit`` is for the stated
-        light (for measuring the cell's light from its doors: :mod:`doorloc.vision.cell_light`); None on a
-        chamfer, or where the strip's surface normals are not known.
+    misfit_under_lights : callable or None
+        ``directions (n, 3) -> ratios (n,)``: a rounding's misfit under lights from ``directions`` (unit
+        vectors towards the light, cell frame) over its free shading's, found as ``stated_light_misfit`` is
+        for the stated light (a light sought from the doors: :mod:`doorloc.vision.light_search`); None on
+        a chamfer, or where the strip's surface normals are not known.
     """
 
     deficit: float
@@ -131,7 +130,9 @@ class StripFit:
     deficit_at_blur: Callable[[float], float] | None = field(default=None, compare=False, repr=False)
     clipped_share: float = 0.0
     stated_light_misfit: float | None = None
-    misfit_under_light: Callable[[np.ndarray], float] | None = field(default=None, compare=False, repr=False)
+    misfit_under_lights: Callable[[np.ndarray], np.ndarray] | None = field(
+        default=None, compare=False, repr=False
+    )
 
     @property
     def stated_light_used(self) -> bool | None:
@@ -272,7 +273,9 @@ def fit_strip_profile(
     return replace(
         fit,
         stated_light_misfit=light_misfit,
-        misfit_under_light=lambda direction: _under_light(prob, geom, n_cells, coarse, free, direction)[2],
+        misfit_under_lights=lambda directions: np.array(
+            [m for _, _, m in _under_lights(prob, geom, n_cells, coarse, free, directions)]
+        ),
     )
 
 
@@ -452,11 +455,9 @@ def _told_light_shading(
     cannot be fitted from the strips either (they fit any direction about alike); a light measured once
     for the cell leaves the strip two unknowns, its albedo and the background's share. Measured on the
     arris bench's round set (seed 7900, the renderer's light told): answered 11 -> 14 of 16, x / z RMS
-    0.0155 / 0.0067 -> 0.0032 / 0.0024 mm. The turns, because a light stated wrong, yet near enough to fit
-    the strip (``stated_light.STATED_LIGHT_MISFIT_RATIO``), places the border wrong at the floor's confidence: stated 40
-    deg off, a 0.74 mm rounding's door (small set, seed 11100) was answered 0.109 mm off in x at 3.2 sigma,
-    with the turns at 1.8."""
-    basis, (d1, s1, ev1), misfit = _under_light(prob, geom, n_cells, coarse, free, light.direction_cell)
+    0.0155 / 0.0067 -> 0.0032 / 0.0024 mm. The turns: a light stated 40 deg off, yet within the ratio, put
+    a 0.74 mm rounding's door (small set, seed 11100) 0.109 mm off in x at 3.2 sigma; at 1.8 with them."""
+    [(basis, (d1, s1, ev1), misfit)] = _under_lights(prob, geom, n_cells, coarse, free, light.direction_cell)
     # (the free shading is not weighed in as another model, as a Lambert arc fitted to the strip is: with
     # its more levels it fits the noise better, and weighed by its misfit it took the answer back to its own
     # valley: a 0.74 mm rounding, small set seed 10903, x 0.004 -> 0.085 mm)
@@ -471,22 +472,23 @@ def _told_light_shading(
     return _Shading(basis, d1, s1, ev1, model_doubt=math.hypot(LIT_DEFICIT_FLOOR, light_doubt)), misfit
 
 
-def _under_light(
+def _under_lights(
     prob: StripProblem,
     geom: ArrisGeometry,
     n_cells: int,
     coarse: _OffsetProfile,
     free: _Shading,
-    direction: np.ndarray,
-) -> tuple[np.ndarray, tuple[float, float, StripEvaluation], float]:
-    """A rounding's Lambert shading under a light from ``direction`` (unit vector, cell frame): its basis,
-    its fit refined at its own best place for the border (steps of a quarter pixel within 2 px of the free
-    shading's ``free``; offset and blur px) and its misfit over the free shading's."""
-    basis = lit_basis(geom, n_cells, direction)
-    starts = [free.offset, *_border_places(coarse, free.offset, 2.0).tolist()]
-    fits = [prob.refine(float(d), free.blur, basis, n_iter=6) for d in starts]
-    best = min(fits, key=lambda f: float(f[2].chi2[0]))
-    return basis, best, float(best[2].chi2[0]) / max(float(free.evaluation.chi2[0]), 1e-300)
+    directions: np.ndarray,
+) -> list[tuple[np.ndarray, tuple[float, float, StripEvaluation], float]]:
+    """A rounding's Lambert shading under lights from ``directions`` (``(n, 3)`` unit vectors, cell frame):
+    per light its basis, its fit refined at its own best place for the border (of steps of a quarter pixel
+    within 2 px of the free shading's ``free``: :meth:`StripProblem.refine_best_placed`; offset and blur
+    px) and its misfit over the free shading's."""
+    bases = [lit_basis(geom, n_cells, d) for d in np.atleast_2d(directions)]
+    places = np.array([free.offset, *_border_places(coarse, free.offset, 2.0).tolist()])
+    fits = prob.refine_best_placed(places, free.blur, bases, n_iter=6)
+    chi_free = max(float(free.evaluation.chi2[0]), 1e-300)
+    return [(b, f, float(f[2].chi2[0]) / chi_free) for b, f in zip(bases, fits, strict=True)]
 
 
 @dataclass(frozen=True)

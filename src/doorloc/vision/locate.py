@@ -10,6 +10,7 @@ The flow (thesis section 3.7, made metric and robust)::
          the band's width from the geometry, the blur measured on the reference arris)
       -> joint robust fit of bottom end + reference arris + far arris on the plane -> pose
       -> pass 2 with windows centred on the fitted lines and sized to the measured blur -> pose
+      -> (a rounded door, no light stated: the light its strips fit best, and the passes again under it)
       -> quality gate -> LocateResult
 
 As code, :func:`_locate` visits each stage once, each handing the next a frozen value
@@ -18,7 +19,9 @@ reasons of its refusals in :mod:`doorloc.vision.coarse_refusals`) -> :class:`~do
 -> the refine stage (:func:`doorloc.vision.refine.refine`: passes over the edge models of
 :mod:`doorloc.vision.edge_models`) -> :class:`~doorloc.vision.state.Refined` -> the response check
 (:func:`doorloc.vision.response_check.check_response`, which owns the absorb-and-rerun) ->
-:class:`~doorloc.vision.state.ResponseCheck` -> the doubts stage (:func:`doorloc.vision.doubts.edge_doubts`:
+:class:`~doorloc.vision.state.ResponseCheck` (for a rounded door without a stated light, the refine stage
+and the check again under the light of :func:`doorloc.vision.light_search.light_of_one_door`, the lit
+answer given where it passes the gate, else the free shadings' answer or refusal) -> the doubts stage (:func:`doorloc.vision.doubts.edge_doubts`:
 every line's doubts, typed) -> the gate (:func:`doorloc.vision.gate.gate_and_answer`: the checks, the
 uncertainty from :func:`doorloc.vision.uncertainty.propagate`, the answer or the refusal).
 
@@ -38,7 +41,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Generator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -53,13 +56,14 @@ from doorloc.vision.doubts import edge_doubts
 from doorloc.vision.edge_samples import EdgeSamples
 from doorloc.vision.far_face import FarFaceFit
 from doorloc.vision.gate import gate_and_answer
+from doorloc.vision.light_search import LightMeasurement, light_of_one_door
 from doorloc.vision.luminance import ImageFormatError, LuminancePlane, camera_levels, luminance_plane
 from doorloc.vision.metric import MetricPose
 from doorloc.vision.refine import refine
 from doorloc.vision.region import EDGE_NAMES, Band, SearchRegion
 from doorloc.vision.response_check import check_response
 from doorloc.vision.result import LocateResult, PhysicalModel, Provenance
-from doorloc.vision.state import Refused, StageClock
+from doorloc.vision.state import Refined, Refused, ResponseCheck, StageClock
 
 __all__ = ["LocateConfig", "locate", "locate_steps", "run_steps", "StepQuery", "LocateTrace"]
 
@@ -75,6 +79,10 @@ class LocateTrace:
     region: SearchRegion | None = None
     #: the final arris strip fits per line (rounded and chamfered arrises), as the uncertainty took them
     arris_fits: dict[str, StripFit] = field(default_factory=dict)
+    #: the light the door's own rounded strips told (``locate.light_from_door``), None where not sought,
+    #: and whether the answer was found under it (False: refused under it, the free shadings' outcome kept)
+    door_light: LightMeasurement | None = None
+    door_light_used: bool = False
 
 
 def locate(
@@ -198,16 +206,33 @@ def locate_steps(
         arris_profile=door.arris_profile,
         door_brighter=cfg.door_brighter,
         face_y_mm=cell.face_y(door),
-        light_direction_deg=list(cfg.light_direction_deg) if cfg.light_direction_deg is not None else None,
-        light_direction_sigma_deg=cfg.light_direction_sigma_deg
-        if cfg.light_direction_deg is not None
-        else None,
+        **_light_echo(cfg, tr.door_light if tr.door_light_used else None),
         camera_photometry=cell.camera_photometry.locate_parameters()
         if cell.camera_photometry is not None
         else None,
     )
+    if tr.door_light is not None:
+        res.diagnostics["door_light"] = _door_light_diagnostics(tr.door_light, tr.door_light_used)
     res.elapsed_ms = (time.perf_counter() - t0) * 1e3
     return res
+
+
+def _light_echo(cfg: LocateConfig, own: LightMeasurement | None) -> dict:
+    """The light the rounded arrises were shaded under, for ``LocateResult.model``: the cell's, the door's
+    own, or none."""
+    if cfg.light_direction_deg is not None:
+        return dict(
+            light_direction_deg=list(cfg.light_direction_deg),
+            light_direction_sigma_deg=cfg.light_direction_sigma_deg,
+            light_source="cell",
+        )
+    if own is not None:
+        return dict(
+            light_direction_deg=list(own.direction_deg),
+            light_direction_sigma_deg=own.sigma_deg,
+            light_source="door",
+        )
+    return {}
 
 
 def _locate(
@@ -239,12 +264,64 @@ def _locate(
     check = check_response(
         plane, cell, cfg, refined, lambda start, gamma: refine(plane, s8, region, start, cfg, clock, gamma)
     )
-    refined = check.refined
-    samples, fit, pose = refined.samples, refined.fit, refined.pose
-    tr.samples = samples
-    tr.inliers = {k: fit.weights[k] > 0 for k in EDGE_NAMES}
-    tr.pose = pose
+    own = _door_light(door, cfg, check.refined)
+    if own is None:
+        return _answer(name, door, cfg, region, check, plane, s8, clock, tr)
+    clock.lap("door_light")
+    # Located again under the door's own light, as if the cell stated it. Where that answer is refused (a
+    # light the strips tell wrong widens their doubt), the free shadings' outcome stands, their answer or
+    # their refusal: each is judged by its own uncertainty, neither is chosen by its error, and a door the
+    # free shadings refused keeps their reason.
+    free: LocateResult | Refused
+    try:
+        free = _answer(name, door, cfg, region, check, plane, s8, clock, tr)
+    except Refused as refused:
+        free = refused
+    lit_cfg = replace(cfg, light_direction_deg=own.direction_deg, light_direction_sigma_deg=own.sigma_deg)
+    tr.door_light, tr.door_light_used = own, True
+    try:
+        lit = check_response(
+            plane,
+            cell,
+            lit_cfg,
+            refine(plane, s8, region, coarse.pose, lit_cfg, clock, cell.response_gamma),
+            lambda start, gamma: refine(plane, s8, region, start, lit_cfg, clock, gamma),
+        )
+        res = _answer(name, door, lit_cfg, region, lit, plane, s8, clock, tr)
+        if res.ok:
+            return res
+    except Refused:
+        pass
+    _trace_refined(tr, check.refined)
+    tr.door_light_used = False
+    if isinstance(free, Refused):
+        raise free
+    return free
+
+
+def _trace_refined(tr: LocateTrace, refined: Refined) -> None:
+    """Keep the refine stage's edges, inliers, pose and strip fits in the trace."""
+    tr.samples = refined.samples
+    tr.inliers = {k: refined.fit.weights[k] > 0 for k in EDGE_NAMES}
+    tr.pose = refined.pose
     tr.arris_fits = {k: strip for k, (strip, _) in refined.arris_fits.items()}
+
+
+def _answer(
+    name: str,
+    door: DoorSize,
+    cfg: LocateConfig,
+    region: SearchRegion,
+    check: ResponseCheck,
+    plane: np.ndarray,
+    s8: float,
+    clock: StageClock,
+    tr: LocateTrace,
+) -> LocateResult:
+    """The doubts and the gate after the response check: the answer, or :class:`Refused`."""
+    # why many parameters: the stages' values that the doubts and the gate read, passed as they are
+    refined = check.refined
+    _trace_refined(tr, refined)
     doubts = edge_doubts(plane, s8, region, cfg, check)
     res = gate_and_answer(name, door, cfg, region, check, doubts, plane, s8)
     res.diagnostics["camera_response"] = check.diagnostics
@@ -254,6 +331,30 @@ def _locate(
     clock.lap("gate")
     res.diagnostics["timing_ms"] = clock.laps
     return res
+
+
+def _door_light(door: DoorSize, cfg: LocateConfig, refined: Refined) -> LightMeasurement | None:
+    """The light the door's own rounded strips tell (``locate.light_from_door``), where the cell states
+    none; None for a door without a rounding, or where the light is stated or not sought."""
+    if cfg.light_direction_deg is not None or not cfg.light_from_door:
+        return None
+    if door.arris_profile != "round" or door.arris_mm <= 0:
+        return None
+    fits = [strip.misfit_under_lights for strip, _ in refined.arris_fits.values()]
+    return light_of_one_door([f for f in fits if f is not None])
+
+
+def _door_light_diagnostics(light: LightMeasurement, used: bool) -> dict:
+    """The door's own light as the result's diagnostics report it, and whether the answer is the one
+    found under it (``used``; False: it was refused under it, and the free shadings' outcome stands)."""
+    return {
+        "used": used,
+        "direction_deg": [round(v, 1) for v in light.direction_deg],
+        "sigma_deg": light.sigma_deg,
+        "misfit_over_free": round(math.exp(light.score), 4),
+        "directions_alike_share": round(light.alike_share, 3),
+        "strips": light.strips,
+    } | ({"runner_up_deg": list(light.runner_up_deg)} if light.runner_up_deg is not None else {})
 
 
 def _far_face_diagnostics(far_fit: FarFaceFit) -> dict[str, float]:

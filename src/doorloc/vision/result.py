@@ -6,7 +6,7 @@ a person judge the answer (per-line residuals, inlier counts, contrast, timings)
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -59,13 +59,19 @@ class PhysicalModel(BaseModel):
     )
     light_direction_deg: list[float] | None = Field(
         None,
-        description="the cell's light, [azimuth, elevation] deg in the cell frame, that rounded arrises were "
-        "shaded under (locate.light_direction_deg); null: not stated, a free shading",
+        description="the light, [azimuth, elevation] deg in the cell frame, that rounded arrises were shaded "
+        "under: the cell's (locate.light_direction_deg) or the door's own (light_source); null: none, a free shading",
     )
     light_direction_sigma_deg: float | None = Field(
         None,
-        description="how far the stated light may lie from the true one, 1 sigma, deg "
-        "(locate.light_direction_sigma_deg), carried into the rounded arrises' doubt; null: no light stated",
+        description="how far that light may lie from the true one, 1 sigma, deg "
+        "(locate.light_direction_sigma_deg, or the door's own light's doubt), carried into the rounded arrises' "
+        "doubt; null: no light",
+    )
+    light_source: Literal["cell", "door"] | None = Field(
+        None,
+        description="where light_direction_deg came from: 'cell' (locate.light_direction_deg) or 'door' (sought "
+        "from this door's own rounded strips, locate.light_from_door; diagnostics.door_light); null: none",
     )
     camera_photometry: dict[str, float] | None = Field(
         None,
