@@ -16,7 +16,7 @@ from doorloc.cell import DoorSize, load_cell
 from doorloc.pose import DoorPose, direction_cell
 from doorloc.sim.door import render_door
 from doorloc.sim.effects import Effects
-from doorloc.vision import cell_light
+from doorloc.vision import cell_light, light_search
 from doorloc.vision.cell_light import LightMeasurement, LightNotMeasurable, measure_cell_light
 
 CELL_PATH = Path(__file__).parents[2] / "fixtures" / "cell_thesis.yaml"
@@ -66,7 +66,7 @@ def test_the_light_of_a_cell_is_found_near_its_direction():
     assert heard[0].startswith("door 1 of 2 located")
     off = math.degrees(math.acos(min(1.0, float(direction_cell(*m.direction_deg) @ direction_cell(*LIGHT)))))
     assert off <= 10.0, (m, off)
-    assert m.sigma_deg >= cell_light.MEASURED_SIGMA_FLOOR_DEG
+    assert m.sigma_deg >= light_search.MEASURED_SIGMA_FLOOR_DEG
     assert m.doors == 2 and m.strips >= 4
 
 

@@ -23,27 +23,12 @@ from dataclasses import replace
 import numpy as np
 
 from doorloc.cell import Cell, DoorSize
-from doorloc.vision.light_search import (
-    COARSE_AZIMUTHS,
-    COARSE_ELEVATIONS,
-    DIFFUSE_SHARE,
-    MEASURED_SIGMA_FLOOR_DEG,
-    LightMeasurement,
-    LightNotMeasurable,
-    StripScore,
-    light_from_strips,
-)
+from doorloc.vision import light_search as ls
+from doorloc.vision.light_search import LightMeasurement, LightNotMeasurable, StripScore
 from doorloc.vision.locate import LocateTrace, locate
 
-__all__ = [
-    "COARSE_AZIMUTHS",
-    "COARSE_ELEVATIONS",
-    "DIFFUSE_SHARE",
-    "MEASURED_SIGMA_FLOOR_DEG",
-    "LightMeasurement",
-    "LightNotMeasurable",
-    "measure_cell_light",
-]
+# (the measurement and its refusal are named here too: they are what a caller of measure_cell_light meets)
+__all__ = ["LightMeasurement", "LightNotMeasurable", "measure_cell_light"]
 
 
 def _rounded_strips(
@@ -70,10 +55,10 @@ def measure_cell_light(
     frames: Sequence[tuple[np.ndarray, DoorSize]],
     cell: Cell,
     *,
-    azimuths: Sequence[float] = COARSE_AZIMUTHS,
-    elevations: Sequence[float] = COARSE_ELEVATIONS,
+    azimuths: Sequence[float] = ls.COARSE_AZIMUTHS,
+    elevations: Sequence[float] = ls.COARSE_ELEVATIONS,
     fine_steps: int = 2,
-    diffuse_share: float = DIFFUSE_SHARE,
+    diffuse_share: float = ls.DIFFUSE_SHARE,
     progress: Callable[[str], None] | None = None,
 ) -> LightMeasurement:
     """The direction of the cell's light from images of its doors, ``frames`` (image, door) pairs, the doors
@@ -94,7 +79,7 @@ def measure_cell_light(
             "no door with a rounded arris among the images (arris_profile round, arris_mm > 0 in the cell's "
             "default door or the manifest): only a rounding's shading tells the light"
         )
-    return light_from_strips(
+    return ls.light_from_strips(
         _rounded_strips(frames, cell, progress),
         azimuths=azimuths,
         elevations=elevations,
