@@ -271,12 +271,8 @@ def _locate(
     # Located again under the door's own light, as if the cell stated it. Where that answer is refused (a
     # light the strips tell wrong widens their doubt), the free shadings' outcome stands, their answer or
     # their refusal: each is judged by its own uncertainty, neither is chosen by its error, and a door the
-    # free shadings refused keeps their reason.
-    free: LocateResult | Refused
-    try:
-        free = _answer(name, door, cfg, region, check, plane, s8, clock, tr)
-    except Refused as refused:
-        free = refused
+    # free shadings refused keeps their reason. (The free outcome is gated only then: its doubts cost as
+    # much as the lit answer's, and a lit answer that passes needs no other.)
     lit_cfg = replace(cfg, light_direction_deg=own.direction_deg, light_direction_sigma_deg=own.sigma_deg)
     tr.door_light, tr.door_light_used = own, True
     try:
@@ -292,11 +288,8 @@ def _locate(
             return res
     except Refused:
         pass
-    _trace_refined(tr, check.refined)
     tr.door_light_used = False
-    if isinstance(free, Refused):
-        raise free
-    return free
+    return _answer(name, door, cfg, region, check, plane, s8, clock, tr)
 
 
 def _trace_refined(tr: LocateTrace, refined: Refined) -> None:
