@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 from scipy.ndimage import gaussian_filter1d
 
 from doorloc.arris import ArrisSection
-from doorloc.cell import DoorSize, load_cell
+from doorloc.cell import Cell, DoorSize, load_cell
 from doorloc.pose import DoorPose, direction_cell
 from doorloc.sim.door import render_door
 from doorloc.sim.effects import Effects
@@ -854,12 +854,17 @@ def _rounding_7912():
         gamma=1.151,
     )
     img = render_door(CELL, door, pose, effects=fx, seed=7912).image
-    lit = dataclasses.replace(
+    return door, pose, img, _cell_stating(LIGHT_7912, fx.gamma)
+
+
+def _cell_stating(light: tuple[float, float], gamma: float, **locate_settings) -> Cell:
+    """The test cell with the camera's exponent ``gamma`` and the light ``light`` stated (and any other
+    ``locate`` settings)."""
+    return dataclasses.replace(
         CELL,
-        response_gamma=fx.gamma,
-        locate=dataclasses.replace(CELL.locate, light_direction_deg=LIGHT_7912),
+        response_gamma=gamma,
+        locate=dataclasses.replace(CELL.locate, light_direction_deg=light, **locate_settings),
     )
-    return door, pose, img, lit
 
 
 def test_a_rounding_under_the_cells_stated_light_is_placed_to_a_hundredth():
@@ -915,13 +920,7 @@ def test_a_dark_roundings_bottom_end_is_not_read_a_strips_width_off():
         gamma=1.9222,
     )
     img = render_door(CELL, door, pose, effects=fx, seed=15910).image
-    stated = dataclasses.replace(
-        CELL,
-        response_gamma=fx.gamma,
-        locate=dataclasses.replace(
-            CELL.locate, light_direction_deg=(68.49, -80.48), response_unmeasured_factor=1.11
-        ),
-    )
+    stated = _cell_stating((68.49, -80.48), fx.gamma, response_unmeasured_factor=1.11)
     res = locate(img, stated, door)
     if res.ok:
         assert abs(res.z_mm - pose.z_mm) <= 3 * res.uncertainty.z_mm, (res.z_mm - pose.z_mm, res.uncertainty)
@@ -953,13 +952,7 @@ def test_a_light_stated_wrong_is_no_confident_answer():
         gamma=1.9195,
     )
     img = render_door(CELL, door, pose, effects=fx, seed=11100).image
-    stated = dataclasses.replace(
-        CELL,
-        response_gamma=fx.gamma,
-        locate=dataclasses.replace(
-            CELL.locate, light_direction_deg=(-29.307, 42.353), response_unmeasured_factor=1.11
-        ),
-    )
+    stated = _cell_stating((-29.307, 42.353), fx.gamma, response_unmeasured_factor=1.11)
     res = locate(img, stated, door)
     if res.ok:
         assert abs(res.x_mm - pose.x_mm) <= 2.5 * res.uncertainty.x_mm, (
@@ -1017,13 +1010,7 @@ def test_a_light_stated_from_the_wrong_side_is_not_used():
         gamma=1.3265,
     )
     img = render_door(CELL, door, pose, effects=fx, seed=8100).image
-    stated = dataclasses.replace(
-        CELL,
-        response_gamma=fx.gamma,
-        locate=dataclasses.replace(
-            CELL.locate, light_direction_deg=(145.342, 16.3425), response_unmeasured_factor=1.11
-        ),
-    )
+    stated = _cell_stating((145.342, 16.3425), fx.gamma, response_unmeasured_factor=1.11)
     res = locate(img, stated, door)
     lights = [f["stated_light"] for f in res.diagnostics["arris_fit"].values() if "stated_light" in f]
     assert lights and not all(s["used"] for s in lights), lights

@@ -260,11 +260,16 @@ def _locate(
     tr.region = region
     clock.lap("region")
     coarse = yield from find_coarse(lum, region, cell, door, cfg, clock, tr.bands)
-    refined = refine(plane, s8, region, coarse.pose, cfg, clock, cell.response_gamma)
-    check = check_response(
-        plane, cell, cfg, refined, lambda start, gamma: refine(plane, s8, region, start, cfg, clock, gamma)
-    )
-    own = _door_light(door, cfg, check.refined)
+
+    def refined_and_checked(c: LocateConfig) -> ResponseCheck:
+        """The refine stage from the coarse pose and the response check (which may refine again), under ``c``."""
+        first = refine(plane, s8, region, coarse.pose, c, clock, cell.response_gamma)
+        return check_response(
+            plane, cell, c, first, lambda start, gamma: refine(plane, s8, region, start, c, clock, gamma)
+        )
+
+    check = refined_and_checked(cfg)
+    own = _door_light(cfg, check.refined)
     if own is None:
         return _answer(name, door, cfg, region, check, plane, s8, clock, tr)
     clock.lap("door_light")
@@ -276,13 +281,7 @@ def _locate(
     lit_cfg = replace(cfg, light_direction_deg=own.direction_deg, light_direction_sigma_deg=own.sigma_deg)
     tr.door_light, tr.door_light_used = own, True
     try:
-        lit = check_response(
-            plane,
-            cell,
-            lit_cfg,
-            refine(plane, s8, region, coarse.pose, lit_cfg, clock, cell.response_gamma),
-            lambda start, gamma: refine(plane, s8, region, start, lit_cfg, clock, gamma),
-        )
+        lit = refined_and_checked(lit_cfg)
         res = _answer(name, door, lit_cfg, region, lit, plane, s8, clock, tr)
         if res.ok:
             return res
@@ -326,12 +325,11 @@ def _answer(
     return res
 
 
-def _door_light(door: DoorSize, cfg: LocateConfig, refined: Refined) -> LightMeasurement | None:
+def _door_light(cfg: LocateConfig, refined: Refined) -> LightMeasurement | None:
     """The light the door's own rounded strips tell (``locate.light_from_door``), where the cell states
-    none; None for a door without a rounding, or where the light is stated or not sought."""
+    none; None where the light is stated or not sought, or no strip is a rounding's (only a rounding's
+    strip fit carries ``misfit_under_lights``: a chamfer's, or a door without an arris, has none)."""
     if cfg.light_direction_deg is not None or not cfg.light_from_door:
-        return None
-    if door.arris_profile != "round" or door.arris_mm <= 0:
         return None
     fits = [strip.misfit_under_lights for strip, _ in refined.arris_fits.values()]
     return light_of_one_door([f for f in fits if f is not None])
