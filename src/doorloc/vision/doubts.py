@@ -31,6 +31,7 @@ from doorloc.vision.response import (
 from doorloc.vision.response_check import blur_without_pixel
 from doorloc.vision.sampling import linearizing_lut
 from doorloc.vision.state import Refined, ResponseCheck
+from doorloc.vision.strip_response import ReadStrips, StripReadings, allowed_response_ends
 from doorloc.vision.texture import texture_bias
 from doorloc.vision.uncertainty import (
     CAMERA_RESPONSE,
@@ -94,18 +95,11 @@ def edge_doubts(
         )
     else:
 
-        def arris_shifts(gammas: list[float]) -> dict[str, np.ndarray]:
-            # (each arris line's shifts, px, at those exponents: diagnostics.arris_fit[line])
-            shifts = arris_response_shifts(plane, s8, region, r, cfg, cell.response_gamma, gammas)
-            for k, v in shifts.items():
-                figures.setdefault("arris_fit", {}).setdefault(k, {}).update(
-                    response_gammas=[round(float(g), 3) for g in gammas],
-                    response_shifts_px=[round(float(x), 4) if math.isfinite(x) else None for x in v],
-                )
-            return shifts
+        def read_strips(gammas: list[float]) -> StripReadings:
+            return arris_response_shifts(plane, s8, region, r, cfg, cell.response_gamma, gammas)
 
         response = _unmeasured_response_terms(
-            plane, r, cell.response_gamma, cfg.response_unmeasured_factor, model.blur_px, arris_shifts
+            plane, r, cell.response_gamma, cfg.response_unmeasured_factor, model.blur_px, read_strips, figures
         )
     return model.with_doubts(*response), figures
 
@@ -329,7 +323,8 @@ def _unmeasured_response_terms(
     used_gamma: float,
     factor: float,
     blur_px: float,
-    arris_shifts: Callable[[list[float]], dict[str, np.ndarray]] | None = None,
+    read_strips: ReadStrips | None = None,
+    figures: dict[str, Any] | None = None,
 ) -> list[LineDoubt]:
     """The response doubt (px) of each line when the image did not measure the camera's response.
 
@@ -348,14 +343,17 @@ def _unmeasured_response_terms(
     camera, z 0.035 mm at 2-3 sigma), and a plain door square to the camera by up to 7 (a 1.13 camera in
     a cell of 2.01, blur 0.86 px: x 0.075 mm off at sigma 0.010).
 
-    An arris line's shifts are its own model's where ``arris_shifts`` is given (exponents in, per line
+    An arris line's shifts are its own model's where ``read_strips`` is given (exponents in, per line
     the shifts out, px: :func:`doorloc.vision.refine.arris_response_shifts`, the strip read again with
     each exponent): its fitted shading takes up part of the distortion that moves a plain step, or adds
     to it (on three 0.65-0.87 mm roundings located again with the cell at the two exponents, the plain
     step's figure was 0.5-3.7 times the door's real move; the strip's own, 0.9-2.3 times). Its
     doubt is half the range of the shifts at the two exponents and at ``used_gamma`` (no shift), which
     is the plain step's half spread where the two move it apart, and half the larger where both move it
-    the same way. A line whose strip is lost at an exponent keeps the plain step's figure.
+    the same way. A line whose strip is lost at an exponent keeps the plain step's figure. Where the
+    door's rounded strips rule out the factor's far exponents (their shading no matt arc's when read
+    with them: :func:`doorloc.vision.strip_response.allowed_response_ends`), the two ends are the
+    exponents they allow, for every line; ``figures["response_from_strips"]`` says what they showed.
 
     The doubt is the move at the factor's ends, not its RMS over the exponents within them
     (``sqrt((s_up^2 + s_down^2) / 6)`` for a move linear in the log exponent, 0.6 of this figure where
@@ -371,15 +369,26 @@ def _unmeasured_response_terms(
     """
     if not factor > 1.0:
         return []
-    exponents = list(np.clip([used_gamma * factor, used_gamma / factor], *RESPONSE_PLAUSIBLE))
-    own = arris_shifts(exponents) if arris_shifts is not None else {}
+    ends: list[float] = [used_gamma * factor, used_gamma / factor]
+    own: dict[str, tuple[float, float]] = {}
+    if read_strips is not None:
+        allowed = allowed_response_ends(used_gamma, factor, read_strips)
+        ends, own = list(allowed.gammas), allowed.shifts
+        if figures is not None:
+            # (each arris line's shifts, px, at the two ends: diagnostics.arris_fit[line])
+            for k, v in own.items():
+                figures.setdefault("arris_fit", {}).setdefault(k, {}).update(
+                    response_gammas=[round(float(g), 3) for g in ends],
+                    response_shifts_px=[round(float(x), 4) if math.isfinite(x) else None for x in v],
+                )
+            figures["response_from_strips"] = allowed.figure
     per_line = {}
     for k, shifts in _line_response_shifts(plane, r, used_gamma, blur_px):
         if k in own and np.all(np.isfinite(own[k])):
-            moved = [0.0, *(float(v) for v in own[k])]
+            moved = [0.0, *own[k]]
             per_line[k] = 0.5 * (max(moved) - min(moved))
             continue
-        up, down = shifts([used_gamma * factor, used_gamma / factor])
+        up, down = shifts(ends)
         spread = 0.5 * abs(float(up) - float(down))
         per_line[k] = spread
     return _response_doubts(per_line)

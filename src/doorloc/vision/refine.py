@@ -27,6 +27,7 @@ from doorloc.vision.response_check import STEP_FIT_MIN_BLUR_PX
 from doorloc.vision.sampling import linearizing_lut
 from doorloc.vision.state import Refined, Refused, StageClock
 from doorloc.vision.stated_light import StatedLight
+from doorloc.vision.strip_response import StripReadings, arc_score
 
 __all__ = ["arris_response_shifts", "refine"]
 
@@ -398,9 +399,11 @@ def arris_response_shifts(
     cfg: LocateConfig,
     used_gamma: float,
     camera_gammas: list[float],
-) -> dict[str, np.ndarray]:
+) -> StripReadings:
     """How far each arris line's points move, px along its scan lines, were the camera's exponent each of
-    ``camera_gammas`` instead of ``used_gamma`` (the one ``refined`` was read with).
+    ``camera_gammas`` instead of ``used_gamma`` (the one ``refined`` was read with), and how well the
+    rounded strips read with each exponent shade as a matt arc (:class:`doorloc.vision.strip_response.
+    StripReadings`).
 
     The arris strip model (:class:`doorloc.vision.edge_models.ArrisStrip`) reads each line again at the
     final pose and windows, its grey levels turned to light with each exponent: the median over the scan
@@ -424,15 +427,16 @@ def arris_response_shifts(
         k for k in EDGE_NAMES if k in refined.arris_fits and not (k == "far" and refined.far_beside)
     )
     if not names:
-        return {}
+        return StripReadings({}, np.full(len(camera_gammas), np.nan), math.nan)
     optical = float("nan")
     if refined.far_beside and "reference" in refined.arris_fits:
         optical = float(refined.arris_fits["reference"][0].blur_px)
     this_pass = _Pass(refined.half, optical_blur_px=optical, step_fit=refined.step_fitted, lines=names)
-    read = [
-        _sample(plane, s8, region, refined.pose, cfg, this_pass, g, {}).samples
-        for g in [used_gamma, *camera_gammas]
-    ]
+    read, strips = [], []
+    for g in [used_gamma, *camera_gammas]:
+        fits: dict[str, tuple[StripFit, float]] = {}
+        read.append(_sample(plane, s8, region, refined.pose, cfg, this_pass, g, fits).samples)
+        strips.append([f.misfit_under_lights for f, _ in fits.values() if f.misfit_under_lights is not None])
     out = {}
     for k in names:
         shifts = np.full(len(camera_gammas), np.nan)
@@ -443,7 +447,7 @@ def arris_response_shifts(
             if d.size >= 5:
                 shifts[i] = float(np.median(d))
         out[k] = shifts
-    return out
+    return StripReadings(out, np.array([arc_score(s) for s in strips[1:]]), arc_score(strips[0]))
 
 
 def _optical_blur(

@@ -1,0 +1,201 @@
+"""The camera exponents a door's rounded strips allow, where no plain edge could measure the response.
+
+Where every edge of a door is an arris, the image's plain-edge response reading has nothing to read, the
+cell's ``camera.response_gamma`` is taken as known within ``locate.response_unmeasured_factor``, and each
+arris line's response doubt is the move of its strip reading between the factor's two ends
+(:func:`doorloc.vision.doubts.edge_doubts`). A rounding's strip can say more. Under a light from one
+direction its shading, in linear light, is a matt arc's: ``albedo (ambient + directional max(0, n.l))``
+over the arc's normals ``n``, which the strip model fits under trial lights
+(``StripFit.misfit_under_lights``); grey levels turned to light with a wrong exponent bend that shading
+away from every arc. So the strips read again with each trial exponent are also scored as arcs under
+their best light (:func:`arc_score`, the door's own light's search, :func:`doorloc.vision.light_search.
+light_of_one_door`), and an exponent whose arcs fit markedly worse than the best exponent's
+(:data:`ARC_RULED_OUT`) is ruled out: the doubt's end on that side moves inwards, half way between the
+last exponent the strips allow and the first they rule out (:func:`allowed_response_ends`).
+
+It rules out nothing where the strips give no such evidence: a chamfer (one level: no shape to bend), a
+rounding under ambient light alone or one narrower than the blur (every exponent fits alike), a finish the
+arc does not describe (its best fit more than :data:`ARC_EXPLAINS` times the free shading's misfit), and
+where the cell's own exponent is itself ruled out (the cell is wrong: its full doubt stays, and such doors
+are refused as before). Measured before it was built (rendered roundings of the arris range bench, seeds
+7900 and 9100, the door located with the cell stating each of seven exponents across the factor): with
+the cell right, the best arcs fit within 1.00-1.07 of the free shading at the camera's exponent, and at
+the factor's ends up to 1.1-3.5 times; with the cell told the wrong end of the factor, the cell's exponent
+was ruled out, or nothing was.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from doorloc.vision.light_search import StripScore, light_of_one_door
+from doorloc.vision.response import RESPONSE_PLAUSIBLE
+
+__all__ = [
+    "ARC_EXPLAINS",
+    "ARC_RULED_OUT",
+    "AllowedEnds",
+    "ReadStrips",
+    "StripReadings",
+    "allowed_response_ends",
+    "arc_score",
+]
+
+#: the rounded strips' best matt arc fits about as well as their free shading (misfit ratio at most this)
+#: at some exponent: the arc describes the finish, and its misfit can rule exponents out
+ARC_EXPLAINS = 1.15
+#: an exponent whose best arcs' misfit exceeds the best exponent's by this ratio is ruled out (the light
+#: search's own margin between directions it cannot tell apart is 1.05; on the rendered roundings a right
+#: cell's exponent scored within 1.15 of the best and a wrong one's 1.17-3.5 where it could be told)
+ARC_RULED_OUT = 1.25
+#: fractions of the factor's reach (in log exponent) read on a side whose end is ruled out, inwards
+INNER_STEPS = (0.5, 0.25)
+
+
+def arc_score(strips: Sequence[StripScore]) -> float:
+    """The rounded strips' mean log misfit ratio (matt arc over free shading) under the light they fit best
+    (``light_search.light_of_one_door``); NaN where there is no rounded strip."""
+    light = light_of_one_door(list(strips))
+    return math.nan if light is None else float(light.score)
+
+
+@dataclass(frozen=True)
+class StripReadings:
+    """Arris strips read again with trial camera exponents (:func:`doorloc.vision.refine.
+    arris_response_shifts`): per arris line the shift of its points at each exponent (px, NaN where its
+    strip was lost there), the rounded strips' :func:`arc_score` at each exponent and at the exponent in use
+    (NaN: no rounded strip)."""
+
+    shifts: dict[str, np.ndarray]
+    arc_scores: np.ndarray
+    used_arc_score: float
+
+
+#: exponents in, the strips read with each out
+ReadStrips = Callable[[list[float]], StripReadings]
+
+
+@dataclass(frozen=True)
+class AllowedEnds:
+    """The two ends of the camera exponents an arris door's response doubt spans, and each arris line's
+    shift there (px; NaN where its strip was lost: the caller takes the plain step's figure).
+
+    ``gammas``: (upper, lower) exponent; ``shifts``: per line (upper, lower) shift; ``figure``: what the
+    strips showed, for the diagnostics (exponents read, their arcs' misfit over free, and why nothing was
+    ruled out where so)."""
+
+    gammas: tuple[float, float]
+    shifts: dict[str, tuple[float, float]]
+    figure: dict = field(default_factory=dict)
+
+
+def allowed_response_ends(used_gamma: float, factor: float, read: ReadStrips) -> AllowedEnds:
+    """The ends of the exponents ``used_gamma`` times ``factor`` to the powers -1..1 (within
+    ``RESPONSE_PLAUSIBLE``) that the door's rounded strips allow (module docstring).
+
+    The strips are read at the two ends first; only a side whose end the arcs rule out is read again at
+    :data:`INNER_STEPS` of the reach. On a side, the end is the farthest reach with every reach inside it
+    allowed, moved half way to the first ruled out, and each line's shift there is interpolated linearly in
+    the reach between the two readings (0 at the exponent in use)."""
+
+    def gamma_at(reach: float) -> float:
+        return float(np.clip(used_gamma * factor**reach, *RESPONSE_PLAUSIBLE))
+
+    first = read([gamma_at(1.0), gamma_at(-1.0)])
+    reaches = {1.0: 0, -1.0: 1}
+    readings = [first]
+    score = {0.0: first.used_arc_score, 1.0: float(first.arc_scores[0]), -1.0: float(first.arc_scores[1])}
+    full = AllowedEnds(
+        (gamma_at(1.0), gamma_at(-1.0)),
+        {k: (float(v[0]), float(v[1])) for k, v in first.shifts.items()},
+    )
+    why = _no_evidence(score)
+    if why is None and all(score[r] <= _limit(score) for r in (1.0, -1.0)):
+        why = "every exponent within the factor fits the rounded strips alike"
+    if why is not None:
+        return AllowedEnds(full.gammas, full.shifts, _figure(score, gamma_at, why))
+    inner = [side * step for side in (1.0, -1.0) if score[side] > _limit(score) for step in INNER_STEPS]
+    more = read([gamma_at(r) for r in inner])
+    readings.append(more)
+    for i, r in enumerate(inner):
+        reaches[r] = i
+        score[r] = float(more.arc_scores[i])
+    why = _no_evidence(score)
+    if why is not None:
+        return AllowedEnds(full.gammas, full.shifts, _figure(score, gamma_at, why))
+
+    def shift_at(line: str, reach: float) -> float:
+        if reach == 0.0:
+            return 0.0
+        src = first if abs(reach) == 1.0 else more
+        values = src.shifts.get(line)
+        return float(values[reaches[reach]]) if values is not None else math.nan
+
+    ends: list[float] = []
+    shifts: dict[str, list[float]] = {k: [] for k in first.shifts}
+    for side in (1.0, -1.0):
+        kept, out = 0.0, None
+        for step in (*INNER_STEPS[::-1], 1.0):
+            r = side * step
+            if r not in score:
+                continue
+            # (a side not read inwards keeps its end: its end was allowed against the ends' best)
+            if score[r] > _limit(score) and side * INNER_STEPS[0] in score:
+                out = r
+                break
+            kept = r
+        end = kept if out is None else 0.5 * (kept + out)
+        ends.append(gamma_at(end))
+        for k in shifts:
+            if out is None:
+                shifts[k].append(shift_at(k, kept))
+                continue
+            w = (end - kept) / (out - kept)
+            shifts[k].append((1.0 - w) * shift_at(k, kept) + w * shift_at(k, out))
+    return AllowedEnds(
+        (ends[0], ends[1]),
+        {k: (v[0], v[1]) for k, v in shifts.items()},
+        _figure(score, gamma_at, None, (ends[0], ends[1])),
+    )
+
+
+def _limit(score: dict[float, float]) -> float:
+    """The arc score beyond which an exponent is ruled out: the best read so far's, times ARC_RULED_OUT."""
+    return min(score.values()) + math.log(ARC_RULED_OUT)
+
+
+def _no_evidence(score: dict[float, float]) -> str | None:
+    """Why the arcs' scores rule nothing out (None: they may)."""
+    if not all(math.isfinite(v) for v in score.values()):
+        return "no rounded strip was read at every exponent"
+    if min(score.values()) > math.log(ARC_EXPLAINS):
+        return "no matt arc shades the rounded strips as well as a free shading at any exponent tried"
+    if score[0.0] > _limit(score):
+        return "the cell's exponent fits the rounded strips worse than another: the cell's response_gamma is in doubt"
+    return None
+
+
+def _figure(
+    score: dict[float, float],
+    gamma_at: Callable[[float], float],
+    why: str | None,
+    ends: tuple[float, float] | None = None,
+) -> dict:
+    """The diagnostics' account: exponents read, their arcs' misfit over free, the ends kept, or why none
+    moved."""
+    order = sorted(score)
+    out: dict = {
+        "gammas": [round(gamma_at(r), 3) for r in order],
+        "arc_misfit_over_free": [
+            round(math.exp(score[r]), 4) if math.isfinite(score[r]) else None for r in order
+        ],
+    }
+    if ends is None:
+        out["unchanged_because"] = why
+    else:
+        out["allowed_gammas"] = [round(min(ends), 3), round(max(ends), 3)]
+    return out
