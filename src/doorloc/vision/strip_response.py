@@ -16,12 +16,12 @@ last exponent the strips allow and the first they rule out (:func:`allowed_respo
 It rules out nothing where the strips give no such evidence: a chamfer (one level: no shape to bend), a
 rounding under ambient light alone or one narrower than the blur (every exponent fits alike), a finish the
 arc does not describe (its best fit more than :data:`ARC_EXPLAINS` times the free shading's misfit), and
-where the cell's own exponent is itself ruled out (the cell is wrong: its full doubt stays, and such doors
-are refused as before). Measured before it was built (rendered roundings of the arris range bench, seeds
+where the cell's own exponent is itself ruled out (the cell is wrong: its full doubt stays, as before, and
+the diagnostics say the cell's exponent is in doubt). Measured before it was built (rendered roundings of the arris range bench, seeds
 7900 and 9100, the door located with the cell stating each of seven exponents across the factor): with
 the cell right, the best arcs fit within 1.00-1.07 of the free shading at the camera's exponent, and at
 the factor's ends up to 1.1-3.5 times; with the cell told the wrong end of the factor, the cell's exponent
-was ruled out, or nothing was.
+was ruled out, or the camera's was among those kept (docs/benchmarks.md, 2026-11-30).
 """
 
 from __future__ import annotations
