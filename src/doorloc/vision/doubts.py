@@ -95,8 +95,8 @@ def edge_doubts(
         )
     else:
 
-        def read_strips(gammas: list[float]) -> StripReadings:
-            return arris_response_shifts(plane, s8, region, r, cfg, cell.response_gamma, gammas)
+        def read_strips(gammas: list[float], score_used: bool) -> StripReadings:
+            return arris_response_shifts(plane, s8, region, r, cfg, cell.response_gamma, gammas, score_used)
 
         response = _unmeasured_response_terms(
             plane, r, cell.response_gamma, cfg.response_unmeasured_factor, model.blur_px, read_strips, figures

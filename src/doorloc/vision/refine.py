@@ -399,11 +399,12 @@ def arris_response_shifts(
     cfg: LocateConfig,
     used_gamma: float,
     camera_gammas: list[float],
+    score_used: bool = True,
 ) -> StripReadings:
     """How far each arris line's points move, px along its scan lines, were the camera's exponent each of
     ``camera_gammas`` instead of ``used_gamma`` (the one ``refined`` was read with), and how well the
     rounded strips read with each exponent shade as a matt arc (:class:`doorloc.vision.strip_response.
-    StripReadings`).
+    StripReadings`; ``score_used`` False: not at ``used_gamma``, whose score the caller has).
 
     The arris strip model (:class:`doorloc.vision.edge_models.ArrisStrip`) reads each line again at the
     final pose and windows, its grey levels turned to light with each exponent: the median over the scan
@@ -421,7 +422,7 @@ def arris_response_shifts(
     0.9 px; one exponent and a symmetric move cannot be had, the two ends' shifts differ up to sixfold.
     """
     # why many parameters: the image and its grey scale, the search region, the refined state and the
-    # config that fixed its windows, the exponent it was read with and those to try
+    # config that fixed its windows, the exponent it was read with, those to try and whether to score it
     # (beside a far face the far-face model reads the far line, and reports its own doubt)
     names = tuple(
         k for k in EDGE_NAMES if k in refined.arris_fits and not (k == "far" and refined.far_beside)
@@ -447,7 +448,8 @@ def arris_response_shifts(
             if d.size >= 5:
                 shifts[i] = float(np.median(d))
         out[k] = shifts
-    return StripReadings(out, np.array([arc_score(s) for s in strips[1:]]), arc_score(strips[0]))
+    used_score = arc_score(strips[0]) if score_used else math.nan
+    return StripReadings(out, np.array([arc_score(s) for s in strips[1:]]), used_score)
 
 
 def _optical_blur(
