@@ -30,12 +30,12 @@ def _reader(misfit_at, shift_per_log=0.5):
     whose shift is linear in the log exponent (``shift_per_log`` px per unit of ln gamma from 1.5)."""
     calls = []
 
-    def read(gammas, score_used):
+    def read(gammas, scores):
         calls.append(list(gammas))
         return StripReadings(
             {"reference": np.array([shift_per_log * math.log(g / 1.5) for g in gammas])},
-            np.array([math.log(misfit_at(g)) for g in gammas]),
-            math.log(misfit_at(1.5)) if score_used else math.nan,
+            np.array([math.log(misfit_at(g)) if scores != "none" else math.nan for g in gammas]),
+            math.log(misfit_at(1.5)) if scores == "all" else math.nan,
         )
 
     return read, calls
@@ -50,16 +50,18 @@ def test_exponents_fitted_alike_leave_the_factors_ends():
 
 
 def test_a_ruled_out_end_moves_inwards_half_way_to_the_first_exponent_ruled_out():
-    # misfit grows fast above the camera's 1.5: 1.5 * 2.2 ** 0.25 = 1.83 allowed, ** 0.5 = 2.22 ruled out
-    read, calls = _reader(lambda g: 1.01 if g <= 1.9 else 1.01 * ARC_RULED_OUT * 1.2)
+    # misfit grows fast above 2.5: the upper end (1.5 * 2.2 = 3.3, brought to 3.0) ruled out, half its
+    # reach (1.5 * 2.2 ** 0.5 = 2.22) allowed
+    assert INNER_STEPS == (0.5,)
+    read, calls = _reader(lambda g: 1.01 if g <= 2.5 else 1.01 * ARC_RULED_OUT * 1.2)
     ends = allowed_response_ends(1.5, 2.2, read)
     upper, lower = ends.gammas
-    assert upper == pytest.approx(1.5 * 2.2**0.375)
+    assert upper == pytest.approx(1.5 * 2.2**0.75)
     assert lower == pytest.approx(0.8), "the side whose end is allowed keeps it (1.5 / 2.2 brought to 0.8)"
-    assert calls[1] == pytest.approx([1.5 * 2.2**s for s in INNER_STEPS]), "inner readings on that side only"
-    # the shift at the moved end: linear in the reach between the readings at 0.25 and 0.5
+    assert calls[1] == pytest.approx([1.5 * 2.2**0.5]), "inner readings on that side only"
+    # the shift at the moved end: linear in the reach between the readings at 0.5 and 1 (that one at 3.0)
     s_up, s_down = ends.shifts["reference"]
-    assert s_up == pytest.approx(0.5 * (0.5 * math.log(2.2**0.25) + 0.5 * math.log(2.2**0.5)))
+    assert s_up == pytest.approx(0.5 * (0.5 * math.log(2.2**0.5) + 0.5 * math.log(3.0 / 1.5)))
     assert s_down == pytest.approx(0.5 * math.log(0.8 / 1.5))
     assert ends.figure["allowed_gammas"] == pytest.approx([round(lower, 3), round(upper, 3)])
 
@@ -79,14 +81,24 @@ def test_no_evidence_keeps_the_factors_ends(why, misfit_at):
     assert why in ends.figure["unchanged_because"]
 
 
-def test_a_measured_responses_neighbour_fitting_better_disputes_nothing():
-    """A cell whose response was measured (factor 1.11) reads exponents 10 % apart: one fitting better than
-    the cell's is the scores' noise, and the cell is not disputed."""
-    read, _ = _reader(lambda g: 1.6 if abs(g - 1.5) < 1e-9 else 1.01)
+def test_a_measured_response_is_not_scored():
+    """A cell whose response was measured (factor 1.11) reads exponents 10 % apart, too near for the arcs to
+    tell (one fitting better than the cell's would be the scores' noise): its ends are read, not scored."""
+    read, calls = _reader(lambda g: 1.6 if abs(g - 1.5) < 1e-9 else 1.01)
     ends = allowed_response_ends(1.5, 1.11, read)
     assert ends.gammas == pytest.approx((1.5 * 1.11, 1.5 / 1.11))
+    assert len(calls) == 1 and ends.figure == {}
+
+
+def test_an_exponent_near_the_cells_fitting_better_disputes_nothing():
+    """With a factor of 1.3 the upper end (1.95) is ruled out and half its reach (1.71, 1.14 times the
+    cell's 1.5) fits best, 1.3 times better than the cell's: too near to say the cell is wrong."""
+    misfit = {1.5: 1.3, 1.95: 1.8, 1.154: 1.1, 1.71: 1.0}
+    read, _ = _reader(lambda g: misfit[min(misfit, key=lambda k: abs(k - g))])
+    ends = allowed_response_ends(1.5, 1.3, read)
     assert "near the cell's" in ends.figure["unchanged_because"]
     assert "cell_disputed" not in ends.figure
+    assert ends.gammas == pytest.approx((1.95, 1.5 / 1.3))
 
 
 # A door of the arris bench's round set (bench_arris_range.py --sets round --seed 9109), its draw to the last

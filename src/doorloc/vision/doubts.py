@@ -95,8 +95,8 @@ def edge_doubts(
         )
     else:
 
-        def read_strips(gammas: list[float], score_used: bool) -> StripReadings:
-            return arris_response_shifts(plane, s8, region, r, cfg, cell.response_gamma, gammas, score_used)
+        def read_strips(gammas: list[float], scores: str) -> StripReadings:
+            return arris_response_shifts(plane, s8, region, r, cfg, cell.response_gamma, gammas, scores)
 
         response = _unmeasured_response_terms(
             plane, r, cell.response_gamma, cfg.response_unmeasured_factor, model.blur_px, read_strips, figures
@@ -381,7 +381,8 @@ def _unmeasured_response_terms(
                     response_gammas=[round(float(g), 3) for g in ends],
                     response_shifts_px=[round(float(x), 4) if math.isfinite(x) else None for x in v],
                 )
-            figures["response_from_strips"] = allowed.figure
+            if allowed.figure:
+                figures["response_from_strips"] = allowed.figure
     per_line = {}
     for k, shifts in _line_response_shifts(plane, r, used_gamma, blur_px):
         if k in own and np.all(np.isfinite(own[k])):

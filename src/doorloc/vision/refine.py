@@ -399,12 +399,13 @@ def arris_response_shifts(
     cfg: LocateConfig,
     used_gamma: float,
     camera_gammas: list[float],
-    score_used: bool = True,
+    scores: str = "all",
 ) -> StripReadings:
     """How far each arris line's points move, px along its scan lines, were the camera's exponent each of
     ``camera_gammas`` instead of ``used_gamma`` (the one ``refined`` was read with), and how well the
     rounded strips read with each exponent shade as a matt arc (:class:`doorloc.vision.strip_response.
-    StripReadings`; ``score_used`` False: not at ``used_gamma``, whose score the caller has).
+    StripReadings`; ``scores``: ``"all"``, ``"trials"`` (not at ``used_gamma``, whose score the caller has)
+    or ``"none"``).
 
     The arris strip model (:class:`doorloc.vision.edge_models.ArrisStrip`) reads each line again at the
     final pose and windows, its grey levels turned to light with each exponent: the median over the scan
@@ -448,8 +449,8 @@ def arris_response_shifts(
             if d.size >= 5:
                 shifts[i] = float(np.median(d))
         out[k] = shifts
-    used_score = arc_score(strips[0]) if score_used else math.nan
-    return StripReadings(out, np.array([arc_score(s) for s in strips[1:]]), used_score)
+    trials = [arc_score(s) if scores != "none" else math.nan for s in strips[1:]]
+    return StripReadings(out, np.array(trials), arc_score(strips[0]) if scores == "all" else math.nan)
 
 
 def _optical_blur(

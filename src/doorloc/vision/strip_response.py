@@ -9,7 +9,7 @@ over the arc's normals ``n``, which the strip model fits under trial lights
 (``StripFit.misfit_under_lights``); grey levels turned to light with a wrong exponent bend that shading
 away from every arc. So the strips read again with each trial exponent are also scored as arcs under
 their best light (:func:`arc_score`, the door's own light's search, :func:`doorloc.vision.light_search.
-light_of_one_door`), and an exponent whose arcs fit markedly worse than the best exponent's
+light_from_strips`, with a shorter fine grid), and an exponent whose arcs fit markedly worse than the best exponent's
 (:data:`ARC_RULED_OUT`) is ruled out: the doubt's end on that side moves inwards, half way between the
 last exponent the strips allow and the first they rule out (:func:`allowed_response_ends`).
 
@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from doorloc.vision.light_search import StripScore, light_of_one_door
+from doorloc.vision.light_search import StripScore, light_from_strips
 from doorloc.vision.response import RESPONSE_PLAUSIBLE
 
 __all__ = [
@@ -57,24 +57,31 @@ ARC_RULED_OUT = 1.25
 CELL_DISPUTED = (
     "the cell's exponent fits the rounded strips worse than another: the cell's response_gamma is in doubt"
 )
+#: the finer light grid's steps each way around the coarse best when scoring an exponent (the door's own
+#: light takes 2: 24 more directions; 1 takes 8, the search a quarter cheaper, and every exponent is scored
+#: alike)
+ARC_FINE_STEPS = 1
 #: the least factor between the cell's exponent and the one the strips fit best for the cell's to be disputed
 DISPUTE_APART = 1.2
 #: why nothing was narrowed where an exponent near the cell's fits better than the cell's
 NEAR_BEST = "an exponent near the cell's fits the rounded strips better than the cell's: nothing is told"
 #: fractions of the factor's reach (in log exponent) read on a side whose end is ruled out, inwards
-INNER_STEPS = (0.5, 0.25)
+INNER_STEPS = (0.5,)
 
 
 def arc_score(strips: Sequence[StripScore]) -> float:
     """The rounded strips' mean log misfit ratio (matt arc over free shading) under the light they fit best
-    (``light_search.light_of_one_door``), at least 0; NaN where there is no rounded strip.
+    (``light_search.light_from_strips``, every direction stated), at least 0; NaN where there is no
+    rounded strip.
 
     An arc fitting better than the free shading (a ratio under 1) says the free fit missed its best place
     at that exponent, not that the exponent is right: under ambient light alone (arris bench ambient seed
     11101, a camera of 2.07) the strips read with 1.09 scored 0.80 and made a cell of 2.40, scoring 1.05,
     look 1.32 times worse."""
-    light = light_of_one_door(list(strips))
-    return math.nan if light is None else max(float(light.score), 0.0)
+    if not strips:
+        return math.nan
+    light = light_from_strips([list(strips)], fine_steps=ARC_FINE_STEPS, diffuse_share=math.inf)
+    return max(float(light.score), 0.0)
 
 
 @dataclass(frozen=True)
@@ -89,8 +96,9 @@ class StripReadings:
     used_arc_score: float
 
 
-#: exponents in (and whether the exponent in use is to be scored as well), the strips read with each out
-ReadStrips = Callable[[list[float], bool], StripReadings]
+#: exponents in, and which readings to score as arcs (``"all"``; ``"trials"``: not the exponent in use;
+#: ``"none"``), the strips read with each out
+ReadStrips = Callable[[list[float], str], StripReadings]
 
 
 @dataclass(frozen=True)
@@ -119,7 +127,14 @@ def allowed_response_ends(used_gamma: float, factor: float, read: ReadStrips) ->
     def gamma_at(reach: float) -> float:
         return float(np.clip(used_gamma * factor**reach, *RESPONSE_PLAUSIBLE))
 
-    first = read([gamma_at(1.0), gamma_at(-1.0)], True)
+    if factor < DISPUTE_APART:
+        # (a measured response: its ends are too near the cell's exponent for the arcs to tell them apart)
+        plain = read([gamma_at(1.0), gamma_at(-1.0)], "none")
+        return AllowedEnds(
+            (gamma_at(1.0), gamma_at(-1.0)),
+            {k: (float(v[0]), float(v[1])) for k, v in plain.shifts.items()},
+        )
+    first = read([gamma_at(1.0), gamma_at(-1.0)], "all")
     reaches = {1.0: 0, -1.0: 1}
     readings = [first]
     score = {0.0: first.used_arc_score, 1.0: float(first.arc_scores[0]), -1.0: float(first.arc_scores[1])}
@@ -133,7 +148,7 @@ def allowed_response_ends(used_gamma: float, factor: float, read: ReadStrips) ->
     if why is not None:
         return AllowedEnds(full.gammas, full.shifts, _figure(score, gamma_at, why))
     inner = [side * step for side in (1.0, -1.0) if score[side] > _limit(score) for step in INNER_STEPS]
-    more = read([gamma_at(r) for r in inner], False)
+    more = read([gamma_at(r) for r in inner], "trials")
     readings.append(more)
     for i, r in enumerate(inner):
         reaches[r] = i
