@@ -13,7 +13,9 @@ and noise come from :func:`bench_arris.random_effects`), the camera's gamma is t
 - ``dark``: rounds and chamfers of 0.5-3 mm whose wood is as dark as the background, under ambient light
   (the arris's outer border has no contrast: it must be refused, or answered with an honest doubt);
 - ``focused``, ``focused_dark``: as ``round`` and ``chamfer`` together, and as ``dark``, through a sharp lens
-  (0.3-0.7 px of blur).
+  (0.3-0.7 px of blur);
+- ``finish`` (only when named): as ``round`` and ``chamfer`` together on a finish that is no matt surface,
+  the renderer's ``finish_exponent`` drawn from 0.5-2 (locate's arc model is Lambertian).
 
 Per image: the seed, the conditions, the errors of x, z, yaw and thickness and their claimed sigmas
 (x, z, yaw: the answer's ``uncertainty``; thickness: ``diagnostics.thickness_check.sigma_mm``), or the
@@ -30,7 +32,7 @@ thickness 0.09), the worst 0.30; ``within``, the worst 1.27; ``bound``, 90 % wit
 1.69, every one within 2 (answered: round 9, chamfer 13-14, ambient 11-12, small 5-7 of 16).
 
     OMP_NUM_THREADS=1 PYTHONPATH=src python bench/bench_arris_range.py [--n 16] [--seed 7000]
-        [--sets round,chamfer,ambient,small,sharp,grain,dark,focused,focused_dark]
+        [--sets round,chamfer,ambient,small,sharp,grain,dark,focused,focused_dark,finish]
         [--thickness-check refuse|report]
         [--response-factor F]   (a cell whose camera response was measured, e.g. 1.11)
         [--cell-gamma-off within|bound]   (the cell told a wrong exponent: the camera's times the cell's
@@ -103,6 +105,11 @@ SETS: dict[str, dict] = {
     ),
 }
 SETS["focused_dark"] = dict(SETS["dark"], blur=(0.3, 0.7))  # ``dark`` through the sharp lens
+#: the sets a run takes unless told (``finish`` is asked for by name)
+DEFAULT_SETS = tuple(SETS)
+# ``round`` and ``chamfer`` together on a finish that is no matt surface: the directional term raised to a
+# power drawn log-uniformly from 0.5-2 (a rough finish's flatter shading to a satin one's peak)
+SETS["finish"] = dict(SETS["focused"], blur=(0.7, 1.8), finish=(0.5, 2.0))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -132,6 +139,9 @@ def draw(name: str, i: int, seed: int):
         grain_contrast=float(rng.uniform(*spec["grain"])),
         grain_period_mm=float(rng.uniform(2.0, 8.0)),
     )
+    if spec.get("finish"):
+        lo, hi = spec["finish"]
+        fx = dataclasses.replace(fx, finish_exponent=float(math.exp(rng.uniform(math.log(lo), math.log(hi)))))
     if spec.get("arris_as_background"):
         fx = dataclasses.replace(fx, albedo_chamfer=fx.albedo_background)
     if spec["ambient"]:
@@ -256,7 +266,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=16, help="doors per set")
     ap.add_argument("--seed", type=int, default=7000, help="first seed; set k uses seed + 1000 k + i")
-    ap.add_argument("--sets", default=",".join(SETS))
+    ap.add_argument("--sets", default=",".join(DEFAULT_SETS))
     ap.add_argument(
         "--thickness-check",
         choices=("refuse", "report"),
@@ -345,6 +355,7 @@ def main() -> None:
                 f"blur={fx.blur_sigma_px:.2f} g={gamma:.2f} "
                 + (f"az={fx.light_azimuth_deg:+.0f}" if fx.light_directional else "amb")
                 + (f" grain={fx.grain_contrast:.3f}" if fx.grain_contrast else "")
+                + (f" finish={fx.finish_exponent:.2f}" if fx.finish_exponent != 1.0 else "")
                 + (f" cell {told:.2f}" if args.cell_gamma_off else "")
             )
             lit = (

@@ -51,14 +51,16 @@ def _ray_cast_row(
         on_face = ~on_arris & (eye[0] + t_face * dx >= a)
         px, py = np.where(on_arris, px, a), np.where(on_arris, py, 0.0)
         n_door = np.stack([(px - a) / a, (py - a) / a, np.zeros_like(px)], axis=1)
-        cos = np.maximum(0.0, (n_door @ Ryaw.T) @ light)
+        # the directional term under the finish: max(0, n.l) to the power finish_exponent
+        p = fx.finish_exponent
+        cos = np.maximum(0.0, (n_door @ Ryaw.T) @ light) ** p
+        cos_face = max(0.0, float((Ryaw @ [0, -1.0, 0]) @ light)) ** p
         val = np.where(
             on_arris,
             fx.albedo_chamfer * (fx.light_ambient + fx.light_directional * cos),
             np.where(
                 on_face,
-                fx.albedo_hinge
-                * (fx.light_ambient + fx.light_directional * max(0.0, float((Ryaw @ [0, -1.0, 0]) @ light))),
+                fx.albedo_hinge * (fx.light_ambient + fx.light_directional * cos_face),
                 fx.albedo_background,
             ),
         )
@@ -66,8 +68,12 @@ def _ray_cast_row(
     return np.array(out)
 
 
-@pytest.mark.parametrize("azimuth,yaw", [(40.0, 0.0), (-55.0, 1.2)])
-def test_rounded_arris_matches_a_ray_cast_of_the_cylinder(azimuth, yaw):
+@pytest.mark.parametrize(
+    "azimuth,yaw,finish", [(40.0, 0.0, 1.0), (-55.0, 1.2, 1.0), (40.0, 0.0, 0.5), (-55.0, 1.2, 2.0)]
+)
+def test_rounded_arris_matches_a_ray_cast_of_the_cylinder(azimuth, yaw, finish):
+    # finish: the renderer's finish_exponent (1 a matt surface; 0.5 a rough finish's flatter shading, 2 a
+    # satin one's peaked shading)
     door = DoorSize(900, 50, 2100, arris_mm=2.5, arris_profile="round")
     pose = DoorPose(1.5, -2.0, yaw)
     fx = Effects(
@@ -76,6 +82,7 @@ def test_rounded_arris_matches_a_ray_cast_of_the_cylinder(azimuth, yaw):
         light_directional=0.5,
         light_azimuth_deg=azimuth,
         light_elevation_deg=20.0,
+        finish_exponent=finish,
     )
     rd = render_door(CELL, door, pose, effects=fx)
     u0, v0 = rd.corner_px
@@ -107,3 +114,17 @@ def test_rounded_arris_render_is_deterministic():
     a = render_door(CELL, door, DoorPose(2.0, 1.0, 0.5), effects=fx).image
     b = render_door(CELL, door, DoorPose(2.0, 1.0, 0.5), effects=fx).image
     assert np.array_equal(a, b)
+
+
+def test_a_matt_finish_is_the_default_and_a_finish_is_validated():
+    door = DoorSize(900, 50, 2100, arris_mm=2.0, arris_profile="round")
+    lit = dict(arris_profile="round", light_directional=0.5, light_ambient=0.4, light_azimuth_deg=50.0)
+    a = render_door(CELL, door, DoorPose(0.0, 0.0, 0.0), effects=Effects(**lit)).image
+    b = render_door(CELL, door, DoorPose(0.0, 0.0, 0.0), effects=Effects(**lit, finish_exponent=1.0)).image
+    rough = render_door(
+        CELL, door, DoorPose(0.0, 0.0, 0.0), effects=Effects(**lit, finish_exponent=0.5)
+    ).image
+    assert np.array_equal(a, b)
+    assert not np.array_equal(a, rough)
+    with pytest.raises(ValueError, match="finish_exponent"):
+        Effects(finish_exponent=0.0)

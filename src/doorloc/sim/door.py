@@ -319,7 +319,9 @@ def _round_arris_surface(
     n_q = np.cos(th_q)[..., None] * n1 + np.sin(th_q)[..., None] * n2
     light = effects.light_direction_cell()
     cos_l = np.maximum(0.0, (n_q @ Ryaw.T) @ light)
-    radiance = _albedo(effects, "arris") * (effects.light_ambient + effects.light_directional * cos_l)
+    radiance = _albedo(effects, "arris") * (
+        effects.light_ambient + effects.light_directional * effects.finish_term(cos_l)
+    )
     shade = np.sum(radiance * jac * wg, axis=1) / np.sum(jac * wg, axis=1)
     if sig[-1] < sig[0]:
         sig, shade = sig[::-1], shade[::-1]

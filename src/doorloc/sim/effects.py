@@ -41,6 +41,11 @@ class Effects:
         Ambient term of the lighting.
     light_directional : float
         Strength of a directional light (0 = off), Lambert: ``albedo * (ambient + k * max(0, n.l))``.
+    finish_exponent : float
+        The directional term's ``max(0, n.l)`` raised to this power on every face and across the rounded
+        arrises: 1 a matt (Lambertian) finish; under 1 a flatter shading, as a rough finish; over 1 a
+        shading peaked towards the light, as a satin one. Locate's arc model is Lambertian: this is what it
+        meets on finishes that are not.
     light_azimuth_deg, light_elevation_deg : float
         Direction *towards* the light in the cell frame: azimuth from -Y (towards the camera) about +Z,
         positive towards +X; elevation towards +Z.
@@ -90,6 +95,7 @@ class Effects:
     albedo_background: float = 0.12
     light_ambient: float = 1.0
     light_directional: float = 0.0
+    finish_exponent: float = 1.0
     light_azimuth_deg: float = 30.0
     light_elevation_deg: float = 30.0
     gradient_u: float = 0.0
@@ -121,6 +127,8 @@ class Effects:
             raise ValueError(f"jpeg_quality must be 0 (off) or 1-100, got {self.jpeg_quality!r}")
         if self.jpeg_quality and self.bit_depth != 8:
             raise ValueError("JPEG output needs bit_depth 8")
+        if not self.finish_exponent > 0:
+            raise ValueError(f"finish_exponent must be > 0, got {self.finish_exponent!r}")
         for name in ("blur_sigma_px", "full_well_e", "read_noise_dn", "grain_contrast", "vignetting"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
@@ -156,6 +164,10 @@ class Effects:
                 raise ValueError(f"effect {k} needs a {type(default).__name__}, got {v!r}") from None
         return cls(**kw)
 
+    def finish_term(self, cos_l: float | np.ndarray) -> float | np.ndarray:
+        """The directional light's term for ``cos_l = max(0, n.l)`` (scalar or array) under this finish."""
+        return cos_l if self.finish_exponent == 1.0 else np.power(cos_l, self.finish_exponent)
+
     def light_direction_cell(self) -> np.ndarray:
         """Unit vector towards the light, cell frame, shape (3,) (:func:`doorloc.pose.direction_cell`)."""
         return direction_cell(self.light_azimuth_deg, self.light_elevation_deg)
@@ -166,7 +178,7 @@ def lambert_shade(effects: Effects, albedo: float, normal_cell: np.ndarray) -> f
     n = np.asarray(normal_cell, float)
     n = n / np.linalg.norm(n)
     cos = max(0.0, float(n @ effects.light_direction_cell()))
-    return float(albedo * (effects.light_ambient + effects.light_directional * cos))
+    return float(albedo * (effects.light_ambient + effects.light_directional * effects.finish_term(cos)))
 
 
 def wood_grain(effects: Effects, seed: int):
