@@ -87,8 +87,7 @@ def gate_and_answer(
     # Under ``thickness_check: report`` a thickness the image cannot verify is said in the answer, not refused
     # (a thickness that is wrong at confidence is refused under either policy: it is in ``t_refusals``).
     refusals += t_refusals + (unverified if cfg.thickness_check == "refuse" else [])
-    refusals.append(_corner_sigma_check(fit, cfg, diagnostics))
-    refusals.append(_response_disputed(figures.get("response_from_strips"), cell.response_gamma))
+    refusals += [_corner_sigma_check(fit, cfg, diagnostics), _response_disputed(figures, cell.response_gamma)]
     diagnostics["thickness_check"] = _thickness_diagnostics(
         r, door, cfg, budget.thickness_reported_mm, t_uncertain, other, silhouette
     )
@@ -460,12 +459,13 @@ def _misread_strips(
     )
 
 
-def _response_disputed(strips: dict | None, cell_gamma: float) -> q.Refusal | None:
-    """Where the door's rounded strips rule out the cell's own camera exponent
-    (:func:`doorloc.vision.strip_response.allowed_response_ends`): the cell's ``camera.response_gamma`` is
-    wrong for this camera, and an answer resting on it is off by what the wrong exponent moves the arrises
-    (arris bench seed 9109, a cell of 2.40 for a camera of 1.11: 0.165 mm in x, at 1.8 of its sigmas)."""
-    disputed = (strips or {}).get("cell_disputed")
+def _response_disputed(figures: dict[str, Any], cell_gamma: float) -> q.Refusal | None:
+    """Where the door's rounded strips rule out the cell's own camera exponent (the doubts' figure
+    ``response_from_strips``, :func:`doorloc.vision.strip_response.allowed_response_ends`): the cell's
+    ``camera.response_gamma`` is wrong for this camera, and an answer resting on it is off by what the wrong
+    exponent moves the arrises (arris bench seed 9109, a cell of 2.40 for a camera of 1.11: 0.165 mm in x,
+    at 1.8 of its sigmas)."""
+    disputed = (figures.get("response_from_strips") or {}).get("cell_disputed")
     if disputed is None:
         return None
     return q.Refusal(
