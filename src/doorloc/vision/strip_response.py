@@ -136,7 +136,6 @@ def allowed_response_ends(used_gamma: float, factor: float, read: ReadStrips) ->
         )
     first = read([gamma_at(1.0), gamma_at(-1.0)], "all")
     reaches = {1.0: 0, -1.0: 1}
-    readings = [first]
     score = {0.0: first.used_arc_score, 1.0: float(first.arc_scores[0]), -1.0: float(first.arc_scores[1])}
     full = AllowedEnds(
         (gamma_at(1.0), gamma_at(-1.0)),
@@ -149,7 +148,6 @@ def allowed_response_ends(used_gamma: float, factor: float, read: ReadStrips) ->
         return AllowedEnds(full.gammas, full.shifts, _figure(score, gamma_at, why))
     inner = [side * step for side in (1.0, -1.0) if score[side] > _limit(score) for step in INNER_STEPS]
     more = read([gamma_at(r) for r in inner], "trials")
-    readings.append(more)
     for i, r in enumerate(inner):
         reaches[r] = i
         score[r] = float(more.arc_scores[i])
@@ -205,8 +203,7 @@ def _no_evidence(score: dict[float, float], factor: float) -> str | None:
         return "no matt arc shades the rounded strips as well as a free shading at any exponent tried"
     if score[0.0] > _limit(score):
         best = min(score, key=score.__getitem__)
-        # (an exponent near the cell's that fits better is the scores' noise, not a wrong cell: a measured
-        # response's factor of 1.11 reads nothing farther)
+        # (an exponent near the cell's that fits better is the scores' noise, not a wrong cell)
         return CELL_DISPUTED if abs(best) * math.log(factor) >= math.log(DISPUTE_APART) else NEAR_BEST
     return None
 
