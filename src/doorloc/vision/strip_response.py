@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -127,25 +127,24 @@ def allowed_response_ends(used_gamma: float, factor: float, read: ReadStrips) ->
     def gamma_at(reach: float) -> float:
         return float(np.clip(used_gamma * factor**reach, *RESPONSE_PLAUSIBLE))
 
-    if factor < DISPUTE_APART:
-        # (a measured response: its ends are too near the cell's exponent for the arcs to tell them apart)
-        plain = read([gamma_at(1.0), gamma_at(-1.0)], "none")
+    def at_the_factors_ends(readings: StripReadings) -> AllowedEnds:
         return AllowedEnds(
             (gamma_at(1.0), gamma_at(-1.0)),
-            {k: (float(v[0]), float(v[1])) for k, v in plain.shifts.items()},
+            {k: (float(v[0]), float(v[1])) for k, v in readings.shifts.items()},
         )
+
+    if factor < DISPUTE_APART:
+        # (a measured response: its ends are too near the cell's exponent for the arcs to tell them apart)
+        return at_the_factors_ends(read([gamma_at(1.0), gamma_at(-1.0)], "none"))
     first = read([gamma_at(1.0), gamma_at(-1.0)], "all")
     reaches = {1.0: 0, -1.0: 1}
     score = {0.0: first.used_arc_score, 1.0: float(first.arc_scores[0]), -1.0: float(first.arc_scores[1])}
-    full = AllowedEnds(
-        (gamma_at(1.0), gamma_at(-1.0)),
-        {k: (float(v[0]), float(v[1])) for k, v in first.shifts.items()},
-    )
+    full = at_the_factors_ends(first)
     why = _no_evidence(score, factor)
     if why is None and all(score[r] <= _limit(score) for r in (1.0, -1.0)):
         why = "every exponent within the factor fits the rounded strips alike"
     if why is not None:
-        return AllowedEnds(full.gammas, full.shifts, _figure(score, gamma_at, why))
+        return replace(full, figure=_figure(score, gamma_at, why))
     inner = [side * step for side in (1.0, -1.0) if score[side] > _limit(score) for step in INNER_STEPS]
     more = read([gamma_at(r) for r in inner], "trials")
     for i, r in enumerate(inner):
@@ -153,7 +152,7 @@ def allowed_response_ends(used_gamma: float, factor: float, read: ReadStrips) ->
         score[r] = float(more.arc_scores[i])
     why = _no_evidence(score, factor)
     if why is not None:
-        return AllowedEnds(full.gammas, full.shifts, _figure(score, gamma_at, why))
+        return replace(full, figure=_figure(score, gamma_at, why))
 
     def shift_at(line: str, reach: float) -> float:
         if reach == 0.0:
