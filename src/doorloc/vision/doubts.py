@@ -94,9 +94,12 @@ def edge_doubts(
             cfg.response_unmeasured_factor,
         )
     else:
+        readings: dict = {}  # (one door's strips read once per exponent, whatever the calls ask)
 
         def read_strips(gammas: list[float], scores: str) -> StripReadings:
-            return arris_response_shifts(plane, s8, region, r, cfg, cell.response_gamma, gammas, scores)
+            return arris_response_shifts(
+                plane, s8, region, r, cfg, cell.response_gamma, gammas, scores, memo=readings
+            )
 
         response = _unmeasured_response_terms(
             plane, r, cell.response_gamma, cfg.response_unmeasured_factor, model.blur_px, read_strips, figures

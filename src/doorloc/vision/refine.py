@@ -400,6 +400,7 @@ def arris_response_shifts(
     used_gamma: float,
     camera_gammas: list[float],
     scores: str = "all",
+    memo: dict[float, tuple[dict[str, EdgeSamples], list]] | None = None,
 ) -> StripReadings:
     """How far each arris line's points move, px along its scan lines, were the camera's exponent each of
     ``camera_gammas`` instead of ``used_gamma`` (the one ``refined`` was read with), and how well the
@@ -413,6 +414,9 @@ def arris_response_shifts(
     makes on what locate measures there: the strip's fitted shading takes up part of a wrong exponent's
     distortion or adds to it, which a plain step's figure (:func:`doorloc.vision.response.edge_shifts_px`) cannot know.
     A line whose reading fails at an exponent gets NaN there; a line the far-face model reads, no entry.
+    ``memo`` (exponent -> the lines' points and the rounded strips' scorers read with it), where given, keeps
+    each reading for the door's next call: a second call for inner exponents reads ``used_gamma`` again only
+    for the base of its shifts (a rounded door's reading: ~0.1 s).
 
     It costs about half of an arris door's locate (the strip fits, three per line; fixtures/rendered/effects:
     82-109 of 184-195 ms thread CPU per frame, median, one thread). Cheaper readings were
@@ -424,7 +428,8 @@ def arris_response_shifts(
     """
     # why many parameters: the image and its grey scale, the search region, the refined state and the
     # config that fixed its windows, the exponent it was read with, those to try and whether to score it
-    # (beside a far face the far-face model reads the far line, and reports its own doubt)
+    # (beside a far face the far-face model reads the far line, and reports its own doubt); and a memo of
+    # the readings, which one door's calls share
     names = tuple(
         k for k in EDGE_NAMES if k in refined.arris_fits and not (k == "far" and refined.far_beside)
     )
@@ -434,11 +439,16 @@ def arris_response_shifts(
     if refined.far_beside and "reference" in refined.arris_fits:
         optical = float(refined.arris_fits["reference"][0].blur_px)
     this_pass = _Pass(refined.half, optical_blur_px=optical, step_fit=refined.step_fitted, lines=names)
+    memo = {} if memo is None else memo
     read, strips = [], []
     for g in [used_gamma, *camera_gammas]:
-        fits: dict[str, tuple[StripFit, float]] = {}
-        read.append(_sample(plane, s8, region, refined.pose, cfg, this_pass, g, fits).samples)
-        strips.append([f.misfit_under_lights for f, _ in fits.values() if f.misfit_under_lights is not None])
+        if g not in memo:
+            fits: dict[str, tuple[StripFit, float]] = {}
+            points = _sample(plane, s8, region, refined.pose, cfg, this_pass, g, fits).samples
+            scorers = [f.misfit_under_lights for f, _ in fits.values() if f.misfit_under_lights is not None]
+            memo[g] = (points, scorers)
+        read.append(memo[g][0])
+        strips.append(memo[g][1])
     out = {}
     for k in names:
         shifts = np.full(len(camera_gammas), np.nan)
