@@ -30,8 +30,8 @@ from doorloc.vision.response import (
 )
 from doorloc.vision.response_check import blur_without_pixel
 from doorloc.vision.sampling import linearizing_lut
-from doorloc.vision.state import Refined, ResponseCheck
-from doorloc.vision.strip_response import ReadStrips, StripReadings, allowed_response_ends
+from doorloc.vision.state import EdgeDoubts, Refined, ResponseCheck
+from doorloc.vision.strip_response import AllowedEnds, StripReadings, allowed_response_ends
 from doorloc.vision.texture import texture_bias
 from doorloc.vision.uncertainty import (
     CAMERA_RESPONSE,
@@ -47,12 +47,12 @@ __all__ = ["edge_doubts"]
 
 def edge_doubts(
     plane, s8: float, region: SearchRegion, cfg: LocateConfig, check: ResponseCheck
-) -> tuple[EdgeModelTerms, dict[str, Any]]:
+) -> EdgeDoubts:
     """The doubts stage: every line's edge-model doubts (:class:`doorloc.vision.uncertainty.LineDoubt`), each
     from the code that knows it: the texture beside the edge or the far-face model, JPEG's blocks where the
     image shows them, the arris correction, the camera response. The stage that reads the pixels for them,
     so that the gate reads none. With them, the figures the diagnostics report (``jpeg_block_ratio``,
-    ``arris_fit``)."""
+    ``arris_fit``), and where the door's rounded strips dispute the cell's camera exponent."""
     r, cell = check.refined, check.cell
     samples, fit = r.samples, r.fit
     # An arris line's door side is its strip, whose shading the texture term would read as texture (on a
@@ -83,6 +83,7 @@ def edge_doubts(
         model = model.with_doubts(
             *(LineDoubt("camera", k, residual, group="camera_model") for k in EDGE_NAMES)
         )
+    disputed = None
     if check.response is not None:
         response = _response_terms(
             plane,
@@ -94,6 +95,7 @@ def edge_doubts(
             cfg.response_unmeasured_factor,
         )
     else:
+        factor, allowed = cfg.response_unmeasured_factor, None
         readings: dict = {}  # (one door's strips read once per exponent, whatever the calls ask)
 
         def read_strips(gammas: list[float], scores: str) -> StripReadings:
@@ -101,10 +103,13 @@ def edge_doubts(
                 plane, s8, region, r, cfg, cell.response_gamma, gammas, scores, memo=readings
             )
 
+        if factor > 1.0:
+            allowed = allowed_response_ends(cell.response_gamma, factor, read_strips)
+            disputed = allowed.disputed
         response = _unmeasured_response_terms(
-            plane, r, cell.response_gamma, cfg.response_unmeasured_factor, model.blur_px, read_strips, figures
+            plane, r, cell.response_gamma, factor, model.blur_px, allowed, figures
         )
-    return model.with_doubts(*response), figures
+    return EdgeDoubts(model.with_doubts(*response), figures, disputed)
 
 
 def _edge_model_doubts(
@@ -326,7 +331,7 @@ def _unmeasured_response_terms(
     used_gamma: float,
     factor: float,
     blur_px: float,
-    read_strips: ReadStrips | None = None,
+    allowed: AllowedEnds | None = None,
     figures: dict[str, Any] | None = None,
 ) -> list[LineDoubt]:
     """The response doubt (px) of each line when the image did not measure the camera's response.
@@ -346,17 +351,17 @@ def _unmeasured_response_terms(
     camera, z 0.035 mm at 2-3 sigma), and a plain door square to the camera by up to 7 (a 1.13 camera in
     a cell of 2.01, blur 0.86 px: x 0.075 mm off at sigma 0.010).
 
-    An arris line's shifts are its own model's where ``read_strips`` is given (exponents in, per line
-    the shifts out, px: :func:`doorloc.vision.refine.arris_response_shifts`, the strip read again with
-    each exponent): its fitted shading takes up part of the distortion that moves a plain step, or adds
+    An arris line's shifts are its own model's where ``allowed`` is given (the door's strips read again
+    with the exponents at the ends, per line the shifts out, px: :func:`doorloc.vision.strip_response.
+    allowed_response_ends` over :func:`doorloc.vision.refine.arris_response_shifts`): its fitted shading takes up part of the distortion that moves a plain step, or adds
     to it (on three 0.65-0.87 mm roundings located again with the cell at the two exponents, the plain
     step's figure was 0.5-3.7 times the door's real move; the strip's own, 0.9-2.3 times). Its
     doubt is half the range of the shifts at the two exponents and at ``used_gamma`` (no shift), which
     is the plain step's half spread where the two move it apart, and half the larger where both move it
     the same way. A line whose strip is lost at an exponent keeps the plain step's figure. Where the
     door's rounded strips rule out the factor's far exponents (their shading no matt arc's when read
-    with them: :func:`doorloc.vision.strip_response.allowed_response_ends`), the two ends are the
-    exponents they allow, for every line; ``figures["response_from_strips"]`` says what they showed.
+    with them), the two ends are the exponents they allow, for every line; ``figures
+    ["response_from_strips"]`` says what they showed.
 
     The doubt is the move at the factor's ends, not its RMS over the exponents within them
     (``sqrt((s_up^2 + s_down^2) / 6)`` for a move linear in the log exponent, 0.6 of this figure where
@@ -374,8 +379,7 @@ def _unmeasured_response_terms(
         return []
     ends: list[float] = [used_gamma * factor, used_gamma / factor]
     own: dict[str, tuple[float, float]] = {}
-    if read_strips is not None:
-        allowed = allowed_response_ends(used_gamma, factor, read_strips)
+    if allowed is not None:
         ends, own = list(allowed.gammas), allowed.shifts
         if figures is not None:
             # (each arris line's shifts, px, at the two ends: diagnostics.arris_fit[line])

@@ -23,7 +23,8 @@ from doorloc.vision.region import EDGE_NAMES, HUMAN, SearchRegion
 from doorloc.vision.response import ResponseFit
 from doorloc.vision.result import LineQuality, LocateResult, PoseUncertainty
 from doorloc.vision.sampling import oriented
-from doorloc.vision.state import Refined, ResponseCheck
+from doorloc.vision.state import EdgeDoubts, Refined, ResponseCheck
+from doorloc.vision.strip_response import CellDisputed
 from doorloc.vision.uncertainty import (
     Budget,
     EdgeModelTerms,
@@ -48,7 +49,7 @@ def gate_and_answer(
     cfg: LocateConfig,
     region: SearchRegion,
     check: ResponseCheck,
-    doubts: tuple[EdgeModelTerms, dict[str, Any]],
+    doubts: EdgeDoubts,
     plane,
     s8: float,
 ) -> LocateResult:
@@ -60,7 +61,7 @@ def gate_and_answer(
     support and straightness, the corner's support, overexposure, the envelope, the thickness, the corner's
     and the pose's uncertainty."""
     r, cell = check.refined, check.cell
-    model, figures = doubts
+    model, figures, disputed = doubts.model, doubts.figures, doubts.response_disputed
     fit, pose = r.fit, r.pose
     diagnostics = _fit_diagnostics(r, region, door, figures)
     lines, refusals = _line_checks(r, region, model, cfg)
@@ -87,7 +88,7 @@ def gate_and_answer(
     # Under ``thickness_check: report`` a thickness the image cannot verify is said in the answer, not refused
     # (a thickness that is wrong at confidence is refused under either policy: it is in ``t_refusals``).
     refusals += t_refusals + (unverified if cfg.thickness_check == "refuse" else [])
-    refusals += [_corner_sigma_check(fit, cfg, diagnostics), _response_disputed(figures, cell.response_gamma)]
+    refusals += [_corner_sigma_check(fit, cfg, diagnostics), _response_disputed(disputed, cell)]
     diagnostics["thickness_check"] = _thickness_diagnostics(
         r, door, cfg, budget.thickness_reported_mm, t_uncertain, other, silhouette
     )
@@ -459,21 +460,19 @@ def _misread_strips(
     )
 
 
-def _response_disputed(figures: dict[str, Any], cell_gamma: float) -> q.Refusal | None:
-    """Where the door's rounded strips rule out the cell's own camera exponent (the doubts' figure
-    ``response_from_strips``, :func:`doorloc.vision.strip_response.allowed_response_ends`): the cell's
-    ``camera.response_gamma`` is wrong for this camera, and an answer resting on it is off by what the wrong
-    exponent moves the arrises (arris bench seed 9109, a cell of 2.40 for a camera of 1.11: 0.165 mm in x,
-    at 1.8 of its sigmas)."""
-    disputed = (figures.get("response_from_strips") or {}).get("cell_disputed")
+def _response_disputed(disputed: CellDisputed | None, cell: Cell) -> q.Refusal | None:
+    """Where the door's rounded strips rule out the cell's own camera exponent (the doubts stage's
+    :class:`doorloc.vision.strip_response.CellDisputed`): the cell's ``camera.response_gamma`` is wrong for
+    this camera, and an answer resting on it is off by what the wrong exponent moves the arrises (arris
+    bench seed 9109, a cell of 2.40 for a camera of 1.11: 0.165 mm in x, at 1.8 of its sigmas)."""
     if disputed is None:
         return None
     return q.Refusal(
         "uncertain",
         f"the rounded arrises' shading disagrees with the cell's camera response (camera.response_gamma "
-        f"{cell_gamma:g}): read with it they fit a matt surface {disputed['cell_over_best']:.2f} times worse than "
-        f"with {disputed['best_gamma']:g}; measure the response once (doorloc calibrate prints it from the "
-        "chessboard photographs) and put it in the cell file",
+        f"{cell.response_gamma:g}): read with it they fit a matt surface {disputed.cell_over_best:.2f} times "
+        f"worse than with {disputed.best_gamma:g}; measure the response once (doorloc calibrate prints it "
+        "from the chessboard photographs) and put it in the cell file",
     )
 
 

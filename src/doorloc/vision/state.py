@@ -1,7 +1,8 @@
 """The typed state that locate's stages pass on: each a frozen value, made by one stage and read by the next.
 
 :class:`Refined` (the refine stage's edge points, fit and pose) -> :class:`ResponseCheck` (the response check:
-the refined state the answer rests on, the camera response read off the image) -> the doubts stage and the gate.
+the refined state the answer rests on, the camera response read off the image) -> :class:`EdgeDoubts` (the
+doubts stage: every line's doubts and what the diagnostics report of them) -> the gate.
 """
 
 from __future__ import annotations
@@ -20,8 +21,10 @@ from doorloc.vision.metric import MetricPose
 from doorloc.vision.response import (
     ResponseFit,
 )
+from doorloc.vision.strip_response import CellDisputed
+from doorloc.vision.uncertainty import EdgeModelTerms
 
-__all__ = ["Refined", "Refused", "ResponseCheck", "StageClock"]
+__all__ = ["EdgeDoubts", "Refined", "Refused", "ResponseCheck", "StageClock"]
 
 
 @dataclass(frozen=True)
@@ -72,6 +75,17 @@ class ResponseCheck:
     response: ResponseFit | None
     absorbed: bool
     diagnostics: dict[str, Any]
+
+
+@dataclass(frozen=True)
+class EdgeDoubts:
+    """What the doubts stage found: every line's edge-model doubts, the figures the diagnostics report with
+    them (``jpeg_block_ratio``, ``arris_fit``, ``response_from_strips``), and where the door's rounded strips
+    rule out the cell's camera exponent, which the gate refuses (None: they do not, or were not read)."""
+
+    model: EdgeModelTerms
+    figures: dict[str, Any]
+    response_disputed: CellDisputed | None = None
 
 
 class Refused(Exception):

@@ -40,6 +40,7 @@ __all__ = [
     "ARC_RULED_OUT",
     "CELL_DISPUTED",
     "AllowedEnds",
+    "CellDisputed",
     "ReadStrips",
     "StripReadings",
     "allowed_response_ends",
@@ -102,17 +103,28 @@ ReadStrips = Callable[[list[float], str], StripReadings]
 
 
 @dataclass(frozen=True)
+class CellDisputed:
+    """The door's rounded strips rule out the cell's own camera exponent: they fit matt arcs best when read
+    with ``best_gamma``, and ``cell_over_best`` times worse (misfit ratio) with the cell's."""
+
+    best_gamma: float
+    cell_over_best: float
+
+
+@dataclass(frozen=True)
 class AllowedEnds:
     """The two ends of the camera exponents an arris door's response doubt spans, and each arris line's
     shift there (px; NaN where its strip was lost: the caller takes the plain step's figure).
 
     ``gammas``: (upper, lower) exponent; ``shifts``: per line (upper, lower) shift; ``figure``: what the
     strips showed, for the diagnostics (exponents read, their arcs' misfit over free, and why nothing was
-    ruled out where so)."""
+    ruled out where so); ``disputed``: where the strips rule out the cell's own exponent (the gate refuses
+    the door), else None."""
 
     gammas: tuple[float, float]
     shifts: dict[str, tuple[float, float]]
     figure: dict = field(default_factory=dict)
+    disputed: CellDisputed | None = None
 
 
 def allowed_response_ends(used_gamma: float, factor: float, read: ReadStrips) -> AllowedEnds:
@@ -144,7 +156,7 @@ def allowed_response_ends(used_gamma: float, factor: float, read: ReadStrips) ->
     if why is None and all(score[r] <= _limit(score) for r in (1.0, -1.0)):
         why = "every exponent within the factor fits the rounded strips alike"
     if why is not None:
-        return replace(full, figure=_figure(score, gamma_at, why))
+        return replace(full, figure=_figure(score, gamma_at, why), disputed=_disputed(score, gamma_at, why))
     inner = [side * step for side in (1.0, -1.0) if score[side] > _limit(score) for step in INNER_STEPS]
     more = read([gamma_at(r) for r in inner], "trials")
     for i, r in enumerate(inner):
@@ -152,7 +164,7 @@ def allowed_response_ends(used_gamma: float, factor: float, read: ReadStrips) ->
         score[r] = float(more.arc_scores[i])
     why = _no_evidence(score, factor)
     if why is not None:
-        return replace(full, figure=_figure(score, gamma_at, why))
+        return replace(full, figure=_figure(score, gamma_at, why), disputed=_disputed(score, gamma_at, why))
 
     def shift_at(line: str, reach: float) -> float:
         if reach == 0.0:
@@ -207,6 +219,17 @@ def _no_evidence(score: dict[float, float], factor: float) -> str | None:
     return None
 
 
+def _disputed(
+    score: dict[float, float], gamma_at: Callable[[float], float], why: str | None
+) -> CellDisputed | None:
+    """Where the scores rule out the cell's exponent (``why`` is :data:`CELL_DISPUTED`): the exponent read
+    best and the cell's misfit over its (rounded as the diagnostics say them); else None."""
+    if why != CELL_DISPUTED:
+        return None
+    best = min(score, key=score.__getitem__)
+    return CellDisputed(round(gamma_at(best), 3), round(math.exp(score[0.0] - score[best]), 3))
+
+
 def _figure(
     score: dict[float, float],
     gamma_at: Callable[[float], float],
@@ -224,11 +247,11 @@ def _figure(
     }
     if ends is None:
         out["unchanged_because"] = why
-        if why == CELL_DISPUTED:
-            best = min(score, key=score.__getitem__)
+        disputed = _disputed(score, gamma_at, why)
+        if disputed is not None:
             out["cell_disputed"] = {
-                "best_gamma": round(gamma_at(best), 3),
-                "cell_over_best": round(math.exp(score[0.0] - score[best]), 3),
+                "best_gamma": disputed.best_gamma,
+                "cell_over_best": disputed.cell_over_best,
             }
     else:
         out["allowed_gammas"] = [round(min(ends), 3), round(max(ends), 3)]
