@@ -17,6 +17,7 @@ from doorloc.sim.effects import Effects
 from doorloc.vision.locate import locate
 from doorloc.vision.strip_response import (
     ARC_RULED_OUT,
+    GREY_EXPLAINS,
     INNER_STEPS,
     StripReadings,
     allowed_response_ends,
@@ -71,7 +72,7 @@ def test_a_ruled_out_end_moves_inwards_half_way_to_the_first_exponent_ruled_out(
     [
         ("worse than another", lambda g: 1.6 if abs(g - 1.5) < 1e-9 else 1.01),  # the cell's own ruled out
         ("no matt arc", lambda g: 1.3 + (g - 1.5) ** 2),  # no arc explains the strips
-        ("no rounded strip", lambda g: math.nan),  # a chamfer
+        ("no rounded or chamfered strip", lambda g: math.nan),  # strips lost at an exponent
     ],
 )
 def test_no_evidence_keeps_the_factors_ends(why, misfit_at):
@@ -152,3 +153,78 @@ def test_a_cell_exponent_the_strips_rule_out_refuses_the_door(image):
     assert fig["cell_disputed"]["best_gamma"] < 1.5
     assert not res.ok and res.error_code == "uncertain"
     assert "camera.response_gamma 2.4" in res.error
+
+
+def test_chamfers_that_no_reading_explains_rule_nothing_out():
+    """A chamfered door's strips score in grey levels over the noise: where even the best reading misses
+    the image by more than GREY_EXPLAINS times its noise (a strip the one-level model does not describe),
+    a far worse end is not ruled out."""
+
+    def read(gammas, scores):
+        misfit = [GREY_EXPLAINS * 1.5 * (1.0 if g < 2.0 else 3.0) for g in gammas]
+        return StripReadings(
+            {"reference": np.zeros(len(gammas))},
+            np.log(misfit),
+            math.log(GREY_EXPLAINS * 1.5) if scores == "all" else math.nan,
+            "chamfers",
+        )
+
+    ends = allowed_response_ends(1.5, 2.2, read)
+    assert ends.gammas == pytest.approx((3.0, 0.8))
+    assert "miss the image" in ends.figure["unchanged_because"]
+    assert "chamfer_grey_misfit" in ends.figure and "arc_misfit_over_free" not in ends.figure
+
+
+# A door of the arris bench's ambient set (bench_arris_range.py --sets ambient --seed 11105), its draw to the
+# last digit: a 2.55 mm chamfer under ambient light alone, a camera of exponent 1.09, every edge an arris.
+CHAMFERED = DoorSize(900, 50.0, 2100, arris_mm=2.553447208703535, arris_profile="chamfer")
+CHAMFERED_POSE = DoorPose(5.6495405674138315, -5.8733033401188806, -0.953750803972651)
+CHAMFERED_EFFECTS = Effects(
+    albedo_hinge=0.879538901707407,
+    albedo_chamfer=0.7488888389678632,
+    albedo_background=0.0983060683912369,
+    light_ambient=1.0422579437306956,
+    light_directional=0.0,
+    light_azimuth_deg=18.470360850836887,
+    light_elevation_deg=23.500158479605112,
+    grain_period_mm=7.871558505855033,
+    arris_profile="chamfer",
+    blur_sigma_px=1.5590877010808808,
+    read_noise_dn=0.20434642471245723,
+    gamma=1.08838528630626,
+)
+
+
+@pytest.fixture(scope="module")
+def chamfered_image():
+    return render_door(CELL, CHAMFERED, CHAMFERED_POSE, effects=CHAMFERED_EFFECTS, seed=11105).image
+
+
+def test_a_chamfers_borders_narrow_the_unmeasured_responses_doubt(chamfered_image):
+    """Told its camera's exponent (not measured: the factor 2.2), the door was refused as uncertain (x 0.103
+    mm, the response's doubt 0.103 mm of it, from the exponents 0.8 and 2.39); read with 2.39 its chamfers'
+    fitted profiles miss the image by 12.7 times its noise (1.04 with the camera's), with 0.8 by 1.47, and
+    the doubt spans the exponents they allow."""
+    res = locate(
+        chamfered_image, dataclasses.replace(CELL, response_gamma=CHAMFERED_EFFECTS.gamma), CHAMFERED
+    )
+    assert res.ok, res.error
+    fig = res.diagnostics["response_from_strips"]
+    lo, hi = fig["allowed_gammas"]
+    assert 0.8 < lo <= CHAMFERED_EFFECTS.gamma <= hi < 1.6
+    assert min(fig["chamfer_grey_misfit"]) < 1.2, "the camera's exponent leaves about the noise"
+    assert res.uncertainty.x_mm < 0.06
+    assert abs(res.x_mm - CHAMFERED_POSE.x_mm) <= 2 * res.uncertainty.x_mm
+    assert abs(res.z_mm - CHAMFERED_POSE.z_mm) <= 2 * res.uncertainty.z_mm
+
+
+@pytest.mark.parametrize("cell_gamma", [2.39, 0.6])
+def test_a_cell_exponent_the_chamfers_rule_out_refuses_the_door(chamfered_image, cell_gamma):
+    """The same door in a cell that says 2.39 (an sRGB camera assumed for a near-linear one) or 0.6: the
+    chamfers read with the cell's exponent fit the image markedly worse than read with another, and the door
+    is refused, the cell's exponent named."""
+    res = locate(chamfered_image, dataclasses.replace(CELL, response_gamma=cell_gamma), CHAMFERED)
+    disputed = res.diagnostics["response_from_strips"]["cell_disputed"]
+    assert 0.9 < disputed["best_gamma"] < 1.5
+    assert not res.ok and res.error_code == "uncertain"
+    assert f"camera.response_gamma {cell_gamma:g}" in res.error and "chamfers' profiles" in res.error

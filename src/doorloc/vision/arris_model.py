@@ -48,6 +48,7 @@ from doorloc.vision.arris_strip import (
     lit_basis,
     mix_cells,
     pixel_terms,
+    posterior_moments,
     strip_basis,
 )
 from doorloc.vision.stated_light import StatedLight, stated_light_explains
@@ -116,6 +117,9 @@ class StripFit:
         vectors towards the light, cell frame) over its free shading's, found as ``stated_light_misfit`` is
         for the stated light (a light sought from the doors: :mod:`doorloc.vision.light_search`); None on
         a chamfer, or where the strip's surface normals are not known.
+    grey_misfit : float
+        The fitted profiles' residual RMS in the camera's grey levels over the plateaus' grey-level noise,
+        which readings with different exponents compare on (:func:`doorloc.vision.arris_lines.arris_edges`).
     """
 
     deficit: float
@@ -133,25 +137,12 @@ class StripFit:
     misfit_under_lights: Callable[[np.ndarray], np.ndarray] | None = field(
         default=None, compare=False, repr=False
     )
+    grey_misfit: float = math.nan
 
     @property
     def stated_light_used(self) -> bool | None:
         """Whether the cell's stated light shaded this rounding (None: no light stated, or no rounding)."""
         return None if self.stated_light_misfit is None else stated_light_explains(self.stated_light_misfit)
-
-
-def _posterior_moments(deltas: np.ndarray, deficits: np.ndarray, logp: np.ndarray) -> tuple[float, float]:
-    """Mean and standard deviation of the deficit over the border's offsets ``deltas`` (sorted, px) given
-    the log-posterior density ``logp`` there (trapezoid weights over the unevenly spaced offsets)."""
-    dens = np.exp(logp - logp.max())
-    gaps = np.diff(deltas)
-    tw = np.zeros(deltas.size)
-    tw[:-1] += 0.5 * gaps
-    tw[1:] += 0.5 * gaps
-    pw = dens * tw
-    pw /= pw.sum()
-    mean = float(pw @ deficits)
-    return mean, math.sqrt(max(float(pw @ (deficits - mean) ** 2), 0.0))
 
 
 def _lit_deficit(
@@ -582,7 +573,7 @@ def _valley_posterior(
     deltas = deltas[order]
     dfc = np.concatenate([evc.deficit[keep], *(f[2] for f in fines)])[order]
     logp = np.concatenate(ll)[order] - 0.5 * ((dfc - prior[0]) / prior[1]) ** 2
-    deficit, post_sd = _posterior_moments(deltas, dfc, logp)
+    deficit, post_sd = posterior_moments(deltas, dfc, logp)
     deficit, post_sd = _with_other_shading(shading, deltas, dfc, logp, deficit, post_sd, T_glob)
     return _Posterior(deficit, post_sd, modes, chi_min, T_glob)
 
@@ -605,7 +596,7 @@ def _with_other_shading(
         # border's place along a valley that the light's shading cuts short where the two agree. Its width
         # is never narrower than the two disagree by (a prior the data contradict must not narrow them).
         lit_sd = max(lit[1], abs(deficit - lit[0]))
-        held, held_sd = _posterior_moments(deltas, dfc, logp - 0.5 * ((dfc - lit[0]) / lit_sd) ** 2)
+        held, held_sd = posterior_moments(deltas, dfc, logp - 0.5 * ((dfc - lit[0]) / lit_sd) ** 2)
         # A prior that narrows one valley leaves the mean between the data's and its own; one that takes it
         # beyond both has chosen between the valleys of a skewed posterior, which it cannot tell apart any
         # better than the profiles (a 1.2 mm rounding in shadow at its silhouette: its first pass's bottom

@@ -26,6 +26,7 @@ __all__ = [
     "strip_basis",
     "pixel_terms",
     "mix_cells",
+    "posterior_moments",
     "PRIOR_LEVEL",
     "PRIOR_LEVEL_SIGMA",
 ]
@@ -676,3 +677,17 @@ class StripProblem:
                 np.where(better[:, None, None], ev1.hess, ev.hess),  # type: ignore[arg-type]
             )
         return s, ev
+
+
+def posterior_moments(deltas: np.ndarray, deficits: np.ndarray, logp: np.ndarray) -> tuple[float, float]:
+    """Mean and standard deviation of the deficit over the border's offsets ``deltas`` (sorted, px) given
+    the log-posterior density ``logp`` there (trapezoid weights over the unevenly spaced offsets)."""
+    dens = np.exp(logp - logp.max())
+    gaps = np.diff(deltas)
+    tw = np.zeros(deltas.size)
+    tw[:-1] += 0.5 * gaps
+    tw[1:] += 0.5 * gaps
+    pw = dens * tw
+    pw /= pw.sum()
+    mean = float(pw @ deficits)
+    return mean, math.sqrt(max(float(pw @ (deficits - mean) ** 2), 0.0))

@@ -461,18 +461,23 @@ def _misread_strips(
 
 
 def _response_disputed(disputed: CellDisputed | None, cell: Cell) -> q.Refusal | None:
-    """Where the door's rounded strips rule out the cell's own camera exponent (the doubts stage's
-    :class:`doorloc.vision.strip_response.CellDisputed`): the cell's ``camera.response_gamma`` is wrong for
-    this camera, and an answer resting on it is off by what the wrong exponent moves the arrises (arris
-    bench seed 9109, a cell of 2.40 for a camera of 1.11: 0.165 mm in x, at 1.8 of its sigmas)."""
+    """Where the door's rounded or chamfered strips rule out the cell's own camera exponent (the doubts
+    stage's :class:`doorloc.vision.strip_response.CellDisputed`): the cell's ``camera.response_gamma`` is
+    wrong for this camera, and an answer resting on it is off by what the wrong exponent moves the arrises
+    (arris bench seed 9109, a cell of 2.40 for a camera of 1.11: 0.165 mm in x, at 1.8 of its sigmas)."""
     if disputed is None:
         return None
+    seen = (
+        "the rounded arrises' shading fits a matt surface"
+        if disputed.evidence == "arcs"
+        else "the chamfers' profiles fit the image"
+    )
     return q.Refusal(
         "uncertain",
-        f"the rounded arrises' shading disagrees with the cell's camera response (camera.response_gamma "
-        f"{cell.response_gamma:g}): read with it they fit a matt surface {disputed.cell_over_best:.2f} times "
-        f"worse than with {disputed.best_gamma:g}; measure the response once (doorloc calibrate prints it "
-        "from the chessboard photographs) and put it in the cell file",
+        f"the arrises disagree with the cell's camera response (camera.response_gamma {cell.response_gamma:g}): "
+        f"read with it, {seen} {disputed.cell_over_best:.2f} times worse than with {disputed.best_gamma:g}; "
+        "measure the response once (doorloc calibrate prints it from the chessboard photographs) and put it "
+        "in the cell file",
     )
 
 

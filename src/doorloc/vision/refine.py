@@ -27,7 +27,7 @@ from doorloc.vision.response_check import STEP_FIT_MIN_BLUR_PX
 from doorloc.vision.sampling import linearizing_lut
 from doorloc.vision.state import Refined, Refused, StageClock
 from doorloc.vision.stated_light import StatedLight
-from doorloc.vision.strip_response import StripReadings, arc_score
+from doorloc.vision.strip_response import StripReadings, arc_score, grey_score
 
 __all__ = ["arris_response_shifts", "refine"]
 
@@ -440,13 +440,18 @@ def arris_response_shifts(
         optical = float(refined.arris_fits["reference"][0].blur_px)
     this_pass = _Pass(refined.half, optical_blur_px=optical, step_fit=refined.step_fitted, lines=names)
     memo = {} if memo is None else memo
+    chamfered = region.door.arris_profile == "chamfer"
     read, strips = [], []
     for g in [used_gamma, *camera_gammas]:
         if g not in memo:
             fits: dict[str, tuple[StripFit, float]] = {}
             points = _sample(plane, s8, region, refined.pose, cfg, this_pass, g, fits).samples
-            scorers = [f.misfit_under_lights for f, _ in fits.values() if f.misfit_under_lights is not None]
-            memo[g] = (points, scorers)
+            if chamfered:
+                # (a chamfer's strips score in the camera's grey levels; a rounding's as matt arcs)
+                memo[g] = (points, [f.grey_misfit for f, _ in fits.values()])
+            else:
+                arcs = [f.misfit_under_lights for f, _ in fits.values() if f.misfit_under_lights is not None]
+                memo[g] = (points, arcs)
         read.append(memo[g][0])
         strips.append(memo[g][1])
     out = {}
@@ -459,8 +464,10 @@ def arris_response_shifts(
             if d.size >= 5:
                 shifts[i] = float(np.median(d))
         out[k] = shifts
-    trials = [arc_score(s) if scores != "none" else math.nan for s in strips[1:]]
-    return StripReadings(out, np.array(trials), arc_score(strips[0]) if scores == "all" else math.nan)
+    score = grey_score if chamfered else arc_score
+    trials = [score(s) if scores != "none" else math.nan for s in strips[1:]]
+    used = score(strips[0]) if scores == "all" else math.nan
+    return StripReadings(out, np.array(trials), used, "chamfers" if chamfered else "arcs")
 
 
 def _optical_blur(

@@ -13,15 +13,26 @@ light_from_strips`, with a shorter fine grid), and an exponent whose arcs fit ma
 (:data:`ARC_RULED_OUT`) is ruled out: the doubt's end on that side moves inwards, half way between the
 last exponent the strips allow and the first they rule out (:func:`allowed_response_ends`).
 
-It rules out nothing where the strips give no such evidence: a chamfer (one level: no shape to bend), a
-rounding under ambient light alone or one narrower than the blur (every exponent fits alike), a finish the
-arc does not describe (its best fit more than :data:`ARC_EXPLAINS` times the free shading's misfit), and
-where the cell's own exponent is itself ruled out (the cell is wrong for this camera: the gate refuses the
+A chamfer's strip is one level under any exponent, but its two borders are blurred steps, which a wrong
+exponent skews as it skews a plain edge: a chamfered door's strips read with each trial exponent are
+scored by how well their fitted profiles reproduce the image in the camera's own grey levels
+(:func:`grey_score`, ``StripFit.grey_misfit``; in linear light the noise itself changes with the exponent
+tried, and that misfit was lowest at a wrong exponent on many doors), and an exponent scoring
+:data:`GREY_RULED_OUT` times the best is ruled out the same way.
+
+It rules out nothing where the strips give no such evidence: a rounding under ambient light alone or one
+narrower than the blur, a chamfer narrow or faint enough (every exponent fits alike), a finish the arc
+does not describe (its best fit more than :data:`ARC_EXPLAINS` times the free shading's misfit), chamfers
+whose best reading misses the image by more than :data:`GREY_EXPLAINS` times its noise, and where the
+cell's own exponent is itself ruled out (the cell is wrong for this camera: the gate refuses the
 door ``uncertain``, the cell's exponent and the one the strips prefer named). Measured before it was built (rendered roundings of the arris range bench, seeds
 7900 and 9100, the door located with the cell stating each of seven exponents across the factor): with
 the cell right, the best arcs fit within 1.00-1.07 of the free shading at the camera's exponent, and at
 the factor's ends up to 1.1-3.5 times; with the cell told the wrong end of the factor, the cell's exponent
-was ruled out, or the camera's was among those kept (docs/benchmarks.md, 2026-11-30).
+was ruled out, or the camera's was among those kept (docs/benchmarks.md, 2026-11-30); on 130 chamfered
+doors (arris bench chamfer, ambient and small sets, seeds 10100-13115, five exponents across the factor
+each) the camera's exponent scored within 1.03 of the best, the cell told right, 2.2 times or 1/2.2 times
+the camera's (docs/benchmarks.md, 2026-11-30).
 """
 
 from __future__ import annotations
@@ -39,12 +50,15 @@ __all__ = [
     "ARC_EXPLAINS",
     "ARC_RULED_OUT",
     "CELL_DISPUTED",
+    "GREY_EXPLAINS",
+    "GREY_RULED_OUT",
     "AllowedEnds",
     "CellDisputed",
     "ReadStrips",
     "StripReadings",
     "allowed_response_ends",
     "arc_score",
+    "grey_score",
 ]
 
 #: the rounded strips' best matt arc fits about as well as their free shading (misfit ratio at most this)
@@ -54,9 +68,15 @@ ARC_EXPLAINS = 1.15
 #: search's own margin between directions it cannot tell apart is 1.05; on the rendered roundings a right
 #: cell's exponent scored within 1.15 of the best and a wrong one's 1.17-3.5 where it could be told)
 ARC_RULED_OUT = 1.25
+#: the chamfered strips' best reading misses the image by at most this many times its grey-level noise
+#: (``StripFit.grey_misfit``): the one-level strip between blurred borders describes them
+GREY_EXPLAINS = 2.0
+#: an exponent whose chamfered strips' grey-level misfit exceeds the best exponent's by this ratio is ruled
+#: out (on the arris bench's 130 chamfered doors the camera's scored within 1.03 of the best; as the arcs')
+GREY_RULED_OUT = 1.25
 #: why nothing was narrowed where the cell's own exponent is ruled out (the gate refuses such a door)
 CELL_DISPUTED = (
-    "the cell's exponent fits the rounded strips worse than another: the cell's response_gamma is in doubt"
+    "the cell's exponent fits the arris strips worse than another: the cell's response_gamma is in doubt"
 )
 #: the finer light grid's steps each way around the coarse best when scoring an exponent (the door's own
 #: light takes 2: 24 more directions; 1 takes 8, the search a quarter cheaper, and every exponent is scored
@@ -65,7 +85,7 @@ ARC_FINE_STEPS = 1
 #: the least factor between the cell's exponent and the one the strips fit best for the cell's to be disputed
 DISPUTE_APART = 1.2
 #: why nothing was narrowed where an exponent near the cell's fits better than the cell's
-NEAR_BEST = "an exponent near the cell's fits the rounded strips better than the cell's: nothing is told"
+NEAR_BEST = "an exponent near the cell's fits the arris strips better than the cell's: nothing is told"
 #: fractions of the factor's reach (in log exponent) read on a side whose end is ruled out, inwards
 INNER_STEPS = (0.5,)
 
@@ -85,16 +105,27 @@ def arc_score(strips: Sequence[StripScore]) -> float:
     return max(float(light.score), 0.0)
 
 
+def grey_score(grey_misfits: Sequence[float]) -> float:
+    """The chamfered strips' mean log misfit in the camera's grey levels (``StripFit.grey_misfit``); NaN
+    where there is none, or one was not measured."""
+    values = np.asarray(grey_misfits, float)
+    if not values.size or not np.all(np.isfinite(values) & (values > 0)):
+        return math.nan
+    return float(np.mean(np.log(values)))
+
+
 @dataclass(frozen=True)
 class StripReadings:
     """Arris strips read again with trial camera exponents (:func:`doorloc.vision.refine.
     arris_response_shifts`): per arris line the shift of its points at each exponent (px, NaN where its
-    strip was lost there), the rounded strips' :func:`arc_score` at each exponent and at the exponent in use
-    (NaN: no rounded strip)."""
+    strip was lost there), the strips' score at each exponent and at the exponent in use (NaN: none), and
+    what the scores are: ``"arcs"`` (the rounded strips' :func:`arc_score`) or ``"chamfers"`` (the
+    chamfered strips' :func:`grey_score`)."""
 
     shifts: dict[str, np.ndarray]
-    arc_scores: np.ndarray
-    used_arc_score: float
+    scores: np.ndarray
+    used_score: float
+    evidence: str = "arcs"
 
 
 #: exponents in, and which readings to score as arcs (``"all"``; ``"trials"``: not the exponent in use;
@@ -104,11 +135,13 @@ ReadStrips = Callable[[list[float], str], StripReadings]
 
 @dataclass(frozen=True)
 class CellDisputed:
-    """The door's rounded strips rule out the cell's own camera exponent: they fit matt arcs best when read
-    with ``best_gamma``, and ``cell_over_best`` times worse (misfit ratio) with the cell's."""
+    """The door's arris strips rule out the cell's own camera exponent: they fit best when read with
+    ``best_gamma``, and ``cell_over_best`` times worse (misfit ratio) with the cell's; ``evidence`` as
+    :attr:`StripReadings.evidence` (rounded strips as matt arcs, or chamfered ones in grey levels)."""
 
     best_gamma: float
     cell_over_best: float
+    evidence: str = "arcs"
 
 
 @dataclass(frozen=True)
@@ -127,11 +160,46 @@ class AllowedEnds:
     disputed: CellDisputed | None = None
 
 
+@dataclass(frozen=True)
+class _Rules:
+    """How one kind of evidence (:attr:`StripReadings.evidence`) rules exponents out: the best score that
+    says the model describes the strips (log), the ratio over the best beyond which an exponent is ruled out,
+    the strips' name, the figure's key in the diagnostics and why nothing is ruled out where the best score
+    is beyond ``explains``."""
+
+    evidence: str
+    explains: float
+    ruled_out: float
+    strips: str
+    key: str
+    unexplained: str
+
+
+_RULES = {
+    "arcs": _Rules(
+        "arcs",
+        math.log(ARC_EXPLAINS),
+        ARC_RULED_OUT,
+        "rounded strips",
+        "arc_misfit_over_free",
+        "no matt arc shades the rounded strips as well as a free shading at any exponent tried",
+    ),
+    "chamfers": _Rules(
+        "chamfers",
+        math.log(GREY_EXPLAINS),
+        GREY_RULED_OUT,
+        "chamfered strips",
+        "chamfer_grey_misfit",
+        "the chamfered strips' fitted profiles miss the image by more than its noise allows at every exponent tried",
+    ),
+}
+
+
 def allowed_response_ends(used_gamma: float, factor: float, read: ReadStrips) -> AllowedEnds:
     """The ends of the exponents ``used_gamma`` times ``factor`` to the powers -1..1 (within
-    ``RESPONSE_PLAUSIBLE``) that the door's rounded strips allow (module docstring).
+    ``RESPONSE_PLAUSIBLE``) that the door's rounded or chamfered strips allow (module docstring).
 
-    The strips are read at the two ends first; only a side whose end the arcs rule out is read again at
+    The strips are read at the two ends first; only a side whose end their scores rule out is read again at
     :data:`INNER_STEPS` of the reach. On a side, the end is the farthest reach with every reach inside it
     allowed, moved half way to the first ruled out, and each line's shift there is interpolated linearly in
     the reach between the two readings (0 at the exponent in use)."""
@@ -146,25 +214,29 @@ def allowed_response_ends(used_gamma: float, factor: float, read: ReadStrips) ->
         )
 
     if factor < DISPUTE_APART:
-        # (a measured response: its ends are too near the cell's exponent for the arcs to tell them apart)
+        # (a measured response: its ends are too near the cell's exponent for the strips to tell them apart)
         return at_the_factors_ends(read([gamma_at(1.0), gamma_at(-1.0)], "none"))
     first = read([gamma_at(1.0), gamma_at(-1.0)], "all")
+    rules = _RULES[first.evidence]
     reaches = {1.0: 0, -1.0: 1}
-    score = {0.0: first.used_arc_score, 1.0: float(first.arc_scores[0]), -1.0: float(first.arc_scores[1])}
+    score = {0.0: first.used_score, 1.0: float(first.scores[0]), -1.0: float(first.scores[1])}
     full = at_the_factors_ends(first)
-    why = _no_evidence(score, factor)
-    if why is None and all(score[r] <= _limit(score) for r in (1.0, -1.0)):
-        why = "every exponent within the factor fits the rounded strips alike"
+
+    why = _no_evidence(score, factor, rules)
+    if why is None and all(score[r] <= _limit(score, rules) for r in (1.0, -1.0)):
+        why = f"every exponent within the factor fits the {rules.strips} alike"
+    if why is None:  # a side whose end is ruled out is read inwards
+        inner = [
+            side * step for side in (1.0, -1.0) if score[side] > _limit(score, rules) for step in INNER_STEPS
+        ]
+        more = read([gamma_at(r) for r in inner], "trials")
+        for i, r in enumerate(inner):
+            reaches[r] = i
+            score[r] = float(more.scores[i])
+        why = _no_evidence(score, factor, rules)
     if why is not None:
-        return replace(full, figure=_figure(score, gamma_at, why), disputed=_disputed(score, gamma_at, why))
-    inner = [side * step for side in (1.0, -1.0) if score[side] > _limit(score) for step in INNER_STEPS]
-    more = read([gamma_at(r) for r in inner], "trials")
-    for i, r in enumerate(inner):
-        reaches[r] = i
-        score[r] = float(more.arc_scores[i])
-    why = _no_evidence(score, factor)
-    if why is not None:
-        return replace(full, figure=_figure(score, gamma_at, why), disputed=_disputed(score, gamma_at, why))
+        figure = _figure(score, gamma_at, rules, why)
+        return replace(full, figure=figure, disputed=_disputed(score, gamma_at, rules, why))
 
     def shift_at(line: str, reach: float) -> float:
         if reach == 0.0:
@@ -182,7 +254,7 @@ def allowed_response_ends(used_gamma: float, factor: float, read: ReadStrips) ->
             if r not in score:
                 continue
             # (a side not read inwards keeps its end: its end was allowed against the ends' best)
-            if score[r] > _limit(score) and side * INNER_STEPS[0] in score:
+            if score[r] > _limit(score, rules) and side * INNER_STEPS[0] in score:
                 out = r
                 break
             kept = r
@@ -197,22 +269,22 @@ def allowed_response_ends(used_gamma: float, factor: float, read: ReadStrips) ->
     return AllowedEnds(
         (ends[0], ends[1]),
         {k: (v[0], v[1]) for k, v in shifts.items()},
-        _figure(score, gamma_at, None, (ends[0], ends[1])),
+        _figure(score, gamma_at, rules, None, (ends[0], ends[1])),
     )
 
 
-def _limit(score: dict[float, float]) -> float:
-    """The arc score beyond which an exponent is ruled out: the best read so far's, times ARC_RULED_OUT."""
-    return min(score.values()) + math.log(ARC_RULED_OUT)
+def _limit(score: dict[float, float], rules: _Rules) -> float:
+    """The score beyond which an exponent is ruled out: the best read so far's, times ``rules.ruled_out``."""
+    return min(score.values()) + math.log(rules.ruled_out)
 
 
-def _no_evidence(score: dict[float, float], factor: float) -> str | None:
-    """Why the arcs' scores rule nothing out (None: they may)."""
+def _no_evidence(score: dict[float, float], factor: float, rules: _Rules) -> str | None:
+    """Why the strips' scores rule nothing out (None: they may)."""
     if not all(math.isfinite(v) for v in score.values()):
-        return "no rounded strip was read at every exponent"
-    if min(score.values()) > math.log(ARC_EXPLAINS):
-        return "no matt arc shades the rounded strips as well as a free shading at any exponent tried"
-    if score[0.0] > _limit(score):
+        return "no rounded or chamfered strip was read at every exponent"
+    if min(score.values()) > rules.explains:
+        return rules.unexplained
+    if score[0.0] > _limit(score, rules):
         best = min(score, key=score.__getitem__)
         # (an exponent near the cell's that fits better is the scores' noise, not a wrong cell)
         return CELL_DISPUTED if abs(best) * math.log(factor) >= math.log(DISPUTE_APART) else NEAR_BEST
@@ -220,34 +292,35 @@ def _no_evidence(score: dict[float, float], factor: float) -> str | None:
 
 
 def _disputed(
-    score: dict[float, float], gamma_at: Callable[[float], float], why: str | None
+    score: dict[float, float], gamma_at: Callable[[float], float], rules: _Rules, why: str | None
 ) -> CellDisputed | None:
     """Where the scores rule out the cell's exponent (``why`` is :data:`CELL_DISPUTED`): the exponent read
     best and the cell's misfit over its (rounded as the diagnostics say them); else None."""
     if why != CELL_DISPUTED:
         return None
     best = min(score, key=score.__getitem__)
-    return CellDisputed(round(gamma_at(best), 3), round(math.exp(score[0.0] - score[best]), 3))
+    return CellDisputed(
+        round(gamma_at(best), 3), round(math.exp(score[0.0] - score[best]), 3), rules.evidence
+    )
 
 
 def _figure(
     score: dict[float, float],
     gamma_at: Callable[[float], float],
+    rules: _Rules,
     why: str | None,
     ends: tuple[float, float] | None = None,
 ) -> dict:
-    """The diagnostics' account: exponents read, their arcs' misfit over free, the ends kept, or why none
-    moved."""
+    """The diagnostics' account: exponents read, the strips' misfits there (``rules.key``: the arcs' over
+    the free shading's, or the chamfers' in grey levels over the noise), the ends kept, or why none moved."""
     order = sorted(score)
     out: dict = {
         "gammas": [round(gamma_at(r), 3) for r in order],
-        "arc_misfit_over_free": [
-            round(math.exp(score[r]), 4) if math.isfinite(score[r]) else None for r in order
-        ],
+        rules.key: [round(math.exp(score[r]), 4) if math.isfinite(score[r]) else None for r in order],
     }
     if ends is None:
         out["unchanged_because"] = why
-        disputed = _disputed(score, gamma_at, why)
+        disputed = _disputed(score, gamma_at, rules, why)
         if disputed is not None:
             out["cell_disputed"] = {
                 "best_gamma": disputed.best_gamma,
