@@ -52,7 +52,7 @@ def edge_doubts(
     from the code that knows it: the texture beside the edge or the far-face model, JPEG's blocks where the
     image shows them, the arris correction, the camera response. The stage that reads the pixels for them,
     so that the gate reads none. With them, the figures the diagnostics report (``jpeg_block_ratio``,
-    ``arris_fit``), and where the door's rounded strips dispute the cell's camera exponent."""
+    ``arris_fit``), and where the door's rounded or chamfered strips dispute the cell's camera exponent."""
     r, cell = check.refined, check.cell
     samples, fit = r.samples, r.fit
     # An arris line's door side is its strip, whose shading the texture term would read as texture (on a
@@ -353,15 +353,15 @@ def _unmeasured_response_terms(
 
     An arris line's shifts are its own model's where ``allowed`` is given (the door's strips read again
     with the exponents at the ends, per line the shifts out, px: :func:`doorloc.vision.strip_response.
-    allowed_response_ends` over :func:`doorloc.vision.refine.arris_response_shifts`): its fitted shading takes up part of the distortion that moves a plain step, or adds
-    to it (on three 0.65-0.87 mm roundings located again with the cell at the two exponents, the plain
+    allowed_response_ends` over :func:`doorloc.vision.refine.arris_response_shifts`): its fitted shading
+    takes up part of the distortion that moves a plain step, or adds to it (on three 0.65-0.87 mm roundings located again with the cell at the two exponents, the plain
     step's figure was 0.5-3.7 times the door's real move; the strip's own, 0.9-2.3 times). Its
     doubt is half the range of the shifts at the two exponents and at ``used_gamma`` (no shift), which
     is the plain step's half spread where the two move it apart, and half the larger where both move it
     the same way. A line whose strip is lost at an exponent keeps the plain step's figure. Where the
-    door's rounded strips rule out the factor's far exponents (their shading no matt arc's when read
-    with them), the two ends are the exponents they allow, for every line; ``figures
-    ["response_from_strips"]`` says what they showed.
+    door's strips rule out the factor's far exponents (read with them, a rounding's shading is no matt
+    arc's, or a chamfer's fitted profiles miss the image's grey levels), the two ends are the exponents
+    they allow, for every line; ``figures["response_from_strips"]`` says what they showed.
 
     The doubt is the move at the factor's ends, not its RMS over the exponents within them
     (``sqrt((s_up^2 + s_down^2) / 6)`` for a move linear in the log exponent, 0.6 of this figure where

@@ -404,9 +404,9 @@ def arris_response_shifts(
 ) -> StripReadings:
     """How far each arris line's points move, px along its scan lines, were the camera's exponent each of
     ``camera_gammas`` instead of ``used_gamma`` (the one ``refined`` was read with), and how well the
-    rounded strips read with each exponent shade as a matt arc (:class:`doorloc.vision.strip_response.
-    StripReadings`; ``scores``: ``"all"``, ``"trials"`` (not at ``used_gamma``, whose score the caller has)
-    or ``"none"``).
+    strips read with each exponent fit (:class:`doorloc.vision.strip_response.StripReadings`: rounded ones
+    as matt arcs, chamfered ones in the camera's grey levels; ``scores``: ``"all"``, ``"trials"`` (not at
+    ``used_gamma``, whose score the caller has) or ``"none"``).
 
     The arris strip model (:class:`doorloc.vision.edge_models.ArrisStrip`) reads each line again at the
     final pose and windows, its grey levels turned to light with each exponent: the median over the scan
@@ -414,9 +414,10 @@ def arris_response_shifts(
     makes on what locate measures there: the strip's fitted shading takes up part of a wrong exponent's
     distortion or adds to it, which a plain step's figure (:func:`doorloc.vision.response.edge_shifts_px`) cannot know.
     A line whose reading fails at an exponent gets NaN there; a line the far-face model reads, no entry.
-    ``memo`` (exponent -> the lines' points and the rounded strips' scorers read with it), where given, keeps
-    each reading for the door's next call: a second call for inner exponents reads ``used_gamma`` again only
-    for the base of its shifts (a rounded door's reading: ~0.1 s).
+    ``memo`` (exponent -> the lines' points and what scores the strips read with it: a rounded door's
+    arcs, a chamfered door's grey-level misfits), where given, keeps each reading for the door's next call:
+    a second call for inner exponents reads ``used_gamma`` again only for the base of its shifts (a rounded
+    door's reading: ~0.1 s).
 
     It costs about half of an arris door's locate (the strip fits, three per line; fixtures/rendered/effects:
     82-109 of 184-195 ms thread CPU per frame, median, one thread). Cheaper readings were

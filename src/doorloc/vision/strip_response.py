@@ -128,7 +128,7 @@ class StripReadings:
     evidence: str = "arcs"
 
 
-#: exponents in, and which readings to score as arcs (``"all"``; ``"trials"``: not the exponent in use;
+#: exponents in, and which readings to score (``"all"``; ``"trials"``: not the exponent in use;
 #: ``"none"``), the strips read with each out
 ReadStrips = Callable[[list[float], str], StripReadings]
 
@@ -150,7 +150,7 @@ class AllowedEnds:
     shift there (px; NaN where its strip was lost: the caller takes the plain step's figure).
 
     ``gammas``: (upper, lower) exponent; ``shifts``: per line (upper, lower) shift; ``figure``: what the
-    strips showed, for the diagnostics (exponents read, their arcs' misfit over free, and why nothing was
+    strips showed, for the diagnostics (exponents read, the strips' misfits there, and why nothing was
     ruled out where so); ``disputed``: where the strips rule out the cell's own exponent (the gate refuses
     the door), else None."""
 
@@ -190,7 +190,8 @@ _RULES = {
         GREY_RULED_OUT,
         "chamfered strips",
         "chamfer_grey_misfit",
-        "the chamfered strips' fitted profiles miss the image by more than its noise allows at every exponent tried",
+        "the chamfered strips' fitted profiles miss the image by more than its noise allows at every exponent "
+        "tried",
     ),
 }
 
