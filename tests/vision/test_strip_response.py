@@ -60,9 +60,11 @@ def test_a_ruled_out_end_moves_inwards_half_way_to_the_first_exponent_ruled_out(
     assert upper == pytest.approx(1.5 * 2.2**0.75)
     assert lower == pytest.approx(0.8), "the side whose end is allowed keeps it (1.5 / 2.2 brought to 0.8)"
     assert calls[1] == pytest.approx([1.5 * 2.2**0.5]), "inner readings on that side only"
-    # the shift at the moved end: linear in the reach between the readings at 0.5 and 1 (that one at 3.0)
+    # the shift at the moved end: the strips read there (not interpolated between the readings at 0.5 and 1,
+    # that one at 3.0, which here would say 0.5 * (0.5 * ln 2.2 ** 0.5 + 0.5 * ln 2))
+    assert calls[2] == pytest.approx([upper]), "the moved end read where it lies"
     s_up, s_down = ends.shifts["reference"]
-    assert s_up == pytest.approx(0.5 * (0.5 * math.log(2.2**0.5) + 0.5 * math.log(3.0 / 1.5)))
+    assert s_up == pytest.approx(0.5 * math.log(upper / 1.5))
     assert s_down == pytest.approx(0.5 * math.log(0.8 / 1.5))
     assert ends.figure["allowed_gammas"] == pytest.approx([round(lower, 3), round(upper, 3)])
 

@@ -202,8 +202,9 @@ def allowed_response_ends(used_gamma: float, factor: float, read: ReadStrips) ->
 
     The strips are read at the two ends first; only a side whose end their scores rule out is read again at
     :data:`INNER_STEPS` of the reach. On a side, the end is the farthest reach with every reach inside it
-    allowed, moved half way to the first ruled out, and each line's shift there is interpolated linearly in
-    the reach between the two readings (0 at the exponent in use)."""
+    allowed, moved half way to the first ruled out, and each line's shift there is read there (a third
+    reading; interpolated linearly in the reach between the two readings beside it, 0 at the exponent in
+    use, where a strip is lost at the end)."""
 
     def gamma_at(reach: float) -> float:
         return float(np.clip(used_gamma * factor**reach, *RESPONSE_PLAUSIBLE))
@@ -246,8 +247,36 @@ def allowed_response_ends(used_gamma: float, factor: float, read: ReadStrips) ->
         values = src.shifts.get(line)
         return float(values[reaches[reach]]) if values is not None else math.nan
 
-    ends: list[float] = []
+    sides = _side_ends(score, rules)
     shifts: dict[str, list[float]] = {k: [] for k in first.shifts}
+    for kept, out, end in sides:
+        for k in shifts:
+            if out is None:
+                shifts[k].append(shift_at(k, kept))
+                continue
+            w = (end - kept) / (out - kept)
+            shifts[k].append((1.0 - w) * shift_at(k, kept) + w * shift_at(k, out))
+    moved = [(i, gamma_at(end)) for i, (_, out, end) in enumerate(sides) if out is not None]
+    if moved:
+        # a moved end is read where it lies: between the last exponent allowed and the first ruled out the
+        # strips' move need not be linear (a reading ruled out can sit in another valley of the strip's fit,
+        # a pixel or more away), and the doubt is the move at the ends; the interpolation stands where a
+        # strip is lost there
+        at = read([g for _, g in moved], "none")
+        for j, (i, _) in enumerate(moved):
+            for k, values in at.shifts.items():
+                if k in shifts and math.isfinite(float(values[j])):
+                    shifts[k][i] = float(values[j])
+    ends = (gamma_at(sides[0][2]), gamma_at(sides[1][2]))
+    return AllowedEnds(
+        ends, {k: (v[0], v[1]) for k, v in shifts.items()}, _figure(score, gamma_at, rules, None, ends)
+    )
+
+
+def _side_ends(score: dict[float, float], rules: _Rules) -> list[tuple[float, float | None, float]]:
+    """Per side (upper, lower): the farthest reach whose every reach inside it is allowed, the first ruled
+    out beyond it (None: none read, or none ruled out), and the end's reach (half way between the two)."""
+    out_list: list[tuple[float, float | None, float]] = []
     for side in (1.0, -1.0):
         kept, out = 0.0, None
         for step in (*INNER_STEPS[::-1], 1.0):
@@ -259,19 +288,8 @@ def allowed_response_ends(used_gamma: float, factor: float, read: ReadStrips) ->
                 out = r
                 break
             kept = r
-        end = kept if out is None else 0.5 * (kept + out)
-        ends.append(gamma_at(end))
-        for k in shifts:
-            if out is None:
-                shifts[k].append(shift_at(k, kept))
-                continue
-            w = (end - kept) / (out - kept)
-            shifts[k].append((1.0 - w) * shift_at(k, kept) + w * shift_at(k, out))
-    return AllowedEnds(
-        (ends[0], ends[1]),
-        {k: (v[0], v[1]) for k, v in shifts.items()},
-        _figure(score, gamma_at, rules, None, (ends[0], ends[1])),
-    )
+        out_list.append((kept, out, kept if out is None else 0.5 * (kept + out)))
+    return out_list
 
 
 def _limit(score: dict[float, float], rules: _Rules) -> float:
