@@ -100,13 +100,14 @@ def test_a_stated_light_is_not_sought_again():
 
 def test_the_free_shadings_answer_stands_where_the_doors_own_light_is_refused():
     """A lamp a tenth as strong as the ambient light: the strips fit a quarter of the directions about
-    alike and the best lies 106 deg from the lamp; under it the door's doubt (x 0.087 mm; 0.057 with free
-    shadings) passes the limit of a cell that allows 0.075 mm, and it is refused. The free shadings'
+    alike and the best lies 106 deg from the lamp; under it the door's doubt (x 0.091 mm; 0.081 with free
+    shadings, since the response doubt's moved ends are read where they lie) passes the limit of a cell
+    that allows 0.085 mm, and it is refused. The free shadings'
     answer passed the gate itself, and it is the one answered, the same to the last digit, the door's light
     reported as not used. (Under the default limit of 0.1 mm the lit answer passes since the rounded strips
     narrow the unmeasured response's doubt: 0.002 mm off.)"""
     door, pose, fx, img, cell = _rounding(7001)
-    cell = _with(cell, max_uncertainty_mm=0.075)
+    cell = _with(cell, max_uncertainty_mm=0.085)
     trace = LocateTrace()
     res = locate(img, cell, door, trace=trace)
     free = locate(img, _with(cell, light_from_door=False), door)
