@@ -215,6 +215,9 @@ def test_a_chamfers_borders_narrow_the_unmeasured_responses_doubt(chamfered_imag
     lo, hi = fig["allowed_gammas"]
     assert 0.8 < lo <= CHAMFERED_EFFECTS.gamma <= hi < 1.6
     assert min(fig["chamfer_grey_misfit"]) < 1.2, "the camera's exponent leaves about the noise"
+    assert fig["gammas"][0] == 0.8 and fig["gammas"].count(0.8) == 1, (
+        "the two reaches brought to 0.8: one reading"
+    )
     assert res.uncertainty.x_mm < 0.06
     assert abs(res.x_mm - CHAMFERED_POSE.x_mm) <= 2 * res.uncertainty.x_mm
     assert abs(res.z_mm - CHAMFERED_POSE.z_mm) <= 2 * res.uncertainty.z_mm
@@ -226,7 +229,10 @@ def test_a_cell_exponent_the_chamfers_rule_out_refuses_the_door(chamfered_image,
     chamfers read with the cell's exponent fit the image markedly worse than read with another, and the door
     is refused, the cell's exponent named."""
     res = locate(chamfered_image, dataclasses.replace(CELL, response_gamma=cell_gamma), CHAMFERED)
-    disputed = res.diagnostics["response_from_strips"]["cell_disputed"]
+    fig = res.diagnostics["response_from_strips"]
+    disputed = fig["cell_disputed"]
     assert 0.9 < disputed["best_gamma"] < 1.5
+    # the exponents read, each once, the cell's as told (0.6 lies below the plausible 0.8 the ends are kept in)
+    assert cell_gamma in fig["gammas"] and len(set(fig["gammas"])) == len(fig["gammas"])
     assert not res.ok and res.error_code == "uncertain"
     assert f"camera.response_gamma {cell_gamma:g}" in res.error and "chamfers' profiles" in res.error

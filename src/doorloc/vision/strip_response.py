@@ -209,6 +209,10 @@ def allowed_response_ends(used_gamma: float, factor: float, read: ReadStrips) ->
     def gamma_at(reach: float) -> float:
         return float(np.clip(used_gamma * factor**reach, *RESPONSE_PLAUSIBLE))
 
+    def shown_at(reach: float) -> float:
+        # (the cell's own exponent as told, also beyond RESPONSE_PLAUSIBLE; the others as read)
+        return used_gamma if reach == 0.0 else gamma_at(reach)
+
     def at_the_factors_ends(readings: StripReadings) -> AllowedEnds:
         return AllowedEnds(
             (gamma_at(1.0), gamma_at(-1.0)),
@@ -237,7 +241,7 @@ def allowed_response_ends(used_gamma: float, factor: float, read: ReadStrips) ->
             score[r] = float(more.scores[i])
         why = _no_evidence(score, factor, rules)
     if why is not None:
-        figure = _figure(score, gamma_at, rules, why)
+        figure = _figure(score, shown_at, rules, why)
         return replace(full, figure=figure, disputed=_disputed(score, gamma_at, rules, why))
 
     def shift_at(line: str, reach: float) -> float:
@@ -269,7 +273,7 @@ def allowed_response_ends(used_gamma: float, factor: float, read: ReadStrips) ->
                     shifts[k][i] = float(values[j])
     ends = (gamma_at(sides[0][2]), gamma_at(sides[1][2]))
     return AllowedEnds(
-        ends, {k: (v[0], v[1]) for k, v in shifts.items()}, _figure(score, gamma_at, rules, None, ends)
+        ends, {k: (v[0], v[1]) for k, v in shifts.items()}, _figure(score, shown_at, rules, None, ends)
     )
 
 
@@ -330,12 +334,19 @@ def _figure(
     why: str | None,
     ends: tuple[float, float] | None = None,
 ) -> dict:
-    """The diagnostics' account: exponents read, the strips' misfits there (``rules.key``: the arcs' over
-    the free shading's, or the chamfers' in grey levels over the noise), the ends kept, or why none moved."""
-    order = sorted(score)
+    """The diagnostics' account: exponents read (``gamma_at``: the cell's own as told), the strips' misfits
+    there (``rules.key``: the arcs' over the free shading's, or the chamfers' in grey levels over the noise),
+    the ends kept, or why none moved."""
+    rows: list[tuple[float, float]] = []  # (exponent, score), each exponent read once
+    for r in sorted(score):
+        g = round(gamma_at(r), 3)
+        if (
+            not rows or rows[-1][0] != g
+        ):  # (two reaches brought to one bound of RESPONSE_PLAUSIBLE: one reading)
+            rows.append((g, score[r]))
     out: dict = {
-        "gammas": [round(gamma_at(r), 3) for r in order],
-        rules.key: [round(math.exp(score[r]), 4) if math.isfinite(score[r]) else None for r in order],
+        "gammas": [g for g, _ in rows],
+        rules.key: [round(math.exp(v), 4) if math.isfinite(v) else None for _, v in rows],
     }
     if ends is None:
         out["unchanged_because"] = why
