@@ -385,7 +385,17 @@ def _strip_shading(
     fit = None
     if idx.size >= 5:
         pick = idx[np.linspace(0, idx.size - 1, min(idx.size, FIT_LINES)).round().astype(int)]
-        r = (vals[pick] - A[pick, None]) / D[pick, None]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            r = (vals[pick] - A[pick, None]) / D[pick, None]
+        # the rows the fit takes (finite profiles across a strip): its bias and grey-level misfit below are
+        # read on the same rows as its fitted profiles
+        kept = (
+            np.all(np.isfinite(r), axis=1)
+            & np.isfinite(prof.rel_e[pick])
+            & np.isfinite(w[pick])
+            & (w[pick] > 0)
+        )
+        pick, r = pick[kept], r[kept]
         x = np.arange(length, dtype=float)
         outer = plateau + pad + prof.half + prof.rel_e[pick]
         # profile noise, normalised; at least the quantisation of the 8-bit scale (a noise-free render)
@@ -431,8 +441,7 @@ def _grey_misfit(prof: _StripProfiles, pick: np.ndarray, fit: StripFit, window: 
     """The fitted profiles' residual RMS in the camera's grey levels over the plateaus' grey-level noise
     (:attr:`StripFit.grey_misfit`): model and profiles (linear light) turned back through the table they
     were linearised with (``window.lines.lut``; the grey levels themselves where it is None), on the
-    profiles ``pick`` the fit took (those it kept: the same rows as :func:`fit_strip_profile`'s). NaN where
-    the rows do not match.
+    profiles ``pick`` the fit took (its fitted profiles' rows).
 
     Why in grey levels: the fit weighs linear light evenly, where a camera's noise is not even (an exponent
     above 1 shrinks the noise of the dark side and stretches the bright side's), so its misfit, taken over
@@ -442,19 +451,13 @@ def _grey_misfit(prof: _StripProfiles, pick: np.ndarray, fit: StripFit, window: 
     doors (the camera's up to 1.73 times the lowest); this figure was lowest at the camera's exponent
     within 1.03 on every door, with the cell told right or told 2.2 times the camera's."""
     plateau, s8, lut = window.plateau, window.scale_to_8bit, window.lines.lut
-    A, D, w = prof.A[pick, None], prof.D[pick, None], prof.w[pick]
     vals = prof.vals[pick]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        r = (vals - A) / D
-    keep = np.all(np.isfinite(r), axis=1) & np.isfinite(prof.rel_e[pick]) & np.isfinite(w) & (w > 0)
-    if int(keep.sum()) != fit.model.shape[0] or vals.shape[1] != fit.model.shape[1]:
-        return math.nan
-    lin_model = A[keep] + D[keep] * fit.model
+    lin_model = prof.A[pick, None] + prof.D[pick, None] * fit.model
     if lut is None:
-        seen, model = vals[keep], lin_model
+        seen, model = vals, lin_model
     else:
         codes = np.arange(lut.size, dtype=np.float64)
-        seen, model = np.interp(vals[keep], lut, codes), np.interp(lin_model, lut, codes)
+        seen, model = np.interp(vals, lut, codes), np.interp(lin_model, lut, codes)
     # each plateau's scatter about its own level, pooled over both plateaus of every profile
     spread = [np.var(seen[:, :plateau] * s8, axis=1, ddof=1), np.var(seen[:, -plateau:] * s8, axis=1, ddof=1)]
     noise = max(float(np.sqrt(np.mean(np.concatenate(spread)))), _GREY_NOISE_FLOOR)

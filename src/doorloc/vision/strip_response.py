@@ -176,23 +176,26 @@ class _Rules:
 
 
 _RULES = {
-    "arcs": _Rules(
-        "arcs",
-        math.log(ARC_EXPLAINS),
-        ARC_RULED_OUT,
-        "rounded strips",
-        "arc_misfit_over_free",
-        "no matt arc shades the rounded strips as well as a free shading at any exponent tried",
-    ),
-    "chamfers": _Rules(
-        "chamfers",
-        math.log(GREY_EXPLAINS),
-        GREY_RULED_OUT,
-        "chamfered strips",
-        "chamfer_grey_misfit",
-        "the chamfered strips' fitted profiles miss the image by more than its noise allows at every exponent "
-        "tried",
-    ),
+    rules.evidence: rules
+    for rules in (
+        _Rules(
+            "arcs",
+            math.log(ARC_EXPLAINS),
+            ARC_RULED_OUT,
+            "rounded strips",
+            "arc_misfit_over_free",
+            "no matt arc shades the rounded strips as well as a free shading at any exponent tried",
+        ),
+        _Rules(
+            "chamfers",
+            math.log(GREY_EXPLAINS),
+            GREY_RULED_OUT,
+            "chamfered strips",
+            "chamfer_grey_misfit",
+            "the chamfered strips' fitted profiles miss the image by more than its noise allows at every "
+            "exponent tried",
+        ),
+    )
 }
 
 
@@ -241,8 +244,8 @@ def allowed_response_ends(used_gamma: float, factor: float, read: ReadStrips) ->
             score[r] = float(more.scores[i])
         why = _no_evidence(score, factor, rules)
     if why is not None:
-        figure = _figure(score, shown_at, rules, why)
-        return replace(full, figure=figure, disputed=_disputed(score, gamma_at, rules, why))
+        disputed = _disputed(score, gamma_at, rules, why)
+        return replace(full, figure=_figure(score, shown_at, rules, why, disputed), disputed=disputed)
 
     def shift_at(line: str, reach: float) -> float:
         if reach == 0.0:
@@ -252,28 +255,26 @@ def allowed_response_ends(used_gamma: float, factor: float, read: ReadStrips) ->
         return float(values[reaches[reach]]) if values is not None else math.nan
 
     sides = _side_ends(score, rules)
+    # A moved end is read where it lies: between the last exponent allowed and the first ruled out the
+    # strips' move need not be linear (a reading ruled out can sit in another valley of the strip's fit, a
+    # pixel or more away), and the doubt is the move at the ends; interpolated where a strip is lost there.
+    moved = [gamma_at(end) for _, out, end in sides if out is not None]
+    at = read(moved, "none") if moved else None
     shifts: dict[str, list[float]] = {k: [] for k in first.shifts}
+    j = 0
     for kept, out, end in sides:
         for k in shifts:
             if out is None:
                 shifts[k].append(shift_at(k, kept))
                 continue
+            read_there = float(at.shifts[k][j]) if at is not None and k in at.shifts else math.nan
             w = (end - kept) / (out - kept)
-            shifts[k].append((1.0 - w) * shift_at(k, kept) + w * shift_at(k, out))
-    moved = [(i, gamma_at(end)) for i, (_, out, end) in enumerate(sides) if out is not None]
-    if moved:
-        # a moved end is read where it lies: between the last exponent allowed and the first ruled out the
-        # strips' move need not be linear (a reading ruled out can sit in another valley of the strip's fit,
-        # a pixel or more away), and the doubt is the move at the ends; the interpolation stands where a
-        # strip is lost there
-        at = read([g for _, g in moved], "none")
-        for j, (i, _) in enumerate(moved):
-            for k, values in at.shifts.items():
-                if k in shifts and math.isfinite(float(values[j])):
-                    shifts[k][i] = float(values[j])
+            interpolated = (1.0 - w) * shift_at(k, kept) + w * shift_at(k, out)
+            shifts[k].append(read_there if math.isfinite(read_there) else interpolated)
+        j += out is not None
     ends = (gamma_at(sides[0][2]), gamma_at(sides[1][2]))
     return AllowedEnds(
-        ends, {k: (v[0], v[1]) for k, v in shifts.items()}, _figure(score, shown_at, rules, None, ends)
+        ends, {k: (v[0], v[1]) for k, v in shifts.items()}, _figure(score, shown_at, rules, None, None, ends)
     )
 
 
@@ -332,11 +333,12 @@ def _figure(
     gamma_at: Callable[[float], float],
     rules: _Rules,
     why: str | None,
+    disputed: CellDisputed | None = None,
     ends: tuple[float, float] | None = None,
 ) -> dict:
     """The diagnostics' account: exponents read (``gamma_at``: the cell's own as told), the strips' misfits
     there (``rules.key``: the arcs' over the free shading's, or the chamfers' in grey levels over the noise),
-    the ends kept, or why none moved."""
+    the ends kept, or why none moved (with ``disputed``, where that is the cell's exponent ruled out)."""
     rows: list[tuple[float, float]] = []  # (exponent, score), each exponent read once
     for r in sorted(score):
         g = round(gamma_at(r), 3)
@@ -350,7 +352,6 @@ def _figure(
     }
     if ends is None:
         out["unchanged_because"] = why
-        disputed = _disputed(score, gamma_at, rules, why)
         if disputed is not None:
             out["cell_disputed"] = {
                 "best_gamma": disputed.best_gamma,
