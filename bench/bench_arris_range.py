@@ -16,6 +16,10 @@ and noise come from :func:`bench_arris.random_effects`), the camera's gamma is t
   (0.3-0.7 px of blur);
 - ``finish`` (only when named): as ``round`` and ``chamfer`` together on a finish that is no matt surface,
   the renderer's ``finish_exponent`` drawn from 0.5-2 (locate's arc model is Lambertian).
+- ``halo``, ``defocus`` (only when named): as ``round`` and ``chamfer`` together, a third of the doors
+  plain, through a point spread that is no Gaussian (locate's edge models assume one): a halo of 10-33 % of
+  the light at 2-4x the blur, or a defocus disk of 1-3 px radius before 0.3-0.8 px of Gaussian blur;
+  ``sharp_halo`` (only when named): ``sharp``'s plain doors through ``halo``'s halo.
 
 Per image: the seed, the conditions, the errors of x, z, yaw and thickness and their claimed sigmas
 (x, z, yaw: the answer's ``uncertainty``; thickness: ``diagnostics.thickness_check.sigma_mm``), or the
@@ -32,7 +36,7 @@ thickness 0.09), the worst 0.30; ``within``, the worst 1.27; ``bound``, 90 % wit
 1.69, every one within 2 (answered: round 9, chamfer 13-14, ambient 11-12, small 5-7 of 16).
 
     OMP_NUM_THREADS=1 PYTHONPATH=src python bench/bench_arris_range.py [--n 16] [--seed 7000]
-        [--sets round,chamfer,ambient,small,sharp,grain,dark,focused,focused_dark,finish]
+        [--sets round,chamfer,ambient,small,sharp,grain,dark,focused,focused_dark,finish,halo,defocus,sharp_halo]
         [--thickness-check refuse|report]
         [--response-factor F]   (a cell whose camera response was measured, e.g. 1.11)
         [--cell-gamma-off within|bound]   (the cell told a wrong exponent: the camera's times the cell's
@@ -110,6 +114,13 @@ DEFAULT_SETS = tuple(SETS)
 # ``round`` and ``chamfer`` together on a finish that is no matt surface: the directional term raised to a
 # power drawn log-uniformly from 0.5-2 (a rough finish's flatter shading to a satin one's peak)
 SETS["finish"] = dict(SETS["focused"], blur=(0.7, 1.8), finish=(0.5, 2.0))
+# ``round`` and ``chamfer`` together, and a third of the doors plain, through point spreads that are no
+# Gaussian (locate's edge models assume one): ``halo``, a tenth to a third of the light spread 2-4 times
+# wider than the core's blur; ``defocus``, a lens out of focus, a uniform disk of 1-3 px radius and a
+# Gaussian of 0.3-0.8 px after it
+SETS["halo"] = dict(SETS["focused"], blur=(0.7, 1.8), halo=((0.1, 0.33), (2.0, 4.0)), plain=1 / 3)
+SETS["defocus"] = dict(SETS["focused"], blur=(0.3, 0.8), disk=(1.0, 3.0), plain=1 / 3)
+SETS["sharp_halo"] = dict(SETS["sharp"], halo=SETS["halo"]["halo"])  # plain doors only, as ``sharp``
 
 
 @dataclasses.dataclass(frozen=True)
@@ -142,6 +153,17 @@ def draw(name: str, i: int, seed: int):
     if spec.get("finish"):
         lo, hi = spec["finish"]
         fx = dataclasses.replace(fx, finish_exponent=float(math.exp(rng.uniform(math.log(lo), math.log(hi)))))
+    if spec.get("halo"):
+        (f_lo, f_hi), (s_lo, s_hi) = spec["halo"]
+        fx = dataclasses.replace(
+            fx,
+            blur_halo_fraction=float(rng.uniform(f_lo, f_hi)),
+            blur_halo_sigma_px=float(rng.uniform(s_lo, s_hi)) * fx.blur_sigma_px,
+        )
+    if spec.get("disk"):
+        fx = dataclasses.replace(fx, blur_disk_px=float(rng.uniform(*spec["disk"])))
+    if spec.get("plain") and rng.uniform() < spec["plain"]:
+        door = dataclasses.replace(door, arris_mm=0.0)
     if spec.get("arris_as_background"):
         fx = dataclasses.replace(fx, albedo_chamfer=fx.albedo_background)
     if spec["ambient"]:
@@ -356,6 +378,12 @@ def main() -> None:
                 + (f"az={fx.light_azimuth_deg:+.0f}" if fx.light_directional else "amb")
                 + (f" grain={fx.grain_contrast:.3f}" if fx.grain_contrast else "")
                 + (f" finish={fx.finish_exponent:.2f}" if fx.finish_exponent != 1.0 else "")
+                + (
+                    f" halo={fx.blur_halo_fraction:.2f}@{fx.blur_halo_sigma_px:.1f}"
+                    if fx.blur_halo_fraction
+                    else ""
+                )
+                + (f" disk={fx.blur_disk_px:.2f}" if fx.blur_disk_px else "")
                 + (f" cell {told:.2f}" if args.cell_gamma_off else "")
             )
             lit = (

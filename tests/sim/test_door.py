@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from doorloc.cell import DoorSize, load_cell
 from doorloc.pose import DoorPose
 from doorloc.sim.door import door_faces, render_door, true_corner_px
-from doorloc.sim.effects import Effects
+from doorloc.sim.effects import Effects, form_image
 
 CELL = load_cell(Path(__file__).parents[2] / "fixtures" / "cell_thesis.yaml")
 
@@ -131,6 +131,7 @@ def test_every_effect_defaults_to_off_and_changes_the_image_when_on():
         "clamp_albedo": 0.02,
         "second_edge_offset_mm": 20.0,
         "blur_sigma_px": 1.0,
+        "blur_disk_px": 1.5,
         "full_well_e": 5000.0,
         "read_noise_dn": 2.0,
         "gamma": 2.2,
@@ -141,12 +142,40 @@ def test_every_effect_defaults_to_off_and_changes_the_image_when_on():
             CELL, DoorSize(900, 40, 2100), DoorPose(2, 3, 1), effects=Effects(**{name: value})
         ).image
         assert not np.array_equal(img, plain.image), name
+    halo = Effects(blur_sigma_px=1.0, blur_halo_fraction=0.2, blur_halo_sigma_px=3.0)
+    blurred = render_door(
+        CELL, DoorSize(900, 40, 2100), DoorPose(2, 3, 1), effects=Effects(blur_sigma_px=1.0)
+    )
+    assert not np.array_equal(
+        render_door(CELL, DoorSize(900, 40, 2100), DoorPose(2, 3, 1), effects=halo).image, blurred.image
+    )
     assert render_door(CELL, DoorSize(), DoorPose(), effects=Effects(bit_depth=16)).image.dtype == np.uint16
     assert render_door(CELL, DoorSize(), DoorPose(), effects=Effects(color=True)).image.shape == (
         1080,
         1920,
         3,
     )
+
+
+@pytest.mark.parametrize(
+    ("lens", "reach"),
+    [
+        (dict(blur_sigma_px=1.2, blur_halo_fraction=0.25, blur_halo_sigma_px=4.0), 6),
+        (dict(blur_sigma_px=0.4, blur_disk_px=2.3), 2),
+    ],
+)
+def test_a_lens_spread_that_is_no_gaussian_keeps_the_light_and_the_edge(lens, reach):
+    # a vertical step at a pixel border (column 40): an even spread keeps its half-light crossing there,
+    # and the light over the row
+    radiance = np.full((32, 80), 0.1, np.float32)
+    radiance[:, 40:] = 0.9
+    out = form_image(radiance, Effects(bit_depth=16, **lens)).astype(float) / 65535
+    row = out[16]
+    assert row.sum() == pytest.approx(radiance[16].sum(), abs=1e-3)
+    assert row[39] + row[40] == pytest.approx(1.0, abs=2e-4)
+    assert row[38] + row[41] == pytest.approx(1.0, abs=2e-4)
+    gauss = form_image(radiance, Effects(bit_depth=16, blur_sigma_px=lens["blur_sigma_px"]))[16] / 65535
+    assert abs(row[40 + reach] - gauss[40 + reach]) > 1e-3  # it reaches where the Gaussian core does not
 
 
 def test_effects_round_trip_through_a_dict_of_strings():
@@ -156,6 +185,10 @@ def test_effects_round_trip_through_a_dict_of_strings():
         Effects.from_dict({"sharpness": 1})
     with pytest.raises(ValueError, match="bit_depth"):
         Effects(bit_depth=12)
+    with pytest.raises(ValueError, match="blur_halo_sigma_px"):
+        Effects(blur_halo_fraction=0.2)
+    with pytest.raises(ValueError, match="blur_halo_fraction"):
+        Effects(blur_halo_fraction=1.0, blur_halo_sigma_px=3.0)
 
 
 def test_arris_is_rendered_between_hinge_face_and_background():

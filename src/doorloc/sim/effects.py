@@ -73,6 +73,12 @@ class Effects:
         ``"chamfer"`` (45 degrees) or ``"round"`` for the door's arris of size ``DoorSize.arris_mm``.
     blur_sigma_px : float
         Gaussian optical blur, px; 0 = off.
+    blur_halo_fraction, blur_halo_sigma_px : float
+        A lens's halo: this share of the light spread by a Gaussian of this sigma (px) instead of
+        ``blur_sigma_px``'s, the rest by the core's; 0 = off. Locate's edge models assume one Gaussian.
+    blur_disk_px : float
+        Defocus: the light spread over a uniform disk of this radius (px) before the Gaussian blur (a lens
+        out of focus is a disk, not a Gaussian); 0 = off.
     full_well_e : float
         Electrons at full scale for shot noise (variance = signal / full well); 0 = off.
     read_noise_dn : float
@@ -111,6 +117,9 @@ class Effects:
     second_edge_albedo: float = 0.35
     arris_profile: str = "chamfer"
     blur_sigma_px: float = 0.0
+    blur_halo_fraction: float = 0.0
+    blur_halo_sigma_px: float = 0.0
+    blur_disk_px: float = 0.0
     full_well_e: float = 0.0
     read_noise_dn: float = 0.0
     gamma: float = 1.0
@@ -129,11 +138,23 @@ class Effects:
             raise ValueError("JPEG output needs bit_depth 8")
         if not self.finish_exponent > 0:
             raise ValueError(f"finish_exponent must be > 0, got {self.finish_exponent!r}")
-        for name in ("blur_sigma_px", "full_well_e", "read_noise_dn", "grain_contrast", "vignetting"):
+        for name in (
+            "blur_sigma_px",
+            "blur_halo_sigma_px",
+            "blur_disk_px",
+            "full_well_e",
+            "read_noise_dn",
+            "grain_contrast",
+            "vignetting",
+        ):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
         if not self.gamma > 0:
             raise ValueError(f"gamma must be > 0, got {self.gamma!r}")
+        if not 0 <= self.blur_halo_fraction < 1:
+            raise ValueError(f"blur_halo_fraction must be in [0, 1), got {self.blur_halo_fraction!r}")
+        if self.blur_halo_fraction > 0 and not self.blur_halo_sigma_px > 0:
+            raise ValueError("a halo (blur_halo_fraction > 0) needs its spread, blur_halo_sigma_px > 0")
         if not 0 <= self.shadow_strength <= 1:
             raise ValueError(f"shadow_strength must be in [0, 1], got {self.shadow_strength!r}")
 
@@ -208,6 +229,36 @@ def wood_grain(effects: Effects, seed: int):
     return grain
 
 
+def _disk_kernel(radius_px: float) -> np.ndarray:
+    """A uniform disk of ``radius_px`` as a normalised float32 kernel, each pixel weighted by the share of it
+    the disk covers (8 x 8 samples a pixel), so that a disk of any radius is centred and symmetric."""
+    n = int(np.ceil(radius_px))
+    sub = (np.arange(8) + 0.5) / 8 - 0.5
+    c = np.arange(-n, n + 1, dtype=float)
+    x = (c[:, None] + sub[None, :]).ravel()
+    inside = (x[:, None] ** 2 + x[None, :] ** 2 <= radius_px**2).reshape(2 * n + 1, 8, 2 * n + 1, 8)
+    kern = inside.mean(axis=(1, 3))
+    return (kern / kern.sum()).astype(np.float32)
+
+
+def _lens_blur(img: np.ndarray, effects: Effects) -> np.ndarray:
+    """``img`` through the lens's point spread: a defocus disk (``blur_disk_px``), then the Gaussian core
+    (``blur_sigma_px``) with its halo (``blur_halo_fraction`` of the light at ``blur_halo_sigma_px``)."""
+    import cv2
+
+    if effects.blur_disk_px > 0:
+        img = cv2.filter2D(img, -1, _disk_kernel(effects.blur_disk_px), borderType=cv2.BORDER_REFLECT)
+    halo = None
+    if effects.blur_halo_fraction > 0:
+        halo = cv2.GaussianBlur(img, (0, 0), effects.blur_halo_sigma_px, borderType=cv2.BORDER_REFLECT)
+    if effects.blur_sigma_px > 0:
+        img = cv2.GaussianBlur(img, (0, 0), effects.blur_sigma_px, borderType=cv2.BORDER_REFLECT)
+    if halo is not None:
+        f = np.float32(effects.blur_halo_fraction)
+        img = (1 - f) * img + f * halo
+    return img
+
+
 def form_image(
     radiance: np.ndarray,
     effects: Effects,
@@ -256,8 +307,7 @@ def form_image(
             k = np.float32(effects.vignetting / r2_corner)
             field *= 1.0 - k * ((du * du)[None, :] + (dv * dv)[:, None])
         img = img * field
-    if effects.blur_sigma_px > 0:
-        img = cv2.GaussianBlur(img, (0, 0), effects.blur_sigma_px, borderType=cv2.BORDER_REFLECT)
+    img = _lens_blur(img, effects)
     if effects.full_well_e > 0 or effects.read_noise_dn > 0:
         # Poisson-Gaussian sensor noise: shot noise of variance mean/full_well (the Gaussian limit of
         # Poisson, within 1 % above ~100 electrons) plus read noise, drawn as one normal variate.
