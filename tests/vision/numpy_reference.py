@@ -324,20 +324,6 @@ def asymmetry(t, gammas: np.ndarray, blocks: np.ndarray | None = None, n_blocks:
         v = np.exp(np.asarray(gammas, float)[:, None, None] * np.log(t.raw)[None])  # (G, N, W)
     N, W = v.shape[1], v.shape[2]
     pk = RESPONSE_PLATEAU_PX
-    # Shading across the edge (an illumination gradient, vignetting) multiplies the light by a slope
-    # that tilts both plateaus alike and would read as asymmetry: take it out, as the median relative
-    # slope of the plateau pixels over the line.
-    xs = np.arange(pk) - (pk - 1) / 2.0
-    # (sums over the few plateau pixels as whole-array adds: numpy's reductions over a short strided last
-    # axis cost more than the arithmetic)
-    slope = [sum(xs[j] * v[:, :, j + o] for j in range(pk)) / (xs @ xs) for o in (0, W - pk)]
-    level = [sum(v[:, :, j + o] for j in range(1, pk)) + v[:, :, o] for o in (0, W - pk)]
-    rel = np.concatenate([s / np.maximum(m / pk, 1e-9) for s, m in zip(slope, level, strict=True)], axis=1)
-    tilt = np.median(rel, axis=1)
-    tilt = np.where(np.isfinite(tilt), tilt, 0.0)
-    # the tilt's scale at each pixel, and the levels of the tilted ends as their means over it
-    scale = 1.0 / (1.0 + tilt[:, None, None] * (np.arange(W) - (W - 1) / 2.0)[None, None, :])
-    v = v * scale
     size = min(2 * RESPONSE_LEVEL_ROWS + 1, N)
     lo = uniform_filter1d(sum(v[:, :, j] for j in range(pk)) / pk, size, axis=1, mode="nearest")[:, :, None]
     hi = uniform_filter1d(sum(v[:, :, W - pk + j] for j in range(pk)) / pk, size, axis=1, mode="nearest")[

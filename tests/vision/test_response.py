@@ -33,14 +33,17 @@ def _step_image(
     seed: int,
     tilt: float = TILT,
     row: float = 50.3,
+    halo: tuple[float, float] = (0.0, 1.0),
 ) -> np.ndarray:
     """8-bit image of a blurred step (light ``lo`` above the edge, ``hi`` below), integrated over each pixel
-    on an 8x finer grid, recorded as ``light ** (1 / camera_gamma)``."""
+    on an 8x finer grid, recorded as ``light ** (1 / camera_gamma)``; ``halo``: the share of the light a
+    wider Gaussian of the given sigma (px) spreads, the rest ``blur``'s."""
     f = 8
     sub = (np.arange(N_ROWS * f) + 0.5) / f - 0.5  # sub-pixel row centres
     u = np.arange(N_COLS)
     edge = row + tilt * u  # row of the edge in each column
-    light = lo + (hi - lo) * ndtr((sub[:, None] - edge[None, :]) / blur)
+    x = sub[:, None] - edge[None, :]
+    light = lo + (hi - lo) * ((1 - halo[0]) * ndtr(x / blur) + halo[0] * ndtr(x / halo[1]))
     light = light.reshape(N_ROWS, f, N_COLS).mean(axis=1)
     raw = 255.0 * light ** (1.0 / camera_gamma)
     raw += np.random.default_rng(seed).normal(0.0, noise, raw.shape)
@@ -65,6 +68,21 @@ def test_the_response_is_measured_from_the_step_shape(camera_gamma, used_gamma, 
     assert abs(lr.gamma - camera_gamma) <= 3 * lr.sigma + 0.02, lr
     assert lr.sigma < 0.25
     assert lr.lo == pytest.approx(round(255 * 0.12 ** (1 / camera_gamma)) / 255, abs=0.02)
+
+
+@pytest.mark.parametrize("camera_gamma", [1.2, 2.2])
+def test_a_lens_halo_is_no_response(camera_gamma):
+    # A quarter of the light spread 3.5x wider than the core reaches beyond the profiles' plateaus and slopes
+    # both alike in light: an even spread, whose transition is symmetric at the camera's exponent. Taken
+    # out as shading (each plateau's slope over its level), it had read a camera of 1.2 as 2.1 +- 0.07.
+    blur = 1.6
+    img = _step_image(camera_gamma, blur, 0.12, 0.8, 0.9, seed=5, halo=(0.27, 5.6))
+    half = int(math.ceil(2 * blur + 1))
+    s = _samples(img, camera_gamma, half=half)
+    lr = fit_line_response(img, s, s.valid, half, camera_gamma, blur)
+    assert lr is not None
+    assert abs(lr.gamma - camera_gamma) <= 3 * lr.sigma + 0.02, lr
+    assert lr.sigma < 0.25
 
 
 @pytest.mark.parametrize("row", [50.0, 50.15, 50.3, 50.5, 50.8])
