@@ -19,7 +19,9 @@ and noise come from :func:`bench_arris.random_effects`), the camera's gamma is t
 - ``halo``, ``defocus`` (only when named): as ``round`` and ``chamfer`` together, a third of the doors
   plain, through a point spread that is no Gaussian (locate's edge models assume one): a halo of 10-33 % of
   the light at 2-4x the blur, or a defocus disk of 1-3 px radius before 0.3-0.8 px of Gaussian blur;
-  ``sharp_halo`` (only when named): ``sharp``'s plain doors through ``halo``'s halo.
+  ``sharp_halo`` (only when named): ``sharp``'s plain doors through ``halo``'s halo;
+- ``sharpened`` (only when named): as ``halo``'s doors through a camera that sharpens its grey levels (an
+  unsharp mask of amount 0.3-1, radius 0.8-2 px), which locate does not model.
 
 Per image: the seed, the conditions, the errors of x, z, yaw and thickness and their claimed sigmas
 (x, z, yaw: the answer's ``uncertainty``; thickness: ``diagnostics.thickness_check.sigma_mm``), or the
@@ -36,7 +38,7 @@ thickness 0.09), the worst 0.30; ``within``, the worst 1.27; ``bound``, 90 % wit
 1.69, every one within 2 (answered: round 9, chamfer 13-14, ambient 11-12, small 5-7 of 16).
 
     OMP_NUM_THREADS=1 PYTHONPATH=src python bench/bench_arris_range.py [--n 16] [--seed 7000]
-        [--sets round,chamfer,ambient,small,sharp,grain,dark,focused,focused_dark,finish,halo,defocus,sharp_halo]
+        [--sets round,chamfer,ambient,small,sharp,grain,dark,focused,focused_dark,finish,halo,defocus,sharp_halo,sharpened]
         [--thickness-check refuse|report]
         [--response-factor F]   (a cell whose camera response was measured, e.g. 1.11)
         [--cell-gamma-off within|bound]   (the cell told a wrong exponent: the camera's times the cell's
@@ -121,6 +123,9 @@ SETS["finish"] = dict(SETS["focused"], blur=(0.7, 1.8), finish=(0.5, 2.0))
 SETS["halo"] = dict(SETS["focused"], blur=(0.7, 1.8), halo=((0.1, 0.33), (2.0, 4.0)), plain=1 / 3)
 SETS["defocus"] = dict(SETS["focused"], blur=(0.3, 0.8), disk=(1.0, 3.0), plain=1 / 3)
 SETS["sharp_halo"] = dict(SETS["sharp"], halo=SETS["halo"]["halo"])  # plain doors only, as ``sharp``
+# a camera that sharpens its grey levels (an unsharp mask of amount 0.3-1 and radius 0.8-2 px), which locate
+# does not model: rounds, chamfers and a third plain, as ``halo``
+SETS["sharpened"] = dict(SETS["focused"], blur=(0.7, 1.8), sharpen=((0.3, 1.0), (0.8, 2.0)), plain=1 / 3)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -162,6 +167,13 @@ def draw(name: str, i: int, seed: int):
         )
     if spec.get("disk"):
         fx = dataclasses.replace(fx, blur_disk_px=float(rng.uniform(*spec["disk"])))
+    if spec.get("sharpen"):
+        (a_lo, a_hi), (r_lo, r_hi) = spec["sharpen"]
+        fx = dataclasses.replace(
+            fx,
+            sharpen_amount=float(rng.uniform(a_lo, a_hi)),
+            sharpen_radius_px=float(rng.uniform(r_lo, r_hi)),
+        )
     if spec.get("plain") and rng.uniform() < spec["plain"]:
         door = dataclasses.replace(door, arris_mm=0.0)
     if spec.get("arris_as_background"):
@@ -384,6 +396,11 @@ def main() -> None:
                     else ""
                 )
                 + (f" disk={fx.blur_disk_px:.2f}" if fx.blur_disk_px else "")
+                + (
+                    f" sharpen={fx.sharpen_amount:.2f}@{fx.sharpen_radius_px:.1f}"
+                    if fx.sharpen_amount
+                    else ""
+                )
                 + (f" cell {told:.2f}" if args.cell_gamma_off else "")
             )
             lit = (

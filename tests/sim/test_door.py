@@ -143,6 +143,13 @@ def test_every_effect_defaults_to_off_and_changes_the_image_when_on():
         ).image
         assert not np.array_equal(img, plain.image), name
     halo = Effects(blur_sigma_px=1.0, blur_halo_fraction=0.2, blur_halo_sigma_px=3.0)
+    sharpened = Effects(blur_sigma_px=1.0, sharpen_amount=0.5, sharpen_radius_px=1.5)
+    assert not np.array_equal(
+        render_door(CELL, DoorSize(900, 40, 2100), DoorPose(2, 3, 1), effects=sharpened).image,
+        render_door(
+            CELL, DoorSize(900, 40, 2100), DoorPose(2, 3, 1), effects=Effects(blur_sigma_px=1.0)
+        ).image,
+    )
     blurred = render_door(
         CELL, DoorSize(900, 40, 2100), DoorPose(2, 3, 1), effects=Effects(blur_sigma_px=1.0)
     )
@@ -187,6 +194,8 @@ def test_effects_round_trip_through_a_dict_of_strings():
         Effects(bit_depth=12)
     with pytest.raises(ValueError, match="blur_halo_sigma_px"):
         Effects(blur_halo_fraction=0.2)
+    with pytest.raises(ValueError, match="sharpen_radius_px"):
+        Effects(sharpen_amount=0.5)
     with pytest.raises(ValueError, match="blur_halo_fraction"):
         Effects(blur_halo_fraction=1.0, blur_halo_sigma_px=3.0)
 

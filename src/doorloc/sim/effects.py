@@ -85,6 +85,9 @@ class Effects:
         Gaussian read noise, standard deviation in output DN of the 8-bit scale; 0 = off.
     gamma : float
         Response ``out = in ** (1/gamma)``; 1 = linear.
+    sharpen_amount, sharpen_radius_px : float
+        In-camera sharpening (edge enhancement) of the grey levels after the response, an unsharp mask:
+        ``out + amount * (out - gaussian(out, radius))``; 0 = off. Locate assumes it off.
     bit_depth : int
         8 or 16 (uint8 or uint16 output).
     jpeg_quality : int
@@ -123,6 +126,8 @@ class Effects:
     full_well_e: float = 0.0
     read_noise_dn: float = 0.0
     gamma: float = 1.0
+    sharpen_amount: float = 0.0
+    sharpen_radius_px: float = 0.0
     bit_depth: int = 8
     jpeg_quality: int = 0
     color: bool = False
@@ -142,6 +147,8 @@ class Effects:
             "blur_sigma_px",
             "blur_halo_sigma_px",
             "blur_disk_px",
+            "sharpen_amount",
+            "sharpen_radius_px",
             "full_well_e",
             "read_noise_dn",
             "grain_contrast",
@@ -155,6 +162,8 @@ class Effects:
             raise ValueError(f"blur_halo_fraction must be in [0, 1), got {self.blur_halo_fraction!r}")
         if self.blur_halo_fraction > 0 and not self.blur_halo_sigma_px > 0:
             raise ValueError("a halo (blur_halo_fraction > 0) needs its spread, blur_halo_sigma_px > 0")
+        if self.sharpen_amount > 0 and not self.sharpen_radius_px > 0:
+            raise ValueError("sharpening (sharpen_amount > 0) needs its radius, sharpen_radius_px > 0")
         if not 0 <= self.shadow_strength <= 1:
             raise ValueError(f"shadow_strength must be in [0, 1], got {self.shadow_strength!r}")
 
@@ -323,6 +332,9 @@ def form_image(
         img = response.grey_from_light(img * top_light).astype(np.float32)
     elif effects.gamma != 1.0:
         img = cv2.pow(img, 1.0 / effects.gamma)
+    if effects.sharpen_amount > 0:
+        soft = cv2.GaussianBlur(img, (0, 0), effects.sharpen_radius_px, borderType=cv2.BORDER_REFLECT)
+        img = np.clip(img + np.float32(effects.sharpen_amount) * (img - soft), 0.0, 1.0)
     if effects.color:
         tint = np.array([0.80, 0.93, 1.0], np.float32)  # BGR: a warm wood tone
         img = img[..., None] * tint
