@@ -23,9 +23,9 @@ and noise come from :func:`bench_arris.random_effects`), the camera's gamma is t
 - ``sharpened`` (only when named): as ``halo``'s doors through a camera that sharpens its grey levels (an
   unsharp mask of amount 0.3-1, radius 0.8-2 px), which locate does not model.
 
-Per image: the seed, the conditions, the errors of x, z, yaw and thickness and their claimed sigmas
-(x, z, yaw: the answer's ``uncertainty``; thickness: ``diagnostics.thickness_check.sigma_mm``), or the
-refusal and its code. Per set: the answered share, RMS of each error, the share within 2 claimed sigma and
+Per image: the seed, the conditions (with ``diagnostics.noise_scale_ratio`` where it reads under 2), the
+errors of x, z, yaw and thickness and their claimed sigmas (x, z, yaw: the answer's ``uncertainty``;
+thickness: ``diagnostics.thickness_check.sigma_mm``), or the refusal and its code. Per set: the answered share, RMS of each error, the share within 2 claimed sigma and
 beyond 5, and the refusals by code; answers whose thickness the image could not verify (reported under
 ``locate.thickness_check: report``) are counted apart.
 
@@ -221,6 +221,9 @@ def run_one(
         label += f" own light [{own['direction_deg'][0]:+.0f}, {own['direction_deg'][1]:+.0f}]" + (
             "" if own["used"] else " unused"
         )
+    ratio = res.diagnostics.get("noise_scale_ratio")
+    if ratio is not None and ratio < 2.0:  # the noise read as a sensor's (about 1) or sharpened (below)
+        label += f" noise ratio {ratio:.2f}"
     if not res.ok:
         print(f"  seed {seed:6d} {label:44s} REFUSED {res.error_code}: {(res.error or '')[:110]}")
         return Outcome(res.error_code)

@@ -257,6 +257,66 @@ def test_overexposed_hinge_face_is_refused_as_such(cell):
     assert r.x_mm is None and r.z_mm is None
 
 
+def test_noise_scale_ratio_tells_sharpening_from_a_sensor_texture_and_jpeg():
+    import cv2
+
+    from doorloc.vision.quality import noise_scale_ratio
+
+    rng = np.random.default_rng(3)
+    flat = (
+        100.0 + 0.03 * np.arange(128)[None, :] + rng.normal(0.0, 1.5, (128, 128))
+    )  # a gradient and white noise
+    assert noise_scale_ratio([flat], 1.0) == pytest.approx(1.0, abs=0.08)
+    soft = cv2.GaussianBlur(flat.astype(np.float32), (0, 0), 1.4)
+    assert noise_scale_ratio([flat + 0.5 * (flat - soft)], 1.0) < 0.8  # an unsharp mask
+    grain = flat + 3.0 * np.sin(2 * np.pi * np.arange(128) / 11.0)[None, :]
+    assert noise_scale_ratio([grain], 1.0) > 1.5
+    ok, buf = cv2.imencode(".jpg", np.clip(flat, 0, 255).astype(np.uint8), [cv2.IMWRITE_JPEG_QUALITY, 85])
+    assert noise_scale_ratio([cv2.imdecode(buf, cv2.IMREAD_UNCHANGED)], 1.0) > 1.0
+    # too little to read: quiet (rounding's noise), or too small
+    assert noise_scale_ratio([np.full((128, 128), 100.0)], 1.0) is None
+    assert noise_scale_ratio([flat[:16, :16]], 1.0) is None
+    # the compiled sums are numpy's differences and 4 x 4 box means (at every second row and column)
+    from doorloc.vision.quality import _noise_variances
+
+    p = np.clip(np.rint(flat[:48, :100]), 0, 255).astype(np.uint8)
+    a, k = p.astype(np.float64), 4
+    boxes = cv2.blur(a, (k, k), borderType=cv2.BORDER_CONSTANT)[
+        k // 2 : 48 - k // 2 + 1, k // 2 : 100 - k // 2 + 1
+    ]
+    coarse = (boxes[k:][::2, ::2] - boxes[:-k][::2, ::2]).var() + (
+        boxes[:, k:][::2, ::2] - boxes[:, :-k][::2, ::2]
+    ).var()
+    fine = np.diff(a, axis=0).var() + np.diff(a, axis=1).var()
+    assert _noise_variances(p, k, 0.0) == pytest.approx((fine, coarse), rel=1e-9)
+
+
+def test_a_camera_that_sharpens_is_refused_and_one_that_does_not_is_answered(cell):
+    """An unsharp mask on the grey levels grows the door's bright face in linear light, which no doubt of
+    locate's covers: the image is refused ``sharpened``, naming the setting. The same door unsharpened, and
+    a noise-free render (nothing to read the noise from), are answered."""
+    pose, door = DoorPose(-3.0, 2.0, 0.4), DoorSize(900, 50, 2100)
+    fx = Effects(blur_sigma_px=1.3, read_noise_dn=0.8, gamma=1.7, light_ambient=0.6, light_directional=0.5)
+    told = replace(cell, response_gamma=1.7)
+    plain = locate(render_door(cell, door, pose, effects=fx, seed=4).image, told, door)
+    assert plain.ok and 0.9 < plain.diagnostics["noise_scale_ratio"] < 1.1
+    sharpened = render_door(
+        cell, door, pose, effects=replace(fx, sharpen_amount=0.6, sharpen_radius_px=1.4), seed=4
+    )
+    r = locate(sharpened.image, told, door)
+    assert r.error_code == "sharpened" and "sharpening" in r.error, (r.error_code, r.error)
+    assert r.diagnostics["noise_scale_ratio"] < 0.85
+    # the check off: answered, and (what it guards against) x 0.037 mm off at 3.3 sigma
+    off = locate(sharpened.image, told, door, config=LocateConfig(min_noise_scale_ratio=0.0))
+    assert off.ok and "noise_scale_ratio" not in off.diagnostics
+    assert abs(off.x_mm - pose.x_mm) > 2 * off.uncertainty.x_mm
+    quiet = render_door(
+        cell, door, pose, effects=replace(fx, read_noise_dn=0.0, sharpen_amount=0.6, sharpen_radius_px=1.4)
+    )
+    q = locate(quiet.image, told, door)
+    assert q.diagnostics["noise_scale_ratio"] is None and q.error_code != "sharpened"
+
+
 def test_config_thresholds_are_used(cell):
     door = DoorSize(900, 50, 2100)
     img = render_door(cell, DoorSize(900, 50.6, 2100), DoorPose()).image

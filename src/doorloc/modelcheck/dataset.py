@@ -34,9 +34,18 @@ REQUIRED_COLUMNS = ("image", "x_mm", "z_mm", "yaw_deg", "width_mm", "thickness_m
 MIN_IMAGES = 15
 
 
-#: locate's refusal codes that fault the image itself (exposure, contrast, format), whatever the cell
+#: locate's refusal codes that fault the image itself (exposure, contrast, format, the camera's
+#: sharpening), whatever the cell
 IMAGE_REFUSALS = frozenset(
-    {"bad_image", "wrong_image_size", "black_image", "saturated_image", "low_contrast", "overexposed"}
+    {
+        "bad_image",
+        "wrong_image_size",
+        "black_image",
+        "saturated_image",
+        "low_contrast",
+        "overexposed",
+        "sharpened",
+    }
 )
 
 

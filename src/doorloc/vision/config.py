@@ -126,6 +126,11 @@ class LocateConfig:
     max_clipped_arris_fraction : float
         Refuse ``overexposed`` when more of an arris strip's scan lines than this have white-clipped pixels
         beside its border (a highlight on the arris the sensor cut off: its shading cannot be read).
+    min_noise_scale_ratio : float
+        Refuse ``sharpened`` when flat patches beside the door's edges hold less noise between 4-px blocks
+        than between pixels by more than this (:func:`doorloc.vision.quality.noise_scale_ratio`: a sensor's
+        white noise gives 1, demosaicking, texture and JPEG more, only a camera's sharpening less); 0 turns
+        the check off.
     max_uncertainty_mm, max_uncertainty_deg : float
         The cell's tolerance on the answer's 1-sigma uncertainty (:mod:`doorloc.vision.uncertainty`):
         refuse ``uncertain`` when that of x or z exceeds ``max_uncertainty_mm`` or that of the yaw
@@ -165,6 +170,7 @@ class LocateConfig:
     max_sigma_mm: float = 0.05
     max_saturated_fraction: float = 0.5
     max_clipped_arris_fraction: float = 0.1
+    min_noise_scale_ratio: float = 0.85
     max_uncertainty_mm: float = 0.1
     max_uncertainty_deg: float = 0.05
     calibration_sigma_px: float = 0.05
@@ -178,6 +184,10 @@ class LocateConfig:
         if not 0.0 <= self.max_clipped_arris_fraction <= 1.0:
             raise ValueError(
                 f"max_clipped_arris_fraction is a share of scan lines in 0..1, got {self.max_clipped_arris_fraction:g}"
+            )
+        if not 0.0 <= self.min_noise_scale_ratio < 1.0:
+            raise ValueError(
+                f"min_noise_scale_ratio is a ratio in 0..1 (0: off), got {self.min_noise_scale_ratio:g}"
             )
         if not 0.0 <= self.light_direction_sigma_deg <= 90.0:
             raise ValueError(

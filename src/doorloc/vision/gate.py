@@ -1,10 +1,11 @@
 """The gate of locate: from the refined state, the response check and the lines' doubts, the answer or a
 refusal with its reason (:func:`gate_and_answer`). It decides; the pixels it reads are only those that tell
-a pattern (a calibration board) from a door whose edges failed.
+a pattern (a calibration board) from a door whose edges failed, and flat patches beside the edges whose
+noise says whether the camera sharpens its images.
 
 The refusal codes it gives: ``edge_missing``, ``edge_not_straight``, ``corner_hidden``, ``overexposed``,
-``outside_envelope``, ``thickness_mismatch``, ``uncertain``, ``not_a_door`` (:mod:`doorloc.vision.quality`
-holds the checks and their messages).
+``sharpened``, ``outside_envelope``, ``thickness_mismatch``, ``uncertain``, ``not_a_door``
+(:mod:`doorloc.vision.quality` holds the checks and their messages).
 """
 
 from __future__ import annotations
@@ -58,16 +59,15 @@ def gate_and_answer(
 
     The checks in the order they are weighed (the first that refuses is the answer's reason, unless a pose
     outside the envelope or a pattern in view explains it better, :func:`_first_refusal`): each line's
-    support and straightness, the corner's support, overexposure, the envelope, the thickness, the corner's
-    and the pose's uncertainty."""
+    support and straightness, the corner's support, overexposure and sharpening, the envelope, the
+    thickness, the corner's and the pose's uncertainty."""
     r, cell = check.refined, check.cell
     model, figures, disputed = doubts.model, doubts.figures, doubts.response_disputed
     fit, pose = r.fit, r.pose
     diagnostics = _fit_diagnostics(r, region, door, figures)
     lines, refusals = _line_checks(r, region, model, cfg)
     refusals += _corner_support(r, region, cfg, diagnostics)
-    bright = np.concatenate([r.samples[k].bright[fit.weights[k] > 0] for k in EDGE_NAMES])
-    refusals += [q.check_overexposed(bright), _arris_clipped(r, cfg)]
+    refusals += _exposure_checks(plane, s8, r, cfg, diagnostics)
     refusals.append(
         q.check_envelope(
             pose.x_mm, pose.z_mm, pose.yaw_deg, cell.envelope, cfg.envelope_margin_mm, cfg.envelope_margin_deg
@@ -154,6 +154,59 @@ def _arris_clipped(r: Refined, cfg: LocateConfig) -> q.Refusal | None:
         return None
     clipped = {HUMAN[k]: strip.clipped_share for k, (strip, _) in r.arris_fits.items()}
     return q.check_arris_clipped(clipped, cfg.max_clipped_arris_fraction)
+
+
+#: the flat patches :func:`_noise_scale_ratio` reads beside each line: their length along the edge and depth
+#: across it, and their distance from the edge's points (beyond a 3 mm arris strip and the blur), px
+NOISE_PATCH_PX = (128, 48)
+NOISE_PATCH_GAP_PX = 24
+
+
+def _exposure_checks(plane, s8: float, r: Refined, cfg: LocateConfig, diagnostics: dict) -> list:
+    """What the camera made of the door's light: the hinge face or an arris strip clipped at white, and a
+    camera that sharpens its images (:func:`_sharpened`)."""
+    fit = r.fit
+    bright = np.concatenate([r.samples[k].bright[fit.weights[k] > 0] for k in EDGE_NAMES])
+    return [q.check_overexposed(bright), _arris_clipped(r, cfg), _sharpened(plane, s8, r, cfg, diagnostics)]
+
+
+def _sharpened(plane, s8: float, r: Refined, cfg: LocateConfig, diagnostics: dict) -> q.Refusal | None:
+    """The sharpening check (``locate.min_noise_scale_ratio``; 0: off), its figure into
+    ``diagnostics["noise_scale_ratio"]``."""
+    if cfg.min_noise_scale_ratio <= 0:
+        return None
+    ratio = _noise_scale_ratio(plane, s8, r)
+    diagnostics["noise_scale_ratio"] = None if ratio is None else round(ratio, 3)
+    return q.check_sharpened(ratio, cfg.min_noise_scale_ratio)
+
+
+def _noise_scale_ratio(plane, s8: float, r: Refined) -> float | None:
+    """The least of :func:`doorloc.vision.quality.noise_scale_ratio` over the door's two sides: patches
+    beside the middle of each line's edge points, pooled per side (dark and bright). Texture and a stray
+    edge in a patch raise its ratio (they hide sharpening there; they never make it)."""
+    sides: dict[bool, list[np.ndarray]] = {False: [], True: []}
+    length, depth = NOISE_PATCH_PX
+    for k in EDGE_NAMES:
+        s = r.samples[k]
+        ok = (r.fit.weights[k] > 0) & np.isfinite(s.along)
+        scan, along = s.scan[ok], s.along[ok]
+        if scan.size < 8:
+            continue
+        centre = 0.5 * (float(scan.min()) + float(scan.max()))
+        mid = np.abs(scan - centre) <= length / 2
+        if not mid.any():
+            continue
+        P = oriented(plane, s.axis)
+        s0, s1 = int(scan[mid].min()), int(scan[mid].max()) + 1
+        lo, hi = int(math.floor(along[mid].min())), int(math.ceil(along[mid].max()))
+        step = s.step[ok]
+        bright_after = float(step.sum(where=np.isfinite(step))) > 0  # the bright side at larger ``along``
+        for after in (False, True):
+            a0 = hi + NOISE_PATCH_GAP_PX if after else lo - NOISE_PATCH_GAP_PX - depth
+            if 0 <= a0 and a0 + depth <= P.shape[0] and 0 <= s0 and s1 <= P.shape[1]:
+                sides[after == bright_after].append(P[a0 : a0 + depth, s0:s1])
+    ratios = [x for x in (q.noise_scale_ratio(sides[b], s8) for b in (False, True)) if x is not None]
+    return min(ratios) if ratios else None
 
 
 def _fit_diagnostics(r: Refined, region: SearchRegion, door: DoorSize, figures: dict[str, Any]) -> dict:

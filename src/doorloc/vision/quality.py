@@ -26,6 +26,10 @@ __all__ = [
     "LineLimits",
     "check_overexposed",
     "check_arris_clipped",
+    "check_sharpened",
+    "noise_scale_ratio",
+    "NOISE_BLOCK_PX",
+    "NOISE_MIN_LEVELS",
     "line_figures",
     "looks_like_pattern",
 ]
@@ -133,6 +137,114 @@ def check_arris_clipped(clipped_share: dict[str, float], limit: float) -> Refusa
         "overexposed",
         f"the arris strip along the {worst} clips at white on {100 * clipped_share[worst]:.0f} % of its scan "
         "lines (its highlight is cut off), which biases the edge; reduce the exposure time or the lighting",
+    )
+
+
+#: the side (px) of the blocks whose means carry a patch's coarse noise (:func:`noise_scale_ratio`)
+NOISE_BLOCK_PX = 4
+#: a patch's noise from pixel to pixel must reach this (0-255 scale, 1-sigma) to be read: below it, rounding
+#: to grey levels, not the sensor, makes the noise
+NOISE_MIN_LEVELS = 0.5
+#: blocks the patches of one side need together
+NOISE_MIN_BLOCKS = 400
+
+
+def noise_scale_ratio(patches: list[np.ndarray], s8: float) -> float | None:
+    """How strong the patches' noise is between ``NOISE_BLOCK_PX`` blocks against between pixels: ``k**2``
+    times the variance of the differences of the means of ``k x k`` boxes ``k`` apart over that of
+    neighbouring pixels' differences (both axes, pooled over the patches, each weighted by its blocks), or
+    None where the patches hold fewer than ``NOISE_MIN_BLOCKS`` blocks with noise above
+    ``NOISE_MIN_LEVELS`` (``patches``: raw grey levels, 2-D; ``s8``: their scale to 0-255).
+
+    A sensor's noise is white: each pixel's own, and the differences of box means carry ``1/k**2`` of its
+    pixels' variance, the ratio 1. Differences leave out the light's slow changes over a patch (a gradient,
+    vignetting). What the camera does after the sensor moves the ratio one way or the other: demosaicking,
+    texture in the scene, wood grain and JPEG keep less of the fine noise or add coarse structure (above 1:
+    the squares of Bouguet's photographs 1.19-5.5, OpenCV's JPEGs 13-18), and only sharpening (an unsharp
+    mask run on the grey levels) raises the fine noise over the coarse (below 1). Read by locate's gate
+    (``gate._noise_scale_ratio``) on rendered doors: 0.54-0.89 sharpened by 0.3-1 at 0.8-2 px (29 doors),
+    0.92-1.06 with white sensor noise alone (46 doors; bench/bench_arris_range.py prints it)."""
+    k = NOISE_BLOCK_PX
+    fine = coarse = 0.0
+    blocks = 0.0
+    for p in patches:
+        if p.shape[0] < 3 * k or p.shape[1] < 3 * k:
+            continue
+        # two axes, each difference holding two pixels' noise
+        vf_min = 4 * NOISE_MIN_LEVELS**2 / (s8 * s8)
+        vf, vc = _noise_variances(np.ascontiguousarray(p), k, vf_min)
+        if not vf >= vf_min:
+            continue
+        vf, vc = vf * s8 * s8, vc * s8 * s8
+        n = p.shape[0] * p.shape[1] / (k * k)
+        fine += n * vf
+        coarse += n * k * k * vc
+        blocks += n
+    return coarse / fine if blocks >= NOISE_MIN_BLOCKS and fine > 0 else None
+
+
+def _noise_warm_up(k) -> None:
+    for dtype in (np.uint8, np.uint16, np.float32):  # the planes' grey levels, and other callers' floats
+        k(np.zeros((16, 16), dtype), 4, 1.0)
+
+
+@kernel(_noise_warm_up)
+def _noise_variances(p, k, vf_min):
+    """The variances of a patch's neighbouring pixels' differences and of the differences of its ``k x k``
+    box means ``k`` apart (boxes at every second row and column), each summed over the two axes: one pass
+    for each over the patch and over its integral image (numpy's differences and box filter of six patches
+    cost ~0.6 ms a frame). The second NaN where the first is under ``vf_min`` (a patch too quiet to read
+    costs half)."""
+    H, W = p.shape
+    vf = 0.0
+    for di, dj in ((1, 0), (0, 1)):  # down the columns, along the rows
+        s = ss = 0.0
+        for i in range(H - di):
+            for j in range(W - dj):
+                d = float(p[i + di, j + dj]) - float(p[i, j])
+                s += d
+                ss += d * d
+        n = (H - di) * (W - dj)
+        vf += ss / n - (s / n) ** 2
+    if not vf >= vf_min:
+        return vf, np.nan
+    integral = np.zeros((H + 1, W + 1))
+    for i in range(H):
+        row = 0.0
+        for j in range(W):
+            row += p[i, j]
+            integral[i + 1, j + 1] = integral[i, j + 1] + row
+    # k * k times the mean of the box at rows i..i+k-1, columns j..j+k-1:
+    # integral[i + k, j + k] - integral[i, j + k] - integral[i + k, j] + integral[i, j]
+    kk = float(k * k)
+    vc = 0.0
+    for di, dj in ((k, 0), (0, k)):
+        s = ss = 0.0
+        n = 0
+        for i in range(0, H - k - di + 1, 2):
+            for j in range(0, W - k - dj + 1, 2):
+                b0 = integral[i + k, j + k] - integral[i, j + k] - integral[i + k, j] + integral[i, j]
+                i1, j1 = i + di, j + dj
+                b1 = integral[i1 + k, j1 + k] - integral[i1, j1 + k] - integral[i1 + k, j1] + integral[i1, j1]
+                d = (b1 - b0) / kk
+                s += d
+                ss += d * d
+                n += 1
+        vc += ss / n - (s / n) ** 2
+    return vf, vc
+
+
+def check_sharpened(ratio: float | None, limit: float) -> Refusal | None:
+    """The camera sharpens its images: flat patches hold less noise at block scale than at pixel scale
+    (:func:`noise_scale_ratio` below ``limit``). Sharpening run on the grey levels grows every edge's bright
+    side in linear light, which no doubt of locate's covers (rendered plain doors up to 0.08 mm off at 7
+    sigma, rounded ones 0.26 mm at 5 sigma)."""
+    if ratio is None or not ratio < limit:
+        return None
+    return Refusal(
+        "sharpened",
+        f"the camera sharpens its images (flat areas hold {ratio:.2f} of the coarse noise a sensor gives, "
+        f"below {limit:g}), which moves every edge; switch the camera's sharpening (edge enhancement) off",
     )
 
 
