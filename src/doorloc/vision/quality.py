@@ -165,13 +165,12 @@ def noise_scale_ratio(patches: list[np.ndarray], s8: float) -> float | None:
     (``gate._noise_scale_ratio``) on rendered doors: 0.54-0.89 sharpened by 0.3-1 at 0.8-2 px (29 doors),
     0.92-1.06 with white sensor noise alone (46 doors; bench/bench_arris_range.py prints it)."""
     k = NOISE_BLOCK_PX
+    vf_min = 4 * NOISE_MIN_LEVELS**2 / (s8 * s8)  # two axes, each difference holding two pixels' noise
     fine = coarse = 0.0
     blocks = 0.0
     for p in patches:
         if p.shape[0] < 3 * k or p.shape[1] < 3 * k:
             continue
-        # two axes, each difference holding two pixels' noise
-        vf_min = 4 * NOISE_MIN_LEVELS**2 / (s8 * s8)
         vf, vc = _noise_variances(np.ascontiguousarray(p), k, vf_min)
         if not vf >= vf_min:
             continue
