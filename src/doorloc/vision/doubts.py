@@ -354,8 +354,9 @@ def _unmeasured_response_terms(
     An arris line's shifts are its own model's where ``allowed`` is given (the door's strips read again
     with the exponents at the ends, per line the shifts out, px: :func:`doorloc.vision.strip_response.
     allowed_response_ends` over :func:`doorloc.vision.refine.arris_response_shifts`): its fitted shading
-    takes up part of the distortion that moves a plain step, or adds to it (on three 0.65-0.87 mm roundings located again with the cell at the two exponents, the plain
-    step's figure was 0.5-3.7 times the door's real move; the strip's own, 0.9-2.3 times). Its
+    takes up part of the distortion that moves a plain step, or adds to it (on three 0.65-0.87 mm
+    roundings located again with the cell at the two exponents, the plain step's figure was 0.5-3.7
+    times the door's real move; the strip's own, 0.9-2.3 times). Its
     doubt is half the range of the shifts at the two exponents and at ``used_gamma`` (no shift), which
     is the plain step's half spread where the two move it apart, and half the larger where both move it
     the same way. A line whose strip is lost at an exponent keeps the plain step's figure. Where the

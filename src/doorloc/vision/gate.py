@@ -165,8 +165,7 @@ NOISE_PATCH_GAP_PX = 24
 def _exposure_checks(plane, s8: float, r: Refined, cfg: LocateConfig, diagnostics: dict) -> list:
     """What the camera made of the door's light: the hinge face or an arris strip clipped at white, and a
     camera that sharpens its images (:func:`_sharpened`)."""
-    fit = r.fit
-    bright = np.concatenate([r.samples[k].bright[fit.weights[k] > 0] for k in EDGE_NAMES])
+    bright = np.concatenate([r.samples[k].bright[r.fit.weights[k] > 0] for k in EDGE_NAMES])
     return [q.check_overexposed(bright), _arris_clipped(r, cfg), _sharpened(plane, s8, r, cfg, diagnostics)]
 
 

@@ -205,9 +205,9 @@ def _normalised_warm_up(k) -> None:
 def _normalised_profiles(light, index, pk, size):
     """:func:`asymmetry`'s profiles (light: raw levels raised to each exponent, ``light[g, index[i, w]]``
     for exponent ``g``, profile ``i``, pixel ``w``; the (G, N, W) array is never formed) normalised by
-    their plateaus (``pk`` px at each end, averaged over ``size`` scan lines)
-    over the inner ``L = W - 2 pk`` pixels: ``n`` (G, N, L), each profile's area centre (G, N, index
-    units) and whether its plateaus differ (G, N).
+    their plateaus (``pk`` px at each end, averaged over ``size`` scan lines) over the inner
+    ``L = W - 2 pk`` pixels: ``n`` (G, N, L), each profile's area centre (G, N, index units) and whether
+    its plateaus differ (G, N).
 
     The levels' table and the index, not the (G, N, W) profiles: numpy's ``light[:, index]`` lays that array
     out with the exponent as its fastest axis, and this loop read it across the strides at twice the cost

@@ -81,7 +81,8 @@ class ResponseCheck:
 class EdgeDoubts:
     """What the doubts stage found: every line's edge-model doubts, the figures the diagnostics report with
     them (``jpeg_block_ratio``, ``arris_fit``, ``response_from_strips``), and where the door's rounded or
-    chamfered strips rule out the cell's camera exponent, which the gate refuses (None: they do not, or were not read)."""
+    chamfered strips rule out the cell's camera exponent, which the gate refuses (None: they do not, or
+    were not read)."""
 
     model: EdgeModelTerms
     figures: dict[str, Any]

@@ -342,9 +342,8 @@ def _figure(
     rows: list[tuple[float, float]] = []  # (exponent, score), each exponent read once
     for r in sorted(score):
         g = round(gamma_at(r), 3)
-        if (
-            not rows or rows[-1][0] != g
-        ):  # (two reaches brought to one bound of RESPONSE_PLAUSIBLE: one reading)
+        # (two reaches brought to one bound of RESPONSE_PLAUSIBLE are one reading)
+        if not rows or rows[-1][0] != g:
             rows.append((g, score[r]))
     out: dict = {
         "gammas": [g for g, _ in rows],
