@@ -208,14 +208,15 @@ def test_a_measured_cell_response_is_weighed_against_the_images():
     doubt = [ln.response_sigma_mm for ln in right.lines if ln.name != "far"]
     assert 0 < min(doubt) and max(doubt) < 0.02  # the measurement's own doubt counts, and is small
     # 1.8 +- 0.05 for a 2.2 camera: 2.6 joint sigmas from the image's 2.13 +- 0.11, kept; the linear
-    # misreading (0.03 mm) must stay inside the answer's uncertainty, as it does for an unmeasured 1.8
+    # misreading (0.03 mm) must stay inside the answer's uncertainty, as it does for an unmeasured 1.8,
+    # and the claim's measurement buys no confidence the image disputes
     off, cr = at(1.8, 0.05)
     plain, _ = at(1.8, None)
     assert cr["used"] == "cell"
-    for res in (off, right):
+    for res in (off, plain, right):
         ex, ez = res.x_mm - pose.x_mm, res.z_mm - pose.z_mm
-        assert abs(ex) <= 2.5 * res.uncertainty.x_mm and abs(ez) <= 2.5 * res.uncertainty.z_mm, (ex, ez)
-    assert off.uncertainty.x_mm > plain.uncertainty.x_mm
+        assert abs(ex) <= 2.0 * res.uncertainty.x_mm and abs(ez) <= 2.0 * res.uncertainty.z_mm, (ex, ez)
+    assert off.uncertainty.x_mm >= plain.uncertainty.x_mm
 
 
 def test_an_absorbed_response_that_the_edges_contradict_is_dropped(monkeypatch):

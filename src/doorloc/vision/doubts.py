@@ -247,26 +247,70 @@ def _response_terms(
 
     The edge was measured with ``used_gamma``; the image reads the camera's exponent as ``response.gamma``
     +- ``response.sigma``. The doubt is built from the shift (:func:`doorloc.vision.response.edge_shift_px`
-    between the line's own plateaus, at the measured blur) to an exponent and the shift of its 1-sigma:
+    between the line's own plateaus, at the measured blur) to the exponent the evidence gives and the
+    shift of its 1-sigma, by the rule of :func:`_line_response_doubt`. A weak reading (a line read between
+    its pixels, ``response.one_phase``, a door square to the camera) of an exponent no camera gives
+    (beyond ``RESPONSE_PLAUSIBLE`` by two of its sigmas: two lines of a 1.44 camera read 0.40 +- 0.08) is
+    no reading: the cell's exponent within ``factor`` alone (:func:`_unmeasured_response_terms`).
 
-    - after ``absorbed`` (the exponent in use is this image's reading): the reading's 1-sigma shift, and
-      what the shift to it leaves beyond twice that;
-    - where the cell's exponent was itself measured (``response.claimed_sigma``) and is kept: the shift to
-      the exponent both measurements give together (:attr:`ResponseFit.combined`) and its 1-sigma shift
-      (widened by their disagreement), in quadrature;
-    - where it was not, and the edges were read at many pixel phases: the shift to the reading beyond
-      twice the reading's 1-sigma shift (within that, the edges agree with the exponent in use, and a
-      right cell keeps its small sigma), or the largest shift to the other exponents the edges admit
-      about as well (``response.alternatives``: the image cannot tell which the camera has);
-    - where it was not, and a line was read between its pixels (``response.one_phase``, a door square
-      to the camera): such a reading (+-0.2-0.6) is weak evidence, and agreeing within two of its sigmas
-      proves little (a cell of 1.0 for a 1.67 camera, read 1.65 +- 0.34, was answered 0.056 mm off at
-      4.4 sigma). The cell's exponent, taken as known within ``factor`` (``LocateConfig.
-      response_unmeasured_factor``, one sigma ``used_gamma * (factor - 1)``), and the reading together
+    An arris line takes the same step model between its background and its face (a first-order figure).
+    """
+    if absorbed:
+        rule = "absorbed"
+    elif response.claimed_sigma > 0:
+        rule = "measured"
+    elif response.one_phase and factor > 1.0:
+        rule = "weak"
+        lo_g, hi_g = RESPONSE_PLAUSIBLE
+        if not lo_g - 2.0 * response.sigma <= response.gamma <= hi_g + 2.0 * response.sigma:
+            return _unmeasured_response_terms(plane, r, used_gamma, factor, blur_px)
+    else:
+        rule = "unmeasured"
+    # the exponent the evidence gives, gc +- sc
+    if rule == "measured":
+        gc, _, sc = response.combined
+    elif rule == "weak":
+        gc, sc = response.with_unmeasured_claim(used_gamma * (factor - 1.0))
+    else:
+        gc, sc = response.gamma, response.sigma
+    # and the image's own reading (a kept measured claim's doubt is never less than it leaves alone)
+    own = [response.gamma, response.gamma + response.sigma, max(response.gamma - response.sigma, 0.05)]
+    alternatives = list(response.alternatives)
+    per_line = {}
+    for k, shifts in _line_response_shifts(plane, r, used_gamma, blur_px):
+        at = shifts([gc, gc + sc, max(gc - sc, 0.05), *own, *alternatives])
+        per_line[k] = _line_response_doubt(rule, at[:3], at[3:6], at[6:])
+    return _response_doubts(per_line)
+
+
+def _line_response_doubt(rule: str, evidence: np.ndarray, own: np.ndarray, alternatives: np.ndarray) -> float:
+    """One line's response doubt (px) from the shifts (px) to the evidence's exponent and to it +- its
+    1-sigma (``evidence``, 3), to the image's own reading and to it +- its 1-sigma (``own``), and to the
+    other exponents the edges admit about as well (``alternatives``), by ``rule``:
+
+    - ``absorbed`` (the exponent in use is this image's reading): the reading's 1-sigma shift, and what
+      the shift to it leaves beyond twice that;
+    - ``measured`` (the cell's exponent was itself measured, ``response.claimed_sigma``, and is kept; the
+      evidence is :attr:`ResponseFit.combined`): the shift to the exponent both measurements give together
+      and its 1-sigma shift (widened by their disagreement), in quadrature; and never less than the image's
+      reading alone leaves an unmeasured cell (below): a measurement the image disputes buys no confidence
+      (a claim of 1.8 +- 0.05 for a 2.2 camera read 2.13 +- 0.11 combines to 1.86 +- 0.12, and the truth
+      lies 2.8 of those off);
+    - ``unmeasured`` (the edges were read at many pixel phases): the shift to the reading beyond the
+      reading's 1-sigma shift, the least the camera is off the cell's exponent at one sigma (within it, the
+      edges agree with the exponent in use, and a right cell keeps its small sigma), or the largest shift
+      to the alternatives beyond twice that (the image cannot tell which the camera has). Beyond twice the
+      1-sigma shift, as this was before, a plain door under a halo with a cell of 1.0 for a 1.12 camera,
+      read 1.115 +- 0.052 (2.2 sigmas off), kept almost no response doubt and its thickness was 0.045 mm
+      off at 5.8 sigma (``bench/bench_arris_range.py --n 32 --seed 9100 --sets sharp_halo
+      --cell-gamma-off bound``, door 21102; 1.9 sigma now), while right cells' sigmas hardly move (the same
+      doors with the camera's exponent: thickness median sigma 0.0036 -> 0.0037 mm);
+    - ``weak`` (a line read between its pixels, against a cell exponent nobody measured): such a reading
+      (+-0.2-0.6) is weak evidence, and agreeing within two of its sigmas proves little (a cell of 1.0 for a
+      1.67 camera, read 1.65 +- 0.34, was answered 0.056 mm off at 4.4 sigma). The evidence is the cell's
+      exponent, taken as known within ``LocateConfig.response_unmeasured_factor``, and the reading together
       (:meth:`ResponseFit.with_unmeasured_claim`): the shift to their exponent and its 1-sigma shift in
-      quadrature. A reading no camera gives (beyond ``RESPONSE_PLAUSIBLE`` by two of its sigmas: two
-      lines of a 1.44 camera read 0.40 +- 0.08) is no reading: the cell's exponent within ``factor``
-      alone (:func:`_unmeasured_response_terms`).
+      quadrature, or the largest shift to an alternative.
 
     That combination was tried on every reading and not taken: readings at many phases under strong
     shading, vignetting and noise read a linear camera 0.4-0.9 +- 0.2, and the combination put
@@ -274,49 +318,16 @@ def _response_terms(
     ``rand`` renders, sigma up to 0.012 -> 0.079 mm); and weighing a point "the cell is exactly right"
     against "another within the factor" by the reading's likelihood left square doors under a wrong cell
     85 % within 2 sigma (bench_arris square-wrong-gamma --seed 9000), a weak reading favouring the point.
-
-    An arris line takes the same step model between its background and its face (a first-order figure).
     """
-    # between the pixels, against a cell exponent nobody measured: the reading and the claim together
-    weak = not absorbed and not response.claimed_sigma > 0 and response.one_phase and factor > 1.0
-    if weak:
-        lo_g, hi_g = RESPONSE_PLAUSIBLE
-        if not lo_g - 2.0 * response.sigma <= response.gamma <= hi_g + 2.0 * response.sigma:
-            return _unmeasured_response_terms(plane, r, used_gamma, factor, blur_px)
-    # the exponent the evidence gives, gc +- sc
-    if absorbed:
-        gc, sc = response.gamma, response.sigma
-    elif response.claimed_sigma > 0:
-        gc, _, sc = response.combined
-    elif weak:
-        gc, sc = response.with_unmeasured_claim(used_gamma * (factor - 1.0))
-    else:
-        gc, sc = response.gamma, response.sigma
-    alternatives = list(response.alternatives)
-    per_line = {}
-    for k, shifts in _line_response_shifts(plane, r, used_gamma, blur_px):
-        # the shift to the evidence's exponent, half the spread over its 1-sigma, and to each alternative
-        at = shifts([gc, gc + sc, max(gc - sc, 0.05), *alternatives])
-        bias, sp = float(at[0]), 0.5 * abs(float(at[1]) - float(at[2]))
-        shift_alt = [float(v) for v in at[3:]]
-        if absorbed:
-            # the exponent in use is this image's measurement: its doubt counts in full
-            doubt = math.hypot(max(abs(bias) - 2.0 * sp, 0.0), sp)
-        elif response.claimed_sigma > 0:
-            doubt = math.hypot(bias, sp)
-        elif weak:
-            doubt = math.hypot(bias, sp)
-            for s_alt in shift_alt:
-                doubt = max(doubt, abs(s_alt))
-        else:
-            # the shift the measured mismatch makes beyond twice its own doubt (within that, the edges
-            # agree with the exponent in use); where the edges read other exponents about as well, the
-            # largest of their shifts (the image cannot tell which the camera has)
-            doubt = max(abs(bias) - 2.0 * sp, 0.0)
-            for s_alt in shift_alt:
-                doubt = max(doubt, abs(s_alt) - 2.0 * sp)
-        per_line[k] = doubt
-    return _response_doubts(per_line)
+    bias, sp = float(evidence[0]), 0.5 * abs(float(evidence[1]) - float(evidence[2]))
+    own_bias, own_sp = float(own[0]), 0.5 * abs(float(own[1]) - float(own[2]))
+    if rule == "absorbed":
+        return math.hypot(max(abs(bias) - 2.0 * sp, 0.0), sp)
+    if rule == "measured":
+        return max(math.hypot(bias, sp), abs(own_bias) - own_sp)
+    if rule == "weak":
+        return max([math.hypot(bias, sp), *(abs(float(v)) for v in alternatives)])
+    return max([abs(bias) - sp, 0.0, *(abs(float(v)) - 2.0 * sp for v in alternatives)])
 
 
 def _response_doubts(px: dict[str, float]) -> list[LineDoubt]:
