@@ -19,6 +19,7 @@ from doorloc.vision.response import (
     edge_shift_px,
     fit_line_response,
 )
+from doorloc.vision.response_asymmetry import Transitions
 from doorloc.vision.sampling import linearizing_lut
 
 N_COLS, N_ROWS, TILT = 400, 100, 0.031  # a near-horizontal edge: profiles run along the columns
@@ -261,3 +262,17 @@ def test_the_response_is_measured_on_calibration_boards(camera_gamma):
     assert abs(r.gamma - camera_gamma) <= min(3.0 * r.sigma, 0.15), (r.gamma, r.sigma, r.per_image)
     assert r.unmeasured_factor == pytest.approx(1.0 + 2.0 * r.sigma / r.gamma)
     assert board_response(views[:4], 9, 6) is None  # too few photographs to see their scatter
+
+
+@pytest.mark.parametrize("top", [255.0, 65535.0])
+def test_the_levels_of_whole_grey_levels_are_those_numpy_sorts(top):
+    """Transitions.levels counts the grey levels present where the profiles are whole grey levels (the
+    image's own): the same levels and index as ``np.unique`` over the floats, for 8 and 16 bits."""
+    rng = np.random.default_rng(int(top))
+    grey = rng.integers(0, int(top) + 1, size=(40, 17))
+    grey[0, :3] = (0, int(top), 7)  # both ends of the scale present
+    raw = grey.astype(np.float64) / top
+    counted = Transitions(raw, np.zeros(40), top=top).levels
+    sorted_ = Transitions(raw, np.zeros(40)).levels
+    assert np.array_equal(counted[0], sorted_[0]) and counted[0].dtype == sorted_[0].dtype
+    assert np.array_equal(counted[1], sorted_[1]) and counted[1].dtype == sorted_[1].dtype

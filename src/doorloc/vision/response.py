@@ -237,7 +237,8 @@ def _transitions(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half
     top = 255.0 if plane.dtype == np.uint8 else 65535.0
     order = np.argsort(samples.scan[m][ok])  # contiguous blocks along the line
     raw = vals[ok][order].astype(np.float64) / top
-    return Transitions(raw, (c0[ok] - half - e[ok])[order].astype(np.float64), dithered=dithered(raw, top))
+    offset = (c0[ok] - half - e[ok])[order].astype(np.float64)
+    return Transitions(raw, offset, dithered=dithered(raw, top), top=top)
 
 
 def fit_line_response(
@@ -530,7 +531,7 @@ def fit_board_response(
     if len(raws) < 3 * RESPONSE_SKEW_BLOCKS:
         return None
     raw = np.concatenate(raws)
-    t = Transitions(raw, np.concatenate(offsets), dithered=dithered(raw, top))
+    t = Transitions(raw, np.concatenate(offsets), dithered=dithered(raw, top), top=top)
     # blocks of whole edges (neighbouring edges share the board's print and light, far ones need not)
     n_blocks = 2 * RESPONSE_SKEW_BLOCKS
     edge_block = np.array_split(np.arange(len(raws)), n_blocks)
