@@ -84,8 +84,10 @@ def test_area_kernel_gives_the_numpy_branch_numbers(seed, sixteen, gamma, platea
     h, w = 60, 70
     top = 65535 if sixteen else 255
     # a blurred step with noise, its place varying along the edge, near the image border on some lines
+    # (from 5 px: the widest window, 6 + 3 px, then misses the border on at least 40 of 60 lines; from 3,
+    # seed 1519 of the 8-bit rows left exactly half of them, and the count below failed)
     along = np.arange(h if axis == "col" else w)[:, None]
-    edge = rng.uniform(3, 20) + 0.2 * np.arange(w if axis == "col" else h)[None, :]
+    edge = rng.uniform(5, 20) + 0.2 * np.arange(w if axis == "col" else h)[None, :]
     prof = 0.2 + 0.6 / (1 + np.exp(-(along - edge) / rng.uniform(0.3, 2.0)))
     img = prof + rng.normal(0, 0.01, prof.shape)
     plane = np.clip(img * top, 0, top).astype(np.uint16 if sixteen else np.uint8)
