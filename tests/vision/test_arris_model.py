@@ -219,6 +219,40 @@ def test_a_measured_cell_response_is_weighed_against_the_images():
     assert off.uncertainty.x_mm >= plain.uncertainty.x_mm
 
 
+def test_an_unmeasured_cell_exponent_the_image_reads_two_sigmas_off_keeps_the_shift_in_the_doubt():
+    """A plain door under a lens halo, the cell stating 1.0 (not measured) for a 1.11 camera: the image reads
+    1.09 +- 0.04, two of its sigmas off, below the four that absorb it. The cell's exponent is kept,
+    and the shift to the reading beyond one of the reading's sigmas is in the doubt: the two edges' shifts
+    add in the thickness (0.045 mm), which its sigma must cover (beyond two of the reading's sigmas only,
+    it was 6 sigma off)."""
+    door = DoorSize(900, 70, 2100)
+    pose = DoorPose(6.84, -1.66, 0.153)
+    fx = Effects(
+        albedo_hinge=0.889,
+        albedo_chamfer=0.742,
+        albedo_background=0.080,
+        light_ambient=0.252,
+        light_directional=0.817,
+        light_azimuth_deg=-52.8,
+        light_elevation_deg=-19.4,
+        blur_sigma_px=1.777,
+        blur_halo_fraction=0.126,
+        blur_halo_sigma_px=4.31,
+        read_noise_dn=0.469,
+        gamma=1.109,
+    )
+    img = render_door(CELL, door, pose, effects=fx, seed=21102).image
+    res = locate(img, dataclasses.replace(CELL, response_gamma=1.0, response_gamma_sigma=None), door)
+    assert res.ok, res.error
+    cr = res.diagnostics["camera_response"]
+    assert cr["used"] == "cell" and not cr["absorbed"]
+    off = (cr["fitted"] - 1.0) / cr["sigma"]
+    assert 1.5 < off < 4.0, (cr["fitted"], cr["sigma"])  # read off the cell, not absorbed
+    sigma_t = res.diagnostics["thickness_check"]["sigma_mm"]
+    assert abs(res.thickness_mm - door.thickness_mm) <= 2.5 * sigma_t, (res.thickness_mm, sigma_t)
+    assert abs(res.x_mm - pose.x_mm) <= 2.0 * res.uncertainty.x_mm
+
+
 def test_an_absorbed_response_that_the_edges_contradict_is_dropped(monkeypatch):
     """Absorbing is only sound when the edges, read again with the absorbed exponent, agree with it. Where
     they show yet another (a reading that follows the edges' placement: seen under a lens distortion the
