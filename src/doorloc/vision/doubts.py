@@ -299,12 +299,12 @@ def _line_response_doubt(rule: str, evidence: np.ndarray, own: np.ndarray, alter
     - ``unmeasured`` (the edges were read at many pixel phases): the shift to the reading beyond the
       reading's 1-sigma shift, the least the camera is off the cell's exponent at one sigma (within it, the
       edges agree with the exponent in use, and a right cell keeps its small sigma), or the largest shift
-      to the alternatives beyond twice that (the image cannot tell which the camera has). Beyond twice the
-      1-sigma shift, as this was before, a plain door under a halo with a cell of 1.0 for a 1.12 camera,
-      read 1.115 +- 0.052 (2.2 sigmas off), kept almost no response doubt and its thickness was 0.045 mm
-      off at 5.8 sigma (``bench/bench_arris_range.py --n 32 --seed 9100 --sets sharp_halo
-      --cell-gamma-off bound``, door 21102; 1.9 sigma now), while right cells' sigmas hardly move (the same
-      doors with the camera's exponent: thickness median sigma 0.0036 -> 0.0037 mm);
+      to the alternatives beyond twice that (the image cannot tell which the camera has). Counted beyond
+      twice the 1-sigma shift (the rule until 2026-11-30), a plain door under a halo with a cell of 1.0
+      for a 1.12 camera, read 1.115 +- 0.052 (2.2 sigmas off), kept almost no response doubt and its
+      thickness was 0.045 mm off at 5.8 sigma (``bench/bench_arris_range.py --n 32 --seed 9100 --sets
+      sharp_halo --cell-gamma-off bound``, door 21102; 1.9 sigma now), while right cells' sigmas hardly
+      move (the same doors with the camera's exponent: thickness median sigma 0.0036 -> 0.0037 mm);
     - ``weak`` (a line read between its pixels, against a cell exponent nobody measured): such a reading
       (+-0.2-0.6) is weak evidence, and agreeing within two of its sigmas proves little (a cell of 1.0 for a
       1.67 camera, read 1.65 +- 0.34, was answered 0.056 mm off at 4.4 sigma). The evidence is the cell's
