@@ -273,20 +273,23 @@ def _response_terms(
         gc, sc = response.with_unmeasured_claim(used_gamma * (factor - 1.0))
     else:
         gc, sc = response.gamma, response.sigma
-    # and the image's own reading (a kept measured claim's doubt is never less than it leaves alone)
-    own = [response.gamma, response.gamma + response.sigma, max(response.gamma - response.sigma, 0.05)]
     alternatives = list(response.alternatives)
+    n_alt = len(alternatives)
+    # a kept measured claim's doubt is never less than the image's own reading leaves: its shifts too
+    own = []
+    if rule == "measured":
+        own = [response.gamma, response.gamma + response.sigma, max(response.gamma - response.sigma, 0.05)]
     per_line = {}
     for k, shifts in _line_response_shifts(plane, r, used_gamma, blur_px):
-        at = shifts([gc, gc + sc, max(gc - sc, 0.05), *own, *alternatives])
-        per_line[k] = _line_response_doubt(rule, at[:3], at[3:6], at[6:])
+        at = shifts([gc, gc + sc, max(gc - sc, 0.05), *alternatives, *own])
+        per_line[k] = _line_response_doubt(rule, at[:3], at[3 : 3 + n_alt], at[3 + n_alt :])
     return _response_doubts(per_line)
 
 
-def _line_response_doubt(rule: str, evidence: np.ndarray, own: np.ndarray, alternatives: np.ndarray) -> float:
+def _line_response_doubt(rule: str, evidence: np.ndarray, alternatives: np.ndarray, own: np.ndarray) -> float:
     """One line's response doubt (px) from the shifts (px) to the evidence's exponent and to it +- its
-    1-sigma (``evidence``, 3), to the image's own reading and to it +- its 1-sigma (``own``), and to the
-    other exponents the edges admit about as well (``alternatives``), by ``rule``:
+    1-sigma (``evidence``, 3), to the other exponents the edges admit about as well (``alternatives``), and
+    (``measured`` only) to the image's own reading and to it +- its 1-sigma (``own``, 3), by ``rule``:
 
     - ``absorbed`` (the exponent in use is this image's reading): the reading's 1-sigma shift, and what
       the shift to it leaves beyond twice that;
@@ -320,10 +323,10 @@ def _line_response_doubt(rule: str, evidence: np.ndarray, own: np.ndarray, alter
     85 % within 2 sigma (bench_arris square-wrong-gamma --seed 9000), a weak reading favouring the point.
     """
     bias, sp = float(evidence[0]), 0.5 * abs(float(evidence[1]) - float(evidence[2]))
-    own_bias, own_sp = float(own[0]), 0.5 * abs(float(own[1]) - float(own[2]))
     if rule == "absorbed":
         return math.hypot(max(abs(bias) - 2.0 * sp, 0.0), sp)
     if rule == "measured":
+        own_bias, own_sp = float(own[0]), 0.5 * abs(float(own[1]) - float(own[2]))
         return max(math.hypot(bias, sp), abs(own_bias) - own_sp)
     if rule == "weak":
         return max([math.hypot(bias, sp), *(abs(float(v)) for v in alternatives)])

@@ -29,8 +29,9 @@ uncertainty from :func:`doorloc.vision.uncertainty.propagate`, the answer or the
 ``error_code``, ``error``). The codes: ``bad_image`` (not an 8/16-bit grey or colour array),
 ``wrong_image_size``, ``black_image``, ``saturated_image``, ``low_contrast``, ``no_door``, ``not_a_door``
 (a regular pattern such as a calibration board), ``edge_missing``, ``edge_not_straight``, ``corner_hidden``,
-``overexposed`` (the hinge face clips), ``sharpened`` (the camera sharpens its images), ``outside_envelope``, ``thickness_mismatch``, ``uncertain`` (the
-fit's standard error is too large, or the thickness's uncertainty reaches past the tolerance) and ``internal_error`` (a bug: the message asks to keep the image).
+``overexposed`` (the hinge face clips), ``sharpened`` (the camera sharpens its images), ``outside_envelope``,
+``thickness_mismatch``, ``uncertain`` (the fit's standard error is too large, or the thickness's uncertainty
+reaches past the tolerance) and ``internal_error`` (a bug: the message asks to keep the image).
 
 Pass a :class:`LocateTrace` to keep what the pipeline saw, and give it to
 :func:`doorloc.vision.overlay.draw_overlay` (which otherwise runs locate again).
