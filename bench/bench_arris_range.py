@@ -52,6 +52,9 @@ thickness 0.09), the worst 0.30; ``within``, the worst 1.27; ``bound``, 90 % wit
         [--light-sigma DEG]   (the cell's locate.light_direction_sigma_deg; default the cell's, 10)
         [--no-door-light]   (locate.light_from_door false: where no light is stated, a rounding's shading
                              free only, not also sought under the door's own light)
+        [--optics-sigma PX]   (the cell's locate.optics_edge_sigma_px; default the cell's, 0.1 px for a camera
+                               whose optics nobody measured; 0: the rendered camera's optics exact, the
+                               sigmas the image's own doubts)
 
 ``--open-limits`` measures what the model gets wrong on the doors it refuses as uncertain: are their
 sigmas as large as their errors (an honest refusal: the model must improve), or far larger (the doubt is
@@ -354,6 +357,13 @@ def main() -> None:
         default=None,
         help="the cell's locate.light_direction_sigma_deg (default: the cell's); 0 takes the stated light as exact",
     )
+    ap.add_argument(
+        "--optics-sigma",
+        type=float,
+        default=None,
+        help="the cell's locate.optics_edge_sigma_px (default: the cell's, 0.1); 0 takes the rendered camera's "
+        "optics as exact",
+    )
     args = ap.parse_args()
     sets = args.sets.split(",")
     if unknown := [s for s in sets if s not in SETS]:
@@ -372,6 +382,10 @@ def main() -> None:
     if args.light_sigma is not None:
         cell = dataclasses.replace(
             cell, locate=dataclasses.replace(cell.locate, light_direction_sigma_deg=args.light_sigma)
+        )
+    if args.optics_sigma is not None:
+        cell = dataclasses.replace(
+            cell, locate=dataclasses.replace(cell.locate, optics_edge_sigma_px=args.optics_sigma)
         )
     limits = None
     if args.open_limits:

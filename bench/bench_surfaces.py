@@ -30,7 +30,8 @@ it; 1.11 for Bouguet's photographs).
 For every set: n, answered, RMS and max error, and the uncertainty's coverage: the fraction of
 |error| <= 2 sigma per coordinate (ideal 95 %), the count beyond 5 sigma, the median sigma, and every
 refusal with its reason. The rendered camera is exact, so the calibration term is off
-(``calibration_sigma_px=0``): the coverage is that of the image-measurement part (fit + edge model).
+(``calibration_sigma_px=0``) and so is the doubt of an unmeasured camera's optics (``optics_edge_sigma_px=0``):
+the coverage is that of the image-measurement part (fit + edge model).
 
 More sets: add a generator to ``SETS`` (name -> function(n, seed) yielding (name, pose, door, effects,
 seed)), e.g. arris profiles or camera responses; ``--sets`` picks which run.
@@ -339,7 +340,7 @@ def _print_set(name: str, s: dict, seed: int | None) -> None:
 def run_rendered(cell: Cell, name: str, n: int, seed: int, response_factor: float | None = None) -> dict:
     from doorloc.vision.locate import locate
 
-    cfg = replace(cell.locate, calibration_sigma_px=0.0)  # the rendered camera is exact
+    cfg = replace(cell.locate, calibration_sigma_px=0.0, optics_edge_sigma_px=0.0)  # the camera is exact
     if response_factor is not None:  # a cell whose response was measured (doorloc calibrate's factor)
         cfg = replace(cfg, response_unmeasured_factor=response_factor)
     results = []
@@ -366,7 +367,7 @@ def run_fixture(folder: str) -> dict:
 
     d = REPO / "fixtures" / "rendered" / folder
     cell = load_cell(d / "cell.yaml")
-    cfg = replace(cell.locate, calibration_sigma_px=0.0)
+    cfg = replace(cell.locate, calibration_sigma_px=0.0, optics_edge_sigma_px=0.0)
     results = []
     with open(d / "truth.csv", newline="") as f:
         for row in csv.DictReader(f):

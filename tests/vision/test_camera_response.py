@@ -166,25 +166,31 @@ def test_edges_moved_by_the_point_spread_are_taken_back():
     assert abs(plain.z_mm - told.z_mm) > 0.03  # 0.25 px at about 0.21 mm a pixel
 
 
-def test_what_the_cameras_model_leaves_on_real_edges_is_in_every_answers_doubt():
+def test_what_the_cameras_optics_may_move_is_in_every_answers_doubt():
     """The model's measured error on the camera's real edges (``residual_edge_px``: `check-model --boards`'s
     held-out RMS of the photographs' median edge offset) is a term of its own in the uncertainty budget
-    (``camera``): that many pixels on every edge, at the door's scale, and the answer's sigma grows by it."""
+    (``camera``): that many pixels on every edge, at the door's scale. A camera nobody measured carries the
+    cell's ``locate.optics_edge_sigma_px`` (0.1 px) instead (``optics``): measuring it with a residual under
+    that narrows the answer's sigma; a camera known exactly (0) carries neither. The answer is the same."""
     door, truth = DoorSize(900, 50.0, 2100), DoorPose(2.0, 1.0, 0.5)
     img = render_door(CELL, door, truth, effects=Effects(blur_sigma_px=1.0, read_noise_dn=1.0), seed=4).image
     measured = locate(
-        img, dataclasses.replace(CELL, camera_photometry=PhotometricModel(residual_edge_px=0.1)), door
+        img, dataclasses.replace(CELL, camera_photometry=PhotometricModel(residual_edge_px=0.05)), door
     )
     plain = locate(img, CELL, door)
-    assert measured.ok and plain.ok
-    terms = {t["source"]: t for t in measured.diagnostics["uncertainty_budget"]}
-    assert "camera" not in {t["source"] for t in plain.diagnostics["uncertainty_budget"]}
-    assert terms["camera"]["x_mm"] == pytest.approx(0.1 * measured.scale_mm_per_px, rel=0.05)
-    assert terms["camera"]["z_mm"] == pytest.approx(0.1 * measured.scale_mm_per_px, rel=0.05)
-    # the same camera's error on both arrises: the thickness takes it twice
-    assert terms["camera"]["thickness_mm"] == pytest.approx(0.2 * measured.scale_mm_per_px, rel=0.05)
-    assert measured.uncertainty.x_mm > plain.uncertainty.x_mm
-    assert measured.x_mm == plain.x_mm and measured.z_mm == plain.z_mm
+    exact = locate(img, CELL, door, config=dataclasses.replace(CELL.locate, optics_edge_sigma_px=0.0))
+    assert measured.ok and plain.ok and exact.ok
+    for r, source, px in ((measured, "camera", 0.05), (plain, "optics", 0.1)):
+        terms = {t["source"]: t for t in r.diagnostics["uncertainty_budget"]}
+        assert {"camera", "optics"} & set(terms) == {source}
+        assert terms[source]["x_mm"] == pytest.approx(px * r.scale_mm_per_px, rel=0.05)
+        assert terms[source]["z_mm"] == pytest.approx(px * r.scale_mm_per_px, rel=0.05)
+        # the same camera's error on both arrises: the thickness takes it twice
+        assert terms[source]["thickness_mm"] == pytest.approx(2 * px * r.scale_mm_per_px, rel=0.05)
+    assert not {"camera", "optics"} & {t["source"] for t in exact.diagnostics["uncertainty_budget"]}
+    assert exact.uncertainty.x_mm < measured.uncertainty.x_mm < plain.uncertainty.x_mm
+    assert exact.uncertainty.z_mm < measured.uncertainty.z_mm < plain.uncertainty.z_mm
+    assert measured.x_mm == plain.x_mm == exact.x_mm and measured.z_mm == plain.z_mm == exact.z_mm
 
 
 def test_the_renderer_draws_a_cells_camera_model_and_locate_reads_it_back():
@@ -205,3 +211,22 @@ def test_the_renderer_draws_a_cells_camera_model_and_locate_reads_it_back():
     plain = locate(img, CELL, door)
     if plain.ok:
         assert abs(plain.z_mm - told.z_mm) > 0.03
+
+
+def test_a_pose_uncertain_from_unmeasured_optics_says_how_to_measure_them():
+    """A cell that takes its camera's optics as known only within 0.6 px (0.12 mm at this door's scale,
+    over the 0.1 mm it allows) refuses the door ``uncertain``, naming the doubt and the command that lifts
+    it; the same cell with the camera measured (its model's residual 0.05 px) answers it."""
+    door, truth = DoorSize(900, 50.0, 2100), DoorPose(-1.0, 2.0, -0.3)
+    img = render_door(CELL, door, truth, effects=Effects(blur_sigma_px=1.0, read_noise_dn=1.0), seed=6).image
+    loose = dataclasses.replace(CELL, locate=dataclasses.replace(CELL.locate, optics_edge_sigma_px=0.6))
+    r = locate(img, loose, door)
+    assert (
+        r.error_code == "uncertain"
+        and "optics_edge_sigma_px" in r.error
+        and "check-model --boards" in r.error
+    )
+    measured = locate(
+        img, dataclasses.replace(loose, camera_photometry=PhotometricModel(residual_edge_px=0.05)), door
+    )
+    assert measured.ok, measured.error

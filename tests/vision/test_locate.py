@@ -306,8 +306,11 @@ def test_a_camera_that_sharpens_is_refused_and_one_that_does_not_is_answered(cel
     r = locate(sharpened.image, told, door)
     assert r.error_code == "sharpened" and "sharpening" in r.error, (r.error_code, r.error)
     assert r.diagnostics["noise_scale_ratio"] < 0.85
-    # the check off: answered, and (what it guards against) x 0.037 mm off at 3.3 sigma
-    off = locate(sharpened.image, told, door, config=LocateConfig(min_noise_scale_ratio=0.0))
+    # the check off: answered, and (what it guards against) x 0.037 mm off at 3.3 sigma of a camera whose
+    # optics are otherwise exact (1.6 of the default doubt for optics nobody measured)
+    off = locate(
+        sharpened.image, told, door, config=LocateConfig(min_noise_scale_ratio=0.0, optics_edge_sigma_px=0.0)
+    )
     assert off.ok and "noise_scale_ratio" not in off.diagnostics
     assert abs(off.x_mm - pose.x_mm) > 2 * off.uncertainty.x_mm
     quiet = render_door(
@@ -426,7 +429,8 @@ def test_thickness_is_never_accepted_beyond_the_tolerance_it_claims(cell):
     (The tolerance was 0.04 mm while the far arris took no texture doubt; with the hinge face's grain
     beside it counted, the 50 mm door's thickness, 0.010 mm off, carries a sigma of 0.010 instead of
     0.006 mm and 0.04 mm refused every door here, leaving the accepted branch untested.)"""
-    cfg = LocateConfig(thickness_tolerance_mm=0.05)
+    # (the rendered camera's optics exact: their default doubt, both arrises alike, is 0.04 mm of thickness)
+    cfg = LocateConfig(thickness_tolerance_mm=0.05, optics_edge_sigma_px=0.0)
     seen = set()
     # thin doors beside the far face (their thickness in doubt) and one 50 mm door (measured to ~0.01 mm)
     for i, (x, t) in enumerate([(-2.65, 32.25), (-1.5, 31.4), (-5.0, 30.3), (0.5, 29.6), (0.5, 50.0)]):
@@ -674,8 +678,11 @@ def test_a_cell_that_trusts_its_measured_response_does_not_read_it_again(cell):
     door = DoorSize(900, 50, 2100)
     pose = DoorPose(3.1, -2.2, 0.4)
     measured = replace(cell, response_gamma=2.2, response_gamma_sigma=0.05)
-    measured = replace(
-        measured, locate=replace(measured.locate, response_unmeasured_factor=1 + 2 * 0.05 / 2.2)
+    measured = replace(  # (and the rendered camera's optics exact)
+        measured,
+        locate=replace(
+            measured.locate, response_unmeasured_factor=1 + 2 * 0.05 / 2.2, optics_edge_sigma_px=0.0
+        ),
     )
 
     def located(camera_gamma, c, policy):
@@ -761,7 +768,9 @@ def test_a_square_door_whose_response_is_unread_carries_the_cells_doubt(cell):
         and abs(r.z_mm - pose.z_mm) < 2.0 * r.uncertainty.z_mm
     )
     assert all(ln.response_sigma_mm > 0.03 for ln in r.lines if ln.name != "far")
-    told = locate(img, replace(wrong, locate=replace(wrong.locate, response_unmeasured_factor=1.0)), door)
+    # (told its exponent was measured and its optics exact: 3.3 sigma of the default optics doubt)
+    exact = replace(wrong.locate, response_unmeasured_factor=1.0, optics_edge_sigma_px=0.0)
+    told = locate(img, replace(wrong, locate=exact), door)
     assert told.ok and abs(told.x_mm - pose.x_mm) > 4.0 * told.uncertainty.x_mm
 
 

@@ -2,7 +2,8 @@
 against the uncertainty the answer claims, so an accuracy change shows in CI.
 
 The rendered cells' camera is exact (the images were made with it), so the calibration term is switched
-off (``calibration_sigma_px=0``): what is tested is that the image-measurement part of the uncertainty
+off (``calibration_sigma_px=0``), and so is the doubt of an unmeasured camera's optics
+(``optics_edge_sigma_px=0``: 0.02 mm at these doors' scale, ten times the grid's errors): what is tested is that the image-measurement part of the uncertainty
 (fit noise + edge model) covers the error. The plain folders' camera response is exact too (linear, as
 their cells say): they are located as with a measured response (``response_unmeasured_factor=1``; a cell
 that never measured it carries up to 0.065 mm more on the square, sharp doors of ``widths``, whose edges
@@ -44,7 +45,7 @@ def _run(
     """(errors (n_ok, 3), sigmas (n_ok, 3), refusals [(image, code, message)]) over one fixture folder,
     located with its cell.yaml or ``cell`` (``response_known``: its camera response as measured)."""
     cell = cell or load_cell(FIX / folder / "cell.yaml")
-    cfg = replace(cell.locate, calibration_sigma_px=0.0)
+    cfg = replace(cell.locate, calibration_sigma_px=0.0, optics_edge_sigma_px=0.0)
     if response_known:
         cfg = replace(cfg, response_unmeasured_factor=1.0)
     errs, sigs, refused = [], [], []
@@ -161,7 +162,7 @@ def test_effects_fixtures_thickness_is_covered_by_its_sigma():
     add instead of adding in quadrature. Measured: 27 of 27 thicknesses 0.08-0.12 mm off (the cell's 1.0
     for a 2.2 camera), all within 2 of their sigmas (22 % while the two were added in quadrature)."""
     cell = load_cell(FIX / "effects" / "cell.yaml")
-    cfg = replace(cell.locate, calibration_sigma_px=0.0)
+    cfg = replace(cell.locate, calibration_sigma_px=0.0, optics_edge_sigma_px=0.0)
     z = []
     with open(FIX / "effects" / "truth.csv", newline="") as f:
         rows = list(csv.DictReader(f))

@@ -302,11 +302,12 @@ def test_locate_carries_the_calibration_covariance_into_the_answer(cell, tmp_pat
     with_cov = load_cell(cell_path)
     assert with_cov.calibration_covariance is not None and with_cov.calibration_covariance_names == NAMES
     r = locate(img, with_cov, door)
-    # (the rendered camera exact: its calibration and its linear response; a sharp door's unmeasured
-    # response would otherwise carry ~0.027 mm, locate.response_unmeasured_factor)
-    r0 = locate(
-        img, cell, door, config=replace(cell.locate, calibration_sigma_px=0.0, response_unmeasured_factor=1.0)
+    # (the rendered camera exact: its calibration, its optics and its linear response; a sharp door's
+    # unmeasured response would otherwise carry ~0.027 mm, locate.response_unmeasured_factor)
+    exact = replace(
+        cell.locate, calibration_sigma_px=0.0, optics_edge_sigma_px=0.0, response_unmeasured_factor=1.0
     )
+    r0 = locate(img, cell, door, config=exact)
     assert r.ok and r0.ok and r.uncertainty is not None and r0.uncertainty is not None
     cal = r.diagnostics["uncertainty_terms"]["calibration"]
     assert max(cal[:2]) > 0.005 and r.uncertainty.x_mm >= cal[0] and r.uncertainty.z_mm >= cal[1]

@@ -373,7 +373,10 @@ def _ungated(cfg: LocateConfig) -> LocateConfig:
     without a rounded door's own light (``locate.light_from_door``): that light is chosen image by image
     among directions its strips often fit about alike, and kept only where its answer passes the gate; with
     the gate's limits lifted it would always stand, and a relocation at another arris or exponent could
-    choose another direction, a jump in the relocation tables that no effect of the cell explains."""
+    choose another direction, a jump in the relocation tables that no effect of the cell explains. Nor
+    with the doubt of a camera's optics that nobody measured (``locate.optics_edge_sigma_px``): one shift
+    of every edge on every image of the camera, which the check looks for as an effect, not an image's
+    noise to weigh the pose components by."""
     big = 1e6
     return replace(
         cfg,
@@ -382,6 +385,7 @@ def _ungated(cfg: LocateConfig) -> LocateConfig:
         max_uncertainty_deg=big,
         max_sigma_mm=big,
         light_from_door=False,
+        optics_edge_sigma_px=0.0,
     )
 
 

@@ -76,13 +76,7 @@ def edge_doubts(
         model = model.with_doubts(*_jpeg_doubts(samples, fit))
     if r.arris_fits:
         model = model.with_doubts(*_arris_doubts(r.arris_fits, samples, fit, r.pose.scale_mm_per_px, figures))
-    if cell.camera_photometry is not None and cell.camera_photometry.residual_edge_px > 0:
-        # what the camera's model leaves on its real edges (measured on its board photographs, held out): one
-        # camera's error, the same way on every edge (the photographs' bright areas larger or smaller)
-        residual = cell.camera_photometry.residual_edge_px
-        model = model.with_doubts(
-            *(LineDoubt("camera", k, residual, group="camera_model") for k in EDGE_NAMES)
-        )
+    model = model.with_doubts(*_optics_doubts(cell, cfg))
     disputed = None
     if check.response is not None:
         response = _response_terms(
@@ -110,6 +104,20 @@ def edge_doubts(
             plane, r, cell.response_gamma, factor, model.blur_px, allowed, figures
         )
     return EdgeDoubts(model.with_doubts(*response), figures, disputed)
+
+
+def _optics_doubts(cell: Cell, cfg: LocateConfig) -> list[LineDoubt]:
+    """What the camera's optics may move every edge by beyond the edge model (px): one camera's error, the
+    same way on every edge (its bright areas larger or smaller, its point spread off centre), so one
+    correlation group. Measured where the cell carries the camera's photometric model (its held-out
+    ``residual_edge_px``, the ``camera`` source), else the cell's ``optics_edge_sigma_px`` (``optics``)."""
+    pm = cell.camera_photometry
+    source, sigma = (
+        ("camera", pm.residual_edge_px) if pm is not None else ("optics", cfg.optics_edge_sigma_px)
+    )
+    if not sigma > 0:
+        return []
+    return [LineDoubt(source, k, sigma, group="camera_model") for k in EDGE_NAMES]
 
 
 def _edge_model_doubts(

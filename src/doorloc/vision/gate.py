@@ -568,11 +568,14 @@ def _pose_check(
             ),
         )
         hint = _UNCERTAIN_HINT[worst]
-        if worst == "edge_model" and response is None:
-            # the unchecked response is the largest doubt of a pose line: say so, and what lifts it
+        if worst == "edge_model":
+            # the unchecked response or the unmeasured optics is the largest doubt of a pose line: say so,
+            # and what lifts it
             big = [model.largest_source(k, among=_MODEL_REPORTED) for k in ("bottom", "reference")]
-            if "response" in big:
+            if "response" in big and response is None:
                 hint = _UNCERTAIN_HINT["response_unmeasured"]
+            elif "optics" in big:
+                hint = _UNCERTAIN_HINT["optics_unmeasured"]
         return q.Refusal(
             "uncertain",
             f"the pose is uncertain to x {unc.x_mm:.3f} mm, z {unc.z_mm:.3f} mm, "
@@ -607,6 +610,10 @@ _UNCERTAIN_HINT = {
     "chessboard photographs, with the factor they allow; or an image of a plain-edged door in this cell: its "
     "answer's diagnostics camera_response.fitted), put it in the cell file and set "
     "locate.response_unmeasured_factor to what the measurement allows",
+    "optics_unmeasured": "the camera's optics were not measured, and the cell takes every edge as known only "
+    "within locate.optics_edge_sigma_px; measure them once (doorloc check-model --boards on the calibration's "
+    "chessboard photographs writes the camera's photometric model, with what it leaves on real edges) and "
+    "point the cell's camera.calibration at the file it writes",
     "fit": "the edges are too noisy; check focus, lighting and exposure",
     "edge_model": "the door's edges do not look like clean steps (strong grain or marks along an edge, an arris or "
     "a camera response the cell does not describe); check the cell's door and camera settings",
@@ -617,7 +624,7 @@ _UNCERTAIN_HINT = {
 
 #: the doubts a line's edge model reports besides the texture beside it (the texture of a pose line is its
 #: own term; which of these is largest names the hint of an uncertain pose)
-_MODEL_REPORTED = ("far_face", "jpeg", "arris", "response", "camera")
+_MODEL_REPORTED = ("far_face", "jpeg", "arris", "response", "camera", "optics")
 
 
 def _budget(

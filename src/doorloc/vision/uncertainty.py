@@ -31,7 +31,9 @@ source's 1-sigma contribution, so that the dominant term can be read off):
     - whatever term an edge model or a correction knows of its own line, contributed as a typed
       :class:`LineDoubt` (source, line, offset and tilt, correlation group): the far-face fit, the arris
       correction, the camera response (one correlation group: a camera exponent moves both arrises
-      alike). The texture and JPEG terms above are such doubts too.
+      alike), the camera's optics (one group too: what its photometric model leaves on real edges, or,
+      where it has none, ``LocateConfig.optics_edge_sigma_px``). The texture and JPEG terms above are such
+      doubts too.
 
     The line's total is reported as ``lines[i].model_sigma_mm``.
 ``calibration``
@@ -109,7 +111,7 @@ _DIST_INDEX = {
 
 #: the edge-model doubts a line can carry besides the floor and the blur term, in the order a line's total
 #: adds them (the order fixes the last bits of the sums)
-DOUBT_SOURCES = ("texture", "far_face", "jpeg", "arris", "response", "camera")
+DOUBT_SOURCES = ("texture", "far_face", "jpeg", "arris", "response", "camera", "optics")
 
 #: the lines a doubt can move
 EDGE_LINES = ("bottom", "reference", "far")
@@ -129,7 +131,8 @@ class LineDoubt:
         What it comes from, one of :data:`DOUBT_SOURCES` (``"texture"``: grain beside the edge; ``"far_face"``:
         the far-face model; ``"jpeg"``: block quantisation; ``"arris"``: the arris correction;
         ``"response"``: the camera response; ``"camera"``: what the camera's photometric model leaves
-        unexplained on real edges).
+        unexplained on real edges; ``"optics"``: what an unmeasured camera's optics may move its edges by,
+        ``LocateConfig.optics_edge_sigma_px``).
     line : str
         The line it moves: ``"bottom"``, ``"reference"`` or ``"far"``.
     offset_px : float
