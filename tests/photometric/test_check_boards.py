@@ -168,6 +168,25 @@ def test_report_says_when_the_extended_model_draws_profiles_worse(tmp_path):
     assert "draws these edges' profiles worse" not in report_markdown(replace(worse, causes=[]))
 
 
+def test_report_says_to_use_the_extended_calibration_wherever_it_measured_something(tmp_path):
+    """The extended calibration replaces locate's doubt for optics nobody measured by the residual the
+    photographs measured, so the report's action names it even where no cause was found; with neither a
+    cause nor a residual there is nothing to do."""
+    cal = _boards(tmp_path / "boards", PhotometricModel(), 4243)
+    check = check_boards(tmp_path / "boards", Chessboard(9, 6, 25.0), load_calibration(cal))
+
+    def action(c):
+        return next(ln for ln in report_markdown(c).splitlines() if ln.startswith("**Action:**"))
+
+    measured = replace(check, causes=[], model=check.model.with_values(residual_edge_px=0.021))
+    assert "camera_photometric.yaml" in action(measured) and "0.021 px" in action(measured)
+    assert "optics_edge_sigma_px" in action(measured)
+    named = replace(measured, causes=["response_shoulder"])
+    assert "camera_photometric.yaml" in action(named) and "0.021 px" in action(named)
+    nothing = replace(check, causes=[], model=check.model.with_values(residual_edge_px=0.0))
+    assert action(nothing) == "**Action:** none."
+
+
 @pytest.mark.slow
 def test_hidden_ghost_is_named_as_the_spreads_asymmetry(tmp_path):
     # a ghost (a fifth of the light 3-4 px away, a random direction) moves the edges against the corners:

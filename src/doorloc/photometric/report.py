@@ -93,6 +93,24 @@ def report_dict(check: BoardCheck) -> dict:
     }
 
 
+def _action(named: list[str], residual_edge_px: float) -> str:
+    """The report's action: the extended calibration wherever the camera's is read, where it holds a cause
+    or a measured residual (locate counts that residual on every edge in place of the doubt it grants a
+    camera whose optics nobody measured, ``locate.optics_edge_sigma_px``)."""
+    use = f"use `{EXTENDED_CALIBRATION}` (this calibration with the photometric model added) wherever the camera's calibration is read"
+    residual = (
+        f"locate then counts the {residual_edge_px:.3f} px these photographs' edges keep, held out, on every edge, "
+        "in place of the doubt it grants a camera whose optics nobody measured (locate.optics_edge_sigma_px)"
+    )
+    if named and residual_edge_px > 0:
+        return f"{use}; {residual}."
+    if named:
+        return f"{use}."
+    if residual_edge_px > 0:
+        return f"nothing to model, but {use}: {residual}."
+    return "none."
+
+
 def report_markdown(check: BoardCheck) -> str:
     """``report.md``: the verdict and the action first, then the figures."""
     off = check.heldout_rms("offset")
@@ -103,7 +121,7 @@ def report_markdown(check: BoardCheck) -> str:
     if not check.causes:
         lines.append(
             "**Verdict: the plain model (linear response, even blur, a true print) explains these edges.** "
-            "Nothing to change."
+            "Nothing to add to it."
         )
     else:
         lines.append(
@@ -118,17 +136,7 @@ def report_markdown(check: BoardCheck) -> str:
                 "**Part of the error is unexplained** by the catalogue: the model is extended with what was "
                 "found, but edges on this camera keep a bias beyond noise; treat its edge positions with that doubt."
             )
-    lines += [
-        "",
-        "**Action:** "
-        + (
-            f"use `{EXTENDED_CALIBRATION}` (this calibration with the photometric model added) wherever the camera's "
-            "calibration is read."
-            if named
-            else "none."
-        ),
-        "",
-    ]
+    lines += ["", "**Action:** " + _action(named, check.model.residual_edge_px), ""]
     for c in named:
         cause = CAUSES_BY_NAME.get(c)
         ps = ", ".join(
