@@ -3,8 +3,9 @@ against the uncertainty the answer claims, so an accuracy change shows in CI.
 
 The rendered cells' camera is exact (the images were made with it), so the calibration term is switched
 off (``calibration_sigma_px=0``), and so is the doubt of an unmeasured camera's optics
-(``optics_edge_sigma_px=0``: 0.02 mm at these doors' scale, ten times the grid's errors): what is tested is that the image-measurement part of the uncertainty
-(fit noise + edge model) covers the error. The plain folders' camera response is exact too (linear, as
+(``optics_edge_sigma_px=0``: 0.02 mm at these doors' scale, where the grid's errors are a few
+ten-thousandths): what is tested is that the image-measurement part of the uncertainty (fit noise + edge
+model) covers the error. The plain folders' camera response is exact too (linear, as
 their cells say): they are located as with a measured response (``response_unmeasured_factor=1``; a cell
 that never measured it carries up to 0.065 mm more on the square, sharp doors of ``widths``, whose edges
 cannot show the response; tests/vision/test_locate.py covers that doubt). The effects folder's cell
