@@ -97,10 +97,13 @@ def _action(named: list[str], residual_edge_px: float) -> str:
     """The report's action: the extended calibration wherever the camera's is read, where it holds a cause
     or a measured residual (locate counts that residual on every edge in place of the doubt it grants a
     camera whose optics nobody measured, ``locate.optics_edge_sigma_px``)."""
-    use = f"use `{EXTENDED_CALIBRATION}` (this calibration with the photometric model added) wherever the camera's calibration is read"
+    use = (
+        f"use `{EXTENDED_CALIBRATION}` (this calibration with the photometric model added) wherever the "
+        "camera's calibration is read"
+    )
     residual = (
-        f"locate then counts the {residual_edge_px:.3f} px these photographs' edges keep, held out, on every edge, "
-        "in place of the doubt it grants a camera whose optics nobody measured (locate.optics_edge_sigma_px)"
+        f"locate then counts the {residual_edge_px:.3f} px these photographs' edges keep, held out, on every "
+        "edge, in place of the doubt it grants a camera whose optics nobody measured (locate.optics_edge_sigma_px)"
     )
     if named and residual_edge_px > 0:
         return f"{use}; {residual}."
