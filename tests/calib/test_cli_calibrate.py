@@ -78,6 +78,9 @@ def test_calibrate_uses_the_good_views_and_says_why_others_were_skipped(messy_di
     assert cal.response_gamma is not None and cal.response_gamma_sigma is not None
     assert 1.0 < cal.response_gamma < 3.0 and cal.response_gamma_sigma > 0.2
     assert f"camera.response_gamma: {cal.response_gamma:.2f}" in r.output
+    # and what it leaves of the optics, with the command that measures them on the same photographs
+    assert "camera optics: not measured" in r.output and "locate.optics_edge_sigma_px" in r.output
+    assert f"check-model --boards {messy_dir} --pattern 9x6 --square 25 --calibration {out}" in r.output
     doc = json.loads((rep / "calibration_report.json").read_text())
     assert {s["image"] for s in doc["skipped_images"]} == {"broken.jpg", "blank.png", "small.png"}
     assert len(doc["views"]) == 13 and sum(c["chosen"] for c in doc["model_selection"]["candidates"]) == 1

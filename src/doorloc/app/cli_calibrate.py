@@ -126,6 +126,17 @@ def _echo_response(response: BoardResponse | None) -> None:
     )
 
 
+def _echo_optics(images_dir: Path, pattern: str, square: float, out: Path) -> None:
+    """What the calibration leaves unmeasured of the camera's optics, and the command that measures them on
+    the same photographs (``check-model --boards``: chessboards only)."""
+    typer.echo(
+        "camera optics: not measured; locate counts locate.optics_edge_sigma_px (0.1 px by default) on every "
+        "edge for them. To measure them on these photographs (minutes): doorloc check-model --boards "
+        f"{images_dir} --pattern {pattern} --square {square:g} --calibration {out} --out REPORT_DIR, then name "
+        "REPORT_DIR/camera_photometric.yaml in the cell's camera.calibration"
+    )
+
+
 def _warn_beyond_valid_radius(camera: CameraModel, pixels: list[np.ndarray], cell_path: Path) -> None:
     """Warn when the board or the reference corner lies where the camera model is not to be trusted."""
     import numpy as np
@@ -243,6 +254,8 @@ def calibrate_cmd(
         write_report(report, done.outcome.result, d.scan, board, d.background)
     _echo_calibration(done.outcome, out, fmt)
     _echo_response(done.response)
+    if not charuco:
+        _echo_optics(images_dir, pattern, square, out)
 
 
 def calibrate_cell_cmd(
