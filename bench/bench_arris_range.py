@@ -26,8 +26,9 @@ and noise come from :func:`bench_arris.random_effects`), the camera's gamma is t
 Per image: the seed, the conditions (with ``diagnostics.noise_scale_ratio`` where it reads under 2), the
 errors of x, z, yaw and thickness and their claimed sigmas (x, z, yaw: the answer's ``uncertainty``;
 thickness: ``diagnostics.thickness_check.sigma_mm``), or the refusal and its code. Per set: the answered
-share, RMS of each error, the share within 2 claimed sigma and beyond 5, and the refusals by code; answers whose thickness the image could not verify (reported under
-``locate.thickness_check: report``) are counted apart.
+share, RMS of each error, the share within 2 claimed sigma and beyond 5, and the refusals by code;
+answers whose thickness the image could not verify (reported under ``locate.thickness_check: report``) are
+counted apart.
 
 ``--cell-gamma-off`` tells the cell a wrong exponent, within the cell's ``response_unmeasured_factor``
 (``within``: the camera's times the factor to a power drawn from -1..1; ``bound``: at -1 or +1, a linear
