@@ -26,6 +26,13 @@ from doorloc.vision.result import LineQuality, LocateResult, PoseUncertainty
 from doorloc.vision.sampling import oriented
 from doorloc.vision.state import EdgeDoubts, Refined, ResponseCheck
 from doorloc.vision.strip_response import CellDisputed
+from doorloc.vision.thickness_gate import (
+    far_silhouette_contrast,
+    other_reading,
+    strip_other_readings,
+    thickness_check,
+    thickness_diagnostics,
+)
 from doorloc.vision.uncertainty import (
     Budget,
     EdgeModelTerms,
@@ -73,7 +80,7 @@ def gate_and_answer(
             pose.x_mm, pose.z_mm, pose.yaw_deg, cell.envelope, cfg.envelope_margin_mm, cfg.envelope_margin_deg
         )
     )
-    other_mm, other = _other_reading(r, cfg.thickness_tolerance_mm)
+    other_mm, other = other_reading(r, cfg.thickness_tolerance_mm)
     # Standard uncertainty of the thickness: the two arris offsets' noise, and beside a visible far face
     # what its model leaves in doubt (a band narrower than the blur is hard to tell from the arris).
     # The two arrises' response doubts share their cause (one camera exponent moves both edges outwards
@@ -81,15 +88,15 @@ def gate_and_answer(
     # quadrature, the effects fixtures' thicknesses, a 2.2 camera in a cell of 1.0, were 0.08-0.12 mm off
     # with 78 % of them beyond 2 sigma.)
     budget = _budget(cell, cfg, region, r, model, other_mm if other is not None else None)
-    silhouette = _far_silhouette_contrast(r)
-    t_refusals, unverified, t_uncertain = _thickness_check(
-        r, door, cfg, budget.thickness_mm, other, silhouette, _strip_other_readings(r)
+    silhouette = far_silhouette_contrast(r)
+    t_refusals, unverified, t_uncertain = thickness_check(
+        r, door, cfg, budget.thickness_mm, other, silhouette, strip_other_readings(r)
     )
     # Under ``thickness_check: report`` a thickness the image cannot verify is said in the answer, not refused
     # (a thickness that is wrong at confidence is refused under either policy: it is in ``t_refusals``).
     refusals += t_refusals + (unverified if cfg.thickness_check == "refuse" else [])
     refusals += [_corner_sigma_check(fit, cfg, diagnostics), _response_disputed(disputed, cell)]
-    diagnostics["thickness_check"] = _thickness_diagnostics(
+    diagnostics["thickness_check"] = thickness_diagnostics(
         r, door, cfg, budget.thickness_reported_mm, t_uncertain, other, silhouette
     )
     unc = PoseUncertainty(x_mm=budget.x_mm, z_mm=budget.z_mm, yaw_deg=budget.yaw_deg)
@@ -225,33 +232,6 @@ def _fit_diagnostics(r: Refined, region: SearchRegion, door: DoorSize, figures: 
     }
 
 
-def _thickness_diagnostics(
-    r: Refined,
-    door: DoorSize,
-    cfg: LocateConfig,
-    sigma_mm: float,
-    uncertain: bool,
-    other: float | None,
-    silhouette: float | None,
-) -> dict:
-    """The thickness check's figures for the answer's diagnostics (mm): the measured and the expected
-    thickness, their difference, the tolerance, the reported standard uncertainty ``sigma_mm``, whether the
-    check found it ``uncertain``, whether the far face was in view, the other reading ``other`` where there
-    is one and the far silhouette's contrast (grey levels)."""
-    pose = r.pose
-    return {
-        "measured_mm": round(pose.thickness_mm, 4),
-        "expected_mm": door.thickness_mm,
-        "difference_mm": round(pose.thickness_mm - door.thickness_mm, 4),
-        "tolerance_mm": cfg.thickness_tolerance_mm,
-        "sigma_mm": round(sigma_mm, 5),
-        "uncertain": uncertain,
-        "far_face_in_view": r.far_beside,
-        "other_reading_mm": round(other, 4) if other is not None else None,
-        "far_silhouette_contrast": round(silhouette, 2) if silhouette is not None else None,
-    }
-
-
 def _line_checks(
     r: Refined, region: SearchRegion, model: EdgeModelTerms, cfg: LocateConfig
 ) -> tuple[list[LineQuality], list]:
@@ -323,193 +303,6 @@ def _corner_support(r: Refined, region: SearchRegion, cfg: LocateConfig, diagnos
         diagnostics[f"corner_support_{k}"] = round(frac, 3)
         refusals.append(q.check_corner_support(HUMAN[k], frac, n, cfg.min_corner_support))
     return refusals
-
-
-def _other_reading(r: Refined, t_tol: float) -> tuple[float, float | None]:
-    """How far a far face's other reading lies, mm, and that reading of the thickness where it is weighed."""
-    pose, far_fit, far_beside = r.pose, r.far_fit, r.far_beside
-    # A far face whose band looks like the background or like the hinge face reads two ways, a band's width
-    # apart (edges.FarFaceFit.other_reading_px), and the image cannot tell which: the check takes the reading
-    # nearer the recipe (a wrong door passes only where its other reading lands on the recipe's thickness),
-    # and the reported sigma reaches the other reading at 2 sigma. Readings more than twice the tolerance
-    # apart are not weighed (the fitted one is judged alone, as without a band): a band that wide is seen
-    # (on bench_surfaces' grain, hard and thin sets, 60 doors each, every fitted reading whose other lay
-    # 2.6-20 mm off was the door's; the two wrong ones were read beside bands of 0.6-1.2 px, 0.4-0.8 mm).
-    other_mm = far_fit.other_reading_px * pose.scale_mm_per_px if far_beside and far_fit is not None else 0.0
-    other = pose.thickness_mm + other_mm if 0.0 < abs(other_mm) <= 2.0 * t_tol else None
-    return other_mm, other
-
-
-def _far_silhouette_contrast(r: Refined) -> float | None:
-    """The grey-level step (0-255 scale, linear light) between the background and the far arris's strip next to
-    its outer border (a rounding's silhouette, a chamfer's outer edge); None where the far arris has no strip fit.
-
-    The strip fit's level next to the outer border, as a fraction of the background-to-face step, times that
-    step: where it is small the border's place cannot be seen and the thickness rests on the strip's inner end
-    and the shading model alone."""
-    if "far" not in r.arris_fits or r.far_beside:
-        return None
-    strip, _ = r.arris_fits["far"]
-    s = r.samples["far"]
-    step = s.step[np.isfinite(s.step)]
-    if strip.levels.size == 0 or step.size == 0:
-        return None
-    return float(abs(strip.levels[0]) * np.median(np.abs(step)))
-
-
-#: a side arris's strip fitted within this of the hinge face's level (deficit 0) or the background's (1)
-#: shows one plain step, which its other reading puts at the strip's other border
-PLAIN_STEP_DEFICIT = 0.2
-#: a thickness within the tolerance that misses the recipe by more than this many of its sigmas, where a side
-#: arris's other reading lands within as many, is that arris's misreading as likely as a door off its recipe
-MISREAD_SIGMAS = 3.0
-
-
-def _strip_other_readings(r: Refined) -> dict[str, float]:
-    """Per side arris whose strip the fit read as one plain step: how far its other reading moves the
-    thickness, mm (positive: thicker).
-
-    A strip at the hinge face's level and one at the background's both show one step, the first at the
-    strip's outer border and the second at its inner border, a strip's width apart, and the profiles fit
-    both alike: only the strip's radiance prior (:data:`doorloc.vision.strip_prior.STRIP_RADIANCE`) chose
-    between them. A deficit ``d`` places the outer border ``d`` strip widths outwards from where a plain step
-    would, so the other reading (deficit 1 for a strip read at the face's level, 0 for one read at the
-    background's) moves the edge by the deficits' difference times the width. The far arris beside a seen
-    far face is left out (its band's own other reading is :func:`_other_reading`'s)."""
-    shifts: dict[str, float] = {}
-    for k in ("reference", "far"):
-        if k not in r.arris_fits or (k == "far" and r.far_beside):
-            continue
-        strip, band_px = r.arris_fits[k]
-        d = strip.model_deficit
-        if not math.isfinite(d) or PLAIN_STEP_DEFICIT < d < 1.0 - PLAIN_STEP_DEFICIT:
-            continue  # a strip with a level between: two steps, no other reading
-        other_deficit = 1.0 if d < 0.5 else 0.0
-        shifts[k] = (other_deficit - strip.deficit) * band_px * r.pose.scale_mm_per_px
-    return shifts
-
-
-def _thickness_check(
-    r: Refined,
-    door: DoorSize,
-    cfg: LocateConfig,
-    t_sigma: float,
-    other: float | None,
-    silhouette: float | None = None,
-    strip_shifts: dict[str, float] | None = None,
-) -> tuple[list, list, bool]:
-    """The thickness's checks against the recipe: the refusals that stand under either policy, those of a
-    thickness the image cannot verify (refused under ``refuse``, reported under ``report``), and whether the
-    thickness is uncertain. ``silhouette``: the far arris's outer border's contrast, grey levels
-    (:func:`_far_silhouette_contrast`); below the edges' ``min_contrast`` the reason names it. ``strip_shifts``:
-    the side arrises' other readings (:func:`_strip_other_readings`), weighed where the fitted thickness misses
-    the recipe."""
-    pose, far_beside, t_tol = r.pose, r.far_beside, cfg.thickness_tolerance_mm
-    # (the fitted reading where the two are as near)
-    readings = [pose.thickness_mm] + ([other] if other is not None else [])
-    nearest = min(readings, key=lambda t: abs(t - door.thickness_mm))
-    mismatch = q.check_thickness(nearest, door.thickness_mm, t_tol, sigma=t_sigma)
-    # a thickness that misses the recipe (beyond the tolerance, or within it by more than its doubt allows)
-    # may be a side arris's strip read the other way
-    missed = mismatch is not None or abs(nearest - door.thickness_mm) > MISREAD_SIGMAS * t_sigma
-    misread = (
-        _misread_strips(nearest, door, t_tol, t_sigma, strip_shifts or {}, mismatch is not None)
-        if missed
-        else None
-    )
-    if misread is not None:
-        refusal, keys = misread
-        # a misread reference arris moves the door's x as far as its thickness: refused under either policy
-        return ([refusal], [], True) if "reference" in keys else ([], [refusal], True)
-    if mismatch is not None:
-        return [mismatch], [], True
-    if abs(nearest - door.thickness_mm) + 3.0 * t_sigma <= t_tol:
-        return [], [], False
-    measured = (
-        f"the door's thickness cannot be checked: it measures {nearest:.2f} +- {3 * t_sigma:.2f} mm against "
-        f"{door.thickness_mm:.2f} mm (tolerance {t_tol:g} mm)"
-    )
-    if silhouette is not None and silhouette < cfg.min_contrast:
-        why = (
-            f", as the far arris's outer edge hardly stands out from the background behind it (a step of "
-            f"{silhouette:.1f} grey levels; edges need {cfg.min_contrast:g}); light the door's far side "
-            "differently or put a background of another shade behind it, and take the image again"
-        )
-    else:
-        why = (
-            f"{' with its far face seen nearly edge-on' if far_beside else ''}; check the door and the "
-            "recipe, or move the door a little along X and take the image again"
-        )
-    return [], [q.Refusal("uncertain", measured + why)], True
-
-
-def _misread_strips(
-    measured: float,
-    door: DoorSize,
-    t_tol: float,
-    t_sigma: float,
-    strip_shifts: dict[str, float],
-    beyond: bool,
-) -> tuple[q.Refusal, tuple[str, ...]] | None:
-    """Where a thickness ``measured`` (mm) that misses the recipe lands on it with one or both side arrises'
-    strips read the other way (``strip_shifts``, mm: :func:`_strip_other_readings`), the ``uncertain``
-    refusal that says so and the arrises it names; else None (a wrong door, or another cause).
-
-    Missing the recipe: beyond the tolerance (``beyond``; then the other reading must pass the tolerance), or
-    within it by more than ``MISREAD_SIGMAS`` sigmas (then the other reading must lie within as many). The image cannot
-    tell such a door from one whose thickness is off by a strip's width: it is refused as uncertain, naming
-    the arris and what would tell, neither sent after the wrong door nor answered. Measured, arrises as dark
-    as the background through a sharp lens (`bench_arris_range.py --sets focused_dark --seed 8100 --n 32`):
-    five valid doors were refused ``thickness_mismatch``, every one's other reading within 0.04 mm of the
-    recipe; and one of them (seed 16125, a 1 mm rounding, every strip read at the face's level), under a
-    tolerance of 3 mm, was answered 0.83 mm off in x and 0.78 mm in z at sigmas of 0.08 and 0.10 mm, its
-    thickness 1.67 mm (7 sigma) thin and both side arrises' other readings 69.97 mm for 70.
-    """
-    keys = [k for k in ("reference", "far") if k in strip_shifts]
-    subsets = [(k,) for k in keys] + ([tuple(keys)] if len(keys) == 2 else [])
-    readings = {sub: measured + sum(strip_shifts[k] for k in sub) for sub in subsets}
-    fits = [
-        sub
-        for sub, t in readings.items()
-        if (
-            q.check_thickness(t, door.thickness_mm, t_tol, sigma=t_sigma) is None
-            if beyond
-            else abs(t - door.thickness_mm) <= MISREAD_SIGMAS * t_sigma
-        )
-    ]
-    if not fits:
-        return None
-    sub = min(fits, key=lambda k: abs(readings[k] - door.thickness_mm))
-    other = readings[sub]
-    both = len(sub) == 2
-    names = (
-        "both side arrises are"
-        if both
-        else f"the {'reference-face' if sub[0] == 'reference' else 'far'} arris is"
-    )
-    shows = (
-        "their strips show one step each, which is a strip's"
-        if both
-        else "its strip shows one step, which is the strip's"
-    )
-    doubt = "; the door's place along X is as much in doubt" if "reference" in sub else ""
-    return (
-        q.Refusal(
-            "uncertain",
-            (
-                f"the door's thickness cannot be checked: it measures {measured:.2f} mm against "
-                f"{door.thickness_mm:.2f} mm (tolerance {t_tol:g} mm)"
-                if beyond
-                else f"the door's thickness misses the recipe by more than its doubt: it measures {measured:.2f} +- "
-                f"{t_sigma:.2f} mm against {door.thickness_mm:.2f} mm"
-            )
-            + f", or {other:.2f} mm if {names} read the other way: {shows} outer border "
-            "(a strip as bright as the hinge face) or its inner border (a strip as dark as the background), and "
-            f"the image cannot tell which{doubt}; light the arrises so that they stand apart from both the face "
-            "and the background, or check that the right door is in the fixture",
-        ),
-        sub,
-    )
 
 
 def _response_disputed(disputed: CellDisputed | None, cell: Cell) -> q.Refusal | None:
