@@ -606,6 +606,52 @@ def test_a_side_arris_read_either_way_is_uncertain_not_a_wrong_door(
             assert ("along X" in r.error) == (misread != "far"), r.error
 
 
+def test_a_thickness_miss_an_unseen_silhouette_may_hide_is_uncertain_not_a_wrong_door(cell):
+    """A 2.96 mm rounding as dark as the background under ambient light (``bench_arris_range.py --n 32
+    --seed 9100 --sets dark``, seed 15130, its draw rounded): the far arris's outer edge has no contrast, its
+    strip's shading alone placed it, and the valid door measured 1.65 mm thin at 4.2 sigma; it was refused
+    ``thickness_mismatch``, "check that the right door is in the fixture", the wrong cause. A miss beyond the
+    tolerance that the arris can hold is ``uncertain``, naming the silhouette: refused under ``refuse``,
+    answered with its thickness unverified under ``report`` (the pose does not rest on the far arris). A door
+    7 mm thicker than its recipe, beyond what the arris can hide, stays a mismatch under either policy."""
+    door = DoorSize(900, 40.0, 2100, arris_mm=2.96, arris_profile="round")
+    pose = DoorPose(-5.21, -6.21, 0.87)
+    fx = Effects(
+        arris_profile="round",
+        albedo_hinge=0.626,
+        albedo_chamfer=0.101,
+        albedo_background=0.101,
+        light_ambient=1.066,
+        light_azimuth_deg=-40.6,
+        light_elevation_deg=18.6,
+        grain_period_mm=7.21,
+        blur_sigma_px=0.869,
+        read_noise_dn=0.263,
+        gamma=1.845,
+    )
+    told = replace(cell, response_gamma=fx.gamma)
+    img = render_door(cell, door, pose, effects=fx, seed=15130).image
+    for policy in ("refuse", "report"):
+        r = locate(img, told, door, config=replace(told.locate, thickness_check=policy))
+        check = r.diagnostics["thickness_check"]
+        # the case itself: beyond the tolerance by more than its sigma, the silhouette unseen
+        assert abs(check["difference_mm"]) > check["tolerance_mm"] + check["sigma_mm"], check
+        assert check["far_silhouette_contrast"] < told.locate.min_contrast, check
+        if policy == "refuse":
+            assert not r.ok and r.error_code == "uncertain", r.error
+            reason = r.error
+        else:
+            assert r.ok and r.thickness_verified is False, r.error
+            assert abs(r.x_mm - pose.x_mm) <= 2.0 * r.uncertainty.x_mm
+            assert abs(r.z_mm - pose.z_mm) <= 2.0 * r.uncertainty.z_mm
+            reason = r.thickness_unverified_reason
+        assert "2.96 mm rounding may hide" in reason and "outer edge hardly stands out" in reason, reason
+    wrong = render_door(cell, replace(door, thickness_mm=47.0), pose, effects=fx, seed=15130).image
+    for policy in ("refuse", "report"):
+        r = locate(wrong, told, door, config=replace(told.locate, thickness_check=policy))
+        assert not r.ok and r.error_code == "thickness_mismatch", (policy, r.error)
+
+
 def test_a_thickness_that_cannot_be_checked_on_an_uncertain_pose_says_both(cell):
     """A 0.31 mm rounding under 1.6 px of blur, 16 bits, a 1.8 camera the cell states
     (``bench_surfaces.py --sets combined``, seed 15, image 11, its draw to the last digit): its thickness

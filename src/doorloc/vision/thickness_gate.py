@@ -128,26 +128,48 @@ def thickness_check(
         refusal, keys = misread
         # a misread reference arris moves the door's x as far as its thickness: refused under either policy
         return ([refusal], [], True) if "reference" in keys else ([], [refusal], True)
+    unseen = _silhouette_unseen(silhouette, cfg)
     if mismatch is not None:
-        return [mismatch], [], True
+        if unseen is None or abs(nearest - door.thickness_mm) - t_tol > door.arris_mm:
+            return [mismatch], [], True
+        # The far arris's outer border has no contrast: the strip's shading alone placed it, anywhere across
+        # the strip, so a miss that the arris's size can hold is not a wrong door (dark wood as dark as the
+        # background, ambient light: `bench_arris_range.py --n 32 --seed 9100 --sets dark`, seeds 15109 and
+        # 15130, valid 2.24 and 2.96 mm roundings measured 1.62 and 1.65 mm thin at 3.2 and 4.2 sigma,
+        # silhouettes of 0.39 and 0.1 grey levels, were refused `thickness_mismatch`). The pose does not
+        # rest on the far arris: refused under `refuse`, reported unverified under `report`.
+        miss = (
+            f"the door's thickness cannot be checked: it measures {nearest:.2f} mm against "
+            f"{door.thickness_mm:.2f} mm (tolerance {t_tol:g} mm), a miss its {door.arris_mm:.3g} mm "
+            f"{'rounding' if door.arris_profile == 'round' else 'chamfer'} may hide"
+        )
+        return [], [q.Refusal("uncertain", miss + unseen)], True
     if abs(nearest - door.thickness_mm) + 3.0 * t_sigma <= t_tol:
         return [], [], False
     measured = (
         f"the door's thickness cannot be checked: it measures {nearest:.2f} +- {3 * t_sigma:.2f} mm against "
         f"{door.thickness_mm:.2f} mm (tolerance {t_tol:g} mm)"
     )
-    if silhouette is not None and silhouette < cfg.min_contrast:
-        why = (
-            f", as the far arris's outer edge hardly stands out from the background behind it (a step of "
-            f"{silhouette:.1f} grey levels; edges need {cfg.min_contrast:g}); light the door's far side "
-            "differently or put a background of another shade behind it, and take the image again"
-        )
+    if unseen is not None:
+        why = unseen
     else:
         why = (
             f"{' with its far face seen nearly edge-on' if far_beside else ''}; check the door and the "
             "recipe, or move the door a little along X and take the image again"
         )
     return [], [q.Refusal("uncertain", measured + why)], True
+
+
+def _silhouette_unseen(silhouette: float | None, cfg: LocateConfig) -> str | None:
+    """Where the far arris's outer edge has less contrast than edges need (``silhouette``, grey levels, under
+    ``min_contrast``), the clause that says so and what to do; else None."""
+    if silhouette is None or not silhouette < cfg.min_contrast:
+        return None
+    return (
+        f", as the far arris's outer edge hardly stands out from the background behind it (a step of "
+        f"{silhouette:.1f} grey levels; edges need {cfg.min_contrast:g}); light the door's far side "
+        "differently or put a background of another shade behind it, and take the image again"
+    )
 
 
 def _misread_strips(
