@@ -108,9 +108,10 @@ def thickness_check(
     """The thickness's checks against the recipe: the refusals that stand under either policy, those of a
     thickness the image cannot verify (refused under ``refuse``, reported under ``report``), and whether the
     thickness is uncertain. ``silhouette``: the far arris's outer border's contrast, grey levels
-    (:func:`far_silhouette_contrast`); below the edges' ``min_contrast`` the reason names it. ``strip_shifts``:
-    the side arrises' other readings (:func:`strip_other_readings`), weighed where the fitted thickness misses
-    the recipe."""
+    (:func:`far_silhouette_contrast`); below the edges' ``min_contrast`` the reason names it, and a miss beyond
+    the tolerance by no more than the recipe's arris size is one the image cannot verify, not a wrong door.
+    ``strip_shifts``: the side arrises' other readings (:func:`strip_other_readings`), weighed where the
+    fitted thickness misses the recipe."""
     pose, far_beside, t_tol = r.pose, r.far_beside, cfg.thickness_tolerance_mm
     # (the fitted reading where the two are as near)
     readings = [pose.thickness_mm] + ([other] if other is not None else [])
