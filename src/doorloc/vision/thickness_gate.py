@@ -82,7 +82,7 @@ def strip_other_readings(r: Refined) -> dict[str, float]:
     between them. A deficit ``d`` places the outer border ``d`` strip widths outwards from where a plain step
     would, so the other reading (deficit 1 for a strip read at the face's level, 0 for one read at the
     background's) moves the edge by the deficits' difference times the width. The far arris beside a seen
-    far face is left out (its band's own other reading is :func:`_other_reading`'s)."""
+    far face is left out (its band's own other reading is :func:`other_reading`'s)."""
     shifts: dict[str, float] = {}
     for k in ("reference", "far"):
         if k not in r.arris_fits or (k == "far" and r.far_beside):
