@@ -29,6 +29,7 @@ from doorloc.vision.strip_response import CellDisputed
 from doorloc.vision.thickness_gate import (
     far_silhouette_contrast,
     other_reading,
+    reported_budget,
     strip_other_readings,
     thickness_check,
     thickness_diagnostics,
@@ -96,6 +97,7 @@ def gate_and_answer(
     # (a thickness that is wrong at confidence is refused under either policy: it is in ``t_refusals``).
     refusals += t_refusals + (unverified if cfg.thickness_check == "refuse" else [])
     refusals += [_corner_sigma_check(fit, cfg, diagnostics), _response_disputed(disputed, cell)]
+    budget = reported_budget(budget, door, cfg, silhouette, t_uncertain)
     diagnostics["thickness_check"] = thickness_diagnostics(
         r, door, cfg, budget.thickness_reported_mm, t_uncertain, other, silhouette
     )

@@ -20,6 +20,7 @@ from doorloc.cell import DoorSize
 from doorloc.vision import quality as q
 from doorloc.vision.config import LocateConfig
 from doorloc.vision.state import Refined
+from doorloc.vision.uncertainty import Budget
 
 __all__ = [
     "MISREAD_SIGMAS",
@@ -28,6 +29,7 @@ __all__ = [
     "other_reading",
     "strip_other_readings",
     "thickness_check",
+    "reported_budget",
     "thickness_diagnostics",
 ]
 
@@ -159,6 +161,30 @@ def thickness_check(
             "recipe, or move the door a little along X and take the image again"
         )
     return [], [q.Refusal("uncertain", measured + why)], True
+
+
+def reported_budget(
+    budget: Budget, door: DoorSize, cfg: LocateConfig, silhouette: float | None, uncertain: bool
+) -> Budget:
+    """The answer's budget as reported: a thickness the check found ``uncertain`` with its far silhouette
+    unseen (:func:`far_silhouette_contrast` ``silhouette`` under ``min_contrast``) carries the strip's width
+    in its reported doubt, the ``far_silhouette`` term (not weighed by the check, which already found it
+    unverified; a verified thickness keeps its figure)."""
+    unseen = _unseen_silhouette_sigma_mm(door, silhouette, cfg)
+    if not uncertain or not unseen > 0:
+        return budget
+    return budget.with_reported_thickness_term("far_silhouette", unseen)
+
+
+def _unseen_silhouette_sigma_mm(door: DoorSize, silhouette: float | None, cfg: LocateConfig) -> float:
+    """What an unseen far silhouette leaves in doubt of the thickness, 1 sigma, mm: where the far arris's outer
+    edge has less contrast than edges need, the strip's shading alone places it, anywhere across the strip,
+    the recipe's arris size wide (uniform: the size over sqrt(12)); 0 where the silhouette is seen, or there
+    is no strip. (On `bench_arris_range.py --sets dark --seed 9100` a valid 2.96 mm rounding measured 1.65 mm
+    thin where its thickness's own sigma was 0.40 mm.)"""
+    if _silhouette_unseen(silhouette, cfg) is None or not door.arris_mm > 0:
+        return 0.0
+    return door.arris_mm / math.sqrt(12.0)
 
 
 def _silhouette_unseen(silhouette: float | None, cfg: LocateConfig) -> str | None:

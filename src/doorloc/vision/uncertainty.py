@@ -55,7 +55,7 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -415,6 +415,15 @@ class Budget:
     thickness_reported_mm: float
     groups: dict[str, tuple[float, float, float]]
     terms: tuple[BudgetTerm, ...]
+
+    def with_reported_thickness_term(self, source: str, sigma_mm: float) -> Budget:
+        """The same budget whose reported thickness (not the one the check weighs) carries one more term,
+        ``sigma_mm`` (1 sigma, mm) from ``source``, in quadrature."""
+        return replace(
+            self,
+            thickness_reported_mm=math.hypot(self.thickness_reported_mm, sigma_mm),
+            terms=(*self.terms, BudgetTerm(source, 0.0, 0.0, 0.0, sigma_mm)),
+        )
 
 
 def _yaw_rad(levers: dict[str, LineLever], tilts: dict[str, float]) -> float:
