@@ -56,6 +56,9 @@ thickness 0.09), the worst 0.30; ``within``, the worst 1.27; ``bound``, 90 % wit
         [--optics-sigma PX]   (the cell's locate.optics_edge_sigma_px; default the cell's, 0.1 px for a camera
                                whose optics nobody measured; 0: the rendered camera's optics exact, the
                                sigmas the image's own doubts)
+        [--wrong-thickness MM]   (wrong doors: each door rendered MM thicker than its recipe, negative
+                                  thinner, and located with the recipe; every answer is a wrong door passed,
+                                  and the refusals say how the thickness check caught the others)
 
 ``--open-limits`` measures what the model gets wrong on the doors it refuses as uncertain: are their
 sigmas as large as their errors (an honest refusal: the model must improve), or far larger (the doubt is
@@ -214,10 +217,13 @@ def run_one(
     label: str,
     told: float | None = None,
     limits: LocateConfig | None = None,
+    real: DoorSize | None = None,
 ) -> Outcome:
     """Locate one rendered door and compare with its true pose. ``limits``: the cell's own ``locate``
-    settings where ``cell``'s are opened (``--open-limits``): an answer beyond them is marked."""
-    img = render_door(cell, door, pose, effects=fx, seed=seed).image
+    settings where ``cell``'s are opened (``--open-limits``): an answer beyond them is marked. ``real``: the
+    door in the image where it is not the recipe's ``door`` (``--wrong-thickness``); the thickness's error is
+    against it."""
+    img = render_door(cell, real or door, pose, effects=fx, seed=seed).image
     cell = dataclasses.replace(cell, response_gamma=gamma if told is None else told)
     res = locate(img, cell, door)
     own = res.diagnostics.get("door_light")
@@ -236,7 +242,7 @@ def run_one(
         res.x_mm - pose.x_mm,
         res.z_mm - pose.z_mm,
         res.yaw_deg - pose.yaw_deg,
-        res.thickness_mm - door.thickness_mm,
+        res.thickness_mm - (real or door).thickness_mm,
     )
     u = res.uncertainty
     sigmas = (u.x_mm, u.z_mm, u.yaw_deg, float(tc.get("sigma_mm", math.nan)))
@@ -359,6 +365,13 @@ def main() -> None:
         help="the cell's locate.light_direction_sigma_deg (default: the cell's); 0 takes the stated light as exact",
     )
     ap.add_argument(
+        "--wrong-thickness",
+        type=float,
+        default=0.0,
+        help="wrong doors: each rendered this many mm thicker than its recipe (negative: thinner) and located "
+        "with the recipe; an answer is a wrong door passed",
+    )
+    ap.add_argument(
         "--optics-sigma",
         type=float,
         default=None,
@@ -445,9 +458,13 @@ def main() -> None:
                     label,
                     told,
                     limits,
+                    dataclasses.replace(door, thickness_mm=door.thickness_mm + args.wrong_thickness)
+                    if args.wrong_thickness
+                    else None,
                 )
             )
-        summary(f"{name} (seeds {args.seed + 1000 * k}..{args.seed + 1000 * k + args.n - 1})", rows)
+        wrong = f", every door {args.wrong_thickness:+g} mm off its recipe" if args.wrong_thickness else ""
+        summary(f"{name} (seeds {args.seed + 1000 * k}..{args.seed + 1000 * k + args.n - 1}{wrong})", rows)
         sys.stdout.flush()
 
 
