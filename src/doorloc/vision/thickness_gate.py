@@ -1,13 +1,15 @@
 """The thickness's checks in locate's gate: the door's measured thickness against its recipe
 (:func:`thickness_check`), the readings that weigh in it (a far face's other reading, :func:`other_reading`;
 a side arris's strip read the other way, :func:`strip_other_readings`; the far silhouette's contrast,
-:func:`far_silhouette_contrast`) and its figures for the answer (:func:`thickness_diagnostics`). Thicknesses
-in mm, contrasts in grey levels (0-255 scale, linear light).
+:func:`far_silhouette_contrast`), its figures for the answer (:func:`thickness_diagnostics`) and the doubt an
+unverified thickness reports (:func:`reported_budget`). Thicknesses in mm, contrasts in grey levels (0-255
+scale, linear light).
 
 A thickness wrong at confidence is ``thickness_mismatch`` (a wrong door or recipe); one the image cannot
-verify is ``uncertain``, refused or reported as unverified by ``locate.thickness_check``; one whose miss the
-image's own ambiguities explain (a strip read the other way, a silhouette without contrast) is ``uncertain``
-under either policy, naming what the image could not see.
+verify is ``uncertain``, refused or reported as unverified by ``locate.thickness_check``. A miss the image's
+own ambiguities explain (a strip read the other way, a far silhouette without contrast) is such a thickness,
+naming what the image could not see; refused under either policy where the reference arris is in doubt (the
+door's x is then as far off).
 """
 
 from __future__ import annotations
@@ -27,9 +29,9 @@ __all__ = [
     "PLAIN_STEP_DEFICIT",
     "far_silhouette_contrast",
     "other_reading",
+    "reported_budget",
     "strip_other_readings",
     "thickness_check",
-    "reported_budget",
     "thickness_diagnostics",
 ]
 
