@@ -56,6 +56,7 @@ thickness 0.09), the worst 0.30; ``within``, the worst 1.27; ``bound``, 90 % wit
         [--optics-sigma PX]   (the cell's locate.optics_edge_sigma_px; default the cell's, 0.1 px for a camera
                                whose optics nobody measured; 0: the rendered camera's optics exact, the
                                sigmas the image's own doubts)
+        [--thickness MM]   (every door this thick; default drawn from 40, 50 and 70 mm)
         [--wrong-thickness MM]   (wrong doors: each door rendered MM thicker than its recipe, negative
                                   thinner, and located with the recipe; every answer is a wrong door passed,
                                   and the refusals say how the thickness check caught the others)
@@ -365,6 +366,12 @@ def main() -> None:
         help="the cell's locate.light_direction_sigma_deg (default: the cell's); 0 takes the stated light as exact",
     )
     ap.add_argument(
+        "--thickness",
+        type=float,
+        default=None,
+        help="every door this thick, mm (default: drawn from 40, 50 and 70 mm; the rest of each draw unchanged)",
+    )
+    ap.add_argument(
         "--wrong-thickness",
         type=float,
         default=0.0,
@@ -414,6 +421,8 @@ def main() -> None:
         for i in range(args.n):
             seed = args.seed + 1000 * k + i
             door, pose, fx, gamma = draw(name, i, seed)
+            if args.thickness:
+                door = dataclasses.replace(door, thickness_mm=args.thickness)
             told = told_gamma(gamma, cell.locate.response_unmeasured_factor, args.cell_gamma_off, seed)
             label = (
                 f"{door.arris_profile} a={door.arris_mm:.2f} T={door.thickness_mm:g} "
