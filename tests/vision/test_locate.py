@@ -657,6 +657,40 @@ def test_a_thickness_miss_an_unseen_silhouette_may_hide_is_uncertain_not_a_wrong
         assert not r.ok and r.error_code == "thickness_mismatch", (policy, r.error)
 
 
+def test_a_strip_read_in_one_of_two_valleys_by_the_lines_picked_is_not_answered_confidently(cell):
+    """A 2.37 mm rounding lit from -14 deg, an 80 mm door (``bench_arris_range.py --n 32 --seed 9100 --sets
+    round --thickness 80``, seed 9119, its draw to the last digit). The bottom end's strip fit takes 40 of
+    its ~330 scan lines; that pick put the border 0.8 px from where the strip lies (deficit 0.50 +- 0.009
+    against 0.57 from the lines between), and the door was answered 0.168 mm off in z at a sigma of 0.047
+    (3.5 sigma). Two picks that land in different valleys carry their disagreement in the arris doubt: the
+    door is refused or answered within 2 sigma."""
+    door = DoorSize(900, 80.0, 2100, arris_mm=2.3650913428273395, arris_profile="round")
+    pose = DoorPose(-6.969022748376862, 5.092275064471094, 1.3633939985312726)
+    fx = Effects(
+        albedo_hinge=0.775585096644499,
+        albedo_chamfer=0.7537827269625951,
+        albedo_background=0.1884555032312059,
+        light_ambient=0.20884943324587413,
+        light_directional=0.6892789408845653,
+        light_azimuth_deg=-14.141681795333545,
+        light_elevation_deg=36.47452035431786,
+        grain_period_mm=6.6492385334095045,
+        arris_profile="round",
+        blur_sigma_px=1.379398811571441,
+        read_noise_dn=0.8181296359913965,
+        gamma=1.8545231897007142,
+    )
+    img = render_door(cell, door, pose, effects=fx, seed=9119).image
+    r = locate(img, replace(cell, response_gamma=fx.gamma), door)
+    bottom = r.diagnostics["arris_fit"]["bottom"]
+    if r.ok:
+        assert abs(r.z_mm - pose.z_mm) <= 2.0 * r.uncertainty.z_mm, (r.z_mm - pose.z_mm, r.uncertainty)
+    else:
+        assert r.error_code == "uncertain", r.error
+    # the pick read the far valley here: its doubt says so
+    assert abs(bottom["offset_px"]) < 0.3 or bottom["deficit_sigma"] > 0.05, bottom
+
+
 def test_a_thickness_that_cannot_be_checked_on_an_uncertain_pose_says_both(cell):
     """A 0.31 mm rounding under 1.6 px of blur, 16 bits, a 1.8 camera the cell states
     (``bench_surfaces.py --sets combined``, seed 15, image 11, its draw to the last digit): its thickness
