@@ -392,8 +392,8 @@ def _strip_shading(
         fit, pick = _fit_picked(prof, geom, window, pick)
         if fit is not None and idx.size >= 2 * n:
             # The same strip read from the lines between those picked: where the two land in different
-            # valleys (a border place a strip's width apart from where the other put it) the posterior gave
-            # one of two about equal valleys all the weight (measured: bench_arris_range.py --sets round
+            # valleys (their deficits, and the border's place, apart by more than their doubts) the
+            # posterior gave one of two about equal valleys all the weight (measured: bench_arris_range.py --sets round
             # --seed 9100 --thickness 80, seed 9119, a 2.37 mm rounding: one pick in five placed the bottom
             # end's border 0.8 px out, deficit 0.50 +- 0.009 against 0.57, and was answered 0.17 mm off at
             # 3.5 sigma). Their disagreement beyond what their own doubts explain joins the deficit's doubt.

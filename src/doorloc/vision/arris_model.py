@@ -85,7 +85,9 @@ class StripFit:
         bright as the hinge face (the edge is the outer border), 1 for one as dark as the background.
     deficit_sigma : float
         Its standard deviation: the posterior's along the valley where the border's offset and the strip's
-        level trade off (:func:`fit_strip_profile`), widened by the blur model's doubt.
+        level trade off (:func:`fit_strip_profile`), widened by the blur model's doubt, and where the same
+        strip read from another pick of its scan lines lands in another valley, by their difference
+        (:func:`doorloc.vision.arris_lines.arris_edges`).
     offset_px : float
         Outer border's offset from where the pose put it, px (along the mirrored scan, towards the door).
     blur_px : float
