@@ -388,8 +388,8 @@ def _strip_shading(
     fit = None
     if idx.size >= 5:
         n = min(idx.size, FIT_LINES)
-        pick = idx[np.linspace(0, idx.size - 1, n).round().astype(int)]
-        fit, pick = _fit_picked(prof, geom, window, pick)
+        at = np.linspace(0, idx.size - 1, n)
+        fit, pick = _fit_picked(prof, geom, window, idx[at.round().astype(int)])
         if fit is not None and idx.size >= 2 * n:
             # The same strip read from the lines between those picked: where the two land in different
             # valleys (their deficits, and the border's place, apart by more than their doubts) the
@@ -397,13 +397,8 @@ def _strip_shading(
             # --seed 9100 --thickness 80, seed 9119, a 2.37 mm rounding: one pick in five placed the bottom
             # end's border 0.8 px out, deficit 0.50 +- 0.009 against 0.57, and was answered 0.17 mm off at
             # 3.5 sigma). Their disagreement beyond what their own doubts explain joins the deficit's doubt.
-            half = 0.5 * (idx.size - 1) / (n - 1)
-            other, _ = _fit_picked(
-                prof,
-                geom,
-                window,
-                idx[(np.linspace(0, idx.size - 1, n) + half).clip(0, idx.size - 1).round().astype(int)],
-            )
+            between = (at + 0.5 * (at[1] - at[0])).clip(0, idx.size - 1)
+            other, _ = _fit_picked(prof, geom, window, idx[between.round().astype(int)])
             if other is not None:
                 apart = abs(fit.deficit - other.deficit)
                 if apart > SPLIT_SIGMAS * math.hypot(fit.deficit_sigma, other.deficit_sigma):
