@@ -11,9 +11,10 @@ from hypothesis import strategies as st
 
 from doorloc.vision.coarse import coarse_edges
 from doorloc.vision.edge_samples import ScanWindow
-from doorloc.vision.edges import subpixel_edges, transition_width
+from doorloc.vision.edges import subpixel_edges
 from doorloc.vision.far_face import BLUR_DOUBT, FarBand, step_blur, subpixel_edges_far_face
 from doorloc.vision.lines import fit_image_line, fit_rectangle_edges, fit_rectangle_lines, ransac_line
+from doorloc.vision.transition import transition_width
 
 
 def _box_step_image(

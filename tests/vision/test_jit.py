@@ -8,7 +8,7 @@
 - the texture term (texture.texture_bias: its mean profiles and closed form compiled), the plateau levels
   (response.plateau_levels) and the RANSAC line (lines.ransac_line) against their numpy versions
   (numpy_reference.py), bit for bit (RANSAC: the same inliers, the line to 1e-12 px); the transition
-  width (edges.transition_width) to 1e-12 of itself (its sums add in another order);
+  width (transition.transition_width) to 1e-12 of itself (its sums add in another order);
 - the plane map (metric.PlaneMap: rays to a cell plane and back) and the step fit (blurred_step.step_fit) against
   their numpy versions, bit for bit;
 - the search region's polyline interpolation (region._interp_on_scans) against np.interp over the sorted
@@ -46,11 +46,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from doorloc.vision import jit
-from doorloc.vision.edges import subpixel_edges, transition_width
+from doorloc.vision.edges import subpixel_edges
 from doorloc.vision.lines import _irls, fit_rectangle_edges, ransac_line
 from doorloc.vision.response import plateau_levels
 from doorloc.vision.sampling import linearizing_lut
 from doorloc.vision.texture import texture_bias
+from doorloc.vision.transition import transition_width
 
 _ref_spec = importlib.util.spec_from_file_location(
     "numpy_reference", Path(__file__).with_name("numpy_reference.py")

@@ -28,7 +28,7 @@ class EdgeSamples:
     noise : ndarray (N,) float
         Grey-level spread on the plateaus (0-255 scale), a per-sample noise figure.
     width : ndarray (N,) float
-        Reserved for a per-sample transition width, px (NaN: :func:`transition_width` measures the
+        Reserved for a per-sample transition width, px (NaN: :func:`doorloc.vision.transition.transition_width` measures the
         width of a whole edge, which noise does not inflate).
     bright : ndarray (N,) float
         The brighter of the two plateau levels, 0-255 scale (saturation check).

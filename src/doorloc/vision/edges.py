@@ -1,5 +1,5 @@
-"""The area readers of edge points along integer scan lines: a plain step, a step beside a band (an arris
-strip), and the width of an edge's transition.
+"""The area readers of edge points along integer scan lines: a plain step and a step beside a band (an arris
+strip).
 
 Every profile runs along an image column (for a near-horizontal edge, ``axis="col"``) or an image
 row (near-vertical edge, ``axis="row"``), so no interpolation blurs the data. The edges of this
@@ -24,8 +24,9 @@ when the window is centred on the edge.
 The other readers and what they share live beside this module: the edge points' type
 (:mod:`doorloc.vision.edge_samples`), the blurred pixel step and its per-line fit
 (:mod:`doorloc.vision.blurred_step`), the far-face fit (:mod:`doorloc.vision.far_face`), the texture term
-(:mod:`doorloc.vision.texture`) and the JPEG block measure (:mod:`doorloc.vision.jpeg_blocks`); the
-models that choose among them, :mod:`doorloc.vision.edge_models`.
+(:mod:`doorloc.vision.texture`), the JPEG block measure (:mod:`doorloc.vision.jpeg_blocks`) and the width
+of an edge's transition (:mod:`doorloc.vision.transition`); the models that choose among them,
+:mod:`doorloc.vision.edge_models`.
 """
 
 from __future__ import annotations
@@ -44,7 +45,6 @@ from doorloc.vision.sampling import (
     gather_profile_rows,
     gather_profiles,
     oriented,
-    pixel_buffer,
     smooth_along,
     smooth_along_rows,
     warm_up_planes,
@@ -54,7 +54,6 @@ __all__ = [
     "DITHERING_NOISE_LEVELS",
     "subpixel_edges",
     "subpixel_edges_banded",
-    "transition_width",
 ]
 
 #: plateau noise (grey levels, 1-sigma) from which the noise dithers the rounding to grey levels; under it
@@ -226,7 +225,9 @@ def subpixel_edges(
         )
     along, A, B, noise, valid = _area_edges_numpy(windows, lut, level_smooth, slope_smooth)
     step = B - A
-    width = np.full(scan.size, np.nan)  # per-sample widths are too noisy to use; see transition_width
+    width = np.full(
+        scan.size, np.nan
+    )  # per-sample widths are too noisy to use; see transition.transition_width
     return EdgeSamples(
         axis,
         scan,
@@ -356,131 +357,6 @@ def _window_length(
         with np.errstate(divide="ignore", invalid="ignore"):
             L = 2.0 * S / (b + np.sqrt(b * b) * np.sign(b))
     return L
-
-
-def transition_width(
-    plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half: int, lut: np.ndarray | None = None
-) -> float:
-    """RMS width (px) of the mean edge transition of the masked samples: the optical blur plus the pixel.
-
-    The profiles are aligned on their sub-pixel edge, normalised by their step and averaged before
-    the second moment of the gradient is taken, so noise averages out instead of inflating the width.
-    Returns NaN when no sample is usable.
-    """
-    m = mask & samples.valid
-    if not np.any(m):
-        return float("nan")
-    P = oriented(plane, samples.axis)
-    flat = pixel_buffer(P)
-    return float(
-        _mean_transition_width(
-            *flat,
-            P.shape[0],
-            samples.scan[m],
-            samples.along[m],
-            samples.step[m].astype(np.float64),
-            half,
-            lut if lut is not None else NO_LUT,
-        )
-    )
-
-
-def _mean_transition_width_warm_up(k) -> None:
-    for buf, table in warm_up_planes(16):
-        k(buf, 1, 16, 16, np.arange(6), np.full(6, 7.6), np.full(6, 100.0), 3, table)
-
-
-@kernel(_mean_transition_width_warm_up)
-def _mean_transition_width(buf, pitch_along, pitch_scan, n_along, scan, along, step, half, lut):
-    """:func:`transition_width` of the profiles around ``along`` on ``scan`` (``step``: their steps), compiled.
-
-    Each profile's gradient over ``[c0 - half, c0 + half]`` (``c0 = round(along)``, profiles leaving the
-    image skipped), normalised to unit area, binned at 1/4 px relative to its sub-pixel edge; the bins'
-    mean, smoothed over the filled bins, gives the width from its peak (or, below 1.5 px, from the second
-    moment within 3 px). NaN when no profile is usable.
-    """
-    # why many parameters: a numba nopython kernel over the plane's flat buffer takes arrays and scalars only
-    # why long: binning, the bins' smoothed peak and the second moment share one compiled pass's arrays
-    n = scan.size
-    L = 2 * half + 1
-    row = np.empty(L)
-    g = np.empty(L - 1)
-    # bins: pos * 4 for pos in [-half - 1, half + 1]: offsets 0 .. 8 half + 8 from the lowest
-    n_bins = 8 * half + 9
-    acc = np.zeros(n_bins)
-    cnt = np.zeros(n_bins, np.int64)
-    lo_bin = 4 * (-half - 1)
-    lowest = n_bins
-    any_ok = False
-    for i in range(n):
-        c0 = np.rint(along[i])
-        start = int(c0) - half
-        if start < 0 or start + L - 1 >= n_along:
-            continue
-        any_ok = True
-        base = scan[i] * pitch_scan
-        for j in range(L):
-            v = buf[(start + j) * pitch_along + base]
-            row[j] = grey(lut, v)
-        gsum = 0.0
-        for j in range(L - 1):
-            g[j] = (np.float32(row[j + 1]) - np.float32(row[j])) / step[i]
-            gsum += g[j]
-        den = max(abs(gsum), 1e-6)
-        sgn = np.sign(gsum)
-        for j in range(L - 1):
-            pos = j + 0.5 - half + (c0 - along[i])
-            b = int(np.rint(pos * 4.0)) - lo_bin
-            acc[b] += g[j] / den * sgn
-            cnt[b] += 1
-            lowest = min(lowest, b)
-    if not any_ok:
-        return np.nan
-    # the bins from the lowest filled one up (as np.bincount from the minimum)
-    highest = 0
-    for b in range(n_bins):
-        if cnt[b] > 0:
-            highest = b
-    m = highest - lowest + 1
-    gm = np.zeros(m)
-    filled = np.zeros(m)
-    for q in range(m):
-        if cnt[lowest + q] > 0:
-            gm[q] = acc[lowest + q] / cnt[lowest + q]
-            filled[q] = 1.0
-    peak = -np.inf
-    for q in range(m):
-        sg = gm[q]
-        sf = filled[q]
-        if q > 0:
-            sg += gm[q - 1]
-            sf += filled[q - 1]
-        if q < m - 1:
-            sg += gm[q + 1]
-            sf += filled[q + 1]
-        peak = max(peak, sg / max(sf, 1.0))
-    if not peak > 0:
-        return np.nan
-    sigma = 1.0 / (peak * np.sqrt(2.0 * np.pi))
-    if sigma < 1.5:
-        # A sharp edge sampled at few sub-pixel phases makes a spiky mean gradient whose peak says little:
-        # the second moment within +-3 px instead (the tails, where noise lives, excluded).
-        wsum = 0.0
-        mom = 0.0
-        for q in range(m):
-            x = (q + lowest + lo_bin) / 4.0
-            if abs(x) <= 3.0:
-                wsum += gm[q]
-                mom += gm[q] * x
-        if wsum > 0:
-            mu = mom / wsum
-            var = 0.0
-            for q in range(m):
-                x = (q + lowest + lo_bin) / 4.0
-                if abs(x) <= 3.0:
-                    var += gm[q] * (x - mu) ** 2
-            sigma = np.sqrt(max(var / wsum, 0.0))
-    return sigma
 
 
 def subpixel_edges_banded(

@@ -675,7 +675,7 @@ def step_blur(
 
     Each profile across the edge is modelled as a Gaussian-blurred step integrated over the pixels
     (the model of :func:`subpixel_edges_far_face` without a band) and the blur shared by all profiles
-    is fitted with every edge position. Unlike :func:`transition_width` this is not inflated by noise
+    is fitted with every edge position. Unlike :func:`doorloc.vision.transition.transition_width` this is not inflated by noise
     or texture. Returns NaN when no sample is usable.
     """
     idx = np.flatnonzero(mask & samples.valid)

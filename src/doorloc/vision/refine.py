@@ -18,7 +18,6 @@ from doorloc.vision.arris_model import StripFit, arris_geometry
 from doorloc.vision.config import LocateConfig
 from doorloc.vision.edge_models import ARRIS_PLATEAU_PX, EDGE_MODELS, PassSettings, ScanWindow, edge_kind
 from doorloc.vision.edge_samples import EdgeSamples
-from doorloc.vision.edges import transition_width
 from doorloc.vision.far_face import FarFaceFit, step_blur
 from doorloc.vision.lines import RectangleFit, fit_rectangle_edges
 from doorloc.vision.metric import MetricPose, pose_from_fit
@@ -28,6 +27,7 @@ from doorloc.vision.sampling import linearizing_lut
 from doorloc.vision.state import Refined, Refused, StageClock
 from doorloc.vision.stated_light import StatedLight
 from doorloc.vision.strip_response import StripReadings, arc_score, grey_score
+from doorloc.vision.transition import transition_width
 
 __all__ = ["arris_response_shifts", "refine"]
 
