@@ -156,7 +156,12 @@ def texture_bias(
 
 
 def transition_width(
-    plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half: int, lut: np.ndarray | None = None
+    plane: np.ndarray,
+    samples: EdgeSamples,
+    mask: np.ndarray,
+    half: int,
+    lut: np.ndarray | None = None,
+    quiet_side: int = 0,
 ) -> float:
     """RMS width (px) of the mean edge transition of the masked samples: the optical blur plus the pixel.
 
@@ -198,6 +203,17 @@ def transition_width(
     if peak <= 0:
         return float("nan")
     sigma = 1.0 / (peak * math.sqrt(2.0 * math.pi))
+    if sigma >= 1.5 and quiet_side != 0:
+        # the quiet side's half: twice its area from the highest filled bin over the peak (trapezoid over the
+        # filled bins, out to 3 sigmas of the whole-step width)
+        x = (np.arange(gm.size) + lo) / 4.0
+        f = np.flatnonzero(cnt > 0)
+        top = f[np.argmax(gm[f])]
+        side = f[(np.sign(quiet_side) * (f - top) >= 0) & (np.abs(x[f] - x[top]) <= 3.0 * sigma)]
+        side = side[np.argsort(np.abs(side - top))]
+        area = float(np.sum(0.5 * (gm[side][1:] + gm[side][:-1]) * np.abs(np.diff(x[side]))))
+        if side.size > 1 and 0 < 2.0 * area / (peak * math.sqrt(2.0 * math.pi)) < sigma:
+            sigma = 2.0 * area / (peak * math.sqrt(2.0 * math.pi))
     if sigma < 1.5:
         # A sharp edge sampled at few sub-pixel phases makes a spiky mean gradient whose peak says
         # little: take the second moment within +-3 px instead (the tails, where noise lives, excluded).
@@ -553,3 +569,20 @@ def line_borders(
             break
     good = ok & np.isfinite(step) & (np.abs(step) < 0.5) & np.isfinite(D) & (np.abs(D) > 0)
     return np.where(good, b, np.nan)
+
+
+def residual_structure_tilt(
+    scan: np.ndarray, residual_px: np.ndarray, inliers: np.ndarray, blocks: int = 4
+) -> float:
+    """doubts._residual_structure_tilt as numpy wrote it: the inliers' residuals sorted by scan line, their
+    means over ``np.array_split``'s blocks, ``sd(means) / sqrt(sum (centre - mean centre)^2)``."""
+    m = inliers & np.isfinite(residual_px)
+    if int(m.sum()) < 8 * blocks:
+        return float("nan")
+    order = np.argsort(scan[m])
+    s, res = scan[m][order].astype(float), residual_px[m][order]
+    parts = np.array_split(np.arange(s.size), blocks)
+    means = np.array([res[b].mean() for b in parts])
+    centres = np.array([s[b].mean() for b in parts])
+    spread = float(np.sum((centres - centres.mean()) ** 2))
+    return float(np.std(means, ddof=1) / math.sqrt(spread)) if spread > 0 else float("nan")

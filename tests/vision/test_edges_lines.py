@@ -73,6 +73,33 @@ def test_transition_width_measures_the_blur():
     assert abs(w - math.sqrt(4.0 + 1.0 / 12.0)) < 0.1
 
 
+@pytest.mark.parametrize("blur", [1.6, 2.0])
+def test_transition_width_on_the_quiet_side_is_not_widened_by_texture_beside_the_edge(blur):
+    """A grain line brightening the face a few px beyond the edge adds to the step that normalises the
+    gradients: the whole window reads it as blur; the background's half of the mean transition does not."""
+    import cv2
+
+    u = np.arange(300)
+    edges_v = 30.0 + 0.01 * u
+    d = np.arange(80)[:, None] + 0.5 - edges_v[None, :]
+    grain = 1.0 + 0.2 * np.where(d > 0, 1.0 - np.cos(2.0 * np.pi * np.clip(d, 0.0, None) / 14.0), 0.0)
+    img = 20.0 + 180.0 * np.clip(d, 0.0, 1.0) * grain  # dark above (the background), the face below
+    img = cv2.GaussianBlur(img, (0, 0), blur, borderType=cv2.BORDER_REFLECT)
+    s = subpixel_edges(img, "col", u, edges_v, 9, plateau=4)
+    true = math.sqrt(blur * blur + 1.0 / 12.0)
+    whole = transition_width(img, s, s.valid, 9)
+    quiet = transition_width(img, s, s.valid, 9, quiet_side=-1)
+    assert whole > true + 0.2
+    assert abs(quiet - true) < 0.1
+    # the textured side's half is no better than the whole, and a clean edge reads alike either way
+    assert transition_width(img, s, s.valid, 9, quiet_side=1) == pytest.approx(whole)
+    clean = cv2.GaussianBlur(20.0 + 180.0 * np.clip(d, 0.0, 1.0), (0, 0), blur, borderType=cv2.BORDER_REFLECT)
+    sc = subpixel_edges(clean, "col", u, edges_v, 9, plateau=4)
+    assert transition_width(clean, sc, sc.valid, 9, quiet_side=-1) == pytest.approx(
+        transition_width(clean, sc, sc.valid, 9), abs=0.03
+    )
+
+
 @pytest.mark.parametrize("blur", [0.0, 0.5, 1.0, 1.5, 2.0])
 @pytest.mark.parametrize("row", [30.0, 30.1, 30.37, 30.5])
 def test_transition_width_of_an_edge_along_a_pixel_row(blur, row):

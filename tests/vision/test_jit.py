@@ -15,6 +15,8 @@
   points, bit for bit;
 - the camera response's asymmetry measure (response_asymmetry.asymmetry: its normalised profiles and paired bins
   compiled) against its numpy version, bit for bit, at many phases and at one (the spline path);
+- a line's tilt doubt from its residuals' structure (doubts._residual_structure_tilt: its block means
+  compiled) against its numpy version, to rounding (the blocks are summed in order, not pairwise);
 - the least finite value's index (response_asymmetry._least_index) against np.nanargmin;
 - the in-place selection (jit.select_kth) against np.partition, numpy's pairwise sum (jit.pairwise_sum)
   against ndarray.sum, the running mean (response_asymmetry._running_mean_nearest) against uniform_filter1d;
@@ -46,6 +48,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from doorloc.vision import jit
+from doorloc.vision.doubts import _residual_structure_tilt
+from doorloc.vision.edge_samples import EdgeSamples
 from doorloc.vision.edges import subpixel_edges
 from doorloc.vision.lines import _irls, fit_rectangle_edges, ransac_line
 from doorloc.vision.response import plateau_levels
@@ -246,16 +250,17 @@ def test_texture_term_as_its_numpy_version(seed, sixteen, gamma, plateau, axis, 
     axis=st.sampled_from(["col", "row"]),
     n_lines=st.sampled_from([2, 5, 60, 300]),
     half=st.integers(2, 9),
+    quiet=st.sampled_from([0, -1, 1]),
 )
 def test_transition_width_and_plateau_levels_as_their_numpy_versions(
-    seed, sixteen, gamma, axis, n_lines, half
+    seed, sixteen, gamma, axis, n_lines, half, quiet
 ):
     rng = np.random.default_rng(seed)
     plane, smp, lut = _grain_edge(rng, sixteen, axis, gamma, n_lines)
     mask = rng.uniform(size=n_lines) > 0.1
     got, want = (
-        transition_width(plane, smp, mask, half, lut),
-        reference.transition_width(plane, smp, mask, half, lut),
+        transition_width(plane, smp, mask, half, lut, quiet_side=quiet),
+        reference.transition_width(plane, smp, mask, half, lut, quiet_side=quiet),
     )
     np.testing.assert_allclose(got, want, rtol=1e-12)
     if n_lines >= 60:
@@ -878,3 +883,29 @@ def test_least_index_is_nanargmin_where_a_value_is_finite(values, column):
         assert _least_index(a) == np.nanargmin(a)
     else:
         assert _least_index(a) == -1
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    n=st.integers(0, 900),
+    reverse=st.booleans(),
+    drop=st.floats(0.0, 0.5),
+)
+def test_residual_structure_tilt_as_its_numpy_version(seed, n, reverse, drop):
+    rng = np.random.default_rng(seed)
+    scan = np.arange(n)[::-1].copy() if reverse else np.arange(n)
+    residual = rng.standard_normal(n) * rng.uniform(0.01, 1.0) + 0.3 * np.sin(
+        scan / max(n, 1) * rng.uniform(0, 9)
+    )
+    residual[rng.uniform(size=n) < 0.02] = np.nan
+    inliers = rng.uniform(size=n) >= drop
+    samples = EdgeSamples(
+        "col", scan, np.zeros(n), np.ones(n), np.zeros(n), np.zeros(n), np.ones(n, bool), np.ones(n, bool)
+    )
+    got = _residual_structure_tilt(samples, residual, inliers)
+    want = reference.residual_structure_tilt(scan, residual, inliers)
+    if math.isnan(want):
+        assert math.isnan(got)
+    else:
+        assert got == pytest.approx(want, rel=1e-9)

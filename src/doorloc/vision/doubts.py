@@ -18,6 +18,7 @@ from doorloc.cell import Cell
 from doorloc.vision.arris_model import BLUR_DOUBT, StripFit
 from doorloc.vision.config import LocateConfig
 from doorloc.vision.edge_samples import EdgeSamples
+from doorloc.vision.jit import kernel
 from doorloc.vision.jpeg_blocks import block_artifact_ratio
 from doorloc.vision.lines import RectangleFit, fit_image_line
 from doorloc.vision.refine import arris_response_shifts
@@ -124,7 +125,8 @@ def _edge_model_doubts(
     plane, r: Refined, cfg: LocateConfig, cell: Cell, strips: dict[str, tuple[int, int]] | None = None
 ) -> list[LineDoubt]:
     """The doubts the edge models know of each line (:class:`doorloc.vision.uncertainty.LineDoubt`): the
-    far-face model's own, else the texture beside the edge (across it and along it).
+    far-face model's own, else the texture beside the edge (across it and along it; on a plain edge at
+    least what :func:`_plain_edge_texture` measures on it).
 
     ``strips``: per arris line, the pixels its strip (and the blur beside it) takes on the door side, and
     that side (+1: increasing ``along``); the texture there is read beyond the strip.
@@ -153,8 +155,45 @@ def _edge_model_doubts(
         # as beside the reference one, were 85 % within 2 sigma.) Its direction votes on the door's in
         # the joint fit where no far face is beside it, so its texture tilt counts in the yaw
         # (:func:`doorloc.vision.uncertainty.propagate`).
-        doubts.append(LineDoubt("texture", k, tb.offset_sigma_px, tilt=tb.tilt_sigma))
+        offset, tilt = _plain_edge_texture(r, k, tb.offset_sigma_px, tb.tilt_sigma)
+        doubts.append(LineDoubt("texture", k, offset, tilt=tilt))
     return doubts
+
+
+def _plain_edge_texture(r: Refined, k: str, offset_px: float, tilt: float) -> tuple[float, float]:
+    """A plain line's texture doubt (offset px, tilt px per px) from what the texture beyond its window
+    suggests (``offset_px``, ``tilt``: :func:`doorloc.vision.texture.texture_bias`), raised to what this
+    edge shows itself:
+
+    - where the blurred-step fit was tried, how far its points lay from the area estimator's (median, and
+      its difference between the edge's halves over their distance: ``Refined.readers_apart``). The two
+      read the same scan lines and take the grey levels at different distances from the transition, so
+      the texture under the window moves a reader at least that much. The texture beyond the window is a
+      sample of the grain, not the grain under it: on the surfaces bench's grain set (seed 2511) a dark
+      grain line right at the reference arris moved it 0.23 px where the texture beyond said 0.05 px,
+      x 0.094 mm off at 5.6 sigma;
+    - the tilt that the structure of its residuals over quarters of the line could hide
+      (:func:`_residual_structure_tilt`): grain wanders along the height (the renderer's by 0.5-2 mm over
+      150-400 mm), and the bias it gives the edge with it; the line's own standard error takes its
+      residuals as independent. (Arris lines carry this in their arris doubt.)
+    """
+    apart = r.readers_apart.get(k)
+    if apart is not None:
+        offset_px = _at_least(offset_px, abs(apart.shift_px))
+        tilt = _at_least(tilt, abs(apart.tilt))
+    if k not in r.arris_fits:
+        tilt = _at_least(
+            tilt,
+            _residual_structure_tilt(
+                r.samples[k], r.fit.residuals[k] / r.pose.scale_mm_per_px, r.fit.weights[k] > 0
+            ),
+        )
+    return offset_px, tilt
+
+
+def _at_least(value: float, floor: float) -> float:
+    """``value``, or ``floor`` where that is larger or ``value`` is NaN (a NaN ``floor`` changes nothing)."""
+    return floor if floor > value or (math.isnan(value) and not math.isnan(floor)) else value
 
 
 def _jpeg_doubts(samples: dict[str, EdgeSamples], fit: RectangleFit) -> list[LineDoubt]:
@@ -458,14 +497,44 @@ def _residual_structure_tilt(samples: EdgeSamples, residual_px: np.ndarray, inli
     the edge shows instead as residuals whose means over ``RESIDUAL_BLOCKS`` contiguous blocks differ.
     Taken as independent block errors of that scatter, the slope they allow is ``sd(block means) /
     sqrt(sum (s_i - mean s)^2)`` over the blocks' centres ``s_i`` (px). NaN with too few points.
+    (Compiled, :func:`_structure_tilt`: it runs on every line of every frame.)
     """
     m = inliers & np.isfinite(residual_px)
-    if int(m.sum()) < 8 * RESIDUAL_BLOCKS:
-        return float("nan")
-    order = np.argsort(samples.scan[m])
-    scan, res = samples.scan[m][order].astype(float), residual_px[m][order]
-    blocks = np.array_split(np.arange(scan.size), RESIDUAL_BLOCKS)
-    means = np.array([res[b].mean() for b in blocks])
-    centres = np.array([scan[b].mean() for b in blocks])
-    spread = float(np.sum((centres - centres.mean()) ** 2))
-    return float(np.std(means, ddof=1) / math.sqrt(spread)) if spread > 0 else float("nan")
+    scan, res = samples.scan[m].astype(np.float64), residual_px[m].astype(np.float64)
+    if scan.size >= 2 and np.any(scan[1:] < scan[:-1]):  # (the scan lines come in order from the tracks)
+        order = np.argsort(scan, kind="stable")
+        scan, res = scan[order], res[order]
+    return float(_structure_tilt(scan, res, RESIDUAL_BLOCKS))
+
+
+@kernel(lambda k: k(np.arange(40.0), np.zeros(40), 4))
+def _structure_tilt(scan, res, blocks):
+    """:func:`_residual_structure_tilt` on residuals ``res`` sorted by their scan lines ``scan``: the blocks
+    as ``np.array_split``'s (the first ``n % blocks`` one longer); NaN under 8 a block."""
+    n = scan.size
+    if n < 8 * blocks:
+        return np.nan
+    means = np.empty(blocks)
+    centres = np.empty(blocks)
+    q, r = n // blocks, n % blocks
+    start = 0
+    for b in range(blocks):
+        size = q + 1 if b < r else q
+        sr = 0.0
+        sc = 0.0
+        for i in range(start, start + size):
+            sr += res[i]
+            sc += scan[i]
+        means[b] = sr / size
+        centres[b] = sc / size
+        start += size
+    mc = centres.mean()
+    mm = means.mean()
+    spread = 0.0
+    var = 0.0
+    for b in range(blocks):
+        spread += (centres[b] - mc) ** 2
+        var += (means[b] - mm) ** 2
+    if not spread > 0:
+        return np.nan
+    return np.sqrt(var / (blocks - 1)) / np.sqrt(spread)

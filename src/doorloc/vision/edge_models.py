@@ -41,6 +41,7 @@ from doorloc.vision.blurred_step import refine_step_fit
 from doorloc.vision.edge_samples import EdgeSamples, ScanWindow
 from doorloc.vision.edges import subpixel_edges, subpixel_edges_banded
 from doorloc.vision.far_face import FarBand, FarFaceFit, subpixel_edges_far_face
+from doorloc.vision.jit import kernel, median_in_place
 from doorloc.vision.region import Track
 from doorloc.vision.stated_light import StatedLight
 from doorloc.vision.strip_prior import STRIP_RADIANCE, STRIP_RADIANCE_SIGMA
@@ -52,6 +53,7 @@ __all__ = [
     "EdgeModel",
     "EdgeReading",
     "PassSettings",
+    "ReadersApart",
     "ScanWindow",
     "edge_kind",
 ]
@@ -61,8 +63,12 @@ ARRIS_PLATEAU_PX = 4
 
 #: the step fit replaces the area estimate only where they differ by less than this many of the area
 #: estimator's texture sigma (plus STEP_FIT_AGREE_FLOOR_PX): a larger shift is a profile shape that the
-#: step model lacks, not texture
-STEP_FIT_AGREE_SIGMAS = 3.0
+#: step model lacks, not texture. That sigma is read on the texture beyond the window and a grain line
+#: right at the edge is its tail: on the surfaces bench's grain set (seed 2511) one moved the two readers
+#: 3.6 of it apart, the step fit's points 0.05 px off and the area estimator's 0.23 (with 3, that door was
+#: answered 0.094 mm off); the disagreement itself goes into the line's texture doubt either way
+#: (doubts._plain_edge_texture)
+STEP_FIT_AGREE_SIGMAS = 5.0
 STEP_FIT_AGREE_FLOOR_PX = 0.003
 
 
@@ -98,13 +104,36 @@ class EdgeReading:
     """What a model read on one edge: its points, and what it fitted on the way.
 
     ``far_fit``: the far-face model's fit; ``strip``: the arris strip's profile fit and the strip's width,
-    px; ``step_blur_px``: the blur with which the blurred-step fit refined the points.
+    px; ``step_blur_px``: the blur with which the blurred-step fit refined the points; ``readers_apart``:
+    where the step fit was tried, how far its points lay from the area estimator's (kept or not).
     """
 
     samples: EdgeSamples
     far_fit: FarFaceFit | None = None
     strip: tuple[StripFit, float] | None = None
     step_blur_px: float | None = None
+    readers_apart: ReadersApart | None = None
+
+
+@dataclass(frozen=True)
+class ReadersApart:
+    """Where the blurred-step fit was tried on a plain edge: how far its points lie from the area
+    estimator's. The two read the same scan lines and differ only in where they take the edge's grey
+    levels (the step fit right beside the transition, the area estimator at the window's ends), so this is
+    what texture near the edge does to a reader, measured on this edge rather than inferred from the
+    texture farther out (:func:`doorloc.vision.texture.texture_bias`).
+
+    Attributes
+    ----------
+    shift_px : float
+        Median shift of the step fit's points from the area estimator's, px (across the edge).
+    tilt : float
+        The difference of that median between the edge's two halves (by scan line) over the distance
+        between their mean scan lines, px per px along.
+    """
+
+    shift_px: float
+    tilt: float
 
 
 class EdgeModel(Protocol):
@@ -137,22 +166,51 @@ class StepFit:
         area = PlainArea().read(window, name, track, settings).samples
         blur = settings.step_blur_px[name]
         fitted = refine_step_fit(window.plane, area, window.half, blur, window.lut)
-        if _step_fit_agrees(window, area, fitted):
-            return EdgeReading(fitted, step_blur_px=blur)
-        return EdgeReading(area)
+        apart = _readers_apart(area, fitted)
+        if _step_fit_agrees(window, area, apart):
+            return EdgeReading(fitted, step_blur_px=blur, readers_apart=apart)
+        return EdgeReading(area, readers_apart=apart)
 
 
-def _step_fit_agrees(window: ScanWindow, area: EdgeSamples, fitted: EdgeSamples) -> bool:
-    """Whether the step fit's shift of an edge is what texture beside it explains (see the constants)."""
+def _readers_apart(area: EdgeSamples, fitted: EdgeSamples) -> ReadersApart | None:
+    """How far the step fit's points lie from the area estimator's (None below 16 points)."""
     d = fitted.along - area.along
-    d = d[np.isfinite(d)]
-    if d.size < 8:
+    ok = np.isfinite(d)
+    n = int(np.count_nonzero(ok))
+    if n < 16:
+        return None
+    d, scan = d[ok], area.scan[ok]
+    if np.any(scan[1:] < scan[:-1]):  # (the scan lines come in order from the tracks)
+        order = np.argsort(scan, kind="stable")
+        d, scan = d[order], scan[order]
+    shift, tilt = _apart_and_tilt(d, scan.astype(np.float64))
+    return ReadersApart(float(shift), float(tilt))
+
+
+@kernel(lambda k: k(np.zeros(20), np.arange(20.0)))
+def _apart_and_tilt(d, scan):
+    """:func:`_readers_apart`'s figures, compiled: the median of ``d`` (sorted by ``scan``), and the
+    difference of the medians of its two halves (the first ``ceil(n / 2)`` and the rest, as
+    ``np.array_split``) over the distance between their mean scan lines (0 without one)."""
+    n = d.size
+    k = n - n // 2
+    shift = median_in_place(d.copy())
+    lo = median_in_place(d[:k].copy())
+    hi = median_in_place(d[k:].copy())
+    lever = scan[k:].mean() - scan[:k].mean()
+    return shift, (hi - lo) / lever if lever > 0 else 0.0
+
+
+def _step_fit_agrees(window: ScanWindow, area: EdgeSamples, apart: ReadersApart | None) -> bool:
+    """Whether the step fit's shift of an edge (``apart``) is what texture beside it explains (see the
+    constants)."""
+    if apart is None:
         return False
     tex = texture_bias(
         window.plane, area, area.valid, window.half, window.plateau, window.lut
     ).offset_sigma_px
     tex = tex if math.isfinite(tex) else 0.0
-    return abs(float(np.median(d))) <= STEP_FIT_AGREE_SIGMAS * math.hypot(tex, STEP_FIT_AGREE_FLOOR_PX)
+    return abs(apart.shift_px) <= STEP_FIT_AGREE_SIGMAS * math.hypot(tex, STEP_FIT_AGREE_FLOOR_PX)
 
 
 class Banded:

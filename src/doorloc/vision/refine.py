@@ -16,7 +16,14 @@ from doorloc.vision import quality as q
 from doorloc.vision.arris_geometry import ArrisGeometry
 from doorloc.vision.arris_model import StripFit, arris_geometry
 from doorloc.vision.config import LocateConfig
-from doorloc.vision.edge_models import ARRIS_PLATEAU_PX, EDGE_MODELS, PassSettings, ScanWindow, edge_kind
+from doorloc.vision.edge_models import (
+    ARRIS_PLATEAU_PX,
+    EDGE_MODELS,
+    PassSettings,
+    ReadersApart,
+    ScanWindow,
+    edge_kind,
+)
 from doorloc.vision.edge_samples import EdgeSamples
 from doorloc.vision.far_face import FarFaceFit, step_blur
 from doorloc.vision.lines import RectangleFit, fit_rectangle_edges
@@ -43,12 +50,14 @@ READINGS_UNCHECKED = ("bottom",)
 @dataclass(frozen=True)
 class _Sampled:
     """Edge points of one pass: per line, whether a far face was beside the far arris, its fit, and the
-    lines whose points the blurred-step fit refined (name -> the blur it used, px)."""
+    lines whose points the blurred-step fit refined (name -> the blur it used, px) and, where it was tried,
+    how far its points lay from the area estimator's."""
 
     samples: dict[str, EdgeSamples]
     far_beside: bool
     far_fit: FarFaceFit | None
     step_fitted: dict[str, float]
+    readers_apart: dict[str, ReadersApart]
 
 
 @dataclass(frozen=True)
@@ -148,7 +157,7 @@ def _sample(
         step_blur_px=this_pass.step_fit or {},
         light=_stated_light(cfg),
     )
-    out, far_fit, step_fitted = {}, None, {}
+    out, far_fit, step_fitted, apart = {}, None, {}, {}
     for name in this_pass.lines:
         lay, t = region.layouts[name], tracks[name]
         window = ScanWindow(
@@ -171,7 +180,9 @@ def _sample(
             arris_fits[name] = reading.strip
         if reading.step_blur_px is not None:
             step_fitted[name] = reading.step_blur_px
-    return _Sampled(out, tracks["far"].beside_far_face, far_fit, step_fitted)
+        if reading.readers_apart is not None:
+            apart[name] = reading.readers_apart
+    return _Sampled(out, tracks["far"].beside_far_face, far_fit, step_fitted, apart)
 
 
 def _fit(
@@ -334,10 +345,7 @@ def refine(
             # (on the bottom end and the reference arris: beside the far arris a far face or an arris
             # strip can make two steps that look like blur)
             lut = linearizing_lut(plane.dtype, response_gamma)
-            widths = [
-                transition_width(plane, samples[k], fit.weights[k] > 0, half, lut)
-                for k in ("bottom", "reference")
-            ]
+            widths = _first_pass_widths(plane, samples, fit, region, cfg, half, lut)
             # np.nanmax of the pair when one is finite, without numpy
             blur = (
                 float(max(w for w in widths if not math.isnan(w)))
@@ -355,7 +363,8 @@ def refine(
                 optical_blur = _optical_blur(plane, ref0, cfg, blur, arris_fits)
         _pass += 1
     arris_fits = _held_to_first_pass(arris_fits, first_fits)
-    return Refined(samples, fit, pose, blur, half, far_beside, far_fit, sampled.step_fitted, arris_fits)
+    fitted, apart = sampled.step_fitted, sampled.readers_apart
+    return Refined(samples, fit, pose, blur, half, far_beside, far_fit, fitted, arris_fits, apart)
 
 
 def _held_to_first_pass(
@@ -469,6 +478,42 @@ def arris_response_shifts(
     trials = [score(s) if scores != "none" else math.nan for s in strips[1:]]
     used = score(strips[0]) if scores == "all" else math.nan
     return StripReadings(out, np.array(trials), used, "chamfers" if chamfered else "arcs")
+
+
+def _first_pass_widths(
+    plane,
+    samples: dict[str, EdgeSamples],
+    fit: RectangleFit,
+    region: SearchRegion,
+    cfg: LocateConfig,
+    half: int,
+    lut,
+) -> list[float]:
+    """The transition widths (px, :func:`doorloc.vision.transition.transition_width`) of the bottom end and
+    the reference arris on the first pass's points.
+
+    A plain reference arris's is also read on the background's side of its mean transition: the hinge
+    face's grain runs along it, and a grain line beside it is no blur (on the surfaces bench's strong grain
+    set, seed 2517, a 1.35 px blur read 2.44 px, the windows grew and the step fit was not used: x 0.33 mm
+    off). Across the bottom end the grain runs through the edge and averages out, and an arris strip is no
+    step on either side.
+    """
+    # why many parameters: the first pass's image, points, fit and search region, and the config and window that read them
+    return [
+        transition_width(
+            plane,
+            samples[k],
+            fit.weights[k] > 0,
+            half,
+            lut,
+            quiet_side=(
+                -region.layouts[k].polarity * (1 if cfg.door_brighter else -1)
+                if k == "reference" and not region.door.arris_mm > 0
+                else 0
+            ),
+        )
+        for k in ("bottom", "reference")
+    ]
 
 
 def _optical_blur(

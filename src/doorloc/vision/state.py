@@ -8,12 +8,13 @@ doubts stage: every line's doubts and what the diagnostics report of them) -> th
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from doorloc.cell import Cell
 from doorloc.vision import quality as q
 from doorloc.vision.arris_model import StripFit
+from doorloc.vision.edge_models import ReadersApart
 from doorloc.vision.edge_samples import EdgeSamples
 from doorloc.vision.far_face import FarFaceFit
 from doorloc.vision.lines import RectangleFit
@@ -51,6 +52,9 @@ class Refined:
         The lines whose points the blurred-step fit refined, and the blur it used, px.
     arris_fits : dict[str, tuple[StripFit, float]]
         Per line with an arris strip, its profile fit and the strip's width, px (read only).
+    readers_apart : dict[str, ReadersApart]
+        Per line where the blurred-step fit was tried, how far its points lay from the area estimator's,
+        whichever of the two stands.
     """
 
     samples: dict[str, EdgeSamples]
@@ -62,6 +66,7 @@ class Refined:
     far_fit: FarFaceFit | None
     step_fitted: dict[str, float]
     arris_fits: dict[str, tuple[StripFit, float]]
+    readers_apart: dict[str, ReadersApart] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
