@@ -189,6 +189,10 @@ class StripWindow:
     light : StatedLight or None
         The cell's light (its direction in the cell frame and its doubt), for a rounding's shading; None:
         free.
+    split_check : bool
+        The strip is also fitted on the scan lines between those picked, and the two fits' disagreement
+        joins its deficit's doubt (:func:`_strip_shading`); False where no one reads that doubt (the strips
+        read again at trial camera exponents only for their places and misfits).
     """
 
     lines: ScanWindow
@@ -197,6 +201,7 @@ class StripWindow:
     level_px: int | None = None
     line_fit: bool = True
     light: StatedLight | None = None
+    split_check: bool = True
 
     @property
     def door_side(self) -> int:
@@ -390,7 +395,7 @@ def _strip_shading(
         n = min(idx.size, FIT_LINES)
         at = np.linspace(0, idx.size - 1, n)
         fit, pick = _fit_picked(prof, geom, window, idx[at.round().astype(int)])
-        if fit is not None and idx.size >= 2 * n:
+        if fit is not None and window.split_check and idx.size >= 2 * n:
             # The same strip read from the lines between those picked: where the two land in different
             # valleys (their deficits, and the border's place, apart by more than their doubts) the
             # posterior gave one of two about equal valleys all the weight (measured: bench_arris_range.py --sets round

@@ -81,7 +81,8 @@ class PassSettings:
     ``slope_smooth``: scan lines for the plain estimator's slope; ``door``: the door's size and arris;
     ``arris``: the strips' geometry per line where the door has an arris; ``step_blur_px``: the lines the
     blurred-step fit refines, and the blur it uses; ``light``: the cell's light (its direction in the cell
-    frame and its doubt) where the cell states it.
+    frame and its doubt) where the cell states it; ``strip_doubts``: whether the arris strips' doubts are read
+    (False where strips are read again only for their places and misfits: their split check is skipped).
     """
 
     every: int
@@ -92,6 +93,7 @@ class PassSettings:
     arris: dict[str, ArrisGeometry] | None
     step_blur_px: dict[str, float]
     light: StatedLight | None = None
+    strip_doubts: bool = True
 
     @property
     def blur_guess_px(self) -> float:
@@ -270,6 +272,7 @@ class ArrisStrip:
                 # lost every far point on 2 of 48 arris bench frames)
                 line_fit=name != "far" or every == 1,
                 light=settings.light,
+                split_check=settings.strip_doubts,
             ),
             band,
             settings.arris[name],

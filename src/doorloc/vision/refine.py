@@ -66,7 +66,8 @@ class _Pass:
     read (``every``), whether the edges are sharper than the windows assume (``sharp``), the optical blur
     measured on the reference arris (``optical_blur_px``, NaN before it is) and the lines the blurred-step fit
     refines with the blur it uses (``step_fit``, px); the edges it reads (``lines``: all three but where the
-    arris lines are read again)."""
+    arris lines are read again) and whether their strips' doubts are read (``strip_doubts``: not where they
+    are read again at trial exponents)."""
 
     half: int
     every: int = 1
@@ -74,6 +75,7 @@ class _Pass:
     optical_blur_px: float = float("nan")
     step_fit: dict[str, float] | None = None
     lines: tuple[str, ...] = EDGE_NAMES
+    strip_doubts: bool = True
 
 
 def _arris_and_keep(
@@ -156,6 +158,7 @@ def _sample(
         arris=geoms,
         step_blur_px=this_pass.step_fit or {},
         light=_stated_light(cfg),
+        strip_doubts=this_pass.strip_doubts,
     )
     out, far_fit, step_fitted, apart = {}, None, {}, {}
     for name in this_pass.lines:
@@ -448,7 +451,9 @@ def arris_response_shifts(
     optical = float("nan")
     if refined.far_beside and "reference" in refined.arris_fits:
         optical = float(refined.arris_fits["reference"][0].blur_px)
-    this_pass = _Pass(refined.half, optical_blur_px=optical, step_fit=refined.step_fitted, lines=names)
+    this_pass = _Pass(
+        refined.half, optical_blur_px=optical, step_fit=refined.step_fitted, lines=names, strip_doubts=False
+    )
     memo = {} if memo is None else memo
     chamfered = region.door.arris_profile == "chamfer"
     read, strips = [], []

@@ -8,7 +8,7 @@ doubts stage: every line's doubts and what the diagnostics report of them) -> th
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 from doorloc.cell import Cell
@@ -66,7 +66,7 @@ class Refined:
     far_fit: FarFaceFit | None
     step_fitted: dict[str, float]
     arris_fits: dict[str, tuple[StripFit, float]]
-    readers_apart: dict[str, ReadersApart] = field(default_factory=dict)
+    readers_apart: dict[str, ReadersApart]
 
 
 @dataclass(frozen=True)
