@@ -65,6 +65,10 @@ class FarFaceFit:
         the background (level near 1) leaves one step, the arris; a band about as bright as the hinge face
         (near 0) leaves one step too, the far face's back edge: the same profile, read as a door a band
         thinner or thicker (see :data:`BAND_SIDE_LEVEL`).
+    band_slope : float
+        The band's change in width per px the arris moves away from the hinge face (a thicker door), px / px:
+        the geometry's ``-(1 - k)``, ``k`` the ratio of the arris's depth to the far face's back edge's (about
+        -0.7; :attr:`doorloc.vision.region.Track.band_slope`).
     """
 
     band_level: float
@@ -74,6 +78,7 @@ class FarFaceFit:
     model_sigma_px: float
     strip_level: float = float("nan")
     other_reading_px: float = 0.0
+    band_slope: float = 0.0
 
 
 #: plausible model errors of the far-face fit: band level (relative) and optical blur (px)
@@ -564,6 +569,7 @@ def _far_face_answer(
         outcome.model_sigma,
         float(mu) if win.has_strip else float("nan"),
         outcome.other_reading,
+        band_slope,
     )
     return samples, fit_out
 

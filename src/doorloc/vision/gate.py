@@ -81,7 +81,7 @@ def gate_and_answer(
             pose.x_mm, pose.z_mm, pose.yaw_deg, cell.envelope, cfg.envelope_margin_mm, cfg.envelope_margin_deg
         )
     )
-    other_mm, other = other_reading(r, cfg.thickness_tolerance_mm)
+    other_mm, other = other_reading(r, door, cfg.thickness_tolerance_mm)
     # Standard uncertainty of the thickness: the two arris offsets' noise, and beside a visible far face
     # what its model leaves in doubt (a band narrower than the blur is hard to tell from the arris).
     # The two arrises' response doubts share their cause (one camera exponent moves both edges outwards

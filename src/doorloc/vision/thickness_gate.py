@@ -21,12 +21,15 @@ import numpy as np
 from doorloc.cell import DoorSize
 from doorloc.vision import quality as q
 from doorloc.vision.config import LocateConfig
+from doorloc.vision.far_face import FarFaceFit
 from doorloc.vision.state import Refined
 from doorloc.vision.uncertainty import Budget
 
 __all__ = [
+    "BAND_LEVEL_RANGE",
     "MISREAD_SIGMAS",
     "PLAIN_STEP_DEFICIT",
+    "UNRESOLVED_BAND_BLURS",
     "far_silhouette_contrast",
     "other_reading",
     "reported_budget",
@@ -36,9 +39,19 @@ __all__ = [
 ]
 
 
-def other_reading(r: Refined, t_tol: float) -> tuple[float, float | None]:
+#: a far face's band at most this many blurs (Gaussian sigma) wide, at the fit and at the recipe's thickness,
+#: cannot be told from the arris by the profile's shape: only the step it leaves is seen
+UNRESOLVED_BAND_BLURS = 1.0
+#: the far face's relative level (0 the hinge face's, 1 the background's) a band may have: a far face lit from
+#: its side can be brighter than the hinge face by half the contrast, or darker than the background
+BAND_LEVEL_RANGE = (-0.5, 1.5)
+
+
+def other_reading(r: Refined, door: DoorSize, t_tol: float) -> tuple[float, float | None]:
     """How far a far face's other reading lies, mm, and that reading of the thickness where it is weighed."""
     pose, far_fit, far_beside = r.pose, r.far_fit, r.far_beside
+    if not far_beside or far_fit is None:
+        return 0.0, None
     # A far face whose band looks like the background or like the hinge face reads two ways, a band's width
     # apart (edges.FarFaceFit.other_reading_px), and the image cannot tell which: the check takes the reading
     # nearer the recipe (a wrong door passes only where its other reading lands on the recipe's thickness),
@@ -46,9 +59,40 @@ def other_reading(r: Refined, t_tol: float) -> tuple[float, float | None]:
     # apart are not weighed (the fitted one is judged alone, as without a band): a band that wide is seen
     # (on bench_surfaces' grain, hard and thin sets, 60 doors each, every fitted reading whose other lay
     # 2.6-20 mm off was the door's; the two wrong ones were read beside bands of 0.6-1.2 px, 0.4-0.8 mm).
-    other_mm = far_fit.other_reading_px * pose.scale_mm_per_px if far_beside and far_fit is not None else 0.0
+    other_mm = far_fit.other_reading_px * pose.scale_mm_per_px
+    if other_mm == 0.0:
+        other_mm = _unresolved_band_reading(
+            far_fit, door.thickness_mm - pose.thickness_mm, pose.scale_mm_per_px
+        )
     other = pose.thickness_mm + other_mm if 0.0 < abs(other_mm) <= 2.0 * t_tol else None
     return other_mm, other
+
+
+def _unresolved_band_reading(far_fit: FarFaceFit, to_recipe_mm: float, scale_mm_per_px: float) -> float:
+    """The recipe's thickness as the far face's other reading, mm from the fitted one (0 where it is not one).
+
+    A band narrower than the blur shows only the step it leaves (the arris's place plus the band's width
+    times how unlike the hinge face it is), and that step is explained as well by an arris farther in
+    beside a wider band of about the hinge face's level, or farther out beside a narrower one: along that
+    valley only the profile's shape tells the readings apart, which wood grain and JPEG blocks outweigh
+    (bench_surfaces' thin set, seed 2514, door 22: a 32.5 mm door yawed -1.8 deg, its far face a 1.1 px band
+    as bright as the grained hinge face under a 1.75 px blur, was fitted as a 0.07 px band and measured
+    0.27 mm thick at 6 sigma; the fitted reading misfits 20 % less than the true one). Where the recipe's
+    reading lies on that valley (its band unresolved too, at a level a far face can have), it is weighed."""
+    if not (far_fit.blur_px > 0 and scale_mm_per_px > 0 and math.isfinite(far_fit.band_px)):
+        return 0.0
+    moved_px = to_recipe_mm / scale_mm_per_px  # the arris's move to the recipe's reading, outwards positive
+    w_fit = far_fit.band_px
+    w_recipe = w_fit + far_fit.band_slope * moved_px
+    widest = UNRESOLVED_BAND_BLURS * far_fit.blur_px
+    if not (0.0 < w_recipe <= widest and w_fit <= widest):
+        return 0.0
+    # the step the fitted reading leaves, px beyond its arris (a collapsed band's level says nothing: within
+    # the band), and the level the recipe's band needs to leave it
+    step = w_fit * (1.0 - min(max(far_fit.band_level, 0.0), 1.0))
+    level = 1.0 - (step - moved_px) / w_recipe
+    lo, hi = BAND_LEVEL_RANGE
+    return to_recipe_mm if lo <= level <= hi else 0.0
 
 
 def far_silhouette_contrast(r: Refined) -> float | None:

@@ -1,0 +1,65 @@
+"""The thickness gate's readings of a far face's band (``vision/thickness_gate.py``), on fits written by hand."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import pytest
+
+from doorloc.cell import DoorSize
+from doorloc.vision.far_face import FarFaceFit
+from doorloc.vision.thickness_gate import other_reading
+
+SCALE = 0.2  # mm per px
+SLOPE = -0.72  # the band's change in width per px the arris moves outwards (a far face 900 mm deep)
+
+
+def _refined(measured_mm: float, band_px: float, level: float, blur_px: float, beside: bool = True):
+    fit = FarFaceFit(
+        band_level=level,
+        blur_px=blur_px,
+        band_px=band_px,
+        arris_sigma_px=0.03,
+        model_sigma_px=0.05,
+        band_slope=SLOPE,
+    )
+    pose = SimpleNamespace(thickness_mm=measured_mm, scale_mm_per_px=SCALE)
+    return SimpleNamespace(pose=pose, far_fit=fit, far_beside=beside)
+
+
+def test_a_collapsed_band_beside_a_thinner_recipe_weighs_the_recipe():
+    """A band fitted 0.07 px wide, the recipe 0.27 mm (1.35 px) thinner: at the recipe's arris the band would
+    be 1.04 px, still under the 1.75 px blur, and a level about the hinge face's (-0.3) leaves the same step."""
+    door = DoorSize(900, 32.52, 2100)
+    other_mm, other = other_reading(_refined(32.79, 0.07, 1.48, 1.75), door, 1.0)
+    assert other == pytest.approx(32.52)
+    assert other_mm == pytest.approx(-0.27)
+
+
+@pytest.mark.parametrize(
+    ("measured_mm", "band_px", "level", "blur_px", "why"),
+    [
+        (32.79, 0.07, 1.48, 0.9, "the recipe's band (1.04 px) is wider than the blur: its shape would show"),
+        (33.32, 0.07, 1.48, 1.75, "0.8 mm thicker: the recipe's band (2.9 px) would show"),
+        (32.32, 1.0, 0.5, 1.75, "a thicker recipe needs a band darker than the background by 1.8 contrasts"),
+        (32.32, 0.5, 0.4, 1.75, "a thicker recipe's band vanishes"),
+    ],
+)
+def test_no_recipe_reading_where_the_image_can_tell(measured_mm, band_px, level, blur_px, why):
+    door = DoorSize(900, 32.52, 2100)
+    assert other_reading(_refined(measured_mm, band_px, level, blur_px), door, 1.0) == (0.0, None), why
+
+
+def test_no_reading_without_a_far_face_beside_the_arris():
+    door = DoorSize(900, 32.52, 2100)
+    assert other_reading(_refined(32.79, 0.07, 1.48, 1.75, beside=False), door, 1.0) == (0.0, None)
+
+
+def test_the_fits_own_other_reading_comes_first():
+    """A band as bright as the background, 2 px wide: its other reading is the band's (far_face's), not the
+    recipe's."""
+    door = DoorSize(900, 32.52, 2100)
+    r = _refined(32.52, 2.0, 0.95, 1.0)
+    r.far_fit = FarFaceFit(0.95, 1.0, 2.0, 0.03, 0.05, other_reading_px=-7.1, band_slope=SLOPE)
+    other_mm, other = other_reading(r, door, 1.0)
+    assert other_mm == pytest.approx(-7.1 * SCALE) and other == pytest.approx(32.52 - 1.42)
