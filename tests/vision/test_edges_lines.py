@@ -13,7 +13,13 @@ from doorloc.vision.coarse import coarse_edges
 from doorloc.vision.edge_samples import ScanWindow
 from doorloc.vision.edges import subpixel_edges
 from doorloc.vision.far_face import BLUR_DOUBT, FarBand, step_blur, subpixel_edges_far_face
-from doorloc.vision.lines import fit_image_line, fit_rectangle_edges, fit_rectangle_lines, ransac_line
+from doorloc.vision.lines import (
+    fit_image_line,
+    fit_rectangle_edges,
+    fit_rectangle_lines,
+    ransac_line,
+    revote_direction,
+)
 from doorloc.vision.transition import transition_width
 
 
@@ -196,6 +202,62 @@ def test_the_lines_alone_are_the_rectangle_fit_s_bit_for_bit(yaw_deg, thickness,
     groups["far"][0][:3] += 1.5 * ex  # outliers, so that later iterations reweigh
     fit = fit_rectangle_edges(groups, n_iter=n_iter)
     assert fit_rectangle_lines(groups, n_iter=n_iter) == (fit.angle_rad, fit.offsets)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    st.floats(-2.0, 2.0),
+    st.lists(st.floats(-0.05, 0.05), min_size=3, max_size=3),
+    st.lists(st.floats(0.01, 100.0), min_size=3, max_size=3),
+    st.floats(20, 110),
+)
+def test_a_revoted_direction_is_the_lines_own_directions_weighed_by_their_votes(
+    yaw_deg, tilts_deg, votes, thickness
+):
+    """Three exact lines, each turned by its own small angle about its middle: the revoted direction is the
+    votes' weighted mean of the three (to second order in the tilts), and each offset goes through its
+    line's points."""
+
+    def line(start, angle, along_x, length, n):
+        t = math.radians(angle)
+        d = np.array([math.cos(t), math.sin(t)]) if along_x else np.array([-math.sin(t), math.cos(t)])
+        u = np.linspace(-0.5 * length, 0.5 * length, n)
+        return start + u[:, None] * d
+
+    t = math.radians(yaw_deg)
+    ex, ez = np.array([math.cos(t), math.sin(t)]), np.array([-math.sin(t), math.cos(t)])
+    names = ("bottom", "reference", "far")
+    mids = {"bottom": 0.5 * thickness * ex, "reference": 70 * ez, "far": thickness * ex + 70 * ez}
+    lengths = {"bottom": thickness - 4, "reference": 140.0, "far": 140.0}
+    groups = {
+        k: (line(mids[k], yaw_deg + d, k == "bottom", lengths[k], 60), k == "bottom")
+        for k, d in zip(names, tilts_deg, strict=True)
+    }
+    fit = fit_rectangle_edges(groups, n_iter=1)
+    revoted = revote_direction(fit, groups, dict(zip(names, votes, strict=True)))
+    expected = yaw_deg + float(np.average(tilts_deg, weights=votes))
+    assert abs(math.degrees(revoted.angle_rad) - expected) < 2e-4
+    for k in names:
+        assert abs(float(np.mean(revoted.residuals[k]))) < 1e-9
+
+
+def test_a_line_without_a_vote_keeps_its_offset_only():
+    t = math.radians(1.0)
+    ex, ez = np.array([math.cos(t), math.sin(t)]), np.array([-math.sin(t), math.cos(t)])
+    zs, xs = np.linspace(5, 140, 80), np.linspace(3, 37, 30)
+    turned = math.radians(1.02)
+    ref_dir = np.array([-math.sin(turned), math.cos(turned)])
+    groups = {
+        "bottom": (xs[:, None] * ex, True),
+        "reference": (zs[:, None] * ref_dir, False),
+        "far": (40 * ex + zs[:, None] * ez, False),
+    }
+    fit = fit_rectangle_edges(groups, n_iter=1)
+    assert abs(math.degrees(fit.angle_rad) - 1.0) > 1e-3  # the joint fit has the turned line's share
+    alone = revote_direction(fit, groups, {"reference": 1.0})
+    assert abs(math.degrees(alone.angle_rad) - 1.02) < 1e-9
+    others = revote_direction(fit, groups, {"bottom": 1.0, "far": 1.0})
+    assert abs(math.degrees(others.angle_rad) - 1.0) < 1e-9
 
 
 def test_ransac_line_ignores_outliers():

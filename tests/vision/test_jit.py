@@ -51,7 +51,7 @@ from doorloc.vision import jit
 from doorloc.vision.doubts import _residual_structure_tilt
 from doorloc.vision.edge_samples import EdgeSamples
 from doorloc.vision.edges import subpixel_edges
-from doorloc.vision.lines import _irls, fit_rectangle_edges, ransac_line
+from doorloc.vision.lines import _irls, _revoted, fit_rectangle_edges, ransac_line
 from doorloc.vision.response import plateau_levels
 from doorloc.vision.sampling import linearizing_lut
 from doorloc.vision.texture import texture_bias
@@ -154,6 +154,26 @@ def test_line_fit_loop_compiled_as_run_by_python(seed, n_out, offset_only):
     for a, b in zip(compiled[1:], python[1:], strict=True):
         scale = float(np.max(np.abs(b))) if np.size(b) else 0.0
         np.testing.assert_allclose(a, b, rtol=1e-8, atol=1e-8 * scale + 1e-12)
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    votes=st.lists(st.floats(1e-3, 1e6) | st.just(0.0), min_size=3, max_size=3),
+)
+def test_direction_revote_compiled_as_run_by_python(seed, votes):
+    rng = np.random.default_rng(seed)
+    t, groups = _rect_points(rng, 20)
+    P = np.concatenate([groups["reference"][0], groups["far"][0], groups["bottom"][0][:, ::-1] * [1, -1]])
+    sizes = np.array([400, 400, 150], np.int64)
+    starts = np.array([0, 400, 800], np.int64)
+    w = rng.uniform(0.0, 1.0, len(P)) * (rng.uniform(size=len(P)) > 0.05)
+    args = (P, starts, sizes, w, np.array(votes), float(t) + 1e-4)
+    compiled, python = _revoted(*args), _revoted.py_func(*args)
+    assert compiled[0] == python[0] == any(v > 0 for v in votes)
+    for a, b in zip(compiled[1:], python[1:], strict=True):
+        scale = float(np.max(np.abs(b))) if np.size(b) else 0.0
+        np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9 * scale + 1e-12)
 
 
 def test_line_fit_finds_the_rectangle_through_outliers_and_names_an_empty_line():

@@ -164,6 +164,22 @@ def test_the_budget_s_terms_make_up_the_uncertainty(doubts, other_mm):
     assert len({t.source for t in b.terms}) == len(b.terms)
 
 
+def test_lines_voted_by_their_doubts_carry_the_inverse_variance_yaw():
+    """Where the direction was voted by each line's doubt (LineLever.vote = 1 / tilt^2), the budget weighs
+    the tilts by the same votes: the yaw's doubt from them is the inverse-variance combination, below the
+    least of them; weighed by the points' spread, one line in much doubt would dominate it."""
+    tilts = {"reference": 2e-4, "bottom": 1e-3, "far": 1e-4}  # px per px
+    doubts = [LineDoubt("texture", k, 0.0, t) for k, t in tilts.items()]
+    model = EdgeModelTerms(tuple(doubts), blur_px=0.9)
+    offsets = {"reference": 0.002, "bottom": 0.003, "far": 0.004}
+    voted = {k: replace(lv, vote=1.0 / tilts[k] ** 2) for k, lv in _LEVERS.items()}
+    by_votes = propagate(model, offsets, 2e-5, voted, 0.2, _CAMERA)
+    by_spread = propagate(model, offsets, 2e-5, _LEVERS, 0.2, _CAMERA)
+    yaw = {t.source: t.yaw_deg for t in by_votes.terms}["texture"]
+    assert yaw == pytest.approx(math.degrees(1.0 / math.sqrt(sum(t**-2 for t in tilts.values()))), rel=1e-12)
+    assert yaw < math.degrees(min(tilts.values())) < {t.source: t.yaw_deg for t in by_spread.terms}["texture"]
+
+
 def test_one_camera_exponent_moves_both_arrises_so_their_doubts_add_in_the_thickness():
     both = [LineDoubt("response", k, 0.1, group=CAMERA_RESPONSE) for k in ("reference", "far")]
     apart = [LineDoubt("response", k, 0.1) for k in ("reference", "far")]
@@ -347,21 +363,9 @@ def test_jpeg_block_artifacts_are_told_from_noise(cell, noise):
 @pytest.mark.parametrize(
     "pose, thickness, eff, seed",
     [
-        # bench_surfaces.py --seed 9200: thin_016 (grain along a thin door, light from the side) and
-        # grain_018 (grain through JPEG 88); the far arris took a tilt from them that the joint fit gave the
-        # yaw, 6.3 and 6.4 sigma off while its tilt was left out of the yaw's doubt
-        (
-            DoorPose(8.5152, 6.8421, -1.5662),
-            30.947,
-            Effects(
-                albedo_hinge=0.4169, albedo_side=0.2323, albedo_background=0.2293, light_ambient=0.9816,
-                light_directional=0.3999, light_azimuth_deg=47.422, light_elevation_deg=2.136,
-                gradient_u=-0.0907, gradient_v=0.2224, vignetting=0.2249, grain_contrast=0.0958,
-                grain_period_mm=7.1154, blur_sigma_px=0.6597, full_well_e=20000.0, read_noise_dn=0.5851,
-                jpeg_quality=95,
-            ),
-            9203016,
-        ),
+        # bench_surfaces.py --seed 9200: grain_018 (grain through JPEG 88); the far arris took a tilt from
+        # it that the joint fit gave the yaw, 6.4 sigma off while its tilt was left out of the yaw's doubt
+        # (thin_016, the other such door, is outvoted now: the test below)
         (
             DoorPose(7.6452, 8.5722, -0.6255),
             31.675,
@@ -384,6 +388,29 @@ def test_the_far_arris_tilt_counts_in_the_yaw_where_it_votes_on_the_direction(
     err = abs(r.yaw_deg - pose.yaw_deg)
     assert err > 0.005  # the case: a tilt far beyond the fit's own noise
     assert err <= 3.5 * r.uncertainty.yaw_deg, (err, r.uncertainty.yaw_deg)
+
+
+def test_a_far_arris_tilted_by_grain_is_outvoted_by_the_lines_in_less_doubt(cell):
+    """bench_surfaces.py --seed 9200, thin_016: grain along a thin door, light from the side. The far arris
+    took a tilt from the grain that the joint fit, weighing the lines by their points' spread alone, gave the
+    yaw: 0.0079 deg off (6.3 sigma before its tilt counted in the yaw's doubt, 1.3 after). Voted by each
+    line's whole doubt, the direction rests on the lines in less doubt: within 0.005 deg, and within 2
+    sigma."""
+    pose = DoorPose(8.5152, 6.8421, -1.5662)
+    door = DoorSize(900, 30.947, 2100)
+    eff = Effects(
+        albedo_hinge=0.4169, albedo_side=0.2323, albedo_background=0.2293, light_ambient=0.9816,
+        light_directional=0.3999, light_azimuth_deg=47.422, light_elevation_deg=2.136,
+        gradient_u=-0.0907, gradient_v=0.2224, vignetting=0.2249, grain_contrast=0.0958,
+        grain_period_mm=7.1154, blur_sigma_px=0.6597, full_well_e=20000.0, read_noise_dn=0.5851,
+        jpeg_quality=95,
+    )  # fmt: skip
+    img = render_door(cell, door, pose, effects=eff, seed=9203016).image
+    r = locate(img, cell, door, config=replace(cell.locate, calibration_sigma_px=0.0))
+    assert r.ok and r.uncertainty is not None and not r.diagnostics["far_face_visible"]
+    err = abs(r.yaw_deg - pose.yaw_deg)
+    assert err < 0.005, err
+    assert err <= 2.0 * r.uncertainty.yaw_deg, (err, r.uncertainty.yaw_deg)
 
 
 @settings(max_examples=60, deadline=None)

@@ -11,6 +11,7 @@ The refusal codes it gives: ``edge_missing``, ``edge_not_straight``, ``corner_hi
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -445,6 +446,8 @@ def _budget(
         inl = (fit.weights[k] > 0) & np.isfinite(s.along)
         corner_scan = pose.corner_px[0] if s.axis == "col" else pose.corner_px[1]
         levers[k] = LineLever.of_points(s.scan[inl], corner_scan, sc)
+        if r.direction_votes is not None:
+            levers[k] = replace(levers[k], vote=r.direction_votes.get(k, 0.0))
     cal_t = calibration_pose_sigma(
         cell.posed_camera,
         region.face_map.depth_y,

@@ -11,6 +11,7 @@ The flow (thesis section 3.7, made metric and robust)::
       -> joint robust fit of bottom end + reference arris + far arris on the plane -> pose
       -> pass 2 with windows centred on the fitted lines and sized to the measured blur -> pose
       -> (a rounded door, no light stated: the light its strips fit best, and the passes again under it)
+      -> each line's doubts -> the door's direction voted again, each line weighed by its whole doubt
       -> quality gate -> LocateResult
 
 As code, :func:`_locate` visits each stage once, each handing the next a frozen value
@@ -22,7 +23,9 @@ reasons of its refusals in :mod:`doorloc.vision.coarse_refusals`) -> :class:`~do
 :class:`~doorloc.vision.state.ResponseCheck` (for a rounded door without a stated light, the refine stage
 and the check again under the light of :func:`doorloc.vision.light_search.light_of_one_door`, the lit
 answer given where it passes the gate, else the free shadings' answer or refusal) -> the doubts stage (:func:`doorloc.vision.doubts.edge_doubts`:
-every line's doubts, typed) -> the gate (:func:`doorloc.vision.gate.gate_and_answer`: the checks, the
+every line's doubts, typed) -> the direction's vote (:func:`doorloc.vision.direction_vote.voted_by_doubts`:
+the pose again, each line's direction weighed by its whole doubt) -> the gate
+(:func:`doorloc.vision.gate.gate_and_answer`: the checks, the
 uncertainty from :func:`doorloc.vision.uncertainty.propagate`, the answer or the refusal).
 
 :func:`locate` never raises for a bad image: every failure comes back as a refusal (``ok=false``,
@@ -53,6 +56,7 @@ from doorloc.vision.arris_model import StripFit
 from doorloc.vision.coarse import coarse_edges
 from doorloc.vision.coarse_stage import StepQuery, find_coarse
 from doorloc.vision.config import LocateConfig
+from doorloc.vision.direction_vote import voted_by_doubts
 from doorloc.vision.doubts import edge_doubts
 from doorloc.vision.edge_samples import EdgeSamples
 from doorloc.vision.far_face import FarFaceFit
@@ -316,6 +320,7 @@ def _answer(
     refined = check.refined
     _trace_refined(tr, refined)
     doubts = edge_doubts(plane, s8, region, cfg, check)
+    check = replace(check, refined=voted_by_doubts(refined, region, doubts.model))
     res = gate_and_answer(name, door, cfg, region, check, doubts, plane, s8)
     res.diagnostics["camera_response"] = check.diagnostics
     res.diagnostics["far_face_visible"] = refined.far_beside

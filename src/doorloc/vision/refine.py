@@ -196,10 +196,11 @@ def _fit(
     n_iter: int = 9,
     far_offset_only: bool = False,
     centring: bool = False,
-) -> tuple[RectangleFit, dict]:
+) -> tuple[RectangleFit, dict[str, tuple[np.ndarray, bool]]]:
     """The joint line fit of one pass's edge points (``every``-th of each line's), robust (Tukey IRLS,
     ``n_iter`` iterations), with the points of the expected polarity and contrast; ``centring``: the fit
-    only centres the next pass's windows (see below)."""
+    only centres the next pass's windows (see below). And the lines' points as fitted (``(X, Z)`` mm on
+    the outline plane, 0 where a point has none; whether the line runs along door X)."""
     groups, init = {}, {}
     subsets = {
         name: samples[name].subset(np.arange(samples[name].scan.size) % every == 0)
@@ -241,7 +242,7 @@ def _fit(
             fit = fit_rectangle_edges(
                 groups, scale_floor=1e-4, init_weights=init, n_iter=3, offset_only=offset_only
             )
-            return fit, init
+            return fit, groups
         raise Refused(
             q.Refusal(
                 "edge_missing",
@@ -249,7 +250,7 @@ def _fit(
                 "door lies in the fixture and nothing covers its edges",
             )
         ) from None
-    return fit, init
+    return fit, groups
 
 
 def _missing_edge_reason(name: str, s: EdgeSamples, min_contrast: float) -> str:
@@ -333,7 +334,7 @@ def refine(
             # The far face's band width follows from the thickness being measured: one more round.
             n_pass = 3
         clock.lap(f"edges{min(_pass + 1, 2)}")
-        fit, _ = _fit(
+        fit, points = _fit(
             samples,
             region,
             cfg,
@@ -367,7 +368,7 @@ def refine(
         _pass += 1
     arris_fits = _held_to_first_pass(arris_fits, first_fits)
     fitted, apart = sampled.step_fitted, sampled.readers_apart
-    return Refined(samples, fit, pose, blur, half, far_beside, far_fit, fitted, arris_fits, apart)
+    return Refined(samples, fit, pose, blur, half, far_beside, far_fit, fitted, arris_fits, apart, points)
 
 
 def _held_to_first_pass(

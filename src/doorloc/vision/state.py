@@ -11,6 +11,8 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from doorloc.cell import Cell
 from doorloc.vision import quality as q
 from doorloc.vision.arris_model import StripFit
@@ -55,6 +57,12 @@ class Refined:
     readers_apart : dict[str, ReadersApart]
         Per line where the blurred-step fit was tried, how far its points lay from the area estimator's,
         whichever of the two stands.
+    plane_points : dict[str, tuple[ndarray, bool]]
+        The joint fit's points per line, ``(X, Z)`` mm on the outline plane (0 where a point has none), and
+        whether the line runs along door X.
+    direction_votes : dict[str, float] or None
+        Each voting line's weight on the door's direction where it was voted by the lines' doubts
+        (:func:`doorloc.vision.direction_vote.voted_by_doubts`); None: by the spread of their points.
     """
 
     samples: dict[str, EdgeSamples]
@@ -67,6 +75,8 @@ class Refined:
     step_fitted: dict[str, float]
     arris_fits: dict[str, tuple[StripFit, float]]
     readers_apart: dict[str, ReadersApart]
+    plane_points: dict[str, tuple[np.ndarray, bool]]
+    direction_votes: dict[str, float] | None = None
 
 
 @dataclass(frozen=True)

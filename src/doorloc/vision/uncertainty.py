@@ -345,11 +345,20 @@ class LineLever:
         fit gives the line's direction.
     extent_px : float
         First to last scan line, px.
+    vote : float or None
+        The line's weight on the direction where it was voted by the lines' doubts
+        (:func:`doorloc.vision.direction_vote.voted_by_doubts`); None: ``spread_px2``, the joint fit's.
     """
 
     lever_mm: float
     spread_px2: float
     extent_px: float
+    vote: float | None = None
+
+    @property
+    def weight(self) -> float:
+        """The line's weight on the door's direction (relative to the other voting lines')."""
+        return self.spread_px2 if self.vote is None else self.vote
 
     @classmethod
     def of_points(cls, scan_px: np.ndarray, corner_scan_px: float, scale_mm_per_px: float) -> LineLever:
@@ -428,11 +437,11 @@ class Budget:
 
 def _yaw_rad(levers: dict[str, LineLever], tilts: dict[str, float]) -> float:
     """The yaw's doubt from the voting lines' tilts (px per px), weighted as the joint fit weighs the lines
-    (by the spread of their points along them)."""
-    wsum = sum(lv.spread_px2 for lv in levers.values())
+    (:attr:`LineLever.weight`)."""
+    wsum = sum(lv.weight for lv in levers.values())
     if not wsum > 0:
         return 0.0
-    return math.sqrt(sum((levers[k].spread_px2 * _finite(tilts[k])) ** 2 for k in tilts)) / wsum
+    return math.sqrt(sum((levers[k].weight * _finite(tilts[k])) ** 2 for k in tilts)) / wsum
 
 
 def _source_terms(
@@ -442,7 +451,7 @@ def _source_terms(
     thickness (reference and far lines); its tilts the yaw and, through the levers, x and z."""
     sc = scale_mm_per_px
     blur = BLUR_MODEL_FRACTION * model.blur_px if math.isfinite(model.blur_px) else 0.0
-    wsum = sum(lv.spread_px2 for lv in levers.values())
+    wsum = sum(lv.weight for lv in levers.values())
     # per source: its offset (px) and tilt on each line, and whether its doubts share one cause
     shares: dict[str, tuple[dict[str, float], dict[str, float], bool]] = {
         "floor": (
@@ -460,7 +469,7 @@ def _source_terms(
     out = []
     for source, (offset, tilt, linked) in shares.items():
         yaw = (
-            math.sqrt(sum((lv.spread_px2 * tilt.get(k, 0.0)) ** 2 for k, lv in levers.items())) / wsum
+            math.sqrt(sum((lv.weight * tilt.get(k, 0.0)) ** 2 for k, lv in levers.items())) / wsum
             if wsum > 0
             else 0.0
         )
