@@ -21,7 +21,7 @@ from doorloc.vision.lines import revote_direction
 from doorloc.vision.metric import pose_from_fit
 from doorloc.vision.region import SearchRegion
 from doorloc.vision.state import Refined
-from doorloc.vision.uncertainty import EdgeModelTerms, LineLever
+from doorloc.vision.uncertainty import EDGE_MODEL_FLOOR_PX, EdgeModelTerms, LineLever
 
 __all__ = ["NOISE_ONLY_SHARE", "direction_votes", "voted_by_doubts"]
 
@@ -33,23 +33,27 @@ NOISE_ONLY_SHARE = 0.05
 def direction_votes(r: Refined, model: EdgeModelTerms) -> dict[str, float]:
     """Each voting line's weight on the door's direction: the inverse variance of its direction (px per px
     across, squared), from its points' noise (the fit's residual scale over their spread) and its
-    edge-model tilt. The far arris votes unless a far face lies beside it. Empty where every line's tilt is
-    under :data:`NOISE_ONLY_SHARE` of its noise (the joint fit already weighs the lines so), or a line has
-    no spread.
+    edge-model tilt. The far arris votes unless a far face lies beside it.
 
-    (The floor the budget adds to every tilt, :data:`doorloc.vision.uncertainty.EDGE_MODEL_FLOOR_PX`, is no
-    line's own doubt and does not vote.)"""
+    Empty (the joint fit's weights stand) where a line has no spread, where every line's tilt is under
+    :data:`NOISE_ONLY_SHARE` of its noise (the joint fit already weighs the lines so), or where every line's
+    doubt is within the floor's tilt that the budget gives every line alike
+    (:data:`doorloc.vision.uncertainty.EDGE_MODEL_FLOOR_PX` over its length, twice): a clean image's, no
+    line's own to vote on (the rendered grid's lines reach 0.28 of it; a grained door's, several times it)."""
     sc = r.pose.scale_mm_per_px
     noise_px = r.fit.scale / sc if sc > 0 else math.nan
-    noise, tilt = {}, {}
+    noise, tilt, floor = {}, {}, {}
     for k in ("reference", "bottom") if r.far_beside else ("reference", "bottom", "far"):
         s = r.samples[k]
         inl = (r.fit.weights[k] > 0) & np.isfinite(s.along)
-        spread = LineLever.of_points(s.scan[inl], 0.0, 1.0).spread_px2
-        if not (spread > 0 and noise_px > 0):
+        lever = LineLever.of_points(s.scan[inl], 0.0, 1.0)
+        if not (lever.spread_px2 > 0 and noise_px > 0):
             return {}
-        noise[k], tilt[k] = noise_px**2 / spread, model.tilt(k) ** 2
+        noise[k], tilt[k] = noise_px**2 / lever.spread_px2, model.tilt(k) ** 2
+        floor[k] = (2.0 * EDGE_MODEL_FLOOR_PX / max(lever.extent_px, 1.0)) ** 2
     if all(tilt[k] <= NOISE_ONLY_SHARE * noise[k] for k in noise):
+        return {}
+    if all(noise[k] + tilt[k] <= floor[k] for k in noise):
         return {}
     return {k: 1.0 / (noise[k] + tilt[k]) for k in noise}
 
