@@ -317,13 +317,18 @@ def _answer(
 ) -> LocateResult:
     """The doubts and the gate after the response check: the answer, or :class:`Refused`."""
     # why many parameters: the stages' values that the doubts and the gate read, passed as they are
-    refined = check.refined
-    _trace_refined(tr, refined)
     doubts = edge_doubts(plane, s8, region, cfg, check)
-    check = replace(check, refined=voted_by_doubts(refined, region, doubts.model))
+    refined = voted_by_doubts(check.refined, region, doubts.model)
+    _trace_refined(tr, refined)
+    check = replace(check, refined=refined)
     res = gate_and_answer(name, door, cfg, region, check, doubts, plane, s8)
     res.diagnostics["camera_response"] = check.diagnostics
     res.diagnostics["far_face_visible"] = refined.far_beside
+    if refined.direction_votes:
+        total = sum(refined.direction_votes.values())
+        res.diagnostics["direction_votes"] = {
+            k: round(v / total, 4) for k, v in refined.direction_votes.items()
+        }
     if refined.far_fit is not None:
         res.diagnostics["far_face_fit"] = _far_face_diagnostics(refined.far_fit)
     clock.lap("gate")
