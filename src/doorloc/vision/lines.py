@@ -213,6 +213,23 @@ def _to_common(points: np.ndarray, along_x: bool) -> np.ndarray:
     return np.stack([points[:, 1], -points[:, 0]], axis=1) if along_x else points
 
 
+@kernel(inline=True)
+def _least_normal(a, b, d):
+    """The smallest-eigenvalue eigenvector of the scatter ``[[a, b], [b, d]]``, in closed form, and its length
+    (to divide by; 0 for an isotropic scatter): from the row of ``A - lam I`` with the larger entries. For a
+    line near one axis the other row's ``lam - a`` (or ``lam - d``) is a difference of near-equal numbers
+    whose rounding (~1e-16 of the scatter) would turn the normal by ~1e-16 / angle rad (1e-6 deg at an angle
+    of 3e-7 deg)."""
+    lam = 0.5 * (a + d) - math.sqrt(0.25 * (a - d) ** 2 + b * b)
+    u0, u1 = b, lam - a
+    v0, v1 = lam - d, b
+    if u0 * u0 + u1 * u1 >= v0 * v0 + v1 * v1:
+        n0, n1 = u0, u1
+    else:
+        n0, n1 = v0, v1
+    return n0, n1, math.hypot(n0, n1)
+
+
 def _irls_warm_up(k) -> None:
     P = np.array([[0.0, 0.0], [0.0, 1.0], [0.1, 2.0], [1.0, 0.0], [2.0, 0.1]])
     k(P, np.array([0, 3]), np.array([3, 2]), np.ones(5, bool), np.ones(5), False, 1e-4, 9, 512)
@@ -269,18 +286,7 @@ def _irls(P, starts, sizes, mask0, votes, use_votes, scale_floor, n_iter, max_sa
             a += wv * q0 * q0
             b += wv * q0 * q1
             d += wv * q1 * q1
-        # smallest-eigenvalue eigenvector of [[a, b], [b, d]], in closed form, from the row of
-        # (A - lam I) with the larger entries: for a line near one axis the other row's lam - a (or
-        # lam - d) is a difference of near-equal numbers whose rounding (~1e-16 of the scatter) would
-        # turn the normal by ~1e-16 / angle rad (1e-6 deg at an angle of 3e-7 deg)
-        lam = 0.5 * (a + d) - math.sqrt(0.25 * (a - d) ** 2 + b * b)
-        u0, u1 = b, lam - a
-        v0, v1 = lam - d, b
-        if u0 * u0 + u1 * u1 >= v0 * v0 + v1 * v1:
-            n0, n1 = u0, u1
-        else:
-            n0, n1 = v0, v1
-        h = math.hypot(n0, n1)
+        n0, n1, h = _least_normal(a, b, d)
         if not h > 0:  # an isotropic scatter (or none): any normal fits it
             n0, n1, h = 1.0, 0.0, 1.0
         n0, n1 = n0 / h, n1 / h
@@ -541,16 +547,7 @@ def _revoted(P, starts, sizes, w, vote, angle):
     r = np.zeros(N)
     if not spread > 0:
         return False, 1.0, 0.0, off, r, 0.0
-    # the scatter's smallest-eigenvalue eigenvector in closed form, from the row with the larger entries
-    # (as the IRLS kernel finds it)
-    lam = 0.5 * (a + d) - math.sqrt(0.25 * (a - d) ** 2 + b * b)
-    u0, u1 = b, lam - a
-    v0, v1 = lam - d, b
-    if u0 * u0 + u1 * u1 >= v0 * v0 + v1 * v1:
-        n0, n1 = u0, u1
-    else:
-        n0, n1 = v0, v1
-    h = math.hypot(n0, n1)
+    n0, n1, h = _least_normal(a, b, d)
     if not h > 0:  # an isotropic scatter: no direction to vote
         return False, 1.0, 0.0, off, r, 0.0
     n0, n1 = n0 / h, n1 / h
