@@ -214,6 +214,17 @@ def _to_common(points: np.ndarray, along_x: bool) -> np.ndarray:
 
 
 @kernel(inline=True)
+def _weighted_sums(P, w, lo, hi):
+    """The weights of points ``lo:hi`` of ``P`` (N, 2) and their weighted coordinates' sums, in order."""
+    sw = sx = sz = 0.0
+    for i in range(lo, hi):
+        sw += w[i]
+        sx += w[i] * P[i, 0]
+        sz += w[i] * P[i, 1]
+    return sw, sx, sz
+
+
+@kernel(inline=True)
 def _least_normal(a, b, d):
     """The smallest-eigenvalue eigenvector of the scatter ``[[a, b], [b, d]]``, in closed form, and its length
     (to divide by; 0 for an isotropic scatter): from the row of ``A - lam I`` with the larger entries. For a
@@ -266,11 +277,7 @@ def _irls(P, starts, sizes, mask0, votes, use_votes, scale_floor, n_iter, max_sa
     n0, n1 = 1.0, 0.0
     for it in range(n_iter):
         for g in range(G):
-            sw = sx = sz = 0.0
-            for i in range(starts[g], starts[g] + sizes[g]):
-                sw += w[i]
-                sx += w[i] * P[i, 0]
-                sz += w[i] * P[i, 1]
+            sw, sx, sz = _weighted_sums(P, w, starts[g], starts[g] + sizes[g])
             if not sw > 0:
                 return -1 - g, n0, n1, off, r, w, Q
             means[g, 0] = sx / sw
@@ -522,11 +529,7 @@ def _revoted(P, starts, sizes, w, vote, angle):
     info = np.zeros(G)
     t0, t1 = -math.sin(angle), math.cos(angle)  # along the arrises
     for g in range(G):
-        sw = sx = sz = 0.0
-        for i in range(starts[g], starts[g] + sizes[g]):
-            sw += w[i]
-            sx += w[i] * P[i, 0]
-            sz += w[i] * P[i, 1]
+        sw, sx, sz = _weighted_sums(P, w, starts[g], starts[g] + sizes[g])
         if sw > 0:
             means[g, 0], means[g, 1] = sx / sw, sz / sw
         for i in range(starts[g], starts[g] + sizes[g]):
