@@ -264,3 +264,33 @@ def test_door_reaching_behind_a_steeply_tilted_camera_is_clipped_not_refused():
     assert 0 < u < 1920 and 0 < v < 1080
     assert rd.image[int(v) - 8, int(u) + 8] == round(255 * Effects().albedo_hinge)
     assert rd.image[int(v) + 8, int(u) + 8] != round(255 * Effects().albedo_hinge)
+
+
+@pytest.mark.parametrize("yaw", [0.2, 0.225512, 0.4])
+def test_a_far_face_seen_edge_on_is_rendered_to_its_back_edge_at_every_pose(yaw):
+    """The far face of a thin chamfered door is a band from the arris's outline to its back edge (depth W),
+    at every pose: clipped by three planes at its top corner, its outline once held an edge a rounding error
+    long, whose half-plane of random direction cut the band 4-11 px short at some yaws and not at others
+    1e-5 deg apart (bench_surfaces' thin-arris set, seed 2616, door 20)."""
+    from doorloc.pose import door_to_cell, yaw_rotation_matrix
+    from doorloc.sim.effects import lambert_shade
+
+    door = DoorSize(900, 30.354, 2100, arris_mm=1.925, arris_profile="chamfer")
+    pose = DoorPose(-3.421, -4.975, yaw)
+    fx = Effects(arris_profile="chamfer")
+    rd = render_door(CELL, door, pose, effects=fx)
+    assert "far_face" in rd.truth["visible_faces"]
+    far = lambert_shade(fx, fx.albedo_side, yaw_rotation_matrix(yaw) @ np.array([1.0, 0, 0]))
+    lam = np.linspace(0, 1, 20001)[:, None]
+    back = CELL.posed_camera.project_cell(
+        door_to_cell(
+            lam * [0, 0, door.height_mm] + [door.thickness_mm, door.width_mm, 0], pose, rd.truth["face_y_mm"]
+        )
+    )
+    # (rows above the back edge's foot, at v 573: below it the far face's bottom edge cuts the band)
+    rows = np.arange(50, 550, 50)
+    back_u = np.interp(rows, back[::-1, 1], back[::-1, 0])
+    for v, u in zip(rows, back_u, strict=True):
+        lit = np.flatnonzero(np.abs(rd.radiance[v] - far) < 1e-9)
+        # the far face's last whole pixel before its back edge
+        assert lit.size and abs(lit.max() - (u - 1.0)) <= 1.0, (v, u, lit.max() if lit.size else None)

@@ -47,6 +47,8 @@ __all__ = [
 
 _COARSE_STEP = 8  # px between exact undistortion samples for the approximate per-pixel ideal map
 NEAR_MM = 1.0  # surfaces are clipped to Z >= NEAR_MM in the camera frame
+#: an outline's edges shorter than this fraction of its extent (ideal plane) are dropped (see :func:`_prepare`)
+EDGE_TOLERANCE = 1e-9
 
 
 # ----------------------------------------------------------------------------------------------
@@ -221,7 +223,13 @@ def _prepare(surface: Surface, label_base: int) -> _Prepared:
     e = np.roll(q, -1, axis=0) - q
     n = np.stack([-e[:, 1], e[:, 0]], axis=1) * (1.0 if area2 > 0 else -1.0)  # inward for either orientation
     norm = np.linalg.norm(n, axis=1)
-    keep = norm > 1e-15
+    # An edge a rounding error long (a vertex the clipping by three planes met at twice: the far face's
+    # top corner of a door with arrises, 4e-15 apart) has a direction of rounding noise, and its half-plane
+    # through that vertex cut the face across the image (the far face's band, 11 px wide, ended 4-7 px
+    # early at some poses and not at others 1e-5 deg apart). Such an edge bounds nothing: the outline is
+    # the same without it. Kept: edges longer than EDGE_TOLERANCE of the outline's extent, whose
+    # directions are good to 1e-7 rad.
+    keep = norm > EDGE_TOLERANCE * max(float(np.ptp(q[:, 0])), float(np.ptp(q[:, 1])), 1e-300)
     n = n[keep] / norm[keep, None]
     c = np.sum(n * q[keep], axis=1)
     s_const = None
