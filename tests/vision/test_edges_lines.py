@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from doorloc.vision.coarse import coarse_edges
 from doorloc.vision.edge_samples import ScanWindow
 from doorloc.vision.edges import subpixel_edges
-from doorloc.vision.far_face import BLUR_DOUBT, FarBand, step_blur, subpixel_edges_far_face
+from doorloc.vision.far_face import BLUR_DOUBT, FarBand, subpixel_edges_far_face
 from doorloc.vision.lines import (
     fit_image_line,
     fit_rectangle_edges,
@@ -20,6 +20,7 @@ from doorloc.vision.lines import (
     ransac_line,
     revote_direction,
 )
+from doorloc.vision.step_blur import step_blur
 from doorloc.vision.transition import transition_width
 
 

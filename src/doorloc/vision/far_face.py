@@ -1,10 +1,10 @@
-"""The far arris beside a visible far face: a fit of the whole profile's shape, and the blur of a plain step.
+"""The far arris beside a visible far face: a fit of the whole profile's shape.
 
 Beside a visible far face (a thin door shifted towards -X, seen from a camera beyond the far face's plane)
 the profile across the far arris holds two blurred steps, the arris and the far face's back edge, a band
 of unknown level between them. :func:`subpixel_edges_far_face` fits them (its loops compiled in
-:mod:`doorloc.vision.far_face_kernels`); :func:`step_blur` is the same fit without a band, the optical blur
-of a plain step.
+:mod:`doorloc.vision.far_face_kernels`); :func:`doorloc.vision.step_blur.step_blur` is the same fit without a
+band, the optical blur of a plain step.
 """
 
 from __future__ import annotations
@@ -30,7 +30,6 @@ __all__ = [
     "FarFaceFit",
     "LEVEL_DOUBT",
     "LEVEL_PRIOR_WEIGHT",
-    "step_blur",
     "subpixel_edges_far_face",
 ]
 
@@ -639,7 +638,7 @@ def subpixel_edges_far_face(
     band : FarBand
         The far face's band beside the arris, and the strip of a chamfered or rounded arris.
     blur_px : float
-        The optical blur (Gaussian sigma), px, e.g. from :func:`step_blur` on another edge; with a band
+        The optical blur (Gaussian sigma), px, e.g. from :func:`doorloc.vision.step_blur.step_blur` on another edge; with a band
         narrower than the blur, the band's level, its width and the blur trade off against each other,
         so the blur is best measured where the step is plain.
     fit_blur : bool
@@ -665,35 +664,3 @@ def subpixel_edges_far_face(
         _FitSettings(fit_blur, n_iter, w.half, win.n_strip, band.strip_shaded),
     )
     return _far_face_answer(win, fit, outcome, w.axis, band.slope, w.scale_to_8bit)
-
-
-def step_blur(
-    plane: np.ndarray,
-    samples: EdgeSamples,
-    mask: np.ndarray,
-    half: int,
-    plateau: int = 4,
-    lut: np.ndarray | None = None,
-    blur_px: float = 1.0,
-    max_lines: int = 160,
-) -> float:
-    """Optical blur (Gaussian sigma, px, the pixel's own width not included) of a plain step edge.
-
-    Each profile across the edge is modelled as a Gaussian-blurred step integrated over the pixels
-    (the model of :func:`subpixel_edges_far_face` without a band) and the blur shared by all profiles
-    is fitted with every edge position. Unlike :func:`doorloc.vision.transition.transition_width` this is not inflated by noise
-    or texture. Returns NaN when no sample is usable.
-    """
-    idx = np.flatnonzero(mask & samples.valid)
-    if idx.size == 0:
-        return float("nan")
-    idx = idx[:: max(idx.size // max_lines, 1)]
-    sub = samples.subset(np.isin(np.arange(samples.scan.size), idx))
-    _, fit = subpixel_edges_far_face(
-        ScanWindow(plane, sub.axis, sub.scan, sub.along, half, plateau, 1.0, lut, 0, -1),
-        FarBand(np.full(sub.scan.size, -1.0), 0.0),
-        blur_px=blur_px,
-        fit_blur=True,
-        n_iter=15,
-    )
-    return fit.blur_px

@@ -25,7 +25,7 @@ from doorloc.vision.edge_models import (
     edge_kind,
 )
 from doorloc.vision.edge_samples import EdgeSamples
-from doorloc.vision.far_face import FarFaceFit, step_blur
+from doorloc.vision.far_face import FarFaceFit
 from doorloc.vision.lines import RectangleFit, fit_rectangle_edges
 from doorloc.vision.metric import MetricPose, pose_from_fit
 from doorloc.vision.region import EDGE_NAMES, HUMAN, SearchRegion
@@ -33,6 +33,7 @@ from doorloc.vision.response_check import STEP_FIT_MIN_BLUR_PX
 from doorloc.vision.sampling import linearizing_lut
 from doorloc.vision.state import Refined, Refused, StageClock
 from doorloc.vision.stated_light import StatedLight
+from doorloc.vision.step_blur import step_blur
 from doorloc.vision.strip_response import StripReadings, arc_score, grey_score
 from doorloc.vision.transition import transition_width
 
@@ -531,7 +532,7 @@ def _optical_blur(
 ) -> float:
     """The optical blur (Gaussian sigma, px) that the far-face model needs, from the reference arris.
 
-    On a plain reference arris the step's own blur (:func:`doorloc.vision.far_face.step_blur`). Where the
+    On a plain reference arris the step's own blur (:func:`doorloc.vision.step_blur.step_blur`). Where the
     reference arris has a chamfered or rounded strip, its profile is background | strip | face: a step
     blur fit would take the strip's width for blur (3.5 px on the effects fixtures' 1.5 mm chamfer for an
     optical blur of 0.8 px; the far-face fit then lost every scan line and the frame was refused), so

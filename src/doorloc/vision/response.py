@@ -326,7 +326,7 @@ def _one_phase_blur(t: Transitions, used_gamma: float) -> float:
     integrated over two pixels (a Gaussian of variance ``sigma^2 + 1/6``): the curvature of its
     logarithm at the peak's three pixels gives it at any phase (exact for a Gaussian blur; the plateaus'
     slopes, which inflate a width measured over the window, do not reach the peak). A step-model fit
-    (:func:`doorloc.vision.edges.step_blur`) gives the same and cost ~6 ms per line.
+    (:func:`doorloc.vision.step_blur.step_blur`) gives the same and cost ~6 ms per line.
     """
     with np.errstate(divide="ignore", invalid="ignore"):
         v = np.exp(used_gamma * np.log(t.raw))
