@@ -1333,3 +1333,35 @@ def test_a_far_face_band_narrower_than_the_blur_leaves_the_thickness_in_doubt(ce
     error = r.thickness_mm - door.thickness_mm
     assert abs(error) <= 2.0 * check["sigma_mm"], (error, check)
     assert abs(r.x_mm - pose.x_mm) <= 2.0 * r.uncertainty.x_mm, (r.x_mm - pose.x_mm, r.uncertainty)
+
+
+def test_a_far_arris_strip_is_read_where_the_profiles_fit_it_not_where_the_band_vanishes(cell):
+    """A thin door's far arris (a 1.33 mm chamfer, a shade darker than the hinge face) beside its far face
+    (a 5.5 px band, a shade brighter) under a 1.0 px blur (the surfaces bench's thin-arris set,
+    ``bench_surfaces.py --sets thin-arris --seed 2611``, door 34, its draw rounded). The far-face fit
+    compares the strip's two readings, and the wrong one (the band taken for the strip, the far face
+    vanished into the background) misfits the profiles five times as much; but the band level's pull
+    towards 0.5, a fraction of the level's own information, charged the true reading's wide band for
+    being seen, and chose the wrong one: 30.62 mm measured for 29.44 at a sigma of 0.07 mm, refused
+    ``thickness_mismatch``. The readings are compared by their misfits and the strip's prior now."""
+    door = DoorSize(900, 29.4388, 2100, arris_mm=1.3283, arris_profile="chamfer")
+    pose = DoorPose(-0.4291, 7.3114, 1.0928)
+    fx = Effects(
+        arris_profile="chamfer",
+        albedo_hinge=0.68044,
+        albedo_chamfer=0.48576,
+        albedo_background=0.06104,
+        light_ambient=0.44153,
+        light_directional=0.40032,
+        light_azimuth_deg=69.861,
+        light_elevation_deg=32.424,
+        blur_sigma_px=1.0231,
+        read_noise_dn=0.72697,
+    )
+    img = render_door(cell, door, pose, effects=fx, seed=2616034).image
+    r = locate(img, cell, door)
+    assert r.ok, r.error
+    check = r.diagnostics["thickness_check"]
+    assert check["far_face_in_view"]
+    error = r.thickness_mm - door.thickness_mm
+    assert abs(error) <= 2.0 * check["sigma_mm"] and abs(error) < 0.1, (error, check)
