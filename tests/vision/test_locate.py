@@ -1365,3 +1365,31 @@ def test_a_far_arris_strip_is_read_where_the_profiles_fit_it_not_where_the_band_
     assert check["far_face_in_view"]
     error = r.thickness_mm - door.thickness_mm
     assert abs(error) <= 2.0 * check["sigma_mm"] and abs(error) < 0.1, (error, check)
+
+
+def test_a_far_arris_strip_that_shows_one_step_leaves_the_thickness_unverified_not_wrong(cell):
+    """A thin door's far arris (a 2.95 mm rounding about as dark as the background) beside its far face, under
+    a 0.6 px blur (the surfaces bench's thin-arris set, ``bench_surfaces.py --sets thin-arris --seed 2711``,
+    door 23, its draw rounded): the strip shows one step, which is its inner border (a strip as dark as what
+    lies beyond) or its outer border (a strip as bright as the hinge face), a strip's width apart. The fit
+    reads it at the hinge face's level, 2.96 mm thin, the true reading misfitting 1.35 times as much with
+    both several times the noise: the door was refused ``thickness_mismatch`` (a wrong door, at confidence).
+    The image cannot tell: refused ``uncertain``, naming the far arris and its other reading."""
+    door = DoorSize(900, 31.2797, 2100, arris_mm=2.9452, arris_profile="round")
+    pose = DoorPose(-0.8034, -1.4842, 0.40805)
+    fx = Effects(
+        arris_profile="round",
+        albedo_hinge=0.89299,
+        albedo_chamfer=0.43201,
+        albedo_background=0.18959,
+        light_ambient=0.42821,
+        light_directional=0.09943,
+        light_azimuth_deg=-49.780,
+        light_elevation_deg=-19.665,
+        blur_sigma_px=0.61387,
+        read_noise_dn=0.54604,
+    )
+    img = render_door(cell, door, pose, effects=fx, seed=2716023).image
+    r = locate(img, cell, door)
+    assert not r.ok and r.error_code == "uncertain", (r.error_code, r.error)
+    assert "far arris is read the other way" in r.error

@@ -69,6 +69,9 @@ class FarFaceFit:
         The band's change in width per px the arris moves away from the hinge face (a thicker door), px / px:
         the geometry's ``-(1 - k)``, ``k`` the ratio of the arris's depth to the far face's back edge's (about
         -0.7; :attr:`doorloc.vision.region.Track.band_slope`).
+    strip_px : float
+        Median width of the arris strip on the hinge-face side of the arris over the valid scan lines, px
+        (NaN without a strip).
     """
 
     band_level: float
@@ -79,6 +82,7 @@ class FarFaceFit:
     strip_level: float = float("nan")
     other_reading_px: float = 0.0
     band_slope: float = 0.0
+    strip_px: float = float("nan")
 
 
 #: plausible model errors of the far-face fit: band level (relative) and optical blur (px)
@@ -587,6 +591,7 @@ def _far_face_answer(
         float(mu) if win.has_strip else float("nan"),
         outcome.other_reading,
         band_slope,
+        median(win.ws[valid]) if win.has_strip and np.any(valid) else float("nan"),
     )
     return samples, fit_out
 
