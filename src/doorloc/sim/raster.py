@@ -225,7 +225,7 @@ def _prepare(surface: Surface, label_base: int) -> _Prepared:
     norm = np.linalg.norm(n, axis=1)
     # An edge a rounding error long (a vertex the clipping by three planes met at twice: the far face's
     # top corner of a door with arrises, 4e-15 apart) has a direction of rounding noise, and its half-plane
-    # through that vertex cut the face across the image (the far face's band, 11 px wide, ended 4-7 px
+    # through that vertex cut the face across the image (the far face's band, 11 px wide, ended 4-11 px
     # early at some poses and not at others 1e-5 deg apart). Such an edge bounds nothing: the outline is
     # the same without it. Kept: edges longer than EDGE_TOLERANCE of the outline's extent, whose
     # directions are good to 1e-7 rad.
