@@ -457,12 +457,12 @@ def far_face_gauss_newton(
 ):  # fmt: skip
     """subpixel_edges_far_face's Gauss-Newton iterations as they were written in Python over the compiled
     sums (far_face_kernels.far_face_gauss_newton compiles the loop, the Schur complement and the step)."""
-    from doorloc.vision.far_face_kernels import far_face_misfit, far_face_sums
+    from doorloc.vision.far_face_kernels import _far_face_misfit, far_face_sums
 
     n_sh = 3 if has_strip else 2
 
     def total_cost(e, lam, sigma, mu):
-        misfit, info = far_face_misfit(
+        misfit, info = _far_face_misfit(
             core, A, D, bounds, e, w0, e0, band_slope, sigma, tail, strip, has_strip, lam, mu
         )
         c = misfit + level_weight * info * (lam - 0.5) ** 2

@@ -28,7 +28,7 @@
   coefficients to 1e-6 of their scale); its evaluation one candidate at a time (_StripProblem.evaluate)
   against those two, and its per-bin means (arris_strip._bin_means) against numpy's, bit for bit; the
   arris lines' border fit (arris_lines._line_borders) against its numpy version, to 1e-8 px;
-- the far-face fit's sums (far_face_kernels.far_face_sums, far_face_misfit, far_face_start_costs: its steps'
+- the far-face fit's sums (far_face_kernels.far_face_sums, _far_face_misfit, far_face_start_costs: its steps'
   pixel values formed per scan line) against the (N, M) arrays of the dense step model they replaced, to
   rounding, and its Gauss-Newton loop (far_face_kernels.far_face_gauss_newton) against the loop as written in Python.
 The blurred-step pixel model (blurred_step._step_pixel_values) and its normal CDF are held to their dense formula
@@ -679,13 +679,13 @@ def test_strip_evaluate_as_its_terms_then_solve(seed, n_delta, one_blur, bins, n
     has_strip=st.booleans(),
 )
 def test_far_face_kernels_as_the_array_code(seed, n, n_m, sigma, with_blur, has_strip):
-    # far_face_kernels.far_face_sums, far_face_misfit and far_face_start_costs (the far-face fit's sums, compiled,
+    # far_face_kernels.far_face_sums, _far_face_misfit and far_face_start_costs (the far-face fit's sums, compiled,
     # its steps' pixel values formed per scan line) against the model, residuals and derivatives formed as
     # (N, M) arrays from the dense step model (blurred_step.pixel_step), as subpixel_edges_far_face formed them
     # before: to rounding (the sums run in vector lanes; the Gaussian tails the kernels skip are < 1e-22)
     from doorloc.vision.blurred_step import STEP_TAIL_SIGMAS, pixel_step
     from doorloc.vision.far_face import LEVEL_PRIOR_WEIGHT
-    from doorloc.vision.far_face_kernels import far_face_misfit, far_face_start_costs, far_face_sums
+    from doorloc.vision.far_face_kernels import _far_face_misfit, far_face_start_costs, far_face_sums
 
     rng = np.random.default_rng(seed)
     core = rng.uniform(0, 255, (n, n_m))
@@ -739,7 +739,7 @@ def test_far_face_kernels_as_the_array_code(seed, n, n_m, sigma, with_blur, has_
         close(b_g[k], Jk * r)
         for j, Jj in enumerate(Jg):
             close(H[k, j], Jk * Jj)
-    misfit, info = far_face_misfit(*args)
+    misfit, info = _far_face_misfit(*args)
     close(misfit, r * r)
     close(info, J_lam * J_lam)
 

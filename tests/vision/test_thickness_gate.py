@@ -1,5 +1,4 @@
-"""The thickness gate's readings of a far face's band and of the far arris's strip beside it
-(``vision/thickness_gate.py``), on fits written by hand."""
+"""The thickness gate's readings of a far face's band (``vision/thickness_gate.py``), on fits written by hand."""
 
 from __future__ import annotations
 
@@ -9,7 +8,7 @@ import pytest
 
 from doorloc.cell import DoorSize
 from doorloc.vision.far_face import FarFaceFit
-from doorloc.vision.thickness_gate import other_reading, strip_other_readings
+from doorloc.vision.thickness_gate import other_reading
 
 SCALE = 0.2  # mm per px
 SLOPE = -0.72  # the band's change in width per px the arris moves outwards (a far face 900 mm deep)
@@ -64,44 +63,3 @@ def test_the_fits_own_other_reading_comes_first():
     r.far_fit = FarFaceFit(0.95, 1.0, 2.0, 0.03, 0.05, other_reading_px=-7.1, band_slope=SLOPE)
     other_mm, other = other_reading(r, door, 1.0)
     assert other_mm == pytest.approx(-7.1 * SCALE) and other == pytest.approx(32.52 - 1.42)
-
-
-def _beside_with_strip(strip_level: float, band_level: float, strip_px: float = 14.0):
-    fit = FarFaceFit(
-        band_level=band_level,
-        blur_px=0.6,
-        band_px=3.0,
-        arris_sigma_px=0.03,
-        model_sigma_px=0.05,
-        strip_level=strip_level,
-        band_slope=SLOPE,
-        strip_px=strip_px,
-    )
-    pose = SimpleNamespace(thickness_mm=28.32, scale_mm_per_px=SCALE)
-    return SimpleNamespace(pose=pose, far_fit=fit, far_beside=True, arris_fits={})
-
-
-@pytest.mark.parametrize(
-    ("strip_level", "band_level", "moved_px", "why"),
-    [
-        (
-            0.0,
-            0.96,
-            14.0,
-            "a strip read at the hinge face's level: read as dark as what lies beyond, it is thicker",
-        ),
-        (0.95, 0.96, -14.0, "a strip read at the band's level: read at the hinge face's, it is thinner"),
-        (0.9, 0.3, -14.0, "a strip read at the background's level beside a band between: thinner"),
-        (0.5, 0.96, 0.0, "a strip between the hinge face and the band shows two steps: one reading"),
-        (-0.3, 0.1, 0.0, "a strip brighter than the hinge face beside a band about its level: two steps"),
-    ],
-)
-def test_a_far_arris_strip_at_a_neighbours_level_reads_a_strips_width_the_other_way(
-    strip_level, band_level, moved_px, why
-):
-    shifts = strip_other_readings(_beside_with_strip(strip_level, band_level))
-    assert shifts.get("far", 0.0) == pytest.approx(moved_px * SCALE), why
-
-
-def test_no_far_strip_reading_without_a_strip():
-    assert strip_other_readings(_beside_with_strip(float("nan"), 0.96)) == {}

@@ -18,7 +18,6 @@ from doorloc.vision.blurred_step import STEP_TAIL_SIGMAS
 from doorloc.vision.edge_samples import EdgeSamples, ScanWindow
 from doorloc.vision.far_face_kernels import (
     far_face_gauss_newton,
-    far_face_misfit,
     far_face_schur,
     far_face_start_costs,
     far_face_sums,
@@ -69,9 +68,6 @@ class FarFaceFit:
         The band's change in width per px the arris moves away from the hinge face (a thicker door), px / px:
         the geometry's ``-(1 - k)``, ``k`` the ratio of the arris's depth to the far face's back edge's (about
         -0.7; :attr:`doorloc.vision.region.Track.band_slope`).
-    strip_px : float
-        Median width of the arris strip on the hinge-face side of the arris over the valid scan lines, px
-        (NaN without a strip).
     """
 
     band_level: float
@@ -82,7 +78,6 @@ class FarFaceFit:
     strip_level: float = float("nan")
     other_reading_px: float = 0.0
     band_slope: float = 0.0
-    strip_px: float = float("nan")
 
 
 #: plausible model errors of the far-face fit: band level (relative) and optical blur (px)
@@ -160,18 +155,6 @@ class _Profiles:
             prior.pull_mu, prior.mu0, prior.levels_lo, prior.levels_hi,
         )  # fmt: skip
 
-    def reading_cost(self, prior: _StripPrior, fit: _Fit) -> float:
-        """A reading's cost as readings are compared: its misfit and the strip level's prior, without the
-        band level's pull towards 0.5 (a fraction of the level's own information: it steadies a narrow
-        band's level within one reading, and between readings it charges a band the more the better the
-        profiles show it)."""
-        e, lam, sigma, mu, _ = fit
-        misfit, _ = far_face_misfit(
-            self.core, self.A, self.D, self.bounds, e, self.w0, self.e0, self.band_slope, sigma,
-            STEP_TAIL_SIGMAS, self.strip, self.has_strip, lam, mu,
-        )  # fmt: skip
-        return float(misfit) + (prior.pull_mu * (mu - prior.mu0) ** 2 if self.has_strip else 0.0)
-
     def sums(self, e: np.ndarray, lam: float, sigma: float, mu: float) -> tuple[np.ndarray, ...]:
         """The Gauss-Newton step's sums at the answer, the blur's column included."""
         return far_face_sums(
@@ -248,11 +231,6 @@ def _other_strip_reading(
     only their misfits tell them apart. Each is fitted from the other's place (arrises within ``reach`` px
     of the prediction); the better is kept, and the other weighs in as a second place for the border (its
     misfit excess at the scale of the residuals of one scan line: a model's error is common to all of them).
-    Better and excess are the readings' costs as :meth:`_Profiles.reading_cost` compares them, not as the
-    fit minimises them: the band level's pull there grows with how well the band is seen, and a reading
-    whose far face vanishes into the background paid none of it (the surfaces bench's thin-arris set, seed
-    2616: two valid doors, a 5.5 and a 10 px band beside 1.3 and 2.2 mm chamfers, read a strip's width
-    thick, their true readings misfitting a fifth as much, refused ``thickness_mismatch``).
     """
     w_med = median(prof.strip)
     chosen = fit
@@ -265,11 +243,11 @@ def _other_strip_reading(
         if np.all(np.abs(alt[0] - prof.e0) <= reach):
             others.append(alt)
     if others:
-        ranked = sorted(((prof.reading_cost(prior, t), t) for t in [chosen, *others]), key=lambda ct: ct[0])
-        best, chosen = ranked[0]
-        per_line = best / max(prof.core.shape[0], 1)
-        for cost, alt in ranked[1:]:
-            q = math.exp(-min((cost - best) / (2.0 * max(per_line, 1e-300)), 50.0))
+        ranked = sorted([chosen, *others], key=lambda t: t[4])
+        chosen = ranked[0]
+        per_line = chosen[4] / max(prof.core.shape[0], 1)
+        for alt in ranked[1:]:
+            q = math.exp(-min((alt[4] - chosen[4]) / (2.0 * max(per_line, 1e-300)), 50.0))
             shift = median(alt[0] - chosen[0])
             strip_doubt = max(strip_doubt, abs(shift) * math.sqrt(q / (1.0 + q)))
     return chosen, strip_doubt
@@ -591,7 +569,6 @@ def _far_face_answer(
         float(mu) if win.has_strip else float("nan"),
         outcome.other_reading,
         band_slope,
-        median(win.ws[valid]) if win.has_strip and np.any(valid) else float("nan"),
     )
     return samples, fit_out
 

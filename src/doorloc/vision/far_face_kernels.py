@@ -20,13 +20,7 @@ from doorloc.vision.blurred_step import STEP_TAIL_SIGMAS
 from doorloc.vision.jit import kernel
 from doorloc.vision.sampling import normal_cdf_pdf
 
-__all__ = [
-    "far_face_gauss_newton",
-    "far_face_misfit",
-    "far_face_schur",
-    "far_face_start_costs",
-    "far_face_sums",
-]
+__all__ = ["far_face_gauss_newton", "far_face_schur", "far_face_start_costs", "far_face_sums"]
 
 #: a level's pull weight the warm-ups compile with (any float: numba compiles one version per type)
 _WARM_UP_LEVEL_WEIGHT = 0.02
@@ -169,7 +163,7 @@ def far_face_start_costs(
 
 # (flat arguments: a numba kernel, called per iteration; see the module docstring)
 @kernel(lambda k: _far_face_warm_up(k, 0.5, 0.1), reassociate=True)
-def far_face_misfit(core, A, D, bounds, e, w0, e0, band_slope, sigma, tail, strip, has_strip, lam, mu):
+def _far_face_misfit(core, A, D, bounds, e, w0, e0, band_slope, sigma, tail, strip, has_strip, lam, mu):
     """The far-face model's sum of squared residuals over the profiles' cores, and the sum of squares of
     its derivative by the band level (the level's pull is that times _WARM_UP_LEVEL_WEIGHT): the model
     ``A + lam D C1 + (1 - lam) D C2`` (+ ``mu D (C0 - C1)`` with a strip), ``C1``, ``C2``, ``C0`` the
@@ -194,11 +188,11 @@ def _far_face_misfit_rows_warm_up(k) -> None:
 def _far_face_misfit_rows(
     core, A, D, bounds, e, w0, e0, band_slope, sigma, tail, strip, has_strip, lam, mu, rows, has_band
 ):
-    """:func:`far_face_misfit`, each scan line's steps and their slopes (:func:`_far_face_row`) left in
+    """:func:`_far_face_misfit`, each scan line's steps and their slopes (:func:`_far_face_row`) left in
     ``rows`` (N, 9, M + 1) and whether its band is in view in ``has_band`` (N,): the Gauss-Newton step
     that follows an accepted trial reads them there (:func:`_far_face_sums_from_rows`) instead of forming
     them again (the Gaussian terms are most of the fit's time)."""
-    # why many parameters: far_face_misfit's, and the two arrays the steps are left in
+    # why many parameters: _far_face_misfit's, and the two arrays the steps are left in
     n, n_m = core.shape
     cut = tail * sigma
     acc = 0.0
@@ -233,7 +227,7 @@ def _far_face_sums_warm_up(k) -> None:
 def far_face_sums(
     core, A, D, bounds, e, w0, e0, band_slope, sigma, tail, strip, has_strip, lam, mu, with_blur
 ):
-    """The far-face Gauss-Newton step's sums at the arrises ``e`` (the model of :func:`far_face_misfit`):
+    """The far-face Gauss-Newton step's sums at the arrises ``e`` (the model of :func:`_far_face_misfit`):
     per profile ``h_ee`` (the arris derivative's squares, at least 1e-12), ``h_eg`` (its products with the
     shared unknowns' derivatives: band level, blur, strip level), ``b_e`` (with the residuals) and ``rr``
     (the residuals' squares); ``H`` and ``b_g``, the shared unknowns' products among themselves and with

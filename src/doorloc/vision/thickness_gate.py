@@ -130,15 +130,10 @@ def strip_other_readings(r: Refined) -> dict[str, float]:
     between them. A deficit ``d`` places the outer border ``d`` strip widths outwards from where a plain step
     would, so the other reading (deficit 1 for a strip read at the face's level, 0 for one read at the
     background's) moves the edge by the deficits' difference times the width. The far arris beside a seen
-    far arris beside a seen far face is read by the far-face fit: :func:`_far_strip_other_reading`."""
+    far face is left out (its band's own other reading is :func:`other_reading`'s)."""
     shifts: dict[str, float] = {}
     for k in ("reference", "far"):
-        if k == "far" and r.far_beside:
-            far = _far_strip_other_reading(r.far_fit)
-            if far != 0.0:
-                shifts[k] = far * r.pose.scale_mm_per_px
-            continue
-        if k not in r.arris_fits:
+        if k not in r.arris_fits or (k == "far" and r.far_beside):
             continue
         strip, band_px = r.arris_fits[k]
         d = strip.model_deficit
@@ -147,27 +142,6 @@ def strip_other_readings(r: Refined) -> dict[str, float]:
         other_deficit = 1.0 if d < 0.5 else 0.0
         shifts[k] = (other_deficit - strip.deficit) * band_px * r.pose.scale_mm_per_px
     return shifts
-
-
-def _far_strip_other_reading(far_fit: FarFaceFit | None) -> float:
-    """How far the far arris's strip read the other way moves the arris, px (positive: a thicker door; 0
-    where its strip shows two steps, or there is none).
-
-    Beside a seen far face the far-face fit reads the strip's level (``strip_level``, 0 the hinge face's, 1
-    the background's) with the band's (``band_level``). A strip at the hinge face's level shows one step,
-    at its outer border; one at the level of what lies beyond it (the band, or the background where the
-    band hardly shows) one step too, at its inner border: the same profile is read a strip's width apart,
-    and the two readings' misfits need not tell them apart (the surfaces bench's thin-arris set, seed 2716,
-    door 23: a 3 mm chamfer about as dark as the background, read at the hinge face's level, 2.96 mm thin;
-    its true reading misfit 1.35 times as much, both several times the noise)."""
-    if far_fit is None or not (math.isfinite(far_fit.strip_level) and far_fit.strip_px > 0):
-        return 0.0
-    mu, lam = far_fit.strip_level, far_fit.band_level
-    if abs(mu) <= PLAIN_STEP_DEFICIT:
-        return far_fit.strip_px
-    if min(abs(mu - lam), abs(mu - 1.0)) <= PLAIN_STEP_DEFICIT:
-        return -far_fit.strip_px
-    return 0.0
 
 
 def thickness_check(
