@@ -638,9 +638,9 @@ def subpixel_edges_far_face(
     band : FarBand
         The far face's band beside the arris, and the strip of a chamfered or rounded arris.
     blur_px : float
-        The optical blur (Gaussian sigma), px, e.g. from :func:`doorloc.vision.step_blur.step_blur` on another edge; with a band
-        narrower than the blur, the band's level, its width and the blur trade off against each other,
-        so the blur is best measured where the step is plain.
+        The optical blur (Gaussian sigma), px, e.g. from :func:`doorloc.vision.step_blur.step_blur` on
+        another edge; with a band narrower than the blur, the band's level, its width and the blur trade off
+        against each other, so the blur is best measured where the step is plain.
     fit_blur : bool
         Fit the blur too (starting at ``blur_px``); only sound where the band is much wider than the blur.
     n_iter : int

@@ -22,16 +22,17 @@ def step_blur(
 ) -> float:
     """Optical blur (Gaussian sigma, px, the pixel's own width not included) of a plain step edge.
 
-    Each profile across the edge is modelled as a Gaussian-blurred step integrated over the pixels
-    (the model of :func:`doorloc.vision.far_face.subpixel_edges_far_face` without a band) and the blur shared by all profiles
-    is fitted with every edge position. Unlike :func:`doorloc.vision.transition.transition_width` this is not inflated by noise
-    or texture. Returns NaN when no sample is usable.
+    Each profile across the edge is modelled as a Gaussian-blurred step integrated over the pixels (the
+    model of :func:`doorloc.vision.far_face.subpixel_edges_far_face` without a band) and the blur shared by
+    all profiles is fitted with every edge position. Unlike :func:`doorloc.vision.transition.transition_width`
+    this is not inflated by noise or texture. Returns NaN when no sample is usable.
     """
     idx = np.flatnonzero(mask & samples.valid)
     if idx.size == 0:
         return float("nan")
-    idx = idx[:: max(idx.size // max_lines, 1)]
-    sub = samples.subset(np.isin(np.arange(samples.scan.size), idx))
+    keep = np.zeros(samples.scan.size, bool)
+    keep[idx[:: max(idx.size // max_lines, 1)]] = True
+    sub = samples.subset(keep)
     _, fit = subpixel_edges_far_face(
         ScanWindow(plane, sub.axis, sub.scan, sub.along, half, plateau, 1.0, lut, 0, -1),
         FarBand(np.full(sub.scan.size, -1.0), 0.0),
