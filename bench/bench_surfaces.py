@@ -22,7 +22,10 @@ effect drawn over a wide random range per image, so nothing is tuned to one look
 Every set also reports the thickness: RMS, and how often it lies within 2 (beyond 5) of the sigma its
 check used (``diagnostics.thickness_check.sigma_mm``). ``--response-factor F`` sets the rendered sets'
 ``locate.response_unmeasured_factor`` (a cell whose response was measured: ``doorloc calibrate`` prints
-it; 1.11 for Bouguet's photographs).
+it; 1.11 for Bouguet's photographs). ``--wrong-thickness MM`` renders every door MM thicker than its recipe
+(negative: thinner) and locates it with the recipe: every answer is then a wrong door passed, and the
+refusals say how the thickness check caught the others (the thin-arris set is where that is hard: the far
+arris's strip and the far face's back edge are both candidates for the far side).
 - grain_strong (not in the default sets) the grain set's doors with 2.5 times the grain's contrast (0-25 %):
                an RMS of the texture near a single 10 % sinusoid's, as another renderer's grain has.
 - fixtures/*   the committed rendered fixtures (grid, widths, distractors, effects).
@@ -337,7 +340,11 @@ def _print_set(name: str, s: dict, seed: int | None) -> None:
         print(f"{'':20s} refused {r['image']}: {r['code']}: {r['reason']}")
 
 
-def run_rendered(cell: Cell, name: str, n: int, seed: int, response_factor: float | None = None) -> dict:
+def run_rendered(
+    cell: Cell, name: str, n: int, seed: int, response_factor: float | None = None, wrong_mm: float = 0.0
+) -> dict:
+    """One rendered set located through ``cell``; ``wrong_mm``: each door rendered that much thicker than
+    the recipe it is located with (a wrong door)."""
     from doorloc.vision.locate import locate
 
     cfg = replace(cell.locate, calibration_sigma_px=0.0, optics_edge_sigma_px=0.0)  # the camera is exact
@@ -345,7 +352,8 @@ def run_rendered(cell: Cell, name: str, n: int, seed: int, response_factor: floa
         cfg = replace(cfg, response_unmeasured_factor=response_factor)
     results = []
     for img_name, pose, door, eff, s in SETS[name](n, seed):
-        img = render_door(cell, door, pose, effects=eff, seed=s).image
+        rendered = replace(door, thickness_mm=door.thickness_mm + wrong_mm)
+        img = render_door(cell, rendered, pose, effects=eff, seed=s).image
         # the cell file states the camera's response (a set of non-linear cameras renders its exponent)
         stated = (
             cell
@@ -356,7 +364,7 @@ def run_rendered(cell: Cell, name: str, n: int, seed: int, response_factor: floa
             (
                 img_name,
                 locate(img, stated, door, image_name=img_name, config=cfg),
-                (pose.x_mm, pose.z_mm, pose.yaw_deg, door.thickness_mm),
+                (pose.x_mm, pose.z_mm, pose.yaw_deg, rendered.thickness_mm),
             )
         )
     return _evaluate(results)
@@ -462,6 +470,13 @@ def main() -> None:
         type=float,
         help="rendered sets: locate.response_unmeasured_factor (a cell whose response was measured, e.g. 1.11)",
     )
+    ap.add_argument(
+        "--wrong-thickness",
+        type=float,
+        default=0.0,
+        metavar="MM",
+        help="rendered sets: each door rendered MM thicker than its recipe (wrong doors: an answer is a wrong door passed)",
+    )
     ap.add_argument("--speed", action="store_true", help="also time the grid set against --baseline-src")
     ap.add_argument("--baseline-src", type=Path, default=Path("/work/main/src"))
     ap.add_argument("--rounds", type=int, default=3)
@@ -488,7 +503,7 @@ def main() -> None:
         if name not in SETS:
             raise SystemExit(f"unknown set {name!r}; known: {', '.join(SETS)}, fixtures")
         seed = args.seed + list(SETS).index(name)  # a set keeps its seed whichever sets run
-        s = run_rendered(cell, name, args.n, seed, args.response_factor)
+        s = run_rendered(cell, name, args.n, seed, args.response_factor, args.wrong_thickness)
         s["seed"] = seed
         _print_set(name, s, seed)
         pooled_z += s.pop("_z", [])
