@@ -12,7 +12,8 @@ from hypothesis import strategies as st
 from doorloc.vision.coarse import coarse_edges
 from doorloc.vision.edge_samples import ScanWindow
 from doorloc.vision.edges import subpixel_edges
-from doorloc.vision.far_face import BLUR_DOUBT, FarBand, subpixel_edges_far_face
+from doorloc.vision.far_band import FarBand
+from doorloc.vision.far_face import BLUR_DOUBT, subpixel_edges_far_face
 from doorloc.vision.lines import (
     fit_image_line,
     fit_rectangle_edges,

@@ -7,7 +7,7 @@ from types import SimpleNamespace
 import pytest
 
 from doorloc.cell import DoorSize
-from doorloc.vision.far_face import FarFaceFit
+from doorloc.vision.far_band import FarFaceFit
 from doorloc.vision.thickness_gate import other_reading
 
 SCALE = 0.2  # mm per px

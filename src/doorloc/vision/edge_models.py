@@ -40,7 +40,8 @@ from doorloc.vision.arris_model import StripFit
 from doorloc.vision.blurred_step import refine_step_fit
 from doorloc.vision.edge_samples import EdgeSamples, ScanWindow
 from doorloc.vision.edges import subpixel_edges, subpixel_edges_banded
-from doorloc.vision.far_face import FarBand, FarFaceFit, subpixel_edges_far_face
+from doorloc.vision.far_band import FarBand, FarFaceFit
+from doorloc.vision.far_face import subpixel_edges_far_face
 from doorloc.vision.jit import kernel, median_in_place
 from doorloc.vision.region import Track
 from doorloc.vision.stated_light import StatedLight

@@ -59,7 +59,7 @@ from doorloc.vision.config import LocateConfig
 from doorloc.vision.direction_vote import voted_by_doubts
 from doorloc.vision.doubts import edge_doubts
 from doorloc.vision.edge_samples import EdgeSamples
-from doorloc.vision.far_face import FarFaceFit
+from doorloc.vision.far_band import FarFaceFit
 from doorloc.vision.gate import gate_and_answer
 from doorloc.vision.light_search import LightMeasurement, light_of_one_door
 from doorloc.vision.luminance import ImageFormatError, LuminancePlane, camera_levels, luminance_plane

@@ -25,7 +25,7 @@ from doorloc.vision.edge_models import (
     edge_kind,
 )
 from doorloc.vision.edge_samples import EdgeSamples
-from doorloc.vision.far_face import FarFaceFit
+from doorloc.vision.far_band import FarFaceFit
 from doorloc.vision.lines import RectangleFit, fit_rectangle_edges
 from doorloc.vision.metric import MetricPose, pose_from_fit
 from doorloc.vision.region import EDGE_NAMES, HUMAN, SearchRegion

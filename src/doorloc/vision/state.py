@@ -18,7 +18,7 @@ from doorloc.vision import quality as q
 from doorloc.vision.arris_model import StripFit
 from doorloc.vision.edge_models import ReadersApart
 from doorloc.vision.edge_samples import EdgeSamples
-from doorloc.vision.far_face import FarFaceFit
+from doorloc.vision.far_band import FarFaceFit
 from doorloc.vision.lines import RectangleFit
 from doorloc.vision.metric import MetricPose
 from doorloc.vision.response import (

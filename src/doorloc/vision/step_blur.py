@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from doorloc.vision.edge_samples import EdgeSamples, ScanWindow
-from doorloc.vision.far_face import FarBand, subpixel_edges_far_face
+from doorloc.vision.far_band import FarBand
+from doorloc.vision.far_face import subpixel_edges_far_face
 
 __all__ = ["step_blur"]
 

@@ -21,7 +21,7 @@ import numpy as np
 from doorloc.cell import DoorSize
 from doorloc.vision import quality as q
 from doorloc.vision.config import LocateConfig
-from doorloc.vision.far_face import FarFaceFit
+from doorloc.vision.far_band import FarFaceFit
 from doorloc.vision.state import Refined
 from doorloc.vision.uncertainty import Budget
 
