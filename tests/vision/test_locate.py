@@ -1064,6 +1064,36 @@ def test_a_far_face_as_bright_as_the_hinge_face_is_not_a_wrong_door(cell):
     assert abs(ex) <= 3 * r.uncertainty.x_mm and abs(ez) <= 3 * r.uncertainty.z_mm
 
 
+def test_a_thinner_door_whose_far_face_back_edge_lands_on_the_recipes_arris_is_a_wrong_door(cell):
+    """A 0.97 mm chamfered door 2.5 mm thinner than its recipe (28.45 mm for 30.95), its far face in view and
+    as bright as its hinge face: the far face's back edge lies within a millimetre of where the recipe puts
+    the far arris. The far-face fit took that edge for the arris beside a band at the background's level and
+    measured 30.69 mm, and the wrong door passed (bench_surfaces.py --sets thin-arris --seed 2611
+    --wrong-thickness -2.5, door 0). The band's other reading, the arris 10.5 px in, misfits 4.4 times less:
+    the door is measured as it is and refused. The same door at its recipe's thickness is answered."""
+    recipe = DoorSize(900, 30.951, 2100, arris_mm=0.973, arris_profile="chamfer")
+    pose = DoorPose(-2.4003, 7.9014, -1.2788)
+    fx = Effects(
+        arris_profile="chamfer",
+        albedo_hinge=0.5547,
+        albedo_chamfer=0.638,
+        albedo_background=0.0919,
+        light_ambient=0.3754,
+        light_directional=0.163,
+        light_azimuth_deg=56.46,
+        light_elevation_deg=26.98,
+        blur_sigma_px=1.715,
+        read_noise_dn=0.817,
+    )
+    thinner = replace(recipe, thickness_mm=recipe.thickness_mm - 2.5)
+    r = locate(render_door(cell, thinner, pose, effects=fx, seed=2616000).image, cell, recipe)
+    assert r.error_code == "thickness_mismatch", (r.error_code, r.diagnostics.get("thickness_check"))
+    assert "check that the right door is in the fixture" in r.error
+    r = locate(render_door(cell, recipe, pose, effects=fx, seed=2616000).image, cell, recipe)
+    assert r.ok, r.error
+    assert abs(r.thickness_mm - recipe.thickness_mm) <= 2 * r.diagnostics["thickness_check"]["sigma_mm"]
+
+
 def test_a_far_face_as_bright_as_the_hinge_face_reads_two_ways_and_the_thickness_sigma_says_so(cell):
     """A 31.3 mm door under ambient light alone: its far face 3 grey levels below the hinge face, under 5 %
     grain, so the one step beside the far arris is either the arris (a far face as dark as the background)

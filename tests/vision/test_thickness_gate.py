@@ -7,8 +7,9 @@ from types import SimpleNamespace
 import pytest
 
 from doorloc.cell import DoorSize
+from doorloc.vision.config import LocateConfig
 from doorloc.vision.far_band import FarFaceFit
-from doorloc.vision.thickness_gate import other_reading
+from doorloc.vision.thickness_gate import other_reading, thickness_check
 
 SCALE = 0.2  # mm per px
 SLOPE = -0.72  # the band's change in width per px the arris moves outwards (a far face 900 mm deep)
@@ -63,3 +64,41 @@ def test_the_fits_own_other_reading_comes_first():
     r.far_fit = FarFaceFit(0.95, 1.0, 2.0, 0.03, 0.05, other_reading_px=-7.1, band_slope=SLOPE)
     other_mm, other = other_reading(r, door, 1.0)
     assert other_mm == pytest.approx(-7.1 * SCALE) and other == pytest.approx(32.52 - 1.42)
+
+
+def _fitted_other(measured_mm: float, other_px: float, level: float = 0.9):
+    """A strip fit whose band's other reading, ``other_px`` away, fitted the profiles alike."""
+    r = _refined(measured_mm, 3.0, level, 1.5)
+    r.far_fit = FarFaceFit(
+        level, 1.5, 3.0, 0.03, 0.05, other_reading_px=other_px, band_slope=SLOPE, other_fitted=True
+    )
+    r.arris_fits = {}
+    return r
+
+
+def test_a_fitted_other_reading_is_weighed_however_far():
+    """A reading fitted to the profiles is no guess about a level: 2.4 mm away (beyond twice the tolerance,
+    where a level's other reading is not weighed) it still counts."""
+    door = DoorSize(900, 30.95, 2100)
+    other_mm, other = other_reading(_fitted_other(30.69, -12.0), door, 1.0)
+    assert other_mm == pytest.approx(-2.4) and other == pytest.approx(28.29)
+
+
+@pytest.mark.parametrize(
+    ("measured_mm", "other_px", "code"),
+    [
+        (30.69, -12.0, "uncertain"),  # the fit passes, its other reading (a door 2.4 mm thinner) does not
+        (32.10, -6.0, "uncertain"),  # the fit misses, its other reading passes: not called a wrong door
+        (30.69, -3.0, None),  # both pass
+        (33.50, -4.0, "thickness_mismatch"),  # both miss
+    ],
+)
+def test_two_readings_that_fit_alike_and_straddle_the_tolerance_are_uncertain(measured_mm, other_px, code):
+    door = DoorSize(900, 30.95, 2100)
+    r = _fitted_other(measured_mm, other_px)
+    _, other = other_reading(r, door, 1.0)
+    refusals, unverified, uncertain = thickness_check(r, door, LocateConfig(), 0.05, other)
+    codes = [x.code for x in refusals + unverified if x is not None]
+    assert codes == ([code] if code else []), codes
+    if code == "uncertain":
+        assert unverified and uncertain and "back edge" in unverified[0].message

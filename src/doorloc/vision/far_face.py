@@ -48,6 +48,13 @@ LEVEL_PRIOR_WEIGHT = 0.02
 #: and made the other reading's misfit decide (49 scan lines' worth on that door) where the data cannot.
 BAND_SIDE_LEVEL = 0.2
 BAND_SIDE_MIN_PX = 0.25
+#: beside an arris strip, the band's two readings (:func:`_band_readings`) fit alike where the worse one's
+#: misfit is at most this many times the better's: the strip model's own error is that large (valid thin
+#: doors whose true reading misfit 1.6-1.8 times the other's; bench_surfaces.py --sets thin-arris --seed 2611,
+#: doors 34 and 38), and such a pair is the image's ambiguity, for the thickness check to weigh
+BAND_READINGS_ALIKE = 2.0
+#: a band's other reading that ends within this of the fit's own (px) is the same reading
+BAND_READINGS_APART_PX = 1.0
 
 
 #: the far face's start search ranks its shifts on every START_SUBSET_EVERY-th scan line or fewer (about
@@ -206,9 +213,43 @@ def _other_strip_reading(
     return chosen, strip_doubt
 
 
+def _band_readings(
+    prof: _Profiles, prior: _StripPrior, fit: _Fit, fit_blur: bool, n_iter: int, reach: float
+) -> tuple[_Fit, _Fit | None]:
+    """A strip fit's band read both ways: the better reading, and the other where it fits alike (its misfit
+    within :data:`BAND_READINGS_ALIKE` of the better's, its arrises within ``reach`` px of the prediction and
+    :data:`BAND_READINGS_APART_PX` away), else None. A fit from the other reading's place whose band keeps
+    its level's side has found the strip's other reading instead (:func:`_other_strip_reading`'s).
+
+    A band at the background's or the hinge face's level (:func:`_other_band_reading`) leaves one step, the
+    arris or the far face's back edge; the start search (common shifts within the window's half) and the
+    strip's two readings do not reach the other. A door 2.5 mm thinner than its recipe, its far face as bright
+    as its hinge face, was fitted with its back edge for the arris, beside a band at the background's level:
+    measured 0.26 mm thin, it passed (bench_surfaces.py --sets thin-arris --seed 2611 --wrong-thickness -2.5,
+    door 0); its other reading, 10.5 px in, misfits 4.4 times less. But the better misfit is not always the
+    door's (at -1.5 mm, door 34: the back edge's reading misfits 0.82 times the true one's), so a reading that
+    fits alike stays for the thickness check (:attr:`FarFaceFit.other_reading_px`)."""
+    band_other = _other_band_reading(prof, fit[0], fit[1])
+    if band_other == 0.0:
+        return fit, None
+    alt = prof.gauss_newton(
+        prior, fit[0] + band_other, 0.0 if fit[1] >= 0.5 else 1.0, fit[2], prior.mu0, fit_blur, n_iter
+    )
+    if not np.all(np.abs(alt[0] - prof.e0) <= reach):
+        return fit, None
+    # a band that kept its side is the strip's other reading, not the band's
+    if (alt[1] >= 0.5) == (fit[1] >= 0.5):
+        return fit, None
+    best, other = (alt, fit) if alt[4] < fit[4] else (fit, alt)
+    if other[4] > BAND_READINGS_ALIKE * best[4] or abs(median(other[0] - best[0])) < BAND_READINGS_APART_PX:
+        return best, None
+    return best, other
+
+
 def _other_band_reading(prof: _Profiles, e: np.ndarray, lam: float) -> float:
-    """:attr:`FarFaceFit.other_reading_px` of a fit without a strip (0 where the band's level tells the two
-    readings apart)."""
+    """Where the band's other reading puts the arris, px from ``e`` (0 where the band's level tells the two
+    readings apart): :attr:`FarFaceFit.other_reading_px` of a fit without a strip; with one, the start of
+    the reading :func:`_band_readings` fits."""
     if min(abs(lam), abs(1.0 - lam)) > BAND_SIDE_LEVEL:
         return 0.0
     w_med = median(prof.band_width(e))
@@ -338,14 +379,16 @@ def _fit_arrises(
 ) -> tuple[_Fit, np.ndarray, float, float]:
     """The far-face fit on the usable lines from ``fit``'s blur and strip level (index units, px): the
     answer, each arris's standard deviation, the model's doubt (px) and
-    :attr:`FarFaceFit.other_reading_px`."""
+    :attr:`FarFaceFit.other_reading_px` (fitted, :attr:`FarFaceFit.other_fitted`, where there is a strip)."""
     strip_doubt = other_reading = 0.0
     e, lam = _start(prof, fit[2], prior.mu0, settings.half)
     fit = prof.gauss_newton(prior, e, lam, fit[2], fit[3], settings.fit_blur, settings.n_iter)
     if prof.has_strip:
-        fit, strip_doubt = _other_strip_reading(
-            prof, prior, fit, settings.fit_blur, settings.n_iter, settings.half + settings.n_strip
-        )
+        reach = settings.half + settings.n_strip
+        fit, band_other = _band_readings(prof, prior, fit, settings.fit_blur, settings.n_iter, reach)
+        fit, strip_doubt = _other_strip_reading(prof, prior, fit, settings.fit_blur, settings.n_iter, reach)
+        if band_other is not None:
+            other_reading = median(band_other[0] - fit[0])
     else:
         other_reading = _other_band_reading(prof, fit[0], fit[1])
     doubts = _arris_doubts(prof, prior, fit, settings.strip_shaded)
@@ -522,6 +565,7 @@ def _far_face_answer(
         float(mu) if win.has_strip else float("nan"),
         outcome.other_reading,
         band_slope,
+        win.has_strip and outcome.other_reading != 0.0,
     )
     return samples, fit_out
 

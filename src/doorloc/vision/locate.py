@@ -359,7 +359,7 @@ def _door_light_diagnostics(light: LightMeasurement, used: bool) -> dict:
     } | ({"runner_up_deg": list(light.runner_up_deg)} if light.runner_up_deg is not None else {})
 
 
-def _far_face_diagnostics(far_fit: FarFaceFit) -> dict[str, float]:
+def _far_face_diagnostics(far_fit: FarFaceFit) -> dict[str, float | bool]:
     """The far-face fit as the result's diagnostics report it (rounded)."""
     return {
         "band_level": round(far_fit.band_level, 4),
@@ -368,4 +368,5 @@ def _far_face_diagnostics(far_fit: FarFaceFit) -> dict[str, float]:
         "arris_sigma_px": round(far_fit.arris_sigma_px, 4),
         "model_sigma_px": round(far_fit.model_sigma_px, 4),
         "other_reading_px": round(far_fit.other_reading_px, 3),
+        "other_fitted": far_fit.other_fitted,
     } | ({"strip_level": round(far_fit.strip_level, 4)} if math.isfinite(far_fit.strip_level) else {})
