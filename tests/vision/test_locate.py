@@ -1094,6 +1094,32 @@ def test_a_thinner_door_whose_far_face_back_edge_lands_on_the_recipes_arris_is_a
     assert abs(r.thickness_mm - recipe.thickness_mm) <= 2 * r.diagnostics["thickness_check"]["sigma_mm"]
 
 
+def test_a_thicker_door_whose_rounding_reads_at_its_other_border_is_not_passed(cell):
+    """A 2.95 mm rounding as dark as the background on a door 2.5 mm thicker than its recipe (33.78 mm for
+    31.28), its far face in view: the strip fit reads the rounding at its inner border, a strip's width in,
+    and the door measured 30.80 mm, within the tolerance, and passed (bench_surfaces.py --sets thin-arris
+    --seed 2711 --wrong-thickness 2.5, door 23). The strip's other reading, at 33.75 mm, fits the image
+    about as well: the door is refused as uncertain, naming both."""
+    recipe = DoorSize(900, 31.280, 2100, arris_mm=2.945, arris_profile="round")
+    pose = DoorPose(-0.8034, -1.4842, 0.4080)
+    fx = Effects(
+        arris_profile="round",
+        albedo_hinge=0.893,
+        albedo_chamfer=0.432,
+        albedo_background=0.1896,
+        light_ambient=0.4282,
+        light_directional=0.0994,
+        light_azimuth_deg=-49.78,
+        light_elevation_deg=-19.66,
+        blur_sigma_px=0.614,
+        read_noise_dn=0.546,
+    )
+    thicker = replace(recipe, thickness_mm=recipe.thickness_mm + 2.5)
+    r = locate(render_door(cell, thicker, pose, effects=fx, seed=2716023).image, cell, recipe)
+    assert r.error_code == "uncertain", (r.error_code, r.diagnostics.get("thickness_check"))
+    assert "strip is read at its other border" in r.error and "right door" in r.error, r.error
+
+
 def test_a_far_face_as_bright_as_the_hinge_face_reads_two_ways_and_the_thickness_sigma_says_so(cell):
     """A 31.3 mm door under ambient light alone: its far face 3 grey levels below the hinge face, under 5 %
     grain, so the one step beside the far arris is either the arris (a far face as dark as the background)

@@ -70,7 +70,7 @@ def _fitted_other(measured_mm: float, other_px: float, level: float = 0.9):
     """A strip fit whose band's other reading, ``other_px`` away, fitted the profiles alike."""
     r = _refined(measured_mm, 3.0, level, 1.5)
     r.far_fit = FarFaceFit(
-        level, 1.5, 3.0, 0.03, 0.05, other_reading_px=other_px, band_slope=SLOPE, other_fitted=True
+        level, 1.5, 3.0, 0.03, 0.05, other_reading_px=other_px, band_slope=SLOPE, other_fitted="band"
     )
     r.arris_fits = {}
     return r
@@ -102,3 +102,15 @@ def test_two_readings_that_fit_alike_and_straddle_the_tolerance_are_uncertain(me
     assert codes == ([code] if code else []), codes
     if code == "uncertain":
         assert unverified and uncertain and "back edge" in unverified[0].message
+
+
+def test_a_strips_other_reading_names_the_strip():
+    door = DoorSize(900, 31.28, 2100)
+    r = _fitted_other(30.80, 14.75)
+    r.far_fit = FarFaceFit(
+        0.73, 0.6, 1.0, 0.03, 0.05, other_reading_px=14.75, band_slope=SLOPE, other_fitted="strip"
+    )
+    _, other = other_reading(r, door, 1.0)
+    _, unverified, uncertain = thickness_check(r, door, LocateConfig(), 0.05, other)
+    assert uncertain and "strip is read at its other border" in unverified[0].message
+    assert "33.75 mm" in unverified[0].message

@@ -47,10 +47,13 @@ class FarFaceFit:
         The band's change in width per px the arris moves away from the hinge face (a thicker door), px / px:
         the geometry's ``-(1 - k)``, ``k`` the ratio of the arris's depth to the far face's back edge's (about
         -0.7; :attr:`doorloc.vision.region.Track.band_slope`).
-    other_fitted : bool
-        ``other_reading_px`` is a reading fitted to the profiles beside an arris strip, its misfit within
-        :data:`doorloc.vision.far_face.BAND_READINGS_ALIKE` of this one's, not only a level the band shares
-        with a side; the thickness check weighs it however far it lies.
+    other_fitted : str
+        Where ``other_reading_px`` is a reading fitted to the profiles beside an arris strip, its misfit
+        within :data:`doorloc.vision.far_face.READINGS_ALIKE` of this one's (not only a level the band shares
+        with a side), what it reads the other way: ``"band"`` (the one step beside the far arris is the far
+        face's back edge rather than the arris, or the reverse) or ``"strip"`` (the strip's border lies a
+        strip's width away); ``""`` where it is not fitted. The thickness check weighs a fitted reading
+        however far it lies.
     """
 
     band_level: float
@@ -61,7 +64,7 @@ class FarFaceFit:
     strip_level: float = float("nan")
     other_reading_px: float = 0.0
     band_slope: float = 0.0
-    other_fitted: bool = False
+    other_fitted: str = ""
 
 
 @dataclass(frozen=True)

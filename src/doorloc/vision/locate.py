@@ -359,7 +359,7 @@ def _door_light_diagnostics(light: LightMeasurement, used: bool) -> dict:
     } | ({"runner_up_deg": list(light.runner_up_deg)} if light.runner_up_deg is not None else {})
 
 
-def _far_face_diagnostics(far_fit: FarFaceFit) -> dict[str, float | bool]:
+def _far_face_diagnostics(far_fit: FarFaceFit) -> dict[str, float | str]:
     """The far-face fit as the result's diagnostics report it (rounded)."""
     return {
         "band_level": round(far_fit.band_level, 4),

@@ -217,30 +217,43 @@ def thickness_check(
 def _readings_split(
     r: Refined, door: DoorSize, t_tol: float, t_sigma: float, other: float | None
 ) -> q.Refusal | None:
-    """Where the far face's band reads two ways that fit the image alike (:attr:`FarFaceFit.other_fitted`;
-    ``other`` the second reading's thickness, mm) and one passes the recipe's tolerance while the other does
-    not, the ``uncertain`` refusal that names both; else None.
+    """Where the profiles beside the far arris read two ways that fit the image alike (the far face's band or
+    the arris's strip, :attr:`FarFaceFit.other_fitted`; ``other`` the second reading's thickness, mm) and one
+    passes the recipe's tolerance while the other does not, the ``uncertain`` refusal that names both; else
+    None.
 
     The check cannot take the reading nearer the recipe there: that passes a wrong door whose far face's back
     edge lies where the recipe puts the far arris (a door 1.5 mm thinner than its recipe, measured 0.71 mm
     thick with the back edge's reading, which misfit 0.82 times the true one's: bench_surfaces.py --sets
     thin-arris --seed 2611 --wrong-thickness -1.5, door 34); nor call the door wrong where the reading that
     misses is the worse fit's (valid doors 34 and 38 of the same set, measured 1.18 and 2.09 mm thick
-    beside the better fit's band at the background's level)."""
+    beside the better fit's band at the background's level). The same holds for the strip's two readings:
+    at seed 2711 (+2.5 mm) and 3011 (+1.5, +2.5 mm) three wrong doors whose rounding was read at its other
+    border passed."""
     if other is None or r.far_fit is None or not r.far_fit.other_fitted:
         return None
     fitted = r.pose.thickness_mm
     passes = [q.check_thickness(t, door.thickness_mm, t_tol, sigma=t_sigma) is None for t in (fitted, other)]
     if passes[0] == passes[1]:
         return None
-    side = "background" if r.far_fit.band_level >= 0.5 else "hinge face"
+    if r.far_fit.other_fitted == "band":
+        side = "background" if r.far_fit.band_level >= 0.5 else "hinge face"
+        reading = (
+            "the one step beside the far arris is the far face's back edge rather than the arris (or the "
+            f"reverse): the far face looks like the {side}"
+        )
+        light = "light the far face differently from the hinge face and the background"
+    else:
+        reading = (
+            "the far arris's strip is read at its other border, a strip's width away: its shading is hard to "
+            "tell from the faces beside it"
+        )
+        light = "light the far arris so that it stands apart from the hinge face and the far face"
     return q.Refusal(
         "uncertain",
         f"the door's thickness cannot be checked: it measures {fitted:.2f} mm against {door.thickness_mm:.2f} "
-        f"mm (tolerance {t_tol:g} mm), or {other:.2f} mm if the one step beside the far arris is the far "
-        f"face's back edge rather than the arris (or the reverse): the far face looks like the {side}, and "
-        "the image fits both alike; light the far face differently from the hinge face and the background, or "
-        "check that the right door is in the fixture",
+        f"mm (tolerance {t_tol:g} mm), or {other:.2f} mm if {reading}, and the image fits both alike; {light}, "
+        "or check that the right door is in the fixture",
     )
 
 
