@@ -361,7 +361,7 @@ def _door_light_diagnostics(light: LightMeasurement, used: bool) -> dict:
 
 def _far_face_diagnostics(far_fit: FarFaceFit) -> dict[str, float | str]:
     """The far-face fit as the result's diagnostics report it (rounded)."""
-    return {
+    figures: dict[str, float | str] = {
         "band_level": round(far_fit.band_level, 4),
         "blur_px": round(far_fit.blur_px, 3),
         "band_px": round(far_fit.band_px, 3),
@@ -369,4 +369,7 @@ def _far_face_diagnostics(far_fit: FarFaceFit) -> dict[str, float | str]:
         "model_sigma_px": round(far_fit.model_sigma_px, 4),
         "other_reading_px": round(far_fit.other_reading_px, 3),
         "other_fitted": far_fit.other_fitted,
-    } | ({"strip_level": round(far_fit.strip_level, 4)} if math.isfinite(far_fit.strip_level) else {})
+    }
+    if math.isfinite(far_fit.strip_level):
+        figures["strip_level"] = round(far_fit.strip_level, 4)
+    return figures
