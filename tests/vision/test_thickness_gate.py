@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from types import SimpleNamespace
 
 import pytest
@@ -66,12 +67,11 @@ def test_the_fits_own_other_reading_comes_first():
     assert other_mm == pytest.approx(-7.1 * SCALE) and other == pytest.approx(32.52 - 1.42)
 
 
-def _fitted_other(measured_mm: float, other_px: float, level: float = 0.9):
-    """A strip fit whose band's other reading, ``other_px`` away, fitted the profiles alike."""
+def _fitted_other(measured_mm: float, other_px: float, level: float = 0.9, kind: str = "band"):
+    """A strip fit whose ``kind`` of other reading (the band's or the strip's), ``other_px`` away, fitted the
+    profiles alike."""
     r = _refined(measured_mm, 3.0, level, 1.5)
-    r.far_fit = FarFaceFit(
-        level, 1.5, 3.0, 0.03, 0.05, other_reading_px=other_px, band_slope=SLOPE, other_fitted="band"
-    )
+    r.far_fit = replace(r.far_fit, other_reading_px=other_px, other_fitted=kind)
     r.arris_fits = {}
     return r
 
@@ -106,10 +106,7 @@ def test_two_readings_that_fit_alike_and_straddle_the_tolerance_are_uncertain(me
 
 def test_a_strips_other_reading_names_the_strip():
     door = DoorSize(900, 31.28, 2100)
-    r = _fitted_other(30.80, 14.75)
-    r.far_fit = FarFaceFit(
-        0.73, 0.6, 1.0, 0.03, 0.05, other_reading_px=14.75, band_slope=SLOPE, other_fitted="strip"
-    )
+    r = _fitted_other(30.80, 14.75, level=0.73, kind="strip")
     _, other = other_reading(r, door, 1.0)
     _, unverified, uncertain = thickness_check(r, door, LocateConfig(), 0.05, other)
     assert uncertain and "strip is read at its other border" in unverified[0].message
