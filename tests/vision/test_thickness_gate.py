@@ -84,6 +84,25 @@ def test_a_fitted_other_reading_is_weighed_however_far():
     assert other_mm == pytest.approx(-2.4) and other == pytest.approx(28.29)
 
 
+def test_a_bands_other_reading_is_weighed_however_far_but_only_where_a_door_could_be():
+    """A band at the background's level, read from its level alone (not fitted): 2.4 mm away its other
+    reading counts (a far face as bright as the hinge face, ending where the recipe puts the far arris, was a
+    wrong door that passed), 21 mm away (a 9.7 mm door) it does not."""
+    door = DoorSize(900, 30.95, 2100)
+    r = _refined(30.69, 12.0, 0.98, 1.0)
+    r.far_fit = replace(r.far_fit, other_reading_px=-12.0)
+    other_mm, other = other_reading(r, door, 1.0)
+    assert other_mm == pytest.approx(-2.4) and other == pytest.approx(28.29)
+    _, unverified, uncertain = thickness_check(r, door, LocateConfig(), 0.05, other)
+    assert (
+        uncertain
+        and "back edge" in unverified[0].message
+        and "looks like the background" in unverified[0].message
+    )
+    r.far_fit = replace(r.far_fit, other_reading_px=-105.0)
+    assert other_reading(r, door, 1.0) == (pytest.approx(-21.0), None)
+
+
 @pytest.mark.parametrize(
     ("measured_mm", "other_px", "code"),
     [

@@ -19,6 +19,7 @@ import math
 import numpy as np
 
 from doorloc.cell import DoorSize
+from doorloc.limits import DOOR_RANGES_MM
 from doorloc.vision import quality as q
 from doorloc.vision.config import LocateConfig
 from doorloc.vision.far_band import FarFaceFit
@@ -53,21 +54,20 @@ def other_reading(r: Refined, door: DoorSize, t_tol: float) -> tuple[float, floa
     if not far_beside or far_fit is None:
         return 0.0, None
     # A far face whose band looks like the background or like the hinge face reads two ways, a band's width
-    # apart (edges.FarFaceFit.other_reading_px), and the image cannot tell which: the check takes the reading
-    # nearer the recipe (a wrong door passes only where its other reading lands on the recipe's thickness),
-    # and the reported sigma reaches the other reading at 2 sigma. Readings more than twice the tolerance
-    # apart are not weighed (the fitted one is judged alone, as without a band): a band that wide is seen
-    # (on bench_surfaces' grain, hard and thin sets, 60 doors each, every fitted reading whose other lay
-    # 2.6-20 mm off was the door's; the two wrong ones were read beside bands of 0.6-1.2 px, 0.4-0.8 mm).
+    # apart (edges.FarFaceFit.other_reading_px), and the image cannot tell which: the other reading is
+    # weighed however far (_readings_split), wherever it puts a door thickness doorloc accepts
+    # (limits.DOOR_RANGES_MM), and the reported sigma reaches it at 2 sigma. Readings beyond twice the
+    # tolerance were once left out (the fitted one judged alone): wrong doors passed, thin doors whose far
+    # face, as bright as the hinge face, ended where the recipe puts the far arris (bench_surfaces.py --sets
+    # thin --n 40 --seed 2611 --wrong-thickness -2.5, doors 13 and 32: read 13.2 and 16.1 px inwards beside
+    # a band at the background's level; and +2.5, door 3, 11.9 px outwards beside one at the hinge face's).
     other_mm = far_fit.other_reading_px * pose.scale_mm_per_px
-    if far_fit.other_fitted:  # fitted, and as good as the fit's own reading: weighed however far
-        return other_mm, pose.thickness_mm + other_mm
-    if other_mm == 0.0:
-        other_mm = _unresolved_band_reading(
-            far_fit, door.thickness_mm - pose.thickness_mm, pose.scale_mm_per_px
-        )
-    other = pose.thickness_mm + other_mm if 0.0 < abs(other_mm) <= 2.0 * t_tol else None
-    return other_mm, other
+    if other_mm != 0.0:
+        lo, hi = DOOR_RANGES_MM["thickness_mm"]
+        a_door = lo <= pose.thickness_mm + other_mm <= hi
+        return other_mm, (pose.thickness_mm + other_mm if a_door else None)
+    other_mm = _unresolved_band_reading(far_fit, door.thickness_mm - pose.thickness_mm, pose.scale_mm_per_px)
+    return other_mm, (pose.thickness_mm + other_mm if 0.0 < abs(other_mm) <= 2.0 * t_tol else None)
 
 
 def _unresolved_band_reading(far_fit: FarFaceFit, to_recipe_mm: float, scale_mm_per_px: float) -> float:
@@ -217,10 +217,10 @@ def thickness_check(
 def _readings_split(
     r: Refined, door: DoorSize, t_tol: float, t_sigma: float, other: float | None
 ) -> q.Refusal | None:
-    """Where the profiles beside the far arris read two ways that fit the image alike (the far face's band or
-    the arris's strip, :attr:`FarFaceFit.other_fitted`; ``other`` the second reading's thickness, mm) and one
-    passes the recipe's tolerance while the other does not, the ``uncertain`` refusal that names both; else
-    None.
+    """Where the profiles beside the far arris read two ways (the far face's band, at the background's or the
+    hinge face's level; or the arris's strip, fitted alike: :attr:`FarFaceFit.other_fitted`; ``other`` the
+    second reading's thickness, mm) and one passes the recipe's tolerance while the other does not, the
+    ``uncertain`` refusal that names both; else None.
 
     The check cannot take the reading nearer the recipe there: that passes a wrong door whose far face's back
     edge lies where the recipe puts the far arris (a door 1.5 mm thinner than its recipe, measured 0.71 mm
@@ -230,13 +230,13 @@ def _readings_split(
     beside the better fit's band at the background's level). The same holds for the strip's two readings:
     at seed 2711 (+2.5 mm) and 3011 (+1.5, +2.5 mm) three wrong doors whose rounding was read at its other
     border passed."""
-    if other is None or r.far_fit is None or not r.far_fit.other_fitted:
+    if other is None or r.far_fit is None or r.far_fit.other_reading_px == 0.0:  # (the recipe's, unresolved)
         return None
     fitted = r.pose.thickness_mm
     passes = [q.check_thickness(t, door.thickness_mm, t_tol, sigma=t_sigma) is None for t in (fitted, other)]
     if passes[0] == passes[1]:
         return None
-    if r.far_fit.other_fitted == "band":
+    if r.far_fit.other_fitted != "strip":
         side = "background" if r.far_fit.band_level >= 0.5 else "hinge face"
         reading = (
             "the one step beside the far arris is the far face's back edge rather than the arris (or the "
