@@ -17,7 +17,9 @@ from typing import Any
 import numpy as np
 
 from doorloc.cell import Cell, DoorSize
+from doorloc.pose import DoorPose
 from doorloc.vision import quality as q
+from doorloc.vision.bottom_end import DoorInView, settled_by_bottom_end
 from doorloc.vision.config import LocateConfig
 from doorloc.vision.edge_samples import EdgeSamples
 from doorloc.vision.lines import RectangleFit
@@ -64,7 +66,7 @@ def gate_and_answer(
     s8: float,
 ) -> LocateResult:
     """The gate: the answer, or the refusal with its reason, from the refined edges, the response check and
-    the lines' doubts. (It reads the pixels only to tell a pattern from a door where the edges failed.)
+    the lines' doubts. (It reads pixels only to tell a pattern from a door, and a far face's readings apart.)
 
     The checks in the order they are weighed (the first that refuses is the answer's reason, unless a pose
     outside the envelope or a pattern in view explains it better, :func:`_first_refusal`): each line's
@@ -82,7 +84,7 @@ def gate_and_answer(
             pose.x_mm, pose.z_mm, pose.yaw_deg, cell.envelope, cfg.envelope_margin_mm, cfg.envelope_margin_deg
         )
     )
-    other_mm, other = other_reading(r, door, cfg.thickness_tolerance_mm)
+    other_mm, other, bottom_end = _other_reading_seen(plane, s8, cell, door, r, cfg)
     # Standard uncertainty of the thickness: the two arris offsets' noise, and beside a visible far face
     # what its model leaves in doubt (a band narrower than the blur is hard to tell from the arris).
     # The two arrises' response doubts share their cause (one camera exponent moves both edges outwards
@@ -100,7 +102,7 @@ def gate_and_answer(
     refusals += [_corner_sigma_check(fit, cfg, diagnostics), _response_disputed(disputed, cell)]
     budget = reported_budget(budget, door, cfg, silhouette, t_uncertain)
     diagnostics["thickness_check"] = thickness_diagnostics(
-        r, door, cfg, budget.thickness_reported_mm, t_uncertain, other, silhouette
+        r, door, cfg, budget.thickness_reported_mm, t_uncertain, other, silhouette, bottom_end
     )
     unc = PoseUncertainty(x_mm=budget.x_mm, z_mm=budget.z_mm, yaw_deg=budget.yaw_deg)
     diagnostics["uncertainty_terms"] = {k: [round(v, 6) for v in t] for k, t in budget.groups.items()}
@@ -170,6 +172,27 @@ def _arris_clipped(r: Refined, cfg: LocateConfig) -> q.Refusal | None:
 #: across it, and their distance from the edge's points (beyond a 3 mm arris strip and the blur), px
 NOISE_PATCH_PX = (128, 48)
 NOISE_PATCH_GAP_PX = 24
+
+
+def _other_reading_seen(
+    plane, s8: float, cell: Cell, door: DoorSize, r: Refined, cfg: LocateConfig
+) -> tuple[float, float | None, float | None]:
+    """A far face's other reading (:func:`other_reading`: how far, mm, and the thickness it reads where it
+    is weighed) and the door's bottom end's level where it was read. On a door without arrises whose band
+    reads two ways, where the bottom end shows the fitted reading the other is dropped (``0.0, None``)."""
+    other_mm, other = other_reading(r, door, cfg.thickness_tolerance_mm)
+    far = r.far_fit
+    if other is None or far is None or far.other_fitted or far.other_reading_px == 0.0 or door.arris_mm > 0:
+        return other_mm, other, None
+    in_view = DoorInView(
+        cell.posed_camera,
+        cell.face_y(door),
+        DoorPose(r.pose.x_mm, r.pose.z_mm, r.pose.yaw_deg),
+        door.width_mm,
+    )
+    settled, seen = settled_by_bottom_end(plane, s8, in_view, r.pose.thickness_mm, other, cfg.min_contrast)
+    level = seen.level if seen is not None and math.isfinite(seen.level) else None
+    return (0.0, None, level) if settled else (other_mm, other, level)
 
 
 def _exposure_checks(plane, s8: float, r: Refined, cfg: LocateConfig, diagnostics: dict) -> list:

@@ -370,11 +370,13 @@ def thickness_diagnostics(
     uncertain: bool,
     other: float | None,
     silhouette: float | None,
+    bottom_end: float | None = None,
 ) -> dict:
     """The thickness check's figures for the answer's diagnostics (mm): the measured and the expected
     thickness, their difference, the tolerance, the reported standard uncertainty ``sigma_mm``, whether the
     check found it ``uncertain``, whether the far face was in view, the other reading ``other`` where there
-    is one and the far silhouette's contrast (grey levels)."""
+    is one, the far silhouette's contrast (grey levels) and the door's bottom end's level where it told the
+    far face's readings apart (0 the hinge face's, 1 the background's: :mod:`doorloc.vision.bottom_end`)."""
     pose = r.pose
     return {
         "measured_mm": round(pose.thickness_mm, 4),
@@ -386,4 +388,5 @@ def thickness_diagnostics(
         "far_face_in_view": r.far_beside,
         "other_reading_mm": round(other, 4) if other is not None else None,
         "far_silhouette_contrast": round(silhouette, 2) if silhouette is not None else None,
+        "bottom_end_level": round(bottom_end, 3) if bottom_end is not None else None,
     }
