@@ -1,4 +1,4 @@
-"""The door's bottom end tells a far face's two readings apart (``vision/bottom_end.py``), on rendered doors."""
+"""The door's bottom end tells a far face's two readings apart (``vision/bottom_end.py``), on renders."""
 
 from __future__ import annotations
 

@@ -100,13 +100,13 @@ def bottom_end_level(
 ) -> BottomEndLevel | None:
     """The level, at the door's bottom end, of the triangle that tells a far face's two readings apart.
 
-    ``thicknesses_mm``: the thinner and the thicker reading of the door ``door``. The triangle's corners are the two readings'
-    far arrises on the bottom end (the thicker one's is the step) and the thinner reading's far face's back
-    edge on the bottom end (sharp edges: a door with arrises is read beside a strip, not here). The hinge
-    face's level is read beside it, inwards by the readings' distance, the background's below the bottom
-    end. None where a region leaves the image or holds no pixel, the hinge face's runs past the reference
-    arris, or the camera does not look down on the bottom end (the far face's bottom edge would not cut the
-    corner).
+    ``thicknesses_mm``: the thinner and the thicker reading of ``door``'s thickness. The triangle's corners
+    are the two readings' far arrises on the bottom end (the thicker one's is the step) and the thinner
+    reading's far face's back edge on the bottom end (sharp edges: a door with arrises is read beside a
+    strip, not here). The hinge face's level is read beside it, inwards by the readings' distance, the
+    background's below the bottom end. None where a region leaves the image or holds no pixel, the hinge
+    face's runs past the reference arris, or the camera does not look down on the bottom end (the far face's
+    bottom edge would not cut the corner).
     """
     t_thin, t_thick = thicknesses_mm
     door_pts = np.array(
