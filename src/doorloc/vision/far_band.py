@@ -52,8 +52,9 @@ class FarFaceFit:
         within :data:`doorloc.vision.far_face.READINGS_ALIKE` of this one's (not only a level the band shares
         with a side), what it reads the other way: ``"band"`` (the one step beside the far arris is the far
         face's back edge rather than the arris, or the reverse) or ``"strip"`` (the strip's border lies a
-        strip's width away); ``""`` where it is not fitted. The thickness check weighs a fitted reading
-        however far it lies.
+        strip's width away); ``""`` where it is not fitted. The thickness check weighs either kind however
+        far it lies (within the door sizes doorloc accepts); one not fitted, on a door without arrises, the
+        door's bottom end may settle (:mod:`doorloc.vision.bottom_end`).
     """
 
     band_level: float
