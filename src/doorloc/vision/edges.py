@@ -19,7 +19,8 @@ the blur (as long as the window holds the whole transition). Hence
 with ``A``, ``B`` the mean levels on plateaus just outside the window. This "area" (first-moment)
 estimator is unbiased for box-filtered and blurred steps, unlike a parabola through three gradient
 samples (biased by up to ~0.05 px on sharp edges), and a linear shading across the edge cancels
-when the window is centred on the edge.
+when the window is centred on the edge. ``A`` and ``B`` may be averaged along the edge against noise, where
+they do not change along it (:func:`level_smoothing`).
 
 The other readers and what they share live beside this module: the edge points' type
 (:mod:`doorloc.vision.edge_samples`), the blurred pixel step and its per-line fit
@@ -37,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from doorloc.vision.edge_samples import EdgeSamples, ScanWindow
-from doorloc.vision.jit import grey, kernel
+from doorloc.vision.jit import grey, kernel, median_in_place
 from doorloc.vision.sampling import (
     NO_LUT,
     Axis,
@@ -52,6 +53,9 @@ from doorloc.vision.sampling import (
 
 __all__ = [
     "DITHERING_NOISE_LEVELS",
+    "LEVEL_STRUCTURE_RATIO",
+    "LEVEL_STRUCTURE_SHIFT_PX",
+    "level_smoothing",
     "subpixel_edges",
     "subpixel_edges_banded",
 ]
@@ -64,20 +68,33 @@ DITHERING_NOISE_LEVELS = 0.5
 
 def _area_edges_warm_up(k) -> None:
     for buf, table in warm_up_planes(8):
-        k(buf, 1, 8, 8, 8, np.arange(8), np.full(8, 1), np.ones(8, bool), 2, 1, table, 1)
+        k(buf, 1, 8, 8, 8, np.arange(8), np.full(8, 1), np.ones(8, bool), 2, 1, table, 1, 1.0)
 
 
 @kernel(_area_edges_warm_up)
 def _area_edges(
-    buf, pitch_along, pitch_scan, n_along, n_scan, scan, start, finite, half, plateau, lut, level_smooth
+    buf,
+    pitch_along,
+    pitch_scan,
+    n_along,
+    n_scan,
+    scan,
+    start,
+    finite,
+    half,
+    plateau,
+    lut,
+    level_smooth,
+    quantum,
 ):
     """The area estimate of :func:`subpixel_edges` with flat plateaus, compiled (:mod:`doorloc.vision.jit`).
 
     Profile ``i`` holds ``P[start[i] + j, scan[i]] = buf[(start[i] + j) * pitch_along + scan[i] * pitch_scan]``
     for ``j < 2 (half + plateau) + 1`` (clamped to the image), mapped by ``lut`` (float32; empty: none).
-    Returns ``along`` (NaN where not valid), the two levels ``A``, ``B`` (float32 values unless smoothed along
-    the edge over ``level_smooth`` scan lines each side), ``noise`` (float32) and ``valid``: the numbers of
-    the numpy branch of :func:`subpixel_edges` up to the order of its float sums.
+    Returns ``along`` (NaN where not valid), the two levels ``A``, ``B`` (float32 values unless smoothed
+    along the edge, over the scan lines each side that :func:`level_smoothing` chooses, at most
+    ``level_smooth``; ``quantum``: an 8-bit grey level in the plane's units), ``noise`` (float32) and
+    ``valid``: the numbers of the numpy branch of :func:`subpixel_edges` up to the order of its float sums.
     """
     # why many parameters: a numba nopython kernel over the plane's flat buffer takes arrays and scalars only
     # why long: one compiled pass per profile (levels, noise, area) and the levels' running sums, as numpy's
@@ -122,32 +139,65 @@ def _area_edges(
             s += row[j]
         S[i] = s
     if level_smooth > 0:
-        # each level averaged over level_smooth scan lines each side (running float32 sums, as np.cumsum
-        # of the float32 levels; a profile that leaves the image takes no part)
+        # each level averaged along the edge (a profile that leaves the image takes no part), over as many
+        # scan lines as its changes along the edge allow
+        gap = np.empty(n)
+        m = 0
+        for i in range(n):
+            if inside[i] and np.isfinite(A[i]) and np.isfinite(B[i]):
+                gap[m] = abs(B[i] - A[i])
+                m += 1
+        step = median_in_place(gap[:m]) if m else np.nan
         for X in (A, B):
-            cs = np.zeros(n + 1)
-            cnt = np.zeros(n + 1, np.int64)
-            run = np.float32(0.0)
-            for i in range(n):
-                if inside[i] and np.isfinite(X[i]):
-                    run += np.float32(X[i])
-                    cnt[i + 1] = cnt[i] + 1
-                else:
-                    cnt[i + 1] = cnt[i]
-                cs[i + 1] = run
-            Y = np.empty(n)
-            for i in range(n):
-                lo = max(i - level_smooth, 0)
-                hi = min(i + level_smooth + 1, n)
-                Y[i] = (cs[hi] - cs[lo]) / max(cnt[hi] - cnt[lo], 1)
-            X[:] = Y
+            k = level_smoothing(X, inside, level_smooth, half, step, quantum)
+            if k > 0:
+                X[:] = _running_level_mean(X, inside, k)
     along = np.empty(n)
     valid = np.empty(n, np.bool_)
-    w = 2 * half + 1
+    _area_along(A, B, S, start, finite, inside, half, plateau, along, valid)
+    return along, A, B, noise, valid
+
+
+#: a plateau's levels whose departure from their running mean along the edge exceeds this many times what
+#: their noise makes, and moves the edge points by more than ``LEVEL_STRUCTURE_SHIFT_PX`` (px RMS), change
+#: along the edge: texture crosses it (:func:`level_smoothing`)
+LEVEL_STRUCTURE_RATIO = 4.0
+LEVEL_STRUCTURE_SHIFT_PX = 0.05
+
+
+@kernel(inline=True)
+def _running_level_mean(x, inside, k):
+    """``x`` averaged over ``k`` scan lines each side (running float32 sums, as np.cumsum of float32 levels;
+    a profile not ``inside`` the image or NaN takes no part)."""
+    n = x.size
+    cs = np.zeros(n + 1)
+    cnt = np.zeros(n + 1, np.int64)
+    run = np.float32(0.0)
     for i in range(n):
+        if inside[i] and np.isfinite(x[i]):
+            run += np.float32(x[i])
+            cnt[i + 1] = cnt[i] + 1
+        else:
+            cnt[i + 1] = cnt[i]
+        cs[i + 1] = run
+    y = np.empty(n)
+    for i in range(n):
+        lo = max(i - k, 0)
+        hi = min(i + k + 1, n)
+        y[i] = (cs[hi] - cs[lo]) / max(cnt[hi] - cnt[lo], 1)
+    return y
+
+
+@kernel(inline=True)
+def _area_along(A, B, S, start, finite, inside, half, plateau, along, valid):
+    """The area estimate of every profile into ``along`` (NaN where not ``valid``) from its levels ``A``,
+    ``B``, its window's sum ``S`` and its first sample ``start`` (:func:`_area_edges`)."""
+    # why many parameters: a numba kernel takes arrays and scalars, and this one writes two of them
+    w = 2 * half + 1
+    for i in range(A.size):
         a = A[i]
         b = B[i] - a
-        # S = (window sum - (2 half + 1) A): the area between the profile and the first level
+        # S - (2 half + 1) A: the area between the profile and the first level
         sa = S[i] - w * a
         den = b + np.sqrt(b * b) * np.sign(b)
         e = start[i] + plateau + 2 * half + 0.5 - 2.0 * sa / den if den != 0 else np.nan
@@ -155,7 +205,76 @@ def _area_edges(
         ok = finite[i] and inside[i] and np.isfinite(e) and abs(b) > 0 and abs(e - c0) <= half
         valid[i] = ok
         along[i] = e if ok else np.nan
-    return along, A, B, noise, valid
+
+
+def _level_smoothing_warm_up(k) -> None:
+    k(np.ones(20), np.ones(20, np.bool_), 10, 3, 50.0, 1.0)
+
+
+@kernel(_level_smoothing_warm_up)
+def level_smoothing(x, inside, level_smooth, half, step, quantum):
+    """The scan lines each side over which one plateau's levels ``x`` (N, in order along the edge) are
+    averaged: ``level_smooth``, unless the levels change along the edge in a way their noise does not explain.
+
+    Averaging along the edge takes the noise out of a plateau's level, which is right where the surface
+    beside the edge is uniform along it (a plain face, shading, grain running along the edge). Where
+    texture crosses the edge (wood grain along the door's height at its bottom end, a knot, a stain, a
+    shadow's border) each scan line's level is its own, and the average puts its neighbours' under it: on
+    doors with 20 % grain across the bottom end the edge points swung +-1 px with the stripes and valid
+    doors were refused ``edge_not_straight``. So the levels' mean square departure from their running mean
+    is compared with what their noise makes (from their second differences along the edge, where texture
+    of a few pixels' period or more hardly shows, and a grey level's rounding, ``quantum`` in the plane's
+    units). Beyond ``LEVEL_STRUCTURE_RATIO`` times that, and moving the edge points by more than
+    ``LEVEL_STRUCTURE_SHIFT_PX`` (the area estimator's lever on a level: ``half + 1/2`` over the edge's
+    ``step``, the plane's units), the averaging is the one of ``level_smooth``, its halves, .. and 0 that
+    leaves the level the least expected error (the departure beyond the noise, plus the noise the average
+    leaves). Profiles not ``inside`` the image take no part.
+    """
+    if level_smooth <= 0 or not step > 0:
+        return level_smooth
+    n = x.size
+    n_ok = 0
+    for i in range(n):
+        if inside[i] and np.isfinite(x[i]):
+            n_ok += 1
+    # the noise of one scan line's level: a second difference of white noise has six times its variance
+    sq2 = 0.0
+    n2 = 0
+    for i in range(1, n - 1):
+        if inside[i - 1] and inside[i] and inside[i + 1]:
+            d2 = x[i - 1] - 2.0 * x[i] + x[i + 1]
+            if np.isfinite(d2):
+                sq2 += d2 * d2
+                n2 += 1
+    if n2 < 8:
+        return level_smooth
+    noise = sq2 / n2 / 6.0 + quantum * quantum / 12.0
+    best_k = level_smooth
+    best = np.inf
+    k = level_smooth
+    while True:
+        if k > 0:
+            y = _running_level_mean(x, inside, k)
+            sq = 0.0
+            for i in range(n):
+                if inside[i] and np.isfinite(x[i]):
+                    sq += (y[i] - x[i]) ** 2
+            departure = sq / n_ok
+            left = noise * (1.0 - 1.0 / (2 * k + 1))  # what the noise alone departs by
+            structure = max(departure - left, 0.0)
+            if k == level_smooth and (
+                departure <= LEVEL_STRUCTURE_RATIO * left
+                or math.sqrt(structure) * (half + 0.5) / step <= LEVEL_STRUCTURE_SHIFT_PX
+            ):
+                return level_smooth
+            expected = structure + noise / (2 * k + 1)
+        else:
+            expected = noise
+        if expected < best:
+            best, best_k = expected, k
+        if k == 0:
+            return best_k
+        k //= 2
 
 
 def subpixel_edges(
@@ -212,7 +331,7 @@ def subpixel_edges(
     flat = flat_view(P)
     if not slope_smooth > 0 and flat is not None and plane.dtype in (np.uint8, np.uint16):
         # flat plateaus (the default): compiled, one pass over each profile (_area_edges)
-        along, A, B, noise, valid = _area_edges_compiled(windows, flat, lut, level_smooth)
+        along, A, B, noise, valid = _area_edges_compiled(windows, flat, lut, level_smooth, scale_to_8bit)
         return EdgeSamples(
             axis,
             scan,
@@ -223,7 +342,7 @@ def subpixel_edges(
             np.maximum(A, B) * scale_to_8bit,
             valid,
         )
-    along, A, B, noise, valid = _area_edges_numpy(windows, lut, level_smooth, slope_smooth)
+    along, A, B, noise, valid = _area_edges_numpy(windows, lut, level_smooth, slope_smooth, scale_to_8bit)
     step = B - A
     width = np.full(
         scan.size, np.nan
@@ -257,7 +376,11 @@ class _AreaWindows:
 
 
 def _area_edges_compiled(
-    windows: _AreaWindows, flat: tuple[np.ndarray, int, int], lut: np.ndarray | None, level_smooth: int
+    windows: _AreaWindows,
+    flat: tuple[np.ndarray, int, int],
+    lut: np.ndarray | None,
+    level_smooth: int,
+    scale_to_8bit: float,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """:func:`subpixel_edges` with flat plateaus over the plane's pixel buffer ``flat`` (buffer, pitch along
     and across the scan lines): ``(along, A, B, noise, valid)``, the edge (px, NaN where not valid), the two
@@ -277,6 +400,7 @@ def _area_edges_compiled(
         w.plateau,
         lut if lut is not None else NO_LUT,
         level_smooth if w.scan.size else 0,
+        1.0 / scale_to_8bit,  # an 8-bit grey level in the plane's units
     )
     if not (level_smooth > 0 and w.scan.size):  # unsmoothed levels stay float32, as in the numpy branch
         A, B = A.astype(np.float32), B.astype(np.float32)
@@ -284,7 +408,7 @@ def _area_edges_compiled(
 
 
 def _area_edges_numpy(
-    windows: _AreaWindows, lut: np.ndarray | None, level_smooth: int, slope_smooth: int
+    windows: _AreaWindows, lut: np.ndarray | None, level_smooth: int, slope_smooth: int, scale_to_8bit: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """:func:`subpixel_edges` in numpy (any plane; sloped plateaus): ``(along, A, B, noise, valid)``, the edge
     (px, not yet NaN where not valid), the two levels and the plateaus' noise in the plane's grey levels."""
@@ -302,8 +426,7 @@ def _area_edges_numpy(
         A, B = left.mean(axis=1), right.mean(axis=1)
         noise = np.sqrt(0.5 * (left.var(axis=1) + right.var(axis=1)))
     if level_smooth > 0 and scan.size:
-        AB = np.stack([A, B])
-        A, B = smooth_along_rows(AB if inside_ok.all() else np.where(inside_ok, AB, np.nan), level_smooth)
+        A, B = _smoothed_levels(A, B, inside_ok, level_smooth, half, 1.0 / scale_to_8bit)
     step = B - A
     L = _window_length(left, right, core, A, B, half, slope_smooth)
     along = w.start + plateau + 2 * half + 0.5 - L
@@ -311,6 +434,25 @@ def _area_edges_numpy(
     # The estimate must lie inside its window; otherwise the transition was not captured.
     valid &= np.abs(along - w.c0) <= half
     return along, A, B, noise, valid
+
+
+def _smoothed_levels(
+    A: np.ndarray, B: np.ndarray, inside: np.ndarray, level_smooth: int, half: int, quantum: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_area_edges_numpy`'s levels ``A``, ``B`` averaged along the edge, each over the scan lines
+    :func:`level_smoothing` gives it (profiles not ``inside`` the image take no part)."""
+    ok = inside & np.isfinite(A) & np.isfinite(B)
+    step = float(np.median(np.abs(B - A)[ok])) if ok.any() else math.nan
+    k = [
+        int(level_smoothing(X.astype(np.float64), inside, level_smooth, half, step, quantum)) for X in (A, B)
+    ]
+    AB = np.stack([A, B])
+    AB = AB if inside.all() else np.where(inside, AB, np.nan)
+    if k[0] == k[1] == level_smooth:
+        A, B = smooth_along_rows(AB, level_smooth)
+        return A, B
+    out = [smooth_along_rows(AB[j : j + 1], k[j])[0] if k[j] > 0 else (A, B)[j] for j in range(2)]
+    return out[0], out[1]
 
 
 def _window_length(
