@@ -70,7 +70,8 @@ def _levels_choice(img: np.ndarray, edge_v: float, half: int = 4) -> tuple[int, 
     A, B = img[c0 - half - 1].astype(np.float64), img[c0 + half + 1].astype(np.float64)
     step = float(np.median(np.abs(B - A)))
     yes = np.ones(img.shape[1], bool)
-    return tuple(int(level_smoothing(X, yes, 10, half, step, 1.0)) for X in (A, B))
+    start = np.full(img.shape[1], c0 - half - 1, np.int64)
+    return tuple(int(level_smoothing(X, yes, start, 10, half, step, 1.0)) for X in (A, B))
 
 
 @settings(max_examples=40, deadline=None)
@@ -102,4 +103,5 @@ def test_an_edge_with_texture_across_it_is_averaged_less(contrast, period, edge_
     assert above == 10  # the plain side keeps its averaging
     assert below < 10
     # ... and levels none of which lies inside the image give no reason to change it
-    assert level_smoothing(img[35].astype(np.float64), np.zeros(300, bool), 10, 4, 80.0, 1.0) == 10
+    none = np.zeros(300, bool)
+    assert level_smoothing(img[35].astype(np.float64), none, np.zeros(300, np.int64), 10, 4, 80.0, 1.0) == 10

@@ -149,7 +149,7 @@ def _area_edges(
                 m += 1
         step = median_in_place(gap[:m]) if m else np.nan
         for X in (A, B):
-            k = level_smoothing(X, inside, level_smooth, half, step, quantum)
+            k = level_smoothing(X, inside, start, level_smooth, half, step, quantum)
             if k > 0:
                 X[:] = _running_level_mean(X, inside, k)
     along = np.empty(n)
@@ -208,11 +208,11 @@ def _area_along(A, B, S, start, finite, inside, half, plateau, along, valid):
 
 
 def _level_smoothing_warm_up(k) -> None:
-    k(np.ones(20), np.ones(20, np.bool_), 10, 3, 50.0, 1.0)
+    k(np.ones(20), np.ones(20, np.bool_), np.zeros(20, np.int64), 10, 3, 50.0, 1.0)
 
 
 @kernel(_level_smoothing_warm_up)
-def level_smoothing(x, inside, level_smooth, half, step, quantum):
+def level_smoothing(x, inside, start, level_smooth, half, step, quantum):
     """The scan lines each side over which one plateau's levels ``x`` (N, in order along the edge) are
     averaged: ``level_smooth``, unless the levels change along the edge in a way their noise does not explain.
 
@@ -222,9 +222,13 @@ def level_smoothing(x, inside, level_smooth, half, step, quantum):
     shadow's border) each scan line's level is its own, and the average puts its neighbours' under it: on
     doors with 20 % grain across the bottom end the edge points swung +-1 px with the stripes and valid
     doors were refused ``edge_not_straight``. So the levels' mean square departure from their running mean
-    is compared with what their noise makes (from their second differences along the edge, where texture
-    of a few pixels' period or more hardly shows, and a grey level's rounding, ``quantum`` in the plane's
-    units). Beyond ``LEVEL_STRUCTURE_RATIO`` times that, and moving the edge points by more than
+    over the scan lines whose windows start at the same pixel (``start``) is compared with what their noise
+    makes (from their second differences along the edge, where texture of a few pixels' period or more
+    hardly shows, and a grey level's rounding, ``quantum`` in the plane's units). Within such a run a level
+    read beside texture that runs along the edge holds still; where the window steps to the next pixel it
+    steps with it, which is no texture across the edge (on a nearly noise-free door the steps alone had
+    passed the test and the reference arris lost its points at the corner). Beyond
+    ``LEVEL_STRUCTURE_RATIO`` times that noise, and moving the edge points by more than
     ``LEVEL_STRUCTURE_SHIFT_PX`` (the area estimator's lever on a level: ``half + 1/2`` over the edge's
     ``step``, the plane's units), the averaging is the one of ``level_smooth``, its halves, .. and 0 that
     leaves the level the least expected error (the departure beyond the noise, plus the noise the average
@@ -249,6 +253,25 @@ def level_smoothing(x, inside, level_smooth, half, step, quantum):
     if n2 < 8:
         return level_smooth
     noise = sq2 / n2 / 6.0 + quantum * quantum / 12.0
+    # the departure within the windows' runs, and what the noise alone makes of it
+    sq_run = 0.0
+    left_run = 0.0
+    for i in range(n):
+        if not (inside[i] and np.isfinite(x[i])):
+            continue
+        tot = 0.0
+        m = 0
+        for j in range(max(i - level_smooth, 0), min(i + level_smooth + 1, n)):
+            if start[j] == start[i] and inside[j] and np.isfinite(x[j]):
+                tot += x[j]
+                m += 1
+        sq_run += (tot / m - x[i]) ** 2
+        left_run += noise * (1.0 - 1.0 / m)
+    structure_run = max(sq_run - left_run, 0.0) / n_ok
+    if sq_run <= LEVEL_STRUCTURE_RATIO * left_run or (
+        math.sqrt(structure_run) * (half + 0.5) / step <= LEVEL_STRUCTURE_SHIFT_PX
+    ):
+        return level_smooth
     best_k = level_smooth
     best = np.inf
     k = level_smooth
@@ -262,11 +285,6 @@ def level_smoothing(x, inside, level_smooth, half, step, quantum):
             departure = sq / n_ok
             left = noise * (1.0 - 1.0 / (2 * k + 1))  # what the noise alone departs by
             structure = max(departure - left, 0.0)
-            if k == level_smooth and (
-                departure <= LEVEL_STRUCTURE_RATIO * left
-                or math.sqrt(structure) * (half + 0.5) / step <= LEVEL_STRUCTURE_SHIFT_PX
-            ):
-                return level_smooth
             expected = structure + noise / (2 * k + 1)
         else:
             expected = noise
@@ -426,7 +444,7 @@ def _area_edges_numpy(
         A, B = left.mean(axis=1), right.mean(axis=1)
         noise = np.sqrt(0.5 * (left.var(axis=1) + right.var(axis=1)))
     if level_smooth > 0 and scan.size:
-        A, B = _smoothed_levels(A, B, inside_ok, level_smooth, half, 1.0 / scale_to_8bit)
+        A, B = _smoothed_levels(A, B, inside_ok, w.start, level_smooth, half, 1.0 / scale_to_8bit)
     step = B - A
     L = _window_length(left, right, core, A, B, half, slope_smooth)
     along = w.start + plateau + 2 * half + 0.5 - L
@@ -437,14 +455,22 @@ def _area_edges_numpy(
 
 
 def _smoothed_levels(
-    A: np.ndarray, B: np.ndarray, inside: np.ndarray, level_smooth: int, half: int, quantum: float
+    A: np.ndarray,
+    B: np.ndarray,
+    inside: np.ndarray,
+    start: np.ndarray,
+    level_smooth: int,
+    half: int,
+    quantum: float,
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`_area_edges_numpy`'s levels ``A``, ``B`` averaged along the edge, each over the scan lines
-    :func:`level_smoothing` gives it (profiles not ``inside`` the image take no part)."""
+    :func:`level_smoothing` gives it (profiles not ``inside`` the image take no part; ``start``: each
+    profile's first pixel)."""
     ok = inside & np.isfinite(A) & np.isfinite(B)
     step = float(np.median(np.abs(B - A)[ok])) if ok.any() else math.nan
     k = [
-        int(level_smoothing(X.astype(np.float64), inside, level_smooth, half, step, quantum)) for X in (A, B)
+        int(level_smoothing(X.astype(np.float64), inside, start, level_smooth, half, step, quantum))
+        for X in (A, B)
     ]
     AB = np.stack([A, B])
     AB = AB if inside.all() else np.where(inside, AB, np.nan)
