@@ -49,7 +49,7 @@ class LocateConfig:
     level_smooth : int
         Scan lines on each side over which the plateau levels are averaged (0: per scan line); fewer on an
         edge whose levels change along it beyond their noise (texture across the edge,
-        :func:`doorloc.vision.edges.level_smoothing`).
+        :func:`doorloc.vision.plateau_levels.level_smoothing`).
     min_thickness_mm, thickness_search_mm : float
         The far arris is looked for between these distances beyond the reference arris
         (``min_thickness_mm`` .. door thickness + ``thickness_search_mm``).

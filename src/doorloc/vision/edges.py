@@ -20,7 +20,7 @@ with ``A``, ``B`` the mean levels on plateaus just outside the window. This "are
 estimator is unbiased for box-filtered and blurred steps, unlike a parabola through three gradient
 samples (biased by up to ~0.05 px on sharp edges), and a linear shading across the edge cancels
 when the window is centred on the edge. ``A`` and ``B`` may be averaged along the edge against noise, where
-they do not change along it (:func:`level_smoothing`).
+they do not change along it (:func:`doorloc.vision.plateau_levels.level_smoothing`).
 
 The other readers and what they share live beside this module: the edge points' type
 (:mod:`doorloc.vision.edge_samples`), the blurred pixel step and its per-line fit
@@ -39,6 +39,7 @@ import numpy as np
 
 from doorloc.vision.edge_samples import EdgeSamples, ScanWindow
 from doorloc.vision.jit import grey, kernel, median_in_place
+from doorloc.vision.plateau_levels import level_smoothing, running_level_mean
 from doorloc.vision.sampling import (
     NO_LUT,
     Axis,
@@ -53,9 +54,6 @@ from doorloc.vision.sampling import (
 
 __all__ = [
     "DITHERING_NOISE_LEVELS",
-    "LEVEL_STRUCTURE_RATIO",
-    "LEVEL_STRUCTURE_SHIFT_PX",
-    "level_smoothing",
     "subpixel_edges",
     "subpixel_edges_banded",
 ]
@@ -92,7 +90,7 @@ def _area_edges(
     Profile ``i`` holds ``P[start[i] + j, scan[i]] = buf[(start[i] + j) * pitch_along + scan[i] * pitch_scan]``
     for ``j < 2 (half + plateau) + 1`` (clamped to the image), mapped by ``lut`` (float32; empty: none).
     Returns ``along`` (NaN where not valid), the two levels ``A``, ``B`` (float32 values unless smoothed
-    along the edge, over the scan lines each side that :func:`level_smoothing` chooses, at most
+    along the edge, over the scan lines each side that ``level_smoothing`` chooses, at most
     ``level_smooth``; ``quantum``: an 8-bit grey level in the plane's units), ``noise`` (float32) and
     ``valid``: the numbers of the numpy branch of :func:`subpixel_edges` up to the order of its float sums.
     """
@@ -151,41 +149,11 @@ def _area_edges(
         for X in (A, B):
             k = level_smoothing(X, inside, start, level_smooth, half, step, quantum)
             if k > 0:
-                X[:] = _running_level_mean(X, inside, k)
+                X[:] = running_level_mean(X, inside, k)
     along = np.empty(n)
     valid = np.empty(n, np.bool_)
     _area_along(A, B, S, start, finite, inside, half, plateau, along, valid)
     return along, A, B, noise, valid
-
-
-#: a plateau's levels whose departure from their running mean along the edge exceeds this many times what
-#: their noise makes, and moves the edge points by more than ``LEVEL_STRUCTURE_SHIFT_PX`` (px RMS), change
-#: along the edge: texture crosses it (:func:`level_smoothing`)
-LEVEL_STRUCTURE_RATIO = 4.0
-LEVEL_STRUCTURE_SHIFT_PX = 0.05
-
-
-@kernel(inline=True)
-def _running_level_mean(x, inside, k):
-    """``x`` averaged over ``k`` scan lines each side (running float32 sums, as np.cumsum of float32 levels;
-    a profile not ``inside`` the image or NaN takes no part)."""
-    n = x.size
-    cs = np.zeros(n + 1)
-    cnt = np.zeros(n + 1, np.int64)
-    run = np.float32(0.0)
-    for i in range(n):
-        if inside[i] and np.isfinite(x[i]):
-            run += np.float32(x[i])
-            cnt[i + 1] = cnt[i] + 1
-        else:
-            cnt[i + 1] = cnt[i]
-        cs[i + 1] = run
-    y = np.empty(n)
-    for i in range(n):
-        lo = max(i - k, 0)
-        hi = min(i + k + 1, n)
-        y[i] = (cs[hi] - cs[lo]) / max(cnt[hi] - cnt[lo], 1)
-    return y
 
 
 @kernel(inline=True)
@@ -205,94 +173,6 @@ def _area_along(A, B, S, start, finite, inside, half, plateau, along, valid):
         ok = finite[i] and inside[i] and np.isfinite(e) and abs(b) > 0 and abs(e - c0) <= half
         valid[i] = ok
         along[i] = e if ok else np.nan
-
-
-def _level_smoothing_warm_up(k) -> None:
-    k(np.ones(20), np.ones(20, np.bool_), np.zeros(20, np.int64), 10, 3, 50.0, 1.0)
-
-
-@kernel(_level_smoothing_warm_up)
-def level_smoothing(x, inside, start, level_smooth, half, step, quantum):
-    """The scan lines each side over which one plateau's levels ``x`` (N, in order along the edge) are
-    averaged: ``level_smooth``, unless the levels change along the edge in a way their noise does not explain.
-
-    Averaging along the edge takes the noise out of a plateau's level, which is right where the surface
-    beside the edge is uniform along it (a plain face, shading, grain running along the edge). Where
-    texture crosses the edge (wood grain along the door's height at its bottom end, a knot, a stain, a
-    shadow's border) each scan line's level is its own, and the average puts its neighbours' under it: on
-    doors with 20 % grain across the bottom end the edge points swung +-1 px with the stripes and valid
-    doors were refused ``edge_not_straight``. So the levels' mean square departure from their running mean
-    over the scan lines whose windows start at the same pixel (``start``) is compared with what their noise
-    makes (from their second differences along the edge, where texture of a few pixels' period or more
-    hardly shows, and a grey level's rounding, ``quantum`` in the plane's units). Within such a run a level
-    read beside texture that runs along the edge holds still; where the window steps to the next pixel it
-    steps with it, which is no texture across the edge (on a nearly noise-free door the steps alone had
-    passed the test and the reference arris lost its points at the corner). Beyond
-    ``LEVEL_STRUCTURE_RATIO`` times that noise, and moving the edge points by more than
-    ``LEVEL_STRUCTURE_SHIFT_PX`` (the area estimator's lever on a level: ``half + 1/2`` over the edge's
-    ``step``, the plane's units), the averaging is the one of ``level_smooth``, its halves, .. and 0 that
-    leaves the level the least expected error (the departure beyond the noise, plus the noise the average
-    leaves). Profiles not ``inside`` the image take no part.
-    """
-    if level_smooth <= 0 or not step > 0:
-        return level_smooth
-    n = x.size
-    n_ok = 0
-    for i in range(n):
-        if inside[i] and np.isfinite(x[i]):
-            n_ok += 1
-    # the noise of one scan line's level: a second difference of white noise has six times its variance
-    sq2 = 0.0
-    n2 = 0
-    for i in range(1, n - 1):
-        if inside[i - 1] and inside[i] and inside[i + 1]:
-            d2 = x[i - 1] - 2.0 * x[i] + x[i + 1]
-            if np.isfinite(d2):
-                sq2 += d2 * d2
-                n2 += 1
-    if n2 < 8:
-        return level_smooth
-    noise = sq2 / n2 / 6.0 + quantum * quantum / 12.0
-    # the departure within the windows' runs, and what the noise alone makes of it
-    sq_run = 0.0
-    left_run = 0.0
-    for i in range(n):
-        if not (inside[i] and np.isfinite(x[i])):
-            continue
-        tot = 0.0
-        m = 0
-        for j in range(max(i - level_smooth, 0), min(i + level_smooth + 1, n)):
-            if start[j] == start[i] and inside[j] and np.isfinite(x[j]):
-                tot += x[j]
-                m += 1
-        sq_run += (tot / m - x[i]) ** 2
-        left_run += noise * (1.0 - 1.0 / m)
-    structure_run = max(sq_run - left_run, 0.0) / n_ok
-    if sq_run <= LEVEL_STRUCTURE_RATIO * left_run or (
-        math.sqrt(structure_run) * (half + 0.5) / step <= LEVEL_STRUCTURE_SHIFT_PX
-    ):
-        return level_smooth
-    best_k = level_smooth
-    best = np.inf
-    k = level_smooth
-    while True:
-        if k > 0:
-            y = _running_level_mean(x, inside, k)
-            sq = 0.0
-            for i in range(n):
-                if inside[i] and np.isfinite(x[i]):
-                    sq += (y[i] - x[i]) ** 2
-            departure = sq / n_ok
-            left = noise * (1.0 - 1.0 / (2 * k + 1))  # what the noise alone departs by
-            structure = max(departure - left, 0.0)
-            expected = structure + noise / (2 * k + 1)
-        else:
-            expected = noise
-        if expected < best:
-            best, best_k = expected, k
-        if k == 0:
-            return best_k
-        k //= 2
 
 
 def subpixel_edges(
@@ -464,7 +344,7 @@ def _smoothed_levels(
     quantum: float,
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`_area_edges_numpy`'s levels ``A``, ``B`` averaged along the edge, each over the scan lines
-    :func:`level_smoothing` gives it (profiles not ``inside`` the image take no part; ``start``: each
+    :func:`doorloc.vision.plateau_levels.level_smoothing` gives it (profiles not ``inside`` the image take no part; ``start``: each
     profile's first pixel)."""
     ok = inside & np.isfinite(A) & np.isfinite(B)
     step = float(np.median(np.abs(B - A)[ok])) if ok.any() else math.nan
