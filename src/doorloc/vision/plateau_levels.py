@@ -121,20 +121,29 @@ def level_smoothing(x, inside, start, level_smooth, half, step, quantum):
 
 @kernel(inline=True)
 def _within_runs(x, inside, start, k, noise):
-    """The levels' summed square departure from their running mean over ``k`` lines each side among those
-    whose windows start at the same pixel, and what a level ``noise`` (variance) alone makes of it."""
+    """The levels' summed square departure from their running mean over ``k`` lines each side within their
+    run (the contiguous scan lines whose windows start at the same pixel), and what a level ``noise``
+    (variance) alone makes of it. Prefix sums: this runs on both plateaus of every plain line."""
     n = x.size
+    cs = np.zeros(n + 1)
+    cnt = np.zeros(n + 1, np.int64)
+    for i in range(n):
+        ok = inside[i] and np.isfinite(x[i])
+        cs[i + 1] = cs[i] + (x[i] if ok else 0.0)
+        cnt[i + 1] = cnt[i] + (1 if ok else 0)
+    last = np.empty(n, np.int64)  # the last line of each line's run
+    for i in range(n - 1, -1, -1):
+        last[i] = last[i + 1] if i + 1 < n and start[i + 1] == start[i] else i
     sq_run = 0.0
     left_run = 0.0
+    first = 0  # the first line of the current run
     for i in range(n):
+        if i > 0 and start[i] != start[i - 1]:
+            first = i
         if not (inside[i] and np.isfinite(x[i])):
             continue
-        tot = 0.0
-        m = 0
-        for j in range(max(i - k, 0), min(i + k + 1, n)):
-            if start[j] == start[i] and inside[j] and np.isfinite(x[j]):
-                tot += x[j]
-                m += 1
-        sq_run += (tot / m - x[i]) ** 2
+        a, b = max(i - k, first), min(i + k, last[i]) + 1
+        m = cnt[b] - cnt[a]
+        sq_run += ((cs[b] - cs[a]) / m - x[i]) ** 2
         left_run += noise * (1.0 - 1.0 / m)
     return sq_run, left_run
