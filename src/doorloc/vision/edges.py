@@ -344,8 +344,8 @@ def _smoothed_levels(
     quantum: float,
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`_area_edges_numpy`'s levels ``A``, ``B`` averaged along the edge, each over the scan lines
-    :func:`doorloc.vision.plateau_levels.level_smoothing` gives it (profiles not ``inside`` the image take no part; ``start``: each
-    profile's first pixel)."""
+    :func:`doorloc.vision.plateau_levels.level_smoothing` gives it (profiles not ``inside`` the image take
+    no part; ``start``: each profile's first pixel)."""
     ok = inside & np.isfinite(A) & np.isfinite(B)
     step = float(np.median(np.abs(B - A)[ok])) if ok.any() else math.nan
     k = [
