@@ -574,12 +574,14 @@ def test_rounding_that_no_noise_dithers_weighs_each_phase_bin_as_one_measurement
     assert shared.w.max() / shared.w.min() < plain.w.max() / plain.w.min()
 
 
-def test_a_strip_fit_that_reads_another_blur_than_the_images_other_strips_is_in_doubt():
+def test_a_strip_fit_that_reads_another_blur_than_the_images_other_strips_is_held_to_theirs_and_in_doubt():
     """One lens blurs all the door's edges alike. Wood grain beside a 3 mm rounding led the reference
-    arris's strip fit to a blur of 1.8 px where the bottom end's and the far arris's read 0.7-0.9 (the
-    image's 0.72): the door was answered 0.51 mm off in x at a sigma of 0.09 mm (5.7 sigma). The strip
-    fitted at the other strips' blur moves the edge by about that much, and that is now its doubt (bench
-    bench_surfaces ``combined`` set, seed 15, image 38 without its vignetting)."""
+    arris's strip fit, alone, to a blur of 1.76 px where the bottom end's and the far arris's read 0.7-0.9
+    (the image's 0.72): the door was answered 0.51 mm off in x at a sigma of 0.09 mm (5.7 sigma), and then
+    refused with the strip fitted at the other strips' blur as its doubt (bench bench_surfaces ``combined``
+    set, seed 15, image 38 without its vignetting). The other strips' blur is now a prior on the
+    reference arris's (strip_posterior.strip_blur_priors): it reads 1.05 px and the door lies 0.011 mm off;
+    what its blur still differs by from the others' stays in its doubt."""
     door = DoorSize(900, 57.894, 2100, arris_mm=2.9616, arris_profile="round")
     pose = DoorPose(9.0247, 2.2383, 0.7355)
     eff = Effects(
@@ -605,8 +607,9 @@ def test_a_strip_fit_that_reads_another_blur_than_the_images_other_strips_is_in_
     cell = dataclasses.replace(CELL, response_gamma=1.4325)
     res = locate(img, cell, door, config=dataclasses.replace(FREE_SHADINGS, calibration_sigma_px=0.0))
     fits = res.diagnostics["arris_fit"]
-    assert fits["reference"]["blur_px"] > 1.5 * fits["bottom"]["blur_px"], "the scene must show the effect"
+    assert fits["reference"]["blur_px"] < 1.5 * fits["bottom"]["blur_px"]
     m = res.diagnostics["measured"] if not res.ok else {"x_mm": res.x_mm, "z_mm": res.z_mm}
+    assert abs(m["x_mm"] - pose.x_mm) <= 0.05
     if res.ok:
         assert abs(m["x_mm"] - pose.x_mm) <= 3 * res.uncertainty.x_mm
         assert abs(m["z_mm"] - pose.z_mm) <= 3 * res.uncertainty.z_mm
@@ -614,7 +617,7 @@ def test_a_strip_fit_that_reads_another_blur_than_the_images_other_strips_is_in_
         assert res.error_code == "uncertain", res.error
         ref = next(ln for ln in res.lines if ln.name == "reference")
         assert abs(m["x_mm"] - pose.x_mm) <= 3 * ref.model_sigma_mm
-    assert fits["reference"]["blur_doubt_px"] > 1.0
+    assert fits["reference"]["blur_doubt_px"] > 0.2
 
 
 def test_lines_whose_area_estimate_leaves_the_window_beside_a_dark_strip_keep_their_points():

@@ -193,6 +193,9 @@ class StripWindow:
         The strip is also fitted on the scan lines between those picked, and the two fits' disagreement
         joins its deficit's doubt (:func:`_strip_shading`); False where no one reads that doubt (the strips
         read again at trial camera exponents only for their places and misfits).
+    blur_prior : (float, float) or None
+        The blur the door's other strips read (mean, sd px), a prior on this strip's
+        (:func:`doorloc.vision.strip_posterior.strip_blur_priors`); None: the blur free.
     """
 
     lines: ScanWindow
@@ -202,6 +205,7 @@ class StripWindow:
     line_fit: bool = True
     light: StatedLight | None = None
     split_check: bool = True
+    blur_prior: tuple[float, float] | None = None
 
     @property
     def door_side(self) -> int:
@@ -460,6 +464,7 @@ def _fit_picked(
         prior=prior,
         shared=shared,
         light=window.light,
+        blur_prior=window.blur_prior,
     )
     return fit, pick
 

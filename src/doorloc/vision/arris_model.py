@@ -18,7 +18,8 @@ the strip depends on that brightness, so locate measures it:
    under the light fitted to it is a prior on the free shading's, as wide as the two disagree). What it
    returns is the strip's *deficit*: the fraction of its width by which the area of the strip falls short
    of the hinge face, the mean of its posterior along the valley where the border's offset and the
-   strip's level trade off;
+   strip's level trade off (:mod:`doorloc.vision.strip_posterior`; the blur the door's other strips read
+   is a prior on its blur where they read one);
 3. :func:`doorloc.vision.arris_lines.arris_edges`: per scan line the area estimator (blur-free: it only uses areas) with that deficit,
    ``e = K - S / D - w * deficit``, which puts every edge point on the outer border, then refined by
    fitting the strip's fitted shape to the line with its two levels free (its compiled border fit: the
@@ -48,10 +49,15 @@ from doorloc.vision.arris_strip import (
     lit_basis,
     mix_cells,
     pixel_terms,
-    posterior_moments,
     strip_basis,
 )
 from doorloc.vision.stated_light import StatedLight, stated_light_explains
+from doorloc.vision.strip_posterior import (
+    OffsetProfile,
+    StripShading,
+    blur_log_prior,
+    valley_posterior,
+)
 from doorloc.vision.strip_prior import PRIOR_DEFICIT, PRIOR_SIGMA
 
 __all__ = ["ArrisGeometry", "StripFit", "arris_geometry", "fit_strip_profile"]
@@ -122,6 +128,10 @@ class StripFit:
     grey_misfit : float
         The fitted profiles' residual RMS in the camera's grey levels over the plateaus' grey-level noise,
         which readings with different exponents compare on (:func:`doorloc.vision.arris_lines.arris_edges`).
+    blur_reading : (float, float)
+        The blur this strip reads on its own, the mean and standard deviation of its posterior along the
+        valley (px; before any prior on the blur), which the door's other strips take as theirs
+        (:func:`doorloc.vision.strip_posterior.strip_blur_priors`).
     """
 
     deficit: float
@@ -140,6 +150,7 @@ class StripFit:
         default=None, compare=False, repr=False
     )
     grey_misfit: float = math.nan
+    blur_reading: tuple[float, float] = (math.nan, math.inf)
 
     @property
     def stated_light_used(self) -> bool | None:
@@ -184,6 +195,7 @@ def fit_strip_profile(
     prior: tuple[float, float] = (PRIOR_DEFICIT, PRIOR_SIGMA),
     shared: float = 0.0,
     light: StatedLight | None = None,
+    blur_prior: tuple[float, float] | None = None,
 ) -> StripFit | None:
     """Fit the strip's shading to normalised profiles (module docstring, step 2).
 
@@ -217,6 +229,9 @@ def fit_strip_profile(
     light : StatedLight or None
         The cell's light (its direction in the cell frame and how well it is known): a rounding is shaded
         under it (:func:`_told_light_shading`).
+    blur_prior : (float, float) or None
+        The blur the door's other strips read (mean, sd px: :func:`doorloc.vision.strip_posterior.
+        strip_blur_priors`), a prior on this strip's blur along its valley; None: the blur free.
 
     Returns
     -------
@@ -240,7 +255,7 @@ def fit_strip_profile(
     that misses its profiles by more than their noise does not choose between two places for the border
     by less than that.
     """
-    # why many parameters: the profiles, their predicted strip and noise, and five independent settings with defaults (start blur, search reach, the deficit's prior, the undithered variance, the cell's light) that the callers pass by keyword
+    # why many parameters: the profiles, their predicted strip and noise, and six independent settings with defaults (start blur, search reach, the deficit's prior, the undithered variance, the cell's light, the blur's prior) that the callers pass by keyword
     # why long: its docstring (ten parameters, and the notes on the valley the posterior is taken along); the body is 20 lines
     ok = np.all(np.isfinite(r), axis=1) & np.isfinite(outer) & np.isfinite(width) & (width > 0)
     r, outer, width = r[ok], outer[ok], width[ok]
@@ -253,14 +268,14 @@ def fit_strip_profile(
     prob = StripProblem(r, x, outer, width, n_cells, _PHASE_BINS, noise, shared)
     basis0 = _free_basis(n_cells, w_med, round_)
     coarse, best = _coarse_offsets(prob, x, outer, width, basis0, blur0, search_px + max(2.0, w_med + 1.0))
-    shading = free = _Shading(basis0, *best)
+    shading = free = StripShading(basis0, *best)
     light_misfit: float | None = None
     if round_:
         told = None
         if light is not None and geom.normals_cell is not None:
             told, light_misfit = _told_light_shading(prob, geom, n_cells, coarse, shading, light)
         shading = told if told is not None else _rounding_shading(prob, geom, n_cells, noise, coarse, shading)
-    fit = _posterior_fit(prob, (r, outer, width), coarse, shading, basis0, noise, prior)
+    fit = _posterior_fit(prob, (r, outer, width), coarse, shading, basis0, noise, prior, blur_prior)
     if not round_ or geom.normals_cell is None:
         return fit
     return replace(
@@ -287,42 +302,6 @@ def _free_basis(n_cells: int, w_med: float, round_: bool) -> np.ndarray:
     return np.ones((n_cells, 1))  # a chamfer's strip: one level
 
 
-@dataclass(frozen=True)
-class _OffsetProfile:
-    """The coarse profile of the misfit over the outer border's offset (px from its prediction, along the
-    mirrored scan towards the door), the blur refitted at each offset.
-
-    ``grid`` the offsets (px), ``blur`` the blur fitted at each (px), ``evaluation`` the free shading's
-    fit there, ``step`` the grid's spacing (px); ``lo_lim``, ``hi_lim`` the offsets that keep the
-    background and the face in view (px) and ``limited`` whether the grid was cut to them.
-    """
-
-    grid: np.ndarray
-    blur: np.ndarray
-    evaluation: StripEvaluation
-    step: float
-    lo_lim: float
-    hi_lim: float
-    limited: bool
-
-
-@dataclass(frozen=True)
-class _Shading:
-    """The strip's shading model in use and its best fit: ``basis`` (cells, levels), the border's offset
-    and the blur (px), their evaluation; ``alt`` the other shading model's misfit, deficit, and its linear
-    parameters beyond the one in use; ``lit`` the lit arc's deficit and its own doubt, a prior on the free
-    shading's (when the arc is not in use); ``model_doubt`` what the model itself may miss in the deficit
-    (fractions of the strip's width; a told light's Lambertian arc)."""
-
-    basis: np.ndarray
-    offset: float
-    blur: float
-    evaluation: StripEvaluation
-    alt: tuple[float, float, int] | None = None
-    lit: tuple[float, float] | None = None
-    model_doubt: float = 0.0
-
-
 def _coarse_offsets(
     prob: StripProblem,
     x: np.ndarray,
@@ -331,7 +310,7 @@ def _coarse_offsets(
     basis0: np.ndarray,
     blur0: float,
     reach: float,
-) -> tuple[_OffsetProfile, tuple[float, float, StripEvaluation]]:
+) -> tuple[OffsetProfile, tuple[float, float, StripEvaluation]]:
     """The misfit's coarse profile over the border's offset within ``reach`` px either way (``x``, ``outer``,
     ``width`` as :func:`fit_strip_profile`'s, px), and its best point refined: offset (px), blur (px) and
     evaluation."""
@@ -356,10 +335,10 @@ def _coarse_offsets(
     sg, ev = prob.profile_blur(grid, np.full(grid.size, max(blur0, 0.7)), basis0, n_iter=2)
     i0 = int(np.argmin(ev.chi2))
     best = prob.refine(float(grid[i0]), float(sg[i0]), basis0)
-    return _OffsetProfile(grid, sg, ev, step, lo_lim, hi_lim, limited), best
+    return OffsetProfile(grid, sg, ev, step, lo_lim, hi_lim, limited), best
 
 
-def _border_places(coarse: _OffsetProfile, centre: float, reach: float) -> np.ndarray:
+def _border_places(coarse: OffsetProfile, centre: float, reach: float) -> np.ndarray:
     """Places for the outer border (px, as :func:`_coarse_offsets`' offsets) a quarter pixel apart within
     ``reach`` px of ``centre``, those that keep the background and the face in view where the coarse profile
     was cut to them: where a fixed shading model is refined at its own best place."""
@@ -372,9 +351,9 @@ def _rounding_shading(
     geom: ArrisGeometry,
     n_cells: int,
     noise: float,
-    coarse: _OffsetProfile,
-    free: _Shading,
-) -> _Shading:
+    coarse: OffsetProfile,
+    free: StripShading,
+) -> StripShading:
     """A rounding's shading: the free one (``free``) or a Lambert arc where that explains the profiles
     about as well, the other model's misfit and deficit kept (``alt``) and, where the free shading stays,
     the arc's deficit as a prior on it (``lit``). Offsets and blurs in px, as :func:`_coarse_offsets`'."""
@@ -419,20 +398,20 @@ def _rounding_shading(
     d1, s1, ev1 = prob.refine(d1, s1, b1)
     extra = max(basis0.shape[1] - b1.shape[1], 1)
     if (float(ev1.chi2[0]) - float(ev0.chi2[0])) / t_free <= extra + 3.0 * math.sqrt(2.0 * extra):
-        return _Shading(b1, d1, s1, ev1, alt=(float(ev0.chi2[0]), float(ev0.deficit[0]), extra))
+        return StripShading(b1, d1, s1, ev1, alt=(float(ev0.chi2[0]), float(ev0.deficit[0]), extra))
     alt = (float(ev1.chi2[0]), float(ev1.deficit[0]), -extra)
     lit = _lit_deficit(prob, tried, (d1, s1, ev1), basis0, t_free)
-    return _Shading(basis0, d0, s0, ev0, alt=alt, lit=lit)
+    return StripShading(basis0, d0, s0, ev0, alt=alt, lit=lit)
 
 
 def _told_light_shading(
     prob: StripProblem,
     geom: ArrisGeometry,
     n_cells: int,
-    coarse: _OffsetProfile,
-    free: _Shading,
+    coarse: OffsetProfile,
+    free: StripShading,
     light: StatedLight,
-) -> tuple[_Shading | None, float]:
+) -> tuple[StripShading | None, float]:
     """A rounding's shading under the cell's light (:func:`doorloc.vision.arris_strip.lit_basis`): refined at
     its own best place for the border (steps of a quarter pixel within 2 px of the free shading's, as the
     Lambert arcs are), and its misfit over the free shading's (``free``). None for the shading where that
@@ -462,15 +441,15 @@ def _told_light_shading(
         for t in light.turned()
     ]
     light_doubt = math.sqrt(sum(m * m for m in moved) / len(moved)) if moved else 0.0
-    return _Shading(basis, d1, s1, ev1, model_doubt=math.hypot(LIT_DEFICIT_FLOOR, light_doubt)), misfit
+    return StripShading(basis, d1, s1, ev1, model_doubt=math.hypot(LIT_DEFICIT_FLOOR, light_doubt)), misfit
 
 
 def _under_lights(
     prob: StripProblem,
     geom: ArrisGeometry,
     n_cells: int,
-    coarse: _OffsetProfile,
-    free: _Shading,
+    coarse: OffsetProfile,
+    free: StripShading,
     directions: np.ndarray,
 ) -> list[tuple[np.ndarray, tuple[float, float, StripEvaluation], float]]:
     """A rounding's Lambert shading under lights from ``directions`` (``(n, 3)`` unit vectors, cell frame):
@@ -484,158 +463,21 @@ def _under_lights(
     return [(b, f, float(f[2].chi2[0]) / chi_free) for b, f in zip(bases, fits, strict=True)]
 
 
-@dataclass(frozen=True)
-class _Posterior:
-    """The deficit's posterior along the valley (:func:`_valley_posterior`): its mean and standard
-    deviation (fractions of the strip's width), the valleys' refined fits ``modes`` (offset px, blur px,
-    evaluation), the least misfit over the profiles ``chi_min`` and the misfit's scale between valleys
-    ``t_glob`` (normalised variance)."""
-
-    deficit: float
-    sd: float
-    modes: list[tuple[float, float, StripEvaluation]]
-    chi_min: float
-    t_glob: float
-
-
-def _valley_posterior(
-    prob: StripProblem,
-    coarse: _OffsetProfile,
-    shading: _Shading,
-    basis0: np.ndarray,
-    noise: float,
-    prior: tuple[float, float],
-) -> _Posterior:
-    """The posterior of the deficit along the valley of the border's offset (px), under ``shading``, the
-    prior ``prior`` (mean, sd) times the misfit's likelihood; the other shading model not yet weighed."""
-    basis, d0, s0, ev0 = shading.basis, shading.offset, shading.blur, shading.evaluation
-    grid, sg, ev, step = coarse.grid, coarse.blur, coarse.evaluation, coarse.step
-    # The posterior of the deficit along the valley: the coarse profile over the whole search range, and
-    # around each of its valleys a fine one (its width from that valley's curvature) that resolves it.
-    # Another valley (a strip at the face's level, seen as one at the background's a strip's width away)
-    # may be as deep as the optimum's but narrower than the coarse step: its best point is refined too.
-    dof_b = max(prob.y.size - basis.shape[1] - 4, 1)
-    # The residual variance per binned row: the noise, and what the model misses. Within one valley that
-    # is the scale of the misfit (T_loc). Between valleys, and along a flat one, the misfit's excess is the
-    # model's error, the same on every bin (the same shape at about the same phase): it does not average
-    # down over the bins as the noise does, so there the bins weigh as one (T_glob). A model that misses
-    # its profiles by more than their noise then cannot choose between two places for the border by
-    # less than its own error.
-    t_b = float(ev0.chi2[0]) / dof_b
-    T_loc = max(t_b, noise**2)
-    T_glob = noise**2 + prob.count.size * max(t_b - noise**2, 0.0)
-    c = ev.chi2
-    local = [
-        i
-        for i in range(c.size)
-        if abs(grid[i] - d0) > 1.0 and (i == 0 or c[i] <= c[i - 1]) and (i == c.size - 1 or c[i] <= c[i + 1])
-    ]
-    modes = [(d0, s0, ev0)] + [
-        prob.refine(float(grid[i]), float(sg[i]), basis, n_iter=8)
-        for i in sorted(local, key=lambda i: c[i])[:2]
-    ]
-    # The other reading of a strip that shows one step lies a strip's width either way; under a sharp lens
-    # its valley is narrower than the coarse step, which may step over it (a 2.4 mm rounding as dark as the
-    # background, 0.36 px of blur: its bottom end read at the face's level alone, z 2.14 mm off at 32
-    # sigma under a light stated wrong). Refined where no valley refined lies within half a step of it, and
-    # resolved (below) where its misfit leaves it any weight beside the best's.
-    w = float(np.median(prob.width))
-    for d in (d0 - w, d0 + w):
-        if grid[0] <= d <= grid[-1] and min(abs(m[0] - d) for m in modes) > 0.5 * step:
-            other = prob.refine(d, s0, basis, n_iter=8)
-            if (float(other[2].chi2[0]) - float(ev0.chi2[0])) / (2.0 * T_glob) < 20.0:
-                modes.append(other)
-    keep = np.ones(grid.size, bool)
-    fines: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
-    for k, (dm, sm, em) in enumerate(modes):
-        if k and min(abs(dm - d1) for d1, _, _ in modes[:k]) < 0.2:
-            continue  # refined into a valley already resolved
-        assert em.hess is not None
-        try:
-            s_m = math.sqrt(max(float(np.linalg.inv(em.hess[0] / 2.0)[0, 0]) * T_loc, 0.0))
-        except np.linalg.LinAlgError:
-            s_m = step
-        s_m = float(np.clip(s_m, 1e-3, step))
-        fine = dm + s_m * np.linspace(-6.0, 6.0, 25)
-        _, evf = prob.profile_blur(fine, np.full(fine.size, sm), basis, n_iter=2)
-        keep &= np.abs(grid - dm) > 6.0 * s_m
-        fines.append((fine, evf.chi2, evf.deficit))
-    if basis is basis0:  # the coarse profile is this model's already
-        evc = ev
-    else:
-        _, evc = prob.profile_blur(grid, sg, basis, n_iter=2)
-    chi_min = min(float(evc.chi2[keep].min()) if keep.any() else np.inf, *(float(f[1].min()) for f in fines))
-    # log-likelihood: the coarse points against the best at T_glob; each valley's fine points against
-    # the valley's own best at T_loc, and that best against the overall best at T_glob
-    ll = [-(evc.chi2[keep] - chi_min) / (2.0 * T_glob)] + [
-        -(f[1] - f[1].min()) / (2.0 * T_loc) - (float(f[1].min()) - chi_min) / (2.0 * T_glob) for f in fines
-    ]
-    deltas = np.concatenate([grid[keep], *(f[0] for f in fines)])
-    order = np.argsort(deltas)
-    deltas = deltas[order]
-    dfc = np.concatenate([evc.deficit[keep], *(f[2] for f in fines)])[order]
-    logp = np.concatenate(ll)[order] - 0.5 * ((dfc - prior[0]) / prior[1]) ** 2
-    deficit, post_sd = posterior_moments(deltas, dfc, logp)
-    deficit, post_sd = _with_other_shading(shading, deltas, dfc, logp, deficit, post_sd, T_glob)
-    return _Posterior(deficit, post_sd, modes, chi_min, T_glob)
-
-
-def _with_other_shading(
-    shading: _Shading,
-    deltas: np.ndarray,
-    dfc: np.ndarray,
-    logp: np.ndarray,
-    deficit: float,
-    post_sd: float,
-    T_glob: float,
-) -> tuple[float, float]:
-    """The deficit's mean and standard deviation (fractions of the strip's width) with a rounding's other
-    shading model weighed in: the lit arc's deficit as a prior, the other model as one more valley.
-    ``deltas`` (px), ``dfc`` and ``logp``: the offsets, deficits and log-posterior of the valley."""
-    lit, alt, ev0 = shading.lit, shading.alt, shading.evaluation
-    if lit is not None:
-        # The lit arc's shading, a prior on the free shading's deficit: the free levels trade off with the
-        # border's place along a valley that the light's shading cuts short where the two agree. Its width
-        # is never narrower than the two disagree by (a prior the data contradict must not narrow them).
-        lit_sd = max(lit[1], abs(deficit - lit[0]))
-        held, held_sd = posterior_moments(deltas, dfc, logp - 0.5 * ((dfc - lit[0]) / lit_sd) ** 2)
-        # A prior that narrows one valley leaves the mean between the data's and its own; one that takes it
-        # beyond both has chosen between the valleys of a skewed posterior, which it cannot tell apart any
-        # better than the profiles (a 1.2 mm rounding in shadow at its silhouette: its first pass's bottom
-        # end read 1.005 for a free 0.89 and an arc's 0.97, and the final pass went to a valley with
-        # another blur, z in doubt by 0.18 mm): there the free shading's posterior stands.
-        if min(deficit, lit[0]) <= held <= max(deficit, lit[0]) and held_sd <= post_sd:
-            deficit, post_sd = held, held_sd
-    if alt is not None:
-        # The other shading model (Lambert arc or free shading) is one more place for the answer, weighed
-        # as another valley is: a rounding whose two models disagree is in doubt by their difference.
-        # Each linear parameter more that a model has costs it a factor e (Akaike's weight): without it
-        # the free shading's better misfit, which its extra parameters buy anywhere, outweighed an arc
-        # as good as it by 1500 to 1 and took the answer to its own valley with the sigma of the arc's
-        # (arris bench seed 1557, a 2.9 mm rounding's bottom end: z 0.15 mm off at 2.1 sigma, where the arc
-        # had the border right; with the factor 0.09 mm at about 1 sigma).
-        log_w = (alt[0] - float(ev0.chi2[0])) / (2.0 * T_glob) + alt[2]
-        w_alt = math.exp(-min(max(log_w, -30.0), 30.0))
-        mean = (deficit + w_alt * alt[1]) / (1.0 + w_alt)
-        post_sd = math.sqrt(post_sd**2 + w_alt / (1.0 + w_alt) ** 2 * (alt[1] - deficit) ** 2)
-        deficit = mean
-    return deficit, post_sd
-
-
 def _posterior_fit(
     prob: StripProblem,
     lines: tuple[np.ndarray, np.ndarray, np.ndarray],
-    coarse: _OffsetProfile,
-    shading: _Shading,
+    coarse: OffsetProfile,
+    shading: StripShading,
     basis0: np.ndarray,
     noise: float,
     prior: tuple[float, float],
+    blur_prior: tuple[float, float] | None = None,
 ) -> StripFit:
-    """The :class:`StripFit`: the posterior's deficit (:func:`_valley_posterior`), widened by the blur
+    """The :class:`StripFit`: the posterior's deficit (:func:`valley_posterior`), widened by the blur
     model's doubt, and the fitted profiles of the valley the posterior favours on every line of ``lines``
     (the profiles ``r``, their predicted outer border and strip width, px, as :func:`fit_strip_profile`'s;
     ``prob`` holds them binned)."""
-    post = _valley_posterior(prob, coarse, shading, basis0, noise, prior)
+    post = valley_posterior(prob, coarse, shading, basis0, noise, prior, blur_prior)
     deficit, post_sd, chi_min, T_glob = post.deficit, post.sd, post.chi_min, post.t_glob
     basis, grid = shading.basis, coarse.grid
     r, outer, width = lines
@@ -647,11 +489,13 @@ def _posterior_fit(
     # background then lies beyond the window, so that any level fits it), and there the prior decides,
     # as it does for the deficit. Taking the lowest misfit there put every line's edge a strip's width
     # out of its window (arris bench seed 7075, a 2.7 mm chamfer as bright as the face: bottom end lost).
-    def _log_post(em: StripEvaluation) -> float:
+    # The blur's prior, where the other strips lend one, weighs the valleys too.
+    def _log_post(sm: float, em: StripEvaluation) -> float:
         dev = (float(em.deficit[0]) - prior[0]) / prior[1]
-        return -(float(em.chi2[0]) - chi_min) / (2.0 * T_glob) - 0.5 * dev * dev
+        blur_term = float(blur_log_prior(np.array([sm]), blur_prior)[0])
+        return -(float(em.chi2[0]) - chi_min) / (2.0 * T_glob) - 0.5 * dev * dev + blur_term
 
-    d0, s0, ev0 = max(post.modes, key=lambda m: _log_post(m[2]))
+    d0, s0, ev0 = max(post.modes, key=lambda m: _log_post(m[1], m[2]))
 
     # The model's own doubt: a strip narrower than the blur looks like a wider blur with another strip
     # level, and the real optics are no exact Gaussian. How far the deficit moves when the blur is off by
@@ -690,4 +534,5 @@ def _posterior_fit(
         outer + d0,
         float(np.mean(1.0 - levels)),
         deficit_at_blur,
+        blur_reading=post.blur_reading,
     )

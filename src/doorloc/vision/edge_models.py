@@ -28,7 +28,7 @@ A new model is a class with a ``read`` method of :class:`EdgeModel`'s shape, an 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Protocol
 
 import numpy as np
@@ -83,7 +83,9 @@ class PassSettings:
     ``arris``: the strips' geometry per line where the door has an arris; ``step_blur_px``: the lines the
     blurred-step fit refines, and the blur it uses; ``light``: the cell's light (its direction in the cell
     frame and its doubt) where the cell states it; ``strip_doubts``: whether the arris strips' doubts are read
-    (False where strips are read again only for their places and misfits: their split check is skipped).
+    (False where strips are read again only for their places and misfits: their split check is skipped);
+    ``strip_blur_priors``: per arris line, the blur the door's other strips read (mean, sd px) on the pass
+    before, a prior on its strip's blur.
     """
 
     every: int
@@ -95,6 +97,7 @@ class PassSettings:
     step_blur_px: dict[str, float]
     light: StatedLight | None = None
     strip_doubts: bool = True
+    strip_blur_priors: dict[str, tuple[float, float]] = field(default_factory=dict)
 
     @property
     def blur_guess_px(self) -> float:
@@ -274,6 +277,7 @@ class ArrisStrip:
                 line_fit=name != "far" or every == 1,
                 light=settings.light,
                 split_check=settings.strip_doubts,
+                blur_prior=settings.strip_blur_priors.get(name),
             ),
             band,
             settings.arris[name],

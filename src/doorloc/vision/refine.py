@@ -7,7 +7,7 @@ finds is a :class:`doorloc.vision.state.Refined`.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -34,6 +34,7 @@ from doorloc.vision.sampling import linearizing_lut
 from doorloc.vision.state import Refined, Refused, StageClock
 from doorloc.vision.stated_light import StatedLight
 from doorloc.vision.step_blur import step_blur
+from doorloc.vision.strip_posterior import strip_blur_priors
 from doorloc.vision.strip_response import StripReadings, arc_score, grey_score
 from doorloc.vision.transition import transition_width
 
@@ -68,7 +69,8 @@ class _Pass:
     measured on the reference arris (``optical_blur_px``, NaN before it is) and the lines the blurred-step fit
     refines with the blur it uses (``step_fit``, px); the edges it reads (``lines``: all three but where the
     arris lines are read again) and whether their strips' doubts are read (``strip_doubts``: not where they
-    are read again at trial exponents)."""
+    are read again at trial exponents); ``blur_priors`` per arris line the blur the other strips read on
+    the pass before (mean, sd px: :func:`doorloc.vision.strip_posterior.strip_blur_priors`)."""
 
     half: int
     every: int = 1
@@ -77,6 +79,7 @@ class _Pass:
     step_fit: dict[str, float] | None = None
     lines: tuple[str, ...] = EDGE_NAMES
     strip_doubts: bool = True
+    blur_priors: dict[str, tuple[float, float]] = field(default_factory=dict)
 
 
 def _arris_and_keep(
@@ -160,6 +163,7 @@ def _sample(
         step_blur_px=this_pass.step_fit or {},
         light=_stated_light(cfg),
         strip_doubts=this_pass.strip_doubts,
+        strip_blur_priors=this_pass.blur_priors,
     )
     out, far_fit, step_fitted, apart = {}, None, {}, {}
     for name in this_pass.lines:
@@ -324,6 +328,7 @@ def refine(
             sharp=_pass > 0 and blur < 0.6,
             optical_blur_px=optical_blur,
             step_fit=step_fit if _pass > 0 else {},
+            blur_priors=_blur_priors(arris_fits),
         )
         sampled = _sample(plane, s8, region, pose, cfg, this_pass, response_gamma, arris_fits)
         samples, far_beside, far_fit = sampled.samples, sampled.far_beside, sampled.far_fit
@@ -370,6 +375,29 @@ def refine(
     arris_fits = _held_to_first_pass(arris_fits, first_fits)
     fitted, apart = sampled.step_fitted, sampled.readers_apart
     return Refined(samples, fit, pose, blur, half, far_beside, far_fit, fitted, arris_fits, apart, points)
+
+
+def _blur_priors(fits: dict[str, tuple[StripFit, float]]) -> dict[str, tuple[float, float]]:
+    """Each arris line's prior on its strip's blur (mean, sd px) from the blur the door's other strips
+    read in ``fits`` (:func:`doorloc.vision.strip_posterior.strip_blur_priors`)."""
+    return strip_blur_priors({k: strip.blur_reading for k, (strip, _) in fits.items()})
+
+
+def _reading_again(refined: Refined, names: tuple[str, ...]) -> _Pass:
+    """The pass that reads the arris lines ``names`` again at the refined pose and windows: the optical blur
+    the reference arris's strip read where a far face is beside the far arris, the step fit's lines, the
+    strips' blur priors; their doubts not read."""
+    optical = float("nan")
+    if refined.far_beside and "reference" in refined.arris_fits:
+        optical = float(refined.arris_fits["reference"][0].blur_px)
+    return _Pass(
+        refined.half,
+        optical_blur_px=optical,
+        step_fit=refined.step_fitted,
+        lines=names,
+        strip_doubts=False,
+        blur_priors=_blur_priors(refined.arris_fits),
+    )
 
 
 def _held_to_first_pass(
@@ -450,12 +478,7 @@ def arris_response_shifts(
     )
     if not names:
         return StripReadings({}, np.full(len(camera_gammas), np.nan), math.nan)
-    optical = float("nan")
-    if refined.far_beside and "reference" in refined.arris_fits:
-        optical = float(refined.arris_fits["reference"][0].blur_px)
-    this_pass = _Pass(
-        refined.half, optical_blur_px=optical, step_fit=refined.step_fitted, lines=names, strip_doubts=False
-    )
+    this_pass = _reading_again(refined, names)
     memo = {} if memo is None else memo
     chamfered = region.door.arris_profile == "chamfer"
     read, strips = [], []

@@ -21,7 +21,7 @@ __all__ = ["STATED_LIGHT_MISFIT_RATIO", "StatedLight", "stated_light_explains"]
 #: light stated right fits within 1.15 times the free shading's misfit on 90 of the 93 strips of the arris
 #: bench's round set (seed 8100, 31 doors), within 1.42 on all (a 2.7 mm rounding's); stated 110 deg off,
 #: most strips 2-100 times. A light far off that still fits is not caught here: what keeps it honest is the
-#: doubt of its turns and the strip's posterior over both its readings (arris_model._valley_posterior)
+#: doubt of its turns and the strip's posterior over both its readings (strip_posterior.valley_posterior)
 STATED_LIGHT_MISFIT_RATIO = 2.0
 
 
