@@ -22,6 +22,9 @@ and noise come from :func:`bench_arris.random_effects`), the camera's gamma is t
   ``sharp_halo`` (only when named): ``sharp``'s plain doors through ``halo``'s halo;
 - ``sharpened`` (only when named): as ``halo``'s doors through a camera that sharpens its grey levels (an
   unsharp mask of amount 0.3-1, radius 0.8-2 px), which locate does not model.
+- ``astigmatic`` (only when named): ``small``'s doors with 0.3-1.2 px more blur along the image's columns
+  than along its rows: the bottom end's blur differs from the long edges', which each strip's blur prior
+  (the other strips' reading) must not hide.
 
 Per image: the seed, the conditions (with ``diagnostics.noise_scale_ratio`` where it reads under 2), the
 errors of x, z, yaw and thickness and their claimed sigmas (x, z, yaw: the answer's ``uncertainty``;
@@ -134,6 +137,9 @@ SETS["sharp_halo"] = dict(SETS["sharp"], halo=SETS["halo"]["halo"])  # plain doo
 # a camera that sharpens its grey levels (an unsharp mask of amount 0.3-1 and radius 0.8-2 px), which locate
 # does not model: rounds, chamfers and a third plain, as ``halo``
 SETS["sharpened"] = dict(SETS["focused"], blur=(0.7, 1.8), sharpen=((0.3, 1.0), (0.8, 2.0)), plain=1 / 3)
+# ``small``'s doors through a lens that blurs more along the image's columns than along its rows (0.3-1.2 px
+# more: astigmatism, or the door moving while exposed): the bottom end's blur is not the long edges'
+SETS["astigmatic"] = dict(SETS["small"], astigmatism=(0.3, 1.2))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -175,6 +181,8 @@ def draw(name: str, i: int, seed: int):
         )
     if spec.get("disk"):
         fx = dataclasses.replace(fx, blur_disk_px=float(rng.uniform(*spec["disk"])))
+    if spec.get("astigmatism"):
+        fx = dataclasses.replace(fx, blur_astigmatism_px=float(rng.uniform(*spec["astigmatism"])))
     if spec.get("sharpen"):
         (a_lo, a_hi), (r_lo, r_hi) = spec["sharpen"]
         fx = dataclasses.replace(
@@ -436,6 +444,7 @@ def main() -> None:
                     else ""
                 )
                 + (f" disk={fx.blur_disk_px:.2f}" if fx.blur_disk_px else "")
+                + (f" astig={fx.blur_astigmatism_px:.2f}" if fx.blur_astigmatism_px else "")
                 + (
                     f" sharpen={fx.sharpen_amount:.2f}@{fx.sharpen_radius_px:.1f}"
                     if fx.sharpen_amount

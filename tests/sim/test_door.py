@@ -132,6 +132,7 @@ def test_every_effect_defaults_to_off_and_changes_the_image_when_on():
         "second_edge_offset_mm": 20.0,
         "blur_sigma_px": 1.0,
         "blur_disk_px": 1.5,
+        "blur_astigmatism_px": 1.0,
         "full_well_e": 5000.0,
         "read_noise_dn": 2.0,
         "gamma": 2.2,
@@ -179,6 +180,21 @@ def test_a_lens_spread_that_is_no_gaussian_keeps_the_light_and_the_edge(lens, re
     assert row[38] + row[41] == pytest.approx(1.0, abs=2e-4)
     gauss = form_image(radiance, Effects(bit_depth=16, blur_sigma_px=lens["blur_sigma_px"]))[16] / 65535
     assert abs(row[40 + reach] - gauss[40 + reach]) > 1e-3  # it reaches where the Gaussian core does not
+
+
+def test_an_astigmatic_lens_blurs_along_the_images_columns_only():
+    # a point of light: its spread's variance along the rows is the core's, along the columns the core's
+    # and the astigmatism's, and the light is kept
+    radiance = np.zeros((41, 41), np.float32)
+    radiance[20, 20] = 0.5
+    out = form_image(radiance, Effects(bit_depth=16, blur_sigma_px=1.0, blur_astigmatism_px=1.2)).astype(
+        float
+    )
+    yy, xx = np.mgrid[:41, :41]
+    total = out.sum()
+    assert total / 65535 == pytest.approx(0.5, rel=1e-3)
+    assert (out * (xx - 20) ** 2).sum() / total == pytest.approx(1.0, rel=0.02)
+    assert (out * (yy - 20) ** 2).sum() / total == pytest.approx(1.0 + 1.2**2, rel=0.02)
 
 
 def test_effects_round_trip_through_a_dict_of_strings():

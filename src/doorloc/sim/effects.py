@@ -14,6 +14,7 @@ scene radiance (per-face albedo x (ambient + directional Lambert), wood grain, s
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, fields
 from typing import Any
 
@@ -79,6 +80,10 @@ class Effects:
     blur_disk_px : float
         Defocus: the light spread over a uniform disk of this radius (px) before the Gaussian blur (a lens
         out of focus is a disk, not a Gaussian); 0 = off.
+    blur_astigmatism_px : float
+        More Gaussian blur along the image's columns than along its rows: this sigma (px) after the lens's
+        point spread (a lens whose sagittal and tangential blur differ, or the door moving along the image's
+        y while exposed); the door's bottom end is then blurrier than its long edges. 0 = off.
     full_well_e : float
         Electrons at full scale for shot noise (variance = signal / full well); 0 = off.
     read_noise_dn : float
@@ -123,6 +128,7 @@ class Effects:
     blur_halo_fraction: float = 0.0
     blur_halo_sigma_px: float = 0.0
     blur_disk_px: float = 0.0
+    blur_astigmatism_px: float = 0.0
     full_well_e: float = 0.0
     read_noise_dn: float = 0.0
     gamma: float = 1.0
@@ -147,6 +153,7 @@ class Effects:
             "blur_sigma_px",
             "blur_halo_sigma_px",
             "blur_disk_px",
+            "blur_astigmatism_px",
             "sharpen_amount",
             "sharpen_radius_px",
             "full_well_e",
@@ -265,6 +272,10 @@ def _lens_blur(img: np.ndarray, effects: Effects) -> np.ndarray:
     if halo is not None:
         f = np.float32(effects.blur_halo_fraction)
         img = (1 - f) * img + f * halo
+    if effects.blur_astigmatism_px > 0:
+        s = effects.blur_astigmatism_px
+        along_y = cv2.getGaussianKernel(2 * math.ceil(4.0 * s) + 1, s).astype(img.dtype)
+        img = cv2.sepFilter2D(img, -1, np.ones(1, img.dtype), along_y, borderType=cv2.BORDER_REFLECT)
     return img
 
 
