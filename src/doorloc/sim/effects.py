@@ -259,7 +259,8 @@ def _disk_kernel(radius_px: float) -> np.ndarray:
 
 def _lens_blur(img: np.ndarray, effects: Effects) -> np.ndarray:
     """``img`` through the lens's point spread: a defocus disk (``blur_disk_px``), then the Gaussian core
-    (``blur_sigma_px``) with its halo (``blur_halo_fraction`` of the light at ``blur_halo_sigma_px``)."""
+    (``blur_sigma_px``) with its halo (``blur_halo_fraction`` of the light at ``blur_halo_sigma_px``), then
+    the astigmatism's Gaussian along the image's columns alone (``blur_astigmatism_px``)."""
     import cv2
 
     if effects.blur_disk_px > 0:
@@ -274,8 +275,10 @@ def _lens_blur(img: np.ndarray, effects: Effects) -> np.ndarray:
         img = (1 - f) * img + f * halo
     if effects.blur_astigmatism_px > 0:
         s = effects.blur_astigmatism_px
-        along_y = cv2.getGaussianKernel(2 * math.ceil(4.0 * s) + 1, s).astype(img.dtype)
-        img = cv2.sepFilter2D(img, -1, np.ones(1, img.dtype), along_y, borderType=cv2.BORDER_REFLECT)
+        # a kernel one pixel wide: the rows are left as they are
+        img = cv2.GaussianBlur(
+            img, (1, 2 * math.ceil(4.0 * s) + 1), s, sigmaY=s, borderType=cv2.BORDER_REFLECT
+        )
     return img
 
 

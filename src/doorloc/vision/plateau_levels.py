@@ -74,15 +74,15 @@ def level_smoothing(x, inside, start, level_smooth, half, step, quantum):
     if level_smooth <= 0 or not step > 0:
         return level_smooth
     n = x.size
+    # the levels taken, and the noise of one scan line's level: a second difference of white noise has six
+    # times its variance (one pass over the plateau: this runs on both plateaus of every plain line)
     n_ok = 0
+    sq2 = 0.0
+    n2 = 0
     for i in range(n):
         if inside[i] and np.isfinite(x[i]):
             n_ok += 1
-    # the noise of one scan line's level: a second difference of white noise has six times its variance
-    sq2 = 0.0
-    n2 = 0
-    for i in range(1, n - 1):
-        if inside[i - 1] and inside[i] and inside[i + 1]:
+        if 0 < i < n - 1 and inside[i - 1] and inside[i] and inside[i + 1]:
             d2 = x[i - 1] - 2.0 * x[i] + x[i + 1]
             if np.isfinite(d2):
                 sq2 += d2 * d2
