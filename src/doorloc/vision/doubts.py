@@ -149,6 +149,7 @@ def _edge_model_doubts(
             blur_px=step_fitted.get(k),
             door_skip_px=skip,
             door_side=side,
+            face_slope_half_px=r.face_sloped.get(k),
         )
         # The far arris's offset gives only the thickness: its texture doubt is the thickness's, not the
         # corner's. (Without it the grain set's thicknesses, the hinge face's grain beside the far arris

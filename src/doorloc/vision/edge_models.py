@@ -9,7 +9,9 @@ model reads an edge is a lookup by its kind (:func:`edge_kind`, :data:`EDGE_MODE
     (:func:`doorloc.vision.edges.subpixel_edges`).
 ``step_fit``
     A plain step that the refine stage has the blurred-step fit refine, where texture beside it moves the
-    plateaus (:func:`doorloc.vision.blurred_step.refine_step_fit`; kept where texture explains its shift).
+    plateaus (:func:`doorloc.vision.blurred_step.refine_step_fit`; kept where texture explains its shift);
+    where the texture beside it is strong, the fit with the face's level sloped
+    (:func:`doorloc.vision.blurred_step.refine_face_slope_fit`) on every plain long arris.
 ``banded``
     A step with a band beside it on the door side (an arris strip whose shading is not modelled): the area
     estimator between the band and the background (:func:`doorloc.vision.edges.subpixel_edges_banded`).
@@ -37,7 +39,7 @@ from doorloc.cell import DoorSize
 from doorloc.vision.arris_geometry import ArrisGeometry
 from doorloc.vision.arris_lines import StripWindow, arris_edges
 from doorloc.vision.arris_model import StripFit
-from doorloc.vision.blurred_step import refine_step_fit
+from doorloc.vision.blurred_step import refine_face_slope_fit, refine_step_fit
 from doorloc.vision.edge_samples import EdgeSamples, ScanWindow
 from doorloc.vision.edges import subpixel_edges, subpixel_edges_banded
 from doorloc.vision.far_band import FarBand, FarFaceFit
@@ -72,6 +74,31 @@ ARRIS_PLATEAU_PX = 4
 STEP_FIT_AGREE_SIGMAS = 5.0
 STEP_FIT_AGREE_FLOOR_PX = 0.003
 
+#: a plain edge whose area estimate the texture beyond its window moves by this much (1 sigma, px:
+#: :func:`doorloc.vision.texture.texture_bias`) is read with the face's level sloped. Strong wood grain
+#: along the edge puts a flank of a stripe beside it (the surfaces bench's ``grain_strong`` set, seed 7700:
+#: over 30 doors the reference arris's points 0.17 px RMS off (their median per door), one door 0.79 px
+#: and 0.29 mm in x at 4.1 sigma); a clean or noisy face reads far less, and keeps the flat readers (fewer
+#: unknowns per scan line)
+FACE_SLOPE_TEXTURE_PX = 0.05
+#: the edges read with the face sloped: the long arrises, along which a door's wood grain runs (the hinge
+#: face is a stile's edge); across the bottom end each scan line has its own level instead, which the
+#: plain step's levels follow (:func:`doorloc.vision.plateau_levels.level_smoothing`). With the bottom end
+#: read sloped too, z RMS on ``bench_surfaces.py`` sets ``grain`` (seed 11, 20 doors), ``hard`` (seed 11)
+#: and ``grain_strong`` (seed 7700) was 0.0053 / 0.0040 / 0.0048 mm; without, 0.0032 / 0.0025 / 0.0032
+FACE_SLOPE_LINES = ("reference", "far")
+#: the sloped fit's window, px each side of the edge (at least twice the blur and two pixels): the face
+#: is a line over a few pixels of a grain stripe, not over a good part of its period. Per door, the median
+#: of the reference and far arrises' points against the truth (``grain_strong`` seeds 7700 and 2611, 30
+#: doors each, fitted with the renderer's blur): RMS 0.033-0.055 px (the most 0.20) at 5 px, 0.05-0.13 at
+#: 8, 0.09-0.57 at 11; the flat step at 5 px 0.08-0.12 (the most 0.31). Located (``bench_surfaces.py``),
+#: 6 px answered better than 5: ``hard`` seed 11 x / z RMS 0.0083 / 0.0040 mm against 0.0129 / 0.0084,
+#: ``grain`` seed 2611 z 0.0033 mm against 0.0100 (one door 0.075 mm off at 3.6 sigma)
+FACE_SLOPE_HALF_PX = 6
+#: how much wider the second sloped reading is, px each side, whose disagreement with the first is the
+#: line's ``readers_apart`` (how far the face departs from a line)
+FACE_SLOPE_CHECK_PX = 3
+
 
 @dataclass(frozen=True)
 class PassSettings:
@@ -81,8 +108,9 @@ class PassSettings:
     windows assume; ``optical_blur_px``: the blur measured on the reference arris (NaN before it is);
     ``slope_smooth``: scan lines for the plain estimator's slope; ``door``: the door's size and arris;
     ``arris``: the strips' geometry per line where the door has an arris; ``step_blur_px``: the lines the
-    blurred-step fit refines, and the blur it uses; ``light``: the cell's light (its direction in the cell
-    frame and its doubt) where the cell states it; ``strip_doubts``: whether the arris strips' doubts are read
+    blurred-step fit refines, and the blur it uses; ``face_slope_blur_px``: the blur from which a plain
+    edge whose texture is strong is read with its face sloped (NaN: none is; the first pass); ``light``:
+    the cell's light (its direction in the cell frame and its doubt) where the cell states it; ``strip_doubts``: whether the arris strips' doubts are read
     (False where strips are read again only for their places and misfits: their split check is skipped);
     ``strip_blur_priors``: per arris line, the blur the door's other strips read (mean, sd px) on the pass
     before, a prior on its strip's blur.
@@ -98,6 +126,7 @@ class PassSettings:
     light: StatedLight | None = None
     strip_doubts: bool = True
     strip_blur_priors: dict[str, tuple[float, float]] = field(default_factory=dict)
+    face_slope_blur_px: float = float("nan")
 
     @property
     def blur_guess_px(self) -> float:
@@ -111,7 +140,9 @@ class EdgeReading:
 
     ``far_fit``: the far-face model's fit; ``strip``: the arris strip's profile fit and the strip's width,
     px; ``step_blur_px``: the blur with which the blurred-step fit refined the points; ``readers_apart``:
-    where the step fit was tried, how far its points lay from the area estimator's (kept or not).
+    where the step fit was tried, how far its points lay from the area estimator's (kept or not), and where
+    the face was read sloped, how far a reading over a window ``FACE_SLOPE_CHECK_PX`` wider lies from its
+    points; ``face_slope_half_px``: the sloped fit's window half width, px, where it read the points.
     """
 
     samples: EdgeSamples
@@ -119,6 +150,7 @@ class EdgeReading:
     strip: tuple[StripFit, float] | None = None
     step_blur_px: float | None = None
     readers_apart: ReadersApart | None = None
+    face_slope_half_px: int | None = None
 
 
 @dataclass(frozen=True)
@@ -166,16 +198,54 @@ class PlainArea:
 
 class StepFit:
     """A plain step refined by the blurred-step fit, where the shift it makes is what texture beside the
-    edge explains (:data:`STEP_FIT_AGREE_SIGMAS`); else the area estimate stands."""
+    edge explains (:data:`STEP_FIT_AGREE_SIGMAS`); else the area estimate stands. On the long arrises
+    (:data:`FACE_SLOPE_LINES`), where the texture beyond the window is strong
+    (:data:`FACE_SLOPE_TEXTURE_PX`), the fit with the face's level sloped (:func:`_face_sloped`), whatever
+    the line's transition width."""
 
     def read(self, window: ScanWindow, name: str, track: Track, settings: PassSettings) -> EdgeReading:
         area = PlainArea().read(window, name, track, settings).samples
-        blur = settings.step_blur_px[name]
+        blur = settings.step_blur_px.get(name)
+        sloped_blur = settings.face_slope_blur_px if name in FACE_SLOPE_LINES else math.nan
+        if blur is None and math.isnan(sloped_blur):
+            return EdgeReading(area)
+        # (a line the flat fit does not refine asks only whether to read it sloped: a quarter of the scan
+        # lines and half the shifts tell that, for a quarter of the cost)
+        few = {} if blur is not None else {"max_lines": 32, "n_shifts": 6}
+        w = window
+        tex = texture_bias(w.plane, area, area.valid, w.half, w.plateau, w.lut, **few).offset_sigma_px
+        tex = tex if math.isfinite(tex) else 0.0
+        if tex >= FACE_SLOPE_TEXTURE_PX and math.isfinite(sloped_blur):
+            return _face_sloped(window, area, sloped_blur)
+        if blur is None:
+            return EdgeReading(area)
         fitted = refine_step_fit(window.plane, area, window.half, blur, window.lut)
         apart = _readers_apart(area, fitted)
-        if _step_fit_agrees(window, area, apart):
+        if apart is not None and abs(apart.shift_px) <= STEP_FIT_AGREE_SIGMAS * math.hypot(
+            tex, STEP_FIT_AGREE_FLOOR_PX
+        ):
             return EdgeReading(fitted, step_blur_px=blur, readers_apart=apart)
         return EdgeReading(area, readers_apart=apart)
+
+
+def _face_sloped(window: ScanWindow, area: EdgeSamples, blur: float) -> EdgeReading:
+    """The edge read with the face's level sloped (:func:`doorloc.vision.blurred_step.refine_face_slope_fit`,
+    its blur searched from ``blur`` down) on a window of ``FACE_SLOPE_HALF_PX`` each side (twice the blur and
+    two pixels where that is more), and again with that blur on one ``FACE_SLOPE_CHECK_PX`` wider: where the
+    face departs from a line within the window the two disagree (``readers_apart``)."""
+    h = max(FACE_SLOPE_HALF_PX, math.ceil(2.0 * blur + 2.0))
+    w = window
+    # (refine_face_slope_fit's half is the window's less one, as refine_step_fit's)
+    fitted = refine_face_slope_fit(w.plane, area, h - 1, blur, w.door_side, w.lut)
+    wider = refine_face_slope_fit(
+        w.plane, area, h - 1 + FACE_SLOPE_CHECK_PX, fitted.blur_px, w.door_side, w.lut, search_blur=False
+    )
+    return EdgeReading(
+        fitted.samples,
+        step_blur_px=fitted.blur_px,
+        readers_apart=_readers_apart(fitted.samples, wider.samples),
+        face_slope_half_px=h,
+    )
 
 
 def _readers_apart(area: EdgeSamples, fitted: EdgeSamples) -> ReadersApart | None:
@@ -205,18 +275,6 @@ def _apart_and_tilt(d, scan):
     hi = median_in_place(d[k:].copy())
     lever = scan[k:].mean() - scan[:k].mean()
     return shift, (hi - lo) / lever if lever > 0 else 0.0
-
-
-def _step_fit_agrees(window: ScanWindow, area: EdgeSamples, apart: ReadersApart | None) -> bool:
-    """Whether the step fit's shift of an edge (``apart``) is what texture beside it explains (see the
-    constants)."""
-    if apart is None:
-        return False
-    tex = texture_bias(
-        window.plane, area, area.valid, window.half, window.plateau, window.lut
-    ).offset_sigma_px
-    tex = tex if math.isfinite(tex) else 0.0
-    return abs(apart.shift_px) <= STEP_FIT_AGREE_SIGMAS * math.hypot(tex, STEP_FIT_AGREE_FLOOR_PX)
 
 
 class Banded:
@@ -299,7 +357,9 @@ EDGE_MODELS: dict[str, EdgeModel] = {
 def edge_kind(name: str, track: Track, settings: PassSettings) -> str:
     """The kind of the edge ``name`` on this pass: which of :data:`EDGE_MODELS` reads it."""
     if track.band_px is None or not track.band_px.size:
-        return "step_fit" if name in settings.step_blur_px else "plain"
+        sloped = name in FACE_SLOPE_LINES and math.isfinite(settings.face_slope_blur_px)
+        stepped = name in settings.step_blur_px or sloped
+        return "step_fit" if stepped else "plain"
     if track.beside_far_face:
         return "far_face"
     if settings.arris is not None and name in settings.arris and track.outline_shift_px is not None:

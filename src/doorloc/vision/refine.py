@@ -7,6 +7,7 @@ finds is a :class:`doorloc.vision.state.Refined`.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -15,6 +16,7 @@ from doorloc.pose import direction_cell
 from doorloc.vision import quality as q
 from doorloc.vision.arris_geometry import ArrisGeometry
 from doorloc.vision.arris_model import StripFit, arris_geometry
+from doorloc.vision.blurred_step import STEP_FIT_MIN_BLUR_PX
 from doorloc.vision.config import LocateConfig
 from doorloc.vision.edge_models import (
     ARRIS_PLATEAU_PX,
@@ -29,7 +31,6 @@ from doorloc.vision.far_band import FarFaceFit
 from doorloc.vision.lines import RectangleFit, fit_rectangle_edges
 from doorloc.vision.metric import MetricPose, pose_from_fit
 from doorloc.vision.region import EDGE_NAMES, HUMAN, SearchRegion
-from doorloc.vision.response_check import STEP_FIT_MIN_BLUR_PX
 from doorloc.vision.sampling import linearizing_lut
 from doorloc.vision.state import Refined, Refused, StageClock
 from doorloc.vision.stated_light import StatedLight
@@ -53,13 +54,15 @@ READINGS_UNCHECKED = ("bottom",)
 class _Sampled:
     """Edge points of one pass: per line, whether a far face was beside the far arris, its fit, and the
     lines whose points the blurred-step fit refined (name -> the blur it used, px) and, where it was tried,
-    how far its points lay from the area estimator's."""
+    how far its points lay from the area estimator's; the lines it read with the face sloped (name -> its
+    window's half width, px)."""
 
     samples: dict[str, EdgeSamples]
     far_beside: bool
     far_fit: FarFaceFit | None
     step_fitted: dict[str, float]
     readers_apart: dict[str, ReadersApart]
+    face_sloped: dict[str, int]
 
 
 @dataclass(frozen=True)
@@ -70,13 +73,16 @@ class _Pass:
     refines with the blur it uses (``step_fit``, px); the edges it reads (``lines``: all three but where the
     arris lines are read again) and whether their strips' doubts are read (``strip_doubts``: not where they
     are read again at trial exponents); ``blur_priors`` per arris line the blur the other strips read on
-    the pass before (mean, sd px: :func:`doorloc.vision.strip_posterior.strip_blur_priors`)."""
+    the pass before (mean, sd px: :func:`doorloc.vision.strip_posterior.strip_blur_priors`);
+    ``face_slope_blur_px`` the blur with which a plain edge under strong texture is read with its face
+    sloped (NaN: none is)."""
 
     half: int
     every: int = 1
     sharp: bool = False
     optical_blur_px: float = float("nan")
     step_fit: dict[str, float] | None = None
+    face_slope_blur_px: float = float("nan")
     lines: tuple[str, ...] = EDGE_NAMES
     strip_doubts: bool = True
     blur_priors: dict[str, tuple[float, float]] = field(default_factory=dict)
@@ -164,8 +170,9 @@ def _sample(
         light=_stated_light(cfg),
         strip_doubts=this_pass.strip_doubts,
         strip_blur_priors=this_pass.blur_priors,
+        face_slope_blur_px=this_pass.face_slope_blur_px,
     )
-    out, far_fit, step_fitted, apart = {}, None, {}, {}
+    out, far_fit, step_fitted, apart, sloped = {}, None, {}, {}, {}
     for name in this_pass.lines:
         lay, t = region.layouts[name], tracks[name]
         window = ScanWindow(
@@ -190,7 +197,9 @@ def _sample(
             step_fitted[name] = reading.step_blur_px
         if reading.readers_apart is not None:
             apart[name] = reading.readers_apart
-    return _Sampled(out, tracks["far"].beside_far_face, far_fit, step_fitted, apart)
+        if reading.face_slope_half_px is not None:
+            sloped[name] = reading.face_slope_half_px
+    return _Sampled(out, tracks["far"].beside_far_face, far_fit, step_fitted, apart, sloped)
 
 
 def _fit(
@@ -314,7 +323,7 @@ def refine(
     arris_fits: dict[str, tuple[StripFit, float]] = {}
     half = cfg.half_window_max
     blur = float("nan")
-    optical_blur = float("nan")
+    optical_blur = face_slope_blur = float("nan")
     step_fit: dict[str, float] = {}
     ref0: _Profiles | None = None  # the reference arris's first-pass profiles (for the blur)
     first_fits: dict[str, tuple[StripFit, float]] = {}  # the first pass's strip fits
@@ -329,6 +338,7 @@ def refine(
             optical_blur_px=optical_blur,
             step_fit=step_fit if _pass > 0 else {},
             blur_priors=_blur_priors(arris_fits),
+            face_slope_blur_px=face_slope_blur,
         )
         sampled = _sample(plane, s8, region, pose, cfg, this_pass, response_gamma, arris_fits)
         samples, far_beside, far_fit = sampled.samples, sampled.far_beside, sampled.far_fit
@@ -362,7 +372,7 @@ def refine(
                 if any(math.isfinite(w) for w in widths)
                 else float(cfg.half_window_max)
             )
-            step_fit = _step_fit_lines(cfg, dict(zip(("bottom", "reference"), widths, strict=True)))
+            step_fit, face_slope_blur = _step_fit_lines(cfg, widths)
             half = min(
                 max(math.ceil(cfg.window_blur_factor * blur + 1.0), cfg.half_window_min), cfg.half_window_max
             )
@@ -373,8 +383,8 @@ def refine(
                 optical_blur = _optical_blur(plane, ref0, cfg, blur, arris_fits)
         _pass += 1
     arris_fits = _held_to_first_pass(arris_fits, first_fits)
-    fitted, apart = sampled.step_fitted, sampled.readers_apart
-    return Refined(samples, fit, pose, blur, half, far_beside, far_fit, fitted, arris_fits, apart, points)
+    found = (sampled.step_fitted, arris_fits, sampled.readers_apart, points, None, sampled.face_sloped)
+    return Refined(samples, fit, pose, blur, half, far_beside, far_fit, *found)
 
 
 def _blur_priors(fits: dict[str, tuple[StripFit, float]]) -> dict[str, tuple[float, float]]:
@@ -576,8 +586,10 @@ def _optical_blur(
     )
 
 
-def _step_fit_lines(cfg: LocateConfig, widths: dict[str, float]) -> dict[str, float]:
-    """The lines the final pass refines by the blurred-step fit, with the optical blur (px) it uses.
+def _step_fit_lines(cfg: LocateConfig, bottom_reference: Sequence[float]) -> tuple[dict[str, float], float]:
+    """The lines the final pass refines by the blurred-step fit, with the optical blur (px) it uses, and
+    that blur alone (NaN where none is), with which the final pass reads every plain edge under strong
+    texture with its face sloped (:func:`_step_fit_blur`).
 
     The blur is the same on every edge; an edge whose transition looks wider than the narrowest carries a
     second structure (an end face seen nearly edge-on, a strip) that the step model lacks, while the area
@@ -585,11 +597,23 @@ def _step_fit_lines(cfg: LocateConfig, widths: dict[str, float]) -> dict[str, fl
     that width's blur. Below ``STEP_FIT_MIN_BLUR_PX`` none is: the area estimator is exact there and its
     window small (little texture in it), while the step model's shape depends on the pixel phase.
     """
-    ok = {k: w for k, w in widths.items() if math.isfinite(w)}
+    widths = dict(zip(("bottom", "reference"), bottom_reference, strict=True))
+    optical = _step_fit_blur(cfg, widths.values())
+    if not math.isfinite(optical):
+        return {}, optical
+    narrow = min(w for w in widths.values() if math.isfinite(w))
+    return {k: optical for k, w in widths.items() if math.isfinite(w) and w <= 1.25 * narrow}, optical
+
+
+def _step_fit_blur(cfg: LocateConfig, widths: Iterable[float]) -> float:
+    """The optical blur (px) the blurred-step fits use, from the narrowest of the first pass's transition
+    ``widths`` (the pixel's share taken out); NaN where they are off (``locate.step_fit``), none is finite
+    or the blur is below ``STEP_FIT_MIN_BLUR_PX``. The fit with the face sloped (texture along an edge)
+    uses it on every plain edge: a flank of grain beside an edge widens that edge's transition, so its own
+    width would not do."""
+    ok = [w for w in widths if math.isfinite(w)]
     if not cfg.step_fit or not ok:
-        return {}
-    narrow = min(ok.values())
+        return float("nan")
+    narrow = min(ok)
     optical = math.sqrt(max(narrow * narrow - 1.0 / 12.0, 0.0))
-    if optical < STEP_FIT_MIN_BLUR_PX:
-        return {}
-    return {k: optical for k, w in ok.items() if w <= 1.25 * narrow}
+    return optical if optical >= STEP_FIT_MIN_BLUR_PX else float("nan")

@@ -14,6 +14,7 @@ import numpy as np
 
 from doorloc.cell import Cell
 from doorloc.vision.arris_model import StripFit
+from doorloc.vision.blurred_step import STEP_FIT_MIN_BLUR_PX
 from doorloc.vision.config import LocateConfig
 from doorloc.vision.edge_samples import EdgeSamples
 from doorloc.vision.lines import RectangleFit
@@ -33,17 +34,12 @@ from doorloc.vision.state import Refined, ResponseCheck
 from doorloc.vision.texture import texture_bias
 
 __all__ = [
-    "STEP_FIT_MIN_BLUR_PX",
     "PLAIN_STRIP_PX",
     "blur_without_pixel",
     "check_response",
     "measure_response",
     "response_check_applies",
 ]
-
-
-#: the final pass fits a blurred step (LocateConfig.step_fit) only above this optical blur, px
-STEP_FIT_MIN_BLUR_PX = 0.5
 
 
 #: an arris strip narrower than this, px, is a plain step to the camera response's check (a chamfer of a few

@@ -8,7 +8,7 @@ doubts stage: every line's doubts and what the diagnostics report of them) -> th
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -63,6 +63,9 @@ class Refined:
     direction_votes : dict[str, float] or None
         Each voting line's weight on the door's direction where it was voted by the lines' doubts
         (:func:`doorloc.vision.direction_vote.voted_by_doubts`); None: by the spread of their points.
+    face_sloped : dict[str, int]
+        The lines of ``step_fitted`` whose face the fit took as sloped (texture along the edge:
+        :func:`doorloc.vision.blurred_step.face_slope_step_fit`), and its window's half width, px.
     """
 
     samples: dict[str, EdgeSamples]
@@ -77,6 +80,7 @@ class Refined:
     readers_apart: dict[str, ReadersApart]
     plane_points: dict[str, tuple[np.ndarray, bool]]
     direction_votes: dict[str, float] | None = None
+    face_sloped: dict[str, int] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from doorloc.vision.blurred_step import pixel_step, step_fit
+from doorloc.vision.blurred_step import face_slope_step_fit, pixel_step, step_fit
 from doorloc.vision.edge_samples import EdgeSamples
 from doorloc.vision.jit import grey, kernel, pairwise_sum
 from doorloc.vision.sampling import NO_LUT, oriented, pixel_buffer, warm_up_planes
@@ -45,6 +45,7 @@ def texture_bias(
     blur_px: float | None = None,
     door_skip_px: int = 0,
     door_side: int = 1,
+    face_slope_half_px: int | None = None,
 ) -> TextureBias:
     """Estimate the texture bias of the sub-pixel edge estimate on one edge from the texture beside its window.
 
@@ -58,7 +59,9 @@ def texture_bias(
     gives ~0 (noise only).
 
     With ``blur_px`` None the estimator is :func:`subpixel_edges` (window ``half``, ``plateau`` px levels,
-    a closed form); otherwise :func:`refine_step_fit` with that blur, run on a clean step with the texture added.
+    a closed form); otherwise :func:`refine_step_fit` with that blur, run on a clean step with the texture added,
+    with the face's level sloped on a window of ``face_slope_half_px`` each side where that is given
+    (:func:`doorloc.vision.blurred_step.face_slope_step_fit`).
 
     Parameters
     ----------
@@ -78,7 +81,7 @@ def texture_bias(
     """
     # why many parameters: the edge's window as the estimator read it (half, plateau, lut) and the texture's settings, keywords with defaults as the edge models, the doubts, the response check and the reference test pass them
     P = oriented(plane, samples.axis)
-    h = half + 1
+    h = half + 1 if face_slope_half_px is None or blur_px is None else int(face_slope_half_px)
     reach = max(2 * (half + plateau), 2 * h) + n_shifts + 2
     skip = max(int(door_skip_px), 0)
     R = reach + skip  # the gathered half-window: the door side's profile starts skip px farther out
@@ -104,23 +107,24 @@ def texture_bias(
         # compiled in one call (the Python between the steps cost more than they did)
         off, tilt = _area_texture_bias(*profiles, reach, skip_plus, skip_minus, n_shifts, half)
         return TextureBias(off, tilt)
-    return _step_fit_texture_bias(profiles, R, reach, skip_plus, skip_minus, h, n_shifts, blur_px)
+    sides = (R, reach, skip_plus, skip_minus)
+    return _step_fit_texture_bias(profiles, sides, h, n_shifts, blur_px, face_slope_half_px is not None)
 
 
 def _step_fit_texture_bias(
     profiles: tuple,
-    R: int,
-    reach: int,
-    skip_plus: int,
-    skip_minus: int,
+    sides: tuple[int, int, int, int],
     h: int,
     n_shifts: int,
     blur_px: float,
+    face_sloped: bool = False,
 ) -> TextureBias:
     """:func:`texture_bias` for the step fit (:func:`refine_step_fit`, blur ``blur_px``, window ``h`` px each
-    side): the mean profiles (:func:`_texture_profiles` of ``profiles``, its arguments; ``R`` their
-    half-window, px), each side's ``reach`` px beyond the edge (``skip_plus``, ``skip_minus`` px skipped on each), as texture beside a
-    clean step."""
+    side, the face sloped where ``face_sloped``): the mean profiles (:func:`_texture_profiles` of
+    ``profiles``, its arguments), each side's ``reach`` px beyond the edge, as texture beside a clean step
+    (``sides``: ``R``, the profiles' half-window, ``reach``, and the px ``skip_plus``, ``skip_minus``
+    skipped on each side)."""
+    R, reach, skip_plus, skip_minus = sides
     Ts, D, lever, n_ok = _texture_profiles(*profiles)
     if n_ok < 8 or not D > 0:
         return TextureBias(float("nan"), float("nan"))
@@ -133,11 +137,14 @@ def _step_fit_texture_bias(
             for p in (T[R + 1 + skip_plus : R + 1 + skip_plus + reach], T[: R - skip_minus][::-1][:reach])
         ]
     )
-    off, tilt = _texture_sigmas(_step_fit_errors(profs, D, h, n_shifts, blur_px), n_shifts, lever)
+    errors = _step_fit_errors(profs, D, h, n_shifts, blur_px, face_sloped)
+    off, tilt = _texture_sigmas(errors, n_shifts, lever)
     return TextureBias(off, tilt)
 
 
-def _step_fit_errors(profs: np.ndarray, D: float, h: int, n_shifts: int, blur_px: float) -> np.ndarray:
+def _step_fit_errors(
+    profs: np.ndarray, D: float, h: int, n_shifts: int, blur_px: float, face_sloped: bool = False
+) -> np.ndarray:
     """:func:`texture_bias`'s errors of the step fit (window ``h`` px each side of the edge, blur ``blur_px``)
     on a clean step of contrast ``D`` with the texture of ``profs`` (each mean profile's two sides, beyond
     the edge and before it, outwards, in turn) on one side, at ``n_shifts`` shifts beyond the window: (the
@@ -149,7 +156,14 @@ def _step_fit_errors(profs: np.ndarray, D: float, h: int, n_shifts: int, blur_px
     tex = profs[:, o[:, None] + k[None, :] - 1]
     tex = tex - tex.mean(axis=2, keepdims=True)
     rows = (C0[None] * (D + tex)).reshape(-1, k.size)
-    err = step_fit(rows, np.zeros(rows.shape[0]), bounds, max(float(blur_px), 0.05))
+    sigma = max(float(blur_px), 0.05)
+    zero = np.zeros(rows.shape[0])
+    # (the texture is on the step's bright side, increasing coordinates: the face's)
+    err = (
+        face_slope_step_fit(rows, zero, bounds, sigma, 1)
+        if face_sloped
+        else step_fit(rows, zero, bounds, sigma)
+    )
     err = err.reshape(profs.shape[0], o.size)
     return np.stack([np.concatenate([err[2 * i], err[2 * i + 1]]) for i in range(profs.shape[0] // 2)])
 

@@ -1,0 +1,149 @@
+"""The blurred step with the face's level sloped: it finds an edge beside a flank of wood grain where the
+flat readers do not, and the step-fit model reads a textured plain edge with it."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.ndimage import gaussian_filter1d
+
+from doorloc.cell import DoorSize
+from doorloc.vision.blurred_step import face_slope_step_fit, step_fit
+from doorloc.vision.edge_models import (
+    EDGE_MODELS,
+    FACE_SLOPE_HALF_PX,
+    PassSettings,
+    ScanWindow,
+    edge_kind,
+)
+from doorloc.vision.region import Track
+
+SUPER = 64  # sub-samples per pixel of the reference images: blurred finely, then averaged per pixel
+
+
+def _profile(face, edge: float, sigma: float, side: int, n_px: int = 40, background: float = 40.0):
+    """Pixel values (n_px,) of pixels ``0..n_px-1`` (pixel k spans k-0.5..k+0.5): the background, and
+    beyond ``edge`` on the side ``side`` the face's light ``face(distance from the edge, px)``, blurred by
+    a Gaussian ``sigma`` px and integrated over each pixel, sampled finely (none of the fit's closed forms)."""
+    x = (np.arange(n_px * SUPER) + 0.5) / SUPER - 0.5
+    d = side * (x - edge)
+    # (the sub-sample the edge crosses takes each side's share: the edge is not moved to the sub-grid)
+    on_face = np.clip(d * SUPER + 0.5, 0.0, 1.0)
+    light = on_face * face(np.maximum(d, 0.0)) + (1.0 - on_face) * background
+    # (the light beyond the row continues as at its ends: no step at the row's ends)
+    blurred = gaussian_filter1d(light, sigma * SUPER, mode="nearest")
+    return blurred.reshape(n_px, SUPER).mean(axis=1)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    edge=st.floats(-0.5, 0.5),
+    slope=st.floats(-4.0, 4.0),
+    sigma=st.floats(0.6, 2.0),
+    side=st.sampled_from([1, -1]),
+)
+def test_the_sloped_fit_finds_the_edge_beside_a_face_that_changes_linearly(edge, slope, sigma, side):
+    h = FACE_SLOPE_HALF_PX
+    n_px = 40
+    c = n_px // 2
+    vals = _profile(lambda d: 120.0 + slope * d, c + edge, sigma, side, n_px)[c - h : c + h + 1]
+    bounds = np.arange(-h, h + 2, dtype=np.float64) - 0.5
+    got = face_slope_step_fit(vals[None], np.zeros(1), bounds, sigma, side)[0]
+    assert abs(got - edge) < 2e-3
+    flat = step_fit(vals[None], np.zeros(1), bounds, sigma)[0]
+    if abs(slope) > 2.0:  # (the flat levels' reading is off by a tenth of a pixel or more there)
+        assert abs(flat - edge) > 0.05
+
+
+def test_the_sloped_fit_on_a_flat_face_reads_the_flat_fit_s_edge():
+    vals = _profile(lambda d: np.full_like(d, 160.0), 20.3, 1.1, 1)[12:29]
+    bounds = np.arange(-8, 10, dtype=np.float64) - 0.5
+    sloped = face_slope_step_fit(vals[None], np.zeros(1), bounds, 1.1, 1)[0]
+    flat = step_fit(vals[None], np.zeros(1), bounds, 1.1)[0]
+    assert abs(sloped - 0.3) < 1e-3 and abs(flat - 0.3) < 1e-3
+
+
+def _settings(**kw) -> PassSettings:
+    base = dict(
+        every=1,
+        sharp=False,
+        optical_blur_px=float("nan"),
+        slope_smooth=0,
+        door=DoorSize(900, 50, 2100),
+        arris=None,
+        step_blur_px={},
+    )
+    return PassSettings(**(base | kw))  # type: ignore[arg-type]
+
+
+def test_a_long_arris_is_read_by_the_step_fit_model_once_the_sloped_fit_has_a_blur():
+    track = Track(np.arange(10), np.full(10, 50.0))
+    assert edge_kind("far", track, _settings()) == "plain"
+    assert edge_kind("far", track, _settings(face_slope_blur_px=1.2)) == "step_fit"
+    assert edge_kind("reference", track, _settings(face_slope_blur_px=1.2)) == "step_fit"
+    # (the grain runs across the bottom end: its levels follow it scan line by scan line)
+    assert edge_kind("bottom", track, _settings(face_slope_blur_px=1.2)) == "plain"
+
+
+def _grained_plane(edge: float, contrast: float, sigma: float = 1.3) -> np.ndarray:
+    """Rows of one profile: the door (face) at increasing column beyond ``edge``, its light a stripe of
+    wood grain along the edge (period 60 px) rising from its dark trough across the edge and beyond it."""
+    n_px = 64
+
+    def face(d):
+        return 110.0 * (1.0 - contrast * np.cos(2.0 * np.pi * (d / 60.0 + 0.125)))
+
+    row = _profile(face, edge, sigma, 1, n_px)
+    rng = np.random.default_rng(3)
+    return row[None, :] + rng.normal(0.0, 0.3, size=(200, n_px))  # (a little sensor noise)
+
+
+@pytest.mark.parametrize("contrast", [0.0, 0.25])
+def test_a_plain_edge_beside_a_grain_flank_is_read_with_its_face_sloped(contrast):
+    edge = 30.35
+    plane = _grained_plane(edge, contrast)
+    scan = np.arange(20, 180)
+    window = ScanWindow(plane, "row", scan, np.full(scan.size, 30.0), 4, 3, 1.0, None, 0, 1)
+    track = Track(window.scan, window.centre)
+    model = EDGE_MODELS["step_fit"]
+    area = EDGE_MODELS["plain"].read(window, "reference", track, _settings()).samples
+    reading = model.read(window, "reference", track, _settings(face_slope_blur_px=1.3))
+    err = np.median(reading.samples.along) - edge
+    if contrast == 0.0:  # no texture: the area estimate stands, as before
+        assert reading.face_slope_half_px is None
+        np.testing.assert_array_equal(reading.samples.along, area.along)
+        assert abs(err) < 0.02
+        return
+    # the flat readers put the edge towards the face (its level near the edge is the trough's) ...
+    assert np.median(area.along) - edge > 0.2
+    flat = model.read(window, "reference", track, _settings(step_blur_px={"reference": 1.3}))
+    assert flat.face_slope_half_px is None and np.median(flat.samples.along) - edge > 0.1
+    # ... the sloped fit where it is
+    assert reading.face_slope_half_px == FACE_SLOPE_HALF_PX
+    assert abs(err) < 0.05
+    assert reading.readers_apart is not None and abs(reading.readers_apart.shift_px) < 0.2
+
+
+def test_the_sloped_reader_finds_the_lens_blur_under_a_transition_the_grain_widened():
+    # the flat transition widths read a grained edge wider than the lens makes it: the sloped reader is
+    # given twice the blur and finds the lens's in the profiles' misfit
+    from doorloc.vision.blurred_step import refine_face_slope_fit
+    from doorloc.vision.edges import subpixel_edges
+
+    edge = 30.35
+    plane = _grained_plane(edge, 0.25, sigma=1.3)
+    scan = np.arange(20, 180)
+    window = ScanWindow(plane, "row", scan, np.full(scan.size, 30.0), 4, 3, 1.0, None, 0, 1)
+    area = subpixel_edges(*window.lines, window.plateau, window.scale_to_8bit)
+    got = refine_face_slope_fit(plane, area, FACE_SLOPE_HALF_PX - 1, 2.6, 1)
+    assert abs(got.blur_px - 1.3) < 0.15
+    assert abs(np.median(got.samples.along) - edge) < 0.05
+    told = refine_face_slope_fit(plane, area, FACE_SLOPE_HALF_PX - 1, 2.6, 1, search_blur=False)
+    assert told.blur_px == 2.6 and abs(np.median(told.samples.along) - edge) > 0.1
+
+
+def test_the_sloped_fit_refuses_rows_and_bounds_that_do_not_agree():
+    with pytest.raises(ValueError, match="M \\+ 1 pixel bounds"):
+        face_slope_step_fit(np.zeros((3, 9)), np.zeros(3), np.arange(9.0), 1.0, 1)
