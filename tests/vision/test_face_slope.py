@@ -9,12 +9,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.ndimage import gaussian_filter1d
 
-from doorloc.cell import DoorSize
 from doorloc.vision.blurred_step import face_slope_step_fit, step_fit
 from doorloc.vision.edge_models import (
     EDGE_MODELS,
     FACE_SLOPE_HALF_PX,
-    PassSettings,
     ScanWindow,
     edge_kind,
 )
@@ -65,26 +63,13 @@ def test_the_sloped_fit_on_a_flat_face_reads_the_flat_fit_s_edge():
     assert abs(sloped - 0.3) < 1e-3 and abs(flat - 0.3) < 1e-3
 
 
-def _settings(**kw) -> PassSettings:
-    base = dict(
-        every=1,
-        sharp=False,
-        optical_blur_px=float("nan"),
-        slope_smooth=0,
-        door=DoorSize(900, 50, 2100),
-        arris=None,
-        step_blur_px={},
-    )
-    return PassSettings(**(base | kw))  # type: ignore[arg-type]
-
-
-def test_a_long_arris_is_read_by_the_step_fit_model_once_the_sloped_fit_has_a_blur():
+def test_a_long_arris_is_read_by_the_step_fit_model_once_the_sloped_fit_has_a_blur(pass_settings):
     track = Track(np.arange(10), np.full(10, 50.0))
-    assert edge_kind("far", track, _settings()) == "plain"
-    assert edge_kind("far", track, _settings(face_slope_blur_px=1.2)) == "step_fit"
-    assert edge_kind("reference", track, _settings(face_slope_blur_px=1.2)) == "step_fit"
+    assert edge_kind("far", track, pass_settings()) == "plain"
+    assert edge_kind("far", track, pass_settings(face_slope_blur_px=1.2)) == "step_fit"
+    assert edge_kind("reference", track, pass_settings(face_slope_blur_px=1.2)) == "step_fit"
     # (the grain runs across the bottom end: its levels follow it scan line by scan line)
-    assert edge_kind("bottom", track, _settings(face_slope_blur_px=1.2)) == "plain"
+    assert edge_kind("bottom", track, pass_settings(face_slope_blur_px=1.2)) == "plain"
 
 
 def _grained_plane(edge: float, contrast: float, sigma: float = 1.3) -> np.ndarray:
@@ -101,15 +86,15 @@ def _grained_plane(edge: float, contrast: float, sigma: float = 1.3) -> np.ndarr
 
 
 @pytest.mark.parametrize("contrast", [0.0, 0.25])
-def test_a_plain_edge_beside_a_grain_flank_is_read_with_its_face_sloped(contrast):
+def test_a_plain_edge_beside_a_grain_flank_is_read_with_its_face_sloped(contrast, pass_settings):
     edge = 30.35
     plane = _grained_plane(edge, contrast)
     scan = np.arange(20, 180)
     window = ScanWindow(plane, "row", scan, np.full(scan.size, 30.0), 4, 3, 1.0, None, 0, 1)
     track = Track(window.scan, window.centre)
     model = EDGE_MODELS["step_fit"]
-    area = EDGE_MODELS["plain"].read(window, "reference", track, _settings()).samples
-    reading = model.read(window, "reference", track, _settings(face_slope_blur_px=1.3))
+    area = EDGE_MODELS["plain"].read(window, "reference", track, pass_settings()).samples
+    reading = model.read(window, "reference", track, pass_settings(face_slope_blur_px=1.3))
     err = np.median(reading.samples.along) - edge
     if contrast == 0.0:  # no texture: the area estimate stands, as before
         assert reading.face_slope_half_px is None
@@ -118,7 +103,7 @@ def test_a_plain_edge_beside_a_grain_flank_is_read_with_its_face_sloped(contrast
         return
     # the flat readers put the edge towards the face (its level near the edge is the trough's) ...
     assert np.median(area.along) - edge > 0.2
-    flat = model.read(window, "reference", track, _settings(step_blur_px={"reference": 1.3}))
+    flat = model.read(window, "reference", track, pass_settings(step_blur_px={"reference": 1.3}))
     assert flat.face_slope_half_px is None and np.median(flat.samples.along) - edge > 0.1
     # ... the sloped fit where it is
     assert reading.face_slope_half_px == FACE_SLOPE_HALF_PX
