@@ -74,12 +74,12 @@ ARRIS_PLATEAU_PX = 4
 STEP_FIT_AGREE_SIGMAS = 5.0
 STEP_FIT_AGREE_FLOOR_PX = 0.003
 
-#: a plain edge whose area estimate the texture beyond its window moves by this much (1 sigma, px:
-#: :func:`doorloc.vision.texture.texture_bias`) is read with the face's level sloped. Strong wood grain
-#: along the edge puts a flank of a stripe beside it (the surfaces bench's ``grain_strong`` set, seed 7700:
-#: over 30 doors the reference arris's points 0.17 px RMS off (their median per door), one door 0.79 px
-#: and 0.29 mm in x at 4.1 sigma); a clean or noisy face reads far less, and keeps the flat readers (fewer
-#: unknowns per scan line)
+#: a long arris (:data:`FACE_SLOPE_LINES`) whose area estimate the texture beyond its window moves by this
+#: much (1 sigma, px: :func:`doorloc.vision.texture.texture_bias`) is read with the face's level sloped.
+#: Strong wood grain along the edge puts a flank of a stripe beside it (the surfaces bench's
+#: ``grain_strong`` set, seed 7700: over 30 doors the reference arris's points 0.17 px RMS off (their
+#: median per door), one door 0.79 px and 0.29 mm in x at 4.1 sigma); a clean or noisy face reads far
+#: less, and keeps the flat readers (fewer unknowns per scan line)
 FACE_SLOPE_TEXTURE_PX = 0.05
 #: the edges read with the face sloped: the long arrises, along which a door's wood grain runs (the hinge
 #: face is a stile's edge); across the bottom end each scan line has its own level instead, which the
@@ -108,8 +108,8 @@ class PassSettings:
     windows assume; ``optical_blur_px``: the blur measured on the reference arris (NaN before it is);
     ``slope_smooth``: scan lines for the plain estimator's slope; ``door``: the door's size and arris;
     ``arris``: the strips' geometry per line where the door has an arris; ``step_blur_px``: the lines the
-    blurred-step fit refines, and the blur it uses; ``face_slope_blur_px``: the blur from which a plain
-    edge whose texture is strong is read with its face sloped (NaN: none is; the first pass); ``light``:
+    blurred-step fit refines, and the blur it uses; ``face_slope_blur_px``: the blur from which a long
+    arris whose texture is strong is read with its face sloped (NaN: none is; the first pass); ``light``:
     the cell's light (its direction in the cell frame and its doubt) where the cell states it; ``strip_doubts``: whether the arris strips' doubts are read
     (False where strips are read again only for their places and misfits: their split check is skipped);
     ``strip_blur_priors``: per arris line, the blur the door's other strips read (mean, sd px) on the pass

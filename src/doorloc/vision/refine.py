@@ -74,7 +74,7 @@ class _Pass:
     arris lines are read again) and whether their strips' doubts are read (``strip_doubts``: not where they
     are read again at trial exponents); ``blur_priors`` per arris line the blur the other strips read on
     the pass before (mean, sd px: :func:`doorloc.vision.strip_posterior.strip_blur_priors`);
-    ``face_slope_blur_px`` the blur with which a plain edge under strong texture is read with its face
+    ``face_slope_blur_px`` the blur from which a long arris under strong texture is read with its face
     sloped (NaN: none is)."""
 
     half: int
@@ -383,8 +383,8 @@ def refine(
                 optical_blur = _optical_blur(plane, ref0, cfg, blur, arris_fits)
         _pass += 1
     arris_fits = _held_to_first_pass(arris_fits, first_fits)
-    found = (sampled.step_fitted, arris_fits, sampled.readers_apart, points, None, sampled.face_sloped)
-    return Refined(samples, fit, pose, blur, half, far_beside, far_fit, *found)
+    found, sloped = (sampled.step_fitted, arris_fits, sampled.readers_apart, points), sampled.face_sloped
+    return Refined(samples, fit, pose, blur, half, far_beside, far_fit, *found, face_sloped=sloped)
 
 
 def _blur_priors(fits: dict[str, tuple[StripFit, float]]) -> dict[str, tuple[float, float]]:
@@ -588,8 +588,8 @@ def _optical_blur(
 
 def _step_fit_lines(cfg: LocateConfig, bottom_reference: Sequence[float]) -> tuple[dict[str, float], float]:
     """The lines the final pass refines by the blurred-step fit, with the optical blur (px) it uses, and
-    that blur alone (NaN where none is), with which the final pass reads every plain edge under strong
-    texture with its face sloped (:func:`_step_fit_blur`).
+    that blur alone (NaN where none is), from which the final pass reads a long arris under strong texture
+    with its face sloped (:func:`_step_fit_blur`).
 
     The blur is the same on every edge; an edge whose transition looks wider than the narrowest carries a
     second structure (an end face seen nearly edge-on, a strip) that the step model lacks, while the area
@@ -609,8 +609,8 @@ def _step_fit_blur(cfg: LocateConfig, widths: Iterable[float]) -> float:
     """The optical blur (px) the blurred-step fits use, from the narrowest of the first pass's transition
     ``widths`` (the pixel's share taken out); NaN where they are off (``locate.step_fit``), none is finite
     or the blur is below ``STEP_FIT_MIN_BLUR_PX``. The fit with the face sloped (texture along an edge)
-    uses it on every plain edge: a flank of grain beside an edge widens that edge's transition, so its own
-    width would not do."""
+    searches its blur from it on the long arrises: a flank of grain beside an edge widens that edge's
+    transition, so its own width would not do."""
     ok = [w for w in widths if math.isfinite(w)]
     if not cfg.step_fit or not ok:
         return float("nan")

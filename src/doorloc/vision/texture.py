@@ -59,9 +59,9 @@ def texture_bias(
     gives ~0 (noise only).
 
     With ``blur_px`` None the estimator is :func:`subpixel_edges` (window ``half``, ``plateau`` px levels,
-    a closed form); otherwise :func:`refine_step_fit` with that blur, run on a clean step with the texture added,
-    with the face's level sloped on a window of ``face_slope_half_px`` each side where that is given
-    (:func:`doorloc.vision.blurred_step.face_slope_step_fit`).
+    a closed form); otherwise :func:`refine_step_fit` with that blur, run on a clean step with the texture
+    added, with the face's level sloped on a window of ``face_slope_half_px`` each side where that is
+    given (:func:`doorloc.vision.blurred_step.face_slope_step_fit`).
 
     Parameters
     ----------
