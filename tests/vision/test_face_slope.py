@@ -3,6 +3,8 @@ flat readers do not, and the step-fit model reads a textured plain edge with it.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -132,3 +134,16 @@ def test_the_sloped_reader_finds_the_lens_blur_under_a_transition_the_grain_wide
 def test_the_sloped_fit_refuses_rows_and_bounds_that_do_not_agree():
     with pytest.raises(ValueError, match="M \\+ 1 pixel bounds"):
         face_slope_step_fit(np.zeros((3, 9)), np.zeros(3), np.arange(9.0), 1.0, 1)
+
+
+def test_an_edge_without_a_point_to_read_keeps_the_area_estimate(pass_settings):
+    plane = _grained_plane(30.35, 0.25)
+    scan = np.arange(20, 180)
+    window = ScanWindow(plane, "row", scan, np.full(scan.size, 30.0), 4, 3, 1.0, None, 0, 1)
+    track = Track(window.scan, window.centre)
+    from doorloc.vision.blurred_step import refine_face_slope_fit
+
+    area = EDGE_MODELS["plain"].read(window, "reference", track, pass_settings()).samples
+    none = replace(area, valid=np.zeros_like(area.valid))
+    got = refine_face_slope_fit(plane, none, FACE_SLOPE_HALF_PX - 1, 1.3, 1)
+    assert np.isnan(got.blur_px) and got.samples is none

@@ -237,6 +237,8 @@ def _face_sloped(window: ScanWindow, area: EdgeSamples, blur: float) -> EdgeRead
     w = window
     # (refine_face_slope_fit's half is the window's less one, as refine_step_fit's)
     fitted = refine_face_slope_fit(w.plane, area, h - 1, blur, w.door_side, w.lut)
+    if not math.isfinite(fitted.blur_px):  # (no point to read: the area estimate stands)
+        return EdgeReading(area)
     wider = refine_face_slope_fit(
         w.plane, area, h - 1 + FACE_SLOPE_CHECK_PX, fitted.blur_px, w.door_side, w.lut, search_blur=False
     )
