@@ -403,9 +403,7 @@ def _face_slope_blur(
     i = int(np.argmin(cost))
     if 0 < i < sigmas.size - 1:
         x, y = np.log(sigmas[i - 1 : i + 2]), np.asarray(cost[i - 1 : i + 2])
-        den = (x[0] - x[1]) * (x[0] - x[2]) * (x[1] - x[2])
-        a = (x[2] * (y[1] - y[0]) + x[1] * (y[0] - y[2]) + x[0] * (y[2] - y[1])) / den
-        b = (x[2] ** 2 * (y[0] - y[1]) + x[1] ** 2 * (y[2] - y[0]) + x[0] ** 2 * (y[1] - y[2])) / den
+        a, b, _ = np.polyfit(x, y, 2)  # (through the three points)
         if a > 0:
             return float(np.exp(np.clip(-b / (2.0 * a), x[0], x[2])))
     return float(sigmas[i])
