@@ -933,6 +933,44 @@ def test_an_undithered_8_bit_image_does_not_replace_a_right_cell_exponent(cell):
         assert r.error_code == "uncertain"
 
 
+def test_an_exponent_the_cells_claim_rules_out_is_doubted_only_to_the_claims_end(cell):
+    """A linear camera in a cell of 1.0 that nobody measured (known within ``response_unmeasured_factor``
+    2.2), a plain door under a gradient, vignetting and JPEG (hard bench seed 13049): its edges read 1.04
+    +- 0.09, and admit 1.35, 1.88 and 2.70 about as well. The 2.70 lies beyond what the cell claims; doubted
+    as if the camera could be 2.70, the door 0.001 mm off was refused as uncertain to 0.10 mm. Doubted to
+    the claim's end, 2.2 (no more than an image that reads no response is), it is answered and covered.
+    (The draw's values in full: the alternatives a reading admits move with the last digits.)"""
+    door = DoorSize(900, 65.46953646615687, 2100)
+    pose = DoorPose(-8.431833332965486, -8.790316026874267, 0.6545968674879044)
+    fx = Effects(
+        albedo_hinge=0.22475236983813804,
+        albedo_side=0.2658961541851824,
+        albedo_background=0.09903716973382959,
+        light_ambient=0.900561856600202,
+        light_directional=0.057443388441430536,
+        light_azimuth_deg=43.98630885956544,
+        light_elevation_deg=29.924284125800447,
+        gradient_u=0.24839263519664007,
+        gradient_v=0.005844611005785205,
+        vignetting=0.21580675005098324,
+        grain_contrast=0.0016408532630723283,
+        grain_period_mm=7.4303138640222715,
+        blur_sigma_px=1.5355606876172327,
+        read_noise_dn=0.8853729595257605,
+        jpeg_quality=88,
+    )
+    img = render_door(cell, door, pose, effects=fx, seed=13049).image
+    assert cell.response_gamma == 1.0 and cell.locate.response_unmeasured_factor == 2.2
+    r = locate(img, cell, door)
+    cr = r.diagnostics["camera_response"]
+    assert not cr["absorbed"] and max(cr["alternatives"]) > 2.2 * cell.response_gamma, cr
+    assert r.ok, f"refused: {r.error_code}: {r.error}"
+    assert abs(r.x_mm - pose.x_mm) < 2.0 * r.uncertainty.x_mm
+    assert abs(r.z_mm - pose.z_mm) < 2.0 * r.uncertainty.z_mm
+    # (the doubt still spans the claim: the shift to 2.2 on edges blurred by 1.5 px is some 0.05 mm)
+    assert min(r.uncertainty.x_mm, r.uncertainty.z_mm) > 0.04
+
+
 def test_a_refusal_names_door_brighter_only_when_the_brightness_is_reversed(cell):
     """The hint is read where the door must lie whatever its placement: a missing bright door (a black
     image, an empty fixture) or a door too thin to have a point surely on its face gets none."""

@@ -322,6 +322,8 @@ def _response_terms(
     else:
         gc, sc = response.gamma, response.sigma
     alternatives = list(response.alternatives)
+    if rule in ("unmeasured", "weak") and factor > 1.0:
+        alternatives = _within_claim(alternatives, used_gamma, factor)
     n_alt = len(alternatives)
     # a kept measured claim's doubt is never less than the image's own reading leaves: its shifts too
     own = []
@@ -332,6 +334,19 @@ def _response_terms(
         at = shifts([gc, gc + sc, max(gc - sc, 0.05), *alternatives, *own])
         per_line[k] = _line_response_doubt(rule, at[:3], at[3 : 3 + n_alt], at[3 + n_alt :])
     return _response_doubts(per_line)
+
+
+def _within_claim(alternatives: list[float], used_gamma: float, factor: float) -> list[float]:
+    """The exponents the edges admit about as well as their reading (``alternatives``), brought within the
+    cell's claim: ``used_gamma`` known within ``factor`` (``LocateConfig.response_unmeasured_factor``), the
+    range the doubt of a response nobody measured spans where the image reads none
+    (:func:`_unmeasured_response_terms`). An alternative beyond it counts as the range's end: the camera
+    may lie anywhere up to the end, but a camera the cell's own claim rules out is not why an image that
+    reads a response should doubt it more than an image that reads none. (A plain grained door of a linear
+    camera in a cell of 1.0, read 1.28 +- 0.15 with alternatives up to 2.99, kept x 0.20 mm of response
+    doubt on an error of 0.003 mm and was refused.)"""
+    lo, hi = used_gamma / factor, used_gamma * factor
+    return sorted({min(max(float(a), lo), hi) for a in alternatives})
 
 
 def _line_response_doubt(rule: str, evidence: np.ndarray, alternatives: np.ndarray, own: np.ndarray) -> float:
@@ -350,7 +365,8 @@ def _line_response_doubt(rule: str, evidence: np.ndarray, alternatives: np.ndarr
     - ``unmeasured`` (the edges were read at many pixel phases): the shift to the reading beyond the
       reading's 1-sigma shift, the least the camera is off the cell's exponent at one sigma (within it, the
       edges agree with the exponent in use, and a right cell keeps its small sigma), or the largest shift
-      to the alternatives beyond twice that (the image cannot tell which the camera has). Counted beyond
+      to the alternatives beyond twice that (the image cannot tell which the camera has; each alternative
+      brought within the cell's claim, :func:`_within_claim`). Counted beyond
       twice the 1-sigma shift (the rule until 2026-11-30), a plain door under a halo with a cell of 1.0
       for a 1.12 camera, read 1.115 +- 0.052 (2.2 sigmas off), kept almost no response doubt and its
       thickness was 0.045 mm off at 5.8 sigma (``bench/bench_arris_range.py --n 32 --seed 9100 --sets
@@ -361,7 +377,7 @@ def _line_response_doubt(rule: str, evidence: np.ndarray, alternatives: np.ndarr
       1.67 camera, read 1.65 +- 0.34, was answered 0.056 mm off at 4.4 sigma). The evidence is the cell's
       exponent, taken as known within ``LocateConfig.response_unmeasured_factor``, and the reading together
       (:meth:`ResponseFit.with_unmeasured_claim`): the shift to their exponent and its 1-sigma shift in
-      quadrature, or the largest shift to an alternative.
+      quadrature, or the largest shift to an alternative (within the claim, as above).
 
     That combination was tried on every reading and not taken: readings at many phases under strong
     shading, vignetting and noise read a linear camera 0.4-0.9 +- 0.2, and the combination put
