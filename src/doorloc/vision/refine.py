@@ -1,6 +1,8 @@
 """The refine stage of locate: sub-pixel edge points along every scan line of each edge and the joint line
 fit, in passes (the first, on every fifth scan line, centres and sizes the final windows; beside a far face
-one more). Each edge is read by the model its kind names (:mod:`doorloc.vision.edge_models`); what the stage
+one more, and one more where a line read with its face sloped kept fewer than half its points: a stripe of
+grain beside an arris can pull the first pass's area estimates several pixels into the face, and the final
+windows centred there miss the edge, while the sloped fit of the points they keep places it). Each edge is read by the model its kind names (:mod:`doorloc.vision.edge_models`); what the stage
 finds is a :class:`doorloc.vision.state.Refined`.
 """
 
@@ -329,6 +331,7 @@ def refine(
     first_fits: dict[str, tuple[StripFit, float]] = {}  # the first pass's strip fits
     n_pass = 2
     _pass = 0
+    recentred = False  # (one more pass where a sloped line's windows missed its edge)
     while _pass < n_pass:
         # The first pass, on every fifth scan line, only centres and sizes the final windows.
         this_pass = _Pass(
@@ -360,6 +363,9 @@ def refine(
         )
         pose = pose_from_fit(fit, region.face_map)
         clock.lap(f"fit{min(_pass + 1, 2)}")
+        if _pass >= 1 and not recentred and _sloped_lines_lost(samples, sampled.face_sloped):
+            recentred = True
+            n_pass = max(n_pass, _pass + 2)
         if _pass == 0:
             # Size the final window to the measured blur: wide enough for the transition, no wider (noise).
             # (on the bottom end and the reference arris: beside the far arris a far face or an arris
@@ -385,6 +391,18 @@ def refine(
     arris_fits = _held_to_first_pass(arris_fits, first_fits)
     found, sloped = (sampled.step_fitted, arris_fits, sampled.readers_apart, points), sampled.face_sloped
     return Refined(samples, fit, pose, blur, half, far_beside, far_fit, *found, face_sloped=sloped)
+
+
+def _sloped_lines_lost(samples: dict[str, EdgeSamples], sloped: dict[str, int]) -> bool:
+    """Whether a line read with its face sloped kept fewer than half its points: its windows were centred
+    off its edge (strong-grain bench, set seed 506, door 36: a bright stripe along the reference arris put
+    the first pass's line 3.5-5 px into the face, and the final pass kept 67 of its 704 points)."""
+    return any(
+        k in samples
+        and samples[k].scan.size
+        and np.count_nonzero(samples[k].valid) < 0.5 * samples[k].scan.size
+        for k in sloped
+    )
 
 
 def _blur_priors(fits: dict[str, tuple[StripFit, float]]) -> dict[str, tuple[float, float]]:
