@@ -364,24 +364,14 @@ def refine(
         pose = pose_from_fit(fit, region.face_map)
         clock.lap(f"fit{min(_pass + 1, 2)}")
         if _pass >= 1 and not recentred and _sloped_lines_lost(samples, sampled.face_sloped):
-            recentred = True
-            n_pass = max(n_pass, _pass + 2)
+            recentred, n_pass = True, max(n_pass, _pass + 2)
         if _pass == 0:
-            # Size the final window to the measured blur: wide enough for the transition, no wider (noise).
             # (on the bottom end and the reference arris: beside the far arris a far face or an arris
             # strip can make two steps that look like blur)
             lut = linearizing_lut(plane.dtype, response_gamma)
             widths = _first_pass_widths(plane, samples, fit, region, cfg, half, lut)
-            # np.nanmax of the pair when one is finite, without numpy
-            blur = (
-                float(max(w for w in widths if not math.isnan(w)))
-                if any(math.isfinite(w) for w in widths)
-                else float(cfg.half_window_max)
-            )
+            blur, half = _final_window(cfg, widths)
             step_fit, face_slope_blur = _step_fit_lines(cfg, widths)
-            half = min(
-                max(math.ceil(cfg.window_blur_factor * blur + 1.0), cfg.half_window_min), cfg.half_window_max
-            )
             ref0 = _Profiles(samples["reference"], fit.weights["reference"] > 0, lut)
             first_fits = dict(arris_fits)
             if far_beside:
@@ -391,6 +381,20 @@ def refine(
     arris_fits = _held_to_first_pass(arris_fits, first_fits)
     found, sloped = (sampled.step_fitted, arris_fits, sampled.readers_apart, points), sampled.face_sloped
     return Refined(samples, fit, pose, blur, half, far_beside, far_fit, *found, face_sloped=sloped)
+
+
+def _final_window(cfg: LocateConfig, widths: Sequence[float]) -> tuple[float, int]:
+    """The blur the first pass's transition ``widths`` show (px: the wider finite one, else the largest
+    window), and the final window's half width sized to it (px): wide enough for the transition, no wider
+    (noise)."""
+    # np.nanmax of the pair when one is finite, without numpy
+    blur = (
+        float(max(w for w in widths if not math.isnan(w)))
+        if any(math.isfinite(w) for w in widths)
+        else float(cfg.half_window_max)
+    )
+    half = min(max(math.ceil(cfg.window_blur_factor * blur + 1.0), cfg.half_window_min), cfg.half_window_max)
+    return blur, half
 
 
 def _sloped_lines_lost(samples: dict[str, EdgeSamples], sloped: dict[str, int]) -> bool:
