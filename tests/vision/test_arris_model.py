@@ -286,6 +286,40 @@ def test_an_absorbed_response_that_the_edges_contradict_is_dropped(monkeypatch):
     assert res.uncertainty == plain.uncertainty
 
 
+def test_a_response_reading_that_a_wider_window_does_not_confirm_is_not_absorbed():
+    """A linear camera in a cell of 1.0, a thin door under grain, vignetting and JPEG (grain bench, seed 9900,
+    door 30; 0.70 px of blur): both plain edges read 2.4-2.7 over their transitions, and the cell's right
+    exponent was replaced by 2.59: the thickness 0.083 mm off at 5.3 sigma, z at 2.4. Over a window 3 px
+    wider the reference arris reads 0.45: the reading follows the texture beside the edge, not the camera.
+    Nothing is absorbed, the cell's exponent stands within its factor, and the answer is covered."""
+    door = DoorSize(900, 34.48515977050718, 2100)
+    pose = DoorPose(-3.394359567015462, 4.238671663273287, 1.5719518048451269)
+    fx = Effects(
+        albedo_hinge=0.4045303584426171,
+        albedo_side=0.2803050160086586,
+        albedo_background=0.26029275697828,
+        gradient_u=-0.02937453724787345,
+        gradient_v=0.13640144029186357,
+        vignetting=0.30567603835472645,
+        grain_contrast=0.037819473983232904,
+        grain_period_mm=4.088676783278665,
+        blur_sigma_px=0.6980026239431141,
+        read_noise_dn=2.5394392122817515,
+        jpeg_quality=88,
+    )
+    img = render_door(CELL, door, pose, effects=fx, seed=9900030).image
+    res = locate(img, CELL, door)
+    cr = res.diagnostics["camera_response"]
+    assert not cr["absorbed"] and cr["used"] == "cell", cr
+    assert cr["first_fit"] > 2.0 and cr["wider_window_fit"]["reference"] < 1.0, cr
+    assert "wider" in cr["unchecked_because"]
+    assert res.ok, f"refused: {res.error_code}: {res.error}"
+    sigma_t = res.diagnostics["thickness_check"]["sigma_mm"]
+    assert abs(res.thickness_mm - door.thickness_mm) <= 2.0 * sigma_t
+    assert abs(res.x_mm - pose.x_mm) <= 2.0 * res.uncertainty.x_mm
+    assert abs(res.z_mm - pose.z_mm) <= 2.0 * res.uncertainty.z_mm
+
+
 @pytest.mark.parametrize("level", [0.15, 0.5, 0.85])
 def test_a_strip_narrower_than_the_blur_reports_that_its_level_is_unknown(level):
     """A 0.7 px strip under 1.5 px of blur: its level and its border trade off; the deficit's sigma says so

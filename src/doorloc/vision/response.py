@@ -26,7 +26,9 @@ What a response error does to the edge follows from the step model, not from a t
 measured plateaus, linearised with one exponent when the camera's is another. Locate uses it for the
 response term of the uncertainty budget (``response_sigma_mm`` per line): where the fitted response
 differs from the cell's beyond ``RESPONSE_ABSORB_SIGMAS`` standard errors on two edges or more (the
-combination of the image's and, where the cell's exponent was measured, its ``camera.response_gamma_sigma``), locate
+combination of the image's and, where the cell's exponent was measured, its ``camera.response_gamma_sigma``), and the
+lines read over a window 3 px wider confirm it (texture or shading beside an edge skews its transition as a
+response does, but not alike over both windows: :mod:`doorloc.vision.response_check`), locate
 measures again with the fitted one (the error is absorbed) and the doubt left is the shift that the
 exponent's standard error makes; otherwise the doubt is the shift between the cell's exponent and the
 fitted one beyond twice that (a right cell keeps its small sigma), except for a reading between the
@@ -248,6 +250,7 @@ def fit_line_response(
     half: int,
     used_gamma: float,
     blur_px: float = 0.0,
+    wider_px: int = 0,
 ) -> LineResponse | None:
     """The camera's response exponent measured on one plain edge (module docstring).
 
@@ -262,6 +265,8 @@ def fit_line_response(
         The exponent the edge points were measured with (the skew reported is at it).
     blur_px : float
         Optical blur (Gaussian sigma, px), for the window.
+    wider_px : int
+        Pixels added to the window on each side (a reading of a clean step does not depend on them).
 
     Returns
     -------
@@ -269,7 +274,7 @@ def fit_line_response(
         None where the skew has no root in ``RESPONSE_GAMMA_RANGE`` or too few profiles are usable.
     """
     # The window holds the whole transition (3 blur sigmas each side) and plateaus at both ends.
-    wide = max(half, int(math.ceil(RESPONSE_WINDOW_BLURS * max(blur_px, 0.0) + 1.5)))
+    wide = max(half, int(math.ceil(RESPONSE_WINDOW_BLURS * max(blur_px, 0.0) + 1.5))) + wider_px
     t = _transitions(plane, samples, mask, wide + RESPONSE_PLATEAU_PX)
     if t is None:
         return None
