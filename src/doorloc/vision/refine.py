@@ -2,8 +2,9 @@
 fit, in passes (the first, on every fifth scan line, centres and sizes the final windows; beside a far face
 one more, and one more where a line read with its face sloped kept fewer than half its points: a stripe of
 grain beside an arris can pull the first pass's area estimates several pixels into the face, and the final
-windows centred there miss the edge, while the sloped fit of the points they keep places it). Each edge is read by the model its kind names (:mod:`doorloc.vision.edge_models`); what the stage
-finds is a :class:`doorloc.vision.state.Refined`.
+windows centred there miss the edge, while the sloped fit of the points they keep places it). Each edge is
+read by the model its kind names (:mod:`doorloc.vision.edge_models`); what the stage finds is a
+:class:`doorloc.vision.state.Refined`.
 """
 
 from __future__ import annotations

@@ -23,19 +23,19 @@ camera) need not doubt it by the full range of cameras' exponents.
 
 What a response error does to the edge follows from the step model, not from a tuned factor:
 :func:`edge_shift_px` is where the area estimator puts a Gaussian-blurred step between the line's two
-measured plateaus, linearised with one exponent when the camera's is another. Locate uses it for the
-response term of the uncertainty budget (``response_sigma_mm`` per line): where the fitted response
-differs from the cell's beyond ``RESPONSE_ABSORB_SIGMAS`` standard errors on two edges or more (the
-combination of the image's and, where the cell's exponent was measured, its ``camera.response_gamma_sigma``), and the
-lines read over a window 3 px wider confirm it (texture or shading beside an edge skews its transition as a
-response does, but not alike over both windows: :mod:`doorloc.vision.response_check`), locate
-measures again with the fitted one (the error is absorbed) and the doubt left is the shift that the
-exponent's standard error makes; otherwise the doubt is the shift between the cell's exponent and the
-fitted one beyond twice that (a right cell keeps its small sigma), except for a reading between the
-pixels (a door square to the camera), which is combined with the cell's exponent as known within
-``locate.response_unmeasured_factor`` (:meth:`ResponseFit.with_unmeasured_claim`). Where every plain
-edge admits a second exponent about as well (the asymmetry is not monotone in the exponent: :func:`least_asymmetric`), the
-image cannot tell the camera's: nothing is absorbed and the doubt is the largest shift of the readings.
+measured plateaus, linearised with one exponent when the camera's is another. Locate uses it for the response
+term of the uncertainty budget (``response_sigma_mm`` per line): where the fitted response differs from the
+cell's beyond ``RESPONSE_ABSORB_SIGMAS`` standard errors on two edges or more (the combination of the image's
+and, where the cell's exponent was measured, its ``camera.response_gamma_sigma``), and the lines read over a
+window 3 px wider confirm it (texture or shading beside an edge skews its transition as a response does, but
+not alike over both windows: :mod:`doorloc.vision.response_check`), locate measures again with the fitted one
+(the error is absorbed) and the doubt left is the shift that the exponent's standard error makes; otherwise
+the doubt is the shift between the cell's exponent and the fitted one beyond twice that (a right cell keeps
+its small sigma), except for a reading between the pixels (a door square to the camera), which is combined
+with the cell's exponent as known within ``locate.response_unmeasured_factor``
+(:meth:`ResponseFit.with_unmeasured_claim`). Where every plain edge admits a second exponent about as well
+(the asymmetry is not monotone in the exponent: :func:`least_asymmetric`), the image cannot tell the camera's:
+nothing is absorbed and the doubt is the largest shift of the readings.
 """
 
 from __future__ import annotations

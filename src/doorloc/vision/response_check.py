@@ -111,8 +111,8 @@ def check_response(
     elif response is None and wider:
         response_diag["unchecked_because"] = (
             f"the edges read {response_diag['first_fit']} over their transitions and "
-            f"{', '.join(f'{g}' for g in wider.values())} over windows {RESPONSE_WIDER_CHECK_PX} px wider: "
-            "texture or shading beside them, not the camera's response"
+            f"{', '.join('none' if g is None else f'{g}' for g in wider.values())} over windows "
+            f"{RESPONSE_WIDER_CHECK_PX} px wider: texture or shading beside them, not the camera's response"
         )
     elif response is None:
         response_diag["unchecked_because"] = (
@@ -175,10 +175,10 @@ def blur_without_pixel(transition_px: float) -> float:
 
 def _read_otherwise_wider(
     plane, refined: Refined, cell: Cell, cfg: LocateConfig, per_line: dict[str, LineResponse]
-) -> dict[str, float]:
+) -> dict[str, float | None]:
     """The lines whose exponent, read again over a window ``RESPONSE_WIDER_CHECK_PX`` wider on each side,
     lies beyond twice the two readings' sigmas from the first and does not depart from the cell's exponent
-    the same way by half to twice as much (or is not read), with that reading (NaN where none). A clean
+    the same way by half to twice as much (or is not read), with that reading (None where none). A clean
     step's transition reads the same whatever plateaus are added beside it; a transition that
     texture or shading skews (a grain stripe's flank, a face brighter near its edge) reads another exponent
     as the window takes in more of it. On a linear camera under grain, vignetting and JPEG (grain bench,
@@ -187,12 +187,12 @@ def _read_otherwise_wider(
     if not per_line:
         return {}
     _, wider = measure_response(plane, refined, cell, cfg, wider_px=RESPONSE_WIDER_CHECK_PX)
-    out = {}
+    out: dict[str, float | None] = {}
     c = cell.response_gamma
     for k, v in per_line.items():
         w = wider.get(k)
         if w is None:
-            out[k] = math.nan
+            out[k] = None
             continue
         agree = abs(w.gamma - v.gamma) <= 2.0 * math.hypot(v.sigma, w.sigma)
         # (a response beyond a power law, a shoulder, reads a somewhat other exponent as the window grows,
