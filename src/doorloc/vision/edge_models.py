@@ -110,8 +110,9 @@ class PassSettings:
     ``arris``: the strips' geometry per line where the door has an arris; ``step_blur_px``: the lines the
     blurred-step fit refines, and the blur it uses; ``face_slope_blur_px``: the blur from which a long
     arris whose texture is strong is read with its face sloped (NaN: none is; the first pass); ``light``:
-    the cell's light (its direction in the cell frame and its doubt) where the cell states it; ``strip_doubts``: whether the arris strips' doubts are read
-    (False where strips are read again only for their places and misfits: their split check is skipped);
+    the cell's light (its direction in the cell frame and its doubt) where the cell states it;
+    ``strip_doubts``: whether the arris strips' doubts are read (False where strips are read again only for
+    their places and misfits: their split check is skipped);
     ``strip_blur_priors``: per arris line, the blur the door's other strips read (mean, sd px) on the pass
     before, a prior on its strip's blur.
     """

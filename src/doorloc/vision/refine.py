@@ -367,8 +367,8 @@ def refine(
         if _pass >= 1 and not recentred and _sloped_lines_lost(samples, sampled.face_sloped):
             recentred, n_pass = True, max(n_pass, _pass + 2)
         if _pass == 0:
-            # (on the bottom end and the reference arris: beside the far arris a far face or an arris
-            # strip can make two steps that look like blur)
+            # The final windows sized to the transition widths of the bottom end and the reference arris
+            # (beside the far arris a far face or an arris strip can make two steps that look like blur).
             lut = linearizing_lut(plane.dtype, response_gamma)
             widths = _first_pass_widths(plane, samples, fit, region, cfg, half, lut)
             blur, half = _final_window(cfg, widths)
