@@ -26,12 +26,12 @@ and noise come from :func:`bench_arris.random_effects`), the camera's gamma is t
   than along its rows: the bottom end's blur differs from the long edges', which each strip's blur prior
   (the other strips' reading) must not hide.
 
-Per image: the seed, the conditions (with ``diagnostics.noise_scale_ratio`` where it reads under 2), the
-errors of x, z, yaw and thickness and their claimed sigmas (x, z, yaw: the answer's ``uncertainty``;
-thickness: ``diagnostics.thickness_check.sigma_mm``), or the refusal and its code. Per set: the answered
-share, RMS of each error, the share within 2 claimed sigma and beyond 5, and the refusals by code;
-answers whose thickness the image could not verify (reported under ``locate.thickness_check: report``) are
-counted apart.
+Per image: the seed, the conditions (with ``diagnostics.noise_scale_ratio`` / ``noise_scale_ratio_box2``
+where the first reads under 2), the errors of x, z, yaw and thickness and their claimed sigmas (x, z, yaw:
+the answer's ``uncertainty``; thickness: ``diagnostics.thickness_check.sigma_mm``), or the refusal and its
+code. Per set: the answered share, RMS of each error, the share within 2 claimed sigma and beyond 5, and
+the refusals by code; answers whose thickness the image could not verify (reported under
+``locate.thickness_check: report``) are counted apart.
 
 ``--cell-gamma-off`` tells the cell a wrong exponent, within the cell's ``response_unmeasured_factor``
 (``within``: the camera's times the factor to a power drawn from -1..1; ``bound``: at -1 or +1, a linear
@@ -242,7 +242,7 @@ def run_one(
         )
     ratio = res.diagnostics.get("noise_scale_ratio")
     if ratio is not None and ratio < 2.0:  # the noise read as a sensor's (about 1) or sharpened (below)
-        label += f" noise ratio {ratio:.2f}"
+        label += f" noise ratio {ratio:.2f}/{res.diagnostics.get('noise_scale_ratio_box2', float('nan')):.2f}"
     if not res.ok:
         print(f"  seed {seed:6d} {label:44s} REFUSED {res.error_code}: {(res.error or '')[:110]}")
         return Outcome(res.error_code)

@@ -132,9 +132,10 @@ class LocateConfig:
         beside its border (a highlight on the arris the sensor cut off: its shading cannot be read).
     min_noise_scale_ratio : float
         Refuse ``sharpened`` when flat patches beside the door's edges hold less noise between 4-px blocks
-        than between pixels by more than this (:func:`doorloc.vision.quality.noise_scale_ratio`: a sensor's
-        white noise gives 1, demosaicking, texture and JPEG more, only a camera's sharpening less); 0 turns
-        the check off.
+        than between pixels by more than this, and than between 2 x 2 boxes by two thirds of it
+        (:func:`doorloc.vision.quality.noise_scale_ratio`, :func:`~doorloc.vision.quality.check_sharpened`:
+        a sensor's white noise gives 1, demosaicking, texture and coarse JPEG more, a camera's sharpening
+        less on both, fine JPEG less between pixels only); 0 turns the check off.
     max_uncertainty_mm, max_uncertainty_deg : float
         The cell's tolerance on the answer's 1-sigma uncertainty (:mod:`doorloc.vision.uncertainty`):
         refuse ``uncertain`` when that of x or z exceeds ``max_uncertainty_mm`` or that of the yaw

@@ -203,19 +203,20 @@ def _exposure_checks(plane, s8: float, r: Refined, cfg: LocateConfig, diagnostic
 
 
 def _sharpened(plane, s8: float, r: Refined, cfg: LocateConfig, diagnostics: dict) -> q.Refusal | None:
-    """The sharpening check (``locate.min_noise_scale_ratio``; 0: off), its figure into
-    ``diagnostics["noise_scale_ratio"]``."""
+    """The sharpening check (``locate.min_noise_scale_ratio``; 0: off), its figures into
+    ``diagnostics["noise_scale_ratio"]`` and ``["noise_scale_ratio_box2"]``."""
     if cfg.min_noise_scale_ratio <= 0:
         return None
-    ratio = _noise_scale_ratio(plane, s8, r)
-    diagnostics["noise_scale_ratio"] = None if ratio is None else round(ratio, 3)
-    return q.check_sharpened(ratio, cfg.min_noise_scale_ratio)
+    ratios = _noise_scale_ratio(plane, s8, r)
+    diagnostics["noise_scale_ratio"] = None if ratios is None else round(ratios.pixel, 3)
+    diagnostics["noise_scale_ratio_box2"] = None if ratios is None else round(ratios.box2, 3)
+    return q.check_sharpened(ratios, cfg.min_noise_scale_ratio)
 
 
-def _noise_scale_ratio(plane, s8: float, r: Refined) -> float | None:
-    """The least of :func:`doorloc.vision.quality.noise_scale_ratio` over the door's two sides: patches
-    beside the middle of each line's edge points, pooled per side (dark and bright). Texture and a stray
-    edge in a patch raise its ratio (they hide sharpening there; they never make it)."""
+def _noise_scale_ratio(plane, s8: float, r: Refined) -> q.NoiseScaleRatios | None:
+    """The least of each of :func:`doorloc.vision.quality.noise_scale_ratio`'s ratios over the door's two
+    sides: patches beside the middle of each line's edge points, pooled per side (dark and bright). Texture
+    and a stray edge in a patch raise its ratios (they hide sharpening there; they never make it)."""
     sides: dict[bool, list[np.ndarray]] = {False: [], True: []}
     length, depth = NOISE_PATCH_PX
     for k in EDGE_NAMES:
@@ -237,8 +238,10 @@ def _noise_scale_ratio(plane, s8: float, r: Refined) -> float | None:
             a0 = hi + NOISE_PATCH_GAP_PX if after else lo - NOISE_PATCH_GAP_PX - depth
             if 0 <= a0 and a0 + depth <= P.shape[0] and 0 <= s0 and s1 <= P.shape[1]:
                 sides[after == bright_after].append(P[a0 : a0 + depth, s0:s1])
-    ratios = [x for x in (q.noise_scale_ratio(sides[b], s8) for b in (False, True)) if x is not None]
-    return min(ratios) if ratios else None
+    read = [x for x in (q.noise_scale_ratio(sides[b], s8) for b in (False, True)) if x is not None]
+    if not read:
+        return None
+    return q.NoiseScaleRatios(min(x.pixel for x in read), min(x.box2 for x in read))
 
 
 def _fit_diagnostics(r: Refined, region: SearchRegion, door: DoorSize, figures: dict[str, Any]) -> dict:

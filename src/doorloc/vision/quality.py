@@ -27,6 +27,7 @@ __all__ = [
     "check_overexposed",
     "check_arris_clipped",
     "check_sharpened",
+    "NoiseScaleRatios",
     "noise_scale_ratio",
     "NOISE_BLOCK_PX",
     "NOISE_MIN_LEVELS",
@@ -149,37 +150,56 @@ NOISE_MIN_LEVELS = 0.5
 NOISE_MIN_BLOCKS = 400
 
 
-def noise_scale_ratio(patches: list[np.ndarray], s8: float) -> float | None:
+@dataclass(frozen=True)
+class NoiseScaleRatios:
+    """How strong flat patches' noise is between ``NOISE_BLOCK_PX`` blocks against finer scales
+    (:func:`noise_scale_ratio`): ``pixel`` against neighbouring pixels, ``box2`` against neighbouring 2 x 2
+    boxes. A sensor's white noise reads 1 on both."""
+
+    pixel: float
+    box2: float
+
+
+def noise_scale_ratio(patches: list[np.ndarray], s8: float) -> NoiseScaleRatios | None:
     """How strong the patches' noise is between ``NOISE_BLOCK_PX`` blocks against between pixels: ``k**2``
     times the variance of the differences of the means of ``k x k`` boxes ``k`` apart over that of
-    neighbouring pixels' differences (both axes, pooled over the patches, each weighted by its blocks), or
-    None where the patches hold fewer than ``NOISE_MIN_BLOCKS`` blocks with noise above
-    ``NOISE_MIN_LEVELS`` (``patches``: raw grey levels, 2-D; ``s8``: their scale to 0-255).
+    neighbouring pixels' differences (both axes, pooled over the patches, each weighted by its blocks), and
+    the same over ``4`` times that of 2 x 2 boxes' means 2 apart; or None where the patches hold fewer than
+    ``NOISE_MIN_BLOCKS`` blocks with noise above ``NOISE_MIN_LEVELS`` (``patches``: raw grey levels, 2-D;
+    ``s8``: their scale to 0-255).
 
     A sensor's noise is white: each pixel's own, and the differences of box means carry ``1/k**2`` of its
-    pixels' variance, the ratio 1. Differences leave out the light's slow changes over a patch (a gradient,
-    vignetting). What the camera does after the sensor moves the ratio one way or the other: demosaicking,
-    texture in the scene, wood grain and JPEG keep less of the fine noise or add coarse structure (above 1:
-    the squares of Bouguet's photographs 1.19-5.5, OpenCV's JPEGs 13-18), and only sharpening (an unsharp
-    mask run on the grey levels) raises the fine noise over the coarse (below 1). Read by locate's gate
-    (``gate._noise_scale_ratio``) on rendered doors: 0.54-0.89 sharpened by 0.3-1 at 0.8-2 px (29 doors),
-    0.92-1.06 with white sensor noise alone (46 doors; bench/bench_arris_range.py prints it)."""
+    pixels' variance, both ratios 1. Differences leave out the light's slow changes over a patch (a
+    gradient, vignetting). What the camera does after the sensor moves the ratios one way or the other:
+    demosaicking, texture in the scene, wood grain and coarse JPEG keep less of the fine noise or add coarse
+    structure (above 1: the squares of Bouguet's photographs 1.19-5.5, OpenCV's JPEGs 13-18), and
+    sharpening (an unsharp mask run on the grey levels) raises the fine noise over the coarse (below 1).
+    Read by locate's gate (``gate._noise_scale_ratio``) on rendered doors: ``pixel`` 0.54-0.89 sharpened by
+    0.3-1 at 0.8-2 px (29 doors), 0.92-1.06 with white sensor noise alone (46 doors; bench/
+    bench_arris_range.py prints it). Fine JPEG (quality 94-98) lowers ``pixel`` too, to 0.84-0.96 on white
+    noise of 2-6 grey levels: its quantiser rounds the highest frequencies' coefficients, of about the
+    noise's size, to a step larger than most of them, and so to more variance than they had. Those
+    frequencies barely reach a 2 x 2 box mean, so ``box2`` stays at 0.97-1.05 on average under such JPEG
+    (+-0.03 over the patches of one side of a door), where sharpening takes it to 0.70-0.90
+    (:func:`check_sharpened`)."""
     k = NOISE_BLOCK_PX
     vf_min = 4 * NOISE_MIN_LEVELS**2 / (s8 * s8)  # two axes, each difference holding two pixels' noise
-    fine = coarse = 0.0
+    fine = medium = coarse = 0.0
     blocks = 0.0
     for p in patches:
         if p.shape[0] < 3 * k or p.shape[1] < 3 * k:
             continue
-        vf, vc = _noise_variances(np.ascontiguousarray(p), k, vf_min)
+        vf, vm, vc = _noise_variances(np.ascontiguousarray(p), k, vf_min)
         if not vf >= vf_min:
             continue
-        vf, vc = vf * s8 * s8, vc * s8 * s8
         n = p.shape[0] * p.shape[1] / (k * k)
         fine += n * vf
+        medium += n * 4 * vm
         coarse += n * k * k * vc
         blocks += n
-    return coarse / fine if blocks >= NOISE_MIN_BLOCKS and fine > 0 else None
+    if not (blocks >= NOISE_MIN_BLOCKS and fine > 0 and medium > 0):
+        return None
+    return NoiseScaleRatios(coarse / fine, coarse / medium)
 
 
 def _noise_warm_up(k) -> None:
@@ -189,11 +209,11 @@ def _noise_warm_up(k) -> None:
 
 @kernel(_noise_warm_up)
 def _noise_variances(p, k, vf_min):
-    """The variances of a patch's neighbouring pixels' differences and of the differences of its ``k x k``
-    box means ``k`` apart (boxes at every second row and column), each summed over the two axes: one pass
-    for each over the patch and over its integral image (numpy's differences and box filter of six patches
-    cost ~0.6 ms a frame). The second NaN where the first is under ``vf_min`` (a patch too quiet to read
-    costs half)."""
+    """The variances of a patch's neighbouring pixels' differences, of the differences of its 2 x 2 box
+    means 2 apart and of its ``k x k`` box means ``k`` apart (boxes at every second row and column), each
+    summed over the two axes: one pass for the first over the patch and for the others over its integral
+    image (numpy's differences and box filter of six patches cost ~0.6 ms a frame). The others NaN where the
+    first is under ``vf_min`` (a patch too quiet to read costs half)."""
     H, W = p.shape
     vf = 0.0
     for di, dj in ((1, 0), (0, 1)):  # down the columns, along the rows
@@ -206,44 +226,64 @@ def _noise_variances(p, k, vf_min):
         n = (H - di) * (W - dj)
         vf += ss / n - (s / n) ** 2
     if not vf >= vf_min:
-        return vf, np.nan
+        return vf, np.nan, np.nan
     integral = np.zeros((H + 1, W + 1))
     for i in range(H):
         row = 0.0
         for j in range(W):
             row += p[i, j]
             integral[i + 1, j + 1] = integral[i, j + 1] + row
-    # k * k times the mean of the box at rows i..i+k-1, columns j..j+k-1:
-    # integral[i + k, j + k] - integral[i, j + k] - integral[i + k, j] + integral[i, j]
-    kk = float(k * k)
-    vc = 0.0
-    for di, dj in ((k, 0), (0, k)):
-        s = ss = 0.0
-        n = 0
-        for i in range(0, H - k - di + 1, 2):
-            for j in range(0, W - k - dj + 1, 2):
-                b0 = integral[i + k, j + k] - integral[i, j + k] - integral[i + k, j] + integral[i, j]
-                i1, j1 = i + di, j + dj
-                b1 = integral[i1 + k, j1 + k] - integral[i1, j1 + k] - integral[i1 + k, j1] + integral[i1, j1]
-                d = (b1 - b0) / kk
-                s += d
-                ss += d * d
-                n += 1
-        vc += ss / n - (s / n) ** 2
-    return vf, vc
+    # b * b times the mean of the box at rows i..i+b-1, columns j..j+b-1:
+    # integral[i + b, j + b] - integral[i, j + b] - integral[i + b, j] + integral[i, j]
+    out = [0.0, 0.0]
+    for m, b in enumerate((2, k)):
+        bb = float(b * b)
+        v = 0.0
+        for di, dj in ((b, 0), (0, b)):
+            s = ss = 0.0
+            n = 0
+            for i in range(0, H - b - di + 1, 2):
+                for j in range(0, W - b - dj + 1, 2):
+                    b0 = integral[i + b, j + b] - integral[i, j + b] - integral[i + b, j] + integral[i, j]
+                    i1, j1 = i + di, j + dj
+                    b1 = (
+                        integral[i1 + b, j1 + b]
+                        - integral[i1, j1 + b]
+                        - integral[i1 + b, j1]
+                        + integral[i1, j1]
+                    )
+                    d = (b1 - b0) / bb
+                    s += d
+                    ss += d * d
+                    n += 1
+            v += ss / n - (s / n) ** 2
+        out[m] = v
+    return vf, out[0], out[1]
 
 
-def check_sharpened(ratio: float | None, limit: float) -> Refusal | None:
+#: how far below 1 the 2 x 2 boxes' ratio must read, as a share of ``locate.min_noise_scale_ratio``'s
+#: distance below 1, for :func:`check_sharpened` (0.90 for the limit 0.85). An unsharp mask of radius 0.8-2 px
+#: takes that ratio 0.5-0.8 of the way the pixel ratio goes (white noise; the bench's ``sharpened`` doors read
+#: 0.71-0.89 there), fine JPEG (quality 93-97) keeps it at 0.97-1.05 on average on white noise (+-0.03 on one
+#: side's patches) and 0.91-1.19 on the surface bench's ``hard`` and ``thin`` doors of quality 95 (their
+#: pixel ratio down to 0.835)
+SHARPENED_BOX2_SHARE = 2.0 / 3.0
+
+
+def check_sharpened(ratios: NoiseScaleRatios | None, limit: float) -> Refusal | None:
     """The camera sharpens its images: flat patches hold less noise at block scale than at pixel scale
-    (:func:`noise_scale_ratio` below ``limit``). Sharpening run on the grey levels grows every edge's bright
-    side in linear light, which no doubt of locate's covers (rendered plain doors up to 0.08 mm off at 7
-    sigma, rounded ones 0.26 mm at 5 sigma)."""
-    if ratio is None or not ratio < limit:
+    (:func:`noise_scale_ratio`'s ``pixel`` below ``limit``) and than between 2 x 2 boxes (``box2`` below
+    ``1 - SHARPENED_BOX2_SHARE (1 - limit)``; fine JPEG lowers only the first). Sharpening run on the grey
+    levels grows every edge's bright side in linear light, which no doubt of locate's covers (rendered
+    plain doors up to 0.08 mm off at 7 sigma, rounded ones 0.26 mm at 5 sigma)."""
+    box2_limit = 1.0 - SHARPENED_BOX2_SHARE * (1.0 - limit)
+    if ratios is None or not (ratios.pixel < limit and ratios.box2 < box2_limit):
         return None
     return Refusal(
         "sharpened",
-        f"the camera sharpens its images (flat areas hold {ratio:.2f} of the coarse noise a sensor gives, "
-        f"below {limit:g}), which moves every edge; switch the camera's sharpening (edge enhancement) off",
+        f"the camera sharpens its images (flat areas hold {ratios.pixel:.2f} of the coarse noise a sensor "
+        f"gives against neighbouring pixels and {ratios.box2:.2f} against 2-pixel boxes, below {limit:g} and "
+        f"{box2_limit:.2f}), which moves every edge; switch the camera's sharpening (edge enhancement) off",
     )
 
 
