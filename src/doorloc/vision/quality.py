@@ -265,8 +265,8 @@ def _noise_variances(p, k, vf_min):
 #: distance below 1, for :func:`check_sharpened` (0.90 for the limit 0.85). An unsharp mask of radius 0.8-2 px
 #: takes that ratio 0.5-0.8 of the way the pixel ratio goes (white noise; the bench's ``sharpened`` doors read
 #: 0.71-0.89 there), fine JPEG (quality 93-97) keeps it at 0.97-1.05 on average on white noise (+-0.03 on one
-#: side's patches) and 0.91-1.19 on the surface bench's ``hard`` and ``thin`` doors of quality 95 (their
-#: pixel ratio down to 0.835)
+#: side's patches) and at 0.91 and up on the surface bench's 80 ``hard`` and ``thin`` doors of quality 95
+#: (their pixel ratio down to 0.835)
 SHARPENED_BOX2_SHARE = 2.0 / 3.0
 
 
