@@ -2,9 +2,9 @@
 
 Where no reference arris, far arris or bottom end was found, the stage says why as a person can act on it:
 a calibration pattern in view (:func:`looks_like_pattern_here`), a hinge face on the other side of the
-background's brightness than the cell says, or one the lighting hides against it (:func:`face_refusal`), an
-edge or a face too faint for the noise (:func:`faint_edge`, :func:`faint_face`), or no door
-(:func:`no_door_reason`).
+background's brightness than the cell says, one the lighting hides against it or one without an edge to be
+found (:func:`face_refusal`), an edge or a face too faint for the noise (:func:`faint_edge`,
+:func:`faint_face`), or no door (:func:`no_door_reason`).
 """
 
 from __future__ import annotations
@@ -25,7 +25,9 @@ from doorloc.vision.sampling import oriented
 
 __all__ = [
     "FAINT_EDGE_AVERAGE_PX",
+    "EDGELESS_FACE_SIGMAS",
     "REVERSED_BRIGHTNESS",
+    "edgeless_face",
     "face_minus_background",
     "face_refusal",
     "faint_edge",
@@ -55,28 +57,33 @@ REVERSED_BRIGHTNESS = {
 }
 
 
-def face_minus_background(plane, s8: float, region: SearchRegion, cell: Cell) -> float | None:
+def face_minus_background(plane, s8: float, region: SearchRegion, cell: Cell) -> tuple[float, float] | None:
     """The hinge face's grey level less the background's (0-255 scale), read where each must lie whatever
-    the door's placement in the envelope; None where no point is surely on the face.
+    the door's placement in the envelope, and that difference's standard error from the pixels' spread;
+    None where no point is surely on the face.
 
     Read on the hinge face's centre line (half the thickness in from the reference arris) and beyond the
     reference arris by the search region's reach, 20-80 mm up from the bottom end: medians of 13 pixels each
     (the door lies in the cell's envelope: on a door no thicker than twice the envelope's x, plus its yaw's
-    reach, no point is surely on the face, and nothing is said).
+    reach, no point is surely on the face, and nothing is said). Each median's error is 1.25 times its
+    pixels' spread (their median absolute deviation, as a sigma) over the root of their count.
     """
     zs = np.linspace(20.0, 80.0, 13)
     x_face, x_back = 0.5 * region.door.thickness_mm, -(region.x_range_mm + 8.0)
     if x_face <= cell.envelope.x_mm + 3.0:  # (+3 mm: the envelope's yaw over 80 mm)
         return None
     h, w = plane.shape
-    levels = []
+    levels, variances = [], []
     for x in (x_face, x_back):
         uv = np.round(region.image_points(np.stack([np.full_like(zs, x), zs], axis=1))).astype(int)
         inside = (uv[:, 0] >= 0) & (uv[:, 0] < w) & (uv[:, 1] >= 0) & (uv[:, 1] < h)
         if inside.sum() < 7:
             return None
-        levels.append(float(np.median(plane[uv[inside, 1], uv[inside, 0]])) * s8)
-    return levels[0] - levels[1]
+        grey = plane[uv[inside, 1], uv[inside, 0]].astype(float) * s8
+        level = float(np.median(grey))
+        levels.append(level)
+        variances.append((1.2533 * 1.4826 * float(np.median(np.abs(grey - level)))) ** 2 / grey.size)
+    return levels[0] - levels[1], math.sqrt(variances[0] + variances[1])
 
 
 def face_refusal(
@@ -86,16 +93,22 @@ def face_refusal(
     hinge face's level against the background's (:func:`face_minus_background`, read once), or None: a face
     clearly on the other side of the background's brightness than the cell's ``locate.door_brighter`` says
     (:data:`REVERSED_BRIGHTNESS`, either code), or, where no door edge was found, a face within the contrast
-    threshold of the background (:func:`indistinct_face`)."""
+    threshold of the background (:func:`indistinct_face`) or one that stands out from it without an edge to
+    be found (:func:`edgeless_face`)."""
     if code not in ("no_door", "edge_missing"):
         return None
-    d = face_minus_background(plane, s8, region, cell)
-    if d is None:
+    read = face_minus_background(plane, s8, region, cell)
+    if read is None:
         return None
+    d, d_sigma = read
     if abs(d) >= cfg.min_contrast and (d < 0) == cfg.door_brighter:
         return q.Refusal(code, REVERSED_BRIGHTNESS[cfg.door_brighter])
     if code == "no_door" and abs(d) < cfg.min_contrast:
         return q.Refusal(code, indistinct_face(d, cfg))
+    if code == "no_door" and abs(d) > EDGELESS_FACE_SIGMAS * d_sigma:
+        # (an image of noise alone reads a difference, not a face: uniform noise 36 +- 32 grey levels; the
+        # face of hard set seed 13's image 46, below, 9.0 +- 0.7)
+        return q.Refusal(code, edgeless_face(d, cfg))
     return None
 
 
@@ -117,6 +130,35 @@ def indistinct_face(d: float, cfg: LocateConfig) -> str:
         f"no door edge was found in the search region, and where the hinge face should be the image is {level} "
         f"(locate.min_contrast is {cfg.min_contrast:g}): if a door lies in the fixture, the lighting or the "
         "background hides it; improve them. Else place a door, and check that the camera has not moved"
+    )
+
+
+#: how many of its standard errors the face's difference from the background must reach for
+#: :func:`edgeless_face` to speak of a face
+EDGELESS_FACE_SIGMAS = 4.0
+
+
+def edgeless_face(d: float, cfg: LocateConfig) -> str:
+    """The reason, in the operator's words, where no door edge was found though the image where the hinge face
+    must lie stands ``d`` grey levels out from the background behind the door, as the cell says a door does:
+    a door whose edge lies outside the search region (out of its place, or the camera moved), one whose edge
+    is fainter than its face's mean step or hidden in the texture beside it, or an empty fixture whose
+    background is shaded (all are said).
+
+    Seen on ``bench_surfaces.py --sets hard`` (set seed 13, image 46): a face 9 grey levels above its
+    background on average, whose step at the reference arris a gradient and vignetting bring to 3-6 grey
+    levels among grain stripes as strong, refused "no door edge was found ... check that a door lies in the
+    fixture", which sends the operator to a fixture that holds a door. An image upside down (the parity
+    set's ``derived/flip_ud``) reads 168 grey levels: there the edge is out of place, not faint.
+    """
+    side = "brighter" if d > 0 else "darker"
+    return (
+        f"no door edge was found in the search region, though where the hinge face should be the image is "
+        f"{abs(d):.0f} grey levels {side} than the background behind the door: either the door's edge lies "
+        "outside the search region (check that the door lies against the fixture's stops and that the camera "
+        f"has not moved), or it stands out less than locate.min_contrast ({cfg.min_contrast:g} grey levels) "
+        "from the background or the texture beside it (improve the lighting or the background behind the "
+        "door); if the fixture is empty, place a door"
     )
 
 
