@@ -52,6 +52,7 @@ from doorloc.modelcheck.forward import (
 )
 from doorloc.modelcheck.priors import IMPLAUSIBLE_SIGMAS, Prior, priors_for
 from doorloc.modelcheck.verdict import LEVER_EXPLAINED, verdict_of
+from doorloc.vision.sampling import median_with_error
 
 __all__ = ["ModelCheckReport", "CheckOptions", "check_model", "EXTENDED_CELL_NAME", "LEVER_MM"]
 
@@ -468,8 +469,8 @@ def _with_absorbed_response(
         return model, evidence
     if g.size < max(ABSORBED_MIN_IMAGES, ABSORBED_MIN_SHARE * len(train_obs)):
         return model, evidence
-    med = float(np.median(g))
-    se = max(1.2533 * 1.4826 * float(np.median(np.abs(g - med))) / np.sqrt(g.size), 0.01)
+    med, se = median_with_error(g)
+    se = max(se, 0.01)
     evidence.update(median=med, sigma=se, added=True)
     return (
         replace(

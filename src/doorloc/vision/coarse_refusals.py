@@ -21,7 +21,7 @@ from doorloc.vision.config import LocateConfig
 from doorloc.vision.gate import PATTERN
 from doorloc.vision.lines import ImageLine
 from doorloc.vision.region import Band, EdgeLayout, SearchRegion
-from doorloc.vision.sampling import oriented
+from doorloc.vision.sampling import median_with_error, oriented
 
 __all__ = [
     "FAINT_EDGE_AVERAGE_PX",
@@ -65,25 +65,24 @@ def face_minus_background(plane, s8: float, region: SearchRegion, cell: Cell) ->
     Read on the hinge face's centre line (half the thickness in from the reference arris) and beyond the
     reference arris by the search region's reach, 20-80 mm up from the bottom end: medians of 13 pixels each
     (the door lies in the cell's envelope: on a door no thicker than twice the envelope's x, plus its yaw's
-    reach, no point is surely on the face, and nothing is said). Each median's error is 1.25 times its
-    pixels' spread (their median absolute deviation, as a sigma) over the root of their count.
+    reach, no point is surely on the face, and nothing is said), each with its error from its pixels' spread
+    (:func:`~doorloc.vision.sampling.median_with_error`).
     """
     zs = np.linspace(20.0, 80.0, 13)
     x_face, x_back = 0.5 * region.door.thickness_mm, -(region.x_range_mm + 8.0)
     if x_face <= cell.envelope.x_mm + 3.0:  # (+3 mm: the envelope's yaw over 80 mm)
         return None
     h, w = plane.shape
-    levels, variances = [], []
+    levels, errors = [], []
     for x in (x_face, x_back):
         uv = np.round(region.image_points(np.stack([np.full_like(zs, x), zs], axis=1))).astype(int)
         inside = (uv[:, 0] >= 0) & (uv[:, 0] < w) & (uv[:, 1] >= 0) & (uv[:, 1] < h)
         if inside.sum() < 7:
             return None
-        grey = plane[uv[inside, 1], uv[inside, 0]].astype(float) * s8
-        level = float(np.median(grey))
+        level, error = median_with_error(plane[uv[inside, 1], uv[inside, 0]].astype(float) * s8)
         levels.append(level)
-        variances.append((1.2533 * 1.4826 * float(np.median(np.abs(grey - level)))) ** 2 / grey.size)
-    return levels[0] - levels[1], math.sqrt(variances[0] + variances[1])
+        errors.append(error)
+    return levels[0] - levels[1], math.hypot(*errors)
 
 
 def face_refusal(

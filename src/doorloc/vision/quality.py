@@ -233,8 +233,6 @@ def _noise_variances(p, k, vf_min):
         for j in range(W):
             row += p[i, j]
             integral[i + 1, j + 1] = integral[i, j + 1] + row
-    # b * b times the mean of the box at rows i..i+b-1, columns j..j+b-1:
-    # integral[i + b, j + b] - integral[i, j + b] - integral[i + b, j] + integral[i, j]
     out = [0.0, 0.0]
     for m, b in enumerate((2, k)):
         bb = float(b * b)
@@ -244,21 +242,19 @@ def _noise_variances(p, k, vf_min):
             n = 0
             for i in range(0, H - b - di + 1, 2):
                 for j in range(0, W - b - dj + 1, 2):
-                    b0 = integral[i + b, j + b] - integral[i, j + b] - integral[i + b, j] + integral[i, j]
-                    i1, j1 = i + di, j + dj
-                    b1 = (
-                        integral[i1 + b, j1 + b]
-                        - integral[i1, j1 + b]
-                        - integral[i1 + b, j1]
-                        + integral[i1, j1]
-                    )
-                    d = (b1 - b0) / bb
+                    d = (_box_sum(integral, i + di, j + dj, b) - _box_sum(integral, i, j, b)) / bb
                     s += d
                     ss += d * d
                     n += 1
             v += ss / n - (s / n) ** 2
         out[m] = v
     return vf, out[0], out[1]
+
+
+@kernel(inline=True)
+def _box_sum(integral, i, j, b):
+    """The sum of the ``b x b`` box at rows ``i..i+b-1``, columns ``j..j+b-1``, from the integral image."""
+    return integral[i + b, j + b] - integral[i, j + b] - integral[i + b, j] + integral[i, j]
 
 
 #: how far below 1 the 2 x 2 boxes' ratio must read, as a share of ``locate.min_noise_scale_ratio``'s

@@ -59,7 +59,7 @@ from doorloc.vision.response_asymmetry import (
     exponent_with_scatter,
     transition_skew_px,
 )
-from doorloc.vision.sampling import Axis, gather_profiles, linearizing_lut, oriented
+from doorloc.vision.sampling import Axis, gather_profiles, linearizing_lut, median_with_error, oriented
 
 __all__ = [
     "RESPONSE_ABSORB_SIGMAS",
@@ -640,8 +640,6 @@ def board_response(
     if len(ok) < BOARD_RESPONSE_MIN_IMAGES:
         return None
     g = np.array([f.gamma for f in ok])
-    med = float(np.median(g))
-    n = g.size
-    spread = 1.2533 * 1.4826 * float(np.median(np.abs(g - med))) / math.sqrt(n)
-    own = float(np.median([f.sigma for f in ok])) / math.sqrt(n)
+    med, spread = median_with_error(g)
+    own = float(np.median([f.sigma for f in ok])) / math.sqrt(g.size)
     return BoardResponse(med, max(spread, own, RESPONSE_SIGMA_FLOOR), tuple(float(x) for x in g))
