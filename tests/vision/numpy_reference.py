@@ -380,7 +380,7 @@ def asymmetry(t, gammas: np.ndarray, blocks: np.ndarray | None = None, n_blocks:
 
 
 def step_fit(
-    vals: np.ndarray, e: np.ndarray, bounds: np.ndarray, sigma: float, n_iter: int = 6
+    vals: np.ndarray, e: np.ndarray, bounds: np.ndarray, sigma: float, n_iter: int = 4
 ) -> np.ndarray:
     """:func:`doorloc.vision.blurred_step.step_fit` as written with numpy (over the compiled pixel model)."""
     vals = np.asarray(vals, np.float64)
@@ -396,7 +396,12 @@ def step_fit(
             B = (s00 * b1 - s01 * b0) / det
             r = vals - (A[:, None] * X0 + B[:, None] * C)
             J = (B - A)[:, None] * g  # -dm/de (g = -dC/de)
-            de = -(J * r).sum(1) / (J * J).sum(1)
+            jj = (J * J).sum(1)
+            u0, u1 = (X0 * J).sum(1), (C * J).sum(1)
+            # the Jacobian less its part the levels take up (variable projection)
+            taken = (s11 * u0 * u0 - 2.0 * s01 * u0 * u1 + s00 * u1 * u1) / det
+            den = np.where(jj - taken > 1e-9 * jj, jj - taken, jj)
+            de = -(J * r).sum(1) / den
         e = e + np.clip(np.where(np.isfinite(de), de, 0.0), -0.5, 0.5)
     return e
 
