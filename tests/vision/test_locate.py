@@ -823,6 +823,72 @@ def test_a_thickness_that_cannot_be_checked_on_an_uncertain_pose_says_both(cell)
     assert "thickness cannot be checked" in r.error and "the pose is uncertain as well" in r.error, r.error
 
 
+def _small_rounding(gamma, blur, azimuth, elevation, albedos, ambient, directional, noise):
+    """The effects of a rounding of the arris bench's ``small`` set (bench/bench_arris_range.py), no grain."""
+    hinge, chamfer, background = albedos
+    return Effects(
+        albedo_hinge=hinge,
+        albedo_chamfer=chamfer,
+        albedo_background=background,
+        light_ambient=ambient,
+        light_directional=directional,
+        light_azimuth_deg=azimuth,
+        light_elevation_deg=elevation,
+        arris_profile="round",
+        blur_sigma_px=blur,
+        read_noise_dn=noise,
+        gamma=gamma,
+    )
+
+
+def test_a_pose_uncertain_from_an_arris_strip_is_said_so(cell):
+    """A 0.85 mm rounding under 1.2 px of blur (``bench_arris_range.py --sets small --seed 12100``, seed
+    12104, its draw to the last digit): the reference arris's strip, whose shading trades off with its
+    border and the blur, is the largest doubt of the pose's lines, and the refusal says so and what the
+    operator can do. It had named the generic edge model ("check the cell's door and camera settings")."""
+    door = DoorSize(900, 50.0, 2100, arris_mm=0.851174275324396, arris_profile="round")
+    pose = DoorPose(4.813094220467642, -7.889122113698553, 0.9829377079436505)
+    fx = _small_rounding(
+        2.3181409496362257,
+        1.2003052937821692,
+        -63.038306212007726,
+        43.08578567499531,
+        (0.7929569819433389, 0.6340463302518531, 0.1304484420396402),
+        0.3612606832163671,
+        0.2630306312648302,
+        0.5946313594426402,
+    )
+    img = render_door(cell, door, pose, effects=fx, seed=12104).image
+    r = locate(img, replace(cell, response_gamma=fx.gamma), door)
+    assert r.error_code == "uncertain", r.error
+    assert "mostly from the edge model" in r.error and "an arris strip cannot be read" in r.error, r.error
+
+
+def test_a_thickness_that_the_unchecked_response_leaves_in_doubt_says_how_to_measure_it(cell):
+    """A 0.95 mm rounding of a 70 mm door (``bench_arris_range.py --sets small --seed 12100``, seed 12118):
+    every edge an arris, the camera's response cannot be checked on the image, and its doubt (the cell's
+    exponent known only within ``locate.response_unmeasured_factor``) is most of the thickness's. The
+    refusal said "check the door and the recipe, or move the door a little along X", neither of which
+    lifts it; it names the response and how to measure it."""
+    door = DoorSize(900, 70.0, 2100, arris_mm=0.9479608017946943, arris_profile="round")
+    pose = DoorPose(-4.442618652623985, -4.850907103682806, 0.41033496509290757)
+    fx = _small_rounding(
+        1.1941055468548014,
+        1.4669348452128999,
+        54.754578055411706,
+        -4.268280360658338,
+        (0.8592104820154776, 0.8863746102323686, 0.07351030788863724),
+        0.3587723552685995,
+        0.2429815867989936,
+        0.4039109141931281,
+    )
+    img = render_door(cell, door, pose, effects=fx, seed=12118).image
+    r = locate(img, replace(cell, response_gamma=fx.gamma), door)
+    assert r.error_code == "uncertain", r.error
+    assert "thickness cannot be checked" in r.error and "mostly from the camera response" in r.error, r.error
+    assert "move the door" not in r.error and "response_unmeasured_factor" in r.error, r.error
+
+
 def test_a_thickness_difference_within_the_measurements_doubt_is_no_mismatch():
     """A wrong door ("check that the right door is in the fixture") is claimed only where the difference exceeds the tolerance by
     more than the measurement's 1-sigma; below that the caller refuses ``uncertain`` (a valid door whose

@@ -94,8 +94,9 @@ def gate_and_answer(
     budget = _budget(cell, cfg, region, r, model, other_mm if other is not None else None)
     silhouette = far_silhouette_contrast(r)
     t_refusals, unverified, t_uncertain = thickness_check(
-        r, door, cfg, budget.thickness_mm, other, silhouette, strip_other_readings(r)
-    )
+        r, door, cfg, budget.thickness_mm, other, silhouette, strip_other_readings(r),
+        _thickness_hint(budget, check.response),
+    )  # fmt: skip
     # Under ``thickness_check: report`` a thickness the image cannot verify is said in the answer, not refused
     # (a thickness that is wrong at confidence is refused under either policy: it is in ``t_refusals``).
     refusals += t_refusals + (unverified if cfg.thickness_check == "refuse" else [])
@@ -109,7 +110,12 @@ def gate_and_answer(
     diagnostics["uncertainty_budget"] = [t.as_dict() for t in budget.terms]
     refusals.append(pose_refusal := _pose_check(unc, budget.groups, model, check.response, cfg))
     first = _with_uncertain_pose(
-        _first_refusal(refusals, r, plane, s8, cfg), unverified, pose_refusal, unc, cfg
+        _first_refusal(refusals, r, plane, s8, cfg),
+        unverified,
+        pose_refusal,
+        unc,
+        cfg,
+        _pose_cause(budget.groups, model, check.response, cfg),
     )
     if first is not None:
         diagnostics["measured"] = {
@@ -143,6 +149,7 @@ def _with_uncertain_pose(
     pose: q.Refusal | None,
     unc: PoseUncertainty,
     cfg: LocateConfig,
+    cause: tuple[str, str],
 ) -> q.Refusal | None:
     """The answer's reason ``first``; where it is a thickness the image cannot verify (``unverified``) and the
     pose is refused as too uncertain besides (``pose``), both said. The thickness's reason asks to move the
@@ -151,11 +158,14 @@ def _with_uncertain_pose(
     thickness)."""
     if first is None or not unverified or first is not unverified[0] or pose is None:
         return first
+    mostly, hint = cause
     return q.Refusal(
         first.code,
         f"{first.message}; the pose is uncertain as well (x {unc.x_mm:.3f} mm, z {unc.z_mm:.3f} mm, yaw "
         f"{unc.yaw_deg:.3f} deg, 1 sigma; the cell allows {cfg.max_uncertainty_mm:g} mm, "
-        f"{cfg.max_uncertainty_deg:g} deg)",
+        f"{cfg.max_uncertainty_deg:g} deg), {mostly.rstrip(';')}"
+        # (the thickness's reason may already give the same advice)
+        + ("" if hint in first.message else f"; {hint}"),
     )
 
 
@@ -381,30 +391,59 @@ def _pose_check(
         or unc.z_mm > cfg.max_uncertainty_mm
         or unc.yaw_deg > cfg.max_uncertainty_deg
     ):
-        worst = max(
-            terms,
-            key=lambda k: max(
-                terms[k][0] / cfg.max_uncertainty_mm,
-                terms[k][1] / cfg.max_uncertainty_mm,
-                terms[k][2] / cfg.max_uncertainty_deg,
-            ),
-        )
-        hint = _UNCERTAIN_HINT[worst]
-        if worst == "edge_model":
-            # the unchecked response or the unmeasured optics is the largest doubt of a pose line: say so,
-            # and what lifts it
-            big = [model.largest_source(k, among=_MODEL_REPORTED) for k in ("bottom", "reference")]
-            if "response" in big and response is None:
-                hint = _UNCERTAIN_HINT["response_unmeasured"]
-            elif "optics" in big:
-                hint = _UNCERTAIN_HINT["optics_unmeasured"]
         return q.Refusal(
             "uncertain",
             f"the pose is uncertain to x {unc.x_mm:.3f} mm, z {unc.z_mm:.3f} mm, "
             f"yaw {unc.yaw_deg:.3f} deg (1 sigma; the cell allows {cfg.max_uncertainty_mm:g} mm, "
-            f"{cfg.max_uncertainty_deg:g} deg), mostly from the {worst.replace('_', ' ')}; " + hint,
+            f"{cfg.max_uncertainty_deg:g} deg), " + " ".join(_pose_cause(terms, model, response, cfg)),
         )
     return None
+
+
+def _pose_cause(
+    terms: dict[str, tuple[float, float, float]],
+    model: EdgeModelTerms,
+    response: ResponseFit | None,
+    cfg: LocateConfig,
+) -> tuple[str, str]:
+    """Why a pose is too uncertain, in the operator's words: the term that weighs most against the cell's
+    limits (``"mostly from the ..."``) and what lifts it."""
+    worst = max(
+        terms,
+        key=lambda k: max(
+            terms[k][0] / cfg.max_uncertainty_mm,
+            terms[k][1] / cfg.max_uncertainty_mm,
+            terms[k][2] / cfg.max_uncertainty_deg,
+        ),
+    )
+    hint = _UNCERTAIN_HINT[worst]
+    if worst == "edge_model":
+        # the largest doubt of the two pose lines, where it is one the operator can lift, is said with what
+        # lifts it (the largest over both lines: an arris strip's doubt of 2 px on the reference line is not
+        # named after the bottom line's 0.1 px of unmeasured optics)
+        doubts = [d for k in ("bottom", "reference") for d in model.of_line(k) if d.source in _MODEL_REPORTED]
+        largest = max(doubts, key=lambda d: d.offset_px, default=None)
+        source = largest.source if largest is not None else ""
+        if source == "response" and response is None:
+            hint = _UNCERTAIN_HINT["response_unmeasured"]
+        elif source == "optics":
+            hint = _UNCERTAIN_HINT["optics_unmeasured"]
+        elif source == "arris":
+            hint = _UNCERTAIN_HINT["arris"]
+    return f"mostly from the {worst.replace('_', ' ')};", hint
+
+
+def _thickness_hint(budget: Budget, response: ResponseFit | None) -> str | None:
+    """What lifts a thickness's doubt where the image cannot: the response's measurement, where the unchecked
+    camera response is its largest term (:data:`_UNCERTAIN_HINT` ``response_unmeasured``); else None (the
+    thickness check's own advice: check the door, or move it). On the arris bench's roundings whose
+    thickness could not be checked (`bench_arris_range.py --n 32 --seed 9100`, e.g. seeds 9125, 11119,
+    12118) the response's doubt was most of it, and moving the door lifts none of it."""
+    counted = [t for t in budget.terms if t.thickness_mm is not None]
+    if response is not None or not counted:
+        return None
+    largest = max(counted, key=lambda t: float(t.thickness_mm or 0.0))
+    return _UNCERTAIN_HINT["response_unmeasured"] if largest.source == "response" else None
 
 
 def _first_refusal(refusals: list, r: Refined, plane, s8: float, cfg: LocateConfig) -> q.Refusal | None:
@@ -436,6 +475,10 @@ _UNCERTAIN_HINT = {
     "within locate.optics_edge_sigma_px; measure them once (doorloc check-model --boards on the calibration's "
     "chessboard photographs writes the camera's photometric model, with what it leaves on real edges) and "
     "point the cell's camera.calibration at the file it writes",
+    "arris": "an arris strip cannot be read closely enough (its shading trades off with its border's place "
+    "and the blur, most on a small arris; diagnostics arris_fit gives each strip's deficit and its sigma); check "
+    "the recipe's arris size and profile, and light the arrises so that their strips stand apart from the hinge "
+    "face and the background",
     "fit": "the edges are too noisy; check focus, lighting and exposure",
     "edge_model": "the door's edges do not look like clean steps (strong grain or marks along an edge, an arris or "
     "a camera response the cell does not describe); check the cell's door and camera settings",

@@ -154,6 +154,7 @@ def thickness_check(
     other: float | None,
     silhouette: float | None = None,
     strip_shifts: dict[str, float] | None = None,
+    hint: str | None = None,
 ) -> tuple[list, list, bool]:
     """The thickness's checks against the recipe: the refusals that stand under either policy, those of a
     thickness the image cannot verify (refused under ``refuse``, reported under ``report``), and whether the
@@ -161,7 +162,9 @@ def thickness_check(
     (:func:`far_silhouette_contrast`); below the edges' ``min_contrast`` the reason names it, and a miss beyond
     the tolerance by no more than the recipe's arris size is one the image cannot verify, not a wrong door.
     ``strip_shifts``: the side arrises' other readings (:func:`strip_other_readings`), weighed where the
-    fitted thickness misses the recipe."""
+    fitted thickness misses the recipe. ``hint``: what lifts the thickness's doubt where a term of it that
+    no other image of the door lifts weighs most (the unchecked camera response); None: check the door, or
+    move it and take the image again."""
     pose, far_beside, t_tol = r.pose, r.far_beside, cfg.thickness_tolerance_mm
     split = _readings_split(r, door, t_tol, t_sigma, other)
     if split is not None:
@@ -206,6 +209,8 @@ def thickness_check(
     )
     if unseen is not None:
         why = unseen
+    elif hint is not None:
+        why = f"{' with its far face seen nearly edge-on' if far_beside else ''}, mostly from the camera response: {hint}"
     else:
         why = (
             f"{' with its far face seen nearly edge-on' if far_beside else ''}; check the door and the "
