@@ -434,16 +434,21 @@ def _pose_cause(
 
 
 def _thickness_hint(budget: Budget, response: ResponseFit | None) -> str | None:
-    """What lifts a thickness's doubt where the image cannot: the response's measurement, where the unchecked
-    camera response is its largest term (:data:`_UNCERTAIN_HINT` ``response_unmeasured``); else None (the
-    thickness check's own advice: check the door, or move it). On the arris bench's roundings whose
-    thickness could not be checked (`bench_arris_range.py --n 32 --seed 9100`, e.g. seeds 9125, 11119,
-    12118) the response's doubt was most of it, and moving the door lifts none of it."""
+    """Where a thickness's doubt is mostly a term that moving the door does not lift, the clause that names
+    it and what does (:data:`_UNCERTAIN_HINT`): the camera response the image could not check, or an arris
+    strip that cannot be read closely; else None (the thickness check's own advice: check the door, or move
+    it). On the arris bench's roundings whose thickness could not be checked (`bench_arris_range.py --n 32
+    --seed 9100`) the unchecked response's doubt was most of it on seeds 9127, 11125 and 12118, the strips'
+    on 11119."""
     counted = [t for t in budget.terms if t.thickness_mm is not None]
-    if response is not None or not counted:
+    if not counted:
         return None
-    largest = max(counted, key=lambda t: float(t.thickness_mm or 0.0))
-    return _UNCERTAIN_HINT["response_unmeasured"] if largest.source == "response" else None
+    largest = max(counted, key=lambda t: float(t.thickness_mm or 0.0)).source
+    if largest == "response" and response is None:
+        return "mostly from the camera response: " + _UNCERTAIN_HINT["response_unmeasured"]
+    if largest == "arris":
+        return "mostly from the arrises: " + _UNCERTAIN_HINT["arris"]
+    return None
 
 
 def _first_refusal(refusals: list, r: Refined, plane, s8: float, cfg: LocateConfig) -> q.Refusal | None:

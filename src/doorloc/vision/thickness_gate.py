@@ -162,9 +162,9 @@ def thickness_check(
     (:func:`far_silhouette_contrast`); below the edges' ``min_contrast`` the reason names it, and a miss beyond
     the tolerance by no more than the recipe's arris size is one the image cannot verify, not a wrong door.
     ``strip_shifts``: the side arrises' other readings (:func:`strip_other_readings`), weighed where the
-    fitted thickness misses the recipe. ``hint``: what lifts the thickness's doubt where a term of it that
-    no other image of the door lifts weighs most (the unchecked camera response); None: check the door, or
-    move it and take the image again."""
+    fitted thickness misses the recipe. ``hint``: the clause naming the term that weighs most in the
+    thickness's doubt and what lifts it, where moving the door does not (the unchecked camera response, an
+    arris strip); None: check the door, or move it and take the image again."""
     pose, far_beside, t_tol = r.pose, r.far_beside, cfg.thickness_tolerance_mm
     split = _readings_split(r, door, t_tol, t_sigma, other)
     if split is not None:
@@ -210,7 +210,7 @@ def thickness_check(
     if unseen is not None:
         why = unseen
     elif hint is not None:
-        why = f"{' with its far face seen nearly edge-on' if far_beside else ''}, mostly from the camera response: {hint}"
+        why = f"{' with its far face seen nearly edge-on' if far_beside else ''}, {hint}"
     else:
         why = (
             f"{' with its far face seen nearly edge-on' if far_beside else ''}; check the door and the "

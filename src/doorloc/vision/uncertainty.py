@@ -194,11 +194,6 @@ class EdgeModelTerms:
         """One doubt's offset 1-sigma, px; None where the line carries none from ``source``."""
         return next((d.offset_px for d in self.doubts if d.line == line and d.source == source), None)
 
-    def largest_source(self, line: str, among: tuple[str, ...]) -> str:
-        """The source of ``among`` whose offset doubt on ``line`` is largest ("" where it carries none)."""
-        found = [(d.source, d.offset_px) for d in self.of_line(line) if d.source in among]
-        return max(found, key=lambda kv: kv[1], default=("", 0.0))[0]
-
     def line_sigma_px(self, line: str, without: tuple[str, ...] = ()) -> float:
         """Total edge-model 1-sigma of one line's offset, px (floor, blur and the line's doubts in quadrature),
         the sources named in ``without`` left out (a caller that combines them otherwise)."""
