@@ -93,10 +93,10 @@ def gate_and_answer(
     # with 78 % of them beyond 2 sigma.)
     budget = _budget(cell, cfg, region, r, model, other_mm if other is not None else None)
     silhouette = far_silhouette_contrast(r)
+    t_hint = _thickness_hint(budget, check.response)
     t_refusals, unverified, t_uncertain = thickness_check(
-        r, door, cfg, budget.thickness_mm, other, silhouette, strip_other_readings(r),
-        _thickness_hint(budget, check.response),
-    )  # fmt: skip
+        r, door, cfg, budget.thickness_mm, other, silhouette, strip_other_readings(r), t_hint
+    )
     # Under ``thickness_check: report`` a thickness the image cannot verify is said in the answer, not refused
     # (a thickness that is wrong at confidence is refused under either policy: it is in ``t_refusals``).
     refusals += t_refusals + (unverified if cfg.thickness_check == "refuse" else [])
@@ -109,21 +109,12 @@ def gate_and_answer(
     diagnostics["uncertainty_terms"] = {k: [round(v, 6) for v in t] for k, t in budget.groups.items()}
     diagnostics["uncertainty_budget"] = [t.as_dict() for t in budget.terms]
     refusals.append(pose_refusal := _pose_check(unc, budget.groups, model, check.response, cfg))
+    cause = _pose_cause(budget.groups, model, check.response, cfg)
     first = _with_uncertain_pose(
-        _first_refusal(refusals, r, plane, s8, cfg),
-        unverified,
-        pose_refusal,
-        unc,
-        cfg,
-        _pose_cause(budget.groups, model, check.response, cfg),
+        _first_refusal(refusals, r, plane, s8, cfg), unverified, pose_refusal, unc, cfg, cause
     )
     if first is not None:
-        diagnostics["measured"] = {
-            "x_mm": pose.x_mm,
-            "z_mm": pose.z_mm,
-            "yaw_deg": pose.yaw_deg,
-            "thickness_mm": pose.thickness_mm,
-        }
+        diagnostics["measured"] = {k: getattr(pose, k) for k in ("x_mm", "z_mm", "yaw_deg", "thickness_mm")}
         diagnostics["all_refusals"] = [x.code for x in refusals if x is not None]
         return LocateResult.refusal(name, first.code, first.message, lines=lines, diagnostics=diagnostics)
     return LocateResult(
