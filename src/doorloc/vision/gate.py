@@ -108,8 +108,8 @@ def gate_and_answer(
     unc = PoseUncertainty(x_mm=budget.x_mm, z_mm=budget.z_mm, yaw_deg=budget.yaw_deg)
     diagnostics["uncertainty_terms"] = {k: [round(v, 6) for v in t] for k, t in budget.groups.items()}
     diagnostics["uncertainty_budget"] = [t.as_dict() for t in budget.terms]
-    refusals.append(pose_refusal := _pose_check(unc, budget.groups, model, check.response, cfg))
     cause = _pose_cause(budget.groups, model, check.response, cfg)
+    refusals.append(pose_refusal := _pose_check(unc, cause, cfg))
     first = _with_uncertain_pose(
         _first_refusal(refusals, r, plane, s8, cfg), unverified, pose_refusal, unc, cfg, cause
     )
@@ -154,9 +154,8 @@ def _with_uncertain_pose(
         first.code,
         f"{first.message}; the pose is uncertain as well (x {unc.x_mm:.3f} mm, z {unc.z_mm:.3f} mm, yaw "
         f"{unc.yaw_deg:.3f} deg, 1 sigma; the cell allows {cfg.max_uncertainty_mm:g} mm, "
-        f"{cfg.max_uncertainty_deg:g} deg), {mostly.rstrip(';')}"
+        f"{cfg.max_uncertainty_deg:g} deg), {mostly}" + ("" if hint in first.message else f"; {hint}"),
         # (the thickness's reason may already give the same advice)
-        + ("" if hint in first.message else f"; {hint}"),
     )
 
 
@@ -369,14 +368,9 @@ def _corner_sigma_check(fit: RectangleFit, cfg: LocateConfig, diagnostics: dict)
     return None
 
 
-def _pose_check(
-    unc: PoseUncertainty,
-    terms: dict[str, tuple[float, float, float]],
-    model: EdgeModelTerms,
-    response: ResponseFit | None,
-    cfg: LocateConfig,
-) -> q.Refusal | None:
-    """The check of the pose's uncertainty against the cell's limits, naming the term that weighs most."""
+def _pose_check(unc: PoseUncertainty, cause: tuple[str, str], cfg: LocateConfig) -> q.Refusal | None:
+    """The check of the pose's uncertainty against the cell's limits, naming the term that weighs most and
+    what lifts it (``cause``: :func:`_pose_cause`)."""
     if (
         unc.x_mm > cfg.max_uncertainty_mm
         or unc.z_mm > cfg.max_uncertainty_mm
@@ -386,7 +380,7 @@ def _pose_check(
             "uncertain",
             f"the pose is uncertain to x {unc.x_mm:.3f} mm, z {unc.z_mm:.3f} mm, "
             f"yaw {unc.yaw_deg:.3f} deg (1 sigma; the cell allows {cfg.max_uncertainty_mm:g} mm, "
-            f"{cfg.max_uncertainty_deg:g} deg), " + " ".join(_pose_cause(terms, model, response, cfg)),
+            f"{cfg.max_uncertainty_deg:g} deg), " + "; ".join(cause),
         )
     return None
 
@@ -414,19 +408,27 @@ def _pose_cause(
         # named after the bottom line's 0.1 px of unmeasured optics)
         doubts = [d for k in ("bottom", "reference") for d in model.of_line(k) if d.source in _MODEL_REPORTED]
         largest = max(doubts, key=lambda d: d.offset_px, default=None)
-        source = largest.source if largest is not None else ""
-        if source == "response" and response is None:
-            hint = _UNCERTAIN_HINT["response_unmeasured"]
-        elif source == "optics":
-            hint = _UNCERTAIN_HINT["optics_unmeasured"]
-        elif source == "arris":
-            hint = _UNCERTAIN_HINT["arris"]
-    return f"mostly from the {worst.replace('_', ' ')};", hint
+        hint = (_doubt_hint(largest.source, response) if largest is not None else None) or hint
+    return f"mostly from the {worst.replace('_', ' ')}", hint
+
+
+def _doubt_hint(source: str, response: ResponseFit | None) -> str | None:
+    """What lifts an edge-model doubt of ``source`` (:data:`_UNCERTAIN_HINT`) where the operator can: the
+    camera response the image could not check (``response`` None), the unmeasured optics, an arris strip
+    that cannot be read closely; else None."""
+    if source == "response":
+        return _UNCERTAIN_HINT["response_unmeasured"] if response is None else None
+    key = {"optics": "optics_unmeasured", "arris": "arris"}.get(source)
+    return _UNCERTAIN_HINT[key] if key is not None else None
+
+
+#: the thickness doubts that moving the door does not lift, as :func:`_thickness_hint` names them
+_THICKNESS_SOURCES = {"response": "the camera response", "arris": "the arrises"}
 
 
 def _thickness_hint(budget: Budget, response: ResponseFit | None) -> str | None:
     """Where a thickness's doubt is mostly a term that moving the door does not lift, the clause that names
-    it and what does (:data:`_UNCERTAIN_HINT`): the camera response the image could not check, or an arris
+    it and what does (:func:`_doubt_hint`): the camera response the image could not check, or an arris
     strip that cannot be read closely; else None (the thickness check's own advice: check the door, or move
     it). On the arris bench's roundings whose thickness could not be checked (`bench_arris_range.py --n 32
     --seed 9100`) the unchecked response's doubt was most of it on seeds 9127, 11125 and 12118, the strips'
@@ -435,11 +437,8 @@ def _thickness_hint(budget: Budget, response: ResponseFit | None) -> str | None:
     if not counted:
         return None
     largest = max(counted, key=lambda t: float(t.thickness_mm or 0.0)).source
-    if largest == "response" and response is None:
-        return "mostly from the camera response: " + _UNCERTAIN_HINT["response_unmeasured"]
-    if largest == "arris":
-        return "mostly from the arrises: " + _UNCERTAIN_HINT["arris"]
-    return None
+    hint = _doubt_hint(largest, response) if largest in _THICKNESS_SOURCES else None
+    return None if hint is None else f"mostly from {_THICKNESS_SOURCES[largest]}: {hint}"
 
 
 def _first_refusal(refusals: list, r: Refined, plane, s8: float, cfg: LocateConfig) -> q.Refusal | None:

@@ -207,15 +207,13 @@ def thickness_check(
         f"the door's thickness cannot be checked: it measures {nearest:.2f} +- {3 * t_sigma:.2f} mm against "
         f"{door.thickness_mm:.2f} mm (tolerance {t_tol:g} mm)"
     )
+    edge_on = " with its far face seen nearly edge-on" if far_beside else ""
     if unseen is not None:
         why = unseen
     elif hint is not None:
-        why = f"{' with its far face seen nearly edge-on' if far_beside else ''}, {hint}"
+        why = f"{edge_on}, {hint}"
     else:
-        why = (
-            f"{' with its far face seen nearly edge-on' if far_beside else ''}; check the door and the "
-            "recipe, or move the door a little along X and take the image again"
-        )
+        why = f"{edge_on}; check the door and the recipe, or move the door a little along X and take the image again"
     return [], [q.Refusal("uncertain", measured + why)], True
 
 
