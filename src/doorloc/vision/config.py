@@ -130,6 +130,13 @@ class LocateConfig:
     max_clipped_arris_fraction : float
         Refuse ``overexposed`` when more of an arris strip's scan lines than this have white-clipped pixels
         beside its border (a highlight on the arris the sensor cut off: its shading cannot be read).
+    clipped_flat_share : float
+        Refuse ``overexposed`` where the flat patches beside the door's edges hold at least this share of
+        their pixels at one grey level on the bright side, where the dark side's noise, carried through the
+        camera's response, would leave clearly fewer there: the sensor's noise gone from the bright side, as
+        a sensor or tone curve that saturates below the top code leaves it (a camera clipping at 240 grey:
+        0.07-0.28 mm off at 2-13 sigma where not refused; :func:`doorloc.vision.quality.check_clipped_flat`).
+        Above 1: off.
     min_noise_scale_ratio : float
         Refuse ``sharpened`` when flat patches beside the door's edges hold less noise between 4-px blocks
         than between pixels by more than this, and than between 2 x 2 boxes by two thirds of it
@@ -188,6 +195,7 @@ class LocateConfig:
     max_sigma_mm: float = 0.05
     max_saturated_fraction: float = 0.5
     max_clipped_arris_fraction: float = 0.1
+    clipped_flat_share: float = 0.95
     min_noise_scale_ratio: float = 0.85
     max_uncertainty_mm: float = 0.1
     max_uncertainty_deg: float = 0.05
@@ -203,6 +211,10 @@ class LocateConfig:
         if not 0.0 <= self.max_clipped_arris_fraction <= 1.0:
             raise ValueError(
                 f"max_clipped_arris_fraction is a share of scan lines in 0..1, got {self.max_clipped_arris_fraction:g}"
+            )
+        if not self.clipped_flat_share > 0.0:
+            raise ValueError(
+                f"clipped_flat_share is a share of a patch's pixels in 0..1 (above 1: off), got {self.clipped_flat_share:g}"
             )
         if not 0.0 <= self.min_noise_scale_ratio < 1.0:
             raise ValueError(

@@ -78,7 +78,7 @@ def gate_and_answer(
     diagnostics = _fit_diagnostics(r, region, door, figures)
     lines, refusals = _line_checks(r, region, model, cfg)
     refusals += _corner_support(r, region, cfg, diagnostics)
-    refusals += _exposure_checks(plane, s8, r, cfg, diagnostics)
+    refusals += _exposure_checks(plane, s8, r, cfg, _steepest_response(check), diagnostics)
     refusals.append(
         q.check_envelope(
             pose.x_mm, pose.z_mm, pose.yaw_deg, cell.envelope, cfg.envelope_margin_mm, cfg.envelope_margin_deg
@@ -195,29 +195,75 @@ def _other_reading_seen(
     return (0.0, None, level) if settled else (other_mm, other, level)
 
 
-def _exposure_checks(plane, s8: float, r: Refined, cfg: LocateConfig, diagnostics: dict) -> list:
-    """What the camera made of the door's light: the hinge face or an arris strip clipped at white, and a
-    camera that sharpens its images (:func:`_sharpened`)."""
+def _exposure_checks(
+    plane, s8: float, r: Refined, cfg: LocateConfig, gamma: float, diagnostics: dict
+) -> list:
+    """What the camera made of the door's light: the hinge face or an arris strip clipped at white, the door's
+    bright side clipped below white (:func:`doorloc.vision.quality.check_clipped_flat`, through the camera
+    exponent ``gamma`` the answer rests on), and a camera that sharpens its images (:func:`_sharpened`)."""
     bright = np.concatenate([r.samples[k].bright[r.fit.weights[k] > 0] for k in EDGE_NAMES])
-    return [q.check_overexposed(bright), _arris_clipped(r, cfg), _sharpened(plane, s8, r, cfg, diagnostics)]
+    sides = _side_patches(plane, r) if cfg.min_noise_scale_ratio > 0 or cfg.clipped_flat_share <= 1 else None
+    return [
+        q.check_overexposed(bright),
+        _arris_clipped(r, cfg),
+        _clipped_flat(sides, s8, cfg, gamma),
+        _sharpened(sides, s8, cfg, diagnostics),
+    ]
 
 
-def _sharpened(plane, s8: float, r: Refined, cfg: LocateConfig, diagnostics: dict) -> q.Refusal | None:
+def _steepest_response(check: ResponseCheck) -> float:
+    """The steepest camera exponent the answer's readings allow: the cell's (or the image's, where absorbed)
+    and the image's own reading 2 sigma up. The steeper the response, the more it shrinks a sensor's read
+    noise on the bright side against the dark one, and the flatter an unclipped bright side may be: a
+    1.67 camera in a cell of 1.0 (its reading 1.65 +- 0.34, not absorbed) leaves its face at 0.2 grey of
+    noise beside a dark side of 0.5, which the cell's 1.0 would read as a clip."""
+    fit = check.response
+    return max(check.cell.response_gamma, fit.gamma + 2.0 * fit.sigma if fit is not None else 0.0)
+
+
+def _clipped_flat(
+    sides: dict[bool, dict[str, np.ndarray]] | None, s8: float, cfg: LocateConfig, gamma: float
+) -> q.Refusal | None:
+    """The clip check (``locate.clipped_flat_share``; above 1: off): each line's bright-side patch against
+    the dark side's noise (pooled over the lines: the same sensor), the first line that fails named. The
+    noise is read only beside a patch flat enough to be a clip (most images have none)."""
+    if sides is None or cfg.clipped_flat_share > 1:
+        return None
+    flat = [k for k, p in sides[True].items() if q.flat_share(p, s8) >= cfg.clipped_flat_share]
+    if not flat:
+        return None
+    dark = q.side_noise(list(sides[False].values()), s8)
+    for k in flat:
+        bright = q.side_noise([sides[True][k]], s8)
+        refusal = q.check_clipped_flat(bright, dark, gamma, cfg.clipped_flat_share, HUMAN[k])
+        if refusal is not None:
+            return refusal
+    return None
+
+
+def _sharpened(
+    sides: dict[bool, dict[str, np.ndarray]] | None, s8: float, cfg: LocateConfig, diagnostics: dict
+) -> q.Refusal | None:
     """The sharpening check (``locate.min_noise_scale_ratio``; 0: off), its figures into
     ``diagnostics["noise_scale_ratio"]`` and ``["noise_scale_ratio_box2"]``."""
-    if cfg.min_noise_scale_ratio <= 0:
+    if cfg.min_noise_scale_ratio <= 0 or sides is None:
         return None
-    ratios = _noise_scale_ratio(plane, s8, r)
+    ratios = _noise_scale_ratio(sides, s8)
     diagnostics["noise_scale_ratio"] = None if ratios is None else round(ratios.pixel, 3)
     diagnostics["noise_scale_ratio_box2"] = None if ratios is None else round(ratios.box2, 3)
     return q.check_sharpened(ratios, cfg.min_noise_scale_ratio)
 
 
-def _noise_scale_ratio(plane, s8: float, r: Refined) -> q.NoiseScaleRatios | None:
-    """The least of each of :func:`doorloc.vision.quality.noise_scale_ratio`'s ratios over the door's two
-    sides: patches beside the middle of each line's edge points, pooled per side (dark and bright). Texture
-    and a stray edge in a patch raise its ratios (they hide sharpening there; they never make it)."""
-    sides: dict[bool, list[np.ndarray]] = {False: [], True: []}
+#: the flat patches :func:`_side_patches` reads beside each line: their length along the edge and depth
+#: across it, and their distance from the edge's points (beyond a 3 mm arris strip and the blur), px
+NOISE_PATCH_PX = (128, 48)
+NOISE_PATCH_GAP_PX = 24
+
+
+def _side_patches(plane, r: Refined) -> dict[bool, dict[str, np.ndarray]]:
+    """Flat patches beside the middle of each line's edge points (raw grey levels), per side of the door's
+    edges (``False`` the dark side, ``True`` the bright one) and line."""
+    sides: dict[bool, dict[str, np.ndarray]] = {False: {}, True: {}}
     length, depth = NOISE_PATCH_PX
     for k in EDGE_NAMES:
         s = r.samples[k]
@@ -237,8 +283,17 @@ def _noise_scale_ratio(plane, s8: float, r: Refined) -> q.NoiseScaleRatios | Non
         for after in (False, True):
             a0 = hi + NOISE_PATCH_GAP_PX if after else lo - NOISE_PATCH_GAP_PX - depth
             if 0 <= a0 and a0 + depth <= P.shape[0] and 0 <= s0 and s1 <= P.shape[1]:
-                sides[after == bright_after].append(P[a0 : a0 + depth, s0:s1])
-    read = [x for x in (q.noise_scale_ratio(sides[b], s8) for b in (False, True)) if x is not None]
+                sides[after == bright_after][k] = P[a0 : a0 + depth, s0:s1]
+    return sides
+
+
+def _noise_scale_ratio(sides: dict[bool, dict[str, np.ndarray]], s8: float) -> q.NoiseScaleRatios | None:
+    """The least of each of :func:`doorloc.vision.quality.noise_scale_ratio`'s ratios over the door's two
+    sides (:func:`_side_patches`, pooled per side). Texture and a stray edge in a patch raise its ratios
+    (they hide sharpening there; they never make it)."""
+    read = [
+        x for x in (q.noise_scale_ratio(list(sides[b].values()), s8) for b in (False, True)) if x is not None
+    ]
     if not read:
         return None
     return q.NoiseScaleRatios(min(x.pixel for x in read), min(x.box2 for x in read))

@@ -26,6 +26,11 @@ __all__ = [
     "LineLimits",
     "check_overexposed",
     "check_arris_clipped",
+    "check_clipped_flat",
+    "side_noise",
+    "flat_share",
+    "SideNoise",
+    "CLIP_FLAT_MARGIN",
     "check_sharpened",
     "NoiseScaleRatios",
     "noise_scale_ratio",
@@ -138,6 +143,89 @@ def check_arris_clipped(clipped_share: dict[str, float], limit: float) -> Refusa
         "overexposed",
         f"the arris strip along the {worst} clips at white on {100 * clipped_share[worst]:.0f} % of its scan "
         "lines (its highlight is cut off), which biases the edge; reduce the exposure time or the lighting",
+    )
+
+
+#: a bright side counts as clipped only where at least this share more of its patches' pixels sit at one grey
+#: level than the dark side's noise, carried through the camera's response, leaves there
+#: (:func:`check_clipped_flat`)
+CLIP_FLAT_MARGIN = 0.08
+#: pixel differences beyond this (0-255 scale) are a stray edge or texture in a patch, not its noise
+_NOISE_STEP_MAX = 8.0
+
+
+@dataclass(frozen=True)
+class SideNoise:
+    """Flat patches on one side of the door's edges (:func:`side_noise`): ``flat_share`` the median over
+    the patches of the share of each one's pixels at its commonest level, ``sigma`` the median of their
+    noise (1-sigma, from neighbouring pixels' differences) and ``level`` the median of their levels, both
+    on the 0-255 scale."""
+
+    flat_share: float
+    sigma: float
+    level: float
+
+
+def flat_share(patch: np.ndarray, s8: float) -> float:
+    """The share of ``patch``'s pixels (raw grey levels, 2-D; ``s8`` their scale to 0-255) at its commonest
+    8-bit level (NaN for an empty patch).
+
+    A sensor's noise spreads a lit patch over several levels (0.2-0.3 of its pixels at the commonest on
+    OpenCV's board photographs, 0.1-0.8 on rendered doors with 0.5-3 grey of read noise and JPEG); a clip
+    stores one level, and JPEG decodes a block of one level to that level (OpenCV's overexposed squares:
+    0.86-1.00 of a 7 x 7 box at one level, rendered doors clipped at 240 grey: 1.00)."""
+    if patch.size == 0:
+        return float("nan")
+    if patch.dtype == np.uint8 and s8 == 1.0:
+        counts = np.bincount(patch.ravel(), minlength=256)  # (the 8-bit image's own levels: no rounding)
+    else:
+        q = np.rint(np.asarray(patch, np.float64) * s8).astype(np.int64).ravel()
+        counts = np.bincount(q - q.min())
+    return float(counts.max()) / patch.size
+
+
+def side_noise(patches: list[np.ndarray], s8: float) -> SideNoise | None:
+    """:class:`SideNoise` of ``patches`` (raw grey levels, 2-D; ``s8`` their scale to 0-255); None without
+    patches of at least 2 x 2 pixels."""
+    shares, sigmas, levels = [], [], []
+    for p in patches:
+        if p.shape[0] < 2 or p.shape[1] < 2:
+            continue
+        g = np.asarray(p, np.float64) * s8
+        shares.append(flat_share(p, s8))
+        d = np.concatenate([np.diff(g, axis=0).ravel(), np.diff(g, axis=1).ravel()])
+        d = d[np.abs(d) <= _NOISE_STEP_MAX]
+        sigmas.append(float(np.std(d)) / math.sqrt(2.0) if d.size else 0.0)
+        levels.append(float(np.median(g)))
+    if not shares:
+        return None
+    return SideNoise(float(np.median(shares)), float(np.median(sigmas)), float(np.median(levels)))
+
+
+def check_clipped_flat(
+    bright: SideNoise | None, dark: SideNoise | None, gamma: float, limit: float, where: str = "door's edges"
+) -> Refusal | None:
+    """The bright side of the door's edges clipped below the top code: its patches beside the edges flat
+    (``bright.flat_share`` at least ``limit``) where the dark side's noise, carried to the bright side's
+    level through a power-law response of ``gamma`` (``light = grey ** gamma``: a read noise of the sensor
+    shrinks on the grey scale by ``(bright / dark) ** (1 - gamma)``, and shot noise only adds to it), would
+    leave at most :data:`CLIP_FLAT_MARGIN` less of them at one level. A camera whose sensor or tone curve
+    saturates at 240 stores an overexposed face there, under the 249 that :func:`check_overexposed` reads
+    as white, and such a face's edges lie towards the dark side (rendered doors clipped at 240 grey:
+    0.07-0.28 mm off at 2-13 sigma). A noise-free render, or a camera too quiet for its noise to show on
+    the grey scale, is not refused. ``where``: the edge the bright side is read beside, in the sentence."""
+    if bright is None or dark is None or dark.level < 5.0 or not bright.flat_share >= limit:
+        return None
+    sigma = dark.sigma * (bright.level / dark.level) ** (1.0 - gamma)
+    # the most pixels a rounded Gaussian noise puts at one level (its mean on that level)
+    expected = math.erf(0.5 / (sigma * math.sqrt(2.0))) if sigma > 0 else 1.0
+    if expected > bright.flat_share - CLIP_FLAT_MARGIN:
+        return None
+    return Refusal(
+        "overexposed",
+        f"the bright side of the {where} is clipped at {bright.level:.0f} grey ({100 * bright.flat_share:.0f} % "
+        f"of its pixels beside the edge sit at one level, where the dark side's noise would leave "
+        f"{100 * expected:.0f} %), which biases the edges; reduce the exposure time or the lighting",
     )
 
 

@@ -1,0 +1,113 @@
+"""A camera that saturates below the top code: a sensor or tone curve that stores every light beyond 240 grey at
+240 leaves an overexposed hinge face flat there, under the 249 the white check reads, and its edges lie towards
+the dark side. Locate refuses it ``overexposed`` by the sensor's noise, which the clip takes from the bright side
+and leaves on the dark one."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from doorloc.cell import DoorSize, load_cell
+from doorloc.photometric.model import PhotometricModel
+from doorloc.pose import DoorPose
+from doorloc.sim.door import render_door
+from doorloc.sim.effects import Effects
+from doorloc.sim.photometric import CameraRendering, apply_camera
+from doorloc.vision.config import LocateConfig
+from doorloc.vision.locate import locate
+from doorloc.vision.quality import SideNoise, check_clipped_flat, side_noise
+
+CELL = dataclasses.replace(
+    load_cell(Path(__file__).parents[2] / "fixtures" / "cell_thesis.yaml"), response_gamma=2.2
+)
+#: a video camera (power law 2.2) whose sensor saturates at 240 of 255 grey
+CLIPS_AT_240 = PhotometricModel(gamma=2.2, clip_level=240 / 255)
+
+
+def test_a_clip_is_flat_where_a_sensors_noise_is_not():
+    rng = np.random.default_rng(5)
+    lit = np.clip(np.rint(200 + rng.normal(0, 1.0, (48, 128))), 0, 255).astype(np.uint8)
+    clipped = np.full((48, 128), 240, np.uint8)
+    noisy, flat = side_noise([lit], 1.0), side_noise([clipped], 1.0)
+    assert noisy.flat_share < 0.5 and abs(noisy.sigma - 1.0) < 0.1 and abs(noisy.level - 200) <= 1
+    assert flat.flat_share == 1.0 and flat.sigma == 0.0 and flat.level == 240
+    # JPEG decodes a block of one level to that level, and keeps a noisy one spread
+    for patch, is_flat in ((clipped, True), (lit, False)):
+        ok, buf = cv2.imencode(".jpg", patch, [cv2.IMWRITE_JPEG_QUALITY, 88])
+        seen = side_noise([cv2.imdecode(buf, cv2.IMREAD_GRAYSCALE)], 1.0)
+        assert ok and (seen.flat_share >= 0.95) == is_flat
+    # 16-bit planes are read on their 8-bit scale
+    assert side_noise([clipped.astype(np.uint16) * 257], 1 / 257).flat_share == 1.0
+    assert side_noise([], 1.0) is None
+
+
+def _side(share: float, sigma: float, level: float) -> SideNoise:
+    return SideNoise(share, sigma, level)
+
+
+@pytest.mark.parametrize(
+    "bright,dark,gamma,refused",
+    [
+        # a clip beside a noisy dark side: refused, at any response
+        (_side(1.0, 0.0, 240), _side(0.3, 1.5, 150), 1.0, True),
+        (_side(1.0, 0.0, 240), _side(0.3, 1.5, 150), 2.2, True),
+        (_side(0.96, 0.2, 240), _side(0.6, 0.5, 60), 1.0, True),
+        # noise-free both sides (a clean render): nothing to tell a clip by
+        (_side(1.0, 0.0, 200), _side(1.0, 0.0, 80), 2.2, False),
+        # a quiet camera whose response shrinks the read noise on the bright side: 0.48 grey at 82 is
+        # 0.20 at 194 through 2.0, which rounds to one level almost everywhere
+        (_side(1.0, 0.07, 194), _side(0.64, 0.48, 82), 2.01, False),
+        # the same quiet dark side with a linear response: 0.48 grey stays 0.48 and would spread the face
+        (_side(1.0, 0.07, 194), _side(0.64, 0.48, 82), 1.0, True),
+        # a face with noise of its own
+        (_side(0.87, 0.35, 231), _side(0.42, 0.86, 111), 2.21, False),
+        # a black dark side tells nothing
+        (_side(1.0, 0.0, 240), _side(1.0, 0.0, 0), 2.2, False),
+    ],
+)
+def test_a_flat_bright_side_is_refused_only_where_the_dark_sides_noise_would_spread_it(
+    bright, dark, gamma, refused
+):
+    r = check_clipped_flat(bright, dark, gamma, 0.95)
+    assert (r is not None) == refused
+    if refused:
+        assert r.code == "overexposed" and "clipped" in r.message and "exposure" in r.message
+    assert check_clipped_flat(None, dark, gamma, 0.95) is None
+    assert check_clipped_flat(bright, None, gamma, 0.95) is None
+
+
+def _photograph(exposure: float, seed: int, pose: DoorPose, door: DoorSize) -> np.ndarray:
+    radiance = render_door(
+        CELL, door, pose, effects=Effects(albedo_hinge=0.5, albedo_background=0.12), seed=seed
+    ).radiance
+    scale = exposure / float(np.percentile(radiance, 99.5))
+    return apply_camera(
+        radiance, CLIPS_AT_240, CameraRendering(blur_px=1.0, exposure=scale, read_noise=1.5), seed
+    )
+
+
+@pytest.mark.parametrize("seed,pose", [(3, (-4.0, 6.0, 1.1)), (4, (7.5, -3.0, -1.6))])
+def test_a_face_clipped_below_white_is_refused_and_one_exposed_right_is_answered(seed, pose):
+    door, truth = DoorSize(900, 50.0, 2100), DoorPose(*pose)
+    over = _photograph(1.4, seed, truth, door)  # the face's light 1.4x what stores 255 before the clip
+    r = locate(over, CELL, door)
+    assert not r.ok and r.error_code == "overexposed" and "clipped" in r.error, r.error
+    # why it is refused: with the check off, the same photograph is answered off by more than its sigma
+    off = locate(over, CELL, door, config=dataclasses.replace(CELL.locate, clipped_flat_share=1.01))
+    assert off.ok, off.error
+    assert abs(off.x_mm - truth.x_mm) > 2 * off.uncertainty.x_mm
+    # the same door with its face below the clip
+    right = locate(_photograph(0.85, seed, truth, door), CELL, door)
+    assert right.ok, right.error
+    assert abs(right.x_mm - truth.x_mm) <= 2 * right.uncertainty.x_mm
+    assert abs(right.z_mm - truth.z_mm) <= 2 * right.uncertainty.z_mm
+
+
+def test_the_clip_check_is_a_validated_setting():
+    with pytest.raises(ValueError, match="clipped_flat_share"):
+        LocateConfig(clipped_flat_share=0.0)
