@@ -207,7 +207,10 @@ def test_a_grey_level_table_is_exact_at_the_values_it_is_refined_at():
     )
     steps = evidence[response.key]
     assert len(steps) >= 2 and steps[-1]["sse"] < steps[0]["sse"]
-    # "on the grid" as the refinement stops on it: within 1e-3 of the grid's range (here 0.0016; the
-    # effects fixtures' answers of 2026-12-01 put the last value 0.0016 from its grid value, 0.0004 before)
+    # the best value the refinement found is on the grid (located there, not interpolated): "on the grid"
+    # within 1e-3 of the grid's range, as the refinement stops on it. (Its last value need not be: the pose
+    # is not smooth in the response, and on one machine the fits went 2.1858 -> 2.1632 -> 2.1842, the last
+    # 0.0016 from its grid value and no better than the second, which the table holds.)
     grid = pred.tables[response.key].grid
-    assert np.min(np.abs(grid - steps[-1]["value"])) <= 1e-3 * float(grid[-1] - grid[0])
+    best = min(steps, key=lambda s: s["sse"])
+    assert np.min(np.abs(grid - best["value"])) <= 1e-3 * float(grid[-1] - grid[0])
