@@ -41,13 +41,21 @@ def test_a_clip_is_flat_where_a_sensors_noise_is_not():
         ok, buf = cv2.imencode(".jpg", patch, [cv2.IMWRITE_JPEG_QUALITY, 88])
         seen = side_noise([cv2.imdecode(buf, cv2.IMREAD_GRAYSCALE)], 1.0)
         assert ok and (seen.flat_share >= 0.95) == is_flat
+    assert noisy.beyond_two > 0.3 and flat.beyond_two == 0.0
+    # a level near a rounding boundary under a tiny noise splits over two levels: nothing beyond them
+    dithered = np.where(rng.random((48, 128)) < 0.3, 49, 48).astype(np.uint8)
+    assert side_noise([dithered], 1.0).beyond_two == 0.0
+    # a smooth ramp rounded to grey levels carries no noise, however its levels step
+    cols = np.arange(128)[None, :].repeat(48, 0)
+    ramp = side_noise([np.rint(40 + 0.3 * cols).astype(np.uint8)], 1.0)
+    assert ramp.sigma < 0.1 and ramp.flat_share < 0.2
     # 16-bit planes are read on their 8-bit scale
     assert side_noise([clipped.astype(np.uint16) * 257], 1 / 257).flat_share == 1.0
     assert side_noise([], 1.0) is None
 
 
-def _side(share: float, sigma: float, level: float) -> SideNoise:
-    return SideNoise(share, sigma, level)
+def _side(share: float, sigma: float, level: float, beyond_two: float = 0.3) -> SideNoise:
+    return SideNoise(share, sigma, level, beyond_two)
 
 
 @pytest.mark.parametrize(
@@ -59,11 +67,15 @@ def _side(share: float, sigma: float, level: float) -> SideNoise:
         (_side(0.96, 0.2, 240), _side(0.6, 0.5, 60), 1.0, True),
         # noise-free both sides (a clean render): nothing to tell a clip by
         (_side(1.0, 0.0, 200), _side(1.0, 0.0, 80), 2.2, False),
-        # a quiet camera whose response shrinks the read noise on the bright side: 0.48 grey at 82 is
-        # 0.20 at 194 through 2.0, which rounds to one level almost everywhere
-        (_side(1.0, 0.07, 194), _side(0.64, 0.48, 82), 2.01, False),
-        # the same quiet dark side with a linear response: 0.48 grey stays 0.48 and would spread the face
-        (_side(1.0, 0.07, 194), _side(0.64, 0.48, 82), 1.0, True),
+        # a quiet camera whose response shrinks the read noise on the bright side: 0.7 grey at 82 is
+        # 0.29 at 194 through 2.0, which rounds to one level almost everywhere
+        (_side(1.0, 0.07, 194), _side(0.45, 0.7, 82), 2.01, False),
+        # the same dark side with a linear response: 0.7 grey stays 0.7 and would spread the face
+        (_side(1.0, 0.07, 194), _side(0.45, 0.7, 82), 1.0, True),
+        # a dark side too quiet to tell by (0.25 grey)
+        (_side(1.0, 0.0, 81), _side(0.9, 0.25, 40), 1.0, False),
+        # a dark side split over two levels: a level near a rounding boundary under a noise too small to read
+        (_side(1.0, 0.0, 81), _side(0.69, 0.36, 48, 0.0), 1.0, False),
         # a face with noise of its own
         (_side(0.87, 0.35, 231), _side(0.42, 0.86, 111), 2.21, False),
         # a black dark side tells nothing
@@ -73,12 +85,14 @@ def _side(share: float, sigma: float, level: float) -> SideNoise:
 def test_a_flat_bright_side_is_refused_only_where_the_dark_sides_noise_would_spread_it(
     bright, dark, gamma, refused
 ):
-    r = check_clipped_flat(bright, dark, gamma, 0.95)
+    r = check_clipped_flat(bright, dark, gamma, 0.95, bright.level)
     assert (r is not None) == refused
     if refused:
         assert r.code == "overexposed" and "clipped" in r.message and "exposure" in r.message
-    assert check_clipped_flat(None, dark, gamma, 0.95) is None
-    assert check_clipped_flat(bright, None, gamma, 0.95) is None
+    assert check_clipped_flat(None, dark, gamma, 0.95, 255.0) is None
+    assert check_clipped_flat(bright, None, gamma, 0.95, 255.0) is None
+    # a clip caps every light: a flat side below the brightest plateau the edges see is a smooth surface
+    assert check_clipped_flat(bright, dark, gamma, 0.95, bright.level + 10.0) is None
 
 
 def _photograph(exposure: float, seed: int, pose: DoorPose, door: DoorSize) -> np.ndarray:

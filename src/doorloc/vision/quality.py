@@ -31,6 +31,9 @@ __all__ = [
     "flat_share",
     "SideNoise",
     "CLIP_FLAT_MARGIN",
+    "CLIP_TOP_GREY",
+    "CLIP_NOISE_MIN_GREY",
+    "CLIP_DARK_BEYOND_TWO",
     "check_sharpened",
     "NoiseScaleRatios",
     "noise_scale_ratio",
@@ -150,7 +153,16 @@ def check_arris_clipped(clipped_share: dict[str, float], limit: float) -> Refusa
 #: level than the dark side's noise, carried through the camera's response, leaves there
 #: (:func:`check_clipped_flat`)
 CLIP_FLAT_MARGIN = 0.08
-#: pixel differences beyond this (0-255 scale) are a stray edge or texture in a patch, not its noise
+#: the least noise (0-255, 1-sigma) the dark side must carry to the bright side's level for a flat bright side
+#: to tell a clip (at 0.3 grey a sensor's noise leaves 90 % of a patch at one level)
+CLIP_NOISE_MIN_GREY = 0.3
+#: the least share of the dark side's pixels off its two commonest levels for its noise to be read
+#: (:attr:`SideNoise.beyond_two`; a Gaussian noise of 0.55 grey puts about 5 % there)
+CLIP_DARK_BEYOND_TWO = 0.05
+#: a clip caps every light in the image: a flat bright side counts as one only within this many grey levels
+#: (0-255) of the brightest plateau the door's edges see (:func:`check_clipped_flat`)
+CLIP_TOP_GREY = 3.0
+#: pixels further than this (0-255 scale) from the plane through their patch are a stray edge, not its noise
 _NOISE_STEP_MAX = 8.0
 
 
@@ -158,12 +170,22 @@ _NOISE_STEP_MAX = 8.0
 class SideNoise:
     """Flat patches on one side of the door's edges (:func:`side_noise`): ``flat_share`` the median over
     the patches of the share of each one's pixels at its commonest level, ``sigma`` the median of their
-    noise (1-sigma, from neighbouring pixels' differences) and ``level`` the median of their levels, both
-    on the 0-255 scale."""
+    noise (1-sigma) and ``level`` the median of their levels, both on the 0-255 scale, and ``beyond_two``
+    the median share of their pixels off their two commonest levels (a noise spread over two levels only
+    cannot be measured: a level near a rounding boundary splits between them under any small noise)."""
 
     flat_share: float
     sigma: float
     level: float
+    beyond_two: float = 0.0
+
+
+def _level_counts(patch: np.ndarray, s8: float) -> np.ndarray:
+    """How many of ``patch``'s pixels sit at each 8-bit level (from its lowest)."""
+    if patch.dtype == np.uint8 and s8 == 1.0:
+        return np.bincount(patch.ravel(), minlength=256)  # (the 8-bit image's own levels: no rounding)
+    q = np.rint(np.asarray(patch, np.float64) * s8).astype(np.int64).ravel()
+    return np.bincount(q - q.min())
 
 
 def flat_share(patch: np.ndarray, s8: float) -> float:
@@ -176,49 +198,70 @@ def flat_share(patch: np.ndarray, s8: float) -> float:
     0.86-1.00 of a 7 x 7 box at one level, rendered doors clipped at 240 grey: 1.00)."""
     if patch.size == 0:
         return float("nan")
-    if patch.dtype == np.uint8 and s8 == 1.0:
-        counts = np.bincount(patch.ravel(), minlength=256)  # (the 8-bit image's own levels: no rounding)
-    else:
-        q = np.rint(np.asarray(patch, np.float64) * s8).astype(np.int64).ravel()
-        counts = np.bincount(q - q.min())
-    return float(counts.max()) / patch.size
+    return float(_level_counts(patch, s8).max()) / patch.size
 
 
 def side_noise(patches: list[np.ndarray], s8: float) -> SideNoise | None:
     """:class:`SideNoise` of ``patches`` (raw grey levels, 2-D; ``s8`` their scale to 0-255); None without
-    patches of at least 2 x 2 pixels."""
-    shares, sigmas, levels = [], [], []
+    patches of at least 2 x 2 pixels. The noise is what a plane through each patch leaves, less the rounding
+    to grey levels (Sheppard's correction, a twelfth of a level squared): a smooth ramp's rounding reads as
+    0.3 grey otherwise, and a gradient across the patch is light, not noise."""
+    shares, sigmas, levels, beyond = [], [], [], []
     for p in patches:
         if p.shape[0] < 2 or p.shape[1] < 2:
             continue
         g = np.asarray(p, np.float64) * s8
-        shares.append(flat_share(p, s8))
-        d = np.concatenate([np.diff(g, axis=0).ravel(), np.diff(g, axis=1).ravel()])
-        d = d[np.abs(d) <= _NOISE_STEP_MAX]
-        sigmas.append(float(np.std(d)) / math.sqrt(2.0) if d.size else 0.0)
+        counts = np.sort(_level_counts(p, s8))
+        shares.append(float(counts[-1]) / p.size)
+        beyond.append(1.0 - float(counts[-2:].sum()) / p.size)
+        rows, cols = np.mgrid[0 : g.shape[0], 0 : g.shape[1]]
+        A = np.stack([np.ones(g.size), rows.ravel(), cols.ravel()], 1)
+        coef, *_ = np.linalg.lstsq(A, g.ravel(), rcond=None)
+        residual = g.ravel() - A @ coef
+        residual = residual[np.abs(residual) <= _NOISE_STEP_MAX]  # (a stray edge is not noise)
+        var = float(np.var(residual)) - s8 * s8 / 12.0 if residual.size else 0.0
+        sigmas.append(math.sqrt(max(var, 0.0)))
         levels.append(float(np.median(g)))
     if not shares:
         return None
-    return SideNoise(float(np.median(shares)), float(np.median(sigmas)), float(np.median(levels)))
+    return SideNoise(
+        float(np.median(shares)), float(np.median(sigmas)), float(np.median(levels)), float(np.median(beyond))
+    )
 
 
 def check_clipped_flat(
-    bright: SideNoise | None, dark: SideNoise | None, gamma: float, limit: float, where: str = "door's edges"
+    bright: SideNoise | None,
+    dark: SideNoise | None,
+    gamma: float,
+    limit: float,
+    top_grey: float,
+    where: str = "door's edges",
 ) -> Refusal | None:
     """The bright side of the door's edges clipped below the top code: its patches beside the edges flat
     (``bright.flat_share`` at least ``limit``) where the dark side's noise, carried to the bright side's
     level through a power-law response of ``gamma`` (``light = grey ** gamma``: a read noise of the sensor
     shrinks on the grey scale by ``(bright / dark) ** (1 - gamma)``, and shot noise only adds to it), would
-    leave at most :data:`CLIP_FLAT_MARGIN` less of them at one level. A camera whose sensor or tone curve
+    leave at most :data:`CLIP_FLAT_MARGIN` less of them at one level, and at the top of what the door's edges
+    see (within :data:`CLIP_TOP_GREY` of ``top_grey``, their brightest plateau: a clip caps every light; a
+    smooth surface beside a textured one is flat at its own level). A camera whose sensor or tone curve
     saturates at 240 stores an overexposed face there, under the 249 that :func:`check_overexposed` reads
     as white, and such a face's edges lie towards the dark side (rendered doors clipped at 240 grey:
     0.07-0.28 mm off at 2-13 sigma). A noise-free render, or a camera too quiet for its noise to show on
-    the grey scale, is not refused. ``where``: the edge the bright side is read beside, in the sentence."""
+    the grey scale (a dark side spread over fewer than :data:`CLIP_DARK_BEYOND_TWO` beyond two levels, or
+    whose noise reaches the bright side under :data:`CLIP_NOISE_MIN_GREY`), is not refused. ``where``: the
+    edge the bright side is read beside, in the sentence."""
     if bright is None or dark is None or dark.level < 5.0 or not bright.flat_share >= limit:
         return None
+    if not dark.beyond_two >= CLIP_DARK_BEYOND_TWO:
+        return None  # the dark side's noise is not resolved by the grey levels
+    if not bright.level >= top_grey - CLIP_TOP_GREY:
+        return None
     sigma = dark.sigma * (bright.level / dark.level) ** (1.0 - gamma)
+    # a noise this small rounds to one level almost everywhere: nothing to tell a clip by
+    if not sigma >= CLIP_NOISE_MIN_GREY:
+        return None
     # the most pixels a rounded Gaussian noise puts at one level (its mean on that level)
-    expected = math.erf(0.5 / (sigma * math.sqrt(2.0))) if sigma > 0 else 1.0
+    expected = math.erf(0.5 / (sigma * math.sqrt(2.0)))
     if expected > bright.flat_share - CLIP_FLAT_MARGIN:
         return None
     return Refusal(
