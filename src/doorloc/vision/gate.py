@@ -206,7 +206,7 @@ def _exposure_checks(
     return [
         q.check_overexposed(bright),
         _arris_clipped(r, cfg),
-        _clipped_flat(sides, s8, cfg, gamma, float(np.percentile(bright, 99)) if bright.size else np.inf),
+        _clipped_flat(sides, s8, cfg, gamma, bright),
         _sharpened(sides, s8, cfg, diagnostics),
     ]
 
@@ -226,21 +226,22 @@ def _clipped_flat(
     s8: float,
     cfg: LocateConfig,
     gamma: float,
-    top_grey: float,
+    bright: np.ndarray,
 ) -> q.Refusal | None:
     """The clip check (``locate.clipped_flat_share``; above 1: off): each line's bright-side patch against
-    the dark side's noise (pooled over the lines: the same sensor) and ``top_grey``, the brightest of the
-    edges' plateaus (0-255), the first line that fails named. The noise is read only beside a patch flat
-    enough to be a clip (most images have none)."""
+    the dark side's noise (pooled over the lines: the same sensor) and the brightest of the edges' bright
+    plateaus ``bright`` (0-255; their 99th percentile), the first line that fails named. The noise is read
+    only beside a patch flat enough to be a clip (most images have none)."""
     if sides is None or cfg.clipped_flat_share > 1:
         return None
     flat = [k for k, p in sides[True].items() if q.flat_share(p, s8) >= cfg.clipped_flat_share]
     if not flat:
         return None
     dark = q.side_noise(list(sides[False].values()), s8)
+    top_grey = float(np.percentile(bright, 99)) if bright.size else math.inf
     for k in flat:
-        bright = q.side_noise([sides[True][k]], s8)
-        refusal = q.check_clipped_flat(bright, dark, gamma, cfg.clipped_flat_share, top_grey, HUMAN[k])
+        bright_side = q.side_noise([sides[True][k]], s8)
+        refusal = q.check_clipped_flat(bright_side, dark, gamma, cfg.clipped_flat_share, top_grey, HUMAN[k])
         if refusal is not None:
             return refusal
     return None
