@@ -20,7 +20,7 @@ from doorloc.sim.effects import Effects
 from doorloc.sim.photometric import CameraRendering, apply_camera
 from doorloc.vision.config import LocateConfig
 from doorloc.vision.locate import locate
-from doorloc.vision.quality import SideNoise, check_clipped_flat, side_noise
+from doorloc.vision.quality import SideNoise, beyond_two_share, check_clipped_flat, side_noise
 
 CELL = dataclasses.replace(
     load_cell(Path(__file__).parents[2] / "fixtures" / "cell_thesis.yaml"), response_gamma=2.2
@@ -44,7 +44,8 @@ def test_a_clip_is_flat_where_a_sensors_noise_is_not():
     assert noisy.beyond_two > 0.3 and flat.beyond_two == 0.0
     # a level near a rounding boundary under a tiny noise splits over two levels: nothing beyond them
     dithered = np.where(rng.random((48, 128)) < 0.3, 49, 48).astype(np.uint8)
-    assert side_noise([dithered], 1.0).beyond_two == 0.0
+    assert side_noise([dithered], 1.0).beyond_two == 0.0 == beyond_two_share([dithered], 1.0)
+    assert beyond_two_share([lit], 1.0) == noisy.beyond_two and beyond_two_share([], 1.0) == 0.0
     # a smooth ramp rounded to grey levels carries no noise, however its levels step
     cols = np.arange(128)[None, :].repeat(48, 0)
     ramp = side_noise([np.rint(40 + 0.3 * cols).astype(np.uint8)], 1.0)

@@ -237,6 +237,9 @@ def _clipped_flat(
     flat = [k for k, p in sides[True].items() if q.flat_share(p, s8) >= cfg.clipped_flat_share]
     if not flat:
         return None
+    # a dark side whose noise the grey levels do not resolve (a noise-free render's) settles it cheaply
+    if q.beyond_two_share(list(sides[False].values()), s8) < q.CLIP_DARK_BEYOND_TWO:
+        return None
     dark = q.side_noise(list(sides[False].values()), s8)
     top_grey = float(np.percentile(bright, 99)) if bright.size else math.inf
     for k in flat:

@@ -28,6 +28,7 @@ __all__ = [
     "check_arris_clipped",
     "check_clipped_flat",
     "side_noise",
+    "beyond_two_share",
     "flat_share",
     "SideNoise",
     "CLIP_FLAT_MARGIN",
@@ -181,10 +182,12 @@ class SideNoise:
 
 
 def _level_counts(patch: np.ndarray, s8: float) -> np.ndarray:
-    """How many of ``patch``'s pixels sit at each 8-bit level (from its lowest)."""
-    if patch.dtype == np.uint8 and s8 == 1.0:
-        return np.bincount(patch.ravel(), minlength=256)  # (the 8-bit image's own levels: no rounding)
-    q = np.rint(np.asarray(patch, np.float64) * s8).astype(np.int64).ravel()
+    """How many of ``patch``'s pixels sit at each 8-bit level (from its lowest), every other row read (half
+    a 48 x 128 patch, 3072 pixels, tells a share to about a percent at half the cost on every frame)."""
+    rows = patch[::2] if patch.shape[0] >= 4 else patch
+    if rows.dtype == np.uint8 and s8 == 1.0:
+        return np.bincount(rows.ravel(), minlength=256)  # (the 8-bit image's own levels: no rounding)
+    q = np.rint(np.asarray(rows, np.float64) * s8).astype(np.int64).ravel()
     return np.bincount(q - q.min())
 
 
@@ -198,7 +201,19 @@ def flat_share(patch: np.ndarray, s8: float) -> float:
     0.86-1.00 of a 7 x 7 box at one level, rendered doors clipped at 240 grey: 1.00)."""
     if patch.size == 0:
         return float("nan")
-    return float(_level_counts(patch, s8).max()) / patch.size
+    counts = _level_counts(patch, s8)
+    return float(counts.max()) / float(counts.sum())
+
+
+def beyond_two_share(patches: list[np.ndarray], s8: float) -> float:
+    """The median over ``patches`` of the share of each one's pixels off its two commonest 8-bit levels
+    (:attr:`SideNoise.beyond_two`, without the rest of :func:`side_noise`'s work); 0 without patches."""
+    shares = []
+    for p in patches:
+        if p.size:
+            counts = np.sort(_level_counts(p, s8))
+            shares.append(1.0 - float(counts[-2:].sum()) / float(counts.sum()))
+    return float(np.median(shares)) if shares else 0.0
 
 
 def side_noise(patches: list[np.ndarray], s8: float) -> SideNoise | None:
@@ -212,8 +227,8 @@ def side_noise(patches: list[np.ndarray], s8: float) -> SideNoise | None:
             continue
         g = np.asarray(p, np.float64) * s8
         counts = np.sort(_level_counts(p, s8))
-        shares.append(float(counts[-1]) / p.size)
-        beyond.append(1.0 - float(counts[-2:].sum()) / p.size)
+        shares.append(float(counts[-1]) / float(counts.sum()))
+        beyond.append(1.0 - float(counts[-2:].sum()) / float(counts.sum()))
         rows, cols = np.mgrid[0 : g.shape[0], 0 : g.shape[1]]
         A = np.stack([np.ones(g.size), rows.ravel(), cols.ravel()], 1)
         coef, *_ = np.linalg.lstsq(A, g.ravel(), rcond=None)
