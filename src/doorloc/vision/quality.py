@@ -158,7 +158,8 @@ CLIP_FLAT_MARGIN = 0.08
 #: to tell a clip (at 0.3 grey a sensor's noise leaves 90 % of a patch at one level)
 CLIP_NOISE_MIN_GREY = 0.3
 #: the least share of the dark side's pixels off its two commonest levels for its noise to be read
-#: (:attr:`SideNoise.beyond_two`; a Gaussian noise of 0.55 grey puts about 5 % there)
+#: (:attr:`SideNoise.beyond_two`; a Gaussian noise of 0.5 grey puts 5-16 % there, its mean between two
+#: levels or on one)
 CLIP_DARK_BEYOND_TWO = 0.05
 #: a clip caps every light in the image: a flat bright side counts as one only within this many grey levels
 #: (0-255) of the brightest plateau the door's edges see (:func:`check_clipped_flat`)
