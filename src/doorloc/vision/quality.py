@@ -179,7 +179,7 @@ class SideNoise:
     flat_share: float
     sigma: float
     level: float
-    beyond_two: float = 0.0
+    beyond_two: float
 
 
 def _level_counts(patch: np.ndarray, s8: float) -> np.ndarray:
@@ -192,6 +192,13 @@ def _level_counts(patch: np.ndarray, s8: float) -> np.ndarray:
     return np.bincount(q - q.min())
 
 
+def _top_shares(patch: np.ndarray, s8: float) -> tuple[float, float]:
+    """The share of ``patch``'s pixels at its commonest 8-bit level, and the share off its two commonest."""
+    counts = np.sort(_level_counts(patch, s8))
+    n = float(counts.sum())
+    return float(counts[-1]) / n, 1.0 - float(counts[-2:].sum()) / n
+
+
 def flat_share(patch: np.ndarray, s8: float) -> float:
     """The share of ``patch``'s pixels (raw grey levels, 2-D; ``s8`` their scale to 0-255) at its commonest
     8-bit level (NaN for an empty patch).
@@ -200,20 +207,13 @@ def flat_share(patch: np.ndarray, s8: float) -> float:
     OpenCV's board photographs, 0.1-0.8 on rendered doors with 0.5-3 grey of read noise and JPEG); a clip
     stores one level, and JPEG decodes a block of one level to that level (OpenCV's overexposed squares:
     0.86-1.00 of a 7 x 7 box at one level, rendered doors clipped at 240 grey: 1.00)."""
-    if patch.size == 0:
-        return float("nan")
-    counts = _level_counts(patch, s8)
-    return float(counts.max()) / float(counts.sum())
+    return _top_shares(patch, s8)[0] if patch.size else float("nan")
 
 
 def beyond_two_share(patches: list[np.ndarray], s8: float) -> float:
     """The median over ``patches`` of the share of each one's pixels off its two commonest 8-bit levels
     (:attr:`SideNoise.beyond_two`, without the rest of :func:`side_noise`'s work); 0 without patches."""
-    shares = []
-    for p in patches:
-        if p.size:
-            counts = np.sort(_level_counts(p, s8))
-            shares.append(1.0 - float(counts[-2:].sum()) / float(counts.sum()))
+    shares = [_top_shares(p, s8)[1] for p in patches if p.size]
     return float(np.median(shares)) if shares else 0.0
 
 
@@ -227,9 +227,9 @@ def side_noise(patches: list[np.ndarray], s8: float) -> SideNoise | None:
         if p.shape[0] < 2 or p.shape[1] < 2:
             continue
         g = np.asarray(p, np.float64) * s8
-        counts = np.sort(_level_counts(p, s8))
-        shares.append(float(counts[-1]) / float(counts.sum()))
-        beyond.append(1.0 - float(counts[-2:].sum()) / float(counts.sum()))
+        flat, off_two = _top_shares(p, s8)
+        shares.append(flat)
+        beyond.append(off_two)
         rows, cols = np.mgrid[0 : g.shape[0], 0 : g.shape[1]]
         A = np.stack([np.ones(g.size), rows.ravel(), cols.ravel()], 1)
         coef, *_ = np.linalg.lstsq(A, g.ravel(), rcond=None)
