@@ -1,15 +1,16 @@
 #!/usr/bin/env python
 """Doors through a camera that saturates below white: refused, or answered within their sigmas?
 
-A sensor or tone curve may store every light beyond some level under 255 at that level (OpenCV's public board
-photographs pile their overexposed squares at 245-250 grey, Bouguet's at 240). A hinge face so clipped is flat
-there, under the 249 that locate's white check reads, and its edges are drawn towards the dark side. This bench
-renders the scenes of ``bench_camera_doors.py`` (the hard sets' light, grain and chamfers; blur 0.6-1.8 px, read
-noise 0.5-3 grey, JPEG 88 / 95 or none) through a power-law camera (``--gamma``, stated in the cell) that clips
-at ``--clip`` of full scale, with the scene's bright end exposed to ``--over`` (overexposed) and to ``--under``
-(below the clip: 0.85 of full scale in light is 0.93 in grey through 2.2) times what stores full scale, and locates each door twice: with locate's clip check
-(``locate.clipped_flat_share``, the default) and without it (above 1: off). Per column: answered, refusals by
-code, RMS and max error of x and z, the share within 2 claimed sigma and the largest |error| / sigma.
+A sensor or tone curve may store every light beyond some level under 255 at that level (OpenCV's public
+board photographs pile their overexposed squares at 245-250 grey, Bouguet's at 240). A hinge face so clipped
+is flat there, under the 249 that locate's white check reads, and its edges are drawn towards the dark side.
+This bench renders the scenes of ``bench_camera_doors.py`` (the hard sets' light, grain and chamfers; blur
+0.6-1.8 px, read noise 0.5-3 grey, JPEG 88 / 95 or none) through a power-law camera (``--gamma``, stated in
+the cell) that clips at ``--clip`` of full scale, with the scene's bright end exposed to ``--over``
+(overexposed) and to ``--under`` (below the clip: 0.85 of full scale in light is 0.93 in grey through 2.2)
+times what stores full scale, and locates each door twice: with locate's clip check
+(``locate.clipped_flat_share``, the default) and without it (above 1: off). Per column: answered, refusals
+by code, RMS and max error of x and z, the share within 2 claimed sigma and the largest |error| / sigma.
 
     OMP_NUM_THREADS=1 PYTHONPATH=src python bench/bench_clipped_camera.py [--n 24] [--seed 4100]
         [--clip 0.941] [--gamma 2.2] [--over 1.0 1.6] [--under 0.5 0.85]
