@@ -1,7 +1,7 @@
 """A camera that saturates below the top code: a sensor or tone curve that stores every light beyond 240 grey at
 240 leaves an overexposed hinge face flat there, under the 249 the white check reads, and its edges lie towards
 the dark side. Locate refuses it ``overexposed`` by the sensor's noise, which the clip takes from the bright side
-and leaves on the dark one."""
+and leaves on the dark one; a chamfer's strip lit brighter than the face is read alike, inside its borders."""
 
 from __future__ import annotations
 
@@ -126,3 +126,46 @@ def test_a_face_clipped_below_white_is_refused_and_one_exposed_right_is_answered
 def test_the_clip_check_is_a_validated_setting():
     with pytest.raises(ValueError, match="clipped_flat_share"):
         LocateConfig(clipped_flat_share=0.0)
+
+
+#: a camera of 1.8 whose sensor saturates at 230 of 255 grey
+CLIPS_AT_230 = PhotometricModel(gamma=1.8, clip_level=0.9)
+CELL_18 = dataclasses.replace(CELL, response_gamma=1.8, response_gamma_sigma=0.05)
+
+
+@pytest.mark.parametrize("seed,pose", [(5, (-2.0, -1.5, 0.7)), (6, (6.0, 4.0, -1.2))])
+def test_a_chamfer_strip_clipped_below_white_is_refused_where_the_face_is_not(seed, pose):
+    """A chamfer lit brighter than the face (the renderer's chamfer albedo 0.66 against a face of 0.31)
+    clips at 230 while the face below it keeps its noise: no patch beside the edges reaches the strip, and
+    its white check counts the top code, which this camera never stores."""
+    door, truth = DoorSize(900, 40.0, 2100, 2.0, "chamfer"), DoorPose(*pose)
+    radiance = render_door(
+        CELL_18, door, truth, effects=Effects(albedo_hinge=0.31, albedo_background=0.13), seed=seed
+    ).radiance
+
+    def photograph(exposure: float) -> np.ndarray:
+        scale = exposure / float(np.percentile(radiance, 99.5))  # the strips' light
+        return apply_camera(
+            radiance, CLIPS_AT_230, CameraRendering(blur_px=1.5, exposure=scale, read_noise=2.5), seed
+        )
+
+    over = photograph(1.5)
+    assert (
+        0 < np.mean(over == 230) < 0.02
+    )  # the strips clip (a clipped face would hold far more of the frame)
+    r = locate(over, CELL_18, door)
+    assert not r.ok and r.error_code == "overexposed" and "arris strip" in r.error and "230" in r.error, (
+        r.error
+    )
+    # why: with the check off the same photograph is answered a quarter of a millimetre off, near 6 sigma
+    off = locate(over, CELL_18, door, config=dataclasses.replace(CELL_18.locate, clipped_flat_share=1.01))
+    assert off.ok, off.error
+    assert abs(off.x_mm - truth.x_mm) > 2 * off.uncertainty.x_mm
+    # the strips under the clip (0.75 of the light that stores 230: 217 grey): not refused as clipped, and
+    # answered within 2 sigma where the cell lets a pose uncertain to 0.12 mm pass
+    right = locate(
+        photograph(0.75), CELL_18, door, config=dataclasses.replace(CELL_18.locate, max_uncertainty_mm=0.2)
+    )
+    assert right.ok, right.error
+    assert abs(right.x_mm - truth.x_mm) <= 2 * right.uncertainty.x_mm
+    assert abs(right.z_mm - truth.z_mm) <= 2 * right.uncertainty.z_mm

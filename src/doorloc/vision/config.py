@@ -132,11 +132,11 @@ class LocateConfig:
         beside its border (a highlight on the arris the sensor cut off: its shading cannot be read).
     clipped_flat_share : float
         Refuse ``overexposed`` where the flat patches beside the door's edges hold at least this share of
-        their pixels at one grey level on the bright side, at the brightest level the edges see, where the
-        dark side's noise, carried through the camera's response, would leave clearly fewer there: the
-        sensor's noise gone from the bright side, as a sensor or tone curve that saturates below the top
-        code leaves it (a camera clipping at 240 grey: 0.07-0.28 mm off at 2-13 sigma where not refused;
-        :func:`doorloc.vision.quality.check_clipped_flat`).
+        their pixels at one grey level on the bright side (or a chamfer strip's inside does), at the
+        brightest level the edges see, where the dark side's noise, carried through the camera's response,
+        would leave clearly fewer there: the sensor's noise gone from the bright side, as a sensor or tone
+        curve that saturates below the top code leaves it (a camera clipping at 240 grey: 0.07-0.28 mm off
+        at 2-13 sigma where not refused; :func:`doorloc.vision.quality.check_clipped_flat`).
         Above 1: off.
     min_noise_scale_ratio : float
         Refuse ``sharpened`` when flat patches beside the door's edges hold less noise between 4-px blocks

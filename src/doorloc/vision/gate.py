@@ -78,7 +78,7 @@ def gate_and_answer(
     diagnostics = _fit_diagnostics(r, region, door, figures)
     lines, refusals = _line_checks(r, region, model, cfg)
     refusals += _corner_support(r, region, cfg, diagnostics)
-    refusals += _exposure_checks(plane, s8, r, cfg, _steepest_response(check), diagnostics)
+    refusals += _exposure_checks(plane, s8, check, region, cfg, diagnostics)
     refusals.append(
         q.check_envelope(
             pose.x_mm, pose.z_mm, pose.yaw_deg, cell.envelope, cfg.envelope_margin_mm, cfg.envelope_margin_deg
@@ -196,17 +196,18 @@ def _other_reading_seen(
 
 
 def _exposure_checks(
-    plane, s8: float, r: Refined, cfg: LocateConfig, gamma: float, diagnostics: dict
+    plane, s8: float, check: ResponseCheck, region: SearchRegion, cfg: LocateConfig, diagnostics: dict
 ) -> list:
     """What the camera made of the door's light: the hinge face or an arris strip clipped at white, the door's
-    bright side clipped below white (:func:`doorloc.vision.quality.check_clipped_flat`, through the camera
-    exponent ``gamma`` the answer rests on), and a camera that sharpens its images (:func:`_sharpened`)."""
+    bright side or a flat arris strip clipped below white (:func:`_clipped_flat`), and a camera that
+    sharpens its images (:func:`_sharpened`)."""
+    r = check.refined
     bright = np.concatenate([r.samples[k].bright[r.fit.weights[k] > 0] for k in EDGE_NAMES])
     sides = _side_patches(plane, r) if cfg.min_noise_scale_ratio > 0 or cfg.clipped_flat_share <= 1 else None
     return [
         q.check_overexposed(bright),
         _arris_clipped(r, cfg),
-        _clipped_flat(sides, s8, cfg, gamma, bright),
+        _clipped_flat(sides, _strip_interiors(plane, r, region, cfg), s8, cfg, check, bright),
         _sharpened(sides, s8, cfg, diagnostics),
     ]
 
@@ -223,31 +224,76 @@ def _steepest_response(check: ResponseCheck) -> float:
 
 def _clipped_flat(
     sides: dict[bool, dict[str, np.ndarray]] | None,
+    strips: dict[str, np.ndarray],
     s8: float,
     cfg: LocateConfig,
-    gamma: float,
+    check: ResponseCheck,
     bright: np.ndarray,
 ) -> q.Refusal | None:
-    """The clip check (``locate.clipped_flat_share``; above 1: off): each line's bright-side patch against
-    the dark side's noise (pooled over the lines: the same sensor) and the brightest of the edges' bright
-    plateaus ``bright`` (0-255; their 99th percentile), the first line that fails named. The noise is read
-    only beside a patch flat enough to be a clip (most images have none)."""
+    """The clip check (``locate.clipped_flat_share``; above 1: off,
+    :func:`doorloc.vision.quality.check_clipped_flat`): each line's bright-side patch, and each flat arris
+    strip's inside (:func:`_strip_interiors`), against the dark side's noise (pooled over the lines: the
+    same sensor) carried through the steepest camera exponent the answer allows (:func:`_steepest_response`),
+    and the brightest of the edges' bright plateaus ``bright`` (their 99th percentile; linear light on the
+    0-255 scale, as the edges measure it, taken back to grey levels through the exponent they were measured
+    with); the first that fails named. The noise is read only beside a patch flat enough to be a clip (most
+    images have none)."""
     if sides is None or cfg.clipped_flat_share > 1:
         return None
-    flat = [k for k, p in sides[True].items() if q.flat_share(p, s8) >= cfg.clipped_flat_share]
+    patches = [(f"the bright side of the {HUMAN[k]}", p) for k, p in sides[True].items()]
+    patches += [(f"the arris strip along the {HUMAN[k]}", p) for k, p in strips.items()]
+    flat = [(what, p) for what, p in patches if q.flat_share(p, s8) >= cfg.clipped_flat_share]
     if not flat:
         return None
     # a dark side whose noise the grey levels do not resolve (a noise-free render's) settles it cheaply
     if q.beyond_two_share(list(sides[False].values()), s8) < q.CLIP_DARK_BEYOND_TWO:
         return None
     dark = q.side_noise(list(sides[False].values()), s8)
-    top_grey = float(np.percentile(bright, 99)) if bright.size else math.inf
-    for k in flat:
-        bright_side = q.side_noise([sides[True][k]], s8)
-        refusal = q.check_clipped_flat(bright_side, dark, gamma, cfg.clipped_flat_share, top_grey, HUMAN[k])
+    # the edges' plateaus are linear light: the brightest, back on the grey scale of the patches
+    used = check.cell.response_gamma
+    top_grey = 255.0 * (float(np.percentile(bright, 99)) / 255.0) ** (1.0 / used) if bright.size else math.inf
+    gamma = _steepest_response(check)
+    for what, p in flat:
+        refusal = q.check_clipped_flat(
+            q.side_noise([p], s8), dark, gamma, cfg.clipped_flat_share, top_grey, what
+        )
         if refusal is not None:
             return refusal
     return None
+
+
+#: an arris strip's inside read by the clip check (:func:`_strip_interiors`): its least width, px, and how
+#: far from either border (in blur sigmas, beyond half a pixel) it starts
+STRIP_INTERIOR_MIN_PX = 2
+STRIP_INTERIOR_BLURS = 2.0
+
+
+def _strip_interiors(plane, r: Refined, region: SearchRegion, cfg: LocateConfig) -> dict[str, np.ndarray]:
+    """The raw grey levels inside each arris strip, per line (N scan lines, T pixels across): the pixels
+    :data:`STRIP_INTERIOR_BLURS` blur sigmas (and half a pixel) inside both of its borders, where a chamfer's
+    flat face shows its own level; none where fewer than :data:`STRIP_INTERIOR_MIN_PX` are (a small
+    arris: the clip check reads it through the face's side)."""
+    out: dict[str, np.ndarray] = {}
+    if cfg.clipped_flat_share > 1:
+        return out
+    for k, (strip, band_px) in r.arris_fits.items():
+        margin = STRIP_INTERIOR_BLURS * strip.blur_px + 0.5
+        depth = np.arange(math.ceil(margin), math.floor(float(band_px) - margin) + 1)
+        s = r.samples[k]
+        ok = (r.fit.weights[k] > 0) & np.isfinite(s.along)
+        if depth.size < STRIP_INTERIOR_MIN_PX or not ok.any():
+            continue
+        side = region.layouts[k].polarity * (
+            1 if cfg.door_brighter else -1
+        )  # the door's side along ``along``
+        P = oriented(plane, s.axis)
+        order = np.argsort(s.scan[ok])
+        rows = np.rint(s.along[ok][order, None] + side * depth[None]).astype(int)
+        cols = np.broadcast_to(s.scan[ok][order, None].astype(int), rows.shape)
+        inside = ((rows >= 0) & (rows < P.shape[0]) & (cols >= 0) & (cols < P.shape[1])).all(axis=1)
+        if inside.sum() >= 8:
+            out[k] = P[rows[inside], cols[inside]]
+    return out
 
 
 def _sharpened(

@@ -251,7 +251,7 @@ def check_clipped_flat(
     gamma: float,
     limit: float,
     top_grey: float,
-    where: str = "door's edges",
+    what: str = "the bright side of the door's edges",
 ) -> Refusal | None:
     """The bright side of the door's edges clipped below the top code: its patches beside the edges flat
     (``bright.flat_share`` at least ``limit``) where the dark side's noise, carried to the bright side's
@@ -264,8 +264,8 @@ def check_clipped_flat(
     as white, and such a face's edges lie towards the dark side (rendered doors clipped at 240 grey:
     0.07-0.28 mm off at 2-13 sigma). A noise-free render, or a camera too quiet for its noise to show on
     the grey scale (a dark side spread over fewer than :data:`CLIP_DARK_BEYOND_TWO` beyond two levels, or
-    whose noise reaches the bright side under :data:`CLIP_NOISE_MIN_GREY`), is not refused. ``where``: the
-    edge the bright side is read beside, in the sentence."""
+    whose noise reaches the bright side under :data:`CLIP_NOISE_MIN_GREY`), is not refused. ``what``: the
+    surface ``bright`` was read on, in the sentence (a flat arris strip is read alike)."""
     if bright is None or dark is None or dark.level < 5.0 or not bright.flat_share >= limit:
         return None
     if not dark.beyond_two >= CLIP_DARK_BEYOND_TWO:
@@ -282,8 +282,8 @@ def check_clipped_flat(
         return None
     return Refusal(
         "overexposed",
-        f"the bright side of the {where} is clipped at {bright.level:.0f} grey ({100 * bright.flat_share:.0f} % "
-        f"of its pixels beside the edge sit at one level, where the dark side's noise would leave "
+        f"{what} is clipped at {bright.level:.0f} grey ({100 * bright.flat_share:.0f} % "
+        f"of its pixels sit at one level, where the dark side's noise would leave "
         f"{100 * expected:.0f} %), which biases the edges; reduce the exposure time or the lighting",
     )
 
