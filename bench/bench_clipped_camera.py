@@ -8,9 +8,11 @@ This bench renders the scenes of ``bench_camera_doors.py`` (the hard sets' light
 0.6-1.8 px, read noise 0.5-3 grey, JPEG 88 / 95 or none) through a power-law camera (``--gamma``, stated in
 the cell) that clips at ``--clip`` of full scale, with the scene's bright end exposed to ``--over``
 (overexposed) and to ``--under`` (below the clip: 0.85 of full scale in light is 0.93 in grey through 2.2)
-times what stores full scale, and locates each door twice: with locate's clip check
-(``locate.clipped_flat_share``, the default) and without it (above 1: off). Per column: answered, refusals
-by code, RMS and max error of x and z, the share within 2 claimed sigma and the largest |error| / sigma.
+times what stores full scale, and locates each door three times: with locate's clip check
+(``locate.clipped_flat_share``, the default), without it (above 1: off), and with the cell told the
+camera's clip (``told``: its camera model's ``clip_level``, as ``doorloc check-model --boards`` writes it
+where the board photographs show a clip). Per column: answered, refusals by code, RMS and max error of x
+and z, the share within 2 claimed sigma and the largest |error| / sigma.
 
     OMP_NUM_THREADS=1 PYTHONPATH=src python bench/bench_clipped_camera.py [--n 24] [--seed 4100]
         [--clip 0.941] [--gamma 2.2] [--over 1.0 1.6] [--under 0.5 0.85]
@@ -66,6 +68,7 @@ def main() -> None:
         print(f"exposure {lo:g}-{hi:g} of full scale ({label})")
         show("checked", run_column(cell, camera, a.gamma, shot))
         show("unchecked", run_column(unchecked, camera, a.gamma, shot))
+        show("told", run_column(cell, camera, a.gamma, shot, told=True))
 
 
 if __name__ == "__main__":

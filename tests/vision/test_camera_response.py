@@ -68,6 +68,22 @@ def test_a_camera_the_power_law_describes_is_not_remapped():
 
 
 @pytest.mark.parametrize("dtype,top", [(np.uint8, 255), (np.uint16, 65535)])
+def test_a_camera_that_clips_below_full_scale_says_at_which_level_of_the_plane(dtype, top):
+    """A model's ``clip_level`` is the level the plane holds clipped light at (0-255 scale): the camera's
+    own where its levels are kept, their image through the table where they are mapped; none without a
+    clip."""
+    img = np.linspace(0, top, 64 * 48).astype(dtype).reshape(48, 64)
+    lum = luminance_plane(img)
+    assert camera_levels(lum, PhotometricModel(gamma=2.2), 2.2).clip_grey is None
+    kept = camera_levels(lum, PhotometricModel(gamma=2.2, clip_level=240 / 255), 2.2)
+    assert kept.plane is lum.plane and kept.clip_grey == pytest.approx(240.0, abs=0.01)
+    clipping_shoulder = dataclasses.replace(SHOULDER, clip_level=240 / 255)
+    mapped = camera_levels(lum, clipping_shoulder, 1.5)
+    code = round(240 / 255 * top)
+    assert mapped.clip_grey == pytest.approx(float(SHOULDER.power_law_levels(1.5, top)[code]) * 255 / 65535)
+
+
+@pytest.mark.parametrize("dtype,top", [(np.uint8, 255), (np.uint16, 65535)])
 def test_an_image_is_mapped_through_the_table_at_either_depth(dtype, top):
     """8- and 16-bit images go through the same table (its 8-bit path is OpenCV's LUT) into 16-bit levels."""
     img = np.linspace(0, top, 64 * 48).astype(dtype).reshape(48, 64)
@@ -78,14 +94,15 @@ def test_an_image_is_mapped_through_the_table_at_either_depth(dtype, top):
 
 def test_a_cell_takes_the_response_its_calibration_carries_and_keeps_it_when_saved(tmp_path):
     """`doorloc check-model --boards` writes the camera's photometric model into its calibration file: a cell
-    on that file carries it where it says what locate uses (a response beyond a power law, edges moved by
-    the point spread), and a cell saved with its camera inline keeps it (``camera.photometric_model``); a
+    on that file carries it where it says what locate uses (a response beyond a power law, a clip below full
+    scale, edges moved by the point spread), and a cell saved with its camera inline keeps it (``camera.photometric_model``); a
     model that is a power law alone (the print's spread is the board's, not the camera's) leaves the cell's
     ``response_gamma`` the whole response."""
     ext = "  extrinsics: {rvec: [1.5707963268, 0, 0], tvec_mm: [-30, 40, 350]}\n"
     for name, model, carried in (
         ("shoulder", PhotometricModel(gamma=1.1, shoulder=0.6, psf_tail=0.05), True),
         ("shift", PhotometricModel(gamma=2.2, edge_shift_v_px=-0.19), True),
+        ("clip", PhotometricModel(gamma=2.2, clip_level=0.94), True),
         ("power", PhotometricModel(gamma=2.2, print_spread_mm=0.1), False),
     ):
         save_calibration(
@@ -170,7 +187,8 @@ def test_what_the_cameras_optics_may_move_is_in_every_answers_doubt():
     """The model's measured error on the camera's real edges (``residual_edge_px``: `check-model --boards`'s
     held-out RMS of the photographs' median edge offset) is a term of its own in the uncertainty budget
     (``camera``): that many pixels on every edge, at the door's scale. A camera nobody measured carries the
-    cell's ``locate.optics_edge_sigma_px`` (0.1 px) instead (``optics``): measuring it with a residual under
+    cell's ``locate.optics_edge_sigma_px`` (0.1 px) instead (``optics``; so does a camera model without a
+    residual, one that states only a clip): measuring it with a residual under
     that narrows the answer's sigma; a camera known exactly (0) carries neither. The answer is the same."""
     door, truth = DoorSize(900, 50.0, 2100), DoorPose(2.0, 1.0, 0.5)
     img = render_door(CELL, door, truth, effects=Effects(blur_sigma_px=1.0, read_noise_dn=1.0), seed=4).image
@@ -179,8 +197,10 @@ def test_what_the_cameras_optics_may_move_is_in_every_answers_doubt():
     )
     plain = locate(img, CELL, door)
     exact = locate(img, CELL, door, config=dataclasses.replace(CELL.locate, optics_edge_sigma_px=0.0))
-    assert measured.ok and plain.ok and exact.ok
-    for r, source, px in ((measured, "camera", 0.05), (plain, "optics", 0.1)):
+    # a model that measured no edges (it states a clip above this door's light) leaves the optics unmeasured
+    clip = locate(img, dataclasses.replace(CELL, camera_photometry=PhotometricModel(clip_level=0.99)), door)
+    assert measured.ok and plain.ok and exact.ok and clip.ok
+    for r, source, px in ((measured, "camera", 0.05), (plain, "optics", 0.1), (clip, "optics", 0.1)):
         terms = {t["source"]: t for t in r.diagnostics["uncertainty_budget"]}
         assert {"camera", "optics"} & set(terms) == {source}
         assert terms[source]["x_mm"] == pytest.approx(px * r.scale_mm_per_px, rel=0.05)

@@ -154,9 +154,11 @@ def test_a_chamfer_strip_clipped_below_white_is_refused_where_the_face_is_not(se
         0 < np.mean(over == 230) < 0.02
     )  # the strips clip (a clipped face would hold far more of the frame)
     r = locate(over, CELL_18, door)
-    assert not r.ok and r.error_code == "overexposed" and "arris strip" in r.error and "230" in r.error, (
-        r.error
-    )
+    assert not r.ok and r.error_code == "overexposed", r.error
+    assert "arris strip" in r.error and "clipped at 230" in r.error, r.error
+    # a cell told the camera's clip reads the strips at it
+    told = locate(over, dataclasses.replace(CELL_18, camera_photometry=CLIPS_AT_230), door)
+    assert not told.ok and "arris strip" in told.error and "the camera's clip (230 grey)" in told.error
     # why: with the check off the same photograph is answered a quarter of a millimetre off, near 6 sigma
     off = locate(over, CELL_18, door, config=dataclasses.replace(CELL_18.locate, clipped_flat_share=1.01))
     assert off.ok, off.error
@@ -169,3 +171,33 @@ def test_a_chamfer_strip_clipped_below_white_is_refused_where_the_face_is_not(se
     assert right.ok, right.error
     assert abs(right.x_mm - truth.x_mm) <= 2 * right.uncertainty.x_mm
     assert abs(right.z_mm - truth.z_mm) <= 2 * right.uncertainty.z_mm
+
+
+@pytest.mark.parametrize("seed,pose", [(3, (-4.0, 6.0, 1.1)), (4, (7.5, -3.0, -1.6))])
+def test_a_clip_the_cells_camera_model_states_is_read_where_the_image_shows_no_noise(seed, pose):
+    """JPEG 88 over half a grey level of read noise leaves neither side of the edges any noise: a face flat at
+    the clip cannot be told from a clean one, and is answered off by several sigma. A cell whose camera model
+    states the clip (``clip_level``, as ``doorloc check-model --boards`` writes it) refuses it; below the
+    clip its answer is the plain cell's."""
+    door, truth = DoorSize(900, 50.0, 2100), DoorPose(*pose)
+    radiance = render_door(
+        CELL, door, truth, effects=Effects(albedo_hinge=0.5, albedo_background=0.12), seed=seed
+    ).radiance
+    told = dataclasses.replace(CELL, camera_photometry=CLIPS_AT_240)
+
+    def photograph(exposure: float) -> np.ndarray:
+        scale = exposure / float(np.percentile(radiance, 99.5))
+        rendering = CameraRendering(blur_px=1.0, exposure=scale, read_noise=0.5, jpeg_quality=88)
+        return apply_camera(radiance, CLIPS_AT_240, rendering, seed)
+
+    over = photograph(1.4)
+    plain = locate(over, CELL, door)
+    assert plain.ok, plain.error
+    assert abs(plain.x_mm - truth.x_mm) > 2 * plain.uncertainty.x_mm
+    r = locate(over, told, door)
+    assert not r.ok and r.error_code == "overexposed" and "camera's clip (240 grey" in r.error, r.error
+    under = photograph(0.85)
+    a, b = locate(under, CELL, door), locate(under, told, door)
+    assert a.ok and b.ok, (a.error, b.error)
+    assert (a.x_mm, a.z_mm, a.yaw_deg, a.uncertainty) == (b.x_mm, b.z_mm, b.yaw_deg, b.uncertainty)
+    assert abs(b.x_mm - truth.x_mm) <= 2 * b.uncertainty.x_mm

@@ -280,12 +280,12 @@ class PhotometricModel:
 
     @property
     def used_by_locate(self) -> bool:
-        """True where the model says something locate uses: a response beyond a power law, edges moved by the
-        point spread's asymmetry, or its measured error on real edges."""
-        return self.beyond_power_law or self.moves_edges or self.residual_edge_px > 0
+        """True where the model says something locate uses: a response beyond a power law, a clip below full
+        scale, edges moved by the point spread's asymmetry, or its measured error on real edges."""
+        return self.beyond_power_law or self.clips or self.moves_edges or self.residual_edge_px > 0
 
     def locate_parameters(self) -> dict[str, float]:
-        """What locate takes of the model (the response, the edges' shift and the residual on real edges), as
+        """What locate takes of the model (the response and its clip, the edges' shift and the residual on real edges), as
         files and results name them."""
         return {
             k: float(getattr(self, k))
@@ -296,6 +296,7 @@ class PhotometricModel:
                 "white_level",
                 "curvature",
                 *TONE_NAMES,
+                "clip_level",
                 "edge_shift_u_px",
                 "edge_shift_v_px",
                 "residual_edge_px",

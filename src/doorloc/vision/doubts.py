@@ -110,12 +110,11 @@ def edge_doubts(
 def _optics_doubts(cell: Cell, cfg: LocateConfig) -> list[LineDoubt]:
     """What the camera's optics may move every edge by beyond the edge model (px): one camera's error, the
     same way on every edge (its bright areas larger or smaller, its point spread off centre), so one
-    correlation group. Measured where the cell carries the camera's photometric model (its held-out
-    ``residual_edge_px``, the ``camera`` source), else the cell's ``optics_edge_sigma_px`` (``optics``)."""
-    pm = cell.camera_photometry
-    source, sigma = (
-        ("camera", pm.residual_edge_px) if pm is not None else ("optics", cfg.optics_edge_sigma_px)
-    )
+    correlation group. Measured where the cell carries the camera's photometric model with its held-out
+    ``residual_edge_px`` (the ``camera`` source), else the cell's ``optics_edge_sigma_px`` (``optics``; a
+    model that states only a clip, or a response, has measured no edges)."""
+    measured = cell.camera_photometry.residual_edge_px if cell.camera_photometry is not None else 0.0
+    source, sigma = ("camera", measured) if measured > 0 else ("optics", cfg.optics_edge_sigma_px)
     if not sigma > 0:
         return []
     return [LineDoubt(source, k, sigma, group="camera_model") for k in EDGE_NAMES]

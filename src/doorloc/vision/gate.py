@@ -23,6 +23,7 @@ from doorloc.vision.bottom_end import DoorInView, settled_by_bottom_end
 from doorloc.vision.config import LocateConfig
 from doorloc.vision.edge_samples import EdgeSamples
 from doorloc.vision.lines import RectangleFit
+from doorloc.vision.luminance import LuminancePlane
 from doorloc.vision.region import EDGE_NAMES, HUMAN, SearchRegion
 from doorloc.vision.response import ResponseFit
 from doorloc.vision.result import LineQuality, LocateResult, PoseUncertainty
@@ -62,23 +63,24 @@ def gate_and_answer(
     region: SearchRegion,
     check: ResponseCheck,
     doubts: EdgeDoubts,
-    plane,
-    s8: float,
+    lum: LuminancePlane,
 ) -> LocateResult:
     """The gate: the answer, or the refusal with its reason, from the refined edges, the response check and
-    the lines' doubts. (It reads pixels only to tell a pattern from a door, and a far face's readings apart.)
+    the lines' doubts. (It reads pixels only to tell a pattern from a door, a far face's readings apart, and
+    what the camera made of the door's light.)
 
     The checks in the order they are weighed (the first that refuses is the answer's reason, unless a pose
     outside the envelope or a pattern in view explains it better, :func:`_first_refusal`): each line's
     support and straightness, the corner's support, overexposure and sharpening, the envelope, the
     thickness, the corner's and the pose's uncertainty."""
     r, cell = check.refined, check.cell
+    plane, s8 = lum.plane, lum.scale_to_8bit
     model, figures, disputed = doubts.model, doubts.figures, doubts.response_disputed
     fit, pose = r.fit, r.pose
     diagnostics = _fit_diagnostics(r, region, door, figures)
     lines, refusals = _line_checks(r, region, model, cfg)
     refusals += _corner_support(r, region, cfg, diagnostics)
-    refusals += _exposure_checks(plane, s8, check, region, cfg, diagnostics)
+    refusals += _exposure_checks(lum, check, region, cfg, diagnostics)
     refusals.append(
         q.check_envelope(
             pose.x_mm, pose.z_mm, pose.yaw_deg, cell.envelope, cfg.envelope_margin_mm, cfg.envelope_margin_deg
@@ -196,20 +198,60 @@ def _other_reading_seen(
 
 
 def _exposure_checks(
-    plane, s8: float, check: ResponseCheck, region: SearchRegion, cfg: LocateConfig, diagnostics: dict
+    lum: LuminancePlane, check: ResponseCheck, region: SearchRegion, cfg: LocateConfig, diagnostics: dict
 ) -> list:
-    """What the camera made of the door's light: the hinge face or an arris strip clipped at white, the door's
-    bright side or a flat arris strip clipped below white (:func:`_clipped_flat`), and a camera that
-    sharpens its images (:func:`_sharpened`)."""
-    r = check.refined
+    """What the camera made of the door's light: the hinge face or an arris strip clipped at white, or at the
+    clip the cell's camera model states (:func:`_at_camera_clip`), the door's bright side or a flat arris
+    strip clipped below white where the image shows it (:func:`_clipped_flat`), and a camera that sharpens
+    its images (:func:`_sharpened`)."""
+    r, plane, s8 = check.refined, lum.plane, lum.scale_to_8bit
     bright = np.concatenate([r.samples[k].bright[r.fit.weights[k] > 0] for k in EDGE_NAMES])
-    sides = _side_patches(plane, r) if cfg.min_noise_scale_ratio > 0 or cfg.clipped_flat_share <= 1 else None
+    read = cfg.min_noise_scale_ratio > 0 or cfg.clipped_flat_share <= 1 or lum.clip_grey is not None
+    sides = _side_patches(plane, r) if read else None
+    strips = _strip_interiors(plane, r, region, cfg.door_brighter) if cfg.clipped_flat_share <= 1 else {}
     return [
         q.check_overexposed(bright),
         _arris_clipped(r, cfg),
-        _clipped_flat(sides, _strip_interiors(plane, r, region, cfg), s8, cfg, check, bright),
+        _at_camera_clip(lum, sides, r, region, cfg),
+        _clipped_flat(sides, strips, s8, cfg, check, bright),
         _sharpened(sides, s8, cfg, diagnostics),
     ]
+
+
+def _at_camera_clip(
+    lum: LuminancePlane,
+    sides: dict[bool, dict[str, np.ndarray]] | None,
+    r: Refined,
+    region: SearchRegion,
+    cfg: LocateConfig,
+) -> q.Refusal | None:
+    """Where the cell's camera model states a clip below full scale (``clip_level``,
+    :attr:`doorloc.vision.luminance.LuminancePlane.clip_grey`): the door's bright side at it beside any line
+    (the median of its patch), or an arris strip (of 2 px or more) with two or more pixels at it on more of
+    its scan lines than ``locate.max_clipped_arris_fraction`` (the strips' white check, at the camera's
+    clip). Read from the stated clip, not from the image's noise, this holds where JPEG or a quiet sensor
+    leave no noise to tell a clip by (:func:`_clipped_flat`)."""
+    clip = lum.clip_grey
+    if clip is None or sides is None:
+        return None
+    s8 = lum.scale_to_8bit
+    at = clip - 0.5 * s8  # (a clip's code and every code above it)
+    for k, p in sides[True].items():
+        level = float(np.median(p)) * s8
+        if level >= at:
+            return q.Refusal(
+                "overexposed",
+                f"the bright side of the {HUMAN[k]} is at the camera's clip ({level:.0f} grey; the camera model "
+                f"stores every light beyond {clip:.0f} there), which biases the edges; reduce the exposure time "
+                "or the lighting",
+            )
+    strips = _strip_interiors(lum.plane, r, region, cfg.door_brighter, margin_blurs=0.0)
+    clipped = {
+        HUMAN[k]: float(np.mean(np.count_nonzero(p * s8 >= at, axis=1) >= 2)) for k, p in strips.items()
+    }
+    return q.check_arris_clipped(
+        clipped, cfg.max_clipped_arris_fraction, f"the camera's clip ({clip:.0f} grey)"
+    )
 
 
 def _steepest_response(check: ResponseCheck) -> float:
@@ -268,24 +310,23 @@ STRIP_INTERIOR_MIN_PX = 2
 STRIP_INTERIOR_BLURS = 2.0
 
 
-def _strip_interiors(plane, r: Refined, region: SearchRegion, cfg: LocateConfig) -> dict[str, np.ndarray]:
+def _strip_interiors(
+    plane, r: Refined, region: SearchRegion, door_brighter: bool, margin_blurs: float = STRIP_INTERIOR_BLURS
+) -> dict[str, np.ndarray]:
     """The raw grey levels inside each arris strip, per line (N scan lines, T pixels across): the pixels
-    :data:`STRIP_INTERIOR_BLURS` blur sigmas (and half a pixel) inside both of its borders, where a chamfer's
-    flat face shows its own level; none where fewer than :data:`STRIP_INTERIOR_MIN_PX` are (a small
-    arris: the clip check reads it through the face's side)."""
+    ``margin_blurs`` blur sigmas (and half a pixel) inside both of its borders, where a chamfer's flat face
+    shows its own level; none where fewer than :data:`STRIP_INTERIOR_MIN_PX` are (a small arris: the clip
+    check reads it through the face's side)."""
     out: dict[str, np.ndarray] = {}
-    if cfg.clipped_flat_share > 1:
-        return out
     for k, (strip, band_px) in r.arris_fits.items():
-        margin = STRIP_INTERIOR_BLURS * strip.blur_px + 0.5
+        margin = margin_blurs * strip.blur_px + 0.5
         depth = np.arange(math.ceil(margin), math.floor(float(band_px) - margin) + 1)
         s = r.samples[k]
         ok = (r.fit.weights[k] > 0) & np.isfinite(s.along)
         if depth.size < STRIP_INTERIOR_MIN_PX or not ok.any():
             continue
-        side = region.layouts[k].polarity * (
-            1 if cfg.door_brighter else -1
-        )  # the door's side along ``along``
+        # the door's side along ``along``
+        side = region.layouts[k].polarity * (1 if door_brighter else -1)
         P = oriented(plane, s.axis)
         order = np.argsort(s.scan[ok])
         rows = np.rint(s.along[ok][order, None] + side * depth[None]).astype(int)

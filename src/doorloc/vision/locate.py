@@ -276,7 +276,7 @@ def _locate(
     check = refined_and_checked(cfg)
     own = _door_light(cfg, check.refined)
     if own is None:
-        return _answer(name, door, cfg, region, check, plane, s8, clock, tr)
+        return _answer(name, door, cfg, region, check, lum, clock, tr)
     clock.lap("door_light")
     # Located again under the door's own light, as if the cell stated it. Where that answer is refused (a
     # light the strips tell wrong widens their doubt), the free shadings' outcome stands, their answer or
@@ -287,13 +287,13 @@ def _locate(
     tr.door_light, tr.door_light_used = own, True
     try:
         lit = refined_and_checked(lit_cfg)
-        res = _answer(name, door, lit_cfg, region, lit, plane, s8, clock, tr)
+        res = _answer(name, door, lit_cfg, region, lit, lum, clock, tr)
         if res.ok:
             return res
     except Refused:
         pass
     tr.door_light_used = False
-    return _answer(name, door, cfg, region, check, plane, s8, clock, tr)
+    return _answer(name, door, cfg, region, check, lum, clock, tr)
 
 
 def _trace_refined(tr: LocateTrace, refined: Refined) -> None:
@@ -310,18 +310,17 @@ def _answer(
     cfg: LocateConfig,
     region: SearchRegion,
     check: ResponseCheck,
-    plane: np.ndarray,
-    s8: float,
+    lum: LuminancePlane,
     clock: StageClock,
     tr: LocateTrace,
 ) -> LocateResult:
     """The doubts and the gate after the response check: the answer, or :class:`Refused`."""
     # why many parameters: the stages' values that the doubts and the gate read, passed as they are
-    doubts = edge_doubts(plane, s8, region, cfg, check)
+    doubts = edge_doubts(lum.plane, lum.scale_to_8bit, region, cfg, check)
     refined = voted_by_doubts(check.refined, region, doubts.model)
     _trace_refined(tr, refined)
     check = replace(check, refined=refined)
-    res = gate_and_answer(name, door, cfg, region, check, doubts, plane, s8)
+    res = gate_and_answer(name, door, cfg, region, check, doubts, lum)
     res.diagnostics["camera_response"] = check.diagnostics
     res.diagnostics["far_face_visible"] = refined.far_beside
     if refined.direction_votes:

@@ -134,18 +134,18 @@ def check_overexposed(bright_levels: np.ndarray) -> Refusal | None:
     return None
 
 
-def check_arris_clipped(clipped_share: dict[str, float], limit: float) -> Refusal | None:
-    """An arris strip whose highlight clips at white: ``clipped_share`` maps each strip's edge (its name in
-    the sentences) to the share of its scan lines with clipped pixels beside the border
-    (:attr:`doorloc.vision.arris_model.StripFit.clipped_share`). Its shading is cut off where the fit reads
-    the border's place, so the edge is biased by more than its doubt says (a 1.25 mm chamfer lit at a grazing
-    angle, its strips at 255 on a face of 230: z 0.20 mm off at 6 sigma)."""
+def check_arris_clipped(clipped_share: dict[str, float], limit: float, at: str = "white") -> Refusal | None:
+    """An arris strip whose highlight clips at white (or at ``at``, in the sentence): ``clipped_share`` maps
+    each strip's edge (its name in the sentences) to the share of its scan lines with clipped pixels beside
+    the border (:attr:`doorloc.vision.arris_model.StripFit.clipped_share`). Its shading is cut off where the
+    fit reads the border's place, so the edge is biased by more than its doubt says (a 1.25 mm chamfer lit at
+    a grazing angle, its strips at 255 on a face of 230: z 0.20 mm off at 6 sigma)."""
     worst = max(clipped_share, key=lambda k: clipped_share[k], default=None)
     if worst is None or not clipped_share[worst] > limit:
         return None
     return Refusal(
         "overexposed",
-        f"the arris strip along the {worst} clips at white on {100 * clipped_share[worst]:.0f} % of its scan "
+        f"the arris strip along the {worst} clips at {at} on {100 * clipped_share[worst]:.0f} % of its scan "
         "lines (its highlight is cut off), which biases the edge; reduce the exposure time or the lighting",
     )
 
