@@ -201,3 +201,19 @@ def test_a_clip_the_cells_camera_model_states_is_read_where_the_image_shows_no_n
     assert a.ok and b.ok, (a.error, b.error)
     assert (a.x_mm, a.z_mm, a.yaw_deg, a.uncertainty) == (b.x_mm, b.z_mm, b.yaw_deg, b.uncertainty)
     assert abs(b.x_mm - truth.x_mm) <= 2 * b.uncertainty.x_mm
+
+
+def test_a_frame_washed_out_to_a_stated_clip_is_refused_as_saturated():
+    """Door and background both beyond a clip at 240 store one level: without the clip stated the frame reads as
+    one without contrast (check the lighting), with it as saturated (reduce the exposure), as at 255."""
+    door = DoorSize(900, 50.0, 2100)
+    radiance = render_door(
+        CELL, door, DoorPose(1.0, 2.0, 0.3), effects=Effects(albedo_hinge=0.5, albedo_background=0.45), seed=3
+    ).radiance
+    scale = 1.4 / float(np.percentile(radiance, 99.5))
+    img = apply_camera(
+        radiance, CLIPS_AT_240, CameraRendering(blur_px=1.0, exposure=scale, read_noise=0.5), 3
+    )
+    assert locate(img, CELL, door).error_code == "low_contrast"
+    told = locate(img, dataclasses.replace(CELL, camera_photometry=CLIPS_AT_240), door)
+    assert told.error_code == "saturated_image", told.error

@@ -104,7 +104,7 @@ def find_coarse(
     """
     plane, s8 = lum.plane, lum.scale_to_8bit
     try:
-        edges = yield from _coarse_edges(plane, s8, region, door, cfg, bands)
+        edges = yield from _coarse_edges(lum, region, door, cfg, bands)
     except Refused as e:
         better = face_refusal(e.refusal.code, plane, s8, region, cell, cfg)
         if better is not None:
@@ -267,13 +267,14 @@ class CoarseEdges:
 
 
 def _coarse_edges(
-    plane, s8: float, region: SearchRegion, door: DoorSize, cfg: LocateConfig, bands: dict[str, Band]
+    lum: LuminancePlane, region: SearchRegion, door: DoorSize, cfg: LocateConfig, bands: dict[str, Band]
 ) -> Generator[StepQuery, tuple[np.ndarray, np.ndarray], CoarseEdges]:
     """Find the three edges to a pixel or two in the search region (strided step finder + RANSAC), each band
     given to ``bands`` as it is chosen.
 
     A coroutine: each step search is yielded as a :class:`StepQuery` (see
     :func:`doorloc.vision.locate.locate_steps`)."""
+    plane, s8 = lum.plane, lum.scale_to_8bit
     thr = cfg.min_contrast / s8
     # -- search region: coarse steps ------------------------------------------------------------
     ref_lay = region.layouts["reference"]
@@ -281,7 +282,9 @@ def _coarse_edges(
     bands["reference"] = band_ref
     P = oriented(plane, ref_lay.axis)
     sub = P[band_ref.lo.min() : band_ref.hi.max() + 1 : 3, band_ref.scan[::4]]
-    r = q.check_exposure(sub, cfg.min_contrast, cfg.max_saturated_fraction, s8)
+    # (white: the top levels, or the clip the cell's camera model states)
+    white = q.SATURATED_GREY if lum.clip_grey is None else min(q.SATURATED_GREY, lum.clip_grey - 0.5 * s8)
+    r = q.check_exposure(sub, cfg.min_contrast, cfg.max_saturated_fraction, s8, white)
     if r:
         raise Refused(r)
 

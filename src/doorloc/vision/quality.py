@@ -64,19 +64,29 @@ def check_image_size(size: tuple[int, int], calibrated: tuple[int, int]) -> Refu
     return None
 
 
+#: a level (0-255 scale) at or above which a pixel counts as saturated white (:func:`check_exposure`)
+SATURATED_GREY = 250.0
+
+
 def check_exposure(
-    levels: np.ndarray, min_contrast: float, max_saturated_fraction: float, scale_to_8bit: float = 1.0
+    levels: np.ndarray,
+    min_contrast: float,
+    max_saturated_fraction: float,
+    scale_to_8bit: float = 1.0,
+    white_grey: float = SATURATED_GREY,
 ) -> Refusal | None:
     """Black or saturated image, judged on grey levels sampled over the search region.
 
-    ``levels`` as stored; ``levels * scale_to_8bit`` (float32) is the 0-255 scale the thresholds use.
+    ``levels`` as stored; ``levels * scale_to_8bit`` (float32) is the 0-255 scale the thresholds use;
+    ``white_grey`` the level from which a pixel is saturated (lower for a camera that clips below full
+    scale).
     """
     if levels.dtype == np.uint8 and levels.size:
-        p1, p99, sat = _exposure_from_histogram(levels, scale_to_8bit)
+        p1, p99, sat = _exposure_from_histogram(levels, scale_to_8bit, white_grey)
     else:
         sample = levels.astype(np.float32) * scale_to_8bit
         p1, p99 = np.percentile(sample, [1, 99])
-        sat = float(np.mean(sample >= 250))
+        sat = float(np.mean(sample >= white_grey))
     if p99 < 25 and p99 - p1 < min_contrast:
         return Refusal(
             "black_image",
@@ -97,8 +107,10 @@ def check_exposure(
     return None
 
 
-def _exposure_from_histogram(levels: np.ndarray, scale_to_8bit: float) -> tuple[float, float, float]:
-    """The 1st and 99th percentiles and the saturated fraction (>= 250) of 8-bit ``levels`` times
+def _exposure_from_histogram(
+    levels: np.ndarray, scale_to_8bit: float, white_grey: float = SATURATED_GREY
+) -> tuple[float, float, float]:
+    """The 1st and 99th percentiles and the saturated fraction (>= ``white_grey``) of 8-bit ``levels`` times
     ``scale_to_8bit``: np.percentile's and np.mean's numbers, from the levels' histogram.
 
     (np.percentile partitions the sample in its generic machinery: ~0.1 ms of a 5 ms frame. A percentile is
@@ -119,7 +131,7 @@ def _exposure_from_histogram(levels: np.ndarray, scale_to_8bit: float) -> tuple[
         a, b = (value[int(np.searchsorted(rank_end, k, side="right"))] for k in (lo, hi))
         d = b - a  # float32, as numpy takes it
         out.append(float(b) - float(d) * (1.0 - t) if t >= 0.5 else float(a) + float(d) * t)
-    saturated = int(counts[value >= 250].sum()) / n
+    saturated = int(counts[value >= white_grey].sum()) / n
     return out[0], out[1], saturated
 
 
