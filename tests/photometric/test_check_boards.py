@@ -183,6 +183,10 @@ def test_report_says_to_use_the_extended_calibration_wherever_it_measured_someth
     assert "optics_edge_sigma_px" in action(measured)
     named = replace(measured, causes=["response_shoulder"])
     assert "camera_photometric.yaml" in action(named) and "0.021 px" in action(named)
+    assert "clip" not in action(named)
+    # a clip found: locate reads it (a door at it is refused even where the image shows no noise)
+    clipped = replace(named, causes=["sensor_clipping"], model=named.model.with_values(clip_level=240 / 255))
+    assert "at this camera's clip (240 grey)" in action(clipped) and "0.021 px" in action(clipped)
     nothing = replace(check, causes=[], model=check.model.with_values(residual_edge_px=0.0))
     assert action(nothing) == "**Action:** none."
 

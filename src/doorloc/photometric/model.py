@@ -285,8 +285,8 @@ class PhotometricModel:
         return self.beyond_power_law or self.clips or self.moves_edges or self.residual_edge_px > 0
 
     def locate_parameters(self) -> dict[str, float]:
-        """What locate takes of the model (the response and its clip, the edges' shift and the residual on real edges), as
-        files and results name them."""
+        """What locate takes of the model (the response and its clip, the edges' shift and the residual on real
+        edges), as files and results name them."""
         return {
             k: float(getattr(self, k))
             for k in (

@@ -93,10 +93,11 @@ def report_dict(check: BoardCheck) -> dict:
     }
 
 
-def _action(named: list[str], residual_edge_px: float) -> str:
+def _action(named: list[str], residual_edge_px: float, clip_level: float = 1.0) -> str:
     """The report's action: the extended calibration wherever the camera's is read, where it holds a cause
     or a measured residual (locate counts that residual on every edge in place of the doubt it grants a
-    camera whose optics nobody measured, ``locate.optics_edge_sigma_px``)."""
+    camera whose optics nobody measured, ``locate.optics_edge_sigma_px``, and refuses a door whose bright
+    side or arris strips sit at a clip below full scale, ``clip_level``)."""
     use = (
         f"use `{EXTENDED_CALIBRATION}` (this calibration with the photometric model added) wherever the "
         "camera's calibration is read"
@@ -105,6 +106,11 @@ def _action(named: list[str], residual_edge_px: float) -> str:
         f"locate then counts the {residual_edge_px:.3f} px these photographs' edges keep, held out, on every "
         "edge, in place of the doubt it grants a camera whose optics nobody measured (locate.optics_edge_sigma_px)"
     )
+    if named and clip_level < 1.0:
+        use += (
+            f"; locate then refuses a door whose bright side or arris strips sit at this camera's clip "
+            f"({255 * clip_level:.0f} grey), where an image alone may not show the clip"
+        )
     if named and residual_edge_px > 0:
         return f"{use}; {residual}."
     if named:
@@ -139,7 +145,7 @@ def report_markdown(check: BoardCheck) -> str:
                 "**Part of the error is unexplained** by the catalogue: the model is extended with what was "
                 "found, but edges on this camera keep a bias beyond noise; treat its edge positions with that doubt."
             )
-    lines += ["", "**Action:** " + _action(named, check.model.residual_edge_px), ""]
+    lines += ["", "**Action:** " + _action(named, check.model.residual_edge_px, check.model.clip_level), ""]
     for c in named:
         cause = CAUSES_BY_NAME.get(c)
         ps = ", ".join(
