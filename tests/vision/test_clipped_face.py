@@ -150,9 +150,8 @@ def test_a_chamfer_strip_clipped_below_white_is_refused_where_the_face_is_not(se
         )
 
     over = photograph(1.5)
-    assert (
-        0 < np.mean(over == 230) < 0.02
-    )  # the strips clip (a clipped face would hold far more of the frame)
+    # the strips clip, not the face (a clipped face would hold far more of the frame)
+    assert 0 < np.mean(over == 230) < 0.02
     r = locate(over, CELL_18, door)
     assert not r.ok and r.error_code == "overexposed", r.error
     assert "arris strip" in r.error and "clipped at 230" in r.error, r.error
