@@ -290,7 +290,7 @@ def _coarse_edges(
 
     # The reference arris is the first step into the door coming from -X (a visible far face can make
     # a stronger step of the same polarity further on).
-    xdir = ref_lay.polarity * (1 if cfg.door_brighter else -1)  # along-direction of door +X
+    xdir = ref_lay.door_side(cfg.door_brighter)  # along-direction of door +X
     sc = region.nominal_scale
     strip_half = _strip_half(door, sc) if door.arris_mm > 0 else None
     search = _Search(plane, s8, region, door, cfg, thr, xdir, sc, strip_half)

@@ -62,7 +62,7 @@ def edge_doubts(
     strips = {
         k: (
             int(math.ceil(band_px + 3.0 * strip.blur_px)),
-            region.layouts[k].polarity * (1 if cfg.door_brighter else -1),
+            region.layouts[k].door_side(cfg.door_brighter),
         )
         for k, (strip, band_px) in r.arris_fits.items()
     }

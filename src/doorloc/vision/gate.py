@@ -325,8 +325,7 @@ def _strip_interiors(
         ok = (r.fit.weights[k] > 0) & np.isfinite(s.along)
         if depth.size < STRIP_INTERIOR_MIN_PX or not ok.any():
             continue
-        # the door's side along ``along``
-        side = region.layouts[k].polarity * (1 if door_brighter else -1)
+        side = region.layouts[k].door_side(door_brighter)
         P = oriented(plane, s.axis)
         order = np.argsort(s.scan[ok])
         rows = np.rint(s.along[ok][order, None] + side * depth[None]).astype(int)

@@ -188,7 +188,7 @@ def _sample(
             scale8,
             lut,
             level_smooth=max(cfg.level_smooth // every, 1) if cfg.level_smooth else 0,
-            door_side=lay.polarity * (1 if cfg.door_brighter else -1),
+            door_side=lay.door_side(cfg.door_brighter),
         )
         reading = EDGE_MODELS[edge_kind(name, t, settings)].read(window, name, t, settings)
         out[name] = reading.samples
@@ -570,7 +570,7 @@ def _first_pass_widths(
             half,
             lut,
             quiet_side=(
-                -region.layouts[k].polarity * (1 if cfg.door_brighter else -1)
+                -region.layouts[k].door_side(cfg.door_brighter)
                 if k == "reference" and not region.door.arris_mm > 0
                 else 0
             ),

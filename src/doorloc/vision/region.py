@@ -53,6 +53,11 @@ class EdgeLayout:
     polarity: int
     along_x: bool
 
+    def door_side(self, door_brighter: bool) -> int:
+        """+1 where the door lies at increasing ``along`` (the grey level rises into it when it is the
+        brighter side, ``locate.door_brighter``), else -1."""
+        return self.polarity * (1 if door_brighter else -1)
+
 
 @dataclass(frozen=True)
 class Band:
