@@ -47,6 +47,7 @@ thickness 0.09), the worst 0.30; ``within``, the worst 1.27; ``bound``, 90 % wit
         [--response-factor F]   (a cell whose camera response was measured, e.g. 1.11)
         [--cell-gamma-off within|bound]   (the cell told a wrong exponent: the camera's times the cell's
                                            factor to a power drawn from -1..1 (within), or at +-1 (bound))
+        [--off-factor F]   (with --cell-gamma-off: the exponent off by F, not by the cell's factor)
         [--open-limits]   (the cell's limits on the uncertainty opened and the thickness reported: the errors
                            and sigmas of every door, those the cell would refuse counted apart)
         [--light-told]    (the cell states its light's direction, locate.light_direction_deg, as measured
@@ -63,11 +64,23 @@ thickness 0.09), the worst 0.30; ``within``, the worst 1.27; ``bound``, 90 % wit
         [--wrong-thickness MM]   (wrong doors: each door rendered MM thicker than its recipe, negative
                                   thinner, and located with the recipe; every answer is a wrong door passed,
                                   and the refusals say how the thickness check caught the others)
+        [--response-ends]   (each answered door located again with the cell's exponent at the two ends of
+                             its response_unmeasured_factor: the answer's real move there beside its
+                             ``response`` doubt; with --open-limits, the refused doors' too)
 
 ``--open-limits`` measures what the model gets wrong on the doors it refuses as uncertain: are their
 sigmas as large as their errors (an honest refusal: the model must improve), or far larger (the doubt is
 what must shrink)? The limits opened are ``locate.max_uncertainty_mm``, ``max_uncertainty_deg`` and
 ``max_sigma_mm``, and the thickness check is ``report``; refusals of another kind stay.
+
+``--response-ends`` asks whether the doubt of a response nobody measured is as large as it must be: each
+answered door is located again (limits opened, ``response_unmeasured_factor`` 1) with the cell's exponent
+times and over the factor (within ``RESPONSE_PLAUSIBLE``), and half the range of the two moves and no move
+(the doubt's own rule, :func:`doorloc.vision.doubts.edge_doubts`) is printed beside the answer's
+``response`` term of ``diagnostics.uncertainty_budget`` for x, z and the thickness; per set, the median and
+the range of their ratio (real over claimed). A ratio well under 1 is a doubt that could shrink; near or
+above 1, the doubt is what a cell off by the factor does to the answer, and only a measured response
+(a smaller factor) narrows it.
 """
 
 from __future__ import annotations
@@ -89,6 +102,7 @@ from doorloc.pose import DoorPose, direction_cell, directions_across  # noqa: E4
 from doorloc.sim.door import render_door  # noqa: E402
 from doorloc.vision.config import LocateConfig  # noqa: E402
 from doorloc.vision.locate import locate  # noqa: E402
+from doorloc.vision.response import RESPONSE_PLAUSIBLE  # noqa: E402
 
 ROOT = Path(__file__).parents[1]
 #: per set: the arris range (mm), the profiles, the blur range (px), light (side or ambient), grain range
@@ -151,6 +165,8 @@ class Outcome:
     sigmas: tuple[float, float, float, float] = (math.nan,) * 4
     thickness_verified: bool = True
     over_limits: bool = False  # answered only because the limits were opened (``--open-limits``)
+    #: real move at the response factor's ends over the ``response`` doubt, x, z, thickness (``--response-ends``)
+    response_ratios: tuple[float, float, float] | None = None
 
 
 def draw(name: str, i: int, seed: int):
@@ -227,11 +243,13 @@ def run_one(
     told: float | None = None,
     limits: LocateConfig | None = None,
     real: DoorSize | None = None,
+    response_ends: bool = False,
 ) -> Outcome:
     """Locate one rendered door and compare with its true pose. ``limits``: the cell's own ``locate``
     settings where ``cell``'s are opened (``--open-limits``): an answer beyond them is marked. ``real``: the
     door in the image where it is not the recipe's ``door`` (``--wrong-thickness``); the thickness's error is
-    against it."""
+    against it. ``response_ends``: the answer located again at the ends of the cell's response factor
+    (:func:`response_end_moves`)."""
     img = render_door(cell, real or door, pose, effects=fx, seed=seed).image
     cell = dataclasses.replace(cell, response_gamma=gamma if told is None else told)
     res = locate(img, cell, door)
@@ -268,7 +286,58 @@ def run_one(
         + ("" if verified else " thickness UNVERIFIED")
         + (" OVER THE CELL'S LIMITS" if over else "")
     )
-    return Outcome(None, errors, sigmas, verified, over)
+    ratios = response_end_moves(img, cell, door, res) if response_ends else None
+    return Outcome(None, errors, sigmas, verified, over, ratios)
+
+
+def response_end_moves(img, cell, door: DoorSize, res) -> tuple[float, float, float] | None:
+    """``res``'s real move where the cell's camera exponent sits at the two ends of its
+    ``response_unmeasured_factor``, or of the exponents the door's strips allowed (located again with the
+    limits opened and the factor 1): half the range of the two moves and no move, over the answer's
+    ``response`` doubt (``diagnostics.uncertainty_budget``), for x, z and the thickness; printed, and returned as those three ratios (None: no response doubt, one
+    the image read itself, or a relocation refused)."""
+    budget = {b["source"]: b for b in res.diagnostics.get("uncertainty_budget", [])}.get("response")
+    factor = cell.locate.response_unmeasured_factor
+    if (
+        budget is None
+        or not factor > 1.0
+        or "unchecked_because" not in res.diagnostics.get("camera_response", {})
+    ):
+        return None  # (a response the image read itself has a doubt of its own)
+    # the ends the doubt took: the factor's, or those the door's strips allowed
+    told = cell.response_gamma
+    ends = res.diagnostics.get("response_from_strips", {}).get("allowed_gammas") or [
+        float(np.clip(told / factor, *RESPONSE_PLAUSIBLE)),
+        float(np.clip(told * factor, *RESPONSE_PLAUSIBLE)),
+    ]
+    flat = dataclasses.replace(
+        cell,
+        locate=dataclasses.replace(
+            cell.locate,
+            response_unmeasured_factor=1.0,
+            max_uncertainty_mm=1e6,
+            max_uncertainty_deg=1e6,
+            max_sigma_mm=1e6,
+            thickness_check="report",
+        ),
+    )
+    moves = []
+    for g in ends:
+        again = locate(img, dataclasses.replace(flat, response_gamma=float(g)), door)
+        if not again.ok:
+            print(f"      response end {g:.2f}: REFUSED {again.error_code}")
+            return None
+        moves.append((again.x_mm - res.x_mm, again.z_mm - res.z_mm, again.thickness_mm - res.thickness_mm))
+    m = np.array([(0.0, 0.0, 0.0), *moves])
+    real = 0.5 * (m.max(axis=0) - m.min(axis=0))
+    claimed = np.array([budget.get(k) or math.nan for k in ("x_mm", "z_mm", "thickness_mm")], float)
+    ratios = tuple(float(r / c) if c > 0 else math.nan for r, c in zip(real, claimed, strict=True))
+    print(
+        f"      response ends {ends[0]:.2f} / {ends[1]:.2f}: real half range x {real[0]:.4f} "
+        f"z {real[1]:.4f} T {real[2]:.4f} mm against the doubt {claimed[0]:.4f} {claimed[1]:.4f} "
+        f"{claimed[2]:.4f} (ratio {ratios[0]:.2f} {ratios[1]:.2f} {ratios[2]:.2f})"
+    )
+    return ratios  # type: ignore[return-value]
 
 
 def summary(name: str, rows: list[Outcome]) -> None:
@@ -286,6 +355,16 @@ def summary(name: str, rows: list[Outcome]) -> None:
     )
     if not ok:
         return
+    ratios = np.array([r.response_ratios for r in ok if r.response_ratios is not None], float)
+    if ratios.size:
+        print(
+            f"  response doubt against the real move at the factor's ends (real / claimed, n {len(ratios)}): "
+            + ", ".join(
+                f"{lab} median {np.nanmedian(ratios[:, k]):.2f} ({np.nanmin(ratios[:, k]):.2f}-"
+                f"{np.nanmax(ratios[:, k]):.2f})"
+                for k, lab in enumerate(("x", "z", "thickness"))
+            )
+        )
     e, s = np.array([r.errors for r in ok]), np.array([r.sigmas for r in ok])
     for k, (lab, unit) in enumerate((("x", "mm"), ("z", "mm"), ("yaw", "deg"), ("thickness", "mm"))):
         keep = np.isfinite(e[:, k]) & np.isfinite(s[:, k])
@@ -344,6 +423,14 @@ def main() -> None:
         "-1..1 (within) or at -1 or +1 (bound); default: the camera's",
     )
     ap.add_argument(
+        "--off-factor",
+        type=float,
+        default=None,
+        help="with --cell-gamma-off: how far the stated exponent may be off, as a factor (default: the cell's "
+        "response_unmeasured_factor); e.g. 2.2 with --response-factor 1.11, a cell that trusts a stated "
+        "exponent more than a linear camera taken for an sRGB one allows",
+    )
+    ap.add_argument(
         "--open-limits",
         action="store_true",
         help="open the cell's limits on the uncertainty and report the thickness: every door's errors and "
@@ -385,6 +472,12 @@ def main() -> None:
         default=0.0,
         help="wrong doors: each rendered this many mm thicker than its recipe (negative: thinner) and located "
         "with the recipe; an answer is a wrong door passed",
+    )
+    ap.add_argument(
+        "--response-ends",
+        action="store_true",
+        help="locate each answered door again with the cell's exponent at the ends of its "
+        "response_unmeasured_factor and print the real move beside the answer's response doubt",
     )
     ap.add_argument(
         "--optics-sigma",
@@ -431,7 +524,8 @@ def main() -> None:
             door, pose, fx, gamma = draw(name, i, seed)
             if args.thickness:
                 door = dataclasses.replace(door, thickness_mm=args.thickness)
-            told = told_gamma(gamma, cell.locate.response_unmeasured_factor, args.cell_gamma_off, seed)
+            off_by = args.off_factor or cell.locate.response_unmeasured_factor
+            told = told_gamma(gamma, off_by, args.cell_gamma_off, seed)
             label = (
                 f"{door.arris_profile} a={door.arris_mm:.2f} T={door.thickness_mm:g} "
                 f"blur={fx.blur_sigma_px:.2f} g={gamma:.2f} "
@@ -479,6 +573,7 @@ def main() -> None:
                     dataclasses.replace(door, thickness_mm=door.thickness_mm + args.wrong_thickness)
                     if args.wrong_thickness
                     else None,
+                    args.response_ends,
                 )
             )
         wrong = f", every door {args.wrong_thickness:+g} mm off its recipe" if args.wrong_thickness else ""
