@@ -58,6 +58,16 @@ HIDDEN = {
             n: a * np.sin(2 * np.pi * g + phi) for n, g in zip(TONE_NAMES, TONE_KNOTS, strict=True)
         }
     )(r.uniform(0.1, 0.15), r.uniform(0, 2 * np.pi)),
+    # an interlaced camera's fields out of register by 0.1-0.25 px, mostly along the columns (a field's
+    # vertical registration; motion between the fields' exposures adds a horizontal part and a scatter from
+    # one photograph to the next)
+    "interlaced_fields": lambda r: (
+        lambda mag, side: {
+            "field_offset_v_px": side * mag,
+            "field_offset_u_px": r.uniform(-0.3, 0.3) * mag,
+            "field_offset_scatter_px": r.uniform(0.0, 0.03),
+        }
+    )(r.uniform(0.1, 0.25), r.choice([-1.0, 1.0])),
 }
 
 #: causes the renderer makes beside the photometric model: the spread's asymmetry as a ghost (a fraction of the
@@ -74,7 +84,12 @@ MIN_VIEWS = {"response_tone": 16}
 
 #: each effect's place in the seeds (35000 + 97 seed + place): an effect added later goes at the end, so that the
 #: others keep their draws
-SEED_ORDER = [*(k for k in HIDDEN if k != "response_tone"), *HIDDEN_RENDERED, "response_tone"]
+SEED_ORDER = [
+    *(k for k in HIDDEN if k not in ("response_tone", "interlaced_fields")),
+    *HIDDEN_RENDERED,
+    "response_tone",
+    "interlaced_fields",
+]
 
 CAMERA = CameraModel.from_values(
     [[600, 0, 319.5], [0, 600, 239.5], [0, 0, 1]], [-0.2, 0.05, 0, 0, 0], (640, 480)

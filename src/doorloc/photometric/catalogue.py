@@ -209,6 +209,17 @@ PROFILE_CAUSES: tuple[Cause, ...] = (
         "the levels approach their plateaus slowly: a halo beside the Gaussian core of the point spread",
         False,
     ),
+    Cause(
+        "interlaced_fields",
+        ("field_offset_u_px", "field_offset_v_px", "field_offset_scatter_px"),
+        (0.0, 0.0, 0.0),
+        (-2.0, -2.0, 0.0),
+        (2.0, 2.0, 2.0),
+        "an interlaced camera's two fields out of register: the even rows sample the scene displaced from the "
+        "odd rows', so edges along the rows have profiles that alternate from row to row and edges across them "
+        "alternate from scan line to scan line, by the edge's slope times the offset; the edges' medians stay",
+        False,
+    ),
 )
 
 CAUSES_BY_NAME = {c.name: c for c in (*EDGE_CAUSES, TONE_CAUSE, *PROFILE_CAUSES)}

@@ -8,8 +8,9 @@ section 8b); its result holds every figure of ``report.json``. Steps:
 2. place every square edge with the plain model and measure its offset from the board's line
    (:mod:`~doorloc.photometric.board_edges`);
 3. choose the edge-moving causes by photographs held out (:mod:`~doorloc.photometric.fit`), then the profile
-   causes: the point spread's halo by held-out profile misfit, the blur's field and direction terms by held-out
-   edge blurs (:mod:`~doorloc.photometric.blur`);
+   causes: the point spread's halo by held-out profile misfit, an interlaced camera's fields out of register
+   by each photograph's edges held out (:func:`field_offsets`), the blur's field and direction terms by
+   held-out edge blurs (:mod:`~doorloc.photometric.blur`);
 4. each photograph's figures with the plain model and with the model fitted without its fold.
 """
 
@@ -38,7 +39,7 @@ from doorloc.photometric.fit import (
     select_causes,
 )
 from doorloc.photometric.model import PLAIN, PhotometricModel
-from doorloc.photometric.profiles import EdgeProfiles, fit_profiles
+from doorloc.photometric.profiles import EdgeProfiles, FieldOffset, fit_field_offset, fit_profiles
 
 __all__ = [
     "BoardCheckError",
@@ -48,6 +49,8 @@ __all__ = [
     "MeasuredBoards",
     "check_boards",
     "check_photographs",
+    "field_offsets",
+    "FieldOffsets",
     "measure_boards",
 ]
 
@@ -55,6 +58,63 @@ __all__ = [
 MIN_PHOTOGRAPHS = 3
 #: halo fractions tried for the point spread's tail (``psf_tail``), with its scale ``psf_tail_px``
 TAIL_GRID = ((0.02, 3.0), (0.05, 3.0), (0.1, 3.0), (0.05, 6.0), (0.1, 6.0))
+
+
+@dataclass(frozen=True)
+class FieldOffsets:
+    """What the photographs say of an interlaced camera's fields (:func:`field_offsets`): per photograph its
+    offset from all its edges (``own``) and its profile misfit (grey levels, RMS over its windows) with each
+    half of its edges read through the other half's offset (``heldout_rms``); the mean squared misfit those
+    take off, paired over photographs, and its standard error (``gain``, grey levels^2)."""
+
+    own: list[FieldOffset]
+    heldout_rms: np.ndarray
+    gain: tuple[float, float]
+
+    def mean_and_scatter(self) -> tuple[np.ndarray, np.ndarray, float]:
+        """The offset's mean over photographs (u, v px), its standard error, and the photographs' scatter about
+        it (px, RMS per component, their own standard errors taken off in quadrature)."""
+        f = np.array([o.vector for o in self.own if np.isfinite(o.u_px)])
+        se = np.array([(o.sigma_u_px, o.sigma_v_px) for o in self.own if np.isfinite(o.u_px)])
+        if f.shape[0] < 2:
+            return np.zeros(2), np.full(2, np.nan), 0.0
+        mean = f.mean(axis=0)
+        spread = float(np.mean((f - mean) ** 2) - np.mean(se**2))
+        return mean, f.std(axis=0, ddof=1) / np.sqrt(f.shape[0]), float(np.sqrt(max(spread, 0.0)))
+
+
+def field_offsets(
+    photos: list[Photograph],
+    models: list[PhotometricModel],
+    keep: list[np.ndarray],
+    shifts: list[np.ndarray],
+) -> FieldOffsets:
+    """Each photograph's interlaced fields' offset (:func:`~doorloc.photometric.profiles.fit_field_offset`,
+    with its fold's model ``models[i]``, its scan lines ``keep[i]`` and its edges' centres ``shifts[i]``), and
+    the evidence for it held out within the photograph: its edges split in two interleaved halves, each half's
+    profiles fitted with the offset the other half gives against with none. The offset is one photograph's
+    (motion between the fields' exposures is), so it is held out by edges, as a blur or a level is measured
+    on its own edge, not predicted from other photographs."""
+    own, rms, gains = [], [], []
+    for p, m, k, sh in zip(photos, models, keep, shifts, strict=True):
+        e = p.edges
+        own.append(fit_field_offset(e, m, k, sh))
+        half = e.windows.edge % 2 == 0
+        sq0 = sq1 = n = 0.0
+        for part, other in ((k & half, k & ~half), (k & ~half, k & half)):
+            f_other = fit_field_offset(e, m, other, sh).vector
+            r0 = fit_profiles(e, m, part, sh).residual
+            r1 = fit_profiles(e, m, part, sh, f_other).residual
+            ok = np.isfinite(r0) & np.isfinite(r1)
+            sq0 += float(np.sum(r0[ok] ** 2))
+            sq1 += float(np.sum(r1[ok] ** 2))
+            n += float(ok.sum())
+        rms.append(np.sqrt(sq1 / n) if n else np.nan)
+        gains.append((sq0 - sq1) / n if n else np.nan)
+    g = np.asarray(gains, float)
+    g = g[np.isfinite(g)]
+    gain = (float(g.mean()), float(g.std(ddof=1) / np.sqrt(g.size))) if g.size >= 2 else (0.0, np.inf)
+    return FieldOffsets(own, np.asarray(rms, float), gain)
 
 
 class BoardCheckError(ValueError):
@@ -105,6 +165,8 @@ class BoardCheck:
     calibration_source: str
     alternatives: dict[str, list[str]] = field(default_factory=dict)
     skipped: list[str] = field(default_factory=list)
+    #: each photograph's interlaced fields' offset and the held-out evidence for it (every check reads it)
+    fields: FieldOffsets | None = None
 
     def heldout_rms(self, attr: str) -> dict[str, float]:
         h = [p for p in self.photographs if p.heldout]
@@ -244,6 +306,7 @@ def check_boards(
         measured.camera_source,
         result.alternatives,
         measured.skipped,
+        result.fields,
     )
 
 
@@ -324,12 +387,31 @@ def check_photographs(
             "psf_tail": {"value": t, "sigma": float(np.std(vals))},
             "psf_tail_px": {"value": b, "sigma": float("nan")},
         }
+    # an interlaced camera's fields out of register: each photograph's own offset, held out by its edges
+    fields = field_offsets(photos, fold_models, keep, shifts)
+    interlaced = fields.gain[0] > keep_sigmas(len(PROFILE_CAUSES)) * fields.gain[1]
+    if interlaced:
+        mean, se, scatter = fields.mean_and_scatter()
+        model = model.with_values(
+            field_offset_u_px=float(mean[0]),
+            field_offset_v_px=float(mean[1]),
+            field_offset_scatter_px=scatter,
+        )
+        causes.append("interlaced_fields")
+        parameters["interlaced_fields"] = {
+            "field_offset_u_px": {"value": float(mean[0]), "sigma": float(se[0])},
+            "field_offset_v_px": {"value": float(mean[1]), "sigma": float(se[1])},
+            "field_offset_scatter_px": {"value": scatter, "sigma": float("nan")},
+        }
     # profiles before and after, and the blurs they give
     results = []
     blurs = []
     for i, p in enumerate(photos):
         before = fit_profiles(p.edges, PLAIN, keep[i], plain_shifts[i])
-        after = fit_profiles(p.edges, fold_models[i], keep[i], shifts[i])
+        own = fields.own[i].vector if interlaced else (0.0, 0.0)
+        after = fit_profiles(p.edges, fold_models[i], keep[i], shifts[i], own)
+        # (the photograph's misfit after: with its edges' halves read through each other's field offset)
+        rms_after = float(fields.heldout_rms[i]) if interlaced else after.rms_over_windows()
         blurs.append(EdgeBlurs(after.blur_px, p.edges.mid_px, p.edges.normal, p.edges.image_size))
         noise = p.edges.noise[np.isfinite(p.edges.noise)]
         results.append(
@@ -341,7 +423,7 @@ def check_photographs(
                 float(sel.heldout.offsets_px[i]) if sel.causes else float(sel.plain_px[i]),
                 noise_floor_px(p),
                 before.rms_over_windows(),
-                after.rms_over_windows(),
+                rms_after,
                 float(np.median(noise)) if noise.size else float("nan"),
                 p.edges.plateau_spread_rms(p.settings.plateau, keep[i]),
                 p.edges,
@@ -366,7 +448,9 @@ def check_photographs(
     edge_px = _edge_residual_px(rms_after, sel.heldout.by_direction_px, photos)
     if np.isfinite(edge_px):
         model = model.with_values(residual_edge_px=min(edge_px, 5.0))
-    return BoardCheck(causes, model, parameters, results, sel, bt, tail_gain, None, "", sel.alternatives)
+    return BoardCheck(
+        causes, model, parameters, results, sel, bt, tail_gain, None, "", sel.alternatives, fields=fields
+    )
 
 
 def _edge_residual_px(median_rms_px: float, by_direction_px: np.ndarray, photos: list[Photograph]) -> float:

@@ -8,6 +8,13 @@ combined with the pixel's footprint (its projection on the normal has variance 1
 optionally with an exponential halo (``psf_tail``). Per edge, the blur and both linear levels are free; the
 levels are solved by linear least squares in linear light for each blur on a grid, and the blur with the
 least grey-level misfit is kept (a grid, not a solver: one vectorised pass over all edges of a photograph).
+
+An interlaced camera's fields out of register (``field_offset_px``, one photograph's: the even image rows
+sample the scene half of it away, the odd rows half of it the other way) move each sample's distance from
+the edge by half the offset's projection on the edge's normal, with the sample's field's sign.
+:func:`fit_field_offset` measures a photograph's offset from its profiles: each edge's residual against the
+profile's slope, alternating with the field, gives the offset along its normal, and the edges' normals
+together the vector.
 """
 
 from __future__ import annotations
@@ -20,7 +27,7 @@ from scipy.special import ndtr
 from doorloc.photometric.board_edges import BoardEdges
 from doorloc.photometric.model import PhotometricModel
 
-__all__ = ["EdgeProfiles", "fit_profiles", "edge_spread"]
+__all__ = ["EdgeProfiles", "FieldOffset", "fit_profiles", "fit_field_offset", "edge_spread"]
 
 #: the blur grid searched (Gaussian sigma of the optics, px); the least misfit is refined by a parabola
 BLUR_GRID_PX = np.round(np.arange(0.2, 3.51, 0.1), 3)
@@ -63,8 +70,10 @@ def fit_profiles(
     model: PhotometricModel,
     keep: np.ndarray | None = None,
     edge_shift_px: np.ndarray | None = None,
+    field_offset_px: tuple[float, float] = (0.0, 0.0),
 ) -> EdgeProfiles:
     """Fit each edge's blur and levels under ``model`` (module docstring); ``keep`` (N,) selects scan lines.
+    ``field_offset_px``: the photograph's interlaced fields' offset (u, v image px; module docstring).
 
     ``edge_shift_px`` (E,): where each edge's transition is centred, px from the true edge along the normal
     (+ towards bright): the model's own placement, so that the misfit measures the profile's shape and not
@@ -77,6 +86,10 @@ def fit_profiles(
         d = w.distance_px() - model.print_spread_mm * edges.px_per_mm[w.edge][:, None]
     else:
         d = w.distance_px() - np.nan_to_num(np.asarray(edge_shift_px, float))[w.edge][:, None]
+    if field_offset_px[0] or field_offset_px[1]:
+        n = edges.normal[w.edge]
+        along_normal = field_offset_px[0] * n[:, 0] + field_offset_px[1] * n[:, 1]
+        d = d + 0.5 * w.field_sign() * along_normal[:, None]
     e = np.repeat(w.edge, g.shape[1])
     n_e = edges.n_edges
     cnt = np.bincount(e, minlength=n_e).astype(float)
@@ -117,3 +130,85 @@ def fit_profiles(
     resid = (g - pred) * 255.0
     rms = np.sqrt(np.bincount(e, resid.ravel() ** 2, minlength=n_e) / np.maximum(cnt, 1))
     return EdgeProfiles(out_blur, out_a, out_b, rms, cnt, resid, d)
+
+
+@dataclass(frozen=True)
+class FieldOffset:
+    """One photograph's interlaced fields' offset as its profiles give it: ``u_px``, ``v_px`` (the even rows'
+    displacement less the odd rows', image px) and their 1-sigma from the scatter of the edges' readings about
+    the fitted vector (``sigma_u_px``, ``sigma_v_px``); ``n_edges`` read (NaN and 0 where fewer than 4)."""
+
+    u_px: float
+    v_px: float
+    sigma_u_px: float
+    sigma_v_px: float
+    n_edges: int
+
+    @property
+    def vector(self) -> tuple[float, float]:
+        return (self.u_px, self.v_px) if np.isfinite(self.u_px) else (0.0, 0.0)
+
+
+#: the step of the profile's slope's central difference, px
+_SLOPE_STEP_PX = 0.05
+#: Gauss-Newton passes of :func:`fit_field_offset` (the profiles' blurs and levels fitted again in each)
+_FIELD_PASSES = 3
+
+
+def _profile_slope(prof: EdgeProfiles, edge: np.ndarray, model: PhotometricModel) -> np.ndarray:
+    """The fitted profiles' slope (grey levels per px along the normal) at each window sample (N, L);
+    ``edge`` (N,) each scan line's edge."""
+    blur, dark, bright = prof.blur_px[edge][:, None], prof.dark[edge][:, None], prof.bright[edge][:, None]
+
+    def grey(d: np.ndarray) -> np.ndarray:
+        light = dark + (bright - dark) * edge_spread(d, blur, model)
+        return (light if model.linear_response else model.grey_from_light(light)) * 255.0
+
+    return (grey(prof.distance + _SLOPE_STEP_PX) - grey(prof.distance - _SLOPE_STEP_PX)) / (
+        2.0 * _SLOPE_STEP_PX
+    )
+
+
+def fit_field_offset(
+    edges: BoardEdges,
+    model: PhotometricModel,
+    keep: np.ndarray,
+    edge_shift_px: np.ndarray | None = None,
+) -> FieldOffset:
+    """The photograph's interlaced fields' offset from the scan lines ``keep`` (module docstring).
+
+    Each pass fits the profiles at the offset so far and linearises the model in it: a sample of field sign
+    ``s`` moves by ``s (f . n) / 2`` along its edge's normal ``n``, so its residual is the profile's slope
+    times that; each edge's offset along its normal is the slope-weighted regression of its residuals on
+    ``s slope / 2``, and the vector ``f`` the weighted least-squares fit of the edges' readings to their
+    normals, its 1-sigma from their scatter about it (which the noise of one edge's neighbouring pixels,
+    correlated through the blur and the level fit, would understate if taken sample by sample)."""
+    f = np.zeros(2)
+    cov = np.full((2, 2), np.nan)
+    n_read = 0
+    w = edges.windows.subset(keep)
+    sign = w.field_sign()
+    for _ in range(_FIELD_PASSES):
+        prof = fit_profiles(edges, model, keep, edge_shift_px, (float(f[0]), float(f[1])))
+        slope = _profile_slope(prof, w.edge, model)
+        a = 0.5 * sign * slope
+        r = prof.residual
+        ok = np.isfinite(a) & np.isfinite(r)
+        e = np.broadcast_to(w.edge[:, None], a.shape)[ok]
+        saa = np.bincount(e, a[ok] ** 2, minlength=edges.n_edges)
+        sar = np.bincount(e, a[ok] * r[ok], minlength=edges.n_edges)
+        read = saa > 0
+        n_read = int(read.sum())
+        if n_read < 4:
+            return FieldOffset(np.nan, np.nan, np.nan, np.nan, n_read)
+        along = sar[read] / saa[read]  # each edge's offset along its normal (the increment to f's projection)
+        N = edges.normal[read]
+        W = saa[read]
+        A = N.T @ (W[:, None] * N)
+        step = np.linalg.solve(A, N.T @ (W * along))
+        chi = W * (along - N @ step) ** 2
+        cov = np.linalg.inv(A) * float(chi.sum()) / max(n_read - 2, 1)
+        f = f + step
+        if np.all(np.abs(step) < 1e-4):
+            break
+    return FieldOffset(float(f[0]), float(f[1]), float(np.sqrt(cov[0, 0])), float(np.sqrt(cov[1, 1])), n_read)

@@ -70,8 +70,24 @@ def report_dict(check: BoardCheck) -> dict:
                 "profile_rms": {"before": _num(p.profile_rms_before), "after": _num(p.profile_rms_after)},
                 "noise": _num(p.noise_grey),
                 "noise_rms": _num(p.noise_rms_grey),
+                **(
+                    {
+                        "field_offset_px": {
+                            "u": _num(f.u_px),
+                            "v": _num(f.v_px),
+                            "sigma_u": _num(f.sigma_u_px),
+                            "sigma_v": _num(f.sigma_v_px),
+                        }
+                    }
+                    if f is not None
+                    else {}
+                ),
             }
-            for p in check.photographs
+            for p, f in zip(
+                check.photographs,
+                check.fields.own if check.fields is not None else [None] * len(check.photographs),
+                strict=True,
+            )
         ],
         "heldout_edge_offset_rms_px": {k: _num(v) for k, v in off.items()},
         "heldout_edge_offset_standard_error_px": _num(check.offset_standard_error_px),
@@ -87,6 +103,12 @@ def report_dict(check: BoardCheck) -> dict:
             k: {"gain": _num(g), "standard_error": _num(s)} for k, (g, s) in check.blur.gains.items()
         },
         "psf_tail_gain": {"gain": _num(check.tail_gain[0]), "standard_error": _num(check.tail_gain[1])},
+        # (held out by each photograph's edges: grey levels^2 of mean squared profile misfit taken off)
+        "interlaced_fields_gain": (
+            {"gain": _num(check.fields.gain[0]), "standard_error": _num(check.fields.gain[1])}
+            if check.fields is not None
+            else None
+        ),
         "calibration": check.calibration_source,
         "skipped": check.skipped,
         "plots": list(PLOTS),
