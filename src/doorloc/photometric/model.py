@@ -56,16 +56,16 @@ even blur, a perfect print):
   horizontal ones (``cos 2 phi``, ``phi`` the edge normal's angle from the image u axis): astigmatism, or a
   sensor's or demosaicking's direction preference;
 - ``field_offset_u_px``, ``field_offset_v_px``: an interlaced camera's two fields out of register: the even
-  image rows (0, 2, ..) sample the scene half this vector (image px) away from where the geometry puts them,
-  the odd rows half of it the other way (a frame grabber's field timing, or the scene or camera moving
+  image rows (0, 2, ..) sample the scene half this vector (image px) further along it than the geometry
+  puts them, the odd rows half of it back (a frame grabber's field timing, or the scene or camera moving
   between the two fields' exposures), the mean over the photographs; ``field_offset_scatter_px`` their RMS
   about it, per component (each photograph's own offset, as the check fitted it, varies: motion between
-  fields is one photograph's). Every edge's scan lines then alternate, or its profile does: an edge along
-  the rows is placed half the offset up and down on alternate columns' profiles, a point spread that
-  alternates from row to row. The median over an edge's scan lines is not moved (as many of each field),
-  the profiles are: a per-pixel misfit in proportion to the edge's slope. On Bouguet's photographs the even
-  rows sample the scene 0.203 +- 0.003 px further down the columns than the odd rows (0.17-0.22 px on each of
-  the 20, none across them: an interlaced camera's field registration, 2026-12-02);
+  fields is one photograph's). An edge along the rows then has profiles down the columns whose samples
+  alternate between the fields (a point spread that alternates from row to row), an edge across them scan
+  lines that alternate. The median over an edge's scan lines is not moved (as many of each field), the
+  profiles are: a per-pixel misfit in proportion to the edge's slope. On Bouguet's photographs the even
+  rows sample the scene 0.203 +- 0.003 px further down the columns than the odd rows (0.17-0.22 px on each
+  of the 20, none across them: an interlaced camera's field registration, 2026-12-02);
 - ``residual_edge_px``: what the model leaves unexplained on the camera's real edges, px: the RMS over
   photographs held out of their median edge offset from the board's corner lines, with the model
   (``doorloc check-model --boards``), or, where larger, the RMS of those medians taken by edge direction
