@@ -88,12 +88,14 @@ class EdgeWindows:
         k = np.arange(self.grey.shape[1])[None, :] + self.start[:, None]
         return (k - self.true_along[:, None]) * (self.cos * self.bright_sign)[:, None]
 
-    def field_sign(self) -> np.ndarray:
-        """Each window sample's interlaced field: +1 on an even image row (0, 2, ..), -1 on an odd one (N, L).
-        A column's window runs down the rows; a row's window lies on one."""
+    def image_rows(self) -> np.ndarray:
+        """Each window sample's image row (N, L): a column's window runs down the rows, a row's lies on one."""
         k = np.arange(self.grey.shape[1])[None, :]
-        rows = np.where(self.axis[:, None], self.start[:, None] + k, self.scan[:, None] + 0 * k)
-        return np.where(rows % 2 == 0, 1.0, -1.0)
+        return np.where(self.axis[:, None], self.start[:, None] + k, self.scan[:, None] + 0 * k)
+
+    def field_sign(self) -> np.ndarray:
+        """Each window sample's interlaced field: +1 on an even image row (0, 2, ..), -1 on an odd one (N, L)."""
+        return np.where(self.image_rows() % 2 == 0, 1.0, -1.0)
 
     def subset(self, mask: np.ndarray) -> EdgeWindows:
         return EdgeWindows(*(getattr(self, f)[mask] for f in self.__dataclass_fields__))

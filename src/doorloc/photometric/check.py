@@ -9,8 +9,8 @@ section 8b); its result holds every figure of ``report.json``. Steps:
    (:mod:`~doorloc.photometric.board_edges`);
 3. choose the edge-moving causes by photographs held out (:mod:`~doorloc.photometric.fit`), then the profile
    causes: the point spread's halo by held-out profile misfit, an interlaced camera's fields out of register
-   by each photograph's edges held out (:func:`field_offsets`), the blur's field and direction terms by
-   held-out edge blurs (:mod:`~doorloc.photometric.blur`);
+   by each photograph's edges held out (:func:`field_offsets`; at least :data:`FIELD_OFFSET_MIN_PX`), the
+   blur's field and direction terms by held-out edge blurs (:mod:`~doorloc.photometric.blur`);
 4. each photograph's figures with the plain model and with the model fitted without its fold.
 """
 
@@ -56,6 +56,12 @@ __all__ = [
 
 #: fewest photographs with the whole board a check is attempted with (one held out, two to fit)
 MIN_PHOTOGRAPHS = 3
+#: the least RMS over photographs of their interlaced fields' offsets (px) that names the cause, beside the
+#: held-out gain's significance: an offset of a few hundredths of a pixel reshapes no profile that matters, and
+#: JPEG's blocks leave such readings (rendered boards without fields, through JPEG of quality 20-75, read
+#: 0.015-0.034 px on the rows :data:`~doorloc.photometric.profiles.FIELD_READ_ROWS`; read on every row they had
+#: passed the significance test at 0.02-0.07 px); Bouguet's camera reads 0.2 px
+FIELD_OFFSET_MIN_PX = 0.03
 #: halo fractions tried for the point spread's tail (``psf_tail``), with its scale ``psf_tail_px``
 TAIL_GRID = ((0.02, 3.0), (0.05, 3.0), (0.1, 3.0), (0.05, 6.0), (0.1, 6.0))
 
@@ -70,6 +76,12 @@ class FieldOffsets:
     own: list[FieldOffset]
     heldout_rms: np.ndarray
     gain: tuple[float, float]
+
+    @property
+    def rms_px(self) -> float:
+        """RMS over photographs of their offsets' length, px (0 where none was read)."""
+        f = np.array([o.vector for o in self.own if np.isfinite(o.u_px)])
+        return float(np.sqrt(np.mean(np.sum(f**2, axis=1)))) if f.size else 0.0
 
     def mean_and_scatter(self) -> tuple[np.ndarray, np.ndarray, float]:
         """The offset's mean over photographs (u, v px), its standard error, and the photographs' scatter about
@@ -389,7 +401,10 @@ def check_photographs(
         }
     # an interlaced camera's fields out of register: each photograph's own offset, held out by its edges
     fields = field_offsets(photos, fold_models, keep, shifts)
-    interlaced = fields.gain[0] > keep_sigmas(len(PROFILE_CAUSES)) * fields.gain[1]
+    interlaced = (
+        fields.gain[0] > keep_sigmas(len(PROFILE_CAUSES)) * fields.gain[1]
+        and fields.rms_px >= FIELD_OFFSET_MIN_PX
+    )
     if interlaced:
         mean, se, scatter = fields.mean_and_scatter()
         model = model.with_values(

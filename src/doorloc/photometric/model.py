@@ -64,7 +64,7 @@ even blur, a perfect print):
   alternate between the fields (a point spread that alternates from row to row), an edge across them scan
   lines that alternate. The median over an edge's scan lines is not moved (as many of each field), the
   profiles are: a per-pixel misfit in proportion to the edge's slope. On Bouguet's photographs the even
-  rows sample the scene 0.203 +- 0.003 px further down the columns than the odd rows (0.17-0.22 px on each
+  rows sample the scene 0.202 +- 0.004 px further down the columns than the odd rows (0.16-0.23 px on each
   of the 20, none across them: an interlaced camera's field registration, 2026-12-02);
 - ``residual_edge_px``: what the model leaves unexplained on the camera's real edges, px: the RMS over
   photographs held out of their median edge offset from the board's corner lines, with the model

@@ -27,7 +27,14 @@ from scipy.special import ndtr
 from doorloc.photometric.board_edges import BoardEdges
 from doorloc.photometric.model import PhotometricModel
 
-__all__ = ["EdgeProfiles", "FieldOffset", "fit_profiles", "fit_field_offset", "edge_spread"]
+__all__ = [
+    "EdgeProfiles",
+    "FIELD_READ_ROWS",
+    "FieldOffset",
+    "fit_profiles",
+    "fit_field_offset",
+    "edge_spread",
+]
 
 #: the blur grid searched (Gaussian sigma of the optics, px); the least misfit is refined by a parabola
 BLUR_GRID_PX = np.round(np.arange(0.2, 3.51, 0.1), 3)
@@ -149,6 +156,12 @@ class FieldOffset:
         return (self.u_px, self.v_px) if np.isfinite(self.u_px) else (0.0, 0.0)
 
 
+#: the image rows, modulo 8, whose samples read a photograph's field offset: JPEG's 8 x 8 blocks start on rows
+#: divisible by 8, and their quantisation bends the rows beside a block's border (0, 1, 6, 7) as a field offset
+#: would (rendered boards without fields, through JPEG of quality 20-50: 0.05-0.10 px read on those rows, about
+#: 0.01 on rows 2-5), while fields out of register read alike on every row (0.145-0.154 px on each pair of rows
+#: for 0.15); the offset, once read, is applied to every row
+FIELD_READ_ROWS = (2, 3, 4, 5)
 #: the step of the profile's slope's central difference, px
 _SLOPE_STEP_PX = 0.05
 #: Gauss-Newton passes of :func:`fit_field_offset` (the profiles' blurs and levels fitted again in each)
@@ -175,7 +188,8 @@ def fit_field_offset(
     keep: np.ndarray,
     edge_shift_px: np.ndarray | None = None,
 ) -> FieldOffset:
-    """The photograph's interlaced fields' offset from the scan lines ``keep`` (module docstring).
+    """The photograph's interlaced fields' offset from the scan lines ``keep`` (module docstring), read on the
+    samples of the rows :data:`FIELD_READ_ROWS` (modulo 8), away from JPEG's block borders.
 
     Each pass fits the profiles at the offset so far and linearises the model in it: a sample of field sign
     ``s`` moves by ``s (f . n) / 2`` along its edge's normal ``n``, so its residual is the profile's slope
@@ -187,7 +201,7 @@ def fit_field_offset(
     cov = np.full((2, 2), np.nan)
     n_read = 0
     w = edges.windows.subset(keep)
-    sign = w.field_sign()
+    sign = w.field_sign() * np.isin(w.image_rows() % 8, FIELD_READ_ROWS)
     for _ in range(_FIELD_PASSES):
         prof = fit_profiles(edges, model, keep, edge_shift_px, (float(f[0]), float(f[1])))
         slope = _profile_slope(prof, w.edge, model)
