@@ -156,6 +156,13 @@ SETS["sharpened"] = dict(SETS["focused"], blur=(0.7, 1.8), sharpen=((0.3, 1.0), 
 SETS["astigmatic"] = dict(SETS["small"], astigmatism=(0.3, 1.2))
 
 
+#: the cell's limits on the uncertainty opened and the thickness reported (``--open-limits``, and the
+#: relocations of ``--response-ends``): every door answered that locate can place
+OPENED_LIMITS: dict = dict(
+    max_uncertainty_mm=1e6, max_uncertainty_deg=1e6, max_sigma_mm=1e6, thickness_check="report"
+)
+
+
 @dataclasses.dataclass(frozen=True)
 class Outcome:
     """One door's answer: errors and claimed sigmas (mm, deg), or the refusal's code."""
@@ -312,14 +319,7 @@ def response_end_moves(img, cell, door: DoorSize, res) -> tuple[float, float, fl
     ]
     flat = dataclasses.replace(
         cell,
-        locate=dataclasses.replace(
-            cell.locate,
-            response_unmeasured_factor=1.0,
-            max_uncertainty_mm=1e6,
-            max_uncertainty_deg=1e6,
-            max_sigma_mm=1e6,
-            thickness_check="report",
-        ),
+        locate=dataclasses.replace(cell.locate, response_unmeasured_factor=1.0, **OPENED_LIMITS),
     )
     moves = []
     for g in ends:
@@ -512,10 +512,7 @@ def main() -> None:
     limits = None
     if args.open_limits:
         limits = cell.locate
-        opened = dict(
-            max_uncertainty_mm=1e6, max_uncertainty_deg=1e6, max_sigma_mm=1e6, thickness_check="report"
-        )
-        cell = dataclasses.replace(cell, locate=dataclasses.replace(cell.locate, **opened))
+        cell = dataclasses.replace(cell, locate=dataclasses.replace(cell.locate, **OPENED_LIMITS))
     for name in sets:
         k = list(SETS).index(name)
         rows = []

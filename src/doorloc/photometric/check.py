@@ -77,17 +77,21 @@ class FieldOffsets:
     heldout_rms: np.ndarray
     gain: tuple[float, float]
 
+    def _read(self) -> list[FieldOffset]:
+        return [o for o in self.own if np.isfinite(o.u_px)]
+
     @property
     def rms_px(self) -> float:
         """RMS over photographs of their offsets' length, px (0 where none was read)."""
-        f = np.array([o.vector for o in self.own if np.isfinite(o.u_px)])
+        f = np.array([o.vector for o in self._read()])
         return float(np.sqrt(np.mean(np.sum(f**2, axis=1)))) if f.size else 0.0
 
     def mean_and_scatter(self) -> tuple[np.ndarray, np.ndarray, float]:
         """The offset's mean over photographs (u, v px), its standard error, and the photographs' scatter about
         it (px, RMS per component, their own standard errors taken off in quadrature)."""
-        f = np.array([o.vector for o in self.own if np.isfinite(o.u_px)])
-        se = np.array([(o.sigma_u_px, o.sigma_v_px) for o in self.own if np.isfinite(o.u_px)])
+        read = self._read()
+        f = np.array([o.vector for o in read])
+        se = np.array([(o.sigma_u_px, o.sigma_v_px) for o in read])
         if f.shape[0] < 2:
             return np.zeros(2), np.full(2, np.nan), 0.0
         mean = f.mean(axis=0)

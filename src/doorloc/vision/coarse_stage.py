@@ -283,7 +283,8 @@ def _coarse_edges(
     P = oriented(plane, ref_lay.axis)
     sub = P[band_ref.lo.min() : band_ref.hi.max() + 1 : 3, band_ref.scan[::4]]
     # (white: the top levels, or the clip the cell's camera model states)
-    white = q.SATURATED_GREY if lum.clip_grey is None else min(q.SATURATED_GREY, lum.clip_grey - 0.5 * s8)
+    clipped = lum.clipped_from
+    white = q.SATURATED_GREY if clipped is None else min(q.SATURATED_GREY, clipped)
     r = q.check_exposure(sub, cfg.min_contrast, cfg.max_saturated_fraction, s8, white)
     if r:
         raise Refused(r)

@@ -231,11 +231,10 @@ def _at_camera_clip(
     its scan lines than ``locate.max_clipped_arris_fraction`` (the strips' white check, at the camera's
     clip). Read from the stated clip, not from the image's noise, this holds where JPEG or a quiet sensor
     leave no noise to tell a clip by (:func:`_clipped_flat`)."""
-    clip = lum.clip_grey
-    if clip is None or sides is None:
+    clip, at = lum.clip_grey, lum.clipped_from
+    if clip is None or at is None or sides is None:
         return None
     s8 = lum.scale_to_8bit
-    at = clip - 0.5 * s8  # (a clip's code and every code above it)
     for k, p in sides[True].items():
         level = float(np.median(p)) * s8
         if level >= at:

@@ -43,6 +43,12 @@ class LuminancePlane:
     clip_grey: float | None = None
 
     @property
+    def clipped_from(self) -> float | None:
+        """The level (0-255 scale) from which a pixel counts as clipped: half a stored code under
+        :attr:`clip_grey`, so that the clip's code and every code above it do; None where there is no clip."""
+        return None if self.clip_grey is None else self.clip_grey - 0.5 * self.scale_to_8bit
+
+    @property
     def size(self) -> tuple[int, int]:
         """``(width, height)`` in pixels."""
         return int(self.plane.shape[1]), int(self.plane.shape[0])
