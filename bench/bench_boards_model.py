@@ -42,7 +42,7 @@ HIDDEN = {
     "response_curvature": lambda r: {"curvature": r.choice([-1, 1]) * r.uniform(0.15, 0.3)},
     "print_spread": lambda r: {"print_spread_mm": r.choice([-1, 1]) * r.uniform(0.1, 0.25)},
     "blur_field": lambda r: {"blur_field": r.uniform(1.0, 2.0)},
-    "blur_anisotropy": lambda r: {"blur_anisotropy": r.choice([-1, 1]) * r.uniform(0.6, 1.2)},
+    "blur_anisotropy": lambda r: {"blur_anisotropy": r.choice([-1, 1]) * r.uniform(0.3, 0.6)},
     "psf_tail": lambda r: {"psf_tail": r.uniform(0.06, 0.15), "psf_tail_px": 3.0},
     # last, so the other effects keep their seeds; exposures run 0.55-1.05: most light squares pass the clip
     "sensor_clipping": lambda r: {"clip_level": r.uniform(0.6, 0.75)},

@@ -28,7 +28,13 @@ from doorloc.photometric.model import PhotometricModel
 from doorloc.sim.boards import Checkerboard, RenderedBoard, render_board
 from doorloc.sim.raster import GridTexture
 
-__all__ = ["PrintedCheckerboard", "CameraRendering", "apply_camera", "render_photographed_board"]
+__all__ = [
+    "PrintedCheckerboard",
+    "CameraRendering",
+    "apply_camera",
+    "jpeg_roundtrip",
+    "render_photographed_board",
+]
 
 
 @dataclass(frozen=True)
@@ -104,7 +110,8 @@ def apply_camera(
     img = np.asarray(radiance, np.float32) * np.float32(rendering.exposure)
     h, w = img.shape
     var0 = rendering.blur_px**2
-    ax = 0.5 * model.blur_anisotropy  # across vertical edges (x): +, across horizontal ones (y): -
+    # the model's variance added across vertical edges (x) and taken off across horizontal ones (y)
+    ax = model.blur_anisotropy
 
     def blurred(var: float) -> np.ndarray:
         vx, vy = max(var + ax, 0.0), max(var - ax, 0.0)
@@ -148,12 +155,17 @@ def apply_camera(
         )
     grey = model.grey_from_light(np.clip(out, 0.0, None))
     u8 = np.rint(np.clip(grey, 0.0, 1.0) * 255).astype(np.uint8)
-    if rendering.jpeg_quality:
-        ok, buf = cv2.imencode(".jpg", u8, [cv2.IMWRITE_JPEG_QUALITY, int(rendering.jpeg_quality)])
-        if not ok:
-            raise RuntimeError("JPEG encoding failed")
-        u8 = cv2.imdecode(buf, cv2.IMREAD_GRAYSCALE)
-    return u8
+    return jpeg_roundtrip(u8, rendering.jpeg_quality)
+
+
+def jpeg_roundtrip(u8: np.ndarray, quality: int) -> np.ndarray:
+    """A grey 8-bit image (H, W) as a JPEG of ``quality`` (libjpeg's 1-100; 0: unchanged) stores it."""
+    if not quality:
+        return u8
+    ok, buf = cv2.imencode(".jpg", u8, [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
+    if not ok:
+        raise RuntimeError("JPEG encoding failed")
+    return cv2.imdecode(buf, cv2.IMREAD_GRAYSCALE)
 
 
 def _interlace(img: np.ndarray, du: float, dv: float) -> np.ndarray:
