@@ -5,7 +5,7 @@
   Bouguet's example, 13x12 inner corners, 30 mm), each calibrated from its own photographs: per photograph the
   median edge offset with the plain model and, held out, with the extended one; the held-out RMS over
   photographs, its standard error from noise; the causes and parameters with 1-sigma; the profile misfit
-  against the noise;
+  against the noise and against what each photograph's rendered twin leaves (its pose, noise and compression);
 - hidden: rendered board photographs (random poses, blur, exposure and noise per photograph; seeds printed) with
   one catalogue effect hidden at a random strength, and controls with none: is the effect named, does the held-out
   offset or profile misfit fall, and do the controls answer [].
@@ -118,6 +118,11 @@ def summary(name: str, c: BoardCheck) -> None:
         f"    held-out profile misfit RMS: plain {prof['before']:.2f}, extended {prof['after']:.2f} grey levels; "
         f"noise on the plateaus: median {c.noise_grey:.2f} (1.5x: {1.5 * c.noise_grey:.2f}), RMS over the "
         f"windows {c.noise_rms_grey:.2f} (1.5x: {1.5 * c.noise_rms_grey:.2f})"
+    )
+    twin = c.profile_over_twin()
+    print(
+        f"    the same over the photographs' twins' misfit (rendered at their poses with their noise and "
+        f"compression; goal 1.5): plain {twin['before']:.2f}, extended {twin['after']:.2f}"
     )
     print(
         "    per photograph (before -> after px): "

@@ -286,3 +286,31 @@ def test_jpeg_boards_without_fields_are_not_read_as_interlaced(tmp_path):
     c = check_boards(folder, Chessboard(9, 6, 25.0), CalibrationFile(CAMERA))
     assert "interlaced_fields" not in c.causes, (seed, c.causes)
     assert c.fields is not None and c.fields.rms_px < 0.03, (seed, c.fields.rms_px)
+
+
+@pytest.mark.slow
+def test_jpeg_photographs_are_judged_against_their_twins(tmp_path):
+    # a control stored as JPEG of quality 50 (OpenCV's public photographs' own): the plateaus' spread calls the
+    # renderer's own model wrong, each photograph's twin (its pose, noise and the quality its file's tables
+    # say) does not. A fixed default draw; DOORLOC_TEST_SEED tries another.
+    seed = int(os.environ.get("DOORLOC_TEST_SEED", 23))
+    print(f"seed {seed}: JPEG 50, no effect")
+    folder = tmp_path / "boards"
+    folder.mkdir()
+    views = random_board_views(
+        CAMERA, Checkerboard(9, 6, 25.0), PhotometricModel(), VIEWS, seed, read_noise=(2.0, 3.0)
+    )
+    for name, img in views:
+        cv2.imwrite(str(folder / Path(name).with_suffix(".jpg")), img, [cv2.IMWRITE_JPEG_QUALITY, 50])
+    cal = tmp_path / "camera.yaml"
+    save_calibration(CalibrationFile(CAMERA), cal)
+    res = _run(folder, cal, tmp_path / "report")
+    assert res.exit_code == 0, res.output
+    rep = json.loads((tmp_path / "report" / "report.json").read_text())
+    assert {i["twin"]["jpeg_quality"] for i in rep["images"]} == {50}
+    over_noise = rep["heldout_profile_rms"]["before"] / rep["noise_rms"]
+    over_twin = rep["heldout_profile_over_twin"]["before"]
+    print(f"profile misfit over the plateaus' spread {over_noise:.2f}, over the twins' {over_twin:.2f}")
+    assert over_noise > 1.2
+    assert 0.85 < over_twin < 1.15
+    assert "JPEG quality 50" in (tmp_path / "report" / "report.md").read_text()

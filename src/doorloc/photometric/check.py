@@ -19,6 +19,7 @@ from __future__ import annotations
 import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -27,7 +28,7 @@ from doorloc.calib.detect import Chessboard, to_gray
 from doorloc.calib.folder import CalibrationError, CalibrationInputError, detect_views, read_folder
 from doorloc.calib.io import CalibrationFile
 from doorloc.photometric.blur import BlurTerms, EdgeBlurs, blur_terms
-from doorloc.photometric.board_edges import BoardEdges, EdgeSettings, measure_board_edges, per_edge_median
+from doorloc.photometric.board_edges import BoardEdges, EdgeSettings, measure_board_edges
 from doorloc.photometric.catalogue import CAUSES_BY_NAME, EDGE_CAUSES, PROFILE_CAUSES, keep_sigmas
 from doorloc.photometric.fit import (
     Photograph,
@@ -35,11 +36,13 @@ from doorloc.photometric.fit import (
     direction_noise_floor_px,
     folds_by_photograph,
     noise_floor_px,
-    place_edges,
     select_causes,
+    transition_centres_px,
 )
 from doorloc.photometric.model import PLAIN, PhotometricModel
 from doorloc.photometric.profiles import EdgeProfiles, FieldOffset, fit_field_offset, fit_profiles
+from doorloc.photometric.twin import ProfileTwin, profile_twins, read_jpeg_quality
+from doorloc.sim.boards import Checkerboard
 
 __all__ = [
     "BoardCheckError",
@@ -183,6 +186,9 @@ class BoardCheck:
     skipped: list[str] = field(default_factory=list)
     #: each photograph's interlaced fields' offset and the held-out evidence for it (every check reads it)
     fields: FieldOffsets | None = None
+    #: each photograph's rendered twin (:mod:`~doorloc.photometric.twin`), in the order of ``photographs``
+    #: (None where it has none)
+    twins: list[ProfileTwin | None] = field(default_factory=list)
 
     def heldout_rms(self, attr: str) -> dict[str, float]:
         h = [p for p in self.photographs if p.heldout]
@@ -195,6 +201,29 @@ class BoardCheck:
         return {
             "before": rms([getattr(p, f"{attr}_before" + ("_px" if attr == "offset" else "")) for p in h]),
             "after": rms([getattr(p, f"{attr}_after" + ("_px" if attr == "offset" else "")) for p in h]),
+        }
+
+    def profile_over_twin(self) -> dict[str, float]:
+        """The held-out profile misfit (RMS over photographs, plain model and extended) over the misfit the
+        photographs' twins leave (RMS over the same photographs): 1 = the profiles are drawn up to what the
+        noise and the compression leave; NaN without twins."""
+        pairs = [
+            (p, t) for p, t in zip(self.photographs, self.twins, strict=False) if p.heldout and t is not None
+        ]
+        twin = np.array([t.misfit for _, t in pairs], float)
+        ok = np.isfinite(twin)
+        if not ok.any():
+            return {"before": float("nan"), "after": float("nan")}
+        ref = float(np.sqrt(np.mean(twin[ok] ** 2)))
+
+        def rms(v: list[float]) -> float:
+            a = np.asarray(v, float)[ok]
+            a = a[np.isfinite(a)]
+            return float(np.sqrt(np.mean(a**2))) / ref if a.size else float("nan")
+
+        return {
+            "before": rms([p.profile_rms_before for p, _ in pairs]),
+            "after": rms([p.profile_rms_after for p, _ in pairs]),
         }
 
     @property
@@ -289,7 +318,8 @@ def measure_boards(
         if np.isfinite(edges.offset_px).sum() == 0:
             skipped.append(f"{v.name}: squares too small to read an edge on")
             continue
-        photos.append(Photograph(gray, edges, settings))
+        quality = read_jpeg_quality(Path(images_dir) / v.name)
+        photos.append(Photograph(gray, edges, settings, corners, quality))
     if len(photos) < MIN_PHOTOGRAPHS:
         raise BoardCheckError(
             f"only {len(photos)} photographs have squares large enough to read edges on "
@@ -310,6 +340,20 @@ def check_boards(
     cannot use."""
     measured = measure_boards(images_dir, board, calibration, options.settings, progress)
     result = check_photographs(measured.photographs, options, progress)
+    if progress:
+        progress("rendering each photograph's twin (its pose, levels, noise and compression)")
+    own = (
+        [f.vector for f in result.fields.own]
+        if result.fields is not None and result.model.interlaced
+        else None
+    )
+    twins = profile_twins(
+        measured.photographs,
+        measured.camera,
+        Checkerboard(board.cols, board.rows, board.square_mm),
+        result.model,
+        own,
+    )
     return BoardCheck(
         result.causes,
         result.model,
@@ -323,6 +367,7 @@ def check_boards(
         result.alternatives,
         measured.skipped,
         result.fields,
+        twins,
     )
 
 
@@ -339,16 +384,8 @@ def check_photographs(
     # the point spread's halo: held-out profile misfit with the halo fitted on the other folds
     keep = [np.isfinite(p.edges.offset_px) for p in photos]
 
-    def centres(i: int, m: PhotometricModel) -> np.ndarray:
-        """Each edge's transition centre as the model places it (px from the true edge)."""
-        e = photos[i].edges
-        n = e.normal[e.windows.edge]
-        asym = m.edge_shift_u_px * n[:, 0] + m.edge_shift_v_px * n[:, 1]
-        o = place_edges(photos[i], m) + m.print_spread_mm * e.px_per_mm[e.windows.edge] + asym
-        return per_edge_median(e.windows.edge, o, e.n_edges)
-
-    shifts = [centres(i, fold_models[i]) for i in range(len(photos))]
-    plain_shifts = [centres(i, PLAIN) for i in range(len(photos))]
+    shifts = [transition_centres_px(p, m) for p, m in zip(photos, fold_models, strict=True)]
+    plain_shifts = [transition_centres_px(p, PLAIN) for p in photos]
 
     def misfit(i: int, m: PhotometricModel) -> float:
         return fit_profiles(photos[i].edges, m, keep[i], shifts[i]).rms_over_windows()

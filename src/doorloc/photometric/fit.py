@@ -23,7 +23,7 @@ from functools import cached_property
 import numpy as np
 from scipy.optimize import least_squares
 
-from doorloc.photometric.board_edges import BoardEdges, EdgeSettings
+from doorloc.photometric.board_edges import BoardEdges, EdgeSettings, per_edge_median
 from doorloc.photometric.catalogue import (
     EDGE_CAUSES,
     KEEP_SIGMAS,
@@ -58,6 +58,7 @@ __all__ = [
     "white_starts",
     "folds_by_photograph",
     "photo_median",
+    "transition_centres_px",
     "HeldOut",
 ]
 
@@ -69,11 +70,15 @@ TIE_SIGMAS = 1.0
 
 @dataclass(frozen=True)
 class Photograph:
-    """A board photograph's pixels and its measured edges (plain model)."""
+    """A board photograph's pixels and its measured edges (plain model); ``corners_px`` (cols*rows, 2) its
+    board's inner corners as found (image px; None where not kept) and ``jpeg_quality`` the compression its
+    file says (0: none or unknown), which its rendered twin takes (:mod:`doorloc.photometric.twin`)."""
 
     gray: np.ndarray
     edges: BoardEdges
     settings: EdgeSettings = EdgeSettings()
+    corners_px: np.ndarray | None = None
+    jpeg_quality: int = 0
 
     @property
     def name(self) -> str:
@@ -173,6 +178,18 @@ def place_edges(photo: Photograph, model: PhotometricModel) -> np.ndarray:
     n = photo.edges.normal[w.edge]  # each edge's normal towards its bright side (image px)
     asym = model.edge_shift_u_px * n[:, 0] + model.edge_shift_v_px * n[:, 1]
     return out - model.print_spread_mm * photo.edges.px_per_mm[w.edge] - asym
+
+
+def transition_centres_px(photo: Photograph, model: PhotometricModel) -> np.ndarray:
+    """Each edge's transition centre as ``model`` places it, px from the true edge along its normal (+ towards
+    bright; E,): the median of :func:`place_edges` over its scan lines with the print's and the point spread's
+    shifts put back (where a profile fit centres the edge's transition, so that its misfit measures the
+    profile's shape and not the edge's position)."""
+    e = photo.edges
+    n = e.normal[e.windows.edge]
+    asym = model.edge_shift_u_px * n[:, 0] + model.edge_shift_v_px * n[:, 1]
+    o = place_edges(photo, model) + model.print_spread_mm * e.px_per_mm[e.windows.edge] + asym
+    return per_edge_median(e.windows.edge, o, e.n_edges)
 
 
 def photo_median(photo: Photograph, model: PhotometricModel) -> float:

@@ -72,6 +72,19 @@ def report_dict(check: BoardCheck) -> dict:
                 "noise_rms": _num(p.noise_rms_grey),
                 **(
                     {
+                        "twin": {
+                            "profile_rms": _num(t.misfit),
+                            "read_noise": _num(t.read_noise),
+                            "jpeg_quality": t.jpeg_quality,
+                            "blur_px": _num(t.blur_px),
+                            "plateau_spread": _num(t.plateau_spread),
+                        }
+                    }
+                    if t is not None
+                    else {}
+                ),
+                **(
+                    {
                         "field_offset_px": {
                             "u": _num(f.u_px),
                             "v": _num(f.v_px),
@@ -83,15 +96,18 @@ def report_dict(check: BoardCheck) -> dict:
                     else {}
                 ),
             }
-            for p, f in zip(
+            for p, f, t in zip(
                 check.photographs,
                 check.fields.own if check.fields is not None else [None] * len(check.photographs),
+                check.twins or [None] * len(check.photographs),
                 strict=True,
             )
         ],
         "heldout_edge_offset_rms_px": {k: _num(v) for k, v in off.items()},
         "heldout_edge_offset_standard_error_px": _num(check.offset_standard_error_px),
         "heldout_profile_rms": {k: _num(v) for k, v in prof.items()},
+        # the same over what the photographs' rendered twins leave (noise and compression): 1 = drawn fully
+        "heldout_profile_over_twin": {k: _num(v) for k, v in check.profile_over_twin().items()},
         "noise": _num(check.noise_grey),
         "noise_rms": _num(check.noise_rms_grey),
         "extended_model": EXTENDED_CALIBRATION,
@@ -142,10 +158,21 @@ def _action(named: list[str], residual_edge_px: float, clip_level: float = 1.0) 
     return "none."
 
 
+def _compression(check: BoardCheck) -> str:
+    """The photographs' JPEG qualities in words."""
+    q = sorted({t.jpeg_quality for t in check.twins if t is not None})
+    if not q:
+        return "no twins"
+    if q == [0]:
+        return "none"
+    return "JPEG quality " + ", ".join(str(v) if v else "none" for v in q)
+
+
 def report_markdown(check: BoardCheck) -> str:
     """``report.md``: the verdict and the action first, then the figures."""
     off = check.heldout_rms("offset")
     prof = check.heldout_rms("profile_rms")
+    twin = check.profile_over_twin()
     se = check.offset_standard_error_px
     named = [c for c in check.causes if c != "unexplained"]
     lines = ["# Model check on board photographs", ""]
@@ -202,19 +229,29 @@ def report_markdown(check: BoardCheck) -> str:
         "|---|---|---|",
         f"| held-out edge offset, RMS over photographs (px) | {off['before']:.4f} | {off['after']:.4f} |",
         f"| held-out profile misfit, RMS (grey levels) | {prof['before']:.2f} | {prof['after']:.2f} |",
+        f"| the same over its twins' (1 = drawn up to noise and compression) | {twin['before']:.2f} | "
+        f"{twin['after']:.2f} |",
         "",
         f"Noise on the plateaus: {check.noise_grey:.2f} grey levels (median of each scan line's spread), "
-        f"{check.noise_rms_grey:.2f} as an RMS over the windows (the figure the profile misfit compares with); "
+        f"{check.noise_rms_grey:.2f} as an RMS over the windows (what a model leaves where nothing but noise "
+        "is left, without compression); "
         f"standard error of a photograph's median offset from its edges' scatter: {se:.4f} px. "
         f"Calibration: {check.calibration_source}.",
         "",
-        "| photograph | edges | offset before (px) | offset after, held out (px) | profile RMS before | after |",
-        "|---|---|---|---|---|---|",
+        "Each photograph's twin is its board rendered at its pose through the extended model, with its blur, "
+        "its squares' levels, read noise that spreads its plateaus as the photograph's are spread and the "
+        f"compression its file says ({_compression(check)}), measured and fitted as the photograph is: the "
+        "misfit a model that drew everything this camera does would leave.",
+        "",
+        "| photograph | edges | offset before (px) | offset after, held out (px) | profile RMS before | after "
+        "| twin |",
+        "|---|---|---|---|---|---|---|",
     ]
     lines += [
         f"| {p.image} | {p.n_edges} | {p.offset_before_px:+.3f} | {p.offset_after_px:+.3f} | "
-        f"{p.profile_rms_before:.2f} | {p.profile_rms_after:.2f} |"
-        for p in check.photographs
+        f"{p.profile_rms_before:.2f} | {p.profile_rms_after:.2f} | "
+        + (f"{t.misfit:.2f} |" if t is not None else "- |")
+        for p, t in zip(check.photographs, check.twins or [None] * len(check.photographs), strict=True)
     ]
     lines += [
         "",

@@ -163,9 +163,10 @@ def jpeg_roundtrip(u8: np.ndarray, quality: int) -> np.ndarray:
     if not quality:
         return u8
     ok, buf = cv2.imencode(".jpg", u8, [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
-    if not ok:
+    out = cv2.imdecode(buf, cv2.IMREAD_GRAYSCALE) if ok else None
+    if out is None:
         raise RuntimeError("JPEG encoding failed")
-    return cv2.imdecode(buf, cv2.IMREAD_GRAYSCALE)
+    return np.asarray(out, np.uint8)
 
 
 def _interlace(img: np.ndarray, du: float, dv: float) -> np.ndarray:
