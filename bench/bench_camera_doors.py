@@ -13,7 +13,8 @@ them and measures what that costs:
   the envelope, half of them with a 0.5-2.5 mm chamfer on every arris;
 - the box-filtered radiance goes through :func:`doorloc.sim.photometric.apply_camera` with the camera's model:
   blur 0.6-1.8 px at the centre, an exposure that puts the scene's bright end at 0.5-0.95 of full scale, read
-  noise 0.5-3 grey levels, JPEG 88 / 95 or none (drawn per image, seed printed);
+  noise 0.5-3 grey levels, JPEG 88 / 95 or none (drawn per image, seed printed; ``--jpeg Q``: every image at the
+  camera's own quality);
 - the cell (the thesis cell) states as its ``response_gamma`` the power law nearest the camera's response
   (:func:`stated_exponent`: what a power-law measurement of the camera reads) and nothing else of the model;
   the rendered camera's geometry is exact, so the calibration term is off (``calibration_sigma_px`` 0), as in
@@ -33,7 +34,7 @@ Per column: answered, RMS and max error of x, z, yaw, the share within 2 claimed
 the largest |error| / sigma, and the refusals by code.
 
     OMP_NUM_THREADS=1 PYTHONPATH=src python bench/bench_camera_doors.py --model DIR_OR_FILE [--model ...]
-        [--n 24] [--seed 3500]
+        [--n 24] [--seed 3500] [--jpeg 50]
 
 ``--model``: an extended calibration file (``photometric_model`` section), or a `check-model --boards` report
 folder (its report.json's model is read), e.g. ``doorloc check-model --boards ../shared/data/opencv-left
@@ -211,11 +212,19 @@ def main() -> None:
     ap.add_argument("--model", action="append", type=Path, required=True)
     ap.add_argument("--n", type=int, default=24)
     ap.add_argument("--seed", type=int, default=3500)
+    ap.add_argument(
+        "--jpeg",
+        type=int,
+        help="every image stored at this JPEG quality, the camera's own (check-model's report gives it per "
+        "photograph: OpenCV's are 50) instead of one drawn from none, 88 and 95",
+    )
     ap.add_argument("--json")
     a = ap.parse_args()
     cell = load_cell(REPO / "fixtures" / "cell_thesis.yaml")
     items = list(scenes(a.n, a.seed))
-    print(f"{a.n} doors, seed {a.seed}")
+    if a.jpeg is not None:
+        items = [(n, p, d, s, dataclasses.replace(c, jpeg_quality=a.jpeg), k) for n, p, d, s, c, k in items]
+    print(f"{a.n} doors, seed {a.seed}" + (f", JPEG {a.jpeg}" if a.jpeg is not None else ""))
     out: dict[str, dict] = {}
     for p in a.model:
         where, model = read_model(p)
