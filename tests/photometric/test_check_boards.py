@@ -269,6 +269,24 @@ def test_hidden_interlaced_fields_are_named_and_measured(tmp_path):
     assert not set(c.causes) & {"response_gamma", "print_spread", "psf_asymmetry"}, (seed, c.causes)
 
 
+def _jpeg_boards(folder: Path, seed: int, quality: int, as_jpeg_files: bool, **views) -> Path:
+    """Board photographs of the plain model through JPEG of ``quality``: written as JPEG files (their tables
+    say the quality) or, decoded, as PNG files (the compression's marks without its tables)."""
+    folder.mkdir()
+    for name, img in random_board_views(
+        CAMERA, Checkerboard(9, 6, 25.0), PhotometricModel(), VIEWS, seed, **views
+    ):
+        if as_jpeg_files:
+            cv2.imwrite(
+                str(folder / Path(name).with_suffix(".jpg")), img, [cv2.IMWRITE_JPEG_QUALITY, quality]
+            )
+        else:
+            ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, quality])
+            assert ok
+            cv2.imwrite(str(folder / name), cv2.imdecode(buf, cv2.IMREAD_GRAYSCALE))
+    return folder
+
+
 @pytest.mark.slow
 def test_jpeg_boards_without_fields_are_not_read_as_interlaced(tmp_path):
     # JPEG's 8 x 8 blocks start on rows divisible by 8 and bend the rows beside their borders as fields out of
@@ -277,12 +295,7 @@ def test_jpeg_boards_without_fields_are_not_read_as_interlaced(tmp_path):
     # another.
     seed = int(os.environ.get("DOORLOC_TEST_SEED", 19))
     print(f"seed {seed}: JPEG 30, no fields")
-    folder = tmp_path / "boards"
-    folder.mkdir()
-    for name, img in random_board_views(CAMERA, Checkerboard(9, 6, 25.0), PhotometricModel(), VIEWS, seed):
-        ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, 30])
-        assert ok
-        cv2.imwrite(str(folder / name), cv2.imdecode(buf, cv2.IMREAD_GRAYSCALE))
+    folder = _jpeg_boards(tmp_path / "boards", seed, 30, as_jpeg_files=False)
     c = check_boards(folder, Chessboard(9, 6, 25.0), CalibrationFile(CAMERA))
     assert "interlaced_fields" not in c.causes, (seed, c.causes)
     assert c.fields is not None and c.fields.rms_px < 0.03, (seed, c.fields.rms_px)
@@ -295,13 +308,7 @@ def test_jpeg_photographs_are_judged_against_their_twins(tmp_path):
     # say) does not. A fixed default draw; DOORLOC_TEST_SEED tries another.
     seed = int(os.environ.get("DOORLOC_TEST_SEED", 23))
     print(f"seed {seed}: JPEG 50, no effect")
-    folder = tmp_path / "boards"
-    folder.mkdir()
-    views = random_board_views(
-        CAMERA, Checkerboard(9, 6, 25.0), PhotometricModel(), VIEWS, seed, read_noise=(2.0, 3.0)
-    )
-    for name, img in views:
-        cv2.imwrite(str(folder / Path(name).with_suffix(".jpg")), img, [cv2.IMWRITE_JPEG_QUALITY, 50])
+    folder = _jpeg_boards(tmp_path / "boards", seed, 50, as_jpeg_files=True, read_noise=(2.0, 3.0))
     cal = tmp_path / "camera.yaml"
     save_calibration(CalibrationFile(CAMERA), cal)
     res = _run(folder, cal, tmp_path / "report")
