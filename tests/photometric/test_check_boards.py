@@ -320,4 +320,5 @@ def test_jpeg_photographs_are_judged_against_their_twins(tmp_path):
     print(f"profile misfit over the plateaus' spread {over_noise:.2f}, over the twins' {over_twin:.2f}")
     assert over_noise > 1.2
     assert 0.85 < over_twin < 1.15
-    assert "JPEG quality 50" in (tmp_path / "report" / "report.md").read_text()
+    md = (tmp_path / "report" / "report.md").read_text()
+    assert "JPEG quality 50" in md and "--effect jpeg_quality=50" in md

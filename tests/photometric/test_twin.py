@@ -51,7 +51,11 @@ def _photograph(seed: int, rendered_with: PhotometricModel, quality: int, noise_
     tvec = np.array([-100.0, -62.5, 0.0]) + np.array(
         [rng.uniform(-20, 20), rng.uniform(-20, 20), rng.uniform(420, 500)]
     )
-    blur, exposure, noise = float(rng.uniform(0.7, 1.1)), float(rng.uniform(0.6, 0.85)), float(rng.uniform(*noise_range))
+    blur, exposure, noise = (
+        float(rng.uniform(0.7, 1.1)),
+        float(rng.uniform(0.6, 0.85)),
+        float(rng.uniform(*noise_range)),
+    )
     print(f"seed {seed}: blur {blur:.2f} px, exposure {exposure:.2f}, read noise {noise:.2f}, JPEG {quality}")
     rb = render_photographed_board(
         CAMERA, BOARD, rvec, tvec, rendered_with, CameraRendering(blur, exposure, noise, quality), seed=seed
@@ -64,7 +68,9 @@ def _ratios(photo: Photograph, model: PhotometricModel) -> tuple[float, float]:
     """The photograph's profile misfit under ``model`` over its plateaus' spread, and over its twin's misfit."""
     keep = np.isfinite(photo.edges.offset_px)
     misfit = fit_profiles(photo.edges, model, keep, transition_centres_px(photo, model)).rms_over_windows()
-    twin = profile_twin(photo, CAMERA, BOARD, photo.corners_px, model, jpeg_quality=photo.jpeg_quality, seed=9)
+    twin = profile_twin(
+        photo, CAMERA, BOARD, photo.corners_px, model, jpeg_quality=photo.jpeg_quality, seed=9
+    )
     assert abs(twin.plateau_spread - photo.edges.plateau_spread_rms(3, keep)) < 0.15
     return misfit / photo.edges.plateau_spread_rms(3, keep), misfit / twin.misfit
 

@@ -168,6 +168,15 @@ def _compression(check: BoardCheck) -> str:
     return "JPEG quality " + ", ".join(str(v) if v else "none" for v in q)
 
 
+def _render_hint(check: BoardCheck) -> str:
+    """Where the photographs are JPEG: how to render doors as this camera stores them (the model file holds
+    what the camera does to light, not its files' compression)."""
+    q = [t.jpeg_quality for t in check.twins if t is not None and t.jpeg_quality]
+    if not q:
+        return ""
+    return f" Doors rendered as this camera stores them: `doorloc render ... --effect jpeg_quality={int(np.median(q))}`."
+
+
 def report_markdown(check: BoardCheck) -> str:
     """``report.md``: the verdict and the action first, then the figures."""
     off = check.heldout_rms("offset")
@@ -241,7 +250,7 @@ def report_markdown(check: BoardCheck) -> str:
         "Each photograph's twin is its board rendered at its pose through the extended model, with its blur, "
         "its squares' levels, read noise that spreads its plateaus as the photograph's are spread and the "
         f"compression its file says ({_compression(check)}), measured and fitted as the photograph is: the "
-        "misfit a model that drew everything this camera does would leave.",
+        "misfit a model that drew everything this camera does would leave." + _render_hint(check),
         "",
         "| photograph | edges | offset before (px) | offset after, held out (px) | profile RMS before | after "
         "| twin |",
