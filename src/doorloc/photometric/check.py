@@ -11,7 +11,9 @@ section 8b); its result holds every figure of ``report.json``. Steps:
    causes: the point spread's halo by held-out profile misfit, an interlaced camera's fields out of register
    by each photograph's edges held out (:func:`field_offsets`; at least :data:`FIELD_OFFSET_MIN_PX`), the
    blur's field and direction terms by held-out edge blurs (:mod:`~doorloc.photometric.blur`);
-4. each photograph's figures with the plain model and with the model fitted without its fold.
+4. each photograph's figures with the plain model and with the model fitted without its fold;
+5. each photograph's rendered twin (:mod:`~doorloc.photometric.twin`), whose misfit is what the profile misfit
+   is judged against (:meth:`BoardCheck.profile_over_twin`).
 """
 
 from __future__ import annotations
