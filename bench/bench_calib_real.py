@@ -29,7 +29,7 @@ import cv2
 import numpy as np
 
 import doorloc.calib.detect as detect_mod
-from doorloc.calib.calibrate import CANDIDATES_BY_NAME, View, _pose, _project, fit_model
+from doorloc.calib.calibrate import CANDIDATES_BY_NAME, View, _project, board_pose, fit_model
 from doorloc.calib.camera import CameraModel
 from doorloc.calib.detect import Chessboard
 from doorloc.calib.folder import calibrate_folder, detect_views
@@ -50,7 +50,7 @@ def rms_with_model(camera: CameraModel, views) -> float:
     """RMS of our corners under a fixed model, each view's pose re-fitted."""
     res = []
     for v in views:
-        r, t = _pose(camera, v)
+        r, t = board_pose(camera, v.object_points, v.image_points)
         res.append(v.image_points - _project(camera, r, t, v.object_points))
     a = np.concatenate(res)
     return float(np.sqrt(np.mean(np.sum(a**2, axis=1))))

@@ -14,7 +14,7 @@ from doorloc.photometric.board_edges import measure_board_edges
 from doorloc.photometric.fit import Photograph, transition_centres_px
 from doorloc.photometric.model import PLAIN, PhotometricModel
 from doorloc.photometric.profiles import fit_profiles
-from doorloc.photometric.twin import _libjpeg_table, jpeg_quality, profile_twin, read_jpeg_quality
+from doorloc.photometric.twin import jpeg_quality, libjpeg_luminance_table, profile_twin, read_jpeg_quality
 from doorloc.sim.boards import Checkerboard
 from doorloc.sim.photometric import CameraRendering, render_photographed_board
 
@@ -39,7 +39,7 @@ def test_the_quality_is_read_from_the_files_tables(tmp_path, quality):
 
 def test_a_cameras_own_table_reads_as_the_nearest_strength():
     # a table 10 % finer than libjpeg's 60 everywhere reads as a quality near 60, not at an end
-    table = np.maximum(np.round(0.9 * _libjpeg_table(60)), 1)
+    table = np.maximum(np.round(0.9 * libjpeg_luminance_table(60)), 1)
     assert 58 <= jpeg_quality(table) <= 66
     with pytest.raises(ValueError, match="64"):
         jpeg_quality(np.ones(63))
@@ -68,9 +68,7 @@ def _ratios(photo: Photograph, model: PhotometricModel) -> tuple[float, float]:
     """The photograph's profile misfit under ``model`` over its plateaus' spread, and over its twin's misfit."""
     keep = np.isfinite(photo.edges.offset_px)
     misfit = fit_profiles(photo.edges, model, keep, transition_centres_px(photo, model)).rms_over_windows()
-    twin = profile_twin(
-        photo, CAMERA, BOARD, photo.corners_px, model, jpeg_quality=photo.jpeg_quality, seed=9
-    )
+    twin = profile_twin(photo, CAMERA, BOARD, model, seed=9)
     assert abs(twin.plateau_spread - photo.edges.plateau_spread_rms(3, keep)) < 0.15
     return misfit / photo.edges.plateau_spread_rms(3, keep), misfit / twin.misfit
 
@@ -96,6 +94,6 @@ def test_the_twin_still_sees_what_the_model_lacks(seed):
     assert lacking > 1.3
     keep = np.isfinite(photo.edges.offset_px)
     drawn = fit_profiles(photo.edges, fields, keep, transition_centres_px(photo, fields), (0.0, 0.3))
-    twin = profile_twin(photo, CAMERA, BOARD, photo.corners_px, fields, fields_px=(0.0, 0.3), seed=9)
+    twin = profile_twin(photo, CAMERA, BOARD, fields, fields_px=(0.0, 0.3), seed=9)
     print(f"with them: {drawn.rms_over_windows() / twin.misfit:.2f}")
     assert drawn.rms_over_windows() / twin.misfit < 1.15

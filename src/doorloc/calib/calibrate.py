@@ -39,6 +39,7 @@ __all__ = [
     "CalibrationResult",
     "CalibrationError",
     "fit_model",
+    "board_pose",
     "held_out_rms",
     "held_out_errors",
     "jackknife_std",
@@ -298,11 +299,14 @@ def fit_model(views: list[View], image_size: tuple[int, int], candidate: Candida
     return ModelFit(candidate, camera, rv, tv, res, _rms(res), per_view)
 
 
-def _pose(camera: CameraModel, view: View) -> tuple[np.ndarray, np.ndarray]:
-    """Board pose in one view with known intrinsics (planar IPPE start, then Levenberg-Marquardt)."""
-    obj = np.asarray(view.object_points, float).reshape(-1, 1, 3)
-    img = np.asarray(view.image_points, float).reshape(-1, 1, 2)
-    planar = np.ptp(view.object_points[:, 2]) < 1e-9
+def board_pose(
+    camera: CameraModel, object_points: np.ndarray, image_points: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Board pose ``(rvec, tvec)`` (board frame -> camera frame, mm) from its points ``object_points`` (N, 3;
+    mm) seen at ``image_points`` (N, 2; px) through ``camera`` (planar IPPE start, then Levenberg-Marquardt)."""
+    obj = np.asarray(object_points, float).reshape(-1, 1, 3)
+    img = np.asarray(image_points, float).reshape(-1, 1, 2)
+    planar = np.ptp(obj[:, 0, 2]) < 1e-9
     method = cv2.SOLVEPNP_IPPE if planar else cv2.SOLVEPNP_ITERATIVE
     ok, r, t = cv2.solvePnP(obj, img, camera.camera_matrix, camera.dist_coeffs, flags=method)
     if not ok:
@@ -337,7 +341,7 @@ def held_out_errors(
         if fold_cameras is not None:
             fold_cameras.append(fit.camera)
         for i in test:
-            r, t = _pose(fit.camera, views[i])
+            r, t = board_pose(fit.camera, views[i].object_points, views[i].image_points)
             res = views[i].image_points - _project(fit.camera, r, t, views[i].object_points)
             mse[i] = float(np.mean(np.sum(res**2, axis=1)))
     return mse

@@ -10,7 +10,8 @@ but not the second: on flat squares JPEG's quantization takes noise away, on the
 So each photograph gets a twin: the board rendered by :mod:`doorloc.sim.photometric` at the photograph's pose
 (from its corners and the calibration), through the camera's photometric model, with the photograph's blur,
 its squares' levels, read noise chosen so that the twin's plateaus spread as the photograph's do after the
-compression, and the photograph's own compression (the JPEG quality its quantization tables say). The twin's
+compression, and the photograph's own compression (the JPEG quality its quantization tables say; noise is
+added to the stored grey, as the plateaus' spread measures it). The twin's
 edges are measured and fitted as the photograph's are; the misfit the twin leaves is the one a model that
 drew everything the camera does would leave on the photograph. A photograph's misfit over its twin's says how
 much of the profiles the model misses: 1 = nothing beyond noise and compression.
@@ -25,6 +26,10 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+# Pillow reads a JPEG's quantization tables; OpenCV decodes a JPEG without giving them
+from PIL import Image, UnidentifiedImageError
+
+from doorloc.calib.calibrate import board_pose
 from doorloc.calib.camera import CameraModel
 from doorloc.photometric.blur import EdgeBlurs
 from doorloc.photometric.board_edges import BoardEdges, measure_board_edges, per_edge_median
@@ -36,6 +41,7 @@ from doorloc.sim.photometric import CameraRendering, PrintedCheckerboard, apply_
 
 __all__ = [
     "JPEG_LUMINANCE_TABLE",
+    "libjpeg_luminance_table",
     "jpeg_quality",
     "read_jpeg_quality",
     "ProfileTwin",
@@ -60,7 +66,7 @@ JPEG_LUMINANCE_TABLE = np.array(
 ).ravel()
 
 
-def _libjpeg_table(quality: int) -> np.ndarray:
+def libjpeg_luminance_table(quality: int) -> np.ndarray:
     """libjpeg's luminance table at ``quality`` (1-100), row by row (its ``jpeg_quality_scaling``)."""
     scale = 5000.0 / quality if quality < 50 else 200.0 - 2.0 * quality
     return np.clip(np.floor((JPEG_LUMINANCE_TABLE * scale + 50.0) / 100.0), 1.0, 255.0)
@@ -74,16 +80,13 @@ def jpeg_quality(luminance_table: np.ndarray) -> int:
     if t.size != 64:
         raise ValueError(f"a JPEG quantization table has 64 values, got {t.size}")
     q = np.arange(1, 101)
-    cost = [float(np.sum((np.log(_libjpeg_table(int(k))) - t) ** 2)) for k in q]
+    cost = [float(np.sum((np.log(libjpeg_luminance_table(int(k))) - t) ** 2)) for k in q]
     return int(q[int(np.argmin(cost))])
 
 
 def read_jpeg_quality(path: str | os.PathLike) -> int:
     """The JPEG quality of an image file (:func:`jpeg_quality` of its luminance table), 0 for a file that is
     not a JPEG (or cannot be read: the twin is then rendered without compression)."""
-    # Pillow reads the tables; OpenCV decodes a JPEG without giving them
-    from PIL import Image, UnidentifiedImageError
-
     try:
         with Image.open(os.fspath(path)) as im:
             tables = getattr(im, "quantization", None)
@@ -103,10 +106,10 @@ TWIN_NOISE_STEPS = 7
 class ProfileTwin:
     """A photograph's twin (module docstring): how it was rendered and the misfit it leaves.
 
-    ``blur_px``: Gaussian sigma of the optics at the image centre; ``read_noise``: grey levels (1-sigma) added to the stored grey before the
-    response and the compression; ``jpeg_quality``: 0 = none; ``plateau_spread``: the twin's plateaus' spread
-    (grey, RMS over the windows; the photograph's is matched); ``misfit``: the twin's profile misfit with the
-    model it was rendered with (grey, RMS over the windows)."""
+    ``blur_px``: Gaussian sigma of the optics at the image centre; ``read_noise``: grey levels (1-sigma)
+    added to the stored grey, after the response and before the compression; ``jpeg_quality``: 0 = none;
+    ``plateau_spread``: the twin's plateaus' spread (grey, RMS over the windows; the photograph's is matched);
+    ``misfit``: the twin's profile misfit with the model it was rendered with (grey, RMS over the windows)."""
 
     blur_px: float
     read_noise: float
@@ -145,23 +148,20 @@ def profile_twin(
     photo: Photograph,
     camera: CameraModel,
     board: Checkerboard,
-    corners_px: np.ndarray,
     model: PhotometricModel,
     *,
-    jpeg_quality: int = 0,
     fields_px: tuple[float, float] = (0.0, 0.0),
     seed: int = 0,
 ) -> ProfileTwin:
     """Render ``photo``'s twin (module docstring) and fit its profiles with ``model``.
 
-    ``corners_px`` (cols*rows, 2): the photograph's inner corners in ``board``'s order (image px), which give
-    the pose through ``camera``; ``fields_px``: the photograph's interlaced fields' offset (image px)."""
-    obj = board.object_points().astype(np.float64)
-    ok, rvec, tvec = cv2.solvePnP(
-        obj, np.asarray(corners_px, np.float64).reshape(-1, 1, 2), camera.camera_matrix, camera.dist_coeffs
-    )
-    if not ok:
-        raise ValueError(f"{photo.name}: no board pose from its corners")
+    The pose comes from the photograph's corners (``photo.corners_px``, in ``board``'s order) through
+    ``camera``, the compression from ``photo.jpeg_quality``; ``fields_px``: the photograph's interlaced
+    fields' offset (image px). Raises ValueError for a photograph without corners."""
+    if photo.corners_px is None:
+        raise ValueError(f"{photo.name}: its corners were not kept, so it has no pose to render its twin at")
+    rvec, tvec = board_pose(camera, board.object_points(), photo.corners_px)
+    jpeg_quality = photo.jpeg_quality
     keep = np.isfinite(photo.edges.offset_px)
     target = photo.edges.plateau_spread_rms(photo.settings.plateau, keep)
     blur = _centre_blur_px(photo, model, keep, fields_px)
@@ -169,7 +169,7 @@ def profile_twin(
     printed = PrintedCheckerboard(
         board.cols, board.rows, board.square_mm, board.margin_mm, model.print_spread_mm
     )
-    rb = render_board(camera, printed, rvec.ravel(), tvec.ravel())
+    rb = render_board(camera, printed, rvec, tvec)
     # the board's reflectances mapped onto the photograph's squares' light (the margin and surround with them)
     radiance = dark + (rb.radiance - BOARD_BLACK) * ((light - dark) / (BOARD_WHITE - BOARD_BLACK))
 
@@ -222,20 +222,9 @@ def profile_twins(
     need a twin then leave it out rather than the check failing)."""
     out: list[ProfileTwin | None] = []
     for i, p in enumerate(photos):
-        twin = None
-        if p.corners_px is not None:
-            try:
-                twin = profile_twin(
-                    p,
-                    camera,
-                    board,
-                    p.corners_px,
-                    model,
-                    jpeg_quality=p.jpeg_quality,
-                    fields_px=fields_px[i] if fields_px is not None else (0.0, 0.0),
-                    seed=i,
-                )
-            except (ValueError, cv2.error):
-                twin = None
-        out.append(twin)
+        try:
+            fields = fields_px[i] if fields_px is not None else (0.0, 0.0)
+            out.append(profile_twin(p, camera, board, model, fields_px=fields, seed=i))
+        except (ValueError, cv2.error):
+            out.append(None)
     return out
