@@ -1,6 +1,6 @@
 """The functions whose loops are now numba kernels (doorloc.vision.jit), as they were written with numpy:
 the references tests/vision/test_jit.py holds the compiled ones to (texture_bias, transition_width,
-plateau_levels, ransac_line, the response's asymmetry, the step fit, the arris strip's pixel terms and solve, the
+plateau_levels, ransac_line, the response's asymmetry and its parabola vertex, the step fit, the arris strip's pixel terms and solve, the
 far-face Gauss-Newton loop, the arris lines' borders; the area estimate is held to subpixel_edges' own numpy branch, the coarse
 finder to coarse_reference.py)."""
 
@@ -377,6 +377,23 @@ def asymmetry(t, gammas: np.ndarray, blocks: np.ndarray | None = None, n_blocks:
     out = np.where(m >= 4, (r * r).sum(axis=1) / np.maximum(m, 1), np.nan)
     out = np.where(rows_ok.reshape(-1) >= 3, out, np.nan)
     return out.reshape(G, n_blocks) if blocks is not None else out
+
+
+def vertex(grid: np.ndarray, a: np.ndarray) -> float:
+    """:func:`doorloc.vision.response_asymmetry._vertex` as written in Python."""
+    finite = np.isfinite(a)
+    if not finite.any():
+        return float("nan")
+    i = int(np.nanargmin(a))
+    if i == 0 or i == grid.size - 1 or not (math.isfinite(a[i - 1]) and math.isfinite(a[i + 1])):
+        return float(grid[i])
+    x0, x1, x2 = (math.log(float(g)) for g in grid[i - 1 : i + 2])
+    y0, y1, y2 = float(a[i - 1]), float(a[i]), float(a[i + 1])
+    s0, s2 = (y0 - y1) / (x0 - x1), (y2 - y1) / (x2 - x1)
+    curv = (s2 - s0) / (x2 - x0)
+    if curv <= 0:
+        return float(grid[i])
+    return float(math.exp(min(max(x1 - (s0 + curv * (x1 - x0)) / (2.0 * curv), x0), x2)))
 
 
 def step_fit(

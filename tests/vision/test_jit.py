@@ -412,6 +412,30 @@ def test_response_asymmetry_as_its_numpy_version(seed, n, half, blocks, one_phas
         assert np.isfinite(want).any()  # (the comparison saw numbers, not only NaN)
 
 
+@settings(max_examples=200, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    size=st.integers(1, 30),
+    columns=st.integers(1, 12),
+    holes=st.sampled_from([0.0, 0.1, 0.5, 1.0]),
+)
+def test_response_vertex_as_its_python_version(seed, size, columns, holes):
+    # the compiled parabola vertex of the least asymmetry (one column, and each column of a blocks' table)
+    # against the Python it replaced, bit for bit: noisy bowls on geometric grids, NaN holes (none, some,
+    # all), flat and falling runs (no curvature: the grid's least value), minima at the ends
+    import doorloc.vision.response_asymmetry as ra
+
+    rng = np.random.default_rng(seed)
+    grid = np.geomspace(rng.uniform(0.3, 1.5), rng.uniform(1.6, 6.0), size)
+    x = np.log(grid)[:, None] - rng.uniform(np.log(grid[0]) - 0.5, np.log(grid[-1]) + 0.5, columns)[None, :]
+    table = x**2 * rng.uniform(0.01, 2.0, columns) + rng.normal(0, rng.uniform(0, 0.3), (size, columns))
+    table[:, rng.uniform(size=columns) < 0.2] = 1.0  # flat
+    table[rng.uniform(size=table.shape) < holes] = np.nan
+    want = np.array([reference.vertex(grid, table[:, k]) for k in range(columns)])
+    np.testing.assert_array_equal(ra._vertices(grid, table), want)
+    np.testing.assert_array_equal([ra._vertex(grid, np.ascontiguousarray(c)) for c in table.T], want)
+
+
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_response_asymmetry_same_through_either_levels_index(seed, monkeypatch):
     # Transitions.levels indexes its levels with 16 bits where they allow, else with numpy's own index:
