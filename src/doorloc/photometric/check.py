@@ -42,7 +42,14 @@ from doorloc.photometric.fit import (
     transition_centres_px,
 )
 from doorloc.photometric.model import PLAIN, PhotometricModel
-from doorloc.photometric.profiles import EdgeProfiles, FieldOffset, fit_field_offset, fit_profiles
+from doorloc.photometric.profiles import (
+    EdgeProfiles,
+    FieldOffset,
+    ResidualProfile,
+    fit_field_offset,
+    fit_profiles,
+    mean_residual_profile,
+)
 from doorloc.photometric.twin import ProfileTwin, profile_twins, read_jpeg_quality
 from doorloc.sim.boards import Checkerboard
 
@@ -204,6 +211,14 @@ class BoardCheck:
             "before": rms([getattr(p, f"{attr}_before" + ("_px" if attr == "offset" else "")) for p in h]),
             "after": rms([getattr(p, f"{attr}_after" + ("_px" if attr == "offset" else "")) for p in h]),
         }
+
+    def residual_profiles(self) -> tuple[ResidualProfile, ResidualProfile]:
+        """The mean residual profiles (:func:`~doorloc.photometric.profiles.mean_residual_profile`) of the
+        plain model's and the extended model's fits over every photograph."""
+        return (
+            mean_residual_profile([p.profiles_before for p in self.photographs]),
+            mean_residual_profile([p.profiles_after for p in self.photographs]),
+        )
 
     def profile_over_twin(self) -> dict[str, float]:
         """The held-out profile misfit (RMS over photographs, plain model and extended) over the misfit the
