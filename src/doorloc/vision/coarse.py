@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from doorloc.vision.jit import kernel, select_kth
+from doorloc.vision.jit import kernel, read_only, select_kth
 from doorloc.vision.lines import ImageLine, ransac_line
 from doorloc.vision.sampling import Axis, oriented, pixel_buffer
 
@@ -120,23 +120,24 @@ def _strongest_steps_warm_up(k) -> None:
     img[:, 8:] = 100
     for buf in (img.reshape(-1), img.astype(np.uint16).reshape(-1)):
         for prefer in (_NO_PREFER, np.full(4, 8.0)):
-            k(
-                buf,
-                16,
-                1,
-                16,
-                np.arange(4),
-                np.full(4, 1),
-                np.full(4, 14),
-                14,
-                1,
-                2,
-                1,
-                buf.dtype == np.uint8,
-                prefer,
-                prefer.size > 0,
-                0.3,
-            )
+            for scan in (np.arange(4), read_only(np.arange(4))):  # (the finder's cached scan lines)
+                k(
+                    buf,
+                    16,
+                    1,
+                    16,
+                    scan,
+                    np.full(4, 1),
+                    np.full(4, 14),
+                    14,
+                    1,
+                    2,
+                    1,
+                    buf.dtype == np.uint8,
+                    prefer,
+                    prefer.size > 0,
+                    0.3,
+                )
 
 
 @kernel(_strongest_steps_warm_up)

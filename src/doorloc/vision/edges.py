@@ -66,7 +66,8 @@ DITHERING_NOISE_LEVELS = 0.5
 
 def _area_edges_warm_up(k) -> None:
     for buf, table in warm_up_planes(8):
-        k(buf, 1, 8, 8, 8, np.arange(8), np.full(8, 1), np.ones(8, bool), 2, 1, table, 1, 1.0)
+        for scan in (np.arange(8), np.arange(16)[::2]):  # (a strided selection of scan lines too)
+            k(buf, 1, 8, 8, 8, scan, np.full(8, 1), np.ones(8, bool), 2, 1, table, 1, 1.0)
 
 
 @kernel(_area_edges_warm_up)

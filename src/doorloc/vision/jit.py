@@ -30,6 +30,8 @@ from numba.extending import overload
 __all__ = [
     "kernel",
     "compile_kernels",
+    "compiled_signatures",
+    "read_only",
     "grey",
     "median_in_place",
     "pairwise_sum",
@@ -221,3 +223,18 @@ def compile_kernels() -> int:
         if warm_up is not None:
             warm_up(k)
     return len(_KERNELS)
+
+
+def compiled_signatures() -> dict[str, int]:
+    """``{module.kernel: signatures compiled so far}`` of every kernel defined so far: where locating an image
+    after :func:`compile_kernels` adds one, a warm-up misses an argument type locate passes, and a process
+    started from a cache the warm-ups filled compiles it on its first image (seconds)."""
+    return {f"{k.py_func.__module__}.{k.py_func.__qualname__}": len(k.signatures) for k, _ in _KERNELS}
+
+
+def read_only(a: np.ndarray) -> np.ndarray:
+    """A read-only copy of ``a``, for warm-ups: numba compiles a kernel apart for read-only arrays (cached
+    tables, a camera's coefficients), which locate passes."""
+    out = np.array(a)
+    out.flags.writeable = False
+    return out

@@ -18,7 +18,7 @@ import math
 import numpy as np
 
 from doorloc.calib.camera import UNDISTORT_TOL
-from doorloc.vision.jit import kernel
+from doorloc.vision.jit import kernel, read_only
 
 __all__ = ["MAX_ITER", "distort_to_pixels", "undistort_pixels"]
 
@@ -27,7 +27,8 @@ MAX_ITER = 50
 
 
 def _undistort_warm_up(k) -> None:
-    k(np.zeros((2, 2)), np.array([1000.0, 0.0, 500.0, 1000.0, 400.0]), np.zeros(12), MAX_ITER)
+    for c in (np.zeros(12), read_only(np.zeros(12))):  # a camera's coefficients are read-only
+        k(np.zeros((2, 2)), np.array([1000.0, 0.0, 500.0, 1000.0, 400.0]), c, MAX_ITER)
 
 
 @kernel(_undistort_warm_up)
@@ -110,7 +111,8 @@ def undistort_pixels(uv, k, c, max_iter):
 
 
 def _distort_warm_up(k) -> None:
-    k(np.zeros(2), np.zeros(2), np.array([1000.0, 0.0, 500.0, 1000.0, 400.0]), np.zeros(12))
+    for c in (np.zeros(12), read_only(np.zeros(12))):
+        k(np.zeros(2), np.zeros(2), np.array([1000.0, 0.0, 500.0, 1000.0, 400.0]), c)
 
 
 @kernel(_distort_warm_up)

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from doorloc.vision.jit import kernel, partitioned_median
+from doorloc.vision.jit import kernel, partitioned_median, read_only
 from doorloc.vision.sampling import median  # np.median's value, without its generic machinery
 
 __all__ = [
@@ -70,7 +70,7 @@ class ImageLine:
         return self.a + self.b * np.asarray(scan, float)
 
 
-@kernel()
+@kernel(lambda k: k(np.arange(4.0), np.arange(4.0)))
 def _lsq_line(s, a):
     """Least-squares ``a = a0 + b s``; returns (b, a0)."""
     sm = s.sum() / s.size
@@ -123,6 +123,7 @@ def ransac_line(
 def _ransac_warm_up(k) -> None:
     s = np.arange(8.0)
     k(s, 2.0 * s, np.array([0, 1, 2]), np.array([5, 6, 7]), 3.0)
+    k(s, 2.0 * s, read_only(np.array([0, 1, 2])), read_only(np.array([5, 6, 7])), 3.0)  # cached pairs
 
 
 @kernel(_ransac_warm_up)

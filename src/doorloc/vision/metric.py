@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from doorloc.calib.camera import PosedCamera
-from doorloc.vision.jit import kernel
+from doorloc.vision.jit import kernel, read_only
 from doorloc.vision.lens import MAX_ITER, distort_to_pixels, undistort_pixels
 from doorloc.vision.lines import RectangleFit
 
@@ -97,7 +97,8 @@ class PlaneMap:
 
 
 def _rays_warm_up(k) -> None:
-    k(np.zeros(2), np.zeros(2), np.eye(3), np.ones(3), 5.0)
+    for R in (np.eye(3), read_only(np.eye(3))):  # a pose's rotation is read-only
+        k(np.zeros(2), np.zeros(2), R, np.ones(3), 5.0)
 
 
 @kernel(_rays_warm_up)
@@ -118,7 +119,8 @@ def _rays_to_plane(x, y, R, centre, depth_y):
 
 
 def _plane_warm_up(k) -> None:
-    k(np.zeros((2, 2)), np.eye(3), np.ones(3), 5.0)
+    for R, t in ((np.eye(3), np.ones(3)), (read_only(np.eye(3)), read_only(np.ones(3)))):
+        k(np.zeros((2, 2)), R, t, 5.0)
 
 
 @kernel(_plane_warm_up)

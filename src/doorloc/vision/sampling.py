@@ -23,7 +23,7 @@ from typing import Literal
 
 import numpy as np
 
-from doorloc.vision.jit import kernel
+from doorloc.vision.jit import kernel, read_only
 
 __all__ = [
     "Axis",
@@ -205,7 +205,9 @@ def warm_up_planes(n: int) -> Iterator[tuple[np.ndarray, np.ndarray]]:
     img[:, n // 2 :] = 100
     for buf in (img.reshape(-1), img.astype(np.uint16).reshape(-1)):
         yield buf, NO_LUT
-        yield buf, np.arange(256 if buf.dtype == np.uint8 else 65536, dtype=np.float32)
+        table = np.arange(256 if buf.dtype == np.uint8 else 65536, dtype=np.float32)
+        yield buf, table
+        yield buf, read_only(table)  # the cached response tables locate passes are read-only
 
 
 def median(x: np.ndarray) -> float:
