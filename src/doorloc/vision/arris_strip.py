@@ -17,7 +17,7 @@ import numpy as np
 
 from doorloc.vision.arris_geometry import ArrisGeometry
 from doorloc.vision.blurred_step import STEP_TAIL_SIGMAS
-from doorloc.vision.jit import kernel, pairwise_sum
+from doorloc.vision.jit import kernel, pairwise_sum, read_only
 from doorloc.vision.sampling import normal_cdf_pdf
 
 __all__ = [
@@ -359,14 +359,14 @@ def _strip_evaluate_warm_up(k) -> None:
         M, const = mix_cells(basis, 2)
         P = np.concatenate([np.full((2, 1), -0.5), np.full((2, 1), -0.5), basis], axis=1)
         v = np.array([4.0, 5.0, 6.0])
-        for jac in (False, True):
+        for jac, cand in ((False, v), (True, v), (False, read_only(v)), (True, read_only(v))):
             k(
                 edges,
                 v,
                 v,
                 np.linspace(0, 1, 3),
-                v,
-                v,
+                cand,  # (the candidates' offsets and blurs: read-only where a search's grid is cached)
+                cand,
                 STEP_TAIL_SIGMAS,
                 M,
                 const,
