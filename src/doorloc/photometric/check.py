@@ -18,6 +18,7 @@ section 8b); its result holds every figure of ``report.json``. Steps:
 
 from __future__ import annotations
 
+import functools
 import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -212,9 +213,11 @@ class BoardCheck:
             "after": rms([getattr(p, f"{attr}_after" + ("_px" if attr == "offset" else "")) for p in h]),
         }
 
+    @functools.cached_property
     def residual_profiles(self) -> tuple[ResidualProfile, ResidualProfile]:
         """The mean residual profiles (:func:`~doorloc.photometric.profiles.mean_residual_profile`) of the
-        plain model's and the extended model's fits over every photograph."""
+        plain model's and the extended model's fits over every photograph (made once: the plot, report.json
+        and report.md each read them)."""
         return (
             mean_residual_profile([p.profiles_before for p in self.photographs]),
             mean_residual_profile([p.profiles_after for p in self.photographs]),

@@ -181,13 +181,10 @@ class ResidualProfile:
 def mean_residual_profile(profiles: Sequence[EdgeProfiles]) -> ResidualProfile:
     """The mean residual profile of several photographs' fitted profiles (:class:`ResidualProfile`)."""
     bins = RESIDUAL_PROFILE_BINS_PX
-    d = np.concatenate([p.distance.ravel() for p in profiles]) if profiles else np.empty(0)
-    r = np.concatenate([p.residual.ravel() for p in profiles]) if profiles else np.empty(0)
-    rows = (
-        np.concatenate([np.repeat(p.along_rows, p.residual.shape[1]) for p in profiles])
-        if profiles
-        else np.empty(0, bool)
-    )
+    parts = list(profiles)
+    d = np.concatenate([np.empty(0)] + [p.distance.ravel() for p in parts])
+    r = np.concatenate([np.empty(0)] + [p.residual.ravel() for p in parts])
+    rows = np.concatenate([np.empty(0, bool)] + [np.repeat(p.along_rows, p.residual.shape[1]) for p in parts])
     ok = np.isfinite(d) & np.isfinite(r) & (d >= bins[0]) & (d < bins[-1])
     at = np.digitize(d[ok], bins) - 1
     r, rows = r[ok], rows[ok]

@@ -135,7 +135,7 @@ def report_dict(check: BoardCheck) -> dict:
 
 
 def _residual_profile_dict(check: BoardCheck) -> dict:
-    plain, extended = check.residual_profiles()
+    plain, extended = check.residual_profiles
     gap, at = extended.direction_gap()
 
     def grey(v: np.ndarray) -> list[float | None]:
@@ -304,7 +304,7 @@ def report_markdown(check: BoardCheck) -> str:
 
 
 def _direction_sentence(check: BoardCheck) -> str:
-    gap, at = check.residual_profiles()[1].direction_gap()
+    gap, at = check.residual_profiles[1].direction_gap()
     if not np.isfinite(gap):
         return "The edges across the rows and across the columns are too few to compare their profiles."
     return (
@@ -331,7 +331,7 @@ def plots(check: BoardCheck) -> dict[str, bytes]:
 
     fig = Figure(figsize=(7, 4))
     ax = fig.add_subplot(1, 1, 1)
-    plain, extended = check.residual_profiles()
+    plain, extended = check.residual_profiles
     x = extended.distance_px
     ax.plot(x, plain.all, "-o", ms=3, color="tab:red", label="plain model")
     ax.plot(x, extended.all, "-o", ms=3, color="tab:blue", label="extended model")

@@ -449,6 +449,7 @@ def _line_figures_warm_up(k) -> None:
         np.array([50.0, 60.0, -70.0]),
         np.ones(3, np.float32),
     )
+    # (edge samples carry their plateau noise as float32 from the area estimate, float64 from other readers)
     k(np.array([1.0, 0.0, 2.0]), np.array([0.1, 0.2, -0.3]), np.array([50.0, 60.0, -70.0]), np.ones(3))
 
 

@@ -19,7 +19,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from doorloc.vision.edges import DITHERING_NOISE_LEVELS
-from doorloc.vision.jit import kernel, pairwise_sum
+from doorloc.vision.jit import kernel, pairwise_sum, read_only
 
 __all__ = [
     "RESPONSE_AMBIGUOUS_RATIO",
@@ -441,8 +441,7 @@ def _vertex_warm_up(k) -> None:
     grid = np.array([1.0, 1.1, 1.2])
     k(grid, np.array([1.0, 0.5, 0.7]))
     k(grid, np.ones((3, 2))[:, 0])  # a block's column of a (G, n_blocks) table
-    grid.flags.writeable = False  # least_asymmetric's finer grids are read-only (_refined_grid's cache)
-    k(grid, np.array([1.0, 0.5, 0.7]))
+    k(read_only(grid), np.array([1.0, 0.5, 0.7]))  # least_asymmetric's finer grids (_refined_grid's cache)
 
 
 @kernel(_vertex_warm_up)
