@@ -608,3 +608,36 @@ def residual_structure_tilt(
     centres = np.array([s[b].mean() for b in parts])
     spread = float(np.sum((centres - centres.mean()) ** 2))
     return float(np.std(means, ddof=1) / math.sqrt(spread)) if spread > 0 else float("nan")
+
+
+def transition_skew_px(t, rows, g: float) -> float:
+    """``doorloc.vision.response_asymmetry.transition_skew_px`` as numpy computed it before it was compiled."""
+    levels, index = t.levels  # each distinct level raised once, whichever rows are asked for
+    vals = (levels**g)[index[rows]]
+    off = t.offset[rows]
+    d = np.diff(vals, axis=1)
+    tot = d.sum(axis=1, keepdims=True)
+    good = np.abs(tot[:, 0]) > 1e-9
+    if int(good.sum()) < 3:
+        return float("nan")
+    # positions from the dark side to the bright one: the skew's sign then says which way the exponent
+    # is off, whichever the edge's polarity
+    pos = (np.arange(d.shape[1]) + 0.5 + off[good][:, None]) * np.sign(tot[good])
+    d = d[good] / tot[good]
+    bins = np.round(pos * 4).astype(int)
+    lo = bins.min()
+    acc = np.bincount((bins - lo).ravel(), weights=d.ravel())
+    cnt = np.bincount((bins - lo).ravel())
+    x = (np.arange(cnt.size) + lo) / 4.0
+    filled = cnt > 0
+    gm = np.interp(x, x[filled], acc[filled] / cnt[filled])
+    if gm.sum() <= 0:
+        return float("nan")
+    w = gm / gm.sum()
+    centre = float(np.sum(w * x))
+    cum = np.cumsum(w) - 0.5 * w
+    k = int(np.searchsorted(cum, 0.5))
+    if k <= 0 or k >= x.size:
+        return float("nan")
+    f = (0.5 - cum[k - 1]) / max(cum[k] - cum[k - 1], 1e-12)
+    return float(x[k - 1] + f * (x[k] - x[k - 1]) - centre)

@@ -953,3 +953,45 @@ def test_residual_structure_tilt_as_its_numpy_version(seed, n, reverse, drop):
         assert math.isnan(got)
     else:
         assert got == pytest.approx(want, rel=1e-9)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    n=st.integers(1, 80),
+    width=st.integers(2, 31),
+    top=st.sampled_from([0.0, 255.0, 65535.0]),
+    noise=st.sampled_from([0.0, 0.01, 0.2]),
+    thinned=st.booleans(),
+)
+def test_transition_skew_as_its_numpy_version(seed, n, width, top, noise, thinned):
+    # the compiled skew against the numpy it replaced, bit for bit: blurred steps of either polarity at
+    # every phase, flat profiles among them (fewer than 3 that step: NaN), noise that dips the mean
+    # transition (its cumulative sum then falls back: np.searchsorted's bisection, not a scan), bins left
+    # empty between filled ones (np.interp), 8- and 16-bit levels and free floats, a line's thinned offsets
+    from scipy.special import ndtr
+
+    import doorloc.vision.response_asymmetry as ra
+
+    rng = np.random.default_rng(seed)
+    off = rng.uniform(-width / 2 - 1, -width / 2 + 1, n) * rng.uniform(0.5, 2.0)
+    edge = np.arange(width)[None, :] + off[:, None]
+    lo, hi = rng.uniform(0.02, 0.5, n), rng.uniform(0.5, 0.98, n)
+    flip = rng.uniform(size=n) < 0.3
+    lo[flip], hi[flip] = hi[flip], lo[flip]
+    lo[rng.uniform(size=n) < 0.1] = hi[0]  # flat: no step
+    raw = lo[:, None] + (hi - lo)[:, None] * ndtr(edge / rng.uniform(0.3, 2.0))
+    raw = np.clip(raw + rng.normal(0.0, noise, raw.shape), 0.0, 1.0)
+    if top:
+        raw = np.round(raw * top) / top
+    if thinned:
+        raw, off = np.repeat(raw, 2, axis=0)[::2], np.repeat(off, 2)[::2]
+    t = ra.Transitions(raw, off, top=top)
+    for g in (0.45, 1.0, 2.2, 4.7):
+        want = reference.transition_skew_px(t, slice(None), g)
+        got = ra.transition_skew_px(t, slice(None), g)
+        assert got == want or (math.isnan(got) and math.isnan(want)), (g, got, want)
+    rows = np.flatnonzero(rng.uniform(size=raw.shape[0]) < 0.7)
+    want = reference.transition_skew_px(t, rows, 2.2)
+    got = ra.transition_skew_px(t, rows, 2.2)
+    assert got == want or (math.isnan(got) and math.isnan(want))

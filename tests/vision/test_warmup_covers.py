@@ -1,7 +1,7 @@
 """The kernels' warm-ups cover the argument types locate passes on a realistic frame: a process started from a
 numba cache that the warm-ups filled (the container image, the service's start) compiles nothing on its first
-image. A missed type (a read-only cached table, a camera's read-only coefficients) had cost the first realistic
-frame 6 s; an arris strip's read-only candidates one more kernel."""
+image, 8-bit or 16-bit, grey or colour. A missed type (a read-only cached table, a camera's read-only
+coefficients) had cost the first realistic frame 6 s; an arris strip's read-only candidates one more kernel."""
 
 from __future__ import annotations
 
@@ -53,6 +53,11 @@ SCRIPT = textwrap.dedent(
         img = render_door(cell, door, pose, effects=fx, seed=k).image
         images.append((img, door))
         images.append((decode_image(cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, 95])[1].tobytes()), door))
+        # a 16-bit camera's frame (its low byte noise) and a colour one (BGR JPEG): other planes' types
+        deep = img.astype(np.uint16) * 256 + np.random.default_rng(k).integers(0, 256, img.shape, np.uint16)
+        images.append((decode_image(cv2.imencode(".png", deep)[1].tobytes()), door))
+        colour = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
+        images.append((decode_image(cv2.imencode(".jpg", colour, [cv2.IMWRITE_JPEG_QUALITY, 90])[1].tobytes()), door))
     jit.compile_kernels()
     before = jit.compiled_signatures()
     answered = sum(locate(img, cell, door).ok for img, door in images)
@@ -69,5 +74,5 @@ def test_locate_compiles_nothing_after_the_warm_ups():
         [sys.executable, "-c", SCRIPT], cwd=REPO, capture_output=True, text=True, check=True
     ).stdout
     res = json.loads(out.strip().splitlines()[-1])
-    assert res["answered"] >= 6, res  # (the frames went the whole way: every stage's kernels ran)
+    assert res["answered"] >= 12, res  # (the frames went the whole way: every stage's kernels ran)
     assert res["added"] == {}, res
