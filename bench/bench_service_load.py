@@ -1,4 +1,4 @@
-"""Load: N concurrent clients post 1080p PNGs to a real `doorloc serve` on 127.0.0.1 for T seconds.
+"""Load: N concurrent clients post 1080p PNGs (``--jpeg``: JPEGs) to a real `doorloc serve` for T seconds.
 
 Prints errors (transport errors, non-200 answers, ok=false), throughput, p50/p99 latency and the
 server's RSS (all its processes) at start and end.
@@ -9,8 +9,8 @@ for the clients' CPU. Instead the server's own CPU seconds over the run (all its
 give ``requests per server CPU-second``, which is the rate per core of a server that has its cores to
 itself. The ideal next to it is measured twice: in this process on the same PNGs before the run (the
 median thread-CPU time of ``decode_image`` + ``locate``, one thread), and by the server itself during the
-run (each answer's ``Server-Timing``: the worker thread's CPU ms of decoding and measuring that very
-request; their mean). The second is immune to the machine's speed drifting between the two measurements
+run (each answer's ``Server-Timing``: the CPU ms, its thread's and the worker processes', of decoding and
+measuring that very request; their mean). The second is immune to the machine's speed drifting between the two measurements
 (a shared machine's speed moved the first by a third from run to run); its share of the server's CPU
 seconds is the fraction of the server's time spent measuring images, the rest being HTTP, parsing,
 queueing and the event loop. A third ideal times decode + locate alone in one process per CPU at once
@@ -35,7 +35,7 @@ from service_harness import CELL, cpu_seconds, doorloc_serve, rendered_pngs, rss
 
 
 def _server_cpu_ms(header: str) -> float:
-    """The sum of a ``Server-Timing`` header's durations (doorloc: decode and locate, thread CPU ms)."""
+    """The sum of a ``Server-Timing`` header's durations (doorloc: decode and locate, CPU ms)."""
     total = 0.0
     for part in header.split(","):
         for param in part.split(";")[1:]:
@@ -55,7 +55,7 @@ async def _client(
             i += 1
             t0 = time.perf_counter()
             try:
-                r = await client.post("/v1/locate", files={"image": (f"door{i}.png", data, "image/png")})
+                r = await client.post("/v1/locate", files={"image": _upload(f"door{i}", data)})
                 dt = time.perf_counter() - t0
                 if r.status_code != 200:
                     errors.append(f"HTTP {r.status_code}: {r.text[:200]}")
@@ -66,6 +66,13 @@ async def _client(
                     server_ms.append(_server_cpu_ms(r.headers.get("server-timing", "")))
             except httpx.HTTPError as e:
                 errors.append(f"{type(e).__name__}: {e}")
+
+
+def _upload(stem: str, data: bytes) -> tuple[str, bytes, str]:
+    """A multipart image part for ``data``, named and typed by its format (a JPEG's first bytes, else PNG)."""
+    return (
+        (f"{stem}.jpg", data, "image/jpeg") if data[:2] == b"\xff\xd8" else (f"{stem}.png", data, "image/png")
+    )
 
 
 async def _sample_rss(pid: int, stop_at: float, samples: list) -> None:
@@ -144,6 +151,7 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, default=60.0)
     ap.add_argument("--workers", type=int, default=2, help="doorloc serve --workers")
     ap.add_argument("--images", type=int, default=8, help="distinct rendered PNGs cycled through")
+    ap.add_argument("--jpeg", type=int, metavar="QUALITY", help="post JPEGs of this quality instead of PNGs")
     ap.add_argument(
         "--max-queue",
         type=int,
@@ -152,7 +160,7 @@ def main() -> None:
     )
     args = ap.parse_args()
 
-    pngs = rendered_pngs(args.images)
+    pngs = rendered_pngs(args.images, jpeg_quality=args.jpeg)
     ideal_ms = decode_and_locate_ms(pngs)
     busy = os.cpu_count() or 1
     loaded_ms = decode_and_locate_ms_at_once(pngs, busy)
@@ -161,7 +169,7 @@ def main() -> None:
         # one warm-up request per worker, so the first timed requests do not pay for imports
         with httpx.Client(base_url=base, timeout=120) as c:
             for k in range(args.workers):
-                c.post("/v1/locate", files={"image": ("warm.png", pngs[k % len(pngs)][0], "image/png")})
+                c.post("/v1/locate", files={"image": _upload("warm", pngs[k % len(pngs)][0])})
         rss_start, cpu_start = rss_mb(pid), cpu_seconds(pid)
         client_cpu_start = time.process_time()
         latencies, errors, wall, rss_samples, server_ms = asyncio.run(
@@ -177,7 +185,8 @@ def main() -> None:
         "seconds": round(wall, 1),
         "workers": args.workers,
         "max_queue": max_queue,
-        "png_bytes_mean": int(statistics.mean(len(d) for d, _ in pngs)),
+        "image_format": "png" if args.jpeg is None else f"jpeg {args.jpeg}",
+        "png_bytes_mean": int(statistics.mean(len(d) for d, _ in pngs)),  # (the JPEGs' with --jpeg)
         "requests_ok": len(latencies),
         "errors": len(errors),
         "throughput_rps": round(len(latencies) / wall, 2),

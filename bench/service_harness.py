@@ -171,8 +171,11 @@ def doorloc_serve(
             log.close()
 
 
-def rendered_pngs(n: int, seed0: int = 0) -> list[tuple[bytes, tuple[float, float, float]]]:
-    """``n`` 1920x1080 PNGs of the nominal door at poses spread over the envelope, with their true poses."""
+def rendered_pngs(
+    n: int, seed0: int = 0, jpeg_quality: int | None = None
+) -> list[tuple[bytes, tuple[float, float, float]]]:
+    """``n`` 1920x1080 PNGs of the nominal door at poses spread over the envelope, with their true poses;
+    JPEGs of that quality where ``jpeg_quality`` is given."""
     import cv2
     import numpy as np
 
@@ -191,5 +194,10 @@ def rendered_pngs(n: int, seed0: int = 0) -> list[tuple[bytes, tuple[float, floa
     for i in range(n):
         pose = DoorPose(float(rng.uniform(-9, 9)), float(rng.uniform(-9, 9)), float(rng.uniform(-1.8, 1.8)))
         img = render_door(cell, cell.default_door, pose, effects=effects, seed=seed0 + i).image
-        out.append((cv2.imencode(".png", img)[1].tobytes(), (pose.x_mm, pose.z_mm, pose.yaw_deg)))
+        encoded = (
+            cv2.imencode(".png", img)
+            if jpeg_quality is None
+            else cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, jpeg_quality])
+        )[1].tobytes()
+        out.append((encoded, (pose.x_mm, pose.z_mm, pose.yaw_deg)))
     return out

@@ -251,6 +251,10 @@ def test_the_jobs_worker_cpu_time_is_counted_not_the_time_its_slot_was_held():
             for data in (busy, quiet)
         ]
     assert got[0].worker_cpu_s >= 0.25 and got[1].worker_cpu_s < 0.1
+    # and what the request cost, as its Server-Timing says it: the spin is the worker's locating, not its
+    # decoding of the small PNG, and counts though this thread only waited for it
+    cost = got[0].cpu_ms(0.0)
+    assert 0.0 <= got[0].worker_decode_cpu_s < 0.1 and cost["locate"] >= 250.0, cost
 
     state = _state(over_share_nice=12)
 

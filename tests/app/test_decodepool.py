@@ -43,6 +43,10 @@ def test_a_normal_image_decodes_as_in_process(pool):
     img = np.random.default_rng(2).integers(0, 65535, (90, 120, 3), np.uint16)
     out = pool.decode(cv2.imencode(".png", img)[1].tobytes(), "door.png", timeout_s=60)
     assert out.dtype == np.uint16 and np.array_equal(out, img)
+    # the worker's CPU time for a decode is told (a request's Server-Timing counts it): 16 MP of noise
+    big = np.random.default_rng(3).integers(0, 65535, (4000, 4000), np.uint16)
+    out, cpu_s = pool.decode_costed(cv2.imencode(".png", big)[1].tobytes(), "big.png", timeout_s=60)
+    assert np.array_equal(out, big) and cpu_s > 0.01, cpu_s
 
 
 def test_a_decoder_past_its_cpu_limit_is_ended_and_replaced(pool):

@@ -78,15 +78,15 @@ def test_locate_by_size_gives_the_pose_and_no_targets(client, small_png):
 
 
 def test_an_answer_says_what_it_cost_the_worker_in_server_timing(client, small_png):
-    # Server-Timing: the thread CPU ms of decoding and of measuring (what bench_service_load's per-core
-    # figure is weighed against)
+    # Server-Timing: the CPU ms of decoding and of measuring (what bench_service_load's per-core figure is
+    # weighed against)
     r = _post(client, small_png, width_mm="800", thickness_mm="45")
     assert r.status_code == 200, r.text
     metrics = {}
     for part in r.headers["server-timing"].split(","):
         name, *params = (p.strip() for p in part.split(";"))
         fields = dict(p.split("=", 1) for p in params)
-        assert fields["desc"] == '"thread CPU ms"'
+        assert fields["desc"] == '"CPU ms"'
         metrics[name] = float(fields["dur"])
     assert set(metrics) == {"decode", "locate"}
     assert all(v >= 0.0 for v in metrics.values())

@@ -108,6 +108,23 @@ class Located:
     decode_thread_ms: float
     #: the worker process's CPU seconds for the whole job (decoding and locating)
     worker_cpu_s: float = 0.0
+    #: of them, until it had decoded the image (0: it was given the image decoded)
+    worker_decode_cpu_s: float = 0.0
+    #: a decoding-only process's CPU seconds for an image decoded apart before the job (0: none)
+    decoded_apart_cpu_s: float = 0.0
+
+    def cpu_ms(self, thread_s: float) -> dict[str, float]:
+        """What the request cost the service's CPUs, ms, in decoding and in measuring (``decode``,
+        ``locate``): this thread's ``thread_s`` (seconds, the whole request) and the worker processes' CPU
+        time together. The thread alone hands bytes over and waits: it was a twentieth of a realistic
+        frame's cost."""
+        decoding_s = self.worker_decode_cpu_s + self.decoded_apart_cpu_s
+        return {
+            "decode": self.decode_thread_ms + decoding_s * 1e3,
+            "locate": thread_s * 1e3
+            - self.decode_thread_ms
+            + (self.worker_cpu_s - self.worker_decode_cpu_s) * 1e3,
+        }
 
 
 def _address_space_bytes() -> int:
@@ -221,7 +238,7 @@ def _worker_main(conn: Connection, memory_bytes: int, locate_fn: Any = None, nic
             if image.nbytes > args[4]:
                 reply = ("too_big", image.nbytes)
             else:
-                conn.send(reply)
+                conn.send((*reply, time.process_time() - started))  # (the decoding's CPU seconds)
                 budget(*budgets[1])
                 reply = _locate_step(locate_fn, image, args[1], args[2], args[3], args[5])
             del image
@@ -432,15 +449,16 @@ class DecodePool:
 
     def _run(
         self, job: str, args: tuple, steps: tuple[_Step, ...], timeout_s: float
-    ) -> tuple[Any, float, float]:
+    ) -> tuple[Any, float, float, float]:
         """Run one job in an idle worker (started if none is), its steps in turn; its value, this thread's
-        CPU seconds until its first step was done and the worker's CPU seconds for the job, or DecodeRefused
-        naming the step that was stopped."""
+        CPU seconds until its first step was done, the worker's CPU seconds for the job and of them until
+        its first step was done (all of them for a one-step job), or DecodeRefused naming the step that was
+        stopped."""
         if self._closed:
             raise DecodeRefused(503, "not_ready", "The service is shutting down; retry shortly.")
         end = time.monotonic() + max(timeout_s, 0.001)
         t0 = time.thread_time()
-        first_done = 0.0
+        first_done = worker_first = 0.0
         step = steps[0]
         if not self._slots.acquire(timeout=max(timeout_s, 0.001)):
             raise _deadline_passed(step.what)
@@ -461,6 +479,7 @@ class DecodePool:
                         break
                     # the worker decoded the image and now locates: a limit past here is locate's
                     step, first_done = steps[1], time.thread_time() - t0
+                    worker_first = cpu[0] if cpu else 0.0
             except (EOFError, OSError):
                 worker.process.join(timeout=5)
                 code = worker.process.exitcode
@@ -472,7 +491,8 @@ class DecodePool:
         finally:
             self._slots.release()
         if kind == "ok":
-            return value, first_done, cpu[0] if cpu else 0.0
+            worker_s = cpu[0] if cpu else 0.0
+            return value, first_done, worker_s, worker_first if len(steps) > 1 else worker_s
         if kind == "memory":
             raise _limit_reached(step, None)
         if kind == "too_big":
@@ -497,8 +517,12 @@ class DecodePool:
             more CPU time or memory than a decode may take: its worker was ended), 503 ``overloaded`` (no
             answer within ``timeout_s``, the request's deadline).
         """
-        image: np.ndarray = self._run("decode", (data, name), (self._decoding(),), timeout_s)[0]
-        return image
+        return self.decode_costed(data, name, timeout_s=timeout_s)[0]
+
+    def decode_costed(self, data: bytes, name: str, *, timeout_s: float) -> tuple[np.ndarray, float]:
+        """:meth:`decode`'s image and the CPU seconds the worker spent decoding it."""
+        image, _, worker_s, _ = self._run("decode", (data, name), (self._decoding(),), timeout_s)
+        return image, worker_s
 
     def decode_and_locate(
         self,
@@ -533,12 +557,12 @@ class DecodePool:
         locating = _Step("locate", "located", self.locate_cpu_s, self.locate_memory_bytes)
         args = (data, name, cell, door, max_decoded_bytes, overlay_max_pixels)
         try:
-            (result, drawn), decode_s, worker_s = self._run(
+            (result, drawn), decode_s, worker_s, worker_decode_s = self._run(
                 "decode_locate", args, (self._decoding(), locating), timeout_s
             )
         except _DecodedTooLarge as e:
             raise decoded_too_large(name, e.nbytes, max_decoded_bytes) from None
-        return Located(result, drawn, decode_s * 1e3, worker_s)
+        return Located(result, drawn, decode_s * 1e3, worker_s, worker_decode_s)
 
     def close(self) -> None:
         """End every worker (the service's shutdown)."""

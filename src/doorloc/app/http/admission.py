@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any, TypeVar
 
 import anyio
@@ -232,9 +232,10 @@ def decodes_apart(data: bytes) -> bool:
 
 def decode_upload(
     state: ServiceState, data: bytes, name: str, deadline: float | None, pool: DecodePool | None = None
-) -> np.ndarray:
+) -> tuple[np.ndarray, float]:
     """The uploaded image decoded within the limits (blocking: call it in a worker thread), in ``pool`` (default:
-    the worker processes, or this thread with ``decode_in_threads``).
+    the worker processes, or this thread with ``decode_in_threads``), and the CPU seconds a worker process
+    spent decoding it (0 where this thread decoded it).
 
     Raises ProblemError 422 (undecodable, or past the decoding CPU-time or memory limit) or 503 (the
     deadline passed first).
@@ -242,12 +243,13 @@ def decode_upload(
     from doorloc.vision.imageio import ImageDecodeError, decode_image
 
     left = (deadline - time.monotonic()) if deadline is not None else state.settings.request_deadline_s
+    worker_s = 0.0
     try:
         pool = pool or state.workers
         if pool is None:
             image = decode_image(data, name=name)
         else:
-            image = pool.decode(data, name, timeout_s=left)
+            image, worker_s = pool.decode_costed(data, name, timeout_s=left)
     except ImageDecodeError as e:
         raise ProblemError(
             422,
@@ -258,7 +260,7 @@ def decode_upload(
         raise refusal_problem(e) from None
     if image.nbytes > state.settings.max_decoded_bytes:
         raise refusal_problem(decoded_too_large(name, image.nbytes, state.settings.max_decoded_bytes))
-    return image
+    return image, worker_s
 
 
 def locate_upload(
@@ -281,8 +283,9 @@ def locate_upload(
     """
     assert state.workers is not None and state.cell is not None
     image: bytes | np.ndarray = data
+    apart_s = 0.0
     if state.decoders is not None and decodes_apart(data):
-        image = decode_upload(state, data, name, deadline, pool=state.decoders)
+        image, apart_s = decode_upload(state, data, name, deadline, pool=state.decoders)
     left = (deadline - time.monotonic()) if deadline is not None else state.settings.request_deadline_s
     over_share = turn is not None and turn.over_share and state.over_share is not None
     pool = state.over_share if over_share and state.over_share is not None else state.workers
@@ -300,4 +303,4 @@ def locate_upload(
         raise refusal_problem(e) from None
     if turn is not None:
         turn.worker_cpu_s = located.worker_cpu_s
-    return located
+    return replace(located, decoded_apart_cpu_s=apart_s)

@@ -89,9 +89,9 @@ async def post_locate(
 
     A door that cannot be located is still a 200 answer, with ``ok: false`` and ``error`` saying why;
     4xx answers are for requests that cannot be measured at all. The ``Server-Timing`` header gives the
-    worker thread's CPU time for decoding and for measuring (``decode``, ``locate``: locate, targets and
-    what else the answer holds), ms: what the request cost the server itself, apart from queueing and
-    transfer.
+    CPU time of decoding and of measuring (``decode``, ``locate``: locate, targets and what else the answer
+    holds), ms, this request's thread and the worker processes it used together: what the request cost the
+    server itself, apart from queueing and transfer.
     """
     form = await request.form()  # already parsed for the parameters above: no second read
     if len(form.getlist("image")) > 1:
@@ -125,7 +125,7 @@ async def post_locate(
     finally:
         state.metrics.in_flight.dec()
     response.headers["Server-Timing"] = ", ".join(
-        f'{k};dur={v:.3f};desc="thread CPU ms"' for k, v in answer.cpu_ms.items()
+        f'{k};dur={v:.3f};desc="CPU ms"' for k, v in answer.cpu_ms.items()
     )
     _log_located(state, request, answer.response, door_id)
     return answer.response
@@ -229,12 +229,13 @@ def _measure(
     deadline: float | None = None,
     turn: CpuTurn | None = None,
 ) -> Answer:
-    """The answer, with the thread CPU ms of decoding and of measuring (``decode``, ``locate``).
+    """The answer, with the CPU ms of decoding and of measuring (``decode``, ``locate``).
 
     When the service locates in its limited worker processes, one of them decodes the image and locates in it
-    (one job: the decoded image never crosses a pipe; a lower-priority one for an ``over_share`` turn), and ``decode`` and ``locate`` are this thread's share:
-    the hand-over, besides the targets and the reach check. A locate given in code runs here, on the image
-    decoded in a worker process (or in this thread: ``decode_in_threads``).
+    (one job: the decoded image never crosses a pipe; a lower-priority one for an ``over_share`` turn), and
+    ``decode`` and ``locate`` are the workers' CPU time with this thread's (the hand-over, the targets and
+    the reach check): :meth:`Located.cpu_ms`. A locate given in code runs here, on the image decoded in a
+    worker process (or in this thread: ``decode_in_threads``), and ``decode`` holds that process's time too.
     The overlay is drawn only for an answered image of a sane size: a refused 7.2 MB JPEG once made a
     97 MB answer.
     """
@@ -243,15 +244,12 @@ def _measure(
         t0 = time.thread_time()
         located = locate_upload(state, data, name, choice.door, overlay, deadline, turn)
         answer = answer_located(located.result, state.cell, choice, rapid=rapid, overlay=located.overlay_png)
-        cpu_ms = {
-            "decode": located.decode_thread_ms,
-            "locate": (time.thread_time() - t0) * 1e3 - located.decode_thread_ms,
-        }
+        cpu_ms = located.cpu_ms(time.thread_time() - t0)
     else:
         assert state.locate_fn is not None  # a ready service has one
         t0 = time.thread_time()
-        image = decode_upload(state, data, name, deadline)
-        decode_ms = (time.thread_time() - t0) * 1e3
+        image, worker_s = decode_upload(state, data, name, deadline)
+        decode_ms = (time.thread_time() - t0 + worker_s) * 1e3
         trace = None
         if overlay:
             from doorloc.vision.locate import LocateTrace
