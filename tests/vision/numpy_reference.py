@@ -641,3 +641,12 @@ def transition_skew_px(t, rows, g: float) -> float:
         return float("nan")
     f = (0.5 - cum[k - 1]) / max(cum[k] - cum[k - 1], 1e-12)
     return float(x[k - 1] + f * (x[k] - x[k - 1]) - centre)
+
+
+def plateau_scatter(raw: np.ndarray) -> float:
+    """The median plateau scatter ``doorloc.vision.response_asymmetry.dithered`` compares with its threshold,
+    as numpy computed it before it was compiled."""
+    pk = RESPONSE_PLATEAU_PX
+    ends = [raw[:, :pk], raw[:, -pk:]]
+    var = sum(((e - e.mean(axis=1, keepdims=True)) ** 2).sum(axis=1) for e in ends) / (2 * pk - 2)
+    return float(np.median(np.sqrt(var)))

@@ -19,7 +19,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from doorloc.vision.edges import DITHERING_NOISE_LEVELS
-from doorloc.vision.jit import kernel, pairwise_sum, read_only
+from doorloc.vision.jit import kernel, median_in_place, pairwise_sum, read_only
 
 __all__ = [
     "RESPONSE_AMBIGUOUS_RATIO",
@@ -109,10 +109,32 @@ class Transitions:
 def dithered(raw: np.ndarray, top: float) -> bool:
     """Whether raw profiles (full scale 1, ``top`` grey levels) have ``DITHERING_NOISE_LEVELS`` of noise or
     more on their plateaus (the median over the profiles of the end pixels' scatter about their mean)."""
-    pk = RESPONSE_PLATEAU_PX
-    ends = [raw[:, :pk], raw[:, -pk:]]
-    var = sum(((e - e.mean(axis=1, keepdims=True)) ** 2).sum(axis=1) for e in ends) / (2 * pk - 2)
-    return bool(np.median(np.sqrt(var)) * top >= DITHERING_NOISE_LEVELS)
+    return bool(_plateau_scatter(raw, RESPONSE_PLATEAU_PX) * top >= DITHERING_NOISE_LEVELS)
+
+
+def _plateau_scatter_warm_up(k) -> None:
+    k(np.zeros((5, 12)), 3)
+
+
+@kernel(_plateau_scatter_warm_up)
+def _plateau_scatter(raw, pk):
+    """The median over the profiles ``raw`` (N, W) of the standard deviation of their ``pk`` end pixels at
+    each end about each end's mean (pooled, ``2 pk - 2`` degrees of freedom). Compiled: numpy's version
+    made eight arrays for each line of every image (0.1 ms a line); the same numbers, its sums in its
+    order (tests/vision/test_jit.py holds it to the numpy version in tests/vision/numpy_reference.py)."""
+    N, W = raw.shape
+    sd = np.empty(N)
+    dev = np.empty(pk)
+    for i in range(N):
+        var = 0.0
+        for o in (0, W - pk):
+            mean = pairwise_sum(raw[i], o, pk) / pk
+            for j in range(pk):
+                d = raw[i, o + j] - mean
+                dev[j] = d * d
+            var += pairwise_sum(dev, 0, pk)
+        sd[i] = math.sqrt(var / (2 * pk - 2))
+    return median_in_place(sd)
 
 
 def transition_skew_px(t: Transitions, rows: np.ndarray | slice, g: float) -> float:
