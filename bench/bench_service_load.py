@@ -10,10 +10,10 @@ give ``requests per server CPU-second``, which is the rate per core of a server 
 itself. The ideal next to it is measured twice: in this process on the same PNGs before the run (the
 median thread-CPU time of ``decode_image`` + ``locate``, one thread), and by the server itself during the
 run (each answer's ``Server-Timing``: the CPU ms, its thread's and the worker processes', of decoding and
-measuring that very request; their mean). The second is immune to the machine's speed drifting between the two measurements
-(a shared machine's speed moved the first by a third from run to run); its share of the server's CPU
-seconds is the fraction of the server's time spent measuring images, the rest being HTTP, parsing,
-queueing and the event loop. A third ideal times decode + locate alone in one process per CPU at once
+measuring that very request; their mean). The second is immune to the machine's speed drifting between
+the two measurements (a shared machine's speed moved the first by a third from run to run); its share of
+the server's CPU seconds is the fraction of the server's time spent measuring images, the rest being
+HTTP, parsing, queueing and the event loop. A third ideal times decode + locate alone in one process per CPU at once
 (no HTTP, no clients): what each core does when every core is busy, as in a loaded server.
 
     python bench/bench_service_load.py --clients 16 --seconds 60 --workers 2
