@@ -57,6 +57,15 @@ def post_locate(client, image: bytes, name: str, query: str = "", **form: str) -
     return r.json()
 
 
+def server_timing(header: str) -> dict[str, dict[str, str]]:
+    """A ``Server-Timing`` header's metrics: ``{name: {"dur": ..., "desc": ...}}`` (the parameters as sent)."""
+    metrics = {}
+    for part in header.split(","):
+        name, *params = (p.strip() for p in part.split(";"))
+        metrics[name] = dict(p.split("=", 1) for p in params)
+    return metrics
+
+
 def png_bytes(image: np.ndarray) -> bytes:
     ok, buf = cv2.imencode(".png", image)
     assert ok

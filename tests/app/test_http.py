@@ -10,7 +10,7 @@ from doorloc.app.http import create_app
 from doorloc.app.settings import ServiceSettings
 from doorloc.recipes.rapid import parse_rapid_text
 
-from .conftest import dev_settings
+from .conftest import dev_settings, server_timing
 
 
 def _post(client, data: bytes, name: str = "door.png", query: str = "", **form):
@@ -83,9 +83,7 @@ def test_an_answer_says_what_it_cost_the_worker_in_server_timing(client, small_p
     r = _post(client, small_png, width_mm="800", thickness_mm="45")
     assert r.status_code == 200, r.text
     metrics = {}
-    for part in r.headers["server-timing"].split(","):
-        name, *params = (p.strip() for p in part.split(";"))
-        fields = dict(p.split("=", 1) for p in params)
+    for name, fields in server_timing(r.headers["server-timing"]).items():
         assert fields["desc"] == '"CPU ms"'
         metrics[name] = float(fields["dur"])
     assert set(metrics) == {"decode", "locate"}

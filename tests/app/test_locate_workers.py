@@ -11,7 +11,7 @@ from doorloc.pose import DoorPose
 from doorloc.sim.door import render_door
 from doorloc.sim.hostile import progressive_jpeg_bomb
 
-from .conftest import app_clients, png_bytes, post_locate
+from .conftest import app_clients, png_bytes, post_locate, server_timing
 
 #: what differs between two locates of the same image: the time they took
 TIMINGS = {"elapsed_ms"}
@@ -83,12 +83,9 @@ def test_one_job_answers_as_the_threads_do(real_client, cell, recipe, seed):
                 f"/v1/locate{query}", files={"image": ("d.png", png, "image/png")}, data={"door_id": "D-100"}
             )
             assert r.status_code == 200, r.text
-            timings = dict(
-                m.split(";dur=")
-                for m in (p.split(";desc")[0].strip() for p in r.headers["server-timing"].split(","))
-            )
+            timings = server_timing(r.headers["server-timing"])
             assert set(timings) == {"decode", "locate"}
-            cost_ms.append(sum(float(v) for v in timings.values()))
+            cost_ms.append(sum(float(m["dur"]) for m in timings.values()))
             answers.append(r.json())
         assert _without_timings(answers[0]) == _without_timings(answers[1]), query
         if png is door and not query:
