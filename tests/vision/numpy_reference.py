@@ -1,7 +1,7 @@
 """The functions whose loops are now numba kernels (doorloc.vision.jit), as they were written with numpy:
 the references tests/vision/test_jit.py holds the compiled ones to (texture_bias, transition_width,
-plateau_levels, ransac_line, the response's asymmetry and its parabola vertex, the step fit, the arris strip's pixel terms and solve, the
-far-face Gauss-Newton loop, the arris lines' borders; the area estimate is held to subpixel_edges' own numpy branch, the coarse
+plateau_levels, ransac_line, the response's asymmetry and its parabola vertex, the step fit, the arris strip's pixel terms, solve and
+Gauss-Newton loop, the far-face Gauss-Newton loop, the arris lines' borders; the area estimate is held to subpixel_edges' own numpy branch, the coarse
 finder to coarse_reference.py)."""
 
 from __future__ import annotations
@@ -440,7 +440,7 @@ def strip_solve(prob, terms, basis: np.ndarray, jac: bool = False):
     """:meth:`doorloc.vision.arris_strip.StripProblem.solve` as written with numpy (batched matrix
     products): ``(chi2, coef, deficit, grad, hess)``."""
     from doorloc.vision.arris_strip import PRIOR_LEVEL
-    from doorloc.vision.arris_strip import mix_cells as _mix
+    from doorloc.vision.arris_strip_kernels import mix_cells as _mix
 
     prim, d_b, d_s = terms
     M, const = _mix(basis, prob.n_cells)
@@ -471,6 +471,34 @@ def strip_solve(prob, terms, basis: np.ndarray, jac: bool = False):
         grad = 2.0 * ((JwT @ f[..., None])[..., 0] + (Jp.transpose(0, 2, 1) @ fp[..., None])[..., 0])
         hess = 2.0 * (JwT @ J + Jp.transpose(0, 2, 1) @ Jp)
     return chi2, coef, deficit, grad, hess
+
+
+def strip_refine(
+    prob, delta: float, sigma: float, basis: np.ndarray, n_iter: int = 12, solve=np.linalg.solve
+):
+    """:meth:`doorloc.vision.arris_strip.StripProblem.refine` as the loop was written in Python over its
+    :meth:`~doorloc.vision.arris_strip.StripProblem.evaluate`: ``(offset, blur, evaluation)``. ``solve``:
+    the 2x2 solve of each damped step (numpy's, as written)."""
+    p = np.array([delta, sigma])
+    ev = prob.evaluate(p[:1], p[1:], basis, jac=True)
+    lam = 1e-3
+    for _ in range(n_iter):
+        H = ev.hess[0] + lam * np.diag(np.diag(ev.hess[0]) + 1e-12)
+        step = -solve(H, ev.grad[0])
+        step = np.clip(step, [-0.5, -0.3], [0.5, 0.3])
+        q = p + step
+        q[1] = max(q[1], 0.1)
+        ev1 = prob.evaluate(q[:1], q[1:], basis, jac=True)
+        if ev1.chi2[0] <= ev.chi2[0]:
+            done = ev.chi2[0] - ev1.chi2[0] < 1e-9 * max(ev.chi2[0], 1e-300) or np.all(np.abs(step) < 1e-5)
+            p, ev, lam = q, ev1, lam * 0.3
+            if done:
+                break
+        else:
+            lam *= 10.0
+            if lam > 1e6:
+                break
+    return float(p[0]), float(p[1]), ev
 
 
 def far_face_gauss_newton(

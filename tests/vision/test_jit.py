@@ -26,7 +26,8 @@
   (arris_strip.StripProblem.solve) against their numpy versions, to rounding (the normal CDF is not
   scipy's to the last ulp; the normal equations are summed in another order and are ill-conditioned: the
   coefficients to 1e-6 of their scale); its evaluation one candidate at a time (_StripProblem.evaluate)
-  against those two, and its per-bin means (arris_strip._bin_means) against numpy's, bit for bit; the
+  against those two, its Gauss-Newton loop (StripProblem.refine) against the loop as written in Python,
+  bit for bit, and its per-bin means (arris_strip_kernels.bin_means) against numpy's, bit for bit; the
   arris lines' border fit (arris_lines._line_borders) against its numpy version, to 1e-8 px;
 - the far-face fit's sums (far_face_kernels.far_face_sums, _far_face_misfit, far_face_start_costs: its steps'
   pixel values formed per scan line) against the (N, M) arrays of the dense step model they replaced, to
@@ -675,7 +676,7 @@ def test_strip_solve_as_its_numpy_version(seed, n_cand, bins, n_cells, noise, ja
     jac=st.booleans(),
 )
 def test_strip_evaluate_as_its_terms_then_solve(seed, n_delta, one_blur, bins, n_cells, jac):
-    # arris_strip.StripProblem.evaluate (compiled one candidate at a time: _strip_evaluate) against the
+    # arris_strip.StripProblem.evaluate (compiled one candidate at a time: arris_strip_kernels.strip_evaluate) against the
     # two kernels over all candidates (pixel_terms, then solve) that it stands for: bit for bit, a single
     # blur broadcast over the offsets as they broadcast it
     rng = np.random.default_rng(seed)
@@ -691,6 +692,85 @@ def test_strip_evaluate_as_its_terms_then_solve(seed, n_delta, one_blur, bins, n
             assert a is None
         else:
             np.testing.assert_array_equal(a, b)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    bins=st.integers(1, 8),
+    n_cells=st.sampled_from([1, 4, 8]),
+    n_basis=st.sampled_from([1, 2, 3]),
+    noise=st.sampled_from([0.002, 0.02, 0.1]),
+    start=st.floats(-3.0, 3.0),
+    blur=st.sampled_from([0.02, 0.3, 1.0, 2.5]),
+    n_iter=st.sampled_from([0, 1, 6, 12]),
+)
+def test_strip_refine_as_its_python_loop(seed, bins, n_cells, n_basis, noise, start, blur, n_iter):
+    # arris_strip.StripProblem.refine (its Gauss-Newton loop compiled) against the loop as it was written in
+    # Python over evaluate (numpy_reference.strip_refine), from starts off the answer by up to 3 px, blurs
+    # below evaluate's floor to wider than the strip, and a loop stopped after 0 and 1 steps as well as run
+    # out: bit for bit where the Python loop solves its steps as the kernel does (LAPACK's elimination with
+    # its two updates fused, exactly: _lapack_solve2); with np.linalg.solve, the same to rounding, or where
+    # rounding decides whether a last tiny step lowers the misfit, a point as converged (numpy's BLAS
+    # kernels differ between processors; on numpy's wheels here they gave the same numbers, which the
+    # golden cases hold)
+    rng = np.random.default_rng(seed)
+    prob = _strip_problem(rng, n_cells, bins, noise)
+    basis = np.ones((n_cells, 1)) if n_basis == 1 else rng.uniform(0, 1, (n_cells, n_basis))
+    got = prob.refine(start, blur, basis, n_iter=n_iter)
+    want = reference.strip_refine(prob, start, blur, basis, n_iter=n_iter, solve=_lapack_solve2)
+    assert got[:2] == want[:2]
+    for field in ("chi2", "coef", "deficit", "grad", "hess"):
+        np.testing.assert_array_equal(getattr(got[2], field), getattr(want[2], field))
+    numpy_loop = reference.strip_refine(prob, start, blur, basis, n_iter=n_iter)
+    np.testing.assert_allclose(got[:2], numpy_loop[:2], rtol=0, atol=1e-6)
+    np.testing.assert_allclose(got[2].chi2, numpy_loop[2].chi2, rtol=1e-9)
+
+
+def _lapack_solve2(a: np.ndarray, g: np.ndarray) -> np.ndarray:
+    """``np.linalg.solve`` of a 2x2 system as LAPACK's getrf / getrs take it (partial pivoting, the
+    multiplier by the pivot's reciprocal), the right-hand side's two updates rounded once (exact rational
+    arithmetic): what arris_strip_kernels.solve2x2 computes with LLVM's fma."""
+    from fractions import Fraction
+
+    def fma(x: float, y: float, z: float) -> float:
+        return float(Fraction(x) * Fraction(y) + Fraction(z))
+
+    (a00, a01), (a10, a11) = np.asarray(a, float).tolist()
+    g0, g1 = np.asarray(g, float).tolist()
+    if abs(a10) > abs(a00):
+        a00, a01, a10, a11, g0, g1 = a10, a11, a00, a01, g1, g0
+    if a00 == 0.0 or a11 - a10 * (1.0 / a00) * a01 == 0.0:
+        raise np.linalg.LinAlgError("Singular matrix")
+    l10 = a10 * (1.0 / a00)
+    x1 = fma(-l10, g0, g1) / (a11 - l10 * a01)
+    return np.array([fma(-a01, x1, g0) / a00, x1])
+
+
+def test_strip_refine_solves_its_steps_as_lapack():
+    # arris_strip_kernels.solve2x2 (the refine's damped 2x2 step) against LAPACK's elimination with its two
+    # updates fused (_lapack_solve2) bit for bit, and against np.linalg.solve to rounding (bit for bit on
+    # numpy's wheels here), on systems of every scale, symmetric or not, either row the pivot; an exact zero
+    # pivot is named, where numpy raises
+    from doorloc.vision.arris_strip_kernels import solve2x2
+
+    rng = np.random.default_rng(7)
+    for scale in (1e-9, 1e-3, 1.0, 1e4, 1e9):
+        for _ in range(2000):
+            a = rng.normal(size=(2, 2)) * scale * np.exp(rng.normal(size=(2, 2)) * 3)
+            if rng.uniform() < 0.7:
+                a[1, 0] = a[0, 1]
+            g = rng.normal(size=2) * np.exp(rng.normal(size=2) * 3)
+            x0, x1, singular = solve2x2(a[0, 0], a[0, 1], a[1, 0], a[1, 1], g[0], g[1])
+            assert not singular
+            assert (x0, x1) == tuple(_lapack_solve2(a, g))
+            want = np.linalg.solve(a, g)
+            tol = 1e-13 * np.linalg.cond(a) * np.abs(want).max()
+            np.testing.assert_allclose((x0, x1), want, rtol=0, atol=tol)
+    for a in ([[0.0, 1.0], [0.0, 2.0]], [[1.0, 2.0], [2.0, 4.0]]):
+        with pytest.raises(np.linalg.LinAlgError):
+            np.linalg.solve(a, [1.0, 1.0])
+        assert solve2x2(a[0][0], a[0][1], a[1][0], a[1][1], 1.0, 1.0)[2]
 
 
 @settings(max_examples=40, deadline=None)
@@ -890,16 +970,16 @@ def test_line_borders_as_their_numpy_version(seed, n, n_cells, blur, noise, spoi
 @settings(max_examples=60, deadline=None)
 @given(seed=st.integers(0, 10_000), n=st.integers(1, 1500), n_p=st.integers(1, 40), bins=st.integers(1, 12))
 def test_strip_bin_means_as_numpy(seed, n, n_p, bins):
-    # arris_strip._bin_means (the strip problem's per-bin counts and means, compiled) against the masks and
+    # arris_strip_kernels.bin_means (the strip problem's per-bin counts and means, compiled) against the masks and
     # means it replaced: bit for bit (rows added in order, the 1-D means' sums pairwise, as numpy's)
-    from doorloc.vision.arris_strip import _bin_means
+    from doorloc.vision.arris_strip_kernels import bin_means
 
     rng = np.random.default_rng(seed)
     r = rng.normal(0, 1, (n, n_p)) * 10 ** rng.uniform(-3, 3)
     outer, width = rng.normal(5, 3, n), rng.uniform(0, 9, n)
     k = rng.integers(0, bins, n)
     used = np.unique(k)
-    count, y, o, w = _bin_means(r, outer, width, k, used)
+    count, y, o, w = bin_means(r, outer, width, k, used)
     np.testing.assert_array_equal(count, [np.sum(k == b) for b in used])
     np.testing.assert_array_equal(y, np.stack([r[k == b].mean(axis=0) for b in used]))
     np.testing.assert_array_equal(o, [outer[k == b].mean() for b in used])

@@ -13,7 +13,7 @@ import numpy as np
 
 from doorloc.vision.arris_geometry import ArrisGeometry
 from doorloc.vision.arris_model import FIT_LINES, StripFit, fit_strip_profile
-from doorloc.vision.arris_strip import pixel_terms_fill
+from doorloc.vision.arris_strip_kernels import pixel_terms_fill
 from doorloc.vision.blurred_step import STEP_TAIL_SIGMAS
 from doorloc.vision.edge_samples import EdgeSamples, ScanWindow
 from doorloc.vision.edges import DITHERING_NOISE_LEVELS

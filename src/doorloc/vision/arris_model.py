@@ -47,10 +47,10 @@ from doorloc.vision.arris_strip import (
     StripEvaluation,
     StripProblem,
     lit_basis,
-    mix_cells,
     pixel_terms,
     strip_basis,
 )
+from doorloc.vision.arris_strip_kernels import mix_cells
 from doorloc.vision.stated_light import StatedLight, stated_light_explains
 from doorloc.vision.strip_posterior import (
     OffsetProfile,

@@ -24,13 +24,15 @@ from typing import Any, TypeVar
 
 import numba
 import numpy as np
+from llvmlite import ir
 from numba import types
-from numba.extending import overload
+from numba.extending import intrinsic, overload
 
 __all__ = [
     "kernel",
     "compile_kernels",
     "compiled_signatures",
+    "fma",
     "read_only",
     "grey",
     "median_in_place",
@@ -95,6 +97,20 @@ def _grey_compiled(lut, value):  # the kernel version: chosen by the level's typ
     if isinstance(value, types.Integer):
         return lambda lut, value: lut[value] if lut.size > 0 else np.float32(value)
     return lambda lut, value: np.float32(value)
+
+
+@intrinsic
+def fma(typingctx, a, b, c):
+    """For kernels: ``a * b + c`` rounded once (LLVM's ``llvm.fma``, float64), as BLAS's kernels fuse their
+    updates; numba offers no fused multiply-add of its own, and ``reassociate`` fuses whatever it may."""
+    sig = types.float64(types.float64, types.float64, types.float64)
+
+    def codegen(context, builder, signature, args):
+        f64 = ir.DoubleType()
+        fn = builder.module.declare_intrinsic("llvm.fma", [f64], ir.FunctionType(f64, [f64, f64, f64]))
+        return builder.call(fn, args)
+
+    return sig, codegen
 
 
 @kernel()
