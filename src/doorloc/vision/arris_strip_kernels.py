@@ -136,11 +136,8 @@ def _lu_solve(N, R):
 
 
 def _strip_solve_warm_up(k) -> None:
-    for m in (1, 3):
-        basis = np.ones((2, m))
-        M, const = mix_cells(basis, 2)
+    for _, M, const, P, basis, _ in _warm_up_problems():
         prim = np.random.default_rng(0).uniform(size=(2, 3, 5, 3))
-        P = np.concatenate([np.full((2, 1), -0.5), np.full((2, 1), -0.5), basis], axis=1)
         for jac in (False, True):
             k(prim, prim, prim, M, const, np.ones(15), np.ones(15), P, basis, jac)
 
@@ -281,13 +278,20 @@ def strip_solve(prim, d_b, d_s, M, const, y, w, P, basis, jac):
     return chi2, coef, deficit, grad, hess
 
 
-def _strip_evaluate_warm_up(k) -> None:
+def _warm_up_problems():
+    """Small strip problems for the warm-ups: per shading basis of 1 and 3 levels, the pixel borders, the
+    basis's mix and constant, the levels' prior rows, the basis, and three values for the bins' borders,
+    widths and the candidates."""
     edges = np.arange(13.0) - 0.5
     for m in (1, 3):
         basis = np.ones((2, m))
         M, const = mix_cells(basis, 2)
         P = np.concatenate([np.full((2, 1), -0.5), np.full((2, 1), -0.5), basis], axis=1)
-        v = np.array([4.0, 5.0, 6.0])
+        yield edges, M, const, P, basis, np.array([4.0, 5.0, 6.0])
+
+
+def _strip_evaluate_warm_up(k) -> None:
+    for edges, M, const, P, basis, v in _warm_up_problems():
         for jac, cand in ((False, v), (True, v), (False, read_only(v)), (True, read_only(v))):
             k(
                 edges,
@@ -374,12 +378,7 @@ def _clipped(v, bound):
 
 
 def _strip_refine_warm_up(k) -> None:
-    edges = np.arange(13.0) - 0.5
-    for m in (1, 3):
-        basis = np.ones((2, m))
-        M, const = mix_cells(basis, 2)
-        P = np.concatenate([np.full((2, 1), -0.5), np.full((2, 1), -0.5), basis], axis=1)
-        v = np.array([4.0, 5.0, 6.0])
+    for edges, M, const, P, basis, v in _warm_up_problems():
         k(
             edges,
             v,
