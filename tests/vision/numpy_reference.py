@@ -1,8 +1,8 @@
 """The functions whose loops are now numba kernels (doorloc.vision.jit), as they were written with numpy:
 the references tests/vision/test_jit.py holds the compiled ones to (texture_bias, transition_width,
-plateau_levels, ransac_line, the response's asymmetry and its parabola vertex, the step fit, the arris strip's pixel terms, solve and
-Gauss-Newton loop, the far-face Gauss-Newton loop, the arris lines' borders; the area estimate is held to subpixel_edges' own numpy branch, the coarse
-finder to coarse_reference.py)."""
+plateau_levels, ransac_line, the response's asymmetry and its parabola vertex, the step fit, the arris
+strip's pixel terms, solve and Gauss-Newton loop, the far-face Gauss-Newton loop, the arris lines' borders;
+the area estimate is held to subpixel_edges' own numpy branch, the coarse finder to coarse_reference.py)."""
 
 from __future__ import annotations
 
