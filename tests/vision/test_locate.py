@@ -709,8 +709,10 @@ def test_a_thickness_miss_an_unseen_silhouette_may_hide_is_uncertain_not_a_wrong
     ``thickness_mismatch``, "check that the right door is in the fixture", the wrong cause. A miss beyond the
     tolerance that the arris can hold is ``uncertain``, naming the silhouette: refused under ``refuse``,
     answered with its thickness unverified under ``report`` (the pose does not rest on the far arris), its
-    reported sigma carrying the strip's width. A door 7 mm thicker than its recipe, beyond what the arris can
-    hide, stays a mismatch under either policy."""
+    reported sigma carrying the strip's width. Since the strip's second reading is sought beside every
+    valley (2026-12-03) the valid door measures right (0.001 mm off); the same miss is now made by the door
+    rendered 1.65 mm thinner than its recipe, which the arris can hide as well. A door 7 mm thicker than its
+    recipe, beyond what the arris can hide, stays a mismatch under either policy."""
     door = DoorSize(900, 40.0, 2100, arris_mm=2.96, arris_profile="round")
     pose = DoorPose(-5.21, -6.21, 0.87)
     fx = Effects(
@@ -727,7 +729,10 @@ def test_a_thickness_miss_an_unseen_silhouette_may_hide_is_uncertain_not_a_wrong
         gamma=1.845,
     )
     told = replace(cell, response_gamma=fx.gamma)
-    img = render_door(cell, door, pose, effects=fx, seed=15130).image
+    valid = render_door(cell, door, pose, effects=fx, seed=15130).image
+    check = locate(valid, told, door).diagnostics["thickness_check"]
+    assert abs(check["difference_mm"]) <= check["tolerance_mm"], check
+    img = render_door(cell, replace(door, thickness_mm=40.0 - 1.65), pose, effects=fx, seed=15130).image
     for policy in ("refuse", "report"):
         r = locate(img, told, door, config=replace(told.locate, thickness_check=policy))
         check = r.diagnostics["thickness_check"]

@@ -113,7 +113,7 @@ def valley_posterior(
     far from the other strips'.
     """
     basis, d0, s0, ev0 = shading.basis, shading.offset, shading.blur, shading.evaluation
-    grid, sg, ev, step = coarse.grid, coarse.blur, coarse.evaluation, coarse.step
+    grid, sg, ev = coarse.grid, coarse.blur, coarse.evaluation
     # The posterior of the deficit along the valley: the coarse profile over the whole search range, and
     # around each of its valleys a fine one (its width from that valley's curvature) that resolves it.
     # Another valley (a strip at the face's level, seen as one at the background's a strip's width away)
@@ -138,21 +138,7 @@ def valley_posterior(
         prob.refine(float(grid[i]), float(sg[i]), basis, n_iter=8)
         for i in sorted(local, key=lambda i: c[i])[:2]
     ]
-    # The other reading of a strip that shows one step lies a strip's width either way; under a sharp lens
-    # its valley is narrower than the coarse step, which may step over it (a 2.4 mm rounding as dark as the
-    # background, 0.36 px of blur: its bottom end read at the face's level alone, z 2.14 mm off at 32
-    # sigma under a light stated wrong). Refined where no valley refined lies within half a step of it, and
-    # resolved (below) where its misfit leaves it any weight beside the best's. Sought beside every
-    # valley, not only the shading's first: the one step may be another valley's (2.9 and 1.9 mm roundings
-    # as dark as the background, 0.31-0.54 px of blur, the door's own light: the best valley's other
-    # reading, a twentieth of its misfit, unsought, and the doors 2.55 and 1.73 mm off in z at 30 sigma).
-    w = float(np.median(prob.width))
-    for dm, sm, _ in list(modes):
-        for d in (dm - w, dm + w):
-            if grid[0] <= d <= grid[-1] and min(abs(m[0] - d) for m in modes) > 0.5 * step:
-                other = prob.refine(d, sm, basis, n_iter=8)
-                if (float(other[2].chi2[0]) - float(ev0.chi2[0])) / (2.0 * T_glob) < 20.0:
-                    modes.append(other)
+    modes += _other_readings(prob, modes, coarse, basis, float(ev0.chi2[0]), T_glob)
     keep, fines = _fine_profiles(prob, modes, coarse, basis, T_loc)
     if basis is basis0:  # the coarse profile is this model's already
         sgc, evc = sg, ev
@@ -177,6 +163,39 @@ def valley_posterior(
     deficit, post_sd = posterior_moments(deltas, dfc, logp)
     deficit, post_sd = _with_other_shading(shading, deltas, dfc, logp, deficit, post_sd, T_glob)
     return ValleyPosterior(deficit, post_sd, modes, chi_min, T_glob, blur_reading)
+
+
+def _other_readings(
+    prob: StripProblem,
+    modes: list[tuple[float, float, StripEvaluation]],
+    coarse: OffsetProfile,
+    basis: np.ndarray,
+    chi2_first: float,
+    T_glob: float,
+) -> list[tuple[float, float, StripEvaluation]]:
+    """The other reading of each valley of ``modes`` (offset px, blur px, evaluation) a strip's width
+    either way, refined (offset and blur px, as :meth:`StripProblem.refine`), where no valley refined lies
+    within half the coarse step of it and its misfit lies within 20 log units (``T_glob`` the misfit's scale
+    between valleys) of the first valley's ``chi2_first``.
+
+    A strip that shows one step may be a strip at the face's level whose border is that step, or one at the
+    background's a strip's width outwards; under a sharp lens the second valley is narrower than the coarse
+    step, which may step over it (a 2.4 mm rounding as dark as the background, 0.36 px of blur: its bottom
+    end read at the face's level alone, z 2.14 mm off at 32 sigma under a light stated wrong). Sought beside
+    every valley, not only the shading's first: the one step may be another valley's (2.9 and 1.9 mm
+    roundings as dark as the background, 0.31-0.54 px of blur, the door's own light: the best valley's other
+    reading, a twentieth of its misfit, unsought, and the doors 2.55 and 1.73 mm off in z at 30 sigma)."""
+    # why many parameters: the strip problem, its valleys and coarse profile, the shading basis and the two misfit figures the valley posterior has already formed
+    grid, step = coarse.grid, coarse.step
+    w = float(np.median(prob.width))
+    found: list[tuple[float, float, StripEvaluation]] = []
+    for dm, sm, _ in modes:
+        for d in (dm - w, dm + w):
+            if grid[0] <= d <= grid[-1] and min(abs(m[0] - d) for m in [*modes, *found]) > 0.5 * step:
+                other = prob.refine(d, sm, basis, n_iter=8)
+                if (float(other[2].chi2[0]) - chi2_first) / (2.0 * T_glob) < 20.0:
+                    found.append(other)
+    return found
 
 
 def _fine_profiles(
