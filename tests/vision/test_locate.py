@@ -654,7 +654,7 @@ def test_an_arris_as_dark_as_the_background_is_never_answered_confidently_wrong(
     ],
 )
 def test_a_side_arris_read_either_way_is_uncertain_not_a_wrong_door(
-    cell, misread, door, pose, albedos, blur_px, noise_dn, gamma, seed, tolerance_mm
+    cell, dark_rounding, misread, door, pose, albedos, blur_px, noise_dn, gamma, seed, tolerance_mm
 ):
     """A rounding as dark as the background, under ambient light through a sharp lens, shows one step, its
     inner border, which a strip at the hinge face's level would show at its outer one. Where a side arris
@@ -666,19 +666,8 @@ def test_a_side_arris_read_either_way_is_uncertain_not_a_wrong_door(
     door's x by as much (refused under either policy). Under a wide tolerance (3 mm) a 1 mm rounding whose
     every strip was so read was answered 0.83 mm off in x at a sigma of 0.08 mm, its thickness 1.67 mm
     (7 sigma) thin: a thickness within the tolerance but off by a strip's width is as doubtful."""
-    hinge, dark, ambient = albedos
     door = DoorSize(900, door[0], 2100, arris_mm=door[1], arris_profile="round")
-    fx = Effects(
-        arris_profile="round",
-        albedo_hinge=hinge,
-        albedo_chamfer=dark,
-        albedo_background=dark,
-        light_ambient=ambient,
-        light_directional=0.0,
-        blur_sigma_px=blur_px,
-        read_noise_dn=noise_dn,
-        gamma=gamma,
-    )
+    fx = dark_rounding(*albedos, blur_px, noise_dn, gamma)
     img = render_door(cell, door, pose, effects=fx, seed=seed).image
     told = replace(cell, response_gamma=gamma)
     for policy in ("refuse", "report"):
