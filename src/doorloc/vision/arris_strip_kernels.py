@@ -353,7 +353,9 @@ def solve2x2(a00, a01, a10, a11, g0, g1):
     multiplier by the pivot's reciprocal) and getrs, the two right-hand-side updates fused as OpenBLAS's
     kernels fuse them: numpy's numbers to the bit with the OpenBLAS of numpy's wheels on the development
     machine (280,000 random systems of every scale; BLAS kernels differ between processors, this does not).
-    ``singular``: an exact zero pivot, where numpy raises LinAlgError."""
+    Not :func:`_lu_solve`: the same elimination, its updates unfused, differs from numpy in the last bits, and
+    the refine's accept-or-damp decisions then part from the Python loop's. ``singular``: an exact zero
+    pivot, where numpy raises LinAlgError."""
     if abs(a10) > abs(a00):
         a00, a01, a10, a11 = a10, a11, a00, a01
         g0, g1 = g1, g0
@@ -431,7 +433,7 @@ def strip_refine(edges, outer, width, frac, delta, sigma, tail_sigmas, M, const,
         if q1 < 0.1:
             q1 = 0.1
         d[0] = q0
-        s[0] = 0.05 if q1 < 0.05 else q1
+        s[0] = q1  # (at least 0.1, or NaN: above evaluate's floor)
         chi2_1, coef_1, deficit_1, grad_1, hess_1 = strip_evaluate(
             edges, outer, width, frac, d, s, tail_sigmas, M, const, y, w, P, basis, True
         )
