@@ -15,7 +15,7 @@ from doorloc.vision.blurred_step import pixel_step
 from doorloc.vision.blurred_step import step_fit as compiled_step_fit
 from doorloc.vision.edge_samples import EdgeSamples
 from doorloc.vision.lines import ImageLine, _sample_pairs
-from doorloc.vision.response_asymmetry import RESPONSE_LEVEL_ROWS, RESPONSE_PLATEAU_PX, _resampled_asymmetry
+from doorloc.vision.response_asymmetry import RESPONSE_PLATEAU_PX, _resampled_asymmetry
 from doorloc.vision.sampling import gather_profile_rows, median, oriented
 from doorloc.vision.texture import TextureBias
 
@@ -340,7 +340,7 @@ def asymmetry(t, gammas: np.ndarray, blocks: np.ndarray | None = None, n_blocks:
         v = np.exp(np.asarray(gammas, float)[:, None, None] * np.log(t.raw)[None])  # (G, N, W)
     N, W = v.shape[1], v.shape[2]
     pk = RESPONSE_PLATEAU_PX
-    size = min(2 * RESPONSE_LEVEL_ROWS + 1, N)
+    size = min(2 * t.level_rows + 1, N)
     lo = uniform_filter1d(sum(v[:, :, j] for j in range(pk)) / pk, size, axis=1, mode="nearest")[:, :, None]
     hi = uniform_filter1d(sum(v[:, :, W - pk + j] for j in range(pk)) / pk, size, axis=1, mode="nearest")[
         :, :, None
@@ -678,3 +678,19 @@ def plateau_scatter(raw: np.ndarray) -> float:
     ends = [raw[:, :pk], raw[:, -pk:]]
     var = sum(((e - e.mean(axis=1, keepdims=True)) ** 2).sum(axis=1) for e in ends) / (2 * pk - 2)
     return float(np.median(np.sqrt(var)))
+
+
+def plateau_misses(raw: np.ndarray, rounding: float, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The plateaus' noise and misses :func:`doorloc.vision.response_plateaus.plateau_level_rows` decides
+    on (its kernel ``_plateau_misses``), written with numpy: each end's plateau noise variance (2,) and
+    the median of the squared misses against the neighbours over each of ``rows`` lines (2, K)."""
+    pk = RESPONSE_PLATEAU_PX
+    N, W = raw.shape
+    ends = np.stack([raw[:, :pk], raw[:, W - pk :]])
+    m = ends.mean(axis=2)
+    s2 = np.maximum(ends.var(axis=2, ddof=1).mean(axis=1), rounding) / pk
+    c = np.concatenate([np.zeros((2, 1)), np.cumsum(m, axis=1)], axis=1)
+    i, r = np.arange(N), np.asarray(rows)[:, None]
+    lo, hi = np.maximum(i - r, 0), np.minimum(i + r + 1, N)
+    neighbours = (c[:, hi] - c[:, lo] - m[:, None, :]) / (hi - lo - 1)
+    return s2, np.median((m[:, None, :] - neighbours) ** 2, axis=2) / 0.454936

@@ -1078,6 +1078,32 @@ def test_transition_skew_as_its_numpy_version(seed, n, width, top, noise, thinne
 
 
 @settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 10_000), thinned=st.booleans())
+def test_plateau_misses_as_their_numpy_version(seed, thinned):
+    # the compiled figures the response reading's plateau averaging is chosen by, against numpy (to
+    # rounding: the kernel sums in its own order): noisy, quantised and grain-striped plateaus, whole
+    # and thinned (strided) profiles; it fails on a miss taken against a mean that includes the line
+    import doorloc.vision.response_plateaus as rp
+
+    rng = np.random.default_rng(seed)
+    n, width = int(rng.integers(17, 300)), int(rng.integers(8, 31))
+    raw = rng.uniform(0.1, 0.9, (n, 1)) * np.ones((n, width))
+    raw[:, width // 2 :] += (
+        0.1 * (rng.uniform() < 0.5) * np.sin(np.arange(n) / rng.uniform(2.0, 8.0))[:, None]
+    )
+    raw += rng.normal(0.0, float(np.exp(rng.uniform(np.log(1e-4), np.log(0.02)))), raw.shape)
+    if rng.uniform() < 0.3:
+        raw = np.round(raw * 255.0) / 255.0
+    if thinned:
+        raw = raw[:: int(rng.integers(2, 4))]
+    rounding = 1.0 / (12.0 * 255.0**2)
+    want = reference.plateau_misses(raw, rounding, rp._ROWS_AVERAGED)
+    got = rp._plateau_misses(raw, rp.RESPONSE_PLATEAU_PX, rounding, rp._ROWS_AVERAGED)
+    np.testing.assert_allclose(got[0], want[0], rtol=1e-12)
+    np.testing.assert_allclose(got[1], want[1], rtol=1e-9, atol=1e-18)
+
+
+@settings(max_examples=30, deadline=None)
 @given(seed=st.integers(0, 10_000), top=st.sampled_from([255.0, 65535.0]))
 def test_plateau_scatter_as_its_numpy_version(seed, top):
     # the compiled median scatter of the profiles' end pixels (whether noise dithers the rounding) against

@@ -20,6 +20,7 @@ from doorloc.vision.response import (
     fit_line_response,
 )
 from doorloc.vision.response_asymmetry import Transitions
+from doorloc.vision.response_plateaus import RESPONSE_LEVEL_ROWS, plateau_level_rows
 from doorloc.vision.sampling import linearizing_lut
 
 N_COLS, N_ROWS, TILT = 400, 100, 0.031  # a near-horizontal edge: profiles run along the columns
@@ -35,15 +36,19 @@ def _step_image(
     tilt: float = TILT,
     row: float = 50.3,
     halo: tuple[float, float] = (0.0, 1.0),
+    stripes: tuple[float, float] = (0.0, 1.0),
 ) -> np.ndarray:
     """8-bit image of a blurred step (light ``lo`` above the edge, ``hi`` below), integrated over each pixel
     on an 8x finer grid, recorded as ``light ** (1 / camera_gamma)``; ``halo``: the share of the light a
-    wider Gaussian of the given sigma (px) spreads, the rest ``blur``'s."""
+    wider Gaussian of the given sigma (px) spreads, the rest ``blur``'s; ``stripes``: grain across the edge,
+    the bright side's light changed by that share, sinusoidally with the given period (px) along the edge
+    (each column, one profile, its own bright level)."""
     f = 8
     sub = (np.arange(N_ROWS * f) + 0.5) / f - 0.5  # sub-pixel row centres
     u = np.arange(N_COLS)
     edge = row + tilt * u  # row of the edge in each column
     x = sub[:, None] - edge[None, :]
+    hi = hi * (1.0 + stripes[0] * np.sin(2 * np.pi * u / stripes[1]))[None, :]
     light = lo + (hi - lo) * ((1 - halo[0]) * ndtr(x / blur) + halo[0] * ndtr(x / halo[1]))
     light = light.reshape(N_ROWS, f, N_COLS).mean(axis=1)
     raw = 255.0 * light ** (1.0 / camera_gamma)
@@ -84,6 +89,53 @@ def test_a_lens_halo_is_no_response(camera_gamma):
     assert lr is not None
     assert abs(lr.gamma - camera_gamma) <= 3 * lr.sigma + 0.02, lr
     assert lr.sigma < 0.25
+
+
+@pytest.mark.parametrize("camera_gamma", [1.0, 2.2])
+def test_grain_across_the_edge_is_no_response(camera_gamma):
+    # Stripes along the profiles (grain across a door's bottom end) give each profile its own bright
+    # plateau. Averaged over 8 profiles each side, the plateaus missed each profile's own by the grain's
+    # change over them, and that miss, raised to each trial exponent, pulled the least asymmetry: a 2.2
+    # camera read 0.98 +- 0.11 here, a linear one 0.45 +- 0.05 (and a door's bottom end 0.76 +- 0.08,
+    # taking the cell's right exponent's place); each profile's plateaus are now averaged over fewer neighbours where they differ.
+    blur = 1.5
+    img = _step_image(camera_gamma, blur, 0.12, 0.7, 0.7, seed=7, stripes=(0.09, 24.0))
+    half = int(math.ceil(2 * blur + 1))
+    s = _samples(img, camera_gamma, half=half)
+    lr = fit_line_response(img, s, s.valid, half, camera_gamma, blur)
+    assert lr is not None
+    assert abs(lr.gamma - camera_gamma) <= 3 * lr.sigma + 0.02, lr
+
+
+def test_plateaus_are_averaged_over_8_profiles_unless_they_differ_from_profile_to_profile():
+    rng = np.random.default_rng(2)
+    u = np.arange(300)
+    steps = np.concatenate([np.full((300, 6), 0.2), np.full((300, 6), 0.8)], axis=1)
+    noisy = steps + rng.normal(0.0, 0.004, steps.shape)
+    assert plateau_level_rows(noisy) == RESPONSE_LEVEL_ROWS
+    # a few profiles' plateaus hit by something else (a distractor crossing the window) are no grain:
+    # averaging over their neighbours dilutes them (the median of the misses is unmoved)
+    hit = noisy.copy()
+    hit[100:106, -3:] -= 0.3
+    assert plateau_level_rows(hit) == RESPONSE_LEVEL_ROWS
+    grain = noisy.copy()
+    grain[:, 6:] *= (1.0 + 0.05 * np.sin(2 * np.pi * u / 20.0))[:, None]
+    assert plateau_level_rows(grain) < RESPONSE_LEVEL_ROWS
+
+
+def test_a_least_asymmetry_at_the_end_of_the_range_is_no_reading():
+    # A camera beyond the range read (as a transition skewed so that the asymmetry still falls at the
+    # range's end): the end had been returned as the camera's exponent (5.0 +- 0.41 here), a measurement
+    # it is not.
+    blur = 1.5
+    half = int(math.ceil(2 * blur + 1))
+    img = _step_image(7.0, blur, 0.12, 0.8, 0.7, seed=3)
+    s = _samples(img, 2.2, half=half)
+    assert fit_line_response(img, s, s.valid, half, 2.2, blur) is None
+    # (the same step through a camera inside the range is read)
+    img = _step_image(4.0, blur, 0.12, 0.8, 0.7, seed=3)
+    lr = fit_line_response(img, s, s.valid, half, 2.2, blur)
+    assert lr is not None and abs(lr.gamma - 4.0) <= 3 * lr.sigma + 0.02, lr
 
 
 @pytest.mark.parametrize("row", [50.0, 50.15, 50.3, 50.5, 50.8])
