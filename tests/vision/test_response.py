@@ -76,6 +76,16 @@ def test_the_response_is_measured_from_the_step_shape(camera_gamma, used_gamma, 
     assert lr.lo == pytest.approx(round(255 * 0.12 ** (1 / camera_gamma)) / 255, abs=0.02)
 
 
+def _read_in_a_right_cell(img: np.ndarray, camera_gamma: float, blur: float) -> LineResponse:
+    """The edge of ``img`` read with the camera's own exponent in use: within 3 of its sigmas of it."""
+    half = int(math.ceil(2 * blur + 1))
+    s = _samples(img, camera_gamma, half=half)
+    lr = fit_line_response(img, s, s.valid, half, camera_gamma, blur)
+    assert lr is not None
+    assert abs(lr.gamma - camera_gamma) <= 3 * lr.sigma + 0.02, lr
+    return lr
+
+
 @pytest.mark.parametrize("camera_gamma", [1.2, 2.2])
 def test_a_lens_halo_is_no_response(camera_gamma):
     # A quarter of the light spread 3.5x wider than the core reaches beyond the profiles' plateaus and slopes
@@ -83,12 +93,7 @@ def test_a_lens_halo_is_no_response(camera_gamma):
     # out as shading (each plateau's slope over its level), it had read a camera of 1.2 as 2.1 +- 0.07.
     blur = 1.6
     img = _step_image(camera_gamma, blur, 0.12, 0.8, 0.9, seed=5, halo=(0.27, 5.6))
-    half = int(math.ceil(2 * blur + 1))
-    s = _samples(img, camera_gamma, half=half)
-    lr = fit_line_response(img, s, s.valid, half, camera_gamma, blur)
-    assert lr is not None
-    assert abs(lr.gamma - camera_gamma) <= 3 * lr.sigma + 0.02, lr
-    assert lr.sigma < 0.25
+    assert _read_in_a_right_cell(img, camera_gamma, blur).sigma < 0.25
 
 
 @pytest.mark.parametrize("camera_gamma", [1.0, 2.2])
@@ -97,14 +102,11 @@ def test_grain_across_the_edge_is_no_response(camera_gamma):
     # plateau. Averaged over 8 profiles each side, the plateaus missed each profile's own by the grain's
     # change over them, and that miss, raised to each trial exponent, pulled the least asymmetry: a 2.2
     # camera read 0.98 +- 0.11 here, a linear one 0.45 +- 0.05 (and a door's bottom end 0.76 +- 0.08,
-    # taking the cell's right exponent's place); each profile's plateaus are now averaged over fewer neighbours where they differ.
+    # taking the cell's right exponent's place); the plateaus are now averaged over fewer neighbours
+    # where they differ.
     blur = 1.5
     img = _step_image(camera_gamma, blur, 0.12, 0.7, 0.7, seed=7, stripes=(0.09, 24.0))
-    half = int(math.ceil(2 * blur + 1))
-    s = _samples(img, camera_gamma, half=half)
-    lr = fit_line_response(img, s, s.valid, half, camera_gamma, blur)
-    assert lr is not None
-    assert abs(lr.gamma - camera_gamma) <= 3 * lr.sigma + 0.02, lr
+    _read_in_a_right_cell(img, camera_gamma, blur)
 
 
 def test_plateaus_are_averaged_over_8_profiles_unless_they_differ_from_profile_to_profile():
