@@ -271,7 +271,10 @@ def fit_line_response(
     Returns
     -------
     LineResponse or None
-        None where the skew has no root in ``RESPONSE_GAMMA_RANGE`` or too few profiles are usable.
+        None where too few profiles are usable, where an edge at one pixel phase is blurred too little
+        to be read between its pixels, or where the asymmetry (the whole line's, or three blocks') has
+        no least over ``RESPONSE_GAMMA_RANGE``; a least at the range's end is returned as the reading
+        (why: :func:`doorloc.vision.response_asymmetry.least_asymmetric`).
     """
     # The window holds the whole transition (3 blur sigmas each side) and plateaus at both ends.
     wide = max(half, int(math.ceil(RESPONSE_WINDOW_BLURS * max(blur_px, 0.0) + 1.5))) + wider_px
