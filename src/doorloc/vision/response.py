@@ -271,10 +271,9 @@ def fit_line_response(
     Returns
     -------
     LineResponse or None
-        None where too few profiles are usable, where an edge at one pixel phase is blurred too little
-        to be read between its pixels, or where the asymmetry (the whole line's, or three blocks') has
-        no least over ``RESPONSE_GAMMA_RANGE``; a least at the range's end is returned as the reading
-        (why: :func:`doorloc.vision.response_asymmetry.least_asymmetric`).
+        None where too few profiles are usable, an edge at one pixel phase is too sharp to be read
+        between its pixels, or the asymmetry has no least over ``RESPONSE_GAMMA_RANGE`` (a least at the
+        range's end is a reading: :func:`doorloc.vision.response_asymmetry.least_asymmetric`).
     """
     # The window holds the whole transition (3 blur sigmas each side) and plateaus at both ends.
     wide = max(half, int(math.ceil(RESPONSE_WINDOW_BLURS * max(blur_px, 0.0) + 1.5))) + wider_px
