@@ -60,25 +60,15 @@ def plateau_level_rows(raw: np.ndarray, pk: int = RESPONSE_PLATEAU_PX, top: floa
     if N < 2 * RESPONSE_LEVEL_ROWS + 1:
         return RESPONSE_LEVEL_ROWS
     rounding = 1.0 / (12.0 * top * top) if top > 0 else 0.0
-    s2, squares = _plateau_misses(raw, pk, rounding, _ROWS_AVERAGED)
-    misses = [
-        (float(s2[e]), dict(zip(_LEVEL_ROWS_TRIED[1:], map(float, squares[e]), strict=True)))
-        for e in range(2)
-    ]
-    if not any(
-        miss[RESPONSE_LEVEL_ROWS] > _ACROSS_TEXTURE_GROWTH * max(miss[1], 1.5 * s2e) for s2e, miss in misses
-    ):
+    s2, miss = _plateau_misses(raw, pk, rounding, _ROWS_AVERAGED)  # (2,), (2, K): R = 1, 2, 4, 8
+    if not np.any(miss[:, -1] > _ACROSS_TEXTURE_GROWTH * np.maximum(miss[:, 0], 1.5 * s2)):
         return RESPONSE_LEVEL_ROWS
-
-    def left(R: int) -> float:
-        if R == 0:
-            return sum(s2e for s2e, _ in misses)
-        inside = (2 * R / (2 * R + 1)) ** 2  # (the average includes the line itself)
-        return sum(
-            s2e / (2 * R + 1) + inside * max(miss[R] - s2e * (1 + 1 / (2 * R)), 0.0) for s2e, miss in misses
-        )
-
-    return min(_LEVEL_ROWS_TRIED, key=left)
+    # each count's error left, summed over both ends: noise only for R = 0; else the noise averaged and
+    # the texture's part of the miss, scaled to the average that includes the line itself
+    R = _ROWS_AVERAGED
+    texture = np.maximum(miss - s2[:, None] * (1 + 1 / (2 * R)), 0.0)
+    left = (s2[:, None] / (2 * R + 1) + (2 * R / (2 * R + 1)) ** 2 * texture).sum(axis=0)
+    return _LEVEL_ROWS_TRIED[int(np.concatenate([[s2.sum()], left]).argmin())]
 
 
 def _misses_warm_up(k) -> None:
