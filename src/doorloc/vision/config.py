@@ -130,6 +130,11 @@ class LocateConfig:
     max_clipped_arris_fraction : float
         Refuse ``overexposed`` when more of an arris strip's scan lines than this have white-clipped pixels
         beside its border (a highlight on the arris the sensor cut off: its shading cannot be read).
+    max_strip_other_border_share : float
+        Refuse ``uncertain`` where more than this share of an arris line's points (the bottom end's or the
+        reference arris's) lie on a second line about the strip's width away, which the line fit left out:
+        the strip read at its other border on those scan lines, and either reading may be the right one
+        (:func:`doorloc.vision.quality.check_strip_read_twice`). 1: off.
     clipped_flat_share : float
         Refuse ``overexposed`` where the flat patches beside the door's edges hold at least this share of
         their pixels at one grey level on the bright side (or a chamfer strip's inside does), at the
@@ -196,6 +201,7 @@ class LocateConfig:
     max_sigma_mm: float = 0.05
     max_saturated_fraction: float = 0.5
     max_clipped_arris_fraction: float = 0.1
+    max_strip_other_border_share: float = 0.2
     clipped_flat_share: float = 0.95
     min_noise_scale_ratio: float = 0.85
     max_uncertainty_mm: float = 0.1
@@ -212,6 +218,11 @@ class LocateConfig:
         if not 0.0 <= self.max_clipped_arris_fraction <= 1.0:
             raise ValueError(
                 f"max_clipped_arris_fraction is a share of scan lines in 0..1, got {self.max_clipped_arris_fraction:g}"
+            )
+        if not 0.0 <= self.max_strip_other_border_share <= 1.0:
+            raise ValueError(
+                "max_strip_other_border_share is a share of a line's points in 0..1 (1: off), got "
+                f"{self.max_strip_other_border_share:g}"
             )
         if not self.clipped_flat_share > 0.0:
             raise ValueError(

@@ -71,8 +71,8 @@ def gate_and_answer(
 
     The checks in the order they are weighed (the first that refuses is the answer's reason, unless a pose
     outside the envelope or a pattern in view explains it better, :func:`_first_refusal`): each line's
-    support and straightness, the corner's support, overexposure and sharpening, the envelope, the
-    thickness, the corner's and the pose's uncertainty."""
+    support and straightness, the corner's support, overexposure and sharpening, an arris strip read two
+    ways, the envelope, the thickness, the corner's and the pose's uncertainty."""
     r, cell = check.refined, check.cell
     plane, s8 = lum.plane, lum.scale_to_8bit
     model, figures, disputed = doubts.model, doubts.figures, doubts.response_disputed
@@ -81,6 +81,7 @@ def gate_and_answer(
     lines, refusals = _line_checks(r, region, model, cfg)
     refusals += _corner_support(r, region, cfg, diagnostics)
     refusals += _exposure_checks(lum, check, region, cfg, diagnostics)
+    refusals += _strips_read_twice(r, cfg)
     refusals.append(
         q.check_envelope(
             pose.x_mm, pose.z_mm, pose.yaw_deg, cell.envelope, cfg.envelope_margin_mm, cfg.envelope_margin_deg
@@ -462,6 +463,16 @@ def _line_checks(
             )
         )
     return lines, refusals
+
+
+def _strips_read_twice(r: Refined, cfg: LocateConfig) -> list:
+    """The bottom end's and the reference arris's strips read at both borders (:func:`doorloc.vision.quality.
+    check_strip_read_twice`; the far arris's two readings are the thickness check's), weighed after the
+    exposure checks: a strip clipped at white reads two ways too, and the exposure is what to change there."""
+    s, share = r.pose.scale_mm_per_px, cfg.max_strip_other_border_share
+    res, w = r.fit.residuals, r.fit.weights
+    strips = {k: px for k, (_, px) in r.arris_fits.items() if k in ("bottom", "reference")}
+    return [q.check_strip_read_twice(HUMAN[k], res[k] / s, w[k], px, share) for k, px in strips.items()]
 
 
 def _corner_support(r: Refined, region: SearchRegion, cfg: LocateConfig, diagnostics: dict) -> list:

@@ -23,6 +23,7 @@ __all__ = [
     "check_thickness",
     "check_corner_support",
     "check_line",
+    "check_strip_read_twice",
     "LineLimits",
     "check_overexposed",
     "check_arris_clipped",
@@ -532,6 +533,44 @@ def check_line(
             f"{max_rms_px:.2f} px); check the edge for damage or debris",
         )
     return None
+
+
+#: the outliers of an arris line that lie at its strip's other border are one line: their spread (1.4826
+#: MAD, px) is at most this share of the strip's width, and their median lies 0.5-1.5 widths from the line
+STRIP_OTHER_BORDER_SPREAD = 0.15
+
+
+def check_strip_read_twice(
+    human: str, residuals_px: np.ndarray, weights: np.ndarray, strip_px: float, max_share: float
+) -> Refusal | None:
+    """An arris line (``human``) whose points the robust line fit left out lie on a second line parallel to
+    it, about the strip's width (``strip_px``, px) away, and make up more than ``max_share`` of its points
+    (``residuals_px`` signed distances from the line, px; ``weights`` 0 where left out): the strip was read
+    at one border on some scan lines and at its other border on the rest, and the line fit took one reading
+    by its count of scan lines, which tells nothing of which reading is right.
+
+    A strip whose shading the model misreads does this: a bright chamfer whose highlight the camera's tone
+    curve compressed (a response beyond the cell's power law), read at its inner border wherever it was
+    brightest and at its outer border inside a shadow band, had its line placed a strip's width (0.46 mm)
+    off at 6.3 sigma on the majority's reading (`bench_camera_doors.py --model` a Bouguet-camera report
+    ``--seed 71000``, door 5)."""
+    ok = np.isfinite(residuals_px)
+    left_out = residuals_px[ok & (weights <= 0)]
+    n = int(np.count_nonzero(ok))
+    if not strip_px > 0 or n == 0 or left_out.size <= max_share * n or left_out.size < 3:
+        return None
+    centre = float(np.median(left_out))
+    spread = 1.4826 * float(np.median(np.abs(left_out - centre)))
+    if spread > STRIP_OTHER_BORDER_SPREAD * strip_px or not 0.5 <= abs(centre) / strip_px <= 1.5:
+        return None
+    return Refusal(
+        "uncertain",
+        f"the arris strip along the {human} reads two ways: {left_out.size} of its {n} scan lines place its border "
+        f"{abs(centre):.1f} px (a strip's width) from where the others do, and the image does not tell which "
+        "is right; the strip's shading is not what the model expects (a highlight the camera's response "
+        "compresses, a shadow across it): state the camera's measured response or photometric model in the "
+        "cell (doorloc calibrate, doorloc check-model --boards), or light the arris more evenly",
+    )
 
 
 def check_corner_support(name: str, frac: float, n: int, min_fraction: float) -> Refusal | None:
