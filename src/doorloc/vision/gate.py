@@ -466,9 +466,10 @@ def _line_checks(
 
 
 def _strips_read_twice(r: Refined, cfg: LocateConfig) -> list:
-    """The bottom end's and the reference arris's strips read at both borders (:func:`doorloc.vision.quality.
-    check_strip_read_twice`; the far arris's two readings are the thickness check's), weighed after the
-    exposure checks: a strip clipped at white reads two ways too, and the exposure is what to change there."""
+    """The bottom end's and the reference arris's strips, each read at both its borders
+    (:func:`doorloc.vision.quality.check_strip_read_twice`; the far arris's two readings are the thickness
+    check's), weighed after the exposure checks: a strip clipped at white reads two ways too, and the
+    exposure is what to change there."""
     s, share = r.pose.scale_mm_per_px, cfg.max_strip_other_border_share
     res, w = r.fit.residuals, r.fit.weights
     strips = {k: px for k, (_, px) in r.arris_fits.items() if k in ("bottom", "reference")}
