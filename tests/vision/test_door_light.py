@@ -153,3 +153,33 @@ def test_the_light_search_states_the_best_of_one_door_even_where_most_directions
     assert m.alike_share == 1.0 and m.sigma_deg > 10.0 and m.doors == 1 and m.strips == 2
     assert light_of_one_door([]) is None
     assert math.isclose(m.score, 0.0, abs_tol=1e-12)
+
+
+def test_free_shadings_far_from_the_door_lights_pose_are_refused():
+    """A rounding through a defocused lens (a disk of 2.8 px, no Gaussian) in a cell that states a linear
+    camera for a 2.22 one (arris range bench ``--sets defocus --seed 55000 --cell-gamma-off bound``, door
+    66005): the door's own light was found, its answer refused for its doubt (z sigma 0.28 mm), and the free
+    shadings' answer stood at z +0.41 mm off with sigma 0.027. The two place the door 0.46 mm apart: the
+    answer's sigma does not hold what the image leaves open, and the door is refused saying both."""
+    door = DoorSize(900, 40.0, 2100, arris_mm=1.8584, arris_profile="round")
+    pose = DoorPose(5.2605, 4.4699, 0.96777)
+    fx = Effects(
+        arris_profile="round",
+        albedo_hinge=0.7334,
+        albedo_side=0.55,
+        albedo_chamfer=0.3330,
+        albedo_background=0.1372,
+        light_ambient=0.3721,
+        light_directional=0.5512,
+        light_azimuth_deg=-48.65,
+        light_elevation_deg=47.357,
+        blur_sigma_px=0.4303,
+        blur_disk_px=2.7994,
+        read_noise_dn=0.4597,
+        gamma=2.2197,
+    )
+    img = render_door(CELL, door, pose, effects=fx, seed=66005).image
+    res = locate(img, dataclasses.replace(CELL, response_gamma=1.01), door)
+    assert not res.ok and res.error_code == "uncertain", (res.error, res.z_mm - pose.z_mm if res.ok else None)
+    assert "read two ways" in res.error and "shaded freely" in res.error
+    assert res.diagnostics["door_light"]["used"] is False

@@ -281,19 +281,56 @@ def _locate(
     # Located again under the door's own light, as if the cell stated it. Where that answer is refused (a
     # light the strips tell wrong widens their doubt), the free shadings' outcome stands, their answer or
     # their refusal: each is judged by its own uncertainty, neither is chosen by its error, and a door the
-    # free shadings refused keeps their reason. (The free outcome is gated only then: its doubts cost as
-    # much as the lit answer's, and a lit answer that passes needs no other.)
+    # free shadings refused keeps their reason; their answer stands only near the lit pose
+    # (:func:`_free_beside_lit`). (The free outcome is gated only then: its doubts cost as much as the lit
+    # answer's, and a lit answer that passes needs no other.)
     lit_cfg = replace(cfg, light_direction_deg=own.direction_deg, light_direction_sigma_deg=own.sigma_deg)
     tr.door_light, tr.door_light_used = own, True
+    lit_pose = None
     try:
         lit = refined_and_checked(lit_cfg)
         res = _answer(name, door, lit_cfg, region, lit, lum, clock, tr)
         if res.ok:
             return res
+        lit_pose = res.diagnostics.get("measured")
     except Refused:
         pass
     tr.door_light_used = False
-    return _answer(name, door, cfg, region, check, lum, clock, tr)
+    return _free_beside_lit(_answer(name, door, cfg, region, check, lum, clock, tr), lit_pose, own)
+
+
+#: the free shadings' answer stands beside the door's own light's (refused) pose only within this many of
+#: its own sigmas in x and z
+SHADINGS_APART_SIGMAS = 3.0
+
+
+def _free_beside_lit(free: LocateResult, lit: dict | None, own: LightMeasurement) -> LocateResult:
+    """The free shadings' answer, or a refusal where the pose located under the door's own light (refused:
+    ``lit``, its measured pose) lies more than ``SHADINGS_APART_SIGMAS`` of the answer's sigmas from it in
+    x or z. The two read the same pixels with two models of the rounded strips' shading; where they place
+    the door that far apart the answer's sigma, which holds only its own model's doubts, understates what
+    the image leaves open (`bench_arris_range.py --sets defocus --seed 55000 --cell-gamma-off bound`, door
+    66005: the free shadings answered z +0.41 mm off at sigma 0.027; the door's light placed it 0.05 mm
+    off at sigma 0.28, refused)."""
+    if not free.ok or lit is None or free.uncertainty is None:
+        return free
+    u = free.uncertainty
+    dx, dz = abs(free.x_mm - lit["x_mm"]), abs(free.z_mm - lit["z_mm"])
+    if max(dx / max(u.x_mm, 1e-9), dz / max(u.z_mm, 1e-9)) <= SHADINGS_APART_SIGMAS:
+        return free
+    az, el = own.direction_deg
+    diagnostics = free.diagnostics | {"measured": {k: getattr(free, k) for k in ("x_mm", "z_mm", "yaw_deg")}}
+    return LocateResult.refusal(
+        free.image,
+        "uncertain",
+        f"the door's rounded arrises read two ways: shaded freely they place the door at x {free.x_mm:+.3f}, z "
+        f"{free.z_mm:+.3f} mm, under the light their shading tells (azimuth {az:.0f}, elevation {el:.0f} deg) "
+        f"at x {lit['x_mm']:+.3f}, z {lit['z_mm']:+.3f} mm, further apart than the answer's uncertainty (x "
+        f"{u.x_mm:.3f}, z {u.z_mm:.3f} mm); state the cell's light (locate.light_direction_deg) and its "
+        "camera's measured response (doorloc calibrate), or light the arrises from one known direction",
+        lines=free.lines,
+        diagnostics=diagnostics,
+    )
 
 
 def _trace_refined(tr: LocateTrace, refined: Refined) -> None:
