@@ -319,7 +319,8 @@ def _free_beside_lit(free: LocateResult, lit: dict | None, own: LightMeasurement
     if max(dx / max(u.x_mm, 1e-9), dz / max(u.z_mm, 1e-9)) <= SHADINGS_APART_SIGMAS:
         return free
     az, el = own.direction_deg
-    diagnostics = free.diagnostics | {"measured": {k: getattr(free, k) for k in ("x_mm", "z_mm", "yaw_deg")}}
+    measured = {k: getattr(free, k) for k in ("x_mm", "z_mm", "yaw_deg", "thickness_mm")}
+    diagnostics = free.diagnostics | {"measured": measured}
     return LocateResult.refusal(
         free.image,
         "uncertain",
