@@ -559,8 +559,8 @@ def check_strip_read_twice(
     n = int(np.count_nonzero(ok))
     if not strip_px > 0 or n == 0 or left_out.size <= max_share * n or left_out.size < 3:
         return None
-    centre = float(np.median(left_out))
-    spread = 1.4826 * float(np.median(np.abs(left_out - centre)))
+    centre = median(left_out)
+    spread = 1.4826 * median(np.abs(left_out - centre))
     if spread > STRIP_OTHER_BORDER_SPREAD * strip_px or not 0.5 <= abs(centre) / strip_px <= 1.5:
         return None
     return Refusal(
