@@ -212,6 +212,19 @@ def test_compile_kernels_compiles_every_kernel_locate_uses():
     assert jit.compile_kernels() >= 5
 
 
+def test_the_warm_up_s_shares_together_warm_every_kernel_once(monkeypatch):
+    import doorloc.vision.locate  # noqa: F401  (defines them all)
+
+    warmed: list[int] = []
+    kernels = [(i, warmed.append) for i in range(11)] + [(99, None)]  # the last: only other kernels call it
+    monkeypatch.setattr(jit, "_KERNELS", kernels)
+    for part in range(3):
+        assert jit.compile_kernels(part, 3) == 12
+    assert sorted(warmed) == list(range(11))
+    with pytest.raises(ValueError, match="part 3 of 3"):
+        jit.compile_kernels(3, 3)
+
+
 def test_the_warm_up_compiles_locate_s_kernels():
     from doorloc.vision.warmup import compile_locate_kernels
 

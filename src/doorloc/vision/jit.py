@@ -233,9 +233,16 @@ def _pairwise_block(a, lo, n):
     return res
 
 
-def compile_kernels() -> int:
-    """Compile (or load from the disk cache) every kernel of the modules imported so far; their count."""
-    for k, warm_up in _KERNELS:
+def compile_kernels(part: int = 0, parts: int = 1) -> int:
+    """Compile (or load from the disk cache) every kernel of the modules imported so far; their count.
+
+    ``part`` of ``parts``: only the kernels ``part``, ``part + parts``, ... in definition order, so that
+    ``parts`` processes sharing one disk cache fill it together (:mod:`doorloc.vision.warmup`); the count is
+    still that of every kernel.
+    """
+    if not 0 <= part < parts:
+        raise ValueError(f"part {part} of {parts}: part must lie in 0..parts-1")
+    for k, warm_up in _KERNELS[part::parts]:
         if warm_up is not None:
             warm_up(k)
     return len(_KERNELS)
