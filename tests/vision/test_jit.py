@@ -225,6 +225,19 @@ def test_the_warm_up_s_shares_together_warm_every_kernel_once(monkeypatch):
         jit.compile_kernels(3, 3)
 
 
+def test_the_warm_up_compiles_in_one_process_where_numba_has_no_disk_cache(monkeypatch):
+    from doorloc.vision import warmup
+
+    def no_pool(*args, **kwargs):
+        raise AssertionError("processes started though no cache could hold what they compile")
+
+    monkeypatch.setattr(warmup, "ProcessPoolExecutor", no_pool)
+    monkeypatch.setattr(jit, "_KERNELS", [])
+    monkeypatch.setattr(jit, "_UNCACHED", [object()])
+    assert not jit.cached_on_disk()
+    assert warmup._fill_cache(2) == 0
+
+
 def test_the_warm_up_compiles_locate_s_kernels():
     from doorloc.vision.warmup import compile_locate_kernels
 

@@ -30,6 +30,7 @@ from numba.extending import intrinsic, overload
 
 __all__ = [
     "kernel",
+    "cached_on_disk",
     "compile_kernels",
     "compiled_signatures",
     "fma",
@@ -45,6 +46,8 @@ F = TypeVar("F", bound=Callable[..., Any])
 
 # (kernel, warm-up) of every kernel defined so far: what compile_kernels compiles (definitions, not state)
 _KERNELS: list[tuple[Any, Callable[[Any], None] | None]] = []
+# the kernels numba could give no disk cache (definitions too): compiled in each process that calls them
+_UNCACHED: list[Any] = []
 
 
 def kernel(
@@ -75,6 +78,7 @@ def kernel(
             k = numba.njit(cache=True, **opts)(fn)
         except RuntimeError:  # numba found no writable place for its cache: compile in each process
             k = numba.njit(**opts)(fn)
+            _UNCACHED.append(k)
         _KERNELS.append((k, warm_up))
         return k
 
@@ -246,6 +250,12 @@ def compile_kernels(part: int = 0, parts: int = 1) -> int:
         if warm_up is not None:
             warm_up(k)
     return len(_KERNELS)
+
+
+def cached_on_disk() -> bool:
+    """Whether every kernel defined so far has numba's disk cache (where none can be written, a process
+    compiles its own and other processes' compiling gains it nothing)."""
+    return not _UNCACHED
 
 
 def compiled_signatures() -> dict[str, int]:

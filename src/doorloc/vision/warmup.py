@@ -33,10 +33,11 @@ def _fill_cache(jobs: int) -> int:
 
     Why processes: numba compiles one kernel at a time under the GIL, and compiling (not running) is what a
     fresh machine's first warm-up spends its minutes on. A share that a process failed to cache (a cache
-    written by two at once) is compiled here, so the count is always complete.
+    written by two at once) is compiled here, so the count is always complete;
+    where numba has no disk cache, only here.
     """
-    if jobs > 1:
-        # spawn, not fork: a child forked from a process that has started LLVM may hang
+    if jobs > 1 and jit.cached_on_disk():
+        # spawn, not fork: each child imports and compiles afresh, as a process started apart would
         with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
             list(pool.map(compile_locate_kernels, range(jobs), [jobs] * jobs))
     return compile_locate_kernels()
