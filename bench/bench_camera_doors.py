@@ -32,6 +32,7 @@ them and measures what that costs:
 
 Per column: answered, RMS and max error of x, z, yaw, the share within 2 claimed sigma and the count beyond 5,
 the largest |error| / sigma, and the refusals by code.
+Each door's line says what its plain edges read of the camera response (:func:`response_read`).
 
     OMP_NUM_THREADS=1 PYTHONPATH=src python bench/bench_camera_doors.py --model DIR_OR_FILE [--model ...]
         [--n 24] [--seed 3500] [--jpeg 50]
@@ -141,6 +142,17 @@ def seen_through(cell, model: PhotometricModel):
     return dataclasses.replace(cell, camera=CameraModel(K, cam.dist_coeffs, cam.image_size))
 
 
+def response_read(d: dict) -> str:
+    """What the image's plain edges read of the camera response (``diagnostics.camera_response``), short:
+    the exponent the answer rests on where the image's replaced the cell's, the reading where the cell's
+    was kept, or that nothing was read. (A camera whose response is no power law is read as one: a shoulder
+    read as a steep exponent moved answers 0.13 mm, so each door's line says what was read.)"""
+    if not d.get("checked"):
+        return "response=unchecked"
+    read = f"{d['fitted']:.2f}+-{d['sigma']:.2f}" if "fitted" in d and "sigma" in d else "?"
+    return f"response={read}" + (" absorbed" if d.get("absorbed") else " cell kept")
+
+
 def run_column(cell, model: PhotometricModel, gamma: float, items, told: bool = False) -> dict:
     """Locate every item photographed through ``model``; the cell states the exponent ``gamma`` (and, with
     ``told``, the model itself)."""
@@ -164,6 +176,7 @@ def run_column(cell, model: PhotometricModel, gamma: float, items, told: bool = 
             f"{name} seed {s} T={door.thickness_mm:.1f} arris={door.arris_mm:.2f} blur={cam.blur_px:.2f} "
             f"jpeg={cam.jpeg_quality} light={scene.light_directional:.2f}@{scene.light_azimuth_deg:+.0f}"
             f"/{scene.light_elevation_deg:+.0f} grain={scene.grain_contrast:.3f}"
+            f" {response_read(r.diagnostics.get('camera_response', {}))}"
         )
         if not r.ok:
             codes[str(r.error_code)] += 1
