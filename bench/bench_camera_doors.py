@@ -149,8 +149,8 @@ def response_read(d: dict) -> str:
     read as a steep exponent moved answers 0.13 mm, so each door's line says what was read.)"""
     if not d.get("checked"):
         return "response=unchecked"
-    read = f"{d['fitted']:.2f}+-{d['sigma']:.2f}" if "fitted" in d and "sigma" in d else "?"
-    return f"response={read}" + (" absorbed" if d.get("absorbed") else " cell kept")
+    # (a checked reading always carries its exponent and sigma: doorloc.vision.response_check)
+    return f"response={d['fitted']:.2f}+-{d['sigma']:.2f}" + (" absorbed" if d["absorbed"] else " cell kept")
 
 
 def run_column(cell, model: PhotometricModel, gamma: float, items, told: bool = False) -> dict:

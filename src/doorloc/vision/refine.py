@@ -40,7 +40,7 @@ from doorloc.vision.stated_light import StatedLight
 from doorloc.vision.step_blur import step_blur
 from doorloc.vision.strip_posterior import strip_blur_priors
 from doorloc.vision.strip_response import StripReadings, arc_score, grey_score
-from doorloc.vision.thickness_gate import PLAIN_STEP_DEFICIT
+from doorloc.vision.thickness_gate import shows_one_step
 from doorloc.vision.transition import transition_width
 
 __all__ = ["arris_response_shifts", "refine"]
@@ -472,9 +472,8 @@ def _held_to_first_pass(
             continue
         (strip, band_px), s1 = final[k], first[k][0]
         floor = math.hypot(s1.deficit_sigma, strip.deficit - s1.deficit)
-        one_step = not PLAIN_STEP_DEFICIT < s1.model_deficit < 1.0 - PLAIN_STEP_DEFICIT
         split = abs(s1.deficit - s1.model_deficit) >= READINGS_GAP or (
-            one_step and s1.deficit_sigma >= READINGS_SPREAD
+            shows_one_step(s1.model_deficit) and s1.deficit_sigma >= READINGS_SPREAD
         )
         if split and floor > strip.deficit_sigma:
             out[k] = (replace(strip, deficit_sigma=floor), band_px)

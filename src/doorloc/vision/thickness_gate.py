@@ -34,6 +34,7 @@ __all__ = [
     "far_silhouette_contrast",
     "other_reading",
     "reported_budget",
+    "shows_one_step",
     "strip_other_readings",
     "thickness_check",
     "thickness_diagnostics",
@@ -117,6 +118,16 @@ def far_silhouette_contrast(r: Refined) -> float | None:
 #: a side arris's strip fitted within this of the hinge face's level (deficit 0) or the background's (1)
 #: shows one plain step, which its other reading puts at the strip's other border
 PLAIN_STEP_DEFICIT = 0.2
+
+
+def shows_one_step(deficit: float) -> bool:
+    """Whether an arris strip fitted at ``deficit`` shows one plain step (within ``PLAIN_STEP_DEFICIT`` of the
+    hinge face's level 0 or the background's 1), which its other reading puts at the strip's other border;
+    not a strip with a level between (two steps). A NaN deficit lies between nothing: True, as the
+    comparison gives it (callers that need a finite one test it)."""
+    return not PLAIN_STEP_DEFICIT < deficit < 1.0 - PLAIN_STEP_DEFICIT
+
+
 #: a thickness within the tolerance that misses the recipe by more than this many of its sigmas, where a side
 #: arris's other reading lands within as many, is that arris's misreading as likely as a door off its recipe
 MISREAD_SIGMAS = 3.0
@@ -139,7 +150,7 @@ def strip_other_readings(r: Refined) -> dict[str, float]:
             continue
         strip, band_px = r.arris_fits[k]
         d = strip.model_deficit
-        if not math.isfinite(d) or PLAIN_STEP_DEFICIT < d < 1.0 - PLAIN_STEP_DEFICIT:
+        if not math.isfinite(d) or not shows_one_step(d):
             continue  # a strip with a level between: two steps, no other reading
         other_deficit = 1.0 if d < 0.5 else 0.0
         shifts[k] = (other_deficit - strip.deficit) * band_px * r.pose.scale_mm_per_px
