@@ -37,9 +37,9 @@ from doorloc.vision.texture import texture_bias
 from doorloc.vision.uncertainty import (
     CAMERA_RESPONSE,
     JPEG_BLOCK_RATIO,
-    JPEG_EDGE_DOUBT_PX,
     EdgeModelTerms,
     LineDoubt,
+    jpeg_edge_doubt_px,
     jpeg_tilt_sigma,
 )
 
@@ -74,7 +74,7 @@ def edge_doubts(
     blocks = block_artifact_ratio(plane, r.pose.corner_px, scale_to_8bit=s8)
     figures["jpeg_block_ratio"] = round(blocks, 3) if math.isfinite(blocks) else None
     if blocks > JPEG_BLOCK_RATIO:
-        model = model.with_doubts(*_jpeg_doubts(samples, fit))
+        model = model.with_doubts(*_jpeg_doubts(samples, fit, r.pose.scale_mm_per_px))
     if r.arris_fits:
         model = model.with_doubts(*_arris_doubts(r.arris_fits, samples, fit, r.pose.scale_mm_per_px, figures))
     model = model.with_doubts(*_optics_doubts(cell, cfg))
@@ -196,17 +196,48 @@ def _at_least(value: float, floor: float) -> float:
     return floor if floor > value or (math.isnan(value) and not math.isnan(floor)) else value
 
 
-def _jpeg_doubts(samples: dict[str, EdgeSamples], fit: RectangleFit) -> list[LineDoubt]:
-    """Each line's JPEG doubt where the image shows block artifacts: ``JPEG_EDGE_DOUBT_PX`` across it, and
-    the tilt (:func:`doorloc.vision.uncertainty.jpeg_tilt_sigma`) as the edge's phase in the 8-px blocks
-    changes along it."""
+def _jpeg_doubts(
+    samples: dict[str, EdgeSamples], fit: RectangleFit, scale_mm_per_px: float
+) -> list[LineDoubt]:
+    """Each line's JPEG doubt where the image shows block artifacts: across it, the quantisation's grey
+    levels over the line's median step (:func:`doorloc.vision.uncertainty.jpeg_edge_doubt_px`; the step
+    as the area estimator read it, in the plane's grey levels, which a linearised camera's response makes
+    a little unlike the encoder's), and the tilt (:func:`doorloc.vision.uncertainty.jpeg_tilt_sigma`) as
+    the edge's phase in the blocks and pixels changes along it."""
     doubts = []
     for k in EDGE_NAMES:
         inl = (fit.weights[k] > 0) & np.isfinite(samples[k].along)
         scan, along = samples[k].scan[inl], samples[k].along[inl]
         slope = fit_image_line(scan, along).b if scan.size >= 3 else math.nan
-        doubts.append(LineDoubt("jpeg", k, JPEG_EDGE_DOUBT_PX, tilt=jpeg_tilt_sigma(slope, scan)))
+        steps = np.abs(samples[k].step[inl])
+        steps = steps[np.isfinite(steps)]
+        doubt = jpeg_edge_doubt_px(float(np.median(steps)) if steps.size else math.nan)
+        tilt = jpeg_tilt_sigma(slope, scan, doubt)
+        blocks = _block_correlated_tilt(scan, fit.residuals[k][inl] / scale_mm_per_px)
+        doubts.append(LineDoubt("jpeg", k, doubt, tilt=math.hypot(tilt, blocks)))
     return doubts
+
+
+def _block_correlated_tilt(scan: np.ndarray, residual_px: np.ndarray) -> float:
+    """What the line fit's standard error of the tilt (px per px) misses where its residuals are alike
+    within each 8-px JPEG block: the slope's standard error from the blocks' mean residuals, less (in
+    quadrature) the one from the residuals taken as independent; 0 where that is less or too few blocks."""
+    ok = np.isfinite(residual_px)
+    scan, res = scan[ok].astype(np.float64), residual_px[ok].astype(np.float64)
+    block = np.floor_divide(scan, 8).astype(np.int64)
+    block -= block.min() if block.size else 0
+    counts = np.bincount(block)
+    used = counts > 0
+    if used.sum() < 4 or scan.size < 8:
+        return 0.0
+    means = np.bincount(block, res)[used] / counts[used]
+    centres = np.bincount(block, scan)[used] / counts[used]
+    c = centres - centres.mean()
+    fitted = means.mean() + c * (means @ c) / (c @ c)
+    se_blocks = math.sqrt(float(np.sum((means - fitted) ** 2)) / (means.size - 2) / float(c @ c))
+    d = scan - scan.mean()
+    se_each = math.sqrt(float(np.sum((res - res.mean()) ** 2)) / (res.size - 2) / float(d @ d))
+    return math.sqrt(max(0.0, se_blocks**2 - se_each**2))
 
 
 def _arris_doubts(

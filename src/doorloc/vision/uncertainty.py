@@ -22,10 +22,11 @@ source's 1-sigma contribution, so that the dominant term can be read off):
       blur is not Gaussian nor the same across the edge, so this is kept as a doubt, not corrected;
     - the texture term, :func:`doorloc.vision.texture.texture_bias` (wood grain along the edge, measured
       on the texture beside the window);
-    - ``JPEG_EDGE_DOUBT_PX`` where the image shows JPEG block artifacts
+    - :func:`jpeg_edge_doubt_px` where the image shows JPEG block artifacts
       (:func:`doorloc.vision.jpeg_blocks.block_artifact_ratio` above ``JPEG_BLOCK_RATIO``): the block
       quantization moves an edge that runs along a block row or column the same way on every scan line
-      (0.01-0.07 px measured on nearly noise-free quality-88 renders, where no other term sees it), and
+      (0.01-0.07 px measured on nearly noise-free quality-88 renders, where no other term sees it; more
+      on an edge of little contrast), and
       an edge at a small angle to the blocks by an amount that drifts along it: its tilt
       (:func:`jpeg_tilt_sigma`) joins the line's texture tilt in the yaw;
     - whatever term an edge model or a correction knows of its own line, contributed as a typed
@@ -68,6 +69,7 @@ __all__ = [
     "EDGE_MODEL_FLOOR_PX",
     "JPEG_BLOCK_RATIO",
     "JPEG_EDGE_DOUBT_PX",
+    "JPEG_EDGE_GREY_DN",
     "CAMERA_RESPONSE",
     "DOUBT_SOURCES",
     "EdgeModelTerms",
@@ -79,15 +81,18 @@ __all__ = [
     "calibration_pose_sigma",
     "combine",
     "corner_fit_sigma",
+    "jpeg_edge_doubt_px",
     "jpeg_tilt_sigma",
 ]
 
 #: the area estimator's residual bias on a clean step, px across the edge (module docstring)
 EDGE_MODEL_FLOOR_PX = 0.002
 
-#: JPEG block artifacts: the ratio above which an image counts as JPEG-compressed, and the doubt then (px)
+#: JPEG block artifacts: the ratio above which an image counts as JPEG-compressed, and the doubt then (px):
+#: at least ``JPEG_EDGE_DOUBT_PX``, and ``JPEG_EDGE_GREY_DN`` grey levels over the edge's step (:func:`jpeg_edge_doubt_px`)
 JPEG_BLOCK_RATIO = 1.3
 JPEG_EDGE_DOUBT_PX = 0.03
+JPEG_EDGE_GREY_DN = 2.5
 
 #: edge-model doubt per px of optical blur (module docstring)
 BLUR_MODEL_FRACTION = 0.01
@@ -209,20 +214,60 @@ class EdgeModelTerms:
         return t
 
 
+def jpeg_edge_doubt_px(step_dn: float) -> float:
+    """1-sigma (px) of the offset JPEG's quantisation gives an edge whose grey-level step is ``step_dn``
+    (0-255 scale): ``JPEG_EDGE_GREY_DN / |step_dn|``, at least ``JPEG_EDGE_DOUBT_PX`` (that alone where the
+    step is unknown).
+
+    Why: the quantisation moves each pixel's grey level by an amount that does not depend on the edge's
+    contrast, so the edge moves by that over the edge's slope: a blurred step read by the area estimator,
+    JPEG against the same image unquantised, each 8-row block's mean error (what a line fit keeps of it),
+    RMS over the edge's phase in its block (blur 0.3 and 0.8 px, steps 10-160): 1.8-2.5 grey levels over
+    the step at quality 80, 1.3-1.9 at 88, 0.5-0.9 at 95, 2.0-3.3 at 75. A dark door on a dark background
+    (step 10-20) is off 0.1-0.2 px where the floor allowed 0.03. The encoder's quality is not known from
+    the decoded image, so the doubt covers quality 80's.
+
+    Examples
+    --------
+    >>> jpeg_edge_doubt_px(200.0) == JPEG_EDGE_DOUBT_PX
+    True
+    >>> round(jpeg_edge_doubt_px(-10.0), 3)
+    0.25
+    """
+    step = abs(step_dn)
+    if not (math.isfinite(step) and step > 0):
+        return JPEG_EDGE_DOUBT_PX
+    return max(JPEG_EDGE_DOUBT_PX, JPEG_EDGE_GREY_DN / step)
+
+
+def _periodic_tilt(doubt_px: float, period_px: float, slope: float, d: np.ndarray, dd: float) -> float:
+    """RMS over the phase of the least-squares slope (over ``d``, scan lines from their mean) of an edge
+    error of RMS ``doubt_px`` that is a sinusoid of the edge's position with period ``period_px``."""
+    k = 2.0 * math.pi * abs(slope) / period_px
+    if k == 0.0:
+        return 0.0
+    return doubt_px * math.hypot(float(d @ np.sin(k * d)), float(d @ np.cos(k * d))) / dd
+
+
 def jpeg_tilt_sigma(slope: float, scan_px: np.ndarray, doubt_px: float = JPEG_EDGE_DOUBT_PX) -> float:
     """1-sigma of a line's tilt (px per px) that JPEG's block quantisation gives it.
 
-    The block grid is 8 px; an edge at ``slope`` (px across per px along) to it crosses one block column
-    every ``8 / |slope|`` px along, and the quantisation's edge error, ``doubt_px`` RMS, changes with the
-    edge's phase in its block. Taken as a sinusoid of that period and any phase, sampled on the line's scan
-    lines ``scan_px`` (N,), the RMS over the phase of its least-squares slope is
-    ``doubt_px * |sum d exp(i k d)| / sum d^2`` (``d`` the scan lines from their mean, ``k = 2 pi |slope| / 8``):
-    about ``doubt_px * k`` on a short or nearly aligned line (one phase, slowly drifting), largest where the
-    line spans about half a period, small over many.
+    The quantisation's edge error, ``doubt_px`` RMS, changes with the edge's position in its block, and
+    an edge at ``slope`` (px across per px along) to the blocks changes its position along it. Two
+    scales of that change, in quadrature: the block's (the edge crosses one block column every
+    ``8 / |slope|`` px along) and the pixel's (the edge's sub-pixel phase, which decides which
+    coefficients the quantisation rounds which way, turns once every ``1 / |slope|`` px along). Each is
+    taken as a sinusoid of its period and any phase, sampled on the line's scan lines ``scan_px`` (N,);
+    the RMS over the phase of its least-squares slope is ``doubt_px * |sum d exp(i k d)| / sum d^2``
+    (``d`` the scan lines from their mean, ``k = 2 pi |slope| / period``): about ``doubt_px * k`` on a
+    short or nearly aligned line (one phase, slowly drifting), small over many periods.
 
     Why: the offset doubt alone left the yaw of JPEG frames under-claimed; on plain rendered doors (blur
     0.6-1.8 px, noise 0-2 grey levels, quality 80-95) their yaw was within 2 sigma for 80-93 % and up to
-    6.2 sigma off, the same doors as PNG 97-100 %.
+    6.2 sigma off, the same doors as PNG 97-100 %. The block's scale alone still left doors within 0.1
+    deg of square under-claimed (a sharp plain door, JPEG 80, 6.0 sigma off in yaw): on an edge read
+    with and without quantisation the error's derivative over the edge's position is 6 times its RMS
+    per px, a pixel's period (2 pi), not a block's.
 
     Examples
     --------
@@ -237,10 +282,11 @@ def jpeg_tilt_sigma(slope: float, scan_px: np.ndarray, doubt_px: float = JPEG_ED
         return 0.0
     d = d - d.mean()
     dd = float(d @ d)
-    k = 2.0 * math.pi * abs(slope) / 8.0
-    if dd <= 0 or k == 0.0:
+    if dd <= 0:
         return 0.0
-    return doubt_px * math.hypot(float(d @ np.sin(k * d)), float(d @ np.cos(k * d))) / dd
+    return math.hypot(
+        _periodic_tilt(doubt_px, 8.0, slope, d, dd), _periodic_tilt(doubt_px, 1.0, slope, d, dd)
+    )
 
 
 def corner_fit_sigma(offset_sigma_mm: float, angle_sigma_rad: float, lever_mm: float) -> float:
