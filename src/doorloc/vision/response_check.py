@@ -157,8 +157,8 @@ def response_check_applies(samples: EdgeSamples, inliers: np.ndarray, blur_px: f
 
 def _at_many_phases(samples: EdgeSamples, inliers: np.ndarray) -> bool:
     """Whether the line's edge points fall in every quarter of a pixel (not along a pixel row or column)."""
-    along = samples.along[inliers & samples.valid]
-    return bool(along.size) and not at_one_phase(along)
+    m = inliers & samples.valid
+    return bool(m.any()) and not at_one_phase(samples.scan[m], samples.along[m])
 
 
 def blur_without_pixel(transition_px: float) -> float:
