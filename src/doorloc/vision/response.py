@@ -242,11 +242,20 @@ def at_one_phase(scan_px: np.ndarray, along_px: np.ndarray) -> bool:
     along = np.asarray(along_px, np.float64)
     ok = np.isfinite(scan) & np.isfinite(along)
     scan, along = scan[ok], along[ok]
-    if scan.size >= 3 and np.ptp(scan) > 0:
-        centre, spread = scan.mean(), np.ptp(scan)  # (scaled: a well-conditioned quadratic)
-        u = (scan - centre) / spread
-        along = np.polyval(np.polyfit(u, along, 2), u)
-    return np.unique(np.floor((along % 1.0) * 4.0)).size < 4
+    if scan.size < 3 or not scan.max() > scan.min():
+        return np.unique(np.floor((along % 1.0) * 4.0)).size < 4
+    # The least-squares quadratic by its normal equations, over the scan lines scaled to [-1, 1] (well
+    # posed), and the quarters its values span between its ends and its vertex: this runs on every plain
+    # line of every frame, twice, where np.polyfit and counting each point's quarter took 140 us a line.
+    lo_scan, hi_scan = scan.min(), scan.max()
+    u = (2.0 * scan - (lo_scan + hi_scan)) / (hi_scan - lo_scan)
+    u2 = u * u
+    m1, m2, m3, m4 = u.sum(), u2.sum(), u2 @ u, u2 @ u2
+    normal = np.array([[u.size, m1, m2], [m1, m2, m3], [m2, m3, m4]])
+    c0, c1, c2 = np.linalg.solve(normal, np.array([along.sum(), u @ along, u2 @ along]))
+    at = [-1.0, 1.0] + ([-c1 / (2.0 * c2)] if c2 != 0.0 and abs(c1) < 2.0 * abs(c2) else [])
+    values = [c0 + c1 * v + c2 * v * v for v in at]
+    return math.floor(4.0 * max(values)) - math.floor(4.0 * min(values)) < 3
 
 
 def _transitions(plane: np.ndarray, samples: EdgeSamples, mask: np.ndarray, half: int) -> Transitions | None:
