@@ -505,6 +505,28 @@ def test_the_jpeg_tilt_covers_a_nearly_aligned_edges_drift_through_its_pixels_ph
     assert np.mean(np.array(tilts) <= 2.0 * block_only) < 0.75, (max(tilts), block_only)
 
 
+def test_residuals_alike_within_jpeg_blocks_give_the_tilt_their_block_means_allow():
+    """A line's residuals that share one error per 8-px block (JPEG's) tilt it by what the blocks' means
+    allow, which a fit taking them as independent puts about sqrt(8) times too low: over 200 lines the
+    tilt claimed with the fit's own standard error is the RMS of their least-squares slopes within 20 %;
+    on independent residuals it claims little beyond the fit's."""
+    from doorloc.vision.doubts import _block_correlated_tilt
+
+    scan = np.arange(96.0, 896.0)  # (the blocks lie on the image's grid of 8)
+    d = scan - scan.mean()
+    slopes, claimed, alone = [], [], []
+    for seed in range(200):
+        rng = np.random.default_rng(seed)
+        res = np.repeat(rng.normal(0.0, 0.05, scan.size // 8), 8) + rng.normal(0.0, 0.01, scan.size)
+        slopes.append(float(d @ res / (d @ d)))
+        claimed.append(_block_correlated_tilt(scan, res))
+        alone.append(_block_correlated_tilt(scan, rng.normal(0.0, 0.05, scan.size)))
+    rms = math.sqrt(float(np.mean(np.square(slopes))))
+    fit_se = 0.05 / math.sqrt(float(d @ d))  # (the residuals' scatter is about 0.05 px either way)
+    assert rms == pytest.approx(math.sqrt(float(np.mean(np.square(claimed))) + fit_se**2), rel=0.2)
+    assert float(np.median(alone)) < 0.5 * fit_se
+
+
 def test_a_jpeg_door_nearly_aligned_with_the_block_grid_claims_its_yaw(cell):
     """An edge at a small angle to JPEG's 8-px block grid drifts through the blocks' phases along it, and
     the quantisation's error drifts with it: a tilt. With only an offset doubt this plain door at yaw 0.16

@@ -265,9 +265,9 @@ def jpeg_tilt_sigma(slope: float, scan_px: np.ndarray, doubt_px: float = JPEG_ED
     Why: the offset doubt alone left the yaw of JPEG frames under-claimed; on plain rendered doors (blur
     0.6-1.8 px, noise 0-2 grey levels, quality 80-95) their yaw was within 2 sigma for 80-93 % and up to
     6.2 sigma off, the same doors as PNG 97-100 %. The block's scale alone still left doors within 0.1
-    deg of square under-claimed (a sharp plain door, JPEG 80, 6.0 sigma off in yaw): on an edge read
-    with and without quantisation the error's derivative over the edge's position is 6 times its RMS
-    per px, a pixel's period (2 pi), not a block's.
+    deg of square under-claimed (a sharp plain door, JPEG 80, 6.0 sigma off in yaw): 512-px edges at
+    0.001 px per px (step 15, quality 80) placed at 24 phases, read with and without quantisation, had
+    their least-squares tilts within 2 sigma of the block's period alone for 54 %, of both for all.
 
     Examples
     --------
