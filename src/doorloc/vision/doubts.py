@@ -221,7 +221,10 @@ def _jpeg_doubts(
 def _block_correlated_tilt(scan: np.ndarray, residual_px: np.ndarray) -> float:
     """What the line fit's standard error of the tilt (px per px) misses where its residuals are alike
     within each 8-px JPEG block: the slope's standard error from the blocks' mean residuals, less (in
-    quadrature) the one from the residuals taken as independent; 0 where that is less or too few blocks."""
+    quadrature) the one from the residuals taken as independent; 0 where that is less or too few blocks.
+    (Not :func:`_residual_structure_tilt`: its blocks are ``RESIDUAL_BLOCKS`` runs of equal counts along the
+    line, for slow texture; JPEG's lie on the image's grid of 8, and a block that straddles two of them
+    halves what it shows.)"""
     ok = np.isfinite(residual_px)
     scan, res = scan[ok].astype(np.float64), residual_px[ok].astype(np.float64)
     block = np.floor_divide(scan, 8).astype(np.int64)
