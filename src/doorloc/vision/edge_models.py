@@ -55,6 +55,7 @@ __all__ = [
     "EDGE_MODELS",
     "EdgeModel",
     "EdgeReading",
+    "FACE_SLOPE_LINES",
     "PassSettings",
     "ReadersApart",
     "ScanWindow",
