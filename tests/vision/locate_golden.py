@@ -2,7 +2,7 @@
 
 Speed and structure work must not change a single answer: ``test_locate_parity.py`` runs :func:`cases`
 through today's :func:`doorloc.vision.locate.locate` and compares with ``data/locate_golden.json``, which
-was last written after the issue-11 estimator changes (texture step fit, arris strip, response check) with::
+was first written after the texture step fit, the arris strip and the response check came in, with::
 
     PYTHONPATH=src python tests/vision/locate_golden.py --write
 

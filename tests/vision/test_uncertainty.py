@@ -28,12 +28,15 @@ from doorloc.vision.uncertainty import (
     CAMERA_RESPONSE,
     EDGE_MODEL_FLOOR_PX,
     JPEG_BLOCK_RATIO,
+    JPEG_DRIFT_SWEEP_PX,
+    JPEG_DRIFT_TILT,
     JPEG_EDGE_DOUBT_PX,
     JPEG_EDGE_GREY_DN,
     EdgeModelTerms,
     LineDoubt,
     LineLever,
     calibration_pose_sigma,
+    jpeg_drift_tilt,
     jpeg_edge_doubt_px,
     jpeg_tilt_sigma,
     propagate,
@@ -595,3 +598,51 @@ def test_a_sharp_dark_jpeg_door_nearly_square_to_the_blocks_claims_its_yaw(cell)
         (r.yaw_deg - pose.yaw_deg, r.uncertainty.yaw_deg),
     ):
         assert abs(err) <= 3.0 * sigma, (err, sigma)
+
+
+@pytest.mark.parametrize("seed", [5149, 5926])
+def test_a_faint_jpeg_door_at_one_pixel_phase_claims_the_drift_of_its_error(cell, seed):
+    """A plain door 0.027 deg from square (its long arrises sweep 0.4 px of phase), a step of 37 grey levels,
+    JPEG 80. The quantisation's error drifts along each arris with the grey levels beside it (0.14 px to one
+    side over a third of the far arris, 0.2 px to the other over its last), a tilt the block and pixel
+    periods barely give a line at one phase: its yaw was 0.027 deg off at 3.9 and 8.1 sigma with these two
+    noise draws."""
+    door = DoorSize(900, 39.63983919248882, 2100)
+    pose = DoorPose(-0.1908736530905557, -8.936478802934412, 0.027467941178610122)
+    eff = Effects(
+        albedo_hinge=0.3185104470894824,
+        albedo_side=0.1887759177482996,
+        albedo_background=0.17175643281648692,
+        gradient_u=0.11326192224306836,
+        vignetting=0.008001761429532284,
+        blur_sigma_px=0.569895416022191,
+        full_well_e=20000.0,
+        read_noise_dn=1.1034195682475574,
+        jpeg_quality=80,
+    )
+    r = locate(
+        render_door(cell, door, pose, effects=eff, seed=seed).image,
+        cell,
+        door,
+        config=replace(cell.locate, calibration_sigma_px=0.0, optics_edge_sigma_px=0.0),
+    )
+    assert r.ok and r.uncertainty is not None
+    assert r.diagnostics["jpeg_block_ratio"] > JPEG_BLOCK_RATIO
+    assert abs(r.yaw_deg - pose.yaw_deg) <= 3.0 * r.uncertainty.yaw_deg, (
+        r.yaw_deg - pose.yaw_deg,
+        r.uncertainty,
+    )
+    assert abs(r.x_mm - pose.x_mm) <= 3.0 * r.uncertainty.x_mm
+
+
+@settings(max_examples=60, deadline=None)
+@given(length=st.floats(50.0, 2000.0), sweep=st.floats(0.0, 4.0), doubt=st.floats(0.01, 0.5))
+def test_the_jpeg_drift_is_whole_at_one_phase_and_gone_past_its_sweep(length, sweep, doubt):
+    """Full (JPEG_DRIFT_TILT offset doubts over the line's length) while the phase sweeps under 1 px,
+    nothing from JPEG_DRIFT_SWEEP_PX on, linear between; the slope's sign does not matter."""
+    scan = np.linspace(0.0, length, 200)
+    full = JPEG_DRIFT_TILT * doubt / length
+    share = min(1.0, max(0.0, JPEG_DRIFT_SWEEP_PX - sweep))
+    for slope in (sweep / length, -sweep / length):
+        assert jpeg_drift_tilt(slope, scan, doubt) == pytest.approx(full * share, rel=1e-9, abs=1e-15)
+    assert jpeg_drift_tilt(float("nan"), scan, doubt) == 0.0

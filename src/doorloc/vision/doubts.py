@@ -39,6 +39,7 @@ from doorloc.vision.uncertainty import (
     JPEG_BLOCK_RATIO,
     EdgeModelTerms,
     LineDoubt,
+    jpeg_drift_tilt,
     jpeg_edge_doubt_px,
     jpeg_tilt_sigma,
 )
@@ -203,7 +204,8 @@ def _jpeg_doubts(
     levels over the line's median step (:func:`doorloc.vision.uncertainty.jpeg_edge_doubt_px`; the step
     as the area estimator read it, in the plane's grey levels, which a linearised camera's response makes
     a little unlike the encoder's), and the tilt (:func:`doorloc.vision.uncertainty.jpeg_tilt_sigma`) as
-    the edge's phase in the blocks and pixels changes along it."""
+    the edge's phase in the blocks and pixels changes along it, and as its error drifts along an edge at
+    nearly one phase (:func:`doorloc.vision.uncertainty.jpeg_drift_tilt`)."""
     doubts = []
     for k in EDGE_NAMES:
         inl = (fit.weights[k] > 0) & np.isfinite(samples[k].along)
@@ -212,7 +214,7 @@ def _jpeg_doubts(
         steps = np.abs(samples[k].step[inl])
         steps = steps[np.isfinite(steps)]
         doubt = jpeg_edge_doubt_px(float(np.median(steps)) if steps.size else math.nan)
-        tilt = jpeg_tilt_sigma(slope, scan, doubt)
+        tilt = math.hypot(jpeg_tilt_sigma(slope, scan, doubt), jpeg_drift_tilt(slope, scan, doubt))
         blocks = _block_correlated_tilt(scan, fit.residuals[k][inl] / scale_mm_per_px)
         doubts.append(LineDoubt("jpeg", k, doubt, tilt=math.hypot(tilt, blocks)))
     return doubts
