@@ -28,7 +28,8 @@ source's 1-sigma contribution, so that the dominant term can be read off):
       (0.01-0.07 px measured on nearly noise-free quality-88 renders, where no other term sees it; more
       on an edge of little contrast), and
       an edge at a small angle to the blocks by an amount that drifts along it: its tilt
-      (:func:`jpeg_tilt_sigma`) joins the line's texture tilt in the yaw;
+      (:func:`jpeg_tilt_sigma`, and :func:`jpeg_drift_tilt` where the edge keeps nearly one pixel phase
+      and its error follows the grey levels beside it) joins the line's texture tilt in the yaw;
     - whatever term an edge model or a correction knows of its own line, contributed as a typed
       :class:`LineDoubt` (source, line, offset and tilt, correlation group): the far-face fit, the arris
       correction, the camera response (one correlation group: a camera exponent moves both arrises
