@@ -14,6 +14,7 @@ from doorloc.vision.blurred_step import STEP_FIT_MIN_BLUR_PX
 from doorloc.vision.config import LocateConfig
 from doorloc.vision.edge_models import FACE_SLOPE_LINES
 from doorloc.vision.edge_samples import EdgeSamples
+from doorloc.vision.lines import fit_image_line
 
 __all__ = ["STEP_FIT_PHASE_SWEEP_PX", "phase_sweep_px", "phase_swept", "step_fit_lines"]
 
@@ -82,10 +83,8 @@ def phase_sweep_px(samples: EdgeSamples) -> float:
     ok = samples.valid & np.isfinite(samples.along)
     if np.count_nonzero(ok) < 3:
         return 0.0
-    scan, along = samples.scan[ok].astype(np.float64), samples.along[ok]
-    ds = scan - scan.mean()
-    slope = float(np.dot(ds, along - along.mean()) / max(float(np.dot(ds, ds)), 1e-12))
-    return abs(slope) * float(scan.max() - scan.min())
+    scan = samples.scan[ok]
+    return abs(fit_image_line(scan, samples.along[ok]).b) * float(scan.max() - scan.min())
 
 
 def _step_fit_blur(cfg: LocateConfig, widths: Iterable[float]) -> float:
