@@ -8,7 +8,12 @@ grey levels (shot noise in half of them), JPEG quality 80 / 88 / 95, 60 % of the
 (``calibration_sigma_px`` 0). Per group: each axis's share within 2 sigma (ideal 95 %), how many beyond 4,
 the worst, for JPEG and for the unquantised twin; then the JPEG answers' sigmas.
 
+Each JPEG frame is located with its quality known, as the service, the CLI and batch read it from the file
+(``--quality-unknown``: as an array whose file was not seen, where only the blocks the image shows tell it);
+``--no-noise`` renders every door without noise (its flat blocks then show the block detector nothing).
+
     OMP_NUM_THREADS=1 PYTHONPATH=src python bench/bench_jpeg_doors.py [--n 800] [--seed 1000] [--workers 2]
+        [--quality-unknown] [--no-noise]
 """
 
 from __future__ import annotations
@@ -16,6 +21,7 @@ from __future__ import annotations
 import argparse
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -50,16 +56,21 @@ def door(seed: int) -> tuple[DoorPose, DoorSize, Effects]:
     return pose, size, eff
 
 
-def located(seed: int) -> dict:
-    """One door as JPEG and unquantised: its blur, yaw and, for each, (errors, sigmas) or None if refused."""
+def located(seed: int, quality_known: bool = True, noise: bool = True) -> dict:
+    """One door as JPEG and unquantised: its blur, yaw and, for each, (errors, sigmas) or None if refused.
+    ``quality_known``: the JPEG located with its quality (as read from a file); ``noise``: rendered with it."""
     from doorloc.vision.locate import locate
 
     cell = load_cell(CELL)
     cfg = replace(cell.locate, calibration_sigma_px=0.0, optics_edge_sigma_px=0.0)
     pose, size, eff = door(seed)
-    out: dict = {"blur": eff.blur_sigma_px, "yaw": pose.yaw_deg}
+    if not noise:
+        eff = replace(eff, read_noise_dn=0.0, full_well_e=0.0)
+    out: dict = {"blur": eff.blur_sigma_px, "yaw": pose.yaw_deg, "quality": eff.jpeg_quality}
     for key, e in (("jpeg", eff), ("png", replace(eff, jpeg_quality=0))):
-        r = locate(render_door(cell, size, pose, effects=e, seed=seed).image, cell, size, config=cfg)
+        image = render_door(cell, size, pose, effects=e, seed=seed).image
+        quality = e.jpeg_quality if quality_known else 0
+        r = locate(image, cell, size, config=cfg, jpeg_quality=quality)
         u = r.uncertainty
         out[key] = (
             None
@@ -83,9 +94,12 @@ def main() -> None:
     ap.add_argument("--n", type=int, default=800)
     ap.add_argument("--seed", type=int, default=1000)
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--quality-unknown", action="store_true", help="locate JPEGs without their quality")
+    ap.add_argument("--no-noise", action="store_true", help="render every door without noise")
     a = ap.parse_args()
+    one = partial(located, quality_known=not a.quality_unknown, noise=not a.no_noise)
     with ProcessPoolExecutor(a.workers) as pool:
-        res = list(pool.map(located, range(a.seed, a.seed + a.n), chunksize=4))
+        res = list(pool.map(one, range(a.seed, a.seed + a.n), chunksize=4))
     both = [r for r in res if r["jpeg"] is not None and r["png"] is not None]
     print(
         f"{a.n} doors from seed {a.seed}: {len(both)} answered as JPEG and PNG, "
@@ -99,6 +113,9 @@ def main() -> None:
                 print(
                     f"blur {lo}-{hi} px, {where:11s} n={len(g):3d}  {_coverage(g, 'jpeg')} | {_coverage(g, 'png')}"
                 )
+    for q in sorted({r["quality"] for r in both}):
+        g = [r for r in both if r["quality"] == q]
+        print(f"JPEG quality {q}, n={len(g):3d}  {_coverage(g, 'jpeg')}")
     s = np.array([r["jpeg"][1] for r in both])
     print(
         f"JPEG sigma median x {np.median(s[:, 0]):.4f} z {np.median(s[:, 1]):.4f} mm yaw {np.median(s[:, 2]):.4f} deg"

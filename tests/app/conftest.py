@@ -21,7 +21,7 @@ REPO = Path(__file__).resolve().parents[2]
 CELL_PATH = REPO / "fixtures" / "cell_thesis.yaml"
 
 
-def stand_in_locate(image, cell, door, *, image_name="", config=None, trace=None):
+def stand_in_locate(image, cell, door, *, image_name="", config=None, trace=None, jpeg_quality=0):
     """A locate that answers at once: a fixed pose, or a refusal for an all-black image."""
     if int(np.max(image)) == 0:
         return LocateResult.refusal(

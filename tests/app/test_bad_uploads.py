@@ -198,7 +198,7 @@ def test_exif_orientation_is_ignored(client, monkeypatch):
     assert decode_image(buf.getvalue()).shape == (48, 64)
     seen = {}
 
-    def spy(image, cell, door, *, image_name="", config=None):
+    def spy(image, cell, door, *, image_name="", config=None, jpeg_quality=0):
         seen["shape"] = image.shape
         from doorloc.vision.result import LocateResult
 

@@ -225,7 +225,7 @@ def test_a_pools_workers_run_at_its_nice_level_and_still_decode():
     assert base <= os.getpriority(os.PRIO_PROCESS, 0)  # never below the process that started the pool
 
 
-def busy_locate(image, cell, door, *, image_name="", trace=None):
+def busy_locate(image, cell, door, *, image_name="", trace=None, jpeg_quality=0):
     """A stand-in locate that spends about 0.3 s of CPU on an image whose first pixel is 200."""
     import time
 

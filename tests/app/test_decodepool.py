@@ -86,7 +86,7 @@ def test_undecodable_bytes_are_422(pool):
 # ---------------------------------------------------------------------------------------------- locating
 
 
-def spinning_locate(image, cell, door, *, image_name="", trace=None):
+def spinning_locate(image, cell, door, *, image_name="", trace=None, jpeg_quality=0):
     """A locate that an image makes pathological: it never ends (a worker must be ended from outside)."""
     if int(image[0, 0]) == 255:
         while True:

@@ -98,6 +98,7 @@ def test_one_job_answers_as_the_threads_do(real_client, cell, recipe, seed):
         assert drawn == ("overlay" in query and png is door), answers[0]["ok"]
     located = answers[0]
     assert located["ok"] and abs(located["x_mm"] - truth.x_mm) < 0.1 and located["targets"]
+    assert located["diagnostics"]["jpeg_quality"] is None
     # a progressive JPEG: decoded in a decoding-only process, then located by the worker, as in the threads
     answers = []
     for c in (workers, threads):
@@ -105,6 +106,7 @@ def test_one_job_answers_as_the_threads_do(real_client, cell, recipe, seed):
     assert _without_timings(answers[0]) == _without_timings(answers[1])
     _same_overlay(answers[0]["overlay_png"], answers[1]["overlay_png"])
     assert answers[0]["ok"] and len(state.decoders._workers) == 1
+    assert answers[0]["diagnostics"]["jpeg_quality"] == 98  # read from the file, told to the worker
     assert state.workers.killed == 0 and state.decoders.killed == 0
 
 

@@ -11,7 +11,7 @@ from doorloc.vision.result import LocateResult
 from .conftest import dev_settings, png_bytes
 
 
-def _buggy_locate(image, cell, door, *, image_name="", config=None, trace=None):
+def _buggy_locate(image, cell, door, *, image_name="", config=None, trace=None, jpeg_quality=0):
     return LocateResult.refusal(image_name, "internal_error", "locate failed (ValueError); report incident 1")
 
 

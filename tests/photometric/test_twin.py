@@ -14,9 +14,10 @@ from doorloc.photometric.board_edges import measure_board_edges
 from doorloc.photometric.fit import Photograph, transition_centres_px
 from doorloc.photometric.model import PLAIN, PhotometricModel
 from doorloc.photometric.profiles import fit_profiles
-from doorloc.photometric.twin import jpeg_quality, libjpeg_luminance_table, profile_twin, read_jpeg_quality
+from doorloc.photometric.twin import profile_twin, read_jpeg_quality
 from doorloc.sim.boards import Checkerboard
 from doorloc.sim.photometric import CameraRendering, render_photographed_board
+from doorloc.vision.imageio import jpeg_quality, libjpeg_luminance_table
 
 CAMERA = CameraModel.from_values(
     [[600, 0, 319.5], [0, 600, 239.5], [0, 0, 1]], [-0.2, 0.05, 0, 0, 0], (640, 480)

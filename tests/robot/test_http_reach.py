@@ -22,7 +22,7 @@ DOC = yaml.safe_load((REPO / "fixtures" / "cell_thesis.yaml").read_text())
 
 
 def _locate_at(x_mm: float):
-    def locate(image, cell, door, *, image_name="", config=None, trace=None):
+    def locate(image, cell, door, *, image_name="", config=None, trace=None, jpeg_quality=0):
         return LocateResult(
             image=image_name,
             ok=True,

@@ -249,7 +249,7 @@ def test_a_tool_frame_with_the_spindle_on_z_gives_the_same_answer():
     }
     cell_z = parse_cell(doc, REPO / "fixtures", "cell_z.yaml")
 
-    def locate(image, cell, door, *, image_name="", config=None, trace=None):
+    def locate(image, cell, door, *, image_name="", config=None, trace=None, jpeg_quality=0):
         return LocateResult(
             image=image_name,
             ok=True,

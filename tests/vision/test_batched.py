@@ -138,3 +138,15 @@ def test_unknown_or_missing_device_is_a_clear_error():
     assert batched.resolve_device("auto").type in ("cpu", "cuda")
     with pytest.raises(ValueError, match="unknown step finder"):
         batched.locate_batch([], None, finder="gpu")  # type: ignore[arg-type]
+
+
+def test_each_frames_jpeg_quality_reaches_its_locate(cases):
+    """Batched and fallen-back frames are located with their own file's JPEG quality, as one-frame."""
+    name, cell, door, img = next(c for c in cases if c[0] == "grid/img_0040.png")
+    deep = img.astype(np.uint16) * 257  # not 8-bit: through the one-frame path
+    got = batched.locate_batch([img, img, deep], cell, door, jpeg_qualities=[0, 85, 70], finder="plane")
+    assert [a.result.diagnostics.get("jpeg_quality") for a in got] == [None, 85, 70]
+    assert got[2].fallback and not got[1].fallback
+    assert not _close(got[1].result, locate(img, cell, door, jpeg_quality=85))
+    with pytest.raises(ValueError, match="one per frame"):
+        batched.locate_batch([img], cell, door, jpeg_qualities=[80, 80])

@@ -38,6 +38,7 @@ from doorloc.vision.uncertainty import (
     calibration_pose_sigma,
     jpeg_drift_tilt,
     jpeg_edge_doubt_px,
+    jpeg_edge_grey_dn,
     jpeg_tilt_sigma,
     propagate,
 )
@@ -472,20 +473,61 @@ def _jpeg_edge_errors(
     return read(jpeg_roundtrip(u8, quality)) - read(u8)
 
 
-@pytest.mark.parametrize("quality", [80, 95])
+@pytest.mark.parametrize("quality", [60, 75, 80, 88, 95])
 @pytest.mark.parametrize("step_dn", [10.0, 20.0, 80.0, 160.0])
 def test_the_jpeg_offset_doubt_covers_the_quantisations_error_at_every_contrast(step_dn, quality):
     """Over an edge's phases in its block (a line at a slope that sweeps 32 px across), the RMS of the
-    quantisation's error is within jpeg_edge_doubt_px of the edge's step; on a dark door on a dark
-    background (step 10-20) it is beyond the old fixed doubt, ``JPEG_EDGE_DOUBT_PX``: the doubt grows as
-    the step falls."""
+    quantisation's error is within jpeg_edge_doubt_px of the edge's step at the file's quality, and within
+    quality 80's (what an image whose file was not seen is given) from quality 80 on; on a dark door on a
+    dark background (step 10-20) it is beyond the old fixed doubt, ``JPEG_EDGE_DOUBT_PX``: the doubt grows
+    as the step falls."""
     err = _jpeg_edge_errors(step_dn, quality, slope=32.0 / 2048)
     # a line's fit averages the rows of a block, whose errors differ with the rows' place in the 2-D block
     rms = float(np.sqrt(np.nanmean(np.nanmean(err.reshape(-1, 8), axis=1) ** 2)))
-    assert rms <= jpeg_edge_doubt_px(step_dn), (rms, jpeg_edge_doubt_px(step_dn))
+    known = jpeg_edge_doubt_px(step_dn, jpeg_edge_grey_dn(quality))
+    assert rms <= known, (rms, known)
+    if quality >= 80:
+        assert rms <= jpeg_edge_doubt_px(step_dn), (rms, jpeg_edge_doubt_px(step_dn))
     if quality == 80 and step_dn <= 20.0:
         assert rms > JPEG_EDGE_DOUBT_PX, rms
     assert jpeg_edge_doubt_px(step_dn) == pytest.approx(max(JPEG_EDGE_DOUBT_PX, JPEG_EDGE_GREY_DN / step_dn))
+
+
+@given(st.integers(1, 99))
+def test_the_jpeg_grey_levels_fall_as_the_quality_rises(quality):
+    """A finer quantization never moves an edge more; an unknown quality is taken as 80."""
+    assert jpeg_edge_grey_dn(quality) >= jpeg_edge_grey_dn(quality + 1) > 0
+    assert jpeg_edge_grey_dn(None) == jpeg_edge_grey_dn(0) == jpeg_edge_grey_dn(80) == JPEG_EDGE_GREY_DN
+
+
+def test_a_noise_free_jpeg_door_is_doubted_by_its_files_quality(cell):
+    """Without noise a JPEG's flat blocks stay flat and the block detector sees nothing, while its edges
+    carry the quantisation: this plain door (quality 80, 0.027 deg from square) is answered over 4 sigma
+    off in yaw from the array alone, and within 3 sigma where its file's quality is told."""
+    door = DoorSize(900, 39.63983919248882, 2100)
+    pose = DoorPose(-0.1908736530905557, -8.936478802934412, 0.027467941178610122)
+    eff = Effects(
+        albedo_hinge=0.3185104470894824,
+        albedo_side=0.1887759177482996,
+        albedo_background=0.17175643281648692,
+        gradient_u=0.11326192224306836,
+        vignetting=0.008001761429532284,
+        blur_sigma_px=0.569895416022191,
+        jpeg_quality=80,
+    )
+    img = render_door(cell, door, pose, effects=eff, seed=5149).image
+    cfg = replace(cell.locate, calibration_sigma_px=0.0, optics_edge_sigma_px=0.0)
+    blind = locate(img, cell, door, config=cfg)
+    told = locate(img, cell, door, config=cfg, jpeg_quality=80)
+    assert blind.ok and told.ok and blind.uncertainty is not None and told.uncertainty is not None
+    assert blind.diagnostics["jpeg_block_ratio"] < JPEG_BLOCK_RATIO
+    assert blind.diagnostics["jpeg_quality"] is None and told.diagnostics["jpeg_quality"] == 80
+    assert abs(blind.yaw_deg - pose.yaw_deg) > 4.0 * blind.uncertainty.yaw_deg
+    assert abs(told.yaw_deg - pose.yaw_deg) <= 3.0 * told.uncertainty.yaw_deg, (
+        told.yaw_deg - pose.yaw_deg,
+        told.uncertainty,
+    )
+    assert "jpeg" in {b["source"] for b in told.diagnostics["uncertainty_budget"]}
 
 
 def test_the_jpeg_tilt_covers_a_nearly_aligned_edges_drift_through_its_pixels_phase():

@@ -38,7 +38,7 @@ __all__ = [
     "NO_REACH_NOTE",
 ]
 
-#: ``locate(image, cell, door, *, image_name="", config=None, trace=None) -> LocateResult``
+#: ``locate(image, cell, door, *, image_name="", config=None, trace=None, jpeg_quality=0) -> LocateResult``
 LocateFn = Callable[..., LocateResult]
 
 NO_RECIPE_NOTE = (

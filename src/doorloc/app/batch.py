@@ -412,7 +412,7 @@ def locate_item(
     item: BatchItem, cell: Cell, locate_fn: LocateFn | None = None, limits: FileLimits | None = None
 ) -> dict[str, Any]:
     """The record of one file; never raises (a failure is a record with ``status: "failed"`` and a reason)."""
-    from doorloc.vision.imageio import ImageDecodeError, decode_image
+    from doorloc.vision.imageio import ImageDecodeError, decode_image, stored_jpeg_quality
 
     if item.problem is not None:
         return _failed(item, "bad_job_row", item.problem, cell)
@@ -423,9 +423,12 @@ def locate_item(
         image = decode_image(data, name=item.path)
     except ImageDecodeError as e:
         return _failed(item, "unreadable_image", str(e), cell)
+    quality = stored_jpeg_quality(data)
     del data
     try:
-        fields = answer_image(image, cell, item.choice, image_name=item.image, locate_fn=locate_fn).fields
+        fields = answer_image(
+            image, cell, item.choice, image_name=item.image, locate_fn=locate_fn, jpeg_quality=quality
+        ).fields
     except Exception as e:  # noqa: BLE001 - one bad image must not end a run of thousands
         return _failed(
             item,
@@ -657,11 +660,12 @@ def run_ray(
 
 
 def _decode(item: BatchItem, cell: Cell, limits: FileLimits) -> Any:
-    """The item's image, or the record saying why there is none (runs in a worker process).
+    """The item's image and its file's JPEG quality (0: not a JPEG), or the record saying why there is none
+    (runs in a worker process).
 
     The same file checks as :func:`locate_item` (no waiting on special files, no decoding past the limits).
     """
-    from doorloc.vision.imageio import ImageDecodeError, decode_image
+    from doorloc.vision.imageio import ImageDecodeError, decode_image, stored_jpeg_quality
 
     if item.problem is not None:
         return _failed(item, "bad_job_row", item.problem, cell)
@@ -669,7 +673,7 @@ def _decode(item: BatchItem, cell: Cell, limits: FileLimits) -> Any:
     if data is None:
         return _failed(item, code, why, cell)
     try:
-        return decode_image(data, name=item.path)
+        return decode_image(data, name=item.path), stored_jpeg_quality(data)
     except ImageDecodeError as e:
         return _failed(item, "unreadable_image", str(e), cell)
 
@@ -749,15 +753,16 @@ def _locate_together(
 
     decoded = [_decode(it, cell, limits) for it in chunk]
     records = [rec for rec in decoded if isinstance(rec, dict)]
-    ok = [(it, img) for it, img in zip(chunk, decoded, strict=True) if not isinstance(img, dict)]
+    ok = [(it, *got) for it, got in zip(chunk, decoded, strict=True) if not isinstance(got, dict)]
     answers = locate_batch(
-        [img for _, img in ok],
+        [img for _, img, _ in ok],
         cell,
-        [it.choice.door for it, _ in ok],
-        names=[it.image for it, _ in ok],
+        [it.choice.door for it, _, _ in ok],
+        names=[it.image for it, _, _ in ok],
         device=dev,
+        jpeg_qualities=[quality for _, _, quality in ok],
     )
-    for (it, img), a in zip(ok, answers, strict=True):
+    for (it, img, _), a in zip(ok, answers, strict=True):
         if a.fallback:
             a.result.diagnostics["batched_fallback"] = a.fallback
         try:

@@ -184,7 +184,7 @@ def _worker_main(conn: Connection, memory_bytes: int, locate_fn: Any = None, nic
     starts.
 
     Jobs: ``("decode", (bytes, name))`` -> the decoded array; ``("decode_locate", (bytes, name, cell, door,
-    max_decoded_bytes, overlay_max_pixels))`` -> ``("decoded", nbytes)`` once decoding is done (so the pool
+    max_decoded_bytes, overlay_max_pixels, jpeg_quality))`` -> ``("decoded", nbytes)`` once decoding is done (so the pool
     knows which step a limit ended), then ``(LocateResult, overlay PNG or None)`` from ``locate_fn`` (given
     only to a pool that locates); a decoded image of more than ``max_decoded_bytes`` answers
     ``("too_big", nbytes)`` and is not located.
@@ -240,7 +240,7 @@ def _worker_main(conn: Connection, memory_bytes: int, locate_fn: Any = None, nic
             else:
                 conn.send((*reply, time.process_time() - started))  # (the decoding's CPU seconds)
                 budget(*budgets[1])
-                reply = _locate_step(locate_fn, image, args[1], args[2], args[3], args[5])
+                reply = _locate_step(locate_fn, image, args[1], args[2], args[3], args[5], args[6])
             del image
         # the job's CPU seconds (this process's), for the service's account of who used the workers
         try:
@@ -264,7 +264,13 @@ def _decode_step(data: bytes, name: str) -> tuple[str, Any]:
 
 
 def _locate_step(
-    locate_fn: Any, image: np.ndarray, name: str, cell: Any, door: Any, overlay_max_pixels: int | None
+    locate_fn: Any,
+    image: np.ndarray,
+    name: str,
+    cell: Any,
+    door: Any,
+    overlay_max_pixels: int | None,
+    jpeg_quality: int,
 ) -> tuple[str, Any]:
     """("ok", (result, overlay)): the overlay (base64 PNG) is drawn here, where the image is, for a located
     door of at most ``overlay_max_pixels`` (None: no overlay asked for)."""
@@ -274,7 +280,14 @@ def _locate_step(
             from doorloc.vision.locate import LocateTrace
 
             trace = LocateTrace()
-        result = locate_fn(image, cell, door, image_name=name, **({} if trace is None else {"trace": trace}))
+        result = locate_fn(
+            image,
+            cell,
+            door,
+            image_name=name,
+            jpeg_quality=jpeg_quality,
+            **({} if trace is None else {"trace": trace}),
+        )
         drawn = None
         if (
             overlay_max_pixels is not None
@@ -534,13 +547,15 @@ class DecodePool:
         max_decoded_bytes: int,
         overlay_max_pixels: int | None = None,
         timeout_s: float,
+        jpeg_quality: int = 0,
     ) -> Located:
         """Decode ``data`` and locate the door in it, both in one worker; blocks, so call it from a worker
         thread.
 
         The image is decoded within the decoding limits (``cpu_s``, ``memory_bytes``), then
-        ``locate_fn(image, cell, door, image_name=name)`` runs within locate's (``locate_cpu_s``,
-        ``locate_memory_bytes``); the image never leaves the worker. ``overlay_max_pixels`` (None: no overlay)
+        ``locate_fn(image, cell, door, image_name=name, jpeg_quality=jpeg_quality)`` runs within locate's
+        (``locate_cpu_s``, ``locate_memory_bytes``; ``jpeg_quality``: the file's, as
+        :func:`doorloc.vision.imageio.stored_jpeg_quality` reads it); the image never leaves the worker. ``overlay_max_pixels`` (None: no overlay)
         asks for the overlay of a located door in an image of at most that many pixels. ``data`` may be the
         image decoded already (a decoding-only pool's :meth:`decode`): it then crosses the pipe and is located.
 
@@ -555,7 +570,7 @@ class DecodePool:
         if self.locate_fn is None:
             raise RuntimeError("this pool was made without a locate_fn: it only decodes")
         locating = _Step("locate", "located", self.locate_cpu_s, self.locate_memory_bytes)
-        args = (data, name, cell, door, max_decoded_bytes, overlay_max_pixels)
+        args = (data, name, cell, door, max_decoded_bytes, overlay_max_pixels, jpeg_quality)
         try:
             (result, drawn), decode_s, worker_s, worker_decode_s = self._run(
                 "decode_locate", args, (self._decoding(), locating), timeout_s

@@ -227,6 +227,7 @@ def answer_image(
     rapid: bool = False,
     overlay: bool = False,
     trace: Any | None = None,
+    jpeg_quality: int | None = None,
 ) -> Answer:
     """Locate the door in ``image``, turn its recipe into cell-frame targets and check the robot reaches them.
 
@@ -245,6 +246,10 @@ def answer_image(
         Add ``rapid`` (the targets as RAPID-readable text; null without targets) and ``overlay_png``.
     trace : doorloc.vision.locate.LocateTrace, optional
         Filled by locate with what it saw (to draw an overlay without locating twice).
+    jpeg_quality : int, optional
+        The JPEG quality of the file the image came from, 0 for another format
+        (:func:`doorloc.vision.imageio.stored_jpeg_quality`); read from the bytes when None and the image
+        is bytes, else 0 (not known: locate's JPEG doubt then rests on the blocks the image shows).
 
     Returns
     -------
@@ -257,8 +262,10 @@ def answer_image(
     """
     t0 = time.thread_time()
     if isinstance(image, bytes):
-        from doorloc.vision.imageio import decode_image
+        from doorloc.vision.imageio import decode_image, stored_jpeg_quality
 
+        if jpeg_quality is None:
+            jpeg_quality = stored_jpeg_quality(image)
         image = decode_image(image, name=image_name)
     t1 = time.thread_time()
     if overlay and trace is None:
@@ -267,7 +274,12 @@ def answer_image(
         trace = LocateTrace()
     locate = locate_fn or default_locate_fn()
     result = locate(
-        image, cell, choice.door, image_name=image_name, **({} if trace is None else {"trace": trace})
+        image,
+        cell,
+        choice.door,
+        image_name=image_name,
+        jpeg_quality=jpeg_quality or 0,
+        **({} if trace is None else {"trace": trace}),
     )
     drawn = overlay_png(image, result, cell, choice.door, trace) if overlay else None
     answer = answer_located(result, cell, choice, rapid=rapid, overlay=drawn, requested_overlay=overlay)

@@ -22,12 +22,10 @@ from __future__ import annotations
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import cv2
 import numpy as np
-
-# Pillow reads a JPEG's quantization tables; OpenCV decodes a JPEG without giving them
-from PIL import Image, UnidentifiedImageError
 
 from doorloc.calib.calibrate import board_pose
 from doorloc.calib.camera import CameraModel
@@ -38,63 +36,24 @@ from doorloc.photometric.model import PhotometricModel
 from doorloc.photometric.profiles import fit_profiles
 from doorloc.sim.boards import BOARD_BLACK, BOARD_WHITE, Checkerboard, render_board
 from doorloc.sim.photometric import CameraRendering, PrintedCheckerboard, apply_camera, jpeg_roundtrip
+from doorloc.vision.imageio import stored_jpeg_quality
 
 __all__ = [
-    "JPEG_LUMINANCE_TABLE",
-    "libjpeg_luminance_table",
-    "jpeg_quality",
     "read_jpeg_quality",
     "ProfileTwin",
     "profile_twin",
     "profile_twins",
 ]
 
-#: the JPEG standard's luminance quantization table (ITU-T T.81 Annex K.1), row by row: libjpeg's quality
-#: 50, which its other qualities scale
-JPEG_LUMINANCE_TABLE = np.array(
-    [
-        [16, 11, 10, 16, 24, 40, 51, 61],
-        [12, 12, 14, 19, 26, 58, 60, 55],
-        [14, 13, 16, 24, 40, 57, 69, 56],
-        [14, 17, 22, 29, 51, 87, 80, 62],
-        [18, 22, 37, 56, 68, 109, 103, 77],
-        [24, 35, 55, 64, 81, 104, 113, 92],
-        [49, 64, 78, 87, 103, 121, 120, 101],
-        [72, 92, 95, 98, 112, 100, 103, 99],
-    ],
-    float,
-).ravel()
-
-
-def libjpeg_luminance_table(quality: int) -> np.ndarray:
-    """libjpeg's luminance table at ``quality`` (1-100), row by row (its ``jpeg_quality_scaling``)."""
-    scale = 5000.0 / quality if quality < 50 else 200.0 - 2.0 * quality
-    return np.clip(np.floor((JPEG_LUMINANCE_TABLE * scale + 50.0) / 100.0), 1.0, 255.0)
-
-
-def jpeg_quality(luminance_table: np.ndarray) -> int:
-    """The libjpeg quality (1-100) whose luminance table is nearest to ``luminance_table`` (64 values, row by
-    row) in log ratio: exact for libjpeg's and OpenCV's files, the nearest strength for a camera's own
-    tables."""
-    t = np.log(np.clip(np.asarray(luminance_table, float).ravel(), 1.0, None))
-    if t.size != 64:
-        raise ValueError(f"a JPEG quantization table has 64 values, got {t.size}")
-    q = np.arange(1, 101)
-    cost = [float(np.sum((np.log(libjpeg_luminance_table(int(k))) - t) ** 2)) for k in q]
-    return int(q[int(np.argmin(cost))])
-
 
 def read_jpeg_quality(path: str | os.PathLike) -> int:
-    """The JPEG quality of an image file (:func:`jpeg_quality` of its luminance table), 0 for a file that is
-    not a JPEG (or cannot be read: the twin is then rendered without compression)."""
+    """The JPEG quality of an image file (:func:`doorloc.vision.imageio.stored_jpeg_quality`), 0 for a file
+    that is not a JPEG (or cannot be read: the twin is then rendered without compression)."""
     try:
-        with Image.open(os.fspath(path)) as im:
-            tables = getattr(im, "quantization", None)
-    except (OSError, UnidentifiedImageError):
+        data = Path(path).read_bytes()
+    except OSError:
         return 0
-    if not tables or 0 not in tables:
-        return 0
-    return jpeg_quality(np.asarray(tables[0], float))
+    return stored_jpeg_quality(data)
 
 
 #: bisection steps on the twin's read noise (each a render and a measure; the spread matched to ~1/2^steps of

@@ -369,6 +369,7 @@ def locate_batch(
     config: LocateConfig | None = None,
     device: str | torch.device = "cpu",
     finder: Literal["auto", "torch", "plane"] = "auto",
+    jpeg_qualities: Sequence[int] | None = None,
 ) -> list[BatchAnswer]:
     """:func:`doorloc.vision.locate.locate` over a batch of frames of one cell, the coarse search batched.
 
@@ -389,6 +390,8 @@ def locate_batch(
         Who answers the step searches: :class:`TorchStepFinder` on ``device`` or the one-frame finder
         (:class:`PlaneStepFinder`); ``"auto"`` takes torch on CUDA and the one-frame finder on CPU, where
         it is faster (module docstring). The answers are the same.
+    jpeg_qualities : sequence of int, optional
+        Each frame's file's JPEG quality, 0 where not a JPEG or not known (see :func:`locate`).
 
     Returns
     -------
@@ -398,16 +401,9 @@ def locate_batch(
     dev = resolve_device(device) if isinstance(device, str) else device
     if finder not in ("auto", "torch", "plane"):
         raise ValueError(f"unknown step finder {finder!r}; use auto, torch or plane")
-    n = len(images)
-    frames = _Frames(
-        images,
-        cell,
-        list(doors) if isinstance(doors, Sequence) else [doors] * n,
-        list(names) if names is not None else [""] * n,
-        config,
-    )
+    frames = _Frames.of(images, cell, doors, names, config, jpeg_qualities)
     w, h = cell.camera.image_size
-    answers: list[BatchAnswer | None] = [None] * n
+    answers: list[BatchAnswer | None] = [None] * len(images)
     planes: list[np.ndarray] = []
     members: list[int] = []
     for i, img in enumerate(images):
@@ -430,6 +426,7 @@ def locate_batch(
                 image_name=frames.names[i],
                 config=config,
                 luminance=LuminancePlane(planes[b], 1.0),
+                jpeg_quality=frames.jpeg_qualities[i],
             )
             for b, i in enumerate(members)
         }
@@ -455,18 +452,50 @@ def _grey(img: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class _Frames:
-    """The batch's frames and what each is located with: the cell, each frame's door and name, the config."""
+    """The batch's frames and what each is located with: the cell, each frame's door and name, the config,
+    each frame's file's JPEG quality."""
 
     images: Sequence[np.ndarray]
     cell: Cell
     doors: list[DoorSize | None]
     names: list[str]
     config: LocateConfig | None
+    jpeg_qualities: list[int]
+
+    @classmethod
+    def of(
+        cls,
+        images: Sequence[np.ndarray],
+        cell: Cell,
+        doors: DoorSize | Sequence[DoorSize | None] | None,
+        names: Sequence[str] | None,
+        config: LocateConfig | None,
+        jpeg_qualities: Sequence[int] | None,
+    ) -> _Frames:
+        """:func:`locate_batch`'s arguments, one door, name and quality per frame."""
+        n = len(images)
+        if jpeg_qualities is not None and len(jpeg_qualities) != n:
+            raise ValueError(f"{len(jpeg_qualities)} JPEG qualities for {n} frames; give one per frame")
+        return cls(
+            images,
+            cell,
+            list(doors) if isinstance(doors, Sequence) else [doors] * n,
+            list(names) if names is not None else [""] * n,
+            config,
+            list(jpeg_qualities) if jpeg_qualities is not None else [0] * n,
+        )
 
     def alone(self, i: int, why: str) -> BatchAnswer:
         """Frame ``i`` through the one-frame path, ``why`` it did not go through the batched one."""
         return BatchAnswer(
-            locate(self.images[i], self.cell, self.doors[i], image_name=self.names[i], config=self.config),
+            locate(
+                self.images[i],
+                self.cell,
+                self.doors[i],
+                image_name=self.names[i],
+                config=self.config,
+                jpeg_quality=self.jpeg_qualities[i],
+            ),
             why,
         )
 

@@ -1,9 +1,9 @@
 """The doubts stage of locate: every line's edge-model doubts, each from the code that knows it.
 
 :func:`edge_doubts` gathers them as :class:`doorloc.vision.uncertainty.LineDoubt` values: the texture beside
-each edge (or the far-face model's own doubt), JPEG's block quantisation where the image shows it, what the
-arris correction leaves, and the camera response's (measured, absorbed or taken on the cell's word). It reads
-the pixels; :func:`doorloc.vision.uncertainty.propagate` turns the doubts into the answer's uncertainty.
+each edge (or the far-face model's own doubt), JPEG's block quantisation where the file was a JPEG or the
+image shows it, what the arris correction leaves, and the camera response's (measured, absorbed or taken on
+the cell's word). It reads the pixels; :func:`doorloc.vision.uncertainty.propagate` turns the doubts into the answer's uncertainty.
 """
 
 from __future__ import annotations
@@ -41,6 +41,7 @@ from doorloc.vision.uncertainty import (
     LineDoubt,
     jpeg_drift_tilt,
     jpeg_edge_doubt_px,
+    jpeg_edge_grey_dn,
     jpeg_tilt_sigma,
 )
 
@@ -48,13 +49,20 @@ __all__ = ["edge_doubts"]
 
 
 def edge_doubts(
-    plane, s8: float, region: SearchRegion, cfg: LocateConfig, check: ResponseCheck
+    plane,
+    s8: float,
+    region: SearchRegion,
+    cfg: LocateConfig,
+    check: ResponseCheck,
+    jpeg_quality: int = 0,
 ) -> EdgeDoubts:
     """The doubts stage: every line's edge-model doubts (:class:`doorloc.vision.uncertainty.LineDoubt`), each
-    from the code that knows it: the texture beside the edge or the far-face model, JPEG's blocks where the
-    image shows them, the arris correction, the camera response. The stage that reads the pixels for them,
-    so that the gate reads none. With them, the figures the diagnostics report (``jpeg_block_ratio``,
-    ``arris_fit``), and where the door's rounded or chamfered strips dispute the cell's camera exponent."""
+    from the code that knows it: the texture beside the edge or the far-face model, JPEG's quantisation
+    where the image was stored as a JPEG of ``jpeg_quality`` (its file's libjpeg quality; 0: not known to
+    be a JPEG) or shows JPEG's blocks, the arris correction, the camera response. The stage that reads the
+    pixels for them, so that the gate reads none. With them, the figures the diagnostics report
+    (``jpeg_block_ratio``, ``jpeg_quality``, ``arris_fit``), and where the door's rounded or chamfered strips
+    dispute the cell's camera exponent."""
     r, cell = check.refined, check.cell
     samples, fit = r.samples, r.fit
     # An arris line's door side is its strip, whose shading the texture term would read as texture (on a
@@ -74,8 +82,12 @@ def edge_doubts(
     figures: dict[str, Any] = {}
     blocks = block_artifact_ratio(plane, r.pose.corner_px, scale_to_8bit=s8)
     figures["jpeg_block_ratio"] = round(blocks, 3) if math.isfinite(blocks) else None
-    if blocks > JPEG_BLOCK_RATIO:
-        model = model.with_doubts(*_jpeg_doubts(samples, fit, r.pose.scale_mm_per_px))
+    figures["jpeg_quality"] = jpeg_quality or None
+    # a file known to be a JPEG is doubted whatever its blocks show: without noise its flat blocks are
+    # flat, and the detector sees nothing while the edges still carry the quantisation
+    if jpeg_quality or blocks > JPEG_BLOCK_RATIO:
+        grey_dn = jpeg_edge_grey_dn(jpeg_quality)
+        model = model.with_doubts(*_jpeg_doubts(samples, fit, r.pose.scale_mm_per_px, grey_dn))
     if r.arris_fits:
         model = model.with_doubts(*_arris_doubts(r.arris_fits, samples, fit, r.pose.scale_mm_per_px, figures))
     model = model.with_doubts(*_optics_doubts(cell, cfg))
@@ -198,10 +210,10 @@ def _at_least(value: float, floor: float) -> float:
 
 
 def _jpeg_doubts(
-    samples: dict[str, EdgeSamples], fit: RectangleFit, scale_mm_per_px: float
+    samples: dict[str, EdgeSamples], fit: RectangleFit, scale_mm_per_px: float, grey_dn: float
 ) -> list[LineDoubt]:
-    """Each line's JPEG doubt where the image shows block artifacts: across it, the quantisation's grey
-    levels over the line's median step (:func:`doorloc.vision.uncertainty.jpeg_edge_doubt_px`; the step
+    """Each line's JPEG doubt: across it, the quantisation's ``grey_dn`` grey levels over the line's median
+    step (:func:`doorloc.vision.uncertainty.jpeg_edge_doubt_px`; the step
     as the area estimator read it, in the plane's grey levels, which a linearised camera's response makes
     a little unlike the encoder's), and the tilt (:func:`doorloc.vision.uncertainty.jpeg_tilt_sigma`) as
     the edge's phase in the blocks and pixels changes along it, and as its error drifts along an edge at
@@ -213,7 +225,7 @@ def _jpeg_doubts(
         slope = fit_image_line(scan, along).b if scan.size >= 3 else math.nan
         steps = np.abs(samples[k].step[inl])
         steps = steps[np.isfinite(steps)]
-        doubt = jpeg_edge_doubt_px(float(np.median(steps)) if steps.size else math.nan)
+        doubt = jpeg_edge_doubt_px(float(np.median(steps)) if steps.size else math.nan, grey_dn)
         tilt = math.hypot(jpeg_tilt_sigma(slope, scan, doubt), jpeg_drift_tilt(slope, scan, doubt))
         blocks = _block_correlated_tilt(scan, fit.residuals[k][inl] / scale_mm_per_px)
         doubts.append(LineDoubt("jpeg", k, doubt, tilt=math.hypot(tilt, blocks)))

@@ -98,6 +98,7 @@ def locate(
     image_name: str = "",
     config: LocateConfig | None = None,
     trace: LocateTrace | None = None,
+    jpeg_quality: int = 0,
 ) -> LocateResult:
     """Find the door's reference corner, yaw and thickness in one image.
 
@@ -115,6 +116,9 @@ def locate(
         Thresholds; defaults when None.
     trace : LocateTrace, optional
         Filled with intermediate results (for :func:`doorloc.vision.overlay.draw_overlay`).
+    jpeg_quality : int
+        The libjpeg quality the image's file was stored at (:func:`doorloc.vision.imageio.stored_jpeg_quality`),
+        0 where it was not a JPEG or is not known: the JPEG doubt then rests on the blocks the image shows.
 
     Returns
     -------
@@ -123,7 +127,10 @@ def locate(
         ``scale_mm_per_px`` and ``corner_px``; or ``ok=false`` with ``error_code`` and ``error``.
     """
     return run_steps(
-        locate_steps(image, cell, door, image_name=image_name, config=config, trace=trace), coarse_edges
+        locate_steps(
+            image, cell, door, image_name=image_name, config=config, trace=trace, jpeg_quality=jpeg_quality
+        ),
+        coarse_edges,
     )
 
 
@@ -160,6 +167,7 @@ def locate_steps(
     config: LocateConfig | None = None,
     trace: LocateTrace | None = None,
     luminance: LuminancePlane | None = None,
+    jpeg_quality: int = 0,
 ) -> Generator[StepQuery, tuple[np.ndarray, np.ndarray], LocateResult]:
     """:func:`locate` as a coroutine that hands out its coarse step searches.
 
@@ -174,7 +182,7 @@ def locate_steps(
     door = door or cell.default_door
     tr = trace if trace is not None else LocateTrace()
     try:
-        res = yield from _locate(image, cell, door, cfg, tr, image_name, luminance)
+        res = yield from _locate(image, cell, door, cfg, tr, image_name, luminance, jpeg_quality)
     except Refused as r:
         res = LocateResult.refusal(
             image_name,
@@ -248,6 +256,7 @@ def _locate(
     tr: LocateTrace,
     name: str,
     lum: LuminancePlane | None = None,
+    jpeg_quality: int = 0,
 ) -> Generator[StepQuery, tuple[np.ndarray, np.ndarray], LocateResult]:
     try:
         lum = camera_levels(
@@ -276,7 +285,7 @@ def _locate(
     check = refined_and_checked(cfg)
     own = _door_light(cfg, check.refined)
     if own is None:
-        return _answer(name, door, cfg, region, check, lum, clock, tr)
+        return _answer(name, door, cfg, region, check, lum, clock, tr, jpeg_quality)
     clock.lap("door_light")
     # Located again under the door's own light, as if the cell stated it. Where that answer is refused (a
     # light the strips tell wrong widens their doubt), the free shadings' outcome stands, their answer or
@@ -289,14 +298,16 @@ def _locate(
     lit_pose = None
     try:
         lit = refined_and_checked(lit_cfg)
-        res = _answer(name, door, lit_cfg, region, lit, lum, clock, tr)
+        res = _answer(name, door, lit_cfg, region, lit, lum, clock, tr, jpeg_quality)
         if res.ok:
             return res
         lit_pose = res.diagnostics.get("measured")
     except Refused:
         pass
     tr.door_light_used = False
-    return _free_beside_lit(_answer(name, door, cfg, region, check, lum, clock, tr), lit_pose, own)
+    return _free_beside_lit(
+        _answer(name, door, cfg, region, check, lum, clock, tr, jpeg_quality), lit_pose, own
+    )
 
 
 #: the free shadings' answer stands beside the door's own light's (refused) pose only within this many of
@@ -351,10 +362,11 @@ def _answer(
     lum: LuminancePlane,
     clock: StageClock,
     tr: LocateTrace,
+    jpeg_quality: int,
 ) -> LocateResult:
     """The doubts and the gate after the response check: the answer, or :class:`Refused`."""
     # why many parameters: the stages' values that the doubts and the gate read, passed as they are
-    doubts = edge_doubts(lum.plane, lum.scale_to_8bit, region, cfg, check)
+    doubts = edge_doubts(lum.plane, lum.scale_to_8bit, region, cfg, check, jpeg_quality)
     refined = voted_by_doubts(check.refined, region, doubts.model)
     _trace_refined(tr, refined)
     check = replace(check, refined=refined)

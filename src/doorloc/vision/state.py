@@ -99,7 +99,7 @@ class ResponseCheck:
 @dataclass(frozen=True)
 class EdgeDoubts:
     """What the doubts stage found: every line's edge-model doubts, the figures the diagnostics report with
-    them (``jpeg_block_ratio``, ``arris_fit``, ``response_from_strips``), and where the door's rounded or
+    them (``jpeg_block_ratio``, ``jpeg_quality``, ``arris_fit``, ``response_from_strips``), and where the door's rounded or
     chamfered strips rule out the cell's camera exponent, which the gate refuses (None: they do not, or
     were not read)."""
 

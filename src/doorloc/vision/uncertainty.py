@@ -22,8 +22,9 @@ source's 1-sigma contribution, so that the dominant term can be read off):
       blur is not Gaussian nor the same across the edge, so this is kept as a doubt, not corrected;
     - the texture term, :func:`doorloc.vision.texture.texture_bias` (wood grain along the edge, measured
       on the texture beside the window);
-    - :func:`jpeg_edge_doubt_px` where the image shows JPEG block artifacts
-      (:func:`doorloc.vision.jpeg_blocks.block_artifact_ratio` above ``JPEG_BLOCK_RATIO``): the block
+    - :func:`jpeg_edge_doubt_px` where the image came from a JPEG file or shows JPEG block artifacts
+      (:func:`doorloc.vision.jpeg_blocks.block_artifact_ratio` above ``JPEG_BLOCK_RATIO``), at the file's
+      quality where it is known (:func:`jpeg_edge_grey_dn`): the block
       quantization moves an edge that runs along a block row or column the same way on every scan line
       (0.01-0.07 px measured on nearly noise-free quality-88 renders, where no other term sees it; more
       on an edge of little contrast), and
@@ -71,6 +72,7 @@ __all__ = [
     "JPEG_BLOCK_RATIO",
     "JPEG_EDGE_DOUBT_PX",
     "JPEG_EDGE_GREY_DN",
+    "JPEG_EDGE_GREY_DN_BY_QUALITY",
     "JPEG_DRIFT_TILT",
     "JPEG_DRIFT_SWEEP_PX",
     "CAMERA_RESPONSE",
@@ -85,6 +87,7 @@ __all__ = [
     "combine",
     "corner_fit_sigma",
     "jpeg_edge_doubt_px",
+    "jpeg_edge_grey_dn",
     "jpeg_drift_tilt",
     "jpeg_tilt_sigma",
 ]
@@ -97,6 +100,24 @@ EDGE_MODEL_FLOOR_PX = 0.002
 JPEG_BLOCK_RATIO = 1.3
 JPEG_EDGE_DOUBT_PX = 0.03
 JPEG_EDGE_GREY_DN = 2.5
+#: the grey levels of that doubt by the file's libjpeg quality (:func:`jpeg_edge_grey_dn`): blurred steps
+#: (blur 0.3-1.2 px, steps 20-160, slopes 0-0.05) read by the area estimator, each 8-row block's mean error
+#: against the same image unquantised, times the step; the 90th percentile over 120 edges per quality
+#: (two draws), made to fall with the quality. Under 75 the flat blocks' own DC error joins (5-7 at 50-70).
+JPEG_EDGE_GREY_DN_BY_QUALITY = (
+    (30, 12.0),
+    (40, 11.0),
+    (70, 7.3),
+    (75, 3.2),
+    (80, JPEG_EDGE_GREY_DN),
+    (85, 2.1),
+    (88, 2.0),
+    (90, 1.9),
+    (92, 1.5),
+    (95, 1.0),
+    (98, 0.31),
+    (100, 0.24),
+)
 #: offset doubts of tilt over a line's length that JPEG gives an edge at nearly one pixel phase, and the
 #: phase sweep (px along the line) by which that drift has gone (:func:`jpeg_drift_tilt`)
 JPEG_DRIFT_TILT = 3.0
@@ -222,18 +243,38 @@ class EdgeModelTerms:
         return t
 
 
-def jpeg_edge_doubt_px(step_dn: float) -> float:
+def jpeg_edge_grey_dn(quality: int | None = None) -> float:
+    """The grey levels (0-255 scale) by which JPEG's quantisation moves an edge, at the file's libjpeg
+    ``quality`` (``JPEG_EDGE_GREY_DN_BY_QUALITY``, linear between its qualities; under 30 growing as
+    libjpeg's table scale, 30 / quality); quality 80's (``JPEG_EDGE_GREY_DN``) where the quality is not
+    known (None or 0: an image whose file was not seen, that shows JPEG's blocks).
+
+    Examples
+    --------
+    >>> jpeg_edge_grey_dn() == jpeg_edge_grey_dn(80) == JPEG_EDGE_GREY_DN
+    True
+    >>> jpeg_edge_grey_dn(95), jpeg_edge_grey_dn(15)
+    (1.0, 24.0)
+    """
+    if not quality:
+        return JPEG_EDGE_GREY_DN
+    q, dn = zip(*JPEG_EDGE_GREY_DN_BY_QUALITY, strict=True)
+    if quality < q[0]:
+        return dn[0] * q[0] / quality
+    return float(np.interp(quality, q, dn))
+
+
+def jpeg_edge_doubt_px(step_dn: float, grey_dn: float = JPEG_EDGE_GREY_DN) -> float:
     """1-sigma (px) of the offset JPEG's quantisation gives an edge whose grey-level step is ``step_dn``
-    (0-255 scale): ``JPEG_EDGE_GREY_DN / |step_dn|``, at least ``JPEG_EDGE_DOUBT_PX`` (that alone where the
-    step is unknown).
+    (0-255 scale): ``grey_dn / |step_dn|`` (:func:`jpeg_edge_grey_dn`: quality 80's unless the file's
+    quality is known), at least ``JPEG_EDGE_DOUBT_PX`` (that alone where the step is unknown).
 
     Why: the quantisation moves each pixel's grey level by an amount that does not depend on the edge's
     contrast, so the edge moves by that over the edge's slope: a blurred step read by the area estimator,
     JPEG against the same image unquantised, each 8-row block's mean error (what a line fit keeps of it),
-    RMS over the edge's phase in its block (blur 0.3 and 0.8 px, steps 10-160): 1.8-2.5 grey levels over
-    the step at quality 80, 1.3-1.9 at 88, 0.5-0.9 at 95, 2.0-3.3 at 75. A dark door on a dark background
-    (step 10-20) is off 0.1-0.2 px where the floor allowed 0.03. The encoder's quality is not known from
-    the decoded image, so the doubt covers quality 80's.
+    90th percentile over the edge's phase in its block, blur 0.3-1.2 px and steps 20-160: 2.5 grey levels
+    at quality 80, 2.0 at 88, 1.0 at 95, 3.2 at 75. A dark door on a dark background (step 10-20) is off
+    0.1-0.2 px where the floor allowed 0.03.
 
     Examples
     --------
@@ -241,11 +282,13 @@ def jpeg_edge_doubt_px(step_dn: float) -> float:
     True
     >>> round(jpeg_edge_doubt_px(-10.0), 3)
     0.25
+    >>> round(jpeg_edge_doubt_px(-10.0, jpeg_edge_grey_dn(95)), 3)
+    0.1
     """
     step = abs(step_dn)
     if not (math.isfinite(step) and step > 0):
         return JPEG_EDGE_DOUBT_PX
-    return max(JPEG_EDGE_DOUBT_PX, JPEG_EDGE_GREY_DN / step)
+    return max(JPEG_EDGE_DOUBT_PX, grey_dn / step)
 
 
 def _periodic_tilt(doubt_px: float, period_px: float, slope: float, d: np.ndarray, dd: float) -> float:

@@ -27,6 +27,7 @@ import numpy as np
 from doorloc.app.decodepool import DecodePool, DecodeRefused, Located, decoded_too_large
 from doorloc.app.http.problems import ProblemError
 from doorloc.app.http.state import ServiceState
+from doorloc.vision.imageio import stored_jpeg_quality
 
 if TYPE_CHECKING:
     from doorloc.domain import DoorSize
@@ -298,6 +299,7 @@ def locate_upload(
             max_decoded_bytes=state.settings.max_decoded_bytes,
             overlay_max_pixels=state.settings.overlay_max_pixels if overlay else None,
             timeout_s=left,
+            jpeg_quality=stored_jpeg_quality(data),
         )
     except DecodeRefused as e:
         raise refusal_problem(e) from None

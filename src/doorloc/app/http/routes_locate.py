@@ -38,6 +38,7 @@ from doorloc.app.http.state import ServiceState
 from doorloc.app.imagesniff import decode_limit_code, decode_limit_problem, sniff_image
 from doorloc.app.services import DoorChoiceError, answer_image, answer_located, resolve_door
 from doorloc.recipes.models import DOOR_ID_PATTERN
+from doorloc.vision.imageio import stored_jpeg_quality
 
 __all__ = ["router"]
 
@@ -256,7 +257,14 @@ def _measure(
 
             trace = LocateTrace()
         answer = answer_image(
-            image, state.cell, choice, image_name=name, locate_fn=state.locate_fn, rapid=rapid, trace=trace
+            image,
+            state.cell,
+            choice,
+            image_name=name,
+            locate_fn=state.locate_fn,
+            rapid=rapid,
+            trace=trace,
+            jpeg_quality=stored_jpeg_quality(data),
         )
         drawn = None
         if (
