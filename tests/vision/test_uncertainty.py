@@ -500,13 +500,11 @@ def test_the_jpeg_grey_levels_fall_as_the_quality_rises(quality):
     assert jpeg_edge_grey_dn(None) == jpeg_edge_grey_dn(0) == jpeg_edge_grey_dn(80) == JPEG_EDGE_GREY_DN
 
 
-def test_a_noise_free_jpeg_door_is_doubted_by_its_files_quality(cell):
-    """Without noise a JPEG's flat blocks stay flat and the block detector sees nothing, while its edges
-    carry the quantisation: this plain door (quality 80, 0.027 deg from square) is answered over 4 sigma
-    off in yaw from the array alone, and within 3 sigma where its file's quality is told."""
-    door = DoorSize(900, 39.63983919248882, 2100)
-    pose = DoorPose(-0.1908736530905557, -8.936478802934412, 0.027467941178610122)
-    eff = Effects(
+#: bench_jpeg_doors.py's door 5149: plain, 0.027 deg from square, a step of 37 grey levels, JPEG 80, no noise
+FAINT_JPEG_DOOR = (
+    DoorSize(900, 39.63983919248882, 2100),
+    DoorPose(-0.1908736530905557, -8.936478802934412, 0.027467941178610122),
+    Effects(
         albedo_hinge=0.3185104470894824,
         albedo_side=0.1887759177482996,
         albedo_background=0.17175643281648692,
@@ -514,7 +512,15 @@ def test_a_noise_free_jpeg_door_is_doubted_by_its_files_quality(cell):
         vignetting=0.008001761429532284,
         blur_sigma_px=0.569895416022191,
         jpeg_quality=80,
-    )
+    ),
+)
+
+
+def test_a_noise_free_jpeg_door_is_doubted_by_its_files_quality(cell):
+    """Without noise a JPEG's flat blocks stay flat and the block detector sees nothing, while its edges
+    carry the quantisation: this plain door (quality 80, 0.027 deg from square) is answered over 4 sigma
+    off in yaw from the array alone, and within 3 sigma where its file's quality is told."""
+    door, pose, eff = FAINT_JPEG_DOOR
     img = render_door(cell, door, pose, effects=eff, seed=5149).image
     cfg = replace(cell.locate, calibration_sigma_px=0.0, optics_edge_sigma_px=0.0)
     blind = locate(img, cell, door, config=cfg)
@@ -649,19 +655,8 @@ def test_a_faint_jpeg_door_at_one_pixel_phase_claims_the_drift_of_its_error(cell
     side over a third of the far arris, 0.2 px to the other over its last), a tilt the block and pixel
     periods barely give a line at one phase: its yaw was 0.027 deg off at 3.9 and 8.1 sigma with these two
     noise draws."""
-    door = DoorSize(900, 39.63983919248882, 2100)
-    pose = DoorPose(-0.1908736530905557, -8.936478802934412, 0.027467941178610122)
-    eff = Effects(
-        albedo_hinge=0.3185104470894824,
-        albedo_side=0.1887759177482996,
-        albedo_background=0.17175643281648692,
-        gradient_u=0.11326192224306836,
-        vignetting=0.008001761429532284,
-        blur_sigma_px=0.569895416022191,
-        full_well_e=20000.0,
-        read_noise_dn=1.1034195682475574,
-        jpeg_quality=80,
-    )
+    door, pose, eff = FAINT_JPEG_DOOR
+    eff = replace(eff, full_well_e=20000.0, read_noise_dn=1.1034195682475574)
     r = locate(
         render_door(cell, door, pose, effects=eff, seed=seed).image,
         cell,

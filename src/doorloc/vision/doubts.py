@@ -21,6 +21,7 @@ from doorloc.vision.edge_samples import EdgeSamples
 from doorloc.vision.jit import kernel
 from doorloc.vision.jpeg_blocks import block_artifact_ratio
 from doorloc.vision.lines import RectangleFit, fit_image_line
+from doorloc.vision.quantisation import quantisation_doubt_px, quantisation_tilt
 from doorloc.vision.refine import arris_response_shifts
 from doorloc.vision.region import EDGE_NAMES, SearchRegion
 from doorloc.vision.response import (
@@ -31,6 +32,7 @@ from doorloc.vision.response import (
 )
 from doorloc.vision.response_check import blur_without_pixel
 from doorloc.vision.sampling import linearizing_lut
+from doorloc.vision.side_patches import line_noise_dn, side_patches
 from doorloc.vision.state import EdgeDoubts, Refined, ResponseCheck
 from doorloc.vision.strip_response import AllowedEnds, StripReadings, allowed_response_ends
 from doorloc.vision.texture import texture_bias
@@ -88,6 +90,8 @@ def edge_doubts(
     if jpeg_quality or blocks > JPEG_BLOCK_RATIO:
         grey_dn = jpeg_edge_grey_dn(jpeg_quality)
         model = model.with_doubts(*_jpeg_doubts(samples, fit, r.pose.scale_mm_per_px, grey_dn))
+    noise = line_noise_dn(side_patches(plane, samples, fit.weights), s8)
+    model = model.with_doubts(*_quantisation_doubts(samples, fit, r.half, s8, noise))
     if r.arris_fits:
         model = model.with_doubts(*_arris_doubts(r.arris_fits, samples, fit, r.pose.scale_mm_per_px, figures))
     model = model.with_doubts(*_optics_doubts(cell, cfg))
@@ -229,6 +233,29 @@ def _jpeg_doubts(
         tilt = math.hypot(jpeg_tilt_sigma(slope, scan, doubt), jpeg_drift_tilt(slope, scan, doubt))
         blocks = _block_correlated_tilt(scan, fit.residuals[k][inl] / scale_mm_per_px)
         doubts.append(LineDoubt("jpeg", k, doubt, tilt=math.hypot(tilt, blocks)))
+    return doubts
+
+
+def _quantisation_doubts(
+    samples: dict[str, EdgeSamples], fit: RectangleFit, half_px: int, s8: float, noise_dn: dict[str, float]
+) -> list[LineDoubt]:
+    """Each line's doubt from the image's grey-level rounding where its plateaus' noise (``noise_dn``, 0-255
+    scale, per line: :func:`doorloc.vision.side_patches.line_noise_dn`; none read: taken as none) is too
+    small to dither it (:func:`doorloc.vision.quantisation.quantisation_doubt_px`, over the final window of
+    ``2 half_px + 1`` pixels, levels of ``s8`` on the 0-255 scale), and the tilt its runs along the line
+    give (:func:`doorloc.vision.quantisation.quantisation_tilt`); none where noise dithers it."""
+    doubts = []
+    for k in EDGE_NAMES:
+        inl = (fit.weights[k] > 0) & np.isfinite(samples[k].along)
+        steps = np.abs(samples[k].step[inl])
+        steps = steps[np.isfinite(steps)]
+        if not steps.size:
+            continue
+        doubt = quantisation_doubt_px(float(np.median(steps)), 2 * half_px + 1, noise_dn.get(k, 0.0), s8)
+        if doubt > 1e-6:
+            doubts.append(
+                LineDoubt("quantisation", k, doubt, tilt=quantisation_tilt(doubt, samples[k].scan[inl]))
+            )
     return doubts
 
 

@@ -28,6 +28,7 @@ from doorloc.vision.region import EDGE_NAMES, HUMAN, SearchRegion
 from doorloc.vision.response import ResponseFit
 from doorloc.vision.result import LineQuality, LocateResult, PoseUncertainty
 from doorloc.vision.sampling import oriented
+from doorloc.vision.side_patches import side_patches
 from doorloc.vision.state import EdgeDoubts, Refined, ResponseCheck
 from doorloc.vision.strip_response import CellDisputed
 from doorloc.vision.thickness_gate import (
@@ -171,12 +172,6 @@ def _arris_clipped(r: Refined, cfg: LocateConfig) -> q.Refusal | None:
     return q.check_arris_clipped(clipped, cfg.max_clipped_arris_fraction)
 
 
-#: the flat patches :func:`_noise_scale_ratio` reads beside each line: their length along the edge and depth
-#: across it, and their distance from the edge's points (beyond a 3 mm arris strip and the blur), px
-NOISE_PATCH_PX = (128, 48)
-NOISE_PATCH_GAP_PX = 24
-
-
 def _other_reading_seen(
     plane, s8: float, cell: Cell, door: DoorSize, r: Refined, cfg: LocateConfig
 ) -> tuple[float, float | None, float | None]:
@@ -208,7 +203,7 @@ def _exposure_checks(
     r, plane, s8 = check.refined, lum.plane, lum.scale_to_8bit
     bright = np.concatenate([r.samples[k].bright[r.fit.weights[k] > 0] for k in EDGE_NAMES])
     read = cfg.min_noise_scale_ratio > 0 or cfg.clipped_flat_share <= 1 or lum.clip_grey is not None
-    sides = _side_patches(plane, r) if read else None
+    sides = side_patches(plane, r.samples, r.fit.weights) if read else None
     strips = _strip_interiors(plane, r, region, cfg.door_brighter) if cfg.clipped_flat_share <= 1 else {}
     return [
         q.check_overexposed(bright),
@@ -349,42 +344,9 @@ def _sharpened(
     return q.check_sharpened(ratios, cfg.min_noise_scale_ratio)
 
 
-#: the flat patches :func:`_side_patches` reads beside each line: their length along the edge and depth
-#: across it, and their distance from the edge's points (beyond a 3 mm arris strip and the blur), px
-NOISE_PATCH_PX = (128, 48)
-NOISE_PATCH_GAP_PX = 24
-
-
-def _side_patches(plane, r: Refined) -> dict[bool, dict[str, np.ndarray]]:
-    """Flat patches beside the middle of each line's edge points (raw grey levels), per side of the door's
-    edges (``False`` the dark side, ``True`` the bright one) and line."""
-    sides: dict[bool, dict[str, np.ndarray]] = {False: {}, True: {}}
-    length, depth = NOISE_PATCH_PX
-    for k in EDGE_NAMES:
-        s = r.samples[k]
-        ok = (r.fit.weights[k] > 0) & np.isfinite(s.along)
-        scan, along = s.scan[ok], s.along[ok]
-        if scan.size < 8:
-            continue
-        centre = 0.5 * (float(scan.min()) + float(scan.max()))
-        mid = np.abs(scan - centre) <= length / 2
-        if not mid.any():
-            continue
-        P = oriented(plane, s.axis)
-        s0, s1 = int(scan[mid].min()), int(scan[mid].max()) + 1
-        lo, hi = int(math.floor(along[mid].min())), int(math.ceil(along[mid].max()))
-        step = s.step[ok]
-        bright_after = float(step.sum(where=np.isfinite(step))) > 0  # the bright side at larger ``along``
-        for after in (False, True):
-            a0 = hi + NOISE_PATCH_GAP_PX if after else lo - NOISE_PATCH_GAP_PX - depth
-            if 0 <= a0 and a0 + depth <= P.shape[0] and 0 <= s0 and s1 <= P.shape[1]:
-                sides[after == bright_after][k] = P[a0 : a0 + depth, s0:s1]
-    return sides
-
-
 def _noise_scale_ratio(sides: dict[bool, dict[str, np.ndarray]], s8: float) -> q.NoiseScaleRatios | None:
     """The least of each of :func:`doorloc.vision.quality.noise_scale_ratio`'s ratios over the door's two
-    sides (:func:`_side_patches`, pooled per side). Texture and a stray edge in a patch raise its ratios
+    sides (:func:`doorloc.vision.side_patches.side_patches`, pooled per side). Texture and a stray edge in a patch raise its ratios
     (they hide sharpening there; they never make it)."""
     read = [
         x for x in (q.noise_scale_ratio(list(sides[b].values()), s8) for b in (False, True)) if x is not None

@@ -145,7 +145,7 @@ _DIST_INDEX = {
 
 #: the edge-model doubts a line can carry besides the floor and the blur term, in the order a line's total
 #: adds them (the order fixes the last bits of the sums)
-DOUBT_SOURCES = ("texture", "far_face", "jpeg", "arris", "response", "camera", "optics")
+DOUBT_SOURCES = ("texture", "far_face", "jpeg", "quantisation", "arris", "response", "camera", "optics")
 
 #: the lines a doubt can move
 EDGE_LINES = ("bottom", "reference", "far")
@@ -163,7 +163,8 @@ class LineDoubt:
     ----------
     source : str
         What it comes from, one of :data:`DOUBT_SOURCES` (``"texture"``: grain beside the edge; ``"far_face"``:
-        the far-face model; ``"jpeg"``: block quantisation; ``"arris"``: the arris correction;
+        the far-face model; ``"jpeg"``: block quantisation; ``"quantisation"``: grey-level rounding that no
+        noise dithers (:mod:`doorloc.vision.quantisation`); ``"arris"``: the arris correction;
         ``"response"``: the camera response; ``"camera"``: what the camera's photometric model leaves
         unexplained on real edges; ``"optics"``: what an unmeasured camera's optics may move its edges by,
         ``LocateConfig.optics_edge_sigma_px``).
