@@ -1070,7 +1070,9 @@ def test_an_undithered_8_bit_image_does_not_replace_a_right_cell_exponent(cell):
     """A 1.34 camera, 8 bits under 0.05 grey levels of noise (the rounding is not dithered), the cell right
     (square bench seed 8000's scene at yaw -1 deg): both plain edges read 2.21, and 1.37 / 1.46 about as
     symmetric. The 2.21 replaced the cell's exponent and the door was placed 0.107 mm off at 8 sigma; the
-    image cannot tell the two apart, so nothing is absorbed and the answer's doubt covers the reading."""
+    image cannot tell the two apart, so nothing is absorbed: its plateaus are too quiet for the response to
+    be read at all (a linear camera's noise-free door read 2.19 +- 0.03 with no alternative), and the
+    answer's doubt covers the cell's exponent within its unmeasured factor."""
     door = DoorSize(900, 50, 2100)
     pose = DoorPose(4.34, 5.41, -1.0)
     fx = Effects(
@@ -1087,7 +1089,7 @@ def test_an_undithered_8_bit_image_does_not_replace_a_right_cell_exponent(cell):
     img = render_door(cell, door, pose, effects=fx, seed=8000).image
     r = locate(img, replace(cell, response_gamma=1.343), door)
     cr = r.diagnostics["camera_response"]
-    assert not cr["absorbed"] and cr["alternatives"], cr
+    assert not cr["absorbed"] and not cr["checked"] and "quieter" in cr["unchecked_because"], cr
     if r.ok:
         assert abs(r.x_mm - pose.x_mm) < 2.0 * r.uncertainty.x_mm
         assert abs(r.z_mm - pose.z_mm) < 2.0 * r.uncertainty.z_mm

@@ -16,7 +16,7 @@ from doorloc.sim.door import render_door
 from doorloc.sim.effects import Effects
 from doorloc.vision.locate import locate
 from doorloc.vision.quantisation import QUANTISATION_DRIFT_TILT, quantisation_doubt_px, quantisation_tilt
-from doorloc.vision.side_patches import line_noise_dn
+from doorloc.vision.side_patches import plateau_noise_dn
 
 
 @given(
@@ -84,15 +84,44 @@ def test_a_noise_free_door_square_to_the_pixels_claims_the_yaw_its_rounding_allo
 
 
 @pytest.mark.parametrize("noise", [0.0, 0.7, 1.5])
-def test_a_lines_noise_is_read_beside_it_without_its_light_slope_or_rounding(noise):
-    """A lit ramp (the shading across a patch), rounded to levels: its noise reads as drawn, 0 without
-    noise; the quieter side is the line's."""
+def test_the_images_noise_is_read_beside_its_lines_without_the_light_slope_or_rounding(noise):
+    """Lit ramps (the shading across a patch), rounded to levels: their noise reads as drawn, 0 without
+    noise, from the centre of each patch; a patch at a whole level under little noise reads low, so the
+    most of them is the image's."""
     rng = np.random.default_rng(4)
     rows, cols = np.mgrid[0:48, 0:128]
-    ramp = 90.0 + 0.05 * rows + 0.02 * cols
-    loud = np.clip(np.round(ramp + rng.normal(0.0, 3.0, ramp.shape)), 0, 255).astype(np.uint8)
-    quiet = np.clip(np.round(ramp + rng.normal(0.0, noise, ramp.shape)), 0, 255).astype(np.uint8)
-    got = line_noise_dn({False: {"far": quiet}, True: {"far": loud, "bottom": loud}}, 1.0)
-    assert set(got) == {"far", "bottom"}
-    assert got["far"] == pytest.approx(noise, abs=0.12)
-    assert got["bottom"] == pytest.approx(3.0, rel=0.15)
+    ramp = 90.3 + 0.05 * rows + 0.02 * cols
+    noisy = np.clip(np.round(ramp + rng.normal(0.0, noise, ramp.shape)), 0, 255).astype(np.uint8)
+    flat = np.full((48, 128), 40, np.uint8)  # a whole level, no noise shown
+    got = plateau_noise_dn({False: {"far": flat, "bottom": flat}, True: {"far": noisy}}, 1.0)
+    assert got == pytest.approx(noise, abs=0.12)
+    assert plateau_noise_dn({False: {}, True: {}}, 1.0) == 0.0
+
+
+def test_a_noise_free_doors_response_is_not_read_off_its_rounded_transitions(cell):
+    """A linear camera's door rendered without noise (step 37, blur 1.1 px, 0.73 deg): its plain edges'
+    undithered rounding bent their transitions into a 2.19 +- 0.03 camera exponent, which replaced the
+    cell's right 1.0: x 0.11 mm off at 17 sigma. Its plateaus are now too quiet to read the response from,
+    and the cell's exponent stands within its unmeasured factor; with 0.3 grey of noise it is read again."""
+    door = DoorSize(900, 82.07498858492811, 2100)
+    pose = DoorPose(9.486162125481133, -2.8398882582067264, -0.7266609562055439)
+    eff = Effects(
+        albedo_hinge=0.42000803726736163,
+        albedo_side=0.11067400934563115,
+        albedo_background=0.0807334159735728,
+        vignetting=0.0017127682261638634,
+        gradient_u=0.0309307561351011,
+        blur_sigma_px=1.11588518999395,
+    )
+    cfg = replace(cell.locate, calibration_sigma_px=0.0, optics_edge_sigma_px=0.0)
+    r = locate(render_door(cell, door, pose, effects=eff, seed=5561).image, cell, door, config=cfg)
+    assert r.ok and r.uncertainty is not None
+    response = r.diagnostics["camera_response"]
+    assert response["used"] == "cell" and not response["checked"]
+    assert "quieter" in response["unchecked_because"]
+    assert abs(r.x_mm - pose.x_mm) <= 3.0 * r.uncertainty.x_mm, (r.x_mm - pose.x_mm, r.uncertainty)
+    assert abs(r.z_mm - pose.z_mm) <= 3.0 * r.uncertainty.z_mm, (r.z_mm - pose.z_mm, r.uncertainty)
+    noisy = replace(eff, read_noise_dn=0.3)
+    r = locate(render_door(cell, door, pose, effects=noisy, seed=5561).image, cell, door, config=cfg)
+    assert r.ok and r.diagnostics["camera_response"]["checked"]
+    assert abs(r.x_mm - pose.x_mm) < 0.01

@@ -32,7 +32,6 @@ from doorloc.vision.response import (
 )
 from doorloc.vision.response_check import blur_without_pixel
 from doorloc.vision.sampling import linearizing_lut
-from doorloc.vision.side_patches import line_noise_dn, side_patches
 from doorloc.vision.state import EdgeDoubts, Refined, ResponseCheck
 from doorloc.vision.strip_response import AllowedEnds, StripReadings, allowed_response_ends
 from doorloc.vision.texture import texture_bias
@@ -90,8 +89,7 @@ def edge_doubts(
     if jpeg_quality or blocks > JPEG_BLOCK_RATIO:
         grey_dn = jpeg_edge_grey_dn(jpeg_quality)
         model = model.with_doubts(*_jpeg_doubts(samples, fit, r.pose.scale_mm_per_px, grey_dn))
-    noise = line_noise_dn(side_patches(plane, samples, fit.weights), s8)
-    model = model.with_doubts(*_quantisation_doubts(samples, fit, r.half, s8, noise))
+    model = model.with_doubts(*_quantisation_doubts(samples, fit, r.half, s8, check.plateau_noise_dn))
     if r.arris_fits:
         model = model.with_doubts(*_arris_doubts(r.arris_fits, samples, fit, r.pose.scale_mm_per_px, figures))
     model = model.with_doubts(*_optics_doubts(cell, cfg))
@@ -237,10 +235,10 @@ def _jpeg_doubts(
 
 
 def _quantisation_doubts(
-    samples: dict[str, EdgeSamples], fit: RectangleFit, half_px: int, s8: float, noise_dn: dict[str, float]
+    samples: dict[str, EdgeSamples], fit: RectangleFit, half_px: int, s8: float, noise_dn: float
 ) -> list[LineDoubt]:
-    """Each line's doubt from the image's grey-level rounding where its plateaus' noise (``noise_dn``, 0-255
-    scale, per line: :func:`doorloc.vision.side_patches.line_noise_dn`; none read: taken as none) is too
+    """Each line's doubt from the image's grey-level rounding where the plateaus' noise (``noise_dn``, 0-255
+    scale, as the response check read it: :func:`doorloc.vision.side_patches.plateau_noise_dn`) is too
     small to dither it (:func:`doorloc.vision.quantisation.quantisation_doubt_px`, over the final window of
     ``2 half_px + 1`` pixels, levels of ``s8`` on the 0-255 scale), and the tilt its runs along the line
     give (:func:`doorloc.vision.quantisation.quantisation_tilt`); none where noise dithers it."""
@@ -251,7 +249,7 @@ def _quantisation_doubts(
         steps = steps[np.isfinite(steps)]
         if not steps.size:
             continue
-        doubt = quantisation_doubt_px(float(np.median(steps)), 2 * half_px + 1, noise_dn.get(k, 0.0), s8)
+        doubt = quantisation_doubt_px(float(np.median(steps)), 2 * half_px + 1, noise_dn, s8)
         if doubt > 1e-6:
             doubts.append(
                 LineDoubt("quantisation", k, doubt, tilt=quantisation_tilt(doubt, samples[k].scan[inl]))

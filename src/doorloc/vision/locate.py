@@ -279,7 +279,7 @@ def _locate(
         """The refine stage from the coarse pose and the response check (which may refine again), under ``c``."""
         first = refine(plane, s8, region, coarse.pose, c, clock, cell.response_gamma)
         return check_response(
-            plane, cell, c, first, lambda start, gamma: refine(plane, s8, region, start, c, clock, gamma)
+            plane, cell, c, first, lambda start, gamma: refine(plane, s8, region, start, c, clock, gamma), s8
         )
 
     check = refined_and_checked(cfg)

@@ -31,11 +31,13 @@ from doorloc.vision.response import (
     fit_line_response,
 )
 from doorloc.vision.sampling import linearizing_lut
+from doorloc.vision.side_patches import plateau_noise_dn, side_patches
 from doorloc.vision.state import Refined, ResponseCheck
 from doorloc.vision.texture import texture_bias
 
 __all__ = [
     "PLAIN_STRIP_PX",
+    "RESPONSE_MIN_NOISE_DN",
     "blur_without_pixel",
     "check_response",
     "measure_response",
@@ -52,6 +54,14 @@ PLAIN_STRIP_PX = 0.1
 #: replaces the cell's (:func:`_read_otherwise_wider`)
 RESPONSE_WIDER_CHECK_PX = 3
 
+#: plateau noise (1-sigma, 0-255 scale, as :func:`doorloc.vision.side_patches.plateau_noise_dn` reads it)
+#: under which the plain edges' response is not read: the grey levels' rounding, undithered, bends the
+#: transitions (a linear camera's door rendered without noise, step 37, read 2.19 +- 0.03 and replaced the
+#: cell's 1.0: x 0.11 mm off at 17 sigma; with 0.1 grey of read noise its reference arris still read 2.26 +-
+#: 0.03, with 0.2 it read 1.01. Read noise of 0.1 reads 0-0.18 on four doors, of 0.2 0.23-0.31, but 0 on
+#: a door whose plateaus all sit near whole levels, up to 0.25)
+RESPONSE_MIN_NOISE_DN = 0.15
+
 
 def check_response(
     plane: np.ndarray,
@@ -59,6 +69,7 @@ def check_response(
     cfg: LocateConfig,
     refined: Refined,
     refine_again: Callable[[MetricPose, float], Refined],
+    s8: float = 1.0,
 ) -> ResponseCheck:
     """The response check stage: the camera response read off the plain edges, and where it differs from
     the cell's (and a window ``RESPONSE_WIDER_CHECK_PX`` wider on each side confirms it:
@@ -66,10 +77,13 @@ def check_response(
     ``refine_again(pose, gamma)``: the refine stage from ``pose`` with the camera exponent ``gamma``) and
     read once more. Under ``locate.response_check: where_unmeasured`` a cell whose response was measured
     is not read again (the doubts stage then takes its exponent within
-    ``locate.response_unmeasured_factor``)."""
+    ``locate.response_unmeasured_factor``). A plain edge whose plateaus are quieter than
+    ``RESPONSE_MIN_NOISE_DN`` (``s8``: the plane's scale to 0-255) is not read either."""
     used_cell = cell
     trusted = cfg.response_check == "where_unmeasured" and cell.response_gamma_sigma is not None
-    response, per_line = (None, {}) if trusted else measure_response(plane, refined, cell, cfg)
+    noise = plateau_noise_dn(side_patches(plane, refined.samples, refined.fit.weights), s8)
+    quiet = frozenset(EDGE_NAMES) if noise < RESPONSE_MIN_NOISE_DN else frozenset()
+    response, per_line = (None, {}) if trusted else measure_response(plane, refined, cell, cfg, quiet=quiet)
     response_diag: dict[str, Any] = {"cell_gamma": cell.response_gamma, "absorbed": False}
     unstable: float | None = None
     if cell.response_gamma_sigma is not None:
@@ -91,7 +105,7 @@ def check_response(
         first = refined
         used_cell = replace(cell, response_gamma=response.gamma, response_gamma_sigma=None)
         refined = refine_again(refined.pose, response.gamma)
-        again = measure_response(plane, refined, used_cell, cfg)
+        again = measure_response(plane, refined, used_cell, cfg, quiet=quiet)
         if again[0] is not None and again[0].absorb:
             # Read again with the absorbed exponent in use, the edges show yet another one: their reading
             # depends on where the edges were placed, so it is no measurement of the camera (seen: a lens
@@ -107,17 +121,9 @@ def check_response(
     response_diag["checked"] = response is not None
     # whose exponent the answer rests on: the cell's (measured or stated) or this image's own
     response_diag["used"] = "image" if response_diag["absorbed"] else "cell"
-    if response is None and trusted:
-        response_diag["unchecked_because"] = (
-            "the cell's response was measured (camera.response_gamma_sigma) and locate.response_check is "
-            "where_unmeasured: the image is not read again"
-        )
-    elif response is None:
-        response_diag["unchecked_because"] = (
-            _response_unchecked_because(refined.samples, refined.fit, refined.blur_px, refined.arris_fits)
-            if unstable is None
-            else f"the edges read {response_diag['first_fit']} with the cell's exponent in use and {unstable} "
-            "with that one: a reading that follows the edges' placement, not the camera's response"
+    if response is None:
+        response_diag["unchecked_because"] = _unchecked_because(
+            trusted, unstable, refined, quiet, response_diag
         )
     if response is not None:
         response_diag.update(
@@ -132,7 +138,7 @@ def check_response(
         )
         if response.alternatives:
             response_diag["alternatives"] = list(response.alternatives)
-    return ResponseCheck(refined, used_cell, response, bool(response_diag["absorbed"]), response_diag)
+    return ResponseCheck(refined, used_cell, response, bool(response_diag["absorbed"]), response_diag, noise)
 
 
 def response_check_applies(samples: EdgeSamples, inliers: np.ndarray, blur_px: float) -> bool:
@@ -211,15 +217,37 @@ def _plain_response_lines(arris_fits: dict[str, tuple[StripFit, float]] | None) 
     ]
 
 
+def _unchecked_because(
+    trusted: bool, unstable: float | None, refined: Refined, quiet: frozenset[str], diag: dict[str, Any]
+) -> str:
+    """Why the response was not checked: the cell's measured response ``trusted``, a reading ``unstable``
+    under the exponent it would have replaced (``diag["first_fit"]``), or what the edges could not show
+    (:func:`_response_unchecked_because`)."""
+    if trusted:
+        return (
+            "the cell's response was measured (camera.response_gamma_sigma) and locate.response_check is "
+            "where_unmeasured: the image is not read again"
+        )
+    if unstable is not None:
+        return (
+            f"the edges read {diag['first_fit']} with the cell's exponent in use and {unstable} "
+            "with that one: a reading that follows the edges' placement, not the camera's response"
+        )
+    return _response_unchecked_because(
+        refined.samples, refined.fit, refined.blur_px, refined.arris_fits, quiet
+    )
+
+
 def _response_unchecked_because(
     samples: dict[str, EdgeSamples],
     fit: RectangleFit,
     transition_px: float,
     arris_fits: dict[str, tuple[StripFit, float]] | None,
+    quiet: frozenset[str] = frozenset(),
 ) -> str:
     """Why no edge of this image could show the camera response (``diagnostics.camera_response``): the
     pose then rests on the cell's ``response_gamma`` within ``locate.response_unmeasured_factor``, which a
-    user should know."""
+    user should know. ``quiet``: the lines whose plateaus were too quiet to read."""
     plain = _plain_response_lines(arris_fits)
     if not plain:
         return "every edge is an arris strip, whose shading takes up the response"
@@ -231,24 +259,35 @@ def _response_unchecked_because(
             f"where only a transition blurred by {RESPONSE_ONE_PHASE_MIN_BLUR_PX:g} px or more can be read "
             "between the pixels"
         )
+    if all(k in quiet for k in plain):
+        return (
+            f"the plain edges' plateaus are quieter than {RESPONSE_MIN_NOISE_DN:g} grey levels (a render without "
+            "noise, or a camera that denoises): the rounding of their grey levels, undithered, bends the "
+            "transitions' shape"
+        )
     return "the plain edges' transitions were too noisy or too few to read"
 
 
 def measure_response(
-    plane, refined: Refined, cell: Cell, cfg: LocateConfig, wider_px: int = 0
+    plane,
+    refined: Refined,
+    cell: Cell,
+    cfg: LocateConfig,
+    wider_px: int = 0,
+    quiet: frozenset[str] = frozenset(),
 ) -> tuple[ResponseFit | None, dict[str, LineResponse]]:
     """The camera response measured on the plain edges (:func:`doorloc.vision.response.fit_line_response`).
 
     Plain: the bottom end and the reference arris without an arris strip, at many pixel phases and blurred
-    (:func:`response_check_applies`). None where no edge qualifies. ``wider_px``: pixels added to each
-    line's window on each side.
+    (:func:`response_check_applies`), and not in ``quiet`` (plateaus too quiet to dither their rounding).
+    None where no edge qualifies. ``wider_px``: pixels added to each line's window on each side.
     """
     samples, fit, half, arris_fits = refined.samples, refined.fit, refined.half, refined.arris_fits
     blur_px = blur_without_pixel(refined.blur_px)
     per_line: dict[str, LineResponse] = {}
     for k in _plain_response_lines(arris_fits):
         inl = fit.weights[k] > 0
-        if not response_check_applies(samples[k], inl, blur_px):
+        if k in quiet or not response_check_applies(samples[k], inl, blur_px):
             continue
         lr = fit_line_response(plane, samples[k], inl, half, cell.response_gamma, blur_px, wider_px)
         if lr is None:

@@ -18,7 +18,7 @@ __all__ = [
     "NOISE_PATCH_PX",
     "NOISE_READ_PX",
     "NOISE_STEP_MAX_DN",
-    "line_noise_dn",
+    "plateau_noise_dn",
     "side_patches",
 ]
 
@@ -58,7 +58,7 @@ def side_patches(
     return sides
 
 
-#: the centre of a patch whose noise :func:`line_noise_dn` reads, across and along the edge, px: 512 pixels
+#: the centre of a patch whose noise :func:`plateau_noise_dn` reads, across and along the edge, px: 512 pixels
 #: read a noise to about 3 %
 NOISE_READ_PX = (16, 32)
 #: pixels further than this (0-255 scale) from the plane through their patch are a stray edge, not its noise
@@ -66,21 +66,17 @@ NOISE_READ_PX = (16, 32)
 NOISE_STEP_MAX_DN = 8.0
 
 
-def line_noise_dn(sides: dict[bool, dict[str, np.ndarray]], s8: float) -> dict[str, float]:
-    """Each line's plateau noise (1-sigma, 0-255 scale; the lesser of its two sides': the quieter side
-    dithers its rounding least) from the centre of its patches (``NOISE_READ_PX``): what a plane through it
-    leaves, less the rounding itself (Sheppard's correction, a twelfth of a level squared; a noise of under
-    half a level reads low, as the rounding hides part of it). Lines without a patch are left out.
+def plateau_noise_dn(sides: dict[bool, dict[str, np.ndarray]], s8: float) -> float:
+    """The image's plateau noise (1-sigma, 0-255 scale; 0 without a patch): the most that the centre of any
+    side patch (``NOISE_READ_PX``) shows, as what a plane through it leaves less the rounding itself
+    (Sheppard's correction, a twelfth of a level squared). Each patch reads low where its level sits near a
+    whole grey level and the noise is under about half a level (its pixels then round alike: 0.2 grey of
+    read noise read 0 to 0.3 over the six patches of one door), so the most of them is the noise.
 
     Not :func:`doorloc.vision.quality.side_noise`, which reads the same noise: it also counts the patches'
     levels for the gate's checks, and its generic plane fit cost 0.15 ms a patch, 1 ms a frame here."""
-    out = {}
-    for k in EDGE_NAMES:
-        sigmas = [_plane_noise(_centre(sides[b][k]), s8) for b in (False, True) if k in sides[b]]
-        sigmas = [x for x in sigmas if math.isfinite(x)]
-        if sigmas:
-            out[k] = min(sigmas)
-    return out
+    sigmas = [_plane_noise(_centre(p), s8) for side in sides.values() for p in side.values()]
+    return max((x for x in sigmas if math.isfinite(x)), default=0.0)
 
 
 def _centre(patch: np.ndarray) -> np.ndarray:

@@ -87,13 +87,16 @@ class Refined:
 class ResponseCheck:
     """What the response check stage found: the refined edges the answer rests on (read again with this
     image's camera exponent where it showed another than the cell's), the cell as used, the image's
-    reading of the camera response (None where unchecked), per line, and its diagnostics."""
+    reading of the camera response (None where unchecked), per line, and its diagnostics; the image's
+    plateau noise (0-255 scale, :func:`doorloc.vision.side_patches.plateau_noise_dn`; the doubts read it
+    too)."""
 
     refined: Refined
     cell: Cell
     response: ResponseFit | None
     absorbed: bool
     diagnostics: dict[str, Any]
+    plateau_noise_dn: float = 0.0
 
 
 @dataclass(frozen=True)
