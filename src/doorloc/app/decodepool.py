@@ -184,8 +184,8 @@ def _worker_main(conn: Connection, memory_bytes: int, locate_fn: Any = None, nic
     starts.
 
     Jobs: ``("decode", (bytes, name))`` -> the decoded array; ``("decode_locate", (bytes, name, cell, door,
-    max_decoded_bytes, overlay_max_pixels, jpeg_quality))`` -> ``("decoded", nbytes)`` once decoding is done (so the pool
-    knows which step a limit ended), then ``(LocateResult, overlay PNG or None)`` from ``locate_fn`` (given
+    max_decoded_bytes, overlay_max_pixels, jpeg_quality))`` -> ``("decoded", nbytes)`` once decoding is done
+    (so the pool knows which step a limit ended), then ``(LocateResult, overlay PNG or None)`` from ``locate_fn`` (given
     only to a pool that locates); a decoded image of more than ``max_decoded_bytes`` answers
     ``("too_big", nbytes)`` and is not located.
     """
@@ -555,8 +555,9 @@ class DecodePool:
         The image is decoded within the decoding limits (``cpu_s``, ``memory_bytes``), then
         ``locate_fn(image, cell, door, image_name=name, jpeg_quality=jpeg_quality)`` runs within locate's
         (``locate_cpu_s``, ``locate_memory_bytes``; ``jpeg_quality``: the file's, as
-        :func:`doorloc.vision.imageio.stored_jpeg_quality` reads it); the image never leaves the worker. ``overlay_max_pixels`` (None: no overlay)
-        asks for the overlay of a located door in an image of at most that many pixels. ``data`` may be the
+        :func:`doorloc.vision.imageio.stored_jpeg_quality` reads it); the image never leaves the worker.
+        ``overlay_max_pixels`` (None: no overlay) asks for the overlay of a located door in an image of at
+        most that many pixels. ``data`` may be the
         image decoded already (a decoding-only pool's :meth:`decode`): it then crosses the pipe and is located.
 
         Raises

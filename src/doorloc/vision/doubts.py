@@ -2,8 +2,9 @@
 
 :func:`edge_doubts` gathers them as :class:`doorloc.vision.uncertainty.LineDoubt` values: the texture beside
 each edge (or the far-face model's own doubt), JPEG's block quantisation where the file was a JPEG or the
-image shows it, what the arris correction leaves, and the camera response's (measured, absorbed or taken on
-the cell's word). It reads the pixels; :func:`doorloc.vision.uncertainty.propagate` turns the doubts into the answer's uncertainty.
+image shows it, the grey levels' rounding where no noise dithers it, what the arris correction leaves, and
+the camera response's (measured, absorbed or taken on the cell's word). It reads the pixels;
+:func:`doorloc.vision.uncertainty.propagate` turns the doubts into the answer's uncertainty.
 """
 
 from __future__ import annotations

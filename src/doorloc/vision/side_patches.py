@@ -1,6 +1,7 @@
 """Flat patches of the image beside each edge line, where the noise of the door's two sides is read: by the
-gate (a camera that sharpens, a clip below white) and by the doubts (how much the noise dithers the grey
-levels' rounding, :mod:`doorloc.vision.quantisation`)."""
+gate (a camera that sharpens, a clip below white) and by the response check (whether the noise dithers the
+grey levels' rounding enough to read the camera response), whose reading the doubts take up
+(:mod:`doorloc.vision.quantisation`)."""
 
 from __future__ import annotations
 
