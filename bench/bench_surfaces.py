@@ -22,7 +22,9 @@ effect drawn over a wide random range per image, so nothing is tuned to one look
 Every set also reports the thickness: RMS, and how often it lies within 2 (beyond 5) of the sigma its
 check used (``diagnostics.thickness_check.sigma_mm``). ``--response-factor F`` sets the rendered sets'
 ``locate.response_unmeasured_factor`` (a cell whose response was measured: ``doorloc calibrate`` prints
-it; 1.11 for Bouguet's photographs). ``--wrong-thickness MM`` renders every door MM thicker than its recipe
+it; 1.11 for Bouguet's photographs). ``--quality-known`` locates each JPEG with its quality, as the
+service, the CLI and batch read it from the file (by default as an array, whose blocks tell it).
+``--wrong-thickness MM`` renders every door MM thicker than its recipe
 (negative: thinner) and locates it with the recipe: every answer is then a wrong door passed, and the
 refusals say how the thickness check caught the others (the thin-arris set is where that is hard: the far
 arris's strip and the far face's back edge are both candidates for the far side).
@@ -341,10 +343,17 @@ def _print_set(name: str, s: dict, seed: int | None) -> None:
 
 
 def run_rendered(
-    cell: Cell, name: str, n: int, seed: int, response_factor: float | None = None, wrong_mm: float = 0.0
+    cell: Cell,
+    name: str,
+    n: int,
+    seed: int,
+    response_factor: float | None = None,
+    wrong_mm: float = 0.0,
+    quality_known: bool = False,
 ) -> dict:
     """One rendered set located through ``cell``; ``wrong_mm``: each door rendered that much thicker than
-    the recipe it is located with (a wrong door)."""
+    the recipe it is located with (a wrong door); ``quality_known``: each JPEG located with its quality, as
+    the service, the CLI and batch read it from the file (else as an array: its blocks tell it)."""
     from doorloc.vision.locate import locate
 
     cfg = replace(cell.locate, calibration_sigma_px=0.0, optics_edge_sigma_px=0.0)  # the camera is exact
@@ -363,7 +372,14 @@ def run_rendered(
         results.append(
             (
                 img_name,
-                locate(img, stated, door, image_name=img_name, config=cfg),
+                locate(
+                    img,
+                    stated,
+                    door,
+                    image_name=img_name,
+                    config=cfg,
+                    jpeg_quality=eff.jpeg_quality if quality_known and eff is not None else 0,
+                ),
                 (pose.x_mm, pose.z_mm, pose.yaw_deg, rendered.thickness_mm),
             )
         )
@@ -477,6 +493,11 @@ def main() -> None:
         metavar="MM",
         help="rendered sets: each door rendered MM thicker than its recipe (wrong doors: an answer is a wrong door passed)",
     )
+    ap.add_argument(
+        "--quality-known",
+        action="store_true",
+        help="rendered sets: locate each JPEG with its quality, as the service reads it from the file",
+    )
     ap.add_argument("--speed", action="store_true", help="also time the grid set against --baseline-src")
     ap.add_argument("--baseline-src", type=Path, default=Path("/work/main/src"))
     ap.add_argument("--rounds", type=int, default=3)
@@ -503,7 +524,9 @@ def main() -> None:
         if name not in SETS:
             raise SystemExit(f"unknown set {name!r}; known: {', '.join(SETS)}, fixtures")
         seed = args.seed + list(SETS).index(name)  # a set keeps its seed whichever sets run
-        s = run_rendered(cell, name, args.n, seed, args.response_factor, args.wrong_thickness)
+        s = run_rendered(
+            cell, name, args.n, seed, args.response_factor, args.wrong_thickness, args.quality_known
+        )
         s["seed"] = seed
         _print_set(name, s, seed)
         pooled_z += s.pop("_z", [])
