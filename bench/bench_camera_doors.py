@@ -35,7 +35,10 @@ the largest |error| / sigma, and the refusals by code.
 Each door's line says what its plain edges read of the camera response (:func:`response_read`).
 
     OMP_NUM_THREADS=1 PYTHONPATH=src python bench/bench_camera_doors.py --model DIR_OR_FILE [--model ...]
-        [--n 24] [--seed 3500] [--jpeg 50]
+        [--n 24] [--seed 3500] [--jpeg 50] [--quality-known]
+
+``--quality-known``: each JPEG located with its quality, as the service, the CLI and batch read it from the
+file (by default as an array, whose blocks tell it).
 
 ``--model``: an extended calibration file (``photometric_model`` section), or a `check-model --boards` report
 folder (its report.json's model is read), e.g. ``doorloc check-model --boards ../shared/data/opencv-left
@@ -153,9 +156,12 @@ def response_read(d: dict) -> str:
     return f"response={d['fitted']:.2f}+-{d['sigma']:.2f}" + (" absorbed" if d["absorbed"] else " cell kept")
 
 
-def run_column(cell, model: PhotometricModel, gamma: float, items, told: bool = False) -> dict:
+def run_column(
+    cell, model: PhotometricModel, gamma: float, items, told: bool = False, quality_known: bool = False
+) -> dict:
     """Locate every item photographed through ``model``; the cell states the exponent ``gamma`` (and, with
-    ``told``, the model itself)."""
+    ``told``, the model itself); ``quality_known``: each JPEG located with its quality, as the service
+    reads it from the file."""
     stated = dataclasses.replace(
         cell,
         response_gamma=gamma,
@@ -171,7 +177,8 @@ def run_column(cell, model: PhotometricModel, gamma: float, items, told: bool = 
         bright = float(np.percentile(rd.radiance, 99.5))
         cam = dataclasses.replace(cam, exposure=cam.exposure / max(bright, 1e-6))
         img = apply_camera(rd.radiance, model, cam, seed=s)
-        r = locate(img, stated, door, image_name=name, config=cfg)
+        quality = cam.jpeg_quality if quality_known else 0
+        r = locate(img, stated, door, image_name=name, config=cfg, jpeg_quality=quality)
         what = (
             f"{name} seed {s} T={door.thickness_mm:.1f} arris={door.arris_mm:.2f} blur={cam.blur_px:.2f} "
             f"jpeg={cam.jpeg_quality} light={scene.light_directional:.2f}@{scene.light_azimuth_deg:+.0f}"
@@ -231,8 +238,14 @@ def main() -> None:
         help="every image stored at this JPEG quality, the camera's own (check-model's report gives it per "
         "photograph: OpenCV's are 50) instead of one drawn from none, 88 and 95",
     )
+    ap.add_argument(
+        "--quality-known",
+        action="store_true",
+        help="locate each JPEG with its quality, as the service reads it from the file",
+    )
     ap.add_argument("--json")
     a = ap.parse_args()
+    known = a.quality_known
     cell = load_cell(REPO / "fixtures" / "cell_thesis.yaml")
     items = list(scenes(a.n, a.seed))
     if a.jpeg is not None:
@@ -247,9 +260,9 @@ def main() -> None:
         print(f"  the cell states response_gamma {gamma:.3f}; plain: a power-law camera of that exponent")
         out[where] = {
             "response_gamma": gamma,
-            "camera": run_column(cell, model, gamma, items),
-            "told": run_column(cell, model, gamma, items, told=True),
-            "plain": run_column(cell, PhotometricModel(gamma=gamma), gamma, items),
+            "camera": run_column(cell, model, gamma, items, quality_known=known),
+            "told": run_column(cell, model, gamma, items, told=True, quality_known=known),
+            "plain": run_column(cell, PhotometricModel(gamma=gamma), gamma, items, quality_known=known),
         }
         for column in ("camera", "told", "plain"):
             show(column, out[where][column])
