@@ -279,7 +279,7 @@ def test_an_absorbed_response_that_the_edges_contradict_is_dropped(monkeypatch):
     two = ("bottom", "reference")
     readings = []
 
-    def flip_flop(plane, refined, cell, cfg):
+    def flip_flop(plane, refined, cell, cfg, **_):
         readings.append(cell.response_gamma)
         g = 2.68 if len(readings) == 1 else 1.02  # 2.68 with the cell's 1.0, then 1.02 with 2.68
         return ResponseFit(g, 0.05, cell.response_gamma, two), {}
@@ -292,7 +292,7 @@ def test_an_absorbed_response_that_the_edges_contradict_is_dropped(monkeypatch):
     cr = res.diagnostics["camera_response"]
     assert res.ok and not cr["absorbed"] and not cr["checked"] and cr["used"] == "cell"
     assert cr["first_fit"] == 2.68 and cr["second_fit"] == 1.02 and "placement" in cr["unchecked_because"]
-    monkeypatch.setattr(RC, "measure_response", lambda *a: (None, {}))
+    monkeypatch.setattr(RC, "measure_response", lambda *a, **_: (None, {}))
     plain = L.locate(img, exact, door)
     assert (res.x_mm, res.z_mm, res.yaw_deg) == (plain.x_mm, plain.z_mm, plain.yaw_deg)
     assert res.uncertainty == plain.uncertainty
