@@ -226,9 +226,7 @@ def _jpeg_doubts(
         inl = (fit.weights[k] > 0) & np.isfinite(samples[k].along)
         scan, along = samples[k].scan[inl], samples[k].along[inl]
         slope = fit_image_line(scan, along).b if scan.size >= 3 else math.nan
-        steps = np.abs(samples[k].step[inl])
-        steps = steps[np.isfinite(steps)]
-        doubt = jpeg_edge_doubt_px(float(np.median(steps)) if steps.size else math.nan, grey_dn)
+        doubt = jpeg_edge_doubt_px(_median_step(samples[k], inl), grey_dn)
         tilt = math.hypot(jpeg_tilt_sigma(slope, scan, doubt), jpeg_drift_tilt(slope, scan, doubt))
         blocks = _block_correlated_tilt(scan, fit.residuals[k][inl] / scale_mm_per_px)
         doubts.append(LineDoubt("jpeg", k, doubt, tilt=math.hypot(tilt, blocks)))
@@ -246,16 +244,19 @@ def _quantisation_doubts(
     doubts = []
     for k in EDGE_NAMES:
         inl = (fit.weights[k] > 0) & np.isfinite(samples[k].along)
-        steps = np.abs(samples[k].step[inl])
-        steps = steps[np.isfinite(steps)]
-        if not steps.size:
-            continue
-        doubt = quantisation_doubt_px(float(np.median(steps)), 2 * half_px + 1, noise_dn, s8)
+        doubt = quantisation_doubt_px(_median_step(samples[k], inl), 2 * half_px + 1, noise_dn, s8)
         if doubt > 1e-6:
             doubts.append(
                 LineDoubt("quantisation", k, doubt, tilt=quantisation_tilt(doubt, samples[k].scan[inl]))
             )
     return doubts
+
+
+def _median_step(samples: EdgeSamples, inliers: np.ndarray) -> float:
+    """The median grey-level step (0-255, unsigned) of a line's ``inliers``; NaN where none is finite."""
+    steps = np.abs(samples.step[inliers])
+    steps = steps[np.isfinite(steps)]
+    return float(np.median(steps)) if steps.size else math.nan
 
 
 def _block_correlated_tilt(scan: np.ndarray, residual_px: np.ndarray) -> float:

@@ -14,6 +14,7 @@ import numpy as np
 from doorloc.cell import Envelope
 from doorloc.vision.jit import kernel, median_in_place, pairwise_sum
 from doorloc.vision.sampling import median  # np.median's value, without its generic machinery
+from doorloc.vision.side_patches import NOISE_STEP_MAX_DN
 
 __all__ = [
     "Refusal",
@@ -177,8 +178,6 @@ CLIP_DARK_BEYOND_TWO = 0.05
 #: a clip caps every light in the image: a flat bright side counts as one only within this many grey levels
 #: (0-255) of the brightest plateau the door's edges see (:func:`check_clipped_flat`)
 CLIP_TOP_GREY = 3.0
-#: pixels further than this (0-255 scale) from the plane through their patch are a stray edge, not its noise
-_NOISE_STEP_MAX = 8.0
 
 
 @dataclass(frozen=True)
@@ -247,7 +246,7 @@ def side_noise(patches: list[np.ndarray], s8: float) -> SideNoise | None:
         A = np.stack([np.ones(g.size), rows.ravel(), cols.ravel()], 1)
         coef, *_ = np.linalg.lstsq(A, g.ravel(), rcond=None)
         residual = g.ravel() - A @ coef
-        residual = residual[np.abs(residual) <= _NOISE_STEP_MAX]  # (a stray edge is not noise)
+        residual = residual[np.abs(residual) <= NOISE_STEP_MAX_DN]  # (a stray edge is not noise)
         var = float(np.var(residual)) - s8 * s8 / 12.0 if residual.size else 0.0
         sigmas.append(math.sqrt(max(var, 0.0)))
         levels.append(float(np.median(g)))

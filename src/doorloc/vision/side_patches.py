@@ -63,7 +63,7 @@ def side_patches(
 #: read a noise to about 3 %
 NOISE_READ_PX = (16, 32)
 #: pixels further than this (0-255 scale) from the plane through their patch are a stray edge, not its noise
-#: (as :func:`doorloc.vision.quality.side_noise` takes them)
+#: (here and in :func:`doorloc.vision.quality.side_noise`)
 NOISE_STEP_MAX_DN = 8.0
 
 
