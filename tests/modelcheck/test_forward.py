@@ -114,14 +114,13 @@ def test_the_relocation_tables_see_every_pose_a_cell_gives_not_production_s_verd
     named for a hidden arris). Production answers all of them at the default tolerance (their sigma
     0.027-0.029 mm on x, from the exponent the cell cannot check, the rendered camera's optics taken as
     exact); a cell allowing 0.028 mm refuses some."""
-    from doorloc.modelcheck.check import _read_image
-    from doorloc.modelcheck.dataset import read_dataset
+    from doorloc.modelcheck.dataset import read_dataset, read_measured_image
     from doorloc.modelcheck.forward import locate_errors, observe
 
     fix = Path(__file__).parents[2] / "fixtures" / "rendered" / "effects"
     cell = load_cell(fix / "cell.yaml")
     cell = replace(cell, locate=replace(cell.locate, max_uncertainty_mm=0.028, optics_edge_sigma_px=0.0))
-    obs = observe(read_dataset(fix, cell).images[:12], cell, False, _read_image)
+    obs = observe(read_dataset(fix, cell).images[:12], cell, False, read_measured_image)
     gated = locate_errors(obs, cell, False)
     ungated = locate_errors(obs, cell, False, gated=False)
     refused = ~np.isfinite(gated).all(axis=1)
@@ -178,14 +177,14 @@ def test_a_grey_level_table_is_exact_at_the_values_it_is_refined_at():
     weighted SSE of 26 where locating at 1.563 leaves 4.3). A value added to the table is predicted as the
     images located there, the old grid values keep theirs, and the model check's refinement puts the
     response's own best value on the grid."""
-    from doorloc.modelcheck.check import _grey_levels_refined, _read_image
-    from doorloc.modelcheck.dataset import read_dataset
+    from doorloc.modelcheck.check import _grey_levels_refined
+    from doorloc.modelcheck.dataset import read_dataset, read_measured_image
     from doorloc.modelcheck.fit import Predictor
     from doorloc.modelcheck.forward import RelocateTable, locate_errors, observe
 
     fix = Path(__file__).parents[2] / "fixtures" / "rendered" / "effects"
     cell = load_cell(fix / "cell.yaml")
-    obs = [o for o in observe(read_dataset(fix, cell).images[:8], cell, False, _read_image) if o.ok]
+    obs = [o for o in observe(read_dataset(fix, cell).images[:8], cell, False, read_measured_image) if o.ok]
     response = next(e for e in CATALOGUE if e.name == "response_gamma")
     coarse = RelocateTable(response, obs, cell, False, [1.0, 1.5, 2.6])
     fine = coarse.with_values([2.2])
@@ -214,3 +213,39 @@ def test_a_grey_level_table_is_exact_at_the_values_it_is_refined_at():
     grid = pred.tables[response.key].grid
     best = min(steps, key=lambda s: s["sse"])
     assert np.min(np.abs(grid - best["value"])) <= 1e-3 * float(grid[-1] - grid[0])
+
+
+def test_a_jpeg_data_set_is_located_with_its_files_quality(tmp_path, monkeypatch):
+    """A JPEG's edges are doubted at its quality's grey levels where locate is told it (as the service
+    tells it); the model check reads each file's quality and tells it on the first locate and on every
+    relocation. A lossless file is told 0, and a file that is no image is refused naming it."""
+    import cv2
+
+    import doorloc.modelcheck.forward as forward
+    from doorloc.modelcheck.dataset import DatasetError, read_dataset, read_measured_image
+
+    fix = Path(__file__).parents[2] / "fixtures" / "rendered" / "effects"
+    cell = load_cell(fix / "cell.yaml")
+    png_items = list(read_dataset(fix, cell).images[:2])
+    jpeg_items = []
+    for it in png_items:
+        grey = cv2.imread(str(it.path), cv2.IMREAD_UNCHANGED)
+        path = tmp_path / (it.path.stem + ".jpg")
+        assert cv2.imwrite(str(path), grey, [cv2.IMWRITE_JPEG_QUALITY, 85])
+        jpeg_items.append(replace(it, image=path.name, path=path))
+    told = []
+    real_locate = forward.locate
+
+    def recording_locate(*args, **kwargs):
+        told.append(kwargs.get("jpeg_quality", 0))
+        return real_locate(*args, **kwargs)
+
+    monkeypatch.setattr(forward, "locate", recording_locate)
+    obs = forward.observe(png_items + jpeg_items, cell, False, read_measured_image)
+    assert [o.jpeg_quality for o in obs] == [0, 0, 85, 85]
+    forward.locate_errors(obs, cell, False, gated=False)
+    assert told == [0, 0, 85, 85] * 2
+
+    (tmp_path / "broken.png").write_bytes(b"not an image")
+    with pytest.raises(DatasetError, match="broken.png"):
+        read_measured_image(replace(png_items[0], image="broken.png", path=tmp_path / "broken.png"))

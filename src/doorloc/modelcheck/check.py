@@ -31,7 +31,12 @@ import numpy as np
 from doorloc import __version__
 from doorloc.cell import Cell, measured_response_factor, save_cell
 from doorloc.modelcheck.catalogue import CATALOGUE, Effect, arris_variants
-from doorloc.modelcheck.dataset import Dataset, DatasetError, MeasuredImage, read_dataset, too_few_located
+from doorloc.modelcheck.dataset import (
+    Dataset,
+    read_dataset,
+    read_measured_image,
+    too_few_located,
+)
 from doorloc.modelcheck.fit import (
     FittedModel,
     Predictor,
@@ -188,15 +193,6 @@ def _jsonable(v: Any) -> Any:
     return v
 
 
-def _read_image(item: MeasuredImage) -> np.ndarray:
-    from doorloc.vision.imageio import ImageDecodeError, read_image
-
-    try:
-        return read_image(item.path)
-    except ImageDecodeError as e:
-        raise DatasetError(f"{item.image}: {e}") from None
-
-
 def _rms(errors: np.ndarray) -> dict[str, float]:
     out = {}
     for k, c in enumerate(COMPONENTS):
@@ -309,7 +305,7 @@ def check_model(
     ds = read_dataset(dataset_dir, cell)
     measured_arris = _has_arris_column(ds)
     say(f"locating {len(ds)} images with the given cell")
-    obs_all = observe(ds.images, cell, measured_arris, _read_image)
+    obs_all = observe(ds.images, cell, measured_arris, read_measured_image)
     refused = [{"image": o.item.image, "error": o.refusal} for o in obs_all if not o.ok]
     obs = [o for o in obs_all if o.ok]
     if len(obs) < 12:

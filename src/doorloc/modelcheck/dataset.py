@@ -15,6 +15,8 @@ from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from doorloc.cell import Cell, DoorSize
 from doorloc.pose import DoorPose
 
@@ -136,6 +138,23 @@ def read_dataset(folder: str | os.PathLike, cell: Cell, min_images: int = MIN_IM
             "(30-60 recommended, several door widths and thicknesses, poses over the envelope)"
         )
     return Dataset(root, tuple(items))
+
+
+def read_measured_image(item: MeasuredImage) -> tuple[np.ndarray, int]:
+    """The image's grey levels and the JPEG quality its file was stored at (0 where it is no JPEG), which
+    locate is told as the service tells it: a JPEG data set's edges are doubted at its quality's grey levels.
+
+    Raises
+    ------
+    DatasetError
+        The file cannot be read or is not an image.
+    """
+    from doorloc.vision.imageio import ImageDecodeError, read_stored_image
+
+    try:
+        return read_stored_image(item.path)
+    except ImageDecodeError as e:
+        raise DatasetError(f"{item.image}: {e}") from None
 
 
 def too_few_located(answered: int, total: int, refusals: list[str]) -> DatasetError:

@@ -89,6 +89,8 @@ class Observation:
     response_absorbed : float
         The camera response exponent locate measured on this image's plain edges and used instead of the
         cell's (``diagnostics.camera_response``), NaN where it kept the cell's.
+    jpeg_quality : int
+        The JPEG quality the image's file was stored at (0: no JPEG), told to locate again on relocation.
     """
 
     item: MeasuredImage
@@ -102,6 +104,7 @@ class Observation:
     edge_uv: np.ndarray
     edge_residual_mm: np.ndarray
     response_absorbed: float = math.nan
+    jpeg_quality: int = 0
 
 
 def _pose_row(r, ref: DoorPose, door: DoorSize) -> np.ndarray:
@@ -114,12 +117,14 @@ def observe(
     items: Sequence[MeasuredImage],
     cell: Cell,
     measured_arris: bool,
-    read: Callable[[MeasuredImage], np.ndarray],
+    read: Callable[[MeasuredImage], tuple[np.ndarray, int]],
     keep_images: bool = True,
 ) -> list[Observation]:
     """Locate every image with ``cell`` and keep what the forward models need (see :class:`Observation`).
 
-    Without the refusals that only judge an answer's uncertainty (:func:`locate_errors`): the model check
+    ``read`` gives an image's grey levels and its file's JPEG quality (0: no JPEG;
+    :func:`doorloc.modelcheck.dataset.read_measured_image`), which locate is told. Without the refusals that
+    only judge an answer's uncertainty (:func:`locate_errors`): the model check
     needs the pose the cell gives. A cell that lacks the doors' arris doubts every thickness it cannot
     check, and production's gate refused 39 of 40 images of a rounded 0.79 mm arris (thickness 39.73 +-
     1.51 mm against 40): the check then refused the data set as "too far from the images", the very
@@ -128,10 +133,10 @@ def observe(
     out = []
     cfg = _ungated(cell.locate)
     for it in items:
-        img = read(it)
+        img, quality = read(it)
         door = door_for(it, cell, measured_arris)
         tr = LocateTrace()
-        r = locate(img, cell, door, image_name=it.image, trace=tr, config=cfg)
+        r = locate(img, cell, door, image_name=it.image, trace=tr, config=cfg, jpeg_quality=quality)
         nan4 = np.full(4, np.nan)
         if not r.ok or tr.region is None or tr.pose is None:
             out.append(
@@ -146,6 +151,7 @@ def observe(
                     {},
                     np.zeros((0, 2)),
                     np.zeros(0),
+                    jpeg_quality=quality,
                 )
             )
             continue
@@ -184,6 +190,7 @@ def observe(
                 np.concatenate(uvs),
                 np.concatenate(res),
                 _absorbed(r.diagnostics.get("camera_response", {})),
+                quality,
             )
         )
     return out
@@ -214,7 +221,7 @@ def locate_errors(
         if o.image is None:
             continue
         door = door_for(o.item, cell, measured_arris)
-        r = locate(o.image, cell, door, image_name=o.item.image, config=cfg)
+        r = locate(o.image, cell, door, image_name=o.item.image, config=cfg, jpeg_quality=o.jpeg_quality)
         if r.ok:
             rows[k] = _pose_row(r, o.item.reference, door)
         if reasons is not None:

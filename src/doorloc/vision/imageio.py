@@ -22,6 +22,7 @@ __all__ = [
     "jpeg_quality",
     "libjpeg_luminance_table",
     "read_image",
+    "read_stored_image",
     "stored_jpeg_quality",
 ]
 
@@ -100,12 +101,28 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
     ImageDecodeError
         The file cannot be read or is not an image.
     """
+    return decode_image(_file_bytes(path), name=str(Path(path)))
+
+
+def read_stored_image(path: str | os.PathLike) -> tuple[np.ndarray, int]:
+    """Read an image file as :func:`read_image` does, with the JPEG quality it was stored at
+    (:func:`stored_jpeg_quality`, 0 where it is no JPEG): what ``locate(..., jpeg_quality=)`` is told.
+
+    Raises
+    ------
+    ImageDecodeError
+        The file cannot be read or is not an image.
+    """
+    data = _file_bytes(path)
+    return decode_image(data, name=str(Path(path))), stored_jpeg_quality(data)
+
+
+def _file_bytes(path: str | os.PathLike) -> bytes:
     p = Path(path)
     try:
-        data = p.read_bytes()
+        return p.read_bytes()
     except OSError as e:
         raise ImageDecodeError(f"cannot read image {p}: {e.strerror or e}") from None
-    return decode_image(data, name=str(p))
 
 
 def libjpeg_luminance_table(quality: int) -> np.ndarray:
