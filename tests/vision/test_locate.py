@@ -858,6 +858,31 @@ def test_a_pose_uncertain_from_an_arris_strip_is_said_so(cell):
     assert "mostly from the edge model" in r.error and "an arris strip cannot be read" in r.error, r.error
 
 
+def test_a_pose_uncertain_from_a_jpegs_blocks_says_so(cell):
+    """A plain door stored as a JPEG of quality 50, in a cell whose camera response and optics were
+    measured and which allows 0.01 mm: the JPEG's doubt (its quality's grey levels, the quality read from
+    the file) is the largest of the pose lines' edge-model doubts, and the refusal says what lifts it. It
+    had named the generic edge model ("check the cell's door and camera settings"), which does not."""
+    import cv2
+
+    from doorloc.vision.imageio import decode_image, stored_jpeg_quality
+
+    door = DoorSize(900, 40.0, 2100)
+    img = render_door(
+        cell, door, DoorPose(2.0, -3.0, 0.7), effects=Effects(read_noise_dn=1.0, blur_sigma_px=0.9), seed=3
+    ).image
+    data = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, 50])[1].tobytes()
+    measured = replace(
+        cell,
+        response_gamma_sigma=0.02,
+        locate=replace(cell.locate, optics_edge_sigma_px=0.0, max_uncertainty_mm=0.01),
+    )
+    r = locate(decode_image(data), measured, door, jpeg_quality=stored_jpeg_quality(data))
+    assert r.error_code == "uncertain", r.error
+    assert "mostly from the edge model" in r.error and "the image is a JPEG" in r.error, r.error
+    assert r.diagnostics["jpeg_quality"] == 50
+
+
 def test_a_thickness_that_the_unchecked_response_leaves_in_doubt_says_how_to_measure_it(cell):
     """A 0.95 mm rounding of a 70 mm door (``bench_arris_range.py --sets small --seed 12100``, seed 12118):
     every edge an arris, the camera's response cannot be checked on the image, and its doubt (the cell's

@@ -538,10 +538,16 @@ def _pose_cause(
 def _doubt_hint(source: str, response: ResponseFit | None) -> str | None:
     """What lifts an edge-model doubt of ``source`` (:data:`_UNCERTAIN_HINT`) where the operator can: the
     camera response the image could not check (``response`` None), the unmeasured optics, an arris strip
-    that cannot be read closely; else None."""
+    that cannot be read closely, a JPEG's blocks, grey levels rounded without noise to dither them; else
+    None."""
     if source == "response":
         return _UNCERTAIN_HINT["response_unmeasured"] if response is None else None
-    key = {"optics": "optics_unmeasured", "arris": "arris"}.get(source)
+    key = {
+        "optics": "optics_unmeasured",
+        "arris": "arris",
+        "jpeg": "jpeg",
+        "quantisation": "quantisation",
+    }.get(source)
     return _UNCERTAIN_HINT[key] if key is not None else None
 
 
@@ -582,8 +588,9 @@ def _first_refusal(refusals: list, r: Refined, plane, s8: float, cfg: LocateConf
 
 _UNCERTAIN_HINT = {
     "response_unmeasured": "the camera response could not be checked on this image (diagnostics "
-    "camera_response.unchecked_because says why: every edge an arris, edges sharper than half a pixel, or a "
-    "door square to the camera), and "
+    "camera_response.unchecked_because says why: every edge an arris, edges sharper than half a pixel, a "
+    "door square to the camera, or plateaus too quiet to read it: a camera that denoises, a JPEG of low "
+    "quality), and "
     "the cell's camera.response_gamma is taken as known only within the factor "
     "locate.response_unmeasured_factor; measure the response once (doorloc calibrate prints it from the "
     "chessboard photographs, with the factor they allow; or an image of a plain-edged door in this cell: its "
@@ -597,6 +604,11 @@ _UNCERTAIN_HINT = {
     "and the blur, most on a small arris; diagnostics arris_fit gives each strip's deficit and its sigma); check "
     "the recipe's arris size and profile, and light the arrises so that their strips stand apart from the hinge "
     "face and the background",
+    "jpeg": "the image is a JPEG whose 8x8 blocks move each edge by up to a few grey levels at its quality "
+    "(diagnostics jpeg_quality, jpeg_block_ratio); grab frames as PNG, or as JPEG at quality 95 or more",
+    "quantisation": "the image's plateaus are quieter than half a grey level, so that its edges' grey levels "
+    "are rounded with no noise to dither them (an 8-bit image of a very quiet camera, or one whose noise "
+    "reduction smooths the plateaus); grab 16-bit frames (PNG), or turn the camera's noise reduction off",
     "fit": "the edges are too noisy; check focus, lighting and exposure",
     "edge_model": "the door's edges do not look like clean steps (strong grain or marks along an edge, an arris or "
     "a camera response the cell does not describe); check the cell's door and camera settings",
@@ -607,7 +619,7 @@ _UNCERTAIN_HINT = {
 
 #: the doubts a line's edge model reports besides the texture beside it (the texture of a pose line is its
 #: own term; which of these is largest names the hint of an uncertain pose)
-_MODEL_REPORTED = ("far_face", "jpeg", "arris", "response", "camera", "optics")
+_MODEL_REPORTED = ("far_face", "jpeg", "quantisation", "arris", "response", "camera", "optics")
 
 
 def _budget(
