@@ -183,3 +183,53 @@ def test_free_shadings_far_from_the_door_lights_pose_are_refused():
     assert not res.ok and res.error_code == "uncertain", (res.error, res.z_mm - pose.z_mm if res.ok else None)
     assert "read two ways" in res.error and "shaded freely" in res.error
     assert res.diagnostics["door_light"]["used"] is False
+
+
+def test_an_answer_under_a_light_its_strips_do_not_single_out_carries_the_free_shadings_reading():
+    """A 1.01 mm rounding lit from azimuth +68, elevation -21, in a cell whose camera response was measured
+    (arris range bench ``--sets round --seed 10100 --response-factor 1.11``, door 10124, its draw to the
+    last digit): its strips fit [-40, +10] best, [+60, +60] about as well and half the first grid alike.
+    Under that light it was answered 0.178 mm off in x at a sigma of 0.093; the free shadings place it
+    0.21 mm from there (0.03 mm off). Neither reading is preferred where the light is a guess: the answer's
+    uncertainty takes up half their difference, and the door is refused saying both."""
+    door = DoorSize(900, 40.0, 2100, arris_mm=1.0111770212630637, arris_profile="round")
+    pose = DoorPose(-3.0518902244307835, 6.761442516853027, -0.8672550018328287)
+    fx = Effects(
+        albedo_hinge=0.5564243723843396,
+        albedo_chamfer=0.476146326139701,
+        albedo_background=0.11576928322249397,
+        light_ambient=0.2504406479188475,
+        light_directional=0.8695894370147175,
+        light_azimuth_deg=68.4830085006947,
+        light_elevation_deg=-20.801059666895483,
+        grain_period_mm=3.958748859383092,
+        arris_profile="round",
+        blur_sigma_px=1.6262517388591138,
+        read_noise_dn=0.3476116431793611,
+        gamma=1.2942046202621178,
+    )
+    img = render_door(CELL, door, pose, effects=fx, seed=10124).image
+    measured = _with(dataclasses.replace(CELL, response_gamma=fx.gamma), response_unmeasured_factor=1.11)
+    res = locate(img, measured, door)
+    assert not res.ok and res.error_code == "uncertain", (res.error, res.x_mm - pose.x_mm if res.ok else None)
+    assert "read two ways" in res.error and "other directions fit them about as well" in res.error, res.error
+    light = res.diagnostics["door_light"]
+    assert light["used"] is True and "runner_up_deg" in light
+    assert light["free_apart_mm"][0] > 0.15, light
+    # allowed 0.25 mm, the same door is answered, the free shadings' reading within 2 of its sigmas
+    wide = locate(img, _with(measured, max_uncertainty_mm=0.25), door)
+    assert wide.ok and wide.uncertainty is not None
+    apart = wide.diagnostics["door_light"]["free_apart_mm"][0]
+    assert wide.uncertainty.x_mm >= apart / 2 and abs(wide.x_mm - pose.x_mm) <= 2.0 * wide.uncertainty.x_mm
+    assert any(t["source"] == "door_light" for t in wide.diagnostics["uncertainty_budget"])
+
+
+def test_a_light_its_strips_single_out_is_told_as_one_direction():
+    """The rule by which a measured light is stated at all: no runner-up, and no more than half the first
+    grid alike."""
+    from doorloc.vision.light_search import LightMeasurement
+
+    one = LightMeasurement((20.0, 30.0), 12.0, 0.01, 3, 1, alike_share=0.2)
+    assert one.tells_one_direction
+    assert not dataclasses.replace(one, runner_up_deg=(-60.0, 20.0)).tells_one_direction
+    assert not dataclasses.replace(one, alike_share=0.6).tells_one_direction

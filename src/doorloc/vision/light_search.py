@@ -77,6 +77,13 @@ class LightMeasurement:
     runner_up_score: float | None = None
     alike_share: float = 0.0
 
+    @property
+    def tells_one_direction(self) -> bool:
+        """Whether the strips single this light out: no other direction ``RUNNER_UP_APART_DEG`` away fits
+        about as well, and no more than ``DIFFUSE_SHARE`` of the first grid does (the rule by which
+        :func:`light_from_strips` states a cell's light at all)."""
+        return self.runner_up_deg is None and self.alike_share <= DIFFUSE_SHARE
+
 
 #: a rounded strip's misfits under lights from directions (``(n, 3)`` unit vectors, cell frame) over its
 #: free shading's, ``(n,)`` (``StripFit.misfit_under_lights``)
@@ -173,8 +180,10 @@ def light_from_strips(
 
 def light_of_one_door(strips: Sequence[StripScore]) -> LightMeasurement | None:
     """The light one door's rounded strips fit best (``locate.light_from_door``), stated even where they
-    fit most directions about alike: there it costs nothing (any of them shades the strips as well) and
-    the doubt is carried by the turns of ``sigma_deg``. None where the door has no rounded strip."""
+    fit most directions about alike (any of them shades the strips as well); there the answer found under
+    it also carries the free shadings' reading (:attr:`LightMeasurement.tells_one_direction`,
+    ``doorloc.vision.locate``), since the turns of ``sigma_deg`` do not reach the other directions. None
+    where the door has no rounded strip."""
     if not strips:
         return None
     return light_from_strips([strips], diffuse_share=math.inf)

@@ -67,7 +67,7 @@ from doorloc.vision.metric import MetricPose
 from doorloc.vision.refine import refine
 from doorloc.vision.region import EDGE_NAMES, Band, SearchRegion
 from doorloc.vision.response_check import check_response
-from doorloc.vision.result import LocateResult, PhysicalModel, Provenance
+from doorloc.vision.result import LocateResult, PhysicalModel, PoseUncertainty, Provenance
 from doorloc.vision.state import Refined, Refused, ResponseCheck, StageClock
 
 __all__ = ["LocateConfig", "locate", "locate_steps", "run_steps", "StepQuery", "LocateTrace"]
@@ -88,6 +88,9 @@ class LocateTrace:
     #: and whether the answer was found under it (False: refused under it, the free shadings' outcome kept)
     door_light: LightMeasurement | None = None
     door_light_used: bool = False
+    #: where the answer is the door's own light's and its strips did not single that light out: how far (x,
+    #: z mm) the free shadings' pose lies from it, which its uncertainty took up (:func:`_lit_beside_free`)
+    door_light_free_apart_mm: tuple[float, float] | None = None
 
 
 def locate(
@@ -225,7 +228,9 @@ def locate_steps(
         else None,
     )
     if tr.door_light is not None:
-        res.diagnostics["door_light"] = _door_light_diagnostics(tr.door_light, tr.door_light_used)
+        res.diagnostics["door_light"] = _door_light_diagnostics(
+            tr.door_light, tr.door_light_used, tr.door_light_free_apart_mm
+        )
     res.elapsed_ms = (time.perf_counter() - t0) * 1e3
     return res
 
@@ -300,7 +305,7 @@ def _locate(
         lit = refined_and_checked(lit_cfg)
         res = _answer(name, door, lit_cfg, region, lit, lum, clock, tr, jpeg_quality)
         if res.ok:
-            return res
+            return _lit_beside_free(res, lit.refined.pose, check.refined.pose, own, cfg, tr)
         lit_pose = res.diagnostics.get("measured")
     except Refused:
         pass
@@ -342,6 +347,73 @@ def _free_beside_lit(free: LocateResult, lit: dict | None, own: LightMeasurement
         "camera's measured response (doorloc calibrate), or light the arrises from one known direction",
         lines=free.lines,
         diagnostics=diagnostics,
+    )
+
+
+def _lit_beside_free(
+    lit: LocateResult,
+    lit_pose: MetricPose,
+    free_pose: MetricPose,
+    own: LightMeasurement,
+    cfg: LocateConfig,
+    tr: LocateTrace,
+) -> LocateResult:
+    """The answer found under the door's own light, ``lit``, its uncertainty widened (in quadrature) by half
+    the distance of the free shadings' pose from it where the door's strips do not single that light out
+    (:attr:`LightMeasurement.tells_one_direction`); refused ``uncertain`` where that takes it beyond the
+    cell's limits. ``lit_pose``, ``free_pose``: the two refine stages' poses (before the doubts' votes on
+    the direction), which read the same pixels with two models of the rounded strips' shading.
+
+    Where the strips fit other directions about as well, the light is a guess, and the answer under it
+    rests on that guess as much as on the image: the free shadings, which assume no light, are the other
+    reading, and neither is preferred (as two models of one strip weighed alike spread its deficit by half
+    their difference, :func:`doorloc.vision.strip_posterior.valley_posterior`); the other reading then lies
+    within 2 sigma of the answer. Measured: ``bench_arris_range.py --n 32 --seed 10100
+    --response-factor 1.11`` (a cell whose response was measured), door 10124, a 1.01 mm rounding lit from
+    azimuth +68, elevation -21: its strips told [-40, +10] with a runner-up at [+60, +60] and half the
+    first grid alike, and it was answered 0.178 mm off in x at a sigma of 0.093, where the free shadings
+    placed it 0.032 mm off; 0.21 mm apart, it is now refused. That bench: 121 -> 120 of 128 answered,
+    the round set's x RMS 0.033 -> 0.007 mm, the worst x error 1.9 -> 0.7 sigma. Its cost where the
+    response is not measured (``--seed 9100``, the cell's factor): 107 -> 105, two small roundings whose
+    sigma already stood at 0.0995-0.0999 mm against the cell's 0.1 (errors 0.002-0.012 mm)."""
+    u = lit.uncertainty
+    if own.tells_one_direction or u is None:
+        return lit
+    dx, dz = abs(lit_pose.x_mm - free_pose.x_mm), abs(lit_pose.z_mm - free_pose.z_mm)
+    dyaw = abs(lit_pose.yaw_deg - free_pose.yaw_deg)
+    tr.door_light_free_apart_mm = (dx, dz)
+    # half the difference: the free shadings' reading then lies within 2 sigma of the answer whatever the
+    # answer's own sigma (the product's test of an honest sigma), as two models weighed alike spread by it
+    widened = PoseUncertainty(
+        x_mm=math.hypot(u.x_mm, 0.5 * dx),
+        z_mm=math.hypot(u.z_mm, 0.5 * dz),
+        yaw_deg=math.hypot(u.yaw_deg, 0.5 * dyaw),
+    )
+    lit.diagnostics.setdefault("uncertainty_budget", []).append(
+        {"source": "door_light", "x_mm": round(0.5 * dx, 7), "z_mm": round(0.5 * dz, 7)}
+        | {"yaw_deg": round(0.5 * dyaw, 7), "thickness_mm": None}
+    )
+    if (
+        max(widened.x_mm, widened.z_mm) <= cfg.max_uncertainty_mm
+        and widened.yaw_deg <= cfg.max_uncertainty_deg
+    ):
+        lit.uncertainty = widened
+        return lit
+    az, el = own.direction_deg
+    measured = {k: getattr(lit, k) for k in ("x_mm", "z_mm", "yaw_deg", "thickness_mm")}
+    return LocateResult.refusal(
+        lit.image,
+        "uncertain",
+        f"the door's rounded arrises read two ways: under the light their shading tells best (azimuth "
+        f"{az:.0f}, elevation {el:.0f} deg, though other directions fit them about as well) they place the "
+        f"door at x {lit.x_mm:+.3f}, z {lit.z_mm:+.3f} mm, shaded freely {dx:.3f} mm and {dz:.3f} mm from "
+        f"there: the pose is uncertain to x {widened.x_mm:.3f} mm, z {widened.z_mm:.3f} mm, yaw "
+        f"{widened.yaw_deg:.3f} deg (1 sigma; the cell allows {cfg.max_uncertainty_mm:g} mm, "
+        f"{cfg.max_uncertainty_deg:g} deg); state the cell's light (locate.light_direction_deg, which "
+        "doorloc measure-light measures from images of its doors) and its camera's measured response, or "
+        "light the arrises from one known direction",
+        lines=lit.lines,
+        diagnostics=lit.diagnostics | {"measured": measured},
     )
 
 
@@ -395,17 +467,25 @@ def _door_light(cfg: LocateConfig, refined: Refined) -> LightMeasurement | None:
     return light_of_one_door([f for f in fits if f is not None])
 
 
-def _door_light_diagnostics(light: LightMeasurement, used: bool) -> dict:
-    """The door's own light as the result's diagnostics report it, and whether the answer is the one
-    found under it (``used``; False: it was refused under it, and the free shadings' outcome stands)."""
-    return {
-        "used": used,
-        "direction_deg": [round(v, 1) for v in light.direction_deg],
-        "sigma_deg": light.sigma_deg,
-        "misfit_over_free": round(math.exp(light.score), 4),
-        "directions_alike_share": round(light.alike_share, 3),
-        "strips": light.strips,
-    } | ({"runner_up_deg": list(light.runner_up_deg)} if light.runner_up_deg is not None else {})
+def _door_light_diagnostics(
+    light: LightMeasurement, used: bool, free_apart_mm: tuple[float, float] | None
+) -> dict:
+    """The door's own light as the result's diagnostics report it, whether the answer is the one found
+    under it (``used``; False: it was refused under it, and the free shadings' outcome stands), and how
+    far the free shadings' pose lay from it where the strips did not single the light out (x, z mm)."""
+    apart = {} if free_apart_mm is None else {"free_apart_mm": [round(v, 4) for v in free_apart_mm]}
+    return (
+        apart
+        | {
+            "used": used,
+            "direction_deg": [round(v, 1) for v in light.direction_deg],
+            "sigma_deg": light.sigma_deg,
+            "misfit_over_free": round(math.exp(light.score), 4),
+            "directions_alike_share": round(light.alike_share, 3),
+            "strips": light.strips,
+        }
+        | ({"runner_up_deg": list(light.runner_up_deg)} if light.runner_up_deg is not None else {})
+    )
 
 
 def _far_face_diagnostics(far_fit: FarFaceFit) -> dict[str, float | str]:
