@@ -411,7 +411,8 @@ def _lit_beside_free(
     azimuth +68, elevation -21: its strips told [-40, +10] with a runner-up at [+60, +60] and half the
     first grid alike, and it was answered 0.178 mm off in x at a sigma of 0.093, where the free shadings
     placed it 0.032 mm off at a sigma of 0.151; 0.21 mm apart, it is now refused. That bench: 121 -> 120 of
-    128 answered, the round set's x RMS 0.033 -> 0.007 mm, the worst x error 1.9 -> 0.7 sigma. Where the
+    128 answered, the round set's x RMS 0.033 -> 0.007 mm, the worst x error 1.9 -> 0.7 sigma (at seed 9100
+    117 -> 116, a right answer lost). Where the
     response is not measured (the cell's factor) ``--seed 9100`` and ``--seed 10100`` answer the same doors
     as before; ``bench_surfaces.py --sets combined --seed 47000`` (grain, gradients, JPEG) lost door 14, a
     2.49 mm rounding answered 0.008 mm off, whose free shadings lay 0.54 mm away at 6.7 of their own sigmas.
