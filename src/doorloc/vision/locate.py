@@ -307,7 +307,9 @@ def _locate(
         if res.ok:
 
             def free_sigma() -> tuple[float, float] | None:
-                return _free_sigma(name, door, cfg, region, check, lum, clock, tr, jpeg_quality)
+                return _free_sigma(
+                    lambda c: _answer(name, door, c, region, check, lum, clock, tr, jpeg_quality), cfg, tr
+                )
 
             return _lit_beside_free(res, lit.refined.pose, check.refined.pose, free_sigma, own, cfg, tr)
         lit_pose = res.diagnostics.get("measured")
@@ -355,19 +357,11 @@ def _free_beside_lit(free: LocateResult, lit: dict | None, own: LightMeasurement
 
 
 def _free_sigma(
-    name: str,
-    door: DoorSize,
-    cfg: LocateConfig,
-    region: SearchRegion,
-    check: ResponseCheck,
-    lum: LuminancePlane,
-    clock: StageClock,
-    tr: LocateTrace,
-    jpeg_quality: int,
+    free_answer: Callable[[LocateConfig], LocateResult], cfg: LocateConfig, tr: LocateTrace
 ) -> tuple[float, float] | None:
-    """The free shadings' own 1-sigma of x and z (mm), their doubts counted as for an answer with the cell's
-    limits lifted; None where they give none (refused for another reason). The trace keeps what it held."""
-    # why many parameters: _answer's, which this runs once more on the free shadings' refine stage
+    """The free shadings' own 1-sigma of x and z (mm): their answer (``free_answer``, :func:`_answer` on
+    their response check) under ``cfg`` with the cell's limits lifted; None where they give none (refused
+    for another reason). The trace keeps what it held."""
     kept = (tr.samples, tr.inliers, tr.pose, tr.arris_fits)
     lifted = replace(
         cfg,
@@ -377,7 +371,7 @@ def _free_sigma(
         thickness_check="report",
     )
     try:
-        free = _answer(name, door, lifted, region, check, lum, clock, tr, jpeg_quality)
+        free = free_answer(lifted)
     except Refused:
         free = None
     tr.samples, tr.inliers, tr.pose, tr.arris_fits = kept
