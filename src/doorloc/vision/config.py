@@ -87,8 +87,9 @@ class LocateConfig:
         deg) and located again under that light as if the cell stated it. That answer is given where it
         passes the gate, else the free shadings' answer or refusal (``diagnostics.door_light``;
         ``model.light_source: door`` where the answer is the lit one). Where the strips do not single the
-        light out (another direction fits them about as well), the lit answer's uncertainty takes up how far
-        the free shadings' pose lies from it. One door's strips hardly tell the
+        light out (another direction fits them about as well), the lit answer's uncertainty takes up half of
+        how far the free shadings' pose lies from it, and where that passes the cell's limits the door is
+        refused unless the free shadings' own doubt holds the distance. One door's strips hardly tell the
         light (they often fit directions far apart about alike): this is no measurement of the cell's lamp,
         but a shading that ties each strip's level to its curvature. True (the default): on the arris
         bench's nine sets (seeds 7900, 8100, 8300; 432 doors) 354 -> 389 answered, the round and small

@@ -80,8 +80,8 @@ class LightMeasurement:
     @property
     def tells_one_direction(self) -> bool:
         """Whether the strips single this light out: no other direction ``RUNNER_UP_APART_DEG`` away fits
-        about as well, and no more than ``DIFFUSE_SHARE`` of the first grid does (the rule by which
-        :func:`light_from_strips` states a cell's light at all)."""
+        about as well (the runner-up :func:`light_from_strips` reports for a cell's light), and no more than
+        ``DIFFUSE_SHARE`` of the first grid does (beyond which it states no cell light at all)."""
         return self.runner_up_deg is None and self.alike_share <= DIFFUSE_SHARE
 
 
