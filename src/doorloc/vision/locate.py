@@ -297,7 +297,8 @@ def _locate(
     # their refusal: each is judged by its own uncertainty, neither is chosen by its error, and a door the
     # free shadings refused keeps their reason; their answer stands only near the lit pose
     # (:func:`_free_beside_lit`). (The free outcome is gated only then: its doubts cost as much as the lit
-    # answer's, and a lit answer that passes needs no other.)
+    # answer's, and a lit answer that passes needs no other, but where the strips did not single the light
+    # out and the free shadings' distance takes it past the limits, :func:`_lit_beside_free`.)
     lit_cfg = replace(cfg, light_direction_deg=own.direction_deg, light_direction_sigma_deg=own.sigma_deg)
     tr.door_light, tr.door_light_used = own, True
     lit_pose = None
