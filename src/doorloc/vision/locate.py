@@ -342,18 +342,26 @@ def _free_beside_lit(free: LocateResult, lit: dict | None, own: LightMeasurement
     if max(dx / max(u.x_mm, 1e-9), dz / max(u.z_mm, 1e-9)) <= SHADINGS_APART_SIGMAS:
         return free
     az, el = own.direction_deg
-    measured = {k: getattr(free, k) for k in ("x_mm", "z_mm", "yaw_deg", "thickness_mm")}
-    diagnostics = free.diagnostics | {"measured": measured}
-    return LocateResult.refusal(
-        free.image,
-        "uncertain",
+    return _read_two_ways(
+        free,
         f"the door's rounded arrises read two ways: shaded freely they place the door at x {free.x_mm:+.3f}, z "
         f"{free.z_mm:+.3f} mm, under the light their shading tells (azimuth {az:.0f}, elevation {el:.0f} deg) "
         f"at x {lit['x_mm']:+.3f}, z {lit['z_mm']:+.3f} mm, further apart than the answer's uncertainty (x "
         f"{u.x_mm:.3f}, z {u.z_mm:.3f} mm); state the cell's light (locate.light_direction_deg) and its "
         "camera's measured response (doorloc calibrate), or light the arrises from one known direction",
-        lines=free.lines,
-        diagnostics=diagnostics,
+    )
+
+
+def _read_two_ways(answer: LocateResult, message: str) -> LocateResult:
+    """``answer`` refused ``uncertain`` with ``message`` (its rounded arrises read two ways), its pose kept
+    as ``diagnostics.measured``."""
+    measured = {k: getattr(answer, k) for k in ("x_mm", "z_mm", "yaw_deg", "thickness_mm")}
+    return LocateResult.refusal(
+        answer.image,
+        "uncertain",
+        message,
+        lines=answer.lines,
+        diagnostics=answer.diagnostics | {"measured": measured},
     )
 
 
@@ -443,10 +451,8 @@ def _lit_beside_free(
     if free is not None and dx <= free[0] and dz <= free[1]:
         return lit
     az, el = own.direction_deg
-    measured = {k: getattr(lit, k) for k in ("x_mm", "z_mm", "yaw_deg", "thickness_mm")}
-    return LocateResult.refusal(
-        lit.image,
-        "uncertain",
+    return _read_two_ways(
+        lit,
         f"the door's rounded arrises read two ways: under the light their shading tells best (azimuth "
         f"{az:.0f}, elevation {el:.0f} deg, though other directions fit them about as well) they place the "
         f"door at x {lit.x_mm:+.3f}, z {lit.z_mm:+.3f} mm, shaded freely {dx:.3f} mm and {dz:.3f} mm from "
@@ -455,8 +461,6 @@ def _lit_beside_free(
         f"{cfg.max_uncertainty_deg:g} deg); state the cell's light (locate.light_direction_deg, which "
         "doorloc measure-light measures from images of its doors) and its camera's measured response, or "
         "light the arrises from one known direction",
-        lines=lit.lines,
-        diagnostics=lit.diagnostics | {"measured": measured},
     )
 
 

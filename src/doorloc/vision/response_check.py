@@ -82,7 +82,7 @@ def check_response(
     used_cell = cell
     trusted = cfg.response_check == "where_unmeasured" and cell.response_gamma_sigma is not None
     noise = plateau_noise_dn(side_patches(plane, refined.samples, refined.fit.weights), s8)
-    quiet = frozenset(EDGE_NAMES) if noise < RESPONSE_MIN_NOISE_DN else frozenset()
+    quiet = noise < RESPONSE_MIN_NOISE_DN
     response, per_line = (None, {}) if trusted else measure_response(plane, refined, cell, cfg, quiet=quiet)
     response_diag: dict[str, Any] = {"cell_gamma": cell.response_gamma, "absorbed": False}
     unstable: float | None = None
@@ -218,7 +218,7 @@ def _plain_response_lines(arris_fits: dict[str, tuple[StripFit, float]] | None) 
 
 
 def _unchecked_because(
-    trusted: bool, unstable: float | None, refined: Refined, quiet: frozenset[str], diag: dict[str, Any]
+    trusted: bool, unstable: float | None, refined: Refined, quiet: bool, diag: dict[str, Any]
 ) -> str:
     """Why the response was not checked: the cell's measured response ``trusted``, a reading ``unstable``
     under the exponent it would have replaced (``diag["first_fit"]``), or what the edges could not show
@@ -243,11 +243,11 @@ def _response_unchecked_because(
     fit: RectangleFit,
     transition_px: float,
     arris_fits: dict[str, tuple[StripFit, float]] | None,
-    quiet: frozenset[str] = frozenset(),
+    quiet: bool = False,
 ) -> str:
     """Why no edge of this image could show the camera response (``diagnostics.camera_response``): the
     pose then rests on the cell's ``response_gamma`` within ``locate.response_unmeasured_factor``, which a
-    user should know. ``quiet``: the lines whose plateaus were too quiet to read."""
+    user should know. ``quiet``: the image's plateaus were too quiet to read the response."""
     plain = _plain_response_lines(arris_fits)
     if not plain:
         return "every edge is an arris strip, whose shading takes up the response"
@@ -259,7 +259,7 @@ def _response_unchecked_because(
             f"where only a transition blurred by {RESPONSE_ONE_PHASE_MIN_BLUR_PX:g} px or more can be read "
             "between the pixels"
         )
-    if all(k in quiet for k in plain):
+    if quiet:
         return (
             f"the plain edges' plateaus are quieter than {RESPONSE_MIN_NOISE_DN:g} grey levels (a render without "
             "noise, or a camera that denoises): the rounding of their grey levels, undithered, bends the "
@@ -274,12 +274,12 @@ def measure_response(
     cell: Cell,
     cfg: LocateConfig,
     wider_px: int = 0,
-    quiet: frozenset[str] = frozenset(),
+    quiet: bool = False,
 ) -> tuple[ResponseFit | None, dict[str, LineResponse]]:
     """The camera response measured on the plain edges (:func:`doorloc.vision.response.fit_line_response`).
 
     Plain: the bottom end and the reference arris without an arris strip, at many pixel phases and blurred
-    (:func:`response_check_applies`), and not in ``quiet`` (plateaus too quiet to dither their rounding).
+    (:func:`response_check_applies`); none where ``quiet`` (plateaus too quiet to dither their rounding).
     None where no edge qualifies. ``wider_px``: pixels added to each line's window on each side.
     """
     samples, fit, half, arris_fits = refined.samples, refined.fit, refined.half, refined.arris_fits
@@ -287,7 +287,7 @@ def measure_response(
     per_line: dict[str, LineResponse] = {}
     for k in _plain_response_lines(arris_fits):
         inl = fit.weights[k] > 0
-        if k in quiet or not response_check_applies(samples[k], inl, blur_px):
+        if quiet or not response_check_applies(samples[k], inl, blur_px):
             continue
         lr = fit_line_response(plane, samples[k], inl, half, cell.response_gamma, blur_px, wider_px)
         if lr is None:
