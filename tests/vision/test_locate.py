@@ -304,6 +304,43 @@ def test_overexposed_hinge_face_is_refused_as_such(cell):
     assert r.x_mm is None and r.z_mm is None
 
 
+def test_a_sharpened_transition_does_not_replace_the_cells_exponent(cell):
+    """A camera that sharpens a little (0.36 at 2 px), its sensor noise not telling it (the gate's check
+    passes): the plain edges' transitions, made symmetric by an exponent no camera has (1.12 for the
+    camera's 1.85), overshoot both plateaus; the reading does not replace the cell's right exponent and
+    sizes its doubt. (Absorbed, this door was answered 0.066 mm off at 2.9 sigma:
+    bench/bench_arris_range.py --sets sharpened --seed 62000, door 75010.)"""
+    from doorloc.vision.response_check import RESPONSE_OVERSHOOT_MAX
+
+    door, pose = DoorSize(900, 40, 2100), DoorPose(-7.0154, -5.9549, 0.6468)
+    fx = Effects(
+        albedo_hinge=0.8348,
+        albedo_chamfer=0.9268,
+        albedo_background=0.0560,
+        light_ambient=0.6386,
+        light_directional=0.3865,
+        light_azimuth_deg=10.64,
+        light_elevation_deg=-7.39,
+        blur_sigma_px=1.03,
+        read_noise_dn=0.18,
+        gamma=1.8454,
+        sharpen_amount=0.357,
+        sharpen_radius_px=1.99,
+    )
+    r = locate(
+        render_door(cell, door, pose, effects=fx, seed=75010).image,
+        replace(cell, response_gamma=1.8454),
+        door,
+    )
+    assert r.ok, r.error
+    assert r.diagnostics["noise_scale_ratio"] >= 0.85  # (the gate's sharpening check does not see it)
+    response = r.diagnostics["camera_response"]
+    assert response["used"] == "cell" and not response["absorbed"] and response["fitted"] < 1.3, response
+    assert min(response["overshoot"].values()) >= RESPONSE_OVERSHOOT_MAX, response
+    assert abs(r.x_mm - pose.x_mm) < 2 * r.uncertainty.x_mm, (r.x_mm - pose.x_mm, r.uncertainty)
+    assert abs(r.z_mm - pose.z_mm) < 2 * r.uncertainty.z_mm, (r.z_mm - pose.z_mm, r.uncertainty)
+
+
 def test_noise_scale_ratio_tells_sharpening_from_a_sensor_texture_and_jpeg():
     import cv2
 

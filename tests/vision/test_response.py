@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.ndimage import gaussian_filter
 from scipy.special import ndtr
 
 from doorloc.vision.edges import subpixel_edges
@@ -21,6 +22,8 @@ from doorloc.vision.response import (
     fit_line_response,
 )
 from doorloc.vision.response_asymmetry import Transitions
+from doorloc.vision.response_check import RESPONSE_OVERSHOOT_MAX
+from doorloc.vision.response_overshoot import line_overshoot
 from doorloc.vision.response_plateaus import RESPONSE_LEVEL_ROWS, plateau_level_rows
 from doorloc.vision.sampling import linearizing_lut
 
@@ -38,12 +41,14 @@ def _step_image(
     row: float = 50.3,
     halo: tuple[float, float] = (0.0, 1.0),
     stripes: tuple[float, float] = (0.0, 1.0),
+    sharpen: tuple[float, float] = (0.0, 1.0),
 ) -> np.ndarray:
     """8-bit image of a blurred step (light ``lo`` above the edge, ``hi`` below), integrated over each pixel
     on an 8x finer grid, recorded as ``light ** (1 / camera_gamma)``; ``halo``: the share of the light a
     wider Gaussian of the given sigma (px) spreads, the rest ``blur``'s; ``stripes``: grain across the edge,
     the bright side's light changed by that share, sinusoidally with the given period (px) along the edge
-    (each column, one profile, its own bright level)."""
+    (each column, one profile, its own bright level); ``sharpen``: an unsharp mask of that amount and radius
+    (px) run on the recorded grey levels, as a camera that sharpens its images runs one."""
     f = 8
     sub = (np.arange(N_ROWS * f) + 0.5) / f - 0.5  # sub-pixel row centres
     u = np.arange(N_COLS)
@@ -53,6 +58,8 @@ def _step_image(
     light = lo + (hi - lo) * ((1 - halo[0]) * ndtr(x / blur) + halo[0] * ndtr(x / halo[1]))
     light = light.reshape(N_ROWS, f, N_COLS).mean(axis=1)
     raw = 255.0 * light ** (1.0 / camera_gamma)
+    if sharpen[0]:
+        raw += sharpen[0] * (raw - gaussian_filter(raw, sharpen[1], mode="nearest"))
     raw += np.random.default_rng(seed).normal(0.0, noise, raw.shape)
     return np.clip(np.round(raw), 0, 255).astype(np.uint8)
 
@@ -108,6 +115,32 @@ def test_grain_across_the_edge_is_no_response(camera_gamma):
     blur = 1.5
     img = _step_image(camera_gamma, blur, 0.12, 0.7, 0.7, seed=7, stripes=(0.09, 24.0))
     _read_in_a_right_cell(img, camera_gamma, blur)
+
+
+@pytest.mark.parametrize(
+    ("camera_gamma", "blur", "sharpened"), [(1.0, 0.9, True), (1.85, 1.0, True), (2.2, 1.6, False)]
+)
+def test_a_sharpened_transition_overshoots_both_plateaus_and_a_blurred_step_neither(
+    camera_gamma, blur, sharpened
+):
+    # A camera that sharpens its grey levels makes a transition that some exponent no camera has makes
+    # symmetric (here a 1.85 camera read 1.14-1.2; on a rendered door 1.12 +- 0.02): its overshoot beyond
+    # both plateaus says the reading is no camera's. A blurred step overshoots neither, through a lens halo
+    # or under grain across the edge either. (Under a blur wider than the mask's radius, 1.6 px here, the
+    # overshoot stays within the plateaus' windows and is not seen: a 2.2 camera then read 1.5-1.7.)
+    half = int(math.ceil(2 * blur + 1))
+    plain = ({}, {"halo": (0.27, 3.5 * blur)}, {"stripes": (0.09, 24.0)})
+    masks = ({"sharpen": (0.36, 2.0)}, {"sharpen": (0.6, 1.4)}) if sharpened else ()
+    for effect in (*plain, *masks):
+        img = _step_image(camera_gamma, blur, 0.05, 0.85, 0.7, seed=11, **effect)
+        s = _samples(img, camera_gamma, half=half)
+        lr = fit_line_response(img, s, s.valid, half, camera_gamma, blur)
+        assert lr is not None, effect
+        overshoot = line_overshoot(img, s, s.valid, half, lr.gamma, blur)
+        if "sharpen" in effect:
+            assert overshoot >= RESPONSE_OVERSHOOT_MAX, (effect, lr, overshoot)
+        else:
+            assert overshoot < 0.25 * RESPONSE_OVERSHOOT_MAX, (effect, lr, overshoot)
 
 
 def test_plateaus_are_averaged_over_8_profiles_unless_they_differ_from_profile_to_profile():

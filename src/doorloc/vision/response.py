@@ -77,6 +77,7 @@ __all__ = [
     "edge_shifts_px",
     "fit_board_response",
     "fit_line_response",
+    "line_transitions",
     "plateau_levels",
 ]
 
@@ -310,10 +311,10 @@ def fit_line_response(
         range's end is a reading: :func:`doorloc.vision.response_asymmetry.least_asymmetric`).
     """
     # The window holds the whole transition (3 blur sigmas each side) and plateaus at both ends.
-    wide = max(half, int(math.ceil(RESPONSE_WINDOW_BLURS * max(blur_px, 0.0) + 1.5))) + wider_px
-    t = _transitions(plane, samples, mask, wide + RESPONSE_PLATEAU_PX)
-    if t is None:
+    read = line_transitions(plane, samples, mask, half, blur_px, wider_px)
+    if read is None:
         return None
+    t, wide = read
     one_phase = t.one_phase
     # Read between the pixels only where the optical blur itself makes the transition smooth (a line's
     # transition width is inflated by noise and texture: 2.6 px measured on a door blurred by 0.67 px,
@@ -321,9 +322,7 @@ def fit_line_response(
     one_phase_blur = _one_phase_blur(t, used_gamma) if one_phase else float("nan")
     if one_phase and not one_phase_blur >= RESPONSE_ONE_PHASE_MIN_BLUR_PX:
         return None
-    if t.raw.shape[0] > RESPONSE_MAX_PROFILES:  # evenly along the line: enough for the shape
-        k = int(math.ceil(t.raw.shape[0] / RESPONSE_MAX_PROFILES))
-        t = replace(t, raw=t.raw[::k], offset=t.offset[::k])
+    t = t.at_most(RESPONSE_MAX_PROFILES)
     n_blocks = min(RESPONSE_SKEW_BLOCKS, t.raw.shape[0] // 12)
     if n_blocks < 3:
         return None
@@ -356,6 +355,23 @@ def fit_line_response(
         alternatives,
         shared_sigma=shared,
     )
+
+
+def line_transitions(
+    plane: np.ndarray,
+    samples: EdgeSamples,
+    mask: np.ndarray,
+    half: int,
+    blur_px: float = 0.0,
+    wider_px: int = 0,
+) -> tuple[Transitions, int] | None:
+    """The profiles across one plain edge that :func:`fit_line_response` reads (its arguments), and the half
+    width of their window (px; the plateaus lie outside it): the whole transition (``RESPONSE_WINDOW_BLURS``
+    blur sigmas each side and 1.5 px) and at least ``half``, ``wider_px`` more each side. None where fewer
+    than 10 profiles lie whole in the image."""
+    wide = max(half, int(math.ceil(RESPONSE_WINDOW_BLURS * max(blur_px, 0.0) + 1.5))) + wider_px
+    t = _transitions(plane, samples, mask, wide + RESPONSE_PLATEAU_PX)
+    return None if t is None else (t, wide)
 
 
 def _one_phase_blur(t: Transitions, used_gamma: float) -> float:

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.interpolate import CubicSpline
@@ -68,6 +68,13 @@ class Transitions:
     dithered: bool = True
     #: the grey levels of full scale (255, 65535) where ``raw`` is whole grey levels over it; 0: not so
     top: float = 0.0
+
+    def at_most(self, n: int) -> Transitions:
+        """At most ``n`` of the profiles, evenly along the line (every k-th): enough for the shape."""
+        if self.raw.shape[0] <= n:
+            return self
+        k = int(math.ceil(self.raw.shape[0] / n))
+        return replace(self, raw=self.raw[::k], offset=self.offset[::k])
 
     @functools.cached_property
     def levels(self) -> tuple[np.ndarray, np.ndarray]:

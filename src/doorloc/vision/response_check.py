@@ -30,6 +30,7 @@ from doorloc.vision.response import (
     edge_shifts_px,
     fit_line_response,
 )
+from doorloc.vision.response_overshoot import line_overshoot
 from doorloc.vision.sampling import linearizing_lut
 from doorloc.vision.side_patches import plateau_noise_dn, side_patches
 from doorloc.vision.state import Refined, ResponseCheck
@@ -37,6 +38,7 @@ from doorloc.vision.texture import texture_bias
 
 __all__ = [
     "PLAIN_STRIP_PX",
+    "RESPONSE_OVERSHOOT_MAX",
     "RESPONSE_MIN_NOISE_DN",
     "blur_without_pixel",
     "check_response",
@@ -53,6 +55,15 @@ PLAIN_STRIP_PX = 0.1
 #: px added to each side of a plain edge's window to read its exponent again before the image's reading
 #: replaces the cell's (:func:`_read_otherwise_wider`)
 RESPONSE_WIDER_CHECK_PX = 3
+
+#: the overshoot of a plain edge's mean transition beyond both its plateaus (a fraction of the step,
+#: :func:`doorloc.vision.response_overshoot.line_overshoot`) from which its reading does not replace the
+#: cell's exponent: a camera that sharpens (a 1.85 camera sharpened by 0.36 at 2 px, whose sensor noise hid
+#: it from the gate's sharpening check: 0.030-0.031 on its two lines, read 1.12 +- 0.02, absorbed and
+#: answered 0.066 mm off at 2.9 sigma; the cell's exponent kept, 0.021 mm off). Unsharpened, the benches'
+#: plain edges read at most 0.011 (JPEG doors, quality 80-95), 0.017 (grain and JPEG, bench_surfaces.py),
+#: below 0 through a halo
+RESPONSE_OVERSHOOT_MAX = 0.02
 
 #: plateau noise (1-sigma, 0-255 scale, as :func:`doorloc.vision.side_patches.plateau_noise_dn` reads it)
 #: under which the plain edges' response is not read: the grey levels' rounding, undithered, bends the
@@ -88,17 +99,11 @@ def check_response(
     unstable: float | None = None
     if cell.response_gamma_sigma is not None:
         response_diag["cell_sigma"] = cell.response_gamma_sigma
-    wider = (
-        _read_otherwise_wider(plane, refined, cell, cfg, per_line)
-        if response is not None and response.absorb
-        else {}
-    )
-    if wider:
-        # The reading follows the window: no measurement of the camera to replace the cell's with. The cell's
-        # exponent stands, and the reading still sizes its doubt (a camera changed since its calibration,
-        # under texture, is then covered rather than answered with the calibration's small doubt).
-        response_diag["wider_window_fit"] = wider
-    if response is not None and response.absorb and not wider:
+    if (
+        response is not None
+        and response.absorb
+        and _a_camera_reading(plane, refined, cell, cfg, per_line, response_diag)
+    ):
         # The plain edges show another camera response than the cell's: measure again with theirs (the
         # bias a wrong response gives every edge, arris strips included, is then gone), and check again.
         response_diag.update(absorbed=True, first_fit=round(response.gamma, 4))
@@ -177,6 +182,26 @@ def blur_without_pixel(transition_px: float) -> float:
     )
 
 
+def _a_camera_reading(
+    plane, refined: Refined, cell: Cell, cfg: LocateConfig, per_line: dict[str, LineResponse], diag: dict
+) -> bool:
+    """Whether the plain edges' reading, which differs from the cell's exponent, is a measurement of the
+    camera to replace it with: not where a line's transition overshoots both plateaus (no blurred step's:
+    a camera that sharpens, :func:`_overshooting`, ``diag["overshoot"]``), nor where a line reads another
+    exponent over a wider window (texture or shading beside it, :func:`_read_otherwise_wider`,
+    ``diag["wider_window_fit"]``). Otherwise the cell's exponent stands, and the reading still sizes its
+    doubt (a camera changed since its calibration, under texture, is then covered rather than answered with
+    the calibration's small doubt)."""
+    overshooting = _overshooting(plane, refined, per_line)
+    if overshooting:
+        diag["overshoot"] = overshooting
+        return False
+    wider = _read_otherwise_wider(plane, refined, cell, cfg, per_line)
+    if wider:
+        diag["wider_window_fit"] = wider
+    return not wider
+
+
 def _read_otherwise_wider(
     plane, refined: Refined, cell: Cell, cfg: LocateConfig, per_line: dict[str, LineResponse]
 ) -> dict[str, float | None]:
@@ -204,6 +229,20 @@ def _read_otherwise_wider(
         confirms = v.gamma != c and 0.5 <= (w.gamma - c) / (v.gamma - c) <= 2.0
         if not (agree or confirms):
             out[k] = round(w.gamma, 4)
+    return out
+
+
+def _overshooting(plane, refined: Refined, per_line: dict[str, LineResponse]) -> dict[str, float]:
+    """The lines whose mean transition, linearised with their reading, overshoots both plateaus by
+    ``RESPONSE_OVERSHOOT_MAX`` of its step or more, with that figure
+    (:func:`doorloc.vision.response_overshoot.line_overshoot`)."""
+    blur_px = blur_without_pixel(refined.blur_px)
+    out = {}
+    for k, v in per_line.items():
+        inl = refined.fit.weights[k] > 0
+        o = line_overshoot(plane, refined.samples[k], inl, refined.half, v.gamma, blur_px)
+        if math.isfinite(o) and o >= RESPONSE_OVERSHOOT_MAX:
+            out[k] = round(o, 4)
     return out
 
 
