@@ -28,8 +28,9 @@ term of the uncertainty budget (``response_sigma_mm`` per line): where the fitte
 cell's beyond ``RESPONSE_ABSORB_SIGMAS`` standard errors on two edges or more (the combination of the image's
 and, where the cell's exponent was measured, its ``camera.response_gamma_sigma``), and the lines read over a
 window 3 px wider confirm it (texture or shading beside an edge skews its transition as a response does, but
-not alike over both windows: :mod:`doorloc.vision.response_check`), locate measures again with the fitted one
-(the error is absorbed) and the doubt left is the shift that the exponent's standard error makes; otherwise
+not alike over both windows: :mod:`doorloc.vision.response_check`) and no line's transition overshoots
+both its plateaus (a camera that sharpens: :mod:`doorloc.vision.response_overshoot`), locate measures again
+with the fitted one (the error is absorbed) and the doubt left is the shift that the exponent's standard error makes; otherwise
 the doubt is the shift between the cell's exponent and the fitted one beyond twice that (a right cell keeps
 its small sigma), except for a reading between the pixels (a door square to the camera), which is combined
 with the cell's exponent as known within ``locate.response_unmeasured_factor``

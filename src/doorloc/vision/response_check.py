@@ -1,6 +1,7 @@
 """The response check stage of locate: the camera's response read off the plain edges of the image, and
-where it differs from the cell's and a wider window confirms it, the edges refined again with the image's
-own exponent (absorbed) and read once more (:func:`check_response`). What it finds is a
+where it differs from the cell's, a wider window confirms it and no line's transition overshoots both its
+plateaus (a camera that sharpens, :mod:`doorloc.vision.response_overshoot`), the edges refined again with
+the image's own exponent (absorbed) and read once more (:func:`check_response`). What it finds is a
 :class:`doorloc.vision.state.ResponseCheck`.
 """
 
