@@ -118,10 +118,10 @@ def test_grain_across_the_edge_is_no_response(camera_gamma):
 
 
 @pytest.mark.parametrize(
-    ("camera_gamma", "blur", "sharpened"), [(1.0, 0.9, True), (1.85, 1.0, True), (2.2, 1.6, False)]
+    ("camera_gamma", "blur", "mask_seen"), [(1.0, 0.9, True), (1.85, 1.0, True), (2.2, 1.6, False)]
 )
 def test_a_sharpened_transition_overshoots_both_plateaus_and_a_blurred_step_neither(
-    camera_gamma, blur, sharpened
+    camera_gamma, blur, mask_seen
 ):
     # A camera that sharpens its grey levels makes a transition that some exponent no camera has makes
     # symmetric (here a 1.85 camera read 1.14-1.2; on a rendered door 1.12 +- 0.02): its overshoot beyond
@@ -130,7 +130,7 @@ def test_a_sharpened_transition_overshoots_both_plateaus_and_a_blurred_step_neit
     # overshoot stays within the plateaus' windows and is not seen: a 2.2 camera then read 1.5-1.7.)
     half = int(math.ceil(2 * blur + 1))
     plain = ({}, {"halo": (0.27, 3.5 * blur)}, {"stripes": (0.09, 24.0)})
-    masks = ({"sharpen": (0.36, 2.0)}, {"sharpen": (0.6, 1.4)}) if sharpened else ()
+    masks = ({"sharpen": (0.36, 2.0)}, {"sharpen": (0.6, 1.4)}) if mask_seen else ()
     for effect in (*plain, *masks):
         img = _step_image(camera_gamma, blur, 0.05, 0.85, 0.7, seed=11, **effect)
         s = _samples(img, camera_gamma, half=half)
