@@ -308,8 +308,10 @@ def _locate(
         if res.ok:
 
             def free_sigma() -> tuple[float, float] | None:
+                # (a trace of its own: the free shadings' answer is asked, not given)
                 return _free_sigma(
-                    lambda c: _answer(name, door, c, region, check, lum, clock, tr, jpeg_quality), cfg, tr
+                    lambda c: _answer(name, door, c, region, check, lum, clock, LocateTrace(), jpeg_quality),
+                    cfg,
                 )
 
             return _lit_beside_free(res, lit.refined.pose, check.refined.pose, free_sigma, own, cfg, tr)
@@ -366,12 +368,11 @@ def _read_two_ways(answer: LocateResult, message: str) -> LocateResult:
 
 
 def _free_sigma(
-    free_answer: Callable[[LocateConfig], LocateResult], cfg: LocateConfig, tr: LocateTrace
+    free_answer: Callable[[LocateConfig], LocateResult], cfg: LocateConfig
 ) -> tuple[float, float] | None:
     """The free shadings' own 1-sigma of x and z (mm): their answer (``free_answer``, :func:`_answer` on
     their response check) under ``cfg`` with the cell's limits lifted; None where they give none (refused
-    for another reason). The trace keeps what it held."""
-    kept = (tr.samples, tr.inliers, tr.pose, tr.arris_fits)
+    for another reason)."""
     lifted = replace(
         cfg,
         max_uncertainty_mm=math.inf,
@@ -383,7 +384,6 @@ def _free_sigma(
         free = free_answer(lifted)
     except Refused:
         free = None
-    tr.samples, tr.inliers, tr.pose, tr.arris_fits = kept
     u = free.uncertainty if free is not None and free.ok else None
     return None if u is None else (u.x_mm, u.z_mm)
 
@@ -520,10 +520,8 @@ def _door_light_diagnostics(
     """The door's own light as the result's diagnostics report it, whether the answer is the one found
     under it (``used``; False: it was refused under it, and the free shadings' outcome stands), and how
     far the free shadings' pose lay from it where the strips did not single the light out (x, z mm)."""
-    apart = {} if free_apart_mm is None else {"free_apart_mm": [round(v, 4) for v in free_apart_mm]}
     return (
-        apart
-        | {
+        {
             "used": used,
             "direction_deg": [round(v, 1) for v in light.direction_deg],
             "sigma_deg": light.sigma_deg,
@@ -532,6 +530,7 @@ def _door_light_diagnostics(
             "strips": light.strips,
         }
         | ({"runner_up_deg": list(light.runner_up_deg)} if light.runner_up_deg is not None else {})
+        | ({"free_apart_mm": [round(v, 4) for v in free_apart_mm]} if free_apart_mm is not None else {})
     )
 
 

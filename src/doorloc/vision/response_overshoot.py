@@ -44,8 +44,7 @@ def transition_overshoot(t: Transitions, g: float) -> float:
     """
     pk = RESPONSE_PLATEAU_PX
     W = t.raw.shape[1]
-    with np.errstate(divide="ignore"):
-        light = np.exp(g * np.log(t.raw)) if g != 1.0 else t.raw
+    light = np.power(t.raw, g)
     lo, hi = light[:, :pk].mean(axis=1), light[:, W - pk :].mean(axis=1)
     span = hi - lo
     ok = np.abs(span) > 1e-9
