@@ -135,8 +135,17 @@ def test_a_compressed_highlight_read_at_both_borders_of_its_strip_is_refused():
     r = locate(img, cell, door, config=cfg)
     assert not r.ok and r.error_code == "uncertain", r.error
     assert "reference-face arris" in r.error and "reads two ways" in r.error
-    # without the check the answer stood a strip's width off, far beyond its claimed doubt
-    off = locate(img, cell, door, config=dataclasses.replace(cfg, max_strip_other_border_share=1.0))
+    # without the check the doubt of a shoulder in the camera's response, which the cell states as a power
+    # law and the image cannot check, refuses it too (located again through a shoulder, it moves 0.23 mm)
+    unchecked = locate(img, cell, door, config=dataclasses.replace(cfg, max_strip_other_border_share=1.0))
+    assert not unchecked.ok and unchecked.error_code == "uncertain" and "shoulder" in unchecked.error
+    # without either, the answer stood a strip's width off, far beyond its claimed doubt
+    off = locate(
+        img,
+        cell,
+        door,
+        config=dataclasses.replace(cfg, max_strip_other_border_share=1.0, response_shoulder_knee=1.0),
+    )
     assert off.ok and off.uncertainty is not None
     err = abs(off.x_mm - pose.x_mm)
     assert err > 0.3 and err > 5 * off.uncertainty.x_mm

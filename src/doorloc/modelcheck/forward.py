@@ -383,7 +383,9 @@ def _ungated(cfg: LocateConfig) -> LocateConfig:
     choose another direction, a jump in the relocation tables that no effect of the cell explains. Nor
     with the doubt of a camera's optics that nobody measured (``locate.optics_edge_sigma_px``): one shift
     of every edge on every image of the camera, which the check looks for as an effect, not an image's
-    noise to weigh the pose components by."""
+    noise to weigh the pose components by; nor, for the same reason, with the doubt of a shoulder in the
+    camera's response (``locate.response_shoulder_knee``: the catalogue's ``shoulder`` is such an effect),
+    which would locate every bright arris image twice for a sigma alone (it never moves a pose)."""
     big = 1e6
     return replace(
         cfg,
@@ -393,6 +395,7 @@ def _ungated(cfg: LocateConfig) -> LocateConfig:
         max_sigma_mm=big,
         light_from_door=False,
         optics_edge_sigma_px=0.0,
+        response_shoulder_knee=1.0,
     )
 
 

@@ -435,7 +435,7 @@ def locate_batch(
         # arrays in the caches (batched locate 7.3-8.3 ms a frame against 6.5-7.5 ms one-frame). Without
         # torch each frame runs to its answer.
         for group in [steps] if use_torch else [{b: g} for b, g in steps.items()]:
-            _run_group(group, finder_impl, frames, answers, members)
+            _run_group(group, finder_impl, planes, frames, answers, members)
     return [a for a in answers if a is not None]
 
 
@@ -503,26 +503,33 @@ class _Frames:
 def _run_group(
     group: dict[int, Steps],
     finder: StepFinder,
+    planes: list[np.ndarray],
     frames: _Frames,
     answers: list[BatchAnswer | None],
     members: list[int],
 ) -> None:
     """The frames of ``group`` (batch index -> its locate coroutine) to their answers, each round of their
-    step searches answered together; if the finder fails, the one-frame path answers them."""
+    step searches answered together; if the finder fails, the one-frame path answers them.
+
+    The finder holds each frame's own plane (``planes``); a search on another plane (the frame's levels
+    mapped through a camera model: a cell's photometric model, or a shoulder's doubt, :mod:`doorloc.vision.
+    response_shoulder`) is answered on that plane by the one-frame finder, as :func:`locate` would."""
     pending: dict[int, StepQuery] = {}
     for b, g in group.items():
         _advance(g, None, b, pending, answers, members)
     while pending:
         batch = list(pending.items())
+        own = [(b, q.kwargs) for b, q in batch if q.plane is planes[b]]
         try:
-            found = finder.answer([(b, q.kwargs) for b, q in batch])
+            found = iter(finder.answer(own))
         except Exception as e:  # noqa: BLE001 - the one-frame path still answers these frames
             for b, _ in batch:
                 i = members[b]
                 answers[i] = frames.alone(i, f"batched step search failed ({type(e).__name__}: {e})")
             break
         pending = {}
-        for (b, _), res in zip(batch, found, strict=True):
+        for b, q in batch:
+            res = next(found) if q.plane is planes[b] else coarse_edges(q.plane, **q.kwargs)
             _advance(group[b], res, b, pending, answers, members)
 
 

@@ -37,8 +37,9 @@ def _rounded_strips(
     progress: Callable[[str], None] | None = None,
 ) -> list[list[StripScore]]:
     """Per frame, its rounded strips as locate fitted them (``StripFit.misfit_under_lights``), each door
-    located once without a light of its own; ``progress`` hears of each door done."""
-    cfg = replace(cell.locate, light_direction_deg=None, light_from_door=False)
+    located once without a light of its own (nor the shoulder's doubt, which locates a door again for its
+    sigma alone); ``progress`` hears of each door done."""
+    cfg = replace(cell.locate, light_direction_deg=None, light_from_door=False, response_shoulder_knee=1.0)
     out = []
     for k, (image, door) in enumerate(frames):
         trace = LocateTrace()

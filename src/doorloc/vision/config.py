@@ -126,6 +126,14 @@ class LocateConfig:
         unless the cell sets it) and the reading's cost (3 of a realistic 1080p frame's 9 ms) is saved. A
         camera changed since its calibration is then not seen by locate: for a cell whose camera is locked
         and re-calibrated when changed.
+    response_shoulder_knee : float
+        Where the image could not check the camera's response and the cell has no photometric model of its
+        camera (``doorloc check-model --boards``), the response above this level (fraction of full scale) is
+        doubted to bend as a shoulder (both public cameras' do, from 0.69 and 0.48): a door whose image
+        reaches above it is located again as if its camera had a shoulder from here to full scale, and the
+        answer's move joins its uncertainty (``uncertainty_budget``'s ``response_shoulder``;
+        :mod:`doorloc.vision.response_shoulder`). 1: no such doubt (a camera known to keep its power law to
+        full scale).
     max_sigma_mm : float
         Refuse when the fit's standard error of x or z exceeds this.
     max_saturated_fraction : float
@@ -201,6 +209,7 @@ class LocateConfig:
     corner_tolerance_px: float = 0.5
     response_unmeasured_factor: float = 2.2
     response_check: Literal["every_image", "where_unmeasured"] = "every_image"
+    response_shoulder_knee: float = 0.7
     max_sigma_mm: float = 0.05
     max_saturated_fraction: float = 0.5
     max_clipped_arris_fraction: float = 0.1
@@ -234,6 +243,11 @@ class LocateConfig:
         if not 0.0 <= self.min_noise_scale_ratio < 1.0:
             raise ValueError(
                 f"min_noise_scale_ratio is a ratio in 0..1 (0: off), got {self.min_noise_scale_ratio:g}"
+            )
+        if not 0.05 <= self.response_shoulder_knee <= 1.0:
+            raise ValueError(
+                "response_shoulder_knee is a level in 0.05..1 of full scale (1: no shoulder doubted), got "
+                f"{self.response_shoulder_knee:g}"
             )
         if not 0.0 <= self.optics_edge_sigma_px <= 5.0:
             raise ValueError(

@@ -13,6 +13,9 @@ The flow (thesis section 3.7, made metric and robust)::
       -> (a rounded door, no light stated: the light its strips fit best, and the passes again under it)
       -> each line's doubts -> the door's direction voted again, each line weighed by its whole doubt
       -> quality gate -> LocateResult
+      -> (an arris door whose response the image could not check, in a cell without its camera's
+         photometric model, its image above the shoulder's knee: all of it again as if the camera had a
+         shoulder, the move in the answer's uncertainty)
 
 As code, :func:`_locate` visits each stage once, each handing the next a frozen value
 (:mod:`doorloc.vision.state`): the coarse stage (:func:`doorloc.vision.coarse_stage.find_coarse`, the
@@ -26,7 +29,9 @@ answer given where it passes the gate, else the free shadings' answer or refusal
 every line's doubts, typed) -> the direction's vote (:func:`doorloc.vision.direction_vote.voted_by_doubts`:
 the pose again, each line's direction weighed by its whole doubt) -> the gate
 (:func:`doorloc.vision.gate.gate_and_answer`: the checks, the
-uncertainty from :func:`doorloc.vision.uncertainty.propagate`, the answer or the refusal).
+uncertainty from :func:`doorloc.vision.uncertainty.propagate`, the answer or the refusal); where a shoulder
+is doubted (:mod:`doorloc.vision.response_shoulder`), :func:`_located` (every stage after the luminance)
+runs a second time on the levels mapped through it.
 
 :func:`locate` never raises for a bad image: every failure comes back as a refusal (``ok=false``,
 ``error_code``, ``error``). The codes: ``bad_image`` (not an 8/16-bit grey or colour array),
@@ -67,6 +72,13 @@ from doorloc.vision.metric import MetricPose
 from doorloc.vision.refine import refine
 from doorloc.vision.region import EDGE_NAMES, Band, SearchRegion
 from doorloc.vision.response_check import check_response
+from doorloc.vision.response_shoulder import (
+    shoulder_doubted,
+    shoulder_ruled_out,
+    shouldered_camera,
+    strip_misfit,
+    widened_by_shoulder,
+)
 from doorloc.vision.result import LocateResult, PhysicalModel, PoseUncertainty, Provenance
 from doorloc.vision.state import Refined, Refused, ResponseCheck, StageClock
 
@@ -264,11 +276,43 @@ def _locate(
     jpeg_quality: int = 0,
 ) -> Generator[StepQuery, tuple[np.ndarray, np.ndarray], LocateResult]:
     try:
-        lum = camera_levels(
-            lum if lum is not None else luminance_plane(image), cell.camera_photometry, cell.response_gamma
-        )
+        stored = lum if lum is not None else luminance_plane(image)
     except ImageFormatError as e:
         raise Refused(q.Refusal("bad_image", f"{e}")) from None
+    res = yield from _located(stored, cell, door, cfg, tr, name, jpeg_quality)
+    knee = cfg.response_shoulder_knee
+    if not shoulder_doubted(res, stored, knee, cell.camera_photometry is not None, door.arris_mm):
+        return res
+    # located again as if the camera had a shoulder from the knee (its own trace: this answer is asked, not
+    # given), the cell's limits lifted: the move is the answer's doubt (doorloc.vision.response_shoulder)
+    shouldered_cell = replace(cell, camera_photometry=shouldered_camera(cell.response_gamma, knee))
+    bent = LocateTrace()
+    try:
+        shouldered = yield from _located(
+            stored, shouldered_cell, door, _limits_lifted(cfg), bent, name, jpeg_quality
+        )
+    except Refused:
+        shouldered = None
+    chamfered, ruled_out = door.arris_profile == "chamfer", None
+    if shouldered is not None and shouldered.ok:
+        ruled_out = shoulder_ruled_out(
+            strip_misfit(tr.arris_fits.values(), chamfered), strip_misfit(bent.arris_fits.values(), chamfered)
+        )
+    return widened_by_shoulder(res, shouldered, knee, ruled_out, cfg)
+
+
+def _located(
+    stored: LuminancePlane,
+    cell: Cell,
+    door: DoorSize,
+    cfg: LocateConfig,
+    tr: LocateTrace,
+    name: str,
+    jpeg_quality: int,
+) -> Generator[StepQuery, tuple[np.ndarray, np.ndarray], LocateResult]:
+    """The answer from the image's stored luminance ``stored``, its levels mapped through the cell's
+    photometric model where it has one (:func:`doorloc.vision.luminance.camera_levels`)."""
+    lum = camera_levels(stored, cell.camera_photometry, cell.response_gamma)
     r = q.check_image_size(lum.size, cell.camera.image_size)
     if r:
         raise Refused(r)
@@ -373,19 +417,24 @@ def _free_sigma(
     """The free shadings' own 1-sigma of x and z (mm): their answer (``free_answer``, :func:`_answer` on
     their response check) under ``cfg`` with the cell's limits lifted; None where they give none (refused
     for another reason)."""
-    lifted = replace(
+    try:
+        free = free_answer(_limits_lifted(cfg))
+    except Refused:
+        free = None
+    u = free.uncertainty if free is not None and free.ok else None
+    return None if u is None else (u.x_mm, u.z_mm)
+
+
+def _limits_lifted(cfg: LocateConfig) -> LocateConfig:
+    """``cfg`` without the cell's limits on the answer's uncertainty and its thickness's verification: for
+    another reading of the door, whose pose is asked rather than judged."""
+    return replace(
         cfg,
         max_uncertainty_mm=math.inf,
         max_uncertainty_deg=math.inf,
         max_sigma_mm=math.inf,
         thickness_check="report",
     )
-    try:
-        free = free_answer(lifted)
-    except Refused:
-        free = None
-    u = free.uncertainty if free is not None and free.ok else None
-    return None if u is None else (u.x_mm, u.z_mm)
 
 
 def _lit_beside_free(
