@@ -195,3 +195,15 @@ def test_a_chamfer_in_a_cameras_shoulder_is_not_confidently_off():
         assert abs(res.z_mm - pose.z_mm) <= 2 * res.uncertainty.z_mm
     else:
         assert res.error_code == "uncertain" and "shoulder" in res.error
+
+
+def test_the_knee_is_a_level_of_full_scale_set_in_the_cell_file(tmp_path):
+    with pytest.raises(ValueError, match="response_shoulder_knee"):
+        LocateConfig(response_shoulder_knee=0.0)
+    with pytest.raises(ValueError, match="response_shoulder_knee"):
+        LocateConfig(response_shoulder_knee=1.2)
+    assert LocateConfig().response_shoulder_knee == 0.7
+    text = (Path(__file__).parents[2] / "fixtures" / "cell_thesis.yaml").read_text()
+    cell_file = tmp_path / "cell.yaml"
+    cell_file.write_text(text + "\nlocate:\n  response_shoulder_knee: 1.0\n")
+    assert load_cell(cell_file).locate.response_shoulder_knee == 1.0
