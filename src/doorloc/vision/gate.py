@@ -47,7 +47,7 @@ from doorloc.vision.uncertainty import (
     propagate,
 )
 
-__all__ = ["PATTERN", "gate_and_answer"]
+__all__ = ["PATTERN", "gate_and_answer", "uncertain_pose_words", "within_pose_limits"]
 
 
 PATTERN = q.Refusal(
@@ -499,13 +499,23 @@ def _pose_check(unc: PoseUncertainty, cause: tuple[str, str], cfg: LocateConfig)
         or unc.z_mm > cfg.max_uncertainty_mm
         or unc.yaw_deg > cfg.max_uncertainty_deg
     ):
-        return q.Refusal(
-            "uncertain",
-            f"the pose is uncertain to x {unc.x_mm:.3f} mm, z {unc.z_mm:.3f} mm, "
-            f"yaw {unc.yaw_deg:.3f} deg (1 sigma; the cell allows {cfg.max_uncertainty_mm:g} mm, "
-            f"{cfg.max_uncertainty_deg:g} deg), " + "; ".join(cause),
-        )
+        return q.Refusal("uncertain", f"{uncertain_pose_words(unc, cfg)}, " + "; ".join(cause))
     return None
+
+
+def within_pose_limits(unc: PoseUncertainty, cfg: LocateConfig) -> bool:
+    """Whether an answer's uncertainty ``unc``, widened after the gate by another reading of the door, keeps
+    within the cell's limits (``locate.max_uncertainty_mm`` in x and z, ``max_uncertainty_deg``)."""
+    return max(unc.x_mm, unc.z_mm) <= cfg.max_uncertainty_mm and unc.yaw_deg <= cfg.max_uncertainty_deg
+
+
+def uncertain_pose_words(unc: PoseUncertainty, cfg: LocateConfig) -> str:
+    """How far the pose is uncertain and what the cell allows, as a refusal says it."""
+    return (
+        f"the pose is uncertain to x {unc.x_mm:.3f} mm, z {unc.z_mm:.3f} mm, "
+        f"yaw {unc.yaw_deg:.3f} deg (1 sigma; the cell allows {cfg.max_uncertainty_mm:g} mm, "
+        f"{cfg.max_uncertainty_deg:g} deg)"
+    )
 
 
 def _pose_cause(

@@ -65,7 +65,7 @@ from doorloc.vision.direction_vote import voted_by_doubts
 from doorloc.vision.doubts import edge_doubts
 from doorloc.vision.edge_samples import EdgeSamples
 from doorloc.vision.far_band import FarFaceFit
-from doorloc.vision.gate import gate_and_answer
+from doorloc.vision.gate import gate_and_answer, uncertain_pose_words, within_pose_limits
 from doorloc.vision.light_search import LightMeasurement, light_of_one_door
 from doorloc.vision.luminance import ImageFormatError, LuminancePlane, camera_levels, luminance_plane
 from doorloc.vision.metric import MetricPose
@@ -79,8 +79,9 @@ from doorloc.vision.response_shoulder import (
     strip_misfit,
     widened_by_shoulder,
 )
-from doorloc.vision.result import LocateResult, PhysicalModel, PoseUncertainty, Provenance
+from doorloc.vision.result import LocateResult, PhysicalModel, Provenance
 from doorloc.vision.state import Refined, Refused, ResponseCheck, StageClock
+from doorloc.vision.uncertainty import BudgetTerm
 
 __all__ = ["LocateConfig", "locate", "locate_steps", "run_steps", "StepQuery", "LocateTrace"]
 
@@ -388,26 +389,13 @@ def _free_beside_lit(free: LocateResult, lit: dict | None, own: LightMeasurement
     if max(dx / max(u.x_mm, 1e-9), dz / max(u.z_mm, 1e-9)) <= SHADINGS_APART_SIGMAS:
         return free
     az, el = own.direction_deg
-    return _read_two_ways(
-        free,
+    return free.refused(
+        "uncertain",
         f"the door's rounded arrises read two ways: shaded freely they place the door at x {free.x_mm:+.3f}, z "
         f"{free.z_mm:+.3f} mm, under the light their shading tells (azimuth {az:.0f}, elevation {el:.0f} deg) "
         f"at x {lit['x_mm']:+.3f}, z {lit['z_mm']:+.3f} mm, further apart than the answer's uncertainty (x "
         f"{u.x_mm:.3f}, z {u.z_mm:.3f} mm); state the cell's light (locate.light_direction_deg) and its "
         "camera's measured response (doorloc calibrate), or light the arrises from one known direction",
-    )
-
-
-def _read_two_ways(answer: LocateResult, message: str) -> LocateResult:
-    """``answer`` refused ``uncertain`` with ``message`` (its rounded arrises read two ways), its pose kept
-    as ``diagnostics.measured``."""
-    measured = {k: getattr(answer, k) for k in ("x_mm", "z_mm", "yaw_deg", "thickness_mm")}
-    return LocateResult.refusal(
-        answer.image,
-        "uncertain",
-        message,
-        lines=answer.lines,
-        diagnostics=answer.diagnostics | {"measured": measured},
     )
 
 
@@ -478,19 +466,11 @@ def _lit_beside_free(
     tr.door_light_free_apart_mm = (dx, dz)
     # half the difference: the free shadings' reading then lies within 2 sigma of the answer whatever the
     # answer's own sigma (the product's test of an honest sigma), as two models weighed alike spread by it
-    widened = PoseUncertainty(
-        x_mm=math.hypot(u.x_mm, 0.5 * dx),
-        z_mm=math.hypot(u.z_mm, 0.5 * dz),
-        yaw_deg=math.hypot(u.yaw_deg, 0.5 * dyaw),
-    )
-    if (
-        max(widened.x_mm, widened.z_mm) <= cfg.max_uncertainty_mm
-        and widened.yaw_deg <= cfg.max_uncertainty_deg
-    ):
+    widened = u.widened(0.5 * dx, 0.5 * dz, 0.5 * dyaw)
+    if within_pose_limits(widened, cfg):
         lit.uncertainty = widened
         lit.diagnostics.setdefault("uncertainty_budget", []).append(
-            {"source": "door_light", "x_mm": round(0.5 * dx, 7), "z_mm": round(0.5 * dz, 7)}
-            | {"yaw_deg": round(0.5 * dyaw, 7), "thickness_mm": None}
+            BudgetTerm("door_light", 0.5 * dx, 0.5 * dz, 0.5 * dyaw, None).as_dict()
         )
         return lit
     # Beyond the limits, the free shadings' own doubt is asked (their doubts counted once more, 0.3-1.2 s
@@ -500,14 +480,12 @@ def _lit_beside_free(
     if free is not None and dx <= free[0] and dz <= free[1]:
         return lit
     az, el = own.direction_deg
-    return _read_two_ways(
-        lit,
+    return lit.refused(
+        "uncertain",
         f"the door's rounded arrises read two ways: under the light their shading tells best (azimuth "
         f"{az:.0f}, elevation {el:.0f} deg, though other directions fit them about as well) they place the "
         f"door at x {lit.x_mm:+.3f}, z {lit.z_mm:+.3f} mm, shaded freely {dx:.3f} mm and {dz:.3f} mm from "
-        f"there: the pose is uncertain to x {widened.x_mm:.3f} mm, z {widened.z_mm:.3f} mm, yaw "
-        f"{widened.yaw_deg:.3f} deg (1 sigma; the cell allows {cfg.max_uncertainty_mm:g} mm, "
-        f"{cfg.max_uncertainty_deg:g} deg); state the cell's light (locate.light_direction_deg, which "
+        f"there: {uncertain_pose_words(widened, cfg)}; state the cell's light (locate.light_direction_deg, which "
         "doorloc measure-light measures from images of its doors) and its camera's measured response, or "
         "light the arrises from one known direction",
     )

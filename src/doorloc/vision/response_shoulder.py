@@ -39,8 +39,9 @@ import numpy as np
 from doorloc.photometric.model import PhotometricModel
 from doorloc.vision.arris_model import StripFit
 from doorloc.vision.config import LocateConfig
+from doorloc.vision.gate import uncertain_pose_words, within_pose_limits
 from doorloc.vision.luminance import LuminancePlane
-from doorloc.vision.result import LocateResult, PoseUncertainty
+from doorloc.vision.result import LocateResult
 from doorloc.vision.strip_response import (
     ARC_EXPLAINS,
     ARC_RULED_OUT,
@@ -49,6 +50,7 @@ from doorloc.vision.strip_response import (
     arc_score,
     grey_score,
 )
+from doorloc.vision.uncertainty import BudgetTerm
 
 __all__ = [
     "shoulder_doubted",
@@ -113,30 +115,21 @@ def widened_by_shoulder(
     answer.diagnostics["response_shoulder"] = figure | (ruled_out or {})
     if ruled_out is not None:
         return answer
-    widened = PoseUncertainty(**{k: math.hypot(getattr(u, k), move[k]) for k in move})
+    widened = u.widened(move["x_mm"], move["z_mm"], move["yaw_deg"])
     answer.diagnostics.setdefault("uncertainty_budget", []).append(
-        {"source": "response_shoulder"}
-        | {k: round(abs(v), 7) for k, v in move.items()}
-        | {"thickness_mm": None}
+        BudgetTerm(
+            "response_shoulder", abs(move["x_mm"]), abs(move["z_mm"]), abs(move["yaw_deg"]), None
+        ).as_dict()
     )
-    if (
-        max(widened.x_mm, widened.z_mm) <= cfg.max_uncertainty_mm
-        and widened.yaw_deg <= cfg.max_uncertainty_deg
-    ):
+    if within_pose_limits(widened, cfg):
         answer.uncertainty = widened
         return answer
-    measured = {k: getattr(answer, k) for k in ("x_mm", "z_mm", "yaw_deg", "thickness_mm")}
-    return LocateResult.refusal(
-        answer.image,
+    return answer.refused(
         "uncertain",
-        f"the pose is uncertain to x {widened.x_mm:.3f} mm, z {widened.z_mm:.3f} mm, yaw {widened.yaw_deg:.3f} "
-        f"deg (1 sigma; the cell allows {cfg.max_uncertainty_mm:g} mm, {cfg.max_uncertainty_deg:g} deg) with "
-        f"the doubt of the camera's response above {knee:g} of full scale, which this image reaches: a "
-        f"shoulder there would move it by x {move['x_mm']:+.3f}, z {move['z_mm']:+.3f} mm; measure the "
-        "camera's response beyond a power law once (doorloc check-model --boards writes its photometric model "
-        "into the calibration) or expose the door darker",
-        lines=answer.lines,
-        diagnostics=answer.diagnostics | {"measured": measured},
+        f"{uncertain_pose_words(widened, cfg)} with the doubt of the camera's response above {knee:g} of "
+        f"full scale, which this image reaches: a shoulder there would move it by x {move['x_mm']:+.3f}, z "
+        f"{move['z_mm']:+.3f} mm; measure the camera's response beyond a power law once (doorloc check-model "
+        "--boards writes its photometric model into the calibration) or expose the door darker",
     )
 
 

@@ -6,6 +6,7 @@ a person judge the answer (per-line residuals, inlier counts, contrast, timings)
 
 from __future__ import annotations
 
+import math
 from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
@@ -19,6 +20,14 @@ class PoseUncertainty(BaseModel):
     x_mm: float = Field(description="standard uncertainty of x_mm, mm")
     z_mm: float = Field(description="standard uncertainty of z_mm, mm")
     yaw_deg: float = Field(description="standard uncertainty of yaw_deg, degrees")
+
+    def widened(self, x_mm: float, z_mm: float, yaw_deg: float) -> PoseUncertainty:
+        """This uncertainty with one more term (mm, mm, deg) added in quadrature."""
+        return PoseUncertainty(
+            x_mm=math.hypot(self.x_mm, x_mm),
+            z_mm=math.hypot(self.z_mm, z_mm),
+            yaw_deg=math.hypot(self.yaw_deg, yaw_deg),
+        )
 
 
 class Provenance(BaseModel):
@@ -152,3 +161,15 @@ class LocateResult(BaseModel):
     ) -> LocateResult:
         """A refusal: ``ok=false``, pose fields null, a reason a person can act on."""
         return cls(image=image, ok=False, error=error, error_code=error_code, elapsed_ms=elapsed_ms, **extra)
+
+    def refused(self, error_code: str, error: str) -> LocateResult:
+        """This answer refused with ``error_code`` and ``error`` (another reading of the door judged it), its
+        lines and diagnostics kept and its pose as ``diagnostics.measured``."""
+        measured = {k: getattr(self, k) for k in ("x_mm", "z_mm", "yaw_deg", "thickness_mm")}
+        return LocateResult.refusal(
+            self.image,
+            error_code,
+            error,
+            lines=self.lines,
+            diagnostics=self.diagnostics | {"measured": measured},
+        )
