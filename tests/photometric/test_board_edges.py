@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from doorloc.calib.camera import CameraModel
@@ -70,10 +70,14 @@ def test_edge_curve_follows_the_distortion_not_the_chord():
     st.floats(-0.3, 0.3),
     st.floats(0.02, 0.98),
 )
+# (a level just inside the flat dark end, 0.0015 below the curvature's turning point: rising across the
+# window around it but not at it, it has no inverse; a fresh draw found it)
+@example(0.5, 0.0, 1.0, 0.1171875, 0.1171875)
 def test_response_maps_invert_each_other(gamma, black, shoulder, curvature, g):
     m = PhotometricModel(gamma=gamma, black_level=black, shoulder=shoulder, curvature=curvature)
     L, table_g = m.response_table()
-    rises = np.diff(m.light_from_grey(np.array([g - 2e-3, g + 2e-3])))[0] > 0
+    # rising on both sides of g (an inverse exists only where the response rises through it)
+    rises = bool(np.all(np.diff(m.light_from_grey(np.array([g - 2e-3, g, g + 2e-3]))) > 0))
     if g <= black + 0.01 or not rises or g > table_g[-1]:
         return  # no inverse where the response is flat (held flat beyond the curvature's turning point)
     back = m.grey_from_light(m.light_from_grey(np.array([g])))[0]
