@@ -36,10 +36,14 @@ CELL = load_cell(Path(__file__).parents[2] / "fixtures" / "cell_thesis.yaml")
 SHOULDERED = PhotometricModel(gamma=1.0, shoulder=0.69, white_level=0.973)
 
 
-def _answer(x: float, z: float, sigma: float, checked: bool = False) -> LocateResult:
+def _answer(x: float, z: float, sigma: float, checked: bool = False, absorbed: bool = False) -> LocateResult:
     res = LocateResult(image="door", ok=True, x_mm=x, z_mm=z, yaw_deg=0.5, thickness_mm=40.0)
     res.uncertainty = PoseUncertainty(x_mm=sigma, z_mm=sigma, yaw_deg=0.002)
-    res.diagnostics = {"camera_response": {"checked": checked}, "uncertainty_budget": []}
+    response = {"checked": checked or absorbed, "absorbed": absorbed, "cell_gamma": 1.0}
+    res.diagnostics = {
+        "camera_response": response | ({"first_fit": 2.64} if absorbed else {}),
+        "uncertainty_budget": [],
+    }
     return res
 
 
@@ -67,8 +71,14 @@ def test_which_answers_take_the_doubt(peak, checked, photometry, knee, doubted):
     plane[4, 4] = peak
     lum = LuminancePlane(plane, 1.0)
     assert shoulder_doubted(_answer(1.0, 2.0, 0.02, checked), lum, knee, photometry, 1.0) is doubted
-    # a plain door: never
+    # a plain door whose edges read the cell's exponent, or could not be read: never
     assert not shoulder_doubted(_answer(1.0, 2.0, 0.02, checked), lum, knee, photometry, 0.0)
+    # whose edges read another exponent, which replaced the cell's: as an arris door whose edges could not
+    # be read (the exponent may be the shoulder's stand-in)
+    for arris_mm in (0.0, 1.0):
+        absorbed = _answer(1.0, 2.0, 0.02, absorbed=True)
+        # (the checked case above is doubted too: an absorbed reading is a checked one)
+        assert shoulder_doubted(absorbed, lum, knee, photometry, arris_mm) is (doubted or checked)
     assert not shoulder_doubted(LocateResult.refusal("door", "uncertain", "no"), lum, knee, photometry, 1.0)
     # 16-bit levels on their own scale
     assert (
@@ -96,6 +106,12 @@ def test_the_move_widens_the_answer_or_refuses_it():
     assert not large.ok and large.error_code == "uncertain"
     assert "above 0.7 of full scale" in large.error and "check-model --boards" in large.error
     assert large.diagnostics["measured"]["x_mm"] == 1.0
+    assert "plain edges" not in large.error
+    # where the plain edges' exponent replaced the cell's, the refusal says which they read
+    read = widened_by_shoulder(
+        _answer(1.0, 2.0, 0.02, absorbed=True), _answer(1.12, 2.0, 0.02), 0.7, None, cfg
+    )
+    assert "plain edges read the exponent 2.64 where the cell states 1.00" in read.error
     # a shouldered reading that was refused leaves the answer as it was, and says so
     kept = widened_by_shoulder(_answer(1.0, 2.0, 0.02), None, 0.7, None, cfg)
     assert (
@@ -195,6 +211,56 @@ def test_a_chamfer_in_a_cameras_shoulder_is_not_confidently_off():
         assert abs(res.z_mm - pose.z_mm) <= 2 * res.uncertainty.z_mm
     else:
         assert res.error_code == "uncertain" and "shoulder" in res.error
+
+
+def test_a_plain_door_whose_edges_read_a_shoulder_as_an_exponent_is_not_confidently_off():
+    # bench_camera_doors.py --model <OpenCV's report> --n 32 --seed 75000, door_007: a plain door exposed to
+    # 0.95 of full scale through the camera's whole model (its shoulder, white level, point-spread tail and
+    # blur): its edges read an exponent of 2.8 for the cell's 1.0, which replaced it, and without the doubt
+    # it was answered 0.14 mm off at 5 sigma; through a shoulder at the cell's exponent it is 0.01 mm off
+    whole = PhotometricModel(
+        gamma=1.0, shoulder=0.6905, white_level=0.9728, psf_tail=0.05, psf_tail_px=6.0, blur_field=1.7579
+    )
+    door = DoorSize(900, 76.031, 2100, 0.0, "chamfer")
+    pose = DoorPose(x_mm=6.335, z_mm=-1.057, yaw_deg=0.219)
+    scene = Effects(
+        albedo_hinge=0.5395,
+        albedo_side=0.4167,
+        albedo_background=0.1365,
+        light_ambient=0.7718,
+        light_directional=0.2044,
+        light_azimuth_deg=51.81,
+        light_elevation_deg=0.19,
+        grain_contrast=0.0122,
+        grain_period_mm=3.346,
+        shadow_z_mm=63.86,
+        blur_sigma_px=0.0,
+        full_well_e=0.0,
+        read_noise_dn=0.0,
+        jpeg_quality=0,
+        gradient_u=0.0,
+        gradient_v=0.0,
+        vignetting=0.0,
+    )
+    rd = render_door(CELL, door, pose, effects=scene, seed=75000007)
+    exposure = 0.9459 / float(np.percentile(rd.radiance, 99.5))
+    img = apply_camera(rd.radiance, whole, CameraRendering(1.796, exposure, 1.580), seed=75000007)
+    cell = dataclasses.replace(CELL, response_gamma=1.0, response_gamma_sigma=None)
+    cfg = dataclasses.replace(cell.locate, calibration_sigma_px=0.0)
+    without = locate(img, cell, door, config=dataclasses.replace(cfg, response_shoulder_knee=1.0))
+    res = locate(img, cell, door, config=cfg)
+    # without the doubt: the image's exponent absorbed, and off by more than 2 of its sigmas
+    assert without.ok and without.uncertainty is not None
+    assert without.diagnostics["camera_response"]["absorbed"]
+    assert abs(without.x_mm - pose.x_mm) > 2 * without.uncertainty.x_mm
+    assert res.diagnostics["response_shoulder"]["knee"] == 0.7
+    if res.ok:
+        assert res.uncertainty is not None
+        assert abs(res.x_mm - pose.x_mm) <= 2 * res.uncertainty.x_mm
+        assert abs(res.z_mm - pose.z_mm) <= 2 * res.uncertainty.z_mm
+    else:
+        assert res.error_code == "uncertain" and "shoulder" in res.error
+        assert "plain edges read the exponent" in res.error
 
 
 def test_the_knee_is_a_level_of_full_scale_set_in_the_cell_file(tmp_path):

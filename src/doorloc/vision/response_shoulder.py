@@ -12,8 +12,10 @@ the cell stating the camera's nearest power law, 0.999): chamfered doors whose b
 of full scale were answered 0.05-0.18 mm off in x and z, up to 2.6 sigma (door_012: a 1.11 mm chamfer,
 0.181 mm off in x at a sigma of 0.069).
 
-Where the image could not check the response (every edge an arris, or none readable) and the cell has no
-photometric model, the door is located again as if its camera had a shoulder from ``knee``
+Where the image could not check the response of an arris door (every edge an arris, or none readable), or
+a door's plain edges read an exponent that replaced the cell's (a shoulder skews plain transitions as a
+steeper exponent does: that exponent may be its stand-in), and the cell has no photometric model, the door is
+located again as if its camera had a shoulder from ``knee``
 (``locate.response_shoulder_knee``) up to full scale (:func:`shouldered_camera`: the image's levels above the
 knee mapped back to the power law they compress), with the cell's limits lifted; the answer's move is one more
 term of its uncertainty (``uncertainty_budget``'s ``response_shoulder``), in full: on the doors above, the move
@@ -71,19 +73,27 @@ def shoulder_doubted(
     answer: LocateResult, lum: LuminancePlane, knee: float, has_photometry: bool, arris_mm: float
 ) -> bool:
     """Whether ``answer`` takes the doubt of a shoulder from ``knee``: answered, the cell without a photometric
-    model (``has_photometry`` False), the door with arrises (``arris_mm`` > 0), the response not checked on
-    the image (its plain edges' reading, ``diagnostics.camera_response.checked``, would read a shouldered
-    camera as an exponent, which the reading's own doubt carries), and some level of the image (``lum``,
-    before any mapping) above the knee.
+    model (``has_photometry`` False), some level of the image (``lum``, before any mapping) above the knee,
+    and either
 
-    Not a plain door's: its steps' levels are free in their fits and a shoulder skews them as a wrong exponent
-    does, which the unmeasured response's doubt already sizes. Measured on the parity harness's golden
-    plain doors (95 of them reaching the knee, the response unchecked): the shoulder moved them by at most
-    0.0055 mm, 0.09 of their sigma, for twice the locate's time; its 27 arris doors up to 0.012 mm (0.33
-    sigma)."""
-    if not answer.ok or has_photometry or not knee < 1.0 or not arris_mm > 0.0:
+    - the door with arrises (``arris_mm`` > 0) and the response not checked on the image, or
+    - the image's plain edges read another exponent than the cell's and it replaced the cell's
+      (``diagnostics.camera_response.absorbed``): a shoulder skews the plain transitions as a steeper exponent
+      does, so the exponent read may be a shoulder's stand-in, which places every edge wrongly (measured
+      on OpenCV's left camera's model, ``bench/bench_camera_doors.py --model <its report> --seed 75000``,
+      door_007: a plain door exposed to 0.90 of full scale read 2.77 +- 0.27 for the cell's 0.999 and was
+      answered 0.13 mm off at 4.4 sigma; located through a shoulder from 0.7 at the cell's exponent, its
+      edges read 0.99, the cell's own, and it was 0.009 mm off).
+
+    Not a plain door whose edges read the cell's exponent (or could not be read): its steps' levels are free
+    in their fits and a shoulder skews them as a wrong exponent does, which the reading or the unmeasured
+    response's doubt already sizes. Measured on the parity harness's golden plain doors (95 of them reaching
+    the knee, none absorbed): the shoulder moved them by at most 0.0055 mm, 0.09 of their sigma, for twice the
+    locate's time; its 27 arris doors up to 0.012 mm (0.33 sigma)."""
+    if not answer.ok or has_photometry or not knee < 1.0:
         return False
-    if answer.diagnostics.get("camera_response", {}).get("checked", False):
+    response = answer.diagnostics.get("camera_response", {})
+    if not response.get("absorbed", False) and (response.get("checked", False) or not arris_mm > 0.0):
         return False
     top = 255.0 if lum.plane.dtype == np.uint8 else 65535.0
     return float(lum.plane.max()) > knee * top
@@ -124,11 +134,18 @@ def widened_by_shoulder(
     if within_pose_limits(widened, cfg):
         answer.uncertainty = widened
         return answer
+    response = answer.diagnostics.get("camera_response", {})
+    read = (
+        f" (its plain edges read the exponent {response['first_fit']:.2f} where the cell states "
+        f"{response['cell_gamma']:.2f}, as such a shoulder makes them read)"
+        if response.get("absorbed") and "first_fit" in response
+        else ""
+    )
     return answer.refused(
         "uncertain",
         f"{uncertain_pose_words(widened, cfg)} with the doubt of the camera's response above {knee:g} of "
-        f"full scale, which this image reaches: a shoulder there would move it by x {move['x_mm']:+.3f}, z "
-        f"{move['z_mm']:+.3f} mm; measure the camera's response beyond a power law once (doorloc check-model "
+        f"full scale, which this image reaches{read}: a shoulder there would move it by x "
+        f"{move['x_mm']:+.3f}, z {move['z_mm']:+.3f} mm; measure the camera's response beyond a power law once (doorloc check-model "
         "--boards writes its photometric model into the calibration) or expose the door darker",
     )
 
