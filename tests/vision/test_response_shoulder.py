@@ -22,6 +22,7 @@ from doorloc.vision.config import LocateConfig
 from doorloc.vision.locate import locate
 from doorloc.vision.luminance import LuminancePlane
 from doorloc.vision.response_shoulder import (
+    plain_edges_rule_out,
     shoulder_doubted,
     shoulder_ruled_out,
     shouldered_camera,
@@ -111,7 +112,7 @@ def test_the_move_widens_the_answer_or_refuses_it():
     read = widened_by_shoulder(
         _answer(1.0, 2.0, 0.02, absorbed=True), _answer(1.12, 2.0, 0.02), 0.7, None, cfg
     )
-    assert "plain edges read the exponent 2.64 where the cell states 1.00" in read.error
+    assert "plain edges read the exponent 2.64 in place of the cell's 1.00" in read.error
     # a shouldered reading that was refused leaves the answer as it was, and says so
     kept = widened_by_shoulder(_answer(1.0, 2.0, 0.02), None, 0.7, None, cfg)
     assert (
@@ -148,6 +149,26 @@ def test_the_strips_rule_the_shoulder_out_where_their_misfit_rises(key, plain, b
     assert out.ok is ruled_out
     if ruled_out:
         assert out.uncertainty.x_mm == 0.02 and out.diagnostics["response_shoulder"]["ruled_out_by"] == key
+
+
+def test_the_plain_edges_rule_the_shoulder_out_where_they_read_another_exponent_through_it():
+    # read through the shoulder, the edges read the cell's exponent: the shoulder may be what they show
+    kept = _answer(1.0, 2.0, 0.02, checked=True)
+    assert plain_edges_rule_out(kept) is None
+    # they read another and it replaced the cell's there too: the shoulder at the cell's exponent is not
+    # what they show (tests/vision/test_camera_response.py's door through a shoulder from 0.55: 2.61)
+    assert plain_edges_rule_out(_answer(1.0, 2.0, 0.02, absorbed=True)) == {
+        "ruled_out_by": "plain_edges_exponent",
+        "exponent_read": 2.64,
+    }
+    # and the answer then stands as it was
+    cfg = LocateConfig()
+    ruled = plain_edges_rule_out(_answer(1.12, 2.0, 0.02, absorbed=True))
+    stands = widened_by_shoulder(
+        _answer(1.0, 2.0, 0.02, absorbed=True), _answer(1.12, 2.0, 0.02), 0.7, ruled, cfg
+    )
+    assert stands.ok and stands.uncertainty.x_mm == 0.02
+    assert stands.diagnostics["response_shoulder"]["ruled_out_by"] == "plain_edges_exponent"
 
 
 def _fit(grey_misfit: float = math.nan, arcs: float | None = None) -> SimpleNamespace:
@@ -215,9 +236,10 @@ def test_a_chamfer_in_a_cameras_shoulder_is_not_confidently_off():
 
 def test_a_plain_door_whose_edges_read_a_shoulder_as_an_exponent_is_not_confidently_off():
     # bench_camera_doors.py --model <OpenCV's report> --n 32 --seed 75000, door_007: a plain door exposed to
-    # 0.95 of full scale through the camera's whole model (its shoulder, white level, point-spread tail and
-    # blur): its edges read an exponent of 2.8 for the cell's 1.0, which replaced it, and without the doubt
-    # it was answered 0.14 mm off at 5 sigma; through a shoulder at the cell's exponent it is 0.01 mm off
+    # 0.95 of full scale (its brightest pixel 0.90) through the camera's whole model (its shoulder, white
+    # level, point-spread tail and blur): its edges read an exponent of 2.8 for the cell's 1.0, which replaced
+    # it, and without the doubt it was answered 0.14 mm off at 5 sigma; through a shoulder at the cell's
+    # exponent it is 0.01 mm off
     whole = PhotometricModel(
         gamma=1.0, shoulder=0.6905, white_level=0.9728, psf_tail=0.05, psf_tail_px=6.0, blur_field=1.7579
     )

@@ -73,6 +73,7 @@ from doorloc.vision.refine import refine
 from doorloc.vision.region import EDGE_NAMES, Band, SearchRegion
 from doorloc.vision.response_check import check_response
 from doorloc.vision.response_shoulder import (
+    plain_edges_rule_out,
     shoulder_doubted,
     shoulder_ruled_out,
     shouldered_camera,
@@ -298,7 +299,7 @@ def _locate(
     if shouldered is not None and shouldered.ok:
         ruled_out = shoulder_ruled_out(
             strip_misfit(tr.arris_fits.values(), chamfered), strip_misfit(bent.arris_fits.values(), chamfered)
-        )
+        ) or plain_edges_rule_out(shouldered)
     return widened_by_shoulder(res, shouldered, knee, ruled_out, cfg)
 
 

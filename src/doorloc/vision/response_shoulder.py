@@ -55,6 +55,7 @@ from doorloc.vision.strip_response import (
 from doorloc.vision.uncertainty import BudgetTerm
 
 __all__ = [
+    "plain_edges_rule_out",
     "shoulder_doubted",
     "shoulder_ruled_out",
     "shouldered_camera",
@@ -81,7 +82,7 @@ def shoulder_doubted(
       (``diagnostics.camera_response.absorbed``): a shoulder skews the plain transitions as a steeper exponent
       does, so the exponent read may be a shoulder's stand-in, which places every edge wrongly (measured
       on OpenCV's left camera's model, ``bench/bench_camera_doors.py --model <its report> --seed 75000``,
-      door_007: a plain door exposed to 0.90 of full scale read 2.77 +- 0.27 for the cell's 0.999 and was
+      door_007: a plain door whose image reached 0.90 of full scale read 2.77 +- 0.27 for the cell's 0.999 and was
       answered 0.13 mm off at 4.4 sigma; located through a shoulder from 0.7 at the cell's exponent, its
       edges read 0.99, the cell's own, and it was 0.009 mm off).
 
@@ -136,8 +137,8 @@ def widened_by_shoulder(
         return answer
     response = answer.diagnostics.get("camera_response", {})
     read = (
-        f" (its plain edges read the exponent {response['first_fit']:.2f} where the cell states "
-        f"{response['cell_gamma']:.2f}, as such a shoulder makes them read)"
+        f" (its plain edges read the exponent {response['first_fit']:.2f} in place of the cell's "
+        f"{response['cell_gamma']:.2f}, as such a shoulder can make them read)"
         if response.get("absorbed") and "first_fit" in response
         else ""
     )
@@ -145,8 +146,9 @@ def widened_by_shoulder(
         "uncertain",
         f"{uncertain_pose_words(widened, cfg)} with the doubt of the camera's response above {knee:g} of "
         f"full scale, which this image reaches{read}: a shoulder there would move it by x "
-        f"{move['x_mm']:+.3f}, z {move['z_mm']:+.3f} mm; measure the camera's response beyond a power law once (doorloc check-model "
-        "--boards writes its photometric model into the calibration) or expose the door darker",
+        f"{move['x_mm']:+.3f}, z {move['z_mm']:+.3f} mm; measure the camera's response beyond a power law "
+        "once (doorloc check-model --boards writes its photometric model into the calibration) or expose the "
+        "door darker",
     )
 
 
@@ -196,3 +198,21 @@ def shoulder_ruled_out(
     if not (plain[1] <= explains and shouldered[1] >= ruled_out * plain[1]):
         return None
     return {"ruled_out_by": key, "misfit_ratio": round(shouldered[1] / plain[1], 3)}
+
+
+def plain_edges_rule_out(shouldered: LocateResult) -> dict[str, str | float] | None:
+    """Whether the door's plain edges rule the shoulder out: read through it (``shouldered``, the door located
+    as if its camera had the cell's exponent and a shoulder from the knee), they still read another exponent
+    than the cell's and it replaced the cell's there too (``diagnostics.camera_response.absorbed`` of that
+    reading): the shoulder at the cell's exponent is not what the edges show. The figure for the diagnostics
+    where so (the evidence's kind and the exponent read through the shoulder), else None.
+
+    Measured before it was built: a linear camera with a shoulder from 0.55 (tests/vision/
+    test_camera_response.py's, a door at 0.85 of full scale) read 1.42 and was answered 0.001 mm off; read
+    through a shoulder from 0.7 at the cell's 1.0 its edges read 2.61 and replaced it again, the answer
+    0.11 mm away (without this rule the door was refused for it). OpenCV's left camera's door_007 (above,
+    a shoulder from 0.69): read through the shoulder, its edges read 0.99, the cell's own: not ruled out."""
+    response = shouldered.diagnostics.get("camera_response", {})
+    if not response.get("absorbed", False) or "first_fit" not in response:
+        return None
+    return {"ruled_out_by": "plain_edges_exponent", "exponent_read": round(float(response["first_fit"]), 4)}
