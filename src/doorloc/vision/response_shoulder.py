@@ -25,10 +25,11 @@ is not located again (the mapping is the identity there).
 
 The door's arris strips can rule the shoulder out, as they rule out exponents: read through it, a chamfer's
 borders no longer reproduce the image's grey levels, and a lit rounding's shading no matt arc's, where the
-camera keeps its power law (:func:`shoulder_ruled_out`); the answer then stands as it was. Without that
-evidence (strips that fit either way alike: a rounding under ambient light, or lit from where its arcs cannot
-tell) the move counts: the price of a response nobody measured beyond a power law, which ``doorloc
-check-model --boards`` measures once (its photometric model in the calibration lifts the doubt).
+camera keeps its power law (:func:`shoulder_ruled_out`); so can its plain edges, which read through it still
+read another exponent than the cell's and replace it (:func:`plain_edges_rule_out`); the answer then stands as
+it was. Without that evidence (strips that fit either way alike: a rounding under ambient light, or lit from
+where its arcs cannot tell) the move counts: the price of a response nobody measured beyond a power law, which
+``doorloc check-model --boards`` measures once (its photometric model in the calibration lifts the doubt).
 """
 
 from __future__ import annotations
@@ -82,9 +83,10 @@ def shoulder_doubted(
       (``diagnostics.camera_response.absorbed``): a shoulder skews the plain transitions as a steeper exponent
       does, so the exponent read may be a shoulder's stand-in, which places every edge wrongly (measured
       on OpenCV's left camera's model, ``bench/bench_camera_doors.py --model <its report> --seed 75000``,
-      door_007: a plain door whose image reached 0.90 of full scale read 2.77 +- 0.27 for the cell's 0.999 and was
-      answered 0.13 mm off at 4.4 sigma; located through a shoulder from 0.7 at the cell's exponent, its
-      edges read 0.99, the cell's own, and it was 0.009 mm off).
+      door_007: a plain door whose image reached 0.90 of full scale read 2.77 +- 0.27 for the cell's
+      0.999 and was answered 0.13 mm off at 4.4 sigma; located through a shoulder from 0.7 at the cell's
+      exponent, its edges read 0.99, the cell's own, and it was 0.009 mm off; unless its plain edges rule
+      the shoulder out, :func:`plain_edges_rule_out`).
 
     Not a plain door whose edges read the cell's exponent (or could not be read): its steps' levels are free
     in their fits and a shoulder skews them as a wrong exponent does, which the reading or the unmeasured
