@@ -385,7 +385,8 @@ def _ungated(cfg: LocateConfig) -> LocateConfig:
     of every edge on every image of the camera, which the check looks for as an effect, not an image's
     noise to weigh the pose components by; nor, for the same reason, with the doubt of a shoulder in the
     camera's response (``locate.response_shoulder_knee``: the catalogue's ``shoulder`` is such an effect),
-    which would locate every bright arris image twice for a sigma alone (it never moves a pose)."""
+    which would locate every bright arris image (and plain one whose edges read an exponent in the
+    cell's place) twice for a sigma alone (it never moves a pose)."""
     big = 1e6
     return replace(
         cfg,

@@ -127,8 +127,9 @@ class LocateConfig:
         camera changed since its calibration is then not seen by locate: for a cell whose camera is locked
         and re-calibrated when changed.
     response_shoulder_knee : float
-        Where the image could not check the camera's response and the cell has no photometric model of its
-        camera (``doorloc check-model --boards``), the response above this level (fraction of full scale) is
+        Where the image could not check the camera's response of an arris door, or a door's plain edges
+        read an exponent that replaced the cell's, and the cell has no photometric model of its camera
+        (``doorloc check-model --boards``), the response above this level (fraction of full scale) is
         doubted to bend as a shoulder (both public cameras' do, from 0.69 and 0.48): a door whose image
         reaches above it is located again as if its camera had a shoulder from here to full scale, and the
         answer's move joins its uncertainty (``uncertainty_budget``'s ``response_shoulder``;

@@ -13,9 +13,10 @@ The flow (thesis section 3.7, made metric and robust)::
       -> (a rounded door, no light stated: the light its strips fit best, and the passes again under it)
       -> each line's doubts -> the door's direction voted again, each line weighed by its whole doubt
       -> quality gate -> LocateResult
-      -> (an arris door whose response the image could not check, in a cell without its camera's
-         photometric model, its image above the shoulder's knee: all of it again as if the camera had a
-         shoulder, the move in the answer's uncertainty)
+      -> (an arris door whose response the image could not check, or a door whose plain edges read an
+         exponent in the cell's place, in a cell without its camera's photometric model, its image above
+         the shoulder's knee: all of it again as if the camera had a shoulder, the move in the answer's
+         uncertainty unless the strips or the plain edges rule the shoulder out)
 
 As code, :func:`_locate` visits each stage once, each handing the next a frozen value
 (:mod:`doorloc.vision.state`): the coarse stage (:func:`doorloc.vision.coarse_stage.find_coarse`, the

@@ -95,8 +95,8 @@ def shoulder_doubted(
     locate's time; its 27 arris doors up to 0.012 mm (0.33 sigma)."""
     if not answer.ok or has_photometry or not knee < 1.0:
         return False
-    response = answer.diagnostics.get("camera_response", {})
-    if not response.get("absorbed", False) and (response.get("checked", False) or not arris_mm > 0.0):
+    unread_arris = arris_mm > 0.0 and not answer.diagnostics.get("camera_response", {}).get("checked", False)
+    if not unread_arris and _exponent_read(answer) is None:
         return False
     top = 255.0 if lum.plane.dtype == np.uint8 else 65535.0
     return float(lum.plane.max()) > knee * top
@@ -111,9 +111,9 @@ def widened_by_shoulder(
 ) -> LocateResult:
     """``answer`` with its uncertainty widened (in quadrature) by its move to ``shouldered`` (the door located
     as if its camera had a shoulder from ``knee``, the cell's limits lifted), or refused ``uncertain`` where
-    that takes it beyond the cell's limits; as it was where the door's arris strips rule the shoulder out
-    (``ruled_out``: :func:`shoulder_ruled_out`'s figure) or the shouldered reading was refused (None), the
-    diagnostics saying which."""
+    that takes it beyond the cell's limits; as it was where the door's arris strips or plain edges rule the
+    shoulder out (``ruled_out``: :func:`shoulder_ruled_out`'s or :func:`plain_edges_rule_out`'s figure) or
+    the shouldered reading was refused (None), the diagnostics saying which."""
     u = answer.uncertainty
     if u is None:
         return answer
@@ -137,11 +137,11 @@ def widened_by_shoulder(
     if within_pose_limits(widened, cfg):
         answer.uncertainty = widened
         return answer
-    response = answer.diagnostics.get("camera_response", {})
+    exponent = _exponent_read(answer)
     read = (
-        f" (its plain edges read the exponent {response['first_fit']:.2f} in place of the cell's "
-        f"{response['cell_gamma']:.2f}, as such a shoulder can make them read)"
-        if response.get("absorbed") and "first_fit" in response
+        f" (its plain edges read the exponent {exponent:.2f} in place of the cell's "
+        f"{answer.diagnostics['camera_response']['cell_gamma']:.2f}, as such a shoulder can make them read)"
+        if exponent is not None
         else ""
     )
     return answer.refused(
@@ -214,7 +214,14 @@ def plain_edges_rule_out(shouldered: LocateResult) -> dict[str, str | float] | N
     through a shoulder from 0.7 at the cell's 1.0 its edges read 2.61 and replaced it again, the answer
     0.11 mm away (without this rule the door was refused for it). OpenCV's left camera's door_007 (above,
     a shoulder from 0.69): read through the shoulder, its edges read 0.99, the cell's own: not ruled out."""
-    response = shouldered.diagnostics.get("camera_response", {})
-    if not response.get("absorbed", False) or "first_fit" not in response:
+    exponent = _exponent_read(shouldered)
+    if exponent is None:
         return None
-    return {"ruled_out_by": "plain_edges_exponent", "exponent_read": round(float(response["first_fit"]), 4)}
+    return {"ruled_out_by": "plain_edges_exponent", "exponent_read": round(exponent, 4)}
+
+
+def _exponent_read(answer: LocateResult) -> float | None:
+    """The exponent an answer's plain edges read and put in the cell's place (its response check's
+    ``diagnostics.camera_response``: ``absorbed``, the exponent as ``first_fit``), None where they did not."""
+    response = answer.diagnostics.get("camera_response", {})
+    return float(response["first_fit"]) if response.get("absorbed") and "first_fit" in response else None
