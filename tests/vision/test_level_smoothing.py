@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from doorloc.vision.edges import subpixel_edges
@@ -48,6 +48,9 @@ def _grey(img: np.ndarray, noise: float, seed: int) -> np.ndarray:
     noise=st.floats(0.0, 1.5),
     seed=st.integers(0, 2**31 - 1),
 )
+# stripes of the shortest period: read as noise by second differences of the levels, which kept them
+# averaged over 3 lines (0.103 px RMS where each line's own levels gave 0.080)
+@example(contrast=0.25, period=15.0, phase=0.0, edge_v=28.5, blur=0.75, noise=0.75, seed=0)
 def test_an_edge_with_texture_across_it_is_read_at_each_scan_line_s_own_levels(
     contrast, period, phase, edge_v, blur, noise, seed
 ):
