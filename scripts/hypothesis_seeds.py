@@ -3,7 +3,7 @@
 Usage: ``python scripts/hypothesis_seeds.py tests/core/test_camera.py [N_SEEDS [NAME_PART]]`` (default 200
 seeds; NAME_PART keeps only the tests whose name contains it). Run from the repository root with
 ``PYTHONPATH=src:tests`` (or the project installed).
-CI runs each property test once per seed it draws; this shows a property holds beyond the seed of the day.
+The suite draws the same examples on every run (tests/conftest.py); this shows a property holds beyond them.
 """
 
 from __future__ import annotations
