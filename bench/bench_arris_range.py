@@ -57,7 +57,7 @@ thickness 0.09), the worst 0.30; ``within``, the worst 1.27; ``bound``, 90 % wit
         [--light-sigma DEG]   (the cell's locate.light_direction_sigma_deg; default the cell's, 10)
         [--no-door-light]   (locate.light_from_door false: where no light is stated, a rounding's shading
                              free only, not also sought under the door's own light)
-        [--optics-sigma PX]   (the cell's locate.optics_edge_sigma_px; default the cell's, 0.1 px for a camera
+        [--optics-sigma PX]   (the cell's locate.optics_edge_sigma_px; default the cell's, 0.13 px for a camera
                                whose optics nobody measured; 0: the rendered camera's optics exact, the
                                sigmas the image's own doubts)
         [--thickness MM]   (every door this thick; default drawn from 40, 50 and 70 mm)
@@ -483,7 +483,7 @@ def main() -> None:
         "--optics-sigma",
         type=float,
         default=None,
-        help="the cell's locate.optics_edge_sigma_px (default: the cell's, 0.1); 0 takes the rendered camera's "
+        help="the cell's locate.optics_edge_sigma_px (default: the cell's, 0.13); 0 takes the rendered camera's "
         "optics as exact",
     )
     args = ap.parse_args()

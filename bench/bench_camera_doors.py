@@ -19,7 +19,7 @@ them and measures what that costs:
   (:func:`stated_exponent`: what a power-law measurement of the camera reads) and nothing else of the model;
   the rendered camera's geometry is exact, so the calibration term is off (``calibration_sigma_px`` 0), as in
   bench_surfaces; its optics are not, so a cell without the model keeps the doubt of an unmeasured camera's
-  optics (``locate.optics_edge_sigma_px``, 0.1 px by default), and one with it takes the model's residual;
+  optics (``locate.optics_edge_sigma_px``, 0.13 px by default), and one with it takes the model's residual;
 - the point spread's asymmetry (``edge_shift_u_px``, ``edge_shift_v_px``: every edge moved against the
   corners' frame the calibration was made in) is rendered by moving the principal point of the camera the
   doors are rendered through by that much (the cell keeps the calibrated one);
