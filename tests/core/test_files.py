@@ -282,7 +282,7 @@ def test_the_cells_light_is_read_as_a_direction_and_checked(thesis_cell_path):
 
 def test_the_doubt_of_unmeasured_optics_is_a_cell_setting_and_checked(thesis_cell_path):
     doc = yaml.safe_load(Path(thesis_cell_path).read_text())
-    assert parse_cell(doc, Path(thesis_cell_path).parent, "cell.yaml").locate.optics_edge_sigma_px == 0.1
+    assert parse_cell(doc, Path(thesis_cell_path).parent, "cell.yaml").locate.optics_edge_sigma_px == 0.13
     doc["locate"] = {"optics_edge_sigma_px": 0}  # a rendered camera, known exactly
     assert parse_cell(doc, Path(thesis_cell_path).parent, "cell.yaml").locate.optics_edge_sigma_px == 0.0
     for bad in (-0.1, 7, "small"):

@@ -754,9 +754,11 @@ def test_a_thickness_miss_an_unseen_silhouette_may_hide_is_uncertain_not_a_wrong
         read_noise_dn=0.263,
         gamma=1.845,
     )
-    # (the renderer's camera keeps its power law to full scale, and the cell says so: no shoulder doubted,
-    # whose move on this bright face would take the answer under ``report`` past the cell's limits)
-    told = replace(cell, response_gamma=fx.gamma, locate=replace(cell.locate, response_shoulder_knee=1.0))
+    # (the renderer's camera keeps its power law to full scale and its optics are exact, and the cell says
+    # so: no shoulder doubted and no unmeasured optics, whose doubts on this bright face would take the
+    # answer under ``report`` past the cell's limits)
+    exact = replace(cell.locate, response_shoulder_knee=1.0, optics_edge_sigma_px=0.0)
+    told = replace(cell, response_gamma=fx.gamma, locate=exact)
     valid = render_door(cell, door, pose, effects=fx, seed=15130).image
     check = locate(valid, told, door).diagnostics["thickness_check"]
     assert abs(check["difference_mm"]) <= check["tolerance_mm"], check
