@@ -201,7 +201,9 @@ def _read_without_and_with_the_doubt(
     a fraction of full scale) and located in a cell stating the power law 1.0, without the shoulder's doubt
     and with it. Asserts what the doubt is for: without it answered and off by more than 2 of its sigmas in
     x; with it located again through a shoulder from 0.7 and within 2 sigma, or refused `uncertain` naming
-    the shoulder."""
+    the shoulder. ``scene`` is the door and its light only: the blur, noise and compression are the camera's
+    (``rendering``), so the renderer's own stay at their defaults (off)."""
+    assert scene.blur_sigma_px == scene.full_well_e == scene.read_noise_dn == scene.jpeg_quality == 0
     rd = render_door(CELL, door, pose, effects=scene, seed=seed)
     exposure = rendering.exposure / float(np.percentile(rd.radiance, 99.5))
     img = apply_camera(rd.radiance, camera, dataclasses.replace(rendering, exposure=exposure), seed=seed)
@@ -239,13 +241,6 @@ def test_a_chamfer_in_a_cameras_shoulder_is_not_confidently_off():
         grain_period_mm=3.865,
         shadow_z_mm=29.91,
         arris_profile="chamfer",
-        blur_sigma_px=0.0,
-        full_well_e=0.0,
-        read_noise_dn=0.0,
-        jpeg_quality=0,
-        gradient_u=0.0,
-        gradient_v=0.0,
-        vignetting=0.0,
     )
     without, res = _read_without_and_with_the_doubt(
         door, pose, scene, SHOULDERED, CameraRendering(1.548, 0.9174, 2.012), seed=81000012
@@ -277,13 +272,6 @@ def test_a_plain_door_whose_edges_read_a_shoulder_as_an_exponent_is_not_confiden
         grain_contrast=0.0122,
         grain_period_mm=3.346,
         shadow_z_mm=63.86,
-        blur_sigma_px=0.0,
-        full_well_e=0.0,
-        read_noise_dn=0.0,
-        jpeg_quality=0,
-        gradient_u=0.0,
-        gradient_v=0.0,
-        vignetting=0.0,
     )
     without, res = _read_without_and_with_the_doubt(
         door, pose, scene, whole, CameraRendering(1.796, 0.9459, 1.580), seed=75000007
