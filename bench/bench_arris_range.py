@@ -29,9 +29,11 @@ and noise come from :func:`bench_arris.random_effects`), the camera's gamma is t
 Per image: the seed, the conditions (with ``diagnostics.noise_scale_ratio`` / ``noise_scale_ratio_box2``
 where the first reads under 2), the errors of x, z, yaw and thickness and their claimed sigmas (x, z, yaw:
 the answer's ``uncertainty``; thickness: ``diagnostics.thickness_check.sigma_mm``), or the refusal and its
-code. Per set: the answered share, RMS of each error, the share within 2 claimed sigma and beyond 5, and
-the refusals by code; answers whose thickness the image could not verify (reported under
-``locate.thickness_check: report``) are counted apart.
+code, and the locate's thread CPU time. Per set: the answered share, RMS of each error, the share within 2
+claimed sigma and beyond 5, the refusals by code, and the median and largest locate time; answers whose
+thickness the image could not verify (reported under ``locate.thickness_check: report``) are counted apart.
+Where more than one set is run, the same over all their doors together (the figures a plant with all those
+doors sees).
 
 ``--cell-gamma-off`` tells the cell a wrong exponent, within the cell's ``response_unmeasured_factor``
 (``within``: the camera's times the factor to a power drawn from -1..1; ``bound``: at -1 or +1, a linear
@@ -89,6 +91,7 @@ import argparse
 import dataclasses
 import math
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -174,6 +177,7 @@ class Outcome:
     over_limits: bool = False  # answered only because the limits were opened (``--open-limits``)
     #: real move at the response factor's ends over the ``response`` doubt, x, z, thickness (``--response-ends``)
     response_ratios: tuple[float, float, float] | None = None
+    locate_s: float = math.nan  # the locate's thread CPU time, s (one thread: run with OMP_NUM_THREADS=1)
 
 
 def draw(name: str, i: int, seed: int):
@@ -259,7 +263,9 @@ def run_one(
     (:func:`response_end_moves`)."""
     img = render_door(cell, real or door, pose, effects=fx, seed=seed).image
     cell = dataclasses.replace(cell, response_gamma=gamma if told is None else told)
+    t0 = time.thread_time()
     res = locate(img, cell, door)
+    locate_s = time.thread_time() - t0
     own = res.diagnostics.get("door_light")
     if own is not None:
         label += f" own light [{own['direction_deg'][0]:+.0f}, {own['direction_deg'][1]:+.0f}]" + (
@@ -269,8 +275,11 @@ def run_one(
     if ratio is not None and ratio < 2.0:  # the noise read as a sensor's (about 1) or sharpened (below)
         label += f" noise ratio {ratio:.2f}/{res.diagnostics.get('noise_scale_ratio_box2', float('nan')):.2f}"
     if not res.ok:
-        print(f"  seed {seed:6d} {label:44s} REFUSED {res.error_code}: {(res.error or '')[:110]}")
-        return Outcome(res.error_code)
+        print(
+            f"  seed {seed:6d} {label:44s} REFUSED {res.error_code}: {(res.error or '')[:110]} "
+            f"({locate_s * 1e3:.0f} ms)"
+        )
+        return Outcome(res.error_code, locate_s=locate_s)
     tc = res.diagnostics.get("thickness_check", {})
     errors = (
         res.x_mm - pose.x_mm,
@@ -292,9 +301,10 @@ def run_one(
         f"dT {errors[3]:+.4f} sigma {sigmas[0]:.4f} {sigmas[1]:.4f} {sigmas[2]:.5f} {sigmas[3]:.4f}"
         + ("" if verified else " thickness UNVERIFIED")
         + (" OVER THE CELL'S LIMITS" if over else "")
+        + f" ({locate_s * 1e3:.0f} ms)"
     )
     ratios = response_end_moves(img, cell, door, res) if response_ends else None
-    return Outcome(None, errors, sigmas, verified, over, ratios)
+    return Outcome(None, errors, sigmas, verified, over, ratios, locate_s)
 
 
 def response_end_moves(img, cell, door: DoorSize, res) -> tuple[float, float, float] | None:
@@ -348,10 +358,12 @@ def summary(name: str, rows: list[Outcome]) -> None:
             codes[r.code] = codes.get(r.code, 0) + 1
     unverified = sum(1 for r in ok if not r.thickness_verified)
     over = sum(1 for r in ok if r.over_limits)
+    times = np.array([r.locate_s for r in rows]) * 1e3
     print(
-        f"{name}: {len(ok)}/{len(rows)} answered ({len(ok) / max(len(rows), 1):.0%}), "
+        f"{name}: {len(ok)}/{len(rows)} answered ({len(ok) / max(len(rows), 1):.1%}), "
         f"{unverified} of them with the thickness unverified; refused: {codes or 'none'}"
         + (f"; {over} answered only with the limits opened" if over else "")
+        + f"; locate {np.median(times):.0f} ms median, {times.max():.0f} max (thread CPU)"
     )
     if not ok:
         return
@@ -509,10 +521,14 @@ def main() -> None:
         cell = dataclasses.replace(
             cell, locate=dataclasses.replace(cell.locate, optics_edge_sigma_px=args.optics_sigma)
         )
+    # the first locate of a process loads the compiled kernels: done before any door is timed
+    door, pose, fx, gamma = draw(sets[0], 0, args.seed)
+    locate(render_door(cell, door, pose, effects=fx, seed=args.seed).image, cell, door)
     limits = None
     if args.open_limits:
         limits = cell.locate
         cell = dataclasses.replace(cell, locate=dataclasses.replace(cell.locate, **OPENED_LIMITS))
+    every: list[Outcome] = []
     for name in sets:
         k = list(SETS).index(name)
         rows = []
@@ -575,7 +591,10 @@ def main() -> None:
             )
         wrong = f", every door {args.wrong_thickness:+g} mm off its recipe" if args.wrong_thickness else ""
         summary(f"{name} (seeds {args.seed + 1000 * k}..{args.seed + 1000 * k + args.n - 1}{wrong})", rows)
+        every += rows
         sys.stdout.flush()
+    if len(sets) > 1:  # the acceptance's figures are over all the doors, not set by set
+        summary(f"all {len(sets)} sets together ({', '.join(sets)})", every)
 
 
 if __name__ == "__main__":
