@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 from hypothesis import example, given, settings
@@ -16,7 +17,8 @@ from doorloc.calib.folder import read_folder
 from doorloc.calib.io import load_calibration
 from doorloc.photometric.board_edges import BoardEdges, EdgeWindows, board_edge_curves, measure_board_edges
 from doorloc.photometric.model import PhotometricModel
-from doorloc.sim.boards import Checkerboard
+from doorloc.sim.boards import Checkerboard, render_board
+from doorloc.sim.effects import Effects
 from doorloc.sim.photometric import random_board_views
 
 DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data"
@@ -47,6 +49,29 @@ def test_print_spread_moves_edges_by_its_length_on_the_board():
     meds, scale = _offsets(PhotometricModel(print_spread_mm=spread), seed=12)
     # dark squares grown: each edge lies towards the bright side by spread_mm at the board's scale
     np.testing.assert_allclose(meds, spread * np.asarray(scale), atol=0.04)
+
+
+@pytest.mark.parametrize(
+    "turn_rad, turned", [(0.2, False), (np.pi / 2 - 0.2, True), (-np.pi / 2 + 0.1, True)]
+)
+def test_a_board_turned_a_quarter_turn_is_told_from_one_that_is_not(turn_rad, turned):
+    # a cause acting on one direction of edges in the image (the camera's lines) and one acting on one
+    # direction on the board (its print) are told apart only by photographs turned both ways
+    board = Checkerboard(9, 6, 25.0)
+    centre = np.array([4 * 25.0, 2.5 * 25.0, 0.0])
+    rvec = np.array([0.1, -0.1, turn_rad])
+    R = cv2.Rodrigues(rvec)[0]
+    tvec = -R @ centre + np.array([0.0, 0.0, 400.0])
+    img = render_board(CAMERA, board, rvec, tvec, effects=Effects(blur_sigma_px=0.8)).image
+    det = detect_chessboard(img, Chessboard(9, 6, 25.0))
+    assert det is not None
+    be = measure_board_edges(img, det.corners_px[np.argsort(det.ids)], 9, 6, 25.0, CAMERA, image="view")
+    assert be.along_board_rows is not None and int(be.along_board_rows.sum()) == 8 * 6
+    assert be.board_turned() is turned
+    unknown = BoardEdges(
+        *(getattr(be, f) for f in BoardEdges.__dataclass_fields__ if f != "along_board_rows")
+    )
+    assert unknown.board_turned() is None
 
 
 def test_edge_curve_follows_the_distortion_not_the_chord():

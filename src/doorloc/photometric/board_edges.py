@@ -109,7 +109,8 @@ class BoardEdges:
     towards the bright square; ``px_per_mm`` the board's scale across it; ``length_px`` corner to corner.
     Per scan line (N, in ``windows``): ``offset_px`` the estimator's signed offset from the true edge along
     the normal, + towards bright (NaN where the estimator gave none); ``dark``, ``bright`` the plateau levels
-    (grey); ``noise`` the plateau spread (grey).
+    (grey); ``noise`` the plateau spread (grey). ``along_board_rows`` (E,): whether the edge joins two corners
+    of one row of the board, so that it runs along the board's rows (None where not known).
     """
 
     image: str
@@ -123,10 +124,24 @@ class BoardEdges:
     dark: np.ndarray
     bright: np.ndarray
     noise: np.ndarray
+    along_board_rows: np.ndarray | None = None
 
     @property
     def n_edges(self) -> int:
         return int(self.mid_px.shape[0])
+
+    def board_turned(self) -> bool | None:
+        """Whether the board lies turned by about a quarter turn in the image: most scan lines of the edges
+        along the board's rows run along the image's rows (those edges stand near-vertical). None where the
+        edges' board directions are not known or none of them was measured. A cause that acts on one
+        direction of edges in the image (a camera's scan lines) and one that acts on one direction on the
+        board (its print) are told apart only by photographs turned both ways."""
+        if self.along_board_rows is None:
+            return None
+        on_rows = np.asarray(self.along_board_rows, bool)[self.windows.edge]
+        if not on_rows.any():
+            return None
+        return bool(np.mean(~self.windows.axis[on_rows]) > 0.5)
 
     def median_offset_px(self) -> float:
         """The photograph's figure: the median signed offset over all its edges' scan lines, px."""
@@ -320,4 +335,5 @@ def measure_board_edges(
         dark[ok],
         bright[ok],
         noise[ok],
+        np.arange(n_edges) < rows * (cols - 1),  # board_edge_curves: each row's neighbours first
     )

@@ -157,9 +157,11 @@ class ResidualProfile:
     (``distance_px``, the bins' centres, + towards bright): over every scan line (``all``), and over those
     along the image rows (``along_rows``: edges nearer vertical) and along the columns (``along_columns``)
     apart. Optics and a response draw an edge the same whichever way it runs (up to the blur the profile fit
-    takes per edge); a camera's scan lines do not: an analogue line's filter or sharpening acts along the rows
-    only (Bouguet's photographs dip a tenth of the step below their dark squares 2-3 px from the edges
-    across the rows, median 7.7 %, and not across the columns, 0.6 %). NaN where fewer than
+    takes per edge); a camera's scan lines do not (an analogue line's filter or sharpening acts along the rows
+    only), nor may the board's print, which a printer lays differently across and along its paper's travel
+    (Bouguet's photographs dip a tenth of the step below their dark squares 2-3 px from the edges across
+    the rows, median 7.7 %, and not across the columns, 0.6 %; its board's rows run the same way in every
+    photograph, :meth:`~doorloc.photometric.board_edges.BoardEdges.board_turned`). NaN where fewer than
     ``RESIDUAL_PROFILE_MIN_SAMPLES`` samples fall at a distance."""
 
     distance_px: np.ndarray

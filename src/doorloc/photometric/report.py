@@ -111,7 +111,8 @@ def report_dict(check: BoardCheck) -> dict:
         "noise": _num(check.noise_grey),
         "noise_rms": _num(check.noise_rms_grey),
         # the mean residual at each distance from the edge (the plot's), over all scan lines and over those
-        # along the image rows and the columns apart (a camera's scan lines act along the rows only)
+        # along the image rows and the columns apart (a camera's scan lines act along the rows only; a
+        # print may lay one direction of the board's edges differently)
         "residual_profile": _residual_profile_dict(check),
         "extended_model": EXTENDED_CALIBRATION,
         "photometric_model": check.model.to_dict(),
@@ -307,12 +308,22 @@ def _direction_sentence(check: BoardCheck) -> str:
     gap, at = check.residual_profiles[1].direction_gap()
     if not np.isfinite(gap):
         return "The edges across the rows and across the columns are too few to compare their profiles."
+    # the board one way in every photograph whose edges' directions are known: print and lines confounded
+    confounded = len({p.edges.board_turned() for p in check.photographs} - {None}) == 1
     return (
         "Mean residual profile of the extended model, edges across the image rows against those across the "
         f"columns: {abs(gap):.1f} grey levels apart at most ({at:+.2f} px from the edge, the rows' "
         f"{'above' if gap > 0 else 'below'}). Optics and a response draw an edge alike whichever way it runs; "
-        "a gap of several grey levels, beyond the noise, is the camera's scan lines (an analogue line's "
-        "filter or sharpening, which act along the rows only), which no cause of the catalogue and no twin draws."
+        "a gap of several grey levels, beyond the noise, comes from what acts on one direction of edges only: "
+        "the camera's scan lines (an analogue line's filter, clamp or sharpening, along the rows) or the "
+        "board's print (a printer lays the edges across and along its paper's travel differently). No cause "
+        "of the catalogue and no twin draws either."
+        + (
+            " In every photograph here the board's rows run the same way in the image, so the two cannot be "
+            "told apart: add photographs with the board turned a quarter turn."
+            if confounded
+            else ""
+        )
     )
 
 
