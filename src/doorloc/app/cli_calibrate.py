@@ -129,9 +129,11 @@ def _echo_response(response: BoardResponse | None) -> None:
 def _echo_optics(images_dir: Path, pattern: str, square: float, out: Path) -> None:
     """What the calibration leaves unmeasured of the camera's optics, and the command that measures them on
     the same photographs (``check-model --boards``: chessboards only)."""
+    from doorloc.vision.config import LocateConfig
+
     typer.echo(
-        "camera optics: not measured; locate counts locate.optics_edge_sigma_px (0.13 px by default) on every "
-        "edge for them. To measure them on these photographs (minutes): doorloc check-model --boards "
+        "camera optics: not measured; locate counts locate.optics_edge_sigma_px "
+        f"({LocateConfig().optics_edge_sigma_px:g} px by default) on every edge for them. To measure them on these photographs (minutes): doorloc check-model --boards "
         f"{images_dir} --pattern {pattern} --square {square:g} --calibration {out} --out REPORT_DIR, then name "
         "REPORT_DIR/camera_photometric.yaml in the cell's camera.calibration"
     )

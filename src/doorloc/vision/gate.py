@@ -538,7 +538,7 @@ def _pose_cause(
     if worst == "edge_model":
         # the largest doubt of the two pose lines, where it is one the operator can lift, is said with what
         # lifts it (the largest over both lines: an arris strip's doubt of 2 px on the reference line is not
-        # named after the bottom line's 0.13 px of unmeasured optics)
+        # named after the bottom line's doubt of unmeasured optics, a tenth of a pixel or so)
         doubts = [d for k in ("bottom", "reference") for d in model.of_line(k) if d.source in _MODEL_REPORTED]
         largest = max(doubts, key=lambda d: d.offset_px, default=None)
         hint = (_doubt_hint(largest.source, response) if largest is not None else None) or hint
