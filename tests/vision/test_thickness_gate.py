@@ -10,7 +10,7 @@ import pytest
 from doorloc.cell import DoorSize
 from doorloc.vision.config import LocateConfig
 from doorloc.vision.far_band import FarFaceFit
-from doorloc.vision.thickness_gate import other_reading, thickness_check
+from doorloc.vision.thickness_gate import other_reading, shows_one_step, thickness_check
 
 SCALE = 0.2  # mm per px
 SLOPE = -0.72  # the band's change in width per px the arris moves outwards (a far face 900 mm deep)
@@ -130,3 +130,26 @@ def test_a_strips_other_reading_names_the_strip():
     _, unverified, uncertain = thickness_check(r, door, LocateConfig(), 0.05, other)
     assert uncertain and "strip is read at its other border" in unverified[0].message
     assert "33.75 mm" in unverified[0].message
+
+
+@pytest.mark.parametrize(
+    "deficit, one_step",
+    [
+        (0.0, True),  # a strip at the hinge face's level: one step at its outer border
+        (0.15, True),
+        (1.0, True),  # at the background's level: one step at its inner border
+        (0.9, True),
+        (1.15, True),
+        (-0.1, True),
+        (0.5, False),  # a level between: two steps
+        (-0.27, False),  # brighter than the face (a lit rounding): up past the face's level, then down to it
+        (-0.76, False),
+        (1.4, False),  # darker than the background: down, then up
+    ],
+)
+def test_a_strip_shows_one_step_only_near_one_plateaus_level(deficit, one_step):
+    """A strip brighter than the hinge face or darker than the background shows two steps, as one at a level
+    between does: no other reading a strip's width away draws its profile (a 1.02 mm rounding's bottom end
+    read at -0.27 had been held to its first pass's doubt as if it could be a plain step: z in doubt by 0.21
+    mm instead of 0.11, arris range bench, round set seed 9107, its light told)."""
+    assert shows_one_step(deficit) is one_step

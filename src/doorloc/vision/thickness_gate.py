@@ -125,7 +125,7 @@ def shows_one_step(deficit: float) -> bool:
     hinge face's level 0 or the background's 1), which its other reading puts at the strip's other border;
     not a strip with a level between (two steps). A NaN deficit lies between nothing: True, as the
     comparison gives it (callers that need a finite one test it)."""
-    return not PLAIN_STEP_DEFICIT < deficit < 1.0 - PLAIN_STEP_DEFICIT
+    return not (abs(deficit) > PLAIN_STEP_DEFICIT and abs(deficit - 1.0) > PLAIN_STEP_DEFICIT)
 
 
 #: a thickness within the tolerance that misses the recipe by more than this many of its sigmas, where a side
