@@ -69,6 +69,10 @@ thickness 0.09), the worst 0.30; ``within``, the worst 1.27; ``bound``, 90 % wit
         [--response-ends]   (each answered door located again with the cell's exponent at the two ends of
                              its response_unmeasured_factor: the answer's real move there beside its
                              ``response`` doubt; with --open-limits, the refused doors' too)
+        [--measured-photometry]   (the cell carries its camera's photometric model, a power law at the
+                                   cell's exponent and no shoulder, as `doorloc check-model --boards` writes
+                                   it for a camera that keeps its power law: the doubt of a shoulder nobody
+                                   measured, ``response_shoulder``, is lifted)
 
 ``--open-limits`` measures what the model gets wrong on the doors it refuses as uncertain: are their
 sigmas as large as their errors (an honest refusal: the model must improve), or far larger (the doubt is
@@ -101,6 +105,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from bench_arris import random_effects  # noqa: E402
 
 from doorloc.cell import DoorSize, load_cell  # noqa: E402
+from doorloc.photometric.model import PhotometricModel  # noqa: E402
 from doorloc.pose import DoorPose, direction_cell, directions_across  # noqa: E402
 from doorloc.sim.door import render_door  # noqa: E402
 from doorloc.vision.config import LocateConfig  # noqa: E402
@@ -255,14 +260,18 @@ def run_one(
     limits: LocateConfig | None = None,
     real: DoorSize | None = None,
     response_ends: bool = False,
+    photometry: bool = False,
 ) -> Outcome:
     """Locate one rendered door and compare with its true pose. ``limits``: the cell's own ``locate``
     settings where ``cell``'s are opened (``--open-limits``): an answer beyond them is marked. ``real``: the
     door in the image where it is not the recipe's ``door`` (``--wrong-thickness``); the thickness's error is
     against it. ``response_ends``: the answer located again at the ends of the cell's response factor
-    (:func:`response_end_moves`)."""
+    (:func:`response_end_moves`). ``photometry``: the cell carries its camera's photometric model, the power
+    law at the cell's exponent (``--measured-photometry``)."""
     img = render_door(cell, real or door, pose, effects=fx, seed=seed).image
     cell = dataclasses.replace(cell, response_gamma=gamma if told is None else told)
+    if photometry:
+        cell = dataclasses.replace(cell, camera_photometry=PhotometricModel(gamma=cell.response_gamma))
     t0 = time.thread_time()
     res = locate(img, cell, door)
     locate_s = time.thread_time() - t0
@@ -492,6 +501,13 @@ def main() -> None:
         "response_unmeasured_factor and print the real move beside the answer's response doubt",
     )
     ap.add_argument(
+        "--measured-photometry",
+        action="store_true",
+        help="the cell carries its camera's photometric model as `doorloc check-model --boards` measures a "
+        "camera that keeps its power law (the cell's exponent, no shoulder): the doubt of a shoulder nobody "
+        "measured is lifted",
+    )
+    ap.add_argument(
         "--optics-sigma",
         type=float,
         default=None,
@@ -587,6 +603,7 @@ def main() -> None:
                     if args.wrong_thickness
                     else None,
                     args.response_ends,
+                    args.measured_photometry,
                 )
             )
         wrong = f", every door {args.wrong_thickness:+g} mm off its recipe" if args.wrong_thickness else ""
