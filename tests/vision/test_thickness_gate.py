@@ -1,4 +1,5 @@
-"""The thickness gate's readings of a far face's band (``vision/thickness_gate.py``), on fits written by hand."""
+"""The thickness gate's readings of a far face's band and of an arris strip's one plain step
+(``vision/thickness_gate.py``), on fits written by hand."""
 
 from __future__ import annotations
 
@@ -145,6 +146,7 @@ def test_a_strips_other_reading_names_the_strip():
         (-0.27, False),  # brighter than the face (a lit rounding): up past the face's level, then down to it
         (-0.76, False),
         (1.4, False),  # darker than the background: down, then up
+        (float("nan"), True),  # (callers that need a finite deficit test it)
     ],
 )
 def test_a_strip_shows_one_step_only_near_one_plateaus_level(deficit, one_step):

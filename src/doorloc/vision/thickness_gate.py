@@ -123,8 +123,9 @@ PLAIN_STEP_DEFICIT = 0.2
 def shows_one_step(deficit: float) -> bool:
     """Whether an arris strip fitted at ``deficit`` shows one plain step (within ``PLAIN_STEP_DEFICIT`` of the
     hinge face's level 0 or the background's 1), which its other reading puts at the strip's other border;
-    not a strip with a level between (two steps). A NaN deficit lies between nothing: True, as the
-    comparison gives it (callers that need a finite one test it)."""
+    not a strip with a level between, nor one beyond either plateau's (brighter than the face, darker than
+    the background): two steps, no other reading. A NaN deficit lies near nothing: True, as the comparisons
+    give it (callers that need a finite one test it)."""
     return not (abs(deficit) > PLAIN_STEP_DEFICIT and abs(deficit - 1.0) > PLAIN_STEP_DEFICIT)
 
 
