@@ -79,6 +79,11 @@ def cell():
 
 @pytest.fixture
 def recipe() -> DoorRecipe:
+    return door_d100()
+
+
+def door_d100() -> DoorRecipe:
+    """The app tests' door D-100: 900 x 2100 x 50 mm, two hinges."""
     return DoorRecipe(
         door_id="D-100",
         width_mm=900,
@@ -96,6 +101,11 @@ def recipe() -> DoorRecipe:
 
 @pytest.fixture
 def store(recipe):
+    yield from recipe_store(recipe)
+
+
+def recipe_store(recipe: DoorRecipe):
+    """A fixture's body: yields an in-memory recipe store holding ``recipe``, closed when the fixture ends."""
     s = RecipeStore("sqlite://")
     s.put(recipe)
     yield s

@@ -27,7 +27,11 @@ import pytest
 import yaml
 from fastapi.testclient import TestClient
 
-from .conftest import dev_settings, post_locate
+from .conftest import dev_settings, door_d100, post_locate, recipe_store
+
+# The answers, records and located fixtures below are made once per test process (module fixtures, a cached
+# function): the module's tests run in one process, so each is made once (about 17 s apiece on two CPUs).
+pytestmark = pytest.mark.xdist_group("result_docs")
 
 REPO = Path(__file__).resolve().parents[2]
 DOC = REPO / "docs" / "result.md"
@@ -165,17 +169,24 @@ def _thesis_cell_with_robot_base(tmp_path: Path, shift_mm: float) -> Path:
     return path
 
 
-@pytest.fixture
-def http_answers(tmp_path, store) -> list[dict]:
+@pytest.fixture(scope="module")
+def module_store():
+    """The recipe store of :func:`http_answers`, made once for the module's tests as the answers are."""
+    yield from recipe_store(door_d100())
+
+
+@pytest.fixture(scope="module")
+def http_answers(tmp_path_factory, module_store) -> list[dict]:
     """Real HTTP answers: targets, RAPID, overlay and reach; a reach refusal; a door given by its size."""
     from doorloc.app.http import create_app
     from doorloc.cell import load_cell
 
+    moved_base = _thesis_cell_with_robot_base(tmp_path_factory.mktemp("cells"), 3000.0)
     answers = []
     with open(GRID_IMAGE, "rb") as f:
         png = f.read()
-    for cell_path in (REPO / "fixtures" / "cell_thesis.yaml", _thesis_cell_with_robot_base(tmp_path, 3000.0)):
-        app = create_app(dev_settings(), cell=load_cell(cell_path), store=store)
+    for cell_path in (REPO / "fixtures" / "cell_thesis.yaml", moved_base):
+        app = create_app(dev_settings(), cell=load_cell(cell_path), store=module_store)
         with TestClient(app) as client:
             answers.append(
                 post_locate(client, png, "img_0031.png", "?overlay=true&rapid=true", door_id="D-100")
@@ -186,16 +197,17 @@ def http_answers(tmp_path, store) -> list[dict]:
     return answers
 
 
-@pytest.fixture
-def batch_records(tmp_path) -> list[dict]:
+@pytest.fixture(scope="module")
+def batch_records(tmp_path_factory) -> list[dict]:
     """Records of a real `doorloc batch` run: answered, refused and failed images."""
-    images = tmp_path / "images"
+    tmp = tmp_path_factory.mktemp("batch")
+    images = tmp / "images"
     images.mkdir()
     (images / "door.png").write_bytes(GRID_IMAGE.read_bytes())
     black = np.zeros((1080, 1920), np.uint8)
     (images / "black.png").write_bytes(cv2.imencode(".png", black)[1].tobytes())
     (images / "torn.png").write_bytes(GRID_IMAGE.read_bytes()[:2000])
-    out = tmp_path / "results.jsonl"
+    out = tmp / "results.jsonl"
     env = {**os.environ, "PYTHONPATH": str(REPO / "src") + os.pathsep + os.environ.get("PYTHONPATH", "")}
     proc = subprocess.run(
         [
