@@ -71,7 +71,8 @@ thickness 0.09), the worst 0.30; ``within``, the worst 1.27; ``bound``, 90 % wit
                              ``response`` doubt; with --open-limits, the refused doors' too)
         [--measured-photometry]   (the cell carries its camera's photometric model, a power law at the
                                    cell's exponent and no shoulder, as `doorloc check-model --boards` writes
-                                   it for a camera that keeps its power law: the doubt of a shoulder nobody
+                                   it for a camera that keeps its power law, its edges' held-out residual
+                                   the unmeasured optics' doubt (0.13 px): the doubt of a shoulder nobody
                                    measured, ``response_shoulder``, is lifted)
 
 ``--open-limits`` measures what the model gets wrong on the doors it refuses as uncertain: are their
@@ -267,11 +268,16 @@ def run_one(
     door in the image where it is not the recipe's ``door`` (``--wrong-thickness``); the thickness's error is
     against it. ``response_ends``: the answer located again at the ends of the cell's response factor
     (:func:`response_end_moves`). ``photometry``: the cell carries its camera's photometric model, the power
-    law at the cell's exponent (``--measured-photometry``)."""
+    law at the cell's exponent with a held-out edge residual of the cell's ``optics_edge_sigma_px``
+    (``--measured-photometry``)."""
     img = render_door(cell, real or door, pose, effects=fx, seed=seed).image
     cell = dataclasses.replace(cell, response_gamma=gamma if told is None else told)
     if photometry:
-        cell = dataclasses.replace(cell, camera_photometry=PhotometricModel(gamma=cell.response_gamma))
+        # residual_edge_px: what check-model --boards leaves on the photographs' real edges, held out; a cell
+        # reads a model without one (nor anything else beyond a power law) as none (Cell.camera_photometry):
+        # here the size of the doubt an unmeasured camera's optics get, so that only the shoulder's doubt goes
+        model = PhotometricModel(gamma=cell.response_gamma, residual_edge_px=cell.locate.optics_edge_sigma_px)
+        cell = dataclasses.replace(cell, camera_photometry=model)
     t0 = time.thread_time()
     res = locate(img, cell, door)
     locate_s = time.thread_time() - t0
@@ -504,8 +510,8 @@ def main() -> None:
         "--measured-photometry",
         action="store_true",
         help="the cell carries its camera's photometric model as `doorloc check-model --boards` measures a "
-        "camera that keeps its power law (the cell's exponent, no shoulder): the doubt of a shoulder nobody "
-        "measured is lifted",
+        "camera that keeps its power law (the cell's exponent, no shoulder; its edges' held-out residual the "
+        "cell's optics_edge_sigma_px): the doubt of a shoulder nobody measured is lifted",
     )
     ap.add_argument(
         "--optics-sigma",
