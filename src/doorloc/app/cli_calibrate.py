@@ -133,8 +133,9 @@ def _echo_optics(images_dir: Path, pattern: str, square: float, out: Path) -> No
 
     typer.echo(
         "camera optics: not measured; locate counts locate.optics_edge_sigma_px "
-        f"({LocateConfig().optics_edge_sigma_px:g} px by default) on every edge for them. To measure them on these photographs (minutes): doorloc check-model --boards "
-        f"{images_dir} --pattern {pattern} --square {square:g} --calibration {out} --out REPORT_DIR, then name "
+        f"({LocateConfig().optics_edge_sigma_px:g} px by default) on every edge for them. To measure them on "
+        f"these photographs (minutes): doorloc check-model --boards {images_dir} --pattern {pattern} "
+        f"--square {square:g} --calibration {out} --out REPORT_DIR, then name "
         "REPORT_DIR/camera_photometric.yaml in the cell's camera.calibration"
     )
 

@@ -335,5 +335,5 @@ def measure_board_edges(
         dark[ok],
         bright[ok],
         noise[ok],
-        np.arange(n_edges) < rows * (cols - 1),  # board_edge_curves: each row's neighbours first
+        pairs[:, 1] - pairs[:, 0] == 1,  # two neighbours in one row of the board's row-major corners
     )
