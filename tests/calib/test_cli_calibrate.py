@@ -14,6 +14,8 @@ from conftest import OPENCV_LEFT
 from doorloc.app.cli import app
 from doorloc.app.errors import EXIT_FAILED, EXIT_REFUSED, EXIT_USAGE
 from doorloc.calib.io import load_calibration
+from doorloc.cell import load_cell
+from doorloc.photometric.model import PhotometricModel
 
 runner = CliRunner()
 
@@ -80,6 +82,7 @@ def test_calibrate_uses_the_good_views_and_says_why_others_were_skipped(messy_di
     assert f"camera.response_gamma: {cal.response_gamma:.2f}" in r.output
     # and what it leaves of the optics, with the command that measures them on the same photographs
     assert "camera optics: not measured" in r.output and "locate.optics_edge_sigma_px" in r.output
+    assert "run this command again with --optics" in r.output
     assert f"check-model --boards {messy_dir} --pattern 9x6 --square 25 --calibration {out}" in r.output
     doc = json.loads((rep / "calibration_report.json").read_text())
     assert {s["image"] for s in doc["skipped_images"]} == {"broken.jpg", "blank.png", "small.png"}
@@ -140,6 +143,10 @@ def test_too_few_views_fails_and_leaves_the_old_file_alone(messy_dir, tmp_path):
         (["--pattern", "9x6", "--square", "25", "--model", "fisheye"], "--model must be auto or one of"),
         (["--pattern", "9x6", "--square", "-1"], "square size must be positive"),
         (["--pattern", "7x5", "--square", "30", "--charuco"], "needs --marker"),
+        (
+            ["--pattern", "7x5", "--square", "30", "--charuco", "--marker", "20", "--optics"],
+            "--optics reads a chessboard's square edges",
+        ),
     ],
 )
 def test_bad_arguments_exit_2_with_a_sentence(messy_dir, tmp_path, args, message):
@@ -226,3 +233,30 @@ def test_a_failing_response_measurement_does_not_cost_the_calibration(messy_dir,
     assert "Traceback" not in r.output
     cal = load_calibration(out)
     assert cal.response_gamma is None and abs(cal.camera.fx / 535.916 - 1) < 0.01
+
+
+@pytest.mark.slow
+def test_optics_measured_on_the_same_photographs_go_into_the_calibration_and_the_cell(messy_dir, tmp_path):
+    """``--optics``: the board check's photometric model (OpenCV's left camera compresses its highlights
+    from about 0.69 of full scale) in the calibration file, with what made it, and a cell that names the file
+    carries it (so locate reads the measured response and edge residual, not its doubts for an unmeasured
+    camera)."""
+    out = tmp_path / "camera.yaml"
+    r = runner.invoke(
+        app,
+        ["calibrate", str(messy_dir), "--pattern", "9x6", "--square", "25", "--out", str(out), "--optics"],
+    )
+    assert r.exit_code == 0, r.output
+    cal = load_calibration(out)
+    assert cal.photometric_model is not None and abs(cal.camera.fx / 535.916 - 1) < 0.01
+    model = PhotometricModel.from_dict(cal.photometric_model)
+    assert 0.6 < model.shoulder < 0.8 and 0.0 < model.residual_edge_px < 0.13
+    assert "doorloc calibrate messy" in (cal.photometric_model_provenance or "")
+    assert "13 photographs" in (cal.photometric_model_provenance or "")
+    assert "camera optics: measured on 13 photographs" in r.output and "not measured" not in r.output
+    assert f"compresses the levels above {model.shoulder:.2f} of full scale" in r.output
+    (tmp_path / "cell.yaml").write_text(
+        "camera:\n  calibration: camera.yaml\n"
+        "  extrinsics: {rvec: [1.5707963268, 0, 0], tvec_mm: [-30, 40, 350]}\n"
+    )
+    assert load_cell(tmp_path / "cell.yaml").camera_photometry == model

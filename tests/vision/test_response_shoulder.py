@@ -22,6 +22,7 @@ from doorloc.vision.config import LocateConfig
 from doorloc.vision.locate import locate
 from doorloc.vision.luminance import LuminancePlane
 from doorloc.vision.response_shoulder import (
+    doubted_knee,
     plain_edges_rule_out,
     shoulder_doubted,
     shoulder_ruled_out,
@@ -57,37 +58,60 @@ def test_the_shouldered_camera_keeps_the_power_law_below_its_knee():
     assert np.all(cam.light_from_grey(top) > top**2.2)
 
 
+#: a camera measured on board photographs that found its response a power law up to 0.9 of full scale
+MEASURED_TO_090 = PhotometricModel(gamma=2.2, residual_edge_px=0.05, response_measured_to=0.9)
+
+
+def test_the_doubted_knee_follows_what_the_cells_model_measured():
+    assert doubted_knee(0.7, None) == 0.7  # the cell states its exponent only
+    assert doubted_knee(1.0, None) == 1.0  # the cell says its camera keeps its power law
+    # a model that found the response's top bending measured it there
+    assert doubted_knee(0.7, SHOULDERED) == 1.0
+    assert doubted_knee(0.7, PhotometricModel(gamma=2.2, clip_level=0.95)) == 1.0
+    assert doubted_knee(0.7, PhotometricModel(gamma=2.2, white_level=0.96, shoulder=1.0)) == 1.0
+    # one that found a power law measured it as far as its photographs reached
+    assert doubted_knee(0.7, MEASURED_TO_090) == 0.9
+    assert doubted_knee(0.7, MEASURED_TO_090.with_values(response_measured_to=0.5)) == 0.7
+    assert doubted_knee(0.7, MEASURED_TO_090.with_values(response_measured_to=1.0)) == 1.0
+    assert doubted_knee(1.0, MEASURED_TO_090) == 1.0
+    # located again through the measured model with a shoulder from that level, not the cell's power law
+    bent = shouldered_camera(1.0, 0.9, MEASURED_TO_090)
+    assert bent.gamma == 2.2 and bent.shoulder == 0.9 and bent.residual_edge_px == 0.05
+
+
 @pytest.mark.parametrize(
-    "peak,checked,photometry,knee,doubted",
+    "peak,checked,measured,knee,doubted",
     [
-        (220, False, False, 0.7, True),
-        (170, False, False, 0.7, False),  # nothing above the knee: the mapping would change nothing
-        (220, True, False, 0.7, False),  # the image's plain edges read the response
-        (220, False, True, 0.7, False),  # the cell carries the camera's photometric model
-        (220, False, False, 1.0, False),  # the cell says its camera keeps its power law
+        (220, False, None, 0.7, True),
+        (170, False, None, 0.7, False),  # nothing above the knee: the mapping would change nothing
+        (220, True, None, 0.7, False),  # the image's plain edges read the response
+        (220, False, SHOULDERED, 0.7, False),  # the cell carries the camera's measured shoulder
+        (220, False, MEASURED_TO_090, 0.7, False),  # ... or its power law measured above the image's levels
+        (240, False, MEASURED_TO_090, 0.7, True),  # ... but not as far as this image reaches
+        (220, False, None, 1.0, False),  # the cell says its camera keeps its power law
     ],
 )
-def test_which_answers_take_the_doubt(peak, checked, photometry, knee, doubted):
+def test_which_answers_take_the_doubt(peak, checked, measured, knee, doubted):
     plane = np.full((16, 16), 90, np.uint8)
     plane[4, 4] = peak
     lum = LuminancePlane(plane, 1.0)
-    assert shoulder_doubted(_answer(1.0, 2.0, 0.02, checked), lum, knee, photometry, 1.0) is doubted
+    knee = doubted_knee(knee, measured)
+    assert shoulder_doubted(_answer(1.0, 2.0, 0.02, checked), lum, knee, 1.0) is doubted
     # a plain door whose edges read the cell's exponent, or could not be read: never
-    assert not shoulder_doubted(_answer(1.0, 2.0, 0.02, checked), lum, knee, photometry, 0.0)
+    assert not shoulder_doubted(_answer(1.0, 2.0, 0.02, checked), lum, knee, 0.0)
     # whose edges read another exponent, which replaced the cell's: as an arris door whose edges could not
     # be read (the exponent may be the shoulder's stand-in)
     for arris_mm in (0.0, 1.0):
         absorbed = _answer(1.0, 2.0, 0.02, absorbed=True)
         # (the checked case above is doubted too: an absorbed reading is a checked one)
-        assert shoulder_doubted(absorbed, lum, knee, photometry, arris_mm) is (doubted or checked)
-    assert not shoulder_doubted(LocateResult.refusal("door", "uncertain", "no"), lum, knee, photometry, 1.0)
+        assert shoulder_doubted(absorbed, lum, knee, arris_mm) is (doubted or checked)
+    assert not shoulder_doubted(LocateResult.refusal("door", "uncertain", "no"), lum, knee, 1.0)
     # 16-bit levels on their own scale
     assert (
         shoulder_doubted(
             _answer(1.0, 2.0, 0.02, checked),
             LuminancePlane(plane.astype(np.uint16) * 257, 255 / 65535),
             knee,
-            photometry,
             1.0,
         )
         is doubted
@@ -105,7 +129,10 @@ def test_the_move_widens_the_answer_or_refuses_it():
     assert small.diagnostics["response_shoulder"]["move_z_mm"] == pytest.approx(-0.04)
     large = widened_by_shoulder(_answer(1.0, 2.0, 0.02), _answer(1.12, 2.0, 0.02), 0.7, None, cfg)
     assert not large.ok and large.error_code == "uncertain"
-    assert "above 0.7 of full scale" in large.error and "check-model --boards" in large.error
+    assert "above 0.7 of full scale" in large.error and "doorloc calibrate --optics" in large.error
+    # a cell whose model measured a power law only as far as a lower level: measure it again, brighter
+    again = widened_by_shoulder(_answer(1.0, 2.0, 0.02), _answer(1.12, 2.0, 0.02), 0.7, None, cfg, 0.6)
+    assert "read the camera's response up to 0.60 of full scale only" in again.error
     assert large.diagnostics["measured"]["x_mm"] == 1.0
     assert "plain edges" not in large.error
     # where the plain edges' exponent replaced the cell's, the refusal says which they read
@@ -196,9 +223,11 @@ def _read_without_and_with_the_doubt(
     camera: PhotometricModel,
     rendering: CameraRendering,
     seed: int,
+    measured: PhotometricModel | None = None,
 ) -> tuple[LocateResult, LocateResult]:
     """The door rendered through ``camera`` (``rendering.exposure``: the level its 99.5th percentile reaches,
-    a fraction of full scale) and located in a cell stating the power law 1.0, without the shoulder's doubt
+    a fraction of full scale) and located in a cell stating the power law 1.0 (or carrying the photometric
+    model ``measured``), without the shoulder's doubt
     and with it. Asserts what the doubt is for: without it answered and off by more than 2 of its sigmas in
     x; with it located again through a shoulder from 0.7 and within 2 sigma, or refused `uncertain` naming
     the shoulder. ``scene`` is the door and its light only: the blur, noise and compression are the camera's
@@ -207,7 +236,9 @@ def _read_without_and_with_the_doubt(
     rd = render_door(CELL, door, pose, effects=scene, seed=seed)
     exposure = rendering.exposure / float(np.percentile(rd.radiance, 99.5))
     img = apply_camera(rd.radiance, camera, dataclasses.replace(rendering, exposure=exposure), seed=seed)
-    cell = dataclasses.replace(CELL, response_gamma=1.0, response_gamma_sigma=None)
+    cell = dataclasses.replace(
+        CELL, response_gamma=1.0, response_gamma_sigma=None, camera_photometry=measured
+    )
     cfg = dataclasses.replace(cell.locate, calibration_sigma_px=0.0)
     without = locate(img, cell, door, config=dataclasses.replace(cfg, response_shoulder_knee=1.0))
     res = locate(img, cell, door, config=cfg)
@@ -223,10 +254,8 @@ def _read_without_and_with_the_doubt(
     return without, res
 
 
-def test_a_chamfer_in_a_cameras_shoulder_is_not_confidently_off():
-    # bench_camera_doors.py --model <OpenCV's report> --n 24 --seed 81000, door_012, its camera's response
-    # alone: a 1.11 mm chamfer exposed to 0.92 of full scale; without the doubt it was answered 0.18 mm off
-    # at 2.6 sigma (the whole model: 0.181 mm, 2.6 sigma)
+def _chamfer_door_012() -> tuple[DoorSize, DoorPose, Effects]:
+    """bench_camera_doors.py --model <OpenCV's report> --n 24 --seed 81000, door_012: a 1.11 mm chamfer."""
     door = DoorSize(900, 58.329, 2100, 1.108, "chamfer")
     pose = DoorPose(x_mm=9.655, z_mm=-3.007, yaw_deg=-1.178)
     scene = Effects(
@@ -242,12 +271,30 @@ def test_a_chamfer_in_a_cameras_shoulder_is_not_confidently_off():
         shadow_z_mm=29.91,
         arris_profile="chamfer",
     )
+    return door, pose, scene
+
+
+def test_a_chamfer_in_a_cameras_shoulder_is_not_confidently_off():
+    # door_012 through its camera's response alone, exposed to 0.92 of full scale; without the doubt it was
+    # answered 0.18 mm off at 2.6 sigma (the whole model: 0.181 mm, 2.6 sigma)
     without, res = _read_without_and_with_the_doubt(
-        door, pose, scene, SHOULDERED, CameraRendering(1.548, 0.9174, 2.012), seed=81000012
+        *_chamfer_door_012(), SHOULDERED, CameraRendering(1.548, 0.9174, 2.012), seed=81000012
     )
     assert not without.diagnostics["camera_response"]["absorbed"]
     if not res.ok:
         assert "plain edges" not in res.error
+
+
+def test_a_power_law_measured_below_the_doors_levels_keeps_the_doubt_above_them():
+    # the same chamfer, in a cell whose camera model found a power law on board photographs whose bright
+    # squares reached 0.6 of full scale (below the shoulder at 0.69): the model says nothing of the levels the
+    # door reaches, so the doubt stands from the cell's knee, and a refusal says how to measure them
+    measured = PhotometricModel(gamma=1.0, residual_edge_px=0.13, response_measured_to=0.6)
+    _, res = _read_without_and_with_the_doubt(
+        *_chamfer_door_012(), SHOULDERED, CameraRendering(1.548, 0.9174, 2.012), 81000012, measured
+    )
+    if not res.ok:
+        assert "read the camera's response up to 0.60 of full scale only" in res.error
 
 
 def test_a_plain_door_whose_edges_read_a_shoulder_as_an_exponent_is_not_confidently_off():

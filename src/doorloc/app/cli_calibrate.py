@@ -23,6 +23,7 @@ if TYPE_CHECKING:  # the calibration modules load only when a command runs (fast
     from doorloc.calib.camera import CameraModel, DistortionValidity
     from doorloc.calib.detect import SkippedImage
     from doorloc.calib.folder import CalibrationOutcome
+    from doorloc.photometric.check import BoardCheck
     from doorloc.vision.response import BoardResponse
 
 
@@ -126,17 +127,48 @@ def _echo_response(response: BoardResponse | None) -> None:
     )
 
 
-def _echo_optics(images_dir: Path, pattern: str, square: float, out: Path) -> None:
-    """What the calibration leaves unmeasured of the camera's optics, and the command that measures them on
-    the same photographs (``check-model --boards``: chessboards only)."""
+def _echo_not_used(done: CameraCalibration) -> None:
+    """The photographs skipped, and a measurement that failed without costing the calibration, on stderr."""
+    _echo_skipped(done.outcome.detected.skipped)
+    if done.response_problem:
+        typer.echo(f"warning: the camera response was not measured ({done.response_problem})", err=True)
+    if done.optics_problem:
+        typer.echo(f"warning: the camera optics were not measured ({done.optics_problem})", err=True)
+
+
+def _echo_optics(check: BoardCheck | None, images_dir: Path, pattern: str, square: float, out: Path) -> None:
+    """What ``calibrate --optics`` measured of the camera's optics (``check``), or that the calibration left
+    them unmeasured and the command that measures them on the same photographs (chessboards only)."""
     from doorloc.vision.config import LocateConfig
 
+    if check is not None:
+        _echo_measured_optics(check)
+        return
     typer.echo(
         "camera optics: not measured; locate counts locate.optics_edge_sigma_px "
-        f"({LocateConfig().optics_edge_sigma_px:g} px by default) on every edge for them. To measure them on "
-        f"these photographs (minutes): doorloc check-model --boards {images_dir} --pattern {pattern} "
-        f"--square {square:g} --calibration {out} --out REPORT_DIR, then name "
+        f"({LocateConfig().optics_edge_sigma_px:g} px by default) on every edge for them, and doubts a "
+        "shoulder in the response. To measure them on these photographs (minutes): run this command again "
+        f"with --optics, or, with a report of what they show, doorloc check-model --boards {images_dir} "
+        f"--pattern {pattern} --square {square:g} --calibration {out} --out REPORT_DIR, then name "
         "REPORT_DIR/camera_photometric.yaml in the cell's camera.calibration"
+    )
+
+
+def _echo_measured_optics(check: BoardCheck) -> None:
+    """What ``calibrate --optics`` measured and wrote: the causes named, the response's shoulder where one was
+    found, the held-out edge residual locate counts in place of ``locate.optics_edge_sigma_px``."""
+    m = check.model
+    shoulder = (
+        f"; its response compresses the levels above {m.shoulder:.2f} of full scale (a shoulder)"
+        if m.shoulder < 1.0
+        else "; no shoulder in its response"
+    )
+    typer.echo(
+        f"camera optics: measured on {len(check.photographs)} photographs: "
+        f"{', '.join(check.causes) or 'nothing beyond the plain edge model'}{shoulder}; the edges keep "
+        f"{m.residual_edge_px:.3f} px held out, which locate counts on every edge in place of "
+        "locate.optics_edge_sigma_px. The photometric model is in the calibration file: a cell that names it "
+        "(camera.calibration) uses it"
     )
 
 
@@ -166,6 +198,14 @@ CharucoFlag = Annotated[bool, typer.Option("--charuco", help="the board is a ChA
 MarkerOption = Annotated[float | None, typer.Option(metavar="MM", help="ChArUco marker side, mm")]
 DictionaryOption = Annotated[str, typer.Option(help="ChArUco ArUco dictionary")]
 LegacyFlag = Annotated[bool, typer.Option("--legacy", help="ChArUco board in OpenCV's pre-4.6 layout")]
+OpticsFlag = Annotated[
+    bool,
+    typer.Option(
+        "--optics",
+        help="chessboard only: also measure the camera's optics and its response beyond a power law on the "
+        "same photographs (minutes), as check-model --boards does, into the calibration file",
+    ),
+]
 
 
 def _board_or_fail(
@@ -179,7 +219,7 @@ def _board_or_fail(
 
 
 def _calibrated(
-    images_dir: Path, board, model: str, folds: int, min_views: int, camera_name: str
+    images_dir: Path, board, model: str, folds: int, min_views: int, camera_name: str, optics: bool = False
 ) -> CameraCalibration:
     """:func:`doorloc.app.services.calibrate_camera`; exit 3 (nothing written) when too few views show the
     board or the fit fails, 2 for no images or a bad ``--model``."""
@@ -195,6 +235,8 @@ def _calibrated(
             n_folds=folds,
             min_views=min_views,
             camera_name=camera_name,
+            measure_optics=optics,
+            progress=(lambda m: typer.echo(f"camera optics: {m}", err=True)) if optics else None,
         )
     except TooFewViewsError as e:
         _echo_skipped(e.detected.skipped)
@@ -232,11 +274,15 @@ def calibrate_cmd(
     folds: Annotated[int, typer.Option(min=2, help="K of the K-fold held-out model selection")] = 5,
     min_views: Annotated[int, typer.Option(min=3, help="fewest usable views to calibrate with")] = 4,
     camera_name: Annotated[str, typer.Option(help="camera name stored in the file")] = "doorloc",
+    optics: OpticsFlag = False,
 ) -> None:
     """Calibrate a camera from photographs of a chessboard or ChArUco board.
 
     With a chessboard it also measures the camera's response on the squares' edges (written to the
-    file as response_gamma +- response_gamma_sigma, and printed as the cell-file lines it allows).
+    file as response_gamma +- response_gamma_sigma, and printed as the cell-file lines it allows);
+    with --optics also the camera's photometric model (a shoulder or a pedestal in its response, its
+    point spread, what its edges keep held out), which locate then uses in place of the doubts it
+    grants a camera nobody measured.
     Images without a board, unreadable files and images of another size are skipped with a
     reason; the calibration goes ahead if enough views remain. Exit codes: 0 done, 2 bad
     arguments or input, 3 too few usable views (nothing written).
@@ -246,11 +292,11 @@ def calibrate_cmd(
 
     if fmt not in ("opencv", "ros"):
         raise fail(f"--format must be opencv or ros, got {fmt!r}")
+    if optics and charuco:
+        raise fail("--optics reads a chessboard's square edges; a ChArUco board's are broken by its markers")
     board = _board_or_fail(pattern, square, charuco, marker, dictionary, legacy)
-    done = _calibrated(images_dir, board, model, folds, min_views, camera_name)
-    _echo_skipped(done.outcome.detected.skipped)
-    if done.response_problem:
-        typer.echo(f"warning: the camera response was not measured ({done.response_problem})", err=True)
+    done = _calibrated(images_dir, board, model, folds, min_views, camera_name, optics)
+    _echo_not_used(done)
     save_calibration(done.calibration, out, fmt)
     if report is not None:
         d = done.outcome.detected
@@ -258,7 +304,7 @@ def calibrate_cmd(
     _echo_calibration(done.outcome, out, fmt)
     _echo_response(done.response)
     if not charuco:
-        _echo_optics(images_dir, pattern, square, out)
+        _echo_optics(done.optics, images_dir, pattern, square, out)
 
 
 def calibrate_cell_cmd(

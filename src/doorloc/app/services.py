@@ -47,6 +47,7 @@ if TYPE_CHECKING:  # the calibration modules load when a calibration runs
     from doorloc.calib.detect import CharucoSpec, Chessboard
     from doorloc.calib.folder import CalibrationOutcome
     from doorloc.calib.io import CalibrationFile
+    from doorloc.photometric.check import BoardCheck
     from doorloc.vision.response import BoardResponse
 
     Board = Chessboard | CharucoSpec
@@ -400,15 +401,19 @@ def reach_for_recipe(
 class CameraCalibration:
     """A camera calibrated from a folder of board photographs, ready to write.
 
-    ``calibration`` is the file's content (the measured camera response in it when there was one);
-    ``response`` the response measured on the chessboard's squares (None: not measured, and
-    ``response_problem`` says why when the measurement itself failed).
+    ``calibration`` is the file's content (the measured camera response in it when there was one, and the
+    camera's photometric model where its optics were measured); ``response`` the response measured on the
+    chessboard's squares (None: not measured, and ``response_problem`` says why when the measurement itself
+    failed); ``optics`` the board check that measured the optics (None: not asked for or not possible, and
+    ``optics_problem`` says why where asked for).
     """
 
     outcome: CalibrationOutcome
     calibration: CalibrationFile
     response: BoardResponse | None
     response_problem: str | None = None
+    optics: BoardCheck | None = None
+    optics_problem: str | None = None
 
 
 def calibrate_camera(
@@ -419,8 +424,12 @@ def calibrate_camera(
     n_folds: int = 5,
     min_views: int = 4,
     camera_name: str = "doorloc",
+    measure_optics: bool = False,
+    progress: Callable[[str], None] | None = None,
 ) -> CameraCalibration:
-    """Calibrate a camera from the board photographs in ``images_dir`` and measure its response.
+    """Calibrate a camera from the board photographs in ``images_dir`` and measure its response; with
+    ``measure_optics`` (chessboards only) also its optics and its response beyond a power law, as
+    ``doorloc check-model --boards`` measures them (:func:`camera_optics`), into the calibration.
 
     Raises :class:`doorloc.calib.folder.TooFewViewsError` (its ``detected`` says what each image gave),
     :class:`doorloc.calib.calibrate.CalibrationError`, :class:`doorloc.calib.folder.CalibrationInputError`.
@@ -457,7 +466,39 @@ def calibrate_camera(
         return CameraCalibration(outcome, cal, None, f"{type(e).__name__}: {e}")
     if response is not None:
         cal = replace(cal, response_gamma=response.gamma, response_gamma_sigma=response.sigma)
-    return CameraCalibration(outcome, cal, response)
+    if not measure_optics:
+        return CameraCalibration(outcome, cal, response)
+    from doorloc.photometric.check import BoardCheckError
+
+    try:
+        check, cal = camera_optics(images_dir, board, cal, progress)
+    except BoardCheckError as e:  # too few photographs with squares to read: the calibration stands
+        return CameraCalibration(outcome, cal, response, optics_problem=str(e))
+    return CameraCalibration(outcome, cal, response, optics=check)
+
+
+def camera_optics(
+    images_dir: str | Path,
+    board: Chessboard,
+    calibration: CalibrationFile,
+    progress: Callable[[str], None] | None = None,
+) -> tuple[BoardCheck, CalibrationFile]:
+    """The photometric board check (:func:`doorloc.photometric.check.check_photographs`: the camera's response
+    beyond a power law, its point spread, a held-out edge residual) on the chessboard photographs in
+    ``images_dir`` through ``calibration``'s camera, and ``calibration`` with its photometric model added.
+    Raises :class:`doorloc.photometric.check.BoardCheckError` where the photographs cannot be used."""
+    from datetime import UTC, datetime
+
+    from doorloc.photometric.check import check_photographs, measure_boards
+    from doorloc.photometric.report import extended_calibration
+
+    measured = measure_boards(images_dir, board, calibration, progress=progress)
+    check = check_photographs(measured.photographs, progress=progress)
+    command = (
+        f"doorloc calibrate {Path(images_dir).name} --pattern {board.cols}x{board.rows} "
+        f"--square {board.square_mm:g} --optics"
+    )
+    return check, extended_calibration(check, calibration, command, datetime.now(UTC).strftime("%Y-%m-%d"))
 
 
 def _board_seen_instead(

@@ -65,6 +65,7 @@ __all__ = [
     "field_offsets",
     "FieldOffsets",
     "measure_boards",
+    "response_measured_to",
 ]
 
 #: fewest photographs with the whole board a check is attempted with (one held out, two to fit)
@@ -524,9 +525,22 @@ def check_photographs(
     edge_px = _edge_residual_px(rms_after, sel.heldout.by_direction_px, photos)
     if np.isfinite(edge_px):
         model = model.with_values(residual_edge_px=min(edge_px, 5.0))
+    model = model.with_values(response_measured_to=response_measured_to(photos, model.black_level))
     return BoardCheck(
         causes, model, parameters, results, sel, bt, tail_gain, None, "", sel.alternatives, fields=fields
     )
+
+
+def response_measured_to(photos: list[Photograph], black_level: float) -> float:
+    """The level (fraction of full scale above the pedestal ``black_level``) up to which ``photos`` read the
+    camera's response: the 90th percentile of their edges' bright plateaus. A shoulder from there would bend
+    a tenth of their edges or more, which the check's held-out fit sees; one that starts higher, fewer."""
+    b = np.concatenate([p.edges.bright for p in photos]) / 255.0
+    b = b[np.isfinite(b)]
+    if not b.size:
+        return 1.0
+    top = (float(np.percentile(b, 90)) - black_level) / (1.0 - black_level)
+    return float(np.clip(top, 0.05, 1.0))
 
 
 def _edge_residual_px(median_rms_px: float, by_direction_px: np.ndarray, photos: list[Photograph]) -> float:

@@ -71,7 +71,13 @@ even blur, a perfect print):
   (``doorloc check-model --boards``), or, where larger, the RMS of those medians taken by edge direction
   (their noise taken off): a door's edge faces one way, and a bias whose direction changes from photograph
   to photograph cancels in the median over all directions only; not an effect but the model's measured
-  error, which locate counts in every edge's doubt. 0 = not measured.
+  error, which locate counts in every edge's doubt. 0 = not measured;
+- ``response_measured_to``: the level (fraction of full scale, above the pedestal) up to which the
+  photographs the model was measured on read the response: where the brightest tenth of their edges' bright
+  plateaus begins (their 90th percentile). A response the model finds a power law is not measured above it,
+  so locate doubts a shoulder from there (:mod:`doorloc.vision.response_shoulder`), as it doubts one from
+  ``locate.response_shoulder_knee`` in a camera nobody measured. 1 = up to full scale (also where a model
+  file does not say).
 
 Only the response, its clipping, the print and the spread's asymmetry move an edge placed in linear light; the others change its profile (and so
 what an estimator that is not unbiased for them reports). Veiling glare (light scattered over the whole
@@ -120,6 +126,7 @@ PARAMETER_UNITS = {
     "field_offset_v_px": "px",
     "field_offset_scatter_px": "px",
     "residual_edge_px": "px",
+    "response_measured_to": "fraction of full scale",
 }
 
 
@@ -152,6 +159,7 @@ class PhotometricModel:
     field_offset_v_px: float = 0.0
     field_offset_scatter_px: float = 0.0
     residual_edge_px: float = 0.0
+    response_measured_to: float = 1.0
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -191,6 +199,10 @@ class PhotometricModel:
             )
         if not 0.0 <= self.residual_edge_px <= 5.0:
             raise ValueError(f"photometric model: residual_edge_px {self.residual_edge_px} outside 0..5 px")
+        if not 0.05 <= self.response_measured_to <= 1.0:
+            raise ValueError(
+                f"photometric model: response_measured_to {self.response_measured_to} outside 0.05..1"
+            )
 
     @property
     def interlaced(self) -> bool:
@@ -328,6 +340,7 @@ class PhotometricModel:
                 "edge_shift_u_px",
                 "edge_shift_v_px",
                 "residual_edge_px",
+                "response_measured_to",
             )
         }
 

@@ -13,6 +13,7 @@ import json
 import math
 import os
 from collections.abc import Callable
+from dataclasses import replace
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -29,6 +30,7 @@ __all__ = [
     "report_dict",
     "report_markdown",
     "write_board_report",
+    "extended_calibration",
     "board_model_check",
     "EXTENDED_CALIBRATION",
     "PLOTS",
@@ -402,6 +404,20 @@ def plots(check: BoardCheck) -> dict[str, bytes]:
     return out
 
 
+def extended_calibration(
+    check: BoardCheck, base: CalibrationFile, command: str, date: str
+) -> CalibrationFile:
+    """``base`` with the check's photometric model added and what made it (``photometric_model_provenance``:
+    ``command``, the photographs, the causes named, ``date`` as YYYY-MM-DD)."""
+    return replace(
+        base,
+        photometric_model=check.model.to_dict(),
+        photometric_model_provenance=(
+            f"{command}; {len(check.photographs)} photographs; causes {', '.join(check.causes) or 'none'}; {date}"
+        ),
+    )
+
+
 def write_board_report(
     check: BoardCheck, out_dir: str | os.PathLike, calibration: CalibrationFile | None, provenance: str
 ) -> Path:
@@ -415,20 +431,8 @@ def write_board_report(
     camera = calibration.camera if calibration is not None else check.camera
     if camera is None:
         raise ValueError("a board check without a camera needs the calibration to extend")
-    base = calibration or CalibrationFile(camera)
-    stamp = datetime.now(UTC).strftime("%Y-%m-%d")
-    ext = CalibrationFile(
-        base.camera,
-        base.avg_reprojection_error,
-        base.per_view_reprojection_errors,
-        base.camera_name,
-        base.extra,
-        base.covariance,
-        base.covariance_names,
-        base.response_gamma,
-        base.response_gamma_sigma,
-        {k: v for k, v in check.model.to_dict().items()},
-        f"{provenance}; {len(check.photographs)} photographs; causes {', '.join(check.causes) or 'none'}; {stamp}",
+    ext = extended_calibration(
+        check, calibration or CalibrationFile(camera), provenance, datetime.now(UTC).strftime("%Y-%m-%d")
     )
     path = out / EXTENDED_CALIBRATION
     atomic_write_text(path, dump_opencv_yaml(ext))

@@ -127,14 +127,16 @@ class LocateConfig:
         camera changed since its calibration is then not seen by locate: for a cell whose camera is locked
         and re-calibrated when changed.
     response_shoulder_knee : float
-        Where the image could not check the camera's response of an arris door, or a door's plain edges
-        read an exponent that replaced the cell's, and the cell has no photometric model of its camera
-        (``doorloc check-model --boards``), the response above this level (fraction of full scale) is
-        doubted to bend as a shoulder (both public cameras' do, from 0.69 and 0.48): a door whose image
-        reaches above it is located again as if its camera had a shoulder from here to full scale, and the
-        answer's move joins its uncertainty (``uncertainty_budget``'s ``response_shoulder``;
-        :mod:`doorloc.vision.response_shoulder`). 1: no such doubt (a camera known to keep its power law to
-        full scale).
+        Where the image could not check the camera's response of an arris door, or a door's plain edges read
+        an exponent that replaced the cell's, the response above this level (fraction of full scale) is
+        doubted to bend as a shoulder (both public cameras' do, from 0.69 and 0.48) unless the cell's
+        photometric model of its camera (``doorloc calibrate --optics``, ``doorloc check-model --boards``)
+        measured it there (:func:`doorloc.vision.response_shoulder.doubted_knee`: a model that found a
+        shoulder lifts the doubt; one that found none keeps it above the level its board photographs reached,
+        where that is higher than this): a door whose image reaches above it is located again as if its camera
+        had a shoulder from here to full scale, and the answer's move joins its uncertainty
+        (``uncertainty_budget``'s ``response_shoulder``; :mod:`doorloc.vision.response_shoulder`). 1: no such
+        doubt (a camera known to keep its power law to full scale).
     max_sigma_mm : float
         Refuse when the fit's standard error of x or z exceeds this.
     max_saturated_fraction : float
@@ -172,21 +174,21 @@ class LocateConfig:
         1-sigma of the camera's placement in the cell (the cell check), carried into x, z and yaw.
     optics_edge_sigma_px : float
         Where the cell carries no photometric model of its camera (``camera.photometric_model`` or the
-        calibration's, from ``doorloc check-model --boards``): 1-sigma of how far the camera's optics move
-        every edge beyond what a Gaussian blur and the response curve explain, image px, counted on every
-        edge as one cause (the ``optics`` term of ``diagnostics.uncertainty_budget``). One image cannot see
-        it: a point spread off centre moves the door's edges as a moved door would. Measured on the two public
-        cameras' board photographs (``../shared/data``): Bouguet's camera moves its edges 0.19 px along the
-        image's rows and 0.05 along its columns against the board's corners, OpenCV's left camera none
-        beyond its response. Two cameras fix the spread of such shifts only loosely: the RMS of the four,
-        0.1 px, left the z of doors through Bouguet's measured camera, located in a cell that does not
-        describe it, within 2 sigma on 85, 85 and 91 % of three draws (65 %, worst 11 sigma, with no such
-        doubt); 0.13 (the default) puts the largest shift measured at 1.5 sigma of this term alone, so that
-        a door through that camera stays within 2 sigma once its other doubts join it: 96, 96 and 100 %.
-        Its price: rounded arrises whose sigma lay just under ``max_uncertainty_mm`` are refused (3 of 128
-        on one draw of the arris bench, 0 on another). A camera whose photometric model was measured takes
-        that model's held-out ``residual_edge_px`` instead; 0 only for a camera known exactly (rendered
-        images).
+        calibration's, from ``doorloc calibrate --optics`` or ``doorloc check-model --boards``): 1-sigma of
+        how far the camera's optics move every edge beyond what a Gaussian blur and the response curve
+        explain, image px, counted on every edge as one cause (the ``optics`` term of
+        ``diagnostics.uncertainty_budget``). One image cannot see it: a point spread off centre moves the
+        door's edges as a moved door would. Measured on the two public cameras' board photographs
+        (``../shared/data``): Bouguet's camera moves its edges 0.19 px along the image's rows and 0.05 along
+        its columns against the board's corners, OpenCV's left camera none beyond its response. Two cameras
+        fix the spread of such shifts only loosely: the RMS of the four, 0.1 px, left the z of doors through
+        Bouguet's measured camera, located in a cell that does not describe it, within 2 sigma on 85, 85 and
+        91 % of three draws (65 %, worst 11 sigma, with no such doubt); 0.13 (the default) puts the largest
+        shift measured at 1.5 sigma of this term alone, so that a door through that camera stays within 2
+        sigma once its other doubts join it: 96, 96 and 100 %. Its price: rounded arrises whose sigma lay just
+        under ``max_uncertainty_mm`` are refused (3 of 128 on one draw of the arris bench, 0 on another). A
+        camera whose photometric model was measured takes that model's held-out ``residual_edge_px`` instead;
+        0 only for a camera known exactly (rendered images).
     """
 
     search_margin_mm: float = 30.0

@@ -607,9 +607,10 @@ _UNCERTAIN_HINT = {
     "answer's diagnostics camera_response.fitted), put it in the cell file and set "
     "locate.response_unmeasured_factor to what the measurement allows",
     "optics_unmeasured": "the camera's optics were not measured, and the cell takes every edge as known only "
-    "within locate.optics_edge_sigma_px; measure them once (doorloc check-model --boards on the calibration's "
-    "chessboard photographs writes the camera's photometric model, with what it leaves on real edges) and "
-    "point the cell's camera.calibration at the file it writes",
+    "within locate.optics_edge_sigma_px; measure them once on the calibration's chessboard photographs "
+    "(doorloc calibrate --optics writes the camera's photometric model, with what it leaves on real edges, "
+    "into the calibration file, as doorloc check-model --boards does into its report's) and point the cell's "
+    "camera.calibration at that file",
     "arris": "an arris strip cannot be read closely enough (its shading trades off with its border's place "
     "and the blur, most on a small arris; diagnostics arris_fit gives each strip's deficit and its sigma); check "
     "the recipe's arris size and profile, and light the arrises so that their strips stand apart from the hinge "

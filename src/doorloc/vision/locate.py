@@ -74,6 +74,7 @@ from doorloc.vision.refine import refine
 from doorloc.vision.region import EDGE_NAMES, Band, SearchRegion
 from doorloc.vision.response_check import check_response
 from doorloc.vision.response_shoulder import (
+    doubted_knee,
     plain_edges_rule_out,
     shoulder_doubted,
     shoulder_ruled_out,
@@ -283,12 +284,13 @@ def _locate(
     except ImageFormatError as e:
         raise Refused(q.Refusal("bad_image", f"{e}")) from None
     res = yield from _located(stored, cell, door, cfg, tr, name, jpeg_quality)
-    knee = cfg.response_shoulder_knee
-    if not shoulder_doubted(res, stored, knee, cell.camera_photometry is not None, door.arris_mm):
+    measured = cell.camera_photometry
+    knee = doubted_knee(cfg.response_shoulder_knee, measured)
+    if not shoulder_doubted(res, stored, knee, door.arris_mm):
         return res
     # located again as if the camera had a shoulder from the knee (its own trace: this answer is asked, not
     # given), the cell's limits lifted: the move is the answer's doubt (doorloc.vision.response_shoulder)
-    shouldered_cell = replace(cell, camera_photometry=shouldered_camera(cell.response_gamma, knee))
+    shouldered_cell = replace(cell, camera_photometry=shouldered_camera(cell.response_gamma, knee, measured))
     bent = LocateTrace()
     try:
         shouldered = yield from _located(
@@ -301,7 +303,9 @@ def _locate(
         ruled_out = shoulder_ruled_out(
             strip_misfit(tr.arris_fits.values(), chamfered), strip_misfit(bent.arris_fits.values(), chamfered)
         ) or plain_edges_rule_out(shouldered)
-    return widened_by_shoulder(res, shouldered, knee, ruled_out, cfg)
+    return widened_by_shoulder(
+        res, shouldered, knee, ruled_out, cfg, None if measured is None else measured.response_measured_to
+    )
 
 
 def _located(

@@ -1,7 +1,8 @@
 """The doubt of a shoulder in a camera response that nobody measured beyond a power law.
 
 A cell describes its camera's response by one exponent (``camera.response_gamma``) unless its calibration
-carries the camera's photometric model (``Cell.camera_photometry``, from ``doorloc check-model --boards``).
+carries the camera's photometric model (``Cell.camera_photometry``, from ``doorloc calibrate --optics`` or
+``doorloc check-model --boards``).
 Real cameras' responses bend below full scale: both public cameras' board photographs read a shoulder (OpenCV's
 left camera from 0.69 of full scale, Bouguet's from 0.48 above its pedestal), which compresses every level
 above it. An edge whose bright side or arris strip lies there is skewed as a wrong exponent skews it, but
@@ -14,10 +15,12 @@ of full scale were answered 0.05-0.18 mm off in x and z, up to 2.6 sigma (door_0
 
 Where the image could not check the response of an arris door (every edge an arris, or none readable), or
 a door's plain edges read an exponent that replaced the cell's (a shoulder skews plain transitions as a
-steeper exponent does: that exponent may be its stand-in), and the cell has no photometric model, the door is
-located again as if its camera had a shoulder from ``knee``
-(``locate.response_shoulder_knee``) up to full scale (:func:`shouldered_camera`: the image's levels above the
-knee mapped back to the power law they compress), with the cell's limits lifted; the answer's move is one more
+steeper exponent does: that exponent may be its stand-in), and nobody measured the response where the image
+reaches (:func:`doubted_knee`: the cell has no photometric model, or its model's board photographs read the
+response only up to a lower level and found no shoulder below it), the door is located again as if its
+camera had a shoulder from ``knee`` (``locate.response_shoulder_knee``, or that level where higher) up to
+full scale (:func:`shouldered_camera`: the image's levels above the knee mapped back to the response they
+compress), with the cell's limits lifted; the answer's move is one more
 term of its uncertainty (``uncertainty_budget``'s ``response_shoulder``), in full: on the doors above, the move
 to a shoulder from 0.7 was 0.55-0.8 of the answers' errors and of their sign's opposite, so half of it (as two
 readings weighed alike) would have left them beyond 2 sigma. A door whose image holds no level above the knee
@@ -29,7 +32,8 @@ camera keeps its power law (:func:`shoulder_ruled_out`); so can its plain edges,
 read another exponent than the cell's and replace it (:func:`plain_edges_rule_out`); the answer then stands as
 it was. Without that evidence (strips that fit either way alike: a rounding under ambient light, or lit from
 where its arcs cannot tell) the move counts: the price of a response nobody measured beyond a power law, which
-``doorloc check-model --boards`` measures once (its photometric model in the calibration lifts the doubt).
+``doorloc calibrate --optics`` or ``doorloc check-model --boards`` measures once on board photographs (its
+photometric model in the calibration lifts the doubt up to the level those photographs reach).
 """
 
 from __future__ import annotations
@@ -57,6 +61,7 @@ from doorloc.vision.uncertainty import BudgetTerm
 
 __all__ = [
     "plain_edges_rule_out",
+    "doubted_knee",
     "shoulder_doubted",
     "shoulder_ruled_out",
     "shouldered_camera",
@@ -65,18 +70,36 @@ __all__ = [
 ]
 
 
-def shouldered_camera(gamma: float, knee: float) -> PhotometricModel:
-    """The camera of the cell's power law ``gamma`` with a shoulder from ``knee`` (fraction of full scale)
-    reaching full scale (:class:`doorloc.photometric.model.PhotometricModel`'s finite shoulder)."""
+def doubted_knee(knee: float, measured: PhotometricModel | None) -> float:
+    """The level (fraction of full scale) from which a shoulder in the camera's response is doubted; 1: none.
+
+    ``knee`` (``locate.response_shoulder_knee``) for a camera whose cell states no more than its exponent
+    (``measured`` None: no photometric model); for one whose model was measured on board photographs, none
+    where the model bends the response's top itself (a shoulder, a white level or a clip below full scale:
+    the top was measured), else from the level its photographs read the response up to
+    (``response_measured_to``) or ``knee``, whichever is higher: a power law measured to 0.6 of full scale
+    says nothing of a shoulder at 0.8."""
+    if measured is None or knee >= 1.0:
+        return knee
+    if measured.shoulder < 1.0 or measured.white_level < 1.0 or measured.clips:
+        return 1.0
+    return max(knee, measured.response_measured_to)
+
+
+def shouldered_camera(
+    gamma: float, knee: float, measured: PhotometricModel | None = None
+) -> PhotometricModel:
+    """The camera of the cell's power law ``gamma`` (or of its measured photometric model ``measured``) with a
+    shoulder from ``knee`` (fraction of full scale) reaching full scale
+    (:class:`doorloc.photometric.model.PhotometricModel`'s finite shoulder)."""
+    if measured is not None:
+        return measured.with_values(shoulder=float(knee))
     return PhotometricModel(gamma=float(gamma), shoulder=float(knee))
 
 
-def shoulder_doubted(
-    answer: LocateResult, lum: LuminancePlane, knee: float, has_photometry: bool, arris_mm: float
-) -> bool:
-    """Whether ``answer`` takes the doubt of a shoulder from ``knee``: answered, the cell without a photometric
-    model (``has_photometry`` False), some level of the image (``lum``, before any mapping) above the knee,
-    and either
+def shoulder_doubted(answer: LocateResult, lum: LuminancePlane, knee: float, arris_mm: float) -> bool:
+    """Whether ``answer`` takes the doubt of a shoulder from ``knee`` (:func:`doubted_knee`; 1: none):
+    answered, some level of the image (``lum``, before any mapping) above the knee, and either
 
     - the door with arrises (``arris_mm`` > 0) and the response not checked on the image, or
     - the image's plain edges read another exponent than the cell's and it replaced the cell's
@@ -93,7 +116,7 @@ def shoulder_doubted(
     response's doubt already sizes. Measured on the parity harness's golden plain doors (95 of them reaching
     the knee, none absorbed): the shoulder moved them by at most 0.0055 mm, 0.09 of their sigma, for twice the
     locate's time; its 27 arris doors up to 0.012 mm (0.33 sigma)."""
-    if not answer.ok or has_photometry or not knee < 1.0:
+    if not answer.ok or not knee < 1.0:
         return False
     unread_arris = arris_mm > 0.0 and not answer.diagnostics.get("camera_response", {}).get("checked", False)
     if not unread_arris and _exponent_read(answer) is None:
@@ -108,12 +131,15 @@ def widened_by_shoulder(
     knee: float,
     ruled_out: dict[str, str | float] | None,
     cfg: LocateConfig,
+    measured_to: float | None = None,
 ) -> LocateResult:
     """``answer`` with its uncertainty widened (in quadrature) by its move to ``shouldered`` (the door located
     as if its camera had a shoulder from ``knee``, the cell's limits lifted), or refused ``uncertain`` where
-    that takes it beyond the cell's limits; as it was where the door's arris strips or plain edges rule the
-    shoulder out (``ruled_out``: :func:`shoulder_ruled_out`'s or :func:`plain_edges_rule_out`'s figure) or
-    the shouldered reading was refused (None), the diagnostics saying which."""
+    that takes it beyond the cell's limits, the refusal saying how to measure the response there
+    (``measured_to``: the level the cell's photometric model read it up to; None: the cell has none); as it
+    was where the door's arris strips or plain edges rule the shoulder out (``ruled_out``:
+    :func:`shoulder_ruled_out`'s or :func:`plain_edges_rule_out`'s figure) or the shouldered reading was
+    refused (None), the diagnostics saying which."""
     u = answer.uncertainty
     if u is None:
         return answer
@@ -144,13 +170,18 @@ def widened_by_shoulder(
         if exponent is not None
         else ""
     )
+    measure = (
+        "measure the camera's response beyond a power law once (doorloc calibrate --optics or doorloc "
+        "check-model --boards write its photometric model into the calibration)"
+        if measured_to is None
+        else f"the calibration's board photographs read the camera's response up to {measured_to:.2f} of full "
+        "scale only: measure it again on board photographs as bright as the door (doorloc calibrate --optics)"
+    )
     return answer.refused(
         "uncertain",
         f"{uncertain_pose_words(widened, cfg)} with the doubt of the camera's response above {knee:g} of "
         f"full scale, which this image reaches{read}: a shoulder there would move it by x "
-        f"{move['x_mm']:+.3f}, z {move['z_mm']:+.3f} mm; measure the camera's response beyond a power law "
-        "once (doorloc check-model --boards writes its photometric model into the calibration) or expose the "
-        "door darker",
+        f"{move['x_mm']:+.3f}, z {move['z_mm']:+.3f} mm; {measure} or expose the door darker",
     )
 
 
