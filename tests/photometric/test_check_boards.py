@@ -23,6 +23,7 @@ from doorloc.photometric.model import PhotometricModel
 from doorloc.photometric.report import report_markdown
 from doorloc.sim.boards import Checkerboard
 from doorloc.sim.photometric import random_board_views
+from doorloc.vision.response_shoulder import doubted_knee
 
 CAMERA = CameraModel.from_values(
     [[600, 0, 319.5], [0, 600, 239.5], [0, 0, 1]], [-0.2, 0.05, 0, 0, 0], (640, 480)
@@ -322,3 +323,25 @@ def test_jpeg_photographs_are_judged_against_their_twins(tmp_path):
     assert 0.85 < over_twin < 1.15
     md = (tmp_path / "report" / "report.md").read_text()
     assert "JPEG quality 50" in md and "--effect jpeg_quality=50" in md
+
+
+@pytest.mark.slow
+def test_the_model_records_how_far_up_the_photographs_read_the_response(tmp_path):
+    """A power-law camera's boards photographed dim (light squares at 0.45-0.55 of full scale) say nothing of
+    a shoulder above them: the model records the level they reached, and a door brighter than that keeps the
+    shoulder's doubt (:func:`doorloc.vision.response_shoulder.doubted_knee`); photographed bright, the level
+    follows them up."""
+    reached = {}
+    for name, exposure in (("dim", (0.45, 0.55)), ("bright", (0.9, 1.0))):
+        folder = tmp_path / name
+        folder.mkdir()
+        for image_name, img in random_board_views(
+            CAMERA, Checkerboard(9, 6, 25.0), PhotometricModel(), VIEWS, 4242, exposure=exposure
+        ):
+            cv2.imwrite(str(folder / image_name), img)
+        check = check_boards(folder, Chessboard(9, 6, 25.0), CalibrationFile(CAMERA))
+        assert check.causes == [] and check.model.shoulder == 1.0, check.causes
+        reached[name] = check.model.response_measured_to
+    assert 0.4 < reached["dim"] < 0.56 and 0.85 < reached["bright"] <= 1.0, reached
+    dim = PhotometricModel(response_measured_to=reached["dim"])
+    assert doubted_knee(0.7, dim) == 0.7 and doubted_knee(0.5, dim) == pytest.approx(reached["dim"])
