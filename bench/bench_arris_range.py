@@ -73,7 +73,10 @@ thickness 0.09), the worst 0.30; ``within``, the worst 1.27; ``bound``, 90 % wit
                                    cell's exponent and no shoulder, as `doorloc check-model --boards` writes
                                    it for a camera that keeps its power law, its edges' held-out residual
                                    the unmeasured optics' doubt (0.13 px): the doubt of a shoulder nobody
-                                   measured, ``response_shoulder``, is lifted)
+                                   measured, ``response_shoulder``, is lifted up to --measured-to)
+        [--measured-to LEVEL]   (with --measured-photometry: the level, fraction of full scale, its board
+                                 photographs read the response up to, ``response_measured_to``; default 1,
+                                 the whole range: above it a shoulder is still doubted)
 
 ``--open-limits`` measures what the model gets wrong on the doors it refuses as uncertain: are their
 sigmas as large as their errors (an honest refusal: the model must improve), or far larger (the doubt is
@@ -261,22 +264,28 @@ def run_one(
     limits: LocateConfig | None = None,
     real: DoorSize | None = None,
     response_ends: bool = False,
-    photometry: bool = False,
+    photometry: float | None = None,
 ) -> Outcome:
     """Locate one rendered door and compare with its true pose. ``limits``: the cell's own ``locate``
     settings where ``cell``'s are opened (``--open-limits``): an answer beyond them is marked. ``real``: the
     door in the image where it is not the recipe's ``door`` (``--wrong-thickness``); the thickness's error is
     against it. ``response_ends``: the answer located again at the ends of the cell's response factor
-    (:func:`response_end_moves`). ``photometry``: the cell carries its camera's photometric model, the power
-    law at the cell's exponent with a held-out edge residual of the cell's ``optics_edge_sigma_px``
-    (``--measured-photometry``)."""
+    (:func:`response_end_moves`). ``photometry`` (not None): the cell carries its camera's photometric model, the
+    power law at the cell's exponent with a held-out edge residual of the cell's ``optics_edge_sigma_px``,
+    measured on board photographs that read the response up to this level (``--measured-photometry``,
+    ``--measured-to``)."""
     img = render_door(cell, real or door, pose, effects=fx, seed=seed).image
     cell = dataclasses.replace(cell, response_gamma=gamma if told is None else told)
-    if photometry:
+    if photometry is not None:
         # residual_edge_px: what check-model --boards leaves on the photographs' real edges, held out; a cell
         # reads a model without one (nor anything else beyond a power law) as none (Cell.camera_photometry):
         # here the size of the doubt an unmeasured camera's optics get, so that only the shoulder's doubt goes
-        model = PhotometricModel(gamma=cell.response_gamma, residual_edge_px=cell.locate.optics_edge_sigma_px)
+        # response_measured_to: the level its board photographs read the response up to (--measured-to)
+        model = PhotometricModel(
+            gamma=cell.response_gamma,
+            residual_edge_px=cell.locate.optics_edge_sigma_px,
+            response_measured_to=photometry,
+        )
         cell = dataclasses.replace(cell, camera_photometry=model)
     t0 = time.thread_time()
     res = locate(img, cell, door)
@@ -514,6 +523,13 @@ def main() -> None:
         "cell's optics_edge_sigma_px): the doubt of a shoulder nobody measured is lifted",
     )
     ap.add_argument(
+        "--measured-to",
+        type=float,
+        default=1.0,
+        help="with --measured-photometry: the level (fraction of full scale) the model's board photographs "
+        "read the response up to (response_measured_to; default 1: the whole range)",
+    )
+    ap.add_argument(
         "--optics-sigma",
         type=float,
         default=None,
@@ -609,7 +625,7 @@ def main() -> None:
                     if args.wrong_thickness
                     else None,
                     args.response_ends,
-                    args.measured_photometry,
+                    args.measured_to if args.measured_photometry else None,
                 )
             )
         wrong = f", every door {args.wrong_thickness:+g} mm off its recipe" if args.wrong_thickness else ""

@@ -127,7 +127,7 @@ def _echo_response(response: BoardResponse | None) -> None:
     )
 
 
-def _echo_not_used(done: CameraCalibration) -> None:
+def _echo_warnings(done: CameraCalibration) -> None:
     """The photographs skipped, and a measurement that failed without costing the calibration, on stderr."""
     _echo_skipped(done.outcome.detected.skipped)
     if done.response_problem:
@@ -296,7 +296,7 @@ def calibrate_cmd(
         raise fail("--optics reads a chessboard's square edges; a ChArUco board's are broken by its markers")
     board = _board_or_fail(pattern, square, charuco, marker, dictionary, legacy)
     done = _calibrated(images_dir, board, model, folds, min_views, camera_name, optics)
-    _echo_not_used(done)
+    _echo_warnings(done)
     save_calibration(done.calibration, out, fmt)
     if report is not None:
         d = done.outcome.detected
