@@ -55,6 +55,7 @@ def test_calibrate_uses_the_good_views_and_says_why_others_were_skipped(messy_di
             str(out),
             "--report",
             str(rep),
+            "--no-optics",
         ],
     )
     assert r.exit_code == 0, r.output
@@ -82,7 +83,8 @@ def test_calibrate_uses_the_good_views_and_says_why_others_were_skipped(messy_di
     assert f"camera.response_gamma: {cal.response_gamma:.2f}" in r.output
     # and what it leaves of the optics, with the command that measures them on the same photographs
     assert "camera optics: not measured" in r.output and "locate.optics_edge_sigma_px" in r.output
-    assert "run this command again with --optics" in r.output
+    assert "run this command again without --no-optics" in r.output
+    assert load_calibration(out).photometric_model is None
     assert f"check-model --boards {messy_dir} --pattern 9x6 --square 25 --calibration {out}" in r.output
     doc = json.loads((rep / "calibration_report.json").read_text())
     assert {s["image"] for s in doc["skipped_images"]} == {"broken.jpg", "blank.png", "small.png"}
@@ -113,6 +115,7 @@ def test_ros_format_round_trips(messy_dir, tmp_path):
             "ros",
             "--model",
             "plumb_bob",
+            "--no-optics",
         ],
     )
     assert r.exit_code == 0, r.output
@@ -226,7 +229,8 @@ def test_a_failing_response_measurement_does_not_cost_the_calibration(messy_dir,
     monkeypatch.setattr(response, "board_response", broken)
     out = tmp_path / "camera.yaml"
     r = runner.invoke(
-        app, ["calibrate", str(messy_dir), "--pattern", "9x6", "--square", "25", "--out", str(out)]
+        app,
+        ["calibrate", str(messy_dir), "--pattern", "9x6", "--square", "25", "--out", str(out), "--no-optics"],
     )
     assert r.exit_code == 0, r.output
     assert "camera response was not measured (ValueError: synthetic failure)" in r.output
@@ -237,14 +241,14 @@ def test_a_failing_response_measurement_does_not_cost_the_calibration(messy_dir,
 
 @pytest.mark.slow
 def test_optics_measured_on_the_same_photographs_go_into_the_calibration_and_the_cell(messy_dir, tmp_path):
-    """``--optics``: the board check's photometric model (OpenCV's left camera compresses its highlights
-    from about 0.69 of full scale) in the calibration file, with what made it, and a cell that names the file
-    carries it (so locate reads the measured response and edge residual, not its doubts for an unmeasured
-    camera)."""
+    """By default (``--optics``) a chessboard's calibration carries the board check's photometric model
+    (OpenCV's left camera compresses its highlights from about 0.69 of full scale), with what made it, and a
+    cell that names the file carries it (so locate reads the measured response and edge residual, not its
+    doubts for an unmeasured camera)."""
     out = tmp_path / "camera.yaml"
     r = runner.invoke(
         app,
-        ["calibrate", str(messy_dir), "--pattern", "9x6", "--square", "25", "--out", str(out), "--optics"],
+        ["calibrate", str(messy_dir), "--pattern", "9x6", "--square", "25", "--out", str(out)],
     )
     assert r.exit_code == 0, r.output
     cal = load_calibration(out)
@@ -260,3 +264,21 @@ def test_optics_measured_on_the_same_photographs_go_into_the_calibration_and_the
         "  extrinsics: {rvec: [1.5707963268, 0, 0], tvec_mm: [-30, 40, 350]}\n"
     )
     assert load_cell(tmp_path / "cell.yaml").camera_photometry == model
+
+
+def test_a_failing_optics_measurement_does_not_cost_the_calibration(messy_dir, tmp_path, monkeypatch):
+    import doorloc.photometric.check as check
+
+    def broken(*a, **k):
+        raise ValueError("synthetic failure")
+
+    monkeypatch.setattr(check, "measure_boards", broken)
+    out = tmp_path / "camera.yaml"
+    r = runner.invoke(
+        app, ["calibrate", str(messy_dir), "--pattern", "9x6", "--square", "25", "--out", str(out)]
+    )
+    assert r.exit_code == 0, r.output
+    assert "camera optics were not measured (ValueError: synthetic failure)" in r.output
+    assert "Traceback" not in r.output and "camera optics: not measured" in r.output
+    cal = load_calibration(out)
+    assert cal.photometric_model is None and abs(cal.camera.fx / 535.916 - 1) < 0.01

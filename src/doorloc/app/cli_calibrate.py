@@ -148,7 +148,7 @@ def _echo_optics(check: BoardCheck | None, images_dir: Path, pattern: str, squar
         "camera optics: not measured; locate counts locate.optics_edge_sigma_px "
         f"({LocateConfig().optics_edge_sigma_px:g} px by default) on every edge for them, and doubts a "
         "shoulder in the response. To measure them on these photographs (minutes): run this command again "
-        f"with --optics, or, with a report of what they show, doorloc check-model --boards {images_dir} "
+        f"without --no-optics, or, with a report of what they show, doorloc check-model --boards {images_dir} "
         f"--pattern {pattern} --square {square:g} --calibration {out} --out REPORT_DIR, then name "
         "REPORT_DIR/camera_photometric.yaml in the cell's camera.calibration"
     )
@@ -199,11 +199,12 @@ MarkerOption = Annotated[float | None, typer.Option(metavar="MM", help="ChArUco 
 DictionaryOption = Annotated[str, typer.Option(help="ChArUco ArUco dictionary")]
 LegacyFlag = Annotated[bool, typer.Option("--legacy", help="ChArUco board in OpenCV's pre-4.6 layout")]
 OpticsFlag = Annotated[
-    bool,
+    bool | None,
     typer.Option(
-        "--optics",
-        help="chessboard only: also measure the camera's optics and its response beyond a power law on the "
-        "same photographs (minutes), as check-model --boards does, into the calibration file",
+        "--optics/--no-optics",
+        help="also measure the camera's optics and its response beyond a power law on the same photographs, "
+        "as check-model --boards does, into the calibration file (a chessboard's default; a minute or "
+        "more); --no-optics leaves them unmeasured",
     ),
 ]
 
@@ -274,15 +275,15 @@ def calibrate_cmd(
     folds: Annotated[int, typer.Option(min=2, help="K of the K-fold held-out model selection")] = 5,
     min_views: Annotated[int, typer.Option(min=3, help="fewest usable views to calibrate with")] = 4,
     camera_name: Annotated[str, typer.Option(help="camera name stored in the file")] = "doorloc",
-    optics: OpticsFlag = False,
+    optics: OpticsFlag = None,
 ) -> None:
     """Calibrate a camera from photographs of a chessboard or ChArUco board.
 
     With a chessboard it also measures the camera's response on the squares' edges (written to the
-    file as response_gamma +- response_gamma_sigma, and printed as the cell-file lines it allows);
-    with --optics also the camera's photometric model (a shoulder or a pedestal in its response, its
-    point spread, what its edges keep held out), which locate then uses in place of the doubts it
-    grants a camera nobody measured.
+    file as response_gamma +- response_gamma_sigma, and printed as the cell-file lines it allows),
+    and the camera's photometric model (a shoulder or a pedestal in its response, its point spread,
+    what its edges keep held out), which locate then uses in place of the doubts it grants a camera
+    nobody measured (--no-optics: not measured).
     Images without a board, unreadable files and images of another size are skipped with a
     reason; the calibration goes ahead if enough views remain. Exit codes: 0 done, 2 bad
     arguments or input, 3 too few usable views (nothing written).
@@ -295,7 +296,9 @@ def calibrate_cmd(
     if optics and charuco:
         raise fail("--optics reads a chessboard's square edges; a ChArUco board's are broken by its markers")
     board = _board_or_fail(pattern, square, charuco, marker, dictionary, legacy)
-    done = _calibrated(images_dir, board, model, folds, min_views, camera_name, optics)
+    done = _calibrated(
+        images_dir, board, model, folds, min_views, camera_name, not charuco and optics is not False
+    )
     _echo_warnings(done)
     save_calibration(done.calibration, out, fmt)
     if report is not None:

@@ -474,6 +474,8 @@ def calibrate_camera(
         check, cal = camera_optics(images_dir, board, cal, progress)
     except BoardCheckError as e:  # too few photographs with squares to read: the calibration stands
         return CameraCalibration(outcome, cal, response, optics_problem=str(e))
+    except Exception as e:  # noqa: BLE001 - an extra measurement must not cost the calibration itself
+        return CameraCalibration(outcome, cal, response, optics_problem=f"{type(e).__name__}: {e}")
     return CameraCalibration(outcome, cal, response, optics=check)
 
 
