@@ -344,4 +344,4 @@ def test_the_model_records_how_far_up_the_photographs_read_the_response(tmp_path
         reached[name] = check.model.response_measured_to
     assert 0.4 < reached["dim"] < 0.56 and 0.85 < reached["bright"] <= 1.0, reached
     dim = PhotometricModel(response_measured_to=reached["dim"])
-    assert doubted_knee(0.7, dim) == 0.7 and doubted_knee(0.5, dim) == pytest.approx(reached["dim"])
+    assert doubted_knee(0.7, dim) == 0.7 and doubted_knee(0.4, dim) == pytest.approx(reached["dim"])
