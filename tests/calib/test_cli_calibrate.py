@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib
 import json
 import shutil
 
@@ -220,23 +221,35 @@ def test_a_wrong_pattern_says_which_board_the_photographs_show(messy_dir, tmp_pa
     assert "show a 9x6 chessboard (inner corners), not 10x7: give --pattern 9x6" in r.output
 
 
-def test_a_failing_response_measurement_does_not_cost_the_calibration(messy_dir, tmp_path, monkeypatch):
-    import doorloc.vision.response as response
-
+@pytest.mark.parametrize(
+    "module, name, warning, field, extra",
+    [
+        (
+            "doorloc.vision.response",
+            "board_response",
+            "camera response was",
+            "response_gamma",
+            ["--no-optics"],
+        ),
+        ("doorloc.photometric.check", "measure_boards", "camera optics were", "photometric_model", []),
+    ],
+)
+def test_a_failing_extra_measurement_does_not_cost_the_calibration(
+    messy_dir, tmp_path, monkeypatch, module, name, warning, field, extra
+):
     def broken(*a, **k):
         raise ValueError("synthetic failure")
 
-    monkeypatch.setattr(response, "board_response", broken)
+    monkeypatch.setattr(importlib.import_module(module), name, broken)
     out = tmp_path / "camera.yaml"
     r = runner.invoke(
-        app,
-        ["calibrate", str(messy_dir), "--pattern", "9x6", "--square", "25", "--out", str(out), "--no-optics"],
+        app, ["calibrate", str(messy_dir), "--pattern", "9x6", "--square", "25", "--out", str(out), *extra]
     )
     assert r.exit_code == 0, r.output
-    assert "camera response was not measured (ValueError: synthetic failure)" in r.output
+    assert f"{warning} not measured (ValueError: synthetic failure)" in r.output
     assert "Traceback" not in r.output
     cal = load_calibration(out)
-    assert cal.response_gamma is None and abs(cal.camera.fx / 535.916 - 1) < 0.01
+    assert getattr(cal, field) is None and abs(cal.camera.fx / 535.916 - 1) < 0.01
 
 
 @pytest.mark.slow
@@ -264,21 +277,3 @@ def test_optics_measured_on_the_same_photographs_go_into_the_calibration_and_the
         "  extrinsics: {rvec: [1.5707963268, 0, 0], tvec_mm: [-30, 40, 350]}\n"
     )
     assert load_cell(tmp_path / "cell.yaml").camera_photometry == model
-
-
-def test_a_failing_optics_measurement_does_not_cost_the_calibration(messy_dir, tmp_path, monkeypatch):
-    import doorloc.photometric.check as check
-
-    def broken(*a, **k):
-        raise ValueError("synthetic failure")
-
-    monkeypatch.setattr(check, "measure_boards", broken)
-    out = tmp_path / "camera.yaml"
-    r = runner.invoke(
-        app, ["calibrate", str(messy_dir), "--pattern", "9x6", "--square", "25", "--out", str(out)]
-    )
-    assert r.exit_code == 0, r.output
-    assert "camera optics were not measured (ValueError: synthetic failure)" in r.output
-    assert "Traceback" not in r.output and "camera optics: not measured" in r.output
-    cal = load_calibration(out)
-    assert cal.photometric_model is None and abs(cal.camera.fx / 535.916 - 1) < 0.01
