@@ -231,7 +231,7 @@ def test_a_wrong_pattern_says_which_board_the_photographs_show(messy_dir, tmp_pa
             "response_gamma",
             ["--no-optics"],
         ),
-        ("doorloc.photometric.check", "measure_boards", "camera optics were", "photometric_model", []),
+        ("doorloc.photometric.check", "measure_detected", "camera optics were", "photometric_model", []),
     ],
 )
 def test_a_failing_extra_measurement_does_not_cost_the_calibration(

@@ -45,7 +45,7 @@ if TYPE_CHECKING:  # the calibration modules load when a calibration runs
     from doorloc.calib.camera import CameraModel
     from doorloc.calib.cell import CellCalibration
     from doorloc.calib.detect import CharucoSpec, Chessboard
-    from doorloc.calib.folder import CalibrationOutcome
+    from doorloc.calib.folder import CalibrationOutcome, DetectedViews, LoadedImage
     from doorloc.calib.io import CalibrationFile
     from doorloc.photometric.check import BoardCheck
     from doorloc.vision.response import BoardResponse
@@ -436,13 +436,20 @@ def calibrate_camera(
     """
     from doorloc.calib.calibrate import CANDIDATES
     from doorloc.calib.detect import Chessboard
-    from doorloc.calib.folder import TooFewViewsError, calibrate_folder, full_board_views, read_folder
+    from doorloc.calib.folder import (
+        TooFewViewsError,
+        calibrate_detected,
+        detect_views,
+        full_board_views,
+        read_folder,
+    )
     from doorloc.vision.response import board_response
 
+    # read and searched once: the calibration, the response and the optics are measured on the same views
+    images = read_folder(images_dir)
     try:
-        outcome = calibrate_folder(
-            images_dir,
-            board,
+        outcome = calibrate_detected(
+            detect_views(images, board),
             candidates=candidates or tuple(CANDIDATES),
             n_folds=n_folds,
             min_views=min_views,
@@ -459,8 +466,7 @@ def calibrate_camera(
     if not isinstance(board, Chessboard):  # a ChArUco board's corners need not all be seen
         return CameraCalibration(outcome, cal, None)
     try:
-        # read again: the calibration keeps corners, not images
-        views = full_board_views(read_folder(images_dir), outcome.detected.scan, board)
+        views = full_board_views(images, outcome.detected.scan, board)
         response = board_response(views, board.cols, board.rows)
     except Exception as e:  # noqa: BLE001 - an extra measurement must not cost the calibration itself
         return CameraCalibration(outcome, cal, None, f"{type(e).__name__}: {e}")
@@ -471,7 +477,7 @@ def calibrate_camera(
     from doorloc.photometric.check import BoardCheckError
 
     try:
-        check, cal = camera_optics(images_dir, board, cal, progress)
+        check, cal = camera_optics(images, outcome.detected, images_dir, board, cal, progress)
     except BoardCheckError as e:  # too few photographs with squares to read: the calibration stands
         return CameraCalibration(outcome, cal, response, optics_problem=str(e))
     except Exception as e:  # noqa: BLE001 - an extra measurement must not cost the calibration itself
@@ -480,21 +486,32 @@ def calibrate_camera(
 
 
 def camera_optics(
+    images: list[LoadedImage],
+    detected: DetectedViews,
     images_dir: str | Path,
     board: Chessboard,
     calibration: CalibrationFile,
     progress: Callable[[str], None] | None = None,
 ) -> tuple[BoardCheck, CalibrationFile]:
     """The photometric board check (:func:`doorloc.photometric.check.check_photographs`: the camera's response
-    beyond a power law, its point spread, a held-out edge residual) on the chessboard photographs in
-    ``images_dir`` through ``calibration``'s camera, and ``calibration`` with its photometric model added.
-    Raises :class:`doorloc.photometric.check.BoardCheckError` where the photographs cannot be used."""
+    beyond a power law, its point spread, a held-out edge residual) on the chessboard photographs read from
+    ``images_dir`` (``images``, the board found in them: ``detected``, as the calibration left them) through
+    ``calibration``'s camera, and ``calibration`` with its photometric model added. Raises
+    :class:`doorloc.photometric.check.BoardCheckError` where the photographs cannot be used."""
     from datetime import UTC, datetime
 
-    from doorloc.photometric.check import check_photographs, measure_boards
+    from doorloc.photometric.check import check_photographs, measure_detected
     from doorloc.photometric.report import extended_calibration
 
-    measured = measure_boards(images_dir, board, calibration, progress=progress)
+    measured = measure_detected(
+        images,
+        detected,
+        board,
+        calibration.camera,
+        "calibrated from the same photographs",
+        images_dir,
+        progress=progress,
+    )
     check = check_photographs(measured.photographs, progress=progress)
     command = (
         f"doorloc calibrate {Path(images_dir).name} --pattern {board.cols}x{board.rows} "

@@ -26,9 +26,17 @@ from pathlib import Path
 
 import numpy as np
 
+from doorloc.calib.calibrate import View
 from doorloc.calib.camera import CameraModel
 from doorloc.calib.detect import Chessboard, to_gray
-from doorloc.calib.folder import CalibrationError, CalibrationInputError, detect_views, read_folder
+from doorloc.calib.folder import (
+    CalibrationError,
+    CalibrationInputError,
+    DetectedViews,
+    LoadedImage,
+    detect_views,
+    read_folder,
+)
 from doorloc.calib.io import CalibrationFile
 from doorloc.photometric.blur import BlurTerms, EdgeBlurs, blur_terms
 from doorloc.photometric.board_edges import BoardEdges, EdgeSettings, measure_board_edges
@@ -65,6 +73,7 @@ __all__ = [
     "field_offsets",
     "FieldOffsets",
     "measure_boards",
+    "measure_detected",
     "response_measured_to",
 ]
 
@@ -295,15 +304,7 @@ def measure_boards(
     except CalibrationInputError as e:
         raise BoardCheckError(str(e)) from None
     detected = detect_views(images, board)
-    full = [v for v in detected.views if v.n == board.n_corners]
-    skipped = [f"{s.name}: {s.reason}" for s in detected.skipped] + [
-        f"{v.name}: only part of the board is seen" for v in detected.views if v.n != board.n_corners
-    ]
-    if len(full) < MIN_PHOTOGRAPHS:
-        raise BoardCheckError(
-            f"only {len(full)} of {len(images)} images in {images_dir} show the whole {board.cols}x{board.rows} "
-            f"board; the check needs at least {MIN_PHOTOGRAPHS} (is --pattern the inner corners, COLSxROWS?)"
-        )
+    full, skipped = _whole_board_views(detected, board, images_dir, len(images))
     if calibration is None:
         say(f"no calibration given: calibrating from the {len(detected.views)} photographs")
         try:
@@ -321,6 +322,56 @@ def measure_boards(
             f"the photographs are {detected.scan.image_size[0]}x{detected.scan.image_size[1]} px but the "
             f"calibration is for {camera.image_size[0]}x{camera.image_size[1]} px"
         )
+    return _measured(images, full, skipped, board, camera, source, images_dir, settings, progress)
+
+
+def _whole_board_views(
+    detected: DetectedViews, board: Chessboard, images_dir: str | os.PathLike, n_images: int
+) -> tuple[list[View], list[str]]:
+    """The views that show the whole board, and why the others were skipped; raises
+    :class:`BoardCheckError` where fewer than :data:`MIN_PHOTOGRAPHS` do."""
+    full = [v for v in detected.views if v.n == board.n_corners]
+    skipped = [f"{s.name}: {s.reason}" for s in detected.skipped] + [
+        f"{v.name}: only part of the board is seen" for v in detected.views if v.n != board.n_corners
+    ]
+    if len(full) < MIN_PHOTOGRAPHS:
+        raise BoardCheckError(
+            f"only {len(full)} of {n_images} images in {images_dir} show the whole {board.cols}x{board.rows} "
+            f"board; the check needs at least {MIN_PHOTOGRAPHS} (is --pattern the inner corners, COLSxROWS?)"
+        )
+    return full, skipped
+
+
+def measure_detected(
+    images: list[LoadedImage],
+    detected: DetectedViews,
+    board: Chessboard,
+    camera: CameraModel,
+    camera_source: str,
+    images_dir: str | os.PathLike,
+    settings: EdgeSettings = EdgeSettings(),
+    progress: Callable[[str], None] | None = None,
+) -> MeasuredBoards:
+    """Step 2 of the check on photographs already read (``images``, from ``images_dir``) and searched for
+    ``board`` (``detected``), as a calibration leaves them: every square edge of the views that show the
+    whole board placed with the plain model through ``camera``. Raises :class:`BoardCheckError` where too
+    few photographs can be used."""
+    full, skipped = _whole_board_views(detected, board, images_dir, len(images))
+    return _measured(images, full, skipped, board, camera, camera_source, images_dir, settings, progress)
+
+
+def _measured(
+    images: list[LoadedImage],
+    full: list[View],
+    skipped: list[str],
+    board: Chessboard,
+    camera: CameraModel,
+    camera_source: str,
+    images_dir: str | os.PathLike,
+    settings: EdgeSettings,
+    progress: Callable[[str], None] | None,
+) -> MeasuredBoards:
+    """:func:`measure_detected` on its whole-board views ``full`` (``skipped``: why the others were)."""
     by_name = {name: im for name, im, _ in images if im is not None}
     photos = []
     for v in full:
@@ -346,8 +397,9 @@ def measure_boards(
             f"only {len(photos)} photographs have squares large enough to read edges on "
             f"(the edge windows need squares of about {(settings.half + settings.plateau) / 0.3:.0f} px)"
         )
-    say(f"{len(photos)} photographs, {sum(p.edges.n_edges for p in photos)} edges")
-    return MeasuredBoards(photos, camera, source, skipped)
+    if progress:
+        progress(f"{len(photos)} photographs, {sum(p.edges.n_edges for p in photos)} edges")
+    return MeasuredBoards(photos, camera, camera_source, skipped)
 
 
 def check_boards(
