@@ -277,3 +277,23 @@ def test_optics_measured_on_the_same_photographs_go_into_the_calibration_and_the
         "  extrinsics: {rvec: [1.5707963268, 0, 0], tvec_mm: [-30, 40, 350]}\n"
     )
     assert load_cell(tmp_path / "cell.yaml").camera_photometry == model
+
+
+def test_a_failing_response_measurement_does_not_cost_the_optics_measurement(
+    messy_dir, tmp_path, monkeypatch
+):
+    import doorloc.photometric.check as check
+    import doorloc.vision.response as response
+
+    def broken(*a, **k):
+        raise ValueError("synthetic failure")
+
+    monkeypatch.setattr(response, "board_response", broken)
+    monkeypatch.setattr(check, "measure_detected", broken)  # the optics tried (and failed fast) all the same
+    out = tmp_path / "camera.yaml"
+    r = runner.invoke(
+        app, ["calibrate", str(messy_dir), "--pattern", "9x6", "--square", "25", "--out", str(out)]
+    )
+    assert r.exit_code == 0, r.output
+    assert "camera response was not measured (ValueError: synthetic failure)" in r.output
+    assert "camera optics were not measured (ValueError: synthetic failure)" in r.output

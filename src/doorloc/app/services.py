@@ -465,24 +465,28 @@ def calibrate_camera(
     cal = outcome.calibration_file(camera_name)
     if not isinstance(board, Chessboard):  # a ChArUco board's corners need not all be seen
         return CameraCalibration(outcome, cal, None)
+    # the response and the optics are extra measurements: neither failing costs the calibration, nor the other
+    response, response_problem = None, None
     try:
         views = full_board_views(images, outcome.detected.scan, board)
         response = board_response(views, board.cols, board.rows)
-    except Exception as e:  # noqa: BLE001 - an extra measurement must not cost the calibration itself
-        return CameraCalibration(outcome, cal, None, f"{type(e).__name__}: {e}")
+    except Exception as e:  # noqa: BLE001 - an extra measurement (above)
+        response_problem = f"{type(e).__name__}: {e}"
     if response is not None:
         cal = replace(cal, response_gamma=response.gamma, response_gamma_sigma=response.sigma)
     if not measure_optics:
-        return CameraCalibration(outcome, cal, response)
+        return CameraCalibration(outcome, cal, response, response_problem)
     from doorloc.photometric.check import BoardCheckError
 
     try:
         check, cal = camera_optics(images, outcome.detected, images_dir, board, cal, progress)
-    except BoardCheckError as e:  # too few photographs with squares to read: the calibration stands
-        return CameraCalibration(outcome, cal, response, optics_problem=str(e))
-    except Exception as e:  # noqa: BLE001 - an extra measurement must not cost the calibration itself
-        return CameraCalibration(outcome, cal, response, optics_problem=f"{type(e).__name__}: {e}")
-    return CameraCalibration(outcome, cal, response, optics=check)
+    except BoardCheckError as e:  # too few photographs with squares to read
+        return CameraCalibration(outcome, cal, response, response_problem, optics_problem=str(e))
+    except Exception as e:  # noqa: BLE001 - an extra measurement (above)
+        return CameraCalibration(
+            outcome, cal, response, response_problem, optics_problem=f"{type(e).__name__}: {e}"
+        )
+    return CameraCalibration(outcome, cal, response, response_problem, optics=check)
 
 
 def camera_optics(
