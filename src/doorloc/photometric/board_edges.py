@@ -19,6 +19,7 @@ Units: pixels in OpenCV's convention (origin at the centre of the top-left pixel
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -130,6 +131,17 @@ class BoardEdges:
     def n_edges(self) -> int:
         return int(self.mid_px.shape[0])
 
+    @cached_property
+    def bright_by_edge(self) -> np.ndarray:
+        """Each edge's median bright plateau over its scan lines, grey (E,; NaN where none). Read-only: a
+        model fit asks for it at every trial of its parameters."""
+        return _read_only(per_edge_median(self.windows.edge, self.bright, self.n_edges))
+
+    @cached_property
+    def dark_by_edge(self) -> np.ndarray:
+        """Each edge's median dark plateau over its scan lines, grey (E,; NaN where none). Read-only."""
+        return _read_only(per_edge_median(self.windows.edge, self.dark, self.n_edges))
+
     def board_turned(self) -> bool | None:
         """Whether the board lies turned by about a quarter turn in the image: most scan lines of the edges
         along the board's rows run along the image's rows (those edges stand near-vertical). None where the
@@ -166,6 +178,11 @@ class BoardEdges:
         runs = (g[:, :plateau], g[:, -plateau:])
         sq = sum(float(((r - r.mean(axis=1, keepdims=True)) ** 2).sum()) for r in runs)
         return float(np.sqrt(sq / (2 * g.shape[0] * (plateau - 1))))
+
+
+def _read_only(a: np.ndarray) -> np.ndarray:
+    a.flags.writeable = False
+    return a
 
 
 def per_edge_median(edge: np.ndarray, x: np.ndarray, n: int) -> np.ndarray:

@@ -41,7 +41,7 @@ from collections.abc import Callable
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from doorloc.photometric.board_edges import BoardEdges, per_edge_median
+from doorloc.photometric.board_edges import BoardEdges
 from doorloc.photometric.model import PhotometricModel
 from doorloc.photometric.profiles import edge_spread
 
@@ -95,8 +95,7 @@ def near_clip_edges(edges: BoardEdges, clip_level: float, cut: float = CUT) -> n
     """Edges (E,) whose median bright plateau lies above ``cut`` of the way from their dark plateau to
     ``clip_level``: in the band where the levels before a clip bend, so neither their profile nor their
     levels give the camera's blur or the board's contrast."""
-    b = per_edge_median(edges.windows.edge, edges.bright, edges.n_edges)
-    d = per_edge_median(edges.windows.edge, edges.dark, edges.n_edges)
+    b, d = edges.bright_by_edge, edges.dark_by_edge
     return ~(np.isfinite(b) & np.isfinite(d)) | (b - d >= cut * (255.0 * clip_level - d))
 
 
@@ -121,8 +120,8 @@ def unclipped_contrast(edges: BoardEdges, model: PhotometricModel, clipped: np.n
     square's light over their dark square's (plateaus, linear light of ``model``'s response); NaN where fewer
     than :data:`MIN_UNCLIPPED_EDGES` edges are not clipped and have a dark square above zero light."""
     read = _reader(model)
-    b = read(per_edge_median(edges.windows.edge, edges.bright, edges.n_edges) / 255.0)
-    d = read(per_edge_median(edges.windows.edge, edges.dark, edges.n_edges) / 255.0)
+    b = read(edges.bright_by_edge / 255.0)
+    d = read(edges.dark_by_edge / 255.0)
     with np.errstate(divide="ignore", invalid="ignore"):
         r = b / d
     ok = ~clipped & np.isfinite(r) & (d > 0) & (r > 1)
@@ -138,9 +137,10 @@ def _tobit_sse(
     amp: np.ndarray,
     model: PhotometricModel,
 ) -> np.ndarray:
-    r = y - amp[:, None] * edge_spread(d - x0[:, None], blur, model)
+    """Each line's censored misfit (light^2) with its edge at each of ``x0`` (lines, k): (lines, k)."""
+    r = y[:, None, :] - amp[:, None, None] * edge_spread(d[:, None, :] - x0[:, :, None], blur, model)
     # exact samples count both ways; lower bounds only where the model stays under them
-    return np.where(exact, r * r, np.maximum(r, 0.0) ** 2).sum(1)
+    return np.where(exact[:, None, :], r * r, np.maximum(r, 0.0) ** 2).sum(2)
 
 
 def _censored_problem(
@@ -151,7 +151,7 @@ def _censored_problem(
     read = _reader(model)
     dark = read(edges.dark[lines] / 255.0)
     top = read(edges.bright[lines] / 255.0)
-    edge_dark = read(per_edge_median(win.edge, edges.dark, edges.n_edges) / 255.0)[win.edge[lines]]
+    edge_dark = read(edges.dark_by_edge / 255.0)[win.edge[lines]]
     y = read(win.grey[lines] / 255.0) - dark[:, None]
     floor = top - dark
     amp = np.maximum((contrast - 1.0) * edge_dark, floor) if np.isfinite(contrast) else floor
@@ -166,16 +166,23 @@ def _best_x0(
     def sse(x0: np.ndarray) -> np.ndarray:
         return _tobit_sse(d, y, exact, x0, blur, amp, model)
 
-    grid = np.stack([sse(np.full(y.shape[0], x)) for x in _X0_GRID], 1)
+    rows = np.arange(y.shape[0])
+    grid = sse(np.broadcast_to(_X0_GRID, (y.shape[0], _X0_GRID.size)))
     k = np.clip(np.argmin(grid, 1), 1, _X0_GRID.size - 2)
     x0 = _X0_GRID[k]
-    # two parabola steps: the grid's spacing, then a twentieth of it
-    for h in (_X0_GRID[1] - _X0_GRID[0], 0.05 * (_X0_GRID[1] - _X0_GRID[0])):
-        s0, s1, s2 = sse(x0 - h), sse(x0), sse(x0 + h)
+    # two parabola steps: the grid's spacing (its misfits are the grid's own), then a twentieth of it
+    h = _X0_GRID[1] - _X0_GRID[0]
+    for step_px in (h, 0.05 * h):
+        if step_px == h:
+            s0, s1, s2 = grid[rows, k - 1], grid[rows, k], grid[rows, k + 1]
+        else:
+            s0, s1, s2 = sse(np.stack([x0 - step_px, x0, x0 + step_px], 1)).T
         with np.errstate(divide="ignore", invalid="ignore"):
             step = 0.5 * (s0 - s2) / (s0 - 2 * s1 + s2)
-        x0 = x0 + h * np.where(np.isfinite(step) & (s0 - 2 * s1 + s2 > 0), np.clip(step, -1.0, 1.0), 0.0)
-    return x0, sse(x0)
+        x0 = x0 + step_px * np.where(
+            np.isfinite(step) & (s0 - 2 * s1 + s2 > 0), np.clip(step, -1.0, 1.0), 0.0
+        )
+    return x0, sse(x0[:, None])[:, 0]
 
 
 #: the range a photograph's clipped edges' blur is searched in (Gaussian sigma of the optics, px), and the most

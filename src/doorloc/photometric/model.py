@@ -89,6 +89,7 @@ no library models a camera response of this form; they are small closed forms.
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, fields, replace
+from functools import cached_property
 
 import numpy as np
 
@@ -358,9 +359,21 @@ class PhotometricModel:
         return np.rint(v * 65535.0).astype(np.uint16)
 
     def linearizing_lut(self, top: int = 255) -> np.ndarray:
-        """Table from each stored level (0..top) to linear light on the same scale (float32), for
+        """Table from each stored level (0..top) to linear light on the same scale (float32, read-only), for
         :func:`doorloc.vision.edges.subpixel_edges`'s ``lut``."""
-        return (self.light_from_grey(np.arange(top + 1) / top) * top).astype(np.float32)
+        if top == 255:
+            return self._lut_8bit
+        return _read_only((self.light_from_grey(np.arange(top + 1) / top) * top).astype(np.float32))
+
+    @cached_property
+    def _lut_8bit(self) -> np.ndarray:
+        # made once per model: a fit places every photograph's edges with each model it tries
+        return _read_only((self.light_from_grey(np.arange(256) / 255) * 255).astype(np.float32))
+
+
+def _read_only(a: np.ndarray) -> np.ndarray:
+    a.flags.writeable = False
+    return a
 
 
 PLAIN = PhotometricModel()

@@ -30,7 +30,7 @@ import numpy as np
 from doorloc.calib.calibrate import board_pose
 from doorloc.calib.camera import CameraModel
 from doorloc.photometric.blur import EdgeBlurs
-from doorloc.photometric.board_edges import BoardEdges, measure_board_edges, per_edge_median
+from doorloc.photometric.board_edges import BoardEdges, measure_board_edges
 from doorloc.photometric.fit import Photograph, transition_centres_px
 from doorloc.photometric.model import PhotometricModel
 from doorloc.photometric.profiles import fit_profiles
@@ -94,8 +94,8 @@ def _centre_blur_px(
 def _levels_light(photo: Photograph, model: PhotometricModel) -> tuple[float, float]:
     """The photograph's dark and light squares' light (model's linear light): medians over its edges' plateaus."""
     e = photo.edges
-    d = np.nanmedian(per_edge_median(e.windows.edge, e.dark, e.n_edges))
-    b = np.nanmedian(per_edge_median(e.windows.edge, e.bright, e.n_edges))
+    d = np.nanmedian(e.dark_by_edge)
+    b = np.nanmedian(e.bright_by_edge)
     # a level at or under the model's pedestal is no light, which the model stores at 0: the twin's squares
     # are kept a grey level above it, where the model's response is defined both ways
     floor = 255.0 * max(model.black_level, 0.0) + 1.0
