@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from doorloc.vision.coarse import coarse_edges
 from doorloc.vision.edge_samples import ScanWindow
-from doorloc.vision.edges import subpixel_edges
+from doorloc.vision.edges import AreaEdgeReader, subpixel_edges
 from doorloc.vision.far_band import FarBand
 from doorloc.vision.far_face import BLUR_DOUBT, subpixel_edges_far_face
 from doorloc.vision.lines import (
@@ -70,6 +70,32 @@ def test_window_that_misses_the_edge_is_invalid():
     img = _box_step_image(np.full(50, 30.2), 20.0, 200.0)
     s = subpixel_edges(img, "col", np.arange(50), np.full(50, 45.0), 3, plateau=4)
     assert not s.valid.any()
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16, np.float64])
+@pytest.mark.parametrize("axis", ["col", "row"])
+def test_a_prepared_area_reader_reads_what_subpixel_edges_reads(dtype, axis):
+    """The board check reads one photograph's windows through hundreds of response tables: the prepared
+    reader gives subpixel_edges's edges and validity to the bit, with and without a table, on the planes
+    the compiled branch reads and on others (which take subpixel_edges whole); windows cut by the image's
+    border and a prediction of NaN included."""
+    rng = np.random.default_rng(5)
+    edges_v = 30.0 + 0.2 * (np.arange(80) - 40) + rng.uniform(-0.4, 0.4, 80)
+    img = _box_step_image(edges_v, 20.0, 200.0, 1.2, n_rows=64) + rng.normal(0, 1.5, (64, 80))
+    top = 255 if dtype != np.uint16 else 4095
+    plane = np.clip(img * top / 255, 0, top).astype(dtype)
+    if axis == "row":
+        plane = np.ascontiguousarray(plane.T)
+    scan = np.arange(80)
+    centre = edges_v + rng.uniform(-1, 1, 80)
+    centre[[0, 7]] = [np.nan, 62.0]  # no prediction; a window past the image's end
+    reader = AreaEdgeReader(plane, axis, scan, centre, 4, plateau=3)
+    luts = [None, ((np.arange(top + 1) / top) ** 2.2 * top).astype(np.float32)]
+    for lut in luts[: 1 if dtype == np.float64 else 2]:  # (a table maps stored integer levels only)
+        s = subpixel_edges(plane, axis, scan, centre, 4, plateau=3, lut=lut)
+        along, valid = reader.along(lut)
+        assert np.array_equal(valid, s.valid) and valid.sum() > 60
+        assert np.array_equal(along, s.along, equal_nan=True)
 
 
 def test_transition_width_measures_the_blur():

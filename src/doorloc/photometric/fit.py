@@ -43,7 +43,7 @@ from doorloc.photometric.clipping import (
 )
 from doorloc.photometric.model import CLIPPED_CONTRAST_MAX, PLAIN, PhotometricModel
 from doorloc.photometric.profiles import fit_profiles
-from doorloc.vision.edges import subpixel_edges
+from doorloc.vision.edges import AreaEdgeReader
 
 __all__ = [
     "Photograph",
@@ -83,6 +83,30 @@ class Photograph:
     @property
     def name(self) -> str:
         return self.edges.image
+
+    @cached_property
+    def _area_readers(self) -> list[tuple[np.ndarray, AreaEdgeReader, np.ndarray, np.ndarray, np.ndarray]]:
+        # per scan direction: its lines, the area estimator prepared on them, their true edges and the
+        # signs and cosines that turn a place along the scan into an offset along the normal
+        # (:func:`place_edges` reads them through every model a fit tries)
+        w, s = self.edges.windows, self.settings
+        out = []
+        for is_col in (True, False):
+            sel = np.flatnonzero(w.axis == is_col)
+            if sel.size:
+                scan, true_along = w.scan[sel], w.true_along[sel]
+                reader = AreaEdgeReader(
+                    self.gray, "col" if is_col else "row", scan, true_along, s.half, s.plateau
+                )
+                out.append((sel, reader, true_along, w.cos[sel], w.bright_sign[sel]))
+        return out
+
+    @cached_property
+    def _line_normals_and_scales(self) -> tuple[np.ndarray, np.ndarray]:
+        # each scan line's edge's normal towards its bright side (image px; N, 2) and the board's scale
+        # across it (px per mm; N,)
+        e = self.edges
+        return e.normal[e.windows.edge], e.px_per_mm[e.windows.edge]
 
     @cached_property
     def edge_blur_px(self) -> np.ndarray:
@@ -156,28 +180,19 @@ def place_edges(photo: Photograph, model: PhotometricModel) -> np.ndarray:
     through the model's response (scan lines whose bright square the model's clip level reaches are placed
     by the censored fit of :mod:`doorloc.photometric.clipping` instead), then the print's board-length shift
     and the point spread's asymmetric shift along each edge's normal are taken off (N,)."""
-    w = photo.edges.windows
-    s = photo.settings
     lut = None if model.linear_response else model.linearizing_lut()
-    out = np.full(w.edge.size, np.nan)
-    for is_col in (True, False):
-        sel = np.flatnonzero(w.axis == is_col)
-        if sel.size == 0:
-            continue
-        es = subpixel_edges(
-            photo.gray, "col" if is_col else "row", w.scan[sel], w.true_along[sel], s.half, s.plateau, lut=lut
-        )
-        out[sel] = np.where(
-            es.valid, (es.along - w.true_along[sel]) * w.cos[sel] * w.bright_sign[sel], np.nan
-        )
+    out = np.full(photo.edges.windows.edge.size, np.nan)
+    for sel, reader, true_along, cos, bright_sign in photo._area_readers:
+        along, valid = reader.along(lut)
+        out[sel] = np.where(valid, (along - true_along) * cos * bright_sign, np.nan)
     if model.clips:
         lines = np.flatnonzero(clipped_lines(photo.edges, model.clip_level) & np.isfinite(out))
         out[lines] = censored_offsets_px(
             photo.edges, lines, photo.camera_blur_px(model), photo.camera_contrast(model), model
         )
-    n = photo.edges.normal[w.edge]  # each edge's normal towards its bright side (image px)
+    n, px_per_mm = photo._line_normals_and_scales
     asym = model.edge_shift_u_px * n[:, 0] + model.edge_shift_v_px * n[:, 1]
-    return out - model.print_spread_mm * photo.edges.px_per_mm[w.edge] - asym
+    return out - model.print_spread_mm * px_per_mm - asym
 
 
 def transition_centres_px(photo: Photograph, model: PhotometricModel) -> np.ndarray:

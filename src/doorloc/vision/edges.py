@@ -54,6 +54,7 @@ from doorloc.vision.sampling import (
 
 __all__ = [
     "DITHERING_NOISE_LEVELS",
+    "AreaEdgeReader",
     "subpixel_edges",
     "subpixel_edges_banded",
 ]
@@ -304,6 +305,36 @@ def _area_edges_compiled(
     if not (level_smooth > 0 and w.scan.size):  # unsmoothed levels stay float32, as in the numpy branch
         A, B = A.astype(np.float32), B.astype(np.float32)
     return along, A, B, noise, valid
+
+
+class AreaEdgeReader:
+    """:func:`subpixel_edges` (flat plateaus, no level smoothing) prepared once for a plane and fixed scan lines
+    and predicted edges, and read through any number of response tables: a camera model's fit places one
+    photograph's edges with every model it tries (hundreds of times), and the windows, the plane's buffer
+    and their checks are the same each time. :meth:`along` gives what ``subpixel_edges(plane, axis, scan,
+    centre, half, plateau, lut=lut)`` gives as ``along`` and ``valid``, to the bit."""
+
+    def __init__(
+        self, plane: np.ndarray, axis: Axis, scan: np.ndarray, centre: np.ndarray, half: int, plateau: int = 4
+    ) -> None:
+        self._args = (plane, axis, np.asarray(scan, int), np.asarray(centre, float), half, plateau)
+        P = oriented(plane, axis)
+        finite = np.isfinite(self._args[3])
+        c0 = np.round(np.where(finite, self._args[3], 0.0)).astype(int)
+        self._windows = _AreaWindows(P, self._args[2], c0 - half - plateau, finite, c0, half, plateau)
+        flat = flat_view(P)
+        # (subpixel_edges's compiled branch; other planes take it whole)
+        self._flat = flat if flat is not None and plane.dtype in (np.uint8, np.uint16) else None
+
+    def along(self, lut: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Each scan line's edge (px along its scan, NaN where not valid) and whether it is valid, the grey
+        levels read through ``lut`` (float32 table, :func:`doorloc.vision.sampling.linearizing_lut`; None:
+        as stored)."""
+        if self._flat is None:
+            es = subpixel_edges(*self._args, lut=lut)
+            return es.along, es.valid
+        along, _, _, _, valid = _area_edges_compiled(self._windows, self._flat, lut, 0, 1.0)
+        return along, valid
 
 
 def _area_edges_numpy(
