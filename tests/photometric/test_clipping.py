@@ -6,10 +6,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from doorloc.calib.camera import CameraModel
 from doorloc.photometric.board_edges import measure_board_edges
 from doorloc.photometric.clipping import (
+    _best_x0,
     censored_blur_px,
     censored_offsets_px,
     clipped_lines,
@@ -18,6 +21,7 @@ from doorloc.photometric.clipping import (
 )
 from doorloc.photometric.fit import Photograph, place_edges, with_clip_references
 from doorloc.photometric.model import CLIPPED_CONTRAST_MAX, PhotometricModel
+from doorloc.photometric.profiles import edge_spread
 from doorloc.sim.boards import BOARD_BLACK, BOARD_WHITE, Checkerboard
 from doorloc.sim.photometric import CameraRendering, render_photographed_board
 
@@ -145,3 +149,44 @@ def test_censored_fit_places_clipped_edges_with_the_blur_it_reads(seed):
     assert abs(read - blur) < 0.05
     o = censored_offsets_px(e, lines, read, contrast, model)
     assert abs(np.nanmedian(o)) < 0.02, (plain, np.nanmedian(o))
+
+
+def _censored_search_reference(d, y, exact, blur, amp, model):
+    """The censored edge search one edge position at a time: the grid, then two parabola steps through the
+    misfits at x0 -+ h (h the grid's spacing, then a twentieth of it)."""
+    grid_px = np.linspace(-2.5, 2.5, 21)
+
+    def sse(x0):
+        r = y - amp[:, None] * edge_spread(d - x0[:, None], blur, model)
+        return np.where(exact, r * r, np.maximum(r, 0.0) ** 2).sum(1)
+
+    grid = np.stack([sse(np.full(y.shape[0], x)) for x in grid_px], 1)
+    x0 = grid_px[np.clip(np.argmin(grid, 1), 1, grid_px.size - 2)]
+    for h in (grid_px[1] - grid_px[0], 0.05 * (grid_px[1] - grid_px[0])):
+        s0, s1, s2 = sse(x0 - h), sse(x0), sse(x0 + h)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            step = 0.5 * (s0 - s2) / (s0 - 2 * s1 + s2)
+        x0 = x0 + h * np.where(np.isfinite(step) & (s0 - 2 * s1 + s2 > 0), np.clip(step, -1.0, 1.0), 0.0)
+    return x0, sse(x0)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(1, 300), st.integers(4, 16), st.floats(0.3, 3.0), st.booleans(), st.integers(0, 2**31 - 1))
+def test_the_censored_search_is_the_one_position_at_a_time_search_to_the_bit(n, length, blur, halo, seed):
+    """The search evaluates all grid positions as one array and takes the first parabola step on the grid's
+    own misfits (a board fit runs it hundreds of times a photograph): the same edges and misfits as one
+    position at a time, with and without a halo, clipped samples and noise."""
+    rng = np.random.default_rng(seed)
+    model = PhotometricModel(psf_tail=0.05 if halo else 0.0, psf_tail_px=float(rng.uniform(0.5, 4)))
+    d = np.arange(length) - length / 2 + rng.uniform(-1, 1, (n, 1))
+    amp = rng.uniform(0.2, 1.0, n)
+    y = amp[:, None] * edge_spread(d - rng.uniform(-2, 2, n)[:, None], blur, model) + rng.normal(
+        0, 0.01, (n, length)
+    )
+    exact = y < 0.85 * amp[:, None] * rng.uniform(0.8, 1.2, (n, 1))
+    for got, want in zip(
+        _best_x0(d, y, exact, blur, amp, model),
+        _censored_search_reference(d, y, exact, blur, amp, model),
+        strict=True,
+    ):
+        assert np.array_equal(got, want, equal_nan=True)

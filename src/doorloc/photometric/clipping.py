@@ -166,22 +166,20 @@ def _best_x0(
     def sse(x0: np.ndarray) -> np.ndarray:
         return _tobit_sse(d, y, exact, x0, blur, amp, model)
 
+    def parabola_step(x0: np.ndarray, s0: np.ndarray, s1: np.ndarray, s2: np.ndarray, h: float) -> np.ndarray:
+        # the vertex of the parabola through the misfits at x0 - h, x0, x0 + h, at most h away
+        with np.errstate(divide="ignore", invalid="ignore"):
+            step = 0.5 * (s0 - s2) / (s0 - 2 * s1 + s2)
+        return x0 + h * np.where(np.isfinite(step) & (s0 - 2 * s1 + s2 > 0), np.clip(step, -1.0, 1.0), 0.0)
+
     rows = np.arange(y.shape[0])
     grid = sse(np.broadcast_to(_X0_GRID, (y.shape[0], _X0_GRID.size)))
     k = np.clip(np.argmin(grid, 1), 1, _X0_GRID.size - 2)
-    x0 = _X0_GRID[k]
-    # two parabola steps: the grid's spacing (its misfits are the grid's own), then a twentieth of it
+    # two parabola steps: the grid's spacing (on the grid's own misfits), then a twentieth of it
     h = _X0_GRID[1] - _X0_GRID[0]
-    for step_px in (h, 0.05 * h):
-        if step_px == h:
-            s0, s1, s2 = grid[rows, k - 1], grid[rows, k], grid[rows, k + 1]
-        else:
-            s0, s1, s2 = sse(np.stack([x0 - step_px, x0, x0 + step_px], 1)).T
-        with np.errstate(divide="ignore", invalid="ignore"):
-            step = 0.5 * (s0 - s2) / (s0 - 2 * s1 + s2)
-        x0 = x0 + step_px * np.where(
-            np.isfinite(step) & (s0 - 2 * s1 + s2 > 0), np.clip(step, -1.0, 1.0), 0.0
-        )
+    x0 = parabola_step(_X0_GRID[k], grid[rows, k - 1], grid[rows, k], grid[rows, k + 1], h)
+    fine = 0.05 * h
+    x0 = parabola_step(x0, *sse(np.stack([x0 - fine, x0, x0 + fine], 1)).T, fine)
     return x0, sse(x0[:, None])[:, 0]
 
 
