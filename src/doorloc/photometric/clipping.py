@@ -179,7 +179,8 @@ def _best_x0(
     h = _X0_GRID[1] - _X0_GRID[0]
     x0 = parabola_step(_X0_GRID[k], grid[rows, k - 1], grid[rows, k], grid[rows, k + 1], h)
     fine = 0.05 * h
-    x0 = parabola_step(x0, *sse(np.stack([x0 - fine, x0, x0 + fine], 1)).T, fine)
+    s0, s1, s2 = sse(np.stack([x0 - fine, x0, x0 + fine], 1)).T
+    x0 = parabola_step(x0, s0, s1, s2, fine)
     return x0, sse(x0[:, None])[:, 0]
 
 
