@@ -222,14 +222,9 @@ def subpixel_edges(
     EdgeSamples
     """
     # why many parameters: the public area reader (photometric fit, board response, tests) keeps its keywords
-    P = oriented(plane, axis)
-    scan = np.asarray(scan, int)
-    centre = np.asarray(centre, float)
-    finite = np.isfinite(centre)
-    c0 = np.round(np.where(finite, centre, 0.0)).astype(int)
-    windows = _AreaWindows(P, scan, c0 - half - plateau, finite, c0, half, plateau)
-    flat = flat_view(P)
-    if not slope_smooth > 0 and flat is not None and plane.dtype in (np.uint8, np.uint16):
+    windows, flat = _area_windows(plane, axis, scan, centre, half, plateau)
+    scan = windows.scan
+    if not slope_smooth > 0 and flat is not None:
         # flat plateaus (the default): compiled, one pass over each profile (_area_edges)
         along, A, B, noise, valid = _area_edges_compiled(windows, flat, lut, level_smooth, scale_to_8bit)
         return EdgeSamples(
@@ -275,6 +270,20 @@ class _AreaWindows:
     plateau: int
 
 
+def _area_windows(
+    plane: np.ndarray, axis: Axis, scan: np.ndarray, centre: np.ndarray, half: int, plateau: int
+) -> tuple[_AreaWindows, tuple[np.ndarray, int, int] | None]:
+    """:func:`subpixel_edges`'s windows, and the plane's pixel buffer where its compiled branch can read it
+    (an 8- or 16-bit plane stored contiguously or transposed; None: the numpy branch)."""
+    P = oriented(plane, axis)
+    centre = np.asarray(centre, float)
+    finite = np.isfinite(centre)
+    c0 = np.round(np.where(finite, centre, 0.0)).astype(int)
+    windows = _AreaWindows(P, np.asarray(scan, int), c0 - half - plateau, finite, c0, half, plateau)
+    flat = flat_view(P) if plane.dtype in (np.uint8, np.uint16) else None
+    return windows, flat
+
+
 def _area_edges_compiled(
     windows: _AreaWindows,
     flat: tuple[np.ndarray, int, int],
@@ -317,14 +326,9 @@ class AreaEdgeReader:
     def __init__(
         self, plane: np.ndarray, axis: Axis, scan: np.ndarray, centre: np.ndarray, half: int, plateau: int = 4
     ) -> None:
-        self._args = (plane, axis, np.asarray(scan, int), np.asarray(centre, float), half, plateau)
-        P = oriented(plane, axis)
-        finite = np.isfinite(self._args[3])
-        c0 = np.round(np.where(finite, self._args[3], 0.0)).astype(int)
-        self._windows = _AreaWindows(P, self._args[2], c0 - half - plateau, finite, c0, half, plateau)
-        flat = flat_view(P)
-        # (subpixel_edges's compiled branch; other planes take it whole)
-        self._flat = flat if flat is not None and plane.dtype in (np.uint8, np.uint16) else None
+        self._args = (plane, axis, scan, centre, half, plateau)
+        # (None: subpixel_edges's numpy branch, which the reader then takes whole)
+        self._windows, self._flat = _area_windows(plane, axis, scan, centre, half, plateau)
 
     def along(self, lut: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Each scan line's edge (px along its scan, NaN where not valid) and whether it is valid, the grey
