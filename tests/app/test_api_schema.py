@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 import schemathesis
+from fastapi.testclient import TestClient
 from hypothesis import HealthCheck, given, settings
 from schemathesis.config import SchemathesisConfig
 from schemathesis.generation import GenerationMode
@@ -32,7 +33,36 @@ APP = create_app(
     cell=CELL,
     store=RecipeStore("sqlite://"),
 )
-APP.state.service.load()  # resolves the default locate; lifespan does this in a server
+
+
+class _RequestsOnly:
+    """``APP`` for schemathesis without its lifespan: schemathesis's pytest plugin ends an ASGI app's
+    lifespan after every test, and ``APP``'s start-up (its locate and decode worker processes, ~5 s) then
+    ran once per test. The service runs once for the module instead (:func:`_service_running`), as a server
+    runs it; every request still goes to ``APP`` itself."""
+
+    def __init__(self, app) -> None:
+        self.app = app
+
+    async def __call__(self, scope, receive, send) -> None:
+        if scope["type"] != "lifespan":
+            await self.app(scope, receive, send)
+            return
+        while True:
+            message = await receive()
+            if message["type"] == "lifespan.startup":
+                await send({"type": "lifespan.startup.complete"})
+            elif message["type"] == "lifespan.shutdown":
+                await send({"type": "lifespan.shutdown.complete"})
+                return
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _service_running():
+    """``APP``'s own lifespan (the cell, the store, the worker processes), once for the module's tests."""
+    with TestClient(APP):
+        yield
+
 
 # All checks run. With the key configured, the auth checks (ignored_auth, missing_required_header) test
 # that requests without it get 401. One check needs telling what "valid" means where JSON Schema cannot say it:
@@ -58,7 +88,7 @@ CONFIG = SchemathesisConfig.from_dict(
         ],
     }
 )
-schema = schemathesis.openapi.from_asgi("/openapi.json", APP, config=CONFIG)
+schema = schemathesis.openapi.from_asgi("/openapi.json", _RequestsOnly(APP), config=CONFIG)
 #: examples per operation and mode; bench/bench_service_schema.py raises it
 EXAMPLES = int(os.environ.get("DOORLOC_SCHEMATHESIS_EXAMPLES", "40"))
 OPERATIONS = {result.ok().label: result.ok() for result in schema.get_all_operations()}
