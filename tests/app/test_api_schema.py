@@ -17,6 +17,9 @@ from doorloc.app.settings import ServiceSettings
 from doorloc.cell import load_cell
 from doorloc.recipes.store import RecipeStore
 
+# one test process starts the service (its worker processes take seconds) for all the module's tests
+pytestmark = pytest.mark.xdist_group("api_schema")
+
 CELL = load_cell(Path(__file__).resolve().parents[2] / "fixtures" / "cell_thesis.yaml")
 # The real pipeline: schemathesis's images are mostly not images at all, and those that decode are refused fast.
 API_KEY = "schemathesis-key"

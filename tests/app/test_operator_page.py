@@ -41,7 +41,10 @@ def _require_chromium() -> None:
 
 @pytest.fixture
 def live_server(cell, store):
-    """The app with the real pipeline, served by uvicorn on 127.0.0.1 in a thread; yields its base URL."""
+    """The app with the real pipeline, served by uvicorn on 127.0.0.1 in a thread; yields its base URL.
+    Where no browser can run the tests, they skip before the service starts (its worker processes take
+    seconds)."""
+    _require_chromium()
     import uvicorn
 
     from doorloc.app.http import create_app
@@ -66,7 +69,6 @@ def live_server(cell, store):
 
 
 def test_upload_shows_pose_overlay_and_targets_then_an_error_sentence(live_server, cell, tmp_path):
-    _require_chromium()
     from playwright.sync_api import sync_playwright
 
     from doorloc.pose import DoorPose
@@ -120,7 +122,6 @@ def _dominant(answer: dict, key: str, index: int) -> str:
 
 
 def test_pose_values_show_their_one_sigma_and_the_dominant_uncertainty_term(live_server, cell, tmp_path):
-    _require_chromium()
     import numpy as np
     from playwright.sync_api import sync_playwright
 
@@ -189,7 +190,6 @@ def test_pose_values_show_their_one_sigma_and_the_dominant_uncertainty_term(live
 def test_api_docs_render_with_the_network_cut_and_the_key_stays_in_the_tab(live_server):
     """/docs runs from the bundled Swagger UI: every request to another origin is refused here, and the page
     still renders the API. The operator page keeps a key in sessionStorage (this tab), never localStorage."""
-    _require_chromium()
     from playwright.sync_api import sync_playwright
 
     foreign: list[str] = []

@@ -22,7 +22,9 @@ from doorloc.sim.hostile import progressive_jpeg_bomb, tiff_header
 
 from .conftest import launch_serve, png_bytes, stop_serve
 
-pytestmark = pytest.mark.slow
+# one test process starts the module's two services for all its tests (each service's worker processes take
+# seconds to start; spread over two test processes, each started its own pair)
+pytestmark = [pytest.mark.slow, pytest.mark.xdist_group("serve_hostile")]
 
 
 def _png_header_only(w: int, h: int, depth: int = 8, colour: int = 0) -> bytes:

@@ -17,6 +17,9 @@ from doorloc.calib.calibrate import (
 from doorloc.calib.detect import Chessboard
 from doorloc.calib.folder import calibrate_detected, detect_views
 
+# one test process makes the module's fixtures (the rendered views and their calibration) for all its tests
+pytestmark = pytest.mark.xdist_group("calibrate_rendered")
+
 
 @pytest.fixture(scope="module")
 def rendered():

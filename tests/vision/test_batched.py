@@ -38,6 +38,10 @@ def _close(a, b) -> list[str]:
     return bad
 
 
+# one test process makes the module's fixtures (the golden cases and their one-frame answers) for all its tests
+pytestmark = pytest.mark.xdist_group("batched")
+
+
 @pytest.fixture(scope="module")
 def cases():
     return list(golden.all_cases())
