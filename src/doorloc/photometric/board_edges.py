@@ -135,12 +135,17 @@ class BoardEdges:
     def bright_by_edge(self) -> np.ndarray:
         """Each edge's median bright plateau over its scan lines, grey (E,; NaN where none). Read-only: a
         model fit asks for it at every trial of its parameters."""
-        return _read_only(per_edge_median(self.windows.edge, self.bright, self.n_edges))
+        return self._by_edge(self.bright)
 
     @cached_property
     def dark_by_edge(self) -> np.ndarray:
         """Each edge's median dark plateau over its scan lines, grey (E,; NaN where none). Read-only."""
-        return _read_only(per_edge_median(self.windows.edge, self.dark, self.n_edges))
+        return self._by_edge(self.dark)
+
+    def _by_edge(self, x: np.ndarray) -> np.ndarray:
+        out = per_edge_median(self.windows.edge, x, self.n_edges)
+        out.flags.writeable = False
+        return out
 
     def board_turned(self) -> bool | None:
         """Whether the board lies turned by about a quarter turn in the image: most scan lines of the edges
@@ -178,11 +183,6 @@ class BoardEdges:
         runs = (g[:, :plateau], g[:, -plateau:])
         sq = sum(float(((r - r.mean(axis=1, keepdims=True)) ** 2).sum()) for r in runs)
         return float(np.sqrt(sq / (2 * g.shape[0] * (plateau - 1))))
-
-
-def _read_only(a: np.ndarray) -> np.ndarray:
-    a.flags.writeable = False
-    return a
 
 
 def per_edge_median(edge: np.ndarray, x: np.ndarray, n: int) -> np.ndarray:

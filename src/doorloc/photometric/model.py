@@ -361,19 +361,17 @@ class PhotometricModel:
     def linearizing_lut(self, top: int = 255) -> np.ndarray:
         """Table from each stored level (0..top) to linear light on the same scale (float32, read-only), for
         :func:`doorloc.vision.edges.subpixel_edges`'s ``lut``."""
-        if top == 255:
-            return self._lut_8bit
-        return _read_only((self.light_from_grey(np.arange(top + 1) / top) * top).astype(np.float32))
+        return self._lut_8bit if top == 255 else self._lut(top)
 
     @cached_property
     def _lut_8bit(self) -> np.ndarray:
         # made once per model: a fit places every photograph's edges with each model it tries
-        return _read_only((self.light_from_grey(np.arange(256) / 255) * 255).astype(np.float32))
+        return self._lut(255)
 
-
-def _read_only(a: np.ndarray) -> np.ndarray:
-    a.flags.writeable = False
-    return a
+    def _lut(self, top: int) -> np.ndarray:
+        table = (self.light_from_grey(np.arange(top + 1) / top) * top).astype(np.float32)
+        table.flags.writeable = False  # (the 8-bit table is shared by every caller)
+        return table
 
 
 PLAIN = PhotometricModel()
