@@ -10,6 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.ndimage import gaussian_filter1d
+from scipy.optimize import minimize_scalar
 
 from doorloc.cell import DoorSize, load_cell
 from doorloc.pose import DoorPose
@@ -142,6 +143,37 @@ def test_the_sloped_reader_finds_the_lens_blur_under_a_transition_the_grain_wide
     assert abs(np.median(got.samples.along) - edge) < 0.05
     told = refine_face_slope_fit(plane, area, FACE_SLOPE_HALF_PX - 1, 2.6, 1, search_blur=False)
     assert told.blur_px == 2.6 and abs(np.median(told.samples.along) - edge) > 0.1
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    edge=st.floats(-0.5, 0.5),
+    slope=st.floats(-4.0, 4.0),
+    sigma=st.floats(0.6, 2.0),
+    noise=st.floats(0.5, 4.0),
+    seed=st.integers(0, 2**31),
+)
+def test_the_sloped_fit_stops_at_its_scan_lines_least_squares_edge(edge, slope, sigma, noise, seed):
+    # the fit stops a scan line once its step is tiny (FACE_SLOPE_CONVERGED_PX): where it stops is the
+    # least squares edge of that line, found here by a bounded scalar search over the line's own misfit
+    h = FACE_SLOPE_HALF_PX
+    rng = np.random.default_rng(seed)
+    clean = _profile(lambda d: 120.0 + slope * d, 20 + edge, sigma, 1)[20 - h : 20 + h + 1]
+    rows = clean + rng.normal(0.0, noise, (6, clean.size))
+    bounds = np.arange(-h, h + 2, dtype=np.float64) - 0.5
+    got = face_slope_step_fit(rows, np.zeros(6), bounds, sigma, 1, n_iter=60)
+
+    def misfit(e: float, row: np.ndarray) -> float:
+        # (one step from e: its misfit is the line's at e, before the step)
+        rss = np.empty(1)
+        face_slope_step_fit(row[None], np.array([e]), bounds, sigma, 1, n_iter=1, misfit=rss)
+        return float(rss[0])
+
+    for row, e in zip(rows, got, strict=True):
+        best = minimize_scalar(
+            misfit, bounds=(e - 0.05, e + 0.05), args=(row,), method="bounded", options={"xatol": 1e-9}
+        )
+        assert abs(e - best.x) < 1e-6 and misfit(e, row) <= best.fun * (1 + 1e-12) + 1e-12
 
 
 def test_the_sloped_fit_refuses_rows_and_bounds_that_do_not_agree():
