@@ -19,13 +19,15 @@ start so that no request waits for it, and the container image calls it when it 
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import secrets
+from collections.abc import Callable, Iterator
 from typing import Any, TypeVar
 
 import numba
 import numpy as np
 from llvmlite import ir
 from numba import types
+from numba.core.bytecode import FunctionIdentity
 from numba.extending import intrinsic, overload
 
 __all__ = [
@@ -43,6 +45,32 @@ __all__ = [
 ]
 
 F = TypeVar("F", bound=Callable[..., Any])
+
+
+class _RandomCompileIds(Iterator[int]):
+    """Random 63-bit numbers, endlessly: the ids numba gives the functions it compiles, in place of its
+    count from 1 in each process (``numba.core.bytecode.FunctionIdentity._unique_ids``).
+
+    Why: the id is part of every compiled function's symbol name (its ``v<id>`` tag), which is how numba
+    tells apart two functions of one name (its own ``np.sort`` and ``np.argsort`` each build a
+    ``run_quicksort1`` for a float64 array), and the disk cache keeps those names. Counted from 1 in every
+    process, two processes that compile different functions of one name at the same count (the warm-up's
+    two jobs, two test workers, a service's workers meeting a new signature) write cached code whose
+    symbols share a name and differ in body, and a process that loads both runs one body for both (LLVM
+    keeps the first of two weak definitions). Seen here: a kernel loaded from such a cache crashed in the
+    texture reading (its quicksort resolved to another kernel's), and ``tests/vision/test_jit.py``'s two
+    modules made ``np.argsort`` sort its input in place and return a float's bits as an index. Reported as
+    numba issue #10486 (open; PyTensor works around it likewise). numba has no setting for it, so its
+    counter is replaced when this module is imported, before any kernel is compiled; with random ids two
+    names meet as often as two draws of 63 bits agree. Cached code keeps the ids it was compiled with: a
+    cache written before this is dropped by ``scripts/setup`` (this file's kernels changed)."""
+
+    def __next__(self) -> int:
+        return secrets.randbits(63)
+
+
+# (numba types it as its itertools.count; it only ever calls next() on it)
+FunctionIdentity._unique_ids = _RandomCompileIds()  # type: ignore[assignment]
 
 # (kernel, warm-up) of every kernel defined so far: what compile_kernels compiles (definitions, not state)
 _KERNELS: list[tuple[Any, Callable[[Any], None] | None]] = []
