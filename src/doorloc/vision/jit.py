@@ -62,8 +62,10 @@ class _RandomCompileIds(Iterator[int]):
     modules made ``np.argsort`` sort its input in place and return a float's bits as an index. Reported as
     numba issue #10486 (open; PyTensor works around it likewise). numba has no setting for it, so its
     counter is replaced when this module is imported, before any kernel is compiled; with random ids two
-    names meet as often as two draws of 63 bits agree. Cached code keeps the ids it was compiled with: a
-    cache written before this is dropped by ``scripts/setup`` (this file's kernels changed)."""
+    names meet as often as two draws of 63 bits agree. The ids come from the OS (``secrets``), not from
+    ``random``, whose state a forked process would share with its parent. Cached code keeps the ids it was
+    compiled with: a cache written before this is dropped by ``scripts/setup`` (this file's kernels
+    changed)."""
 
     def __next__(self) -> int:
         return secrets.randbits(63)
