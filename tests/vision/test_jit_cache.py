@@ -45,9 +45,9 @@ def argsorted_first(a):
 """
 
 
-def _run(folder: Path, which: str, fixed: bool, pad: int = 0) -> str:
+def _run(folder: Path, which: str, fixed: bool, pad: int = 0) -> list[str]:
     """Run one process in ``folder`` that imports ``which`` of the two modules (``sort``, ``argsort``
-    or ``both``) and calls them; its output, or ``crashed``."""
+    or ``both``) and calls them; the words it printed, or ``crashed`` and its last words on stderr."""
     code = "\n".join(
         [
             "import numpy as np",

@@ -57,9 +57,9 @@ class _RandomCompileIds(Iterator[int]):
     process, two processes that compile different functions of one name at the same count (the warm-up's
     two jobs, two test workers, a service's workers meeting a new signature) write cached code whose
     symbols share a name and differ in body, and a process that loads both runs one body for both (LLVM
-    keeps the first of two weak definitions). Seen here: a kernel loaded from such a cache crashed in the
-    texture reading (its quicksort resolved to another kernel's), and ``tests/vision/test_jit.py``'s two
-    modules made ``np.argsort`` sort its input in place and return a float's bits as an index. Reported as
+    keeps the first of two weak definitions). Seen 2026-12-05: a kernel loaded from such a cache crashed in
+    the texture reading (its quicksort resolved to another kernel's), and ``tests/vision/test_jit_cache.py``'s
+    two modules made ``np.argsort`` sort its input in place and return a float's bits as an index. Reported as
     numba issue #10486 (open; PyTensor works around it likewise). numba has no setting for it, so its
     counter is replaced when this module is imported, before any kernel is compiled; with random ids two
     names meet as often as two draws of 63 bits agree. The ids come from the OS (``secrets``), not from
