@@ -94,3 +94,43 @@ def test_kernels_cached_by_two_processes_run_their_own_code_in_a_third(tmp_path)
             "tried: check numba issue #10486 and whether doorloc.vision.jit's compile ids are still needed"
         )
     assert _together(tmp_path / f"fixed{pad}", True, pad) == ["0.5", "3"]
+
+
+def test_a_kernel_s_cache_is_stamped_with_every_kernel_module():
+    import numba
+
+    from doorloc.vision import jit
+
+    folder = Path(jit.__file__).resolve().parent
+    locator = jit.select_kth._cache._impl._locator
+    assert locator.get_source_stamp() == jit.kernel_sources_digest(folder)
+    # a function elsewhere keeps numba's own stamp (its own file's)
+    elsewhere = numba.njit(cache=True)(lambda x: x + 1)
+    assert elsewhere._cache._impl._locator.get_source_stamp() != jit.kernel_sources_digest(folder)
+
+
+def test_the_kernel_stamp_moves_with_any_kernel_module_and_with_nothing_else(tmp_path):
+    from doorloc.vision.jit import kernel_sources_digest
+
+    (tmp_path / "callee.py").write_text("@kernel()\ndef f(x):\n    return x\n")
+    (tmp_path / "caller.py").write_text("@kernel()\ndef g(x):\n    return f(x)\n")
+    (tmp_path / "plain.py").write_text("def h(x):\n    return x\n")
+    first = kernel_sources_digest(tmp_path)
+    (tmp_path / "plain.py").write_text("def h(x):\n    return x + 1\n")
+    os.utime(tmp_path / "caller.py")  # (touched, not changed)
+    assert kernel_sources_digest(tmp_path) == first
+    (tmp_path / "callee.py").write_text("@kernel()\ndef f(x):\n    return x + 1\n")
+    assert kernel_sources_digest(tmp_path) != first
+
+
+def test_a_second_process_loads_the_kernels_the_first_cached(tmp_path):
+    code = "import numpy as np\nfrom doorloc.vision.jit import select_kth\nselect_kth(np.arange(5.0), 2)\n"
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path), NUMBA_DEBUG_CACHE="1", PYTHONPATH=str(SRC))
+    runs = [
+        subprocess.run(
+            [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
+        ).stdout
+        for _ in range(2)
+    ]
+    assert "data saved" in runs[0] and "select_kth" in runs[0]
+    assert "data loaded" in runs[1] and "data saved" not in runs[1]

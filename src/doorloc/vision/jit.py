@@ -19,20 +19,24 @@ start so that no request waits for it, and the container image calls it when it 
 
 from __future__ import annotations
 
+import hashlib
 import secrets
 from collections.abc import Callable, Iterator
+from pathlib import Path
 from typing import Any, TypeVar
 
 import numba
 import numpy as np
 from llvmlite import ir
 from numba import types
+from numba.core import caching
 from numba.core.bytecode import FunctionIdentity
 from numba.extending import intrinsic, overload
 
 __all__ = [
     "kernel",
     "cached_on_disk",
+    "kernel_sources_digest",
     "compile_kernels",
     "compiled_signatures",
     "fma",
@@ -73,6 +77,53 @@ class _RandomCompileIds(Iterator[int]):
 
 # (numba types it as its itertools.count; it only ever calls next() on it)
 FunctionIdentity._unique_ids = _RandomCompileIds()  # type: ignore[assignment]
+
+
+def kernel_sources_digest(folder: Path) -> bytes:
+    """SHA-256 of the modules in ``folder`` that define kernels (``@kernel`` in their text): their file
+    names and contents, in name order. The stamp of every kernel's disk cache (:func:`_stamped_locator`)."""
+    h = hashlib.sha256()
+    for path in sorted(folder.glob("*.py")):
+        text = path.read_bytes()
+        if b"@kernel" in text:
+            h.update(path.name.encode() + b"\0" + text + b"\0")
+    return h.digest()
+
+
+def _stamped_locator(base: type, folder: Path, stamp: bytes) -> type:
+    """numba's cache locator ``base`` for the kernels of ``folder`` (None for any other function, which
+    numba's own locators then take), their caches stamped ``stamp`` in place of their own file's.
+
+    Why: numba stamps a cached function with its own source file's time and size only, while a kernel's
+    cached machine code holds the kernels it calls, from other files: after an edit or a checkout that
+    changed only a callee's file, the caller kept the callee's old code, loaded as fresh (benchmarks ran
+    old code; ``scripts/setup`` had to drop the cache by hand). With every kernel module's contents in
+    the stamp, any change to any of them makes every kernel's cache stale, and numba compiles it again.
+    numba offers no setting for this: its locators (``numba.core.caching``) are subclassed and put first."""
+
+    class Located(base):
+        def get_source_stamp(self) -> bytes:
+            return stamp
+
+        @classmethod
+        def from_function(cls, py_func: Any, py_file: str) -> Any:
+            if Path(py_file).resolve().parent != folder:
+                return None
+            return super().from_function(py_func, py_file)
+
+    Located.__name__ = Located.__qualname__ = f"KernelSources{base.__name__}"
+    return Located
+
+
+_KERNEL_FOLDER = Path(__file__).resolve().parent
+# (taken once, as this module is imported, before the kernel modules are: each process's caches carry the
+# sources it started from)
+_KERNEL_STAMP = kernel_sources_digest(_KERNEL_FOLDER)
+_STAMPED_LOCATORS: list[Any] = [
+    _stamped_locator(base, _KERNEL_FOLDER, _KERNEL_STAMP)
+    for base in (caching.UserProvidedCacheLocator, caching.InTreeCacheLocator, caching.UserWideCacheLocator)
+]
+caching.CacheImpl._locator_classes[:0] = _STAMPED_LOCATORS
 
 # (kernel, warm-up) of every kernel defined so far: what compile_kernels compiles (definitions, not state)
 _KERNELS: list[tuple[Any, Callable[[Any], None] | None]] = []
