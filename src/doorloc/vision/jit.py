@@ -14,7 +14,10 @@ numba compiles a kernel on its first call and caches the machine code on disk (b
 under ``NUMBA_CACHE_DIR``; where neither can be written, each process compiles its own). The first call on
 a machine takes seconds; later processes load the cached code in a fraction of a second.
 :func:`compile_kernels` compiles them all (:mod:`doorloc.vision.warmup`, locate's): the service calls it at
-start so that no request waits for it, and the container image calls it when it is built.
+start so that no request waits for it, and the container image calls it when it is built. Two things
+this module sets in numba keep a cache from running code other than its kernels': compiled functions are
+numbered at random (:class:`_RandomCompileIds`: processes sharing a cache), and every kernel's cache is
+stamped with all kernel modules' contents (:func:`kernel_sources_digest`: a changed callee).
 """
 
 from __future__ import annotations
