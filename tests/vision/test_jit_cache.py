@@ -1,4 +1,4 @@
-"""numba's disk cache shared by processes that compiled apart (doorloc.vision.jit's compile ids).
+"""numba's disk cache kept to the code it was compiled from (doorloc.vision.jit's compile ids and stamp).
 
 numba names every compiled function's symbol with a per-process count (its ``v<id>`` tag); two processes
 that compile different functions of one name at the same count write cached code whose symbols share a
@@ -8,6 +8,11 @@ processes and loaded together by a third. Without doorloc's compile ids the two 
 functions compiled before the second (found by trying a few): ``np.argsort`` then sorts its input and
 returns a float's bits. With them (``import doorloc.vision.jit`` first, as every kernel module does) the
 third process gets the right answers.
+
+A kernel's cached code also holds the kernels it calls from other files, so every kernel's cache is stamped
+with the contents of all kernel modules (``kernel_sources_digest``): the stamp is on doorloc's kernels and
+not on other functions, it moves with a kernel module's contents and with nothing else, and a second
+process still loads what the first cached.
 """
 
 from __future__ import annotations
