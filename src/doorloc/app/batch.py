@@ -50,12 +50,14 @@ from doorloc.app.imagesniff import (
 )
 from doorloc.app.services import DoorChoiceError, RecipeLookup, answer_image, resolve_door
 from doorloc.app.settings import DEFAULT_MAX_DECODED_BYTES, DEFAULT_MAX_PIXELS
-from doorloc.cell import Cell
+from doorloc.cell import Cell, DoorSize
 
 if TYPE_CHECKING:  # torch is the optional extra; only run_batched's workers import it
+    import numpy as np
     import torch
 
     from doorloc.vision.cell_light import LightMeasurement
+    from doorloc.vision.cell_response import ResponseMeasurement
 
 __all__ = [
     "BatchItem",
@@ -74,6 +76,7 @@ __all__ = [
     "find_images",
     "plan_batch",
     "measure_light_in_folder",
+    "measure_response_in_folder",
     "locate_item",
     "run_local",
     "run_ray",
@@ -275,8 +278,36 @@ def measure_light_in_folder(
     :class:`doorloc.vision.imageio.ImageDecodeError` (unusable files) and
     :class:`doorloc.vision.cell_light.LightNotMeasurable` (the images cannot tell the light).
     """
-    from doorloc.cell import load_cell
     from doorloc.vision.cell_light import measure_cell_light
+
+    cell, frames = _door_frames(root, cell_path, manifest)
+    return measure_cell_light(frames, cell, progress=progress)
+
+
+def measure_response_in_folder(
+    root: str | os.PathLike,
+    cell_path: str | os.PathLike,
+    manifest: str | os.PathLike | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> ResponseMeasurement:
+    """The camera's response (and the cell's light) measured from the door images under ``root``, their
+    doors as :func:`measure_light_in_folder` reads them: :func:`doorloc.vision.cell_response.
+    measure_cell_response` (``progress`` its).
+
+    Raises as :func:`measure_light_in_folder`, and :class:`doorloc.vision.cell_response.
+    ResponseNotMeasurable` where the images cannot tell the response.
+    """
+    from doorloc.vision.cell_response import measure_cell_response
+
+    cell, frames = _door_frames(root, cell_path, manifest)
+    return measure_cell_response(frames, cell, progress=progress)
+
+
+def _door_frames(
+    root: str | os.PathLike, cell_path: str | os.PathLike, manifest: str | os.PathLike | None
+) -> tuple[Cell, list[tuple[np.ndarray, DoorSize]]]:
+    """The cell and its door images under ``root`` with their doors (``manifest`` or the cell's door)."""
+    from doorloc.cell import load_cell
     from doorloc.vision.imageio import read_image
 
     cell = load_cell(cell_path)
@@ -285,9 +316,7 @@ def measure_light_in_folder(
         raise BatchSetupError("; ".join(problems[:5]) + ("; ..." if len(problems) > 5 else ""))
     if not items:
         raise BatchSetupError(f"no images under {root}")
-    return measure_cell_light(
-        [(read_image(it.path), it.choice.door) for it in items], cell, progress=progress
-    )
+    return cell, [(read_image(it.path), it.choice.door) for it in items]
 
 
 def _cached(lookup: RecipeLookup | None) -> RecipeLookup:

@@ -1,14 +1,18 @@
-"""`doorloc measure-light`: the cell's light from images of its doors (the work is in
-:mod:`doorloc.vision.cell_light`)."""
+"""`doorloc measure-light`: the cell's light, and with ``--response`` its camera's response, from images of its
+doors (the work is in :mod:`doorloc.vision.cell_light` and :mod:`doorloc.vision.cell_response`)."""
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
 from doorloc.app.errors import EXIT_REFUSED, fail
+
+if TYPE_CHECKING:
+    from doorloc.vision.cell_light import LightMeasurement
+    from doorloc.vision.cell_response import ResponseMeasurement
 
 
 def measure_light_cmd(
@@ -22,24 +26,41 @@ def measure_light_cmd(
             help="CSV: image, width_mm, thickness_mm[, height_mm][, arris_mm]; default: the cell's door"
         ),
     ] = None,
+    response: Annotated[
+        bool,
+        typer.Option(
+            "--response",
+            help="also measure the camera's response (camera.response_gamma) from the doors' roundings, "
+            "where no board photographs measured it (about a minute for eight doors)",
+        ),
+    ] = False,
 ) -> None:
     """The direction of the cell's main light, measured from doors with rounded arrises -> the lines to add
     to the cell file's locate section. Each door is located once and its rounded strips scored under about
-    70 trial directions (about 5 s for 8 doors on one core). Exit codes: 0 measured, 1 the images
-    cannot tell the light, 2 bad arguments or files."""
-    from doorloc.app.batch import BatchSetupError, measure_light_in_folder
+    70 trial directions (about 5 s for 8 doors on one core). With --response, each door is located with
+    about 17 trial camera exponents and the exponent under which all the roundings fit matt arcs under one
+    light best is the camera's, printed with its doubt for the camera section. Exit codes: 0 measured, 1
+    the images cannot tell the light (or the response), 2 bad arguments or files."""
+    from doorloc.app import batch
     from doorloc.cell import CellFileError
     from doorloc.vision.cell_light import LightNotMeasurable
+    from doorloc.vision.cell_response import ResponseNotMeasurable
     from doorloc.vision.imageio import ImageDecodeError
 
+    def progress(line: str) -> None:
+        typer.echo(line, err=True)
+
     try:
-        m = measure_light_in_folder(
-            images_dir, cell, manifest, progress=lambda line: typer.echo(line, err=True)
-        )
-    except LightNotMeasurable as e:
+        if response:
+            r = batch.measure_response_in_folder(images_dir, cell, manifest, progress=progress)
+            m = r.light
+        else:
+            m = batch.measure_light_in_folder(images_dir, cell, manifest, progress=progress)
+    except (LightNotMeasurable, ResponseNotMeasurable) as e:
         raise fail(str(e), EXIT_REFUSED) from None
-    except (CellFileError, BatchSetupError, ImageDecodeError) as e:
+    except (CellFileError, batch.BatchSetupError, ImageDecodeError) as e:
         raise fail(str(e)) from None
+    lines = _response_lines(r) if response else []
     az, el = m.direction_deg
     typer.echo(
         f"the cell's light: azimuth {az:+.1f}, elevation {el:+.1f} deg, +- {m.sigma_deg:g} deg "
@@ -51,9 +72,33 @@ def measure_light_cmd(
             f"fits almost as well ({m.runner_up_score:.3f}): check which side of the camera the lamp is on",
             err=True,
         )
+    typer.echo(f"add to {cell}:\n" + "\n".join([*lines, *_light_lines(m)]))
+
+
+def _response_lines(r: ResponseMeasurement) -> list[str]:
+    """Print what the response measurement found (and any warning); the camera section's lines to add."""
     typer.echo(
-        f"add to {cell}:\nlocate:\n  light_direction_deg: [{az:.1f}, {el:.1f}]\n  light_direction_sigma_deg: {m.sigma_deg:g}"
+        f"the camera's response: gamma {r.gamma:.3f} +- {r.sigma:.3f} (exponents {r.gamma / r.factor:.2f}-"
+        f"{r.gamma * r.factor:.2f} fit the roundings alike; {r.strips} rounded strips of {r.doors} doors, "
+        f"score {dict(r.scores)[r.gamma]:.3f}; the cell's {r.cell_gamma:.2f} scores {r.cell_score:.3f})"
     )
+    if r.cell_ruled_out:
+        typer.echo(
+            f"warning: the cell's camera.response_gamma {r.cell_gamma:g} lies outside what the doors allow: "
+            "check the camera's gamma setting, or take the measured value",
+            err=True,
+        )
+    return ["camera:", f"  response_gamma: {r.gamma:.3f}", f"  response_gamma_sigma: {r.sigma:.3f}"]
+
+
+def _light_lines(m: LightMeasurement) -> list[str]:
+    """The locate section's lines stating the measured light."""
+    az, el = m.direction_deg
+    return [
+        "locate:",
+        f"  light_direction_deg: [{az:.1f}, {el:.1f}]",
+        f"  light_direction_sigma_deg: {m.sigma_deg:g}",
+    ]
 
 
 def register(app: typer.Typer) -> None:

@@ -28,10 +28,10 @@ from doorloc.vision.light_search import LightMeasurement, LightNotMeasurable, St
 from doorloc.vision.locate import LocateTrace, locate
 
 # (the measurement and its refusal are named here too: they are what a caller of measure_cell_light meets)
-__all__ = ["LightMeasurement", "LightNotMeasurable", "measure_cell_light"]
+__all__ = ["LightMeasurement", "LightNotMeasurable", "measure_cell_light", "rounded_strips"]
 
 
-def _rounded_strips(
+def rounded_strips(
     frames: Sequence[tuple[np.ndarray, DoorSize]],
     cell: Cell,
     progress: Callable[[str], None] | None = None,
@@ -81,7 +81,7 @@ def measure_cell_light(
             "default door or the manifest): only a rounding's shading tells the light"
         )
     return ls.light_from_strips(
-        _rounded_strips(frames, cell, progress),
+        rounded_strips(frames, cell, progress),
         azimuths=azimuths,
         elevations=elevations,
         fine_steps=fine_steps,

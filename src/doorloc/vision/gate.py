@@ -473,8 +473,8 @@ def _response_disputed(disputed: CellDisputed | None, cell: Cell) -> q.Refusal |
         "uncertain",
         f"the arrises disagree with the cell's camera response (camera.response_gamma {cell.response_gamma:g}): "
         f"read with it, {seen} {disputed.cell_over_best:.2f} times worse than with {disputed.best_gamma:g}; "
-        "measure the response once (doorloc calibrate prints it from the chessboard photographs) and put it "
-        "in the cell file",
+        "measure the response once (doorloc calibrate prints it from the chessboard photographs, doorloc "
+        "measure-light --response from six to ten doors with rounded arrises) and put it in the cell file",
     )
 
 
@@ -603,7 +603,8 @@ _UNCERTAIN_HINT = {
     "quality), and "
     "the cell's camera.response_gamma is taken as known only within the factor "
     "locate.response_unmeasured_factor; measure the response once (doorloc calibrate prints it from the "
-    "chessboard photographs, with the factor they allow; or an image of a plain-edged door in this cell: its "
+    "chessboard photographs, with the factor they allow; doorloc measure-light --response from six to ten "
+    "doors with rounded arrises under the cell's lamp; or an image of a plain-edged door in this cell: its "
     "answer's diagnostics camera_response.fitted), put it in the cell file and set "
     "locate.response_unmeasured_factor to what the measurement allows",
     "optics_unmeasured": "the camera's optics were not measured, and the cell takes every edge as known only "

@@ -401,7 +401,8 @@ def _free_beside_lit(free: LocateResult, lit: dict | None, own: LightMeasurement
         f"{free.z_mm:+.3f} mm, under the light their shading tells (azimuth {az:.0f}, elevation {el:.0f} deg) "
         f"at x {lit['x_mm']:+.3f}, z {lit['z_mm']:+.3f} mm, further apart than the answer's uncertainty (x "
         f"{u.x_mm:.3f}, z {u.z_mm:.3f} mm); state the cell's light (locate.light_direction_deg) and its "
-        "camera's measured response (doorloc calibrate), or light the arrises from one known direction",
+        "camera's measured response (doorloc calibrate, or doorloc measure-light --response from a few doors), "
+        "or light the arrises from one known direction",
     )
 
 

@@ -1,0 +1,310 @@
+"""The camera's response measured from images of the cell's doors: ``camera.response_gamma`` and its doubt.
+
+Where no board photographs measured the camera's response (``doorloc calibrate``), the cell states an
+exponent and locate takes it as known only within ``locate.response_unmeasured_factor`` (2.2 unless set): a
+door whose every edge is an arris cannot check it, and that doubt refuses many rounded doors as uncertain.
+One door's rounded strips hardly tell the exponent (read with a wrong one, a rounding's shading bends away
+from every matt arc, but one door's three strips fit some arc under some light about alike under most
+exponents: :mod:`doorloc.vision.strip_response`). The lamps and the camera of a cell are fixed, though: read
+with the camera's exponent, every door's strips fit matt arcs under *one* light, and with another exponent
+they do not. So each door is located with each trial exponent (its strips as locate fits them,
+:func:`doorloc.vision.cell_light.rounded_strips`), all the doors' strips are scored together under their
+best common light (:func:`doorloc.vision.light_search.light_from_strips`: the mean log misfit ratio of
+matt arcs over free shadings; the light sought a quarter as finely again about the best,
+:func:`common_light_score`), and the exponent of the least score is the camera's.
+
+Measured before it was built (8 rounded doors each of three rendered cells, lamps and exponents drawn as
+``bench/bench_cell_light.py`` draws them, trial exponents 0.5-2 times the camera's in steps of 15 %, scored
+on the light search's own grid): the least score lay at the camera's exponent on all three cells (0.011,
+0.032 and 0.079; 0.033-0.30 one step either side), while each door alone put its least anywhere from 0.5 to
+1.5 times the camera's. Under a finish that is no matt surface (the renderer's ``finish_exponent`` 0.5 and
+2) the least stayed at the camera's exponent on five of six cells and one step (15 %) off on the sixth, the
+scores higher (0.05-0.39) and the curve flatter; through a lens halo the arcs fit no better than 0.76.
+
+So the measurement states the range of exponents whose score lies within ``RESPONSE_MARGIN`` of the least
+(the doors cannot rule them out; the light's own margin, ``light_search.RUNNER_UP_MARGIN``), one fine step
+wider (the grid's resolution), as its doubt, and refuses where the roundings cannot tell: no rounded
+strip, a diffuse light (no common direction), a least score above ``strip_response.ARC_EXPLAINS``'s (the
+shading is no matt arc under one light at any exponent: a finish, a halo or a second lamp the model lacks),
+or a least at the end of the exponents searched.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from doorloc.cell import Cell, DoorSize
+from doorloc.vision import light_search as ls
+from doorloc.vision.cell_light import rounded_strips
+from doorloc.vision.light_search import LightMeasurement, LightNotMeasurable
+from doorloc.vision.response import RESPONSE_PLAUSIBLE
+from doorloc.vision.strip_response import ARC_EXPLAINS
+
+__all__ = [
+    "LIGHT_REFINE_DEG",
+    "RESPONSE_COARSE_STEPS",
+    "RESPONSE_FACTOR_FLOOR",
+    "RESPONSE_FINE_STEPS",
+    "RESPONSE_MARGIN",
+    "ResponseMeasurement",
+    "ResponseNotMeasurable",
+    "common_light",
+    "common_light_score",
+    "exponent_range",
+    "measure_cell_response",
+]
+
+#: exponents of the first grid, spread evenly in log over ``response.RESPONSE_PLAUSIBLE`` (16 % apart)
+RESPONSE_COARSE_STEPS = 10
+#: the fine grid divides a coarse step into this many, and reaches this many fine steps each way of the
+#: coarse least
+RESPONSE_FINE_STEPS = 4
+#: exponents whose all-doors score lies within this of the least: the doors cannot rule them out
+RESPONSE_MARGIN = ls.RUNNER_UP_MARGIN
+#: the step of the finer light grid about the first one's best, deg (:func:`common_light`)
+LIGHT_REFINE_DEG = 5.0
+#: the least doubt stated, as a factor on the exponent (``locate.response_unmeasured_factor``): matt arcs
+#: under one light are a model of the doors, not the doors (the arris bench's measured-response sets use 1.11)
+RESPONSE_FACTOR_FLOOR = 1.1
+
+
+class ResponseNotMeasurable(ValueError):
+    """The door images cannot tell the camera's response (the message says why and what to do)."""
+
+
+@dataclass(frozen=True)
+class ResponseMeasurement:
+    """A camera response measured by :func:`measure_cell_response`.
+
+    ``gamma``: the exponent (``camera.response_gamma``); ``sigma``: the 1-sigma to state with it
+    (``camera.response_gamma_sigma``), such that ``doorloc.cell.measured_response_factor(gamma, sigma)`` is
+    ``factor``, the range the doors allow (the exponents within ``RESPONSE_MARGIN`` of the least, one fine
+    step wider, at least ``RESPONSE_FACTOR_FLOOR``); ``scores``: each exponent tried and its all-doors
+    score (the mean log misfit ratio of matt arcs over free shadings under the strips' best common light,
+    0: as well as a free shading), in increasing exponent; ``cell_score``: the score of the cell's own
+    exponent; ``light``: the light the strips fit best read with ``gamma``; ``strips`` rounded strips of
+    ``doors`` doors."""
+
+    gamma: float
+    sigma: float
+    factor: float
+    scores: tuple[tuple[float, float], ...]
+    cell_gamma: float
+    cell_score: float
+    light: LightMeasurement
+    strips: int
+    doors: int
+
+    @property
+    def cell_ruled_out(self) -> bool:
+        """Whether the cell's own exponent lies outside the range the doors allow."""
+        return not (self.gamma / self.factor <= self.cell_gamma <= self.gamma * self.factor)
+
+
+def _trial_cell(cell: Cell, gamma: float) -> Cell:
+    """``cell`` with its camera's exponent ``gamma`` taken as exact: every strip read with it (no image's own
+    reading in its place, no second reading at the ends of a doubt no one asks for here)."""
+    return replace(
+        cell,
+        response_gamma=float(gamma),
+        response_gamma_sigma=1e-6,
+        locate=replace(cell.locate, response_check="where_unmeasured", response_unmeasured_factor=1.0),
+    )
+
+
+def measure_cell_response(
+    frames: Sequence[tuple[np.ndarray, DoorSize]],
+    cell: Cell,
+    *,
+    progress: Callable[[str], None] | None = None,
+) -> ResponseMeasurement:
+    """The camera's response exponent from images of the cell's doors, ``frames`` (image, door) pairs, the
+    doors with rounded arrises under the cell's fixed lamp (chamfers and sharp edges do not tell it).
+
+    Each door is located with every trial exponent (``RESPONSE_COARSE_STEPS`` over
+    ``response.RESPONSE_PLAUSIBLE``, then ``RESPONSE_FINE_STEPS`` finer steps each way of the least, and
+    the cell's own), its rounded strips kept; per exponent all the strips are scored under their best
+    common light (:func:`common_light_score`). ``progress`` hears a line per exponent. About two dozen
+    locates per door: a minute for eight doors on one core.
+
+    Raises
+    ------
+    ResponseNotMeasurable
+        No door with a rounded arris (or no strip located), a diffuse light, a shading no matt arc
+        explains at any exponent, or a least at the end of the exponents searched.
+    """
+    if cell.camera_photometry is not None:
+        raise ResponseNotMeasurable(
+            "the cell's camera carries a measured photometric model (camera.photometric_model or its "
+            "calibration's): its response is measured already; remove the model to measure it from doors"
+        )
+    if not any(door.arris_mm > 0 and door.arris_profile == "round" for _, door in frames):
+        raise ResponseNotMeasurable(
+            "no door with a rounded arris among the images (arris_profile round, arris_mm > 0 in the cell's "
+            "default door or the manifest): only a rounding's shading tells the camera's response"
+        )
+    lo, hi = RESPONSE_PLAUSIBLE
+    readings = _Readings(frames, cell, progress)
+    readings.read(np.geomspace(lo, hi, RESPONSE_COARSE_STEPS).tolist())
+    g_coarse = min(readings.scores, key=readings.scores.__getitem__)
+    _light(
+        readings.strips[g_coarse]
+    )  # (a diffuse light tells no exponent: said before the finer grid is read)
+    step = (hi / lo) ** (1.0 / ((RESPONSE_COARSE_STEPS - 1) * RESPONSE_FINE_STEPS))
+    fine = [g_coarse * step**k for k in range(-RESPONSE_FINE_STEPS + 1, RESPONSE_FINE_STEPS) if k != 0]
+    readings.read([g for g in fine if lo <= g <= hi] + [cell.response_gamma])
+    readings.keep_steady_doors()
+    scores, strips = readings.scores, readings.strips
+    gamma, factor = exponent_range(scores, step)
+    return ResponseMeasurement(
+        gamma=gamma,
+        sigma=(factor - 1.0) * gamma / 2.0,
+        factor=factor,
+        scores=tuple(sorted(scores.items())),
+        cell_gamma=cell.response_gamma,
+        cell_score=scores[float(cell.response_gamma)],
+        light=_light(strips[gamma]),
+        strips=sum(len(d) for d in strips[gamma]),
+        doors=sum(1 for d in strips[gamma] if d),
+    )
+
+
+class _Readings:
+    """The doors read with trial exponents: per exponent every door's rounded strips (``strips``) and their
+    all-doors score (``scores``, :func:`common_light_score`)."""
+
+    def __init__(
+        self,
+        frames: Sequence[tuple[np.ndarray, DoorSize]],
+        cell: Cell,
+        progress: Callable[[str], None] | None,
+    ) -> None:
+        self.frames, self.cell, self.progress = frames, cell, progress
+        self.strips: dict[float, list[list[ls.StripScore]]] = {}
+        self.scores: dict[float, float] = {}
+
+    def read(self, gammas: Sequence[float]) -> None:
+        """Locate every door with each of ``gammas`` not read yet, and score its strips."""
+        for g in map(float, gammas):
+            if g in self.scores:
+                continue
+            self.strips[g] = rounded_strips(self.frames, _trial_cell(self.cell, g))
+            n_strips = sum(len(d) for d in self.strips[g])
+            if n_strips == 0:
+                raise ResponseNotMeasurable(
+                    f"locate fitted no rounded arris strip on these images read with exponent {g:.2f}: they "
+                    "cannot tell the response (check that the doors are in the fixture and their recipes' "
+                    "arris_mm)"
+                )
+            self.scores[g] = common_light_score(self.strips[g])
+            if self.progress is not None:
+                self.progress(
+                    f"exponent {g:.3f}: {n_strips} rounded strips fit matt arcs under one light at "
+                    f"{self.scores[g]:.3f} ({len(self.scores)} exponents tried)"
+                )
+
+    def keep_steady_doors(self) -> None:
+        """Score every exponent again on the doors read alike with all of them (:func:`_steady_doors`) where
+        some door's strips were lost with some exponents: it would score only with the others."""
+        steady = _steady_doors(self.strips)
+        ever = sum(1 for k in range(len(self.frames)) if any(d[k] for d in self.strips.values()))
+        if len(steady) == ever:
+            return
+        if not steady:
+            raise ResponseNotMeasurable(
+                "no door's rounded strips were located alike with every exponent tried: the doors cannot "
+                "tell the response (check their recipes' arris sizes and the images' exposure)"
+            )
+        for g in self.scores:
+            self.strips[g] = [self.strips[g][k] for k in steady]
+            self.scores[g] = common_light_score(self.strips[g])
+        if self.progress is not None:
+            self.progress(
+                f"scored again on the {len(steady)} doors whose rounded strips every exponent located"
+            )
+
+
+def common_light_score(strips: Sequence[Sequence[ls.StripScore]]) -> float:
+    """The doors' rounded strips' (``strips``, per door) mean log misfit ratio under their best common light
+    (:func:`common_light`)."""
+    return common_light(strips)[1]
+
+
+def common_light(strips: Sequence[Sequence[ls.StripScore]]) -> tuple[tuple[float, float], float]:
+    """The best common light of the doors' rounded strips (``strips``, per door), ``[azimuth, elevation]`` deg
+    (cell frame), and their mean log misfit ratio under it: :func:`doorloc.vision.light_search.
+    light_from_strips` (its grid, a quarter step finer one step around the best), then its grid again a
+    quarter as fine (``LIGHT_REFINE_DEG`` apart about that best, and its quarter steps two each way).
+
+    Why finer than a light's own search: a lamp low beside the door leaves a terminator on every rounding,
+    and the misfit climbs steeply within a few degrees of the true direction; on a rendered cell lit from
+    (-62.8, -13.7) deg the light search's best, (-60, -15), scored 0.20 read with the camera's exponent and
+    0.21-0.24 read 10-20 % off, and the finer search 0.024 there and 0.042-0.107 off: a valley the first
+    grid's steps had hidden."""
+    first = ls.light_from_strips(strips, fine_steps=1, diffuse_share=math.inf)
+    a, e = first.direction_deg
+    d = LIGHT_REFINE_DEG
+    fine = ls.light_from_strips(
+        strips, azimuths=(a - d, a, a + d), elevations=(e - d, e, e + d), diffuse_share=math.inf
+    )
+    return fine.direction_deg, fine.score
+
+
+def _steady_doors(read: dict[float, list[list[ls.StripScore]]]) -> list[int]:
+    """The doors (their places in each exponent's list) with the same number of rounded strips, at least
+    one, under every exponent read (``read``: per exponent, per door its strips' scores)."""
+    counts = np.array([[len(door) for door in doors] for doors in read.values()])  # (exponents, doors)
+    return [k for k in range(counts.shape[1]) if counts[0, k] > 0 and np.all(counts[:, k] == counts[0, k])]
+
+
+def _light(strips: list[list[ls.StripScore]]) -> LightMeasurement:
+    """The light the strips fit best (:func:`doorloc.vision.light_search.light_from_strips`, its direction and
+    score those of :func:`common_light`'s finer search), or why the response cannot be measured: a diffuse
+    light."""
+    try:
+        first = ls.light_from_strips(strips)
+    except LightNotMeasurable as e:
+        raise ResponseNotMeasurable(
+            f"{e}; under a diffuse light the roundings cannot tell the camera's response either: measure it on "
+            "board photographs (doorloc calibrate)"
+        ) from None
+    direction, score = common_light(strips)
+    return replace(first, direction_deg=direction, score=score)
+
+
+def exponent_range(scores: Mapping[float, float], step: float) -> tuple[float, float]:
+    """The exponent of the least all-doors score and the factor about it the doors allow, from each trial
+    exponent's score (``scores``, as :class:`ResponseMeasurement`'s) and the fine grid's step (a factor):
+    the widest ratio to an exponent scoring within ``RESPONSE_MARGIN`` of the least, times ``step`` (the
+    camera's exponent may lie up to a step beyond the last one tried there), at least
+    ``RESPONSE_FACTOR_FLOOR``.
+
+    Raises
+    ------
+    ResponseNotMeasurable
+        The least score is above ``strip_response.ARC_EXPLAINS``'s (no matt arc under one light explains
+        the roundings at any exponent), or the least lies within a step of ``response.RESPONSE_PLAUSIBLE``'s
+        ends.
+    """
+    lo, hi = RESPONSE_PLAUSIBLE
+    g_best = min(scores, key=scores.__getitem__)
+    least = scores[g_best]
+    if not least <= math.log(ARC_EXPLAINS):
+        raise ResponseNotMeasurable(
+            f"the doors' roundings fit no matt arc under one light at any exponent (at best {least:.2f}, "
+            f"{math.exp(least):.2f} times a free shading's misfit): a finish, a second lamp or a lens the "
+            "model lacks; measure the response on board photographs (doorloc calibrate) instead"
+        )
+    if g_best <= lo * step or g_best >= hi / step:
+        raise ResponseNotMeasurable(
+            f"the doors' roundings fit best read with exponent {g_best:.2f}, at the end of those a camera's "
+            f"response may have ({lo:g}-{hi:g}): check the camera's gamma or tone-curve setting and the "
+            "doors' arris sizes and profiles"
+        )
+    near = [g for g, v in scores.items() if v <= least + RESPONSE_MARGIN]
+    reach = max(max(g / g_best, g_best / g) for g in near) * step
+    return g_best, max(reach, RESPONSE_FACTOR_FLOOR)

@@ -1,0 +1,208 @@
+"""The camera's response measured from the cell's doors (``doorloc.vision.cell_response``) and
+``doorloc measure-light --response``."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+import yaml
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from typer.testing import CliRunner
+
+from doorloc.app.cli import app
+from doorloc.cell import DoorSize, load_cell, measured_response_factor
+from doorloc.pose import DoorPose, direction_cell
+from doorloc.sim.door import render_door
+from doorloc.sim.effects import Effects
+from doorloc.vision import cell_response
+from doorloc.vision.cell_response import (
+    RESPONSE_FACTOR_FLOOR,
+    RESPONSE_MARGIN,
+    ResponseMeasurement,
+    ResponseNotMeasurable,
+    exponent_range,
+    measure_cell_response,
+)
+from doorloc.vision.light_search import LightMeasurement
+from doorloc.vision.response import RESPONSE_PLAUSIBLE
+
+CELL_PATH = Path(__file__).parents[2] / "fixtures" / "cell_thesis.yaml"
+CELL = load_cell(CELL_PATH)
+LIGHT = (-45.0, 15.0)
+CAMERA_GAMMA = 1.8
+STEP = 1.037
+
+
+def _door(arris_mm: float, profile: str, pose: DoorPose, blur: float, seed: int, lamp: bool = True):
+    door = DoorSize(900, 50.0, 2100, arris_mm=arris_mm, arris_profile=profile)
+    fx = Effects(
+        arris_profile=profile,
+        albedo_hinge=0.7,
+        albedo_chamfer=0.65,
+        albedo_background=0.12,
+        light_ambient=0.45 if lamp else 1.05,
+        light_directional=0.6 if lamp else 0.0,
+        light_azimuth_deg=LIGHT[0],
+        light_elevation_deg=LIGHT[1],
+        blur_sigma_px=blur,
+        read_noise_dn=0.5,
+        gamma=CAMERA_GAMMA,
+    )
+    return render_door(CELL, door, pose, effects=fx, seed=seed).image, door
+
+
+def test_the_response_of_a_cell_is_found_from_its_doors_where_the_cell_states_another():
+    """Four doors with roundings of 1.2-2.4 mm under the cell's lamp, through a camera of 1.8, in a cell that
+    states 1.0 (a linear camera assumed): the measured exponent's range holds the camera's and is far
+    narrower than the default doubt of a stated exponent (a factor 2.2), rules the cell's 1.0 out, and the
+    light read with it lies near the lamp; every exponent tried is told."""
+    frames = [
+        _door(2.4, "round", DoorPose(2.0, -3.0, 0.6), 1.1, 1),
+        _door(1.6, "round", DoorPose(-4.0, 2.0, -1.0), 1.3, 2),
+        _door(1.2, "round", DoorPose(5.0, 4.0, 1.2), 0.9, 3),
+        _door(2.0, "round", DoorPose(-6.0, -5.0, -0.4), 1.0, 4),
+    ]
+    heard: list[str] = []
+    m = measure_cell_response(frames, dataclasses.replace(CELL, response_gamma=1.0), progress=heard.append)
+    assert m.gamma / m.factor <= CAMERA_GAMMA <= m.gamma * m.factor, m
+    assert RESPONSE_FACTOR_FLOOR <= m.factor <= 1.35, m
+    assert measured_response_factor(m.gamma, m.sigma) == pytest.approx(m.factor)
+    assert m.cell_ruled_out and m.cell_gamma == 1.0 and m.cell_score > dict(m.scores)[m.gamma]
+    assert len(heard) == len(m.scores) and heard[-1].startswith("exponent 1.000")
+    off = math.degrees(
+        math.acos(min(1.0, float(direction_cell(*m.light.direction_deg) @ direction_cell(*LIGHT))))
+    )
+    assert off <= 15.0, m.light
+    assert m.doors == 4 and m.strips >= 8
+
+
+def test_doors_under_a_diffuse_light_tell_no_response():
+    """Two roundings under ambient light alone: no light is common to their strips at any exponent, and
+    nothing is measured (the coarse grid alone is read)."""
+    frames = [
+        _door(2.4, "round", DoorPose(2.0, -3.0, 0.6), 1.1, 1, lamp=False),
+        _door(1.6, "round", DoorPose(-4.0, 2.0, -1.0), 1.3, 2, lamp=False),
+    ]
+    with pytest.raises(ResponseNotMeasurable, match="diffuse"):
+        measure_cell_response(frames, CELL)
+
+
+def test_doors_without_a_rounding_or_a_camera_already_measured_are_refused_at_once():
+    frames = [_door(2.0, "chamfer", DoorPose(0.0, 0.0, 0.0), 1.0, 3)]
+    with pytest.raises(ResponseNotMeasurable, match="rounded arris"):
+        measure_cell_response(frames, CELL)
+    with pytest.raises(ResponseNotMeasurable, match="photometric model"):
+        measure_cell_response(frames, dataclasses.replace(CELL, camera_photometry=object()))
+
+
+def _grid(least_at: float, depth: float, floor: float = 0.01) -> dict[float, float]:
+    """Scores over a fine grid of exponents: a valley of ``depth`` per unit log exponent, squared."""
+    lo, hi = RESPONSE_PLAUSIBLE
+    k = np.arange(-60, 61)
+    gs = least_at * STEP**k
+    gs = np.clip(gs, lo, hi)
+    return {float(g): floor + depth * math.log(g / least_at) ** 2 for g in gs}
+
+
+def test_the_range_holds_every_exponent_the_doors_cannot_rule_out():
+    scores = _grid(1.7, 2.0)
+    g, factor = exponent_range(scores, STEP)
+    assert g == pytest.approx(1.7)
+    near = [x for x, v in scores.items() if v <= scores[g] + RESPONSE_MARGIN]
+    assert len(near) > 3 and all(g / factor <= x * STEP**0.999 and x <= g * factor for x in near)
+    assert factor == pytest.approx(max(max(x / g, g / x) for x in near) * STEP)
+    # a deep valley still keeps the floor; a shallow one a wide range
+    assert exponent_range(_grid(1.7, 1e4), STEP)[1] == RESPONSE_FACTOR_FLOOR
+    assert exponent_range(_grid(1.7, 0.2), STEP)[1] > 1.6
+
+
+def test_no_range_where_no_arc_explains_the_strips_or_the_least_is_at_an_end():
+    with pytest.raises(ResponseNotMeasurable, match="no matt arc"):
+        exponent_range(_grid(1.7, 2.0, floor=0.3), STEP)
+    with pytest.raises(ResponseNotMeasurable, match="at the end"):
+        exponent_range(_grid(0.78, 2.0), STEP)
+    with pytest.raises(ResponseNotMeasurable, match="at the end"):
+        exponent_range(_grid(3.1, 2.0), STEP)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.lists(st.floats(0.0, 0.14), min_size=3, max_size=40),
+    st.floats(1.01, 1.2),
+)
+def test_the_range_is_never_narrower_than_the_scores_allow(values, step):
+    lo, hi = RESPONSE_PLAUSIBLE
+    gs = np.geomspace(lo, hi, len(values))
+    scores = dict(zip(gs.tolist(), values, strict=True))
+    try:
+        g, factor = exponent_range(scores, step)
+    except ResponseNotMeasurable as e:
+        assert "at the end" in str(e)
+        return
+    assert scores[g] == min(values) and factor >= RESPONSE_FACTOR_FLOOR
+    for x, v in scores.items():
+        if v <= scores[g] + RESPONSE_MARGIN:
+            assert g / factor <= x * (1 + 1e-12) and x <= g * factor * (1 + 1e-12)
+
+
+def _measured(cell_gamma: float) -> ResponseMeasurement:
+    light = LightMeasurement((-44.0, 16.0), 10.0, 0.021, 6, 2)
+    return ResponseMeasurement(
+        1.812, 0.109, 1.12, ((1.7, 0.05), (1.812, 0.012)), cell_gamma, 0.3, light, 6, 2
+    )
+
+
+def _cell_and_folder(tmp_path: Path) -> tuple[Path, Path]:
+    d = tmp_path / "doors"
+    d.mkdir()
+    cv2.imwrite(str(d / "door_1.png"), _door(2.0, "round", DoorPose(1.0, 1.0, 0.5), 1.0, 5)[0])
+    doc = yaml.safe_load(CELL_PATH.read_text())
+    doc["door"]["arris_profile"] = "round"
+    doc["door"]["arris_mm"] = 2.0
+    doc["camera"]["dist_coeffs"] = [0.0] * 5
+    cell_path = tmp_path / "cell.yaml"
+    cell_path.write_text(yaml.safe_dump(doc))
+    return cell_path, d
+
+
+def test_measure_light_response_prints_the_camera_and_light_lines_and_warns_of_a_wrong_cell(
+    tmp_path, monkeypatch
+):
+    seen = {}
+
+    def measured(frames, cell, progress=None):
+        seen["doors"] = [door for _, door in frames]
+        return _measured(cell.response_gamma)
+
+    monkeypatch.setattr(cell_response, "measure_cell_response", measured)
+    cell_path, folder = _cell_and_folder(tmp_path)
+    res = CliRunner().invoke(app, ["measure-light", str(folder), "--cell", str(cell_path), "--response"])
+    assert res.exit_code == 0, res.output
+    assert seen["doors"][0].arris_mm == 2.0 and seen["doors"][0].arris_profile == "round"
+    add = res.stdout.split("add to")[1]
+    assert "response_gamma: 1.812" in add and "response_gamma_sigma: 0.109" in add
+    assert "light_direction_deg: [-44.0, 16.0]" in add
+    # the lines as printed make a cell that loads, its doubt the measured factor
+    doc = yaml.safe_load(cell_path.read_text())
+    lines = yaml.safe_load(add.split(":", 1)[1])
+    doc["camera"].update(lines["camera"])
+    doc.setdefault("locate", {}).update(lines["locate"])
+    cell_path.write_text(yaml.safe_dump(doc))
+    cell = load_cell(cell_path)
+    assert cell.response_gamma == 1.812 and cell.locate.response_unmeasured_factor == pytest.approx(
+        1.12, abs=1e-3
+    )
+    assert "response_gamma" in res.stderr and "outside" in res.stderr  # the fixture's cell states 1.0
+
+
+def test_measure_light_response_exits_1_where_the_doors_cannot_tell(tmp_path):
+    _, folder = _cell_and_folder(tmp_path)  # (the fixture's cell: its default door has no arris)
+    res = CliRunner().invoke(app, ["measure-light", str(folder), "--cell", str(CELL_PATH), "--response"])
+    assert res.exit_code == 1, res.output
+    assert "rounded arris" in res.stderr and "Traceback" not in res.output
