@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import dataclasses
+import importlib.util
 import math
+import sys
 from pathlib import Path
 
 import cv2
@@ -12,34 +14,16 @@ import yaml
 from typer.testing import CliRunner
 
 from doorloc.app.cli import app
-from doorloc.cell import DoorSize, load_cell
 from doorloc.pose import DoorPose, direction_cell
-from doorloc.sim.door import render_door
-from doorloc.sim.effects import Effects
 from doorloc.vision import cell_light, light_search
 from doorloc.vision.cell_light import LightMeasurement, LightNotMeasurable, measure_cell_light
 
-CELL_PATH = Path(__file__).parents[2] / "fixtures" / "cell_thesis.yaml"
-CELL = load_cell(CELL_PATH)
-LIGHT = (-45.0, 15.0)
-
-
-def _door(arris_mm: float, profile: str, pose: DoorPose, blur: float, seed: int, lamp: bool = True):
-    door = DoorSize(900, 50.0, 2100, arris_mm=arris_mm, arris_profile=profile)
-    fx = Effects(
-        arris_profile=profile,
-        albedo_hinge=0.7,
-        albedo_chamfer=0.65,
-        albedo_background=0.12,
-        light_ambient=0.45 if lamp else 1.05,
-        light_directional=0.6 if lamp else 0.0,
-        light_azimuth_deg=LIGHT[0],
-        light_elevation_deg=LIGHT[1],
-        blur_sigma_px=blur,
-        read_noise_dn=0.5,
-        gamma=1.8,
-    )
-    return render_door(CELL, door, pose, effects=fx, seed=seed).image, door
+_spec = importlib.util.spec_from_file_location("lit_doors", Path(__file__).with_name("lit_doors.py"))
+assert _spec is not None and _spec.loader is not None
+lit_doors = importlib.util.module_from_spec(_spec)
+sys.modules.setdefault("lit_doors", lit_doors)
+_spec.loader.exec_module(lit_doors)
+lit_door, CELL, CELL_PATH, LIGHT = lit_doors.lit_door, lit_doors.CELL, lit_doors.CELL_PATH, lit_doors.LIGHT
 
 
 def test_the_light_of_a_cell_is_found_near_its_direction():
@@ -49,8 +33,8 @@ def test_the_light_of_a_cell_is_found_near_its_direction():
     10 deg of the lamp, its doubt at least the floor, and both doors' strips voted; each direction tried
     is reported as it is scored."""
     frames = [
-        _door(2.4, "round", DoorPose(2.0, -3.0, 0.6), 1.1, 1),
-        _door(1.6, "round", DoorPose(-4.0, 2.0, -1.0), 1.3, 2),
+        lit_door(2.4, "round", DoorPose(2.0, -3.0, 0.6), 1.1, 1),
+        lit_door(1.6, "round", DoorPose(-4.0, 2.0, -1.0), 1.3, 2),
     ]
     cell = dataclasses.replace(CELL, response_gamma=1.8)
     heard: list[str] = []
@@ -75,8 +59,8 @@ def test_doors_under_a_diffuse_light_tell_no_direction():
     direction is stated (it would have been printed with a doubt of 10 deg, and a light stated wrong lets
     a strip's shading choose the wrong border)."""
     frames = [
-        _door(2.4, "round", DoorPose(2.0, -3.0, 0.6), 1.1, 1, lamp=False),
-        _door(1.6, "round", DoorPose(-4.0, 2.0, -1.0), 1.3, 2, lamp=False),
+        lit_door(2.4, "round", DoorPose(2.0, -3.0, 0.6), 1.1, 1, lamp=False),
+        lit_door(1.6, "round", DoorPose(-4.0, 2.0, -1.0), 1.3, 2, lamp=False),
     ]
     with pytest.raises(LightNotMeasurable, match="diffuse"):
         measure_cell_light(frames, dataclasses.replace(CELL, response_gamma=1.8))
@@ -84,17 +68,17 @@ def test_doors_under_a_diffuse_light_tell_no_direction():
 
 def test_doors_without_a_rounding_cannot_tell_the_light():
     frames = [
-        _door(2.0, "chamfer", DoorPose(0.0, 0.0, 0.0), 1.0, 3),
-        _door(0.0, "chamfer", DoorPose(), 1.0, 4),
+        lit_door(2.0, "chamfer", DoorPose(0.0, 0.0, 0.0), 1.0, 3),
+        lit_door(0.0, "chamfer", DoorPose(), 1.0, 4),
     ]
     with pytest.raises(LightNotMeasurable, match="rounded arris"):
         measure_cell_light(frames, CELL)
 
 
-def _folder_with_one_door(tmp_path: Path) -> Path:
+def _folder_with_onelit_door(tmp_path: Path) -> Path:
     d = tmp_path / "doors"
     d.mkdir()
-    cv2.imwrite(str(d / "door_1.png"), _door(2.0, "round", DoorPose(1.0, 1.0, 0.5), 1.0, 5)[0])
+    cv2.imwrite(str(d / "door_1.png"), lit_door(2.0, "round", DoorPose(1.0, 1.0, 0.5), 1.0, 5)[0])
     return d
 
 
@@ -108,7 +92,7 @@ def test_measure_light_prints_the_lines_for_the_cell_and_warns_of_another_side(t
         )
 
     monkeypatch.setattr(cell_light, "measure_cell_light", measured)
-    folder = _folder_with_one_door(tmp_path)
+    folder = _folder_with_onelit_door(tmp_path)
     (tmp_path / "doors.csv").write_text("image,width_mm,thickness_mm,arris_mm\ndoor_1.png,900,50,2.0\n")
     doc = yaml.safe_load(CELL_PATH.read_text())
     doc["door"]["arris_profile"] = "round"
@@ -128,7 +112,7 @@ def test_measure_light_prints_the_lines_for_the_cell_and_warns_of_another_side(t
 
 
 def test_measure_light_exits_1_where_the_doors_have_no_rounding_and_2_on_bad_input(tmp_path):
-    folder = _folder_with_one_door(tmp_path)
+    folder = _folder_with_onelit_door(tmp_path)
     res = CliRunner().invoke(app, ["measure-light", str(folder), "--cell", str(CELL_PATH)])
     assert res.exit_code == 1, res.output
     assert "rounded arris" in res.stderr and "Traceback" not in res.output

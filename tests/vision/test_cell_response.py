@@ -4,7 +4,9 @@
 from __future__ import annotations
 
 import dataclasses
+import importlib.util
 import math
+import sys
 from pathlib import Path
 
 import cv2
@@ -16,10 +18,8 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from doorloc.app.cli import app
-from doorloc.cell import DoorSize, load_cell, measured_response_factor
+from doorloc.cell import load_cell, measured_response_factor
 from doorloc.pose import DoorPose, direction_cell
-from doorloc.sim.door import render_door
-from doorloc.sim.effects import Effects
 from doorloc.vision import cell_response
 from doorloc.vision.cell_response import (
     RESPONSE_FACTOR_FLOOR,
@@ -32,29 +32,14 @@ from doorloc.vision.cell_response import (
 from doorloc.vision.light_search import LightMeasurement
 from doorloc.vision.response import RESPONSE_PLAUSIBLE
 
-CELL_PATH = Path(__file__).parents[2] / "fixtures" / "cell_thesis.yaml"
-CELL = load_cell(CELL_PATH)
-LIGHT = (-45.0, 15.0)
-CAMERA_GAMMA = 1.8
+_spec = importlib.util.spec_from_file_location("lit_doors", Path(__file__).with_name("lit_doors.py"))
+assert _spec is not None and _spec.loader is not None
+lit_doors = importlib.util.module_from_spec(_spec)
+sys.modules.setdefault("lit_doors", lit_doors)
+_spec.loader.exec_module(lit_doors)
+lit_door, CELL, CELL_PATH = lit_doors.lit_door, lit_doors.CELL, lit_doors.CELL_PATH
+LIGHT, CAMERA_GAMMA = lit_doors.LIGHT, lit_doors.CAMERA_GAMMA
 STEP = 1.037
-
-
-def _door(arris_mm: float, profile: str, pose: DoorPose, blur: float, seed: int, lamp: bool = True):
-    door = DoorSize(900, 50.0, 2100, arris_mm=arris_mm, arris_profile=profile)
-    fx = Effects(
-        arris_profile=profile,
-        albedo_hinge=0.7,
-        albedo_chamfer=0.65,
-        albedo_background=0.12,
-        light_ambient=0.45 if lamp else 1.05,
-        light_directional=0.6 if lamp else 0.0,
-        light_azimuth_deg=LIGHT[0],
-        light_elevation_deg=LIGHT[1],
-        blur_sigma_px=blur,
-        read_noise_dn=0.5,
-        gamma=CAMERA_GAMMA,
-    )
-    return render_door(CELL, door, pose, effects=fx, seed=seed).image, door
 
 
 def test_the_response_of_a_cell_is_found_from_its_doors_where_the_cell_states_another():
@@ -63,10 +48,10 @@ def test_the_response_of_a_cell_is_found_from_its_doors_where_the_cell_states_an
     narrower than the default doubt of a stated exponent (a factor 2.2), rules the cell's 1.0 out, and the
     light read with it lies near the lamp; every exponent tried is told."""
     frames = [
-        _door(2.4, "round", DoorPose(2.0, -3.0, 0.6), 1.1, 1),
-        _door(1.6, "round", DoorPose(-4.0, 2.0, -1.0), 1.3, 2),
-        _door(1.2, "round", DoorPose(5.0, 4.0, 1.2), 0.9, 3),
-        _door(2.0, "round", DoorPose(-6.0, -5.0, -0.4), 1.0, 4),
+        lit_door(2.4, "round", DoorPose(2.0, -3.0, 0.6), 1.1, 1),
+        lit_door(1.6, "round", DoorPose(-4.0, 2.0, -1.0), 1.3, 2),
+        lit_door(1.2, "round", DoorPose(5.0, 4.0, 1.2), 0.9, 3),
+        lit_door(2.0, "round", DoorPose(-6.0, -5.0, -0.4), 1.0, 4),
     ]
     heard: list[str] = []
     m = measure_cell_response(frames, dataclasses.replace(CELL, response_gamma=1.0), progress=heard.append)
@@ -86,15 +71,15 @@ def test_doors_under_a_diffuse_light_tell_no_response():
     """Two roundings under ambient light alone: no light is common to their strips at any exponent, and
     nothing is measured (the coarse grid alone is read)."""
     frames = [
-        _door(2.4, "round", DoorPose(2.0, -3.0, 0.6), 1.1, 1, lamp=False),
-        _door(1.6, "round", DoorPose(-4.0, 2.0, -1.0), 1.3, 2, lamp=False),
+        lit_door(2.4, "round", DoorPose(2.0, -3.0, 0.6), 1.1, 1, lamp=False),
+        lit_door(1.6, "round", DoorPose(-4.0, 2.0, -1.0), 1.3, 2, lamp=False),
     ]
     with pytest.raises(ResponseNotMeasurable, match="diffuse"):
         measure_cell_response(frames, CELL)
 
 
 def test_doors_without_a_rounding_or_a_camera_already_measured_are_refused_at_once():
-    frames = [_door(2.0, "chamfer", DoorPose(0.0, 0.0, 0.0), 1.0, 3)]
+    frames = [lit_door(2.0, "chamfer", DoorPose(0.0, 0.0, 0.0), 1.0, 3)]
     with pytest.raises(ResponseNotMeasurable, match="rounded arris"):
         measure_cell_response(frames, CELL)
     with pytest.raises(ResponseNotMeasurable, match="photometric model"):
@@ -161,7 +146,7 @@ def _measured(cell_gamma: float) -> ResponseMeasurement:
 def _cell_and_folder(tmp_path: Path) -> tuple[Path, Path]:
     d = tmp_path / "doors"
     d.mkdir()
-    cv2.imwrite(str(d / "door_1.png"), _door(2.0, "round", DoorPose(1.0, 1.0, 0.5), 1.0, 5)[0])
+    cv2.imwrite(str(d / "door_1.png"), lit_door(2.0, "round", DoorPose(1.0, 1.0, 0.5), 1.0, 5)[0])
     doc = yaml.safe_load(CELL_PATH.read_text())
     doc["door"]["arris_profile"] = "round"
     doc["door"]["arris_mm"] = 2.0
