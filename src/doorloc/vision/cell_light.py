@@ -80,11 +80,14 @@ def measure_cell_light(
             "no door with a rounded arris among the images (arris_profile round, arris_mm > 0 in the cell's "
             "default door or the manifest): only a rounding's shading tells the light"
         )
-    return ls.light_from_strips(
-        rounded_strips(frames, cell, progress),
+    strips = rounded_strips(frames, cell, progress)
+    first = ls.light_from_strips(
+        strips,
         azimuths=azimuths,
         elevations=elevations,
         fine_steps=fine_steps,
         diffuse_share=diffuse_share,
         progress=progress,
     )
+    direction, score = ls.finer_light(strips, first.direction_deg, progress)
+    return replace(first, direction_deg=direction, score=score)

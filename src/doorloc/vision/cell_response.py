@@ -45,7 +45,6 @@ from doorloc.vision.response import RESPONSE_PLAUSIBLE
 from doorloc.vision.strip_response import ARC_EXPLAINS
 
 __all__ = [
-    "LIGHT_REFINE_DEG",
     "RESPONSE_COARSE_STEPS",
     "RESPONSE_FACTOR_FLOOR",
     "RESPONSE_FINE_STEPS",
@@ -65,8 +64,6 @@ RESPONSE_COARSE_STEPS = 10
 RESPONSE_FINE_STEPS = 4
 #: exponents whose all-doors score lies within this of the least: the doors cannot rule them out
 RESPONSE_MARGIN = ls.RUNNER_UP_MARGIN
-#: the step of the finer light grid about the first one's best, deg (:func:`common_light`)
-LIGHT_REFINE_DEG = 5.0
 #: the least doubt stated, as a factor on the exponent (``locate.response_unmeasured_factor``): matt arcs
 #: under one light are a model of the doors, not the doors (the arris bench's measured-response sets use 1.11)
 RESPONSE_FACTOR_FLOOR = 1.1
@@ -237,21 +234,11 @@ def common_light_score(strips: Sequence[Sequence[ls.StripScore]]) -> float:
 def common_light(strips: Sequence[Sequence[ls.StripScore]]) -> tuple[tuple[float, float], float]:
     """The best common light of the doors' rounded strips (``strips``, per door), ``[azimuth, elevation]`` deg
     (cell frame), and their mean log misfit ratio under it: :func:`doorloc.vision.light_search.
-    light_from_strips` (its grid, a quarter step finer one step around the best), then its grid again a
-    quarter as fine (``LIGHT_REFINE_DEG`` apart about that best, and its quarter steps two each way).
-
-    Why finer than a light's own search: a lamp low beside the door leaves a terminator on every rounding,
-    and the misfit climbs steeply within a few degrees of the true direction; on a rendered cell lit from
-    (-62.8, -13.7) deg the light search's best, (-60, -15), scored 0.20 read with the camera's exponent and
-    0.21-0.24 read 10-20 % off, and the finer search 0.024 there and 0.042-0.107 off: a valley the first
-    grid's steps had hidden."""
+    light_from_strips` (its grid, a quarter step finer one step around the best), then
+    :func:`doorloc.vision.light_search.finer_light` about that best (a lamp low beside the doors leaves a
+    valley in the score narrower than the first grid's steps, which would hide the exponent's)."""
     first = ls.light_from_strips(strips, fine_steps=1, diffuse_share=math.inf)
-    a, e = first.direction_deg
-    d = LIGHT_REFINE_DEG
-    fine = ls.light_from_strips(
-        strips, azimuths=(a - d, a, a + d), elevations=(e - d, e, e + d), diffuse_share=math.inf
-    )
-    return fine.direction_deg, fine.score
+    return ls.finer_light(strips, first.direction_deg)
 
 
 def _steady_doors(read: dict[float, list[list[ls.StripScore]]]) -> list[int]:
@@ -263,8 +250,8 @@ def _steady_doors(read: dict[float, list[list[ls.StripScore]]]) -> list[int]:
 
 def _light(strips: list[list[ls.StripScore]]) -> LightMeasurement:
     """The light the strips fit best (:func:`doorloc.vision.light_search.light_from_strips`, its direction and
-    score those of :func:`common_light`'s finer search), or why the response cannot be measured: a diffuse
-    light."""
+    score :func:`doorloc.vision.light_search.finer_light`'s about it), or why the response cannot be
+    measured: a diffuse light."""
     try:
         first = ls.light_from_strips(strips)
     except LightNotMeasurable as e:
@@ -272,7 +259,7 @@ def _light(strips: list[list[ls.StripScore]]) -> LightMeasurement:
             f"{e}; under a diffuse light the roundings cannot tell the camera's response either: measure it on "
             "board photographs (doorloc calibrate)"
         ) from None
-    direction, score = common_light(strips)
+    direction, score = ls.finer_light(strips, first.direction_deg)
     return replace(first, direction_deg=direction, score=score)
 
 
