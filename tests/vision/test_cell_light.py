@@ -9,12 +9,13 @@ import sys
 from pathlib import Path
 
 import cv2
+import numpy as np
 import pytest
 import yaml
 from typer.testing import CliRunner
 
 from doorloc.app.cli import app
-from doorloc.pose import DoorPose, direction_cell
+from doorloc.pose import DoorPose, direction_cell, directions_apart_deg
 from doorloc.vision import cell_light, light_search
 from doorloc.vision.cell_light import LightMeasurement, LightNotMeasurable, measure_cell_light
 
@@ -46,9 +47,10 @@ def test_the_light_of_a_cell_is_found_near_its_direction():
         fine_steps=1,
         progress=heard.append,
     )
-    # every door and direction is told: the doors, the grid, its quarter steps, and the finer search about
-    # the best (light_search.finer_light: 3 x 3 directions 5 deg apart and their quarter steps)
-    assert len(heard) == 2 + 5 + 8 + 9 + 24 and heard[-1].endswith("(24 of 24)")
+    # every door and direction is told: the doors, the grid, its quarter steps, and the searches of
+    # light_search.finer_light (3 x 3 directions and their quarter steps: once about the best, twice about
+    # each rival)
+    assert len(heard) == 2 + 5 + 8 + 33 * (1 + 2 * len(m.rivals)) and heard[-1].endswith("(24 of 24)")
     assert heard[0].startswith("door 1 of 2 located")
     off = math.degrees(math.acos(min(1.0, float(direction_cell(*m.direction_deg) @ direction_cell(*LIGHT)))))
     assert off <= 2.0, (m, off)  # (the quarter steps alone are 10 deg apart here; found to 0.0 deg)
@@ -121,3 +123,31 @@ def test_measure_light_exits_1_where_the_doors_have_no_rounding_and_2_on_bad_inp
     res = CliRunner().invoke(app, ["measure-light", str(tmp_path / "nowhere"), "--cell", str(CELL_PATH)])
     assert res.exit_code == 2, res.output
     assert "nowhere" in res.stderr and "Traceback" not in res.output
+
+
+def _two_valleys(lamp: tuple[float, float], mirror: tuple[float, float]):
+    """A strip's misfit ratio under trial lights: a narrow deep valley at ``lamp`` (0.5 in log per 5 deg
+    squared, least 0.01) and a wide shallow one at ``mirror`` (0.3 per 20 deg squared, least 0.03)."""
+    at_lamp, at_mirror = direction_cell(*lamp), direction_cell(*mirror)
+
+    def score(directions: np.ndarray) -> np.ndarray:
+        off_l = np.degrees(np.arccos(np.clip(directions @ at_lamp, -1.0, 1.0)))
+        off_m = np.degrees(np.arccos(np.clip(directions @ at_mirror, -1.0, 1.0)))
+        return np.exp(np.minimum(0.01 + 0.5 * (off_l / 5.0) ** 2, 0.03 + 0.3 * (off_m / 20.0) ** 2))
+
+    return score
+
+
+def test_the_finer_search_finds_a_narrow_valley_the_first_grid_stepped_over():
+    """A lamp whose valley is narrower than the first grid's 20 deg steps scores worse on that grid than its
+    wide mirror, which the first search states; sought again about the first grid's other local least
+    (a rival), it is found to a degree and a half and stated, the mirror named as the runner-up."""
+    lamp, mirror = (52.7, 31.0), (-57.5, 28.75)
+    strips = [[_two_valleys(lamp, mirror)]]
+    first = light_search.light_from_strips(strips)
+    assert directions_apart_deg(first.direction_deg, lamp) > 40.0 and first.rivals
+    m = light_search.finer_light(strips, first)
+    assert directions_apart_deg(m.direction_deg, lamp) <= 1.5, m
+    assert m.score < 0.02 and m.runner_up_deg is not None
+    assert directions_apart_deg(m.runner_up_deg, mirror) <= 5.0, m
+    assert m.sigma_deg >= light_search.MEASURED_SIGMA_FLOOR_DEG

@@ -37,7 +37,7 @@ def measure_light_cmd(
 ) -> None:
     """The direction of the cell's main light, measured from doors with rounded arrises -> the lines to add
     to the cell file's locate section. Each door is located once and its rounded strips scored under about
-    100 trial directions (about 5 s for 8 doors on one core). With --response, each door is located with
+    230 trial directions (about 7 s for 8 doors on one core). With --response, each door is located with
     about 17 trial camera exponents and the exponent under which all the roundings fit matt arcs under one
     light best is the camera's, printed with its doubt for the camera section. Exit codes: 0 measured, 1
     the images cannot tell the light (or the response), 2 bad arguments or files."""

@@ -89,5 +89,4 @@ def measure_cell_light(
         diffuse_share=diffuse_share,
         progress=progress,
     )
-    direction, score = ls.finer_light(strips, first.direction_deg, progress)
-    return replace(first, direction_deg=direction, score=score)
+    return ls.finer_light(strips, first, progress)

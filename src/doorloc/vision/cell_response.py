@@ -237,8 +237,8 @@ def common_light(strips: Sequence[Sequence[ls.StripScore]]) -> tuple[tuple[float
     light_from_strips` (its grid, a quarter step finer one step around the best), then
     :func:`doorloc.vision.light_search.finer_light` about that best (a lamp low beside the doors leaves a
     valley in the score narrower than the first grid's steps, which would hide the exponent's)."""
-    first = ls.light_from_strips(strips, fine_steps=1, diffuse_share=math.inf)
-    return ls.finer_light(strips, first.direction_deg)
+    found = ls.finer_light(strips, ls.light_from_strips(strips, fine_steps=1, diffuse_share=math.inf))
+    return found.direction_deg, found.score
 
 
 def _steady_doors(read: dict[float, list[list[ls.StripScore]]]) -> list[int]:
@@ -259,8 +259,7 @@ def _light(strips: list[list[ls.StripScore]]) -> LightMeasurement:
             f"{e}; under a diffuse light the roundings cannot tell the camera's response either: measure it on "
             "board photographs (doorloc calibrate)"
         ) from None
-    direction, score = ls.finer_light(strips, first.direction_deg)
-    return replace(first, direction_deg=direction, score=score)
+    return ls.finer_light(strips, first)
 
 
 def exponent_range(scores: Mapping[float, float], step: float) -> tuple[float, float]:

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -24,6 +24,8 @@ __all__ = [
     "COARSE_ELEVATIONS",
     "DIFFUSE_SHARE",
     "FINER_GRID_DEG",
+    "RIVALS_SOUGHT",
+    "RIVAL_GRID_DEG",
     "MEASURED_SIGMA_FLOOR_DEG",
     "LightMeasurement",
     "LightNotMeasurable",
@@ -50,6 +52,10 @@ DIFFUSE_SHARE = 0.5
 #: the step of the grid a measured light is sought on again about the first search's best, deg
 #: (:func:`finer_light`)
 FINER_GRID_DEG = 5.0
+#: how many of the first grid's other local least directions :func:`finer_light` seeks again, and the step
+#: of the grid it first seeks each on (the first grid's own), deg
+RIVALS_SOUGHT = 2
+RIVAL_GRID_DEG = 20.0
 #: the stated doubt of a measured light, deg, at least: the turns of ``locate.light_direction_sigma_deg``
 #: at 10 deg cost no answer where the light is right, and a light 10 deg off stays within 2 sigma
 MEASURED_SIGMA_FLOOR_DEG = 10.0
@@ -71,7 +77,10 @@ class LightMeasurement:
     strips of ``doors`` doors (0: as well as a free shading); ``runner_up_deg`` / ``runner_up_score``:
     another direction at least ``RUNNER_UP_APART_DEG`` away that scores within ``RUNNER_UP_MARGIN`` of
     it, or None (check which side the lamp is on); ``alike_share``: the share of the first grid's
-    directions scoring within ``RUNNER_UP_MARGIN`` of the best (near 1: a diffuse light)."""
+    directions scoring within ``RUNNER_UP_MARGIN`` of the best (near 1: a diffuse light); ``rivals``: the
+    first grid's best ``RIVALS_SOUGHT`` directions that no neighbour on it beats, ``RUNNER_UP_APART_DEG``
+    or more from the best, which :func:`finer_light` seeks again (a valley narrower than the grid's steps
+    may score worse on it than a wider one)."""
 
     direction_deg: tuple[float, float]
     sigma_deg: float
@@ -81,6 +90,7 @@ class LightMeasurement:
     runner_up_deg: tuple[float, float] | None = None
     runner_up_score: float | None = None
     alike_share: float = 0.0
+    rivals: tuple[tuple[float, float], ...] = ()
 
     @property
     def tells_one_direction(self) -> bool:
@@ -180,34 +190,89 @@ def light_from_strips(
         runner_up_deg=runner,
         runner_up_score=scores[runner] if runner is not None else None,
         alike_share=alike / len(coarse),
+        rivals=_rivals(scores, azimuths, elevations, best),
     )
+
+
+def _rivals(
+    scores: dict[tuple[float, float], float],
+    azimuths: Sequence[float],
+    elevations: Sequence[float],
+    best: tuple[float, float],
+) -> tuple[tuple[float, float], ...]:
+    """:attr:`LightMeasurement.rivals` from the scores of the first grid (``azimuths`` x ``elevations``) and
+    the best direction found."""
+    A, E = len(azimuths), len(elevations)
+    grid = np.array([[scores[(float(a), float(e))] for a in azimuths] for e in elevations])  # (E, A)
+    minima = []
+    for j in range(E):
+        for i in range(A):
+            around = grid[max(j - 1, 0) : j + 2, max(i - 1, 0) : i + 2]
+            d = (float(azimuths[i]), float(elevations[j]))
+            if grid[j, i] <= around.min() and directions_apart_deg(best, d) >= RUNNER_UP_APART_DEG:
+                minima.append(d)
+    return tuple(sorted(minima, key=scores.__getitem__)[:RIVALS_SOUGHT])
 
 
 def finer_light(
     strips: Sequence[Sequence[StripScore]],
-    about: tuple[float, float],
+    first: LightMeasurement,
     progress: Callable[[str], None] | None = None,
-) -> tuple[tuple[float, float], float]:
-    """The least of the strips' (``strips``, per door) mean log misfit ratio on a grid a quarter as fine as
-    :func:`light_from_strips`' own about its best, ``about`` (``[azimuth, elevation]`` deg): that function's
-    search again with ``FINER_GRID_DEG`` apart about it, then its quarter steps two each way (1.25 deg, to
-    7.5 deg off ``about``). The direction and its score; ``progress`` as :func:`light_from_strips`'.
+) -> LightMeasurement:
+    """``first`` (:func:`light_from_strips` over ``strips``, per door) sought again a quarter as finely: its
+    search again with ``FINER_GRID_DEG`` apart about its best, then its quarter steps two each way (1.25
+    deg, to 7.5 deg off it); and each of ``first.rivals``, sought as ``first`` was (a grid
+    ``RIVAL_GRID_DEG`` apart about it and its quarter steps) and then as finely. The least of them, its
+    score, and the doubt of its finest search (at least ``MEASURED_SIGMA_FLOOR_DEG``); the runner-up another
+    of them within ``RUNNER_UP_MARGIN``, ``RUNNER_UP_APART_DEG`` or more away (or none); ``progress`` as
+    :func:`light_from_strips`'.
 
     Why: a lamp low beside the door leaves a terminator on every rounding, and the misfit climbs steeply
     within a few degrees of its direction. On a rendered cell lit from (-62.8, -13.7) deg the first search's
-    best, (-60, -15), scored 0.20 over eight doors; this search found (-62.5, -13.75) at 0.024 (and, read
-    with exponents 10-20 % off the camera's, 0.04-0.11 where the first search's scores were 0.21-0.24: the
-    valley the response measurement reads, :mod:`doorloc.vision.cell_response`)."""
+    best, (-60, -15), scored 0.20 over eight doors; sought again, (-62.5, -13.75) at 0.024 (and, read with
+    exponents 10-20 % off the camera's, 0.04-0.11 where the first search's scores were 0.21-0.24: the valley
+    the response measurement reads, :mod:`doorloc.vision.cell_response`). And the lamp's own valley may be
+    the narrower of two: a cell lit from (52.7, 31.0) deg scored its mirror (-60, 20) 0.17 and (60, 20) 0.30
+    on the first grid, and the first search stated the mirror (0.041, 0.027 sought again), while the lamp's
+    side, sought again, scores 0.011."""
+    found = [_finer(strips, first.direction_deg, FINER_GRID_DEG, progress)]
+    for rival in first.rivals:
+        near = _finer(strips, rival, RIVAL_GRID_DEG, progress)
+        found.append(_finer(strips, near.direction_deg, FINER_GRID_DEG, progress))
+    best = min(found, key=lambda m: m.score)
+    others = [
+        m
+        for m in found
+        if directions_apart_deg(best.direction_deg, m.direction_deg) >= RUNNER_UP_APART_DEG
+        and m.score <= best.score + RUNNER_UP_MARGIN
+    ]
+    runner = min(others, key=lambda m: m.score) if others else None
+    return replace(
+        first,
+        direction_deg=best.direction_deg,
+        score=best.score,
+        sigma_deg=best.sigma_deg,
+        runner_up_deg=runner.direction_deg if runner is not None else None,
+        runner_up_score=runner.score if runner is not None else None,
+    )
+
+
+def _finer(
+    strips: Sequence[Sequence[StripScore]],
+    about: tuple[float, float],
+    step: float,
+    progress: Callable[[str], None] | None,
+) -> LightMeasurement:
+    """:func:`light_from_strips` on the 3 x 3 grid ``step`` deg apart about ``about`` and its quarter steps
+    two each way, every direction stated."""
     a, e = about
-    d = FINER_GRID_DEG
-    fine = light_from_strips(
+    return light_from_strips(
         strips,
-        azimuths=(a - d, a, a + d),
-        elevations=(max(e - d, -89.0), e, min(e + d, 89.0)),
+        azimuths=(a - step, a, a + step),
+        elevations=(max(e - step, -89.0), e, min(e + step, 89.0)),
         diffuse_share=math.inf,
         progress=progress,
     )
-    return fine.direction_deg, fine.score
 
 
 def light_of_one_door(strips: Sequence[StripScore]) -> LightMeasurement | None:
