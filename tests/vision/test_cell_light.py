@@ -151,3 +151,20 @@ def test_the_finer_search_finds_a_narrow_valley_the_first_grid_stepped_over():
     assert m.score < 0.02 and m.runner_up_deg is not None
     assert directions_apart_deg(m.runner_up_deg, mirror) <= 5.0, m
     assert m.sigma_deg >= light_search.MEASURED_SIGMA_FLOOR_DEG
+
+
+def test_the_finer_search_keeps_the_doubt_of_a_wide_valley():
+    """Strips that fit every direction within 20 deg of the lamp about alike (one wide valley): the first
+    search states a doubt wider than the floor, and the finer search, whose own grid reaches only a few
+    degrees, keeps it."""
+    lamp = (30.0, 20.0)
+    at = direction_cell(*lamp)
+
+    def wide(directions: np.ndarray) -> np.ndarray:
+        off = np.degrees(np.arccos(np.clip(directions @ at, -1.0, 1.0)))
+        return np.exp(0.01 + 0.05 * (off / 20.0) ** 2)
+
+    first = light_search.light_from_strips([[wide]])
+    assert first.sigma_deg > light_search.MEASURED_SIGMA_FLOOR_DEG
+    m = light_search.finer_light([[wide]], first)
+    assert directions_apart_deg(m.direction_deg, lamp) <= 1.5 and m.sigma_deg >= first.sigma_deg, m

@@ -223,7 +223,8 @@ def finer_light(
     search again with ``FINER_GRID_DEG`` apart about its best, then its quarter steps two each way (1.25
     deg, to 7.5 deg off it); and each of ``first.rivals``, sought as ``first`` was (a grid
     ``RIVAL_GRID_DEG`` apart about it and its quarter steps) and then as finely. The least of them, its
-    score, and the doubt of its finest search (at least ``MEASURED_SIGMA_FLOOR_DEG``); the runner-up another
+    score, and the larger doubt of its finest search and of the wider one that found it (at least
+    ``MEASURED_SIGMA_FLOOR_DEG``); the runner-up another
     of them within ``RUNNER_UP_MARGIN``, ``RUNNER_UP_APART_DEG`` or more away (or none); ``progress`` as
     :func:`light_from_strips`'.
 
@@ -235,14 +236,16 @@ def finer_light(
     the narrower of two: a cell lit from (52.7, 31.0) deg scored its mirror (-60, 20) 0.17 and (60, 20) 0.30
     on the first grid, and the first search stated the mirror (0.041, 0.027 sought again), while the lamp's
     side, sought again, scores 0.011."""
-    found = [_finer(strips, first.direction_deg, FINER_GRID_DEG, progress)]
+    # each valley's finest search, and the doubt of the wider search that found it (the finest one's own
+    # reaches only 3.5 deg, where the first search's may say the valley is wider)
+    found = [(_finer(strips, first.direction_deg, FINER_GRID_DEG, progress), first.sigma_deg)]
     for rival in first.rivals:
         near = _finer(strips, rival, RIVAL_GRID_DEG, progress)
-        found.append(_finer(strips, near.direction_deg, FINER_GRID_DEG, progress))
-    best = min(found, key=lambda m: m.score)
+        found.append((_finer(strips, near.direction_deg, FINER_GRID_DEG, progress), near.sigma_deg))
+    best, wide_sigma = min(found, key=lambda f: f[0].score)
     others = [
         m
-        for m in found
+        for m, _ in found
         if directions_apart_deg(best.direction_deg, m.direction_deg) >= RUNNER_UP_APART_DEG
         and m.score <= best.score + RUNNER_UP_MARGIN
     ]
@@ -251,7 +254,7 @@ def finer_light(
         first,
         direction_deg=best.direction_deg,
         score=best.score,
-        sigma_deg=best.sigma_deg,
+        sigma_deg=max(best.sigma_deg, wide_sigma),
         runner_up_deg=runner.direction_deg if runner is not None else None,
         runner_up_score=runner.score if runner is not None else None,
     )
