@@ -148,9 +148,8 @@ def measure_cell_response(
     readings = _Readings(frames, cell, progress)
     readings.read(np.geomspace(lo, hi, RESPONSE_COARSE_STEPS).tolist())
     g_coarse = min(readings.scores, key=readings.scores.__getitem__)
-    _light(
-        readings.strips[g_coarse]
-    )  # (a diffuse light tells no exponent: said before the finer grid is read)
+    # (a diffuse light tells no exponent: said before the finer grid is read)
+    _first_light(readings.strips[g_coarse])
     step = (hi / lo) ** (1.0 / ((RESPONSE_COARSE_STEPS - 1) * RESPONSE_FINE_STEPS))
     fine = [g_coarse * step**k for k in range(-RESPONSE_FINE_STEPS + 1, RESPONSE_FINE_STEPS) if k != 0]
     readings.read([g for g in fine if lo <= g <= hi] + [cell.response_gamma])
@@ -249,17 +248,21 @@ def _steady_doors(read: dict[float, list[list[ls.StripScore]]]) -> list[int]:
 
 
 def _light(strips: list[list[ls.StripScore]]) -> LightMeasurement:
-    """The light the strips fit best (:func:`doorloc.vision.light_search.light_from_strips`, its direction and
-    score :func:`doorloc.vision.light_search.finer_light`'s about it), or why the response cannot be
+    """The light the strips fit best (:func:`_first_light`, its direction and score
+    :func:`doorloc.vision.light_search.finer_light`'s about it)."""
+    return ls.finer_light(strips, _first_light(strips))
+
+
+def _first_light(strips: list[list[ls.StripScore]]) -> LightMeasurement:
+    """:func:`doorloc.vision.light_search.light_from_strips` over the strips, or why the response cannot be
     measured: a diffuse light."""
     try:
-        first = ls.light_from_strips(strips)
+        return ls.light_from_strips(strips)
     except LightNotMeasurable as e:
         raise ResponseNotMeasurable(
             f"{e}; under a diffuse light the roundings cannot tell the camera's response either: measure it on "
             "board photographs (doorloc calibrate)"
         ) from None
-    return ls.finer_light(strips, first)
 
 
 def exponent_range(scores: Mapping[float, float], step: float) -> tuple[float, float]:
