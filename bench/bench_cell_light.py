@@ -138,7 +138,7 @@ def main() -> None:
             ways = _response_ways(cell, frames[: args.measure], m, gamma)
             if ways is None:
                 continue
-            _locate_ways(ways, cell, frames[args.measure :])
+            _locate_ways(ways, frames[args.measure :])
             sys.stdout.flush()
             continue
         ways = {
@@ -151,7 +151,7 @@ def main() -> None:
             ),
             "true": dataclasses.replace(cell.locate, light_direction_deg=light),
         }
-        _locate_ways({k: (cell, cfg) for k, cfg in ways.items()}, cell, frames[args.measure :])
+        _locate_ways({k: (cell, cfg) for k, cfg in ways.items()}, frames[args.measure :])
         sys.stdout.flush()
 
 
@@ -193,7 +193,7 @@ def _response_ways(cell, frames, light, gamma):
     return ways
 
 
-def _locate_ways(ways, cell, frames) -> None:
+def _locate_ways(ways, frames) -> None:
     """Locate ``frames`` (image, door, pose) with each way's (cell, locate settings) and print its summary."""
     for label, (way_cell, cfg) in ways.items():
         rows = []

@@ -11,7 +11,7 @@ they do not. So each door is located with each trial exponent (its strips as loc
 :func:`doorloc.vision.cell_light.rounded_strips`), all the doors' strips are scored together under their
 best common light (:func:`doorloc.vision.light_search.light_from_strips`: the mean log misfit ratio of
 matt arcs over free shadings; the light sought a quarter as finely again about the best,
-:func:`common_light_score`), and the exponent of the least score is the camera's.
+:func:`common_light`), and the exponent of the least score is the camera's.
 
 Measured before it was built (8 rounded doors each of three rendered cells, lamps and exponents drawn as
 ``bench/bench_cell_light.py`` draws them, trial exponents 0.5-2 times the camera's in steps of 15 %, scored
@@ -40,7 +40,7 @@ import numpy as np
 from doorloc.cell import Cell, DoorSize
 from doorloc.vision import light_search as ls
 from doorloc.vision.cell_light import rounded_strips
-from doorloc.vision.light_search import LightMeasurement, LightNotMeasurable
+from doorloc.vision.light_search import LightMeasurement
 from doorloc.vision.response import RESPONSE_PLAUSIBLE
 from doorloc.vision.strip_response import ARC_EXPLAINS
 
@@ -52,7 +52,6 @@ __all__ = [
     "ResponseMeasurement",
     "ResponseNotMeasurable",
     "common_light",
-    "common_light_score",
     "exponent_range",
     "measure_cell_response",
 ]
@@ -125,7 +124,7 @@ def measure_cell_response(
     Each door is located with every trial exponent (``RESPONSE_COARSE_STEPS`` over
     ``response.RESPONSE_PLAUSIBLE``, then ``RESPONSE_FINE_STEPS`` finer steps each way of the least, and
     the cell's own), its rounded strips kept; per exponent all the strips are scored under their best
-    common light (:func:`common_light_score`). ``progress`` hears a line per exponent. About two dozen
+    common light (:func:`common_light`). ``progress`` hears a line per exponent. About two dozen
     locates per door: a minute for eight doors on one core.
 
     Raises
@@ -148,14 +147,14 @@ def measure_cell_response(
     readings = _Readings(frames, cell, progress)
     readings.read(np.geomspace(lo, hi, RESPONSE_COARSE_STEPS).tolist())
     g_coarse = min(readings.scores, key=readings.scores.__getitem__)
-    # (a diffuse light tells no exponent: said before the finer grid is read)
-    _first_light(readings.strips[g_coarse])
+    _not_diffuse(readings.lights[g_coarse])  # (said before the finer grid is read)
     step = (hi / lo) ** (1.0 / ((RESPONSE_COARSE_STEPS - 1) * RESPONSE_FINE_STEPS))
     fine = [g_coarse * step**k for k in range(-RESPONSE_FINE_STEPS + 1, RESPONSE_FINE_STEPS) if k != 0]
     readings.read([g for g in fine if lo <= g <= hi] + [cell.response_gamma])
     readings.keep_steady_doors()
     scores, strips = readings.scores, readings.strips
     gamma, factor = exponent_range(scores, step)
+    _not_diffuse(readings.lights[gamma])
     return ResponseMeasurement(
         gamma=gamma,
         sigma=(factor - 1.0) * gamma / 2.0,
@@ -171,7 +170,7 @@ def measure_cell_response(
 
 class _Readings:
     """The doors read with trial exponents: per exponent every door's rounded strips (``strips``) and their
-    all-doors score (``scores``, :func:`common_light_score`)."""
+    all-doors score (:func:`common_light`; ``scores``)."""
 
     def __init__(
         self,
@@ -181,12 +180,17 @@ class _Readings:
     ) -> None:
         self.frames, self.cell, self.progress = frames, cell, progress
         self.strips: dict[float, list[list[ls.StripScore]]] = {}
-        self.scores: dict[float, float] = {}
+        self.lights: dict[float, LightMeasurement] = {}  # (:func:`common_light`)
+
+    @property
+    def scores(self) -> dict[float, float]:
+        """Each exponent read and its all-doors score."""
+        return {g: m.score for g, m in self.lights.items()}
 
     def read(self, gammas: Sequence[float]) -> None:
         """Locate every door with each of ``gammas`` not read yet, and score its strips."""
         for g in map(float, gammas):
-            if g in self.scores:
+            if g in self.lights:
                 continue
             self.strips[g] = rounded_strips(self.frames, _trial_cell(self.cell, g))
             n_strips = sum(len(d) for d in self.strips[g])
@@ -196,11 +200,11 @@ class _Readings:
                     "cannot tell the response (check that the doors are in the fixture and their recipes' "
                     "arris_mm)"
                 )
-            self.scores[g] = common_light_score(self.strips[g])
+            self.lights[g] = common_light(self.strips[g])
             if self.progress is not None:
                 self.progress(
                     f"exponent {g:.3f}: {n_strips} rounded strips fit matt arcs under one light at "
-                    f"{self.scores[g]:.3f} ({len(self.scores)} exponents tried)"
+                    f"{self.lights[g].score:.3f} ({len(self.lights)} exponents tried)"
                 )
 
     def keep_steady_doors(self) -> None:
@@ -215,29 +219,23 @@ class _Readings:
                 "no door's rounded strips were located alike with every exponent tried: the doors cannot "
                 "tell the response (check their recipes' arris sizes and the images' exposure)"
             )
-        for g in self.scores:
+        for g in self.lights:
             self.strips[g] = [self.strips[g][k] for k in steady]
-            self.scores[g] = common_light_score(self.strips[g])
+            self.lights[g] = common_light(self.strips[g])
         if self.progress is not None:
             self.progress(
                 f"scored again on the {len(steady)} doors whose rounded strips every exponent located"
             )
 
 
-def common_light_score(strips: Sequence[Sequence[ls.StripScore]]) -> float:
-    """The doors' rounded strips' (``strips``, per door) mean log misfit ratio under their best common light
-    (:func:`common_light`)."""
-    return common_light(strips)[1]
-
-
-def common_light(strips: Sequence[Sequence[ls.StripScore]]) -> tuple[tuple[float, float], float]:
-    """The best common light of the doors' rounded strips (``strips``, per door), ``[azimuth, elevation]`` deg
-    (cell frame), and their mean log misfit ratio under it: :func:`doorloc.vision.light_search.
-    light_from_strips` (its grid, a quarter step finer one step around the best), then
-    :func:`doorloc.vision.light_search.finer_light` about that best (a lamp low beside the doors leaves a
-    valley in the score narrower than the first grid's steps, which would hide the exponent's)."""
-    found = ls.finer_light(strips, ls.light_from_strips(strips, fine_steps=1, diffuse_share=math.inf))
-    return found.direction_deg, found.score
+def common_light(strips: Sequence[Sequence[ls.StripScore]]) -> LightMeasurement:
+    """The best common light of the doors' rounded strips (``strips``, per door) and their mean log misfit
+    ratio under it (``score``): :func:`doorloc.vision.light_search.light_from_strips` (its grid, a quarter
+    step finer one step around the best, every direction stated), then
+    :func:`doorloc.vision.light_search.finer_light` about that best and its rivals (a lamp low beside the
+    doors leaves a valley in the score narrower than the first grid's steps, which would hide the
+    exponent's)."""
+    return ls.finer_light(strips, ls.light_from_strips(strips, fine_steps=1, diffuse_share=math.inf))
 
 
 def _steady_doors(read: dict[float, list[list[ls.StripScore]]]) -> list[int]:
@@ -247,22 +245,23 @@ def _steady_doors(read: dict[float, list[list[ls.StripScore]]]) -> list[int]:
     return [k for k in range(counts.shape[1]) if counts[0, k] > 0 and np.all(counts[:, k] == counts[0, k])]
 
 
-def _light(strips: list[list[ls.StripScore]]) -> LightMeasurement:
-    """The light the strips fit best (:func:`_first_light`, its direction and score
-    :func:`doorloc.vision.light_search.finer_light`'s about it)."""
-    return ls.finer_light(strips, _first_light(strips))
-
-
-def _first_light(strips: list[list[ls.StripScore]]) -> LightMeasurement:
-    """:func:`doorloc.vision.light_search.light_from_strips` over the strips, or why the response cannot be
-    measured: a diffuse light."""
-    try:
-        return ls.light_from_strips(strips)
-    except LightNotMeasurable as e:
+def _not_diffuse(light: LightMeasurement) -> None:
+    """Raise :class:`ResponseNotMeasurable` where ``light``'s first grid scored more than
+    ``light_search.DIFFUSE_SHARE`` of its directions alike (a diffuse light tells no exponent), as
+    :func:`doorloc.vision.light_search.light_from_strips` refuses a light there."""
+    if light.alike_share > ls.DIFFUSE_SHARE:
         raise ResponseNotMeasurable(
-            f"{e}; under a diffuse light the roundings cannot tell the camera's response either: measure it on "
-            "board photographs (doorloc calibrate)"
-        ) from None
+            f"the doors' roundings are shaded about alike under {light.alike_share:.0%} of the directions "
+            "tried: the light is diffuse (or the roundings too small to tell it), and the roundings cannot "
+            "tell the camera's response either: measure it on board photographs (doorloc calibrate)"
+        )
+
+
+def _light(strips: list[list[ls.StripScore]]) -> LightMeasurement:
+    """The light the strips fit best (:func:`doorloc.vision.light_search.light_from_strips`, its direction and
+    score :func:`doorloc.vision.light_search.finer_light`'s about it)."""
+    # (not diffuse: the strips' light was checked, :func:`_not_diffuse`, on the same first grid)
+    return ls.finer_light(strips, ls.light_from_strips(strips, diffuse_share=math.inf))
 
 
 def exponent_range(scores: Mapping[float, float], step: float) -> tuple[float, float]:
