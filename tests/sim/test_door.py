@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from doorloc.cell import DoorSize, load_cell
 from doorloc.pose import DoorPose
 from doorloc.sim.door import door_faces, render_door, true_corner_px
-from doorloc.sim.effects import Effects, form_image
+from doorloc.sim.effects import SRGB_STATED_GAMMA, Effects, form_image, srgb_from_linear
 
 CELL = load_cell(Path(__file__).parents[2] / "fixtures" / "cell_thesis.yaml")
 
@@ -136,6 +136,7 @@ def test_every_effect_defaults_to_off_and_changes_the_image_when_on():
         "full_well_e": 5000.0,
         "read_noise_dn": 2.0,
         "gamma": 2.2,
+        "response_curve": "srgb",
         "jpeg_quality": 50,
     }
     for name, value in switches.items():
@@ -210,6 +211,32 @@ def test_effects_round_trip_through_a_dict_of_strings():
         Effects(sharpen_amount=0.5)
     with pytest.raises(ValueError, match="blur_halo_fraction"):
         Effects(blur_halo_fraction=1.0, blur_halo_sigma_px=3.0)
+    srgb = Effects(response_curve="srgb")
+    assert Effects.from_dict({k: str(v) for k, v in srgb.to_dict().items()}) == srgb
+    with pytest.raises(ValueError, match="response_curve"):
+        Effects(response_curve="log")
+    with pytest.raises(ValueError, match="gamma must stay 1"):
+        Effects(response_curve="srgb", gamma=2.2)
+
+
+def test_the_srgb_curve_is_the_standards_and_no_power_law():
+    """IEC 61966-2-1's encoding: 12.92 x to 0.0031308, then 1.055 x^(1/2.4) - 0.055 (continuous there); the
+    levels a table of the standard gives; the darks the 2.2 power law users call it would store 19-28 %
+    brighter than the curve does near black, and it is the stated exponent a cell gets."""
+    x = np.array([0.0, 0.001, 0.0031308, 0.01, 0.18, 0.5, 1.0])
+    y = srgb_from_linear(x)
+    np.testing.assert_allclose(y, [0.0, 0.01292, 0.040450, 0.099853, 0.461356, 0.735357, 1.0], atol=2e-6)
+    assert np.all(np.diff(srgb_from_linear(np.linspace(0, 1, 10001))) >= 0)
+    power = x[1:4] ** (1 / 2.2)
+    assert np.all(power / y[1:4] > 1.19)
+    assert Effects(response_curve="srgb").stated_gamma == SRGB_STATED_GAMMA == 2.2
+    assert Effects(gamma=1.8).stated_gamma == 1.8
+    # the renderer stores the curve's levels (within the 16-bit copy's rounding), not the power law's
+    lin = render_door(CELL, DoorSize(), DoorPose(), effects=Effects(bit_depth=16)).image / 65535.0
+    enc = render_door(CELL, DoorSize(), DoorPose(), effects=Effects(response_curve="srgb")).image
+    assert np.abs(enc - np.rint(srgb_from_linear(lin) * 255)).max() <= 1
+    power = render_door(CELL, DoorSize(), DoorPose(), effects=Effects(gamma=2.2)).image
+    assert not np.array_equal(enc, power)
 
 
 def test_arris_is_rendered_between_hinge_face_and_background():

@@ -155,7 +155,7 @@ def write_dataset(
     doors = {it.door for it in items}
     told = replace(cell, default_door=next(iter(doors))) if len(doors) == 1 else cell
     # the camera's response is the rendered one (a cell that says otherwise describes another camera)
-    told = replace(told, response_gamma=effects.gamma)
+    told = replace(told, response_gamma=effects.stated_gamma)
     save_cell(told, out / "cell.yaml")
     atomic_write_text(out / "truth.csv", truth_csv_text(rows))
     for name in ("cell.yaml", "truth.csv"):

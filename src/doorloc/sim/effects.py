@@ -23,7 +23,10 @@ import numpy as np
 from doorloc.photometric.model import PhotometricModel
 from doorloc.pose import direction_cell
 
-__all__ = ["Effects", "form_image", "lambert_shade", "wood_grain"]
+__all__ = ["SRGB_STATED_GAMMA", "Effects", "form_image", "lambert_shade", "srgb_from_linear", "wood_grain"]
+
+#: the exponent a user states for a camera that delivers the sRGB curve (its best power-law match)
+SRGB_STATED_GAMMA = 2.2
 
 
 @dataclass(frozen=True)
@@ -90,6 +93,11 @@ class Effects:
         Gaussian read noise, standard deviation in output DN of the 8-bit scale; 0 = off.
     gamma : float
         Response ``out = in ** (1/gamma)``; 1 = linear.
+    response_curve : str
+        ``"power"``: the response is ``gamma``'s power law. ``"srgb"``: the sRGB transfer curve of IEC
+        61966-2-1 (a linear segment below 0.0031308 of full scale, above it ``1.055 in ** (1/2.4) - 0.055``),
+        which most colour and many machine-vision cameras deliver and their users call "gamma 2.2"
+        (:data:`SRGB_STATED_GAMMA`); ``gamma`` must then stay 1.
     sharpen_amount, sharpen_radius_px : float
         In-camera sharpening (edge enhancement) of the grey levels after the response, an unsharp mask:
         ``out + amount * (out - gaussian(out, radius))``; 0 = off. Locate assumes it off.
@@ -132,6 +140,7 @@ class Effects:
     full_well_e: float = 0.0
     read_noise_dn: float = 0.0
     gamma: float = 1.0
+    response_curve: str = "power"
     sharpen_amount: float = 0.0
     sharpen_radius_px: float = 0.0
     bit_depth: int = 8
@@ -165,6 +174,10 @@ class Effects:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
         if not self.gamma > 0:
             raise ValueError(f"gamma must be > 0, got {self.gamma!r}")
+        if self.response_curve not in ("power", "srgb"):
+            raise ValueError(f"response_curve must be 'power' or 'srgb', got {self.response_curve!r}")
+        if self.response_curve == "srgb" and self.gamma != 1.0:
+            raise ValueError("the sRGB curve is the response: gamma must stay 1 with response_curve 'srgb'")
         if not 0 <= self.blur_halo_fraction < 1:
             raise ValueError(f"blur_halo_fraction must be in [0, 1), got {self.blur_halo_fraction!r}")
         if self.blur_halo_fraction > 0 and not self.blur_halo_sigma_px > 0:
@@ -173,6 +186,12 @@ class Effects:
             raise ValueError("sharpening (sharpen_amount > 0) needs its radius, sharpen_radius_px > 0")
         if not 0 <= self.shadow_strength <= 1:
             raise ValueError(f"shadow_strength must be in [0, 1], got {self.shadow_strength!r}")
+
+    @property
+    def stated_gamma(self) -> float:
+        """The exponent a cell states for this camera (``camera.response_gamma``): ``gamma``, or 2.2 for the
+        sRGB curve (:data:`SRGB_STATED_GAMMA`)."""
+        return SRGB_STATED_GAMMA if self.response_curve == "srgb" else self.gamma
 
     def to_dict(self) -> dict:
         """Plain mapping of every field (scalars only), e.g. for ``truth.csv`` columns."""
@@ -208,6 +227,16 @@ class Effects:
     def light_direction_cell(self) -> np.ndarray:
         """Unit vector towards the light, cell frame, shape (3,) (:func:`doorloc.pose.direction_cell`)."""
         return direction_cell(self.light_azimuth_deg, self.light_elevation_deg)
+
+
+def srgb_from_linear(light: np.ndarray) -> np.ndarray:
+    """The sRGB transfer curve (IEC 61966-2-1): linear light in [0, 1] to encoded levels in [0, 1], float32.
+
+    Written out (two lines of the standard) rather than taken from a colour library: scikit-image and
+    OpenCV apply it only inside their colour-space conversions, not to one grey channel."""
+    x = np.clip(np.asarray(light, np.float32), 0.0, 1.0)
+    curve = np.float32(1.055) * np.power(x, np.float32(1 / 2.4)) - np.float32(0.055)
+    return np.where(x <= 0.0031308, np.float32(12.92) * x, curve).astype(np.float32)
 
 
 def lambert_shade(effects: Effects, albedo: float, normal_cell: np.ndarray) -> float:
@@ -344,6 +373,8 @@ def form_image(
         # full-scale light at the response's full scale, as locate's mapping reads it (vision.luminance)
         top_light = float(response.light_from_grey(np.array([1.0]))[0])
         img = response.grey_from_light(img * top_light).astype(np.float32)
+    elif effects.response_curve == "srgb":
+        img = srgb_from_linear(img)
     elif effects.gamma != 1.0:
         img = cv2.pow(img, 1.0 / effects.gamma)
     if effects.sharpen_amount > 0:
