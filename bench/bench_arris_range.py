@@ -74,6 +74,8 @@ thickness 0.09), the worst 0.30; ``within``, the worst 1.27; ``bound``, 90 % wit
                                    it for a camera that keeps its power law, its edges' held-out residual
                                    the unmeasured optics' doubt (0.13 px): the doubt of a shoulder nobody
                                    measured, ``response_shoulder``, is lifted up to --measured-to)
+        [--srgb]   (every camera delivers the sRGB transfer curve instead of its drawn power law, and the
+                    cell states 2.2, as a user says of such a camera: a response no power law is)
         [--measured-to LEVEL]   (with --measured-photometry: the level, fraction of full scale, its board
                                  photographs read the response up to, ``response_measured_to``; default 1,
                                  the whole range: above it a shoulder is still doubted)
@@ -467,6 +469,12 @@ def main() -> None:
         "exponent more than a linear camera taken for an sRGB one allows",
     )
     ap.add_argument(
+        "--srgb",
+        action="store_true",
+        help="every camera delivers the sRGB transfer curve (IEC 61966-2-1) instead of its drawn power law, and "
+        "the cell states 2.2 (the seeds' doors, lights and blurs stay theirs)",
+    )
+    ap.add_argument(
         "--open-limits",
         action="store_true",
         help="open the cell's limits on the uncertainty and report the thickness: every door's errors and "
@@ -573,13 +581,17 @@ def main() -> None:
         for i in range(args.n):
             seed = args.seed + 1000 * k + i
             door, pose, fx, gamma = draw(name, i, seed)
+            if args.srgb:
+                fx = dataclasses.replace(fx, gamma=1.0, response_curve="srgb")
+                gamma = fx.stated_gamma
             if args.thickness:
                 door = dataclasses.replace(door, thickness_mm=args.thickness)
             off_by = args.off_factor or cell.locate.response_unmeasured_factor
             told = told_gamma(gamma, off_by, args.cell_gamma_off, seed)
             label = (
                 f"{door.arris_profile} a={door.arris_mm:.2f} T={door.thickness_mm:g} "
-                f"blur={fx.blur_sigma_px:.2f} g={gamma:.2f} "
+                f"blur={fx.blur_sigma_px:.2f} "
+                + ("sRGB " if args.srgb else f"g={gamma:.2f} ")
                 + (f"az={fx.light_azimuth_deg:+.0f}" if fx.light_directional else "amb")
                 + (f" grain={fx.grain_contrast:.3f}" if fx.grain_contrast else "")
                 + (f" finish={fx.finish_exponent:.2f}" if fx.finish_exponent != 1.0 else "")

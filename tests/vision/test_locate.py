@@ -1710,3 +1710,50 @@ def test_a_far_face_band_narrower_than_the_blur_leaves_the_thickness_in_doubt(ce
     error = r.thickness_mm - door.thickness_mm
     assert abs(error) <= 2.0 * check["sigma_mm"], (error, check)
     assert abs(r.x_mm - pose.x_mm) <= 2.0 * r.uncertainty.x_mm, (r.x_mm - pose.x_mm, r.uncertainty)
+
+
+@pytest.mark.parametrize(
+    ("door", "pose", "fx", "seed"),
+    [
+        # a plain door on a dark background: the curve's linear toe and the power law part most in the darks
+        (
+            DoorSize(900, 50, 2100),
+            DoorPose(-6.2, 4.1, -1.3),
+            Effects(albedo_hinge=0.7, albedo_background=0.03, blur_sigma_px=1.4, read_noise_dn=0.7),
+            7701,
+        ),
+        # a rounded 0.86 mm arris lit from the side (arris bench round set, seed 77002, through the curve)
+        (
+            DoorSize(900, 40, 2100, arris_mm=0.8552, arris_profile="round"),
+            DoorPose(7.6243, 0.9595, 0.953),
+            Effects(
+                albedo_hinge=0.8951,
+                albedo_chamfer=0.6022,
+                albedo_background=0.0785,
+                light_ambient=0.5999,
+                light_directional=0.4614,
+                light_azimuth_deg=-65.83,
+                light_elevation_deg=8.39,
+                arris_profile="round",
+                blur_sigma_px=1.4815,
+                read_noise_dn=0.6397,
+            ),
+            77002,
+        ),
+    ],
+    ids=["plain", "rounded"],
+)
+def test_a_camera_delivering_the_srgb_curve_is_answered_within_its_doubt_as_gamma_2_2(
+    cell, door, pose, fx, seed
+):
+    """Most colour cameras and many machine-vision ones deliver the sRGB curve, whose users state "gamma
+    2.2": no power law (linear below 0.3 % of full scale, 19-28 % darker than 2.2's power near black). A
+    cell stating 2.2 answers such doors within their doubt (``bench_arris_range.py --srgb``: the round,
+    chamfer, ambient and small sets' answers all within 2 sigma)."""
+    fx = replace(fx, response_curve="srgb")
+    img = render_door(cell, door, pose, effects=fx, seed=seed).image
+    r = locate(img, replace(cell, response_gamma=fx.stated_gamma), door)
+    ex, ez, eyaw, _ = _err(r, pose, door)
+    u = r.uncertainty
+    assert abs(ex) <= 2 * u.x_mm and abs(ez) <= 2 * u.z_mm and abs(eyaw) <= 2 * u.yaw_deg, (ex, ez, eyaw, u)
+    assert max(abs(ex), abs(ez)) < 0.05
