@@ -8,7 +8,8 @@ at a scratch path instead of $VIRTUAL_ENV), then with the runtime stage's enviro
 its HEALTHCHECK command passes. It also checks what the host cannot replay: the runtime stage runs as
 a non-root user, copies only the virtual environment, and the lock matches the base image's Python.
 
-Run by `.ci/run` (in the background while the system services install); by hand: `python3 scripts/ci/container_check.py`.
+Run by `.ci/run` (in the background while the system services install); by hand:
+`python3 scripts/ci/container_check.py`.
 Standard library only: it runs before any virtual environment exists.
 """
 

@@ -334,7 +334,7 @@ def form_image(
         A camera response beyond a power law (a cell's ``camera_photometry``): full-scale light is stored at
         full scale and every level below as the model's response stores it
         (:meth:`~doorloc.photometric.model.PhotometricModel.grey_from_light`), in place of
-        ``effects.gamma``. None (or a model that is a power law): ``effects.gamma``.
+        ``effects.gamma`` and ``effects.response_curve``. None (or a model that is a power law): those.
 
     Returns
     -------
