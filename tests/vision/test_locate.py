@@ -15,7 +15,7 @@ from doorloc.sim.door import render_door
 from doorloc.sim.effects import Effects
 from doorloc.vision.locate import LocateConfig, LocateTrace, locate
 from doorloc.vision.metric import PlaneMap
-from doorloc.vision.quality import check_thickness
+from doorloc.vision.quality import check_strips_took_their_edge, check_thickness
 
 HARD = Effects(
     albedo_hinge=0.34,
@@ -1757,3 +1757,51 @@ def test_a_camera_delivering_the_srgb_curve_is_answered_within_its_doubt_as_gamm
     u = r.uncertainty
     assert abs(ex) <= 2 * u.x_mm and abs(ez) <= 2 * u.z_mm and abs(eyaw) <= 2 * u.yaw_deg, (ex, ez, eyaw, u)
     assert max(abs(ex), abs(ez)) < 0.05
+
+
+def test_a_strip_whose_shading_took_its_edge_is_doubted_not_read_as_the_wrong_door(cell):
+    """A 2.91 mm rounding as dark as the background, a sharp lens, through the sRGB curve in a cell stating
+    2.2: the reference arris's free shading drew the blurred step as a ramp of its levels (blur at the fit's
+    0.1 px floor, the door's other strips 0.65 px), stated its place to 0.0007 of the strip 1.5 mm off, and
+    the door measured 4 mm thin was refused ``thickness_mismatch`` (check that the right door is in the
+    fixture). Its place cannot be told: ``uncertain``, the strip named (``bench_arris_range.py --n 32 --seed
+    52100 --sets focused_dark --srgb``, seed 60108)."""
+    door = DoorSize(900, 70, 2100, arris_mm=2.9066, arris_profile="round")
+    pose = DoorPose(0.9041, -5.9166, 0.9839)
+    fx = Effects(
+        albedo_hinge=0.8133,
+        albedo_chamfer=0.0511,
+        albedo_background=0.0511,
+        light_ambient=1.0373,
+        arris_profile="round",
+        blur_sigma_px=0.6878,
+        read_noise_dn=0.1019,
+        response_curve="srgb",
+    )
+    img = render_door(cell, door, pose, effects=fx, seed=60108).image
+    r = locate(img, replace(cell, response_gamma=fx.stated_gamma), door)
+    assert not r.ok and r.error_code == "uncertain", (r.error_code, r.error)
+    assert "took the edge's own transition" in r.error and "reference-face arris" in r.error
+    assert r.diagnostics["arris_fit"]["reference"]["blur_px"] <= 0.15
+
+
+def test_only_a_strip_at_the_blur_floor_beside_a_blurred_one_is_taken_for_its_edge():
+    """The rule by hand: a strip at 0.10 px beside others at 0.65 is named, on the far arris as a thickness
+    that cannot be checked (the pose stands); an astigmatic lens's blurrier bottom end (0.3 px long edges,
+    1.2 px bottom) and a sharp lens's strips all at 0.12 px are no such thing."""
+    names = {"bottom": "bottom end", "reference": "reference-face arris", "far": "far arris"}
+
+    def took(**blurs):
+        return check_strips_took_their_edge(blurs, names)
+
+    refusals = took(bottom=0.65, reference=0.10, far=0.64)
+    assert (
+        list(refusals) == ["reference"]
+        and "reference-face arris reads a blur of 0.10" in refusals["reference"].message
+    )
+    refusals = took(bottom=0.65, reference=0.66, far=0.10)
+    assert list(refusals) == ["far"]
+    assert refusals["far"].message.startswith("the door's thickness cannot be checked")
+    assert took(bottom=1.2, reference=0.3, far=0.31) == {}
+    assert took(bottom=0.12, reference=0.12, far=0.12) == {}
+    assert took(reference=0.10) == {}

@@ -73,7 +73,7 @@ def gate_and_answer(
     The checks in the order they are weighed (the first that refuses is the answer's reason, unless a pose
     outside the envelope or a pattern in view explains it better, :func:`_first_refusal`): each line's
     support and straightness, the corner's support, overexposure and sharpening, an arris strip read two
-    ways, the envelope, the thickness, the corner's and the pose's uncertainty."""
+    ways or one whose shading took its edge, the envelope, the thickness, the corner's and the pose's uncertainty."""
     r, cell = check.refined, check.cell
     plane, s8 = lum.plane, lum.scale_to_8bit
     model, figures, disputed = doubts.model, doubts.figures, doubts.response_disputed
@@ -82,7 +82,8 @@ def gate_and_answer(
     lines, refusals = _line_checks(r, region, model, cfg)
     refusals += _corner_support(r, region, cfg, diagnostics)
     refusals += _exposure_checks(lum, check, region, cfg, diagnostics)
-    refusals += _strips_read_twice(r, cfg)
+    took = q.check_strips_took_their_edge({k: f.blur_px for k, (f, _) in r.arris_fits.items()}, HUMAN)
+    refusals += _strips_read_twice(r, cfg) + [v for k, v in took.items() if k != "far"]
     refusals.append(
         q.check_envelope(
             pose.x_mm, pose.z_mm, pose.yaw_deg, cell.envelope, cfg.envelope_margin_mm, cfg.envelope_margin_deg
@@ -99,7 +100,7 @@ def gate_and_answer(
     silhouette = far_silhouette_contrast(r)
     t_hint = _thickness_hint(budget, check.response)
     t_refusals, unverified, t_uncertain = thickness_check(
-        r, door, cfg, budget.thickness_mm, other, silhouette, strip_other_readings(r), t_hint
+        r, door, cfg, budget.thickness_mm, other, silhouette, strip_other_readings(r), t_hint, took.get("far")
     )
     # Under ``thickness_check: report`` a thickness the image cannot verify is said in the answer, not refused
     # (a thickness that is wrong at confidence is refused under either policy: it is in ``t_refusals``).

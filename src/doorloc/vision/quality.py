@@ -25,6 +25,9 @@ __all__ = [
     "check_corner_support",
     "check_line",
     "check_strip_read_twice",
+    "check_strips_took_their_edge",
+    "STRIP_BLUR_OTHERS_PX",
+    "STRIP_BLUR_TOOK_EDGE_PX",
     "LineLimits",
     "check_overexposed",
     "check_arris_clipped",
@@ -570,6 +573,45 @@ def check_strip_read_twice(
         "compresses, a shadow across it): state the camera's measured response or photometric model in the "
         "cell (doorloc calibrate, doorloc check-model --boards), or light the arris more evenly",
     )
+
+
+#: an arris strip whose fitted blur is this or less (px; the strip fit's floor is 0.1) where another strip of
+#: the door reads ``STRIP_BLUR_OTHERS_PX`` or more has taken the edge's own transition into its free shading
+#: (:func:`check_strips_took_their_edge`): one lens blurs a door's edges alike within about a tenth of a
+#: pixel (``strip_posterior.BLUR_BETWEEN_EDGES_PX``)
+STRIP_BLUR_TOOK_EDGE_PX = 0.15
+STRIP_BLUR_OTHERS_PX = 0.4
+
+
+def check_strips_took_their_edge(blurs: dict[str, float], humans: dict[str, str]) -> dict[str, Refusal]:
+    """The arris strips (``blurs``: per line its strip fit's blur, px; ``humans``: the lines' names in the
+    sentences) whose free shading took the edge's own transition: a blur read at the fit's floor
+    (``STRIP_BLUR_TOOK_EDGE_PX`` or less) where another strip of the door reads ``STRIP_BLUR_OTHERS_PX``
+    or more. Per such line its refusal, ``uncertain`` (the far arris's as a thickness that cannot be checked).
+
+    Such a fit draws the blurred step as a ramp of the strip's levels, anywhere across the strip, and
+    states its place to a few thousandths of a pixel: through a camera with the sRGB curve in a cell stating
+    2.2, a 2.91 mm rounding as dark as the background had its reference arris read so (blur 0.10 px, the
+    door's other strips 0.65; deficit 0.438 +- 0.0007 where it is 1, or 0 read the other way), 1.5 mm off,
+    and the door, measured 4 mm thin, was refused as the wrong door (``bench_arris_range.py --n 32 --seed
+    52100 --sets focused_dark --srgb``, seed 60108)."""
+    out = {}
+    for k, blur in blurs.items():
+        others = max((b for j, b in blurs.items() if j != k), default=0.0)
+        if not (blur <= STRIP_BLUR_TOOK_EDGE_PX and others >= STRIP_BLUR_OTHERS_PX):
+            continue
+        said = (
+            f"the arris strip along the {humans[k]} reads a blur of {blur:.2f} px where the door's other strips "
+            f"read {others:.2f} px: its fitted shading took the edge's own transition, and where its border "
+            "lies cannot be told (a strip about as dark as the background, or a camera whose response the "
+            "cell's exponent does not describe, does this); "
+        )
+        lift = "state the camera's measured response in the cell (doorloc calibrate), or light the arris so "
+        lift += "that it stands out from the background"
+        out[k] = Refusal(
+            "uncertain", ("the door's thickness cannot be checked: " if k == "far" else "") + said + lift
+        )
+    return out
 
 
 def check_corner_support(name: str, frac: float, n: int, min_fraction: float) -> Refusal | None:

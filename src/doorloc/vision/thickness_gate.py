@@ -167,6 +167,7 @@ def thickness_check(
     silhouette: float | None = None,
     strip_shifts: dict[str, float] | None = None,
     hint: str | None = None,
+    far_unread: q.Refusal | None = None,
 ) -> tuple[list, list, bool]:
     """The thickness's checks against the recipe: the refusals that stand under either policy, those of a
     thickness the image cannot verify (refused under ``refuse``, reported under ``report``), and whether the
@@ -176,7 +177,13 @@ def thickness_check(
     ``strip_shifts``: the side arrises' other readings (:func:`strip_other_readings`), weighed where the
     fitted thickness misses the recipe. ``hint``: the clause naming the term that weighs most in the
     thickness's doubt and what lifts it, where moving the door does not (the unchecked camera response, an
-    arris strip); None: check the door, or move it and take the image again."""
+    arris strip); None: check the door, or move it and take the image again. ``far_unread``: the far
+    arris's strip fit took its edge's transition (:func:`doorloc.vision.quality.check_strips_took_their_edge`):
+    where its border lies is not known, and the thickness is neither right nor wrong (that refusal, as one of
+    a thickness the image cannot verify)."""
+    # why many parameters: the refined state, the door, the settings, and the gate's six findings about the thickness (its sigma, the far face's other reading, the silhouette's contrast, the side strips' other readings, the clause naming its doubt, an unread far strip), each its own check's
+    if far_unread is not None:
+        return [], [far_unread], True
     pose, far_beside, t_tol = r.pose, r.far_beside, cfg.thickness_tolerance_mm
     split = _readings_split(r, door, t_tol, t_sigma, other)
     if split is not None:
