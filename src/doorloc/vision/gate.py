@@ -71,10 +71,9 @@ def gate_and_answer(
     what the camera made of the door's light.)
 
     The checks in the order they are weighed (the first that refuses is the answer's reason, unless a pose
-    outside the envelope or a pattern in view explains it better, :func:`_first_refusal`): each line's
-    support and straightness, the corner's support, overexposure and sharpening, an arris strip read two
-    ways or one whose shading took its edge, the envelope, the thickness, the corner's and the pose's
-    uncertainty."""
+    outside the envelope or a pattern in view explains it better, :func:`_first_refusal`): each line's support
+    and straightness, the corner's support, overexposure and sharpening, an arris strip read two ways or one
+    that took its edge, the envelope, the thickness, the corner's and the pose's uncertainty."""
     r, cell = check.refined, check.cell
     plane, s8 = lum.plane, lum.scale_to_8bit
     model, figures, disputed = doubts.model, doubts.figures, doubts.response_disputed
