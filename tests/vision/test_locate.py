@@ -1747,7 +1747,7 @@ def test_a_camera_delivering_the_srgb_curve_is_answered_within_its_doubt_as_gamm
     cell, door, pose, fx, seed
 ):
     """Most colour cameras and many machine-vision ones deliver the sRGB curve, whose users state "gamma
-    2.2": no power law (linear below 0.3 % of full scale, 19-28 % darker than 2.2's power near black). A
+    2.2": no power law (linear below 0.3 % of full scale, 19 % darker than 2.2's power at 1 %). A
     cell stating 2.2 answers such doors within their doubt (``bench_arris_range.py --srgb``: the round,
     chamfer, ambient and small sets' answers all within 2 sigma)."""
     fx = replace(fx, response_curve="srgb")
