@@ -74,6 +74,8 @@ thickness 0.09), the worst 0.30; ``within``, the worst 1.27; ``bound``, 90 % wit
                                    it for a camera that keeps its power law, its edges' held-out residual
                                    the unmeasured optics' doubt (0.13 px): the doubt of a shoulder nobody
                                    measured, ``response_shoulder``, is lifted up to --measured-to)
+        [--demosaic bilinear|edge_aware]   (every camera a single-chip colour camera: a Bayer filter's samples
+                                            demosaiced by OpenCV before the response; colour images)
         [--srgb]   (every camera delivers the sRGB transfer curve instead of its drawn power law, and the
                     cell states 2.2, as a user says of such a camera: a response no power law is)
         [--measured-to LEVEL]   (with --measured-photometry: the level, fraction of full scale, its board
@@ -475,6 +477,14 @@ def main() -> None:
         "the cell states 2.2 (the seeds' doors, lights and blurs stay theirs)",
     )
     ap.add_argument(
+        "--demosaic",
+        choices=("bilinear", "edge_aware"),
+        default=None,
+        help="every camera is a single-chip colour camera: the light sampled through a Bayer filter and "
+        "demosaiced by OpenCV (bilinear or edge-aware) before its response (the renderer's "
+        "Effects.demosaic); the image is colour",
+    )
+    ap.add_argument(
         "--open-limits",
         action="store_true",
         help="open the cell's limits on the uncertainty and report the thickness: every door's errors and "
@@ -584,6 +594,8 @@ def main() -> None:
             if args.srgb:
                 fx = dataclasses.replace(fx, gamma=1.0, response_curve="srgb")
                 gamma = fx.stated_gamma
+            if args.demosaic:
+                fx = dataclasses.replace(fx, demosaic=args.demosaic)
             if args.thickness:
                 door = dataclasses.replace(door, thickness_mm=args.thickness)
             off_by = args.off_factor or cell.locate.response_unmeasured_factor
@@ -592,6 +604,7 @@ def main() -> None:
                 f"{door.arris_profile} a={door.arris_mm:.2f} T={door.thickness_mm:g} "
                 f"blur={fx.blur_sigma_px:.2f} "
                 + ("sRGB " if args.srgb else f"g={gamma:.2f} ")
+                + (f"{args.demosaic} " if args.demosaic else "")
                 + (f"az={fx.light_azimuth_deg:+.0f}" if fx.light_directional else "amb")
                 + (f" grain={fx.grain_contrast:.3f}" if fx.grain_contrast else "")
                 + (f" finish={fx.finish_exponent:.2f}" if fx.finish_exponent != 1.0 else "")

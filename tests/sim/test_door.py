@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -12,7 +14,7 @@ from hypothesis import strategies as st
 from doorloc.cell import DoorSize, load_cell
 from doorloc.pose import DoorPose
 from doorloc.sim.door import door_faces, render_door, true_corner_px
-from doorloc.sim.effects import SRGB_STATED_GAMMA, Effects, form_image, srgb_from_linear
+from doorloc.sim.effects import SRGB_STATED_GAMMA, WOOD_TINT_BGR, Effects, form_image, srgb_from_linear
 
 CELL = load_cell(Path(__file__).parents[2] / "fixtures" / "cell_thesis.yaml")
 
@@ -138,6 +140,7 @@ def test_every_effect_defaults_to_off_and_changes_the_image_when_on():
         "gamma": 2.2,
         "response_curve": "srgb",
         "jpeg_quality": 50,
+        "demosaic": "bilinear",
     }
     for name, value in switches.items():
         img = render_door(
@@ -217,6 +220,10 @@ def test_effects_round_trip_through_a_dict_of_strings():
         Effects(response_curve="log")
     with pytest.raises(ValueError, match="gamma must stay 1"):
         Effects(response_curve="srgb", gamma=2.2)
+    bayer = Effects(demosaic="edge_aware", read_noise_dn=1.0)
+    assert Effects.from_dict({k: str(v) for k, v in bayer.to_dict().items()}) == bayer
+    with pytest.raises(ValueError, match="demosaic must be one of none, bilinear, edge_aware"):
+        Effects(demosaic="vng")
 
 
 def test_the_srgb_curve_is_the_standards_and_no_power_law():
@@ -236,6 +243,34 @@ def test_the_srgb_curve_is_the_standards_and_no_power_law():
     assert np.abs(enc - np.rint(srgb_from_linear(lin) * 255)).max() <= 1
     power = render_door(CELL, DoorSize(), DoorPose(), effects=Effects(gamma=2.2)).image
     assert not np.array_equal(enc, power)
+
+
+@pytest.mark.parametrize("method", ["bilinear", "edge_aware"])
+def test_a_bayer_camera_keeps_a_faces_colour_and_correlates_its_noise(method):
+    """A single-chip colour camera: away from edges each face keeps its light in the wood tint's proportions
+    (the demosaicing interpolates within a channel), whatever ``color`` says; across an edge the channels
+    differ (each interpolated from its own filters' pixels); the noise drawn on the raw samples is shared
+    by neighbouring pixels of the grey plane (correlated), where a mono camera's is not."""
+    fx = Effects(albedo_hinge=0.6, albedo_background=0.1, demosaic=method)
+    rd = render_door(CELL, DoorSize(900, 40, 2100), DoorPose(2, 3, 1), effects=fx)
+    assert rd.image.shape == (1080, 1920, 3) and rd.image.dtype == np.uint8
+    u, v = rd.corner_px.astype(int)
+    tint = np.array(WOOD_TINT_BGR)
+    np.testing.assert_allclose(rd.image[v - 50, u + 50], np.rint(255 * 0.6 * tint), atol=1)
+    np.testing.assert_allclose(rd.image[v + 50, u - 50], np.rint(255 * 0.1 * tint), atol=1)
+    mono = render_door(CELL, DoorSize(900, 40, 2100), DoorPose(2, 3, 1), effects=replace(fx, demosaic="none"))
+    assert mono.image.ndim == 2 and not np.array_equal(rd.image[..., 1], mono.image)
+
+    def neighbour_correlation(effects: Effects) -> float:
+        flat = Effects(albedo_hinge=0.5, albedo_background=0.5, read_noise_dn=4.0, bit_depth=16)
+        img = render_door(CELL, DoorSize(), DoorPose(), effects=replace(flat, **effects)).image
+        grey = img if img.ndim == 2 else cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+        patch = grey[200:600, 200:600].astype(float)
+        patch -= patch.mean()
+        return float(np.mean(patch[:, 1:] * patch[:, :-1]) / np.mean(patch * patch))
+
+    assert abs(neighbour_correlation({})) < 0.05
+    assert neighbour_correlation({"demosaic": method}) > 0.15
 
 
 def test_arris_is_rendered_between_hinge_face_and_background():

@@ -23,10 +23,25 @@ import numpy as np
 from doorloc.photometric.model import PhotometricModel
 from doorloc.pose import direction_cell
 
-__all__ = ["SRGB_STATED_GAMMA", "Effects", "form_image", "lambert_shade", "srgb_from_linear", "wood_grain"]
+__all__ = [
+    "DEMOSAIC_METHODS",
+    "SRGB_STATED_GAMMA",
+    "WOOD_TINT_BGR",
+    "Effects",
+    "form_image",
+    "lambert_shade",
+    "srgb_from_linear",
+    "wood_grain",
+]
 
 #: the exponent a user states for a camera that delivers the sRGB curve (its best power-law match)
 SRGB_STATED_GAMMA = 2.2
+#: ``Effects.demosaic``'s choices and OpenCV's conversion for each, from an RGGB mosaic (OpenCV names its
+#: Bayer codes by the second row's second and third pixels: its ``BayerBG`` is an RGGB sensor)
+DEMOSAIC_METHODS = ("none", "bilinear", "edge_aware")
+_DEMOSAIC_CODES = {"bilinear": "COLOR_BayerBG2BGR", "edge_aware": "COLOR_BayerBG2BGR_EA"}
+#: a light wood's share of the light in each channel, BGR (the colour images' tint)
+WOOD_TINT_BGR = (0.80, 0.93, 1.0)
 
 
 @dataclass(frozen=True)
@@ -107,6 +122,14 @@ class Effects:
         JPEG round trip at this quality (1-100, 8-bit only); 0 = off.
     color : bool
         Return a 3-channel BGR image (wood tint) instead of grey.
+    demosaic : str
+        ``"none"``: every pixel sees the light itself. ``"bilinear"`` or ``"edge_aware"``: a single-chip colour
+        camera's: the lens's light, times the wood tint's share of each channel, is sampled through a Bayer
+        colour filter (one channel a pixel, RGGB), the sensor's noise drawn on those samples, and the
+        missing two channels of every pixel interpolated by OpenCV's demosaicing (bilinear, or its
+        edge-aware variant) from a 16-bit linear raw before the response; the image is colour (BGR)
+        whatever ``color`` says. The interpolation widens the blur unevenly by channel and phase, and
+        correlates the noise of neighbouring pixels (locate reads one grey plane of the three).
     """
 
     albedo_hinge: float = 0.78
@@ -146,6 +169,7 @@ class Effects:
     bit_depth: int = 8
     jpeg_quality: int = 0
     color: bool = False
+    demosaic: str = "none"
 
     def __post_init__(self) -> None:
         if self.bit_depth not in (8, 16):
@@ -176,6 +200,8 @@ class Effects:
             raise ValueError(f"gamma must be > 0, got {self.gamma!r}")
         if self.response_curve not in ("power", "srgb"):
             raise ValueError(f"response_curve must be 'power' or 'srgb', got {self.response_curve!r}")
+        if self.demosaic not in DEMOSAIC_METHODS:
+            raise ValueError(f"demosaic must be one of {', '.join(DEMOSAIC_METHODS)}, got {self.demosaic!r}")
         if self.response_curve == "srgb" and self.gamma != 1.0:
             raise ValueError("the sRGB curve is the response: gamma must stay 1 with response_curve 'srgb'")
         if not 0 <= self.blur_halo_fraction < 1:
@@ -311,6 +337,25 @@ def _lens_blur(img: np.ndarray, effects: Effects) -> np.ndarray:
     return img
 
 
+def _bayer_mosaic(light: np.ndarray) -> np.ndarray:
+    """A single-chip colour sensor's raw samples of ``light`` (H, W): each pixel the light times its filter's
+    channel share of the wood tint, the filters laid out RGGB (red at even rows and columns)."""
+    b, g, r = (np.float32(v) for v in WOOD_TINT_BGR)
+    share = np.empty(light.shape[:2], np.float32)
+    share[0::2, 0::2], share[0::2, 1::2], share[1::2, 0::2], share[1::2, 1::2] = r, g, g, b
+    return light * share
+
+
+def _demosaiced(raw: np.ndarray, method: str) -> np.ndarray:
+    """The BGR light (H, W, 3) OpenCV's demosaicing ``method`` makes of the RGGB raw samples ``raw`` in
+    [0, 1], quantised to 16 bits first (OpenCV demosaics integers; a camera's raw has 10-14)."""
+    import cv2
+
+    counts = np.rint(raw * 65535.0).astype(np.uint16)
+    colour = cv2.demosaicing(counts, getattr(cv2, _DEMOSAIC_CODES[method]))
+    return colour.astype(np.float32) * np.float32(1.0 / 65535.0)
+
+
 def form_image(
     radiance: np.ndarray,
     effects: Effects,
@@ -360,6 +405,8 @@ def form_image(
             field *= 1.0 - k * ((du * du)[None, :] + (dv * dv)[:, None])
         img = img * field
     img = _lens_blur(img, effects)
+    if effects.demosaic != "none":
+        img = _bayer_mosaic(img)
     if effects.full_well_e > 0 or effects.read_noise_dn > 0:
         # Poisson-Gaussian sensor noise: shot noise of variance mean/full_well (the Gaussian limit of
         # Poisson, within 1 % above ~100 electrons) plus read noise, drawn as one normal variate.
@@ -369,6 +416,8 @@ def form_image(
             var = np.maximum(img, 0) * np.float32(1.0 / effects.full_well_e) + var
         img = img + np.sqrt(var) * rng.standard_normal(img.shape, dtype=np.float32)
     img = np.clip(img, 0.0, 1.0, out=img if img is not radiance else None)
+    if effects.demosaic != "none":
+        img = _demosaiced(img, effects.demosaic)
     if response is not None and response.beyond_power_law:
         # full-scale light at the response's full scale, as locate's mapping reads it (vision.luminance)
         top_light = float(response.light_from_grey(np.array([1.0]))[0])
@@ -380,9 +429,8 @@ def form_image(
     if effects.sharpen_amount > 0:
         soft = cv2.GaussianBlur(img, (0, 0), effects.sharpen_radius_px, borderType=cv2.BORDER_REFLECT)
         img = np.clip(img + np.float32(effects.sharpen_amount) * (img - soft), 0.0, 1.0)
-    if effects.color:
-        tint = np.array([0.80, 0.93, 1.0], np.float32)  # BGR: a warm wood tone
-        img = img[..., None] * tint
+    if effects.color and img.ndim == 2:
+        img = img[..., None] * np.array(WOOD_TINT_BGR, np.float32)
     top = 255 if effects.bit_depth == 8 else 65535
     out: np.ndarray = np.rint(img * top).astype(np.uint8 if effects.bit_depth == 8 else np.uint16)
     if effects.jpeg_quality:
