@@ -36,8 +36,8 @@ def test_a_colour_images_channels_are_summed_in_light(gamma, eight_bit, levels):
 
 @pytest.mark.parametrize("light_gamma", [1.0, None])
 def test_at_a_linear_response_or_none_the_sum_is_opencvs_8_bit_one(light_gamma):
-    """At an exponent of 1 the stored levels are light, and without one (a JPEG's luma) they are summed as
-    stored: OpenCV's fixed-point BT.601 sum, 8-bit."""
+    """At an exponent of 1 the stored levels are light, and without one (the overlay's picture) they are
+    summed as stored: OpenCV's fixed-point BT.601 sum, 8-bit."""
     img = np.random.default_rng(3).integers(0, 256, (12, 16, 3), dtype=np.uint8)
     lum = luminance_plane(img, light_gamma)
     assert lum.plane.dtype == np.uint8 and lum.scale_to_8bit == 1.0

@@ -3,7 +3,7 @@
 What is vectorised over the batch by the torch finder, on CPU or CUDA with the same code:
 
 - the luminance planes, copied into one ``(B, H, W)`` uint8 tensor on the device (grey frames as they are;
-  colour frames converted by OpenCV first where their levels are summed so, see below);
+  colour frames converted by OpenCV first at a linear response, see below);
 - the coarse step searches (:func:`doorloc.vision.coarse.coarse_edges`): :func:`doorloc.vision.locate.locate_steps`
   is run as a coroutine for every frame, and each round of step searches the frames ask for (reference
   arris, far arris, bottom end) is answered for the whole batch at once by :class:`TorchStepFinder`, whose
@@ -27,8 +27,8 @@ fit, robust line fits, quality gate) run through the one-frame code, frame by fr
 coroutine. So the batched answers equal the one-frame answers by construction, and stay equal when the
 sub-pixel estimator changes.
 
-Frames the batch cannot take (not 8-bit, colour at a response exponent other than 1 and not from a JPEG,
-whose luminance is summed in light at 16 bits, a size other than the batch's, not an array) go through
+Frames the batch cannot take (not 8-bit, colour at a response exponent other than 1, whose luminance is
+summed in light at 16 bits, a size other than the batch's, not an array) go through
 :func:`doorloc.vision.locate.locate` alone, and their record says so (:attr:`BatchAnswer.fallback`).
 
 kornia is not used: its colour conversion is floating point and differs from OpenCV's fixed-point one by a
@@ -344,14 +344,14 @@ def _preferred(
     return best
 
 
-def _stackable(image: np.ndarray, shape: tuple[int, int], gamma: float, jpeg_quality: int) -> str | None:
+def _stackable(image: np.ndarray, shape: tuple[int, int], gamma: float) -> str | None:
     """Why a frame cannot join a batch of ``shape`` 8-bit planes (None: it can); ``gamma`` the cell's
-    response exponent, ``jpeg_quality`` the frame's file's (0: no JPEG, or not known)."""
+    response exponent."""
     if not isinstance(image, np.ndarray):
         return "not an array"
     if image.dtype != np.uint8:
         return f"{image.dtype} pixels (the batched path takes 8-bit frames)"
-    if image.ndim == 3 and image.shape[2] in (3, 4) and gamma != 1.0 and not jpeg_quality:
+    if image.ndim == 3 and image.shape[2] in (3, 4) and gamma != 1.0:
         return "colour at a response exponent other than 1 (its luminance is summed in light, 16-bit)"
     if image.ndim == 3 and image.shape[2] in (1, 3, 4):
         hw = image.shape[:2]
@@ -411,7 +411,7 @@ def locate_batch(
     planes: list[np.ndarray] = []
     members: list[int] = []
     for i, img in enumerate(images):
-        why = _stackable(img, (h, w), cell.response_gamma, frames.jpeg_qualities[i])
+        why = _stackable(img, (h, w), cell.response_gamma)
         if why is not None:
             answers[i] = frames.alone(i, why)
             continue

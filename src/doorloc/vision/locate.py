@@ -125,7 +125,7 @@ def locate(
     ----------
     image : ndarray
         ``(H, W)`` grey or ``(H, W, 3|4)`` BGR(A), uint8 or uint16, as the camera delivered it; a colour
-        image's channels are summed in light at the cell's exponent, a JPEG's in its stored levels
+        image's channels are summed in light at the cell's exponent
         (:func:`doorloc.vision.luminance.luminance_plane`).
     cell : Cell
         Camera model, extrinsics, fixture and envelope.
@@ -282,9 +282,7 @@ def _locate(
     jpeg_quality: int = 0,
 ) -> Generator[StepQuery, tuple[np.ndarray, np.ndarray], LocateResult]:
     try:
-        # (a JPEG's channels summed in its stored levels: its luma is what it keeps finely)
-        light_gamma = None if jpeg_quality else cell.response_gamma
-        stored = lum if lum is not None else luminance_plane(image, light_gamma)
+        stored = lum if lum is not None else luminance_plane(image, cell.response_gamma)
     except ImageFormatError as e:
         raise Refused(q.Refusal("bad_image", f"{e}")) from None
     res = yield from _located(stored, cell, door, cfg, tr, name, jpeg_quality)
