@@ -22,7 +22,7 @@ from doorloc.calib.folder import detect_views, full_board_views, read_folder
 from doorloc.cell import load_cell
 from doorloc.sim.boards import Checkerboard, render_board
 from doorloc.sim.effects import Effects
-from doorloc.vision.response import board_response
+from doorloc.vision.board_response import board_response
 
 REPO = Path(__file__).resolve().parents[1]
 DATA = REPO.parent / "shared" / "data"

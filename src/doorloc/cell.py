@@ -92,7 +92,7 @@ class Cell:
         (:class:`doorloc.vision.response.ResponseFit`): locate replaces it by the image's where the two
         disagree or the image measured it much better, and otherwise counts the measurement's own doubt
         in the answer's uncertainty (a single real photograph's own sigma understates its scatter several
-        times, see :func:`doorloc.vision.response.board_response`).
+        times, see :func:`doorloc.vision.board_response.board_response`).
     camera_photometry : PhotometricModel or None
         The camera's photometric model where its calibration file's (``photometric_model``, written by
         ``doorloc check-model --boards``), or the cell's own inline (``camera.photometric_model``, as a saved

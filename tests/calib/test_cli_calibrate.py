@@ -225,7 +225,7 @@ def test_a_wrong_pattern_says_which_board_the_photographs_show(messy_dir, tmp_pa
     "module, name, warning, field, extra",
     [
         (
-            "doorloc.vision.response",
+            "doorloc.vision.board_response",
             "board_response",
             "camera response was",
             "response_gamma",
@@ -283,7 +283,7 @@ def test_a_failing_response_measurement_does_not_cost_the_optics_measurement(
     messy_dir, tmp_path, monkeypatch
 ):
     import doorloc.photometric.check as check
-    import doorloc.vision.response as response
+    import doorloc.vision.board_response as response
 
     def broken(*a, **k):
         raise ValueError("synthetic failure")

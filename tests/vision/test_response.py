@@ -335,7 +335,7 @@ def test_the_response_is_measured_on_calibration_boards(camera_gamma):
     from doorloc.cell import load_cell
     from doorloc.sim.boards import Checkerboard, render_board
     from doorloc.sim.effects import Effects
-    from doorloc.vision.response import board_response
+    from doorloc.vision.board_response import board_response
 
     cam = load_cell(Path(__file__).parents[2] / "fixtures" / "cell_thesis.yaml").camera
     board = Checkerboard(9, 6, 25.0)

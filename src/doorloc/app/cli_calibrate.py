@@ -24,7 +24,7 @@ if TYPE_CHECKING:  # the calibration modules load only when a command runs (fast
     from doorloc.calib.detect import SkippedImage
     from doorloc.calib.folder import CalibrationOutcome
     from doorloc.photometric.check import BoardCheck
-    from doorloc.vision.response import BoardResponse
+    from doorloc.vision.board_response import BoardResponse
 
 
 def parse_pattern(text: str) -> tuple[int, int]:

@@ -48,7 +48,7 @@ if TYPE_CHECKING:  # the calibration modules load when a calibration runs
     from doorloc.calib.folder import CalibrationOutcome, DetectedViews, LoadedImage
     from doorloc.calib.io import CalibrationFile
     from doorloc.photometric.check import BoardCheck
-    from doorloc.vision.response import BoardResponse
+    from doorloc.vision.board_response import BoardResponse
 
     Board = Chessboard | CharucoSpec
 
@@ -443,7 +443,7 @@ def calibrate_camera(
         full_board_views,
         read_folder,
     )
-    from doorloc.vision.response import board_response
+    from doorloc.vision.board_response import board_response
 
     # read and searched once: the calibration, the response and the optics are measured on the same views
     images = read_folder(images_dir)

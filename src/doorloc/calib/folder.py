@@ -121,7 +121,7 @@ def full_board_views(
     images: Sequence[LoadedImage], scan: BoardScan, board: Chessboard
 ) -> list[tuple[np.ndarray, np.ndarray]]:
     """(grey image, every inner corner in the board's row-major order) for each image in which ``scan``
-    found the whole chessboard: the input of :func:`doorloc.vision.response.board_response`."""
+    found the whole chessboard: the input of :func:`doorloc.vision.board_response.board_response`."""
     n = board.cols * board.rows
     dets = scan.detections
     return [
