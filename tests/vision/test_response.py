@@ -255,6 +255,24 @@ def test_an_ambiguous_reading_is_not_absorbed_and_a_measured_claim_picks_between
     assert held is not None and held.gamma == pytest.approx(1.36) and 2.245 in held.alternatives
 
 
+def test_an_unambiguous_line_decides_which_reading_of_an_ambiguous_one_is_the_cameras():
+    """A plain door of a 1.37 camera (the sharp set of ``bench_arris_range.py --seed 7000``, door 11031): its
+    bottom end read 1.38 +- 0.11 and nothing else, its reference arris 3.64 +- 0.02 with 1.35 about as
+    symmetric. Pooled as read, the sharper line won (3.57 +- 0.41) and the door was refused for the doubt;
+    the bottom end decides: the reference arris is read at 1.35, the pool agrees with the camera. Where the
+    first reading agrees with the deciding line within three joint sigmas it stands (1.42 +- 0.24 beside
+    1.72 +- 0.20, for a 1.57 camera: its alternative 1.83 is no better told)."""
+    bottom = LineResponse(1.377, 0.11, 0.3, 0.8, 0.0)
+    reference = LineResponse(3.643, 0.0204, 0.3, 0.8, 0.0, alternatives=(1.349,))
+    fit = combine_responses({"bottom": bottom, "reference": reference}, 1.368)
+    assert fit is not None and fit.gamma == pytest.approx(1.351, abs=0.002) and fit.sigma < 0.05
+    assert not fit.absorb and fit.alternatives == ()
+    kept = LineResponse(1.42, 0.24, 0.3, 0.8, 0.0, alternatives=(0.84, 1.0, 1.83))
+    pooled = combine_responses({"bottom": LineResponse(1.72, 0.2, 0.3, 0.8, 0.0), "reference": kept}, 1.57)
+    w = np.array([1 / 0.2**2, 1 / 0.24**2])
+    assert pooled is not None and pooled.gamma == pytest.approx(float(w @ [1.72, 1.42] / w.sum()))
+
+
 def test_a_second_symmetric_exponent_is_reported():
     """The asymmetry is not monotone in the exponent: a linear camera's transition between plateaus 20 and
     230 grey levels, rounded to 8 bits under 0.1 grey level of noise (not dithered), is about as symmetric

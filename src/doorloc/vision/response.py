@@ -62,6 +62,7 @@ from doorloc.vision.sampling import gather_profiles, oriented
 
 __all__ = [
     "RESPONSE_ABSORB_SIGMAS",
+    "RESPONSE_DECIDED_SIGMAS",
     "RESPONSE_GAMMA_RANGE",
     "RESPONSE_ONE_PHASE_MIN_BLUR_PX",
     "RESPONSE_PLAUSIBLE",
@@ -100,6 +101,12 @@ RESPONSE_ONE_PHASE_PSF = 0.5
 #: the exponents a camera's response has (a linear sensor 1.0, video and sRGB about 2.2-2.4): only a fit
 #: inside is absorbed
 RESPONSE_PLAUSIBLE = (0.8, 3.0)
+#: a line that admits other exponents is read at the one nearest the unambiguous lines' only where its first
+#: reading lies more than this many of their joint sigmas from theirs (:func:`_decided_by_unambiguous`):
+#: within it, both readings are the same camera's as far as the lines can tell (on the sharp doors of
+#: ``bench_arris_range.py --seed 7000``, a first reading of 1.42 +- 0.24 beside an unambiguous 1.72 +-
+#: 0.20, for a 1.57 camera, would have moved to its alternative of 1.83)
+RESPONSE_DECIDED_SIGMAS = 3.0
 
 
 @dataclass(frozen=True)
@@ -409,13 +416,15 @@ def combine_responses(
     than the part of the lines' errors that they share (:attr:`LineResponse.shared_sigma`).
 
     Where every line admits other exponents too (:attr:`LineResponse.alternatives`), the image's reading
-    is ambiguous: the alternatives are kept (:attr:`ResponseFit.alternatives`; one line without them
-    decides), and where the cell's exponent was measured, the reading nearest to it is the image's
-    (the calibration's measurement tells them apart).
+    is ambiguous: the alternatives are kept (:attr:`ResponseFit.alternatives`), and where the cell's
+    exponent was measured, the reading nearest to it is the image's (the calibration's measurement tells
+    them apart). Where some line admits none, those lines decide: each ambiguous line is read at its
+    exponent nearest theirs (:func:`_decided_by_unambiguous`).
     """
     ok = {k: v for k, v in lines.items() if math.isfinite(v.gamma) and math.isfinite(v.sigma) and v.sigma > 0}
     if not ok:
         return None
+    ok = _decided_by_unambiguous(ok)
     g = np.array([v.gamma for v in ok.values()])
     s = np.array([v.sigma for v in ok.values()])
     w = 1.0 / s**2
@@ -438,6 +447,42 @@ def combine_responses(
     return ResponseFit(
         mean, se, claimed, tuple(ok), claimed_sigma, alternatives, any(v.one_phase for v in ok.values())
     )
+
+
+def _decided_by_unambiguous(lines: dict[str, LineResponse]) -> dict[str, LineResponse]:
+    """``lines`` with each line that admits other exponents (:attr:`LineResponse.alternatives`) read at the
+    one of its exponents nearest (in the log) to the lines that admit none, where there are such lines and
+    its first reading lies more than :data:`RESPONSE_DECIDED_SIGMAS` of their joint sigmas from theirs; a
+    line so moved to an alternative keeps its own 1-sigma or the alternative's distance from the deciding
+    lines' reading, whichever is larger (its scatter was measured about its first reading).
+
+    Why: the asymmetry an edge reads has a second least near 2.5-3 times the camera's exponent
+    (:func:`doorloc.vision.response_asymmetry.least_asymmetric`), and a line whose noise put that one
+    first, with the camera's as its alternative, outweighed a plain unambiguous line: a 1.37 camera's
+    bottom end read 1.38 +- 0.11, its reference arris 3.64 +- 0.02 (alternative 1.35), pooled to 3.57 +-
+    0.41, and the plain door was refused for a response doubt of 0.1 mm (``bench_arris_range.py``'s sharp
+    set at seed 7000, door 11031)."""
+    decided = [v for v in lines.values() if not v.alternatives]
+    if not decided or len(decided) == len(lines):
+        return lines
+    w = np.array([1.0 / v.sigma**2 for v in decided])
+    anchor = float(np.exp(np.sum(w * np.log([v.gamma for v in decided])) / np.sum(w)))
+    anchor_sigma = float(1.0 / math.sqrt(np.sum(w)))
+    out = {}
+    for k, v in lines.items():
+        nearest = min((v.gamma, *v.alternatives), key=lambda g: abs(math.log(g / anchor)))
+        agrees = abs(v.gamma - anchor) <= RESPONSE_DECIDED_SIGMAS * math.hypot(v.sigma, anchor_sigma)
+        out[k] = (
+            v
+            if nearest == v.gamma or not v.alternatives or agrees
+            else replace(
+                v,
+                gamma=nearest,
+                sigma=max(v.sigma, abs(nearest - anchor)),
+                alternatives=tuple(a for a in (v.gamma, *v.alternatives) if a != nearest),
+            )
+        )
+    return out
 
 
 def edge_shift_px(
