@@ -18,7 +18,7 @@ from doorloc.vision.coarse import coarse_edges
 from doorloc.vision.locate import LocateConfig, LocateTrace, locate, locate_steps, run_steps
 from doorloc.vision.luminance import luminance_plane
 from doorloc.vision.metric import PlaneMap
-from doorloc.vision.quality import check_strips_took_their_edge, check_thickness
+from doorloc.vision.quality import LineLimits, check_line, check_strips_took_their_edge, check_thickness
 
 HARD = Effects(
     albedo_hinge=0.34,
@@ -1879,6 +1879,23 @@ def test_a_strip_whose_shading_took_its_edge_is_doubted_not_read_as_the_wrong_do
     assert not r.ok and r.error_code == "uncertain", (r.error_code, r.error)
     assert "took the edge's own transition" in r.error and "reference-face arris" in r.error
     assert r.diagnostics["arris_fit"]["reference"]["blur_px"] <= 0.15
+
+
+def test_a_line_whose_scan_lines_gave_no_point_says_how_many():
+    """A rounded grained door whose reference arris's strip was read 6.4 px off its place left 255 of its 659
+    scan lines without an edge point, and the 404 read lay within 0.1 px of their line; the refusal's words
+    counted the 255 as points off the line (``bench_arris_range.py --seed 52100 --sets grain``, seed
+    57122). It names them apart; a line whose points were all read says nothing of it."""
+    limits = LineLimits(min_inliers=20, min_inlier_fraction=0.8, max_rms_px=0.5, min_contrast=6.0)
+    unread = check_line("reference-face arris", 659, 395, 0.1, 40.0, limits, 404)
+    assert unread is not None and unread.code == "edge_not_straight"
+    assert (
+        "only 395 of 659 points" in unread.message
+        and "(255 of them gave no edge point at all)" in unread.message
+    )
+    read = check_line("reference-face arris", 659, 395, 0.1, 40.0, limits, 659)
+    assert read is not None and "gave no edge point" not in read.message
+    assert check_line("reference-face arris", 659, 650, 0.1, 40.0, limits, 655) is None
 
 
 def test_only_a_strip_at_the_blur_floor_beside_a_blurred_one_is_taken_for_its_edge():

@@ -423,6 +423,7 @@ def _line_checks(
                     cfg.max_rms_residual_px * (2.0 if loose else 1.0),
                     cfg.min_contrast,
                 ),
+                int(np.count_nonzero(s.valid)),
             )
         )
     return lines, refusals

@@ -80,12 +80,9 @@ def check_exposure(
     scale_to_8bit: float = 1.0,
     white_grey: float = SATURATED_GREY,
 ) -> Refusal | None:
-    """Black or saturated image, judged on grey levels sampled over the search region.
-
-    ``levels`` as stored; ``levels * scale_to_8bit`` (float32) is the 0-255 scale the thresholds use;
-    ``white_grey`` the level from which a pixel is saturated (lower for a camera that clips below full
-    scale).
-    """
+    """Black or saturated image, judged on grey levels sampled over the search region: ``levels`` as stored,
+    ``levels * scale_to_8bit`` (float32) on the 0-255 scale the thresholds use, ``white_grey`` the level
+    from which a pixel is saturated (lower for a camera that clips below full scale)."""
     if levels.dtype == np.uint8 and levels.size:
         p1, p99, sat = _exposure_from_histogram(levels, scale_to_8bit, white_grey)
     else:
@@ -120,8 +117,7 @@ def _exposure_from_histogram(
 
     (np.percentile partitions the sample in its generic machinery: ~0.1 ms of a 5 ms frame. A percentile is
     a linear interpolation between two order statistics, which the histogram gives; the interpolation
-    below is numpy's ``_lerp`` with its float32 differences and float64 weights.)
-    """
+    below is numpy's ``_lerp`` with its float32 differences and float64 weights.)"""
     counts = np.bincount(levels.ravel(), minlength=256)
     value = np.arange(256, dtype=np.float32) * scale_to_8bit  # what levels.astype(float32) * scale holds
     rank_end = np.cumsum(counts)  # the sorted sample's index after the last of each level
@@ -505,11 +501,14 @@ def check_line(
     rms_px: float,
     contrast: float,
     limits: LineLimits,
+    n_read: int,
 ) -> Refusal | None:
     """One fitted edge (``human``: its name in the sentences): enough support, straight enough, contrasted
-    enough (``rms_px`` px, ``contrast`` grey levels 0-255)."""
-    min_inliers, min_inlier_fraction = limits.min_inliers, limits.min_inlier_fraction
-    max_rms_px, min_contrast = limits.max_rms_px, limits.min_contrast
+    enough (``rms_px`` px, ``contrast`` grey levels 0-255); ``n_read`` of its ``n_samples`` scan lines gave a
+    point (the others named apart: a strip read far off its place leaves them)."""
+    min_inliers, min_fraction, max_rms_px, min_contrast = (
+        getattr(limits, f) for f in LineLimits.__annotations__
+    )
     if n_samples == 0 or n_inliers < min_inliers:
         return Refusal(
             "edge_missing",
@@ -522,11 +521,12 @@ def check_line(
             f"the {human} has too little contrast ({contrast:.1f} grey levels, need "
             f"{min_contrast:.0f}); improve the lighting or the background behind the door",
         )
-    if n_inliers < min_inlier_fraction * n_samples:
+    if n_inliers < min_fraction * n_samples:
+        unread = f" ({n_samples - n_read} of them gave no edge point at all)" if n_read < n_samples else ""
         return Refusal(
             "edge_not_straight",
-            f"only {n_inliers} of {n_samples} points on the {human} lie on a straight "
-            "line; something covers the edge, the edge is damaged, or this is not a door",
+            f"only {n_inliers} of {n_samples} points on the {human} lie on a straight line{unread}; "
+            "something covers the edge, the edge is damaged, or this is not a door",
         )
     if rms_px > max_rms_px:
         return Refusal(
