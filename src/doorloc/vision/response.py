@@ -418,8 +418,8 @@ def combine_responses(
     Where every line admits other exponents too (:attr:`LineResponse.alternatives`), the image's reading
     is ambiguous: the alternatives are kept (:attr:`ResponseFit.alternatives`), and where the cell's
     exponent was measured, the reading nearest to it is the image's (the calibration's measurement tells
-    them apart). Where some line admits none, those lines decide: each ambiguous line is read at its
-    exponent nearest theirs (:func:`_decided_by_unambiguous`).
+    them apart). Where some line admits none, those lines decide: an ambiguous line whose first reading
+    disagrees with theirs is read at its exponent nearest theirs (:func:`_decided_by_unambiguous`).
     """
     ok = {k: v for k, v in lines.items() if math.isfinite(v.gamma) and math.isfinite(v.sigma) and v.sigma > 0}
     if not ok:
