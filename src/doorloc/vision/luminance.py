@@ -123,7 +123,8 @@ def _summed_in_light(bgr: np.ndarray, gamma: float) -> np.ndarray:
     levels at the exponent ``gamma``) summed with :data:`BGR_WEIGHTS` (compiled: :func:`_light_sum_levels`;
     numpy's float passes took 20 ms on a 1080p frame, the kernel 6)."""
     light, encode = _light_tables(gamma, 255 if bgr.dtype == np.uint8 else 65535)
-    return _light_sum_levels(bgr, light, encode)
+    # (a view of a larger array, or every other column, is copied: the kernel is compiled for C order)
+    return _light_sum_levels(np.ascontiguousarray(bgr), light, encode)
 
 
 @functools.lru_cache(maxsize=8)
