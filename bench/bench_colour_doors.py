@@ -12,13 +12,14 @@ one (levels drawn). Then, as a camera does: with ``--bayer``, an RGGB mosaic of 
 on it and OpenCV's bilinear demosaicing; without, the noise drawn per channel; the response (a power law,
 its exponent drawn from 1.6-2.4 and stated exactly in the cell) to 8 bits; with ``--jpeg Q``, a JPEG round
 trip (locate told its quality for its doubts; both ways of summing shown, though locate itself sums a
-JPEG's channels as stored). Plain doors (no arris), 0.8-1.6 px of blur, poses over the fixture's range.
+JPEG's channels as stored). Plain doors (no arris; ``--arris``: rounded or chamfered arrises of 0.5-3 mm,
+the cell told their size, lit from one side), 0.8-1.6 px of blur, poses over the fixture's range.
 
 Per way of summing: the answered share, x and z RMS, the share within 2 claimed sigma, and the response
 check's readings beyond 2.5 of their sigmas from the camera's exponent.
 
     OMP_NUM_THREADS=1 PYTHONPATH=src python bench/bench_colour_doors.py [--n 24] [--seed 1] [--bayer]
-        [--jpeg 90]
+        [--jpeg 90] [--arris]
 """
 
 from __future__ import annotations
@@ -45,13 +46,26 @@ FIXTURE_BGR = np.array([0.30, 0.20, 0.12])
 READ_NOISE_DN = 0.6
 
 
-def hued_door(cell, door: DoorSize, rng: np.random.Generator, bayer: bool, jpeg: int):
-    """One drawn door's pose, the camera's exponent and its colour image (BGR, uint8)."""
+def hued_door(cell, rng: np.random.Generator, bayer: bool, jpeg: int, arris: bool):
+    """One drawn door, its pose, the camera's exponent and its colour image (BGR, uint8)."""
     pose = DoorPose(rng.uniform(-8, 8), rng.uniform(-8, 8), rng.uniform(-1.5, 1.5))
     gamma, blur = rng.uniform(1.6, 2.4), rng.uniform(0.8, 1.6)
+    door, lit = DoorSize(900, 40, 2100), {}
+    if arris:
+        profile = str(rng.choice(["round", "chamfer"]))
+        door = DoorSize(900, float(rng.choice([40, 50, 70])), 2100, rng.uniform(0.5, 3.0), profile)
+        lit = dict(
+            arris_profile=profile,
+            light_ambient=rng.uniform(0.4, 0.7),
+            light_directional=rng.uniform(0.3, 0.6),
+            light_azimuth_deg=float(rng.choice([-1, 1]) * rng.uniform(10, 80)),
+            light_elevation_deg=rng.uniform(0, 30),
+        )
     lens = dict(blur_sigma_px=blur, bit_depth=16)
-    alone = render_door(cell, door, pose, effects=Effects(albedo_hinge=1.0, albedo_background=0.0, **lens))
-    behind = render_door(cell, door, pose, effects=Effects(albedo_hinge=0.0, albedo_background=1.0, **lens))
+    wood = dict(albedo_hinge=1.0, albedo_chamfer=1.0, albedo_side=0.8, albedo_end=0.7)
+    alone = render_door(cell, door, pose, effects=Effects(albedo_background=0.0, **wood, **lit, **lens))
+    dark = {k: 0.0 for k in (*wood, "albedo_back")}
+    behind = render_door(cell, door, pose, effects=Effects(albedo_background=1.0, **dark, **lit, **lens))
     light = alone.image[..., None] / 65535.0 * (WOOD_BGR * rng.uniform(0.7, 1.0)) + behind.image[
         ..., None
     ] / 65535.0 * (FIXTURE_BGR * rng.uniform(0.3, 1.0))
@@ -69,7 +83,7 @@ def hued_door(cell, door: DoorSize, rng: np.random.Generator, bayer: bool, jpeg:
         img = cv2.imdecode(
             cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, jpeg])[1], cv2.IMREAD_UNCHANGED
         )
-    return pose, gamma, img
+    return door, pose, gamma, img
 
 
 def main() -> None:
@@ -78,17 +92,21 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--bayer", action="store_true", help="a single-chip camera: RGGB mosaic, demosaiced")
     ap.add_argument("--jpeg", type=int, default=0, help="a JPEG round trip at this quality (0: none)")
+    ap.add_argument(
+        "--arris", action="store_true", help="rounded or chamfered arrises of 0.5-3 mm, light from one side"
+    )
     args = ap.parse_args()
     base = load_cell(CELL)
-    door = DoorSize(900, 40, 2100)
     rng = np.random.default_rng(args.seed)
     ways = {"stored levels": lambda img, g: luminance_plane(img, None), "light": luminance_plane}
     rows: dict[str, list] = {k: [] for k in ways}
-    print(f"seed {args.seed}, {args.n} doors, bayer {args.bayer}, jpeg {args.jpeg or 'none'}")
+    print(
+        f"seed {args.seed}, {args.n} doors, bayer {args.bayer}, jpeg {args.jpeg or 'none'}, arris {args.arris}"
+    )
     for i in range(args.n):
-        pose, gamma, img = hued_door(base, door, rng, args.bayer, args.jpeg)
+        door, pose, gamma, img = hued_door(base, rng, args.bayer, args.jpeg, args.arris)
         cell = replace(base, response_gamma=gamma)
-        line = [f"  door {i:2d} g={gamma:.2f}"]
+        line = [f"  door {i:2d} g={gamma:.2f} a={door.arris_mm:.2f} {door.arris_profile}"]
         for name, summed in ways.items():
             lum = summed(img, gamma)
             r = run_steps(locate_steps(img, cell, door, luminance=lum, jpeg_quality=args.jpeg), coarse_edges)
