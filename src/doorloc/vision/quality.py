@@ -506,9 +506,8 @@ def check_line(
     """One fitted edge (``human``: its name in the sentences): enough support, straight enough, contrasted
     enough (``rms_px`` px, ``contrast`` grey levels 0-255); ``n_read`` of its ``n_samples`` scan lines gave a
     point (the others named apart: a strip read far off its place leaves them)."""
-    min_inliers, min_fraction, max_rms_px, min_contrast = (
-        getattr(limits, f) for f in LineLimits.__annotations__
-    )
+    min_inliers, min_fraction = limits.min_inliers, limits.min_inlier_fraction
+    max_rms_px, min_contrast = limits.max_rms_px, limits.min_contrast
     if n_samples == 0 or n_inliers < min_inliers:
         return Refusal(
             "edge_missing",
