@@ -5,14 +5,13 @@ cell's exponent (``doorloc.vision.luminance.luminance_plane``'s ``light_gamma``,
 
 Where the door and the background differ in hue, each channel's edge has its own contrast; every channel is
 light through the camera's response, and a weighted sum of their stored levels is no stored level of any
-light: it bends the edge's profile as a wrong exponent does. Each door is rendered by linearity: the door
-alone (background black) and the background alone (door black), each in linear light, 16 bits, through the
-lens's blur; the channels are the door's render times a wood colour plus the background's times a blue-grey
-one (levels drawn). Then, as a camera does: with ``--bayer``, an RGGB mosaic of that light, the noise drawn
-on it and OpenCV's bilinear demosaicing; without, the noise drawn per channel; the response (a power law,
-its exponent drawn from 1.6-2.4 and stated exactly in the cell) to 8 bits; with ``--jpeg Q``, a JPEG round
-trip (locate told its quality for its doubts; both ways of summing shown, though locate itself sums a
-JPEG's channels as stored). Plain doors (no arris; ``--arris``: rounded or chamfered arrises of 0.5-3 mm,
+light: it bends the edge's profile as a wrong exponent does. Each door's light is a wood colour's on a
+blue-grey fixture's (levels drawn; ``doorloc.sim.door.render_hued_light``: the door alone and the
+background alone rendered linear through the lens, each times its colour). Then, as a camera does: with
+``--bayer``, an RGGB mosaic of that light, the noise drawn on it and OpenCV's bilinear demosaicing
+(``doorloc.sim.effects.bayer_samples``, ``demosaiced``); without, the noise drawn per channel; the response
+(a power law, its exponent drawn from 1.6-2.4 and stated exactly in the cell) to 8 bits; with ``--jpeg Q``,
+a JPEG round trip (locate told its quality). Plain doors (no arris; ``--arris``: rounded or chamfered arrises of 0.5-3 mm,
 the cell told their size, lit from one side), 0.8-1.6 px of blur, poses over the fixture's range.
 
 Per way of summing: the answered share, x and z RMS, the share within 2 claimed sigma, and the response
@@ -33,8 +32,8 @@ import numpy as np
 
 from doorloc.cell import DoorSize, load_cell
 from doorloc.pose import DoorPose
-from doorloc.sim.door import render_door
-from doorloc.sim.effects import Effects
+from doorloc.sim.door import render_hued_light
+from doorloc.sim.effects import Effects, bayer_samples, demosaiced
 from doorloc.vision.coarse import coarse_edges
 from doorloc.vision.locate import locate_steps, run_steps
 from doorloc.vision.luminance import luminance_plane
@@ -61,21 +60,13 @@ def hued_door(cell, rng: np.random.Generator, bayer: bool, jpeg: int, arris: boo
             light_azimuth_deg=float(rng.choice([-1, 1]) * rng.uniform(10, 80)),
             light_elevation_deg=rng.uniform(0, 30),
         )
-    lens = dict(blur_sigma_px=blur, bit_depth=16)
     wood = dict(albedo_hinge=1.0, albedo_chamfer=1.0, albedo_side=0.8, albedo_end=0.7)
-    alone = render_door(cell, door, pose, effects=Effects(albedo_background=0.0, **wood, **lit, **lens))
-    dark = {k: 0.0 for k in (*wood, "albedo_back")}
-    behind = render_door(cell, door, pose, effects=Effects(albedo_background=1.0, **dark, **lit, **lens))
-    light = alone.image[..., None] / 65535.0 * (WOOD_BGR * rng.uniform(0.7, 1.0)) + behind.image[
-        ..., None
-    ] / 65535.0 * (FIXTURE_BGR * rng.uniform(0.3, 1.0))
+    hues = WOOD_BGR * rng.uniform(0.7, 1.0), FIXTURE_BGR * rng.uniform(0.3, 1.0)
+    light = render_hued_light(cell, door, pose, *hues, Effects(blur_sigma_px=blur, **wood, **lit))
     noise = READ_NOISE_DN / 255.0
     if bayer:
-        raw = np.empty(light.shape[:2])
-        raw[0::2, 0::2], raw[0::2, 1::2] = light[0::2, 0::2, 2], light[0::2, 1::2, 1]
-        raw[1::2, 0::2], raw[1::2, 1::2] = light[1::2, 0::2, 1], light[1::2, 1::2, 0]
-        raw = np.rint(np.clip(raw + rng.normal(0.0, noise, raw.shape), 0, 1) * 65535).astype(np.uint16)
-        light = cv2.demosaicing(raw, cv2.COLOR_BayerBG2BGR) / 65535.0
+        raw = bayer_samples(light)
+        light = demosaiced(np.clip(raw + rng.normal(0.0, noise, raw.shape), 0.0, 1.0), "bilinear")
     else:
         light = light + rng.normal(0.0, noise, light.shape)
     img = np.rint(np.clip(light, 0.0, 1.0) ** (1.0 / gamma) * 255.0).astype(np.uint8)

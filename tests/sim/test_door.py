@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 from doorloc.cell import DoorSize, load_cell
 from doorloc.pose import DoorPose
-from doorloc.sim.door import door_faces, render_door, true_corner_px
+from doorloc.sim.door import door_faces, render_door, render_hued_light, true_corner_px
 from doorloc.sim.effects import SRGB_STATED_GAMMA, WOOD_TINT_BGR, Effects, form_image, srgb_from_linear
 
 CELL = load_cell(Path(__file__).parents[2] / "fixtures" / "cell_thesis.yaml")
@@ -271,6 +271,24 @@ def test_a_bayer_camera_keeps_a_faces_colour_and_correlates_its_noise(method):
 
     assert abs(neighbour_correlation({})) < 0.05
     assert neighbour_correlation({"demosaic": method}) > 0.15
+
+
+def test_a_hued_door_is_the_door_and_the_background_each_in_its_colour():
+    """The light of a door of one hue on a background of another: away from edges each face's channels are
+    its colour times its albedo's light (the response, noise and output settings of the effects unused);
+    in grey, across the edges too, the two renders add up to the plain render of both."""
+    door, pose = DoorSize(900, 40, 2100), DoorPose(2, 3, 1)
+    fx = Effects(albedo_hinge=0.6, blur_sigma_px=1.0, gamma=2.2, read_noise_dn=3.0, jpeg_quality=80)
+    wood, fixture = np.array([0.35, 0.55, 0.8]), np.array([0.3, 0.2, 0.12])
+    light = render_hued_light(CELL, door, pose, wood, fixture, fx)
+    assert light.shape == (1080, 1920, 3) and light.dtype == np.float64
+    u, v = true_corner_px(CELL, door, pose).astype(int)
+    np.testing.assert_allclose(light[v - 50, u + 50], 0.6 * wood, atol=1e-4)
+    np.testing.assert_allclose(light[v + 50, u - 50], fixture, atol=1e-4)
+    grey = render_hued_light(CELL, door, pose, np.ones(3), np.ones(3), fx)
+    both = Effects(albedo_hinge=0.6, albedo_background=1.0, blur_sigma_px=1.0, bit_depth=16)
+    plain = render_door(CELL, door, pose, effects=both).image / 65535.0
+    np.testing.assert_allclose(grey[..., 1], plain, atol=2.0 / 65535.0)
 
 
 def test_arris_is_rendered_between_hinge_face_and_background():

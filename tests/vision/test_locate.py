@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from doorloc.cell import DoorSize, load_cell
 from doorloc.pose import DoorPose
-from doorloc.sim.door import render_door
+from doorloc.sim.door import render_door, render_hued_light
 from doorloc.sim.effects import Effects
 from doorloc.vision.coarse import coarse_edges
 from doorloc.vision.locate import LocateConfig, LocateTrace, locate, locate_steps, run_steps
@@ -1829,16 +1829,8 @@ def test_a_door_of_another_hue_than_its_background_is_placed_in_light(cell):
     (``bench/bench_colour_doors.py --n 24 --seed 1``: x RMS 0.0063 -> 0.0006 mm). A colour JPEG's channels
     are summed in light as well (the same door stored at quality 90: 0.0043 mm off so, 0.0057 in levels)."""
     door, pose, gamma = DoorSize(900, 40, 2100), DoorPose(-4.1, 6.3, 0.8), 2.31
-    lens = Effects(blur_sigma_px=1.49, bit_depth=16)
-    alone = render_door(
-        cell, door, pose, effects=replace(lens, albedo_hinge=1.0, albedo_background=0.0)
-    ).image
-    behind = render_door(
-        cell, door, pose, effects=replace(lens, albedo_hinge=0.0, albedo_background=1.0)
-    ).image
-    light = alone[..., None] / 65535.0 * np.array([0.3, 0.47, 0.68]) + behind[..., None] / 65535.0 * np.array(
-        [0.18, 0.12, 0.07]
-    )
+    wood, fixture = np.array([0.3, 0.47, 0.68]), np.array([0.18, 0.12, 0.07])
+    light = render_hued_light(cell, door, pose, wood, fixture, Effects(albedo_hinge=1.0, blur_sigma_px=1.49))
     light += np.random.default_rng(5).normal(0.0, 0.6 / 255.0, light.shape)
     img = np.rint(np.clip(light, 0.0, 1.0) ** (1.0 / gamma) * 255.0).astype(np.uint8)
     c = replace(cell, response_gamma=gamma)

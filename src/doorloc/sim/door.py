@@ -24,7 +24,7 @@ array([802.56..., 708.23...])
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -34,7 +34,15 @@ from doorloc.pose import DoorPose, door_to_cell, yaw_rotation_matrix
 from doorloc.sim.effects import Effects, form_image, lambert_shade, wood_grain
 from doorloc.sim.raster import GridTexture, Surface, paint_rectangles, render_radiance
 
-__all__ = ["DoorFace", "door_faces", "RenderedDoor", "render_door", "true_corner_px", "BACKGROUND_GAP_MM"]
+__all__ = [
+    "DoorFace",
+    "door_faces",
+    "RenderedDoor",
+    "render_door",
+    "render_hued_light",
+    "true_corner_px",
+    "BACKGROUND_GAP_MM",
+]
 
 #: distance of the background plane behind the door's far edge face, mm
 BACKGROUND_GAP_MM = 300.0
@@ -443,3 +451,49 @@ def render_door(
         "effects": effects.to_dict(),
     }
     return RenderedDoor(image, corner, truth, radiance)
+
+
+def render_hued_light(
+    cell: Cell,
+    door: DoorSize,
+    pose: DoorPose,
+    door_bgr: np.ndarray,
+    background_bgr: np.ndarray,
+    effects: Effects | None = None,
+) -> np.ndarray:
+    """The linear light (H, W, 3: BGR, float64, full scale 1) through the lens of a door of one hue on a
+    background of another: the door alone (its background black) and the background alone (the door's
+    faces black), each rendered by :func:`render_door` linear, noise-free and at 16 bits, times its colour
+    (``door_bgr``, ``background_bgr``: each channel's share of the light). Light adds, so the two renders
+    sum per channel; the renderer's own scenes have one grey level per face. ``effects``: the faces'
+    albedos, the lighting and the lens (its response, noise, output and camera settings are not used).
+
+    A colour camera's response, noise, colour filter and file are the caller's to add
+    (:func:`doorloc.sim.effects.bayer_samples`, :func:`doorloc.sim.effects.demosaiced`)."""
+    linear = replace(
+        effects or Effects(),
+        gamma=1.0,
+        response_curve="power",
+        full_well_e=0.0,
+        read_noise_dn=0.0,
+        sharpen_amount=0.0,
+        bit_depth=16,
+        jpeg_quality=0,
+        color=False,
+        demosaic="none",
+    )
+    plain = replace(cell, camera_photometry=None)
+    behind_only = replace(
+        linear,
+        albedo_background=1.0,
+        albedo_hinge=0.0,
+        albedo_side=0.0,
+        albedo_end=0.0,
+        albedo_chamfer=0.0,
+        albedo_back=0.0,
+    )
+    alone = render_door(plain, door, pose, effects=replace(linear, albedo_background=0.0)).image
+    behind = render_door(plain, door, pose, effects=behind_only).image
+    return alone[..., None] / 65535.0 * np.asarray(door_bgr) + behind[..., None] / 65535.0 * np.asarray(
+        background_bgr
+    )

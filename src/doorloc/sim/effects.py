@@ -28,6 +28,8 @@ __all__ = [
     "SRGB_STATED_GAMMA",
     "WOOD_TINT_BGR",
     "Effects",
+    "bayer_samples",
+    "demosaiced",
     "form_image",
     "lambert_shade",
     "srgb_from_linear",
@@ -337,18 +339,19 @@ def _lens_blur(img: np.ndarray, effects: Effects) -> np.ndarray:
     return img
 
 
-def _bayer_mosaic(light: np.ndarray) -> np.ndarray:
-    """A single-chip colour sensor's raw samples of ``light`` (H, W): each pixel the light times its filter's
-    channel share of the wood tint, the filters laid out RGGB (red at even rows and columns)."""
-    b, g, r = (np.float32(v) for v in WOOD_TINT_BGR)
-    share = np.empty(light.shape[:2], np.float32)
-    share[0::2, 0::2], share[0::2, 1::2], share[1::2, 0::2], share[1::2, 1::2] = r, g, g, b
-    return light * share
+def bayer_samples(light_bgr: np.ndarray) -> np.ndarray:
+    """A single-chip colour sensor's raw samples (H, W) of the light of each channel ``light_bgr`` (H, W, 3,
+    BGR): each pixel its filter's channel, the filters laid out RGGB (red at even rows and columns)."""
+    raw = np.empty(light_bgr.shape[:2], light_bgr.dtype)
+    raw[0::2, 0::2], raw[0::2, 1::2] = light_bgr[0::2, 0::2, 2], light_bgr[0::2, 1::2, 1]
+    raw[1::2, 0::2], raw[1::2, 1::2] = light_bgr[1::2, 0::2, 1], light_bgr[1::2, 1::2, 0]
+    return raw
 
 
-def _demosaiced(raw: np.ndarray, method: str) -> np.ndarray:
-    """The BGR light (H, W, 3) OpenCV's demosaicing ``method`` makes of the RGGB raw samples ``raw`` in
-    [0, 1], quantised to 16 bits first (OpenCV demosaics integers; a camera's raw has 10-14)."""
+def demosaiced(raw: np.ndarray, method: str) -> np.ndarray:
+    """The BGR light (H, W, 3, float32) OpenCV's demosaicing ``method`` (``bilinear`` or ``edge_aware``) makes
+    of RGGB raw samples ``raw`` in [0, 1] (:func:`bayer_samples`), quantised to 16 bits first (OpenCV
+    demosaics integers; a camera's raw has 10-14)."""
     import cv2
 
     counts = np.rint(raw * 65535.0).astype(np.uint16)
@@ -406,7 +409,7 @@ def form_image(
         img = img * field
     img = _lens_blur(img, effects)
     if effects.demosaic != "none":
-        img = _bayer_mosaic(img)
+        img = bayer_samples(img[..., None] * np.array(WOOD_TINT_BGR, np.float32))
     if effects.full_well_e > 0 or effects.read_noise_dn > 0:
         # Poisson-Gaussian sensor noise: shot noise of variance mean/full_well (the Gaussian limit of
         # Poisson, within 1 % above ~100 electrons) plus read noise, drawn as one normal variate.
@@ -417,7 +420,7 @@ def form_image(
         img = img + np.sqrt(var) * rng.standard_normal(img.shape, dtype=np.float32)
     img = np.clip(img, 0.0, 1.0, out=img if img is not radiance else None)
     if effects.demosaic != "none":
-        img = _demosaiced(img, effects.demosaic)
+        img = demosaiced(img, effects.demosaic)
     if response is not None and response.beyond_power_law:
         # full-scale light at the response's full scale, as locate's mapping reads it (vision.luminance)
         top_light = float(response.light_from_grey(np.array([1.0]))[0])
