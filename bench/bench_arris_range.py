@@ -46,6 +46,7 @@ thickness 0.09), the worst 0.30; ``within``, the worst 1.27; ``bound``, 90 % wit
     OMP_NUM_THREADS=1 PYTHONPATH=src python bench/bench_arris_range.py [--n 16] [--seed 7000]
         [--sets round,chamfer,ambient,small,sharp,grain,dark,focused,focused_dark,finish,halo,defocus,sharp_halo,sharpened]
         [--thickness-check refuse|report]
+        [--recipe-arris-zero]   (every door located with a recipe that gives no arris: untold arrises)
         [--response-factor F]   (a cell whose camera response was measured, e.g. 1.11)
         [--cell-gamma-off within|bound]   (the cell told a wrong exponent: the camera's times the cell's
                                            factor to a power drawn from -1..1 (within), or at +-1 (bound))
@@ -272,8 +273,8 @@ def run_one(
 ) -> Outcome:
     """Locate one rendered door and compare with its true pose. ``limits``: the cell's own ``locate``
     settings where ``cell``'s are opened (``--open-limits``): an answer beyond them is marked. ``real``: the
-    door in the image where it is not the recipe's ``door`` (``--wrong-thickness``); the thickness's error is
-    against it. ``response_ends``: the answer located again at the ends of the cell's response factor
+    door in the image where it is not the recipe's ``door`` (``--wrong-thickness``, ``--recipe-arris-zero``);
+    the thickness's error is against it. ``response_ends``: the answer located again at the ends of the cell's response factor
     (:func:`response_end_moves`). ``photometry`` (not None): the cell carries its camera's photometric model, the
     power law at the cell's exponent with a held-out edge residual of the cell's ``optics_edge_sigma_px``,
     measured on board photographs that read the response up to this level (``--measured-photometry``,
@@ -528,6 +529,12 @@ def main() -> None:
         "with the recipe; an answer is a wrong door passed",
     )
     ap.add_argument(
+        "--recipe-arris-zero",
+        action="store_true",
+        help="every door located with a recipe that gives no arris (arris_mm 0), whatever its arrises: an "
+        "answer for a door with an arris is an untold arris passed (its errors against the door in the image)",
+    )
+    ap.add_argument(
         "--response-ends",
         action="store_true",
         help="locate each answered door again with the cell's exponent at the ends of its "
@@ -635,10 +642,13 @@ def main() -> None:
                 if args.light_told
                 else cell
             )
+            # the door in the image, and the recipe it is located with (--wrong-thickness, --recipe-arris-zero)
+            real = dataclasses.replace(door, thickness_mm=door.thickness_mm + args.wrong_thickness)
+            recipe = dataclasses.replace(door, arris_mm=0.0) if args.recipe_arris_zero else door
             rows.append(
                 run_one(
                     lit,
-                    door,
+                    recipe,
                     pose,
                     fx,
                     gamma,
@@ -646,14 +656,13 @@ def main() -> None:
                     label,
                     told,
                     limits,
-                    dataclasses.replace(door, thickness_mm=door.thickness_mm + args.wrong_thickness)
-                    if args.wrong_thickness
-                    else None,
+                    real if real != recipe else None,
                     args.response_ends,
                     args.measured_to if args.measured_photometry else None,
                 )
             )
         wrong = f", every door {args.wrong_thickness:+g} mm off its recipe" if args.wrong_thickness else ""
+        wrong += ", every recipe without an arris" if args.recipe_arris_zero else ""
         summary(f"{name} (seeds {args.seed + 1000 * k}..{args.seed + 1000 * k + args.n - 1}{wrong})", rows)
         every += rows
         sys.stdout.flush()
