@@ -386,7 +386,9 @@ def _ungated(cfg: LocateConfig) -> LocateConfig:
     noise to weigh the pose components by; nor, for the same reason, with the doubt of a shoulder in the
     camera's response (``locate.response_shoulder_knee``: the catalogue's ``shoulder`` is such an effect),
     which would locate every bright arris image (and plain one whose edges read an exponent in the
-    cell's place) twice for a sigma alone (it never moves a pose)."""
+    cell's place) twice for a sigma alone (it never moves a pose). Nor with the refusal of an arris that the
+    recipes do not give (``locate.untold_arris_shift_px``): that arris is an effect the check names (the
+    catalogue's ``arris``), from the poses the cell gives without it."""
     big = 1e6
     return replace(
         cfg,
@@ -397,6 +399,7 @@ def _ungated(cfg: LocateConfig) -> LocateConfig:
         light_from_door=False,
         optics_edge_sigma_px=0.0,
         response_shoulder_knee=1.0,
+        untold_arris_shift_px=0.0,
     )
 
 

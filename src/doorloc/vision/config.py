@@ -63,6 +63,13 @@ class LocateConfig:
         answered, with ``thickness_verified: false`` and the reason in ``thickness_unverified_reason``, for a
         line that checks the door's thickness elsewhere. Under either a door that measures wrong beyond the
         tolerance at confidence is refused ``thickness_mismatch``; nothing passes silently.
+    untold_arris_shift_px : float
+        For a door whose recipe gives no arris: refuse ``arris_mismatch`` where both the bottom end and the
+        reference arris move by at least this (and 5 of its standard errors) when their transitions are read
+        between plateaus 20 px out, as the strip of a chamfer or rounding the recipe does not give makes them
+        (:mod:`doorloc.vision.untold_arris`). 0.4 px: sharp-edged doors of every bench set moved their bottom
+        end by 0.29 px at most (wood grain moves the long arrises more, but not the bottom end); 0 turns the
+        check off.
     light_direction_deg : (float, float) or None
         Direction towards the cell's main light, ``[azimuth, elevation]`` in degrees in the cell frame: the
         unit vector ``(cos el sin az, -cos el cos az, sin el)`` (azimuth 0 towards the camera's side of the
@@ -208,6 +215,7 @@ class LocateConfig:
     thickness_search_mm: float = 15.0
     thickness_tolerance_mm: float = 1.0
     thickness_check: Literal["refuse", "report"] = "refuse"
+    untold_arris_shift_px: float = 0.4
     min_inliers: int = 40
     min_inlier_fraction: float = 0.6
     max_rms_residual_px: float = 1.5
@@ -255,6 +263,10 @@ class LocateConfig:
             raise ValueError(
                 "response_shoulder_knee is a level in 0.05..1 of full scale (1: no shoulder doubted), got "
                 f"{self.response_shoulder_knee:g}"
+            )
+        if not 0.0 <= self.untold_arris_shift_px <= 10.0:
+            raise ValueError(
+                f"untold_arris_shift_px is an edge shift in 0..10 px (0: off), got {self.untold_arris_shift_px:g}"
             )
         if not 0.0 <= self.optics_edge_sigma_px <= 5.0:
             raise ValueError(

@@ -4,7 +4,7 @@ a pattern (a calibration board) from a door whose edges failed, and flat patches
 noise says whether the camera sharpens its images.
 
 The refusal codes it gives: ``edge_missing``, ``edge_not_straight``, ``corner_hidden``, ``overexposed``,
-``sharpened``, ``outside_envelope``, ``thickness_mismatch``, ``uncertain``, ``not_a_door``
+``sharpened``, ``outside_envelope``, ``thickness_mismatch``, ``uncertain``, ``not_a_door``, ``arris_mismatch``
 (:mod:`doorloc.vision.quality` holds the checks and their messages).
 """
 
@@ -46,6 +46,7 @@ from doorloc.vision.uncertainty import (
     calibration_pose_sigma,
     propagate,
 )
+from doorloc.vision.untold_arris import untold_arris_check
 
 __all__ = ["PATTERN", "gate_and_answer", "uncertain_pose_words", "within_pose_limits"]
 
@@ -67,19 +68,19 @@ def gate_and_answer(
     lum: LuminancePlane,
 ) -> LocateResult:
     """The gate: the answer, or the refusal with its reason, from the refined edges, the response check and
-    the lines' doubts. (It reads pixels only to tell a pattern from a door, a far face's readings apart, and
-    what the camera made of the door's light.)
-
-    The checks in the order they are weighed (the first that refuses is the answer's reason, unless a pose
-    outside the envelope or a pattern in view explains it better, :func:`_first_refusal`): each line's support
-    and straightness, the corner's support, overexposure and sharpening, an arris strip read two ways or one
-    that took its edge, the envelope, the thickness, the corner's and the pose's uncertainty."""
+    the lines' doubts (it reads pixels only to tell a pattern from a door, an untold arris's strip, a far
+    face's readings apart, and what the camera made of the door's light). The checks in the order they are
+    weighed (the first that refuses is the answer's reason, unless a pose outside the envelope or a pattern
+    in view explains it better, :func:`_first_refusal`): an arris strip the recipe does not give, each line's
+    support and straightness, the corner's support, overexposure and sharpening, an arris strip read two ways
+    or one that took its edge, the envelope, the thickness, the corner's and the pose's uncertainty."""
     r, cell = check.refined, check.cell
     plane, s8 = lum.plane, lum.scale_to_8bit
     model, figures, disputed = doubts.model, doubts.figures, doubts.response_disputed
     fit, pose = r.fit, r.pose
     diagnostics = _fit_diagnostics(r, region, door, figures)
     lines, refusals = _line_checks(r, region, model, cfg)
+    refusals.insert(0, untold_arris_check(plane, r, door, cell, cfg, diagnostics))
     refusals += _corner_support(r, region, cfg, diagnostics)
     refusals += _exposure_checks(lum, check, region, cfg, diagnostics)
     took = q.check_strips_took_their_edge({k: f.blur_px for k, (f, _) in r.arris_fits.items()}, HUMAN)
