@@ -52,7 +52,7 @@ WIDE_READ_PX = 20
 #: pixels averaged at each end of the wide reading for its plateaus
 WIDE_PLATEAU_PX = 4
 #: scan lines read at most per line (evenly spread): a median of a few hundred is steady to a few
-#: hundredths of a pixel, and the check costs about 0.1 ms a line
+#: hundredths of a pixel, and the compiled pass costs about 0.01 ms a line
 WIDE_MAX_LINES = 256
 #: the lines asked, and how a person names them
 UNTOLD_ARRIS_LINES = {"bottom": "the bottom end", "reference": "the reference arris"}
