@@ -11,10 +11,10 @@ strip's excess area. A plain step under any even point spread leaves it in place
 response (both readings linearise alike and the stretches the wide one adds are flat), and so does a lens's
 halo read at the camera's exponent. Texture along an edge moves it: wood grain runs along the door's height,
 beside the long arrises (up to 2.7 px there on the surfaces bench's grain and thin doors), but across the
-bottom end, whose scan lines each run along one stripe (0.29 px at most there over about 430 sharp-edged
-doors of the benches' sets). So the strip is asked of the bottom end and the reference arris together
-(:func:`untold_arris_refusal`); a line's strip lit apart from the other's, or anything else beside one edge
-alone (a shadow on the background, a fixture's edge), is not enough.
+bottom end, whose scan lines each run along one stripe (0.29 px at most there over 336 sharp-edged doors
+of the benches' sets, read at the camera's exponent). So the strip is asked of the bottom end and the
+reference arris together (:func:`untold_arris_refusal`); a line's strip lit apart from the other's, or
+anything else beside one edge alone (a shadow on the background, a fixture's edge), is not enough.
 
 A strip whose shade equals the background's (or the face's) does not show: it looks like a plain step at
 its other border, and only the door's thickness can tell (``thickness_mismatch``), by twice the arris's
@@ -202,17 +202,18 @@ def untold_arris_refusal(
     seen = {k: round(s.shift_px, 3) for k, s in shifts.items() if s is not None}
     if not all(s is not None and s.significant and abs(s.shift_px) >= limit_px for s in shifts.values()):
         return None, seen
-    moved = " and ".join(
-        f"{UNTOLD_ARRIS_LINES[k]}'s by {abs(px):.1f} px ({abs(px) * scale_mm_per_px:.2f} mm)"
+    moved = "; ".join(
+        f"{UNTOLD_ARRIS_LINES[k]} by {abs(px):.1f} px, {abs(px) * scale_mm_per_px:.2f} mm"
         for k, px in seen.items()
     )
     return (
         Refusal(
             "arris_mismatch",
-            f"the door's edges are not the sharp steps its recipe gives (arris_mm 0): read with their plateaus "
-            f"{WIDE_READ_PX} px out, {moved} move, as the strip of a chamfered or rounded arris beside them makes; "
-            "if the door's arrises are chamfered or rounded, give their size and profile in the recipe "
-            "(arris_mm, arris_profile); else look for paint, tape or a shadow along the door's edges",
+            f"the door's edges are not the sharp steps its recipe gives (arris_mm 0): read with their "
+            f"plateaus {WIDE_READ_PX} px out they move ({moved}), as the strip of a chamfered or "
+            "rounded arris beside them makes; if the door's arrises are chamfered or rounded, give "
+            "their size and profile in the recipe (arris_mm, arris_profile); else look for paint, tape "
+            "or a shadow along the door's edges",
         ),
         seen,
     )
