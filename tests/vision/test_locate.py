@@ -127,6 +127,23 @@ def test_an_unknown_arris_is_refused_not_taken_for_the_corner(cell):
     assert abs(unchecked.x_mm - pose.x_mm) > 0.1  # the chamfer's outer edge, not the corner
 
 
+def test_the_door_width_term_is_the_corners_move_over_the_widths_sigma(cell):
+    """The recipe's width places the hinge face's depth, which no pixel shows: a door 1 mm wider than its recipe
+    (the face 0.5 mm nearer, the fixture centring the door) moves the answer by what the ``door_width`` term
+    says for a width known to 1 mm."""
+    pose, door = DoorPose(4.0, -3.0, 0.6), DoorSize(900, 50, 2100)
+    img = render_door(cell, door, pose, effects=Effects(blur_sigma_px=1.0)).image
+    res = locate(img, cell, door, config=replace(cell.locate, door_width_sigma_mm=1.0))
+    assert res.ok, res.error
+    term = next(t for t in res.diagnostics["uncertainty_budget"] if t["source"] == "door_width")
+    wider = locate(img, cell, replace(door, width_mm=901.0))
+    assert term["x_mm"] == pytest.approx(abs(wider.x_mm - res.x_mm), rel=0.05), (term, wider.x_mm - res.x_mm)
+    assert term["z_mm"] == pytest.approx(abs(wider.z_mm - res.z_mm), rel=0.05), (term, wider.z_mm - res.z_mm)
+    exact = locate(img, cell, door)
+    assert all(t["source"] != "door_width" for t in exact.diagnostics["uncertainty_budget"])
+    assert res.uncertainty.x_mm > exact.uncertainty.x_mm and res.uncertainty.z_mm > exact.uncertainty.z_mm
+
+
 def _located_with_recipe(cell, recipe: DoorSize, pose: DoorPose, fx: Effects, seed: int, off_mm: float = 0.0):
     """A door ``off_mm`` thicker than its recipe (a wrong door where it is not 0), rendered and located with
     the recipe."""

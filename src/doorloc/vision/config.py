@@ -177,6 +177,12 @@ class LocateConfig:
     calibration_sigma_px : float
         Default 1-sigma projection error of a camera calibration that carries no covariance, px (the
         floor of the ``calibration`` term); 0 only for a camera known exactly (rendered images).
+    door_width_sigma_mm : float
+        1-sigma of the doors' real widths about their recipes' (a door maker's tolerance), mm. The recipe's
+        width places the hinge face's depth (the fixture's ``face_shift_per_width``), which no pixel shows:
+        the answer's x and z take the corner's move over that depth's sigma (``uncertainty_budget``'s
+        ``door_width`` term; in the thesis cell about 0.05 mm of x and 0.06 of z per mm of width). 0 (the
+        default): the recipe's width taken as exact.
     cell_sigma_mm, cell_sigma_deg : float
         1-sigma of the camera's placement in the cell (the cell check), carried into x, z and yaw.
     optics_edge_sigma_px : float
@@ -236,6 +242,7 @@ class LocateConfig:
     calibration_sigma_px: float = 0.05
     cell_sigma_mm: float = 0.0
     cell_sigma_deg: float = 0.0
+    door_width_sigma_mm: float = 0.0
     optics_edge_sigma_px: float = 0.13
     light_direction_deg: tuple[float, float] | None = None
     light_direction_sigma_deg: float = 10.0
@@ -263,6 +270,10 @@ class LocateConfig:
             raise ValueError(
                 "response_shoulder_knee is a level in 0.05..1 of full scale (1: no shoulder doubted), got "
                 f"{self.response_shoulder_knee:g}"
+            )
+        if not 0.0 <= self.door_width_sigma_mm <= 50.0:
+            raise ValueError(
+                f"door_width_sigma_mm is a 1-sigma width in 0..50 mm, got {self.door_width_sigma_mm:g}"
             )
         if not 0.0 <= self.untold_arris_shift_px <= 10.0:
             raise ValueError(

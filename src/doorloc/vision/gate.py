@@ -629,6 +629,8 @@ _UNCERTAIN_HINT = {
     "a camera response the cell does not describe); check the cell's door and camera settings",
     "calibration": "the camera calibration is too uncertain here; calibrate again with views covering the door's corner",
     "cell": "the cell's camera placement is too uncertain; run the cell check again",
+    "door_width": "the doors' widths are known only to locate.door_width_sigma_mm, and the width places the "
+    "hinge face's depth; give each door's measured width with it, or measure the widths closer",
 }
 
 
@@ -673,6 +675,9 @@ def _budget(
         sc,
     )
     camera = {"calibration": cal_t, "cell": (cfg.cell_sigma_mm, cfg.cell_sigma_mm, cfg.cell_sigma_deg)}
+    if cfg.door_width_sigma_mm > 0:  # the width places the hinge face's depth, which no pixel shows
+        dy = abs(cell.fixture.face_shift_per_width) * cfg.door_width_sigma_mm
+        camera["door_width"] = (*region.face_map.depth_move(pose.corner_px, dy), 0.0)
     return propagate(model, fit.offset_sigma, fit.angle_sigma_rad, levers, sc, camera, other_mm)
 
 

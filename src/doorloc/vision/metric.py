@@ -57,6 +57,14 @@ class PlaneMap:
         """The same camera onto another plane ``Y = depth_y``."""
         return PlaneMap(self.posed, depth_y)
 
+    def depth_move(self, uv: np.ndarray, dy_mm: float) -> tuple[float, float]:
+        """How far (``|dX|, |dZ|`` mm) the point under the pixel ``uv`` moves on the plane when the plane
+        moves by ``dy_mm`` along Y (the mean over a move each way): what a depth known to ``dy_mm`` leaves
+        in doubt of a point the image places."""
+        ends = [self.at_depth(self.depth_y + s * dy_mm).to_plane(np.asarray([uv], float))[0] for s in (-1, 1)]
+        dx, dz = np.abs(ends[1] - ends[0]) / 2.0
+        return float(dx), float(dz)
+
     def to_plane(self, uv: np.ndarray) -> np.ndarray:
         """Pixels ``(N, 2)`` -> ``(X, Z)`` mm on the plane, shape ``(N, 2)`` (NaN where no ray)."""
         uv = np.asarray(uv, float).reshape(-1, 2)
