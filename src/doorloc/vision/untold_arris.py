@@ -133,7 +133,14 @@ def _wide_shift(buf, pitch_along, pitch_scan, n_along, scan, along, valid, lut, 
     """:func:`wide_reading_shift`'s figures, compiled: the median shift, its standard error from the medians
     of :data:`_BLOCKS` contiguous blocks of the scan lines, and the count of scan lines read (every
     ``every``-th valid one whose window lies in the image and steps, their count cut to a multiple of the
-    blocks'). Written with numpy the same took about 0.2 ms a line, most of it the calls' own cost."""
+    blocks'). Written with numpy the same took about 0.2 ms a line, most of it the calls' own cost.
+
+    Why not the area estimator itself (:func:`doorloc.vision.edges.subpixel_edges` with a window of
+    ``WIDE_READ_PX - WIDE_PLATEAU_PX`` and plateaus of ``WIDE_PLATEAU_PX``, then the medians in numpy): it
+    reads the same moves to about 0.01 px (the trapezoid here, its rectangle sum there; two doors of 128 at
+    ``bench_arris_range.py --recipe-arris-zero --seed 71100``, near the limit, fell the other side) but
+    took 0.14 ms a realistic frame against this pass's 0.02 (2026-12-06; the Python around its kernel and
+    the medians), on every frame of a door without an arris."""
     # why many parameters: a numba nopython kernel over the plane's flat buffer takes arrays and scalars only
     length = 2 * WIDE_READ_PX + 1
     inner = length - 2 * WIDE_PLATEAU_PX
