@@ -753,6 +753,24 @@ def test_a_side_arris_read_either_way_is_uncertain_not_a_wrong_door(
             assert ("along X" in r.error) == (misread != "far"), r.error
 
 
+def test_a_far_face_as_bright_as_the_hinge_face_carries_its_other_reading_in_the_thickness_sigma(cell):
+    """A 31.1 mm door under ambient light whose far face, 7 % brighter than its hinge face, is seen as a 2 px
+    band under a 1.5 px blur (``bench_surfaces.py --sets grain_strong --seed 5157``, door 27, rendered here
+    without its grain, noise, JPEG and shading): one step, which the far-face fit reads as a sliver at the
+    arris; the door measures 0.44 mm thick. Both readings pass the tolerance; the thickness's sigma reaches
+    the recipe's (it was 0.026 mm: 17 sigma)."""
+    door = DoorSize(900, 31.1227, 2100)
+    pose = DoorPose(-2.1, -1.8, -0.63)
+    fx = Effects(albedo_hinge=0.2634, albedo_side=0.2827, albedo_background=0.1281, blur_sigma_px=1.33)
+    exact = replace(cell.locate, calibration_sigma_px=0.0, optics_edge_sigma_px=0.0)
+    r = locate(render_door(cell, door, pose, effects=fx, seed=5163027).image, cell, door, config=exact)
+    assert r.ok, r.error
+    assert r.diagnostics["far_face_visible"]
+    check = r.diagnostics["thickness_check"]
+    assert abs(check["difference_mm"]) <= 2.0 * check["sigma_mm"], check
+    assert abs(r.x_mm - pose.x_mm) <= 2.0 * r.uncertainty.x_mm
+
+
 def test_a_thickness_miss_an_unseen_silhouette_may_hide_is_uncertain_not_a_wrong_door(cell):
     """A 2.96 mm rounding as dark as the background under ambient light (``bench_arris_range.py --n 32
     --seed 9100 --sets dark``, seed 15130, its draw rounded): the far arris's outer edge has no contrast, its

@@ -53,6 +53,24 @@ def test_no_recipe_reading_where_the_image_can_tell(measured_mm, band_px, level,
     assert other_reading(_refined(measured_mm, band_px, level, blur_px), door, 1.0) == (0.0, None), why
 
 
+def test_a_wide_band_as_bright_as_the_hinge_face_beside_a_sliver_at_the_step_weighs_the_recipe():
+    """A 31.1 mm door whose far face, 7 % brighter than its hinge face, is a 2 px band under a 1.5 px blur: one
+    step, fitted as a 0.16 px sliver darker than black at it (0.47 mm thick). At the recipe's arris the band is
+    1.86 px, wider than the blur, but it needs a level of -0.08 (the hinge face's) to leave the step the fitted
+    profile leaves (its area edge, 0.35 px inside the fitted arris): the image cannot tell the two apart."""
+    door = DoorSize(900, 31.1227, 2100)
+    other_mm, other = other_reading(_refined(31.5952, 0.158, 3.20, 1.51), door, 1.0)
+    assert other == pytest.approx(31.1227)
+    assert other_mm == pytest.approx(-0.4725)
+
+
+def test_a_wide_band_that_would_stand_apart_from_the_hinge_face_is_no_other_reading():
+    """The same sliver at half the contrast leaves its step 0.08 px outside the arris: the recipe's band would
+    need a level 0.31 of the contrast above the hinge face's, two steps the profile would show."""
+    door = DoorSize(900, 31.1227, 2100)
+    assert other_reading(_refined(31.5952, 0.158, 0.5, 1.51), door, 1.0) == (0.0, None)
+
+
 def test_no_reading_without_a_far_face_beside_the_arris():
     door = DoorSize(900, 32.52, 2100)
     assert other_reading(_refined(32.79, 0.07, 1.48, 1.75, beside=False), door, 1.0) == (0.0, None)
