@@ -47,7 +47,7 @@ from doorloc.vision.uncertainty import (
     jpeg_tilt_sigma,
 )
 
-__all__ = ["edge_doubts"]
+__all__ = ["SIDE_BLUR_APART_PX", "edge_doubts"]
 
 
 def edge_doubts(
@@ -328,6 +328,32 @@ def _arris_doubts(
     return doubts
 
 
+#: px: the blurs the reference arris's and the far arris's strips read may differ by three of the blur
+#: model's plausible errors (``arris_model.BLUR_DOUBT``) before the wider one is doubted by the spread it
+#: read as blur (over 129 arris doors of the surfaces bench's combined set and the arris bench, at most
+#: 0.24 px apart where both strips were read right)
+SIDE_BLUR_APART_PX = 3.0 * BLUR_DOUBT
+
+
+def _side_blur_spreads(blurs: dict[str, float]) -> dict[str, float]:
+    """The side arris whose strip reads a blur wider than the other side arris's by more than
+    ``SIDE_BLUR_APART_PX``, and the spread (px, a standard deviation) its fit took for blur that the
+    optics do not make: ``sqrt(wider^2 - narrower^2)``, unexplained structure beside or on the strip
+    (wood grain along a rounding), over which its border may lie. Seen: a 2.6 mm rounding under 7 %
+    grain (``bench_surfaces.py --sets combined --n 40 --seed 9970``, the set's seed 9974, door 37): its
+    reference arris's strip read 1.94 px where the far arris's read 1.36 and the bottom end's 1.30 (the
+    image's 1.29), and the door was answered 0.54 mm off in x at a sigma of 0.085 mm (6.4 sigma); the
+    spread is 1.38 px, 0.28 mm. Refitted at the others' blur the strip kept its valley (its
+    ``blur_doubt_px`` 0.02 px)."""
+    ref, far = blurs.get("reference"), blurs.get("far")
+    if ref is None or far is None:
+        return {}
+    wider, narrower = ("reference", "far") if ref >= far else ("far", "reference")
+    if not blurs[wider] - blurs[narrower] > SIDE_BLUR_APART_PX:
+        return {}
+    return {wider: math.sqrt(blurs[wider] ** 2 - blurs[narrower] ** 2)}
+
+
 def _arris_blur_doubts(arris_fits: dict[str, tuple[StripFit, float]], diagnostics: dict) -> dict[str, float]:
     """Each arris line's doubt (px) from a blur its strip fit does not share with the image's other strips.
 
@@ -340,12 +366,18 @@ def _arris_blur_doubts(arris_fits: dict[str, tuple[StripFit, float]], diagnostic
     allows for ``arris_model.BLUR_DOUBT`` of blur; where a line's blur differs from the strips' median by
     more, the change of its deficit at that median (:attr:`StripFit.deficit_at_blur`, against the same
     search at its own blur) times the strip's width joins its ``arris`` doubt (``arris_correction_sigma_mm``;
-    ``diagnostics.arris_fit[line].blur_doubt_px``).
+    ``diagnostics.arris_fit[line].blur_doubt_px``). The two side arrises lie in the hinge face's plane, in
+    one focus, and run the same way (an astigmatic lens blurs them alike): where one's strip reads a blur
+    wider than the other's by more than ``SIDE_BLUR_APART_PX``, its border is in doubt by the spread the
+    optics do not explain, ``sqrt(wider^2 - narrower^2)`` px (:func:`_side_blur_spreads`).
     """
     blurs = {k: float(strip.blur_px) for k, (strip, _) in arris_fits.items() if math.isfinite(strip.blur_px)}
     out: dict[str, float] = {}
     if len(blurs) < 2:
         return out
+    for k, spread in _side_blur_spreads(blurs).items():
+        out[k] = spread
+        diagnostics.setdefault("arris_fit", {}).setdefault(k, {})["blur_spread_px"] = round(spread, 4)
     # the image's blur: the strips' median (one strip led astray does not move it; of two, their mean)
     shared = float(np.median(list(blurs.values())))
     for k, (strip, band_px) in arris_fits.items():
@@ -355,7 +387,7 @@ def _arris_blur_doubts(arris_fits: dict[str, tuple[StripFit, float]], diagnostic
             continue
         moved = abs(strip.deficit_at_blur(shared) - strip.deficit_at_blur(blurs[k])) * band_px
         if math.isfinite(moved):
-            out[k] = moved
+            out[k] = math.hypot(out.get(k, 0.0), moved)
             diagnostics.setdefault("arris_fit", {}).setdefault(k, {}).update(
                 blur_strips_px=round(shared, 3), blur_doubt_px=round(moved, 4)
             )
