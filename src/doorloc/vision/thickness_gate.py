@@ -103,8 +103,8 @@ def _unresolved_band_reading(far_fit: FarFaceFit, to_recipe_mm: float, scale_mm_
         # was fitted as a 0.16 px band darker than black at the step and measured 0.47 mm thick at a sigma
         # of 0.026 mm; rendered without grain, noise, JPEG or shading, 0.44 mm. The step is then the fitted
         # profile's area edge, its band's level unclipped: a sliver beyond either plateau's level moves it
-        # (there by -0.35 px: the recipe's band 0.08 of the contrast brighter than the hinge face; with the
-        # level clipped, 0.27, two steps).
+        # (there by -0.35 px: the recipe's band is then 0.08 of the contrast brighter than the hinge face,
+        # one step; with the level clipped, 0.27 brighter, two).
         area_step = w_fit * (1.0 - far_fit.band_level)
         return to_recipe_mm if shows_one_step(1.0 - (area_step - moved_px) / w_recipe) else 0.0
     lo, hi = BAND_LEVEL_RANGE
