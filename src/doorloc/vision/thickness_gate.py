@@ -91,10 +91,6 @@ def _unresolved_band_reading(far_fit: FarFaceFit, to_recipe_mm: float, scale_mm_
     widest = UNRESOLVED_BAND_BLURS * far_fit.blur_px
     if not (0.0 < w_recipe and w_fit <= widest):
         return 0.0
-    # the step the fitted reading leaves, px beyond its arris (a collapsed band's level says nothing: within
-    # the band), and the level the recipe's band needs to leave it
-    step = w_fit * (1.0 - min(max(far_fit.band_level, 0.0), 1.0))
-    level = 1.0 - (step - moved_px) / w_recipe
     if w_recipe > widest:
         # A band wider than the blur shows its shape, unless it is as bright as the hinge face (or as dark as
         # the background): then it joins that side and only one plain step is seen, the far face's back edge
@@ -107,6 +103,10 @@ def _unresolved_band_reading(far_fit: FarFaceFit, to_recipe_mm: float, scale_mm_
         # one step; with the level clipped, 0.27 brighter, two).
         area_step = w_fit * (1.0 - far_fit.band_level)
         return to_recipe_mm if shows_one_step(1.0 - (area_step - moved_px) / w_recipe) else 0.0
+    # the step the fitted reading leaves, px beyond its arris (a collapsed band's level says nothing: within
+    # the band), and the level the recipe's band needs to leave it
+    step = w_fit * (1.0 - min(max(far_fit.band_level, 0.0), 1.0))
+    level = 1.0 - (step - moved_px) / w_recipe
     lo, hi = BAND_LEVEL_RANGE
     return to_recipe_mm if lo <= level <= hi else 0.0
 
