@@ -18,6 +18,7 @@ from doorloc.vision.lines import (
     fit_image_line,
     fit_rectangle_edges,
     fit_rectangle_lines,
+    own_scatter_weights,
     ransac_line,
     revote_direction,
 )
@@ -286,6 +287,38 @@ def test_a_line_without_a_vote_keeps_its_offset_only():
     assert abs(math.degrees(alone.angle_rad) - 1.02) < 1e-9
     others = revote_direction(fit, groups, {"bottom": 1.0, "far": 1.0})
     assert abs(math.degrees(others.angle_rad) - 1.0) < 1e-9
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    amplitude=st.floats(0.1, 2.0),
+    offset=st.floats(-3.0, 3.0),
+    covered=st.floats(0.05, 0.4),
+    seed=st.integers(0, 10_000),
+)
+def test_a_line_judged_by_its_own_scatter_keeps_a_slow_wave_and_drops_a_covered_stretch(
+    amplitude, offset, covered, seed
+):
+    """A line's points on a slow wave about their own centre (grain beside a far arris) all keep weight,
+    whatever the wave's size and wherever the centre lies; a stretch displaced by ten waves (something on the
+    edge) weighs nothing, and points not valid or NaN weigh nothing."""
+    rng = np.random.default_rng(seed)
+    n = 500
+    scan = np.arange(n, dtype=float)
+    r = offset + amplitude * np.sin(2.0 * math.pi * scan / 430.0) + 0.02 * amplitude * rng.standard_normal(n)
+    valid = np.ones(n, bool)
+    valid[::50] = False
+    r[7] = np.nan
+    weights, centred = own_scatter_weights(r, valid)
+    ok = valid & np.isfinite(r)
+    assert np.all(weights[ok] > 0)
+    assert np.all(weights[~ok] == 0)
+    assert abs(np.nanmedian(centred[ok])) < 1e-9
+    hit = (scan > 100) & (scan < 100 + covered * n)
+    r[hit] += 10.0 * amplitude + 5.0
+    weights, _ = own_scatter_weights(r, valid)
+    assert np.all(weights[hit] == 0)
+    assert np.count_nonzero(weights[ok & ~hit] > 0) >= 0.9 * np.count_nonzero(ok & ~hit)
 
 
 def test_ransac_line_ignores_outliers():

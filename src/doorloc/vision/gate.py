@@ -22,7 +22,7 @@ from doorloc.vision import quality as q
 from doorloc.vision.bottom_end import DoorInView, settled_by_bottom_end
 from doorloc.vision.config import LocateConfig
 from doorloc.vision.edge_samples import EdgeSamples
-from doorloc.vision.lines import RectangleFit
+from doorloc.vision.lines import RectangleFit, own_scatter_weights
 from doorloc.vision.luminance import LuminancePlane
 from doorloc.vision.region import EDGE_NAMES, HUMAN, SearchRegion
 from doorloc.vision.response import ResponseFit
@@ -389,6 +389,16 @@ def _line_checks(
         n_i, mean_square, contrast, noise = q.line_figures(fit.weights[k], fit.residuals[k], located, s.noise)
         rms_mm = math.sqrt(mean_square) if n_i else float("nan")
         rms_px = rms_mm / pose.scale_mm_per_px
+        # Beside a visible far face the far arris only measures the thickness (it takes no part in the
+        # pose): a looser straightness check, and its points judged by their own scatter about their own
+        # centre where that keeps more of them than the door's common scale.
+        loose = k == "far" and far_beside
+        judged = (n_i, rms_px, contrast)
+        if loose:
+            weights, centred = own_scatter_weights(fit.residuals[k], s.valid)
+            n_own, ms_own, c_own, _ = q.line_figures(weights, centred, located, s.noise)
+            own = (n_own, math.sqrt(ms_own) / pose.scale_mm_per_px if n_own else float("nan"), c_own)
+            judged = max(judged, own, key=lambda figures: figures[0])
         # what the edge model leaves in doubt (floor, texture, far-face model...), on top of the noise
         extra = {"model_sigma_mm": round(model.line_sigma_px(k) * pose.scale_mm_per_px, 6)}
         for term, key in (("arris", "arris_correction_sigma_mm"), ("response", "response_sigma_mm")):
@@ -408,16 +418,11 @@ def _line_checks(
                 **extra,
             )
         )
-        # Beside a visible far face the far arris only measures the thickness (it takes no part in the
-        # pose): a looser straightness check.
-        loose = k == "far" and far_beside
         refusals.append(
             q.check_line(
                 HUMAN[k],
                 n_s,
-                n_i,
-                rms_px,
-                contrast,
+                *judged,
                 q.LineLimits(
                     cfg.min_inliers,
                     cfg.min_inlier_fraction * (0.5 if loose else 1.0),
