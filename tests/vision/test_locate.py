@@ -808,6 +808,46 @@ def test_a_grained_far_arris_beside_its_far_face_is_judged_by_its_own_scatter(ce
     assert abs(r.z_mm - pose.z_mm) <= 2.0 * r.uncertainty.z_mm
 
 
+def test_a_grained_reference_arris_does_not_lend_its_width_to_the_far_face_as_blur(cell):
+    """A 30.5 mm door under 22 % grain (a 1.03 px lens, vignetting, JPEG 88) yawed 1.35 deg, its far face a 9 px
+    band at about the background's level (``bench_surfaces.py --sets grain_strong --n 30 --seed 14400``, door
+    27, its draw rounded): the grain along the hinge face read the reference arris's step blur as 2.6 px,
+    the far-face model held that blur and fitted a 1.6 px band twice as bright as the hinge face, and the
+    valid door measured 2.15 mm thick at a sigma of 0.04 mm: refused ``thickness_mismatch``, "check that the
+    right door is in the fixture". The far-face model now takes the blur of the door's narrowest transition
+    (1.19 px) where the step blur is a quarter or more above it: the far face's one step reads either way,
+    the recipe's among them, and the door is ``uncertain``, not a wrong door; under
+    ``locate.thickness_check: report`` it is answered, its thickness unverified, its pose within its sigmas."""
+    door = DoorSize(900, 30.54, 2100)
+    pose = DoorPose(-2.27, 2.53, 1.35)
+    fx = Effects(
+        albedo_hinge=0.440,
+        albedo_side=0.469,
+        albedo_background=0.179,
+        light_ambient=1.0,
+        light_directional=0.0,
+        gradient_u=-0.193,
+        gradient_v=-0.159,
+        vignetting=0.378,
+        grain_contrast=0.216,
+        grain_period_mm=4.76,
+        blur_sigma_px=1.035,
+        read_noise_dn=3.65,
+        jpeg_quality=88,
+    )
+    img = render_door(cell, door, pose, effects=fx, seed=14406027).image
+    exact = replace(cell.locate, calibration_sigma_px=0.0, optics_edge_sigma_px=0.0)
+    r = locate(img, cell, door, config=exact)
+    assert r.error_code == "uncertain", r.error
+    check = r.diagnostics["thickness_check"]
+    assert abs(check["other_reading_mm"] - door.thickness_mm) <= check["tolerance_mm"], check
+    reported = locate(img, cell, door, config=replace(exact, thickness_check="report"))
+    assert reported.ok, reported.error
+    assert reported.thickness_verified is False
+    assert abs(reported.x_mm - pose.x_mm) <= 2.0 * reported.uncertainty.x_mm
+    assert abs(reported.z_mm - pose.z_mm) <= 2.0 * reported.uncertainty.z_mm
+
+
 def test_a_thickness_miss_an_unseen_silhouette_may_hide_is_uncertain_not_a_wrong_door(cell):
     """A 2.96 mm rounding as dark as the background under ambient light (``bench_arris_range.py --n 32
     --seed 9100 --sets dark``, seed 15130, its draw rounded): the far arris's outer edge has no contrast, its

@@ -16,6 +16,7 @@ from functools import partial
 
 import numpy as np
 
+from doorloc.cell import DoorSize
 from doorloc.pose import direction_cell
 from doorloc.vision import quality as q
 from doorloc.vision.arris_geometry import ArrisGeometry
@@ -61,6 +62,10 @@ READINGS_SPREAD = 0.2
 #: it above 0.5 px (0.6 / 0.8 / 1.2 px read 0.59-0.60 / 0.82 / 1.21-1.22 at 0.5 and 2 grey levels); 40 scan
 #: lines read it within 0.03 px of 160's, in 0.7 ms instead of 1.7
 STEP_FIT_CHECK_LINES = 40
+#: a plain reference arris's step blur this many times the narrowest first-pass transition's blur or more
+#: is texture's, not the lens's (:func:`_within_narrowest`; the step fits' own rule for a transition that
+#: carries more than a step, :func:`doorloc.vision.step_fit_lines.step_fit_lines`)
+OPTICAL_BLUR_NARROW_FACTOR = 1.25
 #: the arris lines whose reading nothing else checks: the reference and far arrises' readings are held to
 #: the recipe's thickness (a strip's width off on one side is a thickness that far off), the bottom end's
 #: to nothing
@@ -343,6 +348,7 @@ def refine(
     optical_blur = face_slope_blur = float("nan")
     step_fit: dict[str, float] = {}
     ref0: _Profiles | None = None  # the reference arris's first-pass profiles (for the blur)
+    widths: list[float] = []  # the first pass's transition widths, bottom end and reference arris (px)
     first_fits: dict[str, tuple[StripFit, float]] = {}  # the first pass's strip fits
     n_pass = 2
     _pass = 0
@@ -362,7 +368,9 @@ def refine(
         samples, far_beside, far_fit = sampled.samples, sampled.far_beside, sampled.far_fit
         if far_beside and _pass >= 1 and not np.isfinite(optical_blur) and ref0 is not None:
             # The far face came into view after the first pass: measure the blur and look again.
-            optical_blur = _optical_blur(plane, ref0, cfg, blur, arris_fits)
+            optical_blur = _within_narrowest(
+                _optical_blur(plane, ref0, cfg, blur, arris_fits), widths, region.door
+            )
             n_pass = max(n_pass, _pass + 2)
         elif far_beside and _pass == 1:
             # The far face's band width follows from the thickness being measured: one more round.
@@ -393,6 +401,7 @@ def refine(
                 optical_blur = _optical_blur(plane, ref0, cfg, blur, arris_fits)
             own_blur = partial(_step_blur_known, optical_blur, plane, ref0, cfg, blur, arris_fits)
             step_fit, face_slope_blur = step_fit_lines(cfg, widths, samples, own_blur)
+            optical_blur = _within_narrowest(optical_blur, widths, region.door)
         _pass += 1
     arris_fits = _held_to_first_pass(arris_fits, first_fits)
     found, sloped = (sampled.step_fitted, arris_fits, sampled.readers_apart, points), sampled.face_sloped
@@ -633,6 +642,30 @@ def _optical_blur(
         blur_px=math.sqrt(max(transition_px * transition_px - 1.0 / 12.0, 0.04)),
         max_lines=max_lines,
     )
+
+
+def _within_narrowest(optical_px: float, widths: Sequence[float], door: DoorSize) -> float:
+    """The optical blur for the far-face model (px): a plain door's reference-arris step blur
+    ``optical_px``, or the blur of the narrowest of the first pass's transition ``widths`` (px; the pixel's
+    share taken out) where the step blur exceeds it ``OPTICAL_BLUR_NARROW_FACTOR`` times or more.
+
+    The blur is the same on every edge, and the transition widths are read on the reference arris's quiet
+    side (:func:`_first_pass_widths`), while the step blur fits the profiles' both sides: wood grain along
+    the hinge face widens it. The far-face model holds the blur it is given, and beside a narrow far face
+    the blur, the band's level and the arris trade off: a 30.5 mm door under 22 % grain, its lens's blur
+    1.03 px, read 2.61 px on its reference arris (its narrowest transition 1.19 px), and its far face's
+    9 px band at the background's level was fitted as a 1.6 px band twice as bright as the hinge face: the
+    valid door measured 2.14 mm thick at 52 sigma and was refused ``thickness_mismatch``
+    (``bench_surfaces.py --sets grain_strong --n 30 --seed 14400``, door 27). An arris strip's own blur
+    (the reference arris's strip fit, which models the strip) stands as it is: a strip widens the
+    transitions, not its fit's blur."""
+    if door.arris_mm > 0 or not math.isfinite(optical_px):
+        return optical_px
+    ok = [w for w in widths if math.isfinite(w)]
+    if not ok:
+        return optical_px
+    narrow = math.sqrt(max(min(ok) ** 2 - 1.0 / 12.0, 0.0))
+    return narrow if narrow > 0.0 and optical_px >= OPTICAL_BLUR_NARROW_FACTOR * narrow else optical_px
 
 
 def _step_blur_known(
