@@ -848,6 +848,45 @@ def test_a_grained_reference_arris_does_not_lend_its_width_to_the_far_face_as_bl
     assert abs(reported.z_mm - pose.z_mm) <= 2.0 * reported.uncertainty.z_mm
 
 
+def test_a_reference_arris_wider_than_the_bottom_end_carries_its_spread_in_x(cell):
+    """A 99.9 mm door under 18 % grain, its lens's blur 1.41 px (``bench_surfaces.py --sets grain_strong --n 40
+    --seed 9900``, door 38, its draw as drawn: grain this strong moves with its last digits): a grain line at
+    the reference arris widened its transition to 3.06 px against the bottom end's 2.09, and the door was
+    answered 0.39 mm off in x at a sigma of 0.054 mm (7.2 sigma). The blur is the same on every edge: the
+    reference arris's place is in doubt by the spread the lens does not make, sqrt(3.06^2 - 2.09^2) px.
+    Refused ``uncertain``; with the cell's limits opened, x within its sigma."""
+    door = DoorSize(900, 99.88863161652367, 2100)
+    pose = DoorPose(-4.559321268884203, -0.7090955936770094, 1.845138511360577)
+    fx = Effects(
+        albedo_hinge=0.3901865253494405,
+        albedo_side=0.38269531650955524,
+        albedo_background=0.2730990724675343,
+        light_ambient=1.0,
+        light_directional=0.0,
+        gradient_u=0.17619612761415016,
+        gradient_v=-0.1440320079190912,
+        vignetting=0.3507601957307033,
+        grain_contrast=0.18270001178916448,
+        grain_period_mm=3.473339001164855,
+        blur_sigma_px=1.40624679842043,
+        read_noise_dn=3.311469194558718,
+        jpeg_quality=88,
+    )
+    img = render_door(cell, door, pose, effects=fx, seed=9906038).image
+    exact = replace(cell.locate, calibration_sigma_px=0.0, optics_edge_sigma_px=0.0)
+    r = locate(img, cell, door, config=exact)
+    assert r.error_code == "uncertain", r.error
+    assert "strong grain or marks along an edge" in r.error
+    widths = r.diagnostics["transition_widths_px"]
+    assert widths["reference"] - widths["bottom"] > 0.6, widths
+    opened = replace(
+        exact, max_uncertainty_mm=1e6, max_uncertainty_deg=1e6, max_sigma_mm=1e6, thickness_check="report"
+    )
+    answered = locate(img, cell, door, config=opened)
+    assert answered.ok, answered.error
+    assert abs(answered.x_mm - pose.x_mm) <= 2.0 * answered.uncertainty.x_mm
+
+
 def test_a_thickness_miss_an_unseen_silhouette_may_hide_is_uncertain_not_a_wrong_door(cell):
     """A 2.96 mm rounding as dark as the background under ambient light (``bench_arris_range.py --n 32
     --seed 9100 --sets dark``, seed 15130, its draw rounded): the far arris's outer edge has no contrast, its

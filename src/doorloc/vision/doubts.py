@@ -47,7 +47,7 @@ from doorloc.vision.uncertainty import (
     jpeg_tilt_sigma,
 )
 
-__all__ = ["SIDE_BLUR_APART_PX", "edge_doubts"]
+__all__ = ["REFERENCE_WIDER_PX", "SIDE_BLUR_APART_PX", "edge_doubts", "reference_width_spread_px"]
 
 
 def edge_doubts(
@@ -63,7 +63,7 @@ def edge_doubts(
     where the image was stored as a JPEG of ``jpeg_quality`` (its file's libjpeg quality; 0: not known to
     be a JPEG) or shows JPEG's blocks, the arris correction, the camera response. The stage that reads the
     pixels for them, so that the gate reads none. With them, the figures the diagnostics report
-    (``jpeg_block_ratio``, ``jpeg_quality``, ``arris_fit``), and where the door's rounded or chamfered strips
+    (``jpeg_block_ratio``, ``jpeg_quality``, ``transition_widths_px``, ``arris_fit``), and where the door's rounded or chamfered strips
     dispute the cell's camera exponent."""
     r, cell = check.refined, check.cell
     samples, fit = r.samples, r.fit
@@ -85,6 +85,10 @@ def edge_doubts(
     blocks = block_artifact_ratio(plane, r.pose.corner_px, scale_to_8bit=s8)
     figures["jpeg_block_ratio"] = round(blocks, 3) if math.isfinite(blocks) else None
     figures["jpeg_quality"] = jpeg_quality or None
+    figures["transition_widths_px"] = {
+        k: round(w, 3) if math.isfinite(w) else None
+        for k, w in zip(("bottom", "reference"), r.transition_widths_px, strict=True)
+    }
     # a file known to be a JPEG is doubted whatever its blocks show: without noise its flat blocks are
     # flat, and the detector sees nothing while the edges still carry the quantisation
     if jpeg_quality or blocks > JPEG_BLOCK_RATIO:
@@ -197,6 +201,8 @@ def _plain_edge_texture(r: Refined, k: str, offset_px: float, tilt: float) -> tu
     if apart is not None:
         offset_px = _at_least(offset_px, abs(apart.shift_px))
         tilt = _at_least(tilt, abs(apart.tilt))
+    if k == "reference":
+        offset_px = _at_least(offset_px, reference_width_spread_px(r))
     if k not in r.arris_fits:
         tilt = _at_least(
             tilt,
@@ -205,6 +211,34 @@ def _plain_edge_texture(r: Refined, k: str, offset_px: float, tilt: float) -> tu
             ),
         )
     return offset_px, tilt
+
+
+#: a plain reference arris whose first-pass transition is wider than the bottom end's by more than this
+#: (px) carries texture at its edge that the lens does not make (:func:`reference_width_spread_px`)
+REFERENCE_WIDER_PX = 0.6
+
+
+def reference_width_spread_px(r: Refined) -> float:
+    """The reference arris's doubt (px) from a transition wider than the bottom end's (0 where it is not
+    wider by more than ``REFERENCE_WIDER_PX``, or either line has an arris strip or a width not read): the
+    spread the lens does not make, ``sqrt(reference^2 - bottom^2)`` of the first pass's transition widths.
+
+    The blur is the same on every edge, and the reference arris's width is read on its quiet side
+    (:func:`doorloc.vision.refine._first_pass_widths`); a grain line right at it widens it nonetheless, and
+    moves the edge that the texture beyond the window does not foresee: a 99.9 mm door under 18 % grain, its
+    lens's blur 1.41 px, read 3.06 px across the reference arris and 2.09 across the bottom end, and was
+    answered 0.39 mm off in x at 7.2 sigma (``bench_surfaces.py --sets grain_strong --n 40 --seed 9900``,
+    door 38; its texture term 0.045 mm). Over 671 other plain doors of the surfaces bench's grained sets
+    (seeds 5151, 7300, 9900, 12340) the reference arris's transition exceeded the bottom end's by 0.49 px at
+    the most but on three, two of them refused already; the bottom end's own excess (up to 0.83 px) moved no
+    answer: across it the grain runs through the edge and averages out. (The arris doors' strips carry the
+    same rule between their side arrises: :func:`_side_blur_spreads`.)"""
+    if "reference" in r.arris_fits or "bottom" in r.arris_fits:
+        return 0.0
+    bottom, reference = r.transition_widths_px
+    if not reference - bottom > REFERENCE_WIDER_PX:  # (False for a NaN width)
+        return 0.0
+    return math.sqrt(reference * reference - bottom * bottom)
 
 
 def _at_least(value: float, floor: float) -> float:

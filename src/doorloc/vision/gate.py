@@ -546,8 +546,9 @@ def _pose_cause(
     if worst == "edge_model":
         # the largest doubt of the two pose lines, where it is one the operator can lift, is said with what
         # lifts it (the largest over both lines: an arris strip's doubt of 2 px on the reference line is not
-        # named after the bottom line's doubt of unmeasured optics, a tenth of a pixel or so)
-        doubts = [d for k in ("bottom", "reference") for d in model.of_line(k) if d.source in _MODEL_REPORTED]
+        # named after the bottom line's doubt of unmeasured optics, a tenth of a pixel or so; nor grain at
+        # an edge, 2 px, after the optics: the edge model's own words stand)
+        doubts = [d for k in ("bottom", "reference") for d in model.of_line(k)]
         largest = max(doubts, key=lambda d: d.offset_px, default=None)
         hint = (_doubt_hint(largest.source, response) if largest is not None else None) or hint
     return f"mostly from the {worst.replace('_', ' ')}", hint
@@ -637,11 +638,6 @@ _UNCERTAIN_HINT = {
     "door_width": "the doors' widths are known only to locate.door_width_sigma_mm, and the width places the "
     "hinge face's depth; give each door's measured width with it, or measure the widths closer",
 }
-
-
-#: the doubts a line's edge model reports besides the texture beside it (the texture of a pose line is its
-#: own term; which of these is largest names the hint of an uncertain pose)
-_MODEL_REPORTED = ("far_face", "jpeg", "quantisation", "arris", "response", "camera", "optics")
 
 
 def _budget(

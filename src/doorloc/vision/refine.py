@@ -404,8 +404,9 @@ def refine(
             optical_blur = _within_narrowest(optical_blur, widths, region.door)
         _pass += 1
     arris_fits = _held_to_first_pass(arris_fits, first_fits)
-    found, sloped = (sampled.step_fitted, arris_fits, sampled.readers_apart, points), sampled.face_sloped
-    return Refined(samples, fit, pose, blur, half, far_beside, far_fit, *found, face_sloped=sloped)
+    found = (sampled.step_fitted, arris_fits, sampled.readers_apart, points)
+    later = (None, sampled.face_sloped, (float(widths[0]), float(widths[1])))  # (no direction votes yet)
+    return Refined(samples, fit, pose, blur, half, far_beside, far_fit, *found, *later)
 
 
 def _final_window(cfg: LocateConfig, widths: Sequence[float]) -> tuple[float, int]:

@@ -7,6 +7,7 @@ doubts stage: every line's doubts and what the diagnostics report of them) -> th
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -66,6 +67,9 @@ class Refined:
     face_sloped : dict[str, int]
         The lines of ``step_fitted`` whose face the fit took as sloped (texture along the edge:
         :func:`doorloc.vision.blurred_step.face_slope_step_fit`), and its window's half width, px.
+    transition_widths_px : tuple[float, float]
+        The first pass's transition widths of the bottom end and the reference arris, px (RMS, the pixel
+        included; NaN where not read).
     """
 
     samples: dict[str, EdgeSamples]
@@ -81,6 +85,7 @@ class Refined:
     plane_points: dict[str, tuple[np.ndarray, bool]]
     direction_votes: dict[str, float] | None = None
     face_sloped: dict[str, int] = field(default_factory=dict)
+    transition_widths_px: tuple[float, float] = (math.nan, math.nan)
 
 
 @dataclass(frozen=True)
