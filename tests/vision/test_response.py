@@ -255,6 +255,24 @@ def test_an_ambiguous_reading_is_not_absorbed_and_a_measured_claim_picks_between
     assert held is not None and held.gamma == pytest.approx(1.36) and 2.245 in held.alternatives
 
 
+def test_an_alternative_one_line_rules_out_is_not_the_images():
+    """A plain grained door of a linear camera under a 1.8 px blur (``bench_surfaces.py --sets grain --n 30
+    --seed 14300``, door 2): its bottom end read 1.12 +- 0.13 with 1.90 and 2.37 about as symmetric, its
+    reference arris 0.95 +- 0.12 with 1.30. Every line admitted others, and the image's alternatives were
+    their union: the doubt of a 1.9-2.4 camera refused the valid door (x 0.13 mm of response doubt). One
+    camera makes both edges: an exponent that a line neither reads nor admits as its alternative (within
+    three of its sigmas) is no camera's; 1.30, which both admit, stays."""
+    bottom = LineResponse(1.121, 0.1257, 0.3, 0.8, 0.0, alternatives=(1.8951, 2.373))
+    reference = LineResponse(0.9475, 0.1163, 0.3, 0.8, 0.0, alternatives=(1.301,))
+    fit = combine_responses({"bottom": bottom, "reference": reference}, 1.0)
+    assert fit is not None and fit.alternatives == (1.301,)
+    # where both lines admit the same second reading, it stays (both near 2.6 with the camera's 1.1 second)
+    a = LineResponse(2.62, 0.02, 0.3, 0.8, 0.0, alternatives=(1.10,))
+    b = LineResponse(2.60, 0.03, 0.3, 0.8, 0.0, alternatives=(1.12,))
+    both = combine_responses({"bottom": a, "reference": b}, 2.2)
+    assert both is not None and both.alternatives == (1.1, 1.12)
+
+
 def test_an_unambiguous_line_decides_which_reading_of_an_ambiguous_one_is_the_cameras():
     """A plain door of a 1.37 camera (the sharp set of ``bench_arris_range.py --seed 7000``, door 11031): its
     bottom end read 1.38 +- 0.11 and nothing else, its reference arris 3.64 +- 0.02 with 1.35 about as

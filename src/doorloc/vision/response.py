@@ -438,7 +438,16 @@ def combine_responses(
     se = max(se, float(np.sum(w * np.array([v.shared_sigma for v in ok.values()])) / np.sum(w)))
     alternatives: tuple[float, ...] = ()
     if all(v.alternatives for v in ok.values()):
-        alternatives = tuple(sorted({round(a, 4) for v in ok.values() for a in v.alternatives}))
+        alternatives = tuple(
+            sorted(
+                {
+                    round(a, 4)
+                    for v in ok.values()
+                    for a in v.alternatives
+                    if all(_admits(u, a) for u in ok.values())
+                }
+            )
+        )
         if claimed_sigma > 0:
             readings = (mean, *alternatives)
             nearest = min(readings, key=lambda r: abs(math.log(r / claimed)))
@@ -447,6 +456,13 @@ def combine_responses(
     return ResponseFit(
         mean, se, claimed, tuple(ok), claimed_sigma, alternatives, any(v.one_phase for v in ok.values())
     )
+
+
+def _admits(line: LineResponse, gamma: float) -> bool:
+    """Whether ``line`` admits the exponent ``gamma``: it lies within ``RESPONSE_DECIDED_SIGMAS`` of the
+    line's sigmas of its reading or of one of its alternatives (the line's sigma the scale of each)."""
+    reach = RESPONSE_DECIDED_SIGMAS * line.sigma
+    return any(abs(gamma - g) <= reach for g in (line.gamma, *line.alternatives))
 
 
 def _decided_by_unambiguous(lines: dict[str, LineResponse]) -> dict[str, LineResponse]:
