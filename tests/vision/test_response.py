@@ -273,6 +273,19 @@ def test_an_alternative_one_line_rules_out_is_not_the_images():
     assert both is not None and both.alternatives == (1.1, 1.12)
 
 
+def test_an_exponent_beyond_the_cells_claim_is_doubted_only_to_the_claims_end():
+    """Exponents the edges admit about as well, beyond what the cell claims (its exponent within
+    ``response_unmeasured_factor``, where nobody measured it), count as the claim's end: the camera may lie
+    anywhere up to it, but a camera the cell's own claim rules out is not why an image that reads a response
+    should doubt it more than an image that reads none (a plain door of a linear camera in a cell of 1.0,
+    its edges admitting 2.70, was refused as uncertain to 0.10 mm, 0.001 mm off)."""
+    from doorloc.vision.doubts import _within_claim
+
+    assert _within_claim([1.35, 2.70], 1.0, 2.2) == [1.35, 2.2]
+    assert _within_claim([0.3, 1.5, 1.5], 1.0, 2.2) == pytest.approx([1.0 / 2.2, 1.5])
+    assert _within_claim([3.0], 2.0, 1.1) == [2.2]
+
+
 def test_an_unambiguous_line_decides_which_reading_of_an_ambiguous_one_is_the_cameras():
     """A plain door of a 1.37 camera (the sharp set of ``bench_arris_range.py --seed 7000``, door 11031): its
     bottom end read 1.38 +- 0.11 and nothing else, its reference arris 3.64 +- 0.02 with 1.35 about as
