@@ -31,11 +31,11 @@ from doorloc.vision.response import (
     edge_shifts_px,
     plateau_levels,
 )
-from doorloc.vision.response_check import blur_without_pixel
 from doorloc.vision.sampling import linearizing_lut
 from doorloc.vision.state import EdgeDoubts, Refined, ResponseCheck
 from doorloc.vision.strip_response import AllowedEnds, StripReadings, allowed_response_ends
 from doorloc.vision.texture import texture_bias
+from doorloc.vision.transition import blur_without_pixel
 from doorloc.vision.uncertainty import (
     CAMERA_RESPONSE,
     JPEG_BLOCK_RATIO,
@@ -236,9 +236,13 @@ def reference_width_spread_px(r: Refined) -> float:
     if "reference" in r.arris_fits or "bottom" in r.arris_fits:
         return 0.0
     bottom, reference = r.transition_widths_px
-    if not reference - bottom > REFERENCE_WIDER_PX:  # (False for a NaN width)
-        return 0.0
-    return math.sqrt(reference * reference - bottom * bottom)
+    return _unexplained_spread_px(reference, bottom, REFERENCE_WIDER_PX)
+
+
+def _unexplained_spread_px(wider: float, narrower: float, apart_px: float) -> float:
+    """``sqrt(wider^2 - narrower^2)`` px where ``wider`` exceeds ``narrower`` by more than ``apart_px``, else 0
+    (NaN too): the spread one edge reads as blur that the lens, the same on every edge, does not make."""
+    return math.sqrt(wider * wider - narrower * narrower) if wider - narrower > apart_px else 0.0
 
 
 def _at_least(value: float, floor: float) -> float:
@@ -383,9 +387,8 @@ def _side_blur_spreads(blurs: dict[str, float]) -> dict[str, float]:
     if ref is None or far is None:
         return {}
     wider, narrower = ("reference", "far") if ref >= far else ("far", "reference")
-    if not blurs[wider] - blurs[narrower] > SIDE_BLUR_APART_PX:
-        return {}
-    return {wider: math.sqrt(blurs[wider] ** 2 - blurs[narrower] ** 2)}
+    spread = _unexplained_spread_px(blurs[wider], blurs[narrower], SIDE_BLUR_APART_PX)
+    return {wider: spread} if spread > 0.0 else {}
 
 
 def _arris_blur_doubts(arris_fits: dict[str, tuple[StripFit, float]], diagnostics: dict) -> dict[str, float]:

@@ -43,7 +43,7 @@ from doorloc.vision.step_fit_lines import step_fit_lines
 from doorloc.vision.strip_posterior import strip_blur_priors
 from doorloc.vision.strip_response import StripReadings, arc_score, grey_score
 from doorloc.vision.thickness_gate import shows_one_step
-from doorloc.vision.transition import transition_width
+from doorloc.vision.transition import blur_without_pixel, transition_width
 
 __all__ = ["arris_response_shifts", "refine"]
 
@@ -665,7 +665,7 @@ def _within_narrowest(optical_px: float, widths: Sequence[float], door: DoorSize
     ok = [w for w in widths if math.isfinite(w)]
     if not ok:
         return optical_px
-    narrow = math.sqrt(max(min(ok) ** 2 - 1.0 / 12.0, 0.0))
+    narrow = blur_without_pixel(min(ok))
     return narrow if narrow > 0.0 and optical_px >= OPTICAL_BLUR_NARROW_FACTOR * narrow else optical_px
 
 

@@ -438,16 +438,9 @@ def combine_responses(
     se = max(se, float(np.sum(w * np.array([v.shared_sigma for v in ok.values()])) / np.sum(w)))
     alternatives: tuple[float, ...] = ()
     if all(v.alternatives for v in ok.values()):
-        alternatives = tuple(
-            sorted(
-                {
-                    round(a, 4)
-                    for v in ok.values()
-                    for a in v.alternatives
-                    if all(_admits(u, a) for u in ok.values())
-                }
-            )
-        )
+        # one camera makes every edge: an exponent a line neither reads nor admits is no camera's
+        admitted = [a for v in ok.values() for a in v.alternatives if all(_admits(u, a) for u in ok.values())]
+        alternatives = tuple(sorted({round(a, 4) for a in admitted}))
         if claimed_sigma > 0:
             readings = (mean, *alternatives)
             nearest = min(readings, key=lambda r: abs(math.log(r / claimed)))

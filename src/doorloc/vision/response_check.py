@@ -36,12 +36,12 @@ from doorloc.vision.sampling import linearizing_lut
 from doorloc.vision.side_patches import plateau_noise_dn, side_patches
 from doorloc.vision.state import Refined, ResponseCheck
 from doorloc.vision.texture import texture_bias
+from doorloc.vision.transition import blur_without_pixel
 
 __all__ = [
     "PLAIN_STRIP_PX",
     "RESPONSE_OVERSHOOT_MAX",
     "RESPONSE_MIN_NOISE_DN",
-    "blur_without_pixel",
     "check_response",
     "measure_response",
     "response_check_applies",
@@ -171,16 +171,6 @@ def _at_many_phases(samples: EdgeSamples, inliers: np.ndarray) -> bool:
     """Whether the line's edge points fall in every quarter of a pixel (not along a pixel row or column)."""
     m = inliers & samples.valid
     return bool(m.any()) and not at_one_phase(samples.scan[m], samples.along[m])
-
-
-def blur_without_pixel(transition_px: float) -> float:
-    """The optical blur (Gaussian sigma, px) in a transition's RMS width: the pixel's own 1/12 px^2 taken out
-    (0 where the width is unknown)."""
-    return (
-        math.sqrt(max(transition_px * transition_px - 1.0 / 12.0, 0.0))
-        if math.isfinite(transition_px)
-        else 0.0
-    )
 
 
 def _a_camera_reading(

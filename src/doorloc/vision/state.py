@@ -44,7 +44,7 @@ class Refined:
     pose : MetricPose
         The pose from it.
     blur_px : float
-        The transition width measured in the first pass, px (its optical blur: :func:`blur_without_pixel`).
+        The transition width measured in the first pass, px (its optical blur: :func:`doorloc.vision.transition.blur_without_pixel`).
     half : int
         The final windows' half width, px.
     far_beside : bool

@@ -15,6 +15,7 @@ from doorloc.vision.config import LocateConfig
 from doorloc.vision.edge_models import FACE_SLOPE_LINES
 from doorloc.vision.edge_samples import EdgeSamples
 from doorloc.vision.lines import fit_image_line
+from doorloc.vision.transition import blur_without_pixel
 
 __all__ = ["STEP_FIT_PHASE_SWEEP_PX", "phase_sweep_px", "phase_swept", "step_fit_lines"]
 
@@ -97,5 +98,5 @@ def _step_fit_blur(cfg: LocateConfig, widths: Iterable[float]) -> float:
     if not cfg.step_fit or not ok:
         return float("nan")
     narrow = min(ok)
-    optical = math.sqrt(max(narrow * narrow - 1.0 / 12.0, 0.0))
+    optical = blur_without_pixel(narrow)
     return optical if optical >= STEP_FIT_MIN_BLUR_PX else float("nan")

@@ -11,13 +11,25 @@ width without it.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from doorloc.vision.edge_samples import EdgeSamples
 from doorloc.vision.jit import grey, kernel
 from doorloc.vision.sampling import NO_LUT, oriented, pixel_buffer, warm_up_planes
 
-__all__ = ["QUIET_REACH_SIGMAS", "transition_width"]
+__all__ = ["QUIET_REACH_SIGMAS", "blur_without_pixel", "transition_width"]
+
+
+def blur_without_pixel(transition_px: float) -> float:
+    """The optical blur (Gaussian sigma, px) in a transition's RMS width: the pixel's own 1/12 px^2 taken out
+    (0 where the width is unknown)."""
+    return (
+        math.sqrt(max(transition_px * transition_px - 1.0 / 12.0, 0.0))
+        if math.isfinite(transition_px)
+        else 0.0
+    )
 
 
 def transition_width(
