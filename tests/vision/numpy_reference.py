@@ -624,7 +624,7 @@ def line_borders(
 def residual_structure_tilt(
     scan: np.ndarray, residual_px: np.ndarray, inliers: np.ndarray, blocks: int = 4
 ) -> float:
-    """doubts._residual_structure_tilt as numpy wrote it: the inliers' residuals sorted by scan line, their
+    """edge_texture.residual_structure_tilt as numpy wrote it: the inliers' residuals sorted by scan line, their
     means over ``np.array_split``'s blocks, ``sd(means) / sqrt(sum (centre - mean centre)^2)``."""
     m = inliers & np.isfinite(residual_px)
     if int(m.sum()) < 8 * blocks:

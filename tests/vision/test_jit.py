@@ -15,7 +15,7 @@
   points, bit for bit;
 - the camera response's asymmetry measure (response_asymmetry.asymmetry: its normalised profiles and paired bins
   compiled) against its numpy version, bit for bit, at many phases and at one (the spline path);
-- a line's tilt doubt from its residuals' structure (doubts._residual_structure_tilt: its block means
+- a line's tilt doubt from its residuals' structure (edge_texture.residual_structure_tilt: its block means
   compiled) against its numpy version, to rounding (the blocks are summed in order, not pairwise);
 - the least finite value's index (response_asymmetry._least_index) against np.nanargmin;
 - the in-place selection (jit.select_kth) against np.partition, numpy's pairwise sum (jit.pairwise_sum)
@@ -49,8 +49,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from doorloc.vision import jit
-from doorloc.vision.doubts import _residual_structure_tilt
 from doorloc.vision.edge_samples import EdgeSamples
+from doorloc.vision.edge_texture import residual_structure_tilt
 from doorloc.vision.edges import subpixel_edges
 from doorloc.vision.lines import _irls, _revoted, fit_rectangle_edges, ransac_line
 from doorloc.vision.response import plateau_levels
@@ -1053,7 +1053,7 @@ def test_residual_structure_tilt_as_its_numpy_version(seed, n, reverse, drop):
     samples = EdgeSamples(
         "col", scan, np.zeros(n), np.ones(n), np.zeros(n), np.zeros(n), np.ones(n, bool), np.ones(n, bool)
     )
-    got = _residual_structure_tilt(samples, residual, inliers)
+    got = residual_structure_tilt(samples, residual, inliers)
     want = reference.residual_structure_tilt(scan, residual, inliers)
     if math.isnan(want):
         assert math.isnan(got)

@@ -887,6 +887,43 @@ def test_a_reference_arris_wider_than_the_bottom_end_carries_its_spread_in_x(cel
     assert abs(answered.x_mm - pose.x_mm) <= 2.0 * answered.uncertainty.x_mm
 
 
+def test_grain_at_a_sharp_edge_is_witnessed_by_the_step_fit(cell):
+    """A 42.9 mm door under 9 % grain through a sharp lens (blur 0.03 px), stored as a JPEG of quality 95
+    (``bench_surfaces.py --sets hard --n 40 --seed 15100``, door 31, its draw as drawn): no step fit reads
+    edges this sharp, and the grain at the edges moved the reference arris 0.19 px and tilted the far
+    arris 0.55 px over its length, where the texture beyond the windows said 0.04 px and a third of that
+    tilt: answered 0.092 mm off in x at a sigma of 0.017 mm (5.5 sigma), the yaw at 3. The step fit read
+    beside each such edge as a witness puts the reference arris 0.165 px from the area estimate; the
+    answer's errors lie within 2.5 of its sigmas."""
+    door = DoorSize(900, 42.93967990371344, 2100)
+    pose = DoorPose(-6.543045209621345, -0.22212479354142722, -0.9356903516147272)
+    fx = Effects(
+        albedo_hinge=0.6660626311942877,
+        albedo_side=0.510737306020328,
+        albedo_background=0.27042902107551203,
+        light_ambient=0.607963596661348,
+        light_directional=0.3808490481101022,
+        light_azimuth_deg=-10.132820347540317,
+        light_elevation_deg=28.011493320760152,
+        gradient_u=-0.06439174736770636,
+        gradient_v=0.162224030744003,
+        vignetting=0.04605108692469369,
+        grain_contrast=0.09050721649412069,
+        grain_period_mm=3.1598193716788066,
+        shadow_z_mm=37.96785474963859,
+        blur_sigma_px=0.029426652721964874,
+        full_well_e=20000.0,
+        read_noise_dn=2.0897610940703237,
+        jpeg_quality=95,
+    )
+    img = render_door(cell, door, pose, effects=fx, seed=15102031).image
+    exact = replace(cell.locate, calibration_sigma_px=0.0, optics_edge_sigma_px=0.0)
+    r = locate(img, cell, door, config=exact)
+    assert r.ok, r.error
+    assert abs(r.x_mm - pose.x_mm) <= 2.5 * r.uncertainty.x_mm
+    assert abs(r.yaw_deg - pose.yaw_deg) <= 2.5 * r.uncertainty.yaw_deg
+
+
 def test_a_thickness_miss_an_unseen_silhouette_may_hide_is_uncertain_not_a_wrong_door(cell):
     """A 2.96 mm rounding as dark as the background under ambient light (``bench_arris_range.py --n 32
     --seed 9100 --sets dark``, seed 15130, its draw rounded): the far arris's outer edge has no contrast, its

@@ -19,7 +19,7 @@ from doorloc.cell import Cell
 from doorloc.vision.arris_model import BLUR_DOUBT, StripFit
 from doorloc.vision.config import LocateConfig
 from doorloc.vision.edge_samples import EdgeSamples
-from doorloc.vision.jit import kernel
+from doorloc.vision.edge_texture import plain_edge_texture, residual_structure_tilt, unexplained_spread_px
 from doorloc.vision.jpeg_blocks import block_artifact_ratio
 from doorloc.vision.lines import RectangleFit, fit_image_line
 from doorloc.vision.quantisation import quantisation_doubt_px, quantisation_tilt
@@ -47,7 +47,7 @@ from doorloc.vision.uncertainty import (
     jpeg_tilt_sigma,
 )
 
-__all__ = ["REFERENCE_WIDER_PX", "SIDE_BLUR_APART_PX", "edge_doubts", "reference_width_spread_px"]
+__all__ = ["SIDE_BLUR_APART_PX", "edge_doubts"]
 
 
 def edge_doubts(
@@ -145,7 +145,7 @@ def _edge_model_doubts(
 ) -> list[LineDoubt]:
     """The doubts the edge models know of each line (:class:`doorloc.vision.uncertainty.LineDoubt`): the
     far-face model's own, else the texture beside the edge (across it and along it; on a plain edge at
-    least what :func:`_plain_edge_texture` measures on it).
+    least what :func:`doorloc.vision.edge_texture.plain_edge_texture` measures on it).
 
     ``strips``: per arris line, the pixels its strip (and the blur beside it) takes on the door side, and
     that side (+1: increasing ``along``); the texture there is read beyond the strip.
@@ -175,79 +175,9 @@ def _edge_model_doubts(
         # as beside the reference one, were 85 % within 2 sigma.) Its direction votes on the door's in
         # the joint fit where no far face is beside it, so its texture tilt counts in the yaw
         # (:func:`doorloc.vision.uncertainty.propagate`).
-        offset, tilt = _plain_edge_texture(r, k, tb.offset_sigma_px, tb.tilt_sigma)
+        offset, tilt = plain_edge_texture(plane, r, k, tb, lut)
         doubts.append(LineDoubt("texture", k, offset, tilt=tilt))
     return doubts
-
-
-def _plain_edge_texture(r: Refined, k: str, offset_px: float, tilt: float) -> tuple[float, float]:
-    """A plain line's texture doubt (offset px, tilt px per px) from what the texture beyond its window
-    suggests (``offset_px``, ``tilt``: :func:`doorloc.vision.texture.texture_bias`), raised to what this
-    edge shows itself:
-
-    - where the blurred-step fit was tried, how far its points lay from the area estimator's (median, and
-      its difference between the edge's halves over their distance: ``Refined.readers_apart``). The two
-      read the same scan lines and take the grey levels at different distances from the transition, so
-      the texture under the window moves a reader at least that much. The texture beyond the window is a
-      sample of the grain, not the grain under it: on the surfaces bench's grain set (seed 2511) a dark
-      grain line right at the reference arris moved it 0.23 px where the texture beyond said 0.05 px,
-      x 0.094 mm off at 5.6 sigma;
-    - the tilt that the structure of its residuals over quarters of the line could hide
-      (:func:`_residual_structure_tilt`): grain wanders along the height (the renderer's by 0.5-2 mm over
-      150-400 mm), and the bias it gives the edge with it; the line's own standard error takes its
-      residuals as independent. (Arris lines carry this in their arris doubt.)
-    """
-    apart = r.readers_apart.get(k)
-    if apart is not None:
-        offset_px = _at_least(offset_px, abs(apart.shift_px))
-        tilt = _at_least(tilt, abs(apart.tilt))
-    if k == "reference":
-        offset_px = _at_least(offset_px, reference_width_spread_px(r))
-    if k not in r.arris_fits:
-        tilt = _at_least(
-            tilt,
-            _residual_structure_tilt(
-                r.samples[k], r.fit.residuals[k] / r.pose.scale_mm_per_px, r.fit.weights[k] > 0
-            ),
-        )
-    return offset_px, tilt
-
-
-#: a plain reference arris whose first-pass transition is wider than the bottom end's by more than this
-#: (px) carries texture at its edge that the lens does not make (:func:`reference_width_spread_px`)
-REFERENCE_WIDER_PX = 0.6
-
-
-def reference_width_spread_px(r: Refined) -> float:
-    """The reference arris's doubt (px) from a transition wider than the bottom end's (0 where it is not
-    wider by more than ``REFERENCE_WIDER_PX``, or either line has an arris strip or a width not read): the
-    spread the lens does not make, ``sqrt(reference^2 - bottom^2)`` of the first pass's transition widths.
-
-    The blur is the same on every edge, and the reference arris's width is read on its quiet side
-    (:func:`doorloc.vision.refine._first_pass_widths`); a grain line right at it widens it nonetheless, and
-    moves the edge that the texture beyond the window does not foresee: a 99.9 mm door under 18 % grain, its
-    lens's blur 1.41 px, read 3.06 px across the reference arris and 2.09 across the bottom end, and was
-    answered 0.39 mm off in x at 7.2 sigma (``bench_surfaces.py --sets grain_strong --n 40 --seed 9900``,
-    door 38; its texture term 0.045 mm). Over 990 plain doors of the surfaces bench's grained sets (seeds
-    2511, 5151, 7300, 9900, 9950, 12340) the excess passed 0.6 px on five: that one, two refused already,
-    and two answers 2.0 and 0.4 sigma off (0.49 px at the most on the others); the bottom end's own excess
-    (up to 0.83 px) moved no answer: across it the grain runs through the edge and averages out. (The arris
-    doors' strips carry the same rule between their side arrises: :func:`_side_blur_spreads`.)"""
-    if "reference" in r.arris_fits or "bottom" in r.arris_fits:
-        return 0.0
-    bottom, reference = r.transition_widths_px
-    return _unexplained_spread_px(reference, bottom, REFERENCE_WIDER_PX)
-
-
-def _unexplained_spread_px(wider: float, narrower: float, apart_px: float) -> float:
-    """``sqrt(wider^2 - narrower^2)`` px where ``wider`` exceeds ``narrower`` by more than ``apart_px``, else 0
-    (NaN too): the spread one edge reads as blur that the lens, the same on every edge, does not make."""
-    return math.sqrt(wider * wider - narrower * narrower) if wider - narrower > apart_px else 0.0
-
-
-def _at_least(value: float, floor: float) -> float:
-    """``value``, or ``floor`` where that is larger or ``value`` is NaN (a NaN ``floor`` changes nothing)."""
-    return floor if floor > value or (math.isnan(value) and not math.isnan(floor)) else value
 
 
 def _jpeg_doubts(
@@ -301,7 +231,7 @@ def _block_correlated_tilt(scan: np.ndarray, residual_px: np.ndarray) -> float:
     """What the line fit's standard error of the tilt (px per px) misses where its residuals are alike
     within each 8-px JPEG block: the slope's standard error from the blocks' mean residuals, less (in
     quadrature) the one from the residuals taken as independent; 0 where that is less or too few blocks.
-    (Not :func:`_residual_structure_tilt`: its blocks are ``RESIDUAL_BLOCKS`` runs of equal counts along the
+    (Not :func:`residual_structure_tilt`: its blocks are ``RESIDUAL_BLOCKS`` runs of equal counts along the
     line, for slow texture; JPEG's lie on the image's grid of 8, and a block that straddles two of them
     halves what it shows.)"""
     ok = np.isfinite(residual_px)
@@ -361,7 +291,7 @@ def _arris_doubts(
         if k in moved:
             offset = math.hypot(offset, moved[k])
         inl = fit.weights[k] > 0
-        tilt = _residual_structure_tilt(samples[k], fit.residuals[k] / scale_mm_per_px, inl)
+        tilt = residual_structure_tilt(samples[k], fit.residuals[k] / scale_mm_per_px, inl)
         doubts.append(LineDoubt("arris", k, offset, tilt=tilt))
     return doubts
 
@@ -387,7 +317,7 @@ def _side_blur_spreads(blurs: dict[str, float]) -> dict[str, float]:
     if ref is None or far is None:
         return {}
     wider, narrower = ("reference", "far") if ref >= far else ("far", "reference")
-    spread = _unexplained_spread_px(blurs[wider], blurs[narrower], SIDE_BLUR_APART_PX)
+    spread = unexplained_spread_px(blurs[wider], blurs[narrower], SIDE_BLUR_APART_PX)
     return {wider: spread} if spread > 0.0 else {}
 
 
@@ -644,57 +574,3 @@ def _line_response_shifts(
             return edge_shifts_px(lo, hi, g, used_gamma, blur_px, half)
 
         yield k, shifts
-
-
-#: contiguous blocks along a line over which its residuals' structure is read (:func:`_residual_structure_tilt`)
-RESIDUAL_BLOCKS = 4
-
-
-def _residual_structure_tilt(samples: EdgeSamples, residual_px: np.ndarray, inliers: np.ndarray) -> float:
-    """Standard error of a line's tilt (px per px) from the structure of its residuals along it.
-
-    The line fit's own standard error takes the residuals as independent; a bias that changes slowly along
-    the edge shows instead as residuals whose means over ``RESIDUAL_BLOCKS`` contiguous blocks differ.
-    Taken as independent block errors of that scatter, the slope they allow is ``sd(block means) /
-    sqrt(sum (s_i - mean s)^2)`` over the blocks' centres ``s_i`` (px). NaN with too few points.
-    (Compiled, :func:`_structure_tilt`: it runs on every line of every frame.)
-    """
-    m = inliers & np.isfinite(residual_px)
-    scan, res = samples.scan[m].astype(np.float64), residual_px[m].astype(np.float64)
-    if scan.size >= 2 and np.any(scan[1:] < scan[:-1]):  # (the scan lines come in order from the tracks)
-        order = np.argsort(scan, kind="stable")
-        scan, res = scan[order], res[order]
-    return float(_structure_tilt(scan, res, RESIDUAL_BLOCKS))
-
-
-@kernel(lambda k: k(np.arange(40.0), np.zeros(40), 4))
-def _structure_tilt(scan, res, blocks):
-    """:func:`_residual_structure_tilt` on residuals ``res`` sorted by their scan lines ``scan``: the blocks
-    as ``np.array_split``'s (the first ``n % blocks`` one longer); NaN under 8 a block."""
-    n = scan.size
-    if n < 8 * blocks:
-        return np.nan
-    means = np.empty(blocks)
-    centres = np.empty(blocks)
-    q, r = n // blocks, n % blocks
-    start = 0
-    for b in range(blocks):
-        size = q + 1 if b < r else q
-        sr = 0.0
-        sc = 0.0
-        for i in range(start, start + size):
-            sr += res[i]
-            sc += scan[i]
-        means[b] = sr / size
-        centres[b] = sc / size
-        start += size
-    mc = centres.mean()
-    mm = means.mean()
-    spread = 0.0
-    var = 0.0
-    for b in range(blocks):
-        spread += (centres[b] - mc) ** 2
-        var += (means[b] - mm) ** 2
-    if not spread > 0:
-        return np.nan
-    return np.sqrt(var / (blocks - 1)) / np.sqrt(spread)

@@ -39,7 +39,7 @@ from doorloc.cell import DoorSize
 from doorloc.vision.arris_geometry import ArrisGeometry
 from doorloc.vision.arris_lines import StripWindow, arris_edges
 from doorloc.vision.arris_model import StripFit
-from doorloc.vision.blurred_step import refine_face_slope_fit, refine_step_fit
+from doorloc.vision.blurred_step import STEP_FIT_MIN_BLUR_PX, refine_face_slope_fit, refine_step_fit
 from doorloc.vision.edge_samples import EdgeSamples, ScanWindow
 from doorloc.vision.edges import subpixel_edges, subpixel_edges_banded
 from doorloc.vision.far_band import FarBand, FarFaceFit
@@ -60,6 +60,7 @@ __all__ = [
     "ReadersApart",
     "ScanWindow",
     "edge_kind",
+    "step_fit_witness",
 ]
 
 #: plateau samples of the arris strip's profile fit, px
@@ -71,7 +72,7 @@ ARRIS_PLATEAU_PX = 4
 #: right at the edge is its tail: on the surfaces bench's grain set (seed 2511) one moved the two readers
 #: 3.6 of it apart, the step fit's points 0.05 px off and the area estimator's 0.23 (with 3, that door was
 #: answered 0.094 mm off); the disagreement itself goes into the line's texture doubt either way
-#: (doubts._plain_edge_texture)
+#: (edge_texture.plain_edge_texture)
 STEP_FIT_AGREE_SIGMAS = 5.0
 STEP_FIT_AGREE_FLOOR_PX = 0.003
 
@@ -265,6 +266,24 @@ def _readers_apart(area: EdgeSamples, fitted: EdgeSamples) -> ReadersApart | Non
         d, scan = d[order], scan[order]
     shift, tilt = _apart_and_tilt(d, scan.astype(np.float64))
     return ReadersApart(float(shift), float(tilt))
+
+
+def step_fit_witness(
+    plane: np.ndarray, samples: EdgeSamples, half: int, lut: np.ndarray | None
+) -> ReadersApart | None:
+    """The blurred-step fit read beside a plain edge that no step fit refined (its door's edges sharper than
+    the fit's least blur, ``STEP_FIT_MIN_BLUR_PX``), at that blur, kept only as a witness: how far its
+    points lie from the area estimator's ``samples`` (:class:`ReadersApart`; None below 16 points).
+
+    On a sharp edge the area estimator takes the face's level a few pixels out and the step fit right
+    beside the transition, as on a blurred one: grain at the edge moves the two apart. A strongly grained
+    door through a sharp lens (the surfaces bench's ``hard`` set, seed 15102, door 31: blur 0.03 px, 9 %
+    grain) had its reference arris 0.19 px off and its far arris tilted 0.55 px over its length where the
+    texture beyond the windows said 0.04 px and a third of that tilt, and was answered 0.092 mm off in x at
+    5.5 sigma; the witness read the reference 0.165 px apart and the far arris's tilt at 4.5e-4 (of 7.8e-4),
+    and on the door without grain 0.012 px. Its shape follows the pixel's phase (the step is sharper than
+    the fit's blur), which averages out only on a line that sweeps many phases: the caller asks that."""
+    return _readers_apart(samples, refine_step_fit(plane, samples, half, STEP_FIT_MIN_BLUR_PX, lut))
 
 
 @kernel(lambda k: k(np.zeros(20), np.arange(20.0)))
