@@ -919,6 +919,42 @@ def test_a_far_arris_behind_wandering_grain_stripes_is_found(cell):
     assert abs(r.thickness_mm - door.thickness_mm) <= 0.1
 
 
+def test_lines_that_disagree_about_the_door_s_direction_widen_its_doubt(cell):
+    """A 51.9 mm door under 20 % grain (``bench_surfaces.py --sets grain_strong --n 40 --seed 20100``, door
+    13, its draw as drawn): grain stripes ran off its reference arris, whose points drifted 3.2 px over its
+    length, its own direction 0.2 deg off the far arris's where its tilt doubt said 0.06 deg; answered 0.33
+    mm off in x at 4.4 sigma. The lines' own directions disagree beyond their doubts (the Birge ratio
+    2.2): each voting line's direction doubt is widened by it, and the door is refused ``uncertain``; with
+    the cell's limits opened, its errors lie within 3 of its sigmas."""
+    door = DoorSize(900, 51.91320827864842, 2100)
+    pose = DoorPose(0.638505603955279, -2.033456204701352, -0.7694874628263149)
+    fx = Effects(
+        albedo_hinge=0.36549269075221574,
+        albedo_side=0.4818696137828239,
+        albedo_background=0.23163396649378584,
+        gradient_u=0.08333912736793975,
+        gradient_v=-0.16666771434207017,
+        vignetting=0.2832397682883598,
+        grain_contrast=0.20013397624723617,
+        grain_period_mm=3.1716983276074324,
+        blur_sigma_px=1.6610210396808247,
+        read_noise_dn=3.0972993251754444,
+        jpeg_quality=88,
+    )
+    img = render_door(cell, door, pose, effects=fx, seed=20106013).image
+    exact = replace(cell.locate, calibration_sigma_px=0.0, optics_edge_sigma_px=0.0)
+    r = locate(img, cell, door, config=exact)
+    assert r.error_code == "uncertain", r.error
+    assert r.diagnostics["direction_spread"]["ratio2"] > 1.5
+    opened = replace(exact, max_uncertainty_mm=1e6, max_uncertainty_deg=1e6, max_sigma_mm=1e6)
+    answered = locate(img, cell, door, config=opened)
+    assert answered.ok, answered.error
+    assert abs(answered.x_mm - pose.x_mm) <= 3.0 * answered.uncertainty.x_mm
+    assert abs(answered.yaw_deg - pose.yaw_deg) <= 3.0 * answered.uncertainty.yaw_deg
+    budget = {t["source"]: t for t in answered.diagnostics["uncertainty_budget"]}
+    assert budget["direction"]["yaw_deg"] > 0.0
+
+
 def test_grain_at_a_sharp_edge_is_witnessed_by_the_step_fit(cell):
     """A 42.9 mm door under 9 % grain through a sharp lens (blur 0.03 px), stored as a JPEG of quality 95
     (``bench_surfaces.py --sets hard --n 40 --seed 15100``, door 31, its draw as drawn): no step fit reads

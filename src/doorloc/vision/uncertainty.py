@@ -145,7 +145,17 @@ _DIST_INDEX = {
 
 #: the edge-model doubts a line can carry besides the floor and the blur term, in the order a line's total
 #: adds them (the order fixes the last bits of the sums)
-DOUBT_SOURCES = ("texture", "far_face", "jpeg", "quantisation", "arris", "response", "camera", "optics")
+DOUBT_SOURCES = (
+    "texture",
+    "far_face",
+    "jpeg",
+    "quantisation",
+    "arris",
+    "response",
+    "camera",
+    "optics",
+    "direction",
+)
 
 #: the lines a doubt can move
 EDGE_LINES = ("bottom", "reference", "far")
@@ -167,7 +177,8 @@ class LineDoubt:
         noise dithers (:mod:`doorloc.vision.quantisation`); ``"arris"``: the arris correction;
         ``"response"``: the camera response; ``"camera"``: what the camera's photometric model leaves
         unexplained on real edges; ``"optics"``: what an unmeasured camera's optics may move its edges by,
-        ``LocateConfig.optics_edge_sigma_px``).
+        ``LocateConfig.optics_edge_sigma_px``; ``"direction"``: the lines' own directions disagreeing beyond
+        their doubts, :func:`doorloc.vision.direction_vote.direction_spread`).
     line : str
         The line it moves: ``"bottom"``, ``"reference"`` or ``"far"``.
     offset_px : float
