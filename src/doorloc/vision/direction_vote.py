@@ -101,7 +101,8 @@ class DirectionSpread:
     along, each line's own fit through its inlier points against the voted direction), the spread's
     chi-square over its degrees of freedom (``ratio2``: each departure over its line's direction doubt,
     squared, summed, over the lines less one), and the doubts that widen each line's direction by the
-    ratio where it exceeds 1 (``doubts``: source ``direction``, tilt only; empty where it does not)."""
+    ratio where it exceeds 1, and place a line that itself departs beyond its doubt by its drift
+    (``doubts``: source ``direction``; empty where the ratio is 1 or less)."""
 
     ratio2: float
     departures: dict[str, float]

@@ -277,8 +277,8 @@ def step_fit_witness(
 
     On a sharp edge the area estimator takes the face's level a few pixels out and the step fit right
     beside the transition, as on a blurred one: grain at the edge moves the two apart. A strongly grained
-    door through a sharp lens (the surfaces bench's ``hard`` set, seed 15102, door 31: blur 0.03 px, 9 %
-    grain) had its reference arris 0.19 px off and its far arris tilted 0.55 px over its length where the
+    door through a sharp lens (``bench_surfaces.py --sets hard --n 40 --seed 15100``, door 31: blur 0.03
+    px, 9 % grain) had its reference arris 0.19 px off and its far arris tilted 0.55 px over its length where the
     texture beyond the windows said 0.04 px and a third of that tilt, and was answered 0.092 mm off in x at
     5.5 sigma; the witness read the reference 0.165 px apart and the far arris's tilt at 4.5e-4 (of 7.8e-4),
     and on the door without grain 0.012 px. Its shape follows the pixel's phase (the step is sharper than
