@@ -23,7 +23,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from doorloc.vision.lines import fit_image_line, revote_direction
+from doorloc.vision.jit import kernel
+from doorloc.vision.lines import revote_direction
 from doorloc.vision.metric import pose_from_fit
 from doorloc.vision.region import SearchRegion
 from doorloc.vision.state import Refined
@@ -53,7 +54,11 @@ def direction_votes(r: Refined, model: EdgeModelTerms) -> dict[str, float]:
     doubt is within the floor's tilt that the budget gives every line alike
     (:data:`doorloc.vision.uncertainty.EDGE_MODEL_FLOOR_PX` over its length, twice): a clean image's, no
     line's own to vote on (the rendered grid's lines reach 0.28 of it; a grained door's, several times it)."""
-    variances = _direction_variances(r, model)
+    return _votes(_direction_variances(r, model))
+
+
+def _votes(variances: _Variances | None) -> dict[str, float]:
+    """:func:`direction_votes` from the lines' direction variances (:func:`_direction_variances`)."""
     if variances is None:
         return {}
     noise, tilt, floor = variances
@@ -64,19 +69,27 @@ def direction_votes(r: Refined, model: EdgeModelTerms) -> dict[str, float]:
     return {k: 1.0 / (noise[k] + tilt[k]) for k in noise}
 
 
-def voted_by_doubts(r: Refined, region: SearchRegion, model: EdgeModelTerms) -> Refined:
+def voted_by_doubts(
+    r: Refined, region: SearchRegion, model: EdgeModelTerms
+) -> tuple[Refined, DirectionSpread | None]:
     """``r`` with the door's direction voted by :func:`direction_votes` (the offsets, the pose and the
-    direction's standard error with it); ``r`` as it is where there are no votes."""
-    votes = direction_votes(r, model)
-    if not votes:
-        return r
-    fit = revote_direction(r.fit, r.plane_points, votes)
-    return replace(r, fit=fit, pose=pose_from_fit(fit, region.face_map), direction_votes=votes)
+    direction's standard error with it; ``r`` as it is where there are no votes), and the voting lines'
+    disagreement about it (:func:`direction_spread`). The lines' direction variances are read once for
+    both (the vote keeps the fit's robust weights and residual scale, which they rest on)."""
+    variances = _direction_variances(r, model)
+    votes = _votes(variances)
+    if votes:
+        fit = revote_direction(r.fit, r.plane_points, votes)
+        r = replace(r, fit=fit, pose=pose_from_fit(fit, region.face_map), direction_votes=votes)
+    return r, _spread(r, variances)
 
 
-def _direction_variances(
-    r: Refined, model: EdgeModelTerms
-) -> tuple[dict[str, float], dict[str, float], dict[str, float]] | None:
+#: per voting line the variance of its direction from its points' noise and from its edge-model tilt, and
+#: the floor's (px per px, squared: :func:`_direction_variances`)
+_Variances = tuple[dict[str, float], dict[str, float], dict[str, float]]
+
+
+def _direction_variances(r: Refined, model: EdgeModelTerms) -> _Variances | None:
     """Per voting line (the far arris unless a far face lies beside it) the variance of its direction (px
     per px across, squared) from its points' noise (the fit's residual scale over their spread) and from
     its edge-model tilt, and the floor's (:data:`doorloc.vision.uncertainty.EDGE_MODEL_FLOOR_PX` over its
@@ -131,7 +144,11 @@ def direction_spread(r: Refined, model: EdgeModelTerms) -> DirectionSpread | Non
     ``uncertain``. Over 160 plain doors of the surfaces bench's grain, thin, strong-grain and hard sets
     (seed 20100) the ratio's median was 0.13 and its 90th percentile 0.48: the lines' doubts are generous;
     over 400 doors at three seeds it passed 1 on nine (docs/benchmarks.md, 2026-12-06)."""
-    variances = _direction_variances(r, model)
+    return _spread(r, _direction_variances(r, model))
+
+
+def _spread(r: Refined, variances: _Variances | None) -> DirectionSpread | None:
+    """:func:`direction_spread` from the lines' direction variances (:func:`_direction_variances`)."""
     if variances is None:
         return None
     noise, tilt, _ = variances
@@ -139,12 +156,10 @@ def direction_spread(r: Refined, model: EdgeModelTerms) -> DirectionSpread | Non
     departures, extents = {}, {}
     for k in noise:
         s = r.samples[k]
-        inl = (r.fit.weights[k] > 0) & np.isfinite(s.along) & np.isfinite(r.fit.residuals[k])
-        if np.count_nonzero(inl) < 10:
+        n, slope, extent = _own_slope(s.scan, s.along, r.fit.residuals[k], r.fit.weights[k], sc)
+        if n < 10:
             return None
-        scan = s.scan[inl].astype(np.float64)
-        departures[k] = float(fit_image_line(scan, r.fit.residuals[k][inl] / sc).b)
-        extents[k] = float(scan.max() - scan.min())
+        departures[k], extents[k] = slope, extent
     whole = {k: noise[k] + tilt[k] for k in noise}
     ratio2, widen = birge_widening(departures, whole)
     if not ratio2 > 1.0:
@@ -175,3 +190,39 @@ def birge_widening(
     ratio2 = chi2 / max(len(departures) - 1, 1)
     grow = max(ratio2 - 1.0, 0.0)
     return ratio2, {k: math.sqrt(grow * variances[k]) for k in departures}
+
+
+def _own_slope_warm_up(k) -> None:
+    k(np.arange(20), np.zeros(20), np.zeros(20), np.ones(20), 0.2)
+
+
+@kernel(_own_slope_warm_up)
+def _own_slope(scan, along, residual_mm, weight, scale_mm_per_px):
+    """A line's own direction against the fit's: over its inlier points (weight above 0, ``along`` and the
+    residual finite), their count, the least-squares slope of their residuals (px) on their scan lines (px
+    per px; 0 where they share one) and the scan lines' extent (px). Compiled: it runs on every line of
+    every frame, and numpy's masks and copies for three lines cost 0.1 ms."""
+    n = 0
+    ms = 0.0
+    mr = 0.0
+    lo = np.inf
+    hi = -np.inf
+    for i in range(scan.size):
+        if weight[i] > 0 and np.isfinite(along[i]) and np.isfinite(residual_mm[i]):
+            n += 1
+            ms += scan[i]
+            mr += residual_mm[i] / scale_mm_per_px
+            lo = min(lo, scan[i])
+            hi = max(hi, scan[i])
+    if n == 0:
+        return 0, 0.0, 0.0
+    ms /= n
+    mr /= n
+    sxy = 0.0
+    sxx = 0.0
+    for i in range(scan.size):
+        if weight[i] > 0 and np.isfinite(along[i]) and np.isfinite(residual_mm[i]):
+            ds = scan[i] - ms
+            sxy += ds * (residual_mm[i] / scale_mm_per_px - mr)
+            sxx += ds * ds
+    return n, (sxy / sxx if sxx > 0 else 0.0), float(hi - lo)

@@ -62,7 +62,7 @@ from doorloc.vision.arris_model import StripFit
 from doorloc.vision.coarse import coarse_edges
 from doorloc.vision.coarse_stage import StepQuery, find_coarse
 from doorloc.vision.config import LocateConfig
-from doorloc.vision.direction_vote import direction_spread, voted_by_doubts
+from doorloc.vision.direction_vote import voted_by_doubts
 from doorloc.vision.doubts import edge_doubts
 from doorloc.vision.edge_samples import EdgeSamples
 from doorloc.vision.far_band import FarFaceFit
@@ -522,8 +522,7 @@ def _answer(
     """The doubts and the gate after the response check: the answer, or :class:`Refused`."""
     # why many parameters: the stages' values that the doubts and the gate read, passed as they are
     doubts = edge_doubts(lum.plane, lum.scale_to_8bit, region, cfg, check, jpeg_quality)
-    refined = voted_by_doubts(check.refined, region, doubts.model)
-    spread = direction_spread(refined, doubts.model)
+    refined, spread = voted_by_doubts(check.refined, region, doubts.model)
     if spread is not None and spread.doubts:
         doubts = replace(doubts, model=doubts.model.with_doubts(*spread.doubts))
     _trace_refined(tr, refined)
