@@ -143,7 +143,7 @@ def direction_spread(r: Refined, model: EdgeModelTerms) -> DirectionSpread | Non
     deg; the ratio read 2.16, and the door, answered 0.33 mm off in x at 4.4 sigma, is refused
     ``uncertain``. Over 160 plain doors of the surfaces bench's grain, thin, strong-grain and hard sets
     (seed 20100) the ratio's median was 0.13 and its 90th percentile 0.48: the lines' doubts are generous;
-    over 400 doors at three seeds it passed 1 on nine (docs/benchmarks.md, 2026-12-06)."""
+    over 360 doors at three seeds it passed 1 on nine (docs/benchmarks.md, 2026-12-06)."""
     return _spread(r, _direction_variances(r, model))
 
 
