@@ -388,7 +388,10 @@ def _ungated(cfg: LocateConfig) -> LocateConfig:
     which would locate every bright arris image (and plain one whose edges read an exponent in the
     cell's place) twice for a sigma alone (it never moves a pose). Nor with the refusal of an arris that the
     recipes do not give (``locate.untold_arris_shift_px``): that arris is an effect the check names (the
-    catalogue's ``arris``), from the poses the cell gives without it."""
+    catalogue's ``arris``), from the poses the cell gives without it. Nor with the doubt of lines that
+    disagree about the door's direction (``locate.direction_check``): a camera the cell models wrong bends
+    them apart on every image, an effect the check looks for (a decentred lens, whose tangential
+    distortion no catalogue entry makes, was named a lateral offset and a camera roll with it)."""
     big = 1e6
     return replace(
         cfg,
@@ -400,6 +403,7 @@ def _ungated(cfg: LocateConfig) -> LocateConfig:
         optics_edge_sigma_px=0.0,
         response_shoulder_knee=1.0,
         untold_arris_shift_px=0.0,
+        direction_check=False,
     )
 
 

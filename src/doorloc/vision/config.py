@@ -87,6 +87,13 @@ class LocateConfig:
         door whose light was stated 40 degrees off was then answered 0.11 mm wrong at 3.2 sigma). A strip
         the stated light fits far worse than a free shading does is fitted as if no light were stated
         (``stated_light.STATED_LIGHT_MISFIT_RATIO``; ``diagnostics.arris_fit.<line>.stated_light``).
+    direction_check : bool
+        After the door's direction is voted, each voting line's own direction is read against it; where they
+        disagree beyond their doubts (the Birge ratio above 1) every voting line's direction doubt is widened
+        by the ratio, and a line that itself departs beyond its doubt is doubted across by its drift
+        (:func:`doorloc.vision.direction_vote.direction_spread`; ``diagnostics.direction_spread``, the
+        budget's ``direction`` term). Default on; the model check turns it off: lines that disagree because
+        the cell's camera is wrong are what it looks for, not an image's noise to weigh poses by.
     light_from_door : bool
         Where no ``light_direction_deg`` is stated, a door with a rounded arris is located with free
         shadings, its light sought from its own rounded strips (:mod:`doorloc.vision.light_search`: the
@@ -247,6 +254,7 @@ class LocateConfig:
     light_direction_deg: tuple[float, float] | None = None
     light_direction_sigma_deg: float = 10.0
     light_from_door: bool = True
+    direction_check: bool = True
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.max_clipped_arris_fraction <= 1.0:

@@ -523,7 +523,7 @@ def _answer(
     # why many parameters: the stages' values that the doubts and the gate read, passed as they are
     doubts = edge_doubts(lum.plane, lum.scale_to_8bit, region, cfg, check, jpeg_quality)
     refined, spread = voted_by_doubts(check.refined, region, doubts.model)
-    if spread is not None and spread.doubts:
+    if cfg.direction_check and spread is not None and spread.doubts:
         doubts = replace(doubts, model=doubts.model.with_doubts(*spread.doubts))
     _trace_refined(tr, refined)
     check = replace(check, refined=refined)
