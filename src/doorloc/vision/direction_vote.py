@@ -81,7 +81,7 @@ def voted_by_doubts(
     if votes:
         fit = revote_direction(r.fit, r.plane_points, votes)
         r = replace(r, fit=fit, pose=pose_from_fit(fit, region.face_map), direction_votes=votes)
-    return r, _spread(r, variances)
+    return r, direction_spread(r, model, variances)
 
 
 #: per voting line the variance of its direction from its points' noise and from its edge-model tilt, and
@@ -129,7 +129,9 @@ class DirectionSpread:
         }
 
 
-def direction_spread(r: Refined, model: EdgeModelTerms) -> DirectionSpread | None:
+def direction_spread(
+    r: Refined, model: EdgeModelTerms, variances: _Variances | None = None
+) -> DirectionSpread | None:
     """The voting lines' disagreement about the door's direction (:class:`DirectionSpread`), after the vote
     (``r``'s fit), against their doubts (their points' noise and ``model``'s tilts); None where a line has
     no spread or too few points (10) to fit its own direction.
@@ -143,12 +145,11 @@ def direction_spread(r: Refined, model: EdgeModelTerms) -> DirectionSpread | Non
     deg; the ratio read 2.16, and the door, answered 0.33 mm off in x at 4.4 sigma, is refused
     ``uncertain``. Over 160 plain doors of the surfaces bench's grain, thin, strong-grain and hard sets
     (seed 20100) the ratio's median was 0.13 and its 90th percentile 0.48: the lines' doubts are generous;
-    over 360 doors at three seeds it passed 1 on nine (docs/benchmarks.md, 2026-12-06)."""
-    return _spread(r, _direction_variances(r, model))
+    over 360 doors at three seeds it passed 1 on nine (docs/benchmarks.md, 2026-12-06).
 
-
-def _spread(r: Refined, variances: _Variances | None) -> DirectionSpread | None:
-    """:func:`direction_spread` from the lines' direction variances (:func:`_direction_variances`)."""
+    ``variances``: the lines' direction variances where the caller has read them already
+    (:func:`voted_by_doubts`, for its vote); else they are read here."""
+    variances = _direction_variances(r, model) if variances is None else variances
     if variances is None:
         return None
     noise, tilt, _ = variances
