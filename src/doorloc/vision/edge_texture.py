@@ -20,7 +20,7 @@ from doorloc.vision.jit import kernel
 from doorloc.vision.state import Refined
 from doorloc.vision.step_fit_lines import STEP_FIT_PHASE_SWEEP_PX, phase_sweep_px
 from doorloc.vision.texture import TextureBias
-from doorloc.vision.transition import blur_without_pixel
+from doorloc.vision.transition import narrowest_blur
 
 __all__ = [
     "REFERENCE_WIDER_PX",
@@ -59,8 +59,7 @@ def _sharp_and_swept(r: Refined, k: str, texture_px: float) -> bool:
     door without grain)."""
     if r.step_fitted or r.face_sloped or not texture_px >= SHARP_WITNESS_TEXTURE_PX:
         return False
-    widths = [w for w in r.transition_widths_px if math.isfinite(w)]
-    if not widths or not blur_without_pixel(min(widths)) < STEP_FIT_MIN_BLUR_PX:
+    if not narrowest_blur(r.transition_widths_px) < STEP_FIT_MIN_BLUR_PX:
         return False
     return phase_sweep_px(r.samples[k]) >= STEP_FIT_PHASE_SWEEP_PX
 

@@ -43,7 +43,7 @@ from doorloc.vision.step_fit_lines import step_fit_lines
 from doorloc.vision.strip_posterior import strip_blur_priors
 from doorloc.vision.strip_response import StripReadings, arc_score, grey_score
 from doorloc.vision.thickness_gate import shows_one_step
-from doorloc.vision.transition import blur_without_pixel, transition_width
+from doorloc.vision.transition import narrowest_blur, transition_width
 
 __all__ = ["arris_response_shifts", "refine"]
 
@@ -662,10 +662,7 @@ def _within_narrowest(optical_px: float, widths: Sequence[float], door: DoorSize
     transitions, not its fit's blur."""
     if door.arris_mm > 0 or not math.isfinite(optical_px):
         return optical_px
-    ok = [w for w in widths if math.isfinite(w)]
-    if not ok:
-        return optical_px
-    narrow = blur_without_pixel(min(ok))
+    narrow = narrowest_blur(widths)
     return narrow if narrow > 0.0 and optical_px >= OPTICAL_BLUR_NARROW_FACTOR * narrow else optical_px
 
 

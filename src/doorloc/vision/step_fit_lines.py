@@ -15,7 +15,7 @@ from doorloc.vision.config import LocateConfig
 from doorloc.vision.edge_models import FACE_SLOPE_LINES
 from doorloc.vision.edge_samples import EdgeSamples
 from doorloc.vision.lines import fit_image_line
-from doorloc.vision.transition import blur_without_pixel
+from doorloc.vision.transition import narrowest_blur
 
 __all__ = ["STEP_FIT_PHASE_SWEEP_PX", "phase_sweep_px", "phase_swept", "step_fit_lines"]
 
@@ -94,9 +94,7 @@ def _step_fit_blur(cfg: LocateConfig, widths: Iterable[float]) -> float:
     or the blur is below ``STEP_FIT_MIN_BLUR_PX``. The fit with the face sloped (texture along an edge)
     searches its blur from it on the long arrises: a flank of grain beside an edge widens that edge's
     transition, so its own width would not do."""
-    ok = [w for w in widths if math.isfinite(w)]
-    if not cfg.step_fit or not ok:
+    if not cfg.step_fit:
         return float("nan")
-    narrow = min(ok)
-    optical = blur_without_pixel(narrow)
+    optical = narrowest_blur(widths)
     return optical if optical >= STEP_FIT_MIN_BLUR_PX else float("nan")

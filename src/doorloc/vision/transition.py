@@ -12,6 +12,7 @@ width without it.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 
 import numpy as np
 
@@ -19,7 +20,7 @@ from doorloc.vision.edge_samples import EdgeSamples
 from doorloc.vision.jit import grey, kernel
 from doorloc.vision.sampling import NO_LUT, oriented, pixel_buffer, warm_up_planes
 
-__all__ = ["QUIET_REACH_SIGMAS", "blur_without_pixel", "transition_width"]
+__all__ = ["QUIET_REACH_SIGMAS", "blur_without_pixel", "narrowest_blur", "transition_width"]
 
 
 def blur_without_pixel(transition_px: float) -> float:
@@ -30,6 +31,14 @@ def blur_without_pixel(transition_px: float) -> float:
         if math.isfinite(transition_px)
         else 0.0
     )
+
+
+def narrowest_blur(widths: Iterable[float]) -> float:
+    """The optical blur (px) in the narrowest of the finite transition ``widths`` (:func:`blur_without_pixel`;
+    NaN where none is finite): one lens blurs every edge alike, and texture or a second structure only widens
+    a transition."""
+    ok = [w for w in widths if math.isfinite(w)]
+    return blur_without_pixel(min(ok)) if ok else math.nan
 
 
 def transition_width(
