@@ -28,6 +28,9 @@ service, the CLI and batch read it from the file (by default as an array, whose 
 (negative: thinner) and locates it with the recipe: every answer is then a wrong door passed, and the
 refusals say how the thickness check caught the others (the thin-arris set is where that is hard: the far
 arris's strip and the far face's back edge are both candidates for the far side).
+- grain_square (not in the default sets) the grain set's doors square to the camera, through cameras of
+               exponent 1.0-2.4 that the cell states: the camera response read between the pixels (each
+               line's reading at one pixel phase against the rendered exponent: its pulls, printed).
 - grain_strong (not in the default sets) the grain set's doors with 2.5 times the grain's contrast (0-25 %):
                an RMS of the texture near a single 10 % sinusoid's, as another renderer's grain has.
 - fixtures/*   the committed rendered fixtures (grid, widths, distractors, effects).
@@ -269,8 +272,19 @@ def thin_arris_set(n: int, seed: int) -> Iterator[Item]:
 
 
 #: name -> generator(n, seed); add arris / response sets here
+def grain_square_set(n: int, seed: int) -> Iterator[Item]:
+    """The grain set's doors square to the camera (yaw 0: every edge at one pixel phase), through cameras
+    of exponent 1.0, 1.8, 2.2 or 2.4 that the cell states: where the response is read between the pixels."""
+    rng = np.random.default_rng(seed + 1)
+    for name, pose, door, eff, s in grain_set(n, seed):
+        gamma = float(rng.choice([1.0, 1.8, 2.2, 2.4]))
+        square = DoorPose(pose.x_mm, pose.z_mm, 0.0)
+        yield name.replace("grain", "grain_square", 1), square, door, replace(eff, gamma=gamma), s
+
+
 SETS: dict[str, Callable[[int, int], Iterator[Item]]] = {
     "grain": grain_set,
+    "grain_square": grain_square_set,
     "plain": plain_set,
     "hard": hard_set,
     "thin": thin_set,
@@ -338,6 +352,15 @@ def _print_set(name: str, s: dict, seed: int | None) -> None:
             f"{'':20s} thickness: RMS {s['rms_thickness_mm']:.4f} mm, max {s['max_thickness_mm']:.4f} mm, within 2 "
             f"sigma {100 * s['thickness_within_2sigma']:.0f} %, beyond 5 sigma {s['thickness_beyond_5sigma']}"
         )
+    if "one_phase_pulls" in s:
+        p, at_end = (np.array(v) for v in zip(*s["one_phase_pulls"], strict=True))
+        inner = p[~at_end.astype(bool)]
+        print(
+            f"{'':20s} response read at one pixel phase on {p.size} lines: pulls {np.sqrt(np.mean(p**2)):.2f} "
+            f"RMS, {100 * np.mean(np.abs(p) <= 2.0):.0f} % within 2 sigma; the {inner.size} read inside the "
+            f"range {np.sqrt(np.mean(inner**2)) if inner.size else float('nan'):.2f} RMS, "
+            f"{100 * np.mean(np.abs(inner) <= 2.0) if inner.size else float('nan'):.0f} %"
+        )
     for r in s["refusals"]:
         print(f"{'':20s} refused {r['image']}: {r['code']}: {r['reason']}")
 
@@ -359,7 +382,7 @@ def run_rendered(
     cfg = replace(cell.locate, calibration_sigma_px=0.0, optics_edge_sigma_px=0.0)  # the camera is exact
     if response_factor is not None:  # a cell whose response was measured (doorloc calibrate's factor)
         cfg = replace(cfg, response_unmeasured_factor=response_factor)
-    results = []
+    results, pulls = [], []
     for img_name, pose, door, eff, s in SETS[name](n, seed):
         rendered = replace(door, thickness_mm=door.thickness_mm + wrong_mm)
         img = render_door(cell, rendered, pose, effects=eff, seed=s).image
@@ -383,7 +406,25 @@ def run_rendered(
                 (pose.x_mm, pose.z_mm, pose.yaw_deg, rendered.thickness_mm),
             )
         )
-    return _evaluate(results)
+        pulls += _one_phase_pulls(results[-1][1], eff.gamma if eff is not None else cell.response_gamma)
+    out = _evaluate(results)
+    if pulls:
+        out["one_phase_pulls"] = pulls
+    return out
+
+
+def _one_phase_pulls(r, camera_gamma: float) -> list[tuple[float, bool]]:
+    """Each line's camera exponent read at one pixel phase, off the rendered camera's, over its sigma; and
+    whether the reading lies at an end of the range read (no least inside it)."""
+    from doorloc.vision.response import RESPONSE_GAMMA_RANGE
+
+    lines = ((r.diagnostics or {}).get("camera_response") or {}).get("lines", {})
+    lo, hi = RESPONSE_GAMMA_RANGE
+    return [
+        ((v["gamma"] - camera_gamma) / v["sigma"], not lo * 1.01 < v["gamma"] < hi * 0.99)
+        for v in lines.values()
+        if v.get("one_phase") and v.get("gamma") is not None and v.get("sigma")
+    ]
 
 
 def run_fixture(folder: str) -> dict:

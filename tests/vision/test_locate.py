@@ -1396,6 +1396,40 @@ def test_a_weak_reading_of_the_response_does_not_confirm_the_cell(cell):
         assert r.error_code == "uncertain" and "response" in r.error
 
 
+def test_faint_square_edges_do_not_replace_a_right_cell_exponent(cell):
+    """Square to a 2.4 camera that the cell states (``bench_surfaces.py --sets grain_square --seed 50100``,
+    door 37): faint edges (plateaus at 0.38 and 0.67 of full scale), JPEG 88, 2.8 grey levels of noise.
+    Both plain edges, read between their pixels, read 0.9-1.0 +- 0.3, the same misreading (the asymmetry
+    a wrong exponent makes grows with the edge's contrast in light, and what one phase's scan lines share
+    is not in their scatter): that replaced the cell's exponent, and the door was placed 0.052 mm off in z
+    at 4.4 sigma. Their shared doubt now grows as the edge's contrast falls, and the cell's exponent
+    stands."""
+    door = DoorSize(900, 55.7616, 2100)
+    pose = DoorPose(-8.7973, -9.8523, 0.0)
+    fx = Effects(
+        albedo_hinge=0.39634,
+        albedo_side=0.31994,
+        albedo_background=0.10001,
+        gradient_u=0.03921,
+        gradient_v=-0.09118,
+        vignetting=0.09910,
+        grain_contrast=0.01735,
+        grain_period_mm=5.4749,
+        blur_sigma_px=1.11972,
+        read_noise_dn=2.84541,
+        gamma=2.4,
+        jpeg_quality=88,
+    )
+    img = render_door(cell, door, pose, effects=fx, seed=50101037).image
+    exact = replace(cell.locate, calibration_sigma_px=0.0, optics_edge_sigma_px=0.0)
+    r = locate(img, replace(cell, response_gamma=2.4), door, config=exact)
+    cr = r.diagnostics["camera_response"]
+    assert all(v.get("one_phase") for v in cr["lines"].values()) and cr["fitted"] < 1.5, cr
+    assert r.ok and cr["used"] == "cell", cr
+    assert abs(r.x_mm - pose.x_mm) < 2.0 * r.uncertainty.x_mm
+    assert abs(r.z_mm - pose.z_mm) < 2.0 * r.uncertainty.z_mm
+
+
 def test_an_undithered_8_bit_image_does_not_replace_a_right_cell_exponent(cell):
     """A 1.34 camera, 8 bits under 0.05 grey levels of noise (the rounding is not dithered), the cell right
     (square bench seed 8000's scene at yaw -1 deg): both plain edges read 2.21, and 1.37 / 1.46 about as

@@ -477,10 +477,10 @@ def _resampled_asymmetry(
     through its pixels. The spline is exact enough only where the blur makes the transition smooth on the
     pixel scale (optical sigma 1 px and more: errors of a few per cent in the exponent on synthetic steps,
     up to a fifth at high exponents, where the measure is flat), so its readings carry a floor
-    (``doorloc.vision.response.RESPONSE_ONE_PHASE_SIGMA``). A cubic spline and not a local kernel: on the same synthetic steps
-    (exponents 1.0-2.2, blur 1.0-1.4 px, six phases) Keys' cubic convolution and a Lanczos-3 window
-    misread the exponent by up to 0.6 and 2.0, the spline by up to 0.06 below 1.6 and 0.5 at 2.2. Same
-    shapes and NaN rules as :func:`asymmetry`.
+    (``doorloc.vision.response.RESPONSE_ONE_PHASE_SIGMA``, ``RESPONSE_ONE_PHASE_CONTRAST``). A cubic
+    spline and not a local kernel: on the same synthetic steps (exponents 1.0-2.2, blur 1.0-1.4 px, six
+    phases) Keys' cubic convolution and a Lanczos-3 window misread the exponent by up to 0.6 and 2.0, the
+    spline by up to 0.06 below 1.6 and 0.5 at 2.2. Same shapes and NaN rules as :func:`asymmetry`.
     """
     G, N, L = n.shape
     nb = max(n_blocks, 1)
