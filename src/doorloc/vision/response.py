@@ -214,6 +214,15 @@ class ResponseFit:
         return g, se
 
     @property
+    def departs(self) -> bool:
+        """Whether it lies beyond ``RESPONSE_ABSORB_SIGMAS`` joint sigmas of the claim, whether or not a
+        camera has its exponent and on however many edges (and the edges read no other exponent about as
+        well, one of which may be the claim): read again with an exponent just absorbed as the claim, edges
+        that read yet another are no measurement of the camera (:func:`doorloc.vision.response_check.
+        check_response`). Where the claim was not measured, every reading that is to be absorbed departs."""
+        return not self.alternatives and self.disagreement > RESPONSE_ABSORB_SIGMAS
+
+    @property
     def absorb(self) -> bool:
         # two edges at least: one edge's texture can mimic a response, two rarely agree by chance
         # and a camera's response: below ~0.8 (darks lifted) no camera is made; such a fit is texture or
