@@ -218,8 +218,9 @@ class ResponseFit:
         """Whether it lies beyond ``RESPONSE_ABSORB_SIGMAS`` joint sigmas of the claim, whether or not a
         camera has its exponent and on however many edges (and the edges read no other exponent about as
         well, one of which may be the claim): read again with an exponent just absorbed as the claim, edges
-        that read yet another are no measurement of the camera (:func:`doorloc.vision.response_check.
-        check_response`). Where the claim was not measured, every reading that is to be absorbed departs."""
+        that read yet another are no measurement of the camera
+        (:func:`doorloc.vision.response_check.check_response`). Where the claim was not measured, every
+        reading that is to be absorbed departs."""
         return not self.alternatives and self.disagreement > RESPONSE_ABSORB_SIGMAS
 
     @property
@@ -328,8 +329,9 @@ def fit_line_response(
     -------
     LineResponse or None
         None where too few profiles are usable, an edge at one pixel phase is too sharp to be read
-        between its pixels or its plateaus do not differ, or the asymmetry has no least over ``RESPONSE_GAMMA_RANGE`` (a least at the
-        range's end is a reading: :func:`doorloc.vision.response_asymmetry.least_asymmetric`).
+        between its pixels or its plateaus do not differ, or the asymmetry has no least over
+        ``RESPONSE_GAMMA_RANGE`` (a least at the range's end is a reading:
+        :func:`doorloc.vision.response_asymmetry.least_asymmetric`).
     """
     # The window holds the whole transition (3 blur sigmas each side) and plateaus at both ends.
     read = line_transitions(plane, samples, mask, half, blur_px, wider_px)

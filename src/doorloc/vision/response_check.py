@@ -209,9 +209,10 @@ def _read_otherwise_wider(
     it. On a linear camera under grain, vignetting and JPEG (grain bench, seed 9900, door 30) both plain
     edges read 2.4-2.7 +- 0.1-0.4 and the cell's right 1.0 was replaced: the thickness 0.083 mm off at 5.3
     sigma; over a window 3 px wider the reference arris read 0.45. A 2.2 camera stated so under 10 % grain
-    and JPEG 88 (the grain set's door 38 at ``--seed 55100`` through that camera) read 0.84 +- 0.15 and 0.79
-    +- 0.55, over the wider window 0.56 +- 0.07 and 0.44 +- 0.08, within the first readings' sigmas but no
-    camera's exponent: 0.84 replaced the cell's, and the door was placed 0.041 mm off at 3.2 sigma."""
+    and JPEG 88 (the grain set's door 38 at ``--seed 55100`` through that camera, its figures rounded to
+    five digits) read 0.84 +- 0.15 and 0.79 +- 0.55, over the wider window 0.56 +- 0.07 and 0.44 +- 0.08,
+    within the first readings' sigmas but no camera's exponent: 0.84 replaced the cell's, and the door was
+    placed 0.041 mm off at 3.2 sigma."""
     if not per_line:
         return {}
     _, wider = measure_response(plane, refined, cell, cfg, wider_px=RESPONSE_WIDER_CHECK_PX)
