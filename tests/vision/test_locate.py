@@ -919,6 +919,43 @@ def test_a_far_arris_behind_wandering_grain_stripes_is_found(cell):
     assert abs(r.thickness_mm - door.thickness_mm) <= 0.1
 
 
+def test_a_shadow_across_a_thin_doors_face_does_not_tilt_its_far_arris(cell):
+    """A 33.5 mm door at yaw 1.86 deg whose far face is in view, a shadow band across its hinge face from 36
+    mm up (``bench_surfaces.py --sets thin --n 40 --seed 58100``, door 23): on the shadowed scan lines the
+    first clear step beyond the reference arris was the far face's back edge, 9 px beyond the arris, and
+    the coarse line ran through both, 2.7 deg off the reference arris's: refused ``outside_envelope`` at a
+    yaw of 3.08 deg ("re-seat the door"). The far arris is taken parallel to the reference arris: answered,
+    its errors within 2 sigma."""
+    door = DoorSize(900, 33.4503018952801, 2100)
+    pose = DoorPose(-4.102558083250907, -3.428877030924955, 1.8630754209334128)
+    fx = Effects(
+        albedo_hinge=0.44363475444192113,
+        albedo_side=0.35649804550881287,
+        albedo_background=0.19508939179514412,
+        light_ambient=0.6825590980735493,
+        light_directional=0.006969382163288396,
+        light_azimuth_deg=-42.93285560900369,
+        light_elevation_deg=-1.3134518138955116,
+        gradient_u=-0.16445977139099716,
+        gradient_v=0.22755347672252002,
+        vignetting=0.25974185263282334,
+        grain_contrast=0.05521600724293099,
+        grain_period_mm=2.0270625367714303,
+        shadow_strength=0.23679780629259867,
+        shadow_z_mm=35.87929431227931,
+        blur_sigma_px=0.5299391996104081,
+        read_noise_dn=2.097481260417588,
+        jpeg_quality=95,
+    )
+    img = render_door(cell, door, pose, effects=fx, seed=58103023).image
+    exact = replace(cell.locate, calibration_sigma_px=0.0, optics_edge_sigma_px=0.0)
+    r = locate(img, cell, door, config=exact)
+    assert r.ok, r.error
+    assert abs(r.x_mm - pose.x_mm) <= 2.0 * r.uncertainty.x_mm
+    assert abs(r.z_mm - pose.z_mm) <= 2.0 * r.uncertainty.z_mm
+    assert abs(r.yaw_deg - pose.yaw_deg) <= 2.0 * r.uncertainty.yaw_deg
+
+
 def test_lines_that_disagree_about_the_door_s_direction_widen_its_doubt(cell):
     """A 51.9 mm door under 20 % grain (``bench_surfaces.py --sets grain_strong --n 40 --seed 20100``, door
     13, its draw as drawn): grain stripes ran off its reference arris, whose points drifted 3.2 px over its

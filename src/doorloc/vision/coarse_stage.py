@@ -382,7 +382,7 @@ def _far_line(
     P_far = oriented(s.plane, s.region.layouts["far"].axis)
     search = band_far
     for _skip in range(FACE_TEXTURE_SKIPS + 1):
-        far_line = yield from _first_far_line(s, search, tol)
+        far_line = yield from _first_far_line(s, search, tol, ref_line.b)
         if far_line is None:
             break
         # (only a door thinner than the recipe's needs the look: a grain line lies inside the face; an
@@ -532,10 +532,11 @@ def _strip_half(door: DoorSize, scale_mm_per_px: float) -> int:
 
 
 def _first_far_line(
-    s: _Search, band: Band, tol: float
+    s: _Search, band: Band, tol: float, ref_slope: float
 ) -> Generator[StepQuery, tuple[np.ndarray, np.ndarray], ImageLine | None]:
     """The far arris's coarse line: the first clear step on each scan line of ``band`` coming from the
-    reference arris, RANSAC over them (tolerance ``tol`` px)."""
+    reference arris, RANSAC over them (tolerance ``tol`` px); on a door without an arris about parallel to
+    the reference arris (its slope ``ref_slope``: :func:`_parallel_far_line`)."""
     plane, layout, thr, xdir, door, sc = s.plane, s.region.layouts["far"], s.thr, s.xdir, s.door, s.sc
     near = (band.lo if xdir > 0 else band.hi).astype(float)
     # an arris strip makes a weak first step (face -> strip): skip it
@@ -556,6 +557,10 @@ def _first_far_line(
             and np.median((far_line.at(band.scan) - near_line.at(band.scan)) * xdir) > strip_px
         ):
             far_line = near_line
+    if far_line is not None and not door.arris_mm > 0:  # (a strip's two borders are two such parallels)
+        far_line = _parallel_far_line(
+            band.scan[strong_f], along_f[strong_f], far_line, ref_slope, tol, xdir, len(band.scan)
+        )
     if far_line is not None and far_line.inliers.sum() < FAR_SUPPORT_SHARE * len(band.scan):
         # Grain stripes of the hinge face that wander along it can make the first clear step on most scan
         # lines, each at another place, and leave the arris's line too few of them (bench_surfaces --sets
@@ -570,6 +575,29 @@ def _first_far_line(
         if again is not None and again.inliers.sum() > far_line.inliers.sum():
             far_line = again
     return far_line
+
+
+def _parallel_far_line(
+    scan: np.ndarray, along: np.ndarray, line: ImageLine, ref_slope: float, tol: float, xdir: int, n: int
+) -> ImageLine:
+    """``line`` (through the steps ``along`` on the scan lines ``scan``), or where its direction departs
+    from the parallel reference arris's (slope ``ref_slope``) by more than moves it ``tol`` px over the
+    steps, the line through the steps within ``tol`` of the parallel nearest the reference arris that holds
+    ``FAR_SUPPORT_SHARE`` of the ``n`` scan lines (the far arris is the first clear step); ``line`` where none
+    does. (A shadow across a thin door's face, bench_surfaces.py --sets thin --n 40 --seed 58100, door 23,
+    made the far face's back edge the first step on its scan lines; RANSAC's line ran through both, 2.7 deg
+    off, and the door at yaw 1.86 deg was refused as lying at 3.08: outside the envelope.)"""
+    if scan.size < 2 or abs(line.b - ref_slope) * float(np.ptp(scan)) <= tol:
+        return line
+    offsets = (along - ref_slope * scan) * xdir  # (increasing away from the reference arris)
+    for o in np.sort(offsets):
+        held = np.abs(offsets - o) <= tol
+        if held.sum() >= FAR_SUPPORT_SHARE * n:  # (then the steps about their median)
+            centre = float(np.median(offsets[held]))
+            held = np.abs(offsets - centre) <= tol
+            b, a = np.polyfit(scan[held].astype(float), along[held], 1)
+            return ImageLine(float(a), float(b), held)
+    return line
 
 
 def _face_continues(
