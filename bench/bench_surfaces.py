@@ -271,7 +271,6 @@ def thin_arris_set(n: int, seed: int) -> Iterator[Item]:
         yield f"thin_arris_{i:03d}", pose, door, eff, seed * 1000 + i
 
 
-#: name -> generator(n, seed); add arris / response sets here
 def grain_square_set(n: int, seed: int) -> Iterator[Item]:
     """The grain set's doors square to the camera (yaw 0: every edge at one pixel phase), through cameras
     of exponent 1.0, 1.8, 2.2 or 2.4 that the cell states: where the response is read between the pixels."""
@@ -282,6 +281,7 @@ def grain_square_set(n: int, seed: int) -> Iterator[Item]:
         yield name.replace("grain", "grain_square", 1), square, door, replace(eff, gamma=gamma), s
 
 
+#: name -> generator(n, seed); add arris / response sets here
 SETS: dict[str, Callable[[int, int], Iterator[Item]]] = {
     "grain": grain_set,
     "grain_square": grain_square_set,

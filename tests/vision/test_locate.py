@@ -151,6 +151,16 @@ def _located_with_recipe(cell, recipe: DoorSize, pose: DoorPose, fx: Effects, se
     return locate(render_door(cell, real, pose, effects=fx, seed=seed).image, cell, recipe)
 
 
+def _located_exact(
+    cell, door: DoorSize, pose: DoorPose, fx: Effects, seed: int, camera_gamma: float | None = None
+):
+    """The door rendered with ``fx`` and located as through an exact camera (no calibration or optics doubt),
+    the cell stating the camera's exponent ``camera_gamma`` where given."""
+    stated = cell if camera_gamma is None else replace(cell, response_gamma=camera_gamma)
+    exact = replace(cell.locate, calibration_sigma_px=0.0, optics_edge_sigma_px=0.0)
+    return locate(render_door(cell, door, pose, effects=fx, seed=seed).image, stated, door, config=exact)
+
+
 def _nearest_reading_miss(r, thickness_mm: float) -> float:
     """How far the reading nearer ``thickness_mm`` misses it, mm: the fitted thickness or, where the far face
     reads two ways, its other reading (``thickness_check.other_reading_mm``)."""
@@ -762,8 +772,7 @@ def test_a_far_face_as_bright_as_the_hinge_face_carries_its_other_reading_in_the
     door = DoorSize(900, 31.1227, 2100)
     pose = DoorPose(-2.1, -1.8, -0.63)
     fx = Effects(albedo_hinge=0.2634, albedo_side=0.2827, albedo_background=0.1281, blur_sigma_px=1.33)
-    exact = replace(cell.locate, calibration_sigma_px=0.0, optics_edge_sigma_px=0.0)
-    r = locate(render_door(cell, door, pose, effects=fx, seed=5163027).image, cell, door, config=exact)
+    r = _located_exact(cell, door, pose, fx, 5163027)
     assert r.ok, r.error
     assert r.diagnostics["far_face_visible"]
     check = r.diagnostics["thickness_check"]
@@ -796,8 +805,7 @@ def test_a_grained_far_arris_beside_its_far_face_is_judged_by_its_own_scatter(ce
         read_noise_dn=0.308,
         jpeg_quality=88,
     )
-    exact = replace(cell.locate, calibration_sigma_px=0.0, optics_edge_sigma_px=0.0)
-    r = locate(render_door(cell, door, pose, effects=fx, seed=14100003).image, cell, door, config=exact)
+    r = _located_exact(cell, door, pose, fx, 14100003)
     assert r.ok, r.error
     assert r.diagnostics["far_face_visible"]
     far = next(line for line in r.lines if line.name == "far")
@@ -910,9 +918,7 @@ def test_a_far_arris_behind_wandering_grain_stripes_is_found(cell):
         read_noise_dn=0.17639010114268583,
         jpeg_quality=88,
     )
-    img = render_door(cell, door, pose, effects=fx, seed=19100020).image
-    exact = replace(cell.locate, calibration_sigma_px=0.0, optics_edge_sigma_px=0.0)
-    r = locate(img, cell, door, config=exact)
+    r = _located_exact(cell, door, pose, fx, 19100020)
     assert r.ok, r.error
     assert abs(r.x_mm - pose.x_mm) <= 2.0 * r.uncertainty.x_mm
     assert abs(r.z_mm - pose.z_mm) <= 2.0 * r.uncertainty.z_mm
@@ -947,9 +953,7 @@ def test_a_shadow_across_a_thin_doors_face_does_not_tilt_its_far_arris(cell):
         read_noise_dn=2.097481260417588,
         jpeg_quality=95,
     )
-    img = render_door(cell, door, pose, effects=fx, seed=58103023).image
-    exact = replace(cell.locate, calibration_sigma_px=0.0, optics_edge_sigma_px=0.0)
-    r = locate(img, cell, door, config=exact)
+    r = _located_exact(cell, door, pose, fx, 58103023)
     assert r.ok, r.error
     assert abs(r.x_mm - pose.x_mm) <= 2.0 * r.uncertainty.x_mm
     assert abs(r.z_mm - pose.z_mm) <= 2.0 * r.uncertainty.z_mm
@@ -1021,9 +1025,7 @@ def test_grain_at_a_sharp_edge_is_witnessed_by_the_step_fit(cell):
         read_noise_dn=2.0897610940703237,
         jpeg_quality=95,
     )
-    img = render_door(cell, door, pose, effects=fx, seed=15102031).image
-    exact = replace(cell.locate, calibration_sigma_px=0.0, optics_edge_sigma_px=0.0)
-    r = locate(img, cell, door, config=exact)
+    r = _located_exact(cell, door, pose, fx, 15102031)
     assert r.ok, r.error
     assert abs(r.x_mm - pose.x_mm) <= 2.5 * r.uncertainty.x_mm
     assert abs(r.yaw_deg - pose.yaw_deg) <= 2.5 * r.uncertainty.yaw_deg
@@ -1463,9 +1465,7 @@ def test_an_exponent_no_camera_has_keeps_a_grained_doors_reading_from_replacing_
         gamma=2.2,
         jpeg_quality=88,
     )
-    img = render_door(cell, door, pose, effects=fx, seed=55100038).image
-    exact = replace(cell.locate, calibration_sigma_px=0.0, optics_edge_sigma_px=0.0)
-    r = locate(img, replace(cell, response_gamma=2.2), door, config=exact)
+    r = _located_exact(cell, door, pose, fx, 55100038, camera_gamma=2.2)
     cr = r.diagnostics["camera_response"]
     assert r.ok and not cr["absorbed"] and cr["used"] == "cell", cr
     assert ("second_fit" in cr) if digits is None else ("wider_window_fit" in cr), cr
@@ -1497,9 +1497,7 @@ def test_faint_square_edges_do_not_replace_a_right_cell_exponent(cell):
         gamma=2.4,
         jpeg_quality=88,
     )
-    img = render_door(cell, door, pose, effects=fx, seed=50101037).image
-    exact = replace(cell.locate, calibration_sigma_px=0.0, optics_edge_sigma_px=0.0)
-    r = locate(img, replace(cell, response_gamma=2.4), door, config=exact)
+    r = _located_exact(cell, door, pose, fx, 50101037, camera_gamma=2.4)
     cr = r.diagnostics["camera_response"]
     assert all(v.get("one_phase") for v in cr["lines"].values()) and cr["fitted"] < 1.5, cr
     assert r.ok and cr["used"] == "cell", cr

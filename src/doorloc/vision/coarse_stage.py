@@ -32,7 +32,7 @@ from doorloc.vision.coarse_refusals import (
 )
 from doorloc.vision.config import LocateConfig
 from doorloc.vision.gate import PATTERN
-from doorloc.vision.lines import ImageLine, fit_rectangle_edges, ransac_line
+from doorloc.vision.lines import ImageLine, fit_image_line, fit_rectangle_edges, ransac_line
 from doorloc.vision.luminance import LuminancePlane
 from doorloc.vision.metric import MetricPose, pose_from_fit
 from doorloc.vision.region import HUMAN, Band, EdgeLayout, SearchRegion
@@ -595,8 +595,8 @@ def _parallel_far_line(
         if held.sum() >= FAR_SUPPORT_SHARE * n:  # (then the steps about their median)
             centre = float(np.median(offsets[held]))
             held = np.abs(offsets - centre) <= tol
-            b, a = np.polyfit(scan[held].astype(float), along[held], 1)
-            return ImageLine(float(a), float(b), held)
+            fitted = fit_image_line(scan[held], along[held])
+            return ImageLine(fitted.a, fitted.b, held)
     return line
 
 

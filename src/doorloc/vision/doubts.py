@@ -28,6 +28,7 @@ from doorloc.vision.region import EDGE_NAMES, SearchRegion
 from doorloc.vision.response import (
     RESPONSE_PLAUSIBLE,
     ResponseFit,
+    a_cameras_reading,
     edge_shifts_px,
     plateau_levels,
 )
@@ -371,7 +372,7 @@ def _response_terms(
     between the line's own plateaus, at the measured blur) to the exponent the evidence gives and the
     shift of its 1-sigma, by the rule of :func:`_line_response_doubt`. A weak reading (a line read between
     its pixels, ``response.one_phase``, a door square to the camera) of an exponent no camera gives
-    (beyond ``RESPONSE_PLAUSIBLE`` by two of its sigmas: two lines of a 1.44 camera read 0.40 +- 0.08) is
+    (:func:`doorloc.vision.response.a_cameras_reading`: two lines of a 1.44 camera read 0.40 +- 0.08) is
     no reading: the cell's exponent within ``factor`` alone (:func:`_unmeasured_response_terms`).
 
     An arris line takes the same step model between its background and its face (a first-order figure).
@@ -382,8 +383,7 @@ def _response_terms(
         rule = "measured"
     elif response.one_phase and factor > 1.0:
         rule = "weak"
-        lo_g, hi_g = RESPONSE_PLAUSIBLE
-        if not lo_g - 2.0 * response.sigma <= response.gamma <= hi_g + 2.0 * response.sigma:
+        if not a_cameras_reading(response.gamma, response.sigma):
             return _unmeasured_response_terms(plane, r, used_gamma, factor, blur_px)
     else:
         rule = "unmeasured"

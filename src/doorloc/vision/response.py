@@ -66,10 +66,12 @@ __all__ = [
     "RESPONSE_GAMMA_RANGE",
     "RESPONSE_ONE_PHASE_MIN_BLUR_PX",
     "RESPONSE_PLAUSIBLE",
+    "RESPONSE_PLAUSIBLE_SIGMAS",
     "RESPONSE_SKEW_BLOCKS",
     "LineResponse",
     "ResponseFit",
     "combine_responses",
+    "a_cameras_reading",
     "at_one_phase",
     "edge_shift_px",
     "edge_shifts_px",
@@ -110,6 +112,9 @@ RESPONSE_ONE_PHASE_PSF = 0.5
 #: the exponents a camera's response has (a linear sensor 1.0, video and sRGB about 2.2-2.4): only a fit
 #: inside is absorbed
 RESPONSE_PLAUSIBLE = (0.8, 3.0)
+#: a reading lies beyond RESPONSE_PLAUSIBLE where it misses it by this many of its own sigmas
+#: (:func:`a_cameras_reading`)
+RESPONSE_PLAUSIBLE_SIGMAS = 2.0
 #: a line that admits other exponents is read at the one nearest the unambiguous lines' only where its first
 #: reading lies more than this many of their joint sigmas from theirs (:func:`_decided_by_unambiguous`):
 #: within it, both readings are the same camera's as far as the lines can tell (on the sharp doors of
@@ -237,9 +242,16 @@ class ResponseFit:
         # (for a claim that was not measured the combination is the image's own reading, and the two
         # tests below are one: the reading beyond RESPONSE_ABSORB_SIGMAS of its sigmas)
         g, se, _ = self.combined
-        return (
-            abs(g - self.claimed) > RESPONSE_ABSORB_SIGMAS * se or self.disagreement > RESPONSE_ABSORB_SIGMAS
-        )
+        return abs(g - self.claimed) > RESPONSE_ABSORB_SIGMAS * se or self.departs
+
+
+def a_cameras_reading(gamma: float, sigma: float) -> bool:
+    """Whether an exponent read as ``gamma`` +- ``sigma`` may be a camera's: within ``RESPONSE_PLAUSIBLE``
+    by ``RESPONSE_PLAUSIBLE_SIGMAS`` of its sigmas. Beyond, the reading is of texture or shading, whatever
+    its sigma says (a weak reading in the doubts, a line's reading over a wider window)."""
+    lo, hi = RESPONSE_PLAUSIBLE
+    reach = RESPONSE_PLAUSIBLE_SIGMAS * sigma
+    return lo - reach <= gamma <= hi + reach
 
 
 def at_one_phase(scan_px: np.ndarray, along_px: np.ndarray) -> bool:

@@ -24,9 +24,9 @@ from doorloc.vision.metric import MetricPose
 from doorloc.vision.region import EDGE_NAMES
 from doorloc.vision.response import (
     RESPONSE_ONE_PHASE_MIN_BLUR_PX,
-    RESPONSE_PLAUSIBLE,
     LineResponse,
     ResponseFit,
+    a_cameras_reading,
     at_one_phase,
     combine_responses,
     edge_shifts_px,
@@ -202,17 +202,17 @@ def _read_otherwise_wider(
 ) -> dict[str, float | None]:
     """The lines whose exponent, read again over a window ``RESPONSE_WIDER_CHECK_PX`` wider on each side,
     lies beyond twice the two readings' sigmas from the first and does not depart from the cell's exponent
-    the same way by half to twice as much, or is an exponent no camera has (beyond ``RESPONSE_PLAUSIBLE`` by
-    two of its sigmas), or is not read; with that reading (None where none). A clean step's transition reads
-    the same whatever plateaus are added beside it; a transition that texture or shading skews (a grain
-    stripe's flank, a face brighter near its edge) reads another exponent as the window takes in more of
-    it. On a linear camera under grain, vignetting and JPEG (grain bench, seed 9900, door 30) both plain
-    edges read 2.4-2.7 +- 0.1-0.4 and the cell's right 1.0 was replaced: the thickness 0.083 mm off at 5.3
-    sigma; over a window 3 px wider the reference arris read 0.45. A 2.2 camera stated so under 10 % grain
-    and JPEG 88 (the grain set's door 38 at ``--seed 55100`` through that camera, its figures rounded to
-    five digits) read 0.84 +- 0.15 and 0.79 +- 0.55, over the wider window 0.56 +- 0.07 and 0.44 +- 0.08,
-    within the first readings' sigmas but no camera's exponent: 0.84 replaced the cell's, and the door was
-    placed 0.041 mm off at 3.2 sigma."""
+    the same way by half to twice as much, or is an exponent no camera has
+    (:func:`doorloc.vision.response.a_cameras_reading`), or is not read; with that reading (None where
+    none). A clean step's transition reads the same whatever plateaus are added beside it; a transition
+    that texture or shading skews (a grain stripe's flank, a face brighter near its edge) reads another
+    exponent as the window takes in more of it. On a linear camera under grain, vignetting and JPEG (grain
+    bench, seed 9900, door 30) both plain edges read 2.4-2.7 +- 0.1-0.4 and the cell's right 1.0 was
+    replaced: the thickness 0.083 mm off at 5.3 sigma; over a window 3 px wider the reference arris read
+    0.45. A 2.2 camera stated so under 10 % grain and JPEG 88 (the grain set's door 38 at ``--seed 55100``
+    through that camera, its figures rounded to five digits) read 0.84 +- 0.15 and 0.79 +- 0.55, over the
+    wider window 0.56 +- 0.07 and 0.44 +- 0.08, within the first readings' sigmas but no camera's
+    exponent: 0.84 replaced the cell's, and the door was placed 0.041 mm off at 3.2 sigma."""
     if not per_line:
         return {}
     _, wider = measure_response(plane, refined, cell, cfg, wider_px=RESPONSE_WIDER_CHECK_PX)
@@ -229,8 +229,7 @@ def _read_otherwise_wider(
         confirms = v.gamma != c and 0.5 <= (w.gamma - c) / (v.gamma - c) <= 2.0
         # (and whichever: a reading that the wider window takes to an exponent no camera has is the
         # texture's or the shading's, however near the first it lies)
-        a_camera = RESPONSE_PLAUSIBLE[0] - 2.0 * w.sigma <= w.gamma <= RESPONSE_PLAUSIBLE[1] + 2.0 * w.sigma
-        if not (a_camera and (agree or confirms)):
+        if not (a_cameras_reading(w.gamma, w.sigma) and (agree or confirms)):
             out[k] = round(w.gamma, 4)
     return out
 
