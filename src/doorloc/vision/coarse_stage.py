@@ -31,8 +31,15 @@ from doorloc.vision.coarse_refusals import (
     no_door_reason,
 )
 from doorloc.vision.config import LocateConfig
+from doorloc.vision.face_end import (
+    FAR_SUPPORT_SHARE,
+    face_continues,
+    face_end_line,
+    face_texture_line,
+    parallel_far_line,
+)
 from doorloc.vision.gate import PATTERN
-from doorloc.vision.lines import ImageLine, fit_image_line, fit_rectangle_edges, ransac_line
+from doorloc.vision.lines import ImageLine, fit_rectangle_edges, ransac_line
 from doorloc.vision.luminance import LuminancePlane
 from doorloc.vision.metric import MetricPose, pose_from_fit
 from doorloc.vision.region import HUMAN, Band, EdgeLayout, SearchRegion
@@ -50,6 +57,8 @@ COARSE_ARRIS_SKEW_DEG = 0.5
 #: how far beyond the coarse reference line's tolerance a nearer reference arris is looked for, px: the
 #: stronger step's flank (blur up to ~3 px) stays out of the 2 x 2-px step detector (:func:`_nearer_reference`)
 NEARER_REFERENCE_CLEAR_PX = 13.0
+#: grain lines of the hinge face that the far arris's search may pass over (:func:`doorloc.vision.face_end.face_texture_line`)
+FACE_TEXTURE_SKIPS = 12
 
 
 @dataclass(frozen=True)
@@ -301,6 +310,11 @@ def _coarse_edges(
     band_far = _far_band(search, band_ref, ref_line)
     bands["far"] = band_far
     far_line = yield from _far_line(search, band_far, ref_line)
+    if not door.arris_mm > 0 and (
+        far_line is None or far_line.inliers.sum() < FAR_SUPPORT_SHARE * len(band_far.scan)
+    ):
+        P_far = oriented(plane, region.layouts["far"].axis)
+        far_line = face_end_line(P_far, band_far, ref_line, xdir, thr) or far_line
     if far_line is None or far_line.inliers.sum() < FAR_SUPPORT_SHARE * len(band_far.scan):
         raise Refused(
             _faint_face(search, band_ref, ref_line)
@@ -391,10 +405,8 @@ def _far_line(
         thickness = float((far_line.at(mid) - ref_line.at(mid))[0]) * xdir * s.sc
         thinner = thickness < s.door.thickness_mm - 2.0 * (s.cfg.thickness_tolerance_mm + s.door.arris_mm)
         if not thinner or not (
-            _face_texture_line(P_far, search.scan, far_line, ref_line, xdir, s.thr)
-            or _face_continues(
-                P_far, search.scan, far_line, ref_line, xdir, s.door.thickness_mm / s.sc, s.thr
-            )
+            face_texture_line(P_far, search.scan, far_line, ref_line, xdir, s.thr)
+            or face_continues(P_far, search.scan, far_line, ref_line, xdir, s.door.thickness_mm / s.sc, s.thr)
         ):
             break
         # A grain line of the hinge face, parallel to the arrises, made the first clear step (the face's
@@ -536,7 +548,7 @@ def _first_far_line(
 ) -> Generator[StepQuery, tuple[np.ndarray, np.ndarray], ImageLine | None]:
     """The far arris's coarse line: the first clear step on each scan line of ``band`` coming from the
     reference arris, RANSAC over them (tolerance ``tol`` px); on a door without an arris about parallel to
-    the reference arris (its slope ``ref_slope``: :func:`_parallel_far_line`)."""
+    the reference arris (its slope ``ref_slope``: :func:`doorloc.vision.face_end.parallel_far_line`)."""
     plane, layout, thr, xdir, door, sc = s.plane, s.region.layouts["far"], s.thr, s.xdir, s.door, s.sc
     near = (band.lo if xdir > 0 else band.hi).astype(float)
     # an arris strip makes a weak first step (face -> strip): skip it
@@ -558,7 +570,7 @@ def _first_far_line(
         ):
             far_line = near_line
     if far_line is not None and not door.arris_mm > 0:  # (a strip's two borders are two such parallels)
-        far_line = _parallel_far_line(
+        far_line = parallel_far_line(
             band.scan[strong_f], along_f[strong_f], far_line, ref_slope, tol, xdir, len(band.scan)
         )
     if far_line is not None and far_line.inliers.sum() < FAR_SUPPORT_SHARE * len(band.scan):
@@ -575,124 +587,3 @@ def _first_far_line(
         if again is not None and again.inliers.sum() > far_line.inliers.sum():
             far_line = again
     return far_line
-
-
-def _parallel_far_line(
-    scan: np.ndarray, along: np.ndarray, line: ImageLine, ref_slope: float, tol: float, xdir: int, n: int
-) -> ImageLine:
-    """``line`` (through the steps ``along`` on the scan lines ``scan``), or where its direction departs
-    from the parallel reference arris's (slope ``ref_slope``) by more than moves it ``tol`` px over the
-    steps, the line through the steps within ``tol`` of the parallel nearest the reference arris that holds
-    ``FAR_SUPPORT_SHARE`` of the ``n`` scan lines (the far arris is the first clear step); ``line`` where none
-    does. (A shadow across a thin door's face, bench_surfaces.py --sets thin --n 40 --seed 58100, door 23,
-    made the far face's back edge the first step on its scan lines; RANSAC's line ran through both, 2.7 deg
-    off, and the door at yaw 1.86 deg was refused as lying at 3.08: outside the envelope.)"""
-    if scan.size < 2 or abs(line.b - ref_slope) * float(np.ptp(scan)) <= tol:
-        return line
-    offsets = (along - ref_slope * scan) * xdir  # (increasing away from the reference arris)
-    for o in np.sort(offsets):
-        held = np.abs(offsets - o) <= tol
-        if held.sum() >= FAR_SUPPORT_SHARE * n:  # (then the steps about their median)
-            centre = float(np.median(offsets[held]))
-            held = np.abs(offsets - centre) <= tol
-            fitted = fit_image_line(scan[held], along[held])
-            return ImageLine(fitted.a, fitted.b, held)
-    return line
-
-
-def _face_continues(
-    P, scan: np.ndarray, line: ImageLine, ref_line: ImageLine, xdir: int, expected_px: float, thr: float
-) -> bool:
-    """Whether the hinge face goes on beyond a step line found short of the recipe's thickness: a grain
-    stripe wider than :func:`_face_texture_line`'s look (grain of 22 % contrast and a 7.7 mm period, its
-    bands 15-20 px wide: a 49.5 mm door read 29.8 mm thick and refused as the wrong door,
-    ``bench_surfaces.py --sets grain_strong``, seed 17, door 27).
-
-    On every fourth scan line, the mean levels of the face (from the reference arris to the line), of what
-    lies between the line and the recipe's far arris (``expected_px`` from the reference arris along the
-    scan line, about: the coarse scale), and beyond that. The face goes on where, over the scan lines
-    whose face and beyond differ by at least ``thr``, what lies between is nearer the face than what lies
-    beyond by a factor two (median). A door that is there thinner (a panel) has background between, as
-    beyond; the test is then false.
-    """
-    n_along = P.shape[0]
-    s = scan[::4].astype(np.int64)
-    if s.size < 5:
-        return False
-    g = _TEXTURE_GAP_PX
-    ref, at = ref_line.at(s), line.at(s)
-    # along-offsets from the reference arris, px (door +X positive), per scan line
-    near = np.floor((at - ref) * xdir).astype(np.int64)
-    far = int(math.floor(expected_px))
-    if far - g - (int(near.max()) + g) < 4 or int(near.min()) - 2 * g < 4:
-        return False
-
-    def mean_between(a0: np.ndarray, a1: np.ndarray) -> np.ndarray:
-        # the mean level over along-offsets a0..a1 (from the reference arris) on each scan line, NaN outside
-        out = np.full(s.size, np.nan)
-        for i in range(s.size):
-            idx = np.rint(ref[i] + xdir * np.arange(a0[i], a1[i] + 1)).astype(np.int64)
-            if idx.size >= 4 and idx.min() >= 0 and idx.max() < n_along:
-                out[i] = float(P[idx, s[i]].astype(np.float64).mean())
-        return out
-
-    ones = np.ones(s.size, np.int64)
-    face = mean_between(g * ones, near - g)
-    between = mean_between(near + g, (far - g) * ones)
-    beyond = mean_between((far + g) * ones, (far + g + _TEXTURE_WIDE_PX) * ones)
-    clear = np.isfinite(face) & np.isfinite(between) & np.isfinite(beyond) & (np.abs(face - beyond) >= thr)
-    if int(clear.sum()) < 5:
-        return False
-    return float(np.median(np.abs(between[clear] - face[clear]))) < 0.5 * float(
-        np.median(np.abs(between[clear] - beyond[clear]))
-    )
-
-
-#: grain lines of the hinge face that the far arris's search may pass over (:func:`_face_texture_line`)
-FACE_TEXTURE_SKIPS = 12
-#: the share of the far arris's scan lines whose step its coarse line must hold
-FAR_SUPPORT_SHARE = 0.3
-#: px beside a candidate far-arris line where its wide levels start, and how many are read on each side
-_TEXTURE_GAP_PX = 3
-_TEXTURE_WIDE_PX = 15
-
-
-def _face_texture_line(
-    P, scan: np.ndarray, line: ImageLine, ref_line: ImageLine, xdir: int, thr: float
-) -> bool:
-    """Whether a step line found beyond the reference arris is the hinge face's own texture (a grain line
-    running along the edge), not the face's end.
-
-    ``P``: the plane, oriented ``[along, scan]``; ``xdir``: the along-direction of door +X. On every fourth
-    scan line: the step's size right at the line (the means of 4 px on either side) and the difference of
-    the mean levels over ``_TEXTURE_WIDE_PX`` px on either side, ``_TEXTURE_GAP_PX`` px away from it
-    (inside, towards the reference arris, at most what lies between the two). Beyond the face's end the
-    level stays off the face's (background, a far face, an arris strip: the wide difference is about the
-    step); beyond a grain line it comes back (a stripe a few px wide, then face again: the wide difference is
-    a fraction of the step). Texture where, over the scan lines with a step of at least ``thr`` at the
-    line, the median of the wide difference over the step is less than a half.
-    """
-    n_along = P.shape[0]
-    s = scan[::4].astype(np.int64)
-    at = line.at(s)
-    room = np.floor((at - ref_line.at(s)) * xdir).astype(np.int64) - 2 * _TEXTURE_GAP_PX
-    if s.size < 5:
-        return False
-    width = int(min(_TEXTURE_WIDE_PX, room.min()))
-    if width < 4:
-        return False
-    # the columns: 4 px outside the line, the wide ones outside, 4 px inside, the wide ones inside
-    offsets = np.concatenate([np.arange(1, 5), _TEXTURE_GAP_PX + np.arange(width)])
-    offsets = np.concatenate([offsets, -offsets])
-    idx = np.rint(at).astype(np.int64)[:, None] + xdir * offsets[None, :]
-    ok = ((idx >= 0) & (idx < n_along)).all(axis=1)
-    if int(ok.sum()) < 5:
-        return False
-    v = P[idx[ok], s[ok][:, None]].astype(np.float64)  # (lines, offsets)
-    half = 4 + width
-    step = np.abs(v[:, :4].mean(axis=1) - v[:, half : half + 4].mean(axis=1))
-    off = np.abs(v[:, 4:half].mean(axis=1) - v[:, half + 4 :].mean(axis=1))
-    clear = step >= thr  # the scan lines where the line lies on a step (its RANSAC inliers, about)
-    if int(clear.sum()) < 5:
-        return False
-    return float(np.median(off[clear] / step[clear])) < 0.5
