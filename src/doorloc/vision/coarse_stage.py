@@ -32,10 +32,10 @@ from doorloc.vision.coarse_refusals import (
 )
 from doorloc.vision.config import LocateConfig
 from doorloc.vision.face_end import (
-    FAR_SUPPORT_SHARE,
     face_continues,
     face_end_line,
     face_texture_line,
+    far_line_held,
     parallel_far_line,
 )
 from doorloc.vision.gate import PATTERN
@@ -310,12 +310,11 @@ def _coarse_edges(
     band_far = _far_band(search, band_ref, ref_line)
     bands["far"] = band_far
     far_line = yield from _far_line(search, band_far, ref_line)
-    if not door.arris_mm > 0 and (
-        far_line is None or far_line.inliers.sum() < FAR_SUPPORT_SHARE * len(band_far.scan)
-    ):
+    n_far = len(band_far.scan)
+    if not door.arris_mm > 0 and (far_line is None or not far_line_held(far_line, n_far)):
         P_far = oriented(plane, region.layouts["far"].axis)
         far_line = face_end_line(P_far, band_far, ref_line, xdir, thr) or far_line
-    if far_line is None or far_line.inliers.sum() < FAR_SUPPORT_SHARE * len(band_far.scan):
+    if far_line is None or not far_line_held(far_line, n_far):
         raise Refused(
             _faint_face(search, band_ref, ref_line)
             or q.Refusal(
@@ -573,7 +572,7 @@ def _first_far_line(
         far_line = parallel_far_line(
             band.scan[strong_f], along_f[strong_f], far_line, ref_slope, tol, xdir, len(band.scan)
         )
-    if far_line is not None and far_line.inliers.sum() < FAR_SUPPORT_SHARE * len(band.scan):
+    if far_line is not None and not far_line_held(far_line, len(band.scan)):
         # Grain stripes of the hinge face that wander along it can make the first clear step on most scan
         # lines, each at another place, and leave the arris's line too few of them (bench_surfaces --sets
         # grain --n 40 --seed 19100, grain_020: 9.7 % grain of a 6.4 mm period, its far arris a 30 grey-level

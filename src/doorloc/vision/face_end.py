@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.ndimage import map_coordinates
 
 from doorloc.vision.lines import ImageLine, fit_image_line
 from doorloc.vision.region import Band
@@ -22,6 +23,7 @@ __all__ = [
     "face_continues",
     "face_end_line",
     "face_texture_line",
+    "far_line_held",
     "parallel_far_line",
 ]
 
@@ -147,6 +149,11 @@ def face_texture_line(
     return float(np.median(off[clear] / step[clear])) < 0.5
 
 
+def far_line_held(line: ImageLine, n_scan: int) -> bool:
+    """Whether a far-arris line holds ``FAR_SUPPORT_SHARE`` of the band's ``n_scan`` scan lines."""
+    return int(line.inliers.sum()) >= FAR_SUPPORT_SHARE * n_scan
+
+
 def face_end_line(P, band: Band, ref_line: ImageLine, xdir: int, thr: float) -> ImageLine | None:
     """The far arris's coarse line where the hinge face ends, read on the scan lines' mean profile; None
     where no step there ends the face.
@@ -164,8 +171,9 @@ def face_end_line(P, band: Band, ref_line: ImageLine, xdir: int, thr: float) -> 
     face's level (its median between the reference arris and the step) by ``thr`` or more over the next
     ``2 _MEAN_STEP_HALF_PX`` px past the step's halves, and beyond which the level never comes back within
     ``thr / 2`` of it: a grain stripe's does. (The step itself is read smaller than the levels' difference:
-    the arrises' 2 px of coarse parallelism smear it over the scan lines.) The line is the reference arris's moved there (the two are parallel within the
-    coarse stage's 2 px on a door without an arris); every scan line its inlier.
+    the arrises' 2 px of coarse parallelism smear it over the scan lines.) The line is the reference
+    arris's moved there (the two are parallel within the coarse stage's 2 px on a door without an arris);
+    every scan line its inlier.
     """
     n_along = P.shape[0]
     h = _MEAN_STEP_HALF_PX
@@ -176,16 +184,13 @@ def face_end_line(P, band: Band, ref_line: ImageLine, xdir: int, thr: float) -> 
     d_band = float(np.min((start - ref) * xdir))
     if d_end < 4 * h:
         return None
-    d = np.arange(d_end + 1, dtype=np.float64)
-    grid = np.arange(n_along, dtype=np.float64)
-    rows = []
-    for col, r in zip(band.scan, ref, strict=True):
-        at = r + xdir * d
-        if at.min() >= 0 and at.max() <= n_along - 1:
-            rows.append(np.interp(at, grid, P[:, col].astype(np.float64)))
-    if len(rows) < 10:
+    at = ref[:, None] + xdir * np.arange(d_end + 1, dtype=np.float64)[None, :]  # (scan lines, samples)
+    whole = (at.min(axis=1) >= 0) & (at.max(axis=1) <= n_along - 1)
+    if int(whole.sum()) < 10:
         return None
-    mean = np.mean(rows, axis=0)
+    scan = np.broadcast_to(band.scan[whole, None].astype(np.float64), at[whole].shape)
+    # (linear along each scan line: the scan coordinates are whole pixels)
+    mean = map_coordinates(P, [at[whole], scan], output=np.float64, order=1).mean(axis=0)
     c = np.concatenate([[0.0], np.cumsum(mean)])
     j = np.arange(h - 1, mean.size - h)  # the step between samples j and j + 1
     step = np.abs((c[j + 1 + h] - c[j + 1]) - (c[j + 1] - c[j + 1 - h])) / h
