@@ -197,11 +197,13 @@ def face_end_line(P, band: Band, ref_line: ImageLine, xdir: int, thr: float) -> 
     peak = np.r_[False, (step[1:-1] >= step[:-2]) & (step[1:-1] > step[2:]), False]
     for k in np.flatnonzero(peak & (step >= 0.5 * thr) & (j + 0.5 >= d_band)):
         at_px = int(j[k])
-        inside, beyond = mean[h : at_px + 1 - h], mean[at_px + 1 + h :]
-        if inside.size < 4 or beyond.size < 2 * h:
+        inside, beyond = mean[h : at_px + 1 - h], mean[at_px + 1 :]
+        if inside.size < 4 or beyond.size < 3 * h:
             continue
         face = float(np.median(inside))
-        if abs(float(np.median(beyond[: 2 * h])) - face) >= thr and np.all(
+        # (every level past the step, its own half window too: a grain stripe's flank a few px short of the
+        # face's end has the stripe's level there, within thr / 2 of the face's)
+        if abs(float(np.median(beyond[h : 3 * h])) - face) >= thr and np.all(
             np.abs(beyond - face) >= 0.5 * thr
         ):
             moved = xdir * (at_px + 0.5)
