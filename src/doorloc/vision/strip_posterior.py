@@ -19,6 +19,7 @@ rules the second out: z in doubt by 0.09 mm, answered.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,6 +43,16 @@ BLUR_BETWEEN_EDGES_FRACTION = 0.1
 #: the least standard deviation a strip's blur reading weighs with among the others' (one narrow valley
 #: does not outweigh another strip's reading as sure as the model allows), px
 BLUR_READING_FLOOR_PX = 0.02
+#: a strip whose level lies within this fraction of the contrast of the face's or the background's shows
+#: one step (:func:`_one_step_pair`): a few per cent is what a halo's skirt or a shading's drift gives it
+ONE_STEP_LEVEL = 0.1
+#: how far the misfit the noise alone leaves may lie above what the plateaus' noise predicts, as a fraction
+#: of it: that noise is the median over the lines of their two plateaus' mean spread, while in linear light
+#: the dark side's noise and the bright side's differ and the transition's lies between. A miss within it
+#: is no evidence of a model that misses (a 0.97 mm chamfer under 1.7 px of blur misfit by 0.23 of the
+#: noise's share; its pair's difference, as large, told its one step apart rightly: tests/vision/
+#: test_locate.py, the thinner door's twin at its recipe's thickness)
+NOISE_SHARE_DOUBT = 0.25
 
 
 @dataclass(frozen=True)
@@ -145,10 +156,16 @@ def valley_posterior(
     else:
         sgc, evc = prob.profile_blur(grid, sg, basis, n_iter=2)
     chi_min = min(float(evc.chi2[keep].min()) if keep.any() else np.inf, *(float(f[1].min()) for f in fines))
+    # the best fit's miss beyond the noise: what the other reading of a strip's one step may gain by its
+    # free level taking up a skirt that the blur model misses (_one_step_readings)
+    miss = max(chi_min - (1.0 + NOISE_SHARE_DOUBT) * dof_b * noise**2, 0.0)
+    one_step = _one_step_readings(prob, fines)
     # log-likelihood: the coarse points against the best at T_glob; each valley's fine points against
-    # the valley's own best at T_loc, and that best against the overall best at T_glob
+    # the valley's own best at T_loc, and that best against the overall best (:func:`_valley_penalty`)
     ll = [-(evc.chi2[keep] - chi_min) / (2.0 * T_glob)] + [
-        -(f[1] - f[1].min()) / (2.0 * T_loc) - (float(f[1].min()) - chi_min) / (2.0 * T_glob) for f in fines
+        -(f[1] - f[1].min()) / (2.0 * T_loc)
+        - _valley_penalty(float(f[1].min()) - chi_min, T_glob, miss if other else 0.0, noise)
+        for f, other in zip(fines, one_step, strict=True)
     ]
     deltas = np.concatenate([grid[keep], *(f[0] for f in fines)])
     order = np.argsort(deltas)
@@ -163,6 +180,48 @@ def valley_posterior(
     deficit, post_sd = posterior_moments(deltas, dfc, logp)
     deficit, post_sd = _with_other_shading(shading, deltas, dfc, logp, deficit, post_sd, T_glob)
     return ValleyPosterior(deficit, post_sd, modes, chi_min, T_glob, blur_reading)
+
+
+def _valley_penalty(excess: float, T_glob: float, miss: float, noise: float) -> float:
+    """The negative log-likelihood of a valley whose best misfit exceeds the least by ``excess``: at the
+    scale ``T_glob`` (normalised variance), but for the other reading of a strip's one step the part of it
+    within the best fit's own ``miss`` beyond the noise (and its doubt, ``NOISE_SHARE_DOUBT``) weighs at
+    that miss's scale, at most half a unit (:func:`_one_step_readings`; ``miss`` 0 elsewhere)."""
+    if miss <= 0.0:
+        return excess / (2.0 * T_glob)
+    t_miss = max(T_glob, noise**2 + miss)
+    return max(excess - miss, 0.0) / (2.0 * T_glob) + min(excess, miss) / (2.0 * t_miss)
+
+
+def _one_step_readings(prob: StripProblem, fines: Sequence[tuple[np.ndarray, ...]]) -> list[bool]:
+    """Which of the finely profiled valleys (offsets px, misfits, deficits, blurs: :func:`_fine_profiles`)
+    is the other reading of the best one's single step (:func:`_one_step_pair`): as much of its excess
+    misfit as the best fit's own miss beyond the noise then counts at most half a log unit.
+
+    Two valleys that put the strip's one step at the same place (one at the face's level, the other at
+    the background's a strip's width outwards) differ only in the side of the step where the model's
+    free strip level lies, and so in which of the step's skirts that level takes up: what tells them
+    apart is the skirts' shape, where the blur model is weakest. A model that misses by more than their
+    difference cannot choose between them. Weighed as other valleys are, a lens halo (30 % of the light
+    at 3.1 times the 0.87 px core) made a chamfer at the face's level, read as one at the background's
+    whose level took up the halo's skirt, fit e^10 better: z 1.35 mm off at 15 sigma (arris range bench,
+    halo set, seed 210104; its gain was 0.66 of the best fit's miss). Beyond that miss the excess is the
+    model's, not the skirts': a grained door's bottom end whose other reading misfit by 5.5 times the
+    best's miss stays answered (surfaces bench, combined set, seed 64105, door 6)."""
+    best = min(fines, key=lambda f: float(f[1].min()))
+    w_med = float(np.median(prob.width))
+    return [_one_step_pair(f, best, w_med) for f in fines]
+
+
+def _one_step_pair(valley: tuple[np.ndarray, ...], best: tuple[np.ndarray, ...], width_px: float) -> bool:
+    """Whether two finely profiled valleys (offsets px, misfits, deficits, blurs: :func:`_fine_profiles`)
+    read one step two ways: their best points' deficits within ``ONE_STEP_LEVEL`` of 0 and of 1, one
+    each, and their offsets a strip's width (``width_px``) apart, within a pixel."""
+    i, j = int(np.argmin(valley[1])), int(np.argmin(best[1]))
+    a, b = float(valley[2][i]), float(best[2][j])
+    near = [min(abs(v), abs(v - 1.0)) < ONE_STEP_LEVEL for v in (a, b)]
+    apart = abs(abs(float(valley[0][i]) - float(best[0][j])) - width_px) < 1.0
+    return all(near) and abs(a - b) > 0.5 and apart
 
 
 def _other_readings(
