@@ -58,6 +58,19 @@ def _profiles(
     return r, np.arange(n_px, dtype=float), outer
 
 
+def _flat_chamfer(size_mm: float, inner_mm: float | None = None, eye_w_mm: float = 30.0) -> ArrisGeometry:
+    """A chamfer of ``size_mm`` for the strip fit's tests: its strip from the sharp corner's line (0) to
+    ``inner_mm`` (default ``size_mm``), the surface angle from 90 deg at the outer border to 0 at the inner,
+    the camera centre at (``eye_w_mm``, -350) mm in the cross-section."""
+    return ArrisGeometry(
+        ArrisSection(size_mm, "chamfer", eye_w_mm, -350.0),
+        0.0,
+        size_mm if inner_mm is None else inner_mm,
+        np.array([0.0, 1.0]),
+        np.array([np.pi / 2, 0.0]),
+    )
+
+
 def _within_3_sigma_or_uncertain(res, pose: DoorPose) -> None:
     """An answer within 3 of its sigmas in x and z, or a refusal as `uncertain`: what a door read two ways
     may get, never a confident wrong answer."""
@@ -72,9 +85,7 @@ def _within_3_sigma_or_uncertain(res, pose: DoorPose) -> None:
 def test_strip_fit_recovers_the_deficit(width, level, blur):
     rng = np.random.default_rng(7)
     r, x, outer = _profiles(120, width, level, blur, rng)
-    geom = ArrisGeometry(
-        ArrisSection(1.5, "chamfer", 30.0, -350.0), 0.0, 1.4, np.array([0.0, 1.0]), np.array([np.pi / 2, 0.0])
-    )
+    geom = _flat_chamfer(1.5, inner_mm=1.4)
     fit = fit_strip_profile(
         r, x, outer + rng.normal(0, 0.3), np.full(120, width), geom, 0.002, 1.0, search_px=0.0
     )
@@ -376,9 +387,7 @@ def test_a_strip_narrower_than_the_blur_reports_that_its_level_is_unknown(level)
     and covers the truth (it is not one end of the valley reported with confidence)."""
     rng = np.random.default_rng(11)
     r, x, outer = _profiles(40, 0.7, level, 1.5, rng)
-    geom = ArrisGeometry(
-        ArrisSection(0.2, "chamfer", 30.0, -350.0), 0.0, 0.2, np.array([0.0, 1.0]), np.array([np.pi / 2, 0.0])
-    )
+    geom = _flat_chamfer(0.2)
     fit = fit_strip_profile(r, x, outer + 0.3, np.full(40, 0.7), geom, 0.002, 1.0)
     assert fit is not None
     assert fit.deficit_sigma > 0.2
@@ -412,9 +421,7 @@ def test_a_strip_narrower_than_the_blur_takes_its_place_from_the_prior():
     face, background, rho = 1.0, 0.1, 0.9
     level = (rho * face - background) / (face - background)
     r, x, outer = _profiles(40, 0.4, level, 1.5, rng)
-    geom = ArrisGeometry(
-        ArrisSection(0.1, "chamfer", 30.0, -350.0), 0.0, 0.1, np.array([0.0, 1.0]), np.array([np.pi / 2, 0.0])
-    )
+    geom = _flat_chamfer(0.1)
     physical = fit_strip_profile(
         r, x, outer, np.full(40, 0.4), geom, 0.002, 1.0, prior=deficit_prior(face, background)
     )
@@ -430,9 +437,7 @@ def test_a_strip_at_the_face_level_keeps_both_borders_in_doubt():
     a plain step at its inner border: predicted a strip's width off, the fit still finds the level."""
     rng = np.random.default_rng(5)
     r, x, outer = _profiles(40, 2.5, 1.0, 0.8, rng)
-    geom = ArrisGeometry(
-        ArrisSection(0.5, "chamfer", 30.0, -350.0), 0.0, 0.5, np.array([0.0, 1.0]), np.array([np.pi / 2, 0.0])
-    )
+    geom = _flat_chamfer(0.5)
     fit = fit_strip_profile(r, x, outer - 2.5, np.full(40, 2.5), geom, 0.002, 1.0)
     assert fit is not None
     assert abs(fit.deficit) <= max(2 * fit.deficit_sigma, 0.05)
@@ -447,9 +452,7 @@ def test_a_lens_halo_does_not_choose_between_a_one_step_strips_two_readings():
     rng = np.random.default_rng(7)
     width, level = 6.7, 1.02
     r, x, outer = _profiles(40, width, level, 0.87, rng, halo=(0.3, 3.08), n_px=48, noise=0.006)
-    geom = ArrisGeometry(
-        ArrisSection(1.5, "chamfer", 40.0, -350.0), 0.0, 1.5, np.array([0.0, 1.0]), np.array([np.pi / 2, 0.0])
-    )
+    geom = _flat_chamfer(1.5, eye_w_mm=40.0)
     fit = fit_strip_profile(r, x, outer, np.full(40, width), geom, 0.006, 1.0)
     assert fit is not None
     assert abs(fit.deficit - (1.0 - level)) <= 2 * fit.deficit_sigma, (fit.deficit, fit.deficit_sigma)

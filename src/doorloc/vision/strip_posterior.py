@@ -44,7 +44,7 @@ BLUR_BETWEEN_EDGES_FRACTION = 0.1
 #: does not outweigh another strip's reading as sure as the model allows), px
 BLUR_READING_FLOOR_PX = 0.02
 #: a strip whose level lies within this fraction of the contrast of the face's or the background's shows
-#: one step (:func:`_one_step_pair`): a few per cent is what a halo's skirt or a shading's drift gives it
+#: one step (:func:`_one_step_readings`): a few per cent is what a halo's skirt or a shading's drift gives it
 ONE_STEP_LEVEL = 0.1
 #: how far the misfit the noise alone leaves may lie above what the plateaus' noise predicts, as a fraction
 #: of it: that noise is the median over the lines of their two plateaus' mean spread, while in linear light
@@ -195,7 +195,8 @@ def _valley_penalty(excess: float, T_glob: float, miss: float, noise: float) -> 
 
 def _one_step_readings(prob: StripProblem, fines: Sequence[tuple[np.ndarray, ...]]) -> list[bool]:
     """Which of the finely profiled valleys (offsets px, misfits, deficits, blurs: :func:`_fine_profiles`)
-    is the other reading of the best one's single step (:func:`_one_step_pair`): as much of its excess
+    is the other reading of the best one's single step (their best points' deficits within
+    ``ONE_STEP_LEVEL`` of 0 and of 1, one each, their offsets a strip's width apart): as much of its excess
     misfit as the best fit's own miss beyond the noise then counts at most half a log unit.
 
     Two valleys that put the strip's one step at the same place (one at the face's level, the other at
@@ -208,20 +209,22 @@ def _one_step_readings(prob: StripProblem, fines: Sequence[tuple[np.ndarray, ...
     halo set, seed 210104; its gain was 0.66 of the best fit's miss). Beyond that miss the excess is the
     model's, not the skirts': a grained door's bottom end whose other reading misfit by 5.5 times the
     best's miss stays answered (surfaces bench, combined set, seed 64105, door 6)."""
-    best = min(fines, key=lambda f: float(f[1].min()))
+    # each valley's best point: its offset (px) and deficit
+    points = [(float(f[0][i]), float(f[2][i])) for f in fines for i in [int(np.argmin(f[1]))]]
+    best_offset, best_deficit = points[int(np.argmin([float(f[1].min()) for f in fines]))]
     w_med = float(np.median(prob.width))
-    return [_one_step_pair(f, best, w_med) for f in fines]
+    return [
+        _shows_one_step(deficit)
+        and _shows_one_step(best_deficit)
+        and abs(deficit - best_deficit) > 0.5
+        and abs(abs(offset - best_offset) - w_med) < 1.0  # a strip's width apart, within a pixel
+        for offset, deficit in points
+    ]
 
 
-def _one_step_pair(valley: tuple[np.ndarray, ...], best: tuple[np.ndarray, ...], width_px: float) -> bool:
-    """Whether two finely profiled valleys (offsets px, misfits, deficits, blurs: :func:`_fine_profiles`)
-    read one step two ways: their best points' deficits within ``ONE_STEP_LEVEL`` of 0 and of 1, one
-    each, and their offsets a strip's width (``width_px``) apart, within a pixel."""
-    i, j = int(np.argmin(valley[1])), int(np.argmin(best[1]))
-    a, b = float(valley[2][i]), float(best[2][j])
-    near = [min(abs(v), abs(v - 1.0)) < ONE_STEP_LEVEL for v in (a, b)]
-    apart = abs(abs(float(valley[0][i]) - float(best[0][j])) - width_px) < 1.0
-    return all(near) and abs(a - b) > 0.5 and apart
+def _shows_one_step(deficit: float) -> bool:
+    """Whether a strip of this deficit lies within ``ONE_STEP_LEVEL`` of the face's level or the background's."""
+    return min(abs(deficit), abs(deficit - 1.0)) < ONE_STEP_LEVEL
 
 
 def _other_readings(
