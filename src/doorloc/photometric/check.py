@@ -19,8 +19,9 @@ section 8b); its result holds every figure of ``report.json``. Steps:
 from __future__ import annotations
 
 import functools
+import math
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -71,6 +72,7 @@ __all__ = [
     "check_boards",
     "check_photographs",
     "field_offsets",
+    "grid_choice",
     "FieldOffsets",
     "measure_boards",
     "measure_detected",
@@ -444,6 +446,24 @@ def check_boards(
     )
 
 
+def grid_choice(value: float, per_fold: np.ndarray, grid: Sequence[float]) -> dict[str, float]:
+    """A parameter chosen from ``grid``'s values (``value`` on all photographs, ``per_fold`` with each fold
+    held out) as the report states it: its 1-sigma the delete-a-fold jackknife of the folds' choices, as
+    the edge causes' is (:func:`doorloc.photometric.fit.held_out`), and no less than half the step to the
+    nearest other value tried (where every fold picks the same value, the grid's resolution is what is known
+    of it, not a zero); ``at_bound`` where it is the grid's least or largest value (the data may ask for
+    more than was tried)."""
+    k = per_fold.size
+    jackknife = math.sqrt((k - 1) / k * float(((per_fold - per_fold.mean()) ** 2).sum())) if k > 1 else 0.0
+    others = [abs(g - value) for g in set(grid) if g != value]
+    resolution = 0.5 * min(others) if others else math.nan
+    return {
+        "value": value,
+        "sigma": max(jackknife, resolution),
+        "at_bound": float(value in (min(grid), max(grid))),
+    }
+
+
 def check_photographs(
     photos: list[Photograph],
     options: BoardCheckOptions = BoardCheckOptions(),
@@ -502,16 +522,16 @@ def check_photographs(
             for t, b in TAIL_GRID
         ]
         t, b = TAIL_GRID[int(np.argmin(scores_all))]
-        vals = np.array([tail_choice[int(f)][0] for f in folds])
         model = model.with_values(psf_tail=t, psf_tail_px=b)
         fold_models = [
             m.with_values(psf_tail=tail_choice[int(f)][0], psf_tail_px=tail_choice[int(f)][1])
             for m, f in zip(fold_models, folds, strict=True)
         ]
         causes.append("psf_tail")
+        per_fold = np.array([tail_choice[int(f)] for f in np.unique(folds)])
         parameters["psf_tail"] = {
-            "psf_tail": {"value": t, "sigma": float(np.std(vals))},
-            "psf_tail_px": {"value": b, "sigma": float("nan")},
+            name: grid_choice(value, per_fold[:, j], [g[j] for g in TAIL_GRID])
+            for j, (name, value) in enumerate((("psf_tail", t), ("psf_tail_px", b)))
         }
     # an interlaced camera's fields out of register: each photograph's own offset, held out by its edges
     fields = field_offsets(photos, fold_models, keep, shifts)
