@@ -119,9 +119,26 @@ class FieldOffsets:
         se = np.array([(o.sigma_u_px, o.sigma_v_px) for o in read])
         if f.shape[0] < 2:
             return np.zeros(2), np.full(2, np.nan), 0.0
-        mean = f.mean(axis=0)
-        spread = float(np.mean((f - mean) ** 2) - np.mean(se**2))
-        return mean, f.std(axis=0, ddof=1) / np.sqrt(f.shape[0]), float(np.sqrt(max(spread, 0.0)))
+        return f.mean(axis=0), f.std(axis=0, ddof=1) / np.sqrt(f.shape[0]), _scatter(f, se)
+
+    def scatter_sigma(self) -> float:
+        """The 1-sigma of :meth:`mean_and_scatter`'s scatter (px): the delete-one jackknife over the
+        photographs read (NaN under three)."""
+        read = self._read()
+        f = np.array([o.vector for o in read])
+        se = np.array([(o.sigma_u_px, o.sigma_v_px) for o in read])
+        n = f.shape[0]
+        if n < 3:
+            return float("nan")
+        each = np.array([_scatter(np.delete(f, i, axis=0), np.delete(se, i, axis=0)) for i in range(n)])
+        return float(np.sqrt((n - 1) / n * np.sum((each - each.mean()) ** 2)))
+
+
+def _scatter(f: np.ndarray, se: np.ndarray) -> float:
+    """The scatter of offsets ``f`` (n, 2) about their mean, px (RMS per component, their standard errors
+    ``se`` (n, 2) taken off in quadrature; 0 where those hold it all)."""
+    spread = float(np.mean((f - f.mean(axis=0)) ** 2) - np.mean(se**2))
+    return float(np.sqrt(max(spread, 0.0)))
 
 
 def field_offsets(
@@ -550,7 +567,7 @@ def check_photographs(
         parameters["interlaced_fields"] = {
             "field_offset_u_px": {"value": float(mean[0]), "sigma": float(se[0])},
             "field_offset_v_px": {"value": float(mean[1]), "sigma": float(se[1])},
-            "field_offset_scatter_px": {"value": scatter, "sigma": float("nan")},
+            "field_offset_scatter_px": {"value": scatter, "sigma": fields.scatter_sigma()},
         }
     # profiles before and after, and the blurs they give
     results = []
