@@ -98,3 +98,12 @@ def test_the_twin_still_sees_what_the_model_lacks(seed):
     twin = profile_twin(photo, CAMERA, BOARD, fields, fields_px=(0.0, 0.3), seed=9)
     print(f"with them: {drawn.rms_over_windows() / twin.misfit:.2f}")
     assert drawn.rms_over_windows() / twin.misfit < 1.15
+
+
+def test_a_photograph_without_an_edge_left_is_fitted_without_an_error():
+    """A twin whose edges were all lost (no scan line kept) crashed the bench's check with an OverflowError:
+    with nothing to count, numpy's bincount returns integers, which no infinity fits into."""
+    photo = _photograph(11, PLAIN, 0)
+    none = np.zeros(photo.edges.offset_px.size, bool)
+    profiles = fit_profiles(photo.edges, PLAIN, none)
+    assert np.isnan(profiles.blur_px).all()

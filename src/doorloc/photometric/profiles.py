@@ -123,7 +123,8 @@ def fit_profiles(
         pred = L if model.linear_response else np.interp(np.clip(L, 0.0, None), *table)
         return a, a + c, np.bincount(e, (pred - g.ravel()) ** 2, minlength=n_e)
 
-    sse_grid = np.array([levels_and_misfit(sigma)[2] for sigma in BLUR_GRID_PX])  # (S, E)
+    # (float: bincount gives integers where a photograph has no edge at all)
+    sse_grid = np.array([levels_and_misfit(sigma)[2] for sigma in BLUR_GRID_PX], dtype=float)  # (S, E)
     sse_grid[~np.isfinite(sse_grid)] = np.inf
     k = np.argmin(sse_grid, axis=0)
     kk = np.clip(k, 1, BLUR_GRID_PX.size - 2)
