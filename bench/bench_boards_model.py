@@ -47,9 +47,14 @@ HIDDEN = {
     # last, so the other effects keep their seeds; exposures run 0.55-1.05: most light squares pass the clip
     "sensor_clipping": lambda r: {"clip_level": r.uniform(0.6, 0.75)},
     # a white level below the brighter photographs' light squares, reached through a shoulder 0.15-0.3 wide
-    "soft_saturation": lambda r: (lambda w: {"white_level": w, "shoulder": w - r.uniform(0.15, 0.3)})(
-        r.uniform(0.75, 0.9)
-    ),
+    # rolling off at an order of 1.5-4 (quadratic at 2)
+    "soft_saturation": lambda r: (
+        lambda w: {
+            "white_level": w,
+            "shoulder": w - r.uniform(0.15, 0.3),
+            "shoulder_order": r.uniform(1.5, 4.0),
+        }
+    )(r.uniform(0.75, 0.9)),
     # a bend of ln light over the grey scale that no closed form draws: a whole sine wave of random phase through
     # the six knots (half a wave is a log-log curvature, and is named so); its slope, at most 6 x 0.15 ln per
     # full scale, keeps the response monotone

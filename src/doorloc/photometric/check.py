@@ -519,8 +519,9 @@ def check_photographs(
     tail_gain = (float(d.mean()), float(d.std(ddof=1) / np.sqrt(d.size)))
     causes = list(sel.causes)
     parameters: dict[str, dict[str, dict[str, float]]] = {}
-    for c in CAUSES_BY_NAME.values():  # in the catalogue's order
-        if c.name in causes:
+    for name in CAUSES_BY_NAME:  # in the catalogue's order
+        if name in causes:
+            c = sel.cause(name)
             parameters[c.name] = {
                 n: {
                     "value": float(getattr(model, n)),

@@ -25,8 +25,11 @@ from scipy.optimize import least_squares
 
 from doorloc.photometric.board_edges import BoardEdges, EdgeSettings, per_edge_median
 from doorloc.photometric.catalogue import (
+    CAUSES_BY_NAME,
     EDGE_CAUSES,
     KEEP_SIGMAS,
+    REFINE_KEEP_SIGMAS,
+    REFINED_FORMS,
     TONE_CAUSE,
     TONE_KEEP_SIGMAS,
     Cause,
@@ -554,7 +557,8 @@ class Selection:
     ``causes``: the kept causes in the order they were added; ``final``: its fit on all photographs and its
     held-out results; ``plain_px``: each photograph's median offset with the plain model; ``steps``: per step,
     each candidate's held-out RMS (px); ``alternatives``: causes the data cannot tell apart from a kept one
-    (``{kept: [others]}``); ``not_tried``: causes the photographs are too few to measure, and why.
+    (``{kept: [others]}``); ``not_tried``: causes the photographs are too few to measure, and why; ``refined``:
+    causes kept in their richer form (:data:`~doorloc.photometric.catalogue.REFINED_FORMS`).
     """
 
     causes: tuple[str, ...]
@@ -564,6 +568,11 @@ class Selection:
     steps: list[dict[str, float]] = field(default_factory=list)
     alternatives: dict[str, list[str]] = field(default_factory=dict)
     not_tried: dict[str, str] = field(default_factory=dict)
+    refined: tuple[str, ...] = ()
+
+    def cause(self, name: str) -> Cause:
+        """The named cause in the form it was kept (its richer form where that was kept)."""
+        return REFINED_FORMS[name] if name in self.refined else CAUSES_BY_NAME[name]
 
 
 def _gain_z(before: np.ndarray, after: np.ndarray) -> tuple[float, float]:
@@ -592,7 +601,9 @@ def select_causes(
     """Forward selection by held-out photographs: add the cause that lowers the held-out offsets most (each
     photograph's medians by edge direction, :func:`direction_medians`), while the lowering is significant
     (paired over photographs, by :func:`~doorloc.photometric.catalogue.keep_sigmas` of the candidates tried at
-    the step: a control's best candidate must not pass by the luck of the draw). Then ``tried_last`` (the free
+    the step: a control's best candidate must not pass by the luck of the draw). Then each named cause's richer
+    form (:data:`~doorloc.photometric.catalogue.REFINED_FORMS`) in its place, kept where it lowers them by
+    ``REFINE_KEEP_SIGMAS`` standard errors. Then ``tried_last`` (the free
     tone curve), where there are twice as many photographs as it has parameters, kept where it lowers the
     photographs' medians by ``TONE_KEEP_SIGMAS`` standard errors without making those by direction
     significantly worse: what the closed forms name stays named by them, and what none of them draws is
@@ -638,6 +649,18 @@ def select_causes(
         if ties:
             alternatives[best] = ties
         cur_off, cur_ho = trials[best].by_direction_px, trials[best]
+    refined: list[str] = []
+    for i, cause in enumerate(current):
+        richer = REFINED_FORMS.get(cause.name)
+        if richer is None:
+            continue
+        trial = held_out(photos, [*current[:i], richer, *current[i + 1 :]], fold_of)
+        steps.append({f"{cause.name} ({', '.join(richer.parameters)})": trial.score_px})
+        gain, se = _gain_z(cur_off, trial.by_direction_px)
+        if gain > REFINE_KEEP_SIGMAS * se:
+            current[i] = richer
+            refined.append(cause.name)
+            cur_off, cur_ho = trial.by_direction_px, trial
     # a free curve is read on the photographs' medians, one number each: it needs twice its parameters
     not_tried: dict[str, str] = {}
     if tried_last is not None and len(photos) < 2 * len(tried_last.parameters):
@@ -667,4 +690,6 @@ def select_causes(
     final = fit_causes(photos, current)
     if cur_ho is None:
         cur_ho = HeldOut((), plain, [], {}, plain_dir)
-    return Selection(tuple(c.name for c in current), final, cur_ho, plain, steps, alternatives, not_tried)
+    return Selection(
+        tuple(c.name for c in current), final, cur_ho, plain, steps, alternatives, not_tried, tuple(refined)
+    )
