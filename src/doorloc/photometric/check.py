@@ -105,18 +105,21 @@ class FieldOffsets:
     def _read(self) -> list[FieldOffset]:
         return [o for o in self.own if np.isfinite(o.u_px)]
 
+    def _read_vectors(self) -> tuple[np.ndarray, np.ndarray]:
+        """The offsets read (n, 2: u, v px) and their standard errors (n, 2)."""
+        read = self._read()
+        return np.array([o.vector for o in read]), np.array([(o.sigma_u_px, o.sigma_v_px) for o in read])
+
     @property
     def rms_px(self) -> float:
         """RMS over photographs of their offsets' length, px (0 where none was read)."""
-        f = np.array([o.vector for o in self._read()])
+        f = self._read_vectors()[0]
         return float(np.sqrt(np.mean(np.sum(f**2, axis=1)))) if f.size else 0.0
 
     def mean_and_scatter(self) -> tuple[np.ndarray, np.ndarray, float]:
         """The offset's mean over photographs (u, v px), its standard error, and the photographs' scatter about
         it (px, RMS per component, their own standard errors taken off in quadrature)."""
-        read = self._read()
-        f = np.array([o.vector for o in read])
-        se = np.array([(o.sigma_u_px, o.sigma_v_px) for o in read])
+        f, se = self._read_vectors()
         if f.shape[0] < 2:
             return np.zeros(2), np.full(2, np.nan), 0.0
         return f.mean(axis=0), f.std(axis=0, ddof=1) / np.sqrt(f.shape[0]), _scatter(f, se)
@@ -124,9 +127,7 @@ class FieldOffsets:
     def scatter_sigma(self) -> float:
         """The 1-sigma of :meth:`mean_and_scatter`'s scatter (px): the delete-one jackknife over the
         photographs read (NaN under three)."""
-        read = self._read()
-        f = np.array([o.vector for o in read])
-        se = np.array([(o.sigma_u_px, o.sigma_v_px) for o in read])
+        f, se = self._read_vectors()
         n = f.shape[0]
         if n < 3:
             return float("nan")

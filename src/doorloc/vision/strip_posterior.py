@@ -32,6 +32,7 @@ __all__ = [
     "ValleyPosterior",
     "blur_log_prior",
     "strip_blur_priors",
+    "near_a_plateau",
     "valley_posterior",
 ]
 
@@ -214,17 +215,19 @@ def _one_step_readings(prob: StripProblem, fines: Sequence[tuple[np.ndarray, ...
     best_offset, best_deficit = points[int(np.argmin([float(f[1].min()) for f in fines]))]
     w_med = float(np.median(prob.width))
     return [
-        _shows_one_step(deficit)
-        and _shows_one_step(best_deficit)
+        near_a_plateau(deficit, ONE_STEP_LEVEL)
+        and near_a_plateau(best_deficit, ONE_STEP_LEVEL)
         and abs(deficit - best_deficit) > 0.5
         and abs(abs(offset - best_offset) - w_med) < 1.0  # a strip's width apart, within a pixel
         for offset, deficit in points
     ]
 
 
-def _shows_one_step(deficit: float) -> bool:
-    """Whether a strip of this deficit lies within ``ONE_STEP_LEVEL`` of the face's level or the background's."""
-    return min(abs(deficit), abs(deficit - 1.0)) < ONE_STEP_LEVEL
+def near_a_plateau(deficit: float, within: float) -> bool:
+    """Whether a strip fitted at ``deficit`` lies within ``within`` of the hinge face's level (deficit 0) or
+    the background's (1): it shows one plain step, which a strip at the other level a strip's width away
+    draws as well. False for a NaN deficit."""
+    return min(abs(deficit), abs(deficit - 1.0)) <= within
 
 
 def _other_readings(

@@ -24,6 +24,7 @@ from doorloc.vision import quality as q
 from doorloc.vision.config import LocateConfig
 from doorloc.vision.far_band import FarFaceFit
 from doorloc.vision.state import Refined
+from doorloc.vision.strip_posterior import near_a_plateau
 from doorloc.vision.uncertainty import Budget
 
 __all__ = [
@@ -139,7 +140,7 @@ def shows_one_step(deficit: float) -> bool:
     not a strip with a level between, nor one beyond either plateau's (brighter than the face, darker than
     the background): two steps, no other reading. A NaN deficit lies near nothing: True, as the comparisons
     give it (callers that need a finite one test it)."""
-    return not (abs(deficit) > PLAIN_STEP_DEFICIT and abs(deficit - 1.0) > PLAIN_STEP_DEFICIT)
+    return math.isnan(deficit) or near_a_plateau(deficit, PLAIN_STEP_DEFICIT)
 
 
 #: a thickness within the tolerance that misses the recipe by more than this many of its sigmas, where a side
