@@ -34,11 +34,36 @@ OPENCV_LEFT = PhotometricModel.from_dict(
     }
 )
 
+#: the same camera's model since the check frees the shoulder's roll-off order (white at 0.970, an order of 2.47)
+OPENCV_LEFT_ORDER = PhotometricModel.from_dict(
+    {
+        "gamma": 1.0,
+        "shoulder": 0.7726583650491133,
+        "white_level": 0.9695891522601804,
+        "shoulder_order": 2.474316181421219,
+        "psf_tail": 0.05,
+        "psf_tail_px": 6.0,
+        "blur_field": 1.6448509129995057,
+        "residual_edge_px": 0.06132790529486459,
+        "response_measured_to": 0.9803921568627451,
+    }
+)
+
 
 @pytest.fixture(scope="module")
 def bright_far_strip():
     """bench_camera_doors.py --model R --n 32 --seed 72100, door_020: a 2 mm chamfer lit from the far side, its
     far strip at 224 grey beside a hinge face of 150-170 and a background of 91, through the camera's model."""
+    return _door_020(OPENCV_LEFT, 0.9985955953167076)
+
+
+@pytest.fixture(scope="module")
+def bright_far_strip_order():
+    """door_020 through the camera's model with the shoulder's order (``OPENCV_LEFT_ORDER``)."""
+    return _door_020(OPENCV_LEFT_ORDER, 0.9993706291551687)
+
+
+def _door_020(model: PhotometricModel, stated_gamma: float):
     door = DoorSize(900, 45.27878463552775, 2100, 1.9952239213214085, "chamfer")
     pose = DoorPose(-6.993479559988128, 7.485942762977107, -1.9555161443960083)
     scene = Effects(
@@ -71,9 +96,9 @@ def bright_far_strip():
         read_noise=2.665616864485016,
         jpeg_quality=88,
     )
-    image = apply_camera(rendered.radiance, OPENCV_LEFT, camera, seed=72100020)
+    image = apply_camera(rendered.radiance, model, camera, seed=72100020)
     cell = dataclasses.replace(
-        CELL, response_gamma=0.9985955953167076, response_gamma_sigma=None, camera_photometry=OPENCV_LEFT
+        CELL, response_gamma=stated_gamma, response_gamma_sigma=None, camera_photometry=model
     )
     return image, cell, door, pose
 
@@ -88,3 +113,21 @@ def test_a_far_strip_brighter_than_the_face_is_read_where_its_fit_puts_it(bright
     u = r.uncertainty
     assert abs(r.x_mm - pose.x_mm) <= 2 * u.x_mm and abs(r.z_mm - pose.z_mm) <= 2 * u.z_mm
     assert abs(r.thickness_mm - door.thickness_mm) < 0.2
+
+
+def test_a_far_strip_whose_fit_puts_its_border_near_its_windows_end_is_read_again(bright_far_strip_order):
+    """door_020 through the camera's model with the shoulder's order, located by a cell that states only the
+    camera's power law (bench_camera_doors.py's camera column): the final pass's far strip fit put its border
+    3.95 px from the windows' centre, inside their half width of 4 px, and 73 of 654 lines kept a point;
+    refused ``edge_missing`` ("check that nothing covers that edge") before the strip was read again from
+    half the windows' half width on (answered 0.051 mm off in x at 0.70 sigma)."""
+    image, cell, door, pose = bright_far_strip_order
+    power_law_only = dataclasses.replace(cell, camera_photometry=None)
+    trace = LocateTrace()
+    config = dataclasses.replace(cell.locate, calibration_sigma_px=0.0)
+    r = locate(image, power_law_only, door, config=config, trace=trace)
+    assert r.error_code != "edge_missing", r.error
+    if r.ok:
+        assert trace.samples["far"].valid.mean() > 0.9, "the far strip's lines each give a point"
+        u = r.uncertainty
+        assert abs(r.x_mm - pose.x_mm) <= 2 * u.x_mm and abs(r.z_mm - pose.z_mm) <= 2 * u.z_mm
