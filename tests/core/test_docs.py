@@ -21,6 +21,17 @@ def test_readme_is_short_and_starts_with_the_two_commands():
     assert "./scripts/demo" in head and "./scripts/test" in head
 
 
+def test_the_readmes_figures_are_a_short_table():
+    """One line of figures a row; each figure's conditions, seeds and history live in docs/figures.md."""
+    text = (REPO / "README.md").read_text(encoding="utf-8")
+    section = text.split("## Headline figures", 1)[1].split("\n## ", 1)[0]
+    rows = [line for line in section.splitlines() if line.startswith("| ") and not line.startswith("| what ")]
+    assert 5 <= len(rows) <= 16, f"{len(rows)} rows of figures"
+    long = [row[:60] for row in rows if len(row) > 240]
+    assert long == [], f"rows past 240 characters (conditions go to docs/figures.md): {long}"
+    assert "docs/figures.md" in section
+
+
 def test_documents_speak_of_the_product():
     found = [
         f"{doc.relative_to(REPO)}:{i}: {line.strip()}"
