@@ -126,7 +126,7 @@ def test_a_far_strip_whose_fit_puts_its_border_near_its_windows_end_is_read_agai
     trace = LocateTrace()
     config = dataclasses.replace(cell.locate, calibration_sigma_px=0.0)
     r = locate(image, power_law_only, door, config=config, trace=trace)
-    assert r.error_code != "edge_missing", r.error
+    assert r.ok or r.error_code == "uncertain", f"refused {r.error_code}: {r.error}"
     if r.ok:
         assert trace.samples["far"].valid.mean() > 0.9, "the far strip's lines each give a point"
         u = r.uncertainty

@@ -387,10 +387,10 @@ class ArrisStrip:
 #: read again centred there (:meth:`ArrisStrip.read`)
 STRIP_LINES_READ_SHARE = 0.5
 #: the fraction of the windows' half width beyond which a strip's fitted border counts as outside them: a
-#: border near the windows' end loses most lines' points as one beyond it does (door_020 of ``bench_camera_doors.py --model R --n 32
-#: --seed 72100``, its cell stating only the camera's power law: the border 3.95 px out in windows of half
-#: width 4, 73 of 654 lines read; refused ``edge_missing``, read again 654 of 654 and answered 0.051 mm off
-#: at 0.70 sigma)
+#: border near the windows' end loses most lines' points as one beyond it does (door_020 of
+#: ``bench_camera_doors.py --model R --n 32 --seed 72100``, its cell stating only the camera's power law: the
+#: border 3.95 px out in windows of half width 4, 73 of 654 lines read; refused ``edge_missing``, read again
+#: 654 of 654 and answered 0.051 mm off at 0.70 sigma)
 STRIP_BORDER_OUTSIDE_SHARE = 0.5
 
 
