@@ -525,13 +525,15 @@ def check_line(
         return Refusal(
             "edge_not_straight",
             f"only {n_inliers} of {n_samples} points on the {human} lie on a straight line{unread}; "
-            "something covers the edge, the edge is damaged, or this is not a door",
+            "something covers the edge, the edge is damaged, wood grain beside it is as strong as its step, "
+            "or this is not a door",
         )
     if rms_px > max_rms_px:
         return Refusal(
             "edge_not_straight",
             f"the {human} is not straight (RMS residual {rms_px:.2f} px, limit "
-            f"{max_rms_px:.2f} px); check the edge for damage or debris",
+            f"{max_rms_px:.2f} px); check the edge for damage or debris, and the wood beside it for grain as "
+            "strong as the edge's step",
         )
     return None
 
