@@ -532,8 +532,7 @@ def check_line(
         return Refusal(
             "edge_not_straight",
             f"the {human} is not straight (RMS residual {rms_px:.2f} px, limit "
-            f"{max_rms_px:.2f} px); check the edge for damage or debris, and the wood beside it for grain as "
-            "strong as the edge's step",
+            f"{max_rms_px:.2f} px); check the edge for damage, debris or grain beside it as strong as its step",
         )
     return None
 
