@@ -1,10 +1,10 @@
 """The refine stage of locate: sub-pixel edge points along every scan line of each edge and the joint line
 fit, in passes (the first, on every fifth scan line, centres and sizes the final windows; beside a far face
-one more, and one more where a line read with its face sloped kept fewer than half its points: a stripe of
-grain beside an arris can pull the first pass's area estimates several pixels into the face, and the final
-windows centred there miss the edge, while the sloped fit of the points they keep places it). Each edge is
-read by the model its kind names (:mod:`doorloc.vision.edge_models`); what the stage finds is a
-:class:`doorloc.vision.state.Refined`.
+one more, and one more where a line read as a plain step kept fewer than ``PLAIN_LINES_KEPT_SHARE`` of its
+points: a stripe of grain beside an arris can pull the first pass's area estimates several pixels into the
+face, and the final windows centred there miss the edge, while the fit of the points they keep places it).
+Each edge is read by the model its kind names (:mod:`doorloc.vision.edge_models`); what the stage finds is
+a :class:`doorloc.vision.state.Refined`.
 """
 
 from __future__ import annotations
@@ -55,6 +55,12 @@ READINGS_GAP = 0.25
 #: split between two readings a deficit of 1 apart, a share ``q`` on the other, has the sd sqrt(q (1 - q)):
 #: 0.2 is a share of about 4 %
 READINGS_SPREAD = 0.2
+#: the edge models that read a line as a plain step (no strip or band beside it)
+PLAIN_STEP_KINDS = ("plain", "step_fit")
+#: the share of its scan lines a plain step's final pass must keep, else its windows are taken as centred
+#: off its edge and the refine stage reads every line once more at the pose the pass fitted
+#: (:func:`_plain_lines_lost`)
+PLAIN_LINES_KEPT_SHARE = 0.7
 #: scan lines on which the reference arris's own blur is read where the blur the step fits would use, from
 #: transitions that noise widens, is checked (:func:`doorloc.vision.step_fit_lines.step_fit_lines`) and no
 #: far face needs it read on more. On a sharp (0.24 px) door whose noisy draws' widths read 0.46-0.69 px of
@@ -77,7 +83,7 @@ class _Sampled:
     """Edge points of one pass: per line, whether a far face was beside the far arris, its fit, and the
     lines whose points the blurred-step fit refined (name -> the blur it used, px) and, where it was tried,
     how far its points lay from the area estimator's; the lines it read with the face sloped (name -> its
-    window's half width, px)."""
+    window's half width, px); the lines read as plain steps (no strip or band beside them)."""
 
     samples: dict[str, EdgeSamples]
     far_beside: bool
@@ -85,6 +91,7 @@ class _Sampled:
     step_fitted: dict[str, float]
     readers_apart: dict[str, ReadersApart]
     face_sloped: dict[str, int]
+    plain_steps: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -195,6 +202,7 @@ def _sample(
         face_slope_blur_px=this_pass.face_slope_blur_px,
     )
     out, far_fit, step_fitted, apart, sloped = {}, None, {}, {}, {}
+    plain_steps = []
     for name in this_pass.lines:
         lay, t = region.layouts[name], tracks[name]
         window = ScanWindow(
@@ -209,8 +217,11 @@ def _sample(
             level_smooth=max(cfg.level_smooth // every, 1) if cfg.level_smooth else 0,
             door_side=lay.door_side(cfg.door_brighter),
         )
-        reading = EDGE_MODELS[edge_kind(name, t, settings)].read(window, name, t, settings)
+        kind = edge_kind(name, t, settings)
+        reading = EDGE_MODELS[kind].read(window, name, t, settings)
         out[name] = reading.samples
+        if kind in PLAIN_STEP_KINDS:
+            plain_steps.append(name)
         if reading.far_fit is not None:
             far_fit = reading.far_fit
         if reading.strip is not None and arris_fits is not None:
@@ -221,7 +232,9 @@ def _sample(
             apart[name] = reading.readers_apart
         if reading.face_slope_half_px is not None:
             sloped[name] = reading.face_slope_half_px
-    return _Sampled(out, tracks["far"].beside_far_face, far_fit, step_fitted, apart, sloped)
+    return _Sampled(
+        out, tracks["far"].beside_far_face, far_fit, step_fitted, apart, sloped, tuple(plain_steps)
+    )
 
 
 def _fit(
@@ -386,7 +399,7 @@ def refine(
         )
         pose = pose_from_fit(fit, region.face_map)
         clock.lap(f"fit{min(_pass + 1, 2)}")
-        if _pass >= 1 and not recentred and _sloped_lines_lost(samples, sampled.face_sloped):
+        if _pass >= 1 and not recentred and _plain_lines_lost(samples, sampled):
             recentred, n_pass = True, max(n_pass, _pass + 2)
         if _pass == 0:
             # The final windows sized to the transition widths of the bottom end and the reference arris
@@ -423,15 +436,19 @@ def _final_window(cfg: LocateConfig, widths: Sequence[float]) -> tuple[float, in
     return blur, half
 
 
-def _sloped_lines_lost(samples: dict[str, EdgeSamples], sloped: dict[str, int]) -> bool:
-    """Whether a line read with its face sloped kept fewer than half its points: its windows were centred
-    off its edge (strong-grain bench, set seed 506, door 36: a bright stripe along the reference arris put
-    the first pass's line 3.5-5 px into the face, and the final pass kept 67 of its 704 points)."""
+def _plain_lines_lost(samples: dict[str, EdgeSamples], sampled: _Sampled) -> bool:
+    """Whether a line read as a plain step (its face sloped or not) kept fewer than
+    ``PLAIN_LINES_KEPT_SHARE`` of its points: its windows were centred off its edge. A bright stripe beside
+    an arris moves the first pass's area estimates into the face: strong-grain bench, set seed 506, door 36,
+    the reference arris's first-pass line 3.5-5 px into the face, and the final pass kept 67 of its 704
+    points; `bench_surfaces.py --sets grain_strong --seed 490107`, door 12, a stripe along the far arris's
+    top put its first-pass points 3-4.6 px off and the final windows 1.7-5 px off; the final pass kept 396
+    of its 666 points, those near the top 2-3 px off, which tilted the line (refused as not straight)."""
     return any(
         k in samples
         and samples[k].scan.size
-        and np.count_nonzero(samples[k].valid) < 0.5 * samples[k].scan.size
-        for k in sloped
+        and np.count_nonzero(samples[k].valid) < PLAIN_LINES_KEPT_SHARE * samples[k].scan.size
+        for k in sampled.plain_steps
     )
 
 
