@@ -4,7 +4,8 @@
 (:func:`doorloc.vision.texture.texture_bias`) and raises it to what the edge shows itself: where a second
 reader (the blurred-step fit, tried on a blurred edge or read beside a sharp one as a witness) lies apart from
 the area estimator; a reference arris's transition wider than the bottom end's; the structure of the
-line's residuals along it. The doubts stage (:mod:`doorloc.vision.doubts`) gathers it with the others.
+line's residuals along it; a tilt of at least its halves' biases apart by its own offset doubt. The doubts
+stage (:mod:`doorloc.vision.doubts`) gathers it with the others.
 """
 
 from __future__ import annotations
@@ -23,9 +24,11 @@ from doorloc.vision.texture import TextureBias
 from doorloc.vision.transition import narrowest_blur
 
 __all__ = [
+    "HALVES_APART_OFFSETS",
     "REFERENCE_WIDER_PX",
     "RESIDUAL_BLOCKS",
     "SHARP_WITNESS_TEXTURE_PX",
+    "halves_apart_tilt",
     "plain_edge_texture",
     "reference_width_spread_px",
     "residual_structure_tilt",
@@ -82,7 +85,8 @@ def _raised(
     - the tilt that the structure of its residuals over quarters of the line could hide
       (:func:`residual_structure_tilt`): grain wanders along the height (the renderer's by 0.5-2 mm over
       150-400 mm), and the bias it gives the edge with it; the line's own standard error takes its
-      residuals as independent. (Arris lines carry this in their arris doubt.)
+      residuals as independent. (Arris lines carry this in their arris doubt.);
+    - at least the tilt of its two halves' biases lying its offset doubt apart (:func:`halves_apart_tilt`).
     """
     if apart is not None:
         offset_px = _at_least(offset_px, abs(apart.shift_px))
@@ -96,7 +100,30 @@ def _raised(
                 r.samples[k], r.fit.residuals[k] / r.pose.scale_mm_per_px, r.fit.weights[k] > 0
             ),
         )
+        tilt = _at_least(tilt, halves_apart_tilt(offset_px, r.samples[k]))
     return offset_px, tilt
+
+
+#: how far apart (in the line's own offset doubt) the texture's bias on a plain line's two halves may lie
+#: (:func:`halves_apart_tilt`)
+HALVES_APART_OFFSETS = 1.0
+
+
+def halves_apart_tilt(offset_px: float, samples: EdgeSamples) -> float:
+    """The least tilt doubt (px per px) of a plain line whose texture moves it by ``offset_px`` (1 sigma): its
+    two halves' biases ``HALVES_APART_OFFSETS`` times that apart, over half the length its points span.
+
+    The texture's own tilt estimates (the texture beyond the window read in two halves, the structure of
+    the residuals over quarters of the line) rest on a few samples each, and a grain stripe that wanders
+    towards the edge along the line can tilt it more than either saw: through Bouguet's camera model
+    (``bench_camera_doors.py --model R --seed 530100``, door_016, grain 3.9 %) the far arris's points moved
+    1.1e-4 px per px with the grain (0.077 px over its 698 px) where they allowed 3.6e-5; its offset doubt
+    was 0.020 px. NaN (no floor) with fewer than two points."""
+    scan = samples.scan[samples.valid]
+    if scan.size < 2:
+        return math.nan
+    span = float(scan.max() - scan.min())
+    return 2.0 * HALVES_APART_OFFSETS * offset_px / span if span > 0 else math.nan
 
 
 #: a plain reference arris whose first-pass transition is wider than the bottom end's by more than this
