@@ -85,7 +85,7 @@ def _raised(
     - the tilt that the structure of its residuals over quarters of the line could hide
       (:func:`residual_structure_tilt`): grain wanders along the height (the renderer's by 0.5-2 mm over
       150-400 mm), and the bias it gives the edge with it; the line's own standard error takes its
-      residuals as independent. (Arris lines carry this in their arris doubt.);
+      residuals as independent (arris lines carry this in their arris doubt);
     - at least the tilt of its two halves' biases lying its offset doubt apart (:func:`halves_apart_tilt`).
     """
     if apart is not None:

@@ -441,9 +441,10 @@ def _plain_lines_lost(samples: dict[str, EdgeSamples], sampled: _Sampled) -> boo
     ``PLAIN_LINES_KEPT_SHARE`` of its points: its windows were centred off its edge. A bright stripe beside
     an arris moves the first pass's area estimates into the face: strong-grain bench, set seed 506, door 36,
     the reference arris's first-pass line 3.5-5 px into the face, and the final pass kept 67 of its 704
-    points; `bench_surfaces.py --sets grain_strong --seed 490107`, door 12, a stripe along the far arris's
-    top put its first-pass points 3-4.6 px off and the final windows 1.7-5 px off; the final pass kept 396
-    of its 666 points, those near the top 2-3 px off, which tilted the line (refused as not straight)."""
+    points; `bench_surfaces.py --sets grain_strong --seed 490100` (the set's seed 490107), door 12, a
+    stripe along the far arris's top put its first-pass points 3-4.6 px off and the final windows 1.7-5 px
+    off; the final pass kept 396 of its 666 points, those near the top 2-3 px off, which tilted the line
+    (refused as not straight)."""
     return any(
         k in samples
         and samples[k].scan.size
