@@ -2265,10 +2265,11 @@ def test_a_line_whose_scan_lines_gave_no_point_says_how_many():
 
 
 def test_an_edge_not_straight_names_wood_grain_among_its_causes():
-    """Valid grained doors are refused ``edge_not_straight`` where the grain beside an edge is as strong as its
-    step (``bench_surfaces.py --sets combined,grain_strong --n 16 --seed 490100``: combined_003, a 0.46 mm
-    chamfer whose points followed 9.8 % grain, RMS 1.76 px; grain_strong_012, 270 of 666 lines unread beside
-    stripes of +-13 grey): the words named only damage, debris or a cover."""
+    """Valid grained doors are refused ``edge_not_straight`` where the grain beside an edge is as strong as
+    its step (``bench_surfaces.py --sets combined,grain_strong --n 16 --seed 490100``: combined_003, a 0.46
+    mm chamfer whose points followed 9.8 % grain, RMS 1.76 px; grain_strong_012, 270 of 666 lines unread
+    beside stripes of +-13 grey, answered since its lost lines are read again): the words named only
+    damage, debris or a cover."""
     limits = LineLimits(min_inliers=20, min_inlier_fraction=0.8, max_rms_px=1.5, min_contrast=6.0)
     few = check_line("far arris (door thickness)", 666, 355, 0.5, 30.0, limits, 396)
     wandering = check_line("reference-face arris (Z-line)", 722, 722, 1.76, 30.0, limits, 722)

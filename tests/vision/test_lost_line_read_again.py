@@ -1,5 +1,5 @@
-"""A plain edge whose final windows the first pass centred off it, so that the final pass lost many of its scan
-lines, is read again at the pose that pass fitted (:func:`doorloc.vision.refine.refine`)."""
+"""A plain edge whose final windows the first pass centred off it, so that the final pass lost many of its
+scan lines, is read again at the pose that pass fitted (:func:`doorloc.vision.refine.refine`)."""
 
 from __future__ import annotations
 

@@ -371,10 +371,10 @@ class ArrisStrip:
             # The strip's fit, over all its lines, puts the outer border beyond the lines' windows (or near
             # their end: STRIP_BORDER_OUTSIDE_SHARE) from where the first pass put it (a first pass led astray
             # by a strip much brighter than the face), and most lines lose their point: read again with the
-            # windows centred where the fit puts it, kept where more lines give a point (bench_camera_doors.py --model R --n 32 --seed 72100, door_020:
-            # a 2 mm chamfer at 224 grey beside a face of 150-170, its far strip's border 4.2 px beyond the
-            # prediction, 18 of 654 lines read; refused edge_missing; read again 654 of 654, answered 0.037
-            # mm off at 0.6 sigma).
+            # windows centred where the fit puts it, kept where more lines give a point
+            # (bench_camera_doors.py --model R --n 32 --seed 72100, door_020: a 2 mm chamfer at 224 grey
+            # beside a face of 150-170, its far strip's border 4.2 px beyond the prediction, 18 of 654 lines
+            # read; refused edge_missing; read again 654 of 654, answered 0.037 mm off at 0.6 sigma).
             again, strip_again = read_at(replace(w, centre=w.centre + w.door_side * strip.offset_px))
             if strip_again is not None and int(again.valid.sum()) > int(samples.valid.sum()):
                 samples, strip = again, strip_again

@@ -399,7 +399,7 @@ def refine(
         )
         pose = pose_from_fit(fit, region.face_map)
         clock.lap(f"fit{min(_pass + 1, 2)}")
-        if _pass >= 1 and not recentred and _plain_lines_lost(samples, sampled):
+        if _pass >= 1 and not recentred and _plain_lines_lost(sampled):
             recentred, n_pass = True, max(n_pass, _pass + 2)
         if _pass == 0:
             # The final windows sized to the transition widths of the bottom end and the reference arris
@@ -436,7 +436,7 @@ def _final_window(cfg: LocateConfig, widths: Sequence[float]) -> tuple[float, in
     return blur, half
 
 
-def _plain_lines_lost(samples: dict[str, EdgeSamples], sampled: _Sampled) -> bool:
+def _plain_lines_lost(sampled: _Sampled) -> bool:
     """Whether a line read as a plain step (its face sloped or not) kept fewer than
     ``PLAIN_LINES_KEPT_SHARE`` of its points: its windows were centred off its edge. A bright stripe beside
     an arris moves the first pass's area estimates into the face: strong-grain bench, set seed 506, door 36,
@@ -446,9 +446,8 @@ def _plain_lines_lost(samples: dict[str, EdgeSamples], sampled: _Sampled) -> boo
     off; the final pass kept 396 of its 666 points, those near the top 2-3 px off, which tilted the line
     (refused as not straight)."""
     return any(
-        k in samples
-        and samples[k].scan.size
-        and np.count_nonzero(samples[k].valid) < PLAIN_LINES_KEPT_SHARE * samples[k].scan.size
+        sampled.samples[k].scan.size
+        and np.count_nonzero(sampled.samples[k].valid) < PLAIN_LINES_KEPT_SHARE * sampled.samples[k].scan.size
         for k in sampled.plain_steps
     )
 

@@ -86,7 +86,8 @@ class PhysicalModel(BaseModel):
         None,
         description="the camera's photometric model as locate used it (the calibration's, or "
         "camera.photometric_model): its response (gamma, black_level, shoulder, white_level, shoulder_order, "
-        "curvature, the free tone curve tone_1..tone_6), through which the grey levels were mapped to the power law response_gamma where it goes beyond one, "
+        "curvature, the free tone curve tone_1..tone_6), through which the grey levels were mapped to the "
+        "power law response_gamma where it goes beyond one, "
         "the level its sensor or tone curve clips at (clip_level, fraction of full scale; 1: none), at which "
         "the door's bright side and arris strips are refused overexposed, "
         "and the edges' shift by the point spread's asymmetry (edge_shift_u_px, edge_shift_v_px, image px), "
