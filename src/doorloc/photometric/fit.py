@@ -281,18 +281,14 @@ class CauseFit:
 
 
 def _free(causes: Sequence[Cause]) -> tuple[list[str], list[float], list[float], list[float]]:
-    names: list[str] = []
-    x0: list[float] = []
-    lo: list[float] = []
-    hi: list[float] = []
+    """The parameters ``causes`` free, each once (its first cause's start and bounds): names, starts, lows,
+    highs."""
+    seen: dict[str, tuple[float, float, float]] = {}
     for c in causes:
         for n, s, a, b in zip(c.parameters, c.start, c.lower, c.upper, strict=True):
-            if n not in names:
-                names.append(n)
-                x0.append(s)
-                lo.append(a)
-                hi.append(b)
-    return names, x0, lo, hi
+            seen.setdefault(n, (s, a, b))
+    x0, lo, hi = (list(v) for v in zip(*seen.values(), strict=True)) if seen else ([], [], [])
+    return list(seen), x0, lo, hi
 
 
 #: the robust loss's scale on an edge's mean offset (px): offsets beyond it count less than squared
@@ -601,13 +597,12 @@ def select_causes(
     """Forward selection by held-out photographs: add the cause that lowers the held-out offsets most (each
     photograph's medians by edge direction, :func:`direction_medians`), while the lowering is significant
     (paired over photographs, by :func:`~doorloc.photometric.catalogue.keep_sigmas` of the candidates tried at
-    the step: a control's best candidate must not pass by the luck of the draw). Then each named cause's richer
-    form (:data:`~doorloc.photometric.catalogue.REFINED_FORMS`) in its place, kept where it lowers them by
-    ``REFINE_KEEP_SIGMAS`` standard errors. Then ``tried_last`` (the free
-    tone curve), where there are twice as many photographs as it has parameters, kept where it lowers the
-    photographs' medians by ``TONE_KEEP_SIGMAS`` standard errors without making those by direction
-    significantly worse: what the closed forms name stays named by them, and what none of them draws is
-    still found."""
+    the step: a control's best candidate must not pass by the luck of the draw); of the candidates within
+    ``TIE_SIGMAS`` of it, one that frees a part of its parameters is named in its place. Then each named
+    cause's richer form (:data:`~doorloc.photometric.catalogue.REFINED_FORMS`) in its place, kept where it
+    lowers them by ``REFINE_KEEP_SIGMAS`` standard errors. Then ``tried_last`` (the free tone curve), where
+    there are twice as many photographs as it has parameters, kept where it lowers the photographs' medians
+    by ``TONE_KEEP_SIGMAS`` standard errors without making those by direction significantly worse."""
     plain = np.array([photo_median(p, PLAIN) for p in photos])
     plain_dir = np.array([direction_medians(p, PLAIN) for p in photos])
     floor = float(np.sqrt(np.nanmean([noise_floor_px(p) ** 2 for p in photos])))
@@ -644,6 +639,12 @@ def select_causes(
             if g <= TIE_SIGMAS * s and g0 > KEEP_SIGMAS * s0:
                 ties.append(k)
         cause = next(c for c in remaining if c.name == best)
+        # the one-standard-error rule between nested forms: a tie that frees a part of the best's parameters
+        # names the effect as well with fewer (a power law is a curved response of zero curvature)
+        simpler = [c for c in remaining if c.name in ties and set(c.parameters) < set(cause.parameters)]
+        if simpler:
+            cause = min(simpler, key=lambda c: (len(c.parameters), trials[c.name].score_px))
+            ties, best = [k for k in ties if k != cause.name] + [best], cause.name
         current.append(cause)
         remaining.remove(cause)
         if ties:
