@@ -39,7 +39,12 @@ HIDDEN = {
     "response_gamma": lambda r: {"gamma": r.uniform(1.6, 2.4)},
     "response_toe": lambda r: {"gamma": r.uniform(1.8, 2.4), "black_level": r.uniform(0.06, 0.12)},
     "response_shoulder": lambda r: {"shoulder": r.uniform(0.6, 0.8)},
-    "response_curvature": lambda r: {"curvature": r.choice([-1, 1]) * r.uniform(0.15, 0.3)},
+    # a log-log bend on a camera's power law, drawn after the bend's sign and size (each seed keeps them); a
+    # bend > 0 turns the response back at ln g = -gamma / (2 bend): held to 0.9 of the bend that reaches the
+    # lowest stored level there (a bend of 0.26 on a linear camera, once drawn, held it flat below 37 grey)
+    "response_curvature": lambda r: (
+        lambda c, g: {"curvature": min(c, 0.9 * g / (2 * np.log(255.0))), "gamma": g}
+    )(r.choice([-1, 1]) * r.uniform(0.15, 0.3), r.uniform(1.8, 2.4)),
     "print_spread": lambda r: {"print_spread_mm": r.choice([-1, 1]) * r.uniform(0.1, 0.25)},
     "blur_field": lambda r: {"blur_field": r.uniform(1.0, 2.0)},
     "blur_anisotropy": lambda r: {"blur_anisotropy": r.choice([-1, 1]) * r.uniform(0.3, 0.6)},

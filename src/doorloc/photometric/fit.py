@@ -293,6 +293,10 @@ def _free(causes: Sequence[Cause]) -> tuple[list[str], list[float], list[float],
 
 #: the robust loss's scale on an edge's mean offset (px): offsets beyond it count less than squared
 LOSS_SCALE_PX = 0.02
+#: the price of a response held flat over stored levels (px per ln of grey it is flat over, one residual
+#: beside the edges'): no camera stores levels that carry no light
+#: (``PhotometricModel.flat_response_ln_grey``)
+FLAT_RESPONSE_PX = 10.0
 
 
 def set_blur_px(photos: Sequence[Photograph], clip_level: float) -> float:
@@ -357,7 +361,7 @@ def fit_causes(
             s = np.bincount(e[ok], o[ok], minlength=ne)
             c = np.bincount(e[ok], minlength=ne)
             out.append(np.where(c > 0, s / np.maximum(c, 1), 0.0)[has] / np.sqrt(max(has.sum(), 1)))
-        return np.concatenate(out)
+        return np.concatenate([*out, [FLAT_RESPONSE_PX * m.flat_response_ln_grey()]])
 
     def robust_cost(r: np.ndarray) -> float:
         # least_squares' soft_l1 cost, so a fixed model's cost compares with a fitted one's

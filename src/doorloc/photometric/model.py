@@ -96,6 +96,7 @@ no library models a camera response of this form; they are small closed forms.
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, fields, replace
 from functools import cached_property
 
@@ -306,6 +307,16 @@ class PhotometricModel:
         if self.has_tone:
             ln_light = ln_light + np.interp(g, _TONE_GREY, np.concatenate([[0.0], self.tone]))
         return np.exp(ln_light) * (g > self.black_level)
+
+    def flat_response_ln_grey(self) -> float:
+        """How far above the lowest stored level (1/255 of full scale over the pedestal)
+        :meth:`light_from_grey` holds the response flat, in ln of the grey level: a curvature > 0 turns the
+        log-log parabola back at ``ln g' = -gamma / (2 curvature)``. 0 where the response rises over every
+        stored level, as a camera's does (a fit on board edges that ends on a flat dark end reads clipped
+        darks, or none, as a response)."""
+        if self.curvature <= 0.0:
+            return 0.0
+        return max(0.0, math.log(255.0) - self.gamma / (2.0 * self.curvature))
 
     @property
     def clips(self) -> bool:
