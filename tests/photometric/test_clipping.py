@@ -21,7 +21,7 @@ from doorloc.photometric.clipping import (
 )
 from doorloc.photometric.fit import Photograph, place_edges, with_clip_references
 from doorloc.photometric.model import CLIPPED_CONTRAST_MAX, PhotometricModel
-from doorloc.photometric.profiles import edge_spread
+from doorloc.photometric.profiles import edge_spread, fit_profiles
 from doorloc.sim.boards import BOARD_BLACK, BOARD_WHITE, Checkerboard
 from doorloc.sim.photometric import CameraRendering, render_photographed_board
 
@@ -190,3 +190,24 @@ def test_the_censored_search_is_the_one_position_at_a_time_search_to_the_bit(n, 
         strict=True,
     ):
         assert np.array_equal(got, want, equal_nan=True)
+
+
+@pytest.mark.parametrize("seed", [701, 702, 703])
+def test_clipped_edges_profiles_are_drawn_with_the_clip(seed):
+    # a clipped edge's profile under the model that clipped it: its levels fitted on the samples below the
+    # clip (a censored fit) and every sample drawn clipped. Fitted with the clip's light as the bright
+    # square's, these profiles were drawn no better than the plain model draws them (6.3-8.4 grey); drawn
+    # right, they are left with the noise and the 8-bit rounding
+    rng = np.random.default_rng(seed)
+    blur, clip = float(rng.uniform(0.6, 1.4)), float(rng.uniform(0.6, 0.75))
+    exposure = float(rng.uniform(clip / BOARD_WHITE + 0.05, 1.05))
+    print(f"seed {seed}: blur {blur:.2f} px, clip {clip:.3f}, exposure {exposure:.2f}")
+    _, e = _random_board(seed, clip, exposure, blur)
+    assert clipped_lines(e, clip).mean() > 0.9
+    keep = np.isfinite(e.offset_px)
+    plain = fit_profiles(e, PhotometricModel(), keep).rms_over_windows()
+    model = PhotometricModel(clip_level=float(np.rint(clip * 255) / 255))
+    drawn = fit_profiles(e, model, keep).rms_over_windows()
+    spread = e.plateau_spread_rms(3, keep)
+    print(f"profile misfit plain {plain:.2f}, with the clip {drawn:.2f}, plateaus {spread:.2f} grey")
+    assert drawn < 0.6 * plain and drawn < 1.5 * spread + 0.3
