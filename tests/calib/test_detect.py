@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 from hypothesis import given, settings
@@ -127,3 +128,31 @@ def test_scan_skips_unreadable_blank_and_odd_sized_images(opencv_left):
     assert "decode" in reasons["broken.jpg"]
     assert "no 9x6 chessboard" in reasons["blank.png"]
     assert "320x240" in reasons["small.png"]
+
+
+def test_16_bit_photographs_keep_their_levels_for_the_response(opencv_left):
+    # a response is read on the levels as stored: the calibration's board views keep a 16-bit photograph's
+    # depth (its levels v * 257 here read as v / 255 of full scale, as the 8-bit ones), and the model
+    # check's 8-bit view of it is the fixed scale 255 / 65535, rounded, not each image stretched to its
+    # own brightest level (a gain per photograph) and truncated
+    from doorloc.calib.detect import stored_grey_8bit, to_gray
+    from doorloc.calib.folder import full_board_views, read_folder
+    from doorloc.vision.board_response import board_response
+
+    board, scan, _ = opencv_left
+    images = read_folder(Path(__file__).parents[2].parent / "shared" / "data" / "opencv-left", "left*.jpg")
+    deep = [(name, None if im is None else im.astype(np.uint16) * 257, why) for name, im, why in images]
+    v8 = full_board_views(images, scan, board)
+    v16 = full_board_views(deep, scan, board)
+    assert len(v8) == len(v16) == 13
+    for (a, ca), (b, cb) in zip(v8, v16, strict=True):
+        assert a.dtype == np.uint8 and b.dtype == np.uint16 and np.array_equal(b, a.astype(np.uint16) * 257)
+        assert np.array_equal(stored_grey_8bit(b), a) and np.array_equal(ca, cb)
+    r8, r16 = board_response(v8, 9, 6), board_response(v16, 9, 6)
+    assert r8 is not None and r16 is not None
+    # (the same light; a 16-bit image's rounding is taken as 1/65535 of full scale, not these levels' 1/255)
+    assert abs(r16.gamma - r8.gamma) < 0.5 * r8.sigma, (r8, r16)
+    # for finding corners a dark 16-bit image (12 bits of it used) is still stretched to its brightest level,
+    # rounded (2000 of 4095 is 124.5 of 255: it was truncated to 124)
+    twelve = np.array([[0, 1000, 2000, 4095]], np.uint16)
+    assert to_gray(twelve).tolist() == [[0, 62, 125, 255]]

@@ -365,3 +365,32 @@ def test_a_power_law_is_named_so_where_a_curved_response_fits_it_no_better(tmp_p
     assert c.causes == ["response_gamma"], (seed, c.causes, c.alternatives)
     assert "response_curvature" in c.alternatives["response_gamma"], c.alternatives
     assert abs(c.model.gamma - gamma) < 0.05 and c.model.curvature == 0.0, (c.model.gamma, gamma)
+
+
+@pytest.mark.slow
+def test_16_bit_photographs_are_read_on_one_fixed_scale(tmp_path):
+    # the same photographs stored in 16 bits (each level v as 257 v, full scale to full scale) are the same
+    # photographs: the check reads them on the scale locate reads a 16-bit image on (255 / 65535), not each
+    # stretched to its own brightest level (a gain per photograph that bends the response read through
+    # it) and truncated; Bouguet's twenty so stored had lost their shoulder and read 0.029 px for 0.023
+    rng = np.random.default_rng(4245)
+    values = {"gamma": float(rng.uniform(1.8, 2.4)), "shoulder": 0.7}
+    eight = tmp_path / "eight"
+    cal = _boards(eight, PhotometricModel(**values), 4245)
+    sixteen = tmp_path / "sixteen"
+    sixteen.mkdir()
+    for f in sorted(eight.iterdir()):
+        img = cv2.imread(str(f), cv2.IMREAD_UNCHANGED)
+        assert img.dtype == np.uint8
+        cv2.imwrite(str(sixteen / f.name), img.astype(np.uint16) * 257)
+    a = check_boards(eight, Chessboard(9, 6, 25.0), load_calibration(cal))
+    b = check_boards(sixteen, Chessboard(9, 6, 25.0), load_calibration(cal))
+    assert a.causes == b.causes and a.causes, (a.causes, b.causes)
+    for pa, pb in zip(a.photographs, b.photographs, strict=True):
+        assert pa.offset_before_px == pytest.approx(pb.offset_before_px, abs=1e-3)
+        assert pa.offset_after_px == pytest.approx(pb.offset_after_px, abs=1e-3)
+    # (corners are found on each image stretched to its own brightest level, so they may differ by a few
+    # thousandths of a pixel: the fits agree well within their sigma)
+    name = a.causes[0]
+    for p, v in a.parameters[name].items():
+        assert abs(getattr(a.model, p) - getattr(b.model, p)) < 0.5 * v["sigma"], (p, a.model, b.model, v)

@@ -33,6 +33,8 @@ __all__ = [
     "local_square_px",
     "canonical_grid_order",
     "to_gray",
+    "stored_grey",
+    "stored_grey_8bit",
     "SkippedImage",
     "BoardScan",
     "scan_images",
@@ -149,16 +151,34 @@ class BoardDetection:
         return board.object_points()[self.ids]
 
 
-def to_gray(image: np.ndarray) -> np.ndarray:
-    """8-bit single-channel view of ``image`` (grey, BGR or BGRA; 16-bit scaled down)."""
+def stored_grey(image: np.ndarray) -> np.ndarray:
+    """Single-channel view of ``image`` (grey, BGR or BGRA) at its stored depth, no level rescaled."""
     im = np.asarray(image)
     if im.ndim == 3:
         code = cv2.COLOR_BGRA2GRAY if im.shape[2] == 4 else cv2.COLOR_BGR2GRAY
         im = cv2.cvtColor(im, code) if im.shape[2] in (3, 4) else im[..., 0]
+    return np.ascontiguousarray(im)
+
+
+def stored_grey_8bit(image: np.ndarray) -> np.ndarray:
+    """:func:`stored_grey` on the 8-bit scale, a 16-bit level ``v`` stored as ``round(v * 255 / 65535)``: the
+    full scale locate reads a 16-bit image on, one for every photograph, for measuring a camera's response.
+    (:func:`to_gray`, for finding corners, stretches each image to its own brightest level: a gain that
+    changes from photograph to photograph bends a response read through it.)"""
+    im = stored_grey(image)
+    if im.dtype == np.uint8:
+        return im
+    return np.clip(np.rint(im.astype(float) * (255.0 / 65535.0)), 0, 255).astype(np.uint8)
+
+
+def to_gray(image: np.ndarray) -> np.ndarray:
+    """8-bit single-channel view of ``image`` (grey, BGR or BGRA; 16-bit scaled down to its own brightest
+    level: corners are found as well in a dark 12-bit image stored in 16 bits)."""
+    im = stored_grey(image)
     if im.dtype != np.uint8:
         im = im.astype(float)
         hi = float(np.nanmax(im)) if im.size else 1.0
-        im = np.clip(im * (255.0 / max(hi, 1e-12)), 0, 255).astype(np.uint8)
+        im = np.clip(np.rint(im * (255.0 / max(hi, 1e-12))), 0, 255).astype(np.uint8)
     return np.ascontiguousarray(im)
 
 

@@ -31,7 +31,7 @@ from doorloc.calib.calibrate import (
     View,
     calibrate_views,
 )
-from doorloc.calib.detect import BoardScan, CharucoSpec, Chessboard, SkippedImage, scan_images, to_gray
+from doorloc.calib.detect import BoardScan, CharucoSpec, Chessboard, SkippedImage, scan_images, stored_grey
 from doorloc.calib.io import CalibrationFile
 
 __all__ = [
@@ -120,12 +120,13 @@ class CalibrationOutcome:
 def full_board_views(
     images: Sequence[LoadedImage], scan: BoardScan, board: Chessboard
 ) -> list[tuple[np.ndarray, np.ndarray]]:
-    """(grey image, every inner corner in the board's row-major order) for each image in which ``scan``
-    found the whole chessboard: the input of :func:`doorloc.vision.board_response.board_response`."""
+    """(grey image at its stored depth, 8 or 16 bits, every inner corner in the board's row-major order) for
+    each image in which ``scan`` found the whole chessboard: the input of
+    :func:`doorloc.vision.board_response.board_response`, which reads a response on the levels as stored."""
     n = board.cols * board.rows
     dets = scan.detections
     return [
-        (to_gray(img), dets[name].corners_px[np.argsort(dets[name].ids)])
+        (stored_grey(img), dets[name].corners_px[np.argsort(dets[name].ids)])
         for name, img, _ in images
         if img is not None and name in dets and dets[name].ids.size == n
     ]

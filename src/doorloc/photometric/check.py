@@ -29,7 +29,7 @@ import numpy as np
 
 from doorloc.calib.calibrate import View
 from doorloc.calib.camera import CameraModel
-from doorloc.calib.detect import Chessboard, to_gray
+from doorloc.calib.detect import Chessboard, stored_grey_8bit
 from doorloc.calib.folder import (
     CalibrationError,
     CalibrationInputError,
@@ -395,7 +395,7 @@ def _measured(
     by_name = {name: im for name, im, _ in images if im is not None}
     photos = []
     for v in full:
-        gray = to_gray(by_name[v.name])
+        gray = stored_grey_8bit(by_name[v.name])
         corners = v.image_points[np.argsort(v.ids)]
         edges = measure_board_edges(
             gray,
