@@ -312,8 +312,8 @@ class PhotometricModel:
         """How far above the lowest stored level (1/255 of full scale over the pedestal)
         :meth:`light_from_grey` holds the response flat, in ln of the grey level: a curvature > 0 turns the
         log-log parabola back at ``ln g' = -gamma / (2 curvature)``. 0 where the response rises over every
-        stored level, as a camera's does (a fit on board edges that ends on a flat dark end reads clipped
-        darks, or none, as a response)."""
+        stored level, as a camera's does (a fit whose response ends flat over the darker levels has taken
+        darks stored at 0, or a bend that no edge's levels reach, for the camera's response)."""
         if self.curvature <= 0.0:
             return 0.0
         return max(0.0, math.log(255.0) - self.gamma / (2.0 * self.curvature))
