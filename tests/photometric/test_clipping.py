@@ -104,6 +104,16 @@ def _random_board(seed: int, clip: float, exposure: float, blur: float):
     return rb.image, measure_board_edges(rb.image, rb.corners_px, 9, 6, 25.0, CAMERA)
 
 
+def _clipped_board(seed: int):
+    """A board photographed with its light squares beyond a clip of 0.6-0.75 (blur 0.6-1.4 px): the blur,
+    the clip and its measured edges."""
+    rng = np.random.default_rng(seed)
+    blur, clip = float(rng.uniform(0.6, 1.4)), float(rng.uniform(0.6, 0.75))
+    exposure = float(rng.uniform(clip / BOARD_WHITE + 0.05, 1.05))
+    print(f"seed {seed}: blur {blur:.2f} px, clip {clip:.3f}, exposure {exposure:.2f}")
+    return blur, clip, _random_board(seed, clip, exposure, blur)[1]
+
+
 @pytest.mark.parametrize("seed", [501, 502, 503])
 def test_censored_fit_leaves_unclipped_edges_where_they_are(seed):
     rng = np.random.default_rng(seed)
@@ -134,11 +144,7 @@ def test_censored_fit_leaves_unclipped_edges_where_they_are(seed):
 def test_censored_fit_places_clipped_edges_with_the_blur_it_reads(seed):
     # the board's contrast from the camera's other photographs (here: the renderer's reflectances), the
     # blur read from the clipped lines themselves: the edges come back to the board's lines
-    rng = np.random.default_rng(seed)
-    blur, clip = float(rng.uniform(0.6, 1.4)), float(rng.uniform(0.6, 0.75))
-    exposure = float(rng.uniform(clip / BOARD_WHITE + 0.05, 1.05))
-    print(f"seed {seed}: blur {blur:.2f} px, clip {clip:.3f}, exposure {exposure:.2f}")
-    _, e = _random_board(seed, clip, exposure, blur)
+    blur, clip, e = _clipped_board(seed)
     model = PhotometricModel(clip_level=clip)
     lines = np.flatnonzero(clipped_lines(e, clip) & np.isfinite(e.offset_px))
     assert lines.size > 0.8 * np.isfinite(e.offset_px).sum()
@@ -198,11 +204,7 @@ def test_clipped_edges_profiles_are_drawn_with_the_clip(seed):
     # clip (a censored fit) and every sample drawn clipped. Fitted with the clip's light as the bright
     # square's, these profiles were drawn no better than the plain model draws them (6.3-8.4 grey); drawn
     # right, they are left with the noise and the 8-bit rounding
-    rng = np.random.default_rng(seed)
-    blur, clip = float(rng.uniform(0.6, 1.4)), float(rng.uniform(0.6, 0.75))
-    exposure = float(rng.uniform(clip / BOARD_WHITE + 0.05, 1.05))
-    print(f"seed {seed}: blur {blur:.2f} px, clip {clip:.3f}, exposure {exposure:.2f}")
-    _, e = _random_board(seed, clip, exposure, blur)
+    _, clip, e = _clipped_board(seed)
     assert clipped_lines(e, clip).mean() > 0.9
     keep = np.isfinite(e.offset_px)
     plain = fit_profiles(e, PhotometricModel(), keep).rms_over_windows()
