@@ -151,13 +151,20 @@ class BoardDetection:
         return board.object_points()[self.ids]
 
 
-def stored_grey(image: np.ndarray) -> np.ndarray:
-    """Single-channel view of ``image`` (grey, BGR or BGRA) at its stored depth, no level rescaled."""
+def _single_channel(image: np.ndarray) -> np.ndarray:
     im = np.asarray(image)
     if im.ndim == 3:
         code = cv2.COLOR_BGRA2GRAY if im.shape[2] == 4 else cv2.COLOR_BGR2GRAY
         im = cv2.cvtColor(im, code) if im.shape[2] in (3, 4) else im[..., 0]
     return np.ascontiguousarray(im)
+
+
+def stored_grey(image: np.ndarray) -> np.ndarray:
+    """Single-channel view of ``image`` (grey, BGR or BGRA) for reading a camera's response: an 8- or
+    16-bit image at its stored depth, no level rescaled; any other depth (a float TIFF) as :func:`to_gray`
+    gives it."""
+    im = _single_channel(image)
+    return im if im.dtype in (np.uint8, np.uint16) else to_gray(im)
 
 
 def stored_grey_8bit(image: np.ndarray) -> np.ndarray:
@@ -174,7 +181,7 @@ def stored_grey_8bit(image: np.ndarray) -> np.ndarray:
 def to_gray(image: np.ndarray) -> np.ndarray:
     """8-bit single-channel view of ``image`` (grey, BGR or BGRA; 16-bit scaled down to its own brightest
     level: corners are found as well in a dark 12-bit image stored in 16 bits)."""
-    im = stored_grey(image)
+    im = _single_channel(image)
     if im.dtype != np.uint8:
         im = im.astype(float)
         hi = float(np.nanmax(im)) if im.size else 1.0
