@@ -1,7 +1,7 @@
 """A response that rises over every stored level: the log-log bend (``curvature`` > 0) turns the response
 back at ``ln g' = -gamma / (2 curvature)`` and the model holds it flat below. The model says how far above
 the lowest stored level that is, and the model check's fit pays for it: a camera stores no levels that carry
-no light."""
+no light. Nor may its pedestal lie above the dark squares the camera stores: it reads them as no light."""
 
 from __future__ import annotations
 
@@ -16,7 +16,10 @@ from hypothesis import strategies as st
 from doorloc.calib.camera import CameraModel
 from doorloc.calib.detect import Chessboard
 from doorloc.calib.io import CalibrationFile
-from doorloc.photometric.check import check_boards
+from doorloc.photometric.board_edges import darkest_plateau
+from doorloc.photometric.catalogue import CAUSES_BY_NAME
+from doorloc.photometric.check import check_boards, measure_boards
+from doorloc.photometric.fit import fit_causes
 from doorloc.photometric.model import PhotometricModel
 from doorloc.sim.boards import Checkerboard
 from doorloc.sim.photometric import random_board_views
@@ -56,3 +59,31 @@ def test_the_check_fits_no_response_that_holds_stored_levels_flat(tmp_path):
         cv2.imwrite(str(folder / name), img)
     c = check_boards(folder, Chessboard(9, 6, 25.0), CalibrationFile(CAMERA))
     assert c.model.flat_response_ln_grey() < 0.05, (c.causes, c.model.gamma, c.model.curvature)
+
+
+@settings(max_examples=200, deadline=None)
+@given(gamma=st.floats(0.3, 4.0), black=st.floats(0.0, 0.3), darkest=st.floats(0.0, 0.3))
+def test_the_pedestal_is_paid_for_exactly_where_it_reads_a_stored_dark_square_as_no_light(
+    gamma, black, darkest
+):
+    m = PhotometricModel(gamma=gamma, black_level=black)
+    over = m.pedestal_over_darks_ln_grey(darkest)
+    assert over >= 0.0
+    if over == 0.0:
+        assert black <= max(darkest, 1.0 / 255.0)
+    else:
+        # a dark square stored at ``darkest`` is read as no light
+        assert m.light_from_grey(np.array([darkest]))[0] == 0.0
+    if over > 0.0:
+        assert m.with_values(black_level=min(0.99, black * 1.1)).pedestal_over_darks_ln_grey(darkest) > over
+
+
+def test_the_fit_puts_no_pedestal_above_bouguets_dark_squares(shared_data):
+    # a toe and a shoulder fitted to the places of Bouguet's edges alone put the pedestal at 36.6 grey, above
+    # one dark square in twenty (32 grey): those squares' profiles were drawn at 36.6
+    mb = measure_boards(shared_data / "bouguet-calib-example", Chessboard(13, 12, 30.0))
+    darkest = darkest_plateau([p.edges for p in mb.photographs])
+    assert 25.0 / 255.0 < darkest < 35.0 / 255.0
+    fit = fit_causes(mb.photographs, [CAUSES_BY_NAME["response_toe"], CAUSES_BY_NAME["response_shoulder"]])
+    assert fit.model.black_level <= darkest + 0.5 / 255.0, fit.model.black_level * 255.0
+    assert fit.model.black_level > 0.05  # still a toe: the edges ask for one

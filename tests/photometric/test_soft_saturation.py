@@ -18,7 +18,7 @@ from doorloc.calib.camera import CameraModel
 from doorloc.calib.detect import Chessboard
 from doorloc.calib.io import CalibrationFile
 from doorloc.photometric.check import check_boards
-from doorloc.photometric.fit import white_starts
+from doorloc.photometric.clipping import white_starts
 from doorloc.photometric.model import PhotometricModel
 from doorloc.sim.boards import Checkerboard
 from doorloc.sim.photometric import CameraRendering, random_board_views, render_photographed_board

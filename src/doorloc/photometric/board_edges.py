@@ -18,6 +18,7 @@ Units: pixels in OpenCV's convention (origin at the centre of the top-left pixel
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -33,6 +34,7 @@ __all__ = [
     "board_edge_curves",
     "measure_board_edges",
     "per_edge_median",
+    "darkest_plateau",
 ]
 
 
@@ -199,6 +201,26 @@ def per_edge_median(edge: np.ndarray, x: np.ndarray, n: int) -> np.ndarray:
     hi = start[has] + count[has] // 2
     out[has] = 0.5 * (v[lo] + v[hi])
     return out
+
+
+#: the share of a camera's edges whose dark plateau may lie below :func:`darkest_plateau` (one edge's level
+#: in twenty: a few squares in shadow or a corner of the frame are not the camera's black)
+DARKEST_PLATEAU_SHARE = 0.05
+#: grey levels :func:`darkest_plateau` lies below that share's level (an edge's median plateau carries its
+#: rounding and a level of the sensor's fixed pattern)
+DARKEST_PLATEAU_MARGIN_GREY = 2.0
+
+
+def darkest_plateau(edges: Sequence[BoardEdges]) -> float:
+    """The darkest level (fraction of full scale) the photographs ``edges`` store on their dark squares:
+    the :data:`DARKEST_PLATEAU_SHARE` quantile of their edges' dark plateaus less
+    :data:`DARKEST_PLATEAU_MARGIN_GREY`; 0 where none is measured. A response may read levels below it as
+    no light, not levels above."""
+    d = np.concatenate([np.empty(0)] + [np.asarray(e.dark_by_edge, float) for e in edges])
+    d = d[np.isfinite(d)]
+    if not d.size:
+        return 0.0
+    return max(0.0, float(np.quantile(d, DARKEST_PLATEAU_SHARE)) - DARKEST_PLATEAU_MARGIN_GREY) / 255.0
 
 
 def board_edge_curves(

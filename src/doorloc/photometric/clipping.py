@@ -55,6 +55,7 @@ __all__ = [
     "censored_offsets_px",
     "censored_blur_px",
     "clip_candidates",
+    "white_starts",
 ]
 
 #: samples above this fraction of the way from the dark plateau to the clipped one are lower bounds only
@@ -245,3 +246,17 @@ def clip_candidates(brights: np.ndarray) -> np.ndarray:
         return np.array([1.0])
     q = np.percentile(b, [50, 65, 75, 85, 90, 95, 98, 99.5]) / 255.0
     return np.unique(np.clip(np.round(q * 255.0) / 255.0, 0.2, 1.0))
+
+
+def white_starts(brights: np.ndarray) -> list[tuple[float, float]]:
+    """``(shoulder, white_level)`` pairs (fraction of full scale) worth starting a soft saturation's fit from,
+    for plateaus ``brights`` (grey): white levels just above the highest plateaus, knees from 0.1 to 0.35
+    below them, so that the shoulder reaches the brighter edges."""
+    b = np.asarray(brights, float)
+    b = b[np.isfinite(b)]
+    top = float(np.percentile(b, 99.5)) / 255.0 if b.size else 1.0
+    return [
+        (w - span, w)
+        for w in sorted({min(1.0, top + d) for d in (0.005, 0.02, 0.05)})
+        for span in (0.1, 0.2, 0.35)
+    ]

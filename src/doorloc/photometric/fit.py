@@ -23,7 +23,7 @@ from functools import cached_property
 import numpy as np
 from scipy.optimize import least_squares
 
-from doorloc.photometric.board_edges import BoardEdges, EdgeSettings, per_edge_median
+from doorloc.photometric.board_edges import BoardEdges, EdgeSettings, darkest_plateau, per_edge_median
 from doorloc.photometric.catalogue import (
     CAUSES_BY_NAME,
     EDGE_CAUSES,
@@ -43,6 +43,7 @@ from doorloc.photometric.clipping import (
     near_clip_edges,
     unclipped_blur_px,
     unclipped_contrast,
+    white_starts,
 )
 from doorloc.photometric.model import CLIPPED_CONTRAST_MAX, PLAIN, PhotometricModel
 from doorloc.photometric.profiles import fit_profiles
@@ -58,7 +59,6 @@ __all__ = [
     "select_causes",
     "noise_floor_px",
     "direction_noise_floor_px",
-    "white_starts",
     "folds_by_photograph",
     "photo_median",
     "transition_centres_px",
@@ -295,7 +295,7 @@ def _free(causes: Sequence[Cause]) -> tuple[list[str], list[float], list[float],
 LOSS_SCALE_PX = 0.02
 #: the price of a response held flat over stored levels (px per ln of grey it is flat over, one residual
 #: beside the edges'): no camera stores levels that carry no light
-#: (``PhotometricModel.flat_response_ln_grey``)
+#: (``PhotometricModel.flat_response_ln_grey``, ``pedestal_over_darks_ln_grey``)
 FLAT_RESPONSE_PX = 10.0
 
 
@@ -352,6 +352,7 @@ def fit_causes(
     n_e = [p.edges.n_edges for p in photos]
     # the edges with inlier samples: a fixed set, so the residual vector keeps its length
     used = [np.bincount(e[m], minlength=ne) > 0 for e, m, ne in zip(edges, masks, n_e, strict=True)]
+    darkest = darkest_plateau([p.edges for p in photos])
 
     def residuals_of(m: PhotometricModel) -> np.ndarray:
         out = []
@@ -361,7 +362,8 @@ def fit_causes(
             s = np.bincount(e[ok], o[ok], minlength=ne)
             c = np.bincount(e[ok], minlength=ne)
             out.append(np.where(c > 0, s / np.maximum(c, 1), 0.0)[has] / np.sqrt(max(has.sum(), 1)))
-        return np.concatenate([*out, [FLAT_RESPONSE_PX * m.flat_response_ln_grey()]])
+        flat = m.flat_response_ln_grey() + m.pedestal_over_darks_ln_grey(darkest)
+        return np.concatenate([*out, [FLAT_RESPONSE_PX * flat]])
 
     def robust_cost(r: np.ndarray) -> float:
         # least_squares' soft_l1 cost, so a fixed model's cost compares with a fitted one's
@@ -479,20 +481,6 @@ def _fit_on_medians(
         model_at(x),
         float(0.5 * np.nansum(r**2)),
     )
-
-
-def white_starts(brights: np.ndarray) -> list[tuple[float, float]]:
-    """``(shoulder, white_level)`` pairs (fraction of full scale) worth starting a soft saturation's fit from,
-    for plateaus ``brights`` (grey): white levels just above the highest plateaus, knees from 0.1 to 0.35
-    below them, so that the shoulder reaches the brighter edges."""
-    b = np.asarray(brights, float)
-    b = b[np.isfinite(b)]
-    top = float(np.percentile(b, 99.5)) / 255.0 if b.size else 1.0
-    return [
-        (w - span, w)
-        for w in sorted({min(1.0, top + d) for d in (0.005, 0.02, 0.05)})
-        for span in (0.1, 0.2, 0.35)
-    ]
 
 
 @dataclass(frozen=True)

@@ -6,7 +6,8 @@ even blur, a perfect print):
 
 - ``gamma``: power-law response, ``light = g ** gamma`` for the stored grey ``g`` in [0, 1];
 - ``black_level``: the grey level zero light is stored at (a pedestal), fraction of full scale; the
-  power law applies above it;
+  power law applies above it. The model check holds it at or below the dark squares its photographs store
+  (:meth:`PhotometricModel.pedestal_over_darks_ln_grey`);
 - ``shoulder``: the level (fraction of full scale, above the pedestal) where the response's shoulder starts
   compressing highlights towards full scale: above it ``g = W - (W - k) (1 - (x - k) / (p (W - k)))^p``
   (``x`` the power law's output, ``W`` the white level, below, ``p`` the ``shoulder_order``), which leaves
@@ -317,6 +318,17 @@ class PhotometricModel:
         if self.curvature <= 0.0:
             return 0.0
         return max(0.0, math.log(255.0) - self.gamma / (2.0 * self.curvature))
+
+    def pedestal_over_darks_ln_grey(self, darkest_plateau: float) -> float:
+        """How far the pedestal (``black_level``, which :meth:`light_from_grey` reads as no light) lies above
+        ``darkest_plateau``, the darkest level (fraction of full scale) a camera's photographs store on their
+        dark squares (at least the lowest stored level, 1/255), in ln of the grey level; 0 where it lies at
+        or below. A pedestal above stored plateaus
+        reads a dark square as no light at all and cannot draw it (Bouguet's toe, fitted to the edges'
+        places, put it at 36 grey while a twentieth of its dark squares lie at or below 32: their profiles
+        were drawn at 36)."""
+        floor = max(darkest_plateau, 1.0 / 255.0)
+        return max(0.0, math.log(max(self.black_level, floor) / floor))
 
     @property
     def clips(self) -> bool:
