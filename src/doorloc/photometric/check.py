@@ -53,11 +53,14 @@ from doorloc.photometric.fit import (
 )
 from doorloc.photometric.model import PLAIN, PhotometricModel
 from doorloc.photometric.profiles import (
+    GAP_TO_PLACE_GREY,
     EdgeProfiles,
     FieldOffset,
     ResidualProfile,
+    camera_or_print,
     fit_field_offset,
     fit_profiles,
+    gap_place_px,
     mean_residual_profile,
 )
 from doorloc.photometric.twin import ProfileTwin, profile_twins, read_jpeg_quality
@@ -252,6 +255,26 @@ class BoardCheck:
             mean_residual_profile([p.profiles_before for p in self.photographs]),
             mean_residual_profile([p.profiles_after for p in self.photographs]),
         )
+
+    @functools.cached_property
+    def gap_source(self) -> tuple[str | None, np.ndarray, np.ndarray]:
+        """Whether the extended model's gap between the rows' and the columns' profiles
+        (:meth:`ResidualProfile.direction_gap`) is the camera's or the print's
+        (:func:`~doorloc.photometric.profiles.camera_or_print`, None where not told), from where it lies in
+        each photograph (px from the edge, :func:`~doorloc.photometric.profiles.gap_place_px`) against its
+        board's scale (median px per mm): the verdict, the places and the scales. None and NaN places where
+        the gap is under :data:`~doorloc.photometric.profiles.GAP_TO_PLACE_GREY`."""
+        gap, at = self.residual_profiles[1].direction_gap()
+        scales = np.array([float(np.median(p.edges.px_per_mm)) for p in self.photographs])
+        if not abs(gap) >= GAP_TO_PLACE_GREY:
+            return None, np.full(scales.size, np.nan), scales
+        places = np.array(
+            [
+                gap_place_px(mean_residual_profile([p.profiles_after]), at, np.sign(gap))
+                for p in self.photographs
+            ]
+        )
+        return camera_or_print(places, scales), places, scales
 
     def profile_over_twin(self) -> dict[str, float]:
         """The held-out profile misfit (RMS over photographs, plain model and extended) over the misfit the

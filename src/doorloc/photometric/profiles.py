@@ -38,6 +38,9 @@ __all__ = [
     "fit_field_offset",
     "edge_spread",
     "mean_residual_profile",
+    "GAP_TO_PLACE_GREY",
+    "gap_place_px",
+    "camera_or_print",
 ]
 
 #: the blur grid searched (Gaussian sigma of the optics, px); the least misfit is refined by a parabola
@@ -185,6 +188,71 @@ class ResidualProfile:
             return float("nan"), float("nan")
         k = int(np.argmax(np.where(ok, np.abs(gap), -1.0)))
         return float(gap[k]), float(self.distance_px[k])
+
+
+#: the least gap (grey levels) between the rows' and the columns' mean residual whose place is read
+GAP_TO_PLACE_GREY = 2.0
+#: how far (px) one photograph's gap is sought from where all photographs' together lies
+GAP_PLACE_REACH_PX = 1.5
+#: the least ratio of the largest board scale (px per mm) to the smallest over which a gap's place fixed in
+#: pixels (the camera's) is told from one fixed on the board (the print's)
+SCALE_RATIO_TO_TELL = 1.25
+#: the F-test's level at which the place's other constant is rejected, and the one it must keep its own at
+PLACE_REJECT_P = 0.001
+PLACE_KEEP_P = 0.01
+
+
+def gap_place_px(profile: ResidualProfile, near_px: float, sign: float) -> float:
+    """Where ``profile``'s rows-less-columns gap (:meth:`ResidualProfile.direction_gap`) of the sign ``sign``
+    is largest within :data:`GAP_PLACE_REACH_PX` of ``near_px``, px from the edge: the bin's centre moved to
+    the vertex of the parabola through it and its neighbours. NaN where no bin there holds both directions."""
+    gap = sign * (profile.along_rows - profile.along_columns)
+    x = profile.distance_px
+    near = np.abs(x - near_px) <= GAP_PLACE_REACH_PX
+    ok = near & np.isfinite(gap)
+    if not ok.any():
+        return float("nan")
+    k = int(np.argmax(np.where(ok, gap, -np.inf)))
+    if 0 < k < x.size - 1 and np.isfinite(gap[k - 1]) and np.isfinite(gap[k + 1]):
+        den = gap[k - 1] - 2.0 * gap[k] + gap[k + 1]
+        if den < 0:
+            step = float(np.clip(0.5 * (gap[k - 1] - gap[k + 1]) / den, -0.5, 0.5))
+            return float(x[k] + step * (x[1] - x[0]))
+    return float(x[k])
+
+
+def camera_or_print(places_px: np.ndarray, px_per_mm: np.ndarray) -> str | None:
+    """Whether a gap between the two directions' profiles is the camera's or the print's, from where it lies
+    in photographs of the board at different scales (``places_px`` (P,) px from the edge,
+    :func:`gap_place_px`; ``px_per_mm`` (P,) each photograph's board scale): ``"camera"`` where its place is
+    one distance in pixels (a scan line's filter), ``"print"`` where it is one distance on the board (the
+    place in pixels in proportion to the scale). Each is the line ``place = a + b scale`` with one term
+    held at 0 (``b`` for the camera, ``a`` for the print); one is told where an F-test against the free line
+    rejects the other at :data:`PLACE_REJECT_P` and keeps it at :data:`PLACE_KEEP_P`. None where fewer than
+    four photographs place it, their scales differ by less than :data:`SCALE_RATIO_TO_TELL`, or the test
+    tells neither (the places' scatter hides the difference)."""
+    from scipy.stats import f as f_dist  # (only the report asks, once)
+
+    p, s = np.asarray(places_px, float), np.asarray(px_per_mm, float)
+    ok = np.isfinite(p) & np.isfinite(s) & (s > 0)
+    p, s = p[ok], s[ok]
+    if p.size < 4 or s.max() < SCALE_RATIO_TO_TELL * s.min():
+        return None
+    design = np.stack([np.ones_like(s), s], axis=1)
+    free = float(np.sum((p - design @ np.linalg.lstsq(design, p, rcond=None)[0]) ** 2))
+    dof = p.size - 2
+    scale = max(free / dof, 1e-12 * max(float(np.mean(p * p)), 1e-12))
+
+    def p_value(held: float) -> float:
+        return float(f_dist.sf(max(held - free, 0.0) / scale, 1, dof))
+
+    on_camera = p_value(float(np.sum((p - p.mean()) ** 2)))
+    on_board = p_value(float(np.sum((p - s * (np.sum(p * s) / np.sum(s * s))) ** 2)))
+    if on_board < PLACE_REJECT_P and on_camera >= PLACE_KEEP_P:
+        return "camera"
+    if on_camera < PLACE_REJECT_P and on_board >= PLACE_KEEP_P:
+        return "print"
+    return None
 
 
 def mean_residual_profile(profiles: Sequence[EdgeProfiles]) -> ResidualProfile:

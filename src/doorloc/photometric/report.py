@@ -154,7 +154,13 @@ def _residual_profile_dict(check: BoardCheck) -> dict:
             }
             for label, p in (("plain", plain), ("extended", extended))
         },
-        "rows_less_columns": {"largest": _num(gap), "at_px": _num(at)},
+        "rows_less_columns": {
+            "largest": _num(gap),
+            "at_px": _num(at),
+            "source": check.gap_source[0],
+            "at_px_by_photograph": [_num(x) for x in check.gap_source[1]],
+            "px_per_mm_by_photograph": [_num(x) for x in check.gap_source[2]],
+        },
     }
 
 
@@ -310,8 +316,22 @@ def _direction_sentence(check: BoardCheck) -> str:
     gap, at = check.residual_profiles[1].direction_gap()
     if not np.isfinite(gap):
         return "The edges across the rows and across the columns are too few to compare their profiles."
-    # the board one way in every photograph whose edges' directions are known: print and lines confounded
+    # the board one way in every photograph whose edges' directions are known: print and lines confounded,
+    # unless the gap's place against the boards' scales tells them
     confounded = len({p.edges.board_turned() for p in check.photographs} - {None}) == 1
+    source, places, scales = check.gap_source
+    ok = np.isfinite(places)
+    told = (
+        f" Photograph by photograph it lies at {np.min(places[ok]):+.2f} to {np.max(places[ok]):+.2f} px "
+        f"while the board's scale runs {np.min(scales[ok]):.2f}-{np.max(scales[ok]):.2f} px/mm: "
+        + (
+            "one distance in pixels, not on the board, so it is the camera's, along its scan lines."
+            if source == "camera"
+            else "one distance on the board, not in pixels, so it is the print's."
+        )
+        if source is not None
+        else ""
+    )
     return (
         "Mean residual profile of the extended model, edges across the image rows against those across the "
         f"columns: {abs(gap):.1f} grey levels apart at most ({at:+.2f} px from the edge, the rows' "
@@ -320,10 +340,11 @@ def _direction_sentence(check: BoardCheck) -> str:
         "the camera's scan lines (an analogue line's filter, clamp or sharpening, along the rows) or the "
         "board's print (a printer lays the edges across and along its paper's travel differently). No cause "
         "of the catalogue and no twin draws either."
+        + told
         + (
             " In every photograph here the board's rows run the same way in the image, so the two cannot be "
-            "told apart: add photographs with the board turned a quarter turn."
-            if confounded
+            "told apart: add photographs with the board turned a quarter turn, or at distances further apart."
+            if confounded and source is None
             else ""
         )
     )
