@@ -4,7 +4,9 @@ on every edge."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
+from types import SimpleNamespace
 
 import cv2
 import numpy as np
@@ -19,10 +21,11 @@ from doorloc.photometric.model import PhotometricModel
 from doorloc.photometric.profiles import (
     EdgeProfiles,
     camera_or_print,
+    field_flip,
     gap_place_px,
     mean_residual_profile,
 )
-from doorloc.photometric.report import report_dict, report_markdown
+from doorloc.photometric.report import FIELD_FLIP_GREY, report_dict, report_markdown
 from doorloc.sim.boards import Checkerboard
 from doorloc.sim.photometric import random_board_views
 
@@ -106,6 +109,36 @@ def test_too_few_photographs_or_a_place_in_between_tell_neither():
     assert camera_or_print(np.array(places), np.array(scales)) == "camera"
 
 
+def _field(rng, n_edges: int, flip: float):
+    """Edges spread over a 640 x 480 field (centre 320, 240), each with 20 scan lines whose residual is a
+    bump ``flip`` grey levels high at the edge, its sign the way the edge's bright side faces (out +)."""
+    angle = rng.uniform(0, 2 * np.pi, n_edges)
+    radius = rng.uniform(0, 400, n_edges)
+    mid = np.stack([320 + radius * np.cos(angle), 240 + radius * np.sin(angle)], axis=1)
+    theta = rng.uniform(0, 2 * np.pi, n_edges)
+    normal = np.stack([np.cos(theta), np.sin(theta)], axis=1)
+    facing = np.sign(np.sum(normal * (mid - [320, 240]), axis=1))
+    edge = np.repeat(np.arange(n_edges), 20)
+    prof = _profiles(edge.size, np.zeros(edge.size, bool), lambda d: np.exp(-0.5 * (d / 0.7) ** 2), rng)
+    residual = prof.residual * (flip * facing[edge])[:, None]
+    return SimpleNamespace(mid_px=mid, normal=normal), replace(prof, residual=residual, edge=edge)
+
+
+@pytest.mark.parametrize("flip", [0.0, 2.0, 6.0])
+def test_profiles_mirrored_by_the_way_they_face_the_centre_are_read_as_twice_the_mirror(flip):
+    rng = np.random.default_rng(11)
+    parts = [_field(rng, 300, flip) for _ in range(3)]
+    ff = field_flip(parts, (320.0, 240.0), 400.0)
+    gap, at = ff.largest()
+    # (the bins nearest the edge are centred 0.25 px from it, where the bump is down to 0.94)
+    assert gap == pytest.approx(2 * flip * np.exp(-0.5 * (0.25 / 0.7) ** 2), rel=0.03, abs=0.15)
+    assert flip == 0 or abs(at) == 0.25
+    # profiles without their scan lines' edges are passed over
+    assert np.isnan(
+        field_flip([(parts[0][0], replace(parts[0][1], edge=None))], (320, 240), 400).largest()[0]
+    )
+
+
 def _boards(folder: Path, seed: int, row_sharpening: float) -> Path:
     folder.mkdir()
     for name, img in random_board_views(CAMERA, Checkerboard(9, 6, 25.0), PhotometricModel(), 6, seed):
@@ -135,6 +168,8 @@ def test_the_report_tells_sharpening_along_the_rows_from_a_camera_without_it(tmp
         # the rendered views are turned by less than 0.3 rad: the print and the camera's lines stay confounded
         assert not any(p.edges.board_turned() for p in check.photographs)
         assert "cannot be told apart: add photographs with the board turned a quarter turn" in text
+        # optics the same over the field: the outer edges facing out and in drawn alike (0.4-0.9 measured)
+        assert abs(check.field_flip.largest()[0]) < FIELD_FLIP_GREY and "mirror images" not in text
         # the scan lines' gap is never read as the print's (its places, 0.3 px apart from photograph to
         # photograph on these six, tell neither: seed 7's scales run 1.18-1.65 px/mm)
         assert check.gap_source[0] is None

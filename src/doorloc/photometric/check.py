@@ -55,9 +55,11 @@ from doorloc.photometric.model import PLAIN, PhotometricModel
 from doorloc.photometric.profiles import (
     GAP_TO_PLACE_GREY,
     EdgeProfiles,
+    FieldFlip,
     FieldOffset,
     ResidualProfile,
     camera_or_print,
+    field_flip,
     fit_field_offset,
     fit_profiles,
     gap_place_px,
@@ -275,6 +277,17 @@ class BoardCheck:
             ]
         )
         return camera_or_print(places, scales), places, scales
+
+    @functools.cached_property
+    def field_flip(self) -> FieldFlip | None:
+        """The extended model's residual profiles in the outer field, edges facing out and in
+        (:func:`~doorloc.photometric.profiles.field_flip`, about the principal point); None without a
+        camera."""
+        if self.camera is None:
+            return None
+        k = self.camera.camera_matrix
+        half = 0.5 * float(np.hypot(*self.camera.image_size))
+        return field_flip([(p.edges, p.profiles_after) for p in self.photographs], (k[0, 2], k[1, 2]), half)
 
     def profile_over_twin(self) -> dict[str, float]:
         """The held-out profile misfit (RMS over photographs, plain model and extended) over the misfit the

@@ -40,6 +40,8 @@ __all__ = [
     "mean_residual_profile",
     "GAP_TO_PLACE_GREY",
     "gap_place_px",
+    "FieldFlip",
+    "field_flip",
     "camera_or_print",
 ]
 
@@ -64,7 +66,8 @@ class EdgeProfiles:
     """Per edge (E,): ``blur_px`` (Gaussian sigma of the optics), ``dark``, ``bright`` (linear light, 0-1 of
     full scale), ``rms`` (grey levels, the misfit over its windows), ``n`` (samples). ``residual`` (N, L) grey,
     data minus model, for each scan line's window; ``distance`` (N, L) px from the true edge; ``along_rows``
-    (N,) whether the scan line runs along an image row (the edge is nearer vertical than horizontal)."""
+    (N,) whether the scan line runs along an image row (the edge is nearer vertical than horizontal);
+    ``edge`` (N,) each scan line's edge (None where not known)."""
 
     blur_px: np.ndarray
     dark: np.ndarray
@@ -74,6 +77,7 @@ class EdgeProfiles:
     residual: np.ndarray
     distance: np.ndarray
     along_rows: np.ndarray
+    edge: np.ndarray | None = None
 
     def rms_over_windows(self) -> float:
         """RMS misfit over every window sample of the photograph, grey levels."""
@@ -152,7 +156,7 @@ def fit_profiles(
     pred = np.minimum(L, top) if model.linear_response else model.grey_from_light(L)
     resid = (g - pred) * 255.0
     rms = np.sqrt(np.bincount(e, resid.ravel() ** 2, minlength=n_e) / np.maximum(cnt, 1))
-    return EdgeProfiles(out_blur, out_a, out_b, rms, cnt, resid, d, ~w.axis)
+    return EdgeProfiles(out_blur, out_a, out_b, rms, cnt, resid, d, ~w.axis, w.edge)
 
 
 #: the distances (px from the true edge, + towards bright) over which :func:`mean_residual_profile` averages
@@ -253,6 +257,64 @@ def camera_or_print(places_px: np.ndarray, px_per_mm: np.ndarray) -> str | None:
     if on_camera < PLACE_REJECT_P and on_board >= PLACE_KEEP_P:
         return "print"
     return None
+
+
+#: the part of the field (fraction of the half-diagonal from the centre) whose edges :func:`field_flip` reads
+FIELD_FLIP_OUTER = 0.5
+
+
+@dataclass(frozen=True)
+class FieldFlip:
+    """The mean residual (grey levels) against the distance from the true edge (``distance_px``), over the
+    edges in the outer field (beyond :data:`FIELD_FLIP_OUTER` of the half-diagonal) whose bright side faces
+    away from the image centre (``outward``) and towards it (``inward``). Optics that are the same at every
+    point of the field draw both alike; a point spread whose asymmetry points along the radius (coma, a lens
+    tilted on its sensor) draws them as mirror images: it moves no edge against its corners (both move by
+    the spread's centroid) but shapes every profile. NaN where fewer than ``RESIDUAL_PROFILE_MIN_SAMPLES``."""
+
+    distance_px: np.ndarray
+    outward: np.ndarray
+    inward: np.ndarray
+
+    def largest(self) -> tuple[float, float]:
+        """The largest difference (grey levels, outward less inward, by size) and the distance (px) where it
+        lies; NaN and NaN where no distance holds both."""
+        gap = self.outward - self.inward
+        ok = np.isfinite(gap)
+        if not ok.any():
+            return float("nan"), float("nan")
+        k = int(np.argmax(np.where(ok, np.abs(gap), -1.0)))
+        return float(gap[k]), float(self.distance_px[k])
+
+
+def field_flip(
+    parts: Sequence[tuple[BoardEdges, EdgeProfiles]], centre_px: tuple[float, float], half_diagonal_px: float
+) -> FieldFlip:
+    """The :class:`FieldFlip` of several photographs' fitted profiles (each with its edges; profiles without
+    ``edge`` are passed over), about the image point ``centre_px`` (the principal point)."""
+    bins = RESIDUAL_PROFILE_BINS_PX
+    d_all, r_all, out_all = [np.empty(0)], [np.empty(0)], [np.empty(0, bool)]
+    for edges, prof in parts:
+        if prof.edge is None:
+            continue
+        radial = edges.mid_px[prof.edge] - np.asarray(centre_px, float)
+        outer = np.hypot(radial[:, 0], radial[:, 1]) > FIELD_FLIP_OUTER * half_diagonal_px
+        facing = np.sum(edges.normal[prof.edge] * radial, axis=1) > 0
+        L = prof.residual.shape[1]
+        d_all.append(prof.distance[outer].ravel())
+        r_all.append(prof.residual[outer].ravel())
+        out_all.append(np.repeat(facing[outer], L))
+    d, r, out = np.concatenate(d_all), np.concatenate(r_all), np.concatenate(out_all)
+    ok = np.isfinite(d) & np.isfinite(r) & (d >= bins[0]) & (d < bins[-1])
+    at = np.digitize(d[ok], bins) - 1
+    r, out = r[ok], out[ok]
+
+    def mean(sel: np.ndarray) -> np.ndarray:
+        n = np.bincount(at[sel], minlength=bins.size - 1)
+        s = np.bincount(at[sel], r[sel], minlength=bins.size - 1)
+        return np.where(n >= RESIDUAL_PROFILE_MIN_SAMPLES, s / np.maximum(n, 1), np.nan)
+
+    return FieldFlip(0.5 * (bins[1:] + bins[:-1]), mean(out), mean(~out))
 
 
 def mean_residual_profile(profiles: Sequence[EdgeProfiles]) -> ResidualProfile:
