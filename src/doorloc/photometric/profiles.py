@@ -165,6 +165,15 @@ RESIDUAL_PROFILE_BINS_PX = np.arange(-7.5, 7.6, 0.5)
 RESIDUAL_PROFILE_MIN_SAMPLES = 50
 
 
+def _largest(gap: np.ndarray, distance_px: np.ndarray) -> tuple[float, float]:
+    """The value of ``gap`` largest in size and its distance; NaN and NaN where none is finite."""
+    ok = np.isfinite(gap)
+    if not ok.any():
+        return float("nan"), float("nan")
+    k = int(np.argmax(np.where(ok, np.abs(gap), -1.0)))
+    return float(gap[k]), float(distance_px[k])
+
+
 @dataclass(frozen=True)
 class ResidualProfile:
     """The mean residual (grey levels, photograph minus model) against the distance from the true edge
@@ -186,12 +195,7 @@ class ResidualProfile:
     def direction_gap(self) -> tuple[float, float]:
         """The largest difference (grey levels, rows less columns, by size) between the two directions' means
         and the distance (px) where it lies; NaN and NaN where no distance holds both."""
-        gap = self.along_rows - self.along_columns
-        ok = np.isfinite(gap)
-        if not ok.any():
-            return float("nan"), float("nan")
-        k = int(np.argmax(np.where(ok, np.abs(gap), -1.0)))
-        return float(gap[k]), float(self.distance_px[k])
+        return _largest(self.along_rows - self.along_columns, self.distance_px)
 
 
 #: the least gap (grey levels) between the rows' and the columns' mean residual whose place is read
@@ -279,12 +283,7 @@ class FieldFlip:
     def largest(self) -> tuple[float, float]:
         """The largest difference (grey levels, outward less inward, by size) and the distance (px) where it
         lies; NaN and NaN where no distance holds both."""
-        gap = self.outward - self.inward
-        ok = np.isfinite(gap)
-        if not ok.any():
-            return float("nan"), float("nan")
-        k = int(np.argmax(np.where(ok, np.abs(gap), -1.0)))
-        return float(gap[k]), float(self.distance_px[k])
+        return _largest(self.outward - self.inward, self.distance_px)
 
 
 def field_flip(
@@ -292,7 +291,6 @@ def field_flip(
 ) -> FieldFlip:
     """The :class:`FieldFlip` of several photographs' fitted profiles (each with its edges; profiles without
     ``edge`` are passed over), about the image point ``centre_px`` (the principal point)."""
-    bins = RESIDUAL_PROFILE_BINS_PX
     d_all, r_all, out_all = [np.empty(0)], [np.empty(0)], [np.empty(0, bool)]
     for edges, prof in parts:
         if prof.edge is None:
@@ -300,40 +298,40 @@ def field_flip(
         radial = edges.mid_px[prof.edge] - np.asarray(centre_px, float)
         outer = np.hypot(radial[:, 0], radial[:, 1]) > FIELD_FLIP_OUTER * half_diagonal_px
         facing = np.sum(edges.normal[prof.edge] * radial, axis=1) > 0
-        L = prof.residual.shape[1]
         d_all.append(prof.distance[outer].ravel())
         r_all.append(prof.residual[outer].ravel())
-        out_all.append(np.repeat(facing[outer], L))
-    d, r, out = np.concatenate(d_all), np.concatenate(r_all), np.concatenate(out_all)
-    ok = np.isfinite(d) & np.isfinite(r) & (d >= bins[0]) & (d < bins[-1])
-    at = np.digitize(d[ok], bins) - 1
-    r, out = r[ok], out[ok]
-
-    def mean(sel: np.ndarray) -> np.ndarray:
-        n = np.bincount(at[sel], minlength=bins.size - 1)
-        s = np.bincount(at[sel], r[sel], minlength=bins.size - 1)
-        return np.where(n >= RESIDUAL_PROFILE_MIN_SAMPLES, s / np.maximum(n, 1), np.nan)
-
-    return FieldFlip(0.5 * (bins[1:] + bins[:-1]), mean(out), mean(~out))
+        out_all.append(np.repeat(facing[outer], prof.residual.shape[1]))
+    out = np.concatenate(out_all)
+    centres, (outward, inward) = _binned_means(np.concatenate(d_all), np.concatenate(r_all), [out, ~out])
+    return FieldFlip(centres, outward, inward)
 
 
 def mean_residual_profile(profiles: Sequence[EdgeProfiles]) -> ResidualProfile:
     """The mean residual profile of several photographs' fitted profiles (:class:`ResidualProfile`)."""
-    bins = RESIDUAL_PROFILE_BINS_PX
     parts = list(profiles)
     d = np.concatenate([np.empty(0)] + [p.distance.ravel() for p in parts])
     r = np.concatenate([np.empty(0)] + [p.residual.ravel() for p in parts])
     rows = np.concatenate([np.empty(0, bool)] + [np.repeat(p.along_rows, p.residual.shape[1]) for p in parts])
+    centres, (every, along_rows, along_columns) = _binned_means(d, r, [np.ones(r.size, bool), rows, ~rows])
+    return ResidualProfile(centres, every, along_rows, along_columns)
+
+
+def _binned_means(
+    d: np.ndarray, r: np.ndarray, groups: Sequence[np.ndarray]
+) -> tuple[np.ndarray, list[np.ndarray]]:
+    """The bins' centres of :data:`RESIDUAL_PROFILE_BINS_PX` and, for each of ``groups`` (boolean masks over
+    the samples), the mean residual ``r`` of its samples at distance ``d`` in each bin (NaN under
+    ``RESIDUAL_PROFILE_MIN_SAMPLES``)."""
+    bins = RESIDUAL_PROFILE_BINS_PX
     ok = np.isfinite(d) & np.isfinite(r) & (d >= bins[0]) & (d < bins[-1])
     at = np.digitize(d[ok], bins) - 1
-    r, rows = r[ok], rows[ok]
 
     def mean(sel: np.ndarray) -> np.ndarray:
         n = np.bincount(at[sel], minlength=bins.size - 1)
-        s = np.bincount(at[sel], r[sel], minlength=bins.size - 1)
+        s = np.bincount(at[sel], r[ok][sel], minlength=bins.size - 1)
         return np.where(n >= RESIDUAL_PROFILE_MIN_SAMPLES, s / np.maximum(n, 1), np.nan)
 
-    return ResidualProfile(0.5 * (bins[1:] + bins[:-1]), mean(np.ones(r.size, bool)), mean(rows), mean(~rows))
+    return 0.5 * (bins[1:] + bins[:-1]), [mean(np.asarray(g)[ok]) for g in groups]
 
 
 @dataclass(frozen=True)
