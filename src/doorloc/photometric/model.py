@@ -323,10 +323,9 @@ class PhotometricModel:
         """How far the pedestal (``black_level``, which :meth:`light_from_grey` reads as no light) lies above
         ``darkest_plateau``, the darkest level (fraction of full scale) a camera's photographs store on their
         dark squares (at least the lowest stored level, 1/255), in ln of the grey level; 0 where it lies at
-        or below. A pedestal above stored plateaus
-        reads a dark square as no light at all and cannot draw it (Bouguet's toe, fitted to the edges'
-        places, put it at 36 grey while a twentieth of its dark squares lie at or below 32: their profiles
-        were drawn at 36)."""
+        or below. A pedestal above stored plateaus reads a dark square as no light at all and cannot draw it
+        (Bouguet's toe, fitted to the edges' places, put it at 36 grey while a twentieth of its dark squares
+        lie at or below 32: their profiles were drawn at 36)."""
         floor = max(darkest_plateau, 1.0 / 255.0)
         return max(0.0, math.log(max(self.black_level, floor) / floor))
 

@@ -239,7 +239,7 @@ def camera_or_print(places_px: np.ndarray, px_per_mm: np.ndarray) -> str | None:
     rejects the other at :data:`PLACE_REJECT_P` and keeps it at :data:`PLACE_KEEP_P`. None where fewer than
     four photographs place it, their scales differ by less than :data:`SCALE_RATIO_TO_TELL`, or the test
     tells neither (the places' scatter hides the difference)."""
-    from scipy.stats import f as f_dist  # (only the report asks, once)
+    from scipy.stats import f as f_dist  # (slow to import, and only the report asks, once a check)
 
     p, s = np.asarray(places_px, float), np.asarray(px_per_mm, float)
     ok = np.isfinite(p) & np.isfinite(s) & (s > 0)
@@ -249,10 +249,10 @@ def camera_or_print(places_px: np.ndarray, px_per_mm: np.ndarray) -> str | None:
     design = np.stack([np.ones_like(s), s], axis=1)
     free = float(np.sum((p - design @ np.linalg.lstsq(design, p, rcond=None)[0]) ** 2))
     dof = p.size - 2
-    scale = max(free / dof, 1e-12 * max(float(np.mean(p * p)), 1e-12))
+    variance = max(free / dof, 1e-12 * max(float(np.mean(p * p)), 1e-12))
 
     def p_value(held: float) -> float:
-        return float(f_dist.sf(max(held - free, 0.0) / scale, 1, dof))
+        return float(f_dist.sf(max(held - free, 0.0) / variance, 1, dof))
 
     on_camera = p_value(float(np.sum((p - p.mean()) ** 2)))
     on_board = p_value(float(np.sum((p - s * (np.sum(p * s) / np.sum(s * s))) ** 2)))
@@ -274,7 +274,8 @@ class FieldFlip:
     away from the image centre (``outward``) and towards it (``inward``). Optics that are the same at every
     point of the field draw both alike; a point spread whose asymmetry points along the radius (coma, a lens
     tilted on its sensor) draws them as mirror images: it moves no edge against its corners (both move by
-    the spread's centroid) but shapes every profile. NaN where fewer than ``RESIDUAL_PROFILE_MIN_SAMPLES``."""
+    the spread's centroid) but shapes every profile. NaN where fewer than ``RESIDUAL_PROFILE_MIN_SAMPLES``
+    samples fall at a distance."""
 
     distance_px: np.ndarray
     outward: np.ndarray
