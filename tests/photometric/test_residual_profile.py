@@ -109,34 +109,46 @@ def test_too_few_photographs_or_a_place_in_between_tell_neither():
     assert camera_or_print(np.array(places), np.array(scales)) == "camera"
 
 
-def _field(rng, n_edges: int, flip: float):
-    """Edges spread over a 640 x 480 field (centre 320, 240), each with 20 scan lines whose residual is a
-    bump ``flip`` grey levels high at the edge, its sign the way the edge's bright side faces (out +)."""
-    angle = rng.uniform(0, 2 * np.pi, n_edges)
+def _field(rng, n_edges: int, flip: float, fixed: tuple[float, float] = (0.0, 0.0), right: float = 0.5):
+    """Edges spread over a 640 x 480 field (centre 320, 240; ``right`` of them in its right half), each with
+    20 scan lines whose residual is a bump at the edge ``flip`` grey levels high, its sign the way the edge's
+    bright side faces (out +), plus ``fixed`` . normal (a ghost fixed in the image)."""
+    angle = rng.uniform(-np.pi / 2, np.pi / 2, n_edges) + np.pi * (rng.uniform(size=n_edges) > right)
     radius = rng.uniform(0, 400, n_edges)
     mid = np.stack([320 + radius * np.cos(angle), 240 + radius * np.sin(angle)], axis=1)
     theta = rng.uniform(0, 2 * np.pi, n_edges)
     normal = np.stack([np.cos(theta), np.sin(theta)], axis=1)
-    facing = np.sign(np.sum(normal * (mid - [320, 240]), axis=1))
+    radial = (mid - [320, 240]) / np.maximum(radius, 1e-9)[:, None]
+    size = flip * np.sign(np.sum(normal * radial, axis=1)) + normal @ np.asarray(fixed)
     edge = np.repeat(np.arange(n_edges), 20)
     prof = _profiles(edge.size, np.zeros(edge.size, bool), lambda d: np.exp(-0.5 * (d / 0.7) ** 2), rng)
-    residual = prof.residual * (flip * facing[edge])[:, None]
+    residual = prof.residual * size[edge][:, None]
     return SimpleNamespace(mid_px=mid, normal=normal), replace(prof, residual=residual, edge=edge)
 
 
 @pytest.mark.parametrize("flip", [0.0, 2.0, 6.0])
-def test_profiles_mirrored_by_the_way_they_face_the_centre_are_read_as_twice_the_mirror(flip):
+def test_profiles_mirrored_along_the_radius_are_read_as_twice_the_mirror(flip):
     rng = np.random.default_rng(11)
     parts = [_field(rng, 300, flip) for _ in range(3)]
     ff = field_flip(parts, (320.0, 240.0), 400.0)
     gap, at = ff.largest()
     # (the bins nearest the edge are centred 0.25 px from it, where the bump is down to 0.94)
-    assert gap == pytest.approx(2 * flip * np.exp(-0.5 * (0.25 / 0.7) ** 2), rel=0.03, abs=0.15)
+    assert gap == pytest.approx(2 * flip * np.exp(-0.5 * (0.25 / 0.7) ** 2), rel=0.05, abs=0.15)
     assert flip == 0 or abs(at) == 0.25
     # profiles without their scan lines' edges are passed over
     assert np.isnan(
         field_flip([(parts[0][0], replace(parts[0][1], edge=None))], (320, 240), 400).largest()[0]
     )
+
+
+def test_an_asymmetry_fixed_in_the_image_is_not_read_as_one_along_the_radius():
+    # a ghost 6 grey levels along +u on boards that fill the right half of the field four times as much as
+    # the left: averaged apart, the edges facing out and in differed by several grey levels
+    rng = np.random.default_rng(12)
+    parts = [_field(rng, 300, 0.0, fixed=(6.0, 0.0), right=0.8) for _ in range(3)]
+    assert abs(field_flip(parts, (320.0, 240.0), 400.0).largest()[0]) < 0.3
+    both = [_field(rng, 300, 4.0, fixed=(6.0, 0.0), right=0.8) for _ in range(3)]
+    assert field_flip(both, (320.0, 240.0), 400.0).largest()[0] == pytest.approx(8.0 * 0.938, rel=0.06)
 
 
 def _boards(folder: Path, seed: int, row_sharpening: float) -> Path:
@@ -168,8 +180,9 @@ def test_the_report_tells_sharpening_along_the_rows_from_a_camera_without_it(tmp
         # the rendered views are turned by less than 0.3 rad: the print and the camera's lines stay confounded
         assert not any(p.edges.board_turned() for p in check.photographs)
         assert "cannot be told apart: add photographs with the board turned a quarter turn" in text
-        # optics the same over the field: the outer edges facing out and in drawn alike (0.4-0.9 measured)
-        assert abs(check.field_flip.largest()[0]) < FIELD_FLIP_GREY and "mirror images" not in text
+        # optics the same over the field: the outer edges facing out and in drawn alike, or too few on six
+        # views to set against each other (NaN); never read as optics that change over the field
+        assert not abs(check.field_flip.largest()[0]) >= FIELD_FLIP_GREY and "mirror images" not in text
         # the scan lines' gap is never read as the print's (its places, 0.3 px apart from photograph to
         # photograph on these six, tell neither: seed 7's scales run 1.18-1.65 px/mm)
         assert check.gap_source[0] is None

@@ -38,9 +38,9 @@ __all__ = [
 
 EXTENDED_CALIBRATION = "camera_photometric.yaml"
 PLOTS = ("residual_profile.png", "offset_against.png")
-#: the least difference (grey levels) between the outer field's edges facing out and in that the report reads
-#: as a point spread asymmetric along the radius (rendered boards without one: 0.4-0.9; Bouguet's 13.0,
-#: OpenCV's 9.7)
+#: the least difference (grey levels) between the outer field's edges facing out and in that the report
+#: reads as optics that change over the field (rendered boards without: 0.2; with a hidden ghost up to 6.8;
+#: Bouguet's photographs 13.0, OpenCV's 3.5)
 FIELD_FLIP_GREY = 3.0
 
 
@@ -325,11 +325,13 @@ def _field_sentence(check: BoardCheck) -> str:
         return ""
     return (
         f" In the outer half of the field, edges whose bright side faces away from the image centre and those "
-        f"facing it are {abs(gap):.1f} grey levels apart at most ({at:+.2f} px from the edge)"
+        f"facing it, their normals pointing the same way in the image, are {abs(gap):.1f} grey levels apart at "
+        f"most ({at:+.2f} px from the edge)"
         + (
-            ": their profiles are mirror images, as a point spread draws them whose asymmetry points along "
-            "the radius (coma, a lens tilted on its sensor); it moves no edge against its corners (both move "
-            "by the spread's centroid), and no cause of the catalogue draws it."
+            ": optics alike over the field would draw them alike. A point spread whose asymmetry follows the "
+            "radius (coma, a lens tilted on its sensor) draws them as mirror images, and so, in part, may a "
+            "ghost fixed in the image (`psf_asymmetry`, which the catalogue draws as a shift only); neither "
+            "moves an edge against its corners, and no cause of the catalogue draws the profiles' shape."
             if abs(gap) >= FIELD_FLIP_GREY
             else "."
         )
