@@ -43,7 +43,7 @@ from scipy.optimize import minimize_scalar
 
 from doorloc.photometric.board_edges import BoardEdges
 from doorloc.photometric.model import PhotometricModel
-from doorloc.photometric.profiles import edge_spread
+from doorloc.photometric.profiles import edge_spread, parabola_vertex_step
 
 __all__ = [
     "CUT",
@@ -169,9 +169,7 @@ def _best_x0(
 
     def parabola_step(x0: np.ndarray, s0: np.ndarray, s1: np.ndarray, s2: np.ndarray, h: float) -> np.ndarray:
         # the vertex of the parabola through the misfits at x0 - h, x0, x0 + h, at most h away
-        with np.errstate(divide="ignore", invalid="ignore"):
-            step = 0.5 * (s0 - s2) / (s0 - 2 * s1 + s2)
-        return x0 + h * np.where(np.isfinite(step) & (s0 - 2 * s1 + s2 > 0), np.clip(step, -1.0, 1.0), 0.0)
+        return x0 + h * parabola_vertex_step(s0, s1, s2)
 
     rows = np.arange(y.shape[0])
     grid = sse(np.broadcast_to(_X0_GRID, (y.shape[0], _X0_GRID.size)))

@@ -37,6 +37,7 @@ __all__ = [
     "fit_profiles",
     "fit_field_offset",
     "edge_spread",
+    "parabola_vertex_step",
     "mean_residual_profile",
     "GAP_TO_PLACE_GREY",
     "gap_place_px",
@@ -84,6 +85,19 @@ class EdgeProfiles:
         """RMS misfit over every window sample of the photograph, grey levels."""
         r = self.residual[np.isfinite(self.residual)]
         return float(np.sqrt(np.mean(r**2))) if r.size else float("nan")
+
+
+def parabola_vertex_step(
+    s0: np.ndarray | float, s1: np.ndarray | float, s2: np.ndarray | float, limit: float = 1.0
+) -> np.ndarray:
+    """The step, in units of their spacing, from the middle of three equally spaced values ``s0, s1, s2`` to
+    the vertex of the parabola through them where it opens upwards (a least), held within ``limit``; 0 where
+    it does not open upwards or a value is not finite."""
+    s0, s1, s2 = np.asarray(s0, float), np.asarray(s1, float), np.asarray(s2, float)
+    den = s0 - 2.0 * s1 + s2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        step = 0.5 * (s0 - s2) / den
+        return np.where(np.isfinite(step) & (den > 0), np.clip(step, -limit, limit), 0.0)
 
 
 def fit_profiles(
@@ -144,9 +158,7 @@ def fit_profiles(
     kk = np.clip(k, 1, BLUR_GRID_PX.size - 2)
     cols = np.arange(n_e)
     s0, s1, s2 = sse_grid[kk - 1, cols], sse_grid[kk, cols], sse_grid[kk + 1, cols]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        step = 0.5 * (s0 - s2) / (s0 - 2 * s1 + s2)
-    step = np.where(np.isfinite(step) & (k == kk), np.clip(step, -1.0, 1.0), 0.0)
+    step = np.where(k == kk, parabola_vertex_step(s0, s1, s2), 0.0)
     out_blur = np.interp(k + step, np.arange(BLUR_GRID_PX.size), BLUR_GRID_PX)
     out_blur[cnt == 0] = np.nan
     out_a, out_b, _ = levels_and_misfit(np.where(np.isfinite(out_blur), out_blur, 1.0)[w.edge][:, None])
@@ -222,12 +234,11 @@ def gap_place_px(profile: ResidualProfile, near_px: float, sign: float) -> float
     if not ok.any():
         return float("nan")
     k = int(np.argmax(np.where(ok, gap, -np.inf)))
-    if 0 < k < x.size - 1 and np.isfinite(gap[k - 1]) and np.isfinite(gap[k + 1]):
-        den = gap[k - 1] - 2.0 * gap[k] + gap[k + 1]
-        if den < 0:
-            step = float(np.clip(0.5 * (gap[k - 1] - gap[k + 1]) / den, -0.5, 0.5))
-            return float(x[k] + step * (x[1] - x[0]))
-    return float(x[k])
+    if not 0 < k < x.size - 1:
+        return float(x[k])
+    # the largest value: the least of the values turned over
+    step = float(parabola_vertex_step(-gap[k - 1], -gap[k], -gap[k + 1], 0.5))
+    return float(x[k] + step * (x[1] - x[0]))
 
 
 def camera_or_print(places_px: np.ndarray, px_per_mm: np.ndarray) -> str | None:
