@@ -281,24 +281,21 @@ FIELD_FLIP_OUTER = 0.5
 
 @dataclass(frozen=True)
 class FieldFlip:
-    """The mean residual (grey levels) against the distance from the true edge (``distance_px``), over the
-    edges in the outer field (beyond :data:`FIELD_FLIP_OUTER` of the half-diagonal) whose bright side faces
-    away from the image centre (``outward``) and towards it (``inward``), each against edges whose normals
-    point the same way in the image (:func:`field_flip`: half their difference, plus and minus). Optics that
-    are the same at every
-    point of the field draw both alike; a point spread whose asymmetry points along the radius (coma, a lens
-    tilted on its sensor) draws them as mirror images: it moves no edge against its corners (both move by
-    the spread's centroid) but shapes every profile. NaN where fewer than ``RESIDUAL_PROFILE_MIN_SAMPLES``
-    samples fall at a distance."""
+    """The mean residual (grey levels) of the edges in the outer field (beyond :data:`FIELD_FLIP_OUTER` of
+    the half-diagonal) whose bright side faces away from the image centre less that of those facing it
+    whose normals point the same way in the image (:func:`field_flip`), against the distance from the true
+    edge (``distance_px``). Optics that are the same at every point of the field draw both alike; a point
+    spread whose asymmetry follows the radius (coma, a lens tilted on its sensor) draws them as mirror
+    images: it moves no edge against its corners (both move by the spread's centroid) but shapes every
+    profile. NaN where fewer than ``RESIDUAL_PROFILE_MIN_SAMPLES`` samples fall at a distance."""
 
     distance_px: np.ndarray
-    outward: np.ndarray
-    inward: np.ndarray
+    outward_less_inward: np.ndarray
 
     def largest(self) -> tuple[float, float]:
         """The largest difference (grey levels, outward less inward, by size) and the distance (px) where it
         lies; NaN and NaN where no distance holds both."""
-        return _largest(self.outward - self.inward, self.distance_px)
+        return _largest(self.outward_less_inward, self.distance_px)
 
 
 #: the sectors of the edge normal's direction within which :func:`field_flip` sets edges facing out against
@@ -316,8 +313,7 @@ def field_flip(
     one of :data:`FIELD_FLIP_SECTORS` sectors; such edges lie on opposite sides of the centre): an
     asymmetry fixed in the image (a ghost a fixed vector away, which the catalogue's ``psf_asymmetry``
     names) draws those alike and cancels; one along the radius does not. At each distance the sectors'
-    differences are averaged, each weighted by the fewer of its two counts; ``outward`` and ``inward`` are
-    plus and minus half of it. (Set apart without the sectors, the hidden bench's ghosts on boards that fill
+    differences are averaged, each weighted by the fewer of its two counts. (Set apart without the sectors, the hidden bench's ghosts on boards that fill
     one side of the field more than the other read 8-12 grey levels.)"""
     d_all, r_all, key_all = [np.empty(0)], [np.empty(0)], [np.empty(0, int)]
     for edges, prof in parts:
@@ -344,7 +340,7 @@ def field_flip(
     with np.errstate(invalid="ignore", divide="ignore"):
         diff = np.sum(weight * (mean[..., 1] - mean[..., 0]), axis=1) / total
     diff = np.where(total >= RESIDUAL_PROFILE_MIN_SAMPLES, diff, np.nan)
-    return FieldFlip(0.5 * (bins[1:] + bins[:-1]), 0.5 * diff, -0.5 * diff)
+    return FieldFlip(0.5 * (bins[1:] + bins[:-1]), diff)
 
 
 def mean_residual_profile(profiles: Sequence[EdgeProfiles]) -> ResidualProfile:
