@@ -79,6 +79,8 @@ thickness 0.09), the worst 0.30; ``within``, the worst 1.27; ``bound``, 90 % wit
                                             demosaiced by OpenCV before the response; colour images)
         [--srgb]   (every camera delivers the sRGB transfer curve instead of its drawn power law, and the
                     cell states 2.2, as a user says of such a camera: a response no power law is)
+        [--bit-depth 8|10|12|14|16]   (every camera's stored depth; 10-14: its levels from 0 in 16-bit
+                                       images, the cell stating camera.stored_bits)
         [--measured-to LEVEL]   (with --measured-photometry: the level, fraction of full scale, its board
                                  photographs read the response up to, ``response_measured_to``; default 1,
                                  the whole range: above it a shoulder is still doubted)
@@ -561,6 +563,14 @@ def main() -> None:
         help="the cell's locate.optics_edge_sigma_px (default: the cell's, 0.13); 0 takes the rendered camera's "
         "optics as exact",
     )
+    ap.add_argument(
+        "--bit-depth",
+        type=int,
+        default=8,
+        choices=(8, 10, 12, 14, 16),
+        help="every camera stores this many bits (10-14: from 0 in 16-bit images, the cell stating "
+        "camera.stored_bits)",
+    )
     args = ap.parse_args()
     sets = args.sets.split(",")
     if unknown := [s for s in sets if s not in SETS]:
@@ -584,6 +594,8 @@ def main() -> None:
         cell = dataclasses.replace(
             cell, locate=dataclasses.replace(cell.locate, optics_edge_sigma_px=args.optics_sigma)
         )
+    if 8 < args.bit_depth < 16:
+        cell = dataclasses.replace(cell, stored_bits=args.bit_depth)
     # the first locate of a process loads the compiled kernels: done before any door is timed
     door, pose, fx, gamma = draw(sets[0], 0, args.seed)
     locate(render_door(cell, door, pose, effects=fx, seed=args.seed).image, cell, door)
@@ -603,6 +615,8 @@ def main() -> None:
                 gamma = fx.stated_gamma
             if args.demosaic:
                 fx = dataclasses.replace(fx, demosaic=args.demosaic)
+            if args.bit_depth != 8:
+                fx = dataclasses.replace(fx, bit_depth=args.bit_depth)
             if args.thickness:
                 door = dataclasses.replace(door, thickness_mm=args.thickness)
             off_by = args.off_factor or cell.locate.response_unmeasured_factor

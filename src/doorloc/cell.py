@@ -103,6 +103,12 @@ class Cell:
         which locate takes off its edges, or the model's measured error on the camera's real edges
         (``residual_edge_px``), which locate counts in every edge's doubt. None where there is no such model
         (the power law ``response_gamma`` is then the whole response).
+    stored_bits : int or None
+        The bits of the camera's levels in its 16-bit images (``camera.stored_bits``, or its calibration
+        file's ``stored_bits``, which ``doorloc calibrate`` reads off the board photographs): a 12-bit camera
+        that stores 0-4095 says 12, and locate brings its levels to the 16-bit scale
+        (:func:`doorloc.vision.luminance.luminance_plane`). None: 16-bit images span 0-65535 (and one whose
+        levels all stay within 12 bits is refused, its depth asked for).
     locate : LocateConfig
         The ``locate:`` section: thresholds and settings of the pipeline that a cell sets once.
     robot_section : dict or None
@@ -137,6 +143,7 @@ class Cell:
     calibration_covariance_names: tuple[str, ...] = ()
     camera_photometry: PhotometricModel | None = None
     milling: MillingLimits = DEFAULT_MILLING_LIMITS
+    stored_bits: int | None = None
 
     @property
     def posed_camera(self) -> PosedCamera:
@@ -166,6 +173,8 @@ class _CameraDoc(_Section):
     extrinsics: _ExtrinsicsDoc
     response_gamma: float = Field(1.0, gt=0.25, lt=5.0)
     response_gamma_sigma: float | None = Field(None, gt=0.0, lt=5.0)
+    #: the bits of the camera's levels in its 16-bit images (a 12-bit camera storing 0-4095: 12)
+    stored_bits: int | None = Field(None, ge=8, le=16)
     #: the camera's photometric model (its parameters), inline: a cell saved with its camera inline keeps
     #: what its calibration file's ``photometric_model`` said that locate uses
     photometric_model: dict[str, float] | None = None
@@ -356,6 +365,7 @@ def parse_cell(
         cov_names: tuple[str, ...] = ()
         measured_response: tuple[float, float] | None = None
         camera_photometry: PhotometricModel | None = None
+        stored_bits = cam_doc.stored_bits
         if cam_doc.calibration is not None:
             cal_path = Path(cam_doc.calibration)
             if not cal_path.is_absolute() and base_dir is not None:
@@ -373,6 +383,8 @@ def parse_cell(
                 measured_response = (cal.response_gamma, cal.response_gamma_sigma)
             if cal.photometric_model:
                 camera_photometry = _used_by_locate(PhotometricModel.from_dict(cal.photometric_model))
+            if stored_bits is None:
+                stored_bits = cal.stored_bits
         if cam_doc.photometric_model is not None:
             camera_photometry = _used_by_locate(PhotometricModel.from_dict(cam_doc.photometric_model))
         if cam_doc.camera_matrix is not None:
@@ -433,6 +445,7 @@ def parse_cell(
         calibration_covariance_names=cov_names,
         camera_photometry=camera_photometry,
         milling=cd.milling.limits(str(source)),
+        stored_bits=stored_bits,
     )
 
 
@@ -497,6 +510,7 @@ def cell_to_dict(cell: Cell) -> dict:
                 if cell.camera_photometry is not None
                 else {}
             ),
+            **({"stored_bits": cell.stored_bits} if cell.stored_bits is not None else {}),
         },
         "fixture": {
             "reference_width_mm": cell.fixture.reference_width_mm,

@@ -297,3 +297,22 @@ def test_a_failing_response_measurement_does_not_cost_the_optics_measurement(
     assert r.exit_code == 0, r.output
     assert "camera response was not measured (ValueError: synthetic failure)" in r.output
     assert "camera optics were not measured (ValueError: synthetic failure)" in r.output
+
+
+def test_a_12_bit_cameras_depth_is_read_off_its_photographs(tmp_path):
+    """Photographs of a 12-bit camera that stores its levels from 0 in 16-bit files: the calibration file
+    says ``stored_bits: 12`` (so that a cell naming it reads its doors at that depth) and the command says
+    so; the same photographs in 8 bits write no depth."""
+    if not OPENCV_LEFT.is_dir():
+        pytest.fail("real data missing: clone the repository with shared/ beside it")
+    d = tmp_path / "twelve"
+    d.mkdir()
+    for p in sorted(OPENCV_LEFT.glob("left*.jpg"))[:8]:
+        grey = cv2.imread(str(p), cv2.IMREAD_GRAYSCALE)
+        cv2.imwrite(str(d / (p.stem + ".png")), np.rint(grey * (4095 / 255)).astype(np.uint16))
+    out = tmp_path / "camera.yaml"
+    args = ["calibrate", str(d), "--pattern", "9x6", "--square", "25", "--out", str(out), "--no-optics"]
+    r = runner.invoke(app, args)
+    assert r.exit_code == 0, r.output
+    assert load_calibration(out).stored_bits == 12
+    assert "12 bits stored from 0 in 16-bit photographs" in r.output

@@ -135,7 +135,7 @@ def test_16_bit_photographs_keep_their_levels_for_the_response(opencv_left):
     # depth (its levels v * 257 here read as v / 255 of full scale, as the 8-bit ones), and the model
     # check's 8-bit view of it is the fixed scale 255 / 65535, rounded, not each image stretched to its
     # own brightest level (a gain per photograph) and truncated
-    from doorloc.calib.detect import stored_grey_8bit, to_gray
+    from doorloc.calib.detect import stored_bits_of, stored_grey_8bit, to_gray
     from doorloc.calib.folder import full_board_views, read_folder
     from doorloc.vision.board_response import board_response
 
@@ -152,6 +152,21 @@ def test_16_bit_photographs_keep_their_levels_for_the_response(opencv_left):
     assert r8 is not None and r16 is not None
     # (the same light; a 16-bit image's rounding is taken as 1/65535 of full scale, not these levels' 1/255)
     assert abs(r16.gamma - r8.gamma) < 0.5 * r8.sigma, (r8, r16)
+    # a 12-bit camera storing its levels from 0 (v as round(v * 4095 / 255)): its depth is read off the
+    # photographs, its 8-bit view on its own full scale is the 8-bit photographs' levels again, and the
+    # response reads the same light
+    twelve_bit = [
+        (n, None if im is None else np.rint(im * (4095 / 255)).astype(np.uint16), w) for n, im, w in images
+    ]
+    assert stored_bits_of(im for _, im, _ in twelve_bit) == 12
+    assert (
+        stored_bits_of(im for _, im, _ in deep) is None and stored_bits_of(im for _, im, _ in images) is None
+    )
+    v12 = full_board_views(twelve_bit, scan, board)
+    for (a, _), (b, _) in zip(v8, v12, strict=True):
+        assert b.dtype == np.uint16 and b.max() <= 4095 and np.array_equal(stored_grey_8bit(b, 12), a)
+    r12 = board_response(v12, 9, 6)
+    assert r12 is not None and abs(r12.gamma - r8.gamma) < 0.5 * r8.sigma, (r8, r12)
     # for finding corners a dark 16-bit image (12 bits of it used) is still stretched to its brightest level,
     # rounded (2000 of 4095 is 124.5 of 255: it was truncated to 124)
     twelve = np.array([[0, 1000, 2000, 4095]], np.uint16)

@@ -188,6 +188,39 @@ def test_a_cell_takes_the_response_its_calibration_measured_unless_it_states_its
     assert doubt.response_gamma == 2.2 and doubt.locate.response_unmeasured_factor == 1.5
 
 
+def test_a_cameras_stored_depth_travels_from_its_calibration_to_the_cell(tmp_path, thesis_cell_path):
+    """``stored_bits`` (a 12-bit camera storing 0-4095 in 16-bit images, which doorloc calibrate reads off
+    the board photographs) is kept by both calibration formats, taken by a cell that states none, overridden
+    by one that states its own (``camera.stored_bits``), written by a saved cell; a depth outside 8-16 bits is
+    an error naming the key."""
+    cam = load_cell(thesis_cell_path).camera
+    for fmt in ("opencv", "ros"):
+        save_calibration(CalibrationFile(cam, stored_bits=12), tmp_path / f"c_{fmt}.yaml", fmt)
+        back = load_calibration(tmp_path / f"c_{fmt}.yaml")
+        assert back.stored_bits == 12 and "stored_bits" not in back.extra
+    assert load_calibration(tmp_path / "c_opencv.yaml").stored_bits == 12
+    save_calibration(CalibrationFile(cam), tmp_path / "plain.yaml")
+    assert load_calibration(tmp_path / "plain.yaml").stored_bits is None
+    assert "stored_bits" not in (tmp_path / "plain.yaml").read_text()
+    ext = "  extrinsics: {rvec: [1.5707963268, 0, 0], tvec_mm: [-30, 40, 350]}\n"
+    (tmp_path / "cell.yaml").write_text("camera:\n  calibration: c_opencv.yaml\n" + ext)
+    cell = load_cell(tmp_path / "cell.yaml")
+    assert cell.stored_bits == 12
+    save_cell(cell, tmp_path / "inline.yaml")
+    assert load_cell(tmp_path / "inline.yaml").stored_bits == 12
+    (tmp_path / "own.yaml").write_text("camera:\n  calibration: c_opencv.yaml\n  stored_bits: 10\n" + ext)
+    assert load_cell(tmp_path / "own.yaml").stored_bits == 10
+    assert load_cell(thesis_cell_path).stored_bits is None
+    (tmp_path / "bad.yaml").write_text("camera:\n  calibration: c_opencv.yaml\n  stored_bits: 20\n" + ext)
+    with pytest.raises(CellFileError, match="stored_bits"):
+        load_cell(tmp_path / "bad.yaml")
+    (tmp_path / "bad_cal.yaml").write_text(
+        (tmp_path / "c_opencv.yaml").read_text().replace("stored_bits: 12", "stored_bits: 7.5")
+    )
+    with pytest.raises(CalibrationFileError, match="stored_bits must be a whole number of bits"):
+        load_calibration(tmp_path / "bad_cal.yaml")
+
+
 @pytest.mark.parametrize(
     ("doc", "match"),
     [

@@ -367,6 +367,41 @@ def test_a_power_law_is_named_so_where_a_curved_response_fits_it_no_better(tmp_p
     assert abs(c.model.gamma - gamma) < 0.05 and c.model.curvature == 0.0, (c.model.gamma, gamma)
 
 
+def test_a_12_bit_cameras_photographs_are_read_at_its_depth(tmp_path):
+    """A 12-bit camera that stores its levels from 0 in 16-bit photographs (v as round(v * 4095 / 255)): the
+    check reads their depth off them (or the calibration's ``stored_bits``) and places their edges on the
+    levels the 8-bit photographs hold, where on 65535's scale it read 16 of 255 levels; the extended
+    calibration it writes states the depth, for locate."""
+    from types import SimpleNamespace
+
+    from doorloc.photometric.check import measure_boards
+    from doorloc.photometric.report import extended_calibration
+
+    eight = tmp_path / "eight"
+    cal = _boards(eight, PhotometricModel(gamma=2.2), 4246)
+    twelve = tmp_path / "twelve"
+    twelve.mkdir()
+    for f in sorted(eight.iterdir()):
+        img = cv2.imread(str(f), cv2.IMREAD_UNCHANGED)
+        cv2.imwrite(str(twelve / f.name), np.rint(img * (4095 / 255)).astype(np.uint16))
+    board = Chessboard(9, 6, 25.0)
+    a = measure_boards(eight, board, load_calibration(cal))
+    b = measure_boards(twelve, board, load_calibration(cal))
+    stated = measure_boards(twelve, board, replace(load_calibration(cal), stored_bits=12))
+    assert a.stored_bits is None and b.stored_bits == stated.stored_bits == 12
+    assert len(a.photographs) == len(b.photographs) == VIEWS
+    for pa, pb in zip(a.photographs, b.photographs, strict=True):
+        assert np.array_equal(pa.gray, pb.gray)
+        # (corners are found on each image stretched to its own brightest level: a scan line more or less)
+        assert np.nanmedian(pb.edges.offset_px) == pytest.approx(np.nanmedian(pa.edges.offset_px), abs=0.005)
+    check = SimpleNamespace(stored_bits=12, model=PhotometricModel(gamma=2.2), photographs=[], causes=[])
+    ext = extended_calibration(check, load_calibration(cal), "doorloc check-model", "2026-12-07")
+    assert ext.stored_bits == 12
+    # (a check that read no depth keeps the one its calibration states)
+    unread = SimpleNamespace(**{**vars(check), "stored_bits": None})
+    assert extended_calibration(unread, ext, "doorloc check-model", "2026-12-07").stored_bits == 12
+
+
 @pytest.mark.slow
 def test_16_bit_photographs_are_read_on_one_fixed_scale(tmp_path):
     # the same photographs stored in 16 bits (each level v as 257 v, full scale to full scale) are the same

@@ -207,7 +207,12 @@ def test_effects_round_trip_through_a_dict_of_strings():
     with pytest.raises(ValueError, match="unknown effect"):
         Effects.from_dict({"sharpness": 1})
     with pytest.raises(ValueError, match="bit_depth"):
-        Effects(bit_depth=12)
+        Effects(bit_depth=11)
+    # (a 12-bit camera storing its levels from 0 in 16-bit images)
+    twelve = Effects(bit_depth=12)
+    assert Effects.from_dict({k: str(v) for k, v in twelve.to_dict().items()}) == twelve
+    with pytest.raises(ValueError, match="JPEG output needs bit_depth 8"):
+        Effects(bit_depth=12, jpeg_quality=90)
     with pytest.raises(ValueError, match="blur_halo_sigma_px"):
         Effects(blur_halo_fraction=0.2)
     with pytest.raises(ValueError, match="sharpen_radius_px"):

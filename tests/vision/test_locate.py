@@ -87,6 +87,27 @@ def test_colour_and_16_bit_images_give_the_same_answer(cell):
         assert abs(r.x_mm - grey.x_mm) < 0.003 and abs(r.z_mm - grey.z_mm) < 0.003
 
 
+def test_a_12_bit_camera_stored_in_16_bits_is_read_at_its_depth(cell):
+    """A 12-bit camera that stores its levels from 0 in 16-bit images (levels 0-4095, sensor noise at its
+    depth): the cell that states ``camera.stored_bits: 12`` answers as the 16-bit camera's image of the same
+    light; one that states nothing is refused ``bad_image``, the depth asked for. Read on 65535's scale
+    (before the key) such doors were refused "a faint edge, 4.9 grey levels" or "the far arris was not
+    found"."""
+    pose, door = DoorPose(3.0, -2.0, 0.7), DoorSize(900, 50, 2100)
+    noisy = Effects(full_well_e=9000.0, read_noise_dn=1.2, gamma=1.0)
+    twelve = render_door(cell, door, pose, effects=replace(noisy, bit_depth=12), seed=5).image
+    sixteen = render_door(cell, door, pose, effects=replace(noisy, bit_depth=16), seed=5).image
+    assert twelve.dtype == np.uint16 and 2000 < twelve.max() <= 4095
+    stated = locate(twelve, replace(cell, stored_bits=12), door)
+    deep = locate(sixteen, cell, door)
+    assert stated.ok and deep.ok, (stated.error, deep.error)
+    assert abs(stated.x_mm - deep.x_mm) < 0.003 and abs(stated.z_mm - deep.z_mm) < 0.003
+    assert abs(stated.x_mm - pose.x_mm) < 2 * stated.uncertainty.x_mm
+    unstated = locate(twelve, cell, door)
+    assert not unstated.ok and unstated.error_code == "bad_image"
+    assert "camera.stored_bits: 12" in unstated.error
+
+
 def test_distorted_lens_is_handled_by_back_projection(cell):
     from dataclasses import replace
 

@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from doorloc.vision.luminance import BGR_WEIGHTS, luminance_plane
+from doorloc.vision.luminance import BGR_WEIGHTS, ImageFormatError, luminance_plane
 
 
 @settings(max_examples=60, deadline=None)
@@ -25,13 +25,15 @@ def test_a_colour_images_channels_are_summed_in_light(gamma, eight_bit, levels):
     top = 255 if eight_bit else 65535
     img = (levels % (top + 1)).astype(np.uint8 if eight_bit else np.uint16)
     img[0] = img[0, :, :1]  # a row of grey pixels
-    lum = luminance_plane(img, gamma)
+    # (a 16-bit camera that says so: its image may be as dark as it likes)
+    depth = None if eight_bit else 16
+    lum = luminance_plane(img, gamma, depth)
     assert lum.plane.dtype == np.uint16 and lum.scale_to_8bit == pytest.approx(255 / 65535)
     light = (img / top) ** gamma @ np.array(BGR_WEIGHTS)
     np.testing.assert_allclose(lum.plane, light ** (1 / gamma) * 65535, atol=1.01)
     np.testing.assert_allclose(lum.plane[0], img[0, :, 0] / top * 65535, atol=1.01)
     alpha = np.concatenate([img, np.zeros_like(img[..., :1])], axis=2)
-    np.testing.assert_array_equal(luminance_plane(alpha, gamma).plane, lum.plane)
+    np.testing.assert_array_equal(luminance_plane(alpha, gamma, depth).plane, lum.plane)
 
 
 @pytest.mark.parametrize("light_gamma", [1.0, None])
@@ -61,3 +63,53 @@ def test_summed_in_levels_a_colour_edge_bends_as_a_wrong_exponent_bends_it():
     in_levels = ((stored[0] / 65535.0) @ w) ** 2
     np.testing.assert_allclose(in_light, true_light, atol=1e-4)
     assert np.abs(in_levels - true_light).max() > 0.03
+
+
+@pytest.mark.parametrize("bits", [8, 10, 12, 14])
+def test_a_cameras_stored_depth_is_brought_to_the_16_bit_scale(bits):
+    """A camera that stores ``bits`` of levels from 0 in 16-bit images (``camera.stored_bits``): every level
+    ``v`` becomes ``round(v * 65535 / top)``, full scale to full scale, exactly (OpenCV's multiply against
+    numpy's rounding, every level); one stored level is ``255 / top`` on the 0-255 scale, for the rounding's
+    doubt; a colour image's channels are read over the same full scale."""
+    top = (1 << bits) - 1
+    grey = np.arange(top + 1, dtype=np.uint16).reshape(1, -1)
+    grey = np.repeat(grey, 8, axis=0)
+    lum = luminance_plane(grey, 2.2, bits)
+    assert lum.plane.dtype == np.uint16 and lum.scale_to_8bit == pytest.approx(255 / 65535)
+    np.testing.assert_array_equal(lum.plane[0], np.rint(np.arange(top + 1) * 65535.0 / top))
+    assert lum.level_8bit == pytest.approx(255 / top)
+    colour = np.random.default_rng(bits).integers(0, top + 1, (8, 9, 3)).astype(np.uint16)
+    light = (colour / top) ** 2.2 @ np.array(BGR_WEIGHTS)
+    np.testing.assert_allclose(
+        luminance_plane(colour, 2.2, bits).plane, light ** (1 / 2.2) * 65535, atol=1.01
+    )
+    opaque = np.concatenate([colour, np.full_like(colour[..., :1], 65535)], axis=2)  # (alpha at 16 bits)
+    np.testing.assert_array_equal(
+        luminance_plane(opaque, 2.2, bits).plane, luminance_plane(colour, 2.2, bits).plane
+    )
+    full = luminance_plane(np.full((8, 8), 65535, np.uint16), 2.2)
+    assert full.level_8bit == full.scale_to_8bit == pytest.approx(255 / 65535)
+
+
+def test_a_level_the_stated_depth_cannot_hold_is_refused():
+    """A cell that says 12 bits for a camera whose image holds a level above 4095 states the wrong depth: the
+    image is refused with the level and the key, not read with a scale that clips it."""
+    img = np.full((8, 8), 1000, np.uint16)
+    img[0, 0] = 5000
+    with pytest.raises(ImageFormatError, match=r"level 5000, above the 12 bits .*camera\.stored_bits: 12"):
+        luminance_plane(img, 1.0, 12)
+
+
+@pytest.mark.parametrize(("brightest", "bits"), [(900, 10), (3000, 12), (4095, 12)])
+def test_a_16_bit_image_within_12_bits_asks_for_the_cameras_depth(brightest, bits):
+    """Without ``camera.stored_bits`` a 16-bit image whose levels all stay within 12 bits (above 255: a black
+    image is the gate's to name) is refused, the depth asked for; read on 65535's scale every threshold would
+    be 16 times too strict. Above 4095, or stated, it is read."""
+    img = np.full((8, 8), 300, np.uint16)
+    img[0, 0] = brightest
+    with pytest.raises(ImageFormatError, match=rf"camera\.stored_bits: {bits} in the cell"):
+        luminance_plane(img)
+    assert luminance_plane(img, None, bits).plane[0, 0] == round(brightest * 65535 / ((1 << bits) - 1))
+    img[0, 0] = 4096
+    assert luminance_plane(img).plane[0, 0] == 4096
+    assert luminance_plane(np.full((8, 8), 200, np.uint16)).plane[0, 0] == 200

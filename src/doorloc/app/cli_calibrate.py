@@ -105,8 +105,19 @@ def _echo_calibration(outcome: CalibrationOutcome, out: Path, fmt: str) -> None:
         typer.echo(f"warning: {w}", err=True)
 
 
-def _echo_response(response: BoardResponse | None) -> None:
-    """The measured camera response and the cell-file lines it allows (SPEC section 2)."""
+def _echo_depth(stored_bits: int | None) -> None:
+    """The depth a camera stores its levels at in 16-bit photographs, where they showed one."""
+    if stored_bits is not None:
+        typer.echo(
+            f"camera levels: {stored_bits} bits stored from 0 in 16-bit photographs (stored_bits: {stored_bits} in "
+            "the calibration file: locate reads the cell's 16-bit images at that depth)"
+        )
+
+
+def _echo_response(response: BoardResponse | None, stored_bits: int | None = None) -> None:
+    """The measured camera response and the cell-file lines it allows (SPEC section 2), after the depth its
+    levels are stored at where the photographs showed one."""
+    _echo_depth(stored_bits)
     if response is None:
         typer.echo(
             "camera response: not measured (a chessboard in 5 photographs or more, squares over about 30 px)"
@@ -305,7 +316,7 @@ def calibrate_cmd(
         d = done.outcome.detected
         write_report(report, done.outcome.result, d.scan, board, d.background)
     _echo_calibration(done.outcome, out, fmt)
-    _echo_response(done.response)
+    _echo_response(done.response, done.calibration.stored_bits)
     if not charuco:
         _echo_optics(done.optics, images_dir, pattern, square, out)
 

@@ -435,7 +435,7 @@ def calibrate_camera(
     :class:`doorloc.calib.calibrate.CalibrationError`, :class:`doorloc.calib.folder.CalibrationInputError`.
     """
     from doorloc.calib.calibrate import CANDIDATES
-    from doorloc.calib.detect import Chessboard
+    from doorloc.calib.detect import Chessboard, stored_bits_of
     from doorloc.calib.folder import (
         TooFewViewsError,
         calibrate_detected,
@@ -463,6 +463,8 @@ def calibrate_camera(
             e.detected,
         ) from None
     cal = outcome.calibration_file(camera_name)
+    # a 10- or 12-bit camera storing its levels from 0 in 16-bit photographs: locate must read its doors so
+    cal = replace(cal, stored_bits=stored_bits_of(im for _, im, _ in images))
     if not isinstance(board, Chessboard):  # a ChArUco board's corners need not all be seen
         return CameraCalibration(outcome, cal, None)
     # the response and the optics are extra measurements: neither failing costs the calibration, nor the other
@@ -515,6 +517,7 @@ def camera_optics(
         "calibrated from the same photographs",
         images_dir,
         progress=progress,
+        stored_bits=calibration.stored_bits,
     )
     check = check_photographs(measured.photographs, progress=progress)
     command = (

@@ -17,6 +17,7 @@ minus a one-pixel margin, between ``MIN_HALF_WINDOW`` and ``MAX_HALF_WINDOW``.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 import cv2
@@ -35,6 +36,9 @@ __all__ = [
     "to_gray",
     "stored_grey",
     "stored_grey_8bit",
+    "STORED_BITS_READ",
+    "stored_bits_of",
+    "stored_bits_holding",
     "SkippedImage",
     "BoardScan",
     "scan_images",
@@ -167,15 +171,46 @@ def stored_grey(image: np.ndarray) -> np.ndarray:
     return im if im.dtype in (np.uint8, np.uint16) else to_gray(im)
 
 
-def stored_grey_8bit(image: np.ndarray) -> np.ndarray:
-    """:func:`stored_grey` on the 8-bit scale, a 16-bit level ``v`` stored as ``round(v * 255 / 65535)``: the
-    full scale locate reads a 16-bit image on, one for every photograph, for measuring a camera's response.
-    (:func:`to_gray`, for finding corners, stretches each image to its own brightest level: a gain that
-    changes from photograph to photograph bends a response read through it.)"""
+def stored_grey_8bit(image: np.ndarray, stored_bits: int | None = None) -> np.ndarray:
+    """:func:`stored_grey` on the 8-bit scale, a 16-bit level ``v`` stored as ``round(v * 255 / top)``, ``top``
+    the camera's full scale (``2^stored_bits - 1``; 65535 where ``stored_bits`` is None): the full scale
+    locate reads a 16-bit image on (:func:`doorloc.vision.luminance.luminance_plane`), one for every
+    photograph, for measuring a camera's response. (:func:`to_gray`, for finding corners, stretches each
+    image to its own brightest level: a gain that changes from photograph to photograph bends a response read
+    through it.)"""
     im = stored_grey(image)
     if im.dtype == np.uint8:
         return im
-    return np.clip(np.rint(im.astype(float) * (255.0 / 65535.0)), 0, 255).astype(np.uint8)
+    top = 65535.0 if stored_bits is None else float((1 << int(stored_bits)) - 1)
+    return np.clip(np.rint(im.astype(float) * (255.0 / top)), 0, 255).astype(np.uint8)
+
+
+#: the depths a camera's 16-bit photographs are read as storing where their levels all stay within them
+#: (:func:`stored_bits_of`): a 10- or 12-bit camera that stores its levels from 0. (Photographs within 14
+#: bits may be a 16-bit camera's at a quarter of its range: that depth is stated, not read.)
+STORED_BITS_READ = (10, 12)
+
+
+def stored_bits_of(images: Iterable[np.ndarray | None]) -> int | None:
+    """The bits a camera stores its levels at in its 16-bit photographs ``images`` (None entries passed
+    over): the fewest of :data:`STORED_BITS_READ` whose range holds every photograph's brightest level,
+    where that lies above 255 (below, the photographs are too dark to tell); None for 8-bit photographs, or
+    16-bit ones whose levels reach beyond 12 bits. A board photograph's white squares lie well up a camera's
+    range: a 16-bit camera that put them all below a sixteenth of it would be exposed far too short."""
+    brightest = -1
+    for im in images:
+        if im is None or im.dtype != np.uint16 or not im.size:
+            continue
+        colour = im[..., :3] if im.ndim == 3 else im  # (a BGRA image's alpha is no level of the camera's)
+        brightest = max(brightest, int(colour.max()))
+    return stored_bits_holding(brightest)
+
+
+def stored_bits_holding(brightest: int) -> int | None:
+    """:func:`stored_bits_of` for 16-bit images whose brightest level is ``brightest``."""
+    if brightest <= 255:
+        return None
+    return next((b for b in STORED_BITS_READ if brightest <= (1 << b) - 1), None)
 
 
 def to_gray(image: np.ndarray) -> np.ndarray:

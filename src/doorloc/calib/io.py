@@ -70,6 +70,10 @@ class CalibrationFile:
     #: than the section keep it in ``extra``; the photometric package checks the names where it uses them.
     photometric_model: dict[str, float] | None = None
     photometric_model_provenance: str | None = None
+    #: the bits of the camera's levels in its 16-bit images (``stored_bits``: 12 for a 12-bit camera that
+    #: stores 0-4095; None where its photographs were 8-bit or used the whole 16 bits), which a cell file's
+    #: ``camera.stored_bits`` takes unless it states its own
+    stored_bits: int | None = None
 
 
 def _covariance_from(doc: dict, source: str) -> tuple[np.ndarray | None, tuple[str, ...]]:
@@ -216,6 +220,7 @@ def parse_calibration(text: str, source: str = "<calibration>") -> CalibrationFi
         "response_gamma_sigma",
         "photometric_model",
         "photometric_model_provenance",
+        "stored_bits",
     }
     cov, cov_names = _covariance_from(doc, source)
     photometric = _photometric_from(doc, source)
@@ -228,6 +233,13 @@ def parse_calibration(text: str, source: str = "<calibration>") -> CalibrationFi
         raise CalibrationFileError(
             f"{source}: response_gamma and response_gamma_sigma must be numbers"
         ) from None
+    stored_bits = doc.get("stored_bits")
+    if stored_bits is not None and (
+        isinstance(stored_bits, bool) or not isinstance(stored_bits, int) or not 8 <= stored_bits <= 16
+    ):
+        raise CalibrationFileError(
+            f"{source}: stored_bits must be a whole number of bits from 8 to 16, got {stored_bits!r}"
+        )
     extra = {k: v for k, v in doc.items() if k not in known}
     avg = doc.get("avg_reprojection_error")
     return CalibrationFile(
@@ -244,6 +256,7 @@ def parse_calibration(text: str, source: str = "<calibration>") -> CalibrationFi
         photometric_model_provenance=str(doc["photometric_model_provenance"])
         if doc.get("photometric_model_provenance") is not None
         else None,
+        stored_bits=stored_bits,
     )
 
 
@@ -341,6 +354,8 @@ def dump_opencv_yaml(cal: CalibrationFile) -> str:
     for k in ("response_gamma", "response_gamma_sigma"):
         if getattr(cal, k) is not None:
             out.append(f"{k}: {_fmt(getattr(cal, k))}")
+    if cal.stored_bits is not None:
+        out.append(f"stored_bits: {int(cal.stored_bits)}")
     if cal.photometric_model is not None:
         # a FileStorage map: cv2.FileStorage and older doorloc readers both take it (the latter into extra)
         out.append("photometric_model:")
@@ -381,6 +396,8 @@ def dump_ros_yaml(cal: CalibrationFile) -> str:
     for k in ("response_gamma", "response_gamma_sigma"):
         if getattr(cal, k) is not None:
             doc[k] = float(getattr(cal, k))
+    if cal.stored_bits is not None:
+        doc["stored_bits"] = int(cal.stored_bits)
     if cal.photometric_model is not None:
         doc["photometric_model"] = {k: float(v) for k, v in cal.photometric_model.items()}
     if cal.photometric_model_provenance is not None:

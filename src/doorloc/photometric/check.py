@@ -29,7 +29,7 @@ import numpy as np
 
 from doorloc.calib.calibrate import View
 from doorloc.calib.camera import CameraModel
-from doorloc.calib.detect import Chessboard, stored_grey_8bit
+from doorloc.calib.detect import Chessboard, stored_bits_of, stored_grey_8bit
 from doorloc.calib.folder import (
     CalibrationError,
     CalibrationInputError,
@@ -234,6 +234,9 @@ class BoardCheck:
     #: each photograph's rendered twin (:mod:`~doorloc.photometric.twin`), in the order of ``photographs``
     #: (None where it has none)
     twins: list[ProfileTwin | None] = field(default_factory=list)
+    #: the bits the camera stores its levels at in its 16-bit photographs, read with them (None: 8-bit, or
+    #: all 16), which the extended calibration states (``stored_bits``)
+    stored_bits: int | None = None
 
     def heldout_rms(self, attr: str) -> dict[str, float]:
         h = [p for p in self.photographs if p.heldout]
@@ -340,6 +343,9 @@ class MeasuredBoards:
     camera: CameraModel
     camera_source: str
     skipped: list[str]
+    #: the bits the camera stores its levels at in 16-bit photographs, which they were read with (None: 8-bit
+    #: photographs, or all 16 bits; :func:`doorloc.calib.detect.stored_bits_of`)
+    stored_bits: int | None = None
 
 
 def measure_boards(
@@ -350,8 +356,9 @@ def measure_boards(
     progress: Callable[[str], None] | None = None,
 ) -> MeasuredBoards:
     """Steps 1 and 2 of the check: read the photographs in ``images_dir``, find ``board``, calibrate if no
-    ``calibration`` is given, and place every square edge with the plain model. Raises
-    :class:`BoardCheckError` for input it cannot use."""
+    ``calibration`` is given, and place every square edge with the plain model, 16-bit photographs read at
+    the depth the calibration states (``stored_bits``) or their levels show
+    (:func:`doorloc.calib.detect.stored_bits_of`). Raises :class:`BoardCheckError` for input it cannot use."""
     from doorloc.calib.folder import calibrate_detected
 
     say = progress or (lambda _m: None)
@@ -378,7 +385,10 @@ def measure_boards(
             f"the photographs are {detected.scan.image_size[0]}x{detected.scan.image_size[1]} px but the "
             f"calibration is for {camera.image_size[0]}x{camera.image_size[1]} px"
         )
-    return _measured(images, full, skipped, board, camera, source, images_dir, settings, progress)
+    bits = calibration.stored_bits if calibration is not None else None
+    if bits is None:
+        bits = stored_bits_of(im for _, im, _ in images)
+    return _measured(images, full, skipped, board, camera, source, images_dir, settings, progress, bits)
 
 
 def _whole_board_views(
@@ -407,13 +417,16 @@ def measure_detected(
     images_dir: str | os.PathLike,
     settings: EdgeSettings = EdgeSettings(),
     progress: Callable[[str], None] | None = None,
+    stored_bits: int | None = None,
 ) -> MeasuredBoards:
     """Step 2 of the check on photographs already read (``images``, from ``images_dir``) and searched for
     ``board`` (``detected``), as a calibration leaves them: every square edge of the views that show the
-    whole board placed with the plain model through ``camera``. Raises :class:`BoardCheckError` where too
-    few photographs can be used."""
+    whole board placed with the plain model through ``camera``, 16-bit photographs read as storing
+    ``stored_bits`` (None: all 16). Raises :class:`BoardCheckError` where too few photographs can be used."""
     full, skipped = _whole_board_views(detected, board, images_dir, len(images))
-    return _measured(images, full, skipped, board, camera, camera_source, images_dir, settings, progress)
+    return _measured(
+        images, full, skipped, board, camera, camera_source, images_dir, settings, progress, stored_bits
+    )
 
 
 def _measured(
@@ -426,12 +439,13 @@ def _measured(
     images_dir: str | os.PathLike,
     settings: EdgeSettings,
     progress: Callable[[str], None] | None,
+    stored_bits: int | None = None,
 ) -> MeasuredBoards:
     """:func:`measure_detected` on its whole-board views ``full`` (``skipped``: why the others were)."""
     by_name = {name: im for name, im, _ in images if im is not None}
     photos = []
     for v in full:
-        gray = stored_grey_8bit(by_name[v.name])
+        gray = stored_grey_8bit(by_name[v.name], stored_bits)
         corners = v.image_points[np.argsort(v.ids)]
         edges = measure_board_edges(
             gray,
@@ -455,7 +469,7 @@ def _measured(
         )
     if progress:
         progress(f"{len(photos)} photographs, {sum(p.edges.n_edges for p in photos)} edges")
-    return MeasuredBoards(photos, camera, camera_source, skipped)
+    return MeasuredBoards(photos, camera, camera_source, skipped, stored_bits)
 
 
 def check_boards(
@@ -497,6 +511,7 @@ def check_boards(
         measured.skipped,
         result.fields,
         twins,
+        measured.stored_bits,
     )
 
 

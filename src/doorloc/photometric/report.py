@@ -136,6 +136,8 @@ def report_dict(check: BoardCheck) -> dict:
             else None
         ),
         "calibration": check.calibration_source,
+        # the bits the camera stores its levels at in 16-bit photographs, read with them (null: 8 or all 16)
+        "stored_bits": check.stored_bits,
         "skipped": check.skipped,
         "plots": list(PLOTS),
     }
@@ -284,7 +286,13 @@ def report_markdown(check: BoardCheck) -> str:
         f"{check.noise_rms_grey:.2f} as an RMS over the windows (what a model leaves where nothing but noise "
         "is left, without compression); "
         f"standard error of a photograph's median offset from its edges' scatter: {se:.4f} px. "
-        f"Calibration: {check.calibration_source}.",
+        f"Calibration: {check.calibration_source}."
+        + (
+            f" The 16-bit photographs' levels stay within {check.stored_bits} bits: read as a {check.stored_bits}-bit "
+            f"camera's, stored from 0 (`stored_bits: {check.stored_bits}` in the extended calibration)."
+            if check.stored_bits is not None
+            else ""
+        ),
         "",
         _direction_sentence(check) + _field_sentence(check),
         "",
@@ -455,9 +463,11 @@ def extended_calibration(
     check: BoardCheck, base: CalibrationFile, command: str, date: str
 ) -> CalibrationFile:
     """``base`` with the check's photometric model added and what made it (``photometric_model_provenance``:
-    ``command``, the photographs, the causes named, ``date`` as YYYY-MM-DD)."""
+    ``command``, the photographs, the causes named, ``date`` as YYYY-MM-DD), and the depth the photographs
+    were read at where the check read one (``stored_bits``)."""
     return replace(
         base,
+        stored_bits=base.stored_bits if check.stored_bits is None else check.stored_bits,
         photometric_model=check.model.to_dict(),
         photometric_model_provenance=(
             f"{command}; {len(check.photographs)} photographs; causes {', '.join(check.causes) or 'none'}; {date}"

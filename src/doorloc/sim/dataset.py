@@ -156,6 +156,8 @@ def write_dataset(
     told = replace(cell, default_door=next(iter(doors))) if len(doors) == 1 else cell
     # the camera's response is the rendered one (a cell that says otherwise describes another camera)
     told = replace(told, response_gamma=effects.stated_gamma)
+    if 8 < effects.bit_depth < 16:  # and so are its stored levels' bits (a 12-bit camera's 0-4095)
+        told = replace(told, stored_bits=effects.bit_depth)
     save_cell(told, out / "cell.yaml")
     atomic_write_text(out / "truth.csv", truth_csv_text(rows))
     for name in ("cell.yaml", "truth.csv"):

@@ -119,7 +119,9 @@ class Effects:
         In-camera sharpening (edge enhancement) of the grey levels after the response, an unsharp mask:
         ``out + amount * (out - gaussian(out, radius))``; 0 = off. Locate assumes it off.
     bit_depth : int
-        8 or 16 (uint8 or uint16 output).
+        8 (uint8 output), or 10, 12, 14 or 16: uint16 output whose levels span ``0 .. 2^bit_depth - 1``
+        (a 12-bit camera that stores its levels from 0 in 16-bit images, as machine-vision cameras' Mono12
+        frames are often saved).
     jpeg_quality : int
         JPEG round trip at this quality (1-100, 8-bit only); 0 = off.
     color : bool
@@ -174,8 +176,8 @@ class Effects:
     demosaic: str = "none"
 
     def __post_init__(self) -> None:
-        if self.bit_depth not in (8, 16):
-            raise ValueError(f"bit_depth must be 8 or 16, got {self.bit_depth!r}")
+        if self.bit_depth not in (8, 10, 12, 14, 16):
+            raise ValueError(f"bit_depth must be 8, 10, 12, 14 or 16, got {self.bit_depth!r}")
         if self.arris_profile not in ("chamfer", "round"):
             raise ValueError(f"arris_profile must be 'chamfer' or 'round', got {self.arris_profile!r}")
         if not 0 <= self.jpeg_quality <= 100:
@@ -434,7 +436,7 @@ def form_image(
         img = np.clip(img + np.float32(effects.sharpen_amount) * (img - soft), 0.0, 1.0)
     if effects.color and img.ndim == 2:
         img = img[..., None] * np.array(WOOD_TINT_BGR, np.float32)
-    top = 255 if effects.bit_depth == 8 else 65535
+    top = (1 << effects.bit_depth) - 1
     out: np.ndarray = np.rint(img * top).astype(np.uint8 if effects.bit_depth == 8 else np.uint16)
     if effects.jpeg_quality:
         ok, buf = cv2.imencode(".jpg", out, [cv2.IMWRITE_JPEG_QUALITY, int(effects.jpeg_quality)])

@@ -58,6 +58,7 @@ def edge_doubts(
     cfg: LocateConfig,
     check: ResponseCheck,
     jpeg_quality: int = 0,
+    level_8bit: float | None = None,
 ) -> EdgeDoubts:
     """The doubts stage: every line's edge-model doubts (:class:`doorloc.vision.uncertainty.LineDoubt`), each
     from the code that knows it: the texture beside the edge or the far-face model, JPEG's quantisation
@@ -65,7 +66,9 @@ def edge_doubts(
     be a JPEG) or shows JPEG's blocks, the arris correction, the camera response. The stage that reads the
     pixels for them, so that the gate reads none. With them, the figures the diagnostics report
     (``jpeg_block_ratio``, ``jpeg_quality``, ``transition_widths_px``, ``arris_fit``), and where the door's
-    rounded or chamfered strips dispute the cell's camera exponent."""
+    rounded or chamfered strips dispute the cell's camera exponent. ``level_8bit``: one level the camera
+    stored, on the 0-255 scale, where coarser than the plane's ``s8`` (a 12-bit camera's levels brought to
+    16 bits: :attr:`doorloc.vision.luminance.LuminancePlane.level_8bit`), for the rounding's doubt."""
     r, cell = check.refined, check.cell
     samples, fit = r.samples, r.fit
     # An arris line's door side is its strip, whose shading the texture term would read as texture (on a
@@ -95,7 +98,9 @@ def edge_doubts(
     if jpeg_quality or blocks > JPEG_BLOCK_RATIO:
         grey_dn = jpeg_edge_grey_dn(jpeg_quality)
         model = model.with_doubts(*_jpeg_doubts(samples, fit, r.pose.scale_mm_per_px, grey_dn))
-    model = model.with_doubts(*_quantisation_doubts(samples, fit, r.half, s8, check.plateau_noise_dn))
+    model = model.with_doubts(
+        *_quantisation_doubts(samples, fit, r.half, level_8bit or s8, check.plateau_noise_dn)
+    )
     if r.arris_fits:
         model = model.with_doubts(*_arris_doubts(r.arris_fits, samples, fit, r.pose.scale_mm_per_px, figures))
     model = model.with_doubts(*_optics_doubts(cell, cfg))

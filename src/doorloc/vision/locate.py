@@ -236,6 +236,7 @@ def locate_steps(
     res.model = PhysicalModel(
         response_gamma=cell.response_gamma,
         response_gamma_sigma=cell.response_gamma_sigma,
+        stored_bits=cell.stored_bits,
         arris_mm=door.arris_mm,
         arris_profile=door.arris_profile,
         door_brighter=cfg.door_brighter,
@@ -282,7 +283,7 @@ def _locate(
     jpeg_quality: int = 0,
 ) -> Generator[StepQuery, tuple[np.ndarray, np.ndarray], LocateResult]:
     try:
-        stored = lum if lum is not None else luminance_plane(image, cell.response_gamma)
+        stored = lum if lum is not None else luminance_plane(image, cell.response_gamma, cell.stored_bits)
     except ImageFormatError as e:
         raise Refused(q.Refusal("bad_image", f"{e}")) from None
     res = yield from _located(stored, cell, door, cfg, tr, name, jpeg_quality)
@@ -521,7 +522,7 @@ def _answer(
 ) -> LocateResult:
     """The doubts and the gate after the response check: the answer, or :class:`Refused`."""
     # why many parameters: the stages' values that the doubts and the gate read, passed as they are
-    doubts = edge_doubts(lum.plane, lum.scale_to_8bit, region, cfg, check, jpeg_quality)
+    doubts = edge_doubts(lum.plane, lum.scale_to_8bit, region, cfg, check, jpeg_quality, lum.level_8bit)
     refined, spread = voted_by_doubts(check.refined, region, doubts.model)
     if cfg.direction_check and spread is not None and spread.doubts:
         doubts = replace(doubts, model=doubts.model.with_doubts(*spread.doubts))

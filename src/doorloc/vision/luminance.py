@@ -3,7 +3,10 @@
 Colour images are turned into luminance with the ITU-R BT.601 weights OpenCV uses
 (Y = 0.299 R + 0.587 G + 0.114 B), summed in linear light where the camera's levels are not linear
 (:func:`luminance_plane`'s ``light_gamma``). 16-bit images are kept at full depth; ``scale_to_8bit`` tells
-callers how to express grey levels on the familiar 0-255 scale, so thresholds mean the same for both.
+callers how to express grey levels on the familiar 0-255 scale, so thresholds mean the same for both. A
+camera of 10, 12 or 14 bits that stores its levels from 0 in 16-bit images (``camera.stored_bits``) has
+them brought to the 16-bit scale, its full scale at 65535, so that every threshold, clip and response reads
+its light as a 16-bit camera's.
 A camera whose response goes beyond a power law (its calibration's photometric model) has its levels
 mapped to those a power-law camera would store (:func:`camera_levels`), so that the rest of locate, which
 linearises with the cell's ``response_gamma``, reads its light.
@@ -17,10 +20,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from doorloc.calib.detect import stored_bits_holding
 from doorloc.photometric.model import PhotometricModel
 from doorloc.vision.jit import kernel, read_only
 
-__all__ = ["BGR_WEIGHTS", "LuminancePlane", "ImageFormatError", "camera_levels", "luminance_plane"]
+__all__ = [
+    "BGR_WEIGHTS",
+    "LuminancePlane",
+    "ImageFormatError",
+    "camera_levels",
+    "luminance_plane",
+]
 
 #: ITU-R BT.601's weights of blue, green and red (OpenCV's ``COLOR_BGR2GRAY``)
 BGR_WEIGHTS = (0.114, 0.587, 0.299)
@@ -41,9 +51,12 @@ class LuminancePlane:
     Attributes
     ----------
     plane : ndarray, shape (H, W), uint8 or uint16
-        Luminance, not copied when the input was already grey.
+        Luminance, not copied when the input was already grey (nor at the camera's full depth).
     scale_to_8bit : float
         1.0 for 8-bit data, 255/65535 for 16-bit data.
+    stored_level_8bit : float or None
+        One level of the camera's own on the 0-255 scale where it is coarser than the plane's (a 12-bit
+        camera's, 255/4095, brought to 16 bits); None: one level of the plane (``scale_to_8bit``).
     """
 
     plane: np.ndarray
@@ -51,6 +64,12 @@ class LuminancePlane:
     #: the level (0-255 scale) at and above which this plane holds light the camera clipped, where the cell's
     #: camera model says it clips below full scale (:func:`camera_levels`); None: at full scale only
     clip_grey: float | None = None
+    stored_level_8bit: float | None = None
+
+    @property
+    def level_8bit(self) -> float:
+        """One level the camera stored, on the 0-255 scale (what the rounding to levels moves edges by)."""
+        return self.scale_to_8bit if self.stored_level_8bit is None else self.stored_level_8bit
 
     @property
     def clipped_from(self) -> float | None:
@@ -64,8 +83,14 @@ class LuminancePlane:
         return int(self.plane.shape[1]), int(self.plane.shape[0])
 
 
-def luminance_plane(image: np.ndarray, light_gamma: float | None = None) -> LuminancePlane:
+def luminance_plane(
+    image: np.ndarray, light_gamma: float | None = None, stored_bits: int | None = None
+) -> LuminancePlane:
     """Turn a grey, BGR or BGRA image (uint8 or uint16) into one luminance plane.
+
+    ``stored_bits``: the bits of the camera's levels in a 16-bit image (the cell's ``camera.stored_bits``:
+    a 12-bit camera stores 0-4095); its levels are brought to the 16-bit scale (``v * 65535 / (2^bits -
+    1)``, rounded). None: a 16-bit image's levels span 0-65535.
 
     ``light_gamma``: where given, a colour image's channels are summed in light, each linearised at that
     exponent (``grey = light ** (1 / gamma)``, the cell's ``camera.response_gamma``). A weighted sum of
@@ -85,7 +110,9 @@ def luminance_plane(image: np.ndarray, light_gamma: float | None = None) -> Lumi
     ------
     ImageFormatError
         Not a 2-D grey or 3-D 1/3/4-channel array of uint8/uint16 (floats in [0, 1] or [0, 255] are
-        not guessed at: convert them explicitly).
+        not guessed at: convert them explicitly); a 16-bit image with a level above ``stored_bits``, or
+        whose levels all stay within 12 bits where ``stored_bits`` is None
+        (:func:`doorloc.calib.detect.stored_bits_holding`, the depth calibrate reads off board photographs).
 
     Examples
     --------
@@ -103,10 +130,12 @@ def luminance_plane(image: np.ndarray, light_gamma: float | None = None) -> Lumi
         )
     if img.ndim == 3 and img.shape[2] == 1:
         img = img[..., 0]
+    top = _stored_top(img, stored_bits)
     if img.ndim == 2:
         plane = img
     elif img.ndim == 3 and img.shape[2] in (3, 4) and light_gamma is not None and light_gamma != 1.0:
-        plane = _summed_in_light(img, float(light_gamma))
+        plane = _summed_in_light(img, float(light_gamma), top)
+        top = 65535  # (the sum is stored on the 16-bit scale)
     elif img.ndim == 3 and img.shape[2] == 3:
         plane = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
     elif img.ndim == 3 and img.shape[2] == 4:
@@ -115,14 +144,53 @@ def luminance_plane(image: np.ndarray, light_gamma: float | None = None) -> Lumi
         raise ImageFormatError(f"image has shape {img.shape}; expected (H, W) grey or (H, W, 3|4) colour")
     if plane.shape[0] < 8 or plane.shape[1] < 8:
         raise ImageFormatError(f"image is only {plane.shape[1]}x{plane.shape[0]} pixels")
-    return LuminancePlane(plane, 1.0 if plane.dtype == np.uint8 else 255.0 / 65535.0)
+    if plane.dtype == np.uint8:
+        return LuminancePlane(plane, 1.0)
+    if top == 65535:
+        return LuminancePlane(plane, 255.0 / 65535.0)
+    # cv2.multiply rounds v * 65535 / top to the nearest level exactly as np.rint does at 10, 12 and 14 bits
+    # (every level compared, tests/vision/test_luminance.py), in a third of np.take's time on a table
+    # (OpenCV's binding takes a number for src2 as a scalar, which its type stubs do not say)
+    full = cv2.multiply(plane, 65535.0 / top, dtype=cv2.CV_16U)  # type: ignore[call-overload]
+    return LuminancePlane(full, 255.0 / 65535.0, stored_level_8bit=255.0 / top)
 
 
-def _summed_in_light(bgr: np.ndarray, gamma: float) -> np.ndarray:
+def _stored_top(img: np.ndarray, stored_bits: int | None) -> int:
+    """The level of the camera's full scale in ``img`` (255 for 8 bits; ``2^stored_bits - 1`` or 65535 for
+    16), refusing a 16-bit image whose levels the stated depth, or an unstated one, cannot hold
+    (:func:`luminance_plane`)."""
+    if img.dtype == np.uint8:
+        return 255
+    top = 65535 if stored_bits is None else (1 << int(stored_bits)) - 1
+    colour = img[..., :3] if img.ndim == 3 else img  # (a BGRA image's alpha is no level of the camera's)
+    brightest = int(colour.max()) if colour.size else 0
+    if brightest > top:
+        raise ImageFormatError(
+            f"the image holds level {brightest}, above the {stored_bits} bits the cell states for its camera "
+            f"(camera.stored_bits: {stored_bits}, levels 0-{top}): state the depth the camera stores its "
+            "levels at, or remove the key for a camera that uses all 16 bits"
+        )
+    # Levels that all stay within 12 bits (above 255: a black image is the gate's to name) are a 10- or
+    # 12-bit camera's far more often than a 16-bit camera's exposed at a sixteenth of its range; read on
+    # 65535's scale every threshold would be 16 times too strict (a 12-bit camera's rendered doors were
+    # refused as "a faint edge, 4.9 grey levels" or "the far arris was not found", every one)
+    bits = stored_bits_holding(brightest) if stored_bits is None else None
+    if bits is not None:
+        raise ImageFormatError(
+            f"the image is 16-bit but its brightest level is {brightest} of 65535, within a {bits}-bit "
+            f"camera's 0-{(1 << bits) - 1}: if the camera stores {bits} bits in 16-bit images, state "
+            f"camera.stored_bits: {bits} in the cell (doorloc calibrate reads it off the board photographs); "
+            f"if it is a 16-bit camera, the image is exposed about {65535 // max(brightest, 1)} times too short"
+        )
+    return top
+
+
+def _summed_in_light(bgr: np.ndarray, gamma: float, top: int = 0) -> np.ndarray:
     """The 16-bit power-law levels (H, W) of the light of ``bgr``'s first three channels (uint8 or uint16,
-    levels at the exponent ``gamma``) summed with :data:`BGR_WEIGHTS` (compiled: :func:`_light_sum_levels`;
-    numpy's float passes took 20 ms on a 1080p frame, the kernel 6)."""
-    light, encode = _light_tables(gamma, 255 if bgr.dtype == np.uint8 else 65535)
+    levels at the exponent ``gamma`` over full scale ``top``: 255 or 65535 by the dtype where 0) summed with
+    :data:`BGR_WEIGHTS` (compiled: :func:`_light_sum_levels`; numpy's float passes took 20 ms on a 1080p
+    frame, the kernel 6)."""
+    light, encode = _light_tables(gamma, top or (255 if bgr.dtype == np.uint8 else 65535))
     # (a view of a larger array, or every other column, is copied: the kernel is compiled for C order)
     return _light_sum_levels(np.ascontiguousarray(bgr), light, encode)
 
@@ -183,14 +251,15 @@ def camera_levels(lum: LuminancePlane, response: PhotometricModel | None, gamma:
     clip_in = min(int(np.floor(response.clip_level * top_in + 0.5)), top_in) if response.clips else None
     if not response.beyond_power_law:
         clip = None if clip_in is None else clip_in * lum.scale_to_8bit
-        return LuminancePlane(lum.plane, lum.scale_to_8bit, clip)
+        return LuminancePlane(lum.plane, lum.scale_to_8bit, clip, lum.stored_level_8bit)
     import cv2
 
     table = _power_law_levels(response, float(gamma), top_in)
     # cv2.LUT takes 8-bit images only (0.6 ms a 1080p frame, against 4.3 for numpy's indexing)
     levels = cv2.LUT(lum.plane, table) if top_in == 255 else np.take(table, lum.plane)
     s8 = 255.0 / 65535.0
-    return LuminancePlane(levels, s8, None if clip_in is None else float(table[clip_in]) * s8)
+    clip = None if clip_in is None else float(table[clip_in]) * s8
+    return LuminancePlane(levels, s8, clip, lum.stored_level_8bit)
 
 
 @functools.lru_cache(maxsize=8)

@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 
+from doorloc.calib.detect import stored_bits_of
 from doorloc.cell import Cell, DoorSize
 from doorloc.vision.locate import LocateTrace
 from doorloc.vision.luminance import luminance_plane
@@ -29,14 +30,18 @@ _GREEN, _RED, _CYAN, _YELLOW, _GREY, _WHITE = (
 _AX_X, _AX_Z = (60, 60, 255), (255, 120, 40)
 
 
-def _bgr(image: np.ndarray) -> np.ndarray:
+def _bgr(image: np.ndarray, stored_bits: int | None) -> np.ndarray:
     import cv2
 
     try:
-        plane = luminance_plane(image)
+        plane = luminance_plane(image, stored_bits=16 if stored_bits is None else stored_bits)
         g = plane.plane
         if g.dtype != np.uint8:
-            g = np.clip(g.astype(np.float32) * plane.scale_to_8bit, 0, 255).astype(np.uint8)
+            scale = plane.scale_to_8bit
+            if stored_bits is None and stored_bits_of([g]) is not None:
+                # a depth the cell does not state, which locate refused: the picture at its own brightest level
+                scale = 255.0 / max(int(g.max()), 1)
+            g = np.clip(g.astype(np.float32) * scale, 0, 255).astype(np.uint8)
     except ValueError:
         g = np.zeros((480, 640), np.uint8)
     # Darken slightly so the annotations stand out on a bright hinge face.
@@ -80,7 +85,7 @@ def draw_overlay(
     if trace is None:
         trace = LocateTrace()
         locate(image, cell, door, image_name=result.image, trace=trace)
-    out = _bgr(image)
+    out = _bgr(image, cell.stored_bits)
     _draw_bands(out, trace)
     _draw_points(out, trace)
     _draw_pose(out, trace)

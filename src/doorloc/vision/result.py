@@ -58,6 +58,11 @@ class PhysicalModel(BaseModel):
         description="1-sigma of response_gamma where it was measured (camera.response_gamma_sigma); "
         "null: stated, not measured",
     )
+    stored_bits: int | None = Field(
+        None,
+        description="the bits a 16-bit image's levels were read at (camera.stored_bits: a 12-bit camera's "
+        "0-4095 brought to the 16-bit scale); null: the image's own depth, 8 or 16 bits",
+    )
     arris_mm: float = Field(description="arris size the edges were corrected for, mm (0: sharp edges)")
     arris_profile: str = Field(description="'chamfer' or 'round'")
     door_brighter: bool = Field(
