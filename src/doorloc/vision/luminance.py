@@ -172,8 +172,8 @@ def _stored_top(img: np.ndarray, stored_bits: int | None) -> int:
         )
     # Levels that all stay within 12 bits (above 255: a black image is the gate's to name) are a 10- or
     # 12-bit camera's far more often than a 16-bit camera's exposed at a sixteenth of its range; read on
-    # 65535's scale every threshold would be 16 times too strict (a 12-bit camera's rendered doors were
-    # refused as "a faint edge, 4.9 grey levels" or "the far arris was not found", every one)
+    # 65535's scale every threshold would be 16 times too strict (four of a 12-bit camera's rendered doors
+    # were refused as "a faint edge, 4.9 grey levels" or "the far arris was not found", each of them)
     bits = stored_bits_holding(brightest) if stored_bits is None else None
     if bits is not None:
         raise ImageFormatError(
