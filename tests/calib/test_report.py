@@ -5,12 +5,19 @@ from __future__ import annotations
 import json
 
 import cv2
+import numpy as np
 import pytest
 
 from conftest import OPENCV_LEFT
 from doorloc.calib.calibrate import CANDIDATES_BY_NAME
 from doorloc.calib.folder import calibrate_detected
-from doorloc.calib.report import calibration_warnings, coverage_grid, report_dict, write_report
+from doorloc.calib.report import (
+    calibration_warnings,
+    coverage_grid,
+    render_report_png,
+    report_dict,
+    write_report,
+)
 
 
 @pytest.fixture(scope="module")
@@ -95,3 +102,9 @@ def test_report_json_and_png(left, tmp_path):
     ]
     green = (png[:, :640, 1] > 200) & (png[:, :640, 0] < 60) & (png[:, :640, 2] < 60)
     assert green.sum() > 200  # the observed-radius circle is drawn
+    # a 16-bit photograph (a 12-bit camera's, levels to 4095) is the same picture, not its levels cast to 8
+    # bits (which wrapped them round 256)
+    grey = cv2.cvtColor(bg, cv2.COLOR_BGR2GRAY)
+    deep = np.rint(grey * (4095 / 255)).astype(np.uint16)
+    pictures = [render_report_png(res, b)[:, :640].astype(float) for b in (grey, deep)]
+    assert np.abs(pictures[0] - pictures[1]).mean() < 2.0, np.abs(pictures[0] - pictures[1]).mean()

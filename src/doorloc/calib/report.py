@@ -26,7 +26,7 @@ from doorloc.calib.coverage import (
     corner_coverage,
     thin_cells,
 )
-from doorloc.calib.detect import BoardScan
+from doorloc.calib.detect import BoardScan, to_gray
 from doorloc.fileio import atomic_write_image, atomic_write_text
 
 __all__ = [
@@ -226,8 +226,11 @@ def render_report_png(result: CalibrationResult, background: np.ndarray | None =
         _colour_map(sig.reshape(gy, gx).astype(np.float32), vmax), (w, h), interpolation=cv2.INTER_LINEAR
     )
     if background is not None:
-        bg = background if background.ndim == 3 else cv2.cvtColor(background, cv2.COLOR_GRAY2BGR)
-        canvas = cv2.addWeighted(bg.astype(np.uint8), 0.5, heat, 0.5, 0)
+        # (a 16-bit photograph as the corners were found on it, stretched to its brightest level: cast to 8
+        # bits its levels had wrapped round 256 into noise)
+        bg = background if background.dtype == np.uint8 else to_gray(background)
+        bg = bg if bg.ndim == 3 else cv2.cvtColor(bg, cv2.COLOR_GRAY2BGR)
+        canvas = cv2.addWeighted(bg, 0.5, heat, 0.5, 0)
     else:
         canvas = (heat * 0.6).astype(np.uint8)
     c = (int(round(cam.cx)), int(round(cam.cy)))
