@@ -70,6 +70,7 @@ from doorloc.vision.gate import gate_and_answer, uncertain_pose_words, within_po
 from doorloc.vision.light_search import LightMeasurement, light_of_one_door
 from doorloc.vision.luminance import ImageFormatError, LuminancePlane, camera_levels, luminance_plane
 from doorloc.vision.metric import MetricPose
+from doorloc.vision.mosaic import bayer_mosaic
 from doorloc.vision.refine import refine
 from doorloc.vision.region import EDGE_NAMES, Band, SearchRegion
 from doorloc.vision.response_check import check_response
@@ -230,6 +231,10 @@ def locate_steps(
             f"report it with incident id {incident}",
             incident_id=incident,
         )
+    if not res.ok and res.error_code not in ("bad_image", "wrong_image_size", "internal_error"):
+        mosaic = _mosaic_named(image if luminance is None else luminance.plane, res.error or "")
+        if mosaic is not None:
+            res.error_code, res.error = mosaic.code, mosaic.message
     res.provenance = Provenance(
         version=__version__, cell_sha256=cell.sha256, calibration_sha256=cell.calibration_sha256
     )
@@ -252,6 +257,23 @@ def locate_steps(
         )
     res.elapsed_ms = (time.perf_counter() - t0) * 1e3
     return res
+
+
+def _mosaic_named(image, reason: str) -> q.Refusal | None:
+    """Where a refused image (``reason``: why) is a colour camera's raw Bayer mosaic read as grey
+    (:func:`doorloc.vision.mosaic.bayer_mosaic`), the refusal that says so, the other reason following from
+    it; else None. Read only on a refused image (a few ms a 1080p frame)."""
+    mosaic = bayer_mosaic(image)
+    if mosaic is None:
+        return None
+    return q.Refusal(
+        "bad_image",
+        "the image is a single-chip colour camera's raw Bayer mosaic: its pixel sites alternate in level "
+        f"(in each 2 x 2 block the first row's red-or-blue site reads {100 * mosaic.first:+.0f} %, the "
+        f"second row's {100 * mosaic.second:+.0f} % against the two green sites); set the camera to deliver "
+        "grey (Mono8, Mono12) or demosaiced colour (BGR8), or demosaic its frames before locating them "
+        f"(read as grey, locate found: {reason})",
+    )
 
 
 def _light_echo(cfg: LocateConfig, own: LightMeasurement | None) -> dict:
