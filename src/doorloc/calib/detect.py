@@ -39,6 +39,7 @@ __all__ = [
     "STORED_BITS_READ",
     "stored_bits_of",
     "stored_bits_holding",
+    "brightest_level",
     "SkippedImage",
     "BoardScan",
     "scan_images",
@@ -197,13 +198,15 @@ def stored_bits_of(images: Iterable[np.ndarray | None]) -> int | None:
     where that lies above 255 (below, the photographs are too dark to tell); None for 8-bit photographs, or
     16-bit ones whose levels reach beyond 12 bits. A board photograph's white squares lie well up a camera's
     range: a 16-bit camera that put them all below a sixteenth of it would be exposed far too short."""
-    brightest = -1
-    for im in images:
-        if im is None or im.dtype != np.uint16 or not im.size:
-            continue
-        colour = im[..., :3] if im.ndim == 3 else im  # (a BGRA image's alpha is no level of the camera's)
-        brightest = max(brightest, int(colour.max()))
-    return stored_bits_holding(brightest)
+    levels = [brightest_level(im) for im in images if im is not None and im.dtype == np.uint16]
+    return stored_bits_holding(max(levels, default=-1))
+
+
+def brightest_level(image: np.ndarray) -> int:
+    """The brightest level of an image's grey or colour channels (a BGRA image's alpha is no level of the
+    camera's); -1 for an empty image."""
+    colour = image[..., :3] if image.ndim == 3 else image
+    return int(colour.max()) if colour.size else -1
 
 
 def stored_bits_holding(brightest: int) -> int | None:

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from doorloc.calib.detect import stored_bits_holding
+from doorloc.calib.detect import brightest_level, stored_bits_holding
 from doorloc.photometric.model import PhotometricModel
 from doorloc.vision.jit import kernel, read_only
 
@@ -162,8 +162,7 @@ def _stored_top(img: np.ndarray, stored_bits: int | None) -> int:
     if img.dtype == np.uint8:
         return 255
     top = 65535 if stored_bits is None else (1 << int(stored_bits)) - 1
-    colour = img[..., :3] if img.ndim == 3 else img  # (a BGRA image's alpha is no level of the camera's)
-    brightest = int(colour.max()) if colour.size else 0
+    brightest = brightest_level(img)
     if brightest > top:
         raise ImageFormatError(
             f"the image holds level {brightest}, above the {stored_bits} bits the cell states for its camera "
@@ -185,12 +184,11 @@ def _stored_top(img: np.ndarray, stored_bits: int | None) -> int:
     return top
 
 
-def _summed_in_light(bgr: np.ndarray, gamma: float, top: int = 0) -> np.ndarray:
+def _summed_in_light(bgr: np.ndarray, gamma: float, top: int) -> np.ndarray:
     """The 16-bit power-law levels (H, W) of the light of ``bgr``'s first three channels (uint8 or uint16,
-    levels at the exponent ``gamma`` over full scale ``top``: 255 or 65535 by the dtype where 0) summed with
-    :data:`BGR_WEIGHTS` (compiled: :func:`_light_sum_levels`; numpy's float passes took 20 ms on a 1080p
-    frame, the kernel 6)."""
-    light, encode = _light_tables(gamma, top or (255 if bgr.dtype == np.uint8 else 65535))
+    levels at the exponent ``gamma`` over full scale ``top``) summed with :data:`BGR_WEIGHTS` (compiled:
+    :func:`_light_sum_levels`; numpy's float passes took 20 ms on a 1080p frame, the kernel 6)."""
+    light, encode = _light_tables(gamma, top)
     # (a view of a larger array, or every other column, is copied: the kernel is compiled for C order)
     return _light_sum_levels(np.ascontiguousarray(bgr), light, encode)
 

@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from doorloc.calib.detect import stored_bits_of
+from doorloc.calib.detect import brightest_level, stored_bits_holding
 from doorloc.cell import Cell, DoorSize
 from doorloc.vision.locate import LocateTrace
 from doorloc.vision.luminance import luminance_plane
@@ -38,9 +38,10 @@ def _bgr(image: np.ndarray, stored_bits: int | None) -> np.ndarray:
         g = plane.plane
         if g.dtype != np.uint8:
             scale = plane.scale_to_8bit
-            if stored_bits is None and stored_bits_of([g]) is not None:
+            brightest = brightest_level(g)
+            if stored_bits is None and stored_bits_holding(brightest) is not None:
                 # a depth the cell does not state, which locate refused: the picture at its own brightest level
-                scale = 255.0 / max(int(g.max()), 1)
+                scale = 255.0 / max(brightest, 1)
             g = np.clip(g.astype(np.float32) * scale, 0, 255).astype(np.uint8)
     except ValueError:
         g = np.zeros((480, 640), np.uint8)
