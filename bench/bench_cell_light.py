@@ -25,8 +25,8 @@ measured at the stated exponent, and with the response and the light measured. `
 held-out doors from these arris bench sets in turn (``round,chamfer``: the rounded and chamfered doors a
 plant's cell sees; the response is measured from rounded doors only). ``--finish P``: every door of the
 cell with the renderer's ``finish_exponent`` P (a finish that is no matt surface). ``--mixed-lights``: every
-door under its own light, as the arris bench draws them (no lamp common to the doors: the measurements'
-premise broken; they are to refuse, or to hold the truth within what they state).
+door under its own light, as the arris bench draws them (no lamp common to the doors: the light is to
+refuse; the response is read under each door's own light, and is to hold the truth within what it states).
 
     OMP_NUM_THREADS=1 PYTHONPATH=src python bench/bench_cell_light.py --response [--test-sets round,chamfer]
         [--finish P] [--mixed-lights] [--cells 3] [--first-cell 0] [--measure 8] [--test 16] [--seed 8500]
@@ -168,8 +168,12 @@ def _response_ways(cell, frames, light, gamma):
     print(
         f"  response measured: {r.gamma:.3f} (the camera's {gamma:.3f}, {r.gamma / gamma:.3f}x), factor "
         f"{r.factor:.3f}: the camera's {'inside' if r.gamma / r.factor <= gamma <= r.gamma * r.factor else 'OUTSIDE'}"
-        f"; light [{r.light.direction_deg[0]:+.1f}, {r.light.direction_deg[1]:+.1f}] +- {r.light.sigma_deg:g}"
-        f" ({time.thread_time() - t0:.0f} s thread CPU)"
+        + (
+            f"; light [{r.light.direction_deg[0]:+.1f}, {r.light.direction_deg[1]:+.1f}] +- {r.light.sigma_deg:g}"
+            if r.light is not None
+            else "; no light common to the doors (each door's own)"
+        )
+        + f" ({time.thread_time() - t0:.0f} s thread CPU)"
     )
     measured = dataclasses.replace(
         cell,
@@ -177,7 +181,6 @@ def _response_ways(cell, frames, light, gamma):
         response_gamma_sigma=r.sigma,
         locate=dataclasses.replace(cell.locate, response_unmeasured_factor=r.factor),
     )
-    lit = {"light_direction_deg": r.light.direction_deg, "light_direction_sigma_deg": r.light.sigma_deg}
     ways = {"stated (each door's own light)": (cell, cell.locate)}
     if light is not None:  # (None: the light could not be measured at the stated exponent)
         ways["stated, light measured"] = (
@@ -189,7 +192,9 @@ def _response_ways(cell, frames, light, gamma):
             ),
         )
     ways["response measured (each door's own light)"] = (measured, measured.locate)
-    ways["response and light measured"] = (measured, dataclasses.replace(measured.locate, **lit))
+    if r.light is not None:  # (None: the doors share no lamp, each door's strips read under its own)
+        lit = {"light_direction_deg": r.light.direction_deg, "light_direction_sigma_deg": r.light.sigma_deg}
+        ways["response and light measured"] = (measured, dataclasses.replace(measured.locate, **lit))
     return ways
 
 

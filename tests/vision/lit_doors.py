@@ -20,11 +20,17 @@ CAMERA_GAMMA = 1.8
 
 
 def lit_door(
-    arris_mm: float, profile: str, pose: DoorPose, blur: float, seed: int, lamp: bool = True
+    arris_mm: float,
+    profile: str,
+    pose: DoorPose,
+    blur: float,
+    seed: int,
+    lamp: bool = True,
+    light: tuple[float, float] = LIGHT,
 ) -> tuple[np.ndarray, DoorSize]:
-    """A 900 x 50 mm door with an arris of ``arris_mm`` (``profile``) at ``pose`` under the lamp ``LIGHT`` (or,
-    ``lamp`` False, ambient light alone), blurred by ``blur`` px, through a camera of ``CAMERA_GAMMA``: the
-    image and the door."""
+    """A 900 x 50 mm door with an arris of ``arris_mm`` (``profile``) at ``pose`` under the lamp ``LIGHT`` (or
+    another at ``light``, [azimuth, elevation] deg; ``lamp`` False, ambient light alone), blurred by ``blur``
+    px, through a camera of ``CAMERA_GAMMA``: the image and the door."""
     door = DoorSize(900, 50.0, 2100, arris_mm=arris_mm, arris_profile=profile)
     fx = Effects(
         arris_profile=profile,
@@ -33,8 +39,8 @@ def lit_door(
         albedo_background=0.12,
         light_ambient=0.45 if lamp else 1.05,
         light_directional=0.6 if lamp else 0.0,
-        light_azimuth_deg=LIGHT[0],
-        light_elevation_deg=LIGHT[1],
+        light_azimuth_deg=light[0],
+        light_elevation_deg=light[1],
         blur_sigma_px=blur,
         read_noise_dn=0.5,
         gamma=CAMERA_GAMMA,

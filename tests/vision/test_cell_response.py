@@ -67,6 +67,34 @@ def test_the_response_of_a_cell_is_found_from_its_doors_where_the_cell_states_an
     assert m.doors == 4 and m.strips >= 8
 
 
+def test_doors_that_share_no_lamp_tell_the_response_each_under_its_own_light():
+    """Five roundings of 1.2-2.4 mm, each lit by a lamp of its own (from either side, 10-45 deg up),
+    through a camera of 1.8 in a cell that states 1.0: no light common to the doors explains them at any
+    exponent, each door's strips are scored under its own light instead, and the range found holds the
+    camera's exponent, narrower than the default doubt of a stated one, the cell's 1.0 ruled out; no light
+    is stated."""
+    lamps = [(-60.0, 20.0), (55.0, 30.0), (-25.0, 45.0), (70.0, 10.0), (35.0, 25.0)]
+    poses = [
+        DoorPose(2.0, -3.0, 0.6),
+        DoorPose(-4.0, 2.0, -1.0),
+        DoorPose(5.0, 4.0, 1.2),
+        DoorPose(-6.0, -5.0, -0.4),
+    ]
+    frames = [
+        lit_door(a, "round", poses[k % 4], blur, 10 + k, light=lamp)
+        for k, (a, blur, lamp) in enumerate(
+            zip((2.4, 1.6, 1.2, 2.0, 1.8), (1.1, 1.3, 0.9, 1.0, 1.2), lamps, strict=True)
+        )
+    ]
+    heard: list[str] = []
+    m = measure_cell_response(frames, dataclasses.replace(CELL, response_gamma=1.0), progress=heard.append)
+    assert m.own_lights and m.light is None, m
+    assert any("each door's strips scored under its own light" in h for h in heard)
+    assert m.gamma / m.factor <= CAMERA_GAMMA <= m.gamma * m.factor, m
+    assert RESPONSE_FACTOR_FLOOR <= m.factor <= 1.4, m
+    assert m.cell_ruled_out and m.doors >= 4, m
+
+
 def test_doors_under_a_diffuse_light_tell_no_response():
     """Two roundings under ambient light alone: no light is common to their strips at any exponent, and
     nothing is measured (the coarse grid alone is read)."""
@@ -184,6 +212,19 @@ def test_measure_light_response_prints_the_camera_and_light_lines_and_warns_of_a
         1.12, abs=1e-3
     )
     assert "response_gamma" in res.stderr and "outside" in res.stderr  # the fixture's cell states 1.0
+
+
+def test_measure_light_response_of_doors_without_a_common_lamp_states_no_light(tmp_path, monkeypatch):
+    def measured(frames, cell, progress=None):
+        return dataclasses.replace(_measured(cell.response_gamma), light=None, own_lights=True)
+
+    monkeypatch.setattr(cell_response, "measure_cell_response", measured)
+    cell_path, folder = _cell_and_folder(tmp_path)
+    res = CliRunner().invoke(app, ["measure-light", str(folder), "--cell", str(cell_path), "--response"])
+    assert res.exit_code == 0, res.output
+    assert "none common to the doors" in res.stdout
+    add = res.stdout.split("add to")[1]
+    assert "response_gamma: 1.812" in add and "light_direction_deg" not in add and "locate:" not in add
 
 
 def test_measure_light_response_exits_1_where_the_doors_cannot_tell(tmp_path):

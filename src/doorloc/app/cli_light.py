@@ -39,7 +39,8 @@ def measure_light_cmd(
     to the cell file's locate section. Each door is located once and its rounded strips scored under about
     230 trial directions (about 7 s for 8 doors on one core). With --response, each door is located with
     about 17 trial camera exponents and the exponent under which all the roundings fit matt arcs under one
-    light best is the camera's, printed with its doubt for the camera section. Exit codes: 0 measured, 1
+    light best is the camera's, printed with its doubt for the camera section (where the doors share no
+    lamp, each door's roundings under its own light, and no light is stated). Exit codes: 0 measured, 1
     the images cannot tell the light (or the response), 2 bad arguments or files."""
     from doorloc.app import batch
     from doorloc.cell import CellFileError
@@ -61,17 +62,6 @@ def measure_light_cmd(
     except (CellFileError, batch.BatchSetupError, ImageDecodeError) as e:
         raise fail(str(e)) from None
     lines = _response_lines(r) if response else []
-    az, el = m.direction_deg
-    typer.echo(
-        f"the cell's light: azimuth {az:+.1f}, elevation {el:+.1f} deg, +- {m.sigma_deg:g} deg "
-        f"({m.strips} rounded strips of {m.doors} doors; mean log misfit over a free shading {m.score:.3f})"
-    )
-    if m.runner_up_deg is not None:
-        typer.echo(
-            f"warning: a light at azimuth {m.runner_up_deg[0]:+.0f}, elevation {m.runner_up_deg[1]:+.0f} deg "
-            f"fits almost as well ({m.runner_up_score:.3f}): check which side of the camera the lamp is on",
-            err=True,
-        )
     typer.echo(f"add to {cell}:\n" + "\n".join([*lines, *_light_lines(m)]))
 
 
@@ -91,9 +81,25 @@ def _response_lines(r: ResponseMeasurement) -> list[str]:
     return ["camera:", f"  response_gamma: {r.gamma:.3f}", f"  response_gamma_sigma: {r.sigma:.3f}"]
 
 
-def _light_lines(m: LightMeasurement) -> list[str]:
-    """The locate section's lines stating the measured light."""
+def _light_lines(m: LightMeasurement | None) -> list[str]:
+    """Print the measured light (and any warning); the locate section's lines stating it (none where the doors
+    share no lamp, ``m`` None)."""
+    if m is None:
+        typer.echo(
+            "the cell's light: none common to the doors (each door's roundings read under its own light)"
+        )
+        return []
     az, el = m.direction_deg
+    typer.echo(
+        f"the cell's light: azimuth {az:+.1f}, elevation {el:+.1f} deg, +- {m.sigma_deg:g} deg "
+        f"({m.strips} rounded strips of {m.doors} doors; mean log misfit over a free shading {m.score:.3f})"
+    )
+    if m.runner_up_deg is not None:
+        typer.echo(
+            f"warning: a light at azimuth {m.runner_up_deg[0]:+.0f}, elevation {m.runner_up_deg[1]:+.0f} deg "
+            f"fits almost as well ({m.runner_up_score:.3f}): check which side of the camera the lamp is on",
+            err=True,
+        )
     return [
         "locate:",
         f"  light_direction_deg: [{az:.1f}, {el:.1f}]",

@@ -21,6 +21,17 @@ on the light search's own grid): the least score lay at the camera's exponent on
 2) the least stayed at the camera's exponent on five of six cells and one step (15 %) off on the sixth, the
 scores higher (0.05-0.39) and the curve flatter; through a lens halo the arcs fit no better than 0.76.
 
+Where the doors share no lamp (each lit from its own side, daylight through a window, lamps moved
+between them), no common light explains their strips at any exponent; then each door's strips are scored
+under the door's own best light (:func:`own_light_scores`), and the doors' scores, weighed by their
+strips, are averaged per exponent. One door alone tells little, but its valley lies near the camera's
+exponent, and many doors' valleys together single it out. Doors whose strips no matt arc explains under
+any light at any exponent of the first grid (a light the search missed, a finish) are left out. Measured
+before it was built (12 rounded doors each of three rendered sets, `bench/bench_arris_range.py`'s
+``round`` draws, each door its own lamp, the cameras 1.0, 1.6 and 2.2; 13 exponents over the plausible
+range): the common light scored 0.59-1.12 everywhere (no lamp is common), and the own lights' least lay at
+0.997, 1.549 and 2.156, the exponents within ``RESPONSE_MARGIN`` of it 0.89-1.11, 1.39-1.73 and 2.16.
+
 So the measurement states the range of exponents whose score lies within ``RESPONSE_MARGIN`` of the least
 (the doors cannot rule them out; the light's own margin, ``light_search.RUNNER_UP_MARGIN``), one fine step
 wider (the grid's resolution), as its doubt, and refuses where the roundings cannot tell: no rounded
@@ -54,6 +65,7 @@ __all__ = [
     "common_light",
     "exponent_range",
     "measure_cell_response",
+    "own_light_scores",
 ]
 
 #: exponents of the first grid, spread evenly in log over ``response.RESPONSE_PLAUSIBLE`` (16 % apart)
@@ -82,7 +94,8 @@ class ResponseMeasurement:
     step wider, at least ``RESPONSE_FACTOR_FLOOR``); ``scores``: each exponent tried and its all-doors
     score (the mean log misfit ratio of matt arcs over free shadings under the strips' best common light,
     0: as well as a free shading), in increasing exponent; ``cell_score``: the score of the cell's own
-    exponent; ``light``: the light the strips fit best read with ``gamma``; ``strips`` rounded strips of
+    exponent; ``light``: the light the strips fit best read with ``gamma`` (None where the doors share no
+    lamp: ``own_lights``, each door's strips scored under its own light); ``strips`` rounded strips of
     ``doors`` doors."""
 
     gamma: float
@@ -91,9 +104,10 @@ class ResponseMeasurement:
     scores: tuple[tuple[float, float], ...]
     cell_gamma: float
     cell_score: float
-    light: LightMeasurement
+    light: LightMeasurement | None
     strips: int
     doors: int
+    own_lights: bool = False
 
     @property
     def cell_ruled_out(self) -> bool:
@@ -146,15 +160,19 @@ def measure_cell_response(
     lo, hi = RESPONSE_PLAUSIBLE
     readings = _Readings(frames, cell, progress)
     readings.read(np.geomspace(lo, hi, RESPONSE_COARSE_STEPS).tolist())
+    if min(readings.scores.values()) > math.log(ARC_EXPLAINS):
+        readings.take_own_lights()  # (no common lamp explains the doors at any exponent)
     g_coarse = min(readings.scores, key=readings.scores.__getitem__)
-    _not_diffuse(readings.lights[g_coarse])  # (said before the finer grid is read)
+    if not readings.own_lights:
+        _not_diffuse(readings.lights[g_coarse])  # (said before the finer grid is read)
     step = (hi / lo) ** (1.0 / ((RESPONSE_COARSE_STEPS - 1) * RESPONSE_FINE_STEPS))
     fine = [g_coarse * step**k for k in range(-RESPONSE_FINE_STEPS + 1, RESPONSE_FINE_STEPS) if k != 0]
     readings.read([g for g in fine if lo <= g <= hi] + [cell.response_gamma])
     readings.keep_steady_doors()
     scores, strips = readings.scores, readings.strips
     gamma, factor = exponent_range(scores, step)
-    _not_diffuse(readings.lights[gamma])
+    if not readings.own_lights:
+        _not_diffuse(readings.lights[gamma])
     return ResponseMeasurement(
         gamma=gamma,
         sigma=(factor - 1.0) * gamma / 2.0,
@@ -162,15 +180,18 @@ def measure_cell_response(
         scores=tuple(sorted(scores.items())),
         cell_gamma=cell.response_gamma,
         cell_score=scores[float(cell.response_gamma)],
-        light=_light(strips[gamma]),
+        light=None if readings.own_lights else _light(strips[gamma]),
         strips=sum(len(d) for d in strips[gamma]),
         doors=sum(1 for d in strips[gamma] if d),
+        own_lights=readings.own_lights,
     )
 
 
 class _Readings:
     """The doors read with trial exponents: per exponent every door's rounded strips (``strips``) and their
-    all-doors score (:func:`common_light`; ``scores``)."""
+    all-doors score (``scores``): under their best common light (:func:`common_light`, ``lights``), or,
+    once :meth:`take_own_lights` found that no lamp is common to the doors, each door's under its own
+    (:func:`own_light_scores`, ``own``) averaged over the doors, weighed by their strips."""
 
     def __init__(
         self,
@@ -178,19 +199,23 @@ class _Readings:
         cell: Cell,
         progress: Callable[[str], None] | None,
     ) -> None:
-        self.frames, self.cell, self.progress = frames, cell, progress
+        self.frames, self.cell, self.progress = list(frames), cell, progress
         self.strips: dict[float, list[list[ls.StripScore]]] = {}
         self.lights: dict[float, LightMeasurement] = {}  # (:func:`common_light`)
+        self.own: dict[float, list[float | None]] = {}  # (:func:`own_light_scores`, once ``own_lights``)
+        self.own_lights = False
 
     @property
     def scores(self) -> dict[float, float]:
         """Each exponent read and its all-doors score."""
-        return {g: m.score for g, m in self.lights.items()}
+        if not self.own_lights:
+            return {g: m.score for g, m in self.lights.items()}
+        return {g: _strip_weighted_mean(self.own[g], self.strips[g]) for g in self.own}
 
     def read(self, gammas: Sequence[float]) -> None:
         """Locate every door with each of ``gammas`` not read yet, and score its strips."""
         for g in map(float, gammas):
-            if g in self.lights:
+            if g in self.strips:
                 continue
             self.strips[g] = rounded_strips(self.frames, _trial_cell(self.cell, g))
             n_strips = sum(len(d) for d in self.strips[g])
@@ -200,12 +225,46 @@ class _Readings:
                     "cannot tell the response (check that the doors are in the fixture and their recipes' "
                     "arris_mm)"
                 )
-            self.lights[g] = common_light(self.strips[g])
+            if self.own_lights:
+                self.own[g] = own_light_scores(self.strips[g])
+            else:
+                self.lights[g] = common_light(self.strips[g])
             if self.progress is not None:
+                under = "each door's own light" if self.own_lights else "one light"
                 self.progress(
-                    f"exponent {g:.3f}: {n_strips} rounded strips fit matt arcs under one light at "
-                    f"{self.lights[g].score:.3f} ({len(self.lights)} exponents tried)"
+                    f"exponent {g:.3f}: {n_strips} rounded strips fit matt arcs under {under} at "
+                    f"{self.scores[g]:.3f} ({len(self.strips)} exponents tried)"
                 )
+
+    def take_own_lights(self) -> None:
+        """Score every exponent read, and those read from now on, under each door's own light, and leave out
+        the doors whose strips no matt arc explains under any light at any exponent read (they tell
+        nothing of the exponent: a light the search missed, a finish)."""
+        own = {g: own_light_scores(d) for g, d in self.strips.items()}
+        explains = math.log(ARC_EXPLAINS)
+        kept = [
+            k
+            for k in range(len(self.frames))
+            if min((x for v in own.values() if (x := v[k]) is not None), default=math.inf) <= explains
+        ]
+        if not kept:
+            raise ResponseNotMeasurable(
+                "the doors' roundings fit no matt arc under one light at any exponent, neither under a light "
+                "common to the doors nor each under its own: a finish, a second lamp or a lens the model "
+                "lacks; measure the response on board photographs (doorloc calibrate) instead"
+            )
+        self.own_lights = True
+        self.frames = [self.frames[k] for k in kept]
+        for g in own:
+            self.strips[g] = [self.strips[g][k] for k in kept]
+            self.own[g] = [own[g][k] for k in kept]
+        self.lights.clear()
+        if self.progress is not None:
+            self.progress(
+                "no light common to the doors explains their roundings (each door has its own lamp): each "
+                f"door's strips scored under its own light, {len(kept)} doors whose strips some matt arc "
+                "explains"
+            )
 
     def keep_steady_doors(self) -> None:
         """Score every exponent again on the doors read alike with all of them (:func:`_steady_doors`) where
@@ -219,13 +278,34 @@ class _Readings:
                 "no door's rounded strips were located alike with every exponent tried: the doors cannot "
                 "tell the response (check their recipes' arris sizes and the images' exposure)"
             )
-        for g in self.lights:
+        for g in self.strips:
             self.strips[g] = [self.strips[g][k] for k in steady]
-            self.lights[g] = common_light(self.strips[g])
+            if self.own_lights:
+                self.own[g] = [self.own[g][k] for k in steady]
+            else:
+                self.lights[g] = common_light(self.strips[g])
         if self.progress is not None:
             self.progress(
                 f"scored again on the {len(steady)} doors whose rounded strips every exponent located"
             )
+
+
+def own_light_scores(strips: Sequence[Sequence[ls.StripScore]]) -> list[float | None]:
+    """Per door, its rounded strips' (``strips``, per door) mean log misfit ratio under the door's own best
+    light (:func:`doorloc.vision.light_search.light_from_strips` on that door alone, its grid and a quarter
+    step finer one step around the best, every direction stated); None for a door without a strip."""
+    return [
+        ls.light_from_strips([door], fine_steps=1, diffuse_share=math.inf).score if door else None
+        for door in strips
+    ]
+
+
+def _strip_weighted_mean(scores: Sequence[float | None], strips: Sequence[Sequence[ls.StripScore]]) -> float:
+    """The doors' ``scores`` averaged, each weighed by its number of ``strips`` (as the common light's score
+    weighs every strip alike); doors without a strip left out."""
+    pairs = [(v, len(d)) for v, d in zip(scores, strips, strict=True) if v is not None and d]
+    n = sum(k for _, k in pairs)
+    return sum(v * k for v, k in pairs) / n if n else math.inf
 
 
 def common_light(strips: Sequence[Sequence[ls.StripScore]]) -> LightMeasurement:
