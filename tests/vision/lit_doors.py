@@ -27,10 +27,11 @@ def lit_door(
     seed: int,
     lamp: bool = True,
     light: tuple[float, float] = LIGHT,
+    gamma: float = CAMERA_GAMMA,
 ) -> tuple[np.ndarray, DoorSize]:
     """A 900 x 50 mm door with an arris of ``arris_mm`` (``profile``) at ``pose`` under the lamp ``LIGHT`` (or
     another at ``light``, [azimuth, elevation] deg; ``lamp`` False, ambient light alone), blurred by ``blur``
-    px, through a camera of ``CAMERA_GAMMA``: the image and the door."""
+    px, through a camera of ``CAMERA_GAMMA`` (or ``gamma``): the image and the door."""
     door = DoorSize(900, 50.0, 2100, arris_mm=arris_mm, arris_profile=profile)
     fx = Effects(
         arris_profile=profile,
@@ -43,6 +44,6 @@ def lit_door(
         light_elevation_deg=light[1],
         blur_sigma_px=blur,
         read_noise_dn=0.5,
-        gamma=CAMERA_GAMMA,
+        gamma=gamma,
     )
     return render_door(CELL, door, pose, effects=fx, seed=seed).image, door

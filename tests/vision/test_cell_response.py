@@ -26,6 +26,7 @@ from doorloc.vision.cell_response import (
     RESPONSE_MARGIN,
     ResponseMeasurement,
     ResponseNotMeasurable,
+    doors_agree,
     exponent_range,
     measure_cell_response,
 )
@@ -93,6 +94,17 @@ def test_doors_that_share_no_lamp_tell_the_response_each_under_its_own_light():
     assert m.gamma / m.factor <= CAMERA_GAMMA <= m.gamma * m.factor, m
     assert RESPONSE_FACTOR_FLOOR <= m.factor <= 1.4, m
     assert m.cell_ruled_out and m.doors >= 4, m
+
+
+def test_doors_that_rule_out_the_exponent_the_others_prefer_are_a_disagreement():
+    """Each door's own scores per exponent: a door whose strips fit the common least's exponent within
+    ``ARC_RULED_OUT`` of its own best agrees (one camera's doors scatter so); one that fits it worse, as
+    locate's own reading of its strips would rule it out, is a second camera, and nothing is measured."""
+    agreeing = {1.0: [0.30, 0.10, None], 1.8: [0.02, 0.05, None], 2.4: [0.12, 0.04, None]}
+    doors_agree(agreeing, 1.8)  # (the second door's best, 2.4, fits 1.8 only 1.01 times worse)
+    second_camera = {1.0: [0.30, 0.02], 1.8: [0.02, 0.30], 2.4: [0.12, 0.40]}
+    with pytest.raises(ResponseNotMeasurable, match="disagree.*exponent 1.00 and 1.32 times worse with 1.80"):
+        doors_agree(second_camera, 1.8)
 
 
 def test_doors_under_a_diffuse_light_tell_no_response():

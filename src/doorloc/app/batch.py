@@ -35,7 +35,7 @@ import threading
 from collections import Counter
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from multiprocessing import get_context
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -77,6 +77,11 @@ __all__ = [
     "plan_batch",
     "measure_light_in_folder",
     "measure_response_in_folder",
+    "BatchResponse",
+    "batch_response",
+    "BATCH_RESPONSE_DOORS",
+    "BATCH_RESPONSE_MIN_DOORS",
+    "BATCH_RESPONSE_FACTOR_MAX",
     "locate_item",
     "run_local",
     "run_ray",
@@ -301,6 +306,134 @@ def measure_response_in_folder(
 
     cell, frames = _door_frames(root, cell_path, manifest)
     return measure_cell_response(frames, cell, progress=progress)
+
+
+#: the most doors with rounded arrises a batch measures its camera's response from (spread over its rounded
+#: doors; ``doorloc measure-light --response`` is measured on eight), and the fewest it tries with (five
+#: doors, each under its own lamp, found a camera of 1.8 within a factor 1.4: tests/vision/test_cell_response.py)
+BATCH_RESPONSE_DOORS, BATCH_RESPONSE_MIN_DOORS = 8, 5
+#: the widest range (a factor about the exponent found) a batch takes in place of the cell's stated exponent:
+#: a wider one narrows the stated doubt little and moves the answers off a stated exponent that may be right
+#: (two rendered jobs of 16 doors, their cameras stated right, each door its own lamp: measured 1.18 and 1.23
+#: times the cameras' exponents within factors 2.08 and 2.01; located with them, x RMS 0.0023 -> 0.0223 mm
+#: and 24 -> 23 doors answered: bench/bench_batch_response.py --jobs 2, before this bound)
+BATCH_RESPONSE_FACTOR_MAX = 1.5
+
+
+@dataclass(frozen=True)
+class BatchResponse:
+    """The cell a job's doors are located with, and what :func:`batch_response` did to its camera's response:
+    ``measurement`` (None where nothing was measured; where its range is wider than
+    ``BATCH_RESPONSE_FACTOR_MAX``, ``cell`` is the job's own) and ``sentence``, what the operator is told
+    (None where the cell's response was measured already or the job has too few rounded doors to tell)."""
+
+    cell: Cell
+    measurement: ResponseMeasurement | None = None
+    sentence: str | None = None
+
+
+def batch_response(
+    items: list[BatchItem],
+    cell: Cell,
+    limits: FileLimits | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> BatchResponse:
+    """The cell with its camera's response measured from the job's own doors, where the cell only states it.
+
+    A stated exponent is taken as known within ``locate.response_unmeasured_factor`` (2.2 unless set), and
+    that doubt refuses many rounded and chamfered doors as uncertain; one door's strips seldom narrow it, but
+    many doors of one camera together do (:func:`doorloc.vision.cell_response.measure_cell_response`: under a
+    lamp common to the doors, or each door's own). So where the cell's camera has no measured response (no
+    ``camera.response_gamma_sigma``, no photometric model) and a factor above the measurement's floor, and
+    at least ``BATCH_RESPONSE_MIN_DOORS`` of the job's doors have rounded arrises, up to
+    ``BATCH_RESPONSE_DOORS`` of them, spread over the job, are read with trial exponents (a minute or two
+    on one core), and every door is located with the exponent found and its range; where the doors cannot
+    tell it, or only within more than ``BATCH_RESPONSE_FACTOR_MAX``, the cell stays as it is and the
+    sentence says why. ``progress`` hears the measurement's lines.
+    Deterministic: a resumed job measures the same.
+    """
+    from doorloc.vision.cell_response import (
+        RESPONSE_FACTOR_FLOOR,
+        ResponseNotMeasurable,
+        measure_cell_response,
+    )
+
+    if (
+        cell.response_gamma_sigma is not None
+        or cell.camera_photometry is not None
+        or cell.locate.response_unmeasured_factor <= RESPONSE_FACTOR_FLOOR
+    ):
+        return BatchResponse(cell)
+    picked = _rounded_doors_spread(items)
+    if picked is None:
+        return BatchResponse(cell)
+    frames = []
+    for it in picked:
+        decoded = _decode(it, cell, limits or FileLimits())
+        if isinstance(decoded, tuple):  # (a record where the file cannot be read: the job will say why)
+            frames.append((decoded[0], it.choice.door))
+    stated = (
+        f"the cell's stated exponent {cell.response_gamma:g} used, known within a factor "
+        f"{cell.locate.response_unmeasured_factor:g}"
+    )
+    try:
+        m = measure_cell_response(frames, cell, progress=progress)
+    except ResponseNotMeasurable as e:
+        return BatchResponse(
+            cell, None, f"the camera's response was not measured from the doors ({e}): {stated}"
+        )
+    except Exception as e:  # noqa: BLE001 - the job goes on with the cell as stated; each door's record says more
+        return BatchResponse(
+            cell,
+            None,
+            f"the camera's response could not be measured from the doors ({type(e).__name__}: {e}; please report "
+            f"it): {stated}",
+        )
+    if m.factor > BATCH_RESPONSE_FACTOR_MAX:
+        return BatchResponse(
+            cell,
+            m,
+            f"the doors tell the camera's response only within exponents {m.gamma / m.factor:.2f}-"
+            f"{m.gamma * m.factor:.2f} (a factor {m.factor:.2f}, more than {BATCH_RESPONSE_FACTOR_MAX:g}): {stated}",
+        )
+    measured = replace(
+        cell,
+        response_gamma=m.gamma,
+        response_gamma_sigma=m.sigma,
+        locate=replace(cell.locate, response_unmeasured_factor=m.factor),
+    )
+    return BatchResponse(measured, m, _measured_sentence(m))
+
+
+def _rounded_doors_spread(items: list[BatchItem]) -> list[BatchItem] | None:
+    """Up to ``BATCH_RESPONSE_DOORS`` of the job's doors with rounded arrises, spread evenly over them in the
+    job's order; None where there are fewer than ``BATCH_RESPONSE_MIN_DOORS``."""
+    rounded = [
+        it
+        for it in items
+        if it.problem is None and it.choice.door.arris_mm > 0 and it.choice.door.arris_profile == "round"
+    ]
+    n = len(rounded)
+    if n < BATCH_RESPONSE_MIN_DOORS:
+        return None
+    spread = {round(j * (n - 1) / (BATCH_RESPONSE_DOORS - 1)) for j in range(BATCH_RESPONSE_DOORS)}
+    return [rounded[k] for k in sorted(spread)]
+
+
+def _measured_sentence(m: ResponseMeasurement) -> str:
+    """What the operator is told of a response the batch measured and located every door with."""
+    sentence = (
+        f"the camera's response measured from {m.doors} of the batch's doors with rounded arrises: gamma "
+        f"{m.gamma:.3f} +- {m.sigma:.3f} (exponents {m.gamma / m.factor:.2f}-{m.gamma * m.factor:.2f}; the "
+        f"cell states {m.cell_gamma:g}); every door located with it (to skip this measurement, state it in "
+        f"the cell: camera.response_gamma: {m.gamma:.3f}, response_gamma_sigma: {m.sigma:.3f})"
+    )
+    if m.cell_ruled_out:
+        sentence += (
+            f"; warning: the cell's camera.response_gamma {m.cell_gamma:g} lies outside what the doors "
+            "allow: check the camera's gamma setting"
+        )
+    return sentence
 
 
 def _door_frames(

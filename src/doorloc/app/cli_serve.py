@@ -15,6 +15,7 @@ from doorloc.app.errors import EXIT_FAILED, EXIT_OK, EXIT_REFUSED, fail
 
 if TYPE_CHECKING:
     from doorloc.app.batch import BatchJob, BatchSummary
+    from doorloc.cell import Cell
 
 __all__ = ["register", "is_loopback"]
 
@@ -74,6 +75,24 @@ def serve_cmd(
     _run_uvicorn(host, port, workers, log_level, ssl_certfile, ssl_keyfile, _checked_settings())
 
 
+#: ``doorloc batch --device``
+DeviceOption = Annotated[
+    str | None,
+    typer.Option(
+        help="cpu, cuda or auto: locate batches of frames on torch (the doorloc torch extra); default: one frame at a time"
+    ),
+]
+#: ``doorloc batch --stated-response``
+StatedResponseOption = Annotated[
+    bool,
+    typer.Option(
+        "--stated-response",
+        help="locate with the cell's stated camera response as it is; by default, where the cell states it "
+        "without a measurement, it is measured first from up to 8 of the doors with rounded arrises",
+    ),
+]
+
+
 def batch_cmd(
     folder: Annotated[
         Path,
@@ -103,16 +122,14 @@ def batch_cmd(
     ] = None,
     db: DbOption = None,
     database_url: DbAliasOption = None,
-    device: Annotated[
-        str | None,
-        typer.Option(
-            help="cpu, cuda or auto: locate batches of frames on torch (the doorloc torch extra); default: one frame at a time"
-        ),
-    ] = None,
+    device: DeviceOption = None,
     batch_size: Annotated[int, typer.Option(min=1, help="frames per batch with --device")] = 32,
+    stated_response: StatedResponseOption = False,
 ) -> None:
     """Locate the door in every image of a folder; append one result line per image to --out.
 
+    Where the cell states its camera's response without a measurement and at least five doors have rounded
+    arrises, the response is measured from them first (a minute or two) and every door located with it.
     Exit code 0 when every image was answered, 1 when some were refused or failed, 2 for bad arguments.
     """
     from doorloc.app import batch as batch_mod
@@ -129,6 +146,8 @@ def batch_cmd(
         raise fail(str(e)) from None
     if job.not_images:
         typer.echo(f"doorloc: {batch_mod.not_images_sentence(job.not_images)}", err=True)
+    if not stated_response:
+        the_cell = _response_measured(job, the_cell)
     summary = _run_or_fail(job, options.backend_for(the_cell), out)
     typer.echo(f"{out}: {summary.text()}", err=True)
     raise typer.Exit(EXIT_OK if summary.answered == summary.total else EXIT_REFUSED)
@@ -138,6 +157,17 @@ def register(app: typer.Typer) -> None:
     """Add `doorloc serve` and `doorloc batch` to the root app."""
     app.command("serve")(serve_cmd)
     app.command("batch")(batch_cmd)
+
+
+def _response_measured(job: BatchJob, cell: Cell) -> Cell:
+    """The cell the job's doors are located with (:func:`doorloc.app.batch.batch_response`: the camera's response
+    measured from the job's rounded doors where the cell only states it), its lines and sentence told."""
+    from doorloc.app.batch import batch_response
+
+    said = batch_response(job.items, cell, progress=lambda line: typer.echo(line, err=True))
+    if said.sentence:
+        typer.echo(f"doorloc: {said.sentence}", err=True)
+    return said.cell
 
 
 def _run_or_fail(job: BatchJob, backend: Callable, out: Path) -> BatchSummary:

@@ -25,8 +25,9 @@ Where the doors share no lamp (each lit from its own side, daylight through a wi
 between them), no common light explains their strips at any exponent; then each door's strips are scored
 under the door's own best light (:func:`own_light_scores`), and the doors' scores, weighed by their
 strips, are averaged per exponent. One door alone tells little, but its valley lies near the camera's
-exponent, and many doors' valleys together single it out. Doors whose strips no matt arc explains under
-any light at any exponent of the first grid (a light the search missed, a finish) are left out. Measured
+exponent, and many doors' valleys together single it out. Doors that cannot tell it are left out: those
+whose strips no matt arc explains under any light at any exponent of the first grid (a light the search
+missed, a finish) and those whose own light is a diffuse one (ambient light, roundings too small). Measured
 before it was built (12 rounded doors each of three rendered sets, `bench/bench_arris_range.py`'s
 ``round`` draws, each door its own lamp, the cameras 1.0, 1.6 and 2.2; 13 exponents over the plausible
 range): the common light scored 0.59-1.12 everywhere (no lamp is common), and the own lights' least lay at
@@ -53,7 +54,7 @@ from doorloc.vision import light_search as ls
 from doorloc.vision.cell_light import rounded_strips
 from doorloc.vision.light_search import LightMeasurement
 from doorloc.vision.response import RESPONSE_PLAUSIBLE
-from doorloc.vision.strip_response import ARC_EXPLAINS
+from doorloc.vision.strip_response import ARC_EXPLAINS, ARC_RULED_OUT
 
 __all__ = [
     "RESPONSE_COARSE_STEPS",
@@ -63,9 +64,11 @@ __all__ = [
     "ResponseMeasurement",
     "ResponseNotMeasurable",
     "common_light",
+    "doors_agree",
     "exponent_range",
     "measure_cell_response",
     "own_light_scores",
+    "own_lights",
 ]
 
 #: exponents of the first grid, spread evenly in log over ``response.RESPONSE_PLAUSIBLE`` (16 % apart)
@@ -171,7 +174,9 @@ def measure_cell_response(
     readings.keep_steady_doors()
     scores, strips = readings.scores, readings.strips
     gamma, factor = exponent_range(scores, step)
-    if not readings.own_lights:
+    if readings.own_lights:
+        doors_agree(readings.own, gamma)
+    else:
         _not_diffuse(readings.lights[gamma])
     return ResponseMeasurement(
         gamma=gamma,
@@ -238,20 +243,16 @@ class _Readings:
 
     def take_own_lights(self) -> None:
         """Score every exponent read, and those read from now on, under each door's own light, and leave out
-        the doors whose strips no matt arc explains under any light at any exponent read (they tell
-        nothing of the exponent: a light the search missed, a finish)."""
-        own = {g: own_light_scores(d) for g, d in self.strips.items()}
-        explains = math.log(ARC_EXPLAINS)
-        kept = [
-            k
-            for k in range(len(self.frames))
-            if min((x for v in own.values() if (x := v[k]) is not None), default=math.inf) <= explains
-        ]
+        the doors that tell nothing of the exponent (:func:`_tells_exponent`)."""
+        lights = {g: own_lights(d) for g, d in self.strips.items()}
+        own = {g: [None if m is None else m.score for m in v] for g, v in lights.items()}
+        kept = [k for k in range(len(self.frames)) if _tells_exponent([v[k] for v in lights.values()])]
         if not kept:
             raise ResponseNotMeasurable(
-                "the doors' roundings fit no matt arc under one light at any exponent, neither under a light "
-                "common to the doors nor each under its own: a finish, a second lamp or a lens the model "
-                "lacks; measure the response on board photographs (doorloc calibrate) instead"
+                "no door's roundings tell the exponent: no light common to the doors explains them, and under "
+                "each door's own light they fit no matt arc at any exponent (a finish, a second lamp or a lens "
+                "the model lacks) or shade alike from every direction (ambient light, roundings too small); "
+                "measure the response on board photographs (doorloc calibrate) instead"
             )
         self.own_lights = True
         self.frames = [self.frames[k] for k in kept]
@@ -262,8 +263,8 @@ class _Readings:
         if self.progress is not None:
             self.progress(
                 "no light common to the doors explains their roundings (each door has its own lamp): each "
-                f"door's strips scored under its own light, {len(kept)} doors whose strips some matt arc "
-                "explains"
+                f"door's strips scored under its own light, on the {len(kept)} doors lit from one side whose "
+                "strips some matt arc explains"
             )
 
     def keep_steady_doors(self) -> None:
@@ -290,14 +291,54 @@ class _Readings:
             )
 
 
-def own_light_scores(strips: Sequence[Sequence[ls.StripScore]]) -> list[float | None]:
-    """Per door, its rounded strips' (``strips``, per door) mean log misfit ratio under the door's own best
-    light (:func:`doorloc.vision.light_search.light_from_strips` on that door alone, its grid and a quarter
-    step finer one step around the best, every direction stated); None for a door without a strip."""
+def own_lights(strips: Sequence[Sequence[ls.StripScore]]) -> list[LightMeasurement | None]:
+    """Per door, its rounded strips' (``strips``, per door) best light and their mean log misfit ratio under
+    it (:func:`doorloc.vision.light_search.light_from_strips` on that door alone, its grid and a quarter step
+    finer one step around the best, every direction stated); None for a door without a strip."""
     return [
-        ls.light_from_strips([door], fine_steps=1, diffuse_share=math.inf).score if door else None
+        ls.light_from_strips([door], fine_steps=1, diffuse_share=math.inf) if door else None
         for door in strips
     ]
+
+
+def own_light_scores(strips: Sequence[Sequence[ls.StripScore]]) -> list[float | None]:
+    """Per door, the score of :func:`own_lights` (None for a door without a strip)."""
+    return [None if m is None else m.score for m in own_lights(strips)]
+
+
+def _tells_exponent(door: Sequence[LightMeasurement | None]) -> bool:
+    """Whether one door's own lights, one per exponent of the first grid (``door``), can tell the exponent:
+    some matt arc explains its strips (a least score within ``ARC_EXPLAINS``: not a light the search
+    missed, nor a finish), and under its least the light is no diffuse one (no more than
+    ``light_search.DIFFUSE_SHARE`` of the directions alike: ambient light, or roundings too small to show
+    a direction, shade alike under every exponent and only flatten the doors' mean)."""
+    read = [m for m in door if m is not None]
+    if not read:
+        return False
+    least = min(read, key=lambda m: m.score)
+    return least.score <= math.log(ARC_EXPLAINS) and least.alike_share <= ls.DIFFUSE_SHARE
+
+
+def doors_agree(own: Mapping[float, Sequence[float | None]], gamma: float) -> None:
+    """Raise :class:`ResponseNotMeasurable` where some door's strips, each scored under its own light
+    (``own``: per exponent, per door), rule ``gamma`` out as locate's own reading of one door's strips does
+    (:data:`doorloc.vision.strip_response.ARC_RULED_OUT` times its best score's misfit): the doors disagree
+    on their camera's exponent (more than one camera, or a gamma setting changed between the images), and
+    one exponent for all would be answered with a doubt too small for some. (On 12 rounded doors of one
+    camera, each its own lamp, the measured exponent scored within 1.035 of every door's best.)"""
+    ruled_out = math.log(ARC_RULED_OUT)
+    for k in range(len(own[gamma])):
+        door = {g: v for g, per_door in own.items() if (v := per_door[k]) is not None}
+        if gamma not in door:
+            continue
+        best = min(door, key=door.__getitem__)
+        if door[gamma] - door[best] > ruled_out:
+            raise ResponseNotMeasurable(
+                f"the doors disagree on the camera's response: one door's roundings fit best read with exponent "
+                f"{best:.2f} and {math.exp(door[gamma] - door[best]):.2f} times worse with {gamma:.2f}, which the "
+                "others prefer: more than one camera, or a gamma setting changed between the images? Measure "
+                "each camera's response apart (doorloc calibrate on board photographs)"
+            )
 
 
 def _strip_weighted_mean(scores: Sequence[float | None], strips: Sequence[Sequence[ls.StripScore]]) -> float:

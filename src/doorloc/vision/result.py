@@ -55,8 +55,8 @@ class PhysicalModel(BaseModel):
     )
     response_gamma_sigma: float | None = Field(
         None,
-        description="1-sigma of response_gamma where it was measured (camera.response_gamma_sigma); "
-        "null: stated, not measured",
+        description="1-sigma of response_gamma where it was measured (camera.response_gamma_sigma, or doorloc "
+        "batch from the job's rounded doors); null: stated, not measured",
     )
     stored_bits: int | None = Field(
         None,
