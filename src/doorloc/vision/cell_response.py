@@ -23,7 +23,7 @@ scores higher (0.05-0.39) and the curve flatter; through a lens halo the arcs fi
 
 Where the doors share no lamp (each lit from its own side, daylight through a window, lamps moved
 between them), no common light explains their strips at any exponent; then each door's strips are scored
-under the door's own best light (:func:`own_light_scores`), and the doors' scores, weighed by their
+under the door's own best light (:func:`own_lights`), and the doors' scores, weighed by their
 strips, are averaged per exponent. One door alone tells little, but its valley lies near the camera's
 exponent, and many doors' valleys together single it out. Doors that cannot tell it are left out: those
 whose strips no matt arc explains under any light at any exponent of the first grid (a light the search
@@ -67,7 +67,6 @@ __all__ = [
     "doors_agree",
     "exponent_range",
     "measure_cell_response",
-    "own_light_scores",
     "own_lights",
 ]
 
@@ -175,7 +174,7 @@ def measure_cell_response(
     scores, strips = readings.scores, readings.strips
     gamma, factor = exponent_range(scores, step)
     if readings.own_lights:
-        doors_agree(readings.own, gamma)
+        doors_agree(readings.own_scores, gamma)
     else:
         _not_diffuse(readings.lights[gamma])
     return ResponseMeasurement(
@@ -196,7 +195,7 @@ class _Readings:
     """The doors read with trial exponents: per exponent every door's rounded strips (``strips``) and their
     all-doors score (``scores``): under their best common light (:func:`common_light`, ``lights``), or,
     once :meth:`take_own_lights` found that no lamp is common to the doors, each door's under its own
-    (:func:`own_light_scores`, ``own``) averaged over the doors, weighed by their strips."""
+    (:func:`own_lights`, ``own``) averaged over the doors, weighed by their strips."""
 
     def __init__(
         self,
@@ -207,7 +206,7 @@ class _Readings:
         self.frames, self.cell, self.progress = list(frames), cell, progress
         self.strips: dict[float, list[list[ls.StripScore]]] = {}
         self.lights: dict[float, LightMeasurement] = {}  # (:func:`common_light`)
-        self.own: dict[float, list[float | None]] = {}  # (:func:`own_light_scores`, once ``own_lights``)
+        self.own: dict[float, list[LightMeasurement | None]] = {}  # (:func:`own_lights`, once ``own_lights``)
         self.own_lights = False
 
     @property
@@ -215,7 +214,12 @@ class _Readings:
         """Each exponent read and its all-doors score."""
         if not self.own_lights:
             return {g: m.score for g, m in self.lights.items()}
-        return {g: _strip_weighted_mean(self.own[g], self.strips[g]) for g in self.own}
+        return {g: _strip_weighted_mean(v, self.strips[g]) for g, v in self.own_scores.items()}
+
+    @property
+    def own_scores(self) -> dict[float, list[float | None]]:
+        """Per exponent read, each door's score under its own light (None: a door without a strip)."""
+        return {g: [None if m is None else m.score for m in v] for g, v in self.own.items()}
 
     def read(self, gammas: Sequence[float]) -> None:
         """Locate every door with each of ``gammas`` not read yet, and score its strips."""
@@ -231,7 +235,7 @@ class _Readings:
                     "arris_mm)"
                 )
             if self.own_lights:
-                self.own[g] = own_light_scores(self.strips[g])
+                self.own[g] = own_lights(self.strips[g])
             else:
                 self.lights[g] = common_light(self.strips[g])
             if self.progress is not None:
@@ -245,7 +249,6 @@ class _Readings:
         """Score every exponent read, and those read from now on, under each door's own light, and leave out
         the doors that tell nothing of the exponent (:func:`_tells_exponent`)."""
         lights = {g: own_lights(d) for g, d in self.strips.items()}
-        own = {g: [None if m is None else m.score for m in v] for g, v in lights.items()}
         kept = [k for k in range(len(self.frames)) if _tells_exponent([v[k] for v in lights.values()])]
         if not kept:
             raise ResponseNotMeasurable(
@@ -256,9 +259,9 @@ class _Readings:
             )
         self.own_lights = True
         self.frames = [self.frames[k] for k in kept]
-        for g in own:
+        for g, per_door in lights.items():
             self.strips[g] = [self.strips[g][k] for k in kept]
-            self.own[g] = [own[g][k] for k in kept]
+            self.own[g] = [per_door[k] for k in kept]
         self.lights.clear()
         if self.progress is not None:
             self.progress(
@@ -299,11 +302,6 @@ def own_lights(strips: Sequence[Sequence[ls.StripScore]]) -> list[LightMeasureme
         ls.light_from_strips([door], fine_steps=1, diffuse_share=math.inf) if door else None
         for door in strips
     ]
-
-
-def own_light_scores(strips: Sequence[Sequence[ls.StripScore]]) -> list[float | None]:
-    """Per door, the score of :func:`own_lights` (None for a door without a strip)."""
-    return [None if m is None else m.score for m in own_lights(strips)]
 
 
 def _tells_exponent(door: Sequence[LightMeasurement | None]) -> bool:
