@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from doorloc.app.decodepool import DecodePool, DecodeRefused
+from doorloc.app.decodepool import DecodePool, DecodeRefused, start_pools
 from doorloc.app.imagesniff import decode_limit_problem, sniff_image
 from doorloc.sim.hostile import progressive_jpeg_bomb
 
@@ -102,6 +102,23 @@ def _thesis_cell():
     from .conftest import CELL_PATH
 
     return load_cell(CELL_PATH)
+
+
+def test_pools_started_together_hold_every_worker_ready_and_each_answers():
+    """start_pools starts the workers of several pools at once; each pool then holds its size in ready
+    workers (none started twice by a second call), and a job in either is answered."""
+    quiet = cv2.imencode(".png", np.zeros((6, 8), np.uint8))[1].tobytes()
+    with (
+        DecodePool(2, cpu_s=5, memory_bytes=300_000_000) as first,
+        DecodePool(1, cpu_s=5, memory_bytes=300_000_000) as second,
+    ):
+        start_pools([first, second])
+        start_pools([first, second])
+        assert (len(first._workers), len(second._workers)) == (2, 1)
+        assert all(w.process.is_alive() for w in first._workers + second._workers)
+        assert first.decode(quiet, "q.png", timeout_s=60).shape == (6, 8)
+        assert second.decode(quiet, "q.png", timeout_s=60).shape == (6, 8)
+        assert (len(first._workers), len(second._workers)) == (2, 1)
 
 
 def test_a_locate_past_its_cpu_limit_ends_its_worker_and_the_next_is_answered():

@@ -58,8 +58,11 @@ def live_server(cell, store):
     server = uvicorn.Server(uvicorn.Config(app, log_level="warning", lifespan="on"))
     thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
     thread.start()
-    deadline = time.monotonic() + 30
-    while not server.started and time.monotonic() < deadline:
+    # Its start-up loads locate's kernels in every worker process: seconds on a quiet machine, far more on a
+    # busy CI runner, so this waits until the server either starts or its thread ends (a failed start-up);
+    # the long bound only keeps a hung start from hanging the run.
+    deadline = time.monotonic() + 600
+    while not server.started and thread.is_alive() and time.monotonic() < deadline:
         time.sleep(0.05)
     assert server.started, "the test server did not start"
     yield f"http://127.0.0.1:{port}"

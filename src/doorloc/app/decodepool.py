@@ -376,6 +376,10 @@ class DecodePool:
         self.close()
 
     def _start(self) -> _Worker:
+        return self._ready(self._spawn())
+
+    def _spawn(self) -> _Worker:
+        """A worker process started, not yet ready (:meth:`_ready` waits for it)."""
         ctx = multiprocessing.get_context("forkserver")
         ctx.set_forkserver_preload(_PRELOAD)
         parent, child = ctx.Pipe()
@@ -388,9 +392,12 @@ class DecodePool:
         )
         process.start()
         child.close()
-        worker = _Worker(process, parent)
+        return _Worker(process, parent)
+
+    def _ready(self, worker: _Worker) -> _Worker:
+        """``worker`` once it says it is ready, counted in the pool; one that ends first is refused."""
         try:
-            parent.recv()  # "ready": its kernels are loaded (a locating worker), its limits set
+            worker.conn.recv()  # "ready": its kernels are loaded (a locating worker), its limits set
         except (EOFError, OSError):
             worker.kill()
             raise DecodeRefused(
@@ -413,9 +420,7 @@ class DecodePool:
 
     def start(self) -> None:
         """Start every worker now (the service at start-up: a locating worker loads locate's kernels first)."""
-        started = [self._start() for _ in range(self.size - len(self._workers))]
-        for w in started:
-            self._idle.put(w)
+        start_pools([self])
 
     def worker_nice(self) -> int | None:
         """The nice level of a started worker (None: none started, or the platform has no nice levels)."""
@@ -629,3 +634,17 @@ def decoded_too_large(name: str, nbytes: int, max_decoded_bytes: int) -> DecodeR
         f"The image '{name}' decoded to {nbytes / 1e6:.0f} MB, more than is accepted here "
         f"({max_decoded_bytes / 1e6:.0f} MB); send the camera's own image.",
     )
+
+
+def start_pools(pools: list[DecodePool]) -> None:
+    """Start every missing worker of ``pools`` at once, then wait for them all: a locating worker spends
+    seconds loading locate's kernels, and a service with several pools would otherwise start them one after
+    another. Where one cannot start, those already started stay in their pools and the rest are ended."""
+    spawned = [(pool, pool._spawn()) for pool in pools for _ in range(pool.size - len(pool._workers))]
+    for i, (pool, worker) in enumerate(spawned):
+        try:
+            pool._idle.put(pool._ready(worker))
+        except DecodeRefused:
+            for _, rest in spawned[i + 1 :]:
+                rest.kill()
+            raise

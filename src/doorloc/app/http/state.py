@@ -14,7 +14,7 @@ from typing import Any
 
 from doorloc.app.access import FailureBudget, KeyStore
 from doorloc.app.answer import LocateFn
-from doorloc.app.decodepool import DecodePool, nice_at_least
+from doorloc.app.decodepool import DecodePool, nice_at_least, start_pools
 from doorloc.app.fairslots import FairSlots, RecentUse
 from doorloc.app.http.metrics import ServiceMetrics
 from doorloc.app.settings import ServiceSettings, missing_database
@@ -182,9 +182,7 @@ class ServiceState:
             if self.workers is not None and self.locates_in_workers:
                 # the worker processes load locate's compiled kernels now, not in the first request (those
                 # still missing: a second call starts none); this process never locates itself
-                self.workers.start()
-                if self.over_share is not None:
-                    self.over_share.start()
+                start_pools([p for p in (self.workers, self.over_share) if p is not None])
                 if not self.serve_niced and self.settings.serve_nice > 0:
                     # the workers (forked from a server started before this) keep their priority; this
                     # process goes serve_nice below them, once: a second service in the same process (an
