@@ -199,7 +199,10 @@ def _response_ways(cell, frames, light, gamma):
 
 
 def _locate_ways(ways, frames) -> None:
-    """Locate ``frames`` (image, door, pose) with each way's (cell, locate settings) and print its summary."""
+    """Locate ``frames`` (image, door, pose) with each way's (cell, locate settings) and print its summary
+    (nothing where there are none: ``--test 0`` measures only)."""
+    if not frames:
+        return
     for label, (way_cell, cfg) in ways.items():
         rows = []
         for im, door, pose in frames:

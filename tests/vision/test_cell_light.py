@@ -168,3 +168,41 @@ def test_the_finer_search_keeps_the_doubt_of_a_wide_valley():
     assert first.sigma_deg > light_search.MEASURED_SIGMA_FLOOR_DEG
     m = light_search.finer_light([[wide]], first)
     assert directions_apart_deg(m.direction_deg, lamp) <= 1.5 and m.sigma_deg >= first.sigma_deg, m
+
+
+def _one_lamp(lamp: tuple[float, float], depth: float = 0.6):
+    """A rounded strip's score (misfit over its free shading's) that is least, 1, under ``lamp`` and rises
+    with the angle from it (``depth`` in log at 60 deg)."""
+    at = direction_cell(*lamp)
+
+    def score(directions: np.ndarray) -> np.ndarray:
+        off = np.degrees(np.arccos(np.clip(directions @ at, -1.0, 1.0)))
+        return np.exp(depth * (off / 60.0) ** 2)
+
+    return score
+
+
+def test_doors_that_rule_out_the_light_best_for_all_are_named():
+    """Three doors under one lamp and one under another: the light best for all is the lamp's, each of the
+    three fits it as well as its own, and only the fourth door's strips rule it out (its misfit there over
+    1.25 times its own light's); at the fourth door's lamp the three others do."""
+    lamp, other = (-45.0, 15.0), (50.0, 30.0)
+    strips = [[_one_lamp(lamp)] * 2, [_one_lamp(lamp)], [], [_one_lamp(other)] * 3, [_one_lamp(lamp)]]
+    assert cell_light.doors_ruling_out(strips, lamp) == [3]
+    assert cell_light.doors_ruling_out(strips, other) == [0, 1, 4]
+
+
+def test_doors_each_under_a_lamp_of_its_own_tell_no_cell_light():
+    """Five roundings of 1.2-2.4 mm, each lit by a lamp of its own (from either side, 10-45 deg up): some
+    light is best for all of them on average, but several doors' strips fit their own lamp far better, so
+    no light is stated for the cell (one light stated for every door would be wrong for most of them)."""
+    lamps = [(-60.0, 20.0), (55.0, 30.0), (-25.0, 45.0), (70.0, 10.0), (35.0, 25.0)]
+    poses = [DoorPose(2.0, -3.0, 0.6), DoorPose(-4.0, 2.0, -1.0), DoorPose(5.0, 4.0, 1.2)]
+    frames = [
+        lit_door(a, "round", poses[k % 3], blur, 10 + k, light=lamp)
+        for k, (a, blur, lamp) in enumerate(
+            zip((2.4, 1.6, 1.2, 2.0, 1.8), (1.1, 1.3, 0.9, 1.0, 1.2), lamps, strict=True)
+        )
+    ]
+    with pytest.raises(LightNotMeasurable, match="lit from different sides"):
+        measure_cell_light(frames, dataclasses.replace(CELL, response_gamma=lit_doors.CAMERA_GAMMA))

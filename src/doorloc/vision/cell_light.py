@@ -17,6 +17,7 @@ about fifteen times the cost.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import replace
 
@@ -26,9 +27,26 @@ from doorloc.cell import Cell, DoorSize
 from doorloc.vision import light_search as ls
 from doorloc.vision.light_search import LightMeasurement, LightNotMeasurable, StripScore
 from doorloc.vision.locate import LocateTrace, locate
+from doorloc.vision.strip_response import ARC_RULED_OUT
 
 # (the measurement and its refusal are named here too: they are what a caller of measure_cell_light meets)
-__all__ = ["LightMeasurement", "LightNotMeasurable", "measure_cell_light", "rounded_strips"]
+__all__ = [
+    "DISAGREEING_DOORS",
+    "LightMeasurement",
+    "LightNotMeasurable",
+    "doors_ruling_out",
+    "measure_cell_light",
+    "own_lights",
+    "rounded_strips",
+]
+
+#: doors whose strips rule the light best for all out (:func:`doors_ruling_out`) from which the doors share
+#: no lamp. One door may do so alone where the model misses its finish or the light search misses its own
+#: lamp (on six rendered cells under a finish of power 0.5 and six of power 2, one lamp each, one door of
+#: one cell of each went 1.24 and 1.26 times past the light best for all, every other door of the twelve
+#: cells within 1.1); on six cells whose eight doors had each a lamp of its own, 3 to 5 doors of every
+#: cell did (bench/bench_cell_light.py --mixed-lights)
+DISAGREEING_DOORS = 2
 
 
 def rounded_strips(
@@ -74,6 +92,8 @@ def measure_cell_light(
     LightNotMeasurable
         No frame has a rounded arris whose strip locate could fit, or the strips fit every direction
         about alike (a diffuse light, or roundings too small to tell it): the images cannot tell the light.
+        Or ``DISAGREEING_DOORS`` doors or more rule the light best for all out (:func:`doors_ruling_out`):
+        no lamp is common to the doors.
     """
     if not any(door.arris_mm > 0 and door.arris_profile == "round" for _, door in frames):
         raise LightNotMeasurable(
@@ -89,4 +109,41 @@ def measure_cell_light(
         diffuse_share=diffuse_share,
         progress=progress,
     )
-    return ls.finer_light(strips, first, progress)
+    light = ls.finer_light(strips, first, progress)
+    ruling_out = doors_ruling_out(strips, light.direction_deg)
+    if len(ruling_out) >= DISAGREEING_DOORS:
+        az, el = light.direction_deg
+        raise LightNotMeasurable(
+            f"the doors are lit from different sides: {len(ruling_out)} of the {light.doors} doors' roundings fit "
+            f"a light of their own at least {ARC_RULED_OUT:g} times better than the one best for all (azimuth "
+            f"{az:.0f}, elevation {el:.0f} deg), so no lamp is common to them (each lit from its own side, "
+            "daylight, lamps moved between the images); leave locate.light_direction_deg unset: locate then "
+            "reads each door's own light"
+        )
+    return light
+
+
+def own_lights(strips: Sequence[Sequence[StripScore]]) -> list[LightMeasurement | None]:
+    """Per door, its rounded strips' (``strips``, per door) best light and their mean log misfit ratio under
+    it (:func:`doorloc.vision.light_search.light_from_strips` on that door alone, its grid and a quarter step
+    finer one step around the best, every direction stated); None for a door without a strip."""
+    return [
+        ls.light_from_strips([door], fine_steps=1, diffuse_share=math.inf) if door else None
+        for door in strips
+    ]
+
+
+def doors_ruling_out(strips: Sequence[Sequence[StripScore]], light: tuple[float, float]) -> list[int]:
+    """The doors (their places in ``strips``, per door its rounded strips' scores) whose strips rule
+    ``light`` ([azimuth, elevation] deg) out as locate rules an exponent out: their misfit under it
+    ``strip_response.ARC_RULED_OUT`` times or more their misfit under their own best light
+    (:func:`own_lights`). Under one lamp the light best for all is each door's own, within the light
+    search's steps (eight doors each of six rendered cells: within 1.05); of eight doors each lit from its
+    own side, the farthest of each cell's went 2.2-16 times past it."""
+    ruled_out = math.log(ARC_RULED_OUT)
+    under = ls.scores_under(strips, light)
+    return [
+        k
+        for k, (own, at) in enumerate(zip(own_lights(strips), under, strict=True))
+        if own is not None and at is not None and at - own.score > ruled_out
+    ]

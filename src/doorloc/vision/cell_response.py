@@ -22,10 +22,12 @@ on the light search's own grid): the least score lay at the camera's exponent on
 scores higher (0.05-0.39) and the curve flatter; through a lens halo the arcs fit no better than 0.76.
 
 Where the doors share no lamp (each lit from its own side, daylight through a window, lamps moved
-between them), no common light explains their strips at any exponent; then each door's strips are scored
-under the door's own best light (:func:`own_lights`), and the doors' scores, weighed by their
-strips, are averaged per exponent. One door alone tells little, but its valley lies near the camera's
-exponent, and many doors' valleys together single it out. Doors that cannot tell it are left out: those
+between them), no common light explains their strips at any exponent, or one does on average only (doors
+under ambient light, or roundings too small to tell a light, fit every direction alike and flatten the
+mean) while two doors or more rule it out (:func:`doorloc.vision.cell_light.doors_ruling_out`); then each
+door's strips are scored under the door's own best light (:func:`doorloc.vision.cell_light.own_lights`),
+and the doors' scores, weighed by their strips, are averaged per exponent. One door alone tells little,
+but its valley lies near the camera's exponent, and many doors' valleys together single it out. Doors that cannot tell it are left out: those
 whose strips no matt arc explains under any light at any exponent of the first grid (a light the search
 missed, a finish) and those whose own light is a diffuse one (ambient light, roundings too small). Measured
 before it was built (12 rounded doors each of three rendered sets, `bench/bench_arris_range.py`'s
@@ -51,7 +53,7 @@ import numpy as np
 
 from doorloc.cell import Cell, DoorSize
 from doorloc.vision import light_search as ls
-from doorloc.vision.cell_light import rounded_strips
+from doorloc.vision.cell_light import DISAGREEING_DOORS, doors_ruling_out, own_lights, rounded_strips
 from doorloc.vision.light_search import LightMeasurement
 from doorloc.vision.response import RESPONSE_PLAUSIBLE
 from doorloc.vision.strip_response import ARC_EXPLAINS, ARC_RULED_OUT
@@ -67,7 +69,6 @@ __all__ = [
     "doors_agree",
     "exponent_range",
     "measure_cell_response",
-    "own_lights",
 ]
 
 #: exponents of the first grid, spread evenly in log over ``response.RESPONSE_PLAUSIBLE`` (16 % apart)
@@ -162,9 +163,10 @@ def measure_cell_response(
     lo, hi = RESPONSE_PLAUSIBLE
     readings = _Readings(frames, cell, progress)
     readings.read(np.geomspace(lo, hi, RESPONSE_COARSE_STEPS).tolist())
-    if min(readings.scores.values()) > math.log(ARC_EXPLAINS):
-        readings.take_own_lights()  # (no common lamp explains the doors at any exponent)
     g_coarse = min(readings.scores, key=readings.scores.__getitem__)
+    if readings.scores[g_coarse] > math.log(ARC_EXPLAINS) or readings.doors_disagree_on_light(g_coarse):
+        readings.take_own_lights()  # (no common lamp explains the doors at any exponent, or some rule it out)
+        g_coarse = min(readings.scores, key=readings.scores.__getitem__)
     if not readings.own_lights:
         _not_diffuse(readings.lights[g_coarse])  # (said before the finer grid is read)
     step = (hi / lo) ** (1.0 / ((RESPONSE_COARSE_STEPS - 1) * RESPONSE_FINE_STEPS))
@@ -245,6 +247,15 @@ class _Readings:
                     f"{self.scores[g]:.3f} ({len(self.strips)} exponents tried)"
                 )
 
+    def doors_disagree_on_light(self, gamma: float) -> bool:
+        """Whether ``cell_light.DISAGREEING_DOORS`` doors or more, read with ``gamma``, rule out the light
+        common to the doors (:func:`doorloc.vision.cell_light.doors_ruling_out`): each has a lamp of its own.
+        Doors lit from many sides can still score under one light within ``ARC_EXPLAINS`` on average, where
+        doors under ambient light (whose strips fit every direction alike) or roundings too small to tell a
+        light make up much of the mean."""
+        light = self.lights[gamma].direction_deg
+        return len(doors_ruling_out(self.strips[gamma], light)) >= DISAGREEING_DOORS
+
     def take_own_lights(self) -> None:
         """Score every exponent read, and those read from now on, under each door's own light, and leave out
         the doors that tell nothing of the exponent (:func:`_tells_exponent`)."""
@@ -292,16 +303,6 @@ class _Readings:
             self.progress(
                 f"scored again on the {len(steady)} doors whose rounded strips every exponent located"
             )
-
-
-def own_lights(strips: Sequence[Sequence[ls.StripScore]]) -> list[LightMeasurement | None]:
-    """Per door, its rounded strips' (``strips``, per door) best light and their mean log misfit ratio under
-    it (:func:`doorloc.vision.light_search.light_from_strips` on that door alone, its grid and a quarter step
-    finer one step around the best, every direction stated); None for a door without a strip."""
-    return [
-        ls.light_from_strips([door], fine_steps=1, diffuse_share=math.inf) if door else None
-        for door in strips
-    ]
 
 
 def _tells_exponent(door: Sequence[LightMeasurement | None]) -> bool:

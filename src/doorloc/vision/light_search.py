@@ -33,6 +33,7 @@ __all__ = [
     "finer_light",
     "light_from_strips",
     "light_of_one_door",
+    "scores_under",
 ]
 
 #: the first grid, deg: azimuths from one side of the hinge face to the other, elevations from below the
@@ -120,6 +121,12 @@ def _scores(
         for k, (light, m) in enumerate(out.items()):
             progress(f"light [{light[0]:+.0f}, {light[1]:+.0f}] deg: {m:.3f} ({k + 1} of {len(lights)})")
     return out
+
+
+def scores_under(strips: Sequence[Sequence[StripScore]], light: tuple[float, float]) -> list[float | None]:
+    """Each door's mean log misfit ratio over its rounded strips (``strips``, per door) under one light,
+    ``light`` ([azimuth, elevation] deg, cell frame); None for a door without a strip."""
+    return [_scores([door], [light])[light] if door else None for door in strips]
 
 
 def light_from_strips(
