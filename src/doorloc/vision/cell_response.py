@@ -27,9 +27,10 @@ under ambient light, or roundings too small to tell a light, fit every direction
 mean) while two doors or more rule it out (:func:`doorloc.vision.cell_light.doors_ruling_out`); then each
 door's strips are scored under the door's own best light (:func:`doorloc.vision.cell_light.own_lights`),
 and the doors' scores, weighed by their strips, are averaged per exponent. One door alone tells little,
-but its valley lies near the camera's exponent, and many doors' valleys together single it out. Doors that cannot tell it are left out: those
-whose strips no matt arc explains under any light at any exponent of the first grid (a light the search
-missed, a finish) and those whose own light is a diffuse one (ambient light, roundings too small). Measured
+but its valley lies near the camera's exponent, and many doors' valleys together single it out. Doors
+that cannot tell it are left out: those whose strips no matt arc explains under any light at any
+exponent of the first grid (a light the search missed, a finish) and those whose own light is a diffuse
+one (ambient light, roundings too small). Measured
 before it was built (12 rounded doors each of three rendered sets, `bench/bench_arris_range.py`'s
 ``round`` draws, each door its own lamp, the cameras 1.0, 1.6 and 2.2; 13 exponents over the plausible
 range): the common light scored 0.59-1.12 everywhere (no lamp is common), and the own lights' least lay at
