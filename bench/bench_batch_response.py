@@ -98,6 +98,12 @@ def main() -> None:
                 f"measured {m.gamma:.3f}, factor {m.factor:.3f}: the camera's "
                 f"{'inside' if m.gamma / m.factor <= gamma <= m.gamma * m.factor else 'OUTSIDE'}"
                 f"{' (each door its own light)' if m.own_lights else ''}"
+                + (
+                    f"; a shoulder from {m.shoulder.knee:g} scored {m.shoulder.shouldered:.3f} against "
+                    f"{m.shoulder.plain:.3f}, doubted from {m.shoulder.doubted_from:.2f}"
+                    if m.shoulder is not None
+                    else ""
+                )
                 if m is not None
                 else f"not measured: {said.sentence}"
             )

@@ -173,14 +173,15 @@ def _response_ways(cell, frames, light, gamma):
             if r.light is not None
             else "; no light common to the doors (each door's own)"
         )
+        + (
+            f"; a shoulder from {r.shoulder.knee:g} {'ruled out' if r.shoulder.ruled_out else 'not ruled out'} "
+            f"({r.shoulder.shouldered:.3f} against {r.shoulder.plain:.3f}), doubted from {r.shoulder.doubted_from:.2f}"
+            if r.shoulder is not None
+            else ""
+        )
         + f" ({time.thread_time() - t0:.0f} s thread CPU)"
     )
-    measured = dataclasses.replace(
-        cell,
-        response_gamma=r.gamma,
-        response_gamma_sigma=r.sigma,
-        locate=dataclasses.replace(cell.locate, response_unmeasured_factor=r.factor),
-    )
+    measured = r.applied_to(cell)
     ways = {"stated (each door's own light)": (cell, cell.locate)}
     if light is not None:  # (None: the light could not be measured at the stated exponent)
         ways["stated, light measured"] = (

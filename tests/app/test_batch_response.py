@@ -26,7 +26,7 @@ from doorloc.app.cli import app
 from doorloc.cell import load_cell
 from doorloc.pose import DoorPose
 from doorloc.vision import cell_response
-from doorloc.vision.cell_response import ResponseMeasurement, ResponseNotMeasurable
+from doorloc.vision.cell_response import ResponseMeasurement, ResponseNotMeasurable, ShoulderReading
 
 _spec = importlib.util.spec_from_file_location(
     "lit_doors", Path(__file__).parents[1] / "vision" / "lit_doors.py"
@@ -99,6 +99,29 @@ def test_a_batch_takes_its_cameras_response_from_its_rounded_doors(rounded_job, 
     ]
     assert batch_response(chamfered, cell).measurement is None
     assert len(seen) == 1
+
+
+def test_a_batch_whose_doors_rule_out_a_shoulder_doubts_it_only_above_their_brightest_level(
+    rounded_job, monkeypatch
+):
+    """Where the measured doors' roundings fit a shoulder from the knee clearly worse than the power law
+    (``RESPONSE_MARGIN`` in their score), every door of the job is located with the shoulder doubted only above the brightest level those doors
+    reach, and the sentence says so; where they do not, the cell's knee stays."""
+    folder, cell_path = rounded_job
+    cell = load_cell(cell_path)
+    items = plan_folder(folder, cell)[0]
+    knee = cell.locate.response_shoulder_knee
+    for shouldered, knee_after in ((0.40, 0.93), (0.05, knee)):
+        reading = ShoulderReading(knee, 0.93, 0.02, shouldered, 1.8)
+        m = dataclasses.replace(_measured(1.0), shoulder=reading)
+        monkeypatch.setattr(
+            cell_response, "measure_cell_response", lambda frames, cell, progress=None, m=m: m
+        )
+        said = batch_response(items, cell)
+        assert said.cell.locate.response_shoulder_knee == knee_after
+        assert said.sentence is not None
+        assert ("rule out a shoulder" in said.sentence) == (knee_after != knee), said.sentence
+        assert said.cell.response_gamma == 1.812
 
 
 def test_a_batch_whose_doors_cannot_tell_keeps_the_stated_response_and_says_why(rounded_job, monkeypatch):

@@ -26,6 +26,7 @@ from doorloc.vision.cell_response import (
     RESPONSE_MARGIN,
     ResponseMeasurement,
     ResponseNotMeasurable,
+    ShoulderReading,
     doors_agree,
     exponent_range,
     measure_cell_response,
@@ -60,12 +61,47 @@ def test_the_response_of_a_cell_is_found_from_its_doors_where_the_cell_states_an
     assert RESPONSE_FACTOR_FLOOR <= m.factor <= 1.35, m
     assert measured_response_factor(m.gamma, m.sigma) == pytest.approx(m.factor)
     assert m.cell_ruled_out and m.cell_gamma == 1.0 and m.cell_score > dict(m.scores)[m.gamma]
-    assert len(heard) == len(m.scores) and heard[-1].startswith("exponent 1.000")
+    exponents = [h for h in heard if h.startswith("exponent")]
+    assert len(exponents) == len(m.scores) and exponents[-1].startswith("exponent 1.000")
+    # the faces reach 0.80 of full scale, above the knee: a shoulder from there was read, and these
+    # roundings, hardly above it, cannot rule it out (it stays doubted from the knee)
+    assert m.shoulder is not None and m.shoulder.reached == pytest.approx(0.80, abs=0.01), m.shoulder
+    assert not m.shoulder.ruled_out and m.shoulder.doubted_from == CELL.locate.response_shoulder_knee
+    assert heard[-1].startswith("through a shoulder from 0.7") and "not ruled out" in heard[-1]
     off = math.degrees(
         math.acos(min(1.0, float(direction_cell(*m.light.direction_deg) @ direction_cell(*LIGHT))))
     )
     assert off <= 15.0, m.light
     assert m.doors == 4 and m.strips >= 8
+
+
+def test_bright_doors_of_a_power_law_camera_rule_out_a_shoulder_up_to_their_brightest_level():
+    """Three roundings whose faces reach 0.95 of full scale, through a camera that keeps its power law: read
+    through a shoulder from the knee (0.7) their strips fit matt arcs far worse than read as a power law, with
+    any exponent of the measured range, so the measurement says a shoulder is doubted only above the
+    brightest level the doors reach."""
+    poses = [DoorPose(2.0, -3.0, 0.6), DoorPose(-4.0, 2.0, -1.0), DoorPose(-6.0, -5.0, -0.4)]
+    frames = [
+        lit_door(a, "round", pose, blur, seed, face_albedo=0.95)
+        for a, pose, blur, seed in zip((2.4, 1.6, 2.0), poses, (1.1, 1.3, 1.0), (1, 2, 4), strict=True)
+    ]
+    m = measure_cell_response(frames, dataclasses.replace(CELL, response_gamma=1.0))
+    assert m.gamma / m.factor <= CAMERA_GAMMA <= m.gamma * m.factor, m
+    s = m.shoulder
+    assert s is not None and s.knee == CELL.locate.response_shoulder_knee, s
+    assert s.ruled_out and s.shouldered - s.plain > 3 * RESPONSE_MARGIN, s
+    assert 0.9 <= s.reached <= 1.0 and s.doubted_from == s.reached
+
+
+def test_a_shoulder_is_ruled_out_by_its_score_and_doubted_from_the_brightest_level_then():
+    """``ShoulderReading``: ruled out where the shouldered reading scores more than ``RESPONSE_MARGIN``
+    above the plain one (as an exponent the doors rule out does); doubted from the doors' brightest level
+    then, from the knee otherwise (and never below the knee)."""
+    margin = RESPONSE_MARGIN
+    assert ShoulderReading(0.7, 0.95, 0.1, 0.1 + 1.01 * margin, 1.8).doubted_from == 0.95
+    assert ShoulderReading(0.7, 0.95, 0.1, 0.1 + 0.99 * margin, 1.8).doubted_from == 0.7
+    assert ShoulderReading(0.7, 0.95, 0.3, 0.1, 1.8).doubted_from == 0.7  # the shoulder fits better
+    assert ShoulderReading(0.8, 0.75, 0.0, 1.0, 1.8).doubted_from == 0.8
 
 
 def test_doors_that_share_no_lamp_tell_the_response_each_under_its_own_light():
@@ -224,6 +260,41 @@ def test_measure_light_response_prints_the_camera_and_light_lines_and_warns_of_a
         1.12, abs=1e-3
     )
     assert "response_gamma" in res.stderr and "outside" in res.stderr  # the fixture's cell states 1.0
+
+
+def test_measure_light_response_prints_the_shoulders_knee_where_the_doors_rule_it_out(tmp_path, monkeypatch):
+    """Doors that rule out a shoulder: the locate section gets ``response_shoulder_knee`` at the brightest
+    level they reach, beside the light's lines, and the lines load as a cell; doors that do not: no line."""
+    cell_path, folder = _cell_and_folder(tmp_path)
+    for shouldered, line in ((0.5, "response_shoulder_knee: 0.94"), (0.05, None)):
+        m = dataclasses.replace(_measured(1.0), shoulder=ShoulderReading(0.7, 0.94, 0.02, shouldered, 1.8))
+        monkeypatch.setattr(
+            cell_response, "measure_cell_response", lambda frames, cell, progress=None, m=m: m
+        )
+        res = CliRunner().invoke(app, ["measure-light", str(folder), "--cell", str(cell_path), "--response"])
+        assert res.exit_code == 0, res.output
+        add = res.stdout.split("add to")[1]
+        assert "a shoulder in the response from 0.7" in res.stdout
+        if line is None:
+            assert "response_shoulder_knee" not in add and "not ruled out" in res.stdout
+            continue
+        assert line in add and add.count("locate:") == 1
+        lines = yaml.safe_load(add.split(":", 1)[1])
+        doc = yaml.safe_load(cell_path.read_text())
+        doc["camera"].update(lines["camera"])
+        doc.setdefault("locate", {}).update(lines["locate"])
+        loaded_path = tmp_path / "measured.yaml"
+        loaded_path.write_text(yaml.safe_dump(doc))
+        cell = load_cell(loaded_path)
+        assert cell.locate.response_shoulder_knee == 0.94 and cell.locate.light_direction_deg == (-44.0, 16.0)
+    # without a common lamp, the knee alone makes the locate section
+    m = dataclasses.replace(
+        _measured(1.0), light=None, own_lights=True, shoulder=ShoulderReading(0.7, 0.94, 0.02, 0.5, 1.8)
+    )
+    monkeypatch.setattr(cell_response, "measure_cell_response", lambda frames, cell, progress=None: m)
+    res = CliRunner().invoke(app, ["measure-light", str(folder), "--cell", str(cell_path), "--response"])
+    add = res.stdout.split("add to")[1]
+    assert res.exit_code == 0 and "locate:\n  response_shoulder_knee: 0.94" in add, res.output
 
 
 def test_measure_light_response_of_doors_without_a_common_lamp_states_no_light(tmp_path, monkeypatch):

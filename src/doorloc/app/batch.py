@@ -35,7 +35,7 @@ import threading
 from collections import Counter
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from multiprocessing import get_context
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -349,7 +349,10 @@ def batch_response(
     ``BATCH_RESPONSE_DOORS`` of them, spread over the job, are read with trial exponents (a minute or two
     on one core), and every door is located with the exponent found and its range; where the doors cannot
     tell it, or only within more than ``BATCH_RESPONSE_FACTOR_MAX``, the cell stays as it is and the
-    sentence says why. ``progress`` hears the measurement's lines.
+    sentence says why. Where the doors' strips rule out a shoulder in the response
+    (:class:`doorloc.vision.cell_response.ShoulderReading`), the doors are located with the shoulder doubted
+    only above the brightest level the measured doors reached (``locate.response_shoulder_knee``).
+    ``progress`` hears the measurement's lines.
     Deterministic: a resumed job measures the same.
     """
     from doorloc.vision.cell_response import (
@@ -396,13 +399,7 @@ def batch_response(
             f"the doors tell the camera's response only within exponents {m.gamma / m.factor:.2f}-"
             f"{m.gamma * m.factor:.2f} (a factor {m.factor:.2f}, more than {BATCH_RESPONSE_FACTOR_MAX:g}): {stated}",
         )
-    measured = replace(
-        cell,
-        response_gamma=m.gamma,
-        response_gamma_sigma=m.sigma,
-        locate=replace(cell.locate, response_unmeasured_factor=m.factor),
-    )
-    return BatchResponse(measured, m, _measured_sentence(m))
+    return BatchResponse(m.applied_to(cell), m, _measured_sentence(m))
 
 
 def _rounded_doors_spread(items: list[BatchItem]) -> list[BatchItem] | None:
@@ -428,6 +425,12 @@ def _measured_sentence(m: ResponseMeasurement) -> str:
         f"cell states {m.cell_gamma:g}); every door located with it (to skip this measurement, state it in "
         f"the cell: camera.response_gamma: {m.gamma:.3f}, response_gamma_sigma: {m.sigma:.3f})"
     )
+    if m.shoulder is not None and m.shoulder.ruled_out:
+        sentence += (
+            f"; their roundings rule out a shoulder in the response from {m.shoulder.knee:g} of full scale up "
+            f"to {m.shoulder.reached:.2f}, the brightest level they reach, and a shoulder is doubted only above "
+            "it"
+        )
     if m.cell_ruled_out:
         sentence += (
             f"; warning: the cell's camera.response_gamma {m.cell_gamma:g} lies outside what the doors "

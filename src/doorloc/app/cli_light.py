@@ -62,7 +62,11 @@ def measure_light_cmd(
     except (CellFileError, batch.BatchSetupError, ImageDecodeError) as e:
         raise fail(str(e)) from None
     lines = _response_lines(r) if response else []
-    typer.echo(f"add to {cell}:\n" + "\n".join([*lines, *_light_lines(m)]))
+    light = _light_lines(m)
+    knee = _shoulder_line(r) if response else None
+    if knee is not None:
+        light = [*(light or ["locate:"]), knee]
+    typer.echo(f"add to {cell}:\n" + "\n".join([*lines, *light]))
 
 
 def _response_lines(r: ResponseMeasurement) -> list[str]:
@@ -79,6 +83,24 @@ def _response_lines(r: ResponseMeasurement) -> list[str]:
             err=True,
         )
     return ["camera:", f"  response_gamma: {r.gamma:.3f}", f"  response_gamma_sigma: {r.sigma:.3f}"]
+
+
+def _shoulder_line(r: ResponseMeasurement) -> str | None:
+    """Print what the doors said of a shoulder in the response; the locate section's line lifting its doubt
+    where they rule it out (None elsewhere)."""
+    s = r.shoulder
+    if s is None:
+        return None
+    typer.echo(
+        f"a shoulder in the response from {s.knee:g} of full scale: the roundings fit it at best at {s.shouldered:.3f} "
+        f"against {s.plain:.3f} as a power law, "
+        + (
+            f"ruled out up to {s.reached:.2f}, the brightest level of the doors"
+            if s.ruled_out
+            else "not ruled out (locate doubts it on doors whose image reaches above it)"
+        )
+    )
+    return f"  response_shoulder_knee: {s.doubted_from:.2f}" if s.ruled_out else None
 
 
 def _light_lines(m: LightMeasurement | None) -> list[str]:

@@ -42,6 +42,18 @@ wider (the grid's resolution), as its doubt, and refuses where the roundings can
 strip, a diffuse light (no common direction), a least score above ``strip_response.ARC_EXPLAINS``'s (the
 shading is no matt arc under one light at any exponent: a finish, a halo or a second lamp the model lacks),
 or a least at the end of the exponents searched.
+
+The doors can also rule out a shoulder in the response (:mod:`doorloc.vision.response_shoulder`), which a
+door located alone doubts wherever its image reaches above ``locate.response_shoulder_knee`` and its own
+strips cannot rule it out (a rounding under ambient light, or lit from the front, fits either reading
+alike). Read through a shoulder from the knee, with the measured exponent and with the two ends of its range
+(a shoulder may pass for another exponent), the doors' strips are scored as above; where the best of them still scores more than ``RESPONSE_MARGIN`` above the plain reading (as an exponent the
+doors rule out does), the camera keeps its power law up to the brightest level the doors reach
+(:class:`ShoulderReading`), and the doubt is taken from there only. Measured before it was built (the six
+jobs of ``bench/bench_batch_response.py --sets round,chamfer`` at seeds 9000 and 9100, eight rounded doors
+each, rendered with a power law, the shoulder read at the measured exponent): three jobs' doors fit the
+shoulder 1.25-1.46 times worse (mean log ratio +0.27 to +0.38 over the plain reading's, though several of
+their doors alone could not tell), three hardly worse (+0.003 to +0.037); about 10 s of locates a reading.
 """
 
 from __future__ import annotations
@@ -56,7 +68,9 @@ from doorloc.cell import Cell, DoorSize
 from doorloc.vision import light_search as ls
 from doorloc.vision.cell_light import DISAGREEING_DOORS, doors_ruling_out, own_lights, rounded_strips
 from doorloc.vision.light_search import LightMeasurement
+from doorloc.vision.luminance import luminance_plane
 from doorloc.vision.response import RESPONSE_PLAUSIBLE
+from doorloc.vision.response_shoulder import shouldered_camera
 from doorloc.vision.strip_response import ARC_EXPLAINS, ARC_RULED_OUT
 
 __all__ = [
@@ -66,6 +80,7 @@ __all__ = [
     "RESPONSE_MARGIN",
     "ResponseMeasurement",
     "ResponseNotMeasurable",
+    "ShoulderReading",
     "common_light",
     "doors_agree",
     "exponent_range",
@@ -89,6 +104,36 @@ class ResponseNotMeasurable(ValueError):
 
 
 @dataclass(frozen=True)
+class ShoulderReading:
+    """The doors read through a shoulder in the camera's response (:func:`measure_cell_response`).
+
+    ``knee``: the level (fraction of full scale) the shoulder was tried from (``locate.
+    response_shoulder_knee``); ``reached``: the brightest level of the doors' images; ``plain`` and
+    ``shouldered``: the doors' all-doors score read as a power law with the measured exponent and through the
+    shoulder with ``gamma``, the exponent of the measured range that fits it best (the same doors, the same
+    scoring as the exponents'); ``ruled_out``: whether the shouldered reading scores more than
+    ``RESPONSE_MARGIN`` above the plain one, as an exponent the doors rule out does."""
+
+    knee: float
+    reached: float
+    plain: float
+    shouldered: float
+    gamma: float
+
+    @property
+    def ruled_out(self) -> bool:
+        """Whether the doors' strips rule the shoulder out."""
+        return self.shouldered - self.plain > RESPONSE_MARGIN
+
+    @property
+    def doubted_from(self) -> float:
+        """The level from which a shoulder is still doubted (``locate.response_shoulder_knee`` for the doors
+        located with this measurement): above the brightest level the doors reached where they rule it
+        out, else from the knee tried."""
+        return max(self.knee, self.reached) if self.ruled_out else self.knee
+
+
+@dataclass(frozen=True)
 class ResponseMeasurement:
     """A camera response measured by :func:`measure_cell_response`.
 
@@ -100,7 +145,8 @@ class ResponseMeasurement:
     0: as well as a free shading), in increasing exponent; ``cell_score``: the score of the cell's own
     exponent; ``light``: the light the strips fit best read with ``gamma`` (None where the doors share no
     lamp: ``own_lights``, each door's strips scored under its own light); ``strips`` rounded strips of
-    ``doors`` doors."""
+    ``doors`` doors; ``shoulder``: the doors read through a shoulder (None where no door's image reaches
+    above ``locate.response_shoulder_knee``, or the knee is 1: no shoulder is doubted)."""
 
     gamma: float
     sigma: float
@@ -112,11 +158,24 @@ class ResponseMeasurement:
     strips: int
     doors: int
     own_lights: bool = False
+    shoulder: ShoulderReading | None = None
 
     @property
     def cell_ruled_out(self) -> bool:
         """Whether the cell's own exponent lies outside the range the doors allow."""
         return not (self.gamma / self.factor <= self.cell_gamma <= self.gamma * self.factor)
+
+    def applied_to(self, cell: Cell) -> Cell:
+        """``cell`` with this measurement: its camera's exponent and 1-sigma, the doubt of the exponent the
+        measured range (``locate.response_unmeasured_factor``), and a shoulder doubted only from where the
+        doors left it open (``locate.response_shoulder_knee``: :attr:`ShoulderReading.doubted_from`)."""
+        knee = cell.locate.response_shoulder_knee if self.shoulder is None else self.shoulder.doubted_from
+        return replace(
+            cell,
+            response_gamma=self.gamma,
+            response_gamma_sigma=self.sigma,
+            locate=replace(cell.locate, response_unmeasured_factor=self.factor, response_shoulder_knee=knee),
+        )
 
 
 def _trial_cell(cell: Cell, gamma: float) -> Cell:
@@ -180,6 +239,8 @@ def measure_cell_response(
         doors_agree(readings.own_scores, gamma)
     else:
         _not_diffuse(readings.lights[gamma])
+    ends = (gamma / factor, gamma, gamma * factor)
+    shoulder = readings.read_shoulder(gamma, ends, cell.locate.response_shoulder_knee)
     return ResponseMeasurement(
         gamma=gamma,
         sigma=(factor - 1.0) * gamma / 2.0,
@@ -191,6 +252,7 @@ def measure_cell_response(
         strips=sum(len(d) for d in strips[gamma]),
         doors=sum(1 for d in strips[gamma] if d),
         own_lights=readings.own_lights,
+        shoulder=shoulder,
     )
 
 
@@ -248,6 +310,45 @@ class _Readings:
                     f"{self.scores[g]:.3f} ({len(self.strips)} exponents tried)"
                 )
 
+    def read_shoulder(self, gamma: float, exponents: Sequence[float], knee: float) -> ShoulderReading | None:
+        """The doors read through a shoulder from ``knee`` (fraction of full scale) with each of
+        ``exponents`` (the measured range's), scored as the exponents are, the best of them against the plain
+        reading with ``gamma`` (the least) on the same doors (those whose strips both readings located
+        alike); None where the knee is 1 or no door's image reaches above it (no shoulder is doubted there),
+        or no door's strips were located alike."""
+        reached = max(_brightest(image, self.cell) for image, _ in self.frames)
+        if not (knee < 1.0 and reached > knee):
+            return None
+        plain = self.strips[gamma]
+        readings = []
+        for g in exponents:
+            bent_cell = replace(_trial_cell(self.cell, g), camera_photometry=shouldered_camera(g, knee))
+            bent = rounded_strips(self.frames, bent_cell)
+            alike = [k for k, (p, b) in enumerate(zip(plain, bent, strict=True)) if p and len(p) == len(b)]
+            if alike:
+                p_score = self._score([plain[k] for k in alike])
+                b_score = self._score([bent[k] for k in alike])
+                readings.append(ShoulderReading(knee, reached, p_score, b_score, float(g)))
+        if not readings:
+            return None
+        reading = min(readings, key=lambda r: r.shouldered - r.plain)
+        if self.progress is not None:
+            self.progress(
+                f"through a shoulder from {knee:g} of full scale the strips fit at best at {reading.shouldered:.3f} "
+                f"(exponent {reading.gamma:.3f}) against {reading.plain:.3f}: "
+                + ("ruled out" if reading.ruled_out else "not ruled out")
+                + f" up to {reached:.2f}, the brightest level of the doors"
+            )
+        return reading
+
+    def _score(self, strips: list[list[ls.StripScore]]) -> float:
+        """The all-doors score of ``strips`` (per door), as the exponents' are scored now: under their best
+        common light, or each door's under its own light, weighed by its strips."""
+        if not self.own_lights:
+            return common_light(strips).score
+        own = [None if m is None else m.score for m in own_lights(strips)]
+        return _strip_weighted_mean(own, strips)
+
     def doors_disagree_on_light(self, gamma: float) -> bool:
         """Whether ``cell_light.DISAGREEING_DOORS`` doors or more, read with ``gamma``, rule out the light
         common to the doors (:func:`doorloc.vision.cell_light.doors_ruling_out`): each has a lamp of its own.
@@ -294,6 +395,7 @@ class _Readings:
                 "no door's rounded strips were located alike with every exponent tried: the doors cannot "
                 "tell the response (check their recipes' arris sizes and the images' exposure)"
             )
+        self.frames = [self.frames[k] for k in steady]
         for g in self.strips:
             self.strips[g] = [self.strips[g][k] for k in steady]
             if self.own_lights:
@@ -304,6 +406,15 @@ class _Readings:
             self.progress(
                 f"scored again on the {len(steady)} doors whose rounded strips every exponent located"
             )
+
+
+def _brightest(image: np.ndarray, cell: Cell) -> float:
+    """The brightest level of ``image``'s luminance as locate reads it (its camera's stored bits brought to
+    full scale), a fraction of full scale: the level a door's shoulder doubt is weighed against
+    (:func:`doorloc.vision.response_shoulder.shoulder_doubted`)."""
+    plane = luminance_plane(image, cell.response_gamma, cell.stored_bits).plane
+    top = 255.0 if plane.dtype == np.uint8 else 65535.0
+    return float(plane.max()) / top
 
 
 def _tells_exponent(door: Sequence[LightMeasurement | None]) -> bool:
