@@ -105,8 +105,9 @@ def test_a_batch_whose_doors_rule_out_a_shoulder_doubts_it_only_above_their_brig
     rounded_job, monkeypatch
 ):
     """Where the measured doors' roundings fit a shoulder from the knee clearly worse than the power law
-    (``RESPONSE_MARGIN`` in their score), every door of the job is located with the shoulder doubted only above the brightest level those doors
-    reach, and the sentence says so; where they do not, the cell's knee stays."""
+    (``RESPONSE_MARGIN`` in their score), every door of the job is located with the shoulder doubted only
+    above the brightest level those doors reach, and the sentence says so; where they do not, the cell's
+    knee stays."""
     folder, cell_path = rounded_job
     cell = load_cell(cell_path)
     items = plan_folder(folder, cell)[0]

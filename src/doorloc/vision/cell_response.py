@@ -43,17 +43,18 @@ strip, a diffuse light (no common direction), a least score above ``strip_respon
 shading is no matt arc under one light at any exponent: a finish, a halo or a second lamp the model lacks),
 or a least at the end of the exponents searched.
 
-The doors can also rule out a shoulder in the response (:mod:`doorloc.vision.response_shoulder`), which a
-door located alone doubts wherever its image reaches above ``locate.response_shoulder_knee`` and its own
-strips cannot rule it out (a rounding under ambient light, or lit from the front, fits either reading
-alike). Read through a shoulder from the knee, with the measured exponent and with the two ends of its range
-(a shoulder may pass for another exponent), the doors' strips are scored as above; where the best of them still scores more than ``RESPONSE_MARGIN`` above the plain reading (as an exponent the
-doors rule out does), the camera keeps its power law up to the brightest level the doors reach
-(:class:`ShoulderReading`), and the doubt is taken from there only. Measured before it was built (the six
-jobs of ``bench/bench_batch_response.py --sets round,chamfer`` at seeds 9000 and 9100, eight rounded doors
-each, rendered with a power law, the shoulder read at the measured exponent): three jobs' doors fit the
-shoulder 1.25-1.46 times worse (mean log ratio +0.27 to +0.38 over the plain reading's, though several of
-their doors alone could not tell), three hardly worse (+0.003 to +0.037); about 10 s of locates a reading.
+The doors can also rule out a shoulder in the response (:mod:`doorloc.vision.response_shoulder`), which a door
+located alone doubts wherever its image reaches above ``locate.response_shoulder_knee`` and its own strips
+cannot rule it out (a rounding under ambient light, or lit from the front, fits either reading alike). Read
+through a shoulder from the knee, with the measured exponent and with the two ends of its range (a shoulder
+may pass for another exponent), the doors' strips are scored as above; where the best of them still scores
+more than ``RESPONSE_MARGIN`` above the plain reading (as an exponent the doors rule out does), the camera
+keeps its power law up to the brightest level the doors reach (:class:`ShoulderReading`), and the doubt is
+taken from there only. Measured before it was built (the six jobs of ``bench/bench_batch_response.py --sets
+round,chamfer`` at seeds 9000 and 9100, eight rounded doors each, rendered with a power law, the shoulder read
+at the measured exponent): three jobs' doors fit the shoulder 1.25-1.46 times worse (mean log ratio +0.27 to
++0.38 over the plain reading's, though several of their doors alone could not tell), three hardly worse
+(+0.003 to +0.037); about 10 s of locates a reading.
 """
 
 from __future__ import annotations
