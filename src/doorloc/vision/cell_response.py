@@ -327,7 +327,9 @@ class _Readings:
             bent = rounded_strips(self.frames, bent_cell)
             alike = [k for k, (p, b) in enumerate(zip(plain, bent, strict=True)) if p and len(p) == len(b)]
             if alike:
-                p_score = self._score([plain[k] for k in alike])
+                # (the plain reading's score on every door with strips is the exponent's own, already found)
+                every = len(alike) == sum(1 for p in plain if p)
+                p_score = self.scores[gamma] if every else self._score([plain[k] for k in alike])
                 b_score = self._score([bent[k] for k in alike])
                 readings.append(ShoulderReading(knee, reached, p_score, b_score, float(g)))
         if not readings:
