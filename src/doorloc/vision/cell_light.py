@@ -27,7 +27,7 @@ from doorloc.cell import Cell, DoorSize
 from doorloc.vision import light_search as ls
 from doorloc.vision.light_search import LightMeasurement, LightNotMeasurable, StripScore
 from doorloc.vision.locate import LocateTrace, locate
-from doorloc.vision.strip_response import ARC_RULED_OUT
+from doorloc.vision.strip_response import ARC_FINE_STEPS, ARC_RULED_OUT
 
 # (the measurement and its refusal are named here too: they are what a caller of measure_cell_light meets)
 __all__ = [
@@ -125,12 +125,10 @@ def measure_cell_light(
 
 def own_lights(strips: Sequence[Sequence[StripScore]]) -> list[LightMeasurement | None]:
     """Per door, its rounded strips' (``strips``, per door) best light and their mean log misfit ratio under
-    it (:func:`doorloc.vision.light_search.light_from_strips` on that door alone, its grid and a quarter step
-    finer one step around the best, every direction stated); None for a door without a strip."""
-    return [
-        ls.light_from_strips([door], fine_steps=1, diffuse_share=math.inf) if door else None
-        for door in strips
-    ]
+    it (:func:`doorloc.vision.light_search.light_of_one_door`, a quarter step finer one step around the
+    best, as an exponent's strips are scored: ``strip_response.ARC_FINE_STEPS``); None for a door without a
+    strip."""
+    return [ls.light_of_one_door(door, fine_steps=ARC_FINE_STEPS) for door in strips]
 
 
 def doors_ruling_out(strips: Sequence[Sequence[StripScore]], light: tuple[float, float]) -> list[int]:

@@ -285,12 +285,13 @@ def _finer(
     )
 
 
-def light_of_one_door(strips: Sequence[StripScore]) -> LightMeasurement | None:
+def light_of_one_door(strips: Sequence[StripScore], fine_steps: int = 2) -> LightMeasurement | None:
     """The light one door's rounded strips fit best (``locate.light_from_door``), stated even where they
     fit most directions about alike (any of them shades the strips as well); there the answer found under
     it also carries the free shadings' reading (:attr:`LightMeasurement.tells_one_direction`,
     ``doorloc.vision.locate``), since the turns of ``sigma_deg`` do not reach the other directions. None
-    where the door has no rounded strip."""
+    where the door has no rounded strip. ``fine_steps``: :func:`light_from_strips`' (a door's strips
+    scored for an exponent or against the doors' common light take 1, ``strip_response.ARC_FINE_STEPS``)."""
     if not strips:
         return None
-    return light_from_strips([strips], diffuse_share=math.inf)
+    return light_from_strips([list(strips)], fine_steps=fine_steps, diffuse_share=math.inf)

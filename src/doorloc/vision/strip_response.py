@@ -43,7 +43,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from doorloc.vision.light_search import StripScore, light_from_strips
+from doorloc.vision.light_search import StripScore, light_of_one_door
 from doorloc.vision.response import RESPONSE_PLAUSIBLE
 
 __all__ = [
@@ -92,17 +92,15 @@ INNER_STEPS = (0.5,)
 
 def arc_score(strips: Sequence[StripScore]) -> float:
     """The rounded strips' mean log misfit ratio (matt arc over free shading) under the light they fit best
-    (``light_search.light_from_strips``, every direction stated), at least 0; NaN where there is no
+    (``light_search.light_of_one_door``, every direction stated), at least 0; NaN where there is no
     rounded strip.
 
     An arc fitting better than the free shading (a ratio under 1) says the free fit missed its best place
     at that exponent, not that the exponent is right: under ambient light alone (arris bench ambient seed
     11101, a camera of 2.07) the strips read with 1.09 scored 0.80 and made a cell of 2.40, scoring 1.05,
     look 1.32 times worse."""
-    if not strips:
-        return math.nan
-    light = light_from_strips([list(strips)], fine_steps=ARC_FINE_STEPS, diffuse_share=math.inf)
-    return max(float(light.score), 0.0)
+    light = light_of_one_door(strips, fine_steps=ARC_FINE_STEPS)
+    return math.nan if light is None else max(float(light.score), 0.0)
 
 
 def grey_score(grey_misfits: Sequence[float]) -> float:
